@@ -1,0 +1,19 @@
+# Two commands do everything on a fresh machine: `make demo` (the main job) and `make test`.
+VENV ?= .venv
+PY := $(VENV)/bin/python
+DEMO_OUT ?= demo_out
+
+.PHONY: setup demo test bench clean
+
+setup:
+	EXTRAS=$(EXTRAS) bash scripts/setup.sh
+
+demo: setup
+	$(PY) -m wildgen.make --lights near_area,hdri,mixed,directional --objects 4 --images 6 --res 64 --spp 32 --seed 0 --out $(DEMO_OUT)/data
+	$(PY) -m wildgen.preview $(DEMO_OUT)/data
+
+test: setup
+	$(PY) -m pytest -q -x --durations=15 tests
+
+clean:
+	rm -rf $(DEMO_OUT) .pytest_cache

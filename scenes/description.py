@@ -1,0 +1,426 @@
+"""Scene description as plain data.
+
+Everything needed to render one object under K lightings lives in these dataclasses. They hold only
+numbers, strings and lists, round-trip through JSON exactly (`to_json` / `from_json`), and are checked
+by `validate()`; `scenes.mitsuba_build` is the only module that turns them into Mitsuba objects.
+
+Frames: the world frame is right-handed; the default camera sits on +z looking at the origin with +y up,
+so that the world frame equals the camera frame (x right, y up, z toward the camera).
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any
+
+SHAPE_KINDS = ("mesh", "sphere", "blob", "superquadric", "bumpy_sphere", "torus", "plane")
+TEXTURE_KINDS = ("constant", "noise", "cells", "stripes", "file")
+MATERIAL_KINDS = ("principled", "lambertian")
+LIGHT_TYPES = ("directional", "point", "area", "environment")
+ENVIRONMENT_SOURCES = ("file", "indoor", "sky")
+CAMERA_KINDS = ("orthographic", "perspective")
+SAMPLERS = ("multijitter", "independent", "stratified")
+
+IDENTITY4 = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
+
+
+def multijitter_spp(spp: int) -> int:
+    """The sample count Mitsuba's multijitter sampler really uses: floor(sqrt(n)) x ceil(n / floor(sqrt(n)))."""
+    rx = max(1, int(math.isqrt(spp)))
+    return rx * (-(-spp // rx))
+
+
+def _identity4() -> list[list[float]]:
+    return [row[:] for row in IDENTITY4]
+
+
+def _finite(owner: str, name: str, value: Any) -> None:
+    """Raise ValueError if `value` (number or nested list of numbers) holds NaN/inf."""
+    if isinstance(value, (list, tuple)):
+        for v in value:
+            _finite(owner, name, v)
+        return
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"{owner}.{name}: expected a number, got {value!r}")
+    if not math.isfinite(value):
+        raise ValueError(f"{owner}.{name}: expected a finite number, got {value!r}")
+
+
+def _vec(owner: str, name: str, value: Any, n: int) -> None:
+    if not isinstance(value, (list, tuple)) or len(value) != n:
+        raise ValueError(f"{owner}.{name}: expected a list of {n} numbers, got {value!r}")
+    _finite(owner, name, value)
+
+
+def _positive(owner: str, name: str, value: Any, allow_zero: bool = False) -> None:
+    _finite(owner, name, value)
+    if value < 0 or (value == 0 and not allow_zero):
+        raise ValueError(f"{owner}.{name}: expected a {'non-negative' if allow_zero else 'positive'} number, got {value!r}")
+
+
+def _matrix4(owner: str, name: str, value: Any) -> None:
+    if not isinstance(value, (list, tuple)) or len(value) != 4 or any(
+        not isinstance(r, (list, tuple)) or len(r) != 4 for r in value
+    ):
+        raise ValueError(f"{owner}.{name}: expected a 4x4 matrix (list of 4 lists of 4 numbers), got {value!r}")
+    _finite(owner, name, value)
+
+
+def _choice(owner: str, name: str, value: Any, choices: tuple[str, ...]) -> None:
+    if value not in choices:
+        raise ValueError(f"{owner}.{name}: unknown value {value!r}, expected one of {', '.join(choices)}")
+
+
+@dataclass
+class ShapeDesc:
+    """The object: a mesh file or a seeded procedural surface, placed by `to_world`."""
+
+    kind: str = "sphere"
+    """One of SHAPE_KINDS. 'sphere' is Mitsuba's analytic sphere (exact normals, used by tests)."""
+    file: str | None = None
+    """Mesh file (OBJ/PLY/STL) for kind 'mesh'; relative paths resolve against the scene's base folder."""
+    seed: int = 0
+    """Seed of the procedural generator (ignored for 'mesh' and 'sphere')."""
+    params: dict[str, float] = field(default_factory=dict)
+    """Procedural parameters (see scenes.procedural); missing ones take seeded random values."""
+    resolution: int = 96
+    """Tessellation of procedural shapes: rings of the (u, v) grid (segments are 2x)."""
+    normalize: bool = True
+    """Centre the mesh and scale it into the unit sphere before `to_world`."""
+    to_world: list[list[float]] = field(default_factory=_identity4)
+    """4x4 object-to-world matrix (row-major) applied after normalisation."""
+
+    def validate(self) -> None:
+        _choice("shape", "kind", self.kind, SHAPE_KINDS)
+        if self.kind == "mesh" and not self.file:
+            raise ValueError("shape.file: kind 'mesh' needs a mesh file path, got None")
+        if not isinstance(self.resolution, int) or self.resolution < 4:
+            raise ValueError(f"shape.resolution: expected an integer >= 4, got {self.resolution!r}")
+        for k, v in self.params.items():
+            _finite("shape.params", k, v)
+        _matrix4("shape", "to_world", self.to_world)
+
+
+@dataclass
+class TextureDesc:
+    """A scalar or RGB texture: constant, seeded procedural pattern, or image file."""
+
+    kind: str = "constant"
+    """One of TEXTURE_KINDS."""
+    value: list[float] = field(default_factory=lambda: [0.5, 0.5, 0.5])
+    """Constant value, or the first colour of a pattern (1 entry for scalar maps, 3 for colour)."""
+    value2: list[float] | None = None
+    """Second colour of a pattern (same length as `value`)."""
+    scale: float = 4.0
+    """Pattern frequency in cycles per unit of texture coordinate."""
+    seed: int = 0
+    """Seed of the pattern."""
+    resolution: int = 256
+    """Side of the texture image realised from a pattern, in texels."""
+    file: str | None = None
+    """Image file for kind 'file' (EXR/PNG/JPG); relative paths resolve against the base folder."""
+    channel: int | None = None
+    """For kind 'file' and scalar maps: which channel of the image to use (e.g. 1 = G of an ARM map)."""
+    srgb: bool = False
+    """For kind 'file': decode sRGB to linear (colour photographs); False for data maps."""
+
+    def validate(self, owner: str) -> None:
+        _choice(owner, "kind", self.kind, TEXTURE_KINDS)
+        if not isinstance(self.value, list) or len(self.value) not in (1, 3):
+            raise ValueError(f"{owner}.value: expected a list of 1 or 3 numbers, got {self.value!r}")
+        _finite(owner, "value", self.value)
+        if self.value2 is not None:
+            if len(self.value2) != len(self.value):
+                raise ValueError(f"{owner}.value2: expected {len(self.value)} numbers, got {self.value2!r}")
+            _finite(owner, "value2", self.value2)
+        _positive(owner, "scale", self.scale)
+        if not isinstance(self.resolution, int) or self.resolution < 1:
+            raise ValueError(f"{owner}.resolution: expected a positive integer, got {self.resolution!r}")
+        if self.kind == "file" and not self.file:
+            raise ValueError(f"{owner}.file: kind 'file' needs an image path, got None")
+
+
+@dataclass
+class MaterialDesc:
+    """Principled BSDF with spatially varying maps, or a plain Lambertian (tests)."""
+
+    kind: str = "principled"
+    """'principled' or 'lambertian' (Mitsuba `diffuse`: base_color is the albedo)."""
+    material_class: str = "diffuse"
+    """The class it was sampled from: diffuse / specular / metallic (informational)."""
+    base_color: TextureDesc = field(default_factory=TextureDesc)
+    """Base colour (albedo), linear RGB."""
+    roughness: TextureDesc = field(default_factory=lambda: TextureDesc(value=[0.5]))
+    """Principled roughness in [0, 1]."""
+    metallic: TextureDesc = field(default_factory=lambda: TextureDesc(value=[0.0]))
+    """Principled metallic in [0, 1]."""
+    specular: float = 0.5
+    """Principled specular (dielectric reflectance control)."""
+    normal_map: str | None = None
+    """Optional tangent-space normal map file (OpenGL convention, (n+1)/2)."""
+
+    def validate(self) -> None:
+        _choice("material", "kind", self.kind, MATERIAL_KINDS)
+        self.base_color.validate("material.base_color")
+        self.roughness.validate("material.roughness")
+        self.metallic.validate("material.metallic")
+        _positive("material", "specular", self.specular, allow_zero=True)
+
+
+@dataclass
+class LightDesc:
+    """One light of one image. Unused fields for a type keep their defaults.
+
+    directional: `direction` (of travel), `irradiance` (W/m^2 on a facing surface) x `color`.
+    point:       `position`, `intensity` (W/sr) x `color`.
+    area:        rectangle at `position` facing `target`, `width` x `height`, `radiance` x `color`.
+    environment: the scene's environment map, rotated by `to_world`, multiplied by `scale`.
+    """
+
+    type: str = "directional"
+    """One of LIGHT_TYPES."""
+    color: list[float] = field(default_factory=lambda: [1.0, 1.0, 1.0])
+    """Linear RGB tint (e.g. from a colour temperature), multiplied with the strength."""
+    direction: list[float] = field(default_factory=lambda: [0.0, 0.0, -1.0])
+    """directional: direction of travel (from the light toward the scene)."""
+    irradiance: float = 1.0
+    """directional: irradiance."""
+    position: list[float] = field(default_factory=lambda: [0.0, 0.0, 3.0])
+    """point / area: position in world space."""
+    intensity: float = 1.0
+    """point: radiant intensity."""
+    target: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    """area: point the rectangle faces."""
+    up: list[float] = field(default_factory=lambda: [0.0, 1.0, 0.0])
+    """area: up vector of the rectangle's frame."""
+    width: float = 0.5
+    """area: side along the rectangle's local x."""
+    height: float = 0.5
+    """area: side along the rectangle's local y."""
+    radiance: float = 1.0
+    """area: emitted radiance."""
+    to_world: list[list[float]] = field(default_factory=_identity4)
+    """environment: rotation of the map (4x4)."""
+    scale: float = 1.0
+    """environment: multiplier of the map."""
+    temperature_k: float | None = None
+    """Colour temperature the colour came from, if any (informational)."""
+
+    def validate(self, owner: str) -> None:
+        _choice(owner, "type", self.type, LIGHT_TYPES)
+        _vec(owner, "color", self.color, 3)
+        if min(self.color) < 0:
+            raise ValueError(f"{owner}.color: expected non-negative values, got {self.color!r}")
+        if self.type == "directional":
+            _vec(owner, "direction", self.direction, 3)
+            if sum(c * c for c in self.direction) < 1e-12:
+                raise ValueError(f"{owner}.direction: expected a non-zero vector, got {self.direction!r}")
+            _positive(owner, "irradiance", self.irradiance, allow_zero=True)
+        elif self.type == "point":
+            _vec(owner, "position", self.position, 3)
+            _positive(owner, "intensity", self.intensity, allow_zero=True)
+        elif self.type == "area":
+            _vec(owner, "position", self.position, 3)
+            _vec(owner, "target", self.target, 3)
+            _vec(owner, "up", self.up, 3)
+            _positive(owner, "width", self.width)
+            _positive(owner, "height", self.height)
+            _positive(owner, "radiance", self.radiance, allow_zero=True)
+        else:
+            _matrix4(owner, "to_world", self.to_world)
+            _positive(owner, "scale", self.scale, allow_zero=True)
+
+
+@dataclass
+class EnvironmentDesc:
+    """The object's environment map (shared by its images; each image rotates and scales it)."""
+
+    source: str = "indoor"
+    """'file' (.hdr/.exr), 'indoor' (procedural windows and lamps) or 'sky' (procedural sky and sun)."""
+    file: str | None = None
+    """Map file for source 'file'; relative paths resolve against the base folder."""
+    seed: int = 0
+    """Seed of a procedural map."""
+    width: int = 256
+    """Width of a procedural map (height is width / 2)."""
+
+    def validate(self) -> None:
+        _choice("environment", "source", self.source, ENVIRONMENT_SOURCES)
+        if self.source == "file" and not self.file:
+            raise ValueError("environment.file: source 'file' needs a .hdr/.exr path, got None")
+        if not isinstance(self.width, int) or self.width < 8:
+            raise ValueError(f"environment.width: expected an integer >= 8, got {self.width!r}")
+
+
+@dataclass
+class CameraDesc:
+    """Sensor: orthographic (the model's assumption) or perspective, looking at `target`."""
+
+    kind: str = "orthographic"
+    """'orthographic' or 'perspective'."""
+    origin: list[float] = field(default_factory=lambda: [0.0, 0.0, 4.0])
+    """Camera position."""
+    target: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    """Point looked at."""
+    up: list[float] = field(default_factory=lambda: [0.0, 1.0, 0.0])
+    """Up vector."""
+    half_size: float = 1.0
+    """orthographic: the visible square is [-half_size, half_size]^2 around the target."""
+    fov: float = 30.0
+    """perspective: full horizontal field of view in degrees."""
+    width: int = 64
+    """Image width in pixels."""
+    height: int = 64
+    """Image height in pixels."""
+
+    def validate(self) -> None:
+        _choice("camera", "kind", self.kind, CAMERA_KINDS)
+        _vec("camera", "origin", self.origin, 3)
+        _vec("camera", "target", self.target, 3)
+        _vec("camera", "up", self.up, 3)
+        _positive("camera", "half_size", self.half_size)
+        _positive("camera", "fov", self.fov)
+        if self.fov >= 180:
+            raise ValueError(f"camera.fov: expected less than 180 degrees, got {self.fov!r}")
+        for name in ("width", "height"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
+                raise ValueError(f"camera.{name}: expected a positive integer, got {v!r}")
+
+
+@dataclass
+class RenderDesc:
+    """Path tracer settings shared by the images of one object."""
+
+    spp: int = 64
+    """Samples per pixel."""
+    bounces: int = 10
+    """Indirect bounces as Blender counts them; Mitsuba's max_depth = bounces + 2 (see `max_depth`)."""
+    sampler: str = "multijitter"
+    """Mitsuba sampler; the stratified 'multijitter' needs 3-7x fewer samples than 'independent'."""
+    gt_spp: int = 16
+    """Samples per pixel of the ground-truth pass (normals, mask, depth, material maps)."""
+
+    @property
+    def max_depth(self) -> int:
+        """Mitsuba counts the camera segment and the final segment to the light: 10 bounces = 12."""
+        return self.bounces + 2
+
+    def validate(self) -> None:
+        for name in ("spp", "gt_spp"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
+                raise ValueError(f"render.{name}: expected a positive integer, got {v!r}")
+        if isinstance(self.bounces, bool) or not isinstance(self.bounces, int) or self.bounces < 0:
+            raise ValueError(f"render.bounces: expected a non-negative integer, got {self.bounces!r}")
+        _choice("render", "sampler", self.sampler, SAMPLERS)
+
+
+@dataclass
+class ImageDesc:
+    """The lighting of one image and how it is rendered and exposed."""
+
+    lights: list[LightDesc] = field(default_factory=list)
+    """Lights present in this image (world frame)."""
+    seed: int = 0
+    """Sampler seed of this image (re-rendering with it reproduces the same noise)."""
+    exposure: float = 1.0
+    """Factor applied to the linear radiance before quantisation."""
+
+    def validate(self, index: int) -> None:
+        if not self.lights:
+            raise ValueError(f"images[{index}].lights: expected at least one light, got none")
+        n_env = 0
+        for j, light in enumerate(self.lights):
+            if not isinstance(light, LightDesc):
+                raise ValueError(f"images[{index}].lights[{j}]: expected a LightDesc, got {type(light).__name__}")
+            light.validate(f"images[{index}].lights[{j}]")
+            n_env += light.type == "environment"
+        if n_env > 1:
+            raise ValueError(f"images[{index}].lights: at most one environment light per image, got {n_env}")
+        _positive(f"images[{index}]", "exposure", self.exposure)
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise ValueError(f"images[{index}].seed: expected a non-negative integer, got {self.seed!r}")
+
+
+@dataclass
+class SceneDescription:
+    """One object, its material, the camera, and the lighting of each of its K images."""
+
+    shape: ShapeDesc = field(default_factory=ShapeDesc)
+    material: MaterialDesc = field(default_factory=MaterialDesc)
+    camera: CameraDesc = field(default_factory=CameraDesc)
+    render: RenderDesc = field(default_factory=RenderDesc)
+    images: list[ImageDesc] = field(default_factory=list)
+    environment: EnvironmentDesc | None = None
+    """Environment map used by the images' 'environment' lights (required if any image has one)."""
+    light_family: str = "custom"
+    """Lighting family the images were sampled from (directional, point, near_area, hdri, mixed)."""
+    name: str = "object"
+    """Object name (folder name without '.data')."""
+
+    def validate(self) -> "SceneDescription":
+        """Check every field; raise ValueError naming the first bad one. Returns self."""
+        self.shape.validate()
+        self.material.validate()
+        self.camera.validate()
+        self.render.validate()
+        if not self.images:
+            raise ValueError("images: expected at least one image, got an empty list")
+        for i, image in enumerate(self.images):
+            image.validate(i)
+        uses_env = any(l.type == "environment" for im in self.images for l in im.lights)
+        if uses_env and self.environment is None:
+            raise ValueError("environment: images use an 'environment' light but no environment map is given")
+        if self.environment is not None:
+            self.environment.validate()
+        return self
+
+    # --- JSON -------------------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    def to_json(self, indent: int | None = 1) -> str:
+        return json.dumps(self.to_dict(), indent=indent, sort_keys=True, allow_nan=False)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "SceneDescription":
+        return _from_dict(cls, d, "scene")
+
+    @classmethod
+    def from_json(cls, text: str) -> "SceneDescription":
+        return cls.from_dict(json.loads(text))
+
+
+_NESTED = {
+    "shape": ShapeDesc,
+    "material": MaterialDesc,
+    "camera": CameraDesc,
+    "render": RenderDesc,
+    "environment": EnvironmentDesc,
+    "base_color": TextureDesc,
+    "roughness": TextureDesc,
+    "metallic": TextureDesc,
+}
+
+
+def _from_dict(cls: type, d: Any, owner: str) -> Any:
+    """Build dataclass `cls` from a JSON dict, rejecting unknown keys by name."""
+    if not isinstance(d, dict):
+        raise ValueError(f"{owner}: expected an object, got {type(d).__name__}")
+    names = {f.name for f in fields(cls)}
+    unknown = sorted(set(d) - names)
+    if unknown:
+        raise ValueError(f"{owner}: unknown field(s) {unknown}, expected some of {sorted(names)}")
+    kwargs: dict[str, Any] = {}
+    for key, value in d.items():
+        if key == "images" and cls is SceneDescription:
+            kwargs[key] = [_from_dict(ImageDesc, v, f"images[{i}]") for i, v in enumerate(value)]
+        elif key == "lights" and cls is ImageDesc:
+            kwargs[key] = [_from_dict(LightDesc, v, f"{owner}.lights[{i}]") for i, v in enumerate(value)]
+        elif key in _NESTED and value is not None and not (cls is LightDesc):
+            kwargs[key] = _from_dict(_NESTED[key], value, f"{owner}.{key}" if owner != "scene" else key)
+        else:
+            kwargs[key] = value
+    return cls(**kwargs)

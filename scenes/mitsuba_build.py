@@ -1,0 +1,343 @@
+"""The only module that turns a `SceneDescription` into Mitsuba objects.
+
+One Mitsuba scene is built per object. It holds a fixed set of light *slots* (the most directional,
+point and area lights any of its images uses, plus the environment map if any image uses it); each
+image's lighting is applied by writing the slots through `mi.traverse`, so changing the image never
+rebuilds the scene or recompiles a kernel. Slots an image does not use get zero strength and zero
+sampling weight; unused area-light rectangles are also shrunk and parked far away, because the
+rectangle is a real surface that would otherwise cast a shadow.
+
+Requires a Mitsuba variant to be set by the caller (see `scenes.variant`).
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from scenes.description import LightDesc, SceneDescription, TextureDesc
+from scenes.envmaps import realize_environment
+from scenes.procedural import MeshData, generate
+from scenes.textures import realize_texture
+
+log = logging.getLogger(__name__)
+
+PARK_POSITION = [0.0, 1.0e5, 0.0]  # where unused area lights wait: far above, invisibly small
+PARK_SCALE = 1.0e-6
+
+
+def _mi():
+    import mitsuba as mi
+
+    if mi.variant() is None:
+        raise RuntimeError("no Mitsuba variant is set: call scenes.variant.set_variant() in the entry point")
+    return mi
+
+
+def camera_rotation(origin, target, up) -> np.ndarray:
+    """3x3 matrix R with n_cam = R @ n_world for the camera frame x right, y up, z toward the camera."""
+    origin, target, up = (np.asarray(v, np.float64) for v in (origin, target, up))
+    fwd = target - origin
+    fwd /= np.linalg.norm(fwd)
+    left = np.cross(up, fwd)
+    n = np.linalg.norm(left)
+    if n < 1e-9:
+        raise ValueError(f"camera.up: {up.tolist()} is parallel to the viewing direction")
+    left /= n
+    upv = np.cross(fwd, left)
+    return np.stack([-left, upv, -fwd])
+
+
+def mesh_data_for(desc: SceneDescription, base_dir: Path | None) -> MeshData | None:
+    """Geometry of a mesh or procedural shape in object space (None for the analytic sphere)."""
+    from scenes.meshes import load_mesh
+
+    shape = desc.shape
+    if shape.kind == "sphere":
+        return None
+    if shape.kind == "mesh":
+        path = Path(shape.file)
+        if not path.is_absolute() and base_dir is not None:
+            path = base_dir / path
+        return load_mesh(path, normalize=shape.normalize)
+    data = generate(shape.kind, shape.seed, shape.resolution, shape.params)
+    if shape.normalize:
+        from scenes.meshes import normalize_mesh
+
+        data = normalize_mesh(data.positions.astype(np.float64), data.faces, data.normals, data.uvs)
+    return data
+
+
+def transformed_mesh(data: MeshData, to_world: list[list[float]]) -> MeshData:
+    """Apply a 4x4 transform to positions (affine) and normals (inverse transpose)."""
+    m = np.asarray(to_world, np.float64)
+    pos = data.positions.astype(np.float64) @ m[:3, :3].T + m[:3, 3]
+    nrm = data.normals.astype(np.float64) @ np.linalg.inv(m[:3, :3])
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12)
+    return MeshData(pos.astype(np.float32), data.faces, nrm.astype(np.float32), data.uvs)
+
+
+def _texture_dict(tex: TextureDesc, base_dir: Path | None) -> tuple[dict | float, np.ndarray]:
+    mi = _mi()
+    arr = realize_texture(tex, base_dir)
+    if tex.kind == "constant":
+        if arr.shape[2] == 1:
+            return float(arr[0, 0, 0]), arr
+        return {"type": "rgb", "value": arr[0, 0].tolist()}, arr
+    return {"type": "bitmap", "data": mi.TensorXf(arr), "raw": True, "filter_type": "bilinear", "wrap_mode": "repeat"}, arr
+
+
+def bsdf_dict(desc: SceneDescription, base_dir: Path | None) -> tuple[dict, dict[str, np.ndarray]]:
+    """Mitsuba BSDF dict of the object's material, and the realised texture arrays (for ground truth)."""
+    mat = desc.material
+    base, base_arr = _texture_dict(mat.base_color, base_dir)
+    arrays = {"base_color": base_arr}
+    d: dict[str, Any]
+    if mat.kind == "lambertian":
+        arrays["roughness"] = np.ones((1, 1, 1), np.float32)
+        arrays["metallic"] = np.zeros((1, 1, 1), np.float32)
+        d = {"type": "diffuse", "reflectance": base}
+    else:
+        rough, arrays["roughness"] = _texture_dict(mat.roughness, base_dir)
+        metal, arrays["metallic"] = _texture_dict(mat.metallic, base_dir)
+        d = {"type": "principled", "base_color": base, "roughness": rough, "metallic": metal, "specular": float(mat.specular)}
+    if mat.normal_map:
+        mi = _mi()
+        nm_arr = realize_texture(TextureDesc(kind="file", value=[0.5, 0.5, 1.0], file=mat.normal_map), base_dir)
+        arrays["normal_map"] = nm_arr
+        # Textbook shading max(0, n'.l): no microfacet shadowing term on the perturbed normal.
+        d = {
+            "type": "normalmap",
+            "normalmap": {"type": "bitmap", "data": mi.TensorXf(nm_arr), "raw": True, "filter_type": "bilinear"},
+            "use_shadowing_function": False,
+            "bsdf": d,
+        }
+    return d, arrays
+
+
+@dataclass
+class LightSlots:
+    """How many Mitsuba emitters of each kind the scene holds."""
+
+    directional: int = 0
+    point: int = 0
+    area: int = 0
+    environment: int = 0
+
+    @classmethod
+    def for_description(cls, desc: SceneDescription) -> "LightSlots":
+        slots = cls()
+        for image in desc.images:
+            counts = {t: sum(l.type == t for l in image.lights) for t in ("directional", "point", "area", "environment")}
+            for t, c in counts.items():
+                setattr(slots, t, max(getattr(slots, t), c))
+        return slots
+
+
+@dataclass
+class BuiltScene:
+    """A Mitsuba scene for one object plus what is needed to relight it per image."""
+
+    desc: SceneDescription
+    scene: Any
+    params: Any
+    slots: LightSlots
+    textures: dict[str, np.ndarray] = field(default_factory=dict)
+    """Realised material maps (H, W, C) in Mitsuba's texture orientation, for ground-truth maps."""
+    environment: np.ndarray | None = None
+    """The environment map array (H, W, 3), if any."""
+    current_image: int | None = None
+
+    def apply_image(self, index: int) -> None:
+        """Write the lights of image `index` into the slots (no rebuild, no recompilation)."""
+        if not 0 <= index < len(self.desc.images):
+            raise ValueError(f"image index: {index} out of range for {len(self.desc.images)} images")
+        _apply_lights(self.params, self.slots, self.desc.images[index].lights)
+        self.current_image = index
+
+    def park_lights(self) -> None:
+        """Switch every light off and move area-light rectangles out of view (ground-truth pass)."""
+        _apply_lights(self.params, self.slots, [])
+        self.current_image = None
+
+
+def _rgb(strength: float, color: list[float]) -> list[float]:
+    return [float(strength) * float(c) for c in color]
+
+
+def _apply_lights(params: Any, slots: LightSlots, lights: list[LightDesc]) -> None:
+    mi = _mi()
+    T = mi.ScalarTransform4f
+    by_type: dict[str, list[LightDesc]] = {"directional": [], "point": [], "area": [], "environment": []}
+    for light in lights:
+        by_type[light.type].append(light)
+    # Unused slots get no samples, unless no light is on at all (Mitsuba needs some sampling mass).
+    off_weight = 0.0 if lights else 1.0
+    for k in range(slots.directional):
+        key = f"light_directional_{k}"
+        if k < len(by_type["directional"]):
+            l = by_type["directional"][k]
+            d = np.asarray(l.direction, np.float64)
+            d /= np.linalg.norm(d)
+            up = [0.0, 1.0, 0.0] if abs(d[1]) < 0.99 else [1.0, 0.0, 0.0]
+            params[f"{key}.to_world"] = _opaque(mi.AffineTransform4f(T().look_at(origin=[0, 0, 0], target=d.tolist(), up=up)))
+            params[f"{key}.irradiance.value"] = _opaque(mi.Color3f(_rgb(l.irradiance, l.color)))
+            params[f"{key}.sampling_weight"] = 1.0
+        else:
+            params[f"{key}.irradiance.value"] = _opaque(mi.Color3f(0.0))
+            params[f"{key}.sampling_weight"] = off_weight
+    for k in range(slots.point):
+        key = f"light_point_{k}"
+        if k < len(by_type["point"]):
+            l = by_type["point"][k]
+            params[f"{key}.position"] = _opaque(mi.Point3f(l.position))
+            params[f"{key}.intensity.value"] = _opaque(mi.Color3f(_rgb(l.intensity, l.color)))
+            params[f"{key}.sampling_weight"] = 1.0
+        else:
+            params[f"{key}.intensity.value"] = _opaque(mi.Color3f(0.0))
+            params[f"{key}.sampling_weight"] = off_weight
+    for k in range(slots.area):
+        key = f"light_area_{k}"
+        if k < len(by_type["area"]):
+            l = by_type["area"][k]
+            params[f"{key}.to_world"] = _opaque(mi.AffineTransform4f(area_light_transform(l)))
+            params[f"{key}.emitter.radiance.value"] = _opaque(mi.Color3f(_rgb(l.radiance, l.color)))
+            params[f"{key}.emitter.sampling_weight"] = 1.0
+        else:
+            params[f"{key}.to_world"] = _opaque(mi.AffineTransform4f(
+                T().translate(PARK_POSITION) @ T().scale([PARK_SCALE, PARK_SCALE, PARK_SCALE])
+            ))
+            params[f"{key}.emitter.radiance.value"] = _opaque(mi.Color3f(0.0))
+            params[f"{key}.emitter.sampling_weight"] = off_weight
+    if slots.environment:
+        key = "light_environment"
+        if by_type["environment"]:
+            l = by_type["environment"][0]
+            params[f"{key}.to_world"] = _opaque(mi.AffineTransform4f(mi.ScalarTransform4f(np.asarray(l.to_world, np.float64))))
+            params[f"{key}.scale"] = _opaque(mi.Float(float(l.scale)))
+            params[f"{key}.sampling_weight"] = 1.0
+        else:
+            params[f"{key}.scale"] = _opaque(mi.Float(0.0))
+            params[f"{key}.sampling_weight"] = off_weight
+    params.update()
+
+
+def _opaque(value):
+    """Make a JIT value opaque, so a new light setting does not bake new literals into (and recompile) the kernel."""
+    import drjit as dr
+
+    dr.make_opaque(value)
+    return value
+
+
+def area_light_transform(light: LightDesc):
+    """Rectangle ([-1,1]^2, emitting along +z) at `position` facing `target`, sized width x height."""
+    mi = _mi()
+    T = mi.ScalarTransform4f
+    pos = np.asarray(light.position, np.float64)
+    fwd = np.asarray(light.target, np.float64) - pos
+    up = np.asarray(light.up, np.float64)
+    if np.linalg.norm(np.cross(fwd, up)) < 1e-9 * max(np.linalg.norm(fwd), 1e-12):
+        up = np.array([1.0, 0.0, 0.0]) if abs(fwd[0]) < 0.9 * np.linalg.norm(fwd) else np.array([0.0, 0.0, 1.0])
+    return T().look_at(origin=pos.tolist(), target=light.target, up=up.tolist()) @ T().scale(
+        [light.width / 2, light.height / 2, 1.0]
+    )
+
+
+def sensor_dict(desc: SceneDescription, spp: int) -> dict:
+    mi = _mi()
+    T = mi.ScalarTransform4f
+    cam = desc.camera
+    look = T().look_at(origin=cam.origin, target=cam.target, up=cam.up)
+    film = {
+        "type": "hdrfilm",
+        "width": cam.width,
+        "height": cam.height,
+        "rfilter": {"type": "box"},
+        "pixel_format": "rgba",
+        "sample_border": False,
+    }
+    sampler = {"type": desc.render.sampler, "sample_count": spp}
+    if cam.kind == "orthographic":
+        return {"type": "orthographic", "to_world": look @ T().scale([cam.half_size, cam.half_size, 1.0]), "film": film, "sampler": sampler}
+    return {"type": "perspective", "to_world": look, "fov": cam.fov, "fov_axis": "x", "film": film, "sampler": sampler}
+
+
+def build_scene(desc: SceneDescription, base_dir: str | Path | None = None, bsdf_wrapper=None) -> BuiltScene:
+    """Build the Mitsuba scene of `desc`. Relative file paths resolve against `base_dir`.
+
+    `bsdf_wrapper(bsdf_dict) -> dict`, if given, wraps the object's BSDF (the re-render check uses it).
+    """
+    mi = _mi()
+    T = mi.ScalarTransform4f
+    desc.validate()
+    base = Path(base_dir) if base_dir is not None else None
+    bsdf, arrays = bsdf_dict(desc, base)
+    if bsdf_wrapper is not None:
+        bsdf = bsdf_wrapper(bsdf)
+    scene: dict[str, Any] = {
+        "type": "scene",
+        "integrator": {"type": "path", "max_depth": desc.render.max_depth},
+        "sensor": sensor_dict(desc, desc.render.spp),
+    }
+    data = mesh_data_for(desc, base)
+    if data is None:
+        scene["object"] = {"type": "sphere", "to_world": T(np.asarray(desc.shape.to_world, np.float64)), "bsdf": bsdf}
+    else:
+        scene["object"] = make_mesh("object", transformed_mesh(data, desc.shape.to_world), bsdf)
+    slots = LightSlots.for_description(desc)
+    for k in range(slots.directional):
+        scene[f"light_directional_{k}"] = {"type": "directional", "direction": [0, 0, -1], "irradiance": {"type": "rgb", "value": 0.0}}
+    for k in range(slots.point):
+        scene[f"light_point_{k}"] = {"type": "point", "position": [0, 0, 3], "intensity": {"type": "rgb", "value": 0.0}}
+    for k in range(slots.area):
+        scene[f"light_area_{k}"] = {
+            "type": "rectangle",
+            "to_world": T().translate(PARK_POSITION) @ T().scale([PARK_SCALE, PARK_SCALE, PARK_SCALE]),
+            "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.0}},
+            "emitter": {"type": "area", "radiance": {"type": "rgb", "value": 0.0}},
+        }
+    env_arr = None
+    if slots.environment:
+        env_arr = realize_environment(desc.environment, base)
+        scene["light_environment"] = {"type": "envmap", "bitmap": mi.Bitmap(env_arr), "scale": 0.0}
+    loaded = mi.load_dict(scene)
+    built = BuiltScene(desc=desc, scene=loaded, params=mi.traverse(loaded), slots=slots, textures=arrays, environment=env_arr)
+    built.apply_image(0)
+    return built
+
+
+def make_mesh(name: str, data: MeshData, bsdf: dict | Any):
+    """In-memory Mitsuba mesh from arrays, with vertex normals and texture coordinates."""
+    mi = _mi()
+    import drjit as dr
+
+    props = mi.Properties()
+    props["bsdf"] = mi.load_dict(bsdf) if isinstance(bsdf, dict) else bsdf
+    mesh = mi.Mesh(name, len(data.positions), len(data.faces), props, True, True)
+    p = mi.traverse(mesh)
+    p["vertex_positions"] = dr.ravel(mi.Point3f(np.ascontiguousarray(data.positions.T, dtype=np.float32)))
+    p["faces"] = dr.ravel(mi.Vector3u(np.ascontiguousarray(data.faces.T, dtype=np.uint32)))
+    p["vertex_normals"] = dr.ravel(mi.Normal3f(np.ascontiguousarray(data.normals.T, dtype=np.float32)))
+    p["vertex_texcoords"] = dr.ravel(mi.Point2f(np.ascontiguousarray(data.uvs.T, dtype=np.float32)))
+    p.update()
+    return mesh
+
+
+def write_mesh_ply(path: str | Path, data: MeshData) -> None:
+    """Binary little-endian PLY with positions, normals and UVs (read back by `scenes.meshes`)."""
+    n, f = len(data.positions), len(data.faces)
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"element vertex {n}\nproperty float x\nproperty float y\nproperty float z\n"
+        "property float nx\nproperty float ny\nproperty float nz\nproperty float s\nproperty float t\n"
+        f"element face {f}\nproperty list uchar int vertex_indices\nend_header\n"
+    ).encode("ascii")
+    verts = np.concatenate([data.positions, data.normals, data.uvs], 1).astype("<f4")
+    faces = np.zeros(f, dtype=[("n", "u1"), ("idx", "<i4", (3,))])
+    faces["n"] = 3
+    faces["idx"] = data.faces
+    Path(path).write_bytes(header + verts.tobytes() + faces.tobytes())

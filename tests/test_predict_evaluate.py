@@ -1,0 +1,252 @@
+"""The predict and evaluate CLIs end to end on object folders written here."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from unips import evaluate as ev
+from unips import predict as pr
+from unips.normal_io import mean_angular_error, read_normals, write_normal_exr, write_normal_png
+
+
+def sphere(size: int):
+    rows, cols = np.mgrid[0:size, 0:size]
+    r = size / 2 - 2
+    x = (cols + 0.5 - size / 2) / r
+    y = -(rows + 0.5 - size / 2) / r
+    mask = x * x + y * y < 1.0
+    n = np.stack([x, y, np.sqrt(np.clip(1 - x * x - y * y, 0, None))], axis=-1)
+    n[~mask] = 0
+    return n, mask
+
+
+def lights(k: int, seed: int, max_deg: float = 30.0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    th = np.radians(rng.uniform(5.0, max_deg, k))
+    ph = rng.uniform(0.0, 2 * np.pi, k)
+    return np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], axis=1)
+
+
+def write_png16(path: Path, rgb: np.ndarray) -> None:
+    assert cv2.imwrite(str(path), np.round(np.clip(rgb, 0, 1) * 65535).astype(np.uint16)[..., ::-1])
+
+
+def write_ours(folder: Path, size: int = 32, k: int = 8, seed: int = 0, family: str = "directional"):
+    """Our layout: L*.png, mask.png, normal.tif, scene.json with camera-frame directional lights."""
+    folder.mkdir(parents=True)
+    n, mask = sphere(size)
+    L = lights(k, seed)
+    shade = np.clip(np.einsum("hwc,kc->khw", n, L), 0, None)
+    for i in range(k):
+        img = 0.8 * shade[i][..., None] * np.array([0.9, 0.7, 0.5])
+        img[~mask] = 0
+        write_png16(folder / f"L{i:03d}.png", img)
+    assert cv2.imwrite(str(folder / "mask.png"), mask.astype(np.uint8) * 255)
+    write_normal_png(folder / "normal.tif", n)
+    scene = {"light_family": family,
+             "camera_lights": [{"directional": [{"direction_to_light": L[i].tolist(),
+                                                 "irradiance": [1.0, 1.0, 1.0]}], "other": 0}
+                               for i in range(k)]}
+    (folder / "scene.json").write_text(json.dumps(scene))
+    return n, mask
+
+
+def write_diligent(folder: Path, size: int = 28, k: int = 8, seed: int = 5):
+    import scipy.io
+
+    folder.mkdir(parents=True)
+    n, mask = sphere(size)
+    L = lights(k, seed)
+    shade = np.clip(np.einsum("hwc,kc->khw", n, L), 0, None)
+    names = [f"{i + 1:03d}.png" for i in range(k)]
+    for i, name in enumerate(names):
+        img = 0.5 * shade[i][..., None] * np.ones(3)
+        img[~mask] = 0
+        write_png16(folder / name, img)
+    (folder / "filenames.txt").write_text("\n".join(names))
+    np.savetxt(folder / "light_directions.txt", L)
+    np.savetxt(folder / "light_intensities.txt", np.ones((k, 3)))
+    assert cv2.imwrite(str(folder / "mask.png"), mask.astype(np.uint8) * 255)
+    scipy.io.savemat(folder / "Normal_gt.mat", {"Normal_gt": n})
+    return n, mask
+
+
+@pytest.fixture
+def dataset(tmp_path):
+    root = tmp_path / "data"
+    truth = {"alpha": write_ours(root / "alpha.data"),
+             "beta": write_ours(root / "beta.data", seed=1, family="hdri"),
+             "gamma": write_diligent(root / "gamma")}
+    return root, truth
+
+
+def _one_line_error(capsys) -> str:
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: "), err
+    return err[0]
+
+
+@pytest.mark.parametrize("method,tol", [("least-squares", 1.0), ("sh-uncalibrated", 5.0)])
+def test_predict_then_evaluate(dataset, tmp_path, method, tol, capsys):
+    root, truth = dataset
+    out = tmp_path / "pred"
+    assert pr.main(["--method", method, "--input", str(root), "--out", str(out)]) == 0
+    for name, (n, mask) in truth.items():
+        d = out / name
+        for f in ("normal.png", "normal.exr", "normal_vis.png", "predict.json"):
+            assert (d / f).is_file(), d / f
+        info = json.loads((d / "predict.json").read_text())
+        assert info["method"] == method and info["num_images"] == 8 and len(info["images_used"]) == 8
+        assert info["time_s"] >= 0 and info["checkpoint"] is None
+        png = read_normals(d / "normal.png")
+        exr = read_normals(d / "normal.exr")
+        assert png.shape == n.shape and np.all(exr[~mask] == 0) and np.all(png[~mask] == 0)
+        assert np.abs(png - exr).max() <= 1.0 / 65535 + 1e-6
+        raw = cv2.imread(str(d / "normal.png"), cv2.IMREAD_UNCHANGED)
+        assert raw.dtype == np.uint16 and np.all(raw[~mask] == 32768)
+        assert mean_angular_error(exr, n, mask) < tol
+    capsys.readouterr()
+    assert ev.main(["--pred", str(out), "--gt", str(root)]) == 0
+    table = capsys.readouterr().out
+    assert "alpha" in table and "mean" in table
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert set(metrics["objects"]) == {"alpha", "beta", "gamma"}
+    assert metrics["objects"]["beta"]["light_family"] == "hdri"
+    assert metrics["objects"]["gamma"]["light_family"] == "directional"
+    assert metrics["per_family"]["directional"]["n_objects"] == 2
+    assert metrics["mean_mae_deg"] < tol and metrics["missing"] == []
+    for name, (n, mask) in truth.items():
+        assert metrics["objects"][name]["n_pixels"] == int(mask.sum())
+        assert (out / name / "error_map.png").is_file()
+    rows = list(csv.DictReader(open(out / "metrics.csv")))
+    assert [r["object"] for r in rows] == ["alpha", "beta", "gamma"]
+
+
+def test_predict_max_images_and_single_object(dataset, tmp_path):
+    root, _ = dataset
+    out = tmp_path / "p1"
+    assert pr.main(["--method", "least-squares", "--input", str(root / "alpha.data"), "--out", str(out),
+                    "--max-images", "4"]) == 0
+    info = json.loads((out / "alpha" / "predict.json").read_text())
+    assert info["images_used"] == [f"L{i:03d}.png" for i in range(4)]
+    assert sorted(p.name for p in out.iterdir()) == ["alpha"]
+
+
+def _rotated(n: np.ndarray, mask: np.ndarray, deg: float) -> np.ndarray:
+    """Each normal rotated by exactly ``deg`` about an axis perpendicular to it."""
+    axis = np.cross(n, np.array([0.2, -0.4, 0.9]))
+    axis /= np.maximum(np.linalg.norm(axis, axis=2, keepdims=True), 1e-12)
+    t = np.radians(deg)
+    out = n * np.cos(t) + np.cross(axis, n) * np.sin(t)
+    out[~mask] = 0
+    return out
+
+
+def test_evaluate_known_answer(dataset, tmp_path, capsys):
+    root, truth = dataset
+    pred = tmp_path / "rot"
+    for name, (n, mask) in truth.items():
+        write_normal_exr(pred / name / "normal.exr", _rotated(n, mask, 10.0))
+    assert ev.main(["--pred", str(pred), "--gt", str(root)]) == 0
+    m = json.loads((pred / "metrics.json").read_text())
+    for name in truth:
+        o = m["objects"][name]
+        assert abs(o["mae_deg"] - 10.0) < 1e-3 and abs(o["median_deg"] - 10.0) < 1e-3
+        assert o["pct_below_11_25"] == 100.0 and o["pct_below_30"] == 100.0
+    assert abs(m["mean_mae_deg"] - 10.0) < 1e-3
+    # The error map: 10/90 of the colour scale inside, black outside.
+    img = cv2.imread(str(pred / "alpha" / "error_map.png"))
+    n, mask = truth["alpha"]
+    expected = cv2.applyColorMap(np.full((1, 1), round(10 / 90 * 255), np.uint8), cv2.COLORMAP_JET)[0, 0]
+    assert np.all(img[mask] == expected) and np.all(img[~mask] == 0)
+    # 16-bit PNG predictions give the same answer within quantisation.
+    png_dir = tmp_path / "rot_png"
+    for name, (n, mask) in truth.items():
+        write_normal_png(png_dir / name / "normal.png", _rotated(n, mask, 10.0))
+    capsys.readouterr()
+    assert ev.main(["--pred", str(png_dir), "--gt", str(root)]) == 0
+    assert abs(json.loads((png_dir / "metrics.json").read_text())["mean_mae_deg"] - 10.0) < 0.01
+
+
+def test_evaluate_missing_prediction(dataset, tmp_path, capsys):
+    root, truth = dataset
+    pred = tmp_path / "partial"
+    n, mask = truth["alpha"]
+    write_normal_exr(pred / "alpha" / "normal.exr", n)
+    assert ev.main(["--pred", str(pred), "--gt", str(root)]) == 1
+    captured = capsys.readouterr()
+    assert "MISSING" in captured.out and "beta" in captured.err and "gamma" in captured.err
+    assert json.loads((pred / "metrics.json").read_text())["missing"] == ["beta", "gamma"]
+    assert ev.main(["--pred", str(pred), "--gt", str(root), "--allow-missing"]) == 0
+    assert json.loads((pred / "metrics.json").read_text())["objects"]["alpha"]["mae_deg"] < 1e-3
+
+
+def test_cli_bad_input(dataset, tmp_path, capsys):
+    root, truth = dataset
+    assert pr.main(["--method", "least-squares", "--input", str(tmp_path / "nope"), "--out", str(tmp_path)]) == 2
+    assert "nope" in _one_line_error(capsys)
+    assert pr.main(["--method", "magic", "--input", str(root), "--out", str(tmp_path)]) == 2
+    assert "magic" in _one_line_error(capsys)
+    assert pr.main(["--method", "least-squares", "--checkpoint", "x.safetensors", "--input", str(root),
+                    "--out", str(tmp_path / "o")]) == 2
+    assert "--checkpoint" in _one_line_error(capsys)
+    assert pr.main(["--method", "least-squares", "--input", str(root), "--out", str(tmp_path / "o"),
+                    "--max-images", "0"]) == 2
+    _one_line_error(capsys)
+    # A UniPS folder has no calibrated lights.
+    uni = tmp_path / "uni"
+    uni.mkdir()
+    for f in (root / "alpha.data").glob("L*.png"):
+        (uni / f.name).write_bytes(f.read_bytes())
+    assert pr.main(["--method", "least-squares", "--input", str(uni), "--out", str(tmp_path / "o")]) == 2
+    assert "calibrated" in _one_line_error(capsys)
+    # Model without a checkpoint: refuses unless weights are shipped.
+    try:
+        pr.default_checkpoint()
+    except pr.CLIError:
+        assert pr.main(["--method", "model", "--input", str(root), "--out", str(tmp_path / "o")]) == 2
+        assert "no shipped weights" in _one_line_error(capsys)
+    assert pr.main(["--method", "model", "--checkpoint", str(tmp_path / "none.safetensors"),
+                    "--input", str(root), "--out", str(tmp_path / "o")]) == 2
+    assert "none.safetensors" in _one_line_error(capsys)
+    # Evaluate: missing dirs and a prediction of the wrong size.
+    assert ev.main(["--pred", str(tmp_path / "nodir"), "--gt", str(root)]) == 2
+    _one_line_error(capsys)
+    bad = tmp_path / "bad"
+    write_normal_exr(bad / "alpha" / "normal.exr", np.zeros((5, 5, 3)))
+    assert ev.main(["--pred", str(bad), "--gt", str(root / "alpha.data")]) == 2
+    assert "shape" in _one_line_error(capsys)
+
+
+def test_predict_model_checkpoint(dataset, tmp_path):
+    torch = pytest.importorskip("torch")
+    from unips.checkpoint import save_checkpoint
+    from unips.models import create_model
+
+    torch.manual_seed(0)
+    ckpt = save_checkpoint(tmp_path / "test.safetensors", create_model("glc-test"))
+    root, truth = dataset
+    outs = []
+    for res, out in ((None, tmp_path / "m1"), ("32", tmp_path / "m2")):
+        argv = ["--method", "model", "--checkpoint", str(ckpt), "--input", str(root / "alpha.data"),
+                "--out", str(out), "--max-images", "3"]
+        if res:
+            argv += ["--res", res]
+        assert pr.main(argv) == 0
+        info = json.loads((out / "alpha" / "predict.json").read_text())
+        assert info["model_name"] == "glc-test" and info["checkpoint"] == str(ckpt.resolve())
+        n = read_normals(out / "alpha" / "normal.exr")
+        _, mask = truth["alpha"]
+        assert n.shape == mask.shape + (3,)
+        assert np.allclose(np.linalg.norm(n[mask], axis=1), 1.0, atol=1e-4) and np.all(n[~mask] == 0)
+        outs.append(n)
+    # Same weights, same input: deterministic.
+    assert pr.main(["--method", "model", "--checkpoint", str(ckpt), "--input", str(root / "alpha.data"),
+                    "--out", str(tmp_path / "m3"), "--max-images", "3"]) == 0
+    assert np.array_equal(read_normals(tmp_path / "m3" / "alpha" / "normal.exr"), outs[0])

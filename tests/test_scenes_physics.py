@@ -1,0 +1,295 @@
+"""Physics of the scene builder and renderer, against analytic answers (32x32, CPU, llvm and scalar)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from scenes.description import (
+    CameraDesc,
+    EnvironmentDesc,
+    ImageDesc,
+    LightDesc,
+    MaterialDesc,
+    RenderDesc,
+    SceneDescription,
+    ShapeDesc,
+    TextureDesc,
+)
+
+RES = 32
+HALF = 1.1  # orthographic half size: the unit sphere fills most of the frame
+ALBEDO = [0.8, 0.6, 0.4]
+
+
+def sphere_scene(lights: list[list[LightDesc]], spp: int = 64, albedo=ALBEDO) -> SceneDescription:
+    return SceneDescription(
+        shape=ShapeDesc(kind="sphere"),
+        material=MaterialDesc(kind="lambertian", base_color=TextureDesc(value=list(albedo))),
+        camera=CameraDesc(width=RES, height=RES, half_size=HALF),
+        render=RenderDesc(spp=spp, bounces=1, gt_spp=64),
+        images=[ImageDesc(lights=ls, seed=i + 1) for i, ls in enumerate(lights)],
+    )
+
+
+def analytic_sphere(super_sample: int = 8):
+    """Pixel-averaged analytic quantities of the unit sphere under the orthographic camera.
+
+    Returns (points (R, R, S*S, 3), hit (R, R, S*S) bool): camera frame = world frame here.
+    """
+    s = super_sample
+    o = (np.arange(RES * s) + 0.5) / (RES * s)
+    xs = (o * 2 - 1) * HALF
+    ys = -(o * 2 - 1) * HALF
+    X, Y = np.meshgrid(xs, ys)
+    Z = np.sqrt(np.clip(1 - X**2 - Y**2, 0, None))
+    hit = X**2 + Y**2 < 1
+    P = np.stack([X, Y, Z], -1)
+    P = P.reshape(RES, s, RES, s, 3).transpose(0, 2, 1, 3, 4).reshape(RES, RES, s * s, 3)
+    hit = hit.reshape(RES, s, RES, s).transpose(0, 2, 1, 3).reshape(RES, RES, s * s)
+    return P, hit
+
+
+def render(desc):
+    from scenes.mitsuba_build import build_scene
+    from scenes.render import render_ground_truth, render_images
+
+    built = build_scene(desc)
+    return render_ground_truth(built), render_images(built)
+
+
+def test_sphere_normals_match_analytic(any_variant):
+    gt, _ = render(sphere_scene([[LightDesc(type="directional")]], spp=4))
+    P, hit = analytic_sphere()
+    full = hit.all(-1)
+    n_ref = P.mean(2)
+    n_ref /= np.linalg.norm(n_ref, axis=-1, keepdims=True)
+    err = np.degrees(np.arccos(np.clip((gt.normal * n_ref).sum(-1), -1, 1)))
+    assert full.sum() > 400
+    assert (gt.mask == (hit.mean(-1) >= 0.5)).mean() > 0.97
+    assert err[full].max() < 1.0, err[full].max()
+    assert np.allclose(np.linalg.norm(gt.normal[gt.mask], axis=-1), 1, atol=1e-4)
+    assert np.all(gt.normal[~gt.mask & (gt.coverage == 0)] == 0)
+    # Camera-z depth of the front surface: camera at z = 4 looking down -z.
+    assert np.allclose(gt.depth[full], 4 - P.mean(2)[..., 2][full], atol=0.02)
+
+
+def test_lambertian_directional_and_point_light(any_variant):
+    direction = np.array([-0.3, -0.2, -1.0])
+    point = np.array([0.5, 0.8, 2.5])
+    desc = sphere_scene(
+        [
+            [LightDesc(type="directional", direction=direction.tolist(), irradiance=2.0)],
+            [LightDesc(type="point", position=point.tolist(), intensity=6.0)],
+        ]
+    )
+    _, (img_dir, img_point) = render(desc)
+    P, hit = analytic_sphere()
+    full = hit.all(-1)
+    n = P  # unit sphere: normal = position
+    l = -direction / np.linalg.norm(direction)
+    shade_dir = (2.0 * np.clip(n @ l, 0, None)).mean(-1)
+    v = point - P
+    r2 = (v**2).sum(-1)
+    shade_pt = (6.0 * np.clip((n * v).sum(-1) / np.sqrt(r2), 0, None) / r2).mean(-1)
+    for img, shade in ((img_dir, shade_dir), (img_point, shade_pt)):
+        ref = np.asarray(ALBEDO) / np.pi * shade[..., None]
+        lit = full & (shade > 0.2 * shade.max())
+        rel = np.abs(img[lit] - ref[lit]).mean() / ref[lit].mean()
+        assert rel < 0.02, rel
+        assert abs(img[lit].sum() / ref[lit].sum() - 1) < 0.01
+
+
+def test_least_squares_photometric_stereo_recovers_normals(any_variant):
+    """Woodham's calibrated PS on rendered Lambertian images recovers the GT normals (< 2 deg)."""
+    rng = np.random.default_rng(3)
+    dirs = []
+    while len(dirs) < 10:
+        l = rng.normal(size=3)
+        l[2] = abs(l[2]) + 0.6
+        dirs.append(l / np.linalg.norm(l))
+    L = np.array(dirs)
+    desc = sphere_scene([[LightDesc(type="directional", direction=(-l).tolist(), irradiance=1.5)] for l in L], spp=16, albedo=[0.7, 0.7, 0.7])
+    gt, images = render(desc)
+    I = np.stack([im.mean(-1) for im in images], -1)  # (H, W, K)
+    full = gt.coverage > 0.999
+    unshadowed = full & np.all((gt.normal @ L.T) > 0.05, -1)
+    assert unshadowed.sum() > 150
+    G, *_ = np.linalg.lstsq(L, I[unshadowed].T, rcond=None)  # (3, N): albedo/pi * E * n
+    n = (G / np.linalg.norm(G, axis=0)).T
+    err = np.degrees(np.arccos(np.clip((n * gt.normal[unshadowed]).sum(-1), -1, 1)))
+    assert err.mean() < 2.0, err.mean()
+    albedo = np.linalg.norm(G, axis=0) * np.pi / 1.5
+    assert abs(np.median(albedo) - 0.7) < 0.02
+
+
+def plane_scene(lights):
+    return SceneDescription(
+        shape=ShapeDesc(kind="plane", resolution=4, normalize=False),
+        material=MaterialDesc(kind="lambertian", base_color=TextureDesc(value=[0.5, 0.5, 0.5])),
+        camera=CameraDesc(width=RES, height=RES, half_size=0.9),
+        render=RenderDesc(spp=16, bounces=1),
+        images=[ImageDesc(lights=ls, seed=i) for i, ls in enumerate(lights)],
+        environment=EnvironmentDesc(source="indoor", seed=1, width=64),
+    )
+
+
+def test_every_light_type_and_mixture_renders_and_near_light_varies(llvm):
+    area = LightDesc(type="area", position=[1.2, 0.0, 0.8], target=[0, 0, 0], width=0.3, height=0.3, radiance=20.0)
+    lights = [
+        [LightDesc(type="directional", direction=[0.3, 0.2, -1.0])],
+        [LightDesc(type="point", position=[0.0, 0.5, 2.0], intensity=4.0)],
+        [area],
+        [LightDesc(type="environment", scale=0.5)],
+        [area, LightDesc(type="environment", scale=0.2), LightDesc(type="directional", direction=[0, 0, -1], irradiance=0.3)],
+    ]
+    gt, images = render(plane_scene(lights))
+    m = gt.coverage > 0.999
+    for img in images:
+        assert np.all(np.isfinite(img)) and img.min() >= 0 and img[m].mean() > 0
+    cv = lambda img: img[m].mean(-1).std() / img[m].mean()  # noqa: E731
+    assert cv(images[0]) < 0.01  # a directional light lights a plane evenly
+    assert cv(images[2]) > 0.2  # a near area light does not
+    # Irradiance falls off away from the light (x = 1.2): the right edge is brighter than the left.
+    assert images[2][m.nonzero()[0], m.nonzero()[1]].mean() > 0
+    cols = images[2].mean(-1)[RES // 2]
+    assert cols[-3] > 2 * cols[2]
+
+
+def test_json_round_trip_is_exact():
+    desc = plane_scene(
+        [
+            [LightDesc(type="area", position=[1.2, 0.1, 0.8], width=0.31, height=0.27, radiance=20.123456789, color=[1.0, 0.9, 0.8], temperature_k=4123.5)],
+            [LightDesc(type="environment", scale=0.1 + 0.2, to_world=[[0.0, 1.0, 0.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]])],
+        ]
+    )
+    desc.material = MaterialDesc(
+        kind="principled", material_class="metallic",
+        base_color=TextureDesc(kind="cells", value=[0.1, 0.2, 0.3], value2=[0.9, 0.8, 0.7], scale=3.3, seed=7),
+        roughness=TextureDesc(kind="noise", value=[0.1], value2=[0.4], seed=2), metallic=TextureDesc(value=[0.9]),
+        specular=0.123, normal_map="aux/n.png",
+    )
+    desc.shape = ShapeDesc(kind="blob", seed=11, params={"lumps": 4.0}, to_world=[[0.5, 0.0, 0.0, 0.1], [0.0, 0.5, 0.0, -0.2], [0.0, 0.0, 0.5, 0.3], [0.0, 0.0, 0.0, 1.0]])
+    text = desc.to_json()
+    back = SceneDescription.from_json(text)
+    assert back == desc
+    assert back.to_json() == text
+
+
+def test_same_seed_same_render_and_different_seed_differs(llvm):
+    from scenes.mitsuba_build import build_scene
+    from scenes.render import render_image
+
+    desc = plane_scene([[LightDesc(type="area", position=[1.2, 0.0, 0.8], width=0.3, height=0.3, radiance=20.0), LightDesc(type="environment", scale=0.3)]])
+    a = render_image(build_scene(desc), 0)
+    b = render_image(build_scene(SceneDescription.from_json(desc.to_json())), 0)
+    c = render_image(build_scene(desc), 0, seed=99)
+    assert np.array_equal(a, b)
+    assert not np.array_equal(a, c)
+
+
+def test_procedural_shapes_are_seeded_and_closed():
+    from scenes.procedural import generate
+
+    for kind in ("blob", "superquadric", "bumpy_sphere", "torus"):
+        a, b, c = generate(kind, 1, 24), generate(kind, 1, 24), generate(kind, 2, 24)
+        assert np.array_equal(a.positions, b.positions) and not np.array_equal(a.positions, c.positions)
+        assert np.allclose(np.linalg.norm(a.normals, axis=1), 1, atol=1e-4)
+        # Closed and outward: positive enclosed volume, vertex normals agree with their faces' normals.
+        p, f = a.positions.astype(np.float64), a.faces
+        cross = np.cross(p[f[:, 1]] - p[f[:, 0]], p[f[:, 2]] - p[f[:, 0]])
+        assert np.einsum("ij,ij->i", p[f[:, 0]], cross).sum() > 0
+        agree = np.einsum("ij,ij->i", a.normals[f[:, 0]], cross / np.linalg.norm(cross, axis=1, keepdims=True))
+        assert (agree > 0.5).mean() > 0.99
+
+
+# --- bad input ---------------------------------------------------------------------------------
+
+
+def _mesh_desc(path) -> SceneDescription:
+    return SceneDescription(shape=ShapeDesc(kind="mesh", file=str(path)), camera=CameraDesc(width=8, height=8), images=[ImageDesc(lights=[LightDesc()])])
+
+
+def test_missing_corrupt_and_empty_meshes(tmp_path, llvm):
+    from scenes.mitsuba_build import build_scene
+
+    with pytest.raises(FileNotFoundError, match="shape.file"):
+        build_scene(_mesh_desc(tmp_path / "nope.obj"))
+    bad = tmp_path / "bad.ply"
+    bad.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 10\ngarbage\n\x00\x01")
+    with pytest.raises(ValueError, match="shape.file"):
+        build_scene(_mesh_desc(bad))
+    empty = tmp_path / "empty.obj"
+    empty.write_text("# nothing here\n")
+    with pytest.raises(ValueError, match="shape.file"):
+        build_scene(_mesh_desc(empty))
+    nan = tmp_path / "nan.obj"
+    nan.write_text("v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n")
+    with pytest.raises(ValueError, match="shape.file"):
+        build_scene(_mesh_desc(nan))
+
+
+@pytest.mark.parametrize(
+    "mutate, field",
+    [
+        (lambda d: setattr(d.images[0].lights[0], "irradiance", float("nan")), "irradiance"),
+        (lambda d: setattr(d.images[0].lights[0], "type", "laser"), "type"),
+        (lambda d: setattr(d.camera, "width", 0), "camera.width"),
+        (lambda d: setattr(d.camera, "height", -3), "camera.height"),
+        (lambda d: setattr(d.render, "spp", 0), "render.spp"),
+        (lambda d: setattr(d.material.base_color, "value", [0.5, float("inf"), 0.5]), "base_color.value"),
+        (lambda d: setattr(d.shape, "to_world", [[1, 0, 0]]), "shape.to_world"),
+        (lambda d: setattr(d, "images", []), "images"),
+    ],
+)
+def test_bad_parameters_name_the_field(mutate, field):
+    desc = sphere_scene([[LightDesc(type="directional")]])
+    mutate(desc)
+    with pytest.raises(ValueError, match=field.replace(".", r"\.")):
+        desc.validate()
+
+
+def test_unknown_json_field_is_named():
+    d = sphere_scene([[LightDesc()]]).to_dict()
+    d["camera"]["zoom"] = 2
+    with pytest.raises(ValueError, match="zoom"):
+        SceneDescription.from_dict(d)
+
+
+def test_variant_choice_prefers_llvm_and_rejects_unknown():
+    from scenes.variant import choose_variant
+
+    with pytest.raises(ValueError, match="--variant"):
+        choose_variant("no_such_variant")
+    chosen = choose_variant()
+    assert chosen in ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
+
+
+def test_normal_mapped_ground_truth_matches_photometric_stereo(tmp_path, llvm):
+    """With a normal map, GT normals are the perturbed shading normals: Woodham PS on the renders agrees."""
+    from scenes.imageio import write_exr
+
+    h = w = 64
+    v, u = np.meshgrid((np.arange(h) + 0.5) / h, (np.arange(w) + 0.5) / w, indexing="ij")
+    t = np.stack([0.5 * np.sin(2 * np.pi * 3 * u), 0.5 * np.cos(2 * np.pi * 2 * v), np.ones_like(u)], -1)
+    t /= np.linalg.norm(t, axis=-1, keepdims=True)
+    write_exr(tmp_path / "nm.exr", ((t + 1) / 2).astype(np.float32))
+    rng = np.random.default_rng(5)
+    L = []
+    while len(L) < 8:
+        l = rng.normal(size=3)
+        l[2] = abs(l[2]) + 1.5
+        L.append(l / np.linalg.norm(l))
+    L = np.array(L)
+    desc = sphere_scene([[LightDesc(type="directional", direction=(-l).tolist())] for l in L], spp=16, albedo=[0.7, 0.7, 0.7])
+    desc.material.normal_map = str(tmp_path / "nm.exr")
+    gt, images = render(desc)
+    I = np.stack([im.mean(-1) for im in images], -1)
+    full = gt.coverage > 0.999
+    lit = full & np.all(gt.normal @ L.T > 0.05, -1)
+    G, *_ = np.linalg.lstsq(L, I[lit].T, rcond=None)
+    n = (G / np.linalg.norm(G, axis=0)).T
+    err = np.degrees(np.arccos(np.clip((n * gt.normal[lit]).sum(-1), -1, 1)))
+    P, _ = analytic_sphere(1)
+    perturbation = np.degrees(np.arccos(np.clip((gt.normal[lit] * P[..., 0, :][lit]).sum(-1), -1, 1)))
+    assert lit.sum() > 150 and np.median(perturbation) > 5  # the map really perturbs the normals
+    assert np.median(err) < 1.5, np.median(err)

@@ -1,0 +1,273 @@
+"""Training: analytic Lambertian objects on disk, loss decrease, exact resume, augmentation physics,
+checkpoint files."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from unips.augment import (HFLIP_MATRIX, TRANSPOSE_MATRIX, VFLIP_MATRIX, Augmentation, apply_augmentation,
+                           augment, sample_augmentation)
+from unips.checkpoint import load_model, load_training_checkpoint, save_checkpoint, sidecar_path
+from unips.models import create_model
+from unips.train import main, make_batch, load_samples
+
+
+# -- analytic scenes ------------------------------------------------------------------------
+
+def ellipsoid_normals(h: int, w: int, ci: float, cj: float, ri: float, rj: float) -> tuple[np.ndarray, np.ndarray]:
+    """Normals (H, W, 3) and mask of an ellipsoid seen orthographically, from image-space parameters.
+
+    Centre (row ci, column cj) in continuous pixel units (pixel (i, j) has its centre at (i + 0.5,
+    j + 0.5)), semi-axes ri along the rows and rj along the columns, depth semi-axis 0.7 min(ri, rj).
+    Camera frame: x = column offset (right), y = -row offset (up), z toward the camera.
+    """
+    i, j = np.mgrid[0:h, 0:w] + 0.5
+    x, y = j - cj, -(i - ci)
+    c = 0.7 * min(ri, rj)
+    q = 1.0 - (x / rj) ** 2 - (y / ri) ** 2
+    mask = q > 0.02
+    z = c * np.sqrt(np.clip(q, 0.0, None))
+    n = np.stack([x / rj ** 2, y / ri ** 2, z / c ** 2], axis=-1)
+    n = n / np.linalg.norm(n, axis=-1, keepdims=True)
+    return np.where(mask[..., None], n, 0.0), mask
+
+
+def lambertian(normals: np.ndarray, mask: np.ndarray, lights: np.ndarray, albedo: np.ndarray) -> np.ndarray:
+    """Images (K, 3, H, W): albedo[k] * max(0, n . l_k) inside the mask."""
+    shade = np.clip(np.einsum("hwc,kc->khw", normals, lights), 0.0, None) * mask  # (K, H, W)
+    return shade[:, None] * albedo[:, :, None, None]
+
+
+def random_lights(rng: np.random.Generator, k: int) -> np.ndarray:
+    v = rng.normal(size=(k, 3))
+    v[:, 2] = np.abs(v[:, 2]) + 0.5
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def write_object(folder: Path, rng: np.random.Generator, size: int, k: int, family: str) -> None:
+    """An object folder in the project layout (16-bit PNGs, mask.png, normal.tif, scene.json)."""
+    import cv2
+    import tifffile
+
+    folder.mkdir(parents=True)
+    ri, rj = rng.uniform(0.25, 0.42, 2) * size
+    ci, cj = size / 2 + rng.uniform(-3, 3, 2)
+    normals, mask = ellipsoid_normals(size, size, ci, cj, ri, rj)
+    lights = random_lights(rng, k)
+    albedo = np.tile(rng.uniform(0.3, 0.9, 3), (k, 1))
+    irradiance = rng.uniform(0.6, 1.0, (k, 1)) * np.ones((1, 3))
+    images = lambertian(normals, mask, lights, albedo * irradiance)
+    for i in range(k):
+        rgb16 = np.round(np.clip(images[i].transpose(1, 2, 0), 0, 1) * 65535).astype(np.uint16)
+        cv2.imwrite(str(folder / f"L{i:03d}.png"), rgb16[..., ::-1])  # OpenCV writes BGR
+    cv2.imwrite(str(folder / "mask.png"), (mask * 255).astype(np.uint8))
+    tifffile.imwrite(folder / "normal.tif", np.round((normals + 1) / 2 * 65535).astype(np.uint16))
+    cams = [{"directional": [{"direction_to_light": lights[i].tolist(), "irradiance": irradiance[i].tolist()}],
+             "other": 0} for i in range(k)]
+    (folder / "scene.json").write_text(json.dumps({"light_family": family, "camera_lights": cams}))
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp("data")
+    rng = np.random.default_rng(123)
+    for i in range(6):
+        write_object(root / "train" / f"obj{i}.data", rng, 40, 6, "directional")
+    for i, family in enumerate(["directional", "point"]):
+        write_object(root / "val" / f"val{i}.data", rng, 40, 6, family)
+    return {"train": root / "train", "val": root / "val"}
+
+
+def _train(dataset: dict[str, Path], out: Path, *extra: str) -> int:
+    args = ["--data", str(dataset["train"]), "--model", "glc-test", "--out", str(out), "--batch", "2",
+            "--res", "32", "--pixels", "200", "--max-images", "4", "--threads", "1", "--no-progress",
+            "--log-every", "1", *extra]
+    return main(args)
+
+
+def _log(out: Path) -> list[dict]:
+    return [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+
+
+# -- training -------------------------------------------------------------------------------
+
+def test_samples_load_from_disk(dataset) -> None:
+    samples = load_samples(dataset["train"], 32)
+    assert len(samples) == 6
+    s = samples[0]
+    assert tuple(s.images.shape) == (6, 3, 32, 32) and tuple(s.mask.shape) == (1, 32, 32)
+    norms = s.normals.norm(dim=0)[s.mask[0] > 0]
+    assert torch.allclose(norms, torch.ones_like(norms), atol=1e-4)
+    assert s.light_family == "directional"
+
+
+def test_batches_are_a_function_of_seed_and_step(dataset) -> None:
+    samples = load_samples(dataset["train"], 32)
+    kw = dict(seed=3, batch=2, min_images=2, max_images=4, pixels=50, canonical=32)
+    a, b, c = make_batch(samples, 5, **kw), make_batch(samples, 5, **kw), make_batch(samples, 6, **kw)
+    assert torch.equal(a.images, b.images) and torch.equal(a.coords, b.coords)
+    assert not (a.images.shape == c.images.shape and torch.equal(a.images, c.images))
+    valid = a.weight > 0
+    norms = a.target.norm(dim=-1)[valid]
+    assert torch.allclose(norms, torch.ones_like(norms), atol=1e-4)
+    # At working resolution == canonical, the canonical part is exactly the interior mask pixels.
+    n_can = int(a.is_canonical.sum())
+    assert n_can >= int(a.weight[0, a.is_canonical].sum()) > 100
+
+
+def test_training_reduces_the_loss(dataset, tmp_path) -> None:
+    out = tmp_path / "run"
+    assert _train(dataset, out, "--steps", "40", "--lr", "3e-3", "--val", str(dataset["val"]),
+                  "--val-every", "40", "--ckpt-every", "40") == 0
+    records = _log(out)
+    losses = [r["loss"] for r in records if "loss" in r]
+    assert len(losses) == 40
+    first, last = np.mean(losses[:5]), np.mean(losses[-10:])
+    print(f"loss first 5 steps {first:.4f}, last 10 steps {last:.4f}")
+    assert last < 0.6 * first
+    val = [r["val"] for r in records if "val" in r]
+    assert len(val) == 1 and set(val[0]["families"]) == {"directional", "point"}
+    assert 0 < val[0]["mean"] < 90
+    for name in ("last.pt", "final.safetensors", "final.json", "best.safetensors", "best.json"):
+        assert (out / name).is_file(), name
+    model, meta = load_model(out / "best.safetensors")
+    assert meta["model_name"] == "glc-test" and meta["extra"]["step"] == 40
+
+
+def test_resume_is_bit_for_bit(dataset, tmp_path) -> None:
+    # Dropout and drop path on, so the torch RNG matters too.
+    opts = ["--model-option", "dropout=0.1", "--model-option", "swin_drop_path=0.1", "--lr", "3e-3",
+            "--decay-every", "2", "--ckpt-every", "3", "--val", str(dataset["val"]), "--val-every", "2"]
+    full, part = tmp_path / "full", tmp_path / "part"
+    assert _train(dataset, full, "--steps", "6", *opts) == 0
+    assert _train(dataset, part, "--steps", "3", *opts) == 0
+    assert _train(dataset, part, "--steps", "6", "--resume", *opts) == 0
+    a = load_training_checkpoint(full / "last.pt")
+    b = load_training_checkpoint(part / "last.pt")
+    assert a["step"] == b["step"] == 6
+    for key, value in a["model"].items():
+        assert torch.equal(value, b["model"][key]), key
+    for sa, sb in zip(a["optimizer"]["state"].values(), b["optimizer"]["state"].values()):
+        assert all(torch.equal(sa[k], sb[k]) for k in sa)
+    losses = lambda out: [(r["step"], r["loss"], r["lr"], r["k"]) for r in _log(out) if "loss" in r]
+    assert losses(full) == losses(part) and len(losses(full)) == 6
+    # And training did change the weights.
+    fresh = create_model("glc-test", dropout=0.1, swin_drop_path=0.1).state_dict()
+    assert any(not torch.equal(v, fresh[k]) for k, v in a["model"].items())
+    # Changing a trajectory setting on resume is refused.
+    assert _train(dataset, part, "--steps", "8", "--resume", *opts, "--seed", "9") == 2
+
+
+def test_cli_errors_are_one_line(dataset, tmp_path, capsys) -> None:
+    assert main(["--data", str(tmp_path / "nope"), "--out", str(tmp_path / "o"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error:") and "nope" in err[0]
+    assert _train(dataset, tmp_path / "o2", "--steps", "0") == 2
+    assert "--steps" in capsys.readouterr().err
+    assert _train(dataset, tmp_path / "o3", "--steps", "2", "--resume") == 2
+    assert "last.pt" in capsys.readouterr().err
+
+
+# -- augmentation physics -------------------------------------------------------------------
+
+def _transformed_params(aug: Augmentation, h: int, w: int, p: tuple[float, float, float, float]):
+    """Ellipsoid image-space parameters after the augmentation, by image geometry alone."""
+    ci, cj, ri, rj = p
+    if aug.transpose:  # rows <-> columns
+        ci, cj, ri, rj, h, w = cj, ci, rj, ri, w, h
+    if aug.hflip:  # column j -> W - j
+        cj = w - cj
+    if aug.vflip:  # row i -> H - i
+        ci = h - ci
+    return h, w, (ci, cj, ri, rj)
+
+
+@pytest.mark.parametrize("aug", [
+    Augmentation(hflip=True), Augmentation(vflip=True), Augmentation(transpose=True),
+    Augmentation(transpose=True, hflip=True, vflip=True, channel_perms=((2, 0, 1), (0, 1, 2), (1, 2, 0))),
+])
+def test_augmentation_matches_rendering_the_transformed_scene(aug: Augmentation) -> None:
+    rng = np.random.default_rng(7)
+    h, w, k = 36, 44, 3
+    params = (15.3, 25.1, 11.0, 16.5)  # off-centre, elongated: no symmetry hides a sign error
+    normals, mask = ellipsoid_normals(h, w, *params)
+    lights = random_lights(rng, k)
+    albedo = rng.uniform(0.2, 1.0, (k, 3))
+    images = lambertian(normals, mask, lights, albedo)
+
+    t = lambda a: torch.from_numpy(np.ascontiguousarray(a, dtype=np.float32))
+    aug_images, aug_mask, aug_normals = apply_augmentation(
+        aug, t(images), t(mask[None]), t(normals.transpose(2, 0, 1)))
+
+    # (a) the augmented normals are those of the geometrically transformed ellipsoid
+    h2, w2, params2 = _transformed_params(aug, h, w, params)
+    expected_n, expected_m = ellipsoid_normals(h2, w2, *params2)
+    assert np.array_equal(aug_mask[0].numpy() > 0.5, expected_m)
+    assert np.allclose(aug_normals.numpy().transpose(1, 2, 0), expected_n, atol=1e-5)
+
+    # (b) the augmented images are a rendering of them under the reflected lights
+    perms = aug.channel_perms or ((0, 1, 2),) * k
+    albedo2 = np.stack([albedo[i, list(p)] for i, p in enumerate(perms)])
+    lights2 = lights @ aug.vector_matrix().T
+    rendered = lambertian(expected_n, expected_m, lights2, albedo2)
+    assert np.allclose(aug_images.numpy(), rendered, atol=1e-5)
+
+
+def test_the_physics_check_detects_a_wrong_transpose_sign() -> None:
+    h, w = 36, 44
+    normals, _ = ellipsoid_normals(h, w, 15.3, 25.1, 11.0, 16.5)
+    expected, m = ellipsoid_normals(w, h, 25.1, 15.3, 16.5, 11.0)
+    swapped = normals.transpose(1, 0, 2)
+    naive = swapped[..., [1, 0, 2]]  # (n_y, n_x, n_z): the wrong sign convention
+    right = swapped @ TRANSPOSE_MATRIX.T
+    assert np.allclose(right[m], expected[m], atol=1e-6)
+    assert not np.allclose(naive[m], expected[m], atol=1e-2)
+    assert np.allclose(HFLIP_MATRIX @ VFLIP_MATRIX, np.diag([-1.0, -1.0, 1.0]))
+
+
+def test_augmentation_sampling_is_seeded_and_uses_p() -> None:
+    a = [sample_augmentation(np.random.default_rng(s), 4) for s in range(200)]
+    b = [sample_augmentation(np.random.default_rng(s), 4) for s in range(200)]
+    assert a == b
+    frac = np.mean([x.hflip for x in a] + [x.vflip for x in a] + [x.transpose for x in a])
+    assert 0.4 < frac < 0.6
+    assert all(not (x.hflip or x.vflip or x.transpose) for x in
+               (sample_augmentation(np.random.default_rng(s), 2, p=0.0) for s in range(20)))
+    g1, g2 = torch.Generator().manual_seed(5), torch.Generator().manual_seed(5)
+    assert sample_augmentation(g1, 3) == sample_augmentation(g2, 3)
+    x = torch.rand(3, 3, 8, 8)
+    out, _, none = augment(x, torch.ones(1, 8, 8), None, np.random.default_rng(0))
+    assert none is None and out.shape == x.shape
+    with pytest.raises(ValueError, match="rng"):
+        sample_augmentation("seed", 3)
+
+
+# -- checkpoints ----------------------------------------------------------------------------
+
+def test_checkpoint_round_trip_and_mismatch(tmp_path) -> None:
+    torch.manual_seed(1)
+    model = create_model("glc-test", uniform_context=True).eval()
+    path = save_checkpoint(tmp_path / "w.safetensors", model, {"note": "x"})
+    loaded, meta = load_model(path)
+    assert meta["model_name"] == "glc-test" and meta["extra"] == {"note": "x"}
+    assert loaded.config == model.config
+    x, m = torch.rand(1, 2, 3, 32, 32), torch.ones(1, 1, 32, 32)
+    with torch.no_grad():
+        assert torch.equal(loaded(x, m), model(x, m))
+
+    side = sidecar_path(path)
+    meta_json = json.loads(side.read_text())
+    meta_json["config"]["context_dim"] = 24
+    side.write_text(json.dumps(meta_json))
+    with pytest.raises(ValueError, match=r"tensor '.*' has shape \(.*\) in the file but \(.*\) in the model"):
+        load_model(path)
+    with pytest.raises(FileNotFoundError, match="missing.safetensors"):
+        load_model(tmp_path / "missing.safetensors")
+    side.unlink()
+    with pytest.raises(FileNotFoundError, match="w.json"):
+        load_model(path)

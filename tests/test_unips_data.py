@@ -1,0 +1,389 @@
+"""Loaders (three layouts), preprocessing and normal-map files, on real files written here.
+
+The objects are an analytic Lambertian sphere rendered with numpy under known directional lights,
+written as 16-bit PNGs with OpenCV, so every value the loaders return has an independent answer.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from unips.data import PSObject, find_objects, load_ground_truth, load_object
+from unips.normal_io import (angular_error_deg, mean_angular_error, read_normals, write_normal_exr,
+                             write_normal_png, write_normal_visual)
+from unips.preprocess import prepare, resize_prepared, uncrop
+
+SHARED = Path(__file__).resolve().parents[2] / "shared"
+ALBEDO = np.array([0.9, 0.6, 0.3])
+
+
+def sphere(size: int = 32, pad: int = 2, center: tuple[float, float] | None = None):
+    """Unit normals (x right, y up, z to camera) of a sphere filling the image, and its mask."""
+    cy, cx = center if center is not None else (size / 2, size / 2)
+    rows, cols = np.mgrid[0:size, 0:size]
+    r = size / 2 - pad
+    x = (cols + 0.5 - cx) / r
+    y = -(rows + 0.5 - cy) / r  # image rows grow downward, y grows upward
+    mask = x * x + y * y < 1.0
+    n = np.zeros((size, size, 3))
+    n[..., 0], n[..., 1] = x, y
+    n[..., 2] = np.sqrt(np.clip(1.0 - x * x - y * y, 0.0, None))
+    n[~mask] = 0.0
+    return n, mask
+
+
+def lights(k: int, seed: int = 0, max_deg: float = 40.0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    th = np.radians(rng.uniform(5.0, max_deg, k))
+    ph = rng.uniform(0.0, 2.0 * np.pi, k)
+    return np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], axis=1)
+
+
+def render(n: np.ndarray, mask: np.ndarray, L: np.ndarray, intensities: np.ndarray | None = None) -> np.ndarray:
+    """(K, H, W, 3) Lambertian images in [0, 1): albedo * intensity * max(0, n . l)."""
+    shade = np.clip(np.einsum("hwc,kc->khw", n, L), 0.0, None)
+    inten = np.ones((len(L), 3)) if intensities is None else intensities
+    img = 0.9 * shade[..., None] * ALBEDO * inten[:, None, None, :]
+    img[:, ~mask] = 0.0
+    return img
+
+
+def write_png16(path: Path, rgb: np.ndarray) -> None:
+    assert cv2.imwrite(str(path), np.round(np.clip(rgb, 0, 1) * 65535).astype(np.uint16)[..., ::-1])
+
+
+def write_mask(path: Path, mask: np.ndarray) -> None:
+    assert cv2.imwrite(str(path), mask.astype(np.uint8) * 255)
+
+
+def write_ours(folder: Path, k: int = 6, size: int = 32, other: int = 0, seed: int = 0):
+    folder.mkdir(parents=True)
+    n, mask = sphere(size)
+    L = lights(k, seed)
+    irr = np.linspace(0.8, 1.1, k)[:, None] * np.array([1.0, 0.95, 0.9])
+    imgs = render(n, mask, L, irr)
+    for i, im in enumerate(imgs):
+        write_png16(folder / f"L{i:03d}.png", im)
+    write_mask(folder / "mask.png", mask)
+    write_normal_png(folder / "normal.tif", n)
+    scene = {"light_family": "directional",
+             "camera_lights": [{"directional": [{"direction_to_light": L[i].tolist(),
+                                                 "irradiance": irr[i].tolist()}], "other": other}
+                               for i in range(k)]}
+    (folder / "scene.json").write_text(json.dumps(scene))
+    return n, mask, L, irr, imgs
+
+
+def write_diligent(folder: Path, k: int = 6, size: int = 32, seed: int = 1, gt: str = "mat"):
+    import scipy.io
+
+    folder.mkdir(parents=True)
+    n, mask = sphere(size)
+    L = lights(k, seed)
+    inten = np.linspace(0.5, 0.9, k)[:, None] * np.array([1.0, 0.8, 0.6])
+    imgs = render(n, mask, L, inten)
+    names = [f"{i + 1:03d}.png" for i in range(k)]
+    for name, im in zip(names, imgs):
+        write_png16(folder / name, im)
+    (folder / "filenames.txt").write_text("\n".join(names) + "\n")
+    np.savetxt(folder / "light_directions.txt", L, fmt="%.6f")
+    np.savetxt(folder / "light_intensities.txt", inten, fmt="%.6f")
+    write_mask(folder / "mask.png", np.repeat(mask[..., None], 3, axis=2))  # DiLiGenT ball's mask is RGB
+    if gt == "mat":
+        scipy.io.savemat(folder / "Normal_gt.mat", {"Normal_gt": n})
+    else:
+        enc = np.round((n + 1) / 2 * 255).astype(np.uint8)
+        enc[~mask] = 0  # DiLiGenT's PNG background is black
+        assert cv2.imwrite(str(folder / "Normal_gt.png"), enc[..., ::-1])
+    return n, mask, L, inten, imgs
+
+
+# ------------------------------------------------------------------------------------------ loaders
+
+
+def test_load_ours_layout(tmp_path):
+    n, mask, L, irr, imgs = write_ours(tmp_path / "ball.data")
+    obj = load_object(tmp_path / "ball.data")
+    assert obj.layout == "ours" and obj.name == "ball" and obj.light_family == "directional"
+    assert obj.images.shape == (6, 32, 32, 3) and obj.images.dtype == np.float32
+    # RGB order and 16-bit scaling: the written values come back within half a quantum.
+    assert np.abs(obj.images - imgs).max() <= 0.5 / 65535 + 1e-7
+    assert obj.images[..., 0].sum() > obj.images[..., 2].sum()  # albedo red > blue survives BGR->RGB
+    assert np.array_equal(obj.mask, mask)
+    assert np.abs(obj.normals[mask] - n[mask]).max() < 2e-4
+    assert np.all(obj.normals[~mask] == 0)
+    assert np.allclose(obj.light_directions, L, atol=1e-6)
+    assert np.allclose(obj.light_intensities, irr, atol=1e-6)
+    assert obj.image_names == [f"L{i:03d}.png" for i in range(6)]
+
+
+def test_ours_with_other_lights_has_no_directions(tmp_path):
+    write_ours(tmp_path / "o.data", other=1)
+    obj = load_object(tmp_path / "o.data")
+    assert obj.light_directions is None and obj.light_intensities is None
+
+
+def test_load_diligent_layout_divides_intensities(tmp_path):
+    n, mask, L, inten, imgs = write_diligent(tmp_path / "sphPNG")
+    obj = load_object(tmp_path / "sphPNG")
+    assert obj.layout == "diligent" and obj.name == "sphPNG" and obj.light_family == "directional"
+    shade = np.clip(np.einsum("hwc,kc->khw", n, L), 0, None)
+    expected = 0.9 * shade[..., None] * ALBEDO  # the intensities are divided out
+    assert np.abs(obj.images - expected).max() < 2e-4
+    assert np.allclose(obj.light_directions, L / np.linalg.norm(L, axis=1, keepdims=True), atol=1e-5)
+    assert np.allclose(obj.light_intensities, 1.0)
+    assert np.allclose(obj.meta["light_intensities_file"], inten, atol=1e-6)
+    assert np.array_equal(obj.mask, mask)
+    assert np.abs(obj.normals - n).max() < 1e-6
+
+
+def test_diligent_normal_png_fallback(tmp_path):
+    n, mask, *_ = write_diligent(tmp_path / "x", gt="png")
+    obj = load_object(tmp_path / "x")
+    assert mean_angular_error(obj.normals, n, mask) < 0.5  # 8-bit quantisation
+    assert np.all(obj.normals[~mask] == 0)
+
+
+def test_load_unips_layout_8bit_no_mask(tmp_path):
+    folder = tmp_path / "u.data"
+    folder.mkdir()
+    n, mask = sphere(24)
+    imgs = render(n, mask, lights(4))
+    for i, im in enumerate(imgs):
+        assert cv2.imwrite(str(folder / f"L{i + 1}.png"), np.round(im * 255).astype(np.uint8)[..., ::-1])
+    (folder / "L_notes.txt").write_text("not an image")
+    enc = np.round((n + 1) / 2 * 255).astype(np.uint8)
+    assert cv2.imwrite(str(folder / "Normal_gt.png"), enc[..., ::-1])
+    obj = load_object(folder)
+    assert obj.layout == "unips" and obj.name == "u" and obj.light_directions is None
+    assert obj.images.shape == (4, 24, 24, 3)
+    assert np.abs(obj.images - imgs).max() <= 0.5 / 255 + 1e-6
+    assert obj.mask.all()  # no mask.png: the whole image
+    assert mean_angular_error(obj.normals, n, mask) < 0.5
+
+
+def test_max_images_natural_order(tmp_path):
+    folder = tmp_path / "nat"
+    folder.mkdir()
+    for i in (1, 2, 10, 11):
+        img = np.full((8, 8, 3), i / 20.0)
+        write_png16(folder / f"L{i}.png", img)
+    obj = load_object(folder, max_images=3)
+    assert obj.image_names == ["L1.png", "L2.png", "L10.png"]
+    assert np.allclose(obj.images[:, 0, 0, 0], [0.05, 0.1, 0.5], atol=1e-4)
+
+
+def test_find_objects(tmp_path):
+    write_ours(tmp_path / "b.data")
+    write_diligent(tmp_path / "a")
+    (tmp_path / "junk").mkdir()
+    assert [p.name for p in find_objects(tmp_path)] == ["a", "b.data"]
+    assert find_objects(tmp_path / "a") == [tmp_path / "a"]
+    with pytest.raises(FileNotFoundError, match="junk"):
+        find_objects(tmp_path / "junk")
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        find_objects(tmp_path / "nope")
+
+
+def test_load_ground_truth(tmp_path):
+    n, mask, *_ = write_ours(tmp_path / "g.data")
+    gt = load_ground_truth(tmp_path / "g.data")
+    assert gt.name == "g" and gt.light_family == "directional" and np.array_equal(gt.mask, mask)
+    assert np.abs(gt.normals - n).max() < 2e-4
+
+
+# ------------------------------------------------------------------------------------- bad input
+
+
+def test_bad_inputs(tmp_path):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(FileNotFoundError, match="not an object folder"):
+        load_object(empty)
+    with pytest.raises(ValueError, match="layout"):
+        load_object(empty, layout="weird")
+    with pytest.raises(FileNotFoundError, match="no images"):
+        load_object(empty, layout="unips")
+
+    sizes = tmp_path / "sizes"
+    sizes.mkdir()
+    write_png16(sizes / "L0.png", np.zeros((8, 8, 3)))
+    write_png16(sizes / "L1.png", np.zeros((8, 9, 3)))
+    with pytest.raises(ValueError, match="L1.png.*differs"):
+        load_object(sizes)
+
+    badmask = tmp_path / "badmask"
+    badmask.mkdir()
+    write_png16(badmask / "L0.png", np.zeros((8, 8, 3)))
+    write_mask(badmask / "mask.png", np.ones((9, 8), bool))
+    with pytest.raises(ValueError, match="mask.png.*differs"):
+        load_object(badmask)
+
+    corrupt = tmp_path / "corrupt"
+    corrupt.mkdir()
+    (corrupt / "L0.png").write_bytes(b"\x89PNG not really")
+    with pytest.raises(ValueError, match="L0.png.*cannot be read"):
+        load_object(corrupt)
+
+    nan = tmp_path / "nan"
+    write_diligent(nan)
+    text = (nan / "light_directions.txt").read_text().splitlines()
+    text[2] = "nan 0 1"
+    (nan / "light_directions.txt").write_text("\n".join(text))
+    with pytest.raises(ValueError, match="light_directions.*NaN"):
+        load_object(nan)
+
+    rows = tmp_path / "rows"
+    write_diligent(rows)
+    (rows / "light_intensities.txt").write_text("1 1 1\n" * 5)
+    with pytest.raises(ValueError, match="light_intensities.*5 rows, expected 6"):
+        load_object(rows)
+
+    with pytest.raises(ValueError, match="max_images"):
+        load_object(rows, max_images=0)
+
+    scene = tmp_path / "scene.data"
+    write_ours(scene)
+    (scene / "scene.json").write_text("{not json")
+    with pytest.raises(ValueError, match="scene.json"):
+        load_object(scene)
+
+
+# ---------------------------------------------------------------------------------- real DiLiGenT
+
+
+def test_real_diligent_ball_frame():
+    folder = SHARED / "data" / "diligent" / "ballPNG"
+    if not folder.is_dir():
+        pytest.skip("../shared/data/diligent is not present")
+    obj = load_object(folder, max_images=8)
+    assert obj.images.shape == (8, 512, 612, 3) and obj.name == "ballPNG"
+    assert obj.normals is not None and obj.mask.sum() > 10000
+    # Same frame for lights and normals: gray intensity must follow max(0, n . l) (a flipped axis
+    # would decorrelate it).
+    gray = obj.images[:, obj.mask] @ np.array([0.2989, 0.587, 0.114], np.float32)
+    shade = np.clip(obj.normals[obj.mask] @ obj.light_directions.T, 0, None).T
+    corr = [np.corrcoef(gray[k], shade[k])[0, 1] for k in range(8)]
+    assert min(corr) > 0.9, corr
+    # The top of the ball faces up (+y), its left side faces left (-x).
+    rows, cols = np.nonzero(obj.mask)
+    top = obj.normals[rows.min() + 5, int(np.median(cols))]
+    left = obj.normals[int(np.median(rows)), cols.min() + 5]
+    assert top[1] > 0.8 and left[0] < -0.8
+
+
+# ------------------------------------------------------------------------------------- preprocess
+
+
+def _object(n, mask, k=3) -> PSObject:
+    imgs = render(n, mask, lights(k)).astype(np.float32)
+    return PSObject(name="t", images=imgs, mask=mask, normals=n.astype(np.float32), light_family=None,
+                    light_directions=None, light_intensities=None, path=Path("."), layout="test")
+
+
+def test_prepare_crop_uncrop_round_trip():
+    # Sphere near the top-left corner of a 40x52 frame: the crop must run past the image border.
+    n_full = np.zeros((40, 52, 3))
+    m_full = np.zeros((40, 52), bool)
+    n_s, m_s = sphere(20, pad=0)
+    n_full[:20, 1:21], m_full[:20, 1:21] = n_s, m_s
+    obj = _object(n_full, m_full)
+    obj.images[1] = 0.0  # a black image: the zero-mean guard must keep it finite
+    p = prepare(obj, margin=4)
+    rows, cols = np.nonzero(m_full)
+    h, w = np.ptp(rows) + 1 + 8, np.ptp(cols) + 1 + 8
+    assert p.crop.size == max(h, w) and p.images.shape == (3, p.crop.size, p.crop.size, 3)
+    assert p.crop.y0 < 0 and p.crop.x0 < 0  # extends beyond the image
+    assert p.mask.sum() == m_full.sum()
+    assert np.all(np.isfinite(p.images))
+    for k in (0, 2):
+        assert np.isclose(p.images[k][p.mask].mean(), 1.0, atol=1e-5)
+    assert np.all(p.images[1] == 0)
+    back = uncrop(p.normals, p, full_shape=(40, 52))
+    assert np.array_equal(back, obj.normals)  # exact
+
+
+def test_resize_prepared():
+    n, mask = sphere(40)
+    p = prepare(_object(n, mask), margin=4)
+    r = resize_prepared(p, 16)
+    assert r.images.shape == (3, 16, 16, 3) and r.mask.shape == (16, 16) and r.normals.shape == (16, 16, 3)
+    norms = np.linalg.norm(r.normals[r.mask], axis=1)
+    assert np.allclose(norms, 1.0, atol=1e-5) and np.all(r.normals[~r.mask] == 0)
+    # Back to the crop size and into the frame: close to the truth except at the silhouette.
+    back = uncrop(r.normals, r, mask=mask)
+    assert back.shape == (40, 40, 3)
+    assert mean_angular_error(back, n, mask) < 6.0
+    with pytest.raises(ValueError, match="size"):
+        resize_prepared(p, 0)
+
+
+# ------------------------------------------------------------------------------------- normal io
+
+
+def test_normal_png_round_trip(tmp_path):
+    n, mask = sphere(32)
+    write_normal_png(tmp_path / "n.png", n)
+    raw = cv2.imread(str(tmp_path / "n.png"), cv2.IMREAD_UNCHANGED)
+    assert raw.dtype == np.uint16 and np.all(raw[~mask] == 32768)
+    back = read_normals(tmp_path / "n.png")
+    assert np.abs(back - n).max() <= 1.0 / 65535 + 1e-6
+    assert np.all(back[~mask] == 0)
+    # RGB order on disk: x (right) is the first channel; a point on the right has red high.
+    assert raw[16, 28, 2] > 60000
+
+
+def test_normal_exr_npy_mat_round_trip(tmp_path):
+    import scipy.io
+
+    n, mask = sphere(16)
+    n = n.astype(np.float32)
+    write_normal_exr(tmp_path / "n.exr", n)
+    assert np.array_equal(read_normals(tmp_path / "n.exr"), n)
+    np.save(tmp_path / "n.npy", n)
+    assert np.array_equal(read_normals(tmp_path / "n.npy"), n)
+    scipy.io.savemat(tmp_path / "n.mat", {"Normal_gt": n})
+    assert np.array_equal(read_normals(tmp_path / "n.mat"), n)
+    write_normal_visual(tmp_path / "v.png", n)
+    vis = cv2.imread(str(tmp_path / "v.png"), cv2.IMREAD_UNCHANGED)
+    assert vis.dtype == np.uint8 and np.all(vis[~mask] == 0)
+
+
+def test_normal_io_bad_input(tmp_path):
+    with pytest.raises(ValueError, match="shape"):
+        write_normal_png(tmp_path / "a.png", np.zeros((4, 4)))
+    bad = np.zeros((4, 4, 3))
+    bad[1, 1, 0] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        write_normal_exr(tmp_path / "a.exr", bad)
+    np.save(tmp_path / "b.npy", np.zeros((4, 4, 2)))
+    with pytest.raises(ValueError, match="shape"):
+        read_normals(tmp_path / "b.npy")
+    np.save(tmp_path / "c.npy", bad)
+    with pytest.raises(ValueError, match="NaN"):
+        read_normals(tmp_path / "c.npy")
+    with pytest.raises(FileNotFoundError):
+        read_normals(tmp_path / "missing.png")
+    with pytest.raises(ValueError, match="extension"):
+        (tmp_path / "x.jpg2").write_bytes(b"0")
+        read_normals(tmp_path / "x.jpg2")
+
+
+def test_angular_error_known_angle():
+    n, mask = sphere(16)
+    # Rotate every normal by exactly 20 degrees about an axis perpendicular to it.
+    axis = np.cross(n, np.array([0.3, 0.5, 0.8]))
+    axis /= np.maximum(np.linalg.norm(axis, axis=2, keepdims=True), 1e-12)
+    t = np.radians(20.0)
+    rot = n * np.cos(t) + np.cross(axis, n) * np.sin(t)
+    rot[~mask] = 0
+    err = angular_error_deg(rot, n, mask)
+    assert np.allclose(err[mask], 20.0, atol=1e-4) and np.all(err[~mask] == 0)
+    assert abs(mean_angular_error(2.5 * rot, n, mask) - 20.0) < 1e-4  # scale does not matter
+    with pytest.raises(ValueError, match="empty"):
+        mean_angular_error(rot, n, np.zeros_like(mask))

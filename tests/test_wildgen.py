@@ -1,0 +1,177 @@
+"""The dataset generator end to end through its CLI, and the layout contract of an object folder."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+FAMILIES = ["directional", "point", "near_area", "hdri", "mixed"]
+SMALL = ["--objects", "5", "--images", "3", "--res", "32", "--spp", "4", "--gt-spp", "4", "--quiet"]
+
+
+def make(out: Path, *extra: str) -> int:
+    from wildgen.make import main
+
+    return main(["--out", str(out), *SMALL, *extra])
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory) -> Path:
+    from scenes.variant import _usable
+
+    if not _usable("llvm_ad_rgb"):
+        pytest.skip("llvm_ad_rgb is not usable")
+    out = tmp_path_factory.mktemp("ds") / "data"
+    assert make(out, "--lights", ",".join(FAMILIES), "--seed", "7", "--variant", "llvm_ad_rgb") == 0
+    return out
+
+
+def test_every_family_end_to_end(dataset):
+    manifest = json.loads((dataset / "manifest.json").read_text())
+    assert manifest["config"]["lights"] == FAMILIES and manifest["seed"] == 7 and manifest["variant"] == "llvm_ad_rgb"
+    assert {"mitsuba", "drjit", "unips-toolkit"} <= set(manifest["versions"])
+    families = [o["light_family"] for o in manifest["objects"] if o["status"] == "done"]
+    assert families == FAMILIES
+    for entry in manifest["objects"]:
+        folder = dataset / entry["folder"]
+        for rel, digest in entry["files"].items():
+            from wildgen.writer import sha256_file
+
+            assert sha256_file(folder / rel) == digest
+        scene = json.loads((folder / "scene.json").read_text())
+        types = {l["type"] for im in scene["images"] for l in im["lights"]}
+        expected = {"directional": {"directional"}, "point": {"point"}, "near_area": {"area"}, "hdri": {"environment"}}
+        if entry["light_family"] in expected:
+            assert expected[entry["light_family"]] <= types
+    assert not list(dataset.glob(".tmp-*"))
+
+
+def test_layout_contract(dataset):
+    import cv2
+
+    from scenes.imageio import read_exr
+
+    for folder in sorted(dataset.glob("*.data")):
+        names = sorted(p.name for p in folder.iterdir())
+        assert names == ["L000.png", "L001.png", "L002.png", "aux", "mask.png", "normal.tif", "scene.json"]
+        for i in range(3):
+            img = cv2.imread(str(folder / f"L{i:03d}.png"), cv2.IMREAD_UNCHANGED)
+            assert img.dtype == np.uint16 and img.shape == (32, 32, 3)
+        mask = cv2.imread(str(folder / "mask.png"), cv2.IMREAD_UNCHANGED)
+        assert mask.dtype == np.uint8 and mask.ndim == 2 and set(np.unique(mask)) <= {0, 255} and (mask > 0).sum() > 50
+        enc = cv2.imread(str(folder / "normal.tif"), cv2.IMREAD_UNCHANGED)[:, :, ::-1]
+        assert enc.dtype == np.uint16 and enc.shape == (32, 32, 3)
+        n = enc.astype(np.float64) / 65535 * 2 - 1
+        inside = mask > 0
+        assert np.allclose(np.linalg.norm(n[inside], axis=-1), 1, atol=2e-3)
+        assert np.all(enc[~inside] == 32768)
+        assert (n[inside][:, 2] > -0.05).mean() > 0.99  # visible normals face the camera (+z)
+        scene = json.loads((folder / "scene.json").read_text())
+        for key in ("shape", "material", "camera", "render", "images", "light_family", "camera_lights"):
+            assert key in scene
+        for i, im in enumerate(scene["images"]):
+            assert im["exposure"] > 0 and isinstance(im["seed"], int)
+            rad = read_exr(folder / "aux" / f"radiance_{i:03d}.exr")
+            png = cv2.imread(str(folder / f"L{i:03d}.png"), cv2.IMREAD_UNCHANGED)[:, :, ::-1]
+            expect = np.round(np.clip(rad * im["exposure"], 0, 1) * 65535)
+            assert np.array_equal(png, expect.astype(np.uint16))
+        for aux in ("normal.exr", "depth.exr", "base_color.exr", "roughness.exr", "metallic.exr", "mesh.ply"):
+            assert (folder / "aux" / aux).is_file()
+        # Nothing the official UniPS training loader would delete sits at the top.
+        for forbidden in ("baseColor.tif", "roughness.tif", "metal.tif", "depth.exr"):
+            assert not (folder / forbidden).exists()
+
+
+def test_scene_json_reproduces_the_images(dataset):
+    """Re-rendering from scene.json alone: same seed gives the same radiance, another seed agrees within noise."""
+    from scenes.description import SceneDescription
+    from scenes.imageio import read_exr
+    from scenes.mitsuba_build import build_scene
+    from scenes.render import render_image
+
+    folder = dataset / "00002.data"
+    scene = json.loads((folder / "scene.json").read_text())
+    desc = SceneDescription.from_dict({k: v for k, v in scene.items() if k not in ("camera_lights", "format_version")})
+    built = build_scene(desc, base_dir=folder)
+    mask = read_exr(folder / "aux" / "coverage.exr")[:, :, 0] > 0.999
+    for i in range(len(desc.images)):
+        original = read_exr(folder / "aux" / f"radiance_{i:03d}.exr")
+        assert np.array_equal(render_image(built, i), original)
+        again = render_image(built, i, spp=64, seed=12345)
+        rel = np.abs(again[mask] - original[mask]).mean() / original[mask].mean()
+        assert rel < 0.35, rel  # 4 spp originals are noisy; a wrong scene is off by far more
+
+
+def test_same_seed_gives_byte_identical_folders(dataset, tmp_path):
+    out = tmp_path / "again"
+    assert make(out, "--lights", ",".join(FAMILIES), "--seed", "7", "--variant", "llvm_ad_rgb") == 0
+    for folder in sorted(dataset.glob("*.data")):
+        files = sorted(p.relative_to(folder) for p in folder.rglob("*") if p.is_file())
+        other = sorted(p.relative_to(out / folder.name) for p in (out / folder.name).rglob("*") if p.is_file())
+        assert files == other
+        for rel in files:
+            assert (folder / rel).read_bytes() == (out / folder.name / rel).read_bytes(), rel
+
+
+def test_entropy_rule_rejects_a_flat_plane():
+    from scenes.procedural import generate
+    from wildgen.sampling import random_rotation, visible_normal_entropy
+
+    plane = generate("plane", 0, 8)
+    sphere = generate("blob", 0, 32, {"amplitude": 0.0})
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        R = random_rotation(rng)
+        assert visible_normal_entropy(plane, R) < 0.5
+        assert visible_normal_entropy(sphere, R) > 6.0
+
+
+def test_preview_writes_sheets(dataset, tmp_path):
+    import cv2
+
+    from wildgen.preview import main
+
+    assert main([str(dataset), "--out", str(tmp_path / "pv")]) == 0
+    overview = cv2.imread(str(tmp_path / "pv" / "overview.png"))
+    assert overview is not None and overview.std() > 5
+    assert len(list((tmp_path / "pv").glob("0*.png"))) == 5
+
+
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["--lights", "laser"], "--lights"),
+        (["--res", "0"], "--width"),
+        (["--spp", "-1"], "--spp"),
+        (["--assets", "/no/such/folder"], "--assets"),
+    ],
+)
+def test_bad_flags_one_line_error(tmp_path, capsys, args, needle):
+    from wildgen.make import main
+
+    rc = main(["--out", str(tmp_path / "o"), "--objects", "1", "--quiet", *args])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and err.startswith("error:") and needle in err and "\n" not in err
+    assert not list((tmp_path / "o").glob("*.data")) if (tmp_path / "o").exists() else True
+
+
+def test_bad_asset_folder_leaves_no_partial_object(tmp_path, capsys, llvm):
+    assets = tmp_path / "assets"
+    (assets / "meshes").mkdir(parents=True)
+    (assets / "meshes" / "broken.obj").write_text("v 0 0 0\nv 1 0 0\nf 1 2 7\n")
+    out = tmp_path / "o"
+    rc = make(out, "--assets", str(assets), "--shapes", "mesh", "--objects", "1")
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc != 0 and err and "broken.obj" in err[-1]
+    assert not list(out.glob("*.data")) and not list(out.glob(".tmp-*"))
+
+
+def test_with_shared_assets(shared, tmp_path, llvm):
+    out = tmp_path / "a"
+    assert make(out, "--assets", str(shared / "assets"), "--lights", "hdri", "--shapes", "mesh", "--objects", "2", "--seed", "3") == 0
+    for folder in sorted(out.glob("*.data")):
+        scene = json.loads((folder / "scene.json").read_text())
+        assert scene["environment"]["file"].startswith("aux/environment.hdr")
+        assert (folder / "aux" / "environment.hdr").is_file()

@@ -1,0 +1,1 @@
+"""Universal photometric stereo: loaders, preprocessing, models, training, prediction, evaluation."""

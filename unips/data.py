@@ -1,0 +1,424 @@
+"""Loading photometric-stereo objects from three folder layouts into one `PSObject`.
+
+Layouts (detected automatically, or forced with ``layout=``):
+
+- ``"ours"``: the project's ``<object>.data`` folder (see ARCHITECTURE.md): ``L000.png ...`` 16-bit
+  linear RGB, ``mask.png``, ``normal.tif``, ``scene.json`` (light family and camera-frame lights).
+- ``"unips"``: official UniPS / SDM-UniPS folders: images ``L*`` (png, jpg, tif, bmp; 8 or 16 bit),
+  optional ``mask.png`` (any value > 0 is foreground; whole image when absent), optional ``normal.tif``
+  or ``Normal_gt.png``.
+- ``"diligent"``: DiLiGenT: ``001.png ...`` (order from ``filenames.txt`` when present),
+  ``light_directions.txt``, ``light_intensities.txt``, ``mask.png``, ``Normal_gt.mat`` or
+  ``Normal_gt.png``. Each image channel is divided by its row of ``light_intensities.txt`` at load time,
+  so the returned ``light_intensities`` are ones (the file's values are kept in ``meta``).
+
+Images are returned linear in [0, 1] (16-bit / 65535, 8-bit / 255; 8-bit JPEGs are not linearised:
+the official loaders do not either). Everything is RGB and in the camera frame x right, y up,
+z toward the camera (DiLiGenT uses the same frame: its light directions and normals are consistent,
+which the least-squares baseline reproducing the published errors confirms).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+LAYOUTS = ("ours", "unips", "diligent")
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
+EXPECTED = ("an object folder: L*.png + scene.json (ours), L* images (UniPS), or DiLiGenT "
+            "001.png... + light_directions.txt; or a directory of such folders")
+
+
+@dataclass
+class PSObject:
+    """One photometric-stereo object: K images of a static scene under changing lighting."""
+
+    name: str  # folder name minus a trailing ".data" (e.g. "foo.data" -> "foo", "ballPNG" -> "ballPNG")
+    images: np.ndarray  # (K, H, W, 3) float32, linear RGB
+    mask: np.ndarray  # (H, W) bool, True on the object
+    normals: np.ndarray | None  # (H, W, 3) float32 ground truth, unit inside mask, 0 outside; None if absent
+    light_family: str | None  # "directional" | "point" | "near_area" | "hdri" | "mixed"; None if unknown
+    light_directions: np.ndarray | None  # (K, 3) unit vectors toward the light (camera frame); directional only
+    light_intensities: np.ndarray | None  # (K, 3) RGB intensity of each light as seen in `images`
+    path: Path  # the object folder
+    layout: str  # one of LAYOUTS
+    image_names: list[str] = field(default_factory=list)  # file names of the K images, in order
+    meta: dict[str, Any] = field(default_factory=dict)  # layout-specific extras (e.g. raw intensities)
+
+    @property
+    def num_images(self) -> int:
+        return int(self.images.shape[0])
+
+
+def object_name(path: str | Path) -> str:
+    """Name of an object folder: its name minus a trailing ``.data``."""
+    name = Path(path).resolve().name
+    return name[: -len(".data")] if name.endswith(".data") and len(name) > len(".data") else name
+
+
+def _natural_key(name: str) -> list[Any]:
+    """Sort key so that L2 comes before L10; zero-padded names sort as usual."""
+    return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", name)]
+
+
+def _unips_images(folder: Path) -> list[Path]:
+    """Images ``L*`` with an image extension (the official ``L*[!.txt]`` pattern, without text files)."""
+    return sorted((p for p in folder.iterdir() if p.is_file() and p.name.startswith("L")
+                   and p.suffix.lower() in IMAGE_SUFFIXES), key=lambda p: _natural_key(p.name))
+
+
+def _digit_images(folder: Path) -> list[Path]:
+    return sorted((p for p in folder.iterdir() if p.is_file() and p.suffix.lower() == ".png"
+                   and p.stem.isdigit()), key=lambda p: _natural_key(p.name))
+
+
+def detect_layout(path: str | Path) -> str | None:
+    """Layout name of an object folder, or None when the folder is not one."""
+    folder = Path(path)
+    if not folder.is_dir():
+        return None
+    has_l = bool(_unips_images(folder))
+    if has_l and (folder / "scene.json").is_file():
+        return "ours"
+    if (folder / "light_directions.txt").is_file() and ((folder / "filenames.txt").is_file()
+                                                       or _digit_images(folder)):
+        return "diligent"
+    if has_l:
+        return "unips"
+    return None
+
+
+def find_objects(path: str | Path) -> list[Path]:
+    """The object folders at ``path``: itself if it is one, else its sorted subfolders that are."""
+    root = Path(path)
+    if not root.exists():
+        raise FileNotFoundError(f"path: {root} does not exist (expected {EXPECTED})")
+    if detect_layout(root) is not None:
+        return [root]
+    if root.is_dir():
+        found = [p for p in sorted(root.iterdir(), key=lambda p: p.name) if detect_layout(p) is not None]
+        if found:
+            return found
+    raise FileNotFoundError(f"path: no object folder found at {root} (expected {EXPECTED})")
+
+
+# ----------------------------------------------------------------------------------------- files
+
+
+def _read_raw(path: Path, what: str = "image"):
+    import cv2
+
+    if not path.is_file():
+        raise FileNotFoundError(f"{what} file {path} does not exist")
+    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise ValueError(f"{what} file {path}: cannot be read (corrupt or unsupported format)")
+    return img
+
+
+def read_image(path: str | Path) -> np.ndarray:
+    """Read one image as (H, W, 3) float32 linear RGB (uint16 / 65535, uint8 / 255, float as is)."""
+    path = Path(path)
+    img = _read_raw(path)
+    if img.ndim == 2:
+        img = np.repeat(img[..., None], 3, axis=2)
+    elif img.ndim == 3 and img.shape[2] == 4:
+        img = img[..., :3]  # drop alpha
+    elif img.ndim == 3 and img.shape[2] == 1:
+        img = np.repeat(img, 3, axis=2)
+    if img.ndim != 3 or img.shape[2] != 3:
+        raise ValueError(f"image file {path}: expected a gray, RGB or RGBA image, got shape {img.shape}")
+    img = np.ascontiguousarray(img[..., ::-1])  # BGR -> RGB
+    if img.dtype == np.uint16:
+        out = img.astype(np.float32) / 65535.0
+    elif img.dtype == np.uint8:
+        out = img.astype(np.float32) / 255.0
+    elif img.dtype in (np.float32, np.float64):
+        out = img.astype(np.float32)
+        if not np.all(np.isfinite(out)):
+            raise ValueError(f"image file {path}: contains NaN or infinite values")
+    else:
+        raise ValueError(f"image file {path}: unsupported pixel type {img.dtype} (expected 8 or 16 bit)")
+    return out
+
+
+def read_mask(path: Path, shape: tuple[int, int]) -> np.ndarray:
+    """(H, W) bool mask, any channel > 0 is foreground; its size must be ``shape``."""
+    img = _read_raw(path, "mask")
+    if img.ndim == 3:
+        img = img.max(axis=2)
+    if img.shape != shape:
+        raise ValueError(f"mask file {path}: size {img.shape[1]}x{img.shape[0]} (WxH) differs from the "
+                         f"images' {shape[1]}x{shape[0]}")
+    mask = img > 0
+    if not mask.any():
+        raise ValueError(f"mask file {path}: is empty (no pixel > 0)")
+    return mask
+
+
+def _finish_normals(n: np.ndarray, mask: np.ndarray, path: Path) -> np.ndarray:
+    """Check the size, zero the background and normalise inside the mask."""
+    if n.ndim != 3 or n.shape[2] != 3:
+        raise ValueError(f"normal file {path}: expected shape (H, W, 3), got {n.shape}")
+    if n.shape[:2] != mask.shape:
+        raise ValueError(f"normal file {path}: size {n.shape[1]}x{n.shape[0]} differs from the images' "
+                         f"{mask.shape[1]}x{mask.shape[0]}")
+    if not np.all(np.isfinite(n)):
+        raise ValueError(f"normal file {path}: contains NaN or infinite values")
+    n = n.astype(np.float32).copy()
+    n[~mask] = 0.0
+    norm = np.linalg.norm(n, axis=2, keepdims=True)
+    n = np.where(norm > 1e-6, n / np.maximum(norm, 1e-12), 0.0).astype(np.float32)
+    n_zero = int(np.sum(mask & (norm[..., 0] <= 1e-6)))
+    if n_zero:
+        log.warning("%s: %d mask pixels have a zero ground-truth normal", path, n_zero)
+    return n
+
+
+def read_normal_file(path: Path, mask: np.ndarray) -> np.ndarray:
+    from unips.normal_io import read_normals
+
+    return _finish_normals(read_normals(path), mask, path)
+
+
+def read_text_matrix(path: Path, rows: int, what: str) -> np.ndarray:
+    """(rows, 3) float64 matrix from a whitespace/comma separated text file, checked."""
+    if not path.is_file():
+        raise FileNotFoundError(f"{what} file {path} does not exist")
+    try:
+        text = path.read_text().replace(",", " ")
+        values = np.array([[float(v) for v in line.split()] for line in text.splitlines() if line.strip()],
+                          dtype=np.float64)
+    except ValueError as exc:
+        raise ValueError(f"{what} file {path}: cannot parse numbers ({exc})") from exc
+    if values.ndim != 2 or values.shape[1] != 3:
+        raise ValueError(f"{what} file {path}: expected 3 numbers per row, got shape {values.shape}")
+    if values.shape[0] != rows:
+        raise ValueError(f"{what} file {path}: has {values.shape[0]} rows, expected {rows} (one per image)")
+    if not np.all(np.isfinite(values)):
+        raise ValueError(f"{what} file {path}: contains NaN or infinite values")
+    return values
+
+
+def _load_stack(paths: list[Path]) -> np.ndarray:
+    """(K, H, W, 3) float32 from image files that must all have the same size."""
+    first = read_image(paths[0])
+    stack = np.empty((len(paths),) + first.shape, dtype=np.float32)
+    stack[0] = first
+    for i, p in enumerate(paths[1:], start=1):
+        img = read_image(p)
+        if img.shape != first.shape:
+            raise ValueError(f"image file {p}: size {img.shape[1]}x{img.shape[0]} differs from "
+                             f"{paths[0].name}'s {first.shape[1]}x{first.shape[0]}")
+        stack[i] = img
+    return stack
+
+
+def _take(paths: list[Path], max_images: int | None, folder: Path) -> list[Path]:
+    if not paths:
+        raise FileNotFoundError(f"path: no images found in {folder} (expected {EXPECTED})")
+    if max_images is not None:
+        if int(max_images) < 1:
+            raise ValueError(f"max_images: must be >= 1, got {max_images}")
+        paths = paths[: int(max_images)]
+    return paths
+
+
+# --------------------------------------------------------------------------------------- layouts
+
+
+def _load_ours(folder: Path, max_images: int | None) -> PSObject:
+    paths = _take(_unips_images(folder), max_images, folder)
+    n_all = len(_unips_images(folder))
+    images = _load_stack(paths)
+    shape = images.shape[1:3]
+    mask_path = folder / "mask.png"
+    mask = read_mask(mask_path, shape)
+    normals = read_normal_file(folder / "normal.tif", mask) if (folder / "normal.tif").is_file() else None
+    scene_path = folder / "scene.json"
+    try:
+        scene = json.loads(scene_path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ValueError(f"scene file {scene_path}: cannot be parsed as JSON ({exc})") from exc
+    if not isinstance(scene, dict):
+        raise ValueError(f"scene file {scene_path}: expected a JSON object, got {type(scene).__name__}")
+    family = scene.get("light_family")
+    directions = intensities = None
+    cam = scene.get("camera_lights")
+    if cam is not None:
+        if not isinstance(cam, list) or len(cam) != n_all:
+            got = len(cam) if isinstance(cam, list) else type(cam).__name__
+            raise ValueError(f"scene file {scene_path}: camera_lights has {got} entries, expected {n_all} "
+                             "(one per image)")
+        directions, intensities = _directional(cam[: len(paths)], scene_path)
+    return PSObject(name=object_name(folder), images=images, mask=mask, normals=normals,
+                    light_family=family, light_directions=directions, light_intensities=intensities,
+                    path=folder, layout="ours", image_names=[p.name for p in paths])
+
+
+def _directional(cam: list, scene_path: Path) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Directions and irradiances when every image has exactly one directional light and nothing else."""
+    dirs, irr = [], []
+    for i, entry in enumerate(cam):
+        lights = entry.get("directional", []) if isinstance(entry, dict) else None
+        if lights is None or len(lights) != 1 or entry.get("other", 0) != 0:
+            return None, None
+        try:
+            d = np.asarray(lights[0]["direction_to_light"], dtype=np.float64)
+            e = np.asarray(lights[0]["irradiance"], dtype=np.float64)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ValueError(f"scene file {scene_path}: camera_lights[{i}] is malformed ({exc})") from exc
+        if d.shape != (3,) or e.shape != (3,) or not (np.all(np.isfinite(d)) and np.all(np.isfinite(e))):
+            raise ValueError(f"scene file {scene_path}: camera_lights[{i}] needs finite 3-vectors, got "
+                             f"direction {d.tolist()} irradiance {e.tolist()}")
+        norm = np.linalg.norm(d)
+        if norm < 1e-9:
+            raise ValueError(f"scene file {scene_path}: camera_lights[{i}] has a zero direction")
+        dirs.append(d / norm)
+        irr.append(e)
+    return np.asarray(dirs, np.float32), np.asarray(irr, np.float32)
+
+
+def _load_unips(folder: Path, max_images: int | None) -> PSObject:
+    paths = _take(_unips_images(folder), max_images, folder)
+    images = _load_stack(paths)
+    shape = images.shape[1:3]
+    mask_path = folder / "mask.png"
+    mask = read_mask(mask_path, shape) if mask_path.is_file() else np.ones(shape, dtype=bool)
+    normals = None
+    for gt_name in ("normal.tif", "Normal_gt.png"):
+        if (folder / gt_name).is_file():
+            normals = read_normal_file(folder / gt_name, mask)
+            break
+    return PSObject(name=object_name(folder), images=images, mask=mask, normals=normals, light_family=None,
+                    light_directions=None, light_intensities=None, path=folder, layout="unips",
+                    image_names=[p.name for p in paths])
+
+
+def _load_diligent(folder: Path, max_images: int | None) -> PSObject:
+    list_path = folder / "filenames.txt"
+    if list_path.is_file():
+        names = [line.strip() for line in list_path.read_text().splitlines() if line.strip()]
+        all_paths = [folder / n for n in names]
+    else:
+        all_paths = _digit_images(folder)
+    n_all = len(all_paths)
+    paths = _take(all_paths, max_images, folder)
+    directions = read_text_matrix(folder / "light_directions.txt", n_all, "light_directions")[: len(paths)]
+    norms = np.linalg.norm(directions, axis=1)
+    if np.any(norms < 1e-9):
+        raise ValueError(f"light_directions file {folder / 'light_directions.txt'}: row "
+                         f"{int(np.argmin(norms)) + 1} is a zero vector")
+    directions = directions / norms[:, None]
+    int_path = folder / "light_intensities.txt"
+    raw_int = (read_text_matrix(int_path, n_all, "light_intensities")[: len(paths)] if int_path.is_file()
+               else np.ones((len(paths), 3)))
+    if np.any(raw_int <= 0):
+        raise ValueError(f"light_intensities file {int_path}: intensities must be > 0")
+    images = _load_stack(paths)
+    images /= raw_int[:, None, None, :].astype(np.float32)
+    shape = images.shape[1:3]
+    mask_path = folder / "mask.png"
+    mask = read_mask(mask_path, shape) if mask_path.is_file() else np.ones(shape, dtype=bool)
+    normals = None
+    if (folder / "Normal_gt.mat").is_file():
+        normals = read_normal_file(folder / "Normal_gt.mat", mask)
+    elif (folder / "Normal_gt.png").is_file():
+        normals = read_normal_file(folder / "Normal_gt.png", mask)
+    return PSObject(name=object_name(folder), images=images, mask=mask, normals=normals,
+                    light_family="directional", light_directions=directions.astype(np.float32),
+                    light_intensities=np.ones((len(paths), 3), np.float32), path=folder, layout="diligent",
+                    image_names=[p.name for p in paths], meta={"light_intensities_file": raw_int})
+
+
+_LOADERS = {"ours": _load_ours, "unips": _load_unips, "diligent": _load_diligent}
+
+
+def load_object(path: str | Path, max_images: int | None = None, layout: str | None = None) -> PSObject:
+    """Load one object folder.
+
+    max_images: keep the first K images in the folder's order (natural sort of names, or DiLiGenT's
+    filenames.txt); deterministic. layout: force ``"ours"``, ``"unips"`` or ``"diligent"``.
+    """
+    folder = Path(path)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"path: object folder {folder} does not exist (expected {EXPECTED})")
+    if layout is None:
+        layout = detect_layout(folder)
+        if layout is None:
+            raise FileNotFoundError(f"path: {folder} is not an object folder (expected {EXPECTED})")
+    elif layout not in LAYOUTS:
+        raise ValueError(f"layout: unknown layout {layout!r}, expected one of {LAYOUTS}")
+    obj = _LOADERS[layout](folder, max_images)
+    log.debug("loaded %s (%s): %d images %dx%d", folder, layout, obj.num_images, obj.images.shape[2],
+              obj.images.shape[1])
+    return obj
+
+
+@dataclass
+class GroundTruth:
+    """What evaluation needs from an object folder, read without loading every image."""
+
+    name: str  # object name (folder name minus a trailing ".data")
+    mask: np.ndarray  # (H, W) bool
+    normals: np.ndarray | None  # (H, W, 3) float32, unit inside mask; None when the folder has none
+    light_family: str | None  # from scene.json ("ours"), "directional" for DiLiGenT, else None
+    path: Path  # the object folder
+    layout: str  # one of LAYOUTS
+
+
+def load_ground_truth(path: str | Path, layout: str | None = None) -> GroundTruth:
+    """Mask, ground-truth normals and light family of an object folder (reads one image for its size)."""
+    folder = Path(path)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"path: object folder {folder} does not exist (expected {EXPECTED})")
+    layout = layout or detect_layout(folder)
+    if layout is None:
+        raise FileNotFoundError(f"path: {folder} is not an object folder (expected {EXPECTED})")
+    if layout not in LAYOUTS:
+        raise ValueError(f"layout: unknown layout {layout!r}, expected one of {LAYOUTS}")
+    if layout == "diligent":
+        list_path = folder / "filenames.txt"
+        if list_path.is_file():
+            names = [line.strip() for line in list_path.read_text().splitlines() if line.strip()]
+            images = [folder / n for n in names]
+        else:
+            images = _digit_images(folder)
+        gt_names = ("Normal_gt.mat", "Normal_gt.png")
+    else:
+        images = _unips_images(folder)
+        gt_names = ("normal.tif", "Normal_gt.png")
+    if not images:
+        raise FileNotFoundError(f"path: no images found in {folder} (expected {EXPECTED})")
+    shape = read_image(images[0]).shape[:2]
+    mask_path = folder / "mask.png"
+    if mask_path.is_file():
+        mask = read_mask(mask_path, shape)
+    elif layout == "ours":
+        raise FileNotFoundError(f"mask file {mask_path} does not exist")
+    else:
+        mask = np.ones(shape, dtype=bool)
+    normals = None
+    for gt_name in gt_names:
+        if (folder / gt_name).is_file():
+            normals = read_normal_file(folder / gt_name, mask)
+            break
+    family: str | None = None
+    if layout == "ours":
+        scene_path = folder / "scene.json"
+        try:
+            family = json.loads(scene_path.read_text()).get("light_family")
+        except (OSError, json.JSONDecodeError, AttributeError) as exc:
+            raise ValueError(f"scene file {scene_path}: cannot be parsed as a JSON object ({exc})") from exc
+    elif layout == "diligent":
+        family = "directional"
+    return GroundTruth(name=object_name(folder), mask=mask, normals=normals, light_family=family,
+                       path=folder, layout=layout)

@@ -1,0 +1,175 @@
+"""Compare predicted normal maps with ground truth.
+
+    python -m unips.evaluate --pred DIR --gt PATH [--allow-missing]
+
+``--gt`` is an object folder or a dataset directory (any layout `unips.data` reads). Predictions are
+looked up as ``DIR/<object>/normal.exr`` (else ``normal.png``), ``<object>`` being the ground-truth
+folder's name minus a trailing ``.data`` (what `unips.predict` writes). Writes ``DIR/metrics.json``,
+``DIR/metrics.csv`` and ``DIR/<object>/error_map.png`` (angular error, colour-mapped, clipped at
+90 degrees, background black) and prints a table. Metrics per object: mean and median angular error
+(degrees) over the ground-truth mask, the percentage of pixels under 11.25 and 30 degrees, the light
+family and the pixel count; means over objects overall and per light family. A ground-truth object
+without a prediction is listed as missing and makes the exit status 1 unless ``--allow-missing``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import logging
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from unips.data import find_objects, load_ground_truth
+
+log = logging.getLogger(__name__)
+
+ERROR_CLIP_DEG = 90.0
+PRED_FILES = ("normal.exr", "normal.png")
+CSV_FIELDS = ("object", "light_family", "n_pixels", "mae_deg", "median_deg", "pct_below_11_25", "pct_below_30")
+
+
+class CLIError(Exception):
+    """A usage or input error the CLI reports as one line."""
+
+
+def object_metrics(pred: np.ndarray, gt: np.ndarray, mask: np.ndarray) -> tuple[dict[str, float], np.ndarray]:
+    """Metrics of one object and its (H, W) error map in degrees."""
+    from unips.normal_io import angular_error_deg
+
+    if not mask.any():
+        raise ValueError("mask: is empty, nothing to evaluate")
+    err_map = angular_error_deg(pred, gt, mask)
+    err = err_map[mask].astype(np.float64)
+    return {
+        "mae_deg": float(err.mean()),
+        "median_deg": float(np.median(err)),
+        "pct_below_11_25": float(100.0 * np.mean(err < 11.25)),
+        "pct_below_30": float(100.0 * np.mean(err < 30.0)),
+        "n_pixels": int(mask.sum()),
+    }, err_map
+
+
+def write_error_map(path: Path, err_map: np.ndarray, mask: np.ndarray, clip_deg: float = ERROR_CLIP_DEG) -> None:
+    """Colour-mapped (JET) error image, 0 -> blue, clip_deg and above -> red, background black."""
+    import cv2
+
+    level = np.round(np.clip(err_map / clip_deg, 0.0, 1.0) * 255.0).astype(np.uint8)
+    img = cv2.applyColorMap(level, cv2.COLORMAP_JET)
+    img[~mask] = 0
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if not cv2.imwrite(str(path), img):
+        raise ValueError(f"path: cannot write {path}")
+
+
+def find_prediction(pred_dir: Path, name: str) -> Path | None:
+    for fname in PRED_FILES:
+        p = pred_dir / name / fname
+        if p.is_file():
+            return p
+    return None
+
+
+def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True) -> dict[str, Any]:
+    """Evaluate every ground-truth object at ``gt`` against ``pred_dir``; returns the metrics dict."""
+    from unips.normal_io import read_normals
+
+    pred_dir = Path(pred_dir)
+    if not pred_dir.is_dir():
+        raise FileNotFoundError(f"pred: prediction directory {pred_dir} does not exist")
+    results: dict[str, dict[str, Any]] = {}
+    missing: list[str] = []
+    no_gt: list[str] = []
+    for folder in find_objects(gt):
+        truth = load_ground_truth(folder)
+        if truth.name in results or truth.name in missing:
+            raise ValueError(f"gt: two ground-truth folders are named {truth.name!r}")
+        if truth.normals is None:
+            no_gt.append(truth.name)
+            log.warning("%s has no ground-truth normals; skipped", folder)
+            continue
+        pred_path = find_prediction(pred_dir, truth.name)
+        if pred_path is None:
+            missing.append(truth.name)
+            continue
+        pred = read_normals(pred_path)
+        if pred.shape != truth.normals.shape:
+            raise ValueError(f"pred: {pred_path} has shape {pred.shape}, the ground truth {folder} has "
+                             f"{truth.normals.shape}")
+        metrics, err_map = object_metrics(pred, truth.normals, truth.mask)
+        results[truth.name] = {**metrics, "light_family": truth.light_family, "prediction": str(pred_path)}
+        if write:
+            write_error_map(pred_dir / truth.name / "error_map.png", err_map, truth.mask)
+    if not results and not missing:
+        raise ValueError(f"gt: no object at {gt} has ground-truth normals (skipped: {no_gt})")
+    per_family: dict[str, dict[str, Any]] = {}
+    for name, m in results.items():
+        if m["light_family"] is not None:
+            per_family.setdefault(m["light_family"], {"objects": []})["objects"].append(name)
+    for fam, entry in per_family.items():
+        entry["mean_mae_deg"] = float(np.mean([results[n]["mae_deg"] for n in entry["objects"]]))
+        entry["n_objects"] = len(entry["objects"])
+    summary = {
+        "objects": results,
+        "mean_mae_deg": float(np.mean([m["mae_deg"] for m in results.values()])) if results else None,
+        "per_family": per_family,
+        "missing": missing,
+        "no_ground_truth": no_gt,
+        "gt": str(Path(gt).resolve()),
+    }
+    if write:
+        (pred_dir / "metrics.json").write_text(json.dumps(summary, indent=2, sort_keys=True))
+        with open(pred_dir / "metrics.csv", "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=CSV_FIELDS)
+            writer.writeheader()
+            for name, m in results.items():
+                writer.writerow({"object": name, **{k: m[k] for k in CSV_FIELDS[1:]}})
+    return summary
+
+
+def format_table(summary: dict[str, Any]) -> str:
+    lines = [f"{'object':<24} {'family':<12} {'pixels':>8} {'MAE':>7} {'median':>7} {'<11.25%':>8} {'<30%':>7}"]
+    for name, m in summary["objects"].items():
+        lines.append(f"{name:<24} {str(m['light_family'] or '-'):<12} {m['n_pixels']:>8d} {m['mae_deg']:>7.2f} "
+                     f"{m['median_deg']:>7.2f} {m['pct_below_11_25']:>8.1f} {m['pct_below_30']:>7.1f}")
+    if summary["mean_mae_deg"] is not None:
+        lines.append(f"{'mean':<24} {'':<12} {'':>8} {summary['mean_mae_deg']:>7.2f}")
+    for fam, entry in sorted(summary["per_family"].items()):
+        lines.append(f"{'mean ' + fam:<24} {'':<12} {entry['n_objects']:>8d} {entry['mean_mae_deg']:>7.2f}")
+    for name in summary["missing"]:
+        lines.append(f"{name:<24} MISSING prediction")
+    return "\n".join(lines)
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:
+        raise CLIError(message)
+
+
+def main(argv: list[str] | None = None) -> int:
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    parser = _Parser(prog="python -m unips.evaluate", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--pred", required=True, type=Path, help="directory written by unips.predict")
+    parser.add_argument("--gt", required=True, type=Path, help="object folder or dataset directory")
+    parser.add_argument("--allow-missing", action="store_true",
+                        help="exit 0 even when some ground-truth objects have no prediction")
+    try:
+        args = parser.parse_args(argv)
+        summary = evaluate(args.pred, args.gt)
+    except (CLIError, ValueError, FileNotFoundError, OSError) as exc:
+        print(f"error: {str(exc).replace(chr(10), ' ')}", file=sys.stderr)
+        return 2
+    print(format_table(summary))
+    if summary["missing"] and not args.allow_missing:
+        print(f"error: no prediction for {len(summary['missing'])} object(s): {', '.join(summary['missing'])} "
+              "(use --allow-missing to accept)", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

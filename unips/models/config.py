@@ -1,0 +1,113 @@
+"""Configuration of the GLC-UniPS family of networks (one dataclass, plain JSON-able values)."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+
+@dataclass
+class GLCConfig:
+    """Hyper-parameters of a GLC-UniPS network; `dataclasses.asdict` round-trips through JSON."""
+
+    # Side of the square the encoder sees; images and mask are resized to it. Multiple of 32
+    # (patch 4 in the stem, then three 2x patch mergings).
+    canonical_resolution: int = 256
+    # Swin backbone (built by timm, never with pretrained weights): channels of the first stage.
+    swin_embed_dim: int = 96
+    # Swin blocks per stage (Swin-S: 2, 2, 18, 2).
+    swin_depths: tuple[int, ...] = (2, 2, 18, 2)
+    # Attention heads per stage (Swin-S: 3, 6, 12, 24).
+    swin_heads: tuple[int, ...] = (3, 6, 12, 24)
+    # Swin window side; timm shrinks it on stages whose feature map is smaller.
+    swin_window: int = 7
+    # Stochastic-depth rate of the backbone (timm's default for Swin).
+    swin_drop_path: float = 0.1
+    # Hidden channels of the convolutional stem (five convolutions to 1/4 resolution);
+    # 0 means half the embedding dimension.
+    stem_channels: int = 0
+    # Heads of the pre-fusion communication layer (one Transformer layer per scale, across images).
+    comm_heads: int = 8
+    # Feed-forward width of the communication layer as a multiple of the scale's channels.
+    comm_ff_ratio: float = 2.0
+    # Channels of the global lighting contexts (UPerNet output, at canonical / 4).
+    context_dim: int = 256
+    # Output sizes of the pyramid-pooling module of the UPerNet head.
+    ppm_scales: tuple[int, ...] = (1, 2, 3, 6)
+    # Width of the per-pixel decoder (tokens: one per image, RGB + context projected to this).
+    decoder_dim: int = 384
+    # Self-attention layers across images in the decoder.
+    decoder_layers: int = 3
+    # Heads of the decoder's self-attention layers and of the PMA pooling.
+    decoder_heads: int = 8
+    # Feed-forward width of the decoder's Transformer layers (and of the PMA block).
+    decoder_ff: int = 1024
+    # Hidden width of the normal predictor MLP (decoder_dim -> predictor_hidden -> 3).
+    predictor_hidden: int = 192
+    # Dropout in the communication and decoder Transformer layers (paper: 0.1).
+    dropout: float = 0.1
+    # Ablation "trivial context": contexts averaged over the masked area, the same at every pixel.
+    uniform_context: bool = False
+    # Pixels decoded at once in `forward`; bounds decoder memory independently of the resolution.
+    pixel_chunk: int = 10000
+
+    def __post_init__(self) -> None:
+        # JSON turns tuples into lists: normalise so configs compare equal after a round trip.
+        for name in ("swin_depths", "swin_heads", "ppm_scales"):
+            setattr(self, name, tuple(int(v) for v in getattr(self, name)))
+        self.validate()
+
+    def validate(self) -> None:
+        """Raise ValueError naming the first inconsistent field."""
+        def bad(name: str, expected: str) -> ValueError:
+            return ValueError(f"GLCConfig.{name}={getattr(self, name)!r}: expected {expected}")
+
+        if self.canonical_resolution <= 0 or self.canonical_resolution % 32:
+            raise bad("canonical_resolution", "a positive multiple of 32")
+        if len(self.swin_depths) != 4 or min(self.swin_depths) < 1:
+            raise bad("swin_depths", "4 positive stage depths")
+        if len(self.swin_heads) != 4 or min(self.swin_heads) < 1:
+            raise bad("swin_heads", "4 positive head counts")
+        for i, h in enumerate(self.swin_heads):
+            if (self.swin_embed_dim * 2 ** i) % h:
+                raise bad("swin_heads", f"head counts dividing the stage widths {self.stage_channels}")
+        for c in self.stage_channels:
+            if c % self.comm_heads:
+                raise bad("comm_heads", f"a divisor of every stage width {self.stage_channels}")
+        if self.decoder_dim % self.decoder_heads:
+            raise bad("decoder_heads", f"a divisor of decoder_dim={self.decoder_dim}")
+        for name in ("swin_embed_dim", "context_dim", "decoder_dim", "decoder_ff", "predictor_hidden",
+                     "pixel_chunk", "swin_window"):
+            if int(getattr(self, name)) < 1:
+                raise bad(name, "a positive integer")
+        if self.decoder_layers < 0:
+            raise bad("decoder_layers", "a non-negative integer")
+        if not self.ppm_scales or min(self.ppm_scales) < 1:
+            raise bad("ppm_scales", "positive pooled sizes")
+        if not 0.0 <= self.dropout < 1.0:
+            raise bad("dropout", "a probability in [0, 1)")
+        if not 0.0 <= self.swin_drop_path < 1.0:
+            raise bad("swin_drop_path", "a probability in [0, 1)")
+        if self.stem_channels < 0:
+            raise bad("stem_channels", "0 (automatic) or a positive integer")
+
+    @property
+    def stage_channels(self) -> tuple[int, int, int, int]:
+        """Channels of the four backbone stages."""
+        e = self.swin_embed_dim
+        return (e, 2 * e, 4 * e, 8 * e)
+
+    @property
+    def context_resolution(self) -> int:
+        """Side of the context maps (a quarter of the canonical resolution)."""
+        return self.canonical_resolution // 4
+
+
+def config_with_overrides(base: GLCConfig, overrides: Mapping[str, Any]) -> GLCConfig:
+    """`base` with some fields replaced; an unknown key raises ValueError naming it."""
+    known = {f.name for f in dataclasses.fields(GLCConfig)}
+    for key in overrides:
+        if key not in known:
+            raise ValueError(f"unknown model option {key!r}; known options: {', '.join(sorted(known))}")
+    return dataclasses.replace(base, **dict(overrides))

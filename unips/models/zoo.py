@@ -1,0 +1,68 @@
+"""The registered GLC-UniPS configurations: the paper's network, a CPU-trainable one, a test one."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from .config import GLCConfig, config_with_overrides
+from .glc import GLCUniPS
+from .registry import register_model
+
+# The paper's "base + pre-fusion" network: Swin-S, canonical 256, contexts 64x64x256 (about 69 M).
+GLC_UNIPS = GLCConfig()
+
+# Same structure, small enough to train on a 2-core CPU in about an hour.
+GLC_TINY = GLCConfig(
+    canonical_resolution=64,
+    swin_embed_dim=24,
+    swin_depths=(1, 1, 2, 1),
+    swin_heads=(1, 2, 4, 8),
+    swin_window=4,
+    swin_drop_path=0.0,
+    comm_heads=4,
+    context_dim=32,
+    decoder_dim=32,
+    decoder_layers=2,
+    decoder_heads=2,
+    decoder_ff=64,
+    predictor_hidden=32,
+    dropout=0.0,
+)
+
+# Unit tests: a forward pass at 32x32 in milliseconds.
+GLC_TEST = GLCConfig(
+    canonical_resolution=32,
+    swin_embed_dim=8,
+    swin_depths=(1, 1, 1, 1),
+    swin_heads=(1, 2, 2, 4),
+    swin_window=4,
+    swin_drop_path=0.0,
+    comm_heads=2,
+    context_dim=16,
+    ppm_scales=(1, 2),
+    decoder_dim=16,
+    decoder_layers=1,
+    decoder_heads=2,
+    decoder_ff=32,
+    predictor_hidden=8,
+    dropout=0.0,
+    pixel_chunk=4096,
+)
+
+
+@register_model("glc-unips")
+def glc_unips(**overrides: Any) -> GLCUniPS:
+    """GLC-UniPS as in the paper (Swin-S backbone, pre-fusion communication)."""
+    return GLCUniPS(config_with_overrides(GLC_UNIPS, overrides))
+
+
+@register_model("glc-tiny")
+def glc_tiny(**overrides: Any) -> GLCUniPS:
+    """Narrow GLC-UniPS for CPU training (canonical 64)."""
+    return GLCUniPS(config_with_overrides(GLC_TINY, overrides))
+
+
+@register_model("glc-test")
+def glc_test(**overrides: Any) -> GLCUniPS:
+    """Minimal GLC-UniPS for unit tests (canonical 32)."""
+    return GLCUniPS(config_with_overrides(GLC_TEST, overrides))

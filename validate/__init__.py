@@ -1,0 +1,7 @@
+"""Physical check of predicted normals: re-render the known scene of each input image with the shading
+normal of every camera-visible surface point replaced by the predicted one, and compare with the inputs.
+
+Modules: `projection` (camera model shared by NumPy and Dr.Jit code), `normal_bsdf` (the Mitsuba BSDF
+wrapper that swaps the normals), `io` (object folders and normal-map files), `perturb` (controlled
+normal errors for tests and benches), `metrics`, `figures`, and `rerender` (library + CLI).
+"""

@@ -1,0 +1,476 @@
+"""Re-render check of predicted normals (library and CLI `validate-rerender`).
+
+For each object folder, the scene of every input image is rebuilt from scene.json and rendered again with
+the shading normal of every camera-visible surface point replaced by the predicted normal of the pixel it
+projects to (`validate.normal_bsdf`); hidden points keep their own normals, so shadows and
+inter-reflections stay physical. The re-render uses each image's recorded seed (common random numbers,
+`--seed-mode same`) and spp, gets the recorded exposure, and is compared in linear space with the input.
+
+Reference levels written next to the score, all over the object mask:
+- `gt_rel_l1`: the same re-render with the ground-truth normals of normal.tif (its pixel-grid
+  discretisation is the floor a perfect prediction reaches);
+- `noise_floor_rel_l1`: the original scene (no wrapper) rendered with an independent seed: pure noise;
+- `reproduce_rel_l1`: the wrapper switched off, recorded seed: should be ~0 (checks that scene.json and
+  this Mitsuba reproduce the stored images).
+
+Usage:
+    python -m validate.rerender --data OBJ.data --normals PRED/OBJ/normal.png --out DIR
+    python -m validate.rerender --data DATASET --normals PRED --out DIR   # every *.data folder
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import gc
+import hashlib
+import json
+import logging
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from validate.io import ObjectData, check_normals, find_prediction, list_objects, load_object, object_name, read_normal_map
+from validate.metrics import expose, finite_or_none, mae_deg, mean_or_none, psnr, rel_l1, relative_residual_map
+from validate.normal_bsdf import (
+    MODE_PASSTHROUGH,
+    MODE_PREDICTED,
+    NormalSwap,
+    VisibilityConfig,
+    depth_map,
+    require_jit_variant,
+    wrapper_for,
+)
+from validate.projection import CameraProjection
+
+log = logging.getLogger(__name__)
+
+SEED_MODES = ("same", "independent")
+SUMMARY_COLUMNS = (
+    "object",
+    "images",
+    "mae_deg",
+    "rel_l1",
+    "gt_rel_l1",
+    "noise_floor_rel_l1",
+    "reproduce_rel_l1",
+    "psnr",
+    "frac_above_threshold",
+    "rerender_s",
+    "original_render_s",
+)
+
+Progress = Callable[[int, int, str], None]
+"""progress(done, total, label): called after each render."""
+
+
+@dataclass
+class RerenderConfig:
+    """Options of the re-render check."""
+
+    spp: int | None = None
+    """Samples per pixel; None = the recorded render.spp (required for common random numbers)."""
+    seed_mode: str = "same"
+    """'same': each image's recorded seed (noise largely cancels); 'independent': fresh seeds."""
+    floors: bool = True
+    """Also render the independent-seed noise floor and the reproduction check (2 more renders per image)."""
+    visibility: VisibilityConfig = field(default_factory=VisibilityConfig)
+    """How camera visibility of surface points is decided."""
+    threshold: float | None = None
+    """Per-pixel relative residual counted in frac_above_threshold; None = 99th percentile of the
+    noise-floor residual map (needs floors)."""
+    figure_rows: int = 4
+    """Images shown in figure.png."""
+    save_renders: bool = False
+    """Also write the re-rendered images as R000.png.. (16-bit, exposure applied)."""
+    allow_missing: bool = False
+    """Accept exactly-zero normals inside the mask as "no estimate": those points keep their own normal
+    (counted in missing_pixels, and as 90 deg in mae_deg). Otherwise they are an error."""
+
+    def validate(self) -> "RerenderConfig":
+        if self.spp is not None and (isinstance(self.spp, bool) or not isinstance(self.spp, int) or self.spp <= 0):
+            raise ValueError(f"--spp: expected a positive integer, got {self.spp!r}")
+        if self.seed_mode not in SEED_MODES:
+            raise ValueError(f"--seed-mode: {self.seed_mode!r} is not one of {', '.join(SEED_MODES)}")
+        if self.threshold is not None and not (np.isfinite(self.threshold) and self.threshold > 0):
+            raise ValueError(f"--threshold: expected a positive number, got {self.threshold!r}")
+        if self.figure_rows < 1:
+            raise ValueError(f"figure_rows: expected at least 1, got {self.figure_rows!r}")
+        self.visibility.validate()
+        return self
+
+
+def independent_seed(seed: int) -> int:
+    """A seed unrelated to `seed` (hash), deterministic, in Mitsuba's uint32 range."""
+    return int.from_bytes(hashlib.sha256(f"rerender-independent:{seed}".encode()).digest()[:4], "little")
+
+
+def _render_all(built: Any, indices: range, spp: int, seeds: list[int], exposures: list[float], tick: Callable[[str], None], label: str) -> tuple[np.ndarray, list[float]]:
+    from scenes.render import render_image
+
+    out, times = [], []
+    for i in indices:
+        t0 = time.perf_counter()
+        radiance = render_image(built, i, spp=spp, seed=seeds[i])
+        times.append(time.perf_counter() - t0)
+        out.append(expose(radiance, exposures[i]))
+        tick(f"{label} {i:03d}")
+    return np.stack(out), times
+
+
+def _figure_rows(k: int, n: int) -> list[int]:
+    return sorted(set(np.linspace(0, k - 1, min(k, n)).round().astype(int).tolist()))
+
+
+def check_inputs(
+    folder: str | Path, normals: np.ndarray | str | Path, allow_missing: bool = False
+) -> tuple[ObjectData, np.ndarray, np.ndarray, str]:
+    """Load an object folder and its prediction and check them against each other (no rendering).
+
+    Returns (object data, normals (renormalised where valid, 0 elsewhere), valid mask, where they came from)."""
+    data = load_object(folder)
+    source = "array"
+    if not isinstance(normals, np.ndarray):
+        path = find_prediction(normals, data.name)
+        source = str(path)
+        normals = read_normal_map(path)
+    what = f"--normals ({source})" if source != "array" else "--normals"
+    pred, valid = check_normals(normals, data.mask, what, allow_missing)
+    return data, pred, valid, source
+
+
+def rerender_object(
+    folder: str | Path,
+    normals: np.ndarray | str | Path,
+    config: RerenderConfig | None = None,
+    out_dir: str | Path | None = None,
+    progress: Progress | None = None,
+) -> dict:
+    """Re-render one object folder with predicted normals; return the report (and write it to
+    `out_dir/<object>/` with figure.png when out_dir is given).
+
+    normals: camera-frame normal map (H, W, 3), or a normal-map file, or a folder holding one.
+    Raises FileNotFoundError / ValueError for bad inputs (missing files, wrong sizes, bad normals).
+    """
+    from scenes.mitsuba_build import build_scene
+
+    config = (config or RerenderConfig()).validate()
+    mi = require_jit_variant()
+    t_start = time.perf_counter()
+    data, pred, valid, source = check_inputs(folder, normals, config.allow_missing)
+    desc, mask = data.desc, data.mask
+    k = len(desc.images)
+    spp = int(config.spp or desc.render.spp)
+    exposures = [float(im.exposure) for im in desc.images]
+    recorded = [int(im.seed) for im in desc.images]
+    fresh = [independent_seed(s) for s in recorded]
+    rerender_seeds = recorded if config.seed_mode == "same" else fresh
+    reproduce = config.floors and spp == desc.render.spp
+    total = k * (1 + (data.normal_gt is not None) + config.floors + reproduce)
+    done = 0
+
+    def tick(label: str) -> None:
+        nonlocal done
+        done += 1
+        if progress is not None:
+            progress(done, total, f"{data.name}: {label}")
+
+    # 1. The original scene with independent seeds: noise floor and the original render time. It is
+    #    released before the wrapped scene is built (live Python BSDFs are traced into every kernel).
+    floor_imgs, t_orig = None, []
+    if config.floors:
+        built = build_scene(desc, data.folder)
+        floor_imgs, t_orig = _render_all(built, range(k), spp, fresh, exposures, tick, "noise floor")
+        del built
+        gc.collect()
+
+    # 2. The wrapped scene: one build, normals and mode swapped through mi.traverse.
+    t0 = time.perf_counter()
+    camera = CameraProjection.from_camera(desc.camera)
+    built = build_scene(desc, data.folder, bsdf_wrapper=wrapper_for(camera, config.visibility))
+    swap = NormalSwap.attach(built.params, camera, config.visibility)
+    t_build = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    built.park_lights()  # area-light rectangles out of the way: the depth map holds the object only
+    swap.set_depth(depth_map(built.scene, camera, config.visibility.supersample))
+    built.apply_image(0)
+    t_depth = time.perf_counter() - t0
+
+    repro_imgs = None
+    if reproduce:
+        swap.set_mode(MODE_PASSTHROUGH)
+        repro_imgs, _ = _render_all(built, range(k), spp, recorded, exposures, tick, "reproduce")
+    swap.set_normals(pred, valid)
+    swap.set_mode(MODE_PREDICTED)
+    renders, t_re = _render_all(built, range(k), spp, rerender_seeds, exposures, tick, "re-render")
+    gt_imgs = None
+    if data.normal_gt is not None:
+        swap.set_normals(data.normal_gt, mask)
+        gt_imgs, _ = _render_all(built, range(k), spp, rerender_seeds, exposures, tick, "GT normals")
+    del swap, built
+    gc.collect()
+
+    # 3. Scores.
+    inputs = data.images
+    per_image = []
+    for i in range(k):
+        entry: dict[str, Any] = {
+            "index": i,
+            "seed": recorded[i],
+            "rerender_seed": rerender_seeds[i],
+            "exposure": exposures[i],
+            "rel_l1": rel_l1(renders[i], inputs[i], mask),
+            "psnr": finite_or_none(psnr(renders[i], inputs[i], mask)),
+            "gt_rel_l1": rel_l1(gt_imgs[i], inputs[i], mask) if gt_imgs is not None else None,
+            "gt_psnr": finite_or_none(psnr(gt_imgs[i], inputs[i], mask)) if gt_imgs is not None else None,
+            "noise_floor_rel_l1": rel_l1(floor_imgs[i], inputs[i], mask) if floor_imgs is not None else None,
+            "reproduce_rel_l1": rel_l1(repro_imgs[i], inputs[i], mask) if repro_imgs is not None else None,
+            "rerender_s": t_re[i],
+            "original_render_s": t_orig[i] if t_orig else None,
+        }
+        per_image.append(entry)
+
+    res_map = relative_residual_map(renders, inputs, mask)
+    gt_map = relative_residual_map(gt_imgs, inputs, mask) if gt_imgs is not None else None
+    threshold = config.threshold
+    threshold_source = "given"
+    if threshold is None and floor_imgs is not None:
+        threshold = float(np.percentile(relative_residual_map(floor_imgs, inputs, mask)[mask], 99))
+        threshold_source = "99th percentile of the noise-floor residual map"
+    frac = float(np.mean(res_map[mask] > threshold)) if threshold is not None else None
+
+    def avg(key: str) -> float | None:
+        return mean_or_none([e[key] for e in per_image])
+
+    t_orig_med = float(np.median(t_orig)) if t_orig else None
+    t_re_med = float(np.median(t_re))
+    report: dict[str, Any] = {
+        "object": data.name,
+        "folder": str(data.folder),
+        "prediction": source,
+        "images_count": k,
+        "mask_pixels": int(mask.sum()),
+        "missing_pixels": int(mask.sum() - valid.sum()),
+        "rel_l1": avg("rel_l1"),
+        "psnr": avg("psnr"),
+        "gt_rel_l1": avg("gt_rel_l1"),
+        "gt_psnr": avg("gt_psnr"),
+        "noise_floor_rel_l1": avg("noise_floor_rel_l1"),
+        "reproduce_rel_l1": avg("reproduce_rel_l1"),
+        "mae_deg": mae_deg(pred, data.normal_gt, mask) if data.normal_gt is not None else None,
+        "frac_above_threshold": frac,
+        "threshold": threshold,
+        "threshold_source": threshold_source if threshold is not None else None,
+        "images": per_image,
+        "timings": {
+            "original_render_s": t_orig_med,
+            "rerender_s": t_re_med,
+            "rerender_over_original": (t_re_med / t_orig_med) if t_orig_med else None,
+            "build_s": t_build,
+            "depth_map_s": t_depth,
+            "total_s": None,  # filled below
+            "note": "per-image medians (the first render of a scene includes kernel compilation)",
+        },
+        "config": {
+            "spp": spp,
+            "recorded_spp": desc.render.spp,
+            "seed_mode": config.seed_mode,
+            "common_random_numbers": config.seed_mode == "same" and spp == desc.render.spp,
+            "variant": mi.variant(),
+            "visibility": asdict(config.visibility),
+        },
+    }
+    if out_dir is not None:
+        from validate.figures import rerender_figure
+
+        target = Path(out_dir) / data.name
+        target.mkdir(parents=True, exist_ok=True)
+        rerender_figure(
+            target / "figure.png",
+            inputs,
+            renders,
+            mask,
+            _figure_rows(k, config.figure_rows),
+            res_map,
+            gt_map,
+            pred,
+            title=f"{data.name}: rel_l1 {report['rel_l1']:.4f}"
+            + (f" (GT normals {report['gt_rel_l1']:.4f})" if report["gt_rel_l1"] is not None else "")
+            + (f", MAE {report['mae_deg']:.2f} deg" if report["mae_deg"] is not None else ""),
+        )
+        if config.save_renders:
+            from scenes.imageio import write_png16
+
+            for i in range(k):
+                write_png16(target / f"R{i:03d}.png", renders[i])
+        report["timings"]["total_s"] = time.perf_counter() - t_start
+        (target / "report.json").write_text(json.dumps(report, indent=1, allow_nan=False))
+    else:
+        report["timings"]["total_s"] = time.perf_counter() - t_start
+    return report
+
+
+def rerender_dataset(
+    data_dir: str | Path,
+    pred_dir: str | Path,
+    config: RerenderConfig | None = None,
+    out_dir: str | Path | None = None,
+    progress: Progress | None = None,
+) -> list[dict]:
+    """Run `rerender_object` on every `*.data` folder of `data_dir` with `pred_dir/<object>/normal.*`;
+    write `out_dir/summary.csv`. Every prediction is located before anything is rendered."""
+    folders = list_objects(data_dir)
+    preds = {}
+    missing = []
+    for f in folders:
+        try:
+            preds[f] = find_prediction(Path(pred_dir) / object_name(f))
+        except FileNotFoundError:
+            missing.append(object_name(f))
+    if missing:
+        raise FileNotFoundError(
+            f"--normals: no normal.png/.exr/.npy/.tif for {len(missing)} object(s) under {str(pred_dir)!r}: {', '.join(missing[:5])}"
+        )
+    for f in folders:  # every input is checked before the first (slow) render
+        check_inputs(f, preds[f], (config or RerenderConfig()).allow_missing)
+    reports = [rerender_object(f, preds[f], config, out_dir, progress) for f in folders]
+    if out_dir is not None:
+        write_summary(Path(out_dir) / "summary.csv", reports)
+    return reports
+
+
+def summary_row(report: dict) -> dict:
+    return {
+        "object": report["object"],
+        "images": report["images_count"],
+        "mae_deg": report["mae_deg"],
+        "rel_l1": report["rel_l1"],
+        "gt_rel_l1": report["gt_rel_l1"],
+        "noise_floor_rel_l1": report["noise_floor_rel_l1"],
+        "reproduce_rel_l1": report["reproduce_rel_l1"],
+        "psnr": report["psnr"],
+        "frac_above_threshold": report["frac_above_threshold"],
+        "rerender_s": report["timings"]["rerender_s"],
+        "original_render_s": report["timings"]["original_render_s"],
+    }
+
+
+def write_summary(path: str | Path, reports: list[dict]) -> None:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(SUMMARY_COLUMNS))
+        writer.writeheader()
+        for r in reports:
+            writer.writerow({k: ("" if v is None else v) for k, v in summary_row(r).items()})
+
+
+def format_table(reports: list[dict]) -> str:
+    """Plain-text table of the summary rows (None shown as '-')."""
+    rows = [summary_row(r) for r in reports]
+    cols = list(SUMMARY_COLUMNS)
+
+    def fmt(v: Any) -> str:
+        if v is None:
+            return "-"
+        if isinstance(v, float):
+            return f"{v:.4g}"
+        return str(v)
+
+    cells = [[fmt(r[c]) for c in cols] for r in rows]
+    widths = [max(len(c), *(len(row[j]) for row in cells)) if cells else len(c) for j, c in enumerate(cols)]
+    lines = ["  ".join(c.ljust(wd) for c, wd in zip(cols, widths))]
+    lines += ["  ".join(v.ljust(wd) for v, wd in zip(row, widths)) for row in cells]
+    return "\n".join(lines)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="validate-rerender",
+        description="Re-render the known scenes of an object (or dataset) with predicted normals and compare with the inputs.",
+    )
+    p.add_argument("--data", required=True, help="object folder (with scene.json) or dataset folder of *.data folders")
+    p.add_argument(
+        "--normals",
+        required=True,
+        help="object: normal map file (.png/.exr/.npy/.tif) or its folder; dataset: folder with <object>/normal.*",
+    )
+    p.add_argument("--out", default="rerender", help="output folder: <out>/<object>/report.json, figure.png (default ./rerender)")
+    p.add_argument("--spp", type=int, default=None, help="samples per pixel (default: the recorded spp)")
+    p.add_argument("--variant", default=None, help="Mitsuba variant (default: cuda_ad_rgb, then llvm_ad_rgb)")
+    p.add_argument("--seed-mode", choices=SEED_MODES, default="same", help="recorded seeds (same) or fresh ones")
+    p.add_argument("--no-floors", action="store_true", help="skip the noise-floor and reproduction renders")
+    p.add_argument("--supersample", type=int, default=VisibilityConfig.supersample, help="depth-map rays per pixel side")
+    p.add_argument("--threshold", type=float, default=None, help="relative residual counted in frac_above_threshold")
+    p.add_argument("--save-renders", action="store_true", help="also write the re-rendered images R000.png..")
+    p.add_argument(
+        "--allow-missing",
+        action="store_true",
+        help="zero normals inside the mask mean 'no estimate': keep the surface's own normal there (reported)",
+    )
+    p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    try:
+        config = RerenderConfig(
+            spp=args.spp,
+            seed_mode=args.seed_mode,
+            floors=not args.no_floors,
+            visibility=VisibilityConfig(supersample=args.supersample),
+            threshold=args.threshold,
+            save_renders=args.save_renders,
+            allow_missing=args.allow_missing,
+        ).validate()
+        data = Path(args.data)
+        if not data.is_dir():
+            raise FileNotFoundError(f"--data: {str(data)!r} is not a folder")
+        single = (data / "scene.json").is_file()
+        if not single:
+            list_objects(data)  # fails early with a clear message
+        if not Path(args.normals).exists():
+            raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
+
+        from scenes.variant import choose_variant
+
+        choose_variant(args.variant)
+        mi = require_jit_variant()
+        mi.set_log_level(mi.LogLevel.Error)  # e.g. multijitter's per-render "sample count rounded up"
+
+        from tqdm import tqdm
+
+        bars: list[Any] = []  # created at the first render, so input errors print one clean line
+
+        def progress(done: int, total: int, label: str) -> None:
+            if not bars:
+                bars.append(tqdm(unit="render", leave=False))
+            bars[0].total, bars[0].n = total, done
+            bars[0].set_description(label)
+            bars[0].refresh()
+
+        try:
+            if single:
+                check_inputs(data, args.normals, config.allow_missing)
+                reports = [rerender_object(data, args.normals, config, args.out, progress)]
+                write_summary(Path(args.out) / "summary.csv", reports)
+            else:
+                reports = rerender_dataset(data, args.normals, config, args.out, progress)
+        finally:
+            for bar in bars:
+                bar.close()
+    except (ValueError, FileNotFoundError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print(format_table(reports))
+    print(f"reports in {args.out}/<object>/report.json, table in {args.out}/summary.csv")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,101 @@
+"""An optional asset folder: hdri/ (.hdr/.exr), meshes/ (.obj/.ply/.stl, any depth), textures/ (PBR sets)."""
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from scenes.meshes import MESH_SUFFIXES
+
+_MAP_TAG = re.compile(
+    r"^(?P<stem>.+?)[_\-](?P<tag>col(?:_\d+)?|diff|basecolor|albedo|rgh|roughness|arm|met|metal(?:ness)?|nor_gl|nrm|normal)(?:[_\-].*)?$",
+    re.IGNORECASE,
+)
+_IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".exr", ".tif", ".tiff")
+
+
+def _files(folder: Path) -> list[Path]:
+    """Every file below `folder`, following symbolic links (asset folders are often linked together)."""
+    out = []
+    for root, _, names in os.walk(folder, followlinks=True):
+        out.extend(Path(root) / n for n in names)
+    return sorted(out)
+
+
+@dataclass
+class TextureSet:
+    """Files of one PBR material; roughness/metallic may come from channels of an ARM map."""
+
+    name: str
+    base_color: Path
+    roughness: Path | None = None
+    roughness_channel: int = 0
+    metallic: Path | None = None
+    metallic_channel: int = 0
+    normal: Path | None = None
+
+
+@dataclass
+class AssetLibrary:
+    """What an asset folder offers, in sorted order (so choices by index are reproducible)."""
+
+    root: Path | None = None
+    hdris: list[Path] = field(default_factory=list)
+    meshes: list[Path] = field(default_factory=list)
+    textures: list[TextureSet] = field(default_factory=list)
+
+    @classmethod
+    def scan(cls, root: str | Path | None) -> "AssetLibrary":
+        """Index `root`; None gives an empty library. A missing or empty folder is a ValueError."""
+        if root is None:
+            return cls()
+        root = Path(root)
+        if not root.is_dir():
+            raise FileNotFoundError(f"--assets: folder {str(root)!r} does not exist")
+        lib = cls(root=root)
+        if (root / "hdri").is_dir():
+            lib.hdris = sorted(p for p in _files(root / "hdri") if p.suffix.lower() in (".hdr", ".exr"))
+        if (root / "meshes").is_dir():
+            lib.meshes = sorted(p for p in _files(root / "meshes") if p.suffix.lower() in MESH_SUFFIXES)
+        if (root / "textures").is_dir():
+            lib.textures = _texture_sets(root / "textures")
+        if not (lib.hdris or lib.meshes or lib.textures):
+            raise ValueError(
+                f"--assets: folder {str(root)!r} has no hdri/*.hdr|exr, meshes/*.obj|ply|stl or textures/ sets"
+            )
+        return lib
+
+
+def _texture_sets(folder: Path) -> list[TextureSet]:
+    groups: dict[tuple[Path, str], dict[str, Path]] = {}
+    for p in _files(folder):
+        if p.suffix.lower() not in _IMAGE_SUFFIXES:
+            continue
+        m = _MAP_TAG.match(p.stem)
+        if not m:
+            continue
+        tag = m.group("tag").lower()
+        kind = (
+            "base" if tag.startswith(("col", "diff", "basecolor", "albedo"))
+            else "rough" if tag in ("rgh", "roughness")
+            else "arm" if tag == "arm"
+            else "metal" if tag.startswith("met")
+            else "normal"
+        )
+        groups.setdefault((p.parent, m.group("stem").lower()), {}).setdefault(kind, p)
+    sets = []
+    for (parent, stem), maps in sorted(groups.items(), key=lambda kv: (str(kv[0][0]), kv[0][1])):
+        if "base" not in maps:
+            continue
+        ts = TextureSet(name=f"{parent.name}/{stem}", base_color=maps["base"], normal=maps.get("normal"))
+        if "rough" in maps:
+            ts.roughness = maps["rough"]
+        elif "arm" in maps:
+            ts.roughness, ts.roughness_channel = maps["arm"], 1  # ARM: R occlusion, G roughness, B metal
+        if "metal" in maps:
+            ts.metallic = maps["metal"]
+        elif "arm" in maps:
+            ts.metallic, ts.metallic_channel = maps["arm"], 2
+        sets.append(ts)
+    return sets

@@ -1,0 +1,358 @@
+"""Making a dataset: plan (resume), run the objects on an engine, keep manifest.json consistent.
+
+Every object is a pure function of (config, index) (`make_object`), so a dataset can be made in any
+order, by any number of workers, interrupted and resumed, and the object folders come out
+byte-identical. Only the parent process writes `manifest.json`, atomically, after each object
+(throttled when the manifest gets large, see `ManifestWriter`).
+
+Resuming: when `DIR/manifest.json` exists with the same configuration (the object count may grow),
+objects whose folder matches the manifest's checksums are kept, objects rejected by the entropy rule
+stay rejected (that is deterministic), and missing, corrupt or failed objects are rendered again.
+Temporary folders of interrupted objects are removed.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import os
+import platform
+import re
+import shutil
+import socket
+import time
+from contextlib import contextmanager
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Callable, Iterator
+
+from scenes.imageio import atomic_write_text
+from wildgen.assets import AssetLibrary
+from wildgen.config import GenConfig
+from wildgen.sampling import SkippedObject, sample_object
+from wildgen.writer import TMP_PREFIX, sha256_file, write_object
+
+if TYPE_CHECKING:
+    from wildgen.parallel import Engine
+
+log = logging.getLogger(__name__)
+
+MANIFEST = "manifest.json"
+LOCK = ".wildgen.lock"
+OBJECT_FOLDER = re.compile(r"^\d{5,}\.data$")
+# Config fields that may differ between runs into the same folder: the object count only extends it.
+NOT_IDENTITY = ("objects", "variant")
+
+
+class DatasetError(ValueError):
+    """The output folder cannot be used as asked (other config, busy, unreadable manifest)."""
+
+
+def versions() -> dict[str, str]:
+    """Versions of the packages that determine the pixels."""
+    from importlib import metadata
+
+    out = {"python": platform.python_version()}
+    for pkg in ("mitsuba", "drjit", "numpy", "unips-toolkit", "opencv-python-headless", "OpenEXR"):
+        try:
+            out[pkg] = metadata.version(pkg)
+        except metadata.PackageNotFoundError:
+            out[pkg] = "not installed"
+    return out
+
+
+def object_name(index: int) -> str:
+    return f"{index:05d}"
+
+
+def make_object(cfg: GenConfig, index: int, out_dir: Path, lib: AssetLibrary | None = None) -> dict:
+    """Sample, render and write object `index`; a pure function of (cfg, index). Returns its manifest entry."""
+    lib = lib if lib is not None else AssetLibrary.scan(cfg.assets)
+    name = object_name(index)
+    t0 = time.perf_counter()
+    try:
+        sampled = sample_object(cfg, index, lib, name=name)
+    except SkippedObject as exc:
+        log.info("%s", exc)
+        return {"index": index, "name": name, "status": "skipped", "reason": str(exc)}
+    result = write_object(sampled, Path(out_dir), cfg.exposure_percentile, cfg.exposure_level)
+    entry = {"index": index, "status": "done", **asdict(result)}
+    entry["timings"]["total_s"] = time.perf_counter() - t0
+    return entry
+
+
+def failed_entry(index: int, error: str, attempts: int) -> dict:
+    """Manifest entry of an object that failed `attempts` times (last error kept)."""
+    return {"index": index, "name": object_name(index), "status": "failed", "error": error, "attempts": attempts}
+
+
+def write_manifest(out_dir: Path, cfg: GenConfig, variant: str, entries: dict[int, dict], extra: dict | None = None) -> None:
+    """Write DIR/manifest.json atomically: resolved config, seed, versions, variant, objects."""
+    manifest = {
+        "format_version": 1,
+        "config": cfg.to_dict(),
+        "seed": cfg.seed,
+        "variant": variant,
+        "versions": versions(),
+        "host": platform.node(),
+        "updated": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "objects": [entries[i] for i in sorted(entries)],
+    }
+    if extra:
+        manifest.update(extra)
+    atomic_write_text(Path(out_dir) / MANIFEST, json.dumps(manifest, indent=1, sort_keys=True))
+
+
+def load_manifest(out_dir: str | Path) -> dict | None:
+    """The manifest of `out_dir`, or None when there is none. An unreadable one is a DatasetError."""
+    path = Path(out_dir) / MANIFEST
+    if not path.is_file():
+        return None
+    try:
+        manifest = json.loads(path.read_text())
+        if not isinstance(manifest.get("config"), dict) or not isinstance(manifest.get("objects"), list):
+            raise ValueError("no 'config' or 'objects'")
+    except (ValueError, OSError) as exc:
+        raise DatasetError(f"--out: {str(path)!r} is not a readable manifest ({exc}); pass --overwrite to start afresh") from exc
+    return manifest
+
+
+def config_differences(manifest: dict, cfg: GenConfig) -> list[str]:
+    """Fields (other than the object count and the requested variant) where `cfg` differs from the manifest's."""
+    old, new = manifest["config"], cfg.to_dict()
+    keys = sorted((set(old) | set(new)) - set(NOT_IDENTITY))
+    return [k for k in keys if old.get(k) != new.get(k)]
+
+
+class ManifestWriter:
+    """Holds the entries and writes the manifest after each object, atomically.
+
+    With tens of thousands of objects each write takes a while (the manifest keeps every file's
+    checksum), so a write is skipped while less than `budget` x (last write's duration) has passed
+    since the last one: writing stays under about 1 / budget of the run time. An object finished but
+    not yet recorded is rendered again on resume (same bytes), so the manifest is never ahead of the disk.
+    """
+
+    def __init__(self, out_dir: Path, cfg: GenConfig, variant: str, entries: dict[int, dict], extra: dict | None = None,
+                 budget: float = 10.0):
+        self.out_dir, self.cfg, self.variant, self.entries, self.extra = out_dir, cfg, variant, entries, extra
+        self.budget = budget
+        self._last_end = 0.0
+        self._last_cost = 0.0
+        self._dirty = False
+
+    def update(self, entry: dict) -> None:
+        self.entries[entry["index"]] = entry
+        self._dirty = True
+        if time.perf_counter() - self._last_end >= self.budget * self._last_cost:
+            self.flush()
+
+    def flush(self) -> None:
+        t0 = time.perf_counter()
+        write_manifest(self.out_dir, self.cfg, self.variant, self.entries, self.extra)
+        self._last_end = time.perf_counter()
+        self._last_cost = self._last_end - t0
+        self._dirty = False
+
+
+def verify_object(out_dir: Path, entry: dict) -> str | None:
+    """None when the folder of a 'done' entry holds exactly its files with their checksums, else the problem."""
+    folder = Path(out_dir) / entry.get("folder", f"{entry.get('name', '?')}.data")
+    if not folder.is_dir():
+        return "folder missing"
+    files = entry.get("files") or {}
+    on_disk = {str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file()}
+    if on_disk != set(files):
+        return f"files differ from the manifest ({len(on_disk ^ set(files))} added or missing)"
+    for rel, digest in files.items():
+        if sha256_file(folder / rel) != digest:
+            return f"checksum mismatch in {rel}"
+    return None
+
+
+def clean_leftovers(out_dir: Path) -> list[Path]:
+    """Remove temporary folders of interrupted objects; returns what was removed."""
+    removed = []
+    for p in sorted(Path(out_dir).glob(f"{TMP_PREFIX}*")):
+        shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
+        removed.append(p)
+    return removed
+
+
+@dataclass
+class Plan:
+    """What a run into an existing (or new) folder will do."""
+
+    todo: list[int] = field(default_factory=list)
+    """Indices to render, ascending."""
+    kept: dict[int, dict] = field(default_factory=dict)
+    """Entries carried over from the manifest: verified 'done' objects and entropy-rule rejections."""
+    complete: int = 0
+    """Objects already complete (checksums verified)."""
+    rejected: int = 0
+    """Objects the entropy rule rejected in an earlier run (deterministic, not tried again)."""
+    redo: dict[int, str] = field(default_factory=dict)
+    """Index -> why an object recorded in the manifest is rendered again (corrupt, missing, failed)."""
+    leftovers: int = 0
+    """Temporary folders of interrupted objects removed."""
+    resumed: bool = False
+    """True when an existing manifest was continued."""
+
+
+def plan_run(cfg: GenConfig, out_dir: Path, variant: str, overwrite: bool = False) -> Plan:
+    """Decide which objects to render; removes leftovers and corrupt folders. Call under `dataset_lock`.
+
+    Raises DatasetError when the folder holds a dataset of another configuration or variant (unless
+    `overwrite`, which deletes the existing object folders and manifest first).
+    """
+    out_dir = Path(out_dir)
+    plan = Plan()
+    plan.leftovers = len(clean_leftovers(out_dir))
+    manifest = None if overwrite else load_manifest(out_dir)
+    if overwrite:
+        _remove_dataset(out_dir)
+    if manifest is not None:
+        diff = config_differences(manifest, cfg)
+        if diff:
+            shown = ", ".join(f"{k}: {manifest['config'].get(k)!r} -> {cfg.to_dict().get(k)!r}" for k in diff[:3])
+            raise DatasetError(
+                f"--out: {str(out_dir)!r} holds a dataset made with another configuration ({shown}); "
+                "use another folder, the same flags (or --resume), or --overwrite"
+            )
+        if manifest.get("variant") != variant:
+            raise DatasetError(
+                f"--variant: {str(out_dir)!r} was rendered with {manifest.get('variant')!r}, this run uses {variant!r} "
+                "(pixels would differ); pass --variant " f"{manifest.get('variant')} or --overwrite"
+            )
+        old_objects = int(manifest["config"].get("objects", 0))
+        if cfg.objects < old_objects:
+            raise DatasetError(
+                f"--objects: {str(out_dir)!r} already has {old_objects} objects, {cfg.objects} is fewer; "
+                "pass at least that many or --overwrite"
+            )
+        now = versions()
+        old_versions = manifest.get("versions", {})
+        changed = [k for k in ("mitsuba", "drjit", "numpy") if old_versions.get(k) != now.get(k)]
+        if changed:
+            log.warning("manifest was written with other versions of %s: resumed objects may differ in bytes", ", ".join(changed))
+        plan.resumed = True
+    old = {int(e["index"]): e for e in (manifest or {}).get("objects", []) if isinstance(e, dict) and "index" in e}
+    for index in range(cfg.objects):
+        entry = old.get(index)
+        status = entry.get("status") if entry else None
+        if status == "done":
+            problem = verify_object(out_dir, entry)
+            if problem is None:
+                plan.kept[index] = entry
+                plan.complete += 1
+                continue
+            plan.redo[index] = problem
+            log.warning("object %s: %s; rendering it again", object_name(index), problem)
+            shutil.rmtree(out_dir / entry.get("folder", f"{object_name(index)}.data"), ignore_errors=True)
+        elif status == "skipped":
+            plan.kept[index] = entry
+            plan.rejected += 1
+            continue
+        elif status == "failed":
+            plan.redo[index] = f"failed before: {entry.get('error', '?')}"
+        plan.todo.append(index)
+    return plan
+
+
+def _remove_dataset(out_dir: Path) -> None:
+    """--overwrite: delete the manifest and the object folders (only names this tool writes)."""
+    manifest = out_dir / MANIFEST
+    if manifest.exists():
+        manifest.unlink()
+    for p in out_dir.iterdir():
+        if p.is_dir() and OBJECT_FOLDER.match(p.name):
+            shutil.rmtree(p)
+
+
+@contextmanager
+def dataset_lock(out_dir: Path) -> Iterator[None]:
+    """Hold an exclusive lock on `out_dir` (two runs writing one folder would delete each other's work).
+
+    An advisory `flock`: released by the kernel if the process dies, so a killed run never blocks the
+    next one. Not reliable on every network filesystem; one driver per output folder is the rule.
+    """
+    import fcntl
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / LOCK
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 200, 0).decode(errors="replace").strip() or "another process"
+            raise DatasetError(f"--out: {str(out_dir)!r} is being written by {holder}; wait for it or use another folder") from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"pid {os.getpid()} on {socket.gethostname()}\n".encode(), 0)
+        try:
+            yield
+        finally:
+            os.unlink(path)
+    finally:
+        os.close(fd)
+
+
+def make_dataset(
+    cfg: GenConfig,
+    out_dir: str | Path,
+    variant: str,
+    progress: Callable[[dict], None] | None = None,
+    *,
+    engine: "Engine | None" = None,
+    overwrite: bool = False,
+    on_plan: Callable[[Plan], None] | None = None,
+    extra: dict | None = None,
+) -> dict[int, dict]:
+    """Render every object of `cfg` that `out_dir` does not hold yet; returns all entries by index.
+
+    `engine` runs the objects (default: this process, one after the other, see `wildgen.parallel`);
+    `progress` is called with each new entry (done, skipped or failed), `on_plan` once before
+    rendering. On KeyboardInterrupt the finished objects are kept, the manifest is written, the
+    temporary folders are removed, and the interrupt is re-raised.
+    """
+    from wildgen.parallel import InProcessEngine
+
+    out_dir = Path(out_dir)
+    engine = engine if engine is not None else InProcessEngine()
+    with dataset_lock(out_dir):
+        plan = plan_run(cfg, out_dir, variant, overwrite=overwrite)
+        if on_plan is not None:
+            on_plan(plan)
+        writer = ManifestWriter(out_dir, cfg, variant, dict(plan.kept), extra=extra)
+        writer.flush()
+
+        def record(entry: dict) -> None:
+            writer.update(entry)
+            if progress is not None:
+                progress(entry)
+
+        try:
+            if plan.todo:
+                engine.run(cfg, out_dir, variant, plan.todo, record)
+        finally:
+            # Also on KeyboardInterrupt / errors: the engine has stopped its workers by now.
+            clean_leftovers(out_dir)
+            drop_unrecorded(out_dir, plan.todo, writer.entries)
+            writer.flush()
+        return writer.entries
+
+
+def drop_unrecorded(out_dir: Path, indices: list[int], entries: dict[int, dict]) -> list[Path]:
+    """Remove folders of `indices` that the manifest does not record as done.
+
+    A worker can finish an object just as the run is interrupted, before the parent hears of it;
+    such a folder is complete but unknown to the manifest. Removing it keeps folders and manifest in
+    step (a resumed run would render it again anyway, with the same bytes).
+    """
+    removed = []
+    for index in indices:
+        if entries.get(index, {}).get("status") != "done":
+            folder = Path(out_dir) / f"{object_name(index)}.data"
+            if folder.exists():
+                shutil.rmtree(folder, ignore_errors=True)
+                removed.append(folder)
+    return removed

@@ -1,0 +1,258 @@
+"""`python -m wildgen.make`: render a PS-Wild-style photometric stereo dataset.
+
+Example: python -m wildgen.make --lights near_area --objects 2 --images 4 --res 64 --spp 32 --out /tmp/x
+"""
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+import time
+from pathlib import Path
+
+from wildgen.config import LIGHT_FAMILIES, GenConfig
+
+DEFAULTS = GenConfig()
+
+
+def _families(values: list[str]) -> list[str]:
+    out: list[str] = []
+    for v in values:
+        out.extend(x.strip() for x in v.split(",") if x.strip())
+    return out
+
+
+class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Show '(default: X)' only where there is a default worth showing."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        if action.default is None or action.default is False or action.default is argparse.SUPPRESS:
+            return action.help or ""
+        return super()._get_help_string(action)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="python -m wildgen.make",
+        description="Render a PS-Wild-style photometric stereo dataset with Mitsuba 3 (one <object>.data folder per object).",
+        formatter_class=_HelpFormatter,
+    )
+    p.add_argument("--out", required=True, help="output dataset directory")
+    p.add_argument("--lights", action="append", metavar="FAMILY",
+                   help=f"light family, repeatable or comma-separated, cycled across objects: {', '.join(LIGHT_FAMILIES)} (default: near_area)")
+    p.add_argument("--objects", type=int, default=DEFAULTS.objects, help="number of objects")
+    p.add_argument("--images", type=int, default=DEFAULTS.images, help="images per object")
+    p.add_argument("--res", type=int, default=None, help="square resolution (sets --width and --height)")
+    p.add_argument("--width", type=int, default=DEFAULTS.width, help="image width")
+    p.add_argument("--height", type=int, default=DEFAULTS.height, help="image height")
+    p.add_argument("--spp", type=int, default=DEFAULTS.spp, help="samples per pixel")
+    p.add_argument("--bounces", type=int, default=DEFAULTS.bounces, help="indirect bounces (Mitsuba max_depth = bounces + 2)")
+    p.add_argument("--camera", choices=["orthographic", "perspective"], default=DEFAULTS.camera, help="camera model")
+    p.add_argument("--seed", type=int, default=DEFAULTS.seed, help="root seed; object i depends on (seed, i) only")
+    p.add_argument("--assets", default=None, help="optional folder with hdri/, meshes/, textures/ (default: all procedural)")
+    p.add_argument("--materials", choices=["diffuse", "specular", "metallic", "any"], default=DEFAULTS.materials, help="material class")
+    p.add_argument("--shapes", choices=["procedural", "mesh", "any"], default=DEFAULTS.shapes, help="shape source (mesh needs --assets)")
+    p.add_argument("--entropy-threshold", type=float, default=DEFAULTS.entropy_threshold, help="minimum visible-normal entropy in bits")
+    p.add_argument("--gt-spp", type=int, default=DEFAULTS.gt_spp, help="samples per pixel of the ground-truth pass")
+    p.add_argument("--variant", default=None, help="Mitsuba variant (default: cuda_ad_rgb, else llvm_ad_rgb, else scalar_rgb)")
+    p.add_argument("--threads", type=int, default=None,
+                   help="Dr.Jit threads per worker (default: cores // workers, at least 1; with --ray: 1)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="local worker processes (default: one per core, at most one per object, 1 with a cuda variant; "
+                        "0: render in this process)")
+    p.add_argument("--ray", nargs="?", const="auto", default=None, metavar="ADDRESS",
+                   help="run one Ray task per object: no ADDRESS or 'auto' joins this machine's Ray cluster or starts a "
+                        "local one; else HOST:PORT or ray://... (needs pip install 'unips-toolkit[ray]')")
+    p.add_argument("--resume", action="store_true",
+                   help="continue the dataset in --out with the configuration of its manifest (flags given override it; "
+                        "--objects may grow). Re-running the same command resumes too")
+    p.add_argument("--overwrite", action="store_true",
+                   help="delete the dataset in --out (manifest and object folders) and start afresh")
+    p.add_argument("--max-retries", type=int, default=2,
+                   help="retries of an object after an exception or a dead worker before it is recorded as failed")
+    p.add_argument("--recycle-after", type=int, default=50,
+                   help="objects a worker process renders before a fresh process replaces it (bounds memory)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    return p
+
+
+def config_from_args(args: argparse.Namespace) -> GenConfig:
+    width, height = (args.res, args.res) if args.res is not None else (args.width, args.height)
+    return GenConfig(
+        lights=_families(args.lights) if args.lights else ["near_area"],
+        objects=args.objects, images=args.images, width=width, height=height, spp=args.spp, bounces=args.bounces,
+        camera=args.camera, seed=args.seed, materials=args.materials, assets=args.assets, shapes=args.shapes,
+        entropy_threshold=args.entropy_threshold, gt_spp=args.gt_spp, variant=args.variant,
+    ).validate()
+
+
+# Flags that are part of GenConfig (with --resume, only those given explicitly override the manifest).
+CONFIG_FLAGS = ("lights", "objects", "images", "res", "width", "height", "spp", "bounces", "camera", "seed", "assets",
+                "materials", "shapes", "entropy_threshold", "gt_spp", "variant")
+
+
+def _explicit_flags(argv: list[str] | None) -> set[str]:
+    """Names of the options given on the command line (not defaulted)."""
+    p = build_parser()
+    for action in p._actions:
+        action.default = argparse.SUPPRESS
+        action.required = False
+    return set(vars(p.parse_args(argv)))
+
+
+def _resume_config(args: argparse.Namespace, explicit: set[str], manifest: dict) -> GenConfig:
+    """The manifest's configuration, with the config flags given on this command line applied on top."""
+    from dataclasses import fields
+
+    known = {f.name for f in fields(GenConfig)}
+    cfg = GenConfig(**{k: v for k, v in manifest["config"].items() if k in known})
+    given = config_from_args(args).to_dict()
+    for name in explicit & set(CONFIG_FLAGS):
+        targets = ("width", "height") if name == "res" else (name,)
+        for t in targets:
+            setattr(cfg, t, given[t])
+    return cfg.validate()
+
+
+def _summary(entries: dict[int, dict], rendered: dict[str, int], plan, seconds: float, variant: str, how: str) -> tuple[str, int]:
+    failed = sum(e.get("status") == "failed" for e in entries.values())
+    done = rendered.get("done", 0)
+    skipped = plan.complete + plan.rejected + rendered.get("skipped", 0)
+    detail = []
+    if plan.complete:
+        detail.append(f"{plan.complete} already complete")
+    if plan.rejected + rendered.get("skipped", 0):
+        detail.append(f"{plan.rejected + rendered.get('skipped', 0)} rejected by the entropy rule")
+    line = f"{done} done, {skipped} skipped, {failed} failed" + (f" ({', '.join(detail)})" if detail else "")
+    return f"{line} in {seconds:.1f} s [{variant}, {how}]", failed
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    from wildgen.dataset import load_manifest
+
+    out = Path(args.out)
+    try:
+        for flag in ("workers", "max_retries"):
+            if getattr(args, flag) is not None and getattr(args, flag) < 0:
+                raise ValueError(f"--{flag.replace('_', '-')}: expected a non-negative integer, got {getattr(args, flag)}")
+        for flag in ("threads", "recycle_after"):
+            if getattr(args, flag) is not None and getattr(args, flag) < 1:
+                raise ValueError(f"--{flag.replace('_', '-')}: expected a positive integer, got {getattr(args, flag)}")
+        explicit = _explicit_flags(argv)
+        if args.ray is not None and "workers" in explicit:
+            raise ValueError("--workers: local workers and --ray are exclusive (Ray schedules by its CPUs)")
+        if args.resume and args.overwrite:
+            raise ValueError("--resume: cannot be combined with --overwrite")
+        if args.ray is not None:
+            from wildgen.parallel import RAY_INSTALL, ray_available
+
+            if not ray_available():
+                raise ValueError(f"--ray: Ray is not installed; {RAY_INSTALL}")
+        manifest = None if args.overwrite else load_manifest(out)
+        if args.resume:
+            if manifest is None:
+                raise FileNotFoundError(f"--resume: no manifest.json in {str(out)!r} to resume; run without --resume to start")
+            cfg = _resume_config(args, explicit, manifest)
+        else:
+            cfg = config_from_args(args)
+        from wildgen.assets import AssetLibrary
+
+        lib = AssetLibrary.scan(cfg.assets)  # fail early on a bad asset folder
+        if cfg.shapes == "mesh" and not lib.meshes:
+            raise ValueError(f"--shapes: 'mesh' needs an --assets folder with meshes/, {cfg.assets!r} has none")
+        from scenes.variant import choose_variant
+
+        # Continue an existing dataset with its own variant unless one is asked for.
+        requested = cfg.variant or (manifest.get("variant") if manifest and "variant" not in explicit else None)
+        variant = choose_variant(requested)
+        if args.threads and args.workers == 0:
+            import drjit as dr
+
+            dr.set_thread_count(args.threads)
+    except (ValueError, FileNotFoundError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+    from tqdm import tqdm
+
+    from wildgen.dataset import make_dataset
+    from wildgen.parallel import InProcessEngine, ProcessEngine, RayEngine, WorkersCannotStart
+
+    if args.ray is not None:
+        engine = RayEngine(address=args.ray, threads=args.threads or 1, max_retries=args.max_retries, recycle_after=args.recycle_after)
+    elif args.workers == 0:
+        engine = InProcessEngine(max_retries=args.max_retries)
+    else:
+        # On a GPU one process keeps the device busy; more would only add CUDA contexts.
+        workers = args.workers if args.workers is not None else (1 if variant.startswith("cuda") else None)
+        engine = ProcessEngine(workers=workers, threads=args.threads, max_retries=args.max_retries,
+                               recycle_after=args.recycle_after)
+
+    t0 = time.perf_counter()
+    rendered: dict[str, int] = {}
+    state: dict = {}
+
+    def on_plan(plan) -> None:
+        state["plan"] = plan
+        if plan.resumed and not args.quiet:
+            print(f"resuming {out}: {plan.complete} complete, {plan.rejected} rejected, {len(plan.todo)} to render"
+                  + (f", {plan.leftovers} interrupted removed" if plan.leftovers else ""), file=sys.stderr)
+        state["bar"] = tqdm(total=cfg.objects, initial=plan.complete + plan.rejected, unit="obj", disable=args.quiet,
+                            desc="wildgen", dynamic_ncols=True)
+        state["left"] = len(plan.todo)
+
+    def progress(entry: dict) -> None:
+        rendered[entry["status"]] = rendered.get(entry["status"], 0) + 1
+        state["left"] -= 1
+        bar = state["bar"]
+        bar.set_postfix(done=rendered.get("done", 0), failed=rendered.get("failed", 0), left=state["left"], refresh=False)
+        bar.update(1)
+
+    def close_bar() -> None:
+        if "bar" in state:
+            state["bar"].close()
+
+    def on_sigterm(signum, frame):  # schedulers stop jobs with SIGTERM: same clean stop as Ctrl-C
+        state["signal"] = signum
+        raise KeyboardInterrupt
+
+    import signal
+
+    from tqdm.contrib.logging import logging_redirect_tqdm
+
+    previous = signal.signal(signal.SIGTERM, on_sigterm) if _main_thread() else None
+    try:
+        with logging_redirect_tqdm():  # warnings (retries, failures) print above the bar, not through it
+            entries = make_dataset(cfg, out, variant, progress, engine=engine, overwrite=args.overwrite,
+                                   on_plan=on_plan, extra={"run": engine.used})
+    except (ValueError, FileNotFoundError, ImportError, WorkersCannotStart) as exc:
+        close_bar()
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        close_bar()
+        print("interrupted: finished objects are kept; re-run the same command to continue", file=sys.stderr)
+        return 128 + state.get("signal", signal.SIGINT)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+    close_bar()
+    used = getattr(engine, "used", {})
+    how = (f"{used['workers']} workers x {used['threads_per_worker']} Dr.Jit threads" if "workers" in used
+           else f"ray, {used['cluster_cpus']} CPUs" if "cluster_cpus" in used
+           else "nothing to render" if not state["plan"].todo else "in process")
+    line, failed = _summary(entries, rendered, state["plan"], time.perf_counter() - t0, variant, how)
+    print(line)
+    return 1 if failed else 0
+
+
+def _main_thread() -> bool:
+    import threading
+
+    return threading.current_thread() is threading.main_thread()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

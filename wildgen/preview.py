@@ -1,0 +1,104 @@
+"""`python -m wildgen.preview DIR`: contact sheets (images, normal map, mask) per object and an overview.
+
+Writes DIR/preview/<object>.png and DIR/preview/overview.png. Images are linear; they are shown with a
+display gamma of 2.2 so that dark regions stay visible.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+TILE = 128
+
+
+def _to_display(rgb: np.ndarray) -> np.ndarray:
+    """Linear float RGB -> 8-bit BGR for OpenCV, gamma 2.2."""
+    return np.round(np.clip(rgb, 0, 1) ** (1 / 2.2) * 255).astype(np.uint8)[:, :, ::-1]
+
+
+def _tile(img: np.ndarray) -> np.ndarray:
+    import cv2
+
+    return cv2.resize(img, (TILE, TILE), interpolation=cv2.INTER_NEAREST if img.shape[0] < TILE else cv2.INTER_AREA)
+
+
+def _label(img: np.ndarray, text: str) -> np.ndarray:
+    import cv2
+
+    out = img.copy()
+    cv2.putText(out, text, (3, 12), cv2.FONT_HERSHEY_SIMPLEX, 0.35, (255, 255, 255), 1, cv2.LINE_AA)
+    return out
+
+
+def object_sheet(folder: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Contact sheet of one object folder, and a 2-tile summary (first image, normal map) for the overview."""
+    import cv2
+
+    from scenes.imageio import decode_normals, read_png16
+
+    images = sorted(folder.glob("L*.png"))
+    if not images:
+        raise FileNotFoundError(f"DIR: object folder {str(folder)!r} has no L*.png images")
+    tiles = [_label(_tile(_to_display(read_png16(p))), p.stem) for p in images]
+    enc = cv2.imread(str(folder / "normal.tif"), cv2.IMREAD_UNCHANGED)
+    if enc is None:
+        raise ValueError(f"DIR: cannot read {str(folder / 'normal.tif')!r}")
+    n = decode_normals(enc[:, :, ::-1])
+    normal_vis = np.round((n * 0.5 + 0.5) * 255 * np.any(n != 0, -1, keepdims=True)).astype(np.uint8)[:, :, ::-1]
+    tiles.append(_label(_tile(normal_vis), "normal"))
+    mask = cv2.imread(str(folder / "mask.png"), cv2.IMREAD_GRAYSCALE)
+    tiles.append(_label(_tile(cv2.cvtColor(mask, cv2.COLOR_GRAY2BGR)), "mask"))
+    cols = 6
+    while len(tiles) % cols:
+        tiles.append(np.zeros_like(tiles[0]))
+    rows = [np.concatenate(tiles[i : i + cols], 1) for i in range(0, len(tiles), cols)]
+    return np.concatenate(rows, 0), np.concatenate([tiles[0], tiles[len(images)]], 1)
+
+
+def preview(dataset: str | Path, out: str | Path | None = None) -> list[Path]:
+    """Write contact sheets and the overview; returns the written paths."""
+    import cv2
+
+    dataset = Path(dataset)
+    folders = sorted(p for p in dataset.glob("*.data") if p.is_dir()) if dataset.is_dir() else []
+    if dataset.name.endswith(".data") and dataset.is_dir():
+        folders = [dataset]
+    if not folders:
+        raise FileNotFoundError(f"DIR: no <object>.data folders in {str(dataset)!r}")
+    out_dir = Path(out) if out else (dataset if not dataset.name.endswith(".data") else dataset.parent) / "preview"
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written, summaries = [], []
+    for folder in folders:
+        sheet, summary = object_sheet(folder)
+        path = out_dir / f"{folder.name[:-5]}.png"
+        cv2.imwrite(str(path), sheet)
+        written.append(path)
+        summaries.append(_label(summary, folder.name[:-5]))
+    cols = 4
+    while len(summaries) % cols:
+        summaries.append(np.zeros_like(summaries[0]))
+    overview = np.concatenate([np.concatenate(summaries[i : i + cols], 1) for i in range(0, len(summaries), cols)], 0)
+    cv2.imwrite(str(out_dir / "overview.png"), overview)
+    written.append(out_dir / "overview.png")
+    return written
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m wildgen.preview", description="Contact sheet PNG per object and one overview PNG of a dataset.")
+    p.add_argument("dataset", metavar="DIR", help="dataset directory (or one <object>.data folder)")
+    p.add_argument("--out", default=None, help="output folder (default: DIR/preview)")
+    args = p.parse_args(argv)
+    try:
+        written = preview(args.dataset, args.out)
+    except (ValueError, FileNotFoundError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print(f"wrote {len(written) - 1} contact sheets and {written[-1]}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

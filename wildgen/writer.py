@@ -1,0 +1,177 @@
+"""Render one sampled object and write its `<name>.data` folder atomically (temporary name, then rename).
+
+The folder holds no timestamps or host names (those go into the manifest), so the same seed gives
+byte-identical folders.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+import shutil
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from scenes.description import SceneDescription, TextureDesc
+from scenes.imageio import write_exr, write_mask, write_normal_tif, write_png16
+from scenes.mitsuba_build import build_scene, camera_rotation, write_mesh_ply
+from scenes.render import render_ground_truth, render_images
+from wildgen.sampling import SampledObject
+
+log = logging.getLogger(__name__)
+
+FORMAT_VERSION = 1
+TMP_PREFIX = ".tmp-"
+
+
+@dataclass
+class ObjectResult:
+    """What was written for one object, for the manifest."""
+
+    name: str
+    folder: str
+    light_family: str
+    material_class: str
+    shape: str
+    files: dict[str, str] = field(default_factory=dict)  # relative path -> sha256
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+def sha256_file(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _localise(desc: SceneDescription, sampled: SampledObject, folder: Path) -> SceneDescription:
+    """Copy/realise every input file into aux/ and point the description at it (self-contained folder)."""
+    from scenes.textures import realize_texture
+
+    aux = folder / "aux"
+    d = SceneDescription.from_dict(json.loads(json.dumps(desc.to_dict())))  # deep copy through plain data
+    write_mesh_ply(aux / "mesh.ply", sampled.mesh)
+    d.shape.kind, d.shape.file, d.shape.normalize, d.shape.params, d.shape.seed = "mesh", "aux/mesh.ply", False, {}, 0
+
+    def local_texture(tex: TextureDesc, name: str) -> TextureDesc:
+        if tex.kind == "constant":
+            return tex
+        if tex.kind == "file":
+            src = Path(tex.file)
+            dst = aux / f"{name}{src.suffix.lower()}"
+            shutil.copyfile(src, dst)
+            tex.file = f"aux/{dst.name}"
+            return tex
+        arr = realize_texture(tex)
+        write_exr(aux / f"{name}.exr", np.ascontiguousarray(arr[::-1]))  # files keep row 0 at the top
+        channels = len(tex.value)
+        return TextureDesc(kind="file", value=tex.value, file=f"aux/{name}.exr", channel=0 if channels == 1 else None)
+
+    d.material.base_color = local_texture(d.material.base_color, "texture_base_color")
+    d.material.roughness = local_texture(d.material.roughness, "texture_roughness")
+    d.material.metallic = local_texture(d.material.metallic, "texture_metallic")
+    if d.material.normal_map:
+        src = Path(d.material.normal_map)
+        dst = aux / f"texture_normal{src.suffix.lower()}"
+        shutil.copyfile(src, dst)
+        d.material.normal_map = f"aux/{dst.name}"
+    if d.environment is not None:
+        env = d.environment
+        if env.source == "file":
+            src = Path(env.file)
+            dst = aux / f"environment{src.suffix.lower()}"
+            shutil.copyfile(src, dst)
+            env.file = f"aux/{dst.name}"
+        else:
+            from scenes.envmaps import realize_environment
+
+            write_exr(aux / "environment.exr", realize_environment(env))
+            env.source, env.file, env.seed = "file", "aux/environment.exr", 0
+    return d
+
+
+def camera_lights(desc: SceneDescription) -> list[dict]:
+    """Per image, the directional lights in the camera frame (toward the light), for calibrated methods."""
+    R = camera_rotation(desc.camera.origin, desc.camera.target, desc.camera.up)
+    out = []
+    for image in desc.images:
+        dirs = []
+        for l in image.lights:
+            if l.type == "directional":
+                d = -np.asarray(l.direction, np.float64)
+                d = R @ (d / np.linalg.norm(d))
+                dirs.append({"direction_to_light": d.tolist(), "irradiance": [l.irradiance * c * image.exposure for c in l.color]})
+        out.append({"directional": dirs, "other": sum(l.type != "directional" for l in image.lights)})
+    return out
+
+
+def exposure_for(radiance: np.ndarray, mask: np.ndarray, percentile: float, level: float) -> float:
+    """Factor that maps the given percentile of the masked pixel values to `level`."""
+    values = radiance[mask].ravel() if mask.any() else radiance.ravel()
+    p = float(np.percentile(values, percentile)) if values.size else 0.0
+    return float(level / p) if p > 1e-12 else 1.0
+
+
+def write_object(sampled: SampledObject, out_dir: Path, percentile: float, level: float) -> ObjectResult:
+    """Render `sampled` and write `out_dir/<name>.data`, atomically. Returns the manifest entry."""
+    name = sampled.desc.name
+    final = out_dir / f"{name}.data"
+    tmp = out_dir / f"{TMP_PREFIX}{name}.data.{os.getpid()}"
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    (tmp / "aux").mkdir(parents=True)
+    timings: dict[str, float] = {}
+    try:
+        t0 = time.perf_counter()
+        desc = _localise(sampled.desc, sampled, tmp)
+        built = build_scene(desc, base_dir=tmp)
+        timings["build_s"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        gt = render_ground_truth(built)
+        timings["ground_truth_s"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        radiance = render_images(built)
+        timings["render_s"] = time.perf_counter() - t0
+        del built
+
+        t0 = time.perf_counter()
+        for i, img in enumerate(radiance):
+            desc.images[i].exposure = exposure_for(img, gt.mask, percentile, level)
+            write_png16(tmp / f"L{i:03d}.png", img * desc.images[i].exposure)
+            write_exr(tmp / "aux" / f"radiance_{i:03d}.exr", img)
+        write_mask(tmp / "mask.png", gt.mask)
+        normal = np.where(gt.mask[..., None], gt.normal, 0.0)
+        write_normal_tif(tmp / "normal.tif", normal)
+        write_exr(tmp / "aux" / "normal.exr", gt.normal)
+        write_exr(tmp / "aux" / "depth.exr", gt.depth)
+        write_exr(tmp / "aux" / "coverage.exr", gt.coverage)
+        write_exr(tmp / "aux" / "base_color.exr", gt.base_color)
+        write_exr(tmp / "aux" / "roughness.exr", gt.roughness)
+        write_exr(tmp / "aux" / "metallic.exr", gt.metallic)
+        scene = desc.to_dict()
+        scene["camera_lights"] = camera_lights(desc)
+        scene["format_version"] = FORMAT_VERSION
+        (tmp / "scene.json").write_text(json.dumps(scene, indent=1, sort_keys=True, allow_nan=False))
+        timings["write_s"] = time.perf_counter() - t0
+
+        files = {str(p.relative_to(tmp)): sha256_file(p) for p in sorted(tmp.rglob("*")) if p.is_file()}
+        if final.exists():
+            shutil.rmtree(final)
+        os.replace(tmp, final)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return ObjectResult(
+        name=name,
+        folder=final.name,
+        light_family=desc.light_family,
+        material_class=desc.material.material_class,
+        shape=sampled.shape_source if not sampled.shape_source.startswith("/") else Path(sampled.shape_source).name,
+        files=files,
+        timings=timings,
+    )
