@@ -304,7 +304,9 @@ def build_scene(desc: SceneDescription, base_dir: str | Path | None = None, bsdf
     if slots.environment:
         env_arr = realize_environment(desc.environment, base)
         scene["light_environment"] = {"type": "envmap", "bitmap": mi.Bitmap(env_arr), "scale": 0.0}
-    loaded = mi.load_dict(scene)
+    # optimize=False: Mitsuba's shape merging orders area lights by memory address, which would make the emitter
+    # order (hence the noise pattern) depend on what the process allocated before.
+    loaded = mi.load_dict(scene, optimize=False)
     built = BuiltScene(desc=desc, scene=loaded, params=mi.traverse(loaded), slots=slots, textures=arrays, environment=env_arr)
     built.apply_image(0)
     return built

@@ -304,11 +304,6 @@ def test_worker_memory_stays_bounded_over_200_scenes(tmp_path, llvm):
     assert rss200 <= 1.25 * rss20, (rss20, rss200)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "scenes.mitsuba_build.build_scene calls mi.load_dict(scene) with Mitsuba's default optimize=True, whose object "
-    "merging orders the area-light shapes by memory address: the emitter order, hence which light a random number "
-    "picks and the image noise, then depends on what the process allocated before (seen as differing bytes between "
-    "runs). Fix: mi.load_dict(scene, optimize=False); then remove this marker."))
 def test_scene_build_order_does_not_depend_on_process_history(llvm):
     """Same description, different allocation histories: the scene's shapes keep the description's order."""
     import mitsuba as mi
