@@ -12,7 +12,7 @@
    `--ablation` trains the spatially uniform context variant the same way.
 4. `--ship` copies the best checkpoint into unips/weights/ with a model card (JSON).
 5. Evaluate with `python -m unips.benchmark` on the test set (and DiLiGenT when ../shared has it).
-Every step is skipped when its output already exists, so an interrupted recipe is re-run as is.
+Every step resumes or is skipped when its output already exists, so an interrupted recipe is re-run as is.
 """
 from __future__ import annotations
 
@@ -78,8 +78,8 @@ def main() -> int:
         "test128": ["--objects", "50", "--images", "10", "--res", "128", "--spp", "32", "--seed", "3000", *asset_flags[1]],
     }
     for name, flags in sets.items():
-        if not (work / name / "manifest.json").is_file():
-            run([py, "-m", "wildgen.make", *fams, *flags, "--out", str(work / name), "--quiet"])
+        # Always run: on an existing dataset wildgen.make resumes (verifies finished objects, renders the rest).
+        run([py, "-m", "wildgen.make", *fams, *flags, "--out", str(work / name), "--quiet"])
     runs = {"glc-tiny": []}
     if args.ablation:
         runs["glc-tiny-uniform"] = ["--model-option", "uniform_context=true"]

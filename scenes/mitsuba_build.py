@@ -87,7 +87,9 @@ def _texture_dict(tex: TextureDesc, base_dir: Path | None) -> tuple[dict | float
         if arr.shape[2] == 1:
             return float(arr[0, 0, 0]), arr
         return {"type": "rgb", "value": arr[0, 0].tolist()}, arr
-    return {"type": "bitmap", "data": mi.TensorXf(arr), "raw": True, "filter_type": "bilinear", "wrap_mode": "repeat"}, arr
+    # Instantiated here, not left as a dict: the bitmap plugin takes over its tensor, so a dict shared by two BSDFs
+    # (the re-render check wraps the material) would leave the second one an empty texture.
+    return mi.load_dict({"type": "bitmap", "data": mi.TensorXf(arr), "raw": True, "filter_type": "bilinear", "wrap_mode": "repeat"}), arr
 
 
 def bsdf_dict(desc: SceneDescription, base_dir: Path | None) -> tuple[dict, dict[str, np.ndarray]]:
@@ -111,7 +113,7 @@ def bsdf_dict(desc: SceneDescription, base_dir: Path | None) -> tuple[dict, dict
         # Textbook shading max(0, n'.l): no microfacet shadowing term on the perturbed normal.
         d = {
             "type": "normalmap",
-            "normalmap": {"type": "bitmap", "data": mi.TensorXf(nm_arr), "raw": True, "filter_type": "bilinear"},
+            "normalmap": mi.load_dict({"type": "bitmap", "data": mi.TensorXf(nm_arr), "raw": True, "filter_type": "bilinear"}),
             "use_shadowing_function": False,
             "bsdf": d,
         }

@@ -23,6 +23,12 @@ SMALL = ["--lights", "directional,near_area,hdri,point", "--objects", str(N), "-
          "--spp", "4", "--gt-spp", "4", "--seed", "11", "--variant", "llvm_ad_rgb", "--quiet"]
 
 
+
+def _interruptible() -> None:
+    """Child set-up: take SIGINT as a terminal's Ctrl-C would deliver it, even when the test runner itself was
+    started in the background (where the shell leaves SIGINT ignored, and children inherit that)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
 def command(out: Path, *extra: str) -> list[str]:
     return [sys.executable, "-m", "wildgen.make", "--out", str(out), *SMALL, *extra]
 
@@ -120,7 +126,7 @@ def test_one_worker_and_in_process_give_the_same_bytes(reference, tmp_path):
 
 def test_sigkill_mid_run_then_same_command_resumes(reference, tmp_path):
     out = tmp_path / "killed"
-    proc = subprocess.Popen(command(out, "--workers", "2"), cwd=REPO, start_new_session=True,
+    proc = subprocess.Popen(command(out, "--workers", "2"), cwd=REPO, start_new_session=True, preexec_fn=_interruptible,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         wait_for(lambda: any(out.glob("*.data")) and recorded(out) > 0, 120, "the first object folder and its record")
@@ -144,7 +150,7 @@ def test_sigint_stops_cleanly_and_resume_flag_continues(reference, tmp_path):
     from wildgen.dataset import verify_object
 
     out = tmp_path / "interrupted"
-    proc = subprocess.Popen(command(out, "--workers", "2"), cwd=REPO, start_new_session=True,
+    proc = subprocess.Popen(command(out, "--workers", "2"), cwd=REPO, start_new_session=True, preexec_fn=_interruptible,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         wait_for(lambda: recorded(out) > 0, 120, "the first recorded object")
@@ -170,7 +176,7 @@ def test_sigint_stops_cleanly_and_resume_flag_continues(reference, tmp_path):
 def test_killed_worker_is_retried(reference, tmp_path):
     """SIGKILL one worker in the middle of an object: the object is retried elsewhere, the run completes."""
     out = tmp_path / "crash"
-    proc = subprocess.Popen(command(out, "--workers", "2"), cwd=REPO, start_new_session=True,
+    proc = subprocess.Popen(command(out, "--workers", "2"), cwd=REPO, start_new_session=True, preexec_fn=_interruptible,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         os.kill(int(freeze_a_busy_worker(out)), signal.SIGKILL)

@@ -389,7 +389,7 @@ def format_table(reports: list[dict]) -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog="validate-rerender",
+        prog="python -m validate.rerender",
         description="Re-render the known scenes of an object (or dataset) with predicted normals and compare with the inputs.",
     )
     p.add_argument("--data", required=True, help="object folder (with scene.json) or dataset folder of *.data folders")
