@@ -9,8 +9,7 @@ setup:
 	EXTRAS=$(EXTRAS) bash scripts/setup.sh
 
 demo: setup
-	$(PY) -m wildgen.make --lights near_area,hdri,mixed,directional --objects 4 --images 6 --res 64 --spp 32 --seed 0 --out $(DEMO_OUT)/data
-	$(PY) -m wildgen.preview $(DEMO_OUT)/data
+	$(PY) -m unips.demo --out $(DEMO_OUT)
 
 test: setup
 	$(PY) -m pytest -q -x --durations=15 tests

@@ -1,0 +1,84 @@
+"""The weights shipped in the package: they load, predict unit normals, and are really trained.
+
+Objects are rendered here with `wildgen.make` (procedural shapes, seeds the training recipe never used).
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+FAMILIES = "directional,point,near_area,hdri,mixed"
+
+
+@pytest.fixture(scope="module")
+def rendered(tmp_path_factory) -> Path:
+    from scenes.variant import _usable
+
+    if not _usable("llvm_ad_rgb"):
+        pytest.skip("llvm_ad_rgb unavailable (libLLVM missing)")
+    from wildgen.make import main
+
+    out = tmp_path_factory.mktemp("shipped") / "data"
+    rc = main(["--out", str(out), "--lights", FAMILIES, "--objects", "10", "--images", "8", "--res", "32", "--spp", "16",
+               "--gt-spp", "4", "--shapes", "procedural", "--seed", "777", "--workers", "0", "--quiet"])
+    assert rc == 0
+    return out
+
+
+def test_shipped_weights_are_in_the_package_with_a_model_card():
+    from unips.predict import default_checkpoint
+
+    path = default_checkpoint()
+    assert path.suffix == ".safetensors" and 0.5e6 < path.stat().st_size < 20e6
+    card = json.loads((path.parent / "model_card.json").read_text())
+    for key in ("data_recipe", "steps", "wall_time_s", "hardware", "validation_mean_deg", "known_weaknesses"):
+        assert card.get(key) not in (None, ""), key
+
+
+def test_shipped_model_predicts_unit_normals_on_a_rendered_object(rendered):
+    from unips.data import find_objects, load_object
+    from unips.predict import load_network, predict_object
+
+    net = load_network(None)
+    assert net.meta["model_name"] == "glc-tiny"
+    obj = load_object(find_objects(rendered)[0])
+    n = predict_object(obj, "model", net=net)
+    assert n.shape == obj.normals.shape
+    norms = np.linalg.norm(n[obj.mask], axis=-1)
+    assert np.allclose(norms, 1.0, atol=1e-4)
+    assert np.all(n[~obj.mask] == 0)
+    assert np.mean(n[obj.mask][:, 2] > 0) > 0.95  # visible surfaces face the camera (z toward it)
+
+
+def test_shipped_model_beats_an_untrained_one_by_a_wide_margin(rendered):
+    import torch
+
+    from unips.data import find_objects, load_object
+    from unips.models import create_model
+    from unips.normal_io import mean_angular_error
+    from unips.predict import LoadedModel, load_network, predict_object
+
+    trained = load_network(None)
+    torch.manual_seed(0)
+    fresh = create_model(trained.meta["model_name"], **trained.meta["config"]).eval()
+    untrained = LoadedModel(model=fresh, meta=trained.meta, checkpoint=Path("untrained"), device="cpu")
+    err = {"trained": [], "untrained": []}
+    for folder in find_objects(rendered):
+        obj = load_object(folder)
+        for name, net in (("trained", trained), ("untrained", untrained)):
+            err[name].append(mean_angular_error(predict_object(obj, "model", net=net), obj.normals, obj.mask))
+    t, u = float(np.mean(err["trained"])), float(np.mean(err["untrained"]))
+    assert t < 30.0 and t < 0.5 * u, (err, t, u)
+
+
+def test_shipped_model_is_the_default_of_the_predict_cli(rendered, tmp_path):
+    from unips.predict import main
+
+    out = tmp_path / "pred"
+    folder = sorted(rendered.glob("*.data"))[0]
+    assert main(["--method", "model", "--input", str(folder), "--out", str(out)]) == 0
+    info = json.loads(next(out.rglob("predict.json")).read_text())
+    assert Path(info["checkpoint"]).name == "glc-tiny.safetensors"
