@@ -71,7 +71,8 @@ def test_shipped_model_beats_an_untrained_one_by_a_wide_margin(rendered):
         for name, net in (("trained", trained), ("untrained", untrained)):
             err[name].append(mean_angular_error(predict_object(obj, "model", net=net), obj.normals, obj.mask))
     t, u = float(np.mean(err["trained"])), float(np.mean(err["untrained"]))
-    assert t < 30.0 and t < 0.5 * u, (err, t, u)
+    print(f"shipped {t:.1f} deg, untrained {u:.1f} deg")
+    assert t < 30.0 and t < 0.4 * u, (err, t, u)
 
 
 def test_shipped_model_is_the_default_of_the_predict_cli(rendered, tmp_path):
