@@ -80,16 +80,22 @@ def transformed_mesh(data: MeshData, to_world: list[list[float]]) -> MeshData:
     return MeshData(pos.astype(np.float32), data.faces, nrm.astype(np.float32), data.uvs)
 
 
-def _texture_dict(tex: TextureDesc, base_dir: Path | None) -> tuple[dict | float, np.ndarray]:
+def _bitmap_texture(arr: np.ndarray, **options: Any):
+    """Raw (non-colour-managed) bilinear bitmap texture of `arr` (H, W, C).
+
+    Instantiated here, not left as a dict: the bitmap plugin takes over its tensor, so a dict shared by two BSDFs
+    (the re-render check wraps the material) would leave the second one an empty texture."""
     mi = _mi()
+    return mi.load_dict({"type": "bitmap", "data": mi.TensorXf(arr), "raw": True, "filter_type": "bilinear", **options})
+
+
+def _texture_dict(tex: TextureDesc, base_dir: Path | None) -> tuple[Any, np.ndarray]:
     arr = realize_texture(tex, base_dir)
     if tex.kind == "constant":
         if arr.shape[2] == 1:
             return float(arr[0, 0, 0]), arr
         return {"type": "rgb", "value": arr[0, 0].tolist()}, arr
-    # Instantiated here, not left as a dict: the bitmap plugin takes over its tensor, so a dict shared by two BSDFs
-    # (the re-render check wraps the material) would leave the second one an empty texture.
-    return mi.load_dict({"type": "bitmap", "data": mi.TensorXf(arr), "raw": True, "filter_type": "bilinear", "wrap_mode": "repeat"}), arr
+    return _bitmap_texture(arr, wrap_mode="repeat"), arr
 
 
 def bsdf_dict(desc: SceneDescription, base_dir: Path | None) -> tuple[dict, dict[str, np.ndarray]]:
@@ -107,13 +113,12 @@ def bsdf_dict(desc: SceneDescription, base_dir: Path | None) -> tuple[dict, dict
         metal, arrays["metallic"] = _texture_dict(mat.metallic, base_dir)
         d = {"type": "principled", "base_color": base, "roughness": rough, "metallic": metal, "specular": float(mat.specular)}
     if mat.normal_map:
-        mi = _mi()
         nm_arr = realize_texture(TextureDesc(kind="file", value=[0.5, 0.5, 1.0], file=mat.normal_map), base_dir)
         arrays["normal_map"] = nm_arr
         # Textbook shading max(0, n'.l): no microfacet shadowing term on the perturbed normal.
         d = {
             "type": "normalmap",
-            "normalmap": mi.load_dict({"type": "bitmap", "data": mi.TensorXf(nm_arr), "raw": True, "filter_type": "bilinear"}),
+            "normalmap": _bitmap_texture(nm_arr),
             "use_shadowing_function": False,
             "bsdf": d,
         }

@@ -23,11 +23,11 @@ SMALL = ["--lights", "directional,near_area,hdri,point", "--objects", str(N), "-
          "--spp", "4", "--gt-spp", "4", "--seed", "11", "--variant", "llvm_ad_rgb", "--quiet"]
 
 
-
 def _interruptible() -> None:
     """Child set-up: take SIGINT as a terminal's Ctrl-C would deliver it, even when the test runner itself was
     started in the background (where the shell leaves SIGINT ignored, and children inherit that)."""
     signal.signal(signal.SIGINT, signal.SIG_DFL)
+
 
 def command(out: Path, *extra: str) -> list[str]:
     return [sys.executable, "-m", "wildgen.make", "--out", str(out), *SMALL, *extra]

@@ -31,23 +31,17 @@ def _run(cmd: list[str]) -> None:
         raise SystemExit(f"unips.demo: step {cmd[2] if cmd[1] == '-m' else cmd[0]} failed with exit code {r.returncode}")
 
 
-def _stem(name: str) -> str:
-    return name[: -len(".data")] if name.endswith(".data") else name
-
-
 def _reports(folder: Path) -> dict[str, dict]:
-    out = {}
-    for p in sorted(folder.glob("*/report.json")):
-        rep = json.loads(p.read_text())
-        out[_stem(rep.get("object", p.parent.name))] = rep
-    return out
+    """validate.rerender's reports by object name (the folder name minus .data, as unips.evaluate keys them)."""
+    reports = (json.loads(p.read_text()) for p in sorted(folder.glob("*/report.json")))
+    return {rep["object"]: rep for rep in reports}
 
 
 def summary_table(out: Path, methods: list[str]) -> str:
     """Per-object markdown table: MAE and re-render residual of each method, plus the GT-normals floor."""
     metrics = {m: json.loads((out / "pred" / m / "metrics.json").read_text()) for m in methods}
     reports = {m: _reports(out / "rerender" / m) for m in methods}
-    names = sorted({_stem(n) for m in methods for n in metrics[m]["objects"]})
+    names = sorted({n for m in methods for n in metrics[m]["objects"]})
     head = ["object", "family"] + [f"{m} MAE (deg)" for m in methods] + [f"{m} re-render rel. L1" for m in methods] + ["GT normals rel. L1"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
 
@@ -55,7 +49,7 @@ def summary_table(out: Path, methods: list[str]) -> str:
         return "-" if v is None else format(v, fmt)
 
     for n in names:
-        objs = {m: metrics[m]["objects"].get(n) or metrics[m]["objects"].get(n + ".data") for m in methods}
+        objs = {m: metrics[m]["objects"].get(n) for m in methods}
         fam = next((o["light_family"] for o in objs.values() if o), "?")
         maes = [cell(objs[m]["mae_deg"] if objs[m] else None, ".1f") for m in methods]
         rels = [cell(reports[m].get(n, {}).get("rel_l1"), ".3f") for m in methods]
