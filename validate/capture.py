@@ -1,0 +1,350 @@
+"""Reading a photometric-stereo capture that may have no scene.json (fitted mode of the re-render check).
+
+Layouts (detected in this order):
+- `ours`: our object folder (`L000.png..`, `mask.png`, optional `normal.tif`, `scene.json`); with the
+  scene file removed it reads like `unips`. Calibrated lights come from `scene.json`'s `camera_lights`
+  when every image has exactly one directional light.
+- `diligent`: DiLiGenT `*PNG` folders: `001.png..` in `filenames.txt` order, `light_directions.txt`,
+  `light_intensities.txt` (each image channel is divided by its row), `mask.png`, `Normal_gt.mat` or
+  `Normal_gt.png`. Both files use the camera frame x right, y up, z toward the camera (checked by
+  Lambertian least squares against the ground-truth normals in tests/test_fit.py and bench/bench_fit.py).
+- `unips`: official UniPS `.data` folders: `L*` images (natural sort), `mask.png`, optional `normal.tif`
+  or `Normal_gt.png`.
+
+Normal maps (`read_normals`): 16-bit or 8-bit PNG / TIFF storing (n + 1) / 2 (the 32768 / 128 code is
+background), float EXR, `.npy` (H, W, 3) or DiLiGenT `.mat`, camera frame; background decoded to 0.
+
+Everything here is NumPy; errors are FileNotFoundError / ValueError with one line naming the argument.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+LAYOUTS = ("ours", "diligent", "unips")
+IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".exr")
+NORMAL_FILES = ("normal.png", "normal.exr", "normal.npy", "normal.tif", "normal.tiff")
+"""File names looked for when `--normals` is a folder, in this order."""
+
+
+@dataclass
+class Capture:
+    """One object's images with what is known about them (no scene description needed)."""
+
+    name: str
+    """Object name: folder name without a trailing '.data'."""
+    folder: Path
+    """The object folder."""
+    layout: str
+    """One of LAYOUTS."""
+    images: np.ndarray
+    """(K, H, W, 3) float32 linear images (DiLiGenT: divided by the light intensities)."""
+    mask: np.ndarray
+    """(H, W) bool object mask."""
+    image_names: list[str]
+    """File name of each image, in loader order (the order of report.json's `lights`)."""
+    normal_gt: np.ndarray | None = None
+    """(H, W, 3) float32 ground-truth camera-frame normals (0 outside the mask), when the folder has them."""
+    light_directions: np.ndarray | None = None
+    """(K, 3) calibrated unit directions toward the light, camera frame, when known."""
+    light_irradiance: np.ndarray | None = None
+    """(K, 3) calibrated RGB irradiance in image units, when known (DiLiGenT: ones after the division)."""
+    has_scene: bool = False
+    """True when the folder has a scene.json (known-scene mode is possible)."""
+    downsample: int = 1
+    """Factor by which images, mask and normals were reduced from the files (1 = as stored)."""
+    meta: dict = field(default_factory=dict)
+    """Layout-specific extras (e.g. DiLiGenT's raw light intensities)."""
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return tuple(self.mask.shape)  # type: ignore[return-value]
+
+
+def object_name(folder: str | Path) -> str:
+    name = Path(folder).resolve().name
+    return name[: -len(".data")] if name.endswith(".data") and len(name) > 5 else name
+
+
+def _natural_key(name: str) -> list:
+    return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", name)]
+
+
+def _l_images(folder: Path) -> list[Path]:
+    return sorted(
+        (p for p in folder.iterdir() if p.is_file() and p.name.startswith("L") and p.suffix.lower() in IMAGE_SUFFIXES),
+        key=lambda p: _natural_key(p.name),
+    )
+
+
+def _digit_images(folder: Path) -> list[Path]:
+    return sorted((p for p in folder.iterdir() if p.is_file() and p.suffix.lower() == ".png" and p.stem.isdigit()), key=lambda p: _natural_key(p.name))
+
+
+def detect_layout(folder: str | Path) -> str | None:
+    folder = Path(folder)
+    if not folder.is_dir():
+        return None
+    if (folder / "light_directions.txt").is_file() and ((folder / "filenames.txt").is_file() or _digit_images(folder)):
+        return "diligent"
+    if _l_images(folder):
+        return "ours" if (folder / "scene.json").is_file() else "unips"
+    return None
+
+
+def _read_raw(path: Path, what: str):
+    import cv2
+
+    if not path.is_file():
+        raise FileNotFoundError(f"{what}: {str(path)!r} does not exist")
+    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise ValueError(f"{what}: cannot read {str(path)!r} (corrupt or unsupported format)")
+    return img
+
+
+def read_image(path: Path) -> np.ndarray:
+    """(H, W, 3) float32 linear RGB from a 16/8-bit PNG/TIFF or a float EXR."""
+    if path.suffix.lower() == ".exr":
+        from scenes.imageio import read_exr
+
+        img = read_exr(path)
+        return np.repeat(img, 3, axis=2) if img.shape[2] == 1 else img[:, :, :3]
+    img = _read_raw(path, "images")
+    if img.ndim == 2:
+        img = img[:, :, None]
+    img = img[:, :, :3][:, :, ::-1] if img.shape[2] >= 3 else np.repeat(img, 3, axis=2)
+    if img.dtype == np.uint16:
+        return img.astype(np.float32) / 65535.0
+    if img.dtype == np.uint8:
+        return img.astype(np.float32) / 255.0
+    return img.astype(np.float32)
+
+
+def read_mask(path: Path, shape: tuple[int, int]) -> np.ndarray:
+    img = _read_raw(path, "mask")
+    if img.ndim == 3:
+        img = img.max(axis=2)
+    if img.shape != shape:
+        raise ValueError(f"mask: {str(path)!r} has shape {img.shape}, expected {shape} (the images' size)")
+    mask = img > (img.max() / 2)
+    if not mask.any():
+        raise ValueError(f"mask: {str(path)!r} is empty")
+    return mask
+
+
+def _text_matrix(path: Path, rows: int, what: str) -> np.ndarray:
+    if not path.is_file():
+        raise FileNotFoundError(f"{what}: {str(path)!r} does not exist")
+    try:
+        vals = np.array([[float(v) for v in line.replace(",", " ").split()] for line in path.read_text().splitlines() if line.strip()])
+    except ValueError as exc:
+        raise ValueError(f"{what}: {str(path)!r} has non-numeric entries ({exc})") from exc
+    if vals.ndim != 2 or vals.shape != (rows, 3) or not np.isfinite(vals).all():
+        raise ValueError(f"{what}: {str(path)!r} has shape {vals.shape}, expected ({rows}, 3) finite values (one row per image)")
+    return vals
+
+
+def read_normals(path: str | Path, what: str = "--normals") -> np.ndarray:
+    """Normal-map file -> (H, W, 3) float32 camera-frame normals, background 0 (see the module doc)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{what}: {str(path)!r} does not exist")
+    suffix = path.suffix.lower()
+    if suffix in (".png", ".tif", ".tiff"):
+        img = _read_raw(path, what)
+        if img.ndim != 3 or img.shape[2] < 3:
+            raise ValueError(f"{what}: {str(path)!r} has shape {img.shape}, expected an RGB image (H, W, 3)")
+        img = np.ascontiguousarray(img[:, :, 2::-1])
+        if img.dtype == np.uint16:
+            n = img.astype(np.float32) / 65535.0 * 2.0 - 1.0
+        elif img.dtype == np.uint8:
+            n = img.astype(np.float32) / 255.0 * 2.0 - 1.0
+        else:
+            n = img.astype(np.float32)
+        if np.issubdtype(img.dtype, np.integer):
+            n[np.linalg.norm(n, axis=2) < 0.5] = 0.0
+    elif suffix == ".exr":
+        from scenes.imageio import read_exr
+
+        n = read_exr(path)
+    elif suffix == ".npy":
+        try:
+            n = np.load(path, allow_pickle=False).astype(np.float32)
+        except Exception as exc:  # numpy raises several types for bad files
+            raise ValueError(f"{what}: cannot read {str(path)!r} ({exc})") from exc
+    elif suffix == ".mat":
+        import scipy.io
+
+        d = {k: v for k, v in scipy.io.loadmat(str(path)).items() if not k.startswith("__")}
+        key = "Normal_gt" if "Normal_gt" in d else (next(iter(d)) if len(d) == 1 else None)
+        if key is None:
+            raise ValueError(f"{what}: {str(path)!r} has no 'Normal_gt' array")
+        n = np.asarray(d[key], np.float32)
+    else:
+        raise ValueError(f"{what}: {str(path)!r} has extension {suffix!r}, expected .png, .tif, .exr, .npy or .mat")
+    if n.ndim != 3 or n.shape[2] != 3:
+        raise ValueError(f"{what}: {str(path)!r} has shape {n.shape}, expected (H, W, 3)")
+    if not np.isfinite(n).all():
+        raise ValueError(f"{what}: {str(path)!r} contains NaN or infinite values")
+    return n
+
+
+def find_normals(pred: str | Path, name: str | None = None) -> Path:
+    """`pred` itself if a file, else `pred[/name]/normal.{png,exr,npy,tif}`."""
+    pred = Path(pred)
+    if pred.is_file():
+        return pred
+    if not pred.exists():
+        raise FileNotFoundError(f"--normals: {str(pred)!r} does not exist")
+    folders = [pred / name, pred] if name else [pred]
+    for folder in folders:
+        for fname in NORMAL_FILES:
+            if (folder / fname).is_file():
+                return folder / fname
+    raise FileNotFoundError(f"--normals: no {'/'.join(NORMAL_FILES)} in {' or '.join(str(f) for f in folders)}")
+
+
+def unit_normals(n: np.ndarray, mask: np.ndarray, what: str = "--normals") -> np.ndarray:
+    """Check shape against the mask, renormalise inside it, zero outside. Zero normals inside the mask
+    (no estimate) become (0, 0, 1) with a warning."""
+    if n.ndim != 3 or n.shape[2] != 3 or n.shape[:2] != mask.shape:
+        raise ValueError(f"{what}: normal map has shape {n.shape}, expected {mask.shape + (3,)} (the size of the input images)")
+    norm = np.linalg.norm(n, axis=-1, keepdims=True)
+    missing = mask & (norm[..., 0] < 0.5)
+    if missing.any():
+        log.warning("%s: %d pixels inside the mask have no normal; using (0, 0, 1) there", what, int(missing.sum()))
+    out = np.where(norm > 0.5, n / np.maximum(norm, 1e-12), np.array([0.0, 0.0, 1.0]))
+    return np.where(mask[..., None], out, 0.0).astype(np.float32)
+
+
+def _camera_lights(folder: Path, k: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+    try:
+        scene = json.loads((folder / "scene.json").read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ValueError(f"--data: {str(folder / 'scene.json')!r} cannot be read as JSON ({exc})") from exc
+    cam = scene.get("camera_lights") if isinstance(scene, dict) else None
+    if not isinstance(cam, list) or len(cam) != k:
+        return None, None
+    dirs, irr = [], []
+    for entry in cam:
+        lights = entry.get("directional", []) if isinstance(entry, dict) else []
+        if len(lights) != 1 or entry.get("other", 0):
+            return None, None
+        d = np.asarray(lights[0]["direction_to_light"], np.float64)
+        dirs.append(d / np.linalg.norm(d))
+        irr.append(np.asarray(lights[0]["irradiance"], np.float64))
+    return np.asarray(dirs, np.float32), np.asarray(irr, np.float32)
+
+
+def load_capture(folder: str | Path, max_images: int | None = None) -> Capture:
+    """Load an object folder of any layout (see the module doc)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"--data: {str(folder)!r} is not a folder")
+    layout = detect_layout(folder)
+    if layout is None:
+        raise FileNotFoundError(f"--data: {str(folder)!r} has no L*.png images and no DiLiGenT light_directions.txt")
+    dirs = irr = None
+    meta: dict = {}
+    if layout == "diligent":
+        lst = folder / "filenames.txt"
+        paths = [folder / l.strip() for l in lst.read_text().splitlines() if l.strip()] if lst.is_file() else _digit_images(folder)
+        dirs = _text_matrix(folder / "light_directions.txt", len(paths), "light_directions")
+        dirs = (dirs / np.linalg.norm(dirs, axis=1, keepdims=True)).astype(np.float32)
+        ipath = folder / "light_intensities.txt"
+        raw = _text_matrix(ipath, len(paths), "light_intensities") if ipath.is_file() else np.ones((len(paths), 3))
+        if (raw <= 0).any():
+            raise ValueError(f"light_intensities: {str(ipath)!r} has non-positive values")
+        meta["light_intensities_file"] = raw.tolist()
+        irr = np.ones((len(paths), 3), np.float32)
+    else:
+        paths = _l_images(folder)
+        raw = None
+    if max_images is not None:
+        paths = paths[: int(max_images)]
+        dirs = dirs[: len(paths)] if dirs is not None else None
+        irr = irr[: len(paths)] if irr is not None else None
+        raw = raw[: len(paths)] if raw is not None else None
+    first = read_image(paths[0])
+    images = np.empty((len(paths),) + first.shape, np.float32)
+    for i, p in enumerate(paths):
+        img = first if i == 0 else read_image(p)
+        if img.shape != first.shape:
+            raise ValueError(f"images: {str(p)!r} has shape {img.shape}, expected {first.shape} like {paths[0].name}")
+        images[i] = img
+    if raw is not None:
+        images /= raw[:, None, None, :].astype(np.float32)
+    shape = first.shape[:2]
+    mask = read_mask(folder / "mask.png", shape) if (folder / "mask.png").is_file() else np.ones(shape, bool)
+    gt = None
+    for gname in ("normal.tif", "Normal_gt.mat", "Normal_gt.png"):
+        if (folder / gname).is_file():
+            g = read_normals(folder / gname, "ground truth")
+            if g.shape[:2] != shape:
+                raise ValueError(f"ground truth: {str(folder / gname)!r} has shape {g.shape}, expected {shape + (3,)}")
+            norm = np.linalg.norm(g, axis=-1, keepdims=True)
+            gt = np.where(mask[..., None] & (norm > 0.5), g / np.maximum(norm, 1e-12), 0.0).astype(np.float32)
+            break
+    if layout == "ours":
+        full_k = len(_l_images(folder))
+        d2, i2 = _camera_lights(folder, full_k)
+        if d2 is not None:
+            dirs, irr = d2[: len(paths)], i2[: len(paths)]
+    return Capture(
+        name=object_name(folder),
+        folder=folder,
+        layout=layout,
+        images=images,
+        mask=mask,
+        image_names=[p.name for p in paths],
+        normal_gt=gt,
+        light_directions=dirs,
+        light_irradiance=irr,
+        has_scene=(folder / "scene.json").is_file(),
+        meta=meta,
+    )
+
+
+def box_downsample(x: np.ndarray, f: int) -> np.ndarray:
+    """Mean over f x f blocks of the two leading spatial axes of (H, W, ...) (cropped to a multiple of f)."""
+    if f == 1:
+        return x
+    h, w = (x.shape[0] // f) * f, (x.shape[1] // f) * f
+    x = x[:h, :w]
+    return x.reshape(h // f, f, w // f, f, *x.shape[2:]).mean(axis=(1, 3))
+
+
+def downsample_capture(cap: Capture, f: int) -> Capture:
+    """A copy reduced by `f` (box filter; mask: pixels fully inside; normals renormalised)."""
+    if f == 1:
+        return cap
+    imgs = np.stack([box_downsample(im, f) for im in cap.images]).astype(np.float32)
+    cover = box_downsample(cap.mask.astype(np.float32), f)
+    mask = cover > 0.999
+    gt = None
+    if cap.normal_gt is not None:
+        gt = _downsample_normals(cap.normal_gt, mask, f)
+    return Capture(
+        name=cap.name, folder=cap.folder, layout=cap.layout, images=imgs, mask=mask, image_names=cap.image_names,
+        normal_gt=gt, light_directions=cap.light_directions, light_irradiance=cap.light_irradiance,
+        has_scene=cap.has_scene, downsample=cap.downsample * f, meta=cap.meta,
+    )
+
+
+def _downsample_normals(n: np.ndarray, mask: np.ndarray, f: int) -> np.ndarray:
+    s = box_downsample(n.astype(np.float64), f)
+    norm = np.linalg.norm(s, axis=-1, keepdims=True)
+    return np.where(mask[..., None] & (norm > 1e-6), s / np.maximum(norm, 1e-12), 0.0).astype(np.float32)
+
+
+def downsample_normals(n: np.ndarray, mask_small: np.ndarray, f: int) -> np.ndarray:
+    """A normal map (H, W, 3) reduced by `f` to the size of `mask_small` (renormalised, 0 outside)."""
+    return n.astype(np.float32) if f == 1 else _downsample_normals(n, mask_small, f)

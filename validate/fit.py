@@ -1,0 +1,613 @@
+"""Fitted mode of the re-render check: explain a capture's images with a scene fitted around a normal map.
+
+No scene description is needed. With the normal map held fixed (or optimised too, `validate.refine`):
+1. geometry: the normal map is integrated to a height field inside the mask (`validate.heightfield`,
+   orthographic) and loaded as a Mitsuba mesh; the camera looks down -z;
+2. each mask pixel is shaded at its pixel centre on that surface, with its normal from the map and its
+   own albedo, by Mitsuba's `principled` BSDF (metallic 0, global `roughness` and `specular`: the
+   low-parameter specular lobe), evaluated through `bsdf.eval`; cast shadows come from Mitsuba ray tests
+   against the mesh toward each light, ambient occlusion and one bounce of inter-reflection from
+   cosine-distributed rays (`ao_rays` per pixel) whose hits are looked up in the previous render;
+3. light (per image, `validate.lights`) and reflectance are fitted by Adam on a robust L1 loss with
+   Dr.Jit automatic differentiation through the BSDF and the light model (`llvm_ad_rgb` on a CPU,
+   `cuda_ad_rgb` on a GPU); visibility is recomputed (not differentiated) every `refresh_every` steps,
+   and the albedo is solved in closed form (linear least squares) at the same time; the start is the
+   closed-form Lambertian least-squares fit of `validate.lights.closed_form_directional`.
+
+Score: rel_l1 = sum |render - input| / sum |input| over the mask pixels of all images (all channels), at
+the fitting resolution. Reference levels: `noise_rel_l1` (the image noise estimated from the data), and
+`floor_rel_l1`, the score the same fit (same budget, same seed) reaches with a normal map that carries no
+information (constant (0, 0, 1), optionally also a silhouette-only map): a normal map scoring at or above
+the floor explains nothing.
+"""
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from validate import heightfield
+from validate.capture import Capture
+from validate.lights import LIGHT_MODELS, POINT_START_DISTANCE, SH_BAND_WEIGHT, closed_form_directional, report_lights
+
+log = logging.getLogger(__name__)
+
+Progress = Callable[[int, int, str], None]
+"""progress(done, total, label)."""
+
+
+@dataclass
+class FitConfig:
+    """Options of the scene fit (fitted mode)."""
+
+    light_model: str = "directional"
+    """'directional' (+ ambient), 'point' (near point light + ambient), 'environment' (order-2 SH), or
+    'auto': fit each with a third of the steps and keep the one with the lowest residual."""
+    steps: int = 120
+    """Adam steps on lights and specular lobe (and normals in refinement)."""
+    batch_images: int = 16
+    """Images per Adam step (a random subset, from `seed`)."""
+    refresh_every: int = 20
+    """Steps between recomputing shadows / inter-reflection and the closed-form albedo."""
+    lr: float = 0.02
+    """Adam learning rate (directions, log-irradiance, specular parameters)."""
+    specular: bool = True
+    """Fit the specular lobe (principled roughness and specular); False = Lambertian (principled
+    diffuse only, specular 0)."""
+    shadows: bool = True
+    """Cast shadows by ray tests against the integrated mesh (else every light is visible)."""
+    ao_rays: int = 16
+    """Cosine-distributed rays per pixel for ambient occlusion and one inter-reflection bounce (0: off)."""
+    interreflection: bool = True
+    """Add one bounce of inter-reflection (needs ao_rays > 0)."""
+    max_pixels: int = 16000
+    """Fit at a downsampled resolution with at most this many mask pixels (box filter); reported."""
+    downsample: int | None = None
+    """Force this downsampling factor (None = from max_pixels)."""
+    floor_maps: tuple[str, ...] = ("constant",)
+    """No-information normal maps whose fitted residual is the floor: 'constant', 'silhouette'."""
+    seed: int = 0
+    """Seed of every random choice (image batches, ray directions)."""
+    min_nz: float = 0.15
+    """Smallest |n_z| used when integrating normals to heights (bounds silhouette slopes)."""
+
+    def validate(self) -> "FitConfig":
+        if self.light_model not in LIGHT_MODELS + ("auto",):
+            raise ValueError(f"--light-model: {self.light_model!r} is not one of {', '.join(LIGHT_MODELS + ('auto',))}")
+        for name in ("steps", "batch_images", "refresh_every", "max_pixels"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < (0 if name == "steps" else 1):
+                raise ValueError(f"--{name.replace('_', '-')}: expected a positive integer, got {v!r}")
+        if self.ao_rays < 0:
+            raise ValueError(f"--ao-rays: expected >= 0, got {self.ao_rays!r}")
+        if self.downsample is not None and self.downsample < 1:
+            raise ValueError(f"--downsample: expected an integer >= 1, got {self.downsample!r}")
+        if not (self.lr > 0):
+            raise ValueError(f"--lr: expected a positive number, got {self.lr!r}")
+        for m in self.floor_maps:
+            if m not in ("constant", "silhouette"):
+                raise ValueError(f"floor_maps: {m!r} is not 'constant' or 'silhouette'")
+        return self
+
+
+def choose_downsample(mask: np.ndarray, max_pixels: int) -> int:
+    """Smallest integer factor f such that the mask has at most max_pixels pixels after f x f boxes."""
+    return max(1, int(np.ceil(np.sqrt(mask.sum() / max_pixels))))
+
+
+def require_ad_variant():
+    """The active Mitsuba module; raises unless an AD JIT variant (llvm_ad_*, cuda_ad_*) is set."""
+    import mitsuba as mi
+
+    v = mi.variant()
+    if v is None or "_ad_" not in v:
+        raise ValueError(f"--variant: fitted mode needs llvm_ad_rgb or cuda_ad_rgb (automatic differentiation), got {v!r}")
+    return mi
+
+
+def estimate_noise_rel_l1(images: np.ndarray, mask: np.ndarray) -> float:
+    """Image noise as a relative L1 level: Immerkaer's Laplacian-difference estimate of the noise
+    standard deviation sigma inside the (eroded) mask, turned into the mean absolute value of Gaussian
+    noise sigma * sqrt(2 / pi), divided by the mean input over the mask. images (K, H, W, 3)."""
+    from scipy.ndimage import binary_erosion, convolve
+
+    kern = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float64)
+    inner = binary_erosion(mask, iterations=2)
+    if inner.sum() < 16:
+        return float("nan")
+    sig = []
+    for im in images:
+        for c in range(im.shape[2]):
+            r = convolve(im[:, :, c].astype(np.float64), kern, mode="nearest")
+            sig.append(np.sqrt(np.pi / 2) / 6.0 * np.median(np.abs(r[inner])) / 0.6745 * 0.7979)
+    sigma = float(np.mean(sig))
+    denom = float(np.abs(images[:, mask]).mean())
+    return sigma * np.sqrt(2 / np.pi) / denom if denom > 0 else float("nan")
+
+
+class FitScene:
+    """The Mitsuba scene and the differentiable shading of one capture at the fitting resolution.
+
+    Arrays: P mask pixels (row-major), K images. `images` (K, P, 3) float32 numpy; Dr.Jit parameters live
+    in `self.params` (dict name -> Dr.Jit array) and are optimised in place.
+    """
+
+    def __init__(self, images: np.ndarray, mask: np.ndarray, normals: np.ndarray, config: FitConfig, model: str):
+        self.mi = mi = require_ad_variant()
+        import drjit as dr
+
+        self.dr = dr
+        self.config = config
+        self.model = model
+        self.mask = mask
+        self.k = images.shape[0]
+        self.images = images[:, mask].astype(np.float32)  # (K, P, 3)
+        self.p = int(mask.sum())
+        self.rng = np.random.default_rng(config.seed)
+        self.n_np = normals[mask].astype(np.float64)
+        self.hf = heightfield.build(normals, mask, config.min_nz)
+        self.pos_np = self.hf.positions.astype(np.float64)
+        self._build_scene()
+        self.bsdf_white = mi.load_dict({"type": "principled", "base_color": {"type": "rgb", "value": 1.0}, "roughness": 0.5, "specular": 0.5})
+        self.bsdf_black = mi.load_dict({"type": "principled", "base_color": {"type": "rgb", "value": 0.0}, "roughness": 0.5, "specular": 0.5})
+        self.bp_white, self.bp_black = mi.traverse(self.bsdf_white), mi.traverse(self.bsdf_black)
+        self.normals = mi.Vector3f(*(self.n_np.T.astype(np.float32)))
+        self.albedo_np = np.full((self.p, 3), 0.5)
+        self.vis = None  # (K * P,) visibility of the main light
+        self.ao = np.ones(self.p)
+        self.hits = None  # (P, R) pixel index hit by each AO ray, -1 = miss
+        self.indirect = np.zeros((self.k, self.p, 3))  # incident one-bounce radiance (K, P, 3), times albedo in the model
+        self.params: dict[str, Any] = {}
+        self.lobe = [0.5, 0.5]
+        """Principled (roughness, specular), global."""
+
+    # ---------------------------------------------------------------------------------------- scene
+    def _build_scene(self) -> None:
+        from scenes.mitsuba_build import make_mesh
+        from scenes.procedural import MeshData
+
+        mi = self.mi
+        h, w = self.mask.shape
+        ii, jj = np.nonzero(self.mask)
+        uvs = np.stack([(jj + 0.5) / w, (ii + 0.5) / h], 1).astype(np.float32)
+        data = MeshData(self.hf.positions, self.hf.faces, np.tile(np.float32([0, 0, 1]), (self.p, 1)), uvs)
+        if len(self.hf.faces) == 0:
+            raise ValueError("--data: the mask has no 2x2 block of pixels (too small to build a surface)")
+        mesh = make_mesh("object", data, {"type": "diffuse"})
+        self.scene = mi.load_dict({"type": "scene", "object": mesh})
+
+    def _ray_test(self, origins: np.ndarray, dirs: np.ndarray, maxt: np.ndarray | None = None) -> np.ndarray:
+        """(N,) bool: does the ray from origins (N, 3) along dirs (N, 3) hit the mesh (within maxt)?"""
+        mi = self.mi
+        ray = mi.Ray3f(mi.Point3f(*origins.T.astype(np.float32)), mi.Vector3f(*dirs.T.astype(np.float32)))
+        if maxt is not None:
+            ray.maxt = mi.Float(maxt.astype(np.float32))
+        return np.array(self.scene.ray_test(ray), bool)
+
+    def _offset(self) -> float:
+        return 1.5 * self.hf.pixel_size
+
+    def light_dirs_np(self) -> tuple[np.ndarray, np.ndarray | None]:
+        """(K, P, 3) or (K, 3) unit directions toward the main light, and distances (point lights)."""
+        if self.model == "directional":
+            d = np.array(self.params["dir"], np.float64).T if self.params else np.zeros((self.k, 3))
+            return d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12), None
+        if self.model == "point":
+            pos = np.array(self.params["pos"], np.float64).T
+            v = pos[:, None, :] - self.pos_np[None]
+            dist = np.linalg.norm(v, axis=-1)
+            return v / np.maximum(dist[..., None], 1e-12), dist
+        return None, None
+
+    def refresh_visibility(self) -> None:
+        """Cast shadows of the main light in every image (K * P ray tests, not differentiated)."""
+        if self.model == "environment" or not self.config.shadows:
+            self.vis = np.ones(self.k * self.p, np.float32)
+            return
+        d, dist = self.light_dirs_np()
+        vis = np.empty((self.k, self.p), np.float32)
+        for i in range(self.k):
+            di = d[i] if d.ndim == 3 else np.broadcast_to(d[i], (self.p, 3))
+            origin = self.pos_np + di * self._offset()
+            maxt = None if dist is None else np.maximum(dist[i] - self._offset(), 1e-4)
+            vis[i] = ~self._ray_test(origin, di, maxt)
+        self.vis = vis.reshape(-1)
+
+    def refresh_occlusion(self) -> None:
+        """Ambient occlusion and the pixels hit by `ao_rays` cosine-distributed rays about each normal."""
+        r = self.config.ao_rays
+        if r == 0:
+            self.ao, self.hits = np.ones(self.p), None
+            return
+        n = self.n_np / np.linalg.norm(self.n_np, axis=1, keepdims=True)
+        u1, u2 = self.rng.random((2, self.p, r))
+        rad, phi = np.sqrt(u1), 2 * np.pi * u2
+        local = np.stack([rad * np.cos(phi), rad * np.sin(phi), np.sqrt(np.maximum(1 - u1, 0))], -1)  # (P, R, 3)
+        a = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
+        t1 = np.cross(n, a)
+        t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+        t2 = np.cross(n, t1)
+        dirs = local[..., :1] * t1[:, None] + local[..., 1:2] * t2[:, None] + local[..., 2:] * n[:, None]
+        dirs = dirs.reshape(-1, 3)
+        origins = np.repeat(self.pos_np, r, 0) + dirs * self._offset()
+        mi = self.mi
+        ray = mi.Ray3f(mi.Point3f(*origins.T.astype(np.float32)), mi.Vector3f(*dirs.T.astype(np.float32)))
+        si = self.scene.ray_intersect(ray)
+        valid = np.array(si.is_valid(), bool)
+        uv = np.array(si.uv, np.float64).T if np.ndim(np.array(si.uv)) == 2 else np.zeros((len(valid), 2))
+        h, w = self.mask.shape
+        jj = np.clip(np.round(uv[:, 0] * w - 0.5).astype(np.int64), 0, w - 1)
+        ii = np.clip(np.round(uv[:, 1] * h - 0.5).astype(np.int64), 0, h - 1)
+        idx = np.where(valid, self.hf.pixel_index[ii, jj], -1)
+        self.hits = idx.reshape(self.p, r)
+        self.ao = (self.hits < 0).mean(1)
+
+    def refresh_indirect(self, render: np.ndarray) -> None:
+        """One-bounce incident radiance from the previous render (K, P, 3): mean over the AO rays' hits."""
+        if self.hits is None or not self.config.interreflection:
+            return
+        hit = self.hits >= 0
+        vals = render[:, np.where(hit, self.hits, 0)]  # (K, P, R, 3)
+        self.indirect = (vals * hit[None, :, :, None]).sum(2) / self.hits.shape[1]
+
+    # ---------------------------------------------------------------------------------------- params
+    def init_params(self, start: dict) -> None:
+        """Dr.Jit parameters from a closed-form start (see validate.lights.closed_form_directional)."""
+        mi, dr = self.mi, self.dr
+        self.albedo_np = np.asarray(start["albedo"], np.float64)
+        E = np.maximum(np.asarray(start["irradiance"], np.float64), 1e-6)
+        A = np.maximum(np.asarray(start["ambient"], np.float64), 0)
+        f = lambda a: mi.Vector3f(*np.asarray(a, np.float32).T)  # noqa: E731  (K, 3) -> Vector3f of width K
+        p: dict[str, Any] = {}
+        if self.model == "directional":
+            p["dir"] = f(start["directions"])
+            p["log_e"] = f(np.log(E))
+        elif self.model == "point":
+            centre = self.pos_np.mean(0)
+            pos = centre + POINT_START_DISTANCE * np.asarray(start["directions"])
+            p["pos"] = f(pos)
+            p["log_e"] = f(np.log(E * POINT_START_DISTANCE**2))
+        if self.model in ("directional", "point"):
+            p["log_a"] = f(np.log(np.maximum(A, 1e-3 * E.mean())))
+        else:
+            # A directional light of irradiance E along d has SH radiance coefficients E * Y(d); a constant
+            # ambient radiance A has L_00 = A / Y_00. Irradiance = sum_j W_j L_j Y_j(n) (Ramamoorthi-Hanrahan).
+            from validate.lights import sh_basis
+
+            y = sh_basis(np.asarray(start["directions"]))  # (K, 9)
+            coef = E[:, None, :] * y[:, :, None]  # (K, 9, 3)
+            coef[:, 0, :] += A / 0.282095
+            p["sh"] = [f(coef[:, j, :]) for j in range(9)]
+        self.lobe = [0.5, 0.5 if self.config.specular else 0.0]
+        self.params = p
+        self._set_bsdf()
+
+    def param_list(self, with_normals: bool) -> list[tuple[str, Any]]:
+        names = [k for k in self.params if k != "sh"] + (["sh"] if "sh" in self.params else [])
+        out = []
+        for k in names:
+            if k == "sh":
+                out += [(f"sh{j}", v) for j, v in enumerate(self.params["sh"])]
+            else:
+                out.append((k, self.params[k]))
+        if with_normals:
+            out.append(("normals", self.normals))
+        return out
+
+    # ---------------------------------------------------------------------------------------- shading
+    def _set_bsdf(self) -> None:
+        """Write the global lobe (roughness, specular) into both principled BSDFs. They are not
+        differentiated (width-1 gradients cost one reduction kernel per use inside the BSDF: 4 s per step
+        instead of 0.3 s); `search_lobe` fits them by a small coordinate search instead."""
+        rough = self.mi.Float(float(np.clip(self.lobe[0], 0.05, 1.0)))
+        spec = self.mi.Float(float(np.clip(self.lobe[1], 0.0, 1.0)))
+        self.dr.make_opaque(rough, spec)  # opaque: a new value does not recompile the kernels
+        for bp in (self.bp_white, self.bp_black):
+            bp["roughness.value"] = rough
+            bp["specular"] = spec
+            bp.update()
+
+    def search_lobe(self, batch: np.ndarray) -> None:
+        """Coordinate search of (roughness, specular) on the loss of images `batch` (no gradients)."""
+        if not self.config.specular or self.model == "environment":
+            return
+        dr = self.dr
+        best = list(self.lobe)
+        with dr.suspend_grad():
+            def score(lobe):
+                self.lobe = lobe
+                self._set_bsdf()
+                return float(self.loss(batch).array[0])
+
+            cur = score(best)
+            for cand in ([best[0] * 0.7, best[1]], [best[0] / 0.7, best[1]], [best[0], best[1] * 0.6], [best[0], min(best[1] / 0.6 + 0.02, 1.0)]):
+                cand = [float(np.clip(cand[0], 0.05, 1.0)), float(np.clip(cand[1], 0.0, 1.0))]
+                v = score(cand)
+                if v < cur:
+                    cur, best = v, cand
+        self.lobe = best
+        self._set_bsdf()
+
+    def shade(self, batch: np.ndarray):
+        """Differentiable D and S (each Color3f of width len(batch) * P) for images `batch`:
+        render = albedo * D + S (see validate.lights). Also returns the lane -> (image, pixel) indices."""
+        mi, dr = self.mi, self.dr
+        b = len(batch)
+        kk = np.repeat(np.asarray(batch, np.int64), self.p)
+        pp = np.tile(np.arange(self.p), b)
+        k_idx, p_idx = mi.UInt32(kk.astype(np.uint32)), mi.UInt32(pp.astype(np.uint32))
+        n = dr.normalize(dr.gather(mi.Vector3f, self.normals, p_idx))
+        ao = mi.Float(self.ao[pp].astype(np.float32))
+        ind = mi.Vector3f(*self.indirect[kk, pp].T.astype(np.float32)) if self.config.interreflection else mi.Vector3f(0)
+        if self.model == "environment":
+            from validate.lights import SH_BAND_WEIGHT as W
+
+            x, y, z = n.x, n.y, n.z
+            basis = [0.282095 + 0 * x, 0.488603 * y, 0.488603 * z, 0.488603 * x, 1.092548 * x * y, 1.092548 * y * z,
+                     0.315392 * (3 * z * z - 1), 1.092548 * x * z, 0.546274 * (x * x - y * y)]
+            irr = mi.Vector3f(0)
+            for j in range(9):
+                irr += float(W[j]) * dr.gather(mi.Vector3f, self.params["sh"][j], k_idx) * basis[j]
+            D = dr.maximum(irr, 0) / dr.pi * ao + ind
+            return D, mi.Vector3f(0), kk, pp
+        pos = mi.Point3f(*self.pos_np[pp].T.astype(np.float32))
+        if self.model == "directional":
+            l = dr.normalize(dr.gather(mi.Vector3f, self.params["dir"], k_idx))
+            E = dr.exp(dr.gather(mi.Vector3f, self.params["log_e"], k_idx))
+        else:
+            v = dr.gather(mi.Vector3f, self.params["pos"], k_idx) - pos
+            r2 = dr.squared_norm(v)
+            l = v / dr.sqrt(r2)
+            E = dr.exp(dr.gather(mi.Vector3f, self.params["log_e"], k_idx)) / r2
+        amb = dr.exp(dr.gather(mi.Vector3f, self.params["log_a"], k_idx))
+        vis = mi.Float(self.vis[kk * self.p + pp])
+        si = dr.zeros(mi.SurfaceInteraction3f, b * self.p)
+        si.p = pos
+        si.n = n
+        si.sh_frame = mi.Frame3f(n)
+        si.wi = si.sh_frame.to_local(mi.Vector3f(0, 0, 1))
+        ctx = mi.BSDFContext()
+        wo = si.sh_frame.to_local(l)
+        fw = self.bsdf_white.eval(ctx, si, wo)
+        fb = self.bsdf_black.eval(ctx, si, wo)
+        D = (fw - fb) * E * vis + amb * ao + ind
+        S = fb * E * vis
+        return D, S, kk, pp
+
+    def render_np(self, batch: np.ndarray | None = None, chunk: int = 16) -> tuple[np.ndarray, np.ndarray]:
+        """(D, S) as numpy (B, P, 3) for images `batch` (all by default), without gradients."""
+        dr = self.dr
+        batch = np.arange(self.k) if batch is None else np.asarray(batch)
+        Ds, Ss = [], []
+        with dr.suspend_grad():
+            for s in range(0, len(batch), chunk):
+                part = batch[s : s + chunk]
+                D, S, _, _ = self.shade(part)
+                Ds.append(np.array(D, np.float64).T.reshape(len(part), self.p, 3))
+                Ss.append(np.array(S, np.float64).T.reshape(len(part), self.p, 3) if self.model != "environment" else np.zeros((len(part), self.p, 3)))
+        return np.concatenate(Ds), np.concatenate(Ss)
+
+    def solve_albedo(self, D: np.ndarray, S: np.ndarray, images: np.ndarray) -> None:
+        """Per-pixel closed-form albedo (P, 3) minimising sum_k (albedo D + S - I)^2 (D, S, I: (K, P, 3))."""
+        num = ((images - S) * D).sum(0)
+        den = (D * D).sum(0)
+        self.albedo_np = np.clip(num / np.maximum(den, 1e-12), 0.0, 10.0)
+
+    def render(self, batch: np.ndarray | None = None) -> np.ndarray:
+        D, S = self.render_np(batch)
+        return self.albedo_np[None] * D + S
+
+    def loss(self, batch: np.ndarray, albedo_dr=None):
+        """Robust L1 (Charbonnier) of the render of `batch` against the inputs, mean over lanes and channels."""
+        mi, dr = self.mi, self.dr
+        D, S, kk, pp = self.shade(batch)
+        rho = albedo_dr if albedo_dr is not None else mi.Vector3f(*self.albedo_np[pp].T.astype(np.float32))
+        if albedo_dr is not None:
+            rho = dr.gather(mi.Vector3f, albedo_dr, mi.UInt32(pp.astype(np.uint32)))
+        target = mi.Vector3f(*self.images[kk, pp].T)
+        diff = rho * D + S - target
+        eps = 1e-3 * float(np.abs(self.images).mean())
+        err = dr.sqrt(diff * diff + eps * eps)
+        return dr.mean(err.x + err.y + err.z) / 3.0
+
+
+@dataclass
+class FitResult:
+    """What a fit produced (all at the fitting resolution)."""
+
+    rel_l1: float
+    """Score: relative L1 of the fitted render over the mask, all images."""
+    per_image_rel_l1: list[float]
+    """The same per image."""
+    render: np.ndarray
+    """(K, P, 3) fitted render of the mask pixels."""
+    albedo: np.ndarray
+    """(P, 3) fitted albedo."""
+    lights: list[list[dict]]
+    """report.json `lights`."""
+    light_params: dict
+    """Fitted light arrays (numpy), see validate.lights.report_lights."""
+    specular: dict
+    """{'roughness': r, 'specular': s} of the principled lobe."""
+    model: str
+    """Light model used."""
+    seconds: float
+    """Wall time of the fit."""
+    loss_history: list[float] = field(default_factory=list)
+    """Training loss every refresh."""
+
+
+def _np_params(fs: FitScene) -> dict:
+    out = {}
+    for k, v in fs.params.items():
+        if k == "sh":
+            out["sh"] = np.stack([np.array(c, np.float64).T for c in v], 1)  # (K, 9, 3)
+        else:
+            out[k] = np.array(v, np.float64).T
+    res = {}
+    if "dir" in out:
+        res["directions"] = out["dir"] / np.linalg.norm(out["dir"], axis=1, keepdims=True)
+        res["irradiance"] = np.exp(out["log_e"])
+    if "pos" in out:
+        res["positions"] = out["pos"]
+        res["intensity"] = np.exp(out["log_e"])
+    if "log_a" in out:
+        res["ambient"] = np.exp(out["log_a"])
+    if "sh" in out:
+        res["sh"] = out["sh"]
+    return res
+
+
+def _normalise_albedo(fs: FitScene, params: dict) -> dict:
+    """Scale albedo so its mean is 0.5 and lights inversely (the scale is not observable)."""
+    m = float(fs.albedo_np.mean())
+    if m <= 0:
+        return params
+    s = 0.5 / m
+    out = dict(params)
+    for key in ("irradiance", "intensity", "ambient", "sh"):
+        if key in out:
+            out[key] = out[key] / s
+    fs.albedo_np = fs.albedo_np * s
+    return out
+
+
+def run_fit(
+    fs: FitScene,
+    steps: int,
+    optimise_normals: bool = False,
+    regulariser: Callable[[Any], Any] | None = None,
+    holdout: np.ndarray | None = None,
+    on_eval: Callable[[int, float], bool] | None = None,
+    progress: Progress | None = None,
+    label: str = "fit",
+) -> list[float]:
+    """Adam on the scene parameters of `fs` (and its normals when `optimise_normals`), refreshing
+    visibility, occlusion, inter-reflection and the closed-form albedo every `refresh_every` steps.
+
+    holdout: image indices never used in a step; `on_eval(step, holdout_rel_l1)` is called at each refresh
+    when given and may return True to stop early. Returns the training-loss history (one per refresh)."""
+    mi, dr = fs.mi, fs.dr
+    cfg = fs.config
+    train = np.setdiff1d(np.arange(fs.k), holdout if holdout is not None else [])
+    opt = mi.ad.Adam(lr=cfg.lr)
+    for name, val in fs.param_list(optimise_normals):
+        opt[name] = val
+    history: list[float] = []
+
+    def pull() -> None:
+        for name, _ in fs.param_list(optimise_normals):
+            if name.startswith("sh"):
+                fs.params["sh"][int(name[2:])] = opt[name]
+            elif name == "normals":
+                fs.normals = opt[name]
+            else:
+                fs.params[name] = opt[name]
+
+    def refresh() -> None:
+        pull()
+        if optimise_normals:
+            fs.n_np = np.array(dr.normalize(fs.normals), np.float64).T
+        fs.refresh_visibility()
+        D, S = fs.render_np()
+        fs.solve_albedo(D, S, fs.images)
+        fs.refresh_indirect(fs.albedo_np[None] * D + S)
+        fs.search_lobe(fs.rng.choice(train, size=min(cfg.batch_images, len(train)), replace=False))
+
+    fs.refresh_occlusion()
+    refresh()
+    for step in range(steps):
+        if step and step % cfg.refresh_every == 0:
+            refresh()
+            if on_eval is not None and holdout is not None and len(holdout):
+                r = fs.render(holdout)
+                stop = on_eval(step, rel_l1_pixels(r, fs.images[holdout]))
+                if stop:
+                    break
+        batch = fs.rng.choice(train, size=min(cfg.batch_images, len(train)), replace=False)
+        decay = 0.1 + 0.9 * 0.5 * (1 + np.cos(np.pi * step / max(steps, 1)))  # cosine decay to 10 %
+        opt.set_learning_rate({name: cfg.lr * decay * (0.5 if name == "normals" else 1.0) for name, _ in fs.param_list(optimise_normals)})
+        pull()
+        loss = fs.loss(batch)
+        total = loss + regulariser(opt["normals"]) if (regulariser is not None and optimise_normals) else loss
+        dr.backward(total)
+        opt.step()
+        if step % cfg.refresh_every == 0:
+            history.append(float(loss.array[0]) if hasattr(loss, "array") else float(loss[0]))
+        if progress is not None:
+            progress(step + 1, steps, label)
+    pull()
+    refresh()
+    return history
+
+
+def rel_l1_pixels(render: np.ndarray, images: np.ndarray) -> float:
+    """sum |render - images| / sum |images| over (K, P, 3) arrays."""
+    den = float(np.abs(images).sum())
+    return float(np.abs(render - images).sum() / den) if den > 0 else float("nan")
+
+
+def _start(images: np.ndarray, normals: np.ndarray) -> dict:
+    return closed_form_directional(normals, images)
+
+
+def fit_normals(
+    images: np.ndarray,
+    mask: np.ndarray,
+    normals: np.ndarray,
+    config: FitConfig | None = None,
+    progress: Progress | None = None,
+    label: str = "fit",
+) -> FitResult:
+    """Fit light and reflectance around a fixed normal map. images (K, H, W, 3), mask (H, W), normals
+    (H, W, 3) unit inside the mask, all at the fitting resolution (see `prepare`)."""
+    config = (config or FitConfig()).validate()
+    models = LIGHT_MODELS if config.light_model == "auto" else (config.light_model,)
+    best: FitResult | None = None
+    for model in models:
+        t0 = time.perf_counter()
+        steps = config.steps if len(models) == 1 else max(1, config.steps // 3)
+        fs = FitScene(images, mask, normals, config, model)
+        fs.init_params(_start(fs.images, fs.n_np))
+        hist = run_fit(fs, steps, progress=progress, label=f"{label} ({model})")
+        render = fs.render()
+        params = _normalise_albedo(fs, _np_params(fs))
+        per = [rel_l1_pixels(render[i], fs.images[i]) for i in range(fs.k)]
+        res = FitResult(
+            rel_l1=rel_l1_pixels(render, fs.images),
+            per_image_rel_l1=per,
+            render=render.astype(np.float32),
+            albedo=fs.albedo_np.astype(np.float32),
+            lights=report_lights(model, params),
+            light_params=params,
+            specular={"roughness": float(fs.lobe[0]), "specular": float(fs.lobe[1])},
+            model=model,
+            seconds=time.perf_counter() - t0,
+            loss_history=hist,
+        )
+        log.info("%s: model %s rel_l1 %.4f in %.1f s", label, model, res.rel_l1, res.seconds)
+        if best is None or res.rel_l1 < best.rel_l1:
+            best = res
+        del fs
+    assert best is not None
+    return best
+
+
+def no_information_maps(mask: np.ndarray, kinds: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """Normal maps carrying no photometric information: 'constant' (0, 0, 1), 'silhouette' (from the mask)."""
+    out = {}
+    for k in kinds:
+        if k == "constant":
+            out[k] = np.where(mask[..., None], np.float32([0, 0, 1]), 0).astype(np.float32)
+        else:
+            out[k] = heightfield.silhouette_normals(mask)
+    return out
+
+
+def full_config_dict(config: FitConfig) -> dict:
+    d = asdict(config)
+    d["floor_maps"] = list(config.floor_maps)
+    return d
