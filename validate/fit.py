@@ -4,8 +4,8 @@ No scene description is needed. With the normal map held fixed (or optimised too
 1. geometry: the normal map is integrated to a height field inside the mask (`validate.heightfield`,
    orthographic) and loaded as a Mitsuba mesh; the camera looks down -z;
 2. each mask pixel is shaded at its pixel centre on that surface, with its normal from the map and its
-   own albedo, by Mitsuba's `principled` BSDF (metallic 0, global `roughness` and `specular`: the
-   low-parameter specular lobe), evaluated through `bsdf.eval`; cast shadows come from Mitsuba ray tests
+   own albedo, by Mitsuba's `diffuse` BSDF plus the specular lobe of a `principled` BSDF with a black
+   base colour (global `roughness` and `specular`: the low-parameter lobe), evaluated through `bsdf.eval`; cast shadows come from Mitsuba ray tests
    against the mesh toward each light, ambient occlusion and one bounce of inter-reflection from
    cosine-distributed rays (`ao_rays` per pixel) whose hits are looked up in the previous render;
 3. light (per image, `validate.lights`) and reflectance are fitted by Adam on a robust L1 loss with
@@ -55,8 +55,7 @@ class FitConfig:
     lr: float = 0.02
     """Adam learning rate (directions, log-irradiance, specular parameters)."""
     specular: bool = True
-    """Fit the specular lobe (principled roughness and specular); False = Lambertian (principled
-    diffuse only, specular 0)."""
+    """Fit the specular lobe (principled roughness and specular); False = Lambertian only."""
     shadows: bool = True
     """Cast shadows by ray tests against the integrated mesh (else every light is visible)."""
     ao_rays: int = 16
@@ -151,9 +150,12 @@ class FitScene:
         self.hf = heightfield.build(normals, mask, config.min_nz)
         self.pos_np = self.hf.positions.astype(np.float64)
         self._build_scene()
-        self.bsdf_white = mi.load_dict({"type": "principled", "base_color": {"type": "rgb", "value": 1.0}, "roughness": 0.5, "specular": 0.5})
+        # Diffuse part: Mitsuba's Lambertian `diffuse` (reflectance 1; the per-pixel albedo multiplies it).
+        # Specular lobe: `principled` with a black base colour, i.e. its specular lobe alone. (The principled
+        # diffuse lobe is not Lambertian: fitted to a Lambertian sphere it biased the light directions by ~1 deg.)
+        self.bsdf_white = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": 1.0}})
         self.bsdf_black = mi.load_dict({"type": "principled", "base_color": {"type": "rgb", "value": 0.0}, "roughness": 0.5, "specular": 0.5})
-        self.bp_white, self.bp_black = mi.traverse(self.bsdf_white), mi.traverse(self.bsdf_black)
+        self.bp_black = mi.traverse(self.bsdf_black)
         self.normals = mi.Vector3f(*(self.n_np.T.astype(np.float32)))
         self.albedo_np = np.full((self.p, 3), 0.5)
         self.vis = None  # (K * P,) visibility of the main light
@@ -305,10 +307,9 @@ class FitScene:
         rough = self.mi.Float(float(np.clip(self.lobe[0], 0.05, 1.0)))
         spec = self.mi.Float(float(np.clip(self.lobe[1], 0.0, 1.0)))
         self.dr.make_opaque(rough, spec)  # opaque: a new value does not recompile the kernels
-        for bp in (self.bp_white, self.bp_black):
-            bp["roughness.value"] = rough
-            bp["specular"] = spec
-            bp.update()
+        self.bp_black["roughness.value"] = rough
+        self.bp_black["specular"] = spec
+        self.bp_black.update()
 
     def search_lobe(self, batch: np.ndarray) -> None:
         """Coordinate search of (roughness, specular) on the loss of images `batch` (no gradients)."""
@@ -373,7 +374,7 @@ class FitScene:
         wo = si.sh_frame.to_local(l)
         fw = self.bsdf_white.eval(ctx, si, wo)
         fb = self.bsdf_black.eval(ctx, si, wo)
-        D = (fw - fb) * E * vis + amb * ao + ind
+        D = fw * E * vis + amb * ao + ind
         S = fb * E * vis
         return D, S, kk, pp
 
@@ -611,3 +612,109 @@ def full_config_dict(config: FitConfig) -> dict:
     d = asdict(config)
     d["floor_maps"] = list(config.floor_maps)
     return d
+
+
+def _scatter(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """(K, P, 3) mask-pixel values -> (K, H, W, 3) images, 0 outside the mask."""
+    out = np.zeros((values.shape[0],) + mask.shape + (3,), np.float32)
+    out[:, mask] = values
+    return out
+
+
+def prepare(cap: Capture, normals: np.ndarray, config: FitConfig) -> tuple[Capture, np.ndarray, int]:
+    """Downsample a capture and its normal map (H, W, 3) for fitting. Returns (capture, normals, factor)."""
+    from validate.capture import downsample_capture, downsample_normals
+
+    f = config.downsample or choose_downsample(cap.mask, config.max_pixels)
+    small = downsample_capture(cap, f)
+    n = downsample_normals(normals, small.mask, f)
+    n = np.where(small.mask[..., None] & (np.linalg.norm(n, axis=-1, keepdims=True) < 0.5), np.float32([0, 0, 1]), n)
+    return small, n.astype(np.float32), f
+
+
+def rerender_fitted(
+    folder: str,
+    normals: str | np.ndarray,
+    config: FitConfig | None = None,
+    out_dir: str | None = None,
+    progress: Progress | None = None,
+    overwrite: bool = False,
+) -> dict:
+    """Fitted mode of the re-render check for one object folder (any layout); returns the report and
+    writes `out_dir/<object>/report.json` and `figure.png` when out_dir is given."""
+    import json
+    from pathlib import Path
+
+    from validate.capture import find_normals, load_capture, read_normals, unit_normals
+    from validate.lights import angular_errors_deg, directions_of
+    from validate.metrics import mae_deg, relative_residual_map
+
+    config = (config or FitConfig()).validate()
+    mi = require_ad_variant()
+    t0 = time.perf_counter()
+    cap = load_capture(folder)
+    source = "array"
+    if not isinstance(normals, np.ndarray):
+        path = find_normals(normals, cap.name)
+        source = str(path)
+        normals = read_normals(path)
+    full = unit_normals(normals, cap.mask)
+    target = None
+    if out_dir is not None:
+        target = Path(out_dir) / cap.name
+        if (target / "report.json").exists() and not overwrite:
+            raise FileExistsError(f"--out: {str(target / 'report.json')!r} exists (pass --overwrite to replace it)")
+    small, n_small, f = prepare(cap, full, config)
+    res = fit_normals(small.images, small.mask, n_small, config, progress, "fit")
+    floors = {}
+    for kind, nmap in no_information_maps(small.mask, config.floor_maps).items():
+        floors[kind] = fit_normals(small.images, small.mask, nmap, config, progress, f"floor ({kind})").rel_l1
+    inputs = small.images[:, small.mask]
+    report: dict[str, Any] = {
+        "mode": "fitted",
+        "object": cap.name,
+        "folder": str(cap.folder),
+        "layout": cap.layout,
+        "prediction": source,
+        "images_count": int(cap.images.shape[0]),
+        "image_names": cap.image_names,
+        "mask_pixels": int(cap.mask.sum()),
+        "rel_l1": res.rel_l1,
+        "noise_rel_l1": finite(estimate_noise_rel_l1(small.images, small.mask)),
+        "floor_rel_l1": min(floors.values()) if floors else None,
+        "floors": floors,
+        "mae_deg": mae_deg(n_small, small.normal_gt, small.mask) if small.normal_gt is not None else None,
+        "light_model": res.model,
+        "lights": res.lights,
+        "specular": res.specular,
+        "per_image_rel_l1": res.per_image_rel_l1,
+        "fit_downsample": f,
+        "fit_resolution": list(small.mask.shape),
+        "fit_mask_pixels": int(small.mask.sum()),
+        "note": (f"fitted and scored at 1/{f} resolution ({small.mask.shape[1]}x{small.mask.shape[0]}, box filter)" if f > 1
+                 else "fitted and scored at full resolution"),
+        "config": full_config_dict(config),
+        "variant": mi.variant(),
+    }
+    if small.light_directions is not None:
+        err = angular_errors_deg(directions_of(res.model, res.light_params), small.light_directions)
+        report["calibrated_light_error_deg"] = {"mean": float(err.mean()), "median": float(np.median(err)), "max": float(err.max())}
+    report["timings"] = {"fit_s": res.seconds, "total_s": time.perf_counter() - t0}
+    if target is not None:
+        from validate.figures import rerender_figure
+
+        target.mkdir(parents=True, exist_ok=True)
+        renders = _scatter(res.render, small.mask)
+        k = renders.shape[0]
+        rows = sorted(set(np.linspace(0, k - 1, min(k, 4)).round().astype(int).tolist()))
+        rerender_figure(
+            target / "figure.png", small.images, renders, small.mask, rows,
+            relative_residual_map(renders, small.images, small.mask), None, n_small,
+            title=f"{cap.name} (fitted): rel_l1 {res.rel_l1:.4f}, floor {report['floor_rel_l1'] or float('nan'):.4f}",
+        )
+        (target / "report.json").write_text(json.dumps(report, indent=1, allow_nan=False))
+    return report
+
+
+def finite(x: float | None) -> float | None:
+    return float(x) if x is not None and np.isfinite(x) else None

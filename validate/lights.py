@@ -154,3 +154,35 @@ def directions_of(model: str, params: dict, centre: np.ndarray | None = None) ->
     else:
         d = np.asarray(params["sh"], np.float64).mean(-1)[:, [3, 1, 2]]  # first-order band: (x, y, z)
     return d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
+
+
+def known_scene_lights(desc, exposures: list[float]) -> list[list[dict]]:
+    """report.json `lights` of a known scene (a `scenes.description.SceneDescription`): per image, its
+    lights in the camera frame with the exposure applied. Directional: direction toward the light and
+    irradiance x colour x exposure; point: position relative to the camera target and intensity; area:
+    centre, normal and radiance; environment: scale and the rotation to the camera frame."""
+    from scenes.mitsuba_build import camera_rotation
+
+    cam = desc.camera
+    R = camera_rotation(cam.origin, cam.target, cam.up)
+    target = np.asarray(cam.target, np.float64)
+    out = []
+    for image, exp in zip(desc.images, exposures):
+        entry = []
+        for l in image.lights:
+            rgb = lambda s: [float(s) * float(c) * float(exp) for c in l.color]  # noqa: E731
+            if l.type == "directional":
+                d = -(R @ np.asarray(l.direction, np.float64))
+                entry.append({"type": "directional", "direction": (d / np.linalg.norm(d)).tolist(), "irradiance": rgb(l.irradiance)})
+            elif l.type == "point":
+                entry.append({"type": "point", "position": (R @ (np.asarray(l.position) - target)).tolist(), "intensity": rgb(l.intensity)})
+            elif l.type == "area":
+                nrm = R @ (np.asarray(l.target, np.float64) - np.asarray(l.position, np.float64))
+                entry.append({"type": "area", "position": (R @ (np.asarray(l.position) - target)).tolist(),
+                              "normal": (nrm / max(np.linalg.norm(nrm), 1e-12)).tolist(), "width": l.width, "height": l.height,
+                              "radiance": rgb(l.radiance)})
+            else:
+                entry.append({"type": "environment", "scale": float(l.scale) * float(exp),
+                              "to_camera": (R @ np.asarray(l.to_world, np.float64)[:3, :3]).tolist()})
+        out.append(entry)
+    return out

@@ -247,7 +247,10 @@ def rerender_object(
 
     t_orig_med = float(np.median(t_orig)) if t_orig else None
     t_re_med = float(np.median(t_re))
+    from validate.lights import known_scene_lights
+
     report: dict[str, Any] = {
+        "mode": "known_scene",
         "object": data.name,
         "folder": str(data.folder),
         "prediction": source,
@@ -265,6 +268,7 @@ def rerender_object(
         "threshold": threshold,
         "threshold_source": threshold_source if threshold is not None else None,
         "images": per_image,
+        "lights": known_scene_lights(desc, exposures),
         "timings": {
             "original_render_s": t_orig_med,
             "rerender_s": t_re_med,
@@ -411,13 +415,71 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="zero normals inside the mask mean 'no estimate': keep the surface's own normal there (reported)",
     )
+    g = p.add_argument_group("fitted mode (folders without scene.json, or --fit): light and reflectance fitted to the images")
+    g.add_argument("--fit", action="store_true", help="use the fitted mode even when the folder has a scene.json")
+    g.add_argument("--light-model", default="directional", help="directional (+ ambient), point, environment, or auto")
+    g.add_argument("--steps", type=int, default=120, help="Adam steps per fit (default 120)")
+    g.add_argument("--max-pixels", type=int, default=16000, help="downsample until the mask has at most this many pixels")
+    g.add_argument("--floor-maps", default="constant", help="comma list of no-information maps for the floor: constant,silhouette")
+    g.add_argument("--seed", type=int, default=0, help="seed of every random choice of the fit")
+    g.add_argument("--overwrite", action="store_true", help="replace an existing <out>/<object>/report.json")
     p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     return p
+
+
+def _main_fitted(args) -> int:
+    """Fitted mode (validate.fit): one object folder of any layout."""
+    from scenes.variant import choose_variant
+    from validate.fit import FitConfig, rerender_fitted
+
+    config = FitConfig(light_model=args.light_model, steps=args.steps, max_pixels=args.max_pixels,
+                       floor_maps=tuple(m for m in args.floor_maps.split(",") if m), seed=args.seed).validate()
+    if not Path(args.normals).exists():
+        raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
+    variant = choose_variant(args.variant or ("cuda_ad_rgb" if _has_cuda() else "llvm_ad_rgb"))
+    import drjit as dr
+
+    if variant.startswith("llvm"):
+        dr.set_thread_count(0)  # all cores
+    from tqdm import tqdm
+
+    bar = tqdm(unit="step", leave=False)
+
+    def progress(done: int, total: int, label: str) -> None:
+        bar.total, bar.n = total, done
+        bar.set_description(label)
+        bar.refresh()
+
+    try:
+        r = rerender_fitted(args.data, args.normals, config, args.out, progress, overwrite=args.overwrite)
+    finally:
+        bar.close()
+    cal = r.get("calibrated_light_error_deg")
+    print(f"{r['object']}: rel_l1 {r['rel_l1']:.4f}  floor {r['floor_rel_l1']:.4f}  noise {r['noise_rel_l1'] or float('nan'):.4f}"
+          + (f"  mae {r['mae_deg']:.2f} deg" if r["mae_deg"] is not None else "")
+          + (f"  light error vs calibration {cal['mean']:.2f} deg" if cal else "")
+          + f"  ({r['note']}, {r['timings']['total_s']:.0f} s)")
+    print(f"report in {args.out}/{r['object']}/report.json")
+    return 0
+
+
+def _has_cuda() -> bool:
+    from scenes.variant import _usable
+
+    return _usable("cuda_ad_rgb")
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    from validate.capture import detect_layout
+
+    if args.fit or (Path(args.data).is_dir() and detect_layout(args.data) in ("diligent", "unips")):
+        try:
+            return _main_fitted(args)
+        except (ValueError, FileNotFoundError, FileExistsError) as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
     try:
         config = RerenderConfig(
             spp=args.spp,

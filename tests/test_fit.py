@@ -1,0 +1,203 @@
+"""Fitted mode of the re-render check and refinement (validate.fit, validate.refine), on a Lambertian sphere
+rendered by the scenes API under known directional lights, written without scene.json.
+
+Physics is checked against analytic answers: the lights the sphere was rendered with (camera frame = world
+frame for the default camera), the analytic sphere normals and heights, finite differences.
+"""
+from __future__ import annotations
+
+import gc
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from scenes.description import CameraDesc, ImageDesc, LightDesc, MaterialDesc, RenderDesc, SceneDescription, ShapeDesc, TextureDesc
+
+R = 32
+ROOT = Path(__file__).resolve().parents[1]
+# Directions toward the light (camera frame), elevations 35-70 deg all around.
+TO_LIGHT = np.array(
+    [[math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)]
+     for e, a in zip(np.radians([40, 55, 70, 35, 50, 65, 45, 60]), np.radians([0, 45, 90, 135, 180, 225, 270, 315]))]
+)
+
+
+@pytest.fixture(scope="module")
+def jit():
+    from scenes.variant import _usable
+
+    if not _usable("llvm_ad_rgb"):
+        pytest.skip("llvm_ad_rgb is not usable here (install libllvm19)")
+    import mitsuba as mi
+
+    return mi
+
+
+def analytic_sphere(mask_radius: float = 1.0 / 1.1) -> tuple[np.ndarray, np.ndarray]:
+    """Normals (R, R, 3) and mask of a unit sphere seen by the default orthographic camera (half size 1.1)."""
+    c = (np.arange(R) + 0.5) / R * 2 - 1
+    x, y = np.meshgrid(c * 1.1, -c * 1.1)
+    r2 = x * x + y * y
+    mask = r2 < 0.97
+    n = np.stack([x, y, np.sqrt(np.clip(1 - r2, 0, None))], -1)
+    return np.where(mask[..., None], n, 0).astype(np.float32), mask
+
+
+@pytest.fixture(scope="module")
+def sphere_folder(jit, tmp_path_factory) -> Path:
+    """A Lambertian sphere (albedo 0.7) under 8 directional lights (irradiance 2), 32x32, no scene.json."""
+    from scenes.imageio import write_mask, write_normal_tif, write_png16
+    from scenes.mitsuba_build import build_scene
+    from scenes.render import render_ground_truth, render_image
+
+    desc = SceneDescription(
+        name="lsphere",
+        shape=ShapeDesc(kind="sphere"),
+        material=MaterialDesc(kind="lambertian", base_color=TextureDesc(value=[0.7, 0.7, 0.7])),
+        camera=CameraDesc(width=R, height=R, half_size=1.1),
+        render=RenderDesc(spp=64, bounces=1),
+        images=[ImageDesc(lights=[LightDesc(type="directional", direction=(-d).tolist(), irradiance=2.0)], seed=i) for i, d in enumerate(TO_LIGHT)],
+    )
+    folder = tmp_path_factory.mktemp("fit") / "lsphere.data"
+    folder.mkdir()
+    built = build_scene(desc)
+    gt = render_ground_truth(built, spp=64)
+    for i in range(len(desc.images)):
+        write_png16(folder / f"L{i:03d}.png", render_image(built, i))
+    mask = gt.coverage > 0.999
+    write_mask(folder / "mask.png", mask)
+    write_normal_tif(folder / "normal.tif", np.where(mask[..., None], gt.normal, 0.0))
+    del built
+    gc.collect()
+    return folder
+
+
+def small_config(**kw):
+    from validate.fit import FitConfig
+
+    base = dict(steps=40, batch_images=8, refresh_every=10, ao_rays=4, max_pixels=100000, seed=0)
+    base.update(kw)
+    return FitConfig(**base)
+
+
+def test_heightfield_recovers_analytic_sphere():
+    """Integrating analytic sphere normals gives the sphere's heights up to a constant (interior pixels)."""
+    from scipy.ndimage import binary_erosion
+
+    from validate.heightfield import build
+
+    n, mask = analytic_sphere()
+    hf = build(n, mask)
+    c = (np.arange(R) + 0.5) / R * 2 - 1
+    x, y = np.meshgrid(c * 1.1, -c * 1.1)
+    z_true = np.sqrt(np.clip(1 - x * x - y * y, 0, None)) * (hf.pixel_size / (2.2 / R))
+    inner = binary_erosion(mask, iterations=3)
+    d = (hf.z - z_true)[inner]
+    assert np.abs(d - d.mean()).max() < 0.03
+
+
+def test_closed_form_recovers_analytic_lights():
+    """Lambertian images made analytically from known normals, albedo and lights: the closed form returns
+    the light directions (< 0.5 deg) with attached shadows present."""
+    from validate.lights import angular_errors_deg, closed_form_directional
+
+    n, mask = analytic_sphere()
+    N = n[mask]
+    rng = np.random.default_rng(0)
+    albedo = rng.uniform(0.3, 0.9, size=(len(N), 3))
+    imgs = np.stack([albedo / np.pi * 2.0 * np.maximum(N @ d, 0)[:, None] for d in TO_LIGHT])
+    out = closed_form_directional(N, imgs)
+    assert angular_errors_deg(out["directions"], TO_LIGHT).max() < 0.5
+
+
+def test_fitted_lights_and_ranking(jit, sphere_folder):
+    """Fitted light directions within 1 deg of the rendered ones; ground-truth normals at the floor of what
+    a normal map can reach, a 20-deg perturbed map clearly above, the constant map far above."""
+    from validate.capture import load_capture
+    from validate.fit import fit_normals
+    from validate.lights import angular_errors_deg
+    from validate.perturb import perturb_normals
+
+    cap = load_capture(sphere_folder)
+    assert cap.layout == "unips" and not cap.has_scene
+    cfg = small_config()
+    gt = fit_normals(cap.images, cap.mask, cap.normal_gt, cfg)
+    err = angular_errors_deg(gt.light_params["directions"], TO_LIGHT)
+    assert err.max() < 1.0, err
+    bad = fit_normals(cap.images, cap.mask, perturb_normals(cap.normal_gt, cap.mask, "random", 20, seed=1), cfg)
+    const = fit_normals(cap.images, cap.mask, np.where(cap.mask[..., None], np.float32([0, 0, 1]), 0), cfg)
+    assert gt.rel_l1 < 0.05
+    assert bad.rel_l1 > gt.rel_l1 + 0.05
+    assert const.rel_l1 > bad.rel_l1
+
+
+def test_gradients_flow_to_light_parameters(jit, sphere_folder):
+    """d loss / d (light direction, log irradiance) from Dr.Jit AD through the Mitsuba BSDF matches central
+    finite differences."""
+    import drjit as dr
+
+    from validate.capture import load_capture
+    from validate.fit import FitScene, _start
+
+    cap = load_capture(sphere_folder)
+    fs = FitScene(cap.images, cap.mask, cap.normal_gt, small_config(specular=False), "directional")
+    start = _start(fs.images, fs.n_np)
+    start["directions"] = start["directions"] + np.array([0.05, -0.03, 0.0])  # off the optimum
+    fs.init_params(start)
+    fs.refresh_visibility()
+    batch = np.arange(fs.k)
+
+    def loss_at(name: str, comp: int, h: float) -> float:
+        arr = np.array(fs.params[name], np.float64)
+        arr[comp, 2] += h
+        fs.params[name] = fs.mi.Vector3f(*arr.astype(np.float32))
+        v = float(fs.loss(batch).array[0])
+        arr[comp, 2] -= h
+        fs.params[name] = fs.mi.Vector3f(*arr.astype(np.float32))
+        return v
+
+    for name, comp in (("dir", 0), ("log_e", 1)):
+        p = fs.params[name]
+        dr.enable_grad(p)
+        loss = fs.loss(batch)
+        dr.backward(loss)
+        ad = np.array(dr.grad(p), np.float64)[comp, 2]
+        dr.disable_grad(p)
+        h = 1e-2
+        fd = (loss_at(name, comp, h) - loss_at(name, comp, -h)) / (2 * h)
+        assert abs(ad) > 1e-5
+        assert abs(ad - fd) < 0.1 * abs(fd) + 1e-5, (name, ad, fd)
+
+
+def test_refine_brings_perturbed_map_below_3_deg(jit, sphere_folder, tmp_path):
+    from validate.capture import load_capture
+    from validate.metrics import mae_deg
+    from validate.perturb import perturb_normals
+    from validate.refine import RefineConfig, refine_normals
+
+    cap = load_capture(sphere_folder)
+    start = perturb_normals(cap.normal_gt, cap.mask, "smooth", 20, seed=2)
+    assert mae_deg(start, cap.normal_gt, cap.mask) > 15
+    out = refine_normals(cap.images, cap.mask, start, RefineConfig(fit=small_config(steps=200, batch_images=8)))
+    assert mae_deg(out.normals, cap.normal_gt, cap.mask) < 3.0
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", *args], cwd=ROOT, capture_output=True, text=True, timeout=300,
+                          env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin", "HOME": str(Path.home())})
+
+
+@pytest.mark.parametrize("module", ["validate.rerender", "validate.refine"])
+def test_bad_inputs_one_line_error(jit, sphere_folder, tmp_path, module):
+    missing = _cli(module, "--data", str(sphere_folder), "--normals", str(tmp_path / "nope.png"), "--out", str(tmp_path / "o"))
+    assert missing.returncode != 0
+    assert missing.stderr.strip().count("\n") == 0 and "--normals" in missing.stderr and "Traceback" not in missing.stderr
+    wrong = tmp_path / "wrong.npy"
+    np.save(wrong, np.zeros((5, 7, 3), np.float32))
+    bad = _cli(module, "--data", str(sphere_folder), "--normals", str(wrong), "--out", str(tmp_path / "o"))
+    assert bad.returncode != 0
+    assert bad.stderr.strip().count("\n") == 0 and "shape" in bad.stderr and "Traceback" not in bad.stderr

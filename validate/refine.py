@@ -1,0 +1,365 @@
+"""Refine a normal map by differentiable rendering (library and CLI `python -m validate.refine`).
+
+Starting from any prediction: (1) the scene is fitted around the normal map held fixed (`validate.fit`;
+with `--lights calibrated` the calibrated directional lights of the folder, DiLiGenT's files or scene.json's
+`camera_lights`, are used and held fixed instead: the known-scene mode of refinement); (2) the normals are
+optimised together with the lights by Adam through the same Mitsuba shading, with the albedo re-solved in
+closed form at every refresh, under a regulariser: smoothness (squared differences of 4-neighbour
+normals), integrability (squared curl of the gradient field p = -nx/nz, q = ny/nz over 2x2 blocks) and the
+silhouette (normals at the mask boundary may not point inward, and no normal may face away from the
+camera). A fraction of the images is held out: their residual is measured at every refresh and the normals
+of the best held-out residual are kept (early stopping after `patience` refreshes without improvement).
+The geometry (mesh for shadows) is the integral of the starting map.
+
+Refinement runs at the fitting resolution; the change it made is upsampled (bilinear) and applied to the
+full-resolution input map. Before / after scores are fresh fits (fitted mode, same budget and seed) with
+the starting and the refined map held fixed.
+
+Usage:
+    python -m validate.refine --data OBJ --normals PRED/OBJ/normal.png --out DIR
+writes DIR/<object>/normal.png (16-bit, (n + 1) / 2, background 32768: the layout unips.evaluate reads)
+and DIR/<object>/refine_report.json.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from validate.fit import FitConfig, FitScene, Progress, _np_params, _start, fit_normals, rel_l1_pixels, require_ad_variant, run_fit
+
+log = logging.getLogger(__name__)
+
+LIGHT_SOURCES = ("fitted", "calibrated")
+
+
+@dataclass
+class RefineConfig:
+    """Options of the refinement."""
+
+    fit: FitConfig = field(default_factory=FitConfig)
+    """Scene fit (light model, steps of the fixed-normal stage, resolution, seed)."""
+    refine_steps: int = 300
+    """Adam steps of the joint stage (normals and lights)."""
+    lights: str = "fitted"
+    """'fitted' (lights fitted to the images) or 'calibrated' (the folder's calibrated directional lights, held fixed)."""
+    holdout_fraction: float = 0.1
+    """Fraction of the images held out for early stopping (at least one when K >= 5, none below)."""
+    patience: int = 4
+    """Refreshes without a better held-out residual before stopping."""
+    smoothness: float = 0.02
+    """Weight of the smoothness term, relative to the mean input value."""
+    integrability: float = 0.002
+    """Weight of the integrability (curl) term, relative to the mean input value."""
+    silhouette: float = 1.0
+    """Weight of the silhouette / facing terms, relative to the mean input value."""
+
+    def validate(self) -> "RefineConfig":
+        self.fit.validate()
+        if self.lights not in LIGHT_SOURCES:
+            raise ValueError(f"--lights: {self.lights!r} is not one of {', '.join(LIGHT_SOURCES)}")
+        if self.lights == "calibrated" and self.fit.light_model != "directional":
+            raise ValueError("--lights calibrated needs --light-model directional")
+        if isinstance(self.refine_steps, bool) or not isinstance(self.refine_steps, int) or self.refine_steps < 0:
+            raise ValueError(f"--refine-steps: expected an integer >= 0, got {self.refine_steps!r}")
+        if not 0 <= self.holdout_fraction < 0.5:
+            raise ValueError(f"--holdout: expected a fraction in [0, 0.5), got {self.holdout_fraction!r}")
+        for name in ("smoothness", "integrability", "silhouette"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"{name}: expected >= 0, got {getattr(self, name)!r}")
+        return self
+
+
+@dataclass
+class RefineResult:
+    normals: np.ndarray
+    """(H, W, 3) refined normals at the fitting resolution (0 outside the mask)."""
+    holdout_curve: list[tuple[int, float]]
+    """(step, held-out rel_l1) at each refresh of the joint stage."""
+    best_step: int
+    """Step whose normals were kept."""
+    seconds: float
+
+
+def _pairs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Index arrays over the mask pixels (row-major): horizontal pairs (a, b), vertical pairs (a, c), and
+    2x2 blocks (tl, tr, bl, br) fully inside the mask."""
+    h, w = mask.shape
+    idx = -np.ones((h, w), np.int64)
+    idx[mask] = np.arange(int(mask.sum()))
+    hz = mask[:, :-1] & mask[:, 1:]
+    vt = mask[:-1, :] & mask[1:, :]
+    blk = mask[:-1, :-1] & mask[:-1, 1:] & mask[1:, :-1] & mask[1:, 1:]
+    horiz = np.stack([idx[:, :-1][hz], idx[:, 1:][hz]])
+    vert = np.stack([idx[:-1, :][vt], idx[1:, :][vt]])
+    block = np.stack([idx[:-1, :-1][blk], idx[:-1, 1:][blk], idx[1:, :-1][blk], idx[1:, 1:][blk]])
+    return idx, horiz, vert, block, np.zeros(0)
+
+
+def _boundary_outward(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mask-boundary pixels (indices into the mask pixels) and their outward 2D directions (x right, y up)."""
+    from scipy.ndimage import binary_erosion, distance_transform_edt, gaussian_filter
+
+    edge = mask & ~binary_erosion(mask)
+    d = gaussian_filter(distance_transform_edt(mask), 1.0)
+    gy, gx = np.gradient(d)
+    o = np.stack([-gx, gy], -1)  # downhill of the distance = outward; rows go down, y up
+    o /= np.maximum(np.linalg.norm(o, axis=-1, keepdims=True), 1e-12)
+    idx = -np.ones(mask.shape, np.int64)
+    idx[mask] = np.arange(int(mask.sum()))
+    return idx[edge], o[edge]
+
+
+def make_regulariser(fs: FitScene, config: RefineConfig):
+    """Dr.Jit function normals (Vector3f, width P) -> scalar penalty (see the module doc)."""
+    mi, dr = fs.mi, fs.dr
+    _, horiz, vert, block, _ = _pairs(fs.mask)
+    bidx, outward = _boundary_outward(fs.mask)
+    scale = float(np.abs(fs.images).mean())
+    U = lambda a: mi.UInt32(np.asarray(a, np.uint32))  # noqa: E731
+    ha, hb, va, vb = U(horiz[0]), U(horiz[1]), U(vert[0]), U(vert[1])
+    tl, tr, bl, br = (U(b) for b in block)
+    bi = U(bidx)
+    ox, oy = mi.Float(outward[:, 0].astype(np.float32)), mi.Float(outward[:, 1].astype(np.float32))
+
+    def reg(normals):
+        n = dr.normalize(normals)
+        g = lambda i: dr.gather(mi.Vector3f, n, i)  # noqa: E731
+        total = mi.Float(0.0)
+        if config.smoothness > 0 and len(horiz[0]) + len(vert[0]):
+            s = dr.sum(dr.squared_norm(g(ha) - g(hb))) + dr.sum(dr.squared_norm(g(va) - g(vb)))
+            total += config.smoothness * scale * s / (len(horiz[0]) + len(vert[0]))
+        if config.integrability > 0 and len(block[0]):
+            def pq(v):
+                nz = dr.maximum(v.z, 0.3)
+                return -v.x / nz, v.y / nz
+
+            p_tl, q_tl = pq(g(tl))
+            p_tr, q_tr = pq(g(tr))
+            p_bl, q_bl = pq(g(bl))
+            p_br, q_br = pq(g(br))
+            # d p / d row - d q / d col, each averaged over the block's two rows / columns
+            curl = 0.5 * ((p_bl - p_tl) + (p_br - p_tr)) - 0.5 * ((q_tr - q_tl) + (q_br - q_bl))
+            total += config.integrability * scale * dr.mean(curl * curl)
+        if config.silhouette > 0:
+            face = dr.maximum(-n.z, 0)
+            total += config.silhouette * scale * dr.mean(face * face)
+            if len(bidx):
+                nb = g(bi)
+                inward = dr.maximum(-(nb.x * ox + nb.y * oy), 0)
+                total += config.silhouette * scale * dr.mean(inward * inward)
+        return total
+
+    return reg
+
+
+def refine_normals(
+    images: np.ndarray,
+    mask: np.ndarray,
+    normals: np.ndarray,
+    config: RefineConfig | None = None,
+    calibrated: tuple[np.ndarray, np.ndarray] | None = None,
+    progress: Progress | None = None,
+) -> RefineResult:
+    """Refine `normals` (H, W, 3) against images (K, H, W, 3) over mask (H, W), all at the fitting resolution.
+
+    calibrated: (directions (K, 3) toward the light, irradiance (K, 3)) held fixed when config.lights is
+    'calibrated'."""
+    config = (config or RefineConfig()).validate()
+    require_ad_variant()
+    t0 = time.perf_counter()
+    cfg = config.fit
+    fs = FitScene(images, mask, normals, cfg, cfg.light_model if cfg.light_model != "auto" else "directional")
+    start = _start(fs.images, fs.n_np)
+    fixed: set[str] = set()
+    if config.lights == "calibrated":
+        if calibrated is None:
+            raise ValueError("--lights calibrated: the folder has no calibrated directional lights (DiLiGenT files or scene.json camera_lights)")
+        start["directions"] = np.asarray(calibrated[0], np.float64)
+        start["irradiance"] = np.asarray(calibrated[1], np.float64)
+        fixed = {"dir", "log_e"}
+    fs.init_params(start)
+    if fixed:  # hold them: parameters outside the optimiser are not updated
+        orig = fs.param_list
+        fs.param_list = lambda with_normals: [(n, v) for n, v in orig(with_normals) if n not in fixed]  # type: ignore[method-assign]
+    run_fit(fs, cfg.steps, progress=progress, label="refine: fit")
+    k = fs.k
+    n_hold = int(round(config.holdout_fraction * k)) if k >= 5 else 0
+    n_hold = max(n_hold, 1) if k >= 5 and config.holdout_fraction > 0 else n_hold
+    holdout = np.sort(fs.rng.choice(k, size=n_hold, replace=False)) if n_hold else np.zeros(0, np.int64)
+    best = {"score": np.inf, "normals": fs.n_np.copy(), "step": 0}
+    curve: list[tuple[int, float]] = []
+    stale = [0]
+
+    def on_eval(step: int, score: float) -> bool:
+        curve.append((step, score))
+        if score < best["score"] - 1e-6:
+            best.update(score=score, normals=fs.n_np.copy(), step=step)
+            stale[0] = 0
+        else:
+            stale[0] += 1
+        return stale[0] >= config.patience
+
+    if len(holdout):
+        on_eval(0, rel_l1_pixels(fs.render(holdout), fs.images[holdout]))
+    run_fit(fs, config.refine_steps, optimise_normals=True, regulariser=make_regulariser(fs, config),
+            holdout=holdout if len(holdout) else None, on_eval=on_eval if len(holdout) else None, progress=progress, label="refine: normals")
+    if len(holdout):
+        on_eval(config.refine_steps, rel_l1_pixels(fs.render(holdout), fs.images[holdout]))
+        n_best = best["normals"]
+    else:
+        n_best = fs.n_np
+    n_best = n_best / np.linalg.norm(n_best, axis=1, keepdims=True)
+    out = np.zeros(mask.shape + (3,), np.float32)
+    out[mask] = n_best
+    return RefineResult(normals=out, holdout_curve=curve, best_step=int(best["step"]) if len(holdout) else config.refine_steps,
+                        seconds=time.perf_counter() - t0)
+
+
+def upsample_change(full: np.ndarray, mask_full: np.ndarray, start_small: np.ndarray, refined_small: np.ndarray) -> np.ndarray:
+    """Apply the change refined_small - start_small (h, w, 3), upsampled bilinearly, to the full map (H, W, 3)."""
+    import cv2
+
+    if start_small.shape == full.shape:
+        return refined_small
+    h, w = mask_full.shape
+    f = h // start_small.shape[0]
+    delta = np.zeros((start_small.shape[0] * f, start_small.shape[1] * f, 3), np.float32)
+    delta[:] = cv2.resize((refined_small - start_small).astype(np.float32), (start_small.shape[1] * f, start_small.shape[0] * f), interpolation=cv2.INTER_LINEAR)
+    big = np.zeros_like(full)
+    big[: delta.shape[0], : delta.shape[1]] = delta
+    n = full + big
+    n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-12)
+    return np.where(mask_full[..., None], n, 0).astype(np.float32)
+
+
+def write_normal_png(path: Path, n: np.ndarray) -> None:
+    """16-bit PNG (n + 1) / 2, background 32768 (what unips.predict writes and unips.evaluate reads)."""
+    import cv2
+
+    from scenes.imageio import encode_normals
+
+    if not cv2.imwrite(str(path), np.ascontiguousarray(encode_normals(n)[:, :, ::-1])):
+        raise OSError(f"--out: could not write {str(path)!r}")
+
+
+def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig | None = None, out_dir: str | None = None,
+                  progress: Progress | None = None, overwrite: bool = False) -> dict:
+    """Refine the normal map of one object folder; write normal.png and refine_report.json under out_dir/<object>/."""
+    from validate.capture import downsample_normals, find_normals, load_capture, read_normals, unit_normals
+    from validate.fit import prepare
+    from validate.metrics import mae_deg
+
+    config = (config or RefineConfig()).validate()
+    mi = require_ad_variant()
+    t0 = time.perf_counter()
+    cap = load_capture(folder)
+    source = "array"
+    if not isinstance(normals, np.ndarray):
+        path = find_normals(normals, cap.name)
+        source = str(path)
+        normals = read_normals(path)
+    full = unit_normals(normals, cap.mask)
+    target = Path(out_dir) / cap.name if out_dir is not None else None
+    if target is not None and not overwrite:
+        for name in ("normal.png", "refine_report.json"):
+            if (target / name).exists():
+                raise FileExistsError(f"--out: {str(target / name)!r} exists (pass --overwrite to replace it)")
+    small, n_small, f = prepare(cap, full, config.fit)
+    calibrated = None
+    if small.light_directions is not None and small.light_irradiance is not None:
+        calibrated = (small.light_directions, small.light_irradiance)
+    res = refine_normals(small.images, small.mask, n_small, config, calibrated, progress)
+    refined_full = upsample_change(full, cap.mask, n_small, res.normals)
+    refined_small = downsample_normals(refined_full, small.mask, f) if f > 1 else refined_full
+    before = fit_normals(small.images, small.mask, n_small, config.fit, progress, "score before")
+    after = fit_normals(small.images, small.mask, refined_small, config.fit, progress, "score after")
+    report: dict[str, Any] = {
+        "mode": "refine",
+        "lights_source": config.lights,
+        "object": cap.name,
+        "folder": str(cap.folder),
+        "prediction": source,
+        "images_count": int(cap.images.shape[0]),
+        "before": {"rel_l1": before.rel_l1, "mae_deg": mae_deg(full, cap.normal_gt, cap.mask) if cap.normal_gt is not None else None},
+        "after": {"rel_l1": after.rel_l1, "mae_deg": mae_deg(refined_full, cap.normal_gt, cap.mask) if cap.normal_gt is not None else None},
+        "holdout_curve": [[int(s), float(v)] for s, v in res.holdout_curve],
+        "best_step": res.best_step,
+        "lights": after.lights,
+        "fit_downsample": f,
+        "note": (f"refined and scored at 1/{f} resolution ({small.mask.shape[1]}x{small.mask.shape[0]}); the change is upsampled "
+                 "bilinearly onto the full-resolution input map" if f > 1 else "refined and scored at full resolution"),
+        "config": {**{k: v for k, v in asdict(config).items() if k != "fit"}, "fit": {**asdict(config.fit), "floor_maps": list(config.fit.floor_maps)}},
+        "variant": mi.variant(),
+        "timings": {"refine_s": res.seconds, "total_s": time.perf_counter() - t0},
+    }
+    if target is not None:
+        target.mkdir(parents=True, exist_ok=True)
+        write_normal_png(target / "normal.png", refined_full)
+        (target / "refine_report.json").write_text(json.dumps(report, indent=1, allow_nan=False))
+    return report
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m validate.refine", description="Refine a normal map by fitting light, reflectance and normals to the images through Mitsuba.")
+    p.add_argument("--data", required=True, help="object folder: ours (with or without scene.json), UniPS .data, or DiLiGenT *PNG")
+    p.add_argument("--normals", required=True, help="starting normal map file (.png/.exr/.npy/.tif) or a folder with <object>/normal.*")
+    p.add_argument("--out", default="refined", help="output folder: <out>/<object>/normal.png and refine_report.json (default ./refined)")
+    p.add_argument("--lights", choices=LIGHT_SOURCES, default="fitted", help="fit the lights (default) or hold the folder's calibrated lights")
+    p.add_argument("--light-model", default="directional", help="directional (+ ambient), point, environment (with --lights fitted)")
+    p.add_argument("--steps", type=int, default=FitConfig.steps, help=f"Adam steps of each scene fit (default {FitConfig.steps})")
+    p.add_argument("--refine-steps", type=int, default=RefineConfig.refine_steps, help=f"Adam steps on the normals (default {RefineConfig.refine_steps})")
+    p.add_argument("--max-pixels", type=int, default=FitConfig.max_pixels, help="downsample until the mask has at most this many pixels")
+    p.add_argument("--holdout", type=float, default=RefineConfig.holdout_fraction, help="fraction of images held out for early stopping")
+    p.add_argument("--seed", type=int, default=0, help="seed of every random choice")
+    p.add_argument("--variant", default=None, help="Mitsuba variant (default cuda_ad_rgb if usable, else llvm_ad_rgb)")
+    p.add_argument("--overwrite", action="store_true", help="replace existing outputs")
+    p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    try:
+        config = RefineConfig(
+            fit=FitConfig(light_model=args.light_model, steps=args.steps, max_pixels=args.max_pixels, seed=args.seed),
+            refine_steps=args.refine_steps, lights=args.lights, holdout_fraction=args.holdout,
+        ).validate()
+        if not Path(args.normals).exists():
+            raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
+        from scenes.variant import _usable, choose_variant
+
+        choose_variant(args.variant or ("cuda_ad_rgb" if _usable("cuda_ad_rgb") else "llvm_ad_rgb"))
+        from tqdm import tqdm
+
+        bar = tqdm(unit="step", leave=False)
+
+        def progress(done: int, total: int, label: str) -> None:
+            bar.total, bar.n = total, done
+            bar.set_description(label)
+            bar.refresh()
+
+        try:
+            r = refine_object(args.data, args.normals, config, args.out, progress, overwrite=args.overwrite)
+        finally:
+            bar.close()
+    except (ValueError, FileNotFoundError, FileExistsError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    b, a = r["before"], r["after"]
+    mae = f"  mae {b['mae_deg']:.2f} -> {a['mae_deg']:.2f} deg" if b["mae_deg"] is not None else ""
+    print(f"{r['object']}: rel_l1 {b['rel_l1']:.4f} -> {a['rel_l1']:.4f}{mae}  ({r['note']}, {r['timings']['total_s']:.0f} s)")
+    print(f"normals in {args.out}/{r['object']}/normal.png, report in {args.out}/{r['object']}/refine_report.json")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
