@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from validate.fit import FitConfig, FitScene, Progress, _np_params, _start, fit_normals, rel_l1_pixels, require_ad_variant, run_fit
+from validate.fit import FitConfig, FitScene, Progress, _start, fit_normals, rel_l1_pixels, require_ad_variant, run_fit, to_jit
 
 log = logging.getLogger(__name__)
 
@@ -123,11 +123,11 @@ def make_regulariser(fs: FitScene, config: RefineConfig):
     _, horiz, vert, block, _ = _pairs(fs.mask)
     bidx, outward = _boundary_outward(fs.mask)
     scale = float(np.abs(fs.images).mean())
-    U = lambda a: mi.UInt32(np.asarray(a, np.uint32))  # noqa: E731
+    U = lambda a: to_jit(mi.UInt32, np.asarray(a, np.uint32))  # noqa: E731
     ha, hb, va, vb = U(horiz[0]), U(horiz[1]), U(vert[0]), U(vert[1])
     tl, tr, bl, br = (U(b) for b in block)
     bi = U(bidx)
-    ox, oy = mi.Float(outward[:, 0].astype(np.float32)), mi.Float(outward[:, 1].astype(np.float32))
+    ox, oy = to_jit(mi.Float, outward[:, 0].astype(np.float32)), to_jit(mi.Float, outward[:, 1].astype(np.float32))
 
     def reg(normals):
         n = dr.normalize(normals)
