@@ -60,6 +60,13 @@ class RefineConfig:
     """Weight of the integrability (curl) term, relative to the mean input value."""
     silhouette: float = 1.0
     """Weight of the silhouette / facing terms, relative to the mean input value."""
+    rounds: int = 3
+    """Alternations of (fit the lights to the current normals, then move the normals with the lights held)."""
+    update_lights: bool = False
+    """Keep optimising the lights while the normals move. Off by default: with the lights free, a Lambertian
+    scene's normals and lights can drift together along the generalized bas-relief ambiguity (measured on
+    the test sphere, 20 deg random error: 13 deg after refinement with free lights, < 1 deg with the lights of
+    the first stage held)."""
 
     def validate(self) -> "RefineConfig":
         self.fit.validate()
@@ -67,6 +74,8 @@ class RefineConfig:
             raise ValueError(f"--lights: {self.lights!r} is not one of {', '.join(LIGHT_SOURCES)}")
         if self.lights == "calibrated" and self.fit.light_model != "directional":
             raise ValueError("--lights calibrated needs --light-model directional")
+        if isinstance(self.rounds, bool) or not isinstance(self.rounds, int) or self.rounds < 1:
+            raise ValueError(f"--rounds: expected an integer >= 1, got {self.rounds!r}")
         if isinstance(self.refine_steps, bool) or not isinstance(self.refine_steps, int) or self.refine_steps < 0:
             raise ValueError(f"--refine-steps: expected an integer >= 0, got {self.refine_steps!r}")
         if not 0 <= self.holdout_fraction < 0.5:
@@ -186,10 +195,12 @@ def refine_normals(
         start["irradiance"] = np.asarray(calibrated[1], np.float64)
         fixed = {"dir", "log_e"}
     fs.init_params(start)
-    if fixed:  # hold them: parameters outside the optimiser are not updated
-        orig = fs.param_list
-        fs.param_list = lambda with_normals: [(n, v) for n, v in orig(with_normals) if n not in fixed]  # type: ignore[method-assign]
-    run_fit(fs, cfg.steps, progress=progress, label="refine: fit")
+    base_list = fs.param_list
+    light_keys = {"dir", "log_e", "pos", "log_a"} | {f"sh{j}" for j in range(9)}
+
+    def only(exclude: set[str]):
+        return lambda with_normals: [(n, v) for n, v in base_list(with_normals) if n not in exclude]
+
     k = fs.k
     n_hold = int(round(config.holdout_fraction * k)) if k >= 5 else 0
     n_hold = max(n_hold, 1) if k >= 5 and config.holdout_fraction > 0 else n_hold
@@ -197,22 +208,37 @@ def refine_normals(
     best = {"score": np.inf, "normals": fs.n_np.copy(), "step": 0}
     curve: list[tuple[int, float]] = []
     stale = [0]
+    offset = [0]
 
     def on_eval(step: int, score: float) -> bool:
-        curve.append((step, score))
+        curve.append((offset[0] + step, score))
         if score < best["score"] - 1e-6:
-            best.update(score=score, normals=fs.n_np.copy(), step=step)
+            best.update(score=score, normals=fs.n_np.copy(), step=offset[0] + step)
             stale[0] = 0
         else:
             stale[0] += 1
         return stale[0] >= config.patience
 
+    per_round = max(1, config.refine_steps // config.rounds)
+    reg = make_regulariser(fs, config)
+    for r in range(config.rounds):
+        # Lights (and lobe, albedo) for the current normals, held fixed: errors-in-variables make lights fitted
+        # to a noisy map biased, so they are re-fitted as the map improves.
+        fs.param_list = only(fixed)  # type: ignore[method-assign]
+        run_fit(fs, cfg.steps if r == 0 else max(1, cfg.steps // 2), progress=progress, label=f"refine: lights {r + 1}/{config.rounds}")
+        if len(holdout):
+            on_eval(0, rel_l1_pixels(fs.render(holdout), fs.images[holdout]))
+        stale[0] = 0
+        fs.param_list = only(fixed if config.update_lights else fixed | light_keys)  # type: ignore[method-assign]
+        run_fit(fs, per_round, optimise_normals=True, regulariser=reg, holdout=holdout if len(holdout) else None,
+                on_eval=on_eval if len(holdout) else None, progress=progress, label=f"refine: normals {r + 1}/{config.rounds}")
+        offset[0] += per_round
+        if len(holdout):
+            on_eval(0, rel_l1_pixels(fs.render(holdout), fs.images[holdout]))
+            fs.n_np = best["normals"].copy()  # continue from the best normals so far
+            fs.normals = to_jit(fs.mi.Vector3f, fs.n_np.astype(np.float32))
+    fs.param_list = base_list  # type: ignore[method-assign]
     if len(holdout):
-        on_eval(0, rel_l1_pixels(fs.render(holdout), fs.images[holdout]))
-    run_fit(fs, config.refine_steps, optimise_normals=True, regulariser=make_regulariser(fs, config),
-            holdout=holdout if len(holdout) else None, on_eval=on_eval if len(holdout) else None, progress=progress, label="refine: normals")
-    if len(holdout):
-        on_eval(config.refine_steps, rel_l1_pixels(fs.render(holdout), fs.images[holdout]))
         n_best = best["normals"]
     else:
         n_best = fs.n_np
@@ -317,6 +343,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--steps", type=int, default=FitConfig.steps, help=f"Adam steps of each scene fit (default {FitConfig.steps})")
     p.add_argument("--refine-steps", type=int, default=RefineConfig.refine_steps, help=f"Adam steps on the normals (default {RefineConfig.refine_steps})")
     p.add_argument("--max-pixels", type=int, default=FitConfig.max_pixels, help="downsample until the mask has at most this many pixels")
+    p.add_argument("--rounds", type=int, default=RefineConfig.rounds, help=f"light / normal alternations (default {RefineConfig.rounds})")
     p.add_argument("--holdout", type=float, default=RefineConfig.holdout_fraction, help="fraction of images held out for early stopping")
     p.add_argument("--seed", type=int, default=0, help="seed of every random choice")
     p.add_argument("--variant", default=None, help="Mitsuba variant (default cuda_ad_rgb if usable, else llvm_ad_rgb)")
@@ -331,7 +358,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         config = RefineConfig(
             fit=FitConfig(light_model=args.light_model, steps=args.steps, max_pixels=args.max_pixels, seed=args.seed),
-            refine_steps=args.refine_steps, lights=args.lights, holdout_fraction=args.holdout,
+            refine_steps=args.refine_steps, rounds=args.rounds, lights=args.lights, holdout_fraction=args.holdout,
         ).validate()
         if not Path(args.normals).exists():
             raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
@@ -340,17 +367,20 @@ def main(argv: list[str] | None = None) -> int:
         choose_variant(args.variant or ("cuda_ad_rgb" if _usable("cuda_ad_rgb") else "llvm_ad_rgb"))
         from tqdm import tqdm
 
-        bar = tqdm(unit="step", leave=False)
+        bars: list[Any] = []  # created at the first step, so input errors print one clean line
 
         def progress(done: int, total: int, label: str) -> None:
-            bar.total, bar.n = total, done
-            bar.set_description(label)
-            bar.refresh()
+            if not bars:
+                bars.append(tqdm(unit="step", leave=False))
+            bars[0].total, bars[0].n = total, done
+            bars[0].set_description(label)
+            bars[0].refresh()
 
         try:
             r = refine_object(args.data, args.normals, config, args.out, progress, overwrite=args.overwrite)
         finally:
-            bar.close()
+            for b in bars:
+                b.close()
     except (ValueError, FileNotFoundError, FileExistsError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -443,17 +443,20 @@ def _main_fitted(args) -> int:
         dr.set_thread_count(0)  # all cores
     from tqdm import tqdm
 
-    bar = tqdm(unit="step", leave=False)
+    bars: list[Any] = []  # created at the first step, so input errors print one clean line
 
     def progress(done: int, total: int, label: str) -> None:
-        bar.total, bar.n = total, done
-        bar.set_description(label)
-        bar.refresh()
+        if not bars:
+            bars.append(tqdm(unit="step", leave=False))
+        bars[0].total, bars[0].n = total, done
+        bars[0].set_description(label)
+        bars[0].refresh()
 
     try:
         r = rerender_fitted(args.data, args.normals, config, args.out, progress, overwrite=args.overwrite)
     finally:
-        bar.close()
+        for b in bars:
+            b.close()
     cal = r.get("calibrated_light_error_deg")
     print(f"{r['object']}: rel_l1 {r['rel_l1']:.4f}  floor {r['floor_rel_l1']:.4f}  noise {r['noise_rel_l1'] or float('nan'):.4f}"
           + (f"  mae {r['mae_deg']:.2f} deg" if r["mae_deg"] is not None else "")
