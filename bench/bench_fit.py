@@ -1,0 +1,198 @@
+"""Fitted mode of the re-render check and refinement (issue 13): the figures of the README.
+
+    python bench/bench_fit.py [--diligent ../shared/data/diligent] [--synthetic 3] [--out bench_fit.json]
+
+DiLiGenT (ball, cat; skipped when the folder is absent):
+- fitted light directions with the ground-truth normals vs the calibrated ones (mean angular error);
+- the score (rel_l1) of ground truth, calibrated least squares (unips.baselines), the shipped model and the
+  constant (0, 0, 1) map, with their angular errors;
+- perturbation series of the ground truth (random, smooth, bias; 5-40 deg): Spearman(score, angular error);
+- refinement from the shipped model's prediction (fitted lights, and the calibrated lights held) and from
+  calibrated least squares: angular error before / after, minutes.
+Synthetic (held-out wildgen objects rendered here, scene.json removed for the fitted mode): the same
+perturbation series scored in fitted and in known-scene mode (validate.rerender), Spearman between the
+two, and refinement from the model vs calibrated least squares on directional objects.
+Wall-clock times on this machine (2 CPU cores shared with other jobs when they run).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+
+def spearman(a, b) -> float:
+    from scipy.stats import spearmanr
+
+    return float(spearmanr(a, b).statistic)
+
+
+def series(gt: np.ndarray, mask: np.ndarray, angles, kinds, seed: int):
+    from validate.perturb import perturb_normals
+
+    for kind in kinds:
+        for a in angles:
+            yield kind, a, perturb_normals(gt, mask, kind, a, seed=seed)
+
+
+def model_and_ls(folder: Path, net):
+    """(least squares with the folder's calibrated lights or None, model prediction) as full-size maps."""
+    from unips.baselines import least_squares
+    from unips.data import load_object
+    from unips.predict import predict_object
+
+    obj = load_object(folder)
+    ls = least_squares(obj) if obj.light_directions is not None else None
+    return ls, predict_object(obj, "model", net)
+
+
+def diligent(args, net, out: dict) -> None:
+    from validate.capture import downsample_normals, load_capture
+    from validate.fit import FitConfig, fit_normals, prepare
+    from validate.lights import angular_errors_deg, directions_of
+    from validate.metrics import mae_deg
+    from validate.refine import RefineConfig, refine_object
+
+    for name in ("ball", "cat"):
+        folder = args.diligent / f"{name}PNG"
+        if not folder.is_dir():
+            print(f"{name}: {folder} missing, skipped")
+            continue
+        cap = load_capture(folder)
+        cfg = FitConfig(seed=args.seed)
+        small, n_gt, f = prepare(cap, cap.normal_gt, cfg)
+        row: dict = {"downsample": f, "fit_pixels": int(small.mask.sum())}
+
+        def score(n_full: np.ndarray):
+            n = downsample_normals(n_full, small.mask, f)
+            n = np.where(small.mask[..., None] & (np.linalg.norm(n, axis=-1, keepdims=True) < 0.5), np.float32([0, 0, 1]), n)
+            return fit_normals(small.images, small.mask, n, cfg)
+
+        t0 = time.perf_counter()
+        r_gt = score(cap.normal_gt)
+        row["fit_minutes"] = (time.perf_counter() - t0) / 60
+        err = angular_errors_deg(directions_of(r_gt.model, r_gt.light_params), cap.light_directions)
+        row["light_error_deg"] = {"mean": float(err.mean()), "median": float(np.median(err)), "max": float(err.max())}
+        ls, model = model_and_ls(folder, net)
+        const = np.where(cap.mask[..., None], np.float32([0, 0, 1]), 0).astype(np.float32)
+        ranking = {"ground truth": (0.0, r_gt.rel_l1)}
+        for label, n in (("least squares (calibrated)", ls), ("model", model), ("constant", const)):
+            ranking[label] = (mae_deg(n, cap.normal_gt, cap.mask), score(n).rel_l1)
+        row["ranking"] = {k: {"mae_deg": v[0], "rel_l1": v[1]} for k, v in ranking.items()}
+        print(f"{name}: light error {err.mean():.2f} deg (median {np.median(err):.2f}), fit {row['fit_minutes']:.2f} min (1/{f} res)")
+        for k, (m, s) in ranking.items():
+            print(f"  {k:<28} mae {m:6.2f}  rel_l1 {s:.4f}")
+        pert = []
+        for kind, a, n in series(cap.normal_gt, cap.mask, args.angles, args.kinds, args.seed):
+            pert.append({"kind": kind, "angle": a, "mae_deg": mae_deg(n, cap.normal_gt, cap.mask), "rel_l1": score(n).rel_l1})
+        row["perturbations"] = pert
+        row["spearman"] = spearman([p["rel_l1"] for p in pert], [p["mae_deg"] for p in pert])
+        row["spearman_per_kind"] = {k: spearman([p["rel_l1"] for p in pert if p["kind"] == k], [p["mae_deg"] for p in pert if p["kind"] == k]) for k in args.kinds}
+        print(f"  perturbations: Spearman(score, error) {row['spearman']:.3f}  per kind {row['spearman_per_kind']}")
+        if not args.skip_refine:
+            ref = {}
+            for label, start, lights in (("model, fitted lights", model, "fitted"), ("model, calibrated lights", model, "calibrated"),
+                                         ("least squares, fitted lights", ls, "fitted")):
+                t0 = time.perf_counter()
+                r = refine_object(str(folder), start, RefineConfig(fit=FitConfig(seed=args.seed), lights=lights))
+                ref[label] = {"before_mae": r["before"]["mae_deg"], "after_mae": r["after"]["mae_deg"],
+                              "before_rel_l1": r["before"]["rel_l1"], "after_rel_l1": r["after"]["rel_l1"],
+                              "minutes": (time.perf_counter() - t0) / 60}
+                print(f"  refine {label:<30} mae {ref[label]['before_mae']:.2f} -> {ref[label]['after_mae']:.2f}  "
+                      f"rel_l1 {ref[label]['before_rel_l1']:.4f} -> {ref[label]['after_rel_l1']:.4f}  {ref[label]['minutes']:.1f} min")
+            row["refine"] = ref
+        out["diligent"][name] = row
+
+
+def synthetic(args, net, out: dict) -> None:
+    from validate.capture import load_capture
+    from validate.fit import FitConfig, fit_normals
+    from validate.metrics import mae_deg
+    from validate.refine import RefineConfig, refine_object
+    from validate.rerender import RerenderConfig, rerender_object
+
+    work = Path(tempfile.mkdtemp(prefix="bench_fit_"))
+    try:
+        cmd = [sys.executable, "-m", "wildgen.make", "--out", str(work / "data"), "--objects", str(args.synthetic),
+               "--images", str(args.images), "--res", str(args.res), "--spp", "32", "--lights", "directional,point,near_area",
+               "--seed", str(args.synthetic_seed), "--workers", "0", "--quiet"]
+        subprocess.run(cmd, check=True, cwd=ROOT)
+        folders = sorted((work / "data").glob("*.data"))
+        rows = {}
+        for folder in folders:
+            bare = work / "bare" / folder.name
+            shutil.copytree(folder, bare, ignore=shutil.ignore_patterns("scene.json"))
+            cap = load_capture(bare)
+            cfg = FitConfig(seed=args.seed)
+            maps = [("gt", 0, cap.normal_gt)] + list(series(cap.normal_gt, cap.mask, args.synthetic_angles, args.kinds, args.seed))
+            res = []
+            for kind, a, n in maps:
+                fitted = fit_normals(cap.images, cap.mask, n, cfg).rel_l1
+                known = rerender_object(folder, n, RerenderConfig(floors=False))["rel_l1"]
+                res.append({"kind": kind, "angle": a, "mae_deg": mae_deg(n, cap.normal_gt, cap.mask), "fitted": fitted, "known": known})
+            family = json.loads((folder / "scene.json").read_text()).get("light_family")
+            row = {"light_family": family, "maps": res,
+                   "spearman_fitted_known": spearman([r["fitted"] for r in res], [r["known"] for r in res]),
+                   "spearman_fitted_error": spearman([r["fitted"] for r in res], [r["mae_deg"] for r in res]),
+                   "spearman_known_error": spearman([r["known"] for r in res], [r["mae_deg"] for r in res])}
+            ls, model = model_and_ls(folder, net)
+            if not args.skip_refine:
+                r = refine_object(str(bare), model, RefineConfig(fit=cfg))
+                row["refine_model"] = {"before_mae": r["before"]["mae_deg"], "after_mae": r["after"]["mae_deg"],
+                                       "least_squares_mae": mae_deg(ls, cap.normal_gt, cap.mask) if ls is not None else None}
+            rows[folder.name] = row
+            print(f"{folder.name} ({family}): Spearman fitted~known {row['spearman_fitted_known']:.3f}, fitted~error "
+                  f"{row['spearman_fitted_error']:.3f}, known~error {row['spearman_known_error']:.3f}"
+                  + (f"; refine model {row['refine_model']['before_mae']:.2f} -> {row['refine_model']['after_mae']:.2f} deg"
+                     f" (calibrated LS {row['refine_model']['least_squares_mae']})" if "refine_model" in row else ""))
+        out["synthetic"] = rows
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--diligent", type=Path, default=ROOT.parent / "shared" / "data" / "diligent", help="folder with ballPNG/, catPNG/")
+    p.add_argument("--synthetic", type=int, default=3, help="held-out wildgen objects (0: none)")
+    p.add_argument("--synthetic-seed", type=int, default=913, help="wildgen seed of the held-out objects")
+    p.add_argument("--images", type=int, default=16, help="images per synthetic object")
+    p.add_argument("--res", type=int, default=64, help="synthetic resolution")
+    p.add_argument("--angles", default="5,10,20,40", help="perturbation angles (deg), DiLiGenT")
+    p.add_argument("--synthetic-angles", default="5,10,20,40", help="perturbation angles (deg), synthetic")
+    p.add_argument("--kinds", default="random,smooth,bias", help="perturbation kinds")
+    p.add_argument("--skip-refine", action="store_true", help="no refinement runs")
+    p.add_argument("--seed", type=int, default=0, help="seed of perturbations and fits")
+    p.add_argument("--out", type=Path, default=None, help="also write the figures as JSON")
+    args = p.parse_args(argv)
+    args.angles = [float(a) for a in args.angles.split(",")]
+    args.synthetic_angles = [float(a) for a in args.synthetic_angles.split(",")]
+    args.kinds = args.kinds.split(",")
+    from scenes.variant import choose_variant
+    from unips.predict import load_network
+
+    choose_variant("llvm_ad_rgb")
+    net = load_network(None)
+    out: dict = {"diligent": {}, "synthetic": {}}
+    if args.diligent.is_dir():
+        diligent(args, net, out)
+    else:
+        print(f"DiLiGenT folder {args.diligent} not found: skipped")
+    if args.synthetic > 0:
+        synthetic(args, net, out)
+    if args.out is not None:
+        args.out.write_text(json.dumps(out, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
