@@ -7,6 +7,7 @@ frame for the default camera), the analytic sphere normals and heights, finite d
 from __future__ import annotations
 
 import gc
+import json
 import math
 import subprocess
 import sys
@@ -208,3 +209,40 @@ def test_bad_inputs_one_line_error(jit, sphere_folder, tmp_path, module):
     bad = _cli(module, "--data", str(sphere_folder), "--normals", str(wrong), "--out", str(tmp_path / "o"))
     assert bad.returncode != 0
     assert bad.stderr.strip().count("\n") == 0 and "shape" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def test_cli_fitted_report_contract(jit, sphere_folder, tmp_path):
+    """validate.rerender on a folder without scene.json: fitted mode, report.json with mode, rel_l1 and one
+    light list per image whose directional light points toward the light it was rendered with; a second run
+    refuses to overwrite without --overwrite."""
+    out = tmp_path / "out"
+    args = ("validate.rerender", "--data", str(sphere_folder), "--normals", str(sphere_folder / "normal.tif"), "--out", str(out),
+            "--steps", "40", "--max-pixels", "100000")
+    run = _cli(*args)
+    assert run.returncode == 0, run.stderr
+    report = json.loads((out / "lsphere" / "report.json").read_text())
+    assert report["mode"] == "fitted" and report["rel_l1"] < report["floor_rel_l1"]
+    assert len(report["lights"]) == len(TO_LIGHT)
+    for lights, d in zip(report["lights"], TO_LIGHT):
+        main = [l for l in lights if l["type"] == "directional"][0]
+        assert abs(np.linalg.norm(main["direction"]) - 1) < 1e-6
+        assert np.degrees(np.arccos(np.clip(np.dot(main["direction"], d), -1, 1))) < 1.5
+        assert len(main["irradiance"]) == 3
+    assert (out / "lsphere" / "figure.png").is_file()
+    again = _cli(*args)
+    assert again.returncode != 0 and "--overwrite" in again.stderr
+
+
+def test_known_scene_lights_in_camera_frame():
+    """Known-scene report lights: a directional light travelling along -d in the world is 'toward d' in the
+    camera frame, rotated with the camera (camera on +x looking at the origin: world +x is camera +z)."""
+    from validate.lights import known_scene_lights
+
+    desc = SceneDescription(
+        name="k", shape=ShapeDesc(kind="sphere"), camera=CameraDesc(width=8, height=8, origin=[4.0, 0.0, 0.0]),
+        images=[ImageDesc(lights=[LightDesc(type="directional", direction=[-1.0, 0.0, 0.0], irradiance=2.0, color=[1.0, 0.5, 0.25])])],
+    )
+    (light,), = known_scene_lights(desc, [0.5])
+    assert light["type"] == "directional"
+    np.testing.assert_allclose(light["direction"], [0, 0, 1], atol=1e-9)
+    np.testing.assert_allclose(light["irradiance"], [1.0, 0.5, 0.25])
