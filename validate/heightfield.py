@@ -78,8 +78,12 @@ def integrate(normals: np.ndarray, mask: np.ndarray, min_nz: float = 0.15, dampi
     return out
 
 
-def build(normals: np.ndarray, mask: np.ndarray, min_nz: float = 0.15) -> HeightField:
-    """Integrate `normals` (H, W, 3) over `mask` and triangulate the mask pixel centres."""
+def build(normals: np.ndarray, mask: np.ndarray, min_nz: float = 0.15, max_step: float = 3.0) -> HeightField:
+    """Integrate `normals` (H, W, 3) over `mask` and triangulate the mask pixel centres.
+
+    Triangles with a height step above `max_step` pixels between two of their corners are left out: they
+    are the walls a continuous height field puts across depth discontinuities (e.g. a head in front of a
+    body), which would otherwise cast false shadows (seen on DiLiGenT cat)."""
     h, w = mask.shape
     z_px = integrate(normals, mask, min_nz)
     xy, ij, s = pixel_positions(mask)
@@ -100,7 +104,10 @@ def build(normals: np.ndarray, mask: np.ndarray, min_nz: float = 0.15) -> Height
         (bl, br, tr, (tl < 0) & (bl >= 0) & (br >= 0) & (tr >= 0)),
     ):
         faces.append(np.stack([a[sel], b[sel], c[sel]], 1))
-    faces_arr = np.concatenate(faces).astype(np.uint32)
+    faces_arr = np.concatenate(faces).astype(np.int64)
+    zf = z_px[mask][faces_arr]  # (F, 3) corner heights in pixels
+    keep = (zf.max(1) - zf.min(1)) <= max_step
+    faces_arr = faces_arr[keep].astype(np.uint32)
     return HeightField(z=z, mask=mask, pixel_size=s, positions=positions, faces=faces_arr, pixel_index=idx)
 
 
