@@ -275,8 +275,12 @@ class FitScene:
         if self.hits is None or not self.config.interreflection:
             return
         hit = self.hits >= 0
-        vals = render[:, np.where(hit, self.hits, 0)]  # (K, P, R, 3)
-        self.indirect = (vals * hit[None, :, :, None]).sum(2) / self.hits.shape[1]
+        idx = np.where(hit, self.hits, 0)
+        w = hit[:, :, None].astype(np.float32) / self.hits.shape[1]
+        out = np.empty((self.k, self.p, 3), np.float32)
+        for i in range(self.k):  # per image: (P, R, 3) at a time keeps memory bounded
+            out[i] = (render[i].astype(np.float32)[idx] * w).sum(1)
+        self.indirect = out
         self.dirty = True
 
     # ---------------------------------------------------------------------------------------- params
