@@ -246,3 +246,17 @@ def test_known_scene_lights_in_camera_frame():
     assert light["type"] == "directional"
     np.testing.assert_allclose(light["direction"], [0, 0, 1], atol=1e-9)
     np.testing.assert_allclose(light["irradiance"], [1.0, 0.5, 0.25])
+
+
+def test_diligent_frames_agree(shared):
+    """DiLiGenT's light_directions.txt and Normal_gt share our camera frame: lights solved by Lambertian
+    least squares from the ground-truth normals match the calibrated ones (ball, 16 images, 1/4 size)."""
+    from validate.capture import downsample_capture, load_capture
+    from validate.lights import angular_errors_deg, closed_form_directional
+
+    folder = shared / "data" / "diligent" / "ballPNG"
+    if not folder.is_dir():
+        pytest.skip("DiLiGenT ball is not in ../shared")
+    cap = downsample_capture(load_capture(folder, max_images=16), 4)
+    out = closed_form_directional(cap.normal_gt[cap.mask], cap.images[:, cap.mask])
+    assert angular_errors_deg(out["directions"], cap.light_directions).mean() < 4.0
