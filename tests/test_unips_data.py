@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from unips.data import PSObject, find_objects, load_ground_truth, load_object
-from unips.normal_io import (angular_error_deg, mean_angular_error, read_normals, write_normal_exr,
-                             write_normal_png, write_normal_visual)
+from scenes.objfolder import (angular_error_deg, mean_angular_error, read_normals, write_normal_exr,
+                              write_normal_map, write_normal_visual)
 from unips.preprocess import prepare, resize_prepared, uncrop
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
@@ -70,7 +70,7 @@ def write_ours(folder: Path, k: int = 6, size: int = 32, other: int = 0, seed: i
     for i, im in enumerate(imgs):
         write_png16(folder / f"L{i:03d}.png", im)
     write_mask(folder / "mask.png", mask)
-    write_normal_png(folder / "normal.tif", n)
+    write_normal_map(folder / "normal.tif", n)
     scene = {"light_family": "directional",
              "camera_lights": [{"directional": [{"direction_to_light": L[i].tolist(),
                                                  "irradiance": irr[i].tolist()}], "other": other}
@@ -328,7 +328,7 @@ def test_resize_prepared():
 
 def test_normal_png_round_trip(tmp_path):
     n, mask = sphere(32)
-    write_normal_png(tmp_path / "n.png", n)
+    write_normal_map(tmp_path / "n.png", n)
     raw = cv2.imread(str(tmp_path / "n.png"), cv2.IMREAD_UNCHANGED)
     assert raw.dtype == np.uint16 and np.all(raw[~mask] == 32768)
     back = read_normals(tmp_path / "n.png")
@@ -356,7 +356,7 @@ def test_normal_exr_npy_mat_round_trip(tmp_path):
 
 def test_normal_io_bad_input(tmp_path):
     with pytest.raises(ValueError, match="shape"):
-        write_normal_png(tmp_path / "a.png", np.zeros((4, 4)))
+        write_normal_map(tmp_path / "a.png", np.zeros((4, 4)))
     bad = np.zeros((4, 4, 3))
     bad[1, 1, 0] = np.nan
     with pytest.raises(ValueError, match="NaN"):

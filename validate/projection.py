@@ -19,7 +19,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from scenes.description import CameraDesc
-from scenes.mitsuba_build import camera_rotation
+from scenes.geometry import camera_rotation
 
 
 @dataclass

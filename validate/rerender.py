@@ -33,15 +33,16 @@ from typing import Any, Callable
 
 import numpy as np
 
-from validate.io import ObjectData, check_normals, find_prediction, list_objects, load_object, object_name, read_normal_map
-from validate.metrics import expose, finite_or_none, mae_deg, mean_or_none, psnr, rel_l1, relative_residual_map
+from scenes.objfolder import PREDICTION_FILES, find_prediction, list_object_folders, mean_angular_error, object_name
+from scenes.variant import require_jit_variant
+from validate.io import ObjectData, check_normals, load_object, read_normal_map
+from validate.metrics import expose, finite_or_none, mean_or_none, psnr, rel_l1, relative_residual_map
 from validate.normal_bsdf import (
     MODE_PASSTHROUGH,
     MODE_PREDICTED,
     NormalSwap,
     VisibilityConfig,
     depth_map,
-    require_jit_variant,
     wrapper_for,
 )
 from validate.projection import CameraProjection
@@ -260,7 +261,7 @@ def rerender_object(
         "gt_psnr": avg("gt_psnr"),
         "noise_floor_rel_l1": avg("noise_floor_rel_l1"),
         "reproduce_rel_l1": avg("reproduce_rel_l1"),
-        "mae_deg": mae_deg(pred, data.normal_gt, mask) if data.normal_gt is not None else None,
+        "mae_deg": mean_angular_error(pred, data.normal_gt, mask) if data.normal_gt is not None else None,
         "frac_above_threshold": frac,
         "threshold": threshold,
         "threshold_source": threshold_source if threshold is not None else None,
@@ -302,7 +303,7 @@ def rerender_object(
             + (f", MAE {report['mae_deg']:.2f} deg" if report["mae_deg"] is not None else ""),
         )
         if config.save_renders:
-            from scenes.imageio import write_png16
+            from scenes.objfolder import write_png16
 
             for i in range(k):
                 write_png16(target / f"R{i:03d}.png", renders[i])
@@ -322,7 +323,7 @@ def rerender_dataset(
 ) -> list[dict]:
     """Run `rerender_object` on every `*.data` folder of `data_dir` with `pred_dir/<object>/normal.*`;
     write `out_dir/summary.csv`. Every prediction is located before anything is rendered."""
-    folders = list_objects(data_dir)
+    folders = list_object_folders(data_dir)
     preds = {}
     missing = []
     for f in folders:
@@ -332,7 +333,7 @@ def rerender_dataset(
             missing.append(object_name(f))
     if missing:
         raise FileNotFoundError(
-            f"--normals: no normal.png/.exr/.npy/.tif for {len(missing)} object(s) under {str(pred_dir)!r}: {', '.join(missing[:5])}"
+            f"--normals: no {'/'.join(PREDICTION_FILES)} for {len(missing)} object(s) under {str(pred_dir)!r}: {', '.join(missing[:5])}"
         )
     for f in folders:  # every input is checked before the first (slow) render
         check_inputs(f, preds[f], (config or RerenderConfig()).allow_missing)
@@ -433,7 +434,7 @@ def main(argv: list[str] | None = None) -> int:
             raise FileNotFoundError(f"--data: {str(data)!r} is not a folder")
         single = (data / "scene.json").is_file()
         if not single:
-            list_objects(data)  # fails early with a clear message
+            list_object_folders(data)  # fails early with a clear message
         if not Path(args.normals).exists():
             raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
 
