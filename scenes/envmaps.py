@@ -1,6 +1,6 @@
 """Environment maps as float32 (H, W, 3) equirectangular arrays: files and seeded procedural maps.
 
-Mitsuba's convention (see shared facts): texel row 0 is the +y pole, theta = pi i / (H - 1),
+Mitsuba's `envmap` convention (its plugin source): texel row 0 is the +y pole, theta = pi i / (H - 1),
 phi = 2 pi (j + 0.5) / W, local direction (sin phi sin theta, cos theta, -cos phi sin theta).
 """
 from __future__ import annotations

@@ -10,6 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
+from conftest import write_synthetic_object
 from scenes.cli import UsageError
 from unips import evaluate as ev
 from unips import predict as pr
@@ -41,21 +42,12 @@ def write_png16(path: Path, rgb: np.ndarray) -> None:
 
 def write_ours(folder: Path, size: int = 32, k: int = 8, seed: int = 0, family: str = "directional"):
     """Our layout: L*.png, mask.png, normal.tif, scene.json with camera-frame directional lights."""
-    folder.mkdir(parents=True)
     n, mask = sphere(size)
     L = lights(k, seed)
     shade = np.clip(np.einsum("hwc,kc->khw", n, L), 0, None)
-    for i in range(k):
-        img = 0.8 * shade[i][..., None] * np.array([0.9, 0.7, 0.5])
-        img[~mask] = 0
-        write_png16(folder / f"L{i:03d}.png", img)
-    assert cv2.imwrite(str(folder / "mask.png"), mask.astype(np.uint8) * 255)
-    write_normal_map(folder / "normal.tif", n)
-    scene = {"light_family": family,
-             "camera_lights": [{"directional": [{"direction_to_light": L[i].tolist(),
-                                                 "irradiance": [1.0, 1.0, 1.0]}], "other": 0}
-                               for i in range(k)]}
-    (folder / "scene.json").write_text(json.dumps(scene))
+    imgs = 0.8 * shade[..., None] * np.array([0.9, 0.7, 0.5])
+    imgs[:, ~mask] = 0
+    write_synthetic_object(folder, imgs, mask, n, light_family=family, directions=L)
     return n, mask
 
 

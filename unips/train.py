@@ -31,6 +31,8 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from scenes.objfolder import angular_errors_chw as angular_errors
+
 log = logging.getLogger(__name__)
 
 
@@ -189,14 +191,6 @@ def normal_loss(pred: torch.Tensor, batch: Batch) -> tuple[torch.Tensor, dict[st
 
 
 # -- validation -----------------------------------------------------------------------------
-
-def angular_errors(pred: torch.Tensor, gt: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-    """Per-pixel angular errors in degrees over the mask: pred, gt `(3, H, W)`, mask `(1, H, W)`."""
-    p = F.normalize(pred, dim=0, eps=1e-8)
-    g = F.normalize(gt, dim=0, eps=1e-8)
-    cos = (p * g).sum(0).clamp(-1.0, 1.0)
-    return torch.rad2deg(torch.acos(cos))[mask[0] > 0.5]
-
 
 @torch.no_grad()
 def validate(model: torch.nn.Module, samples: Sequence[Sample], max_images: int,

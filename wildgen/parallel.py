@@ -485,3 +485,16 @@ class RayEngine:
                     pass
             if connected:
                 ray.shutdown()
+
+
+def choose_engine(variant: str, ray: str | None = None, workers: int | None = None, threads: int | None = None,
+                  max_retries: int = 2, recycle_after: int = 50) -> Engine:
+    """The engine `wildgen.make` runs with: Ray when an address (or 'auto') is given, this process with
+    workers=0, else local worker processes (one per core by default, one with a cuda variant)."""
+    if ray is not None:
+        return RayEngine(address=ray, threads=threads or 1, max_retries=max_retries, recycle_after=recycle_after)
+    if workers == 0:
+        return InProcessEngine(max_retries=max_retries)
+    # On a GPU one process keeps the device busy; more would only add CUDA contexts.
+    workers = workers if workers is not None else (1 if variant.startswith("cuda") else None)
+    return ProcessEngine(workers=workers, threads=threads, max_retries=max_retries, recycle_after=recycle_after)
