@@ -93,7 +93,7 @@ _OWN_PLY_PROPS = [b"x", b"y", b"z", b"nx", b"ny", b"nz", b"s", b"t"]
 
 
 def _read_own_ply(path: Path):
-    """Exact reader for the binary PLY layout `scenes.mitsuba_build.write_mesh_ply` writes; else None."""
+    """Exact reader for the binary PLY layout `scenes.geometry.write_mesh_ply` writes; else None."""
     if path.suffix.lower() != ".ply":
         return None
     raw = path.read_bytes()

@@ -2,13 +2,14 @@
 from __future__ import annotations
 
 import logging
-import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from scenes.mitsuba_build import BuiltScene, camera_rotation
+from scenes.geometry import camera_rotation
+from scenes.mitsuba_build import BuiltScene
 from scenes.textures import sample_texture
+from scenes.variant import require_variant
 
 log = logging.getLogger(__name__)
 
@@ -27,18 +28,9 @@ class GroundTruth:
     uv: np.ndarray  # (H, W, 2) float32, mean texture coordinate
 
 
-@dataclass
-class RenderTimes:
-    """Wall-clock seconds spent per stage (for benches and the manifest)."""
-
-    build: float = 0.0
-    ground_truth: float = 0.0
-    images: list[float] = field(default_factory=list)
-
-
 def render_image(built: BuiltScene, index: int, spp: int | None = None, seed: int | None = None) -> np.ndarray:
     """Linear RGB radiance (H, W, 3) float32 of image `index`, with its recorded seed unless overridden."""
-    import mitsuba as mi
+    mi = require_variant()
 
     built.apply_image(index)
     image = built.desc.images[index]
@@ -50,15 +42,9 @@ def render_image(built: BuiltScene, index: int, spp: int | None = None, seed: in
     return np.array(out, dtype=np.float32)[:, :, :3]
 
 
-def render_images(built: BuiltScene, spp: int | None = None, times: RenderTimes | None = None) -> list[np.ndarray]:
+def render_images(built: BuiltScene, spp: int | None = None) -> list[np.ndarray]:
     """All K images of the object, from the same scene object, relit through mi.traverse."""
-    images = []
-    for i in range(len(built.desc.images)):
-        t0 = time.perf_counter()
-        images.append(render_image(built, i, spp=spp))
-        if times is not None:
-            times.images.append(time.perf_counter() - t0)
-    return images
+    return [render_image(built, i, spp=spp) for i in range(len(built.desc.images))]
 
 
 def render_ground_truth(built: BuiltScene, spp: int | None = None) -> GroundTruth:
@@ -67,7 +53,7 @@ def render_ground_truth(built: BuiltScene, spp: int | None = None) -> GroundTrut
     The nested `depth` integrator makes alpha the pixel coverage (a one-bounce path tracer does not on scalar_rgb); AOVs of rays
     that miss are 0, so dividing by alpha gives the mean over the object's part of each pixel.
     """
-    import mitsuba as mi
+    mi = require_variant()
 
     desc = built.desc
     built.park_lights()

@@ -266,7 +266,7 @@ def test_variant_choice_prefers_llvm_and_rejects_unknown():
 
 def test_normal_mapped_ground_truth_matches_photometric_stereo(tmp_path, llvm):
     """With a normal map, GT normals are the perturbed shading normals: Woodham PS on the renders agrees."""
-    from scenes.imageio import write_exr
+    from scenes.objfolder import write_exr
 
     h = w = 64
     v, u = np.meshgrid((np.arange(h) + 0.5) / h, (np.arange(w) + 0.5) / w, indexing="ij")

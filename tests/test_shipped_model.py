@@ -29,7 +29,7 @@ def rendered(tmp_path_factory) -> Path:
 
 
 def test_shipped_weights_are_in_the_package_with_a_model_card():
-    from unips.predict import default_checkpoint
+    from unips.inference import default_checkpoint
 
     path = default_checkpoint()
     assert path.suffix == ".safetensors" and 0.5e6 < path.stat().st_size < 20e6
@@ -40,7 +40,7 @@ def test_shipped_weights_are_in_the_package_with_a_model_card():
 
 def test_shipped_model_predicts_unit_normals_on_a_rendered_object(rendered):
     from unips.data import find_objects, load_object
-    from unips.predict import load_network, predict_object
+    from unips.inference import load_network, predict_object
 
     net = load_network(None)
     assert net.meta["model_name"] == "glc-tiny"
@@ -58,8 +58,8 @@ def test_shipped_model_beats_an_untrained_one_by_a_wide_margin(rendered):
 
     from unips.data import find_objects, load_object
     from unips.models import create_model
-    from unips.normal_io import mean_angular_error
-    from unips.predict import LoadedModel, load_network, predict_object
+    from scenes.objfolder import mean_angular_error
+    from unips.inference import LoadedModel, load_network, predict_object
 
     trained = load_network(None)
     torch.manual_seed(0)

@@ -280,7 +280,7 @@ from scenes.variant import choose_variant
 choose_variant("llvm_ad_rgb")
 from wildgen.assets import AssetLibrary
 from wildgen.config import GenConfig
-from wildgen.dataset import make_object
+from wildgen.writer import make_object
 
 def rss_mb():
     for line in open("/proc/self/status"):

@@ -3,8 +3,9 @@
     python -m unips.evaluate --pred DIR --gt PATH [--allow-missing]
 
 ``--gt`` is an object folder or a dataset directory (any layout `unips.data` reads). Predictions are
-looked up as ``DIR/<object>/normal.exr`` (else ``normal.png``), ``<object>`` being the ground-truth
-folder's name minus a trailing ``.data`` (what `unips.predict` writes). Writes ``DIR/metrics.json``,
+looked up as ``DIR/<object>/normal.*`` in the order of `scenes.objfolder.PREDICTION_FILES` (``.exr``
+first, then ``.png``), ``<object>`` being the ground-truth folder's name minus a trailing ``.data``
+(what `unips.predict` writes). Writes ``DIR/metrics.json``,
 ``DIR/metrics.csv`` and ``DIR/<object>/error_map.png`` (angular error, colour-mapped, clipped at
 90 degrees, background black) and prints a table. Metrics per object: mean and median angular error
 (degrees) over the ground-truth mask, the percentage of pixels under 11.25 and 30 degrees, the light
@@ -14,7 +15,6 @@ without a prediction is listed as missing and makes the exit status 1 unless ``-
 
 from __future__ import annotations
 
-import argparse
 import csv
 import json
 import logging
@@ -24,23 +24,18 @@ from typing import Any
 
 import numpy as np
 
+from scenes.cli import UsageError, UsageErrorParser
+from scenes.objfolder import angular_error_deg, prediction_file, read_normals
 from unips.data import find_objects, load_ground_truth
 
 log = logging.getLogger(__name__)
 
 ERROR_CLIP_DEG = 90.0
-PRED_FILES = ("normal.exr", "normal.png")
 CSV_FIELDS = ("object", "light_family", "n_pixels", "mae_deg", "median_deg", "pct_below_11_25", "pct_below_30")
-
-
-class CLIError(Exception):
-    """A usage or input error the CLI reports as one line."""
 
 
 def object_metrics(pred: np.ndarray, gt: np.ndarray, mask: np.ndarray) -> tuple[dict[str, float], np.ndarray]:
     """Metrics of one object and its (H, W) error map in degrees."""
-    from unips.normal_io import angular_error_deg
-
     if not mask.any():
         raise ValueError("mask: is empty, nothing to evaluate")
     err_map = angular_error_deg(pred, gt, mask)
@@ -66,18 +61,8 @@ def write_error_map(path: Path, err_map: np.ndarray, mask: np.ndarray, clip_deg:
         raise ValueError(f"path: cannot write {path}")
 
 
-def find_prediction(pred_dir: Path, name: str) -> Path | None:
-    for fname in PRED_FILES:
-        p = pred_dir / name / fname
-        if p.is_file():
-            return p
-    return None
-
-
 def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True) -> dict[str, Any]:
     """Evaluate every ground-truth object at ``gt`` against ``pred_dir``; returns the metrics dict."""
-    from unips.normal_io import read_normals
-
     pred_dir = Path(pred_dir)
     if not pred_dir.is_dir():
         raise FileNotFoundError(f"pred: prediction directory {pred_dir} does not exist")
@@ -92,7 +77,7 @@ def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True) -> dict[s
             no_gt.append(truth.name)
             log.warning("%s has no ground-truth normals; skipped", folder)
             continue
-        pred_path = find_prediction(pred_dir, truth.name)
+        pred_path = prediction_file(pred_dir / truth.name)
         if pred_path is None:
             missing.append(truth.name)
             continue
@@ -145,14 +130,9 @@ def format_table(summary: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:
-        raise CLIError(message)
-
-
 def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
-    parser = _Parser(prog="python -m unips.evaluate", description=__doc__.split("\n\n")[0])
+    parser = UsageErrorParser(prog="python -m unips.evaluate", description=__doc__.split("\n\n")[0])
     parser.add_argument("--pred", required=True, type=Path, help="directory written by unips.predict")
     parser.add_argument("--gt", required=True, type=Path, help="object folder or dataset directory")
     parser.add_argument("--allow-missing", action="store_true",
@@ -160,7 +140,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         args = parser.parse_args(argv)
         summary = evaluate(args.pred, args.gt)
-    except (CLIError, ValueError, FileNotFoundError, OSError) as exc:
+    except (UsageError, ValueError, FileNotFoundError, OSError) as exc:
         print(f"error: {str(exc).replace(chr(10), ' ')}", file=sys.stderr)
         return 2
     print(format_table(summary))

@@ -33,15 +33,16 @@ from typing import Any, Callable
 
 import numpy as np
 
-from validate.io import ObjectData, check_normals, find_prediction, list_objects, load_object, object_name, read_normal_map
-from validate.metrics import expose, finite_or_none, mae_deg, mean_or_none, psnr, rel_l1, relative_residual_map
+from scenes.objfolder import PREDICTION_FILES, find_prediction, list_object_folders, mean_angular_error, object_name
+from scenes.variant import require_jit_variant
+from validate.io import ObjectData, check_normals, load_object, read_normal_map
+from validate.metrics import expose, finite_or_none, mean_or_none, psnr, rel_l1, relative_residual_map
 from validate.normal_bsdf import (
     MODE_PASSTHROUGH,
     MODE_PREDICTED,
     NormalSwap,
     VisibilityConfig,
     depth_map,
-    require_jit_variant,
     wrapper_for,
 )
 from validate.projection import CameraProjection
@@ -142,41 +143,35 @@ def check_inputs(
     return data, pred, valid, source
 
 
-def rerender_object(
-    folder: str | Path,
-    normals: np.ndarray | str | Path,
-    config: RerenderConfig | None = None,
-    out_dir: str | Path | None = None,
-    progress: Progress | None = None,
-) -> dict:
-    """Re-render one object folder with predicted normals; return the report (and write it to
-    `out_dir/<object>/` with figure.png when out_dir is given).
+@dataclass
+class RenderPasses:
+    """The images of one re-render check (each (K, H, W, 3), exposure applied) and their timings."""
 
-    normals: camera-frame normal map (H, W, 3), or a normal-map file, or a folder holding one.
-    Raises FileNotFoundError / ValueError for bad inputs (missing files, wrong sizes, bad normals).
-    """
+    renders: np.ndarray
+    """With the predicted normals (the score)."""
+    rerender_s: list[float]
+    """Per-image time of those renders."""
+    gt: np.ndarray | None = None
+    """With the ground-truth normals (when the folder has them)."""
+    floor: np.ndarray | None = None
+    """The original scene with independent seeds (noise floor)."""
+    original_s: list[float] = field(default_factory=list)
+    """Per-image time of the original scene's renders."""
+    reproduce: np.ndarray | None = None
+    """The wrapper switched off with the recorded seeds (should reproduce the inputs)."""
+    build_s: float = 0.0
+    depth_map_s: float = 0.0
+
+
+def render_passes(data: ObjectData, pred: np.ndarray, valid: np.ndarray, config: RerenderConfig, spp: int,
+                  seeds: list[int], fresh: list[int], tick: Callable[[str], None]) -> RenderPasses:
+    """Render every pass of the check for one object (Mitsuba work only; no scoring)."""
     from scenes.mitsuba_build import build_scene
 
-    config = (config or RerenderConfig()).validate()
-    mi = require_jit_variant()
-    t_start = time.perf_counter()
-    data, pred, valid, source = check_inputs(folder, normals, config.allow_missing)
-    desc, mask = data.desc, data.mask
-    k = len(desc.images)
-    spp = int(config.spp or desc.render.spp)
+    desc, k = data.desc, len(data.desc.images)
     exposures = [float(im.exposure) for im in desc.images]
     recorded = [int(im.seed) for im in desc.images]
-    fresh = [independent_seed(s) for s in recorded]
-    rerender_seeds = recorded if config.seed_mode == "same" else fresh
     reproduce = config.floors and spp == desc.render.spp
-    total = k * (1 + (data.normal_gt is not None) + config.floors + reproduce)
-    done = 0
-
-    def tick(label: str) -> None:
-        nonlocal done
-        done += 1
-        if progress is not None:
-            progress(done, total, f"{data.name}: {label}")
 
     # 1. The original scene with independent seeds: noise floor and the original render time. It is
     #    released before the wrapped scene is built (live Python BSDFs are traced into every kernel).
@@ -205,53 +200,68 @@ def rerender_object(
         repro_imgs, _ = _render_all(built, range(k), spp, recorded, exposures, tick, "reproduce")
     swap.set_normals(pred, valid)
     swap.set_mode(MODE_PREDICTED)
-    renders, t_re = _render_all(built, range(k), spp, rerender_seeds, exposures, tick, "re-render")
+    renders, t_re = _render_all(built, range(k), spp, seeds, exposures, tick, "re-render")
     gt_imgs = None
     if data.normal_gt is not None:
-        swap.set_normals(data.normal_gt, mask)
-        gt_imgs, _ = _render_all(built, range(k), spp, rerender_seeds, exposures, tick, "GT normals")
+        swap.set_normals(data.normal_gt, data.mask)
+        gt_imgs, _ = _render_all(built, range(k), spp, seeds, exposures, tick, "GT normals")
     del swap, built
     gc.collect()
+    return RenderPasses(renders=renders, rerender_s=t_re, gt=gt_imgs, floor=floor_imgs, original_s=t_orig,
+                        reproduce=repro_imgs, build_s=t_build, depth_map_s=t_depth)
 
-    # 3. Scores.
-    inputs = data.images
+
+def score_images(passes: RenderPasses, inputs: np.ndarray, mask: np.ndarray, desc: Any, seeds: list[int]) -> list[dict[str, Any]]:
+    """Per-image scores of every pass against the input images."""
     per_image = []
-    for i in range(k):
-        entry: dict[str, Any] = {
+    for i, image in enumerate(desc.images):
+        r, g, f, p = passes.renders, passes.gt, passes.floor, passes.reproduce
+        per_image.append({
             "index": i,
-            "seed": recorded[i],
-            "rerender_seed": rerender_seeds[i],
-            "exposure": exposures[i],
-            "rel_l1": rel_l1(renders[i], inputs[i], mask),
-            "psnr": finite_or_none(psnr(renders[i], inputs[i], mask)),
-            "gt_rel_l1": rel_l1(gt_imgs[i], inputs[i], mask) if gt_imgs is not None else None,
-            "gt_psnr": finite_or_none(psnr(gt_imgs[i], inputs[i], mask)) if gt_imgs is not None else None,
-            "noise_floor_rel_l1": rel_l1(floor_imgs[i], inputs[i], mask) if floor_imgs is not None else None,
-            "reproduce_rel_l1": rel_l1(repro_imgs[i], inputs[i], mask) if repro_imgs is not None else None,
-            "rerender_s": t_re[i],
-            "original_render_s": t_orig[i] if t_orig else None,
-        }
-        per_image.append(entry)
+            "seed": int(image.seed),
+            "rerender_seed": seeds[i],
+            "exposure": float(image.exposure),
+            "rel_l1": rel_l1(r[i], inputs[i], mask),
+            "psnr": finite_or_none(psnr(r[i], inputs[i], mask)),
+            "gt_rel_l1": rel_l1(g[i], inputs[i], mask) if g is not None else None,
+            "gt_psnr": finite_or_none(psnr(g[i], inputs[i], mask)) if g is not None else None,
+            "noise_floor_rel_l1": rel_l1(f[i], inputs[i], mask) if f is not None else None,
+            "reproduce_rel_l1": rel_l1(p[i], inputs[i], mask) if p is not None else None,
+            "rerender_s": passes.rerender_s[i],
+            "original_render_s": passes.original_s[i] if passes.original_s else None,
+        })
+    return per_image
 
-    res_map = relative_residual_map(renders, inputs, mask)
-    gt_map = relative_residual_map(gt_imgs, inputs, mask) if gt_imgs is not None else None
-    threshold = config.threshold
-    threshold_source = "given"
-    if threshold is None and floor_imgs is not None:
-        threshold = float(np.percentile(relative_residual_map(floor_imgs, inputs, mask)[mask], 99))
-        threshold_source = "99th percentile of the noise-floor residual map"
+
+def score_maps(passes: RenderPasses, inputs: np.ndarray, mask: np.ndarray,
+               threshold: float | None) -> tuple[np.ndarray, np.ndarray | None, float | None, str | None, float | None]:
+    """(residual map, GT-normals residual map, threshold, its source, share of mask pixels above it)."""
+    res_map = relative_residual_map(passes.renders, inputs, mask)
+    gt_map = relative_residual_map(passes.gt, inputs, mask) if passes.gt is not None else None
+    source = "given"
+    if threshold is None and passes.floor is not None:
+        threshold = float(np.percentile(relative_residual_map(passes.floor, inputs, mask)[mask], 99))
+        source = "99th percentile of the noise-floor residual map"
     frac = float(np.mean(res_map[mask] > threshold)) if threshold is not None else None
+    return res_map, gt_map, threshold, source if threshold is not None else None, frac
+
+
+def build_report(data: ObjectData, pred: np.ndarray, valid: np.ndarray, source: str, passes: RenderPasses,
+                 per_image: list[dict[str, Any]], threshold: float | None, threshold_source: str | None,
+                 frac: float | None, config: RerenderConfig, spp: int, variant: str) -> dict[str, Any]:
+    """The report.json of one object (total_s is filled in by the caller)."""
+    desc, mask = data.desc, data.mask
 
     def avg(key: str) -> float | None:
         return mean_or_none([e[key] for e in per_image])
 
-    t_orig_med = float(np.median(t_orig)) if t_orig else None
-    t_re_med = float(np.median(t_re))
-    report: dict[str, Any] = {
+    t_orig_med = float(np.median(passes.original_s)) if passes.original_s else None
+    t_re_med = float(np.median(passes.rerender_s))
+    return {
         "object": data.name,
         "folder": str(data.folder),
         "prediction": source,
-        "images_count": k,
+        "images_count": len(desc.images),
         "mask_pixels": int(mask.sum()),
         "missing_pixels": int(mask.sum() - valid.sum()),
         "rel_l1": avg("rel_l1"),
@@ -260,18 +270,18 @@ def rerender_object(
         "gt_psnr": avg("gt_psnr"),
         "noise_floor_rel_l1": avg("noise_floor_rel_l1"),
         "reproduce_rel_l1": avg("reproduce_rel_l1"),
-        "mae_deg": mae_deg(pred, data.normal_gt, mask) if data.normal_gt is not None else None,
+        "mae_deg": mean_angular_error(pred, data.normal_gt, mask) if data.normal_gt is not None else None,
         "frac_above_threshold": frac,
         "threshold": threshold,
-        "threshold_source": threshold_source if threshold is not None else None,
+        "threshold_source": threshold_source,
         "images": per_image,
         "timings": {
             "original_render_s": t_orig_med,
             "rerender_s": t_re_med,
             "rerender_over_original": (t_re_med / t_orig_med) if t_orig_med else None,
-            "build_s": t_build,
-            "depth_map_s": t_depth,
-            "total_s": None,  # filled below
+            "build_s": passes.build_s,
+            "depth_map_s": passes.depth_map_s,
+            "total_s": None,  # filled by rerender_object
             "note": "per-image medians (the first render of a scene includes kernel compilation)",
         },
         "config": {
@@ -279,33 +289,80 @@ def rerender_object(
             "recorded_spp": desc.render.spp,
             "seed_mode": config.seed_mode,
             "common_random_numbers": config.seed_mode == "same" and spp == desc.render.spp,
-            "variant": mi.variant(),
+            "variant": variant,
             "visibility": asdict(config.visibility),
         },
     }
-    if out_dir is not None:
-        from validate.figures import rerender_figure
 
+
+def write_figure(path: Path, report: dict[str, Any], inputs: np.ndarray, passes: RenderPasses, mask: np.ndarray,
+                 res_map: np.ndarray, gt_map: np.ndarray | None, pred: np.ndarray, rows: int) -> None:
+    """figure.png of one object: inputs, re-renders, residual maps, the prediction."""
+    from validate.figures import rerender_figure
+
+    rerender_figure(
+        path,
+        inputs,
+        passes.renders,
+        mask,
+        _figure_rows(len(inputs), rows),
+        res_map,
+        gt_map,
+        pred,
+        title=f"{report['object']}: rel_l1 {report['rel_l1']:.4f}"
+        + (f" (GT normals {report['gt_rel_l1']:.4f})" if report["gt_rel_l1"] is not None else "")
+        + (f", MAE {report['mae_deg']:.2f} deg" if report["mae_deg"] is not None else ""),
+    )
+
+
+def rerender_object(
+    folder: str | Path,
+    normals: np.ndarray | str | Path,
+    config: RerenderConfig | None = None,
+    out_dir: str | Path | None = None,
+    progress: Progress | None = None,
+) -> dict:
+    """Re-render one object folder with predicted normals; return the report (and write it to
+    `out_dir/<object>/` with figure.png when out_dir is given).
+
+    normals: camera-frame normal map (H, W, 3), or a normal-map file, or a folder holding one.
+    Raises FileNotFoundError / ValueError for bad inputs (missing files, wrong sizes, bad normals).
+    """
+    config = (config or RerenderConfig()).validate()
+    mi = require_jit_variant()
+    t_start = time.perf_counter()
+    data, pred, valid, source = check_inputs(folder, normals, config.allow_missing)
+    desc, mask = data.desc, data.mask
+    k = len(desc.images)
+    spp = int(config.spp or desc.render.spp)
+    recorded = [int(im.seed) for im in desc.images]
+    fresh = [independent_seed(s) for s in recorded]
+    seeds = recorded if config.seed_mode == "same" else fresh
+    reproduce = config.floors and spp == desc.render.spp
+    total = k * (1 + (data.normal_gt is not None) + config.floors + reproduce)
+    done = 0
+
+    def tick(label: str) -> None:
+        nonlocal done
+        done += 1
+        if progress is not None:
+            progress(done, total, f"{data.name}: {label}")
+
+    passes = render_passes(data, pred, valid, config, spp, seeds, fresh, tick)
+    per_image = score_images(passes, data.images, mask, desc, seeds)
+    res_map, gt_map, threshold, threshold_source, frac = score_maps(passes, data.images, mask, config.threshold)
+    report = build_report(data, pred, valid, source, passes, per_image, threshold, threshold_source, frac, config,
+                          spp, mi.variant())
+    if out_dir is not None:
         target = Path(out_dir) / data.name
         target.mkdir(parents=True, exist_ok=True)
-        rerender_figure(
-            target / "figure.png",
-            inputs,
-            renders,
-            mask,
-            _figure_rows(k, config.figure_rows),
-            res_map,
-            gt_map,
-            pred,
-            title=f"{data.name}: rel_l1 {report['rel_l1']:.4f}"
-            + (f" (GT normals {report['gt_rel_l1']:.4f})" if report["gt_rel_l1"] is not None else "")
-            + (f", MAE {report['mae_deg']:.2f} deg" if report["mae_deg"] is not None else ""),
-        )
+        write_figure(target / "figure.png", report, data.images, passes, mask, res_map, gt_map, pred,
+                     config.figure_rows)
         if config.save_renders:
-            from scenes.imageio import write_png16
+            from scenes.objfolder import write_png16
 
             for i in range(k):
-                write_png16(target / f"R{i:03d}.png", renders[i])
+                write_png16(target / f"R{i:03d}.png", passes.renders[i])
         report["timings"]["total_s"] = time.perf_counter() - t_start
         (target / "report.json").write_text(json.dumps(report, indent=1, allow_nan=False))
     else:
@@ -322,7 +379,7 @@ def rerender_dataset(
 ) -> list[dict]:
     """Run `rerender_object` on every `*.data` folder of `data_dir` with `pred_dir/<object>/normal.*`;
     write `out_dir/summary.csv`. Every prediction is located before anything is rendered."""
-    folders = list_objects(data_dir)
+    folders = list_object_folders(data_dir)
     preds = {}
     missing = []
     for f in folders:
@@ -332,7 +389,7 @@ def rerender_dataset(
             missing.append(object_name(f))
     if missing:
         raise FileNotFoundError(
-            f"--normals: no normal.png/.exr/.npy/.tif for {len(missing)} object(s) under {str(pred_dir)!r}: {', '.join(missing[:5])}"
+            f"--normals: no {'/'.join(PREDICTION_FILES)} for {len(missing)} object(s) under {str(pred_dir)!r}: {', '.join(missing[:5])}"
         )
     for f in folders:  # every input is checked before the first (slow) render
         check_inputs(f, preds[f], (config or RerenderConfig()).allow_missing)
@@ -433,7 +490,7 @@ def main(argv: list[str] | None = None) -> int:
             raise FileNotFoundError(f"--data: {str(data)!r} is not a folder")
         single = (data / "scene.json").is_file()
         if not single:
-            list_objects(data)  # fails early with a clear message
+            list_object_folders(data)  # fails early with a clear message
         if not Path(args.normals).exists():
             raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
 

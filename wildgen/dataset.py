@@ -21,18 +21,15 @@ import shutil
 import socket
 import time
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Iterator
+from typing import Callable, Iterator
 
-from scenes.imageio import atomic_write_text
-from wildgen.assets import AssetLibrary
+from scenes.objfolder import atomic_write_text
 from wildgen.config import GenConfig
-from wildgen.sampling import SkippedObject, sample_object
-from wildgen.writer import TMP_PREFIX, sha256_file, write_object
+from wildgen.parallel import Engine, InProcessEngine
+from wildgen.writer import TMP_PREFIX, index_name, sha256_file
 
-if TYPE_CHECKING:
-    from wildgen.parallel import Engine
 
 log = logging.getLogger(__name__)
 
@@ -58,31 +55,6 @@ def versions() -> dict[str, str]:
         except metadata.PackageNotFoundError:
             out[pkg] = "not installed"
     return out
-
-
-def object_name(index: int) -> str:
-    return f"{index:05d}"
-
-
-def make_object(cfg: GenConfig, index: int, out_dir: Path, lib: AssetLibrary | None = None) -> dict:
-    """Sample, render and write object `index`; a pure function of (cfg, index). Returns its manifest entry."""
-    lib = lib if lib is not None else AssetLibrary.scan(cfg.assets)
-    name = object_name(index)
-    t0 = time.perf_counter()
-    try:
-        sampled = sample_object(cfg, index, lib, name=name)
-    except SkippedObject as exc:
-        log.info("%s", exc)
-        return {"index": index, "name": name, "status": "skipped", "reason": str(exc)}
-    result = write_object(sampled, Path(out_dir), cfg.exposure_percentile, cfg.exposure_level)
-    entry = {"index": index, "status": "done", **asdict(result)}
-    entry["timings"]["total_s"] = time.perf_counter() - t0
-    return entry
-
-
-def failed_entry(index: int, error: str, attempts: int) -> dict:
-    """Manifest entry of an object that failed `attempts` times (last error kept)."""
-    return {"index": index, "name": object_name(index), "status": "failed", "error": error, "attempts": attempts}
 
 
 def write_manifest(out_dir: Path, cfg: GenConfig, variant: str, entries: dict[int, dict], extra: dict | None = None) -> None:
@@ -246,8 +218,8 @@ def plan_run(cfg: GenConfig, out_dir: Path, variant: str, overwrite: bool = Fals
                 plan.complete += 1
                 continue
             plan.redo[index] = problem
-            log.warning("object %s: %s; rendering it again", object_name(index), problem)
-            shutil.rmtree(out_dir / entry.get("folder", f"{object_name(index)}.data"), ignore_errors=True)
+            log.warning("object %s: %s; rendering it again", index_name(index), problem)
+            shutil.rmtree(out_dir / entry.get("folder", f"{index_name(index)}.data"), ignore_errors=True)
         elif status == "skipped":
             plan.kept[index] = entry
             plan.rejected += 1
@@ -302,7 +274,7 @@ def make_dataset(
     variant: str,
     progress: Callable[[dict], None] | None = None,
     *,
-    engine: "Engine | None" = None,
+    engine: Engine | None = None,
     overwrite: bool = False,
     on_plan: Callable[[Plan], None] | None = None,
     extra: dict | None = None,
@@ -314,8 +286,6 @@ def make_dataset(
     rendering. On KeyboardInterrupt the finished objects are kept, the manifest is written, the
     temporary folders are removed, and the interrupt is re-raised.
     """
-    from wildgen.parallel import InProcessEngine
-
     out_dir = Path(out_dir)
     engine = engine if engine is not None else InProcessEngine()
     with dataset_lock(out_dir):
@@ -351,7 +321,7 @@ def drop_unrecorded(out_dir: Path, indices: list[int], entries: dict[int, dict])
     removed = []
     for index in indices:
         if entries.get(index, {}).get("status") != "done":
-            folder = Path(out_dir) / f"{object_name(index)}.data"
+            folder = Path(out_dir) / f"{index_name(index)}.data"
             if folder.exists():
                 shutil.rmtree(folder, ignore_errors=True)
                 removed.append(folder)

@@ -10,6 +10,7 @@ import sys
 import time
 from pathlib import Path
 
+from scenes.cli import report_error
 from wildgen.config import LIGHT_FAMILIES, GenConfig
 
 DEFAULTS = GenConfig()
@@ -127,123 +128,138 @@ def _summary(entries: dict[int, dict], rendered: dict[str, int], plan, seconds: 
     return f"{line} in {seconds:.1f} s [{variant}, {how}]", failed
 
 
+def check_flags(args: argparse.Namespace, explicit: set[str]) -> None:
+    """Flag values and combinations that are refused before anything is read (ValueError)."""
+    for flag in ("workers", "max_retries"):
+        if getattr(args, flag) is not None and getattr(args, flag) < 0:
+            raise ValueError(f"--{flag.replace('_', '-')}: expected a non-negative integer, got {getattr(args, flag)}")
+    for flag in ("threads", "recycle_after"):
+        if getattr(args, flag) is not None and getattr(args, flag) < 1:
+            raise ValueError(f"--{flag.replace('_', '-')}: expected a positive integer, got {getattr(args, flag)}")
+    if args.ray is not None and "workers" in explicit:
+        raise ValueError("--workers: local workers and --ray are exclusive (Ray schedules by its CPUs)")
+    if args.resume and args.overwrite:
+        raise ValueError("--resume: cannot be combined with --overwrite")
+    if args.ray is not None:
+        from wildgen.parallel import RAY_INSTALL, ray_available
+
+        if not ray_available():
+            raise ValueError(f"--ray: Ray is not installed; {RAY_INSTALL}")
+
+
+def resolve_run(args: argparse.Namespace, explicit: set[str], out: Path) -> tuple[GenConfig, str]:
+    """The configuration to render (the manifest's one merged with the given flags when resuming) and the
+    Mitsuba variant (set here; an existing dataset keeps its own unless one is asked for)."""
+    from wildgen.dataset import load_manifest
+
+    manifest = None if args.overwrite else load_manifest(out)
+    if args.resume:
+        if manifest is None:
+            raise FileNotFoundError(f"--resume: no manifest.json in {str(out)!r} to resume; run without --resume to start")
+        cfg = _resume_config(args, explicit, manifest)
+    else:
+        cfg = config_from_args(args)
+    from wildgen.assets import AssetLibrary
+
+    lib = AssetLibrary.scan(cfg.assets)  # fail early on a bad asset folder
+    if cfg.shapes == "mesh" and not lib.meshes:
+        raise ValueError(f"--shapes: 'mesh' needs an --assets folder with meshes/, {cfg.assets!r} has none")
+    from scenes.variant import choose_variant
+
+    requested = cfg.variant or (manifest.get("variant") if manifest and "variant" not in explicit else None)
+    variant = choose_variant(requested)
+    if args.threads and args.workers == 0:
+        import drjit as dr
+
+        dr.set_thread_count(args.threads)
+    return cfg, variant
+
+
+class _Progress:
+    """The progress bar of a run: created when the plan is known, one tick per finished object."""
+
+    def __init__(self, cfg: GenConfig, out: Path, quiet: bool):
+        self.cfg, self.out, self.quiet = cfg, out, quiet
+        self.rendered: dict[str, int] = {}
+        self.plan = None
+        self.bar = None
+        self.left = 0
+
+    def on_plan(self, plan) -> None:
+        from tqdm import tqdm
+
+        self.plan = plan
+        if plan.resumed and not self.quiet:
+            print(f"resuming {self.out}: {plan.complete} complete, {plan.rejected} rejected, {len(plan.todo)} to render"
+                  + (f", {plan.leftovers} interrupted removed" if plan.leftovers else ""), file=sys.stderr)
+        self.bar = tqdm(total=self.cfg.objects, initial=plan.complete + plan.rejected, unit="obj", disable=self.quiet,
+                        desc="wildgen", dynamic_ncols=True)
+        self.left = len(plan.todo)
+
+    def progress(self, entry: dict) -> None:
+        self.rendered[entry["status"]] = self.rendered.get(entry["status"], 0) + 1
+        self.left -= 1
+        self.bar.set_postfix(done=self.rendered.get("done", 0), failed=self.rendered.get("failed", 0), left=self.left,
+                             refresh=False)
+        self.bar.update(1)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _engine_description(used: dict, plan) -> str:
+    return (f"{used['workers']} workers x {used['threads_per_worker']} Dr.Jit threads" if "workers" in used
+            else f"ray, {used['cluster_cpus']} CPUs" if "cluster_cpus" in used
+            else "nothing to render" if not plan.todo else "in process")
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
-    from wildgen.dataset import load_manifest
-
     out = Path(args.out)
     try:
-        for flag in ("workers", "max_retries"):
-            if getattr(args, flag) is not None and getattr(args, flag) < 0:
-                raise ValueError(f"--{flag.replace('_', '-')}: expected a non-negative integer, got {getattr(args, flag)}")
-        for flag in ("threads", "recycle_after"):
-            if getattr(args, flag) is not None and getattr(args, flag) < 1:
-                raise ValueError(f"--{flag.replace('_', '-')}: expected a positive integer, got {getattr(args, flag)}")
         explicit = _explicit_flags(argv)
-        if args.ray is not None and "workers" in explicit:
-            raise ValueError("--workers: local workers and --ray are exclusive (Ray schedules by its CPUs)")
-        if args.resume and args.overwrite:
-            raise ValueError("--resume: cannot be combined with --overwrite")
-        if args.ray is not None:
-            from wildgen.parallel import RAY_INSTALL, ray_available
-
-            if not ray_available():
-                raise ValueError(f"--ray: Ray is not installed; {RAY_INSTALL}")
-        manifest = None if args.overwrite else load_manifest(out)
-        if args.resume:
-            if manifest is None:
-                raise FileNotFoundError(f"--resume: no manifest.json in {str(out)!r} to resume; run without --resume to start")
-            cfg = _resume_config(args, explicit, manifest)
-        else:
-            cfg = config_from_args(args)
-        from wildgen.assets import AssetLibrary
-
-        lib = AssetLibrary.scan(cfg.assets)  # fail early on a bad asset folder
-        if cfg.shapes == "mesh" and not lib.meshes:
-            raise ValueError(f"--shapes: 'mesh' needs an --assets folder with meshes/, {cfg.assets!r} has none")
-        from scenes.variant import choose_variant
-
-        # Continue an existing dataset with its own variant unless one is asked for.
-        requested = cfg.variant or (manifest.get("variant") if manifest and "variant" not in explicit else None)
-        variant = choose_variant(requested)
-        if args.threads and args.workers == 0:
-            import drjit as dr
-
-            dr.set_thread_count(args.threads)
+        check_flags(args, explicit)
+        cfg, variant = resolve_run(args, explicit, out)
     except (ValueError, FileNotFoundError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-
-    from tqdm import tqdm
-
-    from wildgen.dataset import make_dataset
-    from wildgen.parallel import InProcessEngine, ProcessEngine, RayEngine, WorkersCannotStart
-
-    if args.ray is not None:
-        engine = RayEngine(address=args.ray, threads=args.threads or 1, max_retries=args.max_retries, recycle_after=args.recycle_after)
-    elif args.workers == 0:
-        engine = InProcessEngine(max_retries=args.max_retries)
-    else:
-        # On a GPU one process keeps the device busy; more would only add CUDA contexts.
-        workers = args.workers if args.workers is not None else (1 if variant.startswith("cuda") else None)
-        engine = ProcessEngine(workers=workers, threads=args.threads, max_retries=args.max_retries,
-                               recycle_after=args.recycle_after)
-
-    t0 = time.perf_counter()
-    rendered: dict[str, int] = {}
-    state: dict = {}
-
-    def on_plan(plan) -> None:
-        state["plan"] = plan
-        if plan.resumed and not args.quiet:
-            print(f"resuming {out}: {plan.complete} complete, {plan.rejected} rejected, {len(plan.todo)} to render"
-                  + (f", {plan.leftovers} interrupted removed" if plan.leftovers else ""), file=sys.stderr)
-        state["bar"] = tqdm(total=cfg.objects, initial=plan.complete + plan.rejected, unit="obj", disable=args.quiet,
-                            desc="wildgen", dynamic_ncols=True)
-        state["left"] = len(plan.todo)
-
-    def progress(entry: dict) -> None:
-        rendered[entry["status"]] = rendered.get(entry["status"], 0) + 1
-        state["left"] -= 1
-        bar = state["bar"]
-        bar.set_postfix(done=rendered.get("done", 0), failed=rendered.get("failed", 0), left=state["left"], refresh=False)
-        bar.update(1)
-
-    def close_bar() -> None:
-        if "bar" in state:
-            state["bar"].close()
-
-    def on_sigterm(signum, frame):  # schedulers stop jobs with SIGTERM: same clean stop as Ctrl-C
-        state["signal"] = signum
-        raise KeyboardInterrupt
+        return report_error(exc)
 
     import signal
 
     from tqdm.contrib.logging import logging_redirect_tqdm
 
+    from wildgen.dataset import make_dataset
+    from wildgen.parallel import WorkersCannotStart, choose_engine
+
+    engine = choose_engine(variant, ray=args.ray, workers=args.workers, threads=args.threads,
+                           max_retries=args.max_retries, recycle_after=args.recycle_after)
+    t0 = time.perf_counter()
+    bar = _Progress(cfg, out, args.quiet)
+    state: dict = {}
+
+    def on_sigterm(signum, frame):  # schedulers stop jobs with SIGTERM: same clean stop as Ctrl-C
+        state["signal"] = signum
+        raise KeyboardInterrupt
+
     previous = signal.signal(signal.SIGTERM, on_sigterm) if _main_thread() else None
     try:
         with logging_redirect_tqdm():  # warnings (retries, failures) print above the bar, not through it
-            entries = make_dataset(cfg, out, variant, progress, engine=engine, overwrite=args.overwrite,
-                                   on_plan=on_plan, extra={"run": engine.used})
+            entries = make_dataset(cfg, out, variant, bar.progress, engine=engine, overwrite=args.overwrite,
+                                   on_plan=bar.on_plan, extra={"run": engine.used})
     except (ValueError, FileNotFoundError, ImportError, WorkersCannotStart) as exc:
-        close_bar()
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+        bar.close()
+        return report_error(exc)
     except KeyboardInterrupt:
-        close_bar()
+        bar.close()
         print("interrupted: finished objects are kept; re-run the same command to continue", file=sys.stderr)
         return 128 + state.get("signal", signal.SIGINT)
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
-    close_bar()
-    used = getattr(engine, "used", {})
-    how = (f"{used['workers']} workers x {used['threads_per_worker']} Dr.Jit threads" if "workers" in used
-           else f"ray, {used['cluster_cpus']} CPUs" if "cluster_cpus" in used
-           else "nothing to render" if not state["plan"].todo else "in process")
-    line, failed = _summary(entries, rendered, state["plan"], time.perf_counter() - t0, variant, how)
+    bar.close()
+    how = _engine_description(getattr(engine, "used", {}), bar.plan)
+    line, failed = _summary(entries, bar.rendered, bar.plan, time.perf_counter() - t0, variant, how)
     print(line)
     return 1 if failed else 0
 

@@ -94,15 +94,15 @@ class _Attempts:
 
     def failure(self, index: int, error: str) -> None:
         """Count a failed attempt: retry later (end of the queue) or record the object as failed."""
-        from wildgen.dataset import failed_entry, object_name
+        from wildgen.writer import failed_entry, index_name
 
         n = self.failures.get(index, 0) + 1
         self.failures[index] = n
         if n <= self.max_retries:
-            log.warning("object %s: attempt %d failed (%s); retrying", object_name(index), n, error)
+            log.warning("object %s: attempt %d failed (%s); retrying", index_name(index), n, error)
             self.queue.append(index)
         else:
-            log.error("object %s failed after %d attempts: %s", object_name(index), n, error)
+            log.error("object %s failed after %d attempts: %s", index_name(index), n, error)
             self.on_entry(failed_entry(index, error, n))
 
 
@@ -121,7 +121,7 @@ class InProcessEngine:
     def run(self, cfg: GenConfig, out_dir: Path, variant: str, indices: list[int], on_entry: Callable[[dict], None]) -> None:
         from scenes.variant import choose_variant
         from wildgen.assets import AssetLibrary
-        from wildgen.dataset import make_object
+        from wildgen.writer import make_object
 
         choose_variant(variant)
         lib = AssetLibrary.scan(cfg.assets)
@@ -186,7 +186,7 @@ def _worker_main(conn, cfg: GenConfig, out_dir: str, variant: str, threads: int 
     except BaseException as exc:  # report and exit: the parent decides whether to give up
         conn.send(("init_error", None, describe_error(exc)))
         return
-    from wildgen.dataset import make_object
+    from wildgen.writer import make_object
 
     while True:
         try:
@@ -390,7 +390,7 @@ def _ray_make_object(cfg: GenConfig, out_dir: str, variant: str, threads: int | 
     host = socket.gethostname()
     try:
         lib = _init_process(variant, threads, cfg.assets)
-        from wildgen.dataset import make_object
+        from wildgen.writer import make_object
 
         return "ok", make_object(cfg, index, Path(out_dir), lib), host
     except Exception as exc:  # reported to the driver, which retries or records the failure
@@ -485,3 +485,16 @@ class RayEngine:
                     pass
             if connected:
                 ray.shutdown()
+
+
+def choose_engine(variant: str, ray: str | None = None, workers: int | None = None, threads: int | None = None,
+                  max_retries: int = 2, recycle_after: int = 50) -> Engine:
+    """The engine `wildgen.make` runs with: Ray when an address (or 'auto') is given, this process with
+    workers=0, else local worker processes (one per core by default, one with a cuda variant)."""
+    if ray is not None:
+        return RayEngine(address=ray, threads=threads or 1, max_retries=max_retries, recycle_after=recycle_after)
+    if workers == 0:
+        return InProcessEngine(max_retries=max_retries)
+    # On a GPU one process keeps the device busy; more would only add CUDA contexts.
+    workers = workers if workers is not None else (1 if variant.startswith("cuda") else None)
+    return ProcessEngine(workers=workers, threads=threads, max_retries=max_retries, recycle_after=recycle_after)

@@ -37,19 +37,18 @@ def object_sheet(folder: Path) -> tuple[np.ndarray, np.ndarray]:
     """Contact sheet of one object folder, and a 2-tile summary (first image, normal map) for the overview."""
     import cv2
 
-    from scenes.imageio import decode_normals, read_png16
+    from scenes.objfolder import MASK_FILE, NORMAL_FILE, image_files, normal_visual, read_image, read_normals
 
-    images = sorted(folder.glob("L*.png"))
+    images = image_files(folder)
     if not images:
         raise FileNotFoundError(f"DIR: object folder {str(folder)!r} has no L*.png images")
-    tiles = [_label(_tile(_to_display(read_png16(p))), p.stem) for p in images]
-    enc = cv2.imread(str(folder / "normal.tif"), cv2.IMREAD_UNCHANGED)
-    if enc is None:
-        raise ValueError(f"DIR: cannot read {str(folder / 'normal.tif')!r}")
-    n = decode_normals(enc[:, :, ::-1])
-    normal_vis = np.round((n * 0.5 + 0.5) * 255 * np.any(n != 0, -1, keepdims=True)).astype(np.uint8)[:, :, ::-1]
-    tiles.append(_label(_tile(normal_vis), "normal"))
-    mask = cv2.imread(str(folder / "mask.png"), cv2.IMREAD_GRAYSCALE)
+    tiles = [_label(_tile(_to_display(read_image(p))), p.stem) for p in images]
+    try:
+        n = read_normals(folder / NORMAL_FILE)
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"DIR: cannot read {str(folder / NORMAL_FILE)!r}: {exc}") from exc
+    tiles.append(_label(_tile(np.ascontiguousarray(normal_visual(n)[:, :, ::-1])), "normal"))
+    mask = cv2.imread(str(folder / MASK_FILE), cv2.IMREAD_GRAYSCALE)
     tiles.append(_label(_tile(cv2.cvtColor(mask, cv2.COLOR_GRAY2BGR)), "mask"))
     cols = 6
     while len(tiles) % cols:

@@ -1,7 +1,7 @@
-"""`python -m unips.demo`: the whole story on embedded defaults, in a few minutes on a CPU.
+"""`python -m orchestrate.demo`: the whole story on embedded defaults, in a few minutes on a CPU.
 
-    python -m unips.demo [--out demo_out] [--objects 4] [--images 8] [--res 64] [--spp 32] [--seed 0]
-                         [--checkpoint CKPT] [--baseline {sh-uncalibrated,least-squares}]
+    python -m orchestrate.demo [--out demo_out] [--objects 4] [--images 8] [--res 64] [--spp 32] [--seed 0]
+                               [--checkpoint CKPT] [--baseline {sh-uncalibrated,least-squares}]
 
 1. `wildgen.make` renders a small dataset (light families near_area, hdri, mixed, directional cycled);
 2. `wildgen.preview` writes contact sheets;
@@ -21,6 +21,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from scenes.cli import UsageError, report_error
+
 FAMILIES = "near_area,hdri,mixed,directional"
 
 
@@ -28,7 +30,7 @@ def _run(cmd: list[str]) -> None:
     print("+ " + " ".join(cmd[2:] if cmd[1] == "-m" else cmd), flush=True)
     r = subprocess.run(cmd)
     if r.returncode != 0:
-        raise SystemExit(f"unips.demo: step {cmd[2] if cmd[1] == '-m' else cmd[0]} failed with exit code {r.returncode}")
+        raise SystemExit(f"orchestrate.demo: step {cmd[2] if cmd[1] == '-m' else cmd[0]} failed with exit code {r.returncode}")
 
 
 def _reports(folder: Path) -> dict[str, dict]:
@@ -65,7 +67,7 @@ def summary_table(out: Path, methods: list[str]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m unips.demo", description=__doc__.split("\n\n")[0],
+    p = argparse.ArgumentParser(prog="python -m orchestrate.demo", description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("--out", type=Path, default=Path("demo_out"), help="output folder")
     p.add_argument("--objects", type=int, default=4, help="objects to render")
@@ -78,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="classical baseline to compare with (least-squares needs directional lights only)")
     args = p.parse_args(argv)
     if args.objects < 1 or args.images < 1 or args.res < 16 or args.spp < 1:
-        p.error("--objects, --images and --spp must be >= 1 and --res >= 16")
+        return report_error(UsageError("--objects, --images and --spp must be >= 1 and --res >= 16"))
     py = [sys.executable, "-m"]
     out: Path = args.out
     data = out / "data"
