@@ -20,7 +20,6 @@ from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 import torch
-import torch.nn.functional as F
 
 PROBES = ("all", "one", "mask", "shuffled")
 
@@ -48,12 +47,6 @@ def applicable(probe: str, num_images: int) -> bool:
     return probe != "shuffled" or num_images >= 2
 
 
-def angular_error_deg(pred: torch.Tensor, gt: torch.Tensor) -> torch.Tensor:
-    """Angular errors in degrees between normals `(N, 3)` and `(N, 3)` (both renormalised)."""
-    cos = (F.normalize(pred, dim=-1, eps=1e-8) * F.normalize(gt, dim=-1, eps=1e-8)).sum(-1)
-    return torch.rad2deg(torch.acos(cos.clamp(-1.0, 1.0)))
-
-
 def eval_pixels(mask: torch.Tensor, count: int, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
     """Row and column indices of the masked pixels to score: all (count <= 0) or a seeded subset."""
     ys, xs = torch.nonzero(mask[0] > 0.5, as_tuple=True)
@@ -74,6 +67,7 @@ def probe_object(model: torch.nn.Module, images: torch.Tensor, mask: torch.Tenso
     of that many masked pixels (the encoder still sees the whole image). Probes that do not apply
     (shuffled with K = 1) are left out of the result.
     """
+    from scenes.objfolder import angular_error_deg
     from unips.models.glc import pixel_centre_coords
 
     ys, xs = eval_pixels(mask, pixels, seed)
@@ -90,7 +84,9 @@ def probe_object(model: torch.nn.Module, images: torch.Tensor, mask: torch.Tenso
         x = probe_images(images.to(torch.float32), mask, probe, seed)[None].to(device)  # (1, k, 3, H, W)
         ctx = model.encode(x, m)
         pred = decode_in_chunks(model, ctx, x, m, coords)[0].cpu()  # (N, 3)
-        out[probe] = float(angular_error_deg(pred, gt).mean())
+        # The project's one angular-error rule, on the scored pixels as an (N, 1) "image".
+        err = angular_error_deg(pred.numpy()[:, None], gt.numpy()[:, None], np.ones((gt.shape[0], 1), bool))
+        out[probe] = float(err.mean())
     return out
 
 

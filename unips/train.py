@@ -38,7 +38,6 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from scenes.objfolder import angular_errors_chw as angular_errors
 
 log = logging.getLogger(__name__)
 
