@@ -6,10 +6,15 @@
 Tables (markdown, printed and written to OUT/tables.md, figures in OUT/benchmark.json):
 1. mean angular error per light family: the model, the model with spatially uniform contexts (if a
    checkpoint is given), calibrated least squares (directional objects only), the uncalibrated baseline;
-2. mean angular error against the number of input images;
-3. the re-render residual (`validate.rerender`) of each method beside its angular error;
-4. DiLiGenT ball and cat (when the folder is given; figures only), against the published calibrated
-   least-squares figures (ball 4.10, cat 8.41).
+2. the probes of each model (`unips.probes`) per light family: all images, one image, mask only
+   (every image replaced by the mask), shuffled (each pixel's observations permuted across images),
+   and the photometric gain = error(mask only) - error(all images), the figure that says the model
+   does photometric stereo rather than shape from outline;
+3. mean angular error against the number of input images;
+4. the re-render residual (`validate.rerender`) of each method beside its angular error;
+5. DiLiGenT, every `*PNG` object in the folder, uncalibrated protocol for the model (raw images, no
+   light files, no intensity division): K=96 and K=16 (mean over `--diligent-subsets` random subsets,
+   seeded), the model's mask-only probe, calibrated least squares beside it, published figures.
 """
 from __future__ import annotations
 
@@ -30,7 +35,11 @@ from unips.inference import load_network, predict_object
 
 log = logging.getLogger(__name__)
 
-PUBLISHED_L2 = {"ball": 4.10, "cat": 8.41}
+# Published DiLiGenT figures (96 images): calibrated least squares, UniPS (CVPR 2022, uncalibrated).
+PUBLISHED_L2 = {"ball": 4.10, "bear": 8.39, "buddha": 14.92, "cat": 8.41, "cow": 25.60, "goblet": 18.50,
+                "harvest": 30.62, "pot1": 8.89, "pot2": 14.65, "reading": 19.80}
+PUBLISHED_UNIPS = {"ball": 4.9, "cat": 13.0, "harvest": 25.2, "reading": 18.8}
+PROBE_ORDER = ("all", "one", "mask", "shuffled")
 FAMILY_ORDER = ("directional", "point", "near_area", "hdri", "mixed")
 
 
@@ -83,6 +92,9 @@ def synthetic_tables(data: Path, net, ablation, images: int, counts: list[int], 
             row["mae"][name] = _mae(n, obj.normals, obj.mask)
             row["pred"][name] = n
             row.setdefault("seconds", {})[name] = time.perf_counter() - t0
+        for name, model in methods:
+            if name.startswith("model") and name in row["mae"]:
+                row.setdefault("probes", {})[name] = probe_errors(obj, model, row["mae"][name])
         for k in counts:
             if k > obj.images.shape[0]:
                 continue
@@ -106,6 +118,15 @@ def synthetic_tables(data: Path, net, ablation, images: int, counts: list[int], 
     for name, _ in methods:
         family_table[name]["all"] = _mean([r["mae"][name] for r in per_obj if name in r["mae"]])
     count_table = {name: {k: _mean(v) for k, v in ks.items()} for name, ks in by_count.items()}
+    probe_table = {}
+    for name, _ in methods:
+        if not name.startswith("model"):
+            continue
+        from unips.probes import summarise
+
+        per = {r["name"]: r["probes"][name] for r in per_obj if name in r.get("probes", {})}
+        if per:
+            probe_table[name] = summarise(per, {r["name"]: r["family"] for r in per_obj})
 
     rerender_rows = []
     if rerender_objects > 0:
@@ -121,7 +142,34 @@ def synthetic_tables(data: Path, net, ablation, images: int, counts: list[int], 
                 rerender_rows.append({"object": r["name"], "family": r["family"], "method": name, "mae_deg": r["mae"][name], "rel_l1": rep["rel_l1"], "gt_rel_l1": rep.get("gt_rel_l1"), "noise_floor_rel_l1": rep.get("noise_floor_rel_l1")})
     for r in per_obj:
         r.pop("pred")
-    return {"objects": per_obj, "families": families, "family_table": family_table, "count_table": count_table, "counts": counts, "rerender": rerender_rows}
+    return {"objects": per_obj, "families": families, "family_table": family_table, "count_table": count_table, "probe_table": probe_table, "counts": counts, "rerender": rerender_rows}
+
+
+def probe_inputs(obj, probe: str, seed: int = 0):
+    """A copy of `obj` whose images are replaced as `unips.probes.probe_images` says (original frame)."""
+    import dataclasses
+
+    import torch
+
+    from unips.probes import probe_images
+
+    x = torch.from_numpy(np.ascontiguousarray(obj.images.transpose(0, 3, 1, 2)))  # (K, 3, H, W)
+    m = torch.from_numpy(np.asarray(obj.mask, np.float32))[None]  # (1, H, W)
+    y = probe_images(x, m, probe, seed).numpy().transpose(0, 2, 3, 1)  # (k, H, W, 3)
+    return dataclasses.replace(obj, images=np.ascontiguousarray(y))
+
+
+def probe_errors(obj, net, all_images_error: float | None = None, seed: int = 0) -> dict[str, float]:
+    """Mean angular error of the model under each probe of `unips.probes` (degrees)."""
+    from unips.probes import applicable
+
+    out = {}
+    for probe in PROBE_ORDER:
+        if probe == "all" and all_images_error is not None:
+            out[probe] = all_images_error
+        elif applicable(probe, obj.images.shape[0]):
+            out[probe] = _mae(predict_object(probe_inputs(obj, probe, seed), "model", net=net), obj.normals, obj.mask)
+    return out
 
 
 def _mean(v: list[float]) -> float:
@@ -141,20 +189,40 @@ def _spread(rows: list[dict], families: list[str], n: int) -> list[dict]:
     return out
 
 
-def diligent_table(root: Path, net, ablation, images: int | None) -> dict:
+def diligent_table(root: Path, net, ablation, images: int | None, subset_k: int = 16, subsets: int = 5,
+                   seed: int = 0) -> dict:
+    """Every `*PNG` object under `root`: all methods with `images` images, the model also with random
+    `subset_k`-image subsets (mean over `subsets`, seeded) and its mask-only probe."""
     out = {}
-    for name in ("ball", "cat"):
-        folder = root / f"{name}PNG"
-        if not folder.is_dir():
-            continue
+    folders = sorted(p for p in root.iterdir() if p.is_dir() and p.name.endswith("PNG"))
+    if not folders:
+        raise UsageError(f"--diligent: no <object>PNG folders in {str(root)!r}")
+    for folder in folders:
+        name = folder.name[:-3]
         obj = load_object(folder, max_images=images)
+        if obj.normals is None:
+            raise ValueError(f"--diligent: {str(folder)!r} has no ground-truth normals")
         row = {}
         for method, model in _methods(net, ablation):
             t0 = time.perf_counter()
             n = _predict(method, model, obj)
             if n is not None:
                 row[method] = {"mae_deg": _mae(n, obj.normals, obj.mask), "seconds": time.perf_counter() - t0}
-        out[name] = {"images": int(obj.images.shape[0]), "published_l2": PUBLISHED_L2[name], "methods": row}
+        rng = np.random.default_rng(seed)
+        k_all = obj.images.shape[0]
+        sub = []
+        if subset_k < k_all:
+            import dataclasses
+
+            for _ in range(subsets):
+                idx = np.sort(rng.choice(k_all, size=subset_k, replace=False))
+                part = dataclasses.replace(obj, images=obj.images[idx])
+                sub.append(_mae(predict_object(part, "model", net=net), obj.normals, obj.mask))
+        mask_only = _mae(predict_object(probe_inputs(obj, "mask"), "model", net=net), obj.normals, obj.mask)
+        out[name] = {"images": int(k_all), "published_l2": PUBLISHED_L2.get(name),
+                     "published_unips": PUBLISHED_UNIPS.get(name), "methods": row,
+                     "model_subsets": {"k": subset_k, "errors": sub, "mean": _mean(sub)} if sub else None,
+                     "model_mask_only": mask_only}
     return out
 
 
@@ -170,6 +238,11 @@ def format_tables(res: dict) -> str:
         failed = {m: sum(m in r.get("failed", {}) for r in syn["objects"]) for m in syn["family_table"]}
         if any(failed.values()):
             lines += ["", "Objects a method could not run on (left out of its means): " + ", ".join(f"{m}: {c}" for m, c in failed.items() if c)]
+        for m, summ in syn.get("probe_table", {}).items():
+            from unips.probes import format_table
+
+            lines += ["", f"Probes of {m} (mean angular error, deg; photometric gain = mask only - all images)", "",
+                      format_table(summ)]
         lines += ["", "Mean angular error (deg) against the number of input images (first K images of each object)", ""]
         ks = syn["counts"]
         lines += ["| method | " + " | ".join(f"K={k}" for k in ks) + " |", "|---|" + "---|" * len(ks)]
@@ -191,11 +264,21 @@ def format_tables(res: dict) -> str:
                 lines.append(f"Spearman rank correlation between re-render residual and MAE over all {len(syn['rerender'])} (object, method) pairs: {rho:.2f}")
     dil = res.get("diligent")
     if dil:
-        lines += ["", "DiLiGenT (mean angular error, deg; the published figure is calibrated least squares with all 96 images)", ""]
+        lines += ["", "DiLiGenT (mean angular error, deg). The model: raw images, no light files, no intensity division "
+                  "(uncalibrated protocol); least squares uses the calibration. Published: calibrated least squares (L2) "
+                  "and UniPS (CVPR 2022, uncalibrated), 96 images", ""]
         methods = list(next(iter(dil.values()))["methods"])
-        lines += ["| object | images | published L2 | " + " | ".join(methods) + " |", "|---|---|---|" + "---|" * len(methods)]
+        k_sub = next((r["model_subsets"]["k"] for r in dil.values() if r.get("model_subsets")), None)
+        extra = ([f"model K={k_sub} (mean of subsets)"] if k_sub else []) + ["model, mask only"]
+        lines += ["| object | images | published L2 | published UniPS | " + " | ".join(methods + extra) + " |",
+                  "|---|---|---|---|" + "---|" * (len(methods) + len(extra))]
         for name, row in dil.items():
-            lines.append(f"| {name} | {row['images']} | {row['published_l2']:.2f} | " + " | ".join(_fmt(row["methods"].get(m, {}).get("mae_deg")) for m in methods) + " |")
+            cells = [_fmt(row["methods"].get(m, {}).get("mae_deg")) for m in methods]
+            if k_sub:
+                cells.append(_fmt(row["model_subsets"]["mean"]) if row.get("model_subsets") else "-")
+            cells.append(_fmt(row.get("model_mask_only")))
+            lines.append(f"| {name} | {row['images']} | {_fmt(row['published_l2'])} | {_fmt(row['published_unips'])} | "
+                         + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -208,6 +291,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--images", type=int, default=10, help="images per synthetic object (default 10)")
     p.add_argument("--counts", default="1,2,4,8,16", help="image counts of the error-vs-K table (default 1,2,4,8,16)")
     p.add_argument("--diligent-images", type=int, default=96, help="images per DiLiGenT object (default 96)")
+    p.add_argument("--diligent-subset", type=int, default=16, help="images of the random DiLiGenT subsets (default 16)")
+    p.add_argument("--diligent-subsets", type=int, default=5, help="random DiLiGenT subsets averaged (default 5; 0 = none)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the DiLiGenT subsets and the shuffled probe (default 0)")
     p.add_argument("--rerender-objects", type=int, default=10, help="objects re-rendered per method (default 10; 0 = none)")
     p.add_argument("--rerender-spp", type=int, default=None, help="spp of the re-render (default: the recorded spp)")
     p.add_argument("--variant", default=None, help="Mitsuba variant for the re-render check")
@@ -239,7 +325,11 @@ def main(argv: list[str] | None = None) -> int:
                     dr.set_thread_count(args.threads)
             res["synthetic"] = synthetic_tables(Path(args.data), net, ablation, args.images, counts, args.rerender_objects, args.rerender_spp)
         if args.diligent:
-            res["diligent"] = diligent_table(Path(args.diligent), net, ablation, args.diligent_images)
+            if args.diligent_subset < 1 or args.diligent_subsets < 0:
+                raise UsageError(f"--diligent-subset / --diligent-subsets: got {args.diligent_subset} / "
+                                 f"{args.diligent_subsets}, expected >= 1 / >= 0")
+            res["diligent"] = diligent_table(Path(args.diligent), net, ablation, args.diligent_images,
+                                             args.diligent_subset, args.diligent_subsets, args.seed)
     except INPUT_ERRORS as exc:
         return report_error(exc)
     out = Path(args.out)

@@ -119,15 +119,16 @@ def test_ours_with_other_lights_has_no_directions(tmp_path):
     assert obj.light_directions is None and obj.light_intensities is None
 
 
-def test_load_diligent_layout_divides_intensities(tmp_path):
+def test_load_diligent_layout_keeps_raw_images(tmp_path):
+    """Uncalibrated protocol: images exactly as recorded; the intensities only in light_intensities."""
     n, mask, L, inten, imgs = write_diligent(tmp_path / "sphPNG")
     obj = load_object(tmp_path / "sphPNG")
     assert obj.layout == "diligent" and obj.name == "sphPNG" and obj.light_family == "directional"
     shade = np.clip(np.einsum("hwc,kc->khw", n, L), 0, None)
-    expected = 0.9 * shade[..., None] * ALBEDO  # the intensities are divided out
+    expected = 0.9 * shade[..., None] * ALBEDO * inten[:, None, None, :]  # not divided by the intensities
     assert np.abs(obj.images - expected).max() < 2e-4
     assert np.allclose(obj.light_directions, L / np.linalg.norm(L, axis=1, keepdims=True), atol=1e-5)
-    assert np.allclose(obj.light_intensities, 1.0)
+    assert np.allclose(obj.light_intensities, inten, atol=1e-6)
     assert np.allclose(obj.meta["light_intensities_file"], inten, atol=1e-6)
     assert np.array_equal(obj.mask, mask)
     assert np.abs(obj.normals - n).max() < 1e-6

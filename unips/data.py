@@ -10,8 +10,9 @@ Layouts (detected automatically, or forced with ``layout=``):
   or ``Normal_gt.png``.
 - ``"diligent"``: DiLiGenT: ``001.png ...`` (order from ``filenames.txt`` when present),
   ``light_directions.txt``, ``light_intensities.txt``, ``mask.png``, ``Normal_gt.mat`` or
-  ``Normal_gt.png``. Each image channel is divided by its row of ``light_intensities.txt`` at load time,
-  so the returned ``light_intensities`` are ones (the file's values are kept in ``meta``).
+  ``Normal_gt.png``. Images are returned raw, as the camera recorded them (the UniPS papers' protocol
+  for uncalibrated methods: a model never sees the calibration); the file's values are returned as
+  ``light_intensities`` for calibrated methods, which divide by them (`unips.baselines`).
 
 Images are returned linear in [0, 1] (16-bit / 65535, 8-bit / 255; 8-bit JPEGs are not linearised:
 the official loaders do not either). Everything is RGB and in the camera frame x right, y up,
@@ -260,8 +261,7 @@ def _load_diligent(folder: Path, max_images: int | None) -> PSObject:
                else np.ones((len(paths), 3)))
     if np.any(raw_int <= 0):
         raise ValueError(f"light_intensities file {int_path}: intensities must be > 0")
-    images = _load_stack(paths)
-    images /= raw_int[:, None, None, :].astype(np.float32)
+    images = _load_stack(paths)  # raw: the calibration stays out of what a model sees
     shape = images.shape[1:3]
     mask_path = folder / "mask.png"
     mask = read_mask(mask_path, shape) if mask_path.is_file() else np.ones(shape, dtype=bool)
@@ -272,7 +272,7 @@ def _load_diligent(folder: Path, max_images: int | None) -> PSObject:
         normals = read_normal_file(folder / "Normal_gt.png", mask)
     return PSObject(name=object_name(folder), images=images, mask=mask, normals=normals,
                     light_family="directional", light_directions=directions.astype(np.float32),
-                    light_intensities=np.ones((len(paths), 3), np.float32), path=folder, layout="diligent",
+                    light_intensities=raw_int.astype(np.float32), path=folder, layout="diligent",
                     image_names=[p.name for p in paths], meta={"light_intensities_file": raw_int})
 
 
