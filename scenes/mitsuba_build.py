@@ -27,8 +27,8 @@ from scenes.variant import require_variant
 
 log = logging.getLogger(__name__)
 
-PARK_POSITION = [0.0, 1.0e5, 0.0]  # where unused area lights wait: far above, invisibly small
-PARK_SCALE = 1.0e-6
+PARK_POSITION = [0.0, 1.0e3, 0.0]  # where unused area lights wait: far above, invisibly small
+PARK_SCALE = 1.0e-3  # corners 2e-3 apart stay distinct in float32 at 1e3 (scalar_rgb computes the area from them)
 
 
 def _bitmap_texture(arr: np.ndarray, **options: Any):
@@ -294,15 +294,14 @@ def build_scene(desc: SceneDescription, base_dir: str | Path | None = None, bsdf
 def make_mesh(name: str, data: MeshData, bsdf: dict | Any):
     """In-memory Mitsuba mesh from arrays, with vertex normals and texture coordinates."""
     mi = require_variant()
-    import drjit as dr
-
     props = mi.Properties()
     props["bsdf"] = mi.load_dict(bsdf) if isinstance(bsdf, dict) else bsdf
     mesh = mi.Mesh(name, len(data.positions), len(data.faces), props, True, True)
     p = mi.traverse(mesh)
-    p["vertex_positions"] = dr.ravel(mi.Point3f(np.ascontiguousarray(data.positions.T, dtype=np.float32)))
-    p["faces"] = dr.ravel(mi.Vector3u(np.ascontiguousarray(data.faces.T, dtype=np.uint32)))
-    p["vertex_normals"] = dr.ravel(mi.Normal3f(np.ascontiguousarray(data.normals.T, dtype=np.float32)))
-    p["vertex_texcoords"] = dr.ravel(mi.Point2f(np.ascontiguousarray(data.uvs.T, dtype=np.float32)))
+    # Flat buffers of the parameter's own type (Float / UInt on JIT variants, ArrayXf / ArrayXu on scalar ones):
+    # row-major (N, 3) arrays are already the interleaved x y z x y z layout Mitsuba stores.
+    for key, arr, dtype in (("vertex_positions", data.positions, np.float32), ("faces", data.faces, np.uint32),
+                            ("vertex_normals", data.normals, np.float32), ("vertex_texcoords", data.uvs, np.float32)):
+        p[key] = type(p[key])(np.ascontiguousarray(arr, dtype=dtype).ravel())
     p.update()
     return mesh
