@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 import time
 from pathlib import Path
@@ -350,4 +351,12 @@ def _main_thread() -> bool:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    code = main()
+    if code in (130, 143):
+        # Interrupted: everything is cleaned up and reported. An interrupt that arrived inside a native import
+        # leaves CPython's "unhandled KeyboardInterrupt" flag set, which would turn this exit into a kill by
+        # SIGINT; leave with the documented status instead.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    sys.exit(code)
