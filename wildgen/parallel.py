@@ -2,8 +2,9 @@
 
 All engines share one contract, `run(cfg, out_dir, variant, indices, on_entry)`: every index ends in
 exactly one call `on_entry(entry)` with a 'done', 'skipped' or 'failed' manifest entry, in completion
-order. A Python exception or a dead worker costs the object an attempt; after `max_retries` retries
-the object is recorded as failed and the run goes on. KeyboardInterrupt stops the workers (no
+order. A dead worker or a transient exception (`transient`: out of memory, file system) costs the object
+an attempt; after `max_retries` retries the object is recorded as failed and the run goes on. Any other
+exception would repeat (an object is a pure function of (config, index)) and fails the object at once. KeyboardInterrupt stops the workers (no
 half-written object survives: folders appear by atomic rename) and propagates.
 
 Workers are separate processes started with 'spawn' (Mitsuba and Dr.Jit hold threads and JIT state
@@ -11,9 +12,11 @@ that do not survive fork). Each one sets its Mitsuba variant and Dr.Jit thread c
 one object at a time, and is replaced after `recycle_after` objects to bound memory. Local workers
 die with their parent (Linux PR_SET_PDEATHSIG), so killing the driver leaves no orphan writing files.
 
-The objects' bytes do not depend on the engine, the number of workers or threads: each object is a
-pure function of (config, index), and Dr.Jit's results do not depend on its thread count (checked by
-tests/test_wildgen_scale.py).
+The objects' bytes do not depend on the engine or the number of workers for the same Dr.Jit thread count
+per worker: each object is a pure function of (config, index). They do depend, in the last bits of the
+float radiance and rarely one 16-bit PNG step, on the thread count, which changes the order in which
+samples are added into a pixel (tests/test_wildgen_scale.py compares engines at a size where this does not
+show; the README states the guarantee).
 """
 from __future__ import annotations
 
