@@ -2,7 +2,7 @@
 
 Every object is a pure function of (config, index) (`make_object`), so a dataset can be made in any
 order, by any number of workers, interrupted and resumed, and the object folders come out
-byte-identical. Only the parent process writes `manifest.json`, atomically, after each object
+byte-identical (with one Dr.Jit thread per worker; see the README for more threads). Only the parent process writes `manifest.json`, atomically, after each object
 (throttled when the manifest gets large, see `ManifestWriter`).
 
 Resuming: when `DIR/manifest.json` exists with the same configuration (the object count may grow),

@@ -12,11 +12,11 @@ that do not survive fork). Each one sets its Mitsuba variant and Dr.Jit thread c
 one object at a time, and is replaced after `recycle_after` objects to bound memory. Local workers
 die with their parent (Linux PR_SET_PDEATHSIG), so killing the driver leaves no orphan writing files.
 
-The objects' bytes do not depend on the engine or the number of workers for the same Dr.Jit thread count
-per worker: each object is a pure function of (config, index). They do depend, in the last bits of the
-float radiance and rarely one 16-bit PNG step, on the thread count, which changes the order in which
-samples are added into a pixel (tests/test_wildgen_scale.py compares engines at a size where this does not
-show; the README states the guarantee).
+Each object is a pure function of (config, index): with one Dr.Jit thread per worker its bytes do not
+depend on the engine or the number of workers. With more threads, the order in which threads add samples
+into a pixel is not fixed, so the float radiance can differ in its last bits from run to run (and rarely a
+16-bit PNG value by one step); tests/test_wildgen_scale.py compares engines at a size where this does not
+show, and the README states the guarantee.
 """
 from __future__ import annotations
 
