@@ -29,6 +29,17 @@ log = logging.getLogger(__name__)
 
 PARK_POSITION = [0.0, 1.0e5, 0.0]  # where unused area lights wait: far above, invisibly small
 PARK_SCALE = 1.0e-6
+SCALAR_PARK = ([0.0, 1.0e3, 0.0], 1.0e-3)
+"""scalar_rgb computes a rectangle's area from its float32 corners: at 1e5 corners 2e-6 apart coincide (zero
+area, "no probability mass"), so there unused area lights wait nearer and larger (corners 2e-3 apart at 1e3).
+The JIT variants keep the original place: it changes no byte of their renders."""
+
+
+def park_transform(mi: Any):
+    """The to_world of an unused area light (see PARK_POSITION, SCALAR_PARK)."""
+    T = mi.ScalarTransform4f
+    pos, scale = SCALAR_PARK if mi.variant().startswith("scalar") else (PARK_POSITION, PARK_SCALE)
+    return T().translate(pos) @ T().scale([scale, scale, scale])
 
 
 def _bitmap_texture(arr: np.ndarray, **options: Any):
@@ -145,8 +156,7 @@ def _area_on(mi: Any, l: LightDesc) -> dict[str, Any]:
 
 
 def _area_off(mi: Any) -> dict[str, Any]:
-    T = mi.ScalarTransform4f
-    return {"to_world": mi.AffineTransform4f(T().translate(PARK_POSITION) @ T().scale([PARK_SCALE, PARK_SCALE, PARK_SCALE])),
+    return {"to_world": mi.AffineTransform4f(park_transform(mi)),
             "emitter.radiance.value": mi.Color3f(0.0)}
 
 
@@ -275,7 +285,7 @@ def build_scene(desc: SceneDescription, base_dir: str | Path | None = None, bsdf
     for k in range(slots.area):
         scene[f"light_area_{k}"] = {
             "type": "rectangle",
-            "to_world": T().translate(PARK_POSITION) @ T().scale([PARK_SCALE, PARK_SCALE, PARK_SCALE]),
+            "to_world": park_transform(mi),
             "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.0}},
             "emitter": {"type": "area", "radiance": {"type": "rgb", "value": 0.0}},
         }
@@ -294,15 +304,14 @@ def build_scene(desc: SceneDescription, base_dir: str | Path | None = None, bsdf
 def make_mesh(name: str, data: MeshData, bsdf: dict | Any):
     """In-memory Mitsuba mesh from arrays, with vertex normals and texture coordinates."""
     mi = require_variant()
-    import drjit as dr
-
     props = mi.Properties()
     props["bsdf"] = mi.load_dict(bsdf) if isinstance(bsdf, dict) else bsdf
     mesh = mi.Mesh(name, len(data.positions), len(data.faces), props, True, True)
     p = mi.traverse(mesh)
-    p["vertex_positions"] = dr.ravel(mi.Point3f(np.ascontiguousarray(data.positions.T, dtype=np.float32)))
-    p["faces"] = dr.ravel(mi.Vector3u(np.ascontiguousarray(data.faces.T, dtype=np.uint32)))
-    p["vertex_normals"] = dr.ravel(mi.Normal3f(np.ascontiguousarray(data.normals.T, dtype=np.float32)))
-    p["vertex_texcoords"] = dr.ravel(mi.Point2f(np.ascontiguousarray(data.uvs.T, dtype=np.float32)))
+    # Flat buffers of the parameter's own type (Float / UInt on JIT variants, ArrayXf / ArrayXu on scalar ones):
+    # row-major (N, 3) arrays are already the interleaved x y z x y z layout Mitsuba stores.
+    for key, arr, dtype in (("vertex_positions", data.positions, np.float32), ("faces", data.faces, np.uint32),
+                            ("vertex_normals", data.normals, np.float32), ("vertex_texcoords", data.uvs, np.float32)):
+        p[key] = type(p[key])(np.ascontiguousarray(arr, dtype=dtype).ravel())
     p.update()
     return mesh

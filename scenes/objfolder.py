@@ -101,7 +101,7 @@ def read_scene_dict(folder_or_file: str | Path) -> dict[str, Any]:
         raise FileNotFoundError(f"scene.json: {str(path)!r} does not exist (is this an object folder?)")
     try:
         d = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ValueError(f"scene file {path}: cannot be parsed as JSON ({exc})") from exc
     if not isinstance(d, dict):
         raise ValueError(f"scene file {path}: expected a JSON object, got {type(d).__name__}")

@@ -39,11 +39,18 @@ def _usable(variant: str) -> bool:
 def choose_variant(requested: str | None = None) -> str:
     """Set and return a Mitsuba variant: `requested` if given, else cuda, llvm, scalar in that order.
 
-    Falling back to scalar warns with the fix. An unknown or unusable requested variant is a ValueError.
+    `requested` None or "auto" chooses; falling back to scalar warns with the fix. A variant outside
+    `PREFERENCE` (the RGB variants the scenes are built for: a mono or spectral variant would fail inside
+    Dr.Jit), or one this machine cannot run, is a ValueError naming --variant.
     """
     import mitsuba as mi
 
+    if requested == "auto":
+        requested = None
     if requested:
+        if requested not in PREFERENCE:
+            raise ValueError(f"--variant: {requested!r} is not supported, expected auto or one of {', '.join(PREFERENCE)} "
+                             "(the scenes use RGB colours)")
         if requested not in mi.variants():
             raise ValueError(f"--variant: {requested!r} is not built into this Mitsuba, expected one of {', '.join(mi.variants())}")
         if not _usable(requested):

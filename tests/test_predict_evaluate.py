@@ -157,8 +157,15 @@ def test_evaluate_known_answer(dataset, tmp_path, capsys):
     # The error map: 10/90 of the colour scale inside, black outside.
     img = cv2.imread(str(pred / "alpha" / "error_map.png"))
     n, mask = truth["alpha"]
+    s = ev.error_map_scale(mask.shape[0])
+    h, w = mask.shape
+    assert s > 1 and img.shape[0] >= ev.ERROR_MAP_MIN_HEIGHT and img.shape[1] > w * s  # enlarged, bar on the right
     expected = cv2.applyColorMap(np.full((1, 1), round(10 / 90 * 255), np.uint8), cv2.COLORMAP_JET)[0, 0]
-    assert np.all(img[mask] == expected) and np.all(img[~mask] == 0)
+    big = np.repeat(np.repeat(mask, s, 0), s, 1)
+    assert np.all(img[:h * s, :w * s][big] == expected) and np.all(img[:h * s, :w * s][~big] == 0)
+    bar = img[:h * s, w * s:]
+    blue, red = cv2.applyColorMap(np.array([[0, 255]], np.uint8), cv2.COLORMAP_JET)[0]
+    assert (bar == blue).all(-1).any() and (bar == red).all(-1).any()  # the colour scale 0..90 deg is drawn
     # 16-bit PNG predictions give the same answer within quantisation.
     png_dir = tmp_path / "rot_png"
     for name, (n, mask) in truth.items():

@@ -28,12 +28,42 @@ from typing import Any
 
 import numpy as np
 
-from scenes.cli import INPUT_ERRORS, UsageError, UsageErrorParser, report_error
-from scenes.objfolder import object_name, write_normal_exr, write_normal_map, write_normal_visual
-from unips.data import find_objects, load_object
+from scenes.cli import INPUT_ERRORS, UsageError, UsageErrorParser, one_line, report_error
+from scenes.objfolder import PREDICTION_FILES, object_name, write_normal_exr, write_normal_map, write_normal_visual
+from unips.data import detect_layout, find_objects, load_object
 from unips.inference import METHODS, load_network, predict_object
 
 log = logging.getLogger(__name__)
+
+
+CONSTANT_DEG = 0.5
+"""A prediction whose normals inside the mask all lie within this angle (degrees) of their mean is flagged
+as constant (`predict.json` "constant_map", a warning): a degenerate result unless the object is a plane."""
+
+
+def constant_map(normals: np.ndarray, mask: np.ndarray) -> bool:
+    """True when every normal inside the mask is within CONSTANT_DEG of their mean direction."""
+    inside = normals[mask].astype(np.float64)
+    if len(inside) < 2:
+        return False
+    mean = inside.mean(axis=0)
+    norm = np.linalg.norm(mean)
+    if norm < 1e-8:
+        return False
+    cos = inside @ (mean / norm) / np.maximum(np.linalg.norm(inside, axis=1), 1e-12)
+    return bool(np.all(cos >= np.cos(np.radians(CONSTANT_DEG))))
+
+
+def check_out_folder(folder: Path) -> None:
+    """Refuse to write into `folder` when it holds normal maps that unips.predict did not write (no
+    predict.json beside them): files this command did not create are never replaced."""
+    if folder.exists() and not folder.is_dir():
+        raise UsageError(f"--out: {str(folder)!r} is an existing file, expected a folder for the prediction")
+    if folder.is_dir() and not (folder / "predict.json").is_file():
+        theirs = [f for f in ("normal.png", "normal_vis.png", *PREDICTION_FILES) if (folder / f).exists()]
+        if theirs:
+            raise UsageError(f"--out: {str(folder)!r} already holds {', '.join(sorted(set(theirs)))} not written by "
+                             "unips.predict (no predict.json); use another --out")
 
 
 def write_prediction(out_dir: Path, normals: np.ndarray, info: dict[str, Any]) -> None:
@@ -71,43 +101,73 @@ def _check_args(args: argparse.Namespace) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """One object: a failure is one line `error: ...`, exit 2. A dataset: a failed object is recorded, the others
+    go on, the failures are listed at the end (`failed NAME: reason`) and the exit status is 1."""
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    failures: list[tuple[str, str]] = []
     try:
         args = build_parser().parse_args(argv)
         _check_args(args)
+        if args.out.exists() and not args.out.is_dir():
+            raise UsageError(f"--out: {str(args.out)!r} is an existing file, expected a folder")
         folders = find_objects(args.input)
+        single = detect_layout(args.input) is not None
         names = [object_name(f) for f in folders]
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
             raise UsageError(f"--input: several object folders share the name(s) {dup} (e.g. foo and foo.data)")
+        for name in names:
+            check_out_folder(args.out / name)
         net = load_network(args.checkpoint, args.device) if args.method == "model" else None
         from tqdm import tqdm
 
         for folder, name in tqdm(list(zip(folders, names)), desc="objects", unit="obj", file=sys.stderr,
                                  disable=len(folders) < 2):
-            obj = load_object(folder, max_images=args.max_images)
-            start = time.perf_counter()
-            normals = predict_object(obj, args.method, net=net, res=args.res)
-            elapsed = time.perf_counter() - start
-            info = {
-                "object": name,
-                "input": str(folder.resolve()),
-                "layout": obj.layout,
-                "method": args.method,
-                "checkpoint": str(net.checkpoint.resolve()) if net else None,
-                "model_name": net.meta.get("model_name") if net else None,
-                "device": args.device if net else "cpu",
-                "resolution": args.res,
-                "num_images": obj.num_images,
-                "images_used": obj.image_names,
-                "time_s": round(elapsed, 4),
-                "image_size": [int(obj.mask.shape[1]), int(obj.mask.shape[0])],
-            }
-            write_prediction(args.out / name, normals, info)
-            log.info("%s: %s in %.2f s", name, args.method, elapsed)
-    except (*INPUT_ERRORS, OSError) as exc:
+            try:
+                _predict_one(args, net, folder, name)
+            except (*INPUT_ERRORS, OSError, np.linalg.LinAlgError) as exc:
+                if single:
+                    raise
+                failures.append((name, one_line(exc)))
+                log.debug("%s failed", name, exc_info=True)
+    except (*INPUT_ERRORS, OSError, np.linalg.LinAlgError) as exc:
         return report_error(exc)
+    if failures:
+        for name, why in failures:
+            print(f"failed {name}: {why}", file=sys.stderr)
+        print(f"error: {len(failures)} of {len(folders)} object(s) failed with --method {args.method}: "
+              f"{', '.join(n for n, _ in failures)} (the others were written)", file=sys.stderr)
+        return 1
     return 0
+
+
+def _predict_one(args: argparse.Namespace, net, folder: Path, name: str) -> None:
+    obj = load_object(folder, max_images=args.max_images)
+    start = time.perf_counter()
+    normals = predict_object(obj, args.method, net=net, res=args.res)
+    elapsed = time.perf_counter() - start
+    constant = constant_map(normals, obj.mask)
+    if constant:
+        print(f"warning: {name}: --method {args.method} returned a constant normal map (all normals within "
+              f"{CONSTANT_DEG} deg of one direction): degenerate unless the object is a plane; flagged in predict.json",
+              file=sys.stderr)
+    info = {
+        "object": name,
+        "input": str(folder.resolve()),
+        "layout": obj.layout,
+        "method": args.method,
+        "checkpoint": str(net.checkpoint.resolve()) if net else None,
+        "model_name": net.meta.get("model_name") if net else None,
+        "device": args.device if net else "cpu",
+        "resolution": args.res,
+        "num_images": obj.num_images,
+        "images_used": obj.image_names,
+        "time_s": round(elapsed, 4),
+        "image_size": [int(obj.mask.shape[1]), int(obj.mask.shape[0])],
+        "constant_map": constant,
+    }
+    write_prediction(args.out / name, normals, info)
+    log.info("%s: %s in %.2f s", name, args.method, elapsed)
 
 
 if __name__ == "__main__":

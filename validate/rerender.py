@@ -33,7 +33,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from scenes.objfolder import PREDICTION_FILES, find_prediction, list_object_folders, mean_angular_error, object_name
+from scenes.cli import UsageError, UsageErrorParser, report_error
+from scenes.objfolder import find_prediction, list_object_folders, mean_angular_error, object_name
 from scenes.variant import require_jit_variant
 from validate.io import ObjectData, check_normals, load_object, read_normal_map
 from validate.metrics import expose, finite_or_none, mean_or_none, psnr, rel_l1, relative_residual_map
@@ -50,11 +51,16 @@ from validate.projection import CameraProjection
 log = logging.getLogger(__name__)
 
 SEED_MODES = ("same", "independent")
+MIN_COVERAGE = 0.9
+"""Default smallest share of the mask a prediction must cover (--min-coverage): a sparser map is refused."""
+
 SUMMARY_COLUMNS = (
     "object",
     "images",
     "mae_deg",
     "rel_l1",
+    "coverage",
+    "missing_pixels",
     "gt_rel_l1",
     "noise_floor_rel_l1",
     "reproduce_rel_l1",
@@ -62,6 +68,7 @@ SUMMARY_COLUMNS = (
     "frac_above_threshold",
     "rerender_s",
     "original_render_s",
+    "error",
 )
 
 Progress = Callable[[int, int, str], None]
@@ -88,8 +95,12 @@ class RerenderConfig:
     save_renders: bool = False
     """Also write the re-rendered images as R000.png.. (16-bit, exposure applied)."""
     allow_missing: bool = False
-    """Accept exactly-zero normals inside the mask as "no estimate": those points keep their own normal
-    (counted in missing_pixels, and as 90 deg in mae_deg). Otherwise they are an error."""
+    """Accept exactly-zero normals inside the mask as "no estimate" (counted in missing_pixels, coverage, and
+    as 90 deg in mae_deg). They can never improve a score: such a point keeps the surface's own normal for
+    light transport, but each of its pixels is scored as at least as wrong as a black render (relative residual
+    >= 1, see `penalise_missing`). Otherwise they are an error."""
+    min_coverage: float = MIN_COVERAGE
+    """Smallest share of the mask pixels that must hold an estimate (with allow_missing); a map below it is refused."""
 
     def validate(self) -> "RerenderConfig":
         if self.spp is not None and (isinstance(self.spp, bool) or not isinstance(self.spp, int) or self.spp <= 0):
@@ -98,6 +109,8 @@ class RerenderConfig:
             raise ValueError(f"--seed-mode: {self.seed_mode!r} is not one of {', '.join(SEED_MODES)}")
         if self.threshold is not None and not (np.isfinite(self.threshold) and self.threshold > 0):
             raise ValueError(f"--threshold: expected a positive number, got {self.threshold!r}")
+        if not (isinstance(self.min_coverage, (int, float)) and 0 <= self.min_coverage <= 1):
+            raise ValueError(f"--min-coverage: expected a share from 0 to 1, got {self.min_coverage!r}")
         if self.figure_rows < 1:
             raise ValueError(f"figure_rows: expected at least 1, got {self.figure_rows!r}")
         self.visibility.validate()
@@ -127,11 +140,13 @@ def _figure_rows(k: int, n: int) -> list[int]:
 
 
 def check_inputs(
-    folder: str | Path, normals: np.ndarray | str | Path, allow_missing: bool = False
+    folder: str | Path, normals: np.ndarray | str | Path, allow_missing: bool = False,
+    min_coverage: float = MIN_COVERAGE,
 ) -> tuple[ObjectData, np.ndarray, np.ndarray, str]:
     """Load an object folder and its prediction and check them against each other (no rendering).
 
-    Returns (object data, normals (renormalised where valid, 0 elsewhere), valid mask, where they came from)."""
+    Returns (object data, normals (renormalised where valid, 0 elsewhere), valid mask, where they came from).
+    A map covering less than `min_coverage` of the mask is a ValueError."""
     data = load_object(folder)
     source = "array"
     if not isinstance(normals, np.ndarray):
@@ -140,7 +155,30 @@ def check_inputs(
         normals = read_normal_map(path)
     what = f"--normals ({source})" if source != "array" else "--normals"
     pred, valid = check_normals(normals, data.mask, what, allow_missing)
+    cov = coverage(valid, data.mask)
+    if cov < min_coverage:
+        raise ValueError(f"{what}: covers {cov:.1%} of the object's {int(data.mask.sum())} mask pixels "
+                         f"({int(data.mask.sum() - valid.sum())} without an estimate), below --min-coverage {min_coverage:g}")
     return data, pred, valid, source
+
+
+def coverage(valid: np.ndarray, mask: np.ndarray) -> float:
+    """Share of the mask pixels that hold an estimate."""
+    n = int(mask.sum())
+    return float(valid[mask].sum() / n) if n else 0.0
+
+
+def penalise_missing(renders: np.ndarray, inputs: np.ndarray, missing: np.ndarray) -> np.ndarray:
+    """The renders as scored: at the `missing` pixels (no estimate) every channel whose residual is below the
+    input's own value is set to 0 (a black render), so a missing pixel's residual is max(|render - input|,
+    |input|): never below 1 relative to the input, never better than the ground truth or any estimate within
+    100 % of it. Elsewhere the renders are unchanged."""
+    if not missing.any():
+        return renders
+    out = renders.copy()
+    r, i = out[:, missing], inputs[:, missing]
+    out[:, missing] = np.where(np.abs(r - i) >= np.abs(i), r, 0.0)
+    return out
 
 
 @dataclass
@@ -264,6 +302,9 @@ def build_report(data: ObjectData, pred: np.ndarray, valid: np.ndarray, source: 
         "images_count": len(desc.images),
         "mask_pixels": int(mask.sum()),
         "missing_pixels": int(mask.sum() - valid.sum()),
+        "coverage": coverage(valid, mask),
+        "min_coverage": config.min_coverage,
+        "missing_scoring": "a pixel without an estimate scores max(|render - input|, |input|) (a black render or worse)",
         "rel_l1": avg("rel_l1"),
         "psnr": avg("psnr"),
         "gt_rel_l1": avg("gt_rel_l1"),
@@ -309,7 +350,7 @@ def write_figure(path: Path, report: dict[str, Any], inputs: np.ndarray, passes:
         res_map,
         gt_map,
         pred,
-        title=f"{report['object']}: rel_l1 {report['rel_l1']:.4f}"
+        title=f"{report['object']}: rel_l1 {report['rel_l1']:.4f}, coverage {report['coverage']:.1%}"
         + (f" (GT normals {report['gt_rel_l1']:.4f})" if report["gt_rel_l1"] is not None else "")
         + (f", MAE {report['mae_deg']:.2f} deg" if report["mae_deg"] is not None else ""),
     )
@@ -331,7 +372,7 @@ def rerender_object(
     config = (config or RerenderConfig()).validate()
     mi = require_jit_variant()
     t_start = time.perf_counter()
-    data, pred, valid, source = check_inputs(folder, normals, config.allow_missing)
+    data, pred, valid, source = check_inputs(folder, normals, config.allow_missing, config.min_coverage)
     desc, mask = data.desc, data.mask
     k = len(desc.images)
     spp = int(config.spp or desc.render.spp)
@@ -349,6 +390,7 @@ def rerender_object(
             progress(done, total, f"{data.name}: {label}")
 
     passes = render_passes(data, pred, valid, config, spp, seeds, fresh, tick)
+    passes.renders = penalise_missing(passes.renders, data.images, mask & ~valid)
     per_image = score_images(passes, data.images, mask, desc, seeds)
     res_map, gt_map, threshold, threshold_source, frac = score_maps(passes, data.images, mask, config.threshold)
     report = build_report(data, pred, valid, source, passes, per_image, threshold, threshold_source, frac, config,
@@ -376,26 +418,40 @@ def rerender_dataset(
     config: RerenderConfig | None = None,
     out_dir: str | Path | None = None,
     progress: Progress | None = None,
+    failed: dict[str, str] | None = None,
 ) -> list[dict]:
     """Run `rerender_object` on every `*.data` folder of `data_dir` with `pred_dir/<object>/normal.*`;
-    write `out_dir/summary.csv`. Every prediction is located before anything is rendered."""
+    write `out_dir/summary.csv`. Every prediction is located and checked before anything is rendered.
+
+    An object whose prediction is missing or unusable, or whose check fails, is recorded in `failed`
+    (object name -> reason) and the others go on; without a `failed` dict the first failure raises."""
+    config = (config or RerenderConfig()).validate()
     folders = list_object_folders(data_dir)
+    errors: dict[str, str] = {}
     preds = {}
-    missing = []
-    for f in folders:
+    for f in folders:  # every input is checked before the first (slow) render
         try:
             preds[f] = find_prediction(Path(pred_dir) / object_name(f))
-        except FileNotFoundError:
-            missing.append(object_name(f))
-    if missing:
-        raise FileNotFoundError(
-            f"--normals: no {'/'.join(PREDICTION_FILES)} for {len(missing)} object(s) under {str(pred_dir)!r}: {', '.join(missing[:5])}"
-        )
-    for f in folders:  # every input is checked before the first (slow) render
-        check_inputs(f, preds[f], (config or RerenderConfig()).allow_missing)
-    reports = [rerender_object(f, preds[f], config, out_dir, progress) for f in folders]
+            check_inputs(f, preds[f], config.allow_missing, config.min_coverage)
+        except (ValueError, FileNotFoundError) as exc:
+            if failed is None:
+                raise
+            preds.pop(f, None)
+            errors[object_name(f)] = " ".join(str(exc).split())
+    reports = []
+    for f in folders:
+        if f not in preds:
+            continue
+        try:
+            reports.append(rerender_object(f, preds[f], config, out_dir, progress))
+        except (ValueError, FileNotFoundError, RuntimeError) as exc:  # RuntimeError: Mitsuba on this scene
+            if failed is None:
+                raise
+            errors[object_name(f)] = " ".join(str(exc).split())
+    if failed is not None:
+        failed.update(errors)
     if out_dir is not None:
-        write_summary(Path(out_dir) / "summary.csv", reports)
+        write_summary(Path(out_dir) / "summary.csv", reports, errors)
     return reports
 
 
@@ -405,6 +461,8 @@ def summary_row(report: dict) -> dict:
         "images": report["images_count"],
         "mae_deg": report["mae_deg"],
         "rel_l1": report["rel_l1"],
+        "coverage": report.get("coverage"),
+        "missing_pixels": report.get("missing_pixels"),
         "gt_rel_l1": report["gt_rel_l1"],
         "noise_floor_rel_l1": report["noise_floor_rel_l1"],
         "reproduce_rel_l1": report["reproduce_rel_l1"],
@@ -412,23 +470,30 @@ def summary_row(report: dict) -> dict:
         "frac_above_threshold": report["frac_above_threshold"],
         "rerender_s": report["timings"]["rerender_s"],
         "original_render_s": report["timings"]["original_render_s"],
+        "error": None,
     }
 
 
-def write_summary(path: str | Path, reports: list[dict]) -> None:
+def failed_row(name: str, error: str) -> dict:
+    """A summary row of an object whose check failed: no scores, the reason in `error`."""
+    return {**{c: None for c in SUMMARY_COLUMNS}, "object": name, "error": error}
+
+
+def write_summary(path: str | Path, reports: list[dict], failed: dict[str, str] | None = None) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    rows = [summary_row(r) for r in reports] + [failed_row(n, e) for n, e in (failed or {}).items()]
     with open(path, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(SUMMARY_COLUMNS))
         writer.writeheader()
-        for r in reports:
-            writer.writerow({k: ("" if v is None else v) for k, v in summary_row(r).items()})
+        for row in rows:
+            writer.writerow({k: ("" if v is None else v) for k, v in row.items()})
 
 
-def format_table(reports: list[dict]) -> str:
-    """Plain-text table of the summary rows (None shown as '-')."""
+def format_table(reports: list[dict], failed: dict[str, str] | None = None) -> str:
+    """Plain-text table of the summary rows (None shown as '-'); failed objects are listed below it."""
     rows = [summary_row(r) for r in reports]
-    cols = list(SUMMARY_COLUMNS)
+    cols = [c for c in SUMMARY_COLUMNS if c != "error"]
 
     def fmt(v: Any) -> str:
         if v is None:
@@ -441,11 +506,12 @@ def format_table(reports: list[dict]) -> str:
     widths = [max(len(c), *(len(row[j]) for row in cells)) if cells else len(c) for j, c in enumerate(cols)]
     lines = ["  ".join(c.ljust(wd) for c, wd in zip(cols, widths))]
     lines += ["  ".join(v.ljust(wd) for v, wd in zip(row, widths)) for row in cells]
+    lines += [f"{name}  FAILED: {why}" for name, why in (failed or {}).items()]
     return "\n".join(lines)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = UsageErrorParser(
         prog="python -m validate.rerender",
         description="Re-render the known scenes of an object (or dataset) with predicted normals and compare with the inputs.",
     )
@@ -466,16 +532,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--allow-missing",
         action="store_true",
-        help="zero normals inside the mask mean 'no estimate': keep the surface's own normal there (reported)",
+        help="zero normals inside the mask mean 'no estimate': counted (missing_pixels, coverage) and scored as at "
+        "least as wrong as a black render, never better",
     )
+    p.add_argument("--min-coverage", type=float, default=MIN_COVERAGE,
+                   help="smallest share of the mask that must hold an estimate; a sparser map is refused (default %(default)s)")
     p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    """One object: a failure is one line `error: ...`, exit 2. A dataset: a failed object is recorded (summary.csv
+    row with its error), the others go on, the failures are listed at the end and the exit status is 1."""
+    failed: dict[str, str] = {}
     try:
+        args = build_parser().parse_args(argv)
+        logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
+                            format="%(levelname)s %(name)s: %(message)s")
         config = RerenderConfig(
             spp=args.spp,
             seed_mode=args.seed_mode,
@@ -484,6 +557,7 @@ def main(argv: list[str] | None = None) -> int:
             threshold=args.threshold,
             save_renders=args.save_renders,
             allow_missing=args.allow_missing,
+            min_coverage=args.min_coverage,
         ).validate()
         data = Path(args.data)
         if not data.is_dir():
@@ -493,6 +567,8 @@ def main(argv: list[str] | None = None) -> int:
             list_object_folders(data)  # fails early with a clear message
         if not Path(args.normals).exists():
             raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
+        if Path(args.out).exists() and not Path(args.out).is_dir():
+            raise UsageError(f"--out: {args.out!r} is an existing file, expected a folder")
 
         from scenes.variant import choose_variant
 
@@ -513,19 +589,24 @@ def main(argv: list[str] | None = None) -> int:
 
         try:
             if single:
-                check_inputs(data, args.normals, config.allow_missing)
+                check_inputs(data, args.normals, config.allow_missing, config.min_coverage)
                 reports = [rerender_object(data, args.normals, config, args.out, progress)]
                 write_summary(Path(args.out) / "summary.csv", reports)
             else:
-                reports = rerender_dataset(data, args.normals, config, args.out, progress)
+                reports = rerender_dataset(data, args.normals, config, args.out, progress, failed=failed)
         finally:
             for bar in bars:
                 bar.close()
-    except (ValueError, FileNotFoundError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    print(format_table(reports))
+    except (UsageError, ValueError, FileNotFoundError, OSError) as exc:
+        return report_error(exc)
+    print(format_table(reports, failed))
     print(f"reports in {args.out}/<object>/report.json, table in {args.out}/summary.csv")
+    if failed:
+        for name, why in failed.items():
+            print(f"failed {name}: {why}", file=sys.stderr)
+        print(f"error: {len(failed)} of {len(failed) + len(reports)} object(s) failed: {', '.join(failed)} "
+              "(the others were checked)", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -2,7 +2,7 @@
 
 Every object is a pure function of (config, index) (`make_object`), so a dataset can be made in any
 order, by any number of workers, interrupted and resumed, and the object folders come out
-byte-identical. Only the parent process writes `manifest.json`, atomically, after each object
+byte-identical (with one Dr.Jit thread per worker; see the README for more threads). Only the parent process writes `manifest.json`, atomically, after each object
 (throttled when the manifest gets large, see `ManifestWriter`).
 
 Resuming: when `DIR/manifest.json` exists with the same configuration (the object count may grow),
@@ -36,6 +36,7 @@ log = logging.getLogger(__name__)
 MANIFEST = "manifest.json"
 LOCK = ".wildgen.lock"
 OBJECT_FOLDER = re.compile(r"^\d{5,}\.data$")
+TMP_FOLDER = re.compile(r"^" + re.escape(TMP_PREFIX) + r"\d{5,}\.data\.\d+$")  # `writer.write_object`'s temporary names
 # Config fields that may differ between runs into the same folder: the object count only extends it.
 NOT_IDENTITY = ("objects", "variant")
 
@@ -90,7 +91,8 @@ def load_manifest(out_dir: str | Path) -> dict | None:
 
 def config_differences(manifest: dict, cfg: GenConfig) -> list[str]:
     """Fields (other than the object count and the requested variant) where `cfg` differs from the manifest's."""
-    old, new = manifest["config"], cfg.to_dict()
+    # A key an older manifest lacks was added later with its default value.
+    old, new = {**GenConfig().to_dict(), **manifest["config"]}, cfg.to_dict()
     keys = sorted((set(old) | set(new)) - set(NOT_IDENTITY))
     return [k for k in keys if old.get(k) != new.get(k)]
 
@@ -145,6 +147,8 @@ def clean_leftovers(out_dir: Path) -> list[Path]:
     """Remove temporary folders of interrupted objects; returns what was removed."""
     removed = []
     for p in sorted(Path(out_dir).glob(f"{TMP_PREFIX}*")):
+        if not TMP_FOLDER.match(p.name):  # not a name this tool writes: never touched
+            continue
         shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
         removed.append(p)
     return removed
@@ -173,13 +177,22 @@ class Plan:
 def plan_run(cfg: GenConfig, out_dir: Path, variant: str, overwrite: bool = False) -> Plan:
     """Decide which objects to render; removes leftovers and corrupt folders. Call under `dataset_lock`.
 
-    Raises DatasetError when the folder holds a dataset of another configuration or variant (unless
-    `overwrite`, which deletes the existing object folders and manifest first).
+    Raises DatasetError when the folder holds a dataset of another configuration or variant, or, without
+    a manifest, anything under a name this run would write (`00000.data`...): files this tool did not
+    write are never replaced. `overwrite` deletes the existing object folders and manifest first.
     """
     out_dir = Path(out_dir)
     plan = Plan()
-    plan.leftovers = len(clean_leftovers(out_dir))
     manifest = None if overwrite else load_manifest(out_dir)
+    if manifest is None and not overwrite:
+        foreign = [n for n in (f"{index_name(i)}.data" for i in range(cfg.objects)) if os.path.lexists(out_dir / n)]
+        if foreign:
+            raise DatasetError(
+                f"--out: {str(out_dir)!r} already holds {', '.join(foreign[:3])}{' ...' if len(foreign) > 3 else ''} "
+                f"({len(foreign)} name(s) this run would write) but no manifest.json of wildgen.make; "
+                "use another folder, or --overwrite to replace them"
+            )
+    plan.leftovers = len(clean_leftovers(out_dir))
     if overwrite:
         _remove_dataset(out_dir)
     if manifest is not None:

@@ -6,12 +6,13 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 import time
 from pathlib import Path
 
-from scenes.cli import report_error
-from wildgen.config import LIGHT_FAMILIES, GenConfig
+from scenes.cli import UsageError, UsageErrorParser, report_error
+from wildgen.config import LIGHT_FAMILIES, VARIANTS, GenConfig
 
 DEFAULTS = GenConfig()
 
@@ -33,7 +34,7 @@ class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = UsageErrorParser(
         prog="python -m wildgen.make",
         description="Render a PS-Wild-style photometric stereo dataset with Mitsuba 3 (one <object>.data folder per object).",
         formatter_class=_HelpFormatter,
@@ -55,7 +56,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--shapes", choices=["procedural", "mesh", "any"], default=DEFAULTS.shapes, help="shape source (mesh needs --assets)")
     p.add_argument("--entropy-threshold", type=float, default=DEFAULTS.entropy_threshold, help="minimum visible-normal entropy in bits")
     p.add_argument("--gt-spp", type=int, default=DEFAULTS.gt_spp, help="samples per pixel of the ground-truth pass")
-    p.add_argument("--variant", default=None, help="Mitsuba variant (default: cuda_ad_rgb, else llvm_ad_rgb, else scalar_rgb)")
+    p.add_argument("--variant", default=None,
+                   help=f"Mitsuba variant: auto (default: cuda_ad_rgb, else llvm_ad_rgb, else scalar_rgb) or one of {', '.join(VARIANTS)}")
     p.add_argument("--threads", type=int, default=None,
                    help="Dr.Jit threads per worker (default: cores // workers, at least 1; with --ray: 1)")
     p.add_argument("--workers", type=int, default=None,
@@ -83,7 +85,8 @@ def config_from_args(args: argparse.Namespace) -> GenConfig:
         lights=_families(args.lights) if args.lights else ["near_area"],
         objects=args.objects, images=args.images, width=width, height=height, spp=args.spp, bounces=args.bounces,
         camera=args.camera, seed=args.seed, materials=args.materials, assets=args.assets, shapes=args.shapes,
-        entropy_threshold=args.entropy_threshold, gt_spp=args.gt_spp, variant=args.variant,
+        entropy_threshold=args.entropy_threshold, gt_spp=args.gt_spp,
+        variant=None if args.variant in (None, "auto") else args.variant,
     ).validate()
 
 
@@ -123,7 +126,7 @@ def _summary(entries: dict[int, dict], rendered: dict[str, int], plan, seconds: 
     if plan.complete:
         detail.append(f"{plan.complete} already complete")
     if plan.rejected + rendered.get("skipped", 0):
-        detail.append(f"{plan.rejected + rendered.get('skipped', 0)} rejected by the entropy rule")
+        detail.append(f"{plan.rejected + rendered.get('skipped', 0)} rejected by the entropy rule or the ground-truth check")
     line = f"{done} done, {skipped} skipped, {failed} failed" + (f" ({', '.join(detail)})" if detail else "")
     return f"{line} in {seconds:.1f} s [{variant}, {how}]", failed
 
@@ -140,6 +143,9 @@ def check_flags(args: argparse.Namespace, explicit: set[str]) -> None:
         raise ValueError("--workers: local workers and --ray are exclusive (Ray schedules by its CPUs)")
     if args.resume and args.overwrite:
         raise ValueError("--resume: cannot be combined with --overwrite")
+    if args.res is not None and explicit & {"width", "height"}:
+        given = " and ".join(f"--{f}" for f in ("width", "height") if f in explicit)
+        raise ValueError(f"--res: sets both sides; it cannot be combined with {given} (use --res R or --width W --height H)")
     if args.ray is not None:
         from wildgen.parallel import RAY_INSTALL, ray_available
 
@@ -164,6 +170,9 @@ def resolve_run(args: argparse.Namespace, explicit: set[str], out: Path) -> tupl
     lib = AssetLibrary.scan(cfg.assets)  # fail early on a bad asset folder
     if cfg.shapes == "mesh" and not lib.meshes:
         raise ValueError(f"--shapes: 'mesh' needs an --assets folder with meshes/, {cfg.assets!r} has none")
+    check_memory(cfg, args.workers, args.ray is not None)
+    lib.check()  # every asset decoded once, here: a bad file is named now, not retried in every object
+    check_out(out)
     from scenes.variant import choose_variant
 
     requested = cfg.variant or (manifest.get("variant") if manifest and "variant" not in explicit else None)
@@ -173,6 +182,55 @@ def resolve_run(args: argparse.Namespace, explicit: set[str], out: Path) -> tupl
 
         dr.set_thread_count(args.threads)
     return cfg, variant
+
+
+def available_memory() -> int | None:
+    """Bytes of memory available to new allocations (Linux MemAvailable), or None when unknown."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return None
+
+
+def _gib(n: float) -> str:
+    return f"{n / 2**30:.1f} GiB"
+
+
+def check_memory(cfg: GenConfig, workers: int | None, ray: bool) -> None:
+    """Refuse sizes this machine cannot hold (`GenConfig.memory_per_object` x concurrent workers)."""
+    from wildgen.parallel import default_workers
+
+    available = available_memory()
+    if available is None:
+        return
+    per_object = cfg.memory_per_object()
+    concurrent = 1 if ray or workers == 0 else (workers or default_workers(cfg.objects))
+    need = per_object * concurrent
+    if need > available:
+        who = f" x {concurrent} workers" if concurrent > 1 else ""
+        raise ValueError(
+            f"--res/--images/--spp: one object at {cfg.width}x{cfg.height} px, {cfg.images} images, {cfg.spp} spp needs "
+            f"about {_gib(per_object)}{who} = {_gib(need)} of memory, this machine has {_gib(available)} available; "
+            "lower --res, --images, --spp or --workers"
+        )
+
+
+def check_out(out: Path) -> None:
+    """--out must be a folder this process can create and write (checked before anything is written)."""
+    import os
+
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out: {str(out)!r} is an existing file, expected a folder (new or a dataset of wildgen.make)")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"--out: cannot create the folder {str(out)!r} ({exc.strerror or exc})") from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise ValueError(f"--out: the folder {str(out)!r} is not writable")
 
 
 class _Progress:
@@ -215,17 +273,40 @@ def _engine_description(used: dict, plan) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
-    out = Path(args.out)
+    import signal
+
+    from wildgen import parallel
+
+    state: dict = {}
+
+    def on_signal(signum, frame):  # Ctrl-C and SIGTERM (schedulers stop jobs with it): one clean stop
+        state["signal"] = signum
+        parallel.STOP_SIGNALS.append(signum)  # seen even when a native call turns the interrupt into an error
+        raise KeyboardInterrupt
+
+    handled = (signal.SIGINT, signal.SIGTERM)
+    previous = {s: signal.signal(s, on_signal) for s in handled} if _main_thread() else {}
     try:
+        return _run(argv, state)
+    except KeyboardInterrupt:
+        print("interrupted: finished objects are kept; re-run the same command to continue", file=sys.stderr)
+        return 128 + state.get("signal", signal.SIGINT)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+        parallel.STOP_SIGNALS.clear()
+
+
+def _run(argv: list[str] | None, state: dict) -> int:
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    try:
+        args = build_parser().parse_args(argv)
+        out = Path(args.out)
         explicit = _explicit_flags(argv)
         check_flags(args, explicit)
         cfg, variant = resolve_run(args, explicit, out)
-    except (ValueError, FileNotFoundError) as exc:
+    except (UsageError, ValueError, OSError) as exc:
         return report_error(exc)
-
-    import signal
 
     from tqdm.contrib.logging import logging_redirect_tqdm
 
@@ -236,32 +317,31 @@ def main(argv: list[str] | None = None) -> int:
                            max_retries=args.max_retries, recycle_after=args.recycle_after)
     t0 = time.perf_counter()
     bar = _Progress(cfg, out, args.quiet)
-    state: dict = {}
-
-    def on_sigterm(signum, frame):  # schedulers stop jobs with SIGTERM: same clean stop as Ctrl-C
-        state["signal"] = signum
-        raise KeyboardInterrupt
-
-    previous = signal.signal(signal.SIGTERM, on_sigterm) if _main_thread() else None
     try:
         with logging_redirect_tqdm():  # warnings (retries, failures) print above the bar, not through it
             entries = make_dataset(cfg, out, variant, bar.progress, engine=engine, overwrite=args.overwrite,
                                    on_plan=bar.on_plan, extra={"run": engine.used})
-    except (ValueError, FileNotFoundError, ImportError, WorkersCannotStart) as exc:
+    except (ValueError, OSError, ImportError, WorkersCannotStart) as exc:
         bar.close()
         return report_error(exc)
     except KeyboardInterrupt:
         bar.close()
-        print("interrupted: finished objects are kept; re-run the same command to continue", file=sys.stderr)
-        return 128 + state.get("signal", signal.SIGINT)
-    finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        raise
     bar.close()
     how = _engine_description(getattr(engine, "used", {}), bar.plan)
     line, failed = _summary(entries, bar.rendered, bar.plan, time.perf_counter() - t0, variant, how)
     print(line)
-    return 1 if failed else 0
+    for e in sorted(entries.values(), key=lambda e: e["index"]):
+        if e.get("status") == "failed":
+            print(f"failed {e['name']}: {e.get('error', '?')}", file=sys.stderr)
+    if failed:
+        return 1
+    if entries and not any(e.get("status") == "done" for e in entries.values()):
+        first = next(e for e in entries.values() if e.get("status") == "skipped")
+        print(f"error: none of the {len(entries)} object(s) was written, all were rejected (first: {first.get('reason')})",
+              file=sys.stderr)
+        return 1
+    return 0
 
 
 def _main_thread() -> bool:
@@ -271,4 +351,12 @@ def _main_thread() -> bool:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    code = main()
+    if code in (130, 143):
+        # Interrupted: everything is cleaned up and reported. An interrupt that arrived inside a native import
+        # leaves CPython's "unhandled KeyboardInterrupt" flag set, which would turn this exit into a kill by
+        # SIGINT; leave with the documented status instead.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    sys.exit(code)

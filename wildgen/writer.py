@@ -2,7 +2,7 @@
 then rename), and its manifest entry (`make_object`, the unit of work every engine runs).
 
 The folder holds no timestamps or host names (those go into the manifest), so the same seed gives
-byte-identical folders.
+byte-identical folders with one Dr.Jit thread (more threads add samples in an unordered way: see README).
 """
 from __future__ import annotations
 
@@ -121,8 +121,37 @@ def exposure_for(radiance: np.ndarray, mask: np.ndarray, percentile: float, leve
     return float(level / p) if p > 1e-12 else 1.0
 
 
-def write_object(sampled: SampledObject, out_dir: Path, percentile: float, level: float) -> ObjectResult:
-    """Render `sampled` and write `out_dir/<name>.data`, atomically. Returns the manifest entry."""
+def ground_truth_problem(normal: np.ndarray, mask: np.ndarray, camera, max_backfacing: float) -> str | None:
+    """Why a rendered ground truth is unusable, or None: an empty mask, non-finite normals inside it, or more
+    than `max_backfacing` of them facing away from the camera (e.g. a mesh with coincident opposite faces
+    gives noise normals, about half of them facing away)."""
+    import math
+
+    n = int(mask.sum())
+    if n == 0:
+        return "the object covers no pixel (empty mask)"
+    inside = normal[mask].astype(np.float64)
+    bad = int((~np.isfinite(inside).all(axis=1)).sum())
+    if bad:
+        return f"{bad} of {n} ground-truth normals inside the mask are NaN or infinite"
+    # Camera frame, z toward the camera: a visible normal has n_z >= 0 under an orthographic camera, and
+    # n_z >= -sin(half the diagonal field of view) under a perspective one.
+    tol = 0.0
+    if camera.kind == "perspective":
+        half = math.atan(math.tan(math.radians(camera.fov) / 2) * math.hypot(1.0, camera.height / camera.width))
+        tol = math.sin(half)
+    away = float(np.mean(inside[:, 2] < -tol - 1e-3))
+    if away > max_backfacing:
+        return (f"{away:.0%} of the ground-truth normals inside the mask face away from the camera (at most "
+                f"{max_backfacing:.0%} accepted; a mesh with coincident opposite faces or inverted normals?)")
+    return None
+
+
+def write_object(sampled: SampledObject, out_dir: Path, percentile: float, level: float,
+                 max_backfacing: float = 0.1) -> ObjectResult:
+    """Render `sampled` and write `out_dir/<name>.data`, atomically. Returns the manifest entry.
+
+    Raises SkippedObject (nothing written) when the ground truth fails `ground_truth_problem`."""
     name = sampled.desc.name
     final = out_dir / f"{name}{OBJECT_SUFFIX}"
     tmp = out_dir / f"{TMP_PREFIX}{name}{OBJECT_SUFFIX}.{os.getpid()}"
@@ -138,6 +167,9 @@ def write_object(sampled: SampledObject, out_dir: Path, percentile: float, level
         t0 = time.perf_counter()
         gt = render_ground_truth(built)
         timings["ground_truth_s"] = time.perf_counter() - t0
+        problem = ground_truth_problem(gt.normal, gt.mask, desc.camera, max_backfacing)
+        if problem is not None:
+            raise SkippedObject(f"object {name}: ground truth rejected: {problem}")
         t0 = time.perf_counter()
         radiance = render_images(built)
         timings["render_s"] = time.perf_counter() - t0
@@ -190,10 +222,10 @@ def make_object(cfg: GenConfig, index: int, out_dir: Path, lib: AssetLibrary | N
     t0 = time.perf_counter()
     try:
         sampled = sample_object(cfg, index, lib, name=name)
-    except SkippedObject as exc:
+        result = write_object(sampled, Path(out_dir), cfg.exposure_percentile, cfg.exposure_level, cfg.max_backfacing)
+    except SkippedObject as exc:  # the entropy rule or the ground-truth check: deterministic, recorded with its reason
         log.info("%s", exc)
         return {"index": index, "name": name, "status": "skipped", "reason": str(exc)}
-    result = write_object(sampled, Path(out_dir), cfg.exposure_percentile, cfg.exposure_level)
     entry = {"index": index, "status": "done", **asdict(result)}
     entry["timings"]["total_s"] = time.perf_counter() - t0
     return entry
