@@ -381,7 +381,9 @@ def field_docs(cls: type) -> dict[str, str]:
 
 def build_parser() -> argparse.ArgumentParser:
     """The CLI of `TrainConfig`: one flag per field, help from the field's docstring."""
-    p = argparse.ArgumentParser(prog="python -m unips.train", description=__doc__.split("\n\n")[0])
+    from scenes.cli import UsageErrorParser
+
+    p = UsageErrorParser(prog="python -m unips.train", description=__doc__.split("\n\n")[0])
     docs = field_docs(TrainConfig)
     defaults = TrainConfig()
     for f in dataclasses.fields(TrainConfig):
@@ -651,14 +653,14 @@ def train(cfg: TrainConfig | argparse.Namespace) -> dict[str, Any]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """CLI entry point; returns the process exit status."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    from scenes.cli import INPUT_ERRORS, report_error
+
     try:
+        args = build_parser().parse_args(argv)
+        logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
         summary = train(config_from_args(args))
-    except (ValueError, FileNotFoundError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    except INPUT_ERRORS as exc:
+        return report_error(exc)
     msg = f"trained steps {summary['start']}..{summary['steps']}, last loss {summary.get('last_loss')}"
     if summary.get("best_val") is not None:
         msg += f", best validation mean angular error {summary['best_val']:.2f} deg"
