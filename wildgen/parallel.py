@@ -12,11 +12,9 @@ that do not survive fork). Each one sets its Mitsuba variant and Dr.Jit thread c
 one object at a time, and is replaced after `recycle_after` objects to bound memory. Local workers
 die with their parent (Linux PR_SET_PDEATHSIG), so killing the driver leaves no orphan writing files.
 
-Each object is a pure function of (config, index): with one Dr.Jit thread per worker its bytes do not
-depend on the engine or the number of workers. With more threads, the order in which threads add samples
-into a pixel is not fixed, so the float radiance can differ in its last bits from run to run (and rarely a
-16-bit PNG value by one step); tests/test_wildgen_scale.py compares engines at a size where this does not
-show, and the README states the guarantee.
+Each object is a pure function of (config, index): its bytes depend neither on the engine, the number of
+workers nor the Dr.Jit threads per worker (scenes.render.render_film sums each pixel's samples in a fixed
+order; tests/test_determinism.py, tests/test_wildgen_scale.py; the README states the guarantee).
 """
 from __future__ import annotations
 
