@@ -9,7 +9,7 @@ setup:
 	EXTRAS=$(EXTRAS) bash scripts/setup.sh
 
 demo: setup
-	$(PY) -m unips.demo --out $(DEMO_OUT)
+	$(PY) -m orchestrate.demo --out $(DEMO_OUT)
 
 test: setup
 	$(PY) -m pytest -q -x --durations=15 tests

@@ -86,7 +86,7 @@ def blender_version(blender: str) -> str:
 def make_scene(out: Path, res: int, seed: int, bounces: int, materials: str = "any") -> tuple[Path, dict, int]:
     """One 'mixed' wildgen object; returns its folder, scene.json and an image with one area light + the envmap."""
     from wildgen.config import GenConfig
-    from wildgen.dataset import make_object
+    from wildgen.writer import make_object
 
     for index in range(50):
         cfg = GenConfig(lights=["mixed"], objects=1, images=10, width=res, height=res, spp=4, gt_spp=16, seed=seed,
@@ -283,7 +283,7 @@ json.dump({"times": times}, open(job["times_out"], "w"))
 def blender_job(folder: Path, scene: dict, lights: dict[str, list[dict]], renders: list[dict], threads: int,
                 area_factor: float, out: Path) -> dict:
     """Everything the Blender script needs, converted to Blender's frame (z up)."""
-    from scenes.mitsuba_build import camera_rotation
+    from scenes.geometry import camera_rotation
 
     M = TO_BLENDER
     M4 = np.eye(4)
@@ -342,7 +342,7 @@ def blender_job(folder: Path, scene: dict, lights: dict[str, list[dict]], render
 
 def rgb_copy(folder: Path, rel: str) -> str:
     """An RGB copy of a texture EXR next to it (same values in every channel for scalar maps)."""
-    from scenes.imageio import read_exr, write_exr
+    from scenes.objfolder import read_exr, write_exr
 
     arr = read_exr(folder / rel)
     if arr.shape[2] == 3:
@@ -479,7 +479,7 @@ def main() -> int:
         lin_m = mi_images[("both", ref)][mask].mean() / (mi_images[("area", ref)][mask].mean() + mi_images[("env", ref)][mask].mean())
         print(f"both / (area + env) on object pixels: Cycles {lin_c:.4f}, Mitsuba {lin_m:.4f}")
 
-        from scenes.mitsuba_build import camera_rotation
+        from scenes.geometry import camera_rotation
 
         cam = scene["camera"]
         R = camera_rotation(cam["origin"], cam["target"], cam["up"])

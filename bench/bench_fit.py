@@ -49,7 +49,7 @@ def model_and_ls(folder: Path, net):
     """(least squares with the folder's calibrated lights or None, model prediction) as full-size maps."""
     from unips.baselines import least_squares
     from unips.data import load_object
-    from unips.predict import predict_object
+    from unips.inference import predict_object
 
     obj = load_object(folder)
     ls = least_squares(obj) if obj.light_directions is not None else None
@@ -60,7 +60,7 @@ def diligent(args, net, out: dict) -> None:
     from validate.capture import downsample_normals, load_capture
     from validate.fit import FitConfig, fit_normals, prepare
     from validate.lights import angular_errors_deg, directions_of
-    from validate.metrics import mae_deg
+    from scenes.objfolder import mean_angular_error as mae_deg
     from validate.refine import RefineConfig, refine_object
 
     for name in ("ball", "cat"):
@@ -117,7 +117,7 @@ def diligent(args, net, out: dict) -> None:
 def synthetic(args, net, out: dict) -> None:
     from validate.capture import load_capture
     from validate.fit import FitConfig, fit_normals
-    from validate.metrics import mae_deg
+    from scenes.objfolder import mean_angular_error as mae_deg
     from validate.refine import RefineConfig, refine_object
     from validate.rerender import RerenderConfig, rerender_object
 
@@ -178,7 +178,7 @@ def main(argv: list[str] | None = None) -> int:
     args.synthetic_angles = [float(a) for a in args.synthetic_angles.split(",")]
     args.kinds = args.kinds.split(",")
     from scenes.variant import choose_variant
-    from unips.predict import load_network
+    from unips.inference import load_network
 
     choose_variant("llvm_ad_rgb")
     net = load_network(None)

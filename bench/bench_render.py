@@ -31,7 +31,7 @@ def main() -> int:
     from scenes.variant import choose_variant
     from wildgen.assets import AssetLibrary
     from wildgen.config import GenConfig
-    from wildgen.dataset import make_object
+    from wildgen.writer import make_object
 
     variant = choose_variant(args.variant)
     print(f"variant {variant}, {args.res}x{args.res}, {args.spp} spp, {args.images} images/object, {args.objects} objects/family")

@@ -1,6 +1,6 @@
 """Environment maps as float32 (H, W, 3) equirectangular arrays: files and seeded procedural maps.
 
-Mitsuba's convention (see shared facts): texel row 0 is the +y pole, theta = pi i / (H - 1),
+Mitsuba's `envmap` convention (its plugin source): texel row 0 is the +y pole, theta = pi i / (H - 1),
 phi = 2 pi (j + 0.5) / W, local direction (sin phi sin theta, cos theta, -cos phi sin theta).
 """
 from __future__ import annotations
@@ -71,7 +71,7 @@ def load_environment(path: Path) -> np.ndarray:
     """Equirectangular .hdr/.exr file -> float32 (H, W, 3) RGB."""
     import cv2
 
-    from scenes.imageio import read_exr
+    from scenes.objfolder import read_exr
 
     if not path.is_file():
         raise FileNotFoundError(f"environment.file: {str(path)!r} does not exist")

@@ -28,6 +28,11 @@ def load_mesh(path: str | Path, normalize: bool = True) -> MeshData:
         raise FileNotFoundError(f"shape.file: mesh file {str(path)!r} does not exist")
     if path.suffix.lower() not in MESH_SUFFIXES:
         raise ValueError(f"shape.file: {str(path)!r} has suffix {path.suffix!r}, expected one of {MESH_SUFFIXES}")
+    if path.suffix.lower() == ".obj":  # a text format: refuse binary garbage here, not deep inside trimesh
+        try:
+            path.read_bytes().decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise ValueError(f"shape.file: {str(path)!r} is not a text OBJ file (byte {exc.start} is not UTF-8 text)") from None
     own = _read_own_ply(path)
     if own is not None:
         if normalize:
@@ -36,6 +41,8 @@ def load_mesh(path: str | Path, normalize: bool = True) -> MeshData:
         return MeshData(pos.astype(np.float32), faces.astype(np.int32), nrm.astype(np.float32), uv.astype(np.float32))
     try:
         loaded = trimesh.load(str(path), process=False, force="mesh")
+    except ImportError as exc:  # an optional decoder trimesh wants for this file: the file is the problem
+        raise ValueError(f"shape.file: cannot read mesh {str(path)!r}: not a mesh trimesh can decode ({exc.name or exc})") from exc
     except Exception as exc:  # trimesh raises many types for corrupt files
         raise ValueError(f"shape.file: cannot read mesh {str(path)!r}: {type(exc).__name__}: {exc}") from exc
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.vertices) == 0 or len(loaded.faces) == 0:
@@ -93,7 +100,7 @@ _OWN_PLY_PROPS = [b"x", b"y", b"z", b"nx", b"ny", b"nz", b"s", b"t"]
 
 
 def _read_own_ply(path: Path):
-    """Exact reader for the binary PLY layout `scenes.mitsuba_build.write_mesh_ply` writes; else None."""
+    """Exact reader for the binary PLY layout `scenes.geometry.write_mesh_ply` writes; else None."""
     if path.suffix.lower() != ".ply":
         return None
     raw = path.read_bytes()

@@ -14,70 +14,32 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
 from scenes.description import LightDesc, SceneDescription, TextureDesc
 from scenes.envmaps import realize_environment
-from scenes.procedural import MeshData, generate
+from scenes.geometry import mesh_data_for, transformed_mesh
+from scenes.procedural import MeshData
 from scenes.textures import realize_texture
+from scenes.variant import require_variant
 
 log = logging.getLogger(__name__)
 
 PARK_POSITION = [0.0, 1.0e5, 0.0]  # where unused area lights wait: far above, invisibly small
 PARK_SCALE = 1.0e-6
+SCALAR_PARK = ([0.0, 1.0e3, 0.0], 1.0e-3)
+"""scalar_rgb computes a rectangle's area from its float32 corners: at 1e5 corners 2e-6 apart coincide (zero
+area, "no probability mass"), so there unused area lights wait nearer and larger (corners 2e-3 apart at 1e3).
+The JIT variants keep the original place: it changes no byte of their renders."""
 
 
-def _mi():
-    import mitsuba as mi
-
-    if mi.variant() is None:
-        raise RuntimeError("no Mitsuba variant is set: call scenes.variant.set_variant() in the entry point")
-    return mi
-
-
-def camera_rotation(origin, target, up) -> np.ndarray:
-    """3x3 matrix R with n_cam = R @ n_world for the camera frame x right, y up, z toward the camera."""
-    origin, target, up = (np.asarray(v, np.float64) for v in (origin, target, up))
-    fwd = target - origin
-    fwd /= np.linalg.norm(fwd)
-    left = np.cross(up, fwd)
-    n = np.linalg.norm(left)
-    if n < 1e-9:
-        raise ValueError(f"camera.up: {up.tolist()} is parallel to the viewing direction")
-    left /= n
-    upv = np.cross(fwd, left)
-    return np.stack([-left, upv, -fwd])
-
-
-def mesh_data_for(desc: SceneDescription, base_dir: Path | None) -> MeshData | None:
-    """Geometry of a mesh or procedural shape in object space (None for the analytic sphere)."""
-    from scenes.meshes import load_mesh
-
-    shape = desc.shape
-    if shape.kind == "sphere":
-        return None
-    if shape.kind == "mesh":
-        path = Path(shape.file)
-        if not path.is_absolute() and base_dir is not None:
-            path = base_dir / path
-        return load_mesh(path, normalize=shape.normalize)
-    data = generate(shape.kind, shape.seed, shape.resolution, shape.params)
-    if shape.normalize:
-        from scenes.meshes import normalize_mesh
-
-        data = normalize_mesh(data.positions.astype(np.float64), data.faces, data.normals, data.uvs)
-    return data
-
-
-def transformed_mesh(data: MeshData, to_world: list[list[float]]) -> MeshData:
-    """Apply a 4x4 transform to positions (affine) and normals (inverse transpose)."""
-    m = np.asarray(to_world, np.float64)
-    pos = data.positions.astype(np.float64) @ m[:3, :3].T + m[:3, 3]
-    nrm = data.normals.astype(np.float64) @ np.linalg.inv(m[:3, :3])
-    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12)
-    return MeshData(pos.astype(np.float32), data.faces, nrm.astype(np.float32), data.uvs)
+def park_transform(mi: Any):
+    """The to_world of an unused area light (see PARK_POSITION, SCALAR_PARK)."""
+    T = mi.ScalarTransform4f
+    pos, scale = SCALAR_PARK if mi.variant().startswith("scalar") else (PARK_POSITION, PARK_SCALE)
+    return T().translate(pos) @ T().scale([scale, scale, scale])
 
 
 def _bitmap_texture(arr: np.ndarray, **options: Any):
@@ -85,7 +47,7 @@ def _bitmap_texture(arr: np.ndarray, **options: Any):
 
     Instantiated here, not left as a dict: the bitmap plugin takes over its tensor, so a dict shared by two BSDFs
     (the re-render check wraps the material) would leave the second one an empty texture."""
-    mi = _mi()
+    mi = require_variant()
     return mi.load_dict({"type": "bitmap", "data": mi.TensorXf(arr), "raw": True, "filter_type": "bilinear", **options})
 
 
@@ -175,60 +137,80 @@ def _rgb(strength: float, color: list[float]) -> list[float]:
     return [float(strength) * float(c) for c in color]
 
 
-def _apply_lights(params: Any, slots: LightSlots, lights: list[LightDesc]) -> None:
-    mi = _mi()
+def _directional_on(mi: Any, l: LightDesc) -> dict[str, Any]:
     T = mi.ScalarTransform4f
-    by_type: dict[str, list[LightDesc]] = {"directional": [], "point": [], "area": [], "environment": []}
-    for light in lights:
-        by_type[light.type].append(light)
+    d = np.asarray(l.direction, np.float64)
+    d /= np.linalg.norm(d)
+    up = [0.0, 1.0, 0.0] if abs(d[1]) < 0.99 else [1.0, 0.0, 0.0]
+    return {"to_world": mi.AffineTransform4f(T().look_at(origin=[0, 0, 0], target=d.tolist(), up=up)),
+            "irradiance.value": mi.Color3f(_rgb(l.irradiance, l.color))}
+
+
+def _point_on(mi: Any, l: LightDesc) -> dict[str, Any]:
+    return {"position": mi.Point3f(l.position), "intensity.value": mi.Color3f(_rgb(l.intensity, l.color))}
+
+
+def _area_on(mi: Any, l: LightDesc) -> dict[str, Any]:
+    return {"to_world": mi.AffineTransform4f(area_light_transform(l)),
+            "emitter.radiance.value": mi.Color3f(_rgb(l.radiance, l.color))}
+
+
+def _area_off(mi: Any) -> dict[str, Any]:
+    return {"to_world": mi.AffineTransform4f(park_transform(mi)),
+            "emitter.radiance.value": mi.Color3f(0.0)}
+
+
+def _environment_on(mi: Any, l: LightDesc) -> dict[str, Any]:
+    return {"to_world": mi.AffineTransform4f(mi.ScalarTransform4f(np.asarray(l.to_world, np.float64))),
+            "scale": mi.Float(float(l.scale))}
+
+
+@dataclass(frozen=True)
+class SlotKind:
+    """One kind of light slot: which lights it shows and which parameters switch it on and off."""
+
+    type: str
+    """`LightDesc.type` of the lights it holds (also the `LightSlots` field with the slot count)."""
+    prefix: str
+    """Scene key of the slots: `prefix_k` (`prefix` alone for a single slot)."""
+    single: bool
+    """At most one slot (the environment map)."""
+    weight: str
+    """Parameter of the slot's sampling weight."""
+    on: Callable[[Any, LightDesc], dict[str, Any]]
+    """Parameters (relative to the slot key) that show light `l` in the slot."""
+    off: Callable[[Any], dict[str, Any]]
+    """Parameters of an unused slot (zero strength; area rectangles parked)."""
+
+    def key(self, k: int) -> str:
+        return self.prefix if self.single else f"{self.prefix}_{k}"
+
+
+SLOT_KINDS = (
+    SlotKind("directional", "light_directional", False, "sampling_weight", _directional_on,
+             lambda mi: {"irradiance.value": mi.Color3f(0.0)}),
+    SlotKind("point", "light_point", False, "sampling_weight", _point_on,
+             lambda mi: {"intensity.value": mi.Color3f(0.0)}),
+    SlotKind("area", "light_area", False, "emitter.sampling_weight", _area_on, _area_off),
+    SlotKind("environment", "light_environment", True, "sampling_weight", _environment_on,
+             lambda mi: {"scale": mi.Float(0.0)}),
+)
+"""The light slots of a built scene, in the order they are written."""
+
+
+def _apply_lights(params: Any, slots: LightSlots, lights: list[LightDesc]) -> None:
+    mi = require_variant()
     # Unused slots get no samples, unless no light is on at all (Mitsuba needs some sampling mass).
     off_weight = 0.0 if lights else 1.0
-    for k in range(slots.directional):
-        key = f"light_directional_{k}"
-        if k < len(by_type["directional"]):
-            l = by_type["directional"][k]
-            d = np.asarray(l.direction, np.float64)
-            d /= np.linalg.norm(d)
-            up = [0.0, 1.0, 0.0] if abs(d[1]) < 0.99 else [1.0, 0.0, 0.0]
-            params[f"{key}.to_world"] = _opaque(mi.AffineTransform4f(T().look_at(origin=[0, 0, 0], target=d.tolist(), up=up)))
-            params[f"{key}.irradiance.value"] = _opaque(mi.Color3f(_rgb(l.irradiance, l.color)))
-            params[f"{key}.sampling_weight"] = 1.0
-        else:
-            params[f"{key}.irradiance.value"] = _opaque(mi.Color3f(0.0))
-            params[f"{key}.sampling_weight"] = off_weight
-    for k in range(slots.point):
-        key = f"light_point_{k}"
-        if k < len(by_type["point"]):
-            l = by_type["point"][k]
-            params[f"{key}.position"] = _opaque(mi.Point3f(l.position))
-            params[f"{key}.intensity.value"] = _opaque(mi.Color3f(_rgb(l.intensity, l.color)))
-            params[f"{key}.sampling_weight"] = 1.0
-        else:
-            params[f"{key}.intensity.value"] = _opaque(mi.Color3f(0.0))
-            params[f"{key}.sampling_weight"] = off_weight
-    for k in range(slots.area):
-        key = f"light_area_{k}"
-        if k < len(by_type["area"]):
-            l = by_type["area"][k]
-            params[f"{key}.to_world"] = _opaque(mi.AffineTransform4f(area_light_transform(l)))
-            params[f"{key}.emitter.radiance.value"] = _opaque(mi.Color3f(_rgb(l.radiance, l.color)))
-            params[f"{key}.emitter.sampling_weight"] = 1.0
-        else:
-            params[f"{key}.to_world"] = _opaque(mi.AffineTransform4f(
-                T().translate(PARK_POSITION) @ T().scale([PARK_SCALE, PARK_SCALE, PARK_SCALE])
-            ))
-            params[f"{key}.emitter.radiance.value"] = _opaque(mi.Color3f(0.0))
-            params[f"{key}.emitter.sampling_weight"] = off_weight
-    if slots.environment:
-        key = "light_environment"
-        if by_type["environment"]:
-            l = by_type["environment"][0]
-            params[f"{key}.to_world"] = _opaque(mi.AffineTransform4f(mi.ScalarTransform4f(np.asarray(l.to_world, np.float64))))
-            params[f"{key}.scale"] = _opaque(mi.Float(float(l.scale)))
-            params[f"{key}.sampling_weight"] = 1.0
-        else:
-            params[f"{key}.scale"] = _opaque(mi.Float(0.0))
-            params[f"{key}.sampling_weight"] = off_weight
+    for kind in SLOT_KINDS:
+        shown = [l for l in lights if l.type == kind.type]
+        count = getattr(slots, kind.type)
+        for k in range(min(count, 1) if kind.single else count):
+            key = kind.key(k)
+            values = kind.on(mi, shown[k]) if k < len(shown) else kind.off(mi)
+            for name, value in values.items():
+                params[f"{key}.{name}"] = _opaque(value)
+            params[f"{key}.{kind.weight}"] = 1.0 if k < len(shown) else off_weight
     params.update()
 
 
@@ -242,7 +224,7 @@ def _opaque(value):
 
 def area_light_transform(light: LightDesc):
     """Rectangle ([-1,1]^2, emitting along +z) at `position` facing `target`, sized width x height."""
-    mi = _mi()
+    mi = require_variant()
     T = mi.ScalarTransform4f
     pos = np.asarray(light.position, np.float64)
     fwd = np.asarray(light.target, np.float64) - pos
@@ -255,7 +237,7 @@ def area_light_transform(light: LightDesc):
 
 
 def sensor_dict(desc: SceneDescription, spp: int) -> dict:
-    mi = _mi()
+    mi = require_variant()
     T = mi.ScalarTransform4f
     cam = desc.camera
     look = T().look_at(origin=cam.origin, target=cam.target, up=cam.up)
@@ -278,7 +260,7 @@ def build_scene(desc: SceneDescription, base_dir: str | Path | None = None, bsdf
 
     `bsdf_wrapper(bsdf_dict) -> dict`, if given, wraps the object's BSDF (the re-render check uses it).
     """
-    mi = _mi()
+    mi = require_variant()
     T = mi.ScalarTransform4f
     desc.validate()
     base = Path(base_dir) if base_dir is not None else None
@@ -303,7 +285,7 @@ def build_scene(desc: SceneDescription, base_dir: str | Path | None = None, bsdf
     for k in range(slots.area):
         scene[f"light_area_{k}"] = {
             "type": "rectangle",
-            "to_world": T().translate(PARK_POSITION) @ T().scale([PARK_SCALE, PARK_SCALE, PARK_SCALE]),
+            "to_world": park_transform(mi),
             "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.0}},
             "emitter": {"type": "area", "radiance": {"type": "rgb", "value": 0.0}},
         }
@@ -321,32 +303,15 @@ def build_scene(desc: SceneDescription, base_dir: str | Path | None = None, bsdf
 
 def make_mesh(name: str, data: MeshData, bsdf: dict | Any):
     """In-memory Mitsuba mesh from arrays, with vertex normals and texture coordinates."""
-    mi = _mi()
-    import drjit as dr
-
+    mi = require_variant()
     props = mi.Properties()
     props["bsdf"] = mi.load_dict(bsdf) if isinstance(bsdf, dict) else bsdf
     mesh = mi.Mesh(name, len(data.positions), len(data.faces), props, True, True)
     p = mi.traverse(mesh)
-    p["vertex_positions"] = dr.ravel(mi.Point3f(np.ascontiguousarray(data.positions.T, dtype=np.float32)))
-    p["faces"] = dr.ravel(mi.Vector3u(np.ascontiguousarray(data.faces.T, dtype=np.uint32)))
-    p["vertex_normals"] = dr.ravel(mi.Normal3f(np.ascontiguousarray(data.normals.T, dtype=np.float32)))
-    p["vertex_texcoords"] = dr.ravel(mi.Point2f(np.ascontiguousarray(data.uvs.T, dtype=np.float32)))
+    # Flat buffers of the parameter's own type (Float / UInt on JIT variants, ArrayXf / ArrayXu on scalar ones):
+    # row-major (N, 3) arrays are already the interleaved x y z x y z layout Mitsuba stores.
+    for key, arr, dtype in (("vertex_positions", data.positions, np.float32), ("faces", data.faces, np.uint32),
+                            ("vertex_normals", data.normals, np.float32), ("vertex_texcoords", data.uvs, np.float32)):
+        p[key] = type(p[key])(np.ascontiguousarray(arr, dtype=dtype).ravel())
     p.update()
     return mesh
-
-
-def write_mesh_ply(path: str | Path, data: MeshData) -> None:
-    """Binary little-endian PLY with positions, normals and UVs (read back by `scenes.meshes`)."""
-    n, f = len(data.positions), len(data.faces)
-    header = (
-        "ply\nformat binary_little_endian 1.0\n"
-        f"element vertex {n}\nproperty float x\nproperty float y\nproperty float z\n"
-        "property float nx\nproperty float ny\nproperty float nz\nproperty float s\nproperty float t\n"
-        f"element face {f}\nproperty list uchar int vertex_indices\nend_header\n"
-    ).encode("ascii")
-    verts = np.concatenate([data.positions, data.normals, data.uvs], 1).astype("<f4")
-    faces = np.zeros(f, dtype=[("n", "u1"), ("idx", "<i4", (3,))])
-    faces["n"] = 3
-    faces["idx"] = data.faces
-    Path(path).write_bytes(header + verts.tobytes() + faces.tobytes())

@@ -1,16 +1,89 @@
-"""Rendering one object: K path-traced images from one scene, plus one cheap ground-truth pass."""
+"""Rendering one object: K path-traced images from one scene, plus one cheap ground-truth pass.
+
+Every render goes through `render_film`. On the JIT variants (llvm_ad_rgb, cuda_ad_rgb) it does what
+`mi.render` does (same sampler, seeding, camera rays and integrator, so the same samples) except the film
+accumulation: `mi.render` adds the samples of a pixel into the film with atomic scatter-adds, and where the
+samples of one pixel fall into the work blocks of two Dr.Jit threads their float sum depends on which thread
+adds first. Here every sample's value is written to its own slot (no scatter, no atomics) and the samples of
+each pixel are summed by NumPy in a fixed order (float64, then divided by the sample count and rounded to
+float32). The bytes therefore depend only on (scene, spp, seed), not on the thread count or the machine's
+scheduling. The scalar variant keeps `mi.render`: its image tiles do not overlap under the box filter, so
+each pixel is rendered by one thread (measured identical for 1, 2 and 3 Dr.Jit threads at 32x32).
+"""
 from __future__ import annotations
 
 import logging
-import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from scenes.mitsuba_build import BuiltScene, camera_rotation
+from scenes.geometry import camera_rotation
+from scenes.mitsuba_build import BuiltScene
 from scenes.textures import sample_texture
+from scenes.variant import require_variant
 
 log = logging.getLogger(__name__)
+
+MAX_SAMPLES_PER_PASS = 1 << 20
+"""Samples traced in one kernel launch of `render_film` (bounds the per-sample output buffers: at most
+~100 MB for the 12-channel ground-truth pass); more samples are split into passes of spp / p samples per
+pixel, p the smallest divisor of spp that fits, and the passes are summed in order."""
+
+
+def render_film(scene, spp: int, seed: int, integrator=None) -> np.ndarray:
+    """(H, W, C) float32 film of `scene`'s first sensor, laid out as `mi.render` returns it (RGB, alpha, then the
+    integrator's AOVs; tests/test_determinism.py checks the layout against `mi.render` at 1 spp); the mean of
+    `spp` samples per pixel drawn from the scene's sampler seeded with `seed` (what `mi.render` returns, up to
+    the float rounding of the sum), independent of the Dr.Jit thread count (see the module docstring)."""
+    mi = require_variant()
+    import drjit as dr
+
+    if not dr.is_jit_v(mi.Float):
+        return np.array(mi.render(scene, integrator=integrator, spp=int(spp), seed=int(seed)), dtype=np.float32)
+    integrator = integrator if integrator is not None else scene.integrator()
+    sensor = scene.sensors()[0]
+    film = sensor.film()
+    if film.sample_border() or not film.rfilter().is_box_filter() or any(int(v) for v in film.crop_offset()):
+        raise ValueError("render_film needs a box-filtered film without crop offset or border sampling")
+    width, height = (int(v) for v in film.crop_size())
+    names = list(integrator.aov_names())
+    sampler = sensor.sampler()
+    sampler.set_sample_count(int(spp))
+    spp = int(sampler.sample_count())  # a stratified sampler may round the count
+    per = next(p for p in range(spp, 0, -1) if spp % p == 0 and (width * height * p <= MAX_SAMPLES_PER_PASS or p == 1))
+    passes, n = spp // per, width * height * per
+    sampler.set_samples_per_wavefront(per)
+    seed_v = mi.UInt32(int(seed))
+    dr.make_opaque(seed_v)  # a new seed must not bake a new literal into (and recompile) the kernel
+    sampler.seed(seed_v, n)
+    idx = dr.arange(mi.UInt32, n) // dr.opaque(mi.UInt32, per)  # sample -> pixel, as mi.render orders them
+    row = idx // width
+    pixel = mi.Vector2f(mi.Vector2i(idx - row * width, row))
+    scale = mi.ScalarVector2f(1.0 / width, 1.0 / height)
+    diff_scale = float(1.0 / np.sqrt(np.float32(spp), dtype=np.float32))
+    total = None
+    for _ in range(passes):
+        film_pos = (pixel + sampler.next_2d()) * scale
+        aperture = sampler.next_2d() if sensor.needs_aperture_sample() else mi.Point2f(0.5)
+        time = mi.Float(sensor.shutter_open())
+        if sensor.shutter_open_time() > 0:
+            time += sampler.next_1d() * sensor.shutter_open_time()
+        ray, weight = sensor.sample_ray_differential(time, mi.Float(0.0), film_pos, aperture)
+        if ray.has_differentials:
+            ray.scale_differential(diff_scale)
+        spec, valid, aovs = integrator.sample(scene, sampler, ray, None, True)
+        rgb = weight * spec
+        # A nested integrator's own values (AOVs named `integrator.*`) are not in mi.render's output either.
+        aovs = [a for a, name in zip(aovs, names) if not name.startswith("integrator.")]
+        channels = [rgb.x, rgb.y, rgb.z, dr.select(valid, mi.Float(1.0), mi.Float(0.0)), *aovs]
+        if passes > 1:
+            sampler.advance()
+            sampler.schedule_state()
+        dr.eval(*channels)
+        samples = np.stack([np.asarray(c, dtype=np.float32) for c in channels], axis=-1).reshape(height, width, per, -1)
+        part = samples.sum(axis=2, dtype=np.float64)  # one thread, fixed order
+        total = part if total is None else total + part
+    return (total / spp).astype(np.float32)
 
 
 @dataclass
@@ -27,38 +100,23 @@ class GroundTruth:
     uv: np.ndarray  # (H, W, 2) float32, mean texture coordinate
 
 
-@dataclass
-class RenderTimes:
-    """Wall-clock seconds spent per stage (for benches and the manifest)."""
-
-    build: float = 0.0
-    ground_truth: float = 0.0
-    images: list[float] = field(default_factory=list)
-
-
 def render_image(built: BuiltScene, index: int, spp: int | None = None, seed: int | None = None) -> np.ndarray:
     """Linear RGB radiance (H, W, 3) float32 of image `index`, with its recorded seed unless overridden."""
-    import mitsuba as mi
+    require_variant()
 
     built.apply_image(index)
     image = built.desc.images[index]
-    out = mi.render(
+    out = render_film(
         built.scene,
         spp=int(spp if spp is not None else built.desc.render.spp),
         seed=int(seed if seed is not None else image.seed),
     )
-    return np.array(out, dtype=np.float32)[:, :, :3]
+    return np.ascontiguousarray(out[:, :, :3])
 
 
-def render_images(built: BuiltScene, spp: int | None = None, times: RenderTimes | None = None) -> list[np.ndarray]:
+def render_images(built: BuiltScene, spp: int | None = None) -> list[np.ndarray]:
     """All K images of the object, from the same scene object, relit through mi.traverse."""
-    images = []
-    for i in range(len(built.desc.images)):
-        t0 = time.perf_counter()
-        images.append(render_image(built, i, spp=spp))
-        if times is not None:
-            times.images.append(time.perf_counter() - t0)
-    return images
+    return [render_image(built, i, spp=spp) for i in range(len(built.desc.images))]
 
 
 def render_ground_truth(built: BuiltScene, spp: int | None = None) -> GroundTruth:
@@ -67,7 +125,7 @@ def render_ground_truth(built: BuiltScene, spp: int | None = None) -> GroundTrut
     The nested `depth` integrator makes alpha the pixel coverage (a one-bounce path tracer does not on scalar_rgb); AOVs of rays
     that miss are 0, so dividing by alpha gives the mean over the object's part of each pixel.
     """
-    import mitsuba as mi
+    mi = require_variant()
 
     desc = built.desc
     built.park_lights()
@@ -78,7 +136,7 @@ def render_ground_truth(built: BuiltScene, spp: int | None = None) -> GroundTrut
             "integrator": {"type": "depth"},  # cheap; its alpha is the coverage on every variant
         }
     )
-    out = np.array(mi.render(built.scene, integrator=integrator, spp=int(spp or desc.render.gt_spp), seed=0), np.float64)
+    out = render_film(built.scene, spp=int(spp or desc.render.gt_spp), seed=0, integrator=integrator).astype(np.float64)
     if built.current_image is None and desc.images:
         built.apply_image(0)
     alpha = out[:, :, 3]

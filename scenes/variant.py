@@ -1,8 +1,13 @@
-"""Choosing the Mitsuba variant at entry points (never at import time)."""
+"""The Mitsuba variant: chosen at entry points (never at import time), checked where Mitsuba objects are made.
+
+`choose_variant` sets it; `require_variant` / `require_jit_variant` are the only checks that one is set
+(`scenes.mitsuba_build`, `scenes.render` and `validate.normal_bsdf` call them).
+"""
 from __future__ import annotations
 
 import logging
 import warnings
+from typing import Any
 
 log = logging.getLogger(__name__)
 
@@ -34,11 +39,18 @@ def _usable(variant: str) -> bool:
 def choose_variant(requested: str | None = None) -> str:
     """Set and return a Mitsuba variant: `requested` if given, else cuda, llvm, scalar in that order.
 
-    Falling back to scalar warns with the fix. An unknown or unusable requested variant is a ValueError.
+    `requested` None or "auto" chooses; falling back to scalar warns with the fix. A variant outside
+    `PREFERENCE` (the RGB variants the scenes are built for: a mono or spectral variant would fail inside
+    Dr.Jit), or one this machine cannot run, is a ValueError naming --variant.
     """
     import mitsuba as mi
 
+    if requested == "auto":
+        requested = None
     if requested:
+        if requested not in PREFERENCE:
+            raise ValueError(f"--variant: {requested!r} is not supported, expected auto or one of {', '.join(PREFERENCE)} "
+                             "(the scenes use RGB colours)")
         if requested not in mi.variants():
             raise ValueError(f"--variant: {requested!r} is not built into this Mitsuba, expected one of {', '.join(mi.variants())}")
         if not _usable(requested):
@@ -51,3 +63,24 @@ def choose_variant(requested: str | None = None) -> str:
                 warnings.warn(f"Mitsuba falls back to the slow scalar_rgb variant: {LLVM_FIX}", RuntimeWarning, stacklevel=2)
             return variant
     raise RuntimeError("no usable Mitsuba variant among " + ", ".join(PREFERENCE))
+
+
+def require_variant() -> Any:
+    """The `mitsuba` module, after checking that a variant is set."""
+    import mitsuba as mi
+
+    if mi.variant() is None:
+        raise RuntimeError("no Mitsuba variant is set: call scenes.variant.choose_variant() in the entry point")
+    return mi
+
+
+def require_jit_variant() -> Any:
+    """The `mitsuba` module, after checking that a JIT variant (llvm_* or cuda_*) is set."""
+    mi = require_variant()
+    variant = mi.variant()
+    if not (variant.startswith("llvm") or variant.startswith("cuda")):
+        raise ValueError(
+            f"variant: {variant!r} is a scalar variant; the re-render check needs llvm_ad_rgb or cuda_ad_rgb "
+            "(install Debian's libllvm19 for llvm)"
+        )
+    return mi

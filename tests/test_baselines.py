@@ -9,7 +9,7 @@ import pytest
 
 from unips.baselines import least_squares, run_baseline, sh_uncalibrated
 from unips.data import PSObject, load_object
-from unips.normal_io import mean_angular_error
+from scenes.objfolder import mean_angular_error
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 DILIGENT = SHARED / "data" / "diligent"

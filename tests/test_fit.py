@@ -51,7 +51,7 @@ def analytic_sphere(mask_radius: float = 1.0 / 1.1) -> tuple[np.ndarray, np.ndar
 @pytest.fixture(scope="module")
 def sphere_folder(jit, tmp_path_factory) -> Path:
     """A Lambertian sphere (albedo 0.7) under 8 directional lights (irradiance 2), 32x32, no scene.json."""
-    from scenes.imageio import write_mask, write_normal_tif, write_png16
+    from scenes.objfolder import write_mask, write_normal_map as write_normal_tif, write_png16
     from scenes.mitsuba_build import build_scene
     from scenes.render import render_ground_truth, render_image
 
@@ -179,7 +179,7 @@ def test_refine_brings_perturbed_map_below_3_deg(jit, sphere_folder):
     lights: the error drops, but not to the floor (lights fitted to a noisy map are biased, and a Lambertian
     object's normals and lights can move together along the bas-relief ambiguity)."""
     from validate.capture import load_capture
-    from validate.metrics import mae_deg
+    from scenes.objfolder import mean_angular_error as mae_deg
     from validate.perturb import perturb_normals
     from validate.refine import RefineConfig, refine_normals
 

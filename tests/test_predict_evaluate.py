@@ -10,9 +10,12 @@ import cv2
 import numpy as np
 import pytest
 
+from conftest import write_synthetic_object
+from scenes.cli import UsageError
 from unips import evaluate as ev
 from unips import predict as pr
-from unips.normal_io import mean_angular_error, read_normals, write_normal_exr, write_normal_png
+from unips.inference import default_checkpoint
+from scenes.objfolder import mean_angular_error, read_normals, write_normal_exr, write_normal_map
 
 
 def sphere(size: int):
@@ -39,21 +42,12 @@ def write_png16(path: Path, rgb: np.ndarray) -> None:
 
 def write_ours(folder: Path, size: int = 32, k: int = 8, seed: int = 0, family: str = "directional"):
     """Our layout: L*.png, mask.png, normal.tif, scene.json with camera-frame directional lights."""
-    folder.mkdir(parents=True)
     n, mask = sphere(size)
     L = lights(k, seed)
     shade = np.clip(np.einsum("hwc,kc->khw", n, L), 0, None)
-    for i in range(k):
-        img = 0.8 * shade[i][..., None] * np.array([0.9, 0.7, 0.5])
-        img[~mask] = 0
-        write_png16(folder / f"L{i:03d}.png", img)
-    assert cv2.imwrite(str(folder / "mask.png"), mask.astype(np.uint8) * 255)
-    write_normal_png(folder / "normal.tif", n)
-    scene = {"light_family": family,
-             "camera_lights": [{"directional": [{"direction_to_light": L[i].tolist(),
-                                                 "irradiance": [1.0, 1.0, 1.0]}], "other": 0}
-                               for i in range(k)]}
-    (folder / "scene.json").write_text(json.dumps(scene))
+    imgs = 0.8 * shade[..., None] * np.array([0.9, 0.7, 0.5])
+    imgs[:, ~mask] = 0
+    write_synthetic_object(folder, imgs, mask, n, light_family=family, directions=L)
     return n, mask
 
 
@@ -163,12 +157,19 @@ def test_evaluate_known_answer(dataset, tmp_path, capsys):
     # The error map: 10/90 of the colour scale inside, black outside.
     img = cv2.imread(str(pred / "alpha" / "error_map.png"))
     n, mask = truth["alpha"]
+    s = ev.error_map_scale(mask.shape[0])
+    h, w = mask.shape
+    assert s > 1 and img.shape[0] >= ev.ERROR_MAP_MIN_HEIGHT and img.shape[1] > w * s  # enlarged, bar on the right
     expected = cv2.applyColorMap(np.full((1, 1), round(10 / 90 * 255), np.uint8), cv2.COLORMAP_JET)[0, 0]
-    assert np.all(img[mask] == expected) and np.all(img[~mask] == 0)
+    big = np.repeat(np.repeat(mask, s, 0), s, 1)
+    assert np.all(img[:h * s, :w * s][big] == expected) and np.all(img[:h * s, :w * s][~big] == 0)
+    bar = img[:h * s, w * s:]
+    blue, red = cv2.applyColorMap(np.array([[0, 255]], np.uint8), cv2.COLORMAP_JET)[0]
+    assert (bar == blue).all(-1).any() and (bar == red).all(-1).any()  # the colour scale 0..90 deg is drawn
     # 16-bit PNG predictions give the same answer within quantisation.
     png_dir = tmp_path / "rot_png"
     for name, (n, mask) in truth.items():
-        write_normal_png(png_dir / name / "normal.png", _rotated(n, mask, 10.0))
+        write_normal_map(png_dir / name / "normal.png", _rotated(n, mask, 10.0))
     capsys.readouterr()
     assert ev.main(["--pred", str(png_dir), "--gt", str(root)]) == 0
     assert abs(json.loads((png_dir / "metrics.json").read_text())["mean_mae_deg"] - 10.0) < 0.01
@@ -208,8 +209,8 @@ def test_cli_bad_input(dataset, tmp_path, capsys):
     assert "calibrated" in _one_line_error(capsys)
     # Model without a checkpoint: refuses unless weights are shipped.
     try:
-        pr.default_checkpoint()
-    except pr.CLIError:
+        default_checkpoint()
+    except UsageError:
         assert pr.main(["--method", "model", "--input", str(root), "--out", str(tmp_path / "o")]) == 2
         assert "no shipped weights" in _one_line_error(capsys)
     assert pr.main(["--method", "model", "--checkpoint", str(tmp_path / "none.safetensors"),

@@ -42,7 +42,7 @@ def jit():
 def write_object(desc: SceneDescription, out: Path, extra_files: dict[str, np.ndarray] | None = None) -> Path:
     """A minimal object folder as wildgen writes it (images with exposure, mask, normal.tif, scene.json
     with the extra top-level keys, aux/)."""
-    from scenes.imageio import write_exr, write_mask, write_normal_tif, write_png16
+    from scenes.objfolder import write_exr, write_mask, write_normal_map, write_png16
     from scenes.mitsuba_build import build_scene
     from scenes.render import render_ground_truth, render_image
 
@@ -61,7 +61,7 @@ def write_object(desc: SceneDescription, out: Path, extra_files: dict[str, np.nd
     del built
     gc.collect()
     write_mask(folder / "mask.png", gt.mask)
-    write_normal_tif(folder / "normal.tif", np.where(gt.mask[..., None], normal, 0.0))
+    write_normal_map(folder / "normal.tif", np.where(gt.mask[..., None], normal, 0.0))
     scene = desc.to_dict()
     scene["camera_lights"] = [{"directional": [], "other": 1} for _ in desc.images]
     scene["format_version"] = 1
@@ -77,7 +77,7 @@ def shading_normals(built) -> np.ndarray:
     """
     import mitsuba as mi
 
-    from scenes.mitsuba_build import camera_rotation
+    from scenes.geometry import camera_rotation
 
     built.park_lights()
     aov = mi.load_dict({"type": "aov", "aovs": "nn:sh_normal", "integrator": {"type": "path", "max_depth": 1, "hide_emitters": True}})
@@ -363,7 +363,7 @@ def test_normal_mapped_material_wraps_the_inner_bsdf(jit, tmp_path):
 def test_normal_map_files_round_trip(tmp_path):
     import cv2
 
-    from scenes.imageio import encode_normals, write_exr
+    from scenes.objfolder import encode_normals, write_exr
     from validate.io import read_normal_map
 
     rng = np.random.default_rng(0)
@@ -468,7 +468,7 @@ def test_cli_dataset_end_to_end(jit, sphere_folder, tmp_path, capsys):
 
     import cv2
 
-    from scenes.imageio import encode_normals
+    from scenes.objfolder import encode_normals
     from validate.io import load_object
     from validate.perturb import perturb_normals
     from validate.rerender import main

@@ -6,7 +6,6 @@ written as 16-bit PNGs with OpenCV, so every value the loaders return has an ind
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import cv2
@@ -14,8 +13,9 @@ import numpy as np
 import pytest
 
 from unips.data import PSObject, find_objects, load_ground_truth, load_object
-from unips.normal_io import (angular_error_deg, mean_angular_error, read_normals, write_normal_exr,
-                             write_normal_png, write_normal_visual)
+from conftest import write_synthetic_object
+from scenes.objfolder import (angular_error_deg, mean_angular_error, read_normals, write_normal_exr,
+                              write_normal_map, write_normal_visual)
 from unips.preprocess import prepare, resize_prepared, uncrop
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
@@ -62,20 +62,11 @@ def write_mask(path: Path, mask: np.ndarray) -> None:
 
 
 def write_ours(folder: Path, k: int = 6, size: int = 32, other: int = 0, seed: int = 0):
-    folder.mkdir(parents=True)
     n, mask = sphere(size)
     L = lights(k, seed)
     irr = np.linspace(0.8, 1.1, k)[:, None] * np.array([1.0, 0.95, 0.9])
     imgs = render(n, mask, L, irr)
-    for i, im in enumerate(imgs):
-        write_png16(folder / f"L{i:03d}.png", im)
-    write_mask(folder / "mask.png", mask)
-    write_normal_png(folder / "normal.tif", n)
-    scene = {"light_family": "directional",
-             "camera_lights": [{"directional": [{"direction_to_light": L[i].tolist(),
-                                                 "irradiance": irr[i].tolist()}], "other": other}
-                               for i in range(k)]}
-    (folder / "scene.json").write_text(json.dumps(scene))
+    write_synthetic_object(folder, imgs, mask, n, directions=L, irradiance=irr, other=other)
     return n, mask, L, irr, imgs
 
 
@@ -128,15 +119,16 @@ def test_ours_with_other_lights_has_no_directions(tmp_path):
     assert obj.light_directions is None and obj.light_intensities is None
 
 
-def test_load_diligent_layout_divides_intensities(tmp_path):
+def test_load_diligent_layout_keeps_raw_images(tmp_path):
+    """Uncalibrated protocol: images exactly as recorded; the intensities only in light_intensities."""
     n, mask, L, inten, imgs = write_diligent(tmp_path / "sphPNG")
     obj = load_object(tmp_path / "sphPNG")
     assert obj.layout == "diligent" and obj.name == "sphPNG" and obj.light_family == "directional"
     shade = np.clip(np.einsum("hwc,kc->khw", n, L), 0, None)
-    expected = 0.9 * shade[..., None] * ALBEDO  # the intensities are divided out
+    expected = 0.9 * shade[..., None] * ALBEDO * inten[:, None, None, :]  # not divided by the intensities
     assert np.abs(obj.images - expected).max() < 2e-4
     assert np.allclose(obj.light_directions, L / np.linalg.norm(L, axis=1, keepdims=True), atol=1e-5)
-    assert np.allclose(obj.light_intensities, 1.0)
+    assert np.allclose(obj.light_intensities, inten, atol=1e-6)
     assert np.allclose(obj.meta["light_intensities_file"], inten, atol=1e-6)
     assert np.array_equal(obj.mask, mask)
     assert np.abs(obj.normals - n).max() < 1e-6
@@ -328,7 +320,7 @@ def test_resize_prepared():
 
 def test_normal_png_round_trip(tmp_path):
     n, mask = sphere(32)
-    write_normal_png(tmp_path / "n.png", n)
+    write_normal_map(tmp_path / "n.png", n)
     raw = cv2.imread(str(tmp_path / "n.png"), cv2.IMREAD_UNCHANGED)
     assert raw.dtype == np.uint16 and np.all(raw[~mask] == 32768)
     back = read_normals(tmp_path / "n.png")
@@ -356,7 +348,7 @@ def test_normal_exr_npy_mat_round_trip(tmp_path):
 
 def test_normal_io_bad_input(tmp_path):
     with pytest.raises(ValueError, match="shape"):
-        write_normal_png(tmp_path / "a.png", np.zeros((4, 4)))
+        write_normal_map(tmp_path / "a.png", np.zeros((4, 4)))
     bad = np.zeros((4, 4, 3))
     bad[1, 1, 0] = np.nan
     with pytest.raises(ValueError, match="NaN"):
@@ -387,3 +379,19 @@ def test_angular_error_known_angle():
     assert abs(mean_angular_error(2.5 * rot, n, mask) - 20.0) < 1e-4  # scale does not matter
     with pytest.raises(ValueError, match="empty"):
         mean_angular_error(rot, n, np.zeros_like(mask))
+
+
+def test_object_folder_fixture_and_one_lookup_order(synthetic_object):
+    """The shared fixture's folder loads as our layout; predictions are found in one order for everyone."""
+    from scenes.objfolder import PREDICTION_FILES, find_prediction, object_name, prediction_file, read_mask
+
+    obj = load_object(synthetic_object)
+    assert obj.layout == "ours" and obj.name == object_name(synthetic_object) == "ball"
+    assert np.array_equal(obj.mask, read_mask(synthetic_object / "mask.png"))
+    assert obj.light_directions is not None and obj.num_images == 6
+    pred = synthetic_object.parent / "pred" / "ball"
+    write_normal_map(pred / "normal.png", obj.normals)
+    assert prediction_file(pred).name == "normal.png"
+    write_normal_exr(pred / "normal.exr", obj.normals)
+    assert PREDICTION_FILES[0] == "normal.exr"
+    assert prediction_file(pred).name == "normal.exr" == find_prediction(pred.parent, "ball").name

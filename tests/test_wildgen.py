@@ -51,7 +51,7 @@ def test_every_family_end_to_end(dataset):
 def test_layout_contract(dataset):
     import cv2
 
-    from scenes.imageio import read_exr
+    from scenes.objfolder import read_exr
 
     for folder in sorted(dataset.glob("*.data")):
         names = sorted(p.name for p in folder.iterdir())
@@ -87,7 +87,7 @@ def test_layout_contract(dataset):
 def test_scene_json_reproduces_the_images(dataset):
     """Re-rendering from scene.json alone: same seed gives the same radiance, another seed agrees within noise."""
     from scenes.description import SceneDescription
-    from scenes.imageio import read_exr
+    from scenes.objfolder import read_exr
     from scenes.mitsuba_build import build_scene
     from scenes.render import render_image
 

@@ -233,27 +233,19 @@ def _write_assets(root: Path) -> None:
     (root / "meshes" / "bad.obj").write_bytes(b"v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n")
 
 
-def test_poisoned_object_is_recorded_as_failed(tmp_path, capsys, llvm):
-    from wildgen.dataset import verify_object
+def test_bad_asset_is_refused_up_front(tmp_path, capsys):
+    """Assets are decoded once before any render: a bad mesh is named in one line and nothing is written
+    (it would fail every object that draws it, the same way each time)."""
     from wildgen.make import main
 
     assets = tmp_path / "assets"
     _write_assets(assets)
     out = tmp_path / "d"
     rc = main(["--out", str(out), *SMALL, "--assets", str(assets), "--shapes", "mesh", "--workers", "2", "--max-retries", "1"])
-    captured = capsys.readouterr()
-    assert rc == 1
-    objects = json.loads((out / "manifest.json").read_text())["objects"]
-    failed = [e for e in objects if e["status"] == "failed"]
-    done = [e for e in objects if e["status"] == "done"]
-    assert failed and done and len(failed) + len(done) == N, [e["status"] for e in objects]
-    for e in failed:
-        assert "bad.obj" in e["error"] and e["attempts"] == 2 and not (out / f"{e['name']}.data").exists()
-    for e in done:
-        assert e["shape"] == "good.ply" and verify_object(out, e) is None
-    assert captured.out.strip().splitlines()[-1].startswith(f"{len(done)} done, 0 skipped, {len(failed)} failed")
-    assert "bad.obj" in captured.err.strip().splitlines()[-1]
-    assert not list(out.glob(".tmp-*"))
+    err = capsys.readouterr().err.strip()
+    assert rc == 2
+    assert err.startswith("error: --assets:") and "bad.obj" in err and "non-finite" in err and "\n" not in err
+    assert not out.exists()
 
 
 def test_ray_local_gives_the_same_bytes(reference, tmp_path):
@@ -280,7 +272,7 @@ from scenes.variant import choose_variant
 choose_variant("llvm_ad_rgb")
 from wildgen.assets import AssetLibrary
 from wildgen.config import GenConfig
-from wildgen.dataset import make_object
+from wildgen.writer import make_object
 
 def rss_mb():
     for line in open("/proc/self/status"):

@@ -94,10 +94,26 @@ def load_state_strict(model: nn.Module, state: Mapping[str, torch.Tensor], sourc
 def _build(meta: Mapping[str, Any], source: str) -> nn.Module:
     from unips.models import create_model
 
+    if not isinstance(meta, Mapping):
+        raise ValueError(f"{source}: expected a JSON object with model_name and config, got {type(meta).__name__}")
     for key in ("model_name", "config"):
         if key not in meta:
             raise ValueError(f"{source}: missing key {key!r} (expected model_name and config)")
-    return create_model(meta["model_name"], **meta["config"])
+    if not isinstance(meta["config"], Mapping):
+        raise ValueError(f"{source}: 'config' must be a JSON object, got {type(meta['config']).__name__}")
+    try:
+        return create_model(meta["model_name"], **meta["config"])
+    except (TypeError, KeyError) as exc:  # unknown model name or config keys
+        raise ValueError(f"{source}: cannot build model {meta['model_name']!r} from its config ({exc})") from exc
+
+
+def _first_line(exc: BaseException) -> str:
+    """`Type: first line` of a decoder's exception; torch's advice about `weights_only` (never to be followed
+    for an untrusted file) is left out."""
+    text = str(exc).strip().splitlines()
+    if not text or "weights_only" in text[0]:
+        return type(exc).__name__
+    return f"{type(exc).__name__}: {text[0][:160]}"
 
 
 def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> tuple[nn.Module, dict[str, Any]]:
@@ -122,12 +138,15 @@ def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> tu
         raise FileNotFoundError(f"model sidecar not found: {str(side)!r} (needed next to {str(path)!r})")
     try:
         meta = json.loads(side.read_text())
-    except json.JSONDecodeError as exc:
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ValueError(f"{str(side)!r}: not valid JSON ({exc})") from exc
     from safetensors.torch import load_file
 
     model = _build(meta, str(side))
-    state = load_file(str(path), device=str(map_location))
+    try:
+        state = load_file(str(path), device=str(map_location))
+    except Exception as exc:  # safetensors raises its own error type (and others) for corrupt files
+        raise ValueError(f"{str(path)!r}: not a readable .safetensors weights file ({_first_line(exc)})") from exc
     load_state_strict(model, state, str(path))
     return model.to(map_location).eval(), meta
 
@@ -184,7 +203,15 @@ def load_training_checkpoint(path: str | Path, map_location: str | torch.device 
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"training checkpoint not found: {str(path)!r}")
-    ckpt = torch.load(path, map_location=map_location, weights_only=True)
+    try:
+        ckpt = torch.load(path, map_location=map_location, weights_only=True)
+    except Exception as exc:  # truncated or corrupt files raise from pickle, zipfile or torch itself
+        raise ValueError(f"{str(path)!r}: not a readable training checkpoint, the file is corrupt or truncated "
+                         f"({_first_line(exc)})") from exc
     if not isinstance(ckpt, dict) or ckpt.get("format") != TRAINING_FORMAT:
         raise ValueError(f"{str(path)!r}: not a training checkpoint (expected format {TRAINING_FORMAT!r})")
+    missing = [k for k in ("model_name", "config", "model", "optimizer", "scheduler", "step", "rng", "data", "extra")
+               if k not in ckpt]
+    if missing:
+        raise ValueError(f"{str(path)!r}: training checkpoint lacks {', '.join(missing)}")
     return ckpt

@@ -2,15 +2,17 @@
 
 Layouts (detected automatically, or forced with ``layout=``):
 
-- ``"ours"``: the project's ``<object>.data`` folder (see ARCHITECTURE.md): ``L000.png ...`` 16-bit
-  linear RGB, ``mask.png``, ``normal.tif``, ``scene.json`` (light family and camera-frame lights).
+- ``"ours"``: the project's ``<object>.data`` folder (`scenes.objfolder`, which owns its files, the
+  mask rule and object naming): ``L000.png ...`` 16-bit linear RGB, ``mask.png``, ``normal.tif``,
+  ``scene.json`` (light family and camera-frame lights).
 - ``"unips"``: official UniPS / SDM-UniPS folders: images ``L*`` (png, jpg, tif, bmp; 8 or 16 bit),
   optional ``mask.png`` (any value > 0 is foreground; whole image when absent), optional ``normal.tif``
   or ``Normal_gt.png``.
 - ``"diligent"``: DiLiGenT: ``001.png ...`` (order from ``filenames.txt`` when present),
   ``light_directions.txt``, ``light_intensities.txt``, ``mask.png``, ``Normal_gt.mat`` or
-  ``Normal_gt.png``. Each image channel is divided by its row of ``light_intensities.txt`` at load time,
-  so the returned ``light_intensities`` are ones (the file's values are kept in ``meta``).
+  ``Normal_gt.png``. Images are returned raw, as the camera recorded them (the UniPS papers' protocol
+  for uncalibrated methods: a model never sees the calibration); the file's values are returned as
+  ``light_intensities`` for calibrated methods, which divide by them (`unips.baselines`).
 
 Images are returned linear in [0, 1] (16-bit / 65535, 8-bit / 255; 8-bit JPEGs are not linearised:
 the official loaders do not either). Everything is RGB and in the camera frame x right, y up,
@@ -20,7 +22,6 @@ which the least-squares baseline reproducing the published errors confirms).
 
 from __future__ import annotations
 
-import json
 import logging
 import re
 from dataclasses import dataclass, field
@@ -28,6 +29,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from scenes.objfolder import MASK_FILE, NORMAL_FILE, SCENE_FILE, object_name, read_image, read_mask, read_normals, read_scene_dict
 
 log = logging.getLogger(__name__)
 
@@ -56,12 +59,6 @@ class PSObject:
     @property
     def num_images(self) -> int:
         return int(self.images.shape[0])
-
-
-def object_name(path: str | Path) -> str:
-    """Name of an object folder: its name minus a trailing ``.data``."""
-    name = Path(path).resolve().name
-    return name[: -len(".data")] if name.endswith(".data") and len(name) > len(".data") else name
 
 
 def _natural_key(name: str) -> list[Any]:
@@ -113,57 +110,6 @@ def find_objects(path: str | Path) -> list[Path]:
 # ----------------------------------------------------------------------------------------- files
 
 
-def _read_raw(path: Path, what: str = "image"):
-    import cv2
-
-    if not path.is_file():
-        raise FileNotFoundError(f"{what} file {path} does not exist")
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise ValueError(f"{what} file {path}: cannot be read (corrupt or unsupported format)")
-    return img
-
-
-def read_image(path: str | Path) -> np.ndarray:
-    """Read one image as (H, W, 3) float32 linear RGB (uint16 / 65535, uint8 / 255, float as is)."""
-    path = Path(path)
-    img = _read_raw(path)
-    if img.ndim == 2:
-        img = np.repeat(img[..., None], 3, axis=2)
-    elif img.ndim == 3 and img.shape[2] == 4:
-        img = img[..., :3]  # drop alpha
-    elif img.ndim == 3 and img.shape[2] == 1:
-        img = np.repeat(img, 3, axis=2)
-    if img.ndim != 3 or img.shape[2] != 3:
-        raise ValueError(f"image file {path}: expected a gray, RGB or RGBA image, got shape {img.shape}")
-    img = np.ascontiguousarray(img[..., ::-1])  # BGR -> RGB
-    if img.dtype == np.uint16:
-        out = img.astype(np.float32) / 65535.0
-    elif img.dtype == np.uint8:
-        out = img.astype(np.float32) / 255.0
-    elif img.dtype in (np.float32, np.float64):
-        out = img.astype(np.float32)
-        if not np.all(np.isfinite(out)):
-            raise ValueError(f"image file {path}: contains NaN or infinite values")
-    else:
-        raise ValueError(f"image file {path}: unsupported pixel type {img.dtype} (expected 8 or 16 bit)")
-    return out
-
-
-def read_mask(path: Path, shape: tuple[int, int]) -> np.ndarray:
-    """(H, W) bool mask, any channel > 0 is foreground; its size must be ``shape``."""
-    img = _read_raw(path, "mask")
-    if img.ndim == 3:
-        img = img.max(axis=2)
-    if img.shape != shape:
-        raise ValueError(f"mask file {path}: size {img.shape[1]}x{img.shape[0]} (WxH) differs from the "
-                         f"images' {shape[1]}x{shape[0]}")
-    mask = img > 0
-    if not mask.any():
-        raise ValueError(f"mask file {path}: is empty (no pixel > 0)")
-    return mask
-
-
 def _finish_normals(n: np.ndarray, mask: np.ndarray, path: Path) -> np.ndarray:
     """Check the size, zero the background and normalise inside the mask."""
     if n.ndim != 3 or n.shape[2] != 3:
@@ -184,8 +130,6 @@ def _finish_normals(n: np.ndarray, mask: np.ndarray, path: Path) -> np.ndarray:
 
 
 def read_normal_file(path: Path, mask: np.ndarray) -> np.ndarray:
-    from unips.normal_io import read_normals
-
     return _finish_normals(read_normals(path), mask, path)
 
 
@@ -240,16 +184,10 @@ def _load_ours(folder: Path, max_images: int | None) -> PSObject:
     n_all = len(_unips_images(folder))
     images = _load_stack(paths)
     shape = images.shape[1:3]
-    mask_path = folder / "mask.png"
-    mask = read_mask(mask_path, shape)
-    normals = read_normal_file(folder / "normal.tif", mask) if (folder / "normal.tif").is_file() else None
-    scene_path = folder / "scene.json"
-    try:
-        scene = json.loads(scene_path.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise ValueError(f"scene file {scene_path}: cannot be parsed as JSON ({exc})") from exc
-    if not isinstance(scene, dict):
-        raise ValueError(f"scene file {scene_path}: expected a JSON object, got {type(scene).__name__}")
+    mask = read_mask(folder / MASK_FILE, shape)
+    normals = read_normal_file(folder / NORMAL_FILE, mask) if (folder / NORMAL_FILE).is_file() else None
+    scene_path = folder / SCENE_FILE
+    scene = read_scene_dict(scene_path)
     family = scene.get("light_family")
     directions = intensities = None
     cam = scene.get("camera_lights")
@@ -323,8 +261,7 @@ def _load_diligent(folder: Path, max_images: int | None) -> PSObject:
                else np.ones((len(paths), 3)))
     if np.any(raw_int <= 0):
         raise ValueError(f"light_intensities file {int_path}: intensities must be > 0")
-    images = _load_stack(paths)
-    images /= raw_int[:, None, None, :].astype(np.float32)
+    images = _load_stack(paths)  # raw: the calibration stays out of what a model sees
     shape = images.shape[1:3]
     mask_path = folder / "mask.png"
     mask = read_mask(mask_path, shape) if mask_path.is_file() else np.ones(shape, dtype=bool)
@@ -335,7 +272,7 @@ def _load_diligent(folder: Path, max_images: int | None) -> PSObject:
         normals = read_normal_file(folder / "Normal_gt.png", mask)
     return PSObject(name=object_name(folder), images=images, mask=mask, normals=normals,
                     light_family="directional", light_directions=directions.astype(np.float32),
-                    light_intensities=np.ones((len(paths), 3), np.float32), path=folder, layout="diligent",
+                    light_intensities=raw_int.astype(np.float32), path=folder, layout="diligent",
                     image_names=[p.name for p in paths], meta={"light_intensities_file": raw_int})
 
 
@@ -413,11 +350,7 @@ def load_ground_truth(path: str | Path, layout: str | None = None) -> GroundTrut
             break
     family: str | None = None
     if layout == "ours":
-        scene_path = folder / "scene.json"
-        try:
-            family = json.loads(scene_path.read_text()).get("light_family")
-        except (OSError, json.JSONDecodeError, AttributeError) as exc:
-            raise ValueError(f"scene file {scene_path}: cannot be parsed as a JSON object ({exc})") from exc
+        family = read_scene_dict(folder / SCENE_FILE).get("light_family")
     elif layout == "diligent":
         family = "directional"
     return GroundTruth(name=object_name(folder), mask=mask, normals=normals, light_family=family,

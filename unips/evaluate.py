@@ -3,8 +3,9 @@
     python -m unips.evaluate --pred DIR --gt PATH [--allow-missing]
 
 ``--gt`` is an object folder or a dataset directory (any layout `unips.data` reads). Predictions are
-looked up as ``DIR/<object>/normal.exr`` (else ``normal.png``), ``<object>`` being the ground-truth
-folder's name minus a trailing ``.data`` (what `unips.predict` writes). Writes ``DIR/metrics.json``,
+looked up as ``DIR/<object>/normal.*`` in the order of `scenes.objfolder.PREDICTION_FILES` (``.exr``
+first, then ``.png``), ``<object>`` being the ground-truth folder's name minus a trailing ``.data``
+(what `unips.predict` writes). Writes ``DIR/metrics.json``,
 ``DIR/metrics.csv`` and ``DIR/<object>/error_map.png`` (angular error, colour-mapped, clipped at
 90 degrees, background black) and prints a table. Metrics per object: mean and median angular error
 (degrees) over the ground-truth mask, the percentage of pixels under 11.25 and 30 degrees, the light
@@ -14,7 +15,6 @@ without a prediction is listed as missing and makes the exit status 1 unless ``-
 
 from __future__ import annotations
 
-import argparse
 import csv
 import json
 import logging
@@ -24,23 +24,18 @@ from typing import Any
 
 import numpy as np
 
-from unips.data import find_objects, load_ground_truth
+from scenes.cli import UsageError, UsageErrorParser, one_line, report_error
+from scenes.objfolder import angular_error_deg, object_name, prediction_file, read_normals
+from unips.data import detect_layout, find_objects, load_ground_truth
 
 log = logging.getLogger(__name__)
 
 ERROR_CLIP_DEG = 90.0
-PRED_FILES = ("normal.exr", "normal.png")
 CSV_FIELDS = ("object", "light_family", "n_pixels", "mae_deg", "median_deg", "pct_below_11_25", "pct_below_30")
-
-
-class CLIError(Exception):
-    """A usage or input error the CLI reports as one line."""
 
 
 def object_metrics(pred: np.ndarray, gt: np.ndarray, mask: np.ndarray) -> tuple[dict[str, float], np.ndarray]:
     """Metrics of one object and its (H, W) error map in degrees."""
-    from unips.normal_io import angular_error_deg
-
     if not mask.any():
         raise ValueError("mask: is empty, nothing to evaluate")
     err_map = angular_error_deg(pred, gt, mask)
@@ -54,57 +49,68 @@ def object_metrics(pred: np.ndarray, gt: np.ndarray, mask: np.ndarray) -> tuple[
     }, err_map
 
 
-def write_error_map(path: Path, err_map: np.ndarray, mask: np.ndarray, clip_deg: float = ERROR_CLIP_DEG) -> None:
-    """Colour-mapped (JET) error image, 0 -> blue, clip_deg and above -> red, background black."""
+ERROR_MAP_MIN_HEIGHT = 192
+"""error_map.png is enlarged by an integer factor (nearest neighbour) to at least this height, so that its
+colour bar (degrees) is legible."""
+
+
+def error_map_image(err_map: np.ndarray, mask: np.ndarray, clip_deg: float = ERROR_CLIP_DEG) -> np.ndarray:
+    """BGR image: the colour-mapped (JET) error, 0 -> blue, clip_deg and above -> red, background black,
+    enlarged by `error_map_scale`, with a colour bar in degrees on the right."""
     import cv2
+
+    from scenes.colorbar import colorbar
 
     level = np.round(np.clip(err_map / clip_deg, 0.0, 1.0) * 255.0).astype(np.uint8)
     img = cv2.applyColorMap(level, cv2.COLORMAP_JET)
     img[~mask] = 0
+    s = error_map_scale(mask.shape[0])
+    img = np.repeat(np.repeat(img, s, axis=0), s, axis=1)
+    bar = colorbar(img.shape[0], clip_deg, cv2.COLORMAP_JET, "angle (deg)", ticks=3, fmt="{:.0f}")
+    if bar.shape[0] > img.shape[0]:
+        img = np.concatenate([img, np.zeros((bar.shape[0] - img.shape[0],) + img.shape[1:], np.uint8)], axis=0)
+    return np.concatenate([img, bar], axis=1)
+
+
+def error_map_scale(height: int) -> int:
+    """The integer enlargement of error_map.png for a map `height` pixels high."""
+    return max(1, -(-ERROR_MAP_MIN_HEIGHT // max(int(height), 1)))
+
+
+def write_error_map(path: Path, err_map: np.ndarray, mask: np.ndarray, clip_deg: float = ERROR_CLIP_DEG) -> None:
+    """Write `error_map_image` as PNG: the map occupies the top-left (H * s, W * s) pixels, s = error_map_scale(H)."""
+    import cv2
+
     path.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(path), img):
-        raise ValueError(f"path: cannot write {path}")
-
-
-def find_prediction(pred_dir: Path, name: str) -> Path | None:
-    for fname in PRED_FILES:
-        p = pred_dir / name / fname
-        if p.is_file():
-            return p
-    return None
+    if not cv2.imwrite(str(path), error_map_image(err_map, mask, clip_deg)):
+        raise OSError(f"path: cannot write {path}")
 
 
 def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True) -> dict[str, Any]:
     """Evaluate every ground-truth object at ``gt`` against ``pred_dir``; returns the metrics dict."""
-    from unips.normal_io import read_normals
-
     pred_dir = Path(pred_dir)
     if not pred_dir.is_dir():
         raise FileNotFoundError(f"pred: prediction directory {pred_dir} does not exist")
     results: dict[str, dict[str, Any]] = {}
     missing: list[str] = []
     no_gt: list[str] = []
-    for folder in find_objects(gt):
-        truth = load_ground_truth(folder)
-        if truth.name in results or truth.name in missing:
-            raise ValueError(f"gt: two ground-truth folders are named {truth.name!r}")
-        if truth.normals is None:
-            no_gt.append(truth.name)
-            log.warning("%s has no ground-truth normals; skipped", folder)
-            continue
-        pred_path = find_prediction(pred_dir, truth.name)
-        if pred_path is None:
-            missing.append(truth.name)
-            continue
-        pred = read_normals(pred_path)
-        if pred.shape != truth.normals.shape:
-            raise ValueError(f"pred: {pred_path} has shape {pred.shape}, the ground truth {folder} has "
-                             f"{truth.normals.shape}")
-        metrics, err_map = object_metrics(pred, truth.normals, truth.mask)
-        results[truth.name] = {**metrics, "light_family": truth.light_family, "prediction": str(pred_path)}
-        if write:
-            write_error_map(pred_dir / truth.name / "error_map.png", err_map, truth.mask)
-    if not results and not missing:
+    failed: dict[str, str] = {}
+    folders = find_objects(gt)
+    single = detect_layout(gt) is not None
+    seen: set[str] = set()
+    for folder in folders:
+        name = object_name(folder)
+        if name in seen:
+            raise ValueError(f"gt: two ground-truth folders are named {name!r}")
+        seen.add(name)
+        try:
+            _evaluate_one(folder, pred_dir, write, results, missing, no_gt)
+        except (ValueError, OSError) as exc:  # one bad object: recorded, the others go on
+            if single:
+                raise
+            failed[name] = one_line(exc)
+            log.debug("%s failed", name, exc_info=True)
+    if not results and not missing and not failed:
         raise ValueError(f"gt: no object at {gt} has ground-truth normals (skipped: {no_gt})")
     per_family: dict[str, dict[str, Any]] = {}
     for name, m in results.items():
@@ -118,6 +124,7 @@ def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True) -> dict[s
         "mean_mae_deg": float(np.mean([m["mae_deg"] for m in results.values()])) if results else None,
         "per_family": per_family,
         "missing": missing,
+        "failed": failed,
         "no_ground_truth": no_gt,
         "gt": str(Path(gt).resolve()),
     }
@@ -131,6 +138,26 @@ def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True) -> dict[s
     return summary
 
 
+def _evaluate_one(folder: Path, pred_dir: Path, write: bool, results: dict, missing: list, no_gt: list) -> None:
+    truth = load_ground_truth(folder)
+    if truth.normals is None:
+        no_gt.append(truth.name)
+        log.warning("%s has no ground-truth normals; skipped", folder)
+        return
+    pred_path = prediction_file(pred_dir / truth.name)
+    if pred_path is None:
+        missing.append(truth.name)
+        return
+    pred = read_normals(pred_path)
+    if pred.shape != truth.normals.shape:
+        raise ValueError(f"pred: {pred_path} has shape {pred.shape}, the ground truth {folder} has "
+                         f"{truth.normals.shape}")
+    metrics, err_map = object_metrics(pred, truth.normals, truth.mask)
+    results[truth.name] = {**metrics, "light_family": truth.light_family, "prediction": str(pred_path)}
+    if write:
+        write_error_map(pred_dir / truth.name / "error_map.png", err_map, truth.mask)
+
+
 def format_table(summary: dict[str, Any]) -> str:
     lines = [f"{'object':<24} {'family':<12} {'pixels':>8} {'MAE':>7} {'median':>7} {'<11.25%':>8} {'<30%':>7}"]
     for name, m in summary["objects"].items():
@@ -142,17 +169,14 @@ def format_table(summary: dict[str, Any]) -> str:
         lines.append(f"{'mean ' + fam:<24} {'':<12} {entry['n_objects']:>8d} {entry['mean_mae_deg']:>7.2f}")
     for name in summary["missing"]:
         lines.append(f"{name:<24} MISSING prediction")
+    for name, why in summary.get("failed", {}).items():
+        lines.append(f"{name:<24} FAILED: {why}")
     return "\n".join(lines)
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:
-        raise CLIError(message)
 
 
 def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
-    parser = _Parser(prog="python -m unips.evaluate", description=__doc__.split("\n\n")[0])
+    parser = UsageErrorParser(prog="python -m unips.evaluate", description=__doc__.split("\n\n")[0])
     parser.add_argument("--pred", required=True, type=Path, help="directory written by unips.predict")
     parser.add_argument("--gt", required=True, type=Path, help="object folder or dataset directory")
     parser.add_argument("--allow-missing", action="store_true",
@@ -160,15 +184,21 @@ def main(argv: list[str] | None = None) -> int:
     try:
         args = parser.parse_args(argv)
         summary = evaluate(args.pred, args.gt)
-    except (CLIError, ValueError, FileNotFoundError, OSError) as exc:
-        print(f"error: {str(exc).replace(chr(10), ' ')}", file=sys.stderr)
-        return 2
+    except (UsageError, ValueError, FileNotFoundError, OSError) as exc:
+        return report_error(exc)
     print(format_table(summary))
+    status = 0
+    if summary["failed"]:
+        for name, why in summary["failed"].items():
+            print(f"failed {name}: {why}", file=sys.stderr)
+        print(f"error: {len(summary['failed'])} object(s) could not be evaluated: {', '.join(summary['failed'])} "
+              "(the others are in metrics.json)", file=sys.stderr)
+        status = 1
     if summary["missing"] and not args.allow_missing:
         print(f"error: no prediction for {len(summary['missing'])} object(s): {', '.join(summary['missing'])} "
               "(use --allow-missing to accept)", file=sys.stderr)
-        return 1
-    return 0
+        status = 1
+    return status
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ frame, background 32768), ``normal.exr`` (float32), ``normal_vis.png`` (8-bit pi
 a trailing ``.data`` (``foo.data`` -> ``foo``; DiLiGenT's ``ballPNG`` stays ``ballPNG``), the name
 `unips.evaluate` matches ground truth by.
 
+Inference itself is the library `unips.inference` (this module parses arguments and writes files).
 ``--method model`` loads a network with `unips.checkpoint.load_model`; without ``--checkpoint`` it
 uses the shipped ``unips/weights/glc-tiny.safetensors`` and refuses to run when that file is absent
 (never random weights). The network sees the UniPS preprocessing (`unips.preprocess.prepare`), at the
@@ -22,111 +23,60 @@ import json
 import logging
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from unips.data import PSObject, find_objects, load_object, object_name
+from scenes.cli import INPUT_ERRORS, UsageError, UsageErrorParser, one_line, report_error
+from scenes.objfolder import PREDICTION_FILES, object_name, write_normal_exr, write_normal_map, write_normal_visual
+from unips.data import detect_layout, find_objects, load_object
+from unips.inference import METHODS, load_network, predict_object
 
 log = logging.getLogger(__name__)
 
-METHODS = ("model", "least-squares", "sh-uncalibrated")
-DEFAULT_WEIGHTS = "weights/glc-tiny.safetensors"  # inside the unips package
+
+CONSTANT_DEG = 0.5
+"""A prediction whose normals inside the mask all lie within this angle (degrees) of their mean is flagged
+as constant (`predict.json` "constant_map", a warning): a degenerate result unless the object is a plane."""
 
 
-class CLIError(Exception):
-    """A usage or input error the CLI reports as one line."""
+def constant_map(normals: np.ndarray, mask: np.ndarray) -> bool:
+    """True when every normal inside the mask is within CONSTANT_DEG of their mean direction."""
+    inside = normals[mask].astype(np.float64)
+    if len(inside) < 2:
+        return False
+    mean = inside.mean(axis=0)
+    norm = np.linalg.norm(mean)
+    if norm < 1e-8:
+        return False
+    cos = inside @ (mean / norm) / np.maximum(np.linalg.norm(inside, axis=1), 1e-12)
+    return bool(np.all(cos >= np.cos(np.radians(CONSTANT_DEG))))
 
 
-def default_checkpoint() -> Path:
-    """Path of the shipped default weights; CLIError when they are not shipped (yet)."""
-    from importlib import resources
-
-    ref = resources.files("unips").joinpath(DEFAULT_WEIGHTS)
-    if not ref.is_file():
-        raise CLIError(f"no shipped weights yet (unips/{DEFAULT_WEIGHTS} is missing); "
-                       "pass --checkpoint PATH to a .safetensors or .pt model file")
-    return Path(str(ref))
-
-
-@dataclass
-class LoadedModel:
-    """A network ready for inference and where it came from."""
-
-    model: Any  # torch.nn.Module in eval mode on `device`
-    meta: dict[str, Any]  # from unips.checkpoint.load_model
-    checkpoint: Path  # the file it was loaded from
-    device: str  # torch device string
-
-
-def load_network(checkpoint: str | Path | None, device: str = "cpu") -> LoadedModel:
-    """Load a model file (or the shipped default) onto ``device``."""
-    import torch
-
-    from unips.checkpoint import load_model
-
-    if device.startswith("cuda") and not torch.cuda.is_available():
-        raise CLIError(f"--device {device}: CUDA is not available on this machine")
-    path = Path(checkpoint) if checkpoint is not None else default_checkpoint()
-    model, meta = load_model(path, map_location=device)
-    return LoadedModel(model=model.eval(), meta=dict(meta), checkpoint=path, device=device)
-
-
-def run_model(net: LoadedModel, obj: PSObject, res: int | None = None, margin: int = 4) -> np.ndarray:
-    """Normals (H, W, 3) of ``obj`` from the network, in the original frame, zero outside the mask."""
-    import torch
-
-    from unips.preprocess import prepare, resize_prepared, uncrop
-
-    prepared = prepare(obj, margin=margin)
-    work = resize_prepared(prepared, res) if res is not None else prepared
-    images = torch.from_numpy(np.ascontiguousarray(work.images.transpose(0, 3, 1, 2)))[None]  # (1, K, 3, R, R)
-    mask = torch.from_numpy(work.mask.astype(np.float32))[None, None]  # (1, 1, R, R)
-    with torch.no_grad():
-        out = net.model(images.to(net.device), mask.to(net.device))  # (1, 3, R, R)
-    if tuple(out.shape) != (1, 3) + work.mask.shape:
-        raise ValueError(f"model: returned shape {tuple(out.shape)}, expected (1, 3, {work.resolution}, "
-                         f"{work.resolution})")
-    n = out[0].permute(1, 2, 0).float().cpu().numpy()  # (R, R, 3)
-    if not np.all(np.isfinite(n)):
-        raise ValueError(f"model: produced non-finite normals for {obj.name}")
-    norm = np.linalg.norm(n, axis=2, keepdims=True)
-    n = np.where(work.mask[..., None] & (norm > 1e-8), n / np.maximum(norm, 1e-12), 0.0).astype(np.float32)
-    return uncrop(n, prepared.crop, mask=obj.mask)
-
-
-def predict_object(obj: PSObject, method: str, net: LoadedModel | None = None,
-                   res: int | None = None) -> np.ndarray:
-    """(H, W, 3) unit normals of ``obj`` by ``method`` (zero outside the mask)."""
-    if method == "model":
-        if net is None:
-            raise ValueError("net: --method model needs a loaded network")
-        return run_model(net, obj, res=res)
-    from unips.baselines import run_baseline
-
-    return run_baseline(method, obj)
+def check_out_folder(folder: Path) -> None:
+    """Refuse to write into `folder` when it holds normal maps that unips.predict did not write (no
+    predict.json beside them): files this command did not create are never replaced."""
+    if folder.exists() and not folder.is_dir():
+        raise UsageError(f"--out: {str(folder)!r} is an existing file, expected a folder for the prediction")
+    if folder.is_dir() and not (folder / "predict.json").is_file():
+        theirs = [f for f in ("normal.png", "normal_vis.png", *PREDICTION_FILES) if (folder / f).exists()]
+        if theirs:
+            raise UsageError(f"--out: {str(folder)!r} already holds {', '.join(sorted(set(theirs)))} not written by "
+                             "unips.predict (no predict.json); use another --out")
 
 
 def write_prediction(out_dir: Path, normals: np.ndarray, info: dict[str, Any]) -> None:
     """Write normal.png, normal.exr, normal_vis.png and predict.json into ``out_dir``."""
-    from unips.normal_io import write_normal_exr, write_normal_png, write_normal_visual
-
     out_dir.mkdir(parents=True, exist_ok=True)
-    write_normal_png(out_dir / "normal.png", normals)
+    write_normal_map(out_dir / "normal.png", normals)
     write_normal_exr(out_dir / "normal.exr", normals)
     write_normal_visual(out_dir / "normal_vis.png", normals)
     (out_dir / "predict.json").write_text(json.dumps(info, indent=2, sort_keys=True))
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # one-line errors instead of usage + message
-        raise CLIError(message)
-
-
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="python -m unips.predict", description=__doc__.split("\n\n")[0])
+    p = UsageErrorParser(prog="python -m unips.predict", description=__doc__.split("\n\n")[0])
     p.add_argument("--method", required=True, choices=METHODS, help="network or classical baseline")
     p.add_argument("--checkpoint", type=Path, default=None,
                    help="model file (.safetensors with its .json, or a training .pt); --method model only")
@@ -141,55 +91,83 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _check_args(args: argparse.Namespace) -> None:
     if args.max_images is not None and args.max_images < 1:
-        raise CLIError(f"--max-images: must be >= 1, got {args.max_images}")
+        raise UsageError(f"--max-images: must be >= 1, got {args.max_images}")
     if args.res is not None and args.res < 8:
-        raise CLIError(f"--res: must be >= 8, got {args.res}")
+        raise UsageError(f"--res: must be >= 8, got {args.res}")
     if args.method != "model":
         for flag, value in (("--checkpoint", args.checkpoint), ("--res", args.res)):
             if value is not None:
-                raise CLIError(f"{flag}: only used with --method model, not --method {args.method}")
+                raise UsageError(f"{flag}: only used with --method model, not --method {args.method}")
 
 
 def main(argv: list[str] | None = None) -> int:
+    """One object: a failure is one line `error: ...`, exit 2. A dataset: a failed object is recorded, the others
+    go on, the failures are listed at the end (`failed NAME: reason`) and the exit status is 1."""
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    failures: list[tuple[str, str]] = []
     try:
         args = build_parser().parse_args(argv)
         _check_args(args)
+        if args.out.exists() and not args.out.is_dir():
+            raise UsageError(f"--out: {str(args.out)!r} is an existing file, expected a folder")
         folders = find_objects(args.input)
+        single = detect_layout(args.input) is not None
         names = [object_name(f) for f in folders]
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
-            raise CLIError(f"--input: several object folders share the name(s) {dup} (e.g. foo and foo.data)")
+            raise UsageError(f"--input: several object folders share the name(s) {dup} (e.g. foo and foo.data)")
+        for name in names:
+            check_out_folder(args.out / name)
         net = load_network(args.checkpoint, args.device) if args.method == "model" else None
         from tqdm import tqdm
 
         for folder, name in tqdm(list(zip(folders, names)), desc="objects", unit="obj", file=sys.stderr,
                                  disable=len(folders) < 2):
-            obj = load_object(folder, max_images=args.max_images)
-            start = time.perf_counter()
-            normals = predict_object(obj, args.method, net=net, res=args.res)
-            elapsed = time.perf_counter() - start
-            info = {
-                "object": name,
-                "input": str(folder.resolve()),
-                "layout": obj.layout,
-                "method": args.method,
-                "checkpoint": str(net.checkpoint.resolve()) if net else None,
-                "model_name": net.meta.get("model_name") if net else None,
-                "device": args.device if net else "cpu",
-                "resolution": args.res,
-                "num_images": obj.num_images,
-                "images_used": obj.image_names,
-                "time_s": round(elapsed, 4),
-                "image_size": [int(obj.mask.shape[1]), int(obj.mask.shape[0])],
-            }
-            write_prediction(args.out / name, normals, info)
-            log.info("%s: %s in %.2f s", name, args.method, elapsed)
-    except (CLIError, ValueError, FileNotFoundError, OSError) as exc:
-        msg = str(exc).replace("\n", " ")
-        print(f"error: {msg}", file=sys.stderr)
-        return 2
+            try:
+                _predict_one(args, net, folder, name)
+            except (*INPUT_ERRORS, OSError, np.linalg.LinAlgError) as exc:
+                if single:
+                    raise
+                failures.append((name, one_line(exc)))
+                log.debug("%s failed", name, exc_info=True)
+    except (*INPUT_ERRORS, OSError, np.linalg.LinAlgError) as exc:
+        return report_error(exc)
+    if failures:
+        for name, why in failures:
+            print(f"failed {name}: {why}", file=sys.stderr)
+        print(f"error: {len(failures)} of {len(folders)} object(s) failed with --method {args.method}: "
+              f"{', '.join(n for n, _ in failures)} (the others were written)", file=sys.stderr)
+        return 1
     return 0
+
+
+def _predict_one(args: argparse.Namespace, net, folder: Path, name: str) -> None:
+    obj = load_object(folder, max_images=args.max_images)
+    start = time.perf_counter()
+    normals = predict_object(obj, args.method, net=net, res=args.res)
+    elapsed = time.perf_counter() - start
+    constant = constant_map(normals, obj.mask)
+    if constant:
+        print(f"warning: {name}: --method {args.method} returned a constant normal map (all normals within "
+              f"{CONSTANT_DEG} deg of one direction): degenerate unless the object is a plane; flagged in predict.json",
+              file=sys.stderr)
+    info = {
+        "object": name,
+        "input": str(folder.resolve()),
+        "layout": obj.layout,
+        "method": args.method,
+        "checkpoint": str(net.checkpoint.resolve()) if net else None,
+        "model_name": net.meta.get("model_name") if net else None,
+        "device": args.device if net else "cpu",
+        "resolution": args.res,
+        "num_images": obj.num_images,
+        "images_used": obj.image_names,
+        "time_s": round(elapsed, 4),
+        "image_size": [int(obj.mask.shape[1]), int(obj.mask.shape[0])],
+        "constant_map": constant,
+    }
+    write_prediction(args.out / name, normals, info)
+    log.info("%s: %s in %.2f s", name, args.method, elapsed)
 
 
 if __name__ == "__main__":

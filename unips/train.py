@@ -1,8 +1,15 @@
 """Train a GLC-UniPS model on object folders (CLI `python -m unips.train`).
 
-Recipe (paper): AdamW, step learning-rate decay, each sample a random subset of 2..K images of an
-object, MSE between unit normals on all masked pixels of the canonical grid plus `--pixels` random
+Recipe: AdamW with linear warm-up then cosine decay (or the paper's step decay), gradient clipping,
+each sample a random subset of `min_images`..`max_images` images of an object, MSE between unit
+normals on (at most `canonical_points`) masked points of the canonical grid plus `pixels` random
 masked pixels at the working resolution, flips / transpose / per-image RGB permutation with p = 0.5.
+Validation reports the probes of `unips.probes` (all images, one image, mask only, shuffled) per
+light family and the photometric gain; the best weights are chosen on the all-images error.
+
+Many GPUs: run the same command under `torchrun --nproc_per_node N` (DistributedDataParallel; NCCL on
+CUDA, gloo on CPU). The global batch `batch` is split across the N processes, so a run gives the same
+trajectory up to floating-point reduction order; rank 0 validates and writes every file.
 
 Determinism: every random choice of step `s` comes from generators seeded by `(seed, s)` (object
 order by epoch from `(seed, epoch)`), and torch's global RNG (dropout, drop path) is reseeded from
@@ -23,13 +30,14 @@ import math
 import os
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 import torch
 import torch.nn.functional as F
+
 
 log = logging.getLogger(__name__)
 
@@ -142,8 +150,14 @@ def random_pixels(mask: torch.Tensor, normals: torch.Tensor, count: int,
 
 
 def make_batch(samples: Sequence[Sample], step: int, *, seed: int, batch: int, min_images: int,
-               max_images: int, pixels: int, canonical: int, augment: bool = True) -> Batch:
-    """The batch of `step`, a pure function of (samples, step, seed and the settings)."""
+               max_images: int, pixels: int, canonical: int, augment: bool = True,
+               canonical_max: int = 0, rank: int = 0, world: int = 1) -> Batch:
+    """The batch of `step`, a pure function of (samples, step, seed and the settings).
+
+    `canonical_max` > 0 keeps a random subset of at most that many canonical-grid points per object.
+    With `world` > 1 processes, rank `rank` gets objects rank, rank + world, ... of the global batch
+    (every random draw is made for the whole batch, so the union over ranks is the 1-process batch).
+    """
     from unips.augment import apply_augmentation, sample_augmentation
 
     idx = batch_indices(seed, step, batch, len(samples))
@@ -151,17 +165,24 @@ def make_batch(samples: Sequence[Sample], step: int, *, seed: int, batch: int, m
     k_max = min(max_images, min(samples[i].num_images for i in idx))
     k = int(rng.integers(min_images, k_max + 1))
     imgs, masks, can, rnd = [], [], [], []
-    for i in idx:
+    for j, i in enumerate(idx):
         s = samples[i]
         subset = np.sort(rng.choice(s.num_images, size=k, replace=False))
         x = s.images[torch.from_numpy(subset)].to(torch.float32)
         m, n = s.mask, s.normals
         if augment:
             x, m, n = apply_augmentation(sample_augmentation(rng, k), x, m, n)
+        cc, cn = canonical_points(m, n, canonical)
+        if 0 < canonical_max < cc.shape[0]:
+            keep = torch.from_numpy(np.sort(rng.choice(cc.shape[0], size=canonical_max, replace=False)))
+            cc, cn = cc[keep], cn[keep]
+        rp = random_pixels(m, n, pixels, rng)
+        if j % world != rank:
+            continue  # drawn anyway so that every rank's generator stays in step
         imgs.append(x)
         masks.append(m)
-        can.append(canonical_points(m, n, canonical))
-        rnd.append(random_pixels(m, n, pixels, rng))
+        can.append((cc, cn))
+        rnd.append(rp)
     n_can = max(1, max(c.shape[0] for c, _ in can))
     coords, target, weight = [], [], []
     for (cc, cn), (rc, rn) in zip(can, rnd):
@@ -190,91 +211,206 @@ def normal_loss(pred: torch.Tensor, batch: Batch) -> tuple[torch.Tensor, dict[st
 
 # -- validation -----------------------------------------------------------------------------
 
-def angular_errors(pred: torch.Tensor, gt: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-    """Per-pixel angular errors in degrees over the mask: pred, gt `(3, H, W)`, mask `(1, H, W)`."""
-    p = F.normalize(pred, dim=0, eps=1e-8)
-    g = F.normalize(gt, dim=0, eps=1e-8)
-    cos = (p * g).sum(0).clamp(-1.0, 1.0)
-    return torch.rad2deg(torch.acos(cos))[mask[0] > 0.5]
-
-
 @torch.no_grad()
-def validate(model: torch.nn.Module, samples: Sequence[Sample], max_images: int,
-             device: torch.device) -> dict[str, Any]:
-    """Mean angular error (degrees) over all validation objects and per light family.
+def validate(model: torch.nn.Module, samples: Sequence[Sample], max_images: int, device: torch.device,
+             probes: Sequence[str] = ("all",), pixels: int = 0, seed: int = 0) -> dict[str, Any]:
+    """Probe errors (degrees) over the validation objects, overall and per light family.
 
-    Each object uses its first `max_images` images, predicted at the working resolution.
+    Each object uses its first `max_images` images at the working resolution; `pixels` > 0 scores a
+    fixed seeded subset of that many masked pixels per object. Returns `unips.probes.summarise`'s
+    dict plus "mean" (all images, the model-selection figure) and per-object errors.
     """
+    from unips.probes import probe_object, summarise
+
     was_training = model.training
     model.eval()
-    per_family: dict[str, list[float]] = {}
     per_object = {}
-    for s in samples:
-        x = s.images[:max_images].to(torch.float32)[None].to(device)
-        pred = model(x, s.mask[None].to(device))[0].cpu()
-        e = float(angular_errors(pred, s.normals, s.mask).mean())
-        per_object[s.name] = e
-        per_family.setdefault(s.light_family or "unknown", []).append(e)
+    for i, s in enumerate(samples):
+        per_object[s.name] = probe_object(model, s.images[:max_images], s.mask, s.normals, probes=probes,
+                                          pixels=pixels, seed=seed + i, device=device)
     model.train(was_training)
-    errs = list(per_object.values())
-    return {"mean": float(np.mean(errs)), "n": len(errs),
-            "families": {k: float(np.mean(v)) for k, v in sorted(per_family.items())},
-            "objects": per_object}
+    res = summarise(per_object, {s.name: s.light_family for s in samples})
+    res["probes"] = res.pop("mean")
+    res["mean"] = res["probes"]["all"]
+    res["objects"] = per_object
+    return res
 
 
-# -- training loop --------------------------------------------------------------------------
+# -- configuration ----------------------------------------------------------------------------
+
+@dataclass
+class TrainConfig:
+    """Everything that determines a training run; the CLI fills it (`python -m unips.train --help`)."""
+
+    data: str = ""
+    """Training dataset directory (object folders with ground-truth normals)."""
+    out: str = ""
+    """Run directory: log.jsonl, last.pt, best.safetensors and final.safetensors (+ .json sidecars)."""
+    val: str | None = None
+    """Validation dataset directory (object folders with normal.tif); held-out assets, test-like settings."""
+    model: str = "glc-small"
+    """Registered model name (`unips.models.list_models()`); with `init_from`, the weights' model."""
+    init_from: str | None = None
+    """Weights (.safetensors or .pt) to start from: weights only, with fresh optimiser, schedule and data."""
+    steps: int = 2000
+    """Total optimisation steps."""
+    batch: int = 4
+    """Objects per step (the global batch, split across processes under torchrun)."""
+    lr: float = 5e-4
+    """Peak AdamW learning rate."""
+    weight_decay: float = 0.05
+    """AdamW weight decay."""
+    schedule: str = "cosine"
+    """'cosine': linear warm-up over `warmup` steps then cosine decay to `min_lr_ratio` * lr; 'step': x`decay` every `decay_every` steps."""
+    warmup: int = 100
+    """Warm-up steps of the cosine schedule."""
+    min_lr_ratio: float = 0.05
+    """Final learning rate of the cosine schedule as a fraction of `lr`."""
+    decay_every: int = 1000
+    """Steps between decays of the step schedule."""
+    decay: float = 0.8
+    """Learning-rate factor at each decay of the step schedule."""
+    clip_grad: float = 1.0
+    """Gradient clipping by global norm (0: off)."""
+    max_images: int = 10
+    """Most images per training sample (and images per validation object)."""
+    min_images: int = 1
+    """Fewest images per training sample (1 keeps single-image inputs in the training distribution)."""
+    pixels: int = 1000
+    """Random masked pixels per object at the working resolution."""
+    canonical_points: int = 1000
+    """At most this many masked canonical-grid points per object in the loss (0: all of them)."""
+    res: int = 128
+    """Working resolution of the cached crops (the test resolution; above the canonical resolution)."""
+    seed: int = 0
+    """Seed of every random choice (initial weights, objects, image subsets, pixels, augmentation)."""
+    resume: bool = False
+    """Continue from RUN/last.pt, bit for bit."""
+    overwrite: bool = False
+    """Start afresh in a run directory that already holds a run (its files are replaced)."""
+    val_every: int = 200
+    """Steps between validations."""
+    val_pixels: int = 2000
+    """Masked pixels scored per validation object (a fixed seeded subset; 0: all)."""
+    val_probes: list[str] = field(default_factory=lambda: ["all", "one", "mask", "shuffled"])
+    """Probes of every validation (`unips.probes.PROBES`); 'all' is always included."""
+    ckpt_every: int = 200
+    """Steps between last.pt saves."""
+    log_every: int = 10
+    """Steps between training records in log.jsonl."""
+    threads: int = 0
+    """torch CPU threads (0: all cores, divided among local processes under torchrun)."""
+    device: str = "cpu"
+    """torch device ('cpu', 'cuda'; under torchrun each process takes cuda:LOCAL_RANK)."""
+    precision: str = "fp32"
+    """'fp32' or 'bf16' (autocast of the forward pass; for GPUs)."""
+    no_augment: bool = False
+    """Disable flips / transpose / RGB permutation."""
+    no_progress: bool = False
+    """No progress bar."""
+    model_option: list[str] = field(default_factory=list)
+    """Model config overrides KEY=VALUE (JSON value), e.g. uniform_context=true."""
+
+    def validate(self) -> "TrainConfig":
+        """Raise ValueError naming the first bad field as its CLI flag."""
+        from unips.probes import PROBES
+
+        def flag(name: str) -> str:
+            return "--" + name.replace("_", "-")
+
+        if not self.data:
+            raise ValueError("--data: required (a dataset directory)")
+        if not self.out:
+            raise ValueError("--out: required (a run directory)")
+        for name in ("steps", "batch", "decay_every", "max_images", "min_images", "pixels", "res", "val_every",
+                     "ckpt_every", "log_every"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise ValueError(f"{flag(name)}: got {v!r}, expected an integer >= 1")
+        for name in ("warmup", "canonical_points", "val_pixels", "threads"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+                raise ValueError(f"{flag(name)}: got {v!r}, expected an integer >= 0")
+        if self.min_images > self.max_images:
+            raise ValueError(f"--min-images={self.min_images} exceeds --max-images={self.max_images}")
+        if not (math.isfinite(self.lr) and self.lr > 0):
+            raise ValueError(f"--lr: got {self.lr}, expected > 0")
+        if not (math.isfinite(self.weight_decay) and self.weight_decay >= 0):
+            raise ValueError(f"--weight-decay: got {self.weight_decay}, expected >= 0")
+        if not 0 < self.decay <= 1:
+            raise ValueError(f"--decay: got {self.decay}, expected in (0, 1]")
+        if not 0 <= self.min_lr_ratio <= 1:
+            raise ValueError(f"--min-lr-ratio: got {self.min_lr_ratio}, expected in [0, 1]")
+        if not (math.isfinite(self.clip_grad) and self.clip_grad >= 0):
+            raise ValueError(f"--clip-grad: got {self.clip_grad}, expected >= 0 (0: off)")
+        if self.schedule not in ("cosine", "step"):
+            raise ValueError(f"--schedule: got {self.schedule!r}, expected cosine or step")
+        if self.precision not in ("fp32", "bf16"):
+            raise ValueError(f"--precision: got {self.precision!r}, expected fp32 or bf16")
+        bad = [p for p in self.val_probes if p not in PROBES]
+        if bad:
+            raise ValueError(f"--val-probes: got {bad}, expected from {', '.join(PROBES)}")
+        if self.resume and self.overwrite:
+            raise ValueError("--resume and --overwrite: expected at most one of them")
+        if self.resume and self.init_from:
+            raise ValueError("--resume and --init-from: expected at most one of them (a resumed run keeps its weights)")
+        return self
+
 
 # Settings that change the trajectory: a resumed run must use the same values.
-TRAJECTORY_KEYS = ("model", "batch", "lr", "weight_decay", "decay_every", "decay", "max_images",
-                   "min_images", "pixels", "seed", "res", "no_augment")
+TRAJECTORY_KEYS = ("model", "init_from", "batch", "lr", "weight_decay", "schedule", "warmup", "min_lr_ratio",
+                   "decay_every", "decay", "clip_grad", "max_images", "min_images", "pixels", "canonical_points",
+                   "seed", "res", "no_augment", "precision")
+
+
+def field_docs(cls: type) -> dict[str, str]:
+    """Attribute docstrings of a dataclass (the string literal after each field), by field name."""
+    import ast
+    import inspect
+    import textwrap
+
+    tree = ast.parse(textwrap.dedent(inspect.getsource(cls)))
+    body = tree.body[0].body
+    docs = {}
+    for prev, node in zip(body, body[1:]):
+        if (isinstance(prev, ast.AnnAssign) and isinstance(prev.target, ast.Name) and isinstance(node, ast.Expr)
+                and isinstance(node.value, ast.Constant) and isinstance(node.value.value, str)):
+            docs[prev.target.id] = " ".join(node.value.value.split())
+    return docs
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m unips.train", description=__doc__.split("\n\n")[0])
-    p.add_argument("--data", required=True, help="training dataset directory (object folders)")
-    p.add_argument("--val", default=None, help="validation dataset directory (with normal.tif)")
-    p.add_argument("--model", default="glc-tiny", help="registered model name (default glc-tiny)")
-    p.add_argument("--out", required=True, help="run directory (log.jsonl, last.pt, best/final weights)")
-    p.add_argument("--steps", type=int, default=2000, help="total optimisation steps (default 2000)")
-    p.add_argument("--batch", type=int, default=4, help="objects per step (default 4)")
-    p.add_argument("--lr", type=float, default=5e-4, help="AdamW learning rate (default 5e-4)")
-    p.add_argument("--weight-decay", type=float, default=0.05, help="AdamW weight decay (default 0.05)")
-    p.add_argument("--decay-every", type=int, default=1000, help="steps between lr decays (default 1000)")
-    p.add_argument("--decay", type=float, default=0.8, help="lr factor at each decay (default 0.8)")
-    p.add_argument("--max-images", type=int, default=8, help="most images per sample (default 8)")
-    p.add_argument("--min-images", type=int, default=2, help="fewest images per sample (default 2)")
-    p.add_argument("--pixels", type=int, default=2500, help="random masked pixels per object (default 2500)")
-    p.add_argument("--res", type=int, default=64, help="working resolution of the cached crops (default 64)")
-    p.add_argument("--seed", type=int, default=0, help="seed of every random choice (default 0)")
-    p.add_argument("--resume", action="store_true", help="continue from RUN/last.pt (bit for bit)")
-    p.add_argument("--val-every", type=int, default=200, help="steps between validations (default 200)")
-    p.add_argument("--ckpt-every", type=int, default=200, help="steps between last.pt saves (default 200)")
-    p.add_argument("--log-every", type=int, default=10, help="steps between log.jsonl records (default 10)")
-    p.add_argument("--threads", type=int, default=0, help="torch CPU threads (default: all cores)")
-    p.add_argument("--device", default="cpu", help="torch device (default cpu)")
-    p.add_argument("--no-augment", action="store_true", help="disable flips / transpose / RGB permutation")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.add_argument("--model-option", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a model config field (JSON value), e.g. uniform_context=true")
+    """The CLI of `TrainConfig`: one flag per field, help from the field's docstring."""
+    from scenes.cli import UsageErrorParser
+
+    p = UsageErrorParser(prog="python -m unips.train", description=__doc__.split("\n\n")[0])
+    docs = field_docs(TrainConfig)
+    defaults = TrainConfig()
+    for f in dataclasses.fields(TrainConfig):
+        name = "--" + f.name.replace("_", "-")
+        default = getattr(defaults, f.name)
+        help_text = docs.get(f.name, "")
+        if f.type in ("bool", bool):
+            p.add_argument(name, action="store_true", help=help_text)
+        elif f.name == "model_option":
+            p.add_argument(name, action="append", default=[], metavar="KEY=VALUE", help=help_text)
+        elif f.name == "val_probes":
+            p.add_argument(name, type=lambda v: [x for x in v.split(",") if x], default=list(default),
+                           metavar="P1,P2", help=f"{help_text} (default {','.join(default)})")
+        else:
+            kind = {"int": int, "float": float}.get(str(f.type), str)
+            required = f.name in ("data", "out")
+            p.add_argument(name, type=kind, default=None if required else default, required=required,
+                           help=help_text + ("" if required or default in (None, "") else f" (default {default})"))
     return p
 
 
-def _check_args(a: argparse.Namespace) -> None:
-    positive = ("steps", "batch", "decay_every", "max_images", "min_images", "pixels", "res", "val_every",
-                "ckpt_every", "log_every")
-    for name in positive:
-        if getattr(a, name) < 1:
-            raise ValueError(f"--{name.replace('_', '-')}: got {getattr(a, name)}, expected >= 1")
-    if a.min_images > a.max_images:
-        raise ValueError(f"--min-images={a.min_images} exceeds --max-images={a.max_images}")
-    if not a.lr > 0:
-        raise ValueError(f"--lr: got {a.lr}, expected > 0")
-    if a.weight_decay < 0:
-        raise ValueError(f"--weight-decay: got {a.weight_decay}, expected >= 0")
-    if not 0 < a.decay <= 1:
-        raise ValueError(f"--decay: got {a.decay}, expected in (0, 1]")
-    if a.threads < 0:
-        raise ValueError(f"--threads: got {a.threads}, expected >= 0 (0 = all cores)")
+def config_from_args(args: argparse.Namespace) -> TrainConfig:
+    """The TrainConfig of parsed CLI arguments (validated)."""
+    cfg = TrainConfig(**{f.name: getattr(args, f.name) for f in dataclasses.fields(TrainConfig)})
+    if "all" not in cfg.val_probes:
+        cfg.val_probes = ["all", *cfg.val_probes]
+    return cfg.validate()
 
 
 def _model_options(items: Sequence[str]) -> dict[str, Any]:
@@ -303,118 +439,228 @@ def _truncate_log(path: Path, step: int) -> None:
     path.write_text("".join(line + "\n" for line in keep))
 
 
-def train(args: argparse.Namespace) -> dict[str, Any]:
-    """Run training as configured by the parsed CLI arguments; returns a summary dict."""
+def lr_factor(cfg: TrainConfig, step: int) -> float:
+    """Learning-rate multiplier of optimisation step `step` (0-based)."""
+    if cfg.schedule == "step":
+        return cfg.decay ** (step // cfg.decay_every)
+    if cfg.warmup and step < cfg.warmup:
+        return (step + 1) / cfg.warmup
+    progress = min(1.0, (step - cfg.warmup) / max(1, cfg.steps - cfg.warmup))
+    return cfg.min_lr_ratio + (1.0 - cfg.min_lr_ratio) * 0.5 * (1.0 + math.cos(math.pi * progress))
+
+
+class _TrainForward(torch.nn.Module):
+    """encode + decode_pixels as one forward, so DistributedDataParallel sees the whole step."""
+
+    def __init__(self, model: torch.nn.Module) -> None:
+        super().__init__()
+        self.model = model
+
+    def forward(self, images: torch.Tensor, mask: torch.Tensor, coords: torch.Tensor) -> torch.Tensor:
+        contexts = self.model.encode(images, mask)  # (B, k, C, s/4, s/4)
+        return self.model.decode_pixels(contexts, images, mask, coords)  # (B, N, 3)
+
+
+@dataclass
+class _Dist:
+    """This process's place in a torchrun job (rank 0 of 1 without one)."""
+
+    rank: int = 0
+    world: int = 1
+    local_rank: int = 0
+
+    @property
+    def main(self) -> bool:
+        return self.rank == 0
+
+
+def _init_distributed(cfg: TrainConfig) -> _Dist:
+    world = int(os.environ.get("WORLD_SIZE", "1"))
+    if world <= 1:
+        return _Dist()
+    import torch.distributed as dist
+
+    rank, local = int(os.environ["RANK"]), int(os.environ.get("LOCAL_RANK", "0"))
+    if cfg.batch % world:
+        raise ValueError(f"--batch={cfg.batch}: expected a multiple of the {world} torchrun processes")
+    if not dist.is_initialized():
+        dist.init_process_group(backend="nccl" if cfg.device.startswith("cuda") else "gloo")
+    return _Dist(rank, world, local)
+
+
+def _load_init_weights(cfg: TrainConfig, device: torch.device) -> torch.nn.Module:
+    """The model of `cfg.init_from` (weights only); its name must agree with an explicit --model."""
+    from unips.checkpoint import load_model
+
+    model, meta = load_model(cfg.init_from)
+    name = meta.get("model_name")
+    if cfg.model != TrainConfig.model and cfg.model != name:
+        raise ValueError(f"--model={cfg.model!r}: --init-from {cfg.init_from!r} holds a {name!r} model")
+    if cfg.model_option:
+        raise ValueError("--model-option: not allowed with --init-from (the weights fix the configuration)")
+    return model.to(device).train()
+
+
+def _prepare_run_dir(cfg: TrainConfig, dist: _Dist) -> Path:
+    """The run directory; a previous run in it is kept unless --resume or --overwrite says otherwise."""
+    out = Path(cfg.out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {cfg.out!r}: exists and is not a directory")
+    ours = ("log.jsonl", "last.pt", "best.safetensors", "best.json", "final.safetensors", "final.json")
+    old = [n for n in ours if (out / n).exists()]
+    if old and not cfg.resume and not cfg.overwrite:
+        raise ValueError(f"--out {cfg.out!r}: already holds a run ({', '.join(old)}); "
+                         "expected --resume to continue it or --overwrite to replace it")
+    if dist.main:
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ValueError(f"--out {cfg.out!r}: cannot create the run directory ({exc.strerror})") from exc
+        if cfg.overwrite:
+            for n in old:
+                (out / n).unlink()
+    return out
+
+
+def train(cfg: TrainConfig | argparse.Namespace) -> dict[str, Any]:
+    """Run training as configured; returns a summary dict."""
     from tqdm import tqdm
 
     from unips.checkpoint import (load_state_strict, load_training_checkpoint, save_checkpoint,
                                   save_training_checkpoint, set_rng_states)
     from unips.models import create_model
 
-    _check_args(args)
-    torch.set_num_threads(args.threads or os.cpu_count() or 1)
-    device = torch.device(args.device)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    if isinstance(cfg, argparse.Namespace):
+        cfg = config_from_args(cfg)
+    cfg.validate()
+    dist = _init_distributed(cfg)
+    torch.set_num_threads(cfg.threads or max(1, (os.cpu_count() or 1) // dist.world))
+    device = torch.device(f"cuda:{dist.local_rank}" if cfg.device == "cuda" and dist.world > 1 else cfg.device)
+    out = _prepare_run_dir(cfg, dist)
     log_path, last_path = out / "log.jsonl", out / "last.pt"
 
-    torch.manual_seed(args.seed)  # initial weights
-    model = create_model(args.model, **_model_options(args.model_option)).to(device)
-    samples = load_samples(args.data, args.res)
-    val_samples = load_samples(args.val, args.res) if args.val else []
-    too_few = [s.name for s in samples if s.num_images < args.min_images]
+    torch.manual_seed(cfg.seed)  # initial weights
+    if cfg.init_from:
+        model = _load_init_weights(cfg, device)
+    else:
+        model = create_model(cfg.model, **_model_options(cfg.model_option)).to(device)
+    samples = load_samples(cfg.data, cfg.res)
+    val_samples = load_samples(cfg.val, cfg.res) if cfg.val and dist.main else []
+    too_few = [s.name for s in samples if s.num_images < cfg.min_images]
     if too_few:
-        raise ValueError(f"--min-images={args.min_images}: objects with fewer images: {too_few[:5]}")
-    data_desc = describe_data(samples, args.data, args.res)
-    train_args = {k: getattr(args, k) for k in TRAJECTORY_KEYS}
-    train_args["model_option"] = list(args.model_option)
+        raise ValueError(f"--min-images={cfg.min_images}: objects with fewer images: {too_few[:5]}")
+    canonical = model.config.canonical_resolution
+    if canonical >= cfg.res:
+        log.warning("working resolution %d is not above the canonical resolution %d: the canonical grid "
+                    "repeats the working pixels", cfg.res, canonical)
+    data_desc = describe_data(samples, cfg.data, cfg.res)
+    train_args = {k: getattr(cfg, k) for k in TRAJECTORY_KEYS}
+    train_args["model"] = getattr(model, "model_name", cfg.model)
+    train_args["model_option"] = list(cfg.model_option)
 
-    optimizer = torch.optim.AdamW(model.parameters(), lr=args.lr, weight_decay=args.weight_decay)
-    scheduler = torch.optim.lr_scheduler.StepLR(optimizer, step_size=args.decay_every, gamma=args.decay)
+    step_model: torch.nn.Module = _TrainForward(model)
+    if dist.world > 1:
+        from torch.nn.parallel import DistributedDataParallel
+
+        step_model = DistributedDataParallel(step_model, device_ids=[device.index] if device.type == "cuda" else None)
+    optimizer = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda s: lr_factor(cfg, s))
     start, best = 0, math.inf
-    if args.resume:
+    if cfg.resume:
         ckpt = load_training_checkpoint(last_path)
         old = ckpt["extra"].get("train_args", {})
         for key, value in train_args.items():
             if old.get(key) != value:
                 raise ValueError(f"--resume: {key}={value!r} differs from the checkpoint's {old.get(key)!r}")
         if ckpt["data"].get("objects") != data_desc["objects"]:
-            raise ValueError(f"--resume: the objects in --data {args.data!r} differ from the checkpoint's")
+            raise ValueError(f"--resume: the objects in --data {cfg.data!r} differ from the checkpoint's")
         load_state_strict(model, ckpt["model"], str(last_path))
         optimizer.load_state_dict(ckpt["optimizer"])
         scheduler.load_state_dict(ckpt["scheduler"])
         set_rng_states(ckpt["rng"])
         start, best = int(ckpt["step"]), float(ckpt["extra"].get("best_val", math.inf))
-        _truncate_log(log_path, start)
+        if dist.main:
+            _truncate_log(log_path, start)
         log.info("resumed from %s at step %d", last_path, start)
-    elif log_path.exists():
-        log_path.unlink()
-    if start >= args.steps:
-        log.info("nothing to do: checkpoint at step %d, --steps %d", start, args.steps)
+    if start >= cfg.steps:
+        log.info("nothing to do: checkpoint at step %d, --steps %d", start, cfg.steps)
 
-    canonical = model.config.canonical_resolution
-    summary: dict[str, Any] = {"start": start, "steps": args.steps, "params": sum(p.numel() for p in model.parameters())}
+    summary: dict[str, Any] = {"start": start, "steps": cfg.steps, "params": sum(p.numel() for p in model.parameters())}
+    t_start = time.time()
 
     def save_last(step: int) -> None:
-        save_training_checkpoint(last_path, model=model, optimizer=optimizer, scheduler=scheduler, step=step,
-                                 data=data_desc, extra={"train_args": train_args, "best_val": best})
+        if dist.main:
+            save_training_checkpoint(last_path, model=model, optimizer=optimizer, scheduler=scheduler, step=step,
+                                     data=data_desc, extra={"train_args": train_args, "best_val": best})
 
     def run_validation(step: int) -> None:
         nonlocal best
-        res = validate(model, val_samples, args.max_images, device)
+        res = validate(model, val_samples, cfg.max_images, device, probes=cfg.val_probes, pixels=cfg.val_pixels)
+        res["elapsed_s"] = round(time.time() - t_start, 1)
         _append_log(log_path, {"step": step, "val": res})
         summary["val"] = res
+        gain = f", photometric gain {res['gain']:.2f}" if "gain" in res else ""
+        log.info("step %d validation: all images %.2f deg%s", step, res["mean"], gain)
         if res["mean"] < best:
             best = res["mean"]
             save_checkpoint(out / "best.safetensors", model, {"step": step, "val": res, "train_args": train_args})
 
+    autocast = torch.autocast(device_type=device.type, dtype=torch.bfloat16, enabled=cfg.precision == "bf16")
     model.train()
-    bar = tqdm(range(start, args.steps), initial=start, total=args.steps, disable=args.no_progress,
+    bar = tqdm(range(start, cfg.steps), initial=start, total=cfg.steps, disable=cfg.no_progress or not dist.main,
                dynamic_ncols=True, desc="train")
     t0 = time.time()
     for step in bar:
-        batch = make_batch(samples, step, seed=args.seed, batch=args.batch, min_images=args.min_images,
-                           max_images=args.max_images, pixels=args.pixels, canonical=canonical,
-                           augment=not args.no_augment)
+        batch = make_batch(samples, step, seed=cfg.seed, batch=cfg.batch, min_images=cfg.min_images,
+                           max_images=cfg.max_images, pixels=cfg.pixels, canonical=canonical,
+                           augment=not cfg.no_augment, canonical_max=cfg.canonical_points,
+                           rank=dist.rank, world=dist.world)
         batch = Batch(*(getattr(batch, f.name).to(device) for f in dataclasses.fields(Batch)))
-        # Dropout / drop-path draw from torch's global RNG: reseed it from (seed, step).
-        torch.manual_seed(int(step_rng(args.seed, step, 1).integers(2**62)))
-        contexts = model.encode(batch.images, batch.mask)  # (B, k, C, s/4, s/4)
-        pred = model.decode_pixels(contexts, batch.images, batch.mask, batch.coords)  # (B, N, 3)
-        loss, parts = normal_loss(pred, batch)
+        # Dropout / drop-path draw from torch's global RNG: reseed it from (seed, step, rank).
+        torch.manual_seed(int(step_rng(cfg.seed, step, 1 + dist.rank).integers(2**62)))
+        with autocast:
+            pred = step_model(batch.images, batch.mask, batch.coords)  # (B, N, 3)
+        loss, parts = normal_loss(pred.float(), batch)
         if not torch.isfinite(loss):
             raise FloatingPointError(f"non-finite loss at step {step}")
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
+        if cfg.clip_grad > 0:
+            parts["grad_norm"] = float(torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.clip_grad))
         optimizer.step()
         scheduler.step()
         done = step + 1
         bar.set_postfix(loss=f"{parts['loss']:.4f}", k=batch.images.shape[1])
         summary["last_loss"] = parts["loss"]
-        if done % args.log_every == 0 or done == args.steps:
+        if dist.main and (done % cfg.log_every == 0 or done == cfg.steps):
             _append_log(log_path, {"step": done, **parts, "k": int(batch.images.shape[1]),
                                    "lr": optimizer.param_groups[0]["lr"], "elapsed_s": round(time.time() - t0, 3)})
-        if val_samples and (done % args.val_every == 0 or done == args.steps):
+        if val_samples and (done % cfg.val_every == 0 or done == cfg.steps):
             run_validation(done)
-        if done % args.ckpt_every == 0 or done == args.steps:
+        if done % cfg.ckpt_every == 0 or done == cfg.steps:
             save_last(done)
     bar.close()
-    if start < args.steps or not (out / "final.safetensors").exists():
-        save_checkpoint(out / "final.safetensors", model, {"step": args.steps, "train_args": train_args})
+    if dist.main and (start < cfg.steps or not (out / "final.safetensors").exists()):
+        save_checkpoint(out / "final.safetensors", model, {"step": cfg.steps, "train_args": train_args})
+    if dist.world > 1:
+        import torch.distributed as tdist
+
+        tdist.barrier()
+        tdist.destroy_process_group()
     summary["best_val"] = best if math.isfinite(best) else None
     return summary
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """CLI entry point; returns the process exit status."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    from scenes.cli import INPUT_ERRORS, report_error
+
     try:
-        summary = train(args)
-    except (ValueError, FileNotFoundError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+        args = build_parser().parse_args(argv)
+        logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+        summary = train(config_from_args(args))
+    except INPUT_ERRORS as exc:
+        return report_error(exc)
     msg = f"trained steps {summary['start']}..{summary['steps']}, last loss {summary.get('last_loss')}"
     if summary.get("best_val") is not None:
         msg += f", best validation mean angular error {summary['best_val']:.2f} deg"

@@ -2,6 +2,6 @@
 normal of every camera-visible surface point replaced by the predicted one, and compare with the inputs.
 
 Modules: `projection` (camera model shared by NumPy and Dr.Jit code), `normal_bsdf` (the Mitsuba BSDF
-wrapper that swaps the normals), `io` (object folders and normal-map files), `perturb` (controlled
+wrapper that swaps the normals), `io` (an object folder loaded for the check, on top of `scenes.objfolder`), `perturb` (controlled
 normal errors for tests and benches), `metrics`, `figures`, and `rerender` (library + CLI).
 """

@@ -113,7 +113,7 @@ def _read_raw(path: Path, what: str):
 def read_image(path: Path) -> np.ndarray:
     """(H, W, 3) float32 linear RGB from a 16/8-bit PNG/TIFF or a float EXR."""
     if path.suffix.lower() == ".exr":
-        from scenes.imageio import read_exr
+        from scenes.objfolder import read_exr
 
         img = read_exr(path)
         return np.repeat(img, 3, axis=2) if img.shape[2] == 1 else img[:, :, :3]
@@ -172,7 +172,7 @@ def read_normals(path: str | Path, what: str = "--normals") -> np.ndarray:
         if np.issubdtype(img.dtype, np.integer):
             n[np.linalg.norm(n, axis=2) < 0.5] = 0.0
     elif suffix == ".exr":
-        from scenes.imageio import read_exr
+        from scenes.objfolder import read_exr
 
         n = read_exr(path)
     elif suffix == ".npy":

@@ -2,7 +2,9 @@
 
 Rows: for a few images, input | re-render | residual heat map; last row: mean residual over all images
 (predicted normals), the same with the ground-truth normals (when known), and the predicted normal map.
-Images are shown with one common exposure and the sRGB curve; heat maps share one colour scale.
+Images are shown with one common exposure and the sRGB curve; heat maps share one colour scale, drawn as a
+colour bar on the right: the relative residual |re-render - input| / (mean input over the mask), a pure number
+(0.1 = 10 % of the mean brightness), from 0 to the 99th percentile shown (values above share its colour).
 """
 from __future__ import annotations
 
@@ -78,7 +80,7 @@ def rerender_figure(
             [
                 _panel(_to_bgr8(_srgb(inputs[i] / white)), f"input L{i:03d}", size),
                 _panel(_to_bgr8(_srgb(renders[i] / white)), f"re-render {i:03d}", size),
-                _panel(_heat(r, vmax, mask), f"|diff| {i:03d} (max {vmax:.3g})", size),
+                _panel(_heat(r, vmax, mask), f"rel. residual {i:03d}", size),
             ]
         )
     nrm = np.where(mask[..., None], (normals + 1) / 2, 1.0)
@@ -91,6 +93,13 @@ def rerender_figure(
     ]
     lines.append(last)
     grid = np.concatenate([np.concatenate(line, axis=1) for line in lines], axis=0)
+    from scenes.colorbar import colorbar
+
+    bar = colorbar(grid.shape[0] - LABEL_H, vmax, cv2.COLORMAP_INFERNO, "rel. resid.", ticks=4)
+    bar = np.concatenate([np.full((LABEL_H, bar.shape[1], 3), 255, np.uint8), bar], axis=0)[: max(grid.shape[0], 64)]
+    if bar.shape[0] < grid.shape[0]:
+        bar = np.concatenate([bar, np.full((grid.shape[0] - bar.shape[0],) + bar.shape[1:], 255, np.uint8)], axis=0)
+    grid = np.concatenate([grid, bar], axis=1)
     if title:
         bar = np.full((LABEL_H + 4, grid.shape[1], 3), 255, np.uint8)
         cv2.putText(bar, title, (4, LABEL_H - 4), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1, cv2.LINE_AA)

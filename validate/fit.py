@@ -708,7 +708,8 @@ def rerender_fitted(
 
     from validate.capture import find_normals, load_capture, read_normals, unit_normals
     from validate.lights import angular_errors_deg, directions_of
-    from validate.metrics import mae_deg, relative_residual_map
+    from scenes.objfolder import mean_angular_error as mae_deg
+    from validate.metrics import relative_residual_map
 
     config = (config or FitConfig()).validate()
     mi = require_ad_variant()

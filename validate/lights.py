@@ -161,7 +161,7 @@ def known_scene_lights(desc, exposures: list[float]) -> list[list[dict]]:
     lights in the camera frame with the exposure applied. Directional: direction toward the light and
     irradiance x colour x exposure; point: position relative to the camera target and intensity; area:
     centre, normal and radiance; environment: scale and the rotation to the camera frame."""
-    from scenes.mitsuba_build import camera_rotation
+    from scenes.geometry import camera_rotation
 
     cam = desc.camera
     R = camera_rotation(cam.origin, cam.target, cam.up)

@@ -22,29 +22,12 @@ def psnr(image: np.ndarray, reference: np.ndarray, mask: np.ndarray, peak: float
     return float(10.0 * np.log10(peak * peak / mse)) if mse > 0 else float("inf")
 
 
-def residual_map(image: np.ndarray, reference: np.ndarray) -> np.ndarray:
-    """(H, W) mean over channels of |image - reference|."""
-    return np.abs(image.astype(np.float32) - reference).mean(axis=-1)
-
-
 def relative_residual_map(images: np.ndarray, references: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """(H, W) per-pixel residual averaged over the K images (K, H, W, C), divided by the mean |reference|
     over the mask and images: its mean over the mask is the rel_l1 of all images pooled."""
     res = np.abs(images.astype(np.float64) - references).mean(axis=(0, 3))
     denom = float(np.abs(references[:, mask]).mean())
     return (res / denom if denom > 0 else res).astype(np.float32)
-
-
-def angular_error_deg(n: np.ndarray, n_ref: np.ndarray) -> np.ndarray:
-    """(H, W) angle in degrees between two normal maps (H, W, 3) (normalised here)."""
-    a = n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-12)
-    b = n_ref / np.maximum(np.linalg.norm(n_ref, axis=-1, keepdims=True), 1e-12)
-    return np.degrees(np.arccos(np.clip(np.sum(a * b, axis=-1), -1.0, 1.0)))
-
-
-def mae_deg(n: np.ndarray, n_ref: np.ndarray, mask: np.ndarray) -> float:
-    """Mean angular error in degrees over the mask."""
-    return float(angular_error_deg(n, n_ref)[mask].mean())
 
 
 def finite_or_none(x: float | None) -> float | None:

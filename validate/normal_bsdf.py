@@ -27,6 +27,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from scenes.variant import require_jit_variant
 from validate.projection import CameraProjection
 
 log = logging.getLogger(__name__)
@@ -61,21 +62,6 @@ class VisibilityConfig:
             if not isinstance(v, (int, float)) or not np.isfinite(v) or v < 0:
                 raise ValueError(f"visibility.{name}: expected a finite non-negative number, got {v!r}")
         return self
-
-
-def require_jit_variant() -> Any:
-    """The `mitsuba` module, after checking that a JIT variant is set."""
-    import mitsuba as mi
-
-    variant = mi.variant()
-    if variant is None:
-        raise RuntimeError("no Mitsuba variant is set: call scenes.variant.choose_variant() in the entry point")
-    if not (variant.startswith("llvm") or variant.startswith("cuda")):
-        raise ValueError(
-            f"variant: {variant!r} is a scalar variant; the re-render check needs llvm_ad_rgb or cuda_ad_rgb "
-            "(install Debian's libllvm19 for llvm)"
-        )
-    return mi
 
 
 def register() -> type:

@@ -19,7 +19,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from scenes.description import CameraDesc
-from scenes.mitsuba_build import camera_rotation
+from scenes.geometry import camera_rotation
 
 
 @dataclass
@@ -99,7 +99,3 @@ class CameraProjection:
             origins = np.broadcast_to(o, dirs.shape).copy()
         return origins, dirs
 
-    def texel_size(self, z: np.ndarray | float, supersample: int) -> np.ndarray | float:
-        """World size of one depth-map texel (a pixel / supersample) at depth z."""
-        hw = self.half_width if self.kind == "orthographic" else self.half_width * z
-        return 2.0 * hw / (self.width * supersample)

@@ -270,7 +270,7 @@ def write_normal_png(path: Path, n: np.ndarray) -> None:
     """16-bit PNG (n + 1) / 2, background 32768 (what unips.predict writes and unips.evaluate reads)."""
     import cv2
 
-    from scenes.imageio import encode_normals
+    from scenes.objfolder import encode_normals
 
     if not cv2.imwrite(str(path), np.ascontiguousarray(encode_normals(n)[:, :, ::-1])):
         raise OSError(f"--out: could not write {str(path)!r}")
@@ -281,7 +281,7 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
     """Refine the normal map of one object folder; write normal.png and refine_report.json under out_dir/<object>/."""
     from validate.capture import downsample_normals, find_normals, load_capture, read_normals, unit_normals
     from validate.fit import prepare
-    from validate.metrics import mae_deg
+    from scenes.objfolder import mean_angular_error as mae_deg
 
     config = (config or RefineConfig()).validate()
     mi = require_ad_variant()

@@ -33,15 +33,17 @@ from typing import Any, Callable
 
 import numpy as np
 
-from validate.io import ObjectData, check_normals, find_prediction, list_objects, load_object, object_name, read_normal_map
-from validate.metrics import expose, finite_or_none, mae_deg, mean_or_none, psnr, rel_l1, relative_residual_map
+from scenes.cli import UsageError, UsageErrorParser, report_error
+from scenes.objfolder import find_prediction, list_object_folders, mean_angular_error, object_name
+from scenes.variant import require_jit_variant
+from validate.io import ObjectData, check_normals, load_object, read_normal_map
+from validate.metrics import expose, finite_or_none, mean_or_none, psnr, rel_l1, relative_residual_map
 from validate.normal_bsdf import (
     MODE_PASSTHROUGH,
     MODE_PREDICTED,
     NormalSwap,
     VisibilityConfig,
     depth_map,
-    require_jit_variant,
     wrapper_for,
 )
 from validate.projection import CameraProjection
@@ -49,11 +51,16 @@ from validate.projection import CameraProjection
 log = logging.getLogger(__name__)
 
 SEED_MODES = ("same", "independent")
+MIN_COVERAGE = 0.9
+"""Default smallest share of the mask a prediction must cover (--min-coverage): a sparser map is refused."""
+
 SUMMARY_COLUMNS = (
     "object",
     "images",
     "mae_deg",
     "rel_l1",
+    "coverage",
+    "missing_pixels",
     "gt_rel_l1",
     "noise_floor_rel_l1",
     "reproduce_rel_l1",
@@ -61,6 +68,7 @@ SUMMARY_COLUMNS = (
     "frac_above_threshold",
     "rerender_s",
     "original_render_s",
+    "error",
 )
 
 Progress = Callable[[int, int, str], None]
@@ -87,8 +95,12 @@ class RerenderConfig:
     save_renders: bool = False
     """Also write the re-rendered images as R000.png.. (16-bit, exposure applied)."""
     allow_missing: bool = False
-    """Accept exactly-zero normals inside the mask as "no estimate": those points keep their own normal
-    (counted in missing_pixels, and as 90 deg in mae_deg). Otherwise they are an error."""
+    """Accept exactly-zero normals inside the mask as "no estimate" (counted in missing_pixels, coverage, and
+    as 90 deg in mae_deg). They can never improve a score: such a point keeps the surface's own normal for
+    light transport, but each of its pixels is scored as at least as wrong as a black render (relative residual
+    >= 1, see `penalise_missing`). Otherwise they are an error."""
+    min_coverage: float = MIN_COVERAGE
+    """Smallest share of the mask pixels that must hold an estimate (with allow_missing); a map below it is refused."""
 
     def validate(self) -> "RerenderConfig":
         if self.spp is not None and (isinstance(self.spp, bool) or not isinstance(self.spp, int) or self.spp <= 0):
@@ -97,6 +109,8 @@ class RerenderConfig:
             raise ValueError(f"--seed-mode: {self.seed_mode!r} is not one of {', '.join(SEED_MODES)}")
         if self.threshold is not None and not (np.isfinite(self.threshold) and self.threshold > 0):
             raise ValueError(f"--threshold: expected a positive number, got {self.threshold!r}")
+        if not (isinstance(self.min_coverage, (int, float)) and 0 <= self.min_coverage <= 1):
+            raise ValueError(f"--min-coverage: expected a share from 0 to 1, got {self.min_coverage!r}")
         if self.figure_rows < 1:
             raise ValueError(f"figure_rows: expected at least 1, got {self.figure_rows!r}")
         self.visibility.validate()
@@ -126,11 +140,13 @@ def _figure_rows(k: int, n: int) -> list[int]:
 
 
 def check_inputs(
-    folder: str | Path, normals: np.ndarray | str | Path, allow_missing: bool = False
+    folder: str | Path, normals: np.ndarray | str | Path, allow_missing: bool = False,
+    min_coverage: float = MIN_COVERAGE,
 ) -> tuple[ObjectData, np.ndarray, np.ndarray, str]:
     """Load an object folder and its prediction and check them against each other (no rendering).
 
-    Returns (object data, normals (renormalised where valid, 0 elsewhere), valid mask, where they came from)."""
+    Returns (object data, normals (renormalised where valid, 0 elsewhere), valid mask, where they came from).
+    A map covering less than `min_coverage` of the mask is a ValueError."""
     data = load_object(folder)
     source = "array"
     if not isinstance(normals, np.ndarray):
@@ -139,44 +155,61 @@ def check_inputs(
         normals = read_normal_map(path)
     what = f"--normals ({source})" if source != "array" else "--normals"
     pred, valid = check_normals(normals, data.mask, what, allow_missing)
+    cov = coverage(valid, data.mask)
+    if cov < min_coverage:
+        raise ValueError(f"{what}: covers {cov:.1%} of the object's {int(data.mask.sum())} mask pixels "
+                         f"({int(data.mask.sum() - valid.sum())} without an estimate), below --min-coverage {min_coverage:g}")
     return data, pred, valid, source
 
 
-def rerender_object(
-    folder: str | Path,
-    normals: np.ndarray | str | Path,
-    config: RerenderConfig | None = None,
-    out_dir: str | Path | None = None,
-    progress: Progress | None = None,
-) -> dict:
-    """Re-render one object folder with predicted normals; return the report (and write it to
-    `out_dir/<object>/` with figure.png when out_dir is given).
+def coverage(valid: np.ndarray, mask: np.ndarray) -> float:
+    """Share of the mask pixels that hold an estimate."""
+    n = int(mask.sum())
+    return float(valid[mask].sum() / n) if n else 0.0
 
-    normals: camera-frame normal map (H, W, 3), or a normal-map file, or a folder holding one.
-    Raises FileNotFoundError / ValueError for bad inputs (missing files, wrong sizes, bad normals).
-    """
+
+def penalise_missing(renders: np.ndarray, inputs: np.ndarray, missing: np.ndarray) -> np.ndarray:
+    """The renders as scored: at the `missing` pixels (no estimate) every channel whose residual is below the
+    input's own value is set to 0 (a black render), so a missing pixel's residual is max(|render - input|,
+    |input|): never below 1 relative to the input, never better than the ground truth or any estimate within
+    100 % of it. Elsewhere the renders are unchanged."""
+    if not missing.any():
+        return renders
+    out = renders.copy()
+    r, i = out[:, missing], inputs[:, missing]
+    out[:, missing] = np.where(np.abs(r - i) >= np.abs(i), r, 0.0)
+    return out
+
+
+@dataclass
+class RenderPasses:
+    """The images of one re-render check (each (K, H, W, 3), exposure applied) and their timings."""
+
+    renders: np.ndarray
+    """With the predicted normals (the score)."""
+    rerender_s: list[float]
+    """Per-image time of those renders."""
+    gt: np.ndarray | None = None
+    """With the ground-truth normals (when the folder has them)."""
+    floor: np.ndarray | None = None
+    """The original scene with independent seeds (noise floor)."""
+    original_s: list[float] = field(default_factory=list)
+    """Per-image time of the original scene's renders."""
+    reproduce: np.ndarray | None = None
+    """The wrapper switched off with the recorded seeds (should reproduce the inputs)."""
+    build_s: float = 0.0
+    depth_map_s: float = 0.0
+
+
+def render_passes(data: ObjectData, pred: np.ndarray, valid: np.ndarray, config: RerenderConfig, spp: int,
+                  seeds: list[int], fresh: list[int], tick: Callable[[str], None]) -> RenderPasses:
+    """Render every pass of the check for one object (Mitsuba work only; no scoring)."""
     from scenes.mitsuba_build import build_scene
 
-    config = (config or RerenderConfig()).validate()
-    mi = require_jit_variant()
-    t_start = time.perf_counter()
-    data, pred, valid, source = check_inputs(folder, normals, config.allow_missing)
-    desc, mask = data.desc, data.mask
-    k = len(desc.images)
-    spp = int(config.spp or desc.render.spp)
+    desc, k = data.desc, len(data.desc.images)
     exposures = [float(im.exposure) for im in desc.images]
     recorded = [int(im.seed) for im in desc.images]
-    fresh = [independent_seed(s) for s in recorded]
-    rerender_seeds = recorded if config.seed_mode == "same" else fresh
     reproduce = config.floors and spp == desc.render.spp
-    total = k * (1 + (data.normal_gt is not None) + config.floors + reproduce)
-    done = 0
-
-    def tick(label: str) -> None:
-        nonlocal done
-        done += 1
-        if progress is not None:
-            progress(done, total, f"{data.name}: {label}")
 
     # 1. The original scene with independent seeds: noise floor and the original render time. It is
     #    released before the wrapped scene is built (live Python BSDFs are traced into every kernel).
@@ -205,77 +238,96 @@ def rerender_object(
         repro_imgs, _ = _render_all(built, range(k), spp, recorded, exposures, tick, "reproduce")
     swap.set_normals(pred, valid)
     swap.set_mode(MODE_PREDICTED)
-    renders, t_re = _render_all(built, range(k), spp, rerender_seeds, exposures, tick, "re-render")
+    renders, t_re = _render_all(built, range(k), spp, seeds, exposures, tick, "re-render")
     gt_imgs = None
     if data.normal_gt is not None:
-        swap.set_normals(data.normal_gt, mask)
-        gt_imgs, _ = _render_all(built, range(k), spp, rerender_seeds, exposures, tick, "GT normals")
+        swap.set_normals(data.normal_gt, data.mask)
+        gt_imgs, _ = _render_all(built, range(k), spp, seeds, exposures, tick, "GT normals")
     del swap, built
     gc.collect()
+    return RenderPasses(renders=renders, rerender_s=t_re, gt=gt_imgs, floor=floor_imgs, original_s=t_orig,
+                        reproduce=repro_imgs, build_s=t_build, depth_map_s=t_depth)
 
-    # 3. Scores.
-    inputs = data.images
+
+def score_images(passes: RenderPasses, inputs: np.ndarray, mask: np.ndarray, desc: Any, seeds: list[int]) -> list[dict[str, Any]]:
+    """Per-image scores of every pass against the input images."""
     per_image = []
-    for i in range(k):
-        entry: dict[str, Any] = {
+    for i, image in enumerate(desc.images):
+        r, g, f, p = passes.renders, passes.gt, passes.floor, passes.reproduce
+        per_image.append({
             "index": i,
-            "seed": recorded[i],
-            "rerender_seed": rerender_seeds[i],
-            "exposure": exposures[i],
-            "rel_l1": rel_l1(renders[i], inputs[i], mask),
-            "psnr": finite_or_none(psnr(renders[i], inputs[i], mask)),
-            "gt_rel_l1": rel_l1(gt_imgs[i], inputs[i], mask) if gt_imgs is not None else None,
-            "gt_psnr": finite_or_none(psnr(gt_imgs[i], inputs[i], mask)) if gt_imgs is not None else None,
-            "noise_floor_rel_l1": rel_l1(floor_imgs[i], inputs[i], mask) if floor_imgs is not None else None,
-            "reproduce_rel_l1": rel_l1(repro_imgs[i], inputs[i], mask) if repro_imgs is not None else None,
-            "rerender_s": t_re[i],
-            "original_render_s": t_orig[i] if t_orig else None,
-        }
-        per_image.append(entry)
+            "seed": int(image.seed),
+            "rerender_seed": seeds[i],
+            "exposure": float(image.exposure),
+            "rel_l1": rel_l1(r[i], inputs[i], mask),
+            "psnr": finite_or_none(psnr(r[i], inputs[i], mask)),
+            "gt_rel_l1": rel_l1(g[i], inputs[i], mask) if g is not None else None,
+            "gt_psnr": finite_or_none(psnr(g[i], inputs[i], mask)) if g is not None else None,
+            "noise_floor_rel_l1": rel_l1(f[i], inputs[i], mask) if f is not None else None,
+            "reproduce_rel_l1": rel_l1(p[i], inputs[i], mask) if p is not None else None,
+            "rerender_s": passes.rerender_s[i],
+            "original_render_s": passes.original_s[i] if passes.original_s else None,
+        })
+    return per_image
 
-    res_map = relative_residual_map(renders, inputs, mask)
-    gt_map = relative_residual_map(gt_imgs, inputs, mask) if gt_imgs is not None else None
-    threshold = config.threshold
-    threshold_source = "given"
-    if threshold is None and floor_imgs is not None:
-        threshold = float(np.percentile(relative_residual_map(floor_imgs, inputs, mask)[mask], 99))
-        threshold_source = "99th percentile of the noise-floor residual map"
+
+def score_maps(passes: RenderPasses, inputs: np.ndarray, mask: np.ndarray,
+               threshold: float | None) -> tuple[np.ndarray, np.ndarray | None, float | None, str | None, float | None]:
+    """(residual map, GT-normals residual map, threshold, its source, share of mask pixels above it)."""
+    res_map = relative_residual_map(passes.renders, inputs, mask)
+    gt_map = relative_residual_map(passes.gt, inputs, mask) if passes.gt is not None else None
+    source = "given"
+    if threshold is None and passes.floor is not None:
+        threshold = float(np.percentile(relative_residual_map(passes.floor, inputs, mask)[mask], 99))
+        source = "99th percentile of the noise-floor residual map"
     frac = float(np.mean(res_map[mask] > threshold)) if threshold is not None else None
+    return res_map, gt_map, threshold, source if threshold is not None else None, frac
+
+
+def build_report(data: ObjectData, pred: np.ndarray, valid: np.ndarray, source: str, passes: RenderPasses,
+                 per_image: list[dict[str, Any]], threshold: float | None, threshold_source: str | None,
+                 frac: float | None, config: RerenderConfig, spp: int, variant: str) -> dict[str, Any]:
+    """The report.json of one object (total_s is filled in by the caller)."""
+    desc, mask = data.desc, data.mask
 
     def avg(key: str) -> float | None:
         return mean_or_none([e[key] for e in per_image])
 
-    t_orig_med = float(np.median(t_orig)) if t_orig else None
-    t_re_med = float(np.median(t_re))
+    t_orig_med = float(np.median(passes.original_s)) if passes.original_s else None
+    t_re_med = float(np.median(passes.rerender_s))
     from validate.lights import known_scene_lights
 
-    report: dict[str, Any] = {
+    exposures = [float(im.exposure) for im in desc.images]
+    return {
         "mode": "known_scene",
         "object": data.name,
         "folder": str(data.folder),
         "prediction": source,
-        "images_count": k,
+        "images_count": len(desc.images),
         "mask_pixels": int(mask.sum()),
         "missing_pixels": int(mask.sum() - valid.sum()),
+        "coverage": coverage(valid, mask),
+        "min_coverage": config.min_coverage,
+        "missing_scoring": "a pixel without an estimate scores max(|render - input|, |input|) (a black render or worse)",
         "rel_l1": avg("rel_l1"),
         "psnr": avg("psnr"),
         "gt_rel_l1": avg("gt_rel_l1"),
         "gt_psnr": avg("gt_psnr"),
         "noise_floor_rel_l1": avg("noise_floor_rel_l1"),
         "reproduce_rel_l1": avg("reproduce_rel_l1"),
-        "mae_deg": mae_deg(pred, data.normal_gt, mask) if data.normal_gt is not None else None,
+        "mae_deg": mean_angular_error(pred, data.normal_gt, mask) if data.normal_gt is not None else None,
         "frac_above_threshold": frac,
         "threshold": threshold,
-        "threshold_source": threshold_source if threshold is not None else None,
+        "threshold_source": threshold_source,
         "images": per_image,
         "lights": known_scene_lights(desc, exposures),
         "timings": {
             "original_render_s": t_orig_med,
             "rerender_s": t_re_med,
             "rerender_over_original": (t_re_med / t_orig_med) if t_orig_med else None,
-            "build_s": t_build,
-            "depth_map_s": t_depth,
-            "total_s": None,  # filled below
+            "build_s": passes.build_s,
+            "depth_map_s": passes.depth_map_s,
+            "total_s": None,  # filled by rerender_object
             "note": "per-image medians (the first render of a scene includes kernel compilation)",
         },
         "config": {
@@ -283,33 +335,81 @@ def rerender_object(
             "recorded_spp": desc.render.spp,
             "seed_mode": config.seed_mode,
             "common_random_numbers": config.seed_mode == "same" and spp == desc.render.spp,
-            "variant": mi.variant(),
+            "variant": variant,
             "visibility": asdict(config.visibility),
         },
     }
-    if out_dir is not None:
-        from validate.figures import rerender_figure
 
+
+def write_figure(path: Path, report: dict[str, Any], inputs: np.ndarray, passes: RenderPasses, mask: np.ndarray,
+                 res_map: np.ndarray, gt_map: np.ndarray | None, pred: np.ndarray, rows: int) -> None:
+    """figure.png of one object: inputs, re-renders, residual maps, the prediction."""
+    from validate.figures import rerender_figure
+
+    rerender_figure(
+        path,
+        inputs,
+        passes.renders,
+        mask,
+        _figure_rows(len(inputs), rows),
+        res_map,
+        gt_map,
+        pred,
+        title=f"{report['object']}: rel_l1 {report['rel_l1']:.4f}, coverage {report['coverage']:.1%}"
+        + (f" (GT normals {report['gt_rel_l1']:.4f})" if report["gt_rel_l1"] is not None else "")
+        + (f", MAE {report['mae_deg']:.2f} deg" if report["mae_deg"] is not None else ""),
+    )
+
+
+def rerender_object(
+    folder: str | Path,
+    normals: np.ndarray | str | Path,
+    config: RerenderConfig | None = None,
+    out_dir: str | Path | None = None,
+    progress: Progress | None = None,
+) -> dict:
+    """Re-render one object folder with predicted normals; return the report (and write it to
+    `out_dir/<object>/` with figure.png when out_dir is given).
+
+    normals: camera-frame normal map (H, W, 3), or a normal-map file, or a folder holding one.
+    Raises FileNotFoundError / ValueError for bad inputs (missing files, wrong sizes, bad normals).
+    """
+    config = (config or RerenderConfig()).validate()
+    mi = require_jit_variant()
+    t_start = time.perf_counter()
+    data, pred, valid, source = check_inputs(folder, normals, config.allow_missing, config.min_coverage)
+    desc, mask = data.desc, data.mask
+    k = len(desc.images)
+    spp = int(config.spp or desc.render.spp)
+    recorded = [int(im.seed) for im in desc.images]
+    fresh = [independent_seed(s) for s in recorded]
+    seeds = recorded if config.seed_mode == "same" else fresh
+    reproduce = config.floors and spp == desc.render.spp
+    total = k * (1 + (data.normal_gt is not None) + config.floors + reproduce)
+    done = 0
+
+    def tick(label: str) -> None:
+        nonlocal done
+        done += 1
+        if progress is not None:
+            progress(done, total, f"{data.name}: {label}")
+
+    passes = render_passes(data, pred, valid, config, spp, seeds, fresh, tick)
+    passes.renders = penalise_missing(passes.renders, data.images, mask & ~valid)
+    per_image = score_images(passes, data.images, mask, desc, seeds)
+    res_map, gt_map, threshold, threshold_source, frac = score_maps(passes, data.images, mask, config.threshold)
+    report = build_report(data, pred, valid, source, passes, per_image, threshold, threshold_source, frac, config,
+                          spp, mi.variant())
+    if out_dir is not None:
         target = Path(out_dir) / data.name
         target.mkdir(parents=True, exist_ok=True)
-        rerender_figure(
-            target / "figure.png",
-            inputs,
-            renders,
-            mask,
-            _figure_rows(k, config.figure_rows),
-            res_map,
-            gt_map,
-            pred,
-            title=f"{data.name}: rel_l1 {report['rel_l1']:.4f}"
-            + (f" (GT normals {report['gt_rel_l1']:.4f})" if report["gt_rel_l1"] is not None else "")
-            + (f", MAE {report['mae_deg']:.2f} deg" if report["mae_deg"] is not None else ""),
-        )
+        write_figure(target / "figure.png", report, data.images, passes, mask, res_map, gt_map, pred,
+                     config.figure_rows)
         if config.save_renders:
-            from scenes.imageio import write_png16
+            from scenes.objfolder import write_png16
 
             for i in range(k):
-                write_png16(target / f"R{i:03d}.png", renders[i])
+                write_png16(target / f"R{i:03d}.png", passes.renders[i])
         report["timings"]["total_s"] = time.perf_counter() - t_start
         (target / "report.json").write_text(json.dumps(report, indent=1, allow_nan=False))
     else:
@@ -323,26 +423,40 @@ def rerender_dataset(
     config: RerenderConfig | None = None,
     out_dir: str | Path | None = None,
     progress: Progress | None = None,
+    failed: dict[str, str] | None = None,
 ) -> list[dict]:
     """Run `rerender_object` on every `*.data` folder of `data_dir` with `pred_dir/<object>/normal.*`;
-    write `out_dir/summary.csv`. Every prediction is located before anything is rendered."""
-    folders = list_objects(data_dir)
+    write `out_dir/summary.csv`. Every prediction is located and checked before anything is rendered.
+
+    An object whose prediction is missing or unusable, or whose check fails, is recorded in `failed`
+    (object name -> reason) and the others go on; without a `failed` dict the first failure raises."""
+    config = (config or RerenderConfig()).validate()
+    folders = list_object_folders(data_dir)
+    errors: dict[str, str] = {}
     preds = {}
-    missing = []
-    for f in folders:
+    for f in folders:  # every input is checked before the first (slow) render
         try:
             preds[f] = find_prediction(Path(pred_dir) / object_name(f))
-        except FileNotFoundError:
-            missing.append(object_name(f))
-    if missing:
-        raise FileNotFoundError(
-            f"--normals: no normal.png/.exr/.npy/.tif for {len(missing)} object(s) under {str(pred_dir)!r}: {', '.join(missing[:5])}"
-        )
-    for f in folders:  # every input is checked before the first (slow) render
-        check_inputs(f, preds[f], (config or RerenderConfig()).allow_missing)
-    reports = [rerender_object(f, preds[f], config, out_dir, progress) for f in folders]
+            check_inputs(f, preds[f], config.allow_missing, config.min_coverage)
+        except (ValueError, FileNotFoundError) as exc:
+            if failed is None:
+                raise
+            preds.pop(f, None)
+            errors[object_name(f)] = " ".join(str(exc).split())
+    reports = []
+    for f in folders:
+        if f not in preds:
+            continue
+        try:
+            reports.append(rerender_object(f, preds[f], config, out_dir, progress))
+        except (ValueError, FileNotFoundError, RuntimeError) as exc:  # RuntimeError: Mitsuba on this scene
+            if failed is None:
+                raise
+            errors[object_name(f)] = " ".join(str(exc).split())
+    if failed is not None:
+        failed.update(errors)
     if out_dir is not None:
-        write_summary(Path(out_dir) / "summary.csv", reports)
+        write_summary(Path(out_dir) / "summary.csv", reports, errors)
     return reports
 
 
@@ -352,6 +466,8 @@ def summary_row(report: dict) -> dict:
         "images": report["images_count"],
         "mae_deg": report["mae_deg"],
         "rel_l1": report["rel_l1"],
+        "coverage": report.get("coverage"),
+        "missing_pixels": report.get("missing_pixels"),
         "gt_rel_l1": report["gt_rel_l1"],
         "noise_floor_rel_l1": report["noise_floor_rel_l1"],
         "reproduce_rel_l1": report["reproduce_rel_l1"],
@@ -359,23 +475,30 @@ def summary_row(report: dict) -> dict:
         "frac_above_threshold": report["frac_above_threshold"],
         "rerender_s": report["timings"]["rerender_s"],
         "original_render_s": report["timings"]["original_render_s"],
+        "error": None,
     }
 
 
-def write_summary(path: str | Path, reports: list[dict]) -> None:
+def failed_row(name: str, error: str) -> dict:
+    """A summary row of an object whose check failed: no scores, the reason in `error`."""
+    return {**{c: None for c in SUMMARY_COLUMNS}, "object": name, "error": error}
+
+
+def write_summary(path: str | Path, reports: list[dict], failed: dict[str, str] | None = None) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    rows = [summary_row(r) for r in reports] + [failed_row(n, e) for n, e in (failed or {}).items()]
     with open(path, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(SUMMARY_COLUMNS))
         writer.writeheader()
-        for r in reports:
-            writer.writerow({k: ("" if v is None else v) for k, v in summary_row(r).items()})
+        for row in rows:
+            writer.writerow({k: ("" if v is None else v) for k, v in row.items()})
 
 
-def format_table(reports: list[dict]) -> str:
-    """Plain-text table of the summary rows (None shown as '-')."""
+def format_table(reports: list[dict], failed: dict[str, str] | None = None) -> str:
+    """Plain-text table of the summary rows (None shown as '-'); failed objects are listed below it."""
     rows = [summary_row(r) for r in reports]
-    cols = list(SUMMARY_COLUMNS)
+    cols = [c for c in SUMMARY_COLUMNS if c != "error"]
 
     def fmt(v: Any) -> str:
         if v is None:
@@ -388,11 +511,12 @@ def format_table(reports: list[dict]) -> str:
     widths = [max(len(c), *(len(row[j]) for row in cells)) if cells else len(c) for j, c in enumerate(cols)]
     lines = ["  ".join(c.ljust(wd) for c, wd in zip(cols, widths))]
     lines += ["  ".join(v.ljust(wd) for v, wd in zip(row, widths)) for row in cells]
+    lines += [f"{name}  FAILED: {why}" for name, why in (failed or {}).items()]
     return "\n".join(lines)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = UsageErrorParser(
         prog="python -m validate.rerender",
         description="Re-render the known scenes of an object (or dataset) with predicted normals and compare with the inputs.",
     )
@@ -413,8 +537,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--allow-missing",
         action="store_true",
-        help="zero normals inside the mask mean 'no estimate': keep the surface's own normal there (reported)",
+        help="zero normals inside the mask mean 'no estimate': counted (missing_pixels, coverage) and scored as at "
+        "least as wrong as a black render, never better",
     )
+    p.add_argument("--min-coverage", type=float, default=MIN_COVERAGE,
+                   help="smallest share of the mask that must hold an estimate; a sparser map is refused (default %(default)s)")
     g = p.add_argument_group("fitted mode (folders without scene.json, or --fit): light and reflectance fitted to the images")
     g.add_argument("--fit", action="store_true", help="use the fitted mode even when the folder has a scene.json")
     g.add_argument("--light-model", default="directional", help="directional (+ ambient), point, environment, or auto")
@@ -473,17 +600,18 @@ def _has_cuda() -> bool:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
-    from validate.capture import detect_layout
-
-    if args.fit or (Path(args.data).is_dir() and detect_layout(args.data) in ("diligent", "unips")):
-        try:
-            return _main_fitted(args)
-        except (ValueError, FileNotFoundError, FileExistsError) as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            return 2
+    """One object: a failure is one line `error: ...`, exit 2. A dataset: a failed object is recorded (summary.csv
+    row with its error), the others go on, the failures are listed at the end and the exit status is 1.
+    A folder without scene.json (DiLiGenT, official UniPS layout) or `--fit`: the fitted mode (validate.fit)."""
+    failed: dict[str, str] = {}
     try:
+        args = build_parser().parse_args(argv)
+        logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
+                            format="%(levelname)s %(name)s: %(message)s")
+        from validate.capture import detect_layout
+
+        if args.fit or (Path(args.data).is_dir() and detect_layout(args.data) in ("diligent", "unips")):
+            return _main_fitted(args)
         config = RerenderConfig(
             spp=args.spp,
             seed_mode=args.seed_mode,
@@ -492,15 +620,18 @@ def main(argv: list[str] | None = None) -> int:
             threshold=args.threshold,
             save_renders=args.save_renders,
             allow_missing=args.allow_missing,
+            min_coverage=args.min_coverage,
         ).validate()
         data = Path(args.data)
         if not data.is_dir():
             raise FileNotFoundError(f"--data: {str(data)!r} is not a folder")
         single = (data / "scene.json").is_file()
         if not single:
-            list_objects(data)  # fails early with a clear message
+            list_object_folders(data)  # fails early with a clear message
         if not Path(args.normals).exists():
             raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
+        if Path(args.out).exists() and not Path(args.out).is_dir():
+            raise UsageError(f"--out: {args.out!r} is an existing file, expected a folder")
 
         from scenes.variant import choose_variant
 
@@ -521,19 +652,24 @@ def main(argv: list[str] | None = None) -> int:
 
         try:
             if single:
-                check_inputs(data, args.normals, config.allow_missing)
+                check_inputs(data, args.normals, config.allow_missing, config.min_coverage)
                 reports = [rerender_object(data, args.normals, config, args.out, progress)]
                 write_summary(Path(args.out) / "summary.csv", reports)
             else:
-                reports = rerender_dataset(data, args.normals, config, args.out, progress)
+                reports = rerender_dataset(data, args.normals, config, args.out, progress, failed=failed)
         finally:
             for bar in bars:
                 bar.close()
-    except (ValueError, FileNotFoundError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    print(format_table(reports))
+    except (UsageError, ValueError, FileNotFoundError, FileExistsError, OSError) as exc:
+        return report_error(exc)
+    print(format_table(reports, failed))
     print(f"reports in {args.out}/<object>/report.json, table in {args.out}/summary.csv")
+    if failed:
+        for name, why in failed.items():
+            print(f"failed {name}: {why}", file=sys.stderr)
+        print(f"error: {len(failed)} of {len(failed) + len(reports)} object(s) failed: {', '.join(failed)} "
+              "(the others were checked)", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -67,6 +67,27 @@ class AssetLibrary:
         return lib
 
 
+    def check(self) -> None:
+        """Decode every file once, up front (the driver does it before any render): a file that cannot be read
+        would fail every object that draws it, so the run is refused with a ValueError naming it."""
+        from scenes.envmaps import load_environment
+        from scenes.meshes import load_mesh
+        from scenes.textures import read_image_file
+
+        jobs = [(p, load_mesh) for p in self.meshes] + [(p, load_environment) for p in self.hdris]
+        for ts in self.textures:
+            jobs += [(p, read_image_file) for p in (ts.base_color, ts.roughness, ts.metallic, ts.normal) if p is not None]
+        bad = []
+        for path, read in dict(jobs).items():
+            try:
+                read(Path(path))
+            except (ValueError, OSError) as exc:
+                bad.append(f"{exc}")
+        if bad:
+            more = f" (and {len(bad) - 1} more unreadable file(s))" if len(bad) > 1 else ""
+            raise ValueError(f"--assets: {bad[0]}{more}; fix or remove the file")
+
+
 def _texture_sets(folder: Path) -> list[TextureSet]:
     groups: dict[tuple[Path, str], dict[str, Path]] = {}
     for p in _files(folder):

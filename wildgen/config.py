@@ -1,10 +1,15 @@
 """The resolved configuration of a dataset run (recorded in manifest.json)."""
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field
 
 LIGHT_FAMILIES = ("directional", "point", "near_area", "hdri", "mixed")
 MATERIAL_CLASSES = ("diffuse", "specular", "metallic")
+VARIANTS = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
+"""Mitsuba variants the scenes are built for (RGB colours, `--variant auto` picks the first usable one)."""
+MAX_ENTROPY = 8.0
+"""Largest entropy (bits) of the visible normals' 16 x 16 histogram: log2(256)."""
 
 
 @dataclass
@@ -55,6 +60,9 @@ class GenConfig:
     """Width of procedural environment maps."""
     variant: str | None = None
     """Mitsuba variant (None: chosen automatically at run time and recorded in the manifest)."""
+    max_backfacing: float = 0.1
+    """Largest share of ground-truth normals inside the mask that may face away from the camera; an object
+    above it (e.g. a mesh with coincident opposite faces) is rejected and recorded with its reason."""
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -81,4 +89,21 @@ class GenConfig:
             raise ValueError("--exposure-percentile / --exposure-level: expected (0, 100] and (0, 1]")
         if self.seed < 0:
             raise ValueError(f"--seed: expected a non-negative integer, got {self.seed!r}")
+        t = self.entropy_threshold
+        if isinstance(t, bool) or not isinstance(t, (int, float)) or not math.isfinite(t) or not 0 <= t <= MAX_ENTROPY:
+            raise ValueError(f"--entropy-threshold: expected a number from 0 to {MAX_ENTROPY:g} bits (the entropy of a "
+                             f"16 x 16 histogram), got {t!r}")
+        if self.variant is not None and self.variant not in VARIANTS:
+            raise ValueError(f"--variant: {self.variant!r} is not supported, expected auto or one of {', '.join(VARIANTS)} "
+                             "(the scenes use RGB colours)")
+        if not 0 <= self.max_backfacing <= 1:
+            raise ValueError(f"max_backfacing: expected a share from 0 to 1, got {self.max_backfacing!r}")
         return self
+
+    def memory_per_object(self) -> int:
+        """Bytes one worker needs to render one object of this configuration (a conservative estimate:
+        interpreter, Mitsuba and Dr.Jit ~350 MB, film and ground-truth buffers ~450 B per pixel, each
+        image's float radiance and its conversions 48 B per pixel, the path tracer's wavefront 16 B per
+        sample), measured on llvm_ad_rgb (1024 x 1024, 2 images: 0.8 GB peak)."""
+        pixels = self.width * self.height
+        return int(350e6 + pixels * (450 + 48 * self.images) + pixels * max(self.spp, self.gt_spp) * 16)

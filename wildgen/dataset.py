@@ -2,7 +2,7 @@
 
 Every object is a pure function of (config, index) (`make_object`), so a dataset can be made in any
 order, by any number of workers, interrupted and resumed, and the object folders come out
-byte-identical. Only the parent process writes `manifest.json`, atomically, after each object
+byte-identical (with one Dr.Jit thread per worker; see the README for more threads). Only the parent process writes `manifest.json`, atomically, after each object
 (throttled when the manifest gets large, see `ManifestWriter`).
 
 Resuming: when `DIR/manifest.json` exists with the same configuration (the object count may grow),
@@ -21,24 +21,22 @@ import shutil
 import socket
 import time
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Iterator
+from typing import Callable, Iterator
 
-from scenes.imageio import atomic_write_text
-from wildgen.assets import AssetLibrary
+from scenes.objfolder import atomic_write_text
 from wildgen.config import GenConfig
-from wildgen.sampling import SkippedObject, sample_object
-from wildgen.writer import TMP_PREFIX, sha256_file, write_object
+from wildgen.parallel import Engine, InProcessEngine
+from wildgen.writer import TMP_PREFIX, index_name, sha256_file
 
-if TYPE_CHECKING:
-    from wildgen.parallel import Engine
 
 log = logging.getLogger(__name__)
 
 MANIFEST = "manifest.json"
 LOCK = ".wildgen.lock"
 OBJECT_FOLDER = re.compile(r"^\d{5,}\.data$")
+TMP_FOLDER = re.compile(r"^" + re.escape(TMP_PREFIX) + r"\d{5,}\.data\.\d+$")  # `writer.write_object`'s temporary names
 # Config fields that may differ between runs into the same folder: the object count only extends it.
 NOT_IDENTITY = ("objects", "variant")
 
@@ -58,31 +56,6 @@ def versions() -> dict[str, str]:
         except metadata.PackageNotFoundError:
             out[pkg] = "not installed"
     return out
-
-
-def object_name(index: int) -> str:
-    return f"{index:05d}"
-
-
-def make_object(cfg: GenConfig, index: int, out_dir: Path, lib: AssetLibrary | None = None) -> dict:
-    """Sample, render and write object `index`; a pure function of (cfg, index). Returns its manifest entry."""
-    lib = lib if lib is not None else AssetLibrary.scan(cfg.assets)
-    name = object_name(index)
-    t0 = time.perf_counter()
-    try:
-        sampled = sample_object(cfg, index, lib, name=name)
-    except SkippedObject as exc:
-        log.info("%s", exc)
-        return {"index": index, "name": name, "status": "skipped", "reason": str(exc)}
-    result = write_object(sampled, Path(out_dir), cfg.exposure_percentile, cfg.exposure_level)
-    entry = {"index": index, "status": "done", **asdict(result)}
-    entry["timings"]["total_s"] = time.perf_counter() - t0
-    return entry
-
-
-def failed_entry(index: int, error: str, attempts: int) -> dict:
-    """Manifest entry of an object that failed `attempts` times (last error kept)."""
-    return {"index": index, "name": object_name(index), "status": "failed", "error": error, "attempts": attempts}
 
 
 def write_manifest(out_dir: Path, cfg: GenConfig, variant: str, entries: dict[int, dict], extra: dict | None = None) -> None:
@@ -118,7 +91,8 @@ def load_manifest(out_dir: str | Path) -> dict | None:
 
 def config_differences(manifest: dict, cfg: GenConfig) -> list[str]:
     """Fields (other than the object count and the requested variant) where `cfg` differs from the manifest's."""
-    old, new = manifest["config"], cfg.to_dict()
+    # A key an older manifest lacks was added later with its default value.
+    old, new = {**GenConfig().to_dict(), **manifest["config"]}, cfg.to_dict()
     keys = sorted((set(old) | set(new)) - set(NOT_IDENTITY))
     return [k for k in keys if old.get(k) != new.get(k)]
 
@@ -173,6 +147,8 @@ def clean_leftovers(out_dir: Path) -> list[Path]:
     """Remove temporary folders of interrupted objects; returns what was removed."""
     removed = []
     for p in sorted(Path(out_dir).glob(f"{TMP_PREFIX}*")):
+        if not TMP_FOLDER.match(p.name):  # not a name this tool writes: never touched
+            continue
         shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
         removed.append(p)
     return removed
@@ -201,13 +177,22 @@ class Plan:
 def plan_run(cfg: GenConfig, out_dir: Path, variant: str, overwrite: bool = False) -> Plan:
     """Decide which objects to render; removes leftovers and corrupt folders. Call under `dataset_lock`.
 
-    Raises DatasetError when the folder holds a dataset of another configuration or variant (unless
-    `overwrite`, which deletes the existing object folders and manifest first).
+    Raises DatasetError when the folder holds a dataset of another configuration or variant, or, without
+    a manifest, anything under a name this run would write (`00000.data`...): files this tool did not
+    write are never replaced. `overwrite` deletes the existing object folders and manifest first.
     """
     out_dir = Path(out_dir)
     plan = Plan()
-    plan.leftovers = len(clean_leftovers(out_dir))
     manifest = None if overwrite else load_manifest(out_dir)
+    if manifest is None and not overwrite:
+        foreign = [n for n in (f"{index_name(i)}.data" for i in range(cfg.objects)) if os.path.lexists(out_dir / n)]
+        if foreign:
+            raise DatasetError(
+                f"--out: {str(out_dir)!r} already holds {', '.join(foreign[:3])}{' ...' if len(foreign) > 3 else ''} "
+                f"({len(foreign)} name(s) this run would write) but no manifest.json of wildgen.make; "
+                "use another folder, or --overwrite to replace them"
+            )
+    plan.leftovers = len(clean_leftovers(out_dir))
     if overwrite:
         _remove_dataset(out_dir)
     if manifest is not None:
@@ -246,8 +231,8 @@ def plan_run(cfg: GenConfig, out_dir: Path, variant: str, overwrite: bool = Fals
                 plan.complete += 1
                 continue
             plan.redo[index] = problem
-            log.warning("object %s: %s; rendering it again", object_name(index), problem)
-            shutil.rmtree(out_dir / entry.get("folder", f"{object_name(index)}.data"), ignore_errors=True)
+            log.warning("object %s: %s; rendering it again", index_name(index), problem)
+            shutil.rmtree(out_dir / entry.get("folder", f"{index_name(index)}.data"), ignore_errors=True)
         elif status == "skipped":
             plan.kept[index] = entry
             plan.rejected += 1
@@ -302,7 +287,7 @@ def make_dataset(
     variant: str,
     progress: Callable[[dict], None] | None = None,
     *,
-    engine: "Engine | None" = None,
+    engine: Engine | None = None,
     overwrite: bool = False,
     on_plan: Callable[[Plan], None] | None = None,
     extra: dict | None = None,
@@ -314,8 +299,6 @@ def make_dataset(
     rendering. On KeyboardInterrupt the finished objects are kept, the manifest is written, the
     temporary folders are removed, and the interrupt is re-raised.
     """
-    from wildgen.parallel import InProcessEngine
-
     out_dir = Path(out_dir)
     engine = engine if engine is not None else InProcessEngine()
     with dataset_lock(out_dir):
@@ -351,7 +334,7 @@ def drop_unrecorded(out_dir: Path, indices: list[int], entries: dict[int, dict])
     removed = []
     for index in indices:
         if entries.get(index, {}).get("status") != "done":
-            folder = Path(out_dir) / f"{object_name(index)}.data"
+            folder = Path(out_dir) / f"{index_name(index)}.data"
             if folder.exists():
                 shutil.rmtree(folder, ignore_errors=True)
                 removed.append(folder)

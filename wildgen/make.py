@@ -6,11 +6,13 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 import time
 from pathlib import Path
 
-from wildgen.config import LIGHT_FAMILIES, GenConfig
+from scenes.cli import UsageError, UsageErrorParser, report_error
+from wildgen.config import LIGHT_FAMILIES, VARIANTS, GenConfig
 
 DEFAULTS = GenConfig()
 
@@ -32,7 +34,7 @@ class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = UsageErrorParser(
         prog="python -m wildgen.make",
         description="Render a PS-Wild-style photometric stereo dataset with Mitsuba 3 (one <object>.data folder per object).",
         formatter_class=_HelpFormatter,
@@ -54,7 +56,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--shapes", choices=["procedural", "mesh", "any"], default=DEFAULTS.shapes, help="shape source (mesh needs --assets)")
     p.add_argument("--entropy-threshold", type=float, default=DEFAULTS.entropy_threshold, help="minimum visible-normal entropy in bits")
     p.add_argument("--gt-spp", type=int, default=DEFAULTS.gt_spp, help="samples per pixel of the ground-truth pass")
-    p.add_argument("--variant", default=None, help="Mitsuba variant (default: cuda_ad_rgb, else llvm_ad_rgb, else scalar_rgb)")
+    p.add_argument("--variant", default=None,
+                   help=f"Mitsuba variant: auto (default: cuda_ad_rgb, else llvm_ad_rgb, else scalar_rgb) or one of {', '.join(VARIANTS)}")
     p.add_argument("--threads", type=int, default=None,
                    help="Dr.Jit threads per worker (default: cores // workers, at least 1; with --ray: 1)")
     p.add_argument("--workers", type=int, default=None,
@@ -82,7 +85,8 @@ def config_from_args(args: argparse.Namespace) -> GenConfig:
         lights=_families(args.lights) if args.lights else ["near_area"],
         objects=args.objects, images=args.images, width=width, height=height, spp=args.spp, bounces=args.bounces,
         camera=args.camera, seed=args.seed, materials=args.materials, assets=args.assets, shapes=args.shapes,
-        entropy_threshold=args.entropy_threshold, gt_spp=args.gt_spp, variant=args.variant,
+        entropy_threshold=args.entropy_threshold, gt_spp=args.gt_spp,
+        variant=None if args.variant in (None, "auto") else args.variant,
     ).validate()
 
 
@@ -122,130 +126,222 @@ def _summary(entries: dict[int, dict], rendered: dict[str, int], plan, seconds: 
     if plan.complete:
         detail.append(f"{plan.complete} already complete")
     if plan.rejected + rendered.get("skipped", 0):
-        detail.append(f"{plan.rejected + rendered.get('skipped', 0)} rejected by the entropy rule")
+        detail.append(f"{plan.rejected + rendered.get('skipped', 0)} rejected by the entropy rule or the ground-truth check")
     line = f"{done} done, {skipped} skipped, {failed} failed" + (f" ({', '.join(detail)})" if detail else "")
     return f"{line} in {seconds:.1f} s [{variant}, {how}]", failed
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+def check_flags(args: argparse.Namespace, explicit: set[str]) -> None:
+    """Flag values and combinations that are refused before anything is read (ValueError)."""
+    for flag in ("workers", "max_retries"):
+        if getattr(args, flag) is not None and getattr(args, flag) < 0:
+            raise ValueError(f"--{flag.replace('_', '-')}: expected a non-negative integer, got {getattr(args, flag)}")
+    for flag in ("threads", "recycle_after"):
+        if getattr(args, flag) is not None and getattr(args, flag) < 1:
+            raise ValueError(f"--{flag.replace('_', '-')}: expected a positive integer, got {getattr(args, flag)}")
+    if args.ray is not None and "workers" in explicit:
+        raise ValueError("--workers: local workers and --ray are exclusive (Ray schedules by its CPUs)")
+    if args.resume and args.overwrite:
+        raise ValueError("--resume: cannot be combined with --overwrite")
+    if args.res is not None and explicit & {"width", "height"}:
+        given = " and ".join(f"--{f}" for f in ("width", "height") if f in explicit)
+        raise ValueError(f"--res: sets both sides; it cannot be combined with {given} (use --res R or --width W --height H)")
+    if args.ray is not None:
+        from wildgen.parallel import RAY_INSTALL, ray_available
+
+        if not ray_available():
+            raise ValueError(f"--ray: Ray is not installed; {RAY_INSTALL}")
+
+
+def resolve_run(args: argparse.Namespace, explicit: set[str], out: Path) -> tuple[GenConfig, str]:
+    """The configuration to render (the manifest's one merged with the given flags when resuming) and the
+    Mitsuba variant (set here; an existing dataset keeps its own unless one is asked for)."""
     from wildgen.dataset import load_manifest
 
-    out = Path(args.out)
-    try:
-        for flag in ("workers", "max_retries"):
-            if getattr(args, flag) is not None and getattr(args, flag) < 0:
-                raise ValueError(f"--{flag.replace('_', '-')}: expected a non-negative integer, got {getattr(args, flag)}")
-        for flag in ("threads", "recycle_after"):
-            if getattr(args, flag) is not None and getattr(args, flag) < 1:
-                raise ValueError(f"--{flag.replace('_', '-')}: expected a positive integer, got {getattr(args, flag)}")
-        explicit = _explicit_flags(argv)
-        if args.ray is not None and "workers" in explicit:
-            raise ValueError("--workers: local workers and --ray are exclusive (Ray schedules by its CPUs)")
-        if args.resume and args.overwrite:
-            raise ValueError("--resume: cannot be combined with --overwrite")
-        if args.ray is not None:
-            from wildgen.parallel import RAY_INSTALL, ray_available
-
-            if not ray_available():
-                raise ValueError(f"--ray: Ray is not installed; {RAY_INSTALL}")
-        manifest = None if args.overwrite else load_manifest(out)
-        if args.resume:
-            if manifest is None:
-                raise FileNotFoundError(f"--resume: no manifest.json in {str(out)!r} to resume; run without --resume to start")
-            cfg = _resume_config(args, explicit, manifest)
-        else:
-            cfg = config_from_args(args)
-        from wildgen.assets import AssetLibrary
-
-        lib = AssetLibrary.scan(cfg.assets)  # fail early on a bad asset folder
-        if cfg.shapes == "mesh" and not lib.meshes:
-            raise ValueError(f"--shapes: 'mesh' needs an --assets folder with meshes/, {cfg.assets!r} has none")
-        from scenes.variant import choose_variant
-
-        # Continue an existing dataset with its own variant unless one is asked for.
-        requested = cfg.variant or (manifest.get("variant") if manifest and "variant" not in explicit else None)
-        variant = choose_variant(requested)
-        if args.threads and args.workers == 0:
-            import drjit as dr
-
-            dr.set_thread_count(args.threads)
-    except (ValueError, FileNotFoundError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-
-    from tqdm import tqdm
-
-    from wildgen.dataset import make_dataset
-    from wildgen.parallel import InProcessEngine, ProcessEngine, RayEngine, WorkersCannotStart
-
-    if args.ray is not None:
-        engine = RayEngine(address=args.ray, threads=args.threads or 1, max_retries=args.max_retries, recycle_after=args.recycle_after)
-    elif args.workers == 0:
-        engine = InProcessEngine(max_retries=args.max_retries)
+    manifest = None if args.overwrite else load_manifest(out)
+    if args.resume:
+        if manifest is None:
+            raise FileNotFoundError(f"--resume: no manifest.json in {str(out)!r} to resume; run without --resume to start")
+        cfg = _resume_config(args, explicit, manifest)
     else:
-        # On a GPU one process keeps the device busy; more would only add CUDA contexts.
-        workers = args.workers if args.workers is not None else (1 if variant.startswith("cuda") else None)
-        engine = ProcessEngine(workers=workers, threads=args.threads, max_retries=args.max_retries,
-                               recycle_after=args.recycle_after)
+        cfg = config_from_args(args)
+    from wildgen.assets import AssetLibrary
 
-    t0 = time.perf_counter()
-    rendered: dict[str, int] = {}
-    state: dict = {}
+    lib = AssetLibrary.scan(cfg.assets)  # fail early on a bad asset folder
+    if cfg.shapes == "mesh" and not lib.meshes:
+        raise ValueError(f"--shapes: 'mesh' needs an --assets folder with meshes/, {cfg.assets!r} has none")
+    check_memory(cfg, args.workers, args.ray is not None)
+    lib.check()  # every asset decoded once, here: a bad file is named now, not retried in every object
+    check_out(out)
+    from scenes.variant import choose_variant
 
-    def on_plan(plan) -> None:
-        state["plan"] = plan
-        if plan.resumed and not args.quiet:
-            print(f"resuming {out}: {plan.complete} complete, {plan.rejected} rejected, {len(plan.todo)} to render"
+    requested = cfg.variant or (manifest.get("variant") if manifest and "variant" not in explicit else None)
+    variant = choose_variant(requested)
+    if args.threads and args.workers == 0:
+        import drjit as dr
+
+        dr.set_thread_count(args.threads)
+    return cfg, variant
+
+
+def available_memory() -> int | None:
+    """Bytes of memory available to new allocations (Linux MemAvailable), or None when unknown."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return None
+
+
+def _gib(n: float) -> str:
+    return f"{n / 2**30:.1f} GiB"
+
+
+def check_memory(cfg: GenConfig, workers: int | None, ray: bool) -> None:
+    """Refuse sizes this machine cannot hold (`GenConfig.memory_per_object` x concurrent workers)."""
+    from wildgen.parallel import default_workers
+
+    available = available_memory()
+    if available is None:
+        return
+    per_object = cfg.memory_per_object()
+    concurrent = 1 if ray or workers == 0 else (workers or default_workers(cfg.objects))
+    need = per_object * concurrent
+    if need > available:
+        who = f" x {concurrent} workers" if concurrent > 1 else ""
+        raise ValueError(
+            f"--res/--images/--spp: one object at {cfg.width}x{cfg.height} px, {cfg.images} images, {cfg.spp} spp needs "
+            f"about {_gib(per_object)}{who} = {_gib(need)} of memory, this machine has {_gib(available)} available; "
+            "lower --res, --images, --spp or --workers"
+        )
+
+
+def check_out(out: Path) -> None:
+    """--out must be a folder this process can create and write (checked before anything is written)."""
+    import os
+
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out: {str(out)!r} is an existing file, expected a folder (new or a dataset of wildgen.make)")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"--out: cannot create the folder {str(out)!r} ({exc.strerror or exc})") from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise ValueError(f"--out: the folder {str(out)!r} is not writable")
+
+
+class _Progress:
+    """The progress bar of a run: created when the plan is known, one tick per finished object."""
+
+    def __init__(self, cfg: GenConfig, out: Path, quiet: bool):
+        self.cfg, self.out, self.quiet = cfg, out, quiet
+        self.rendered: dict[str, int] = {}
+        self.plan = None
+        self.bar = None
+        self.left = 0
+
+    def on_plan(self, plan) -> None:
+        from tqdm import tqdm
+
+        self.plan = plan
+        if plan.resumed and not self.quiet:
+            print(f"resuming {self.out}: {plan.complete} complete, {plan.rejected} rejected, {len(plan.todo)} to render"
                   + (f", {plan.leftovers} interrupted removed" if plan.leftovers else ""), file=sys.stderr)
-        state["bar"] = tqdm(total=cfg.objects, initial=plan.complete + plan.rejected, unit="obj", disable=args.quiet,
-                            desc="wildgen", dynamic_ncols=True)
-        state["left"] = len(plan.todo)
+        self.bar = tqdm(total=self.cfg.objects, initial=plan.complete + plan.rejected, unit="obj", disable=self.quiet,
+                        desc="wildgen", dynamic_ncols=True)
+        self.left = len(plan.todo)
 
-    def progress(entry: dict) -> None:
-        rendered[entry["status"]] = rendered.get(entry["status"], 0) + 1
-        state["left"] -= 1
-        bar = state["bar"]
-        bar.set_postfix(done=rendered.get("done", 0), failed=rendered.get("failed", 0), left=state["left"], refresh=False)
-        bar.update(1)
+    def progress(self, entry: dict) -> None:
+        self.rendered[entry["status"]] = self.rendered.get(entry["status"], 0) + 1
+        self.left -= 1
+        self.bar.set_postfix(done=self.rendered.get("done", 0), failed=self.rendered.get("failed", 0), left=self.left,
+                             refresh=False)
+        self.bar.update(1)
 
-    def close_bar() -> None:
-        if "bar" in state:
-            state["bar"].close()
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
 
-    def on_sigterm(signum, frame):  # schedulers stop jobs with SIGTERM: same clean stop as Ctrl-C
-        state["signal"] = signum
-        raise KeyboardInterrupt
 
+def _engine_description(used: dict, plan) -> str:
+    return (f"{used['workers']} workers x {used['threads_per_worker']} Dr.Jit threads" if "workers" in used
+            else f"ray, {used['cluster_cpus']} CPUs" if "cluster_cpus" in used
+            else "nothing to render" if not plan.todo else "in process")
+
+
+def main(argv: list[str] | None = None) -> int:
     import signal
 
-    from tqdm.contrib.logging import logging_redirect_tqdm
+    from wildgen import parallel
 
-    previous = signal.signal(signal.SIGTERM, on_sigterm) if _main_thread() else None
+    state: dict = {}
+
+    def on_signal(signum, frame):  # Ctrl-C and SIGTERM (schedulers stop jobs with it): one clean stop
+        state["signal"] = signum
+        parallel.STOP_SIGNALS.append(signum)  # seen even when a native call turns the interrupt into an error
+        raise KeyboardInterrupt
+
+    handled = (signal.SIGINT, signal.SIGTERM)
+    previous = {s: signal.signal(s, on_signal) for s in handled} if _main_thread() else {}
     try:
-        with logging_redirect_tqdm():  # warnings (retries, failures) print above the bar, not through it
-            entries = make_dataset(cfg, out, variant, progress, engine=engine, overwrite=args.overwrite,
-                                   on_plan=on_plan, extra={"run": engine.used})
-    except (ValueError, FileNotFoundError, ImportError, WorkersCannotStart) as exc:
-        close_bar()
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return _run(argv, state)
     except KeyboardInterrupt:
-        close_bar()
         print("interrupted: finished objects are kept; re-run the same command to continue", file=sys.stderr)
         return 128 + state.get("signal", signal.SIGINT)
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
-    close_bar()
-    used = getattr(engine, "used", {})
-    how = (f"{used['workers']} workers x {used['threads_per_worker']} Dr.Jit threads" if "workers" in used
-           else f"ray, {used['cluster_cpus']} CPUs" if "cluster_cpus" in used
-           else "nothing to render" if not state["plan"].todo else "in process")
-    line, failed = _summary(entries, rendered, state["plan"], time.perf_counter() - t0, variant, how)
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+        parallel.STOP_SIGNALS.clear()
+
+
+def _run(argv: list[str] | None, state: dict) -> int:
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    try:
+        args = build_parser().parse_args(argv)
+        out = Path(args.out)
+        explicit = _explicit_flags(argv)
+        check_flags(args, explicit)
+        cfg, variant = resolve_run(args, explicit, out)
+    except (UsageError, ValueError, OSError) as exc:
+        return report_error(exc)
+
+    from tqdm.contrib.logging import logging_redirect_tqdm
+
+    from wildgen.dataset import make_dataset
+    from wildgen.parallel import WorkersCannotStart, choose_engine
+
+    engine = choose_engine(variant, ray=args.ray, workers=args.workers, threads=args.threads,
+                           max_retries=args.max_retries, recycle_after=args.recycle_after)
+    t0 = time.perf_counter()
+    bar = _Progress(cfg, out, args.quiet)
+    try:
+        with logging_redirect_tqdm():  # warnings (retries, failures) print above the bar, not through it
+            entries = make_dataset(cfg, out, variant, bar.progress, engine=engine, overwrite=args.overwrite,
+                                   on_plan=bar.on_plan, extra={"run": engine.used})
+    except (ValueError, OSError, ImportError, WorkersCannotStart) as exc:
+        bar.close()
+        return report_error(exc)
+    except KeyboardInterrupt:
+        bar.close()
+        raise
+    bar.close()
+    how = _engine_description(getattr(engine, "used", {}), bar.plan)
+    line, failed = _summary(entries, bar.rendered, bar.plan, time.perf_counter() - t0, variant, how)
     print(line)
-    return 1 if failed else 0
+    for e in sorted(entries.values(), key=lambda e: e["index"]):
+        if e.get("status") == "failed":
+            print(f"failed {e['name']}: {e.get('error', '?')}", file=sys.stderr)
+    if failed:
+        return 1
+    if entries and not any(e.get("status") == "done" for e in entries.values()):
+        first = next(e for e in entries.values() if e.get("status") == "skipped")
+        print(f"error: none of the {len(entries)} object(s) was written, all were rejected (first: {first.get('reason')})",
+              file=sys.stderr)
+        return 1
+    return 0
 
 
 def _main_thread() -> bool:
@@ -255,4 +351,12 @@ def _main_thread() -> bool:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    code = main()
+    if code in (130, 143):
+        # Interrupted: everything is cleaned up and reported. An interrupt that arrived inside a native import
+        # leaves CPython's "unhandled KeyboardInterrupt" flag set, which would turn this exit into a kill by
+        # SIGINT; leave with the documented status instead.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    sys.exit(code)

@@ -2,8 +2,9 @@
 
 All engines share one contract, `run(cfg, out_dir, variant, indices, on_entry)`: every index ends in
 exactly one call `on_entry(entry)` with a 'done', 'skipped' or 'failed' manifest entry, in completion
-order. A Python exception or a dead worker costs the object an attempt; after `max_retries` retries
-the object is recorded as failed and the run goes on. KeyboardInterrupt stops the workers (no
+order. A dead worker or a transient exception (`transient`: out of memory, file system) costs the object
+an attempt; after `max_retries` retries the object is recorded as failed and the run goes on. Any other
+exception would repeat (an object is a pure function of (config, index)) and fails the object at once. KeyboardInterrupt stops the workers (no
 half-written object survives: folders appear by atomic rename) and propagates.
 
 Workers are separate processes started with 'spawn' (Mitsuba and Dr.Jit hold threads and JIT state
@@ -11,9 +12,9 @@ that do not survive fork). Each one sets its Mitsuba variant and Dr.Jit thread c
 one object at a time, and is replaced after `recycle_after` objects to bound memory. Local workers
 die with their parent (Linux PR_SET_PDEATHSIG), so killing the driver leaves no orphan writing files.
 
-The objects' bytes do not depend on the engine, the number of workers or threads: each object is a
-pure function of (config, index), and Dr.Jit's results do not depend on its thread count (checked by
-tests/test_wildgen_scale.py).
+Each object is a pure function of (config, index): its bytes depend neither on the engine, the number of
+workers nor the Dr.Jit threads per worker (scenes.render.render_film sums each pixel's samples in a fixed
+order; tests/test_determinism.py, tests/test_wildgen_scale.py; the README states the guarantee).
 """
 from __future__ import annotations
 
@@ -34,6 +35,21 @@ from wildgen.config import GenConfig
 log = logging.getLogger(__name__)
 
 RAY_INSTALL = "pip install 'unips-toolkit[ray]' (or: pip install 'ray>=2.9')"
+
+STOP_SIGNALS: list[int] = []
+"""Signals (SIGINT, SIGTERM) received by this process while a run was going on, recorded by the CLI's
+handlers (`wildgen.make`): an interrupt that a native call turned into an ordinary exception is still a stop."""
+
+
+def transient(exc: BaseException) -> bool:
+    """True for a failure that may not happen again (out of memory, a file-system error); any other exception
+    of `make_object`, a pure function of (config, index), would repeat, so it is not retried."""
+    return isinstance(exc, (OSError, MemoryError)) or "out of memory" in str(exc).lower()
+
+
+def _check_stop(exc: BaseException | None = None) -> None:
+    if STOP_SIGNALS:
+        raise KeyboardInterrupt from exc
 
 
 def available_cores() -> int:
@@ -92,17 +108,18 @@ class _Attempts:
         self.succeeded += 1
         self.on_entry(entry)
 
-    def failure(self, index: int, error: str) -> None:
-        """Count a failed attempt: retry later (end of the queue) or record the object as failed."""
-        from wildgen.dataset import failed_entry, object_name
+    def failure(self, index: int, error: str, retry: bool = True) -> None:
+        """Count a failed attempt: retry later (end of the queue) or record the object as failed (at once when
+        `retry` is False: a deterministic failure)."""
+        from wildgen.writer import failed_entry, index_name
 
         n = self.failures.get(index, 0) + 1
         self.failures[index] = n
-        if n <= self.max_retries:
-            log.warning("object %s: attempt %d failed (%s); retrying", object_name(index), n, error)
+        if retry and n <= self.max_retries:
+            log.warning("object %s: attempt %d failed (%s); retrying", index_name(index), n, error)
             self.queue.append(index)
         else:
-            log.error("object %s failed after %d attempts: %s", object_name(index), n, error)
+            log.error("object %s failed after %d attempts: %s", index_name(index), n, error)
             self.on_entry(failed_entry(index, error, n))
 
 
@@ -121,7 +138,7 @@ class InProcessEngine:
     def run(self, cfg: GenConfig, out_dir: Path, variant: str, indices: list[int], on_entry: Callable[[dict], None]) -> None:
         from scenes.variant import choose_variant
         from wildgen.assets import AssetLibrary
-        from wildgen.dataset import make_object
+        from wildgen.writer import make_object
 
         choose_variant(variant)
         lib = AssetLibrary.scan(cfg.assets)
@@ -131,8 +148,10 @@ class InProcessEngine:
             try:
                 entry = make_object(cfg, index, out_dir, lib)
             except Exception as exc:  # one bad object must not stop the run
-                attempts.failure(index, describe_error(exc))
+                _check_stop(exc)  # unless it was an interrupt in disguise
+                attempts.failure(index, describe_error(exc), retry=transient(exc))
                 continue
+            _check_stop()
             attempts.success(entry)
 
 
@@ -186,7 +205,7 @@ def _worker_main(conn, cfg: GenConfig, out_dir: str, variant: str, threads: int 
     except BaseException as exc:  # report and exit: the parent decides whether to give up
         conn.send(("init_error", None, describe_error(exc)))
         return
-    from wildgen.dataset import make_object
+    from wildgen.writer import make_object
 
     while True:
         try:
@@ -199,7 +218,7 @@ def _worker_main(conn, cfg: GenConfig, out_dir: str, variant: str, threads: int 
             entry = make_object(cfg, index, Path(out_dir), lib)
         except Exception as exc:  # reported to the parent, which retries or records the failure
             log.debug("object %d failed:\n%s", index, traceback.format_exc())
-            conn.send(("error", index, describe_error(exc)))
+            conn.send(("error" if transient(exc) else "fatal", index, describe_error(exc)))
             continue
         conn.send(("ok", index, entry))
 
@@ -281,7 +300,7 @@ class ProcessEngine:
             if kind == "ok":
                 attempts.success(payload)
             else:
-                attempts.failure(index, payload)
+                attempts.failure(index, payload, retry=kind != "fatal")
             if self.recycle_after and w.tasks >= self.recycle_after:
                 w.retiring = True  # bound memory growth: a fresh process takes over
                 try:
@@ -390,11 +409,11 @@ def _ray_make_object(cfg: GenConfig, out_dir: str, variant: str, threads: int | 
     host = socket.gethostname()
     try:
         lib = _init_process(variant, threads, cfg.assets)
-        from wildgen.dataset import make_object
+        from wildgen.writer import make_object
 
         return "ok", make_object(cfg, index, Path(out_dir), lib), host
     except Exception as exc:  # reported to the driver, which retries or records the failure
-        return "error", f"{describe_error(exc)} (on {host})", host
+        return ("error" if transient(exc) else "fatal"), f"{describe_error(exc)} (on {host})", host
 
 
 @dataclass
@@ -467,7 +486,7 @@ class RayEngine:
                     if kind == "ok":
                         attempts.success(payload)
                     else:
-                        attempts.failure(index, payload)
+                        attempts.failure(index, payload, retry=kind != "fatal")
         finally:
             if pending and sys.exc_info()[0] is not None:  # interrupted: keep what has finished already
                 try:
@@ -485,3 +504,16 @@ class RayEngine:
                     pass
             if connected:
                 ray.shutdown()
+
+
+def choose_engine(variant: str, ray: str | None = None, workers: int | None = None, threads: int | None = None,
+                  max_retries: int = 2, recycle_after: int = 50) -> Engine:
+    """The engine `wildgen.make` runs with: Ray when an address (or 'auto') is given, this process with
+    workers=0, else local worker processes (one per core by default, one with a cuda variant)."""
+    if ray is not None:
+        return RayEngine(address=ray, threads=threads or 1, max_retries=max_retries, recycle_after=recycle_after)
+    if workers == 0:
+        return InProcessEngine(max_retries=max_retries)
+    # On a GPU one process keeps the device busy; more would only add CUDA contexts.
+    workers = workers if workers is not None else (1 if variant.startswith("cuda") else None)
+    return ProcessEngine(workers=workers, threads=threads, max_retries=max_retries, recycle_after=recycle_after)

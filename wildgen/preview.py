@@ -5,7 +5,6 @@ display gamma of 2.2 so that dark regions stay visible.
 """
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
@@ -37,19 +36,18 @@ def object_sheet(folder: Path) -> tuple[np.ndarray, np.ndarray]:
     """Contact sheet of one object folder, and a 2-tile summary (first image, normal map) for the overview."""
     import cv2
 
-    from scenes.imageio import decode_normals, read_png16
+    from scenes.objfolder import MASK_FILE, NORMAL_FILE, image_files, normal_visual, read_image, read_mask, read_normals
 
-    images = sorted(folder.glob("L*.png"))
+    images = image_files(folder)
     if not images:
         raise FileNotFoundError(f"DIR: object folder {str(folder)!r} has no L*.png images")
-    tiles = [_label(_tile(_to_display(read_png16(p))), p.stem) for p in images]
-    enc = cv2.imread(str(folder / "normal.tif"), cv2.IMREAD_UNCHANGED)
-    if enc is None:
-        raise ValueError(f"DIR: cannot read {str(folder / 'normal.tif')!r}")
-    n = decode_normals(enc[:, :, ::-1])
-    normal_vis = np.round((n * 0.5 + 0.5) * 255 * np.any(n != 0, -1, keepdims=True)).astype(np.uint8)[:, :, ::-1]
-    tiles.append(_label(_tile(normal_vis), "normal"))
-    mask = cv2.imread(str(folder / "mask.png"), cv2.IMREAD_GRAYSCALE)
+    try:
+        tiles = [_label(_tile(_to_display(read_image(p))), p.stem) for p in images]
+        n = read_normals(folder / NORMAL_FILE)
+        mask = read_mask(folder / MASK_FILE).astype(np.uint8) * 255
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"DIR: object folder {str(folder)!r}: {exc}") from exc
+    tiles.append(_label(_tile(np.ascontiguousarray(normal_visual(n)[:, :, ::-1])), "normal"))
     tiles.append(_label(_tile(cv2.cvtColor(mask, cv2.COLOR_GRAY2BGR)), "mask"))
     cols = 6
     while len(tiles) % cols:
@@ -69,12 +67,18 @@ def preview(dataset: str | Path, out: str | Path | None = None) -> list[Path]:
     if not folders:
         raise FileNotFoundError(f"DIR: no <object>.data folders in {str(dataset)!r}")
     out_dir = Path(out) if out else (dataset if not dataset.name.endswith(".data") else dataset.parent) / "preview"
-    out_dir.mkdir(parents=True, exist_ok=True)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ValueError(f"--out: {str(out_dir)!r} is an existing file, expected a folder")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"--out: cannot create the folder {str(out_dir)!r} ({exc.strerror or exc})") from None
     written, summaries = [], []
     for folder in folders:
         sheet, summary = object_sheet(folder)
         path = out_dir / f"{folder.name[:-5]}.png"
-        cv2.imwrite(str(path), sheet)
+        if not cv2.imwrite(str(path), sheet):
+            raise OSError(f"--out: cannot write {str(path)!r}")
         written.append(path)
         summaries.append(_label(summary, folder.name[:-5]))
     cols = 4
@@ -87,15 +91,16 @@ def preview(dataset: str | Path, out: str | Path | None = None) -> list[Path]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m wildgen.preview", description="Contact sheet PNG per object and one overview PNG of a dataset.")
+    from scenes.cli import UsageError, UsageErrorParser, report_error
+
+    p = UsageErrorParser(prog="python -m wildgen.preview", description="Contact sheet PNG per object and one overview PNG of a dataset.")
     p.add_argument("dataset", metavar="DIR", help="dataset directory (or one <object>.data folder)")
     p.add_argument("--out", default=None, help="output folder (default: DIR/preview)")
-    args = p.parse_args(argv)
     try:
+        args = p.parse_args(argv)
         written = preview(args.dataset, args.out)
-    except (ValueError, FileNotFoundError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    except (UsageError, ValueError, OSError) as exc:
+        return report_error(exc)
     print(f"wrote {len(written) - 1} contact sheets and {written[-1]}")
     return 0
 

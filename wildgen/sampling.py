@@ -281,7 +281,7 @@ class SkippedObject(Exception):
 
 def sample_object(cfg: GenConfig, index: int, lib: AssetLibrary, name: str | None = None) -> SampledObject:
     """Sample object `index` of the dataset. Raises SkippedObject when the entropy rule rejects it."""
-    from scenes.mitsuba_build import mesh_data_for
+    from scenes.geometry import mesh_data_for
 
     rng = np.random.default_rng([cfg.seed, index])
     family = cfg.lights[index % len(cfg.lights)]

@@ -1,7 +1,8 @@
-"""Render one sampled object and write its `<name>.data` folder atomically (temporary name, then rename).
+"""One object of a dataset: sample, render and write its `<name>.data` folder atomically (temporary name,
+then rename), and its manifest entry (`make_object`, the unit of work every engine runs).
 
 The folder holds no timestamps or host names (those go into the manifest), so the same seed gives
-byte-identical folders.
+byte-identical folders whatever the Dr.Jit thread count (scenes.render.render_film: see README).
 """
 from __future__ import annotations
 
@@ -11,20 +12,23 @@ import logging
 import os
 import shutil
 import time
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from scenes.description import SceneDescription, TextureDesc
-from scenes.imageio import write_exr, write_mask, write_normal_tif, write_png16
-from scenes.mitsuba_build import build_scene, camera_rotation, write_mesh_ply
+from scenes.geometry import camera_rotation, write_mesh_ply
+from scenes.mitsuba_build import build_scene
+from scenes.objfolder import (AUX_DIR, FORMAT_VERSION, MASK_FILE, NORMAL_FILE, OBJECT_SUFFIX, image_name, write_exr,
+                              write_mask, write_normal_map, write_png16, write_scene)
 from scenes.render import render_ground_truth, render_images
-from wildgen.sampling import SampledObject
+from wildgen.assets import AssetLibrary
+from wildgen.config import GenConfig
+from wildgen.sampling import SampledObject, SkippedObject, sample_object
 
 log = logging.getLogger(__name__)
 
-FORMAT_VERSION = 1
 TMP_PREFIX = ".tmp-"
 
 
@@ -117,14 +121,43 @@ def exposure_for(radiance: np.ndarray, mask: np.ndarray, percentile: float, leve
     return float(level / p) if p > 1e-12 else 1.0
 
 
-def write_object(sampled: SampledObject, out_dir: Path, percentile: float, level: float) -> ObjectResult:
-    """Render `sampled` and write `out_dir/<name>.data`, atomically. Returns the manifest entry."""
+def ground_truth_problem(normal: np.ndarray, mask: np.ndarray, camera, max_backfacing: float) -> str | None:
+    """Why a rendered ground truth is unusable, or None: an empty mask, non-finite normals inside it, or more
+    than `max_backfacing` of them facing away from the camera (e.g. a mesh with coincident opposite faces
+    gives noise normals, about half of them facing away)."""
+    import math
+
+    n = int(mask.sum())
+    if n == 0:
+        return "the object covers no pixel (empty mask)"
+    inside = normal[mask].astype(np.float64)
+    bad = int((~np.isfinite(inside).all(axis=1)).sum())
+    if bad:
+        return f"{bad} of {n} ground-truth normals inside the mask are NaN or infinite"
+    # Camera frame, z toward the camera: a visible normal has n_z >= 0 under an orthographic camera, and
+    # n_z >= -sin(half the diagonal field of view) under a perspective one.
+    tol = 0.0
+    if camera.kind == "perspective":
+        half = math.atan(math.tan(math.radians(camera.fov) / 2) * math.hypot(1.0, camera.height / camera.width))
+        tol = math.sin(half)
+    away = float(np.mean(inside[:, 2] < -tol - 1e-3))
+    if away > max_backfacing:
+        return (f"{away:.0%} of the ground-truth normals inside the mask face away from the camera (at most "
+                f"{max_backfacing:.0%} accepted; a mesh with coincident opposite faces or inverted normals?)")
+    return None
+
+
+def write_object(sampled: SampledObject, out_dir: Path, percentile: float, level: float,
+                 max_backfacing: float = 0.1) -> ObjectResult:
+    """Render `sampled` and write `out_dir/<name>.data`, atomically. Returns the manifest entry.
+
+    Raises SkippedObject (nothing written) when the ground truth fails `ground_truth_problem`."""
     name = sampled.desc.name
-    final = out_dir / f"{name}.data"
-    tmp = out_dir / f"{TMP_PREFIX}{name}.data.{os.getpid()}"
+    final = out_dir / f"{name}{OBJECT_SUFFIX}"
+    tmp = out_dir / f"{TMP_PREFIX}{name}{OBJECT_SUFFIX}.{os.getpid()}"
     if tmp.exists():
         shutil.rmtree(tmp)
-    (tmp / "aux").mkdir(parents=True)
+    (tmp / AUX_DIR).mkdir(parents=True)
     timings: dict[str, float] = {}
     try:
         t0 = time.perf_counter()
@@ -134,6 +167,9 @@ def write_object(sampled: SampledObject, out_dir: Path, percentile: float, level
         t0 = time.perf_counter()
         gt = render_ground_truth(built)
         timings["ground_truth_s"] = time.perf_counter() - t0
+        problem = ground_truth_problem(gt.normal, gt.mask, desc.camera, max_backfacing)
+        if problem is not None:
+            raise SkippedObject(f"object {name}: ground truth rejected: {problem}")
         t0 = time.perf_counter()
         radiance = render_images(built)
         timings["render_s"] = time.perf_counter() - t0
@@ -142,21 +178,18 @@ def write_object(sampled: SampledObject, out_dir: Path, percentile: float, level
         t0 = time.perf_counter()
         for i, img in enumerate(radiance):
             desc.images[i].exposure = exposure_for(img, gt.mask, percentile, level)
-            write_png16(tmp / f"L{i:03d}.png", img * desc.images[i].exposure)
+            write_png16(tmp / image_name(i), img * desc.images[i].exposure)
             write_exr(tmp / "aux" / f"radiance_{i:03d}.exr", img)
-        write_mask(tmp / "mask.png", gt.mask)
+        write_mask(tmp / MASK_FILE, gt.mask)
         normal = np.where(gt.mask[..., None], gt.normal, 0.0)
-        write_normal_tif(tmp / "normal.tif", normal)
+        write_normal_map(tmp / NORMAL_FILE, normal)
         write_exr(tmp / "aux" / "normal.exr", gt.normal)
         write_exr(tmp / "aux" / "depth.exr", gt.depth)
         write_exr(tmp / "aux" / "coverage.exr", gt.coverage)
         write_exr(tmp / "aux" / "base_color.exr", gt.base_color)
         write_exr(tmp / "aux" / "roughness.exr", gt.roughness)
         write_exr(tmp / "aux" / "metallic.exr", gt.metallic)
-        scene = desc.to_dict()
-        scene["camera_lights"] = camera_lights(desc)
-        scene["format_version"] = FORMAT_VERSION
-        (tmp / "scene.json").write_text(json.dumps(scene, indent=1, sort_keys=True, allow_nan=False))
+        write_scene(tmp, desc, {"camera_lights": camera_lights(desc), "format_version": FORMAT_VERSION})
         timings["write_s"] = time.perf_counter() - t0
 
         files = {str(p.relative_to(tmp)): sha256_file(p) for p in sorted(tmp.rglob("*")) if p.is_file()}
@@ -175,3 +208,29 @@ def write_object(sampled: SampledObject, out_dir: Path, percentile: float, level
         files=files,
         timings=timings,
     )
+
+
+def index_name(index: int) -> str:
+    """Name of object `index` (its folder is `<name>.data`)."""
+    return f"{index:05d}"
+
+
+def make_object(cfg: GenConfig, index: int, out_dir: Path, lib: AssetLibrary | None = None) -> dict:
+    """Sample, render and write object `index`; a pure function of (cfg, index). Returns its manifest entry."""
+    lib = lib if lib is not None else AssetLibrary.scan(cfg.assets)
+    name = index_name(index)
+    t0 = time.perf_counter()
+    try:
+        sampled = sample_object(cfg, index, lib, name=name)
+        result = write_object(sampled, Path(out_dir), cfg.exposure_percentile, cfg.exposure_level, cfg.max_backfacing)
+    except SkippedObject as exc:  # the entropy rule or the ground-truth check: deterministic, recorded with its reason
+        log.info("%s", exc)
+        return {"index": index, "name": name, "status": "skipped", "reason": str(exc)}
+    entry = {"index": index, "status": "done", **asdict(result)}
+    entry["timings"]["total_s"] = time.perf_counter() - t0
+    return entry
+
+
+def failed_entry(index: int, error: str, attempts: int) -> dict:
+    """Manifest entry of an object that failed `attempts` times (last error kept)."""
+    return {"index": index, "name": index_name(index), "status": "failed", "error": error, "attempts": attempts}

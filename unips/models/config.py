@@ -7,6 +7,10 @@ from dataclasses import dataclass
 from typing import Any, Mapping
 
 
+# Decoder pixel-token kinds and their channel counts (see GLCConfig.pixel_token).
+PIXEL_TOKENS = {"rgb": 3, "normalized": 6}
+
+
 @dataclass
 class GLCConfig:
     """Hyper-parameters of a GLC-UniPS network; `dataclasses.asdict` round-trips through JSON."""
@@ -51,6 +55,13 @@ class GLCConfig:
     uniform_context: bool = False
     # Pixels decoded at once in `forward`; bounds decoder memory independently of the resolution.
     pixel_chunk: int = 10000
+    # What the decoder sees of a pixel's own observations, per image: "rgb" (the paper: the raw
+    # value), or "normalized": log(1 + RGB) and RGB divided by the pixel's mean intensity over the
+    # K images, so that comparing one pixel's observations across images is a first-layer feature.
+    pixel_token: str = "rgb"
+    # Multiply the images by the mask before resizing them to the canonical resolution, so that
+    # background pixels never bleed into the object's border (old checkpoints: False).
+    mask_before_resize: bool = False
 
     def __post_init__(self) -> None:
         # JSON turns tuples into lists: normalise so configs compare equal after a round trip.
@@ -89,6 +100,8 @@ class GLCConfig:
             raise bad("dropout", "a probability in [0, 1)")
         if not 0.0 <= self.swin_drop_path < 1.0:
             raise bad("swin_drop_path", "a probability in [0, 1)")
+        if self.pixel_token not in PIXEL_TOKENS:
+            raise bad("pixel_token", f"one of {', '.join(PIXEL_TOKENS)}")
         if self.stem_channels < 0:
             raise bad("stem_channels", "0 (automatic) or a positive integer")
 
@@ -97,6 +110,11 @@ class GLCConfig:
         """Channels of the four backbone stages."""
         e = self.swin_embed_dim
         return (e, 2 * e, 4 * e, 8 * e)
+
+    @property
+    def pixel_token_channels(self) -> int:
+        """Channels of a pixel's own observation per image in the decoder's tokens."""
+        return PIXEL_TOKENS[self.pixel_token]
 
     @property
     def context_resolution(self) -> int:

@@ -1,7 +1,8 @@
 """GLC-UniPS per-pixel decoder: attention across images, PMA pooling, normal predictor.
 
-Input per pixel: one token per image, its raw RGB value concatenated with the bilinearly sampled
-global lighting context (3 + C channels). Output: a unit normal.
+Input per pixel: one token per image, the pixel's observation in that image (raw RGB, or RGB
+normalised across the images, see `GLCConfig.pixel_token`) concatenated with the bilinearly sampled
+global lighting context (P + C channels). Output: a unit normal.
 """
 
 from __future__ import annotations
@@ -15,12 +16,12 @@ from .layers import PoolingByAttention, TransformerLayer
 
 
 class PixelDecoder(nn.Module):
-    """`(N, K, 3 + C)` tokens -> `(N, 3)` unit normals; invariant to the order of the K tokens."""
+    """`(N, K, P + C)` tokens -> `(N, 3)` unit normals; invariant to the order of the K tokens."""
 
     def __init__(self, cfg: GLCConfig) -> None:
         super().__init__()
         d = cfg.decoder_dim
-        self.embed = nn.Linear(3 + cfg.context_dim, d)
+        self.embed = nn.Linear(cfg.pixel_token_channels + cfg.context_dim, d)
         self.layers = nn.ModuleList(
             TransformerLayer(d, cfg.decoder_heads, cfg.decoder_ff, cfg.dropout) for _ in range(cfg.decoder_layers)
         )

@@ -56,6 +56,8 @@ class GLCUniPS(nn.Module):
         b, k, _, h, w = images.shape
         s = self.config.canonical_resolution
         mask = mask.to(images.dtype)
+        if self.config.mask_before_resize:
+            images = images * mask[:, None]
         if (h, w) != (s, s):
             # Antialiased bilinear resize, so downscaling large inputs does not alias.
             imgs = F.interpolate(images.reshape(b * k, 3, h, w), size=(s, s), mode="bilinear",
@@ -77,10 +79,25 @@ class GLCUniPS(nn.Module):
         return mean.expand(b, k, c, h, w)
 
     # -- decoder ----------------------------------------------------------------------------
+    def pixel_features(self, rgb: torch.Tensor) -> torch.Tensor:
+        """A pixel's observations `(B, K, 3, N)` -> decoder features `(B, K, P, N)`.
+
+        "normalized": log(1 + RGB), and RGB divided by the pixel's mean intensity over its K
+        images, which is invariant to the pixel's albedo and to a global exposure, so the decoder
+        compares one pixel across lights from its first layer on.
+        """
+        if self.config.pixel_token == "rgb":
+            return rgb
+        rgb = rgb.clamp_min(0.0)
+        mean = rgb.mean(dim=(1, 2), keepdim=True)  # (B, 1, 1, N)
+        relative = rgb / (mean + 1e-3)
+        return torch.cat([torch.log1p(rgb), relative], dim=2)  # (B, K, 6, N)
+
     def _decode_tokens(self, rgb: torch.Tensor, ctx: torch.Tensor) -> torch.Tensor:
         """rgb `(B, K, 3, N)`, ctx `(B, K, C, N)` -> normals `(B, N, 3)`."""
         b, k, _, n = rgb.shape
-        tokens = torch.cat([rgb, ctx], dim=2).permute(0, 3, 1, 2).reshape(b * n, k, -1)  # (B*N, K, 3+C)
+        feats = self.pixel_features(rgb)  # (B, K, P, N)
+        tokens = torch.cat([feats, ctx], dim=2).permute(0, 3, 1, 2).reshape(b * n, k, -1)  # (B*N, K, P+C)
         return self.decoder(tokens).reshape(b, n, 3)
 
     @staticmethod

@@ -29,6 +29,28 @@ GLC_TINY = GLCConfig(
     dropout=0.0,
 )
 
+# The CPU model that reads the light (issue 12): per-pixel tokens normalised across the images, a
+# decoder with real capacity (width 64, 3 layers), 24x24 lighting contexts from a canonical
+# resolution of 96 that stays below the 128 px working resolution, masking before resizing.
+GLC_SMALL = GLCConfig(
+    canonical_resolution=96,
+    swin_embed_dim=24,
+    swin_depths=(1, 1, 2, 1),
+    swin_heads=(1, 2, 4, 8),
+    swin_window=3,
+    swin_drop_path=0.0,
+    comm_heads=4,
+    context_dim=48,
+    decoder_dim=64,
+    decoder_layers=3,
+    decoder_heads=4,
+    decoder_ff=128,
+    predictor_hidden=64,
+    dropout=0.0,
+    pixel_token="normalized",
+    mask_before_resize=True,
+)
+
 # Unit tests: a forward pass at 32x32 in milliseconds.
 GLC_TEST = GLCConfig(
     canonical_resolution=32,
@@ -60,6 +82,12 @@ def glc_unips(**overrides: Any) -> GLCUniPS:
 def glc_tiny(**overrides: Any) -> GLCUniPS:
     """Narrow GLC-UniPS for CPU training (canonical 64)."""
     return GLCUniPS(config_with_overrides(GLC_TINY, overrides))
+
+
+@register_model("glc-small")
+def glc_small(**overrides: Any) -> GLCUniPS:
+    """CPU-trainable GLC-UniPS with photometric pixel tokens and a wider decoder (canonical 96)."""
+    return GLCUniPS(config_with_overrides(GLC_SMALL, overrides))
 
 
 @register_model("glc-test")

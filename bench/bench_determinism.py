@@ -1,0 +1,90 @@
+"""Cost of thread-independent rendering (issue 14). Not a test: prints a table.
+
+  python bench/bench_determinism.py                          # 128x128 / 64 spp, 32x32 / 4 spp, 64x64 / 32 spp; 1 and 2 threads
+  python bench/bench_determinism.py --sizes 64:32 --images 6 --repeats 3
+
+Old: `mi.render` (atomic scatter-add into the film; bytes depend on the thread count). New:
+`scenes.render.render_film` (each sample to its own slot, pixels summed in NumPy in a fixed order). Both
+render the same images of one `mixed`-light object, interleaved image by image in one process so that load
+from other processes hits both alike; the first image of each (compilation) is not timed. Also reports
+whether each path gave identical bytes with 1 and 2 threads.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+
+def main() -> int:
+    p = argparse.ArgumentParser()
+    p.add_argument("--sizes", default="128:64,32:4,64:32", help="comma-separated RES:SPP (64:32 is 35 multijitter samples: pixels straddle thread blocks)")
+    p.add_argument("--images", type=int, default=6)
+    p.add_argument("--repeats", type=int, default=2, help="timed renders of every image per path")
+    p.add_argument("--threads", default="1,2")
+    p.add_argument("--variant", default="llvm_ad_rgb")
+    args = p.parse_args()
+
+    from scenes.variant import choose_variant
+
+    choose_variant(args.variant)
+    import drjit as dr
+    import mitsuba as mi
+
+    from scenes.mitsuba_build import build_scene
+    from scenes.render import render_film
+    from wildgen.assets import AssetLibrary
+    from wildgen.config import GenConfig
+    from wildgen.sampling import sample_object
+
+    rows = []
+    for size in args.sizes.split(","):
+        res, spp = (int(v) for v in size.split(":"))
+        cfg = GenConfig(lights=["mixed"], objects=1, images=args.images, width=res, height=res, spp=spp)
+        desc = sample_object(cfg, 0, AssetLibrary.scan(None)).desc
+        built = build_scene(desc)
+        paths = {
+            "old": lambda i: np.array(mi.render(built.scene, spp=desc.render.spp, seed=desc.images[i].seed), np.float32),
+            "new": lambda i: render_film(built.scene, desc.render.spp, desc.images[i].seed),
+        }
+        outputs: dict[tuple[str, int], list[np.ndarray]] = {}
+        for threads in (int(t) for t in args.threads.split(",")):
+            dr.set_thread_count(threads)
+            times = {name: [] for name in paths}
+            for name, fn in paths.items():  # warm-up: compile both kernels
+                built.apply_image(0)
+                fn(0)
+            for i in range(len(desc.images)):
+                built.apply_image(i)
+                for _ in range(args.repeats):
+                    for name, fn in paths.items():
+                        t0 = time.perf_counter()
+                        out = fn(i)
+                        times[name].append(time.perf_counter() - t0)
+                for name, fn in paths.items():
+                    outputs.setdefault((name, threads), []).append(fn(i))
+            old, new = np.median(times["old"]), np.median(times["new"])
+            rows.append((f"{res}x{res}", desc.render.spp, threads, old, new, new / old))
+        thread_list = [int(t) for t in args.threads.split(",")]
+        for name in paths:
+            same = all(np.array_equal(a, b) for a, b in zip(outputs[(name, thread_list[0])], outputs[(name, thread_list[-1])]))
+            rows.append((f"{res}x{res}", desc.render.spp, f"{name}: {thread_list[0]} vs {thread_list[-1]} threads identical", same))
+    print(f"variant {args.variant}, {args.images} images, median seconds per image over {args.repeats} renders each")
+    print("| size | spp | threads | old mi.render (s) | new render_film (s) | new / old |")
+    print("|---|---|---|---|---|---|")
+    for r in rows:
+        if len(r) == 6:
+            print(f"| {r[0]} | {r[1]} | {r[2]} | {r[3]:.4f} | {r[4]:.4f} | {r[5]:.2f} |")
+    for r in rows:
+        if len(r) == 4:
+            print(f"{r[0]} spp {r[1]}: {r[2]}: {r[3]}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

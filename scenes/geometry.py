@@ -1,0 +1,72 @@
+"""Plain NumPy geometry of a scene description: camera frame, object mesh in world space, PLY files.
+
+No Mitsuba here: `wildgen` (camera-frame lights, mesh files), `validate.projection` and `scenes.render`
+use these without building anything; `scenes.mitsuba_build` turns their results into Mitsuba objects.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from scenes.description import SceneDescription
+from scenes.procedural import MeshData, generate
+
+
+def camera_rotation(origin, target, up) -> np.ndarray:
+    """3x3 matrix R with n_cam = R @ n_world for the camera frame x right, y up, z toward the camera."""
+    origin, target, up = (np.asarray(v, np.float64) for v in (origin, target, up))
+    fwd = target - origin
+    fwd /= np.linalg.norm(fwd)
+    left = np.cross(up, fwd)
+    n = np.linalg.norm(left)
+    if n < 1e-9:
+        raise ValueError(f"camera.up: {up.tolist()} is parallel to the viewing direction")
+    left /= n
+    upv = np.cross(fwd, left)
+    return np.stack([-left, upv, -fwd])
+
+
+def mesh_data_for(desc: SceneDescription, base_dir: Path | None) -> MeshData | None:
+    """Geometry of a mesh or procedural shape in object space (None for the analytic sphere)."""
+    from scenes.meshes import load_mesh
+
+    shape = desc.shape
+    if shape.kind == "sphere":
+        return None
+    if shape.kind == "mesh":
+        path = Path(shape.file)
+        if not path.is_absolute() and base_dir is not None:
+            path = base_dir / path
+        return load_mesh(path, normalize=shape.normalize)
+    data = generate(shape.kind, shape.seed, shape.resolution, shape.params)
+    if shape.normalize:
+        from scenes.meshes import normalize_mesh
+
+        data = normalize_mesh(data.positions.astype(np.float64), data.faces, data.normals, data.uvs)
+    return data
+
+
+def transformed_mesh(data: MeshData, to_world: list[list[float]]) -> MeshData:
+    """Apply a 4x4 transform to positions (affine) and normals (inverse transpose)."""
+    m = np.asarray(to_world, np.float64)
+    pos = data.positions.astype(np.float64) @ m[:3, :3].T + m[:3, 3]
+    nrm = data.normals.astype(np.float64) @ np.linalg.inv(m[:3, :3])
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12)
+    return MeshData(pos.astype(np.float32), data.faces, nrm.astype(np.float32), data.uvs)
+
+
+def write_mesh_ply(path: str | Path, data: MeshData) -> None:
+    """Binary little-endian PLY with positions, normals and UVs (read back by `scenes.meshes`)."""
+    n, f = len(data.positions), len(data.faces)
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"element vertex {n}\nproperty float x\nproperty float y\nproperty float z\n"
+        "property float nx\nproperty float ny\nproperty float nz\nproperty float s\nproperty float t\n"
+        f"element face {f}\nproperty list uchar int vertex_indices\nend_header\n"
+    ).encode("ascii")
+    verts = np.concatenate([data.positions, data.normals, data.uvs], 1).astype("<f4")
+    faces = np.zeros(f, dtype=[("n", "u1"), ("idx", "<i4", (3,))])
+    faces["n"] = 3
+    faces["idx"] = data.faces
+    Path(path).write_bytes(header + verts.tobytes() + faces.tobytes())

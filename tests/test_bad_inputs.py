@@ -1,0 +1,549 @@
+"""Bad inputs for every CLI, one table (issue 14): each row runs a command and asserts its exit status, that
+nothing printed is a traceback, that the message names the bad argument or file, and that every file that
+existed before (the shared world below, and what a row puts in its own folder) is byte-for-byte unchanged.
+
+Rows run `main(argv)` in this process (fast: one import of Mitsuba and torch) or, where the issue saw a
+traceback or a native crash, a real subprocess (`sub=True`). Everything is real: a rendered dataset (32 x 32,
+4 images, 4 spp), real files of every kind, corrupt on purpose.
+"""
+from __future__ import annotations
+
+import hashlib
+import importlib
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+OBJ = "00000"
+
+
+# --------------------------------------------------------------------------- the shared world (module scope)
+
+
+def _random(path: Path, n: int = 4000, seed: int = 0) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(np.random.default_rng(seed).integers(0, 256, n, dtype=np.uint8).tobytes())
+    return path
+
+
+def _double_sided_sphere(path: Path) -> None:
+    """A sphere whose every face exists twice with opposite orientation (coincident opposite faces)."""
+    import trimesh
+
+    m = trimesh.creation.icosphere(subdivisions=3)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    trimesh.Trimesh(m.vertices, np.concatenate([m.faces, m.faces[:, ::-1]]), process=False).export(path)
+
+
+@pytest.fixture(scope="module")
+def world(tmp_path_factory) -> Path:
+    """Everything the rows read: a dataset, predictions, checkpoints, corrupt files, occupied folders."""
+    from scenes.objfolder import read_normals, write_normal_map
+    from scenes.variant import _usable
+
+    if not _usable("llvm_ad_rgb"):
+        pytest.skip("llvm_ad_rgb is not usable here")
+    w = tmp_path_factory.mktemp("world")
+    from wildgen.make import main as make
+
+    assert make(["--out", str(w / "data"), "--lights", "directional", "--objects", "3", "--images", "4", "--res", "32",
+                 "--spp", "4", "--gt-spp", "4", "--workers", "0", "--quiet"]) == 0
+    names = sorted(p.name[:-5] for p in (w / "data").glob("*.data"))
+    assert names == ["00000", "00001", "00002"]
+    gt = {n: read_normals(w / "data" / f"{n}.data" / "normal.tif") for n in names}
+    for n in names:
+        write_normal_map(w / "pred" / n / "normal.png", gt[n])
+        np.save(_mk(w / "pred_zero" / n) / "normal.npy", np.zeros_like(gt[n]))
+        half = gt[n].copy()
+        ys, xs = np.nonzero(np.any(half != 0, axis=-1))
+        half[ys[::2], xs[::2]] = 0
+        np.save(_mk(w / "pred_half" / n) / "normal.npy", half)
+        nan = gt[n].copy()
+        nan[ys[0], xs[0]] = np.nan
+        np.save(_mk(w / "pred_nan" / n) / "normal.npy", nan)
+        np.save(_mk(w / "pred_small" / n) / "normal.npy", np.zeros((5, 5, 3), np.float32))
+        np.save(_mk(w / "pred_short" / n) / "normal.npy", gt[n] * 0.5)
+    # One object of a dataset broken in several ways (the others are fine).
+    shutil.copytree(w / "pred", w / "pred_onebad")
+    _random(w / "pred_onebad" / "00001" / "normal.png")
+    shutil.copytree(w / "pred", w / "pred_onemissing")
+    shutil.rmtree(w / "pred_onemissing" / "00001")
+    shutil.copytree(w / "pred", w / "pred_oneshape")
+    (w / "pred_oneshape" / "00001" / "normal.png").unlink()
+    np.save(w / "pred_oneshape" / "00001" / "normal.npy", np.zeros((5, 5, 3), np.float32))
+    shutil.copytree(w / "data", w / "data_onebad", ignore=shutil.ignore_patterns("manifest.json"))
+    _random(w / "data_onebad" / "00001.data" / "L001.png")
+    # Broken object folders.
+    src = w / "data" / f"{OBJ}.data"
+    for name, broken in (("badscene", "scene.json"), ("badmask", "mask.png"), ("badnormal", "normal.tif"),
+                         ("badimage", "L000.png")):
+        shutil.copytree(src, w / "objs" / f"{name}.data")
+        _random(w / "objs" / f"{name}.data" / broken)
+    shutil.copytree(src, w / "objs" / "noimages.data")
+    for p in (w / "objs" / "noimages.data").glob("L*.png"):
+        p.unlink()
+    (w / "empty").mkdir()
+    (w / "afile").write_text("a file, not a folder\n")
+    # Folders that hold things a run would otherwise replace.
+    _mk(w / "pre" / "00000.data").joinpath("mine.txt").write_text("not written by wildgen.make\n")
+    _mk(w / "pre2").joinpath("00002.data").write_text("a file under an object's name\n")
+    _mk(w / "badmanifest").joinpath("manifest.json").write_text("{ not json")
+    _mk(w / "pred_foreign" / OBJ).joinpath("normal.png").write_bytes((w / "pred" / OBJ / "normal.png").read_bytes())
+    # Assets.
+    (w / "assets_empty").mkdir()
+    _random(w / "assets_randobj" / "meshes" / "rand.obj")
+    _mk(w / "assets_nanobj" / "meshes").joinpath("nan.obj").write_text("v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n")
+    _random(w / "assets_badhdr" / "hdri" / "sky.hdr")
+    _random(w / "assets_badtex" / "textures" / "wood" / "wood_col.png")
+    _double_sided_sphere(w / "assets_double" / "meshes" / "double.obj")
+    import trimesh
+
+    _mk(w / "assets_good" / "meshes")
+    trimesh.creation.icosphere(subdivisions=2).export(w / "assets_good" / "meshes" / "good.ply")
+    # Model files.
+    weights = REPO / "unips" / "weights" / "glc-tiny.safetensors"
+    sidecar = json.loads(weights.with_suffix(".json").read_text())
+    ck = _mk(w / "ck")
+    _random(ck / "rand.pt")
+    _random(ck / "rand.safetensors")
+    (ck / "rand.json").write_text(json.dumps(sidecar))
+    (ck / "trunc.safetensors").write_bytes(weights.read_bytes()[:50_000])
+    (ck / "trunc.json").write_text(json.dumps(sidecar))
+    shutil.copy(weights, ck / "nosidecar.safetensors")
+    shutil.copy(weights, ck / "badjson.safetensors")
+    (ck / "badjson.json").write_text("{ not json")
+    shutil.copy(weights, ck / "unknown.safetensors")
+    (ck / "unknown.json").write_text(json.dumps({**sidecar, "model_name": "glc-nope"}))
+    shutil.copy(weights, ck / "listcfg.safetensors")
+    (ck / "listcfg.json").write_text(json.dumps({**sidecar, "config": [1, 2]}))
+    (ck / "weights.txt").write_text("not a model\n")
+    # Training runs: a truncated and a random last.pt, and an old run.
+    last = _training_checkpoint(_mk(w / "run_old"))
+    (w / "run_old" / "log.jsonl").write_text('{"step": 1}\n')
+    _mk(w / "run_trunc").joinpath("last.pt").write_bytes(last.read_bytes()[: last.stat().st_size // 2])
+    _random(w / "run_rand" / "last.pt")
+    return w
+
+
+def _mk(p: Path) -> Path:
+    p.mkdir(parents=True, exist_ok=True)
+    return p
+
+
+def _training_checkpoint(folder: Path) -> Path:
+    import torch
+
+    from unips.checkpoint import save_training_checkpoint
+    from unips.models import create_model
+
+    model = create_model("glc-test")
+    opt = torch.optim.AdamW(model.parameters())
+    sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda s: 1.0)
+    return save_training_checkpoint(folder / "last.pt", model=model, optimizer=opt, scheduler=sched, step=1,
+                                    data={"objects": []}, extra={})
+
+
+# --------------------------------------------------------------------------- the table
+
+
+@dataclass
+class Row:
+    id: str
+    cli: str
+    args: list[str]
+    rc: int
+    names: tuple[str, ...]
+    """Substrings the output (stderr, and stdout for dataset commands) must contain: the bad argument / file."""
+    sub: bool = False
+    """Run as a real subprocess (the issue's traceback and native-crash cases)."""
+    setup: Callable[[Path, Path], None] | None = None
+    """Prepare the row's own folder T from the world W (what is there is protected too)."""
+    check: Callable[[Path, Path], None] | None = None
+    """Extra assertions after the run (outputs of accepted or partly failed runs)."""
+
+
+def _copy(src: str, dst: str) -> Callable[[Path, Path], None]:
+    def setup(w: Path, t: Path) -> None:
+        shutil.copytree(w / src, t / dst)
+    return setup
+
+
+TINY = ["--objects", "1", "--images", "2", "--res", "16", "--spp", "1", "--gt-spp", "1", "--workers", "0", "--quiet"]
+MK = "wildgen.make"
+PR = "unips.predict"
+EV = "unips.evaluate"
+RR = "validate.rerender"
+TR = "unips.train"
+DEMO = "orchestrate.demo"
+PV = "wildgen.preview"
+OBJDIR = "{W}/data/00000.data"
+
+
+def _written(*rel: str) -> Callable[[Path, Path], None]:
+    def check(w: Path, t: Path) -> None:
+        for r in rel:
+            assert (t / r).exists(), r
+    return check
+
+
+def _not_written(*rel: str) -> Callable[[Path, Path], None]:
+    def check(w: Path, t: Path) -> None:
+        for r in rel:
+            assert not (t / r).exists(), r
+    return check
+
+
+def _user_files_kept(w: Path, t: Path) -> None:
+    assert (t / "out" / "notes.txt").read_text() == "mine\n"
+    assert (t / "out" / ".tmp-mine").read_text() == "mine too\n"
+    assert (t / "out" / "00000.data" / "scene.json").is_file()
+
+
+def _rejected_with_reason(w: Path, t: Path) -> None:
+    entries = json.loads((t / "out" / "manifest.json").read_text())["objects"]
+    assert [e["status"] for e in entries] == ["skipped"]
+    assert "face away from the camera" in entries[0]["reason"] and not list((t / "out").glob("*.data"))
+
+
+def _coverage_reported(w: Path, t: Path) -> None:
+    import csv
+
+    report = json.loads((t / "out" / OBJ / "report.json").read_text())
+    assert 0.45 < report["coverage"] < 0.55 and report["missing_pixels"] > 0
+    # Half the normals missing can never score better than the ground truth: missing pixels count as black.
+    assert report["rel_l1"] > 0.3 > report["gt_rel_l1"]
+    with open(t / "out" / "summary.csv") as f:
+        row = next(csv.DictReader(f))
+    assert float(row["coverage"]) == pytest.approx(report["coverage"])
+
+
+ROWS: list[Row] = [
+    # ---- wildgen.make: where it writes
+    Row("make-out-is-file", MK, ["--out", "{W}/afile", *TINY], 2, ("--out", "afile"), sub=True),
+    Row("make-out-proc", MK, ["--out", "/proc/no/such/dir", *TINY], 2, ("--out", "/proc/no/such/dir"), sub=True),
+    Row("make-out-under-file", MK, ["--out", "{W}/afile/sub", *TINY], 2, ("--out", "afile/sub")),
+    Row("make-out-sys", MK, ["--out", "/sys/wildgen-test", *TINY], 2, ("--out", "/sys/wildgen-test")),
+    Row("make-foreign-object-folder", MK, ["--out", "{W}/pre", *TINY], 2, ("--out", "00000.data", "--overwrite")),
+    Row("make-foreign-object-file", MK, ["--out", "{W}/pre2", "--objects", "3", "--images", "2", "--res", "16",
+                                           "--spp", "1", "--workers", "0", "--quiet"], 2, ("--out", "00002.data")),
+    Row("make-foreign-in-copy", MK, ["--out", "{T}/pre", *TINY], 2, ("00000.data",), setup=_copy("pre", "pre")),
+    Row("make-existing-other-config", MK, ["--out", "{W}/data", "--lights", "directional", "--objects", "3", "--images",
+                                           "4", "--res", "24", "--spp", "4", "--gt-spp", "4", "--workers", "0"], 2,
+        ("--out", "another configuration")),
+    Row("make-existing-fewer-objects", MK, ["--out", "{W}/data", "--lights", "directional", "--objects", "1", "--images",
+                                            "4", "--res", "32", "--spp", "4", "--gt-spp", "4", "--workers", "0"], 2,
+        ("--objects",)),
+    Row("make-bad-manifest", MK, ["--out", "{W}/badmanifest", *TINY], 2, ("--out", "manifest")),
+    Row("make-resume-nothing", MK, ["--out", "{W}/empty", "--resume", *TINY], 2, ("--resume", "manifest")),
+    Row("make-resume-overwrite", MK, ["--out", "{W}/empty", "--resume", "--overwrite", *TINY], 2, ("--resume", "--overwrite")),
+    Row("make-user-files-kept", MK, ["--out", "{T}/out", *TINY], 0, ("done",),
+        setup=lambda w, t: (_mk(t / "out").joinpath("notes.txt").write_text("mine\n"),
+                            (t / "out" / ".tmp-mine").write_text("mine too\n")), check=_user_files_kept),
+    # ---- wildgen.make: option values and combinations
+    Row("make-res-and-width", MK, ["--out", "{T}/o", "--res", "32", "--width", "16"], 2, ("--res", "--width")),
+    Row("make-res-and-height", MK, ["--out", "{T}/o", "--res", "32", "--height", "16"], 2, ("--res", "--height")),
+    Row("make-entropy-100", MK, ["--out", "{T}/o", "--entropy-threshold", "100"], 2, ("--entropy-threshold", "100")),
+    Row("make-entropy-nan", MK, ["--out", "{T}/o", "--entropy-threshold", "nan"], 2, ("--entropy-threshold", "nan")),
+    Row("make-entropy-inf", MK, ["--out", "{T}/o", "--entropy-threshold", "inf"], 2, ("--entropy-threshold", "inf")),
+    Row("make-entropy-negative", MK, ["--out", "{T}/o", "--entropy-threshold", "-1"], 2, ("--entropy-threshold", "-1")),
+    Row("make-entropy-text", MK, ["--out", "{T}/o", "--entropy-threshold", "high"], 2, ("--entropy-threshold", "high")),
+    Row("make-variant-llvm-mono", MK, ["--out", "{T}/o", "--variant", "llvm_ad_mono", *TINY], 2,
+        ("--variant", "llvm_ad_mono"), sub=True, check=_not_written("o")),
+    Row("make-variant-spectral", MK, ["--out", "{T}/o", "--variant", "scalar_spectral", *TINY], 2,
+        ("--variant", "scalar_spectral")),
+    Row("make-variant-cuda-mono", MK, ["--out", "{T}/o", "--variant", "cuda_ad_mono", *TINY], 2, ("--variant", "cuda_ad_mono")),
+    Row("make-variant-unknown", MK, ["--out", "{T}/o", "--variant", "vulkan", *TINY], 2, ("--variant", "vulkan")),
+    Row("make-variant-auto", MK, ["--out", "{T}/o", "--variant", "auto", *TINY], 0, ("1 done",), check=_written("o/00000.data")),
+    Row("make-scalar-mesh", MK, ["--out", "{T}/o", "--variant", "scalar_rgb", "--assets", "{W}/assets_good", "--shapes",
+                                 "mesh", "--lights", "near_area", *TINY], 0, ("1 done", "scalar_rgb"), sub=True,
+        check=_written("o/00000.data/aux/mesh.ply")),
+    Row("make-res-huge", MK, ["--out", "{T}/o", "--res", "100000"], 2, ("--res", "GiB", "100000x100000")),
+    Row("make-images-huge", MK, ["--out", "{T}/o", "--images", "2000000"], 2, ("--images", "GiB")),
+    Row("make-spp-huge", MK, ["--out", "{T}/o", "--spp", "1000000000"], 2, ("--spp", "GiB")),
+    Row("make-width-huge", MK, ["--out", "{T}/o", "--width", "900000", "--height", "900000"], 2, ("GiB",)),
+    Row("make-objects-0", MK, ["--out", "{T}/o", "--objects", "0"], 2, ("--objects", "0")),
+    Row("make-objects-negative", MK, ["--out", "{T}/o", "--objects", "-3"], 2, ("--objects", "-3")),
+    Row("make-objects-text", MK, ["--out", "{T}/o", "--objects", "many"], 2, ("--objects", "many")),
+    Row("make-images-0", MK, ["--out", "{T}/o", "--images", "0"], 2, ("--images",)),
+    Row("make-spp-0", MK, ["--out", "{T}/o", "--spp", "0"], 2, ("--spp",)),
+    Row("make-gt-spp-0", MK, ["--out", "{T}/o", "--gt-spp", "0"], 2, ("--gt-spp",)),
+    Row("make-res-0", MK, ["--out", "{T}/o", "--res", "0"], 2, ("--width",)),
+    Row("make-res-negative", MK, ["--out", "{T}/o", "--res", "-5"], 2, ("-5",)),
+    Row("make-height-0", MK, ["--out", "{T}/o", "--height", "0"], 2, ("--height",)),
+    Row("make-res-float", MK, ["--out", "{T}/o", "--res", "12.5"], 2, ("--res", "12.5")),
+    Row("make-bounces-negative", MK, ["--out", "{T}/o", "--bounces", "-1"], 2, ("--bounces",)),
+    Row("make-seed-negative", MK, ["--out", "{T}/o", "--seed", "-1"], 2, ("--seed",)),
+    Row("make-lights-unknown", MK, ["--out", "{T}/o", "--lights", "sunlight"], 2, ("--lights", "sunlight")),
+    Row("make-lights-empty", MK, ["--out", "{T}/o", "--lights", ","], 2, ("--lights",)),
+    Row("make-camera-unknown", MK, ["--out", "{T}/o", "--camera", "fisheye"], 2, ("--camera", "fisheye")),
+    Row("make-materials-unknown", MK, ["--out", "{T}/o", "--materials", "gold"], 2, ("--materials", "gold")),
+    Row("make-shapes-unknown", MK, ["--out", "{T}/o", "--shapes", "blob"], 2, ("--shapes", "blob")),
+    Row("make-shapes-mesh-no-assets", MK, ["--out", "{T}/o", "--shapes", "mesh"], 2, ("--shapes", "mesh")),
+    Row("make-workers-negative", MK, ["--out", "{T}/o", "--workers", "-1"], 2, ("--workers",)),
+    Row("make-threads-0", MK, ["--out", "{T}/o", "--threads", "0"], 2, ("--threads",)),
+    Row("make-max-retries-negative", MK, ["--out", "{T}/o", "--max-retries", "-1"], 2, ("--max-retries",)),
+    Row("make-recycle-after-0", MK, ["--out", "{T}/o", "--recycle-after", "0"], 2, ("--recycle-after",)),
+    Row("make-ray-and-workers", MK, ["--out", "{T}/o", "--ray", "--workers", "2"], 2, ("--workers", "--ray")),
+    Row("make-unknown-flag", MK, ["--out", "{T}/o", "--colour", "red"], 2, ("--colour",)),
+    Row("make-no-out", MK, ["--objects", "1"], 2, ("--out",)),
+    # ---- wildgen.make: assets, decoded once up front
+    Row("make-assets-missing", MK, ["--out", "{T}/o", "--assets", "{W}/no-assets"], 2, ("--assets", "no-assets")),
+    Row("make-assets-empty", MK, ["--out", "{T}/o", "--assets", "{W}/assets_empty"], 2, ("--assets", "assets_empty")),
+    Row("make-assets-random-obj", MK, ["--out", "{T}/o", "--assets", "{W}/assets_randobj", *TINY], 2,
+        ("--assets", "rand.obj", "not a text OBJ"), sub=True, check=_not_written("o")),
+    Row("make-assets-nan-obj", MK, ["--out", "{T}/o", "--assets", "{W}/assets_nanobj", *TINY], 2,
+        ("--assets", "nan.obj", "non-finite")),
+    Row("make-assets-bad-hdr", MK, ["--out", "{T}/o", "--assets", "{W}/assets_badhdr", *TINY], 2, ("--assets", "sky.hdr")),
+    Row("make-assets-bad-texture", MK, ["--out", "{T}/o", "--assets", "{W}/assets_badtex", *TINY], 2,
+        ("--assets", "wood_col.png")),
+    Row("make-assets-is-file", MK, ["--out", "{T}/o", "--assets", "{W}/afile"], 2, ("--assets", "afile")),
+    # ---- wildgen.make: ground truth checked before an object is written
+    Row("make-coincident-faces", MK, ["--out", "{T}/out", "--assets", "{W}/assets_double", "--shapes", "mesh", "--objects",
+                                      "1", "--images", "2", "--res", "32", "--spp", "1", "--workers", "0", "--quiet"], 1, ("rejected", "face away"),
+        check=_rejected_with_reason),
+    # ---- wildgen.preview
+    Row("preview-missing", PV, ["{W}/nowhere"], 2, ("nowhere",)),
+    Row("preview-no-objects", PV, ["{W}/empty"], 2, ("DIR", "empty")),
+    Row("preview-bad-mask", PV, ["{W}/objs/badmask.data", "--out", "{T}/p"], 2, ("mask.png",), sub=True),
+    Row("preview-bad-normal", PV, ["{W}/objs/badnormal.data", "--out", "{T}/p"], 2, ("normal.tif",)),
+    Row("preview-bad-image", PV, ["{W}/objs/badimage.data", "--out", "{T}/p"], 2, ("L000.png",)),
+    Row("preview-no-images", PV, ["{W}/objs/noimages.data", "--out", "{T}/p"], 2, ("L*.png",)),
+    Row("preview-out-is-file", PV, ["{W}/data", "--out", "{W}/afile"], 2, ("--out", "afile")),
+    Row("preview-unknown-flag", PV, ["{W}/data", "--size", "3"], 2, ("--size",)),
+    # ---- unips.predict
+    Row("predict-input-missing", PR, ["--method", "least-squares", "--input", "{W}/nowhere", "--out", "{T}/p"], 2, ("nowhere",)),
+    Row("predict-input-empty", PR, ["--method", "least-squares", "--input", "{W}/empty", "--out", "{T}/p"], 2, ("empty",)),
+    Row("predict-input-file", PR, ["--method", "least-squares", "--input", "{W}/afile", "--out", "{T}/p"], 2, ("afile",)),
+    Row("predict-method-unknown", PR, ["--method", "magic", "--input", OBJDIR, "--out", "{T}/p"], 2, ("--method", "magic")),
+    Row("predict-random-pt", PR, ["--method", "model", "--checkpoint", "{W}/ck/rand.pt", "--input", OBJDIR, "--out", "{T}/p"],
+        2, ("rand.pt", "corrupt"), sub=True, check=_not_written("p")),
+    Row("predict-random-safetensors", PR, ["--method", "model", "--checkpoint", "{W}/ck/rand.safetensors", "--input", OBJDIR,
+                                           "--out", "{T}/p"], 2, ("rand.safetensors", ".safetensors"), sub=True),
+    Row("predict-truncated-safetensors", PR, ["--method", "model", "--checkpoint", "{W}/ck/trunc.safetensors", "--input",
+                                              OBJDIR, "--out", "{T}/p"], 2, ("trunc.safetensors",)),
+    Row("predict-no-sidecar", PR, ["--method", "model", "--checkpoint", "{W}/ck/nosidecar.safetensors", "--input", OBJDIR,
+                                   "--out", "{T}/p"], 2, ("nosidecar.json", "sidecar")),
+    Row("predict-sidecar-bad-json", PR, ["--method", "model", "--checkpoint", "{W}/ck/badjson.safetensors", "--input",
+                                         OBJDIR, "--out", "{T}/p"], 2, ("badjson.json", "JSON")),
+    Row("predict-sidecar-unknown-model", PR, ["--method", "model", "--checkpoint", "{W}/ck/unknown.safetensors", "--input",
+                                              OBJDIR, "--out", "{T}/p"], 2, ("glc-nope",)),
+    Row("predict-sidecar-config-list", PR, ["--method", "model", "--checkpoint", "{W}/ck/listcfg.safetensors", "--input",
+                                            OBJDIR, "--out", "{T}/p"], 2, ("listcfg.json", "config")),
+    Row("predict-checkpoint-txt", PR, ["--method", "model", "--checkpoint", "{W}/ck/weights.txt", "--input", OBJDIR,
+                                       "--out", "{T}/p"], 2, ("weights.txt",)),
+    Row("predict-checkpoint-missing", PR, ["--method", "model", "--checkpoint", "{W}/ck/none.safetensors", "--input", OBJDIR,
+                                           "--out", "{T}/p"], 2, ("none.safetensors",)),
+    Row("predict-checkpoint-with-baseline", PR, ["--method", "least-squares", "--checkpoint", "{W}/ck/rand.pt", "--input",
+                                                 OBJDIR, "--out", "{T}/p"], 2, ("--checkpoint",)),
+    Row("predict-max-images-0", PR, ["--method", "least-squares", "--input", OBJDIR, "--out", "{T}/p", "--max-images", "0"],
+        2, ("--max-images",)),
+    Row("predict-res-tiny", PR, ["--method", "model", "--input", OBJDIR, "--out", "{T}/p", "--res", "4"], 2, ("--res",)),
+    Row("predict-device-cuda", PR, ["--method", "model", "--input", OBJDIR, "--out", "{T}/p", "--device", "cuda"], 2,
+        ("--device",)),
+    Row("predict-out-is-file", PR, ["--method", "least-squares", "--input", OBJDIR, "--out", "{W}/afile"], 2, ("--out", "afile")),
+    Row("predict-foreign-normal", PR, ["--method", "least-squares", "--input", OBJDIR, "--out", "{W}/pred_foreign"], 2,
+        ("--out", "normal.png", "predict.json")),
+    Row("predict-sh-too-few-images", PR, ["--method", "sh-uncalibrated", "--input", OBJDIR, "--out", "{T}/p",
+                                          "--max-images", "2"], 2, ("sh-uncalibrated", "4")),
+    Row("predict-dataset-one-bad-image", PR, ["--method", "least-squares", "--input", "{W}/data_onebad", "--out", "{T}/p"], 1,
+        ("failed 00001", "L001.png", "1 of 3"), check=_written("p/00000/normal.png", "p/00002/normal.png")),
+    Row("predict-dataset-all-fail", PR, ["--method", "sh-uncalibrated", "--input", "{W}/data", "--out", "{T}/p",
+                                         "--max-images", "3"], 1, ("failed 00000", "failed 00002", "3 of 3")),
+    Row("predict-bad-scene", PR, ["--method", "least-squares", "--input", "{W}/objs/badscene.data", "--out", "{T}/p"], 2,
+        ("scene.json",)),
+    Row("predict-bad-mask", PR, ["--method", "least-squares", "--input", "{W}/objs/badmask.data", "--out", "{T}/p"], 2,
+        ("mask.png",)),
+    Row("predict-max-images-text", PR, ["--method", "least-squares", "--input", OBJDIR, "--out", "{T}/p", "--max-images",
+                                        "all"], 2, ("--max-images", "all")),
+    # ---- unips.evaluate
+    Row("evaluate-pred-missing", EV, ["--pred", "{W}/nowhere", "--gt", "{W}/data"], 2, ("nowhere",)),
+    Row("evaluate-gt-missing", EV, ["--pred", "{W}/pred", "--gt", "{W}/nowhere"], 2, ("nowhere",)),
+    Row("evaluate-gt-empty", EV, ["--pred", "{W}/pred", "--gt", "{W}/empty"], 2, ("empty",)),
+    Row("evaluate-wrong-shape-single", EV, ["--pred", "{T}/p", "--gt", OBJDIR], 2, ("shape", "normal.npy"),
+        setup=_copy("pred_small", "p")),
+    Row("evaluate-dataset-one-wrong-shape", EV, ["--pred", "{T}/p", "--gt", "{W}/data"], 1, ("failed 00001", "shape"),
+        setup=_copy("pred_oneshape", "p"), check=_written("p/metrics.json", "p/00000/error_map.png")),
+    Row("evaluate-dataset-one-corrupt", EV, ["--pred", "{T}/p", "--gt", "{W}/data"], 1, ("failed 00001", "normal.png"),
+        setup=_copy("pred_onebad", "p"), check=_written("p/metrics.json")),
+    Row("evaluate-dataset-nan", EV, ["--pred", "{T}/p", "--gt", "{W}/data"], 1, ("NaN",), setup=_copy("pred_nan", "p")),
+    Row("evaluate-missing-prediction", EV, ["--pred", "{T}/p", "--gt", "{W}/data"], 1, ("no prediction", "00001"),
+        setup=_copy("pred_onemissing", "p")),
+    Row("evaluate-missing-allowed", EV, ["--pred", "{T}/p", "--gt", "{W}/data", "--allow-missing"], 0, ("MISSING",),
+        setup=_copy("pred_onemissing", "p"), check=_written("p/00000/error_map.png")),
+    Row("evaluate-unknown-flag", EV, ["--pred", "{W}/pred", "--gt", "{W}/data", "--strict"], 2, ("--strict",)),
+    Row("evaluate-no-gt", EV, ["--pred", "{W}/pred"], 2, ("--gt",)),
+    # ---- validate.rerender
+    Row("rerender-data-missing", RR, ["--data", "{W}/nowhere", "--normals", "{W}/pred", "--out", "{T}/o"], 2, ("--data", "nowhere")),
+    Row("rerender-data-empty", RR, ["--data", "{W}/empty", "--normals", "{W}/pred", "--out", "{T}/o"], 2, ("empty",)),
+    Row("rerender-normals-missing", RR, ["--data", OBJDIR, "--normals", "{W}/nowhere.png", "--out", "{T}/o"], 2,
+        ("--normals", "nowhere.png")),
+    Row("rerender-zero-normals", RR, ["--data", OBJDIR, "--normals", "{W}/pred_zero/00000", "--out", "{T}/o"], 2,
+        ("--normals", "--allow-missing")),
+    Row("rerender-zero-normals-allowed", RR, ["--data", OBJDIR, "--normals", "{W}/pred_zero/00000", "--out", "{T}/o",
+                                              "--allow-missing"], 2, ("--min-coverage", "0.0%"), sub=True,
+        check=_not_written("o")),
+    Row("rerender-half-normals", RR, ["--data", OBJDIR, "--normals", "{W}/pred_half/00000", "--out", "{T}/o",
+                                      "--allow-missing"], 2, ("--min-coverage", "normal.npy")),
+    Row("rerender-half-normals-accepted", RR, ["--data", OBJDIR, "--normals", "{W}/pred_half/00000", "--out", "{T}/out",
+                                               "--allow-missing", "--min-coverage", "0.4", "--no-floors"], 0, ("coverage",),
+        check=_coverage_reported),
+    Row("rerender-min-coverage-range", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--min-coverage", "1.5"], 2,
+        ("--min-coverage", "1.5")),
+    Row("rerender-min-coverage-nan", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--min-coverage", "nan"], 2,
+        ("--min-coverage", "nan")),
+    Row("rerender-nan-normals", RR, ["--data", OBJDIR, "--normals", "{W}/pred_nan/00000", "--out", "{T}/o"], 2, ("NaN",)),
+    Row("rerender-wrong-shape", RR, ["--data", OBJDIR, "--normals", "{W}/pred_small/00000", "--out", "{T}/o"], 2, ("shape",)),
+    Row("rerender-non-unit", RR, ["--data", OBJDIR, "--normals", "{W}/pred_short/00000", "--out", "{T}/o"], 2, ("unit length",)),
+    Row("rerender-spp-0", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--spp", "0", "--out", "{T}/o"], 2, ("--spp",)),
+    Row("rerender-threshold-negative", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--threshold", "-1", "--out",
+                                            "{T}/o"], 2, ("--threshold",)),
+    Row("rerender-variant-scalar", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--variant", "scalar_rgb", "--out",
+                                        "{T}/o"], 2, ("scalar",), sub=True),
+    Row("rerender-variant-mono", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--variant", "llvm_ad_mono", "--out",
+                                      "{T}/o"], 2, ("--variant", "llvm_ad_mono")),
+    Row("rerender-seed-mode", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--seed-mode", "lucky"], 2,
+        ("--seed-mode", "lucky")),
+    Row("rerender-out-is-file", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{W}/afile"], 2,
+        ("--out", "afile")),
+    Row("rerender-bad-scene", RR, ["--data", "{W}/objs/badscene.data", "--normals", "{W}/pred/00000", "--out", "{T}/o"], 2,
+        ("scene.json",)),
+    Row("rerender-corrupt-prediction", RR, ["--data", OBJDIR, "--normals", "{W}/pred_onebad/00001/normal.png", "--out",
+                                            "{T}/o"], 2, ("normal.png",)),
+    Row("rerender-dataset-one-missing", RR, ["--data", "{W}/data", "--normals", "{W}/pred_onemissing", "--out", "{T}/o",
+                                             "--no-floors", "--spp", "1"], 1, ("failed 00001", "1 of 3"),
+        check=_written("o/00000/report.json", "o/00002/report.json", "o/summary.csv")),
+    Row("rerender-dataset-one-corrupt", RR, ["--data", "{W}/data", "--normals", "{W}/pred_onebad", "--out", "{T}/o",
+                                             "--no-floors", "--spp", "1"], 1, ("failed 00001", "normal.png"),
+        check=_written("o/00000/report.json")),
+    Row("rerender-unknown-flag", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--fast"], 2, ("--fast",)),
+    # ---- unips.train
+    Row("train-resume-truncated-last", TR, ["--data", "{W}/data", "--out", "{W}/run_trunc", "--model", "glc-test", "--steps",
+                                            "2", "--resume", "--no-progress"], 2, ("last.pt", "corrupt or truncated"),
+        sub=True),
+    Row("train-resume-random-last", TR, ["--data", "{W}/data", "--out", "{W}/run_rand", "--model", "glc-test", "--steps",
+                                         "2", "--resume", "--no-progress"], 2, ("last.pt",), sub=True),
+    Row("train-resume-nothing", TR, ["--data", "{W}/data", "--out", "{W}/empty", "--model", "glc-test", "--steps", "2",
+                                     "--resume", "--no-progress"], 2, ("last.pt",)),
+    Row("train-old-run-folder", TR, ["--data", "{W}/data", "--out", "{W}/run_old", "--model", "glc-test", "--steps", "2",
+                                     "--no-progress"], 2, ("--out", "--resume", "--overwrite")),
+    Row("train-data-missing", TR, ["--data", "{W}/nowhere", "--out", "{T}/run", "--model", "glc-test", "--steps", "2"], 2,
+        ("nowhere",)),
+    Row("train-model-unknown", TR, ["--data", "{W}/data", "--out", "{T}/run", "--model", "glc-nope", "--steps", "2"], 2,
+        ("glc-nope",)),
+    Row("train-steps-0", TR, ["--data", "{W}/data", "--out", "{T}/run", "--model", "glc-test", "--steps", "0"], 2, ("steps",)),
+    Row("train-out-is-file", TR, ["--data", "{W}/data", "--out", "{W}/afile", "--model", "glc-test", "--steps", "2"], 2,
+        ("--out", "afile")),
+    Row("train-unknown-flag", TR, ["--data", "{W}/data", "--out", "{T}/run", "--bogus"], 2, ("--bogus",)),
+    Row("train-schedule-bad", TR, ["--data", "{W}/data", "--out", "{T}/run", "--model", "glc-test", "--schedule", "linear"],
+        2, ("--schedule", "linear")),
+    Row("train-precision-bad", TR, ["--data", "{W}/data", "--out", "{T}/run", "--model", "glc-test", "--precision", "fp8"],
+        2, ("--precision", "fp8")),
+    Row("train-val-probes-bad", TR, ["--data", "{W}/data", "--out", "{T}/run", "--model", "glc-test", "--val-probes",
+                                     "all,nope"], 2, ("--val-probes", "nope")),
+    Row("train-lr-nan", TR, ["--data", "{W}/data", "--out", "{T}/run", "--model", "glc-test", "--lr", "nan"], 2, ("--lr",)),
+    Row("train-resume-and-overwrite", TR, ["--data", "{W}/data", "--out", "{T}/run", "--model", "glc-test", "--resume",
+                                           "--overwrite"], 2, ("--resume", "--overwrite")),
+    Row("train-init-from-missing", TR, ["--data", "{W}/data", "--out", "{T}/run", "--init-from", "{W}/nope.safetensors",
+                                        "--steps", "1"], 2, ("nope.safetensors",)),
+    Row("train-init-from-random-pt", TR, ["--data", "{W}/data", "--out", "{T}/run", "--init-from", "{W}/ck/rand.pt",
+                                          "--steps", "1"], 2, ("rand.pt",), sub=True),
+    # ---- orchestrate.demo (fast-failing cases: the full demo is `make demo`)
+    Row("demo-objects-0", DEMO, ["--out", "{T}/d", "--objects", "0"], 2, ("--objects",), check=_not_written("d")),
+    Row("demo-res-small", DEMO, ["--out", "{T}/d", "--res", "8"], 2, ("--res",), check=_not_written("d")),
+    Row("demo-baseline-unknown", DEMO, ["--out", "{T}/d", "--baseline", "magic"], 2, ("--baseline", "magic")),
+    Row("demo-unknown-flag", DEMO, ["--out", "{T}/d", "--quick"], 2, ("--quick",)),
+]
+
+
+def _snapshot(root: Path) -> dict[str, str]:
+    """relative path -> sha256 of every file (and 'dir' for every folder) under root."""
+    out = {}
+    for dirpath, dirnames, filenames in os.walk(root):
+        for d in dirnames:
+            out[str(Path(dirpath, d).relative_to(root))] = "dir"
+        for f in filenames:
+            p = Path(dirpath, f)
+            out[str(p.relative_to(root))] = hashlib.sha256(p.read_bytes()).hexdigest()
+    return out
+
+
+def _run(row: Row, argv: list[str], capsys) -> tuple[int, str, str]:
+    if row.sub:
+        env = {**os.environ, "PYTHONPATH": str(REPO)}
+        r = subprocess.run([sys.executable, "-m", row.cli, *argv], capture_output=True, text=True, cwd=REPO, env=env,
+                           timeout=300)
+        return r.returncode, r.stdout, r.stderr
+    capsys.readouterr()
+    module = importlib.import_module(row.cli)
+    rc = module.main(argv)
+    captured = capsys.readouterr()
+    return rc, captured.out, captured.err
+
+
+@pytest.mark.parametrize("row", ROWS, ids=[r.id for r in ROWS])
+def test_bad_input(row: Row, world: Path, tmp_path: Path, capsys):
+    t = tmp_path / "T"
+    t.mkdir()
+    if row.setup is not None:
+        row.setup(world, t)
+    before_world, before_t = _snapshot(world), _snapshot(t)
+    argv = [a.format(W=world, T=t) for a in row.args]
+    rc, out, err = _run(row, argv, capsys)
+    assert rc == row.rc, f"exit {rc}, expected {row.rc}\nstdout: {out[-2000:]}\nstderr: {err[-2000:]}"
+    assert "Traceback" not in err and "Traceback" not in out, err
+    text = err + out
+    for name in row.names:
+        assert name in text, f"{name!r} not in the output:\n{text[-2000:]}"
+    if row.rc == 2:
+        errors = [line for line in err.splitlines() if line.startswith("error:")]
+        assert len(errors) == 1, err
+        assert err.strip().splitlines()[-1].startswith("error:"), err
+    assert _snapshot(world) == before_world, "a pre-existing file of the world changed"
+    after_t = _snapshot(t)
+    changed = [k for k, v in before_t.items() if after_t.get(k) != v]
+    assert not changed, f"pre-existing files changed or removed: {changed}"
+    if row.check is not None:
+        row.check(world, t)
+
+
+def test_table_size():
+    assert len(ROWS) >= 100
+    assert len({r.id for r in ROWS}) == len(ROWS)
+    assert {r.cli for r in ROWS} >= {MK, PV, PR, EV, RR, TR, DEMO}
+
+
+@pytest.mark.parametrize("how", ["after-lock", "at-1s"])
+def test_ctrl_c_early_in_process_run_stops(world: Path, tmp_path: Path, how: str):
+    """Ctrl-C early in a --workers 0 run is never swallowed: exit 130, no traceback, no half-written object."""
+    out = tmp_path / "o"
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    proc = subprocess.Popen([sys.executable, "-m", MK, "--out", str(out), "--objects", "4", "--images", "4", "--res", "64",
+                             "--spp", "64", "--workers", "0", "--quiet"], cwd=REPO, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        if how == "after-lock":
+            deadline = time.monotonic() + 120
+            while not (out / ".wildgen.lock").exists() and proc.poll() is None and time.monotonic() < deadline:
+                time.sleep(0.02)
+        else:
+            time.sleep(1.0)
+        assert proc.poll() is None, "the run ended before the interrupt"
+        proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, (proc.returncode, stdout, stderr)
+    assert "Traceback" not in stderr and "interrupted" in stderr
+    assert not list(out.glob(".tmp-*")) if out.exists() else True

@@ -1,0 +1,153 @@
+"""The import graph is one-way: no cycles between modules or packages, no upward or sideways imports.
+
+Layers, bottom to top (ARCHITECTURE.md):
+
+    scenes                      scene description, Mitsuba build, the object folder, CLI errors
+    wildgen | unips | validate  siblings: data generation, the model, the physical check;
+                                none of them imports another
+    orchestrate                 demo, benchmark, training recipe (may import all of the above)
+    bench | tests               scripts and tests (may import anything)
+
+Every import counts, also the lazy ones inside functions and `if TYPE_CHECKING:` blocks: they run
+(or are read) all the same and tie the modules together.
+"""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+LAYER = {"scenes": 0, "wildgen": 1, "unips": 1, "validate": 1, "orchestrate": 2, "bench": 3, "tests": 3}
+PACKAGES = ("scenes", "wildgen", "unips", "validate", "orchestrate")
+SIBLINGS_MAY_IMPORT_EACH_OTHER = False  # wildgen, unips, validate
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for top in LAYER:
+        for path in sorted((ROOT / top).rglob("*.py")):
+            out[_module_name(path)] = path
+    return out
+
+
+MODULES = _modules()
+
+
+def _resolve(name: str) -> str | None:
+    """The project module `name` refers to (itself, or its longest known prefix), None if external."""
+    while name:
+        if name in MODULES:
+            return name
+        name = name.rpartition(".")[0]
+    return None
+
+
+def _imports(module: str, path: Path) -> set[str]:
+    """Project modules imported anywhere in the file (module level and inside functions)."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    is_package = path.name == "__init__.py"
+    found: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = module.split(".") if is_package else module.split(".")[:-1]
+                base = base[: len(base) - (node.level - 1)]
+                prefix = ".".join(base + ([node.module] if node.module else []))
+            else:
+                prefix = node.module or ""
+            # `from pkg import sub` imports the submodule pkg.sub when there is one.
+            names = [f"{prefix}.{a.name}" if f"{prefix}.{a.name}" in MODULES else prefix for a in node.names]
+        else:
+            continue
+        for name in names:
+            target = _resolve(name)
+            if target is not None and target != module:
+                found.add(target)
+    return found
+
+
+GRAPH = {m: _imports(m, p) for m, p in MODULES.items()}
+
+
+def _top(module: str) -> str:
+    return module.split(".")[0]
+
+
+def _cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """One cycle of the directed graph, or None."""
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(node: str) -> list[str] | None:
+        state[node] = 1
+        stack.append(node)
+        for nxt in sorted(graph.get(node, ())):
+            if state.get(nxt) == 1:
+                return stack[stack.index(nxt):] + [nxt]
+            if nxt not in state:
+                found = visit(nxt)
+                if found:
+                    return found
+        stack.pop()
+        state[node] = 2
+        return None
+
+    for node in sorted(graph):
+        if node not in state:
+            found = visit(node)
+            if found:
+                return found
+    return None
+
+
+def test_graph_is_not_empty():
+    """The parser sees the project (guards the other tests against passing vacuously)."""
+    assert {"scenes.objfolder", "unips.inference", "validate.rerender", "orchestrate.benchmark"} <= set(MODULES)
+    assert "scenes.objfolder" in GRAPH["validate.io"]
+    assert "unips.inference" in GRAPH["orchestrate.benchmark"]
+
+
+def test_no_module_cycle():
+    cycle = _cycle({m: {t for t in ts if _top(t) in PACKAGES} for m, ts in GRAPH.items() if _top(m) in PACKAGES})
+    assert cycle is None, "import cycle between modules: " + " -> ".join(cycle)
+
+
+def test_no_package_cycle():
+    pkg_graph: dict[str, set[str]] = {}
+    for m, targets in GRAPH.items():
+        if _top(m) not in PACKAGES:
+            continue
+        # Sub-packages count as packages of their own (unips.models inside unips).
+        src = m if (MODULES[m].name == "__init__.py") else m.rpartition(".")[0]
+        for t in targets:
+            dst = t if MODULES[t].name == "__init__.py" else t.rpartition(".")[0]
+            if dst != src and not src.startswith(dst + ".") and _top(t) in PACKAGES:
+                pkg_graph.setdefault(src, set()).add(dst)
+    cycle = _cycle(pkg_graph)
+    assert cycle is None, "import cycle between packages: " + " -> ".join(cycle)
+
+
+@pytest.mark.parametrize("module", sorted(MODULES))
+def test_imports_go_down(module):
+    src = _top(module)
+    bad = []
+    for target in sorted(GRAPH[module]):
+        dst = _top(target)
+        if dst == src:
+            continue
+        if LAYER[dst] > LAYER[src]:
+            bad.append(f"{target} (upward: {dst} is above {src})")
+        elif LAYER[dst] == LAYER[src] and not (SIBLINGS_MAY_IMPORT_EACH_OTHER and LAYER[src] == 1):
+            bad.append(f"{target} (sideways: {src} and {dst} are siblings)")
+    assert not bad, f"{module} imports " + ", ".join(bad)
