@@ -151,3 +151,56 @@ def test_torchrun_two_processes_gloo(dataset, tmp_path) -> None:
         assert any("val" in x for x in log)
         digests.append(hashlib.sha256((out / "final.safetensors").read_bytes()).hexdigest())
     assert digests[0] == digests[1]
+
+
+def write_bumpy_object(folder: Path, rng: np.random.Generator, size: int = 40, k: int = 8) -> None:
+    """A Lambertian height field whose outline says little about its normals: an elliptic outline with a
+    random depth scale plus random bumps, under k random directional lights (the layout of write_object)."""
+    import cv2
+    import tifffile
+
+    from test_train import lambertian, random_lights
+
+    i, j = np.mgrid[0:size, 0:size] + 0.5
+    ri, rj = rng.uniform(0.3, 0.45, 2) * size
+    x, y = (j - size / 2) / rj, -(i - size / 2) / ri
+    q = 1 - x * x - y * y
+    mask = q > 0.02
+    z = rng.uniform(0.2, 1.2) * np.sqrt(np.clip(q, 0, None))
+    for _ in range(3):
+        f, ph = rng.uniform(2, 6, 2), rng.uniform(0, 2 * np.pi, 2)
+        z = z + rng.uniform(0.02, 0.08) * np.sin(f[0] * np.pi * x + ph[0]) * np.sin(f[1] * np.pi * y + ph[1])
+    # Normal of the height field in the camera frame (x right = columns, y up = -rows).
+    n = np.stack([-np.gradient(z, axis=1) * size / 2, np.gradient(z, axis=0) * size / 2, np.ones_like(z)], -1)
+    n = np.where(mask[..., None], n / np.linalg.norm(n, axis=-1, keepdims=True), 0.0)
+    lights = random_lights(rng, k)
+    images = lambertian(n, mask, lights, np.tile(rng.uniform(0.3, 0.9, 3), (k, 1)))
+    folder.mkdir(parents=True)
+    for t in range(k):
+        rgb16 = np.round(np.clip(images[t].transpose(1, 2, 0), 0, 1) * 65535).astype(np.uint16)
+        cv2.imwrite(str(folder / f"L{t:03d}.png"), rgb16[..., ::-1])
+    cv2.imwrite(str(folder / "mask.png"), (mask * 255).astype(np.uint8))
+    tifffile.imwrite(folder / "normal.tif", np.round((n + 1) / 2 * 65535).astype(np.uint16))
+    (folder / "scene.json").write_text(json.dumps({"light_family": "directional"}))
+
+
+@pytest.mark.slow
+def test_training_learns_from_the_images_where_the_outline_is_not_enough(tmp_path) -> None:
+    """End to end (data, augmentation, batches, loss, probes): on objects whose outline does not fix their
+    normals, a short training run must gain clearly from the images. A pipeline that breaks the link
+    between a pixel's intensities and its normal (a wrong augmentation sign, tokens that drop the pixel's
+    observations) learns the outline only and fails here."""
+    rng = np.random.default_rng(7)
+    for t in range(64):
+        write_bumpy_object(tmp_path / "train" / f"o{t}.data", rng, size=32)
+    for t in range(12):
+        write_bumpy_object(tmp_path / "val" / f"v{t}.data", rng, size=32)
+    out = tmp_path / "run"
+    assert main(["--data", str(tmp_path / "train"), "--val", str(tmp_path / "val"), "--model", "glc-test",
+                 "--out", str(out), "--steps", "300", "--batch", "4", "--lr", "1e-3", "--warmup", "30", "--res", "32",
+                 "--pixels", "200", "--canonical-points", "200", "--max-images", "8", "--val-every", "300",
+                 "--val-pixels", "0", "--threads", "2", "--no-progress"]) == 0
+    val = [json.loads(x) for x in (out / "log.jsonl").read_text().splitlines() if '"val"' in x][-1]["val"]
+    print("probes after 300 steps:", {k: round(v, 1) for k, v in val["probes"].items()}, "gain", round(val["gain"], 1))
+    assert val["gain"] > 5.0, val["probes"]
+    assert val["probes"]["shuffled"] > val["probes"]["all"] + 2.0, val["probes"]
