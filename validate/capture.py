@@ -26,11 +26,12 @@ from pathlib import Path
 
 import numpy as np
 
+from scenes.objfolder import object_name, read_mask
+
 log = logging.getLogger(__name__)
 
 LAYOUTS = ("ours", "diligent", "unips")
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".exr")
-NORMAL_FILES = ("normal.png", "normal.exr", "normal.npy", "normal.tif", "normal.tiff")
 """File names looked for when `--normals` is a folder, in this order."""
 
 
@@ -68,11 +69,6 @@ class Capture:
         return tuple(self.mask.shape)  # type: ignore[return-value]
 
 
-def object_name(folder: str | Path) -> str:
-    name = Path(folder).resolve().name
-    return name[: -len(".data")] if name.endswith(".data") and len(name) > 5 else name
-
-
 def _natural_key(name: str) -> list:
     return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", name)]
 
@@ -99,45 +95,15 @@ def detect_layout(folder: str | Path) -> str | None:
     return None
 
 
-def _read_raw(path: Path, what: str):
-    import cv2
-
-    if not path.is_file():
-        raise FileNotFoundError(f"{what}: {str(path)!r} does not exist")
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise ValueError(f"{what}: cannot read {str(path)!r} (corrupt or unsupported format)")
-    return img
-
-
 def read_image(path: Path) -> np.ndarray:
-    """(H, W, 3) float32 linear RGB from a 16/8-bit PNG/TIFF or a float EXR."""
-    if path.suffix.lower() == ".exr":
-        from scenes.objfolder import read_exr
+    """(H, W, 3) float32 linear RGB: `scenes.objfolder.read_image`, plus float EXR inputs."""
+    from scenes.objfolder import read_exr
+    from scenes.objfolder import read_image as read_ldr
 
+    if Path(path).suffix.lower() == ".exr":
         img = read_exr(path)
         return np.repeat(img, 3, axis=2) if img.shape[2] == 1 else img[:, :, :3]
-    img = _read_raw(path, "images")
-    if img.ndim == 2:
-        img = img[:, :, None]
-    img = img[:, :, :3][:, :, ::-1] if img.shape[2] >= 3 else np.repeat(img, 3, axis=2)
-    if img.dtype == np.uint16:
-        return img.astype(np.float32) / 65535.0
-    if img.dtype == np.uint8:
-        return img.astype(np.float32) / 255.0
-    return img.astype(np.float32)
-
-
-def read_mask(path: Path, shape: tuple[int, int]) -> np.ndarray:
-    img = _read_raw(path, "mask")
-    if img.ndim == 3:
-        img = img.max(axis=2)
-    if img.shape != shape:
-        raise ValueError(f"mask: {str(path)!r} has shape {img.shape}, expected {shape} (the images' size)")
-    mask = img > (img.max() / 2)
-    if not mask.any():
-        raise ValueError(f"mask: {str(path)!r} is empty")
-    return mask
+    return read_ldr(path)
 
 
 def _text_matrix(path: Path, rows: int, what: str) -> np.ndarray:
@@ -153,63 +119,25 @@ def _text_matrix(path: Path, rows: int, what: str) -> np.ndarray:
 
 
 def read_normals(path: str | Path, what: str = "--normals") -> np.ndarray:
-    """Normal-map file -> (H, W, 3) float32 camera-frame normals, background 0 (see the module doc)."""
+    """Normal-map file -> (H, W, 3) float32 camera-frame normals, background 0 (`scenes.objfolder`)."""
+    from scenes.objfolder import read_normals as read_normal_file
+
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{what}: {str(path)!r} does not exist")
-    suffix = path.suffix.lower()
-    if suffix in (".png", ".tif", ".tiff"):
-        img = _read_raw(path, what)
-        if img.ndim != 3 or img.shape[2] < 3:
-            raise ValueError(f"{what}: {str(path)!r} has shape {img.shape}, expected an RGB image (H, W, 3)")
-        img = np.ascontiguousarray(img[:, :, 2::-1])
-        if img.dtype == np.uint16:
-            n = img.astype(np.float32) / 65535.0 * 2.0 - 1.0
-        elif img.dtype == np.uint8:
-            n = img.astype(np.float32) / 255.0 * 2.0 - 1.0
-        else:
-            n = img.astype(np.float32)
-        if np.issubdtype(img.dtype, np.integer):
-            n[np.linalg.norm(n, axis=2) < 0.5] = 0.0
-    elif suffix == ".exr":
-        from scenes.objfolder import read_exr
-
-        n = read_exr(path)
-    elif suffix == ".npy":
-        try:
-            n = np.load(path, allow_pickle=False).astype(np.float32)
-        except Exception as exc:  # numpy raises several types for bad files
-            raise ValueError(f"{what}: cannot read {str(path)!r} ({exc})") from exc
-    elif suffix == ".mat":
-        import scipy.io
-
-        d = {k: v for k, v in scipy.io.loadmat(str(path)).items() if not k.startswith("__")}
-        key = "Normal_gt" if "Normal_gt" in d else (next(iter(d)) if len(d) == 1 else None)
-        if key is None:
-            raise ValueError(f"{what}: {str(path)!r} has no 'Normal_gt' array")
-        n = np.asarray(d[key], np.float32)
-    else:
-        raise ValueError(f"{what}: {str(path)!r} has extension {suffix!r}, expected .png, .tif, .exr, .npy or .mat")
-    if n.ndim != 3 or n.shape[2] != 3:
-        raise ValueError(f"{what}: {str(path)!r} has shape {n.shape}, expected (H, W, 3)")
-    if not np.isfinite(n).all():
-        raise ValueError(f"{what}: {str(path)!r} contains NaN or infinite values")
-    return n
+    try:
+        return read_normal_file(path)
+    except ValueError as exc:
+        raise ValueError(f"{what}: {exc}") from exc
 
 
 def find_normals(pred: str | Path, name: str | None = None) -> Path:
-    """`pred` itself if a file, else `pred[/name]/normal.{png,exr,npy,tif}`."""
-    pred = Path(pred)
-    if pred.is_file():
-        return pred
-    if not pred.exists():
+    """The prediction file of an object, by the project's one lookup order (`scenes.objfolder`)."""
+    from scenes.objfolder import find_prediction
+
+    if not Path(pred).exists():
         raise FileNotFoundError(f"--normals: {str(pred)!r} does not exist")
-    folders = [pred / name, pred] if name else [pred]
-    for folder in folders:
-        for fname in NORMAL_FILES:
-            if (folder / fname).is_file():
-                return folder / fname
-    raise FileNotFoundError(f"--normals: no {'/'.join(NORMAL_FILES)} in {' or '.join(str(f) for f in folders)}")
+    return find_prediction(pred, name)
 
 
 def unit_normals(n: np.ndarray, mask: np.ndarray, what: str = "--normals") -> np.ndarray:
