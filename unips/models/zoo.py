@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 from .config import GLCConfig, config_with_overrides
@@ -31,22 +32,18 @@ GLC_TINY = GLCConfig(
 
 # The CPU model that reads the light (issue 12): per-pixel tokens normalised across the images, a
 # decoder with real capacity (width 64, 3 layers), 24x24 lighting contexts from a canonical
-# resolution of 96 that stays below the 128 px working resolution, masking before resizing.
-GLC_SMALL = GLCConfig(
+# resolution of 96 that stays below the 128 px working resolution, masking before resizing; the
+# backbone is glc-tiny's.
+GLC_SMALL = dataclasses.replace(
+    GLC_TINY,
     canonical_resolution=96,
-    swin_embed_dim=24,
-    swin_depths=(1, 1, 2, 1),
-    swin_heads=(1, 2, 4, 8),
     swin_window=3,
-    swin_drop_path=0.0,
-    comm_heads=4,
     context_dim=48,
     decoder_dim=64,
     decoder_layers=3,
     decoder_heads=4,
     decoder_ff=128,
     predictor_hidden=64,
-    dropout=0.0,
     pixel_token="normalized",
     mask_before_resize=True,
 )
