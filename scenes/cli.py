@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import NoReturn
+from contextlib import contextmanager
+from typing import Callable, Iterator, NoReturn
 
 EXIT_USAGE = 2
 """Exit status of a usage or input error (argparse's own)."""
@@ -39,3 +40,25 @@ class UsageErrorParser(argparse.ArgumentParser):
 
     def error(self, message: str) -> NoReturn:
         raise UsageError(message)
+
+
+@contextmanager
+def progress_bar(unit: str) -> Iterator[Callable[[int, int, str], None]]:
+    """A `progress(done, total, label)` callback drawing one tqdm bar, closed on exit. The bar is created at the
+    first call, so that an input error found before any work still prints one clean error line."""
+    from tqdm import tqdm
+
+    bars: list = []
+
+    def progress(done: int, total: int, label: str) -> None:
+        if not bars:
+            bars.append(tqdm(unit=unit, leave=False))
+        bars[0].total, bars[0].n = total, done
+        bars[0].set_description(label)
+        bars[0].refresh()
+
+    try:
+        yield progress
+    finally:
+        for bar in bars:
+            bar.close()

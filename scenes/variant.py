@@ -1,7 +1,7 @@
 """The Mitsuba variant: chosen at entry points (never at import time), checked where Mitsuba objects are made.
 
-`choose_variant` sets it; `require_variant` / `require_jit_variant` are the only checks that one is set
-(`scenes.mitsuba_build`, `scenes.render` and `validate.normal_bsdf` call them).
+`choose_variant` sets it; `require_variant` / `require_jit_variant` / `require_ad_variant` are the only checks
+that one is set (`scenes.mitsuba_build`, `scenes.render`, `validate.normal_bsdf` and `validate.fit` call them).
 """
 from __future__ import annotations
 
@@ -83,4 +83,15 @@ def require_jit_variant() -> Any:
             f"variant: {variant!r} is a scalar variant; the re-render check needs llvm_ad_rgb or cuda_ad_rgb "
             "(install Debian's libllvm19 for llvm)"
         )
+    return mi
+
+
+def require_ad_variant() -> Any:
+    """The `mitsuba` module, after checking that an automatic-differentiation JIT variant (llvm_ad_*,
+    cuda_ad_*) is set: the fitted mode of the re-render check differentiates through Mitsuba."""
+    import mitsuba as mi
+
+    v = mi.variant()
+    if v is None or "_ad_" not in v:
+        raise ValueError(f"--variant: fitted mode needs llvm_ad_rgb or cuda_ad_rgb (automatic differentiation), got {v!r}")
     return mi

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from scenes.objfolder import object_name, read_mask
+from validate.io import read_normal_map, read_prediction
 
 log = logging.getLogger(__name__)
 
@@ -118,28 +119,6 @@ def _text_matrix(path: Path, rows: int, what: str) -> np.ndarray:
     return vals
 
 
-def read_normals(path: str | Path, what: str = "--normals") -> np.ndarray:
-    """Normal-map file -> (H, W, 3) float32 camera-frame normals, background 0 (`scenes.objfolder`)."""
-    from scenes.objfolder import read_normals as read_normal_file
-
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{what}: {str(path)!r} does not exist")
-    try:
-        return read_normal_file(path)
-    except ValueError as exc:
-        raise ValueError(f"{what}: {exc}") from exc
-
-
-def find_normals(pred: str | Path, name: str | None = None) -> Path:
-    """The prediction file of an object, by the project's one lookup order (`scenes.objfolder`)."""
-    from scenes.objfolder import find_prediction
-
-    if not Path(pred).exists():
-        raise FileNotFoundError(f"--normals: {str(pred)!r} does not exist")
-    return find_prediction(pred, name)
-
-
 def unit_normals(n: np.ndarray, mask: np.ndarray, what: str = "--normals") -> np.ndarray:
     """Check shape against the mask, renormalise inside it, zero outside. Zero normals inside the mask
     (no estimate) become (0, 0, 1) with a warning."""
@@ -151,6 +130,14 @@ def unit_normals(n: np.ndarray, mask: np.ndarray, what: str = "--normals") -> np
         log.warning("%s: %d pixels inside the mask have no normal; using (0, 0, 1) there", what, int(missing.sum()))
     out = np.where(norm > 0.5, n / np.maximum(norm, 1e-12), np.array([0.0, 0.0, 1.0]))
     return np.where(mask[..., None], out, 0.0).astype(np.float32)
+
+
+def load_with_normals(folder: str | Path, normals: str | Path | np.ndarray) -> tuple[Capture, np.ndarray, str]:
+    """An object folder and the normal map to judge: (capture, unit normals inside its mask, source), where
+    `normals` is an (H, W, 3) array or a file / prediction folder (the source is then its path)."""
+    cap = load_capture(folder)
+    normals, source = read_prediction(normals, cap.name)
+    return cap, unit_normals(normals, cap.mask), source
 
 
 def _camera_lights(folder: Path, k: int) -> tuple[np.ndarray | None, np.ndarray | None]:
@@ -215,7 +202,7 @@ def load_capture(folder: str | Path, max_images: int | None = None) -> Capture:
     gt = None
     for gname in ("normal.tif", "Normal_gt.mat", "Normal_gt.png"):
         if (folder / gname).is_file():
-            g = read_normals(folder / gname, "ground truth")
+            g = read_normal_map(folder / gname, "ground truth")
             if g.shape[:2] != shape:
                 raise ValueError(f"ground truth: {str(folder / gname)!r} has shape {g.shape}, expected {shape + (3,)}")
             norm = np.linalg.norm(g, axis=-1, keepdims=True)

@@ -29,9 +29,10 @@ from typing import Any, Callable
 
 import numpy as np
 
+from scenes.variant import require_ad_variant
 from validate import heightfield
 from validate.capture import Capture
-from validate.lights import LIGHT_MODELS, POINT_START_DISTANCE, SH_BAND_WEIGHT, closed_form_directional, report_lights
+from validate.lights import LIGHT_MODELS, POINT_START_DISTANCE, closed_form_directional, report_lights
 
 log = logging.getLogger(__name__)
 
@@ -112,16 +113,6 @@ def to_jit(tp, a: np.ndarray):
 def choose_downsample(mask: np.ndarray, max_pixels: int) -> int:
     """Smallest integer factor f such that the mask has at most max_pixels pixels after f x f boxes."""
     return max(1, int(np.ceil(np.sqrt(mask.sum() / max_pixels))))
-
-
-def require_ad_variant():
-    """The active Mitsuba module; raises unless an AD JIT variant (llvm_ad_*, cuda_ad_*) is set."""
-    import mitsuba as mi
-
-    v = mi.variant()
-    if v is None or "_ad_" not in v:
-        raise ValueError(f"--variant: fitted mode needs llvm_ad_rgb or cuda_ad_rgb (automatic differentiation), got {v!r}")
-    return mi
 
 
 def estimate_noise_rel_l1(images: np.ndarray, mask: np.ndarray) -> float:
@@ -286,7 +277,7 @@ class FitScene:
     # ---------------------------------------------------------------------------------------- params
     def init_params(self, start: dict) -> None:
         """Dr.Jit parameters from a closed-form start (see validate.lights.closed_form_directional)."""
-        mi, dr = self.mi, self.dr
+        mi = self.mi
         self.albedo_np = np.asarray(start["albedo"], np.float64)
         self.dirty = True
         E = np.maximum(np.asarray(start["irradiance"], np.float64), 1e-6)
@@ -706,7 +697,7 @@ def rerender_fitted(
     import json
     from pathlib import Path
 
-    from validate.capture import find_normals, load_capture, read_normals, unit_normals
+    from validate.capture import load_with_normals
     from validate.lights import angular_errors_deg, directions_of
     from scenes.objfolder import mean_angular_error as mae_deg
     from validate.metrics import relative_residual_map
@@ -714,13 +705,7 @@ def rerender_fitted(
     config = (config or FitConfig()).validate()
     mi = require_ad_variant()
     t0 = time.perf_counter()
-    cap = load_capture(folder)
-    source = "array"
-    if not isinstance(normals, np.ndarray):
-        path = find_normals(normals, cap.name)
-        source = str(path)
-        normals = read_normals(path)
-    full = unit_normals(normals, cap.mask)
+    cap, full, source = load_with_normals(folder, normals)
     target = None
     if out_dir is not None:
         target = Path(out_dir) / cap.name
@@ -731,7 +716,6 @@ def rerender_fitted(
     floors = {}
     for kind, nmap in no_information_maps(small.mask, config.floor_maps).items():
         floors[kind] = fit_normals(small.images, small.mask, nmap, config, progress, f"floor ({kind})").rel_l1
-    inputs = small.images[:, small.mask]
     report: dict[str, Any] = {
         "mode": "fitted",
         "object": cap.name,

@@ -16,6 +16,7 @@ from scenes.description import SceneDescription
 from scenes.objfolder import (
     MASK_FILE,
     NORMAL_FILE,
+    find_prediction,
     image_files,
     object_name,
     read_image,
@@ -85,13 +86,26 @@ def load_object(folder: str | Path) -> ObjectData:
     return ObjectData(folder=folder, name=object_name(folder), desc=desc, images=images, mask=mask, normal_gt=normal_gt)
 
 
-def read_normal_map(path: str | Path) -> np.ndarray:
+def read_normal_map(path: str | Path, what: str = "--normals") -> np.ndarray:
     """Normal-map file -> (H, W, 3) float32 camera-frame normals, background 0 (not checked against a
-    mask here); `scenes.objfolder.read_normals`, which rejects non-finite values anywhere in the map."""
+    mask here); `scenes.objfolder.read_normals`, which rejects non-finite values anywhere in the map.
+    Errors name `what` (the argument the file came from)."""
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"--normals: {str(path)!r} does not exist")
-    return read_normals(path)
+        raise FileNotFoundError(f"{what}: {str(path)!r} does not exist")
+    try:
+        return read_normals(path)
+    except ValueError as exc:
+        raise ValueError(f"{what}: {exc}") from exc
+
+
+def read_prediction(normals: str | Path | np.ndarray, name: str) -> tuple[np.ndarray, str]:
+    """The normal map to judge and where it came from: an (H, W, 3) array as is ("array"), else the
+    prediction file of object `name` found by `scenes.objfolder.find_prediction` (its path)."""
+    if isinstance(normals, np.ndarray):
+        return normals, "array"
+    path = find_prediction(normals, name)
+    return read_normal_map(path), str(path)
 
 
 def _renormalise(n: np.ndarray) -> np.ndarray:

@@ -33,7 +33,9 @@ from typing import Any
 
 import numpy as np
 
-from validate.fit import FitConfig, FitScene, Progress, _start, fit_normals, rel_l1_pixels, require_ad_variant, run_fit, to_jit
+from scenes.cli import progress_bar, report_error
+from scenes.variant import require_ad_variant
+from validate.fit import FitConfig, FitScene, Progress, _start, fit_normals, rel_l1_pixels, run_fit, to_jit
 
 log = logging.getLogger(__name__)
 
@@ -279,20 +281,14 @@ def write_normal_png(path: Path, n: np.ndarray) -> None:
 def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig | None = None, out_dir: str | None = None,
                   progress: Progress | None = None, overwrite: bool = False) -> dict:
     """Refine the normal map of one object folder; write normal.png and refine_report.json under out_dir/<object>/."""
-    from validate.capture import downsample_normals, find_normals, load_capture, read_normals, unit_normals
+    from validate.capture import downsample_normals, load_with_normals
     from validate.fit import prepare
     from scenes.objfolder import mean_angular_error as mae_deg
 
     config = (config or RefineConfig()).validate()
     mi = require_ad_variant()
     t0 = time.perf_counter()
-    cap = load_capture(folder)
-    source = "array"
-    if not isinstance(normals, np.ndarray):
-        path = find_normals(normals, cap.name)
-        source = str(path)
-        normals = read_normals(path)
-    full = unit_normals(normals, cap.mask)
+    cap, full, source = load_with_normals(folder, normals)
     target = Path(out_dir) / cap.name if out_dir is not None else None
     if target is not None and not overwrite:
         for name in ("normal.png", "refine_report.json"):
@@ -346,7 +342,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rounds", type=int, default=RefineConfig.rounds, help=f"light / normal alternations (default {RefineConfig.rounds})")
     p.add_argument("--holdout", type=float, default=RefineConfig.holdout_fraction, help="fraction of images held out for early stopping")
     p.add_argument("--seed", type=int, default=0, help="seed of every random choice")
-    p.add_argument("--variant", default=None, help="Mitsuba variant (default cuda_ad_rgb if usable, else llvm_ad_rgb)")
+    p.add_argument("--variant", default=None, help="Mitsuba variant (default: cuda_ad_rgb if usable, else llvm_ad_rgb)")
     p.add_argument("--overwrite", action="store_true", help="replace existing outputs")
     p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     return p
@@ -362,28 +358,13 @@ def main(argv: list[str] | None = None) -> int:
         ).validate()
         if not Path(args.normals).exists():
             raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
-        from scenes.variant import _usable, choose_variant
+        from scenes.variant import choose_variant
 
-        choose_variant(args.variant or ("cuda_ad_rgb" if _usable("cuda_ad_rgb") else "llvm_ad_rgb"))
-        from tqdm import tqdm
-
-        bars: list[Any] = []  # created at the first step, so input errors print one clean line
-
-        def progress(done: int, total: int, label: str) -> None:
-            if not bars:
-                bars.append(tqdm(unit="step", leave=False))
-            bars[0].total, bars[0].n = total, done
-            bars[0].set_description(label)
-            bars[0].refresh()
-
-        try:
+        choose_variant(args.variant)  # refine_object refuses a variant without automatic differentiation
+        with progress_bar("step") as progress:
             r = refine_object(args.data, args.normals, config, args.out, progress, overwrite=args.overwrite)
-        finally:
-            for b in bars:
-                b.close()
     except (ValueError, FileNotFoundError, FileExistsError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return report_error(exc)
     b, a = r["before"], r["after"]
     mae = f"  mae {b['mae_deg']:.2f} -> {a['mae_deg']:.2f} deg" if b["mae_deg"] is not None else ""
     print(f"{r['object']}: rel_l1 {b['rel_l1']:.4f} -> {a['rel_l1']:.4f}{mae}  ({r['note']}, {r['timings']['total_s']:.0f} s)")

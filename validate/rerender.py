@@ -33,10 +33,10 @@ from typing import Any, Callable
 
 import numpy as np
 
-from scenes.cli import UsageError, UsageErrorParser, report_error
+from scenes.cli import UsageError, UsageErrorParser, progress_bar, report_error
 from scenes.objfolder import find_prediction, list_object_folders, mean_angular_error, object_name
 from scenes.variant import require_jit_variant
-from validate.io import ObjectData, check_normals, load_object, read_normal_map
+from validate.io import ObjectData, check_normals, load_object, read_prediction
 from validate.metrics import expose, finite_or_none, mean_or_none, psnr, rel_l1, relative_residual_map
 from validate.normal_bsdf import (
     MODE_PASSTHROUGH,
@@ -148,11 +148,7 @@ def check_inputs(
     Returns (object data, normals (renormalised where valid, 0 elsewhere), valid mask, where they came from).
     A map covering less than `min_coverage` of the mask is a ValueError."""
     data = load_object(folder)
-    source = "array"
-    if not isinstance(normals, np.ndarray):
-        path = find_prediction(normals, data.name)
-        source = str(path)
-        normals = read_normal_map(path)
+    normals, source = read_prediction(normals, data.name)
     what = f"--normals ({source})" if source != "array" else "--normals"
     pred, valid = check_normals(normals, data.mask, what, allow_missing)
     cov = coverage(valid, data.mask)
@@ -563,27 +559,9 @@ def _main_fitted(args) -> int:
                        floor_maps=tuple(m for m in args.floor_maps.split(",") if m), seed=args.seed).validate()
     if not Path(args.normals).exists():
         raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
-    variant = choose_variant(args.variant or ("cuda_ad_rgb" if _has_cuda() else "llvm_ad_rgb"))
-    import drjit as dr
-
-    if variant.startswith("llvm"):
-        dr.set_thread_count(0)  # all cores
-    from tqdm import tqdm
-
-    bars: list[Any] = []  # created at the first step, so input errors print one clean line
-
-    def progress(done: int, total: int, label: str) -> None:
-        if not bars:
-            bars.append(tqdm(unit="step", leave=False))
-        bars[0].total, bars[0].n = total, done
-        bars[0].set_description(label)
-        bars[0].refresh()
-
-    try:
+    choose_variant(args.variant)  # the fit itself refuses a variant without automatic differentiation
+    with progress_bar("step") as progress:
         r = rerender_fitted(args.data, args.normals, config, args.out, progress, overwrite=args.overwrite)
-    finally:
-        for b in bars:
-            b.close()
     cal = r.get("calibrated_light_error_deg")
     print(f"{r['object']}: rel_l1 {r['rel_l1']:.4f}  floor {r['floor_rel_l1']:.4f}  noise {r['noise_rel_l1'] or float('nan'):.4f}"
           + (f"  mae {r['mae_deg']:.2f} deg" if r["mae_deg"] is not None else "")
@@ -591,12 +569,6 @@ def _main_fitted(args) -> int:
           + f"  ({r['note']}, {r['timings']['total_s']:.0f} s)")
     print(f"report in {args.out}/{r['object']}/report.json")
     return 0
-
-
-def _has_cuda() -> bool:
-    from scenes.variant import _usable
-
-    return _usable("cuda_ad_rgb")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -639,27 +611,13 @@ def main(argv: list[str] | None = None) -> int:
         mi = require_jit_variant()
         mi.set_log_level(mi.LogLevel.Error)  # e.g. multijitter's per-render "sample count rounded up"
 
-        from tqdm import tqdm
-
-        bars: list[Any] = []  # created at the first render, so input errors print one clean line
-
-        def progress(done: int, total: int, label: str) -> None:
-            if not bars:
-                bars.append(tqdm(unit="render", leave=False))
-            bars[0].total, bars[0].n = total, done
-            bars[0].set_description(label)
-            bars[0].refresh()
-
-        try:
+        with progress_bar("render") as progress:
             if single:
                 check_inputs(data, args.normals, config.allow_missing, config.min_coverage)
                 reports = [rerender_object(data, args.normals, config, args.out, progress)]
                 write_summary(Path(args.out) / "summary.csv", reports)
             else:
                 reports = rerender_dataset(data, args.normals, config, args.out, progress, failed=failed)
-        finally:
-            for bar in bars:
-                bar.close()
     except (UsageError, ValueError, FileNotFoundError, FileExistsError, OSError) as exc:
         return report_error(exc)
     print(format_table(reports, failed))
