@@ -204,3 +204,54 @@ def test_training_learns_from_the_images_where_the_outline_is_not_enough(tmp_pat
     print("probes after 300 steps:", {k: round(v, 1) for k, v in val["probes"].items()}, "gain", round(val["gain"], 1))
     assert val["gain"] > 5.0, val["probes"]
     assert val["probes"]["shuffled"] > val["probes"]["all"] + 2.0, val["probes"]
+
+
+def _lambertian_sphere(size: int, lights: np.ndarray) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Analytic Lambertian sphere filling a size x size frame: images (K, 3, H, W), mask, normals."""
+    c = (np.arange(size) + 0.5) / size * 2 - 1
+    x, y = np.meshgrid(c, -c)
+    r2 = x ** 2 + y ** 2
+    inside = r2 < 0.95 ** 2
+    n = np.stack([x, y, np.sqrt(np.clip(1 - r2, 0, None))]) * inside  # (3, H, W)
+    shade = np.clip(np.einsum("kc,chw->khw", lights, n), 0, None) * inside  # (K, H, W)
+    images = np.repeat(shade[:, None], 3, axis=1) * np.array([0.8, 0.5, 0.3])[None, :, None, None]
+    return (torch.from_numpy(images).float(), torch.from_numpy(inside[None].astype(np.float32)),
+            torch.from_numpy(n).float())
+
+
+def test_interior_crop_keeps_images_and_normals_consistent_and_drops_the_outline() -> None:
+    from unips.augment import interior_crop
+
+    lights = np.array([[0.0, 0.0, 1.0], [0.5, 0.3, 0.81], [-0.4, 0.2, 0.89]])
+    lights /= np.linalg.norm(lights, axis=1, keepdims=True)
+    images, mask, normals = _lambertian_sphere(96, lights)
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        crop, m, n = interior_crop(images, mask, normals, rng)
+        assert crop.shape == images.shape and m.shape == mask.shape and n.shape == normals.shape
+        assert torch.all(m == 1)  # no outline left
+        assert torch.allclose(n.norm(dim=0), torch.ones(96, 96), atol=1e-5)
+        assert torch.allclose(crop.mean(dim=(1, 2, 3)), torch.ones(3), atol=1e-5)  # re-normalised per image
+        # Physics still holds in the crop: each image / (n . l) is one constant per image and channel.
+        for k in range(3):
+            shade = torch.einsum("c,chw->hw", torch.from_numpy(lights[k]).float(), n)
+            lit = shade > 0.3
+            ratio = crop[k, 0][lit] / shade[lit]
+            assert float(ratio.std() / ratio.mean()) < 0.01
+    # A mask too small for the smallest square: no crop.
+    tiny = torch.zeros_like(mask)
+    tiny[:, 40:50, 40:50] = 1
+    assert interior_crop(images, tiny, normals, rng, min_fraction=16 / 96) is None
+
+
+def test_interior_crop_enters_batches_only_when_asked(dataset) -> None:
+    from unips.train import load_samples, make_batch
+
+    samples = load_samples(dataset["train"], 32)
+    kw = dict(seed=3, batch=2, min_images=2, max_images=4, pixels=50, canonical=16)
+    plain, none = make_batch(samples, 5, **kw), make_batch(samples, 5, interior_crop=0.0, **kw)
+    assert torch.equal(plain.images, none.images)  # probability 0 draws nothing: old trajectories kept
+    every = make_batch(samples, 5, interior_crop=1.0, **kw)
+    assert torch.all(every.mask == 1)
+    with pytest.raises(ValueError, match="--interior-crop"):
+        TrainConfig(data="d", out="o", interior_crop=1.5).validate()

@@ -113,3 +113,41 @@ def augment(images: torch.Tensor, mask: torch.Tensor, normals: torch.Tensor | No
             p: float = 0.5) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None]:
     """Sample an augmentation from `rng` and apply it (see module docstring for the conventions)."""
     return apply_augmentation(sample_augmentation(rng, images.shape[0], p), images, mask, normals)
+
+
+def interior_crop(images: torch.Tensor, mask: torch.Tensor, normals: torch.Tensor, rng: np.random.Generator,
+                  min_fraction: float = 0.125, max_fraction: float = 0.6
+                  ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None:
+    """A random square lying entirely inside the mask, resized back to the input size, or None.
+
+    The crop carries no outline (its mask is all ones), so a network can only get its normals from
+    the images: the training cure for a model that predicts from the silhouette. The side is drawn
+    in [min_fraction, max_fraction] * H and shrunk by 3/4 until a square fits; each cropped image is
+    divided again by its mean over the crop (the normalisation of `unips.preprocess.prepare`).
+    images `(K, 3, H, W)`, mask `(1, H, W)`, normals `(3, H, W)`; returns the same shapes.
+    """
+    import torch.nn.functional as F
+
+    _, _, h, w = images.shape
+    outside = (mask[0] < 0.5).to(torch.int64)
+    integral = F.pad(outside.cumsum(0).cumsum(1), (1, 0, 1, 0))  # (H+1, W+1)
+    min_side = max(2, round(min_fraction * min(h, w)))
+    top = max(min_side, int(max_fraction * min(h, w)))
+    side = int(rng.integers(min_side, top + 1))
+    while side >= min_side:
+        bad = (integral[side:, side:] - integral[:-side, side:] - integral[side:, :-side] + integral[:-side, :-side])
+        ys, xs = torch.nonzero(bad == 0, as_tuple=True)  # top-left corners of squares fully inside
+        if ys.numel():
+            i = int(rng.integers(ys.numel()))
+            y, x = int(ys[i]), int(xs[i])
+            break
+        side = side * 3 // 4
+    else:
+        return None
+    crop = images[:, :, y:y + side, x:x + side]
+    crop = F.interpolate(crop, size=(h, w), mode="bilinear", align_corners=False)
+    means = crop.mean(dim=(1, 2, 3), keepdim=True)  # (K, 1, 1, 1)
+    crop = crop / torch.where(means > 1e-8, means, torch.ones_like(means))
+    n = F.interpolate(normals[None, :, y:y + side, x:x + side], size=(h, w), mode="bilinear", align_corners=False)[0]
+    n = F.normalize(n, dim=0, eps=1e-8)
+    return crop.contiguous(), torch.ones_like(mask), n.contiguous()

@@ -151,14 +151,16 @@ def random_pixels(mask: torch.Tensor, normals: torch.Tensor, count: int,
 
 def make_batch(samples: Sequence[Sample], step: int, *, seed: int, batch: int, min_images: int,
                max_images: int, pixels: int, canonical: int, augment: bool = True,
-               canonical_max: int = 0, rank: int = 0, world: int = 1) -> Batch:
+               canonical_max: int = 0, interior_crop: float = 0.0, rank: int = 0, world: int = 1) -> Batch:
     """The batch of `step`, a pure function of (samples, step, seed and the settings).
 
     `canonical_max` > 0 keeps a random subset of at most that many canonical-grid points per object.
+    `interior_crop` is the probability that an object is replaced by a square cut from inside its mask
+    (`unips.augment.interior_crop`); at 0 no draw is made, so older runs keep their trajectories.
     With `world` > 1 processes, rank `rank` gets objects rank, rank + world, ... of the global batch
     (every random draw is made for the whole batch, so the union over ranks is the 1-process batch).
     """
-    from unips.augment import apply_augmentation, sample_augmentation
+    from unips.augment import apply_augmentation, interior_crop as cut_interior, sample_augmentation
 
     idx = batch_indices(seed, step, batch, len(samples))
     rng = step_rng(seed, step, 0)
@@ -172,6 +174,10 @@ def make_batch(samples: Sequence[Sample], step: int, *, seed: int, batch: int, m
         m, n = s.mask, s.normals
         if augment:
             x, m, n = apply_augmentation(sample_augmentation(rng, k), x, m, n)
+        if interior_crop > 0 and rng.random() < interior_crop:
+            cut = cut_interior(x, m, n, rng)
+            if cut is not None:
+                x, m, n = cut
         cc, cn = canonical_points(m, n, canonical)
         if 0 < canonical_max < cc.shape[0]:
             keep = torch.from_numpy(np.sort(rng.choice(cc.shape[0], size=canonical_max, replace=False)))
@@ -306,6 +312,8 @@ class TrainConfig:
     """'fp32' or 'bf16' (autocast of the forward pass; for GPUs)."""
     no_augment: bool = False
     """Disable flips / transpose / RGB permutation."""
+    interior_crop: float = 0.0
+    """Probability that a training sample is a square cut from inside the object's mask and resized to the working resolution: no outline, so the normals must come from the images."""
     no_progress: bool = False
     """No progress bar."""
     model_option: list[str] = field(default_factory=list)
@@ -345,6 +353,8 @@ class TrainConfig:
             raise ValueError(f"--clip-grad: got {self.clip_grad}, expected >= 0 (0: off)")
         if self.schedule not in ("cosine", "step"):
             raise ValueError(f"--schedule: got {self.schedule!r}, expected cosine or step")
+        if not (math.isfinite(self.interior_crop) and 0 <= self.interior_crop <= 1):
+            raise ValueError(f"--interior-crop: got {self.interior_crop}, expected a probability in [0, 1]")
         if self.precision not in ("fp32", "bf16"):
             raise ValueError(f"--precision: got {self.precision!r}, expected fp32 or bf16")
         bad = [p for p in self.val_probes if p not in PROBES]
@@ -360,7 +370,7 @@ class TrainConfig:
 # Settings that change the trajectory: a resumed run must use the same values.
 TRAJECTORY_KEYS = ("model", "init_from", "batch", "lr", "weight_decay", "schedule", "warmup", "min_lr_ratio",
                    "decay_every", "decay", "clip_grad", "max_images", "min_images", "pixels", "canonical_points",
-                   "seed", "res", "no_augment", "precision")
+                   "seed", "res", "no_augment", "precision", "interior_crop")
 
 
 def field_docs(cls: type) -> dict[str, str]:
@@ -569,8 +579,10 @@ def train(cfg: TrainConfig | argparse.Namespace) -> dict[str, Any]:
     if cfg.resume:
         ckpt = load_training_checkpoint(last_path)
         old = ckpt["extra"].get("train_args", {})
+        defaults = dataclasses.asdict(TrainConfig())
         for key, value in train_args.items():
-            if old.get(key) != value:
+            # A key newer than the checkpoint had its default value there.
+            if old.get(key, defaults.get(key)) != value:
                 raise ValueError(f"--resume: {key}={value!r} differs from the checkpoint's {old.get(key)!r}")
         if ckpt["data"].get("objects") != data_desc["objects"]:
             raise ValueError(f"--resume: the objects in --data {cfg.data!r} differ from the checkpoint's")
@@ -614,7 +626,7 @@ def train(cfg: TrainConfig | argparse.Namespace) -> dict[str, Any]:
         batch = make_batch(samples, step, seed=cfg.seed, batch=cfg.batch, min_images=cfg.min_images,
                            max_images=cfg.max_images, pixels=cfg.pixels, canonical=canonical,
                            augment=not cfg.no_augment, canonical_max=cfg.canonical_points,
-                           rank=dist.rank, world=dist.world)
+                           interior_crop=cfg.interior_crop, rank=dist.rank, world=dist.world)
         batch = Batch(*(getattr(batch, f.name).to(device) for f in dataclasses.fields(Batch)))
         # Dropout / drop-path draw from torch's global RNG: reseed it from (seed, step, rank).
         torch.manual_seed(int(step_rng(cfg.seed, step, 1 + dist.rank).integers(2**62)))
