@@ -184,6 +184,7 @@ MK = "wildgen.make"
 PR = "unips.predict"
 EV = "unips.evaluate"
 RR = "validate.rerender"
+RF = "validate.refine"
 TR = "unips.train"
 DEMO = "orchestrate.demo"
 PV = "wildgen.preview"
@@ -427,6 +428,23 @@ ROWS: list[Row] = [
                                              "--no-floors", "--spp", "1"], 1, ("failed 00001", "normal.png"),
         check=_written("o/00000/report.json")),
     Row("rerender-unknown-flag", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--fast"], 2, ("--fast",)),
+    # ---- validate.refine (fast-failing cases; refinement itself is tests/test_fit.py)
+    Row("refine-unknown-flag", RF, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{T}/o", "--fast"], 2,
+        ("--fast",), check=_not_written("o")),
+    Row("refine-lights-bad", RF, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{T}/o", "--lights", "magic"],
+        2, ("--lights", "magic"), check=_not_written("o")),
+    Row("refine-light-model-bad", RF, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{T}/o",
+                                       "--light-model", "sun"], 2, ("--light-model", "sun"), check=_not_written("o")),
+    Row("refine-holdout-range", RF, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{T}/o", "--holdout", "0.7"],
+        2, ("--holdout", "0.7"), check=_not_written("o")),
+    Row("refine-holdout-nan", RF, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{T}/o", "--holdout", "nan"],
+        2, ("--holdout",), check=_not_written("o")),
+    Row("refine-rounds-0", RF, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{T}/o", "--rounds", "0"], 2,
+        ("--rounds",), check=_not_written("o")),
+    Row("refine-normals-missing", RF, ["--data", OBJDIR, "--normals", "{W}/nowhere.png", "--out", "{T}/o"], 2,
+        ("--normals", "nowhere.png"), check=_not_written("o")),
+    Row("refine-data-missing", RF, ["--data", "{W}/nowhere", "--normals", "{W}/pred/00000", "--out", "{T}/o"], 2,
+        ("--data", "nowhere"), check=_not_written("o")),
     # ---- unips.train
     Row("train-resume-truncated-last", TR, ["--data", "{W}/data", "--out", "{W}/run_trunc", "--model", "glc-test", "--steps",
                                             "2", "--resume", "--no-progress"], 2, ("last.pt", "corrupt or truncated"),
@@ -451,6 +469,8 @@ ROWS: list[Row] = [
         2, ("--precision", "fp8")),
     Row("train-val-probes-bad", TR, ["--data", "{W}/data", "--out", "{T}/run", "--model", "glc-test", "--val-probes",
                                      "all,nope"], 2, ("--val-probes", "nope")),
+    Row("train-interior-crop-range", TR, ["--data", "{W}/data", "--out", "{T}/run", "--model", "glc-test",
+                                          "--interior-crop", "1.5"], 2, ("--interior-crop", "1.5")),
     Row("train-lr-nan", TR, ["--data", "{W}/data", "--out", "{T}/run", "--model", "glc-test", "--lr", "nan"], 2, ("--lr",)),
     Row("train-resume-and-overwrite", TR, ["--data", "{W}/data", "--out", "{T}/run", "--model", "glc-test", "--resume",
                                            "--overwrite"], 2, ("--resume", "--overwrite")),
@@ -520,7 +540,7 @@ def test_bad_input(row: Row, world: Path, tmp_path: Path, capsys):
 def test_table_size():
     assert len(ROWS) >= 100
     assert len({r.id for r in ROWS}) == len(ROWS)
-    assert {r.cli for r in ROWS} >= {MK, PV, PR, EV, RR, TR, DEMO}
+    assert {r.cli for r in ROWS} >= {MK, PV, PR, EV, RR, RF, TR, DEMO}
 
 
 @pytest.mark.parametrize("how", ["after-lock", "at-1s"])

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from scenes.cli import progress_bar, report_error
+from scenes.cli import INPUT_ERRORS, UsageErrorParser, progress_bar, report_error
 from scenes.variant import require_ad_variant
 from validate.fit import FitConfig, FitScene, Progress, _start, fit_normals, rel_l1_pixels, run_fit, to_jit
 
@@ -330,7 +330,7 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m validate.refine", description="Refine a normal map by fitting light, reflectance and normals to the images through Mitsuba.")
+    p = UsageErrorParser(prog="python -m validate.refine", description="Refine a normal map by fitting light, reflectance and normals to the images through Mitsuba.")
     p.add_argument("--data", required=True, help="object folder: ours (with or without scene.json), UniPS .data, or DiLiGenT *PNG")
     p.add_argument("--normals", required=True, help="starting normal map file (.png/.exr/.npy/.tif) or a folder with <object>/normal.*")
     p.add_argument("--out", default="refined", help="output folder: <out>/<object>/normal.png and refine_report.json (default ./refined)")
@@ -349,7 +349,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except INPUT_ERRORS as exc:
+        return report_error(exc)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
         config = RefineConfig(
