@@ -109,6 +109,7 @@ def test_shipped_model_reads_the_images_not_only_the_outline(rendered):
     assert mean["one"] - mean["all"] > 0.5 * GAIN_FLOOR_DEG, mean
 
 
-# The shipped glc-tiny's measured gain on these 10 objects is in the closing note / README; the floor
-# sits well below it and well above the ~0 of a silhouette-only model.
-GAIN_FLOOR_DEG = 1.5
+# Measured on these 10 objects: the shipped glc-tiny gains 15.9 deg (13.5 all images, 18.7 one image,
+# 29.4 mask only; the weights before the 128 px fine-tunes gained 4.5). The floor sits well below that
+# and far above the ~0 of a silhouette-only model.
+GAIN_FLOOR_DEG = 6.0
