@@ -39,13 +39,10 @@ def table(run: Path, families: bool = False) -> str:
                      f"{_cell(p.get('one'))} | {_cell(p.get('mask'))} | {_cell(p.get('shuffled'))} | "
                      f"{_cell(v.get('gain'))} |")
     if families and rows:
-        fam = rows[-1]["val"].get("families", {})
-        lines += ["", f"per family at step {rows[-1]['step']}:", "",
-                  "| family | all images | one image | mask only | shuffled | photometric gain |", "|---|---|---|---|---|---|"]
-        for name, f in sorted(fam.items()):
-            m = f.get("mean", {})
-            lines.append(f"| {name} (n={f.get('n')}) | {_cell(m.get('all'))} | {_cell(m.get('one'))} | "
-                         f"{_cell(m.get('mask'))} | {_cell(m.get('shuffled'))} | {_cell(f.get('gain'))} |")
+        from unips.probes import format_table
+
+        last = rows[-1]["val"]  # unips.train.validate renames summarise's "mean" dict to "probes"
+        lines += ["", f"per family at step {rows[-1]['step']}:", "", format_table({**last, "mean": last["probes"]})]
     return "\n".join(lines)
 
 

@@ -581,9 +581,9 @@ def train(cfg: TrainConfig | argparse.Namespace) -> dict[str, Any]:
         old = ckpt["extra"].get("train_args", {})
         defaults = dataclasses.asdict(TrainConfig())
         for key, value in train_args.items():
-            # A key newer than the checkpoint had its default value there.
-            if old.get(key, defaults.get(key)) != value:
-                raise ValueError(f"--resume: {key}={value!r} differs from the checkpoint's {old.get(key)!r}")
+            saved = old.get(key, defaults.get(key))  # a key newer than the checkpoint had its default there
+            if saved != value:
+                raise ValueError(f"--resume: {key}={value!r} differs from the checkpoint's {saved!r}")
         if ckpt["data"].get("objects") != data_desc["objects"]:
             raise ValueError(f"--resume: the objects in --data {cfg.data!r} differ from the checkpoint's")
         load_state_strict(model, ckpt["model"], str(last_path))
