@@ -7,8 +7,9 @@ DiLiGenT (ball, cat; skipped when the folder is absent):
 - the score (rel_l1) of ground truth, calibrated least squares (unips.baselines), the shipped model and the
   constant (0, 0, 1) map, with their angular errors;
 - perturbation series of the ground truth (random, smooth, bias; 5-40 deg): Spearman(score, angular error);
-- refinement from the shipped model's prediction (fitted lights, and the calibrated lights held) and from
-  calibrated least squares: angular error before / after, minutes.
+- refinement from the shipped model's prediction (fitted lights, and the calibrated lights held), from
+  calibrated least squares, and from the ground truth itself (how far the refinement moves a perfect map:
+  the error floor its data term sets on this object): angular error before / after, minutes.
 Synthetic (held-out wildgen objects rendered here, scene.json removed for the fitted mode): the same
 perturbation series scored in fitted and in known-scene mode (validate.rerender), Spearman between the
 two, and refinement from the model vs calibrated least squares on directional objects.
@@ -102,7 +103,8 @@ def diligent(args, net, out: dict) -> None:
         if not args.skip_refine:
             ref = {}
             for label, start, lights in (("model, fitted lights", model, "fitted"), ("model, calibrated lights", model, "calibrated"),
-                                         ("least squares, fitted lights", ls, "fitted")):
+                                         ("least squares, fitted lights", ls, "fitted"),
+                                         ("ground truth, fitted lights", cap.normal_gt, "fitted")):
                 t0 = time.perf_counter()
                 r = refine_object(str(folder), start, RefineConfig(fit=FitConfig(seed=args.seed), lights=lights))
                 ref[label] = {"before_mae": r["before"]["mae_deg"], "after_mae": r["after"]["mae_deg"],
