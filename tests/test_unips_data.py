@@ -239,6 +239,21 @@ def test_bad_inputs(tmp_path):
     with pytest.raises(ValueError, match="max_images"):
         load_object(rows, max_images=0)
 
+    # Both readers share scenes.layouts: the fitted check refuses the same bad light files the model's
+    # loader does (a zero direction used to become NaN lights there).
+    from validate.capture import load_capture
+
+    zero = tmp_path / "zero"
+    write_diligent(zero)
+    text = (zero / "light_directions.txt").read_text().splitlines()
+    text[1] = "0 0 0"
+    (zero / "light_directions.txt").write_text("\n".join(text))
+    for reader in (load_object, load_capture):
+        with pytest.raises(ValueError, match="light_directions.*row 2 is a zero vector"):
+            reader(zero)
+        with pytest.raises(ValueError, match="light_intensities.*5 rows, expected 6"):
+            reader(rows)
+
     scene = tmp_path / "scene.data"
     write_ours(scene)
     (scene / "scene.json").write_text("{not json")

@@ -23,19 +23,17 @@ which the least-squares baseline reproducing the published errors confirms).
 from __future__ import annotations
 
 import logging
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from scenes.layouts import LAYOUTS, detect_layout, diligent_images, l_images, read_diligent_lights
 from scenes.objfolder import MASK_FILE, NORMAL_FILE, SCENE_FILE, object_name, read_image, read_mask, read_normals, read_scene_dict
 
 log = logging.getLogger(__name__)
 
-LAYOUTS = ("ours", "unips", "diligent")
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
 EXPECTED = ("an object folder: L*.png + scene.json (ours), L* images (UniPS), or DiLiGenT "
             "001.png... + light_directions.txt; or a directory of such folders")
 
@@ -59,38 +57,6 @@ class PSObject:
     @property
     def num_images(self) -> int:
         return int(self.images.shape[0])
-
-
-def _natural_key(name: str) -> list[Any]:
-    """Sort key so that L2 comes before L10; zero-padded names sort as usual."""
-    return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", name)]
-
-
-def _unips_images(folder: Path) -> list[Path]:
-    """Images ``L*`` with an image extension (the official ``L*[!.txt]`` pattern, without text files)."""
-    return sorted((p for p in folder.iterdir() if p.is_file() and p.name.startswith("L")
-                   and p.suffix.lower() in IMAGE_SUFFIXES), key=lambda p: _natural_key(p.name))
-
-
-def _digit_images(folder: Path) -> list[Path]:
-    return sorted((p for p in folder.iterdir() if p.is_file() and p.suffix.lower() == ".png"
-                   and p.stem.isdigit()), key=lambda p: _natural_key(p.name))
-
-
-def detect_layout(path: str | Path) -> str | None:
-    """Layout name of an object folder, or None when the folder is not one."""
-    folder = Path(path)
-    if not folder.is_dir():
-        return None
-    has_l = bool(_unips_images(folder))
-    if has_l and (folder / "scene.json").is_file():
-        return "ours"
-    if (folder / "light_directions.txt").is_file() and ((folder / "filenames.txt").is_file()
-                                                       or _digit_images(folder)):
-        return "diligent"
-    if has_l:
-        return "unips"
-    return None
 
 
 def find_objects(path: str | Path) -> list[Path]:
@@ -133,25 +99,6 @@ def read_normal_file(path: Path, mask: np.ndarray) -> np.ndarray:
     return _finish_normals(read_normals(path), mask, path)
 
 
-def read_text_matrix(path: Path, rows: int, what: str) -> np.ndarray:
-    """(rows, 3) float64 matrix from a whitespace/comma separated text file, checked."""
-    if not path.is_file():
-        raise FileNotFoundError(f"{what} file {path} does not exist")
-    try:
-        text = path.read_text().replace(",", " ")
-        values = np.array([[float(v) for v in line.split()] for line in text.splitlines() if line.strip()],
-                          dtype=np.float64)
-    except ValueError as exc:
-        raise ValueError(f"{what} file {path}: cannot parse numbers ({exc})") from exc
-    if values.ndim != 2 or values.shape[1] != 3:
-        raise ValueError(f"{what} file {path}: expected 3 numbers per row, got shape {values.shape}")
-    if values.shape[0] != rows:
-        raise ValueError(f"{what} file {path}: has {values.shape[0]} rows, expected {rows} (one per image)")
-    if not np.all(np.isfinite(values)):
-        raise ValueError(f"{what} file {path}: contains NaN or infinite values")
-    return values
-
-
 def _load_stack(paths: list[Path]) -> np.ndarray:
     """(K, H, W, 3) float32 from image files that must all have the same size."""
     first = read_image(paths[0])
@@ -180,8 +127,8 @@ def _take(paths: list[Path], max_images: int | None, folder: Path) -> list[Path]
 
 
 def _load_ours(folder: Path, max_images: int | None) -> PSObject:
-    paths = _take(_unips_images(folder), max_images, folder)
-    n_all = len(_unips_images(folder))
+    paths = _take(l_images(folder), max_images, folder)
+    n_all = len(l_images(folder))
     images = _load_stack(paths)
     shape = images.shape[1:3]
     mask = read_mask(folder / MASK_FILE, shape)
@@ -226,7 +173,7 @@ def _directional(cam: list, scene_path: Path) -> tuple[np.ndarray | None, np.nda
 
 
 def _load_unips(folder: Path, max_images: int | None) -> PSObject:
-    paths = _take(_unips_images(folder), max_images, folder)
+    paths = _take(l_images(folder), max_images, folder)
     images = _load_stack(paths)
     shape = images.shape[1:3]
     mask_path = folder / "mask.png"
@@ -242,25 +189,11 @@ def _load_unips(folder: Path, max_images: int | None) -> PSObject:
 
 
 def _load_diligent(folder: Path, max_images: int | None) -> PSObject:
-    list_path = folder / "filenames.txt"
-    if list_path.is_file():
-        names = [line.strip() for line in list_path.read_text().splitlines() if line.strip()]
-        all_paths = [folder / n for n in names]
-    else:
-        all_paths = _digit_images(folder)
+    all_paths = diligent_images(folder)
     n_all = len(all_paths)
     paths = _take(all_paths, max_images, folder)
-    directions = read_text_matrix(folder / "light_directions.txt", n_all, "light_directions")[: len(paths)]
-    norms = np.linalg.norm(directions, axis=1)
-    if np.any(norms < 1e-9):
-        raise ValueError(f"light_directions file {folder / 'light_directions.txt'}: row "
-                         f"{int(np.argmin(norms)) + 1} is a zero vector")
-    directions = directions / norms[:, None]
-    int_path = folder / "light_intensities.txt"
-    raw_int = (read_text_matrix(int_path, n_all, "light_intensities")[: len(paths)] if int_path.is_file()
-               else np.ones((len(paths), 3)))
-    if np.any(raw_int <= 0):
-        raise ValueError(f"light_intensities file {int_path}: intensities must be > 0")
+    directions, raw_int = read_diligent_lights(folder, n_all)
+    directions, raw_int = directions[: len(paths)], raw_int[: len(paths)]
     images = _load_stack(paths)  # raw: the calibration stays out of what a model sees
     shape = images.shape[1:3]
     mask_path = folder / "mask.png"
@@ -323,15 +256,10 @@ def load_ground_truth(path: str | Path, layout: str | None = None) -> GroundTrut
     if layout not in LAYOUTS:
         raise ValueError(f"layout: unknown layout {layout!r}, expected one of {LAYOUTS}")
     if layout == "diligent":
-        list_path = folder / "filenames.txt"
-        if list_path.is_file():
-            names = [line.strip() for line in list_path.read_text().splitlines() if line.strip()]
-            images = [folder / n for n in names]
-        else:
-            images = _digit_images(folder)
+        images = diligent_images(folder)
         gt_names = ("Normal_gt.mat", "Normal_gt.png")
     else:
-        images = _unips_images(folder)
+        images = l_images(folder)
         gt_names = ("normal.tif", "Normal_gt.png")
     if not images:
         raise FileNotFoundError(f"path: no images found in {folder} (expected {EXPECTED})")

@@ -26,7 +26,8 @@ import numpy as np
 
 from scenes.cli import UsageError, UsageErrorParser, one_line, report_error
 from scenes.objfolder import angular_error_deg, object_name, prediction_file, read_normals
-from unips.data import detect_layout, find_objects, load_ground_truth
+from scenes.layouts import detect_layout
+from unips.data import find_objects, load_ground_truth
 
 log = logging.getLogger(__name__)
 

@@ -30,7 +30,8 @@ import numpy as np
 
 from scenes.cli import INPUT_ERRORS, UsageError, UsageErrorParser, one_line, report_error
 from scenes.objfolder import PREDICTION_FILES, object_name, write_normal_exr, write_normal_map, write_normal_visual
-from unips.data import detect_layout, find_objects, load_object
+from scenes.layouts import detect_layout
+from unips.data import find_objects, load_object
 from unips.inference import METHODS, load_network, predict_object
 
 log = logging.getLogger(__name__)

@@ -1,6 +1,6 @@
 """Reading a photometric-stereo capture that may have no scene.json (fitted mode of the re-render check).
 
-Layouts (detected in this order):
+Layouts (`scenes.layouts` detects them and lists their files):
 - `ours`: our object folder (`L000.png..`, `mask.png`, optional `normal.tif`, `scene.json`); with the
   scene file removed it reads like `unips`. Calibrated lights come from `scene.json`'s `camera_lights`
   when every image has exactly one directional light.
@@ -20,20 +20,17 @@ from __future__ import annotations
 
 import json
 import logging
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from scenes.layouts import ALL_IMAGE_SUFFIXES, detect_layout, diligent_images, l_images, read_diligent_lights
 from scenes.objfolder import object_name, read_mask
 from validate.io import read_normal_map, read_prediction
 
 log = logging.getLogger(__name__)
 
-LAYOUTS = ("ours", "diligent", "unips")
-IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".exr")
-"""File names looked for when `--normals` is a folder, in this order."""
 
 
 @dataclass
@@ -45,7 +42,7 @@ class Capture:
     folder: Path
     """The object folder."""
     layout: str
-    """One of LAYOUTS."""
+    """One of `scenes.layouts.LAYOUTS`."""
     images: np.ndarray
     """(K, H, W, 3) float32 linear images (DiLiGenT: divided by the light intensities)."""
     mask: np.ndarray
@@ -70,32 +67,6 @@ class Capture:
         return tuple(self.mask.shape)  # type: ignore[return-value]
 
 
-def _natural_key(name: str) -> list:
-    return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", name)]
-
-
-def _l_images(folder: Path) -> list[Path]:
-    return sorted(
-        (p for p in folder.iterdir() if p.is_file() and p.name.startswith("L") and p.suffix.lower() in IMAGE_SUFFIXES),
-        key=lambda p: _natural_key(p.name),
-    )
-
-
-def _digit_images(folder: Path) -> list[Path]:
-    return sorted((p for p in folder.iterdir() if p.is_file() and p.suffix.lower() == ".png" and p.stem.isdigit()), key=lambda p: _natural_key(p.name))
-
-
-def detect_layout(folder: str | Path) -> str | None:
-    folder = Path(folder)
-    if not folder.is_dir():
-        return None
-    if (folder / "light_directions.txt").is_file() and ((folder / "filenames.txt").is_file() or _digit_images(folder)):
-        return "diligent"
-    if _l_images(folder):
-        return "ours" if (folder / "scene.json").is_file() else "unips"
-    return None
-
-
 def read_image(path: Path) -> np.ndarray:
     """(H, W, 3) float32 linear RGB: `scenes.objfolder.read_image`, plus float EXR inputs."""
     from scenes.objfolder import read_exr
@@ -105,18 +76,6 @@ def read_image(path: Path) -> np.ndarray:
         img = read_exr(path)
         return np.repeat(img, 3, axis=2) if img.shape[2] == 1 else img[:, :, :3]
     return read_ldr(path)
-
-
-def _text_matrix(path: Path, rows: int, what: str) -> np.ndarray:
-    if not path.is_file():
-        raise FileNotFoundError(f"{what}: {str(path)!r} does not exist")
-    try:
-        vals = np.array([[float(v) for v in line.replace(",", " ").split()] for line in path.read_text().splitlines() if line.strip()])
-    except ValueError as exc:
-        raise ValueError(f"{what}: {str(path)!r} has non-numeric entries ({exc})") from exc
-    if vals.ndim != 2 or vals.shape != (rows, 3) or not np.isfinite(vals).all():
-        raise ValueError(f"{what}: {str(path)!r} has shape {vals.shape}, expected ({rows}, 3) finite values (one row per image)")
-    return vals
 
 
 def unit_normals(n: np.ndarray, mask: np.ndarray, what: str = "--normals") -> np.ndarray:
@@ -170,18 +129,13 @@ def load_capture(folder: str | Path, max_images: int | None = None) -> Capture:
     dirs = irr = None
     meta: dict = {}
     if layout == "diligent":
-        lst = folder / "filenames.txt"
-        paths = [folder / l.strip() for l in lst.read_text().splitlines() if l.strip()] if lst.is_file() else _digit_images(folder)
-        dirs = _text_matrix(folder / "light_directions.txt", len(paths), "light_directions")
-        dirs = (dirs / np.linalg.norm(dirs, axis=1, keepdims=True)).astype(np.float32)
-        ipath = folder / "light_intensities.txt"
-        raw = _text_matrix(ipath, len(paths), "light_intensities") if ipath.is_file() else np.ones((len(paths), 3))
-        if (raw <= 0).any():
-            raise ValueError(f"light_intensities: {str(ipath)!r} has non-positive values")
+        paths = diligent_images(folder)
+        dirs, raw = read_diligent_lights(folder, len(paths))
+        dirs = dirs.astype(np.float32)
         meta["light_intensities_file"] = raw.tolist()
         irr = np.ones((len(paths), 3), np.float32)
     else:
-        paths = _l_images(folder)
+        paths = l_images(folder, ALL_IMAGE_SUFFIXES)
         raw = None
     if max_images is not None:
         paths = paths[: int(max_images)]
@@ -209,7 +163,7 @@ def load_capture(folder: str | Path, max_images: int | None = None) -> Capture:
             gt = np.where(mask[..., None] & (norm > 0.5), g / np.maximum(norm, 1e-12), 0.0).astype(np.float32)
             break
     if layout == "ours":
-        full_k = len(_l_images(folder))
+        full_k = len(l_images(folder, ALL_IMAGE_SUFFIXES))
         d2, i2 = _camera_lights(folder, full_k)
         if d2 is not None:
             dirs, irr = d2[: len(paths)], i2[: len(paths)]

@@ -580,7 +580,7 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
         logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
                             format="%(levelname)s %(name)s: %(message)s")
-        from validate.capture import detect_layout
+        from scenes.layouts import detect_layout
 
         if args.fit or (Path(args.data).is_dir() and detect_layout(args.data) in ("diligent", "unips")):
             return _main_fitted(args)
