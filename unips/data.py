@@ -127,8 +127,9 @@ def _take(paths: list[Path], max_images: int | None, folder: Path) -> list[Path]
 
 
 def _load_ours(folder: Path, max_images: int | None) -> PSObject:
-    paths = _take(l_images(folder), max_images, folder)
-    n_all = len(l_images(folder))
+    all_paths = l_images(folder)
+    n_all = len(all_paths)
+    paths = _take(all_paths, max_images, folder)
     images = _load_stack(paths)
     shape = images.shape[1:3]
     mask = read_mask(folder / MASK_FILE, shape)

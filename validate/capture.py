@@ -32,7 +32,6 @@ from validate.io import read_normal_map, read_prediction
 log = logging.getLogger(__name__)
 
 
-
 @dataclass
 class Capture:
     """One object's images with what is known about them (no scene description needed)."""
@@ -137,6 +136,7 @@ def load_capture(folder: str | Path, max_images: int | None = None) -> Capture:
     else:
         paths = l_images(folder, ALL_IMAGE_SUFFIXES)
         raw = None
+    full_k = len(paths)  # before --max-images: scene.json's camera_lights has one entry per file
     if max_images is not None:
         paths = paths[: int(max_images)]
         dirs = dirs[: len(paths)] if dirs is not None else None
@@ -163,7 +163,6 @@ def load_capture(folder: str | Path, max_images: int | None = None) -> Capture:
             gt = np.where(mask[..., None] & (norm > 0.5), g / np.maximum(norm, 1e-12), 0.0).astype(np.float32)
             break
     if layout == "ours":
-        full_k = len(l_images(folder, ALL_IMAGE_SUFFIXES))
         d2, i2 = _camera_lights(folder, full_k)
         if d2 is not None:
             dirs, irr = d2[: len(paths)], i2[: len(paths)]
