@@ -77,7 +77,7 @@ def diligent(args, net, out: dict) -> None:
         def score(n_full: np.ndarray):
             n = downsample_normals(n_full, small.mask, f)
             n = np.where(small.mask[..., None] & (np.linalg.norm(n, axis=-1, keepdims=True) < 0.5), np.float32([0, 0, 1]), n)
-            return fit_normals(small.images, small.mask, n, cfg)
+            return fit_normals(small.images, small.mask, n, cfg, saturated=small.saturated)
 
         t0 = time.perf_counter()
         r_gt = score(cap.normal_gt)
@@ -139,7 +139,7 @@ def synthetic(args, net, out: dict) -> None:
             maps = [("gt", 0, cap.normal_gt)] + list(series(cap.normal_gt, cap.mask, args.synthetic_angles, args.kinds, args.seed))
             res = []
             for kind, a, n in maps:
-                fitted = fit_normals(cap.images, cap.mask, n, cfg).rel_l1
+                fitted = fit_normals(cap.images, cap.mask, n, cfg, saturated=cap.saturated).rel_l1
                 known = rerender_object(folder, n, RerenderConfig(floors=False))["rel_l1"]
                 res.append({"kind": kind, "angle": a, "mae_deg": mae_deg(n, cap.normal_gt, cap.mask), "fitted": fitted, "known": known})
             family = json.loads((folder / "scene.json").read_text()).get("light_family")

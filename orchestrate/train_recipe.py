@@ -1,14 +1,15 @@
 """The reproducible training recipe: data, held-out split, training, the ship decision, evaluation.
 
     python -m orchestrate.train_recipe --work /tmp/recipe [--assets ../shared/assets] [--model glc-small]
-                                       [--init-from WEIGHTS] [--train-seed 5000] [--train-objects 800]
+                                       [--init-from WEIGHTS] [--train-seed 5000[,SEED...]] [--train-objects 800]
                                        [--steps 4000] [--threads 2] [--ablation] [--ship]
 
 1. Split the asset folder: the last quarter of the meshes and the last fifth of the HDR maps (sorted by
    name, rounded up; with ../shared/assets: 5 of 19 meshes, 7 of 35 maps) are held out for validation
    and test; texture sets are shared (there are only eight).
 2. Render with `wildgen.make`, all five light families cycled: train (seed `--train-seed`, 128 px,
-   10 images, 16 spp, train assets; a new seed gives fresh data for a continued run), the fixed
+   10 images, 16 spp, train assets; a new seed gives fresh data for a continued run; several seeds,
+   comma-separated, give one set each, pooled for training), the fixed
    validation set (seed 4000, 100 objects, 128 px, 10 images, 32 spp, held-out assets: the test
    distribution) and the test set (seed 3000, 100 objects, same settings).
 3. Train with `unips.train` (warm-up + cosine, gradient clipping, 1..10 images per sample, probes at
@@ -71,7 +72,8 @@ def train_run(py: str, work: Path, name: str, args: argparse.Namespace, extra: l
     resume = ["--resume"] if (out / "last.pt").is_file() else []
     init = ["--init-from", args.init_from] if args.init_from and not resume and not extra else []
     model = [] if init else ["--model", args.model]
-    cmd = [py, "-m", "unips.train", "--data", str(work / f"train{args.train_seed}"), "--val", str(work / "val128"),
+    data = ",".join(str(work / f"train{seed}") for seed in args.train_seed)
+    cmd = [py, "-m", "unips.train", "--data", data, "--val", str(work / "val128"),
            *model, *init, "--out", str(out), "--steps", str(args.steps), "--batch", "4", "--lr", str(args.lr),
            "--val-every", "500", "--ckpt-every", "250", "--seed", "0", "--threads", str(args.threads),
            "--no-progress", *extra, *resume]
@@ -81,13 +83,25 @@ def train_run(py: str, work: Path, name: str, args: argparse.Namespace, extra: l
     return out
 
 
+def seed_list(text: str) -> list[int]:
+    """--train-seed: one integer or several separated by commas."""
+    try:
+        seeds = [int(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected integers separated by commas, got {text!r}") from None
+    if not seeds or len(set(seeds)) != len(seeds):
+        raise argparse.ArgumentTypeError(f"expected distinct integers separated by commas, got {text!r}")
+    return seeds
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--work", required=True, help="working folder (datasets, runs, benchmark output)")
     p.add_argument("--assets", default=str(SHARED / "assets") if (SHARED / "assets").is_dir() else None)
     p.add_argument("--model", default="glc-small", help="registered model trained from scratch (default glc-small)")
     p.add_argument("--init-from", default=None, help="weights to continue from (weights only; e.g. unips/weights/...)")
-    p.add_argument("--train-seed", type=int, default=5000, help="seed of the training data (new seed: fresh data)")
+    p.add_argument("--train-seed", type=seed_list, default=[5000],
+                   help="seed of the training data (new seed: fresh data); several, comma-separated: one set each, pooled")
     p.add_argument("--train-objects", type=int, default=800)
     p.add_argument("--steps", type=int, default=4000)
     p.add_argument("--lr", type=float, default=1e-3)
@@ -103,8 +117,8 @@ def main() -> int:
         train_assets, held_assets = split_assets(Path(args.assets), work)
         asset_flags = (["--assets", str(train_assets)], ["--assets", str(held_assets)])
     sets = {
-        f"train{args.train_seed}": ["--objects", str(args.train_objects), "--images", "10", "--res", "128", "--spp", "16",
-                                    "--gt-spp", "4", "--seed", str(args.train_seed), *asset_flags[0]],
+        **{f"train{seed}": ["--objects", str(args.train_objects), "--images", "10", "--res", "128", "--spp", "16",
+                            "--gt-spp", "4", "--seed", str(seed), *asset_flags[0]] for seed in args.train_seed},
         "val128": [*VAL_FLAGS, *asset_flags[1]],
         "test128": [*TEST_FLAGS, *asset_flags[1]],
     }
@@ -173,7 +187,7 @@ def ship(work: Path, run_dir: Path, args: argparse.Namespace) -> None:
     card.update({
         "model": name, "weights": f"unips/weights/{name}.safetensors",
         "parameters": sum(p.numel() for p in model.parameters()),
-        "data_recipe": f"orchestrate/train_recipe.py --train-seed {args.train_seed} --train-objects "
+        "data_recipe": f"orchestrate/train_recipe.py --train-seed {','.join(map(str, args.train_seed))} --train-objects "
                        f"{args.train_objects} --steps {args.steps}" + (f" --init-from {args.init_from}" if args.init_from else ""),
         "validation_data": "seed 4000, 100 objects, 128 px, 10 images, 32 spp, held-out meshes and HDR maps",
         "validation_probes": {k: new[k] for k in ("mean", "gain", "probes", "families") if k in new},

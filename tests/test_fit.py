@@ -136,6 +136,38 @@ def test_fitted_lights_and_ranking(jit, sphere_folder):
     assert const.rel_l1 > bad.rel_l1
 
 
+def test_saturated_observations_are_censored(jit, sphere_folder, tmp_path):
+    """The sphere's images brightened until their lit half clips at the 16-bit maximum: the loader flags
+    those channels (also through a box downsampling), and the fit that treats them as lower bounds
+    recovers the rendered light directions, while taking the clipped values at face value does not."""
+    import shutil
+
+    from scenes.objfolder import read_image, write_png16
+    from validate.capture import downsample_capture, load_capture
+    from validate.fit import fit_normals
+    from validate.lights import angular_errors_deg
+
+    clipped = tmp_path / "clipped.data"
+    clipped.mkdir()
+    for name in ("mask.png", "normal.tif"):
+        shutil.copy(sphere_folder / name, clipped / name)
+    for p in sorted(sphere_folder.glob("L*.png")):
+        write_png16(clipped / p.name, read_image(p) * 3.0)
+    cap = load_capture(clipped)
+    frac = cap.saturated[:, cap.mask].mean()
+    assert 0.1 < frac < 0.6, frac
+    assert load_capture(sphere_folder).saturated is None
+    small = downsample_capture(cap, 2)
+    assert small.saturated[:, small.mask].mean() >= frac  # a block with any clipped source stays a lower bound
+    cfg = small_config(specular=False)
+    err = {}
+    for label, sat in (("censored", cap.saturated), ("face value", None)):
+        r = fit_normals(cap.images, cap.mask, cap.normal_gt, cfg, saturated=sat)
+        err[label] = angular_errors_deg(r.light_params["directions"], TO_LIGHT)
+    assert err["censored"].max() < 1.5, err
+    assert err["face value"].mean() > err["censored"].mean() + 2.0, err
+
+
 def test_gradients_flow_to_light_parameters(jit, sphere_folder):
     """d loss / d (light direction, log irradiance) from Dr.Jit AD through the Mitsuba BSDF matches central
     finite differences."""
@@ -146,7 +178,7 @@ def test_gradients_flow_to_light_parameters(jit, sphere_folder):
 
     cap = load_capture(sphere_folder)
     fs = FitScene(cap.images, cap.mask, cap.normal_gt, small_config(specular=False), "directional")
-    start = _start(fs.images, fs.n_np)
+    start = _start(fs)
     start["directions"] = start["directions"] + np.array([0.05, -0.03, 0.0])  # off the optimum
     fs.init_params(start)
     fs.refresh_visibility()

@@ -106,6 +106,17 @@ def test_samples_load_from_disk(dataset) -> None:
     assert s.light_family == "directional"
 
 
+def test_several_data_directories_are_pooled(dataset) -> None:
+    both = f"{dataset['train']},{dataset['val']}"
+    samples = load_samples(both, 32)
+    assert [s.name for s in samples] == [f"train/obj{i}" for i in range(6)] + ["val/val0", "val/val1"]
+    assert torch.equal(samples[0].images, load_samples(dataset["train"], 32)[0].images)
+    with pytest.raises(ValueError, match="same name"):
+        load_samples(f"{dataset['train']},{dataset['train']}", 32)
+    with pytest.raises(FileNotFoundError, match="nowhere"):
+        load_samples(f"{dataset['train']},{dataset['train'].parent / 'nowhere'}", 32)
+
+
 def test_batches_are_a_function_of_seed_and_step(dataset) -> None:
     samples = load_samples(dataset["train"], 32)
     kw = dict(seed=3, batch=2, min_images=2, max_images=4, pixels=50, canonical=32)

@@ -71,25 +71,41 @@ def to_tensors(images: np.ndarray, mask: np.ndarray, normals: np.ndarray | None
     return imgs.contiguous(), m, None if n is None else n.contiguous()
 
 
+def data_roots(data: str | Path) -> list[Path]:
+    """The dataset directories of a --data value: one path, or several separated by commas."""
+    roots = [Path(p.strip()) for p in str(data).split(",") if p.strip()]
+    if not roots:
+        raise ValueError(f"--data: {str(data)!r} names no directory")
+    names = [r.name for r in roots]
+    if len(set(names)) != len(names):
+        raise ValueError(f"--data: {str(data)!r} names two directories with the same name (object names would collide)")
+    return roots
+
+
 def load_samples(root: str | Path, res: int, require_normals: bool = True) -> list[Sample]:
-    """Load, crop, normalise and resize every object under `root` (helper B's loaders)."""
+    """Load, crop, normalise and resize every object under `root` (one dataset directory, or several
+    separated by commas: their objects are pooled and named DIRNAME/OBJECT)."""
     from unips.data import find_objects, load_object
     from unips.preprocess import prepare, resize_prepared
 
+    roots = data_roots(root)
     samples = []
-    for p in find_objects(root):  # FileNotFoundError naming the path when there is none
-        obj = load_object(p)
-        if require_normals and obj.normals is None:
-            raise ValueError(f"object {obj.name!r} in {str(root)!r} has no ground-truth normals (normal.tif)")
-        prep = resize_prepared(prepare(obj, margin=4), res)
-        imgs, m, n = to_tensors(prep.images, prep.mask, prep.normals)
-        samples.append(Sample(obj.name, imgs.to(torch.float16), m, n, obj.light_family))
+    for r in roots:
+        for p in find_objects(r):  # FileNotFoundError naming the path when there is none
+            obj = load_object(p)
+            if require_normals and obj.normals is None:
+                raise ValueError(f"object {obj.name!r} in {str(r)!r} has no ground-truth normals (normal.tif)")
+            prep = resize_prepared(prepare(obj, margin=4), res)
+            imgs, m, n = to_tensors(prep.images, prep.mask, prep.normals)
+            name = obj.name if len(roots) == 1 else f"{r.name}/{obj.name}"
+            samples.append(Sample(name, imgs.to(torch.float16), m, n, obj.light_family))
     return samples
 
 
 def describe_data(samples: Sequence[Sample], root: str | Path, res: int) -> dict[str, Any]:
     """Data description stored in checkpoints (and compared on resume)."""
-    return {"root": str(Path(root).resolve()), "res": res, "objects": [s.name for s in samples],
+    roots = [str(r.resolve()) for r in data_roots(root)]
+    return {"root": roots[0] if len(roots) == 1 else roots, "res": res, "objects": [s.name for s in samples],
             "images": [s.num_images for s in samples]}
 
 
@@ -249,7 +265,8 @@ class TrainConfig:
     """Everything that determines a training run; the CLI fills it (`python -m unips.train --help`)."""
 
     data: str = ""
-    """Training dataset directory (object folders with ground-truth normals)."""
+    """Training dataset directory (object folders with ground-truth normals), or several separated by commas
+    (pooled, e.g. sets rendered with different seeds)."""
     out: str = ""
     """Run directory: log.jsonl, last.pt, best.safetensors and final.safetensors (+ .json sidecars)."""
     val: str | None = None

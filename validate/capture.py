@@ -60,6 +60,9 @@ class Capture:
     """Factor by which images, mask and normals were reduced from the files (1 = as stored)."""
     meta: dict = field(default_factory=dict)
     """Layout-specific extras (e.g. DiLiGenT's raw light intensities)."""
+    saturated: np.ndarray | None = None
+    """(K, H, W, 3) bool: channels stored at the file's largest code (8/16-bit files), whose true value is
+    only known to be at least the stored one; None when no channel is saturated (or the files are float)."""
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -149,6 +152,9 @@ def load_capture(folder: str | Path, max_images: int | None = None) -> Capture:
         if img.shape != first.shape:
             raise ValueError(f"images: {str(p)!r} has shape {img.shape}, expected {first.shape} like {paths[0].name}")
         images[i] = img
+    # Integer files clip: a channel at the largest code (1.0 after read_image) is a lower bound, not a value.
+    clipped = np.array([p.suffix.lower() != ".exr" for p in paths])
+    saturated = (images >= 1.0) & clipped[:, None, None, None]
     if raw is not None:
         images /= raw[:, None, None, :].astype(np.float32)
     shape = first.shape[:2]
@@ -178,6 +184,7 @@ def load_capture(folder: str | Path, max_images: int | None = None) -> Capture:
         light_irradiance=irr,
         has_scene=(folder / "scene.json").is_file(),
         meta=meta,
+        saturated=saturated if saturated.any() else None,
     )
 
 
@@ -191,10 +198,14 @@ def box_downsample(x: np.ndarray, f: int) -> np.ndarray:
 
 
 def downsample_capture(cap: Capture, f: int) -> Capture:
-    """A copy reduced by `f` (box filter; mask: pixels fully inside; normals renormalised)."""
+    """A copy reduced by `f` (box filter; mask: pixels fully inside; normals renormalised; a reduced channel
+    is saturated when any of its f x f sources was: its mean is then a lower bound too)."""
     if f == 1:
         return cap
     imgs = np.stack([box_downsample(im, f) for im in cap.images]).astype(np.float32)
+    sat = None
+    if cap.saturated is not None:
+        sat = np.stack([box_downsample(s.astype(np.float32), f) > 0 for s in cap.saturated])
     cover = box_downsample(cap.mask.astype(np.float32), f)
     mask = cover > 0.999
     gt = None
@@ -203,7 +214,7 @@ def downsample_capture(cap: Capture, f: int) -> Capture:
     return Capture(
         name=cap.name, folder=cap.folder, layout=cap.layout, images=imgs, mask=mask, image_names=cap.image_names,
         normal_gt=gt, light_directions=cap.light_directions, light_irradiance=cap.light_irradiance,
-        has_scene=cap.has_scene, downsample=cap.downsample * f, meta=cap.meta,
+        has_scene=cap.has_scene, downsample=cap.downsample * f, meta=cap.meta, saturated=sat,
     )
 
 

@@ -110,6 +110,18 @@ def to_jit(tp, a: np.ndarray):
     return x
 
 
+def footprint_roughness(normals: np.ndarray, mask: np.ndarray) -> float:
+    """Principled roughness whose GGX width (alpha = roughness^2, in radians) equals the median angle between
+    neighbouring pixels' normals (H, W, 3) inside the mask: shading is evaluated at pixel centres, so a
+    sharper lobe falls between them and its gradients blow up (measured: a 32x32 Lambertian sphere fitted
+    roughness 0.05 and its light directions moved by 2 deg)."""
+    angles = []
+    for a, b, m in ((normals[:, :-1], normals[:, 1:], mask[:, :-1] & mask[:, 1:]), (normals[:-1], normals[1:], mask[:-1] & mask[1:])):
+        angles.append(np.arccos(np.clip((a[m] * b[m]).sum(-1), -1.0, 1.0)))
+    a = np.concatenate(angles)
+    return float(np.clip(np.sqrt(np.median(a)), 0.05, 1.0)) if a.size else 0.05
+
+
 def choose_downsample(mask: np.ndarray, max_pixels: int) -> int:
     """Smallest integer factor f such that the mask has at most max_pixels pixels after f x f boxes."""
     return max(1, int(np.ceil(np.sqrt(mask.sum() / max_pixels))))
@@ -140,9 +152,15 @@ class FitScene:
 
     Arrays: P mask pixels (row-major), K images. `images` (K, P, 3) float32 numpy; Dr.Jit parameters live
     in `self.params` (dict name -> Dr.Jit array) and are optimised in place.
+
+    Saturated observations (`saturated`, (K, H, W, 3) bool, see `validate.capture.Capture.saturated`) are
+    censored: the true value is only known to be at least the stored one, so a render above it costs
+    nothing, one below it costs the difference (in the loss and the score), and the closed-form albedo
+    ignores them. Without this a sharp specular lobe is punished for exceeding clipped highlight cores.
     """
 
-    def __init__(self, images: np.ndarray, mask: np.ndarray, normals: np.ndarray, config: FitConfig, model: str):
+    def __init__(self, images: np.ndarray, mask: np.ndarray, normals: np.ndarray, config: FitConfig, model: str,
+                 saturated: np.ndarray | None = None):
         self.mi = mi = require_ad_variant()
         import drjit as dr
 
@@ -152,6 +170,7 @@ class FitScene:
         self.mask = mask
         self.k = images.shape[0]
         self.images = images[:, mask].astype(np.float32)  # (K, P, 3)
+        self.sat = None if saturated is None or not saturated[:, mask].any() else saturated[:, mask]  # (K, P, 3) bool
         self.p = int(mask.sum())
         self.rng = np.random.default_rng(config.seed)
         self.n_np = normals[mask].astype(np.float64)
@@ -175,6 +194,8 @@ class FitScene:
         """The numpy inputs changed since the last `upload`."""
         self.lobe = [0.5, 0.5]
         """Principled (roughness, specular), global."""
+        self.min_roughness = footprint_roughness(normals, mask)
+        """Smallest roughness searched: a lobe sharper than a pixel's normal footprint aliases."""
 
     # ---------------------------------------------------------------------------------------- scene
     def _build_scene(self) -> None:
@@ -324,18 +345,48 @@ class FitScene:
         """Write the global lobe (roughness, specular) into both principled BSDFs. They are not
         differentiated (width-1 gradients cost one reduction kernel per use inside the BSDF: 4 s per step
         instead of 0.3 s); `search_lobe` fits them by a small coordinate search instead."""
-        rough = self.mi.Float(float(np.clip(self.lobe[0], 0.05, 1.0)))
+        rough = self.mi.Float(float(np.clip(self.lobe[0], self.min_roughness, 1.0)))
         spec = self.mi.Float(float(np.clip(self.lobe[1], 0.0, 1.0)))
         self.dr.make_opaque(rough, spec)  # opaque: a new value does not recompile the kernels
         self.bp_black["roughness.value"] = rough
         self.bp_black["specular"] = spec
         self.bp_black.update()
 
-    def search_lobe(self, batch: np.ndarray) -> None:
-        """Coordinate search of (roughness, specular) on the loss of images `batch` (no gradients)."""
+    LOBE_GRID = ((0.05, 0.08, 0.12, 0.18, 0.27, 0.4, 0.6, 1.0), (0.0, 0.03, 0.07, 0.15, 0.3, 0.6, 1.0))
+    """(roughness, specular) values of the wide lobe search."""
+
+    def _batch_score(self, batch: np.ndarray) -> float:
+        """Censored rel_l1 of images `batch` with the albedo solved on those images alone (no gradients)."""
+        D, S = self.render_np(batch)
+        w = 1.0 if self.sat is None else (~self.sat[batch]).astype(np.float64)
+        obs = self.images[batch]
+        rho = np.clip(((obs - S) * D * w).sum(0) / np.maximum((D * D * w).sum(0), 1e-12), 0.0, 10.0)
+        return rel_l1_pixels(rho[None] * D + S, obs, None if self.sat is None else self.sat[batch])
+
+    def search_lobe(self, batch: np.ndarray, wide: bool = False) -> None:
+        """Fit the global lobe (roughness, specular) on images `batch` without gradients: with `wide`, the
+        best of the grid `LOBE_GRID` (albedo re-solved per candidate: a local search from a broad start
+        never reaches the sharp lobe of a shiny object, measured on DiLiGenT ball), then one coordinate
+        step on the loss."""
         if not self.config.specular or self.model == "environment":
             return
         dr = self.dr
+        if wide:
+            batch = np.asarray(batch)
+            self.lobe = [0.5, 0.0]
+            self._set_bsdf()
+            none = self._batch_score(batch)
+            scores = {}
+            for r in self.LOBE_GRID[0]:
+                for s_ in self.LOBE_GRID[1][1:]:
+                    if r >= self.min_roughness:
+                        self.lobe = [r, s_]
+                        self._set_bsdf()
+                        scores[(r, s_)] = self._batch_score(batch)
+            best_lobe = min(scores, key=scores.get) if scores else None
+            # A lobe must explain something: 0.5 % of the residual, not the noise of a few pixels.
+            self.lobe = list(best_lobe) if best_lobe is not None and scores[best_lobe] < 0.995 * none else [0.5, 0.0]
+            self._set_bsdf()
         best = list(self.lobe)
         with dr.suspend_grad():
             def score(lobe):
@@ -345,7 +396,7 @@ class FitScene:
 
             cur = score(best)
             for cand in ([best[0] * 0.7, best[1]], [best[0] / 0.7, best[1]], [best[0], best[1] * 0.6], [best[0], min(best[1] / 0.6 + 0.02, 1.0)]):
-                cand = [float(np.clip(cand[0], 0.05, 1.0)), float(np.clip(cand[1], 0.0, 1.0))]
+                cand = [float(np.clip(cand[0], self.min_roughness, 1.0)), float(np.clip(cand[1], 0.0, 1.0))]
                 v = score(cand)
                 if v < cur:
                     cur, best = v, cand
@@ -367,6 +418,8 @@ class FitScene:
             "pos": to_jit(mi.Point3f, self.pos_np.astype(np.float32)),
             "albedo": to_jit(mi.Vector3f, self.albedo_np.astype(np.float32)),
         }
+        if self.sat is not None:
+            self.dev["sat"] = to_jit(mi.Vector3f, self.sat.reshape(-1, 3).astype(np.float32))
         self.dirty = False
 
     def lanes(self, batch) -> tuple[Any, Any, int]:
@@ -442,15 +495,22 @@ class FitScene:
         return np.concatenate(Ds), np.concatenate(Ss)
 
     def solve_albedo(self, D: np.ndarray, S: np.ndarray, images: np.ndarray) -> None:
-        """Per-pixel closed-form albedo (P, 3) minimising sum_k (albedo D + S - I)^2 (D, S, I: (K, P, 3))."""
-        num = ((images - S) * D).sum(0)
-        den = (D * D).sum(0)
+        """Per-pixel closed-form albedo (P, 3) minimising sum_k (albedo D + S - I)^2 (D, S, I: (K, P, 3)) over
+        the unsaturated observations."""
+        w = 1.0 if self.sat is None else (~self.sat).astype(np.float64)
+        num = ((images - S) * D * w).sum(0)
+        den = (D * D * w).sum(0)
         self.albedo_np = np.clip(num / np.maximum(den, 1e-12), 0.0, 10.0)
         self.dirty = True
 
     def render(self, batch: np.ndarray | None = None) -> np.ndarray:
         D, S = self.render_np(batch)
         return self.albedo_np[None] * D + S
+
+    def score(self, render: np.ndarray, batch: np.ndarray | None = None) -> float:
+        """rel_l1 of a render (B, P, 3) of images `batch` (all by default), saturated observations censored."""
+        idx = np.arange(self.k) if batch is None else np.asarray(batch)
+        return rel_l1_pixels(render, self.images[idx], None if self.sat is None else self.sat[idx])
 
     def loss(self, batch):
         """Robust L1 (Charbonnier) of the render of `batch` against the inputs, mean over lanes and channels."""
@@ -459,6 +519,8 @@ class FitScene:
         rho = dr.gather(mi.Vector3f, self.dev["albedo"], p_idx)
         target = dr.gather(mi.Vector3f, self.dev["images"], k_idx * self.p + p_idx)
         diff = rho * D + S - target
+        if "sat" in self.dev:  # censored: rendering above a clipped observation is no error
+            diff = diff - dr.gather(mi.Vector3f, self.dev["sat"], k_idx * self.p + p_idx) * dr.maximum(diff, 0)
         eps = 1e-3 * float(np.abs(self.images).mean())
         err = dr.sqrt(diff * diff + eps * eps)
         return dr.mean(err.x + err.y + err.z) / 3.0
@@ -557,6 +619,8 @@ def run_fit(
             else:
                 fs.params[name] = opt[name]
 
+    first = [True]
+
     def refresh() -> None:
         pull()
         if optimise_normals:
@@ -565,7 +629,9 @@ def run_fit(
         D, S = fs.render_np()
         fs.solve_albedo(D, S, fs.images)
         fs.refresh_indirect(fs.albedo_np[None] * D + S)
-        fs.search_lobe(fs.rng.choice(train, size=min(cfg.batch_images, len(train)), replace=False))
+        # Wide lobe search once per light fit (not while normals move: the lobe was fitted to the lights).
+        fs.search_lobe(fs.rng.choice(train, size=min(cfg.batch_images, len(train)), replace=False), wide=first[0] and not optimise_normals)
+        first[0] = False
 
     # Every step's image batch, drawn now and kept on the device (a new array per step would recompile).
     bsize = min(cfg.batch_images, len(train))
@@ -577,7 +643,7 @@ def run_fit(
             refresh()
             if on_eval is not None and holdout is not None and len(holdout):
                 r = fs.render(holdout)
-                stop = on_eval(step, rel_l1_pixels(r, fs.images[holdout]))
+                stop = on_eval(step, fs.score(r, holdout))
                 if stop:
                     break
         batch = dr.gather(mi.UInt32, plan, dr.arange(mi.UInt32, bsize) + dr.opaque(mi.UInt32, step * bsize))
@@ -597,14 +663,19 @@ def run_fit(
     return history
 
 
-def rel_l1_pixels(render: np.ndarray, images: np.ndarray) -> float:
-    """sum |render - images| / sum |images| over (K, P, 3) arrays."""
+def rel_l1_pixels(render: np.ndarray, images: np.ndarray, saturated: np.ndarray | None = None) -> float:
+    """sum |render - images| / sum |images| over (K, P, 3) arrays; where `saturated` (same shape, bool) the
+    observation is a lower bound and only a render below it counts."""
     den = float(np.abs(images).sum())
-    return float(np.abs(render - images).sum() / den) if den > 0 else float("nan")
+    err = np.abs(render - images)
+    if saturated is not None:
+        err = np.where(saturated, np.maximum(images - render, 0), err)
+    return float(err.sum() / den) if den > 0 else float("nan")
 
 
-def _start(images: np.ndarray, normals: np.ndarray) -> dict:
-    return closed_form_directional(normals, images)
+def _start(fs: FitScene) -> dict:
+    """Closed-form Lambertian start for the scene's normals, saturated observations left out."""
+    return closed_form_directional(fs.n_np, fs.images, exclude=None if fs.sat is None else fs.sat.any(-1))
 
 
 def fit_normals(
@@ -614,23 +685,25 @@ def fit_normals(
     config: FitConfig | None = None,
     progress: Progress | None = None,
     label: str = "fit",
+    saturated: np.ndarray | None = None,
 ) -> FitResult:
     """Fit light and reflectance around a fixed normal map. images (K, H, W, 3), mask (H, W), normals
-    (H, W, 3) unit inside the mask, all at the fitting resolution (see `prepare`)."""
+    (H, W, 3) unit inside the mask, saturated (K, H, W, 3) bool or None (censored observations, see
+    `FitScene`), all at the fitting resolution (see `prepare`)."""
     config = (config or FitConfig()).validate()
     models = LIGHT_MODELS if config.light_model == "auto" else (config.light_model,)
     best: FitResult | None = None
     for model in models:
         t0 = time.perf_counter()
         steps = config.steps if len(models) == 1 else max(1, config.steps // 3)
-        fs = FitScene(images, mask, normals, config, model)
-        fs.init_params(_start(fs.images, fs.n_np))
+        fs = FitScene(images, mask, normals, config, model, saturated)
+        fs.init_params(_start(fs))
         hist = run_fit(fs, steps, progress=progress, label=f"{label} ({model})")
         render = fs.render()
         params = _normalise_albedo(fs, _np_params(fs))
-        per = [rel_l1_pixels(render[i], fs.images[i]) for i in range(fs.k)]
+        per = [fs.score(render[i : i + 1], [i]) for i in range(fs.k)]
         res = FitResult(
-            rel_l1=rel_l1_pixels(render, fs.images),
+            rel_l1=fs.score(render),
             per_image_rel_l1=per,
             render=render.astype(np.float32),
             albedo=fs.albedo_np.astype(np.float32),
@@ -712,10 +785,10 @@ def rerender_fitted(
         if (target / "report.json").exists() and not overwrite:
             raise FileExistsError(f"--out: {str(target / 'report.json')!r} exists (pass --overwrite to replace it)")
     small, n_small, f = prepare(cap, full, config)
-    res = fit_normals(small.images, small.mask, n_small, config, progress, "fit")
+    res = fit_normals(small.images, small.mask, n_small, config, progress, "fit", small.saturated)
     floors = {}
     for kind, nmap in no_information_maps(small.mask, config.floor_maps).items():
-        floors[kind] = fit_normals(small.images, small.mask, nmap, config, progress, f"floor ({kind})").rel_l1
+        floors[kind] = fit_normals(small.images, small.mask, nmap, config, progress, f"floor ({kind})", small.saturated).rel_l1
     report: dict[str, Any] = {
         "mode": "fitted",
         "object": cap.name,
@@ -737,6 +810,7 @@ def rerender_fitted(
         "fit_downsample": f,
         "fit_resolution": list(small.mask.shape),
         "fit_mask_pixels": int(small.mask.sum()),
+        "saturated_fraction": saturated_fraction(small),
         "note": (f"fitted and scored at 1/{f} resolution ({small.mask.shape[1]}x{small.mask.shape[0]}, box filter)" if f > 1
                  else "fitted and scored at full resolution"),
         "config": full_config_dict(config),
@@ -760,6 +834,13 @@ def rerender_fitted(
         )
         (target / "report.json").write_text(json.dumps(report, indent=1, allow_nan=False))
     return report
+
+
+def saturated_fraction(cap: Capture) -> float:
+    """Fraction of the mask observations (images x pixels x channels) that are saturated (censored)."""
+    if cap.saturated is None:
+        return 0.0
+    return float(cap.saturated[:, cap.mask].mean())
 
 
 def finite(x: float | None) -> float | None:

@@ -56,7 +56,8 @@ def sh_basis(n: np.ndarray) -> np.ndarray:
 
 
 def closed_form_directional(
-    normals: np.ndarray, images: np.ndarray, iterations: int = 6, lit_fraction: float = 0.2, trim: float = 0.1, ambient: bool = False
+    normals: np.ndarray, images: np.ndarray, iterations: int = 6, lit_fraction: float = 0.2, trim: float = 0.1, ambient: bool = False,
+    exclude: np.ndarray | None = None,
 ) -> dict:
     """Least-squares Lambertian fit with the normals held fixed (no shadows, no specular, no rendering).
 
@@ -64,10 +65,12 @@ def closed_form_directional(
     alternating between b_k, a_k (per image, over pixels lit in that image, the worst `trim` fraction of
     residuals dropped: highlights, shadows) and the per-pixel albedo. Returns a dict with
     `directions` (K, 3) toward the light, `irradiance` (K, 3), `ambient` (K, 3), `albedo` (P, 3),
-    normalised so that the mean albedo is 0.5.
+    normalised so that the mean albedo is 0.5. exclude: (K, P) bool observations left out of every fit
+    (saturated ones, whose values are only lower bounds).
     """
     k, p, _ = images.shape
     g = images.mean(-1).astype(np.float64)  # (K, P)
+    use = np.ones((k, p), bool) if exclude is None else ~np.asarray(exclude, bool)
     # Without `ambient` the constant column is left out: per-pixel albedo times a per-image ambient is a
     # rank-one term that the alternation drifts into (measured on DiLiGenT ball: 1 deg -> 75 deg).
     X = np.concatenate([normals.astype(np.float64), np.ones((p, 1 if ambient else 0))], 1)  # (P, 3 or 4)
@@ -77,11 +80,11 @@ def closed_form_directional(
         ratio = g / rho[None]
         for i in range(k):
             r = ratio[i]
-            lit = r > lit_fraction * np.percentile(r, 95)
+            lit = (r > lit_fraction * np.percentile(r, 95)) & use[i]
             if it > 0:
                 lit &= (normals @ B[i, :3]) > 0.05 * np.linalg.norm(B[i, :3])
             if lit.sum() < 8:
-                lit = r > 0
+                lit = (r > 0) & use[i]
             sw = np.sqrt(rho[lit])  # weight by albedo: brighter pixels are less noisy relative to their value
             A, y = X[lit] * sw[:, None], r[lit] * sw
             b, *_ = np.linalg.lstsq(A, y, rcond=None)
@@ -92,15 +95,17 @@ def closed_form_directional(
             B[i] = b
         amb = np.maximum(B[:, 3], 0) if ambient else np.zeros(k)
         shade = np.maximum(X[:, :3] @ B[:, :3].T, 0) + amb[None]  # (P, K)
-        rho = np.maximum((g.T * shade).sum(1) / np.maximum((shade * shade).sum(1), 1e-12), 1e-6)
+        w = use.T
+        rho = np.maximum((g.T * shade * w).sum(1) / np.maximum((shade * shade * w).sum(1), 1e-12), 1e-6)
     # Colour: per image c_k (3) and per pixel albedo (P, 3) with the gray shading fixed.
     shade = shade.T  # (K, P)
     rho3 = np.repeat(rho[:, None], 3, 1)
     c = np.ones((k, 3))
+    w3 = use[..., None].astype(np.float64)  # (K, P, 1)
     for _ in range(4):
-        m = rho3[None] * shade[..., None]  # (K, P, 3)
+        m = rho3[None] * shade[..., None] * w3  # (K, P, 3)
         c = (images * m).sum(1) / np.maximum((m * m).sum(1), 1e-12)
-        m = shade[..., None] * c[:, None, :]
+        m = shade[..., None] * c[:, None, :] * w3
         rho3 = np.maximum((images * m).sum(0) / np.maximum((m * m).sum(0), 1e-12), 0)
     scale = 0.5 / max(float(rho3.mean()), 1e-12)
     rho3 *= scale

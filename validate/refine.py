@@ -35,7 +35,7 @@ import numpy as np
 
 from scenes.cli import INPUT_ERRORS, UsageErrorParser, progress_bar, report_error
 from scenes.variant import require_ad_variant
-from validate.fit import FitConfig, FitScene, Progress, _start, fit_normals, rel_l1_pixels, run_fit, to_jit
+from validate.fit import FitConfig, FitScene, Progress, _start, fit_normals, run_fit, saturated_fraction, to_jit
 
 log = logging.getLogger(__name__)
 
@@ -178,17 +178,18 @@ def refine_normals(
     config: RefineConfig | None = None,
     calibrated: tuple[np.ndarray, np.ndarray] | None = None,
     progress: Progress | None = None,
+    saturated: np.ndarray | None = None,
 ) -> RefineResult:
     """Refine `normals` (H, W, 3) against images (K, H, W, 3) over mask (H, W), all at the fitting resolution.
 
     calibrated: (directions (K, 3) toward the light, irradiance (K, 3)) held fixed when config.lights is
-    'calibrated'."""
+    'calibrated'. saturated: (K, H, W, 3) bool censored observations (see `validate.fit.FitScene`)."""
     config = (config or RefineConfig()).validate()
     require_ad_variant()
     t0 = time.perf_counter()
     cfg = config.fit
-    fs = FitScene(images, mask, normals, cfg, cfg.light_model if cfg.light_model != "auto" else "directional")
-    start = _start(fs.images, fs.n_np)
+    fs = FitScene(images, mask, normals, cfg, cfg.light_model if cfg.light_model != "auto" else "directional", saturated)
+    start = _start(fs)
     fixed: set[str] = set()
     if config.lights == "calibrated":
         if calibrated is None:
@@ -229,14 +230,14 @@ def refine_normals(
         fs.param_list = only(fixed)  # type: ignore[method-assign]
         run_fit(fs, cfg.steps if r == 0 else max(1, cfg.steps // 2), progress=progress, label=f"refine: lights {r + 1}/{config.rounds}")
         if len(holdout):
-            on_eval(0, rel_l1_pixels(fs.render(holdout), fs.images[holdout]))
+            on_eval(0, fs.score(fs.render(holdout), holdout))
         stale[0] = 0
         fs.param_list = only(fixed if config.update_lights else fixed | light_keys)  # type: ignore[method-assign]
         run_fit(fs, per_round, optimise_normals=True, regulariser=reg, holdout=holdout if len(holdout) else None,
                 on_eval=on_eval if len(holdout) else None, progress=progress, label=f"refine: normals {r + 1}/{config.rounds}")
         offset[0] += per_round
         if len(holdout):
-            on_eval(0, rel_l1_pixels(fs.render(holdout), fs.images[holdout]))
+            on_eval(0, fs.score(fs.render(holdout), holdout))
             fs.n_np = best["normals"].copy()  # continue from the best normals so far
             fs.normals = to_jit(fs.mi.Vector3f, fs.n_np.astype(np.float32))
     fs.param_list = base_list  # type: ignore[method-assign]
@@ -298,11 +299,11 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
     calibrated = None
     if small.light_directions is not None and small.light_irradiance is not None:
         calibrated = (small.light_directions, small.light_irradiance)
-    res = refine_normals(small.images, small.mask, n_small, config, calibrated, progress)
+    res = refine_normals(small.images, small.mask, n_small, config, calibrated, progress, small.saturated)
     refined_full = upsample_change(full, cap.mask, n_small, res.normals)
     refined_small = downsample_normals(refined_full, small.mask, f) if f > 1 else refined_full
-    before = fit_normals(small.images, small.mask, n_small, config.fit, progress, "score before")
-    after = fit_normals(small.images, small.mask, refined_small, config.fit, progress, "score after")
+    before = fit_normals(small.images, small.mask, n_small, config.fit, progress, "score before", small.saturated)
+    after = fit_normals(small.images, small.mask, refined_small, config.fit, progress, "score after", small.saturated)
     report: dict[str, Any] = {
         "mode": "refine",
         "lights_source": config.lights,
@@ -316,6 +317,7 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
         "best_step": res.best_step,
         "lights": after.lights,
         "fit_downsample": f,
+        "saturated_fraction": saturated_fraction(small),
         "note": (f"refined and scored at 1/{f} resolution ({small.mask.shape[1]}x{small.mask.shape[0]}); the change is upsampled "
                  "bilinearly onto the full-resolution input map" if f > 1 else "refined and scored at full resolution"),
         "config": {**{k: v for k, v in asdict(config).items() if k != "fit"}, "fit": {**asdict(config.fit), "floor_maps": list(config.fit.floor_maps)}},
