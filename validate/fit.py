@@ -344,7 +344,7 @@ class FitScene:
     def _set_bsdf(self) -> None:
         """Write the global lobe (roughness, specular) into both principled BSDFs. They are not
         differentiated (width-1 gradients cost one reduction kernel per use inside the BSDF: 4 s per step
-        instead of 0.3 s); `search_lobe` fits them by a small coordinate search instead."""
+        instead of 0.3 s); `search_lobe` fits them by a grid and coordinate search instead."""
         rough = self.mi.Float(float(np.clip(self.lobe[0], self.min_roughness, 1.0)))
         spec = self.mi.Float(float(np.clip(self.lobe[1], 0.0, 1.0)))
         self.dr.make_opaque(rough, spec)  # opaque: a new value does not recompile the kernels
@@ -358,10 +358,8 @@ class FitScene:
     def _batch_score(self, batch: np.ndarray) -> float:
         """Censored rel_l1 of images `batch` with the albedo solved on those images alone (no gradients)."""
         D, S = self.render_np(batch)
-        w = 1.0 if self.sat is None else (~self.sat[batch]).astype(np.float64)
-        obs = self.images[batch]
-        rho = np.clip(((obs - S) * D * w).sum(0) / np.maximum((D * D * w).sum(0), 1e-12), 0.0, 10.0)
-        return rel_l1_pixels(rho[None] * D + S, obs, None if self.sat is None else self.sat[batch])
+        rho = self._albedo_ls(D, S, batch)
+        return self.score(rho[None] * D + S, batch)
 
     def search_lobe(self, batch: np.ndarray, wide: bool = False) -> None:
         """Fit the global lobe (roughness, specular) on images `batch` without gradients: with `wide`, the
@@ -494,13 +492,17 @@ class FitScene:
                 Ss.append(np.array(S, np.float64).T.reshape(len(part), self.p, 3) if self.model != "environment" else np.zeros((len(part), self.p, 3)))
         return np.concatenate(Ds), np.concatenate(Ss)
 
-    def solve_albedo(self, D: np.ndarray, S: np.ndarray, images: np.ndarray) -> None:
-        """Per-pixel closed-form albedo (P, 3) minimising sum_k (albedo D + S - I)^2 (D, S, I: (K, P, 3)) over
-        the unsaturated observations."""
-        w = 1.0 if self.sat is None else (~self.sat).astype(np.float64)
-        num = ((images - S) * D * w).sum(0)
-        den = (D * D * w).sum(0)
-        self.albedo_np = np.clip(num / np.maximum(den, 1e-12), 0.0, 10.0)
+    def _albedo_ls(self, D: np.ndarray, S: np.ndarray, batch: np.ndarray | None = None) -> np.ndarray:
+        """Per-pixel closed-form albedo (P, 3) minimising sum_k (albedo D + S - I)^2 over the unsaturated
+        observations of images `batch` (all by default); D, S: (B, P, 3) renders of those images."""
+        idx = np.arange(self.k) if batch is None else np.asarray(batch)
+        obs = self.images[idx]
+        w = 1.0 if self.sat is None else (~self.sat[idx]).astype(np.float64)
+        return np.clip(((obs - S) * D * w).sum(0) / np.maximum((D * D * w).sum(0), 1e-12), 0.0, 10.0)
+
+    def solve_albedo(self, D: np.ndarray, S: np.ndarray) -> None:
+        """Closed-form albedo from renders D, S (K, P, 3) of all images (see `_albedo_ls`)."""
+        self.albedo_np = self._albedo_ls(D, S)
         self.dirty = True
 
     def render(self, batch: np.ndarray | None = None) -> np.ndarray:
@@ -517,10 +519,10 @@ class FitScene:
         mi, dr = self.mi, self.dr
         D, S, k_idx, p_idx = self.shade(batch)
         rho = dr.gather(mi.Vector3f, self.dev["albedo"], p_idx)
-        target = dr.gather(mi.Vector3f, self.dev["images"], k_idx * self.p + p_idx)
-        diff = rho * D + S - target
+        flat = k_idx * self.p + p_idx
+        diff = rho * D + S - dr.gather(mi.Vector3f, self.dev["images"], flat)
         if "sat" in self.dev:  # censored: rendering above a clipped observation is no error
-            diff = diff - dr.gather(mi.Vector3f, self.dev["sat"], k_idx * self.p + p_idx) * dr.maximum(diff, 0)
+            diff = diff - dr.gather(mi.Vector3f, self.dev["sat"], flat) * dr.maximum(diff, 0)
         eps = 1e-3 * float(np.abs(self.images).mean())
         err = dr.sqrt(diff * diff + eps * eps)
         return dr.mean(err.x + err.y + err.z) / 3.0
@@ -619,25 +621,22 @@ def run_fit(
             else:
                 fs.params[name] = opt[name]
 
-    first = [True]
-
-    def refresh() -> None:
+    def refresh(wide_lobe: bool = False) -> None:
         pull()
         if optimise_normals:
             fs.n_np = np.array(dr.normalize(fs.normals), np.float64).T
         fs.refresh_visibility()
         D, S = fs.render_np()
-        fs.solve_albedo(D, S, fs.images)
+        fs.solve_albedo(D, S)
         fs.refresh_indirect(fs.albedo_np[None] * D + S)
-        # Wide lobe search once per light fit (not while normals move: the lobe was fitted to the lights).
-        fs.search_lobe(fs.rng.choice(train, size=min(cfg.batch_images, len(train)), replace=False), wide=first[0] and not optimise_normals)
-        first[0] = False
+        fs.search_lobe(fs.rng.choice(train, size=min(cfg.batch_images, len(train)), replace=False), wide=wide_lobe)
 
     # Every step's image batch, drawn now and kept on the device (a new array per step would recompile).
     bsize = min(cfg.batch_images, len(train))
     plan = to_jit(mi.UInt32, np.concatenate([fs.rng.choice(train, size=bsize, replace=False) for _ in range(max(steps, 1))]).astype(np.uint32))
     fs.refresh_occlusion()
-    refresh()
+    # The wide lobe search once per light fit, not while normals move (the lobe was fitted to the lights).
+    refresh(wide_lobe=not optimise_normals)
     for step in range(steps):
         if step and step % cfg.refresh_every == 0:
             refresh()

@@ -95,8 +95,7 @@ def closed_form_directional(
             B[i] = b
         amb = np.maximum(B[:, 3], 0) if ambient else np.zeros(k)
         shade = np.maximum(X[:, :3] @ B[:, :3].T, 0) + amb[None]  # (P, K)
-        w = use.T
-        rho = np.maximum((g.T * shade * w).sum(1) / np.maximum((shade * shade * w).sum(1), 1e-12), 1e-6)
+        rho = np.maximum((g.T * shade * use.T).sum(1) / np.maximum((shade * shade * use.T).sum(1), 1e-12), 1e-6)
     # Colour: per image c_k (3) and per pixel albedo (P, 3) with the gray shading fixed.
     shade = shade.T  # (K, P)
     rho3 = np.repeat(rho[:, None], 3, 1)
