@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from scenes.description import CameraDesc, ImageDesc, LightDesc, MaterialDesc, RenderDesc, SceneDescription, ShapeDesc, TextureDesc
+from scenes.objfolder import write_normal_map as write_normal_tif
 
 R = 32
 ROOT = Path(__file__).resolve().parents[1]
@@ -26,6 +27,7 @@ TO_LIGHT = np.array(
      for e, a in zip(np.radians([40, 55, 70, 35, 50, 65, 45, 60]), np.radians([0, 45, 90, 135, 180, 225, 270, 315]))]
 )
 
+POINT_DISTANCE = 2.0  # point lights of the near-light sphere, in sphere radii from its centre
 
 @pytest.fixture(scope="module")
 def jit():
@@ -51,7 +53,7 @@ def analytic_sphere(mask_radius: float = 1.0 / 1.1) -> tuple[np.ndarray, np.ndar
 @pytest.fixture(scope="module")
 def sphere_folder(jit, tmp_path_factory) -> Path:
     """A Lambertian sphere (albedo 0.7) under 8 directional lights (irradiance 2), 32x32, no scene.json."""
-    from scenes.objfolder import write_mask, write_normal_map as write_normal_tif, write_png16
+    from scenes.objfolder import write_mask, write_png16
     from scenes.mitsuba_build import build_scene
     from scenes.render import render_ground_truth, render_image
 
@@ -64,6 +66,37 @@ def sphere_folder(jit, tmp_path_factory) -> Path:
         images=[ImageDesc(lights=[LightDesc(type="directional", direction=(-d).tolist(), irradiance=2.0)], seed=i) for i, d in enumerate(TO_LIGHT)],
     )
     folder = tmp_path_factory.mktemp("fit") / "lsphere.data"
+    folder.mkdir()
+    built = build_scene(desc)
+    gt = render_ground_truth(built, spp=64)
+    for i in range(len(desc.images)):
+        write_png16(folder / f"L{i:03d}.png", render_image(built, i))
+    mask = gt.coverage > 0.999
+    write_mask(folder / "mask.png", mask)
+    write_normal_tif(folder / "normal.tif", np.where(mask[..., None], gt.normal, 0.0))
+    del built
+    gc.collect()
+    return folder
+
+
+@pytest.fixture(scope="module")
+def point_sphere_folder(jit, tmp_path_factory) -> Path:
+    """The same sphere under 8 point lights 2 radii from its centre along TO_LIGHT (intensity 0.5 * 2^2, so
+    the near side gets the directional sphere's irradiance 2, and nothing clips), no scene.json."""
+    from scenes.objfolder import write_mask, write_png16
+    from scenes.mitsuba_build import build_scene
+    from scenes.render import render_ground_truth, render_image
+
+    desc = SceneDescription(
+        name="psphere",
+        shape=ShapeDesc(kind="sphere"),
+        material=MaterialDesc(kind="lambertian", base_color=TextureDesc(value=[0.7, 0.7, 0.7])),
+        camera=CameraDesc(width=R, height=R, half_size=1.1),
+        render=RenderDesc(spp=64, bounces=1),
+        images=[ImageDesc(lights=[LightDesc(type="point", position=(POINT_DISTANCE * d).tolist(), intensity=0.5 * POINT_DISTANCE**2)], seed=i)
+                for i, d in enumerate(TO_LIGHT)],
+    )
+    folder = tmp_path_factory.mktemp("fitpoint") / "psphere.data"
     folder.mkdir()
     built = build_scene(desc)
     gt = render_ground_truth(built, spp=64)
@@ -134,6 +167,35 @@ def test_fitted_lights_and_ranking(jit, sphere_folder):
     assert gt.rel_l1 < 0.05
     assert bad.rel_l1 > gt.rel_l1 + 0.05
     assert const.rel_l1 > bad.rel_l1
+
+
+def test_point_light_model_finds_near_lights(jit, point_sphere_folder):
+    """Near point lights (2 radii): the point model with the ground-truth normals explains the images (a
+    directional light cannot explain the fall-off) and finds the lights where they were, up to the height
+    field's free z offset; `auto` picks it, and refinement with `auto` uses it and beats the directional
+    model's refinement of the same 20-deg random map."""
+    from scenes.objfolder import mean_angular_error as mae_deg
+    from validate.capture import load_capture
+    from validate.fit import fit_normals
+    from validate.perturb import perturb_normals
+    from validate.refine import RefineConfig, refine_normals
+
+    cap = load_capture(point_sphere_folder)
+    point = fit_normals(cap.images, cap.mask, cap.normal_gt, small_config(light_model="point"))
+    directional = fit_normals(cap.images, cap.mask, cap.normal_gt, small_config())
+    assert point.rel_l1 < 0.05 and directional.rel_l1 > 2 * point.rel_l1, (point.rel_l1, directional.rel_l1)
+    # Scene units of the fit: the image spans [-1, 1], i.e. world / half_size for this camera.
+    true = POINT_DISTANCE * TO_LIGHT / 1.1
+    pos = np.asarray(point.light_params["positions"])
+    offset = (pos - true).mean(0)
+    assert np.abs(offset[:2]).max() < 0.1, offset
+    assert np.linalg.norm(pos - true - offset, axis=1).max() < 0.15, pos - true - offset
+    assert fit_normals(cap.images, cap.mask, cap.normal_gt, small_config(light_model="auto")).model == "point"
+    noisy = perturb_normals(cap.normal_gt, cap.mask, "random", 20, seed=2)
+    auto = refine_normals(cap.images, cap.mask, noisy, RefineConfig(fit=small_config(light_model="auto")))
+    plain = refine_normals(cap.images, cap.mask, noisy, RefineConfig(fit=small_config()))
+    assert auto.light_model == "point" and plain.light_model == "directional"
+    assert mae_deg(auto.normals, cap.normal_gt, cap.mask) < mae_deg(plain.normals, cap.normal_gt, cap.mask) - 3
 
 
 def test_saturated_observations_are_censored(jit, sphere_folder, tmp_path):

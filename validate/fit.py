@@ -32,7 +32,7 @@ import numpy as np
 from scenes.variant import require_ad_variant
 from validate import heightfield
 from validate.capture import Capture
-from validate.lights import LIGHT_MODELS, POINT_START_DISTANCE, closed_form_directional, report_lights
+from validate.lights import LIGHT_MODELS, closed_form_directional, point_start, report_lights
 
 log = logging.getLogger(__name__)
 
@@ -309,10 +309,9 @@ class FitScene:
             p["dir"] = f(start["directions"])
             p["log_e"] = f(np.log(E))
         elif self.model == "point":
-            centre = self.pos_np.mean(0)
-            pos = centre + POINT_START_DISTANCE * np.asarray(start["directions"])
+            pos, inten, self.albedo_np = point_start(self.n_np, self.pos_np, self.images, start, None if self.sat is None else self.sat.any(-1))
             p["pos"] = f(pos)
-            p["log_e"] = f(np.log(E * POINT_START_DISTANCE**2))
+            p["log_e"] = f(np.log(inten))
         if self.model in ("directional", "point"):
             p["log_a"] = f(np.log(np.maximum(A, 1e-3 * E.mean())))
         else:

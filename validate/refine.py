@@ -27,7 +27,7 @@ import json
 import logging
 import sys
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -97,6 +97,8 @@ class RefineResult:
     best_step: int
     """Step whose normals were kept."""
     seconds: float
+    light_model: str = "directional"
+    """Light model used ('auto' resolved: the model with the lowest residual around the starting map)."""
 
 
 def _pairs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -188,7 +190,12 @@ def refine_normals(
     require_ad_variant()
     t0 = time.perf_counter()
     cfg = config.fit
-    fs = FitScene(images, mask, normals, cfg, cfg.light_model if cfg.light_model != "auto" else "directional", saturated)
+    if cfg.light_model == "auto":
+        # Chosen once, around the starting map, and then held: a model switching mid-way would make the
+        # held-out curve and the before / after scores incomparable.
+        cfg = replace(cfg, light_model=fit_normals(images, mask, normals, cfg, progress, "refine: light model", saturated).model)
+        log.info("refine: light model %s (lowest residual around the starting map)", cfg.light_model)
+    fs = FitScene(images, mask, normals, cfg, cfg.light_model, saturated)
     start = _start(fs)
     fixed: set[str] = set()
     if config.lights == "calibrated":
@@ -249,7 +256,7 @@ def refine_normals(
     out = np.zeros(mask.shape + (3,), np.float32)
     out[mask] = n_best
     return RefineResult(normals=out, holdout_curve=curve, best_step=int(best["step"]) if len(holdout) else config.refine_steps,
-                        seconds=time.perf_counter() - t0)
+                        seconds=time.perf_counter() - t0, light_model=cfg.light_model)
 
 
 def upsample_change(full: np.ndarray, mask_full: np.ndarray, start_small: np.ndarray, refined_small: np.ndarray) -> np.ndarray:
@@ -302,11 +309,14 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
     res = refine_normals(small.images, small.mask, n_small, config, calibrated, progress, small.saturated)
     refined_full = upsample_change(full, cap.mask, n_small, res.normals)
     refined_small = downsample_normals(refined_full, small.mask, f) if f > 1 else refined_full
-    before = fit_normals(small.images, small.mask, n_small, config.fit, progress, "score before", small.saturated)
-    after = fit_normals(small.images, small.mask, refined_small, config.fit, progress, "score after", small.saturated)
+    # Both scores with the light model the refinement used ('auto' resolved), so that they compare.
+    fit_cfg = replace(config.fit, light_model=res.light_model)
+    before = fit_normals(small.images, small.mask, n_small, fit_cfg, progress, "score before", small.saturated)
+    after = fit_normals(small.images, small.mask, refined_small, fit_cfg, progress, "score after", small.saturated)
     report: dict[str, Any] = {
         "mode": "refine",
         "lights_source": config.lights,
+        "light_model": res.light_model,
         "object": cap.name,
         "folder": str(cap.folder),
         "prediction": source,
@@ -337,7 +347,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--normals", required=True, help="starting normal map file (.png/.exr/.npy/.tif) or a folder with <object>/normal.*")
     p.add_argument("--out", default="refined", help="output folder: <out>/<object>/normal.png and refine_report.json (default ./refined)")
     p.add_argument("--lights", choices=LIGHT_SOURCES, default="fitted", help="fit the lights (default) or hold the folder's calibrated lights")
-    p.add_argument("--light-model", default="directional", help="directional (+ ambient), point, environment (with --lights fitted)")
+    p.add_argument("--light-model", default="directional", help="directional (+ ambient, the default), point, environment, or auto (the one with the lowest residual "
+                   "around the starting map, then held); all but directional need --lights fitted")
     p.add_argument("--steps", type=int, default=FitConfig.steps, help=f"Adam steps of each scene fit (default {FitConfig.steps})")
     p.add_argument("--refine-steps", type=int, default=RefineConfig.refine_steps, help=f"Adam steps on the normals (default {RefineConfig.refine_steps})")
     p.add_argument("--max-pixels", type=int, default=FitConfig.max_pixels, help="downsample until the mask has at most this many pixels")
