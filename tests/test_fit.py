@@ -50,22 +50,22 @@ def analytic_sphere(mask_radius: float = 1.0 / 1.1) -> tuple[np.ndarray, np.ndar
     return np.where(mask[..., None], n, 0).astype(np.float32), mask
 
 
-@pytest.fixture(scope="module")
-def sphere_folder(jit, tmp_path_factory) -> Path:
-    """A Lambertian sphere (albedo 0.7) under 8 directional lights (irradiance 2), 32x32, no scene.json."""
+def _lambertian_sphere_folder(parent: Path, name: str, lights: list[list[LightDesc]]) -> Path:
+    """Render a Lambertian sphere (albedo 0.7), 32x32, one image per entry of `lights`, into
+    parent/NAME.data: images, mask and ground-truth normals, no scene.json."""
     from scenes.objfolder import write_mask, write_png16
     from scenes.mitsuba_build import build_scene
     from scenes.render import render_ground_truth, render_image
 
     desc = SceneDescription(
-        name="lsphere",
+        name=name,
         shape=ShapeDesc(kind="sphere"),
         material=MaterialDesc(kind="lambertian", base_color=TextureDesc(value=[0.7, 0.7, 0.7])),
         camera=CameraDesc(width=R, height=R, half_size=1.1),
         render=RenderDesc(spp=64, bounces=1),
-        images=[ImageDesc(lights=[LightDesc(type="directional", direction=(-d).tolist(), irradiance=2.0)], seed=i) for i, d in enumerate(TO_LIGHT)],
+        images=[ImageDesc(lights=l, seed=i) for i, l in enumerate(lights)],
     )
-    folder = tmp_path_factory.mktemp("fit") / "lsphere.data"
+    folder = parent / f"{name}.data"
     folder.mkdir()
     built = build_scene(desc)
     gt = render_ground_truth(built, spp=64)
@@ -77,37 +77,21 @@ def sphere_folder(jit, tmp_path_factory) -> Path:
     del built
     gc.collect()
     return folder
+
+
+@pytest.fixture(scope="module")
+def sphere_folder(jit, tmp_path_factory) -> Path:
+    """A Lambertian sphere (albedo 0.7) under 8 directional lights (irradiance 2), 32x32, no scene.json."""
+    lights = [[LightDesc(type="directional", direction=(-d).tolist(), irradiance=2.0)] for d in TO_LIGHT]
+    return _lambertian_sphere_folder(tmp_path_factory.mktemp("fit"), "lsphere", lights)
 
 
 @pytest.fixture(scope="module")
 def point_sphere_folder(jit, tmp_path_factory) -> Path:
     """The same sphere under 8 point lights 2 radii from its centre along TO_LIGHT (intensity 0.5 * 2^2, so
     the near side gets the directional sphere's irradiance 2, and nothing clips), no scene.json."""
-    from scenes.objfolder import write_mask, write_png16
-    from scenes.mitsuba_build import build_scene
-    from scenes.render import render_ground_truth, render_image
-
-    desc = SceneDescription(
-        name="psphere",
-        shape=ShapeDesc(kind="sphere"),
-        material=MaterialDesc(kind="lambertian", base_color=TextureDesc(value=[0.7, 0.7, 0.7])),
-        camera=CameraDesc(width=R, height=R, half_size=1.1),
-        render=RenderDesc(spp=64, bounces=1),
-        images=[ImageDesc(lights=[LightDesc(type="point", position=(POINT_DISTANCE * d).tolist(), intensity=0.5 * POINT_DISTANCE**2)], seed=i)
-                for i, d in enumerate(TO_LIGHT)],
-    )
-    folder = tmp_path_factory.mktemp("fitpoint") / "psphere.data"
-    folder.mkdir()
-    built = build_scene(desc)
-    gt = render_ground_truth(built, spp=64)
-    for i in range(len(desc.images)):
-        write_png16(folder / f"L{i:03d}.png", render_image(built, i))
-    mask = gt.coverage > 0.999
-    write_mask(folder / "mask.png", mask)
-    write_normal_tif(folder / "normal.tif", np.where(mask[..., None], gt.normal, 0.0))
-    del built
-    gc.collect()
-    return folder
+    lights = [[LightDesc(type="point", position=(POINT_DISTANCE * d).tolist(), intensity=0.5 * POINT_DISTANCE**2)] for d in TO_LIGHT]
+    return _lambertian_sphere_folder(tmp_path_factory.mktemp("fitpoint"), "psphere", lights)
 
 
 def small_config(**kw):

@@ -188,13 +188,11 @@ def point_start(normals: np.ndarray, positions: np.ndarray, images: np.ndarray, 
         gain = np.where(num > 0, num * num / den, 0.0).sum(1)  # intensities are positive
         return lp[int(np.argmax(gain))]
 
-    s0 = None
+    lp0 = (centre[None, None] + grid[:, None, :] * dist[None, :, None]).reshape(-1, 3)  # (C, 3)
+    s0 = shading(lp0, x[sub], n[sub])  # the same grid for every image: its shading once
     for it in range(iterations):
         for i in range(k):
             if it == 0:
-                if s0 is None:  # the same grid for every image: its shading once
-                    lp0 = (centre[None, None] + grid[:, None, :] * dist[None, :, None]).reshape(-1, 3)
-                    s0 = shading(lp0, x[sub], n[sub])
                 pos[i] = best(lp0, s0, i)
             else:
                 r0 = np.linalg.norm(pos[i] - centre)
