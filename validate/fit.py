@@ -597,9 +597,11 @@ def run_fit(
     on_eval: Callable[[int, float], bool] | None = None,
     progress: Progress | None = None,
     label: str = "fit",
+    wide_lobe: bool | None = None,
 ) -> list[float]:
     """Adam on the scene parameters of `fs` (and its normals when `optimise_normals`), refreshing
     visibility, occlusion, inter-reflection and the closed-form albedo every `refresh_every` steps.
+    wide_lobe: run the grid search of the lobe at the start (default: when the normals are held).
 
     holdout: image indices never used in a step; `on_eval(step, holdout_rel_l1)` is called at each refresh
     when given and may return True to stop early. Returns the training-loss history (one per refresh)."""
@@ -635,7 +637,7 @@ def run_fit(
     plan = to_jit(mi.UInt32, np.concatenate([fs.rng.choice(train, size=bsize, replace=False) for _ in range(max(steps, 1))]).astype(np.uint32))
     fs.refresh_occlusion()
     # The wide lobe search once per light fit, not while normals move (the lobe was fitted to the lights).
-    refresh(wide_lobe=not optimise_normals)
+    refresh(wide_lobe=(not optimise_normals) if wide_lobe is None else wide_lobe)
     for step in range(steps):
         if step and step % cfg.refresh_every == 0:
             refresh()
