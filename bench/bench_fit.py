@@ -7,7 +7,7 @@ DiLiGenT (ball, cat; skipped when the folder is absent):
 - the score (rel_l1) of ground truth, calibrated least squares (unips.baselines), the shipped model and the
   constant (0, 0, 1) map, with their angular errors;
 - perturbation series of the ground truth (random, smooth, bias; 5-40 deg): Spearman(score, angular error);
-- refinement from the shipped model's prediction (fitted lights, and the calibrated lights held), from
+- refinement from the shipped model's prediction (fitted lights, with and without the rotation search, and the calibrated lights held), from
   calibrated least squares, and from the ground truth itself (how far the refinement moves a perfect map:
   the error floor its data term sets on this object): angular error before / after, minutes.
 Synthetic (held-out wildgen objects rendered here, scene.json removed for the fitted mode): the same
@@ -102,11 +102,13 @@ def diligent(args, net, out: dict) -> None:
         print(f"  perturbations: Spearman(score, error) {row['spearman']:.3f}  per kind {row['spearman_per_kind']}")
         if not args.skip_refine:
             ref = {}
-            for label, start, lights in (("model, fitted lights", model, "fitted"), ("model, calibrated lights", model, "calibrated"),
-                                         ("least squares, fitted lights", ls, "fitted"),
-                                         ("ground truth, fitted lights", cap.normal_gt, "fitted")):
+            for label, start, lights, rot in (("model, fitted lights", model, "fitted", False),
+                                              ("model, fitted lights, --rotation-search", model, "fitted", True),
+                                              ("model, calibrated lights", model, "calibrated", False),
+                                              ("least squares, fitted lights", ls, "fitted", False),
+                                              ("ground truth, fitted lights", cap.normal_gt, "fitted", False)):
                 t0 = time.perf_counter()
-                r = refine_object(str(folder), start, RefineConfig(fit=FitConfig(seed=args.seed), lights=lights))
+                r = refine_object(str(folder), start, RefineConfig(fit=FitConfig(seed=args.seed), lights=lights, rotation_search=rot))
                 ref[label] = {"before_mae": r["before"]["mae_deg"], "after_mae": r["after"]["mae_deg"],
                               "before_rel_l1": r["before"]["rel_l1"], "after_rel_l1": r["after"]["rel_l1"],
                               "minutes": (time.perf_counter() - t0) / 60}

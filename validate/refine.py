@@ -71,7 +71,7 @@ class RefineConfig:
     pin the orientation (highlights, which do not turn with the view; cast shadows) the residual prefers the
     right one: DiLiGenT cat from fine-tune 9, 14.12 -> 9.68 deg without, see the README for with. Off by
     default: on a diffuse convex object nothing pins the tilt and the search moves the map by noise-level
-    residual differences (the 32 px test sphere, tilted 10 deg: it ends 4 deg off either way). A turn
+    residual differences (the 32 px test sphere, tilted 10 deg about x: it leaves that tilt and adds 2-4 deg about y). A turn
     about the view axis is never searched: it leaves every image as it is. Directional and point lights."""
     rotation_steps: int = 80
     """Adam steps of the light fit at each candidate rotation."""
