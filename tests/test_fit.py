@@ -280,12 +280,14 @@ def test_rotation_search_tilts_only_and_never_raises_the_residual(jit, sphere_fo
     asserted."""
     from validate.capture import load_capture
     from validate.fit import FitScene, _start, run_fit
-    from validate.refine import RefineConfig, _rotation_matrix, search_rotation
+    from scipy.spatial.transform import Rotation
+
+    from validate.refine import RefineConfig, search_rotation
 
     cap = load_capture(sphere_folder)
     m = cap.mask
     tilted = np.zeros_like(cap.normal_gt)
-    tilted[m] = cap.normal_gt[m] @ _rotation_matrix(np.radians([10.0, 0, 0])).T
+    tilted[m] = cap.normal_gt[m] @ Rotation.from_rotvec(np.radians([10.0, 0, 0])).as_matrix().T
     cfg = small_config()
     fs = FitScene(cap.images, m, tilted, cfg, "directional")
     fs.init_params(_start(fs))
@@ -296,7 +298,7 @@ def test_rotation_search_tilts_only_and_never_raises_the_residual(jit, sphere_fo
     w = search_rotation(fs, train, rc)
     after = fs.score(fs.render(train), train)
     assert w[2] == 0.0
-    np.testing.assert_allclose(fs.n_np, n0 @ _rotation_matrix(w).T, atol=1e-6)
+    np.testing.assert_allclose(fs.n_np, n0 @ Rotation.from_rotvec(w).as_matrix().T, atol=1e-6)
     # the identity candidate, evaluated the same way (same batches and rays), is never better
     fs2 = FitScene(cap.images, m, tilted, cfg, "directional")
     fs2.init_params(_start(fs2))

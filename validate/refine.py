@@ -71,8 +71,9 @@ class RefineConfig:
     pin the orientation (highlights, which do not turn with the view; cast shadows) the residual prefers the
     right one: DiLiGenT cat from fine-tune 9, 14.12 -> 9.68 deg without, see the README for with. Off by
     default: on a diffuse convex object nothing pins the tilt and the search moves the map by noise-level
-    residual differences (the 32 px test sphere, tilted 10 deg about x: it leaves that tilt and adds 2-4 deg about y). A turn
-    about the view axis is never searched: it leaves every image as it is. Directional and point lights."""
+    residual differences (the 32 px test sphere, tilted 10 deg about x: it leaves that tilt and adds 2-4 deg
+    about y). A turn about the view axis is never searched: it leaves every image as it is. Directional and
+    point lights."""
     rotation_steps: int = 80
     """Adam steps of the light fit at each candidate rotation."""
     update_lights: bool = False
@@ -186,37 +187,33 @@ def make_regulariser(fs: FitScene, config: RefineConfig):
     return reg
 
 
-def _rotation_matrix(w: np.ndarray) -> np.ndarray:
-    """3x3 rotation of rotation vector w (radians, Rodrigues)."""
-    t = float(np.linalg.norm(w))
-    if t < 1e-12:
-        return np.eye(3)
-    k = w / t
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + np.sin(t) * K + (1 - np.cos(t)) * K @ K
-
-
 def search_rotation(fs: FitScene, train: np.ndarray, config: RefineConfig, deltas_deg: tuple[float, ...] = (4.0, 2.0),
                     progress: Progress | None = None, label: str = "refine: rotation") -> np.ndarray:
-    """Rotate the normals of `fs` (and its lights with them) by the global rotation of lowest residual on
-    images `train`, found by a parabolic coordinate search over the three axes of a rotation vector, steps
-    `deltas_deg`. Each candidate: normals and lights of the current state rotated, `config.rotation_steps`
-    Adam steps on the lights with the same image batches and rays (the candidates differ only by the
-    rotation), then the censored rel_l1. Leaves `fs` at the best candidate; returns its rotation vector
-    (radians). The identity is a candidate, so the residual never rises."""
+    """Rotate the normals of `fs` (and its lights with them) by the global tilt of lowest residual on images
+    `train`, found by a parabolic coordinate search over the x and y components of a rotation vector (a
+    turn about the view axis z leaves every image as it is), steps `deltas_deg`. Each candidate: normals
+    and lights of the current state rotated, `config.rotation_steps` Adam steps on the lights with the same
+    image batches and rays (the candidates differ only by the rotation), then the censored rel_l1. Leaves
+    `fs` at the best candidate; returns its rotation vector (radians). The identity is a candidate, so the
+    residual never rises."""
+    from scipy.spatial.transform import Rotation
+
     if fs.model not in ("directional", "point"):
         return np.zeros(3)
     n0 = fs.n_np.copy()
     base = {k: np.array(v, np.float64).T for k, v in fs.params.items()}  # (K, 3) each
     lobe0 = list(fs.lobe)
     centre = fs.pos_np.mean(0)
-    steps = config.rotation_steps
+    held = np.setdiff1d(np.arange(fs.k), train)
     cache: dict[tuple, float] = {}
     total = 1 + 2 * 3 * len(deltas_deg)
-    done = [0]
+    last = [None]  # key of the candidate `fs` holds now
+
+    def key(w: np.ndarray) -> tuple:
+        return tuple(np.round(w, 9) + 0.0)  # + 0.0: -0.0 and 0.0 are one candidate
 
     def apply(w: np.ndarray) -> None:
-        R = _rotation_matrix(w)
+        R = Rotation.from_rotvec(w).as_matrix()
         fs.n_np = n0 @ R.T
         fs.normals = to_jit(fs.mi.Vector3f, fs.n_np.astype(np.float32))
         p = {k: v.copy() for k, v in base.items()}
@@ -228,22 +225,21 @@ def search_rotation(fs: FitScene, train: np.ndarray, config: RefineConfig, delta
         fs.lobe = list(lobe0)
         fs._set_bsdf()
         fs.rng = np.random.default_rng([fs.config.seed, 104729])  # same batches and rays for every candidate
-        run_fit(fs, steps, holdout=np.setdiff1d(np.arange(fs.k), train), wide_lobe=False)
+        run_fit(fs, config.rotation_steps, holdout=held, wide_lobe=False)
+        last[0] = key(w)
 
     def score(w: np.ndarray) -> float:
-        key = tuple(np.round(w, 9))
-        if key not in cache:
+        if key(w) not in cache:
             apply(w)
-            cache[key] = fs.score(fs.render(train), train)
-            done[0] += 1
+            cache[key(w)] = fs.score(fs.render(train), train)
             if progress is not None:
-                progress(min(done[0], total), total, label)
-        return cache[key]
+                progress(min(len(cache), total), total, label)
+        return cache[key(w)]
 
     best = np.zeros(3)
     s_best = score(best)
     for d in np.radians(deltas_deg):
-        for axis in range(2):  # tilts only: a turn about the view axis (z) leaves every image as it is
+        for axis in range(2):  # tilts only (see above)
             e = np.zeros(3)
             e[axis] = d
             s_p, s_m = score(best + e), score(best - e)
@@ -254,8 +250,9 @@ def search_rotation(fs: FitScene, train: np.ndarray, config: RefineConfig, delta
                 if abs(t) > 0.05 and abs(abs(t) - 1) > 0.05:
                     cands.append((score(best + t * e), best + t * e))
             s_best, best = min(cands, key=lambda c: c[0])
-    apply(best)  # leave the scene at the winner (same batches: the same state as its evaluation)
-    log.info("%s: %.2f deg (rel_l1 %.5f -> %.5f on %d images)", label, np.degrees(np.linalg.norm(best)), cache[(0.0, 0.0, 0.0)], s_best, len(train))
+    if last[0] != key(best):
+        apply(best)  # back to the winner: same batches and rays, so the same state as at its evaluation
+    log.info("%s: %.2f deg (rel_l1 %.5f -> %.5f on %d images)", label, np.degrees(np.linalg.norm(best)), cache[key(np.zeros(3))], s_best, len(train))
     return best
 
 
