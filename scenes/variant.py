@@ -65,6 +65,27 @@ def choose_variant(requested: str | None = None) -> str:
     raise RuntimeError("no usable Mitsuba variant among " + ", ".join(PREFERENCE))
 
 
+def set_jit_threads(threads: int | None) -> None:
+    """Set Dr.Jit's worker thread count (None: leave its default, one per core). The fitted mode and the
+    refinement (`validate.fit`, `validate.refine`) are byte-identical run to run only with 1: with more, the
+    reverse-mode derivatives of gathers are atomic scatter-adds whose order varies between runs, so the last
+    float bits of gradients, and hence of every later step, change."""
+    if threads is None:
+        return
+    if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
+        raise ValueError(f"--threads: expected a positive integer, got {threads!r}")
+    import drjit as dr
+
+    dr.set_thread_count(threads)
+
+
+def jit_threads() -> int:
+    """Dr.Jit's current worker thread count (recorded in the fit and refine reports)."""
+    import drjit as dr
+
+    return int(dr.thread_count())
+
+
 def require_variant() -> Any:
     """The `mitsuba` module, after checking that a variant is set."""
     import mitsuba as mi

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 import torch
 
-from unips.checkpoint import load_model, save_checkpoint
+from unips.checkpoint import load_model, load_training_checkpoint, save_checkpoint
 from unips.models import create_model
 from unips.probes import probe_images, probe_object, summarise
 from unips.train import TrainConfig, build_parser, field_docs, lr_factor, main
@@ -77,6 +77,22 @@ def test_init_from_takes_weights_only(dataset, tmp_path, capsys) -> None:
     assert _train(dataset, tmp_path / "r2", "--steps", "1", "--model", "glc-tiny",
                   "--init-from", str(tmp_path / "w.safetensors")) == 2
     assert "--model" in capsys.readouterr().err
+
+
+def test_a_run_started_with_init_from_resumes_bit_for_bit(dataset, tmp_path) -> None:
+    """--resume takes no --init-from (the weights come from last.pt); the resumed run ends where an
+    uninterrupted one does and keeps the lineage."""
+    torch.manual_seed(6)
+    save_checkpoint(tmp_path / "w.safetensors", create_model("glc-test"))
+    opts = ["--lr", "3e-3", "--ckpt-every", "2", "--init-from", str(tmp_path / "w.safetensors")]
+    full, part = tmp_path / "full", tmp_path / "part"
+    assert _train(dataset, full, "--steps", "4", *opts) == 0
+    assert _train(dataset, part, "--steps", "2", *opts) == 0
+    assert _train(dataset, part, "--steps", "4", "--resume", *opts[:-2]) == 0
+    a, b = load_training_checkpoint(full / "last.pt"), load_training_checkpoint(part / "last.pt")
+    assert a["step"] == b["step"] == 4
+    assert all(torch.equal(v, b["model"][k]) for k, v in a["model"].items())
+    assert b["extra"]["train_args"]["init_from"] == str(tmp_path / "w.safetensors")
 
 
 def test_probes_remove_what_they_say() -> None:

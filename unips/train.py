@@ -597,6 +597,9 @@ def train(cfg: TrainConfig | argparse.Namespace) -> dict[str, Any]:
         ckpt = load_training_checkpoint(last_path)
         old = ckpt["extra"].get("train_args", {})
         defaults = dataclasses.asdict(TrainConfig())
+        # A resumed run keeps its weights (last.pt), so --resume takes no --init-from: the run's lineage
+        # is the checkpoint's.
+        train_args["init_from"] = old.get("init_from")
         for key, value in train_args.items():
             saved = old.get(key, defaults.get(key))  # a key newer than the checkpoint had its default there
             if saved != value:

@@ -29,7 +29,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from scenes.variant import require_ad_variant
+from scenes.variant import jit_threads, require_ad_variant
 from validate import heightfield
 from validate.capture import Capture
 from validate.lights import LIGHT_MODELS, closed_form_directional, point_start, report_lights
@@ -815,6 +815,7 @@ def rerender_fitted(
                  else "fitted and scored at full resolution"),
         "config": full_config_dict(config),
         "variant": mi.variant(),
+        "jit_threads": jit_threads(),
     }
     if small.light_directions is not None:
         err = angular_errors_deg(directions_of(res.model, res.light_params), small.light_directions)

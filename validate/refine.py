@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from scenes.cli import INPUT_ERRORS, UsageErrorParser, progress_bar, report_error
-from scenes.variant import require_ad_variant
+from scenes.variant import jit_threads, require_ad_variant
 from validate.fit import FitConfig, FitScene, Progress, _start, fit_normals, run_fit, saturated_fraction, to_jit
 
 log = logging.getLogger(__name__)
@@ -417,6 +417,7 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
                  "bilinearly onto the full-resolution input map" if f > 1 else "refined and scored at full resolution"),
         "config": {**{k: v for k, v in asdict(config).items() if k != "fit"}, "fit": {**asdict(config.fit), "floor_maps": list(config.fit.floor_maps)}},
         "variant": mi.variant(),
+        "jit_threads": jit_threads(),
         "timings": {"refine_s": res.seconds, "total_s": time.perf_counter() - t0},
     }
     if target is not None:
@@ -443,6 +444,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--holdout", type=float, default=RefineConfig.holdout_fraction, help="fraction of images held out for early stopping")
     p.add_argument("--seed", type=int, default=0, help="seed of every random choice")
     p.add_argument("--variant", default=None, help="Mitsuba variant (default: cuda_ad_rgb if usable, else llvm_ad_rgb)")
+    p.add_argument("--threads", type=int, default=None, help="Dr.Jit threads (default: one per core); with 1 the output is byte-identical "
+                   "run to run (with more, gradients are summed in a varying order)")
     p.add_argument("--overwrite", action="store_true", help="replace existing outputs")
     p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     return p
@@ -462,9 +465,10 @@ def main(argv: list[str] | None = None) -> int:
         ).validate()
         if not Path(args.normals).exists():
             raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
-        from scenes.variant import choose_variant
+        from scenes.variant import choose_variant, set_jit_threads
 
         choose_variant(args.variant)  # refine_object refuses a variant without automatic differentiation
+        set_jit_threads(args.threads)
         with progress_bar("step") as progress:
             r = refine_object(args.data, args.normals, config, args.out, progress, overwrite=args.overwrite)
     except (ValueError, FileNotFoundError, FileExistsError) as exc:

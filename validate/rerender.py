@@ -545,6 +545,8 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--max-pixels", type=int, default=16000, help="downsample until the mask has at most this many pixels")
     g.add_argument("--floor-maps", default="constant", help="comma list of no-information maps for the floor: constant,silhouette")
     g.add_argument("--seed", type=int, default=0, help="seed of every random choice of the fit")
+    g.add_argument("--threads", type=int, default=None, help="Dr.Jit threads (default: one per core); with 1 the fit is byte-identical "
+                   "run to run (with more, gradients are summed in a varying order)")
     g.add_argument("--overwrite", action="store_true", help="replace an existing <out>/<object>/report.json")
     p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     return p
@@ -552,7 +554,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _main_fitted(args) -> int:
     """Fitted mode (validate.fit): one object folder of any layout."""
-    from scenes.variant import choose_variant
+    from scenes.variant import choose_variant, set_jit_threads
     from validate.fit import FitConfig, rerender_fitted
 
     config = FitConfig(light_model=args.light_model, steps=args.steps, max_pixels=args.max_pixels,
@@ -560,6 +562,7 @@ def _main_fitted(args) -> int:
     if not Path(args.normals).exists():
         raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
     choose_variant(args.variant)  # the fit itself refuses a variant without automatic differentiation
+    set_jit_threads(args.threads)
     with progress_bar("step") as progress:
         r = rerender_fitted(args.data, args.normals, config, args.out, progress, overwrite=args.overwrite)
     cal = r.get("calibrated_light_error_deg")
