@@ -3,9 +3,16 @@
 Reads the validation records of each run's `log.jsonl` (written by `unips.train` at every
 validation) and prints one Markdown table per run: step, hours since the run started, error with
 all images / one image / the mask only / shuffled observations, and the photometric gain
-(mask only - all images), then the same per light family for the last validation. Usage:
+(mask only - all images), then the same per light family for the last validation. With `--card`, the
+curve across the stages of the shipped model's lineage instead (`unips/weights/model_card.json`): the
+fixed-validation error of each shipped stage, overall and per family, against the cumulative CPU hours and
+steps that produced it, a least-squares fit error = a - b * log2(hours) per family over the stages at 128 px
+(fine-tune 1 on), and the hours at which that trend would reach `--target` on the test set (the target
+shifted by the shipped model's test - validation difference of the family). An extrapolation of a trend,
+not a measurement: it says how far the remaining gap is at the rate measured so far. Usage:
 
     python bench/learning_curve.py RUN [RUN ...] [--families]
+    python bench/learning_curve.py --card unips/weights/model_card.json [--target 15]
 """
 
 from __future__ import annotations
@@ -46,12 +53,92 @@ def table(run: Path, families: bool = False) -> str:
     return "\n".join(lines)
 
 
+def shipped_chain(card: dict) -> list[dict]:
+    """The lineage stages that produced the shipped weights, in order (runs marked 'not shipped' left out:
+    their hours did not go into the shipped model)."""
+    return [s for s in card.get("lineage", []) if "not shipped" not in s["stage"]]
+
+
+def _stage_result(s: dict) -> tuple[float | None, float | None]:
+    """(all images, gain) of a stage at its best step."""
+    if s.get("curve"):
+        best = s.get("best_step", s["curve"][-1]["step"])
+        row = next((c for c in s["curve"] if c["step"] == best), s["curve"][-1])
+        return row.get("all"), row.get("gain")
+    fv = s.get("fixed_validation") or {}
+    return fv.get("all"), fv.get("gain")
+
+
+def fit_log2(hours: list[float], errors: list[float]) -> tuple[float, float]:
+    """(a, b) of the least-squares line error = a - b * log2(hours)."""
+    import numpy as np
+
+    x = np.log2(np.asarray(hours, float))
+    slope, intercept = np.polyfit(x, np.asarray(errors, float), 1)
+    return float(intercept), float(-slope)
+
+
+def card_table(card: dict, target: float) -> str:
+    chain = shipped_chain(card)
+    if not chain:
+        raise ValueError("--card: the model card has no lineage")
+    fams = sorted({f for s in chain for f in s.get("per_family_at_best", {})})
+    lines = ["| stage | steps | cumulative steps | cumulative hours | all images | photometric gain | "
+             + " | ".join(fams) + " |", "|---" * (6 + len(fams)) + "|"]
+    hours = steps = 0.0
+    pts: dict[str, list[tuple[float, float]]] = {f: [] for f in fams + ["all"]}
+    for s in chain:
+        hours += s.get("hours", 0.0)
+        steps += s.get("steps", 0)
+        a, g = _stage_result(s)
+        pf = s.get("per_family_at_best", {})
+        lines.append(f"| {s['stage']} | {s.get('steps', 0)} | {int(steps)} | {hours:.2f} | {_cell(a)} | {_cell(g)} | "
+                     + " | ".join(_cell(pf.get(f, {}).get("all")) for f in fams) + " |")
+        if pf:  # the 128 px stages (the original trained at 64 px and has no per-family record)
+            pts["all"].append((hours, a))
+            for f in fams:
+                pts[f].append((hours, pf[f]["all"]))
+    test, val = card.get("test_set_deg") or {}, card.get("validation_per_family_deg") or {}
+    out = ["\n".join(lines), "",
+           f"trend error = a - b * log2(cumulative hours), fitted over the {len(pts['all'])} stages with per-family "
+           f"records; hours at which it reaches {target:g} deg on the test set (the target shifted by the family's "
+           "test - validation difference of the shipped model):", "",
+           "| family | a | b (deg per doubling of hours) | validation now | test now | validation needed | hours needed | x hours so far |",
+           "|---|---|---|---|---|---|---|---|"]
+    for f in fams + ["all"]:
+        if len(pts[f]) < 3:
+            continue
+        h, e = zip(*pts[f])
+        a, b = fit_log2(list(h), list(e))
+        t_now = test.get(f)
+        v_now = e[-1]
+        need = target - (t_now - val.get(f, v_now) if t_now is not None and f in val else 0.0) if f != "all" else target - (
+            (test.get("all") - card.get("validation_mean_deg")) if test.get("all") is not None and card.get("validation_mean_deg") else 0.0)
+        if v_now <= need:
+            hrs, ratio = "reached", "-"
+        elif b <= 0:
+            hrs, ratio = "never (no decrease)", "-"
+        else:
+            hn = 2 ** ((a - need) / b)
+            hrs, ratio = f"{hn:.0f}", f"{hn / h[-1]:.0f}"
+        out.append(f"| {f} | {a:.2f} | {b:.2f} | {v_now:.2f} | {_cell(t_now)} | {need:.2f} | {hrs} | {ratio} |")
+    return "\n".join(out)
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("runs", nargs="+", type=Path, help="unips.train run folders")
+    p.add_argument("runs", nargs="*", type=Path, help="unips.train run folders")
     p.add_argument("--families", action="store_true", help="also the per-family probes of the last validation")
+    p.add_argument("--card", type=Path, default=None, help="a model card: the curve across its lineage's shipped stages")
+    p.add_argument("--target", type=float, default=15.0, help="test-set error (deg) the --card trend is extrapolated to (default 15)")
     args = p.parse_args(argv)
     try:
+        if not args.runs and args.card is None:
+            raise ValueError("expected RUN folders or --card CARD")
+        if args.card is not None:
+            if not args.card.is_file():
+                raise FileNotFoundError(f"--card: {str(args.card)!r} is not a file")
+            print(card_table(json.loads(args.card.read_text()), args.target), end="\n\n")
         for run in args.runs:
             print(table(run, args.families), end="\n\n")
     except (OSError, ValueError) as exc:

@@ -41,3 +41,33 @@ def test_benchmark_reports_probes_and_diligent_subsets(synthetic_object, tmp_pat
     m = probe_inputs(obj, "mask")
     assert m.images.shape == obj.images.shape
     assert np.array_equal(m.images[..., 0][0] > 0, obj.mask) and set(np.unique(m.images)) <= {0.0, 1.0}
+
+
+def test_learning_curve_card_trend_and_extrapolation(tmp_path) -> None:
+    """bench/learning_curve.py --card on a lineage whose errors follow 20 - 1.5 log2(hours) exactly: the fit
+    recovers a = 20, b = 1.5, and the hours at which the trend reaches the target (shifted by the family's
+    test - validation difference) are 2^((a - need) / b); a stage marked 'not shipped' is left out."""
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location("learning_curve", Path(__file__).resolve().parents[1] / "bench" / "learning_curve.py")
+    lc = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(lc)
+    err = lambda h: 20 - 1.5 * np.log2(h)  # noqa: E731
+    lineage, cum = [], 0.0
+    for i, h in enumerate([1.0, 1.0, 2.0, 4.0]):
+        cum += h
+        e = float(err(cum))
+        lineage.append({"stage": f"s{i}", "steps": 100, "hours": h, "best_step": 100,
+                        "curve": [{"step": 100, "all": e, "gain": 5.0}], "per_family_at_best": {"hdri": {"all": e, "gain": 5.0, "n": 20}}})
+    lineage.insert(2, {"stage": "side run (not shipped)", "steps": 100, "hours": 50.0, "curve": [{"step": 100, "all": 1.0, "gain": 0.0}],
+                       "per_family_at_best": {"hdri": {"all": 1.0, "gain": 0.0, "n": 20}}})
+    card = {"lineage": lineage, "test_set_deg": {"hdri": err(8.0) + 2.0}, "validation_per_family_deg": {"hdri": err(8.0)}}
+    assert [s["stage"] for s in lc.shipped_chain(card)] == ["s0", "s1", "s2", "s3"]
+    a, b = lc.fit_log2([1, 2, 4, 8], [err(h) for h in (1, 2, 4, 8)])
+    assert abs(a - 20) < 1e-9 and abs(b - 1.5) < 1e-9
+    text = lc.card_table(card, target=12.0)
+    row = next(line for line in text.splitlines() if line.startswith("| hdri |"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert float(cells[1]) == 20.0 and float(cells[2]) == 1.5 and float(cells[5]) == 10.0  # need = 12 - 2
+    assert int(cells[6]) == round(2 ** ((20 - 10) / 1.5))  # 101 hours
