@@ -1,6 +1,6 @@
 """Fitted mode of the re-render check and refinement (issue 13): the figures of the README.
 
-    python bench/bench_fit.py [--diligent ../shared/data/diligent] [--synthetic 3] [--out bench_fit.json]
+    python bench/bench_fit.py [--diligent ../shared/data/diligent] [--synthetic 3] [--threads T] [--out bench_fit.json]
 
 DiLiGenT (ball, cat; skipped when the folder is absent):
 - fitted light directions with the ground-truth normals vs the calibrated ones (mean angular error);
@@ -185,15 +185,17 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--skip-diligent", action="store_true", help="synthetic objects only")
     p.add_argument("--skip-refine", action="store_true", help="no refinement runs")
     p.add_argument("--seed", type=int, default=0, help="seed of perturbations and fits")
+    p.add_argument("--threads", type=int, default=None, help="Dr.Jit threads (default: one per core; 1: byte-identical figures run to run)")
     p.add_argument("--out", type=Path, default=None, help="also write the figures as JSON")
     args = p.parse_args(argv)
     args.angles = [float(a) for a in args.angles.split(",")]
     args.synthetic_angles = [float(a) for a in args.synthetic_angles.split(",")]
     args.kinds = args.kinds.split(",")
-    from scenes.variant import choose_variant
+    from scenes.variant import choose_variant, set_jit_threads
     from unips.inference import load_network
 
     choose_variant("llvm_ad_rgb")
+    set_jit_threads(args.threads)
     net = load_network(None)
     out: dict = {"diligent": {}, "synthetic": {}}
     if args.skip_diligent:
