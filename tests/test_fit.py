@@ -332,14 +332,15 @@ def test_refine_with_one_thread_is_byte_identical_across_processes(jit, sphere_f
     order. That is measured, not asserted: it is not guaranteed.) A bad --threads is a one-line error."""
     import drjit as dr
     from validate.capture import load_capture
+    from validate.fit import FitConfig
     from validate.perturb import perturb_normals
     from validate.refine import RefineConfig, refine_object
 
     cap = load_capture(sphere_folder)
     start = tmp_path / "start.npy"
     np.save(start, perturb_normals(cap.normal_gt, cap.mask, "random", 20, seed=2).astype(np.float32))
-    config = RefineConfig(fit=small_config(batch_images=16, refresh_every=20, ao_rays=16, max_pixels=16000),
-                          refine_steps=30, rounds=2)
+    # The configuration the CLI call below builds (its defaults, --steps 40 --refine-steps 30 --rounds 2).
+    config = RefineConfig(fit=FitConfig(steps=40), refine_steps=30, rounds=2)
     before = dr.thread_count()
     dr.set_thread_count(1)
     try:
