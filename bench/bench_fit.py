@@ -1,6 +1,6 @@
 """Fitted mode of the re-render check and refinement (issue 13): the figures of the README.
 
-    python bench/bench_fit.py [--diligent ../shared/data/diligent] [--synthetic 3] [--threads T] [--out bench_fit.json]
+    python bench/bench_fit.py [--diligent ../shared/data/diligent] [--synthetic 3] [--threads T] [--tta N] [--out bench_fit.json]
 
 DiLiGenT (ball, cat; skipped when the folder is absent):
 - fitted light directions with the ground-truth normals vs the calibrated ones (mean angular error);
@@ -46,15 +46,16 @@ def series(gt: np.ndarray, mask: np.ndarray, angles, kinds, seed: int):
             yield kind, a, perturb_normals(gt, mask, kind, a, seed=seed)
 
 
-def model_and_ls(folder: Path, net):
-    """(least squares with the folder's calibrated lights or None, model prediction) as full-size maps."""
+def model_and_ls(folder: Path, net, tta: int):
+    """(least squares with the folder's calibrated lights or None, model prediction with `tta` views) as
+    full-size maps."""
     from unips.baselines import least_squares
     from unips.data import load_object
     from unips.inference import predict_object
 
     obj = load_object(folder)
     ls = least_squares(obj) if obj.light_directions is not None else None
-    return ls, predict_object(obj, "model", net)
+    return ls, predict_object(obj, "model", net, tta=tta)
 
 
 def diligent(args, net, out: dict) -> None:
@@ -84,7 +85,7 @@ def diligent(args, net, out: dict) -> None:
         row["fit_minutes"] = (time.perf_counter() - t0) / 60
         err = angular_errors_deg(directions_of(r_gt.model, r_gt.light_params), cap.light_directions)
         row["light_error_deg"] = {"mean": float(err.mean()), "median": float(np.median(err)), "max": float(err.max())}
-        ls, model = model_and_ls(folder, net)
+        ls, model = model_and_ls(folder, net, args.tta)
         const = np.where(cap.mask[..., None], np.float32([0, 0, 1]), 0).astype(np.float32)
         ranking = {"ground truth": (0.0, r_gt.rel_l1)}
         for label, n in (("least squares (calibrated)", ls), ("model", model), ("constant", const)):
@@ -137,7 +138,7 @@ def synthetic(args, net, out: dict) -> None:
             bare = work / "bare" / folder.name
             shutil.copytree(folder, bare, ignore=shutil.ignore_patterns("scene.json"))
             cap = load_capture(bare)
-            ls, model = model_and_ls(folder, net)
+            ls, model = model_and_ls(folder, net, args.tta)
             light_model = args.light_model
             if light_model == "auto":
                 # Chosen once per object around the model's prediction (the map a user has), then held for
@@ -186,8 +187,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--skip-refine", action="store_true", help="no refinement runs")
     p.add_argument("--seed", type=int, default=0, help="seed of perturbations and fits")
     p.add_argument("--threads", type=int, default=None, help="Dr.Jit threads (default: one per core; 1: byte-identical figures run to run)")
+    p.add_argument("--tta", type=int, default=None, help="views of the model's prediction (default: unips.predict's)")
     p.add_argument("--out", type=Path, default=None, help="also write the figures as JSON")
     args = p.parse_args(argv)
+    from unips.inference import DEFAULT_TTA, check_tta
+
+    args.tta = check_tta(DEFAULT_TTA if args.tta is None else args.tta)
     args.angles = [float(a) for a in args.angles.split(",")]
     args.synthetic_angles = [float(a) for a in args.synthetic_angles.split(",")]
     args.kinds = args.kinds.split(",")
@@ -197,7 +202,7 @@ def main(argv: list[str] | None = None) -> int:
     choose_variant("llvm_ad_rgb")
     set_jit_threads(args.threads)
     net = load_network(None)
-    out: dict = {"diligent": {}, "synthetic": {}}
+    out: dict = {"tta": args.tta, "diligent": {}, "synthetic": {}}
     if args.skip_diligent:
         pass
     elif args.diligent.is_dir():

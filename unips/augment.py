@@ -115,6 +115,31 @@ def augment(images: torch.Tensor, mask: torch.Tensor, normals: torch.Tensor | No
     return apply_augmentation(sample_augmentation(rng, images.shape[0], p), images, mask, normals)
 
 
+DIHEDRAL = tuple(Augmentation(transpose=t, hflip=h, vflip=v)
+                 for t, h, v in ((False, False, False), (False, True, False), (False, False, True),
+                                 (False, True, True), (True, False, False), (True, True, False),
+                                 (True, False, True), (True, True, True)))
+"""The 8 symmetries of the square (rotations by 90 deg and reflections), identity first, ordered so that
+the first 2 and 4 are closed sets (identity + horizontal flip; + vertical flip and their product):
+the views of test-time augmentation (`unips.inference.run_model(tta=...)`)."""
+
+
+def invert_normals(aug: Augmentation, normals: torch.Tensor) -> torch.Tensor:
+    """Normals `(3, H, W)` predicted on augmented images, taken back to the original frame and pixel grid.
+
+    The inverse of `apply_augmentation` on normals: the vector matrix's transpose (it is orthogonal),
+    then the spatial operations undone in reverse order. Channel permutations do not act on normals.
+    """
+    n = transform_normals(normals, aug.vector_matrix().T)
+    if aug.vflip:
+        n = n.flip(-2)
+    if aug.hflip:
+        n = n.flip(-1)
+    if aug.transpose:
+        n = n.transpose(-1, -2)
+    return n.contiguous()
+
+
 def interior_crop(images: torch.Tensor, mask: torch.Tensor, normals: torch.Tensor, rng: np.random.Generator,
                   min_fraction: float = 0.125, max_fraction: float = 0.6
                   ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None:

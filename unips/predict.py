@@ -1,7 +1,7 @@
 """Predict surface normals for one object folder or a directory of them.
 
     python -m unips.predict --method {model,least-squares,sh-uncalibrated} [--checkpoint CKPT]
-                            --input PATH --out DIR [--max-images K] [--device cpu] [--res R]
+                            --input PATH --out DIR [--max-images K] [--device cpu] [--res R] [--tta N]
 
 For each object, ``DIR/<object>/`` receives ``normal.png`` (16-bit, (n + 1) / 2, the full original
 frame, background 32768), ``normal.exr`` (float32), ``normal_vis.png`` (8-bit picture) and
@@ -13,7 +13,9 @@ Inference itself is the library `unips.inference` (this module parses arguments 
 ``--method model`` loads a network with `unips.checkpoint.load_model`; without ``--checkpoint`` it
 uses the shipped ``unips/weights/glc-tiny.safetensors`` and refuses to run when that file is absent
 (never random weights). The network sees the UniPS preprocessing (`unips.preprocess.prepare`), at the
-crop's own size or at ``--res R``, and its output is put back into the original frame.
+crop's own size or at ``--res R``, and its output is put back into the original frame. ``--tta N``
+averages the network's predictions over N flipped / transposed views of the object (test-time
+augmentation, N forward passes; `unips.inference.model_normals`).
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ from scenes.cli import INPUT_ERRORS, UsageError, UsageErrorParser, one_line, rep
 from scenes.objfolder import PREDICTION_FILES, object_name, write_normal_exr, write_normal_map, write_normal_visual
 from scenes.layouts import detect_layout
 from unips.data import find_objects, load_object
-from unips.inference import METHODS, load_network, predict_object
+from unips.inference import DEFAULT_TTA, METHODS, TTA_VIEWS, load_network, predict_object
 
 log = logging.getLogger(__name__)
 
@@ -87,6 +89,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--device", default="cpu", help="torch device for --method model (cpu, cuda, cuda:0)")
     p.add_argument("--res", type=int, default=None,
                    help="working resolution of the network (the crop is resized to R x R); --method model only")
+    p.add_argument("--tta", type=int, default=None,
+                   help=f"views averaged (test-time augmentation by flips and transposes), one of "
+                        f"{', '.join(map(str, TTA_VIEWS))}; N forward passes (default {DEFAULT_TTA}); --method model only")
     return p
 
 
@@ -95,8 +100,10 @@ def _check_args(args: argparse.Namespace) -> None:
         raise UsageError(f"--max-images: must be >= 1, got {args.max_images}")
     if args.res is not None and args.res < 8:
         raise UsageError(f"--res: must be >= 8, got {args.res}")
+    if args.tta is not None and args.tta not in TTA_VIEWS:
+        raise UsageError(f"--tta: got {args.tta}, expected one of {', '.join(map(str, TTA_VIEWS))}")
     if args.method != "model":
-        for flag, value in (("--checkpoint", args.checkpoint), ("--res", args.res)):
+        for flag, value in (("--checkpoint", args.checkpoint), ("--res", args.res), ("--tta", args.tta)):
             if value is not None:
                 raise UsageError(f"{flag}: only used with --method model, not --method {args.method}")
 
@@ -145,7 +152,8 @@ def main(argv: list[str] | None = None) -> int:
 def _predict_one(args: argparse.Namespace, net, folder: Path, name: str) -> None:
     obj = load_object(folder, max_images=args.max_images)
     start = time.perf_counter()
-    normals = predict_object(obj, args.method, net=net, res=args.res)
+    tta = (args.tta or DEFAULT_TTA) if net else None
+    normals = predict_object(obj, args.method, net=net, res=args.res, tta=tta or 1)
     elapsed = time.perf_counter() - start
     constant = constant_map(normals, obj.mask)
     if constant:
@@ -161,6 +169,7 @@ def _predict_one(args: argparse.Namespace, net, folder: Path, name: str) -> None
         "model_name": net.meta.get("model_name") if net else None,
         "device": args.device if net else "cpu",
         "resolution": args.res,
+        "tta": tta,
         "num_images": obj.num_images,
         "images_used": obj.image_names,
         "time_s": round(elapsed, 4),
