@@ -157,6 +157,7 @@ def test_resume_is_bit_for_bit(dataset, tmp_path) -> None:
     full, part = tmp_path / "full", tmp_path / "part"
     assert _train(dataset, full, "--steps", "6", *opts) == 0
     assert _train(dataset, part, "--steps", "3", *opts) == 0
+    seconds_at_3 = load_training_checkpoint(part / "last.pt")["extra"]["elapsed_s"]
     assert _train(dataset, part, "--steps", "6", "--resume", *opts) == 0
     a = load_training_checkpoint(full / "last.pt")
     b = load_training_checkpoint(part / "last.pt")
@@ -167,6 +168,9 @@ def test_resume_is_bit_for_bit(dataset, tmp_path) -> None:
         assert all(torch.equal(sa[k], sb[k]) for k in sa)
     losses = lambda out: [(r["step"], r["loss"], r["lr"], r["k"]) for r in _log(out) if "loss" in r]
     assert losses(full) == losses(part) and len(losses(full)) == 6
+    # The log's elapsed time goes on from the checkpoint's at a resume instead of restarting at 0.
+    times = {r["step"]: r["elapsed_s"] for r in _log(part) if "loss" in r}
+    assert 0 < seconds_at_3 <= times[4] <= times[5] <= times[6] <= b["extra"]["elapsed_s"]
     # And training did change the weights.
     fresh = create_model("glc-test", dropout=0.1, swin_drop_path=0.1).state_dict()
     assert any(not torch.equal(v, fresh[k]) for k, v in a["model"].items())

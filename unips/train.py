@@ -593,6 +593,9 @@ def train(cfg: TrainConfig | argparse.Namespace) -> dict[str, Any]:
     optimizer = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda s: lr_factor(cfg, s))
     start, best = 0, math.inf
+    # Training seconds of the steps a resumed run keeps (from last.pt), so that `elapsed_s` in the log
+    # counts the whole run's time, not the time since the last resume.
+    elapsed_before = 0.0
     if cfg.resume:
         ckpt = load_training_checkpoint(last_path)
         old = ckpt["extra"].get("train_args", {})
@@ -611,6 +614,7 @@ def train(cfg: TrainConfig | argparse.Namespace) -> dict[str, Any]:
         scheduler.load_state_dict(ckpt["scheduler"])
         set_rng_states(ckpt["rng"])
         start, best = int(ckpt["step"]), float(ckpt["extra"].get("best_val", math.inf))
+        elapsed_before = float(ckpt["extra"].get("elapsed_s", 0.0))
         if dist.main:
             _truncate_log(log_path, start)
         log.info("resumed from %s at step %d", last_path, start)
@@ -618,12 +622,13 @@ def train(cfg: TrainConfig | argparse.Namespace) -> dict[str, Any]:
         log.info("nothing to do: checkpoint at step %d, --steps %d", start, cfg.steps)
 
     summary: dict[str, Any] = {"start": start, "steps": cfg.steps, "params": sum(p.numel() for p in model.parameters())}
-    t_start = time.time()
+    t_start = time.time() - elapsed_before
 
     def save_last(step: int) -> None:
         if dist.main:
             save_training_checkpoint(last_path, model=model, optimizer=optimizer, scheduler=scheduler, step=step,
-                                     data=data_desc, extra={"train_args": train_args, "best_val": best})
+                                     data=data_desc, extra={"train_args": train_args, "best_val": best,
+                                                            "elapsed_s": round(time.time() - t_start, 3)})
 
     def run_validation(step: int) -> None:
         nonlocal best
@@ -641,7 +646,6 @@ def train(cfg: TrainConfig | argparse.Namespace) -> dict[str, Any]:
     model.train()
     bar = tqdm(range(start, cfg.steps), initial=start, total=cfg.steps, disable=cfg.no_progress or not dist.main,
                dynamic_ncols=True, desc="train")
-    t0 = time.time()
     for step in bar:
         batch = make_batch(samples, step, seed=cfg.seed, batch=cfg.batch, min_images=cfg.min_images,
                            max_images=cfg.max_images, pixels=cfg.pixels, canonical=canonical,
@@ -666,7 +670,7 @@ def train(cfg: TrainConfig | argparse.Namespace) -> dict[str, Any]:
         summary["last_loss"] = parts["loss"]
         if dist.main and (done % cfg.log_every == 0 or done == cfg.steps):
             _append_log(log_path, {"step": done, **parts, "k": int(batch.images.shape[1]),
-                                   "lr": optimizer.param_groups[0]["lr"], "elapsed_s": round(time.time() - t0, 3)})
+                                   "lr": optimizer.param_groups[0]["lr"], "elapsed_s": round(time.time() - t_start, 3)})
         if val_samples and (done % cfg.val_every == 0 or done == cfg.steps):
             run_validation(done)
         if done % cfg.ckpt_every == 0 or done == cfg.steps:
