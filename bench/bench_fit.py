@@ -156,6 +156,12 @@ def synthetic(args, net, out: dict) -> None:
                    "spearman_fitted_known": spearman([r["fitted"] for r in res], [r["known"] for r in res]),
                    "spearman_fitted_error": spearman([r["fitted"] for r in res], [r["mae_deg"] for r in res]),
                    "spearman_known_error": spearman([r["known"] for r in res], [r["mae_deg"] for r in res])}
+            # Within one kind of error (as for DiLiGenT): does the fitted score order the angles as the
+            # known-scene score and the angular error do?
+            row["spearman_per_kind"] = {
+                k: {"fitted_known": spearman([r["fitted"] for r in res if r["kind"] == k], [r["known"] for r in res if r["kind"] == k]),
+                    "fitted_error": spearman([r["fitted"] for r in res if r["kind"] == k], [r["mae_deg"] for r in res if r["kind"] == k])}
+                for k in args.kinds}
             if not args.skip_refine:
                 r = refine_object(str(bare), model, RefineConfig(fit=cfg))
                 row["refine_model"] = {"before_mae": r["before"]["mae_deg"], "after_mae": r["after"]["mae_deg"],
