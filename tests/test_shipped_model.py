@@ -109,8 +109,8 @@ def test_shipped_model_reads_the_images_not_only_the_outline(rendered):
     assert mean["one"] - mean["all"] > 0.5 * GAIN_FLOOR_DEG, mean
 
 
-# Measured on these 10 objects with the default 2 views: the shipped glc-tiny (fine-tune 10) gains 15.8 deg
-# (11.2 all images, 17.5 one image, 26.9 mask only). One view: fine-tune 10 gained 15.6, fine-tune 9 14.9,
-# fine-tune 8 17.0, fine-tune 7 17.4, the weights before the 128 px fine-tunes 4.5.
+# Measured on these 10 objects with the default 2 views: the shipped glc-tiny (fine-tune 11) gains 15.2 deg
+# (11.1 all images, 17.1 one image, 26.2 mask only; fine-tune 10 15.8). One view: fine-tune 10 gained 15.6,
+# fine-tune 9 14.9, fine-tune 8 17.0, fine-tune 7 17.4, the weights before the 128 px fine-tunes 4.5.
 # The floor sits well below that and far above the ~0 of a silhouette-only model.
 GAIN_FLOOR_DEG = 6.0
