@@ -158,10 +158,11 @@ def synthetic(args, net, out: dict) -> None:
                    "spearman_known_error": spearman([r["known"] for r in res], [r["mae_deg"] for r in res])}
             # Within one kind of error (as for DiLiGenT): does the fitted score order the angles as the
             # known-scene score and the angular error do?
+            by_kind = {k: [r for r in res if r["kind"] == k] for k in args.kinds}
             row["spearman_per_kind"] = {
-                k: {"fitted_known": spearman([r["fitted"] for r in res if r["kind"] == k], [r["known"] for r in res if r["kind"] == k]),
-                    "fitted_error": spearman([r["fitted"] for r in res if r["kind"] == k], [r["mae_deg"] for r in res if r["kind"] == k])}
-                for k in args.kinds}
+                k: {"fitted_known": spearman([r["fitted"] for r in rs], [r["known"] for r in rs]),
+                    "fitted_error": spearman([r["fitted"] for r in rs], [r["mae_deg"] for r in rs])}
+                for k, rs in by_kind.items()}
             if not args.skip_refine:
                 r = refine_object(str(bare), model, RefineConfig(fit=cfg))
                 row["refine_model"] = {"before_mae": r["before"]["mae_deg"], "after_mae": r["after"]["mae_deg"],
@@ -198,7 +199,7 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     from unips.inference import DEFAULT_TTA, check_tta
 
-    args.tta = check_tta(DEFAULT_TTA if args.tta is None else args.tta)
+    args.tta = check_tta(DEFAULT_TTA if args.tta is None else args.tta, "--tta")
     args.angles = [float(a) for a in args.angles.split(",")]
     args.synthetic_angles = [float(a) for a in args.synthetic_angles.split(",")]
     args.kinds = args.kinds.split(",")

@@ -33,7 +33,7 @@ import numpy as np
 from scenes.cli import INPUT_ERRORS, UsageError, report_error
 from scenes.objfolder import mean_angular_error
 from unips.data import find_objects, load_object
-from unips.inference import DEFAULT_TTA, TTA_VIEWS, load_network, predict_object
+from unips.inference import DEFAULT_TTA, TTA_VIEWS, check_tta, load_network, predict_object
 
 log = logging.getLogger(__name__)
 
@@ -313,8 +313,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.data is None and args.diligent is None:
             raise UsageError("--data / --diligent: give at least one of them")
-        if args.tta not in TTA_VIEWS:
-            raise UsageError(f"--tta: got {args.tta}, expected one of {', '.join(map(str, TTA_VIEWS))}")
+        check_tta(args.tta, "--tta")
         counts = [int(k) for k in args.counts.split(",")]
         if any(k < 1 for k in counts):
             raise UsageError(f"--counts: expected positive integers, got {args.counts!r}")

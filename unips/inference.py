@@ -93,10 +93,11 @@ def create_model(name: str, pretrained: bool = False, checkpoint: str | Path | N
     return build(name, **overrides).to(device)
 
 
-def check_tta(tta: int) -> int:
-    """`tta` if it is an allowed number of views, else ValueError naming the allowed ones."""
+def check_tta(tta: int, name: str = "tta") -> int:
+    """`tta` if it is an allowed number of views, else ValueError naming `name` (a CLI passes its flag)
+    and the allowed ones."""
     if isinstance(tta, bool) or not isinstance(tta, (int, np.integer)) or int(tta) not in TTA_VIEWS:
-        raise ValueError(f"tta: got {tta!r}, expected one of {', '.join(map(str, TTA_VIEWS))} (views of the object)")
+        raise ValueError(f"{name}: got {tta!r}, expected one of {', '.join(map(str, TTA_VIEWS))} (views of the object)")
     return int(tta)
 
 
@@ -136,7 +137,6 @@ def run_model(net: LoadedModel, obj: PSObject, res: int | None = None, margin: i
 
     from unips.preprocess import prepare, resize_prepared, uncrop
 
-    tta = check_tta(tta)
     prepared = prepare(obj, margin=margin)
     work = resize_prepared(prepared, res) if res is not None else prepared
     images = torch.from_numpy(np.ascontiguousarray(work.images.transpose(0, 3, 1, 2)))  # (K, 3, R, R)

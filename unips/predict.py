@@ -34,7 +34,7 @@ from scenes.cli import INPUT_ERRORS, UsageError, UsageErrorParser, one_line, rep
 from scenes.objfolder import PREDICTION_FILES, object_name, write_normal_exr, write_normal_map, write_normal_visual
 from scenes.layouts import detect_layout
 from unips.data import find_objects, load_object
-from unips.inference import DEFAULT_TTA, METHODS, TTA_VIEWS, load_network, predict_object
+from unips.inference import DEFAULT_TTA, METHODS, TTA_VIEWS, check_tta, load_network, predict_object
 
 log = logging.getLogger(__name__)
 
@@ -100,8 +100,8 @@ def _check_args(args: argparse.Namespace) -> None:
         raise UsageError(f"--max-images: must be >= 1, got {args.max_images}")
     if args.res is not None and args.res < 8:
         raise UsageError(f"--res: must be >= 8, got {args.res}")
-    if args.tta is not None and args.tta not in TTA_VIEWS:
-        raise UsageError(f"--tta: got {args.tta}, expected one of {', '.join(map(str, TTA_VIEWS))}")
+    if args.tta is not None:
+        check_tta(args.tta, "--tta")
     if args.method != "model":
         for flag, value in (("--checkpoint", args.checkpoint), ("--res", args.res), ("--tta", args.tta)):
             if value is not None:
