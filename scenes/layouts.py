@@ -1,27 +1,79 @@
-"""Which photometric-stereo folder layout a folder is, and its files in loader order.
+"""Every photometric-stereo folder layout in one table, and the one reader of all of them.
 
-The one home of layout detection for both readers: `unips.data` (what the model sees) and
-`validate.capture` (what the fitted re-render check sees). Layouts:
+`LAYOUT_TABLE` describes each layout a user may hand us: how it is recognised, how its images are listed
+(and in which order), which files hold its calibration and its ground-truth normals, and whether a mask
+file is required. `read_folder` reads any of them into one plain structure, `FolderData`; the model's
+loader (`unips.data`), the fitted re-render check (`validate.capture`) and the known-scene check
+(`validate.io`) are thin views of it, so a folder means the same thing to all of them. Adding a layout is
+one `Layout` entry (plus its tests).
 
-- ``"ours"``: ``L000.png ...`` + ``scene.json`` (`scenes.objfolder` owns the rest of the folder);
-- ``"diligent"``: ``light_directions.txt`` + ``001.png ...`` (order from ``filenames.txt`` when present);
-- ``"unips"``: official UniPS / SDM-UniPS ``L*`` images without a scene file.
+Layouts, detected in table order:
 
-Detected in that order. Everything here reads names and text files only, never images.
+- ``"ours"``: the project's object folder (`scenes.objfolder` owns its files): ``L000.png ...`` (no gaps),
+  ``mask.png`` (required), ``normal.tif``, ``scene.json`` (light family; calibrated lights from its
+  ``camera_lights`` when every image has exactly one directional light and nothing else).
+- ``"diligent"``: DiLiGenT ``*PNG`` folders: ``001.png ...`` (order from ``filenames.txt`` when present),
+  ``light_directions.txt``, ``light_intensities.txt`` (ones when absent), ``mask.png``, ``Normal_gt.mat`` or
+  ``Normal_gt.png``. Both light files use the camera frame (x right, y up, z toward the camera).
+- ``"unips"``: official UniPS / SDM-UniPS folders: ``L*`` images (png, jpg, tif, bmp, 8 or 16 bit, or float
+  EXR; natural order), optional ``mask.png`` (whole image when absent), optional ``normal.tif``,
+  ``Normal_gt.png`` or ``Normal_gt.mat``. Our own folder with its scene file removed reads as this layout.
+
+Rules shared by every layout (the divergences this module exists to prevent):
+
+- images are linear as stored: 16-bit / 65535, 8-bit / 255, EXR as is; a float image must be finite and
+  non-negative; a folder may not mix float EXR and integer images (their scales differ);
+- a channel at an integer file's largest code is *saturated*: its true value is only known to be at least
+  the stored one (`FolderData.saturated`);
+- mask: any channel > 0 is foreground (`scenes.objfolder.MASK_RULE`, the official UniPS rule);
+- ground-truth normals: renormalised inside the mask; a vector shorter than `MIN_NORMAL_LENGTH` is "no
+  normal" and becomes 0 (an encoded zero vector decodes to length < 0.5), counted and logged;
+- calibration: light directions are unit vectors toward the light, a zero or non-finite vector is refused.
+
+Errors are FileNotFoundError / ValueError with one line that names the argument the folder came from
+(``arg``: the CLI's flag) or the file at fault.
 """
 from __future__ import annotations
 
+import logging
 import re
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
-LAYOUTS = ("ours", "unips", "diligent")
+from scenes.objfolder import (
+    MASK_FILE,
+    NORMAL_FILE,
+    SCENE_FILE,
+    image_files,
+    object_name,
+    read_image,
+    read_mask,
+    read_normals,
+    read_scene_dict,
+)
+
+log = logging.getLogger(__name__)
+
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
-"""Suffixes of ``L*`` images that the official loaders read (their ``L*[!.txt]`` pattern, minus text files)."""
-ALL_IMAGE_SUFFIXES = IMAGE_SUFFIXES + (".exr",)
-"""Those plus float EXR, which `validate.capture` also reads; what layout detection looks for."""
+"""Integer image suffixes of ``L*`` images (the official loaders' ``L*[!.txt]`` pattern, minus text files)."""
+FLOAT_SUFFIXES = (".exr",)
+"""Float image suffixes: linear radiance, not clipped, so never saturated."""
+ALL_IMAGE_SUFFIXES = IMAGE_SUFFIXES + FLOAT_SUFFIXES
+MIN_NORMAL_LENGTH = 0.5
+"""A ground-truth vector shorter than this is "no normal" (the 16-bit code 32768 and the 8-bit 128 decode to
+length < 0.5; a unit normal rounded to 8 bits is within 0.01 of 1)."""
+
+DILIGENT_LIGHTS = "light_directions.txt"
+DILIGENT_INTENSITIES = "light_intensities.txt"
+DILIGENT_LISTING = "filenames.txt"
+EXPECTED = ("an object folder: L*.png + scene.json (ours), L* images (UniPS), or DiLiGenT "
+            "001.png... + light_directions.txt; or a directory of such folders")
+
+
+# -------------------------------------------------------------------------------------- listing
 
 
 def natural_key(name: str) -> list[Any]:
@@ -29,7 +81,7 @@ def natural_key(name: str) -> list[Any]:
     return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", name)]
 
 
-def l_images(folder: str | Path, suffixes: tuple[str, ...] = IMAGE_SUFFIXES) -> list[Path]:
+def l_images(folder: str | Path, suffixes: tuple[str, ...] = ALL_IMAGE_SUFFIXES) -> list[Path]:
     """Files ``L*`` with one of `suffixes`, in natural order."""
     folder = Path(folder)
     return sorted((p for p in folder.iterdir() if p.is_file() and p.name.startswith("L") and p.suffix.lower() in suffixes),
@@ -46,23 +98,26 @@ def digit_images(folder: str | Path) -> list[Path]:
 def diligent_images(folder: str | Path) -> list[Path]:
     """A DiLiGenT folder's images: in ``filenames.txt`` order when the file exists, else `digit_images`."""
     folder = Path(folder)
-    listing = folder / "filenames.txt"
+    listing = folder / DILIGENT_LISTING
     if listing.is_file():
         return [folder / line.strip() for line in listing.read_text().splitlines() if line.strip()]
     return digit_images(folder)
 
 
-def detect_layout(path: str | Path) -> str | None:
-    """Layout name of an object folder (one of LAYOUTS), or None when the folder is not one."""
-    folder = Path(path)
-    if not folder.is_dir():
-        return None
-    has_l = bool(l_images(folder, ALL_IMAGE_SUFFIXES))
-    if has_l and (folder / "scene.json").is_file():
-        return "ours"
-    if (folder / "light_directions.txt").is_file() and ((folder / "filenames.txt").is_file() or digit_images(folder)):
-        return "diligent"
-    return "unips" if has_l else None
+# ---------------------------------------------------------------------------------- calibration
+
+
+@dataclass
+class Lights:
+    """What a folder says about its lighting (all None / unknown for a layout without calibration)."""
+
+    family: str | None = None
+    """Light family of the capture ("directional", "point", ...; scene.json's `light_family`), None if unknown."""
+    directions: np.ndarray | None = None
+    """(N, 3) float64 unit vectors toward the light, camera frame, one per image file; directional captures only."""
+    intensities: np.ndarray | None = None
+    """(N, 3) float64 RGB intensity of each light as the images record it (ours: irradiance times exposure;
+    DiLiGenT: `light_intensities.txt`, which calibrated methods divide the raw images by)."""
 
 
 def read_text_matrix(path: Path, rows: int, what: str) -> np.ndarray:
@@ -73,7 +128,7 @@ def read_text_matrix(path: Path, rows: int, what: str) -> np.ndarray:
     try:
         text = path.read_text().replace(",", " ")
         values = np.array([[float(v) for v in line.split()] for line in text.splitlines() if line.strip()], dtype=np.float64)
-    except ValueError as exc:
+    except (ValueError, UnicodeDecodeError) as exc:
         raise ValueError(f"{what} file {path}: cannot parse numbers ({exc})") from exc
     if values.ndim != 2 or values.shape[1] != 3:
         raise ValueError(f"{what} file {path}: expected 3 numbers per row, got shape {values.shape}")
@@ -84,16 +139,307 @@ def read_text_matrix(path: Path, rows: int, what: str) -> np.ndarray:
     return values
 
 
+def _unit_directions(d: np.ndarray, where: str) -> np.ndarray:
+    """Rows of `d` normalised; a zero row is refused (it has no direction)."""
+    norms = np.linalg.norm(d, axis=1)
+    if np.any(norms < 1e-9):
+        raise ValueError(f"{where}: row {int(np.argmin(norms)) + 1} is a zero vector (expected a direction toward the light)")
+    return d / norms[:, None]
+
+
 def read_diligent_lights(folder: str | Path, rows: int) -> tuple[np.ndarray, np.ndarray]:
     """A DiLiGenT folder's calibration: (unit directions toward the light (rows, 3), raw RGB intensities
     (rows, 3), ones when ``light_intensities.txt`` is absent), both float64 and checked."""
     folder = Path(folder)
-    directions = read_text_matrix(folder / "light_directions.txt", rows, "light_directions")
-    norms = np.linalg.norm(directions, axis=1)
-    if np.any(norms < 1e-9):
-        raise ValueError(f"light_directions file {folder / 'light_directions.txt'}: row {int(np.argmin(norms)) + 1} is a zero vector")
-    int_path = folder / "light_intensities.txt"
+    path = folder / DILIGENT_LIGHTS
+    directions = _unit_directions(read_text_matrix(path, rows, "light_directions"), f"light_directions file {path}")
+    int_path = folder / DILIGENT_INTENSITIES
     raw = read_text_matrix(int_path, rows, "light_intensities") if int_path.is_file() else np.ones((rows, 3))
     if np.any(raw <= 0):
         raise ValueError(f"light_intensities file {int_path}: intensities must be > 0")
-    return directions / norms[:, None], raw
+    return directions, raw
+
+
+def _vector3(value: Any, where: str, name: str) -> np.ndarray:
+    try:
+        v = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{where}: {name} is not a list of 3 numbers ({exc})") from exc
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise ValueError(f"{where}: {name} must be 3 finite numbers, got {value!r}")
+    return v
+
+
+def camera_lights(scene: dict[str, Any], num_images: int, path: Path) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """scene.json's `camera_lights`, checked entry by entry: (unit directions, irradiances), both (N, 3)
+    float64, when every image has exactly one directional light and nothing else; (None, None) when the key is
+    absent or any image has other lights. A malformed entry, a zero direction or a count other than one
+    entry per image file is refused."""
+    cam = scene.get("camera_lights")
+    if cam is None:
+        return None, None
+    if not isinstance(cam, list) or len(cam) != num_images:
+        got = f"{len(cam)} entries" if isinstance(cam, list) else f"a {type(cam).__name__}"
+        raise ValueError(f"scene file {path}: camera_lights has {got}, expected a list of {num_images} (one per image)")
+    dirs, irr, single = [], [], True
+    for i, entry in enumerate(cam):
+        where = f"scene file {path}: camera_lights[{i}]"
+        if not isinstance(entry, dict) or not isinstance(entry.get("directional", []), list):
+            raise ValueError(f"{where} is malformed (expected {{'directional': [...], 'other': N}}, got {entry!r:.80})")
+        other = entry.get("other", 0)
+        if not isinstance(other, int) or isinstance(other, bool) or other < 0:
+            raise ValueError(f"{where}: 'other' must be a count >= 0, got {other!r}")
+        for j, light in enumerate(entry.get("directional", [])):
+            if not isinstance(light, dict):
+                raise ValueError(f"{where}.directional[{j}] is malformed (expected a dict, got {light!r:.80})")
+            d = _vector3(light.get("direction_to_light"), f"{where}.directional[{j}]", "direction_to_light")
+            e = _vector3(light.get("irradiance"), f"{where}.directional[{j}]", "irradiance")
+            if np.linalg.norm(d) < 1e-9:
+                raise ValueError(f"{where}.directional[{j}]: direction_to_light is a zero vector")
+            dirs.append(d / np.linalg.norm(d))
+            irr.append(e)
+        single = single and len(entry.get("directional", [])) == 1 and other == 0
+    if not single:
+        return None, None
+    return np.asarray(dirs), np.asarray(irr)
+
+
+def _ours_lights(folder: Path, num_images: int) -> Lights:
+    path = folder / SCENE_FILE
+    scene = read_scene_dict(path)
+    family = scene.get("light_family")
+    if family is not None and not isinstance(family, str):
+        raise ValueError(f"scene file {path}: light_family must be a string, got {family!r}")
+    directions, intensities = camera_lights(scene, num_images, path)
+    return Lights(family=family, directions=directions, intensities=intensities)
+
+
+def _diligent_lights(folder: Path, num_images: int) -> Lights:
+    directions, raw = read_diligent_lights(folder, num_images)
+    return Lights(family="directional", directions=directions, intensities=raw)
+
+
+def _no_lights(folder: Path, num_images: int) -> Lights:
+    return Lights()
+
+
+# ---------------------------------------------------------------------------------- the table
+
+
+@dataclass(frozen=True)
+class Layout:
+    """One folder layout: everything the reader needs to know about it."""
+
+    name: str
+    """Short name, recorded in what the readers return (`FolderData.layout`)."""
+    description: str
+    """One line for users: what the layout is and where it comes from."""
+    detect: Callable[[Path], bool]
+    """True when a folder is of this layout (tried in table order, so later entries may be looser)."""
+    images: Callable[[Path], list[Path]]
+    """The folder's image files in loader order (the order of lights, reports and `--max-images`)."""
+    ground_truth: tuple[str, ...]
+    """Ground-truth normal-map file names, the first present one is read."""
+    mask_required: bool
+    """True: a missing ``mask.png`` is an error; False: the whole image is the object."""
+    lights: Callable[[Path, int], Lights]
+    """Calibration and light family for the folder's N image files."""
+
+
+def _is_ours(folder: Path) -> bool:
+    return bool(l_images(folder)) and (folder / SCENE_FILE).is_file()
+
+
+def _is_diligent(folder: Path) -> bool:
+    return (folder / DILIGENT_LIGHTS).is_file() and ((folder / DILIGENT_LISTING).is_file() or bool(digit_images(folder)))
+
+
+def _is_unips(folder: Path) -> bool:
+    return bool(l_images(folder))
+
+
+LAYOUT_TABLE: tuple[Layout, ...] = (
+    Layout("ours", "this toolkit's object folder (wildgen.make): L000.png.., mask.png, normal.tif, scene.json",
+           _is_ours, image_files, (NORMAL_FILE,), True, _ours_lights),
+    Layout("diligent", "DiLiGenT benchmark folder: 001.png.., light_directions.txt, light_intensities.txt, mask.png, Normal_gt.mat",
+           _is_diligent, diligent_images, ("Normal_gt.mat", "Normal_gt.png"), False, _diligent_lights),
+    Layout("unips", "official UniPS / SDM-UniPS folder: L* images (8/16-bit or EXR), optional mask.png and normal.tif",
+           _is_unips, l_images, (NORMAL_FILE, "Normal_gt.png", "Normal_gt.mat"), False, _no_lights),
+)
+LAYOUTS = tuple(layout.name for layout in LAYOUT_TABLE)
+_BY_NAME = {layout.name: layout for layout in LAYOUT_TABLE}
+
+
+def layout_named(name: str) -> Layout:
+    """The table entry called `name`; ValueError naming the known ones."""
+    if name not in _BY_NAME:
+        raise ValueError(f"layout: unknown layout {name!r}, expected one of {LAYOUTS}")
+    return _BY_NAME[name]
+
+
+def detect_layout(path: str | Path) -> str | None:
+    """Layout name of an object folder (the first entry of `LAYOUT_TABLE` that matches), or None."""
+    folder = Path(path)
+    if not folder.is_dir():
+        return None
+    for layout in LAYOUT_TABLE:
+        if layout.detect(folder):
+            return layout.name
+    return None
+
+
+def has_scene(folder: str | Path) -> bool:
+    """True when an object folder has a scene file (the known-scene re-render check is possible)."""
+    return (Path(folder) / SCENE_FILE).is_file()
+
+
+def find_object_folders(path: str | Path, arg: str = "path") -> list[Path]:
+    """The object folders at `path`: itself if it is one, else its subfolders that are, sorted by name."""
+    root = Path(path)
+    if not root.exists():
+        raise FileNotFoundError(f"{arg}: {root} does not exist (expected {EXPECTED})")
+    if detect_layout(root) is not None:
+        return [root]
+    if root.is_dir():
+        found = [p for p in sorted(root.iterdir(), key=lambda p: p.name) if detect_layout(p) is not None]
+        if found:
+            return found
+    raise FileNotFoundError(f"{arg}: no object folder found at {root} (expected {EXPECTED})")
+
+
+# ---------------------------------------------------------------------------------- the reader
+
+
+@dataclass
+class FolderData:
+    """One object folder of any layout, read (see the module doc for the rules)."""
+
+    name: str
+    """Object name: the folder name minus a trailing '.data' (`scenes.objfolder.object_name`)."""
+    path: Path
+    """The object folder."""
+    layout: str
+    """One of `LAYOUTS`."""
+    image_paths: list[Path]
+    """The K image files read, in loader order."""
+    num_files: int
+    """Image files in the folder (K is smaller when `max_images` kept the first ones)."""
+    shape: tuple[int, int]
+    """(H, W) of the images."""
+    images: np.ndarray | None
+    """(K, H, W, 3) float32 linear RGB as stored (DiLiGenT: raw, not divided by the intensities); None when
+    read with images=False."""
+    saturated: np.ndarray | None
+    """(K, H, W, 3) bool: channels at an integer file's largest code; None when there are none (or no images)."""
+    mask: np.ndarray
+    """(H, W) bool object mask."""
+    mask_file: Path | None
+    """The mask file, None when the layout allows none and the whole image is the object."""
+    normals: np.ndarray | None
+    """(H, W, 3) float32 ground-truth camera-frame normals, unit inside the mask where known, 0 elsewhere."""
+    normals_file: Path | None
+    """The ground-truth file read, or None."""
+    lights: Lights
+    """Light family and calibration, cut to the K images read."""
+    has_scene: bool
+    """True when the folder has a scene file."""
+
+    @property
+    def image_names(self) -> list[str]:
+        return [p.name for p in self.image_paths]
+
+
+def finish_normals(n: np.ndarray, mask: np.ndarray, path: Path) -> np.ndarray:
+    """A ground-truth map checked against the mask: unit inside it where the vector is at least
+    `MIN_NORMAL_LENGTH` long, 0 elsewhere (float64 arithmetic, so huge values do not overflow)."""
+    if n.ndim != 3 or n.shape[2] != 3:
+        raise ValueError(f"normal file {path}: expected shape (H, W, 3), got {n.shape}")
+    if n.shape[:2] != mask.shape:
+        raise ValueError(f"normal file {path}: size {n.shape[1]}x{n.shape[0]} differs from the images' "
+                         f"{mask.shape[1]}x{mask.shape[0]}")
+    n = np.asarray(n, np.float64)
+    if not np.all(np.isfinite(n)):
+        raise ValueError(f"normal file {path}: contains NaN or infinite values")
+    scale = np.max(np.abs(n), axis=2, keepdims=True)  # divide first: squares of 1e200 overflow
+    unit = n / np.maximum(scale, 1e-300)
+    norm = np.linalg.norm(unit, axis=2, keepdims=True) * scale
+    keep = mask[..., None] & (norm >= MIN_NORMAL_LENGTH)
+    out = np.where(keep, unit / np.maximum(np.linalg.norm(unit, axis=2, keepdims=True), 1e-300), 0.0)
+    missing = int(np.sum(mask & ~keep[..., 0]))
+    if missing:
+        log.warning("%s: %d mask pixels have no ground-truth normal (shorter than %.1f)", path, missing, MIN_NORMAL_LENGTH)
+    return out.astype(np.float32)
+
+
+def _read_stack(paths: list[Path]) -> tuple[np.ndarray, np.ndarray | None]:
+    """(K, H, W, 3) float32 images that must all have one size, and their saturated channels (or None)."""
+    kinds = {p.suffix.lower() in FLOAT_SUFFIXES for p in paths}
+    if len(kinds) > 1:
+        flt = next(p for p in paths if p.suffix.lower() in FLOAT_SUFFIXES)
+        integer = next(p for p in paths if p.suffix.lower() not in FLOAT_SUFFIXES)
+        raise ValueError(f"images: {paths[0].parent} mixes float EXR ({flt.name}) and integer ({integer.name}) images; "
+                         "expected one kind (their value scales differ)")
+    first = read_image(paths[0])
+    stack = np.empty((len(paths),) + first.shape, dtype=np.float32)
+    for i, p in enumerate(paths):
+        img = first if i == 0 else read_image(p)
+        if img.shape != first.shape:
+            raise ValueError(f"image file {p}: size {img.shape[1]}x{img.shape[0]} differs from "
+                             f"{paths[0].name}'s {first.shape[1]}x{first.shape[0]}")
+        stack[i] = img
+    if kinds == {True}:
+        return stack, None
+    saturated = stack >= 1.0  # integer files clip: the largest code is a lower bound, not a value
+    return stack, (saturated if saturated.any() else None)
+
+
+def read_folder(path: str | Path, max_images: int | None = None, layout: str | None = None, images: bool = True,
+                arg: str = "path") -> FolderData:
+    """Read one object folder of any layout in `LAYOUT_TABLE`.
+
+    max_images: keep the first K images in loader order (deterministic). layout: force one (else detected).
+    images: False reads only the first image (for its size): mask, ground truth and lights for evaluation.
+    arg: the argument the folder came from, named in errors about the folder itself.
+    """
+    folder = Path(path)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"{arg}: object folder {folder} does not exist (expected {EXPECTED})")
+    if layout is None:
+        layout = detect_layout(folder)
+        if layout is None:
+            raise FileNotFoundError(f"{arg}: {folder} is not an object folder (expected {EXPECTED})")
+    entry = layout_named(layout)
+    if max_images is not None and (isinstance(max_images, bool) or int(max_images) != max_images or max_images < 1):
+        raise ValueError(f"max_images: must be an integer >= 1, got {max_images!r}")
+    all_paths = entry.images(folder)
+    if not all_paths:
+        raise FileNotFoundError(f"{arg}: no images found in {folder} (expected {EXPECTED})")
+    paths = all_paths[: int(max_images)] if max_images is not None else all_paths
+    lights = entry.lights(folder, len(all_paths))
+    k = len(paths)
+    lights = Lights(family=lights.family,
+                    directions=None if lights.directions is None else lights.directions[:k],
+                    intensities=None if lights.intensities is None else lights.intensities[:k])
+    if images:
+        stack, saturated = _read_stack(paths)
+        shape = stack.shape[1:3]
+    else:
+        stack = saturated = None
+        shape = read_image(paths[0]).shape[:2]
+    mask_path = folder / MASK_FILE
+    if mask_path.is_file():
+        mask, mask_file = read_mask(mask_path, shape), mask_path
+    elif entry.mask_required:
+        raise FileNotFoundError(f"mask file {mask_path} does not exist (a {layout} folder needs one)")
+    else:
+        mask, mask_file = np.ones(shape, dtype=bool), None
+    normals = normals_file = None
+    for name in entry.ground_truth:
+        if (folder / name).is_file():
+            normals_file = folder / name
+            normals = finish_normals(read_normals(normals_file), mask, normals_file)
+            break
+    return FolderData(name=object_name(folder), path=folder, layout=layout, image_paths=list(paths),
+                      num_files=len(all_paths), shape=tuple(shape), images=stack, saturated=saturated, mask=mask,
+                      mask_file=mask_file, normals=normals, normals_file=normals_file, lights=lights,
+                      has_scene=has_scene(folder))

@@ -177,9 +177,27 @@ def _read_raw(path: Path, what: str = "image"):
     return img
 
 
+def _check_float_image(img: np.ndarray, path: Path) -> np.ndarray:
+    """A float image is radiance: finite and non-negative, or it is refused by name."""
+    if not np.all(np.isfinite(img)):
+        raise ValueError(f"image file {path}: contains NaN or infinite values")
+    if np.any(img < 0):
+        raise ValueError(f"image file {path}: has negative values (min {float(img.min()):.3g}); expected radiance >= 0")
+    return img
+
+
 def read_image(path: str | Path) -> np.ndarray:
-    """Read one image as (H, W, 3) float32 linear RGB (uint16 / 65535, uint8 / 255, float as is)."""
+    """Read one image as (H, W, 3) float32 linear RGB (uint16 / 65535, uint8 / 255, float EXR as is; gray
+    repeated to RGB, alpha dropped). Float images must be finite and non-negative."""
     path = Path(path)
+    if path.suffix.lower() == ".exr":
+        if not path.is_file():
+            raise FileNotFoundError(f"image file {path} does not exist")
+        img = read_exr(path)
+        img = np.repeat(img, 3, axis=2) if img.shape[2] == 1 else img[:, :, :3]
+        if img.shape[2] != 3:
+            raise ValueError(f"image file {path}: expected a gray or RGB EXR, got {img.shape[2]} channels")
+        return _check_float_image(np.ascontiguousarray(img, dtype=np.float32), path)
     img = _read_raw(path)
     if img.ndim == 2:
         img = np.repeat(img[..., None], 3, axis=2)
@@ -195,9 +213,7 @@ def read_image(path: str | Path) -> np.ndarray:
     elif img.dtype == np.uint8:
         out = img.astype(np.float32) / 255.0
     elif img.dtype in (np.float32, np.float64):
-        out = img.astype(np.float32)
-        if not np.all(np.isfinite(out)):
-            raise ValueError(f"image file {path}: contains NaN or infinite values")
+        out = _check_float_image(img.astype(np.float32), path)
     else:
         raise ValueError(f"image file {path}: unsupported pixel type {img.dtype} (expected 8 or 16 bit)")
     return out

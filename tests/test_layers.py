@@ -151,3 +151,52 @@ def test_imports_go_down(module):
         elif LAYER[dst] == LAYER[src] and not (SIBLINGS_MAY_IMPORT_EACH_OTHER and LAYER[src] == 1):
             bad.append(f"{target} (sideways: {src} and {dst} are siblings)")
     assert not bad, f"{module} imports " + ", ".join(bad)
+
+
+# ------------------------------------------------------------------ who may name an object-folder file
+
+FOLDER_OWNERS = ("scenes.objfolder", "scenes.layouts")
+"""The object folder's files are named only here (the folder contract and the one reader's layout table);
+everyone else uses their constants, so a renamed or added file changes one place."""
+
+
+def _folder_file_names() -> set[str]:
+    from scenes import layouts, objfolder
+
+    names = {objfolder.SCENE_FILE, objfolder.MASK_FILE, objfolder.NORMAL_FILE, objfolder.AUX_DIR,
+             layouts.DILIGENT_LIGHTS, layouts.DILIGENT_INTENSITIES, layouts.DILIGENT_LISTING}
+    for entry in layouts.LAYOUT_TABLE:
+        names.update(entry.ground_truth)
+    return names
+
+
+def _named_files(path: Path, names: set[str]) -> list[str]:
+    """String literals (not docstrings or messages that merely mention a file) that are a folder file name
+    or a path inside the aux folder."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    bare = {id(node.value) for node in ast.walk(tree) if isinstance(node, ast.Expr)}
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in bare:
+            text = node.value
+            if text in names or any(text.startswith(n + "/") or text.endswith("/" + n) for n in names):
+                found.append(f"line {node.lineno}: {text!r}")
+    return found
+
+
+def test_only_the_folder_owners_name_object_folder_files():
+    names = _folder_file_names()
+    assert {"scene.json", "mask.png", "light_directions.txt"} <= names  # guards against a vacuous pass
+    bad = {}
+    for module, path in MODULES.items():
+        if _top(module) in PACKAGES and module not in FOLDER_OWNERS:
+            found = _named_files(path, names)
+            if found:
+                bad[module] = found
+    assert not bad, f"modules other than {FOLDER_OWNERS} name object-folder files: {bad}"
+
+
+def test_the_file_name_check_can_fail(tmp_path):
+    probe = tmp_path / "probe.py"
+    probe.write_text('"""Mentions scene.json in a docstring: fine."""\nP = folder / "scene.json"\nQ = f"{x}/mask.png"\n')
+    assert _named_files(probe, _folder_file_names()) == ["line 2: 'scene.json'", "line 3: '/mask.png'"]

@@ -1,33 +1,25 @@
-"""Reading a photometric-stereo capture that may have no scene.json (fitted mode of the re-render check).
+"""The fitted re-render check's view of a capture: an object folder that may have no scene.json.
 
-Layouts (`scenes.layouts` detects them and lists their files):
-- `ours`: our object folder (`L000.png..`, `mask.png`, optional `normal.tif`, `scene.json`); with the
-  scene file removed it reads like `unips`. Calibrated lights come from `scene.json`'s `camera_lights`
-  when every image has exactly one directional light.
-- `diligent`: DiLiGenT `*PNG` folders: `001.png..` in `filenames.txt` order, `light_directions.txt`,
-  `light_intensities.txt` (each image channel is divided by its row), `mask.png`, `Normal_gt.mat` or
-  `Normal_gt.png`. Both files use the camera frame x right, y up, z toward the camera (checked by
-  Lambertian least squares against the ground-truth normals in tests/test_fit.py and bench/bench_fit.py).
-- `unips`: official UniPS `.data` folders: `L*` images (natural sort), `mask.png`, optional `normal.tif`
-  or `Normal_gt.png`.
+Every layout (ours with or without scene.json, official UniPS `.data`, DiLiGenT `*PNG`) is read by the one
+reader, `scenes.layouts.read_folder` (its table lists each layout's files and the shared rules); this
+module repackages the result as a `Capture`: DiLiGenT images divided by their light intensities (so a
+calibrated irradiance is one), saturated channels kept as lower bounds, and the downsampling of the fit.
 
-Normal maps (`read_normals`): 16-bit or 8-bit PNG / TIFF storing (n + 1) / 2 (the 32768 / 128 code is
-background), float EXR, `.npy` (H, W, 3) or DiLiGenT `.mat`, camera frame; background decoded to 0.
+Normal maps to judge (`load_with_normals`): 16-bit or 8-bit PNG / TIFF storing (n + 1) / 2 (the 32768 / 128
+code is background), float EXR, `.npy` (H, W, 3) or DiLiGenT `.mat`, camera frame; background decoded to 0.
 
 Everything here is NumPy; errors are FileNotFoundError / ValueError with one line naming the argument.
 """
 from __future__ import annotations
 
-import json
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from scenes.layouts import ALL_IMAGE_SUFFIXES, detect_layout, diligent_images, l_images, read_diligent_lights
-from scenes.objfolder import object_name, read_mask
-from validate.io import read_normal_map, read_prediction
+from scenes.layouts import read_folder
+from validate.io import read_prediction
 
 log = logging.getLogger(__name__)
 
@@ -69,17 +61,6 @@ class Capture:
         return tuple(self.mask.shape)  # type: ignore[return-value]
 
 
-def read_image(path: Path) -> np.ndarray:
-    """(H, W, 3) float32 linear RGB: `scenes.objfolder.read_image`, plus float EXR inputs."""
-    from scenes.objfolder import read_exr
-    from scenes.objfolder import read_image as read_ldr
-
-    if Path(path).suffix.lower() == ".exr":
-        img = read_exr(path)
-        return np.repeat(img, 3, axis=2) if img.shape[2] == 1 else img[:, :, :3]
-    return read_ldr(path)
-
-
 def unit_normals(n: np.ndarray, mask: np.ndarray, what: str = "--normals") -> np.ndarray:
     """Check shape against the mask, renormalise inside it, zero outside. Zero normals inside the mask
     (no estimate) become (0, 0, 1) with a warning."""
@@ -101,90 +82,30 @@ def load_with_normals(folder: str | Path, normals: str | Path | np.ndarray) -> t
     return cap, unit_normals(normals, cap.mask), source
 
 
-def _camera_lights(folder: Path, k: int) -> tuple[np.ndarray | None, np.ndarray | None]:
-    try:
-        scene = json.loads((folder / "scene.json").read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise ValueError(f"--data: {str(folder / 'scene.json')!r} cannot be read as JSON ({exc})") from exc
-    cam = scene.get("camera_lights") if isinstance(scene, dict) else None
-    if not isinstance(cam, list) or len(cam) != k:
-        return None, None
-    dirs, irr = [], []
-    for entry in cam:
-        lights = entry.get("directional", []) if isinstance(entry, dict) else []
-        if len(lights) != 1 or entry.get("other", 0):
-            return None, None
-        d = np.asarray(lights[0]["direction_to_light"], np.float64)
-        dirs.append(d / np.linalg.norm(d))
-        irr.append(np.asarray(lights[0]["irradiance"], np.float64))
-    return np.asarray(dirs, np.float32), np.asarray(irr, np.float32)
-
-
 def load_capture(folder: str | Path, max_images: int | None = None) -> Capture:
-    """Load an object folder of any layout (see the module doc)."""
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise FileNotFoundError(f"--data: {str(folder)!r} is not a folder")
-    layout = detect_layout(folder)
-    if layout is None:
-        raise FileNotFoundError(f"--data: {str(folder)!r} has no L*.png images and no DiLiGenT light_directions.txt")
-    dirs = irr = None
+    """Load an object folder of any layout (`scenes.layouts.read_folder`) for the fitted check."""
+    fd = read_folder(folder, max_images=max_images, arg="--data")
+    images = fd.images
     meta: dict = {}
-    if layout == "diligent":
-        paths = diligent_images(folder)
-        dirs, raw = read_diligent_lights(folder, len(paths))
-        dirs = dirs.astype(np.float32)
-        meta["light_intensities_file"] = raw.tolist()
-        irr = np.ones((len(paths), 3), np.float32)
-    else:
-        paths = l_images(folder, ALL_IMAGE_SUFFIXES)
-        raw = None
-    full_k = len(paths)  # before --max-images: scene.json's camera_lights has one entry per file
-    if max_images is not None:
-        paths = paths[: int(max_images)]
-        dirs = dirs[: len(paths)] if dirs is not None else None
-        irr = irr[: len(paths)] if irr is not None else None
-        raw = raw[: len(paths)] if raw is not None else None
-    first = read_image(paths[0])
-    images = np.empty((len(paths),) + first.shape, np.float32)
-    for i, p in enumerate(paths):
-        img = first if i == 0 else read_image(p)
-        if img.shape != first.shape:
-            raise ValueError(f"images: {str(p)!r} has shape {img.shape}, expected {first.shape} like {paths[0].name}")
-        images[i] = img
-    # Integer files clip: a channel at the largest code (1.0 after read_image) is a lower bound, not a value.
-    clipped = np.array([p.suffix.lower() != ".exr" for p in paths])
-    saturated = (images >= 1.0) & clipped[:, None, None, None]
-    if raw is not None:
-        images /= raw[:, None, None, :].astype(np.float32)
-    shape = first.shape[:2]
-    mask = read_mask(folder / "mask.png", shape) if (folder / "mask.png").is_file() else np.ones(shape, bool)
-    gt = None
-    for gname in ("normal.tif", "Normal_gt.mat", "Normal_gt.png"):
-        if (folder / gname).is_file():
-            g = read_normal_map(folder / gname, "ground truth")
-            if g.shape[:2] != shape:
-                raise ValueError(f"ground truth: {str(folder / gname)!r} has shape {g.shape}, expected {shape + (3,)}")
-            norm = np.linalg.norm(g, axis=-1, keepdims=True)
-            gt = np.where(mask[..., None] & (norm > 0.5), g / np.maximum(norm, 1e-12), 0.0).astype(np.float32)
-            break
-    if layout == "ours":
-        d2, i2 = _camera_lights(folder, full_k)
-        if d2 is not None:
-            dirs, irr = d2[: len(paths)], i2[: len(paths)]
+    dirs, irr = fd.lights.directions, fd.lights.intensities
+    if fd.layout == "diligent":
+        # Calibrated methods divide by the intensity file; after it every light has unit irradiance.
+        meta["light_intensities_file"] = irr.tolist()
+        images = images / irr[:, None, None, :].astype(np.float32)
+        irr = np.ones_like(irr)
     return Capture(
-        name=object_name(folder),
-        folder=folder,
-        layout=layout,
-        images=images,
-        mask=mask,
-        image_names=[p.name for p in paths],
-        normal_gt=gt,
-        light_directions=dirs,
-        light_irradiance=irr,
-        has_scene=(folder / "scene.json").is_file(),
+        name=fd.name,
+        folder=fd.path,
+        layout=fd.layout,
+        images=images.astype(np.float32, copy=False),
+        mask=fd.mask,
+        image_names=fd.image_names,
+        normal_gt=fd.normals,
+        light_directions=None if dirs is None else dirs.astype(np.float32),
+        light_irradiance=None if irr is None else irr.astype(np.float32),
+        has_scene=fd.has_scene,
         meta=meta,
-        saturated=saturated if saturated.any() else None,
+        saturated=fd.saturated,
     )
 
 

@@ -13,17 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from scenes.description import SceneDescription
-from scenes.objfolder import (
-    MASK_FILE,
-    NORMAL_FILE,
-    find_prediction,
-    image_files,
-    object_name,
-    read_image,
-    read_mask,
-    read_normals,
-    read_scene,
-)
+from scenes.layouts import read_folder
+from scenes.objfolder import find_prediction, read_normals, read_scene
 
 log = logging.getLogger(__name__)
 
@@ -58,32 +49,21 @@ def read_scene_json(path: str | Path) -> SceneDescription:
 
 
 def load_object(folder: str | Path) -> ObjectData:
-    """Load an object folder; raise FileNotFoundError / ValueError naming what is missing or inconsistent."""
+    """Load an object folder with its scene (`scenes.layouts.read_folder`, layout "ours"); raise
+    FileNotFoundError / ValueError naming what is missing or inconsistent with scene.json."""
     folder = Path(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"--data: {str(folder)!r} is not a folder")
     desc = read_scene_json(folder)
-    files = image_files(folder)
-    if len(files) != len(desc.images):
-        raise ValueError(
-            f"images: {str(folder)!r} has {len(files)} L*.png files but scene.json describes {len(desc.images)} images"
-        )
+    fd = read_folder(folder, layout="ours", arg="--data")
+    if fd.num_files != len(desc.images):
+        raise ValueError(f"images: {str(folder)!r} has {fd.num_files} L*.png files but its scene file describes "
+                         f"{len(desc.images)} images")
     h, w = desc.camera.height, desc.camera.width
-    images = np.empty((len(files), h, w, 3), np.float32)
-    for i, f in enumerate(files):
-        img = read_image(f)
-        if img.shape[:2] != (h, w):
-            raise ValueError(f"images: {str(f)!r} has shape {img.shape}, expected ({h}, {w}, 3) from scene.json")
-        images[i] = img
-    mask = read_mask(folder / MASK_FILE, (h, w))
-    normal_gt = None
-    tif = folder / NORMAL_FILE
-    if tif.is_file():
-        normal_gt = read_normal_map(tif)
-        if normal_gt.shape != (h, w, 3):
-            raise ValueError(f"normal.tif: {str(tif)!r} has shape {normal_gt.shape}, expected ({h}, {w}, 3)")
-        normal_gt = np.where(mask[..., None], _renormalise(normal_gt), 0.0).astype(np.float32)
-    return ObjectData(folder=folder, name=object_name(folder), desc=desc, images=images, mask=mask, normal_gt=normal_gt)
+    if fd.shape != (h, w):
+        raise ValueError(f"images: {str(fd.image_paths[0])!r} are {fd.shape[1]}x{fd.shape[0]}, expected {w}x{h} "
+                         "from the scene file's camera")
+    return ObjectData(folder=folder, name=fd.name, desc=desc, images=fd.images, mask=fd.mask, normal_gt=fd.normals)
 
 
 def read_normal_map(path: str | Path, what: str = "--normals") -> np.ndarray:
@@ -106,11 +86,6 @@ def read_prediction(normals: str | Path | np.ndarray, name: str) -> tuple[np.nda
         return normals, "array"
     path = find_prediction(normals, name)
     return read_normal_map(path), str(path)
-
-
-def _renormalise(n: np.ndarray) -> np.ndarray:
-    norm = np.linalg.norm(n, axis=-1, keepdims=True)
-    return np.where(norm > 0.5, n / np.maximum(norm, 1e-12), 0.0)
 
 
 def check_normals(

@@ -1,0 +1,198 @@
+"""One reader for every folder layout: the model's loader (`unips.data`), the fitted check (`validate.capture`)
+and the known-scene check (`validate.io`) see the same images, mask, ground truth and lights, and refuse the
+same bad folders with the same one-line errors.
+
+Each test below was a divergence between three hand-written readers: it fails on a tree where they differ.
+The folders are written here with OpenCV / OpenEXR / SciPy (an analytic sphere), not by the code under test.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from test_unips_data import lights, render, sphere, write_diligent, write_mask, write_ours, write_png16
+
+from scenes.layouts import LAYOUT_TABLE, LAYOUTS, MIN_NORMAL_LENGTH, detect_layout, read_folder
+from scenes.objfolder import write_exr
+from unips.data import load_ground_truth, load_object
+from validate.capture import load_capture
+
+
+def _readers():
+    return {"unips.data": load_object, "validate.capture": load_capture}
+
+
+def _edit_camera_lights(folder: Path, edit) -> None:
+    scene = json.loads((folder / "scene.json").read_text())
+    edit(scene["camera_lights"])
+    (folder / "scene.json").write_text(json.dumps(scene))
+
+
+def write_unips(folder: Path, k: int = 5, size: int = 24, exr: bool = False, gt: str | None = None) -> tuple:
+    folder.mkdir(parents=True)
+    n, mask = sphere(size)
+    imgs = render(n, mask, lights(k, 3))
+    for i, im in enumerate(imgs):
+        if exr:
+            write_exr(folder / f"L{i:02d}.exr", (im * 3.0).astype(np.float32))  # radiance, beyond 1 is fine
+        else:
+            write_png16(folder / f"L{i:02d}.png", im)
+    write_mask(folder / "mask.png", mask)
+    if gt == "mat":
+        import scipy.io
+
+        scipy.io.savemat(folder / "Normal_gt.mat", {"Normal_gt": n})
+    return n, mask, imgs
+
+
+def test_table_names_and_detection(tmp_path):
+    assert LAYOUTS == tuple(entry.name for entry in LAYOUT_TABLE) == ("ours", "diligent", "unips")
+    write_ours(tmp_path / "a.data")
+    write_diligent(tmp_path / "bPNG")
+    write_unips(tmp_path / "c")
+    assert [detect_layout(tmp_path / p) for p in ("a.data", "bPNG", "c")] == ["ours", "diligent", "unips"]
+    (tmp_path / "a.data" / "scene.json").unlink()
+    assert detect_layout(tmp_path / "a.data") == "unips"  # our folder without its scene file
+
+
+@pytest.mark.parametrize("layout", ["ours", "diligent", "unips"])
+def test_every_view_sees_the_same_folder(tmp_path, layout):
+    folder = tmp_path / "obj"
+    if layout == "ours":
+        n, mask, L, irr, imgs = write_ours(folder)
+    elif layout == "diligent":
+        n, mask, L, irr, imgs = write_diligent(folder)
+    else:
+        n, mask, imgs = write_unips(folder, gt="mat")
+    obj, cap, gt = load_object(folder), load_capture(folder), load_ground_truth(folder)
+    assert obj.layout == cap.layout == gt.layout == layout
+    assert obj.image_names == cap.image_names
+    assert np.array_equal(obj.mask, cap.mask) and np.array_equal(obj.mask, gt.mask) and np.array_equal(obj.mask, mask)
+    assert np.array_equal(obj.normals, cap.normal_gt) and np.array_equal(obj.normals, gt.normals)
+    assert np.degrees(np.arccos(np.clip(np.sum(obj.normals[mask] * n[mask], -1), -1, 1))).max() < 0.1
+    assert np.abs(obj.images - imgs).max() < 1e-4  # raw images, as written
+    if layout == "diligent":  # the check sees them divided by the intensity file, with unit irradiance
+        assert np.allclose(cap.images * irr[:, None, None, :], obj.images, atol=1e-5)
+        assert np.allclose(cap.light_irradiance, 1.0)
+    else:
+        assert np.array_equal(cap.images, obj.images)
+    if layout == "unips":
+        assert obj.light_directions is None and cap.light_directions is None
+    else:
+        assert np.allclose(obj.light_directions, L, atol=1e-5) and np.array_equal(obj.light_directions, cap.light_directions)
+
+
+def test_malformed_camera_light_is_a_clean_error_in_every_reader(tmp_path):
+    folder = tmp_path / "o.data"
+    write_ours(folder)
+    _edit_camera_lights(folder, lambda cam: cam[2]["directional"][0].pop("irradiance"))
+    for name, reader in _readers().items():
+        with pytest.raises(ValueError, match=r"camera_lights\[2\].directional\[0\]: irradiance"):
+            reader(folder)
+
+
+def test_zero_camera_light_direction_is_refused_in_every_reader(tmp_path):
+    folder = tmp_path / "o.data"
+    write_ours(folder)
+    _edit_camera_lights(folder, lambda cam: cam[1]["directional"][0].__setitem__("direction_to_light", [0, 0, 0]))
+    for name, reader in _readers().items():
+        with pytest.raises(ValueError, match=r"camera_lights\[1\].*zero vector"):
+            reader(folder)
+
+
+def test_camera_light_count_mismatch_is_refused_in_every_reader(tmp_path):
+    folder = tmp_path / "o.data"
+    write_ours(folder)
+    _edit_camera_lights(folder, lambda cam: cam.pop())
+    for name, reader in _readers().items():
+        with pytest.raises(ValueError, match="camera_lights has 5 entries, expected a list of 6"):
+            reader(folder)
+
+
+def test_exr_only_unips_folder_is_read_by_every_reader(tmp_path):
+    folder = tmp_path / "exr"
+    n, mask, imgs = write_unips(folder, exr=True)
+    assert detect_layout(folder) == "unips"
+    obj, cap = load_object(folder), load_capture(folder)
+    assert np.allclose(obj.images, imgs * 3.0, atol=1e-6) and np.array_equal(obj.images, cap.images)
+    assert cap.saturated is None  # float radiance is never clipped
+
+
+def test_float_images_must_be_finite_non_negative_and_not_mixed(tmp_path):
+    folder = tmp_path / "exr"
+    write_unips(folder, exr=True)
+    img = np.full((24, 24, 3), 0.5, np.float32)
+    img[3, 4, 1] = np.nan
+    write_exr(folder / "L02.exr", img)
+    for reader in _readers().values():
+        with pytest.raises(ValueError, match=r"L02.exr: contains NaN"):
+            reader(folder)
+    img[3, 4, 1] = -0.25
+    write_exr(folder / "L02.exr", img)
+    for reader in _readers().values():
+        with pytest.raises(ValueError, match=r"L02.exr: has negative values"):
+            reader(folder)
+    write_exr(folder / "L02.exr", np.abs(img))
+    write_png16(folder / "L05.png", np.zeros((24, 24, 3)))
+    for reader in _readers().values():
+        with pytest.raises(ValueError, match="mixes float EXR .* and integer .*L05.png"):
+            reader(folder)
+
+
+def test_ground_truth_names_and_short_normals_are_one_rule(tmp_path):
+    folder = tmp_path / "u"
+    n, mask, _ = write_unips(folder, gt="mat")
+    ys, xs = np.nonzero(mask)
+    short = n.copy()
+    short[ys[0], xs[0]] *= 0.3  # shorter than MIN_NORMAL_LENGTH: "no normal", in every reader
+    short[ys[1], xs[1]] *= 0.7  # long enough: renormalised, in every reader
+    import scipy.io
+
+    scipy.io.savemat(folder / "Normal_gt.mat", {"Normal_gt": short})
+    assert 0.3 < MIN_NORMAL_LENGTH < 0.7
+    obj, cap, gt = load_object(folder), load_capture(folder), load_ground_truth(folder)
+    for normals in (obj.normals, cap.normal_gt, gt.normals):
+        assert normals is not None  # Normal_gt.mat in a UniPS folder: read by all
+        assert np.array_equal(normals[ys[0], xs[0]], [0, 0, 0])
+        assert np.allclose(normals[ys[1], xs[1]], n[ys[1], xs[1]], atol=1e-6)
+    assert np.array_equal(obj.normals, cap.normal_gt)
+
+
+def test_huge_ground_truth_values_do_not_overflow(tmp_path):
+    folder = tmp_path / "u"
+    n, mask, _ = write_unips(folder, gt=None)
+    np.save(folder / "big.npy", n * 1e30)
+    from scenes.layouts import finish_normals
+    from scenes.objfolder import read_normals
+
+    out = finish_normals(read_normals(folder / "big.npy"), mask, folder / "big.npy")
+    assert np.allclose(out[mask], n[mask], atol=1e-6)
+
+
+def test_folder_errors_name_the_callers_argument(tmp_path):
+    with pytest.raises(FileNotFoundError, match="^--data: "):
+        load_capture(tmp_path / "missing")
+    with pytest.raises(FileNotFoundError, match="^--data: .* is not an object folder"):
+        load_capture(tmp_path)
+    with pytest.raises(FileNotFoundError, match="^path: "):
+        load_object(tmp_path / "missing")
+    ours = tmp_path / "o.data"
+    write_ours(ours)
+    (ours / "mask.png").unlink()
+    with pytest.raises(FileNotFoundError, match="mask file .*mask.png does not exist"):
+        read_folder(ours)
+
+
+def test_max_images_cuts_lights_after_checking_all(tmp_path):
+    folder = tmp_path / "d"
+    n, mask, L, inten, imgs = write_diligent(folder, k=6)
+    fd = read_folder(folder, max_images=4)
+    assert fd.num_files == 6 and len(fd.image_paths) == 4 and fd.images.shape[0] == 4
+    assert np.allclose(fd.lights.directions, L[:4], atol=1e-5)
+    assert np.allclose(fd.lights.intensities, inten[:4], atol=1e-5)
+    for bad in (0, -1, 2.5, True):
+        with pytest.raises(ValueError, match="max_images"):
+            read_folder(folder, max_images=bad)
