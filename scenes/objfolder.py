@@ -44,6 +44,8 @@ SCENE_EXTRAS = ("camera_lights", "format_version")
 """Top-level scene.json keys written next to the SceneDescription fields."""
 PREDICTION_FILES = ("normal.exr", "normal.png", "normal.npy", "normal.tif", "normal.tiff")
 """File names of a prediction folder, in lookup order (lossless float first)."""
+PREDICTION_INFO = "predict.json"
+"""What `unips.predict` records beside a prediction (method, model, images used)."""
 MASK_RULE = "any channel > 0 is foreground (as the official UniPS loaders)"
 BACKGROUND_16 = 32768
 """Encoded value of n = 0 in a 16-bit normal map."""
@@ -449,6 +451,20 @@ def find_prediction(pred: str | Path, name: str | None = None) -> Path:
             return found
     where = " or ".join(str(f) for f in folders)
     raise FileNotFoundError(f"--normals: no {'/'.join(PREDICTION_FILES)} in {where}")
+
+
+def prediction_label(source: str | Path) -> str:
+    """A short name of where a normal map came from, for titles: the method recorded in the prediction's
+    `PREDICTION_INFO` ("model glc-tiny", "least-squares"), else the file's folder and name."""
+    path = Path(source)
+    info = path.parent / PREDICTION_INFO
+    try:
+        d = json.loads(info.read_text())
+        method = str(d["method"])
+        model = d.get("model_name")
+        return f"{method} {model}" if method == "model" and model else method
+    except (OSError, ValueError, KeyError, TypeError):
+        return f"{path.parent.name}/{path.name}" if path.parent.name else path.name
 
 
 # ---------------------------------------------------------------------------------- angular error

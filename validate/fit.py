@@ -822,6 +822,7 @@ def rerender_fitted(
         report["calibrated_light_error_deg"] = {"mean": float(err.mean()), "median": float(np.median(err)), "max": float(err.max())}
     report["timings"] = {"fit_s": res.seconds, "total_s": time.perf_counter() - t0}
     if target is not None:
+        from scenes.objfolder import angular_error_deg, prediction_label
         from validate.figures import rerender_figure
 
         target.mkdir(parents=True, exist_ok=True)
@@ -831,7 +832,10 @@ def rerender_fitted(
         rerender_figure(
             target / "figure.png", small.images, renders, small.mask, rows,
             relative_residual_map(renders, small.images, small.mask), None, n_small,
-            title=f"{cap.name} (fitted): rel_l1 {res.rel_l1:.4f}, floor {report['floor_rel_l1'] or float('nan'):.4f}",
+            title=f"{cap.name}, {prediction_label(source)} (fitted lights): rel_l1 {res.rel_l1:.4f}, "
+            f"constant map {report['floor_rel_l1'] or float('nan'):.4f}"
+            + (f", MAE {report['mae_deg']:.2f} deg" if report.get("mae_deg") is not None else ""),
+            angular_error=None if small.normal_gt is None else angular_error_deg(n_small, small.normal_gt, small.mask),
         )
         (target / "report.json").write_text(json.dumps(report, indent=1, allow_nan=False))
     return report

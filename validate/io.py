@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from scenes.description import SceneDescription
-from scenes.layouts import read_folder
+from scenes.layouts import layout_named, read_folder
 from scenes.objfolder import find_prediction, read_normals, read_scene
 
 log = logging.getLogger(__name__)
@@ -55,10 +55,11 @@ def load_object(folder: str | Path) -> ObjectData:
     if not folder.is_dir():
         raise FileNotFoundError(f"--data: {str(folder)!r} is not a folder")
     desc = read_scene_json(folder)
-    fd = read_folder(folder, layout="ours", arg="--data")
-    if fd.num_files != len(desc.images):
-        raise ValueError(f"images: {str(folder)!r} has {fd.num_files} L*.png files but its scene file describes "
+    files = layout_named("ours").images(folder)  # counted first: a missing image is named as such
+    if len(files) != len(desc.images):
+        raise ValueError(f"images: {str(folder)!r} has {len(files)} L*.png files but scene.json describes "
                          f"{len(desc.images)} images")
+    fd = read_folder(folder, layout="ours", arg="--data")
     h, w = desc.camera.height, desc.camera.width
     if fd.shape != (h, w):
         raise ValueError(f"images: {str(fd.image_paths[0])!r} are {fd.shape[1]}x{fd.shape[0]}, expected {w}x{h} "

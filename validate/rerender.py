@@ -340,6 +340,7 @@ def build_report(data: ObjectData, pred: np.ndarray, valid: np.ndarray, source: 
 def write_figure(path: Path, report: dict[str, Any], inputs: np.ndarray, passes: RenderPasses, mask: np.ndarray,
                  res_map: np.ndarray, gt_map: np.ndarray | None, pred: np.ndarray, rows: int) -> None:
     """figure.png of one object: inputs, re-renders, residual maps, the prediction."""
+    from scenes.objfolder import prediction_label
     from validate.figures import rerender_figure
 
     rerender_figure(
@@ -351,7 +352,8 @@ def write_figure(path: Path, report: dict[str, Any], inputs: np.ndarray, passes:
         res_map,
         gt_map,
         pred,
-        title=f"{report['object']}: rel_l1 {report['rel_l1']:.4f}, coverage {report['coverage']:.1%}"
+        title=f"{report['object']}, {prediction_label(report['prediction'])} (known scene): rel_l1 {report['rel_l1']:.4f}, "
+        f"coverage {report['coverage']:.1%}"
         + (f" (GT normals {report['gt_rel_l1']:.4f})" if report["gt_rel_l1"] is not None else "")
         + (f", MAE {report['mae_deg']:.2f} deg" if report["mae_deg"] is not None else ""),
     )
@@ -583,7 +585,7 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
         logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
                             format="%(levelname)s %(name)s: %(message)s")
-        from scenes.layouts import detect_layout
+        from scenes.layouts import detect_layout, has_scene
 
         if args.fit or (Path(args.data).is_dir() and detect_layout(args.data) in ("diligent", "unips")):
             return _main_fitted(args)
@@ -600,7 +602,7 @@ def main(argv: list[str] | None = None) -> int:
         data = Path(args.data)
         if not data.is_dir():
             raise FileNotFoundError(f"--data: {str(data)!r} is not a folder")
-        single = (data / "scene.json").is_file()
+        single = has_scene(data)
         if not single:
             list_object_folders(data)  # fails early with a clear message
         if not Path(args.normals).exists():
