@@ -3,7 +3,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 DEMO_OUT ?= demo_out
 
-.PHONY: setup demo test bench clean
+.PHONY: setup demo test docs bench clean
 
 setup:
 	EXTRAS=$(EXTRAS) bash scripts/setup.sh
@@ -13,6 +13,9 @@ demo: setup
 
 test: setup
 	$(PY) -m pytest -q -x --durations=15 tests
+
+docs: setup
+	$(PY) -m orchestrate.docs
 
 clean:
 	rm -rf $(DEMO_OUT) .pytest_cache

@@ -17,6 +17,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from wildgen.lighting import LIGHT_FAMILIES
+
 
 def main() -> int:
     p = argparse.ArgumentParser()
@@ -24,7 +26,7 @@ def main() -> int:
     p.add_argument("--spp", type=int, default=64)
     p.add_argument("--images", type=int, default=10)
     p.add_argument("--objects", type=int, default=2, help="objects per family")
-    p.add_argument("--families", default="directional,point,near_area,hdri,mixed")
+    p.add_argument("--families", default=",".join(LIGHT_FAMILIES), help="light families, comma-separated (default: all)")
     p.add_argument("--variant", default=None)
     args = p.parse_args()
 

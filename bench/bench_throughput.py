@@ -27,6 +27,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from wildgen.lighting import LIGHT_FAMILIES
+
 REPO = Path(__file__).resolve().parents[1]
 
 
@@ -78,7 +80,7 @@ def main() -> int:
     p.add_argument("--engines", default="w1t1,w1t2,w2t1,ray")
     p.add_argument("--overhead-spp", type=int, default=256)
     p.add_argument("--overhead-objects", type=int, default=3)
-    p.add_argument("--lights", default="directional,point,near_area,hdri,mixed")
+    p.add_argument("--lights", default=",".join(LIGHT_FAMILIES), help="light families for wildgen.make (default: all)")
     p.add_argument("--keep", default=None, help="keep the datasets in this folder")
     args = p.parse_args()
 

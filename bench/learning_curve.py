@@ -37,17 +37,16 @@ def _cell(v: float | None) -> str:
 
 
 def table(run: Path, families: bool = False) -> str:
+    from unips.probes import PROBE_TITLES, format_table
+
     rows = validations(run)
-    lines = [f"{run}", "", "| step | hours | all images | one image | mask only | shuffled | photometric gain |",
-             "|---|---|---|---|---|---|---|"]
+    lines = [f"{run}", "", "| step | hours | " + " | ".join(PROBE_TITLES.values()) + " | photometric gain |",
+             "|---|---|" + "---|" * (len(PROBE_TITLES) + 1)]
     for r in rows:
         v, p = r["val"], r["val"].get("probes", {})
-        lines.append(f"| {r['step']} | {v.get('elapsed_s', 0) / 3600:.2f} | {_cell(p.get('all'))} | "
-                     f"{_cell(p.get('one'))} | {_cell(p.get('mask'))} | {_cell(p.get('shuffled'))} | "
-                     f"{_cell(v.get('gain'))} |")
+        lines.append(f"| {r['step']} | {v.get('elapsed_s', 0) / 3600:.2f} | "
+                     + " | ".join(_cell(p.get(k)) for k in PROBE_TITLES) + f" | {_cell(v.get('gain'))} |")
     if families and rows:
-        from unips.probes import format_table
-
         last = rows[-1]["val"]  # unips.train.validate renames summarise's "mean" dict to "probes"
         lines += ["", f"per family at step {rows[-1]['step']}:", "", format_table({**last, "mean": last["probes"]})]
     return "\n".join(lines)

@@ -25,15 +25,20 @@ import json
 import logging
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from scenes.cli import INPUT_ERRORS, UsageError, report_error
+from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, report_error
+from scenes.config import check_fields, config_parser, option
+from scenes.config import config_from_args as parse_config
 from scenes.objfolder import mean_angular_error
 from unips.data import find_objects, load_object
-from unips.inference import DEFAULT_TTA, TTA_VIEWS, check_tta, load_network, predict_object
+from unips.inference import DEFAULT_TTA, TTA_VIEWS, load_network, predict_object
+from unips.probes import PROBES
+from wildgen.lighting import LIGHT_FAMILIES
 
 log = logging.getLogger(__name__)
 
@@ -41,8 +46,6 @@ log = logging.getLogger(__name__)
 PUBLISHED_L2 = {"ball": 4.10, "bear": 8.39, "buddha": 14.92, "cat": 8.41, "cow": 25.60, "goblet": 18.50,
                 "harvest": 30.62, "pot1": 8.89, "pot2": 14.65, "reading": 19.80}
 PUBLISHED_UNIPS = {"ball": 4.9, "cat": 13.0, "harvest": 25.2, "reading": 18.8}
-PROBE_ORDER = ("all", "one", "mask", "shuffled")
-FAMILY_ORDER = ("directional", "point", "near_area", "hdri", "mixed")
 
 
 def _mae(pred: np.ndarray, gt: np.ndarray, mask: np.ndarray) -> float:
@@ -113,7 +116,7 @@ def synthetic_tables(data: Path, net, ablation, images: int, counts: list[int], 
         per_obj.append(row)
         log.info("%s (%s): %s", obj.name, row["family"], {k: round(v, 1) for k, v in row["mae"].items()})
 
-    families = [f for f in FAMILY_ORDER if any(r["family"] == f for r in per_obj)]
+    families = family_columns(r["family"] for r in per_obj)
     family_table = {
         name: {f: _mean([r["mae"][name] for r in per_obj if r["family"] == f and name in r["mae"]]) for f in families + ["all"]}
         for name, _ in methods
@@ -168,13 +171,20 @@ def probe_errors(obj, net, all_images_error: float | None = None, seed: int = 0,
     from unips.probes import applicable
 
     out = {}
-    for probe in PROBE_ORDER:
+    for probe in PROBES:
         if probe == "all" and all_images_error is not None:
             out[probe] = all_images_error
         elif applicable(probe, obj.images.shape[0]):
             out[probe] = _mae(predict_object(probe_inputs(obj, probe, seed), "model", net=net, tta=tta),
                               obj.normals, obj.mask)
     return out
+
+
+def family_columns(families) -> list[str]:
+    """The family columns of the tables: every family present, the generator's in its order
+    (`wildgen.lighting.LIGHT_FAMILIES`), then any other (another generator's, "unknown") by name."""
+    present = set(families)
+    return [f for f in LIGHT_FAMILIES if f in present] + sorted(present - set(LIGHT_FAMILIES))
 
 
 def _mean(v: list[float]) -> float:
@@ -288,35 +298,61 @@ def format_tables(res: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+@dataclass
+class BenchmarkOptions:
+    """The command line of orchestrate.benchmark."""
+
+    data: str | None = None
+    """Held-out synthetic dataset directory (object folders with normal.tif)."""
+    checkpoint: str | None = option(None, default_text="the shipped weights of unips.models.DEFAULT_MODEL")
+    """Model file."""
+    ablation_checkpoint: str | None = None
+    """Weights of the same model trained with uniform contexts (the ablation column)."""
+    diligent: str | None = None
+    """Folder with ballPNG/ and catPNG/ (DiLiGenT)."""
+    images: int = option(10, minimum=1)
+    """Images per synthetic object."""
+    counts: list[int] = option(default_factory=lambda: [1, 2, 4, 8, 16], minimum=1, metavar="K1,K2")
+    """Image counts of the error-vs-K table."""
+    diligent_images: int = option(96, minimum=1)
+    """Images per DiLiGenT object."""
+    diligent_subset: int = option(16, minimum=1)
+    """Images of the random DiLiGenT subsets."""
+    diligent_subsets: int = option(5, minimum=0)
+    """Random DiLiGenT subsets averaged (0: none)."""
+    seed: int = 0
+    """Seed of the DiLiGenT subsets and the shuffled probe."""
+    rerender_objects: int = option(10, minimum=0)
+    """Objects re-rendered per method (0: none)."""
+    rerender_spp: int | None = option(None, minimum=1, default_text="the recorded spp")
+    """Samples per pixel of the re-render."""
+    variant: str | None = None
+    """Mitsuba variant for the re-render check."""
+    threads: int | None = option(None, minimum=1)
+    """Torch / Dr.Jit threads."""
+    tta: int = option(DEFAULT_TTA, choices=TTA_VIEWS)
+    """Views averaged by the model (flips and transposes)."""
+    out: str = "benchmark_out"
+    """Output folder: tables.md and benchmark.json."""
+
+    def validate(self) -> "BenchmarkOptions":
+        if self.data is None and self.diligent is None:
+            raise UsageError("--data / --diligent: give at least one of them")
+        check_fields(self)
+        check_output_folder(self.out)
+        return self
+
+
+def build_parser() -> argparse.ArgumentParser:
+    return config_parser(BenchmarkOptions, prog="python -m orchestrate.benchmark",
+                         description="Evaluation tables: per light family, vs image count, re-render residuals, DiLiGenT.")
+
+
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m orchestrate.benchmark", description="Evaluation tables: per light family, vs image count, re-render residuals, DiLiGenT.")
-    p.add_argument("--data", default=None, help="held-out synthetic dataset directory (object folders with normal.tif)")
-    p.add_argument("--checkpoint", default=None, help="model weights (default: the shipped glc-tiny)")
-    p.add_argument("--ablation-checkpoint", default=None, help="weights of the same model trained with uniform contexts")
-    p.add_argument("--diligent", default=None, help="folder with ballPNG/ and catPNG/ (DiLiGenT)")
-    p.add_argument("--images", type=int, default=10, help="images per synthetic object (default 10)")
-    p.add_argument("--counts", default="1,2,4,8,16", help="image counts of the error-vs-K table (default 1,2,4,8,16)")
-    p.add_argument("--diligent-images", type=int, default=96, help="images per DiLiGenT object (default 96)")
-    p.add_argument("--diligent-subset", type=int, default=16, help="images of the random DiLiGenT subsets (default 16)")
-    p.add_argument("--diligent-subsets", type=int, default=5, help="random DiLiGenT subsets averaged (default 5; 0 = none)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the DiLiGenT subsets and the shuffled probe (default 0)")
-    p.add_argument("--rerender-objects", type=int, default=10, help="objects re-rendered per method (default 10; 0 = none)")
-    p.add_argument("--rerender-spp", type=int, default=None, help="spp of the re-render (default: the recorded spp)")
-    p.add_argument("--variant", default=None, help="Mitsuba variant for the re-render check")
-    p.add_argument("--threads", type=int, default=None, help="torch / Dr.Jit threads")
-    p.add_argument("--tta", type=int, default=DEFAULT_TTA,
-                   help=f"views averaged by the model (flips and transposes), one of {', '.join(map(str, TTA_VIEWS))} "
-                        f"(default {DEFAULT_TTA})")
-    p.add_argument("--out", default="benchmark_out", help="output folder (default benchmark_out)")
-    args = p.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     try:
-        if args.data is None and args.diligent is None:
-            raise UsageError("--data / --diligent: give at least one of them")
-        check_tta(args.tta, "--tta")
-        counts = [int(k) for k in args.counts.split(",")]
-        if any(k < 1 for k in counts):
-            raise UsageError(f"--counts: expected positive integers, got {args.counts!r}")
+        args = parse_config(BenchmarkOptions, build_parser().parse_args(argv)).validate()
+        counts = args.counts
         import torch
 
         if args.threads:
@@ -337,9 +373,6 @@ def main(argv: list[str] | None = None) -> int:
             res["synthetic"] = synthetic_tables(Path(args.data), net, ablation, args.images, counts, args.rerender_objects, args.rerender_spp,
                                                 args.tta)
         if args.diligent:
-            if args.diligent_subset < 1 or args.diligent_subsets < 0:
-                raise UsageError(f"--diligent-subset / --diligent-subsets: got {args.diligent_subset} / "
-                                 f"{args.diligent_subsets}, expected >= 1 / >= 0")
             res["diligent"] = diligent_table(Path(args.diligent), net, ablation, args.diligent_images,
                                              args.diligent_subset, args.diligent_subsets, args.seed, args.tta)
     except INPUT_ERRORS as exc:

@@ -19,9 +19,12 @@ import argparse
 import json
 import subprocess
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
-from scenes.cli import UsageError, UsageErrorParser, report_error
+from scenes.cli import INPUT_ERRORS, check_output_folder, report_error
+from scenes.config import check_fields, config_parser, option
+from scenes.config import config_from_args as parse_config
 
 FAMILIES = "near_area,hdri,mixed,directional"
 
@@ -79,27 +82,59 @@ def summary_table(out: Path, methods: list[str]) -> str:
         vals = [r["rel_l1"] for r in reports[m].values() if r.get("rel_l1") is not None]
         rel_means.append(cell(sum(vals) / len(vals) if vals else None, ".3f"))
     lines.append("| " + " | ".join(["**mean**", "", *means, *rel_means, ""]) + " |")
-    return "\n".join(lines)
+    return "\n".join(lines + ["", *SUMMARY_COLUMNS])
+
+
+SUMMARY_COLUMNS = (
+    "Columns:",
+    "- **object**, **family**: the rendered object and the kind of lighting of its images (light family).",
+    "- **<method> MAE (deg)**: mean angle between the method's normals and the ground truth over the object's "
+    "pixels (unips.evaluate); lower is better.",
+    "- **<method> re-render rel. L1**: the physical check (validate.rerender): the scene re-rendered with the "
+    "method's normals, mean |re-render - input| / mean input over the object; lower is better. \"(90% covered)\" "
+    "means the method left 10 % of the pixels without an estimate, scored as a black render.",
+    "- **GT normals rel. L1**: the same with the ground-truth normals: what a perfect map scores here (render "
+    "noise and the shading normal's limits), the floor to compare the methods with.",
+)
+"""The explanation printed under the demo's table (summary.md)."""
+
+
+@dataclass
+class DemoOptions:
+    """The command line of orchestrate.demo."""
+
+    out: Path = option(Path("demo_out"), parse=Path)
+    """Output folder: data/, pred/, rerender/ and summary.md."""
+    objects: int = option(4, minimum=1)
+    """Objects to render."""
+    images: int = option(8, minimum=1)
+    """Images per object."""
+    res: int = option(64, minimum=16)
+    """Square resolution."""
+    spp: int = option(32, minimum=1)
+    """Samples per pixel."""
+    seed: int = option(0, minimum=0)
+    """Dataset seed."""
+    checkpoint: Path | None = option(None, parse=Path, default_text="the shipped weights of unips.models.DEFAULT_MODEL")
+    """Model file."""
+    baseline: str = option("sh-uncalibrated", choices=("sh-uncalibrated", "least-squares"))
+    """Classical baseline to compare with (least-squares needs directional lights only)."""
+
+    def validate(self) -> "DemoOptions":
+        check_fields(self)
+        check_output_folder(self.out)
+        return self
+
+
+def build_parser() -> argparse.ArgumentParser:
+    return config_parser(DemoOptions, prog="python -m orchestrate.demo", description=__doc__.split("\n\n")[0])
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = UsageErrorParser(prog="python -m orchestrate.demo", description=__doc__.split("\n\n")[0],
-                         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    p.add_argument("--out", type=Path, default=Path("demo_out"), help="output folder")
-    p.add_argument("--objects", type=int, default=4, help="objects to render")
-    p.add_argument("--images", type=int, default=8, help="images per object")
-    p.add_argument("--res", type=int, default=64, help="square resolution")
-    p.add_argument("--spp", type=int, default=32, help="samples per pixel")
-    p.add_argument("--seed", type=int, default=0, help="dataset seed")
-    p.add_argument("--checkpoint", type=Path, default=None, help="model weights (default: the shipped glc-tiny)")
-    p.add_argument("--baseline", default="sh-uncalibrated", choices=["sh-uncalibrated", "least-squares"],
-                   help="classical baseline to compare with (least-squares needs directional lights only)")
     try:
-        args = p.parse_args(argv)
-    except UsageError as exc:
+        args = parse_config(DemoOptions, build_parser().parse_args(argv)).validate()
+    except INPUT_ERRORS as exc:
         return report_error(exc)
-    if args.objects < 1 or args.images < 1 or args.res < 16 or args.spp < 1:
-        return report_error(UsageError("--objects, --images and --spp must be >= 1 and --res >= 16"))
     py = [sys.executable, "-m"]
     out: Path = args.out
     data = out / "data"

@@ -8,6 +8,7 @@ status with `report_error`, never a traceback.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from contextlib import contextmanager
 from typing import Callable, Iterator, NoReturn
@@ -33,6 +34,27 @@ def report_error(exc: BaseException, code: int = EXIT_USAGE) -> int:
     """Print `error: <message>` (one line) on stderr and return the exit status `code`."""
     print(f"error: {one_line(exc)}", file=sys.stderr)
     return code
+
+
+def check_output_folder(path: str | os.PathLike, flag: str = "--out") -> str | os.PathLike:
+    """Refuse an output folder that cannot be written, before any work: an existing file, a path under a
+    file, or a folder (or the nearest existing parent of a new one) this process may not write. Creates
+    nothing. Returns `path`."""
+    target = os.path.abspath(path)
+    if os.path.exists(target):
+        if not os.path.isdir(target):
+            raise UsageError(f"{flag}: {str(path)!r} is an existing file, expected a folder")
+        if not os.access(target, os.W_OK | os.X_OK):
+            raise UsageError(f"{flag}: the folder {str(path)!r} is not writable")
+        return path
+    parent = os.path.dirname(target)
+    while not os.path.exists(parent):
+        parent = os.path.dirname(parent)
+    if not os.path.isdir(parent):
+        raise UsageError(f"{flag}: cannot create the folder {str(path)!r}: {parent!r} is a file")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise UsageError(f"{flag}: cannot create the folder {str(path)!r}: {parent!r} is not writable")
+    return path
 
 
 class UsageErrorParser(argparse.ArgumentParser):

@@ -14,10 +14,11 @@ import math
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
+from scenes.lights import FIELD_CHECKS, LIGHT_TYPES, light_type
+
 SHAPE_KINDS = ("mesh", "sphere", "blob", "superquadric", "bumpy_sphere", "torus", "plane")
 TEXTURE_KINDS = ("constant", "noise", "cells", "stripes", "file")
 MATERIAL_KINDS = ("principled", "lambertian")
-LIGHT_TYPES = ("directional", "point", "area", "environment")
 ENVIRONMENT_SOURCES = ("file", "indoor", "sky")
 CAMERA_KINDS = ("orthographic", "perspective")
 SAMPLERS = ("multijitter", "independent", "stratified")
@@ -172,14 +173,12 @@ class MaterialDesc:
 class LightDesc:
     """One light of one image. Unused fields for a type keep their defaults.
 
-    directional: `direction` (of travel), `irradiance` (W/m^2 on a facing surface) x `color`.
-    point:       `position`, `intensity` (W/sr) x `color`.
-    area:        rectangle at `position` facing `target`, `width` x `height`, `radiance` x `color`.
-    environment: the scene's environment map, rotated by `to_world`, multiplied by `scale`.
+    The types, what each one is and which of these fields set it are the table `scenes.lights.LIGHT_TYPES`
+    (`summary`, `fields`); `validate` checks a light through it.
     """
 
     type: str = "directional"
-    """One of LIGHT_TYPES."""
+    """A key of `scenes.lights.LIGHT_TYPES`."""
     color: list[float] = field(default_factory=lambda: [1.0, 1.0, 1.0])
     """Linear RGB tint (e.g. from a colour temperature), multiplied with the strength."""
     direction: list[float] = field(default_factory=lambda: [0.0, 0.0, -1.0])
@@ -208,28 +207,30 @@ class LightDesc:
     """Colour temperature the colour came from, if any (informational)."""
 
     def validate(self, owner: str) -> None:
-        _choice(owner, "type", self.type, LIGHT_TYPES)
+        kind = light_type(self.type, owner)
         _vec(owner, "color", self.color, 3)
         if min(self.color) < 0:
             raise ValueError(f"{owner}.color: expected non-negative values, got {self.color!r}")
-        if self.type == "directional":
-            _vec(owner, "direction", self.direction, 3)
-            if sum(c * c for c in self.direction) < 1e-12:
-                raise ValueError(f"{owner}.direction: expected a non-zero vector, got {self.direction!r}")
-            _positive(owner, "irradiance", self.irradiance, allow_zero=True)
-        elif self.type == "point":
-            _vec(owner, "position", self.position, 3)
-            _positive(owner, "intensity", self.intensity, allow_zero=True)
-        elif self.type == "area":
-            _vec(owner, "position", self.position, 3)
-            _vec(owner, "target", self.target, 3)
-            _vec(owner, "up", self.up, 3)
-            _positive(owner, "width", self.width)
-            _positive(owner, "height", self.height)
-            _positive(owner, "radiance", self.radiance, allow_zero=True)
-        else:
-            _matrix4(owner, "to_world", self.to_world)
-            _positive(owner, "scale", self.scale, allow_zero=True)
+        for name, check in kind.fields:
+            _FIELD_CHECKS[check](owner, name, getattr(self, name))
+
+
+def _direction(owner: str, name: str, value: Any) -> None:
+    _vec(owner, name, value, 3)
+    if sum(c * c for c in value) < 1e-12:
+        raise ValueError(f"{owner}.{name}: expected a non-zero vector, got {value!r}")
+
+
+_FIELD_CHECKS = {
+    "vector": lambda owner, name, value: _vec(owner, name, value, 3),
+    "direction": _direction,
+    "matrix": _matrix4,
+    "positive": _positive,
+    "non_negative": lambda owner, name, value: _positive(owner, name, value, allow_zero=True),
+}
+"""The field checks that `scenes.lights.LIGHT_TYPES` names (`scenes.lights.FIELD_CHECKS`)."""
+assert tuple(_FIELD_CHECKS) == FIELD_CHECKS
+assert {n for t in LIGHT_TYPES.values() for n, _ in t.fields} <= {f.name for f in fields(LightDesc)}
 
 
 @dataclass
@@ -336,7 +337,7 @@ class ImageDesc:
             if not isinstance(light, LightDesc):
                 raise ValueError(f"images[{index}].lights[{j}]: expected a LightDesc, got {type(light).__name__}")
             light.validate(f"images[{index}].lights[{j}]")
-            n_env += light.type == "environment"
+            n_env += LIGHT_TYPES[light.type].environment_map
         if n_env > 1:
             raise ValueError(f"images[{index}].lights: at most one environment light per image, got {n_env}")
         _positive(f"images[{index}]", "exposure", self.exposure)
@@ -356,7 +357,8 @@ class SceneDescription:
     environment: EnvironmentDesc | None = None
     """Environment map used by the images' 'environment' lights (required if any image has one)."""
     light_family: str = "custom"
-    """Lighting family the images were sampled from (directional, point, near_area, hdri, mixed)."""
+    """Lighting family the images were sampled from: a key of `wildgen.lighting.LIGHT_FAMILIES` for generated
+    objects, free text otherwise."""
     name: str = "object"
     """Object name (folder name without '.data')."""
 
@@ -370,7 +372,7 @@ class SceneDescription:
             raise ValueError("images: expected at least one image, got an empty list")
         for i, image in enumerate(self.images):
             image.validate(i)
-        uses_env = any(l.type == "environment" for im in self.images for l in im.lights)
+        uses_env = any(LIGHT_TYPES[l.type].environment_map for im in self.images for l in im.lights)
         if uses_env and self.environment is None:
             raise ValueError("environment: images use an 'environment' light but no environment map is given")
         if self.environment is not None:

@@ -14,32 +14,19 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
 from scenes.description import LightDesc, SceneDescription, TextureDesc
 from scenes.envmaps import realize_environment
 from scenes.geometry import mesh_data_for, transformed_mesh
+from scenes.lights import LIGHT_TYPES, light_type
 from scenes.procedural import MeshData
 from scenes.textures import realize_texture
 from scenes.variant import require_variant
 
 log = logging.getLogger(__name__)
-
-PARK_POSITION = [0.0, 1.0e5, 0.0]  # where unused area lights wait: far above, invisibly small
-PARK_SCALE = 1.0e-6
-SCALAR_PARK = ([0.0, 1.0e3, 0.0], 1.0e-3)
-"""scalar_rgb computes a rectangle's area from its float32 corners: at 1e5 corners 2e-6 apart coincide (zero
-area, "no probability mass"), so there unused area lights wait nearer and larger (corners 2e-3 apart at 1e3).
-The JIT variants keep the original place: it changes no byte of their renders."""
-
-
-def park_transform(mi: Any):
-    """The to_world of an unused area light (see PARK_POSITION, SCALAR_PARK)."""
-    T = mi.ScalarTransform4f
-    pos, scale = SCALAR_PARK if mi.variant().startswith("scalar") else (PARK_POSITION, PARK_SCALE)
-    return T().translate(pos) @ T().scale([scale, scale, scale])
 
 
 def _bitmap_texture(arr: np.ndarray, **options: Any):
@@ -89,21 +76,18 @@ def bsdf_dict(desc: SceneDescription, base_dir: Path | None) -> tuple[dict, dict
 
 @dataclass
 class LightSlots:
-    """How many Mitsuba emitters of each kind the scene holds."""
+    """How many Mitsuba emitters (slots) of each light type the scene holds: the most any one image uses."""
 
-    directional: int = 0
-    point: int = 0
-    area: int = 0
-    environment: int = 0
+    counts: dict[str, int] = field(default_factory=dict)
+    """Light type (a key of `scenes.lights.LIGHT_TYPES`) -> number of slots."""
 
     @classmethod
     def for_description(cls, desc: SceneDescription) -> "LightSlots":
-        slots = cls()
+        counts = dict.fromkeys(LIGHT_TYPES, 0)
         for image in desc.images:
-            counts = {t: sum(l.type == t for l in image.lights) for t in ("directional", "point", "area", "environment")}
-            for t, c in counts.items():
-                setattr(slots, t, max(getattr(slots, t), c))
-        return slots
+            for t in counts:
+                counts[t] = max(counts[t], sum(l.type == t for l in image.lights))
+        return cls(counts)
 
 
 @dataclass
@@ -133,79 +117,16 @@ class BuiltScene:
         self.current_image = None
 
 
-def _rgb(strength: float, color: list[float]) -> list[float]:
-    return [float(strength) * float(c) for c in color]
-
-
-def _directional_on(mi: Any, l: LightDesc) -> dict[str, Any]:
-    T = mi.ScalarTransform4f
-    d = np.asarray(l.direction, np.float64)
-    d /= np.linalg.norm(d)
-    up = [0.0, 1.0, 0.0] if abs(d[1]) < 0.99 else [1.0, 0.0, 0.0]
-    return {"to_world": mi.AffineTransform4f(T().look_at(origin=[0, 0, 0], target=d.tolist(), up=up)),
-            "irradiance.value": mi.Color3f(_rgb(l.irradiance, l.color))}
-
-
-def _point_on(mi: Any, l: LightDesc) -> dict[str, Any]:
-    return {"position": mi.Point3f(l.position), "intensity.value": mi.Color3f(_rgb(l.intensity, l.color))}
-
-
-def _area_on(mi: Any, l: LightDesc) -> dict[str, Any]:
-    return {"to_world": mi.AffineTransform4f(area_light_transform(l)),
-            "emitter.radiance.value": mi.Color3f(_rgb(l.radiance, l.color))}
-
-
-def _area_off(mi: Any) -> dict[str, Any]:
-    return {"to_world": mi.AffineTransform4f(park_transform(mi)),
-            "emitter.radiance.value": mi.Color3f(0.0)}
-
-
-def _environment_on(mi: Any, l: LightDesc) -> dict[str, Any]:
-    return {"to_world": mi.AffineTransform4f(mi.ScalarTransform4f(np.asarray(l.to_world, np.float64))),
-            "scale": mi.Float(float(l.scale))}
-
-
-@dataclass(frozen=True)
-class SlotKind:
-    """One kind of light slot: which lights it shows and which parameters switch it on and off."""
-
-    type: str
-    """`LightDesc.type` of the lights it holds (also the `LightSlots` field with the slot count)."""
-    prefix: str
-    """Scene key of the slots: `prefix_k` (`prefix` alone for a single slot)."""
-    single: bool
-    """At most one slot (the environment map)."""
-    weight: str
-    """Parameter of the slot's sampling weight."""
-    on: Callable[[Any, LightDesc], dict[str, Any]]
-    """Parameters (relative to the slot key) that show light `l` in the slot."""
-    off: Callable[[Any], dict[str, Any]]
-    """Parameters of an unused slot (zero strength; area rectangles parked)."""
-
-    def key(self, k: int) -> str:
-        return self.prefix if self.single else f"{self.prefix}_{k}"
-
-
-SLOT_KINDS = (
-    SlotKind("directional", "light_directional", False, "sampling_weight", _directional_on,
-             lambda mi: {"irradiance.value": mi.Color3f(0.0)}),
-    SlotKind("point", "light_point", False, "sampling_weight", _point_on,
-             lambda mi: {"intensity.value": mi.Color3f(0.0)}),
-    SlotKind("area", "light_area", False, "emitter.sampling_weight", _area_on, _area_off),
-    SlotKind("environment", "light_environment", True, "sampling_weight", _environment_on,
-             lambda mi: {"scale": mi.Float(0.0)}),
-)
-"""The light slots of a built scene, in the order they are written."""
-
-
 def _apply_lights(params: Any, slots: LightSlots, lights: list[LightDesc]) -> None:
     mi = require_variant()
     # Unused slots get no samples, unless no light is on at all (Mitsuba needs some sampling mass).
     off_weight = 0.0 if lights else 1.0
-    for kind in SLOT_KINDS:
-        shown = [l for l in lights if l.type == kind.type]
-        count = getattr(slots, kind.type)
-        for k in range(min(count, 1) if kind.single else count):
+    for l in lights:
+        light_type(l.type)  # an unknown type is refused, never left dark
+    for kind in LIGHT_TYPES.values():
+        shown = [l for l in lights if l.type == kind.name]
+        count = slots.counts.get(kind.name, 0)
+        for k in range(min(count, 1) if kind.environment_map else count):
             key = kind.key(k)
             values = kind.on(mi, shown[k]) if k < len(shown) else kind.off(mi)
             for name, value in values.items():
@@ -220,20 +141,6 @@ def _opaque(value):
 
     dr.make_opaque(value)
     return value
-
-
-def area_light_transform(light: LightDesc):
-    """Rectangle ([-1,1]^2, emitting along +z) at `position` facing `target`, sized width x height."""
-    mi = require_variant()
-    T = mi.ScalarTransform4f
-    pos = np.asarray(light.position, np.float64)
-    fwd = np.asarray(light.target, np.float64) - pos
-    up = np.asarray(light.up, np.float64)
-    if np.linalg.norm(np.cross(fwd, up)) < 1e-9 * max(np.linalg.norm(fwd), 1e-12):
-        up = np.array([1.0, 0.0, 0.0]) if abs(fwd[0]) < 0.9 * np.linalg.norm(fwd) else np.array([0.0, 0.0, 1.0])
-    return T().look_at(origin=pos.tolist(), target=light.target, up=up.tolist()) @ T().scale(
-        [light.width / 2, light.height / 2, 1.0]
-    )
 
 
 def sensor_dict(desc: SceneDescription, spp: int) -> dict:
@@ -278,21 +185,11 @@ def build_scene(desc: SceneDescription, base_dir: str | Path | None = None, bsdf
     else:
         scene["object"] = make_mesh("object", transformed_mesh(data, desc.shape.to_world), bsdf)
     slots = LightSlots.for_description(desc)
-    for k in range(slots.directional):
-        scene[f"light_directional_{k}"] = {"type": "directional", "direction": [0, 0, -1], "irradiance": {"type": "rgb", "value": 0.0}}
-    for k in range(slots.point):
-        scene[f"light_point_{k}"] = {"type": "point", "position": [0, 0, 3], "intensity": {"type": "rgb", "value": 0.0}}
-    for k in range(slots.area):
-        scene[f"light_area_{k}"] = {
-            "type": "rectangle",
-            "to_world": park_transform(mi),
-            "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.0}},
-            "emitter": {"type": "area", "radiance": {"type": "rgb", "value": 0.0}},
-        }
-    env_arr = None
-    if slots.environment:
-        env_arr = realize_environment(desc.environment, base)
-        scene["light_environment"] = {"type": "envmap", "bitmap": mi.Bitmap(env_arr), "scale": 0.0}
+    uses_env = any(slots.counts[t.name] for t in LIGHT_TYPES.values() if t.environment_map)
+    env_arr = realize_environment(desc.environment, base) if uses_env else None
+    for kind in LIGHT_TYPES.values():  # the table's order is the emitter order
+        for k in range(slots.counts[kind.name]):
+            scene[kind.key(k)] = kind.slot(mi, env_arr)
     # optimize=False: Mitsuba's shape merging orders area lights by memory address, which would make the emitter
     # order (hence the noise pattern) depend on what the process allocated before.
     loaded = mi.load_dict(scene, optimize=False)

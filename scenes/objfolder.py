@@ -141,7 +141,7 @@ def write_scene(folder: str | Path, desc, extras: dict[str, Any] | None = None) 
     extras = dict(extras or {})
     extras.setdefault("format_version", FORMAT_VERSION)
     path = Path(folder) / SCENE_FILE
-    path.write_text(scene_json_text(desc, extras))
+    atomic_write_text(path, scene_json_text(desc, extras))
     return path
 
 
@@ -153,13 +153,35 @@ def to_uint16(x: np.ndarray) -> np.ndarray:
     return np.round(np.clip(x, 0.0, 1.0) * 65535.0).astype(np.uint16)
 
 
+def _temporary(path: Path) -> Path:
+    """A hidden name beside `path` with the same extension (image writers choose the format by it)."""
+    return path.with_name(f".{path.stem}.tmp{os.getpid()}{path.suffix}")
+
+
+def atomic_write(path: str | Path, write) -> None:
+    """Call `write(tmp)` on a temporary name beside `path`, then rename it to `path`: a kill or a full disk
+    never leaves a truncated file under the real name (the temporary one is removed on failure)."""
+    path = Path(path)
+    tmp = _temporary(path)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
 def _imwrite(path: Path, image: np.ndarray, mkdir: bool = False) -> None:
     import cv2
 
     if mkdir:
         path.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(path), image):
-        raise OSError(f"could not write {str(path)!r} (unsupported extension or unwritable)")
+
+    def write(tmp: Path) -> None:
+        if not cv2.imwrite(str(tmp), image):
+            raise OSError(f"could not write {str(path)!r} (unsupported extension, unwritable or disk full)")
+
+    atomic_write(path, write)
 
 
 def write_png16(path: str | Path, rgb: np.ndarray) -> None:
@@ -255,9 +277,13 @@ def write_exr(path: str | Path, data: np.ndarray) -> None:
     else:
         raise ValueError(f"write_exr: data shape {data.shape} is not (H, W), (H, W, 1) or (H, W, 3)")
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    # OpenEXR replaces the dict's values with Channel objects: hand it a copy.
-    with OpenEXR.File(header, dict(channels)) as f:
-        f.write(str(path))
+
+    def write(tmp: Path) -> None:
+        # OpenEXR replaces the dict's values with Channel objects: hand it a copy.
+        with OpenEXR.File(header, dict(channels)) as f:
+            f.write(str(tmp))
+
+    atomic_write(path, write)
 
 
 def _exr_channels(path: Path) -> dict[str, np.ndarray]:
@@ -285,10 +311,7 @@ def read_exr(path: str | Path) -> np.ndarray:
 
 def atomic_write_text(path: str | Path, text: str) -> None:
     """Write a text file through a temporary name and rename, so readers never see half a file."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+    atomic_write(path, lambda tmp: tmp.write_text(text))
 
 
 # -------------------------------------------------------------------------------- normal-map files

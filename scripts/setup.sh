@@ -32,3 +32,5 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   $PIP install -q -e ".[test${EXTRAS:+,$EXTRAS}]" "torch==2.14.1" "torchvision==0.29.1"
   touch "$stamp"
 fi
+# Commands run inside the virtualenv: say how to enter it (the system Python lacks the packages).
+echo "setup: $VENV is ready ($(du -sh "$VENV" 2>/dev/null | cut -f1) on disk); to run the commands yourself: source $VENV/bin/activate"

@@ -112,7 +112,9 @@ def world(tmp_path_factory) -> Path:
     _mk(w / "assets_good" / "meshes")
     trimesh.creation.icosphere(subdivisions=2).export(w / "assets_good" / "meshes" / "good.ply")
     # Model files.
-    weights = REPO / "unips" / "weights" / "glc-tiny.safetensors"
+    from unips.models import DEFAULT_MODEL, pretrained_weights
+
+    weights = pretrained_weights(DEFAULT_MODEL)
     sidecar = json.loads(weights.with_suffix(".json").read_text())
     ck = _mk(w / "ck")
     _random(ck / "rand.pt")

@@ -43,6 +43,35 @@ def test_benchmark_reports_probes_and_diligent_subsets(synthetic_object, tmp_pat
     assert np.array_equal(m.images[..., 0][0] > 0, obj.mask) and set(np.unique(m.images)) <= {0.0, 1.0}
 
 
+def test_benchmark_keeps_every_family_of_the_data(synthetic_object, tmp_path):
+    """A family the generator's table does not know (another generator's, or none recorded) gets its own column
+    after the table's families, in the per-family and probe tables: it is never dropped from them."""
+    from conftest import write_synthetic_object
+    from orchestrate.benchmark import family_columns, main
+    from unips.data import load_object
+    from wildgen.lighting import LIGHT_FAMILIES
+
+    ball = load_object(synthetic_object)
+    write_synthetic_object(synthetic_object.parent / "ring.data", ball.images, ball.mask, ball.normals,
+                           light_family="spot_ring")
+    write_synthetic_object(synthetic_object.parent / "plain.data", ball.images, ball.mask, ball.normals,
+                           light_family=None)
+    torch.manual_seed(0)
+    weights = save_checkpoint(tmp_path / "w.safetensors", create_model("glc-test"))
+    out = tmp_path / "bench"
+    assert main(["--data", str(synthetic_object.parent), "--checkpoint", str(weights), "--counts", "1",
+                 "--rerender-objects", "0", "--tta", "1", "--out", str(out)]) == 0
+    syn = json.loads((out / "benchmark.json").read_text())["synthetic"]
+    assert syn["families"] == ["directional", "spot_ring", "unknown"]
+    for row in syn["family_table"].values():
+        assert set(row) == {"directional", "spot_ring", "unknown", "all"}
+    assert np.isfinite(syn["family_table"]["model"]["spot_ring"])
+    assert set(syn["probe_table"]["model"]["families"]) == {"directional", "spot_ring", "unknown"}
+    header = next(line for line in (out / "tables.md").read_text().splitlines() if line.startswith("| method |"))
+    assert header == "| method | directional | spot_ring | unknown | all |"
+    assert family_columns(["zz", *reversed(LIGHT_FAMILIES), "aa"]) == [*LIGHT_FAMILIES, "aa", "zz"]
+
+
 def test_learning_curve_card_trend_and_extrapolation(tmp_path) -> None:
     """bench/learning_curve.py --card on a lineage whose errors follow 20 - 1.5 log2(hours) exactly: the fit
     recovers a = 20, b = 1.5, and the hours at which the trend reaches the target (shifted by the family's

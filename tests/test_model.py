@@ -164,6 +164,27 @@ def test_bad_inputs_raise(test_model) -> None:
         test_model.decode_pixels(test_model.encode(images, mask), images, mask, torch.zeros(1, 5, 3))
 
 
+def test_create_model_loads_shipped_weights_or_a_file_never_fresh_ones(tmp_path) -> None:
+    """One `create_model(name, pretrained=..., checkpoint_path=...)`: the registry's pretrained entry, a model
+    file of that model, or fresh weights; the weights' model must be the name asked for."""
+    from unips.models import DEFAULT_MODEL, load_model, pretrained_weights, save_checkpoint
+
+    shipped = create_model(DEFAULT_MODEL, pretrained=True)
+    reference, meta = load_model(pretrained_weights(DEFAULT_MODEL))
+    assert not shipped.training and meta["model_name"] == DEFAULT_MODEL
+    assert all(torch.equal(a, b) for a, b in zip(shipped.state_dict().values(), reference.state_dict().values()))
+    torch.manual_seed(3)
+    saved = save_checkpoint(tmp_path / "t.safetensors", create_model("glc-test"))
+    loaded = create_model("glc-test", checkpoint_path=saved)
+    assert not loaded.training and loaded.model_name == "glc-test"
+    with pytest.raises(ValueError, match="holds model 'glc-test', not 'glc-tiny'"):
+        create_model("glc-tiny", checkpoint_path=saved)
+    with pytest.raises(ValueError, match="not allowed with weights"):
+        create_model(DEFAULT_MODEL, pretrained=True, dropout=0.0)
+    with pytest.raises(FileNotFoundError, match="model file not found"):
+        create_model("glc-test", checkpoint_path=tmp_path / "missing.safetensors")
+
+
 def test_config_round_trips_through_json() -> None:
     model = create_model("glc-tiny", uniform_context=True)
     d = json.loads(json.dumps(dataclasses.asdict(model.config)))

@@ -11,10 +11,8 @@ import numpy as np
 import pytest
 
 from conftest import write_synthetic_object
-from scenes.cli import UsageError
 from unips import evaluate as ev
 from unips import predict as pr
-from unips.inference import default_checkpoint
 from scenes.objfolder import mean_angular_error, read_normals, write_normal_exr, write_normal_map
 
 
@@ -188,7 +186,7 @@ def test_evaluate_missing_prediction(dataset, tmp_path, capsys):
     assert json.loads((pred / "metrics.json").read_text())["objects"]["alpha"]["mae_deg"] < 1e-3
 
 
-def test_cli_bad_input(dataset, tmp_path, capsys):
+def test_cli_bad_input(dataset, tmp_path, capsys, monkeypatch):
     root, truth = dataset
     assert pr.main(["--method", "least-squares", "--input", str(tmp_path / "nope"), "--out", str(tmp_path)]) == 2
     assert "nope" in _one_line_error(capsys)
@@ -207,12 +205,14 @@ def test_cli_bad_input(dataset, tmp_path, capsys):
         (uni / f.name).write_bytes(f.read_bytes())
     assert pr.main(["--method", "least-squares", "--input", str(uni), "--out", str(tmp_path / "o")]) == 2
     assert "calibrated" in _one_line_error(capsys)
-    # Model without a checkpoint: refuses unless weights are shipped.
-    try:
-        default_checkpoint()
-    except UsageError:
-        assert pr.main(["--method", "model", "--input", str(root), "--out", str(tmp_path / "o")]) == 2
-        assert "no shipped weights" in _one_line_error(capsys)
+    # Model without a checkpoint while the shipped model's weights file is missing: refused, never fresh weights.
+    from unips.models import DEFAULT_MODEL, Pretrained, registry
+
+    monkeypatch.setitem(registry._PRETRAINED, DEFAULT_MODEL, Pretrained(weights=str(tmp_path / "gone.safetensors"),
+                                                                        card=str(tmp_path / "gone.json")))
+    assert pr.main(["--method", "model", "--input", str(root), "--out", str(tmp_path / "o")]) == 2
+    assert "no shipped weights" in _one_line_error(capsys)
+    assert not (tmp_path / "o").exists()
     assert pr.main(["--method", "model", "--checkpoint", str(tmp_path / "none.safetensors"),
                     "--input", str(root), "--out", str(tmp_path / "o")]) == 2
     assert "none.safetensors" in _one_line_error(capsys)

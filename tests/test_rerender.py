@@ -503,3 +503,24 @@ def test_cli_dataset_end_to_end(jit, sphere_folder, tmp_path, capsys):
     with open(out / "summary.csv") as f:
         rows = list(csv.DictReader(f))
     assert [r["object"] for r in rows] == ["a", "b"]
+
+
+def test_known_scene_report_refuses_an_unknown_light_type():
+    """The known-scene report lists each light in its type's camera-frame form (`scenes.lights`); a type the
+    table does not know is a ValueError naming it, never reported as an environment light."""
+    from validate.lights import known_scene_lights
+
+    env = np.eye(4).tolist()
+    desc = SceneDescription(
+        camera=CameraDesc(width=8, height=8),
+        images=[ImageDesc(lights=[LightDesc(type="point", position=[0.0, 1.0, 2.0], intensity=3.0),
+                                  LightDesc(type="area", position=[0.0, 0.0, 2.0], target=[0.0, 0.0, 0.0]),
+                                  LightDesc(type="environment", to_world=env, scale=0.5)])],
+    )
+    (lights,) = known_scene_lights(desc, [2.0])
+    assert [l["type"] for l in lights] == ["point", "area", "environment"]
+    assert lights[0]["intensity"] == [6.0, 6.0, 6.0] and lights[2]["scale"] == 1.0
+    np.testing.assert_allclose(lights[1]["normal"], [0, 0, -1], atol=1e-12)
+    desc.images[0].lights[2].type = "sky_dome"
+    with pytest.raises(ValueError, match="unknown light type 'sky_dome', expected one of directional, point, area, environment"):
+        known_scene_lights(desc, [2.0])

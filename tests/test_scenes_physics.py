@@ -256,12 +256,12 @@ def test_unknown_json_field_is_named():
 
 
 def test_variant_choice_prefers_llvm_and_rejects_unknown():
-    from scenes.variant import choose_variant
+    from scenes.variant import PREFERENCE, choose_variant
 
     with pytest.raises(ValueError, match="--variant"):
         choose_variant("no_such_variant")
     chosen = choose_variant()
-    assert chosen in ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
+    assert chosen in PREFERENCE
 
 
 def test_normal_mapped_ground_truth_matches_photometric_stereo(tmp_path, llvm):
@@ -327,3 +327,23 @@ def test_mesh_and_near_area_light_on_both_variants(tmp_path, any_variant):
     expected = np.asarray(ALBEDO) / np.pi * 5.0 * 1.0 / d**2
     assert np.allclose(patch, expected, rtol=0.15), (patch, expected)
     assert np.isfinite(images[0]).all() and images[0][~gt.mask & (gt.coverage == 0)].max() < 1e-6
+
+
+def test_light_type_table_drives_the_description_and_the_build(any_variant):
+    """Every type of `scenes.lights.LIGHT_TYPES` validates and gets its slots in table order; a type the table
+    does not know is refused by the description and by the relighting of a built scene (not left dark)."""
+    from scenes.lights import LIGHT_TYPES
+    from scenes.mitsuba_build import build_scene
+
+    lights = [LightDesc(type=name) for name in LIGHT_TYPES]
+    desc = sphere_scene([lights, [LightDesc(type="directional")]], spp=4)
+    desc.environment = EnvironmentDesc(source="sky", width=16)
+    built = build_scene(desc)
+    assert built.slots.counts == dict.fromkeys(LIGHT_TYPES, 1)
+    for t in LIGHT_TYPES.values():
+        assert f"{t.key(0)}.{t.weight}" in built.params, t.name
+    desc.images[1].lights[0].type = "laser"
+    with pytest.raises(ValueError, match="unknown light type 'laser', expected one of " + ", ".join(LIGHT_TYPES)):
+        built.apply_image(1)
+    with pytest.raises(ValueError, match=r"images\[1\]\.lights\[0\]\.type: unknown light type 'laser'"):
+        desc.validate()

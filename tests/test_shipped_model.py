@@ -10,7 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-FAMILIES = "directional,point,near_area,hdri,mixed"
+from wildgen.lighting import LIGHT_FAMILIES
+
+FAMILIES = ",".join(LIGHT_FAMILIES)  # every light family, cycled over the rendered objects
 
 
 @pytest.fixture(scope="module")
@@ -29,11 +31,13 @@ def rendered(tmp_path_factory) -> Path:
 
 
 def test_shipped_weights_are_in_the_package_with_a_model_card():
-    from unips.inference import default_checkpoint
+    from unips.models import DEFAULT_MODEL, list_pretrained, pretrained_entry, pretrained_weights
 
-    path = default_checkpoint()
+    assert DEFAULT_MODEL in list_pretrained()
+    path = pretrained_weights(DEFAULT_MODEL)
     assert path.suffix == ".safetensors" and 0.5e6 < path.stat().st_size < 20e6
-    card = json.loads((path.parent / "model_card.json").read_text())
+    card = json.loads(pretrained_entry(DEFAULT_MODEL).card_path.read_text())
+    assert card["model"] == DEFAULT_MODEL
     for key in ("data_recipe", "steps", "wall_time_s", "hardware", "validation_mean_deg", "known_weaknesses"):
         assert card.get(key) not in (None, ""), key
 
@@ -42,8 +46,10 @@ def test_shipped_model_predicts_unit_normals_on_a_rendered_object(rendered):
     from unips.data import find_objects, load_object
     from unips.inference import load_network, predict_object
 
+    from unips.models import DEFAULT_MODEL
+
     net = load_network(None)
-    assert net.meta["model_name"] == "glc-tiny"
+    assert net.meta["model_name"] == DEFAULT_MODEL
     obj = load_object(find_objects(rendered)[0])
     n = predict_object(obj, "model", net=net)
     assert n.shape == obj.normals.shape
@@ -76,13 +82,15 @@ def test_shipped_model_beats_an_untrained_one_by_a_wide_margin(rendered):
 
 
 def test_shipped_model_is_the_default_of_the_predict_cli(rendered, tmp_path):
+    from unips.models import DEFAULT_MODEL, pretrained_weights
     from unips.predict import main
 
     out = tmp_path / "pred"
     folder = sorted(rendered.glob("*.data"))[0]
     assert main(["--method", "model", "--input", str(folder), "--out", str(out)]) == 0
     info = json.loads(next(out.rglob("predict.json")).read_text())
-    assert Path(info["checkpoint"]).name == "glc-tiny.safetensors"
+    assert Path(info["checkpoint"]) == pretrained_weights(DEFAULT_MODEL).resolve()
+    assert info["model_name"] == DEFAULT_MODEL
 
 
 def test_shipped_model_reads_the_images_not_only_the_outline(rendered):
@@ -114,3 +122,74 @@ def test_shipped_model_reads_the_images_not_only_the_outline(rendered):
 # fine-tune 9 14.9, fine-tune 8 17.0, fine-tune 7 17.4, the weights before the 128 px fine-tunes 4.5.
 # The floor sits well below that and far above the ~0 of a silhouette-only model.
 GAIN_FLOOR_DEG = 6.0
+
+
+def _registered_test_model(monkeypatch, tmp_path: Path) -> str:
+    """A registry name with glc-test's factory and a pretrained entry in `tmp_path` (removed after the test)."""
+    from unips.models import Pretrained, registry, zoo
+
+    name = "glc-test-shipped"
+    monkeypatch.setitem(registry._REGISTRY, name, zoo.glc_test)
+    monkeypatch.setitem(registry._PRETRAINED, name, Pretrained(weights=str(tmp_path / "shipped" / f"{name}.safetensors"),
+                                                               card=str(tmp_path / "shipped" / f"{name}.card.json")))
+    return name
+
+
+def test_pretrained_entry_without_its_file_is_an_error_never_fresh_weights(monkeypatch, tmp_path):
+    from unips.models import create_model, pretrained_entry
+
+    name = _registered_test_model(monkeypatch, tmp_path)
+    assert not pretrained_entry(name).weights_path.exists()
+    with pytest.raises(FileNotFoundError, match=f"no shipped weights for '{name}'.*--checkpoint"):
+        create_model(name, pretrained=True)
+    with pytest.raises(ValueError, match="'glc-test' has no shipped-weights entry"):
+        create_model("glc-test", pretrained=True)
+
+
+def test_recipe_ships_the_model_it_trained_where_the_registry_loads_it(rendered, monkeypatch, tmp_path, capsys):
+    """`ship` compares with the shipped weights of the trained model's own architecture (here: none yet, so it
+    ships, although the default model's weights exist and are far better), writes them and the card where
+    `create_model(name, pretrained=True)` reads, and does not ship the same weights again (no improvement)."""
+    import argparse
+
+    import torch
+
+    from orchestrate.train_recipe import ship, shipped_name
+    from unips.models import create_model, pretrained_entry, save_checkpoint
+
+    name = _registered_test_model(monkeypatch, tmp_path)
+    torch.manual_seed(0)
+    trained = create_model(name)
+    run = tmp_path / "run"
+    save_checkpoint(run / "best.safetensors", trained, {"step": 7})
+    args = argparse.Namespace(model=name, init_from=None, train_seed=[5000], train_objects=10, steps=7, lr=1e-3,
+                              threads=1)
+    assert shipped_name(args) == name
+    assert ship(rendered, run, args)
+    entry = pretrained_entry(name)
+    loaded = create_model(name, pretrained=True)
+    assert not loaded.training
+    for key, value in trained.state_dict().items():
+        assert torch.equal(loaded.state_dict()[key], value), key
+    card = json.loads(entry.card_path.read_text())
+    assert card["model"] == name and card["best_step"] == 7 and card["steps"] == 7
+    assert card["replaced_model_probes_fixed_validation"] is None
+    assert card["validation_mean_deg"] == card["lineage"][-1]["fixed_validation"]["all"]
+    assert set(card["validation_per_family_deg"]) <= {"directional", "point", "near_area", "hdri", "mixed"}
+    before = entry.weights_path.read_bytes()
+    # The same weights again, continued from the shipped file: no improvement, nothing written.
+    capsys.readouterr()
+    again = argparse.Namespace(**{**vars(args), "init_from": str(entry.weights_path)})
+    assert not ship(rendered, run, again)
+    assert "not shipped" in capsys.readouterr().out
+    assert entry.weights_path.read_bytes() == before and json.loads(entry.card_path.read_text()) == card
+
+
+def test_recipe_refuses_to_ship_a_model_without_a_pretrained_entry():
+    import argparse
+
+    from orchestrate.train_recipe import shipped_name
+
+    args = argparse.Namespace(model="glc-test", init_from=None)
+    with pytest.raises(ValueError, match="'glc-test' has no shipped-weights entry"):
+        shipped_name(args)

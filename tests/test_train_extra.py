@@ -18,7 +18,8 @@ import torch
 from unips.checkpoint import load_model, load_training_checkpoint, save_checkpoint
 from unips.models import create_model
 from unips.probes import probe_images, probe_object, summarise
-from unips.train import TrainConfig, build_parser, field_docs, lr_factor, main
+from scenes.config import field_docs
+from unips.train import TrainConfig, build_parser, lr_factor, main
 
 from test_train import _train, dataset, write_object  # noqa: F401  (the module-scoped fixture)
 

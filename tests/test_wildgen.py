@@ -7,8 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-FAMILIES = ["directional", "point", "near_area", "hdri", "mixed"]
-SMALL = ["--objects", "5", "--images", "3", "--res", "32", "--spp", "4", "--gt-spp", "4", "--quiet"]
+from wildgen.lighting import LIGHT_FAMILIES
+
+FAMILIES = list(LIGHT_FAMILIES)
+SMALL = ["--objects", str(len(FAMILIES)), "--images", "3", "--res", "32", "--spp", "4", "--gt-spp", "4", "--quiet"]
 
 
 def make(out: Path, *extra: str) -> int:
@@ -136,7 +138,7 @@ def test_preview_writes_sheets(dataset, tmp_path):
     assert main([str(dataset), "--out", str(tmp_path / "pv")]) == 0
     overview = cv2.imread(str(tmp_path / "pv" / "overview.png"))
     assert overview is not None and overview.std() > 5
-    assert len(list((tmp_path / "pv").glob("0*.png"))) == 5
+    assert len(list((tmp_path / "pv").glob("0*.png"))) == len(FAMILIES)
 
 
 @pytest.mark.parametrize(
@@ -175,3 +177,46 @@ def test_with_shared_assets(shared, tmp_path, llvm):
         scene = json.loads((folder / "scene.json").read_text())
         assert scene["environment"]["file"].startswith("aux/environment.hdr")
         assert (folder / "aux" / "environment.hdr").is_file()
+
+
+def test_light_family_table_is_the_one_list():
+    """Every family of the table has a description and a sampler whose lights make a valid scene; the
+    configuration check, `wildgen.make --help` and the demo's subset read the same table."""
+    import wildgen.config
+    from orchestrate.demo import FAMILIES as DEMO_FAMILIES
+    from scenes.description import CameraDesc, EnvironmentDesc, ImageDesc, SceneDescription
+    from wildgen.lighting import Placement, sample_lighting
+    from wildgen.make import build_parser
+
+    assert wildgen.config.LIGHT_FAMILIES is LIGHT_FAMILIES
+    helptext = " ".join(build_parser().format_help().split())
+    assert ", ".join(LIGHT_FAMILIES) in helptext
+    assert set(DEMO_FAMILIES.split(",")) <= set(LIGHT_FAMILIES)
+    placement = Placement(np.zeros(3), 0.8, CameraDesc(origin=[0.0, 0.0, 20.0]), 0.3)
+    for name, family in LIGHT_FAMILIES.items():
+        assert family.description.strip(), name
+        lights = sample_lighting(np.random.default_rng(0), name, 4, placement)
+        desc = SceneDescription(images=[ImageDesc(lights=ls) for ls in lights], environment=EnvironmentDesc(),
+                                light_family=name)
+        desc.validate()
+    with pytest.raises(ValueError, match="--lights: unknown family 'laser', expected one of directional, point"):
+        sample_lighting(np.random.default_rng(0), "laser", 1, placement)
+    with pytest.raises(ValueError, match="--lights.*laser.*" + ", ".join(LIGHT_FAMILIES)):
+        wildgen.config.GenConfig(lights=["laser"]).validate()
+
+
+def test_camera_lights_refuse_an_unknown_light_type():
+    """scene.json's camera_lights goes through the light-type table: a type it does not know is an error naming
+    it, not an 'other' light."""
+    from scenes.description import ImageDesc, LightDesc, SceneDescription
+    from wildgen.writer import camera_lights
+
+    desc = SceneDescription(images=[ImageDesc(lights=[LightDesc(type="directional", direction=[0.0, 0.0, -1.0]),
+                                                      LightDesc(type="point")], exposure=2.0)])
+    (entry,) = camera_lights(desc)
+    assert entry["other"] == 1 and len(entry["directional"]) == 1
+    np.testing.assert_allclose(entry["directional"][0]["direction_to_light"], [0, 0, 1])
+    assert entry["directional"][0]["irradiance"] == [2.0, 2.0, 2.0]
+    desc.images[0].lights[1].type = "spot"
+    with pytest.raises(ValueError, match="unknown light type 'spot', expected one of directional, point, area, environment"):
+        camera_lights(desc)

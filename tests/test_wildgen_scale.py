@@ -272,6 +272,7 @@ from scenes.variant import choose_variant
 choose_variant("llvm_ad_rgb")
 from wildgen.assets import AssetLibrary
 from wildgen.config import GenConfig
+from wildgen.lighting import LIGHT_FAMILIES
 from wildgen.writer import make_object
 
 def rss_mb():
@@ -279,7 +280,7 @@ def rss_mb():
         if line.startswith("VmRSS:"):
             return int(line.split()[1]) / 1024
 
-cfg = GenConfig(lights=["directional", "point", "near_area", "hdri", "mixed"], objects=200, images=1, width=16,
+cfg = GenConfig(lights=list(LIGHT_FAMILIES), objects=200, images=1, width=16,
                 height=16, spp=1, gt_spp=1, texture_resolution=16, env_width=16).validate()
 lib = AssetLibrary.scan(None)
 out = Path(sys.argv[1])

@@ -15,16 +15,20 @@ without a prediction is listed as missing and makes the exit status 1 unless ``-
 
 from __future__ import annotations
 
+import argparse
 import csv
 import json
 import logging
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from scenes.cli import UsageError, UsageErrorParser, one_line, report_error
+from scenes.cli import UsageError, one_line, report_error
+from scenes.config import config_parser, option
+from scenes.config import config_from_args as parse_config
 from scenes.objfolder import angular_error_deg, object_name, prediction_file, read_normals
 from scenes.layouts import detect_layout
 from unips.data import find_objects, load_ground_truth
@@ -175,15 +179,28 @@ def format_table(summary: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+@dataclass
+class EvaluateOptions:
+    """The command line of unips.evaluate."""
+
+    pred: Path = option(None, required=True, parse=Path)
+    """Directory written by unips.predict (<pred>/<object>/normal.*); metrics.json, metrics.csv and the error
+    maps are written into it."""
+    gt: Path = option(None, required=True, parse=Path)
+    """Object folder or dataset directory with the ground truth."""
+    allow_missing: bool = False
+    """Exit 0 even when some ground-truth objects have no prediction."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    return config_parser(EvaluateOptions, prog="python -m unips.evaluate", description=__doc__.split("\n\n")[0])
+
+
 def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
-    parser = UsageErrorParser(prog="python -m unips.evaluate", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--pred", required=True, type=Path, help="directory written by unips.predict")
-    parser.add_argument("--gt", required=True, type=Path, help="object folder or dataset directory")
-    parser.add_argument("--allow-missing", action="store_true",
-                        help="exit 0 even when some ground-truth objects have no prediction")
+    parser = build_parser()
     try:
-        args = parser.parse_args(argv)
+        args = parse_config(EvaluateOptions, parser.parse_args(argv))
         summary = evaluate(args.pred, args.gt)
     except (UsageError, ValueError, FileNotFoundError, OSError) as exc:
         return report_error(exc)

@@ -1,17 +1,15 @@
-"""Inference as a library: build or load a network, run it on a `PSObject`, or run a classical baseline.
+"""Inference as a library: load a network, run it on a `PSObject`, or run a classical baseline.
 
-    from unips.inference import create_model, load_network, predict_object
+    from unips.inference import load_network, predict_object
 
-    model = create_model("glc-tiny", pretrained=True)             # the shipped weights, eval mode
-    model = create_model("glc-tiny", checkpoint="best.safetensors")  # any weights file of that model
-    net = load_network(None)                                       # shipped weights + where they came from
-    normals = predict_object(obj, "model", net=net)                # (H, W, 3), zero outside the mask
+    net = load_network(None)                          # the shipped model's weights + where they came from
+    net = load_network("best.safetensors")            # any model file (.safetensors with its .json, or .pt)
+    normals = predict_object(obj, "model", net=net)   # (H, W, 3), zero outside the mask
 
-`create_model` follows timm's `create_model(name, pretrained=..., checkpoint_path=...)`: without weights it
-is `unips.models.create_model` (random initialisation). Weights files are read by
-`unips.checkpoint.load_model` (a `.safetensors` with its `.json`, or a training `.pt`); a file whose
-config or tensor shapes do not match is refused. The CLI `unips.predict` and `orchestrate.benchmark` use
-this module; nothing here parses arguments or writes files.
+Building a model by name (fresh, shipped or from a file) is `unips.models.create_model`; the shipped
+model is `unips.models.DEFAULT_MODEL`, its weights the registry's pretrained entry. A model file whose
+config or tensor shapes do not match is refused. The CLI `unips.predict` and `orchestrate.benchmark`
+use this module; nothing here parses arguments or writes files.
 """
 from __future__ import annotations
 
@@ -28,26 +26,9 @@ METHODS = ("model", "least-squares", "sh-uncalibrated")
 TTA_VIEWS = (1, 2, 4, 8)
 """Allowed numbers of test-time augmentation views (`unips.augment.DIHEDRAL`'s first N)."""
 DEFAULT_TTA = 2
-"""Views by default: the object and its mirror image. The most views that keep the issue-12 prediction
+"""Views by default: the object and its mirror image. The most views that keep the prediction time
 budgets on 2 CPU cores (96 DiLiGenT images at full size under 60 s, 10 images at 256 px under 10 s);
 on the fixed validation set 1 / 2 / 4 / 8 views gave 14.86 / 14.59 / 14.48 / 14.41 deg."""
-DEFAULT_WEIGHTS = "weights/glc-tiny.safetensors"  # inside the unips package
-SHIPPED = {"glc-tiny": DEFAULT_WEIGHTS}
-"""Model names with shipped weights (`pretrained=True`)."""
-
-
-def default_checkpoint(name: str = "glc-tiny") -> Path:
-    """Path of the shipped weights of `name` (default: the shipped model); UsageError when they are not
-    shipped (yet)."""
-    from importlib import resources
-
-    if name not in SHIPPED:
-        raise ValueError(f"pretrained: no shipped weights for {name!r} (shipped: {', '.join(SHIPPED)})")
-    ref = resources.files("unips").joinpath(SHIPPED[name])
-    if not ref.is_file():
-        raise UsageError(f"no shipped weights yet (unips/{SHIPPED[name]} is missing); "
-                         "pass --checkpoint PATH to a .safetensors or .pt model file")
-    return Path(str(ref))
 
 
 @dataclass
@@ -55,42 +36,23 @@ class LoadedModel:
     """A network ready for inference and where it came from."""
 
     model: Any  # torch.nn.Module in eval mode on `device`
-    meta: dict[str, Any]  # from unips.checkpoint.load_model
+    meta: dict[str, Any]  # from unips.models.load_model
     checkpoint: Path  # the file it was loaded from
     device: str  # torch device string
 
 
 def load_network(checkpoint: str | Path | None, device: str = "cpu") -> LoadedModel:
-    """Load a model file (or the shipped default when `checkpoint` is None) onto `device`."""
+    """Load a model file (or, when `checkpoint` is None, the shipped weights of `DEFAULT_MODEL`) onto
+    `device`."""
     import torch
 
-    from unips.checkpoint import load_model
+    from unips.models import DEFAULT_MODEL, load_model, pretrained_weights
 
     if device.startswith("cuda") and not torch.cuda.is_available():
         raise UsageError(f"--device {device}: CUDA is not available on this machine")
-    path = Path(checkpoint) if checkpoint is not None else default_checkpoint()
+    path = Path(checkpoint) if checkpoint is not None else pretrained_weights(DEFAULT_MODEL)
     model, meta = load_model(path, map_location=device)
     return LoadedModel(model=model.eval(), meta=dict(meta), checkpoint=path, device=device)
-
-
-def create_model(name: str, pretrained: bool = False, checkpoint: str | Path | None = None,
-                 device: str = "cpu", **overrides: Any):
-    """A network by registry name (timm style).
-
-    checkpoint: a weights file of this model (its recorded name must be `name`), loaded in eval mode;
-    pretrained: the shipped weights of `name`; neither: fresh weights with config `overrides`.
-    """
-    if checkpoint is not None or pretrained:
-        if overrides:
-            raise ValueError(f"overrides {sorted(overrides)}: not allowed with weights (the file holds the config)")
-        net = load_network(checkpoint if checkpoint is not None else default_checkpoint(name), device)
-        got = net.meta.get("model_name")
-        if got is not None and got != name:
-            raise ValueError(f"checkpoint: {str(net.checkpoint)!r} holds model {got!r}, not {name!r}")
-        return net.model
-    from unips.models import create_model as build
-
-    return build(name, **overrides).to(device)
 
 
 def check_tta(tta: int, name: str = "tta") -> int:

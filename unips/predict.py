@@ -10,9 +10,9 @@ a trailing ``.data`` (``foo.data`` -> ``foo``; DiLiGenT's ``ballPNG`` stays ``ba
 `unips.evaluate` matches ground truth by.
 
 Inference itself is the library `unips.inference` (this module parses arguments and writes files).
-``--method model`` loads a network with `unips.checkpoint.load_model`; without ``--checkpoint`` it
-uses the shipped ``unips/weights/glc-tiny.safetensors`` and refuses to run when that file is absent
-(never random weights). The network sees the UniPS preprocessing (`unips.preprocess.prepare`), at the
+``--method model`` loads a network with `unips.models.load_model`; without ``--checkpoint`` it
+uses the shipped weights of `unips.models.DEFAULT_MODEL` (the registry's pretrained entry) and refuses
+to run when that file is absent (never random weights). The network sees the UniPS preprocessing (`unips.preprocess.prepare`), at the
 crop's own size or at ``--res R``, and its output is put back into the original frame. ``--tta N``
 averages the network's predictions over N flipped / transposed views of the object (test-time
 augmentation, N forward passes; `unips.inference.model_normals`).
@@ -25,36 +25,44 @@ import json
 import logging
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from scenes.cli import INPUT_ERRORS, UsageError, UsageErrorParser, one_line, report_error
-from scenes.objfolder import PREDICTION_FILES, object_name, write_normal_exr, write_normal_map, write_normal_visual
+from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, one_line, report_error
+from scenes.config import check_fields, config_parser, option
+from scenes.config import config_from_args as parse_config
+from scenes.objfolder import (PREDICTION_FILES, PREDICTION_INFO, atomic_write_text, object_name, write_normal_exr,
+                              write_normal_map, write_normal_visual)
 from scenes.layouts import detect_layout
 from unips.data import find_objects, load_object
-from unips.inference import DEFAULT_TTA, METHODS, TTA_VIEWS, check_tta, load_network, predict_object
+from unips.inference import DEFAULT_TTA, METHODS, TTA_VIEWS, load_network, predict_object
 
 log = logging.getLogger(__name__)
 
 
-CONSTANT_DEG = 0.5
+CONSTANT_DEG = 2.0
+"""A map whose normals deviate from their mean direction by less than this on average (degrees) is flagged
+as constant: a curved object's maps deviate by tens of degrees, a plane's by 0."""
 """A prediction whose normals inside the mask all lie within this angle (degrees) of their mean is flagged
 as constant (`predict.json` "constant_map", a warning): a degenerate result unless the object is a plane."""
 
 
 def constant_map(normals: np.ndarray, mask: np.ndarray) -> bool:
-    """True when every normal inside the mask is within CONSTANT_DEG of their mean direction."""
+    """True when the normals inside the mask deviate from their mean direction by less than CONSTANT_DEG on
+    average (a mean, not a maximum: a near-constant map with a few stray pixels is still flagged)."""
     inside = normals[mask].astype(np.float64)
     if len(inside) < 2:
         return False
+    inside = inside / np.maximum(np.linalg.norm(inside, axis=1, keepdims=True), 1e-12)
     mean = inside.mean(axis=0)
     norm = np.linalg.norm(mean)
     if norm < 1e-8:
         return False
-    cos = inside @ (mean / norm) / np.maximum(np.linalg.norm(inside, axis=1), 1e-12)
-    return bool(np.all(cos >= np.cos(np.radians(CONSTANT_DEG))))
+    deviation = np.degrees(np.arccos(np.clip(inside @ (mean / norm), -1.0, 1.0)))
+    return bool(deviation.mean() < CONSTANT_DEG)
 
 
 def check_out_folder(folder: Path) -> None:
@@ -62,7 +70,7 @@ def check_out_folder(folder: Path) -> None:
     predict.json beside them): files this command did not create are never replaced."""
     if folder.exists() and not folder.is_dir():
         raise UsageError(f"--out: {str(folder)!r} is an existing file, expected a folder for the prediction")
-    if folder.is_dir() and not (folder / "predict.json").is_file():
+    if folder.is_dir() and not (folder / PREDICTION_INFO).is_file():
         theirs = [f for f in ("normal.png", "normal_vis.png", *PREDICTION_FILES) if (folder / f).exists()]
         if theirs:
             raise UsageError(f"--out: {str(folder)!r} already holds {', '.join(sorted(set(theirs)))} not written by "
@@ -70,42 +78,49 @@ def check_out_folder(folder: Path) -> None:
 
 
 def write_prediction(out_dir: Path, normals: np.ndarray, info: dict[str, Any]) -> None:
-    """Write normal.png, normal.exr, normal_vis.png and predict.json into ``out_dir``."""
+    """Write predict.json, normal.png, normal.exr and normal_vis.png into ``out_dir``, each through a temporary
+    name: a kill or a full disk leaves no truncated file, and predict.json (written first) marks the folder
+    as this command's, so a rerun replaces what a killed run left."""
     out_dir.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(out_dir / PREDICTION_INFO, json.dumps(info, indent=2, sort_keys=True))
     write_normal_map(out_dir / "normal.png", normals)
     write_normal_exr(out_dir / "normal.exr", normals)
     write_normal_visual(out_dir / "normal_vis.png", normals)
-    (out_dir / "predict.json").write_text(json.dumps(info, indent=2, sort_keys=True))
+
+
+@dataclass
+class PredictOptions:
+    """The command line of unips.predict."""
+
+    method: str = option("", required=True, choices=METHODS)
+    """The network ('model') or a classical baseline."""
+    checkpoint: Path | None = option(None, parse=Path, default_text="the shipped weights of unips.models.DEFAULT_MODEL")
+    """Model file (.safetensors with its .json, or a training .pt); --method model only."""
+    input: Path = option(None, required=True, parse=Path)
+    """An object folder or a directory of them."""
+    out: Path = option(None, required=True, parse=Path)
+    """Output directory: <out>/<object>/normal.png, normal.exr, normal_vis.png, predict.json."""
+    max_images: int | None = option(None, minimum=1, default_text="all")
+    """Use the first K images of each object."""
+    device: str = "cpu"
+    """Torch device for --method model (cpu, cuda, cuda:0)."""
+    res: int | None = option(None, minimum=8, default_text="the crop's own size")
+    """Working resolution of the network (the crop is resized to R x R); --method model only."""
+    tta: int | None = option(None, choices=TTA_VIEWS, default_text=str(DEFAULT_TTA))
+    """Views averaged (test-time augmentation by flips and transposes); N forward passes; --method model only."""
+
+    def validate(self) -> "PredictOptions":
+        check_fields(self)
+        if self.method != "model":
+            for flag, value in (("--checkpoint", self.checkpoint), ("--res", self.res), ("--tta", self.tta)):
+                if value is not None:
+                    raise UsageError(f"{flag}: only used with --method model, not --method {self.method}")
+        check_output_folder(self.out)
+        return self
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = UsageErrorParser(prog="python -m unips.predict", description=__doc__.split("\n\n")[0])
-    p.add_argument("--method", required=True, choices=METHODS, help="network or classical baseline")
-    p.add_argument("--checkpoint", type=Path, default=None,
-                   help="model file (.safetensors with its .json, or a training .pt); --method model only")
-    p.add_argument("--input", required=True, type=Path, help="an object folder or a directory of them")
-    p.add_argument("--out", required=True, type=Path, help="output directory")
-    p.add_argument("--max-images", type=int, default=None, help="use the first K images of each object")
-    p.add_argument("--device", default="cpu", help="torch device for --method model (cpu, cuda, cuda:0)")
-    p.add_argument("--res", type=int, default=None,
-                   help="working resolution of the network (the crop is resized to R x R); --method model only")
-    p.add_argument("--tta", type=int, default=None,
-                   help=f"views averaged (test-time augmentation by flips and transposes), one of "
-                        f"{', '.join(map(str, TTA_VIEWS))}; N forward passes (default {DEFAULT_TTA}); --method model only")
-    return p
-
-
-def _check_args(args: argparse.Namespace) -> None:
-    if args.max_images is not None and args.max_images < 1:
-        raise UsageError(f"--max-images: must be >= 1, got {args.max_images}")
-    if args.res is not None and args.res < 8:
-        raise UsageError(f"--res: must be >= 8, got {args.res}")
-    if args.tta is not None:
-        check_tta(args.tta, "--tta")
-    if args.method != "model":
-        for flag, value in (("--checkpoint", args.checkpoint), ("--res", args.res), ("--tta", args.tta)):
-            if value is not None:
-                raise UsageError(f"{flag}: only used with --method model, not --method {args.method}")
+    return config_parser(PredictOptions, prog="python -m unips.predict", description=__doc__.split("\n\n")[0])
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -114,10 +129,7 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     failures: list[tuple[str, str]] = []
     try:
-        args = build_parser().parse_args(argv)
-        _check_args(args)
-        if args.out.exists() and not args.out.is_dir():
-            raise UsageError(f"--out: {str(args.out)!r} is an existing file, expected a folder")
+        args = parse_config(PredictOptions, build_parser().parse_args(argv)).validate()
         folders = find_objects(args.input)
         single = detect_layout(args.input) is not None
         names = [object_name(f) for f in folders]
@@ -129,10 +141,14 @@ def main(argv: list[str] | None = None) -> int:
         net = load_network(args.checkpoint, args.device) if args.method == "model" else None
         from tqdm import tqdm
 
-        for folder, name in tqdm(list(zip(folders, names)), desc="objects", unit="obj", file=sys.stderr,
-                                 disable=len(folders) < 2):
+        written: list[str] = []
+        for folder, name in tqdm(list(zip(folders, names)), desc=f"predicting ({args.method})", unit="obj",
+                                 file=sys.stderr, disable=len(folders) < 2):
             try:
+                if len(folders) == 1:
+                    print(f"predicting {name} with --method {args.method} ...", file=sys.stderr, flush=True)
                 _predict_one(args, net, folder, name)
+                written.append(name)
             except (*INPUT_ERRORS, OSError, np.linalg.LinAlgError) as exc:
                 if single:
                     raise
@@ -140,11 +156,16 @@ def main(argv: list[str] | None = None) -> int:
                 log.debug("%s failed", name, exc_info=True)
     except (*INPUT_ERRORS, OSError, np.linalg.LinAlgError) as exc:
         return report_error(exc)
+    if written:
+        where = f"{args.out / written[0]}" if len(written) == 1 else f"{args.out}/<object>"
+        print(f"wrote {len(written)} prediction(s): {where}/normal.exr (float), normal.png (16-bit), "
+              f"normal_vis.png, predict.json")
     if failures:
         for name, why in failures:
             print(f"failed {name}: {why}", file=sys.stderr)
+        others = f"the other {len(written)} were written" if written else "none was written"
         print(f"error: {len(failures)} of {len(folders)} object(s) failed with --method {args.method}: "
-              f"{', '.join(n for n, _ in failures)} (the others were written)", file=sys.stderr)
+              f"{', '.join(n for n, _ in failures)} ({others})", file=sys.stderr)
         return 1
     return 0
 
@@ -157,8 +178,8 @@ def _predict_one(args: argparse.Namespace, net, folder: Path, name: str) -> None
     elapsed = time.perf_counter() - start
     constant = constant_map(normals, obj.mask)
     if constant:
-        print(f"warning: {name}: --method {args.method} returned a constant normal map (all normals within "
-              f"{CONSTANT_DEG} deg of one direction): degenerate unless the object is a plane; flagged in predict.json",
+        print(f"warning: {name}: --method {args.method} returned a constant normal map (normals within "
+              f"{CONSTANT_DEG} deg of one direction on average): degenerate unless the object is a plane; flagged in predict.json",
               file=sys.stderr)
     info = {
         "object": name,

@@ -21,7 +21,9 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 import torch
 
-PROBES = ("all", "one", "mask", "shuffled")
+PROBE_TITLES = {"all": "all images", "one": "one image", "mask": "mask only", "shuffled": "shuffled"}
+"""The probes, in table order, with their column titles (every probe table reads these)."""
+PROBES = tuple(PROBE_TITLES)
 
 
 def probe_images(images: torch.Tensor, mask: torch.Tensor, probe: str, seed: int = 0) -> torch.Tensor:
@@ -129,13 +131,13 @@ def summarise(per_object: Mapping[str, Mapping[str, float]], families: Mapping[s
 
 
 def format_table(summary: Mapping[str, Any]) -> str:
-    """Markdown table: rows per family + all, columns all / one / mask / shuffled / gain."""
-    head = "| family | n | all images | one image | mask only | shuffled | photometric gain |\n|---|---|---|---|---|---|---|"
-    rows = [head]
+    """Markdown table: rows per family + all, columns: the probes (`PROBE_TITLES`) and the gain."""
+    rows = ["| family | n | " + " | ".join(PROBE_TITLES.values()) + " | photometric gain |",
+            "|---|---|" + "---|" * (len(PROBES) + 1)]
     items = list(summary.get("families", {}).items()) + [("all", summary)]
     for fam, b in items:
         m = b["mean"]
-        cell = lambda k: f"{m[k]:.1f}" if k in m else "-"  # noqa: E731
+        cells = [f"{m[p]:.1f}" if p in m else "-" for p in PROBES]
         gain = f"{b['gain']:.1f}" if "gain" in b else "-"
-        rows.append(f"| {fam} | {b['n']} | {cell('all')} | {cell('one')} | {cell('mask')} | {cell('shuffled')} | {gain} |")
+        rows.append(f"| {fam} | {b['n']} | " + " | ".join(cells) + f" | {gain} |")
     return "\n".join(rows)

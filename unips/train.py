@@ -30,13 +30,16 @@ import math
 import os
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 import torch
 import torch.nn.functional as F
+
+from scenes.config import check_choice, check_fields, config_parser, option
+from scenes.config import config_from_args as parse_config
 
 
 log = logging.getLogger(__name__)
@@ -264,10 +267,10 @@ def validate(model: torch.nn.Module, samples: Sequence[Sample], max_images: int,
 class TrainConfig:
     """Everything that determines a training run; the CLI fills it (`python -m unips.train --help`)."""
 
-    data: str = ""
+    data: str = option("", required=True)
     """Training dataset directory (object folders with ground-truth normals), or several separated by commas
     (pooled, e.g. sets rendered with different seeds)."""
-    out: str = ""
+    out: str = option("", required=True)
     """Run directory: log.jsonl, last.pt, best.safetensors and final.safetensors (+ .json sidecars)."""
     val: str | None = None
     """Validation dataset directory (object folders with normal.tif); held-out assets, test-like settings."""
@@ -275,35 +278,35 @@ class TrainConfig:
     """Registered model name (`unips.models.list_models()`); with `init_from`, the weights' model."""
     init_from: str | None = None
     """Weights (.safetensors or .pt) to start from: weights only, with fresh optimiser, schedule and data."""
-    steps: int = 2000
+    steps: int = option(2000, minimum=1)
     """Total optimisation steps."""
-    batch: int = 4
+    batch: int = option(4, minimum=1)
     """Objects per step (the global batch, split across processes under torchrun)."""
-    lr: float = 5e-4
+    lr: float = option(5e-4, above=0)
     """Peak AdamW learning rate."""
-    weight_decay: float = 0.05
+    weight_decay: float = option(0.05, minimum=0)
     """AdamW weight decay."""
-    schedule: str = "cosine"
+    schedule: str = option("cosine", choices=("cosine", "step"))
     """'cosine': linear warm-up over `warmup` steps then cosine decay to `min_lr_ratio` * lr; 'step': x`decay` every `decay_every` steps."""
-    warmup: int = 100
+    warmup: int = option(100, minimum=0)
     """Warm-up steps of the cosine schedule."""
-    min_lr_ratio: float = 0.05
+    min_lr_ratio: float = option(0.05, minimum=0, maximum=1)
     """Final learning rate of the cosine schedule as a fraction of `lr`."""
-    decay_every: int = 1000
+    decay_every: int = option(1000, minimum=1)
     """Steps between decays of the step schedule."""
-    decay: float = 0.8
+    decay: float = option(0.8, above=0, maximum=1)
     """Learning-rate factor at each decay of the step schedule."""
-    clip_grad: float = 1.0
+    clip_grad: float = option(1.0, minimum=0)
     """Gradient clipping by global norm (0: off)."""
-    max_images: int = 10
+    max_images: int = option(10, minimum=1)
     """Most images per training sample (and images per validation object)."""
-    min_images: int = 1
+    min_images: int = option(1, minimum=1)
     """Fewest images per training sample (1 keeps single-image inputs in the training distribution)."""
-    pixels: int = 1000
+    pixels: int = option(1000, minimum=1)
     """Random masked pixels per object at the working resolution."""
-    canonical_points: int = 1000
+    canonical_points: int = option(1000, minimum=0)
     """At most this many masked canonical-grid points per object in the loss (0: all of them)."""
-    res: int = 128
+    res: int = option(128, minimum=1)
     """Working resolution of the cached crops (the test resolution; above the canonical resolution)."""
     seed: int = 0
     """Seed of every random choice (initial weights, objects, image subsets, pixels, augmentation)."""
@@ -311,72 +314,44 @@ class TrainConfig:
     """Continue from RUN/last.pt, bit for bit."""
     overwrite: bool = False
     """Start afresh in a run directory that already holds a run (its files are replaced)."""
-    val_every: int = 200
+    val_every: int = option(200, minimum=1)
     """Steps between validations."""
-    val_pixels: int = 2000
+    val_pixels: int = option(2000, minimum=0)
     """Masked pixels scored per validation object (a fixed seeded subset; 0: all)."""
-    val_probes: list[str] = field(default_factory=lambda: ["all", "one", "mask", "shuffled"])
+    val_probes: list[str] = option(default_factory=lambda: ["all", "one", "mask", "shuffled"], metavar="P1,P2")
     """Probes of every validation (`unips.probes.PROBES`); 'all' is always included."""
-    ckpt_every: int = 200
+    ckpt_every: int = option(200, minimum=1)
     """Steps between last.pt saves."""
-    log_every: int = 10
+    log_every: int = option(10, minimum=1)
     """Steps between training records in log.jsonl."""
-    threads: int = 0
+    threads: int = option(0, minimum=0)
     """torch CPU threads (0: all cores, divided among local processes under torchrun)."""
     device: str = "cpu"
     """torch device ('cpu', 'cuda'; under torchrun each process takes cuda:LOCAL_RANK)."""
-    precision: str = "fp32"
+    precision: str = option("fp32", choices=("fp32", "bf16"))
     """'fp32' or 'bf16' (autocast of the forward pass; for GPUs)."""
     no_augment: bool = False
     """Disable flips / transpose / RGB permutation."""
-    interior_crop: float = 0.0
+    interior_crop: float = option(0.0, minimum=0, maximum=1)
     """Probability that a training sample is a square cut from inside the object's mask and resized to the working resolution: no outline, so the normals must come from the images."""
     no_progress: bool = False
     """No progress bar."""
-    model_option: list[str] = field(default_factory=list)
-    """Model config overrides KEY=VALUE (JSON value), e.g. uniform_context=true."""
+    model_option: list[str] = option(default_factory=list, repeat=True, sep="", metavar="KEY=VALUE")
+    """Model config overrides KEY=VALUE (JSON value), e.g. uniform_context=true; repeatable."""
 
     def validate(self) -> "TrainConfig":
         """Raise ValueError naming the first bad field as its CLI flag."""
         from unips.probes import PROBES
 
-        def flag(name: str) -> str:
-            return "--" + name.replace("_", "-")
-
         if not self.data:
             raise ValueError("--data: required (a dataset directory)")
         if not self.out:
             raise ValueError("--out: required (a run directory)")
-        for name in ("steps", "batch", "decay_every", "max_images", "min_images", "pixels", "res", "val_every",
-                     "ckpt_every", "log_every"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise ValueError(f"{flag(name)}: got {v!r}, expected an integer >= 1")
-        for name in ("warmup", "canonical_points", "val_pixels", "threads"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
-                raise ValueError(f"{flag(name)}: got {v!r}, expected an integer >= 0")
+        check_fields(self)
         if self.min_images > self.max_images:
             raise ValueError(f"--min-images={self.min_images} exceeds --max-images={self.max_images}")
-        if not (math.isfinite(self.lr) and self.lr > 0):
-            raise ValueError(f"--lr: got {self.lr}, expected > 0")
-        if not (math.isfinite(self.weight_decay) and self.weight_decay >= 0):
-            raise ValueError(f"--weight-decay: got {self.weight_decay}, expected >= 0")
-        if not 0 < self.decay <= 1:
-            raise ValueError(f"--decay: got {self.decay}, expected in (0, 1]")
-        if not 0 <= self.min_lr_ratio <= 1:
-            raise ValueError(f"--min-lr-ratio: got {self.min_lr_ratio}, expected in [0, 1]")
-        if not (math.isfinite(self.clip_grad) and self.clip_grad >= 0):
-            raise ValueError(f"--clip-grad: got {self.clip_grad}, expected >= 0 (0: off)")
-        if self.schedule not in ("cosine", "step"):
-            raise ValueError(f"--schedule: got {self.schedule!r}, expected cosine or step")
-        if not (math.isfinite(self.interior_crop) and 0 <= self.interior_crop <= 1):
-            raise ValueError(f"--interior-crop: got {self.interior_crop}, expected a probability in [0, 1]")
-        if self.precision not in ("fp32", "bf16"):
-            raise ValueError(f"--precision: got {self.precision!r}, expected fp32 or bf16")
-        bad = [p for p in self.val_probes if p not in PROBES]
-        if bad:
-            raise ValueError(f"--val-probes: got {bad}, expected from {', '.join(PROBES)}")
+        for p in self.val_probes:
+            check_choice(p, "--val-probes", PROBES)
         if self.resume and self.overwrite:
             raise ValueError("--resume and --overwrite: expected at most one of them")
         if self.resume and self.init_from:
@@ -390,51 +365,14 @@ TRAJECTORY_KEYS = ("model", "init_from", "batch", "lr", "weight_decay", "schedul
                    "seed", "res", "no_augment", "precision", "interior_crop")
 
 
-def field_docs(cls: type) -> dict[str, str]:
-    """Attribute docstrings of a dataclass (the string literal after each field), by field name."""
-    import ast
-    import inspect
-    import textwrap
-
-    tree = ast.parse(textwrap.dedent(inspect.getsource(cls)))
-    body = tree.body[0].body
-    docs = {}
-    for prev, node in zip(body, body[1:]):
-        if (isinstance(prev, ast.AnnAssign) and isinstance(prev.target, ast.Name) and isinstance(node, ast.Expr)
-                and isinstance(node.value, ast.Constant) and isinstance(node.value.value, str)):
-            docs[prev.target.id] = " ".join(node.value.value.split())
-    return docs
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The CLI of `TrainConfig`: one flag per field, help from the field's docstring."""
-    from scenes.cli import UsageErrorParser
-
-    p = UsageErrorParser(prog="python -m unips.train", description=__doc__.split("\n\n")[0])
-    docs = field_docs(TrainConfig)
-    defaults = TrainConfig()
-    for f in dataclasses.fields(TrainConfig):
-        name = "--" + f.name.replace("_", "-")
-        default = getattr(defaults, f.name)
-        help_text = docs.get(f.name, "")
-        if f.type in ("bool", bool):
-            p.add_argument(name, action="store_true", help=help_text)
-        elif f.name == "model_option":
-            p.add_argument(name, action="append", default=[], metavar="KEY=VALUE", help=help_text)
-        elif f.name == "val_probes":
-            p.add_argument(name, type=lambda v: [x for x in v.split(",") if x], default=list(default),
-                           metavar="P1,P2", help=f"{help_text} (default {','.join(default)})")
-        else:
-            kind = {"int": int, "float": float}.get(str(f.type), str)
-            required = f.name in ("data", "out")
-            p.add_argument(name, type=kind, default=None if required else default, required=required,
-                           help=help_text + ("" if required or default in (None, "") else f" (default {default})"))
-    return p
+    return config_parser(TrainConfig, prog="python -m unips.train", description=__doc__.split("\n\n")[0])
 
 
 def config_from_args(args: argparse.Namespace) -> TrainConfig:
     """The TrainConfig of parsed CLI arguments (validated)."""
-    cfg = TrainConfig(**{f.name: getattr(args, f.name) for f in dataclasses.fields(TrainConfig)})
+    cfg = parse_config(TrainConfig, args)
     if "all" not in cfg.val_probes:
         cfg.val_probes = ["all", *cfg.val_probes]
     return cfg.validate()

@@ -29,6 +29,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from scenes.config import check_fields, option
 from scenes.variant import jit_threads, require_ad_variant
 from validate import heightfield
 from validate.capture import Capture
@@ -44,53 +45,38 @@ Progress = Callable[[int, int, str], None]
 class FitConfig:
     """Options of the scene fit (fitted mode)."""
 
-    light_model: str = "directional"
+    light_model: str = option("directional", choices=LIGHT_MODELS + ("auto",))
     """'directional' (+ ambient), 'point' (near point light + ambient), 'environment' (order-2 SH), or
     'auto': fit each with a third of the steps and keep the one with the lowest residual."""
-    steps: int = 120
+    steps: int = option(120, minimum=0)
     """Adam steps on lights and specular lobe (and normals in refinement)."""
-    batch_images: int = 16
+    batch_images: int = option(16, minimum=1)
     """Images per Adam step (a random subset, from `seed`)."""
-    refresh_every: int = 20
+    refresh_every: int = option(20, minimum=1)
     """Steps between recomputing shadows / inter-reflection and the closed-form albedo."""
-    lr: float = 0.02
+    lr: float = option(0.02, above=0)
     """Adam learning rate (directions, log-irradiance, specular parameters)."""
     specular: bool = True
-    """Fit the specular lobe (principled roughness and specular); False = Lambertian only."""
+    """Fit the specular lobe (principled roughness and specular); off: Lambertian only."""
     shadows: bool = True
-    """Cast shadows by ray tests against the integrated mesh (else every light is visible)."""
-    ao_rays: int = 16
+    """Cast shadows by ray tests against the integrated mesh (off: every light is visible)."""
+    ao_rays: int = option(16, minimum=0)
     """Cosine-distributed rays per pixel for ambient occlusion and one inter-reflection bounce (0: off)."""
     interreflection: bool = True
     """Add one bounce of inter-reflection (needs ao_rays > 0)."""
-    max_pixels: int = 16000
+    max_pixels: int = option(16000, minimum=1)
     """Fit at a downsampled resolution with at most this many mask pixels (box filter); reported."""
-    downsample: int | None = None
-    """Force this downsampling factor (None = from max_pixels)."""
-    floor_maps: tuple[str, ...] = ("constant",)
-    """No-information normal maps whose fitted residual is the floor: 'constant', 'silhouette'."""
+    downsample: int | None = option(None, minimum=1, default_text="from --max-pixels")
+    """Force this downsampling factor."""
+    floor_maps: tuple[str, ...] = option(("constant",), choices=("constant", "silhouette"))
+    """No-information normal maps whose fitted residual is the floor, comma-separated."""
     seed: int = 0
     """Seed of every random choice (image batches, ray directions)."""
-    min_nz: float = 0.15
+    min_nz: float = option(0.15, above=0, below=1)
     """Smallest |n_z| used when integrating normals to heights (bounds silhouette slopes)."""
 
     def validate(self) -> "FitConfig":
-        if self.light_model not in LIGHT_MODELS + ("auto",):
-            raise ValueError(f"--light-model: {self.light_model!r} is not one of {', '.join(LIGHT_MODELS + ('auto',))}")
-        for name in ("steps", "batch_images", "refresh_every", "max_pixels"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < (0 if name == "steps" else 1):
-                raise ValueError(f"--{name.replace('_', '-')}: expected a positive integer, got {v!r}")
-        if self.ao_rays < 0:
-            raise ValueError(f"--ao-rays: expected >= 0, got {self.ao_rays!r}")
-        if self.downsample is not None and self.downsample < 1:
-            raise ValueError(f"--downsample: expected an integer >= 1, got {self.downsample!r}")
-        if not (self.lr > 0):
-            raise ValueError(f"--lr: expected a positive number, got {self.lr!r}")
-        for m in self.floor_maps:
-            if m not in ("constant", "silhouette"):
-                raise ValueError(f"floor_maps: {m!r} is not 'constant' or 'silhouette'")
-        return self
+        return check_fields(self)
 
 
 def to_jit(tp, a: np.ndarray):

@@ -215,8 +215,14 @@ def angular_errors_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(np.clip((a * b).sum(1), -1, 1)))
 
 
+def _check_model(model: str) -> None:
+    if model not in LIGHT_MODELS:
+        raise ValueError(f"light model: unknown model {model!r}, expected one of {', '.join(LIGHT_MODELS)}")
+
+
 def report_lights(model: str, params: dict) -> list[list[dict]]:
     """One list of light dicts per image (see the module doc) from fitted parameter arrays."""
+    _check_model(model)
     out = []
     k = len(params["ambient"]) if "ambient" in params else len(params["sh"])
     for i in range(k):
@@ -239,6 +245,7 @@ def report_lights(model: str, params: dict) -> list[list[dict]]:
 
 def directions_of(model: str, params: dict, centre: np.ndarray | None = None) -> np.ndarray:
     """(K, 3) unit directions toward the main light of each image (point lights: seen from `centre`)."""
+    _check_model(model)
     if model == "directional":
         d = np.asarray(params["directions"], np.float64)
     elif model == "point":
@@ -250,31 +257,11 @@ def directions_of(model: str, params: dict, centre: np.ndarray | None = None) ->
 
 def known_scene_lights(desc, exposures: list[float]) -> list[list[dict]]:
     """report.json `lights` of a known scene (a `scenes.description.SceneDescription`): per image, its
-    lights in the camera frame with the exposure applied. Directional: direction toward the light and
-    irradiance x colour x exposure; point: position relative to the camera target and intensity; area:
-    centre, normal and radiance; environment: scale and the rotation to the camera frame."""
+    lights in the camera frame with the exposure applied, each in the report form of its type
+    (`scenes.lights.LIGHT_TYPES`). An unknown type is a ValueError, never reported as another type."""
     from scenes.geometry import camera_rotation
+    from scenes.lights import camera_frame
 
     cam = desc.camera
     R = camera_rotation(cam.origin, cam.target, cam.up)
-    target = np.asarray(cam.target, np.float64)
-    out = []
-    for image, exp in zip(desc.images, exposures):
-        entry = []
-        for l in image.lights:
-            rgb = lambda s: [float(s) * float(c) * float(exp) for c in l.color]  # noqa: E731
-            if l.type == "directional":
-                d = -(R @ np.asarray(l.direction, np.float64))
-                entry.append({"type": "directional", "direction": (d / np.linalg.norm(d)).tolist(), "irradiance": rgb(l.irradiance)})
-            elif l.type == "point":
-                entry.append({"type": "point", "position": (R @ (np.asarray(l.position) - target)).tolist(), "intensity": rgb(l.intensity)})
-            elif l.type == "area":
-                nrm = R @ (np.asarray(l.target, np.float64) - np.asarray(l.position, np.float64))
-                entry.append({"type": "area", "position": (R @ (np.asarray(l.position) - target)).tolist(),
-                              "normal": (nrm / max(np.linalg.norm(nrm), 1e-12)).tolist(), "width": l.width, "height": l.height,
-                              "radiance": rgb(l.radiance)})
-            else:
-                entry.append({"type": "environment", "scale": float(l.scale) * float(exp),
-                              "to_camera": (R @ np.asarray(l.to_world, np.float64)[:3, :3]).tolist()})
-        out.append(entry)
-    return out
+    return [camera_frame(image.lights, R, cam.target, exp) for image, exp in zip(desc.images, exposures)]

@@ -27,6 +27,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from scenes.config import check_fields, option
 from scenes.variant import require_jit_variant
 from validate.projection import CameraProjection
 
@@ -45,23 +46,17 @@ _CLASSES: dict[str, type] = {}
 class VisibilityConfig:
     """How a surface point is judged visible from the camera."""
 
-    supersample: int = 2
+    supersample: int = option(2, minimum=1)
     """Depth-map ray casts per pixel side (2 = 2x2 per pixel)."""
-    base_tolerance: float = 0.5
+    base_tolerance: float = option(0.5, minimum=0)
     """Depth tolerance at normal incidence, in depth-map texels (world size of a pixel / supersample)."""
-    slope_factor: float = 1.5
+    slope_factor: float = option(1.5, minimum=0)
     """Extra tolerance per unit of tan(angle between surface normal and view direction), in texels."""
-    max_tan: float = 6.0
+    max_tan: float = option(6.0, minimum=0)
     """Cap of that tangent (about 80 deg): steeper points would otherwise accept hidden surfaces behind them."""
 
     def validate(self) -> "VisibilityConfig":
-        if isinstance(self.supersample, bool) or not isinstance(self.supersample, int) or self.supersample < 1:
-            raise ValueError(f"visibility.supersample: expected a positive integer, got {self.supersample!r}")
-        for name in ("base_tolerance", "slope_factor", "max_tan"):
-            v = getattr(self, name)
-            if not isinstance(v, (int, float)) or not np.isfinite(v) or v < 0:
-                raise ValueError(f"visibility.{name}: expected a finite non-negative number, got {v!r}")
-        return self
+        return check_fields(self)
 
 
 def register() -> type:

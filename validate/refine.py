@@ -27,13 +27,15 @@ import json
 import logging
 import sys
 import time
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from scenes.cli import INPUT_ERRORS, UsageErrorParser, progress_bar, report_error
+from scenes.cli import INPUT_ERRORS, check_output_folder, progress_bar, report_error
+from scenes.config import check_fields, config_parser, option
+from scenes.config import config_from_args as parse_config
 from scenes.variant import jit_threads, require_ad_variant
 from validate.fit import FitConfig, FitScene, Progress, _start, fit_normals, run_fit, saturated_fraction, to_jit
 
@@ -46,35 +48,35 @@ LIGHT_SOURCES = ("fitted", "calibrated")
 class RefineConfig:
     """Options of the refinement."""
 
-    fit: FitConfig = field(default_factory=FitConfig)
-    """Scene fit (light model, steps of the fixed-normal stage, resolution, seed)."""
-    refine_steps: int = 300
+    fit: FitConfig = option(default_factory=FitConfig, expose=tuple(f.name for f in fields(FitConfig) if f.name != "floor_maps"))
+    """Scene fit (light model, steps of the fixed-normal stage, resolution, seed); its floor maps are not used."""
+    refine_steps: int = option(300, minimum=0)
     """Adam steps of the joint stage (normals and lights)."""
-    lights: str = "fitted"
+    lights: str = option("fitted", choices=LIGHT_SOURCES)
     """'fitted' (lights fitted to the images) or 'calibrated' (the folder's calibrated directional lights, held fixed)."""
-    holdout_fraction: float = 0.1
+    holdout_fraction: float = option(0.1, flag="--holdout", minimum=0, below=0.5)
     """Fraction of the images held out for early stopping (at least one when K >= 5, none below)."""
-    patience: int = 4
+    patience: int = option(4, minimum=1)
     """Refreshes without a better held-out residual before stopping."""
-    smoothness: float = 0.02
+    smoothness: float = option(0.02, minimum=0)
     """Weight of the smoothness term, relative to the mean input value."""
-    integrability: float = 0.002
+    integrability: float = option(0.002, minimum=0)
     """Weight of the integrability (curl) term, relative to the mean input value."""
-    silhouette: float = 1.0
+    silhouette: float = option(1.0, minimum=0)
     """Weight of the silhouette / facing terms, relative to the mean input value."""
-    rounds: int = 3
+    rounds: int = option(3, minimum=1)
     """Alternations of (fit the lights to the current normals, then move the normals with the lights held)."""
     rotation_search: bool = False
     """Before each round's normal stage after the first, search a global tilt of the normals (the lights
     turned with them, then re-fitted) by residual. A per-pixel update with the lights re-fitted each round
     cannot remove a starting map's global tilt (lights and normals turn together), but where the images
     pin the orientation (highlights, which do not turn with the view; cast shadows) the residual prefers the
-    right one: DiLiGenT cat from fine-tune 9, 14.12 -> 9.68 deg without, see the README for with. Off by
+    right one (DiLiGenT cat, from the shipped model's map: see docs/check.md). Off by
     default: on a diffuse convex object nothing pins the tilt and the search moves the map by noise-level
     residual differences (the 32 px test sphere, tilted 10 deg about x: it leaves that tilt and adds 2-4 deg
     about y). A turn about the view axis is never searched: it leaves every image as it is. Directional and
     point lights."""
-    rotation_steps: int = 80
+    rotation_steps: int = option(80, minimum=1)
     """Adam steps of the light fit at each candidate rotation."""
     update_lights: bool = False
     """Keep optimising the lights while the normals move. Off by default: with the lights free, a Lambertian
@@ -84,21 +86,9 @@ class RefineConfig:
 
     def validate(self) -> "RefineConfig":
         self.fit.validate()
-        if self.lights not in LIGHT_SOURCES:
-            raise ValueError(f"--lights: {self.lights!r} is not one of {', '.join(LIGHT_SOURCES)}")
+        check_fields(self)
         if self.lights == "calibrated" and self.fit.light_model != "directional":
             raise ValueError("--lights calibrated needs --light-model directional")
-        if isinstance(self.rounds, bool) or not isinstance(self.rounds, int) or self.rounds < 1:
-            raise ValueError(f"--rounds: expected an integer >= 1, got {self.rounds!r}")
-        if isinstance(self.rotation_steps, bool) or not isinstance(self.rotation_steps, int) or self.rotation_steps < 1:
-            raise ValueError(f"--rotation-steps: expected an integer >= 1, got {self.rotation_steps!r}")
-        if isinstance(self.refine_steps, bool) or not isinstance(self.refine_steps, int) or self.refine_steps < 0:
-            raise ValueError(f"--refine-steps: expected an integer >= 0, got {self.refine_steps!r}")
-        if not 0 <= self.holdout_fraction < 0.5:
-            raise ValueError(f"--holdout: expected a fraction in [0, 0.5), got {self.holdout_fraction!r}")
-        for name in ("smoothness", "integrability", "silhouette"):
-            if not getattr(self, name) >= 0:
-                raise ValueError(f"{name}: expected >= 0, got {getattr(self, name)!r}")
         return self
 
 
@@ -427,42 +417,48 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
     return report
 
 
+@dataclass
+class RefineOptions:
+    """The command line of validate.refine: the refinement (`RefineConfig`, with its scene fit) and where it
+    reads and writes."""
+
+    data: str = option("", required=True)
+    """Object folder: ours (with or without scene.json), UniPS .data, or DiLiGenT *PNG."""
+    normals: str = option("", required=True)
+    """Starting normal map file (.png/.exr/.npy/.tif) or a folder with <object>/normal.*."""
+    out: str = "refined"
+    """Output folder: <out>/<object>/normal.png and refine_report.json."""
+    refine: RefineConfig = option(default_factory=RefineConfig)
+    """The refinement."""
+    variant: str | None = option(None, default_text="cuda_ad_rgb if usable, else llvm_ad_rgb")
+    """Mitsuba variant (one with automatic differentiation)."""
+    threads: int | None = option(None, minimum=1, default_text="one per core")
+    """Dr.Jit threads; with 1 the output is byte-identical run to run (with more, gradients are summed in a
+    varying order)."""
+    overwrite: bool = False
+    """Replace existing outputs."""
+    verbose: bool = option(False, short="-v")
+    """Debug logging."""
+
+    def validate(self) -> "RefineOptions":
+        check_fields(self)
+        self.refine.validate()
+        check_output_folder(self.out)
+        return self
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = UsageErrorParser(prog="python -m validate.refine", description="Refine a normal map by fitting light, reflectance and normals to the images through Mitsuba.")
-    p.add_argument("--data", required=True, help="object folder: ours (with or without scene.json), UniPS .data, or DiLiGenT *PNG")
-    p.add_argument("--normals", required=True, help="starting normal map file (.png/.exr/.npy/.tif) or a folder with <object>/normal.*")
-    p.add_argument("--out", default="refined", help="output folder: <out>/<object>/normal.png and refine_report.json (default ./refined)")
-    p.add_argument("--lights", choices=LIGHT_SOURCES, default="fitted", help="fit the lights (default) or hold the folder's calibrated lights")
-    p.add_argument("--light-model", default="directional", help="directional (+ ambient, the default), point, environment, or auto (the one with the lowest residual "
-                   "around the starting map, then held); all but directional need --lights fitted")
-    p.add_argument("--steps", type=int, default=FitConfig.steps, help=f"Adam steps of each scene fit (default {FitConfig.steps})")
-    p.add_argument("--refine-steps", type=int, default=RefineConfig.refine_steps, help=f"Adam steps on the normals (default {RefineConfig.refine_steps})")
-    p.add_argument("--max-pixels", type=int, default=FitConfig.max_pixels, help="downsample until the mask has at most this many pixels")
-    p.add_argument("--rounds", type=int, default=RefineConfig.rounds, help=f"light / normal alternations (default {RefineConfig.rounds})")
-    p.add_argument("--rotation-search", action="store_true", help="search a global tilt of the map by residual in every round after the first "
-                   "(for a map tilted as a whole, on objects with highlights or cast shadows; see the README)")
-    p.add_argument("--holdout", type=float, default=RefineConfig.holdout_fraction, help="fraction of images held out for early stopping")
-    p.add_argument("--seed", type=int, default=0, help="seed of every random choice")
-    p.add_argument("--variant", default=None, help="Mitsuba variant (default: cuda_ad_rgb if usable, else llvm_ad_rgb)")
-    p.add_argument("--threads", type=int, default=None, help="Dr.Jit threads (default: one per core); with 1 the output is byte-identical "
-                   "run to run (with more, gradients are summed in a varying order)")
-    p.add_argument("--overwrite", action="store_true", help="replace existing outputs")
-    p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
-    return p
+    return config_parser(RefineOptions, prog="python -m validate.refine",
+                         description="Refine a normal map by fitting light, reflectance and normals to the images "
+                                     "through Mitsuba.")
 
 
 def main(argv: list[str] | None = None) -> int:
     try:
-        args = build_parser().parse_args(argv)
-    except INPUT_ERRORS as exc:
-        return report_error(exc)
-    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
-    try:
-        config = RefineConfig(
-            fit=FitConfig(light_model=args.light_model, steps=args.steps, max_pixels=args.max_pixels, seed=args.seed),
-            refine_steps=args.refine_steps, rounds=args.rounds, lights=args.lights, holdout_fraction=args.holdout,
-            rotation_search=args.rotation_search,
-        ).validate()
+        args = parse_config(RefineOptions, build_parser().parse_args(argv))
+        logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
+                            format="%(levelname)s %(name)s: %(message)s")
+        config = args.validate().refine
         if not Path(args.normals).exists():
             raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
         from scenes.variant import choose_variant, set_jit_threads
@@ -471,7 +467,7 @@ def main(argv: list[str] | None = None) -> int:
         set_jit_threads(args.threads)
         with progress_bar("step") as progress:
             r = refine_object(args.data, args.normals, config, args.out, progress, overwrite=args.overwrite)
-    except (ValueError, FileNotFoundError, FileExistsError) as exc:
+    except (*INPUT_ERRORS, FileExistsError) as exc:
         return report_error(exc)
     b, a = r["before"], r["after"]
     mae = f"  mae {b['mae_deg']:.2f} -> {a['mae_deg']:.2f} deg" if b["mae_deg"] is not None else ""

@@ -33,9 +33,12 @@ from typing import Any, Callable
 
 import numpy as np
 
-from scenes.cli import UsageError, UsageErrorParser, progress_bar, report_error
+from scenes.cli import UsageError, check_output_folder, progress_bar, report_error
+from scenes.config import check_fields, config_parser, option
+from scenes.config import config_from_args as parse_config
 from scenes.objfolder import find_prediction, list_object_folders, mean_angular_error, object_name
 from scenes.variant import require_jit_variant
+from validate.fit import FitConfig
 from validate.io import ObjectData, check_normals, load_object, read_prediction
 from validate.metrics import expose, finite_or_none, mean_or_none, psnr, rel_l1, relative_residual_map
 from validate.normal_bsdf import (
@@ -79,18 +82,19 @@ Progress = Callable[[int, int, str], None]
 class RerenderConfig:
     """Options of the re-render check."""
 
-    spp: int | None = None
+    spp: int | None = option(None, minimum=1, default_text="the recorded spp")
     """Samples per pixel; None = the recorded render.spp (required for common random numbers)."""
-    seed_mode: str = "same"
+    seed_mode: str = option("same", choices=SEED_MODES)
     """'same': each image's recorded seed (noise largely cancels); 'independent': fresh seeds."""
     floors: bool = True
     """Also render the independent-seed noise floor and the reproduction check (2 more renders per image)."""
-    visibility: VisibilityConfig = field(default_factory=VisibilityConfig)
-    """How camera visibility of surface points is decided."""
-    threshold: float | None = None
+    visibility: VisibilityConfig = option(default_factory=VisibilityConfig, expose=("supersample",))
+    """How camera visibility of surface points is decided (on the command line: the depth-map rays per pixel
+    side; the tolerances are fixed)."""
+    threshold: float | None = option(None, above=0, default_text="99th percentile of the noise-floor residual map")
     """Per-pixel relative residual counted in frac_above_threshold; None = 99th percentile of the
     noise-floor residual map (needs floors)."""
-    figure_rows: int = 4
+    figure_rows: int = option(4, minimum=1)
     """Images shown in figure.png."""
     save_renders: bool = False
     """Also write the re-rendered images as R000.png.. (16-bit, exposure applied)."""
@@ -99,20 +103,11 @@ class RerenderConfig:
     as 90 deg in mae_deg). They can never improve a score: such a point keeps the surface's own normal for
     light transport, but each of its pixels is scored as at least as wrong as a black render (relative residual
     >= 1, see `penalise_missing`). Otherwise they are an error."""
-    min_coverage: float = MIN_COVERAGE
+    min_coverage: float = option(MIN_COVERAGE, minimum=0, maximum=1)
     """Smallest share of the mask pixels that must hold an estimate (with allow_missing); a map below it is refused."""
 
     def validate(self) -> "RerenderConfig":
-        if self.spp is not None and (isinstance(self.spp, bool) or not isinstance(self.spp, int) or self.spp <= 0):
-            raise ValueError(f"--spp: expected a positive integer, got {self.spp!r}")
-        if self.seed_mode not in SEED_MODES:
-            raise ValueError(f"--seed-mode: {self.seed_mode!r} is not one of {', '.join(SEED_MODES)}")
-        if self.threshold is not None and not (np.isfinite(self.threshold) and self.threshold > 0):
-            raise ValueError(f"--threshold: expected a positive number, got {self.threshold!r}")
-        if not (isinstance(self.min_coverage, (int, float)) and 0 <= self.min_coverage <= 1):
-            raise ValueError(f"--min-coverage: expected a share from 0 to 1, got {self.min_coverage!r}")
-        if self.figure_rows < 1:
-            raise ValueError(f"figure_rows: expected at least 1, got {self.figure_rows!r}")
+        check_fields(self)
         self.visibility.validate()
         return self
 
@@ -513,54 +508,56 @@ def format_table(reports: list[dict], failed: dict[str, str] | None = None) -> s
     return "\n".join(lines)
 
 
+FITTED_GROUP = "fitted mode (folders without scene.json, or --fit): light and reflectance fitted to the images"
+
+
+@dataclass
+class RerenderOptions:
+    """The command line of validate.rerender: the known-scene check (`RerenderConfig`) and the fitted mode
+    (`validate.fit.FitConfig`)."""
+
+    data: str = option("", required=True)
+    """Object folder (with scene.json) or dataset folder of *.data folders."""
+    normals: str = option("", required=True)
+    """Object: normal map file (.png/.exr/.npy/.tif) or its folder; dataset: folder with <object>/normal.*."""
+    out: str = "rerender"
+    """Output folder: <out>/<object>/report.json, figure.png; summary.csv."""
+    variant: str | None = option(None, default_text="cuda_ad_rgb, then llvm_ad_rgb")
+    """Mitsuba variant."""
+    check: RerenderConfig = option(default_factory=RerenderConfig)
+    """The known-scene check."""
+    fit: bool = option(False, group=FITTED_GROUP)
+    """Use the fitted mode even when the folder has a scene.json."""
+    fitted: FitConfig = option(default_factory=FitConfig, group=FITTED_GROUP)
+    """The scene fit of the fitted mode."""
+    threads: int | None = option(None, minimum=1, default_text="one per core")
+    """Dr.Jit threads of the fitted mode; with 1 the fit is byte-identical run to run (with more, gradients are
+    summed in a varying order)."""
+    overwrite: bool = False
+    """Replace an existing <out>/<object>/report.json of the fitted mode."""
+    verbose: bool = option(False, short="-v")
+    """Debug logging."""
+
+    def validate(self) -> "RerenderOptions":
+        check_fields(self)
+        self.check.validate()
+        self.fitted.validate()
+        check_output_folder(self.out)
+        return self
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = UsageErrorParser(
-        prog="python -m validate.rerender",
-        description="Re-render the known scenes of an object (or dataset) with predicted normals and compare with the inputs.",
-    )
-    p.add_argument("--data", required=True, help="object folder (with scene.json) or dataset folder of *.data folders")
-    p.add_argument(
-        "--normals",
-        required=True,
-        help="object: normal map file (.png/.exr/.npy/.tif) or its folder; dataset: folder with <object>/normal.*",
-    )
-    p.add_argument("--out", default="rerender", help="output folder: <out>/<object>/report.json, figure.png (default ./rerender)")
-    p.add_argument("--spp", type=int, default=None, help="samples per pixel (default: the recorded spp)")
-    p.add_argument("--variant", default=None, help="Mitsuba variant (default: cuda_ad_rgb, then llvm_ad_rgb)")
-    p.add_argument("--seed-mode", choices=SEED_MODES, default="same", help="recorded seeds (same) or fresh ones")
-    p.add_argument("--no-floors", action="store_true", help="skip the noise-floor and reproduction renders")
-    p.add_argument("--supersample", type=int, default=VisibilityConfig.supersample, help="depth-map rays per pixel side")
-    p.add_argument("--threshold", type=float, default=None, help="relative residual counted in frac_above_threshold")
-    p.add_argument("--save-renders", action="store_true", help="also write the re-rendered images R000.png..")
-    p.add_argument(
-        "--allow-missing",
-        action="store_true",
-        help="zero normals inside the mask mean 'no estimate': counted (missing_pixels, coverage) and scored as at "
-        "least as wrong as a black render, never better",
-    )
-    p.add_argument("--min-coverage", type=float, default=MIN_COVERAGE,
-                   help="smallest share of the mask that must hold an estimate; a sparser map is refused (default %(default)s)")
-    g = p.add_argument_group("fitted mode (folders without scene.json, or --fit): light and reflectance fitted to the images")
-    g.add_argument("--fit", action="store_true", help="use the fitted mode even when the folder has a scene.json")
-    g.add_argument("--light-model", default="directional", help="directional (+ ambient), point, environment, or auto")
-    g.add_argument("--steps", type=int, default=120, help="Adam steps per fit (default 120)")
-    g.add_argument("--max-pixels", type=int, default=16000, help="downsample until the mask has at most this many pixels")
-    g.add_argument("--floor-maps", default="constant", help="comma list of no-information maps for the floor: constant,silhouette")
-    g.add_argument("--seed", type=int, default=0, help="seed of every random choice of the fit")
-    g.add_argument("--threads", type=int, default=None, help="Dr.Jit threads (default: one per core); with 1 the fit is byte-identical "
-                   "run to run (with more, gradients are summed in a varying order)")
-    g.add_argument("--overwrite", action="store_true", help="replace an existing <out>/<object>/report.json")
-    p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
-    return p
+    return config_parser(RerenderOptions, prog="python -m validate.rerender",
+                         description="Re-render the known scenes of an object (or dataset) with predicted normals and "
+                                     "compare with the inputs.")
 
 
-def _main_fitted(args) -> int:
+def _main_fitted(args: RerenderOptions) -> int:
     """Fitted mode (validate.fit): one object folder of any layout."""
     from scenes.variant import choose_variant, set_jit_threads
-    from validate.fit import FitConfig, rerender_fitted
+    from validate.fit import rerender_fitted
 
-    config = FitConfig(light_model=args.light_model, steps=args.steps, max_pixels=args.max_pixels,
-                       floor_maps=tuple(m for m in args.floor_maps.split(",") if m), seed=args.seed).validate()
+    config = args.fitted
     if not Path(args.normals).exists():
         raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
     choose_variant(args.variant)  # the fit itself refuses a variant without automatic differentiation
@@ -582,23 +579,14 @@ def main(argv: list[str] | None = None) -> int:
     A folder without scene.json (DiLiGenT, official UniPS layout) or `--fit`: the fitted mode (validate.fit)."""
     failed: dict[str, str] = {}
     try:
-        args = build_parser().parse_args(argv)
+        args = parse_config(RerenderOptions, build_parser().parse_args(argv)).validate()
         logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
                             format="%(levelname)s %(name)s: %(message)s")
         from scenes.layouts import detect_layout, has_scene
 
         if args.fit or (Path(args.data).is_dir() and detect_layout(args.data) in ("diligent", "unips")):
             return _main_fitted(args)
-        config = RerenderConfig(
-            spp=args.spp,
-            seed_mode=args.seed_mode,
-            floors=not args.no_floors,
-            visibility=VisibilityConfig(supersample=args.supersample),
-            threshold=args.threshold,
-            save_renders=args.save_renders,
-            allow_missing=args.allow_missing,
-            min_coverage=args.min_coverage,
-        ).validate()
+        config = args.check
         data = Path(args.data)
         if not data.is_dir():
             raise FileNotFoundError(f"--data: {str(data)!r} is not a folder")
@@ -607,8 +595,6 @@ def main(argv: list[str] | None = None) -> int:
             list_object_folders(data)  # fails early with a clear message
         if not Path(args.normals).exists():
             raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
-        if Path(args.out).exists() and not Path(args.out).is_dir():
-            raise UsageError(f"--out: {args.out!r} is an existing file, expected a folder")
 
         from scenes.variant import choose_variant
 

@@ -9,108 +9,80 @@ import logging
 import os
 import sys
 import time
+from dataclasses import dataclass, fields
 from pathlib import Path
 
-from scenes.cli import UsageError, UsageErrorParser, report_error
-from wildgen.config import LIGHT_FAMILIES, VARIANTS, GenConfig
+from scenes.cli import UsageError, check_output_folder, report_error
+from scenes.config import check_fields, check_int, config_parser, given_flags, option
+from scenes.config import config_from_args as parse_config
+from wildgen.config import GenConfig
 
-DEFAULTS = GenConfig()
+@dataclass
+class MakeOptions:
+    """The command line of wildgen.make: the dataset's configuration (`GenConfig`, recorded in its manifest)
+    and how this run renders it."""
 
+    out: str = option("", required=True)
+    """Output dataset directory."""
+    res: int | None = None
+    """Square resolution: sets both --width and --height."""
+    gen: GenConfig = option(default_factory=GenConfig)
+    """The dataset: what is rendered (every flag of `GenConfig`)."""
+    threads: int | None = option(None, minimum=1, default_text="cores // workers, at least 1; with --ray: 1")
+    """Dr.Jit threads per worker."""
+    workers: int | None = option(None, minimum=0, default_text="one per core, at most one per object, 1 with a cuda variant")
+    """Local worker processes (0: render in this process)."""
+    ray: str | None = option(None, metavar="ADDRESS", argparse_kwargs={"nargs": "?", "const": "auto"})
+    """Run one Ray task per object: no ADDRESS or 'auto' joins this machine's Ray cluster or starts a local one;
+    else HOST:PORT or ray://... (needs pip install 'unips-toolkit[ray]')."""
+    resume: bool = False
+    """Continue the dataset in --out with the configuration of its manifest (flags given override it; --objects
+    may grow). Re-running the same command resumes too."""
+    overwrite: bool = False
+    """Delete the dataset in --out (manifest and object folders) and start afresh."""
+    max_retries: int = option(2, minimum=0)
+    """Retries of an object after an exception or a dead worker before it is recorded as failed."""
+    recycle_after: int = option(50, minimum=1)
+    """Objects a worker process renders before a fresh process replaces it (bounds memory)."""
+    quiet: bool = False
+    """No progress bar."""
 
-def _families(values: list[str]) -> list[str]:
-    out: list[str] = []
-    for v in values:
-        out.extend(x.strip() for x in v.split(",") if x.strip())
-    return out
-
-
-class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
-    """Show '(default: X)' only where there is a default worth showing."""
-
-    def _get_help_string(self, action: argparse.Action) -> str:
-        if action.default is None or action.default is False or action.default is argparse.SUPPRESS:
-            return action.help or ""
-        return super()._get_help_string(action)
+    def validate(self) -> "MakeOptions":
+        """The run's own options (the dataset's are `GenConfig.validate`'s)."""
+        check_fields(self)
+        if self.res is not None:
+            check_int(self.res, "--res", minimum=1)
+        return self
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = UsageErrorParser(
-        prog="python -m wildgen.make",
-        description="Render a PS-Wild-style photometric stereo dataset with Mitsuba 3 (one <object>.data folder per object).",
-        formatter_class=_HelpFormatter,
-    )
-    p.add_argument("--out", required=True, help="output dataset directory")
-    p.add_argument("--lights", action="append", metavar="FAMILY",
-                   help=f"light family, repeatable or comma-separated, cycled across objects: {', '.join(LIGHT_FAMILIES)} (default: near_area)")
-    p.add_argument("--objects", type=int, default=DEFAULTS.objects, help="number of objects")
-    p.add_argument("--images", type=int, default=DEFAULTS.images, help="images per object")
-    p.add_argument("--res", type=int, default=None, help="square resolution (sets --width and --height)")
-    p.add_argument("--width", type=int, default=DEFAULTS.width, help="image width")
-    p.add_argument("--height", type=int, default=DEFAULTS.height, help="image height")
-    p.add_argument("--spp", type=int, default=DEFAULTS.spp, help="samples per pixel")
-    p.add_argument("--bounces", type=int, default=DEFAULTS.bounces, help="indirect bounces (Mitsuba max_depth = bounces + 2)")
-    p.add_argument("--camera", choices=["orthographic", "perspective"], default=DEFAULTS.camera, help="camera model")
-    p.add_argument("--seed", type=int, default=DEFAULTS.seed, help="root seed; object i depends on (seed, i) only")
-    p.add_argument("--assets", default=None, help="optional folder with hdri/, meshes/, textures/ (default: all procedural)")
-    p.add_argument("--materials", choices=["diffuse", "specular", "metallic", "any"], default=DEFAULTS.materials, help="material class")
-    p.add_argument("--shapes", choices=["procedural", "mesh", "any"], default=DEFAULTS.shapes, help="shape source (mesh needs --assets)")
-    p.add_argument("--entropy-threshold", type=float, default=DEFAULTS.entropy_threshold, help="minimum visible-normal entropy in bits")
-    p.add_argument("--gt-spp", type=int, default=DEFAULTS.gt_spp, help="samples per pixel of the ground-truth pass")
-    p.add_argument("--variant", default=None,
-                   help=f"Mitsuba variant: auto (default: cuda_ad_rgb, else llvm_ad_rgb, else scalar_rgb) or one of {', '.join(VARIANTS)}")
-    p.add_argument("--threads", type=int, default=None,
-                   help="Dr.Jit threads per worker (default: cores // workers, at least 1; with --ray: 1)")
-    p.add_argument("--workers", type=int, default=None,
-                   help="local worker processes (default: one per core, at most one per object, 1 with a cuda variant; "
-                        "0: render in this process)")
-    p.add_argument("--ray", nargs="?", const="auto", default=None, metavar="ADDRESS",
-                   help="run one Ray task per object: no ADDRESS or 'auto' joins this machine's Ray cluster or starts a "
-                        "local one; else HOST:PORT or ray://... (needs pip install 'unips-toolkit[ray]')")
-    p.add_argument("--resume", action="store_true",
-                   help="continue the dataset in --out with the configuration of its manifest (flags given override it; "
-                        "--objects may grow). Re-running the same command resumes too")
-    p.add_argument("--overwrite", action="store_true",
-                   help="delete the dataset in --out (manifest and object folders) and start afresh")
-    p.add_argument("--max-retries", type=int, default=2,
-                   help="retries of an object after an exception or a dead worker before it is recorded as failed")
-    p.add_argument("--recycle-after", type=int, default=50,
-                   help="objects a worker process renders before a fresh process replaces it (bounds memory)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
-    return p
+    return config_parser(MakeOptions, prog="python -m wildgen.make",
+                         description="Render a PS-Wild-style photometric stereo dataset with Mitsuba 3 (one <object>.data "
+                                     "folder per object).")
 
 
-def config_from_args(args: argparse.Namespace) -> GenConfig:
-    width, height = (args.res, args.res) if args.res is not None else (args.width, args.height)
-    return GenConfig(
-        lights=_families(args.lights) if args.lights else ["near_area"],
-        objects=args.objects, images=args.images, width=width, height=height, spp=args.spp, bounces=args.bounces,
-        camera=args.camera, seed=args.seed, materials=args.materials, assets=args.assets, shapes=args.shapes,
-        entropy_threshold=args.entropy_threshold, gt_spp=args.gt_spp,
-        variant=None if args.variant in (None, "auto") else args.variant,
-    ).validate()
+def options_from_args(args: argparse.Namespace) -> MakeOptions:
+    """The options of parsed arguments, --res applied to the dataset's width and height (not validated)."""
+    opts = parse_config(MakeOptions, args)
+    if opts.res is not None:
+        opts.gen.width = opts.gen.height = opts.res
+    return opts
 
 
 # Flags that are part of GenConfig (with --resume, only those given explicitly override the manifest).
-CONFIG_FLAGS = ("lights", "objects", "images", "res", "width", "height", "spp", "bounces", "camera", "seed", "assets",
-                "materials", "shapes", "entropy_threshold", "gt_spp", "variant")
+CONFIG_FLAGS = (*(f.name for f in fields(GenConfig)), "res")
 
 
 def _explicit_flags(argv: list[str] | None) -> set[str]:
     """Names of the options given on the command line (not defaulted)."""
-    p = build_parser()
-    for action in p._actions:
-        action.default = argparse.SUPPRESS
-        action.required = False
-    return set(vars(p.parse_args(argv)))
+    return given_flags(build_parser, argv)
 
 
-def _resume_config(args: argparse.Namespace, explicit: set[str], manifest: dict) -> GenConfig:
+def _resume_config(opts: MakeOptions, explicit: set[str], manifest: dict) -> GenConfig:
     """The manifest's configuration, with the config flags given on this command line applied on top."""
-    from dataclasses import fields
-
     known = {f.name for f in fields(GenConfig)}
     cfg = GenConfig(**{k: v for k, v in manifest["config"].items() if k in known})
-    given = config_from_args(args).to_dict()
+    given = opts.gen.to_dict()
     for name in explicit & set(CONFIG_FLAGS):
         targets = ("width", "height") if name == "res" else (name,)
         for t in targets:
@@ -131,29 +103,25 @@ def _summary(entries: dict[int, dict], rendered: dict[str, int], plan, seconds: 
     return f"{line} in {seconds:.1f} s [{variant}, {how}]", failed
 
 
-def check_flags(args: argparse.Namespace, explicit: set[str]) -> None:
+def check_flags(opts: MakeOptions, explicit: set[str]) -> None:
     """Flag values and combinations that are refused before anything is read (ValueError)."""
-    for flag in ("workers", "max_retries"):
-        if getattr(args, flag) is not None and getattr(args, flag) < 0:
-            raise ValueError(f"--{flag.replace('_', '-')}: expected a non-negative integer, got {getattr(args, flag)}")
-    for flag in ("threads", "recycle_after"):
-        if getattr(args, flag) is not None and getattr(args, flag) < 1:
-            raise ValueError(f"--{flag.replace('_', '-')}: expected a positive integer, got {getattr(args, flag)}")
-    if args.ray is not None and "workers" in explicit:
+    opts.validate()
+    if opts.ray is not None and "workers" in explicit:
         raise ValueError("--workers: local workers and --ray are exclusive (Ray schedules by its CPUs)")
-    if args.resume and args.overwrite:
+    if opts.resume and opts.overwrite:
         raise ValueError("--resume: cannot be combined with --overwrite")
-    if args.res is not None and explicit & {"width", "height"}:
+    if opts.res is not None and explicit & {"width", "height"}:
         given = " and ".join(f"--{f}" for f in ("width", "height") if f in explicit)
         raise ValueError(f"--res: sets both sides; it cannot be combined with {given} (use --res R or --width W --height H)")
-    if args.ray is not None:
+    check_output_folder(opts.out)
+    if opts.ray is not None:
         from wildgen.parallel import RAY_INSTALL, ray_available
 
         if not ray_available():
             raise ValueError(f"--ray: Ray is not installed; {RAY_INSTALL}")
 
 
-def resolve_run(args: argparse.Namespace, explicit: set[str], out: Path) -> tuple[GenConfig, str]:
+def resolve_run(args: MakeOptions, explicit: set[str], out: Path) -> tuple[GenConfig, str]:
     """The configuration to render (the manifest's one merged with the given flags when resuming) and the
     Mitsuba variant (set here; an existing dataset keeps its own unless one is asked for)."""
     from wildgen.dataset import load_manifest
@@ -164,7 +132,7 @@ def resolve_run(args: argparse.Namespace, explicit: set[str], out: Path) -> tupl
             raise FileNotFoundError(f"--resume: no manifest.json in {str(out)!r} to resume; run without --resume to start")
         cfg = _resume_config(args, explicit, manifest)
     else:
-        cfg = config_from_args(args)
+        cfg = args.gen.validate()
     from wildgen.assets import AssetLibrary
 
     lib = AssetLibrary.scan(cfg.assets)  # fail early on a bad asset folder
@@ -300,7 +268,7 @@ def main(argv: list[str] | None = None) -> int:
 def _run(argv: list[str] | None, state: dict) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
-        args = build_parser().parse_args(argv)
+        args = options_from_args(build_parser().parse_args(argv))
         out = Path(args.out)
         explicit = _explicit_flags(argv)
         check_flags(args, explicit)

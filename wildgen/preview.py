@@ -6,9 +6,13 @@ display gamma of 2.2 so that dark regions stay visible.
 from __future__ import annotations
 
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from scenes.config import config_from_args as parse_config
+from scenes.config import config_parser, option
 
 TILE = 128
 
@@ -90,14 +94,27 @@ def preview(dataset: str | Path, out: str | Path | None = None) -> list[Path]:
     return written
 
 
-def main(argv: list[str] | None = None) -> int:
-    from scenes.cli import UsageError, UsageErrorParser, report_error
+@dataclass
+class PreviewOptions:
+    """The command line of wildgen.preview."""
 
-    p = UsageErrorParser(prog="python -m wildgen.preview", description="Contact sheet PNG per object and one overview PNG of a dataset.")
-    p.add_argument("dataset", metavar="DIR", help="dataset directory (or one <object>.data folder)")
-    p.add_argument("--out", default=None, help="output folder (default: DIR/preview)")
+    dataset: str = option("", positional=True, metavar="DIR")
+    """Dataset directory (or one <object>.data folder)."""
+    out: str | None = option(None, default_text="DIR/preview")
+    """Output folder: one <object>.png per object and overview.png."""
+
+
+def build_parser():
+    return config_parser(PreviewOptions, prog="python -m wildgen.preview",
+                         description="Contact sheet PNG per object and one overview PNG of a dataset.")
+
+
+def main(argv: list[str] | None = None) -> int:
+    from scenes.cli import UsageError, check_output_folder, report_error
+
     try:
-        args = p.parse_args(argv)
+        args = parse_config(PreviewOptions, build_parser().parse_args(argv))
+        check_output_folder(args.out if args.out is not None else Path(args.dataset) / "preview")
         written = preview(args.dataset, args.out)
     except (UsageError, ValueError, OSError) as exc:
         return report_error(exc)

@@ -1,7 +1,8 @@
 """PS-Wild-style sampling of one object: shape, pose (entropy rule), framing, material, per-image lights.
 
 Object i draws only from `np.random.default_rng([seed, i])`, so the dataset does not depend on the
-order in which objects are made or on which worker makes them.
+order in which objects are made or on which worker makes them. The lights of each image come from the
+object's light family (`wildgen.lighting.LIGHT_FAMILIES`).
 
 Entropy rule: the visible normals' distribution is a 16 x 16 histogram of (n_x, n_y) in the camera
 frame over [-1, 1]^2, weighted by each camera-facing triangle's projected area (self-occlusion
@@ -16,7 +17,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scenes.colors import temperature_to_rgb
 from scenes.description import (
     CameraDesc,
     EnvironmentDesc,
@@ -29,9 +29,11 @@ from scenes.description import (
     TextureDesc,
     multijitter_spp,
 )
+from scenes.lights import LIGHT_TYPES
 from scenes.procedural import MeshData
 from wildgen.assets import AssetLibrary
 from wildgen.config import MATERIAL_CLASSES, GenConfig
+from wildgen.lighting import IRRADIANCE, Placement, random_rotation, sample_lighting
 
 log = logging.getLogger(__name__)
 
@@ -40,7 +42,6 @@ ENTROPY_BINS = 16
 ORTHO_DISTANCE = 20.0  # orthographic camera distance: beyond every light we place
 PERSPECTIVE_DISTANCE = 4.0
 PERSPECTIVE_FOV = 30.0
-IRRADIANCE = 1.0  # nominal irradiance at the object centre from each image's main light
 MESH_RESOLUTION = 64
 
 
@@ -51,20 +52,6 @@ class SampledObject:
     desc: SceneDescription
     mesh: MeshData
     shape_source: str  # procedural kind or the mesh file path
-
-
-def random_rotation(rng: np.random.Generator) -> np.ndarray:
-    """Uniform random rotation matrix (3x3) from a random unit quaternion."""
-    q = rng.normal(size=4)
-    q /= np.linalg.norm(q)
-    w, x, y, z = q
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 def visible_normal_entropy(mesh: MeshData, rotation: np.ndarray) -> float:
@@ -111,101 +98,6 @@ def fit_to_frame(mesh: MeshData, rotation: np.ndarray, camera: str, margin: floa
     m[:2, 3] = -scale * centre
     radius = float(scale * np.linalg.norm(mesh.positions, axis=1).max())
     return m, radius
-
-
-def _temperature_color(rng: np.random.Generator) -> tuple[list[float], float | None]:
-    """White half of the time, else a blackbody colour between 2700 K and 9000 K."""
-    kelvin = float(rng.uniform(2700, 9000))
-    if rng.random() < 0.5:
-        return [1.0, 1.0, 1.0], None
-    return list(temperature_to_rgb(kelvin)), kelvin
-
-
-def _hemisphere(rng: np.random.Generator, min_z: float) -> np.ndarray:
-    """Uniform direction on the camera-facing hemisphere with z >= min_z (toward the camera is +z)."""
-    z = rng.uniform(min_z, 1.0)
-    phi = rng.uniform(0, 2 * np.pi)
-    s = math.sqrt(max(0.0, 1 - z * z))
-    return np.array([s * math.cos(phi), s * math.sin(phi), z])
-
-
-def _occludes_view(position: np.ndarray, half_diag: float, camera: str) -> bool:
-    """True if an emitter at `position` (size half_diag) could appear in front of the object in the image."""
-    if camera == "orthographic":
-        return position[2] > -half_diag and np.hypot(position[0], position[1]) - half_diag < 1.05
-    depth = PERSPECTIVE_DISTANCE - position[2]
-    if depth <= 0:
-        return False  # behind the camera
-    t = math.tan(math.radians(PERSPECTIVE_FOV / 2))
-    return np.hypot(position[0], position[1]) / depth - half_diag / depth < 1.05 * t * math.sqrt(2)
-
-
-def _directional(rng: np.random.Generator) -> LightDesc:
-    l = _hemisphere(rng, 0.1)
-    color, kelvin = _temperature_color(rng)
-    return LightDesc(type="directional", direction=(-l).tolist(), irradiance=IRRADIANCE, color=color, temperature_k=kelvin)
-
-
-def _point(rng: np.random.Generator, centre: np.ndarray, radius: float) -> LightDesc:
-    l = _hemisphere(rng, 0.1)
-    r = radius * rng.uniform(2.5, 5.0)
-    color, kelvin = _temperature_color(rng)
-    return LightDesc(type="point", position=(centre + r * l).tolist(), intensity=IRRADIANCE * r * r, color=color, temperature_k=kelvin)
-
-
-def _near_area(rng: np.random.Generator, centre: np.ndarray, radius: float, camera: str, strength: float = 1.0) -> LightDesc:
-    """A rectangle 1.5-4 object radii from the centre, facing it, never in front of the object in view."""
-    for _ in range(200):
-        l = _hemisphere(rng, 0.0)
-        r = radius * rng.uniform(1.5, 4.0)
-        w, h = radius * rng.uniform(0.3, 1.0, 2)
-        pos = centre + r * l
-        if not _occludes_view(pos, 0.5 * math.hypot(w, h), camera):
-            break
-    else:  # pragma: no cover - the loop finds a grazing position in practice
-        raise RuntimeError("could not place a near area light outside the view")
-    color, kelvin = _temperature_color(rng)
-    up = [0.0, 1.0, 0.0] if abs(l[1]) < 0.9 else [1.0, 0.0, 0.0]
-    return LightDesc(
-        type="area", position=pos.tolist(), target=centre.tolist(), up=up, width=float(w), height=float(h),
-        radiance=float(strength * IRRADIANCE * r * r / (w * h)), color=color, temperature_k=kelvin,
-    )
-
-
-def _environment(rng: np.random.Generator, env_scale: float, relative: float) -> LightDesc:
-    m = np.eye(4)
-    m[:3, :3] = random_rotation(rng)
-    return LightDesc(type="environment", to_world=m.tolist(), scale=float(env_scale * relative))
-
-
-def sample_lighting(
-    rng: np.random.Generator, family: str, n_images: int, centre: np.ndarray, radius: float, camera: str, env_scale: float
-) -> list[list[LightDesc]]:
-    """The lights of each image for one light family."""
-    out: list[list[LightDesc]] = []
-    for _ in range(n_images):
-        if family == "directional":
-            lights = [_directional(rng)]
-        elif family == "point":
-            lights = [_point(rng, centre, radius)]
-        elif family == "near_area":
-            lights = [_near_area(rng, centre, radius, camera) for _ in range(1 if rng.random() < 0.7 else 2)]
-            if rng.random() < 0.5:  # a dim room around the hand-held light
-                lights.append(_environment(rng, env_scale, rng.uniform(0.05, 0.2)))
-        elif family == "hdri":
-            lights = [_environment(rng, env_scale, 1.0)]
-        elif family == "mixed":
-            combo = int(rng.integers(0, 3))
-            if combo == 0:
-                lights = [_near_area(rng, centre, radius, camera), _environment(rng, env_scale, rng.uniform(0.2, 1.0))]
-            elif combo == 1:
-                lights = [_directional(rng), _environment(rng, env_scale, rng.uniform(0.2, 1.0))]
-            else:
-                lights = [_near_area(rng, centre, radius, camera, rng.uniform(0.5, 1.0)) for _ in range(int(rng.integers(2, 4)))]
-        else:
-            raise ValueError(f"--lights: unknown family {family!r}")
-        out.append(lights)
-    return out
 
 
 def _linear_colour(rng: np.random.Generator) -> list[float]:
@@ -311,13 +203,13 @@ def sample_object(cfg: GenConfig, index: int, lib: AssetLibrary, name: str | Non
     material = sample_material(rng, cls, lib, cfg.texture_resolution)
     env = _environment_desc(rng, lib, cfg.env_width)
     env_scale = _environment_scale(env)
-    lights = sample_lighting(rng, family, cfg.images, centre, radius, cfg.camera, env_scale)
-    seeds = rng.integers(0, 2**31 - 1, cfg.images)
-    uses_env = any(l.type == "environment" for ls in lights for l in ls)
     if cfg.camera == "orthographic":
         camera = CameraDesc(kind="orthographic", origin=[0.0, 0.0, ORTHO_DISTANCE], half_size=1.0, width=cfg.width, height=cfg.height)
     else:
         camera = CameraDesc(kind="perspective", origin=[0.0, 0.0, PERSPECTIVE_DISTANCE], fov=PERSPECTIVE_FOV, width=cfg.width, height=cfg.height)
+    lights = sample_lighting(rng, family, cfg.images, Placement(centre, radius, camera, env_scale))
+    seeds = rng.integers(0, 2**31 - 1, cfg.images)
+    uses_env = any(LIGHT_TYPES[l.type].environment_map for ls in lights for l in ls)
     desc = SceneDescription(
         shape=shape,
         material=material,

@@ -19,6 +19,7 @@ import numpy as np
 
 from scenes.description import SceneDescription, TextureDesc
 from scenes.geometry import camera_rotation, write_mesh_ply
+from scenes.lights import camera_frame
 from scenes.mitsuba_build import build_scene
 from scenes.objfolder import (AUX_DIR, FORMAT_VERSION, MASK_FILE, NORMAL_FILE, OBJECT_SUFFIX, image_name, write_exr,
                               write_mask, write_normal_map, write_png16, write_scene)
@@ -57,10 +58,10 @@ def _localise(desc: SceneDescription, sampled: SampledObject, folder: Path) -> S
     """Copy/realise every input file into aux/ and point the description at it (self-contained folder)."""
     from scenes.textures import realize_texture
 
-    aux = folder / "aux"
+    aux = folder / AUX_DIR
     d = SceneDescription.from_dict(json.loads(json.dumps(desc.to_dict())))  # deep copy through plain data
     write_mesh_ply(aux / "mesh.ply", sampled.mesh)
-    d.shape.kind, d.shape.file, d.shape.normalize, d.shape.params, d.shape.seed = "mesh", "aux/mesh.ply", False, {}, 0
+    d.shape.kind, d.shape.file, d.shape.normalize, d.shape.params, d.shape.seed = "mesh", f"{AUX_DIR}/mesh.ply", False, {}, 0
 
     def local_texture(tex: TextureDesc, name: str) -> TextureDesc:
         if tex.kind == "constant":
@@ -69,12 +70,12 @@ def _localise(desc: SceneDescription, sampled: SampledObject, folder: Path) -> S
             src = Path(tex.file)
             dst = aux / f"{name}{src.suffix.lower()}"
             shutil.copyfile(src, dst)
-            tex.file = f"aux/{dst.name}"
+            tex.file = f"{AUX_DIR}/{dst.name}"
             return tex
         arr = realize_texture(tex)
         write_exr(aux / f"{name}.exr", np.ascontiguousarray(arr[::-1]))  # files keep row 0 at the top
         channels = len(tex.value)
-        return TextureDesc(kind="file", value=tex.value, file=f"aux/{name}.exr", channel=0 if channels == 1 else None)
+        return TextureDesc(kind="file", value=tex.value, file=f"{AUX_DIR}/{name}.exr", channel=0 if channels == 1 else None)
 
     d.material.base_color = local_texture(d.material.base_color, "texture_base_color")
     d.material.roughness = local_texture(d.material.roughness, "texture_roughness")
@@ -83,34 +84,33 @@ def _localise(desc: SceneDescription, sampled: SampledObject, folder: Path) -> S
         src = Path(d.material.normal_map)
         dst = aux / f"texture_normal{src.suffix.lower()}"
         shutil.copyfile(src, dst)
-        d.material.normal_map = f"aux/{dst.name}"
+        d.material.normal_map = f"{AUX_DIR}/{dst.name}"
     if d.environment is not None:
         env = d.environment
         if env.source == "file":
             src = Path(env.file)
             dst = aux / f"environment{src.suffix.lower()}"
             shutil.copyfile(src, dst)
-            env.file = f"aux/{dst.name}"
+            env.file = f"{AUX_DIR}/{dst.name}"
         else:
             from scenes.envmaps import realize_environment
 
             write_exr(aux / "environment.exr", realize_environment(env))
-            env.source, env.file, env.seed = "file", "aux/environment.exr", 0
+            env.source, env.file, env.seed = "file", f"{AUX_DIR}/environment.exr", 0
     return d
 
 
 def camera_lights(desc: SceneDescription) -> list[dict]:
-    """Per image, the directional lights in the camera frame (toward the light), for calibrated methods."""
+    """Per image, the directional lights in the camera frame (toward the light, irradiance x exposure), for
+    calibrated methods, and how many other lights the image has. Every light goes through its type's report
+    form (`scenes.lights.LIGHT_TYPES`): an unknown type is a ValueError, never counted as another."""
     R = camera_rotation(desc.camera.origin, desc.camera.target, desc.camera.up)
     out = []
     for image in desc.images:
-        dirs = []
-        for l in image.lights:
-            if l.type == "directional":
-                d = -np.asarray(l.direction, np.float64)
-                d = R @ (d / np.linalg.norm(d))
-                dirs.append({"direction_to_light": d.tolist(), "irradiance": [l.irradiance * c * image.exposure for c in l.color]})
-        out.append({"directional": dirs, "other": sum(l.type != "directional" for l in image.lights)})
+        lights = camera_frame(image.lights, R, desc.camera.target, image.exposure)
+        dirs = [{"direction_to_light": l["direction"], "irradiance": l["irradiance"]}
+                for l in lights if l["type"] == "directional"]
+        out.append({"directional": dirs, "other": len(lights) - len(dirs)})
     return out
 
 
@@ -179,16 +179,16 @@ def write_object(sampled: SampledObject, out_dir: Path, percentile: float, level
         for i, img in enumerate(radiance):
             desc.images[i].exposure = exposure_for(img, gt.mask, percentile, level)
             write_png16(tmp / image_name(i), img * desc.images[i].exposure)
-            write_exr(tmp / "aux" / f"radiance_{i:03d}.exr", img)
+            write_exr(tmp / AUX_DIR / f"radiance_{i:03d}.exr", img)
         write_mask(tmp / MASK_FILE, gt.mask)
         normal = np.where(gt.mask[..., None], gt.normal, 0.0)
         write_normal_map(tmp / NORMAL_FILE, normal)
-        write_exr(tmp / "aux" / "normal.exr", gt.normal)
-        write_exr(tmp / "aux" / "depth.exr", gt.depth)
-        write_exr(tmp / "aux" / "coverage.exr", gt.coverage)
-        write_exr(tmp / "aux" / "base_color.exr", gt.base_color)
-        write_exr(tmp / "aux" / "roughness.exr", gt.roughness)
-        write_exr(tmp / "aux" / "metallic.exr", gt.metallic)
+        write_exr(tmp / AUX_DIR / "normal.exr", gt.normal)
+        write_exr(tmp / AUX_DIR / "depth.exr", gt.depth)
+        write_exr(tmp / AUX_DIR / "coverage.exr", gt.coverage)
+        write_exr(tmp / AUX_DIR / "base_color.exr", gt.base_color)
+        write_exr(tmp / AUX_DIR / "roughness.exr", gt.roughness)
+        write_exr(tmp / AUX_DIR / "metallic.exr", gt.metallic)
         write_scene(tmp, desc, {"camera_lights": camera_lights(desc), "format_version": FORMAT_VERSION})
         timings["write_s"] = time.perf_counter() - t0
 

@@ -15,53 +15,53 @@ PIXEL_TOKENS = {"rgb": 3, "normalized": 6}
 class GLCConfig:
     """Hyper-parameters of a GLC-UniPS network; `dataclasses.asdict` round-trips through JSON."""
 
-    # Side of the square the encoder sees; images and mask are resized to it. Multiple of 32
-    # (patch 4 in the stem, then three 2x patch mergings).
     canonical_resolution: int = 256
-    # Swin backbone (built by timm, never with pretrained weights): channels of the first stage.
+    """Side of the square the encoder sees; images and mask are resized to it. Multiple of 32 (patch 4 in the
+    stem, then three 2x patch mergings)."""
     swin_embed_dim: int = 96
-    # Swin blocks per stage (Swin-S: 2, 2, 18, 2).
+    """Swin backbone (built by timm, never with pretrained weights): channels of the first stage."""
     swin_depths: tuple[int, ...] = (2, 2, 18, 2)
-    # Attention heads per stage (Swin-S: 3, 6, 12, 24).
+    """Swin blocks per stage (Swin-S: 2, 2, 18, 2)."""
     swin_heads: tuple[int, ...] = (3, 6, 12, 24)
-    # Swin window side; timm shrinks it on stages whose feature map is smaller.
+    """Attention heads per stage (Swin-S: 3, 6, 12, 24)."""
     swin_window: int = 7
-    # Stochastic-depth rate of the backbone (timm's default for Swin).
+    """Swin window side; timm shrinks it on stages whose feature map is smaller."""
     swin_drop_path: float = 0.1
-    # Hidden channels of the convolutional stem (five convolutions to 1/4 resolution);
-    # 0 means half the embedding dimension.
+    """Stochastic-depth rate of the backbone (timm's default for Swin)."""
     stem_channels: int = 0
-    # Heads of the pre-fusion communication layer (one Transformer layer per scale, across images).
+    """Hidden channels of the convolutional stem (five convolutions to 1/4 resolution); 0 means half the
+    embedding dimension."""
     comm_heads: int = 8
-    # Feed-forward width of the communication layer as a multiple of the scale's channels.
+    """Heads of the pre-fusion communication layer (one Transformer layer per scale, across images)."""
     comm_ff_ratio: float = 2.0
-    # Channels of the global lighting contexts (UPerNet output, at canonical / 4).
+    """Feed-forward width of the communication layer as a multiple of the scale's channels."""
     context_dim: int = 256
-    # Output sizes of the pyramid-pooling module of the UPerNet head.
+    """Channels of the global lighting contexts (UPerNet output, at canonical / 4)."""
     ppm_scales: tuple[int, ...] = (1, 2, 3, 6)
-    # Width of the per-pixel decoder (tokens: one per image, RGB + context projected to this).
+    """Output sizes of the pyramid-pooling module of the UPerNet head."""
     decoder_dim: int = 384
-    # Self-attention layers across images in the decoder.
+    """Width of the per-pixel decoder (tokens: one per image, RGB + context projected to this)."""
     decoder_layers: int = 3
-    # Heads of the decoder's self-attention layers and of the PMA pooling.
+    """Self-attention layers across images in the decoder."""
     decoder_heads: int = 8
-    # Feed-forward width of the decoder's Transformer layers (and of the PMA block).
+    """Heads of the decoder's self-attention layers and of the PMA pooling."""
     decoder_ff: int = 1024
-    # Hidden width of the normal predictor MLP (decoder_dim -> predictor_hidden -> 3).
+    """Feed-forward width of the decoder's Transformer layers (and of the PMA block)."""
     predictor_hidden: int = 192
-    # Dropout in the communication and decoder Transformer layers (paper: 0.1).
+    """Hidden width of the normal predictor MLP (decoder_dim -> predictor_hidden -> 3)."""
     dropout: float = 0.1
-    # Ablation "trivial context": contexts averaged over the masked area, the same at every pixel.
+    """Dropout in the communication and decoder Transformer layers (paper: 0.1)."""
     uniform_context: bool = False
-    # Pixels decoded at once in `forward`; bounds decoder memory independently of the resolution.
+    """Ablation "trivial context": contexts averaged over the masked area, the same at every pixel."""
     pixel_chunk: int = 10000
-    # What the decoder sees of a pixel's own observations, per image: "rgb" (the paper: the raw
-    # value), or "normalized": log(1 + RGB) and RGB divided by the pixel's mean intensity over the
-    # K images, so that comparing one pixel's observations across images is a first-layer feature.
+    """Pixels decoded at once in `forward`; bounds decoder memory independently of the resolution."""
     pixel_token: str = "rgb"
-    # Multiply the images by the mask before resizing them to the canonical resolution, so that
-    # background pixels never bleed into the object's border (old checkpoints: False).
+    """What the decoder sees of a pixel's own observations, per image: "rgb" (the paper: the raw value), or
+    "normalized": log(1 + RGB) and RGB divided by the pixel's mean intensity over the K images, so that
+    comparing one pixel's observations across images is a first-layer feature."""
     mask_before_resize: bool = False
+    """Multiply the images by the mask before resizing them to the canonical resolution, so that background
+    pixels never bleed into the object's border (old checkpoints: False)."""
 
     def __post_init__(self) -> None:
         # JSON turns tuples into lists: normalise so configs compare equal after a round trip.

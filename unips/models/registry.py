@@ -1,22 +1,60 @@
-"""Model registry: names -> factories building `nn.Module`s from keyword overrides."""
+"""Model registry: each name maps to a factory (fresh weights from config overrides) and, optionally, to
+its shipped weights and model card (a pretrained entry, as timm's registry keeps per-model weight sources).
+
+`unips.models.create_model` (in `builder.py`) is the one entry point that builds a model: fresh, from
+the shipped weights (`pretrained=True`) or from a weights file (`checkpoint_path=`).
+"""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Callable
 
 from torch import nn
 
 ModelFactory = Callable[..., nn.Module]
 
+WEIGHTS_DIR = Path(__file__).resolve().parents[1] / "weights"
+"""The folder of shipped weights inside the package (`unips/weights/`)."""
+
+
+@dataclass(frozen=True)
+class Pretrained:
+    """Where the shipped weights of a registered model live: file names inside `unips/weights/`.
+
+    `orchestrate.train_recipe --ship` writes exactly these files; `create_model(name, pretrained=True)`
+    reads them. An entry may name files that are not shipped (yet): loading them is then an error,
+    never a fallback to fresh weights.
+    """
+
+    weights: str
+    """The `.safetensors` file; its `.json` sidecar (model name and config) lies next to it."""
+    card: str
+    """The model card (JSON): data recipe, training, validation and test figures, lineage, weaknesses."""
+
+    @property
+    def weights_path(self) -> Path:
+        return WEIGHTS_DIR / self.weights
+
+    @property
+    def card_path(self) -> Path:
+        return WEIGHTS_DIR / self.card
+
+
 _REGISTRY: dict[str, ModelFactory] = {}
+_PRETRAINED: dict[str, Pretrained] = {}
 
 
-def register_model(name: str) -> Callable[[ModelFactory], ModelFactory]:
-    """Decorator registering `factory(**overrides) -> nn.Module` under `name`."""
+def register_model(name: str, pretrained: Pretrained | None = None) -> Callable[[ModelFactory], ModelFactory]:
+    """Decorator registering `factory(**overrides) -> nn.Module` under `name`, with the place of its shipped
+    weights when it has one."""
     def deco(factory: ModelFactory) -> ModelFactory:
         if name in _REGISTRY:
             raise ValueError(f"model name {name!r} is already registered")
         _REGISTRY[name] = factory
+        if pretrained is not None:
+            _PRETRAINED[name] = pretrained
         return factory
     return deco
 
@@ -26,14 +64,43 @@ def list_models() -> list[str]:
     return sorted(_REGISTRY)
 
 
-def create_model(name: str, **overrides: Any) -> nn.Module:
-    """Build the model registered as `name`, with config fields replaced by `overrides`.
+def list_pretrained() -> list[str]:
+    """Names whose shipped weights file is present in the package, sorted."""
+    return sorted(n for n, p in _PRETRAINED.items() if p.weights_path.is_file())
 
-    Unknown names and unknown override keys raise ValueError. The returned module carries
-    `model_name` (this name) and `config` (its full configuration dataclass).
-    """
+
+def _check_name(name: str) -> None:
     if name not in _REGISTRY:
         raise ValueError(f"model name {name!r} is not registered; known models: {', '.join(list_models())}")
+
+
+def pretrained_entry(name: str) -> Pretrained:
+    """The pretrained entry of `name`; ValueError when the name is unknown or has no entry."""
+    _check_name(name)
+    if name not in _PRETRAINED:
+        with_entry = ", ".join(sorted(_PRETRAINED)) or "none"
+        raise ValueError(f"pretrained: model {name!r} has no shipped-weights entry in the registry "
+                         f"(models with one: {with_entry})")
+    return _PRETRAINED[name]
+
+
+def pretrained_weights(name: str) -> Path:
+    """Path of the shipped weights of `name`; FileNotFoundError (one line, what to do instead) when the entry's
+    file is not in the package."""
+    path = pretrained_entry(name).weights_path
+    if not path.is_file():
+        raise FileNotFoundError(f"no shipped weights for {name!r} yet (unips/weights/{path.name} is missing); "
+                                "pass --checkpoint PATH to a .safetensors or .pt model file")
+    return path
+
+
+def build_model(name: str, **overrides: Any) -> nn.Module:
+    """The registry's factory call: model `name` with fresh weights and config fields replaced by `overrides`.
+
+    Unknown names and unknown override keys raise ValueError. The returned module carries `model_name`
+    (this name) and `config` (its full configuration dataclass). Use `create_model`, which also loads weights.
+    """
+    _check_name(name)
     model = _REGISTRY[name](**overrides)
     model.model_name = name
     return model

@@ -1,4 +1,5 @@
-"""The registered GLC-UniPS configurations: the paper's network, a CPU-trainable one, a test one."""
+"""The registered GLC-UniPS configurations (the paper's network, two CPU-trainable ones, a test one), their
+shipped weights and model cards, and the model used when no weights file is given."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ from typing import Any
 
 from .config import GLCConfig, config_with_overrides
 from .glc import GLCUniPS
-from .registry import register_model
+from .registry import Pretrained, register_model
 
 # The paper's "base + pre-fusion" network: Swin-S, canonical 256, contexts 64x64x256 (about 69 M).
 GLC_UNIPS = GLCConfig()
@@ -75,13 +76,18 @@ def glc_unips(**overrides: Any) -> GLCUniPS:
     return GLCUniPS(config_with_overrides(GLC_UNIPS, overrides))
 
 
-@register_model("glc-tiny")
+DEFAULT_MODEL = "glc-tiny"
+"""The shipped model: what `unips.predict`, `orchestrate.benchmark` and `orchestrate.demo` run without
+`--checkpoint` (its weights: `create_model(DEFAULT_MODEL, pretrained=True)`)."""
+
+
+@register_model("glc-tiny", pretrained=Pretrained(weights="glc-tiny.safetensors", card="model_card.json"))
 def glc_tiny(**overrides: Any) -> GLCUniPS:
     """Narrow GLC-UniPS for CPU training (canonical 64)."""
     return GLCUniPS(config_with_overrides(GLC_TINY, overrides))
 
 
-@register_model("glc-small")
+@register_model("glc-small", pretrained=Pretrained(weights="glc-small.safetensors", card="glc-small.card.json"))
 def glc_small(**overrides: Any) -> GLCUniPS:
     """CPU-trainable GLC-UniPS with photometric pixel tokens and a wider decoder (canonical 96)."""
     return GLCUniPS(config_with_overrides(GLC_SMALL, overrides))

@@ -1,0 +1,382 @@
+"""Regenerate the generated blocks of README.md and docs/*.md from the code and the model card.
+
+    python -m orchestrate.docs            rewrite every generated block in place
+    python -m orchestrate.docs --check    change nothing; exit 1 when a file is out of date (names it)
+
+A generated block lies between two markers, NAME being one of `BLOCKS` or `flags:MODULE`:
+
+    <!-- BEGIN generated:NAME -->
+    ...
+    <!-- END generated:NAME -->
+
+Flag tables come from each CLI's `build_parser()`, imported at run time (so a changed parser changes the
+docs on the next run); result tables come from `unips/weights/model_card.json`, the record of the shipped
+model. Everything outside the markers is written by hand and left alone.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import re
+import sys
+from pathlib import Path
+from typing import Any, Callable
+
+from scenes.cli import UsageError, UsageErrorParser, report_error
+
+REPO = Path(__file__).resolve().parents[1]
+CARD = REPO / "unips" / "weights" / "model_card.json"
+
+# Every command-line entry point of the packages, in the order a reader meets them. Each module has a
+# `build_parser()`; each needs a `flags:MODULE` block somewhere in the docs (checked).
+CLIS = (
+    "wildgen.make",
+    "wildgen.preview",
+    "unips.train",
+    "unips.predict",
+    "unips.evaluate",
+    "validate.rerender",
+    "validate.refine",
+    "orchestrate.demo",
+    "orchestrate.benchmark",
+    "orchestrate.train_recipe",
+    "orchestrate.docs",
+)
+
+BEGIN = re.compile(r"^<!-- BEGIN generated:(?P<name>[\w.:-]+) -->$")
+END = "<!-- END generated:{name} -->"
+
+# ---------------------------------------------------------------- flag tables
+
+
+def _cell(text: str) -> str:
+    """One table cell: pipes escaped, words holding `<...>` or `*` in backticks (Markdown would eat them)."""
+    words = []
+    for word in str(text).split():
+        if ("<" in word or "*" in word) and "`" not in word and len(word) > 1:
+            core = word.strip("(),;:")
+            if core:
+                start = word.index(core)
+                word = f"{word[:start]}`{core}`{word[start + len(core):]}"
+        words.append(word)
+    return " ".join(words).replace("|", "\\|")
+
+
+# "(default: X)" or "(default X)" in a help text, X without unbalanced parentheses.
+_DEFAULT_IN_HELP = re.compile(r"\s*\(default:?\s+((?:[^()]|\([^()]*\))*)\)")
+
+
+def help_text(parser: argparse.ArgumentParser, action: argparse.Action) -> str:
+    """The help of `action` exactly as `--help` prints it (placeholders expanded), on one line."""
+    formatter = parser._get_formatter()
+    return " ".join(formatter._expand_help(action).split()) if action.help else ""
+
+
+def format_default(value: Any) -> str:
+    """A parser default as the docs show it ('-' for none or an empty list)."""
+    if isinstance(value, (list, tuple)):
+        value = ",".join(str(v) for v in value)
+    return str(value) if value not in (None, "") else "-"
+
+
+def stated_defaults(text: str) -> list[str]:
+    """The defaults a help text states in '(default X)' / '(default: X)', 'None' left out (argparse's
+    ArgumentDefaultsHelpFormatter appends '(default: None)' after a help that already says what None means)."""
+    return [m.group(1).strip() for m in _DEFAULT_IN_HELP.finditer(text) if m.group(1).strip() != "None"]
+
+
+def flag_default(parser: argparse.ArgumentParser, action: argparse.Action) -> tuple[str, str]:
+    """(default cell, meaning cell) of one option: the default the parser holds, or the one its help states
+    when the parser's is None (computed at run time), or `required` / `off` (a switch). A '(default ...)'
+    of the help moves to the default cell; what it adds to the value stays in the meaning."""
+    text = help_text(parser, action)
+    if action.required or (not action.option_strings and action.nargs not in ("?", "*")):
+        return "required", text
+    if action.nargs == 0:  # store_true / store_false / count: a switch
+        return "off", text
+    default = format_default(action.default)
+    stated = stated_defaults(text)
+    if action.default is None and stated:
+        default = stated[0]
+    extra = []
+    for value in stated:
+        if value.removeprefix("./") == default.removeprefix("./"):
+            continue
+        if value.startswith(default):  # e.g. '5; 0 = none'
+            extra.append(value[len(default):].strip(" ;,"))
+        else:  # a help that states another default than the parser's: shown as it is (tests/test_docs.py fails)
+            extra.append("default " + value)
+    meaning = _DEFAULT_IN_HELP.sub("", text).strip()
+    if extra:
+        meaning += f" ({'; '.join(extra)})"
+    return default, meaning
+
+
+def _flag_rows(parser: argparse.ArgumentParser, actions: list[argparse.Action]) -> list[str]:
+    formatter = parser._get_formatter()
+    rows = []
+    for action in actions:
+        if isinstance(action, argparse._HelpAction) or action.help == argparse.SUPPRESS:
+            continue
+        default, meaning = flag_default(parser, action)
+        if action.choices is not None and not any(str(c) in meaning for c in action.choices):
+            meaning = (meaning + "; " if meaning else "") + "one of " + ", ".join(str(c) for c in action.choices)
+        invocation = formatter._format_action_invocation(action)
+        rows.append(f"| `{invocation}` | `{default}` | {_cell(meaning)} |")
+    return rows
+
+
+def flag_table(module: str) -> str:
+    """The flag table(s) of `module`'s parser (one table per argument group)."""
+    cli = importlib.import_module(module)
+    if not callable(getattr(cli, "build_parser", None)):
+        raise UsageError(f"generated:flags:{module}: {module} has no build_parser() returning its argparse parser")
+    parser = cli.build_parser()
+    out: list[str] = []
+    groups = [g for g in parser._action_groups if any(not isinstance(a, argparse._HelpAction) for a in g._group_actions)]
+    ungrouped = [a for g in groups if g.title in ("positional arguments", "options", "optional arguments") for a in g._group_actions]
+    out += ["| flag | default | meaning |", "|---|---|---|", *_flag_rows(parser, ungrouped)]
+    for g in groups:
+        if g.title in ("positional arguments", "options", "optional arguments"):
+            continue
+        out += ["", f"{_cell(g.title[0].upper() + g.title[1:])}:", "", "| flag | default | meaning |", "|---|---|---|",
+                *_flag_rows(parser, g._group_actions)]
+    return "\n".join(out)
+
+
+# ---------------------------------------------------------------- result tables (from the model card)
+
+
+def fmt(value: Any, digits: int = 1) -> str:
+    """A card number as the tables show it: `digits` decimals, '-' where the card has none."""
+    if value is None:
+        return "-"
+    if isinstance(value, int) and not isinstance(value, bool):
+        return str(value)
+    return f"{value:.{digits}f}"
+
+
+def _table(header: list[str], rows: list[list[str]]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def _families(card: dict, block: dict) -> list[str]:
+    """The light families of a card block, in the order of the card's test-set table (the benchmark's
+    order), then any other family of the block by name: none dropped, none listed here."""
+    order = [f for f in card["test_set"]["mean_deg"]["model"] if f != "all"]
+    names = [k for k in block if k != "all"]
+    return [f for f in order if f in names] + sorted(f for f in names if f not in order)
+
+
+def _ball_cat(d: dict, key: str) -> Any:
+    """A DiLiGenT figure, with two decimals where the card records them."""
+    return d.get(key + "_2dp", d.get(key))
+
+
+def readme_headline(card: dict) -> str:
+    test, dil = card["test_set"], card["diligent"]
+    model = test["mean_deg"]["model"]
+    ls = test["mean_deg"].get("least squares (calibrated)", {})
+    probes = test["per_family_probes"]
+    rows = [[f"synthetic test set, all {sum(p['n'] for p in probes.values())} objects", fmt(model["all"]), "-", "-"],
+            [f"synthetic test set, its {probes['directional']['n']} directional-light objects", fmt(model["directional"]),
+             fmt(ls.get("directional")), "-"]]
+    for obj in ("ball", "cat"):
+        o = dil[obj]
+        rows.append([f"DiLiGenT {obj} ({o['images']} images)", fmt(_ball_cat(o, "model_deg"), 2),
+                     fmt(o["least_squares_calibrated_deg"]), fmt(o["published_unips_deg"])])
+    return _table(["mean angular error, degrees (lower is better)", "this model", "calibrated least squares", "published UniPS"], rows)
+
+
+def test_set_methods(card: dict) -> str:
+    mean = card["test_set"]["mean_deg"]
+    fams = _families(card, mean["model"])
+    rows = [[name, *(fmt(v.get(f)) for f in fams), fmt(v.get("all"))] for name, v in mean.items()]
+    n = card["test_set"]["per_family_probes"]
+    header = ["method", *(f"{f} ({n[f]['n']})" if f in n else f for f in fams), "all"]
+    return _table(header, rows)
+
+
+def test_set_probes(card: dict) -> str:
+    test = card["test_set"]
+    return _probe_table(card, test["per_family_probes"], test["probes_deg"], test["photometric_gain_deg"])
+
+
+def validation_probes(card: dict) -> str:
+    v = card["probes_fixed_validation"]
+    return _probe_table(card, v["per_family"], v["probes_deg"], v["photometric_gain_deg"])
+
+
+def _probe_table(card: dict, per_family: dict, overall: dict, gain: float) -> str:
+    rows = [[f, str(p["n"]), fmt(p["all"]), fmt(p["one"]), fmt(p["mask"]), fmt(p["shuffled"]), fmt(p["gain"])]
+            for f, p in ((f, per_family[f]) for f in _families(card, per_family))]
+    rows.append(["all", str(sum(p["n"] for p in per_family.values())), fmt(overall["all"]), fmt(overall["one"]),
+                 fmt(overall["mask"]), fmt(overall["shuffled"]), fmt(gain)])
+    return _table(["family", "objects", "all images", "one image", "mask only", "shuffled", "photometric gain"], rows)
+
+
+def image_count(card: dict) -> str:
+    test = card["test_set"]
+    counts = [k for k in next(iter(test["vs_image_count_deg"].values()))
+              if any(v.get(k) is not None for v in test["vs_image_count_deg"].values())]
+    rows = [[name, *(fmt(v.get(k)) for k in counts), fmt(test["mean_deg"].get(name, {}).get("all"))]
+            for name, v in test["vs_image_count_deg"].items()]
+    return _table(["method", *(f"K={k}" for k in counts), "all images"], rows)
+
+
+def diligent(card: dict) -> str:
+    d = card["diligent"]
+    rows = []
+    for obj in ("ball", "cat"):
+        o = d[obj]
+        rows.append([obj, str(o["images"]), fmt(_ball_cat(o, "model_deg"), 2), fmt(o["model_k16_mean_deg"]), fmt(o["model_mask_only_deg"]),
+                     fmt(o["model_seconds"]), fmt(o["least_squares_calibrated_deg"]), fmt(o["published_l2_deg"], 2),
+                     fmt(o["published_unips_deg"])])
+    return _table(["object", "images", "this model", "this model, 16 images", "mask only", "seconds", "calibrated least squares",
+                   "published least squares", "published UniPS"], rows)
+
+
+def model_facts(card: dict) -> str:
+    t = card["training"]
+    rows = [["model", f"`{card['model']}` ({card['parameters']:,} parameters), `{card['weights']}`"],
+            ["training data", f"{card['train_objects']} rendered objects (see the lineage below)"],
+            ["steps in all", f"{card['steps']} (last stage {t['steps']}, weights of its step {card['best_step']})"],
+            ["training time in all", f"{card['wall_time_s'] / 3600:.2f} h on {card['hardware']}"],
+            ["fixed validation set", f"{fmt(card['validation_mean_deg'], 2)} deg mean angular error"],
+            ["held-out test set", f"{fmt(card['test_set']['mean_deg']['model']['all'])} deg, photometric gain "
+                                  f"{fmt(card['test_set']['photometric_gain_deg'])} deg ({card['test_set']['views']} views)"]]
+    return _table(["", "shipped model"], rows)
+
+
+def _at_best(stage: dict) -> dict:
+    """A lineage stage's fixed-validation probes at its best step."""
+    if "fixed_validation" in stage:
+        return stage["fixed_validation"]
+    return next((c for c in stage.get("curve", []) if c["step"] == stage.get("best_step")), {})
+
+
+def lineage(card: dict) -> str:
+    rows = []
+    for stage in card["lineage"]:
+        fv = _at_best(stage)
+        shipped = "no" if stage.get("shipped") is False or "not shipped" in stage["stage"] else "yes"
+        rows.append([_cell(stage["stage"]), _cell(stage.get("init_from") or "random"), str(stage["steps"]), fmt(stage.get("hours"), 2),
+                     fmt(fv.get("all"), 2), fmt(fv.get("gain"), 2), shipped, _cell(stage["data"])])
+    return _table(["stage", "started from", "steps", "hours", "validation: all images", "photometric gain", "shipped", "data"], rows)
+
+
+def lineage_families(card: dict) -> str:
+    stages = [s for s in card["lineage"] if s.get("per_family_at_best")]
+    fams = _families(card, {f: None for s in stages for f in s["per_family_at_best"]})
+    rows = [[_cell(s["stage"]), *(fmt(s["per_family_at_best"].get(f, {}).get("all"), 2) for f in fams)] for s in stages]
+    return _table(["stage", *fams], rows)
+
+
+# Generated blocks other than flag tables: name -> renderer of the model card.
+BLOCKS: dict[str, Callable[[dict], str]] = {
+    "readme:headline": readme_headline,
+    "model:facts": model_facts,
+    "results:test-set-methods": test_set_methods,
+    "results:test-set-probes": test_set_probes,
+    "results:image-count": image_count,
+    "results:diligent": diligent,
+    "results:validation-probes": validation_probes,
+    "results:lineage": lineage,
+    "results:lineage-families": lineage_families,
+}
+
+
+def render(name: str, card: dict) -> str:
+    if name.startswith("flags:"):
+        module = name.removeprefix("flags:")
+        if module not in CLIS:
+            raise UsageError(f"generated:{name}: unknown CLI {module!r}, expected one of {', '.join(CLIS)}")
+        return flag_table(module)
+    if name not in BLOCKS:
+        raise UsageError(f"generated:{name}: unknown block, expected flags:MODULE or one of {', '.join(BLOCKS)}")
+    return BLOCKS[name](card)
+
+
+# ---------------------------------------------------------------- files
+
+
+def doc_files(root: Path = REPO) -> list[Path]:
+    return [root / "README.md", *sorted((root / "docs").glob("*.md"))]
+
+
+def regenerate(text: str, card: dict, where: str = "") -> tuple[str, list[str]]:
+    """`text` with every generated block rewritten, and the names of its blocks (markers inside fenced code
+    blocks are examples, not blocks)."""
+    lines = text.split("\n")
+    out: list[str] = []
+    names: list[str] = []
+    fenced = False
+    i = 0
+    while i < len(lines):
+        out.append(lines[i])
+        if lines[i].lstrip().startswith("```"):
+            fenced = not fenced
+        m = None if fenced else BEGIN.match(lines[i].strip())
+        i += 1
+        if not m:
+            continue
+        name = m["name"]
+        end = END.format(name=name)
+        try:
+            j = next(k for k in range(i, len(lines)) if lines[k].strip() == end)
+        except StopIteration:
+            raise UsageError(f"{where}: block generated:{name} has no closing line {end!r}") from None
+        out += [render(name, card), end]
+        names.append(name)
+        i = j + 1
+    return "\n".join(out), names
+
+
+def run(check: bool, root: Path = REPO) -> list[Path]:
+    """Regenerate (or, with check, compare) every doc file; the files that were (or would be) changed."""
+    card = json.loads(CARD.read_text())
+    changed, seen = {}, set()
+    for path in doc_files(root):
+        text = path.read_text()
+        new, names = regenerate(text, card, str(path.relative_to(root)))
+        seen.update(names)
+        if new != text:
+            changed[path] = new
+    missing = [m for m in CLIS if f"flags:{m}" not in seen] + [b for b in BLOCKS if b not in seen]
+    if missing:
+        raise UsageError(f"no generated block for {', '.join(missing)} in README.md or docs/*.md")
+    if not check:  # only once every block rendered: an error leaves every file as it was
+        for path, new in changed.items():
+            path.write_text(new)
+    return list(changed)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = UsageErrorParser(prog="python -m orchestrate.docs",
+                         description="Rewrite the generated blocks (flag and result tables) of README.md and docs/*.md.")
+    p.add_argument("--check", action="store_true", help="change nothing; exit 1 when a file is out of date")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    try:
+        args = build_parser().parse_args(argv)
+        stale = run(args.check)
+    except (UsageError, OSError, ValueError) as exc:
+        return report_error(exc)
+    names = ", ".join(str(p.relative_to(REPO)) for p in stale)
+    if args.check:
+        if stale:
+            print(f"error: out of date: {names} (run python -m orchestrate.docs)", file=sys.stderr)
+            return 1
+        print("docs are up to date")
+        return 0
+    print(f"rewrote {names}" if stale else "docs are up to date")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,76 @@
+"""Writes go through a temporary name: a failure (disk full, a kill) never leaves a truncated file under the
+real name, and a rerun of unips.predict recovers from a run that was stopped half-way."""
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from scenes.objfolder import atomic_write, read_normals, write_exr, write_normal_map
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_a_failed_write_leaves_neither_the_file_nor_its_temporary(tmp_path):
+    target = tmp_path / "normal.png"
+
+    def half(tmp: Path) -> None:
+        tmp.write_bytes(b"\x89PNG half")  # what a full disk leaves
+        raise OSError("No space left on device")
+
+    with pytest.raises(OSError, match="No space"):
+        atomic_write(target, half)
+    assert list(tmp_path.iterdir()) == []
+    target.write_bytes(b"old")
+    with pytest.raises(OSError):
+        atomic_write(target, half)
+    assert target.read_bytes() == b"old"  # the previous file is intact
+    assert [p.name for p in tmp_path.iterdir()] == ["normal.png"]
+
+
+def test_image_and_exr_writers_are_atomic(tmp_path, monkeypatch):
+    import cv2
+
+    n = np.zeros((8, 8, 3), np.float32)
+    n[..., 2] = 1
+    write_normal_map(tmp_path / "n.png", n)
+    before = (tmp_path / "n.png").read_bytes()
+    monkeypatch.setattr(cv2, "imwrite", lambda path, img: Path(path).write_bytes(b"trunc") and False)
+    with pytest.raises(OSError, match="could not write"):
+        write_normal_map(tmp_path / "n.png", -n)
+    assert (tmp_path / "n.png").read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["n.png"]
+    monkeypatch.undo()
+    write_exr(tmp_path / "n.exr", n)
+    assert np.array_equal(read_normals(tmp_path / "n.exr"), n)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["n.exr", "n.png"]
+
+
+def test_predict_killed_mid_write_recovers_on_rerun(tmp_path, synthetic_object):
+    out = tmp_path / "pred"
+    # A child process that is SIGKILLed while writing normal.exr (after predict.json and normal.png).
+    script = textwrap.dedent(f"""
+        import os, signal, sys
+        import unips.predict as up
+        def killed(path, data):
+            os.kill(os.getpid(), signal.SIGKILL)
+        up.write_normal_exr = lambda path, n: killed(path, n)
+        sys.exit(up.main(["--method", "least-squares", "--input", {str(synthetic_object)!r}, "--out", {str(out)!r}]))
+    """)
+    r = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == -signal.SIGKILL
+    folder = out / "ball"
+    assert (folder / "predict.json").is_file()  # the folder is marked as this command's
+    assert not (folder / "normal.exr").exists()
+    assert not [p for p in folder.iterdir() if p.stat().st_size == 0]  # nothing truncated under a real name
+    from unips.predict import main
+
+    assert main(["--method", "least-squares", "--input", str(synthetic_object), "--out", str(out)]) == 0
+    assert read_normals(folder / "normal.exr").shape == (32, 32, 3)
+    assert json.loads((folder / "predict.json").read_text())["method"] == "least-squares"

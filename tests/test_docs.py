@@ -1,0 +1,345 @@
+"""The docs are true to the code and the model card.
+
+- the generated blocks of README.md and docs/*.md are what `python -m orchestrate.docs` writes now;
+- every number of a result table equals the model card's figure for that row and column (read here from
+  the Markdown, independently of the generator's code);
+- every flag of every CLI has a row in its flag table, with the default its parser holds and every default
+  its `--help` states;
+- the README is a front page (at most ~150 lines), its examples parse with the real parsers, and every
+  relative link of the docs points to an existing file and heading.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import re
+import shlex
+import shutil
+from pathlib import Path
+
+import pytest
+
+from orchestrate import docs
+
+REPO = Path(__file__).resolve().parents[1]
+CARD = json.loads((REPO / "unips" / "weights" / "model_card.json").read_text())
+README_MAX_LINES = 150
+
+
+def _doc_texts() -> dict[str, str]:
+    return {str(p.relative_to(REPO)): p.read_text() for p in [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]}
+
+
+def _block(name: str) -> str:
+    """The text between the markers of generated block `name` (it must exist exactly once)."""
+    found = []
+    for text in _doc_texts().values():
+        found += re.findall(rf"<!-- BEGIN generated:{re.escape(name)} -->\n(.*?)\n<!-- END generated:{re.escape(name)} -->", text, re.S)
+    assert len(found) == 1, f"generated:{name}: expected one block in README.md / docs/*.md, found {len(found)}"
+    return found[0]
+
+
+def _cells(line: str) -> list[str]:
+    parts = re.split(r"(?<!\\)\|", line.strip())[1:-1]
+    return [p.strip().replace("\\|", "|") for p in parts]
+
+
+def _tables(text: str) -> list[list[dict[str, str]]]:
+    """Every Markdown table of `text` as a list of {header: cell} rows."""
+    tables, lines = [], text.split("\n")
+    for i, line in enumerate(lines):
+        if line.startswith("|") and i + 1 < len(lines) and re.fullmatch(r"\|(---\|)+", lines[i + 1].strip()):
+            header = _cells(line)
+            rows = []
+            for row in lines[i + 2:]:
+                if not row.startswith("|"):
+                    break
+                rows.append(dict(zip(header, _cells(row))))
+            tables.append(rows)
+    return tables
+
+
+def _table(name: str) -> list[dict[str, str]]:
+    tables = _tables(_block(name))
+    assert len(tables) == 1 and tables[0], f"generated:{name}: expected one non-empty table"
+    return tables[0]
+
+
+def _equal(cell: str, value) -> bool:
+    """A table cell shows the card's value at the cell's precision ('-' for none)."""
+    cell = cell.strip("*` ")
+    if value is None:
+        return cell == "-"
+    if not re.fullmatch(r"-?\d+(\.\d+)?", cell):
+        return False
+    decimals = len(cell.partition(".")[2])
+    return round(float(value), decimals) == float(cell)
+
+
+# ---------------------------------------------------------------- generated blocks are current
+
+
+def test_generated_blocks_are_up_to_date():
+    stale = docs.run(check=True)
+    assert not stale, f"out of date: {[str(p) for p in stale]}; run python -m orchestrate.docs"
+    assert docs.main(["--check"]) == 0
+
+
+def test_check_fails_on_a_stale_block_and_rewrite_fixes_it(tmp_path):
+    shutil.copy(REPO / "README.md", tmp_path / "README.md")
+    shutil.copytree(REPO / "docs", tmp_path / "docs")
+    page = tmp_path / "docs" / "results.md"
+    page.write_text(page.read_text().replace("| all | 100 |", "| all | 99 |", 1))
+    assert docs.run(check=True, root=tmp_path) == [page]
+    assert "| all | 99 |" in page.read_text()  # --check changes nothing
+    assert docs.run(check=False, root=tmp_path) == [page]
+    assert docs.run(check=True, root=tmp_path) == []
+
+
+def test_unknown_block_is_refused_and_nothing_is_written(tmp_path):
+    shutil.copy(REPO / "README.md", tmp_path / "README.md")
+    shutil.copytree(REPO / "docs", tmp_path / "docs")
+    before = {p: p.read_text() for p in tmp_path.rglob("*.md")}
+    stale = tmp_path / "docs" / "results.md"
+    stale.write_text(stale.read_text().replace("| all | 100 |", "| all | 99 |", 1))
+    (tmp_path / "docs" / "zz.md").write_text("<!-- BEGIN generated:results:nope -->\n<!-- END generated:results:nope -->\n")
+    with pytest.raises(docs.UsageError, match="results:nope"):
+        docs.run(check=False, root=tmp_path)
+    assert "| all | 99 |" in stale.read_text()  # the valid stale block was not rewritten either
+    assert all(p.read_text() == t for p, t in before.items() if p != stale)
+
+
+# ---------------------------------------------------------------- result tables equal the model card
+
+
+def test_headline_equals_card():
+    rows = {r["mean angular error, degrees (lower is better)"]: r for r in _table("readme:headline")}
+    test, dil = CARD["test_set"], CARD["diligent"]
+    overall = next(r for k, r in rows.items() if k.startswith("synthetic test set, all"))
+    assert _equal(overall["this model"], test["mean_deg"]["model"]["all"])
+    directional = next(r for k, r in rows.items() if "directional" in k)
+    assert _equal(directional["this model"], test["mean_deg"]["model"]["directional"])
+    assert _equal(directional["calibrated least squares"], test["mean_deg"]["least squares (calibrated)"]["directional"])
+    for obj in ("ball", "cat"):
+        row = next(r for k, r in rows.items() if k.startswith(f"DiLiGenT {obj}"))
+        assert _equal(row["this model"], dil[obj]["model_deg_2dp"])
+        assert _equal(row["calibrated least squares"], dil[obj]["least_squares_calibrated_deg"])
+        assert _equal(row["published UniPS"], dil[obj]["published_unips_deg"])
+
+
+PROBE_COLUMNS = {"objects": "n", "all images": "all", "one image": "one", "mask only": "mask", "shuffled": "shuffled",
+                 "photometric gain": "gain"}
+
+
+@pytest.mark.parametrize("name,block", [("results:test-set-probes", CARD["test_set"]),
+                                        ("results:validation-probes", CARD["probes_fixed_validation"])])
+def test_probe_tables_equal_card(name, block):
+    per_family = block.get("per_family_probes") or block["per_family"]
+    rows = _table(name)
+    assert {r["family"] for r in rows} == {*per_family, "all"}  # no family dropped
+    for row in rows:
+        for column, key in PROBE_COLUMNS.items():
+            if row["family"] != "all":
+                want = per_family[row["family"]][key]
+            elif key == "gain":
+                want = block["photometric_gain_deg"]
+            elif key == "n":
+                want = sum(f["n"] for f in per_family.values())
+            else:
+                want = block["probes_deg"][key]
+            assert _equal(row[column], want), f"{name} {row['family']} / {column}: {row[column]} vs card {want}"
+
+
+def test_method_table_equals_card():
+    mean = CARD["test_set"]["mean_deg"]
+    rows = _table("results:test-set-methods")
+    assert [r["method"] for r in rows] == list(mean)
+    for row in rows:
+        for column, cell in row.items():
+            if column != "method":
+                family = column.split(" (")[0]
+                assert _equal(cell, mean[row["method"]].get(family)), f"{row['method']} / {column}"
+
+
+def test_image_count_table_equals_card():
+    test = CARD["test_set"]
+    for row in _table("results:image-count"):
+        for column, cell in row.items():
+            if column.startswith("K="):
+                assert _equal(cell, test["vs_image_count_deg"][row["method"]][column[2:]]), f"{row['method']} / {column}"
+            elif column == "all images":
+                assert _equal(cell, test["mean_deg"][row["method"]]["all"])
+
+
+def test_diligent_table_equals_card():
+    columns = {"images": "images", "this model": "model_deg_2dp", "this model, 16 images": "model_k16_mean_deg",
+               "mask only": "model_mask_only_deg", "seconds": "model_seconds",
+               "calibrated least squares": "least_squares_calibrated_deg", "published least squares": "published_l2_deg",
+               "published UniPS": "published_unips_deg"}
+    rows = _table("results:diligent")
+    assert {r["object"] for r in rows} == {"ball", "cat"}
+    for row in rows:
+        assert set(row) == {"object", *columns}
+        for column, key in columns.items():
+            assert _equal(row[column], CARD["diligent"][row["object"]][key]), f"{row['object']} / {column}"
+
+
+def test_lineage_tables_equal_card():
+    stages = {s["stage"]: s for s in CARD["lineage"]}
+    rows = _table("results:lineage")
+    assert [r["stage"] for r in rows] == list(stages)
+    for row in rows:
+        stage = stages[row["stage"]]
+        assert _equal(row["steps"], stage["steps"]) and _equal(row["hours"], stage["hours"])
+        best = stage.get("fixed_validation") or next(c for c in stage["curve"] if c["step"] == stage["best_step"])
+        assert _equal(row["validation: all images"], best["all"]) and _equal(row["photometric gain"], best["gain"])
+    for row in _table("results:lineage-families"):
+        for family, cell in row.items():
+            if family != "stage":
+                assert _equal(cell, stages[row["stage"]]["per_family_at_best"][family]["all"])
+
+
+def _card_numbers(node) -> list[float]:
+    if isinstance(node, dict):
+        return [x for v in node.values() for x in _card_numbers(v)]
+    if isinstance(node, list):
+        return [x for v in node for x in _card_numbers(v)]
+    return [float(node)] if isinstance(node, (int, float)) and not isinstance(node, bool) else []
+
+
+def test_every_number_of_every_result_table_is_a_card_figure():
+    """Catch-all for a result table added later: each numeric cell is one of the card's figures."""
+    numbers = _card_numbers(CARD)
+    checked = 0
+    for name in docs.BLOCKS:
+        for table in _tables(_block(name)):
+            for row in table:
+                for column, cell in row.items():
+                    value = cell.strip("*` ")
+                    # object counts are sums over families (checked per table above), not card figures
+                    if column != "objects" and re.fullmatch(r"-?\d+(\.\d+)?", value):
+                        assert any(_equal(value, x) for x in numbers), f"generated:{name} {column}: {value} is not in the model card"
+                        checked += 1
+    assert checked > 100
+
+
+# ---------------------------------------------------------------- flag tables match the parsers and --help
+
+
+def _flag_rows(module: str) -> dict[str, dict[str, str]]:
+    rows = {}
+    for table in _tables(_block(f"flags:{module}")):
+        for row in table:
+            invocation = row["flag"].strip("`")
+            for name in invocation.split(", "):
+                rows[name.split(" ")[0]] = row
+    return rows
+
+
+def _expected_default(action: argparse.Action) -> str:
+    if action.required or not action.option_strings:
+        return "required"
+    if action.nargs == 0:
+        return "off"
+    if action.default is None or action.default in ("", []):
+        return "-"
+    if isinstance(action.default, (list, tuple)):
+        return ",".join(map(str, action.default))
+    return str(action.default)
+
+
+@pytest.mark.parametrize("module", docs.CLIS)
+def test_flag_table_has_every_flag_and_default(module):
+    parser = importlib.import_module(module).build_parser()
+    help_text = "".join(parser.format_help().split())  # what `--help` prints, without the wrapping
+    rows = _flag_rows(module)
+    for action in parser._actions:
+        if isinstance(action, argparse._HelpAction):
+            continue
+        name = action.option_strings[0] if action.option_strings else action.metavar or action.dest
+        assert name in rows, f"{module}: {name} has no row in docs"
+        row = rows[name]
+        cell = row["default"].strip("`")
+        shown = " ".join(parser._get_formatter()._expand_help(action).split()) if action.help else ""  # argparse's own
+        stated = [s.strip() for s in re.findall(r"\(default:?\s+((?:[^()]|\([^()]*\))*)\)", shown) if s.strip() != "None"]
+        for value in stated:  # every default that --help states is in the docs' row
+            assert "".join(value.split()) in help_text
+            extra = value[len(cell):].strip(" ;,") if value.startswith(cell) else None
+            assert value.removeprefix("./") == cell.removeprefix("./") or (extra and extra in row["meaning"]) \
+                or value in row["meaning"], f"{module} {name}: --help says default {value!r}, docs say {cell!r}"
+        expected = _expected_default(action)
+        if expected == "-" and stated:
+            expected = stated[0]
+        assert cell == expected, f"{module} {name}: docs say default {cell!r}, the parser {expected!r}"
+        if action.default is not None and stated and expected not in ("required", "off"):
+            # a help text that states another default than its parser holds is stale
+            assert any(s.removeprefix("./").startswith(expected.removeprefix("./")) for s in stated), \
+                f"{module} {name}: --help states {stated}, the parser's default is {expected!r}"
+
+
+def test_every_cli_has_a_flag_table_and_is_documented_once():
+    text = "\n".join(_doc_texts().values())
+    for module in docs.CLIS:
+        assert text.count(f"<!-- BEGIN generated:flags:{module} -->") == 1, module
+
+
+# ---------------------------------------------------------------- README and links
+
+
+def test_readme_is_a_front_page():
+    readme = (REPO / "README.md").read_text()
+    lines = readme.splitlines()
+    assert len(lines) <= README_MAX_LINES, f"README.md has {len(lines)} lines; keep it a front page (move details to docs/)"
+    for needed in ("make setup", "source .venv/bin/activate", "make demo", "make test", "GB"):
+        assert needed in readme, needed
+    for page in sorted((REPO / "docs").glob("*.md")):
+        assert f"(docs/{page.name})" in readme, f"README.md does not link docs/{page.name}"
+    assert "(ARCHITECTURE.md)" in readme
+
+
+def _readme_commands() -> list[list[str]]:
+    readme = (REPO / "README.md").read_text()
+    commands = []
+    for block in re.findall(r"```bash\n(.*?)```", readme, re.S):
+        for line in block.replace("\\\n", " ").splitlines():
+            words = shlex.split(line, comments=True)
+            if words[:2] == ["python", "-m"]:
+                commands.append(words[2:])
+    return commands
+
+
+def test_readme_has_one_example_per_cli_and_each_parses():
+    commands = _readme_commands()
+    assert {c[0] for c in commands} >= set(docs.CLIS), f"no README example for {set(docs.CLIS) - {c[0] for c in commands}}"
+    for module, *argv in commands:
+        parser = importlib.import_module(module).build_parser()
+        try:
+            parser.parse_args(argv)
+        except (SystemExit, Exception) as exc:  # UsageErrorParser raises UsageError, argparse SystemExit
+            pytest.fail(f"README example python -m {module} {' '.join(argv)} does not parse: {exc}")
+
+
+def _slug(heading: str) -> str:
+    """GitHub's anchor of a heading."""
+    text = heading.strip().lower()
+    text = re.sub(r"[^\w\- ]", "", text)
+    return text.replace(" ", "-")
+
+
+def _anchors(path: Path) -> set[str]:
+    text = re.sub(r"```.*?```", "", path.read_text(), flags=re.S)
+    return {_slug(h) for h in re.findall(r"^#+ (.+)$", text, re.M)}
+
+
+def test_relative_links_resolve():
+    for name, text in {**_doc_texts(), "ARCHITECTURE.md": (REPO / "ARCHITECTURE.md").read_text()}.items():
+        base = (REPO / name).parent
+        for target in re.findall(r"\]\(([^)\s]+)\)", text):
+            if re.match(r"[a-z]+://", target):
+                continue
+            file, _, anchor = target.partition("#")
+            path = (base / file).resolve() if file else REPO / name
+            assert path.exists(), f"{name}: link to {target} (no such file)"
+            if anchor:
+                assert anchor in _anchors(path), f"{name}: link to {target} (no such heading)"

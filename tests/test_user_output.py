@@ -1,0 +1,56 @@
+"""What a user sees: degenerate maps are flagged, tables explain their columns."""
+from __future__ import annotations
+
+import numpy as np
+
+from test_unips_data import sphere
+
+
+def _tilt(n: np.ndarray, deg: np.ndarray) -> np.ndarray:
+    """Each normal turned by its own angle about the x axis."""
+    a = np.radians(deg)[..., None]
+    out = n.copy()
+    out[..., 1] = n[..., 1] * np.cos(a[..., 0]) - n[..., 2] * np.sin(a[..., 0])
+    out[..., 2] = n[..., 1] * np.sin(a[..., 0]) + n[..., 2] * np.cos(a[..., 0])
+    return out
+
+
+def test_near_constant_maps_are_flagged_and_real_surfaces_are_not():
+    from unips.predict import CONSTANT_DEG, constant_map
+
+    n, mask = sphere(32)
+    assert not constant_map(n, mask)  # a sphere deviates by tens of degrees
+    flat = np.zeros_like(n)
+    flat[mask] = (0, 0, 1)
+    assert constant_map(flat, mask)
+    rng = np.random.default_rng(0)
+    # mean deviation ~0.45 deg, with a few pixels off by 5 deg: a maximum rule (every pixel within
+    # CONSTANT_DEG) misses it, the mean rule flags it
+    deg = np.abs(rng.normal(0, 0.5, mask.shape))
+    ys, xs = np.nonzero(mask)
+    deg[ys[:3], xs[:3]] = 5.0
+    near = _tilt(flat, deg)
+    assert constant_map(near, mask)
+    gentle = _tilt(flat, np.where(mask, np.linspace(-15, 15, mask.shape[0])[:, None] * np.ones(mask.shape), 0))
+    assert not constant_map(gentle, mask)  # a gently curved surface (+-15 deg) is not constant
+
+
+def test_demo_summary_explains_every_column(tmp_path):
+    import json
+
+    from orchestrate.demo import summary_table
+
+    for m in ("model", "least-squares"):
+        (tmp_path / "pred" / m).mkdir(parents=True)
+        (tmp_path / "pred" / m / "metrics.json").write_text(json.dumps(
+            {"objects": {"00000": {"mae_deg": 12.5, "light_family": "directional"}}, "mean_mae_deg": 12.5}))
+        (tmp_path / "rerender" / m / "00000").mkdir(parents=True)
+        (tmp_path / "rerender" / m / "00000" / "report.json").write_text(json.dumps(
+            {"object": "00000", "rel_l1": 0.05, "coverage": 0.9, "gt_rel_l1": 0.01}))
+    table = summary_table(tmp_path, ["model", "least-squares"])
+    header = table.splitlines()[0].strip("| ").split(" | ")
+    explained = "\n".join(line for line in table.splitlines() if line.startswith("- "))
+    for column in header:
+        generic = column.replace("least-squares", "<method>").replace("model", "<method>")
+        assert f"**{generic}**" in explained, column
+    assert "(90% covered)" in table and "90% covered" in explained

@@ -1,0 +1,176 @@
+"""Building a model: fresh, from its shipped weights, or from a model file (and the model file formats).
+
+    from unips.models import create_model
+
+    create_model("glc-test")                                   # fresh weights (random initialisation)
+    create_model("glc-tiny", pretrained=True)                  # the shipped weights, eval mode
+    create_model("glc-tiny", checkpoint_path="best.safetensors")  # any model file of that model, eval mode
+
+Shipping format: `NAME.safetensors` holds the state dict; `NAME.json` next to it holds
+`{"format": ..., "model_name": ..., "config": {...}, "extra": {...}}`, enough to rebuild the network with
+the registry's factory and load the weights strictly. A training checkpoint (`.pt`, written by
+`unips.checkpoint.save_training_checkpoint`) holds the same model description and state plus the
+optimiser; `load_model` reads the model out of either.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+from typing import Any, Mapping
+
+import torch
+from torch import nn
+
+from .registry import build_model, pretrained_weights
+
+WEIGHTS_FORMAT = "unips-weights/1"
+TRAINING_FORMAT = "unips-training/1"
+
+
+def create_model(name: str, pretrained: bool = False, checkpoint_path: str | Path | None = None,
+                 device: str | torch.device = "cpu", **overrides: Any) -> nn.Module:
+    """Model `name` of the registry (timm's `create_model(name, pretrained=..., checkpoint_path=...)`).
+
+    checkpoint_path: a model file (.safetensors with its .json, or a training .pt) whose recorded model is
+    `name`, loaded in eval mode; pretrained: the shipped weights of `name` (the registry's pretrained entry;
+    FileNotFoundError when they are not shipped, never fresh weights instead); neither: fresh weights with
+    config `overrides` (training mode, as torch builds modules).
+    """
+    if checkpoint_path is None and not pretrained:
+        return build_model(name, **overrides).to(device)
+    if overrides:
+        raise ValueError(f"overrides {sorted(overrides)}: not allowed with weights (the file holds the config)")
+    path = Path(checkpoint_path) if checkpoint_path is not None else pretrained_weights(name)
+    model, meta = load_model(path, map_location=device)
+    if meta.get("model_name") != name:
+        raise ValueError(f"checkpoint_path: {str(path)!r} holds model {meta.get('model_name')!r}, not {name!r}")
+    return model
+
+
+def sidecar_path(path: str | Path) -> Path:
+    """JSON sidecar of a `.safetensors` weights file."""
+    return Path(path).with_suffix(".json")
+
+
+def model_description(model: nn.Module) -> dict[str, Any]:
+    """`{"model_name", "config"}` of a registry-built model."""
+    name = getattr(model, "model_name", None)
+    config = getattr(model, "config", None)
+    if not name or config is None:
+        raise ValueError("model: expected a module built by unips.models.create_model "
+                         "(with .model_name and .config)")
+    return {"model_name": name, "config": dataclasses.asdict(config)}
+
+
+def save_checkpoint(path: str | Path, model: nn.Module, extra: Mapping[str, Any] | None = None) -> Path:
+    """Write the shipping weights `path` (.safetensors) and its JSON sidecar; returns `path`."""
+    from safetensors.torch import save_file
+
+    path = Path(path)
+    if path.suffix != ".safetensors":
+        raise ValueError(f"path: got {str(path)!r}, expected a file name ending in .safetensors")
+    meta = {"format": WEIGHTS_FORMAT, **model_description(model), "extra": dict(extra or {})}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    state = {k: v.detach().contiguous().cpu() for k, v in model.state_dict().items()}
+    # Write to temporary names and rename, so a reader never sees half a file.
+    tmp_w, tmp_j = path.with_name(path.name + ".tmp"), sidecar_path(path).with_name(sidecar_path(path).name + ".tmp")
+    save_file(state, str(tmp_w), metadata={"model_name": meta["model_name"]})
+    tmp_j.write_text(json.dumps(meta, indent=2, sort_keys=True))
+    tmp_w.replace(path)
+    tmp_j.replace(sidecar_path(path))
+    return path
+
+
+def load_state_strict(model: nn.Module, state: Mapping[str, torch.Tensor], source: str = "checkpoint") -> None:
+    """Load `state` into `model`; missing / unexpected keys or shape mismatches raise ValueError."""
+    own = model.state_dict()
+    missing = [k for k in own if k not in state]
+    unexpected = [k for k in state if k not in own]
+    if missing or unexpected:
+        raise ValueError(f"{source}: state does not match the model: missing tensors {missing[:5]}"
+                         f"{'...' if len(missing) > 5 else ''}, unexpected tensors {unexpected[:5]}"
+                         f"{'...' if len(unexpected) > 5 else ''}")
+    for k, v in own.items():
+        if tuple(state[k].shape) != tuple(v.shape):
+            raise ValueError(f"{source}: tensor {k!r} has shape {tuple(state[k].shape)} in the file "
+                             f"but {tuple(v.shape)} in the model built from its config")
+    model.load_state_dict(state, strict=True)
+
+
+def _build(meta: Mapping[str, Any], source: str) -> nn.Module:
+    if not isinstance(meta, Mapping):
+        raise ValueError(f"{source}: expected a JSON object with model_name and config, got {type(meta).__name__}")
+    for key in ("model_name", "config"):
+        if key not in meta:
+            raise ValueError(f"{source}: missing key {key!r} (expected model_name and config)")
+    if not isinstance(meta["config"], Mapping):
+        raise ValueError(f"{source}: 'config' must be a JSON object, got {type(meta['config']).__name__}")
+    try:
+        return build_model(meta["model_name"], **meta["config"])
+    except (TypeError, KeyError) as exc:  # unknown model name or config keys
+        raise ValueError(f"{source}: cannot build model {meta['model_name']!r} from its config ({exc})") from exc
+
+
+def _first_line(exc: BaseException) -> str:
+    """`Type: first line` of a decoder's exception; torch's advice about `weights_only` (never to be followed
+    for an untrusted file) is left out."""
+    text = str(exc).strip().splitlines()
+    if not text or "weights_only" in text[0]:
+        return type(exc).__name__
+    return f"{type(exc).__name__}: {text[0][:160]}"
+
+
+def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> tuple[nn.Module, dict[str, Any]]:
+    """Rebuild a model from shipping weights (.safetensors + .json) or a training checkpoint (.pt).
+
+    Returns `(model in eval mode, meta)`; meta holds model_name, config and extra (and, for a
+    training checkpoint, step, data and git_revision).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"model file not found: {str(path)!r}")
+    if path.suffix == ".pt":
+        ckpt = load_training_checkpoint(path, map_location=map_location)
+        model = _build(ckpt, str(path))
+        load_state_strict(model, ckpt["model"], str(path))
+        meta = {k: ckpt[k] for k in ("model_name", "config", "step", "data", "git_revision", "extra") if k in ckpt}
+        return model.to(map_location).eval(), meta
+    if path.suffix != ".safetensors":
+        raise ValueError(f"path: got {str(path)!r}, expected a .safetensors or .pt file")
+    side = sidecar_path(path)
+    if not side.is_file():
+        raise FileNotFoundError(f"model sidecar not found: {str(side)!r} (needed next to {str(path)!r})")
+    try:
+        meta = json.loads(side.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{str(side)!r}: not valid JSON ({exc})") from exc
+    from safetensors.torch import load_file
+
+    model = _build(meta, str(side))
+    try:
+        state = load_file(str(path), device=str(map_location))
+    except Exception as exc:  # safetensors raises its own error type (and others) for corrupt files
+        raise ValueError(f"{str(path)!r}: not a readable .safetensors weights file ({_first_line(exc)})") from exc
+    load_state_strict(model, state, str(path))
+    return model.to(map_location).eval(), meta
+
+
+def load_training_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") -> dict[str, Any]:
+    """Read a training checkpoint written by `unips.checkpoint.save_training_checkpoint`."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"training checkpoint not found: {str(path)!r}")
+    try:
+        ckpt = torch.load(path, map_location=map_location, weights_only=True)
+    except Exception as exc:  # truncated or corrupt files raise from pickle, zipfile or torch itself
+        raise ValueError(f"{str(path)!r}: not a readable training checkpoint, the file is corrupt or truncated "
+                         f"({_first_line(exc)})") from exc
+    if not isinstance(ckpt, dict) or ckpt.get("format") != TRAINING_FORMAT:
+        raise ValueError(f"{str(path)!r}: not a training checkpoint (expected format {TRAINING_FORMAT!r})")
+    missing = [k for k in ("model_name", "config", "model", "optimizer", "scheduler", "step", "rng", "data", "extra")
+               if k not in ckpt]
+    if missing:
+        raise ValueError(f"{str(path)!r}: training checkpoint lacks {', '.join(missing)}")
+    return ckpt
