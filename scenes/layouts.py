@@ -393,6 +393,20 @@ def _read_stack(paths: list[Path]) -> tuple[np.ndarray, np.ndarray | None]:
     return stack, (saturated if saturated.any() else None)
 
 
+def _check_informative(images: np.ndarray, saturated: np.ndarray | None, mask: np.ndarray, folder: Path, arg: str) -> None:
+    """Refuse a capture in which no image carries information about the object: every image constant inside
+    the mask (all black, or one flat value), or every object pixel clipped in every image."""
+    inside = images[:, mask]  # (K, P, 3)
+    if np.all(inside.max(axis=1) == inside.min(axis=1)):
+        value = float(inside.flat[0]) if inside.size else 0.0
+        what = "black" if value == 0.0 else f"one flat value ({value:.3g})"
+        raise ValueError(f"{arg}: every image of {folder} is {what} inside the object mask; expected photographs of "
+                         "the object under changing light")
+    if saturated is not None and np.all(saturated[:, mask]):
+        raise ValueError(f"{arg}: every object pixel of every image of {folder} is saturated (at the file's largest "
+                         "code); expected an exposure that leaves the object below white")
+
+
 def read_folder(path: str | Path, max_images: int | None = None, layout: str | None = None, images: bool = True,
                 arg: str = "path") -> FolderData:
     """Read one object folder of any layout in `LAYOUT_TABLE`.
@@ -433,6 +447,8 @@ def read_folder(path: str | Path, max_images: int | None = None, layout: str | N
         raise FileNotFoundError(f"mask file {mask_path} does not exist (a {layout} folder needs one)")
     else:
         mask, mask_file = np.ones(shape, dtype=bool), None
+    if stack is not None:
+        _check_informative(stack, saturated, mask, folder, arg)
     normals = normals_file = None
     for name in entry.ground_truth:
         if (folder / name).is_file():

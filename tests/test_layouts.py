@@ -196,3 +196,23 @@ def test_max_images_cuts_lights_after_checking_all(tmp_path):
     for bad in (0, -1, 2.5, True):
         with pytest.raises(ValueError, match="max_images"):
             read_folder(folder, max_images=bad)
+
+
+def test_captures_without_information_are_refused_by_every_reader(tmp_path):
+    black = tmp_path / "black"
+    write_unips(black)
+    for f in black.glob("L*.png"):
+        write_png16(f, np.zeros((24, 24, 3)))
+    white = tmp_path / "white"
+    write_unips(white)
+    for f in white.glob("L*.png"):
+        write_png16(f, np.ones((24, 24, 3)))
+    for reader in _readers().values():
+        with pytest.raises(ValueError, match="every image .* is black inside the object mask"):
+            reader(black)
+        with pytest.raises(ValueError, match="every image .* is one flat value|saturated"):
+            reader(white)
+    one_dark = tmp_path / "one_dark"  # a single dark image among lit ones is a capture, not an error
+    write_unips(one_dark)
+    write_png16(one_dark / "L00.png", np.zeros((24, 24, 3)))
+    assert load_object(one_dark).num_images == 5

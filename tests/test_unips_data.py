@@ -163,7 +163,7 @@ def test_max_images_natural_order(tmp_path):
     folder = tmp_path / "nat"
     folder.mkdir()
     for i in (1, 2, 10, 11):
-        img = np.full((8, 8, 3), i / 20.0)
+        img = np.full((8, 8, 3), i / 20.0) + np.linspace(0, 0.01, 8)[None, :, None]  # not flat: flat captures are refused
         write_png16(folder / f"L{i}.png", img)
     obj = load_object(folder, max_images=3)
     assert obj.image_names == ["L1.png", "L2.png", "L10.png"]
