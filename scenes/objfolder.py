@@ -166,6 +166,11 @@ def atomic_write(path: str | Path, write) -> None:
     try:
         write(tmp)
         os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        if str(path) in str(exc):
+            raise
+        raise OSError(exc.errno, f"could not write {str(path)!r}: {exc.strerror or exc}") from exc
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
@@ -177,11 +182,11 @@ def _imwrite(path: Path, image: np.ndarray, mkdir: bool = False) -> None:
     if mkdir:
         path.parent.mkdir(parents=True, exist_ok=True)
 
-    def write(tmp: Path) -> None:
-        if not cv2.imwrite(str(tmp), image):
-            raise OSError(f"could not write {str(path)!r} (unsupported extension, unwritable or disk full)")
-
-    atomic_write(path, write)
+    # Encoded in memory and written by Python: cv2.imwrite reports success on a full disk (0-byte file).
+    ok, data = cv2.imencode(path.suffix, image)
+    if not ok:
+        raise OSError(f"could not encode {str(path)!r} (unsupported extension {path.suffix!r})")
+    atomic_write(path, lambda tmp: tmp.write_bytes(data.tobytes()))
 
 
 def write_png16(path: str | Path, rgb: np.ndarray) -> None:
@@ -280,8 +285,11 @@ def write_exr(path: str | Path, data: np.ndarray) -> None:
 
     def write(tmp: Path) -> None:
         # OpenEXR replaces the dict's values with Channel objects: hand it a copy.
-        with OpenEXR.File(header, dict(channels)) as f:
-            f.write(str(tmp))
+        try:
+            with OpenEXR.File(header, dict(channels)) as f:
+                f.write(str(tmp))
+        except RuntimeError as exc:  # OpenEXR reports a full disk or an unwritable folder this way
+            raise OSError(f"could not write {str(path)!r}: {exc}") from exc
 
     atomic_write(path, write)
 

@@ -35,14 +35,18 @@ def test_a_failed_write_leaves_neither_the_file_nor_its_temporary(tmp_path):
 
 
 def test_image_and_exr_writers_are_atomic(tmp_path, monkeypatch):
-    import cv2
-
     n = np.zeros((8, 8, 3), np.float32)
     n[..., 2] = 1
     write_normal_map(tmp_path / "n.png", n)
     before = (tmp_path / "n.png").read_bytes()
-    monkeypatch.setattr(cv2, "imwrite", lambda path, img: Path(path).write_bytes(b"trunc") and False)
-    with pytest.raises(OSError, match="could not write"):
+    real = Path.write_bytes
+
+    def full_disk(self, data):
+        real(self, data[:10])  # part of the file, then the disk is full
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(Path, "write_bytes", full_disk)
+    with pytest.raises(OSError, match="could not write .*n.png.*No space"):
         write_normal_map(tmp_path / "n.png", -n)
     assert (tmp_path / "n.png").read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["n.png"]
@@ -74,3 +78,35 @@ def test_predict_killed_mid_write_recovers_on_rerun(tmp_path, synthetic_object):
     assert main(["--method", "least-squares", "--input", str(synthetic_object), "--out", str(out)]) == 0
     assert read_normals(folder / "normal.exr").shape == (32, 32, 3)
     assert json.loads((folder / "predict.json").read_text())["method"] == "least-squares"
+
+
+@pytest.fixture
+def tiny_disk(tmp_path):
+    """A 4 KiB tmpfs (root only; skipped where mounting is not allowed): room for predict.json, not for a map."""
+    mnt = tmp_path / "tiny"
+    mnt.mkdir()
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=4k", "tmpfs", str(mnt)], capture_output=True, text=True)
+    if r.returncode != 0:
+        pytest.skip(f"cannot mount a small tmpfs here: {r.stderr.strip()}")
+    yield mnt
+    subprocess.run(["umount", str(mnt)], check=False)
+
+
+def test_full_disk_leaves_no_truncated_file_and_the_summary_says_none_was_written(tiny_disk, tmp_path, synthetic_object):
+    import shutil
+
+    from unips.predict import main
+
+    data = tmp_path / "data"
+    data.mkdir()
+    shutil.copytree(synthetic_object, data / "a.data")
+    shutil.copytree(synthetic_object, data / "b.data")
+    r = subprocess.run([sys.executable, "-m", "unips.predict", "--method", "least-squares", "--input", str(data),
+                        "--out", str(tiny_disk / "pred")], cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == 1, r.stderr
+    assert "Traceback" not in r.stderr
+    assert "none was written" in r.stderr and "No space left" in r.stderr and "normal.png" in r.stderr
+    files = [p for p in (tiny_disk / "pred").rglob("*") if p.is_file()]
+    assert files and all(p.name == "predict.json" for p in files)  # no map, no temporary left behind
+    assert all(p.stat().st_size > 0 for p in files)
+    assert main(["--method", "least-squares", "--input", str(synthetic_object), "--out", str(tiny_disk / "p2")]) == 2

@@ -146,7 +146,7 @@ def main(argv: list[str] | None = None) -> int:
                                  file=sys.stderr, disable=len(folders) < 2):
             try:
                 if len(folders) == 1:
-                    print(f"predicting {name} with --method {args.method} ...", file=sys.stderr, flush=True)
+                    print(f"predicting {name} with --method {args.method} ...", flush=True)
                 _predict_one(args, net, folder, name)
                 written.append(name)
             except (*INPUT_ERRORS, OSError, np.linalg.LinAlgError) as exc:
