@@ -1,9 +1,11 @@
 # Two commands do everything on a fresh machine: `make demo` (the main job) and `make test`.
+# `make test` leaves out the tests marked `slow` (pytest.mark.slow, pyproject.toml); `make test-slow` runs only
+# those; CI (.ci/run) runs both.
 VENV ?= .venv
 PY := $(VENV)/bin/python
 DEMO_OUT ?= demo_out
 
-.PHONY: setup demo test docs bench clean
+.PHONY: setup demo test test-slow docs bench clean
 
 setup:
 	EXTRAS=$(EXTRAS) bash scripts/setup.sh
@@ -12,7 +14,12 @@ demo: setup
 	$(PY) -m orchestrate.demo --out $(DEMO_OUT)
 
 test: setup
-	$(PY) -m pytest -q -x --durations=15 tests
+	$(PY) -m pytest -q -x --durations=15 -m "not slow" tests
+
+# pytest exits 5 when no test is selected: with no test marked slow there is nothing to fail.
+test-slow: setup
+	$(PY) -m pytest -q -x --durations=15 -m slow tests; status=$$?; \
+	if [ $$status -eq 5 ]; then echo "test-slow: no test is marked slow"; exit 0; fi; exit $$status
 
 docs: setup
 	$(PY) -m orchestrate.docs

@@ -1,4 +1,4 @@
-"""Fitted mode of the re-render check and refinement (issue 13): the figures of the README.
+"""Fitted mode of the re-render check and refinement: the figures of docs/check.md, "How well it works".
 
     python bench/bench_fit.py [--diligent ../shared/data/diligent] [--synthetic 3] [--threads T] [--tta N] [--out bench_fit.json]
 

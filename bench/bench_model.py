@@ -67,7 +67,7 @@ def run_train_case(res: int, k: int, batch: int, pixels: int, threads: int, step
     import torch
 
     from unips.models import create_model
-    from unips.train import Sample, make_batch, normal_loss
+    from unips.train_data import Sample, make_batch, normal_loss
 
     torch.set_num_threads(threads)
     torch.manual_seed(0)

@@ -47,7 +47,7 @@ def table(run: Path, families: bool = False) -> str:
         lines.append(f"| {r['step']} | {v.get('elapsed_s', 0) / 3600:.2f} | "
                      + " | ".join(_cell(p.get(k)) for k in PROBE_TITLES) + f" | {_cell(v.get('gain'))} |")
     if families and rows:
-        last = rows[-1]["val"]  # unips.train.validate renames summarise's "mean" dict to "probes"
+        last = rows[-1]["val"]  # unips.train_data.probe_samples renames summarise's "mean" dict to "probes"
         lines += ["", f"per family at step {rows[-1]['step']}:", "", format_table({**last, "mean": last["probes"]})]
     return "\n".join(lines)
 

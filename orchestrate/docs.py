@@ -55,7 +55,7 @@ def _cell(text: str) -> str:
     words = []
     for word in str(text).split():
         if ("<" in word or "*" in word) and "`" not in word and len(word) > 1:
-            core = word.strip("(),;:")
+            core = word.strip("(),;:").rstrip(".")  # a sentence's full stop stays outside the code span
             if core:
                 start = word.index(core)
                 word = f"{word[:start]}`{core}`{word[start + len(core):]}"

@@ -187,13 +187,14 @@ def _val_probes(weights: Path, val: Path, threads: int) -> dict:
     import torch
 
     from unips.models import load_model
-    from unips.train import TrainConfig, load_samples, validate
+    from unips.train import TrainConfig
+    from unips.train_data import load_samples, probe_samples
 
     torch.set_num_threads(threads)
     cfg = TrainConfig()
     model, _ = load_model(weights)
-    res = validate(model, load_samples(val, cfg.res), cfg.max_images, torch.device("cpu"), probes=cfg.val_probes,
-                   pixels=cfg.val_pixels)
+    res = probe_samples(model, load_samples(val, cfg.res), cfg.max_images, torch.device("cpu"), probes=cfg.val_probes,
+                        pixels=cfg.val_pixels)
     res.pop("objects", None)
     return res
 
@@ -214,7 +215,7 @@ def shipped_name(args: RecipeOptions) -> str:
 
 
 def _probe_card(res: dict, val_pixels: int) -> dict:
-    """The model card's form of a validation summary (`unips.probes.summarise` via unips.train.validate)."""
+    """The model card's form of a validation summary (`unips.probes.summarise` via unips.train_data.probe_samples)."""
     def r(v: float) -> float:
         return round(float(v), 1)
 

@@ -3,7 +3,15 @@
 Defined at the bottom layer so that `wildgen`, `unips`, `validate` and `orchestrate` CLIs share it without
 importing each other: a CLI raises `UsageError` (or lets its library raise ValueError /
 FileNotFoundError), and its `main` turns that into one line `error: ...` on stderr and a non-zero exit
-status with `report_error`, never a traceback.
+status with `report_error`, never a traceback. `check_output_folder` refuses an output folder that cannot
+be written before any work (`make_output_folder` then creates it).
+
+Also here, so that every command applies them the same way before any work:
+- `claim_outputs`: the one rule of `--overwrite` (see its docstring and docs/development.md, "Outputs and
+  --overwrite");
+- `check_memory` / `available_memory`: a command whose size a flag controls estimates the bytes it needs and
+  refuses, in one line with the estimate and the limit, what this machine cannot hold;
+- `check_threads`: a thread count this machine cannot start is refused by its flag.
 """
 from __future__ import annotations
 
@@ -11,7 +19,8 @@ import argparse
 import os
 import sys
 from contextlib import contextmanager
-from typing import Callable, Iterator, NoReturn
+from pathlib import Path
+from typing import Callable, Iterable, Iterator, NoReturn
 
 EXIT_USAGE = 2
 """Exit status of a usage or input error (argparse's own)."""
@@ -55,6 +64,142 @@ def check_output_folder(path: str | os.PathLike, flag: str = "--out") -> str | o
     if not os.access(parent, os.W_OK | os.X_OK):
         raise UsageError(f"{flag}: cannot create the folder {str(path)!r}: {parent!r} is not writable")
     return path
+
+
+def make_output_folder(path: str | os.PathLike, flag: str = "--out") -> str | os.PathLike:
+    """`check_output_folder`, then create the folder (and its parents); a failure is a UsageError naming
+    `flag`. Returns `path`."""
+    check_output_folder(path, flag)
+    try:
+        os.makedirs(path, exist_ok=True)
+    except OSError as exc:
+        raise UsageError(f"{flag}: cannot create the folder {str(path)!r} ({exc.strerror or exc})") from None
+    return path
+
+
+def claim_outputs(paths: Iterable[str | os.PathLike], overwrite: bool, flag: str = "--out", owner: str = "this command",
+                  marker: str | os.PathLike | None = None, folders: bool = False) -> list[Path]:
+    """The one rule of every command that writes, applied before any work to the outputs it is about to write.
+
+    - An output that does not exist yet is written.
+    - An output that exists is an earlier run's: without `overwrite` the command refuses (UsageError naming it
+      and --overwrite); with `overwrite` it is replaced (a file atomically, by its writer).
+    - Never replaced, even with `overwrite`: anything of another kind under an output's name (a folder or a
+      link where a file is written, a file where a folder is), and, when `marker` is given (the file that marks
+      a folder as a command's own, e.g. predict.json or manifest.json), any output that exists while the
+      marker does not: those are not the command's files.
+
+    `folders`: the outputs are folders (e.g. object folders) rather than files. Files that are not among
+    `paths` are never touched. Returns the outputs that exist (those to be replaced).
+    """
+    paths = [Path(p) for p in paths]
+    existing = [p for p in paths if os.path.lexists(p)]
+    want = "a folder" if folders else "a file"
+    for p in existing:
+        if p.is_symlink() or not (p.is_dir() if folders else p.is_file()):
+            kind = "a link" if p.is_symlink() else "a folder" if p.is_dir() else "a file" if p.is_file() else "not a plain file"
+            raise UsageError(f"{flag}: {str(p)!r} is {kind}, where {owner} writes {want}; it is never replaced: "
+                             f"move it away or use another {flag}")
+    if existing and marker is not None and not os.path.lexists(marker):
+        more = f" (and {len(existing) - 1} more)" if len(existing) > 1 else ""
+        raise UsageError(f"{flag}: {str(existing[0])!r}{more} was not written by {owner} (no {Path(marker).name} in "
+                         f"{str(Path(marker).parent)!r}); it is never replaced, even with --overwrite: move it away or "
+                         f"use another {flag}")
+    if existing and not overwrite:
+        more = f" (and {len(existing) - 1} more)" if len(existing) > 1 else ""
+        raise UsageError(f"{flag}: {str(existing[0])!r}{more} exists, from an earlier run; pass --overwrite to "
+                         f"replace it, or use another {flag}")
+    return existing
+
+
+def _meminfo(key: str) -> int | None:
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith(key + ":"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def _cgroup_left() -> int | None:
+    """Bytes the cgroup (v2 or v1) of this process may still use, or None without a limit."""
+    for limit, usage in (("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
+                         ("/sys/fs/cgroup/memory/memory.limit_in_bytes", "/sys/fs/cgroup/memory/memory.usage_in_bytes")):
+        try:
+            text = Path(limit).read_text().strip()
+            if text == "max" or int(text) >= 2**60:
+                return None
+            return max(0, int(text) - int(Path(usage).read_text().strip()))
+        except (OSError, ValueError):
+            continue
+    return None
+
+
+def available_memory() -> int | None:
+    """Bytes this process may still allocate: the smaller of Linux's MemAvailable and what the cgroup memory
+    limit leaves; None when neither is known (then nothing is refused)."""
+    known = [v for v in (_meminfo("MemAvailable"), _cgroup_left()) if v is not None]
+    return min(known) if known else None
+
+
+def gib(n: float) -> str:
+    """A byte count in GiB for messages."""
+    return f"{n / 2**30:.1f} GiB" if n >= 2**30 / 10 else f"{n / 2**20:.0f} MiB"
+
+
+def check_memory(need: float, flags: str, what: str, advice: str, available: int | None = None) -> None:
+    """Refuse work whose estimated memory `need` (bytes) is more than this machine has available: UsageError
+    `FLAGS: WHAT needs about N GiB of memory, this machine has M GiB available; ADVICE`. `flags` names the flags
+    that set the size, `what` the work (e.g. "the model at 20000 x 20000 px with 4 images")."""
+    available = available_memory() if available is None else available
+    if available is not None and need > available:
+        raise UsageError(f"{flags}: {what} needs about {gib(need)} of memory, this machine has {gib(available)} "
+                         f"available; {advice}")
+
+
+def thread_limit() -> int | None:
+    """Threads this process may still start: the smallest of RLIMIT_NPROC, kernel.threads-max, the cgroup's
+    pids.max and half of vm.max_map_count (each thread's stack takes two memory maps: its pages and a guard
+    page), less the threads already running; None when none is known."""
+    limits = []
+    try:
+        import resource
+
+        soft = resource.getrlimit(resource.RLIMIT_NPROC)[0]
+        if soft != resource.RLIM_INFINITY:
+            limits.append(soft)
+    except (ImportError, OSError, ValueError):
+        pass
+    for path, per_thread in (("/proc/sys/kernel/threads-max", 1), ("/sys/fs/cgroup/pids.max", 1),
+                             ("/proc/sys/vm/max_map_count", 2)):
+        try:
+            text = Path(path).read_text().strip()
+            if text != "max":
+                limits.append(int(text) // per_thread)
+        except (OSError, ValueError):
+            pass
+    if not limits:
+        return None
+    running = 0
+    try:
+        running = sum(1 for _ in Path("/proc/self/task").iterdir())
+    except OSError:
+        pass
+    return max(1, min(limits) - running)
+
+
+def check_threads(threads: int | None, flag: str = "--threads", processes: int = 1) -> None:
+    """Refuse a thread count (per process, `processes` of them) that this machine cannot start, naming `flag`."""
+    limit = thread_limit()
+    if threads is None or limit is None:
+        return
+    if threads * processes > limit:
+        per = f" x {processes} processes" if processes > 1 else ""
+        raise UsageError(f"{flag}: got {threads}{per}, this machine lets this process start at most {limit} more "
+                         f"threads; expected at most {max(1, limit // max(processes, 1))} (one per core is usually best: "
+                         f"{os.cpu_count() or 1})")
 
 
 class UsageErrorParser(argparse.ArgumentParser):

@@ -40,8 +40,9 @@ def option(default: Any = dataclasses.MISSING, *, default_factory: Any = datacla
     flag: the option name (default `--field-name`; a bool field whose default is True gets `--no-field-name`).
     minimum / maximum: inclusive bounds; above / below: exclusive bounds (numbers are also checked finite).
     choices: allowed values (of each element for a list). required / positional: as in argparse.
-    cli: False keeps the field off the command line. sep: a list given as one string split at `sep`;
-    repeat: the flag may be given several times (values split at `sep`, default ','), replacing the default.
+    cli: False keeps the field off the command line. sep: a list option's values are split at `sep`
+    (default ','; '' keeps each value whole); repeat: the flag may be given several times, the values add up
+    (the first use replaces the default).
     parse: converts the string the user typed (the default of a flag is shown as the dataclass default).
     default_text: what `--help` says for the default instead of the value (e.g. "the recorded spp").
     expose: for a nested config, the names of its fields that become flags (default: all of them).
@@ -131,6 +132,23 @@ def undocumented_fields(cls: type) -> list[str]:
         if _base_type(f) == "nested":
             missing += undocumented_fields(type(_default(f)))
     return missing
+
+
+def flagged_fields(cls: type, only: Sequence[str] | None = None) -> Iterable[tuple[dataclasses.Field, Any]]:
+    """(field, its default) of every field of `cls` that has a flag, the fields of nested configs included."""
+    for f in dataclasses.fields(cls):
+        meta = _meta(f)
+        if not meta.get("cli", True) or (only is not None and f.name not in only):
+            continue
+        if _base_type(f) == "nested":
+            yield from flagged_fields(type(_default(f)), meta.get("expose"))
+        else:
+            yield f, _default(f)
+
+
+def is_switch(f: dataclasses.Field) -> bool:
+    """A bool field: a flag without a value."""
+    return _base_type(f) == "bool"
 
 
 # ---------------------------------------------------------------- checks

@@ -189,6 +189,12 @@ def _imwrite(path: Path, image: np.ndarray, mkdir: bool = False) -> None:
     atomic_write(path, lambda tmp: tmp.write_bytes(data.tobytes()))
 
 
+def write_picture(path: str | Path, bgr: np.ndarray) -> None:
+    """Write a picture for people (figure, contact sheet, error map: 8-bit BGR as OpenCV draws it; the format
+    from the extension) atomically, detecting a full disk."""
+    _imwrite(Path(path), np.ascontiguousarray(bgr), mkdir=True)
+
+
 def write_png16(path: str | Path, rgb: np.ndarray) -> None:
     """(H, W, 3) float in [0, 1] or uint16 -> 16-bit RGB PNG (no gamma: linear values)."""
     data = rgb if rgb.dtype == np.uint16 else to_uint16(rgb)
@@ -501,6 +507,14 @@ def prediction_label(source: str | Path) -> str:
 # ---------------------------------------------------------------------------------- angular error
 
 
+def angles_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angles in degrees between the vectors of two arrays of shape (..., 3), normalised first, in float64
+    (light directions, normals): the one angle formula of the toolkit."""
+    a = _unit(np.asarray(a, np.float64))
+    b = _unit(np.asarray(b, np.float64))
+    return np.degrees(np.arccos(np.clip(np.sum(a * b, axis=-1), -1.0, 1.0)))
+
+
 def _unit(n: np.ndarray) -> np.ndarray:
     norm = np.linalg.norm(n, axis=-1, keepdims=True)
     return n / np.maximum(norm, 1e-12)
@@ -519,8 +533,7 @@ def angular_error_deg(pred: np.ndarray, gt: np.ndarray, mask: np.ndarray) -> np.
     if mask.shape != pred.shape[:2]:
         raise ValueError(f"mask: shape {mask.shape} differs from the normal maps' {pred.shape[:2]}")
     mask = mask.astype(bool)
-    dot = np.clip(np.sum(_unit(pred.astype(np.float64)) * _unit(gt.astype(np.float64)), axis=-1), -1.0, 1.0)
-    err = np.degrees(np.arccos(dot))
+    err = angles_deg(pred, gt)
     err[~mask] = 0.0
     return err.astype(np.float32)
 

@@ -189,6 +189,8 @@ RR = "validate.rerender"
 RF = "validate.refine"
 TR = "unips.train"
 DEMO = "orchestrate.demo"
+BM = "orchestrate.benchmark"
+RC = "orchestrate.train_recipe"
 PV = "wildgen.preview"
 OBJDIR = "{W}/data/00000.data"
 
@@ -229,6 +231,46 @@ def _coverage_reported(w: Path, t: Path) -> None:
     with open(t / "out" / "summary.csv") as f:
         row = next(csv.DictReader(f))
     assert float(row["coverage"]) == pytest.approx(report["coverage"])
+
+
+def _capture_copy(transform: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None, images: int | None = None,
+                  scene: bool = False) -> Callable[[Path, Path], None]:
+    """Setup: T/00000.data, a copy of the world's object 00000 without scene.json (the fitted mode reads it
+    as a capture; `scene`: keep it, e.g. for least squares' calibrated lights), with `images` images (its
+    first ones, or its 4 repeated up to that many) and each image replaced by transform(image, mask)."""
+    def setup(w: Path, t: Path) -> None:
+        from scenes.objfolder import read_image, read_mask, write_png16
+
+        src, dst = w / "data" / f"{OBJ}.data", t / f"{OBJ}.data"
+        shutil.copytree(src, dst, ignore=None if scene else shutil.ignore_patterns("scene.json"))
+        mask = read_mask(dst / "mask.png")
+        paths = sorted(dst.glob("L*.png"))
+        originals = [read_image(p) for p in paths]
+        for p in paths:
+            p.unlink()
+        for i in range(len(paths) if images is None else images):
+            img = originals[i % len(originals)]
+            write_png16(dst / f"L{i:03d}.png", img if transform is None else transform(img, mask))
+    return setup
+
+
+def _black_but_four(img: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Black except four mask pixels (lit at 0.5): fewer lit pixels than any light needs."""
+    out = np.zeros_like(img)
+    ys, xs = np.nonzero(mask)
+    out[ys[:4], xs[:4]] = 0.5
+    return out
+
+
+def _clipped_where_lit(img: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Every lit pixel at the largest code, the rest black (an exposure far too long)."""
+    return np.where(img.mean(-1, keepdims=True) > 0.01, 1.0, 0.0).astype(np.float32) * np.ones_like(img)
+
+
+def _normals_times_1e30(w: Path, t: Path) -> None:
+    from scenes.objfolder import read_normals
+
+    np.save(t / "big.npy", read_normals(w / "pred" / OBJ / "normal.png") * np.float32(1e30))
 
 
 ROWS: list[Row] = [
@@ -281,7 +323,7 @@ ROWS: list[Row] = [
     Row("make-images-0", MK, ["--out", "{T}/o", "--images", "0"], 2, ("--images",)),
     Row("make-spp-0", MK, ["--out", "{T}/o", "--spp", "0"], 2, ("--spp",)),
     Row("make-gt-spp-0", MK, ["--out", "{T}/o", "--gt-spp", "0"], 2, ("--gt-spp",)),
-    Row("make-res-0", MK, ["--out", "{T}/o", "--res", "0"], 2, ("--width",)),
+    Row("make-res-0", MK, ["--out", "{T}/o", "--res", "0"], 2, ("--res", "got 0")),
     Row("make-res-negative", MK, ["--out", "{T}/o", "--res", "-5"], 2, ("-5",)),
     Row("make-height-0", MK, ["--out", "{T}/o", "--height", "0"], 2, ("--height",)),
     Row("make-res-float", MK, ["--out", "{T}/o", "--res", "12.5"], 2, ("--res", "12.5")),
@@ -298,6 +340,10 @@ ROWS: list[Row] = [
     Row("make-max-retries-negative", MK, ["--out", "{T}/o", "--max-retries", "-1"], 2, ("--max-retries",)),
     Row("make-recycle-after-0", MK, ["--out", "{T}/o", "--recycle-after", "0"], 2, ("--recycle-after",)),
     Row("make-ray-and-workers", MK, ["--out", "{T}/o", "--ray", "--workers", "2"], 2, ("--workers", "--ray")),
+    Row("make-margin-range", MK, ["--out", "{T}/o", "--margin", "1.5"], 2, ("--margin", "1.5"), check=_not_written("o")),
+    Row("make-max-backfacing-range", MK, ["--out", "{T}/o", "--max-backfacing", "2"], 2, ("--max-backfacing", "2")),
+    Row("make-lights-repeated-unknown", MK, ["--out", "{T}/o", "--lights", "directional", "--lights", "sun"], 2,
+        ("--lights", "sun")),
     Row("make-unknown-flag", MK, ["--out", "{T}/o", "--colour", "red"], 2, ("--colour",)),
     Row("make-no-out", MK, ["--objects", "1"], 2, ("--out",)),
     # ---- wildgen.make: assets, decoded once up front
@@ -434,6 +480,12 @@ ROWS: list[Row] = [
                                              "--no-floors", "--spp", "1"], 1, ("failed 00001", "normal.png"),
         check=_written("o/00000/report.json")),
     Row("rerender-unknown-flag", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--fast"], 2, ("--fast",)),
+    Row("rerender-figure-rows-0", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{T}/o",
+                                       "--figure-rows", "0"], 2, ("--figure-rows", "0"), check=_not_written("o")),
+    Row("rerender-fit-steps-negative", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{T}/o", "--fit",
+                                            "--steps", "-1"], 2, ("--steps", "-1"), check=_not_written("o")),
+    Row("rerender-floor-maps-unknown", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{T}/o", "--fit",
+                                            "--floor-maps", "constant,flat"], 2, ("--floor-maps", "flat")),
     # ---- validate.refine (fast-failing cases; refinement itself is tests/test_fit.py)
     Row("refine-unknown-flag", RF, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{T}/o", "--fast"], 2,
         ("--fast",), check=_not_written("o")),
@@ -451,6 +503,38 @@ ROWS: list[Row] = [
         ("--normals", "nowhere.png"), check=_not_written("o")),
     Row("refine-data-missing", RF, ["--data", "{W}/nowhere", "--normals", "{W}/pred/00000", "--out", "{T}/o"], 2,
         ("--data", "nowhere"), check=_not_written("o")),
+    # ---- the fitted check and refinement refuse what they cannot judge (validate.judgeable), before any fit
+    Row("rerender-fitted-black", RR, ["--data", "{T}/00000.data", "--normals", "{W}/pred/00000/normal.png", "--out", "{T}/o"],
+        2, ("--data", "black"), setup=_capture_copy(lambda img, m: np.zeros_like(img)), check=_not_written("o")),
+    Row("rerender-fitted-four-lit-pixels", RR, ["--data", "{T}/00000.data", "--normals", "{W}/pred/00000/normal.png",
+                                                "--out", "{T}/o"], 2, ("--data", "00000.data", "only 0 of 4", "8 lit"),
+        setup=_capture_copy(_black_but_four), check=_not_written("o")),
+    Row("refine-four-lit-pixels", RF, ["--data", "{T}/00000.data", "--normals", "{W}/pred/00000/normal.png", "--out",
+                                       "{T}/o"], 2, ("--data", "only 0 of 8", "8 lit"), setup=_capture_copy(_black_but_four, 8),
+        check=_not_written("o")),
+    Row("rerender-fitted-saturated-where-lit", RR, ["--data", "{T}/00000.data", "--normals", "{W}/pred/00000/normal.png",
+                                                    "--out", "{T}/o"], 2, ("--data", "lit mask pixel is saturated"),
+        setup=_capture_copy(_clipped_where_lit), sub=True, check=_not_written("o")),
+    Row("refine-saturated-where-lit", RF, ["--data", "{T}/00000.data", "--normals", "{W}/pred/00000/normal.png", "--out",
+                                           "{T}/o"], 2, ("--data", "lit mask pixel is saturated"),
+        setup=_capture_copy(_clipped_where_lit, 8),
+        check=_not_written("o")),
+    Row("rerender-fitted-two-images", RR, ["--data", "{T}/00000.data", "--normals", "{W}/pred/00000/normal.png", "--out",
+                                           "{T}/o"], 2, ("--data", "2 image(s)", "at least 3"),
+        setup=_capture_copy(images=2), check=_not_written("o")),
+    Row("refine-two-images", RF, ["--data", "{T}/00000.data", "--normals", "{W}/pred/00000/normal.png", "--out", "{T}/o"],
+        2, ("--data", "2 image(s)", "at least 5"), setup=_capture_copy(images=2), check=_not_written("o")),
+    Row("refine-four-images", RF, ["--data", "{T}/00000.data", "--normals", "{W}/pred/00000/normal.png", "--out", "{T}/o"],
+        2, ("--data", "4 image(s)", "at least 5"), setup=_capture_copy(), check=_not_written("o")),
+    Row("rerender-fitted-normals-1e30", RR, ["--data", OBJDIR, "--normals", "{T}/big.npy", "--out", "{T}/o", "--fit"], 2,
+        ("--normals", "1e+06"), setup=_normals_times_1e30, check=_not_written("o")),
+    Row("refine-normals-1e30", RF, ["--data", OBJDIR, "--normals", "{T}/big.npy", "--out", "{T}/o"], 2,
+        ("--normals", "1e+06"), setup=_normals_times_1e30, check=_not_written("o")),
+    Row("rerender-normals-1e30", RR, ["--data", OBJDIR, "--normals", "{T}/big.npy", "--out", "{T}/o"], 2,
+        ("--normals", "1e+06"), setup=_normals_times_1e30, check=_not_written("o")),
+    Row("predict-least-squares-nearly-black", PR, ["--method", "least-squares", "--input", "{T}/00000.data", "--out",
+                                                   "{T}/p"], 2, ("images", "00000.data", "above black"),
+        setup=_capture_copy(_black_but_four, scene=True), check=_not_written("p/00000/normal.png")),
     # ---- unips.train
     Row("train-resume-truncated-last", TR, ["--data", "{W}/data", "--out", "{W}/run_trunc", "--model", "glc-test", "--steps",
                                             "2", "--resume", "--no-progress"], 2, ("last.pt", "corrupt or truncated"),
@@ -484,11 +568,32 @@ ROWS: list[Row] = [
                                         "--steps", "1"], 2, ("nope.safetensors",)),
     Row("train-init-from-random-pt", TR, ["--data", "{W}/data", "--out", "{T}/run", "--init-from", "{W}/ck/rand.pt",
                                           "--steps", "1"], 2, ("rand.pt",), sub=True),
+    Row("train-model-option-bad", TR, ["--data", "{W}/data", "--out", "{T}/run", "--model", "glc-test",
+                                       "--model-option", "dropout"], 2, ("--model-option", "dropout")),
+    # ---- orchestrate.benchmark: every option and --out checked before any model runs
+    Row("bench-out-is-file", BM, ["--data", "{W}/data", "--out", "{W}/afile", "--counts", "1", "--rerender-objects",
+                                  "0", "--tta", "1"], 2, ("--out", "afile")),
+    Row("bench-no-data", BM, ["--out", "{T}/b"], 2, ("--data", "--diligent"), check=_not_written("b")),
+    Row("bench-counts-text", BM, ["--data", "{W}/data", "--out", "{T}/b", "--counts", "1,many"], 2, ("--counts", "many")),
+    Row("bench-counts-0", BM, ["--data", "{W}/data", "--out", "{T}/b", "--counts", "0,2"], 2, ("--counts", "0")),
+    Row("bench-tta-bad", BM, ["--data", "{W}/data", "--out", "{T}/b", "--tta", "3"], 2, ("--tta", "3")),
+    Row("bench-subsets-negative", BM, ["--diligent", "{W}/empty", "--out", "{T}/b", "--diligent-subsets", "-1"], 2,
+        ("--diligent-subsets", "-1")),
+    Row("bench-unknown-flag", BM, ["--data", "{W}/data", "--fast"], 2, ("--fast",)),
+    # ---- orchestrate.train_recipe (checked before any dataset is rendered)
+    Row("recipe-work-is-file", RC, ["--work", "{W}/afile"], 2, ("--work", "afile")),
+    Row("recipe-ship-without-registry-entry", RC, ["--work", "{T}/w", "--model", "glc-test", "--ship"], 2,
+        ("--ship", "glc-test"), check=_not_written("w")),
+    Row("recipe-train-seed-repeated", RC, ["--work", "{T}/w", "--train-seed", "5,5"], 2, ("--train-seed", "5,5"),
+        check=_not_written("w")),
+    Row("recipe-steps-0", RC, ["--work", "{T}/w", "--steps", "0"], 2, ("--steps", "0"), check=_not_written("w")),
+    Row("recipe-unknown-flag", RC, ["--work", "{T}/w", "--fast"], 2, ("--fast",)),
     # ---- orchestrate.demo (fast-failing cases: the full demo is `make demo`)
     Row("demo-objects-0", DEMO, ["--out", "{T}/d", "--objects", "0"], 2, ("--objects",), check=_not_written("d")),
     Row("demo-res-small", DEMO, ["--out", "{T}/d", "--res", "8"], 2, ("--res",), check=_not_written("d")),
     Row("demo-baseline-unknown", DEMO, ["--out", "{T}/d", "--baseline", "magic"], 2, ("--baseline", "magic")),
     Row("demo-unknown-flag", DEMO, ["--out", "{T}/d", "--quick"], 2, ("--quick",)),
+    Row("demo-out-is-file", DEMO, ["--out", "{W}/afile"], 2, ("--out", "afile")),
 ]
 
 
@@ -546,7 +651,7 @@ def test_bad_input(row: Row, world: Path, tmp_path: Path, capsys):
 def test_table_size():
     assert len(ROWS) >= 100
     assert len({r.id for r in ROWS}) == len(ROWS)
-    assert {r.cli for r in ROWS} >= {MK, PV, PR, EV, RR, RF, TR, DEMO}
+    assert {r.cli for r in ROWS} >= {MK, PV, PR, EV, RR, RF, TR, DEMO, BM, RC}
 
 
 @pytest.mark.parametrize("how", ["after-lock", "at-1s"])

@@ -6,7 +6,9 @@
 - every flag of every CLI has a row in its flag table, with the default its parser holds and every default
   its `--help` states;
 - the README is a front page (at most ~150 lines), its examples parse with the real parsers, and every
-  relative link of the docs points to an existing file and heading.
+  relative link of the docs points to an existing file and heading;
+- every `make TARGET` the docs name exists; `make test` leaves the tests marked slow out, `make test-slow`
+  runs them, and CI runs both.
 """
 from __future__ import annotations
 
@@ -296,6 +298,42 @@ def test_readme_is_a_front_page():
     for page in sorted((REPO / "docs").glob("*.md")):
         assert f"(docs/{page.name})" in readme, f"README.md does not link docs/{page.name}"
     assert "(ARCHITECTURE.md)" in readme
+
+
+def test_table_cells_quote_placeholders_without_the_full_stop():
+    """A help text's `<...>` and `*` words become code spans (Markdown would eat them as HTML or emphasis);
+    the sentence's full stop and brackets stay outside, a pipe is escaped."""
+    assert docs._cell("dataset: folder with <object>/normal.*.") == "dataset: folder with `<object>/normal.*`."
+    assert docs._cell("(<out>/<object>/report.json, figure.png)") == "(`<out>/<object>/report.json`, figure.png)"
+    assert docs._cell("a | b") == "a \\| b"
+
+
+def _make_recipes() -> dict[str, str]:
+    """Makefile target -> its recipe (the tab-indented lines under it, continuation lines joined)."""
+    recipes: dict[str, str] = {}
+    target = None
+    for line in (REPO / "Makefile").read_text().replace("\\\n", " ").splitlines():
+        m = re.match(r"^([\w-]+):", line)
+        if m:
+            target = m.group(1)
+            recipes[target] = ""
+        elif line.startswith("\t") and target:
+            recipes[target] += line.strip() + "\n"
+        elif line.strip():  # a variable, a comment or the next rule ends the recipe
+            target = None
+    return recipes
+
+
+def test_make_targets_named_in_the_docs_exist_and_the_slow_marker_splits_the_run():
+    recipes = _make_recipes()
+    named = {(page, t) for page, text in _doc_texts().items()
+             for t in re.findall(r"(?<![\w.])make ([a-z][\w-]*)", text)}
+    missing = sorted(f"{page}: make {t}" for page, t in named if t not in recipes)
+    assert not missing, f"the docs name make targets the Makefile lacks: {missing}"
+    assert '-m "not slow"' in recipes["test"] and "-m slow" in recipes["test-slow"]
+    ci = [line for line in (REPO / ".ci" / "run").read_text().splitlines() if line and not line.startswith("#")]
+    assert "set -euo pipefail" in ci and any(l.endswith("make test") for l in ci) \
+        and any(l.endswith("make test-slow") for l in ci), ci
 
 
 def _readme_commands() -> list[list[str]]:

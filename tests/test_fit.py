@@ -132,6 +132,86 @@ def test_closed_form_recovers_analytic_lights():
     assert angular_errors_deg(out["directions"], TO_LIGHT).max() < 0.5
 
 
+def _analytic_images(lights: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(K, R, R, 3) Lambertian images of the analytic sphere (albedo 0.7, irradiance 2), its normals, mask."""
+    n, mask = analytic_sphere()
+    imgs = 0.7 / np.pi * 2.0 * np.maximum(np.einsum("hwc,kc->khw", n, lights), 0)[..., None] * np.ones(3)
+    return np.where(mask[None, ..., None], imgs, 0).astype(np.float32), n, mask
+
+
+def test_closed_form_survives_images_without_usable_pixels():
+    """A black image, or one saturated wherever it is lit, among lit ones: that image gets no light and the
+    others are still found (the closed form raised an IndexError on an empty set of pixels);
+    all black: no error."""
+    from validate.lights import angular_errors_deg, closed_form_directional
+
+    imgs, n, mask = _analytic_images(TO_LIGHT)
+    N, obs = n[mask], imgs[:, mask]
+    obs[2] = 0.0
+    exclude = np.zeros(obs.shape[:2], bool)
+    exclude[5] = obs[5].mean(-1) > 0  # every lit pixel of image 5 censored
+    out = closed_form_directional(N, obs, exclude=exclude)
+    keep = [0, 1, 3, 4, 6, 7]
+    # A start, not the answer: these six images alone give 1.6 deg, with the two empty ones 2.3 deg.
+    assert angular_errors_deg(out["directions"][keep], TO_LIGHT[keep]).max() < 3.0
+    assert np.all(out["irradiance"][[2, 5]] == 0)
+    closed_form_directional(N, np.zeros_like(obs))
+
+
+def _capture(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None = None):
+    from validate.capture import Capture
+
+    return Capture(name="sphere", folder=Path("sphere"), layout="unips", images=images, mask=mask,
+                   image_names=[f"L{i:03d}.png" for i in range(len(images))], saturated=saturated)
+
+
+def test_judgeable_rule_counts_informative_images():
+    """The rule of validate.judgeable on the analytic sphere: 8 lit images pass for the check and refinement;
+    4 pass the check only; 2 pass neither; a black or constant image among lit ones does not count;
+    images black but for 4 pixels, saturated wherever lit, black, constant or with a NaN are refused, each
+    with one line naming --data, the minimum and what is wrong."""
+    from validate.judgeable import MIN_IMAGES, MIN_LIT_PIXELS, check_judgeable, lit_pixels
+
+    imgs, _, mask = _analytic_images(TO_LIGHT)
+    assert (MIN_IMAGES["check"], MIN_IMAGES["refine"], MIN_LIT_PIXELS) == (3, 5, 8)
+    lit = lit_pixels(imgs, mask)
+    assert np.all(lit > 0.5 * mask.sum()) and np.all(lit < mask.sum())  # attached shadows are not lit
+    for use in ("check", "refine"):
+        check_judgeable(_capture(imgs, mask), use)
+    check_judgeable(_capture(imgs[:4], mask), "check")
+
+    def refused(images, use="check", saturated=None) -> str:
+        with pytest.raises(ValueError) as info:
+            check_judgeable(_capture(images, mask, saturated), use)
+        msg = str(info.value)
+        assert msg.startswith("--data: sphere") and "\n" not in msg, msg
+        return msg
+
+    assert "4 image(s)" in refused(imgs[:4], "refine") and "at least 5" in refused(imgs[:4], "refine")
+    assert "2 image(s)" in refused(imgs[:2]) and "at least 3" in refused(imgs[:2])
+    # One black and one constant image among five: four informative images are left for the check ...
+    five = imgs[:5].copy()
+    five[1] = 0.0
+    five[3][mask] = 0.25
+    check_judgeable(_capture(five, mask), "check")
+    # ... but refinement needs five, and the message lists the two that do not count.
+    msg = refused(five, "refine")
+    assert "only 3 of 5" in msg and "L001.png 0" in msg and "L003.png 0" in msg, msg
+    few = np.zeros_like(imgs)
+    ys, xs = np.nonzero(mask)
+    few[:, ys[:MIN_LIT_PIXELS - 1], xs[:MIN_LIT_PIXELS - 1]] = 0.5
+    assert "only 0 of 8" in refused(few)
+    few[:, ys[:MIN_LIT_PIXELS], xs[:MIN_LIT_PIXELS]] = 0.5
+    check_judgeable(_capture(few, mask), "refine")  # exactly the minimum
+    clipped = np.where(imgs > 0, 1.0, 0.0).astype(np.float32)
+    assert "every lit mask pixel is saturated" in refused(clipped, saturated=clipped >= 1.0)
+    assert "black" in refused(np.zeros_like(imgs))
+    assert "constant" in refused(np.where(mask[None, ..., None], 0.3, 0.0).astype(np.float32) * np.ones_like(imgs))
+    bad = imgs.copy()
+    bad[6][mask] = np.nan
+    assert "L006.png" in refused(bad) and "NaN" in refused(bad)
+
+
 def test_fitted_lights_and_ranking(jit, sphere_folder):
     """Fitted light directions within 1 deg of the rendered ones; ground-truth normals at the floor of what
     a normal map can reach, a 20-deg perturbed map clearly above, the constant map far above."""
@@ -220,11 +300,11 @@ def test_gradients_flow_to_light_parameters(jit, sphere_folder):
     import drjit as dr
 
     from validate.capture import load_capture
-    from validate.fit import FitScene, _start
+    from validate.fit_scene import FitScene, lambertian_start
 
     cap = load_capture(sphere_folder)
     fs = FitScene(cap.images, cap.mask, cap.normal_gt, small_config(specular=False), "directional")
-    start = _start(fs)
+    start = lambertian_start(fs)
     start["directions"] = start["directions"] + np.array([0.05, -0.03, 0.0])  # off the optimum
     fs.init_params(start)
     fs.refresh_visibility()
@@ -279,7 +359,8 @@ def test_rotation_search_tilts_only_and_never_raises_the_residual(jit, sphere_fo
     sphere nothing pins the tilt (which is why the search is off by default), so where it ends is not
     asserted."""
     from validate.capture import load_capture
-    from validate.fit import FitScene, _start, run_fit
+    from validate.fit import run_fit
+    from validate.fit_scene import FitScene, lambertian_start
     from scipy.spatial.transform import Rotation
 
     from validate.refine import RefineConfig, search_rotation
@@ -290,7 +371,7 @@ def test_rotation_search_tilts_only_and_never_raises_the_residual(jit, sphere_fo
     tilted[m] = cap.normal_gt[m] @ Rotation.from_rotvec(np.radians([10.0, 0, 0])).as_matrix().T
     cfg = small_config()
     fs = FitScene(cap.images, m, tilted, cfg, "directional")
-    fs.init_params(_start(fs))
+    fs.init_params(lambertian_start(fs))
     run_fit(fs, cfg.steps)
     train = np.arange(fs.k)
     n0 = fs.n_np.copy()
@@ -301,7 +382,7 @@ def test_rotation_search_tilts_only_and_never_raises_the_residual(jit, sphere_fo
     np.testing.assert_allclose(fs.n_np, n0 @ Rotation.from_rotvec(w).as_matrix().T, atol=1e-6)
     # the identity candidate, evaluated the same way (same batches and rays), is never better
     fs2 = FitScene(cap.images, m, tilted, cfg, "directional")
-    fs2.init_params(_start(fs2))
+    fs2.init_params(lambertian_start(fs2))
     run_fit(fs2, cfg.steps)
     w0 = search_rotation(fs2, train, rc, deltas_deg=())
     assert not w0.any()

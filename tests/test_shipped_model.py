@@ -150,11 +150,11 @@ def test_recipe_ships_the_model_it_trained_where_the_registry_loads_it(rendered,
     """`ship` compares with the shipped weights of the trained model's own architecture (here: none yet, so it
     ships, although the default model's weights exist and are far better), writes them and the card where
     `create_model(name, pretrained=True)` reads, and does not ship the same weights again (no improvement)."""
-    import argparse
+    import dataclasses
 
     import torch
 
-    from orchestrate.train_recipe import ship, shipped_name
+    from orchestrate.train_recipe import RecipeOptions, ship, shipped_name
     from unips.models import create_model, pretrained_entry, save_checkpoint
 
     name = _registered_test_model(monkeypatch, tmp_path)
@@ -162,8 +162,7 @@ def test_recipe_ships_the_model_it_trained_where_the_registry_loads_it(rendered,
     trained = create_model(name)
     run = tmp_path / "run"
     save_checkpoint(run / "best.safetensors", trained, {"step": 7})
-    args = argparse.Namespace(model=name, init_from=None, train_seed=[5000], train_objects=10, steps=7, lr=1e-3,
-                              threads=1)
+    args = RecipeOptions(work=str(tmp_path), model=name, train_seed=[5000], train_objects=10, steps=7, threads=1)
     assert shipped_name(args) == name
     assert ship(rendered, run, args)
     entry = pretrained_entry(name)
@@ -179,17 +178,15 @@ def test_recipe_ships_the_model_it_trained_where_the_registry_loads_it(rendered,
     before = entry.weights_path.read_bytes()
     # The same weights again, continued from the shipped file: no improvement, nothing written.
     capsys.readouterr()
-    again = argparse.Namespace(**{**vars(args), "init_from": str(entry.weights_path)})
+    again = dataclasses.replace(args, init_from=str(entry.weights_path))
     assert not ship(rendered, run, again)
     assert "not shipped" in capsys.readouterr().out
     assert entry.weights_path.read_bytes() == before and json.loads(entry.card_path.read_text()) == card
 
 
-def test_recipe_refuses_to_ship_a_model_without_a_pretrained_entry():
-    import argparse
+def test_recipe_refuses_to_ship_a_model_without_a_pretrained_entry(tmp_path):
+    from orchestrate.train_recipe import RecipeOptions
 
-    from orchestrate.train_recipe import shipped_name
-
-    args = argparse.Namespace(model="glc-test", init_from=None)
-    with pytest.raises(ValueError, match="'glc-test' has no shipped-weights entry"):
-        shipped_name(args)
+    with pytest.raises(ValueError, match="--ship: --model is 'glc-test'.*no shipped-weights entry"):
+        RecipeOptions(work=str(tmp_path / "w"), model="glc-test", ship=True).validate()
+    assert not (tmp_path / "w").exists()

@@ -14,7 +14,8 @@ from unips.augment import (HFLIP_MATRIX, TRANSPOSE_MATRIX, VFLIP_MATRIX, Augment
                            augment, sample_augmentation)
 from unips.checkpoint import load_model, load_training_checkpoint, save_checkpoint, sidecar_path
 from unips.models import create_model
-from unips.train import main, make_batch, load_samples
+from unips.train import main
+from unips.train_data import load_samples, make_batch
 
 
 # -- analytic scenes ------------------------------------------------------------------------

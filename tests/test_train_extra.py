@@ -262,7 +262,7 @@ def test_interior_crop_keeps_images_and_normals_consistent_and_drops_the_outline
 
 
 def test_interior_crop_enters_batches_only_when_asked(dataset) -> None:
-    from unips.train import load_samples, make_batch
+    from unips.train_data import load_samples, make_batch
 
     samples = load_samples(dataset["train"], 32)
     kw = dict(seed=3, batch=2, min_images=2, max_images=4, pixels=50, canonical=16)

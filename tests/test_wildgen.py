@@ -145,7 +145,7 @@ def test_preview_writes_sheets(dataset, tmp_path):
     "args, needle",
     [
         (["--lights", "laser"], "--lights"),
-        (["--res", "0"], "--width"),
+        (["--res", "0"], "--res"),
         (["--spp", "-1"], "--spp"),
         (["--assets", "/no/such/folder"], "--assets"),
     ],

@@ -49,6 +49,10 @@ log = logging.getLogger(__name__)
 
 #: RGB -> gray weights (ITU-R BT.601), as used to reproduce DiLiGenT's least-squares figures.
 GRAY_WEIGHTS = (0.2989, 0.5870, 0.1140)
+#: Smallest share of the mask pixels that must be above black in at least one image for least squares to
+#: write a map: a pixel black in every image gets no estimate (0), and a map of mostly no estimates (black
+#: or nearly black images) is refused rather than written.
+MIN_LS_COVERAGE = 0.5
 
 
 def gray_matrix(obj: PSObject, divide_intensities: bool = True, chunk: int = 65536) -> np.ndarray:
@@ -85,7 +89,9 @@ def _unit_rows(v: np.ndarray) -> np.ndarray:
 
 
 def least_squares(obj: PSObject, chunk: int = 65536) -> np.ndarray:
-    """Calibrated Lambertian least-squares photometric stereo (all images, no shadow handling)."""
+    """Calibrated Lambertian least-squares photometric stereo (all images, no shadow handling). A pixel
+    black in every image gets no estimate (0); images leaving more than half the mask so are refused
+    (`MIN_LS_COVERAGE`)."""
     if obj.light_directions is None:
         raise ValueError(f"obj: {obj.name} has no light directions; least-squares needs calibrated "
                          "directional lights (one directional light per image)")
@@ -98,6 +104,15 @@ def least_squares(obj: PSObject, chunk: int = 65536) -> np.ndarray:
                          f"{np.linalg.matrix_rank(L)}")
     pinv = np.linalg.pinv(L)  # (3, K)
     gray = gray_matrix(obj, chunk=chunk)  # (P, K)
+    seen = (gray > 0).any(axis=1)
+    if seen.mean() < MIN_LS_COVERAGE:
+        names = f" ({obj.image_names[0]} .. {obj.image_names[-1]})" if obj.image_names else ""
+        raise ValueError(f"images: {obj.path}{names}: only {int(seen.sum())} of {seen.size} mask pixels are above black in "
+                         f"any image; least-squares needs at least {MIN_LS_COVERAGE:.0%} of them (black or nearly black "
+                         "images give no normals)")
+    if not seen.all():
+        log.warning("least-squares: %s: %d of %d mask pixels are black in every image; they get no normal (0)",
+                    obj.name, int((~seen).sum()), seen.size)
     b = np.empty((gray.shape[0], 3), np.float64)
     for start in range(0, gray.shape[0], chunk):
         sl = slice(start, start + chunk)

@@ -17,8 +17,12 @@ import numpy as np
 import torch
 from torch import nn
 
-from unips.models.builder import (TRAINING_FORMAT, WEIGHTS_FORMAT, load_model, load_state_strict,  # noqa: F401
+from unips.models.builder import (TRAINING_FORMAT, WEIGHTS_FORMAT, load_model, load_state_strict,
                                   load_training_checkpoint, model_description, save_checkpoint, sidecar_path)
+
+__all__ = ["TRAINING_FORMAT", "WEIGHTS_FORMAT", "git_revision", "load_model", "load_state_strict",
+           "load_training_checkpoint", "model_description", "rng_states", "save_checkpoint",
+           "save_training_checkpoint", "set_rng_states", "sidecar_path"]
 
 
 def git_revision(repo: str | Path | None = None) -> str:

@@ -84,11 +84,9 @@ def error_map_scale(height: int) -> int:
 
 def write_error_map(path: Path, err_map: np.ndarray, mask: np.ndarray, clip_deg: float = ERROR_CLIP_DEG) -> None:
     """Write `error_map_image` as PNG: the map occupies the top-left (H * s, W * s) pixels, s = error_map_scale(H)."""
-    import cv2
+    from scenes.objfolder import write_picture
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(path), error_map_image(err_map, mask, clip_deg)):
-        raise OSError(f"path: cannot write {path}")
+    write_picture(path, error_map_image(err_map, mask, clip_deg))
 
 
 def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True) -> dict[str, Any]:

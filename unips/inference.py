@@ -112,6 +112,25 @@ def run_model(net: LoadedModel, obj: PSObject, res: int | None = None, margin: i
     return uncrop(n, prepared.crop, mask=obj.mask)
 
 
+MODEL_BYTES_PER_IMAGE = 25 * 2**20
+"""Memory of the network per input image that does not grow with the resolution (the encoder works at the
+canonical resolution)."""
+
+
+def prediction_memory(method: str, shape: tuple[int, int], num_images: int, work_res: int, tta: int = DEFAULT_TTA) -> int:
+    """Bytes one object needs to be predicted (a conservative estimate, about 1.5 to 2 times the peak measured
+    on the CPU for the shipped model at 256 to 2048 px): its K float32 RGB images of `shape` (H, W) as read,
+    and for the model, per working pixel (`work_res`^2: the crop's side or --res) the images in 2 + 2 x `tta`
+    copies (crop, resize, each view and its masked copy) and 64 bytes of mask and output, plus
+    MODEL_BYTES_PER_IMAGE per image. The classical baselines hold about three copies of the images."""
+    h, w = int(shape[0]), int(shape[1])
+    images = num_images * h * w * 12
+    if method != "model":
+        return 3 * images
+    pixels = int(work_res) ** 2
+    return images + num_images * MODEL_BYTES_PER_IMAGE + pixels * (12 * num_images * (2 + 2 * tta) + 64)
+
+
 def predict_object(obj: PSObject, method: str, net: LoadedModel | None = None,
                    res: int | None = None, tta: int = DEFAULT_TTA) -> np.ndarray:
     """(H, W, 3) unit normals of `obj` by `method` (zero outside the mask); `tta`: views, model only."""

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from scenes.layouts import read_folder
-from validate.io import read_prediction
+from validate.io import check_magnitude, read_prediction
 
 log = logging.getLogger(__name__)
 
@@ -63,9 +63,12 @@ class Capture:
 
 def unit_normals(n: np.ndarray, mask: np.ndarray, what: str = "--normals") -> np.ndarray:
     """Check shape against the mask, renormalise inside it, zero outside. Zero normals inside the mask
-    (no estimate) become (0, 0, 1) with a warning."""
+    (no estimate) become (0, 0, 1) with a warning; non-finite values or values above
+    `validate.io.MAX_NORMAL_VALUE` inside the mask are refused (norms in float64, so none overflows)."""
     if n.ndim != 3 or n.shape[2] != 3 or n.shape[:2] != mask.shape:
         raise ValueError(f"{what}: normal map has shape {n.shape}, expected {mask.shape + (3,)} (the size of the input images)")
+    check_magnitude(np.asarray(n[mask], np.float64), what)
+    n = n.astype(np.float64)
     norm = np.linalg.norm(n, axis=-1, keepdims=True)
     missing = mask & (norm[..., 0] < 0.5)
     if missing.any():

@@ -140,5 +140,6 @@ def rerender_figure(
         bar = np.full((LABEL_H + 4, grid.shape[1], 3), 255, np.uint8)
         cv2.putText(bar, title, (4, LABEL_H - 4), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
         grid = np.concatenate([bar, grid], axis=0)
-    if not cv2.imwrite(str(path), grid):
-        raise OSError(f"could not write figure {str(path)!r}")
+    from scenes.objfolder import write_picture
+
+    write_picture(path, grid)

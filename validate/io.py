@@ -20,6 +20,22 @@ log = logging.getLogger(__name__)
 
 UNIT_TOLERANCE = 0.02
 """Largest accepted | |n| - 1 | inside the mask (16-bit PNG rounding is below 1e-4)."""
+MAX_NORMAL_VALUE = 1e6
+"""Largest accepted |component| of a normal map to judge, inside the mask. Maps are unit vectors (or, in the
+fitted mode, renormalised pseudo-normals in image units); a larger value means a wrongly scaled or corrupt
+map, and squaring it in float32 overflows (a 1e30-scaled map became all zeros and was scored)."""
+
+
+def check_magnitude(inside: np.ndarray, what: str) -> None:
+    """Refuse normals (N, 3) with non-finite components or components above `MAX_NORMAL_VALUE`, naming `what`."""
+    bad = ~np.isfinite(inside).all(axis=1)
+    if bad.any():
+        raise ValueError(f"{what}: {int(bad.sum())} normal(s) inside the mask are NaN or infinite")
+    big = np.abs(inside).max(axis=1) > MAX_NORMAL_VALUE
+    if big.any():
+        raise ValueError(f"{what}: {int(big.sum())} normal(s) inside the mask have components up to "
+                         f"{float(np.abs(inside).max()):.3g}, above {MAX_NORMAL_VALUE:g}; expected unit vectors "
+                         "(the map is scaled wrongly or corrupt)")
 
 
 @dataclass
@@ -96,8 +112,8 @@ def check_normals(
 
     Returns (normals renormalised where valid and 0 elsewhere, valid (H, W) bool). Valid is the mask,
     minus the exactly-zero normals inside it when `allow_missing` (a predictor's "no estimate", e.g.
-    pixels dark in every image). Raises ValueError for a wrong shape, or NaN / infinite / non-unit
-    normals inside the mask.
+    pixels dark in every image). Raises ValueError for a wrong shape, or NaN / infinite / overflowing
+    (`MAX_NORMAL_VALUE`) / non-unit normals inside the mask.
     """
     n = np.asarray(n)
     if n.ndim != 3 or n.shape[2] != 3 or n.shape[:2] != mask.shape:
@@ -106,9 +122,7 @@ def check_normals(
     if allow_missing:
         valid &= np.any(n != 0, axis=-1)
     inside = n[valid].astype(np.float64)
-    bad = ~np.isfinite(inside).all(axis=1)
-    if bad.any():
-        raise ValueError(f"{source}: {int(bad.sum())} normal(s) inside the mask are NaN or infinite")
+    check_magnitude(inside, source)
     norm = np.linalg.norm(inside, axis=1)
     off = np.abs(norm - 1.0) > UNIT_TOLERANCE
     if off.any():

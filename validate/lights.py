@@ -66,7 +66,8 @@ def closed_form_directional(
 
     normals: (P, 3) unit; images: (K, P, 3). Model per image k: I_k(p) = albedo(p) * c_k * (n_p . b_k + a_k),
     alternating between b_k, a_k (per image, over pixels lit in that image, the worst `trim` fraction of
-    residuals dropped: highlights, shadows) and the per-pixel albedo. Returns a dict with
+    residuals dropped: highlights, shadows) and the per-pixel albedo; an image with fewer usable pixels than
+    unknowns gets no light (zero irradiance, direction (0, 0, 1)). Returns a dict with
     `directions` (K, 3) toward the light, `irradiance` (K, 3), `ambient` (K, 3), `albedo` (P, 3),
     normalised so that the mean albedo is 0.5. exclude: (K, P) bool observations left out of every fit
     (saturated ones, whose values are only lower bounds).
@@ -88,6 +89,11 @@ def closed_form_directional(
                 lit &= (normals @ B[i, :3]) > 0.05 * np.linalg.norm(B[i, :3])
             if lit.sum() < 8:
                 lit = (r > 0) & use[i]
+            if lit.sum() < X.shape[1]:
+                # Fewer usable pixels than unknowns (a black image, or one saturated wherever it is lit): no
+                # light can be solved for; it starts as none (the fit may still light it).
+                B[i] = 0.0
+                continue
             sw = np.sqrt(rho[lit])  # weight by albedo: brighter pixels are less noisy relative to their value
             A, y = X[lit] * sw[:, None], r[lit] * sw
             b, *_ = np.linalg.lstsq(A, y, rcond=None)
@@ -209,10 +215,10 @@ def point_start(normals: np.ndarray, positions: np.ndarray, images: np.ndarray, 
 
 
 def angular_errors_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(K,) angles in degrees between rows of two (K, 3) direction arrays."""
-    a = a / np.linalg.norm(a, axis=1, keepdims=True)
-    b = b / np.linalg.norm(b, axis=1, keepdims=True)
-    return np.degrees(np.arccos(np.clip((a * b).sum(1), -1, 1)))
+    """(K,) angles in degrees between rows of two (K, 3) direction arrays (`scenes.objfolder.angles_deg`)."""
+    from scenes.objfolder import angles_deg
+
+    return angles_deg(a, b)
 
 
 def _check_model(model: str) -> None:

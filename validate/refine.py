@@ -37,7 +37,10 @@ from scenes.cli import INPUT_ERRORS, check_output_folder, progress_bar, report_e
 from scenes.config import check_fields, config_parser, option
 from scenes.config import config_from_args as parse_config
 from scenes.variant import jit_threads, require_ad_variant
-from validate.fit import FitConfig, FitScene, Progress, _start, fit_normals, run_fit, saturated_fraction, to_jit
+from validate.fit import fit_normals, run_fit
+from validate.fit_report import saturated_fraction
+from validate.fit_scene import FitConfig, FitScene, Progress, lambertian_start, to_jit
+from validate.judgeable import check_judgeable
 
 log = logging.getLogger(__name__)
 
@@ -71,7 +74,7 @@ class RefineConfig:
     turned with them, then re-fitted) by residual. A per-pixel update with the lights re-fitted each round
     cannot remove a starting map's global tilt (lights and normals turn together), but where the images
     pin the orientation (highlights, which do not turn with the view; cast shadows) the residual prefers the
-    right one (DiLiGenT cat, from the shipped model's map: see docs/check.md). Off by
+    right one (DiLiGenT cat, from the shipped model's map: docs/check.md, "How well it works"). Off by
     default: on a diffuse convex object nothing pins the tilt and the search moves the map by noise-level
     residual differences (the 32 px test sphere, tilted 10 deg about x: it leaves that tilt and adds 2-4 deg
     about y). A turn about the view axis is never searched: it leaves every image as it is. Directional and
@@ -105,11 +108,10 @@ class RefineResult:
     """Light model used ('auto' resolved: the model with the lowest residual around the starting map)."""
 
 
-def _pairs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _pairs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Index arrays over the mask pixels (row-major): horizontal pairs (a, b), vertical pairs (a, c), and
     2x2 blocks (tl, tr, bl, br) fully inside the mask."""
-    h, w = mask.shape
-    idx = -np.ones((h, w), np.int64)
+    idx = -np.ones(mask.shape, np.int64)
     idx[mask] = np.arange(int(mask.sum()))
     hz = mask[:, :-1] & mask[:, 1:]
     vt = mask[:-1, :] & mask[1:, :]
@@ -117,7 +119,7 @@ def _pairs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     horiz = np.stack([idx[:, :-1][hz], idx[:, 1:][hz]])
     vert = np.stack([idx[:-1, :][vt], idx[1:, :][vt]])
     block = np.stack([idx[:-1, :-1][blk], idx[:-1, 1:][blk], idx[1:, :-1][blk], idx[1:, 1:][blk]])
-    return idx, horiz, vert, block, np.zeros(0)
+    return horiz, vert, block
 
 
 def _boundary_outward(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -137,7 +139,7 @@ def _boundary_outward(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def make_regulariser(fs: FitScene, config: RefineConfig):
     """Dr.Jit function normals (Vector3f, width P) -> scalar penalty (see the module doc)."""
     mi, dr = fs.mi, fs.dr
-    _, horiz, vert, block, _ = _pairs(fs.mask)
+    horiz, vert, block = _pairs(fs.mask)
     bidx, outward = _boundary_outward(fs.mask)
     scale = float(np.abs(fs.images).mean())
     U = lambda a: to_jit(mi.UInt32, np.asarray(a, np.uint32))  # noqa: E731
@@ -258,7 +260,7 @@ def refine_normals(
     """Refine `normals` (H, W, 3) against images (K, H, W, 3) over mask (H, W), all at the fitting resolution.
 
     calibrated: (directions (K, 3) toward the light, irradiance (K, 3)) held fixed when config.lights is
-    'calibrated'. saturated: (K, H, W, 3) bool censored observations (see `validate.fit.FitScene`)."""
+    'calibrated'. saturated: (K, H, W, 3) bool censored observations (see `validate.fit_scene.FitScene`)."""
     config = (config or RefineConfig()).validate()
     require_ad_variant()
     t0 = time.perf_counter()
@@ -269,7 +271,7 @@ def refine_normals(
         cfg = replace(cfg, light_model=fit_normals(images, mask, normals, cfg, progress, "refine: light model", saturated).model)
         log.info("refine: light model %s (lowest residual around the starting map)", cfg.light_model)
     fs = FitScene(images, mask, normals, cfg, cfg.light_model, saturated)
-    start = _start(fs)
+    start = lambertian_start(fs)
     fixed: set[str] = set()
     if config.lights == "calibrated":
         if calibrated is None:
@@ -351,22 +353,13 @@ def upsample_change(full: np.ndarray, mask_full: np.ndarray, start_small: np.nda
     return np.where(mask_full[..., None], n, 0).astype(np.float32)
 
 
-def write_normal_png(path: Path, n: np.ndarray) -> None:
-    """16-bit PNG (n + 1) / 2, background 32768 (what unips.predict writes and unips.evaluate reads)."""
-    import cv2
-
-    from scenes.objfolder import encode_normals
-
-    if not cv2.imwrite(str(path), np.ascontiguousarray(encode_normals(n)[:, :, ::-1])):
-        raise OSError(f"--out: could not write {str(path)!r}")
-
-
 def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig | None = None, out_dir: str | None = None,
                   progress: Progress | None = None, overwrite: bool = False) -> dict:
     """Refine the normal map of one object folder; write normal.png and refine_report.json under out_dir/<object>/."""
     from validate.capture import downsample_normals, load_with_normals
-    from validate.fit import prepare
     from scenes.objfolder import mean_angular_error as mae_deg
+    from scenes.objfolder import write_normal_map
+    from validate.fit import prepare
 
     config = (config or RefineConfig()).validate()
     mi = require_ad_variant()
@@ -378,6 +371,7 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
             if (target / name).exists():
                 raise FileExistsError(f"--out: {str(target / name)!r} exists (pass --overwrite to replace it)")
     small, n_small, f = prepare(cap, full, config.fit)
+    check_judgeable(small, "refine")  # before any fitting: enough images and lit pixels to refine
     calibrated = None
     if small.light_directions is not None and small.light_irradiance is not None:
         calibrated = (small.light_directions, small.light_irradiance)
@@ -412,7 +406,7 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
     }
     if target is not None:
         target.mkdir(parents=True, exist_ok=True)
-        write_normal_png(target / "normal.png", refined_full)
+        write_normal_map(target / "normal.png", refined_full)
         (target / "refine_report.json").write_text(json.dumps(report, indent=1, allow_nan=False))
     return report
 

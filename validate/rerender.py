@@ -13,6 +13,10 @@ Reference levels written next to the score, all over the object mask:
 - `reproduce_rel_l1`: the wrapper switched off, recorded seed: should be ~0 (checks that scene.json and
   this Mitsuba reproduce the stored images).
 
+The renders are `validate.rerender_passes` (with the options, `RerenderConfig`), the scores, report,
+figure and summary table `validate.rerender_report`; this module checks the inputs, runs one object or a
+dataset, and is the CLI (which also dispatches the fitted mode, `validate.fit_report`).
+
 Usage:
     python -m validate.rerender --data OBJ.data --normals PRED/OBJ/normal.png --out DIR
     python -m validate.rerender --data DATASET --normals PRED --out DIR   # every *.data folder
@@ -20,118 +24,27 @@ Usage:
 from __future__ import annotations
 
 import argparse
-import csv
-import gc
-import hashlib
 import json
 import logging
 import sys
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
 
 import numpy as np
 
 from scenes.cli import UsageError, check_output_folder, progress_bar, report_error
 from scenes.config import check_fields, config_parser, option
 from scenes.config import config_from_args as parse_config
-from scenes.objfolder import find_prediction, list_object_folders, mean_angular_error, object_name
+from scenes.objfolder import find_prediction, list_object_folders, object_name
 from scenes.variant import require_jit_variant
-from validate.fit import FitConfig
+from validate.fit_scene import FitConfig
 from validate.io import ObjectData, check_normals, load_object, read_prediction
-from validate.metrics import expose, finite_or_none, mean_or_none, psnr, rel_l1, relative_residual_map
-from validate.normal_bsdf import (
-    MODE_PASSTHROUGH,
-    MODE_PREDICTED,
-    NormalSwap,
-    VisibilityConfig,
-    depth_map,
-    wrapper_for,
-)
-from validate.projection import CameraProjection
+from validate.rerender_passes import MIN_COVERAGE, Progress, RerenderConfig, independent_seed, render_passes
+from validate.rerender_report import (build_report, coverage, format_table, penalise_missing, score_images, score_maps,
+                                      write_figure, write_summary)
 
 log = logging.getLogger(__name__)
-
-SEED_MODES = ("same", "independent")
-MIN_COVERAGE = 0.9
-"""Default smallest share of the mask a prediction must cover (--min-coverage): a sparser map is refused."""
-
-SUMMARY_COLUMNS = (
-    "object",
-    "images",
-    "mae_deg",
-    "rel_l1",
-    "coverage",
-    "missing_pixels",
-    "gt_rel_l1",
-    "noise_floor_rel_l1",
-    "reproduce_rel_l1",
-    "psnr",
-    "frac_above_threshold",
-    "rerender_s",
-    "original_render_s",
-    "error",
-)
-
-Progress = Callable[[int, int, str], None]
-"""progress(done, total, label): called after each render."""
-
-
-@dataclass
-class RerenderConfig:
-    """Options of the re-render check."""
-
-    spp: int | None = option(None, minimum=1, default_text="the recorded spp")
-    """Samples per pixel; None = the recorded render.spp (required for common random numbers)."""
-    seed_mode: str = option("same", choices=SEED_MODES)
-    """'same': each image's recorded seed (noise largely cancels); 'independent': fresh seeds."""
-    floors: bool = True
-    """Also render the independent-seed noise floor and the reproduction check (2 more renders per image)."""
-    visibility: VisibilityConfig = option(default_factory=VisibilityConfig, expose=("supersample",))
-    """How camera visibility of surface points is decided (on the command line: the depth-map rays per pixel
-    side; the tolerances are fixed)."""
-    threshold: float | None = option(None, above=0, default_text="99th percentile of the noise-floor residual map")
-    """Per-pixel relative residual counted in frac_above_threshold; None = 99th percentile of the
-    noise-floor residual map (needs floors)."""
-    figure_rows: int = option(4, minimum=1)
-    """Images shown in figure.png."""
-    save_renders: bool = False
-    """Also write the re-rendered images as R000.png.. (16-bit, exposure applied)."""
-    allow_missing: bool = False
-    """Accept exactly-zero normals inside the mask as "no estimate" (counted in missing_pixels, coverage, and
-    as 90 deg in mae_deg). They can never improve a score: such a point keeps the surface's own normal for
-    light transport, but each of its pixels is scored as at least as wrong as a black render (relative residual
-    >= 1, see `penalise_missing`). Otherwise they are an error."""
-    min_coverage: float = option(MIN_COVERAGE, minimum=0, maximum=1)
-    """Smallest share of the mask pixels that must hold an estimate (with allow_missing); a map below it is refused."""
-
-    def validate(self) -> "RerenderConfig":
-        check_fields(self)
-        self.visibility.validate()
-        return self
-
-
-def independent_seed(seed: int) -> int:
-    """A seed unrelated to `seed` (hash), deterministic, in Mitsuba's uint32 range."""
-    return int.from_bytes(hashlib.sha256(f"rerender-independent:{seed}".encode()).digest()[:4], "little")
-
-
-def _render_all(built: Any, indices: range, spp: int, seeds: list[int], exposures: list[float], tick: Callable[[str], None], label: str) -> tuple[np.ndarray, list[float]]:
-    from scenes.render import render_image
-
-    out, times = [], []
-    for i in indices:
-        t0 = time.perf_counter()
-        radiance = render_image(built, i, spp=spp, seed=seeds[i])
-        times.append(time.perf_counter() - t0)
-        out.append(expose(radiance, exposures[i]))
-        tick(f"{label} {i:03d}")
-    return np.stack(out), times
-
-
-def _figure_rows(k: int, n: int) -> list[int]:
-    return sorted(set(np.linspace(0, k - 1, min(k, n)).round().astype(int).tolist()))
 
 
 def check_inputs(
@@ -151,207 +64,6 @@ def check_inputs(
         raise ValueError(f"{what}: covers {cov:.1%} of the object's {int(data.mask.sum())} mask pixels "
                          f"({int(data.mask.sum() - valid.sum())} without an estimate), below --min-coverage {min_coverage:g}")
     return data, pred, valid, source
-
-
-def coverage(valid: np.ndarray, mask: np.ndarray) -> float:
-    """Share of the mask pixels that hold an estimate."""
-    n = int(mask.sum())
-    return float(valid[mask].sum() / n) if n else 0.0
-
-
-def penalise_missing(renders: np.ndarray, inputs: np.ndarray, missing: np.ndarray) -> np.ndarray:
-    """The renders as scored: at the `missing` pixels (no estimate) every channel whose residual is below the
-    input's own value is set to 0 (a black render), so a missing pixel's residual is max(|render - input|,
-    |input|): never below 1 relative to the input, never better than the ground truth or any estimate within
-    100 % of it. Elsewhere the renders are unchanged."""
-    if not missing.any():
-        return renders
-    out = renders.copy()
-    r, i = out[:, missing], inputs[:, missing]
-    out[:, missing] = np.where(np.abs(r - i) >= np.abs(i), r, 0.0)
-    return out
-
-
-@dataclass
-class RenderPasses:
-    """The images of one re-render check (each (K, H, W, 3), exposure applied) and their timings."""
-
-    renders: np.ndarray
-    """With the predicted normals (the score)."""
-    rerender_s: list[float]
-    """Per-image time of those renders."""
-    gt: np.ndarray | None = None
-    """With the ground-truth normals (when the folder has them)."""
-    floor: np.ndarray | None = None
-    """The original scene with independent seeds (noise floor)."""
-    original_s: list[float] = field(default_factory=list)
-    """Per-image time of the original scene's renders."""
-    reproduce: np.ndarray | None = None
-    """The wrapper switched off with the recorded seeds (should reproduce the inputs)."""
-    build_s: float = 0.0
-    depth_map_s: float = 0.0
-
-
-def render_passes(data: ObjectData, pred: np.ndarray, valid: np.ndarray, config: RerenderConfig, spp: int,
-                  seeds: list[int], fresh: list[int], tick: Callable[[str], None]) -> RenderPasses:
-    """Render every pass of the check for one object (Mitsuba work only; no scoring)."""
-    from scenes.mitsuba_build import build_scene
-
-    desc, k = data.desc, len(data.desc.images)
-    exposures = [float(im.exposure) for im in desc.images]
-    recorded = [int(im.seed) for im in desc.images]
-    reproduce = config.floors and spp == desc.render.spp
-
-    # 1. The original scene with independent seeds: noise floor and the original render time. It is
-    #    released before the wrapped scene is built (live Python BSDFs are traced into every kernel).
-    floor_imgs, t_orig = None, []
-    if config.floors:
-        built = build_scene(desc, data.folder)
-        floor_imgs, t_orig = _render_all(built, range(k), spp, fresh, exposures, tick, "noise floor")
-        del built
-        gc.collect()
-
-    # 2. The wrapped scene: one build, normals and mode swapped through mi.traverse.
-    t0 = time.perf_counter()
-    camera = CameraProjection.from_camera(desc.camera)
-    built = build_scene(desc, data.folder, bsdf_wrapper=wrapper_for(camera, config.visibility))
-    swap = NormalSwap.attach(built.params, camera, config.visibility)
-    t_build = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    built.park_lights()  # area-light rectangles out of the way: the depth map holds the object only
-    swap.set_depth(depth_map(built.scene, camera, config.visibility.supersample))
-    built.apply_image(0)
-    t_depth = time.perf_counter() - t0
-
-    repro_imgs = None
-    if reproduce:
-        swap.set_mode(MODE_PASSTHROUGH)
-        repro_imgs, _ = _render_all(built, range(k), spp, recorded, exposures, tick, "reproduce")
-    swap.set_normals(pred, valid)
-    swap.set_mode(MODE_PREDICTED)
-    renders, t_re = _render_all(built, range(k), spp, seeds, exposures, tick, "re-render")
-    gt_imgs = None
-    if data.normal_gt is not None:
-        swap.set_normals(data.normal_gt, data.mask)
-        gt_imgs, _ = _render_all(built, range(k), spp, seeds, exposures, tick, "GT normals")
-    del swap, built
-    gc.collect()
-    return RenderPasses(renders=renders, rerender_s=t_re, gt=gt_imgs, floor=floor_imgs, original_s=t_orig,
-                        reproduce=repro_imgs, build_s=t_build, depth_map_s=t_depth)
-
-
-def score_images(passes: RenderPasses, inputs: np.ndarray, mask: np.ndarray, desc: Any, seeds: list[int]) -> list[dict[str, Any]]:
-    """Per-image scores of every pass against the input images."""
-    per_image = []
-    for i, image in enumerate(desc.images):
-        r, g, f, p = passes.renders, passes.gt, passes.floor, passes.reproduce
-        per_image.append({
-            "index": i,
-            "seed": int(image.seed),
-            "rerender_seed": seeds[i],
-            "exposure": float(image.exposure),
-            "rel_l1": rel_l1(r[i], inputs[i], mask),
-            "psnr": finite_or_none(psnr(r[i], inputs[i], mask)),
-            "gt_rel_l1": rel_l1(g[i], inputs[i], mask) if g is not None else None,
-            "gt_psnr": finite_or_none(psnr(g[i], inputs[i], mask)) if g is not None else None,
-            "noise_floor_rel_l1": rel_l1(f[i], inputs[i], mask) if f is not None else None,
-            "reproduce_rel_l1": rel_l1(p[i], inputs[i], mask) if p is not None else None,
-            "rerender_s": passes.rerender_s[i],
-            "original_render_s": passes.original_s[i] if passes.original_s else None,
-        })
-    return per_image
-
-
-def score_maps(passes: RenderPasses, inputs: np.ndarray, mask: np.ndarray,
-               threshold: float | None) -> tuple[np.ndarray, np.ndarray | None, float | None, str | None, float | None]:
-    """(residual map, GT-normals residual map, threshold, its source, share of mask pixels above it)."""
-    res_map = relative_residual_map(passes.renders, inputs, mask)
-    gt_map = relative_residual_map(passes.gt, inputs, mask) if passes.gt is not None else None
-    source = "given"
-    if threshold is None and passes.floor is not None:
-        threshold = float(np.percentile(relative_residual_map(passes.floor, inputs, mask)[mask], 99))
-        source = "99th percentile of the noise-floor residual map"
-    frac = float(np.mean(res_map[mask] > threshold)) if threshold is not None else None
-    return res_map, gt_map, threshold, source if threshold is not None else None, frac
-
-
-def build_report(data: ObjectData, pred: np.ndarray, valid: np.ndarray, source: str, passes: RenderPasses,
-                 per_image: list[dict[str, Any]], threshold: float | None, threshold_source: str | None,
-                 frac: float | None, config: RerenderConfig, spp: int, variant: str) -> dict[str, Any]:
-    """The report.json of one object (total_s is filled in by the caller)."""
-    desc, mask = data.desc, data.mask
-
-    def avg(key: str) -> float | None:
-        return mean_or_none([e[key] for e in per_image])
-
-    t_orig_med = float(np.median(passes.original_s)) if passes.original_s else None
-    t_re_med = float(np.median(passes.rerender_s))
-    from validate.lights import known_scene_lights
-
-    exposures = [float(im.exposure) for im in desc.images]
-    return {
-        "mode": "known_scene",
-        "object": data.name,
-        "folder": str(data.folder),
-        "prediction": source,
-        "images_count": len(desc.images),
-        "mask_pixels": int(mask.sum()),
-        "missing_pixels": int(mask.sum() - valid.sum()),
-        "coverage": coverage(valid, mask),
-        "min_coverage": config.min_coverage,
-        "missing_scoring": "a pixel without an estimate scores max(|render - input|, |input|) (a black render or worse)",
-        "rel_l1": avg("rel_l1"),
-        "psnr": avg("psnr"),
-        "gt_rel_l1": avg("gt_rel_l1"),
-        "gt_psnr": avg("gt_psnr"),
-        "noise_floor_rel_l1": avg("noise_floor_rel_l1"),
-        "reproduce_rel_l1": avg("reproduce_rel_l1"),
-        "mae_deg": mean_angular_error(pred, data.normal_gt, mask) if data.normal_gt is not None else None,
-        "frac_above_threshold": frac,
-        "threshold": threshold,
-        "threshold_source": threshold_source,
-        "images": per_image,
-        "lights": known_scene_lights(desc, exposures),
-        "timings": {
-            "original_render_s": t_orig_med,
-            "rerender_s": t_re_med,
-            "rerender_over_original": (t_re_med / t_orig_med) if t_orig_med else None,
-            "build_s": passes.build_s,
-            "depth_map_s": passes.depth_map_s,
-            "total_s": None,  # filled by rerender_object
-            "note": "per-image medians (the first render of a scene includes kernel compilation)",
-        },
-        "config": {
-            "spp": spp,
-            "recorded_spp": desc.render.spp,
-            "seed_mode": config.seed_mode,
-            "common_random_numbers": config.seed_mode == "same" and spp == desc.render.spp,
-            "variant": variant,
-            "visibility": asdict(config.visibility),
-        },
-    }
-
-
-def write_figure(path: Path, report: dict[str, Any], inputs: np.ndarray, passes: RenderPasses, mask: np.ndarray,
-                 res_map: np.ndarray, gt_map: np.ndarray | None, pred: np.ndarray, rows: int) -> None:
-    """figure.png of one object: inputs, re-renders, residual maps, the prediction."""
-    from scenes.objfolder import prediction_label
-    from validate.figures import rerender_figure
-
-    rerender_figure(
-        path,
-        inputs,
-        passes.renders,
-        mask,
-        _figure_rows(len(inputs), rows),
-        res_map,
-        gt_map,
-        pred,
-        title=f"{report['object']}, {prediction_label(report['prediction'])} (known scene): rel_l1 {report['rel_l1']:.4f}, "
-        f"coverage {report['coverage']:.1%}"
-        + (f" (GT normals {report['gt_rel_l1']:.4f})" if report["gt_rel_l1"] is not None else "")
-        + (f", MAE {report['mae_deg']:.2f} deg" if report["mae_deg"] is not None else ""),
-    )
 
 
 def rerender_object(
@@ -453,68 +165,13 @@ def rerender_dataset(
     return reports
 
 
-def summary_row(report: dict) -> dict:
-    return {
-        "object": report["object"],
-        "images": report["images_count"],
-        "mae_deg": report["mae_deg"],
-        "rel_l1": report["rel_l1"],
-        "coverage": report.get("coverage"),
-        "missing_pixels": report.get("missing_pixels"),
-        "gt_rel_l1": report["gt_rel_l1"],
-        "noise_floor_rel_l1": report["noise_floor_rel_l1"],
-        "reproduce_rel_l1": report["reproduce_rel_l1"],
-        "psnr": report["psnr"],
-        "frac_above_threshold": report["frac_above_threshold"],
-        "rerender_s": report["timings"]["rerender_s"],
-        "original_render_s": report["timings"]["original_render_s"],
-        "error": None,
-    }
-
-
-def failed_row(name: str, error: str) -> dict:
-    """A summary row of an object whose check failed: no scores, the reason in `error`."""
-    return {**{c: None for c in SUMMARY_COLUMNS}, "object": name, "error": error}
-
-
-def write_summary(path: str | Path, reports: list[dict], failed: dict[str, str] | None = None) -> None:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    rows = [summary_row(r) for r in reports] + [failed_row(n, e) for n, e in (failed or {}).items()]
-    with open(path, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(SUMMARY_COLUMNS))
-        writer.writeheader()
-        for row in rows:
-            writer.writerow({k: ("" if v is None else v) for k, v in row.items()})
-
-
-def format_table(reports: list[dict], failed: dict[str, str] | None = None) -> str:
-    """Plain-text table of the summary rows (None shown as '-'); failed objects are listed below it."""
-    rows = [summary_row(r) for r in reports]
-    cols = [c for c in SUMMARY_COLUMNS if c != "error"]
-
-    def fmt(v: Any) -> str:
-        if v is None:
-            return "-"
-        if isinstance(v, float):
-            return f"{v:.4g}"
-        return str(v)
-
-    cells = [[fmt(r[c]) for c in cols] for r in rows]
-    widths = [max(len(c), *(len(row[j]) for row in cells)) if cells else len(c) for j, c in enumerate(cols)]
-    lines = ["  ".join(c.ljust(wd) for c, wd in zip(cols, widths))]
-    lines += ["  ".join(v.ljust(wd) for v, wd in zip(row, widths)) for row in cells]
-    lines += [f"{name}  FAILED: {why}" for name, why in (failed or {}).items()]
-    return "\n".join(lines)
-
-
 FITTED_GROUP = "fitted mode (folders without scene.json, or --fit): light and reflectance fitted to the images"
 
 
 @dataclass
 class RerenderOptions:
     """The command line of validate.rerender: the known-scene check (`RerenderConfig`) and the fitted mode
-    (`validate.fit.FitConfig`)."""
+    (`validate.fit_scene.FitConfig`)."""
 
     data: str = option("", required=True)
     """Object folder (with scene.json) or dataset folder of *.data folders."""
@@ -555,7 +212,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _main_fitted(args: RerenderOptions) -> int:
     """Fitted mode (validate.fit): one object folder of any layout."""
     from scenes.variant import choose_variant, set_jit_threads
-    from validate.fit import rerender_fitted
+    from validate.fit_report import rerender_fitted
 
     config = args.fitted
     if not Path(args.normals).exists():
@@ -576,7 +233,7 @@ def _main_fitted(args: RerenderOptions) -> int:
 def main(argv: list[str] | None = None) -> int:
     """One object: a failure is one line `error: ...`, exit 2. A dataset: a failed object is recorded (summary.csv
     row with its error), the others go on, the failures are listed at the end and the exit status is 1.
-    A folder without scene.json (DiLiGenT, official UniPS layout) or `--fit`: the fitted mode (validate.fit)."""
+    A folder without scene.json (DiLiGenT, official UniPS layout) or `--fit`: the fitted mode (validate.fit_report)."""
     failed: dict[str, str] = {}
     try:
         args = parse_config(RerenderOptions, build_parser().parse_args(argv)).validate()

@@ -2,7 +2,8 @@
 
 Every object is a pure function of (config, index) (`make_object`), so a dataset can be made in any
 order, by any number of workers, interrupted and resumed, and the object folders come out
-byte-identical (with one Dr.Jit thread per worker; see the README for more threads). Only the parent process writes `manifest.json`, atomically, after each object
+byte-identical (with one Dr.Jit thread per worker; for more threads see docs/generator.md, "Crash safety,
+resume and determinism"). Only the parent process writes `manifest.json`, atomically, after each object
 (throttled when the manifest gets large, see `ManifestWriter`).
 
 Resuming: when `DIR/manifest.json` exists with the same configuration (the object count may grow),
@@ -184,14 +185,17 @@ def plan_run(cfg: GenConfig, out_dir: Path, variant: str, overwrite: bool = Fals
     out_dir = Path(out_dir)
     plan = Plan()
     manifest = None if overwrite else load_manifest(out_dir)
-    if manifest is None and not overwrite:
-        foreign = [n for n in (f"{index_name(i)}.data" for i in range(cfg.objects)) if os.path.lexists(out_dir / n)]
-        if foreign:
-            raise DatasetError(
-                f"--out: {str(out_dir)!r} already holds {', '.join(foreign[:3])}{' ...' if len(foreign) > 3 else ''} "
-                f"({len(foreign)} name(s) this run would write) but no manifest.json of wildgen.make; "
-                "use another folder, or --overwrite to replace them"
-            )
+    if manifest is None:
+        # Object folders without a manifest are not this tool's: never replaced, even with --overwrite
+        # (scenes.cli.claim_outputs, the rule of every command); with a manifest, --overwrite replaces them.
+        from scenes.cli import UsageError, claim_outputs
+
+        names = [out_dir / f"{index_name(i)}.data" for i in range(cfg.objects)]
+        try:
+            claim_outputs([p for p in names if os.path.lexists(p)], overwrite, owner="wildgen.make",
+                          marker=out_dir / MANIFEST, folders=True)
+        except UsageError as exc:
+            raise DatasetError(str(exc)) from None
     plan.leftovers = len(clean_leftovers(out_dir))
     if overwrite:
         _remove_dataset(out_dir)

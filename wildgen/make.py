@@ -12,7 +12,8 @@ import time
 from dataclasses import dataclass, fields
 from pathlib import Path
 
-from scenes.cli import UsageError, check_output_folder, report_error
+from scenes.cli import UsageError, check_output_folder, check_threads, gib, make_output_folder, report_error
+from scenes.cli import check_memory as check_memory_bytes
 from scenes.config import check_fields, check_int, config_parser, given_flags, option
 from scenes.config import config_from_args as parse_config
 from wildgen.config import GenConfig
@@ -138,7 +139,8 @@ def resolve_run(args: MakeOptions, explicit: set[str], out: Path) -> tuple[GenCo
     lib = AssetLibrary.scan(cfg.assets)  # fail early on a bad asset folder
     if cfg.shapes == "mesh" and not lib.meshes:
         raise ValueError(f"--shapes: 'mesh' needs an --assets folder with meshes/, {cfg.assets!r} has none")
-    check_memory(cfg, args.workers, args.ray is not None)
+    check_memory(cfg, args.workers, args.ray is not None, resumed=args.resume and "objects" not in explicit)
+    _check_threads(args, cfg)
     lib.check()  # every asset decoded once, here: a bad file is named now, not retried in every object
     check_out(out)
     from scenes.variant import choose_variant
@@ -148,57 +150,55 @@ def resolve_run(args: MakeOptions, explicit: set[str], out: Path) -> tuple[GenCo
     if args.threads and args.workers == 0:
         import drjit as dr
 
-        dr.set_thread_count(args.threads)
+        try:
+            dr.set_thread_count(args.threads)
+        except RuntimeError as exc:  # what the limits above did not foresee
+            raise UsageError(f"--threads: cannot start {args.threads} Dr.Jit threads ({exc})") from None
     return cfg, variant
 
 
-def available_memory() -> int | None:
-    """Bytes of memory available to new allocations (Linux MemAvailable), or None when unknown."""
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return None
-
-
-def _gib(n: float) -> str:
-    return f"{n / 2**30:.1f} GiB"
-
-
-def check_memory(cfg: GenConfig, workers: int | None, ray: bool) -> None:
-    """Refuse sizes this machine cannot hold (`GenConfig.memory_per_object` x concurrent workers)."""
+def _check_threads(args: MakeOptions, cfg: GenConfig) -> None:
+    """--threads x the local workers must be threads this machine can start."""
     from wildgen.parallel import default_workers
 
-    available = available_memory()
-    if available is None:
-        return
+    workers = 1 if args.ray is not None or args.workers == 0 else (args.workers or default_workers(cfg.objects))
+    check_threads(args.threads, "--threads", processes=workers)
+
+
+MANIFEST_BYTES_PER_OBJECT = 10_000
+"""Bytes the parent process holds per object of the dataset (its manifest entry as a dict and as JSON text, the
+plan), plus MANIFEST_BYTES_PER_IMAGE per image of it (checksums of the image files): measured 12.5 kB per
+object of 2 images."""
+MANIFEST_BYTES_PER_IMAGE = 400
+
+
+def manifest_memory(cfg: GenConfig) -> int:
+    """Bytes the manifest of `cfg` takes in the parent process (it holds every object's entry)."""
+    return cfg.objects * (MANIFEST_BYTES_PER_OBJECT + MANIFEST_BYTES_PER_IMAGE * cfg.images)
+
+
+def check_memory(cfg: GenConfig, workers: int | None, ray: bool, resumed: bool = False) -> None:
+    """Refuse sizes this machine cannot hold: `GenConfig.memory_per_object` x concurrent workers, plus the
+    manifest of `--objects` objects. `resumed`: the configuration came from the manifest (named in the error)."""
+    from wildgen.parallel import default_workers
+
     per_object = cfg.memory_per_object()
     concurrent = 1 if ray or workers == 0 else (workers or default_workers(cfg.objects))
-    need = per_object * concurrent
-    if need > available:
-        who = f" x {concurrent} workers" if concurrent > 1 else ""
-        raise ValueError(
-            f"--res/--images/--spp: one object at {cfg.width}x{cfg.height} px, {cfg.images} images, {cfg.spp} spp needs "
-            f"about {_gib(per_object)}{who} = {_gib(need)} of memory, this machine has {_gib(available)} available; "
-            "lower --res, --images, --spp or --workers"
-        )
+    manifest = manifest_memory(cfg)
+    where = " (from manifest.json)" if resumed else ""
+    if manifest > per_object * concurrent:
+        check_memory_bytes(manifest + per_object * concurrent, f"--objects{where}",
+                           f"the manifest of {cfg.objects} objects", "lower --objects or split the dataset")
+    who = f" x {concurrent} workers" if concurrent > 1 else ""
+    check_memory_bytes(per_object * concurrent + manifest, f"--res/--images/--spp{where}",
+                       f"one object at {cfg.width}x{cfg.height} px, {cfg.images} images, {cfg.spp} spp "
+                       f"(about {gib(per_object)}{who})", "lower --res, --images, --spp or --workers")
 
 
 def check_out(out: Path) -> None:
-    """--out must be a folder this process can create and write (checked before anything is written)."""
-    import os
-
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"--out: {str(out)!r} is an existing file, expected a folder (new or a dataset of wildgen.make)")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ValueError(f"--out: cannot create the folder {str(out)!r} ({exc.strerror or exc})") from None
-    if not os.access(out, os.W_OK | os.X_OK):
-        raise ValueError(f"--out: the folder {str(out)!r} is not writable")
+    """--out must be a folder this process can create and write (checked, and created, before anything is
+    written)."""
+    make_output_folder(out)
 
 
 class _Progress:
@@ -215,9 +215,13 @@ class _Progress:
         from tqdm import tqdm
 
         self.plan = plan
-        if plan.resumed and not self.quiet:
-            print(f"resuming {self.out}: {plan.complete} complete, {plan.rejected} rejected, {len(plan.todo)} to render"
-                  + (f", {plan.leftovers} interrupted removed" if plan.leftovers else ""), file=sys.stderr)
+        # One line before the long work, also with --quiet (which only hides the bar): what and where.
+        what = f"{self.cfg.width}x{self.cfg.height} px, {self.cfg.images} images, {self.cfg.spp} spp"
+        if plan.resumed:
+            print(f"resuming {self.out}: {plan.complete} complete, {plan.rejected} rejected, {len(plan.todo)} to render "
+                  f"({what})" + (f", {plan.leftovers} interrupted removed" if plan.leftovers else ""), flush=True)
+        else:
+            print(f"rendering {len(plan.todo)} object(s) ({what}) into {self.out}", flush=True)
         self.bar = tqdm(total=self.cfg.objects, initial=plan.complete + plan.rejected, unit="obj", disable=self.quiet,
                         desc="wildgen", dynamic_ncols=True)
         self.left = len(plan.todo)
@@ -298,6 +302,7 @@ def _run(argv: list[str] | None, state: dict) -> int:
     bar.close()
     how = _engine_description(getattr(engine, "used", {}), bar.plan)
     line, failed = _summary(entries, bar.rendered, bar.plan, time.perf_counter() - t0, variant, how)
+    print(f"dataset in {out}: <object>.data folders and manifest.json")
     print(line)
     for e in sorted(entries.values(), key=lambda e: e["index"]):
         if e.get("status") == "failed":

@@ -14,7 +14,8 @@ die with their parent (Linux PR_SET_PDEATHSIG), so killing the driver leaves no 
 
 Each object is a pure function of (config, index): its bytes depend neither on the engine, the number of
 workers nor the Dr.Jit threads per worker (scenes.render.render_film sums each pixel's samples in a fixed
-order; tests/test_determinism.py, tests/test_wildgen_scale.py; the README states the guarantee).
+order; tests/test_determinism.py, tests/test_wildgen_scale.py; docs/generator.md, "Crash safety, resume and
+determinism", states the guarantee).
 """
 from __future__ import annotations
 

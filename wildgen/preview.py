@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from scenes.cli import check_output_folder, make_output_folder
 from scenes.config import config_from_args as parse_config
 from scenes.config import config_parser, option
 
@@ -60,9 +61,12 @@ def object_sheet(folder: Path) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(rows, 0), np.concatenate([tiles[0], tiles[len(images)]], 1)
 
 
-def preview(dataset: str | Path, out: str | Path | None = None) -> list[Path]:
-    """Write contact sheets and the overview; returns the written paths."""
-    import cv2
+def preview(dataset: str | Path, out: str | Path | None = None, overwrite: bool = False) -> list[Path]:
+    """Write contact sheets and the overview; returns the written paths. Every object is read and every sheet
+    drawn before anything is written; existing sheets are replaced only with `overwrite`
+    (`scenes.cli.claim_outputs`)."""
+    from scenes.cli import claim_outputs
+    from scenes.objfolder import write_picture
 
     dataset = Path(dataset)
     folders = sorted(p for p in dataset.glob("*.data") if p.is_dir()) if dataset.is_dir() else []
@@ -71,27 +75,23 @@ def preview(dataset: str | Path, out: str | Path | None = None) -> list[Path]:
     if not folders:
         raise FileNotFoundError(f"DIR: no <object>.data folders in {str(dataset)!r}")
     out_dir = Path(out) if out else (dataset if not dataset.name.endswith(".data") else dataset.parent) / "preview"
-    if out_dir.exists() and not out_dir.is_dir():
-        raise ValueError(f"--out: {str(out_dir)!r} is an existing file, expected a folder")
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ValueError(f"--out: cannot create the folder {str(out_dir)!r} ({exc.strerror or exc})") from None
-    written, summaries = [], []
+    check_output_folder(out_dir)
+    targets = [out_dir / f"{folder.name[:-5]}.png" for folder in folders] + [out_dir / "overview.png"]
+    claim_outputs(targets, overwrite, owner="wildgen.preview")
+    print(f"drawing contact sheets of {len(folders)} object(s) into {out_dir}", flush=True)
+    sheets, summaries = [], []
     for folder in folders:
         sheet, summary = object_sheet(folder)
-        path = out_dir / f"{folder.name[:-5]}.png"
-        if not cv2.imwrite(str(path), sheet):
-            raise OSError(f"--out: cannot write {str(path)!r}")
-        written.append(path)
+        sheets.append(sheet)
         summaries.append(_label(summary, folder.name[:-5]))
     cols = 4
     while len(summaries) % cols:
         summaries.append(np.zeros_like(summaries[0]))
     overview = np.concatenate([np.concatenate(summaries[i : i + cols], 1) for i in range(0, len(summaries), cols)], 0)
-    cv2.imwrite(str(out_dir / "overview.png"), overview)
-    written.append(out_dir / "overview.png")
-    return written
+    make_output_folder(out_dir)
+    for path, image in zip(targets, [*sheets, overview]):
+        write_picture(path, image)
+    return targets
 
 
 @dataclass
@@ -102,6 +102,8 @@ class PreviewOptions:
     """Dataset directory (or one <object>.data folder)."""
     out: str | None = option(None, default_text="DIR/preview")
     """Output folder: one <object>.png per object and overview.png."""
+    overwrite: bool = False
+    """Replace the contact sheets of an earlier run in the output folder (other files are never touched)."""
 
 
 def build_parser():
@@ -110,12 +112,11 @@ def build_parser():
 
 
 def main(argv: list[str] | None = None) -> int:
-    from scenes.cli import UsageError, check_output_folder, report_error
+    from scenes.cli import UsageError, report_error
 
     try:
         args = parse_config(PreviewOptions, build_parser().parse_args(argv))
-        check_output_folder(args.out if args.out is not None else Path(args.dataset) / "preview")
-        written = preview(args.dataset, args.out)
+        written = preview(args.dataset, args.out, args.overwrite)  # outputs checked before any sheet is drawn
     except (UsageError, ValueError, OSError) as exc:
         return report_error(exc)
     print(f"wrote {len(written) - 1} contact sheets and {written[-1]}")

@@ -2,7 +2,8 @@
 then rename), and its manifest entry (`make_object`, the unit of work every engine runs).
 
 The folder holds no timestamps or host names (those go into the manifest), so the same seed gives
-byte-identical folders whatever the Dr.Jit thread count (scenes.render.render_film: see README).
+byte-identical folders whatever the Dr.Jit thread count (scenes.render.render_film; docs/generator.md,
+"Crash safety, resume and determinism").
 """
 from __future__ import annotations
 

@@ -1,0 +1,233 @@
+"""The data of `unips.train`: cached samples, the batch of each step, the loss, and the probes of a validation.
+
+A sample is one object folder prepared once (crop, normalise, resize to the working resolution) and kept
+in memory. The batch of step `s` is a pure function of (samples, seed, s) and the settings: every random
+choice (objects, image subsets, augmentation, pixels) comes from generators seeded by `(seed, s)`, so a
+resumed run draws the same batches. The loss is the MSE between unit normals on masked points of the
+canonical grid and on random masked pixels. `probe_samples` is one validation: the probes of
+`unips.probes` (all images, one image, mask only, shuffled) over the cached validation objects.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+
+@dataclass
+class Sample:
+    """One prepared object at the working resolution R, cached in memory."""
+
+    name: str  # object name
+    images: torch.Tensor  # (K, 3, R, R) float16 (halves the cache; values are ~1 after normalisation)
+    mask: torch.Tensor  # (1, R, R) float32 in {0, 1}
+    normals: torch.Tensor | None  # (3, R, R) float32 unit vectors inside the mask, 0 outside
+    light_family: str | None  # lighting family from scene.json, if known
+
+    @property
+    def num_images(self) -> int:
+        return int(self.images.shape[0])
+
+
+def to_tensors(images: np.ndarray, mask: np.ndarray, normals: np.ndarray | None
+               ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None]:
+    """Prepared arrays (K, R, R, 3) / (R, R) / (R, R, 3) -> channels-first float32 tensors."""
+    imgs = torch.from_numpy(np.ascontiguousarray(images, dtype=np.float32)).permute(0, 3, 1, 2)  # (K, 3, R, R)
+    m = torch.from_numpy(np.ascontiguousarray(mask, dtype=np.float32))[None]  # (1, R, R)
+    n = None
+    if normals is not None:
+        n = torch.from_numpy(np.ascontiguousarray(normals, dtype=np.float32)).permute(2, 0, 1)  # (3, R, R)
+        n = F.normalize(n, dim=0, eps=1e-8) * m  # unit inside the mask, 0 outside
+    return imgs.contiguous(), m, None if n is None else n.contiguous()
+
+
+def data_roots(data: str | Path) -> list[Path]:
+    """The dataset directories of a --data value: one path, or several separated by commas."""
+    roots = [Path(p.strip()) for p in str(data).split(",") if p.strip()]
+    if not roots:
+        raise ValueError(f"--data: {str(data)!r} names no directory")
+    names = [r.name for r in roots]
+    if len(set(names)) != len(names):
+        raise ValueError(f"--data: {str(data)!r} names two directories with the same name (object names would collide)")
+    return roots
+
+
+def load_samples(root: str | Path, res: int, require_normals: bool = True) -> list[Sample]:
+    """Load, crop, normalise and resize every object under `root` (one dataset directory, or several
+    separated by commas: their objects are pooled and named DIRNAME/OBJECT)."""
+    from unips.data import find_objects, load_object
+    from unips.preprocess import prepare, resize_prepared
+
+    roots = data_roots(root)
+    samples = []
+    for r in roots:
+        for p in find_objects(r):  # FileNotFoundError naming the path when there is none
+            obj = load_object(p)
+            if require_normals and obj.normals is None:
+                raise ValueError(f"object {obj.name!r} in {str(r)!r} has no ground-truth normals (normal.tif)")
+            prep = resize_prepared(prepare(obj, margin=4), res)
+            imgs, m, n = to_tensors(prep.images, prep.mask, prep.normals)
+            name = obj.name if len(roots) == 1 else f"{r.name}/{obj.name}"
+            samples.append(Sample(name, imgs.to(torch.float16), m, n, obj.light_family))
+    return samples
+
+
+def describe_data(samples: Sequence[Sample], root: str | Path, res: int) -> dict[str, Any]:
+    """Data description stored in checkpoints (and compared on resume)."""
+    roots = [str(r.resolve()) for r in data_roots(root)]
+    return {"root": roots[0] if len(roots) == 1 else roots, "res": res, "objects": [s.name for s in samples],
+            "images": [s.num_images for s in samples]}
+
+
+# -- batches ----------------------------------------------------------------------------------
+
+@dataclass
+class Batch:
+    """One training batch; every field on the training device."""
+
+    images: torch.Tensor  # (B, k, 3, R, R) float32
+    mask: torch.Tensor  # (B, 1, R, R) float32
+    coords: torch.Tensor  # (B, N, 2) decode coordinates: canonical grid points, then random pixels
+    target: torch.Tensor  # (B, N, 3) ground-truth unit normals at coords
+    weight: torch.Tensor  # (B, N) 1 for a valid canonical point / random pixel, 0 for padding
+    is_canonical: torch.Tensor  # (N,) bool, True for the canonical-grid part
+
+
+def step_rng(seed: int, step: int, stream: int) -> np.random.Generator:
+    """Generator for one purpose (`stream`) of one step, independent of everything else."""
+    return np.random.default_rng([int(seed), int(step), int(stream)])
+
+
+def batch_indices(seed: int, step: int, batch: int, n: int) -> list[int]:
+    """Object indices of a step: consecutive slots of per-epoch permutations seeded by (seed, epoch)."""
+    out = []
+    for i in range(step * batch, (step + 1) * batch):
+        epoch, pos = divmod(i, n)
+        perm = np.random.default_rng([int(seed), 1_000_003, epoch]).permutation(n)
+        out.append(int(perm[pos]))
+    return out
+
+
+def canonical_points(mask: torch.Tensor, normals: torch.Tensor, size: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """Centres of the canonical size x size grid lying fully inside the mask.
+
+    Returns coords `(n, 2)` and target normals `(n, 3)` (bilinear, renormalised). A point is kept
+    when the bilinearly sampled mask is 1, i.e. all working-resolution neighbours are inside.
+    """
+    c = (2.0 * torch.arange(size, dtype=torch.float32) + 1.0) / size - 1.0
+    gy, gx = torch.meshgrid(c, c, indexing="ij")
+    grid = torch.stack([gx, gy], dim=-1).reshape(1, 1, -1, 2)  # (1, 1, s*s, 2)
+    m = F.grid_sample(mask[None], grid, mode="bilinear", align_corners=False)[0, 0, 0]  # (s*s,)
+    keep = m >= 0.999
+    nrm = F.grid_sample(normals[None], grid, mode="bilinear", align_corners=False)[0, :, 0].T  # (s*s, 3)
+    return grid[0, 0][keep], F.normalize(nrm[keep], dim=-1, eps=1e-8)
+
+
+def random_pixels(mask: torch.Tensor, normals: torch.Tensor, count: int,
+                  rng: np.random.Generator) -> tuple[torch.Tensor, torch.Tensor]:
+    """`count` random masked pixels (with replacement only if fewer exist): coords `(count, 2)`, normals."""
+    from unips.models.glc import pixel_centre_coords
+
+    h, w = mask.shape[-2:]
+    idx = torch.nonzero(mask[0].reshape(-1) > 0.5)[:, 0].numpy()
+    pick = rng.choice(idx, size=count, replace=len(idx) < count)
+    ys, xs = torch.from_numpy(pick // w), torch.from_numpy(pick % w)
+    return pixel_centre_coords(ys, xs, h, w), normals[:, ys, xs].T
+
+
+def make_batch(samples: Sequence[Sample], step: int, *, seed: int, batch: int, min_images: int,
+               max_images: int, pixels: int, canonical: int, augment: bool = True,
+               canonical_max: int = 0, interior_crop: float = 0.0, rank: int = 0, world: int = 1) -> Batch:
+    """The batch of `step`, a pure function of (samples, step, seed and the settings).
+
+    `canonical_max` > 0 keeps a random subset of at most that many canonical-grid points per object.
+    `interior_crop` is the probability that an object is replaced by a square cut from inside its mask
+    (`unips.augment.interior_crop`); at 0 no draw is made, so older runs keep their trajectories.
+    With `world` > 1 processes, rank `rank` gets objects rank, rank + world, ... of the global batch
+    (every random draw is made for the whole batch, so the union over ranks is the 1-process batch).
+    """
+    from unips.augment import apply_augmentation, interior_crop as cut_interior, sample_augmentation
+
+    idx = batch_indices(seed, step, batch, len(samples))
+    rng = step_rng(seed, step, 0)
+    k_max = min(max_images, min(samples[i].num_images for i in idx))
+    k = int(rng.integers(min_images, k_max + 1))
+    imgs, masks, can, rnd = [], [], [], []
+    for j, i in enumerate(idx):
+        s = samples[i]
+        subset = np.sort(rng.choice(s.num_images, size=k, replace=False))
+        x = s.images[torch.from_numpy(subset)].to(torch.float32)
+        m, n = s.mask, s.normals
+        if augment:
+            x, m, n = apply_augmentation(sample_augmentation(rng, k), x, m, n)
+        if interior_crop > 0 and rng.random() < interior_crop:
+            cut = cut_interior(x, m, n, rng)
+            if cut is not None:
+                x, m, n = cut
+        cc, cn = canonical_points(m, n, canonical)
+        if 0 < canonical_max < cc.shape[0]:
+            keep = torch.from_numpy(np.sort(rng.choice(cc.shape[0], size=canonical_max, replace=False)))
+            cc, cn = cc[keep], cn[keep]
+        rp = random_pixels(m, n, pixels, rng)
+        if j % world != rank:
+            continue  # drawn anyway so that every rank's generator stays in step
+        imgs.append(x)
+        masks.append(m)
+        can.append((cc, cn))
+        rnd.append(rp)
+    n_can = max(1, max(c.shape[0] for c, _ in can))
+    coords, target, weight = [], [], []
+    for (cc, cn), (rc, rn) in zip(can, rnd):
+        pad = n_can - cc.shape[0]
+        wc = torch.cat([torch.ones(cc.shape[0]), torch.zeros(pad)])
+        # Pad with copies of the first random pixel (weight 0) so all samples share N.
+        cc = torch.cat([cc, rc[:1].expand(pad, 2)])
+        cn = torch.cat([cn, rn[:1].expand(pad, 3)])
+        coords.append(torch.cat([cc, rc]))
+        target.append(torch.cat([cn, rn]))
+        weight.append(torch.cat([wc, torch.ones(rc.shape[0])]))
+    is_can = torch.cat([torch.ones(n_can, dtype=torch.bool), torch.zeros(pixels, dtype=torch.bool)])
+    return Batch(torch.stack(imgs), torch.stack(masks), torch.stack(coords), torch.stack(target),
+                 torch.stack(weight), is_can)
+
+
+def normal_loss(pred: torch.Tensor, batch: Batch) -> tuple[torch.Tensor, dict[str, float]]:
+    """MSE between unit normals, averaged separately on the canonical grid and the random pixels."""
+    err = ((pred - batch.target) ** 2).mean(dim=-1) * batch.weight  # (B, N)
+    wc, wr = batch.weight[:, batch.is_canonical], batch.weight[:, ~batch.is_canonical]
+    lc = err[:, batch.is_canonical].sum() / wc.sum().clamp_min(1.0)
+    lr = err[:, ~batch.is_canonical].sum() / wr.sum().clamp_min(1.0)
+    loss = lc + lr
+    return loss, {"loss": float(loss.detach()), "loss_canonical": float(lc.detach()), "loss_random": float(lr.detach())}
+
+
+# -- probes -----------------------------------------------------------------------------------
+
+@torch.no_grad()
+def probe_samples(model: torch.nn.Module, samples: Sequence[Sample], max_images: int, device: torch.device,
+             probes: Sequence[str] = ("all",), pixels: int = 0, seed: int = 0) -> dict[str, Any]:
+    """Probe errors (degrees) over the validation objects, overall and per light family.
+
+    Each object uses its first `max_images` images at the working resolution; `pixels` > 0 scores a
+    fixed seeded subset of that many masked pixels per object. Returns `unips.probes.summarise`'s
+    dict plus "mean" (all images, the model-selection figure) and per-object errors.
+    """
+    from unips.probes import probe_object, summarise
+
+    was_training = model.training
+    model.eval()
+    per_object = {}
+    for i, s in enumerate(samples):
+        per_object[s.name] = probe_object(model, s.images[:max_images], s.mask, s.normals, probes=probes,
+                                          pixels=pixels, seed=seed + i, device=device)
+    model.train(was_training)
+    res = summarise(per_object, {s.name: s.light_family for s in samples})
+    res["probes"] = res.pop("mean")
+    res["mean"] = res["probes"]["all"]
+    res["objects"] = per_object
+    return res

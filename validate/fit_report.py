@@ -1,0 +1,161 @@
+"""The report of the fitted mode of the re-render check (`validate.rerender` on a folder without scene.json).
+
+Reference levels beside the score `rel_l1`: `noise_rel_l1` (the image noise estimated from the data), and
+`floor_rel_l1`, the score the same fit (same budget, same seed) reaches with a normal map that carries no
+information (constant (0, 0, 1), optionally also a silhouette-only map): a normal map scoring at or above
+the floor explains nothing.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import asdict
+from typing import Any
+
+import numpy as np
+
+from scenes.variant import jit_threads, require_ad_variant
+from validate import heightfield
+from validate.capture import Capture
+from validate.fit import fit_normals, prepare
+from validate.fit_scene import FitConfig, Progress
+from validate.judgeable import check_judgeable
+
+
+def estimate_noise_rel_l1(images: np.ndarray, mask: np.ndarray) -> float:
+    """Image noise as a relative L1 level: Immerkaer's Laplacian-difference estimate of the noise
+    standard deviation sigma inside the (eroded) mask, turned into the mean absolute value of Gaussian
+    noise sigma * sqrt(2 / pi), divided by the mean input over the mask. images (K, H, W, 3)."""
+    from scipy.ndimage import binary_erosion, convolve
+
+    kern = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float64)
+    inner = binary_erosion(mask, iterations=2)
+    if inner.sum() < 16:
+        return float("nan")
+    sig = []
+    for im in images:
+        for c in range(im.shape[2]):
+            r = convolve(im[:, :, c].astype(np.float64), kern, mode="nearest")
+            sig.append(np.sqrt(np.pi / 2) / 6.0 * np.median(np.abs(r[inner])) / 0.6745 * 0.7979)
+    sigma = float(np.mean(sig))
+    denom = float(np.abs(images[:, mask]).mean())
+    return sigma * np.sqrt(2 / np.pi) / denom if denom > 0 else float("nan")
+
+
+def no_information_maps(mask: np.ndarray, kinds: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """Normal maps carrying no photometric information: 'constant' (0, 0, 1), 'silhouette' (from the mask)."""
+    out = {}
+    for k in kinds:
+        if k == "constant":
+            out[k] = np.where(mask[..., None], np.float32([0, 0, 1]), 0).astype(np.float32)
+        else:
+            out[k] = heightfield.silhouette_normals(mask)
+    return out
+
+
+def full_config_dict(config: FitConfig) -> dict:
+    d = asdict(config)
+    d["floor_maps"] = list(config.floor_maps)
+    return d
+
+
+def _scatter(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """(K, P, 3) mask-pixel values -> (K, H, W, 3) images, 0 outside the mask."""
+    out = np.zeros((values.shape[0],) + mask.shape + (3,), np.float32)
+    out[:, mask] = values
+    return out
+
+
+def rerender_fitted(
+    folder: str,
+    normals: str | np.ndarray,
+    config: FitConfig | None = None,
+    out_dir: str | None = None,
+    progress: Progress | None = None,
+    overwrite: bool = False,
+) -> dict:
+    """Fitted mode of the re-render check for one object folder (any layout); returns the report and
+    writes `out_dir/<object>/report.json` and `figure.png` when out_dir is given."""
+    import json
+    from pathlib import Path
+
+    from validate.capture import load_with_normals
+    from validate.lights import angular_errors_deg, directions_of
+    from scenes.objfolder import mean_angular_error as mae_deg
+    from validate.metrics import relative_residual_map
+
+    config = (config or FitConfig()).validate()
+    mi = require_ad_variant()
+    t0 = time.perf_counter()
+    cap, full, source = load_with_normals(folder, normals)
+    target = None
+    if out_dir is not None:
+        target = Path(out_dir) / cap.name
+        if (target / "report.json").exists() and not overwrite:
+            raise FileExistsError(f"--out: {str(target / 'report.json')!r} exists (pass --overwrite to replace it)")
+    small, n_small, f = prepare(cap, full, config)
+    check_judgeable(small, "check")  # before any fitting: enough images and lit pixels to rank maps
+    res = fit_normals(small.images, small.mask, n_small, config, progress, "fit", small.saturated)
+    floors = {}
+    for kind, nmap in no_information_maps(small.mask, config.floor_maps).items():
+        floors[kind] = fit_normals(small.images, small.mask, nmap, config, progress, f"floor ({kind})", small.saturated).rel_l1
+    report: dict[str, Any] = {
+        "mode": "fitted",
+        "object": cap.name,
+        "folder": str(cap.folder),
+        "layout": cap.layout,
+        "prediction": source,
+        "images_count": int(cap.images.shape[0]),
+        "image_names": cap.image_names,
+        "mask_pixels": int(cap.mask.sum()),
+        "rel_l1": res.rel_l1,
+        "noise_rel_l1": finite(estimate_noise_rel_l1(small.images, small.mask)),
+        "floor_rel_l1": min(floors.values()) if floors else None,
+        "floors": floors,
+        "mae_deg": mae_deg(n_small, small.normal_gt, small.mask) if small.normal_gt is not None else None,
+        "light_model": res.model,
+        "lights": res.lights,
+        "specular": res.specular,
+        "per_image_rel_l1": res.per_image_rel_l1,
+        "fit_downsample": f,
+        "fit_resolution": list(small.mask.shape),
+        "fit_mask_pixels": int(small.mask.sum()),
+        "saturated_fraction": saturated_fraction(small),
+        "note": (f"fitted and scored at 1/{f} resolution ({small.mask.shape[1]}x{small.mask.shape[0]}, box filter)" if f > 1
+                 else "fitted and scored at full resolution"),
+        "config": full_config_dict(config),
+        "variant": mi.variant(),
+        "jit_threads": jit_threads(),
+    }
+    if small.light_directions is not None:
+        err = angular_errors_deg(directions_of(res.model, res.light_params), small.light_directions)
+        report["calibrated_light_error_deg"] = {"mean": float(err.mean()), "median": float(np.median(err)), "max": float(err.max())}
+    report["timings"] = {"fit_s": res.seconds, "total_s": time.perf_counter() - t0}
+    if target is not None:
+        from scenes.objfolder import angular_error_deg, prediction_label
+        from validate.figures import rerender_figure
+
+        target.mkdir(parents=True, exist_ok=True)
+        renders = _scatter(res.render, small.mask)
+        k = renders.shape[0]
+        rows = sorted(set(np.linspace(0, k - 1, min(k, 4)).round().astype(int).tolist()))
+        rerender_figure(
+            target / "figure.png", small.images, renders, small.mask, rows,
+            relative_residual_map(renders, small.images, small.mask), None, n_small,
+            title=f"{cap.name}, {prediction_label(source)} (fitted lights): rel_l1 {res.rel_l1:.4f}, "
+            f"constant map {report['floor_rel_l1'] or float('nan'):.4f}"
+            + (f", MAE {report['mae_deg']:.2f} deg" if report.get("mae_deg") is not None else ""),
+            angular_error=None if small.normal_gt is None else angular_error_deg(n_small, small.normal_gt, small.mask),
+        )
+        (target / "report.json").write_text(json.dumps(report, indent=1, allow_nan=False))
+    return report
+
+
+def saturated_fraction(cap: Capture) -> float:
+    """Fraction of the mask observations (images x pixels x channels) that are saturated (censored)."""
+    if cap.saturated is None:
+        return 0.0
+    return float(cap.saturated[:, cap.mask].mean())
+
+
+def finite(x: float | None) -> float | None:
+    return float(x) if x is not None and np.isfinite(x) else None

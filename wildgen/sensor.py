@@ -1,0 +1,238 @@
+"""`python -m wildgen.sensor`: re-apply another camera sensor to an existing dataset, without rendering.
+
+Example: python -m wildgen.sensor --data DS --sensor phone --out DS_phone
+
+For every object folder of --data, each image is made again from its float radiance (`aux/radiance_XXX.exr`)
+and its recorded exposure by the sensor preset (`scenes.sensor.SENSORS`; the model is in `scenes.sensor`);
+every other file (mask, normal map, aux/) is copied unchanged, and scene.json records the sensor and each
+image's noise seed (`scenes.sensor.sensor_record`), so any image can be re-derived. Each object is written
+under a temporary name and renamed when complete; --out gets a manifest.json with the sha256 checksum of every
+file (the source's manifest with the new checksums and a `sensor` entry). The same --data, --sensor and --seed
+give byte-identical files; --seed 0 gives the images that `wildgen.make --sensor NAME` writes.
+"""
+from __future__ import annotations
+
+import copy
+import json
+import os
+import shutil
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, progress_bar, report_error
+from scenes.config import check_fields, config_from_args, config_parser, option
+from scenes.objfolder import (AUX_DIR, SCENE_FILE, atomic_write_text, image_files, image_name, list_object_folders,
+                              object_name, read_exr, read_scene, write_scene)
+from scenes.sensor import (SCENE_KEY, SENSORS, Sensor, read_sensor_record, rederive_image, sensor_named, sensor_record,
+                           write_image)
+from wildgen.dataset import MANIFEST, clean_leftovers, dataset_lock, verify_object
+from wildgen.writer import TMP_PREFIX, sha256_file
+
+
+@dataclass
+class SensorOptions:
+    """The command line of wildgen.sensor."""
+
+    data: str = option("", required=True)
+    """Dataset folder made by wildgen.make (object folders holding their radiance, aux/radiance_XXX.exr)."""
+    sensor: str = option("", required=True, choices=tuple(SENSORS))
+    """Sensor preset whose files replace the images (a key of scenes.sensor.SENSORS)."""
+    out: str = option("", required=True)
+    """New dataset folder; an existing one that is not empty is refused unless --overwrite."""
+    seed: int = option(0, minimum=0)
+    """Noise seed: image i draws its noise from (seed, its sampler seed); 0 gives the images of wildgen.make
+    --sensor."""
+    overwrite: bool = False
+    """Replace the dataset in --out (its manifest.json and object folders; other files are left alone)."""
+    quiet: bool = False
+    """No progress bar."""
+
+    def validate(self) -> "SensorOptions":
+        check_fields(self)
+        return self
+
+
+def build_parser():
+    return config_parser(SensorOptions, prog="python -m wildgen.sensor",
+                         description="Re-apply a camera sensor (noise, black level, response, bit depth, vignetting, "
+                                     "Bayer filter, white balance) to the radiance of an existing dataset, without "
+                                     "rendering.")
+
+
+def _radiance_name(index: int) -> str:
+    """The radiance file of image `index` in aux/, as wildgen.writer names it."""
+    return f"radiance_{index:03d}.exr"
+
+
+def _sensor_versions() -> dict[str, str]:
+    """Versions of the packages that determine the sensor's bytes (noise streams, demosaicing)."""
+    from importlib import metadata
+
+    out = {}
+    for pkg in ("numpy", "colour-demosaicing", "colour-science", "opencv-python-headless"):
+        try:
+            out[pkg] = metadata.version(pkg)
+        except metadata.PackageNotFoundError:
+            out[pkg] = "not installed"
+    return out
+
+
+def apply_to_object(src: Path, out_dir: Path, sensor: Sensor, seed: int = 0) -> tuple[str, dict[str, str]]:
+    """Write `out_dir/<src name>` from object folder `src` with `sensor` (atomically: a temporary name, then a
+    rename). Returns (folder name, {relative path: sha256})."""
+    desc, extras = read_scene(src)
+    old = read_sensor_record(extras, len(desc.images), where=f"--data: {str(src / SCENE_FILE)!r}")
+    radiance = [src / AUX_DIR / _radiance_name(i) for i in range(len(desc.images))]
+    missing = [p.name for p in radiance if not p.is_file()]
+    if missing:
+        raise FileNotFoundError(f"--data: object folder {str(src)!r} has no {AUX_DIR}/{missing[0]} (the radiance a "
+                                f"sensor is applied to; {len(missing)} of {len(radiance)} missing)")
+    top_images = {p.name for p in image_files(src)}
+
+    def skip(folder: str, names: list[str]) -> list[str]:  # the files this tool writes anew
+        return [n for n in names if Path(folder) == src and (n in top_images or n == SCENE_FILE)]
+
+    final = out_dir / src.name
+    tmp = out_dir / f"{TMP_PREFIX}{src.name}.{os.getpid()}"
+    shutil.rmtree(tmp, ignore_errors=True)
+    try:
+        shutil.copytree(src, tmp, ignore=skip)
+        record = sensor_record(sensor, [im.seed for im in desc.images], seed)
+        for i, (image, path) in enumerate(zip(desc.images, radiance)):
+            rad = read_exr(path)  # (H, W, 3) float32, before exposure
+            if rad.ndim != 3 or rad.shape[2] != 3:
+                raise ValueError(f"--data: {str(path)!r} has shape {rad.shape}, expected an RGB image")
+            write_image(tmp / image_name(i), rederive_image(rad, image.exposure, sensor, record["noise_seeds"][i]))
+        extras = dict(extras)
+        extras[SCENE_KEY] = record
+        factor = sensor.exposure / old.sensor.exposure
+        if factor != 1.0 and isinstance(extras.get("camera_lights"), list):  # irradiance includes the exposure
+            extras["camera_lights"] = copy.deepcopy(extras["camera_lights"])
+            for per_image in extras["camera_lights"]:
+                for light in per_image.get("directional", []):
+                    light["irradiance"] = [float(v) * factor for v in light["irradiance"]]
+        write_scene(tmp, desc, extras)
+        files = {str(p.relative_to(tmp)): sha256_file(p) for p in sorted(tmp.rglob("*")) if p.is_file()}
+        if final.exists():
+            shutil.rmtree(final)
+        os.replace(tmp, final)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return final.name, files
+
+
+def _read_source_manifest(data: Path) -> dict | None:
+    path = data / MANIFEST
+    if not path.is_file():
+        return None
+    try:
+        manifest = json.loads(path.read_text())
+        if not isinstance(manifest, dict) or not isinstance(manifest.get("objects"), list):
+            raise ValueError("no 'objects' list")
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"--data: {str(path)!r} is not a readable manifest ({exc})") from None
+    return manifest
+
+
+def _prepare_out(data: Path, out: Path, overwrite: bool) -> None:
+    """Refuse --out when it is --data, inside it or around it, or an existing dataset without --overwrite."""
+    d, o = data.resolve(), out.resolve()
+    if o == d or d in o.parents or o in d.parents:
+        raise UsageError(f"--out: {str(out)!r} must be a folder apart from --data {str(data)!r} (not it, inside it "
+                         "or around it)")
+    check_output_folder(out)
+    if out.is_dir() and any(out.iterdir()):
+        if not overwrite:
+            raise UsageError(f"--out: {str(out)!r} already exists and is not empty; pass --overwrite to replace the "
+                             "dataset there, or choose another folder")
+        if not (out / MANIFEST).is_file():
+            raise UsageError(f"--out: {str(out)!r} is not empty and holds no {MANIFEST}: --overwrite only replaces a "
+                             "dataset, choose another folder")
+
+
+def _remove_dataset(out: Path) -> None:
+    """--overwrite: the manifest, the object folders and temporary folders of an interrupted run."""
+    (out / MANIFEST).unlink(missing_ok=True)
+    clean_leftovers(out)
+    for p in out.iterdir():
+        if p.is_dir() and not p.is_symlink() and (p.name.startswith(TMP_PREFIX) or (p / SCENE_FILE).is_file()):
+            shutil.rmtree(p)
+
+
+def apply_to_dataset(data: str | Path, out: str | Path, sensor: Sensor, seed: int = 0, overwrite: bool = False,
+                     progress: Callable[[int, int, str], None] | None = None) -> dict:
+    """Write dataset `out` from dataset `data` with `sensor` (see the module docstring); returns its manifest."""
+    data, out = Path(data), Path(out)
+    if not data.is_dir():
+        raise FileNotFoundError(f"--data: {str(data)!r} is not a folder")
+    sensor = sensor.validate()
+    source = _read_source_manifest(data)
+    if source is not None:
+        entries = [e for e in source["objects"] if isinstance(e, dict)]
+        done = [e for e in entries if e.get("status") == "done"]
+        for e in done:
+            problem = verify_object(data, e)
+            if problem is not None:
+                raise ValueError(f"--data: object {e.get('name', '?')!r} of {str(data)!r}: {problem} (the source "
+                                 "differs from its manifest)")
+    else:
+        folders = list_object_folders(data)
+        entries = [{"index": i, "name": object_name(f), "folder": f.name, "status": "done"}
+                   for i, f in enumerate(folders)]
+        done = entries
+    _prepare_out(data, out, overwrite)
+
+    manifest = copy.deepcopy(source) if source is not None else {"format_version": 1}
+    manifest["objects"] = []
+    if isinstance(manifest.get("config"), dict):
+        manifest["config"]["sensor"] = sensor.name  # what wildgen.make records as --sensor
+    manifest["sensor"] = {"name": sensor.name, "model": sensor.to_dict(), "seed": int(seed),
+                          "source": str(data.resolve()), "versions": _sensor_versions()}
+
+    def write_manifest(objects: list[dict]) -> None:
+        manifest["objects"] = objects
+        atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=1, sort_keys=True, allow_nan=False))
+
+    with dataset_lock(out):
+        if overwrite:
+            _remove_dataset(out)
+        write_manifest([])  # from the start: an interrupted run can be replaced with --overwrite
+        written = []
+        for entry in entries:
+            if entry.get("status") == "done":
+                if progress is not None:
+                    progress(sum(e.get("status") == "done" for e in written), len(done), entry.get("folder", "?"))
+                folder, files = apply_to_object(data / entry["folder"], out, sensor, seed)
+                entry = {**entry, "folder": folder, "files": files}
+                entry.pop("timings", None)  # the render's timings are not this run's
+            written.append(entry)
+        write_manifest(written)
+    return manifest
+
+
+def main(argv: list[str] | None = None) -> int:
+    try:
+        opts = config_from_args(SensorOptions, build_parser().parse_args(argv)).validate()
+        sensor = sensor_named(opts.sensor)
+        t0 = time.perf_counter()
+        if opts.quiet:
+            manifest = apply_to_dataset(opts.data, opts.out, sensor, opts.seed, opts.overwrite)
+        else:
+            with progress_bar("object") as progress:
+                manifest = apply_to_dataset(opts.data, opts.out, sensor, opts.seed, opts.overwrite, progress)
+    except INPUT_ERRORS as exc:
+        return report_error(exc)
+    except OSError as exc:  # a full disk or an unwritable file: one line, exit 1
+        return report_error(exc, 1)
+    n = sum(e.get("status") == "done" for e in manifest["objects"])
+    print(f"wrote {n} object folders with sensor {sensor.name!r} (seed {opts.seed}) to {opts.out} in "
+          f"{time.perf_counter() - t0:.1f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
