@@ -15,10 +15,11 @@ relative to the mean value), so it costs a few seconds per row. Per capture:
 - refinement of the ground-truth map itself (`validate.refine.refine_normals`, fitted lights): the mean
   angular error it ends at (0 is the right answer; a capture that cannot pin the map lets it drift).
 
-Sweeps: (1) the number of images K = 1, 2, 3, 4, 6, 8 (lights drawn from 8 directions 35-70 deg from the
-view axis; three draws per K); (2) lit pixels per image on a 32 px sphere, lights moved behind the object
-so that only a crescent is lit; (3) lit pixels per image through the sphere's size (6 to 32 px), lights in
-front. Lit pixels are counted by `validate.judgeable.lit_pixels`, the rule's own definition.
+Sweeps: (1) the number of images K = 1, 2, 3, 4, 5, 6, 8 (lights drawn from 8 directions 35-70 deg from
+the view axis; `--draws` draws per K); (2) the lit share of the mask on a 32 px sphere, 8 lights moved from
+45 to 120 deg from the view axis (toward and behind the object's outline); (3) lit pixels per image
+through the sphere's size (4 to 32 px), 8 lights in front. Lit pixels are counted by
+`validate.judgeable.lit_pixels`, the rule's own definition. About 1.5 min on 2 CPU cores (`llvm_ad_rgb`).
 """
 from __future__ import annotations
 

@@ -31,10 +31,11 @@ from typing import Any
 
 import numpy as np
 
-from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, report_error
+from scenes.cli import (INPUT_ERRORS, UsageError, check_memory, check_output_folder, check_threads, claim_outputs,
+                        make_output_folder, report_error)
 from scenes.config import check_fields, config_parser, option
 from scenes.config import config_from_args as parse_config
-from scenes.objfolder import mean_angular_error
+from scenes.objfolder import atomic_write_text, mean_angular_error
 from unips.data import find_objects, load_object
 from unips.inference import DEFAULT_TTA, TTA_VIEWS, load_network, predict_object
 from unips.probes import PROBES
@@ -209,10 +210,7 @@ def diligent_table(root: Path, net, ablation, images: int | None, subset_k: int 
     """Every `*PNG` object under `root`: all methods with `images` images, the model also with random
     `subset_k`-image subsets (mean over `subsets`, seeded) and its mask-only probe."""
     out = {}
-    folders = sorted(p for p in root.iterdir() if p.is_dir() and p.name.endswith("PNG"))
-    if not folders:
-        raise UsageError(f"--diligent: no <object>PNG folders in {str(root)!r}")
-    for folder in folders:
+    for folder in diligent_folders(root):
         name = folder.name[:-3]
         obj = load_object(folder, max_images=images)
         if obj.normals is None:
@@ -334,13 +332,73 @@ class BenchmarkOptions:
     """Views averaged by the model (flips and transposes)."""
     out: str = "benchmark_out"
     """Output folder: tables.md and benchmark.json."""
+    overwrite: bool = False
+    """Replace the tables.md and benchmark.json of an earlier run in --out (nothing else is touched)."""
 
     def validate(self) -> "BenchmarkOptions":
+        """The flags, their combinations and the output files (no input is read here: `check_inputs`)."""
         if self.data is None and self.diligent is None:
             raise UsageError("--data / --diligent: give at least one of them")
         check_fields(self)
+        if self.rerender_spp is not None and (self.data is None or self.rerender_objects == 0):
+            raise UsageError("--rerender-spp: only used by the re-render table, which needs --data and "
+                             "--rerender-objects >= 1")
+        if self.diligent is not None and self.diligent_subsets > 0 and self.diligent_subset >= self.diligent_images:
+            raise UsageError(f"--diligent-subset: got {self.diligent_subset}, expected fewer than --diligent-images "
+                             f"{self.diligent_images} (a subset of all the images is no subset; or --diligent-subsets 0)")
+        check_threads(self.threads)
         check_output_folder(self.out)
+        claim_outputs([Path(self.out) / f for f in OUTPUTS], self.overwrite, owner="orchestrate.benchmark")
         return self
+
+
+OUTPUTS = ("tables.md", "benchmark.json")
+"""What the benchmark writes into --out."""
+
+
+def check_inputs(args: BenchmarkOptions) -> None:
+    """Every input read (without its images) and sized before any model runs: each synthetic object has ground
+    truth, each DiLiGenT object has ground truth and enough images for --diligent-subset, the re-render
+    options are valid, and the largest object fits in memory (`unips.inference.prediction_memory`)."""
+    from scenes.layouts import read_folder
+    from unips.inference import prediction_memory
+    from unips.preprocess import crop_box
+
+    sized = []
+    if args.data is not None:
+        for folder in find_objects(args.data, arg="--data"):
+            fd = read_folder(folder, max_images=args.images, images=False, arg="--data")
+            if fd.normals is None:
+                raise UsageError(f"--data: {str(folder)!r} has no ground-truth normals")
+            sized.append(("--data", fd))
+        if args.rerender_objects > 0:
+            from validate.rerender_passes import RerenderConfig
+
+            RerenderConfig(spp=args.rerender_spp, allow_missing=True).validate()
+    if args.diligent is not None:
+        for folder in diligent_folders(Path(args.diligent)):
+            fd = read_folder(folder, max_images=args.diligent_images, images=False, arg="--diligent")
+            if fd.normals is None:
+                raise UsageError(f"--diligent: {str(folder)!r} has no ground-truth normals")
+            k = len(fd.image_paths)
+            if args.diligent_subsets > 0 and args.diligent_subset >= k:
+                raise UsageError(f"--diligent-subset: got {args.diligent_subset}, expected fewer than the {k} images of "
+                                 f"{str(folder)!r}")
+            sized.append(("--diligent-images", fd))
+    for flag, fd in sized:
+        need = prediction_memory("model", fd.shape, len(fd.image_paths), crop_box(fd.mask).size, args.tta)
+        check_memory(need, flag, f"the model on {fd.name} ({len(fd.image_paths)} images of {fd.shape[1]} x "
+                     f"{fd.shape[0]} px, {args.tta} view(s))", f"lower {flag} or --tta")
+
+
+def diligent_folders(root: Path) -> list[Path]:
+    """The `*PNG` object folders of a DiLiGenT folder (UsageError naming --diligent when there is none)."""
+    if not root.is_dir():
+        raise UsageError(f"--diligent: {str(root)!r} is not a folder")
+    folders = sorted(p for p in root.iterdir() if p.is_dir() and p.name.endswith("PNG"))
+    if not folders:
+        raise UsageError(f"--diligent: no <object>PNG folders in {str(root)!r}")
+    return folders
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -352,6 +410,7 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     try:
         args = parse_config(BenchmarkOptions, build_parser().parse_args(argv)).validate()
+        check_inputs(args)
         counts = args.counts
         import torch
 
@@ -370,6 +429,9 @@ def main(argv: list[str] | None = None) -> int:
                     import drjit as dr
 
                     dr.set_thread_count(args.threads)
+        which = " and ".join(f"{f} {v}" for f, v in (("--data", args.data), ("--diligent", args.diligent)) if v)
+        print(f"benchmarking {net.checkpoint} on {which}; tables into {args.out}", flush=True)
+        if args.data:
             res["synthetic"] = synthetic_tables(Path(args.data), net, ablation, args.images, counts, args.rerender_objects, args.rerender_spp,
                                                 args.tta)
         if args.diligent:
@@ -378,10 +440,13 @@ def main(argv: list[str] | None = None) -> int:
     except INPUT_ERRORS as exc:
         return report_error(exc)
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     tables = format_tables(res)
-    (out / "tables.md").write_text(tables)
-    (out / "benchmark.json").write_text(json.dumps(res, indent=1, default=float))
+    try:
+        make_output_folder(out)
+        atomic_write_text(out / "tables.md", tables)
+        atomic_write_text(out / "benchmark.json", json.dumps(res, indent=1, default=float))
+    except (UsageError, OSError) as exc:  # e.g. a full disk: one line naming the file, never a traceback
+        return report_error(exc, code=1)
     print(tables)
     print(f"wrote {out / 'tables.md'} and {out / 'benchmark.json'}")
     return 0

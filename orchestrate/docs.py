@@ -33,6 +33,7 @@ CARD = REPO / "unips" / "weights" / "model_card.json"
 CLIS = (
     "wildgen.make",
     "wildgen.preview",
+    "wildgen.sensor",
     "unips.train",
     "unips.predict",
     "unips.evaluate",
@@ -275,6 +276,17 @@ def lineage_families(card: dict) -> str:
     return _table(["stage", *fams], rows)
 
 
+def sensor_presets(card: dict) -> str:
+    """The table of camera sensor presets, from `scenes.sensor.SENSORS` (the card is not used)."""
+    from scenes.sensor import SENSORS
+
+    rows = []
+    for s in SENSORS.values():
+        depth = f"{s.bits} in 16" if s.bits == 12 else str(s.bits)
+        rows.append([f"`{s.name}`", s.about, f"{depth}-bit {s.response}" + (f" {s.gamma:g}" if s.response == "gamma" else "")])
+    return _table(["preset", "imitates", "file"], rows)
+
+
 # Generated blocks other than flag tables: name -> renderer of the model card.
 BLOCKS: dict[str, Callable[[dict], str]] = {
     "readme:headline": readme_headline,
@@ -286,6 +298,7 @@ BLOCKS: dict[str, Callable[[dict], str]] = {
     "results:validation-probes": validation_probes,
     "results:lineage": lineage,
     "results:lineage-families": lineage_families,
+    "generator:sensors": sensor_presets,
 }
 
 

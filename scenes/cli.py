@@ -78,7 +78,7 @@ def make_output_folder(path: str | os.PathLike, flag: str = "--out") -> str | os
 
 
 def claim_outputs(paths: Iterable[str | os.PathLike], overwrite: bool, flag: str = "--out", owner: str = "this command",
-                  marker: str | os.PathLike | None = None, folders: bool = False) -> list[Path]:
+                  marker: str | os.PathLike | None = None, folders: bool = False, resume: str = "") -> list[Path]:
     """The one rule of every command that writes, applied before any work to the outputs it is about to write.
 
     - An output that does not exist yet is written.
@@ -89,8 +89,9 @@ def claim_outputs(paths: Iterable[str | os.PathLike], overwrite: bool, flag: str
       a folder as a command's own, e.g. predict.json or manifest.json), any output that exists while the
       marker does not: those are not the command's files.
 
-    `folders`: the outputs are folders (e.g. object folders) rather than files. Files that are not among
-    `paths` are never touched. Returns the outputs that exist (those to be replaced).
+    `folders`: the outputs are folders (e.g. object folders) rather than files. `resume`: how the command
+    continues an earlier run instead, for the message (e.g. "--resume to continue it"). Files that are not
+    among `paths` are never touched. Returns the outputs that exist (those to be replaced).
     """
     paths = [Path(p) for p in paths]
     existing = [p for p in paths if os.path.lexists(p)]
@@ -107,8 +108,9 @@ def claim_outputs(paths: Iterable[str | os.PathLike], overwrite: bool, flag: str
                          f"use another {flag}")
     if existing and not overwrite:
         more = f" (and {len(existing) - 1} more)" if len(existing) > 1 else ""
+        also = f", {resume}" if resume else ""
         raise UsageError(f"{flag}: {str(existing[0])!r}{more} exists, from an earlier run; pass --overwrite to "
-                         f"replace it, or use another {flag}")
+                         f"replace it{also}, or use another {flag}")
     return existing
 
 

@@ -343,6 +343,18 @@ class FolderData:
     """Light family and calibration, cut to the K images read."""
     has_scene: bool
     """True when the folder has a scene file."""
+    sensor: Any = None
+    """The camera sensor the folder records (`scenes.sensor.Sensor`; ours only), None for a linear file (no
+    record, or the `ideal` sensor): then `images` are light. With a sensor they are file values; `linear()`
+    undoes the sensor's deterministic steps."""
+
+    def linear(self) -> np.ndarray | None:
+        """The images as light (`scenes.sensor.linearize` when a sensor is recorded, else `images`)."""
+        if self.images is None or self.sensor is None:
+            return self.images
+        from scenes.sensor import linearize
+
+        return linearize(self.images, self.sensor)
 
     @property
     def image_names(self) -> list[str]:
@@ -371,8 +383,23 @@ def finish_normals(n: np.ndarray, mask: np.ndarray, path: Path) -> np.ndarray:
     return out.astype(np.float32)
 
 
-def _read_stack(paths: list[Path]) -> tuple[np.ndarray, np.ndarray | None]:
-    """(K, H, W, 3) float32 images that must all have one size, and their saturated channels (or None)."""
+def _recorded_sensor(folder: Path, layout: str, num_images: int):
+    """The sensor an object folder of ours records in scene.json (None when absent or `ideal`)."""
+    if layout != "ours":
+        return None
+    from scenes.objfolder import split_scene_extras
+    from scenes.sensor import SCENE_KEY, SENSORS, read_sensor_record
+
+    _, extras = split_scene_extras(read_scene_dict(folder / SCENE_FILE))
+    if SCENE_KEY not in extras:
+        return None
+    sensor = read_sensor_record(extras, num_images, f"scene file {folder / SCENE_FILE}").sensor
+    return None if sensor == SENSORS["ideal"] else sensor
+
+
+def _read_stack(paths: list[Path], white: float = 1.0) -> tuple[np.ndarray, np.ndarray | None]:
+    """(K, H, W, 3) float32 images that must all have one size, and their saturated channels (at or above
+    `white`, the file value of the largest code) or None."""
     kinds = {p.suffix.lower() in FLOAT_SUFFIXES for p in paths}
     if len(kinds) > 1:
         flt = next(p for p in paths if p.suffix.lower() in FLOAT_SUFFIXES)
@@ -389,7 +416,7 @@ def _read_stack(paths: list[Path]) -> tuple[np.ndarray, np.ndarray | None]:
         stack[i] = img
     if kinds == {True}:
         return stack, None
-    saturated = stack >= 1.0  # integer files clip: the largest code is a lower bound, not a value
+    saturated = stack >= white  # integer files clip: the largest code is a lower bound, not a value
     return stack, (saturated if saturated.any() else None)
 
 
@@ -434,8 +461,11 @@ def read_folder(path: str | Path, max_images: int | None = None, layout: str | N
     lights = Lights(family=lights.family,
                     directions=None if lights.directions is None else lights.directions[:k],
                     intensities=None if lights.intensities is None else lights.intensities[:k])
+    sensor = _recorded_sensor(folder, layout, len(all_paths))
     if images:
-        stack, saturated = _read_stack(paths)
+        from scenes.sensor import saturation_value
+
+        stack, saturated = _read_stack(paths, saturation_value(sensor) if sensor is not None else 1.0)
         shape = stack.shape[1:3]
     else:
         stack = saturated = None
@@ -458,4 +488,4 @@ def read_folder(path: str | Path, max_images: int | None = None, layout: str | N
     return FolderData(name=object_name(folder), path=folder, layout=layout, image_paths=list(paths),
                       num_files=len(all_paths), shape=tuple(shape), images=stack, saturated=saturated, mask=mask,
                       mask_file=mask_file, normals=normals, normals_file=normals_file, lights=lights,
-                      has_scene=has_scene(folder))
+                      has_scene=has_scene(folder), sensor=sensor)

@@ -40,7 +40,7 @@ NORMAL_FILE = "normal.tif"
 AUX_DIR = "aux"
 FORMAT_VERSION = 1
 """Written into scene.json as `format_version`."""
-SCENE_EXTRAS = ("camera_lights", "format_version")
+SCENE_EXTRAS = ("camera_lights", "format_version", "sensor")
 """Top-level scene.json keys written next to the SceneDescription fields."""
 PREDICTION_FILES = ("normal.exr", "normal.png", "normal.npy", "normal.tif", "normal.tiff")
 """File names of a prediction folder, in lookup order (lossless float first)."""

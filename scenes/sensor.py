@@ -336,6 +336,54 @@ def apply_sensor(linear: np.ndarray, sensor: Sensor, rng: np.random.Generator | 
     return store(dn, sensor.bits)
 
 
+# ------------------------------------------------------------------------------------------ reading back
+
+INVERSE_RESPONSES: dict[str, Callable[[np.ndarray, float], np.ndarray]] = {
+    "linear": lambda v, gamma: v,
+    "srgb": lambda v, gamma: _srgb_decode(v),
+    "gamma": lambda v, gamma: np.clip(v, 0.0, 1.0) ** gamma,
+}
+"""The inverse of each tone response (file value -> linear), for readers that need light, not file values."""
+
+
+def _srgb_decode(v: np.ndarray) -> np.ndarray:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        from colour.models import eotf_sRGB
+
+    return np.asarray(eotf_sRGB(np.clip(v, 0.0, 1.0)), dtype=np.float64)
+
+
+def file_codes(values: np.ndarray, sensor: Sensor) -> np.ndarray:
+    """The integer DN of file values as readers return them (8-bit / 255, 16-bit / 65535; 12 bits stored as
+    DN * 16 in 16 bits): float64 DN in [0, 2^bits - 1]."""
+    container = 255.0 if sensor.bits == 8 else 65535.0
+    shift = BIT_DEPTHS[sensor.bits][1]
+    return np.round(np.asarray(values, np.float64) * container) / float(1 << shift)
+
+
+def saturation_value(sensor: Sensor) -> float:
+    """The file value (as readers return it) of the largest code of the sensor's bit depth: a channel at or
+    above it is clipped (12 bits in 16: 65520 / 65535, not 1)."""
+    container = 255.0 if sensor.bits == 8 else 65535.0
+    return (sensor.max_code << BIT_DEPTHS[sensor.bits][1]) / container
+
+
+def linearize(values: np.ndarray, sensor: Sensor) -> np.ndarray:
+    """Undo the deterministic steps of the model: (K, H, W, 3) or (H, W, 3) file values as readers return them
+    -> float32 linear values x on the scale of the radiance times the image's exposure (noise stays; the
+    demosaic is taken as the identity, which it is on smooth shading). Inverts steps 8 (codes), 7 (black level
+    and response), 6 (white balance), 2 (sensitivity) and 1 (exposure, vignetting)."""
+    v = file_codes(values, sensor) / float(sensor.max_code)
+    b = sensor.black_level
+    n = INVERSE_RESPONSES[sensor.response]((v - b) / (1.0 - b), sensor.gamma)
+    x = n / np.asarray(sensor.white_balance, np.float64) / np.asarray(sensor.sensitivity, np.float64)
+    h, w = values.shape[-3], values.shape[-2]
+    if sensor.vignetting:
+        x = x / vignetting_map(h, w, sensor.vignetting)[:, :, None]
+    return (x / sensor.exposure).astype(np.float32)
+
+
 # ------------------------------------------------------------------------------------------ files
 
 

@@ -15,6 +15,7 @@ from scenes.config import (check_choice, check_int, check_number, config_from_ar
 CLIS = {
     "wildgen.make": "MakeOptions",
     "wildgen.preview": "PreviewOptions",
+    "wildgen.sensor": "SensorOptions",
     "unips.train": "TrainConfig",
     "unips.predict": "PredictOptions",
     "unips.evaluate": "EvaluateOptions",

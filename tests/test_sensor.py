@@ -327,3 +327,83 @@ def test_reapply_records_rederives_and_is_deterministic(dataset, tmp_path, capsy
     assert resensor(dataset, a, "phone", "--overwrite") == 0
     assert json.loads((a / "manifest.json").read_text())["sensor"]["name"] == "phone"
     assert read_png(a / "00000.data" / "L000.png").dtype == np.uint8
+
+
+def test_make_with_a_sensor_writes_what_wildgen_sensor_writes(dataset, tmp_path):
+    """`wildgen.make --sensor NAME` and re-applying NAME to the ideal dataset give the same images and record
+    (same scenes, same seeds): the sensor is a pure function of the recorded radiance, exposure and seed."""
+    from wildgen.make import main
+
+    made = tmp_path / "made"
+    assert main(["--objects", "2", "--images", "3", "--res", "32", "--spp", "4", "--lights", "directional",
+                 "--variant", "llvm_ad_rgb", "--quiet", "--sensor", "phone", "--out", str(made)]) == 0
+    assert resensor(dataset, tmp_path / "re", "phone") == 0
+    a, b = tree(made), tree(tmp_path / "re")
+    pngs = [k for k in a if Path(k).name.startswith("L") and k.endswith(".png")]
+    assert len(pngs) == 6
+    for key in pngs:
+        assert a[key] == b[key], key
+    scene_a = json.loads(a["00000.data/scene.json"])
+    scene_b = json.loads(b["00000.data/scene.json"])
+    assert scene_a["sensor"] == scene_b["sensor"] and scene_a["camera_lights"] == scene_b["camera_lights"]
+    assert scene_a["sensor"]["model"]["bits"] == 8
+
+
+@pytest.fixture(scope="module")
+def sensor_datasets(dataset, tmp_path_factory):
+    """The ideal dataset re-applied through a 12-bit linear and an 8-bit sRGB Bayer sensor."""
+    root = tmp_path_factory.mktemp("sensors")
+    for name in ("machine-vision", "phone"):
+        assert resensor(dataset, root / name, name) == 0
+    return root
+
+
+@pytest.mark.parametrize("name,tolerance", [("machine-vision", None), ("phone", 0.15)])
+def test_readers_undo_a_recorded_sensor_for_the_check(dataset, sensor_datasets, name, tolerance):
+    """The check compares light: the one reader linearises a recorded sensor (response, black level, white
+    balance, vignetting); the model's view keeps the file values, as a camera wrote them."""
+    from scenes.layouts import read_folder
+    from scenes.objfolder import read_exr, read_scene
+    from unips.data import load_object
+    from validate.capture import load_capture
+
+    folder = sensor_datasets / name / "00000.data"
+    fd = read_folder(folder)
+    assert fd.sensor is not None and fd.sensor.name == name
+    desc, _ = read_scene(folder)
+    truth = np.stack([read_exr(folder / "aux" / f"radiance_{i:03d}.exr") * im.exposure
+                      for i, im in enumerate(desc.images)])  # (K, H, W, 3) light, before the sensor
+    lin = load_capture(folder).images
+    m = fd.mask & (truth.mean(axis=(0, 3)) > 0.05) & (truth.max(axis=(0, 3)) < 0.95)  # lit, never clipped
+    t = truth[:, m]
+    rel = np.abs(lin[:, m] - t).mean() / t.mean()
+    assert abs((lin[:, m] - t).mean()) / t.mean() < 0.05  # no bias left by the response or the black level
+    if tolerance is None:  # linear, no mosaic: what is left is the noise, E|N(0, s)| = s sqrt(2 / pi)
+        sigma = np.sqrt(t * fd.sensor.full_well + fd.sensor.read_noise ** 2) / fd.sensor.full_well
+        expected = np.sqrt(2 / np.pi) * sigma.mean() / t.mean()
+        assert 0.8 * expected < rel < 1.25 * expected, (rel, expected)
+    else:
+        assert rel < tolerance, rel  # noise, 8-bit codes and demosaicing at 32 px
+    raw = load_object(folder).images
+    raw_rel = np.abs(raw[:, m] - t).mean() / t.mean()
+    assert raw_rel > 2 * rel  # the file values are not light: linearising matters
+    ideal = read_folder(dataset / "00000.data")
+    assert ideal.sensor is None and np.array_equal(ideal.linear(), ideal.images)
+
+
+def test_twelve_bit_saturation_is_detected(sensor_datasets, tmp_path):
+    """A 12-bit file in a 16-bit PNG tops out at 65520: that is its clipped value, not 65535."""
+    import shutil
+
+    import cv2
+
+    from scenes.layouts import read_folder
+
+    folder = tmp_path / "o.data"
+    shutil.copytree(sensor_datasets / "machine-vision" / "00000.data", folder)
+    img = cv2.imread(str(folder / "L000.png"), cv2.IMREAD_UNCHANGED)
+    img[:4, :4] = 65520
+    assert cv2.imwrite(str(folder / "L000.png"), img)
+    fd = read_folder(folder)
+    assert fd.saturated is not None and fd.saturated[0, :4, :4].all()
+    assert np.array_equal(fd.saturated[0], img[..., ::-1] == 65520)  # exactly the channels at the largest code

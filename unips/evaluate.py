@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import io
 import json
 import logging
 import sys
@@ -26,16 +27,18 @@ from typing import Any
 
 import numpy as np
 
-from scenes.cli import UsageError, one_line, report_error
+from scenes.cli import UsageError, check_output_folder, claim_outputs, one_line, report_error
 from scenes.config import config_parser, option
 from scenes.config import config_from_args as parse_config
-from scenes.objfolder import angular_error_deg, object_name, prediction_file, read_normals
+from scenes.objfolder import angular_error_deg, atomic_write_text, object_name, prediction_file, read_normals
 from scenes.layouts import detect_layout
 from unips.data import find_objects, load_ground_truth
 
 log = logging.getLogger(__name__)
 
 ERROR_CLIP_DEG = 90.0
+METRICS_JSON, METRICS_CSV, ERROR_MAP = "metrics.json", "metrics.csv", "error_map.png"
+"""The files unips.evaluate writes: into --pred, and into each <object>/ folder of it."""
 CSV_FIELDS = ("object", "light_family", "n_pixels", "mae_deg", "median_deg", "pct_below_11_25", "pct_below_30")
 
 
@@ -89,23 +92,32 @@ def write_error_map(path: Path, err_map: np.ndarray, mask: np.ndarray, clip_deg:
     write_picture(path, error_map_image(err_map, mask, clip_deg))
 
 
-def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True) -> dict[str, Any]:
-    """Evaluate every ground-truth object at ``gt`` against ``pred_dir``; returns the metrics dict."""
+def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True, overwrite: bool = False) -> dict[str, Any]:
+    """Evaluate every ground-truth object at ``gt`` against ``pred_dir``; returns the metrics dict. With
+    `write`, the outputs (metrics.json, metrics.csv, <object>/error_map.png) are checked before any work: the
+    folder must be writable and an earlier run's outputs are replaced only with `overwrite`
+    (`scenes.cli.claim_outputs`)."""
     pred_dir = Path(pred_dir)
     if not pred_dir.is_dir():
-        raise FileNotFoundError(f"pred: prediction directory {pred_dir} does not exist")
+        raise FileNotFoundError(f"--pred: prediction directory {pred_dir} does not exist")
     results: dict[str, dict[str, Any]] = {}
     missing: list[str] = []
     no_gt: list[str] = []
     failed: dict[str, str] = {}
-    folders = find_objects(gt)
+    folders = find_objects(gt, arg="--gt")
     single = detect_layout(gt) is not None
     seen: set[str] = set()
     for folder in folders:
         name = object_name(folder)
         if name in seen:
-            raise ValueError(f"gt: two ground-truth folders are named {name!r}")
+            raise ValueError(f"--gt: two ground-truth folders are named {name!r}")
         seen.add(name)
+    if write:
+        check_output_folder(pred_dir, "--pred")
+        maps = [pred_dir / name / ERROR_MAP for name in sorted(seen) if (pred_dir / name).is_dir()]
+        claim_outputs([pred_dir / METRICS_JSON, pred_dir / METRICS_CSV, *maps], overwrite, "--pred", "unips.evaluate")
+    for folder in folders:
+        name = object_name(folder)
         try:
             _evaluate_one(folder, pred_dir, write, results, missing, no_gt)
         except (ValueError, OSError) as exc:  # one bad object: recorded, the others go on
@@ -114,7 +126,7 @@ def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True) -> dict[s
             failed[name] = one_line(exc)
             log.debug("%s failed", name, exc_info=True)
     if not results and not missing and not failed:
-        raise ValueError(f"gt: no object at {gt} has ground-truth normals (skipped: {no_gt})")
+        raise ValueError(f"--gt: no object at {gt} has ground-truth normals (skipped: {no_gt})")
     per_family: dict[str, dict[str, Any]] = {}
     for name, m in results.items():
         if m["light_family"] is not None:
@@ -132,12 +144,13 @@ def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True) -> dict[s
         "gt": str(Path(gt).resolve()),
     }
     if write:
-        (pred_dir / "metrics.json").write_text(json.dumps(summary, indent=2, sort_keys=True))
-        with open(pred_dir / "metrics.csv", "w", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=CSV_FIELDS)
-            writer.writeheader()
-            for name, m in results.items():
-                writer.writerow({"object": name, **{k: m[k] for k in CSV_FIELDS[1:]}})
+        table = io.StringIO(newline="")
+        writer = csv.DictWriter(table, fieldnames=CSV_FIELDS)
+        writer.writeheader()
+        for name, m in results.items():
+            writer.writerow({"object": name, **{k: m[k] for k in CSV_FIELDS[1:]}})
+        atomic_write_text(pred_dir / METRICS_JSON, json.dumps(summary, indent=2, sort_keys=True))
+        atomic_write_text(pred_dir / METRICS_CSV, table.getvalue())
     return summary
 
 
@@ -158,7 +171,7 @@ def _evaluate_one(folder: Path, pred_dir: Path, write: bool, results: dict, miss
     metrics, err_map = object_metrics(pred, truth.normals, truth.mask)
     results[truth.name] = {**metrics, "light_family": truth.light_family, "prediction": str(pred_path)}
     if write:
-        write_error_map(pred_dir / truth.name / "error_map.png", err_map, truth.mask)
+        write_error_map(pred_dir / truth.name / ERROR_MAP, err_map, truth.mask)
 
 
 def format_table(summary: dict[str, Any]) -> str:
@@ -188,6 +201,8 @@ class EvaluateOptions:
     """Object folder or dataset directory with the ground truth."""
     allow_missing: bool = False
     """Exit 0 even when some ground-truth objects have no prediction."""
+    overwrite: bool = False
+    """Replace the metrics and error maps of an earlier evaluation in --pred (nothing else is touched)."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -199,10 +214,12 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     try:
         args = parse_config(EvaluateOptions, parser.parse_args(argv))
-        summary = evaluate(args.pred, args.gt)
+        summary = evaluate(args.pred, args.gt, overwrite=args.overwrite)
     except (UsageError, ValueError, FileNotFoundError, OSError) as exc:
         return report_error(exc)
     print(format_table(summary))
+    print(f"wrote {args.pred / METRICS_JSON}, {METRICS_CSV} and {len(summary['objects'])} error map(s) "
+          f"{args.pred}/<object>/{ERROR_MAP}")
     status = 0
     if summary["failed"]:
         for name, why in summary["failed"].items():

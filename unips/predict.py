@@ -31,14 +31,14 @@ from typing import Any
 
 import numpy as np
 
-from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, one_line, report_error
+from scenes.cli import INPUT_ERRORS, UsageError, check_memory, check_output_folder, claim_outputs, one_line, report_error
 from scenes.config import check_fields, config_parser, option
 from scenes.config import config_from_args as parse_config
 from scenes.objfolder import (PREDICTION_FILES, PREDICTION_INFO, atomic_write_text, object_name, write_normal_exr,
                               write_normal_map, write_normal_visual)
 from scenes.layouts import detect_layout
 from unips.data import find_objects, load_object
-from unips.inference import DEFAULT_TTA, METHODS, TTA_VIEWS, load_network, predict_object
+from unips.inference import DEFAULT_TTA, METHODS, TTA_VIEWS, load_network, predict_object, prediction_memory
 
 log = logging.getLogger(__name__)
 
@@ -65,16 +65,41 @@ def constant_map(normals: np.ndarray, mask: np.ndarray) -> bool:
     return bool(deviation.mean() < CONSTANT_DEG)
 
 
-def check_out_folder(folder: Path) -> None:
-    """Refuse to write into `folder` when it holds normal maps that unips.predict did not write (no
-    predict.json beside them): files this command did not create are never replaced."""
+PREDICTION_OUTPUTS = ("normal.png", "normal.exr", "normal_vis.png", PREDICTION_INFO)
+"""The files unips.predict writes into <out>/<object>/ (predict.json first: it marks the folder as this command's)."""
+
+
+def check_out_folder(folder: Path, overwrite: bool = False) -> None:
+    """The rule of every command (`scenes.cli.claim_outputs`) for one object's output folder: an earlier
+    prediction (its predict.json present) is replaced only with --overwrite; normal maps without predict.json
+    beside them were not written by unips.predict and are never replaced."""
     if folder.exists() and not folder.is_dir():
         raise UsageError(f"--out: {str(folder)!r} is an existing file, expected a folder for the prediction")
-    if folder.is_dir() and not (folder / PREDICTION_INFO).is_file():
-        theirs = [f for f in ("normal.png", "normal_vis.png", *PREDICTION_FILES) if (folder / f).exists()]
-        if theirs:
-            raise UsageError(f"--out: {str(folder)!r} already holds {', '.join(sorted(set(theirs)))} not written by "
-                             "unips.predict (no predict.json); use another --out")
+    others = [folder / f for f in PREDICTION_FILES if f not in PREDICTION_OUTPUTS and (folder / f).exists()]
+    claim_outputs([folder / f for f in PREDICTION_OUTPUTS] + others, overwrite, owner="unips.predict",
+                  marker=folder / PREDICTION_INFO)
+    if others:  # a prediction file of another kind beside ours: the lookup would not find what this run writes
+        raise UsageError(f"--out: {str(others[0])!r} was not written by unips.predict; it is never replaced: "
+                         "move it away or use another --out")
+
+
+def check_object(args: "PredictOptions", folder: Path) -> None:
+    """Before any prediction: the object's folder is read without its images (mask, first image's size,
+    ground truth, lights) and its memory estimated (`unips.inference.prediction_memory`) against what this
+    machine has."""
+    from scenes.layouts import read_folder
+    from unips.preprocess import crop_box
+
+    fd = read_folder(folder, max_images=args.max_images, images=False, arg="--input")
+    k = len(fd.image_paths)
+    work = args.res if args.res is not None else crop_box(fd.mask).size
+    tta = (args.tta or DEFAULT_TTA) if args.method == "model" else 1
+    need = prediction_memory(args.method, fd.shape, k, work, tta)
+    at = (f"at {work} x {work} px (--res)" if args.res is not None else f"at its crop's size, {work} x {work} px")
+    check_memory(need, "--res" if args.method == "model" else "--max-images",
+                 f"--method {args.method} on {fd.name} ({k} images of {fd.shape[1]} x {fd.shape[0]} px"
+                 + (f", the network {at}, {tta} view(s))" if args.method == "model" else ")"),
+                 "lower --res or --max-images" if args.method == "model" else "lower --max-images")
 
 
 def write_prediction(out_dir: Path, normals: np.ndarray, info: dict[str, Any]) -> None:
@@ -108,6 +133,8 @@ class PredictOptions:
     """Working resolution of the network (the crop is resized to R x R); --method model only."""
     tta: int | None = option(None, choices=TTA_VIEWS, default_text=str(DEFAULT_TTA))
     """Views averaged (test-time augmentation by flips and transposes); N forward passes; --method model only."""
+    overwrite: bool = False
+    """Replace the predictions of an earlier run in --out (folders with its predict.json; nothing else is touched)."""
 
     def validate(self) -> "PredictOptions":
         check_fields(self)
@@ -137,16 +164,25 @@ def main(argv: list[str] | None = None) -> int:
         if dup:
             raise UsageError(f"--input: several object folders share the name(s) {dup} (e.g. foo and foo.data)")
         for name in names:
-            check_out_folder(args.out / name)
+            check_out_folder(args.out / name, args.overwrite)
+        todo = []
+        for folder, name in zip(folders, names):  # every object read (without its images) before any work
+            try:
+                check_object(args, folder)
+                todo.append((folder, name))
+            except INPUT_ERRORS as exc:
+                if single or exc.__class__ is UsageError:  # a size this machine cannot hold: the flags' fault
+                    raise
+                failures.append((name, one_line(exc)))
         net = load_network(args.checkpoint, args.device) if args.method == "model" else None
         from tqdm import tqdm
 
         written: list[str] = []
-        for folder, name in tqdm(list(zip(folders, names)), desc=f"predicting ({args.method})", unit="obj",
-                                 file=sys.stderr, disable=len(folders) < 2):
+        where = args.out / todo[0][1] if single and todo else args.out
+        print(f"predicting {len(todo)} object(s) with --method {args.method} into {where} ...", flush=True)
+        for folder, name in tqdm(todo, desc=f"predicting ({args.method})", unit="obj",
+                                 file=sys.stderr, disable=len(todo) < 2):
             try:
-                if len(folders) == 1:
-                    print(f"predicting {name} with --method {args.method} ...", flush=True)
                 _predict_one(args, net, folder, name)
                 written.append(name)
             except (*INPUT_ERRORS, OSError, np.linalg.LinAlgError) as exc:

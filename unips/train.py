@@ -184,8 +184,10 @@ def _truncate_log(path: Path, step: int) -> None:
     """Drop records written after `step` by an interrupted run (they will be written again)."""
     if not path.exists():
         return
+    from scenes.objfolder import atomic_write_text
+
     keep = [line for line in path.read_text().splitlines() if line.strip() and json.loads(line).get("step", 0) <= step]
-    path.write_text("".join(line + "\n" for line in keep))
+    atomic_write_text(path, "".join(line + "\n" for line in keep))
 
 
 def lr_factor(cfg: TrainConfig, step: int) -> float:
@@ -250,24 +252,67 @@ def _load_init_weights(cfg: TrainConfig, device: torch.device) -> torch.nn.Modul
     return model.to(device).train()
 
 
-def _prepare_run_dir(cfg: TrainConfig, dist: _Dist) -> Path:
-    """The run directory; a previous run in it is kept unless --resume or --overwrite says otherwise."""
+RUN_FILES = ("log.jsonl", "last.pt", "best.safetensors", "best.json", "final.safetensors", "final.json")
+"""The files a run writes into --out (nothing else there is touched)."""
+
+TRAIN_BYTES_PER_IMAGE = 80 * 2**20
+"""Memory of one image of a training batch that does not grow with --res (the encoder's activations and their
+gradients at the canonical resolution): twice the 36-40 MB measured for glc-small on the CPU."""
+
+
+def check_run(cfg: TrainConfig) -> None:
+    """Everything about the run folder and the size of the run, before any work: --out writable, an earlier
+    run's files replaced only with --overwrite (or continued with --resume; `scenes.cli.claim_outputs`), and
+    the memory of the cached samples and of one batch (`training_memory`) against what this machine has."""
+    from scenes.cli import check_memory, check_output_folder, claim_outputs
+
     out = Path(cfg.out)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {cfg.out!r}: exists and is not a directory")
-    ours = ("log.jsonl", "last.pt", "best.safetensors", "best.json", "final.safetensors", "final.json")
-    old = [n for n in ours if (out / n).exists()]
-    if old and not cfg.resume and not cfg.overwrite:
-        raise ValueError(f"--out {cfg.out!r}: already holds a run ({', '.join(old)}); "
-                         "expected --resume to continue it or --overwrite to replace it")
+    check_output_folder(out)
+    if not cfg.resume:
+        claim_outputs([out / n for n in RUN_FILES], cfg.overwrite, owner="unips.train", resume="--resume to continue it")
+    objects, images = _count_images(cfg.data, "--data")
+    if cfg.val:
+        more = _count_images(cfg.val, "--val")
+        objects, images = objects + more[0], images + more[1]
+    check_memory(training_memory(cfg, images), "--res/--batch/--max-images",
+                 f"training at {cfg.res} x {cfg.res} px on {objects} cached objects ({images} images) with batches of "
+                 f"{cfg.batch} x {cfg.max_images} images", "lower --res, --batch or --max-images")
+
+
+def training_memory(cfg: TrainConfig, cached_images: int) -> int:
+    """Bytes of a run (a conservative estimate): the cached samples (float16 images, mask and normals at --res)
+    and one batch (per image TRAIN_BYTES_PER_IMAGE and 6 float32 copies of it at --res)."""
+    pixels = cfg.res ** 2
+    cache = cached_images * pixels * 6 + pixels * 16 * max(cached_images, 1)
+    return cache + cfg.batch * cfg.max_images * (TRAIN_BYTES_PER_IMAGE + pixels * 72)
+
+
+def _count_images(data: str, flag: str) -> tuple[int, int]:
+    """(objects, images) under the dataset directories of --data / --val, counted without reading an image."""
+    from scenes.layouts import detect_layout, find_object_folders, layout_named
+    from unips.train_data import data_roots
+
+    objects = images = 0
+    for root in data_roots(data):
+        for folder in find_object_folders(root, flag):
+            layout = detect_layout(folder)
+            objects += 1
+            images += len(layout_named(layout).images(folder)) if layout else 0
+    return objects, images
+
+
+def _prepare_run_dir(cfg: TrainConfig, dist: _Dist) -> Path:
+    """The run directory (checked by `check_run`); with --overwrite an earlier run's files are removed first
+    (a best.safetensors of the old run must not survive a new run without --val)."""
+    out = Path(cfg.out)
     if dist.main:
         try:
             out.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise ValueError(f"--out {cfg.out!r}: cannot create the run directory ({exc.strerror})") from exc
         if cfg.overwrite:
-            for n in old:
-                (out / n).unlink()
+            for n in RUN_FILES:
+                (out / n).unlink(missing_ok=True)
     return out
 
 
@@ -433,6 +478,11 @@ def train(cfg: TrainConfig | argparse.Namespace) -> dict[str, Any]:
     if isinstance(cfg, argparse.Namespace):
         cfg = config_from_args(cfg)
     cfg.validate()
+    check_run(cfg)
+    if int(os.environ.get("RANK", "0")) == 0:  # one line before the long work, also with --no-progress
+        what = cfg.init_from or cfg.model
+        print(f"{'resuming' if cfg.resume else 'training'} {what} for {cfg.steps} steps (batch {cfg.batch}, "
+              f"{cfg.res} px) on --data {cfg.data}; run folder {cfg.out}", flush=True)
     run = _setup(cfg)
     if cfg.resume:
         _resume(run)
@@ -478,10 +528,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         summary = train(config_from_args(args))
     except INPUT_ERRORS as exc:
         return report_error(exc)
+    except OSError as exc:  # e.g. a full disk while writing a checkpoint: one line naming the file
+        return report_error(exc, code=1)
     msg = f"trained steps {summary['start']}..{summary['steps']}, last loss {summary.get('last_loss')}"
     if summary.get("best_val") is not None:
         msg += f", best validation mean angular error {summary['best_val']:.2f} deg"
     print(msg)
+    best = ", best.safetensors (+ .json)" if summary.get("best_val") is not None else ""
+    print(f"wrote {Path(args.out) / 'final.safetensors'} (+ .json){best}, last.pt and log.jsonl")
     return 0
 
 

@@ -88,7 +88,7 @@ def load_with_normals(folder: str | Path, normals: str | Path | np.ndarray) -> t
 def load_capture(folder: str | Path, max_images: int | None = None) -> Capture:
     """Load an object folder of any layout (`scenes.layouts.read_folder`) for the fitted check."""
     fd = read_folder(folder, max_images=max_images, arg="--data")
-    images = fd.images
+    images = fd.linear()  # the check compares light: a recorded sensor's response and black level undone
     meta: dict = {}
     dirs, irr = fd.lights.directions, fd.lights.intensities
     if fd.layout == "diligent":

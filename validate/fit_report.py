@@ -89,9 +89,10 @@ def rerender_fitted(
     cap, full, source = load_with_normals(folder, normals)
     target = None
     if out_dir is not None:
+        from scenes.cli import claim_outputs
+
         target = Path(out_dir) / cap.name
-        if (target / "report.json").exists() and not overwrite:
-            raise FileExistsError(f"--out: {str(target / 'report.json')!r} exists (pass --overwrite to replace it)")
+        claim_outputs([target / "report.json", target / "figure.png"], overwrite, owner="validate.rerender")
     small, n_small, f = prepare(cap, full, config)
     check_judgeable(small, "check")  # before any fitting: enough images and lit pixels to rank maps
     res = fit_normals(small.images, small.mask, n_small, config, progress, "fit", small.saturated)
@@ -146,7 +147,9 @@ def rerender_fitted(
             + (f", MAE {report['mae_deg']:.2f} deg" if report.get("mae_deg") is not None else ""),
             angular_error=None if small.normal_gt is None else angular_error_deg(n_small, small.normal_gt, small.mask),
         )
-        (target / "report.json").write_text(json.dumps(report, indent=1, allow_nan=False))
+        from scenes.objfolder import atomic_write_text
+
+        atomic_write_text(target / "report.json", json.dumps(report, indent=1, allow_nan=False))
     return report
 
 

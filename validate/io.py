@@ -49,7 +49,7 @@ class ObjectData:
     desc: SceneDescription
     """The scene of the K images."""
     images: np.ndarray
-    """(K, H, W, 3) float32 linear input images in [0, 1] (exposure applied, as stored)."""
+    """(K, H, W, 3) float32 linear input images (exposure applied; a recorded camera sensor undone)."""
     mask: np.ndarray
     """(H, W) bool object mask."""
     normal_gt: np.ndarray | None
@@ -80,7 +80,7 @@ def load_object(folder: str | Path) -> ObjectData:
     if fd.shape != (h, w):
         raise ValueError(f"images: {str(fd.image_paths[0])!r} are {fd.shape[1]}x{fd.shape[0]}, expected {w}x{h} "
                          "from the scene file's camera")
-    return ObjectData(folder=folder, name=fd.name, desc=desc, images=fd.images, mask=fd.mask, normal_gt=fd.normals)
+    return ObjectData(folder=folder, name=fd.name, desc=desc, images=fd.linear(), mask=fd.mask, normal_gt=fd.normals)
 
 
 def read_normal_map(path: str | Path, what: str = "--normals") -> np.ndarray:

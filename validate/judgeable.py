@@ -6,12 +6,12 @@ score cannot rank maps, and refinement moves a correct map away. Measured on a L
 noise at DiLiGenT's level (`bench/bench_min_images.py`, quoted in docs/check.md, "What can be judged"):
 
 - 1 image: every map is explained exactly (each normal by its own albedo); nothing is ranked;
-- 2 images: 5-10 deg errors rank above the ground truth, but the ground truth itself scores 2-4 times
-  the image noise and the gap can shrink to a fraction of it;
-- 3 or 4 images: maps rank, but refinement of the ground-truth map moves it by 0.5-5 deg (no image can be
-  held out for early stopping below 5);
-- 5 or more: refinement leaves the ground truth within about a degree (0.0 in most draws);
-- lit pixels: with 8 images a sphere of 4 px (8 lit pixels per image) still ranks and refines.
+- 2 images: 5-10 deg errors mostly score above the ground truth, but for one light pair in four by less
+  than the image noise, and the ground truth itself scores up to 4.4 times the noise;
+- 3 or 4 images: maps rank (by at least 2.7 noise levels), but refinement of the ground-truth map moves it
+  by up to 5.3 deg (below 5 images none can be held out for early stopping);
+- 5 images: refinement leaves the ground truth within 1.2 deg (0.0 in most draws), 6 or more: 0.0;
+- lit pixels: with 8 images a sphere of 4 px (8 lit pixels per image) still ranks and refines (0.2 deg).
 
 An image is *informative* when, at the fitting resolution, it is not constant inside the mask and has at
 least `MIN_LIT_PIXELS` mask pixels that are lit (mean over channels above `LIT_LEVEL` times the image's

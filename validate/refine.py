@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from scenes.cli import INPUT_ERRORS, check_output_folder, progress_bar, report_error
+from scenes.cli import INPUT_ERRORS, check_output_folder, claim_outputs, progress_bar, report_error
 from scenes.config import check_fields, config_parser, option
 from scenes.config import config_from_args as parse_config
 from scenes.variant import jit_threads, require_ad_variant
@@ -45,6 +45,8 @@ from validate.judgeable import check_judgeable
 log = logging.getLogger(__name__)
 
 LIGHT_SOURCES = ("fitted", "calibrated")
+REFINE_OUTPUTS = ("normal.png", "refine_report.json")
+"""What refinement writes into <out>/<object>/."""
 
 
 @dataclass
@@ -358,7 +360,7 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
     """Refine the normal map of one object folder; write normal.png and refine_report.json under out_dir/<object>/."""
     from validate.capture import downsample_normals, load_with_normals
     from scenes.objfolder import mean_angular_error as mae_deg
-    from scenes.objfolder import write_normal_map
+    from scenes.objfolder import atomic_write_text, write_normal_map
     from validate.fit import prepare
 
     config = (config or RefineConfig()).validate()
@@ -366,10 +368,8 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
     t0 = time.perf_counter()
     cap, full, source = load_with_normals(folder, normals)
     target = Path(out_dir) / cap.name if out_dir is not None else None
-    if target is not None and not overwrite:
-        for name in ("normal.png", "refine_report.json"):
-            if (target / name).exists():
-                raise FileExistsError(f"--out: {str(target / name)!r} exists (pass --overwrite to replace it)")
+    if target is not None:
+        claim_outputs([target / name for name in REFINE_OUTPUTS], overwrite, owner="validate.refine")
     small, n_small, f = prepare(cap, full, config.fit)
     check_judgeable(small, "refine")  # before any fitting: enough images and lit pixels to refine
     calibrated = None
@@ -407,7 +407,7 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
     if target is not None:
         target.mkdir(parents=True, exist_ok=True)
         write_normal_map(target / "normal.png", refined_full)
-        (target / "refine_report.json").write_text(json.dumps(report, indent=1, allow_nan=False))
+        atomic_write_text(target / "refine_report.json", json.dumps(report, indent=1, allow_nan=False))
     return report
 
 
@@ -430,7 +430,7 @@ class RefineOptions:
     """Dr.Jit threads; with 1 the output is byte-identical run to run (with more, gradients are summed in a
     varying order)."""
     overwrite: bool = False
-    """Replace existing outputs."""
+    """Replace the refined map and report of an earlier run in --out (nothing else is touched)."""
     verbose: bool = option(False, short="-v")
     """Debug logging."""
 
@@ -455,13 +455,20 @@ def main(argv: list[str] | None = None) -> int:
         config = args.validate().refine
         if not Path(args.normals).exists():
             raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
+        if not Path(args.data).is_dir():
+            raise FileNotFoundError(f"--data: {args.data!r} is not a folder")
+        from scenes.objfolder import object_name
+
+        name = object_name(args.data)
+        claim_outputs([Path(args.out) / name / f for f in REFINE_OUTPUTS], args.overwrite, owner="validate.refine")
+        print(f"refining the normals of {name} (lights, reflectance and normals fitted to the images) ...", flush=True)
         from scenes.variant import choose_variant, set_jit_threads
 
         choose_variant(args.variant)  # refine_object refuses a variant without automatic differentiation
         set_jit_threads(args.threads)
         with progress_bar("step") as progress:
             r = refine_object(args.data, args.normals, config, args.out, progress, overwrite=args.overwrite)
-    except (*INPUT_ERRORS, FileExistsError) as exc:
+    except (*INPUT_ERRORS, OSError) as exc:
         return report_error(exc)
     b, a = r["before"], r["after"]
     mae = f"  mae {b['mae_deg']:.2f} -> {a['mae_deg']:.2f} deg" if b["mae_deg"] is not None else ""

@@ -33,10 +33,10 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes.cli import UsageError, check_output_folder, progress_bar, report_error
+from scenes.cli import UsageError, check_output_folder, claim_outputs, progress_bar, report_error
 from scenes.config import check_fields, config_parser, option
 from scenes.config import config_from_args as parse_config
-from scenes.objfolder import find_prediction, list_object_folders, object_name
+from scenes.objfolder import atomic_write_text, find_prediction, list_object_folders, object_name
 from scenes.variant import require_jit_variant
 from validate.fit_scene import FitConfig
 from validate.io import ObjectData, check_normals, load_object, read_prediction
@@ -45,6 +45,22 @@ from validate.rerender_report import (build_report, coverage, format_table, pena
                                       write_figure, write_summary)
 
 log = logging.getLogger(__name__)
+
+
+REPORT, FIGURE, SUMMARY = "report.json", "figure.png", "summary.csv"
+"""What the check writes: <out>/<object>/report.json and figure.png (and R000.png.. with --save-renders), and
+<out>/summary.csv (known-scene mode)."""
+
+
+def claim_check_outputs(out: str | Path, names: list[str], overwrite: bool, summary: bool = True,
+                        renders: bool = False) -> None:
+    """The outputs of the check of objects `names` in `out`, claimed before any work (`scenes.cli.claim_outputs`:
+    an earlier run's are replaced only with --overwrite, other files never)."""
+    out = Path(out)
+    paths = [out / n / f for n in names for f in (REPORT, FIGURE)]
+    if renders:
+        paths += [p for n in names for p in sorted((out / n).glob("R[0-9][0-9][0-9].png"))]
+    claim_outputs(paths + ([out / SUMMARY] if summary else []), overwrite, owner="validate.rerender")
 
 
 def check_inputs(
@@ -116,7 +132,7 @@ def rerender_object(
             for i in range(k):
                 write_png16(target / f"R{i:03d}.png", passes.renders[i])
         report["timings"]["total_s"] = time.perf_counter() - t_start
-        (target / "report.json").write_text(json.dumps(report, indent=1, allow_nan=False))
+        atomic_write_text(target / REPORT, json.dumps(report, indent=1, allow_nan=False))
     else:
         report["timings"]["total_s"] = time.perf_counter() - t_start
     return report
@@ -191,7 +207,7 @@ class RerenderOptions:
     """Dr.Jit threads of the fitted mode; with 1 the fit is byte-identical run to run (with more, gradients are
     summed in a varying order)."""
     overwrite: bool = False
-    """Replace an existing <out>/<object>/report.json of the fitted mode."""
+    """Replace the reports, figures and summary.csv of an earlier run in --out (nothing else is touched)."""
     verbose: bool = option(False, short="-v")
     """Debug logging."""
 
@@ -217,6 +233,9 @@ def _main_fitted(args: RerenderOptions) -> int:
     config = args.fitted
     if not Path(args.normals).exists():
         raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
+    claim_check_outputs(args.out, [object_name(args.data)], args.overwrite, summary=False)
+    print(f"checking {object_name(args.data)} in the fitted mode (light and reflectance fitted to the images) ...",
+          flush=True)
     choose_variant(args.variant)  # the fit itself refuses a variant without automatic differentiation
     set_jit_threads(args.threads)
     with progress_bar("step") as progress:
@@ -248,10 +267,10 @@ def main(argv: list[str] | None = None) -> int:
         if not data.is_dir():
             raise FileNotFoundError(f"--data: {str(data)!r} is not a folder")
         single = has_scene(data)
-        if not single:
-            list_object_folders(data)  # fails early with a clear message
+        folders = [data] if single else list_object_folders(data)  # fails early with a clear message
         if not Path(args.normals).exists():
             raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
+        claim_check_outputs(args.out, [object_name(f) for f in folders], args.overwrite, renders=config.save_renders)
 
         from scenes.variant import choose_variant
 
@@ -259,6 +278,7 @@ def main(argv: list[str] | None = None) -> int:
         mi = require_jit_variant()
         mi.set_log_level(mi.LogLevel.Error)  # e.g. multijitter's per-render "sample count rounded up"
 
+        print(f"re-rendering {len(folders)} object(s) with the normals of {args.normals} into {args.out} ...", flush=True)
         with progress_bar("render") as progress:
             if single:
                 check_inputs(data, args.normals, config.allow_missing, config.min_coverage)

@@ -2,13 +2,14 @@
 from __future__ import annotations
 
 import csv
+import io
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from scenes.objfolder import mean_angular_error
+from scenes.objfolder import atomic_write_text, mean_angular_error
 from validate.io import ObjectData
 from validate.metrics import finite_or_none, mean_or_none, psnr, rel_l1, relative_residual_map
 from validate.rerender_passes import RenderPasses, RerenderConfig
@@ -197,11 +198,12 @@ def write_summary(path: str | Path, reports: list[dict], failed: dict[str, str] 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     rows = [summary_row(r) for r in reports] + [failed_row(n, e) for n, e in (failed or {}).items()]
-    with open(path, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(SUMMARY_COLUMNS))
-        writer.writeheader()
-        for row in rows:
-            writer.writerow({k: ("" if v is None else v) for k, v in row.items()})
+    table = io.StringIO(newline="")
+    writer = csv.DictWriter(table, fieldnames=list(SUMMARY_COLUMNS))
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: ("" if v is None else v) for k, v in row.items()})
+    atomic_write_text(path, table.getvalue())  # a kill or a full disk never leaves half a table
 
 
 def format_table(reports: list[dict], failed: dict[str, str] | None = None) -> str:

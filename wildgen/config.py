@@ -5,6 +5,7 @@ from dataclasses import asdict, dataclass
 
 from scenes.config import check_fields, option
 from scenes.variant import PREFERENCE as VARIANTS  # the RGB variants the scenes are built for, in auto's order
+from scenes.sensor import SENSORS
 from wildgen.lighting import LIGHT_FAMILIES
 
 MATERIAL_CLASSES = ("diffuse", "specular", "metallic")
@@ -22,6 +23,9 @@ class GenConfig:
     lights[i % len(lights)]); repeatable or comma-separated."""
     objects: int = option(4, minimum=1)
     """Number of objects to render."""
+    sensor: str = option("ideal", choices=tuple(SENSORS))
+    """Camera sensor preset (`scenes.sensor.SENSORS`) that turns each image's radiance into its PNG: `ideal` writes
+    the linear 16-bit rendering; the others add noise, black level, response, bit depth, vignetting, mosaic."""
     images: int = option(10, minimum=1)
     """Images per object (PS-Wild: 10)."""
     width: int = option(128, minimum=1)

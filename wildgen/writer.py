@@ -25,6 +25,8 @@ from scenes.mitsuba_build import build_scene
 from scenes.objfolder import (AUX_DIR, FORMAT_VERSION, MASK_FILE, NORMAL_FILE, OBJECT_SUFFIX, image_name, write_exr,
                               write_mask, write_normal_map, write_png16, write_scene)
 from scenes.render import render_ground_truth, render_images
+from scenes.sensor import SCENE_KEY as SENSOR_KEY
+from scenes.sensor import SENSORS, Sensor, rederive_image, sensor_record, write_image
 from wildgen.assets import AssetLibrary
 from wildgen.config import GenConfig
 from wildgen.sampling import SampledObject, SkippedObject, sample_object
@@ -149,8 +151,12 @@ def ground_truth_problem(normal: np.ndarray, mask: np.ndarray, camera, max_backf
 
 
 def write_object(sampled: SampledObject, out_dir: Path, percentile: float, level: float,
-                 max_backfacing: float = 0.1) -> ObjectResult:
+                 max_backfacing: float = 0.1, sensor: Sensor | None = None) -> ObjectResult:
     """Render `sampled` and write `out_dir/<name>.data`, atomically. Returns the manifest entry.
+
+    sensor: what turns each image's radiance into its PNG (`scenes.sensor`); None or `ideal` writes the linear
+    16-bit rendering and records nothing (the folder is byte-identical to one written before sensors existed);
+    any other sensor is recorded in scene.json with each image's noise seed, so every PNG can be re-derived.
 
     Raises SkippedObject (nothing written) when the ground truth fails `ground_truth_problem`."""
     name = sampled.desc.name
@@ -177,9 +183,16 @@ def write_object(sampled: SampledObject, out_dir: Path, percentile: float, level
         del built
 
         t0 = time.perf_counter()
+        real_sensor = sensor is not None and sensor != SENSORS["ideal"]
         for i, img in enumerate(radiance):
             desc.images[i].exposure = exposure_for(img, gt.mask, percentile, level)
-            write_png16(tmp / image_name(i), img * desc.images[i].exposure)
+        record = sensor_record(sensor, [im.seed for im in desc.images]) if real_sensor else None
+        for i, img in enumerate(radiance):
+            if record is None:
+                write_png16(tmp / image_name(i), img * desc.images[i].exposure)
+            else:
+                write_image(tmp / image_name(i),
+                            rederive_image(img, desc.images[i].exposure, sensor, record["noise_seeds"][i]))
             write_exr(tmp / AUX_DIR / f"radiance_{i:03d}.exr", img)
         write_mask(tmp / MASK_FILE, gt.mask)
         normal = np.where(gt.mask[..., None], gt.normal, 0.0)
@@ -190,7 +203,13 @@ def write_object(sampled: SampledObject, out_dir: Path, percentile: float, level
         write_exr(tmp / AUX_DIR / "base_color.exr", gt.base_color)
         write_exr(tmp / AUX_DIR / "roughness.exr", gt.roughness)
         write_exr(tmp / AUX_DIR / "metallic.exr", gt.metallic)
-        write_scene(tmp, desc, {"camera_lights": camera_lights(desc), "format_version": FORMAT_VERSION})
+        extras = {"camera_lights": camera_lights(desc), "format_version": FORMAT_VERSION}
+        if record is not None:
+            extras[SENSOR_KEY] = record
+            for per_image in extras["camera_lights"]:  # irradiance as the file records it: times the sensor's exposure
+                for light in per_image["directional"]:
+                    light["irradiance"] = [v * sensor.exposure for v in light["irradiance"]]
+        write_scene(tmp, desc, extras)
         timings["write_s"] = time.perf_counter() - t0
 
         files = {str(p.relative_to(tmp)): sha256_file(p) for p in sorted(tmp.rglob("*")) if p.is_file()}
@@ -223,7 +242,8 @@ def make_object(cfg: GenConfig, index: int, out_dir: Path, lib: AssetLibrary | N
     t0 = time.perf_counter()
     try:
         sampled = sample_object(cfg, index, lib, name=name)
-        result = write_object(sampled, Path(out_dir), cfg.exposure_percentile, cfg.exposure_level, cfg.max_backfacing)
+        result = write_object(sampled, Path(out_dir), cfg.exposure_percentile, cfg.exposure_level, cfg.max_backfacing,
+                              sensor=SENSORS[cfg.sensor])
     except SkippedObject as exc:  # the entropy rule or the ground-truth check: deterministic, recorded with its reason
         log.info("%s", exc)
         return {"index": index, "name": name, "status": "skipped", "reason": str(exc)}
