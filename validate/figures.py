@@ -71,6 +71,21 @@ def _panel(bgr: np.ndarray, label: str, size: tuple[int, int]) -> np.ndarray:
     return canvas
 
 
+def _explained_bgr(mask: np.ndarray, explained: np.ndarray) -> np.ndarray:
+    """Explained pixels green, the rest of the mask grey, white outside."""
+    out = np.full(mask.shape + (3,), 255, np.uint8)
+    out[mask] = (150, 150, 150)
+    out[mask & explained] = (60, 170, 60)
+    return out
+
+
+def explained_picture(mask: np.ndarray, explained: np.ndarray) -> np.ndarray:
+    """explained.png of the fitted mode: (H, W, 3) BGR, explained mask pixels (P,) green, the others grey."""
+    full = np.zeros(mask.shape, bool)
+    full[mask] = explained
+    return _explained_bgr(mask, full)
+
+
 def rerender_figure(
     path: str | Path,
     inputs: np.ndarray,
@@ -82,18 +97,24 @@ def rerender_figure(
     normals: np.ndarray,
     title: str = "",
     angular_error: np.ndarray | None = None,
+    explained: np.ndarray | None = None,
 ) -> None:
     """Write the figure as PNG.
 
     inputs, renders: (K, H, W, 3) linear images in [0, 1]; mask (H, W); rows: image indices to show;
     mean_residual, gt_mean_residual: (H, W) relative residual maps; normals: (H, W, 3) camera frame;
     angular_error: (H, W) degrees of the judged map against the ground truth, shown when there is no
-    ground-truth residual; title: object, method, mode and metric (the caller's words).
+    ground-truth residual; explained: (P,) bool over the mask pixels (fitted mode), the pixels the physics
+    explains, shown as a panel; title: object, method, mode and metric (the caller's words).
     """
     import cv2
 
     from scenes.colorbar import colorbar
 
+    explained_map = None
+    if explained is not None:
+        explained_map = np.zeros(mask.shape, bool)
+        explained_map[mask] = explained
     box = mask_box(mask)
     inputs, renders, mask = inputs[(slice(None),) + box], renders[(slice(None),) + box], mask[box]
     mean_residual, normals = mean_residual[box], normals[box]
@@ -129,6 +150,9 @@ def rerender_figure(
         middle,
         _panel(_masked(_to_bgr8((normals + 1) / 2), mask), "judged normals", size),
     ]
+    if explained_map is not None:
+        last.append(_panel(_explained_bgr(mask, explained_map[box]), "explained (judged pixels)", size))
+        lines = [line + [_panel(np.full(size + (3,), 255, np.uint8), "", size)] for line in lines]
     lines.append(last)
     grid = np.concatenate([np.concatenate(line, axis=1) for line in lines], axis=0)
     bar = colorbar(grid.shape[0] - LABEL_H, vmax, cv2.COLORMAP_INFERNO, "rel. resid.", ticks=4)

@@ -1,5 +1,8 @@
 """The report of the fitted mode of the re-render check (`validate.rerender` on a folder without scene.json).
 
+The verdict (`trusted`, `why`, `explained_fraction`, `explained.png`) and the observations of `judged_rel_l1` come
+from the images alone (`validate.verdict`), so every map of a capture is judged on the same observations; the
+check abstains (trusted false) where the images are not explained by the physics it can model.
 Reference levels beside the score `rel_l1`: `noise_rel_l1` (the image noise estimated from the data), and
 `floor_rel_l1`, the score the same fit (same budget, same seed) reaches with a normal map that carries no
 information (constant (0, 0, 1), optionally also a silhouette-only map): a normal map scoring at or above
@@ -19,6 +22,7 @@ from validate.capture import Capture
 from validate.fit import fit_normals, prepare
 from validate.fit_scene import FitConfig, Progress
 from validate.judgeable import check_judgeable
+from validate.verdict import explain, judged_rel_l1, verdict
 
 
 def estimate_noise_rel_l1(images: np.ndarray, mask: np.ndarray) -> float:
@@ -95,10 +99,14 @@ def rerender_fitted(
         claim_outputs([target / "report.json", target / "figure.png"], overwrite, owner="validate.rerender")
     small, n_small, f = prepare(cap, full, config)
     check_judgeable(small, "check")  # before any fitting: enough images and lit pixels to rank maps
+    ex = explain(small.images, small.mask, small.saturated)  # from the images alone: the same for every map
+    trusted, why = verdict(ex)
+    observed = small.images[:, small.mask]
     res = fit_normals(small.images, small.mask, n_small, config, progress, "fit", small.saturated)
-    floors = {}
+    floors, judged_floors = {}, {}
     for kind, nmap in no_information_maps(small.mask, config.floor_maps).items():
-        floors[kind] = fit_normals(small.images, small.mask, nmap, config, progress, f"floor ({kind})", small.saturated).rel_l1
+        fr = fit_normals(small.images, small.mask, nmap, config, progress, f"floor ({kind})", small.saturated)
+        floors[kind], judged_floors[kind] = fr.rel_l1, judged_rel_l1(fr.render, observed, ex)
     report: dict[str, Any] = {
         "mode": "fitted",
         "object": cap.name,
@@ -108,6 +116,11 @@ def rerender_fitted(
         "images_count": int(cap.images.shape[0]),
         "image_names": cap.image_names,
         "mask_pixels": int(cap.mask.sum()),
+        "trusted": trusted,
+        "why": why,
+        "explained_fraction": ex.explained_fraction,
+        "judged_rel_l1": finite(judged_rel_l1(res.render, observed, ex)),
+        "judged_floor_rel_l1": finite(min(judged_floors.values())) if judged_floors else None,
         "rel_l1": res.rel_l1,
         "noise_rel_l1": finite(estimate_noise_rel_l1(small.images, small.mask)),
         "floor_rel_l1": min(floors.values()) if floors else None,
@@ -132,20 +145,23 @@ def rerender_fitted(
         report["calibrated_light_error_deg"] = {"mean": float(err.mean()), "median": float(np.median(err)), "max": float(err.max())}
     report["timings"] = {"fit_s": res.seconds, "total_s": time.perf_counter() - t0}
     if target is not None:
-        from scenes.objfolder import angular_error_deg, prediction_label
-        from validate.figures import rerender_figure
+        from scenes.objfolder import angular_error_deg, prediction_label, write_picture
+        from validate.figures import explained_picture, rerender_figure
 
         target.mkdir(parents=True, exist_ok=True)
         renders = _scatter(res.render, small.mask)
         k = renders.shape[0]
         rows = sorted(set(np.linspace(0, k - 1, min(k, 4)).round().astype(int).tolist()))
+        write_picture(target / "explained.png", explained_picture(small.mask, ex.explained))
         rerender_figure(
             target / "figure.png", small.images, renders, small.mask, rows,
             relative_residual_map(renders, small.images, small.mask), None, n_small,
-            title=f"{cap.name}, {prediction_label(source)} (fitted lights): rel_l1 {res.rel_l1:.4f}, "
-            f"constant map {report['floor_rel_l1'] or float('nan'):.4f}"
+            title=f"{cap.name}, {prediction_label(source)} (fitted lights, {'trusted' if trusted else 'NOT TRUSTED'}): "
+            f"judged rel_l1 {report['judged_rel_l1'] or float('nan'):.4f}, constant map "
+            f"{report['judged_floor_rel_l1'] or float('nan'):.4f}"
             + (f", MAE {report['mae_deg']:.2f} deg" if report.get("mae_deg") is not None else ""),
             angular_error=None if small.normal_gt is None else angular_error_deg(n_small, small.normal_gt, small.mask),
+            explained=ex.explained,
         )
         from scenes.objfolder import atomic_write_text
 

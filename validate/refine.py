@@ -41,10 +41,14 @@ from validate.fit import fit_normals, run_fit
 from validate.fit_report import saturated_fraction
 from validate.fit_scene import FitConfig, FitScene, Progress, lambertian_start, to_jit
 from validate.judgeable import check_judgeable
+from validate.verdict import explain, judged_rel_l1, verdict
 
 log = logging.getLogger(__name__)
 
 LIGHT_SOURCES = ("fitted", "calibrated")
+MIN_GAIN = 0.02
+"""A refinement is accepted only when the judged residual (observations every map shares, `validate.verdict`)
+falls by at least this fraction; otherwise the input map is kept."""
 REFINE_OUTPUTS = ("normal.png", "refine_report.json")
 """What refinement writes into <out>/<object>/."""
 
@@ -360,7 +364,6 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
     """Refine the normal map of one object folder; write normal.png and refine_report.json under out_dir/<object>/."""
     from validate.capture import downsample_normals, load_with_normals
     from scenes.objfolder import mean_angular_error as mae_deg
-    from scenes.objfolder import atomic_write_text, write_normal_map
     from validate.fit import prepare
 
     config = (config or RefineConfig()).validate()
@@ -372,25 +375,57 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
         claim_outputs([target / name for name in REFINE_OUTPUTS], overwrite, owner="validate.refine")
     small, n_small, f = prepare(cap, full, config.fit)
     check_judgeable(small, "refine")  # before any fitting: enough images and lit pixels to refine
+    ex = explain(small.images, small.mask, small.saturated)  # images alone: where the physics can judge
+    trusted, why = verdict(ex)
+    observed = small.images[:, small.mask]
+    mae_in = mae_deg(full, cap.normal_gt, cap.mask) if cap.normal_gt is not None else None
+    if not trusted:
+        report = {"mode": "refine", "object": cap.name, "folder": str(cap.folder), "prediction": source,
+                  "accepted": False, "why": f"declined, the input map is kept: {why}", "trusted": False,
+                  "explained_fraction": ex.explained_fraction, "refined_fraction": 0.0,
+                  "before": {"mae_deg": mae_in}, "after": {"mae_deg": mae_in},
+                  "timings": {"total_s": time.perf_counter() - t0}}
+        _write_refined(target, full, report)
+        return report
     calibrated = None
     if small.light_directions is not None and small.light_irradiance is not None:
         calibrated = (small.light_directions, small.light_irradiance)
     res = refine_normals(small.images, small.mask, n_small, config, calibrated, progress, small.saturated)
+    # Only the pixels the physics explains may change; elsewhere the input map stays.
+    keep_input = np.zeros(small.mask.shape, bool)
+    keep_input[small.mask] = ~ex.explained
+    res.normals = np.where(keep_input[..., None], n_small, res.normals).astype(np.float32)
     refined_full = upsample_change(full, cap.mask, n_small, res.normals)
     refined_small = downsample_normals(refined_full, small.mask, f) if f > 1 else refined_full
     # Both scores with the light model the refinement used ('auto' resolved), so that they compare.
     fit_cfg = replace(config.fit, light_model=res.light_model)
     before = fit_normals(small.images, small.mask, n_small, fit_cfg, progress, "score before", small.saturated)
     after = fit_normals(small.images, small.mask, refined_small, fit_cfg, progress, "score after", small.saturated)
+    judged_before = judged_rel_l1(before.render, observed, ex)
+    judged_after = judged_rel_l1(after.render, observed, ex)
+    accepted = bool(judged_after < judged_before * (1.0 - MIN_GAIN))
+    why = (f"the judged residual fell {judged_before:.4f} -> {judged_after:.4f} on the observations every map shares; "
+           f"{ex.explained_fraction:.0%} of the object was refined, the rest keeps the input map" if accepted else
+           f"declined, the input map is kept: the judged residual did not fall by {MIN_GAIN:.0%} "
+           f"({judged_before:.4f} -> {judged_after:.4f})")
+    if not accepted:
+        refined_full = full
     report: dict[str, Any] = {
         "mode": "refine",
+        "accepted": accepted,
+        "why": why,
+        "trusted": True,
+        "explained_fraction": ex.explained_fraction,
+        "refined_fraction": ex.explained_fraction if accepted else 0.0,
+        "judged_before_rel_l1": judged_before,
+        "judged_after_rel_l1": judged_after,
         "lights_source": config.lights,
         "light_model": res.light_model,
         "object": cap.name,
         "folder": str(cap.folder),
         "prediction": source,
         "images_count": int(cap.images.shape[0]),
-        "before": {"rel_l1": before.rel_l1, "mae_deg": mae_deg(full, cap.normal_gt, cap.mask) if cap.normal_gt is not None else None},
+        "before": {"rel_l1": before.rel_l1, "mae_deg": mae_in},
         "after": {"rel_l1": after.rel_l1, "mae_deg": mae_deg(refined_full, cap.normal_gt, cap.mask) if cap.normal_gt is not None else None},
         "holdout_curve": [[int(s), float(v)] for s, v in res.holdout_curve],
         "best_step": res.best_step,
@@ -404,11 +439,18 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
         "jit_threads": jit_threads(),
         "timings": {"refine_s": res.seconds, "total_s": time.perf_counter() - t0},
     }
+    _write_refined(target, refined_full, report)
+    return report
+
+
+def _write_refined(target: Path | None, normals: np.ndarray, report: dict) -> None:
+    """normal.png (the refined map, or the input map where refinement declined) and refine_report.json."""
+    from scenes.objfolder import atomic_write_text, write_normal_map
+
     if target is not None:
         target.mkdir(parents=True, exist_ok=True)
-        write_normal_map(target / "normal.png", refined_full)
+        write_normal_map(target / "normal.png", normals)
         atomic_write_text(target / "refine_report.json", json.dumps(report, indent=1, allow_nan=False))
-    return report
 
 
 @dataclass
@@ -472,7 +514,9 @@ def main(argv: list[str] | None = None) -> int:
         return report_error(exc)
     b, a = r["before"], r["after"]
     mae = f"  mae {b['mae_deg']:.2f} -> {a['mae_deg']:.2f} deg" if b["mae_deg"] is not None else ""
-    print(f"{r['object']}: rel_l1 {b['rel_l1']:.4f} -> {a['rel_l1']:.4f}{mae}  ({r['note']}, {r['timings']['total_s']:.0f} s)")
+    if "rel_l1" in b:
+        print(f"{r['object']}: rel_l1 {b['rel_l1']:.4f} -> {a['rel_l1']:.4f}{mae}  ({r['note']}, {r['timings']['total_s']:.0f} s)")
+    print(("accepted" if r["accepted"] else "NOT ACCEPTED") + f": {r['why']}" + (mae if "rel_l1" not in b else ""))
     print(f"normals in {args.out}/{r['object']}/normal.png, report in {args.out}/{r['object']}/refine_report.json")
     return 0
 

@@ -245,7 +245,10 @@ def _main_fitted(args: RerenderOptions) -> int:
           + (f"  mae {r['mae_deg']:.2f} deg" if r["mae_deg"] is not None else "")
           + (f"  light error vs calibration {cal['mean']:.2f} deg" if cal else "")
           + f"  ({r['note']}, {r['timings']['total_s']:.0f} s)")
-    print(f"report in {args.out}/{r['object']}/report.json")
+    judged = r["judged_rel_l1"]
+    print(("TRUSTED" if r["trusted"] else "NOT TRUSTED (the check abstains)") + f": {r['why']}"
+          + (f"; judged rel_l1 {judged:.4f} (constant map {r['judged_floor_rel_l1'] or float('nan'):.4f})" if judged is not None else ""))
+    print(f"report in {args.out}/{r['object']}/report.json, where the check judges in {args.out}/{r['object']}/explained.png")
     return 0
 
 

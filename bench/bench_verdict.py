@@ -1,0 +1,102 @@
+"""Does the fitted check rank the truth first where it judges, and abstain elsewhere? (docs/check.md, "Trusted")
+
+    python bench/bench_verdict.py --out bench_verdict.json CAPTURE [CAPTURE ...]
+
+Each CAPTURE is an object folder with ground-truth normals and without scene.json (the fitted mode): DiLiGenT
+`*PNG` folders, or `wildgen.make` objects copied without their scene file. A hard synthetic suite (held-out
+meshes and HDR maps, glossy and metallic materials, near point and area lights):
+
+    python -m wildgen.make --objects 40 --images 12 --res 64 --spp 64 --lights directional,point,near_area,hdri,mixed \\
+        --assets ASSETS --shapes mesh --seed 777 --out HARD
+    for d in HARD/*.data; do mkdir -p HARDNOS/$(basename $d); cp $d/L*.png $d/mask.png $d/normal.tif HARDNOS/$(basename $d)/; done
+
+For each capture: the verdict from the images alone (`validate.verdict`: explained fraction, trusted), and
+for each map (ground truth; the truth tilted locally by 10 and 25 degrees about an axis that varies across the
+image, `smooth`; 10 degrees per pixel, `random`; the shipped model's prediction; the constant (0, 0, 1) map)
+its angular error, the fitted score over all observations (`rel_l1`) and over the observations every map
+shares (`judged_rel_l1`). The targets: on every trusted capture, the truth scores below every map at least 10
+degrees off, and GT+10 < GT+25 < constant; the abstention rate.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("captures", nargs="+", type=Path)
+    p.add_argument("--out", type=Path, default=Path("bench_verdict.json"))
+    p.add_argument("--no-model", action="store_true", help="skip the shipped model's map")
+    args = p.parse_args()
+
+    from scenes.objfolder import mean_angular_error
+    from scenes.variant import choose_variant
+
+    choose_variant("llvm_ad_rgb")
+    from unips.data import load_object
+    from unips.inference import load_network, predict_object
+    from validate.capture import load_capture
+    from validate.fit import fit_normals, prepare
+    from validate.fit_scene import FitConfig
+    from validate.perturb import perturb_normals
+    from validate.verdict import explain, judged_rel_l1, verdict
+
+    cfg = FitConfig().validate()
+    net = None if args.no_model else load_network(None)
+    rows = []
+    for folder in args.captures:
+        t0 = time.perf_counter()
+        cap = load_capture(folder)
+        gt = cap.normal_gt
+        if gt is None:
+            print(f"{folder}: no ground truth, skipped", file=sys.stderr)
+            continue
+        small, _, _ = prepare(cap, gt, cfg)
+        ex = explain(small.images, small.mask, small.saturated)
+        trusted, why = verdict(ex)
+        maps = {"gt": gt,
+                "gt+10": perturb_normals(gt, cap.mask, "smooth", 10, 0),
+                "gt+25": perturb_normals(gt, cap.mask, "smooth", 25, 0),
+                "random10": perturb_normals(gt, cap.mask, "random", 10, 0)}
+        if net is not None:
+            maps["model"] = predict_object(load_object(folder), "model", net)
+        maps["constant"] = np.where(cap.mask[..., None], np.float32([0, 0, 1]), 0).astype(np.float32)
+        row = {"capture": folder.name, "explained": ex.explained_fraction, "trusted": trusted, "why": why, "maps": {}}
+        for name, m in maps.items():
+            _, nm, _ = prepare(cap, m, cfg)
+            r = fit_normals(small.images, small.mask, nm, cfg, saturated=small.saturated)
+            row["maps"][name] = {"mae_deg": mean_angular_error(m, gt, cap.mask), "rel_l1": r.rel_l1,
+                                 "judged_rel_l1": judged_rel_l1(r.render, small.images[:, small.mask], ex)}
+        s = {k: v["judged_rel_l1"] for k, v in row["maps"].items()}
+        far = [k for k, v in row["maps"].items() if k != "gt" and v["mae_deg"] >= 10]
+        row["gt_first"] = all(s["gt"] < s[k] for k in far)
+        row["ordered"] = s["gt+10"] < s["gt+25"] < s["constant"]
+        row["gt_first_old_score"] = all(row["maps"]["gt"]["rel_l1"] < row["maps"][k]["rel_l1"] for k in far)
+        row["seconds"] = time.perf_counter() - t0
+        rows.append(row)
+        print(f"{row['capture']:<14} explained {row['explained']:.2f} trusted {str(trusted):<5} gt_first {row['gt_first']!s:<5} "
+              f"ordered {row['ordered']!s:<5} (old score gt_first {row['gt_first_old_score']})  "
+              + "  ".join(f"{k} {v['mae_deg']:.1f}deg {v['judged_rel_l1']:.4f}" for k, v in row["maps"].items()), flush=True)
+    judged = [r for r in rows if r["trusted"]]
+    summary = {"captures": len(rows), "trusted": len(judged),
+               "abstention_rate": 1 - len(judged) / len(rows) if rows else None,
+               "trusted_gt_first": sum(r["gt_first"] for r in judged), "trusted_ordered": sum(r["ordered"] for r in judged),
+               "all_gt_first_judged_score": sum(r["gt_first"] for r in rows),
+               "all_gt_first_old_score": sum(r["gt_first_old_score"] for r in rows)}
+    print(json.dumps(summary))
+    args.out.write_text(json.dumps({"summary": summary, "rows": rows}, indent=1))
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
