@@ -11,7 +11,7 @@ setup:
 	EXTRAS=$(EXTRAS) bash scripts/setup.sh
 
 demo: setup
-	$(PY) -m orchestrate.demo --out $(DEMO_OUT)
+	$(PY) -m orchestrate.demo --out $(DEMO_OUT) --overwrite
 
 test: setup
 	$(PY) -m pytest -q -x --durations=15 -m "not slow" tests

@@ -36,6 +36,8 @@ def main() -> int:
     p.add_argument("captures", nargs="+", type=Path)
     p.add_argument("--out", type=Path, default=Path("bench_verdict.json"))
     p.add_argument("--no-model", action="store_true", help="skip the shipped model's map")
+    p.add_argument("--refine", action="store_true", help="also refine the shipped model's map (validate.refine's "
+                   "defaults) and report its error before and after, and whether the refinement was accepted")
     args = p.parse_args()
 
     from scenes.objfolder import mean_angular_error
@@ -76,6 +78,14 @@ def main() -> int:
             r = fit_normals(small.images, small.mask, nm, cfg, saturated=small.saturated)
             row["maps"][name] = {"mae_deg": mean_angular_error(m, gt, cap.mask), "rel_l1": r.rel_l1,
                                  "judged_rel_l1": judged_rel_l1(r.render, small.images[:, small.mask], ex)}
+        if args.refine and "model" in maps:
+            from validate.refine import refine_object
+
+            rr = refine_object(str(folder), maps["model"])
+            row["refine"] = {"before_deg": rr["before"]["mae_deg"], "after_deg": rr["after"]["mae_deg"],
+                             "accepted": rr["accepted"], "why": rr["why"], "seconds": rr["timings"]["total_s"]}
+            print(f"  refine: {rr['before']['mae_deg']:.2f} -> {rr['after']['mae_deg']:.2f} deg, accepted {rr['accepted']} "
+                  f"({rr['timings']['total_s']:.0f} s)", flush=True)
         s = {k: v["judged_rel_l1"] for k, v in row["maps"].items()}
         far = [k for k, v in row["maps"].items() if k != "gt" and v["mae_deg"] >= 10]
         row["gt_first"] = all(s["gt"] < s[k] for k in far)
@@ -92,6 +102,11 @@ def main() -> int:
                "trusted_gt_first": sum(r["gt_first"] for r in judged), "trusted_ordered": sum(r["ordered"] for r in judged),
                "all_gt_first_judged_score": sum(r["gt_first"] for r in rows),
                "all_gt_first_old_score": sum(r["gt_first_old_score"] for r in rows)}
+    refined = [r["refine"] for r in rows if "refine" in r]
+    if refined:
+        change = [r["after_deg"] - r["before_deg"] for r in refined]
+        summary["refine"] = {"objects": len(refined), "accepted": sum(r["accepted"] for r in refined),
+                             "mean_change_deg": float(np.mean(change)), "largest_rise_deg": float(max(change))}
     print(json.dumps(summary))
     args.out.write_text(json.dumps({"summary": summary, "rows": rows}, indent=1))
     print(f"wrote {args.out}")

@@ -356,7 +356,16 @@ OUTPUTS = ("tables.md", "benchmark.json")
 """What the benchmark writes into --out."""
 
 
-def check_inputs(args: BenchmarkOptions) -> None:
+def check_args(argv: list[str]) -> BenchmarkOptions:
+    """What can be checked of a benchmark command line before its synthetic data and checkpoint exist
+    (orchestrate.train_recipe checks its benchmark step with this before rendering and training): the flags,
+    --out, and the DiLiGenT objects; writes nothing."""
+    args = parse_config(BenchmarkOptions, build_parser().parse_args(argv)).validate()
+    check_inputs(args, data=False)
+    return args
+
+
+def check_inputs(args: BenchmarkOptions, data: bool = True) -> None:
     """Every input read (without its images) and sized before any model runs: each synthetic object has ground
     truth, each DiLiGenT object has ground truth and enough images for --diligent-subset, the re-render
     options are valid, and the largest object fits in memory (`unips.inference.prediction_memory`)."""
@@ -365,7 +374,7 @@ def check_inputs(args: BenchmarkOptions) -> None:
     from unips.preprocess import crop_box
 
     sized = []
-    if args.data is not None:
+    if args.data is not None and data:
         for folder in find_objects(args.data, arg="--data"):
             fd = read_folder(folder, max_images=args.images, images=False, arg="--data")
             if fd.normals is None:

@@ -11,37 +11,25 @@
 6. a table per object (angular error and re-render residual of both methods) and the figure paths.
 
 Every step is the real CLI run as a subprocess, so this is also an end-to-end check of the commands a
-user types. Re-running with the same --out resumes the dataset and recomputes the rest.
+user types; every step's arguments are checked before the first runs, and a failed step is reported as one
+line. Re-running with the same --out resumes a dataset an interrupted demo left; an earlier demo's output is
+replaced only with --overwrite.
 """
 from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from scenes.cli import INPUT_ERRORS, check_output_folder, report_error
+from orchestrate.steps import StepFailed, check_step, run_step
+from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, claim_outputs, report_error
+from scenes.objfolder import atomic_write_text
 from scenes.config import check_fields, config_parser, option
 from scenes.config import config_from_args as parse_config
 
 FAMILIES = "near_area,hdri,mixed,directional"
-
-
-def _run(cmd: list[str], partial_ok: bool = False) -> bool:
-    """Run one step; True when it succeeded for every object. `partial_ok`: exit status 1 of a dataset command
-    (some objects failed, listed by the command, the others written) lets the demo go on with the rest."""
-    step = cmd[2] if cmd[1] == "-m" else cmd[0]
-    print("+ " + " ".join(cmd[2:] if cmd[1] == "-m" else cmd), flush=True)
-    r = subprocess.run(cmd)
-    if r.returncode == 1 and partial_ok:
-        print(f"orchestrate.demo: step {step} failed for some objects (listed above); they show as '-' in the table",
-              file=sys.stderr, flush=True)
-        return False
-    if r.returncode != 0:
-        raise SystemExit(f"orchestrate.demo: step {step} failed with exit code {r.returncode}")
-    return True
 
 
 def _reports(folder: Path) -> dict[str, dict]:
@@ -119,11 +107,57 @@ class DemoOptions:
     """Model file."""
     baseline: str = option("sh-uncalibrated", choices=("sh-uncalibrated", "least-squares"))
     """Classical baseline to compare with (least-squares needs directional lights only)."""
+    overwrite: bool = False
+    """Replace the output of an earlier demo in --out: every step replaces its own files (the dataset is rendered
+    again); files the demo did not write are never touched. Without it, a dataset left by an interrupted demo is
+    resumed, and anything else already there is refused."""
 
     def validate(self) -> "DemoOptions":
+        """The flags and --out: an earlier demo's output is replaced only with --overwrite
+        (`scenes.cli.claim_outputs`); the steps' own arguments: `check_steps`."""
         check_fields(self)
         check_output_folder(self.out)
+        claim_outputs([self.out / "summary.md"], self.overwrite, owner="orchestrate.demo")
+        claim_outputs([self.out / "pred", self.out / "rerender", self.out / "data" / "preview"], self.overwrite,
+                      owner="orchestrate.demo", folders=True)
         return self
+
+
+def make_argv(args: DemoOptions) -> list[str]:
+    """The wildgen.make command line (after `python -m wildgen.make`) of the demo's dataset."""
+    return ["--lights", FAMILIES, "--objects", str(args.objects), "--images", str(args.images), "--res", str(args.res),
+            "--spp", str(args.spp), "--seed", str(args.seed), "--out", str(args.out / "data"), *_again(args)]
+
+
+def predict_argv(args: DemoOptions, method: str) -> list[str]:
+    """The unips.predict command line of one method."""
+    argv = ["--method", method, "--input", str(args.out / "data"), "--out", str(args.out / "pred" / method)]
+    if method == "model" and args.checkpoint is not None:
+        argv += ["--checkpoint", str(args.checkpoint)]
+    return argv + _again(args)
+
+
+def rerender_argv(args: DemoOptions, method: str) -> list[str]:
+    """The validate.rerender command line of one method. --allow-missing: a baseline may leave pixels without an
+    estimate (zero normals); the check counts them, reports the coverage and scores them as no better than a
+    black render."""
+    return ["--data", str(args.out / "data"), "--normals", str(args.out / "pred" / method), "--out",
+            str(args.out / "rerender" / method), "--allow-missing", *_again(args)]
+
+
+def _again(args: DemoOptions) -> list[str]:
+    return ["--overwrite"] if args.overwrite else []
+
+
+def check_steps(args: DemoOptions) -> None:
+    """Every step's arguments before the first runs (`orchestrate.steps.check_step`): the dataset's flags and
+    memory, the model file loaded, the other steps' flags."""
+    check_step("wildgen.make", make_argv(args))
+    check_step("wildgen.preview", [str(args.out / "data"), *_again(args)])
+    for m in ("model", args.baseline):
+        check_step("unips.predict", predict_argv(args, m))
+        check_step("unips.evaluate", ["--pred", str(args.out / "pred" / m), "--gt", str(args.out / "data"), *_again(args)])
+        check_step("validate.rerender", rerender_argv(args, m))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -131,34 +165,37 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """A failed step is one line naming the step and its own error (`orchestrate.steps`), exit status its own."""
     try:
         args = parse_config(DemoOptions, build_parser().parse_args(argv)).validate()
-    except INPUT_ERRORS as exc:
+        check_steps(args)
+        return demo(args)
+    except StepFailed as exc:
+        return report_error(exc, code=exc.code)
+    except (*INPUT_ERRORS, OSError) as exc:
         return report_error(exc)
+
+
+def demo(args: DemoOptions) -> int:
+    """The steps of the demo (see the module doc), after the options and steps were checked."""
     py = [sys.executable, "-m"]
     out: Path = args.out
     data = out / "data"
-    _run(py + ["wildgen.make", "--lights", FAMILIES, "--objects", str(args.objects), "--images", str(args.images),
-               "--res", str(args.res), "--spp", str(args.spp), "--seed", str(args.seed), "--out", str(data)])
-    _run(py + ["wildgen.preview", str(data)])
+    print(f"demo in {out}: {args.objects} objects rendered, predicted by the model and {args.baseline}, evaluated "
+          "and re-rendered", flush=True)
+    run_step(py + ["wildgen.make", *make_argv(args)])
+    run_step(py + ["wildgen.preview", str(data), *_again(args)])
     methods = ["model", args.baseline]
     for m in methods:
         pred = out / "pred" / m
-        cmd = py + ["unips.predict", "--method", m, "--input", str(data), "--out", str(pred)]
-        if m == "model" and args.checkpoint is not None:
-            cmd += ["--checkpoint", str(args.checkpoint)]
-        complete = _run(cmd, partial_ok=True)
-        _run(py + ["unips.evaluate", "--pred", str(pred), "--gt", str(data)] + ([] if complete else ["--allow-missing"]),
-             partial_ok=True)
-        # --allow-missing: a baseline may leave pixels without an estimate (zero normals); the check counts them,
-        # reports the coverage and scores them as no better than a black render.
-        _run(py + ["validate.rerender", "--data", str(data), "--normals", str(pred), "--out", str(out / "rerender" / m),
-                   "--allow-missing"], partial_ok=True)
-    failed_steps = any(not (out / "pred" / m / "metrics.json").is_file() for m in methods)
-    if failed_steps:
-        raise SystemExit("orchestrate.demo: no metrics.json was written; see the errors above")
+        complete = run_step(py + ["unips.predict", *predict_argv(args, m)], partial_ok=True)
+        run_step(py + ["unips.evaluate", "--pred", str(pred), "--gt", str(data), *_again(args)]
+                 + ([] if complete else ["--allow-missing"]), partial_ok=True)
+        run_step(py + ["validate.rerender", *rerender_argv(args, m)], partial_ok=True)
+    if any(not (out / "pred" / m / "metrics.json").is_file() for m in methods):
+        raise UsageError("orchestrate.demo: no metrics.json was written; see the errors above")
     table = summary_table(out, methods)
-    (out / "summary.md").write_text(table + "\n")
+    atomic_write_text(out / "summary.md", table + "\n")
     print()
     print(table)
     print()

@@ -34,6 +34,7 @@ CLIS = (
     "wildgen.make",
     "wildgen.preview",
     "wildgen.sensor",
+    "wildgen.export",
     "unips.train",
     "unips.predict",
     "unips.evaluate",
@@ -287,6 +288,15 @@ def sensor_presets(card: dict) -> str:
     return _table(["preset", "imitates", "file"], rows)
 
 
+def capture_presets(card: dict) -> str:
+    """The table of capture presets, from `wildgen.presets.PRESETS` (the card is not used)."""
+    from wildgen.presets import PRESETS
+
+    rows = [[f"`{p.name}`", p.about, f"`{p.lights}`", f"{p.images} images of {p.width} x {p.height} px", p.camera,
+             f"`{p.sensor}`"] for p in PRESETS.values()]
+    return _table(["preset", "imitates", "lights", "images", "camera", "sensor"], rows)
+
+
 # Generated blocks other than flag tables: name -> renderer of the model card.
 BLOCKS: dict[str, Callable[[dict], str]] = {
     "readme:headline": readme_headline,
@@ -299,6 +309,7 @@ BLOCKS: dict[str, Callable[[dict], str]] = {
     "results:lineage": lineage,
     "results:lineage-families": lineage_families,
     "generator:sensors": sensor_presets,
+    "generator:presets": capture_presets,
 }
 
 

@@ -7,7 +7,7 @@
 1. Split the asset folder: the last quarter of the meshes and the last fifth of the HDR maps (sorted by
    name, rounded up; with ../shared/assets: 5 of 19 meshes, 7 of 35 maps) are held out for validation
    and test; texture sets are shared (there are only eight).
-2. Render with `wildgen.make`, every light family (`wildgen.lighting.LIGHT_FAMILIES`) cycled: train (seed `--train-seed`, 128 px,
+2. Render with `wildgen.make`, the PS-Wild light families (`wildgen.lighting.PS_WILD_FAMILIES`) cycled: train (seed `--train-seed`, 128 px,
    10 images, 16 spp, train assets; a new seed gives fresh data for a continued run; several seeds,
    comma-separated, give one set each, pooled for training), the fixed
    validation set (seed 4000, 100 objects, 128 px, 10 images, 32 spp, held-out assets: the test
@@ -22,7 +22,9 @@
    (figures, lineage: continued when `--init-from` is the shipped file, restarted otherwise). A model
    without a pretrained entry is refused before any work.
 5. Evaluate with `python -m orchestrate.benchmark` on the test set (and DiLiGenT when ../shared has it).
-Every step resumes or is skipped when its output already exists, so an interrupted recipe is re-run as is.
+Every step resumes or is skipped when its output already exists, so an interrupted recipe is re-run as is;
+`--overwrite` starts afresh instead. Every step's arguments (and --assets, decoded) are checked before the
+first step runs, and a failed step is reported as one line (`orchestrate.steps`).
 """
 from __future__ import annotations
 
@@ -32,63 +34,152 @@ import math
 import os
 import platform
 import shutil
-import subprocess
 import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from scenes.cli import INPUT_ERRORS, check_output_folder, report_error
+from orchestrate.steps import StepFailed, check_step, run_step
+from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, report_error
+from scenes.objfolder import atomic_write, atomic_write_text
 from scenes.config import check_fields, config_parser, option
 from scenes.config import config_from_args as parse_config
-from wildgen.lighting import LIGHT_FAMILIES
+from wildgen.lighting import PS_WILD_FAMILIES
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"
-FAMILIES = ["--lights", ",".join(LIGHT_FAMILIES)]
+FAMILIES = ["--lights", ",".join(PS_WILD_FAMILIES)]
 VAL_FLAGS = ["--objects", "100", "--images", "10", "--res", "128", "--spp", "32", "--seed", "4000"]
 TEST_FLAGS = ["--objects", "100", "--images", "10", "--res", "128", "--spp", "32", "--seed", "3000"]
 
 
-def split_assets(assets: Path, work: Path) -> tuple[Path, Path]:
-    """Symlink folders train_assets/ and heldout_assets/ (last 1/4 of meshes, last 1/5 of HDRIs held out)."""
-    train, held = work / "train_assets", work / "heldout_assets"
+SPLIT_FOLDERS = ("train_assets", "heldout_assets")
+"""The asset split in --work: folders of symbolic links to the --assets files, written by this recipe only."""
+
+
+def split_plan(assets: Path, work: Path) -> dict[Path, Path]:
+    """The asset split as {link in --work: the --assets file it points to}: the last quarter of the meshes and
+    the last fifth of the HDR maps (sorted by name, rounded up) held out, the texture folder shared."""
+    train, held = (work / d for d in SPLIT_FOLDERS)
+    links: dict[Path, Path] = {}
     for d in (train, held):
-        shutil.rmtree(d, ignore_errors=True)
-        (d / "meshes").mkdir(parents=True)
-        (d / "hdri").mkdir()
         if (assets / "textures").is_dir():
-            os.symlink(assets / "textures", d / "textures")
+            links[d / "textures"] = assets / "textures"
     meshes = sorted(p for p in (assets / "meshes").iterdir() if p.is_dir() or p.suffix.lower() in (".obj", ".ply", ".stl")) if (assets / "meshes").is_dir() else []
     hdris = sorted(p for p in (assets / "hdri").iterdir() if p.suffix.lower() in (".hdr", ".exr")) if (assets / "hdri").is_dir() else []
     for items, sub, share in ((meshes, "meshes", 4), (hdris, "hdri", 5)):
         cut = len(items) - math.ceil(len(items) / share)
         for i, p in enumerate(items):
-            os.symlink(p, (train if i < cut else held) / sub / p.name)
-    return train, held
+            links[(train if i < cut else held) / sub / p.name] = p
+    return links
 
 
-def run(cmd: list[str]) -> None:
-    print("+", " ".join(cmd), flush=True)
-    subprocess.run(cmd, check=True, cwd=REPO)
+def existing_split(work: Path) -> dict[Path, Path]:
+    """The links of an earlier split in --work. Anything else found there (a file, a folder other than meshes/
+    and hdri/) was not written by this recipe: UsageError, it is never deleted."""
+    found: dict[Path, Path] = {}
+    for name in SPLIT_FOLDERS:
+        d = work / name
+        if not os.path.lexists(d):
+            continue
+        if d.is_symlink() or not d.is_dir():
+            raise UsageError(f"--work: {str(d)!r} is not a folder of this recipe's asset split; it is never replaced: "
+                             "move it away or use another --work")
+        entries = list(d.iterdir())
+        for sub in ("meshes", "hdri"):
+            if (d / sub).is_dir() and not (d / sub).is_symlink():
+                entries += list((d / sub).iterdir())
+        for e in entries:
+            if e.is_symlink():
+                found[e] = Path(os.readlink(e))
+            elif not (e.parent == d and e.name in ("meshes", "hdri") and e.is_dir()):
+                raise UsageError(f"--work: {str(e)!r} was not written by orchestrate.train_recipe (its asset split holds "
+                                 "only links to --assets); it is never deleted: move it away or use another --work")
+    return found
 
 
-def train_run(py: str, work: Path, name: str, args: RecipeOptions, extra: list[str]) -> Path:
-    """Train one run into work/runs/NAME (resumed when interrupted); returns the run folder."""
+def check_split(assets: Path | None, work: Path, overwrite: bool) -> bool:
+    """Whether the split must be (re)written: False when --work holds the same split already. A split of another
+    asset folder is replaced only with --overwrite (`scenes.cli.claim_outputs`' rule); foreign files never."""
+    found = existing_split(work)
+    if assets is None:
+        return False
+    planned = split_plan(assets, work)
+    for name in SPLIT_FOLDERS:  # each half must be an asset folder wildgen.make accepts
+        if not any(work / name in link.parents for link in planned):
+            raise UsageError(f"--assets: {str(assets)!r} has too few meshes and HDR maps to split (the last quarter "
+                             f"of the meshes and the last fifth of the maps are held out): {name} would be empty")
+    if not found or found == planned:
+        return not found
+    if not overwrite:
+        raise UsageError(f"--assets: {str(work / SPLIT_FOLDERS[0])!r} holds an earlier split of another asset folder "
+                         f"(e.g. {str(next(iter(found.values())))!r}); pass --overwrite to split --assets again (the "
+                         "datasets are rendered again too), or use another --work")
+    return True
+
+
+def split_assets(assets: Path, work: Path) -> tuple[Path, Path]:
+    """Write the asset split (`split_plan`): symlink folders train_assets/ and heldout_assets/, after removing the
+    links of an earlier split (`existing_split`; nothing else is ever removed)."""
+    for link in existing_split(work):
+        link.unlink()
+    for name in SPLIT_FOLDERS:
+        for sub in ("meshes", "hdri"):
+            (work / name / sub).mkdir(parents=True, exist_ok=True)
+    for link, target in split_plan(assets, work).items():
+        os.symlink(target, link)
+    return work / SPLIT_FOLDERS[0], work / SPLIT_FOLDERS[1]
+
+
+def make_argv(args: RecipeOptions, work: Path, name: str, assets: str | None) -> list[str]:
+    """The wildgen.make command line (after `python -m wildgen.make`) of dataset `name` (train<seed>, val128,
+    test128)."""
+    if name.startswith("train"):
+        flags = ["--objects", str(args.train_objects), "--images", "10", "--res", "128", "--spp", "16", "--gt-spp", "4",
+                 "--seed", name[len("train"):]]
+    else:
+        flags = VAL_FLAGS if name == "val128" else TEST_FLAGS
+    return [*FAMILIES, *flags, *(["--assets", assets] if assets else []), "--out", str(work / name), "--quiet",
+            *(["--overwrite"] if args.overwrite else [])]
+
+
+def train_argv(args: RecipeOptions, work: Path, name: str, extra: list[str]) -> list[str]:
+    """The unips.train command line of run `name` (resumed when its last.pt exists, unless --overwrite)."""
     out = work / "runs" / name
-    if (out / "final.safetensors").is_file():
-        return out
-    resume = ["--resume"] if (out / "last.pt").is_file() else []
+    resume = ["--resume"] if (out / "last.pt").is_file() and not args.overwrite else []
     init = ["--init-from", args.init_from] if args.init_from and not resume and not extra else []
     model = [] if init else ["--model", args.model]
     data = ",".join(str(work / f"train{seed}") for seed in args.train_seed)
-    cmd = [py, "-m", "unips.train", "--data", data, "--val", str(work / "val128"),
-           *model, *init, "--out", str(out), "--steps", str(args.steps), "--batch", "4", "--lr", str(args.lr),
-           "--val-every", "500", "--ckpt-every", "250", "--seed", "0", "--threads", str(args.threads),
-           "--no-progress", *extra, *resume]
+    return ["--data", data, "--val", str(work / "val128"), *model, *init, "--out", str(out), "--steps", str(args.steps),
+            "--batch", "4", "--lr", str(args.lr), "--val-every", "500", "--ckpt-every", "250", "--seed", "0",
+            "--threads", str(args.threads), "--no-progress", *extra, *resume,
+            *(["--overwrite"] if args.overwrite else [])]
+
+
+ABLATION = ["--model-option", "uniform_context=true"]
+
+
+def bench_argv(args: RecipeOptions, work: Path) -> list[str]:
+    """The orchestrate.benchmark command line of the test set."""
+    argv = ["--data", str(work / "test128"), "--checkpoint", str(work / "runs" / "main" / "best.safetensors"),
+            "--out", str(work / "benchmark")]
+    if args.ablation:
+        argv += ["--ablation-checkpoint", str(work / "runs" / "uniform" / "best.safetensors")]
+    if (SHARED / "data" / "diligent").is_dir():
+        argv += ["--diligent", str(SHARED / "data" / "diligent")]
+    return argv + (["--overwrite"] if args.overwrite else [])
+
+
+def train_run(py: str, work: Path, name: str, args: RecipeOptions, extra: list[str]) -> Path:
+    """Train one run into work/runs/NAME (resumed when interrupted, skipped when finished unless --overwrite);
+    returns the run folder."""
+    out = work / "runs" / name
+    if (out / "final.safetensors").is_file() and not args.overwrite:
+        print(f"run {out} is finished (final.safetensors), kept", flush=True)
+        return out
     t0 = time.time()
-    run(cmd)
-    (out / "wall_time_s.txt").write_text(f"{time.time() - t0:.0f}\n")
+    run_step([py, "-m", "unips.train", *train_argv(args, work, name, extra)], cwd=REPO)
+    atomic_write_text(out / "wall_time_s.txt", f"{time.time() - t0:.0f}\n")
     return out
 
 
@@ -118,9 +209,13 @@ class RecipeOptions:
     """Then train the uniform-context ablation, same budget."""
     ship: bool = False
     """Ship the best weights if the fixed validation improves (see 4. above)."""
+    overwrite: bool = False
+    """Start afresh in --work: split the assets again, and every step replaces its earlier output (datasets
+    rendered again, runs trained again, benchmark recomputed); files the recipe did not write are never touched.
+    Without it, a re-run continues: datasets resume, finished runs and an existing benchmark are kept."""
 
     def validate(self) -> "RecipeOptions":
-        """Every check before any work: flags, the --work folder, and with --ship the registry entry."""
+        """The flags, the --work folder, and with --ship the registry entry (the steps: `check_steps`)."""
         check_fields(self)
         if not self.train_seed or len(set(self.train_seed)) != len(self.train_seed):
             raise ValueError(f"--train-seed: got {','.join(map(str, self.train_seed))!r}, expected distinct integers "
@@ -131,54 +226,75 @@ class RecipeOptions:
         return self
 
 
+def check_steps(args: RecipeOptions) -> bool:
+    """Every step's arguments, before the first runs (`orchestrate.steps.check_step`): --assets decoded (the
+    training set's wildgen.make with the whole asset folder), the other datasets' flags, the training runs'
+    (model name, --init-from read), the benchmark's (DiLiGenT read), and the asset split already in --work.
+    Returns whether the split must be written."""
+    work = Path(args.work)
+    assets = Path(args.assets) if args.assets else None
+    if assets is not None:
+        from wildgen.assets import AssetLibrary
+
+        AssetLibrary.scan(assets)  # names --assets when it is missing or empty
+    names = [f"train{args.train_seed[0]}", "val128"]
+    for i, name in enumerate(names):
+        check_step("wildgen.make", make_argv(args, work, name, str(assets) if assets and i == 0 else None))
+    check_step("unips.train", train_argv(args, work, "main", []))
+    if args.ablation:
+        check_step("unips.train", train_argv(args, work, "uniform", ABLATION))
+    if not (work / "benchmark" / "benchmark.json").is_file() or args.overwrite:
+        check_step("orchestrate.benchmark", bench_argv(args, work))
+    return check_split(assets, work, args.overwrite)
+
+
 def build_parser() -> argparse.ArgumentParser:
     return config_parser(RecipeOptions, prog="python -m orchestrate.train_recipe", description=__doc__,
                          formatter_class=argparse.RawDescriptionHelpFormatter)
 
 
 def main(argv: list[str] | None = None) -> int:
+    """A failed step is one line naming the step and its own error (`orchestrate.steps`), exit status its own."""
     try:
         args = parse_config(RecipeOptions, build_parser().parse_args(argv)).validate()
         if args.assets is None and (SHARED / "assets").is_dir():
             args.assets = str(SHARED / "assets")
-        return recipe(args)
-    except INPUT_ERRORS as exc:
+        split = check_steps(args)
+        return recipe(args, split)
+    except StepFailed as exc:
+        return report_error(UsageError(f"{exc} (the finished steps are kept: once this is fixed, the same command "
+                                       "resumes)"), code=exc.code)
+    except (*INPUT_ERRORS, OSError) as exc:
         return report_error(exc)
-    except subprocess.CalledProcessError as exc:
-        return report_error(RuntimeError(f"step {' '.join(map(str, exc.cmd[1:4]))} failed with exit status "
-                                         f"{exc.returncode} (its output is above); re-run the same command to resume"),
-                            code=1)
 
 
-def recipe(args: RecipeOptions) -> int:
-    """Every step of the recipe (see the module doc), after the options were checked."""
+def recipe(args: RecipeOptions, split: bool = True) -> int:
+    """Every step of the recipe (see the module doc), after the options and steps were checked (`check_steps`);
+    `split`: write the asset split (False: --work holds it already)."""
     py = sys.executable
     work = Path(args.work)
+    print(f"training recipe in {work}: datasets {', '.join(f'train{s}' for s in args.train_seed)}, val128, test128; "
+          f"runs main{', uniform' if args.ablation else ''}; benchmark", flush=True)
     work.mkdir(parents=True, exist_ok=True)
-    asset_flags: tuple[list[str], list[str]] = ([], [])
+    assets: tuple[str | None, str | None] = (None, None)
     if args.assets:
-        train_assets, held_assets = split_assets(Path(args.assets), work)
-        asset_flags = (["--assets", str(train_assets)], ["--assets", str(held_assets)])
-    sets = {
-        **{f"train{seed}": ["--objects", str(args.train_objects), "--images", "10", "--res", "128", "--spp", "16",
-                            "--gt-spp", "4", "--seed", str(seed), *asset_flags[0]] for seed in args.train_seed},
-        "val128": [*VAL_FLAGS, *asset_flags[1]],
-        "test128": [*TEST_FLAGS, *asset_flags[1]],
-    }
-    for name, flags in sets.items():
+        if split:
+            split_assets(Path(args.assets), work)
+        assets = (str(work / SPLIT_FOLDERS[0]), str(work / SPLIT_FOLDERS[1]))
+    for name in [*(f"train{seed}" for seed in args.train_seed), "val128", "test128"]:
         # Always run: on an existing dataset wildgen.make resumes (verifies finished objects, renders the rest).
-        run([py, "-m", "wildgen.make", *FAMILIES, *flags, "--out", str(work / name), "--quiet"])
+        run_step([py, "-m", "wildgen.make", *make_argv(args, work, name, assets[0 if name.startswith("train") else 1])],
+                 cwd=REPO)
     main_run = train_run(py, work, "main", args, [])
-    ablation = train_run(py, work, "uniform", args, ["--model-option", "uniform_context=true"]) if args.ablation else None
+    if args.ablation:
+        train_run(py, work, "uniform", args, ABLATION)
     if args.ship:
         ship(work / "val128", main_run, args)
-    bench = [py, "-m", "orchestrate.benchmark", "--data", str(work / "test128"), "--checkpoint",
-             str(main_run / "best.safetensors"), "--out", str(work / "benchmark")]
-    if ablation is not None:
-        bench += ["--ablation-checkpoint", str(ablation / "best.safetensors")]
-    if (SHARED / "data" / "diligent").is_dir():
-        bench += ["--diligent", str(SHARED / "data" / "diligent")]
-    run(bench)
+    if (work / "benchmark" / "benchmark.json").is_file() and not args.overwrite:
+        print(f"benchmark {work / 'benchmark'} exists, kept (--overwrite computes it again)", flush=True)
+    else:
+        run_step([py, "-m", "orchestrate.benchmark", *bench_argv(args, work)], cwd=REPO)
+    print(f"recipe done: weights {main_run / 'best.safetensors'}, tables {work / 'benchmark' / 'tables.md'}")
     return 0
 
 
@@ -298,9 +414,9 @@ def ship(val: Path, run_dir: Path, args: RecipeOptions) -> bool:
         "lineage": lineage,
     })
     current.parent.mkdir(parents=True, exist_ok=True)
-    shutil.copyfile(best, current)
-    shutil.copyfile(sidecar_path(best), sidecar_path(current))
-    entry.card_path.write_text(json.dumps(card, indent=1))
+    for src, dst in ((best, current), (sidecar_path(best), sidecar_path(current))):  # never half a weights file
+        atomic_write(dst, lambda tmp, src=src: shutil.copyfile(src, tmp))
+    atomic_write_text(entry.card_path, json.dumps(card, indent=1))
     print(f"shipped {name}: {_display(current)} (create_model({name!r}, pretrained=True)); model card "
           f"{_display(entry.card_path)}: copy the benchmark's test-set and DiLiGenT figures in and review "
           "known_weaknesses", flush=True)

@@ -198,7 +198,7 @@ class LightDesc:
     height: float = 0.5
     """area: side along the rectangle's local y."""
     radiance: float = 1.0
-    """area: emitted radiance."""
+    """area / uniform: emitted radiance."""
     to_world: list[list[float]] = field(default_factory=_identity4)
     """environment: rotation of the map (4x4)."""
     scale: float = 1.0
@@ -340,6 +340,12 @@ class ImageDesc:
             n_env += LIGHT_TYPES[light.type].environment_map
         if n_env > 1:
             raise ValueError(f"images[{index}].lights: at most one environment light per image, got {n_env}")
+        present = {light.type for light in self.lights}
+        for name in sorted(present):
+            clash = sorted(present & set(LIGHT_TYPES[name].excludes))
+            if clash:
+                raise ValueError(f"images[{index}].lights: a {name!r} light cannot share an image with "
+                                 f"{' or '.join(map(repr, clash))} lights ({name}: {LIGHT_TYPES[name].summary})")
         _positive(f"images[{index}]", "exposure", self.exposure)
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise ValueError(f"images[{index}].seed: expected a non-negative integer, got {self.seed!r}")

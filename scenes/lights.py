@@ -129,6 +129,31 @@ def _environment_report(l: Any, R: np.ndarray, target: np.ndarray, exposure: flo
             "to_camera": (R @ np.asarray(l.to_world, np.float64)[:3, :3]).tolist()}
 
 
+# --- uniform -----------------------------------------------------------------------------------------------
+UNIFORM_RADIUS = 500.0
+"""A uniform light is a sphere of this radius around the world origin, emitting inward: the camera and every
+other light of its image must lie inside it (the generator's camera is 20 units away at most)."""
+
+
+def _uniform_slot(mi: Any, environment: np.ndarray | None) -> dict:
+    # Not Mitsuba's `constant` emitter: a scene holds one environment emitter at most, and an object's images may
+    # use the environment map too. Inside a sphere of constant radiance L every direction brings L, as from a
+    # constant environment (irradiance pi L on any unoccluded surface). Unused, it is black and parked.
+    return {"type": "sphere", "flip_normals": True, "to_world": park_transform(mi),
+            "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.0}},
+            "emitter": {"type": "area", "radiance": {"type": "rgb", "value": 0.0}}}
+
+
+def _uniform_on(mi: Any, l: Any) -> dict[str, Any]:
+    T = mi.ScalarTransform4f
+    return {"to_world": mi.AffineTransform4f(T().scale([UNIFORM_RADIUS] * 3)),
+            "emitter.radiance.value": mi.Color3f(_rgb(l.radiance, l.color))}
+
+
+def _uniform_report(l: Any, R: np.ndarray, target: np.ndarray, exposure: float) -> dict:
+    return {"type": "uniform", "radiance": _exposed(l.radiance, l.color, exposure)}
+
+
 @dataclass(frozen=True)
 class LightType:
     """One light type of `LightDesc.type`: how it is described, built and reported."""
@@ -151,6 +176,8 @@ class LightType:
     """build: the parameter of the slot's sampling weight."""
     environment_map: bool = False
     """Lit by the scene's environment map: at most one per image, one slot, needs `SceneDescription.environment`."""
+    excludes: tuple[str, ...] = ()
+    """Light types that cannot share an image with this one (`ImageDesc.validate` refuses the pair)."""
 
     @property
     def prefix(self) -> str:
@@ -178,10 +205,16 @@ LIGHT_TYPES: dict[str, LightType] = {t.name: t for t in (
               (("to_world", "matrix"), ("scale", "non_negative")),
               _environment_slot, _environment_on, lambda mi: {"scale": mi.Float(0.0)}, _environment_report,
               environment_map=True),
+    LightType("uniform", "a uniform background, `radiance` x `color` from every direction: a sphere of radius "
+              "UNIFORM_RADIUS around the origin emitting inward, which would shadow distant lights",
+              (("radiance", "non_negative"),),
+              _uniform_slot, _uniform_on, _area_off, _uniform_report, weight="emitter.sampling_weight",
+              excludes=("directional", "environment")),
 )}
 """The light types, in the order their slots are created and written (the emitter order of a built scene)."""
 
 assert all(check in FIELD_CHECKS for t in LIGHT_TYPES.values() for _, check in t.fields)
+assert all(other in LIGHT_TYPES for t in LIGHT_TYPES.values() for other in t.excludes)
 
 
 def light_type(name: Any, owner: str = "light") -> LightType:

@@ -75,7 +75,10 @@ def test_predict_killed_mid_write_recovers_on_rerun(tmp_path, synthetic_object):
     assert not [p for p in folder.iterdir() if p.stat().st_size == 0]  # nothing truncated under a real name
     from unips.predict import main
 
-    assert main(["--method", "least-squares", "--input", str(synthetic_object), "--out", str(out)]) == 0
+    # predict.json marks the folder as this command's: the rerun replaces what the killed run left, with
+    # --overwrite as every command does (without it, the refusal names --overwrite)
+    assert main(["--method", "least-squares", "--input", str(synthetic_object), "--out", str(out)]) == 2
+    assert main(["--method", "least-squares", "--input", str(synthetic_object), "--out", str(out), "--overwrite"]) == 0
     assert read_normals(folder / "normal.exr").shape == (32, 32, 3)
     assert json.loads((folder / "predict.json").read_text())["method"] == "least-squares"
 

@@ -111,6 +111,9 @@ def world(tmp_path_factory) -> Path:
 
     _mk(w / "assets_good" / "meshes")
     trimesh.creation.icosphere(subdivisions=2).export(w / "assets_good" / "meshes" / "good.ply")
+    _mk(w / "assets_two" / "meshes")  # enough meshes for the recipe's split (one to train on, one held out)
+    for name in ("a.ply", "b.ply"):
+        trimesh.creation.icosphere(subdivisions=1).export(w / "assets_two" / "meshes" / name)
     # Model files.
     from unips.models import DEFAULT_MODEL, pretrained_weights
 
@@ -143,6 +146,66 @@ def _mk(p: Path) -> Path:
     return p
 
 
+@pytest.fixture(scope="module")
+def readonly(tmp_path_factory):
+    """{RO} of the rows: a folder nothing may be written into. As root, permissions mean nothing (root writes
+    into a chmod 555 folder), so it is a read-only tmpfs, skipped where mounting is not allowed; otherwise a
+    folder without write permission."""
+    d = tmp_path_factory.mktemp("readonly") / "ro"
+    d.mkdir()
+    if os.geteuid() != 0:
+        d.chmod(0o555)
+        yield d
+        d.chmod(0o755)
+        return
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "ro,size=64k", "tmpfs", str(d)], capture_output=True, text=True)
+    if r.returncode != 0:
+        pytest.skip(f"cannot mount a read-only tmpfs here: {r.stderr.strip()}")
+    yield d
+    subprocess.run(["umount", str(d)], check=False)
+
+
+def _put(*files: tuple[str, str]) -> Callable[[Path, Path], None]:
+    """Setup: text files at paths relative to T (an earlier run's outputs, a user's notes)."""
+    def setup(w: Path, t: Path) -> None:
+        for rel, text in files:
+            _mk((t / rel).parent).joinpath(Path(rel).name).write_text(text)
+    return setup
+
+
+def _earlier_prediction(w: Path, t: Path) -> None:
+    """Setup: T/p/00000 as unips.predict left it (predict.json beside the maps)."""
+    _mk(t / "p" / OBJ).joinpath("predict.json").write_text('{"method": "least-squares"}\n')
+    shutil.copy(w / "pred" / OBJ / "normal.png", t / "p" / OBJ / "normal.png")
+
+
+def _foreign_object(rel: str) -> Callable[[Path, Path], None]:
+    """Setup: T/<rel>/00000.data with a user's file and no manifest.json: a folder wildgen.make refuses to touch
+    (as a step of a recipe or demo, its refusal comes from the step)."""
+    return _put((f"{rel}/00000.data/notes.txt", "mine\n"))
+
+
+def _split_of(assets: str, *more: Callable[[Path, Path], None]) -> Callable[[Path, Path], None]:
+    """Setup: T/w/train_assets, an earlier asset split of the world's `assets` folder (links only)."""
+    def setup(w: Path, t: Path) -> None:
+        for sub in ("meshes", "hdri"):
+            for d in ("train_assets", "heldout_assets"):
+                _mk(t / "w" / d / sub)
+        for f in sorted((w / assets / "meshes").iterdir()):
+            os.symlink(f, t / "w" / "train_assets" / "meshes" / f.name)
+        for m in more:
+            m(w, t)
+    return setup
+
+
+def _huge_manifest(w: Path, t: Path) -> None:
+    """Setup: T/data, a copy of the world's dataset whose manifest.json was edited to ask for 10**12 objects."""
+    shutil.copytree(w / "data", t / "data")
+    manifest = json.loads((t / "data" / "manifest.json").read_text())
+    manifest["config"]["objects"] = 10**12
+    (t / "data" / "manifest.json").write_text(json.dumps(manifest))
+
+
 def _training_checkpoint(folder: Path) -> Path:
     import torch
 
@@ -173,6 +236,12 @@ class Row:
     """Prepare the row's own folder T from the world W (what is there is protected too)."""
     check: Callable[[Path, Path], None] | None = None
     """Extra assertions after the run (outputs of accepted or partly failed runs)."""
+    absent: tuple[str, ...] = ()
+    """Substrings the output must not contain: the trace of work that should not have started (a check that
+    belongs before the work came after it)."""
+    replaces: tuple[str, ...] = ()
+    """Files of T (relative paths) the row asks the command to replace (--overwrite): they must change; every
+    other pre-existing file must not."""
 
 
 def _copy(src: str, dst: str) -> Callable[[Path, Path], None]:
@@ -594,6 +663,109 @@ ROWS: list[Row] = [
     Row("demo-baseline-unknown", DEMO, ["--out", "{T}/d", "--baseline", "magic"], 2, ("--baseline", "magic")),
     Row("demo-unknown-flag", DEMO, ["--out", "{T}/d", "--quick"], 2, ("--quick",)),
     Row("demo-out-is-file", DEMO, ["--out", "{W}/afile"], 2, ("--out", "afile")),
+    # ---- issue 27: an output folder nothing may be written into ({RO}: a read-only mount as root), refused before
+    # any work by every command that writes
+    Row("make-out-read-only", MK, ["--out", "{RO}/o", *TINY], 2, ("--out", "not writable")),
+    Row("preview-out-read-only", PV, ["{W}/data", "--out", "{RO}/p"], 2, ("--out", "not writable")),
+    Row("predict-out-read-only", PR, ["--method", "least-squares", "--input", OBJDIR, "--out", "{RO}/p"], 2,
+        ("--out", "not writable")),
+    Row("evaluate-pred-read-only", EV, ["--pred", "{RO}", "--gt", "{W}/data", "--allow-missing"], 2,
+        ("--pred", "not writable")),
+    Row("rerender-out-read-only", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{RO}/o"], 2,
+        ("--out", "not writable")),
+    Row("refine-out-read-only", RF, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{RO}/o"], 2,
+        ("--out", "not writable")),
+    Row("train-out-read-only", TR, ["--data", "{W}/data", "--out", "{RO}", "--model", "glc-test", "--steps", "1",
+                                    "--no-progress"], 2, ("--out", "not writable"), sub=True),
+    Row("bench-out-read-only", BM, ["--data", "{W}/data", "--out", "{RO}/b", "--counts", "1", "--rerender-objects", "0",
+                                    "--tta", "1"], 2, ("--out", "not writable")),
+    Row("recipe-work-read-only", RC, ["--work", "{RO}/w"], 2, ("--work", "not writable")),
+    Row("demo-out-read-only", DEMO, ["--out", "{RO}/d"], 2, ("--out", "not writable")),
+    # ---- issue 27: one meaning of --overwrite: an earlier run's outputs are replaced only with it, never a user's file
+    Row("bench-refuses-to-replace", BM, ["--data", "{W}/data", "--out", "{T}/b", "--counts", "1", "--rerender-objects",
+                                         "0", "--tta", "1"], 2, ("tables.md", "--overwrite"),
+        setup=_put(("b/tables.md", "an earlier run's tables\n"), ("b/benchmark.json", "{}\n")), absent=("00000 (",)),
+    Row("bench-replaces-with-overwrite", BM, ["--data", "{W}/data", "--out", "{T}/b", "--counts", "1",
+                                              "--rerender-objects", "0", "--tta", "1", "--overwrite"], 0, ("wrote",),
+        setup=_put(("b/tables.md", "an earlier run's tables\n"), ("b/benchmark.json", "{}\n"), ("b/notes.txt", "mine\n")),
+        replaces=("b/tables.md", "b/benchmark.json")),
+    Row("bench-tables-md-is-a-folder", BM, ["--data", "{W}/data", "--out", "{T}/b", "--counts", "1", "--rerender-objects",
+                                            "0", "--tta", "1", "--overwrite"], 2, ("tables.md", "never replaced"),
+        setup=_put(("b/tables.md/mine.txt", "mine\n"))),
+    Row("rerender-refuses-to-replace-report", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{T}/o",
+                                                   "--no-floors", "--spp", "1"], 2, ("report.json", "--overwrite"),
+        setup=_put(("o/00000/report.json", "{}\n"))),
+    Row("rerender-replaces-report-with-overwrite", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{T}/o",
+                                                        "--no-floors", "--spp", "1", "--overwrite"], 0, ("report.json",),
+        setup=_put(("o/00000/report.json", "{}\n"), ("o/notes.txt", "mine\n")), replaces=("o/00000/report.json",)),
+    Row("evaluate-refuses-to-replace-metrics", EV, ["--pred", "{T}/p", "--gt", "{W}/data"], 2, ("metrics.json", "--overwrite"),
+        setup=lambda w, t: (_copy("pred", "p")(w, t), (t / "p" / "metrics.json").write_text("{}\n"))),
+    Row("preview-refuses-to-replace", PV, ["{W}/data", "--out", "{T}/p"], 2, ("overview.png", "--overwrite"),
+        setup=_put(("p/overview.png", "an earlier sheet\n"))),
+    Row("predict-refuses-to-replace-own", PR, ["--method", "least-squares", "--input", OBJDIR, "--out", "{T}/p"], 2,
+        ("normal.png", "--overwrite"), setup=_earlier_prediction),
+    Row("predict-replaces-own-with-overwrite", PR, ["--method", "least-squares", "--input", OBJDIR, "--out", "{T}/p",
+                                                    "--overwrite"], 0, ("wrote",), setup=_earlier_prediction,
+        replaces=("p/00000/predict.json", "p/00000/normal.png")),
+    Row("predict-foreign-normal-even-with-overwrite", PR, ["--method", "least-squares", "--input", OBJDIR, "--out",
+                                                           "{W}/pred_foreign", "--overwrite"], 2,
+        ("--out", "normal.png", "predict.json")),
+    Row("make-foreign-object-even-with-overwrite", MK, ["--out", "{T}/o", "--overwrite", *TINY], 2,
+        ("--out", "00000.data", "manifest.json"), setup=_foreign_object("o")),
+    Row("demo-refuses-to-replace", DEMO, ["--out", "{T}/d", "--objects", "1", "--images", "4", "--res", "16", "--spp",
+                                          "1"], 2, ("summary.md", "--overwrite"), setup=_put(("d/summary.md", "earlier\n"))),
+    Row("recipe-user-file-in-asset-split-kept", RC, ["--work", "{T}/w", "--assets", "{W}/assets_two", "--model",
+                                                     "glc-test", "--train-objects", "1"], 2, ("--work", "notes.txt"),
+        setup=lambda w, t: (_put(("w/train_assets/notes.txt", "mine\n"))(w, t), _foreign_object("w/train5000")(w, t))),
+    Row("recipe-split-of-other-assets", RC, ["--work", "{T}/w", "--assets", "{W}/assets_two", "--model", "glc-test",
+                                             "--train-objects", "1"], 2, ("--assets", "--overwrite"),
+        setup=_split_of("assets_good", _foreign_object("w/train5000"))),
+    # ---- issue 27: a size this machine cannot hold, refused from the flags with the estimate and the limit
+    Row("predict-res-huge", PR, ["--method", "model", "--input", OBJDIR, "--out", "{T}/p", "--res", "20000"], 2,
+        ("--res", "GiB", "available"), sub=True, check=_not_written("p")),
+    Row("make-objects-huge", MK, ["--out", "{T}/o", "--objects", str(10**12), "--workers", "0", "--quiet"], 2,
+        ("--objects", "GiB", "available"), sub=True, check=_not_written("o")),
+    Row("make-resume-manifest-objects-huge", MK, ["--out", "{T}/data", "--resume", "--workers", "0", "--quiet"], 2,
+        ("--objects", "manifest.json", "GiB"), sub=True, setup=_huge_manifest),
+    Row("make-threads-huge", MK, ["--out", "{T}/o", "--threads", "100000", *TINY], 2, ("--threads", "100000"), sub=True,
+        check=_not_written("o")),
+    Row("rerender-threads-huge", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{T}/o", "--fit",
+                                      "--threads", "100000"], 2, ("--threads", "100000"), sub=True, check=_not_written("o")),
+    Row("refine-threads-huge", RF, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{T}/o", "--threads",
+                                    "100000"], 2, ("--threads", "100000"), sub=True, check=_not_written("o")),
+    Row("train-res-huge", TR, ["--data", "{W}/data", "--out", "{T}/run", "--model", "glc-test", "--steps", "1", "--res",
+                               "20000", "--no-progress"], 2, ("--res", "GiB", "available"), sub=True,
+        check=_not_written("run")),
+    Row("demo-res-huge", DEMO, ["--out", "{T}/d", "--res", "20000"], 2, ("--res", "GiB"), sub=True,
+        check=_not_written("d")),
+    # ---- issue 27: every input and every step's arguments checked before the work
+    Row("bench-diligent-checked-before-tables", BM, ["--data", "{W}/data", "--diligent", "{W}/empty", "--out", "{T}/b",
+                                                     "--counts", "1", "--rerender-objects", "0", "--tta", "1"], 2,
+        ("--diligent", "empty"), sub=True, absent=("00000 (",), check=_not_written("b")),
+    Row("bench-diligent-subset-not-a-subset", BM, ["--diligent", "{W}/empty", "--out", "{T}/b", "--diligent-subset",
+                                                   "200"], 2, ("--diligent-subset", "200")),
+    Row("bench-rerender-spp-unused", BM, ["--diligent", "{W}/empty", "--out", "{T}/b", "--rerender-spp", "4"], 2,
+        ("--rerender-spp",)),
+    Row("recipe-assets-missing", RC, ["--work", "{T}/w", "--assets", "{W}/no-assets", "--model", "glc-test"], 2,
+        ("--assets", "no-assets"), check=_not_written("w")),
+    Row("recipe-assets-bad-mesh", RC, ["--work", "{T}/w", "--assets", "{W}/assets_randobj", "--model", "glc-test"], 2,
+        ("--assets", "rand.obj"), check=_not_written("w")),
+    Row("recipe-init-from-missing", RC, ["--work", "{T}/w", "--assets", "{W}/assets_two", "--init-from",
+                                         "{W}/nope.safetensors", "--train-objects", "1"], 2, ("nope.safetensors",),
+        setup=_foreign_object("w/train5000"), check=_not_written("w/train_assets")),
+    Row("recipe-model-unknown", RC, ["--work", "{T}/w", "--assets", "{W}/assets_two", "--model", "glc-nope",
+                                     "--train-objects", "1"], 2, ("--model", "glc-nope"),
+        setup=_foreign_object("w/train5000"), check=_not_written("w/train_assets")),
+    Row("demo-checkpoint-corrupt-before-render", DEMO, ["--out", "{T}/d", "--objects", "1", "--images", "4", "--res",
+                                                        "16", "--spp", "1", "--checkpoint", "{W}/ck/rand.safetensors"], 2,
+        ("rand.safetensors",), sub=True, check=_not_written("d")),
+    # ---- issue 27: a step that fails after the checks is one line naming the step and its own error
+    Row("recipe-step-failure-one-line", RC, ["--work", "{T}/w", "--assets", "{W}/assets_two", "--model", "glc-test",
+                                             "--train-objects", "1"], 2, ("wildgen.make", "00000.data"), sub=True,
+        setup=_foreign_object("w/train5000")),
+    Row("demo-step-failure-one-line", DEMO, ["--out", "{T}/d", "--objects", "1", "--images", "4", "--res", "16", "--spp",
+                                             "1"], 2, ("wildgen.make", "00000.data"), sub=True,
+        setup=_foreign_object("d/data")),
 ]
 
 
@@ -623,27 +795,32 @@ def _run(row: Row, argv: list[str], capsys) -> tuple[int, str, str]:
 
 
 @pytest.mark.parametrize("row", ROWS, ids=[r.id for r in ROWS])
-def test_bad_input(row: Row, world: Path, tmp_path: Path, capsys):
+def test_bad_input(row: Row, world: Path, tmp_path: Path, capsys, request):
     t = tmp_path / "T"
     t.mkdir()
     if row.setup is not None:
         row.setup(world, t)
+    ro = request.getfixturevalue("readonly") if any("{RO}" in a for a in row.args) else None
     before_world, before_t = _snapshot(world), _snapshot(t)
-    argv = [a.format(W=world, T=t) for a in row.args]
+    argv = [a.format(W=world, T=t, RO=ro) for a in row.args]
     rc, out, err = _run(row, argv, capsys)
     assert rc == row.rc, f"exit {rc}, expected {row.rc}\nstdout: {out[-2000:]}\nstderr: {err[-2000:]}"
     assert "Traceback" not in err and "Traceback" not in out, err
     text = err + out
     for name in row.names:
         assert name in text, f"{name!r} not in the output:\n{text[-2000:]}"
+    for trace in row.absent:
+        assert trace not in text, f"{trace!r} in the output: work started before the check\n{text[-2000:]}"
     if row.rc == 2:
         errors = [line for line in err.splitlines() if line.startswith("error:")]
         assert len(errors) == 1, err
         assert err.strip().splitlines()[-1].startswith("error:"), err
     assert _snapshot(world) == before_world, "a pre-existing file of the world changed"
     after_t = _snapshot(t)
-    changed = [k for k, v in before_t.items() if after_t.get(k) != v]
+    changed = [k for k, v in before_t.items() if after_t.get(k) != v and k not in row.replaces]
     assert not changed, f"pre-existing files changed or removed: {changed}"
+    kept = [k for k in row.replaces if after_t.get(k) in (None, before_t.get(k))]
+    assert not kept, f"files the row asked to replace were not replaced: {kept}"
     if row.check is not None:
         row.check(world, t)
 

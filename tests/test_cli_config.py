@@ -16,6 +16,7 @@ CLIS = {
     "wildgen.make": "MakeOptions",
     "wildgen.preview": "PreviewOptions",
     "wildgen.sensor": "SensorOptions",
+    "wildgen.export": "ExportOptions",
     "unips.train": "TrainConfig",
     "unips.predict": "PredictOptions",
     "unips.evaluate": "EvaluateOptions",

@@ -182,7 +182,10 @@ def test_evaluate_missing_prediction(dataset, tmp_path, capsys):
     captured = capsys.readouterr()
     assert "MISSING" in captured.out and "beta" in captured.err and "gamma" in captured.err
     assert json.loads((pred / "metrics.json").read_text())["missing"] == ["beta", "gamma"]
-    assert ev.main(["--pred", str(pred), "--gt", str(root), "--allow-missing"]) == 0
+    # An earlier evaluation's metrics are replaced only with --overwrite (the rule of every command).
+    assert ev.main(["--pred", str(pred), "--gt", str(root), "--allow-missing"]) == 2
+    assert "--overwrite" in capsys.readouterr().err
+    assert ev.main(["--pred", str(pred), "--gt", str(root), "--allow-missing", "--overwrite"]) == 0
     assert json.loads((pred / "metrics.json").read_text())["objects"]["alpha"]["mae_deg"] < 1e-3
 
 

@@ -335,15 +335,78 @@ def test_light_type_table_drives_the_description_and_the_build(any_variant):
     from scenes.lights import LIGHT_TYPES
     from scenes.mitsuba_build import build_scene
 
-    lights = [LightDesc(type=name) for name in LIGHT_TYPES]
-    desc = sphere_scene([lights, [LightDesc(type="directional")]], spp=4)
+    alone = [name for name, t in LIGHT_TYPES.items() if t.excludes]  # in an image of their own
+    lights = [LightDesc(type=name) for name in LIGHT_TYPES if name not in alone]
+    desc = sphere_scene([lights, [LightDesc(type=name) for name in alone], [LightDesc(type="directional")]], spp=4)
     desc.environment = EnvironmentDesc(source="sky", width=16)
     built = build_scene(desc)
     assert built.slots.counts == dict.fromkeys(LIGHT_TYPES, 1)
     for t in LIGHT_TYPES.values():
         assert f"{t.key(0)}.{t.weight}" in built.params, t.name
-    desc.images[1].lights[0].type = "laser"
+    desc.images[2].lights[0].type = "laser"
     with pytest.raises(ValueError, match="unknown light type 'laser', expected one of " + ", ".join(LIGHT_TYPES)):
-        built.apply_image(1)
-    with pytest.raises(ValueError, match=r"images\[1\]\.lights\[0\]\.type: unknown light type 'laser'"):
+        built.apply_image(2)
+    with pytest.raises(ValueError, match=r"images\[2\]\.lights\[0\]\.type: unknown light type 'laser'"):
         desc.validate()
+
+
+def test_uniform_background_gives_albedo_times_radiance(any_variant):
+    """A convex Lambertian object inside a uniform background of radiance L receives E = pi L at every point
+    facing anywhere, so it shows albedo x L everywhere, and the background itself shows L; the image after it
+    (a point light alone) is not lit by the parked sphere. A uniform light cannot share an image with a
+    directional or environment light (its sphere would shadow them): refused by name."""
+    L = 0.6
+    desc = sphere_scene([[LightDesc(type="uniform", radiance=L, color=[1.0, 0.5, 0.25])],
+                         [LightDesc(type="point", position=[0.0, 0.0, 3.0], intensity=4.0)]], spp=64)
+    gt, (img, lit_by_point) = render(desc)
+    P, hit = analytic_sphere()
+    full = hit.all(-1)
+    colour = np.array([1.0, 0.5, 0.25]) * L
+    np.testing.assert_allclose(img[full].mean(0), np.asarray(ALBEDO) * colour, rtol=0.01)
+    assert np.abs(img[full] / (np.asarray(ALBEDO) * colour) - 1).max() < 0.25  # 64 spp noise, no pattern
+    np.testing.assert_allclose(img[~hit.any(-1)], np.broadcast_to(colour, img[~hit.any(-1)].shape), rtol=1e-5)
+    assert lit_by_point[~hit.any(-1)].max() == 0.0  # background of the next image: the sphere is parked
+    desc.images[0].lights.append(LightDesc(type="directional"))
+    with pytest.raises(ValueError, match=r"images\[0\]\.lights: a 'uniform' light cannot share an image with 'directional'"):
+        desc.validate()
+
+
+def test_flash_is_a_point_light_at_the_camera(any_variant):
+    """The `flash` family puts its point light at the camera's position (world frame) and the report form puts it
+    on the camera's axis at the camera distance (camera frame); a Lambertian sphere under it is brightest at the
+    centre and falls off as cos / d^2, checked against the analytic radiance at a few pixels."""
+    from scenes.geometry import camera_rotation
+    from scenes.lights import camera_frame
+    from wildgen.lighting import IRRADIANCE, LIGHT_FAMILIES, Placement
+
+    for camera, centre in ((CameraDesc(origin=[0.0, 0.0, 4.0], half_size=HALF, width=RES, height=RES), np.zeros(3)),
+                           (CameraDesc(kind="perspective", origin=[0.3, -0.2, 5.0], target=[0.3, -0.2, 0.0]),
+                            np.array([0.3, -0.2, 0.1]))):
+        placement = Placement(centre, 1.0, camera, env_scale=0.3)
+        flash, ambient = LIGHT_FAMILIES["flash"].sample(np.random.default_rng(1), placement, 0, 1)
+        assert flash.type == "point" and ambient.type == "environment" and ambient.scale < 0.2 * 0.3 + 1e-12
+        assert flash.position == camera.origin
+        d = np.linalg.norm(np.asarray(camera.origin) - centre)
+        assert flash.intensity == pytest.approx(IRRADIANCE * d * d)
+        R = camera_rotation(camera.origin, camera.target, camera.up)
+        (report,) = camera_frame([flash], R, camera.target, 2.0)
+        distance = np.linalg.norm(np.asarray(camera.origin) - np.asarray(camera.target))
+        np.testing.assert_allclose(report["position"], [0.0, 0.0, distance], atol=1e-12)
+        assert report["intensity"] == [2.0 * flash.intensity] * 3
+    (light,) = [l for l in LIGHT_FAMILIES["flash"].sample(np.random.default_rng(1), Placement(
+        np.zeros(3), 1.0, CameraDesc(origin=[0.0, 0.0, 4.0]), env_scale=0.3), 0, 1) if l.type == "point"]
+    _, (img,) = render(sphere_scene([[light]]))
+    P, hit = analytic_sphere()
+    full = hit.all(-1)
+    v = np.asarray(light.position) - P  # unit sphere: the normal is the position
+    r2 = (v ** 2).sum(-1)
+    shade = (light.intensity * np.clip((P * v).sum(-1) / np.sqrt(r2), 0, None) / r2).mean(-1)
+    ref = np.asarray(ALBEDO) / np.pi * shade[..., None]
+    lum = img.mean(-1)
+    c = RES // 2
+    assert lum[full].max() <= lum[c - 1:c + 1, c - 1:c + 1].max() * 1.02  # brightest at the centre
+    assert ref[c, c, 0] == pytest.approx(ALBEDO[0] / np.pi * light.intensity / 9, rel=0.01)  # d = 3, cos = 1
+    for row, col in ((c, c), (c - 1, c), (c, c + 6), (c - 8, c + 4), (c + 10, c - 5), (c - 12, c)):
+        assert full[row, col]
+        np.testing.assert_allclose(img[row, col], ref[row, col], rtol=0.03, err_msg=f"pixel {row, col}")
+    assert ref[c - 12, c, 0] < 0.6 * ref[c, c, 0]  # the fall-off the comparison spans

@@ -54,3 +54,24 @@ def test_demo_summary_explains_every_column(tmp_path):
         generic = column.replace("least-squares", "<method>").replace("model", "<method>")
         assert f"**{generic}**" in explained, column
     assert "(90% covered)" in table and "90% covered" in explained
+
+
+def test_every_command_says_what_it_does_and_where_it_wrote(synthetic_object, tmp_path, capsys):
+    """One line when the work starts, even without a progress bar (`unips.train --no-progress` used to print
+    nothing for minutes), and where the outputs went when it ends."""
+    from unips.evaluate import main as evaluate
+    from unips.predict import main as predict
+    from unips.train import main as train
+
+    data = synthetic_object.parent
+    capsys.readouterr()
+    assert train(["--data", str(data), "--out", str(tmp_path / "run"), "--model", "glc-test", "--steps", "1",
+                  "--no-progress"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("training glc-test for 1 steps") and str(tmp_path / "run") in out[0]
+    assert out[-1].startswith(f"wrote {tmp_path / 'run' / 'final.safetensors'}")
+    assert predict(["--method", "least-squares", "--input", str(data), "--out", str(tmp_path / "pred")]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("predicting 1 object(s) with --method least-squares into") and out[-1].startswith("wrote")
+    assert evaluate(["--pred", str(tmp_path / "pred"), "--gt", str(data)]) == 0
+    assert capsys.readouterr().out.splitlines()[-1].startswith(f"wrote {tmp_path / 'pred' / 'metrics.json'}")

@@ -17,6 +17,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from scenes.objfolder import atomic_write
 from unips.models.builder import (TRAINING_FORMAT, WEIGHTS_FORMAT, load_model, load_state_strict,
                                   load_training_checkpoint, model_description, save_checkpoint, sidecar_path)
 
@@ -78,7 +79,5 @@ def save_training_checkpoint(path: str | Path, *, model: nn.Module, optimizer: t
         "extra": dict(extra or {}),
     }
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    torch.save(ckpt, tmp)
-    tmp.replace(path)
+    atomic_write(path, lambda tmp: torch.save(ckpt, tmp))  # a kill or a full disk never leaves half a last.pt
     return path

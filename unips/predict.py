@@ -150,6 +150,16 @@ def build_parser() -> argparse.ArgumentParser:
     return config_parser(PredictOptions, prog="python -m unips.predict", description=__doc__.split("\n\n")[0])
 
 
+def check_args(argv: list[str]) -> PredictOptions:
+    """What can be checked of a prediction command line before its input exists (orchestrate.demo checks its
+    prediction steps with this before rendering their data): the flags, --out, and the network file loaded;
+    writes nothing."""
+    args = parse_config(PredictOptions, build_parser().parse_args(argv)).validate()
+    if args.method == "model":
+        load_network(args.checkpoint, args.device)
+    return args
+
+
 def main(argv: list[str] | None = None) -> int:
     """One object: a failure is one line `error: ...`, exit 2. A dataset: a failed object is recorded, the others
     go on, the failures are listed at the end (`failed NAME: reason`) and the exit status is 1."""

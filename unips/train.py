@@ -53,7 +53,7 @@ class TrainConfig:
 
     data: str = option("", required=True)
     """Training dataset directory (object folders with ground-truth normals), or several separated by commas
-    (pooled, e.g. sets rendered with different seeds)."""
+    (pooled, e.g. sets rendered with different seeds); or WebDataset shards of wildgen.export: 'SHARDS/{000000..000099}.tar' or the SHARDS folder."""
     out: str = option("", required=True)
     """Run directory: log.jsonl, last.pt, best.safetensors and final.safetensors (+ .json sidecars)."""
     val: str | None = None
@@ -122,6 +122,10 @@ class TrainConfig:
     """No progress bar."""
     model_option: list[str] = option(default_factory=list, repeat=True, sep="", metavar="KEY=VALUE")
     """Model config overrides KEY=VALUE (JSON value), e.g. uniform_context=true; repeatable."""
+    shuffle_buffer: int = option(0, minimum=0)
+    """Shards only. 0: read every object into memory, as from folders (the same batches as the folders the shards came from); N > 0: stream the shards (data larger than memory), split across processes and loader workers, shuffled through a buffer of N objects per worker (unips.shards)."""
+    loader_workers: int = option(2, minimum=0)
+    """Worker processes decoding the streamed shards (with --shuffle-buffer; 0: in the training process)."""
 
     def validate(self) -> "TrainConfig":
         """Raise ValueError naming the first bad field as its CLI flag."""
@@ -140,13 +144,21 @@ class TrainConfig:
             raise ValueError("--resume and --overwrite: expected at most one of them")
         if self.resume and self.init_from:
             raise ValueError("--resume and --init-from: expected at most one of them (a resumed run keeps its weights)")
+        if self.shuffle_buffer:
+            from unips.shards import is_shard_source
+            from unips.train_data import data_roots
+
+            folders = [str(r) for r in data_roots(self.data) if not is_shard_source(r)]
+            if folders:
+                raise ValueError(f"--shuffle-buffer: streams WebDataset shards, {folders[0]!r} in --data is not a shard "
+                                 "source (export it with python -m wildgen.export, or use --shuffle-buffer 0)")
         return self
 
 
 # Settings that change the trajectory: a resumed run must use the same values.
 TRAJECTORY_KEYS = ("model", "init_from", "batch", "lr", "weight_decay", "schedule", "warmup", "min_lr_ratio",
                    "decay_every", "decay", "clip_grad", "max_images", "min_images", "pixels", "canonical_points",
-                   "seed", "res", "no_augment", "precision", "interior_crop")
+                   "seed", "res", "no_augment", "precision", "interior_crop", "shuffle_buffer")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -264,13 +276,17 @@ def check_run(cfg: TrainConfig) -> None:
     """Everything about the run folder and the size of the run, before any work: --out writable, an earlier
     run's files replaced only with --overwrite (or continued with --resume; `scenes.cli.claim_outputs`), and
     the memory of the cached samples and of one batch (`training_memory`) against what this machine has."""
-    from scenes.cli import check_memory, check_output_folder, claim_outputs
+    from scenes.cli import check_memory, check_output_folder, check_threads, claim_outputs
 
     out = Path(cfg.out)
     check_output_folder(out)
+    check_threads(cfg.threads or None, "--threads")
     if not cfg.resume:
         claim_outputs([out / n for n in RUN_FILES], cfg.overwrite, owner="unips.train", resume="--resume to continue it")
     objects, images = _count_images(cfg.data, "--data")
+    if cfg.shuffle_buffer:  # streamed: only the samples in flight are decoded (loader queues and one batch)
+        in_flight = min(objects, 2 * max(cfg.loader_workers, 1) + cfg.batch)
+        images = -(-images * in_flight // max(objects, 1))
     if cfg.val:
         more = _count_images(cfg.val, "--val")
         objects, images = objects + more[0], images + more[1]
@@ -287,13 +303,41 @@ def training_memory(cfg: TrainConfig, cached_images: int) -> int:
     return cache + cfg.batch * cfg.max_images * (TRAIN_BYTES_PER_IMAGE + pixels * 72)
 
 
+def check_args(argv: Sequence[str]) -> TrainConfig:
+    """What can be checked of a training command line before its data exist (orchestrate.train_recipe checks
+    its training step with this before rendering the data, `orchestrate.steps.check_step`): the flags, the run
+    folder writable, the model name registered, and --init-from read (its model name against an explicit
+    --model); writes nothing."""
+    from scenes.cli import check_output_folder, check_threads
+    from unips.models import list_models, load_model
+
+    cfg = config_from_args(build_parser().parse_args(argv))
+    check_output_folder(cfg.out)
+    check_threads(cfg.threads or None, "--threads")
+    if cfg.init_from:
+        name = load_model(cfg.init_from)[1].get("model_name")
+        if cfg.model != TrainConfig.model and cfg.model != name:
+            raise ValueError(f"--model={cfg.model!r}: --init-from {cfg.init_from!r} holds a {name!r} model")
+        if cfg.model_option:
+            raise ValueError("--model-option: not allowed with --init-from (the weights fix the configuration)")
+    elif cfg.model not in list_models():
+        raise ValueError(f"--model: got {cfg.model!r}, expected one of {', '.join(list_models())}")
+    return cfg
+
+
 def _count_images(data: str, flag: str) -> tuple[int, int]:
-    """(objects, images) under the dataset directories of --data / --val, counted without reading an image."""
+    """(objects, images) under the dataset directories of --data / --val, counted without reading an image
+    (shards: from their index)."""
     from scenes.layouts import detect_layout, find_object_folders, layout_named
+    from unips.shards import count_images, is_shard_source
     from unips.train_data import data_roots
 
     objects = images = 0
     for root in data_roots(data):
+        if is_shard_source(root):
+            more = count_images(root, flag)
+            objects, images = objects + more[0], images + more[1]
+            continue
         for folder in find_object_folders(root, flag):
             layout = detect_layout(folder)
             objects += 1
@@ -328,7 +372,7 @@ class _Run:
     step_model: torch.nn.Module  # the model's training forward, wrapped by DistributedDataParallel under torchrun
     optimizer: torch.optim.Optimizer
     scheduler: Any
-    samples: list[Sample]
+    samples: list[Sample]  # the cached training objects (empty when streaming)
     val_samples: list[Sample]
     data_desc: dict[str, Any]  # describe_data(): stored in checkpoints, compared on resume
     train_args: dict[str, Any]  # the settings that change the trajectory (TRAJECTORY_KEYS, model name)
@@ -337,6 +381,7 @@ class _Run:
     elapsed_before: float = 0.0  # training seconds of the steps a resumed run keeps (so elapsed_s counts the whole run)
     t_start: float = 0.0
     summary: dict[str, Any] = dataclasses.field(default_factory=dict)
+    stream: Any = None  # streamed shards (--shuffle-buffer): this process's iterator of training samples
 
     @property
     def log_path(self) -> Path:
@@ -363,9 +408,14 @@ def _setup(cfg: TrainConfig) -> _Run:
         model = _load_init_weights(cfg, device)
     else:
         model = create_model(cfg.model, **_model_options(cfg.model_option)).to(device)
-    samples = load_samples(cfg.data, cfg.res)
+    if cfg.shuffle_buffer:  # streamed shards: nothing cached, their index describes the data (`_open_stream`)
+        samples, data_desc = [], _stream_description(cfg, dist)
+    else:
+        samples = load_samples(cfg.data, cfg.res)
+        data_desc = describe_data(samples, cfg.data, cfg.res)
     val_samples = load_samples(cfg.val, cfg.res) if cfg.val and dist.main else []
     too_few = [s.name for s in samples if s.num_images < cfg.min_images]
+    too_few += [o for o, k in zip(data_desc["objects"], data_desc["images"]) if cfg.shuffle_buffer and k < cfg.min_images]
     if too_few:
         raise ValueError(f"--min-images={cfg.min_images}: objects with fewer images: {too_few[:5]}")
     canonical = model.config.canonical_resolution
@@ -375,6 +425,8 @@ def _setup(cfg: TrainConfig) -> _Run:
     train_args = {k: getattr(cfg, k) for k in TRAJECTORY_KEYS}
     train_args["model"] = getattr(model, "model_name", cfg.model)
     train_args["model_option"] = list(cfg.model_option)
+    if cfg.shuffle_buffer:  # the stream's order depends on how many workers read it
+        train_args["loader_workers"] = cfg.loader_workers
     step_model: torch.nn.Module = _TrainForward(model)
     if dist.world > 1:
         from torch.nn.parallel import DistributedDataParallel
@@ -382,8 +434,36 @@ def _setup(cfg: TrainConfig) -> _Run:
         step_model = DistributedDataParallel(step_model, device_ids=[device.index] if device.type == "cuda" else None)
     optimizer = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda s: lr_factor(cfg, s))
-    return _Run(cfg, dist, device, out, model, step_model, optimizer, scheduler, samples, val_samples,
-                describe_data(samples, cfg.data, cfg.res), train_args)
+    return _Run(cfg, dist, device, out, model, step_model, optimizer, scheduler, samples, val_samples, data_desc,
+                train_args)
+
+
+def _stream_description(cfg: TrainConfig, dist: _Dist) -> dict[str, Any]:
+    """`describe_data` of streamed shards, from their index; refuses fewer shards than processes x loader
+    workers (each reads its own)."""
+    from types import SimpleNamespace
+
+    from unips.shards import check_split, resolve_shards
+    from unips.train_data import data_roots
+
+    shards = [s for r in data_roots(cfg.data) for s in resolve_shards(r)]
+    check_split(shards, dist.world, cfg.loader_workers)
+    objects = [SimpleNamespace(name=o["name"], num_images=int(o.get("images", 0))) for s in shards for o in s.objects]
+    return describe_data(objects, cfg.data, cfg.res)
+
+
+def _open_stream(run: _Run) -> Any:
+    """This process's endless iterator of streamed training samples (`unips.shards.stream_samples`: its rank's
+    shards, shuffled, seeded by --seed), past the samples that the steps before `run.start` took (a resume)."""
+    from functools import partial
+
+    from unips.shards import stream_samples
+    from unips.train_data import data_roots, prepare_sample
+
+    cfg = run.cfg
+    return stream_samples(data_roots(cfg.data), partial(prepare_sample, res=cfg.res), seed=cfg.seed,
+                          buffer=cfg.shuffle_buffer, workers=cfg.loader_workers, world=run.dist.world,
+                          skip=run.start * (cfg.batch // run.dist.world))
 
 
 def _resume(run: _Run) -> None:
@@ -419,10 +499,15 @@ def _train_step(run: _Run, step: int, autocast: Any) -> tuple[dict[str, float], 
     """One optimisation step: the step's batch (this rank's part), forward, loss, backward, clipping, update.
     Returns the loss parts (and gradient norm) and the number of images per sample."""
     cfg, dist = run.cfg, run.dist
-    batch = make_batch(run.samples, step, seed=cfg.seed, batch=cfg.batch, min_images=cfg.min_images,
-                       max_images=cfg.max_images, pixels=cfg.pixels, canonical=run.model.config.canonical_resolution,
-                       augment=not cfg.no_augment, canonical_max=cfg.canonical_points,
-                       interior_crop=cfg.interior_crop, rank=dist.rank, world=dist.world)
+    settings = dict(min_images=cfg.min_images, max_images=cfg.max_images, pixels=cfg.pixels,
+                    canonical=run.model.config.canonical_resolution, augment=not cfg.no_augment,
+                    canonical_max=cfg.canonical_points, interior_crop=cfg.interior_crop)
+    if run.stream is not None:  # streamed: this rank's next batch / world samples, its draws seeded by (seed, rank)
+        local = [next(run.stream) for _ in range(cfg.batch // dist.world)]
+        batch = make_batch(local, step, seed=cfg.seed + (dist.rank << 32), batch=len(local), **settings)
+    else:
+        batch = make_batch(run.samples, step, seed=cfg.seed, batch=cfg.batch, rank=dist.rank, world=dist.world,
+                           **settings)
     batch = Batch(*(getattr(batch, f.name).to(run.device) for f in dataclasses.fields(Batch)))
     # Dropout / drop-path draw from torch's global RNG: reseed it from (seed, step, rank).
     torch.manual_seed(int(step_rng(cfg.seed, step, 1 + dist.rank).integers(2**62)))
@@ -486,6 +571,8 @@ def train(cfg: TrainConfig | argparse.Namespace) -> dict[str, Any]:
     run = _setup(cfg)
     if cfg.resume:
         _resume(run)
+    if cfg.shuffle_buffer:
+        run.stream = _open_stream(run)
     if run.start >= cfg.steps:
         log.info("nothing to do: checkpoint at step %d, --steps %d", run.start, cfg.steps)
     run.summary.update(start=run.start, steps=cfg.steps, params=sum(p.numel() for p in run.model.parameters()))

@@ -47,33 +47,55 @@ def to_tensors(images: np.ndarray, mask: np.ndarray, normals: np.ndarray | None
 
 
 def data_roots(data: str | Path) -> list[Path]:
-    """The dataset directories of a --data value: one path, or several separated by commas."""
-    roots = [Path(p.strip()) for p in str(data).split(",") if p.strip()]
+    """The entries of a --data value: one dataset directory or shard source (`unips.shards`), or several
+    separated by commas (commas inside a shard pattern's braces, {a,b}, do not separate)."""
+    from unips.shards import source_label
+
+    parts, depth, start, text = [], 0, 0, str(data)
+    for i, c in enumerate(text + ","):
+        depth += (c == "{") - (c == "}")
+        if c == "," and depth <= 0:
+            parts.append(text[start:i])
+            start = i + 1
+    roots = [Path(p.strip()) for p in parts if p.strip()]
     if not roots:
         raise ValueError(f"--data: {str(data)!r} names no directory")
-    names = [r.name for r in roots]
+    names = [source_label(r) for r in roots]
     if len(set(names)) != len(names):
         raise ValueError(f"--data: {str(data)!r} names two directories with the same name (object names would collide)")
     return roots
 
 
-def load_samples(root: str | Path, res: int, require_normals: bool = True) -> list[Sample]:
-    """Load, crop, normalise and resize every object under `root` (one dataset directory, or several
-    separated by commas: their objects are pooled and named DIRNAME/OBJECT)."""
-    from unips.data import find_objects, load_object
+def prepare_sample(obj: Any, res: int, require_normals: bool = True, name: str | None = None,
+                   where: str = "--data") -> Sample:
+    """The training sample of a loaded object (`unips.data.PSObject`): cropped, normalised, resized to `res`."""
     from unips.preprocess import prepare, resize_prepared
+
+    if require_normals and obj.normals is None:
+        raise ValueError(f"object {obj.name!r} in {where!r} has no ground-truth normals (normal.tif)")
+    prep = resize_prepared(prepare(obj, margin=4), res)
+    imgs, m, n = to_tensors(prep.images, prep.mask, prep.normals)
+    return Sample(name or obj.name, imgs.to(torch.float16), m, n, obj.light_family)
+
+
+def load_samples(root: str | Path, res: int, require_normals: bool = True) -> list[Sample]:
+    """Load, crop, normalise and resize every object under `root` (one dataset directory or shard source, or
+    several separated by commas: their objects are pooled and named DIRNAME/OBJECT). Shards are read in the
+    order given (`unips.shards.iter_objects`): the samples of shards exported from a dataset are those of its
+    folders, in the same order."""
+    from unips.data import find_objects, load_object
+    from unips.shards import is_shard_source, iter_objects, source_label
 
     roots = data_roots(root)
     samples = []
     for r in roots:
-        for p in find_objects(r):  # FileNotFoundError naming the path when there is none
-            obj = load_object(p)
-            if require_normals and obj.normals is None:
-                raise ValueError(f"object {obj.name!r} in {str(r)!r} has no ground-truth normals (normal.tif)")
-            prep = resize_prepared(prepare(obj, margin=4), res)
-            imgs, m, n = to_tensors(prep.images, prep.mask, prep.normals)
-            name = obj.name if len(roots) == 1 else f"{r.name}/{obj.name}"
-            samples.append(Sample(name, imgs.to(torch.float16), m, n, obj.light_family))
+        if is_shard_source(r):
+            objects = iter_objects(r)
+        else:
+            objects = (load_object(p) for p in find_objects(r))  # FileNotFoundError naming the path when there is none
+        for obj in objects:
+            name = obj.name if len(roots) == 1 else f"{source_label(r)}/{obj.name}"
+            samples.append(prepare_sample(obj, res, require_normals, name, str(r)))
     return samples
 
 

@@ -212,11 +212,28 @@ def fit_normals(
     return best
 
 
+FIT_BYTES_PER_LANE = 1200
+"""Memory of one (image, mask pixel) lane of the fit (Dr.Jit values, their gradients, the refresh's NumPy
+arrays): twice the 600 bytes measured on a 256 px object with 8 images (llvm_ad_rgb)."""
+
+
+def check_fit_memory(cap: Capture, f: int) -> None:
+    """Refuse a fit this machine cannot hold: K x (mask pixels at 1/f) lanes (`FIT_BYTES_PER_LANE`), before any
+    work, naming the flags that set the fitting resolution."""
+    from scenes.cli import check_memory
+
+    k, pixels = int(cap.images.shape[0]), int(np.ceil(cap.mask.sum() / f**2))
+    check_memory(k * pixels * FIT_BYTES_PER_LANE, "--max-pixels/--downsample",
+                 f"the fit of {cap.name} ({k} images x {pixels} mask pixels at 1/{f} resolution)",
+                 "lower --max-pixels or raise --downsample")
+
+
 def prepare(cap: Capture, normals: np.ndarray, config: FitConfig) -> tuple[Capture, np.ndarray, int]:
     """Downsample a capture and its normal map (H, W, 3) for fitting. Returns (capture, normals, factor)."""
     from validate.capture import downsample_capture, downsample_normals
 
     f = config.downsample or choose_downsample(cap.mask, config.max_pixels)
+    check_fit_memory(cap, f)
     small = downsample_capture(cap, f)
     n = downsample_normals(normals, small.mask, f)
     n = np.where(small.mask[..., None] & (np.linalg.norm(n, axis=-1, keepdims=True) < 0.5), np.float32([0, 0, 1]), n)

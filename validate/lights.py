@@ -78,7 +78,15 @@ def closed_form_directional(
     # Without `ambient` the constant column is left out: per-pixel albedo times a per-image ambient is a
     # rank-one term that the alternation drifts into (measured on DiLiGenT ball: 1 deg -> 75 deg).
     X = np.concatenate([normals.astype(np.float64), np.ones((p, 1 if ambient else 0))], 1)  # (P, 3 or 4)
-    rho = np.maximum(np.percentile(g, 90, axis=0), 1e-6)
+    # The start of the per-pixel albedo from images brought to one brightness: the fit is invariant to a scale
+    # per image (raw captures, unequal light intensities), and so must be its start (6 alternations do not
+    # forget it: DiLiGenT cat in the uncalibrated layout 7.2 deg, divided by the intensity file 4.1).
+    level = np.array([g[i][use[i]].mean() if use[i].any() else 0.0 for i in range(k)])  # (K,)
+    ok = use & (level[:, None] > 0)  # an image without usable pixels (black, saturated) says nothing here
+    normed = np.where(ok, g / np.where(level > 0, level, 1.0)[:, None], np.nan)
+    with np.errstate(all="ignore"):
+        rho = np.nanpercentile(np.where(ok.any(0)[None], normed, 0.0), 90, axis=0)
+    rho = np.maximum(np.nan_to_num(rho, nan=1e-6), 1e-6)
     B = np.zeros((k, X.shape[1]))
     for it in range(iterations):
         ratio = g / rho[None]

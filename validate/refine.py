@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from scenes.cli import INPUT_ERRORS, check_output_folder, claim_outputs, progress_bar, report_error
+from scenes.cli import INPUT_ERRORS, check_output_folder, check_threads, claim_outputs, progress_bar, report_error
 from scenes.config import check_fields, config_parser, option
 from scenes.config import config_from_args as parse_config
 from scenes.variant import jit_threads, require_ad_variant
@@ -479,6 +479,7 @@ class RefineOptions:
     def validate(self) -> "RefineOptions":
         check_fields(self)
         self.refine.validate()
+        check_threads(self.threads)
         check_output_folder(self.out)
         return self
 

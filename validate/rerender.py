@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes.cli import UsageError, check_output_folder, claim_outputs, progress_bar, report_error
+from scenes.cli import UsageError, check_output_folder, check_threads, claim_outputs, progress_bar, report_error
 from scenes.config import check_fields, config_parser, option
 from scenes.config import config_from_args as parse_config
 from scenes.objfolder import atomic_write_text, find_prediction, list_object_folders, object_name
@@ -215,6 +215,7 @@ class RerenderOptions:
         check_fields(self)
         self.check.validate()
         self.fitted.validate()
+        check_threads(self.threads)
         check_output_folder(self.out)
         return self
 

@@ -141,11 +141,11 @@ def verdict(ex: Explanation) -> tuple[bool, str]:
     """(trusted, why) of a capture's explanation."""
     frac = ex.explained_fraction
     if frac >= MIN_EXPLAINED:
-        return True, (f"{frac:.0%} of the object is explained by smooth Lambertian shading (at least "
+        return True, (f"{frac:.0%} of the object is explained by distant lights on a Lambertian surface (at least "
                       f"{MIN_EXPLAINED:.0%} needed): scored on those pixels' unshadowed, unsaturated observations")
-    return False, (f"only {frac:.0%} of the object is explained by smooth Lambertian shading (at least "
-                   f"{MIN_EXPLAINED:.0%} needed): highlights, cast shadows or inter-reflections the check does not "
-                   "model dominate; the score is not a judgement of the normals")
+    return False, (f"only {frac:.0%} of the object is explained by distant lights on a Lambertian surface (at least "
+                   f"{MIN_EXPLAINED:.0%} needed): near or environment light, metals, cast "
+                   "shadows or inter-reflections the check cannot model; the score is not a judgement of the normals")
 
 
 def judged_rel_l1(render: np.ndarray, images: np.ndarray, ex: Explanation) -> float:

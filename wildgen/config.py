@@ -7,6 +7,7 @@ from scenes.config import check_fields, option
 from scenes.variant import PREFERENCE as VARIANTS  # the RGB variants the scenes are built for, in auto's order
 from scenes.sensor import SENSORS
 from wildgen.lighting import LIGHT_FAMILIES
+from wildgen.presets import PRESETS
 
 MATERIAL_CLASSES = ("diffuse", "specular", "metallic")
 MAX_ENTROPY = 8.0
@@ -17,6 +18,10 @@ MAX_ENTROPY = 8.0
 class GenConfig:
     """Everything that determines a dataset; with the same values the same files come out."""
 
+    preset: str | None = option(None, choices=tuple(PRESETS), metavar="{" + ",".join(PRESETS) + "}")
+    """Capture preset (`wildgen.presets.PRESETS`): sets --lights, --images, --width, --height, --camera and
+    --sensor to imitate a kind of rig (DiLiGenT's LED grid, a phone with flash, a light stage, a screen); flags
+    given explicitly keep their values. Recorded in the manifest's configuration."""
     lights: list[str] = option(default_factory=lambda: ["near_area"], repeat=True, metavar="FAMILY",
                                 choices=tuple(LIGHT_FAMILIES))
     """Light families (keys of `wildgen.lighting.LIGHT_FAMILIES`), cycled across objects (object i gets

@@ -17,6 +17,7 @@ from scenes.cli import check_memory as check_memory_bytes
 from scenes.config import check_fields, check_int, config_parser, given_flags, option
 from scenes.config import config_from_args as parse_config
 from wildgen.config import GenConfig
+from wildgen.presets import apply_preset, preset_named
 
 @dataclass
 class MakeOptions:
@@ -47,6 +48,9 @@ class MakeOptions:
     """Objects a worker process renders before a fresh process replaces it (bounds memory)."""
     quiet: bool = False
     """No progress bar."""
+    shards: str | None = None
+    """Also write the finished dataset as WebDataset shards into this folder (python -m wildgen.export, default
+    shard size; an earlier export there is replaced)."""
 
     def validate(self) -> "MakeOptions":
         """The run's own options (the dataset's are `GenConfig.validate`'s)."""
@@ -62,9 +66,11 @@ def build_parser() -> argparse.ArgumentParser:
                                      "folder per object).")
 
 
-def options_from_args(args: argparse.Namespace) -> MakeOptions:
-    """The options of parsed arguments, --res applied to the dataset's width and height (not validated)."""
+def options_from_args(args: argparse.Namespace, given: set[str] = frozenset()) -> MakeOptions:
+    """The options of parsed arguments (not validated): the values of --preset on the dataset's fields whose flags
+    are not in `given` (the flags on the command line), then --res on its width and height."""
     opts = parse_config(MakeOptions, args)
+    apply_preset(opts.gen, given)
     if opts.res is not None:
         opts.gen.width = opts.gen.height = opts.res
     return opts
@@ -84,7 +90,10 @@ def _resume_config(opts: MakeOptions, explicit: set[str], manifest: dict) -> Gen
     known = {f.name for f in fields(GenConfig)}
     cfg = GenConfig(**{k: v for k, v in manifest["config"].items() if k in known})
     given = opts.gen.to_dict()
-    for name in explicit & set(CONFIG_FLAGS):
+    names = explicit & set(CONFIG_FLAGS)
+    if "preset" in explicit and opts.gen.preset is not None:  # --preset given again: its values as if typed
+        names |= set(preset_named(opts.gen.preset).overrides())
+    for name in names:
         targets = ("width", "height") if name == "res" else (name,)
         for t in targets:
             setattr(cfg, t, given[t])
@@ -134,14 +143,7 @@ def resolve_run(args: MakeOptions, explicit: set[str], out: Path) -> tuple[GenCo
         cfg = _resume_config(args, explicit, manifest)
     else:
         cfg = args.gen.validate()
-    from wildgen.assets import AssetLibrary
-
-    lib = AssetLibrary.scan(cfg.assets)  # fail early on a bad asset folder
-    if cfg.shapes == "mesh" and not lib.meshes:
-        raise ValueError(f"--shapes: 'mesh' needs an --assets folder with meshes/, {cfg.assets!r} has none")
-    check_memory(cfg, args.workers, args.ray is not None, resumed=args.resume and "objects" not in explicit)
-    _check_threads(args, cfg)
-    lib.check()  # every asset decoded once, here: a bad file is named now, not retried in every object
+    check_config(args, cfg, resumed=args.resume and "objects" not in explicit)
     check_out(out)
     from scenes.variant import choose_variant
 
@@ -163,6 +165,33 @@ def _check_threads(args: MakeOptions, cfg: GenConfig) -> None:
 
     workers = 1 if args.ray is not None or args.workers == 0 else (args.workers or default_workers(cfg.objects))
     check_threads(args.threads, "--threads", processes=workers)
+
+
+def check_config(args: MakeOptions, cfg: GenConfig, resumed: bool = False) -> None:
+    """The configuration to render against this machine and the assets, before anything is written: the asset
+    folder (every asset decoded once, here: a bad file is named now, not retried in every object), the memory
+    estimate and --threads. `resumed`: the configuration came from the manifest."""
+    from wildgen.assets import AssetLibrary
+
+    lib = AssetLibrary.scan(cfg.assets)  # fail early on a bad asset folder
+    if cfg.shapes == "mesh" and not lib.meshes:
+        raise ValueError(f"--shapes: 'mesh' needs an --assets folder with meshes/, {cfg.assets!r} has none")
+    check_memory(cfg, args.workers, args.ray is not None, resumed=resumed)
+    _check_threads(args, cfg)
+    lib.check()
+
+
+def check_args(argv: list[str]) -> MakeOptions:
+    """Everything `main` checks before it reads --out, on a command line, writing nothing: the flags, the
+    dataset's configuration (`check_config`: assets decoded, memory, threads). What orchestrate checks of a
+    wildgen.make step before running any step (`orchestrate.steps.check_step`)."""
+    parsed = build_parser().parse_args(argv)
+    explicit = _explicit_flags(argv)
+    args = options_from_args(parsed, explicit)
+    check_flags(args, explicit)
+    if not args.resume:  # a resumed configuration is the manifest's, read when the step runs
+        check_config(args, args.gen.validate())
+    return args
 
 
 MANIFEST_BYTES_PER_OBJECT = 10_000
@@ -272,9 +301,10 @@ def main(argv: list[str] | None = None) -> int:
 def _run(argv: list[str] | None, state: dict) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
-        args = options_from_args(build_parser().parse_args(argv))
-        out = Path(args.out)
+        parsed = build_parser().parse_args(argv)
         explicit = _explicit_flags(argv)
+        args = options_from_args(parsed, explicit)
+        out = Path(args.out)
         check_flags(args, explicit)
         cfg, variant = resolve_run(args, explicit, out)
     except (UsageError, ValueError, OSError) as exc:
@@ -314,6 +344,10 @@ def _run(argv: list[str] | None, state: dict) -> int:
         print(f"error: none of the {len(entries)} object(s) was written, all were rejected (first: {first.get('reason')})",
               file=sys.stderr)
         return 1
+    if args.shards:
+        from wildgen.export import export_after_make
+
+        return export_after_make(out, args.shards)
     return 0
 
 

@@ -23,6 +23,8 @@ from typing import Any, Mapping
 import torch
 from torch import nn
 
+from scenes.objfolder import atomic_write, atomic_write_text
+
 from .registry import build_model, pretrained_weights
 
 WEIGHTS_FORMAT = "unips-weights/1"
@@ -74,12 +76,9 @@ def save_checkpoint(path: str | Path, model: nn.Module, extra: Mapping[str, Any]
     meta = {"format": WEIGHTS_FORMAT, **model_description(model), "extra": dict(extra or {})}
     path.parent.mkdir(parents=True, exist_ok=True)
     state = {k: v.detach().contiguous().cpu() for k, v in model.state_dict().items()}
-    # Write to temporary names and rename, so a reader never sees half a file.
-    tmp_w, tmp_j = path.with_name(path.name + ".tmp"), sidecar_path(path).with_name(sidecar_path(path).name + ".tmp")
-    save_file(state, str(tmp_w), metadata={"model_name": meta["model_name"]})
-    tmp_j.write_text(json.dumps(meta, indent=2, sort_keys=True))
-    tmp_w.replace(path)
-    tmp_j.replace(sidecar_path(path))
+    # Through temporary names and renames, so a reader never sees half a file (and a failure leaves none).
+    atomic_write(path, lambda tmp: save_file(state, str(tmp), metadata={"model_name": meta["model_name"]}))
+    atomic_write_text(sidecar_path(path), json.dumps(meta, indent=2, sort_keys=True))
     return path
 
 

@@ -1,0 +1,170 @@
+"""Reading many small objects: object folders against WebDataset shards (samples per second, side by side).
+
+    python bench/bench_shards.py [--objects 200] [--images 8] [--res 64] [--shard-size 100] [--out shards.json]
+
+Writes `--objects` synthetic object folders (a Lambertian ellipsoid with a random albedo under random
+directional lights plus sensor-like noise, 16-bit PNGs of `--res` px, written through `scenes.objfolder`; no
+rendering) into a temporary folder, exports them with `wildgen.export` (`--shard-size` objects per shard), and
+reads both back three ways, each timed twice:
+
+- files: every file of every object read into memory (folders: list the folder, read each file; shards:
+  verify the checksum, then webdataset's tar reader), the part that storage decides;
+- objects: decoded by the model's loader (folders: `unips.data.load_object`; shards: `unips.shards.iter_objects`,
+  which writes each sample's files to a temporary folder and reads it with the same loader);
+- samples: the training samples (`unips.train_data.load_samples` of the folder and of the shard pattern,
+  cropped and resized to --res).
+
+`cold`: before the pass, every file of both sources is written back (`os.sync`) and evicted from the page
+cache with posix_fadvise(POSIX_FADV_DONTNEED), so it is read from the disk (on a virtual machine the host may
+still cache it); `warm`: the fastest of `--repeats` further passes, from the page cache. The ratio is shard
+objects/s over folder objects/s. Measured on a shared machine: rerun it before trusting one number.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+
+def write_objects(root: Path, count: int, images: int, res: int, seed: int = 0) -> None:
+    """`count` object folders 00000.data ... of synthetic Lambertian ellipsoids (noisy, so PNGs do not shrink to
+    nothing)."""
+    from scenes.objfolder import write_object_folder
+
+    rng = np.random.default_rng(seed)
+    i, j = np.mgrid[0:res, 0:res] + 0.5
+    for index in range(count):
+        ri, rj = rng.uniform(0.25, 0.45, 2) * res
+        x, y = (j - res / 2) / rj, -(i - res / 2) / ri
+        q = 1 - x * x - y * y
+        mask = q > 0.02
+        n = np.stack([x, y, np.sqrt(np.clip(q, 0, None))], -1)
+        n = np.where(mask[..., None], n / np.linalg.norm(n, axis=-1, keepdims=True), 0.0)
+        lights = rng.normal(size=(images, 3))
+        lights[:, 2] = np.abs(lights[:, 2]) + 0.5
+        lights /= np.linalg.norm(lights, axis=1, keepdims=True)
+        albedo = rng.uniform(0.3, 0.9, 3)
+        shade = np.clip(np.einsum("hwc,kc->khw", n, lights), 0, None)[..., None] * albedo * mask[..., None]
+        imgs = np.clip(shade + rng.normal(0, 0.004, shade.shape), 0, 1)
+        scene = {"light_family": "directional",
+                 "camera_lights": [{"directional": [{"direction_to_light": d.tolist(), "irradiance": [1, 1, 1]}],
+                                    "other": 0} for d in lights]}
+        write_object_folder(root / f"{index:05d}.data", imgs, mask, n, scene=scene)
+
+
+def evict(paths: list[Path]) -> None:
+    """Drop the files' pages from the page cache (after writing back dirty ones), so the next read is cold."""
+    os.sync()
+    for p in paths:
+        fd = os.open(p, os.O_RDONLY)
+        try:
+            os.posix_fadvise(fd, 0, 0, os.POSIX_FADV_DONTNEED)
+        finally:
+            os.close(fd)
+
+
+def read_folder_files(data: Path) -> int:
+    n = 0
+    for folder in sorted(p for p in data.iterdir() if p.is_dir()):
+        for p in sorted(folder.iterdir()):  # the synthetic folders have no subfolder
+            p.read_bytes()
+        n += 1
+    return n
+
+
+def read_shard_files(pattern: str) -> int:
+    from scenes.shards import iter_samples, verify_shard
+    from unips.shards import resolve_shards
+
+    n = 0
+    for shard in resolve_shards(pattern):
+        verify_shard(shard.path, shard.entry)
+        n += sum(1 for _ in iter_samples(shard.path))
+    return n
+
+
+def decode_folders(data: Path) -> int:
+    from unips.data import find_objects, load_object
+
+    return sum(1 for p in find_objects(data) if load_object(p) is not None)
+
+
+def decode_shards(pattern: str) -> int:
+    from unips.shards import iter_objects
+
+    return sum(1 for _ in iter_objects(pattern))
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--objects", type=int, default=200)
+    ap.add_argument("--images", type=int, default=8)
+    ap.add_argument("--res", type=int, default=64)
+    ap.add_argument("--shard-size", type=int, default=100)
+    ap.add_argument("--repeats", type=int, default=3, help="warm passes of each reader (the fastest is kept)")
+    ap.add_argument("--out", type=Path, default=None, help="also write the results as JSON here")
+    args = ap.parse_args(argv)
+
+    import importlib
+
+    import torch
+
+    importlib.import_module("webdataset")  # imported now, not inside the first timed pass
+    from unips.train_data import load_samples
+    from wildgen.export import export_dataset
+
+    torch.set_num_threads(1)
+    with tempfile.TemporaryDirectory(prefix="bench-shards-") as tmp:
+        data, shards = Path(tmp) / "data", Path(tmp) / "shards"
+        t0 = time.perf_counter()
+        write_objects(data, args.objects, args.images, args.res)
+        index = export_dataset(data, shards, shard_size=args.shard_size)
+        pattern = str(shards / index["pattern"])
+        folder_files = [p for p in data.rglob("*") if p.is_file()]
+        shard_files = sorted(shards.glob("*.tar")) + [shards / "index.json"]
+        sizes = {"folder_files": len(folder_files), "folder_bytes": sum(p.stat().st_size for p in folder_files),
+                 "shards": len(shard_files) - 1, "shard_bytes": sum(p.stat().st_size for p in shard_files)}
+        print(f"{args.objects} objects x {args.images} images at {args.res} px: {sizes['folder_files']} files "
+              f"({sizes['folder_bytes'] / 2**20:.1f} MiB) vs {sizes['shards']} shards "
+              f"({sizes['shard_bytes'] / 2**20:.1f} MiB); written in {time.perf_counter() - t0:.1f} s")
+        readers = {
+            "files": (lambda: read_folder_files(data), lambda: read_shard_files(pattern)),
+            "objects": (lambda: decode_folders(data), lambda: decode_shards(pattern)),
+            "samples": (lambda: len(load_samples(data, args.res)), lambda: len(load_samples(pattern, args.res))),
+        }
+        rows = []
+        for what, (by_folder, by_shard) in readers.items():
+            for cache in ("cold", "warm"):
+                rates: dict[str, float] = {}
+                for _ in range(1 if cache == "cold" else args.repeats):  # warm: the best of --repeats passes
+                    for source, fn in (("folders", by_folder), ("shards", by_shard)):
+                        if cache == "cold":
+                            evict(folder_files + shard_files)
+                        t = time.perf_counter()
+                        n = fn()
+                        seconds = time.perf_counter() - t
+                        assert n == args.objects, (what, source, n)
+                        rates[source] = max(rates.get(source, 0.0), n / seconds)
+                rows.append({"read": what, "cache": cache, "folders_per_s": round(rates["folders"], 1),
+                             "shards_per_s": round(rates["shards"], 1),
+                             "ratio": round(rates["shards"] / rates["folders"], 2)})
+    print("\n| read | cache | folders (objects/s) | shards (objects/s) | shards / folders |\n|---|---|---:|---:|---:|")
+    for r in rows:
+        print(f"| {r['read']} | {r['cache']} | {r['folders_per_s']:.0f} | {r['shards_per_s']:.0f} | {r['ratio']:.2f}x |")
+    if args.out:
+        args.out.write_text(json.dumps({"settings": vars(args) | {"out": str(args.out)}, "sizes": sizes, "rows": rows},
+                                       indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

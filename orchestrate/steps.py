@@ -1,0 +1,100 @@
+"""The steps of a multi-step command (orchestrate.demo, orchestrate.train_recipe): each a real CLI run as a
+subprocess, its arguments checked up front and its failure reported as one line.
+
+- `check_step(module, argv)`: before the first step runs, every step's command line is checked in this process
+  by the step's own parser and option checks (`check_args` of the module where it has one: flags, memory
+  estimate, files that already exist), so that a bad value is refused at once, naming the step's flag, and not
+  after the hours of the steps before it.
+- `run_step(cmd)`: runs one step, its standard output and error passed through as they come, except its own
+  `error: ...` line, which is held back: a failed step raises `StepFailed`, whose message is that line with the
+  step named, and the command reports it as its one error line (`scenes.cli.report_error`), never a traceback.
+"""
+from __future__ import annotations
+
+import codecs
+import importlib
+import os
+import subprocess
+import sys
+from typing import Any
+
+from scenes.cli import UsageError
+
+
+class StepFailed(UsageError):
+    """A step exited with a non-zero status; `code` is that status, the message names the step and its error."""
+
+    def __init__(self, message: str, code: int) -> None:
+        super().__init__(message)
+        self.code = code
+
+
+def check_step(module: str, argv: list[str]) -> Any:
+    """Check the command line `argv` of step `module` (`python -m module argv`) without running it: the module's
+    `check_args(argv)` where it has one, else its parser. Raises the step's own one-line error (UsageError /
+    ValueError / FileNotFoundError) prefixed with the step's name."""
+    mod = importlib.import_module(module)
+    try:
+        if hasattr(mod, "check_args"):
+            return mod.check_args(argv)
+        return mod.build_parser().parse_args(argv)
+    except (UsageError, ValueError, FileNotFoundError) as exc:
+        raise UsageError(f"step {module}: {exc}") from None
+
+
+def _describe(cmd: list[str]) -> str:
+    """`module --out X` of a step's command line (what the error line names)."""
+    module = cmd[2] if len(cmd) > 2 and cmd[1] == "-m" else os.path.basename(cmd[0])
+    out = next((cmd[i + 1] for i, a in enumerate(cmd[:-1]) if a in ("--out", "--work")), None)
+    return f"{module}{f' --out {out}' if out else ''}"
+
+
+def run_step(cmd: list[str], partial_ok: bool = False, cwd: str | os.PathLike | None = None) -> bool:
+    """Run one step (printed first as `+ module args`). Returns True when it succeeded; with `partial_ok`, exit
+    status 1 of a dataset command (some objects failed, listed by the command, the others written) returns
+    False and its error line is passed through. Any other failure raises `StepFailed` with the step's own error
+    line (its output is above it)."""
+    shown = cmd[2:] if len(cmd) > 2 and cmd[1] == "-m" else cmd
+    print("+ " + " ".join(map(str, shown)), flush=True)
+    proc = subprocess.Popen([str(c) for c in cmd], stderr=subprocess.PIPE, cwd=cwd)
+    held = _pass_through(proc)
+    code = proc.wait()
+    if code == 0 or (code == 1 and partial_ok):
+        for line in held:
+            sys.stderr.write(line + "\n")
+        sys.stderr.flush()
+        return code == 0
+    why = held[-1][len("error:"):].strip() if held else f"exit status {code} (its output is above)"
+    raise StepFailed(f"step {_describe(cmd)} failed: {why}", code if code in (1, 2) else 1)
+
+
+def _pass_through(proc: subprocess.Popen) -> list[str]:
+    """Copy the step's standard error to ours as it comes (progress bars included: text up to a carriage return
+    is written at once), except whole lines that start with `error:`, which are returned."""
+    decoder = codecs.getincrementaldecoder("utf-8")(errors="replace")
+    held: list[str] = []
+    pending = ""
+    fd = proc.stderr.fileno()
+    while True:
+        chunk = os.read(fd, 65536)
+        text = decoder.decode(chunk, final=not chunk)
+        pending += text
+        while "\n" in pending:
+            line, pending = pending.split("\n", 1)
+            if line.split("\r")[-1].startswith("error:"):
+                head = line.rsplit("\r", 1)[0] if "\r" in line else ""
+                if head:
+                    sys.stderr.write(head + "\r")
+                held.append(line.split("\r")[-1])
+            else:
+                sys.stderr.write(line + "\n")
+        if "\r" in pending:  # a progress bar redrawn in place: show it now
+            head, pending = pending.rsplit("\r", 1)
+            sys.stderr.write(head + "\r")
+        sys.stderr.flush()
+        if not chunk:
+            break
+    if pending:
+        (held.append(pending) if pending.startswith("error:") else sys.stderr.write(pending))
+    proc.stderr.close()
+    return held

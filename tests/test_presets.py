@@ -1,0 +1,251 @@
+"""The light families added for real rigs and hard cases (verse, flash, frontal, grid96, light_stage, display) and
+the capture presets of `wildgen.presets` through `wildgen.make`. Renders are tiny (32 px, 4 spp, 3 images)."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from scenes.description import CameraDesc
+from wildgen.lighting import LIGHT_FAMILIES, Placement
+from wildgen.presets import PRESETS
+
+NEW_FAMILIES = ["verse", "flash", "frontal", "grid96", "light_stage", "display"]
+SMALL = ["--images", "3", "--res", "32", "--spp", "4", "--gt-spp", "4", "--quiet", "--workers", "0",
+         "--variant", "llvm_ad_rgb"]
+ORTHO = CameraDesc(origin=[0.0, 0.0, 20.0])
+PERSPECTIVE = CameraDesc(kind="perspective", origin=[0.0, 0.0, 4.0], fov=30.0)
+
+
+def make(out: Path, *extra: str) -> int:
+    from wildgen.make import main
+
+    return main(["--out", str(out), *extra])
+
+
+@pytest.fixture(scope="module")
+def families(tmp_path_factory) -> Path:
+    from scenes.variant import _usable
+
+    if not _usable("llvm_ad_rgb"):
+        pytest.skip("llvm_ad_rgb is not usable")
+    out = tmp_path_factory.mktemp("families") / "data"
+    assert make(out, "--lights", ",".join(NEW_FAMILIES), "--objects", str(len(NEW_FAMILIES)), "--seed", "5", *SMALL) == 0
+    return out
+
+
+def scene_of(folder: Path) -> dict:
+    return json.loads((folder / "scene.json").read_text())
+
+
+def test_every_new_family_renders_and_is_recorded(families):
+    from scenes.description import SceneDescription
+    from scenes.mitsuba_build import build_scene
+    from scenes.objfolder import read_exr
+    from scenes.render import render_image
+
+    expected = {"verse": {"environment", "uniform", "point", "area"}, "flash": {"point", "environment"},
+                "frontal": {"point", "uniform"}, "grid96": {"directional"}, "light_stage": {"directional"},
+                "display": {"area"}}
+    manifest = json.loads((families / "manifest.json").read_text())
+    assert [o["light_family"] for o in manifest["objects"]] == NEW_FAMILIES
+    for folder, family in zip(sorted(families.glob("*.data")), NEW_FAMILIES):
+        scene = scene_of(folder)
+        assert scene["light_family"] == family
+        types = {l["type"] for im in scene["images"] for l in im["lights"]}
+        assert types <= expected[family], (family, types)
+        assert len(scene["camera_lights"]) == 3
+        desc = SceneDescription.from_dict({k: v for k, v in scene.items() if k not in ("camera_lights", "format_version")})
+        built = build_scene(desc.validate(), base_dir=folder)
+        for i in range(3):  # re-renderable from scene.json alone, byte for byte
+            assert np.array_equal(render_image(built, i), read_exr(folder / "aux" / f"radiance_{i:03d}.exr")), (family, i)
+
+
+def test_new_families_pass_the_rerender_check_with_true_normals(families):
+    """The known-scene check rebuilds every light of these families (a uniform background included) and reports
+    it in its type's camera-frame form; the true normals reproduce the images."""
+    from validate.io import load_object
+    from validate.rerender import RerenderConfig, rerender_object
+
+    for folder, family in zip(sorted(families.glob("*.data")), NEW_FAMILIES):
+        if family not in ("verse", "frontal", "display"):
+            continue
+        obj = load_object(folder)
+        report = rerender_object(folder, obj.normal_gt, RerenderConfig(seed_mode="same"))
+        assert report["reproduce_rel_l1"] == 0.0, family
+        assert report["mae_deg"] < 0.01 and report["rel_l1"] < 0.5 * report["noise_floor_rel_l1"], family
+        types = {l["type"] for ls in report["lights"] for l in ls}
+        assert types == {l["type"] for im in scene_of(folder)["images"] for l in im["lights"]}
+
+
+def test_verse_draws_its_recipe():
+    """Per image: exactly one background (environment map or uniform), 0-3 point lights, 0-1 rectangle; over
+    many images every count occurs."""
+    placement = Placement(np.zeros(3), 1.0, ORTHO, env_scale=0.3)
+    rng = np.random.default_rng(0)
+    points, areas, backgrounds = set(), set(), set()
+    for i in range(200):
+        lights = LIGHT_FAMILIES["verse"].sample(rng, placement, i, 200)
+        kinds = [l.type for l in lights]
+        assert kinds[0] in ("environment", "uniform") and kinds.count("environment") + kinds.count("uniform") == 1
+        assert set(kinds[1:]) <= {"point", "area"}
+        points.add(kinds.count("point"))
+        areas.add(kinds.count("area"))
+        backgrounds.add(kinds[0])
+    assert points == {0, 1, 2, 3} and areas == {0, 1} and backgrounds == {"environment", "uniform"}
+
+
+def test_frontal_light_stays_near_the_viewing_direction():
+    from wildgen.lighting import FRONTAL_CONE_DEG
+
+    centre = np.array([0.1, -0.2, 0.05])
+    placement = Placement(centre, 0.9, ORTHO, env_scale=0.3)
+    rng = np.random.default_rng(3)
+    angles, ambient = [], []
+    for i in range(100):
+        lamp, amb = LIGHT_FAMILIES["frontal"].sample(rng, placement, i, 100)
+        d = np.asarray(lamp.position) - centre
+        angles.append(math.degrees(math.acos(d[2] / np.linalg.norm(d))))
+        assert 5 * 0.9 - 1e-9 <= np.linalg.norm(d) <= 10 * 0.9 + 1e-9
+        assert amb.type == "uniform"
+        ambient.append(amb.radiance * math.pi)
+    assert max(angles) <= FRONTAL_CONE_DEG and max(angles) > 0.8 * FRONTAL_CONE_DEG
+    assert 0 <= min(ambient) < 0.1 and 0.9 < max(ambient) <= 1.0
+
+
+def test_fixed_patterns_give_image_i_light_i_whatever_the_rng():
+    """grid96, light_stage and display draw nothing: image i gets light i of the pattern."""
+    for name in ("grid96", "light_stage", "display"):
+        for camera in (ORTHO, PERSPECTIVE):
+            p = Placement(np.zeros(3), 1.0, camera, env_scale=0.3)
+            a = [LIGHT_FAMILIES[name].sample(np.random.default_rng(1), p, i, 20) for i in range(20)]
+            rng = np.random.default_rng(2)
+            b = [LIGHT_FAMILIES[name].sample(rng, p, i, 20) for i in range(20)]
+            assert a == b, name
+            assert rng.random() == np.random.default_rng(2).random()  # nothing drawn
+
+
+def test_grid96_spans_diligents_lights():
+    """96 distinct directions toward the camera side, zenith 0-43.3 degrees, a 12 x 8 grid of (x / z, y / z)."""
+    p = Placement(np.zeros(3), 1.0, ORTHO, env_scale=0.3)
+    dirs = np.array([-np.asarray(LIGHT_FAMILIES["grid96"].sample(None, p, i, 96)[0].direction) for i in range(96)])
+    assert np.allclose(np.linalg.norm(dirs, axis=1), 1)
+    zenith = np.degrees(np.arccos(dirs[:, 2]))
+    assert zenith.max() == pytest.approx(math.degrees(math.atan(math.hypot(0.8, 0.5))), abs=1e-9) and zenith.min() > 2
+    u, v = dirs[:, 0] / dirs[:, 2], dirs[:, 1] / dirs[:, 2]
+    assert len(np.unique(u.round(9))) == 12 and len(np.unique(v.round(9))) == 8
+    assert len({tuple(d) for d in dirs.round(9)}) == 96
+    again = -np.asarray(LIGHT_FAMILIES["grid96"].sample(None, p, 96 + 5, 200)[0].direction)
+    np.testing.assert_allclose(again, dirs[5])  # image 101 starts the pattern over
+    # The first 10 images already spread over the grid: most columns, every row band, both sides.
+    assert len(np.unique(u[:10].round(9))) >= 8 and len(np.unique(v[:10].round(9))) >= 6
+    assert u[:10].min() < -0.4 and u[:10].max() > 0.4 and v[:10].min() < -0.2 and v[:10].max() > 0.2
+
+
+def test_light_stage_spreads_its_lights_evenly():
+    from wildgen.lighting import LIGHT_STAGE_MIN_Z
+
+    p = Placement(np.zeros(3), 1.0, ORTHO, env_scale=0.3)
+    for count in (8, 64):
+        dirs = np.array([-np.asarray(LIGHT_FAMILIES["light_stage"].sample(None, p, i, count)[0].direction)
+                         for i in range(count)])
+        assert np.allclose(np.linalg.norm(dirs, axis=1), 1)
+        assert dirs[:, 2].min() >= LIGHT_STAGE_MIN_Z and dirs[0, 2] > 0.9  # light 0 nearest the view axis
+        # Even area: as many lights in each half of the z range (equal-area zones of the sphere).
+        mid = (1 + LIGHT_STAGE_MIN_Z) / 2
+        assert abs((dirs[:, 2] > mid).sum() - count / 2) <= 1
+        cos = dirs @ dirs.T - 2 * np.eye(count)
+        assert cos.max() < 0.999  # no two lights coincide
+
+
+def test_display_patches_are_on_the_screen_and_out_of_view():
+    from wildgen.lighting import SCREEN_DISTANCE, SCREEN_GRID, _occludes_view, display_patches
+
+    centre = np.array([0.0, 0.1, 0.0])
+    for camera, expected in ((PERSPECTIVE, SCREEN_GRID[0] * SCREEN_GRID[1]), (ORTHO, 6)):
+        p = Placement(centre, 1.0, camera, env_scale=0.3)
+        patches = display_patches(p)
+        assert len(patches) == expected  # the orthographic camera sees through the middle columns
+        for i, (pos, w, h) in enumerate(patches):
+            (light,) = LIGHT_FAMILIES["display"].sample(None, p, i, len(patches))
+            assert light.type == "area" and light.position == pos.tolist()
+            assert light.position[2] == pytest.approx(centre[2] + SCREEN_DISTANCE)  # the screen plane
+            np.testing.assert_allclose(np.subtract(light.target, light.position), [0, 0, -1])  # faces the object
+            assert not _occludes_view(pos, 0.5 * math.hypot(w, h), camera)
+            r = np.linalg.norm(pos - centre)
+            # Irradiance at the centre (small-source approximation) is the nominal 1.
+            assert light.radiance * w * h * (SCREEN_DISTANCE / r) / r**2 == pytest.approx(1.0)
+
+
+# ------------------------------------------------------------------------------------------------ presets
+
+
+def resolve(*argv: str):
+    from wildgen.make import _explicit_flags, build_parser, options_from_args
+
+    args = ["--out", "o", *argv]
+    return options_from_args(build_parser().parse_args(args), _explicit_flags(args)).gen.validate()
+
+
+def test_each_preset_resolves_to_its_documented_configuration():
+    from wildgen.config import GenConfig
+
+    assert list(PRESETS) == ["diligent", "phone-flash", "light-stage", "display"]
+    documented = {
+        "diligent": dict(lights=["grid96"], images=96, width=612, height=512, camera="orthographic", sensor="machine-vision"),
+        "phone-flash": dict(lights=["flash"], images=10, width=256, height=256, camera="perspective", sensor="phone"),
+        "light-stage": dict(lights=["light_stage"], images=64, width=256, height=256, camera="orthographic",
+                            sensor="machine-vision"),
+        "display": dict(lights=["display"], images=12, width=256, height=256, camera="perspective", sensor="webcam"),
+    }
+    for name, values in documented.items():
+        cfg = resolve("--preset", name)
+        assert cfg == GenConfig(preset=name, **values), name
+        assert PRESETS[name].about.strip()
+
+
+def test_explicit_flags_override_the_preset():
+    cfg = resolve("--preset", "diligent", "--images", "4", "--res", "32", "--sensor", "ideal")
+    assert (cfg.lights, cfg.images, cfg.width, cfg.height, cfg.sensor, cfg.camera) == \
+        (["grid96"], 4, 32, 32, "ideal", "orthographic")
+    cfg = resolve("--lights", "verse", "--preset", "phone-flash", "--height", "100")
+    assert (cfg.lights, cfg.width, cfg.height, cfg.camera) == (["verse"], 256, 100, "perspective")
+    assert resolve().preset is None and resolve().lights == ["near_area"]  # no preset: today's defaults
+
+
+def test_unknown_preset_is_a_one_line_error(tmp_path, capsys):
+    rc = make(tmp_path / "o", "--preset", "studio", "--quiet")
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and err.startswith("error: --preset:") and "'studio'" in err and "diligent" in err and "\n" not in err
+    assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
+
+
+def test_preset_is_recorded_in_the_manifest_and_resumes(tmp_path, llvm):
+    out = tmp_path / "d"
+    args = ["--preset", "diligent", "--objects", "1", "--images", "2", "--width", "24", "--height", "20", "--spp", "1",
+            "--gt-spp", "1", "--quiet", "--workers", "0"]
+    assert make(out, *args) == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["config"]["preset"] == "diligent" and manifest["config"]["lights"] == ["grid96"]
+    assert manifest["config"]["sensor"] == "machine-vision" and manifest["config"]["images"] == 2
+    scene = scene_of(out / "00000.data")
+    assert scene["camera"]["width"] == 24 and scene["camera"]["height"] == 20 and scene["sensor"]["model"]["name"] == "machine-vision"
+    assert make(out, *args) == 0  # the same command again: the same configuration, nothing re-rendered
+    assert make(out, "--resume", "--quiet", "--workers", "0") == 0
+
+
+def test_sixty_four_images_per_object(tmp_path, llvm):
+    """64 images of an object (16 px): every image written and read back; the busiest images of verse need
+    slots of every light type it uses."""
+    from scenes.layouts import read_folder
+
+    out = tmp_path / "k64"
+    assert make(out, "--lights", "light_stage,verse", "--objects", "2", "--images", "64", "--res", "16", "--spp", "1",
+                "--gt-spp", "1", "--quiet", "--workers", "0", "--variant", "llvm_ad_rgb") == 0
+    for folder in sorted(out.glob("*.data")):
+        data = read_folder(folder)
+        assert data.images.shape[0] == 64 and len(data.image_paths) == 64
+        assert len(scene_of(folder)["images"]) == 64

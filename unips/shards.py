@@ -1,0 +1,230 @@
+"""Training data from WebDataset shards (`wildgen.export`; the format is `scenes.shards`).
+
+A `--data` value names shards when it ends in ``.tar`` (one shard, or a brace pattern such as
+``SHARDS/{000000..000099}.tar``) or is a folder holding `index.json`. Every shard must be listed, complete and
+with a matching sha256, in the index.json of its folder; a corrupt shard is refused by name before any of its
+samples is used.
+
+A sample is decoded by writing its files (stored as they were in the object folder) into a temporary folder
+and reading that with the model's loader (`unips.data.load_object`, a view of `scenes.layouts.read_folder`):
+the same files through the same reader give the same arrays, so a shard object is byte-identical to its
+folder. Two ways to read shards:
+
+- cached (`iter_objects`, what `unips.train` does by default): the shards are read in the order given and
+  every object kept in memory, like folders, so training draws exactly the batches it draws from the folders
+  the shards were exported from;
+- streamed (`ShardStream`, `unips.train --shuffle-buffer N`): for data larger than memory. Each epoch the
+  shard list is permuted by (seed, epoch), split across DDP ranks (`webdataset.split_by_node`) and loader
+  workers (`webdataset.split_by_worker`), and each (rank, worker) shuffles its samples through a buffer of N
+  objects seeded by (seed, epoch, rank, worker): every object is seen exactly once per epoch across all ranks
+  and workers, and the stream is a function of the seed and the number of ranks and workers.
+"""
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import os
+import random
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Iterator
+
+import numpy as np
+import torch
+
+from scenes.shards import (INDEX_FILE, SHARD_SUFFIX, extract_sample, iter_samples, read_index, sample_folder_name,
+                           verify_shard)
+from unips.data import PSObject, load_object
+
+
+def is_shard_source(root: str | Path) -> bool:
+    """True when a --data entry names shards (a ``.tar`` path or pattern, or a folder with index.json)."""
+    text = str(root)
+    return text.endswith(SHARD_SUFFIX) or (Path(text).is_dir() and (Path(text) / INDEX_FILE).is_file())
+
+
+def source_label(root: str | Path) -> str:
+    """Short name of a --data entry, used to pool several (DIRNAME/OBJECT): the shards' folder name."""
+    path = Path(str(root))
+    return path.parent.name if str(root).endswith(SHARD_SUFFIX) else path.name
+
+
+@dataclass(frozen=True)
+class Shard:
+    """One shard to read and its index entry."""
+
+    path: Path
+    entry: dict[str, Any]
+
+    @property
+    def objects(self) -> list[dict[str, Any]]:
+        return self.entry["objects"]
+
+
+def resolve_shards(root: str | Path, arg: str = "--data") -> list[Shard]:
+    """The shards a --data entry names, in order, each checked against the index.json of its folder (listed,
+    export complete); a missing shard is a FileNotFoundError naming it."""
+    from webdataset.shardlists import expand_urls
+
+    text = str(root)
+    indexes: dict[Path, dict[str, dict[str, Any]]] = {}
+
+    def entries(folder: Path) -> dict[str, dict[str, Any]]:
+        if folder not in indexes:
+            indexes[folder] = {e["name"]: e for e in read_index(folder, arg)["shards"]}
+        return indexes[folder]
+
+    if text.endswith(SHARD_SUFFIX):
+        paths = [Path(p) for p in expand_urls(text)]
+    else:
+        folder = Path(text)
+        paths = [folder / name for name in entries(folder)]
+    if not paths:
+        raise ValueError(f"{arg}: {text!r} names no shard")
+    shards = []
+    for p in paths:
+        if not p.is_file():
+            raise FileNotFoundError(f"{arg}: shard {str(p)!r} does not exist")
+        known = entries(p.parent)
+        if p.name not in known:
+            raise ValueError(f"{arg}: shard {str(p)!r} is not listed in {str(p.parent / INDEX_FILE)!r} (expected one of "
+                             f"{', '.join(list(known)[:3])}{', ...' if len(known) > 3 else ''})")
+        shards.append(Shard(p, known[p.name]))
+    if len({s.path.resolve() for s in shards}) != len(shards):
+        raise ValueError(f"{arg}: {text!r} names a shard twice")
+    return shards
+
+
+def count_images(root: str | Path, arg: str = "--data") -> tuple[int, int]:
+    """(objects, images) of the shards of a --data entry, from their index (no shard is read)."""
+    objects = [o for s in resolve_shards(root, arg) for o in s.objects]
+    return len(objects), sum(int(o.get("images", 0)) for o in objects)
+
+
+def object_names(root: str | Path, arg: str = "--data") -> list[str]:
+    """The object names of the shards of a --data entry, in stream order of the cached mode."""
+    return [o["name"] for s in resolve_shards(root, arg) for o in s.objects]
+
+
+SHM = "/dev/shm"
+"""Memory-backed file system where decoding writes its temporary folders when it has room: creating and
+removing a folder of small files there costs a sixth of what it costs on a journaling disk file system."""
+
+
+def scratch_dir(size: int) -> str | None:
+    """Where to extract a sample of `size` bytes: $TMPDIR when set, else `SHM` when it is a writable folder with
+    room for twice the sample, else the system's temporary folder (None)."""
+    if os.environ.get("TMPDIR") or not os.access(SHM, os.W_OK | os.X_OK):
+        return None
+    try:
+        st = os.statvfs(SHM)
+    except OSError:
+        return None
+    return SHM if st.f_bavail * st.f_frsize > 2 * size + (16 << 20) else None
+
+
+def decode_object(key: str, files: dict[str, bytes], shard: Path, arg: str = "--data") -> PSObject:
+    """The `PSObject` of one sample: its files written into a temporary folder (`scratch_dir`) and read by
+    `load_object`, exactly as the object folder they came from (`path` then names the shard and the object)."""
+    size = sum(len(v) for v in files.values())
+    with tempfile.TemporaryDirectory(prefix="unips-shard-", dir=scratch_dir(size)) as tmp:
+        folder = extract_sample(files, Path(tmp) / sample_folder_name(key))
+        try:
+            obj = load_object(folder, arg=arg)
+        except (ValueError, FileNotFoundError) as exc:
+            where = f"{shard}[{key}]"
+            raise ValueError(f"{arg}: object {key!r} of shard {str(shard)!r}: "
+                             f"{str(exc).replace(str(folder), where)}") from None
+    return dataclasses.replace(obj, path=shard / folder.name)
+
+
+def iter_objects(root: str | Path, arg: str = "--data") -> Iterator[PSObject]:
+    """Every object of the shards of a --data entry, in order (each shard's checksum verified first)."""
+    seen: set[str] = set()
+    for shard in resolve_shards(root, arg):
+        verify_shard(shard.path, shard.entry, arg)
+        for key, files in iter_samples(shard.path, arg):
+            if key in seen:
+                raise ValueError(f"{arg}: object {key!r} appears twice (again in shard {str(shard.path)!r})")
+            seen.add(key)
+            yield decode_object(key, files, shard.path, arg)
+
+
+# ------------------------------------------------------------------------------------------- streaming
+
+
+def _seed(*parts: int) -> int:
+    return int(np.random.default_rng([int(p) for p in parts]).integers(2**63))
+
+
+def worker_skip(consumed: int, worker: int, workers: int) -> int:
+    """How many samples loader worker `worker` of `workers` (0: the loading runs in-process) has produced when
+    the training process has taken `consumed`: a DataLoader takes them from its workers in turn."""
+    if workers <= 1:
+        return consumed
+    return len(range(worker, consumed, workers))
+
+
+class ShardStream(torch.utils.data.IterableDataset):
+    """The samples of a list of shards as an endless (or `epochs`-long) stream, split and shuffled as the module
+    docstring says; `prepare` turns each decoded `PSObject` into what the stream yields (e.g. a training
+    `Sample`). `skip`: samples the training process has already consumed (a resumed run), passed over without
+    decoding."""
+
+    def __init__(self, shards: list[Shard], prepare: Callable[[PSObject], Any], seed: int = 0, buffer: int = 100,
+                 epochs: int | None = None, skip: int = 0, arg: str = "--data"):
+        super().__init__()
+        self.shards, self.prepare, self.seed, self.buffer = list(shards), prepare, int(seed), int(buffer)
+        self.epochs, self.skip, self.arg = epochs, int(skip), arg
+
+    def _raw(self, rank: int, worker: int) -> Iterator[tuple[str, dict[str, bytes], Path]]:
+        import webdataset as wds
+
+        epochs = itertools.count() if self.epochs is None else range(self.epochs)
+        for epoch in epochs:
+            order = np.random.default_rng([self.seed, 7_001, epoch]).permutation(len(self.shards))
+            mine = list(wds.split_by_worker(wds.split_by_node([self.shards[i] for i in order])))
+            if not mine:
+                return
+            samples = ((key, files, shard.path) for shard in mine
+                       for key, files in _verified_samples(shard, self.arg))
+            rng = random.Random(_seed(self.seed, 7_002, epoch, rank, worker))
+            yield from wds.shuffle(bufsize=self.buffer, initial=self.buffer, rng=rng)(samples)
+
+    def __iter__(self) -> Iterator[Any]:
+        from webdataset.utils import pytorch_worker_info
+
+        rank, _, worker, workers = pytorch_worker_info()
+        raw = self._raw(rank, worker)
+        for _ in range(worker_skip(self.skip, worker, workers)):
+            if next(raw, None) is None:
+                return
+        for key, files, shard in raw:
+            yield self.prepare(decode_object(key, files, shard, self.arg))
+
+
+def _verified_samples(shard: Shard, arg: str) -> Iterator[tuple[str, dict[str, bytes]]]:
+    verify_shard(shard.path, shard.entry, arg)
+    yield from iter_samples(shard.path, arg)
+
+
+def check_split(shards: list[Shard], world: int, workers: int, arg: str = "--data") -> None:
+    """Streaming gives every (rank, loader worker) its own shards: refuse fewer shards than that."""
+    need = world * max(workers, 1)
+    if len(shards) < need:
+        raise ValueError(f"{arg}: {len(shards)} shard(s) cannot feed {world} process(es) x {max(workers, 1)} loader "
+                         f"worker(s); expected at least {need} (export with a smaller --shard-size, or lower "
+                         "--loader-workers)")
+
+
+def stream_samples(roots: list[str | Path], prepare: Callable[[PSObject], Any], *, seed: int, buffer: int,
+                   workers: int, world: int = 1, skip: int = 0, arg: str = "--data") -> Iterator[Any]:
+    """An endless iterator over the streamed samples of this process, from the shards of the --data entries
+    `roots` (`ShardStream` in a DataLoader with `workers` worker processes; 0 decodes in this process)."""
+    shards = [s for r in roots for s in resolve_shards(r, arg)]
+    check_split(shards, world, workers, arg)
+    stream = ShardStream(shards, prepare, seed=seed, buffer=buffer, skip=skip, arg=arg)
+    if workers == 0:
+        return iter(stream)
+    return iter(torch.utils.data.DataLoader(stream, batch_size=None, num_workers=workers))
