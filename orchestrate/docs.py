@@ -43,6 +43,7 @@ CLIS = (
     "orchestrate.demo",
     "orchestrate.benchmark",
     "orchestrate.train_recipe",
+    "orchestrate.gpu_session",
     "orchestrate.docs",
 )
 

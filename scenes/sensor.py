@@ -454,6 +454,18 @@ def read_sensor_record(extras: dict[str, Any], images: int, where: str = "the sc
     return SensorRecord(sensor=sensor, seed=rec["seed"], noise_seeds=list(seeds))
 
 
+def scale_camera_lights(camera_lights: list, factor: float) -> list:
+    """A copy of scene.json's `camera_lights` with every directional irradiance times `factor` (the irradiance
+    is recorded as the file sees it, so a sensor's exposure scales it)."""
+    import copy
+
+    out = copy.deepcopy(camera_lights)
+    for per_image in out:
+        for light in per_image.get("directional", []):
+            light["irradiance"] = [float(v) * factor for v in light["irradiance"]]
+    return out
+
+
 def rederive_image(radiance: np.ndarray, exposure: float, sensor: Sensor, noise_seed_: int) -> np.ndarray:
     """The file pixels of one image from its recorded inputs: (H, W, 3) float radiance (aux/radiance_XXX.exr),
     images[i].exposure, the sensor and the image's recorded noise seed -> (H, W, 3) uint8 / uint16."""

@@ -25,6 +25,7 @@ CLIS = {
     "orchestrate.benchmark": "BenchmarkOptions",
     "orchestrate.train_recipe": "RecipeOptions",
     "orchestrate.demo": "DemoOptions",
+    "orchestrate.gpu_session": "SessionOptions",
 }
 
 

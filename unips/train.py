@@ -38,127 +38,13 @@ from typing import Any, Sequence
 
 import torch
 
-from scenes.config import check_choice, check_fields, config_parser, option
+from scenes.config import config_parser
 from scenes.config import config_from_args as parse_config
-from unips.train_data import Batch, Sample, describe_data, load_samples, make_batch, normal_loss, probe_samples, step_rng
+from unips.train_config import TRAJECTORY_KEYS, TrainConfig
+from unips.train_data import (Batch, Sample, count_dataset_images, describe_data, load_samples, make_batch, normal_loss,
+                               probe_samples, step_rng)
 
 log = logging.getLogger(__name__)
-
-
-# -- configuration ----------------------------------------------------------------------------
-
-@dataclass
-class TrainConfig:
-    """Everything that determines a training run; the CLI fills it (`python -m unips.train --help`)."""
-
-    data: str = option("", required=True)
-    """Training dataset directory (object folders with ground-truth normals), or several separated by commas
-    (pooled, e.g. sets rendered with different seeds); or WebDataset shards of wildgen.export: 'SHARDS/{000000..000099}.tar' or the SHARDS folder."""
-    out: str = option("", required=True)
-    """Run directory: log.jsonl, last.pt, best.safetensors and final.safetensors (+ .json sidecars)."""
-    val: str | None = None
-    """Validation dataset directory (object folders with normal.tif); held-out assets, test-like settings."""
-    model: str = "glc-small"
-    """Registered model name (`unips.models.list_models()`); with `init_from`, the weights' model."""
-    init_from: str | None = None
-    """Weights (.safetensors or .pt) to start from: weights only, with fresh optimiser, schedule and data."""
-    steps: int = option(2000, minimum=1)
-    """Total optimisation steps."""
-    batch: int = option(4, minimum=1)
-    """Objects per step (the global batch, split across processes under torchrun)."""
-    lr: float = option(5e-4, above=0)
-    """Peak AdamW learning rate."""
-    weight_decay: float = option(0.05, minimum=0)
-    """AdamW weight decay."""
-    schedule: str = option("cosine", choices=("cosine", "step"))
-    """'cosine': linear warm-up over `warmup` steps then cosine decay to `min_lr_ratio` * lr; 'step': x`decay` every `decay_every` steps."""
-    warmup: int = option(100, minimum=0)
-    """Warm-up steps of the cosine schedule."""
-    min_lr_ratio: float = option(0.05, minimum=0, maximum=1)
-    """Final learning rate of the cosine schedule as a fraction of `lr`."""
-    decay_every: int = option(1000, minimum=1)
-    """Steps between decays of the step schedule."""
-    decay: float = option(0.8, above=0, maximum=1)
-    """Learning-rate factor at each decay of the step schedule."""
-    clip_grad: float = option(1.0, minimum=0)
-    """Gradient clipping by global norm (0: off)."""
-    max_images: int = option(10, minimum=1)
-    """Most images per training sample (and images per validation object)."""
-    min_images: int = option(1, minimum=1)
-    """Fewest images per training sample (1 keeps single-image inputs in the training distribution)."""
-    pixels: int = option(1000, minimum=1)
-    """Random masked pixels per object at the working resolution."""
-    canonical_points: int = option(1000, minimum=0)
-    """At most this many masked canonical-grid points per object in the loss (0: all of them)."""
-    res: int = option(128, minimum=1)
-    """Working resolution of the cached crops (the test resolution; above the canonical resolution)."""
-    seed: int = 0
-    """Seed of every random choice (initial weights, objects, image subsets, pixels, augmentation)."""
-    resume: bool = False
-    """Continue from RUN/last.pt, bit for bit."""
-    overwrite: bool = False
-    """Start afresh in a run directory that already holds a run (its files are replaced)."""
-    val_every: int = option(200, minimum=1)
-    """Steps between validations."""
-    val_pixels: int = option(2000, minimum=0)
-    """Masked pixels scored per validation object (a fixed seeded subset; 0: all)."""
-    val_probes: list[str] = option(default_factory=lambda: ["all", "one", "mask", "shuffled"], metavar="P1,P2")
-    """Probes of every validation (`unips.probes.PROBES`); 'all' is always included."""
-    ckpt_every: int = option(200, minimum=1)
-    """Steps between last.pt saves."""
-    log_every: int = option(10, minimum=1)
-    """Steps between training records in log.jsonl."""
-    threads: int = option(0, minimum=0)
-    """torch CPU threads (0: all cores, divided among local processes under torchrun)."""
-    device: str = "cpu"
-    """torch device ('cpu', 'cuda'; under torchrun each process takes cuda:LOCAL_RANK)."""
-    precision: str = option("fp32", choices=("fp32", "bf16"))
-    """'fp32' or 'bf16' (autocast of the forward pass; for GPUs)."""
-    no_augment: bool = False
-    """Disable flips / transpose / RGB permutation."""
-    interior_crop: float = option(0.0, minimum=0, maximum=1)
-    """Probability that a training sample is a square cut from inside the object's mask and resized to the working resolution: no outline, so the normals must come from the images."""
-    no_progress: bool = False
-    """No progress bar."""
-    model_option: list[str] = option(default_factory=list, repeat=True, sep="", metavar="KEY=VALUE")
-    """Model config overrides KEY=VALUE (JSON value), e.g. uniform_context=true; repeatable."""
-    shuffle_buffer: int = option(0, minimum=0)
-    """Shards only. 0: read every object into memory, as from folders (the same batches as the folders the shards came from); N > 0: stream the shards (data larger than memory), split across processes and loader workers, shuffled through a buffer of N objects per worker (unips.shards)."""
-    loader_workers: int = option(2, minimum=0)
-    """Worker processes decoding the streamed shards (with --shuffle-buffer; 0: in the training process)."""
-
-    def validate(self) -> "TrainConfig":
-        """Raise ValueError naming the first bad field as its CLI flag."""
-        from unips.probes import PROBES
-
-        if not self.data:
-            raise ValueError("--data: required (a dataset directory)")
-        if not self.out:
-            raise ValueError("--out: required (a run directory)")
-        check_fields(self)
-        if self.min_images > self.max_images:
-            raise ValueError(f"--min-images={self.min_images} exceeds --max-images={self.max_images}")
-        for p in self.val_probes:
-            check_choice(p, "--val-probes", PROBES)
-        if self.resume and self.overwrite:
-            raise ValueError("--resume and --overwrite: expected at most one of them")
-        if self.resume and self.init_from:
-            raise ValueError("--resume and --init-from: expected at most one of them (a resumed run keeps its weights)")
-        if self.shuffle_buffer:
-            from unips.shards import is_shard_source
-            from unips.train_data import data_roots
-
-            folders = [str(r) for r in data_roots(self.data) if not is_shard_source(r)]
-            if folders:
-                raise ValueError(f"--shuffle-buffer: streams WebDataset shards, {folders[0]!r} in --data is not a shard "
-                                 "source (export it with python -m wildgen.export, or use --shuffle-buffer 0)")
-        return self
-
-
-# Settings that change the trajectory: a resumed run must use the same values.
-TRAJECTORY_KEYS = ("model", "init_from", "batch", "lr", "weight_decay", "schedule", "warmup", "min_lr_ratio",
-                   "decay_every", "decay", "clip_grad", "max_images", "min_images", "pixels", "canonical_points",
-                   "seed", "res", "no_augment", "precision", "interior_crop", "shuffle_buffer")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -283,12 +169,12 @@ def check_run(cfg: TrainConfig) -> None:
     check_threads(cfg.threads or None, "--threads")
     if not cfg.resume:
         claim_outputs([out / n for n in RUN_FILES], cfg.overwrite, owner="unips.train", resume="--resume to continue it")
-    objects, images = _count_images(cfg.data, "--data")
+    objects, images = count_dataset_images(cfg.data, "--data")
     if cfg.shuffle_buffer:  # streamed: only the samples in flight are decoded (loader queues and one batch)
         in_flight = min(objects, 2 * max(cfg.loader_workers, 1) + cfg.batch)
         images = -(-images * in_flight // max(objects, 1))
     if cfg.val:
-        more = _count_images(cfg.val, "--val")
+        more = count_dataset_images(cfg.val, "--val")
         objects, images = objects + more[0], images + more[1]
     check_memory(training_memory(cfg, images), "--res/--batch/--max-images",
                  f"training at {cfg.res} x {cfg.res} px on {objects} cached objects ({images} images) with batches of "
@@ -323,26 +209,6 @@ def check_args(argv: Sequence[str]) -> TrainConfig:
     elif cfg.model not in list_models():
         raise ValueError(f"--model: got {cfg.model!r}, expected one of {', '.join(list_models())}")
     return cfg
-
-
-def _count_images(data: str, flag: str) -> tuple[int, int]:
-    """(objects, images) under the dataset directories of --data / --val, counted without reading an image
-    (shards: from their index)."""
-    from scenes.layouts import detect_layout, find_object_folders, layout_named
-    from unips.shards import count_images, is_shard_source
-    from unips.train_data import data_roots
-
-    objects = images = 0
-    for root in data_roots(data):
-        if is_shard_source(root):
-            more = count_images(root, flag)
-            objects, images = objects + more[0], images + more[1]
-            continue
-        for folder in find_object_folders(root, flag):
-            layout = detect_layout(folder)
-            objects += 1
-            images += len(layout_named(layout).images(folder)) if layout else 0
-    return objects, images
 
 
 def _prepare_run_dir(cfg: TrainConfig, dist: _Dist) -> Path:
@@ -554,6 +420,20 @@ def _validation(run: _Run, step: int) -> None:
         save_checkpoint(run.out / "best.safetensors", run.model, {"step": step, "val": res, "train_args": run.train_args})
 
 
+def _out_of_time(run: _Run, seconds: float) -> bool:
+    """Whether --time-limit is reached; under torchrun every process stops at the same step (rank 0 decides)."""
+    if not run.cfg.time_limit:
+        return False
+    over = seconds >= run.cfg.time_limit * 60
+    if run.dist.world > 1:
+        import torch.distributed as tdist
+
+        flag = torch.tensor([float(over)], device=run.device)
+        tdist.broadcast(flag, src=0)
+        over = bool(flag.item())
+    return over
+
+
 def train(cfg: TrainConfig | argparse.Namespace) -> dict[str, Any]:
     """Run training as configured; returns a summary dict."""
     from tqdm import tqdm
@@ -581,6 +461,8 @@ def train(cfg: TrainConfig | argparse.Namespace) -> dict[str, Any]:
     run.model.train()
     bar = tqdm(range(run.start, cfg.steps), initial=run.start, total=cfg.steps,
                disable=cfg.no_progress or not run.dist.main, dynamic_ncols=True, desc="train")
+    done, stopped = run.start, False
+    t_proc = last_ckpt = time.time()  # --time-limit and --ckpt-minutes count this process's training time
     for step in bar:
         parts, k = _train_step(run, step, autocast)
         done = step + 1
@@ -591,11 +473,20 @@ def train(cfg: TrainConfig | argparse.Namespace) -> dict[str, Any]:
                                        "elapsed_s": round(run.elapsed(), 3)})
         if run.val_samples and (done % cfg.val_every == 0 or done == cfg.steps):
             _validation(run, done)
-        if done % cfg.ckpt_every == 0 or done == cfg.steps:
+        now = time.time()
+        stopped = done < cfg.steps and _out_of_time(run, now - t_proc)
+        if (done % cfg.ckpt_every == 0 or done == cfg.steps or stopped
+                or (cfg.ckpt_minutes and now - last_ckpt >= cfg.ckpt_minutes * 60)):
             _save_last(run, done)
+            last_ckpt = now
+        if stopped:
+            log.info("--time-limit %g min reached: stopped at step %d of %d", cfg.time_limit, done, cfg.steps)
+            run.summary["stopped_at"] = done
+            break
     bar.close()
     if run.dist.main and (run.start < cfg.steps or not (run.out / "final.safetensors").exists()):
-        save_checkpoint(run.out / "final.safetensors", run.model, {"step": cfg.steps, "train_args": run.train_args})
+        save_checkpoint(run.out / "final.safetensors", run.model,
+                        {"step": done if stopped else cfg.steps, "train_args": run.train_args})
     if run.dist.world > 1:
         import torch.distributed as tdist
 
@@ -617,7 +508,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return report_error(exc)
     except OSError as exc:  # e.g. a full disk while writing a checkpoint: one line naming the file
         return report_error(exc, code=1)
-    msg = f"trained steps {summary['start']}..{summary['steps']}, last loss {summary.get('last_loss')}"
+    msg = f"trained steps {summary['start']}..{summary.get('stopped_at', summary['steps'])}"
+    msg += " (--time-limit reached)" if "stopped_at" in summary else ""
+    msg += f", last loss {summary.get('last_loss')}"
     if summary.get("best_val") is not None:
         msg += f", best validation mean angular error {summary['best_val']:.2f} deg"
     print(msg)

@@ -253,3 +253,23 @@ def probe_samples(model: torch.nn.Module, samples: Sequence[Sample], max_images:
     res["mean"] = res["probes"]["all"]
     res["objects"] = per_object
     return res
+
+
+def count_dataset_images(data: str, flag: str) -> tuple[int, int]:
+    """(objects, images) under the dataset directories of --data / --val, counted without reading an image
+    (shards: from their index)."""
+    from scenes.layouts import detect_layout, find_object_folders, layout_named
+    from unips.shards import count_images, is_shard_source
+    from unips.train_data import data_roots
+
+    objects = images = 0
+    for root in data_roots(data):
+        if is_shard_source(root):
+            more = count_images(root, flag)
+            objects, images = objects + more[0], images + more[1]
+            continue
+        for folder in find_object_folders(root, flag):
+            layout = detect_layout(folder)
+            objects += 1
+            images += len(layout_named(layout).images(folder)) if layout else 0
+    return objects, images

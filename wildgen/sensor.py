@@ -26,10 +26,11 @@ from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, progress_b
 from scenes.config import check_fields, config_from_args, config_parser, option
 from scenes.objfolder import (AUX_DIR, SCENE_FILE, atomic_write_text, image_files, image_name, list_object_folders,
                               object_name, read_exr, read_scene, write_scene)
-from scenes.sensor import (SCENE_KEY, SENSORS, Sensor, read_sensor_record, rederive_image, sensor_named, sensor_record,
+from scenes.sensor import (SCENE_KEY, SENSORS, Sensor, read_sensor_record, rederive_image, scale_camera_lights, sensor_named,
+                           sensor_record,
                            write_image)
 from wildgen.dataset import MANIFEST, clean_leftovers, dataset_lock, verify_object
-from wildgen.writer import TMP_PREFIX, sha256_file
+from wildgen.writer import TMP_PREFIX, publish_folder
 
 
 @dataclass
@@ -110,15 +111,9 @@ def apply_to_object(src: Path, out_dir: Path, sensor: Sensor, seed: int = 0) -> 
         extras[SCENE_KEY] = record
         factor = sensor.exposure / old.sensor.exposure
         if factor != 1.0 and isinstance(extras.get("camera_lights"), list):  # irradiance includes the exposure
-            extras["camera_lights"] = copy.deepcopy(extras["camera_lights"])
-            for per_image in extras["camera_lights"]:
-                for light in per_image.get("directional", []):
-                    light["irradiance"] = [float(v) * factor for v in light["irradiance"]]
+            extras["camera_lights"] = scale_camera_lights(extras["camera_lights"], factor)
         write_scene(tmp, desc, extras)
-        files = {str(p.relative_to(tmp)): sha256_file(p) for p in sorted(tmp.rglob("*")) if p.is_file()}
-        if final.exists():
-            shutil.rmtree(final)
-        os.replace(tmp, final)
+        files = publish_folder(tmp, final)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

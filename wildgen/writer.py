@@ -26,7 +26,7 @@ from scenes.objfolder import (AUX_DIR, FORMAT_VERSION, MASK_FILE, NORMAL_FILE, O
                               write_mask, write_normal_map, write_png16, write_scene)
 from scenes.render import render_ground_truth, render_images
 from scenes.sensor import SCENE_KEY as SENSOR_KEY
-from scenes.sensor import SENSORS, Sensor, rederive_image, sensor_record, write_image
+from scenes.sensor import SENSORS, Sensor, rederive_image, scale_camera_lights, sensor_record, write_image
 from wildgen.assets import AssetLibrary
 from wildgen.config import GenConfig
 from wildgen.sampling import SampledObject, SkippedObject, sample_object
@@ -150,6 +150,16 @@ def ground_truth_problem(normal: np.ndarray, mask: np.ndarray, camera, max_backf
     return None
 
 
+def publish_folder(tmp: Path, final: Path) -> dict[str, str]:
+    """Checksum a fully written temporary object folder and rename it to its final name (replacing an earlier
+    one of this dataset): readers never see half a folder. Returns {relative path: sha256}."""
+    files = {str(p.relative_to(tmp)): sha256_file(p) for p in sorted(tmp.rglob("*")) if p.is_file()}
+    if final.exists():
+        shutil.rmtree(final)
+    os.replace(tmp, final)
+    return files
+
+
 def write_object(sampled: SampledObject, out_dir: Path, percentile: float, level: float,
                  max_backfacing: float = 0.1, sensor: Sensor | None = None) -> ObjectResult:
     """Render `sampled` and write `out_dir/<name>.data`, atomically. Returns the manifest entry.
@@ -206,16 +216,10 @@ def write_object(sampled: SampledObject, out_dir: Path, percentile: float, level
         extras = {"camera_lights": camera_lights(desc), "format_version": FORMAT_VERSION}
         if record is not None:
             extras[SENSOR_KEY] = record
-            for per_image in extras["camera_lights"]:  # irradiance as the file records it: times the sensor's exposure
-                for light in per_image["directional"]:
-                    light["irradiance"] = [v * sensor.exposure for v in light["irradiance"]]
+            extras["camera_lights"] = scale_camera_lights(extras["camera_lights"], sensor.exposure)
         write_scene(tmp, desc, extras)
         timings["write_s"] = time.perf_counter() - t0
-
-        files = {str(p.relative_to(tmp)): sha256_file(p) for p in sorted(tmp.rglob("*")) if p.is_file()}
-        if final.exists():
-            shutil.rmtree(final)
-        os.replace(tmp, final)
+        files = publish_folder(tmp, final)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

@@ -1,0 +1,425 @@
+"""One command for a short session on a GPU machine: render, check the variant, write shards, train, bring back.
+
+    python -m orchestrate.gpu_session --out $OUT [--minutes 9] [--objects 300] [--model glc-small]
+    python -m orchestrate.gpu_session --pack .carry --wheels .whl      (here, before the session)
+
+Made for a machine that has torch and timm but no Mitsuba and no internet, whose commands run at most 10
+minutes and whose folder `--out` comes back (at most 8 files). In `--minutes` of wall time it:
+
+1. renders `--objects` objects with `wildgen.make` (seed `--seed`) into `--work`, with the first usable variant
+   of cuda_ad_rgb, llvm_ad_rgb (`--variant auto`; the log and summary.json say which);
+2. renders the first `--check-objects` of them again with `--check-variant` (auto: llvm_ad_rgb when it runs
+   here, else scalar_rgb) and compares them: variant_check.json (`compare_datasets`);
+3. writes the dataset as WebDataset shards (`wildgen.make --shards`);
+4. trains `--model` with `unips.train` on the shards (bf16 autocast on CUDA), saving last.pt every
+   `--ckpt-minutes` into `--out`/run and stopping before the budget (`--time-limit` of unips.train);
+5. writes the learning curve (learning_curve.png from run/log.jsonl), model_card.json (a fragment for the
+   model card: data, steps, time, hardware) and summary.json.
+
+What comes back: run/log.jsonl, run/last.pt, run/final.safetensors (+ final.json, loaded by
+`unips.models.create_model(NAME, checkpoint_path=...)`), learning_curve.png, variant_check.json,
+model_card.json, summary.json. Mitsuba and Dr.Jit travel as `--pack`'s site.tar.xz (docs/model.md).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import subprocess
+import sys
+import tarfile
+import time
+import zipfile
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from orchestrate.steps import StepFailed, check_step, run_step
+from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, report_error
+from scenes.config import check_fields, config_parser, option
+from scenes.config import config_from_args as parse_config
+from scenes.objfolder import atomic_write_text, write_picture
+
+REPO = Path(__file__).resolve().parents[1]
+UPLOAD_LIMIT = 64 * 2**20
+"""Bytes that may travel to the GPU machine: the working tree plus what is carried."""
+KEEP_VARIANTS = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
+"""The Mitsuba variants the packed Mitsuba keeps (render, check, and the check's fallback)."""
+SITE_ARCHIVE = "site.tar.xz"
+RUN = "run"
+CHECK_VARIANTS = ("llvm_ad_rgb", "scalar_rgb")
+"""The check's variants in auto's order (the first that runs here and differs from the render's)."""
+
+
+@dataclass
+class SessionOptions:
+    """The command line of orchestrate.gpu_session."""
+
+    out: str = option("")
+    """Folder that comes back ($OUT): run/ (log.jsonl, last.pt, final.safetensors + .json), learning_curve.png,
+    variant_check.json, model_card.json, summary.json."""
+    work: str = "/tmp/gpu_session"
+    """Scratch folder of the rendered dataset, the check's renders and the shards (not brought back)."""
+    minutes: float = option(9.0, above=0)
+    """Wall-time budget of the whole command; training stops so that everything is written before it."""
+    reserve_s: float = option(45.0, minimum=0)
+    """Seconds of the budget kept for what follows the training steps (its start-up, the last files)."""
+    objects: int = option(300, minimum=1)
+    """Objects to render."""
+    images: int = option(10, minimum=1)
+    """Images per object."""
+    res: int = option(128, minimum=8)
+    """Square resolution of the renders (and the training resolution)."""
+    spp: int = option(32, minimum=1)
+    """Samples per pixel of the images."""
+    seed: int = option(5000, minimum=0)
+    """Seed of the dataset (object i draws from (seed, i))."""
+    variant: str = option("auto", choices=("auto", "cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb"))
+    """Render variant; auto: cuda_ad_rgb when it runs here, else llvm_ad_rgb (else scalar_rgb, with a warning)."""
+    check_variant: str = option("auto", choices=("auto", "none", "cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb"))
+    """Variant of the check's second render; auto: llvm_ad_rgb when it runs here, else scalar_rgb; none: no check."""
+    check_objects: int = option(3, minimum=1)
+    """Objects rendered again for the check."""
+    noise_cv: float = option(4.0, above=0)
+    """Assumed coefficient of variation of one path-traced sample: images agree when the relative RMS difference
+    of two renders is at most noise_cv * sqrt(2 / spp)."""
+    model: str = "glc-small"
+    """Registered model to train (`unips.models.list_models()`)."""
+    steps: int = option(20000, minimum=1)
+    """Length of the learning-rate schedule; the run stops earlier when the budget ends."""
+    batch: int = option(16, minimum=1)
+    """Objects per training step."""
+    lr: float = option(1e-3, above=0)
+    """Peak learning rate."""
+    log_every: int = option(10, minimum=1)
+    """Steps between records of the learning curve."""
+    ckpt_minutes: float = option(2.0, above=0)
+    """Minutes between saves of run/last.pt in --out."""
+    device: str = option("auto", choices=("auto", "cuda", "cpu"))
+    """Training device; auto: cuda when torch sees a GPU. On cuda the forward pass runs under bf16 autocast."""
+    overwrite: bool = False
+    """Replace an earlier session's dataset, shards and run in --work / --out."""
+    pack: str | None = None
+    """Instead of a session: write what must be carried into this folder (site.tar.xz from --wheels) and check
+    the upload limit."""
+    wheels: str = ".whl"
+    """With --pack: folder of the Python 3.12 x86-64 wheels of mitsuba, drjit and the packages the GPU machine
+    lacks (docs/model.md gives the pip download command)."""
+
+    def validate(self) -> "SessionOptions":
+        check_fields(self)
+        if self.pack is None:
+            if not self.out:
+                raise ValueError("--out: required (the folder that comes back), or --pack DIR")
+            check_output_folder(self.out)
+            check_output_folder(self.work, "--work")
+        return self
+
+
+# ---------------------------------------------------------------- packing (here)
+
+
+def _keep_member(name: str) -> bool:
+    """Whether a wheel member is needed at run time: Mitsuba without its other variants, and neither package's
+    headers, type stubs, CMake / pkg-config files or byte code."""
+    parts = name.split("/")
+    if parts[-1].endswith((".pyi", ".pyc")) or "__pycache__" in parts:
+        return False
+    if parts[0] in ("mitsuba", "drjit") and len(parts) > 1 and parts[1] in ("include", "cmake", "pkgconfig",
+                                                                              "mitsuba_stubs", "stubs"):
+        return False
+    if parts[0] == "mitsuba" and len(parts) == 2:
+        stem = parts[1].split(".")[0]
+        variant_like = stem.startswith(("scalar_", "llvm_", "cuda_")) and parts[1].endswith(".so")
+        if variant_like and stem not in KEEP_VARIANTS:
+            return False
+    return True
+
+
+def tree_bytes(root: Path = REPO) -> int:
+    """Bytes of the working tree that travels (git's tracked and untracked, not ignored files)."""
+    try:
+        names = subprocess.run(["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"], cwd=root,
+                               capture_output=True, check=True).stdout.split(b"\0")
+    except (OSError, subprocess.CalledProcessError):
+        return 0
+    return sum((root / n.decode()).stat().st_size for n in names if n and (root / n.decode()).is_file())
+
+
+def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None = None) -> int:
+    """Write dest/site.tar.xz: every wheel in `wheels` unpacked as pip would (`_keep_member` filters Mitsuba to
+    KEEP_VARIANTS), compressed. Returns the bytes that travel (the archive plus the working tree `tree`);
+    UsageError with the measured size when they exceed `limit`."""
+    found = sorted(wheels.glob("*.whl")) if wheels.is_dir() else []
+    if not found:
+        raise UsageError(f"--wheels: {str(wheels)!r} holds no .whl files (expected the Python 3.12 x86-64 wheels of "
+                         "mitsuba, drjit and the packages the GPU machine lacks; see docs/model.md)")
+    if not any(w.name.startswith("mitsuba-") for w in found):
+        raise UsageError(f"--wheels: {str(wheels)!r} has no mitsuba wheel (expected mitsuba-3.9.1-cp312-...whl)")
+    dest.mkdir(parents=True, exist_ok=True)
+    archive = dest / SITE_ARCHIVE
+    tmp = archive.with_name(archive.name + ".tmp")
+    with tarfile.open(tmp, "w:xz", preset=6) as tar:
+        for wheel in found:
+            with zipfile.ZipFile(wheel) as z:
+                for info in z.infolist():
+                    if info.is_dir() or not _keep_member(info.filename):
+                        continue
+                    ti = tarfile.TarInfo(info.filename)
+                    ti.size, ti.mode = info.file_size, 0o755 if info.filename.endswith(".so") else 0o644
+                    with z.open(info) as f:
+                        tar.addfile(ti, f)
+    os.replace(tmp, archive)
+    tree = tree_bytes() if tree is None else tree
+    total = archive.stat().st_size + tree
+    mib = (f"{total} bytes = {total / 2**20:.1f} MiB ({archive.stat().st_size / 2**20:.1f} MiB {archive}, "
+           f"{tree / 2**20:.1f} MiB working tree)")
+    if total > limit:
+        raise UsageError(f"--pack: what would travel is {mib}, over the {limit} bytes ({limit / 2**20:.0f} MiB) upload limit: "
+                         "leave out wheels the GPU machine has, or render the data here and carry shards instead")
+    print(f"packed {archive}: {mib}, within {limit / 2**20:.0f} MiB")
+    return total
+
+
+# ---------------------------------------------------------------- the variant check
+
+
+def compare_datasets(main: Path, check: Path, names: list[str], spp: int, noise_cv: float) -> dict:
+    """Compare the object folders `names` rendered in `main` and again in `check` (another variant, same seed).
+
+    Ground truth: mask and normal map equal bit for bit ('identical'), or else where they differ. Two variants
+    draw different sub-pixel samples unless they share the sampler's order (the JIT variants), and the ground
+    truth of a pixel is an average over its footprint, so masks can differ on the outline only and normals by
+    a footprint's spread: reported as mask pixels off the outline (must be 0) and the angle between normals on
+    pixels away from it. Images: the relative RMS difference of linear values inside the mask against
+    noise_cv * sqrt(2 / spp), the Monte-Carlo noise of the difference of two independent renders."""
+    import cv2
+    import numpy as np
+
+    from scenes.layouts import read_folder
+    from scenes.objfolder import angles_deg
+
+    tol = noise_cv * math.sqrt(2.0 / spp)
+    objects = []
+    for name in names:
+        a, b = read_folder(main / name, arg="--work"), read_folder(check / name, arg="--work")
+        kernel = np.ones((3, 3), np.uint8)
+        outline = cv2.dilate(a.mask.astype(np.uint8), kernel).astype(bool) & ~cv2.erode(a.mask.astype(np.uint8), kernel).astype(bool)
+        differ = a.mask != b.mask
+        inner = cv2.erode((a.mask & b.mask).astype(np.uint8), kernel).astype(bool)
+        ang = angles_deg(a.normals[inner], b.normals[inner]) if inner.any() else np.zeros(1)
+        ia, ib = a.linear()[:, inner], b.linear()[:, inner]
+        scale = float((ia + ib).mean() / 2) or 1.0
+        rel_rms = float(np.sqrt(((ia - ib) ** 2).mean()) / scale)
+        identical = bool(np.array_equal(a.mask, b.mask) and np.array_equal(a.normals, b.normals))
+        objects.append({
+            "name": name, "ground_truth_identical": identical,
+            "mask_pixels": int(a.mask.sum()), "mask_differing": int(differ.sum()),
+            "mask_differing_off_outline": int((differ & ~outline).sum()),
+            "normal_angle_deg_mean": round(float(ang.mean()), 4), "normal_angle_deg_max": round(float(ang.max()), 4),
+            "image_rel_rms": round(rel_rms, 4), "images_within_noise": rel_rms <= tol,
+        })
+    return {
+        "objects": objects,
+        "ground_truth_identical": all(o["ground_truth_identical"] for o in objects),
+        "masks_differ_only_on_outline": all(o["mask_differing_off_outline"] == 0 for o in objects),
+        "images_within_noise": all(o["images_within_noise"] for o in objects),
+        "image_tolerance_rel_rms": round(tol, 4), "spp": spp, "noise_cv": noise_cv,
+    }
+
+
+# ---------------------------------------------------------------- the session (on the GPU machine)
+
+
+def missing_mitsuba() -> str | None:
+    """None when Mitsuba and Dr.Jit import here, else the one line that says what to carry."""
+    try:
+        import drjit  # noqa: F401
+        import mitsuba  # noqa: F401
+    except ImportError as exc:
+        return (f"Mitsuba is not importable here ({exc}): carry it: here run `python -m orchestrate.gpu_session --pack "
+                ".carry --wheels .whl`, then on the GPU machine carry .carry and unpack .carry/site.tar.xz into a folder "
+                "on PYTHONPATH first (docs/model.md, 'Training on a GPU session')")
+    return None
+
+
+def _choose(requested: str, avoid: str | None = None) -> str:
+    from scenes.variant import choose_variant
+
+    if requested != "auto":
+        return choose_variant(requested)
+    for v in (CHECK_VARIANTS if avoid else ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")):
+        if v == avoid:
+            continue
+        try:
+            return choose_variant(v)
+        except (ValueError, RuntimeError):
+            continue
+    raise UsageError("--check-variant: no variant other than the render's runs here" if avoid
+                     else "--variant: no Mitsuba variant runs here")
+
+
+def _make_argv(opts: SessionOptions, out: Path, variant: str, objects: int, shards: Path | None) -> list[str]:
+    return ["--objects", str(objects), "--images", str(opts.images), "--res", str(opts.res), "--spp", str(opts.spp),
+            "--seed", str(opts.seed), "--variant", variant, "--out", str(out), "--quiet",
+            *(["--shards", str(shards)] if shards else []), *(["--overwrite"] if opts.overwrite else [])]
+
+
+def _train_argv(opts: SessionOptions, shards: Path, run: Path, device: str, minutes: float) -> list[str]:
+    return ["--data", str(shards), "--out", str(run), "--model", opts.model, "--steps", str(opts.steps),
+            "--batch", str(opts.batch), "--lr", str(opts.lr), "--res", str(opts.res), "--max-images", str(opts.images),
+            "--device", device, "--precision", "bf16" if device == "cuda" else "fp32",
+            "--ckpt-minutes", str(opts.ckpt_minutes), "--time-limit", f"{minutes:.4f}",
+            "--log-every", str(opts.log_every), "--seed", "0", "--no-progress",
+            *(["--overwrite"] if opts.overwrite else [])]
+
+
+def curve_records(log: Path) -> list[dict]:
+    """The training records (step, loss) of a run's log.jsonl, in step order."""
+    rows = [json.loads(line) for line in log.read_text().splitlines() if line.strip()] if log.is_file() else []
+    return sorted((r for r in rows if "loss" in r and "val" not in r), key=lambda r: r["step"])
+
+
+def plot_curve(records: list[dict], path: Path, title: str) -> None:
+    """Training loss against step as a PNG (OpenCV drawing: the GPU machine has it, and no other plotter is a
+    dependency of this project)."""
+    import cv2
+    import numpy as np
+
+    w, h, m = 640, 400, 50
+    img = np.full((h, w, 3), 255, np.uint8)
+    cv2.rectangle(img, (m, m // 2), (w - m // 2, h - m), (0, 0, 0), 1)
+    cv2.putText(img, title, (m, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+    if records:
+        steps = np.array([r["step"] for r in records], float)
+        loss = np.array([r["loss"] for r in records], float)
+        lo, hi = float(loss.min()), float(loss.max()) or 1.0
+        hi = hi if hi > lo else lo + 1.0
+        x = m + (steps - steps.min()) / max(steps.max() - steps.min(), 1.0) * (w - 1.5 * m)
+        y = (h - m) - (loss - lo) / (hi - lo) * (h - 1.5 * m)
+        cv2.polylines(img, [np.stack([x, y], 1).astype(np.int32)], False, (200, 80, 0), 2, cv2.LINE_AA)
+        for text, pos in ((f"{hi:.4f}", (2, m // 2 + 10)), (f"{lo:.4f}", (2, h - m)),
+                          (f"step {int(steps.min())}", (m, h - m + 20)), (f"{int(steps.max())}", (w - m - 20, h - m + 20)),
+                          ("training loss", (w // 2 - 40, h - 10))):
+            cv2.putText(img, text, pos, cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1, cv2.LINE_AA)
+    write_picture(path, img)
+
+
+def _device(requested: str) -> str:
+    import torch
+
+    if requested == "auto":
+        return "cuda" if torch.cuda.is_available() else "cpu"
+    if requested == "cuda" and not torch.cuda.is_available():
+        raise UsageError("--device: 'cuda' but torch sees no GPU here")
+    return requested
+
+
+def session(opts: SessionOptions, t0: float | None = None) -> dict:
+    """The whole session (module doc, steps 1-5); returns summary.json's content."""
+    t0 = time.time() if t0 is None else t0
+    deadline = t0 + opts.minutes * 60
+    out, work = Path(opts.out), Path(opts.work)
+    why = missing_mitsuba()
+    if why:
+        raise UsageError(why)
+    device = _device(opts.device)
+    variant = _choose(opts.variant)
+    check = None if opts.check_variant == "none" else _choose(opts.check_variant, avoid=variant) \
+        if opts.check_variant == "auto" else _choose(opts.check_variant)
+    data, again, shards, run = work / "data", work / "check", work / "shards", out / RUN
+    check_step("wildgen.make", _make_argv(opts, data, variant, opts.objects, shards))
+    check_step("unips.train", _train_argv(opts, shards, run, device, 1.0))
+    print(f"gpu session: rendering {opts.objects} objects with {variant}; check with {check or 'none'}; training "
+          f"{opts.model} on {device}{' (bf16 autocast)' if device == 'cuda' else ''}; budget {opts.minutes:g} min",
+          flush=True)
+    py = sys.executable
+    out.mkdir(parents=True, exist_ok=True)
+    run_step([py, "-m", "wildgen.make", *_make_argv(opts, data, variant, opts.objects, shards)], cwd=REPO)
+    t_render = time.time() - t0
+    check_report: dict = {"variant": variant, "check_variant": None, "skipped": "--check-variant none"}
+    if check:
+        n = min(opts.check_objects, opts.objects)
+        run_step([py, "-m", "wildgen.make", *_make_argv(opts, again, check, n, None)], cwd=REPO)
+        from scenes.layouts import find_object_folders
+
+        names = [f.name for f in find_object_folders(again, "--work") if (data / f.name).is_dir()]
+        check_report = {"variant": variant, "check_variant": check,
+                        **compare_datasets(data, again, names, opts.spp, opts.noise_cv)}
+        print(f"variant check {variant} vs {check} on {len(names)} objects: ground truth "
+              f"{'identical' if check_report['ground_truth_identical'] else 'not identical'} (masks differ "
+              f"{'only on the outline' if check_report['masks_differ_only_on_outline'] else 'off the outline'}), "
+              f"images {'within' if check_report['images_within_noise'] else 'OUTSIDE'} noise", flush=True)
+    atomic_write_text(out / "variant_check.json", json.dumps(check_report, indent=1))
+    left = (deadline - time.time() - opts.reserve_s) / 60
+    if left <= 0:
+        raise UsageError(f"--minutes: rendering and the check took {(time.time() - t0) / 60:.1f} of {opts.minutes:g} "
+                         "minutes, none is left to train (lower --objects, --res or --spp, or raise --minutes)")
+    t_train = time.time()
+    run_step([py, "-m", "unips.train", *_train_argv(opts, shards, run, device, left)], cwd=REPO)
+    records = curve_records(run / "log.jsonl")
+    plot_curve(records, out / "learning_curve.png", f"{opts.model}, {opts.objects} objects, {device}")
+    summary = _write_card(opts, out, run, records, variant, device, check_report, t_render, time.time() - t_train)
+    summary["wall_s"] = round(time.time() - t0, 1)
+    atomic_write_text(out / "summary.json", json.dumps(summary, indent=1))
+    return summary
+
+
+def _write_card(opts: SessionOptions, out: Path, run: Path, records: list[dict], variant: str, device: str,
+                check: dict, t_render: float, t_train: float) -> dict:
+    """model_card.json (a fragment for a model card) and the content of summary.json."""
+    import torch
+
+    from unips.models import load_model
+
+    model, meta = load_model(run / "final.safetensors")
+    step = meta.get("extra", {}).get("step")
+    gpu = torch.cuda.get_device_name(0) if device == "cuda" else None
+    card = {
+        "model": meta.get("model_name"), "weights": f"{RUN}/final.safetensors",
+        "parameters": sum(p.numel() for p in model.parameters()),
+        "data": f"wildgen.make seed {opts.seed}, {opts.objects} objects, {opts.res} px, {opts.images} images, "
+                f"{opts.spp} spp, {variant}",
+        "steps": step, "schedule_steps": opts.steps, "batch": opts.batch, "lr": opts.lr,
+        "precision": "bf16 autocast" if device == "cuda" else "fp32",
+        "final_loss": records[-1]["loss"] if records else None,
+        "train_minutes": round(t_train / 60, 2),
+        "hardware": f"{gpu or platform.processor() or platform.machine()}, torch {torch.__version__}",
+        "recipe": "python -m orchestrate.gpu_session " + " ".join(f"--{k.replace('_', '-')} {v}" for k, v in (
+            ("minutes", opts.minutes), ("objects", opts.objects), ("res", opts.res), ("spp", opts.spp),
+            ("seed", opts.seed), ("model", opts.model), ("steps", opts.steps), ("batch", opts.batch))),
+    }
+    atomic_write_text(out / "model_card.json", json.dumps(card, indent=1))
+    big = [str(p.relative_to(out)) for p in out.rglob("*") if p.is_file() and p.stat().st_size > 16 * 2**20]
+    return {"variant": variant, "check_variant": check.get("check_variant"), "device": device,
+            "ground_truth_identical": check.get("ground_truth_identical"),
+            "images_within_noise": check.get("images_within_noise"),
+            "render_s": round(t_render, 1), "train_s": round(t_train, 1), "steps": step,
+            "curve_points": len(records), "files_over_16_mib": big, "options": asdict(opts)}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    return config_parser(SessionOptions, prog="python -m orchestrate.gpu_session", description=__doc__,
+                         formatter_class=argparse.RawDescriptionHelpFormatter)
+
+
+def main(argv: list[str] | None = None) -> int:
+    t0 = time.time()
+    try:
+        opts = parse_config(SessionOptions, build_parser().parse_args(argv)).validate()
+        if opts.pack is not None:
+            pack(Path(opts.pack), Path(opts.wheels))
+            return 0
+        summary = session(opts, t0)
+    except StepFailed as exc:
+        return report_error(exc, code=exc.code)
+    except (*INPUT_ERRORS, OSError) as exc:
+        return report_error(exc)
+    print(f"gpu session done in {summary['wall_s']:.0f} s: {summary['steps']} steps; wrote {opts.out}/{RUN}/final.safetensors "
+          f"(+ .json, last.pt, log.jsonl), learning_curve.png, variant_check.json, model_card.json, summary.json")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

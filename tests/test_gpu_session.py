@@ -1,0 +1,119 @@
+"""The GPU session (orchestrate.gpu_session) rehearsed on the CPU in miniature.
+
+The whole path runs for real: 3 objects at 24 px rendered with llvm_ad_rgb, 2 of them rendered again with
+scalar_rgb as the check's stand-in pair (on the GPU machine the pair is cuda_ad_rgb / llvm_ad_rgb), shards,
+4 training steps of glc-test, the files that come back. llvm_ad_rgb and scalar_rgb draw different sub-pixel
+samples, so their ground truth is NOT identical bit for bit (the mask's outline pixels and the normals, each a
+footprint average, differ); the check must say so, and say that the masks differ only on the outline and that
+the images agree within the noise of their spp.
+"""
+from __future__ import annotations
+
+import json
+import sys
+import zipfile
+
+import pytest
+
+from orchestrate import gpu_session
+from scenes.variant import choose_variant
+
+
+def _llvm_runs() -> bool:
+    try:
+        choose_variant("llvm_ad_rgb")
+        return True
+    except (ValueError, RuntimeError):
+        return False
+
+
+@pytest.mark.skipif(not _llvm_runs(), reason="llvm_ad_rgb does not run here (no libLLVM >= 16)")
+def test_whole_session_in_miniature(tmp_path):
+    import torch
+
+    from unips.models import create_model
+
+    out, work = tmp_path / "out", tmp_path / "work"
+    code = gpu_session.main(["--out", str(out), "--work", str(work), "--minutes", "3", "--reserve-s", "5",
+                             "--objects", "3", "--images", "3", "--res", "24", "--spp", "8",
+                             "--variant", "llvm_ad_rgb", "--check-variant", "scalar_rgb", "--check-objects", "2",
+                             "--model", "glc-test", "--steps", "4", "--batch", "2", "--log-every", "1"])
+    assert code == 0
+    files = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
+    assert files == ["learning_curve.png", "model_card.json", "run/final.json", "run/final.safetensors",
+                     "run/last.pt", "run/log.jsonl", "summary.json", "variant_check.json"]
+    assert len(files) <= 8  # what the device tool brings back
+
+    model = create_model("glc-test", checkpoint_path=out / "run" / "final.safetensors")
+    assert sum(p.numel() for p in model.parameters()) == json.loads((out / "model_card.json").read_text())["parameters"]
+    with torch.no_grad():
+        assert all(torch.isfinite(p).all() for p in model.parameters())
+
+    steps = [r["step"] for r in gpu_session.curve_records(out / "run" / "log.jsonl")]
+    assert steps == [1, 2, 3, 4]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["variant"] == "llvm_ad_rgb" and summary["device"] == "cpu" and summary["steps"] == 4
+    assert summary["curve_points"] == 4
+
+    check = json.loads((out / "variant_check.json").read_text())
+    assert check["variant"] == "llvm_ad_rgb" and check["check_variant"] == "scalar_rgb"
+    assert [o["name"] for o in check["objects"]] == ["00000.data", "00001.data"]
+    assert check["ground_truth_identical"] is False  # different samplers: see the module doc
+    assert check["masks_differ_only_on_outline"] is True
+    assert check["images_within_noise"] is True
+    assert check["image_tolerance_rel_rms"] == pytest.approx(4 * (2 / 8) ** 0.5, abs=1e-4)
+
+    # A folder compared with itself is identical.
+    same = gpu_session.compare_datasets(work / "data", work / "data", ["00000.data"], spp=8, noise_cv=4)
+    assert same["ground_truth_identical"] and same["images_within_noise"]
+
+    # unips.train's --time-limit (the hook the session stops with): a run of 1000 steps stops after the first.
+    from unips.train import main as train_main
+
+    run = tmp_path / "limited"
+    assert train_main(["--data", str(work / "shards"), "--out", str(run), "--model", "glc-test", "--steps", "1000",
+                       "--batch", "2", "--res", "24", "--max-images", "3", "--time-limit", "0.00001",
+                       "--log-every", "1", "--no-progress"]) == 0
+    from unips.models import load_model
+
+    assert load_model(run / "final.safetensors")[1]["extra"]["step"] == 1
+    assert torch.load(run / "last.pt", weights_only=False)["step"] == 1
+
+
+def _wheel(path, members):
+    with zipfile.ZipFile(path, "w") as z:
+        for name, data in members.items():
+            z.writestr(name, data)
+
+
+def test_pack_keeps_the_needed_variants_and_checks_the_limit(tmp_path, capsys):
+    import tarfile
+
+    wheels = tmp_path / "whl"
+    wheels.mkdir()
+    _wheel(wheels / "mitsuba-3.9.1-cp312-cp312-manylinux_2_17_x86_64.whl", {
+        "mitsuba/__init__.py": "", "mitsuba/libmitsuba.so": "x" * 100, "mitsuba/cuda_ad_rgb.cpython-312-x86_64-linux-gnu.so": "c",
+        "mitsuba/cuda_ad_spectral.cpython-312-x86_64-linux-gnu.so": "s", "mitsuba/scalar_rgb.cpython-312-x86_64-linux-gnu.so": "r",
+        "mitsuba/include/mitsuba.h": "h", "mitsuba/plugins/path.so": "p", "mitsuba/__init__.pyi": "",
+    })
+    _wheel(wheels / "drjit-1.5.0-cp312-cp312-manylinux_2_17_x86_64.whl",
+           {"drjit/__init__.py": "", "drjit/include/x.h": "h", "drjit/libdrjit-core.so": "d"})
+    total = gpu_session.pack(tmp_path / "carry", wheels, tree=1000)
+    with tarfile.open(tmp_path / "carry" / "site.tar.xz") as tar:
+        names = sorted(tar.getnames())
+    assert names == ["drjit/__init__.py", "drjit/libdrjit-core.so", "mitsuba/__init__.py",
+                     "mitsuba/cuda_ad_rgb.cpython-312-x86_64-linux-gnu.so", "mitsuba/libmitsuba.so",
+                     "mitsuba/plugins/path.so", "mitsuba/scalar_rgb.cpython-312-x86_64-linux-gnu.so"]
+    assert total == (tmp_path / "carry" / "site.tar.xz").stat().st_size + 1000
+    with pytest.raises(gpu_session.UsageError, match=r"--pack: what would travel is \d+ bytes = .* over the 100 bytes"):
+        gpu_session.pack(tmp_path / "carry", wheels, limit=100, tree=1000)
+    assert gpu_session.main(["--pack", str(tmp_path / "c2"), "--wheels", str(tmp_path / "none")]) == 2
+    assert "error: --wheels:" in capsys.readouterr().err
+
+
+def test_missing_mitsuba_is_one_line_naming_what_to_carry(tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "mitsuba", None)  # import mitsuba raises ImportError, as on the GPU machine
+    assert gpu_session.main(["--out", str(tmp_path / "o"), "--work", str(tmp_path / "w")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: Mitsuba is not importable here") and "--pack" in err[0]
+    assert not (tmp_path / "o").exists()

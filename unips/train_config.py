@@ -1,0 +1,126 @@
+"""The configuration of a training run (`TrainConfig`): the dataclass the `python -m unips.train` command line is
+generated from (a flag per documented field, `scenes.config`), its checks, and the settings a resumed run must keep."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from scenes.config import check_choice, check_fields, option
+
+@dataclass
+class TrainConfig:
+    """Everything that determines a training run; the CLI fills it (`python -m unips.train --help`)."""
+
+    data: str = option("", required=True)
+    """Training dataset directory (object folders with ground-truth normals), or several separated by commas
+    (pooled, e.g. sets rendered with different seeds); or WebDataset shards of wildgen.export: 'SHARDS/{000000..000099}.tar' or the SHARDS folder."""
+    out: str = option("", required=True)
+    """Run directory: log.jsonl, last.pt, best.safetensors and final.safetensors (+ .json sidecars)."""
+    val: str | None = None
+    """Validation dataset directory (object folders with normal.tif); held-out assets, test-like settings."""
+    model: str = "glc-small"
+    """Registered model name (`unips.models.list_models()`); with `init_from`, the weights' model."""
+    init_from: str | None = None
+    """Weights (.safetensors or .pt) to start from: weights only, with fresh optimiser, schedule and data."""
+    steps: int = option(2000, minimum=1)
+    """Total optimisation steps."""
+    batch: int = option(4, minimum=1)
+    """Objects per step (the global batch, split across processes under torchrun)."""
+    lr: float = option(5e-4, above=0)
+    """Peak AdamW learning rate."""
+    weight_decay: float = option(0.05, minimum=0)
+    """AdamW weight decay."""
+    schedule: str = option("cosine", choices=("cosine", "step"))
+    """'cosine': linear warm-up over `warmup` steps then cosine decay to `min_lr_ratio` * lr; 'step': x`decay` every `decay_every` steps."""
+    warmup: int = option(100, minimum=0)
+    """Warm-up steps of the cosine schedule."""
+    min_lr_ratio: float = option(0.05, minimum=0, maximum=1)
+    """Final learning rate of the cosine schedule as a fraction of `lr`."""
+    decay_every: int = option(1000, minimum=1)
+    """Steps between decays of the step schedule."""
+    decay: float = option(0.8, above=0, maximum=1)
+    """Learning-rate factor at each decay of the step schedule."""
+    clip_grad: float = option(1.0, minimum=0)
+    """Gradient clipping by global norm (0: off)."""
+    max_images: int = option(10, minimum=1)
+    """Most images per training sample (and images per validation object)."""
+    min_images: int = option(1, minimum=1)
+    """Fewest images per training sample (1 keeps single-image inputs in the training distribution)."""
+    pixels: int = option(1000, minimum=1)
+    """Random masked pixels per object at the working resolution."""
+    canonical_points: int = option(1000, minimum=0)
+    """At most this many masked canonical-grid points per object in the loss (0: all of them)."""
+    res: int = option(128, minimum=1)
+    """Working resolution of the cached crops (the test resolution; above the canonical resolution)."""
+    seed: int = 0
+    """Seed of every random choice (initial weights, objects, image subsets, pixels, augmentation)."""
+    resume: bool = False
+    """Continue from RUN/last.pt, bit for bit."""
+    overwrite: bool = False
+    """Start afresh in a run directory that already holds a run (its files are replaced)."""
+    val_every: int = option(200, minimum=1)
+    """Steps between validations."""
+    val_pixels: int = option(2000, minimum=0)
+    """Masked pixels scored per validation object (a fixed seeded subset; 0: all)."""
+    val_probes: list[str] = option(default_factory=lambda: ["all", "one", "mask", "shuffled"], metavar="P1,P2")
+    """Probes of every validation (`unips.probes.PROBES`); 'all' is always included."""
+    ckpt_every: int = option(200, minimum=1)
+    """Steps between last.pt saves."""
+    ckpt_minutes: float = option(0.0, minimum=0)
+    """Also save last.pt every this many minutes of training (0: only every --ckpt-every steps)."""
+    time_limit: float = option(0.0, minimum=0)
+    """Stop after this many minutes of training in this process (0: no limit), at the step reached: last.pt and final.safetensors are written as at the end; --steps still sets the schedule."""
+    log_every: int = option(10, minimum=1)
+    """Steps between training records in log.jsonl."""
+    threads: int = option(0, minimum=0)
+    """torch CPU threads (0: all cores, divided among local processes under torchrun)."""
+    device: str = "cpu"
+    """torch device ('cpu', 'cuda'; under torchrun each process takes cuda:LOCAL_RANK)."""
+    precision: str = option("fp32", choices=("fp32", "bf16"))
+    """'fp32' or 'bf16' (autocast of the forward pass; for GPUs)."""
+    no_augment: bool = False
+    """Disable flips / transpose / RGB permutation."""
+    interior_crop: float = option(0.0, minimum=0, maximum=1)
+    """Probability that a training sample is a square cut from inside the object's mask and resized to the working resolution: no outline, so the normals must come from the images."""
+    no_progress: bool = False
+    """No progress bar."""
+    model_option: list[str] = option(default_factory=list, repeat=True, sep="", metavar="KEY=VALUE")
+    """Model config overrides KEY=VALUE (JSON value), e.g. uniform_context=true; repeatable."""
+    shuffle_buffer: int = option(0, minimum=0)
+    """Shards only. 0: read every object into memory, as from folders (the same batches as the folders the shards came from); N > 0: stream the shards (data larger than memory), split across processes and loader workers, shuffled through a buffer of N objects per worker (unips.shards)."""
+    loader_workers: int = option(2, minimum=0)
+    """Worker processes decoding the streamed shards (with --shuffle-buffer; 0: in the training process)."""
+
+    def validate(self) -> "TrainConfig":
+        """Raise ValueError naming the first bad field as its CLI flag."""
+        from unips.probes import PROBES
+
+        if not self.data:
+            raise ValueError("--data: required (a dataset directory)")
+        if not self.out:
+            raise ValueError("--out: required (a run directory)")
+        check_fields(self)
+        if self.min_images > self.max_images:
+            raise ValueError(f"--min-images={self.min_images} exceeds --max-images={self.max_images}")
+        for p in self.val_probes:
+            check_choice(p, "--val-probes", PROBES)
+        if self.resume and self.overwrite:
+            raise ValueError("--resume and --overwrite: expected at most one of them")
+        if self.resume and self.init_from:
+            raise ValueError("--resume and --init-from: expected at most one of them (a resumed run keeps its weights)")
+        if self.shuffle_buffer:
+            from unips.shards import is_shard_source
+            from unips.train_data import data_roots
+
+            folders = [str(r) for r in data_roots(self.data) if not is_shard_source(r)]
+            if folders:
+                raise ValueError(f"--shuffle-buffer: streams WebDataset shards, {folders[0]!r} in --data is not a shard "
+                                 "source (export it with python -m wildgen.export, or use --shuffle-buffer 0)")
+        return self
+
+
+# Settings that change the trajectory: a resumed run must use the same values.
+TRAJECTORY_KEYS = ("model", "init_from", "batch", "lr", "weight_decay", "schedule", "warmup", "min_lr_ratio",
+                   "decay_every", "decay", "clip_grad", "max_images", "min_images", "pixels", "canonical_points",
+                   "seed", "res", "no_augment", "precision", "interior_crop", "shuffle_buffer")
+
+
