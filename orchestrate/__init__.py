@@ -2,3 +2,4 @@
 
 The only package that may import `wildgen`, `unips` and `validate` together (see tests/test_layers.py).
 """
+import scenes  # noqa: F401  (a clear error, not a traceback, outside the toolkit's environment)

@@ -75,3 +75,17 @@ def test_every_command_says_what_it_does_and_where_it_wrote(synthetic_object, tm
     assert out[0].startswith("predicting 1 object(s) with --method least-squares into") and out[-1].startswith("wrote")
     assert evaluate(["--pred", str(tmp_path / "pred"), "--gt", str(data)]) == 0
     assert capsys.readouterr().out.splitlines()[-1].startswith(f"wrote {tmp_path / 'pred' / 'metrics.json'}")
+
+
+def test_a_python_without_the_packages_gets_one_line_not_a_traceback():
+    """`python -m wildgen.make` with the system Python used to end in a ModuleNotFoundError traceback. Here a
+    Python started without site-packages (-S) stands in for it."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    r = subprocess.run([sys.executable, "-S", "-m", "wildgen.make", "--help"], cwd=root, capture_output=True, text=True)
+    assert r.returncode == 2, r.stderr
+    assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert "lacks numpy" in r.stderr and ".venv/bin/activate" in r.stderr

@@ -5,3 +5,4 @@ Modules: `projection` (camera model shared by NumPy and Dr.Jit code), `normal_bs
 wrapper that swaps the normals), `io` (an object folder loaded for the check, on top of `scenes.objfolder`), `perturb` (controlled
 normal errors for tests and benches), `metrics`, `figures`, and `rerender` (library + CLI).
 """
+import scenes  # noqa: F401  (a clear error, not a traceback, outside the toolkit's environment)
