@@ -376,9 +376,14 @@ def test_rotation_search_tilts_only_and_never_raises_the_residual(jit, sphere_fo
     train = np.arange(fs.k)
     n0 = fs.n_np.copy()
     rc = RefineConfig(fit=cfg, rotation_steps=20)
-    w = search_rotation(fs, train, rc)
+    record: dict = {}
+    w = search_rotation(fs, train, rc, record=record)
     after = fs.score(fs.render(train), train)
     assert w[2] == 0.0
+    # the report of the search: the chosen tilt, and how many tilts the images cannot tell from it
+    assert record["tilt_deg"] == pytest.approx(np.degrees(np.linalg.norm(w)))
+    assert 1 <= record["equally_good"] <= record["candidates"]
+    assert (record["equally_good_spread_deg"] > 0) == (record["equally_good"] > 1)
     np.testing.assert_allclose(fs.n_np, n0 @ Rotation.from_rotvec(w).as_matrix().T, atol=1e-6)
     # the identity candidate, evaluated the same way (same batches and rays), is never better
     fs2 = FitScene(cap.images, m, tilted, cfg, "directional")
