@@ -373,10 +373,10 @@ def finish_normals(n: np.ndarray, mask: np.ndarray, path: Path) -> np.ndarray:
     if not np.all(np.isfinite(n)):
         raise ValueError(f"normal file {path}: contains NaN or infinite values")
     scale = np.max(np.abs(n), axis=2, keepdims=True)  # divide first: squares of 1e200 overflow
-    unit = n / np.maximum(scale, 1e-300)
-    norm = np.linalg.norm(unit, axis=2, keepdims=True) * scale
-    keep = mask[..., None] & (norm >= MIN_NORMAL_LENGTH)
-    out = np.where(keep, unit / np.maximum(np.linalg.norm(unit, axis=2, keepdims=True), 1e-300), 0.0)
+    scaled = n / np.maximum(scale, 1e-300)
+    scaled_norm = np.linalg.norm(scaled, axis=2, keepdims=True)
+    keep = mask[..., None] & (scaled_norm * scale >= MIN_NORMAL_LENGTH)
+    out = np.where(keep, scaled / np.maximum(scaled_norm, 1e-300), 0.0)
     missing = int(np.sum(mask & ~keep[..., 0]))
     if missing:
         log.warning("%s: %d mask pixels have no ground-truth normal (shorter than %.1f)", path, missing, MIN_NORMAL_LENGTH)

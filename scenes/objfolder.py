@@ -57,6 +57,22 @@ def image_name(index: int) -> str:
     return f"L{index:03d}.png"
 
 
+def radiance_name(index: int) -> str:
+    """File name, inside `AUX_DIR`, of the float radiance of image `index` before its exposure."""
+    return f"radiance_{index:03d}.exr"
+
+
+def sha256_file(path: str | Path) -> str:
+    """Hex SHA-256 of a file, read in 1 MiB chunks (the checksums of manifests and shard indexes)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
 def object_name(path: str | Path) -> str:
     """Name of an object folder: its name minus a trailing `.data` (`foo.data` -> `foo`, `ballPNG` stays)."""
     name = Path(path).resolve().name

@@ -30,7 +30,7 @@ import re
 from pathlib import Path
 from typing import Any, BinaryIO, Iterator
 
-from scenes.objfolder import AUX_DIR, OBJECT_SUFFIX, atomic_write_text, object_name
+from scenes.objfolder import AUX_DIR, OBJECT_SUFFIX, atomic_write_text, object_name, sha256_file
 
 INDEX_FILE = "index.json"
 """The index beside the shards: per shard its objects and its sha256."""
@@ -42,7 +42,6 @@ SHARD_DIGITS = 6
 SHARD_NAME = re.compile(r"^\d{%d}\.tar$" % SHARD_DIGITS)
 """File names of shards (`shard_name`): 000000.tar, 000001.tar, ..."""
 _AUX_PREFIX = AUX_DIR + "."
-_CHUNK = 1 << 20
 
 
 def shard_name(index: int) -> str:
@@ -173,21 +172,13 @@ def read_index(folder: str | Path, arg: str = "--data") -> dict[str, Any]:
     return index
 
 
-def sha256_of(path: str | Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(_CHUNK), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
 def verify_shard(path: str | Path, entry: dict[str, Any], arg: str = "--data") -> None:
     """Refuse a shard whose size or sha256 differs from its index entry (ValueError naming the shard)."""
     path = Path(path)
     size = path.stat().st_size
     if "bytes" in entry and size != entry["bytes"]:
         raise ValueError(f"{arg}: shard {str(path)!r} is corrupt: {size} bytes, {INDEX_FILE} records {entry['bytes']}")
-    digest = sha256_of(path)
+    digest = sha256_file(path)
     if digest != entry["sha256"]:
         raise ValueError(f"{arg}: shard {str(path)!r} is corrupt: its sha256 {digest[:16]}... differs from "
                          f"{INDEX_FILE}'s {entry['sha256'][:16]}...")

@@ -22,25 +22,19 @@ from validate.capture import Capture
 from validate.fit import fit_normals, prepare
 from validate.fit_scene import FitConfig, Progress
 from validate.judgeable import check_judgeable
-from validate.verdict import explain, judged_rel_l1, verdict
+from validate.verdict import channel_noise_sigmas, explain, judged_rel_l1, verdict
 
 
 def estimate_noise_rel_l1(images: np.ndarray, mask: np.ndarray) -> float:
-    """Image noise as a relative L1 level: Immerkaer's Laplacian-difference estimate of the noise
-    standard deviation sigma inside the (eroded) mask, turned into the mean absolute value of Gaussian
+    """Image noise as a relative L1 level: the mean of the per-channel noise standard deviations sigma inside the
+    (eroded) mask (`validate.verdict.channel_noise_sigmas`), turned into the mean absolute value of Gaussian
     noise sigma * sqrt(2 / pi), divided by the mean input over the mask. images (K, H, W, 3)."""
-    from scipy.ndimage import binary_erosion, convolve
+    from scipy.ndimage import binary_erosion
 
-    kern = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float64)
     inner = binary_erosion(mask, iterations=2)
     if inner.sum() < 16:
         return float("nan")
-    sig = []
-    for im in images:
-        for c in range(im.shape[2]):
-            r = convolve(im[:, :, c].astype(np.float64), kern, mode="nearest")
-            sig.append(np.sqrt(np.pi / 2) / 6.0 * np.median(np.abs(r[inner])) / 0.6745 * 0.7979)
-    sigma = float(np.mean(sig))
+    sigma = float(np.mean([s * np.sqrt(np.pi / 2) * 0.7979 for s in channel_noise_sigmas(images, inner)]))
     denom = float(np.abs(images[:, mask]).mean())
     return sigma * np.sqrt(2 / np.pi) / denom if denom > 0 else float("nan")
 

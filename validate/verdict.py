@@ -68,18 +68,25 @@ class Explanation:
         return float(self.explained.mean()) if self.explained.size else 0.0
 
 
-def noise_sigma(images: np.ndarray, mask: np.ndarray) -> float:
-    """Noise standard deviation of (K, H, W, 3) images inside the eroded mask (Immerkaer's Laplacian estimate,
-    median-based, so shading edges do not count), floored at one 16-bit code."""
-    from scipy.ndimage import binary_erosion, convolve
+def channel_noise_sigmas(images: np.ndarray, inner: np.ndarray) -> list[float]:
+    """Per image and channel of (K, H, W, 3) images, the noise standard deviation over the pixels `inner`:
+    Immerkaer's Laplacian-difference estimate, median-based so that shading edges do not count."""
+    from scipy.ndimage import convolve
 
     kern = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float64)
+    return [float(np.median(np.abs(convolve(im[:, :, c].astype(np.float64), kern, mode="nearest")[inner]))) / 0.6745 / 6.0
+            for im in images for c in range(im.shape[2])]
+
+
+def noise_sigma(images: np.ndarray, mask: np.ndarray) -> float:
+    """Noise standard deviation of (K, H, W, 3) images inside the eroded mask (`channel_noise_sigmas`, their
+    median), floored at one 16-bit code."""
+    from scipy.ndimage import binary_erosion
+
     inner = binary_erosion(mask, iterations=2)
     if inner.sum() < 16:
         inner = mask
-    sig = [np.median(np.abs(convolve(im[:, :, c].astype(np.float64), kern, mode="nearest")[inner])) / 0.6745 / 6.0
-           for im in images for c in range(im.shape[2])]
-    return max(float(np.median(sig)), 1.0 / 65535.0)
+    return max(float(np.median(channel_noise_sigmas(images, inner))), 1.0 / 65535.0)
 
 
 def _weighted_low_rank(m: np.ndarray, w: np.ndarray, rank: int, iters: int = 30) -> np.ndarray:
@@ -119,7 +126,7 @@ def explain(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None =
     keep = select_observations(obs, sat)  # (K, P)
     k, p, _ = obs.shape
     intensity = obs.mean(axis=2)  # (K, P)
-    for _ in range(2):  # fit, drop outliers (highlights, inter-reflections), fit again
+    for _ in range(2):  # twice: fit, then drop the outliers (highlights, inter-reflections)
         w = keep.T.astype(np.float64)  # (P, K)
         res = np.zeros((p, k))
         for c in range(3):

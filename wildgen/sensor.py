@@ -25,7 +25,7 @@ from typing import Callable
 from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, progress_bar, report_error
 from scenes.config import check_fields, config_from_args, config_parser, option
 from scenes.objfolder import (AUX_DIR, SCENE_FILE, atomic_write_text, image_files, image_name, list_object_folders,
-                              object_name, read_exr, read_scene, write_scene)
+                              object_name, radiance_name, read_exr, read_scene, write_scene)
 from scenes.sensor import (SCENE_KEY, SENSORS, Sensor, read_sensor_record, rederive_image, scale_camera_lights, sensor_named,
                            sensor_record,
                            write_image)
@@ -63,11 +63,6 @@ def build_parser():
                                      "rendering.")
 
 
-def _radiance_name(index: int) -> str:
-    """The radiance file of image `index` in aux/, as wildgen.writer names it."""
-    return f"radiance_{index:03d}.exr"
-
-
 def _sensor_versions() -> dict[str, str]:
     """Versions of the packages that determine the sensor's bytes (noise streams, demosaicing)."""
     from importlib import metadata
@@ -86,7 +81,7 @@ def apply_to_object(src: Path, out_dir: Path, sensor: Sensor, seed: int = 0) -> 
     rename). Returns (folder name, {relative path: sha256})."""
     desc, extras = read_scene(src)
     old = read_sensor_record(extras, len(desc.images), where=f"--data: {str(src / SCENE_FILE)!r}")
-    radiance = [src / AUX_DIR / _radiance_name(i) for i in range(len(desc.images))]
+    radiance = [src / AUX_DIR / radiance_name(i) for i in range(len(desc.images))]
     missing = [p.name for p in radiance if not p.is_file()]
     if missing:
         raise FileNotFoundError(f"--data: object folder {str(src)!r} has no {AUX_DIR}/{missing[0]} (the radiance a "

@@ -7,7 +7,6 @@ byte-identical folders whatever the Dr.Jit thread count (scenes.render.render_fi
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 import os
@@ -22,8 +21,8 @@ from scenes.description import SceneDescription, TextureDesc
 from scenes.geometry import camera_rotation, write_mesh_ply
 from scenes.lights import camera_frame
 from scenes.mitsuba_build import build_scene
-from scenes.objfolder import (AUX_DIR, FORMAT_VERSION, MASK_FILE, NORMAL_FILE, OBJECT_SUFFIX, image_name, write_exr,
-                              write_mask, write_normal_map, write_png16, write_scene)
+from scenes.objfolder import (AUX_DIR, FORMAT_VERSION, MASK_FILE, NORMAL_FILE, OBJECT_SUFFIX, image_name, radiance_name,
+                              sha256_file, write_exr, write_mask, write_normal_map, write_png16, write_scene)
 from scenes.render import render_ground_truth, render_images
 from scenes.sensor import SCENE_KEY as SENSOR_KEY
 from scenes.sensor import SENSORS, Sensor, rederive_image, scale_camera_lights, sensor_record, write_image
@@ -47,14 +46,6 @@ class ObjectResult:
     shape: str
     files: dict[str, str] = field(default_factory=dict)  # relative path -> sha256
     timings: dict[str, float] = field(default_factory=dict)
-
-
-def sha256_file(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def _localise(desc: SceneDescription, sampled: SampledObject, folder: Path) -> SceneDescription:
@@ -203,7 +194,7 @@ def write_object(sampled: SampledObject, out_dir: Path, percentile: float, level
             else:
                 write_image(tmp / image_name(i),
                             rederive_image(img, desc.images[i].exposure, sensor, record["noise_seeds"][i]))
-            write_exr(tmp / AUX_DIR / f"radiance_{i:03d}.exr", img)
+            write_exr(tmp / AUX_DIR / radiance_name(i), img)
         write_mask(tmp / MASK_FILE, gt.mask)
         normal = np.where(gt.mask[..., None], gt.normal, 0.0)
         write_normal_map(tmp / NORMAL_FILE, normal)
