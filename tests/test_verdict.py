@@ -106,5 +106,41 @@ def test_fitted_report_says_trusted_and_writes_explained(jit, sphere_folder, tmp
     r = rerender_fitted(str(sphere_folder), gt, small_config(), str(tmp_path))
     assert r["trusted"] is True and r["explained_fraction"] > 0.5
     assert r["judged_rel_l1"] < r["judged_floor_rel_l1"]
+    assert r["ambiguity"]["tested"] and r["ambiguity"]["variants"]  # a trusted directional capture is tested
     out = tmp_path / "lsphere"
     assert (out / "explained.png").is_file() and json.loads((out / "report.json").read_text())["why"]
+
+
+def test_bas_relief_transform_keeps_lambertian_shading():
+    """Belhumeur-Kriegman-Yuille: the GBR-transformed normals, lights and albedo give the same n . l shading."""
+    from validate.ambiguity import gbr_normals, gbr_start
+
+    n, mask = analytic_sphere()
+    nm = n[mask].astype(np.float64)
+    rng = np.random.default_rng(0)
+    params = {"directions": TO_LIGHT, "irradiance": rng.uniform(0.5, 2, (len(TO_LIGHT), 3)), "ambient": np.zeros((len(TO_LIGHT), 3))}
+    albedo = rng.uniform(0.2, 0.9, (len(nm), 3))
+    for lam, mu, nu in ((0.7, 0.0, 0.0), (1.3, 0.2, -0.1)):
+        st = gbr_start(params, albedo, nm, lam, mu, nu)
+        nv = gbr_normals(nm, lam, mu, nu)
+        before = albedo[None] * (nm @ TO_LIGHT.T).T[..., None] * params["irradiance"][:, None]
+        after = st["albedo"][None] * (nv @ st["directions"].T).T[..., None] * st["irradiance"][:, None]
+        np.testing.assert_allclose(after, before, atol=1e-9)
+        assert np.degrees(np.arccos(np.clip((nv * nm).sum(1), -1, 1))).mean() > 4  # a different map
+
+
+def test_report_says_when_the_images_cannot_decide_the_bas_relief(jit):
+    """A Lambertian sphere under distant lights: its bas-relief transforms explain the images as well as the
+    truth (theory), so the ambiguity report must not call the map separated from them."""
+    from validate.ambiguity import bas_relief_test
+    from validate.fit import fit_normals
+    from validate.verdict import explain, judged_rel_l1
+
+    n, mask = analytic_sphere()
+    images = _lambertian(n, mask)
+    cfg = small_config()
+    ex = explain(images, mask)
+    r = fit_normals(images, mask, n, cfg)
+    amb = bas_relief_test(images, mask, n, r, judged_rel_l1(r.render, images[:, mask], ex), ex, cfg)
+    assert amb["tested"] and not amb["separated"] and "cannot decide" in amb["note"], amb
+    assert all(v["mean_angle_deg"] > 4 for v in amb["variants"])  # the transforms are far from the map

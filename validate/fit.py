@@ -176,10 +176,12 @@ def fit_normals(
     progress: Progress | None = None,
     label: str = "fit",
     saturated: np.ndarray | None = None,
+    start: dict | None = None,
 ) -> FitResult:
     """Fit light and reflectance around a fixed normal map. images (K, H, W, 3), mask (H, W), normals
     (H, W, 3) unit inside the mask, saturated (K, H, W, 3) bool or None (censored observations, see
-    `FitScene`), all at the fitting resolution (see `prepare`)."""
+    `FitScene`), all at the fitting resolution (see `prepare`). start: the parameters to start from
+    (`validate.lights.closed_form_directional`'s form, one light model only) instead of the closed-form start."""
     config = (config or FitConfig()).validate()
     models = LIGHT_MODELS if config.light_model == "auto" else (config.light_model,)
     best: FitResult | None = None
@@ -187,7 +189,9 @@ def fit_normals(
         t0 = time.perf_counter()
         steps = config.steps if len(models) == 1 else max(1, config.steps // 3)
         fs = FitScene(images, mask, normals, config, model, saturated)
-        fs.init_params(lambertian_start(fs))
+        if start is not None and len(models) > 1:
+            raise ValueError("start: a given start needs one light model, not 'auto'")
+        fs.init_params(lambertian_start(fs) if start is None else start)
         hist = run_fit(fs, steps, progress=progress, label=f"{label} ({model})")
         render = fs.render()
         params = _normalise_albedo(fs, _np_params(fs))

@@ -18,6 +18,7 @@ import numpy as np
 
 from scenes.variant import jit_threads, require_ad_variant
 from validate import heightfield
+from validate.ambiguity import bas_relief_test, not_tested
 from validate.capture import Capture
 from validate.fit import fit_normals, prepare
 from validate.fit_scene import FitConfig, Progress
@@ -101,6 +102,15 @@ def rerender_fitted(
     for kind, nmap in no_information_maps(small.mask, config.floor_maps).items():
         fr = fit_normals(small.images, small.mask, nmap, config, progress, f"floor ({kind})", small.saturated)
         floors[kind], judged_floors[kind] = fr.rel_l1, judged_rel_l1(fr.render, observed, ex)
+    judged = judged_rel_l1(res.render, observed, ex)
+    if not config.bas_relief:
+        ambiguity = not_tested("not tested (--no-bas-relief)")
+    elif not trusted:
+        ambiguity = not_tested("not tested: the check abstains on this capture")
+    elif res.model != "directional":
+        ambiguity = not_tested(f"not tested: the test needs the directional light model (fitted: {res.model})")
+    else:
+        ambiguity = bas_relief_test(small.images, small.mask, n_small, res, judged, ex, config, small.saturated, progress)
     report: dict[str, Any] = {
         "mode": "fitted",
         "object": cap.name,
@@ -113,8 +123,9 @@ def rerender_fitted(
         "trusted": trusted,
         "why": why,
         "explained_fraction": ex.explained_fraction,
-        "judged_rel_l1": finite(judged_rel_l1(res.render, observed, ex)),
+        "judged_rel_l1": finite(judged),
         "judged_floor_rel_l1": finite(min(judged_floors.values())) if judged_floors else None,
+        "ambiguity": ambiguity,
         "rel_l1": res.rel_l1,
         "noise_rel_l1": finite(estimate_noise_rel_l1(small.images, small.mask)),
         "floor_rel_l1": min(floors.values()) if floors else None,

@@ -58,6 +58,9 @@ class FitConfig:
     """No-information normal maps whose fitted residual is the floor, comma-separated."""
     seed: int = 0
     """Seed of every random choice (image batches, ray directions)."""
+    bas_relief: bool = True
+    """Test whether the images separate the map from two of its generalized bas-relief transforms (report.json
+    `ambiguity`, `validate.ambiguity`: two short extra fits, directional light model on trusted captures only)."""
     min_nz: float = option(0.15, above=0, below=1)
     """Smallest |n_z| used when integrating normals to heights (bounds silhouette slopes)."""
 

@@ -41,12 +41,12 @@ from validate.fit import fit_normals, run_fit
 from validate.fit_report import saturated_fraction
 from validate.fit_scene import FitConfig, FitScene, Progress, lambertian_start, to_jit
 from validate.judgeable import check_judgeable
-from validate.verdict import explain, judged_rel_l1, verdict
+from validate.verdict import SEPARATION, explain, judged_rel_l1, verdict
 
 log = logging.getLogger(__name__)
 
 LIGHT_SOURCES = ("fitted", "calibrated")
-MIN_GAIN = 0.02
+MIN_GAIN = SEPARATION
 """A refinement is accepted only when the judged residual (observations every map shares, `validate.verdict`)
 falls by at least this fraction; otherwise the input map is kept."""
 REFINE_OUTPUTS = ("normal.png", "refine_report.json")
@@ -57,7 +57,7 @@ REFINE_OUTPUTS = ("normal.png", "refine_report.json")
 class RefineConfig:
     """Options of the refinement."""
 
-    fit: FitConfig = option(default_factory=FitConfig, expose=tuple(f.name for f in fields(FitConfig) if f.name != "floor_maps"))
+    fit: FitConfig = option(default_factory=FitConfig, expose=tuple(f.name for f in fields(FitConfig) if f.name not in ("floor_maps", "bas_relief")))
     """Scene fit (light model, steps of the fixed-normal stage, resolution, seed); its floor maps are not used."""
     refine_steps: int = option(300, minimum=0)
     """Adam steps of the joint stage (normals and lights)."""

@@ -48,6 +48,9 @@ MIN_EXPLAINED = 0.5
 """Fraction of the mask pixels that must be explained for a trusted verdict."""
 RANK = 4
 """Rank of the distant-light Lambertian model per colour channel: [normal, 1] (3 + ambient)."""
+SEPARATION = 0.02
+"""Two maps whose judged residuals differ by less than this fraction are not separated by the check (the
+refinement's acceptance threshold and the bas-relief test of `validate.ambiguity`)."""
 
 
 @dataclass
