@@ -4,6 +4,8 @@
   python bench/bench_render.py --res 128 --images 4 --families near_area
   python bench/bench_render.py --res 64 --spp 16 --images 8 --objects 4 --rounds 3 \
       --families near_area,verse,flash,frontal,grid96,light_stage,display   # new families vs the default
+  python bench/bench_render.py --res 64 --spp 16 --images 8 --objects 4 --rounds 3 --families near_area \
+      --features default,perspective,focal      # generator features (FEATURES) vs today's default
 
 Per family: seconds per object (wall clock, and CPU seconds of all threads: `cpu s/obj`, less sensitive to
 other work on a shared machine) and per image, the CPU cost per object relative to the first family listed
@@ -24,12 +26,19 @@ from pathlib import Path
 from wildgen.lighting import LIGHT_FAMILIES
 
 
+FEATURES = {
+    "default": {},
+    "perspective": {"camera": "perspective"},
+    "focal": {"camera": "perspective", "focal": "15-300"},
+}
+"""Generator features measured against the default (`--features`): GenConfig overrides."""
+
 COLUMNS = ("s_per_object", "cpu_s_per_object", "s_per_image", "first_image_s", "later_image_s", "gt_s", "build_s",
            "write_s")
 
 
-def measure(family: str, args, tmp: Path) -> dict[str, list[float]]:
-    """One round of `args.objects` objects of `family`: per object, each column of the table."""
+def measure(family: str, args, tmp: Path, overrides: dict | None = None) -> dict[str, list[float]]:
+    """One round of `args.objects` objects of `family` (GenConfig `overrides` on top): per object, each column."""
     from scenes.mitsuba_build import build_scene
     from scenes.render import render_image
     from wildgen.assets import AssetLibrary
@@ -38,7 +47,7 @@ def measure(family: str, args, tmp: Path) -> dict[str, list[float]]:
     from wildgen.writer import _localise, make_object
 
     cfg = GenConfig(lights=[family], objects=args.objects, images=args.images, width=args.res, height=args.res,
-                    spp=args.spp, seed=1).validate()
+                    spp=args.spp, seed=1, **(overrides or {})).validate()
     lib = AssetLibrary.scan(None)
     out: dict[str, list[float]] = {c: [] for c in COLUMNS}
     for i in range(args.objects):
@@ -77,6 +86,8 @@ def main() -> int:
     p.add_argument("--families", default=",".join(LIGHT_FAMILIES), help="light families, comma-separated (default: all)")
     p.add_argument("--rounds", type=int, default=1,
                    help="rounds over all families; each figure is the smallest of its rounds (robust to other load)")
+    p.add_argument("--features", default=None,
+                   help=f"generator features, comma-separated ({', '.join(FEATURES)}): one row per family and feature")
     p.add_argument("--variant", default=None)
     args = p.parse_args()
 
@@ -86,7 +97,12 @@ def main() -> int:
     from wildgen.writer import make_object
 
     variant = choose_variant(args.variant)
-    families = args.families.split(",")
+    features = args.features.split(",") if args.features else [None]
+    unknown = [f for f in features if f is not None and f not in FEATURES]
+    if unknown:
+        p.error(f"--features: unknown {unknown}, expected from {', '.join(FEATURES)}")
+    setups = {(f if feat is None else f"{f}+{feat}"): (f, FEATURES.get(feat, {})) for f in args.families.split(",") for feat in features}
+    families = list(setups)
     print(f"variant {variant}, {args.res}x{args.res}, {args.spp} spp, {args.images} images/object, "
           f"{args.objects} objects/family, min of {args.rounds} round(s)")
     tmp = Path(tempfile.mkdtemp(prefix="bench_render_"))
@@ -94,15 +110,16 @@ def main() -> int:
     try:
         # One object first, not timed: the first render of a process compiles kernels and fills caches, which
         # would be charged to whichever family comes first.
-        warm = GenConfig(lights=[families[0]], objects=1, images=args.images, width=args.res, height=args.res,
+        warm = GenConfig(lights=[setups[families[0]][0]], objects=1, images=args.images, width=args.res, height=args.res,
                          spp=args.spp, seed=99).validate()
         make_object(warm, 0, tmp / "warmup", AssetLibrary.scan(None))
         for _ in range(args.rounds):  # interleaved, so slow periods of a shared machine hit every family
             for family in families:
-                rounds[family].append(measure(family, args, tmp))
+                rounds[family].append(measure(setups[family][0], args, tmp, setups[family][1]))
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    print(f"{'family':12s} {'s/object':>9s} {'cpu s/obj':>9s} {'x first':>8s} {'s/image':>8s} {'1st img':>8s} "
+    w = max(12, *map(len, families))
+    print(f"{'setup':{w}s} {'s/object':>9s} {'cpu s/obj':>9s} {'x first':>8s} {'s/image':>8s} {'1st img':>8s} "
           f"{'later':>7s} {'gt':>6s} {'build':>6s} {'write':>6s}")
     rows = {}
     for family in families:
@@ -110,7 +127,7 @@ def main() -> int:
         r = {c: sum(map(min, zip(*(m[c] for m in rounds[family])))) / args.objects for c in COLUMNS}
         r["vs_first"] = r["cpu_s_per_object"] / (rows[families[0]] if rows else r)["cpu_s_per_object"]
         rows[family] = r
-        print(f"{family:12s} {r['s_per_object']:9.2f} {r['cpu_s_per_object']:9.2f} {r['vs_first']:8.2f} "
+        print(f"{family:{w}s} {r['s_per_object']:9.2f} {r['cpu_s_per_object']:9.2f} {r['vs_first']:8.2f} "
               f"{r['s_per_image']:8.3f} {r['first_image_s']:8.3f} {r['later_image_s']:7.3f} {r['gt_s']:6.3f} "
               f"{r['build_s']:6.3f} {r['write_s']:6.3f}")
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024

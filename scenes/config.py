@@ -227,6 +227,20 @@ def check_fields(cfg: Any) -> Any:
     return cfg
 
 
+def parse_range(text: Any, name: str, minimum: float, maximum: float, what: str, integer: bool = False) -> tuple:
+    """'A-B' (or one value 'A') -> (A, B) with minimum <= A <= B <= maximum; ValueError naming the flag."""
+    parts = str(text).split("-")
+    try:
+        vals = [int(p) if integer else float(p) for p in parts]
+    except ValueError:
+        vals = []
+    if len(vals) == 1:
+        vals = vals * 2
+    if len(vals) != 2 or not all(math.isfinite(v) for v in vals) or not minimum <= vals[0] <= vals[1] <= maximum:
+        raise ValueError(f"{name}: {text!r} is not a range A-B with {minimum:g} <= A <= B <= {maximum:g} ({what})")
+    return tuple(vals)
+
+
 # ---------------------------------------------------------------- parser
 
 

@@ -21,6 +21,13 @@ TEXTURE_KINDS = ("constant", "noise", "cells", "stripes", "file")
 MATERIAL_KINDS = ("principled", "lambertian")
 ENVIRONMENT_SOURCES = ("file", "indoor", "sky")
 CAMERA_KINDS = ("orthographic", "perspective")
+FRAME_WIDTH_MM = 36.0
+"""Width of the 35 mm film frame that 35 mm-equivalent focal lengths refer to (horizontal field of view)."""
+
+
+def fov_from_focal(focal_mm: float) -> float:
+    """Full horizontal field of view (degrees) of a 35 mm-equivalent focal length (mm)."""
+    return math.degrees(2.0 * math.atan(FRAME_WIDTH_MM / (2.0 * float(focal_mm))))
 SAMPLERS = ("multijitter", "independent", "stratified")
 
 IDENTITY4 = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
@@ -274,6 +281,9 @@ class CameraDesc:
     """Image width in pixels."""
     height: int = 64
     """Image height in pixels."""
+    focal_mm: float | None = None
+    """perspective: the 35 mm-equivalent focal length (mm) the field of view came from, when the generator drew
+    one (`fov = 2 atan(FRAME_WIDTH_MM / (2 focal_mm))`, a 36 mm-wide frame); None otherwise."""
 
     def validate(self) -> None:
         _choice("camera", "kind", self.kind, CAMERA_KINDS)
@@ -284,6 +294,13 @@ class CameraDesc:
         _positive("camera", "fov", self.fov)
         if self.fov >= 180:
             raise ValueError(f"camera.fov: expected less than 180 degrees, got {self.fov!r}")
+        if self.focal_mm is not None:
+            _positive("camera", "focal_mm", self.focal_mm)
+            if self.kind != "perspective":
+                raise ValueError(f"camera.focal_mm: a focal length needs a perspective camera, got kind {self.kind!r}")
+            if abs(fov_from_focal(self.focal_mm) - self.fov) > 1e-6:
+                raise ValueError(f"camera.fov: {self.fov!r} does not match focal_mm {self.focal_mm!r} "
+                                 f"(expected {fov_from_focal(self.focal_mm)!r})")
         for name in ("width", "height"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v <= 0:

@@ -27,6 +27,21 @@ def camera_rotation(origin, target, up) -> np.ndarray:
     return np.stack([-left, upv, -fwd])
 
 
+def view_directions(camera) -> np.ndarray:
+    """(H, W, 3) float32 unit direction from the surface seen at each pixel centre toward the camera, in the camera
+    frame (x right, y up, z toward the camera; row 0 at the top). Orthographic: (0, 0, 1) everywhere.
+    Perspective (pinhole, `camera.fov` across the width): the reverse of the ray through the pixel centre."""
+    h, w = camera.height, camera.width
+    if camera.kind == "orthographic":
+        return np.broadcast_to(np.float32([0, 0, 1]), (h, w, 3)).copy()
+    t = np.tan(np.radians(camera.fov) / 2.0)
+    x = (2.0 * (np.arange(w) + 0.5) / w - 1.0) * t
+    y = (1.0 - 2.0 * (np.arange(h) + 0.5) / h) * t * h / w
+    d = np.stack(np.broadcast_arrays(x[None, :], y[:, None], np.ones((h, w))), -1)  # toward the camera: -ray
+    d[..., :2] *= -1.0
+    return (d / np.linalg.norm(d, axis=-1, keepdims=True)).astype(np.float32)
+
+
 def mesh_data_for(desc: SceneDescription, base_dir: Path | None) -> MeshData | None:
     """Geometry of a mesh or procedural shape in object space (None for the analytic sphere)."""
     from scenes.meshes import load_mesh

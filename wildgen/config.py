@@ -43,6 +43,10 @@ class GenConfig:
     """Indirect bounces as in the paper; Mitsuba max_depth = bounces + 2."""
     camera: str = option("orthographic", choices=("orthographic", "perspective"))
     """'orthographic' (the model's assumption) or 'perspective'."""
+    focal: str | None = option(None, metavar="A-B", default_text="a fixed 30 deg field of view")
+    """With --camera perspective: 35 mm-equivalent focal lengths (mm) drawn per object, log-uniform in [A, B]
+    (e.g. 15-300: wide angle to telephoto); the camera distance follows so that the object fills the frame.
+    Recorded as camera.focal_mm and camera.fov in scene.json; aux/view.exr holds the per-pixel view directions."""
     seed: int = option(0, minimum=0)
     """Root seed: object i draws from (seed, i) only, whatever the order or worker."""
     materials: str = option("any", choices=MATERIAL_CLASSES + ("any",))
@@ -85,10 +89,20 @@ class GenConfig:
         if not self.lights or unknown:
             raise ValueError(f"--lights: unknown family {unknown or self.lights!r}, expected from {', '.join(LIGHT_FAMILIES)}")
         check_fields(self)
+        if self.focal is not None:
+            self.focal_range()
+            if self.camera != "perspective":
+                raise ValueError(f"--focal: {self.focal!r} needs --camera perspective (got --camera {self.camera})")
         if self.variant is not None and self.variant not in VARIANTS:
             raise ValueError(f"--variant: {self.variant!r} is not supported, expected auto or one of {', '.join(VARIANTS)} "
                              "(the scenes use RGB colours)")
         return self
+
+    def focal_range(self) -> tuple[float, float]:
+        """(A, B) of `focal`, checked: 1 <= A <= B <= 5000 mm."""
+        from scenes.config import parse_range
+
+        return parse_range(self.focal, "--focal", 1.0, 5000.0, "focal lengths in mm, e.g. 15-300")
 
     def memory_per_object(self) -> int:
         """Bytes one worker needs to render one object of this configuration (a conservative estimate:

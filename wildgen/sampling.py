@@ -27,6 +27,7 @@ from scenes.description import (
     SceneDescription,
     ShapeDesc,
     TextureDesc,
+    fov_from_focal,
     multijitter_spp,
 )
 from scenes.lights import LIGHT_TYPES
@@ -71,11 +72,18 @@ def visible_normal_entropy(mesh: MeshData, rotation: np.ndarray) -> float:
     return float(-(prob * np.log2(prob)).sum())
 
 
-def fit_to_frame(mesh: MeshData, rotation: np.ndarray, camera: str, margin: float) -> tuple[np.ndarray, float]:
+def perspective_distance(fov: float) -> float:
+    """Camera distance for a field of view (degrees): PERSPECTIVE_DISTANCE at PERSPECTIVE_FOV, and the same framing
+    (distance times tan(fov / 2) held) at any other, so the object keeps its size whatever the focal length."""
+    return PERSPECTIVE_DISTANCE * math.tan(math.radians(PERSPECTIVE_FOV / 2)) / math.tan(math.radians(fov / 2))
+
+
+def fit_to_frame(mesh: MeshData, rotation: np.ndarray, camera: str, margin: float,
+                 fov: float = PERSPECTIVE_FOV) -> tuple[np.ndarray, float]:
     """4x4 object-to-world transform that rotates, centres and scales the outline to the image edge.
 
     Returns (matrix, bounding radius in world units). The camera looks down -z at the origin; the
-    orthographic view is [-1, 1]^2.
+    orthographic view is [-1, 1]^2, the perspective camera sits at `perspective_distance(fov)`.
     """
     p = mesh.positions.astype(np.float64) @ rotation.T
     limit = 1.0 / (1.0 + margin)
@@ -84,14 +92,17 @@ def fit_to_frame(mesh: MeshData, rotation: np.ndarray, camera: str, margin: floa
     if camera == "orthographic":
         scale = limit / np.abs(p[:, :2]).max()
     else:
-        # Bisection on the scale: perspective projection x / (D - z) must stay inside tan(fov / 2) * limit.
-        t = math.tan(math.radians(PERSPECTIVE_FOV / 2)) * limit
+        # Bisection on the scale: perspective projection x / (D - z) must stay inside tan(fov / 2) * limit, and
+        # the nearest point in front of the camera (0.5 at the default distance, a quarter of it for wide angles).
+        dist = perspective_distance(fov)
+        clear = min(0.5, 0.25 * dist)
+        t = math.tan(math.radians(fov / 2)) * limit
         lo, hi = 1e-3, 2.0
         for _ in range(50):
             mid = 0.5 * (lo + hi)
             q = p * mid
-            inside = np.abs(q[:, :2]).max(1) / (PERSPECTIVE_DISTANCE - q[:, 2]) <= t
-            lo, hi = (mid, hi) if inside.all() and (q[:, 2] < PERSPECTIVE_DISTANCE - 0.5).all() else (lo, mid)
+            inside = np.abs(q[:, :2]).max(1) / (dist - q[:, 2]) <= t
+            lo, hi = (mid, hi) if inside.all() and (q[:, 2] < dist - clear).all() else (lo, mid)
         scale = lo
     m = np.eye(4)
     m[:3, :3] = scale * rotation
@@ -196,7 +207,12 @@ def sample_object(cfg: GenConfig, index: int, lib: AssetLibrary, name: str | Non
     else:
         raise SkippedObject(f"object {index}: no pose reached entropy {cfg.entropy_threshold} bits: {'; '.join(tried)}")
 
-    to_world, radius = fit_to_frame(mesh, rotation, cfg.camera, cfg.margin)
+    focal_mm = None
+    if cfg.focal is not None:  # drawn only when asked, so datasets without --focal keep their random streams
+        lo, hi = cfg.focal_range()
+        focal_mm = float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+    fov = fov_from_focal(focal_mm) if focal_mm is not None else PERSPECTIVE_FOV
+    to_world, radius = fit_to_frame(mesh, rotation, cfg.camera, cfg.margin, fov)
     shape.to_world = to_world.tolist()
     centre = to_world[:3, 3].copy()
     cls = cfg.materials if cfg.materials != "any" else str(rng.choice(MATERIAL_CLASSES))
@@ -206,7 +222,8 @@ def sample_object(cfg: GenConfig, index: int, lib: AssetLibrary, name: str | Non
     if cfg.camera == "orthographic":
         camera = CameraDesc(kind="orthographic", origin=[0.0, 0.0, ORTHO_DISTANCE], half_size=1.0, width=cfg.width, height=cfg.height)
     else:
-        camera = CameraDesc(kind="perspective", origin=[0.0, 0.0, PERSPECTIVE_DISTANCE], fov=PERSPECTIVE_FOV, width=cfg.width, height=cfg.height)
+        camera = CameraDesc(kind="perspective", origin=[0.0, 0.0, perspective_distance(fov)], fov=fov, width=cfg.width,
+                            height=cfg.height, focal_mm=focal_mm)
     lights = sample_lighting(rng, family, cfg.images, Placement(centre, radius, camera, env_scale))
     seeds = rng.integers(0, 2**31 - 1, cfg.images)
     uses_env = any(LIGHT_TYPES[l.type].environment_map for ls in lights for l in ls)

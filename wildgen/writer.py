@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from scenes.description import SceneDescription, TextureDesc
-from scenes.geometry import camera_rotation, write_mesh_ply
+from scenes.geometry import camera_rotation, view_directions, write_mesh_ply
 from scenes.lights import camera_frame
 from scenes.mitsuba_build import build_scene
 from scenes.objfolder import (AUX_DIR, FORMAT_VERSION, MASK_FILE, NORMAL_FILE, OBJECT_SUFFIX, image_name, radiance_name,
@@ -204,6 +204,7 @@ def write_object(sampled: SampledObject, out_dir: Path, percentile: float, level
         write_exr(tmp / AUX_DIR / "base_color.exr", gt.base_color)
         write_exr(tmp / AUX_DIR / "roughness.exr", gt.roughness)
         write_exr(tmp / AUX_DIR / "metallic.exr", gt.metallic)
+        write_exr(tmp / AUX_DIR / "view.exr", view_directions(desc.camera))
         extras = {"camera_lights": camera_lights(desc), "format_version": FORMAT_VERSION}
         if record is not None:
             extras[SENSOR_KEY] = record
