@@ -150,6 +150,32 @@ class TextureDesc:
 
 
 @dataclass
+class DetailDesc:
+    """Procedural surface detail (`scenes.detail`): a tangent-space normal map made from a periodic height field."""
+
+    kind: str = "bumps"
+    """Pattern, a key of `scenes.detail.DETAIL_KINDS`: bumps, scratches, fabric, stone."""
+    strength_deg: float = 15.0
+    """Tilt of the detail normals from the base normal, degrees (its 95th percentile over the map)."""
+    scale: float = 6.0
+    """Repetitions of the pattern across the UV square (larger: finer detail)."""
+    seed: int = 0
+    """Seed of the pattern."""
+    resolution: int = 512
+    """Side of the normal-map texture in texels."""
+
+    def validate(self) -> None:
+        from scenes.detail import DETAIL_KINDS
+
+        _choice("material.detail", "kind", self.kind, tuple(DETAIL_KINDS))
+        if not (isinstance(self.strength_deg, (int, float)) and 0 <= self.strength_deg < 90):
+            raise ValueError(f"material.detail.strength_deg: expected degrees in [0, 90), got {self.strength_deg!r}")
+        _positive("material.detail", "scale", self.scale)
+        if isinstance(self.resolution, bool) or not isinstance(self.resolution, int) or self.resolution < 4:
+            raise ValueError(f"material.detail.resolution: expected an integer >= 4, got {self.resolution!r}")
+
+
+@dataclass
 class MaterialDesc:
     """Principled BSDF with spatially varying maps, or a plain Lambertian (tests)."""
 
@@ -166,10 +192,15 @@ class MaterialDesc:
     specular: float = 0.5
     """Principled specular (dielectric reflectance control)."""
     normal_map: str | None = None
-    """Optional tangent-space normal map file (OpenGL convention, (n+1)/2)."""
+    """Optional tangent-space normal map file (OpenGL convention, (n+1)/2); when given it is what is rendered."""
+    detail: DetailDesc | None = None
+    """Procedural surface detail: rendered as a normal map when `normal_map` is not given (the generator writes
+    it to aux/ and sets `normal_map`, keeping this as the record of how it was made)."""
 
     def validate(self) -> None:
         _choice("material", "kind", self.kind, MATERIAL_KINDS)
+        if self.detail is not None:
+            self.detail.validate()
         self.base_color.validate("material.base_color")
         self.roughness.validate("material.roughness")
         self.metallic.validate("material.metallic")
@@ -421,6 +452,7 @@ class SceneDescription:
 _NESTED = {
     "shape": ShapeDesc,
     "material": MaterialDesc,
+    "detail": DetailDesc,
     "camera": CameraDesc,
     "render": RenderDesc,
     "environment": EnvironmentDesc,

@@ -61,8 +61,13 @@ def bsdf_dict(desc: SceneDescription, base_dir: Path | None) -> tuple[dict, dict
         rough, arrays["roughness"] = _texture_dict(mat.roughness, base_dir)
         metal, arrays["metallic"] = _texture_dict(mat.metallic, base_dir)
         d = {"type": "principled", "base_color": base, "roughness": rough, "metallic": metal, "specular": float(mat.specular)}
-    if mat.normal_map:
-        nm_arr = realize_texture(TextureDesc(kind="file", value=[0.5, 0.5, 1.0], file=mat.normal_map), base_dir)
+    if mat.normal_map or mat.detail is not None:
+        if mat.normal_map:
+            nm_arr = realize_texture(TextureDesc(kind="file", value=[0.5, 0.5, 1.0], file=mat.normal_map), base_dir)
+        else:
+            from scenes.detail import realize_detail
+
+            nm_arr = realize_detail(mat.detail)
         arrays["normal_map"] = nm_arr
         # Textbook shading max(0, n'.l): no microfacet shadowing term on the perturbed normal.
         d = {

@@ -37,6 +37,9 @@ OBJECT_SUFFIX = ".data"
 SCENE_FILE = "scene.json"
 MASK_FILE = "mask.png"
 NORMAL_FILE = "normal.tif"
+NORMAL_BASE_FILE = "normal_base.tif"
+"""Normals of the geometry without its normal-mapped detail (objects with a normal map only); normal.tif holds
+the shading normals the camera sees, detail included: what methods are scored on."""
 AUX_DIR = "aux"
 FORMAT_VERSION = 1
 """Written into scene.json as `format_version`."""

@@ -53,6 +53,15 @@ class GenConfig:
     """Material class: diffuse, specular, metallic or any (uniform over the three)."""
     assets: str | None = None
     """Optional folder with hdri/, meshes/, textures/; without it everything is procedural."""
+    detail: float | None = option(None, minimum=0, maximum=1, default_text="texture sets' own normal maps only")
+    """Fraction P of objects given normal-mapped surface detail (`scenes.detail`: bumps, scratches, fabric,
+    stone; or the texture set's own normal map when it has one); the others get none. Drawn from a stream of
+    its own, so an object is the same with or without detail. Every object with a normal map also gets
+    normal_base.tif, the normals of its geometry without the detail."""
+    detail_strength: str = option("5-25", metavar="A-B")
+    """Tilt of the procedural detail normals (their 95th percentile), degrees, drawn uniformly in [A, B] per
+    detailed object. Above about 25 deg Mitsuba's normal map shades more pixels near the silhouette black
+    (docs/generator.md, "Surface detail")."""
     shapes: str = option("any", choices=("procedural", "mesh", "any"))
     """'procedural', 'mesh' (needs assets) or 'any' (meshes half of the time when assets have them)."""
     entropy_threshold: float = option(4.0, minimum=0, maximum=MAX_ENTROPY)
@@ -89,6 +98,7 @@ class GenConfig:
         if not self.lights or unknown:
             raise ValueError(f"--lights: unknown family {unknown or self.lights!r}, expected from {', '.join(LIGHT_FAMILIES)}")
         check_fields(self)
+        self.detail_strength_range()
         if self.focal is not None:
             self.focal_range()
             if self.camera != "perspective":
@@ -103,6 +113,12 @@ class GenConfig:
         from scenes.config import parse_range
 
         return parse_range(self.focal, "--focal", 1.0, 5000.0, "focal lengths in mm, e.g. 15-300")
+
+    def detail_strength_range(self) -> tuple[float, float]:
+        """(A, B) of `detail_strength`, checked: 0 <= A <= B <= 60 degrees."""
+        from scenes.config import parse_range
+
+        return parse_range(self.detail_strength, "--detail-strength", 0.0, 60.0, "tilts in degrees, e.g. 5-25")
 
     def memory_per_object(self) -> int:
         """Bytes one worker needs to render one object of this configuration (a conservative estimate:

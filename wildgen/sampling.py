@@ -11,6 +11,7 @@ plane seen face-on scores 0, a sphere about 7.5.
 """
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from dataclasses import dataclass
@@ -153,6 +154,27 @@ def sample_material(rng: np.random.Generator, cls: str, lib: AssetLibrary, tex_r
     return MaterialDesc(kind="principled", material_class=cls, base_color=base, roughness=roughness, metallic=metallic, specular=float(spec), normal_map=normal_map)
 
 
+DETAIL_SCALE = (3.0, 12.0)
+"""Range of the pattern's repetitions across the UV square."""
+
+
+def with_detail(material: MaterialDesc, cfg: GenConfig, index: int) -> MaterialDesc:
+    """The material with (a fraction `cfg.detail` of objects) or without surface detail, drawn from the stream
+    (seed, index, 1) so that the object's other draws do not change."""
+    from scenes.description import DetailDesc
+    from scenes.detail import DETAIL_KINDS
+
+    rng = np.random.default_rng([cfg.seed, index, 1])
+    if rng.random() >= cfg.detail:
+        return dataclasses.replace(material, normal_map=None, detail=None)
+    if material.normal_map is not None:  # the texture set's own normal map is the detail
+        return material
+    detail = DetailDesc(kind=str(rng.choice(list(DETAIL_KINDS))), strength_deg=float(rng.uniform(*cfg.detail_strength_range())),
+                        scale=float(rng.uniform(*DETAIL_SCALE)), seed=int(rng.integers(2**31)),
+                        resolution=max(64, 2 * cfg.texture_resolution))
+    return dataclasses.replace(material, detail=detail)
+
+
 def _environment_desc(rng: np.random.Generator, lib: AssetLibrary, width: int) -> EnvironmentDesc:
     if lib.hdris:
         return EnvironmentDesc(source="file", file=str(lib.hdris[int(rng.integers(len(lib.hdris)))]))
@@ -217,6 +239,8 @@ def sample_object(cfg: GenConfig, index: int, lib: AssetLibrary, name: str | Non
     centre = to_world[:3, 3].copy()
     cls = cfg.materials if cfg.materials != "any" else str(rng.choice(MATERIAL_CLASSES))
     material = sample_material(rng, cls, lib, cfg.texture_resolution)
+    if cfg.detail is not None:
+        material = with_detail(material, cfg, index)
     env = _environment_desc(rng, lib, cfg.env_width)
     env_scale = _environment_scale(env)
     if cfg.camera == "orthographic":

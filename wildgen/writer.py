@@ -7,6 +7,7 @@ byte-identical folders whatever the Dr.Jit thread count (scenes.render.render_fi
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import os
@@ -21,8 +22,8 @@ from scenes.description import SceneDescription, TextureDesc
 from scenes.geometry import camera_rotation, view_directions, write_mesh_ply
 from scenes.lights import camera_frame
 from scenes.mitsuba_build import build_scene
-from scenes.objfolder import (AUX_DIR, FORMAT_VERSION, MASK_FILE, NORMAL_FILE, OBJECT_SUFFIX, image_name, radiance_name,
-                              sha256_file, write_exr, write_mask, write_normal_map, write_png16, write_scene)
+from scenes.objfolder import (AUX_DIR, FORMAT_VERSION, MASK_FILE, NORMAL_BASE_FILE, NORMAL_FILE, OBJECT_SUFFIX,
+                              image_name, radiance_name, sha256_file, write_exr, write_mask, write_normal_map, write_png16, write_scene)
 from scenes.render import render_ground_truth, render_images
 from scenes.sensor import SCENE_KEY as SENSOR_KEY
 from scenes.sensor import SENSORS, Sensor, rederive_image, scale_camera_lights, sensor_record, write_image
@@ -74,7 +75,13 @@ def _localise(desc: SceneDescription, sampled: SampledObject, folder: Path) -> S
     d.material.base_color = local_texture(d.material.base_color, "texture_base_color")
     d.material.roughness = local_texture(d.material.roughness, "texture_roughness")
     d.material.metallic = local_texture(d.material.metallic, "texture_metallic")
-    if d.material.normal_map:
+    if d.material.detail is not None and not d.material.normal_map:
+        from scenes.detail import realize_detail
+
+        # the file keeps row 0 at the top (v = 1), as every normal-map file
+        write_normal_map(aux / "texture_normal.png", realize_detail(d.material.detail)[::-1] * 2.0 - 1.0)
+        d.material.normal_map = f"{AUX_DIR}/texture_normal.png"
+    elif d.material.normal_map:
         src = Path(d.material.normal_map)
         dst = aux / f"texture_normal{src.suffix.lower()}"
         shutil.copyfile(src, dst)
@@ -141,6 +148,12 @@ def ground_truth_problem(normal: np.ndarray, mask: np.ndarray, camera, max_backf
     return None
 
 
+def base_normals(desc: SceneDescription, base_dir: Path) -> np.ndarray:
+    """Camera-frame normals of the object's geometry without its normal map (the detail-free ground truth)."""
+    plain = dataclasses.replace(desc, material=dataclasses.replace(desc.material, normal_map=None, detail=None))
+    return render_ground_truth(build_scene(plain, base_dir=base_dir)).normal
+
+
 def publish_folder(tmp: Path, final: Path) -> dict[str, str]:
     """Checksum a fully written temporary object folder and rename it to its final name (replacing an earlier
     one of this dataset): readers never see half a folder. Returns {relative path: sha256}."""
@@ -198,6 +211,10 @@ def write_object(sampled: SampledObject, out_dir: Path, percentile: float, level
         write_mask(tmp / MASK_FILE, gt.mask)
         normal = np.where(gt.mask[..., None], gt.normal, 0.0)
         write_normal_map(tmp / NORMAL_FILE, normal)
+        if desc.material.normal_map:
+            t1 = time.perf_counter()
+            write_normal_map(tmp / NORMAL_BASE_FILE, np.where(gt.mask[..., None], base_normals(desc, tmp), 0.0))
+            timings["ground_truth_base_s"] = time.perf_counter() - t1
         write_exr(tmp / AUX_DIR / "normal.exr", gt.normal)
         write_exr(tmp / AUX_DIR / "depth.exr", gt.depth)
         write_exr(tmp / AUX_DIR / "coverage.exr", gt.coverage)
