@@ -5,7 +5,7 @@
   python bench/bench_render.py --res 64 --spp 16 --images 8 --objects 4 --rounds 3 \
       --families near_area,verse,flash,frontal,grid96,light_stage,display   # new families vs the default
   python bench/bench_render.py --res 64 --spp 16 --images 8 --objects 4 --rounds 3 --families near_area \
-      --features default,perspective,focal,detail   # generator features (FEATURES) vs today's default
+      --features default,perspective,focal,detail,cluster   # generator features (FEATURES) vs today's default
 
 Per family: seconds per object (wall clock, and CPU seconds of all threads: `cpu s/obj`, less sensitive to
 other work on a shared machine) and per image, the CPU cost per object relative to the first family listed
@@ -31,6 +31,7 @@ FEATURES = {
     "perspective": {"camera": "perspective"},
     "focal": {"camera": "perspective", "focal": "15-300"},
     "detail": {"detail": 1.0},
+    "cluster": {"cluster": "2-4"},
 }
 """Generator features measured against the default (`--features`): GenConfig overrides."""
 

@@ -400,8 +400,21 @@ class ImageDesc:
 
 
 @dataclass
+class PartDesc:
+    """One object of a cluster: its triangles in the scene's mesh, and what it was made from."""
+
+    source: str = ""
+    """The procedural kind or mesh file the part came from (informational)."""
+    first_face: int = 0
+    """Index of its first triangle in the scene's mesh."""
+    faces: int = 0
+    """Number of its triangles (they follow `first_face` contiguously)."""
+
+
+@dataclass
 class SceneDescription:
-    """One object, its material, the camera, and the lighting of each of its K images."""
+    """One object (or a cluster of objects sharing one mesh and one material), its material, the camera, and
+    the lighting of each of its K images."""
 
     shape: ShapeDesc = field(default_factory=ShapeDesc)
     material: MaterialDesc = field(default_factory=MaterialDesc)
@@ -415,10 +428,21 @@ class SceneDescription:
     objects, free text otherwise."""
     name: str = "object"
     """Object name (folder name without '.data')."""
+    parts: list[PartDesc] = field(default_factory=list)
+    """The objects of a cluster (`wildgen.make --cluster`), in the order of their triangles in the shape's mesh;
+    empty for a single object. Part i has instance id i + 1 in aux/instances.png (0: background)."""
 
     def validate(self) -> "SceneDescription":
         """Check every field; raise ValueError naming the first bad one. Returns self."""
         self.shape.validate()
+        end = 0
+        for i, part in enumerate(self.parts):
+            if part.first_face != end or not isinstance(part.faces, int) or part.faces <= 0:
+                raise ValueError(f"parts[{i}]: expected triangles {end}.. following the previous part, got first_face "
+                                 f"{part.first_face!r} and {part.faces!r} faces")
+            end += part.faces
+        if self.parts and self.shape.kind != "mesh":
+            raise ValueError(f"parts: a cluster needs a mesh shape, got kind {self.shape.kind!r}")
         self.material.validate()
         self.camera.validate()
         self.render.validate()
@@ -474,6 +498,8 @@ def _from_dict(cls: type, d: Any, owner: str) -> Any:
     for key, value in d.items():
         if key == "images" and cls is SceneDescription:
             kwargs[key] = [_from_dict(ImageDesc, v, f"images[{i}]") for i, v in enumerate(value)]
+        elif key == "parts" and cls is SceneDescription:
+            kwargs[key] = [_from_dict(PartDesc, v, f"parts[{i}]") for i, v in enumerate(value)]
         elif key == "lights" and cls is ImageDesc:
             kwargs[key] = [_from_dict(LightDesc, v, f"{owner}.lights[{i}]") for i, v in enumerate(value)]
         elif key in _NESTED and value is not None and not (cls is LightDesc):

@@ -41,6 +41,11 @@ NORMAL_BASE_FILE = "normal_base.tif"
 """Normals of the geometry without its normal-mapped detail (objects with a normal map only); normal.tif holds
 the shading normals the camera sees, detail included: what methods are scored on."""
 AUX_DIR = "aux"
+MESH_FILE = "mesh.ply"
+"""In aux/: the object's mesh (a cluster's objects merged), as the generator writes it for re-rendering."""
+INSTANCES_FILE = "instances.png"
+"""In aux/ of a cluster: the 16-bit id of the object seen at each pixel centre (part i of scene.json `parts` is
+i + 1; 0 is the background)."""
 FORMAT_VERSION = 1
 """Written into scene.json as `format_version`."""
 SCENE_EXTRAS = ("camera_lights", "format_version", "sensor")
@@ -218,6 +223,22 @@ def write_png16(path: str | Path, rgb: np.ndarray) -> None:
     """(H, W, 3) float in [0, 1] or uint16 -> 16-bit RGB PNG (no gamma: linear values)."""
     data = rgb if rgb.dtype == np.uint16 else to_uint16(rgb)
     _imwrite(Path(path), np.ascontiguousarray(data[:, :, ::-1]))
+
+
+def write_instances(path: str | Path, ids: np.ndarray) -> None:
+    """(H, W) integer ids -> one-channel 16-bit PNG (`INSTANCES_FILE`)."""
+    ids = np.asarray(ids)
+    if ids.min(initial=0) < 0 or ids.max(initial=0) > 65535:
+        raise ValueError(f"instance ids: expected values in [0, 65535], got [{ids.min()}, {ids.max()}]")
+    _imwrite(Path(path), np.ascontiguousarray(ids.astype(np.uint16)), mkdir=True)
+
+
+def read_instances(path: str | Path) -> np.ndarray:
+    """(H, W) uint16 instance ids of `write_instances`."""
+    img = _read_raw(Path(path), "instance-id")
+    if img.ndim != 2 or img.dtype != np.uint16:
+        raise ValueError(f"{path}: expected a one-channel 16-bit PNG of instance ids, got {img.dtype} {img.shape}")
+    return img
 
 
 def _read_raw(path: Path, what: str = "image"):

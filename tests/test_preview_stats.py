@@ -81,6 +81,7 @@ def test_card_numbers_match_the_scene_files(dataset, tmp_path, capsys):
     lights = [(s, l) for s in scenes.values() for im in s["images"] for l in im["lights"]]
     assert stats["images"] == len(images)
     assert stats["materials"] == dict(Counter(s["material"]["material_class"] for s in scenes.values()))
+    assert stats["objects_per_scene"] == dict(Counter(str(max(1, len(s["parts"]))) for s in scenes.values()))
     assert stats["detail"] == dict(Counter((s["material"].get("detail") or {}).get("kind")
                                            or ("normal-map file" if s["material"]["normal_map"] else "none")
                                            for s in scenes.values()))

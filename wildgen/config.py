@@ -53,6 +53,11 @@ class GenConfig:
     """Material class: diffuse, specular, metallic or any (uniform over the three)."""
     assets: str | None = None
     """Optional folder with hdri/, meshes/, textures/; without it everything is procedural."""
+    cluster: str | None = option(None, metavar="A-B", default_text="one object per scene")
+    """Objects per scene, drawn uniformly in [A, B] (at most 8): shapes placed touching or overlapping so that
+    cast shadows and inter-reflections between them appear; one material and one mesh for the whole cluster
+    (scene.json `parts`), aux/instances.png holds the 16-bit id of the object at each pixel (0: background).
+    The fill-the-frame and entropy rules apply to the cluster as a whole."""
     detail: float | None = option(None, minimum=0, maximum=1, default_text="texture sets' own normal maps only")
     """Fraction P of objects given normal-mapped surface detail (`scenes.detail`: bumps, scratches, fabric,
     stone; or the texture set's own normal map when it has one); the others get none. Drawn from a stream of
@@ -99,6 +104,8 @@ class GenConfig:
             raise ValueError(f"--lights: unknown family {unknown or self.lights!r}, expected from {', '.join(LIGHT_FAMILIES)}")
         check_fields(self)
         self.detail_strength_range()
+        if self.cluster is not None:
+            self.cluster_range()
         if self.focal is not None:
             self.focal_range()
             if self.camera != "perspective":
@@ -113,6 +120,12 @@ class GenConfig:
         from scenes.config import parse_range
 
         return parse_range(self.focal, "--focal", 1.0, 5000.0, "focal lengths in mm, e.g. 15-300")
+
+    def cluster_range(self) -> tuple[int, int]:
+        """(A, B) of `cluster`, checked: 1 <= A <= B <= 8 objects."""
+        from scenes.config import parse_range
+
+        return parse_range(self.cluster, "--cluster", 1, 8, "whole numbers of objects, e.g. 2-4", integer=True)
 
     def detail_strength_range(self) -> tuple[float, float]:
         """(A, B) of `detail_strength`, checked: 0 <= A <= B <= 60 degrees."""

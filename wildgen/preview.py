@@ -267,6 +267,7 @@ def object_stats(folder: Path) -> dict:
         "detail": (desc.material.detail.kind if desc.material.detail is not None
                    else "normal-map file" if desc.material.normal_map else "none"),
         "light_family": desc.light_family,
+        "parts": max(1, len(desc.parts)),  # objects in the scene (a cluster's parts)
         "level": getattr(desc, "level", extras.get("level")),  # a description field, or an extra key of the file
         "camera_kind": camera.kind,
         "fov": float(camera.fov) if camera.kind == "perspective" else None,
@@ -385,6 +386,7 @@ def dataset_stats(dataset: str | Path, folders: list[Path] | None = None) -> dic
             "images_per_object": _summary(len(o["exposures"]) for o in objects),
         },
         "sensors": _counts(o["sensor"] for o in objects),
+        "objects_per_scene": _counts(o["parts"] for o in objects),
     }
 
 
@@ -667,6 +669,7 @@ def _capture_panel(stats: dict) -> np.ndarray:
              ("resolution", listed(cam["resolutions"])),
              ("images per object", spread(cam["images_per_object"], "")),
              ("sensor", listed(stats["sensors"])),
+             ("objects per scene", listed(stats["objects_per_scene"])),
              ("level", levels if isinstance(levels, str) else listed(levels["counts"])),
              ("objects read", str(stats["objects"])),
              ("could not be read", f"{len(stats['failed'])}" + (" (see stats.json 'failed')" if stats["failed"] else ""))]

@@ -15,6 +15,7 @@ import dataclasses
 import logging
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -32,6 +33,7 @@ from scenes.description import (
     multijitter_spp,
 )
 from scenes.lights import LIGHT_TYPES
+from scenes.objfolder import AUX_DIR, MESH_FILE
 from scenes.procedural import MeshData
 from wildgen.assets import AssetLibrary
 from wildgen.config import MATERIAL_CLASSES, GenConfig
@@ -200,6 +202,52 @@ def _shape_candidates(rng: np.random.Generator, cfg: GenConfig, lib: AssetLibrar
     return ShapeDesc(kind=kind, seed=int(rng.integers(2**31)), resolution=MESH_RESOLUTION), kind
 
 
+CLUSTER_PART_SCALE = (0.5, 1.0)
+"""Size of each object of a cluster, relative to the unit sphere its shape is normalised into."""
+CLUSTER_GAP = (0.55, 0.9)
+"""Distance between the centres of a new object and the one it leans on, as a fraction of the sum of their
+radii: below 1, so that the objects touch or overlap (bounding spheres overlap; the surfaces touch, overlap
+or nearly touch)."""
+
+
+def _sample_cluster(rng: np.random.Generator, cfg: GenConfig, lib: AssetLibrary, count: int) -> tuple[MeshData, list, str]:
+    """`count` shapes, each normalised, scaled and rotated, placed each against a random earlier one (mostly beside
+    it in the image plane, some in front or behind), merged into one mesh centred on its bounding box.
+    Returns (mesh, parts (`PartDesc`), source)."""
+    from scenes.description import PartDesc
+    from scenes.geometry import mesh_data_for
+
+    pos, fac, nrm, uvs, parts, centres, radii = [], [], [], [], [], [], []
+    faces_so_far = 0
+    for i in range(count):
+        shape, source = _shape_candidates(rng, cfg, lib)
+        data = mesh_data_for(SceneDescription(shape=shape, images=[ImageDesc(lights=[LightDesc()])]), None)
+        scale = float(rng.uniform(*CLUSTER_PART_SCALE))
+        rot = random_rotation(rng)
+        p = data.positions.astype(np.float64) @ rot.T * scale
+        radius = float(np.linalg.norm(p, axis=1).max())
+        if i == 0:
+            centre = np.zeros(3)
+        else:
+            j = int(rng.integers(i))
+            phi = rng.uniform(0, 2 * np.pi)
+            d = np.array([np.cos(phi), np.sin(phi), rng.uniform(-0.5, 0.5)])
+            centre = centres[j] + d / np.linalg.norm(d) * (radius + radii[j]) * rng.uniform(*CLUSTER_GAP)
+        centres.append(centre)
+        radii.append(radius)
+        pos.append(p + centre)
+        nrm.append(data.normals.astype(np.float64) @ rot.T)
+        fac.append(data.faces.astype(np.int64) + sum(len(q) for q in pos[:-1]))
+        uvs.append(data.uvs)
+        parts.append(PartDesc(source=source, first_face=faces_so_far, faces=len(data.faces)))
+        faces_so_far += len(data.faces)
+    allp = np.concatenate(pos)
+    allp -= 0.5 * (allp.min(0) + allp.max(0))
+    mesh = MeshData(allp.astype(np.float32), np.concatenate(fac).astype(np.int32), np.concatenate(nrm).astype(np.float32),
+                    np.concatenate(uvs).astype(np.float32))
+    return mesh, parts, f"cluster of {count}: " + ", ".join(Path(p.source).name for p in parts)
+
+
 class SkippedObject(Exception):
     """No pose of any tried shape reached the entropy threshold."""
 
@@ -211,10 +259,17 @@ def sample_object(cfg: GenConfig, index: int, lib: AssetLibrary, name: str | Non
     rng = np.random.default_rng([cfg.seed, index])
     family = cfg.lights[index % len(cfg.lights)]
     tried = []
+    parts: list = []
     for _ in range(cfg.shape_tries):
-        shape, source = _shape_candidates(rng, cfg, lib)
-        probe = SceneDescription(shape=shape, images=[ImageDesc(lights=[LightDesc()])])
-        mesh = mesh_data_for(probe, None)
+        if cfg.cluster is not None:
+            lo, hi = cfg.cluster_range()
+            mesh, parts, source = _sample_cluster(rng, cfg, lib, int(rng.integers(lo, hi + 1)))
+            # one mesh for the cluster: the writer stores it in the object folder (aux/mesh.ply)
+            shape = ShapeDesc(kind="mesh", file=f"{AUX_DIR}/{MESH_FILE}", normalize=False)
+        else:
+            shape, source = _shape_candidates(rng, cfg, lib)
+            probe = SceneDescription(shape=shape, images=[ImageDesc(lights=[LightDesc()])])
+            mesh = mesh_data_for(probe, None)
         best = -1.0
         for _ in range(cfg.pose_tries):
             rotation = random_rotation(rng)
@@ -260,5 +315,6 @@ def sample_object(cfg: GenConfig, index: int, lib: AssetLibrary, name: str | Non
         environment=env if uses_env else None,
         light_family=family,
         name=name or f"{index:05d}",
+        parts=parts,
     )
     return SampledObject(desc=desc.validate(), mesh=mesh, shape_source=source)

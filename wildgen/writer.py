@@ -22,9 +22,10 @@ from scenes.description import SceneDescription, TextureDesc
 from scenes.geometry import camera_rotation, view_directions, write_mesh_ply
 from scenes.lights import camera_frame
 from scenes.mitsuba_build import build_scene
-from scenes.objfolder import (AUX_DIR, FORMAT_VERSION, MASK_FILE, NORMAL_BASE_FILE, NORMAL_FILE, OBJECT_SUFFIX,
-                              image_name, radiance_name, sha256_file, write_exr, write_mask, write_normal_map, write_png16, write_scene)
-from scenes.render import render_ground_truth, render_images
+from scenes.objfolder import (AUX_DIR, FORMAT_VERSION, INSTANCES_FILE, MASK_FILE, MESH_FILE, NORMAL_BASE_FILE,
+                              NORMAL_FILE, OBJECT_SUFFIX, image_name, radiance_name, sha256_file, write_exr, write_instances,
+                              write_mask, write_normal_map, write_png16, write_scene)
+from scenes.render import instance_ids, render_ground_truth, render_images
 from scenes.sensor import SCENE_KEY as SENSOR_KEY
 from scenes.sensor import SENSORS, Sensor, rederive_image, scale_camera_lights, sensor_record, write_image
 from wildgen.assets import AssetLibrary
@@ -55,8 +56,9 @@ def _localise(desc: SceneDescription, sampled: SampledObject, folder: Path) -> S
 
     aux = folder / AUX_DIR
     d = SceneDescription.from_dict(json.loads(json.dumps(desc.to_dict())))  # deep copy through plain data
-    write_mesh_ply(aux / "mesh.ply", sampled.mesh)
-    d.shape.kind, d.shape.file, d.shape.normalize, d.shape.params, d.shape.seed = "mesh", f"{AUX_DIR}/mesh.ply", False, {}, 0
+    write_mesh_ply(aux / MESH_FILE, sampled.mesh)
+    d.shape.kind, d.shape.file, d.shape.normalize = "mesh", f"{AUX_DIR}/{MESH_FILE}", False
+    d.shape.params, d.shape.seed = {}, 0
 
     def local_texture(tex: TextureDesc, name: str) -> TextureDesc:
         if tex.kind == "constant":
@@ -191,6 +193,7 @@ def write_object(sampled: SampledObject, out_dir: Path, percentile: float, level
         problem = ground_truth_problem(gt.normal, gt.mask, desc.camera, max_backfacing)
         if problem is not None:
             raise SkippedObject(f"object {name}: ground truth rejected: {problem}")
+        instances = instance_ids(built, gt.mask) if desc.parts else None
         t0 = time.perf_counter()
         radiance = render_images(built)
         timings["render_s"] = time.perf_counter() - t0
@@ -211,6 +214,8 @@ def write_object(sampled: SampledObject, out_dir: Path, percentile: float, level
         write_mask(tmp / MASK_FILE, gt.mask)
         normal = np.where(gt.mask[..., None], gt.normal, 0.0)
         write_normal_map(tmp / NORMAL_FILE, normal)
+        if desc.parts:
+            write_instances(tmp / AUX_DIR / INSTANCES_FILE, instances)
         if desc.material.normal_map:
             t1 = time.perf_counter()
             write_normal_map(tmp / NORMAL_BASE_FILE, np.where(gt.mask[..., None], base_normals(desc, tmp), 0.0))
