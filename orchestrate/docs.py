@@ -298,6 +298,16 @@ def capture_presets(card: dict) -> str:
     return _table(["preset", "imitates", "lights", "images", "camera", "sensor"], rows)
 
 
+def complexity_levels(card: dict) -> str:
+    """The table of complexity levels, from `wildgen.levels.LEVELS` (the card is not used)."""
+    from wildgen.levels import LEVELS
+
+    rows = [[str(lv.level), lv.about, ", ".join(f"`{f}`" for f in lv.lights), lv.materials,
+             f"{lv.shapes} ({', '.join(lv.shape_kinds)})", f"{lv.detail:.0%}", lv.cluster or "1"]
+            for lv in LEVELS.values()]
+    return _table(["level", "scenes", "lights", "materials", "shapes (procedural kinds)", "detail", "objects"], rows)
+
+
 # Generated blocks other than flag tables: name -> renderer of the model card.
 BLOCKS: dict[str, Callable[[dict], str]] = {
     "readme:headline": readme_headline,
@@ -311,6 +321,7 @@ BLOCKS: dict[str, Callable[[dict], str]] = {
     "results:lineage-families": lineage_families,
     "generator:sensors": sensor_presets,
     "generator:presets": capture_presets,
+    "generator:levels": complexity_levels,
 }
 
 

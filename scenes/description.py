@@ -428,6 +428,8 @@ class SceneDescription:
     objects, free text otherwise."""
     name: str = "object"
     """Object name (folder name without '.data')."""
+    level: int | None = None
+    """Complexity level the scene was drawn at (`wildgen.make --level`, `wildgen.levels.LEVELS`); None otherwise."""
     parts: list[PartDesc] = field(default_factory=list)
     """The objects of a cluster (`wildgen.make --cluster`), in the order of their triangles in the shape's mesh;
     empty for a single object. Part i has instance id i + 1 in aux/instances.png (0: background)."""

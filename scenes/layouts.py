@@ -118,6 +118,9 @@ class Lights:
     intensities: np.ndarray | None = None
     """(N, 3) float64 RGB intensity of each light as the images record it (ours: irradiance times exposure;
     DiLiGenT: `light_intensities.txt`, which calibrated methods divide the raw images by)."""
+    level: int | None = None
+    """Complexity level of a generated scene (scene.json `level`, `wildgen.make --level`), read from the same file
+    as the family; None if unknown."""
 
 
 def read_text_matrix(path: Path, rows: int, what: str) -> np.ndarray:
@@ -211,7 +214,10 @@ def _ours_lights(folder: Path, num_images: int) -> Lights:
     if family is not None and not isinstance(family, str):
         raise ValueError(f"scene file {path}: light_family must be a string, got {family!r}")
     directions, intensities = camera_lights(scene, num_images, path)
-    return Lights(family=family, directions=directions, intensities=intensities)
+    level = scene.get("level")
+    if level is not None and (isinstance(level, bool) or not isinstance(level, int)):
+        raise ValueError(f"scene file {path}: level must be a whole number, got {level!r}")
+    return Lights(family=family, directions=directions, intensities=intensities, level=level)
 
 
 def _diligent_lights(folder: Path, num_images: int) -> Lights:
@@ -460,7 +466,7 @@ def read_folder(path: str | Path, max_images: int | None = None, layout: str | N
     k = len(paths)
     lights = Lights(family=lights.family,
                     directions=None if lights.directions is None else lights.directions[:k],
-                    intensities=None if lights.intensities is None else lights.intensities[:k])
+                    intensities=None if lights.intensities is None else lights.intensities[:k], level=lights.level)
     sensor = _recorded_sensor(folder, layout, len(all_paths))
     if images:
         from scenes.sensor import saturation_value

@@ -42,6 +42,7 @@ class PSObject:
     layout: str  # one of LAYOUTS
     image_names: list[str] = field(default_factory=list)  # file names of the K images, in order
     meta: dict[str, Any] = field(default_factory=dict)  # layout-specific extras (e.g. raw intensities)
+    level: int | None = None  # complexity level of a generated scene (scene.json `level`); None if unknown
 
     @property
     def num_images(self) -> int:
@@ -69,7 +70,7 @@ def load_object(path: str | Path, max_images: int | None = None, layout: str | N
         meta["light_intensities_file"] = fd.lights.intensities
     obj = PSObject(name=fd.name, images=fd.images, mask=fd.mask, normals=fd.normals, light_family=fd.lights.family,
                    light_directions=_f32(fd.lights.directions), light_intensities=_f32(fd.lights.intensities),
-                   path=fd.path, layout=fd.layout, image_names=fd.image_names, meta=meta)
+                   path=fd.path, layout=fd.layout, image_names=fd.image_names, meta=meta, level=fd.lights.level)
     log.debug("loaded %s (%s): %d images %dx%d", fd.path, fd.layout, obj.num_images, fd.shape[1], fd.shape[0])
     return obj
 

@@ -41,8 +41,8 @@ import torch
 from scenes.config import config_parser
 from scenes.config import config_from_args as parse_config
 from unips.train_config import TRAJECTORY_KEYS, TrainConfig
-from unips.train_data import (Batch, Sample, count_dataset_images, describe_data, load_samples, make_batch, normal_loss,
-                               probe_samples, step_rng)
+from unips.train_data import (Batch, Sample, count_dataset_images, curriculum_pool, describe_data, load_samples,
+                              make_batch, normal_loss, probe_samples, step_rng)
 
 log = logging.getLogger(__name__)
 
@@ -280,6 +280,10 @@ def _setup(cfg: TrainConfig) -> _Run:
         samples = load_samples(cfg.data, cfg.res)
         data_desc = describe_data(samples, cfg.data, cfg.res)
     val_samples = load_samples(cfg.val, cfg.res) if cfg.val and dist.main else []
+    if cfg.curriculum:
+        curriculum_pool([s.level for s in samples], 0, cfg.steps, cfg.curriculum_fraction)  # every level recorded
+        log.info("curriculum over levels %s in the first %d of %d steps", sorted({s.level for s in samples}),
+                 int(cfg.curriculum_fraction * cfg.steps), cfg.steps)
     too_few = [s.name for s in samples if s.num_images < cfg.min_images]
     too_few += [o for o, k in zip(data_desc["objects"], data_desc["images"]) if cfg.shuffle_buffer and k < cfg.min_images]
     if too_few:
@@ -372,8 +376,10 @@ def _train_step(run: _Run, step: int, autocast: Any) -> tuple[dict[str, float], 
         local = [next(run.stream) for _ in range(cfg.batch // dist.world)]
         batch = make_batch(local, step, seed=cfg.seed + (dist.rank << 32), batch=len(local), **settings)
     else:
+        pool = (curriculum_pool([s.level for s in run.samples], step, cfg.steps, cfg.curriculum_fraction)
+                if cfg.curriculum else None)
         batch = make_batch(run.samples, step, seed=cfg.seed, batch=cfg.batch, rank=dist.rank, world=dist.world,
-                           **settings)
+                           pool=pool, **settings)
     batch = Batch(*(getattr(batch, f.name).to(run.device) for f in dataclasses.fields(Batch)))
     # Dropout / drop-path draw from torch's global RNG: reseed it from (seed, step, rank).
     torch.manual_seed(int(step_rng(cfg.seed, step, 1 + dist.rank).integers(2**62)))

@@ -89,6 +89,12 @@ class TrainConfig:
     """Shards only. 0: read every object into memory, as from folders (the same batches as the folders the shards came from); N > 0: stream the shards (data larger than memory), split across processes and loader workers, shuffled through a buffer of N objects per worker (unips.shards)."""
     loader_workers: int = option(2, minimum=0)
     """Worker processes decoding the streamed shards (with --shuffle-buffer; 0: in the training process)."""
+    curriculum: bool = False
+    """Train from simple to complex: the first --curriculum-fraction of the steps is split into one stage per
+    complexity level present in the data (scene.json `level`, `wildgen.make --level`); stage j draws only objects
+    of the j lowest levels, then every object is drawn. Every object needs a recorded level."""
+    curriculum_fraction: float = option(0.5, above=0, maximum=1)
+    """Fraction of the steps over which the curriculum adds the levels one by one (with --curriculum)."""
 
     def validate(self) -> "TrainConfig":
         """Raise ValueError naming the first bad field as its CLI flag."""
@@ -107,6 +113,9 @@ class TrainConfig:
             raise ValueError("--resume and --overwrite: expected at most one of them")
         if self.resume and self.init_from:
             raise ValueError("--resume and --init-from: expected at most one of them (a resumed run keeps its weights)")
+        if self.curriculum and self.shuffle_buffer:
+            raise ValueError("--curriculum: needs every object in memory to choose them by level, "
+                             f"got --shuffle-buffer {self.shuffle_buffer} (use --shuffle-buffer 0)")
         if self.shuffle_buffer:
             from unips.shards import is_shard_source
             from unips.train_data import data_roots
@@ -121,6 +130,7 @@ class TrainConfig:
 # Settings that change the trajectory: a resumed run must use the same values.
 TRAJECTORY_KEYS = ("model", "init_from", "batch", "lr", "weight_decay", "schedule", "warmup", "min_lr_ratio",
                    "decay_every", "decay", "clip_grad", "max_images", "min_images", "pixels", "canonical_points",
-                   "seed", "res", "no_augment", "precision", "interior_crop", "shuffle_buffer")
+                   "seed", "res", "no_augment", "precision", "interior_crop", "shuffle_buffer", "curriculum",
+                   "curriculum_fraction")
 
 

@@ -28,6 +28,7 @@ class Sample:
     mask: torch.Tensor  # (1, R, R) float32 in {0, 1}
     normals: torch.Tensor | None  # (3, R, R) float32 unit vectors inside the mask, 0 outside
     light_family: str | None  # lighting family from scene.json, if known
+    level: int | None = None  # complexity level from scene.json (`wildgen.make --level`), if known
 
     @property
     def num_images(self) -> int:
@@ -75,7 +76,7 @@ def prepare_sample(obj: Any, res: int, require_normals: bool = True, name: str |
         raise ValueError(f"object {obj.name!r} in {where!r} has no ground-truth normals (normal.tif)")
     prep = resize_prepared(prepare(obj, margin=4), res)
     imgs, m, n = to_tensors(prep.images, prep.mask, prep.normals)
-    return Sample(name or obj.name, imgs.to(torch.float16), m, n, obj.light_family)
+    return Sample(name or obj.name, imgs.to(torch.float16), m, n, obj.light_family, obj.level)
 
 
 def load_samples(root: str | Path, res: int, require_normals: bool = True) -> list[Sample]:
@@ -162,9 +163,24 @@ def random_pixels(mask: torch.Tensor, normals: torch.Tensor, count: int,
     return pixel_centre_coords(ys, xs, h, w), normals[:, ys, xs].T
 
 
+def curriculum_pool(levels: Sequence[int | None], step: int, steps: int, fraction: float) -> list[int]:
+    """The sample indices step `step` of `steps` may draw under the curriculum: the first `fraction` of the steps
+    is split evenly into one stage per distinct level; stage j allows the j lowest levels; after that, all.
+    A ValueError names --curriculum when an object has no recorded level."""
+    missing = [i for i, lv in enumerate(levels) if lv is None]
+    if missing:
+        raise ValueError(f"--curriculum: {len(missing)} of {len(levels)} objects have no recorded complexity level "
+                         "(scene.json level; render them with wildgen.make --level N)")
+    distinct = sorted(set(levels))
+    span = fraction * steps
+    stage = len(distinct) - 1 if step >= span else min(int(step * len(distinct) / span), len(distinct) - 1)
+    return [i for i, lv in enumerate(levels) if lv <= distinct[stage]]
+
+
 def make_batch(samples: Sequence[Sample], step: int, *, seed: int, batch: int, min_images: int,
                max_images: int, pixels: int, canonical: int, augment: bool = True,
-               canonical_max: int = 0, interior_crop: float = 0.0, rank: int = 0, world: int = 1) -> Batch:
+               canonical_max: int = 0, interior_crop: float = 0.0, rank: int = 0, world: int = 1,
+               pool: Sequence[int] | None = None) -> Batch:
     """The batch of `step`, a pure function of (samples, step, seed and the settings).
 
     `canonical_max` > 0 keeps a random subset of at most that many canonical-grid points per object.
@@ -172,10 +188,14 @@ def make_batch(samples: Sequence[Sample], step: int, *, seed: int, batch: int, m
     (`unips.augment.interior_crop`); at 0 no draw is made, so older runs keep their trajectories.
     With `world` > 1 processes, rank `rank` gets objects rank, rank + world, ... of the global batch
     (every random draw is made for the whole batch, so the union over ranks is the 1-process batch).
+    `pool` (`curriculum_pool`) restricts the objects drawn to those indices; None: all.
     """
     from unips.augment import apply_augmentation, interior_crop as cut_interior, sample_augmentation
 
-    idx = batch_indices(seed, step, batch, len(samples))
+    if pool is None:
+        idx = batch_indices(seed, step, batch, len(samples))
+    else:  # per-epoch permutations of the pool (its size names the stage, so each stage has its own order)
+        idx = [pool[j] for j in batch_indices(seed * 1_000_033 + len(pool), step, batch, len(pool))]
     rng = step_rng(seed, step, 0)
     k_max = min(max_images, min(samples[i].num_images for i in idx))
     k = int(rng.integers(min_images, k_max + 1))

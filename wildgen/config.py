@@ -10,6 +10,8 @@ from wildgen.lighting import LIGHT_FAMILIES
 from wildgen.presets import PRESETS
 
 MATERIAL_CLASSES = ("diffuse", "specular", "metallic")
+PROCEDURAL_KINDS = ("blob", "superquadric", "bumpy_sphere", "torus")
+"""Procedural shapes the generator draws (`scenes.procedural`)."""
 MAX_ENTROPY = 8.0
 """Largest entropy (bits) of the visible normals' 16 x 16 histogram: log2(256)."""
 
@@ -22,6 +24,10 @@ class GenConfig:
     """Capture preset (`wildgen.presets.PRESETS`): sets --lights, --images, --width, --height, --camera and
     --sensor to imitate a kind of rig (DiLiGenT's LED grid, a phone with flash, a light stage, a screen); flags
     given explicitly keep their values. Recorded in the manifest's configuration."""
+    level: int | None = option(None, minimum=1, maximum=5)
+    """Complexity level (`wildgen.levels.LEVELS`, 1 simple to 5 complex): sets --shapes, --shape-kinds,
+    --materials, --lights, --detail and --cluster (flags given explicitly keep their values); recorded in each
+    scene.json as `level` for `unips.train --curriculum`."""
     lights: list[str] = option(default_factory=lambda: ["near_area"], repeat=True, metavar="FAMILY",
                                 choices=tuple(LIGHT_FAMILIES))
     """Light families (keys of `wildgen.lighting.LIGHT_FAMILIES`), cycled across objects (object i gets
@@ -69,6 +75,10 @@ class GenConfig:
     (docs/generator.md, "Surface detail")."""
     shapes: str = option("any", choices=("procedural", "mesh", "any"))
     """'procedural', 'mesh' (needs assets) or 'any' (meshes half of the time when assets have them)."""
+    shape_kinds: list[str] = option(default_factory=lambda: list(PROCEDURAL_KINDS), choices=PROCEDURAL_KINDS,
+                                    metavar="KIND")
+    """Procedural shape kinds drawn from (comma-separated): blob, superquadric (always convex), bumpy_sphere,
+    torus."""
     entropy_threshold: float = option(4.0, minimum=0, maximum=MAX_ENTROPY)
     """Minimum Shannon entropy (bits) of the visible normals' histogram for a pose to be kept."""
     pose_tries: int = option(20, minimum=1)

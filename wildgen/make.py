@@ -17,6 +17,7 @@ from scenes.cli import check_memory as check_memory_bytes
 from scenes.config import check_fields, check_int, config_parser, given_flags, option
 from scenes.config import config_from_args as parse_config
 from wildgen.config import GenConfig
+from wildgen.levels import LEVELS, apply_level
 from wildgen.presets import apply_preset, preset_named
 
 @dataclass
@@ -71,6 +72,7 @@ def options_from_args(args: argparse.Namespace, given: set[str] = frozenset()) -
     are not in `given` (the flags on the command line), then --res on its width and height."""
     opts = parse_config(MakeOptions, args)
     apply_preset(opts.gen, given)
+    apply_level(opts.gen, given)
     if opts.res is not None:
         opts.gen.width = opts.gen.height = opts.res
     return opts
@@ -93,6 +95,8 @@ def _resume_config(opts: MakeOptions, explicit: set[str], manifest: dict) -> Gen
     names = explicit & set(CONFIG_FLAGS)
     if "preset" in explicit and opts.gen.preset is not None:  # --preset given again: its values as if typed
         names |= set(preset_named(opts.gen.preset).overrides())
+    if "level" in explicit and opts.gen.level is not None:  # --level given again: likewise
+        names |= set(LEVELS[opts.gen.level].overrides()) - explicit
     for name in names:
         targets = ("width", "height") if name == "res" else (name,)
         for t in targets:

@@ -41,7 +41,6 @@ from wildgen.lighting import IRRADIANCE, Placement, random_rotation, sample_ligh
 
 log = logging.getLogger(__name__)
 
-PROCEDURAL_KINDS = ("blob", "superquadric", "bumpy_sphere", "torus")
 ENTROPY_BINS = 16
 ORTHO_DISTANCE = 20.0  # orthographic camera distance: beyond every light we place
 PERSPECTIVE_DISTANCE = 4.0
@@ -198,7 +197,7 @@ def _shape_candidates(rng: np.random.Generator, cfg: GenConfig, lib: AssetLibrar
     if use_mesh:
         path = lib.meshes[int(rng.integers(len(lib.meshes)))]
         return ShapeDesc(kind="mesh", file=str(path)), str(path)
-    kind = str(rng.choice(PROCEDURAL_KINDS))
+    kind = str(rng.choice(cfg.shape_kinds))
     return ShapeDesc(kind=kind, seed=int(rng.integers(2**31)), resolution=MESH_RESOLUTION), kind
 
 
@@ -315,6 +314,7 @@ def sample_object(cfg: GenConfig, index: int, lib: AssetLibrary, name: str | Non
         environment=env if uses_env else None,
         light_family=family,
         name=name or f"{index:05d}",
+        level=cfg.level,
         parts=parts,
     )
     return SampledObject(desc=desc.validate(), mesh=mesh, shape_source=source)
