@@ -60,7 +60,8 @@ class GenConfig:
     assets: str | None = None
     """Optional folder with hdri/, meshes/, textures/; without it everything is procedural."""
     cluster: str | None = option(None, metavar="A-B", default_text="one object per scene")
-    """Objects per scene, drawn uniformly in [A, B] (at most 8): shapes placed touching or overlapping so that
+    """Objects per scene, drawn uniformly in [A, B] (at most 8): shapes slid together until they touch, then pressed a
+    little, so that
     cast shadows and inter-reflections between them appear; one material and one mesh for the whole cluster
     (scene.json `parts`), aux/instances.png holds the 16-bit id of the object at each pixel (0: background).
     The fill-the-frame and entropy rules apply to the cluster as a whole."""

@@ -203,15 +203,33 @@ def _shape_candidates(rng: np.random.Generator, cfg: GenConfig, lib: AssetLibrar
 
 CLUSTER_PART_SCALE = (0.5, 1.0)
 """Size of each object of a cluster, relative to the unit sphere its shape is normalised into."""
-CLUSTER_GAP = (0.55, 0.9)
-"""Distance between the centres of a new object and the one it leans on, as a fraction of the sum of their
-radii: below 1, so that the objects touch or overlap (bounding spheres overlap; the surfaces touch, overlap
-or nearly touch)."""
+CLUSTER_PRESS = (0.0, 0.1)
+"""How far a new object is pushed into the ones it touches, past first contact, as a fraction of its radius: 0
+touches, more overlaps (the surfaces intersect a little, as soft objects pressed together)."""
+CLUSTER_CONTACT = 0.01
+"""Vertices closer than this (scene units of the normalised shapes) count as touching."""
+
+
+def _contact_distance(placed: np.ndarray, part: np.ndarray, direction: np.ndarray, far: float) -> float:
+    """The distance t along `direction` at which `part` (vertices about its centre) placed at t * direction first
+    touches the `placed` vertices, coming from t = far (separated) inward: bisection on the nearest-vertex gap."""
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(placed)
+    apart = lambda t: tree.query(part + t * direction, k=1)[0].min() >= CLUSTER_CONTACT  # noqa: E731
+    lo, hi = 0.0, far
+    while not apart(hi):  # far enough to be apart from every placed object
+        lo, hi = hi, 2 * hi
+    for _ in range(30):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if apart(mid) else (mid, hi)
+    return hi
 
 
 def _sample_cluster(rng: np.random.Generator, cfg: GenConfig, lib: AssetLibrary, count: int) -> tuple[MeshData, list, str]:
-    """`count` shapes, each normalised, scaled and rotated, placed each against a random earlier one (mostly beside
-    it in the image plane, some in front or behind), merged into one mesh centred on its bounding box.
+    """`count` shapes, each normalised, scaled and rotated, placed each against a random earlier one (slid in from
+    beside it, mostly in the image plane, some in front or behind, until the surfaces touch, then pressed a
+    little into it), merged into one mesh centred on its bounding box.
     Returns (mesh, parts (`PartDesc`), source)."""
     from scenes.description import PartDesc
     from scenes.geometry import mesh_data_for
@@ -227,11 +245,13 @@ def _sample_cluster(rng: np.random.Generator, cfg: GenConfig, lib: AssetLibrary,
         radius = float(np.linalg.norm(p, axis=1).max())
         if i == 0:
             centre = np.zeros(3)
-        else:
+        else:  # slide in from beside an earlier object (mostly in the image plane) until it touches, then press
             j = int(rng.integers(i))
             phi = rng.uniform(0, 2 * np.pi)
             d = np.array([np.cos(phi), np.sin(phi), rng.uniform(-0.5, 0.5)])
-            centre = centres[j] + d / np.linalg.norm(d) * (radius + radii[j]) * rng.uniform(*CLUSTER_GAP)
+            d /= np.linalg.norm(d)
+            t = _contact_distance(np.concatenate(pos) - centres[j], p, d, radius + radii[j] + CLUSTER_CONTACT)
+            centre = centres[j] + d * max(t - rng.uniform(*CLUSTER_PRESS) * radius, 0.0)
         centres.append(centre)
         radii.append(radius)
         pos.append(p + centre)
