@@ -61,8 +61,7 @@ class GenConfig:
     """Optional folder with hdri/, meshes/, textures/; without it everything is procedural."""
     cluster: str | None = option(None, metavar="A-B", default_text="one object per scene")
     """Objects per scene, drawn uniformly in [A, B] (at most 8): shapes slid together until they touch, then pressed a
-    little, so that
-    cast shadows and inter-reflections between them appear; one material and one mesh for the whole cluster
+    little, so that cast shadows and inter-reflections between them appear; one material and one mesh for the whole cluster
     (scene.json `parts`), aux/instances.png holds the 16-bit id of the object at each pixel (0: background).
     The fill-the-frame and entropy rules apply to the cluster as a whole."""
     detail: float | None = option(None, minimum=0, maximum=1, default_text="texture sets' own normal maps only")
