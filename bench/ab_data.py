@@ -76,6 +76,11 @@ def main() -> int:
     p.add_argument("--steps", type=int, default=1000)
     p.add_argument("--arms", default="today,new,sensor")
     p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--lr", default="1.5e-4", help="peak learning rate of every arm (the model card's last stage: 1.5e-4)")
+    p.add_argument("--record", action="store_true",
+                   help="append every scored arm to the model card's lineage (not shipped) and its scores to the card's "
+                        "data_ab entry, from which the docs' A/B table is generated")
+    p.add_argument("--tag", default="", help="suffix of the run folders and result names (several settings in one WORK)")
     args = p.parse_args()
     from orchestrate.train_recipe import SPLIT_FOLDERS, check_split, split_assets
 
@@ -112,14 +117,14 @@ def main() -> int:
                                     f"train: new, level {level}"))
     runs = {}
     for arm in arms:
-        out = w / f"run_{arm}"
+        out = w / f"run_{arm}{args.tag}"
         if not (out / "best.safetensors").is_file():
             run(["unips.train", "--data", ",".join(map(str, data[arm])), "--val", str(val), "--model", "glc-tiny",
-                 "--init-from", str(SHIPPED), "--out", str(out), "--steps", str(args.steps), "--lr", "1.5e-4",
+                 "--init-from", str(SHIPPED), "--out", str(out), "--steps", str(args.steps), "--lr", args.lr,
                  "--warmup", "50", "--val-every", str(args.steps), "--ckpt-every", str(args.steps), "--seed", "0",
                  "--threads", str(args.threads), "--no-progress", *(["--curriculum"] if arm == "new" else [])],
                 f"fine-tune: {arm}")
-        runs[arm] = out / "best.safetensors"
+        runs[arm + args.tag] = out / "best.safetensors"
 
     import torch
 
@@ -151,7 +156,63 @@ def main() -> int:
               f"{r['new_kinds'][0]['mean_deg']:7.2f} {r['new_kinds'][1]['mean_deg']:7.2f} {d['ball']['k96_deg']:7.2f} "
               f"{d['ball']['k16_deg']:7.2f} {d['cat']['k96_deg']:6.2f} {d['cat']['k16_deg']:6.2f}")
     print(f"wrote {results_path}")
+    if args.record:
+        record(results, w, args)
     return 0
+
+
+ARM_DATA = {
+    "today": "today's default data: {n} objects, seed 20000, --lights directional,point,near_area,hdri,mixed",
+    "new": "the new kinds: {n} objects, one fifth per --level 1-5 (seeds 20011-20015; level 5 --camera perspective "
+           "--focal 15-300), --curriculum",
+    "sensor": "today's {n} scenes re-derived with the machine-vision sensor (wildgen.sensor)",
+}
+
+
+def record(results: dict, w: Path, args) -> None:
+    """Append each arm's run to the model card's lineage (not shipped: none of them is compared for shipping
+    here) and the A/B scores to `data_ab`."""
+    card_path = ROOT / "unips" / "weights" / "model_card.json"
+    card = json.loads(card_path.read_text())
+    shipped_stage = next((s["stage"] for s in reversed(card["lineage"]) if s.get("shipped") is not False
+                          and "not shipped" not in s["stage"]), "shipped")
+    stages = {s["stage"] for s in card["lineage"]}
+    for name, r in results.items():
+        if name == "shipped":
+            continue
+        arm = name.split("_")[0]
+        run_dir = w / f"run_{name}"
+        log = [json.loads(line) for line in (run_dir / "log.jsonl").read_text().splitlines()]
+        vals = [x for x in log if "val" in x]
+        steps = max(x["step"] for x in log if "step" in x)
+        train_t = {x["step"]: x["elapsed_s"] for x in log if "loss" in x and "elapsed_s" in x}
+        lr = name.split("_lr", 1)[1] if "_lr" in name else "1.5e-4"  # the tag this script gives a --lr run
+        n = sum(len(list(Path(d).glob("*.data"))) for d in {"today": [w / "train_today"], "sensor": [w / "train_sensor"],
+                "new": sorted(w.glob("train_new_l*"))}[arm])
+        stage = f"data A/B: {arm}, lr {lr} (not shipped)"
+        if stage in stages:
+            continue
+        curve = [{"step": x["step"], "hours": round(train_t.get(x["step"], max(train_t.values())) / 3600, 3),
+                  **{k: round(v, 2) for k, v in x["val"]["probes"].items()}, "gain": round(x["val"]["gain"], 2)}
+                 for x in vals]
+        card["lineage"].append({
+            "stage": stage, "init_from": f"{shipped_stage} (shipped)", "data": ARM_DATA[arm].format(n=n) +
+            ", 128 px, 10 images, 16 spp, train assets (bench/ab_data.py)",
+            "command": f"python bench/ab_data.py --work WORK --objects {args.objects} --steps {args.steps} --arms {arm}"
+                       + (f" --lr {lr} --tag _lr{lr}" if "_lr" in name else ""),
+            "steps": steps, "threads": args.threads, "shipped": False, "objects": n,
+            "hours": round(max(train_t.values()) / 3600, 2),
+            "best_step": vals[-1]["step"] if vals else None, "curve": curve,
+            "per_family_at_best": {f: {"all": round(v["mean"]["all"], 2), "gain": round(v["gain"], 2), "n": v["n"]}
+                                   for f, v in vals[-1]["val"]["families"].items()} if vals else {},
+        })
+    card["data_ab"] = {"protocol": __doc__.split("\n\n")[1].strip(), "steps": args.steps, "objects": args.objects,
+                       "results": {k: {a: v[a] for a in ("fixed_validation", "new_kinds", "diligent")}
+                                   for k, v in results.items()}}
+    from scenes.objfolder import atomic_write_text
+
+    atomic_write_text(card_path, json.dumps(card, indent=1))
+    print(f"recorded {len(results) - 1} runs in {card_path}")
 
 
 if __name__ == "__main__":

@@ -308,6 +308,23 @@ def complexity_levels(card: dict) -> str:
     return _table(["level", "scenes", "lights", "materials", "shapes (procedural kinds)", "detail", "objects"], rows)
 
 
+def data_ab(card: dict) -> str:
+    """The fixed-budget A/B of the training data (`bench/ab_data.py --record`, card entry `data_ab`)."""
+    ab = card.get("data_ab")
+    if not ab:
+        return "No A/B of the training data is recorded in the model card."
+    rows = []
+    for name, r in ab["results"].items():
+        fv, (l4, l5), d = r["fixed_validation"], r["new_kinds"], r["diligent"]
+        arm, _, lr = name.partition("_lr")
+        label = "shipped weights" if name == "shipped" else f"`{arm}`, lr {lr or '1.5e-4'}"
+        rows.append([label, fmt(fv["mean_deg"], 2), fmt(fv["gain_deg"], 2), fmt(l4["mean_deg"], 2), fmt(l5["mean_deg"], 2),
+                     fmt(d["ball"]["k96_deg"], 2), fmt(d["ball"]["k16_deg"], 2), fmt(d["cat"]["k96_deg"], 2),
+                     fmt(d["cat"]["k16_deg"], 2)])
+    return _table(["model", "fixed validation", "photometric gain", "held-out level 4", "held-out level 5 (perspective)",
+                   "ball K=96", "ball K=16", "cat K=96", "cat K=16"], rows)
+
+
 # Generated blocks other than flag tables: name -> renderer of the model card.
 BLOCKS: dict[str, Callable[[dict], str]] = {
     "readme:headline": readme_headline,
@@ -322,6 +339,7 @@ BLOCKS: dict[str, Callable[[dict], str]] = {
     "generator:sensors": sensor_presets,
     "generator:presets": capture_presets,
     "generator:levels": complexity_levels,
+    "model:data-ab": data_ab,
 }
 
 
