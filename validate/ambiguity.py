@@ -82,7 +82,7 @@ def bas_relief_test(images: np.ndarray, mask: np.ndarray, normals: np.ndarray, f
                 f"from the map) score within the tie tolerance of it: the images cannot decide the map's depth scale "
                 "or global tilt, the score judges the map up to that family")
     else:
-        note = (f"every bas-relief transform tested scores worse by more than the tie tolerance: the images (specular "
+        note = ("every bas-relief transform tested scores worse by more than the tie tolerance: the images (specular "
                 "lobe, ambient, shadows) decide the depth scale and tilt here")
     return {"family": "generalized bas-relief", "tested": True, "variants": rows, "separated": not ties and not better,
             "tolerance": {"relative": SEPARATION, "absolute": TIE_FLOOR}, "note": note}
