@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import logging
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Callable
 
@@ -464,9 +464,9 @@ def read_folder(path: str | Path, max_images: int | None = None, layout: str | N
     paths = all_paths[: int(max_images)] if max_images is not None else all_paths
     lights = entry.lights(folder, len(all_paths))
     k = len(paths)
-    lights = Lights(family=lights.family,
-                    directions=None if lights.directions is None else lights.directions[:k],
-                    intensities=None if lights.intensities is None else lights.intensities[:k], level=lights.level)
+    # Cut the per-image calibration to the K images read; every other field is kept as the layout gave it.
+    lights = replace(lights, directions=None if lights.directions is None else lights.directions[:k],
+                     intensities=None if lights.intensities is None else lights.intensities[:k])
     sensor = _recorded_sensor(folder, layout, len(all_paths))
     if images:
         from scenes.sensor import saturation_value
