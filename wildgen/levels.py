@@ -13,6 +13,7 @@ from typing import Any
 
 from wildgen.config import PROCEDURAL_KINDS
 from wildgen.lighting import LIGHT_FAMILIES
+from wildgen.presets import fill_unless_given
 
 
 @dataclass(frozen=True)
@@ -71,7 +72,4 @@ def apply_level(cfg: Any, given: set[str]) -> set[str]:
         return set()
     if cfg.level not in LEVELS:
         raise ValueError(f"--level: unknown level {cfg.level!r}, expected one of {', '.join(map(str, LEVELS))}")
-    values = {k: v for k, v in LEVELS[cfg.level].overrides().items() if k not in given}
-    for name, value in values.items():
-        setattr(cfg, name, list(value) if isinstance(value, list) else value)
-    return set(values)
+    return fill_unless_given(cfg, LEVELS[cfg.level].overrides(), given)

@@ -87,8 +87,15 @@ def apply_preset(cfg: Any, given: set[str]) -> set[str]:
     Nothing happens when `cfg.preset` is None."""
     if cfg.preset is None:
         return set()
+    return fill_unless_given(cfg, preset_named(cfg.preset).overrides(), given)
+
+
+def fill_unless_given(cfg: Any, values: dict[str, Any], given: set[str]) -> set[str]:
+    """Set `values` (GenConfig field -> value) on `cfg`, except the fields in `given` (the flags the user gave keep
+    their values; `res` stands for width and height); lists are copied. Returns the names of the fields set.
+    The one rule of `--preset` and `--level` (`wildgen.levels.apply_level`)."""
     given = set(given) | ({"width", "height"} if "res" in given else set())
-    values = {k: v for k, v in preset_named(cfg.preset).overrides().items() if k not in given}
-    for name, value in values.items():
+    chosen = {k: v for k, v in values.items() if k not in given}
+    for name, value in chosen.items():
         setattr(cfg, name, list(value) if isinstance(value, list) else value)
-    return set(values)
+    return set(chosen)
