@@ -20,6 +20,19 @@ def set_variant_or_skip(variant: str) -> str:
     return variant
 
 
+def render_dataset(out: Path, *flags: str) -> list[Path]:
+    """Render a small dataset with `wildgen.make` in this process (`flags` as on its command line) and return its
+    object folders, sorted; the test is skipped when no Mitsuba CPU variant is usable."""
+    from scenes.variant import _usable
+
+    if not _usable("llvm_ad_rgb") and not _usable("scalar_rgb"):
+        pytest.skip("no Mitsuba variant usable here")
+    from wildgen.make import main
+
+    assert main([*flags, "--workers", "0", "--quiet", "--out", str(out)]) == 0
+    return sorted(Path(out).glob("*.data"))
+
+
 @pytest.fixture(params=["llvm_ad_rgb", "scalar_rgb"])
 def any_variant(request) -> str:
     """Run a test on both CPU variants (the physics must not depend on the backend)."""

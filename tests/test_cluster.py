@@ -8,21 +8,14 @@ import json
 import numpy as np
 import pytest
 
+from conftest import render_dataset
+
 
 @pytest.fixture(scope="module")
 def clusters(tmp_path_factory):
-    from scenes.variant import _usable
-
-    if not _usable("llvm_ad_rgb") and not _usable("scalar_rgb"):
-        pytest.skip("no Mitsuba variant usable here")
-    from wildgen.make import main
-
-    out = tmp_path_factory.mktemp("cluster") / "ds"
-    rc = main(["--objects", "3", "--images", "2", "--res", "40", "--spp", "4", "--gt-spp", "4", "--cluster", "2-3",
-               "--shapes", "procedural", "--lights", "directional", "--seed", "4", "--workers", "0", "--quiet",
-               "--out", str(out)])
-    assert rc == 0
-    return sorted(out.glob("*.data"))
+    return render_dataset(tmp_path_factory.mktemp("cluster") / "ds", "--objects", "3", "--images", "2", "--res", "40",
+                          "--spp", "4", "--gt-spp", "4", "--cluster", "2-3", "--shapes", "procedural", "--lights",
+                          "directional", "--seed", "4")
 
 
 def test_parts_cover_the_mesh_and_instances_cover_the_mask(clusters):
@@ -72,16 +65,8 @@ def test_instance_ids_agree_with_each_parts_projected_outline(clusters):
 
 
 def test_one_object_scenes_have_no_parts_and_no_instance_file(tmp_path):
-    from scenes.variant import _usable
-
-    if not _usable("llvm_ad_rgb") and not _usable("scalar_rgb"):
-        pytest.skip("no Mitsuba variant usable here")
-    from wildgen.make import main
-
-    out = tmp_path / "one"
-    assert main(["--objects", "1", "--images", "1", "--res", "16", "--spp", "1", "--gt-spp", "1", "--shapes", "procedural",
-                 "--workers", "0", "--quiet", "--out", str(out)]) == 0
-    folder = next(out.glob("*.data"))
+    (folder,) = render_dataset(tmp_path / "one", "--objects", "1", "--images", "1", "--res", "16", "--spp", "1",
+                               "--gt-spp", "1", "--shapes", "procedural")
     assert json.loads((folder / "scene.json").read_text())["parts"] == []
     assert not (folder / "aux" / "instances.png").exists()
 

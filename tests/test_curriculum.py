@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import render_dataset
 from test_train import write_object
 
 
@@ -70,21 +71,16 @@ def test_a_curriculum_run_trains_and_refuses_unlevelled_data(levelled, tmp_path)
 
 
 def test_level_fills_the_configuration_and_is_recorded(tmp_path):
-    from scenes.variant import _usable
-
-    if not _usable("llvm_ad_rgb") and not _usable("scalar_rgb"):
-        pytest.skip("no Mitsuba variant usable here")
     from wildgen.levels import LEVELS
-    from wildgen.make import main
 
-    tiny = ["--objects", "2", "--images", "1", "--res", "16", "--spp", "1", "--gt-spp", "1", "--workers", "0", "--quiet"]
-    assert main([*tiny, "--level", "1", "--out", str(tmp_path / "l1")]) == 0
-    assert main([*tiny, "--level", "5", "--lights", "point", "--out", str(tmp_path / "l5")]) == 0
-    for folder in sorted((tmp_path / "l1").glob("*.data")):
+    tiny = ["--objects", "2", "--images", "1", "--res", "16", "--spp", "1", "--gt-spp", "1"]
+    level1 = render_dataset(tmp_path / "l1", *tiny, "--level", "1")
+    level5 = render_dataset(tmp_path / "l5", *tiny, "--level", "5", "--lights", "point")
+    for folder in level1:
         scene = json.loads((folder / "scene.json").read_text())
         assert scene["level"] == 1 and scene["light_family"] in LEVELS[1].lights
         assert scene["material"]["material_class"] == "diffuse" and scene["parts"] == []
-    for folder in sorted((tmp_path / "l5").glob("*.data")):
+    for folder in level5:
         scene = json.loads((folder / "scene.json").read_text())
         assert scene["level"] == 5 and scene["light_family"] == "point"  # the explicit flag keeps its value
         assert 2 <= len(scene["parts"]) <= 4  # the level's clusters

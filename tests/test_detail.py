@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from conftest import render_dataset
+
 A, F = 0.05, 2  # height field h(u, v) = A sin(2 pi F u) sin(2 pi F v) over the UV square
 
 
@@ -99,13 +101,9 @@ def test_generator_writes_detail_and_base_normals(variant, tmp_path):
     import json
 
     from scenes.objfolder import read_normals
-    from wildgen.make import main
 
-    out = tmp_path / "ds"
-    rc = main(["--objects", "2", "--images", "2", "--res", "48", "--spp", "4", "--gt-spp", "4", "--detail", "1",
-               "--shapes", "procedural", "--seed", "2", "--workers", "0", "--quiet", "--out", str(out)])
-    assert rc == 0
-    folders = sorted(out.glob("*.data"))
+    folders = render_dataset(tmp_path / "ds", "--objects", "2", "--images", "2", "--res", "48", "--spp", "4",
+                             "--gt-spp", "4", "--detail", "1", "--shapes", "procedural", "--seed", "2")
     assert len(folders) == 2
     for folder in folders:
         scene = json.loads((folder / "scene.json").read_text())

@@ -9,6 +9,8 @@ import math
 import numpy as np
 import pytest
 
+from conftest import render_dataset
+
 
 def test_fov_from_focal_matches_the_35mm_definition():
     from scenes.description import fov_from_focal
@@ -30,17 +32,9 @@ def test_camera_record_refuses_a_focal_length_that_does_not_match_its_fov():
 
 @pytest.fixture(scope="module")
 def perspective_set(tmp_path_factory):
-    from scenes.variant import _usable
-
-    if not _usable("llvm_ad_rgb") and not _usable("scalar_rgb"):
-        pytest.skip("no Mitsuba variant usable here")
-    from wildgen.make import main
-
-    out = tmp_path_factory.mktemp("focal") / "ds"
-    rc = main(["--objects", "3", "--images", "2", "--res", "24", "--spp", "4", "--gt-spp", "4", "--camera", "perspective",
-               "--focal", "15-300", "--lights", "point", "--seed", "5", "--workers", "0", "--quiet", "--out", str(out)])
-    assert rc == 0
-    return sorted(out.glob("*.data"))
+    return render_dataset(tmp_path_factory.mktemp("focal") / "ds", "--objects", "3", "--images", "2", "--res", "24",
+                          "--spp", "4", "--gt-spp", "4", "--camera", "perspective", "--focal", "15-300", "--lights",
+                          "point", "--seed", "5")
 
 
 def test_focal_lengths_are_drawn_in_range_and_recorded(perspective_set):
