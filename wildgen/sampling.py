@@ -201,6 +201,13 @@ def _shape_candidates(rng: np.random.Generator, cfg: GenConfig, lib: AssetLibrar
     return ShapeDesc(kind=kind, seed=int(rng.integers(2**31)), resolution=MESH_RESOLUTION), kind
 
 
+def _shape_mesh(shape: ShapeDesc) -> MeshData:
+    """The object-space mesh of a drawn shape (normalised as the shape says)."""
+    from scenes.geometry import mesh_data_for
+
+    return mesh_data_for(SceneDescription(shape=shape, images=[ImageDesc(lights=[LightDesc()])]), None)
+
+
 CLUSTER_PART_SCALE = (0.5, 1.0)
 """Size of each object of a cluster, relative to the unit sphere its shape is normalised into."""
 CLUSTER_PRESS = (0.0, 0.1)
@@ -235,13 +242,12 @@ def _sample_cluster(rng: np.random.Generator, cfg: GenConfig, lib: AssetLibrary,
     little into it), merged into one mesh centred on its bounding box.
     Returns (mesh, parts (`PartDesc`), source)."""
     from scenes.description import PartDesc
-    from scenes.geometry import mesh_data_for
 
     pos, fac, nrm, uvs, parts, centres, radii = [], [], [], [], [], [], []
-    faces_so_far = 0
+    faces_so_far = vertices_so_far = 0
     for i in range(count):
         shape, source = _shape_candidates(rng, cfg, lib)
-        data = mesh_data_for(SceneDescription(shape=shape, images=[ImageDesc(lights=[LightDesc()])]), None)
+        data = _shape_mesh(shape)
         scale = float(rng.uniform(*CLUSTER_PART_SCALE))
         rot = random_rotation(rng)
         p = data.positions.astype(np.float64) @ rot.T * scale
@@ -259,10 +265,11 @@ def _sample_cluster(rng: np.random.Generator, cfg: GenConfig, lib: AssetLibrary,
         radii.append(radius)
         pos.append(p + centre)
         nrm.append(data.normals.astype(np.float64) @ rot.T)
-        fac.append(data.faces.astype(np.int64) + sum(len(q) for q in pos[:-1]))
+        fac.append(data.faces.astype(np.int64) + vertices_so_far)
         uvs.append(data.uvs)
         parts.append(PartDesc(source=source, first_face=faces_so_far, faces=len(data.faces)))
         faces_so_far += len(data.faces)
+        vertices_so_far += len(p)
     allp = np.concatenate(pos)
     allp -= 0.5 * (allp.min(0) + allp.max(0))
     mesh = MeshData(allp.astype(np.float32), np.concatenate(fac).astype(np.int32), np.concatenate(nrm).astype(np.float32),
@@ -276,8 +283,6 @@ class SkippedObject(Exception):
 
 def sample_object(cfg: GenConfig, index: int, lib: AssetLibrary, name: str | None = None) -> SampledObject:
     """Sample object `index` of the dataset. Raises SkippedObject when the entropy rule rejects it."""
-    from scenes.geometry import mesh_data_for
-
     rng = np.random.default_rng([cfg.seed, index])
     family = cfg.lights[index % len(cfg.lights)]
     tried = []
@@ -290,8 +295,7 @@ def sample_object(cfg: GenConfig, index: int, lib: AssetLibrary, name: str | Non
             shape = ShapeDesc(kind="mesh", file=f"{AUX_DIR}/{MESH_FILE}", normalize=False)
         else:
             shape, source = _shape_candidates(rng, cfg, lib)
-            probe = SceneDescription(shape=shape, images=[ImageDesc(lights=[LightDesc()])])
-            mesh = mesh_data_for(probe, None)
+            mesh = _shape_mesh(shape)
         best = -1.0
         for _ in range(cfg.pose_tries):
             rotation = random_rotation(rng)
