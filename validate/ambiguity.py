@@ -6,9 +6,10 @@ match (Belhumeur, Kriegman and Yuille, 1999): the depth scale (lambda) and a glo
 decided by the images. Only what the Lambertian model lacks (a specular lobe, an ambient term, near lights)
 can break the tie. So instead of trusting one map of the family, the check fits two transforms of the judged
 map, each started from the transformed fit (lights d' = G d, albedo times |G^-T n|, where the Lambertian part
-is exactly as good as the map's; the better of that start and a short fit from it), and reports whether they score worse by at least
-`validate.verdict.SEPARATION` (or `TIE_FLOOR`, whichever is larger). When they do not, the report says that the images cannot decide the map's
-depth scale or tilt: the score judges the map up to that family.
+is exactly as good as the map's; the better of that start and a short fit from it), and reports whether they
+score worse by at least `validate.verdict.SEPARATION` (or `TIE_FLOOR`, whichever is larger). When they do not,
+the report says that the images cannot decide the map's depth scale or tilt: the score judges the map up to that
+family.
 
 Normals transform as n' ~ (lambda n_x - mu n_z, lambda n_y - nu n_z, n_z) (camera frame, z toward the camera).
 """
@@ -31,9 +32,14 @@ STEPS_FRACTION = 4
 """Each transform's fit runs steps / STEPS_FRACTION Adam steps (it starts where the Lambertian part is optimal)."""
 
 
+def _scaled_gbr(n: np.ndarray, lam: float, mu: float, nu: float) -> np.ndarray:
+    """lambda G^-T n for normals n (..., 3): (lambda n_x - mu n_z, lambda n_y - nu n_z, n_z)."""
+    return np.stack([lam * n[..., 0] - mu * n[..., 2], lam * n[..., 1] - nu * n[..., 2], n[..., 2]], -1)
+
+
 def gbr_normals(n: np.ndarray, lam: float, mu: float, nu: float) -> np.ndarray:
     """Unit normals (..., 3) of the GBR-transformed surface; zero vectors stay zero."""
-    m = np.stack([lam * n[..., 0] - mu * n[..., 2], lam * n[..., 1] - nu * n[..., 2], n[..., 2]], -1)
+    m = _scaled_gbr(n, lam, mu, nu)
     norm = np.linalg.norm(m, axis=-1, keepdims=True)
     return np.where(norm > 0, m / np.maximum(norm, 1e-12), 0.0)
 
@@ -44,11 +50,9 @@ def gbr_start(params: dict, albedo: np.ndarray, normals: np.ndarray, lam: float,
     g = np.array([[1.0, 0, 0], [0, 1.0, 0], [mu, nu, lam]])
     d = np.asarray(params["directions"], np.float64) @ g.T  # (K, 3) = G d
     dn = np.linalg.norm(d, axis=1, keepdims=True)
-    # |G^-T n| for unit n: G^-T n = (n_x - mu n_z / lam, n_y - nu n_z / lam, n_z / lam)
-    n = np.asarray(normals, np.float64)
-    gt_n = np.stack([n[:, 0] - mu * n[:, 2] / lam, n[:, 1] - nu * n[:, 2] / lam, n[:, 2] / lam], 1)
+    gtn = np.linalg.norm(_scaled_gbr(np.asarray(normals, np.float64), lam, mu, nu), axis=1, keepdims=True) / lam  # |G^-T n|
     return {"directions": d / dn, "irradiance": np.asarray(params["irradiance"]) * dn,
-            "ambient": np.asarray(params["ambient"]), "albedo": np.asarray(albedo, np.float64) * np.linalg.norm(gt_n, axis=1, keepdims=True)}
+            "ambient": np.asarray(params["ambient"]), "albedo": np.asarray(albedo, np.float64) * gtn}
 
 
 def bas_relief_test(images: np.ndarray, mask: np.ndarray, normals: np.ndarray, fit: Any, judged: float, ex: Explanation,
