@@ -37,8 +37,8 @@ def view_directions(camera) -> np.ndarray:
     t = np.tan(np.radians(camera.fov) / 2.0)
     x = (2.0 * (np.arange(w) + 0.5) / w - 1.0) * t
     y = (1.0 - 2.0 * (np.arange(h) + 0.5) / h) * t * h / w
-    d = np.stack(np.broadcast_arrays(x[None, :], y[:, None], np.ones((h, w))), -1)  # toward the camera: -ray
-    d[..., :2] *= -1.0
+    # the ray through a pixel centre is (x, y, -1); toward the camera is its reverse
+    d = np.stack(np.broadcast_arrays(-x[None, :], -y[:, None], np.ones((h, w))), -1)
     return (d / np.linalg.norm(d, axis=-1, keepdims=True)).astype(np.float32)
 
 

@@ -170,7 +170,8 @@ def with_detail(material: MaterialDesc, cfg: GenConfig, index: int) -> MaterialD
         return dataclasses.replace(material, normal_map=None, detail=None)
     if material.normal_map is not None:  # the texture set's own normal map is the detail
         return material
-    detail = DetailDesc(kind=str(rng.choice(list(DETAIL_KINDS))), strength_deg=float(rng.uniform(*cfg.detail_strength_range())),
+    detail = DetailDesc(kind=str(rng.choice(list(DETAIL_KINDS))),
+                        strength_deg=float(rng.uniform(*cfg.detail_strength_range())),
                         scale=float(rng.uniform(*DETAIL_SCALE)), seed=int(rng.integers(2**31)),
                         resolution=max(64, 2 * cfg.texture_resolution))
     return dataclasses.replace(material, detail=detail)
@@ -236,7 +237,8 @@ def _contact_distance(placed: np.ndarray, part: np.ndarray, direction: np.ndarra
     return hi
 
 
-def _sample_cluster(rng: np.random.Generator, cfg: GenConfig, lib: AssetLibrary, count: int) -> tuple[MeshData, list, str]:
+def _sample_cluster(rng: np.random.Generator, cfg: GenConfig, lib: AssetLibrary,
+                    count: int) -> tuple[MeshData, list, str]:
     """`count` shapes, each normalised, scaled and rotated, placed each against a random earlier one (slid in from
     beside it, mostly in the image plane, some in front or behind, until the surfaces touch, then pressed a
     little into it), merged into one mesh centred on its bounding box.
@@ -272,8 +274,8 @@ def _sample_cluster(rng: np.random.Generator, cfg: GenConfig, lib: AssetLibrary,
         vertices_so_far += len(p)
     allp = np.concatenate(pos)
     allp -= 0.5 * (allp.min(0) + allp.max(0))
-    mesh = MeshData(allp.astype(np.float32), np.concatenate(fac).astype(np.int32), np.concatenate(nrm).astype(np.float32),
-                    np.concatenate(uvs).astype(np.float32))
+    mesh = MeshData(allp.astype(np.float32), np.concatenate(fac).astype(np.int32),
+                    np.concatenate(nrm).astype(np.float32), np.concatenate(uvs).astype(np.float32))
     return mesh, parts, f"cluster of {count}: " + ", ".join(Path(p.source).name for p in parts)
 
 

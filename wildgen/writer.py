@@ -23,8 +23,8 @@ from scenes.geometry import camera_rotation, view_directions, write_mesh_ply
 from scenes.lights import camera_frame
 from scenes.mitsuba_build import build_scene
 from scenes.objfolder import (AUX_DIR, FORMAT_VERSION, INSTANCES_FILE, MASK_FILE, MESH_FILE, NORMAL_BASE_FILE,
-                              NORMAL_FILE, OBJECT_SUFFIX, image_name, radiance_name, sha256_file, write_exr, write_instances,
-                              write_mask, write_normal_map, write_png16, write_scene)
+                              NORMAL_FILE, OBJECT_SUFFIX, image_name, radiance_name, sha256_file, write_exr,
+                              write_instances, write_mask, write_normal_map, write_png16, write_scene)
 from scenes.render import instance_ids, render_ground_truth, render_images
 from scenes.sensor import SCENE_KEY as SENSOR_KEY
 from scenes.sensor import SENSORS, Sensor, rederive_image, scale_camera_lights, sensor_record, write_image
