@@ -4,19 +4,21 @@
 
 Writes `--objects` synthetic object folders (a Lambertian ellipsoid with a random albedo under random
 directional lights plus sensor-like noise, 16-bit PNGs of `--res` px, written through `scenes.objfolder`; no
-rendering) into a temporary folder, exports them with `wildgen.export` (`--shard-size` objects per shard), and
-reads both back three ways, each timed twice:
+rendering) into a temporary folder, exports them twice with `wildgen.export` (`--shard-size` objects per shard):
+`--encoding files` (the folder's files as they are) and `--encoding decoded` (the one reader's arrays), and reads
+the three sources back three ways, each timed cold and warm:
 
 - files: every file of every object read into memory (folders: list the folder, read each file; shards:
   verify the checksum, then webdataset's tar reader), the part that storage decides;
 - objects: decoded by the model's loader (folders: `unips.data.load_object`; shards: `unips.shards.iter_objects`,
-  which writes each sample's files to a temporary folder and reads it with the same loader);
+  which writes each `files` sample to a temporary folder and reads it with the same loader, and maps a `decoded`
+  sample's arrays);
 - samples: the training samples (`unips.train_data.load_samples` of the folder and of the shard pattern,
   cropped and resized to --res).
 
 `cold`: before the pass, every file of both sources is written back (`os.sync`) and evicted from the page
 cache with posix_fadvise(POSIX_FADV_DONTNEED), so it is read from the disk (on a virtual machine the host may
-still cache it); `warm`: the fastest of `--repeats` further passes, from the page cache. The ratio is shard
+still cache it); `warm`: the fastest of `--repeats` further passes, from the page cache. The ratios are shard
 objects/s over folder objects/s. Measured on a shared machine: rerun it before trusting one number.
 """
 from __future__ import annotations
@@ -27,6 +29,7 @@ import os
 import sys
 import tempfile
 import time
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -119,47 +122,59 @@ def main(argv: list[str] | None = None) -> int:
     import torch
 
     importlib.import_module("webdataset")  # imported now, not inside the first timed pass
+    from scenes.shards import ENCODINGS
     from unips.train_data import load_samples
     from wildgen.export import export_dataset
 
     torch.set_num_threads(1)
     with tempfile.TemporaryDirectory(prefix="bench-shards-") as tmp:
-        data, shards = Path(tmp) / "data", Path(tmp) / "shards"
+        data = Path(tmp) / "data"
         t0 = time.perf_counter()
         write_objects(data, args.objects, args.images, args.res)
-        index = export_dataset(data, shards, shard_size=args.shard_size)
-        pattern = str(shards / index["pattern"])
         folder_files = [p for p in data.rglob("*") if p.is_file()]
-        shard_files = sorted(shards.glob("*.tar")) + [shards / "index.json"]
-        sizes = {"folder_files": len(folder_files), "folder_bytes": sum(p.stat().st_size for p in folder_files),
-                 "shards": len(shard_files) - 1, "shard_bytes": sum(p.stat().st_size for p in shard_files)}
+        patterns, shard_files, sizes = {}, [], {"folder_files": len(folder_files),
+                                                "folder_bytes": sum(p.stat().st_size for p in folder_files)}
+        for encoding in ENCODINGS:
+            out = Path(tmp) / f"shards-{encoding}"
+            index = export_dataset(data, out, shard_size=args.shard_size, encoding=encoding)
+            patterns[encoding] = str(out / index["pattern"])
+            files = sorted(out.glob("*.tar")) + [out / "index.json"]
+            shard_files += files
+            sizes[f"shards_{encoding}"] = len(files) - 1
+            sizes[f"shard_bytes_{encoding}"] = sum(p.stat().st_size for p in files)
         print(f"{args.objects} objects x {args.images} images at {args.res} px: {sizes['folder_files']} files "
-              f"({sizes['folder_bytes'] / 2**20:.1f} MiB) vs {sizes['shards']} shards "
-              f"({sizes['shard_bytes'] / 2**20:.1f} MiB); written in {time.perf_counter() - t0:.1f} s")
+              f"({sizes['folder_bytes'] / 2**20:.1f} MiB) vs {sizes['shards_files']} shards of files "
+              f"({sizes['shard_bytes_files'] / 2**20:.1f} MiB) and of decoded arrays "
+              f"({sizes['shard_bytes_decoded'] / 2**20:.1f} MiB); written in {time.perf_counter() - t0:.1f} s")
+        sources = ("folders",) + ENCODINGS
         readers = {
-            "files": (lambda: read_folder_files(data), lambda: read_shard_files(pattern)),
-            "objects": (lambda: decode_folders(data), lambda: decode_shards(pattern)),
-            "samples": (lambda: len(load_samples(data, args.res)), lambda: len(load_samples(pattern, args.res))),
+            "files": {"folders": lambda: read_folder_files(data),
+                      **{e: partial(read_shard_files, patterns[e]) for e in ENCODINGS}},
+            "objects": {"folders": lambda: decode_folders(data),
+                        **{e: partial(decode_shards, patterns[e]) for e in ENCODINGS}},
+            "samples": {"folders": lambda: len(load_samples(data, args.res)),
+                        **{e: partial(lambda p: len(load_samples(p, args.res)), patterns[e]) for e in ENCODINGS}},
         }
         rows = []
-        for what, (by_folder, by_shard) in readers.items():
+        for what, fns in readers.items():
             for cache in ("cold", "warm"):
                 rates: dict[str, float] = {}
                 for _ in range(1 if cache == "cold" else args.repeats):  # warm: the best of --repeats passes
-                    for source, fn in (("folders", by_folder), ("shards", by_shard)):
+                    for source in sources:
                         if cache == "cold":
                             evict(folder_files + shard_files)
                         t = time.perf_counter()
-                        n = fn()
+                        n = fns[source]()
                         seconds = time.perf_counter() - t
                         assert n == args.objects, (what, source, n)
                         rates[source] = max(rates.get(source, 0.0), n / seconds)
-                rows.append({"read": what, "cache": cache, "folders_per_s": round(rates["folders"], 1),
-                             "shards_per_s": round(rates["shards"], 1),
-                             "ratio": round(rates["shards"] / rates["folders"], 2)})
-    print("\n| read | cache | folders (objects/s) | shards (objects/s) | shards / folders |\n|---|---|---:|---:|---:|")
+                rows.append({"read": what, "cache": cache, **{f"{s}_per_s": round(rates[s], 1) for s in sources},
+                             **{f"ratio_{e}": round(rates[e] / rates["folders"], 2) for e in ENCODINGS}})
+    print("\n| read | cache | folders (objects/s) | shards, files (objects/s) | shards, decoded (objects/s) | files / "
+          "folders | decoded / folders |\n|---|---|---:|---:|---:|---:|---:|")
     for r in rows:
-        print(f"| {r['read']} | {r['cache']} | {r['folders_per_s']:.0f} | {r['shards_per_s']:.0f} | {r['ratio']:.2f}x |")
+        print(f"| {r['read']} | {r['cache']} | {r['folders_per_s']:.0f} | {r['files_per_s']:.0f} | "
+              f"{r['decoded_per_s']:.0f} | {r['ratio_files']:.2f}x | {r['ratio_decoded']:.2f}x |")
     if args.out:
         args.out.write_text(json.dumps({"settings": vars(args) | {"out": str(args.out)}, "sizes": sizes, "rows": rows},
                                        indent=1))

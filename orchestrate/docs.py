@@ -326,6 +326,30 @@ def data_ab(card: dict) -> str:
 
 
 # Generated blocks other than flag tables: name -> renderer of the model card.
+SHARDS_BENCH = REPO / "bench" / "results" / "shards.json"
+"""The output of `python bench/bench_shards.py --out bench/results/shards.json` (its last run, committed)."""
+_READS = {"files": "files (every file's bytes)", "objects": "objects (decoded by the loader)",
+          "samples": "training samples (`load_samples`)"}
+
+
+def shards_throughput(card: dict) -> str:
+    """Folders against shards of both encodings, from the benchmark's recorded output (not the model card)."""
+    d = json.loads(SHARDS_BENCH.read_text())
+    st, sz = d["settings"], d["sizes"]
+    rows = [[_READS[r["read"]], r["cache"], f"{r['folders_per_s']:.0f}", f"{r['files_per_s']:.0f}",
+             f"{r['decoded_per_s']:.0f}", f"{r['ratio_files']:.2f}x", f"**{r['ratio_decoded']:.2f}x**"]
+            for r in d["rows"]]
+    mib = (lambda b: f"{b / 2**20:.1f} MiB")
+    return (f"{st['objects']} synthetic objects of {st['images']} images at {st['res']} x {st['res']} px, shards of "
+            f"{st['shard_size']}; on disk: {sz['folder_files']} files of folders {mib(sz['folder_bytes'])}, shards "
+            f"of files {mib(sz['shard_bytes_files'])}, decoded shards {mib(sz['shard_bytes_decoded'])}.\n\n"
+            + _table(["read", "cache", "folders (objects/s)", "shards, files (objects/s)",
+                      "shards, decoded (objects/s)", "files / folders", "decoded / folders"], rows))
+
+
+BENCH_BLOCKS = {"model:shards-throughput": SHARDS_BENCH}
+"""Blocks generated from a benchmark's recorded output instead of the model card."""
+
 BLOCKS: dict[str, Callable[[dict], str]] = {
     "readme:headline": readme_headline,
     "model:facts": model_facts,
@@ -340,6 +364,7 @@ BLOCKS: dict[str, Callable[[dict], str]] = {
     "generator:presets": capture_presets,
     "generator:levels": complexity_levels,
     "model:data-ab": data_ab,
+    "model:shards-throughput": shards_throughput,
 }
 
 

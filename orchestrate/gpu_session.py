@@ -10,7 +10,8 @@ minutes and whose folder `--out` comes back (at most 8 files). In `--minutes` of
    of cuda_ad_rgb, llvm_ad_rgb (`--variant auto`; the log and summary.json say which);
 2. renders the first `--check-objects` of them again with `--check-variant` (auto: llvm_ad_rgb when it runs
    here, else scalar_rgb) and compares them: variant_check.json (`compare_datasets`);
-3. writes the dataset as WebDataset shards (`wildgen.make --shards`);
+3. writes the dataset as WebDataset shards of the reader's decoded arrays (`wildgen.make --shards
+   --shard-encoding decoded`, the fastest to train on);
 4. trains `--model` with `unips.train` on the shards (bf16 autocast on CUDA), saving last.pt every
    `--ckpt-minutes` into `--out`/run and stopping before the budget (`--time-limit` of unips.train);
 5. writes the learning curve (learning_curve.png from run/log.jsonl), model_card.json (a fragment for the
@@ -263,7 +264,7 @@ def _choose(requested: str, avoid: str | None = None) -> str:
 def _make_argv(opts: SessionOptions, out: Path, variant: str, objects: int, shards: Path | None) -> list[str]:
     return ["--objects", str(objects), "--images", str(opts.images), "--res", str(opts.res), "--spp", str(opts.spp),
             "--seed", str(opts.seed), "--variant", variant, "--out", str(out), "--quiet",
-            *(["--shards", str(shards)] if shards else []), *(["--overwrite"] if opts.overwrite else [])]
+            *(["--shards", str(shards), "--shard-encoding", "decoded"] if shards else []), *(["--overwrite"] if opts.overwrite else [])]
 
 
 def _train_argv(opts: SessionOptions, shards: Path, run: Path, device: str, minutes: float) -> list[str]:

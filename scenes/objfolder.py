@@ -283,15 +283,21 @@ def read_image(path: str | Path) -> np.ndarray:
     if img.ndim != 3 or img.shape[2] != 3:
         raise ValueError(f"image file {path}: expected a gray, RGB or RGBA image, got shape {img.shape}")
     img = np.ascontiguousarray(img[..., ::-1])  # BGR -> RGB
-    if img.dtype == np.uint16:
-        out = img.astype(np.float32) / 65535.0
-    elif img.dtype == np.uint8:
-        out = img.astype(np.float32) / 255.0
-    elif img.dtype in (np.float32, np.float64):
-        out = _check_float_image(img.astype(np.float32), path)
-    else:
+    if img.dtype in (np.float32, np.float64):
+        return _check_float_image(img.astype(np.float32), path)
+    if img.dtype not in CODE_SCALES:
         raise ValueError(f"image file {path}: unsupported pixel type {img.dtype} (expected 8 or 16 bit)")
-    return out
+    return codes_to_linear(img)
+
+
+CODE_SCALES = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0}
+"""Largest code of each integer pixel type: a file value v is the linear value v / scale."""
+
+
+def codes_to_linear(codes: np.ndarray) -> np.ndarray:
+    """Integer file values (uint8 / uint16, any shape) -> float32 in [0, 1]: the one conversion every reader of
+    integer images uses (`read_image`, and decoded shards, `scenes.shards`), so both give the same bits."""
+    return codes.astype(np.float32) / CODE_SCALES[codes.dtype]
 
 
 def write_mask(path: str | Path, mask: np.ndarray) -> None:

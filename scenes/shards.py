@@ -12,10 +12,25 @@ is no second decoder. Suffixes:
 - with `aux`, a file of the folder's aux directory becomes ``aux.<name>`` (``00017.aux.normal.exr``); the
   aux directory must be flat.
 
+That is the `files` encoding, the default. The `decoded` encoding (`ENCODINGS`) stores instead what the one
+reader returned for the folder, so that reading it back decodes no PNG and repeats no check (`encode_decoded`,
+`decode_folder`):
+
+- ``<key>.decoded.json``: the reader's metadata (layout, image names, lights, sensor, which files it read);
+- ``<key>.decoded.images.npy``: the images as their integer file codes (uint16 or uint8, converted on reading by
+  `scenes.objfolder.codes_to_linear`, the conversion of `read_image`) or as float32 when they came from EXRs;
+- ``<key>.decoded.mask.npy``, and ``decoded.normals.npy`` / ``decoded.saturated.npy`` when the reader gave them;
+- ``<key>.scene.json``, the folder's scene file as it was (the scene stays re-renderable from the shard).
+
+A decoded sample gives the reader's arrays bit for bit (`tests/test_shards.py`); the exporter checks each
+conversion before writing. It is for training throughput; a `files` shard is the archival form, whose samples
+unpack into folders the official loaders read.
+
 Members of a sample follow in sorted suffix order, samples in the order they are written; every member has
 mtime 0, uid / gid 0, empty owner names and mode 0444, so the same folders give the same bytes.
 
-Beside the shards, `INDEX_FILE` (index.json) holds `format` ("webdataset"), `format_version`, `objects`,
+Beside the shards, `INDEX_FILE` (index.json) holds `format` ("webdataset"), `format_version`, `encoding`
+(absent in exports written before it: `files`), `objects`,
 `shard_size`, `aux_files`, `pattern` (the brace pattern of all shards) and `shards`: per shard its `name`,
 `bytes`, `sha256` and `objects` (`name`, source `folder`, `images`), in order; `complete` is false while an
 export is running. Readers refuse a shard that the index does not list, whose checksum differs, or whose
@@ -42,6 +57,13 @@ SHARD_DIGITS = 6
 SHARD_NAME = re.compile(r"^\d{%d}\.tar$" % SHARD_DIGITS)
 """File names of shards (`shard_name`): 000000.tar, 000001.tar, ..."""
 _AUX_PREFIX = AUX_DIR + "."
+ENCODINGS = ("files", "decoded")
+"""How a sample stores its object: 'files' (the folder's files as they are) or 'decoded' (the one reader's arrays,
+read back without decoding; see the module docstring)."""
+DECODED = "decoded"
+"""Prefix of the members of a decoded sample (``<key>.decoded.json``, ``<key>.decoded.images.npy`` ...)."""
+DECODED_META = DECODED + ".json"
+_DECODED_ARRAYS = ("images", "mask", "normals", "saturated")
 
 
 def shard_name(index: int) -> str:
@@ -110,15 +132,129 @@ class _HashingWriter(io.RawIOBase):
         return self.raw.write(data)
 
 
+def _npy(array) -> bytes:
+    import numpy as np
+
+    buf = io.BytesIO()
+    np.save(buf, np.ascontiguousarray(array), allow_pickle=False)
+    return buf.getvalue()
+
+
+def _as_codes(images, where: Path, arg: str):
+    """The integer file codes that `codes_to_linear` turns back into exactly `images` (float32), or the float32
+    images themselves when no integer type does (EXR files)."""
+    import numpy as np
+
+    from scenes.objfolder import CODE_SCALES, codes_to_linear
+
+    for dtype, scale in sorted(CODE_SCALES.items(), key=lambda kv: kv[1]):
+        codes = np.rint(images * scale)
+        if codes.min(initial=0) < 0 or codes.max(initial=0) > scale:
+            continue
+        codes = codes.astype(dtype)
+        if np.array_equal(codes_to_linear(codes), images):
+            return codes
+    if images.dtype != np.float32:
+        raise ValueError(f"{arg}: {str(where)!r}: the reader gave {images.dtype} images; expected float32")
+    return images
+
+
+def encode_decoded(folder: Path, arg: str = "--data") -> dict[str, bytes]:
+    """The members (suffix -> bytes) of the decoded sample of an object folder: what `read_folder` returns for it
+    (see the module docstring)."""
+    from scenes.layouts import read_folder
+    from scenes.objfolder import SCENE_FILE
+
+    fd = read_folder(folder, arg=arg)
+    lights = fd.lights
+    meta = {"name": fd.name, "layout": fd.layout, "image_names": fd.image_names, "num_files": fd.num_files,
+            "shape": list(fd.shape), "has_scene": fd.has_scene,
+            "mask_file": None if fd.mask_file is None else fd.mask_file.name,
+            "normals_file": None if fd.normals_file is None else fd.normals_file.name,
+            "sensor": None if fd.sensor is None else fd.sensor.to_dict(),
+            "lights": {"family": lights.family, "level": lights.level,
+                       "directions": None if lights.directions is None else lights.directions.tolist(),
+                       "intensities": None if lights.intensities is None else lights.intensities.tolist()}}
+    arrays = {"images": _as_codes(fd.images, folder, arg)}
+    arrays.update((name, getattr(fd, name)) for name in _DECODED_ARRAYS[1:] if getattr(fd, name) is not None)
+    # dtype and shape again in the metadata: the reader maps each array without parsing its .npy header.
+    meta["arrays"] = {name: {"dtype": a.dtype.str, "shape": list(a.shape)} for name, a in arrays.items()}
+    members = {DECODED_META: (json.dumps(meta, sort_keys=True) + "\n").encode()}
+    members.update((f"{DECODED}.{name}.npy", _npy(a)) for name, a in arrays.items())
+    if (folder / SCENE_FILE).is_file():
+        members[SCENE_FILE] = (folder / SCENE_FILE).read_bytes()
+    return members
+
+
+def decode_folder(files: dict[str, bytes], folder: Path):
+    """The `scenes.layouts.FolderData` of a decoded sample's members, as `read_folder` returned it for the object
+    folder; `folder` (where the sample came from, e.g. SHARD/KEY.data) stands for its path. ValueError naming the
+    member that is missing or unreadable."""
+    import numpy as np
+
+    from scenes.layouts import FolderData, Lights
+    from scenes.objfolder import codes_to_linear
+    from scenes.sensor import Sensor
+
+    def array(name: str, required: bool):
+        suffix = f"{DECODED}.{name}.npy"
+        spec = meta["arrays"].get(name)
+        if suffix not in files or spec is None:
+            if required or (suffix in files) != (spec is not None):
+                raise ValueError(f"{folder}: decoded sample has no {suffix} member, or {DECODED_META} does not "
+                                 "describe it")
+            return None
+        data = files[suffix]
+        dtype, shape = np.dtype(spec["dtype"]), tuple(int(v) for v in spec["shape"])
+        # .npy version 1 / 2: magic, version, header length (2 / 4 bytes little-endian), header, data.
+        version = data[6:7]
+        start = (10 + int.from_bytes(data[8:10], "little") if version == b"\x01" else
+                 12 + int.from_bytes(data[8:12], "little") if version in (b"\x02", b"\x03") else -1)
+        if data[:6] != b"\x93NUMPY" or start < 0 or len(data) - start != dtype.itemsize * int(np.prod(shape)):
+            raise ValueError(f"{folder}: member {suffix} is not the .npy array of {spec} that {DECODED_META} describes")
+        return np.frombuffer(data, dtype, offset=start).reshape(shape).copy()
+
+    try:
+        meta = json.loads(files[DECODED_META])
+        codes = array("images", True)
+        if codes.dtype.kind not in "uf":
+            raise ValueError(f"{folder}: member {DECODED}.images.npy holds {codes.dtype}, expected integer codes or "
+                             "float32")
+        images = codes.astype(np.float32, copy=False) if codes.dtype.kind == "f" else codes_to_linear(codes)
+        d = meta["lights"]
+        lights = Lights(family=d["family"], level=d["level"],
+                        directions=None if d["directions"] is None else np.asarray(d["directions"], np.float64),
+                        intensities=None if d["intensities"] is None else np.asarray(d["intensities"], np.float64))
+        file = (lambda name: None if name is None else folder / name)
+        return FolderData(name=meta["name"], path=folder, layout=meta["layout"],
+                          image_paths=[folder / n for n in meta["image_names"]], num_files=int(meta["num_files"]),
+                          shape=tuple(meta["shape"]), images=images, saturated=array("saturated", False),
+                          mask=array("mask", True), mask_file=file(meta["mask_file"]), normals=array("normals", False),
+                          normals_file=file(meta["normals_file"]), lights=lights, has_scene=bool(meta["has_scene"]),
+                          sensor=None if meta["sensor"] is None else Sensor.from_dict(meta["sensor"]))
+    except (KeyError, TypeError, json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{folder}: member {DECODED_META} is malformed ({type(exc).__name__}: {exc})") from None
+
+
+def is_decoded(files: dict[str, bytes]) -> bool:
+    """True for the members of a decoded sample."""
+    return DECODED_META in files
+
+
 def write_shard(path: str | Path, folders: list[tuple[str, Path]], aux: bool = False,
-                arg: str = "--data") -> dict[str, Any]:
+                arg: str = "--data", encoding: str = "files") -> dict[str, Any]:
     """Write one shard holding the samples of `folders` ((key, object folder) pairs, in that order) with
-    webdataset's TarWriter, atomically (a temporary name, then a rename). Returns its index entry (name,
-    bytes, sha256, objects)."""
+    webdataset's TarWriter, atomically (a temporary name, then a rename), in `encoding` (`ENCODINGS`). Returns its
+    index entry (name, bytes, sha256, objects)."""
     import webdataset as wds
 
     from scenes.layouts import detect_layout, layout_named
     from scenes.objfolder import atomic_write
+
+    if encoding not in ENCODINGS:
+        raise ValueError(f"--encoding: got {encoding!r}, expected one of {', '.join(ENCODINGS)}")
+    if encoding == DECODED and aux:
+        raise ValueError("--aux: a decoded export stores what training reads; aux files need --encoding files")
 
     path = Path(path)
     objects = []
@@ -131,8 +267,11 @@ def write_shard(path: str | Path, folders: list[tuple[str, Path]], aux: bool = F
             writer = wds.TarWriter(stream, user="", group="", mode=0o444, mtime=0, encoder=False)
             for key, folder in folders:
                 sample: dict[str, Any] = {"__key__": key}
-                for suffix, p in sample_files(folder, aux, arg):
-                    sample[suffix] = p.read_bytes()
+                if encoding == DECODED:
+                    sample.update(encode_decoded(folder, arg))
+                else:
+                    for suffix, p in sample_files(folder, aux, arg):
+                        sample[suffix] = p.read_bytes()
                 writer.write(sample)
                 layout = detect_layout(folder)
                 images = len(layout_named(layout).images(folder)) if layout else 0

@@ -215,6 +215,8 @@ def test_every_number_of_every_result_table_is_a_card_figure():
     numbers = _card_numbers(CARD)
     checked = 0
     for name in docs.BLOCKS:
+        if name in docs.BENCH_BLOCKS:  # from a benchmark's output, checked below
+            continue
         for table in _tables(_block(name)):
             for row in table:
                 for column, cell in row.items():
@@ -224,6 +226,21 @@ def test_every_number_of_every_result_table_is_a_card_figure():
                         assert any(_equal(value, x) for x in numbers), f"generated:{name} {column}: {value} is not in the model card"
                         checked += 1
     assert checked > 100
+
+
+def test_benchmark_tables_equal_the_recorded_output():
+    """A table generated from a benchmark's output holds that output's figures, rows in its order."""
+    for name, path in docs.BENCH_BLOCKS.items():
+        recorded = json.loads(path.read_text())
+        numbers = _card_numbers(recorded)
+        rows = [r for t in _tables(_block(name)) for r in t]
+        assert len(rows) == len(recorded["rows"]) > 0
+        for row, want in zip(rows, recorded["rows"]):
+            assert row["cache"] == want["cache"]
+            for cell in row.values():
+                value = cell.strip("*` x")
+                if re.fullmatch(r"-?\d+(\.\d+)?", value):
+                    assert any(_equal(value, x) for x in numbers), f"generated:{name}: {value} is not in {path.name}"
 
 
 # ---------------------------------------------------------------- flag tables match the parsers and --help

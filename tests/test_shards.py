@@ -309,3 +309,115 @@ def test_decoding_leaves_no_temporary_folder(data, tmp_path, monkeypatch):
     monkeypatch.delenv("TMPDIR")
     monkeypatch.setattr(us, "SHM", str(tmp_path / "no-such-folder"))
     assert us.scratch_dir(1) is None
+
+
+# ------------------------------------------------------------------------------------ decoded encoding
+
+
+def _same_folder_data(got, want) -> None:
+    """Every field the one reader returns, bit for bit (arrays with their dtype)."""
+    assert (got.name, got.layout, got.image_names, got.shape, got.num_files, got.has_scene) == \
+        (want.name, want.layout, want.image_names, want.shape, want.num_files, want.has_scene)
+    for field in ("images", "saturated", "mask", "normals"):
+        a, b = getattr(got, field), getattr(want, field)
+        assert (a is None and b is None) or (a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a, b)), field
+    for field in ("directions", "intensities"):
+        a, b = getattr(got.lights, field), getattr(want.lights, field)
+        assert (a is None and b is None) or np.array_equal(a, b), field
+    assert (got.lights.family, got.lights.level, got.sensor) == (want.lights.family, want.lights.level, want.sensor)
+    assert [p.name for p in (got.mask_file, got.normals_file) if p] == [p.name for p in (want.mask_file,
+                                                                                         want.normals_file) if p]
+
+
+def _decoded_folders(shards: Path) -> dict[str, object]:
+    from scenes.shards import decode_folder, is_decoded
+
+    out = {}
+    for shard in sorted(shards.glob("*.tar")):
+        for key, files in iter_samples(shard):
+            assert is_decoded(files) and not any(s.endswith(".png") for s in files)
+            out[key] = decode_folder(files, shard / sample_folder_name(key))
+    return out
+
+
+def test_a_decoded_sample_is_the_readers_output_bit_for_bit(data, tmp_path):
+    index = export_dataset(data["ds"], tmp_path / "dec", shard_size=SHARD_SIZE, encoding="decoded")
+    assert index["encoding"] == "decoded"
+    got = _decoded_folders(tmp_path / "dec")
+    assert list(got) == [f"{i:05d}" for i in range(OBJECTS)]
+    for key, fd in got.items():
+        _same_folder_data(fd, read_folder(data["ds"] / f"{key}.data"))
+    assert got["00003"].saturated is not None  # saturated channels travel too
+    # The scene file travels as it was (the object stays re-renderable from the shard).
+    files = dict(iter_samples(tmp_path / "dec" / "000000.tar"))["00000"]
+    assert files["scene.json"] == (data["ds"] / "00000.data" / "scene.json").read_bytes()
+
+
+def test_decoded_samples_of_8_bit_and_exr_images_and_a_recorded_sensor(data, tmp_path):
+    """The integer codes are stored in the type that gives the reader's floats back exactly (uint8 for 8-bit files,
+    uint16 for 16-bit), EXR radiance as float32; a recorded sensor travels in the metadata."""
+    import cv2
+
+    from scenes.sensor import SENSORS, sensor_record
+    from test_layouts import write_unips
+
+    ds = tmp_path / "ds"
+    eight = ds / "eight.data"
+    shutil.copytree(data["ds"] / "00000.data", eight)
+    for p in sorted(eight.glob("L*.png")):  # 8-bit files: codes 0-255
+        cv2.imwrite(str(p), (cv2.imread(str(p), cv2.IMREAD_UNCHANGED) // 257).astype(np.uint8))
+    sensed = ds / "sensed.data"
+    shutil.copytree(data["ds"] / "00001.data", sensed)
+    scene = json.loads((sensed / "scene.json").read_text())
+    scene["sensor"] = sensor_record(SENSORS["machine-vision"], [1, 2, 3, 4], seed=7)
+    (sensed / "scene.json").write_text(json.dumps(scene))
+    write_unips(ds / "radiance.data", exr=True)
+    export_dataset(ds, tmp_path / "dec", shard_size=2, encoding="decoded")
+    got = _decoded_folders(tmp_path / "dec")
+    for key, fd in got.items():
+        _same_folder_data(fd, read_folder(ds / f"{key}.data"))
+    samples = {k: v for shard in sorted((tmp_path / "dec").glob("*.tar")) for k, v in iter_samples(shard)}
+    kinds = {k: np.load(__import__("io").BytesIO(v["decoded.images.npy"])).dtype for k, v in samples.items()}
+    assert kinds == {"eight": np.uint8, "sensed": np.uint16, "radiance": np.float32}
+    assert got["sensed"].sensor is not None and got["sensed"].sensor.name == "machine-vision"
+    assert read_folder(ds / "radiance.data").images.max() > 1.0  # radiance beyond the integer range
+
+
+def test_training_on_decoded_shards_draws_the_folder_batches(data, tmp_path):
+    export_dataset(data["ds"], tmp_path / "dec", shard_size=SHARD_SIZE, encoding="decoded")
+    folders, shards = load_samples(data["ds"], 32), load_samples(tmp_path / "dec", 32)
+    _same_samples(shards, folders)
+    kw = dict(seed=4, batch=3, min_images=2, max_images=4, pixels=60, canonical=16)
+    for step in range(4):
+        a, b = make_batch(folders, step, **kw), make_batch(shards, step, **kw)
+        for field in ("images", "mask", "coords", "target", "weight"):
+            assert torch.equal(getattr(a, field), getattr(b, field)), (step, field)
+
+
+def test_decoded_export_is_deterministic_and_refuses_aux(data, tmp_path, capsys):
+    for name in ("a", "b"):
+        assert export_main(["--data", str(data["ds"]), "--out", str(tmp_path / name), "--encoding", "decoded",
+                            "--shard-size", "4", "--quiet"]) == 0
+    for shard in sorted((tmp_path / "a").glob("*.tar")):
+        assert shard.read_bytes() == (tmp_path / "b" / shard.name).read_bytes()
+    capsys.readouterr()
+    for argv, words in ((["--encoding", "decoded", "--aux"], "--aux"), (["--encoding", "arrays"], "--encoding")):
+        assert export_main(["--data", str(data["ds"]), "--out", str(tmp_path / "c"), *argv, "--quiet"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and words in err[0] and "Traceback" not in err[0], err
+
+
+def test_a_damaged_decoded_member_is_named(data, tmp_path):
+    from scenes.shards import decode_folder
+
+    export_dataset(data["ds"], tmp_path / "dec", shard_size=OBJECTS, encoding="decoded")
+    files = dict(iter_samples(tmp_path / "dec" / "000000.tar"))["00002"]
+    where = tmp_path / "dec" / "000000.tar" / "00002.data"
+    cut = dict(files, **{"decoded.images.npy": files["decoded.images.npy"][:-10]})
+    with pytest.raises(ValueError, match=r"decoded\.images\.npy is not the \.npy array"):
+        decode_folder(cut, where)
+    gone = {k: v for k, v in files.items() if k != "decoded.mask.npy"}
+    with pytest.raises(ValueError, match=r"no decoded\.mask\.npy member"):
+        decode_folder(gone, where)
+    with pytest.raises(ValueError, match=r"decoded\.json is malformed"):
+        decode_folder(dict(files, **{"decoded.json": b"{}"}), where)

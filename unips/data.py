@@ -21,10 +21,11 @@ from typing import Any
 
 import numpy as np
 
-from scenes.layouts import EXPECTED, LAYOUTS, find_object_folders, read_folder
+from scenes.layouts import EXPECTED, LAYOUTS, FolderData, find_object_folders, read_folder
 
 log = logging.getLogger(__name__)
-__all__ = ["EXPECTED", "LAYOUTS", "GroundTruth", "PSObject", "find_objects", "load_ground_truth", "load_object"]
+__all__ = ["EXPECTED", "LAYOUTS", "GroundTruth", "PSObject", "find_objects", "load_ground_truth", "load_object",
+           "object_from_folder"]
 
 
 @dataclass
@@ -64,7 +65,11 @@ def load_object(path: str | Path, max_images: int | None = None, layout: str | N
     max_images: keep the first K images in the folder's order (natural sort of names, or DiLiGenT's
     filenames.txt); deterministic. layout: force ``"ours"``, ``"unips"`` or ``"diligent"``.
     """
-    fd = read_folder(path, max_images=max_images, layout=layout, arg=arg)
+    return object_from_folder(read_folder(path, max_images=max_images, layout=layout, arg=arg))
+
+
+def object_from_folder(fd: FolderData) -> PSObject:
+    """The `PSObject` of what the one reader returned for a folder (`read_folder`, or a decoded shard sample)."""
     meta: dict[str, Any] = {}
     if fd.layout == "diligent":
         meta["light_intensities_file"] = fd.lights.intensities

@@ -4,7 +4,8 @@ Example: python -m wildgen.export --format webdataset --data DS --out SHARDS --s
 
 Training at scale reads a few large files rather than many small ones: each shard `SHARDS/000000.tar ...`
 holds `--shard-size` objects, one WebDataset sample per object folder with its files stored as they are
-(images, mask, normal map, scene.json with the lights; with --aux the aux/ files too), in the order of the
+(images, mask, normal map, scene.json with the lights; with --aux the aux/ files too) or, with `--encoding
+decoded`, the arrays the one reader returns for it (faster to read in training), in the order of the
 folders (sorted by name, as every reader lists them). `SHARDS/index.json` lists each shard's objects, byte
 size and sha256. The format is `scenes.shards`; `unips.train --data 'SHARDS/{000000..000009}.tar'` reads it.
 
@@ -26,8 +27,8 @@ from typing import Any, Callable
 
 from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, claim_outputs, progress_bar, report_error
 from scenes.config import check_fields, config_from_args, config_parser, option
-from scenes.shards import (FORMAT, FORMAT_VERSION, INDEX_FILE, SHARD_NAME, sample_key, shard_name, shard_pattern,
-                           write_index, write_shard)
+from scenes.shards import (ENCODINGS, FORMAT, FORMAT_VERSION, INDEX_FILE, SHARD_NAME, sample_key, shard_name,
+                           shard_pattern, write_index, write_shard)
 
 FORMATS = ("webdataset",)
 """Export formats (one so far: WebDataset tar shards, `scenes.shards`)."""
@@ -47,6 +48,11 @@ class ExportOptions:
     shard_size: int = option(DEFAULT_SHARD_SIZE, minimum=1)
     """Objects per shard (the last one holds the rest). Streaming training splits shards across processes and
     loader workers, so a dataset needs at least processes x workers shards."""
+    encoding: str = option("files", choices=ENCODINGS)
+    """'files': each object's files as they are (PNG, TIFF, JSON; a sample unpacks into a folder the official loaders
+    read). 'decoded': the arrays the one reader returns for the folder (integer image codes, mask, normals, the
+    reader's metadata, scene.json), which training reads without decoding a PNG: several times faster to read
+    (docs/model.md, bench/bench_shards.py), and bit-identical once read."""
     aux: bool = False
     """Also store each object's aux/ files (radiance and ground-truth EXRs, mesh, textures); training does not
     read them."""
@@ -109,18 +115,22 @@ def _claim_out(data: Path, out: Path, overwrite: bool, flag: str = "--out") -> l
 
 def export_dataset(data: str | Path, out: str | Path, shard_size: int = DEFAULT_SHARD_SIZE, aux: bool = False,
                    overwrite: bool = False, progress: Callable[[int, int, str], None] | None = None,
-                   flag: str = "--out") -> dict[str, Any]:
+                   flag: str = "--out", encoding: str = "files") -> dict[str, Any]:
     """Write the object folders of `data` as shards into `out` (see the module docstring); returns the index.
     `flag`: the option that named `out`, in errors."""
     data, out = Path(data), Path(out)
     if isinstance(shard_size, bool) or not isinstance(shard_size, int) or shard_size < 1:
         raise ValueError(f"--shard-size: got {shard_size!r}, expected an integer >= 1")
+    if encoding not in ENCODINGS:
+        raise ValueError(f"--encoding: got {encoding!r}, expected one of {', '.join(ENCODINGS)}")
+    if aux and encoding != "files":
+        raise ValueError("--aux: a decoded export stores what training reads; aux files need --encoding files")
     folders = _source_folders(data)
     old = _claim_out(data, out, overwrite, flag)
     out.mkdir(parents=True, exist_ok=True)
     groups = [folders[i:i + shard_size] for i in range(0, len(folders), shard_size)]
     index: dict[str, Any] = {"format": FORMAT, "format_version": FORMAT_VERSION, "complete": False,
-                             "objects": len(folders), "shard_size": shard_size, "aux_files": bool(aux),
+                             "encoding": encoding, "objects": len(folders), "shard_size": shard_size, "aux_files": bool(aux),
                              "pattern": shard_pattern(len(groups)), "shards": []}
     write_index(out, index)  # first: from now on --out is this command's (an interrupted export is replaced)
     for p in old:
@@ -128,17 +138,18 @@ def export_dataset(data: str | Path, out: str | Path, shard_size: int = DEFAULT_
     for i, group in enumerate(groups):
         if progress is not None:
             progress(i, len(groups), shard_name(i))
-        index["shards"].append(write_shard(out / shard_name(i), [(sample_key(f), f) for f in group], aux))
+        index["shards"].append(write_shard(out / shard_name(i), [(sample_key(f), f) for f in group], aux,
+                                           encoding=encoding))
     index["complete"] = True
     write_index(out, index)
     return index
 
 
-def export_after_make(data: str | Path, out: str | Path) -> int:
-    """`wildgen.make --shards OUT`: export the finished dataset (default shard size; an earlier export in OUT is
-    replaced, since it was made from this dataset). Returns the exit status; errors are one line."""
+def export_after_make(data: str | Path, out: str | Path, encoding: str = "files") -> int:
+    """`wildgen.make --shards OUT [--shard-encoding E]`: export the finished dataset (default shard size; an earlier
+    export in OUT is replaced, since it was made from this dataset). Returns the exit status; errors are one line."""
     try:
-        index = export_dataset(data, out, overwrite=True, flag="--shards")
+        index = export_dataset(data, out, overwrite=True, flag="--shards", encoding=encoding)
     except INPUT_ERRORS as exc:
         return report_error(exc)
     except OSError as exc:
@@ -153,10 +164,12 @@ def main(argv: list[str] | None = None) -> int:
         opts = config_from_args(ExportOptions, build_parser().parse_args(argv)).validate()
         t0 = time.perf_counter()
         if opts.quiet:
-            index = export_dataset(opts.data, opts.out, opts.shard_size, opts.aux, opts.overwrite)
+            index = export_dataset(opts.data, opts.out, opts.shard_size, opts.aux, opts.overwrite,
+                                   encoding=opts.encoding)
         else:
             with progress_bar("shard") as progress:
-                index = export_dataset(opts.data, opts.out, opts.shard_size, opts.aux, opts.overwrite, progress)
+                index = export_dataset(opts.data, opts.out, opts.shard_size, opts.aux, opts.overwrite, progress,
+                                       encoding=opts.encoding)
     except INPUT_ERRORS as exc:
         return report_error(exc)
     except OSError as exc:  # a full disk or an unwritable file: one line, exit 1

@@ -12,6 +12,7 @@ import time
 from dataclasses import dataclass, fields
 from pathlib import Path
 
+from scenes.shards import ENCODINGS
 from scenes.cli import UsageError, check_output_folder, check_threads, gib, make_output_folder, report_error
 from scenes.cli import check_memory as check_memory_bytes
 from scenes.config import check_fields, check_int, config_parser, given_flags, option
@@ -52,6 +53,9 @@ class MakeOptions:
     shards: str | None = None
     """Also write the finished dataset as WebDataset shards into this folder (python -m wildgen.export, default
     shard size; an earlier export there is replaced)."""
+    shard_encoding: str = option("files", choices=ENCODINGS)
+    """Encoding of --shards (wildgen.export --encoding): 'files' as they are, or 'decoded' (the reader's arrays,
+    faster to train on)."""
 
     def validate(self) -> "MakeOptions":
         """The run's own options (the dataset's are `GenConfig.validate`'s)."""
@@ -351,7 +355,7 @@ def _run(argv: list[str] | None, state: dict) -> int:
     if args.shards:
         from wildgen.export import export_after_make
 
-        return export_after_make(out, args.shards)
+        return export_after_make(out, args.shards, args.shard_encoding)
     return 0
 
 
