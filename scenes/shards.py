@@ -89,6 +89,9 @@ def sample_key(folder: Path, arg: str = "--data") -> str:
 def _member_suffix(name: str, where: Path, arg: str) -> str:
     if name.startswith("_"):  # WebDataset drops members whose suffix starts with "_" (its metadata)
         raise ValueError(f"{arg}: {str(where)!r}: file names starting with '_' cannot be stored in a shard")
+    if name.startswith(DECODED + "."):  # would read back as a decoded sample
+        raise ValueError(f"{arg}: {str(where)!r}: file names starting with '{DECODED}.' are reserved for decoded "
+                         "samples and cannot be stored in a shard")
     return name
 
 
@@ -147,15 +150,15 @@ def _as_codes(images, where: Path, arg: str):
 
     from scenes.objfolder import CODE_SCALES, codes_to_linear
 
+    if images.dtype != np.float32:
+        raise ValueError(f"{arg}: {str(where)!r}: the reader gave {images.dtype} images; expected float32")
     for dtype, scale in sorted(CODE_SCALES.items(), key=lambda kv: kv[1]):
         codes = np.rint(images * scale)
         if codes.min(initial=0) < 0 or codes.max(initial=0) > scale:
             continue
         codes = codes.astype(dtype)
-        if np.array_equal(codes_to_linear(codes), images):
+        if np.array_equal(codes_to_linear(codes).view(np.uint32), images.view(np.uint32)):  # bits: -0.0 is not 0.0
             return codes
-    if images.dtype != np.float32:
-        raise ValueError(f"{arg}: {str(where)!r}: the reader gave {images.dtype} images; expected float32")
     return images
 
 
@@ -186,54 +189,68 @@ def encode_decoded(folder: Path, arg: str = "--data") -> dict[str, bytes]:
     return members
 
 
+class _MemberError(ValueError):
+    """A decoded member that is missing, damaged or not what decoded.json describes (already names it)."""
+
+
 def decode_folder(files: dict[str, bytes], folder: Path):
     """The `scenes.layouts.FolderData` of a decoded sample's members, as `read_folder` returned it for the object
-    folder; `folder` (where the sample came from, e.g. SHARD/KEY.data) stands for its path. ValueError naming the
-    member that is missing or unreadable."""
+    folder; `folder` (where the sample came from, e.g. SHARD/KEY.data) stands for its path. A ValueError naming the
+    member that is missing, unreadable or not of the type and shape the reader returns."""
     import numpy as np
 
     from scenes.layouts import FolderData, Lights
-    from scenes.objfolder import codes_to_linear
+    from scenes.objfolder import CODE_SCALES, codes_to_linear
     from scenes.sensor import Sensor
 
-    def array(name: str, required: bool):
+    def array(name: str, required: bool, dtypes: tuple, shape: tuple):
         suffix = f"{DECODED}.{name}.npy"
         spec = meta["arrays"].get(name)
         if suffix not in files or spec is None:
             if required or (suffix in files) != (spec is not None):
-                raise ValueError(f"{folder}: decoded sample has no {suffix} member, or {DECODED_META} does not "
-                                 "describe it")
+                raise _MemberError(f"{folder}: decoded sample has no {suffix} member, or {DECODED_META} does not "
+                                   "describe it")
             return None
+        dtype, got = np.dtype(spec["dtype"]), tuple(spec["shape"])
+        if dtype not in dtypes or got != shape:
+            raise _MemberError(f"{folder}: member {suffix} is {dtype} {got}, expected one of "
+                               f"{', '.join(str(d) for d in dtypes)} {shape}")
         data = files[suffix]
-        dtype, shape = np.dtype(spec["dtype"]), tuple(int(v) for v in spec["shape"])
         # .npy version 1 / 2: magic, version, header length (2 / 4 bytes little-endian), header, data.
         version = data[6:7]
         start = (10 + int.from_bytes(data[8:10], "little") if version == b"\x01" else
                  12 + int.from_bytes(data[8:12], "little") if version in (b"\x02", b"\x03") else -1)
         if data[:6] != b"\x93NUMPY" or start < 0 or len(data) - start != dtype.itemsize * int(np.prod(shape)):
-            raise ValueError(f"{folder}: member {suffix} is not the .npy array of {spec} that {DECODED_META} describes")
+            raise _MemberError(f"{folder}: member {suffix} is not the .npy array of {spec} that {DECODED_META} "
+                               "describes")
         return np.frombuffer(data, dtype, offset=start).reshape(shape).copy()
 
     try:
         meta = json.loads(files[DECODED_META])
-        codes = array("images", True)
-        if codes.dtype.kind not in "uf":
-            raise ValueError(f"{folder}: member {DECODED}.images.npy holds {codes.dtype}, expected integer codes or "
-                             "float32")
-        images = codes.astype(np.float32, copy=False) if codes.dtype.kind == "f" else codes_to_linear(codes)
+        h, w = (int(v) for v in meta["shape"])
+        k = len(meta["image_names"])
+        if min(h, w, k) < 1:
+            raise ValueError(f"shape {h}x{w} with {k} images")
+        codes = array("images", True, (*CODE_SCALES, np.dtype(np.float32)), (k, h, w, 3))
+        images = codes if codes.dtype.kind == "f" else codes_to_linear(codes)
+        flag, f32 = (np.dtype(bool),), (np.dtype(np.float32),)
         d = meta["lights"]
-        lights = Lights(family=d["family"], level=d["level"],
-                        directions=None if d["directions"] is None else np.asarray(d["directions"], np.float64),
-                        intensities=None if d["intensities"] is None else np.asarray(d["intensities"], np.float64))
-        file = (lambda name: None if name is None else folder / name)
-        return FolderData(name=meta["name"], path=folder, layout=meta["layout"],
-                          image_paths=[folder / n for n in meta["image_names"]], num_files=int(meta["num_files"]),
-                          shape=tuple(meta["shape"]), images=images, saturated=array("saturated", False),
-                          mask=array("mask", True), mask_file=file(meta["mask_file"]), normals=array("normals", False),
-                          normals_file=file(meta["normals_file"]), lights=lights, has_scene=bool(meta["has_scene"]),
+        vectors = [None if d[key] is None else np.asarray(d[key], np.float64) for key in ("directions", "intensities")]
+        if any(v is not None and (v.ndim != 2 or v.shape[1] != 3) for v in vectors):
+            raise ValueError("lights: expected (N, 3) directions and intensities")
+        file = (lambda name: None if name is None else folder / str(name))
+        return FolderData(name=str(meta["name"]), path=folder, layout=str(meta["layout"]),
+                          image_paths=[folder / str(n) for n in meta["image_names"]], num_files=int(meta["num_files"]),
+                          shape=(h, w), images=images, saturated=array("saturated", False, flag, (k, h, w, 3)),
+                          mask=array("mask", True, flag, (h, w)), mask_file=file(meta["mask_file"]),
+                          normals=array("normals", False, f32, (h, w, 3)), normals_file=file(meta["normals_file"]),
+                          lights=Lights(d["family"], *vectors, d["level"]), has_scene=bool(meta["has_scene"]),
                           sensor=None if meta["sensor"] is None else Sensor.from_dict(meta["sensor"]))
-    except (KeyError, TypeError, json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{folder}: member {DECODED_META} is malformed ({type(exc).__name__}: {exc})") from None
+    except _MemberError:
+        raise
+    except (KeyError, TypeError, AttributeError, ValueError, UnicodeDecodeError) as exc:  # JSONDecodeError too
+        first = (str(exc).splitlines() or [""])[0]
+        raise ValueError(f"{folder}: member {DECODED_META} is malformed ({type(exc).__name__}: {first:.160})") from None
 
 
 def is_decoded(files: dict[str, bytes]) -> bool:

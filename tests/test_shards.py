@@ -421,3 +421,27 @@ def test_a_damaged_decoded_member_is_named(data, tmp_path):
         decode_folder(gone, where)
     with pytest.raises(ValueError, match=r"decoded\.json is malformed"):
         decode_folder(dict(files, **{"decoded.json": b"{}"}), where)
+
+
+def test_a_decoded_member_of_the_wrong_type_or_shape_is_named(data, tmp_path):
+    from scenes.shards import decode_folder
+
+    export_dataset(data["ds"], tmp_path / "dec", shard_size=OBJECTS, encoding="decoded")
+    files = dict(iter_samples(tmp_path / "dec" / "000000.tar"))["00002"]
+    where = tmp_path / "dec" / "000000.tar" / "00002.data"
+    meta = json.loads(files["decoded.json"])
+    flat = dict(meta, arrays=dict(meta["arrays"], mask={"dtype": "|u1", "shape": [24 * 24]}))
+    with pytest.raises(ValueError, match=r"member decoded\.mask\.npy is uint8 \(576,\), expected one of bool \(24, 24\)"):
+        decode_folder(dict(files, **{"decoded.json": json.dumps(flat).encode()}), where)
+    for bad in ({**meta, "arrays": []}, {**meta, "shape": ["a", 3]}, {**meta, "lights": {**meta["lights"],
+                                                                                         "directions": [1, 2]}}):
+        with pytest.raises(ValueError, match=r"member decoded\.json is malformed"):
+            decode_folder(dict(files, **{"decoded.json": json.dumps(bad).encode()}), where)
+
+
+def test_a_folder_file_named_like_a_decoded_member_is_refused(data, tmp_path):
+    ds = tmp_path / "ds"
+    shutil.copytree(data["ds"] / "00000.data", ds / "00000.data")
+    (ds / "00000.data" / "decoded.json").write_text("{}")
+    with pytest.raises(ValueError, match=r"reserved for decoded samples"):
+        export_dataset(ds, tmp_path / "sh")

@@ -12,11 +12,11 @@ import time
 from dataclasses import dataclass, fields
 from pathlib import Path
 
-from scenes.shards import ENCODINGS
 from scenes.cli import UsageError, check_output_folder, check_threads, gib, make_output_folder, report_error
 from scenes.cli import check_memory as check_memory_bytes
 from scenes.config import check_fields, check_int, config_parser, given_flags, option
 from scenes.config import config_from_args as parse_config
+from scenes.shards import ENCODINGS
 from wildgen.config import GenConfig
 from wildgen.levels import LEVELS, apply_level
 from wildgen.presets import apply_preset, preset_named
@@ -60,6 +60,8 @@ class MakeOptions:
     def validate(self) -> "MakeOptions":
         """The run's own options (the dataset's are `GenConfig.validate`'s)."""
         check_fields(self)
+        if self.shard_encoding != "files" and not self.shards:
+            raise UsageError(f"--shard-encoding: {self.shard_encoding!r} needs --shards (the folder to export to)")
         if self.res is not None:
             check_int(self.res, "--res", minimum=1)
         return self
