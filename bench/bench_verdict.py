@@ -31,6 +31,30 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 
+def explain_by_tile(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None, tile: int):
+    """`validate.verdict.explain` run on each tile x tile square of the mask separately (tiles of fewer than 12
+    mask pixels are not explained): a trial of a test for near lights, which are locally distant."""
+    from validate.verdict import Explanation, explain
+
+    p = int(mask.sum())
+    keep, explained, residual = np.zeros((images.shape[0], p), bool), np.zeros(p, bool), np.full(p, np.inf)
+    index = np.full(mask.shape, -1)
+    index[mask] = np.arange(p)
+    sigmas = []
+    for y in range(0, mask.shape[0], tile):
+        for x in range(0, mask.shape[1], tile):
+            sub = np.zeros_like(mask)
+            sub[y:y + tile, x:x + tile] = mask[y:y + tile, x:x + tile]
+            if sub.sum() < 12:
+                continue
+            ex = explain(images, sub, saturated)
+            ids = index[sub]
+            keep[:, ids], explained[ids], residual[ids] = ex.keep, ex.explained, ex.residual
+            sigmas.append(ex.sigma)
+    return Explanation(keep=keep, explained=explained, residual=residual,
+                       sigma=float(np.median(sigmas)) if sigmas else 0.0)
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("captures", nargs="+", type=Path)
@@ -38,6 +62,11 @@ def main() -> int:
     p.add_argument("--no-model", action="store_true", help="skip the shipped model's map")
     p.add_argument("--refine", action="store_true", help="also refine the shipped model's map (validate.refine's "
                    "defaults) and report its error before and after, and whether the refinement was accepted")
+    p.add_argument("--light-model", default="directional", choices=("directional", "point", "environment"),
+                   help="light model of every fit (the check's default: directional)")
+    p.add_argument("--tile", type=int, default=0, help="trial: run the images-only rank-4 test per square tile of "
+                   "this many pixels at the fitting resolution (a near light is locally distant) instead of over the "
+                   "whole object (0, the check's test)")
     args = p.parse_args()
 
     from scenes.objfolder import mean_angular_error
@@ -52,7 +81,7 @@ def main() -> int:
     from validate.perturb import perturb_normals
     from validate.verdict import explain, judged_rel_l1, verdict
 
-    cfg = FitConfig().validate()
+    cfg = FitConfig(light_model=args.light_model).validate()
     net = None if args.no_model else load_network(None)
     rows = []
     for folder in args.captures:
@@ -63,7 +92,8 @@ def main() -> int:
             print(f"{folder}: no ground truth, skipped", file=sys.stderr)
             continue
         small, _, _ = prepare(cap, gt, cfg)
-        ex = explain(small.images, small.mask, small.saturated)
+        ex = (explain(small.images, small.mask, small.saturated) if args.tile <= 0 else
+              explain_by_tile(small.images, small.mask, small.saturated, args.tile))
         trusted, why = verdict(ex)
         maps = {"gt": gt,
                 "gt+10": perturb_normals(gt, cap.mask, "smooth", 10, 0),
@@ -98,6 +128,7 @@ def main() -> int:
               + "  ".join(f"{k} {v['mae_deg']:.1f}deg {v['judged_rel_l1']:.4f}" for k, v in row["maps"].items()), flush=True)
     judged = [r for r in rows if r["trusted"]]
     summary = {"captures": len(rows), "trusted": len(judged),
+               "light_model": args.light_model, "tile": args.tile,
                "abstention_rate": 1 - len(judged) / len(rows) if rows else None,
                "trusted_gt_first": sum(r["gt_first"] for r in judged), "trusted_ordered": sum(r["ordered"] for r in judged),
                "all_gt_first_judged_score": sum(r["gt_first"] for r in rows),
