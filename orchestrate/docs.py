@@ -325,7 +325,6 @@ def data_ab(card: dict) -> str:
                    "ball K=96", "ball K=16", "cat K=96", "cat K=16"], rows)
 
 
-# Generated blocks other than flag tables: name -> renderer of the model card.
 SHARDS_BENCH = REPO / "bench" / "results" / "shards.json"
 """The output of `python bench/bench_shards.py --out bench/results/shards.json` (its last run, committed)."""
 _READS = {"files": "files (every file's bytes)", "objects": "objects (decoded by the loader)",
@@ -350,6 +349,7 @@ def shards_throughput(card: dict) -> str:
 BENCH_BLOCKS = {"model:shards-throughput": SHARDS_BENCH}
 """Blocks generated from a benchmark's recorded output instead of the model card."""
 
+# Generated blocks other than flag tables: name -> renderer of the model card.
 BLOCKS: dict[str, Callable[[dict], str]] = {
     "readme:headline": readme_headline,
     "model:facts": model_facts,

@@ -264,7 +264,8 @@ def _choose(requested: str, avoid: str | None = None) -> str:
 def _make_argv(opts: SessionOptions, out: Path, variant: str, objects: int, shards: Path | None) -> list[str]:
     return ["--objects", str(objects), "--images", str(opts.images), "--res", str(opts.res), "--spp", str(opts.spp),
             "--seed", str(opts.seed), "--variant", variant, "--out", str(out), "--quiet",
-            *(["--shards", str(shards), "--shard-encoding", "decoded"] if shards else []), *(["--overwrite"] if opts.overwrite else [])]
+            *(["--shards", str(shards), "--shard-encoding", "decoded"] if shards else []),
+            *(["--overwrite"] if opts.overwrite else [])]
 
 
 def _train_argv(opts: SessionOptions, shards: Path, run: Path, device: str, minutes: float) -> list[str]:

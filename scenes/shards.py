@@ -258,6 +258,14 @@ def is_decoded(files: dict[str, bytes]) -> bool:
     return DECODED_META in files
 
 
+def check_encoding(encoding: str, aux: bool) -> None:
+    """Refuse an unknown encoding, and aux files in a decoded export (ValueError naming the flag)."""
+    if encoding not in ENCODINGS:
+        raise ValueError(f"--encoding: got {encoding!r}, expected one of {', '.join(ENCODINGS)}")
+    if encoding == DECODED and aux:
+        raise ValueError("--aux: a decoded export stores what training reads; aux files need --encoding files")
+
+
 def write_shard(path: str | Path, folders: list[tuple[str, Path]], aux: bool = False,
                 arg: str = "--data", encoding: str = "files") -> dict[str, Any]:
     """Write one shard holding the samples of `folders` ((key, object folder) pairs, in that order) with
@@ -268,11 +276,7 @@ def write_shard(path: str | Path, folders: list[tuple[str, Path]], aux: bool = F
     from scenes.layouts import detect_layout, layout_named
     from scenes.objfolder import atomic_write
 
-    if encoding not in ENCODINGS:
-        raise ValueError(f"--encoding: got {encoding!r}, expected one of {', '.join(ENCODINGS)}")
-    if encoding == DECODED and aux:
-        raise ValueError("--aux: a decoded export stores what training reads; aux files need --encoding files")
-
+    check_encoding(encoding, aux)
     path = Path(path)
     objects = []
     result: dict[str, Any] = {}

@@ -431,7 +431,8 @@ def test_a_decoded_member_of_the_wrong_type_or_shape_is_named(data, tmp_path):
     where = tmp_path / "dec" / "000000.tar" / "00002.data"
     meta = json.loads(files["decoded.json"])
     flat = dict(meta, arrays=dict(meta["arrays"], mask={"dtype": "|u1", "shape": [24 * 24]}))
-    with pytest.raises(ValueError, match=r"member decoded\.mask\.npy is uint8 \(576,\), expected one of bool \(24, 24\)"):
+    expected = r"member decoded\.mask\.npy is uint8 \(576,\), expected one of bool \(24, 24\)"
+    with pytest.raises(ValueError, match=expected):
         decode_folder(dict(files, **{"decoded.json": json.dumps(flat).encode()}), where)
     for bad in ({**meta, "arrays": []}, {**meta, "shape": ["a", 3]}, {**meta, "lights": {**meta["lights"],
                                                                                          "directions": [1, 2]}}):

@@ -27,8 +27,8 @@ from typing import Any, Callable
 
 from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, claim_outputs, progress_bar, report_error
 from scenes.config import check_fields, config_from_args, config_parser, option
-from scenes.shards import (ENCODINGS, FORMAT, FORMAT_VERSION, INDEX_FILE, SHARD_NAME, sample_key, shard_name,
-                           shard_pattern, write_index, write_shard)
+from scenes.shards import (ENCODINGS, FORMAT, FORMAT_VERSION, INDEX_FILE, SHARD_NAME, check_encoding, sample_key,
+                           shard_name, shard_pattern, write_index, write_shard)
 
 FORMATS = ("webdataset",)
 """Export formats (one so far: WebDataset tar shards, `scenes.shards`)."""
@@ -121,17 +121,14 @@ def export_dataset(data: str | Path, out: str | Path, shard_size: int = DEFAULT_
     data, out = Path(data), Path(out)
     if isinstance(shard_size, bool) or not isinstance(shard_size, int) or shard_size < 1:
         raise ValueError(f"--shard-size: got {shard_size!r}, expected an integer >= 1")
-    if encoding not in ENCODINGS:
-        raise ValueError(f"--encoding: got {encoding!r}, expected one of {', '.join(ENCODINGS)}")
-    if aux and encoding != "files":
-        raise ValueError("--aux: a decoded export stores what training reads; aux files need --encoding files")
+    check_encoding(encoding, aux)  # before --out is claimed
     folders = _source_folders(data)
     old = _claim_out(data, out, overwrite, flag)
     out.mkdir(parents=True, exist_ok=True)
     groups = [folders[i:i + shard_size] for i in range(0, len(folders), shard_size)]
     index: dict[str, Any] = {"format": FORMAT, "format_version": FORMAT_VERSION, "complete": False,
-                             "encoding": encoding, "objects": len(folders), "shard_size": shard_size, "aux_files": bool(aux),
-                             "pattern": shard_pattern(len(groups)), "shards": []}
+                             "encoding": encoding, "objects": len(folders), "shard_size": shard_size,
+                             "aux_files": bool(aux), "pattern": shard_pattern(len(groups)), "shards": []}
     write_index(out, index)  # first: from now on --out is this command's (an interrupted export is replaced)
     for p in old:
         p.unlink(missing_ok=True)
