@@ -15,7 +15,8 @@ for each map (ground truth; the truth tilted locally by 10 and 25 degrees about 
 image, `smooth`; 10 degrees per pixel, `random`; the shipped model's prediction; the constant (0, 0, 1) map)
 its angular error, the fitted score over all observations (`rel_l1`) and over the observations every map
 shares (`judged_rel_l1`). The targets: on every trusted capture, the truth scores below every map at least 10
-degrees off, and GT+10 < GT+25 < constant; the abstention rate.
+degrees off, and GT+10 < GT+25 < constant; the abstention rate. `--near` runs the near-light trial of
+docs/check.md (a test per tile where the whole-object test abstains; measured, not adopted).
 """
 from __future__ import annotations
 
@@ -31,9 +32,11 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 
-def explain_by_tile(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None, tile: int):
+def explain_by_tile(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None, tile: int,
+                    from_box: bool = False):
     """`validate.verdict.explain` run on each tile x tile square of the mask separately (tiles of fewer than 12
-    mask pixels are not explained): a trial of a test for near lights, which are locally distant."""
+    mask pixels are not explained): a trial of a test for near lights, which are locally distant. Squares laid
+    from the image's corner, or from the mask's bounding box (`from_box`, the --near trial)."""
     from validate.verdict import Explanation, explain
 
     p = int(mask.sum())
@@ -41,8 +44,10 @@ def explain_by_tile(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray 
     index = np.full(mask.shape, -1)
     index[mask] = np.arange(p)
     sigmas = []
-    for y in range(0, mask.shape[0], tile):
-        for x in range(0, mask.shape[1], tile):
+    ys, xs = np.nonzero(mask)
+    y0, x0 = (int(ys.min()), int(xs.min())) if from_box and p else (0, 0)
+    for y in range(y0, mask.shape[0], tile):
+        for x in range(x0, mask.shape[1], tile):
             sub = np.zeros_like(mask)
             sub[y:y + tile, x:x + tile] = mask[y:y + tile, x:x + tile]
             if sub.sum() < 12:
@@ -53,6 +58,30 @@ def explain_by_tile(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray 
             sigmas.append(ex.sigma)
     return Explanation(keep=keep, explained=explained, residual=residual,
                        sigma=float(np.median(sigmas)) if sigmas else 0.0)
+
+
+NEAR_MIN_EXPLAINED = 0.55
+"""--near trial: share of the mask a tile-by-tile test must explain (above the whole-object test's 0.5)."""
+NEAR_TILES_ACROSS = 4
+"""--near trial: tiles of a quarter of the mask's larger bounding-box side (16 px on the 64 px suite)."""
+
+
+def near_judgement(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None):
+    """--near trial: the check's whole-object test first; where it abstains, the rank-4 test per tile of a quarter of
+    the object (a near light is locally distant), trusted at `NEAR_MIN_EXPLAINED` and judged with the point light
+    model. Returns (explanation, trusted, why, light model, test)."""
+    from validate.verdict import explain, verdict
+
+    ex = explain(images, mask, saturated)
+    trusted, why = verdict(ex)
+    if trusted:
+        return ex, True, why, "directional", "whole object"
+    ys, xs = np.nonzero(mask)
+    tile = max(8, int(np.ceil(max(np.ptp(ys) + 1, np.ptp(xs) + 1) / NEAR_TILES_ACROSS)))
+    local = explain_by_tile(images, mask, saturated, tile, from_box=True)
+    if local.explained_fraction >= NEAR_MIN_EXPLAINED:
+        return local, True, f"{local.explained_fraction:.0%} explained tile by tile", "point", f"tiles of {tile} px"
+    return ex, False, why, "directional", "whole object"
 
 
 def main() -> int:
@@ -67,6 +96,9 @@ def main() -> int:
     p.add_argument("--tile", type=int, default=0, help="trial: run the images-only rank-4 test per square tile of "
                    "this many pixels at the fitting resolution (a near light is locally distant) instead of over the "
                    "whole object (0, the check's test)")
+    p.add_argument("--near", action="store_true", help="trial: the whole-object test, then where it abstains the "
+                   "test per tile of a quarter of the object, trusted from 55 %% explained and judged with the point "
+                   "light model (overrides --tile and --light-model)")
     args = p.parse_args()
 
     from scenes.objfolder import mean_angular_error
@@ -81,7 +113,7 @@ def main() -> int:
     from validate.perturb import perturb_normals
     from validate.verdict import explain, judged_rel_l1, verdict
 
-    cfg = FitConfig(light_model=args.light_model).validate()
+    base = FitConfig(light_model=args.light_model).validate()
     net = None if args.no_model else load_network(None)
     rows = []
     for folder in args.captures:
@@ -91,10 +123,15 @@ def main() -> int:
         if gt is None:
             print(f"{folder}: no ground truth, skipped", file=sys.stderr)
             continue
-        small, _, _ = prepare(cap, gt, cfg)
-        ex = (explain(small.images, small.mask, small.saturated) if args.tile <= 0 else
-              explain_by_tile(small.images, small.mask, small.saturated, args.tile))
-        trusted, why = verdict(ex)
+        small, _, _ = prepare(cap, gt, base)
+        cfg, test = base, "whole object" if args.tile <= 0 else f"tiles of {args.tile} px"
+        if args.near:
+            ex, trusted, why, model, test = near_judgement(small.images, small.mask, small.saturated)
+            cfg = FitConfig(light_model=model).validate()
+        else:
+            ex = (explain(small.images, small.mask, small.saturated) if args.tile <= 0 else
+                  explain_by_tile(small.images, small.mask, small.saturated, args.tile))
+            trusted, why = verdict(ex)
         maps = {"gt": gt,
                 "gt+10": perturb_normals(gt, cap.mask, "smooth", 10, 0),
                 "gt+25": perturb_normals(gt, cap.mask, "smooth", 25, 0),
@@ -102,7 +139,8 @@ def main() -> int:
         if net is not None:
             maps["model"] = predict_object(load_object(folder), "model", net)
         maps["constant"] = np.where(cap.mask[..., None], np.float32([0, 0, 1]), 0).astype(np.float32)
-        row = {"capture": folder.name, "explained": ex.explained_fraction, "trusted": trusted, "why": why, "maps": {}}
+        row = {"capture": folder.name, "explained": ex.explained_fraction, "trusted": trusted, "why": why,
+               "test": test, "light_model": cfg.light_model, "maps": {}}
         for name, m in maps.items():
             _, nm, _ = prepare(cap, m, cfg)
             r = fit_normals(small.images, small.mask, nm, cfg, saturated=small.saturated)
@@ -123,12 +161,13 @@ def main() -> int:
         row["gt_first_old_score"] = all(row["maps"]["gt"]["rel_l1"] < row["maps"][k]["rel_l1"] for k in far)
         row["seconds"] = time.perf_counter() - t0
         rows.append(row)
-        print(f"{row['capture']:<14} explained {row['explained']:.2f} trusted {str(trusted):<5} gt_first {row['gt_first']!s:<5} "
+        print(f"{row['capture']:<14} {test} {cfg.light_model} explained {row['explained']:.2f} trusted {str(trusted):<5} gt_first {row['gt_first']!s:<5} "
               f"ordered {row['ordered']!s:<5} (old score gt_first {row['gt_first_old_score']})  "
               + "  ".join(f"{k} {v['mae_deg']:.1f}deg {v['judged_rel_l1']:.4f}" for k, v in row["maps"].items()), flush=True)
     judged = [r for r in rows if r["trusted"]]
     summary = {"captures": len(rows), "trusted": len(judged),
-               "light_model": args.light_model, "tile": args.tile,
+               "light_model": "verdict (--near)" if args.near else args.light_model, "tile": args.tile,
+               "near": args.near, "trusted_by_tiles": sum(r["test"] != "whole object" for r in judged),
                "abstention_rate": 1 - len(judged) / len(rows) if rows else None,
                "trusted_gt_first": sum(r["gt_first"] for r in judged), "trusted_ordered": sum(r["ordered"] for r in judged),
                "all_gt_first_judged_score": sum(r["gt_first"] for r in rows),
