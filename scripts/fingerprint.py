@@ -2,6 +2,7 @@
 the code's structure changed no byte of what the commands write.
 
     python scripts/fingerprint.py --work W --out fingerprint.json [--assets ../shared/assets]
+    python scripts/fingerprint.py --work W --out F --hash-only   # hash only
     python scripts/fingerprint.py --compare A.json B.json
 
 It runs the real commands, as a user would: a dataset of every light family, a level-5 dataset (clusters,
@@ -13,6 +14,7 @@ hashed with their timing fields removed, so that what they measure is compared a
 from __future__ import annotations
 
 import argparse
+import csv
 import hashlib
 import json
 import subprocess
@@ -22,27 +24,42 @@ from pathlib import Path
 # JSON keys whose values are wall-clock measurements or the run's environment, not results.
 VOLATILE_KEYS = {"seconds", "elapsed_s", "time_s", "timings", "wall_s", "started", "finished", "host", "hostname",
                  "pid", "created", "duration_s", "render_seconds", "peak_rss_mb", "node", "worker", "date",
-                 "python", "platform", "argv", "command", "out", "data", "normals", "path", "paths"}
+                 "python", "platform", "argv", "command", "updated"}
 FIGURE_SUFFIXES = (".png",)
 FIGURE_DIRS = ("preview", "figures")
 FIGURE_NAMES = ("figure.png", "error.png", "overview.png", "stats.png")
 
 
-def _strip(value):
+def _volatile(key: str) -> bool:
+    return key in VOLATILE_KEYS or key.endswith("_s")  # a duration in seconds
+
+
+def _strip(value, work: str):
     if isinstance(value, dict):
-        return {k: _strip(v) for k, v in value.items() if k not in VOLATILE_KEYS}
+        return {k: _strip(v, work) for k, v in value.items() if not _volatile(k)}
     if isinstance(value, list):
-        return [_strip(v) for v in value]
+        return [_strip(v, work) for v in value]
+    if isinstance(value, str):
+        return value.replace(work, "<work>")
     return value
 
 
-def file_digest(path: Path) -> str:
+def _csv_digest(path: Path) -> str:
+    rows = list(csv.reader(path.read_text().splitlines()))
+    keep = [i for i, name in enumerate(rows[0] if rows else []) if not _volatile(name)]
+    text = "\n".join(",".join(row[i] for i in keep if i < len(row)) for row in rows)
+    return "csv:" + hashlib.sha256(text.encode()).hexdigest()
+
+
+def file_digest(path: Path, work: Path) -> str:
     if path.suffix == ".json" and path.name != "scene.json":
         try:
             data = json.loads(path.read_text())
         except ValueError:
             return hashlib.sha256(path.read_bytes()).hexdigest()
-        return "json:" + hashlib.sha256(json.dumps(_strip(data), sort_keys=True).encode()).hexdigest()
+        return "json:" + hashlib.sha256(json.dumps(_strip(data, str(work)), sort_keys=True).encode()).hexdigest()
+    if path.suffix == ".csv":
+        return _csv_digest(path)
     if path.suffix in (".jsonl", ".log", ".txt") and path.name != "filenames.txt":
         return "not hashed (log)"
     if path.name in FIGURE_NAMES or any(part in FIGURE_DIRS for part in path.parts):
@@ -76,7 +93,7 @@ def produce(work: Path, assets: Path | None) -> None:
 
 
 def fingerprint(work: Path) -> dict[str, str]:
-    return {str(p.relative_to(work)): file_digest(p) for p in sorted(work.rglob("*")) if p.is_file()}
+    return {str(p.relative_to(work)): file_digest(p, work) for p in sorted(work.rglob("*")) if p.is_file()}
 
 
 def compare(a: dict[str, str], b: dict[str, str]) -> int:
@@ -97,12 +114,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path)
     p.add_argument("--assets", type=Path)
     p.add_argument("--compare", nargs=2, type=Path)
+    p.add_argument("--hash-only", action="store_true", help="hash an existing --work folder without running")
     args = p.parse_args(argv)
     if args.compare:
         return compare(*(json.loads(f.read_text()) for f in args.compare))
     if not args.work or not args.out:
         p.error("--work and --out are required without --compare")
-    produce(args.work.resolve(), args.assets.resolve() if args.assets else None)
+    if not args.hash_only:
+        produce(args.work.resolve(), args.assets.resolve() if args.assets else None)
     args.out.write_text(json.dumps(fingerprint(args.work.resolve()), indent=1, sort_keys=True) + "\n")
     print(f"wrote {args.out}")
     return 0
