@@ -187,21 +187,22 @@ def _make_class() -> type:
             bs_own, weight_own = self.nested.sample(ctx, si, sample1, sample2, active & ~use)
             return dr.select(use, bs, bs_own), dr.select(use, weight, weight_own)
 
-        def eval(self, ctx, si, wo, active=True):
+        def _at_predicted(self, method, ctx, si, wo, active):
+            """`method` ('eval' or 'pdf') of the material at the predicted normal where it is used, of the
+            nested material elsewhere; zero where wo crosses the predicted surface."""
             use, psi = self._perturbed(si, active)
             wo_p, ok = self._wo(si, psi, use, wo)
+            nested = getattr(self.nested, method)
             if self.inner is None:
-                return dr.select(ok, self.nested.eval(ctx, psi, wo_p, active & ok), 0.0)
-            value = dr.select(ok, self.inner.eval(ctx, psi, wo_p, active & use & ok), 0.0)
-            return dr.select(use, value, self.nested.eval(ctx, si, wo, active & ~use))
+                return dr.select(ok, nested(ctx, psi, wo_p, active & ok), 0.0)
+            value = dr.select(ok, getattr(self.inner, method)(ctx, psi, wo_p, active & use & ok), 0.0)
+            return dr.select(use, value, nested(ctx, si, wo, active & ~use))
+
+        def eval(self, ctx, si, wo, active=True):
+            return self._at_predicted("eval", ctx, si, wo, active)
 
         def pdf(self, ctx, si, wo, active=True):
-            use, psi = self._perturbed(si, active)
-            wo_p, ok = self._wo(si, psi, use, wo)
-            if self.inner is None:
-                return dr.select(ok, self.nested.pdf(ctx, psi, wo_p, active & ok), 0.0)
-            value = dr.select(ok, self.inner.pdf(ctx, psi, wo_p, active & use & ok), 0.0)
-            return dr.select(use, value, self.nested.pdf(ctx, si, wo, active & ~use))
+            return self._at_predicted("pdf", ctx, si, wo, active)
 
         def eval_pdf(self, ctx, si, wo, active=True):
             use, psi = self._perturbed(si, active)
