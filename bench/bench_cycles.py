@@ -374,7 +374,8 @@ def mitsuba_renders(folder: Path, scene: dict, lights: dict[str, list[dict]], pl
     """Render `plan` [(lighting, spp)] with our renderer; steady-state seconds (after a warm-up at that spp)."""
     import drjit as dr
 
-    from scenes.description import ImageDesc, LightDesc, SceneDescription
+    from scenes.description import ImageDesc, SceneDescription
+    from scenes.lights import light_from_dict
     from scenes.mitsuba_build import build_scene
     from scenes.render import render_ground_truth, render_image
 
@@ -382,7 +383,7 @@ def mitsuba_renders(folder: Path, scene: dict, lights: dict[str, list[dict]], pl
     d = {k: v for k, v in scene.items() if k not in ("camera_lights", "format_version")}
     desc = SceneDescription.from_dict(d)
     names = list(lights)
-    desc.images = [ImageDesc(lights=[LightDesc(**l) for l in lights[n]], seed=1) for n in names]
+    desc.images = [ImageDesc(lights=[light_from_dict(l, f"lights[{n!r}]") for l in lights[n]], seed=1) for n in names]
     built = build_scene(desc, base_dir=folder)
     gt = render_ground_truth(built, spp=64)
     images, times = {}, []

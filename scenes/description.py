@@ -14,7 +14,8 @@ import math
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
-from scenes.lights import FIELD_CHECKS, LIGHT_TYPES, light_type
+from scenes.checks import check_choice, check_finite, check_matrix4, check_positive, check_vector
+from scenes.lights import IDENTITY4, LIGHT_TYPES, LightDesc, light_from_dict
 
 SHAPE_KINDS = ("mesh", "sphere", "blob", "superquadric", "bumpy_sphere", "torus", "plane")
 TEXTURE_KINDS = ("constant", "noise", "cells", "stripes", "file")
@@ -30,9 +31,6 @@ def fov_from_focal(focal_mm: float) -> float:
     return math.degrees(2.0 * math.atan(FRAME_WIDTH_MM / (2.0 * float(focal_mm))))
 SAMPLERS = ("multijitter", "independent", "stratified")
 
-IDENTITY4 = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
-
-
 def multijitter_spp(spp: int) -> int:
     """The sample count Mitsuba's multijitter sampler really uses: floor(sqrt(n)) x ceil(n / floor(sqrt(n)))."""
     rx = max(1, int(math.isqrt(spp)))
@@ -41,43 +39,6 @@ def multijitter_spp(spp: int) -> int:
 
 def _identity4() -> list[list[float]]:
     return [row[:] for row in IDENTITY4]
-
-
-def _finite(owner: str, name: str, value: Any) -> None:
-    """Raise ValueError if `value` (number or nested list of numbers) holds NaN/inf."""
-    if isinstance(value, (list, tuple)):
-        for v in value:
-            _finite(owner, name, v)
-        return
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ValueError(f"{owner}.{name}: expected a number, got {value!r}")
-    if not math.isfinite(value):
-        raise ValueError(f"{owner}.{name}: expected a finite number, got {value!r}")
-
-
-def _vec(owner: str, name: str, value: Any, n: int) -> None:
-    if not isinstance(value, (list, tuple)) or len(value) != n:
-        raise ValueError(f"{owner}.{name}: expected a list of {n} numbers, got {value!r}")
-    _finite(owner, name, value)
-
-
-def _positive(owner: str, name: str, value: Any, allow_zero: bool = False) -> None:
-    _finite(owner, name, value)
-    if value < 0 or (value == 0 and not allow_zero):
-        raise ValueError(f"{owner}.{name}: expected a {'non-negative' if allow_zero else 'positive'} number, got {value!r}")
-
-
-def _matrix4(owner: str, name: str, value: Any) -> None:
-    if not isinstance(value, (list, tuple)) or len(value) != 4 or any(
-        not isinstance(r, (list, tuple)) or len(r) != 4 for r in value
-    ):
-        raise ValueError(f"{owner}.{name}: expected a 4x4 matrix (list of 4 lists of 4 numbers), got {value!r}")
-    _finite(owner, name, value)
-
-
-def _choice(owner: str, name: str, value: Any, choices: tuple[str, ...]) -> None:
-    if value not in choices:
-        raise ValueError(f"{owner}.{name}: unknown value {value!r}, expected one of {', '.join(choices)}")
 
 
 @dataclass
@@ -100,14 +61,14 @@ class ShapeDesc:
     """4x4 object-to-world matrix (row-major) applied after normalisation."""
 
     def validate(self) -> None:
-        _choice("shape", "kind", self.kind, SHAPE_KINDS)
+        check_choice("shape", "kind", self.kind, SHAPE_KINDS)
         if self.kind == "mesh" and not self.file:
             raise ValueError("shape.file: kind 'mesh' needs a mesh file path, got None")
         if not isinstance(self.resolution, int) or self.resolution < 4:
             raise ValueError(f"shape.resolution: expected an integer >= 4, got {self.resolution!r}")
         for k, v in self.params.items():
-            _finite("shape.params", k, v)
-        _matrix4("shape", "to_world", self.to_world)
+            check_finite("shape.params", k, v)
+        check_matrix4("shape", "to_world", self.to_world)
 
 
 @dataclass
@@ -134,15 +95,15 @@ class TextureDesc:
     """For kind 'file': decode sRGB to linear (colour photographs); False for data maps."""
 
     def validate(self, owner: str) -> None:
-        _choice(owner, "kind", self.kind, TEXTURE_KINDS)
+        check_choice(owner, "kind", self.kind, TEXTURE_KINDS)
         if not isinstance(self.value, list) or len(self.value) not in (1, 3):
             raise ValueError(f"{owner}.value: expected a list of 1 or 3 numbers, got {self.value!r}")
-        _finite(owner, "value", self.value)
+        check_finite(owner, "value", self.value)
         if self.value2 is not None:
             if len(self.value2) != len(self.value):
                 raise ValueError(f"{owner}.value2: expected {len(self.value)} numbers, got {self.value2!r}")
-            _finite(owner, "value2", self.value2)
-        _positive(owner, "scale", self.scale)
+            check_finite(owner, "value2", self.value2)
+        check_positive(owner, "scale", self.scale)
         if not isinstance(self.resolution, int) or self.resolution < 1:
             raise ValueError(f"{owner}.resolution: expected a positive integer, got {self.resolution!r}")
         if self.kind == "file" and not self.file:
@@ -167,10 +128,10 @@ class DetailDesc:
     def validate(self) -> None:
         from scenes.detail import DETAIL_KINDS
 
-        _choice("material.detail", "kind", self.kind, tuple(DETAIL_KINDS))
+        check_choice("material.detail", "kind", self.kind, tuple(DETAIL_KINDS))
         if not (isinstance(self.strength_deg, (int, float)) and 0 <= self.strength_deg < 90):
             raise ValueError(f"material.detail.strength_deg: expected degrees in [0, 90), got {self.strength_deg!r}")
-        _positive("material.detail", "scale", self.scale)
+        check_positive("material.detail", "scale", self.scale)
         if isinstance(self.resolution, bool) or not isinstance(self.resolution, int) or self.resolution < 4:
             raise ValueError(f"material.detail.resolution: expected an integer >= 4, got {self.resolution!r}")
 
@@ -198,77 +159,13 @@ class MaterialDesc:
     it to aux/ and sets `normal_map`, keeping this as the record of how it was made)."""
 
     def validate(self) -> None:
-        _choice("material", "kind", self.kind, MATERIAL_KINDS)
+        check_choice("material", "kind", self.kind, MATERIAL_KINDS)
         if self.detail is not None:
             self.detail.validate()
         self.base_color.validate("material.base_color")
         self.roughness.validate("material.roughness")
         self.metallic.validate("material.metallic")
-        _positive("material", "specular", self.specular, allow_zero=True)
-
-
-@dataclass
-class LightDesc:
-    """One light of one image. Unused fields for a type keep their defaults.
-
-    The types, what each one is and which of these fields set it are the table `scenes.lights.LIGHT_TYPES`
-    (`summary`, `fields`); `validate` checks a light through it.
-    """
-
-    type: str = "directional"
-    """A key of `scenes.lights.LIGHT_TYPES`."""
-    color: list[float] = field(default_factory=lambda: [1.0, 1.0, 1.0])
-    """Linear RGB tint (e.g. from a colour temperature), multiplied with the strength."""
-    direction: list[float] = field(default_factory=lambda: [0.0, 0.0, -1.0])
-    """directional: direction of travel (from the light toward the scene)."""
-    irradiance: float = 1.0
-    """directional: irradiance."""
-    position: list[float] = field(default_factory=lambda: [0.0, 0.0, 3.0])
-    """point / area: position in world space."""
-    intensity: float = 1.0
-    """point: radiant intensity."""
-    target: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    """area: point the rectangle faces."""
-    up: list[float] = field(default_factory=lambda: [0.0, 1.0, 0.0])
-    """area: up vector of the rectangle's frame."""
-    width: float = 0.5
-    """area: side along the rectangle's local x."""
-    height: float = 0.5
-    """area: side along the rectangle's local y."""
-    radiance: float = 1.0
-    """area / uniform: emitted radiance."""
-    to_world: list[list[float]] = field(default_factory=_identity4)
-    """environment: rotation of the map (4x4)."""
-    scale: float = 1.0
-    """environment: multiplier of the map."""
-    temperature_k: float | None = None
-    """Colour temperature the colour came from, if any (informational)."""
-
-    def validate(self, owner: str) -> None:
-        kind = light_type(self.type, owner)
-        _vec(owner, "color", self.color, 3)
-        if min(self.color) < 0:
-            raise ValueError(f"{owner}.color: expected non-negative values, got {self.color!r}")
-        for name, check in kind.fields:
-            _FIELD_CHECKS[check](owner, name, getattr(self, name))
-
-
-def _direction(owner: str, name: str, value: Any) -> None:
-    _vec(owner, name, value, 3)
-    if sum(c * c for c in value) < 1e-12:
-        raise ValueError(f"{owner}.{name}: expected a non-zero vector, got {value!r}")
-
-
-_FIELD_CHECKS = {
-    "vector": lambda owner, name, value: _vec(owner, name, value, 3),
-    "direction": _direction,
-    "matrix": _matrix4,
-    "positive": _positive,
-    "non_negative": lambda owner, name, value: _positive(owner, name, value, allow_zero=True),
-}
-"""The field checks that `scenes.lights.LIGHT_TYPES` names (`scenes.lights.FIELD_CHECKS`)."""
-assert tuple(_FIELD_CHECKS) == FIELD_CHECKS
-assert {n for t in LIGHT_TYPES.values() for n, _ in t.fields} <= {f.name for f in fields(LightDesc)}
+        check_positive("material", "specular", self.specular, allow_zero=True)
 
 
 @dataclass
@@ -285,7 +182,7 @@ class EnvironmentDesc:
     """Width of a procedural map (height is width / 2)."""
 
     def validate(self) -> None:
-        _choice("environment", "source", self.source, ENVIRONMENT_SOURCES)
+        check_choice("environment", "source", self.source, ENVIRONMENT_SOURCES)
         if self.source == "file" and not self.file:
             raise ValueError("environment.file: source 'file' needs a .hdr/.exr path, got None")
         if not isinstance(self.width, int) or self.width < 8:
@@ -317,16 +214,16 @@ class CameraDesc:
     one (`fov = 2 atan(FRAME_WIDTH_MM / (2 focal_mm))`, a 36 mm-wide frame); None otherwise."""
 
     def validate(self) -> None:
-        _choice("camera", "kind", self.kind, CAMERA_KINDS)
-        _vec("camera", "origin", self.origin, 3)
-        _vec("camera", "target", self.target, 3)
-        _vec("camera", "up", self.up, 3)
-        _positive("camera", "half_size", self.half_size)
-        _positive("camera", "fov", self.fov)
+        check_choice("camera", "kind", self.kind, CAMERA_KINDS)
+        check_vector("camera", "origin", self.origin, 3)
+        check_vector("camera", "target", self.target, 3)
+        check_vector("camera", "up", self.up, 3)
+        check_positive("camera", "half_size", self.half_size)
+        check_positive("camera", "fov", self.fov)
         if self.fov >= 180:
             raise ValueError(f"camera.fov: expected less than 180 degrees, got {self.fov!r}")
         if self.focal_mm is not None:
-            _positive("camera", "focal_mm", self.focal_mm)
+            check_positive("camera", "focal_mm", self.focal_mm)
             if self.kind != "perspective":
                 raise ValueError(f"camera.focal_mm: a focal length needs a perspective camera, got kind {self.kind!r}")
             if abs(fov_from_focal(self.focal_mm) - self.fov) > 1e-6:
@@ -363,7 +260,7 @@ class RenderDesc:
                 raise ValueError(f"render.{name}: expected a positive integer, got {v!r}")
         if isinstance(self.bounces, bool) or not isinstance(self.bounces, int) or self.bounces < 0:
             raise ValueError(f"render.bounces: expected a non-negative integer, got {self.bounces!r}")
-        _choice("render", "sampler", self.sampler, SAMPLERS)
+        check_choice("render", "sampler", self.sampler, SAMPLERS)
 
 
 @dataclass
@@ -385,7 +282,7 @@ class ImageDesc:
             if not isinstance(light, LightDesc):
                 raise ValueError(f"images[{index}].lights[{j}]: expected a LightDesc, got {type(light).__name__}")
             light.validate(f"images[{index}].lights[{j}]")
-            n_env += LIGHT_TYPES[light.type].environment_map
+            n_env += light.environment_map
         if n_env > 1:
             raise ValueError(f"images[{index}].lights: at most one environment light per image, got {n_env}")
         present = {light.type for light in self.lights}
@@ -394,7 +291,7 @@ class ImageDesc:
             if clash:
                 raise ValueError(f"images[{index}].lights: a {name!r} light cannot share an image with "
                                  f"{' or '.join(map(repr, clash))} lights ({name}: {LIGHT_TYPES[name].summary})")
-        _positive(f"images[{index}]", "exposure", self.exposure)
+        check_positive(f"images[{index}]", "exposure", self.exposure)
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise ValueError(f"images[{index}].seed: expected a non-negative integer, got {self.seed!r}")
 
@@ -452,7 +349,7 @@ class SceneDescription:
             raise ValueError("images: expected at least one image, got an empty list")
         for i, image in enumerate(self.images):
             image.validate(i)
-        uses_env = any(LIGHT_TYPES[l.type].environment_map for im in self.images for l in im.lights)
+        uses_env = any(l.environment_map for im in self.images for l in im.lights)
         if uses_env and self.environment is None:
             raise ValueError("environment: images use an 'environment' light but no environment map is given")
         if self.environment is not None:
@@ -461,7 +358,11 @@ class SceneDescription:
 
     # --- JSON -------------------------------------------------------------------------------
     def to_dict(self) -> dict:
-        return asdict(self)
+        """The JSON form; each light keyed by its `type` with its own fields (`scenes.lights.LightDesc.to_dict`)."""
+        d = asdict(self)
+        for image, image_dict in zip(self.images, d["images"]):
+            image_dict["lights"] = [light.to_dict() for light in image.lights]
+        return d
 
     def to_json(self, indent: int | None = 1) -> str:
         return json.dumps(self.to_dict(), indent=indent, sort_keys=True, allow_nan=False)
@@ -503,8 +404,8 @@ def _from_dict(cls: type, d: Any, owner: str) -> Any:
         elif key == "parts" and cls is SceneDescription:
             kwargs[key] = [_from_dict(PartDesc, v, f"parts[{i}]") for i, v in enumerate(value)]
         elif key == "lights" and cls is ImageDesc:
-            kwargs[key] = [_from_dict(LightDesc, v, f"{owner}.lights[{i}]") for i, v in enumerate(value)]
-        elif key in _NESTED and value is not None and not (cls is LightDesc):
+            kwargs[key] = [light_from_dict(v, f"{owner}.lights[{i}]") for i, v in enumerate(value)]
+        elif key in _NESTED and value is not None:
             kwargs[key] = _from_dict(_NESTED[key], value, f"{owner}.{key}" if owner != "scene" else key)
         else:
             kwargs[key] = value

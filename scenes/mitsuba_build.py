@@ -1,11 +1,10 @@
 """The only module that turns a `SceneDescription` into Mitsuba objects.
 
-One Mitsuba scene is built per object. It holds a fixed set of light *slots* (the most directional,
-point and area lights any of its images uses, plus the environment map if any image uses it); each
-image's lighting is applied by writing the slots through `mi.traverse`, so changing the image never
-rebuilds the scene or recompiles a kernel. Slots an image does not use get zero strength and zero
-sampling weight; unused area-light rectangles are also shrunk and parked far away, because the
-rectangle is a real surface that would otherwise cast a shadow.
+One Mitsuba scene is built per object. It holds a fixed set of light *slots* (per light type, the most
+lights of that type any of its images uses; the environment map once if any image uses it); each image's
+lighting is applied by writing the slots through `mi.traverse`, so changing the image never rebuilds the
+scene or recompiles a kernel. The slot of each light class, and how one light is switched on or off in it,
+is `scenes.mitsuba_lights` (dispatching on the class of `scenes.lights`).
 
 Requires a Mitsuba variant to be set by the caller (see `scenes.variant`).
 """
@@ -18,10 +17,11 @@ from typing import Any
 
 import numpy as np
 
-from scenes.description import LightDesc, SceneDescription, TextureDesc
+from scenes.description import SceneDescription, TextureDesc
 from scenes.envmaps import realize_environment
 from scenes.geometry import mesh_data_for, transformed_mesh
-from scenes.lights import LIGHT_TYPES, light_type
+from scenes.lights import LIGHT_TYPES
+from scenes.mitsuba_lights import apply_lights, slot_dicts
 from scenes.procedural import MeshData
 from scenes.textures import realize_texture
 from scenes.variant import require_variant
@@ -90,8 +90,8 @@ class LightSlots:
     def for_description(cls, desc: SceneDescription) -> "LightSlots":
         counts = dict.fromkeys(LIGHT_TYPES, 0)
         for image in desc.images:
-            for t in counts:
-                counts[t] = max(counts[t], sum(l.type == t for l in image.lights))
+            for t, light_cls in LIGHT_TYPES.items():
+                counts[t] = max(counts[t], sum(type(l) is light_cls for l in image.lights))
         return cls(counts)
 
 
@@ -113,39 +113,13 @@ class BuiltScene:
         """Write the lights of image `index` into the slots (no rebuild, no recompilation)."""
         if not 0 <= index < len(self.desc.images):
             raise ValueError(f"image index: {index} out of range for {len(self.desc.images)} images")
-        _apply_lights(self.params, self.slots, self.desc.images[index].lights)
+        apply_lights(self.params, self.slots.counts, self.desc.images[index].lights)
         self.current_image = index
 
     def park_lights(self) -> None:
         """Switch every light off and move area-light rectangles out of view (ground-truth pass)."""
-        _apply_lights(self.params, self.slots, [])
+        apply_lights(self.params, self.slots.counts, [])
         self.current_image = None
-
-
-def _apply_lights(params: Any, slots: LightSlots, lights: list[LightDesc]) -> None:
-    mi = require_variant()
-    # Unused slots get no samples, unless no light is on at all (Mitsuba needs some sampling mass).
-    off_weight = 0.0 if lights else 1.0
-    for l in lights:
-        light_type(l.type)  # an unknown type is refused, never left dark
-    for kind in LIGHT_TYPES.values():
-        shown = [l for l in lights if l.type == kind.name]
-        count = slots.counts.get(kind.name, 0)
-        for k in range(min(count, 1) if kind.environment_map else count):
-            key = kind.key(k)
-            values = kind.on(mi, shown[k]) if k < len(shown) else kind.off(mi)
-            for name, value in values.items():
-                params[f"{key}.{name}"] = _opaque(value)
-            params[f"{key}.{kind.weight}"] = 1.0 if k < len(shown) else off_weight
-    params.update()
-
-
-def _opaque(value):
-    """Make a JIT value opaque, so a new light setting does not bake new literals into (and recompile) the kernel."""
-    import drjit as dr
-
-    dr.make_opaque(value)
-    return value
 
 
 def sensor_dict(desc: SceneDescription, spp: int) -> dict:
@@ -190,11 +164,9 @@ def build_scene(desc: SceneDescription, base_dir: str | Path | None = None, bsdf
     else:
         scene["object"] = make_mesh("object", transformed_mesh(data, desc.shape.to_world), bsdf)
     slots = LightSlots.for_description(desc)
-    uses_env = any(slots.counts[t.name] for t in LIGHT_TYPES.values() if t.environment_map)
+    uses_env = any(slots.counts[t] for t, light_cls in LIGHT_TYPES.items() if light_cls.environment_map)
     env_arr = realize_environment(desc.environment, base) if uses_env else None
-    for kind in LIGHT_TYPES.values():  # the table's order is the emitter order
-        for k in range(slots.counts[kind.name]):
-            scene[kind.key(k)] = kind.slot(mi, env_arr)
+    scene.update(slot_dicts(slots.counts, env_arr))  # the table's order is the emitter order
     # optimize=False: Mitsuba's shape merging orders area lights by memory address, which would make the emitter
     # order (hence the noise pattern) depend on what the process allocated before.
     loaded = mi.load_dict(scene, optimize=False)

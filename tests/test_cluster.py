@@ -72,9 +72,10 @@ def test_one_object_scenes_have_no_parts_and_no_instance_file(tmp_path):
 
 
 def test_parts_must_follow_each_other():
-    from scenes.description import PartDesc, SceneDescription, ShapeDesc, ImageDesc, LightDesc
+    from scenes.description import PartDesc, SceneDescription, ShapeDesc, ImageDesc
+    from scenes.lights import DirectionalLight
 
-    d = SceneDescription(shape=ShapeDesc(kind="mesh", file="m.ply"), images=[ImageDesc(lights=[LightDesc()])],
+    d = SceneDescription(shape=ShapeDesc(kind="mesh", file="m.ply"), images=[ImageDesc(lights=[DirectionalLight()])],
                          parts=[PartDesc("a", 0, 10), PartDesc("b", 12, 5)])
     with pytest.raises(ValueError, match=r"parts\[1\]"):
         d.validate()

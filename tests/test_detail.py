@@ -30,7 +30,8 @@ def variant():
 
 
 def test_plane_with_a_known_bump_has_the_analytic_ground_truth(variant, tmp_path):
-    from scenes.description import CameraDesc, ImageDesc, LightDesc, MaterialDesc, SceneDescription, ShapeDesc
+    from scenes.description import CameraDesc, ImageDesc, MaterialDesc, SceneDescription, ShapeDesc
+    from scenes.lights import DirectionalLight
     from scenes.geometry import write_mesh_ply
     from scenes.mitsuba_build import build_scene
     from scenes.objfolder import write_normal_map
@@ -49,7 +50,7 @@ def test_plane_with_a_known_bump_has_the_analytic_ground_truth(variant, tmp_path
         shape=ShapeDesc(kind="mesh", file="plane.ply", normalize=False),
         material=MaterialDesc(kind="lambertian", normal_map="bump.png"),
         camera=CameraDesc(kind="orthographic", origin=[0, 0, 5], half_size=0.9, width=w, height=h),
-        images=[ImageDesc(lights=[LightDesc(type="directional", direction=[0, 0, -1])])],
+        images=[ImageDesc(lights=[DirectionalLight(direction=[0, 0, -1])])],
     ).validate()
     gt = render_ground_truth(build_scene(desc, base_dir=tmp_path), spp=16)
     # pixel centres -> plane points -> UV

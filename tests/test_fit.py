@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scenes.description import CameraDesc, ImageDesc, LightDesc, MaterialDesc, RenderDesc, SceneDescription, ShapeDesc, TextureDesc
+from scenes.description import CameraDesc, ImageDesc, MaterialDesc, RenderDesc, SceneDescription, ShapeDesc, TextureDesc
+from scenes.lights import DirectionalLight, LightDesc, PointLight
 from scenes.objfolder import write_normal_map as write_normal_tif
 
 R = 32
@@ -82,7 +83,7 @@ def _lambertian_sphere_folder(parent: Path, name: str, lights: list[list[LightDe
 @pytest.fixture(scope="module")
 def sphere_folder(jit, tmp_path_factory) -> Path:
     """A Lambertian sphere (albedo 0.7) under 8 directional lights (irradiance 2), 32x32, no scene.json."""
-    lights = [[LightDesc(type="directional", direction=(-d).tolist(), irradiance=2.0)] for d in TO_LIGHT]
+    lights = [[DirectionalLight(direction=(-d).tolist(), irradiance=2.0)] for d in TO_LIGHT]
     return _lambertian_sphere_folder(tmp_path_factory.mktemp("fit"), "lsphere", lights)
 
 
@@ -90,7 +91,7 @@ def sphere_folder(jit, tmp_path_factory) -> Path:
 def point_sphere_folder(jit, tmp_path_factory) -> Path:
     """The same sphere under 8 point lights 2 radii from its centre along TO_LIGHT (intensity 0.5 * 2^2, so
     the near side gets the directional sphere's irradiance 2, and nothing clips), no scene.json."""
-    lights = [[LightDesc(type="point", position=(POINT_DISTANCE * d).tolist(), intensity=0.5 * POINT_DISTANCE**2)] for d in TO_LIGHT]
+    lights = [[PointLight(position=(POINT_DISTANCE * d).tolist(), intensity=0.5 * POINT_DISTANCE**2)] for d in TO_LIGHT]
     return _lambertian_sphere_folder(tmp_path_factory.mktemp("fitpoint"), "psphere", lights)
 
 
@@ -474,7 +475,7 @@ def test_known_scene_lights_in_camera_frame():
 
     desc = SceneDescription(
         name="k", shape=ShapeDesc(kind="sphere"), camera=CameraDesc(width=8, height=8, origin=[4.0, 0.0, 0.0]),
-        images=[ImageDesc(lights=[LightDesc(type="directional", direction=[-1.0, 0.0, 0.0], irradiance=2.0, color=[1.0, 0.5, 0.25])])],
+        images=[ImageDesc(lights=[DirectionalLight(direction=[-1.0, 0.0, 0.0], irradiance=2.0, color=[1.0, 0.5, 0.25])])],
     )
     (light,), = known_scene_lights(desc, [0.5])
     assert light["type"] == "directional"

@@ -5,10 +5,12 @@ Scenes are tiny (32x32, a few spp, llvm variant); object folders are written her
 """
 from __future__ import annotations
 
+import dataclasses
 import gc
 import json
 import math
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -16,13 +18,13 @@ import pytest
 from scenes.description import (
     CameraDesc,
     ImageDesc,
-    LightDesc,
     MaterialDesc,
     RenderDesc,
     SceneDescription,
     ShapeDesc,
     TextureDesc,
 )
+from scenes.lights import AreaLight, DirectionalLight, EnvironmentLight, PointLight
 
 R = 32
 
@@ -103,15 +105,15 @@ def sphere_desc(name: str = "sphere", spp: int = 8, normal_map: str | None = Non
         camera=CameraDesc(width=R, height=R, half_size=1.1),
         render=RenderDesc(spp=spp, bounces=2),
         images=[
-            ImageDesc(lights=[LightDesc(type="area", position=[1.5, 1.0, 2.5], radiance=8.0, width=1.0, height=1.0)], seed=3),
+            ImageDesc(lights=[AreaLight(position=[1.5, 1.0, 2.5], radiance=8.0, width=1.0, height=1.0)], seed=3),
             ImageDesc(
                 lights=[
-                    LightDesc(type="area", position=[-1.5, 0.5, 2.0], radiance=8.0, width=1.0, height=1.0),
-                    LightDesc(type="directional", direction=[0.3, -0.4, -1.0], irradiance=0.5),
+                    AreaLight(position=[-1.5, 0.5, 2.0], radiance=8.0, width=1.0, height=1.0),
+                    DirectionalLight(direction=[0.3, -0.4, -1.0], irradiance=0.5),
                 ],
                 seed=4,
             ),
-            ImageDesc(lights=[LightDesc(type="point", position=[0.0, -2.0, 2.0], intensity=6.0)], seed=5),
+            ImageDesc(lights=[PointLight(position=[0.0, -2.0, 2.0], intensity=6.0)], seed=5),
         ],
     )
 
@@ -123,7 +125,7 @@ def torus_desc(camera_kind: str = "orthographic", width: int = R, height: int = 
         material=MaterialDesc(kind="principled"),
         camera=CameraDesc(kind=camera_kind, width=width, height=height, half_size=1.1, origin=[0.5, 1.5, 4.0], fov=35.0),
         render=RenderDesc(spp=8, bounces=2),
-        images=[ImageDesc(lights=[LightDesc(type="directional", direction=[0.3, -0.4, -1.0])], seed=1)],
+        images=[ImageDesc(lights=[DirectionalLight(direction=[0.3, -0.4, -1.0])], seed=1)],
     )
 
 
@@ -228,7 +230,7 @@ def test_swapped_normals_give_analytic_lambertian_shading(jit, kind):
         material=MaterialDesc(kind="lambertian", base_color=TextureDesc(value=[albedo] * 3)),
         camera=CameraDesc(kind=kind, width=width, height=height, half_size=0.9, fov=28.0),
         render=RenderDesc(spp=4, bounces=1),
-        images=[ImageDesc(lights=[LightDesc(type="directional", direction=(-l).tolist(), irradiance=irradiance)])],
+        images=[ImageDesc(lights=[DirectionalLight(direction=(-l).tolist(), irradiance=irradiance)])],
     )
     cam = CameraProjection.from_camera(desc.camera)
     built = build_scene(desc, bsdf_wrapper=wrapper_for(cam))
@@ -513,14 +515,18 @@ def test_known_scene_report_refuses_an_unknown_light_type():
     env = np.eye(4).tolist()
     desc = SceneDescription(
         camera=CameraDesc(width=8, height=8),
-        images=[ImageDesc(lights=[LightDesc(type="point", position=[0.0, 1.0, 2.0], intensity=3.0),
-                                  LightDesc(type="area", position=[0.0, 0.0, 2.0], target=[0.0, 0.0, 0.0]),
-                                  LightDesc(type="environment", to_world=env, scale=0.5)])],
+        images=[ImageDesc(lights=[PointLight(position=[0.0, 1.0, 2.0], intensity=3.0),
+                                  AreaLight(position=[0.0, 0.0, 2.0], target=[0.0, 0.0, 0.0]),
+                                  EnvironmentLight(to_world=env, scale=0.5)])],
     )
     (lights,) = known_scene_lights(desc, [2.0])
     assert [l["type"] for l in lights] == ["point", "area", "environment"]
     assert lights[0]["intensity"] == [6.0, 6.0, 6.0] and lights[2]["scale"] == 1.0
     np.testing.assert_allclose(lights[1]["normal"], [0, 0, -1], atol=1e-12)
-    desc.images[0].lights[2].type = "sky_dome"
+    @dataclasses.dataclass(kw_only=True)
+    class SkyDome(EnvironmentLight):
+        type: ClassVar[str] = "sky_dome"
+
+    desc.images[0].lights[2] = SkyDome(to_world=env, scale=0.5)
     with pytest.raises(ValueError, match="unknown light type 'sky_dome', expected one of directional, point, area, environment"):
         known_scene_lights(desc, [2.0])

@@ -1,6 +1,9 @@
 """Physics of the scene builder and renderer, against analytic answers (32x32, CPU, llvm and scalar)."""
 from __future__ import annotations
 
+import dataclasses
+from typing import ClassVar
+
 import numpy as np
 import pytest
 
@@ -8,13 +11,14 @@ from scenes.description import (
     CameraDesc,
     EnvironmentDesc,
     ImageDesc,
-    LightDesc,
     MaterialDesc,
     RenderDesc,
     SceneDescription,
     ShapeDesc,
     TextureDesc,
 )
+from scenes.lights import (AreaLight, DirectionalLight, EnvironmentLight, LightDesc, PointLight, UniformLight,
+                           light_from_dict)
 
 RES = 32
 HALF = 1.1  # orthographic half size: the unit sphere fills most of the frame
@@ -58,7 +62,7 @@ def render(desc):
 
 
 def test_sphere_normals_match_analytic(any_variant):
-    gt, _ = render(sphere_scene([[LightDesc(type="directional")]], spp=4))
+    gt, _ = render(sphere_scene([[DirectionalLight()]], spp=4))
     P, hit = analytic_sphere()
     full = hit.all(-1)
     n_ref = P.mean(2)
@@ -78,8 +82,8 @@ def test_lambertian_directional_and_point_light(any_variant):
     point = np.array([0.5, 0.8, 2.5])
     desc = sphere_scene(
         [
-            [LightDesc(type="directional", direction=direction.tolist(), irradiance=2.0)],
-            [LightDesc(type="point", position=point.tolist(), intensity=6.0)],
+            [DirectionalLight(direction=direction.tolist(), irradiance=2.0)],
+            [PointLight(position=point.tolist(), intensity=6.0)],
         ]
     )
     _, (img_dir, img_point) = render(desc)
@@ -108,7 +112,7 @@ def test_least_squares_photometric_stereo_recovers_normals(any_variant):
         l[2] = abs(l[2]) + 0.6
         dirs.append(l / np.linalg.norm(l))
     L = np.array(dirs)
-    desc = sphere_scene([[LightDesc(type="directional", direction=(-l).tolist(), irradiance=1.5)] for l in L], spp=16, albedo=[0.7, 0.7, 0.7])
+    desc = sphere_scene([[DirectionalLight(direction=(-l).tolist(), irradiance=1.5)] for l in L], spp=16, albedo=[0.7, 0.7, 0.7])
     gt, images = render(desc)
     I = np.stack([im.mean(-1) for im in images], -1)  # (H, W, K)
     full = gt.coverage > 0.999
@@ -134,13 +138,13 @@ def plane_scene(lights):
 
 
 def test_every_light_type_and_mixture_renders_and_near_light_varies(llvm):
-    area = LightDesc(type="area", position=[1.2, 0.0, 0.8], target=[0, 0, 0], width=0.3, height=0.3, radiance=20.0)
+    area = AreaLight(position=[1.2, 0.0, 0.8], target=[0, 0, 0], width=0.3, height=0.3, radiance=20.0)
     lights = [
-        [LightDesc(type="directional", direction=[0.3, 0.2, -1.0])],
-        [LightDesc(type="point", position=[0.0, 0.5, 2.0], intensity=4.0)],
+        [DirectionalLight(direction=[0.3, 0.2, -1.0])],
+        [PointLight(position=[0.0, 0.5, 2.0], intensity=4.0)],
         [area],
-        [LightDesc(type="environment", scale=0.5)],
-        [area, LightDesc(type="environment", scale=0.2), LightDesc(type="directional", direction=[0, 0, -1], irradiance=0.3)],
+        [EnvironmentLight(scale=0.5)],
+        [area, EnvironmentLight(scale=0.2), DirectionalLight(direction=[0, 0, -1], irradiance=0.3)],
     ]
     gt, images = render(plane_scene(lights))
     m = gt.coverage > 0.999
@@ -158,8 +162,8 @@ def test_every_light_type_and_mixture_renders_and_near_light_varies(llvm):
 def test_json_round_trip_is_exact():
     desc = plane_scene(
         [
-            [LightDesc(type="area", position=[1.2, 0.1, 0.8], width=0.31, height=0.27, radiance=20.123456789, color=[1.0, 0.9, 0.8], temperature_k=4123.5)],
-            [LightDesc(type="environment", scale=0.1 + 0.2, to_world=[[0.0, 1.0, 0.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]])],
+            [AreaLight(position=[1.2, 0.1, 0.8], width=0.31, height=0.27, radiance=20.123456789, color=[1.0, 0.9, 0.8], temperature_k=4123.5)],
+            [EnvironmentLight(scale=0.1 + 0.2, to_world=[[0.0, 1.0, 0.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]])],
         ]
     )
     desc.material = MaterialDesc(
@@ -179,7 +183,7 @@ def test_same_seed_same_render_and_different_seed_differs(llvm):
     from scenes.mitsuba_build import build_scene
     from scenes.render import render_image
 
-    desc = plane_scene([[LightDesc(type="area", position=[1.2, 0.0, 0.8], width=0.3, height=0.3, radiance=20.0), LightDesc(type="environment", scale=0.3)]])
+    desc = plane_scene([[AreaLight(position=[1.2, 0.0, 0.8], width=0.3, height=0.3, radiance=20.0), EnvironmentLight(scale=0.3)]])
     a = render_image(build_scene(desc), 0)
     b = render_image(build_scene(SceneDescription.from_json(desc.to_json())), 0)
     c = render_image(build_scene(desc), 0, seed=99)
@@ -206,7 +210,7 @@ def test_procedural_shapes_are_seeded_and_closed():
 
 
 def _mesh_desc(path) -> SceneDescription:
-    return SceneDescription(shape=ShapeDesc(kind="mesh", file=str(path)), camera=CameraDesc(width=8, height=8), images=[ImageDesc(lights=[LightDesc()])])
+    return SceneDescription(shape=ShapeDesc(kind="mesh", file=str(path)), camera=CameraDesc(width=8, height=8), images=[ImageDesc(lights=[DirectionalLight()])])
 
 
 def test_missing_corrupt_and_empty_meshes(tmp_path, llvm):
@@ -242,14 +246,14 @@ def test_missing_corrupt_and_empty_meshes(tmp_path, llvm):
     ],
 )
 def test_bad_parameters_name_the_field(mutate, field):
-    desc = sphere_scene([[LightDesc(type="directional")]])
+    desc = sphere_scene([[DirectionalLight()]])
     mutate(desc)
     with pytest.raises(ValueError, match=field.replace(".", r"\.")):
         desc.validate()
 
 
 def test_unknown_json_field_is_named():
-    d = sphere_scene([[LightDesc()]]).to_dict()
+    d = sphere_scene([[DirectionalLight()]]).to_dict()
     d["camera"]["zoom"] = 2
     with pytest.raises(ValueError, match="zoom"):
         SceneDescription.from_dict(d)
@@ -280,7 +284,7 @@ def test_normal_mapped_ground_truth_matches_photometric_stereo(tmp_path, llvm):
         l[2] = abs(l[2]) + 1.5
         L.append(l / np.linalg.norm(l))
     L = np.array(L)
-    desc = sphere_scene([[LightDesc(type="directional", direction=(-l).tolist())] for l in L], spp=16, albedo=[0.7, 0.7, 0.7])
+    desc = sphere_scene([[DirectionalLight(direction=(-l).tolist())] for l in L], spp=16, albedo=[0.7, 0.7, 0.7])
     desc.material.normal_map = str(tmp_path / "nm.exr")
     gt, images = render(desc)
     I = np.stack([im.mean(-1) for im in images], -1)
@@ -306,8 +310,8 @@ def test_mesh_and_near_area_light_on_both_variants(tmp_path, any_variant):
     path = tmp_path / "sphere.ply"
     trimesh.creation.icosphere(subdivisions=4).export(path)
     assert len(load_mesh(path).faces) > 5000
-    light = LightDesc(type="area", position=[0.0, 2.1, 2.1], target=[0.0, 0.0, 0.0], width=1.0, height=1.0, radiance=5.0)
-    desc = sphere_scene([[light], [LightDesc(type="directional")]], spp=16)
+    light = AreaLight(position=[0.0, 2.1, 2.1], target=[0.0, 0.0, 0.0], width=1.0, height=1.0, radiance=5.0)
+    desc = sphere_scene([[light], [DirectionalLight()]], spp=16)
     desc.shape = ShapeDesc(kind="mesh", file=str(path))
     gt, images = render(desc)
     P, hit = analytic_sphere()
@@ -329,25 +333,78 @@ def test_mesh_and_near_area_light_on_both_variants(tmp_path, any_variant):
     assert np.isfinite(images[0]).all() and images[0][~gt.mask & (gt.coverage == 0)].max() < 1e-6
 
 
+@dataclasses.dataclass(kw_only=True)
+class Laser(DirectionalLight):
+    """A light class that `scenes.lights.LIGHT_TYPES` does not know."""
+
+    type: ClassVar[str] = "laser"
+
+
 def test_light_type_table_drives_the_description_and_the_build(any_variant):
-    """Every type of `scenes.lights.LIGHT_TYPES` validates and gets its slots in table order; a type the table
+    """Every class of `scenes.lights.LIGHT_TYPES` validates and gets its slots in table order; a class the table
     does not know is refused by the description and by the relighting of a built scene (not left dark)."""
-    from scenes.lights import LIGHT_TYPES
+    from scenes.lights import LIGHT_TYPES, light_type
     from scenes.mitsuba_build import build_scene
+    from scenes.mitsuba_lights import SLOT_BUILDERS, slot_key
 
     alone = [name for name, t in LIGHT_TYPES.items() if t.excludes]  # in an image of their own
-    lights = [LightDesc(type=name) for name in LIGHT_TYPES if name not in alone]
-    desc = sphere_scene([lights, [LightDesc(type=name) for name in alone], [LightDesc(type="directional")]], spp=4)
+    lights = [cls() for name, cls in LIGHT_TYPES.items() if name not in alone]
+    desc = sphere_scene([lights, [LIGHT_TYPES[name]() for name in alone], [DirectionalLight()]], spp=4)
     desc.environment = EnvironmentDesc(source="sky", width=16)
     built = build_scene(desc)
     assert built.slots.counts == dict.fromkeys(LIGHT_TYPES, 1)
-    for t in LIGHT_TYPES.values():
-        assert f"{t.key(0)}.{t.weight}" in built.params, t.name
-    desc.images[2].lights[0].type = "laser"
+    assert list(built.slots.counts) == ["directional", "point", "area", "environment", "uniform"]
+    for cls in LIGHT_TYPES.values():
+        assert f"{slot_key(cls, 0)}.{SLOT_BUILDERS[cls].weight}" in built.params, cls.type
+    desc.images[2].lights[0] = Laser()
     with pytest.raises(ValueError, match="unknown light type 'laser', expected one of " + ", ".join(LIGHT_TYPES)):
         built.apply_image(2)
     with pytest.raises(ValueError, match=r"images\[2\]\.lights\[0\]\.type: unknown light type 'laser'"):
         desc.validate()
+    with pytest.raises(ValueError, match="light.type: unknown light type 'spot', expected one of "
+                       + ", ".join(LIGHT_TYPES)):
+        light_type("spot")
+    with pytest.raises(ValueError, match="unknown light type ''"):
+        LightDesc().validate("light")  # the base class is no light type
+
+
+def test_scene_json_lights_are_keyed_by_type():
+    """scene.json writes each light as its `type` and that type's own fields (plus color, temperature_k); the
+    reader takes that form and the old flat form (every type's fields in every light), where another type's
+    field is dropped at its old default and refused otherwise; unknown keys and types are refused by name."""
+    desc = sphere_scene([[DirectionalLight(direction=[0.0, -1.0, -1.0], irradiance=2.0),
+                          PointLight(position=[1.0, 2.0, 3.0], intensity=4.0, color=[1.0, 0.5, 0.25]),
+                          AreaLight(position=[0.0, 2.0, 2.0], width=0.25)],
+                         [EnvironmentLight(scale=0.5)], [UniformLight(radiance=0.25, temperature_k=3000.0)]])
+    desc.environment = EnvironmentDesc(source="sky", width=16)
+    d = desc.to_dict()
+    own = {"directional": {"direction", "irradiance"}, "point": {"position", "intensity"},
+           "area": {"position", "target", "up", "width", "height", "radiance"},
+           "environment": {"to_world", "scale"}, "uniform": {"radiance"}}
+    for image in d["images"]:
+        for light in image["lights"]:
+            assert set(light) == {"type", "color", "temperature_k"} | own[light["type"]], light
+    assert d["images"][0]["lights"][1] == {"type": "point", "color": [1.0, 0.5, 0.25], "temperature_k": None,
+                                           "position": [1.0, 2.0, 3.0], "intensity": 4.0}
+    assert SceneDescription.from_dict(d) == desc
+    flat = dict(type="directional", color=[1.0, 1.0, 1.0], temperature_k=None, direction=[0.0, 0.0, -1.0],
+                irradiance=1.0, position=[0.0, 0.0, 3.0], intensity=1.0, target=[0.0, 0.0, 0.0], up=[0.0, 1.0, 0.0],
+                width=0.5, height=0.5, radiance=1.0, to_world=np.eye(4).tolist(), scale=1.0)
+    old = [dict(flat, direction=[0.0, -1.0, -1.0], irradiance=2.0),
+           dict(flat, type="point", position=[1.0, 2.0, 3.0], intensity=4.0, color=[1.0, 0.5, 0.25]),
+           dict(flat, type="area", position=[0.0, 2.0, 2.0], width=0.25)]
+    assert [light_from_dict(l) for l in old] == desc.images[0].lights
+    assert light_from_dict({"type": "uniform", "radiance": 0.5}) == UniformLight(radiance=0.5)
+    assert light_from_dict({"irradiance": 3.0}) == DirectionalLight(irradiance=3.0)  # old default type
+    with pytest.raises(ValueError, match=r"images\[0\]\.lights\[1\]\.direction: a 'point' light has no direction "
+                       r"\(the old flat form may hold it only at its default \[0\.0, 0\.0, -1\.0\]\), got \[1, 0, 0\]"):
+        light_from_dict(dict(old[1], direction=[1, 0, 0]), "images[0].lights[1]")
+    with pytest.raises(ValueError, match=r"light: unknown field\(s\) \['zoom'\], expected some of \['color', 'intensity', "
+                       r"'position', 'temperature_k', 'type'\]"):
+        light_from_dict({"type": "point", "zoom": 2})
+    d["images"][1]["lights"][0]["type"] = "laser"
+    with pytest.raises(ValueError, match=r"images\[1\]\.lights\[0\]\.type: unknown light type 'laser'"):
+        SceneDescription.from_dict(d)
 
 
 def test_uniform_background_gives_albedo_times_radiance(any_variant):
@@ -356,8 +413,8 @@ def test_uniform_background_gives_albedo_times_radiance(any_variant):
     (a point light alone) is not lit by the parked sphere. A uniform light cannot share an image with a
     directional or environment light (its sphere would shadow them): refused by name."""
     L = 0.6
-    desc = sphere_scene([[LightDesc(type="uniform", radiance=L, color=[1.0, 0.5, 0.25])],
-                         [LightDesc(type="point", position=[0.0, 0.0, 3.0], intensity=4.0)]], spp=64)
+    desc = sphere_scene([[UniformLight(radiance=L, color=[1.0, 0.5, 0.25])],
+                         [PointLight(position=[0.0, 0.0, 3.0], intensity=4.0)]], spp=64)
     gt, (img, lit_by_point) = render(desc)
     P, hit = analytic_sphere()
     full = hit.all(-1)
@@ -366,7 +423,7 @@ def test_uniform_background_gives_albedo_times_radiance(any_variant):
     assert np.abs(img[full] / (np.asarray(ALBEDO) * colour) - 1).max() < 0.25  # 64 spp noise, no pattern
     np.testing.assert_allclose(img[~hit.any(-1)], np.broadcast_to(colour, img[~hit.any(-1)].shape), rtol=1e-5)
     assert lit_by_point[~hit.any(-1)].max() == 0.0  # background of the next image: the sphere is parked
-    desc.images[0].lights.append(LightDesc(type="directional"))
+    desc.images[0].lights.append(DirectionalLight())
     with pytest.raises(ValueError, match=r"images\[0\]\.lights: a 'uniform' light cannot share an image with 'directional'"):
         desc.validate()
 

@@ -1,8 +1,10 @@
 """The dataset generator end to end through its CLI, and the layout contract of an object folder."""
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -208,15 +210,20 @@ def test_light_family_table_is_the_one_list():
 def test_camera_lights_refuse_an_unknown_light_type():
     """scene.json's camera_lights goes through the light-type table: a type it does not know is an error naming
     it, not an 'other' light."""
-    from scenes.description import ImageDesc, LightDesc, SceneDescription
+    from scenes.description import ImageDesc, SceneDescription
+    from scenes.lights import DirectionalLight, PointLight
     from wildgen.writer import camera_lights
 
-    desc = SceneDescription(images=[ImageDesc(lights=[LightDesc(type="directional", direction=[0.0, 0.0, -1.0]),
-                                                      LightDesc(type="point")], exposure=2.0)])
+    @dataclasses.dataclass(kw_only=True)
+    class Spot(PointLight):
+        type: ClassVar[str] = "spot"
+
+    desc = SceneDescription(images=[ImageDesc(lights=[DirectionalLight(direction=[0.0, 0.0, -1.0]),
+                                                      PointLight()], exposure=2.0)])
     (entry,) = camera_lights(desc)
     assert entry["other"] == 1 and len(entry["directional"]) == 1
     np.testing.assert_allclose(entry["directional"][0]["direction_to_light"], [0, 0, 1])
     assert entry["directional"][0]["irradiance"] == [2.0, 2.0, 2.0]
-    desc.images[0].lights[1].type = "spot"
+    desc.images[0].lights[1] = Spot()
     with pytest.raises(ValueError, match="unknown light type 'spot', expected one of directional, point, area, environment"):
         camera_lights(desc)

@@ -307,10 +307,11 @@ def test_scene_build_order_does_not_depend_on_process_history(llvm):
     """Same description, different allocation histories: the scene's shapes keep the description's order."""
     import mitsuba as mi
 
-    from scenes.description import ImageDesc, LightDesc, SceneDescription, ShapeDesc
+    from scenes.description import ImageDesc, SceneDescription, ShapeDesc
+    from scenes.lights import AreaLight
     from scenes.mitsuba_build import build_scene
 
-    areas = [LightDesc(type="area", position=[2.0 * k - 2.0, 1.0, 3.0], target=[0.0, 0.0, 0.0], width=0.5, height=0.5,
+    areas = [AreaLight(position=[2.0 * k - 2.0, 1.0, 3.0], target=[0.0, 0.0, 0.0], width=0.5, height=0.5,
                        radiance=5.0) for k in range(3)]
     desc = SceneDescription(shape=ShapeDesc(kind="sphere"), images=[ImageDesc(lights=areas)])
     keep, orders = [], set()

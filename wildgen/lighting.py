@@ -20,7 +20,8 @@ from typing import Callable
 import numpy as np
 
 from scenes.colors import temperature_to_rgb
-from scenes.description import CameraDesc, LightDesc
+from scenes.description import CameraDesc
+from scenes.lights import AreaLight, DirectionalLight, EnvironmentLight, LightDesc, PointLight, UniformLight
 
 IRRADIANCE = 1.0  # nominal irradiance at the object centre from each image's main light
 
@@ -95,15 +96,15 @@ def _occludes_view(position: np.ndarray, half_diag: float, camera: CameraDesc) -
 def _directional(rng: np.random.Generator) -> LightDesc:
     l = _hemisphere(rng, 0.1)
     color, kelvin = _temperature_color(rng)
-    return LightDesc(type="directional", direction=(-l).tolist(), irradiance=IRRADIANCE, color=color, temperature_k=kelvin)
+    return DirectionalLight(direction=(-l).tolist(), irradiance=IRRADIANCE, color=color, temperature_k=kelvin)
 
 
 def _point(rng: np.random.Generator, p: Placement, strength: float = 1.0) -> LightDesc:
     l = _hemisphere(rng, 0.1)
     r = p.radius * rng.uniform(2.5, 5.0)
     color, kelvin = _temperature_color(rng)
-    return LightDesc(type="point", position=(p.centre + r * l).tolist(), intensity=float(strength * IRRADIANCE * r * r),
-                     color=color, temperature_k=kelvin)
+    return PointLight(position=(p.centre + r * l).tolist(), intensity=float(strength * IRRADIANCE * r * r),
+                      color=color, temperature_k=kelvin)
 
 
 def _near_area(rng: np.random.Generator, p: Placement, strength: float = 1.0) -> LightDesc:
@@ -119,8 +120,8 @@ def _near_area(rng: np.random.Generator, p: Placement, strength: float = 1.0) ->
         raise RuntimeError("could not place a near area light outside the view")
     color, kelvin = _temperature_color(rng)
     up = [0.0, 1.0, 0.0] if abs(l[1]) < 0.9 else [1.0, 0.0, 0.0]
-    return LightDesc(
-        type="area", position=pos.tolist(), target=p.centre.tolist(), up=up, width=float(w), height=float(h),
+    return AreaLight(
+        position=pos.tolist(), target=p.centre.tolist(), up=up, width=float(w), height=float(h),
         radiance=float(strength * IRRADIANCE * r * r / (w * h)), color=color, temperature_k=kelvin,
     )
 
@@ -128,7 +129,7 @@ def _near_area(rng: np.random.Generator, p: Placement, strength: float = 1.0) ->
 def _environment(rng: np.random.Generator, p: Placement, relative: float) -> LightDesc:
     m = np.eye(4)
     m[:3, :3] = random_rotation(rng)
-    return LightDesc(type="environment", to_world=m.tolist(), scale=float(p.env_scale * relative))
+    return EnvironmentLight(to_world=m.tolist(), scale=float(p.env_scale * relative))
 
 
 def _near_area_family(rng: np.random.Generator, p: Placement) -> list[LightDesc]:
@@ -151,7 +152,7 @@ def _uniform(rng: np.random.Generator, relative: float) -> LightDesc:
     """A uniform background: the same radiance from every direction, `relative` x IRRADIANCE on a facing surface
     (E = pi L), white or a colour temperature (light type `uniform`, `scenes.lights`)."""
     color, kelvin = _temperature_color(rng)
-    return LightDesc(type="uniform", radiance=float(relative * IRRADIANCE / math.pi), color=color, temperature_k=kelvin)
+    return UniformLight(radiance=float(relative * IRRADIANCE / math.pi), color=color, temperature_k=kelvin)
 
 
 def _verse_family(rng: np.random.Generator, p: Placement, index: int, count: int) -> list[LightDesc]:
@@ -173,7 +174,7 @@ def _flash_family(rng: np.random.Generator, p: Placement, index: int, count: int
     Camera and flash do not move, so without the room all images of an object would be the same."""
     origin = np.asarray(p.camera.origin, np.float64)
     d = float(np.linalg.norm(origin - p.centre))
-    flash = LightDesc(type="point", position=origin.tolist(), intensity=float(IRRADIANCE * d * d))
+    flash = PointLight(position=origin.tolist(), intensity=float(IRRADIANCE * d * d))
     return [flash, _environment(rng, p, rng.uniform(0.05, 0.2))]
 
 
@@ -187,8 +188,8 @@ def _frontal_family(rng: np.random.Generator, p: Placement, index: int, count: i
     l = _hemisphere(rng, math.cos(math.radians(FRONTAL_CONE_DEG)))
     r = p.radius * rng.uniform(5.0, 10.0)
     color, kelvin = _temperature_color(rng)
-    lamp = LightDesc(type="point", position=(p.centre + r * l).tolist(), intensity=float(IRRADIANCE * r * r),
-                     color=color, temperature_k=kelvin)
+    lamp = PointLight(position=(p.centre + r * l).tolist(), intensity=float(IRRADIANCE * r * r),
+                      color=color, temperature_k=kelvin)
     return [lamp, _uniform(rng, rng.uniform(0.0, 1.0))]
 
 
@@ -214,7 +215,7 @@ def grid96_direction(k: int) -> np.ndarray:
 
 def _grid96_family(rng: np.random.Generator, p: Placement, index: int, count: int) -> list[LightDesc]:
     l = grid96_direction(GRID_STRIDE * index)
-    return [LightDesc(type="directional", direction=(-l).tolist(), irradiance=IRRADIANCE)]
+    return [DirectionalLight(direction=(-l).tolist(), irradiance=IRRADIANCE)]
 
 
 LIGHT_STAGE_MIN_Z = -0.5
@@ -234,7 +235,7 @@ def light_stage_direction(k: int, count: int) -> np.ndarray:
 
 
 def _light_stage_family(rng: np.random.Generator, p: Placement, index: int, count: int) -> list[LightDesc]:
-    return [LightDesc(type="directional", direction=(-light_stage_direction(index, count)).tolist(), irradiance=IRRADIANCE)]
+    return [DirectionalLight(direction=(-light_stage_direction(index, count)).tolist(), irradiance=IRRADIANCE)]
 
 
 SCREEN_DISTANCE = 8.0
@@ -272,7 +273,7 @@ def _display_family(rng: np.random.Generator, p: Placement, index: int, count: i
     centre, w, h = patches[index % len(patches)]
     r = float(np.linalg.norm(centre - p.centre))
     cos = p.radius * SCREEN_DISTANCE / r
-    return [LightDesc(type="area", position=centre.tolist(), target=(centre - np.array([0.0, 0.0, 1.0])).tolist(),
+    return [AreaLight(position=centre.tolist(), target=(centre - np.array([0.0, 0.0, 1.0])).tolist(),
                       up=[0.0, 1.0, 0.0], width=float(w), height=float(h),
                       radiance=float(IRRADIANCE * r * r / (w * h * cos)))]
 

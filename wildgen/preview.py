@@ -135,10 +135,9 @@ recorded in `failed` and the card goes on."""
 
 
 def _strength_field(kind) -> str | None:
-    """The `LightDesc` field that sets a light type's strength (irradiance, intensity, radiance, scale): the
-    type's one field checked non-negative in `scenes.lights.LIGHT_TYPES`."""
-    names = [name for name, check in kind.fields if check == "non_negative"]
-    return names[0] if len(names) == 1 else None
+    """The field that sets a light type's strength (irradiance, intensity, radiance, scale): the class's
+    `strength` (`scenes.lights.LIGHT_TYPES`)."""
+    return kind.strength or None
 
 
 def _summary(values) -> dict:
@@ -214,7 +213,7 @@ def object_stats(folder: Path) -> dict:
     from scenes.cli import one_line
     from scenes.geometry import camera_rotation
     from scenes.layouts import read_folder
-    from scenes.lights import LIGHT_TYPES, light_type
+    from scenes.lights import LIGHT_TYPES, light_class
     from scenes.objfolder import NORMAL_FILE, SCENE_FILE, object_name, read_scene
 
     data = read_folder(folder, images=False, layout="ours", arg="DIR")
@@ -234,12 +233,12 @@ def object_stats(folder: Path) -> dict:
     lights, per_image = [], []
     for image in desc.images:
         for light in image.lights:
-            kind = light_type(light.type)
+            kind = light_class(light)
             # The type's camera-frame report form about the object centre: the direction toward a distant
             # light, or the position of a near one relative to the centre.
             form = kind.report(light, rotation, centre, 1.0)
             field = _strength_field(kind)
-            record = {"type": kind.name, "strength": float(getattr(light, field)) if field else None,
+            record = {"type": kind.type, "strength": float(getattr(light, field)) if field else None,
                       "direction": None, "distance": None}
             if "direction" in form:
                 record["direction"] = np.asarray(form["direction"], np.float64)

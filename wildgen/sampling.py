@@ -23,7 +23,6 @@ from scenes.description import (
     CameraDesc,
     EnvironmentDesc,
     ImageDesc,
-    LightDesc,
     MaterialDesc,
     RenderDesc,
     SceneDescription,
@@ -32,7 +31,7 @@ from scenes.description import (
     fov_from_focal,
     multijitter_spp,
 )
-from scenes.lights import LIGHT_TYPES
+from scenes.lights import DirectionalLight
 from scenes.objfolder import AUX_DIR, MESH_FILE
 from scenes.procedural import MeshData
 from wildgen.assets import AssetLibrary
@@ -206,7 +205,7 @@ def _shape_mesh(shape: ShapeDesc) -> MeshData:
     """The object-space mesh of a drawn shape (normalised as the shape says)."""
     from scenes.geometry import mesh_data_for
 
-    return mesh_data_for(SceneDescription(shape=shape, images=[ImageDesc(lights=[LightDesc()])]), None)
+    return mesh_data_for(SceneDescription(shape=shape, images=[ImageDesc(lights=[DirectionalLight()])]), None)
 
 
 CLUSTER_PART_SCALE = (0.5, 1.0)
@@ -333,7 +332,7 @@ def sample_object(cfg: GenConfig, index: int, lib: AssetLibrary, name: str | Non
                             height=cfg.height, focal_mm=focal_mm)
     lights = sample_lighting(rng, family, cfg.images, Placement(centre, radius, camera, env_scale))
     seeds = rng.integers(0, 2**31 - 1, cfg.images)
-    uses_env = any(LIGHT_TYPES[l.type].environment_map for ls in lights for l in ls)
+    uses_env = any(l.environment_map for ls in lights for l in ls)
     desc = SceneDescription(
         shape=shape,
         material=material,
