@@ -74,10 +74,18 @@ def _directional_on(mi: Any, l: Any) -> dict[str, Any]:
             "irradiance.value": mi.Color3f(_rgb(l.irradiance, l.color))}
 
 
+def camera_directional(direction: Any, irradiance: Any) -> dict:
+    """The one JSON form of a directional light in the camera frame: `direction_to_light` (unit, toward the
+    light) and `irradiance` (RGB, image units), as scene.json `camera_lights` stores it (the datasets on disk
+    hold this key) and as report.json `lights` gives it, there after `"type": "directional"`."""
+    return {"direction_to_light": np.asarray(direction, np.float64).tolist(),
+            "irradiance": np.asarray(irradiance, np.float64).tolist()}
+
+
 def _directional_report(l: Any, R: np.ndarray, target: np.ndarray, exposure: float) -> dict:
     d = -np.asarray(l.direction, np.float64)
     d = R @ (d / np.linalg.norm(d))
-    return {"type": "directional", "direction": d.tolist(), "irradiance": _exposed(l.irradiance, l.color, exposure)}
+    return {"type": "directional", **camera_directional(d, _exposed(l.irradiance, l.color, exposure))}
 
 
 # --- point -------------------------------------------------------------------------------------------------
