@@ -215,6 +215,8 @@ def refine_normals(
 
     calibrated: (directions (K, 3) toward the light, irradiance (K, 3)) held fixed when config.lights is
     'calibrated'. saturated: (K, H, W, 3) bool censored observations (see `validate.fit_scene.FitScene`)."""
+    # Over 80 lines on purpose: the rounds and the early-stopping callback share one state (best normals,
+    # stale count, step offset); split apart, that state would travel through every piece.
     config = (config or RefineConfig()).validate()
     require_ad_variant()
     t0 = time.perf_counter()
