@@ -35,6 +35,14 @@ def _exposed(strength: float, color: list[float], exposure: float) -> list[float
     return [float(strength) * float(c) * float(exposure) for c in color]
 
 
+def camera_directional(direction: Any, irradiance: Any) -> dict:
+    """The one JSON form of a directional light in the camera frame: `direction_to_light` (unit, toward the
+    light) and `irradiance` (RGB, image units), as scene.json `camera_lights` stores it (the datasets on disk
+    hold this key) and as report.json `lights` gives it, there after `"type": "directional"`."""
+    return {"direction_to_light": np.asarray(direction, np.float64).tolist(),
+            "irradiance": np.asarray(irradiance, np.float64).tolist()}
+
+
 @dataclass(kw_only=True)
 class LightDesc:
     """One light of one image (world frame): the base of the light types, never a light itself."""
@@ -90,8 +98,7 @@ class DirectionalLight(LightDesc):
     def report(self, R: np.ndarray, target: np.ndarray, exposure: float) -> dict:
         d = -np.asarray(self.direction, np.float64)
         d = R @ (d / np.linalg.norm(d))
-        return {"type": "directional", "direction": d.tolist(),
-                "irradiance": _exposed(self.irradiance, self.color, exposure)}
+        return {"type": "directional", **camera_directional(d, _exposed(self.irradiance, self.color, exposure))}
 
 
 @dataclass(kw_only=True)

@@ -460,8 +460,8 @@ def test_cli_fitted_report_contract(jit, sphere_folder, tmp_path):
     assert len(report["lights"]) == len(TO_LIGHT)
     for lights, d in zip(report["lights"], TO_LIGHT):
         main = [l for l in lights if l["type"] == "directional"][0]
-        assert abs(np.linalg.norm(main["direction"]) - 1) < 1e-6
-        assert np.degrees(np.arccos(np.clip(np.dot(main["direction"], d), -1, 1))) < 1.5
+        assert abs(np.linalg.norm(main["direction_to_light"]) - 1) < 1e-6
+        assert np.degrees(np.arccos(np.clip(np.dot(main["direction_to_light"], d), -1, 1))) < 1.5
         assert len(main["irradiance"]) == 3
     assert (out / "lsphere" / "figure.png").is_file()
     again = _cli(*args)
@@ -470,17 +470,26 @@ def test_cli_fitted_report_contract(jit, sphere_folder, tmp_path):
 
 def test_known_scene_lights_in_camera_frame():
     """Known-scene report lights: a directional light travelling along -d in the world is 'toward d' in the
-    camera frame, rotated with the camera (camera on +x looking at the origin: world +x is camera +z)."""
-    from validate.lights import known_scene_lights
+    camera frame, rotated with the camera (camera on +x looking at the origin: world +x is camera +z). One
+    JSON form of a camera-frame directional light: the known-scene report, the fitted report and scene.json
+    `camera_lights` (written by the generator, read by `scenes.layouts`) all say `direction_to_light`."""
+    from validate.lights import known_scene_lights, report_lights
+    from wildgen.writer import camera_lights
 
     desc = SceneDescription(
         name="k", shape=ShapeDesc(kind="sphere"), camera=CameraDesc(width=8, height=8, origin=[4.0, 0.0, 0.0]),
-        images=[ImageDesc(lights=[DirectionalLight(direction=[-1.0, 0.0, 0.0], irradiance=2.0, color=[1.0, 0.5, 0.25])])],
+        images=[ImageDesc(lights=[DirectionalLight(direction=[-1.0, 0.0, 0.0], irradiance=2.0, color=[1.0, 0.5, 0.25])],
+                          exposure=0.5)],
     )
     (light,), = known_scene_lights(desc, [0.5])
-    assert light["type"] == "directional"
-    np.testing.assert_allclose(light["direction"], [0, 0, 1], atol=1e-9)
-    np.testing.assert_allclose(light["irradiance"], [1.0, 0.5, 0.25])
+    assert list(light) == ["type", "direction_to_light", "irradiance"] and light["type"] == "directional"
+    np.testing.assert_allclose(light["direction_to_light"], [0, 0, 1], atol=1e-9)
+    np.testing.assert_allclose(light["irradiance"], [1.0, 0.5, 0.25])  # 2 x colour x exposure 0.5
+    (entry,) = camera_lights(desc)
+    assert entry == {"directional": [{k: v for k, v in light.items() if k != "type"}], "other": 0}
+    fitted = report_lights("directional", {"directions": [[0.0, 0.0, 2.0]], "irradiance": [[1.0, 0.5, 0.25]],
+                                            "ambient": [[0.0, 0.0, 0.0]]})
+    assert fitted[0][0] == {"type": "directional", "direction_to_light": [0.0, 0.0, 1.0], "irradiance": [1.0, 0.5, 0.25]}
 
 
 def test_diligent_frames_agree(shared):

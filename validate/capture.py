@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from scenes.layouts import read_folder
-from validate.io import check_magnitude, read_prediction
+from validate.io import check_normals, read_prediction
 
 log = logging.getLogger(__name__)
 
@@ -62,19 +62,16 @@ class Capture:
 
 
 def unit_normals(n: np.ndarray, mask: np.ndarray, what: str = "--normals") -> np.ndarray:
-    """Check shape against the mask, renormalise inside it, zero outside. Zero normals inside the mask
-    (no estimate) become (0, 0, 1) with a warning; non-finite values or values above
-    `validate.io.MAX_NORMAL_VALUE` inside the mask are refused (norms in float64, so none overflows)."""
-    if n.ndim != 3 or n.shape[2] != 3 or n.shape[:2] != mask.shape:
-        raise ValueError(f"{what}: normal map has shape {n.shape}, expected {mask.shape + (3,)} (the size of the input images)")
-    check_magnitude(np.asarray(n[mask], np.float64), what)
-    n = n.astype(np.float64)
-    norm = np.linalg.norm(n, axis=-1, keepdims=True)
-    missing = mask & (norm[..., 0] < 0.5)
+    """The one check of a normal map to judge (`validate.io.check_normals`, the known-scene check's rule:
+    finite, unit within `validate.io.UNIT_TOLERANCE` and renormalised, anything else refused naming `what`
+    and the count), zero outside the mask. Exactly-zero normals inside the mask (no estimate) are allowed
+    and become (0, 0, 1) with a warning."""
+    out, valid = check_normals(n, mask, what, allow_missing=True)
+    missing = mask & ~valid
     if missing.any():
         log.warning("%s: %d pixels inside the mask have no normal; using (0, 0, 1) there", what, int(missing.sum()))
-    out = np.where(norm > 0.5, n / np.maximum(norm, 1e-12), np.array([0.0, 0.0, 1.0]))
-    return np.where(mask[..., None], out, 0.0).astype(np.float32)
+        out[missing] = np.float32([0.0, 0.0, 1.0])
+    return out
 
 
 def load_with_normals(folder: str | Path, normals: str | Path | np.ndarray) -> tuple[Capture, np.ndarray, str]:
@@ -82,7 +79,7 @@ def load_with_normals(folder: str | Path, normals: str | Path | np.ndarray) -> t
     `normals` is an (H, W, 3) array or a file / prediction folder (the source is then its path)."""
     cap = load_capture(folder)
     normals, source = read_prediction(normals, cap.name)
-    return cap, unit_normals(normals, cap.mask), source
+    return cap, unit_normals(normals, cap.mask, f"--normals ({source})" if source != "array" else "--normals"), source
 
 
 def load_capture(folder: str | Path, max_images: int | None = None) -> Capture:

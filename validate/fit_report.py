@@ -11,7 +11,8 @@ the floor explains nothing.
 from __future__ import annotations
 
 import time
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -20,10 +21,10 @@ from scenes.variant import jit_threads, require_ad_variant
 from validate import heightfield
 from validate.ambiguity import bas_relief_test, not_tested
 from validate.capture import Capture
-from validate.fit import fit_normals, prepare
+from validate.fit import FitResult, fit_normals, prepare
 from validate.fit_scene import FitConfig, Progress
 from validate.judgeable import check_judgeable
-from validate.verdict import channel_noise_sigmas, explain, judged_rel_l1, verdict
+from validate.verdict import Explanation, channel_noise_sigmas, explain, judged_rel_l1, verdict
 
 
 def estimate_noise_rel_l1(images: np.ndarray, mask: np.ndarray) -> float:
@@ -64,6 +65,70 @@ def _scatter(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return out
 
 
+@dataclass
+class JudgedCapture:
+    """A capture and its normal map, prepared for fitting, with the verdict of its images: the start that the
+    fitted check (`rerender_fitted`) and refinement (`validate.refine.refine_object`) share."""
+
+    cap: Capture
+    """The capture as read (full resolution)."""
+    full: np.ndarray
+    """(H, W, 3) the normal map to judge at full resolution (unit inside the mask)."""
+    source: str
+    """Where the map came from (its path, or "array")."""
+    small: Capture
+    """The capture at the fitting resolution."""
+    normals: np.ndarray
+    """(h, w, 3) the map at the fitting resolution."""
+    downsample: int
+    """Factor from the full to the fitting resolution."""
+    explanation: Explanation
+    """What the images alone explain (`validate.verdict.explain`): the same for every map of the capture."""
+    trusted: bool
+    why: str
+    """The verdict (`validate.verdict.verdict`)."""
+    target: Path | None
+    """`out_dir/<object>`, its outputs claimed, or None without out_dir."""
+
+    @property
+    def observed(self) -> np.ndarray:
+        """(K, P, 3) the images over the mask pixels at the fitting resolution."""
+        return self.small.images[:, self.small.mask]
+
+    def score(self, normals: np.ndarray, config: FitConfig, progress: Progress | None, label: str) -> tuple[FitResult, float]:
+        """Fit lights and reflectance around `normals` (fitting resolution) held fixed: (the fit, its judged
+        rel_l1 on the observations every map of the capture shares)."""
+        s = self.small
+        res = fit_normals(s.images, s.mask, normals, config, progress, label, s.saturated)
+        return res, judged_rel_l1(res.render, self.observed, self.explanation)
+
+
+def judge_capture(folder: str, normals: str | np.ndarray, config: FitConfig, use: str, out_dir: str | None,
+                  outputs: tuple[str, ...], owner: str, overwrite: bool) -> JudgedCapture:
+    """Read an object folder (any layout) and its normal map, claim `out_dir/<object>/outputs` for `owner`,
+    reduce both to the fitting resolution, check that the images can judge (`validate.judgeable`, for `use`)
+    before any fitting, and explain them (the verdict)."""
+    from validate.capture import load_with_normals
+
+    cap, full, source = load_with_normals(folder, normals)
+    target = None
+    if out_dir is not None:
+        from scenes.cli import claim_outputs
+
+        target = Path(out_dir) / cap.name
+        claim_outputs([target / name for name in outputs], overwrite, owner=owner)
+    small, n_small, f = prepare(cap, full, config)
+    check_judgeable(small, use)  # before any fitting: enough images and lit pixels
+    ex = explain(small.images, small.mask, small.saturated)  # from the images alone: the same for every map
+    trusted, why = verdict(ex)
+    return JudgedCapture(cap, full, source, small, n_small, f, ex, trusted, why, target)
+
+
+def provenance(mi: Any) -> dict:
+    """The Mitsuba variant and Dr.Jit threads of a fitted report."""
+    return {"variant": mi.variant(), "jit_threads": jit_threads()}
+
+
 def rerender_fitted(
     folder: str,
     normals: str | np.ndarray,
@@ -74,35 +139,19 @@ def rerender_fitted(
 ) -> dict:
     """Fitted mode of the re-render check for one object folder (any layout); returns the report and
     writes `out_dir/<object>/report.json` and `figure.png` when out_dir is given."""
-    import json
-    from pathlib import Path
-
-    from validate.capture import load_with_normals
     from validate.lights import angular_errors_deg, directions_of
     from scenes.objfolder import mean_angular_error as mae_deg
-    from validate.metrics import relative_residual_map
 
     config = (config or FitConfig()).validate()
     mi = require_ad_variant()
     t0 = time.perf_counter()
-    cap, full, source = load_with_normals(folder, normals)
-    target = None
-    if out_dir is not None:
-        from scenes.cli import claim_outputs
-
-        target = Path(out_dir) / cap.name
-        claim_outputs([target / "report.json", target / "figure.png"], overwrite, owner="validate.rerender")
-    small, n_small, f = prepare(cap, full, config)
-    check_judgeable(small, "check")  # before any fitting: enough images and lit pixels to rank maps
-    ex = explain(small.images, small.mask, small.saturated)  # from the images alone: the same for every map
-    trusted, why = verdict(ex)
-    observed = small.images[:, small.mask]
-    res = fit_normals(small.images, small.mask, n_small, config, progress, "fit", small.saturated)
+    jc = judge_capture(folder, normals, config, "check", out_dir, ("report.json", "figure.png"), "validate.rerender", overwrite)
+    cap, small, n_small, ex, trusted = jc.cap, jc.small, jc.normals, jc.explanation, jc.trusted
+    res, judged = jc.score(n_small, config, progress, "fit")
     floors, judged_floors = {}, {}
     for kind, nmap in no_information_maps(small.mask, config.floor_maps).items():
-        fr = fit_normals(small.images, small.mask, nmap, config, progress, f"floor ({kind})", small.saturated)
-        floors[kind], judged_floors[kind] = fr.rel_l1, judged_rel_l1(fr.render, observed, ex)
-    judged = judged_rel_l1(res.render, observed, ex)
+        fr, judged_floors[kind] = jc.score(nmap, config, progress, f"floor ({kind})")
+        floors[kind] = fr.rel_l1
     if not config.bas_relief:
         ambiguity = not_tested("not tested (--no-bas-relief)")
     elif not trusted:
@@ -116,12 +165,12 @@ def rerender_fitted(
         "object": cap.name,
         "folder": str(cap.folder),
         "layout": cap.layout,
-        "prediction": source,
+        "prediction": jc.source,
         "images_count": int(cap.images.shape[0]),
         "image_names": cap.image_names,
         "mask_pixels": int(cap.mask.sum()),
         "trusted": trusted,
-        "why": why,
+        "why": jc.why,
         "explained_fraction": ex.explained_fraction,
         "judged_rel_l1": finite(judged),
         "judged_floor_rel_l1": finite(min(judged_floors.values())) if judged_floors else None,
@@ -135,43 +184,49 @@ def rerender_fitted(
         "lights": res.lights,
         "specular": res.specular,
         "per_image_rel_l1": res.per_image_rel_l1,
-        "fit_downsample": f,
+        "fit_downsample": jc.downsample,
         "fit_resolution": list(small.mask.shape),
         "fit_mask_pixels": int(small.mask.sum()),
         "saturated_fraction": saturated_fraction(small),
-        "note": (f"fitted and scored at 1/{f} resolution ({small.mask.shape[1]}x{small.mask.shape[0]}, box filter)" if f > 1
-                 else "fitted and scored at full resolution"),
+        "note": (f"fitted and scored at 1/{jc.downsample} resolution ({small.mask.shape[1]}x{small.mask.shape[0]}, box filter)"
+                 if jc.downsample > 1 else "fitted and scored at full resolution"),
         "config": full_config_dict(config),
-        "variant": mi.variant(),
-        "jit_threads": jit_threads(),
+        **provenance(mi),
     }
     if small.light_directions is not None:
         err = angular_errors_deg(directions_of(res.model, res.light_params), small.light_directions)
         report["calibrated_light_error_deg"] = {"mean": float(err.mean()), "median": float(np.median(err)), "max": float(err.max())}
     report["timings"] = {"fit_s": res.seconds, "total_s": time.perf_counter() - t0}
-    if target is not None:
-        from scenes.objfolder import angular_error_deg, prediction_label, write_picture
-        from validate.figures import explained_picture, rerender_figure
-
-        target.mkdir(parents=True, exist_ok=True)
-        renders = _scatter(res.render, small.mask)
-        k = renders.shape[0]
-        rows = sorted(set(np.linspace(0, k - 1, min(k, 4)).round().astype(int).tolist()))
-        write_picture(target / "explained.png", explained_picture(small.mask, ex.explained))
-        rerender_figure(
-            target / "figure.png", small.images, renders, small.mask, rows,
-            relative_residual_map(renders, small.images, small.mask), None, n_small,
-            title=f"{cap.name}, {prediction_label(source)} (fitted lights, {'trusted' if trusted else 'NOT TRUSTED'}): "
-            f"judged rel_l1 {report['judged_rel_l1'] or float('nan'):.4f}, constant map "
-            f"{report['judged_floor_rel_l1'] or float('nan'):.4f}"
-            + (f", MAE {report['mae_deg']:.2f} deg" if report.get("mae_deg") is not None else ""),
-            angular_error=None if small.normal_gt is None else angular_error_deg(n_small, small.normal_gt, small.mask),
-            explained=ex.explained,
-        )
-        from scenes.objfolder import atomic_write_text
-
-        atomic_write_text(target / "report.json", json.dumps(report, indent=1, allow_nan=False))
+    if jc.target is not None:
+        _write_fitted(jc, res, report)
     return report
+
+
+def _write_fitted(jc: JudgedCapture, res: FitResult, report: dict) -> None:
+    """report.json, figure.png and explained.png of the fitted check into `jc.target`."""
+    import json
+
+    from scenes.objfolder import angular_error_deg, atomic_write_text, prediction_label, write_picture
+    from validate.figures import explained_picture, rerender_figure
+    from validate.metrics import relative_residual_map
+
+    small, n_small, ex, target = jc.small, jc.normals, jc.explanation, jc.target
+    target.mkdir(parents=True, exist_ok=True)
+    renders = _scatter(res.render, small.mask)
+    k = renders.shape[0]
+    rows = sorted(set(np.linspace(0, k - 1, min(k, 4)).round().astype(int).tolist()))
+    write_picture(target / "explained.png", explained_picture(small.mask, ex.explained))
+    rerender_figure(
+        target / "figure.png", small.images, renders, small.mask, rows,
+        relative_residual_map(renders, small.images, small.mask), None, n_small,
+        title=f"{jc.cap.name}, {prediction_label(jc.source)} (fitted lights, {'trusted' if jc.trusted else 'NOT TRUSTED'}): "
+        f"judged rel_l1 {report['judged_rel_l1'] or float('nan'):.4f}, constant map "
+        f"{report['judged_floor_rel_l1'] or float('nan'):.4f}"
+        + (f", MAE {report['mae_deg']:.2f} deg" if report.get("mae_deg") is not None else ""),
+        angular_error=None if small.normal_gt is None else angular_error_deg(n_small, small.normal_gt, small.mask),
+        explained=ex.explained,
+    )
+    atomic_write_text(target / "report.json", json.dumps(report, indent=1, allow_nan=False))
 
 
 def saturated_fraction(cap: Capture) -> float:

@@ -22,6 +22,7 @@ from scenes.config import check_fields, option
 from scenes.variant import require_ad_variant
 from validate import heightfield
 from validate.lights import LIGHT_MODELS, closed_form_directional, point_start
+from validate.metrics import rel_l1_observations
 
 Progress = Callable[[int, int, str], None]
 """progress(done, total, label)."""
@@ -95,16 +96,6 @@ def footprint_roughness(normals: np.ndarray, mask: np.ndarray) -> float:
         angles.append(np.arccos(np.clip((a[m] * b[m]).sum(-1), -1.0, 1.0)))
     a = np.concatenate(angles)
     return float(np.clip(np.sqrt(np.median(a)), 0.05, 1.0)) if a.size else 0.05
-
-
-def rel_l1_pixels(render: np.ndarray, images: np.ndarray, saturated: np.ndarray | None = None) -> float:
-    """sum |render - images| / sum |images| over (K, P, 3) arrays; where `saturated` (same shape, bool) the
-    observation is a lower bound and only a render below it counts."""
-    den = float(np.abs(images).sum())
-    err = np.abs(render - images)
-    if saturated is not None:
-        err = np.where(saturated, np.maximum(images - render, 0), err)
-    return float(err.sum() / den) if den > 0 else float("nan")
 
 
 def lambertian_start(fs: "FitScene") -> dict:
@@ -476,7 +467,7 @@ class FitScene:
     def score(self, render: np.ndarray, batch: np.ndarray | None = None) -> float:
         """rel_l1 of a render (B, P, 3) of images `batch` (all by default), saturated observations censored."""
         idx = np.arange(self.k) if batch is None else np.asarray(batch)
-        return rel_l1_pixels(render, self.images[idx], None if self.sat is None else self.sat[idx])
+        return rel_l1_observations(render, self.images[idx], saturated=None if self.sat is None else self.sat[idx])
 
     def loss(self, batch):
         """Robust L1 (Charbonnier) of the render of `batch` against the inputs, mean over lanes and channels."""

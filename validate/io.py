@@ -21,9 +21,9 @@ log = logging.getLogger(__name__)
 UNIT_TOLERANCE = 0.02
 """Largest accepted | |n| - 1 | inside the mask (16-bit PNG rounding is below 1e-4)."""
 MAX_NORMAL_VALUE = 1e6
-"""Largest accepted |component| of a normal map to judge, inside the mask. Maps are unit vectors (or, in the
-fitted mode, renormalised pseudo-normals in image units); a larger value means a wrongly scaled or corrupt
-map, and squaring it in float32 overflows (a 1e30-scaled map became all zeros and was scored)."""
+"""Largest accepted |component| of a normal map to judge, inside the mask. Maps are unit vectors; a larger value
+means a wrongly scaled or corrupt map, and squaring it in float32 overflows (a 1e30-scaled map became all
+zeros and was scored)."""
 
 
 def check_magnitude(inside: np.ndarray, what: str) -> None:
@@ -108,7 +108,8 @@ def read_prediction(normals: str | Path | np.ndarray, name: str) -> tuple[np.nda
 def check_normals(
     n: np.ndarray, mask: np.ndarray, source: str = "--normals", allow_missing: bool = False
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Check a normal map against an object mask.
+    """Check a normal map against an object mask: the one rule of both modes of the check and of refinement
+    (`validate.capture.unit_normals` is the fitted modes' view of it).
 
     Returns (normals renormalised where valid and 0 elsewhere, valid (H, W) bool). Valid is the mask,
     minus the exactly-zero normals inside it when `allow_missing` (a predictor's "no estimate", e.g.

@@ -15,8 +15,8 @@ Models (`LIGHT_MODELS`):
 - `environment`: per image a low-order environment (spherical harmonics up to order 2, 9 RGB
   coefficients) whose Lambertian irradiance uses Ramamoorthi and Hanrahan's closed form; no specular.
 
-Report form (report.json `lights`, one list per image): `{"type": "directional", "direction": [x, y, z],
-"irradiance": [r, g, b]}`, `{"type": "ambient", "radiance": [r, g, b]}`, `{"type": "point",
+Report form (report.json `lights`, one list per image): `{"type": "directional", "direction_to_light": [x, y, z],
+"irradiance": [r, g, b]}` (`scenes.lights.camera_directional`, the form of scene.json `camera_lights` too), `{"type": "ambient", "radiance": [r, g, b]}`, `{"type": "point",
 "position": [x, y, z], "intensity": [r, g, b]}`, `{"type": "environment_sh2", "coefficients": 9 x [r, g, b]}`,
 in image units with the albedo normalised so that its mean over the mask is 0.5.
 """
@@ -25,6 +25,8 @@ from __future__ import annotations
 import logging
 
 import numpy as np
+
+from scenes.lights import camera_directional
 
 log = logging.getLogger(__name__)
 
@@ -243,7 +245,7 @@ def report_lights(model: str, params: dict) -> list[list[dict]]:
         if model == "directional":
             d = np.asarray(params["directions"][i], np.float64)
             entry = [
-                {"type": "directional", "direction": (d / np.linalg.norm(d)).tolist(), "irradiance": np.asarray(params["irradiance"][i]).tolist()},
+                {"type": "directional", **camera_directional(d / np.linalg.norm(d), params["irradiance"][i])},
                 {"type": "ambient", "radiance": np.asarray(params["ambient"][i]).tolist()},
             ]
         elif model == "point":

@@ -1,6 +1,8 @@
 """Image and normal comparisons of the re-render check (plain NumPy)."""
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 
@@ -9,11 +11,35 @@ def expose(radiance: np.ndarray, exposure: float) -> np.ndarray:
     return (np.round(np.clip(radiance * exposure, 0.0, 1.0) * 65535.0) / 65535.0).astype(np.float32)
 
 
+def relative_l1(error: Any, reference: Any) -> float:
+    """The one rule of every relative L1 residual of the check: `error / reference`, the summed (or mean)
+    |render - observed| over the summed (or mean) |observed| of the same observations, divided in the
+    caller's precision. Degenerate case: when `reference` is not positive (no observation, or all of them
+    0) the residual is undefined and the answer is NaN (never inf, never 0); report.json writes it as null."""
+    return float(error / reference) if reference > 0 else float("nan")
+
+
 def rel_l1(image: np.ndarray, reference: np.ndarray, mask: np.ndarray) -> float:
-    """mean |image - reference| / mean |reference| over the mask pixels (all channels); images (H, W, C)."""
+    """Known-scene check, one image: mean |image - reference| / mean |reference| over the mask pixels (all
+    channels), in float64; images (H, W, C). NaN when degenerate (`relative_l1`)."""
+    if not mask.any():
+        return float("nan")
     diff = np.abs(image[mask].astype(np.float64) - reference[mask])
-    denom = float(np.abs(reference[mask]).mean())
-    return float(diff.mean() / denom) if denom > 0 else float("inf") if diff.mean() > 0 else 0.0
+    return relative_l1(diff.mean(), float(np.abs(reference[mask]).mean()))
+
+
+def rel_l1_observations(render: np.ndarray, observed: np.ndarray, where: np.ndarray | None = None,
+                        saturated: np.ndarray | None = None) -> float:
+    """Fitted check: sum |render - observed| / sum |observed| over (K, P, 3) arrays, in their precision,
+    over the observations `where` selects (a boolean index of their leading axes; all by default). Where
+    `saturated` (bool, the shape of `observed`) the observation is a lower bound and only a render below it
+    counts. NaN when degenerate (`relative_l1`)."""
+    err = np.abs(render - observed)
+    if saturated is not None:
+        err = np.where(saturated, np.maximum(observed - render, 0), err)
+    if where is not None:
+        err, observed = err[where], observed[where]
+    return relative_l1(err.sum(), float(np.abs(observed).sum()))
 
 
 def psnr(image: np.ndarray, reference: np.ndarray, mask: np.ndarray, peak: float = 1.0) -> float:

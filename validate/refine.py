@@ -4,7 +4,7 @@ Starting from any prediction: (1) the scene is fitted around the normal map held
 with `--lights calibrated` the calibrated directional lights of the folder, DiLiGenT's files or scene.json's
 `camera_lights`, are used and held fixed instead: the known-scene mode of refinement); (2) the normals are
 optimised together with the lights by Adam through the same Mitsuba shading, with the albedo re-solved in
-closed form at every refresh, under a regulariser: smoothness (squared differences of 4-neighbour
+closed form at every refresh, under a regulariser (`validate.regulariser`): smoothness (squared differences of 4-neighbour
 normals), integrability (squared curl of the gradient field p = -nx/nz, q = ny/nz over 2x2 blocks) and the
 silhouette (normals at the mask boundary may not point inward, and no normal may face away from the
 camera). A fraction of the images is held out: their residual is measured at every refresh and the normals
@@ -36,12 +36,12 @@ import numpy as np
 from scenes.cli import INPUT_ERRORS, check_output_folder, check_threads, claim_outputs, progress_bar, report_error
 from scenes.config import check_fields, config_parser, option
 from scenes.config import config_from_args as parse_config
-from scenes.variant import jit_threads, require_ad_variant
+from scenes.variant import require_ad_variant
 from validate.fit import fit_normals, run_fit
-from validate.fit_report import saturated_fraction
+from validate.fit_report import full_config_dict, judge_capture, provenance, saturated_fraction
 from validate.fit_scene import FitConfig, FitScene, Progress, lambertian_start, to_jit
-from validate.judgeable import check_judgeable
-from validate.verdict import SEPARATION, explain, judged_rel_l1, verdict
+from validate.regulariser import make_regulariser
+from validate.verdict import SEPARATION
 
 log = logging.getLogger(__name__)
 
@@ -114,77 +114,6 @@ class RefineResult:
     """Light model used ('auto' resolved: the model with the lowest residual around the starting map)."""
     rotation: dict | None = None
     """The last rotation search (`search_rotation`'s record: chosen tilt, equally good tilts and their spread)."""
-
-
-def _pairs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Index arrays over the mask pixels (row-major): horizontal pairs (a, b), vertical pairs (a, c), and
-    2x2 blocks (tl, tr, bl, br) fully inside the mask."""
-    idx = -np.ones(mask.shape, np.int64)
-    idx[mask] = np.arange(int(mask.sum()))
-    hz = mask[:, :-1] & mask[:, 1:]
-    vt = mask[:-1, :] & mask[1:, :]
-    blk = mask[:-1, :-1] & mask[:-1, 1:] & mask[1:, :-1] & mask[1:, 1:]
-    horiz = np.stack([idx[:, :-1][hz], idx[:, 1:][hz]])
-    vert = np.stack([idx[:-1, :][vt], idx[1:, :][vt]])
-    block = np.stack([idx[:-1, :-1][blk], idx[:-1, 1:][blk], idx[1:, :-1][blk], idx[1:, 1:][blk]])
-    return horiz, vert, block
-
-
-def _boundary_outward(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Mask-boundary pixels (indices into the mask pixels) and their outward 2D directions (x right, y up)."""
-    from scipy.ndimage import binary_erosion, distance_transform_edt, gaussian_filter
-
-    edge = mask & ~binary_erosion(mask)
-    d = gaussian_filter(distance_transform_edt(mask), 1.0)
-    gy, gx = np.gradient(d)
-    o = np.stack([-gx, gy], -1)  # downhill of the distance = outward; rows go down, y up
-    o /= np.maximum(np.linalg.norm(o, axis=-1, keepdims=True), 1e-12)
-    idx = -np.ones(mask.shape, np.int64)
-    idx[mask] = np.arange(int(mask.sum()))
-    return idx[edge], o[edge]
-
-
-def make_regulariser(fs: FitScene, config: RefineConfig):
-    """Dr.Jit function normals (Vector3f, width P) -> scalar penalty (see the module doc)."""
-    mi, dr = fs.mi, fs.dr
-    horiz, vert, block = _pairs(fs.mask)
-    bidx, outward = _boundary_outward(fs.mask)
-    scale = float(np.abs(fs.images).mean())
-    U = lambda a: to_jit(mi.UInt32, np.asarray(a, np.uint32))  # noqa: E731
-    ha, hb, va, vb = U(horiz[0]), U(horiz[1]), U(vert[0]), U(vert[1])
-    tl, tr, bl, br = (U(b) for b in block)
-    bi = U(bidx)
-    ox, oy = to_jit(mi.Float, outward[:, 0].astype(np.float32)), to_jit(mi.Float, outward[:, 1].astype(np.float32))
-
-    def reg(normals):
-        n = dr.normalize(normals)
-        g = lambda i: dr.gather(mi.Vector3f, n, i)  # noqa: E731
-        total = mi.Float(0.0)
-        if config.smoothness > 0 and len(horiz[0]) + len(vert[0]):
-            s = dr.sum(dr.squared_norm(g(ha) - g(hb))) + dr.sum(dr.squared_norm(g(va) - g(vb)))
-            total += config.smoothness * scale * s / (len(horiz[0]) + len(vert[0]))
-        if config.integrability > 0 and len(block[0]):
-            def pq(v):
-                nz = dr.maximum(v.z, 0.3)
-                return -v.x / nz, v.y / nz
-
-            p_tl, q_tl = pq(g(tl))
-            p_tr, q_tr = pq(g(tr))
-            p_bl, q_bl = pq(g(bl))
-            p_br, q_br = pq(g(br))
-            # d p / d row - d q / d col, each averaged over the block's two rows / columns
-            curl = 0.5 * ((p_bl - p_tl) + (p_br - p_tr)) - 0.5 * ((q_tr - q_tl) + (q_br - q_bl))
-            total += config.integrability * scale * dr.mean(curl * curl)
-        if config.silhouette > 0:
-            face = dr.maximum(-n.z, 0)
-            total += config.silhouette * scale * dr.mean(face * face)
-            if len(bidx):
-                nb = g(bi)
-                inward = dr.maximum(-(nb.x * ox + nb.y * oy), 0)
-                total += config.silhouette * scale * dr.mean(inward * inward)
-        return total
-
-    return reg
 
 
 ROTATION_TIE = 0.005
@@ -286,6 +215,8 @@ def refine_normals(
 
     calibrated: (directions (K, 3) toward the light, irradiance (K, 3)) held fixed when config.lights is
     'calibrated'. saturated: (K, H, W, 3) bool censored observations (see `validate.fit_scene.FitScene`)."""
+    # Over 80 lines on purpose: the rounds and the early-stopping callback share one state (best normals,
+    # stale count, step offset); split apart, that state would travel through every piece.
     config = (config or RefineConfig()).validate()
     require_ad_variant()
     t0 = time.perf_counter()
@@ -384,30 +315,22 @@ def upsample_change(full: np.ndarray, mask_full: np.ndarray, start_small: np.nda
 def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig | None = None, out_dir: str | None = None,
                   progress: Progress | None = None, overwrite: bool = False) -> dict:
     """Refine the normal map of one object folder; write normal.png and refine_report.json under out_dir/<object>/."""
-    from validate.capture import downsample_normals, load_with_normals
+    from validate.capture import downsample_normals
     from scenes.objfolder import mean_angular_error as mae_deg
-    from validate.fit import prepare
 
     config = (config or RefineConfig()).validate()
     mi = require_ad_variant()
     t0 = time.perf_counter()
-    cap, full, source = load_with_normals(folder, normals)
-    target = Path(out_dir) / cap.name if out_dir is not None else None
-    if target is not None:
-        claim_outputs([target / name for name in REFINE_OUTPUTS], overwrite, owner="validate.refine")
-    small, n_small, f = prepare(cap, full, config.fit)
-    check_judgeable(small, "refine")  # before any fitting: enough images and lit pixels to refine
-    ex = explain(small.images, small.mask, small.saturated)  # images alone: where the physics can judge
-    trusted, why = verdict(ex)
-    observed = small.images[:, small.mask]
+    jc = judge_capture(folder, normals, config.fit, "refine", out_dir, REFINE_OUTPUTS, "validate.refine", overwrite)
+    cap, full, small, n_small, ex, f = jc.cap, jc.full, jc.small, jc.normals, jc.explanation, jc.downsample
     mae_in = mae_deg(full, cap.normal_gt, cap.mask) if cap.normal_gt is not None else None
-    if not trusted:
-        report = {"mode": "refine", "object": cap.name, "folder": str(cap.folder), "prediction": source,
-                  "accepted": False, "why": f"declined, the input map is kept: {why}", "trusted": False,
+    if not jc.trusted:
+        report = {"mode": "refine", "object": cap.name, "folder": str(cap.folder), "prediction": jc.source,
+                  "accepted": False, "why": f"declined, the input map is kept: {jc.why}", "trusted": False,
                   "explained_fraction": ex.explained_fraction, "refined_fraction": 0.0,
                   "before": {"mae_deg": mae_in}, "after": {"mae_deg": mae_in},
                   "timings": {"total_s": time.perf_counter() - t0}}
-        _write_refined(target, full, report)
+        _write_refined(jc.target, full, report)
         return report
     calibrated = None
     if small.light_directions is not None and small.light_irradiance is not None:
@@ -421,10 +344,8 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
     refined_small = downsample_normals(refined_full, small.mask, f) if f > 1 else refined_full
     # Both scores with the light model the refinement used ('auto' resolved), so that they compare.
     fit_cfg = replace(config.fit, light_model=res.light_model)
-    before = fit_normals(small.images, small.mask, n_small, fit_cfg, progress, "score before", small.saturated)
-    after = fit_normals(small.images, small.mask, refined_small, fit_cfg, progress, "score after", small.saturated)
-    judged_before = judged_rel_l1(before.render, observed, ex)
-    judged_after = judged_rel_l1(after.render, observed, ex)
+    before, judged_before = jc.score(n_small, fit_cfg, progress, "score before")
+    after, judged_after = jc.score(refined_small, fit_cfg, progress, "score after")
     accepted = bool(judged_after < judged_before * (1.0 - MIN_GAIN))
     why = (f"the judged residual fell {judged_before:.4f} -> {judged_after:.4f} on the observations every map shares; "
            f"{ex.explained_fraction:.0%} of the object was refined, the rest keeps the input map" if accepted else
@@ -445,7 +366,7 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
         "light_model": res.light_model,
         "object": cap.name,
         "folder": str(cap.folder),
-        "prediction": source,
+        "prediction": jc.source,
         "images_count": int(cap.images.shape[0]),
         "before": {"rel_l1": before.rel_l1, "mae_deg": mae_in},
         "after": {"rel_l1": after.rel_l1, "mae_deg": mae_deg(refined_full, cap.normal_gt, cap.mask) if cap.normal_gt is not None else None},
@@ -457,12 +378,11 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
         "saturated_fraction": saturated_fraction(small),
         "note": (f"refined and scored at 1/{f} resolution ({small.mask.shape[1]}x{small.mask.shape[0]}); the change is upsampled "
                  "bilinearly onto the full-resolution input map" if f > 1 else "refined and scored at full resolution"),
-        "config": {**{k: v for k, v in asdict(config).items() if k != "fit"}, "fit": {**asdict(config.fit), "floor_maps": list(config.fit.floor_maps)}},
-        "variant": mi.variant(),
-        "jit_threads": jit_threads(),
+        "config": {**{k: v for k, v in asdict(config).items() if k != "fit"}, "fit": full_config_dict(config.fit)},
+        **provenance(mi),
         "timings": {"refine_s": res.seconds, "total_s": time.perf_counter() - t0},
     }
-    _write_refined(target, refined_full, report)
+    _write_refined(jc.target, refined_full, report)
     return report
 
 

@@ -30,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from validate.metrics import rel_l1_observations
+
 SHADOW_FRACTION = 0.1
 """An observation darker than this fraction of its pixel's bright level (its 90th percentile over the images)
 is a shadow (attached or cast): left out."""
@@ -161,6 +163,4 @@ def verdict(ex: Explanation) -> tuple[bool, str]:
 def judged_rel_l1(render: np.ndarray, images: np.ndarray, ex: Explanation) -> float:
     """rel_l1 of a fitted render (K, P, 3) against the images (K, P, 3) over the kept observations of the
     explained pixels: the same observations for every map of the capture."""
-    use = ex.keep & ex.explained[None]  # (K, P)
-    den = float(np.abs(images[use]).sum())
-    return float(np.abs(render[use] - images[use]).sum() / den) if den > 0 else float("nan")
+    return rel_l1_observations(render, images, where=ex.keep & ex.explained[None])  # (K, P) selection

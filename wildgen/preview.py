@@ -240,8 +240,8 @@ def object_stats(folder: Path) -> dict:
             field = _strength_field(kind)
             record = {"type": kind.type, "strength": float(getattr(light, field)) if field else None,
                       "direction": None, "distance": None}
-            if "direction" in form:
-                record["direction"] = np.asarray(form["direction"], np.float64)
+            if "direction_to_light" in form:
+                record["direction"] = np.asarray(form["direction_to_light"], np.float64)
             elif "position" in form:
                 p = np.asarray(form["position"], np.float64)
                 record["distance"] = float(np.linalg.norm(p))

@@ -111,8 +111,7 @@ def camera_lights(desc: SceneDescription) -> list[dict]:
     out = []
     for image in desc.images:
         lights = camera_frame(image.lights, R, desc.camera.target, image.exposure)
-        dirs = [{"direction_to_light": l["direction"], "irradiance": l["irradiance"]}
-                for l in lights if l["type"] == "directional"]
+        dirs = [{k: v for k, v in l.items() if k != "type"} for l in lights if l["type"] == "directional"]
         out.append({"directional": dirs, "other": len(lights) - len(dirs)})
     return out
 
