@@ -15,12 +15,13 @@ BAR_WIDTH = 96
 """Width in pixels of the colour-bar picture (gradient, ticks and labels)."""
 
 
-def new_figure(width_px: int, height_px: int):
-    """A white matplotlib Figure of `width_px` x `height_px` pixels, with an Agg canvas (no pyplot state)."""
+def new_figure(width_px: int, height_px: int, layout: str | None = None):
+    """A white matplotlib Figure of `width_px` x `height_px` pixels, with an Agg canvas (no pyplot state);
+    `layout`: matplotlib's layout engine ("constrained" for grids of charts, None for axes placed in pixels)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(width_px / DPI, height_px / DPI), dpi=DPI, facecolor="white")
+    fig = Figure(figsize=(width_px / DPI, height_px / DPI), dpi=DPI, facecolor="white", layout=layout)
     FigureCanvasAgg(fig)
     return fig
 
