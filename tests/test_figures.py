@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 
 import cv2
+import pytest
 import numpy as np
 
 from scenes.objfolder import PREDICTION_INFO, prediction_label
@@ -135,3 +136,44 @@ def test_prediction_label_names_the_method(tmp_path):
     assert prediction_label(folder / "normal.exr") == "least-squares"
     (folder / PREDICTION_INFO).write_text("{broken")
     assert prediction_label(folder / "normal.exr") == "ball/normal.exr"
+
+
+def _srgb_decode(v):
+    """IEC 61966-2-1 decoding, written out here in float64."""
+    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
+
+
+def test_srgb_curves_match_the_standard():
+    from scenes.colors import linear_to_srgb, srgb_to_linear
+
+    codes8 = np.arange(256, dtype=np.float32) / 255.0
+    codes16 = np.arange(65536, dtype=np.float32) / 65535.0
+    for codes in (codes8, codes16):
+        decoded = srgb_to_linear(codes)
+        assert decoded.dtype == np.float32
+        # the texture decoding (float32 arithmetic): within 6 float32 steps of the standard on every code
+        want = _srgb_decode(codes.astype(np.float64))
+        assert np.all(np.abs(decoded - want) <= 6 * np.spacing(want.astype(np.float32)))
+    assert srgb_to_linear(np.float32([0.5]))[0] == pytest.approx(0.21404114, abs=1e-7)  # a textbook value
+    linear = np.linspace(0.0, 1.0, 1001)
+    assert np.allclose(linear_to_srgb(linear), _srgb(linear), atol=1e-12)
+    assert np.allclose(_srgb_decode(linear_to_srgb(linear)), linear, atol=1e-12)
+    assert np.array_equal(linear_to_srgb(np.array([-1.0, 2.0])), linear_to_srgb(np.array([0.0, 1.0])))  # clipped
+
+
+def test_colorbar_shows_the_map_colours_and_its_scale():
+    from scenes.charts import BAR_WIDTH, colorbar, colorbar_figure, opencv_colormap
+
+    lut = cv2.applyColorMap(np.arange(256, dtype=np.uint8)[:, None], cv2.COLORMAP_JET)[:, 0]
+    cmap = opencv_colormap(cv2.COLORMAP_JET)
+    assert np.array_equal(np.round(cmap(np.arange(256))[:, :3] * 255)[:, ::-1], lut)
+    fig = colorbar_figure(200, 90.0, cv2.COLORMAP_JET, "angle (deg)", ticks=3, fmt="{:.0f}")
+    (cax,) = fig.axes
+    assert cax.get_ylim() == (0.0, 90.0)
+    assert [t.get_text() for t in cax.get_yticklabels()] == ["0", "30", "60", ">=90"]
+    assert [t.get_text() for t in fig.texts] == ["angle (deg)"]
+    bar = colorbar(200, 90.0, cv2.COLORMAP_JET, "angle (deg)", ticks=3, fmt="{:.0f}", clipped=False)
+    assert bar.shape == (200, BAR_WIDTH, 3) and bar.dtype == np.uint8
+    for end in (lut[0], lut[255]):  # both ends of the scale drawn in the map's exact colours
+        assert (bar == end).all(-1).any()
+    assert colorbar(10, 1.0, cv2.COLORMAP_JET, "x").shape[0] == 64  # never shorter than its labels
