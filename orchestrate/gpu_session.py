@@ -40,7 +40,7 @@ from orchestrate.steps import StepFailed, check_step, run_step
 from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, report_error
 from scenes.config import check_fields, config_parser, option
 from scenes.config import config_from_args as parse_config
-from scenes.objfolder import atomic_write_text, write_picture
+from scenes.objfolder import atomic_write_text
 
 REPO = Path(__file__).resolve().parents[1]
 UPLOAD_LIMIT = 64 * 2**20
@@ -283,29 +283,23 @@ def curve_records(log: Path) -> list[dict]:
     return sorted((r for r in rows if "loss" in r and "val" not in r), key=lambda r: r["step"])
 
 
-def plot_curve(records: list[dict], path: Path, title: str) -> None:
-    """Training loss against step as a PNG (OpenCV drawing: the GPU machine has it, and no other plotter is a
-    dependency of this project)."""
-    import cv2
-    import numpy as np
+def curve_figure(records: list[dict], title: str):
+    """Training loss against step, a matplotlib Figure (640 x 400 pixels; `scenes.charts`)."""
+    from scenes.charts import new_figure
 
-    w, h, m = 640, 400, 50
-    img = np.full((h, w, 3), 255, np.uint8)
-    cv2.rectangle(img, (m, m // 2), (w - m // 2, h - m), (0, 0, 0), 1)
-    cv2.putText(img, title, (m, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
-    if records:
-        steps = np.array([r["step"] for r in records], float)
-        loss = np.array([r["loss"] for r in records], float)
-        lo, hi = float(loss.min()), float(loss.max()) or 1.0
-        hi = hi if hi > lo else lo + 1.0
-        x = m + (steps - steps.min()) / max(steps.max() - steps.min(), 1.0) * (w - 1.5 * m)
-        y = (h - m) - (loss - lo) / (hi - lo) * (h - 1.5 * m)
-        cv2.polylines(img, [np.stack([x, y], 1).astype(np.int32)], False, (200, 80, 0), 2, cv2.LINE_AA)
-        for text, pos in ((f"{hi:.4f}", (2, m // 2 + 10)), (f"{lo:.4f}", (2, h - m)),
-                          (f"step {int(steps.min())}", (m, h - m + 20)), (f"{int(steps.max())}", (w - m - 20, h - m + 20)),
-                          ("training loss", (w // 2 - 40, h - 10))):
-            cv2.putText(img, text, pos, cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1, cv2.LINE_AA)
-    write_picture(path, img)
+    fig = new_figure(640, 400, layout="constrained")
+    ax = fig.subplots()
+    ax.set_title(title, loc="left", fontsize=9)
+    ax.plot([r["step"] for r in records], [r["loss"] for r in records], color="#1f77b4")
+    ax.set(xlabel="step", ylabel="training loss")
+    return fig
+
+
+def plot_curve(records: list[dict], path: Path, title: str) -> None:
+    """Write `curve_figure` as a PNG."""
+    from scenes.charts import write_figure
+
+    write_figure(path, curve_figure(records, title))
 
 
 def _device(requested: str) -> str:

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from scenes.colors import srgb_to_linear
 from scenes.description import TextureDesc
 
 
@@ -77,10 +78,6 @@ def read_image_file(path: Path) -> np.ndarray:
     else:
         img = img.astype(np.float32)
     return img
-
-
-def srgb_to_linear(x: np.ndarray) -> np.ndarray:
-    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)
 
 
 def realize_texture(tex: TextureDesc, base_dir: Path | None = None) -> np.ndarray:

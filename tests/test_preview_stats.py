@@ -1,5 +1,6 @@
 """The dataset card (`python -m wildgen.preview --stats DIR`) of a small rendered dataset, its numbers checked
-against the object folders read here independently (JSON and OpenCV, not the project's readers)."""
+against the object folders read here independently (JSON and OpenCV, not the project's readers), and its
+picture (matplotlib) checked to plot those numbers."""
 from __future__ import annotations
 
 import json
@@ -73,7 +74,7 @@ def test_card_numbers_match_the_scene_files(dataset, tmp_path, capsys):
     assert rc == 0, err
     assert str(tmp_path / "card" / "stats.png") in printed and str(tmp_path / "card" / "stats.json") in printed
     picture = cv2.imread(str(tmp_path / "card" / "stats.png"))
-    assert picture is not None and picture.shape[0] > 1000 and picture.shape[1] > 1500 and picture.std() > 10
+    assert picture is not None and picture.shape[:2] == (1256, 1620) and picture.std() > 10
 
     scenes = scenes_of(dataset)
     assert stats["objects"] == len(scenes) == len(FAMILIES) and stats["failed"] == {}
@@ -148,6 +149,66 @@ def test_card_numbers_match_the_scene_files(dataset, tmp_path, capsys):
     levels = [s["level"] for s in scenes.values() if s.get("level") is not None]
     assert stats["levels"] == "not recorded" if not levels else stats["levels"]["counts"] == dict(Counter(map(str, levels)))
     assert stats["sensors"] == {"webcam": len(scenes)}
+
+    # The picture: each panel plots the numbers computed here.
+    check_card_figure(stats, pixels, distance, irradiance)
+
+
+def check_card_figure(stats: dict, pixels: np.ndarray, distance: list, irradiance: list) -> None:
+    from matplotlib.collections import LineCollection, QuadMesh
+
+    from wildgen.card_figure import draw_stats
+
+    fig = draw_stats(stats)
+    assert fig.get_suptitle().startswith(f"Dataset card: {stats['dataset']}\n{len(FAMILIES)} objects")
+    panels = {ax.get_title(loc="left").split("\n")[0]: ax for ax in fig.axes if ax.get_title(loc="left")}
+    assert len(panels) == 9
+
+    def heat(title):
+        (mesh,) = [c for c in panels[title].collections if isinstance(c, QuadMesh)]
+        return mesh
+
+    edges = np.asarray(stats["normals"]["nx_ny_histogram"]["nx_edges"])
+    mine = np.histogram2d(pixels[:, 0], pixels[:, 1], [edges, edges])[0]
+    mesh = heat("Visible normals (n_x, n_y)")
+    shown = mesh.get_array().filled(0).reshape(40, 40).T  # rows of the mesh are n_y bins
+    assert np.abs(shown - mine).sum() <= 2 and np.all(mesh.get_array().mask.reshape(40, 40).T == (shown == 0))
+    assert mesh.get_clim() == (0.0, float(shown.max()))
+    assert panels["Visible normals (n_x, n_y)"].get_xlabel() == "n_x (right)"
+
+    angles = np.degrees(np.arccos(np.clip(pixels[:, 2], -1, 1)))
+    bars = panels["Angle between normal and view axis"].patches
+    assert len(bars) == 90 and [b.get_x() for b in bars] == pytest.approx(np.arange(0, 180, 2))
+    heights = np.array([b.get_height() for b in bars])
+    assert np.abs(heights - np.histogram(angles, np.linspace(0, 180, 91))[0]).sum() <= 2
+
+    directions = heat("Directions toward the lights")
+    assert directions.get_array().sum() == stats["lights"]["directions"]["lights"]
+
+    near = panels["Distance of near lights from the object centre"]
+    assert sum(b.get_height() for b in near.patches) == len(distance) and near.get_xlabel() == "distance (object radii)"
+    assert near.patches[0].get_x() == pytest.approx(min(distance))
+
+    strength = panels["Light strengths by type"]
+    assert strength.get_xscale() == "log"
+    labels = [t.get_text() for t in strength.get_yticklabels()]
+    y = strength.get_yticks()[labels.index("directional (irradiance)")]
+    segments = [seg for c in strength.collections if isinstance(c, LineCollection) for seg in c.get_segments()]
+    (row,) = [seg for seg in segments if np.all(seg[:, 1] == y)]
+    assert sorted(row[:, 0]) == pytest.approx([min(irradiance), max(irradiance)])
+
+    exposure = panels["Exposure per image"]
+    assert exposure.get_xscale() == "log" and sum(b.get_height() for b in exposure.patches) == stats["images"]
+
+    kinds = panels["Materials, detail and light families"]
+    widths = [b.get_width() for b in kinds.patches]
+    assert len(widths) == len(stats["materials"]) + len(stats["detail"]) + len(stats["light_families"])
+    assert widths[-len(FAMILIES):] == [1.0] * len(FAMILIES)  # one object per family: equal bars, full length
+    notes = {t.get_text() for t in kinds.texts}
+    assert all(f"{n} ({100 * n / len(FAMILIES):.0f}%)" in notes for n in stats["materials"].values())
+
+    capture = " ".join(t.get_text() for t in panels["Camera, sensor, levels"].texts)
+    assert "webcam: 4" in capture and "16x16: 4" in capture
 
 
 def test_unreadable_objects_are_recorded_and_the_rest_summarised(dataset, tmp_path, capsys):

@@ -67,7 +67,7 @@ def error_map_image(err_map: np.ndarray, mask: np.ndarray, clip_deg: float = ERR
     enlarged by `error_map_scale`, with a colour bar in degrees on the right."""
     import cv2
 
-    from scenes.colorbar import colorbar
+    from scenes.charts import colorbar
 
     level = np.round(np.clip(err_map / clip_deg, 0.0, 1.0) * 255.0).astype(np.uint8)
     img = cv2.applyColorMap(level, cv2.COLORMAP_JET)
