@@ -48,7 +48,7 @@ def test_demo_summary_explains_every_column(tmp_path):
         (tmp_path / "rerender" / m / "00000" / "report.json").write_text(json.dumps(
             {"object": "00000", "rel_l1": 0.05, "coverage": 0.9, "gt_rel_l1": 0.01}))
     table = summary_table(tmp_path, ["model", "least-squares"])
-    header = table.splitlines()[0].strip("| ").split(" | ")
+    header = [c.strip() for c in table.splitlines()[0].strip("| ").split(" | ")]
     explained = "\n".join(line for line in table.splitlines() if line.startswith("- "))
     for column in header:
         generic = column.replace("least-squares", "<method>").replace("model", "<method>")
@@ -89,3 +89,19 @@ def test_a_python_without_the_packages_gets_one_line_not_a_traceback():
     assert r.returncode == 2, r.stderr
     assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
     assert "lacks numpy" in r.stderr and ".venv/bin/activate" in r.stderr
+
+
+def test_markdown_tables_keep_cells_as_written():
+    """The one table writer (scenes.tables): cells exactly as formatted by the caller (no number re-parsing:
+    "12.0" stays "12.0", "007" stays "007"), columns padded to one width, a row of the wrong length refused."""
+    import pytest
+
+    from scenes.tables import markdown_table
+
+    text = markdown_table(["name", "deg"], [["ball", "12.0"], ["**mean**", "007"], ["x", 3]])
+    lines = text.splitlines()
+    assert len({len(line) for line in lines}) == 1 and lines[1].replace("|", "").strip("-") == ""
+    assert [[c.strip() for c in line.strip("|").split("|")] for line in lines[2:]] == [
+        ["ball", "12.0"], ["**mean**", "007"], ["x", "3"]]
+    with pytest.raises(ValueError, match="2 cells, the header 3"):
+        markdown_table(["a", "b", "c"], [["1", "2"]])
