@@ -75,11 +75,10 @@ def main() -> int:
             same = all(np.array_equal(a, b) for a, b in zip(outputs[(name, thread_list[0])], outputs[(name, thread_list[-1])]))
             rows.append((f"{res}x{res}", desc.render.spp, f"{name}: {thread_list[0]} vs {thread_list[-1]} threads identical", same))
     print(f"variant {args.variant}, {args.images} images, median seconds per image over {args.repeats} renders each")
-    print("| size | spp | threads | old mi.render (s) | new render_film (s) | new / old |")
-    print("|---|---|---|---|---|---|")
-    for r in rows:
-        if len(r) == 6:
-            print(f"| {r[0]} | {r[1]} | {r[2]} | {r[3]:.4f} | {r[4]:.4f} | {r[5]:.2f} |")
+    from scenes.tables import markdown_table
+
+    print(markdown_table(["size", "spp", "threads", "old mi.render (s)", "new render_film (s)", "new / old"],
+                         [[*r[:3], f"{r[3]:.4f}", f"{r[4]:.4f}", f"{r[5]:.2f}"] for r in rows if len(r) == 6]))
     for r in rows:
         if len(r) == 4:
             print(f"{r[0]} spp {r[1]}: {r[2]}: {r[3]}")

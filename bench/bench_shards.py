@@ -170,11 +170,13 @@ def main(argv: list[str] | None = None) -> int:
                         rates[source] = max(rates.get(source, 0.0), n / seconds)
                 rows.append({"read": what, "cache": cache, **{f"{s}_per_s": round(rates[s], 1) for s in sources},
                              **{f"ratio_{e}": round(rates[e] / rates["folders"], 2) for e in ENCODINGS}})
-    print("\n| read | cache | folders (objects/s) | shards, files (objects/s) | shards, decoded (objects/s) | files / "
-          "folders | decoded / folders |\n|---|---|---:|---:|---:|---:|---:|")
-    for r in rows:
-        print(f"| {r['read']} | {r['cache']} | {r['folders_per_s']:.0f} | {r['files_per_s']:.0f} | "
-              f"{r['decoded_per_s']:.0f} | {r['ratio_files']:.2f}x | {r['ratio_decoded']:.2f}x |")
+    from scenes.tables import markdown_table
+
+    print()
+    print(markdown_table(["read", "cache", "folders (objects/s)", "shards, files (objects/s)", "shards, decoded (objects/s)",
+                          "files / folders", "decoded / folders"],
+                         [[r["read"], r["cache"], f"{r['folders_per_s']:.0f}", f"{r['files_per_s']:.0f}",
+                           f"{r['decoded_per_s']:.0f}", f"{r['ratio_files']:.2f}x", f"{r['ratio_decoded']:.2f}x"] for r in rows]))
     if args.out:
         args.out.write_text(json.dumps({"settings": vars(args) | {"out": str(args.out)}, "sizes": sizes, "rows": rows},
                                        indent=1))

@@ -37,15 +37,13 @@ def _cell(v: float | None) -> str:
 
 
 def table(run: Path, families: bool = False) -> str:
+    from scenes.tables import markdown_table
     from unips.probes import PROBE_TITLES, format_table
 
     rows = validations(run)
-    lines = [f"{run}", "", "| step | hours | " + " | ".join(PROBE_TITLES.values()) + " | photometric gain |",
-             "|---|---|" + "---|" * (len(PROBE_TITLES) + 1)]
-    for r in rows:
-        v, p = r["val"], r["val"].get("probes", {})
-        lines.append(f"| {r['step']} | {v.get('elapsed_s', 0) / 3600:.2f} | "
-                     + " | ".join(_cell(p.get(k)) for k in PROBE_TITLES) + f" | {_cell(v.get('gain'))} |")
+    body = [[r["step"], f"{r['val'].get('elapsed_s', 0) / 3600:.2f}",
+             *(_cell(r["val"].get("probes", {}).get(k)) for k in PROBE_TITLES), _cell(r["val"].get("gain"))] for r in rows]
+    lines = [f"{run}", "", markdown_table(["step", "hours", *PROBE_TITLES.values(), "photometric gain"], body)]
     if families and rows:
         last = rows[-1]["val"]  # unips.train_data.probe_samples renames summarise's "mean" dict to "probes"
         lines += ["", f"per family at step {rows[-1]['step']}:", "", format_table({**last, "mean": last["probes"]})]
@@ -78,12 +76,13 @@ def fit_log2(hours: list[float], errors: list[float]) -> tuple[float, float]:
 
 
 def card_table(card: dict, target: float) -> str:
+    from scenes.tables import markdown_table
+
     chain = shipped_chain(card)
     if not chain:
         raise ValueError("--card: the model card has no lineage")
     fams = sorted({f for s in chain for f in s.get("per_family_at_best", {})})
-    lines = ["| stage | steps | cumulative steps | cumulative hours | all images | photometric gain | "
-             + " | ".join(fams) + " |", "|---" * (6 + len(fams)) + "|"]
+    stages = []
     hours = steps = 0.0
     pts: dict[str, list[tuple[float, float]]] = {f: [] for f in fams + ["all"]}
     for s in chain:
@@ -91,20 +90,20 @@ def card_table(card: dict, target: float) -> str:
         steps += s.get("steps", 0)
         a, g = _stage_result(s)
         pf = s.get("per_family_at_best", {})
-        lines.append(f"| {s['stage']} | {s.get('steps', 0)} | {int(steps)} | {hours:.2f} | {_cell(a)} | {_cell(g)} | "
-                     + " | ".join(_cell(pf.get(f, {}).get("all")) for f in fams) + " |")
+        stages.append([s["stage"], s.get("steps", 0), int(steps), f"{hours:.2f}", _cell(a), _cell(g),
+                       *(_cell(pf.get(f, {}).get("all")) for f in fams)])
         if pf:  # the 128 px stages (the original trained at 64 px and has no per-family record)
             pts["all"].append((hours, a))
             for f in fams:
                 pts[f].append((hours, pf[f]["all"]))
     test = card.get("test_set_deg") or {}
     val = {**(card.get("validation_per_family_deg") or {}), "all": card.get("validation_mean_deg")}
-    out = ["\n".join(lines), "",
+    trends = []
+    out = [markdown_table(["stage", "steps", "cumulative steps", "cumulative hours", "all images", "photometric gain",
+                           *fams], stages), "",
            f"trend error = a - b * log2(cumulative hours), fitted over the {len(pts['all'])} stages with per-family "
            f"records; hours at which it reaches {target:g} deg on the test set (the target shifted by the family's "
-           "test - validation difference of the shipped model):", "",
-           "| family | a | b (deg per doubling of hours) | validation now | test now | validation needed | hours needed | x hours so far |",
-           "|---|---|---|---|---|---|---|---|"]
+           "test - validation difference of the shipped model):", ""]
     for f in fams + ["all"]:
         if len(pts[f]) < 3:
             continue
@@ -120,7 +119,9 @@ def card_table(card: dict, target: float) -> str:
         else:
             hn = 2 ** ((a - need) / b)
             hrs, ratio = f"{hn:.0f}", f"{hn / h[-1]:.0f}"
-        out.append(f"| {f} | {a:.2f} | {b:.2f} | {v_now:.2f} | {_cell(t_now)} | {need:.2f} | {hrs} | {ratio} |")
+        trends.append([f, f"{a:.2f}", f"{b:.2f}", f"{v_now:.2f}", _cell(t_now), f"{need:.2f}", hrs, ratio])
+    out.append(markdown_table(["family", "a", "b (deg per doubling of hours)", "validation now", "test now",
+                               "validation needed", "hours needed", "x hours so far"], trends))
     return "\n".join(out)
 
 

@@ -36,6 +36,7 @@ from scenes.cli import (INPUT_ERRORS, UsageError, check_memory, check_output_fol
 from scenes.config import check_fields, config_parser, option
 from scenes.config import config_from_args as parse_config
 from scenes.objfolder import atomic_write_text, mean_angular_error
+from scenes.tables import markdown_table
 from unips.data import find_objects, load_object
 from unips.inference import DEFAULT_TTA, TTA_VIEWS, load_network, predict_object
 from unips.probes import PROBES
@@ -240,60 +241,66 @@ def diligent_table(root: Path, net, ablation, images: int | None, subset_k: int 
 
 
 def format_tables(res: dict) -> str:
+    """tables.md: the synthetic set's tables, then DiLiGenT's (each only when the benchmark ran it)."""
     views = int(res.get("tta", 1))
     lines: list[str] = [f"Model predictions: {views} view(s) averaged (--tta {views}).", ""]
-    syn = res.get("synthetic")
-    if syn:
-        fams = syn["families"]
-        lines += [f"Mean angular error (deg) on the held-out synthetic set ({res['data']}, {len(syn['objects'])} objects, {res['images']} images each)", ""]
-        lines += ["| method | " + " | ".join(fams) + " | all |", "|---|" + "---|" * (len(fams) + 1)]
-        for m, row in syn["family_table"].items():
-            lines.append(f"| {m} | " + " | ".join(_fmt(row[f]) for f in fams) + f" | {_fmt(row['all'])} |")
-        failed = {m: sum(m in r.get("failed", {}) for r in syn["objects"]) for m in syn["family_table"]}
-        if any(failed.values()):
-            lines += ["", "Objects a method could not run on (left out of its means): " + ", ".join(f"{m}: {c}" for m, c in failed.items() if c)]
-        for m, summ in syn.get("probe_table", {}).items():
-            from unips.probes import format_table
-
-            lines += ["", f"Probes of {m} (mean angular error, deg; photometric gain = mask only - all images)", "",
-                      format_table(summ)]
-        lines += ["", "Mean angular error (deg) against the number of input images (first K images of each object)", ""]
-        ks = syn["counts"]
-        lines += ["| method | " + " | ".join(f"K={k}" for k in ks) + " |", "|---|" + "---|" * len(ks)]
-        for m, row in syn["count_table"].items():
-            lines.append(f"| {m} | " + " | ".join(_fmt(row.get(k)) for k in ks) + " |")
-        if syn["rerender"]:
-            lines += ["", "Re-render residual (relative L1 over the mask, same seeds) beside angular error, per method (mean over the re-rendered objects)", ""]
-            lines += ["| method | objects | MAE (deg) | re-render rel. L1 | GT-normals rel. L1 (floor) |", "|---|---|---|---|---|"]
-            methods = list(dict.fromkeys(r["method"] for r in syn["rerender"]))
-            for m in methods:
-                rows = [r for r in syn["rerender"] if r["method"] == m]
-                gt = [r["gt_rel_l1"] for r in rows if r["gt_rel_l1"] is not None]
-                lines.append(f"| {m} | {len(rows)} | {_mean([r['mae_deg'] for r in rows]):.1f} | {_mean([r['rel_l1'] for r in rows]):.3f} | {(_mean(gt) if gt else float('nan')):.3f} |")
-            if len(syn["rerender"]) >= 4:
-                from scipy.stats import spearmanr
-
-                rho = spearmanr([r["mae_deg"] for r in syn["rerender"]], [r["rel_l1"] for r in syn["rerender"]]).statistic
-                lines.append("")
-                lines.append(f"Spearman rank correlation between re-render residual and MAE over all {len(syn['rerender'])} (object, method) pairs: {rho:.2f}")
-    dil = res.get("diligent")
-    if dil:
-        lines += ["", "DiLiGenT (mean angular error, deg). The model: raw images, no light files, no intensity division "
-                  "(uncalibrated protocol); least squares uses the calibration. Published: calibrated least squares (L2) "
-                  "and UniPS (CVPR 2022, uncalibrated), 96 images", ""]
-        methods = list(next(iter(dil.values()))["methods"])
-        k_sub = next((r["model_subsets"]["k"] for r in dil.values() if r.get("model_subsets")), None)
-        extra = ([f"model K={k_sub} (mean of subsets)"] if k_sub else []) + ["model, mask only"]
-        lines += ["| object | images | published L2 | published UniPS | " + " | ".join(methods + extra) + " |",
-                  "|---|---|---|---|" + "---|" * (len(methods) + len(extra))]
-        for name, row in dil.items():
-            cells = [_fmt(row["methods"].get(m, {}).get("mae_deg")) for m in methods]
-            if k_sub:
-                cells.append(_fmt(row["model_subsets"]["mean"]) if row.get("model_subsets") else "-")
-            cells.append(_fmt(row.get("model_mask_only")))
-            lines.append(f"| {name} | {row['images']} | {_fmt(row['published_l2'])} | {_fmt(row['published_unips'])} | "
-                         + " | ".join(cells) + " |")
+    if res.get("synthetic"):
+        lines += _synthetic_tables(res["synthetic"], res)
+    if res.get("diligent"):
+        lines += _diligent_table(res["diligent"])
     return "\n".join(lines) + "\n"
+
+
+def _synthetic_tables(syn: dict, res: dict) -> list[str]:
+    from unips.probes import format_table
+
+    fams = syn["families"]
+    lines = [f"Mean angular error (deg) on the held-out synthetic set ({res['data']}, {len(syn['objects'])} objects, {res['images']} images each)", "",
+             markdown_table(["method", *fams, "all"],
+                            [[m, *(_fmt(row[f]) for f in fams), _fmt(row["all"])] for m, row in syn["family_table"].items()])]
+    failed = {m: sum(m in r.get("failed", {}) for r in syn["objects"]) for m in syn["family_table"]}
+    if any(failed.values()):
+        lines += ["", "Objects a method could not run on (left out of its means): " + ", ".join(f"{m}: {c}" for m, c in failed.items() if c)]
+    for m, summ in syn.get("probe_table", {}).items():
+        lines += ["", f"Probes of {m} (mean angular error, deg; photometric gain = mask only - all images)", "",
+                  format_table(summ)]
+    lines += ["", "Mean angular error (deg) against the number of input images (first K images of each object)", ""]
+    ks = syn["counts"]
+    lines.append(markdown_table(["method", *(f"K={k}" for k in ks)],
+                                [[m, *(_fmt(row.get(k)) for k in ks)] for m, row in syn["count_table"].items()]))
+    if syn["rerender"]:
+        lines += ["", "Re-render residual (relative L1 over the mask, same seeds) beside angular error, per method (mean over the re-rendered objects)", ""]
+        rows = []
+        for m in dict.fromkeys(r["method"] for r in syn["rerender"]):
+            mine = [r for r in syn["rerender"] if r["method"] == m]
+            gt = [r["gt_rel_l1"] for r in mine if r["gt_rel_l1"] is not None]
+            rows.append([m, len(mine), f"{_mean([r['mae_deg'] for r in mine]):.1f}", f"{_mean([r['rel_l1'] for r in mine]):.3f}",
+                         f"{(_mean(gt) if gt else float('nan')):.3f}"])
+        lines.append(markdown_table(["method", "objects", "MAE (deg)", "re-render rel. L1", "GT-normals rel. L1 (floor)"], rows))
+        if len(syn["rerender"]) >= 4:
+            from scipy.stats import spearmanr
+
+            rho = spearmanr([r["mae_deg"] for r in syn["rerender"]], [r["rel_l1"] for r in syn["rerender"]]).statistic
+            lines.append("")
+            lines.append(f"Spearman rank correlation between re-render residual and MAE over all {len(syn['rerender'])} (object, method) pairs: {rho:.2f}")
+    return lines
+
+
+def _diligent_table(dil: dict) -> list[str]:
+    lines = ["", "DiLiGenT (mean angular error, deg). The model: raw images, no light files, no intensity division "
+             "(uncalibrated protocol); least squares uses the calibration. Published: calibrated least squares (L2) "
+             "and UniPS (CVPR 2022, uncalibrated), 96 images", ""]
+    methods = list(next(iter(dil.values()))["methods"])
+    k_sub = next((r["model_subsets"]["k"] for r in dil.values() if r.get("model_subsets")), None)
+    extra = ([f"model K={k_sub} (mean of subsets)"] if k_sub else []) + ["model, mask only"]
+    rows = []
+    for name, row in dil.items():
+        cells = [_fmt(row["methods"].get(m, {}).get("mae_deg")) for m in methods]
+        if k_sub:
+            cells.append(_fmt(row["model_subsets"]["mean"]) if row.get("model_subsets") else "-")
+        cells.append(_fmt(row.get("model_mask_only")))
+        rows.append([name, row["images"], _fmt(row["published_l2"]), _fmt(row["published_unips"]), *cells])
+    return lines + [markdown_table(["object", "images", "published L2", "published UniPS", *methods, *extra], rows)]
 
 
 @dataclass

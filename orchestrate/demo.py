@@ -26,6 +26,7 @@ from pathlib import Path
 from orchestrate.steps import StepFailed, check_step, run_step
 from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, claim_outputs, report_error
 from scenes.objfolder import atomic_write_text
+from scenes.tables import markdown_table
 from scenes.config import check_fields, config_parser, option
 from scenes.config import config_from_args as parse_config
 
@@ -52,7 +53,7 @@ def summary_table(out: Path, methods: list[str]) -> str:
     reports = {m: _reports(out / "rerender" / m) for m in methods}
     names = sorted({n for m in methods for n in metrics[m]["objects"]})
     head = ["object", "family"] + [f"{m} MAE (deg)" for m in methods] + [f"{m} re-render rel. L1" for m in methods] + ["GT normals rel. L1"]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    rows = []
 
     def cell(v, fmt):
         return "-" if v is None else format(v, fmt)
@@ -63,14 +64,14 @@ def summary_table(out: Path, methods: list[str]) -> str:
         maes = [cell(objs[m]["mae_deg"] if objs[m] else None, ".1f") for m in methods]
         rels = [_rel_cell(reports[m].get(n, {})) for m in methods]
         gt = next((reports[m][n].get("gt_rel_l1") for m in methods if n in reports[m]), None)
-        lines.append("| " + " | ".join([n, str(fam), *maes, *rels, cell(gt, ".3f")]) + " |")
+        rows.append([n, fam, *maes, *rels, cell(gt, ".3f")])
     means = [cell(metrics[m]["mean_mae_deg"], ".1f") for m in methods]
     rel_means = []
     for m in methods:
         vals = [r["rel_l1"] for r in reports[m].values() if r.get("rel_l1") is not None]
         rel_means.append(cell(sum(vals) / len(vals) if vals else None, ".3f"))
-    lines.append("| " + " | ".join(["**mean**", "", *means, *rel_means, ""]) + " |")
-    return "\n".join(lines + ["", *SUMMARY_COLUMNS])
+    rows.append(["**mean**", "", *means, *rel_means, ""])
+    return "\n".join([markdown_table(head, rows), "", *SUMMARY_COLUMNS])
 
 
 SUMMARY_COLUMNS = (

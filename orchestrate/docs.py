@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from scenes.cli import UsageError, UsageErrorParser, report_error
+from scenes.tables import markdown_table
 
 REPO = Path(__file__).resolve().parents[1]
 CARD = REPO / "unips" / "weights" / "model_card.json"
@@ -116,7 +117,7 @@ def flag_default(parser: argparse.ArgumentParser, action: argparse.Action) -> tu
     return default, meaning
 
 
-def _flag_rows(parser: argparse.ArgumentParser, actions: list[argparse.Action]) -> list[str]:
+def _flag_table(parser: argparse.ArgumentParser, actions: list[argparse.Action]) -> str:
     formatter = parser._get_formatter()
     rows = []
     for action in actions:
@@ -126,8 +127,8 @@ def _flag_rows(parser: argparse.ArgumentParser, actions: list[argparse.Action]) 
         if action.choices is not None and not any(str(c) in meaning for c in action.choices):
             meaning = (meaning + "; " if meaning else "") + "one of " + ", ".join(str(c) for c in action.choices)
         invocation = formatter._format_action_invocation(action)
-        rows.append(f"| `{invocation}` | `{default}` | {_cell(meaning)} |")
-    return rows
+        rows.append([f"`{invocation}`", f"`{default}`", _cell(meaning)])
+    return markdown_table(["flag", "default", "meaning"], rows)
 
 
 def flag_table(module: str) -> str:
@@ -139,12 +140,11 @@ def flag_table(module: str) -> str:
     out: list[str] = []
     groups = [g for g in parser._action_groups if any(not isinstance(a, argparse._HelpAction) for a in g._group_actions)]
     ungrouped = [a for g in groups if g.title in ("positional arguments", "options", "optional arguments") for a in g._group_actions]
-    out += ["| flag | default | meaning |", "|---|---|---|", *_flag_rows(parser, ungrouped)]
+    out.append(_flag_table(parser, ungrouped))
     for g in groups:
         if g.title in ("positional arguments", "options", "optional arguments"):
             continue
-        out += ["", f"{_cell(g.title[0].upper() + g.title[1:])}:", "", "| flag | default | meaning |", "|---|---|---|",
-                *_flag_rows(parser, g._group_actions)]
+        out += ["", f"{_cell(g.title[0].upper() + g.title[1:])}:", "", _flag_table(parser, g._group_actions)]
     return "\n".join(out)
 
 
@@ -158,12 +158,6 @@ def fmt(value: Any, digits: int = 1) -> str:
     if isinstance(value, int) and not isinstance(value, bool):
         return str(value)
     return f"{value:.{digits}f}"
-
-
-def _table(header: list[str], rows: list[list[str]]) -> str:
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(r) + " |" for r in rows]
-    return "\n".join(lines)
 
 
 def _families(card: dict, block: dict) -> list[str]:
@@ -191,7 +185,7 @@ def readme_headline(card: dict) -> str:
         o = dil[obj]
         rows.append([f"DiLiGenT {obj} ({o['images']} images)", fmt(_ball_cat(o, "model_deg"), 2),
                      fmt(o["least_squares_calibrated_deg"]), fmt(o["published_unips_deg"])])
-    return _table(["mean angular error, degrees (lower is better)", "this model", "calibrated least squares", "published UniPS"], rows)
+    return markdown_table(["mean angular error, degrees (lower is better)", "this model", "calibrated least squares", "published UniPS"], rows)
 
 
 def test_set_methods(card: dict) -> str:
@@ -200,7 +194,7 @@ def test_set_methods(card: dict) -> str:
     rows = [[name, *(fmt(v.get(f)) for f in fams), fmt(v.get("all"))] for name, v in mean.items()]
     n = card["test_set"]["per_family_probes"]
     header = ["method", *(f"{f} ({n[f]['n']})" if f in n else f for f in fams), "all"]
-    return _table(header, rows)
+    return markdown_table(header, rows)
 
 
 def test_set_probes(card: dict) -> str:
@@ -218,7 +212,7 @@ def _probe_table(card: dict, per_family: dict, overall: dict, gain: float) -> st
             for f, p in ((f, per_family[f]) for f in _families(card, per_family))]
     rows.append(["all", str(sum(p["n"] for p in per_family.values())), fmt(overall["all"]), fmt(overall["one"]),
                  fmt(overall["mask"]), fmt(overall["shuffled"]), fmt(gain)])
-    return _table(["family", "objects", "all images", "one image", "mask only", "shuffled", "photometric gain"], rows)
+    return markdown_table(["family", "objects", "all images", "one image", "mask only", "shuffled", "photometric gain"], rows)
 
 
 def image_count(card: dict) -> str:
@@ -227,7 +221,7 @@ def image_count(card: dict) -> str:
               if any(v.get(k) is not None for v in test["vs_image_count_deg"].values())]
     rows = [[name, *(fmt(v.get(k)) for k in counts), fmt(test["mean_deg"].get(name, {}).get("all"))]
             for name, v in test["vs_image_count_deg"].items()]
-    return _table(["method", *(f"K={k}" for k in counts), "all images"], rows)
+    return markdown_table(["method", *(f"K={k}" for k in counts), "all images"], rows)
 
 
 def diligent(card: dict) -> str:
@@ -238,7 +232,7 @@ def diligent(card: dict) -> str:
         rows.append([obj, str(o["images"]), fmt(_ball_cat(o, "model_deg"), 2), fmt(o["model_k16_mean_deg"]), fmt(o["model_mask_only_deg"]),
                      fmt(o["model_seconds"]), fmt(o["least_squares_calibrated_deg"]), fmt(o["published_l2_deg"], 2),
                      fmt(o["published_unips_deg"])])
-    return _table(["object", "images", "this model", "this model, 16 images", "mask only", "seconds", "calibrated least squares",
+    return markdown_table(["object", "images", "this model", "this model, 16 images", "mask only", "seconds", "calibrated least squares",
                    "published least squares", "published UniPS"], rows)
 
 
@@ -251,7 +245,7 @@ def model_facts(card: dict) -> str:
             ["fixed validation set", f"{fmt(card['validation_mean_deg'], 2)} deg mean angular error"],
             ["held-out test set", f"{fmt(card['test_set']['mean_deg']['model']['all'])} deg, photometric gain "
                                   f"{fmt(card['test_set']['photometric_gain_deg'])} deg ({card['test_set']['views']} views)"]]
-    return _table(["", "shipped model"], rows)
+    return markdown_table(["", "shipped model"], rows)
 
 
 def _at_best(stage: dict) -> dict:
@@ -268,14 +262,14 @@ def lineage(card: dict) -> str:
         shipped = "no" if stage.get("shipped") is False or "not shipped" in stage["stage"] else "yes"
         rows.append([_cell(stage["stage"]), _cell(stage.get("init_from") or "random"), str(stage["steps"]), fmt(stage.get("hours"), 2),
                      fmt(fv.get("all"), 2), fmt(fv.get("gain"), 2), shipped, _cell(stage["data"])])
-    return _table(["stage", "started from", "steps", "hours", "validation: all images", "photometric gain", "shipped", "data"], rows)
+    return markdown_table(["stage", "started from", "steps", "hours", "validation: all images", "photometric gain", "shipped", "data"], rows)
 
 
 def lineage_families(card: dict) -> str:
     stages = [s for s in card["lineage"] if s.get("per_family_at_best")]
     fams = _families(card, {f: None for s in stages for f in s["per_family_at_best"]})
     rows = [[_cell(s["stage"]), *(fmt(s["per_family_at_best"].get(f, {}).get("all"), 2) for f in fams)] for s in stages]
-    return _table(["stage", *fams], rows)
+    return markdown_table(["stage", *fams], rows)
 
 
 def sensor_presets(card: dict) -> str:
@@ -286,7 +280,7 @@ def sensor_presets(card: dict) -> str:
     for s in SENSORS.values():
         depth = f"{s.bits} in 16" if s.bits == 12 else str(s.bits)
         rows.append([f"`{s.name}`", s.about, f"{depth}-bit {s.response}" + (f" {s.gamma:g}" if s.response == "gamma" else "")])
-    return _table(["preset", "imitates", "file"], rows)
+    return markdown_table(["preset", "imitates", "file"], rows)
 
 
 def capture_presets(card: dict) -> str:
@@ -295,7 +289,7 @@ def capture_presets(card: dict) -> str:
 
     rows = [[f"`{p.name}`", p.about, f"`{p.lights}`", f"{p.images} images of {p.width} x {p.height} px", p.camera,
              f"`{p.sensor}`"] for p in PRESETS.values()]
-    return _table(["preset", "imitates", "lights", "images", "camera", "sensor"], rows)
+    return markdown_table(["preset", "imitates", "lights", "images", "camera", "sensor"], rows)
 
 
 def complexity_levels(card: dict) -> str:
@@ -305,7 +299,7 @@ def complexity_levels(card: dict) -> str:
     rows = [[str(lv.level), lv.about, ", ".join(f"`{f}`" for f in lv.lights), lv.materials,
              f"{lv.shapes} ({', '.join(lv.shape_kinds)})", f"{lv.detail:.0%}", lv.cluster or "1"]
             for lv in LEVELS.values()]
-    return _table(["level", "scenes", "lights", "materials", "shapes (procedural kinds)", "detail", "objects"], rows)
+    return markdown_table(["level", "scenes", "lights", "materials", "shapes (procedural kinds)", "detail", "objects"], rows)
 
 
 def data_ab(card: dict) -> str:
@@ -321,7 +315,7 @@ def data_ab(card: dict) -> str:
         rows.append([label, fmt(fv["mean_deg"], 2), fmt(fv["gain_deg"], 2), fmt(l4["mean_deg"], 2), fmt(l5["mean_deg"], 2),
                      fmt(d["ball"]["k96_deg"], 2), fmt(d["ball"]["k16_deg"], 2), fmt(d["cat"]["k96_deg"], 2),
                      fmt(d["cat"]["k16_deg"], 2)])
-    return _table(["model", "fixed validation", "photometric gain", "held-out level 4", "held-out level 5 (perspective)",
+    return markdown_table(["model", "fixed validation", "photometric gain", "held-out level 4", "held-out level 5 (perspective)",
                    "ball K=96", "ball K=16", "cat K=96", "cat K=16"], rows)
 
 
@@ -342,8 +336,8 @@ def shards_throughput(card: dict) -> str:
     return (f"{st['objects']} synthetic objects of {st['images']} images at {st['res']} x {st['res']} px, shards of "
             f"{st['shard_size']}; on disk: {sz['folder_files']} files of folders {mib(sz['folder_bytes'])}, shards "
             f"of files {mib(sz['shard_bytes_files'])}, decoded shards {mib(sz['shard_bytes_decoded'])}.\n\n"
-            + _table(["read", "cache", "folders (objects/s)", "shards, files (objects/s)",
-                      "shards, decoded (objects/s)", "files / folders", "decoded / folders"], rows))
+            + markdown_table(["read", "cache", "folders (objects/s)", "shards, files (objects/s)",
+                              "shards, decoded (objects/s)", "files / folders", "decoded / folders"], rows))
 
 
 BENCH_BLOCKS = {"model:shards-throughput": SHARDS_BENCH}

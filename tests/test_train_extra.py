@@ -19,7 +19,8 @@ from unips.checkpoint import load_model, load_training_checkpoint, save_checkpoi
 from unips.models import create_model
 from unips.probes import probe_images, probe_object, summarise
 from scenes.config import field_docs
-from unips.train import TrainConfig, build_parser, lr_factor, main
+from unips.train import TrainConfig, build_parser, main
+from unips.train_run import lr_factor
 
 from test_train import _train, dataset, write_object  # noqa: F401  (the module-scoped fixture)
 

@@ -48,7 +48,7 @@ def test_demo_summary_explains_every_column(tmp_path):
         (tmp_path / "rerender" / m / "00000" / "report.json").write_text(json.dumps(
             {"object": "00000", "rel_l1": 0.05, "coverage": 0.9, "gt_rel_l1": 0.01}))
     table = summary_table(tmp_path, ["model", "least-squares"])
-    header = table.splitlines()[0].strip("| ").split(" | ")
+    header = [c.strip() for c in table.splitlines()[0].strip("| ").split(" | ")]
     explained = "\n".join(line for line in table.splitlines() if line.startswith("- "))
     for column in header:
         generic = column.replace("least-squares", "<method>").replace("model", "<method>")
@@ -89,3 +89,82 @@ def test_a_python_without_the_packages_gets_one_line_not_a_traceback():
     assert r.returncode == 2, r.stderr
     assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
     assert "lacks numpy" in r.stderr and ".venv/bin/activate" in r.stderr
+
+
+def test_markdown_tables_keep_cells_as_written():
+    """The one table writer (scenes.tables): cells exactly as formatted by the caller (no number re-parsing:
+    "12.0" stays "12.0", "007" stays "007"), columns padded to one width, a row of the wrong length refused."""
+    import pytest
+
+    from scenes.tables import markdown_table
+
+    text = markdown_table(["name", "deg"], [["ball", "12.0"], ["**mean**", "007"], ["x", 3]])
+    lines = text.splitlines()
+    assert len({len(line) for line in lines}) == 1 and lines[1].replace("|", "").strip("-") == ""
+    assert [[c.strip() for c in line.strip("|").split("|")] for line in lines[2:]] == [
+        ["ball", "12.0"], ["**mean**", "007"], ["x", "3"]]
+    with pytest.raises(ValueError, match="2 cells, the header 3"):
+        markdown_table(["a", "b", "c"], [["1", "2"]])
+
+
+class _Clock:
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+def test_progress_is_a_bar_on_a_terminal_and_plain_lines_in_a_log():
+    """scenes.cli.Progress: without a terminal, one line DESC: DONE/TOTAL UNIT at most every PLAIN_EVERY_S
+    seconds and a last one at the end, never a carriage return; on a terminal, tqdm's bar; disabled, nothing."""
+    import io
+
+    from scenes.cli import PLAIN_EVERY_S, Progress
+
+    clock, log = _Clock(), io.StringIO()
+    with Progress("train", "step", total=30, stream=log, clock=clock) as shown:
+        for step in range(30):
+            clock.t = step * PLAIN_EVERY_S / 4  # four updates per interval
+            shown.update(step + 1, postfix={"loss": f"{1 / (step + 1):.3f}"})
+    lines = log.getvalue().splitlines()
+    assert "\r" not in log.getvalue()
+    assert lines[0] == "train: 5/30 step, loss=0.200, 10 s" and lines[-1].startswith("train: 30/30 step, loss=0.033")
+    assert len(lines) == 8  # at 10, 20, ..., 70 s, and the end (72.5 s)
+
+    quick = io.StringIO()  # shorter than one interval: nothing at all
+    with Progress("x", "obj", total=3, stream=quick, clock=_Clock()) as shown:
+        shown.advance(3)
+    assert quick.getvalue() == ""
+
+    class Terminal(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    term = Terminal()
+    with Progress("x", "obj", total=3, stream=term) as shown:
+        shown.advance(3)
+    assert "\r" in term.getvalue() and "0/3 [" in term.getvalue()  # tqdm drew (and cleared) its bar
+    off = Terminal()
+    with Progress("x", "obj", total=3, stream=off, enabled=False) as shown:
+        shown.advance(3)
+    assert off.getvalue() == ""
+
+
+def test_a_cli_writing_to_a_log_file_leaves_no_bar_redraws(tmp_path, monkeypatch):
+    """A real wildgen.make run with stderr redirected to a file: plain progress lines (every update here, the
+    interval set to 0), no carriage return of a bar redraw."""
+    import sys
+
+    import scenes.cli
+    from wildgen.make import main
+
+    monkeypatch.setattr(scenes.cli, "PLAIN_EVERY_S", 0.0)
+    with open(tmp_path / "stderr.log", "w") as err:
+        monkeypatch.setattr(sys, "stderr", err)
+        assert main(["--out", str(tmp_path / "o"), "--objects", "2", "--images", "2", "--res", "16", "--spp", "1",
+                     "--gt-spp", "1", "--workers", "0", "--seed", "5"]) == 0
+    text = (tmp_path / "stderr.log").read_text()
+    assert "\r" not in text
+    lines = [line for line in text.splitlines() if line.startswith("wildgen: ")]
+    assert lines[0].startswith("wildgen: 1/2 obj, done=") and lines[-1].startswith("wildgen: 2/2 obj, done=")

@@ -31,7 +31,8 @@ from typing import Any
 
 import numpy as np
 
-from scenes.cli import INPUT_ERRORS, UsageError, check_memory, check_output_folder, claim_outputs, one_line, report_error
+from scenes.cli import (INPUT_ERRORS, Progress, UsageError, check_memory, check_output_folder, claim_outputs, one_line,
+                        report_error)
 from scenes.config import check_fields, config_parser, option
 from scenes.config import config_from_args as parse_config
 from scenes.objfolder import (PREDICTION_FILES, PREDICTION_INFO, atomic_write_text, object_name, write_normal_exr,
@@ -185,21 +186,20 @@ def main(argv: list[str] | None = None) -> int:
                     raise
                 failures.append((name, one_line(exc)))
         net = load_network(args.checkpoint, args.device) if args.method == "model" else None
-        from tqdm import tqdm
-
         written: list[str] = []
         where = args.out / todo[0][1] if single and todo else args.out
         print(f"predicting {len(todo)} object(s) with --method {args.method} into {where} ...", flush=True)
-        for folder, name in tqdm(todo, desc=f"predicting ({args.method})", unit="obj",
-                                 file=sys.stderr, disable=len(todo) < 2):
-            try:
-                _predict_one(args, net, folder, name)
-                written.append(name)
-            except (*INPUT_ERRORS, OSError, np.linalg.LinAlgError) as exc:
-                if single:
-                    raise
-                failures.append((name, one_line(exc)))
-                log.debug("%s failed", name, exc_info=True)
+        with Progress(f"predicting ({args.method})", "obj", total=len(todo), enabled=len(todo) >= 2) as shown:
+            for folder, name in todo:
+                try:
+                    _predict_one(args, net, folder, name)
+                    written.append(name)
+                except (*INPUT_ERRORS, OSError, np.linalg.LinAlgError) as exc:
+                    if single:
+                        raise
+                    failures.append((name, one_line(exc)))
+                    log.debug("%s failed", name, exc_info=True)
+                shown.advance()
     except (*INPUT_ERRORS, OSError, np.linalg.LinAlgError) as exc:
         return report_error(exc)
     if written:

@@ -132,12 +132,11 @@ def summarise(per_object: Mapping[str, Mapping[str, float]], families: Mapping[s
 
 def format_table(summary: Mapping[str, Any]) -> str:
     """Markdown table: rows per family + all, columns: the probes (`PROBE_TITLES`) and the gain."""
-    rows = ["| family | n | " + " | ".join(PROBE_TITLES.values()) + " | photometric gain |",
-            "|---|---|" + "---|" * (len(PROBES) + 1)]
-    items = list(summary.get("families", {}).items()) + [("all", summary)]
-    for fam, b in items:
+    from scenes.tables import markdown_table
+
+    rows = []
+    for fam, b in [*summary.get("families", {}).items(), ("all", summary)]:
         m = b["mean"]
-        cells = [f"{m[p]:.1f}" if p in m else "-" for p in PROBES]
-        gain = f"{b['gain']:.1f}" if "gain" in b else "-"
-        rows.append(f"| {fam} | {b['n']} | " + " | ".join(cells) + f" | {gain} |")
-    return "\n".join(rows)
+        rows.append([fam, b["n"], *(f"{m[p]:.1f}" if p in m else "-" for p in PROBES),
+                     f"{b['gain']:.1f}" if "gain" in b else "-"])
+    return markdown_table(["family", "n", *PROBE_TITLES.values(), "photometric gain"], rows)

@@ -6,8 +6,9 @@ normals on (at most `canonical_points`) masked points of the canonical grid plus
 masked pixels at the working resolution, flips / transpose / per-image RGB permutation with p = 0.5.
 Validation reports the probes of `unips.probes` (all images, one image, mask only, shuffled) per
 light family and the photometric gain; the best weights are chosen on the all-images error. Samples,
-batches, the loss and the probes of a validation are `unips.train_data`; this module holds the
-configuration (`TrainConfig`, which the CLI is generated from) and the loop.
+batches, the loss and the probes of a validation are `unips.train_data`; the run's bookkeeping (run
+folder, setup, last.pt) is `unips.train_run`; this module holds the CLI (generated from `TrainConfig`)
+and the loop.
 
 Many GPUs: run the same command under `torchrun --nproc_per_node N` (DistributedDataParallel; NCCL on
 CUDA, gloo on CPU). The global batch `batch` is split across the N processes, so a run gives the same
@@ -26,23 +27,22 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import logging
 import math
 import os
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
 import torch
 
+from scenes.cli import Progress
 from scenes.config import config_parser
 from scenes.config import config_from_args as parse_config
-from unips.train_config import TRAJECTORY_KEYS, TrainConfig
-from unips.train_data import (Batch, Sample, count_dataset_images, curriculum_pool, describe_data, load_samples,
-                              make_batch, normal_loss, probe_samples, step_rng)
+from unips.train_config import TrainConfig
+from unips.train_data import Batch, curriculum_pool, make_batch, normal_loss, probe_samples, step_rng
+from unips.train_run import Run, append_log, check_run, open_stream, resume_run, save_last, setup_run
 
 log = logging.getLogger(__name__)
 
@@ -58,135 +58,6 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
     if "all" not in cfg.val_probes:
         cfg.val_probes = ["all", *cfg.val_probes]
     return cfg.validate()
-
-
-def _model_options(items: Sequence[str]) -> dict[str, Any]:
-    out = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        if not sep or not key:
-            raise ValueError(f"--model-option: got {item!r}, expected KEY=VALUE")
-        try:
-            out[key] = json.loads(value)
-        except json.JSONDecodeError:
-            out[key] = value
-    return out
-
-
-def _append_log(path: Path, record: dict[str, Any]) -> None:
-    with path.open("a") as f:
-        f.write(json.dumps(record, sort_keys=True) + "\n")
-
-
-def _truncate_log(path: Path, step: int) -> None:
-    """Drop records written after `step` by an interrupted run (they will be written again)."""
-    if not path.exists():
-        return
-    from scenes.objfolder import atomic_write_text
-
-    keep = [line for line in path.read_text().splitlines() if line.strip() and json.loads(line).get("step", 0) <= step]
-    atomic_write_text(path, "".join(line + "\n" for line in keep))
-
-
-def lr_factor(cfg: TrainConfig, step: int) -> float:
-    """Learning-rate multiplier of optimisation step `step` (0-based)."""
-    if cfg.schedule == "step":
-        return cfg.decay ** (step // cfg.decay_every)
-    if cfg.warmup and step < cfg.warmup:
-        return (step + 1) / cfg.warmup
-    progress = min(1.0, (step - cfg.warmup) / max(1, cfg.steps - cfg.warmup))
-    return cfg.min_lr_ratio + (1.0 - cfg.min_lr_ratio) * 0.5 * (1.0 + math.cos(math.pi * progress))
-
-
-class _TrainForward(torch.nn.Module):
-    """encode + decode_pixels as one forward, so DistributedDataParallel sees the whole step."""
-
-    def __init__(self, model: torch.nn.Module) -> None:
-        super().__init__()
-        self.model = model
-
-    def forward(self, images: torch.Tensor, mask: torch.Tensor, coords: torch.Tensor) -> torch.Tensor:
-        contexts = self.model.encode(images, mask)  # (B, k, C, s/4, s/4)
-        return self.model.decode_pixels(contexts, images, mask, coords)  # (B, N, 3)
-
-
-@dataclass
-class _Dist:
-    """This process's place in a torchrun job (rank 0 of 1 without one)."""
-
-    rank: int = 0
-    world: int = 1
-    local_rank: int = 0
-
-    @property
-    def main(self) -> bool:
-        return self.rank == 0
-
-
-def _init_distributed(cfg: TrainConfig) -> _Dist:
-    world = int(os.environ.get("WORLD_SIZE", "1"))
-    if world <= 1:
-        return _Dist()
-    import torch.distributed as dist
-
-    rank, local = int(os.environ["RANK"]), int(os.environ.get("LOCAL_RANK", "0"))
-    if cfg.batch % world:
-        raise ValueError(f"--batch={cfg.batch}: expected a multiple of the {world} torchrun processes")
-    if not dist.is_initialized():
-        dist.init_process_group(backend="nccl" if cfg.device.startswith("cuda") else "gloo")
-    return _Dist(rank, world, local)
-
-
-def _load_init_weights(cfg: TrainConfig, device: torch.device) -> torch.nn.Module:
-    """The model of `cfg.init_from` (weights only); its name must agree with an explicit --model."""
-    from unips.checkpoint import load_model
-
-    model, meta = load_model(cfg.init_from)
-    name = meta.get("model_name")
-    if cfg.model != TrainConfig.model and cfg.model != name:
-        raise ValueError(f"--model={cfg.model!r}: --init-from {cfg.init_from!r} holds a {name!r} model")
-    if cfg.model_option:
-        raise ValueError("--model-option: not allowed with --init-from (the weights fix the configuration)")
-    return model.to(device).train()
-
-
-RUN_FILES = ("log.jsonl", "last.pt", "best.safetensors", "best.json", "final.safetensors", "final.json")
-"""The files a run writes into --out (nothing else there is touched)."""
-
-TRAIN_BYTES_PER_IMAGE = 80 * 2**20
-"""Memory of one image of a training batch that does not grow with --res (the encoder's activations and their
-gradients at the canonical resolution): twice the 36-40 MB measured for glc-small on the CPU."""
-
-
-def check_run(cfg: TrainConfig) -> None:
-    """Everything about the run folder and the size of the run, before any work: --out writable, an earlier
-    run's files replaced only with --overwrite (or continued with --resume; `scenes.cli.claim_outputs`), and
-    the memory of the cached samples and of one batch (`training_memory`) against what this machine has."""
-    from scenes.cli import check_memory, check_output_folder, check_threads, claim_outputs
-
-    out = Path(cfg.out)
-    check_output_folder(out)
-    check_threads(cfg.threads or None, "--threads")
-    if not cfg.resume:
-        claim_outputs([out / n for n in RUN_FILES], cfg.overwrite, owner="unips.train", resume="--resume to continue it")
-    objects, images = count_dataset_images(cfg.data, "--data")
-    if cfg.shuffle_buffer:  # streamed: only the samples in flight are decoded (loader queues and one batch)
-        in_flight = min(objects, 2 * max(cfg.loader_workers, 1) + cfg.batch)
-        images = -(-images * in_flight // max(objects, 1))
-    if cfg.val:
-        more = count_dataset_images(cfg.val, "--val")
-        objects, images = objects + more[0], images + more[1]
-    check_memory(training_memory(cfg, images), "--res/--batch/--max-images",
-                 f"training at {cfg.res} x {cfg.res} px on {objects} cached objects ({images} images) with batches of "
-                 f"{cfg.batch} x {cfg.max_images} images", "lower --res, --batch or --max-images")
-
-
-def training_memory(cfg: TrainConfig, cached_images: int) -> int:
-    """Bytes of a run (a conservative estimate): the cached samples (float16 images, mask and normals at --res)
-    and one batch (per image TRAIN_BYTES_PER_IMAGE and 6 float32 copies of it at --res)."""
-    pixels = cfg.res ** 2
-    cache = cached_images * pixels * 6 + pixels * 16 * max(cached_images, 1)
-    return cache + cfg.batch * cfg.max_images * (TRAIN_BYTES_PER_IMAGE + pixels * 72)
 
 
 def check_args(argv: Sequence[str]) -> TrainConfig:
@@ -211,161 +82,7 @@ def check_args(argv: Sequence[str]) -> TrainConfig:
     return cfg
 
 
-def _prepare_run_dir(cfg: TrainConfig, dist: _Dist) -> Path:
-    """The run directory (checked by `check_run`); with --overwrite an earlier run's files are removed first
-    (a best.safetensors of the old run must not survive a new run without --val)."""
-    out = Path(cfg.out)
-    if dist.main:
-        try:
-            out.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise ValueError(f"--out {cfg.out!r}: cannot create the run directory ({exc.strerror})") from exc
-        if cfg.overwrite:
-            for n in RUN_FILES:
-                (out / n).unlink(missing_ok=True)
-    return out
-
-
-@dataclass
-class _Run:
-    """One training run: what the loop reads and updates."""
-
-    cfg: TrainConfig
-    dist: _Dist
-    device: torch.device
-    out: Path
-    model: torch.nn.Module
-    step_model: torch.nn.Module  # the model's training forward, wrapped by DistributedDataParallel under torchrun
-    optimizer: torch.optim.Optimizer
-    scheduler: Any
-    samples: list[Sample]  # the cached training objects (empty when streaming)
-    val_samples: list[Sample]
-    data_desc: dict[str, Any]  # describe_data(): stored in checkpoints, compared on resume
-    train_args: dict[str, Any]  # the settings that change the trajectory (TRAJECTORY_KEYS, model name)
-    start: int = 0  # first step to run
-    best: float = math.inf  # lowest validation error so far
-    elapsed_before: float = 0.0  # training seconds of the steps a resumed run keeps (so elapsed_s counts the whole run)
-    t_start: float = 0.0
-    summary: dict[str, Any] = dataclasses.field(default_factory=dict)
-    stream: Any = None  # streamed shards (--shuffle-buffer): this process's iterator of training samples
-
-    @property
-    def log_path(self) -> Path:
-        return self.out / "log.jsonl"
-
-    @property
-    def last_path(self) -> Path:
-        return self.out / "last.pt"
-
-    def elapsed(self) -> float:
-        return time.time() - self.t_start
-
-
-def _setup(cfg: TrainConfig) -> _Run:
-    """Processes, run directory, initial model (seeded), data, optimiser and schedule of a run."""
-    from unips.models import create_model
-
-    dist = _init_distributed(cfg)
-    torch.set_num_threads(cfg.threads or max(1, (os.cpu_count() or 1) // dist.world))
-    device = torch.device(f"cuda:{dist.local_rank}" if cfg.device == "cuda" and dist.world > 1 else cfg.device)
-    out = _prepare_run_dir(cfg, dist)
-    torch.manual_seed(cfg.seed)  # initial weights
-    if cfg.init_from:
-        model = _load_init_weights(cfg, device)
-    else:
-        model = create_model(cfg.model, **_model_options(cfg.model_option)).to(device)
-    if cfg.shuffle_buffer:  # streamed shards: nothing cached, their index describes the data (`_open_stream`)
-        samples, data_desc = [], _stream_description(cfg, dist)
-    else:
-        samples = load_samples(cfg.data, cfg.res)
-        data_desc = describe_data(samples, cfg.data, cfg.res)
-    val_samples = load_samples(cfg.val, cfg.res) if cfg.val and dist.main else []
-    if cfg.curriculum:
-        curriculum_pool([s.level for s in samples], 0, cfg.steps, cfg.curriculum_fraction)  # every level recorded
-        log.info("curriculum over levels %s in the first %d of %d steps", sorted({s.level for s in samples}),
-                 int(cfg.curriculum_fraction * cfg.steps), cfg.steps)
-    too_few = [s.name for s in samples if s.num_images < cfg.min_images]
-    too_few += [o for o, k in zip(data_desc["objects"], data_desc["images"]) if cfg.shuffle_buffer and k < cfg.min_images]
-    if too_few:
-        raise ValueError(f"--min-images={cfg.min_images}: objects with fewer images: {too_few[:5]}")
-    canonical = model.config.canonical_resolution
-    if canonical >= cfg.res:
-        log.warning("working resolution %d is not above the canonical resolution %d: the canonical grid "
-                    "repeats the working pixels", cfg.res, canonical)
-    train_args = {k: getattr(cfg, k) for k in TRAJECTORY_KEYS}
-    train_args["model"] = getattr(model, "model_name", cfg.model)
-    train_args["model_option"] = list(cfg.model_option)
-    if cfg.shuffle_buffer:  # the stream's order depends on how many workers read it
-        train_args["loader_workers"] = cfg.loader_workers
-    step_model: torch.nn.Module = _TrainForward(model)
-    if dist.world > 1:
-        from torch.nn.parallel import DistributedDataParallel
-
-        step_model = DistributedDataParallel(step_model, device_ids=[device.index] if device.type == "cuda" else None)
-    optimizer = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
-    scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda s: lr_factor(cfg, s))
-    return _Run(cfg, dist, device, out, model, step_model, optimizer, scheduler, samples, val_samples, data_desc,
-                train_args)
-
-
-def _stream_description(cfg: TrainConfig, dist: _Dist) -> dict[str, Any]:
-    """`describe_data` of streamed shards, from their index; refuses fewer shards than processes x loader
-    workers (each reads its own)."""
-    from types import SimpleNamespace
-
-    from unips.shards import check_split, resolve_shards
-    from unips.train_data import data_roots
-
-    shards = [s for r in data_roots(cfg.data) for s in resolve_shards(r)]
-    check_split(shards, dist.world, cfg.loader_workers)
-    objects = [SimpleNamespace(name=o["name"], num_images=int(o.get("images", 0))) for s in shards for o in s.objects]
-    return describe_data(objects, cfg.data, cfg.res)
-
-
-def _open_stream(run: _Run) -> Any:
-    """This process's endless iterator of streamed training samples (`unips.shards.stream_samples`: its rank's
-    shards, shuffled, seeded by --seed), past the samples that the steps before `run.start` took (a resume)."""
-    from functools import partial
-
-    from unips.shards import stream_samples
-    from unips.train_data import data_roots, prepare_sample
-
-    cfg = run.cfg
-    return stream_samples(data_roots(cfg.data), partial(prepare_sample, res=cfg.res), seed=cfg.seed,
-                          buffer=cfg.shuffle_buffer, workers=cfg.loader_workers, world=run.dist.world,
-                          skip=run.start * (cfg.batch // run.dist.world))
-
-
-def _resume(run: _Run) -> None:
-    """Continue from RUN/last.pt: the same trajectory settings and objects, then weights, optimiser, schedule,
-    random states, step, best validation and elapsed time."""
-    from unips.checkpoint import load_state_strict, load_training_checkpoint, set_rng_states
-
-    cfg = run.cfg
-    ckpt = load_training_checkpoint(run.last_path)
-    old = ckpt["extra"].get("train_args", {})
-    defaults = dataclasses.asdict(TrainConfig())
-    # A resumed run keeps its weights (last.pt), so --resume takes no --init-from: the run's lineage is the
-    # checkpoint's.
-    run.train_args["init_from"] = old.get("init_from")
-    for key, value in run.train_args.items():
-        saved = old.get(key, defaults.get(key))  # a key newer than the checkpoint had its default there
-        if saved != value:
-            raise ValueError(f"--resume: {key}={value!r} differs from the checkpoint's {saved!r}")
-    if ckpt["data"].get("objects") != run.data_desc["objects"]:
-        raise ValueError(f"--resume: the objects in --data {cfg.data!r} differ from the checkpoint's")
-    load_state_strict(run.model, ckpt["model"], str(run.last_path))
-    run.optimizer.load_state_dict(ckpt["optimizer"])
-    run.scheduler.load_state_dict(ckpt["scheduler"])
-    set_rng_states(ckpt["rng"])
-    run.start, run.best = int(ckpt["step"]), float(ckpt["extra"].get("best_val", math.inf))
-    run.elapsed_before = float(ckpt["extra"].get("elapsed_s", 0.0))
-    if run.dist.main:
-        _truncate_log(run.log_path, run.start)
-    log.info("resumed from %s at step %d", run.last_path, run.start)
-
-
-def _train_step(run: _Run, step: int, autocast: Any) -> tuple[dict[str, float], int]:
+def _train_step(run: Run, step: int, autocast: Any) -> tuple[dict[str, float], int]:
     """One optimisation step: the step's batch (this rank's part), forward, loss, backward, clipping, update.
     Returns the loss parts (and gradient norm) and the number of images per sample."""
     cfg, dist = run.cfg, run.dist
@@ -397,18 +114,7 @@ def _train_step(run: _Run, step: int, autocast: Any) -> tuple[dict[str, float], 
     return parts, int(batch.images.shape[1])
 
 
-def _save_last(run: _Run, step: int) -> None:
-    """The full training checkpoint RUN/last.pt (rank 0)."""
-    from unips.checkpoint import save_training_checkpoint
-
-    if run.dist.main:
-        save_training_checkpoint(run.last_path, model=run.model, optimizer=run.optimizer, scheduler=run.scheduler,
-                                 step=step, data=run.data_desc,
-                                 extra={"train_args": run.train_args, "best_val": run.best,
-                                        "elapsed_s": round(run.elapsed(), 3)})
-
-
-def _validation(run: _Run, step: int) -> None:
+def _validation(run: Run, step: int) -> None:
     """Probe the validation objects, log the result, and keep the weights as best.safetensors when they beat the
     best so far (the all-images error)."""
     from unips.checkpoint import save_checkpoint
@@ -417,7 +123,7 @@ def _validation(run: _Run, step: int) -> None:
     res = probe_samples(run.model, run.val_samples, cfg.max_images, run.device, probes=cfg.val_probes,
                         pixels=cfg.val_pixels)
     res["elapsed_s"] = round(run.elapsed(), 1)
-    _append_log(run.log_path, {"step": step, "val": res})
+    append_log(run.log_path, {"step": step, "val": res})
     run.summary["val"] = res
     gain = f", photometric gain {res['gain']:.2f}" if "gain" in res else ""
     log.info("step %d validation: all images %.2f deg%s", step, res["mean"], gain)
@@ -426,7 +132,7 @@ def _validation(run: _Run, step: int) -> None:
         save_checkpoint(run.out / "best.safetensors", run.model, {"step": step, "val": res, "train_args": run.train_args})
 
 
-def _out_of_time(run: _Run, seconds: float) -> bool:
+def _out_of_time(run: Run, seconds: float) -> bool:
     """Whether --time-limit is reached; under torchrun every process stops at the same step (rank 0 decides)."""
     if not run.cfg.time_limit:
         return False
@@ -442,54 +148,13 @@ def _out_of_time(run: _Run, seconds: float) -> bool:
 
 def train(cfg: TrainConfig | argparse.Namespace) -> dict[str, Any]:
     """Run training as configured; returns a summary dict."""
-    from tqdm import tqdm
-
     from unips.checkpoint import save_checkpoint
 
     if isinstance(cfg, argparse.Namespace):
         cfg = config_from_args(cfg)
     cfg.validate()
-    check_run(cfg)
-    if int(os.environ.get("RANK", "0")) == 0:  # one line before the long work, also with --no-progress
-        what = cfg.init_from or cfg.model
-        print(f"{'resuming' if cfg.resume else 'training'} {what} for {cfg.steps} steps (batch {cfg.batch}, "
-              f"{cfg.res} px) on --data {cfg.data}; run folder {cfg.out}", flush=True)
-    run = _setup(cfg)
-    if cfg.resume:
-        _resume(run)
-    if cfg.shuffle_buffer:
-        run.stream = _open_stream(run)
-    if run.start >= cfg.steps:
-        log.info("nothing to do: checkpoint at step %d, --steps %d", run.start, cfg.steps)
-    run.summary.update(start=run.start, steps=cfg.steps, params=sum(p.numel() for p in run.model.parameters()))
-    run.t_start = time.time() - run.elapsed_before
-    autocast = torch.autocast(device_type=run.device.type, dtype=torch.bfloat16, enabled=cfg.precision == "bf16")
-    run.model.train()
-    bar = tqdm(range(run.start, cfg.steps), initial=run.start, total=cfg.steps,
-               disable=cfg.no_progress or not run.dist.main, dynamic_ncols=True, desc="train")
-    done, stopped = run.start, False
-    t_proc = last_ckpt = time.time()  # --time-limit and --ckpt-minutes count this process's training time
-    for step in bar:
-        parts, k = _train_step(run, step, autocast)
-        done = step + 1
-        bar.set_postfix(loss=f"{parts['loss']:.4f}", k=k)
-        run.summary["last_loss"] = parts["loss"]
-        if run.dist.main and (done % cfg.log_every == 0 or done == cfg.steps):
-            _append_log(run.log_path, {"step": done, **parts, "k": k, "lr": run.optimizer.param_groups[0]["lr"],
-                                       "elapsed_s": round(run.elapsed(), 3)})
-        if run.val_samples and (done % cfg.val_every == 0 or done == cfg.steps):
-            _validation(run, done)
-        now = time.time()
-        stopped = done < cfg.steps and _out_of_time(run, now - t_proc)
-        if (done % cfg.ckpt_every == 0 or done == cfg.steps or stopped
-                or (cfg.ckpt_minutes and now - last_ckpt >= cfg.ckpt_minutes * 60)):
-            _save_last(run, done)
-            last_ckpt = now
-        if stopped:
-            log.info("--time-limit %g min reached: stopped at step %d of %d", cfg.time_limit, done, cfg.steps)
-            run.summary["stopped_at"] = done
-            break
-    bar.close()
+    run = _start(cfg)
+    done, stopped = _loop(run)
     if run.dist.main and (run.start < cfg.steps or not (run.out / "final.safetensors").exists()):
         save_checkpoint(run.out / "final.safetensors", run.model,
                         {"step": done if stopped else cfg.steps, "train_args": run.train_args})
@@ -500,6 +165,58 @@ def train(cfg: TrainConfig | argparse.Namespace) -> dict[str, Any]:
         tdist.destroy_process_group()
     run.summary["best_val"] = run.best if math.isfinite(run.best) else None
     return run.summary
+
+
+def _start(cfg: TrainConfig) -> Run:
+    """The checks before any work, the one line saying what runs, then the run set up (and resumed)."""
+    check_run(cfg)
+    if int(os.environ.get("RANK", "0")) == 0:  # one line before the long work, also with --no-progress
+        what = cfg.init_from or cfg.model
+        print(f"{'resuming' if cfg.resume else 'training'} {what} for {cfg.steps} steps (batch {cfg.batch}, "
+              f"{cfg.res} px) on --data {cfg.data}; run folder {cfg.out}", flush=True)
+    run = setup_run(cfg)
+    if cfg.resume:
+        resume_run(run)
+    if cfg.shuffle_buffer:
+        run.stream = open_stream(run)
+    if run.start >= cfg.steps:
+        log.info("nothing to do: checkpoint at step %d, --steps %d", run.start, cfg.steps)
+    run.summary.update(start=run.start, steps=cfg.steps, params=sum(p.numel() for p in run.model.parameters()))
+    run.t_start = time.time() - run.elapsed_before
+    return run
+
+
+def _loop(run: Run) -> tuple[int, bool]:
+    """The steps from `run.start`: each step's log record, validation and last.pt when due, until --steps or
+    --time-limit. Returns (steps done, whether --time-limit stopped it)."""
+    cfg = run.cfg
+    autocast = torch.autocast(device_type=run.device.type, dtype=torch.bfloat16, enabled=cfg.precision == "bf16")
+    run.model.train()
+    done, stopped = run.start, False
+    t_proc = last_ckpt = time.time()  # --time-limit and --ckpt-minutes count this process's training time
+    with Progress("train", "step", total=cfg.steps, done=run.start,
+                  enabled=not cfg.no_progress and run.dist.main) as shown:
+        for step in range(run.start, cfg.steps):
+            parts, k = _train_step(run, step, autocast)
+            done = step + 1
+            shown.update(done, postfix={"loss": f"{parts['loss']:.4f}", "k": k})
+            run.summary["last_loss"] = parts["loss"]
+            if run.dist.main and (done % cfg.log_every == 0 or done == cfg.steps):
+                append_log(run.log_path, {"step": done, **parts, "k": k, "lr": run.optimizer.param_groups[0]["lr"],
+                                          "elapsed_s": round(run.elapsed(), 3)})
+            if run.val_samples and (done % cfg.val_every == 0 or done == cfg.steps):
+                _validation(run, done)
+            now = time.time()
+            stopped = done < cfg.steps and _out_of_time(run, now - t_proc)
+            if (done % cfg.ckpt_every == 0 or done == cfg.steps or stopped
+                    or (cfg.ckpt_minutes and now - last_ckpt >= cfg.ckpt_minutes * 60)):
+                save_last(run, done)
+                last_ckpt = now
+            if stopped:
+                log.info("--time-limit %g min reached: stopped at step %d of %d", cfg.time_limit, done, cfg.steps)
+                run.summary["stopped_at"] = done
+                break
+    return done, stopped
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -12,7 +12,8 @@ import time
 from dataclasses import dataclass, fields
 from pathlib import Path
 
-from scenes.cli import UsageError, check_output_folder, check_threads, gib, make_output_folder, report_error
+from scenes.cli import (Progress, UsageError, check_output_folder, check_threads, gib, logs_above_progress,
+                        make_output_folder, report_error)
 from scenes.cli import check_memory as check_memory_bytes
 from scenes.config import check_fields, check_int, config_parser, given_flags, option
 from scenes.config import config_from_args as parse_config
@@ -251,8 +252,6 @@ class _Progress:
         self.left = 0
 
     def on_plan(self, plan) -> None:
-        from tqdm import tqdm
-
         self.plan = plan
         # One line before the long work, also with --quiet (which only hides the bar): what and where.
         what = f"{self.cfg.width}x{self.cfg.height} px, {self.cfg.images} images, {self.cfg.spp} spp"
@@ -261,16 +260,15 @@ class _Progress:
                   f"({what})" + (f", {plan.leftovers} interrupted removed" if plan.leftovers else ""), flush=True)
         else:
             print(f"rendering {len(plan.todo)} object(s) ({what}) into {self.out}", flush=True)
-        self.bar = tqdm(total=self.cfg.objects, initial=plan.complete + plan.rejected, unit="obj", disable=self.quiet,
-                        desc="wildgen", dynamic_ncols=True)
+        self.bar = Progress("wildgen", "obj", total=self.cfg.objects, done=plan.complete + plan.rejected,
+                            enabled=not self.quiet)
         self.left = len(plan.todo)
 
     def progress(self, entry: dict) -> None:
         self.rendered[entry["status"]] = self.rendered.get(entry["status"], 0) + 1
         self.left -= 1
-        self.bar.set_postfix(done=self.rendered.get("done", 0), failed=self.rendered.get("failed", 0), left=self.left,
-                             refresh=False)
-        self.bar.update(1)
+        self.bar.advance(postfix={"done": self.rendered.get("done", 0), "failed": self.rendered.get("failed", 0),
+                                  "left": self.left})
 
     def close(self) -> None:
         if self.bar is not None:
@@ -320,8 +318,6 @@ def _run(argv: list[str] | None, state: dict) -> int:
     except (UsageError, ValueError, OSError) as exc:
         return report_error(exc)
 
-    from tqdm.contrib.logging import logging_redirect_tqdm
-
     from wildgen.dataset import make_dataset
     from wildgen.parallel import WorkersCannotStart, choose_engine
 
@@ -330,7 +326,7 @@ def _run(argv: list[str] | None, state: dict) -> int:
     t0 = time.perf_counter()
     bar = _Progress(cfg, out, args.quiet)
     try:
-        with logging_redirect_tqdm():  # warnings (retries, failures) print above the bar, not through it
+        with logs_above_progress():  # warnings (retries, failures) print above the bar, not through it
             entries = make_dataset(cfg, out, variant, bar.progress, engine=engine, overwrite=args.overwrite,
                                    on_plan=bar.on_plan, extra={"run": engine.used})
     except (ValueError, OSError, ImportError, WorkersCannotStart) as exc:

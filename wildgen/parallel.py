@@ -1,82 +1,36 @@
-"""Engines that run `make_object` for many indices: in this process, in local worker processes, on Ray.
-
-All engines share one contract, `run(cfg, out_dir, variant, indices, on_entry)`: every index ends in
-exactly one call `on_entry(entry)` with a 'done', 'skipped' or 'failed' manifest entry, in completion
-order. A dead worker or a transient exception (`transient`: out of memory, file system) costs the object
-an attempt; after `max_retries` retries the object is recorded as failed and the run goes on. Any other
-exception would repeat (an object is a pure function of (config, index)) and fails the object at once. KeyboardInterrupt stops the workers (no
-half-written object survives: folders appear by atomic rename) and propagates.
+"""Engines that run `make_object` for many indices: in this process, in local worker processes, and the engine
+choice of `wildgen.make` (`choose_engine`; Ray tasks are `wildgen.ray_engine`). The contract every engine keeps,
+the retries and the determinism guarantee: `wildgen.engine_base`.
 
 Workers are separate processes started with 'spawn' (Mitsuba and Dr.Jit hold threads and JIT state
 that do not survive fork). Each one sets its Mitsuba variant and Dr.Jit thread count once, renders
 one object at a time, and is replaced after `recycle_after` objects to bound memory. Local workers
 die with their parent (Linux PR_SET_PDEATHSIG), so killing the driver leaves no orphan writing files.
-
-Each object is a pure function of (config, index): its bytes depend neither on the engine, the number of
-workers nor the Dr.Jit threads per worker (scenes.render.render_film sums each pixel's samples in a fixed
-order; tests/test_determinism.py, tests/test_wildgen_scale.py; docs/generator.md, "Crash safety, resume and
-determinism", states the guarantee).
 """
 from __future__ import annotations
 
 import logging
 import os
 import signal
-import socket
 import sys
 import time
 import traceback
-from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Protocol
+from typing import Any, Callable
 
 from wildgen.config import GenConfig
+from wildgen.engine_base import (STOP_SIGNALS, Attempts, Engine, available_cores, check_stop, default_workers,
+                                 describe_error, init_process, threads_per_worker, transient)
+from wildgen.ray_engine import RAY_INSTALL, RayEngine, import_ray, ray_available
+
+__all__ = ["STOP_SIGNALS", "RAY_INSTALL", "Engine", "InProcessEngine", "ProcessEngine", "RayEngine", "WorkersCannotStart",
+           "available_cores", "choose_engine", "default_workers", "describe_error", "import_ray", "ray_available",
+           "threads_per_worker", "transient"]
+"""The engines' names, importable from here as before the split (the shared ones live in `wildgen.engine_base`,
+Ray's in `wildgen.ray_engine`)."""
 
 log = logging.getLogger(__name__)
-
-RAY_INSTALL = "pip install 'unips-toolkit[ray]' (or: pip install 'ray>=2.9')"
-
-STOP_SIGNALS: list[int] = []
-"""Signals (SIGINT, SIGTERM) received by this process while a run was going on, recorded by the CLI's
-handlers (`wildgen.make`): an interrupt that a native call turned into an ordinary exception is still a stop."""
-
-
-def transient(exc: BaseException) -> bool:
-    """True for a failure that may not happen again (out of memory, a file-system error); any other exception
-    of `make_object`, a pure function of (config, index), would repeat, so it is not retried."""
-    return isinstance(exc, (OSError, MemoryError)) or "out of memory" in str(exc).lower()
-
-
-def _check_stop(exc: BaseException | None = None) -> None:
-    if STOP_SIGNALS:
-        raise KeyboardInterrupt from exc
-
-
-def available_cores() -> int:
-    """CPU cores this process may use (affinity-aware)."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # not on Linux
-        return max(1, os.cpu_count() or 1)
-
-
-def default_workers(objects: int, cores: int | None = None) -> int:
-    """One worker per core, no more workers than objects."""
-    cores = cores or available_cores()
-    return max(1, min(cores, objects))
-
-
-def threads_per_worker(workers: int, cores: int | None = None) -> int:
-    """Dr.Jit threads per worker so that workers x threads does not exceed the cores."""
-    cores = cores or available_cores()
-    return max(1, cores // max(1, workers))
-
-
-def describe_error(exc: BaseException) -> str:
-    """One line: exception type and message (the manifest's 'error')."""
-    msg = " ".join(str(exc).split())
-    return f"{type(exc).__name__}: {msg}" if msg else type(exc).__name__
 
 
 def _signal_name(code: int | None) -> str:
@@ -86,42 +40,6 @@ def _signal_name(code: int | None) -> str:
         except ValueError:
             return f"killed by signal {-code}"
     return f"exited with code {code}"
-
-
-class Engine(Protocol):
-    def run(self, cfg: GenConfig, out_dir: Path, variant: str, indices: list[int], on_entry: Callable[[dict], None]) -> None:
-        ...
-
-
-class _Attempts:
-    """Retry bookkeeping shared by the engines: a queue of indices, failures per index."""
-
-    def __init__(self, indices: list[int], max_retries: int, on_entry: Callable[[dict], None]):
-        if max_retries < 0:
-            raise ValueError(f"--max-retries: expected a non-negative integer, got {max_retries!r}")
-        self.queue: deque[int] = deque(indices)
-        self.failures: dict[int, int] = {}
-        self.max_retries = max_retries
-        self.on_entry = on_entry
-        self.succeeded = 0
-
-    def success(self, entry: dict) -> None:
-        self.succeeded += 1
-        self.on_entry(entry)
-
-    def failure(self, index: int, error: str, retry: bool = True) -> None:
-        """Count a failed attempt: retry later (end of the queue) or record the object as failed (at once when
-        `retry` is False: a deterministic failure)."""
-        from wildgen.writer import failed_entry, index_name
-
-        n = self.failures.get(index, 0) + 1
-        self.failures[index] = n
-        if retry and n <= self.max_retries:
-            log.warning("object %s: attempt %d failed (%s); retrying", index_name(index), n, error)
-            self.queue.append(index)
-        else:
-            log.error("object %s failed after %d attempts: %s", index_name(index), n, error)
-            self.on_entry(failed_entry(index, error, n))
 
 
 # --------------------------------------------------------------------------- in this process
@@ -143,42 +61,17 @@ class InProcessEngine:
 
         choose_variant(variant)
         lib = AssetLibrary.scan(cfg.assets)
-        attempts = _Attempts(indices, self.max_retries, on_entry)
+        attempts = Attempts(indices, self.max_retries, on_entry)
         while attempts.queue:
             index = attempts.queue.popleft()
             try:
                 entry = make_object(cfg, index, out_dir, lib)
             except Exception as exc:  # one bad object must not stop the run
-                _check_stop(exc)  # unless it was an interrupt in disguise
+                check_stop(exc)  # unless it was an interrupt in disguise
                 attempts.failure(index, describe_error(exc), retry=transient(exc))
                 continue
-            _check_stop()
+            check_stop()
             attempts.success(entry)
-
-
-# --------------------------------------------------------------------------- worker-side setup
-
-_PROCESS: dict = {}  # per worker process: variant, threads, asset libraries (set once)
-
-
-def _init_process(variant: str, threads: int | None, assets: str | None):
-    """Set the variant and the Dr.Jit thread count once per process; return the (cached) asset library."""
-    if _PROCESS.get("variant") != variant:
-        from scenes.variant import choose_variant
-
-        choose_variant(variant)
-        _PROCESS["variant"] = variant
-    if threads and _PROCESS.get("threads") != threads:
-        import drjit as dr
-
-        dr.set_thread_count(threads)
-        _PROCESS["threads"] = threads
-    libs = _PROCESS.setdefault("libs", {})
-    if assets not in libs:
-        from wildgen.assets import AssetLibrary
-
-        libs[assets] = AssetLibrary.scan(assets)
-    return libs[assets]
 
 
 def _die_with_parent(parent_pid: int) -> None:
@@ -202,7 +95,7 @@ def _worker_main(conn, cfg: GenConfig, out_dir: str, variant: str, threads: int 
     _die_with_parent(parent_pid)
     logging.basicConfig(level=log_level, format="%(levelname)s %(name)s: %(message)s")
     try:
-        lib = _init_process(variant, threads, cfg.assets)
+        lib = init_process(variant, threads, cfg.assets)
     except BaseException as exc:  # report and exit: the parent decides whether to give up
         conn.send(("init_error", None, describe_error(exc)))
         return
@@ -259,101 +152,25 @@ class ProcessEngine:
 
     def run(self, cfg: GenConfig, out_dir: Path, variant: str, indices: list[int], on_entry: Callable[[dict], None]) -> None:
         import multiprocessing as mp
-        from multiprocessing.connection import wait
 
         if self.recycle_after is not None and self.recycle_after < 1:
             raise ValueError(f"--recycle-after: expected a positive integer, got {self.recycle_after!r}")
         n_workers = min(self.workers or default_workers(len(indices)), max(1, len(indices)))
         threads = self.threads or threads_per_worker(n_workers)
         self.used.update(engine="processes", workers=n_workers, threads_per_worker=threads, recycle_after=self.recycle_after)
-        ctx = mp.get_context("spawn")
-        attempts = _Attempts(indices, self.max_retries, on_entry)
-        pool: list[_Worker] = []
-        start_failures: list[str] = []
-        out = str(Path(out_dir).resolve())
-        level = logging.getLogger().getEffectiveLevel()
-
-        def start() -> _Worker:
-            parent_conn, child_conn = ctx.Pipe()
-            proc = ctx.Process(target=_worker_main, args=(child_conn, cfg, out, variant, threads, os.getpid(), level),
-                               daemon=True, name="wildgen-worker")
-            proc.start()
-            child_conn.close()  # so that recv() in the parent sees EOF when the worker dies
-            w = _Worker(proc, parent_conn)
-            pool.append(w)
-            return w
-
-        def start_failed(reason: str) -> None:
-            start_failures.append(reason)
-            if attempts.succeeded == 0 and not attempts.failures and len(start_failures) > 2 * n_workers + 1:
-                raise WorkersCannotStart(f"worker processes cannot start: {reason}")
-
-        def handle(w: _Worker, message: tuple) -> None:
-            kind, index, payload = message
-            if kind == "init_error":
-                if w.index is not None:
-                    attempts.queue.appendleft(w.index)  # not the object's fault
-                    w.index = None
-                w.retiring = True
-                start_failed(payload)
-                return
-            w.index, w.tasks = None, w.tasks + 1
-            if kind == "ok":
-                attempts.success(payload)
-            else:
-                attempts.failure(index, payload, retry=kind != "fatal")
-            if self.recycle_after and w.tasks >= self.recycle_after:
-                w.retiring = True  # bound memory growth: a fresh process takes over
-                try:
-                    w.conn.send(None)
-                except OSError:
-                    pass
-
-        def bury(w: _Worker) -> None:
-            """A worker process has ended: charge its object if it was busy, forget it."""
-            w.proc.join(self.stop_timeout)
-            if w.proc.is_alive():  # closed its pipe but hangs in exit
-                w.proc.kill()
-                w.proc.join()
-            code = w.proc.exitcode
-            if w.index is not None:
-                hint = " (out of memory?)" if code == -signal.SIGKILL else ""
-                attempts.failure(w.index, f"worker process {_signal_name(code)}{hint}")
-                w.index = None
-            elif not w.retiring and w.tasks == 0:
-                start_failed(f"worker {_signal_name(code)} before its first object")
-            w.conn.close()
-            pool.remove(w)
-
+        worker_args = (cfg, str(Path(out_dir).resolve()), variant, threads, os.getpid(),
+                       logging.getLogger().getEffectiveLevel())
+        pool = _Pool(self, mp.get_context("spawn"), worker_args, Attempts(indices, self.max_retries, on_entry), n_workers)
         try:
-            while attempts.queue or any(w.index is not None for w in pool):
-                while attempts.queue and sum(not w.retiring for w in pool) < n_workers:
-                    start()
-                for w in pool:
-                    if w.index is None and not w.retiring and attempts.queue:
-                        w.index = attempts.queue.popleft()
-                        try:
-                            w.conn.send(w.index)
-                        except OSError:
-                            pass  # dead already: its end is handled below
-                ready = set(wait([w.conn for w in pool] + [w.proc.sentinel for w in pool]))
-                for w in list(pool):
-                    dead = False
-                    if w.conn in ready or w.proc.sentinel in ready:
-                        try:
-                            while w.conn.poll():
-                                handle(w, w.conn.recv())
-                        except (EOFError, OSError):
-                            dead = True
-                    if dead or not w.proc.is_alive():
-                        bury(w)
+            while pool.attempts.queue or any(w.index is not None for w in pool.workers):
+                pool.round()
         finally:
             if sys.exc_info()[0] is not None:
-                self._collect_finished(pool, attempts)
-            self._stop(pool)
+                self._collect_finished(pool.workers, pool.attempts)
+            self._stop(pool.workers)
 
     @staticmethod
-    def _collect_finished(pool: list[_Worker], attempts: _Attempts) -> None:
+    def _collect_finished(pool: list[_Worker], attempts: Attempts) -> None:
         """On an interrupt, record results that workers already sent (their folders are complete)."""
         for w in pool:
             try:
@@ -384,127 +201,97 @@ class ProcessEngine:
             w.conn.close()
 
 
-# --------------------------------------------------------------------------- Ray
-
-
-def import_ray():
-    """Import Ray or raise ImportError with the install command."""
-    try:
-        import ray
-    except ImportError as exc:
-        raise ImportError(f"--ray needs Ray, an optional extra: {RAY_INSTALL}") from exc
-    return ray
-
-
-def ray_available() -> bool:
-    """True when Ray can be imported (imports it: only call this when Ray is about to be used)."""
-    try:
-        import_ray()
-    except ImportError:
-        return False
-    return True
-
-
-def _ray_make_object(cfg: GenConfig, out_dir: str, variant: str, threads: int | None, index: int) -> tuple[str, object, str]:
-    """Ray task: one object in a Ray worker process (variant and threads set on its first task)."""
-    host = socket.gethostname()
-    try:
-        lib = _init_process(variant, threads, cfg.assets)
-        from wildgen.writer import make_object
-
-        return "ok", make_object(cfg, index, Path(out_dir), lib), host
-    except Exception as exc:  # reported to the driver, which retries or records the failure
-        return ("error" if transient(exc) else "fatal"), f"{describe_error(exc)} (on {host})", host
-
-
 @dataclass
-class RayEngine:
-    """One Ray task per object, on a local Ray started here or on a running cluster.
+class _Pool:
+    """One run of a `ProcessEngine`: its worker processes, the objects' attempts, and the workers that failed to
+    start (too many before any object is rendered: `WorkersCannotStart`)."""
 
-    The output folder must be visible at the same path from every node (a shared filesystem);
-    workers write object folders directly, only the driver writes the manifest.
-    """
+    engine: "ProcessEngine"
+    ctx: Any  # the 'spawn' multiprocessing context
+    worker_args: tuple  # (cfg, out_dir, variant, threads, parent pid, log level) of `_worker_main`
+    attempts: Attempts
+    n_workers: int
+    workers: list[_Worker] = field(default_factory=list)
+    start_failures: list[str] = field(default_factory=list)
 
-    address: str | None = "auto"
-    """'auto' or None: join the cluster this machine belongs to, else start a local Ray; or 'HOST:PORT' / 'ray://...'."""
-    threads: int | None = 1
-    """Dr.Jit threads (and Ray CPUs) per task."""
-    max_retries: int = 2
-    """Retries after an exception or a lost worker before an object is recorded as failed."""
-    recycle_after: int = 50
-    """Tasks a Ray worker process runs before Ray replaces it (max_calls)."""
-    local_cpus: int | None = None
-    """CPUs of a local Ray started here (None: all cores)."""
-    used: dict = field(default_factory=dict)
-    """Filled by run(): how Ray was reached and its CPUs."""
+    def round(self) -> None:
+        """Start workers up to `n_workers`, hand each idle one the next object, then wait for a message or a
+        worker's end and handle what arrived."""
+        from multiprocessing.connection import wait
 
-    def _connect(self, ray) -> bool:
-        """Join or start Ray; True when this call started a local instance (shut down at the end)."""
-        if ray.is_initialized():
-            return False
-        quiet = {"logging_level": logging.WARNING, "log_to_driver": True}
-        if self.address and self.address != "auto":
-            ray.init(address=self.address, **quiet)
-            return True  # ray.shutdown() only disconnects from a remote cluster
-        try:
-            ray.init(address="auto", **quiet)
-            return True
-        except ConnectionError:
-            pass
-        ray.init(num_cpus=self.local_cpus or available_cores(), include_dashboard=False,
-                 object_store_memory=256 * 1024**2, **quiet)
-        self.used["started_local"] = True
-        return True
-
-    def run(self, cfg: GenConfig, out_dir: Path, variant: str, indices: list[int], on_entry: Callable[[dict], None]) -> None:
-        ray = import_ray()
-        from ray.exceptions import RayError
-
-        if self.recycle_after is not None and self.recycle_after < 1:
-            raise ValueError(f"--recycle-after: expected a positive integer, got {self.recycle_after!r}")
-        connected = self._connect(ray)
-        threads = self.threads or 1
-        attempts = _Attempts(indices, self.max_retries, on_entry)
-        pending: dict = {}
-        try:
-            cpus = int(ray.cluster_resources().get("CPU", 1))
-            self.used.update(engine="ray", ray=ray.__version__, cluster_cpus=cpus, threads_per_task=threads)
-            task = ray.remote(num_cpus=threads, max_retries=0, max_calls=self.recycle_after or 0)(_ray_make_object)
-            window = max(2, 2 * max(1, cpus // threads))  # enough queued work, without flooding the scheduler
-            out = str(Path(out_dir).resolve())
-            while attempts.queue or pending:
-                while attempts.queue and len(pending) < window:
-                    index = attempts.queue.popleft()
-                    pending[task.remote(cfg, out, variant, threads, index)] = index
-                ready, _ = ray.wait(list(pending), num_returns=1)
-                for ref in ready:
-                    index = pending.pop(ref)
-                    try:
-                        kind, payload, _host = ray.get(ref)
-                    except RayError as exc:  # worker crashed, node lost, out of memory
-                        attempts.failure(index, describe_error(exc).split("\n")[0][:500])
-                        continue
-                    if kind == "ok":
-                        attempts.success(payload)
-                    else:
-                        attempts.failure(index, payload, retry=kind != "fatal")
-        finally:
-            if pending and sys.exc_info()[0] is not None:  # interrupted: keep what has finished already
+        while self.attempts.queue and sum(not w.retiring for w in self.workers) < self.n_workers:
+            self.start()
+        for w in self.workers:
+            if w.index is None and not w.retiring and self.attempts.queue:
+                w.index = self.attempts.queue.popleft()
                 try:
-                    for ref in ray.wait(list(pending), num_returns=len(pending), timeout=0)[0]:
-                        pending.pop(ref)
-                        kind, payload, _host = ray.get(ref, timeout=1)
-                        if kind == "ok":
-                            attempts.success(payload)
-                except Exception:  # best effort: an unrecorded object is simply rendered again on resume
-                    pass
-            for ref in pending:
+                    w.conn.send(w.index)
+                except OSError:
+                    pass  # dead already: its end is handled below
+        ready = set(wait([w.conn for w in self.workers] + [w.proc.sentinel for w in self.workers]))
+        for w in list(self.workers):
+            dead = False
+            if w.conn in ready or w.proc.sentinel in ready:
                 try:
-                    ray.cancel(ref, force=True)
-                except Exception:  # already finished or the cluster is gone
-                    pass
-            if connected:
-                ray.shutdown()
+                    while w.conn.poll():
+                        self.handle(w, w.conn.recv())
+                except (EOFError, OSError):
+                    dead = True
+            if dead or not w.proc.is_alive():
+                self.bury(w)
+
+    def start(self) -> _Worker:
+        parent_conn, child_conn = self.ctx.Pipe()
+        proc = self.ctx.Process(target=_worker_main, args=(child_conn, *self.worker_args), daemon=True,
+                                name="wildgen-worker")
+        proc.start()
+        child_conn.close()  # so that recv() in the parent sees EOF when the worker dies
+        w = _Worker(proc, parent_conn)
+        self.workers.append(w)
+        return w
+
+    def start_failed(self, reason: str) -> None:
+        self.start_failures.append(reason)
+        if (self.attempts.succeeded == 0 and not self.attempts.failures
+                and len(self.start_failures) > 2 * self.n_workers + 1):
+            raise WorkersCannotStart(f"worker processes cannot start: {reason}")
+
+    def handle(self, w: _Worker, message: tuple) -> None:
+        kind, index, payload = message
+        if kind == "init_error":
+            if w.index is not None:
+                self.attempts.queue.appendleft(w.index)  # not the object's fault
+                w.index = None
+            w.retiring = True
+            self.start_failed(payload)
+            return
+        w.index, w.tasks = None, w.tasks + 1
+        if kind == "ok":
+            self.attempts.success(payload)
+        else:
+            self.attempts.failure(index, payload, retry=kind != "fatal")
+        if self.engine.recycle_after and w.tasks >= self.engine.recycle_after:
+            w.retiring = True  # bound memory growth: a fresh process takes over
+            try:
+                w.conn.send(None)
+            except OSError:
+                pass
+
+    def bury(self, w: _Worker) -> None:
+        """A worker process has ended: charge its object if it was busy, forget it."""
+        w.proc.join(self.engine.stop_timeout)
+        if w.proc.is_alive():  # closed its pipe but hangs in exit
+            w.proc.kill()
+            w.proc.join()
+        code = w.proc.exitcode
+        if w.index is not None:
+            hint = " (out of memory?)" if code == -signal.SIGKILL else ""
+            self.attempts.failure(w.index, f"worker process {_signal_name(code)}{hint}")
+            w.index = None
+        elif not w.retiring and w.tasks == 0:
+            self.start_failed(f"worker {_signal_name(code)} before its first object")
+        w.conn.close()
+        self.workers.remove(w)
 
 
 def choose_engine(variant: str, ray: str | None = None, workers: int | None = None, threads: int | None = None,

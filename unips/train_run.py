@@ -1,0 +1,318 @@
+"""One training run's bookkeeping (the loop itself is `unips.train`): this process's place in a torchrun job
+(`Dist`), the run folder (`RUN_FILES`; `check_run`: the checks before any work; `log.jsonl` records), the run's
+model, data, optimiser and schedule (`setup_run` -> `Run`; `lr_factor`: warm-up + cosine or step decay), and its
+checkpoint `last.pt`: resumed from (`resume_run`: the same trajectory settings and objects, then every state) and
+saved (`save_last`)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import math
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Sequence
+
+import torch
+
+from unips.train_config import TRAJECTORY_KEYS, TrainConfig
+from unips.train_data import Sample, count_dataset_images, curriculum_pool, describe_data, load_samples
+
+log = logging.getLogger(__name__)
+
+
+def model_options(items: Sequence[str]) -> dict[str, Any]:
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise ValueError(f"--model-option: got {item!r}, expected KEY=VALUE")
+        try:
+            out[key] = json.loads(value)
+        except json.JSONDecodeError:
+            out[key] = value
+    return out
+
+
+def append_log(path: Path, record: dict[str, Any]) -> None:
+    with path.open("a") as f:
+        f.write(json.dumps(record, sort_keys=True) + "\n")
+
+
+def truncate_log(path: Path, step: int) -> None:
+    """Drop records written after `step` by an interrupted run (they will be written again)."""
+    if not path.exists():
+        return
+    from scenes.objfolder import atomic_write_text
+
+    keep = [line for line in path.read_text().splitlines() if line.strip() and json.loads(line).get("step", 0) <= step]
+    atomic_write_text(path, "".join(line + "\n" for line in keep))
+
+
+def lr_factor(cfg: TrainConfig, step: int) -> float:
+    """Learning-rate multiplier of optimisation step `step` (0-based)."""
+    if cfg.schedule == "step":
+        return cfg.decay ** (step // cfg.decay_every)
+    if cfg.warmup and step < cfg.warmup:
+        return (step + 1) / cfg.warmup
+    progress = min(1.0, (step - cfg.warmup) / max(1, cfg.steps - cfg.warmup))
+    return cfg.min_lr_ratio + (1.0 - cfg.min_lr_ratio) * 0.5 * (1.0 + math.cos(math.pi * progress))
+
+
+class TrainForward(torch.nn.Module):
+    """encode + decode_pixels as one forward, so DistributedDataParallel sees the whole step."""
+
+    def __init__(self, model: torch.nn.Module) -> None:
+        super().__init__()
+        self.model = model
+
+    def forward(self, images: torch.Tensor, mask: torch.Tensor, coords: torch.Tensor) -> torch.Tensor:
+        contexts = self.model.encode(images, mask)  # (B, k, C, s/4, s/4)
+        return self.model.decode_pixels(contexts, images, mask, coords)  # (B, N, 3)
+
+
+@dataclass
+class Dist:
+    """This process's place in a torchrun job (rank 0 of 1 without one)."""
+
+    rank: int = 0
+    world: int = 1
+    local_rank: int = 0
+
+    @property
+    def main(self) -> bool:
+        return self.rank == 0
+
+
+def init_distributed(cfg: TrainConfig) -> Dist:
+    world = int(os.environ.get("WORLD_SIZE", "1"))
+    if world <= 1:
+        return Dist()
+    import torch.distributed as dist
+
+    rank, local = int(os.environ["RANK"]), int(os.environ.get("LOCAL_RANK", "0"))
+    if cfg.batch % world:
+        raise ValueError(f"--batch={cfg.batch}: expected a multiple of the {world} torchrun processes")
+    if not dist.is_initialized():
+        dist.init_process_group(backend="nccl" if cfg.device.startswith("cuda") else "gloo")
+    return Dist(rank, world, local)
+
+
+def load_init_weights(cfg: TrainConfig, device: torch.device) -> torch.nn.Module:
+    """The model of `cfg.init_from` (weights only); its name must agree with an explicit --model."""
+    from unips.checkpoint import load_model
+
+    model, meta = load_model(cfg.init_from)
+    name = meta.get("model_name")
+    if cfg.model != TrainConfig.model and cfg.model != name:
+        raise ValueError(f"--model={cfg.model!r}: --init-from {cfg.init_from!r} holds a {name!r} model")
+    if cfg.model_option:
+        raise ValueError("--model-option: not allowed with --init-from (the weights fix the configuration)")
+    return model.to(device).train()
+
+
+RUN_FILES = ("log.jsonl", "last.pt", "best.safetensors", "best.json", "final.safetensors", "final.json")
+"""The files a run writes into --out (nothing else there is touched)."""
+
+TRAIN_BYTES_PER_IMAGE = 80 * 2**20
+"""Memory of one image of a training batch that does not grow with --res (the encoder's activations and their
+gradients at the canonical resolution): twice the 36-40 MB measured for glc-small on the CPU."""
+
+
+def check_run(cfg: TrainConfig) -> None:
+    """Everything about the run folder and the size of the run, before any work: --out writable, an earlier
+    run's files replaced only with --overwrite (or continued with --resume; `scenes.cli.claim_outputs`), and
+    the memory of the cached samples and of one batch (`training_memory`) against what this machine has."""
+    from scenes.cli import check_memory, check_output_folder, check_threads, claim_outputs
+
+    out = Path(cfg.out)
+    check_output_folder(out)
+    check_threads(cfg.threads or None, "--threads")
+    if not cfg.resume:
+        claim_outputs([out / n for n in RUN_FILES], cfg.overwrite, owner="unips.train", resume="--resume to continue it")
+    objects, images = count_dataset_images(cfg.data, "--data")
+    if cfg.shuffle_buffer:  # streamed: only the samples in flight are decoded (loader queues and one batch)
+        in_flight = min(objects, 2 * max(cfg.loader_workers, 1) + cfg.batch)
+        images = -(-images * in_flight // max(objects, 1))
+    if cfg.val:
+        more = count_dataset_images(cfg.val, "--val")
+        objects, images = objects + more[0], images + more[1]
+    check_memory(training_memory(cfg, images), "--res/--batch/--max-images",
+                 f"training at {cfg.res} x {cfg.res} px on {objects} cached objects ({images} images) with batches of "
+                 f"{cfg.batch} x {cfg.max_images} images", "lower --res, --batch or --max-images")
+
+
+def training_memory(cfg: TrainConfig, cached_images: int) -> int:
+    """Bytes of a run (a conservative estimate): the cached samples (float16 images, mask and normals at --res)
+    and one batch (per image TRAIN_BYTES_PER_IMAGE and 6 float32 copies of it at --res)."""
+    pixels = cfg.res ** 2
+    cache = cached_images * pixels * 6 + pixels * 16 * max(cached_images, 1)
+    return cache + cfg.batch * cfg.max_images * (TRAIN_BYTES_PER_IMAGE + pixels * 72)
+
+
+def prepare_run_dir(cfg: TrainConfig, dist: Dist) -> Path:
+    """The run directory (checked by `check_run`); with --overwrite an earlier run's files are removed first
+    (a best.safetensors of the old run must not survive a new run without --val)."""
+    out = Path(cfg.out)
+    if dist.main:
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ValueError(f"--out {cfg.out!r}: cannot create the run directory ({exc.strerror})") from exc
+        if cfg.overwrite:
+            for n in RUN_FILES:
+                (out / n).unlink(missing_ok=True)
+    return out
+
+
+@dataclass
+class Run:
+    """One training run: what the loop reads and updates."""
+
+    cfg: TrainConfig
+    dist: Dist
+    device: torch.device
+    out: Path
+    model: torch.nn.Module
+    step_model: torch.nn.Module  # the model's training forward, wrapped by DistributedDataParallel under torchrun
+    optimizer: torch.optim.Optimizer
+    scheduler: Any
+    samples: list[Sample]  # the cached training objects (empty when streaming)
+    val_samples: list[Sample]
+    data_desc: dict[str, Any]  # describe_data(): stored in checkpoints, compared on resume
+    train_args: dict[str, Any]  # the settings that change the trajectory (TRAJECTORY_KEYS, model name)
+    start: int = 0  # first step to run
+    best: float = math.inf  # lowest validation error so far
+    elapsed_before: float = 0.0  # training seconds of the steps a resumed run keeps (so elapsed_s counts the whole run)
+    t_start: float = 0.0
+    summary: dict[str, Any] = dataclasses.field(default_factory=dict)
+    stream: Any = None  # streamed shards (--shuffle-buffer): this process's iterator of training samples
+
+    @property
+    def log_path(self) -> Path:
+        return self.out / "log.jsonl"
+
+    @property
+    def last_path(self) -> Path:
+        return self.out / "last.pt"
+
+    def elapsed(self) -> float:
+        return time.time() - self.t_start
+
+
+def setup_run(cfg: TrainConfig) -> Run:
+    """Processes, run directory, initial model (seeded), data, optimiser and schedule of a run."""
+    from unips.models import create_model
+
+    dist = init_distributed(cfg)
+    torch.set_num_threads(cfg.threads or max(1, (os.cpu_count() or 1) // dist.world))
+    device = torch.device(f"cuda:{dist.local_rank}" if cfg.device == "cuda" and dist.world > 1 else cfg.device)
+    out = prepare_run_dir(cfg, dist)
+    torch.manual_seed(cfg.seed)  # initial weights
+    if cfg.init_from:
+        model = load_init_weights(cfg, device)
+    else:
+        model = create_model(cfg.model, **model_options(cfg.model_option)).to(device)
+    if cfg.shuffle_buffer:  # streamed shards: nothing cached, their index describes the data (`open_stream`)
+        samples, data_desc = [], stream_description(cfg, dist)
+    else:
+        samples = load_samples(cfg.data, cfg.res)
+        data_desc = describe_data(samples, cfg.data, cfg.res)
+    val_samples = load_samples(cfg.val, cfg.res) if cfg.val and dist.main else []
+    if cfg.curriculum:
+        curriculum_pool([s.level for s in samples], 0, cfg.steps, cfg.curriculum_fraction)  # every level recorded
+        log.info("curriculum over levels %s in the first %d of %d steps", sorted({s.level for s in samples}),
+                 int(cfg.curriculum_fraction * cfg.steps), cfg.steps)
+    too_few = [s.name for s in samples if s.num_images < cfg.min_images]
+    too_few += [o for o, k in zip(data_desc["objects"], data_desc["images"]) if cfg.shuffle_buffer and k < cfg.min_images]
+    if too_few:
+        raise ValueError(f"--min-images={cfg.min_images}: objects with fewer images: {too_few[:5]}")
+    canonical = model.config.canonical_resolution
+    if canonical >= cfg.res:
+        log.warning("working resolution %d is not above the canonical resolution %d: the canonical grid "
+                    "repeats the working pixels", cfg.res, canonical)
+    train_args = {k: getattr(cfg, k) for k in TRAJECTORY_KEYS}
+    train_args["model"] = getattr(model, "model_name", cfg.model)
+    train_args["model_option"] = list(cfg.model_option)
+    if cfg.shuffle_buffer:  # the stream's order depends on how many workers read it
+        train_args["loader_workers"] = cfg.loader_workers
+    step_model: torch.nn.Module = TrainForward(model)
+    if dist.world > 1:
+        from torch.nn.parallel import DistributedDataParallel
+
+        step_model = DistributedDataParallel(step_model, device_ids=[device.index] if device.type == "cuda" else None)
+    optimizer = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda s: lr_factor(cfg, s))
+    return Run(cfg, dist, device, out, model, step_model, optimizer, scheduler, samples, val_samples, data_desc,
+                train_args)
+
+
+def stream_description(cfg: TrainConfig, dist: Dist) -> dict[str, Any]:
+    """`describe_data` of streamed shards, from their index; refuses fewer shards than processes x loader
+    workers (each reads its own)."""
+    from types import SimpleNamespace
+
+    from unips.shards import check_split, resolve_shards
+    from unips.train_data import data_roots
+
+    shards = [s for r in data_roots(cfg.data) for s in resolve_shards(r)]
+    check_split(shards, dist.world, cfg.loader_workers)
+    objects = [SimpleNamespace(name=o["name"], num_images=int(o.get("images", 0))) for s in shards for o in s.objects]
+    return describe_data(objects, cfg.data, cfg.res)
+
+
+def open_stream(run: Run) -> Any:
+    """This process's endless iterator of streamed training samples (`unips.shards.stream_samples`: its rank's
+    shards, shuffled, seeded by --seed), past the samples that the steps before `run.start` took (a resume)."""
+    from functools import partial
+
+    from unips.shards import stream_samples
+    from unips.train_data import data_roots, prepare_sample
+
+    cfg = run.cfg
+    return stream_samples(data_roots(cfg.data), partial(prepare_sample, res=cfg.res), seed=cfg.seed,
+                          buffer=cfg.shuffle_buffer, workers=cfg.loader_workers, world=run.dist.world,
+                          skip=run.start * (cfg.batch // run.dist.world))
+
+
+def resume_run(run: Run) -> None:
+    """Continue from RUN/last.pt: the same trajectory settings and objects, then weights, optimiser, schedule,
+    random states, step, best validation and elapsed time."""
+    from unips.checkpoint import load_state_strict, load_training_checkpoint, set_rng_states
+
+    cfg = run.cfg
+    ckpt = load_training_checkpoint(run.last_path)
+    old = ckpt["extra"].get("train_args", {})
+    defaults = dataclasses.asdict(TrainConfig())
+    # A resumed run keeps its weights (last.pt), so --resume takes no --init-from: the run's lineage is the
+    # checkpoint's.
+    run.train_args["init_from"] = old.get("init_from")
+    for key, value in run.train_args.items():
+        saved = old.get(key, defaults.get(key))  # a key newer than the checkpoint had its default there
+        if saved != value:
+            raise ValueError(f"--resume: {key}={value!r} differs from the checkpoint's {saved!r}")
+    if ckpt["data"].get("objects") != run.data_desc["objects"]:
+        raise ValueError(f"--resume: the objects in --data {cfg.data!r} differ from the checkpoint's")
+    load_state_strict(run.model, ckpt["model"], str(run.last_path))
+    run.optimizer.load_state_dict(ckpt["optimizer"])
+    run.scheduler.load_state_dict(ckpt["scheduler"])
+    set_rng_states(ckpt["rng"])
+    run.start, run.best = int(ckpt["step"]), float(ckpt["extra"].get("best_val", math.inf))
+    run.elapsed_before = float(ckpt["extra"].get("elapsed_s", 0.0))
+    if run.dist.main:
+        truncate_log(run.log_path, run.start)
+    log.info("resumed from %s at step %d", run.last_path, run.start)
+
+
+def save_last(run: Run, step: int) -> None:
+    """The full training checkpoint RUN/last.pt (rank 0)."""
+    from unips.checkpoint import save_training_checkpoint
+
+    if run.dist.main:
+        save_training_checkpoint(run.last_path, model=run.model, optimizer=run.optimizer, scheduler=run.scheduler,
+                                 step=step, data=run.data_desc,
+                                 extra={"train_args": run.train_args, "best_val": run.best,
+                                        "elapsed_s": round(run.elapsed(), 3)})
