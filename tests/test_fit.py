@@ -16,6 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import use_variant
+
 from scenes.description import CameraDesc, ImageDesc, LightDesc, MaterialDesc, RenderDesc, SceneDescription, ShapeDesc, TextureDesc
 from scenes.objfolder import write_normal_map as write_normal_tif
 
@@ -31,10 +33,7 @@ POINT_DISTANCE = 2.0  # point lights of the near-light sphere, in sphere radii f
 
 @pytest.fixture(scope="module")
 def jit():
-    from scenes.variant import _usable
-
-    if not _usable("llvm_ad_rgb"):
-        pytest.skip("llvm_ad_rgb is not usable here (install libllvm19)")
+    use_variant("llvm_ad_rgb")  # install libllvm19 where it is skipped
     import mitsuba as mi
 
     return mi

@@ -9,6 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import use_variant
+
 from scenes.description import CameraDesc
 from wildgen.lighting import LIGHT_FAMILIES, Placement
 from wildgen.presets import PRESETS
@@ -28,10 +30,7 @@ def make(out: Path, *extra: str) -> int:
 
 @pytest.fixture(scope="module")
 def families(tmp_path_factory) -> Path:
-    from scenes.variant import _usable
-
-    if not _usable("llvm_ad_rgb"):
-        pytest.skip("llvm_ad_rgb is not usable")
+    use_variant("llvm_ad_rgb")
     out = tmp_path_factory.mktemp("families") / "data"
     assert make(out, "--lights", ",".join(NEW_FAMILIES), "--objects", str(len(NEW_FAMILIES)), "--seed", "5", *SMALL) == 0
     return out
@@ -223,7 +222,7 @@ def test_unknown_preset_is_a_one_line_error(tmp_path, capsys):
     assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
 
 
-def test_preset_is_recorded_in_the_manifest_and_resumes(tmp_path, llvm):
+def test_preset_is_recorded_in_the_manifest_and_resumes(tmp_path, variant_llvm_ad_rgb):
     out = tmp_path / "d"
     args = ["--preset", "diligent", "--objects", "1", "--images", "2", "--width", "24", "--height", "20", "--spp", "1",
             "--gt-spp", "1", "--quiet", "--workers", "0"]
@@ -237,7 +236,7 @@ def test_preset_is_recorded_in_the_manifest_and_resumes(tmp_path, llvm):
     assert make(out, "--resume", "--quiet", "--workers", "0") == 0
 
 
-def test_sixty_four_images_per_object(tmp_path, llvm):
+def test_sixty_four_images_per_object(tmp_path, variant_llvm_ad_rgb):
     """64 images of an object (16 px): every image written and read back; the busiest images of verse need
     slots of every light type it uses."""
     from scenes.layouts import read_folder

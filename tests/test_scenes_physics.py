@@ -133,7 +133,7 @@ def plane_scene(lights):
     )
 
 
-def test_every_light_type_and_mixture_renders_and_near_light_varies(llvm):
+def test_every_light_type_and_mixture_renders_and_near_light_varies(variant_llvm_ad_rgb):
     area = LightDesc(type="area", position=[1.2, 0.0, 0.8], target=[0, 0, 0], width=0.3, height=0.3, radiance=20.0)
     lights = [
         [LightDesc(type="directional", direction=[0.3, 0.2, -1.0])],
@@ -175,7 +175,7 @@ def test_json_round_trip_is_exact():
     assert back.to_json() == text
 
 
-def test_same_seed_same_render_and_different_seed_differs(llvm):
+def test_same_seed_same_render_and_different_seed_differs(variant_llvm_ad_rgb):
     from scenes.mitsuba_build import build_scene
     from scenes.render import render_image
 
@@ -209,7 +209,7 @@ def _mesh_desc(path) -> SceneDescription:
     return SceneDescription(shape=ShapeDesc(kind="mesh", file=str(path)), camera=CameraDesc(width=8, height=8), images=[ImageDesc(lights=[LightDesc()])])
 
 
-def test_missing_corrupt_and_empty_meshes(tmp_path, llvm):
+def test_missing_corrupt_and_empty_meshes(tmp_path, variant_llvm_ad_rgb):
     from scenes.mitsuba_build import build_scene
 
     with pytest.raises(FileNotFoundError, match="shape.file"):
@@ -264,7 +264,7 @@ def test_variant_choice_prefers_llvm_and_rejects_unknown():
     assert chosen in PREFERENCE
 
 
-def test_normal_mapped_ground_truth_matches_photometric_stereo(tmp_path, llvm):
+def test_normal_mapped_ground_truth_matches_photometric_stereo(tmp_path, variant_llvm_ad_rgb):
     """With a normal map, GT normals are the perturbed shading normals: Woodham PS on the renders agrees."""
     from scenes.objfolder import write_exr
 

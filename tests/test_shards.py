@@ -267,12 +267,9 @@ def test_export_refuses_what_it_cannot_do_in_one_line(data, tmp_path, capsys):
     assert sorted(p.name for p in (tmp_path / "o").iterdir()) == ["000000.tar", INDEX_FILE, "notes.txt"]
 
 
-def test_make_writes_shards_of_its_dataset(tmp_path, capsys):
-    from scenes.variant import _usable
+def test_make_writes_shards_of_its_dataset(tmp_path, capsys, variant_scalar_rgb):
     from wildgen.make import main as make_main
 
-    if not _usable("scalar_rgb"):
-        pytest.skip("scalar_rgb is not usable")
     out, shards = tmp_path / "ds", tmp_path / "sh"
     assert make_main(["--out", str(out), "--objects", "2", "--images", "2", "--res", "16", "--spp", "1", "--gt-spp",
                       "1", "--workers", "0", "--quiet", "--variant", "scalar_rgb", "--lights", "directional",
