@@ -86,11 +86,10 @@ def write_synthetic_object(folder: Path, images: np.ndarray, mask: np.ndarray, n
 @pytest.fixture
 def synthetic_object(tmp_path) -> Path:
     """A Lambertian sphere (32 x 32, 6 directional lights) as an object folder `tmp_path/ball.data`."""
-    size, k = 32, 6
-    rows, cols = np.mgrid[0:size, 0:size]
-    x, y = (cols + 0.5 - size / 2) / (size / 2 - 2), -(rows + 0.5 - size / 2) / (size / 2 - 2)
-    mask = x * x + y * y < 1.0
-    n = np.stack([x, y, np.sqrt(np.clip(1 - x * x - y * y, 0, None))], -1) * mask[..., None]
+    from fixtures import sphere
+
+    k = 6
+    n, mask = sphere(32)
     th = np.radians(np.linspace(10, 40, k))
     ph = np.linspace(0, 2 * np.pi, k, endpoint=False)
     L = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], 1)

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from conftest import use_variant
+from fixtures import ortho_sphere
 
 from scenes.description import CameraDesc, ImageDesc, LightDesc, MaterialDesc, RenderDesc, SceneDescription, ShapeDesc, TextureDesc
 from scenes.objfolder import write_normal_map as write_normal_tif
@@ -41,11 +42,8 @@ def jit():
 
 def analytic_sphere(mask_radius: float = 1.0 / 1.1) -> tuple[np.ndarray, np.ndarray]:
     """Normals (R, R, 3) and mask of a unit sphere seen by the default orthographic camera (half size 1.1)."""
-    c = (np.arange(R) + 0.5) / R * 2 - 1
-    x, y = np.meshgrid(c * 1.1, -c * 1.1)
-    r2 = x * x + y * y
+    n, r2 = ortho_sphere(R, 1.1)
     mask = r2 < 0.97
-    n = np.stack([x, y, np.sqrt(np.clip(1 - r2, 0, None))], -1)
     return np.where(mask[..., None], n, 0).astype(np.float32), mask
 
 
@@ -109,9 +107,7 @@ def test_heightfield_recovers_analytic_sphere():
 
     n, mask = analytic_sphere()
     hf = build(n, mask)
-    c = (np.arange(R) + 0.5) / R * 2 - 1
-    x, y = np.meshgrid(c * 1.1, -c * 1.1)
-    z_true = np.sqrt(np.clip(1 - x * x - y * y, 0, None)) * (hf.pixel_size / (2.2 / R))
+    z_true = ortho_sphere(R, 1.1)[0][..., 2] * (hf.pixel_size / (2.2 / R))
     inner = binary_erosion(mask, iterations=3)
     d = (hf.z - z_true)[inner]
     assert np.abs(d - d.mean()).max() < 0.03

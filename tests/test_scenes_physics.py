@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from fixtures import ortho_sphere
 from scenes.description import (
     CameraDesc,
     EnvironmentDesc,
@@ -36,17 +37,8 @@ def analytic_sphere(super_sample: int = 8):
 
     Returns (points (R, R, S*S, 3), hit (R, R, S*S) bool): camera frame = world frame here.
     """
-    s = super_sample
-    o = (np.arange(RES * s) + 0.5) / (RES * s)
-    xs = (o * 2 - 1) * HALF
-    ys = -(o * 2 - 1) * HALF
-    X, Y = np.meshgrid(xs, ys)
-    Z = np.sqrt(np.clip(1 - X**2 - Y**2, 0, None))
-    hit = X**2 + Y**2 < 1
-    P = np.stack([X, Y, Z], -1)
-    P = P.reshape(RES, s, RES, s, 3).transpose(0, 2, 1, 3, 4).reshape(RES, RES, s * s, 3)
-    hit = hit.reshape(RES, s, RES, s).transpose(0, 2, 1, 3).reshape(RES, RES, s * s)
-    return P, hit
+    P, r2 = ortho_sphere(RES, HALF, super_sample)
+    return P, r2 < 1
 
 
 def render(desc):
