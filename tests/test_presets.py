@@ -258,7 +258,8 @@ def test_diligent_preset_renders_diligents_96_lights(tmp_path, variant_llvm_ad_r
     612 x 512 frame in its configuration and 96 images per object, each lit by one distant light of DiLiGenT's
     12 x 8 LED grid: directions toward (x / z, y / z) on 12 evenly spaced columns over +-0.8 and 8 rows over
     +-0.5 (zenith up to 43.3 deg), computed here; every light once."""
-    assert (resolve("--preset", "diligent").width, resolve("--preset", "diligent").height) == (612, 512)
+    cfg = resolve("--preset", "diligent")
+    assert (cfg.width, cfg.height, cfg.images) == (612, 512, 96)
     (folder,) = render_dataset(tmp_path / "d", "--preset", "diligent", "--objects", "1", "--res", "8", "--spp", "1",
                                "--gt-spp", "1", "--variant", "llvm_ad_rgb")
     assert len(list(folder.glob("L*.png"))) == 96
