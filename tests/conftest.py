@@ -1,4 +1,6 @@
-"""Shared fixtures: Mitsuba variants for physics tests, the optional ../shared folder, synthetic object folders."""
+"""Shared fixtures: the Mitsuba variants of the tests (generated from one list, skipped in one place), the optional
+../shared folder, small rendered datasets and synthetic object folders. Analytic inputs (sphere, ellipsoid, light
+draws) are plain factories in `tests/fixtures.py`."""
 from __future__ import annotations
 
 import os
@@ -11,38 +13,51 @@ SHARED = Path(__file__).resolve().parents[2] / "shared"
 
 os.environ.setdefault("DRJIT_CACHE_DIR", str(Path.home() / ".drjit"))
 
+VARIANTS = ("llvm_ad_rgb", "scalar_rgb")
+"""The Mitsuba variants the tests run on, fastest first: each gets a fixture `variant_<name>`, `any_variant` runs a
+test on each, and `use_variant` is the one place that decides whether one is usable here."""
 
-def set_variant_or_skip(variant: str) -> str:
+
+def use_variant(*variants: str) -> str:
+    """Set the first of `variants` (default: any of `VARIANTS`) this machine can run and return its name; skip
+    the calling test when it can run none. The only caller of `scenes.variant._usable` in the tests (the module
+    has no public check that does not raise: `choose_variant` raises instead of skipping)."""
     from scenes.variant import _usable
 
-    if not _usable(variant):
-        pytest.skip(f"Mitsuba variant {variant} is not usable on this machine")
-    return variant
+    for variant in variants or VARIANTS:
+        if _usable(variant):  # sets it
+            return variant
+    pytest.skip(f"Mitsuba variant {' / '.join(variants or VARIANTS)} is not usable on this machine")
 
 
-def render_dataset(out: Path, *flags: str) -> list[Path]:
-    """Render a small dataset with `wildgen.make` in this process (`flags` as on its command line) and return its
-    object folders, sorted; the test is skipped when no Mitsuba CPU variant is usable."""
-    from scenes.variant import _usable
+def _variant_fixture(variant: str):
+    @pytest.fixture(name=f"variant_{variant}")
+    def fixture() -> str:
+        return use_variant(variant)
 
-    if not _usable("llvm_ad_rgb") and not _usable("scalar_rgb"):
-        pytest.skip("no Mitsuba variant usable here")
+    fixture.__doc__ = f"Set Mitsuba variant {variant} for the test (skipped where it is not usable)."
+    return fixture
+
+
+for _variant in VARIANTS:  # variant_llvm_ad_rgb, variant_scalar_rgb
+    globals()[f"variant_{_variant}"] = _variant_fixture(_variant)
+
+
+@pytest.fixture(params=VARIANTS)
+def any_variant(request) -> str:
+    """Run a test on each variant of `VARIANTS` (the physics must not depend on the backend)."""
+    return use_variant(request.param)
+
+
+def render_dataset(out: Path, *flags: str, variant: str | None = None) -> list[Path]:
+    """Render a small dataset with `wildgen.make` in this process (`flags` as on its command line, plus --workers 0
+    --quiet) and return its object folders, sorted; the test is skipped when `variant` (default: any of
+    `VARIANTS`) is not usable. `variant` is only checked: pass --variant in `flags` to render with it."""
+    use_variant(*([variant] if variant else []))
     from wildgen.make import main
 
     assert main([*flags, "--workers", "0", "--quiet", "--out", str(out)]) == 0
     return sorted(Path(out).glob("*.data"))
-
-
-@pytest.fixture(params=["llvm_ad_rgb", "scalar_rgb"])
-def any_variant(request) -> str:
-    """Run a test on both CPU variants (the physics must not depend on the backend)."""
-    return set_variant_or_skip(request.param)
-
-
-@pytest.fixture
-def llvm() -> str:
-    """The fast CPU variant (determinism and dataset tests)."""
-    return set_variant_or_skip("llvm_ad_rgb")
 
 
 @pytest.fixture
@@ -71,11 +86,10 @@ def write_synthetic_object(folder: Path, images: np.ndarray, mask: np.ndarray, n
 @pytest.fixture
 def synthetic_object(tmp_path) -> Path:
     """A Lambertian sphere (32 x 32, 6 directional lights) as an object folder `tmp_path/ball.data`."""
-    size, k = 32, 6
-    rows, cols = np.mgrid[0:size, 0:size]
-    x, y = (cols + 0.5 - size / 2) / (size / 2 - 2), -(rows + 0.5 - size / 2) / (size / 2 - 2)
-    mask = x * x + y * y < 1.0
-    n = np.stack([x, y, np.sqrt(np.clip(1 - x * x - y * y, 0, None))], -1) * mask[..., None]
+    from fixtures import sphere
+
+    k = 6
+    n, mask = sphere(32)
     th = np.radians(np.linspace(10, 40, k))
     ph = np.linspace(0, 2 * np.pi, k, endpoint=False)
     L = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], 1)

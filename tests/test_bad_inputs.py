@@ -23,6 +23,7 @@ from typing import Callable
 
 import numpy as np
 import pytest
+from conftest import use_variant
 
 REPO = Path(__file__).resolve().parents[1]
 OBJ = "00000"
@@ -50,10 +51,7 @@ def _double_sided_sphere(path: Path) -> None:
 def world(tmp_path_factory) -> Path:
     """Everything the rows read: a dataset, predictions, checkpoints, corrupt files, occupied folders."""
     from scenes.objfolder import read_normals, write_normal_map
-    from scenes.variant import _usable
-
-    if not _usable("llvm_ad_rgb"):
-        pytest.skip("llvm_ad_rgb is not usable here")
+    use_variant("llvm_ad_rgb")
     w = tmp_path_factory.mktemp("world")
     from wildgen.make import main as make
 

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from fixtures import cone_lights, shading, sphere
 from unips.baselines import least_squares, run_baseline, sh_uncalibrated
 from unips.data import PSObject, load_object
 from scenes.objfolder import mean_angular_error
@@ -15,30 +16,12 @@ SHARED = Path(__file__).resolve().parents[2] / "shared"
 DILIGENT = SHARED / "data" / "diligent"
 
 
-def sphere(size: int):
-    rows, cols = np.mgrid[0:size, 0:size]
-    r = size / 2 - 2
-    x = (cols + 0.5 - size / 2) / r
-    y = -(rows + 0.5 - size / 2) / r
-    mask = x * x + y * y < 1.0
-    n = np.stack([x, y, np.sqrt(np.clip(1 - x * x - y * y, 0, None))], axis=-1)
-    n[~mask] = 0
-    return n, mask
-
-
-def lights(k: int, seed: int, max_deg: float) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    th = np.radians(rng.uniform(0.0, max_deg, k))
-    ph = rng.uniform(0.0, 2 * np.pi, k)
-    return np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], axis=1)
-
-
 def sphere_object(size=40, k=16, max_deg=30.0, ambient=0.0, noise=0.0, seed=0) -> PSObject:
     """Lambertian sphere (attached shadows included) under random directional lights, + ambient."""
     rng = np.random.default_rng(seed + 100)
     n, mask = sphere(size)
-    L = lights(k, seed, max_deg)
-    shade = np.clip(np.einsum("hwc,kc->khw", n, L), 0, None)
+    L = cone_lights(k, seed, max_deg, min_deg=0.0)
+    shade = shading(n, L)
     shade = shade + ambient * rng.uniform(0.5, 1.5, k)[:, None, None]
     img = 0.7 * shade[..., None] * np.array([1.0, 0.8, 0.6])
     img = img + noise * rng.standard_normal(img.shape)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import render_dataset
+from conftest import render_dataset, use_variant
 
 A, F = 0.05, 2  # height field h(u, v) = A sin(2 pi F u) sin(2 pi F v) over the UV square
 
@@ -22,10 +22,9 @@ def _analytic_normal(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def variant():
-    from scenes.variant import _usable, choose_variant
+    from scenes.variant import choose_variant
 
-    if not _usable("llvm_ad_rgb") and not _usable("scalar_rgb"):
-        pytest.skip("no Mitsuba variant usable here")
+    use_variant()
     return choose_variant("auto")
 
 

@@ -37,7 +37,7 @@ def assert_same_dataset(a: Path, b: Path) -> None:
     assert not different, f"{len(different)} files differ: {different[:6]}"
 
 
-def test_threads_and_workers_give_the_same_bytes(tmp_path, llvm):
+def test_threads_and_workers_give_the_same_bytes(tmp_path, variant_llvm_ad_rgb):
     """Every file of every object folder (radiance EXRs, PNGs, ground truth) is byte-identical between one
     process with 1 thread, one process with 2 threads, and 2 workers with 1 thread each."""
     _make(tmp_path / "t1", "--workers", "0", "--threads", "1")
@@ -59,7 +59,7 @@ def _built(res: int, spp: int):
     return build_scene(sample_object(cfg, 0, AssetLibrary.scan(None)).desc)
 
 
-def test_render_film_matches_mi_render(llvm):
+def test_render_film_matches_mi_render(variant_llvm_ad_rgb):
     """Same samples and channel layout as mi.render: bit-identical at 1 spp (no sum), equal up to the rounding
     of the sum at more (path tracer and the ground-truth aov pass)."""
     import mitsuba as mi
@@ -81,7 +81,7 @@ def test_render_film_matches_mi_render(llvm):
     assert np.array_equal(ours, theirs)
 
 
-def test_passes_are_deterministic_and_unbiased(llvm, monkeypatch):
+def test_passes_are_deterministic_and_unbiased(variant_llvm_ad_rgb, monkeypatch):
     """Above MAX_SAMPLES_PER_PASS the samples are split into passes (the sampler advances between them, as in
     Mitsuba's own multi-pass render): still independent of the thread count, and the same noise level."""
     import drjit as dr
@@ -108,7 +108,7 @@ def test_passes_are_deterministic_and_unbiased(llvm, monkeypatch):
 
 
 @pytest.mark.parametrize("threads", [1, 2])
-def test_ground_truth_is_thread_independent(llvm, threads):
+def test_ground_truth_is_thread_independent(variant_llvm_ad_rgb, threads):
     import drjit as dr
 
     from scenes.render import render_ground_truth
@@ -126,7 +126,7 @@ def test_ground_truth_is_thread_independent(llvm, threads):
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
 
 
-def test_new_generator_features_are_byte_identical_across_workers(tmp_path, llvm):
+def test_new_generator_features_are_byte_identical_across_workers(tmp_path, variant_llvm_ad_rgb):
     """Clusters, surface detail, focal lengths and levels draw from the object's seed only: every file (instance
     ids, normal_base.tif, view.exr, the detail's normal-map texture included) is the same in one process with 2
     threads and in 2 workers."""

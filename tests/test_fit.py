@@ -16,6 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import use_variant
+from fixtures import ortho_sphere
+
 from scenes.description import CameraDesc, ImageDesc, MaterialDesc, RenderDesc, SceneDescription, ShapeDesc, TextureDesc
 from scenes.lights import DirectionalLight, LightDesc, PointLight
 from scenes.objfolder import write_normal_map as write_normal_tif
@@ -32,10 +35,7 @@ POINT_DISTANCE = 2.0  # point lights of the near-light sphere, in sphere radii f
 
 @pytest.fixture(scope="module")
 def jit():
-    from scenes.variant import _usable
-
-    if not _usable("llvm_ad_rgb"):
-        pytest.skip("llvm_ad_rgb is not usable here (install libllvm19)")
+    use_variant("llvm_ad_rgb")  # install libllvm19 where it is skipped
     import mitsuba as mi
 
     return mi
@@ -43,11 +43,8 @@ def jit():
 
 def analytic_sphere(mask_radius: float = 1.0 / 1.1) -> tuple[np.ndarray, np.ndarray]:
     """Normals (R, R, 3) and mask of a unit sphere seen by the default orthographic camera (half size 1.1)."""
-    c = (np.arange(R) + 0.5) / R * 2 - 1
-    x, y = np.meshgrid(c * 1.1, -c * 1.1)
-    r2 = x * x + y * y
+    n, r2 = ortho_sphere(R, 1.1)
     mask = r2 < 0.97
-    n = np.stack([x, y, np.sqrt(np.clip(1 - r2, 0, None))], -1)
     return np.where(mask[..., None], n, 0).astype(np.float32), mask
 
 
@@ -111,9 +108,7 @@ def test_heightfield_recovers_analytic_sphere():
 
     n, mask = analytic_sphere()
     hf = build(n, mask)
-    c = (np.arange(R) + 0.5) / R * 2 - 1
-    x, y = np.meshgrid(c * 1.1, -c * 1.1)
-    z_true = np.sqrt(np.clip(1 - x * x - y * y, 0, None)) * (hf.pixel_size / (2.2 / R))
+    z_true = ortho_sphere(R, 1.1)[0][..., 2] * (hf.pixel_size / (2.2 / R))
     inner = binary_erosion(mask, iterations=3)
     d = (hf.z - z_true)[inner]
     assert np.abs(d - d.mean()).max() < 0.03

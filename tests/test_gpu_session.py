@@ -16,19 +16,9 @@ import zipfile
 import pytest
 
 from orchestrate import gpu_session
-from scenes.variant import choose_variant
 
 
-def _llvm_runs() -> bool:
-    try:
-        choose_variant("llvm_ad_rgb")
-        return True
-    except (ValueError, RuntimeError):
-        return False
-
-
-@pytest.mark.skipif(not _llvm_runs(), reason="llvm_ad_rgb does not run here (no libLLVM >= 16)")
-def test_whole_session_in_miniature(tmp_path):
+def test_whole_session_in_miniature(tmp_path, variant_llvm_ad_rgb):
     import torch
 
     from unips.models import create_model

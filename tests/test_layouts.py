@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from test_unips_data import lights, render, sphere, write_diligent, write_mask, write_ours, write_png16
+from fixtures import cone_lights, sphere
+from test_unips_data import render, write_diligent, write_mask, write_ours, write_png16
 
 from scenes.layouts import LAYOUT_TABLE, LAYOUTS, MIN_NORMAL_LENGTH, detect_layout, read_folder
 from scenes.objfolder import write_exr
@@ -34,7 +35,7 @@ def _edit_camera_lights(folder: Path, edit) -> None:
 def write_unips(folder: Path, k: int = 5, size: int = 24, exr: bool = False, gt: str | None = None) -> tuple:
     folder.mkdir(parents=True)
     n, mask = sphere(size)
-    imgs = render(n, mask, lights(k, 3))
+    imgs = render(n, mask, cone_lights(k, 3))
     for i, im in enumerate(imgs):
         if exr:
             write_exr(folder / f"L{i:02d}.exr", (im * 3.0).astype(np.float32))  # radiance, beyond 1 is fine

@@ -11,27 +11,10 @@ import numpy as np
 import pytest
 
 from conftest import write_synthetic_object
+from fixtures import cone_lights, shading, sphere
 from unips import evaluate as ev
 from unips import predict as pr
 from scenes.objfolder import mean_angular_error, read_normals, write_normal_exr, write_normal_map
-
-
-def sphere(size: int):
-    rows, cols = np.mgrid[0:size, 0:size]
-    r = size / 2 - 2
-    x = (cols + 0.5 - size / 2) / r
-    y = -(rows + 0.5 - size / 2) / r
-    mask = x * x + y * y < 1.0
-    n = np.stack([x, y, np.sqrt(np.clip(1 - x * x - y * y, 0, None))], axis=-1)
-    n[~mask] = 0
-    return n, mask
-
-
-def lights(k: int, seed: int, max_deg: float = 30.0) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    th = np.radians(rng.uniform(5.0, max_deg, k))
-    ph = rng.uniform(0.0, 2 * np.pi, k)
-    return np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], axis=1)
 
 
 def write_png16(path: Path, rgb: np.ndarray) -> None:
@@ -41,8 +24,8 @@ def write_png16(path: Path, rgb: np.ndarray) -> None:
 def write_ours(folder: Path, size: int = 32, k: int = 8, seed: int = 0, family: str = "directional"):
     """Our layout: L*.png, mask.png, normal.tif, scene.json with camera-frame directional lights."""
     n, mask = sphere(size)
-    L = lights(k, seed)
-    shade = np.clip(np.einsum("hwc,kc->khw", n, L), 0, None)
+    L = cone_lights(k, seed, max_deg=30.0)
+    shade = shading(n, L)
     imgs = 0.8 * shade[..., None] * np.array([0.9, 0.7, 0.5])
     imgs[:, ~mask] = 0
     write_synthetic_object(folder, imgs, mask, n, light_family=family, directions=L)
@@ -54,8 +37,8 @@ def write_diligent(folder: Path, size: int = 28, k: int = 8, seed: int = 5):
 
     folder.mkdir(parents=True)
     n, mask = sphere(size)
-    L = lights(k, seed)
-    shade = np.clip(np.einsum("hwc,kc->khw", n, L), 0, None)
+    L = cone_lights(k, seed, max_deg=30.0)
+    shade = shading(n, L)
     names = [f"{i + 1:03d}.png" for i in range(k)]
     for i, name in enumerate(names):
         img = 0.5 * shade[i][..., None] * np.ones(3)

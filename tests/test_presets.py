@@ -9,6 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import render_dataset, use_variant
+
 from scenes.description import CameraDesc
 from wildgen.lighting import LIGHT_FAMILIES, Placement
 from wildgen.presets import PRESETS
@@ -28,10 +30,7 @@ def make(out: Path, *extra: str) -> int:
 
 @pytest.fixture(scope="module")
 def families(tmp_path_factory) -> Path:
-    from scenes.variant import _usable
-
-    if not _usable("llvm_ad_rgb"):
-        pytest.skip("llvm_ad_rgb is not usable")
+    use_variant("llvm_ad_rgb")
     out = tmp_path_factory.mktemp("families") / "data"
     assert make(out, "--lights", ",".join(NEW_FAMILIES), "--objects", str(len(NEW_FAMILIES)), "--seed", "5", *SMALL) == 0
     return out
@@ -190,21 +189,90 @@ def resolve(*argv: str):
     return options_from_args(build_parser().parse_args(args), _explicit_flags(args)).gen.validate()
 
 
-def test_each_preset_resolves_to_its_documented_configuration():
-    from wildgen.config import GenConfig
+def test_each_preset_sets_its_entry_and_nothing_else():
+    """--preset NAME gives the configuration without a preset with the entry's values set, every other field
+    at its default; each entry names a light family and a sensor that exist, and says what it imitates."""
+    from dataclasses import replace
 
-    assert list(PRESETS) == ["diligent", "phone-flash", "light-stage", "display"]
-    documented = {
-        "diligent": dict(lights=["grid96"], images=96, width=612, height=512, camera="orthographic", sensor="machine-vision"),
-        "phone-flash": dict(lights=["flash"], images=10, width=256, height=256, camera="perspective", sensor="phone"),
-        "light-stage": dict(lights=["light_stage"], images=64, width=256, height=256, camera="orthographic",
-                            sensor="machine-vision"),
-        "display": dict(lights=["display"], images=12, width=256, height=256, camera="perspective", sensor="webcam"),
-    }
-    for name, values in documented.items():
+    from scenes.sensor import sensor_named
+    from wildgen.lighting import light_family
+
+    assert list(PRESETS) == ["diligent", "phone-flash", "light-stage", "display"]  # the names of --preset
+    plain = resolve()
+    for name, preset in PRESETS.items():
+        assert resolve("--preset", name) == replace(plain, preset=name, **preset.overrides()), name
+        assert sensor_named(preset.sensor).name == preset.sensor and light_family(preset.lights), name
+        assert preset.about.strip()
+
+
+def _dirs_to_light(lights) -> np.ndarray:
+    return np.array([-np.asarray(l.direction) for l in lights])
+
+
+def test_presets_configure_the_rigs_they_imitate():
+    """What each preset's configuration makes, checked against the rig it names (not against the table):
+    phone-flash a point light at the camera of a perspective view, written as a phone writes (8-bit sRGB,
+    Bayer mosaic, noise, vignetting); light-stage one distant light per image, all different; display one
+    screen patch per image, as many images as a perspective camera leaves patches, written by a webcam
+    (8 bits, Bayer, noise, vignetting); diligent and light-stage a linear machine-vision camera
+    (orthographic, 12 significant bits: DiLiGenT's 16-bit PNGs)."""
+    from scenes.sensor import SENSORS
+    from wildgen.lighting import display_patches
+
+    flash = resolve("--preset", "phone-flash")
+    assert flash.camera == "perspective"
+    p = Placement(np.zeros(3), 1.0, PERSPECTIVE, env_scale=0.3)
+    rng = np.random.default_rng(0)
+    for i in range(flash.images):
+        lamp = LIGHT_FAMILIES[flash.lights[0]].sample(rng, p, i, flash.images)[0]
+        assert lamp.type == "point" and lamp.position == list(PERSPECTIVE.origin)
+    for name in ("phone-flash", "display"):
+        sensor = SENSORS[resolve("--preset", name).sensor]
+        assert sensor.bits == 8 and sensor.cfa != "none" and sensor.full_well and sensor.vignetting > 0, name
+        assert sensor.response != "linear", name
+    assert SENSORS[flash.sensor].response == "srgb"
+
+    stage = resolve("--preset", "light-stage")
+    p = Placement(np.zeros(3), 1.0, ORTHO, env_scale=0.3)
+    lights = [LIGHT_FAMILIES[stage.lights[0]].sample(None, p, i, stage.images) for i in range(stage.images)]
+    assert all(len(ls) == 1 and ls[0].type == "directional" for ls in lights)
+    assert len({tuple(d) for d in _dirs_to_light(l[0] for l in lights).round(6)}) == stage.images
+
+    display = resolve("--preset", "display")
+    assert display.camera == "perspective"
+    p = Placement(np.zeros(3), 1.0, PERSPECTIVE, env_scale=0.3)
+    assert display.images == len(display_patches(p))
+    for i in range(display.images):
+        (patch,) = LIGHT_FAMILIES[display.lights[0]].sample(None, p, i, display.images)
+        assert patch.type == "area" and patch.position == display_patches(p)[i][0].tolist()
+
+    for name in ("diligent", "light-stage"):
         cfg = resolve("--preset", name)
-        assert cfg == GenConfig(preset=name, **values), name
-        assert PRESETS[name].about.strip()
+        sensor = SENSORS[cfg.sensor]
+        assert cfg.camera == "orthographic" and sensor.response == "linear" and sensor.cfa == "none", name
+        assert sensor.bits == 12, name
+
+
+def test_diligent_preset_renders_diligents_96_lights(tmp_path, variant_llvm_ad_rgb):
+    """A dataset made with --preset diligent (only the resolution and samples made small) has DiLiGenT's
+    612 x 512 frame in its configuration and 96 images per object, each lit by one distant light of DiLiGenT's
+    12 x 8 LED grid: directions toward (x / z, y / z) on 12 evenly spaced columns over +-0.8 and 8 rows over
+    +-0.5 (zenith up to 43.3 deg), computed here; every light once."""
+    cfg = resolve("--preset", "diligent")
+    assert (cfg.width, cfg.height, cfg.images) == (612, 512, 96)
+    (folder,) = render_dataset(tmp_path / "d", "--preset", "diligent", "--objects", "1", "--res", "8", "--spp", "1",
+                               "--gt-spp", "1", "--variant", "llvm_ad_rgb")
+    assert len(list(folder.glob("L*.png"))) == 96
+    scene = scene_of(folder)
+    assert scene["camera"]["kind"] == "orthographic" and scene["sensor"]["model"]["name"] == "machine-vision"
+    cams = scene["camera_lights"]
+    assert len(cams) == 96 and all(len(c["directional"]) == 1 and c["other"] == 0 for c in cams)
+    got = np.array([c["directional"][0]["direction_to_light"] for c in cams])
+    grid = np.array([[u, v, 1.0] for u in np.linspace(-0.8, 0.8, 12) for v in np.linspace(-0.5, 0.5, 8)])
+    grid /= np.linalg.norm(grid, axis=1, keepdims=True)
+    nearest = np.linalg.norm(got[:, None] - grid[None], axis=-1).argmin(1)
+    assert np.allclose(got, grid[nearest], atol=1e-9) and sorted(nearest) == list(range(96))
+    assert math.degrees(math.acos(grid[:, 2].min())) == pytest.approx(43.3, abs=0.05)
 
 
 def test_explicit_flags_override_the_preset():
@@ -223,7 +291,7 @@ def test_unknown_preset_is_a_one_line_error(tmp_path, capsys):
     assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
 
 
-def test_preset_is_recorded_in_the_manifest_and_resumes(tmp_path, llvm):
+def test_preset_is_recorded_in_the_manifest_and_resumes(tmp_path, variant_llvm_ad_rgb):
     out = tmp_path / "d"
     args = ["--preset", "diligent", "--objects", "1", "--images", "2", "--width", "24", "--height", "20", "--spp", "1",
             "--gt-spp", "1", "--quiet", "--workers", "0"]
@@ -237,7 +305,7 @@ def test_preset_is_recorded_in_the_manifest_and_resumes(tmp_path, llvm):
     assert make(out, "--resume", "--quiet", "--workers", "0") == 0
 
 
-def test_sixty_four_images_per_object(tmp_path, llvm):
+def test_sixty_four_images_per_object(tmp_path, variant_llvm_ad_rgb):
     """64 images of an object (16 px): every image written and read back; the busiest images of verse need
     slots of every light type it uses."""
     from scenes.layouts import read_folder

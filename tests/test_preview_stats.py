@@ -11,6 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import use_variant
+
 FAMILIES = ["directional", "point", "near_area", "mixed"]  # directional, point, area and environment lights
 SMALL = ["--objects", str(len(FAMILIES)), "--lights", ",".join(FAMILIES), "--images", "2", "--res", "16",
          "--spp", "4", "--gt-spp", "4", "--bounces", "1", "--camera", "perspective", "--sensor", "webcam",
@@ -19,11 +21,9 @@ SMALL = ["--objects", str(len(FAMILIES)), "--lights", ",".join(FAMILIES), "--ima
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory) -> Path:
-    from scenes.variant import _usable
     from wildgen.make import main
 
-    if not _usable("llvm_ad_rgb"):
-        pytest.skip("llvm_ad_rgb is not usable")
+    use_variant("llvm_ad_rgb")
     out = tmp_path_factory.mktemp("card") / "data"
     assert main(["--out", str(out), *SMALL]) == 0
     return out

@@ -15,6 +15,8 @@ from typing import ClassVar
 import numpy as np
 import pytest
 
+from conftest import use_variant
+
 from scenes.description import (
     CameraDesc,
     ImageDesc,
@@ -31,11 +33,8 @@ R = 32
 
 @pytest.fixture(scope="module")
 def jit():
-    """llvm_ad_rgb (the wrapper is a Python BSDF: it needs a JIT variant)."""
-    from scenes.variant import _usable
-
-    if not _usable("llvm_ad_rgb"):
-        pytest.skip("llvm_ad_rgb is not usable here (install libllvm19); the re-render check needs a JIT variant")
+    """llvm_ad_rgb (the wrapper is a Python BSDF: it needs a JIT variant; install libllvm19 where it is skipped)."""
+    use_variant("llvm_ad_rgb")
     import mitsuba as mi
 
     return mi

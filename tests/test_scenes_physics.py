@@ -7,6 +7,7 @@ from typing import ClassVar
 import numpy as np
 import pytest
 
+from fixtures import ortho_sphere
 from scenes.description import (
     CameraDesc,
     EnvironmentDesc,
@@ -40,17 +41,8 @@ def analytic_sphere(super_sample: int = 8):
 
     Returns (points (R, R, S*S, 3), hit (R, R, S*S) bool): camera frame = world frame here.
     """
-    s = super_sample
-    o = (np.arange(RES * s) + 0.5) / (RES * s)
-    xs = (o * 2 - 1) * HALF
-    ys = -(o * 2 - 1) * HALF
-    X, Y = np.meshgrid(xs, ys)
-    Z = np.sqrt(np.clip(1 - X**2 - Y**2, 0, None))
-    hit = X**2 + Y**2 < 1
-    P = np.stack([X, Y, Z], -1)
-    P = P.reshape(RES, s, RES, s, 3).transpose(0, 2, 1, 3, 4).reshape(RES, RES, s * s, 3)
-    hit = hit.reshape(RES, s, RES, s).transpose(0, 2, 1, 3).reshape(RES, RES, s * s)
-    return P, hit
+    P, r2 = ortho_sphere(RES, HALF, super_sample)
+    return P, r2 < 1
 
 
 def render(desc):
@@ -137,7 +129,7 @@ def plane_scene(lights):
     )
 
 
-def test_every_light_type_and_mixture_renders_and_near_light_varies(llvm):
+def test_every_light_type_and_mixture_renders_and_near_light_varies(variant_llvm_ad_rgb):
     area = AreaLight(position=[1.2, 0.0, 0.8], target=[0, 0, 0], width=0.3, height=0.3, radiance=20.0)
     lights = [
         [DirectionalLight(direction=[0.3, 0.2, -1.0])],
@@ -179,7 +171,7 @@ def test_json_round_trip_is_exact():
     assert back.to_json() == text
 
 
-def test_same_seed_same_render_and_different_seed_differs(llvm):
+def test_same_seed_same_render_and_different_seed_differs(variant_llvm_ad_rgb):
     from scenes.mitsuba_build import build_scene
     from scenes.render import render_image
 
@@ -213,7 +205,7 @@ def _mesh_desc(path) -> SceneDescription:
     return SceneDescription(shape=ShapeDesc(kind="mesh", file=str(path)), camera=CameraDesc(width=8, height=8), images=[ImageDesc(lights=[DirectionalLight()])])
 
 
-def test_missing_corrupt_and_empty_meshes(tmp_path, llvm):
+def test_missing_corrupt_and_empty_meshes(tmp_path, variant_llvm_ad_rgb):
     from scenes.mitsuba_build import build_scene
 
     with pytest.raises(FileNotFoundError, match="shape.file"):
@@ -268,7 +260,7 @@ def test_variant_choice_prefers_llvm_and_rejects_unknown():
     assert chosen in PREFERENCE
 
 
-def test_normal_mapped_ground_truth_matches_photometric_stereo(tmp_path, llvm):
+def test_normal_mapped_ground_truth_matches_photometric_stereo(tmp_path, variant_llvm_ad_rgb):
     """With a normal map, GT normals are the perturbed shading normals: Woodham PS on the renders agrees."""
     from scenes.objfolder import write_exr
 

@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import use_variant
+
 from scenes.sensor import (CFA_PATTERNS, DEMOSAIC_METHODS, SENSORS, Sensor, apply_sensor, demosaic, mosaic,
                            read_sensor_record, rederive_image, write_image)
 
@@ -247,10 +249,7 @@ def test_sensor_plain_data_and_one_line_errors():
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory) -> Path:
-    from scenes.variant import _usable
-
-    if not _usable("llvm_ad_rgb"):
-        pytest.skip("llvm_ad_rgb is not usable")
+    use_variant("llvm_ad_rgb")
     from wildgen.make import main
 
     out = tmp_path_factory.mktemp("sensor") / "DS"

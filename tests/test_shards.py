@@ -13,6 +13,7 @@ import pytest
 import torch
 
 from conftest import write_synthetic_object
+from fixtures import random_lights
 from scenes.layouts import read_folder
 from scenes.shards import INDEX_FILE, extract_sample, iter_samples, sample_folder_name
 from unips.train_data import load_samples, make_batch, prepare_sample
@@ -32,9 +33,7 @@ def _object(folder: Path, rng: np.random.Generator, size: int = 24, k: int = 4, 
     mask = q > 0.02
     n = np.stack([x, y, np.sqrt(np.clip(q, 0, None))], -1)
     n = np.where(mask[..., None], n / np.linalg.norm(n, axis=-1, keepdims=True), 0.0)
-    lights = rng.normal(size=(k, 3))
-    lights[:, 2] = np.abs(lights[:, 2]) + 0.5
-    lights /= np.linalg.norm(lights, axis=1, keepdims=True)
+    lights = random_lights(rng, k)
     images = np.clip(np.einsum("hwc,kc->khw", n, lights), 0, None)[..., None] * rng.uniform(0.3, 0.9, 3)
     if saturate:
         images = images * 3.0  # clipped at the file's largest code: saturated channels
@@ -267,12 +266,9 @@ def test_export_refuses_what_it_cannot_do_in_one_line(data, tmp_path, capsys):
     assert sorted(p.name for p in (tmp_path / "o").iterdir()) == ["000000.tar", INDEX_FILE, "notes.txt"]
 
 
-def test_make_writes_shards_of_its_dataset(tmp_path, capsys):
-    from scenes.variant import _usable
+def test_make_writes_shards_of_its_dataset(tmp_path, capsys, variant_scalar_rgb):
     from wildgen.make import main as make_main
 
-    if not _usable("scalar_rgb"):
-        pytest.skip("scalar_rgb is not usable")
     out, shards = tmp_path / "ds", tmp_path / "sh"
     assert make_main(["--out", str(out), "--objects", "2", "--images", "2", "--res", "16", "--spp", "1", "--gt-spp",
                       "1", "--workers", "0", "--quiet", "--variant", "scalar_rgb", "--lights", "directional",

@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import render_dataset
+
 from wildgen.lighting import LIGHT_FAMILIES, PS_WILD_FAMILIES
 
 FAMILIES = ",".join(PS_WILD_FAMILIES)  # the families the shipped model was trained on, cycled
@@ -17,16 +19,9 @@ FAMILIES = ",".join(PS_WILD_FAMILIES)  # the families the shipped model was trai
 
 @pytest.fixture(scope="module")
 def rendered(tmp_path_factory) -> Path:
-    from scenes.variant import _usable
-
-    if not _usable("llvm_ad_rgb"):
-        pytest.skip("llvm_ad_rgb unavailable (libLLVM missing)")
-    from wildgen.make import main
-
     out = tmp_path_factory.mktemp("shipped") / "data"
-    rc = main(["--out", str(out), "--lights", FAMILIES, "--objects", "10", "--images", "8", "--res", "32", "--spp", "16",
-               "--gt-spp", "4", "--shapes", "procedural", "--seed", "777", "--workers", "0", "--quiet"])
-    assert rc == 0
+    render_dataset(out, "--lights", FAMILIES, "--objects", "10", "--images", "8", "--res", "32", "--spp", "16",
+                   "--gt-spp", "4", "--shapes", "procedural", "--seed", "777", variant="llvm_ad_rgb")
     return out
 
 

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import torch
 
+from fixtures import ellipsoid_normals, lambertian, random_lights
 from unips.augment import (HFLIP_MATRIX, TRANSPOSE_MATRIX, VFLIP_MATRIX, Augmentation, apply_augmentation,
                            augment, sample_augmentation)
 from unips.checkpoint import load_model, load_training_checkpoint, save_checkpoint, sidecar_path
@@ -19,36 +20,6 @@ from unips.train_data import load_samples, make_batch
 
 
 # -- analytic scenes ------------------------------------------------------------------------
-
-def ellipsoid_normals(h: int, w: int, ci: float, cj: float, ri: float, rj: float) -> tuple[np.ndarray, np.ndarray]:
-    """Normals (H, W, 3) and mask of an ellipsoid seen orthographically, from image-space parameters.
-
-    Centre (row ci, column cj) in continuous pixel units (pixel (i, j) has its centre at (i + 0.5,
-    j + 0.5)), semi-axes ri along the rows and rj along the columns, depth semi-axis 0.7 min(ri, rj).
-    Camera frame: x = column offset (right), y = -row offset (up), z toward the camera.
-    """
-    i, j = np.mgrid[0:h, 0:w] + 0.5
-    x, y = j - cj, -(i - ci)
-    c = 0.7 * min(ri, rj)
-    q = 1.0 - (x / rj) ** 2 - (y / ri) ** 2
-    mask = q > 0.02
-    z = c * np.sqrt(np.clip(q, 0.0, None))
-    n = np.stack([x / rj ** 2, y / ri ** 2, z / c ** 2], axis=-1)
-    n = n / np.linalg.norm(n, axis=-1, keepdims=True)
-    return np.where(mask[..., None], n, 0.0), mask
-
-
-def lambertian(normals: np.ndarray, mask: np.ndarray, lights: np.ndarray, albedo: np.ndarray) -> np.ndarray:
-    """Images (K, 3, H, W): albedo[k] * max(0, n . l_k) inside the mask."""
-    shade = np.clip(np.einsum("hwc,kc->khw", normals, lights), 0.0, None) * mask  # (K, H, W)
-    return shade[:, None] * albedo[:, :, None, None]
-
-
-def random_lights(rng: np.random.Generator, k: int) -> np.ndarray:
-    v = rng.normal(size=(k, 3))
-    v[:, 2] = np.abs(v[:, 2]) + 0.5
-    return v / np.linalg.norm(v, axis=1, keepdims=True)
-
 
 def write_object(folder: Path, rng: np.random.Generator, size: int, k: int, family: str) -> None:
     """An object folder in the project layout (16-bit PNGs, mask.png, normal.tif, scene.json)."""

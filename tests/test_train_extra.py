@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 import torch
 
+from fixtures import ellipsoid_normals, lambertian, ortho_sphere, random_lights
 from unips.checkpoint import load_model, load_training_checkpoint, save_checkpoint
 from unips.models import create_model
 from unips.probes import probe_images, probe_object, summarise
@@ -115,8 +116,6 @@ def test_probes_remove_what_they_say() -> None:
 
 
 def test_probe_object_and_summary() -> None:
-    from test_train import ellipsoid_normals, lambertian, random_lights
-
     normals, mask = ellipsoid_normals(32, 32, 16, 16, 12, 12)
     rng = np.random.default_rng(0)
     imgs = lambertian(normals, mask, random_lights(rng, 4), np.ones((4, 3)) * 0.7)
@@ -177,8 +176,6 @@ def write_bumpy_object(folder: Path, rng: np.random.Generator, size: int = 40, k
     import cv2
     import tifffile
 
-    from test_train import lambertian, random_lights
-
     i, j = np.mgrid[0:size, 0:size] + 0.5
     ri, rj = rng.uniform(0.3, 0.45, 2) * size
     x, y = (j - size / 2) / rj, -(i - size / 2) / ri
@@ -226,11 +223,9 @@ def test_training_learns_from_the_images_where_the_outline_is_not_enough(tmp_pat
 
 def _lambertian_sphere(size: int, lights: np.ndarray) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Analytic Lambertian sphere filling a size x size frame: images (K, 3, H, W), mask, normals."""
-    c = (np.arange(size) + 0.5) / size * 2 - 1
-    x, y = np.meshgrid(c, -c)
-    r2 = x ** 2 + y ** 2
+    points, r2 = ortho_sphere(size, 1.0)
     inside = r2 < 0.95 ** 2
-    n = np.stack([x, y, np.sqrt(np.clip(1 - r2, 0, None))]) * inside  # (3, H, W)
+    n = points.transpose(2, 0, 1) * inside  # (3, H, W)
     shade = np.clip(np.einsum("kc,chw->khw", lights, n), 0, None) * inside  # (K, H, W)
     images = np.repeat(shade[:, None], 3, axis=1) * np.array([0.8, 0.5, 0.3])[None, :, None, None]
     return (torch.from_numpy(images).float(), torch.from_numpy(inside[None].astype(np.float32)),

@@ -14,7 +14,7 @@ from unips.checkpoint import save_checkpoint
 from unips.inference import DEFAULT_TTA, check_tta, model_normals
 from unips.models import create_model
 
-from test_train import ellipsoid_normals, lambertian, random_lights
+from fixtures import ellipsoid_normals, lambertian, random_lights
 
 
 def _matrices(views) -> list[np.ndarray]:

@@ -14,6 +14,7 @@ import pytest
 
 from unips.data import PSObject, find_objects, load_ground_truth, load_object
 from conftest import write_synthetic_object
+from fixtures import cone_lights, shading, sphere
 from scenes.objfolder import (angular_error_deg, mean_angular_error, read_normals, write_normal_exr,
                               write_normal_map, write_normal_visual)
 from unips.preprocess import prepare, resize_prepared, uncrop
@@ -22,31 +23,9 @@ SHARED = Path(__file__).resolve().parents[2] / "shared"
 ALBEDO = np.array([0.9, 0.6, 0.3])
 
 
-def sphere(size: int = 32, pad: int = 2, center: tuple[float, float] | None = None):
-    """Unit normals (x right, y up, z to camera) of a sphere filling the image, and its mask."""
-    cy, cx = center if center is not None else (size / 2, size / 2)
-    rows, cols = np.mgrid[0:size, 0:size]
-    r = size / 2 - pad
-    x = (cols + 0.5 - cx) / r
-    y = -(rows + 0.5 - cy) / r  # image rows grow downward, y grows upward
-    mask = x * x + y * y < 1.0
-    n = np.zeros((size, size, 3))
-    n[..., 0], n[..., 1] = x, y
-    n[..., 2] = np.sqrt(np.clip(1.0 - x * x - y * y, 0.0, None))
-    n[~mask] = 0.0
-    return n, mask
-
-
-def lights(k: int, seed: int = 0, max_deg: float = 40.0) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    th = np.radians(rng.uniform(5.0, max_deg, k))
-    ph = rng.uniform(0.0, 2.0 * np.pi, k)
-    return np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], axis=1)
-
-
 def render(n: np.ndarray, mask: np.ndarray, L: np.ndarray, intensities: np.ndarray | None = None) -> np.ndarray:
     """(K, H, W, 3) Lambertian images in [0, 1): albedo * intensity * max(0, n . l)."""
-    shade = np.clip(np.einsum("hwc,kc->khw", n, L), 0.0, None)
+    shade = shading(n, L)
     inten = np.ones((len(L), 3)) if intensities is None else intensities
     img = 0.9 * shade[..., None] * ALBEDO * inten[:, None, None, :]
     img[:, ~mask] = 0.0
@@ -63,7 +42,7 @@ def write_mask(path: Path, mask: np.ndarray) -> None:
 
 def write_ours(folder: Path, k: int = 6, size: int = 32, other: int = 0, seed: int = 0):
     n, mask = sphere(size)
-    L = lights(k, seed)
+    L = cone_lights(k, seed)
     irr = np.linspace(0.8, 1.1, k)[:, None] * np.array([1.0, 0.95, 0.9])
     imgs = render(n, mask, L, irr)
     write_synthetic_object(folder, imgs, mask, n, directions=L, irradiance=irr, other=other)
@@ -75,7 +54,7 @@ def write_diligent(folder: Path, k: int = 6, size: int = 32, seed: int = 1, gt: 
 
     folder.mkdir(parents=True)
     n, mask = sphere(size)
-    L = lights(k, seed)
+    L = cone_lights(k, seed)
     inten = np.linspace(0.5, 0.9, k)[:, None] * np.array([1.0, 0.8, 0.6])
     imgs = render(n, mask, L, inten)
     names = [f"{i + 1:03d}.png" for i in range(k)]
@@ -145,7 +124,7 @@ def test_load_unips_layout_8bit_no_mask(tmp_path):
     folder = tmp_path / "u.data"
     folder.mkdir()
     n, mask = sphere(24)
-    imgs = render(n, mask, lights(4))
+    imgs = render(n, mask, cone_lights(4))
     for i, im in enumerate(imgs):
         assert cv2.imwrite(str(folder / f"L{i + 1}.png"), np.round(im * 255).astype(np.uint8)[..., ::-1])
     (folder / "L_notes.txt").write_text("not an image")
@@ -288,7 +267,7 @@ def test_real_diligent_ball_frame():
 
 
 def _object(n, mask, k=3) -> PSObject:
-    imgs = render(n, mask, lights(k)).astype(np.float32)
+    imgs = render(n, mask, cone_lights(k)).astype(np.float32)
     return PSObject(name="t", images=imgs, mask=mask, normals=n.astype(np.float32), light_family=None,
                     light_directions=None, light_intensities=None, path=Path("."), layout="test")
 

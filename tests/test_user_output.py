@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from test_unips_data import sphere
+from fixtures import sphere
 
 
 def _tilt(n: np.ndarray, deg: np.ndarray) -> np.ndarray:

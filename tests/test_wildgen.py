@@ -9,6 +9,8 @@ from typing import ClassVar
 import numpy as np
 import pytest
 
+from conftest import use_variant
+
 from wildgen.lighting import LIGHT_FAMILIES
 
 FAMILIES = list(LIGHT_FAMILIES)
@@ -23,10 +25,7 @@ def make(out: Path, *extra: str) -> int:
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory) -> Path:
-    from scenes.variant import _usable
-
-    if not _usable("llvm_ad_rgb"):
-        pytest.skip("llvm_ad_rgb is not usable")
+    use_variant("llvm_ad_rgb")
     out = tmp_path_factory.mktemp("ds") / "data"
     assert make(out, "--lights", ",".join(FAMILIES), "--seed", "7", "--variant", "llvm_ad_rgb") == 0
     return out
@@ -161,7 +160,7 @@ def test_bad_flags_one_line_error(tmp_path, capsys, args, needle):
     assert not list((tmp_path / "o").glob("*.data")) if (tmp_path / "o").exists() else True
 
 
-def test_bad_asset_folder_leaves_no_partial_object(tmp_path, capsys, llvm):
+def test_bad_asset_folder_leaves_no_partial_object(tmp_path, capsys, variant_llvm_ad_rgb):
     assets = tmp_path / "assets"
     (assets / "meshes").mkdir(parents=True)
     (assets / "meshes" / "broken.obj").write_text("v 0 0 0\nv 1 0 0\nf 1 2 7\n")
@@ -172,7 +171,7 @@ def test_bad_asset_folder_leaves_no_partial_object(tmp_path, capsys, llvm):
     assert not list(out.glob("*.data")) and not list(out.glob(".tmp-*"))
 
 
-def test_with_shared_assets(shared, tmp_path, llvm):
+def test_with_shared_assets(shared, tmp_path, variant_llvm_ad_rgb):
     out = tmp_path / "a"
     assert make(out, "--assets", str(shared / "assets"), "--lights", "hdri", "--shapes", "mesh", "--objects", "2", "--seed", "3") == 0
     for folder in sorted(out.glob("*.data")):

@@ -17,6 +17,8 @@ from pathlib import Path
 
 import pytest
 
+from conftest import use_variant
+
 REPO = Path(__file__).resolve().parents[1]
 N = 6
 SMALL = ["--lights", "directional,near_area,hdri,point", "--objects", str(N), "--images", "3", "--res", "32",
@@ -101,10 +103,7 @@ def freeze_a_busy_worker(out: Path, timeout: float = 120) -> str:
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory) -> Path:
     """An uninterrupted run with 2 worker processes."""
-    from scenes.variant import _usable
-
-    if not _usable("llvm_ad_rgb"):
-        pytest.skip("llvm_ad_rgb is not usable")
+    use_variant("llvm_ad_rgb")
     out = tmp_path_factory.mktemp("ref") / "data"
     r = cli(out, "--workers", "2")
     assert r.returncode == 0, r.stderr
@@ -206,7 +205,7 @@ def test_corrupt_and_missing_objects_are_rendered_again(reference, tmp_path):
     assert_same_dataset(reference, out)
 
 
-def test_other_config_in_the_folder_is_refused_unless_overwrite(tmp_path, capsys, llvm):
+def test_other_config_in_the_folder_is_refused_unless_overwrite(tmp_path, capsys, variant_llvm_ad_rgb):
     from wildgen.make import main
 
     out = tmp_path / "d"
@@ -294,7 +293,7 @@ print("done", done)
 
 
 @pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="needs /proc (Linux)")
-def test_worker_memory_stays_bounded_over_200_scenes(tmp_path, llvm):
+def test_worker_memory_stays_bounded_over_200_scenes(tmp_path, variant_llvm_ad_rgb):
     r = subprocess.run([sys.executable, "-c", RSS_SCRIPT, str(tmp_path)], cwd=REPO, capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     lines = dict(line.split() for line in r.stdout.strip().splitlines())
@@ -303,7 +302,7 @@ def test_worker_memory_stays_bounded_over_200_scenes(tmp_path, llvm):
     assert rss200 <= 1.25 * rss20, (rss20, rss200)
 
 
-def test_scene_build_order_does_not_depend_on_process_history(llvm):
+def test_scene_build_order_does_not_depend_on_process_history(variant_llvm_ad_rgb):
     """Same description, different allocation histories: the scene's shapes keep the description's order."""
     import mitsuba as mi
 
