@@ -24,7 +24,6 @@ checkpoint, every `--ckpt-every` steps and at the end), `final.safetensors` (+ .
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import logging
@@ -38,8 +37,7 @@ from typing import Any, Sequence
 
 import torch
 
-from scenes.config import config_parser
-from scenes.config import config_from_args as parse_config
+from scenes.config import Command
 from unips.train_config import TRAJECTORY_KEYS, TrainConfig
 from unips.train_data import (Batch, Sample, count_dataset_images, curriculum_pool, describe_data, load_samples,
                               make_batch, normal_loss, probe_samples, step_rng)
@@ -47,14 +45,12 @@ from unips.train_data import (Batch, Sample, count_dataset_images, curriculum_po
 log = logging.getLogger(__name__)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The CLI of `TrainConfig`: one flag per field, help from the field's docstring."""
-    return config_parser(TrainConfig, prog="python -m unips.train", description=__doc__.split("\n\n")[0])
+COMMAND = Command(TrainConfig, prog="python -m unips.train", description=__doc__.split("\n\n")[0])
 
 
-def config_from_args(args: argparse.Namespace) -> TrainConfig:
-    """The TrainConfig of parsed CLI arguments (validated)."""
-    cfg = parse_config(TrainConfig, args)
+def config_from_args(argv: Sequence[str] | None) -> TrainConfig:
+    """The TrainConfig of a command line (validated)."""
+    cfg = COMMAND.parse(argv)
     if "all" not in cfg.val_probes:
         cfg.val_probes = ["all", *cfg.val_probes]
     return cfg.validate()
@@ -197,7 +193,7 @@ def check_args(argv: Sequence[str]) -> TrainConfig:
     from scenes.cli import check_output_folder, check_threads
     from unips.models import list_models, load_model
 
-    cfg = config_from_args(build_parser().parse_args(argv))
+    cfg = config_from_args(argv)
     check_output_folder(cfg.out)
     check_threads(cfg.threads or None, "--threads")
     if cfg.init_from:
@@ -440,13 +436,13 @@ def _out_of_time(run: _Run, seconds: float) -> bool:
     return over
 
 
-def train(cfg: TrainConfig | argparse.Namespace) -> dict[str, Any]:
+def train(cfg: TrainConfig | Sequence[str]) -> dict[str, Any]:
     """Run training as configured; returns a summary dict."""
     from tqdm import tqdm
 
     from unips.checkpoint import save_checkpoint
 
-    if isinstance(cfg, argparse.Namespace):
+    if not isinstance(cfg, TrainConfig):  # a command line
         cfg = config_from_args(cfg)
     cfg.validate()
     check_run(cfg)
@@ -507,9 +503,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     from scenes.cli import INPUT_ERRORS, report_error
 
     try:
-        args = build_parser().parse_args(argv)
+        cfg = config_from_args(argv)
         logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-        summary = train(config_from_args(args))
+        summary = train(cfg)
     except INPUT_ERRORS as exc:
         return report_error(exc)
     except OSError as exc:  # e.g. a full disk while writing a checkpoint: one line naming the file
@@ -521,7 +517,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         msg += f", best validation mean angular error {summary['best_val']:.2f} deg"
     print(msg)
     best = ", best.safetensors (+ .json)" if summary.get("best_val") is not None else ""
-    print(f"wrote {Path(args.out) / 'final.safetensors'} (+ .json){best}, last.pt and log.jsonl")
+    print(f"wrote {Path(cfg.out) / 'final.safetensors'} (+ .json){best}, last.pt and log.jsonl")
     return 0
 
 
