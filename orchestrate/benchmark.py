@@ -20,21 +20,19 @@ Every model figure (probes included) uses the same ``--tta`` views (`unips.infer
 """
 from __future__ import annotations
 
-import argparse
 import json
 import logging
 import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 
 from scenes.cli import (INPUT_ERRORS, UsageError, check_memory, check_output_folder, check_threads, claim_outputs,
                         make_output_folder, report_error)
-from scenes.config import check_fields, config_parser, option
-from scenes.config import config_from_args as parse_config
+from scenes.config import Command, arg, check_fields, comma_list, option
 from scenes.objfolder import atomic_write_text, mean_angular_error
 from scenes.tables import markdown_table
 from unips.data import find_objects, load_object
@@ -309,7 +307,7 @@ class BenchmarkOptions:
 
     data: str | None = None
     """Held-out synthetic dataset directory (object folders with normal.tif)."""
-    checkpoint: str | None = option(None, default_text="the shipped weights of unips.models.DEFAULT_MODEL")
+    checkpoint: Annotated[str | None, arg(help_behavior_hint="(default: the shipped weights of unips.models.DEFAULT_MODEL)")] = None
     """Model file."""
     ablation_checkpoint: str | None = None
     """Weights of the same model trained with uniform contexts (the ablation column)."""
@@ -317,7 +315,7 @@ class BenchmarkOptions:
     """Folder with ballPNG/ and catPNG/ (DiLiGenT)."""
     images: int = option(10, minimum=1)
     """Images per synthetic object."""
-    counts: list[int] = option(default_factory=lambda: [1, 2, 4, 8, 16], minimum=1, metavar="K1,K2")
+    counts: Annotated[list[int], comma_list(int), arg(metavar="K1,K2")] = option(default_factory=lambda: [1, 2, 4, 8, 16], minimum=1)
     """Image counts of the error-vs-K table."""
     diligent_images: int = option(96, minimum=1)
     """Images per DiLiGenT object."""
@@ -329,13 +327,13 @@ class BenchmarkOptions:
     """Seed of the DiLiGenT subsets and the shuffled probe."""
     rerender_objects: int = option(10, minimum=0)
     """Objects re-rendered per method (0: none)."""
-    rerender_spp: int | None = option(None, minimum=1, default_text="the recorded spp")
+    rerender_spp: Annotated[int | None, arg(help_behavior_hint="(default: the recorded spp)")] = option(None, minimum=1)
     """Samples per pixel of the re-render."""
     variant: str | None = None
     """Mitsuba variant for the re-render check."""
     threads: int | None = option(None, minimum=1)
     """Torch / Dr.Jit threads."""
-    tta: int = option(DEFAULT_TTA, choices=TTA_VIEWS)
+    tta: Literal[TTA_VIEWS] = DEFAULT_TTA
     """Views averaged by the model (flips and transposes)."""
     out: str = "benchmark_out"
     """Output folder: tables.md and benchmark.json."""
@@ -367,7 +365,7 @@ def check_args(argv: list[str]) -> BenchmarkOptions:
     """What can be checked of a benchmark command line before its synthetic data and checkpoint exist
     (orchestrate.train_recipe checks its benchmark step with this before rendering and training): the flags,
     --out, and the DiLiGenT objects; writes nothing."""
-    args = parse_config(BenchmarkOptions, build_parser().parse_args(argv)).validate()
+    args = COMMAND.parse(argv).validate()
     check_inputs(args, data=False)
     return args
 
@@ -417,15 +415,13 @@ def diligent_folders(root: Path) -> list[Path]:
     return folders
 
 
-def build_parser() -> argparse.ArgumentParser:
-    return config_parser(BenchmarkOptions, prog="python -m orchestrate.benchmark",
-                         description="Evaluation tables: per light family, vs image count, re-render residuals, DiLiGenT.")
+COMMAND = Command(BenchmarkOptions, prog="python -m orchestrate.benchmark", description="Evaluation tables: per light family, vs image count, re-render residuals, DiLiGenT.")
 
 
 def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     try:
-        args = parse_config(BenchmarkOptions, build_parser().parse_args(argv)).validate()
+        args = COMMAND.parse(argv).validate()
         check_inputs(args)
         counts = args.counts
         import torch

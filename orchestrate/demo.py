@@ -17,7 +17,8 @@ replaced only with --overwrite.
 """
 from __future__ import annotations
 
-import argparse
+from typing import Annotated, Literal
+
 import json
 import sys
 from dataclasses import dataclass
@@ -27,8 +28,7 @@ from orchestrate.steps import StepFailed, check_step, run_step
 from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, claim_outputs, report_error
 from scenes.objfolder import atomic_write_text
 from scenes.tables import markdown_table
-from scenes.config import check_fields, config_parser, option
-from scenes.config import config_from_args as parse_config
+from scenes.config import Command, arg, check_fields, option
 
 FAMILIES = "near_area,hdri,mixed,directional"
 
@@ -92,7 +92,7 @@ SUMMARY_COLUMNS = (
 class DemoOptions:
     """The command line of orchestrate.demo."""
 
-    out: Path = option(Path("demo_out"), parse=Path)
+    out: Path = Path("demo_out")
     """Output folder: data/, pred/, rerender/ and summary.md."""
     objects: int = option(4, minimum=1)
     """Objects to render."""
@@ -104,9 +104,9 @@ class DemoOptions:
     """Samples per pixel."""
     seed: int = option(0, minimum=0)
     """Dataset seed."""
-    checkpoint: Path | None = option(None, parse=Path, default_text="the shipped weights of unips.models.DEFAULT_MODEL")
+    checkpoint: Annotated[Path | None, arg(help_behavior_hint="(default: the shipped weights of unips.models.DEFAULT_MODEL)")] = None
     """Model file."""
-    baseline: str = option("sh-uncalibrated", choices=("sh-uncalibrated", "least-squares"))
+    baseline: Literal["sh-uncalibrated", "least-squares"] = "sh-uncalibrated"
     """Classical baseline to compare with (least-squares needs directional lights only)."""
     overwrite: bool = False
     """Replace the output of an earlier demo in --out: every step replaces its own files (the dataset is rendered
@@ -161,14 +161,13 @@ def check_steps(args: DemoOptions) -> None:
         check_step("validate.rerender", rerender_argv(args, m))
 
 
-def build_parser() -> argparse.ArgumentParser:
-    return config_parser(DemoOptions, prog="python -m orchestrate.demo", description=__doc__.split("\n\n")[0])
+COMMAND = Command(DemoOptions, prog="python -m orchestrate.demo", description=__doc__.split("\n\n")[0])
 
 
 def main(argv: list[str] | None = None) -> int:
     """A failed step is one line naming the step and its own error (`orchestrate.steps`), exit status its own."""
     try:
-        args = parse_config(DemoOptions, build_parser().parse_args(argv)).validate()
+        args = COMMAND.parse(argv).validate()
         check_steps(args)
         return demo(args)
     except StepFailed as exc:

@@ -9,13 +9,13 @@ A generated block lies between two markers, NAME being one of `BLOCKS` or `flags
     ...
     <!-- END generated:NAME -->
 
-Flag tables come from each CLI's `build_parser()`, imported at run time (so a changed parser changes the
-docs on the next run); result tables come from `unips/weights/model_card.json`, the record of the shipped
+Flag tables come from each CLI's `COMMAND` (tyro's argparse form of its command line), imported at run time
+(so a changed config changes the docs on the next run); result tables come from `unips/weights/model_card.json`, the record of the shipped
 model. Everything outside the markers is written by hand and left alone.
 """
 from __future__ import annotations
 
-import argparse
+from dataclasses import dataclass
 import importlib
 import json
 import re
@@ -23,14 +23,15 @@ import sys
 from pathlib import Path
 from typing import Any, Callable
 
-from scenes.cli import UsageError, UsageErrorParser, report_error
+from scenes.cli import UsageError, report_error
+from scenes.config import Command
 from scenes.tables import markdown_table
 
 REPO = Path(__file__).resolve().parents[1]
 CARD = REPO / "unips" / "weights" / "model_card.json"
 
 # Every command-line entry point of the packages, in the order a reader meets them. Each module has a
-# `build_parser()`; each needs a `flags:MODULE` block somewhere in the docs (checked).
+# `COMMAND` (`scenes.config.Command`); each needs a `flags:MODULE` block somewhere in the docs (checked).
 CLIS = (
     "wildgen.make",
     "wildgen.preview",
@@ -67,84 +68,20 @@ def _cell(text: str) -> str:
     return " ".join(words).replace("|", "\\|")
 
 
-# "(default: X)" or "(default X)" in a help text, X without unbalanced parentheses.
-_DEFAULT_IN_HELP = re.compile(r"\s*\(default:?\s+((?:[^()]|\([^()]*\))*)\)")
-
-
-def help_text(parser: argparse.ArgumentParser, action: argparse.Action) -> str:
-    """The help of `action` exactly as `--help` prints it (placeholders expanded), on one line."""
-    formatter = parser._get_formatter()
-    return " ".join(formatter._expand_help(action).split()) if action.help else ""
-
-
-def format_default(value: Any) -> str:
-    """A parser default as the docs show it ('-' for none or an empty list)."""
-    if isinstance(value, (list, tuple)):
-        value = ",".join(str(v) for v in value)
-    return str(value) if value not in (None, "") else "-"
-
-
-def stated_defaults(text: str) -> list[str]:
-    """The defaults a help text states in '(default X)' / '(default: X)', 'None' left out (argparse's
-    ArgumentDefaultsHelpFormatter appends '(default: None)' after a help that already says what None means)."""
-    return [m.group(1).strip() for m in _DEFAULT_IN_HELP.finditer(text) if m.group(1).strip() != "None"]
-
-
-def flag_default(parser: argparse.ArgumentParser, action: argparse.Action) -> tuple[str, str]:
-    """(default cell, meaning cell) of one option: the default the parser holds, or the one its help states
-    when the parser's is None (computed at run time), or `required` / `off` (a switch). A '(default ...)'
-    of the help moves to the default cell; what it adds to the value stays in the meaning."""
-    text = help_text(parser, action)
-    if action.required or (not action.option_strings and action.nargs not in ("?", "*")):
-        return "required", text
-    if action.nargs == 0:  # store_true / store_false / count: a switch
-        return "off", text
-    default = format_default(action.default)
-    stated = stated_defaults(text)
-    if action.default is None and stated:
-        default = stated[0]
-    extra = []
-    for value in stated:
-        if value.removeprefix("./") == default.removeprefix("./"):
-            continue
-        if value.startswith(default):  # e.g. '5; 0 = none'
-            extra.append(value[len(default):].strip(" ;,"))
-        else:  # a help that states another default than the parser's: shown as it is (tests/test_docs.py fails)
-            extra.append("default " + value)
-    meaning = _DEFAULT_IN_HELP.sub("", text).strip()
-    if extra:
-        meaning += f" ({'; '.join(extra)})"
-    return default, meaning
-
-
-def _flag_table(parser: argparse.ArgumentParser, actions: list[argparse.Action]) -> str:
-    formatter = parser._get_formatter()
-    rows = []
-    for action in actions:
-        if isinstance(action, argparse._HelpAction) or action.help == argparse.SUPPRESS:
-            continue
-        default, meaning = flag_default(parser, action)
-        if action.choices is not None and not any(str(c) in meaning for c in action.choices):
-            meaning = (meaning + "; " if meaning else "") + "one of " + ", ".join(str(c) for c in action.choices)
-        invocation = formatter._format_action_invocation(action)
-        rows.append([f"`{invocation}`", f"`{default}`", _cell(meaning)])
-    return markdown_table(["flag", "default", "meaning"], rows)
-
-
 def flag_table(module: str) -> str:
-    """The flag table(s) of `module`'s parser (one table per argument group)."""
+    """The flag table(s) of `module`'s command line: its own options, then one table per nested config."""
     cli = importlib.import_module(module)
-    if not callable(getattr(cli, "build_parser", None)):
-        raise UsageError(f"generated:flags:{module}: {module} has no build_parser() returning its argparse parser")
-    parser = cli.build_parser()
+    if not isinstance(getattr(cli, "COMMAND", None), Command):
+        raise UsageError(f"generated:flags:{module}: {module} has no COMMAND (scenes.config.Command)")
+    groups: dict[str, list] = {}
+    for flag in cli.COMMAND.options():
+        groups.setdefault(flag.group, []).append(flag)
     out: list[str] = []
-    groups = [g for g in parser._action_groups if any(not isinstance(a, argparse._HelpAction) for a in g._group_actions)]
-    ungrouped = [a for g in groups if g.title in ("positional arguments", "options", "optional arguments") for a in g._group_actions]
-    out.append(_flag_table(parser, ungrouped))
-    for g in groups:
-        if g.title in ("positional arguments", "options", "optional arguments"):
-            continue
-        out += ["", f"{_cell(g.title[0].upper() + g.title[1:])}:", "", _flag_table(parser, g._group_actions)]
+    for group, flags in groups.items():
+        if group:
+            out += ["", f"{group.replace('_', ' ').capitalize()} options:", ""]
+        rows = [[f"`{f.invocation.replace('{None}|', '')}`", f"`{f.default}`", _cell(f.meaning)] for f in flags]
+        out.append(markdown_table(["flag", "default", "meaning"], rows))
     return "\n".join(out)
 
 
@@ -427,16 +364,21 @@ def run(check: bool, root: Path = REPO) -> list[Path]:
     return list(changed)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = UsageErrorParser(prog="python -m orchestrate.docs",
-                         description="Rewrite the generated blocks (flag and result tables) of README.md and docs/*.md.")
-    p.add_argument("--check", action="store_true", help="change nothing; exit 1 when a file is out of date")
-    return p
+@dataclass
+class DocsOptions:
+    """The command line of orchestrate.docs."""
+
+    check: bool = False
+    """Change nothing; exit 1 when a file is out of date."""
+
+
+COMMAND = Command(DocsOptions, prog="python -m orchestrate.docs",
+                  description="Rewrite the generated blocks (flag and result tables) of README.md and docs/*.md.")
 
 
 def main(argv: list[str] | None = None) -> int:
     try:
-        args = build_parser().parse_args(argv)
+        args = COMMAND.parse(argv)
         stale = run(args.check)
     except (UsageError, OSError, ValueError) as exc:
         return report_error(exc)

@@ -23,7 +23,8 @@ model_card.json, summary.json. Mitsuba and Dr.Jit travel as `--pack`'s site.tar.
 """
 from __future__ import annotations
 
-import argparse
+from typing import Literal
+
 import json
 import math
 import os
@@ -38,8 +39,7 @@ from pathlib import Path
 
 from orchestrate.steps import StepFailed, check_step, run_step
 from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, report_error
-from scenes.config import check_fields, config_parser, option
-from scenes.config import config_from_args as parse_config
+from scenes.config import Command, check_fields, option
 from scenes.objfolder import atomic_write_text
 
 REPO = Path(__file__).resolve().parents[1]
@@ -76,9 +76,9 @@ class SessionOptions:
     """Samples per pixel of the images."""
     seed: int = option(5000, minimum=0)
     """Seed of the dataset (object i draws from (seed, i))."""
-    variant: str = option("auto", choices=("auto", "cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb"))
+    variant: Literal["auto", "cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb"] = "auto"
     """Render variant; auto: cuda_ad_rgb when it runs here, else llvm_ad_rgb (else scalar_rgb, with a warning)."""
-    check_variant: str = option("auto", choices=("auto", "none", "cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb"))
+    check_variant: Literal["auto", "none", "cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb"] = "auto"
     """Variant of the check's second render; auto: llvm_ad_rgb when it runs here, else scalar_rgb; none: no check."""
     check_objects: int = option(3, minimum=1)
     """Objects rendered again for the check."""
@@ -97,7 +97,7 @@ class SessionOptions:
     """Steps between records of the learning curve."""
     ckpt_minutes: float = option(2.0, above=0)
     """Minutes between saves of run/last.pt in --out."""
-    device: str = option("auto", choices=("auto", "cuda", "cpu"))
+    device: Literal["auto", "cuda", "cpu"] = "auto"
     """Training device; auto: cuda when torch sees a GPU. On cuda the forward pass runs under bf16 autocast."""
     overwrite: bool = False
     """Replace an earlier session's dataset, shards and run in --work / --out."""
@@ -395,15 +395,13 @@ def _write_card(opts: SessionOptions, out: Path, run: Path, records: list[dict],
             "curve_points": len(records), "files_over_16_mib": big, "options": asdict(opts)}
 
 
-def build_parser() -> argparse.ArgumentParser:
-    return config_parser(SessionOptions, prog="python -m orchestrate.gpu_session", description=__doc__,
-                         formatter_class=argparse.RawDescriptionHelpFormatter)
+COMMAND = Command(SessionOptions, prog="python -m orchestrate.gpu_session", description=__doc__)
 
 
 def main(argv: list[str] | None = None) -> int:
     t0 = time.time()
     try:
-        opts = parse_config(SessionOptions, build_parser().parse_args(argv)).validate()
+        opts = COMMAND.parse(argv).validate()
         if opts.pack is not None:
             pack(Path(opts.pack), Path(opts.wheels))
             return 0

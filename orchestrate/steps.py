@@ -31,13 +31,13 @@ class StepFailed(UsageError):
 
 def check_step(module: str, argv: list[str]) -> Any:
     """Check the command line `argv` of step `module` (`python -m module argv`) without running it: the module's
-    `check_args(argv)` where it has one, else its parser. Raises the step's own one-line error (UsageError /
+    `check_args(argv)` where it has one, else its command line (`COMMAND.parse`). Raises the step's own one-line error (UsageError /
     ValueError / FileNotFoundError) prefixed with the step's name."""
     mod = importlib.import_module(module)
     try:
         if hasattr(mod, "check_args"):
             return mod.check_args(argv)
-        return mod.build_parser().parse_args(argv)
+        return mod.COMMAND.parse(argv)
     except (UsageError, ValueError, FileNotFoundError) as exc:
         raise UsageError(f"step {module}: {exc}") from None
 

@@ -28,7 +28,8 @@ first step runs, and a failed step is reported as one line (`orchestrate.steps`)
 """
 from __future__ import annotations
 
-import argparse
+from typing import Annotated
+
 import json
 import math
 import os
@@ -42,8 +43,7 @@ from pathlib import Path
 from orchestrate.steps import StepFailed, check_step, run_step
 from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, report_error
 from scenes.objfolder import atomic_write, atomic_write_text
-from scenes.config import check_fields, config_parser, option
-from scenes.config import config_from_args as parse_config
+from scenes.config import Command, REQUIRED, arg, check_fields, comma_list, option
 from wildgen.lighting import PS_WILD_FAMILIES
 
 REPO = Path(__file__).resolve().parents[1]
@@ -187,15 +187,15 @@ def train_run(py: str, work: Path, name: str, args: RecipeOptions, extra: list[s
 class RecipeOptions:
     """The command line of orchestrate.train_recipe."""
 
-    work: str = option("", required=True)
+    work: str = REQUIRED
     """Working folder (datasets, runs, benchmark output)."""
-    assets: str | None = option(None, default_text="../shared/assets when it exists")
+    assets: Annotated[str | None, arg(help_behavior_hint="(default: ../shared/assets when it exists)")] = None
     """Asset folder, split into train / held-out assets."""
     model: str = "glc-small"
     """Registered model trained from scratch (`unips.models.list_models()`)."""
     init_from: str | None = None
     """Weights to continue from (weights only; e.g. unips/weights/...)."""
-    train_seed: list[int] = option(default_factory=lambda: [5000], minimum=0, metavar="SEED[,SEED...]")
+    train_seed: Annotated[list[int], comma_list(int), arg(metavar="SEED[,SEED...]")] = option(default_factory=lambda: [5000], minimum=0)
     """Seed of the training data (new seed: fresh data); several, comma-separated: one set each, pooled."""
     train_objects: int = option(800, minimum=1)
     """Objects per training set."""
@@ -248,15 +248,13 @@ def check_steps(args: RecipeOptions) -> bool:
     return check_split(assets, work, args.overwrite)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    return config_parser(RecipeOptions, prog="python -m orchestrate.train_recipe", description=__doc__,
-                         formatter_class=argparse.RawDescriptionHelpFormatter)
+COMMAND = Command(RecipeOptions, prog="python -m orchestrate.train_recipe", description=__doc__)
 
 
 def main(argv: list[str] | None = None) -> int:
     """A failed step is one line naming the step and its own error (`orchestrate.steps`), exit status its own."""
     try:
-        args = parse_config(RecipeOptions, build_parser().parse_args(argv)).validate()
+        args = COMMAND.parse(argv).validate()
         if args.assets is None and (SHARED / "assets").is_dir():
             args.assets = str(SHARED / "assets")
         split = check_steps(args)

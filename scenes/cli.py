@@ -17,7 +17,6 @@ Also here, so that every command applies them the same way before any work:
 """
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import time
@@ -205,13 +204,6 @@ def check_threads(threads: int | None, flag: str = "--threads", processes: int =
         raise UsageError(f"{flag}: got {threads}{per}, this machine lets this process start at most {limit} more "
                          f"threads; expected at most {max(1, limit // max(processes, 1))} (one per core is usually best: "
                          f"{os.cpu_count() or 1})")
-
-
-class UsageErrorParser(argparse.ArgumentParser):
-    """An ArgumentParser whose errors raise UsageError (one line) instead of printing the usage and exiting."""
-
-    def error(self, message: str) -> NoReturn:
-        raise UsageError(message)
 
 
 PLAIN_EVERY_S = 10.0

@@ -1,18 +1,18 @@
-"""Command lines generated from config dataclasses, and the one set of option checks every config uses.
+"""Command lines of config dataclasses, parsed by tyro, and the one set of option checks every config uses.
 
-A CLI describes its options as a dataclass: one field per option, its documentation the string literal
-under the field (an attribute docstring), its checks and command-line details in `option(...)`. A field
-whose default is another config dataclass is nested: its fields become flags of the same command line
-(a CLI that combines two configs, e.g. the re-render check and the scene fit). Then
+A CLI's options are a dataclass: one field per option, its help the string literal under the field (an
+attribute docstring), its default written once, in the dataclass. tyro turns the dataclass into the command
+line: a flag per field (`--max-pixels` for `max_pixels`), the fields of a nested config flattened into the same
+command line without a prefix, a pair of switches for a bool (`--floors` / `--no-floors`),
+the choices of a `Literal`. What tyro cannot read from the type is written in the annotation with the markers
+below (`CommaList`, `Repeatable`, `Positional`, `arg(metavar=...)`). Bounds and the choices of list items are
+`option(...)` metadata, checked by `check_fields` whether the config came from a command line or from code.
 
-    parser = config_parser(Options, prog="python -m pkg.cli", description="...")
-    opts = config_from_args(Options, parser.parse_args(argv))   # an Options instance, nested configs built
-    opts.validate()                                              # check_fields(self) + cross-field rules
+    COMMAND = Command(Options, prog="python -m pkg.cli", description="...")
+    opts = COMMAND.parse(argv).validate()      # a UsageError of one line on bad input, never a traceback
 
-`--help` shows every field's docstring and its default, so a default is written once, in the dataclass.
-Checks (`check_fields`, or `check_int` / `check_number` / `check_choice` on a single value) raise
-ValueError with one line naming the flag, the value and what was expected, e.g.
-`--steps: got 0, expected an integer >= 1`; `scenes.cli.report_error` prints it.
+Errors name the flag, the value and what was expected, e.g. `--steps: got 0, expected an integer >= 1`;
+`scenes.cli.report_error` prints them.
 """
 from __future__ import annotations
 
@@ -22,39 +22,94 @@ import dataclasses
 import inspect
 import math
 import numbers
+import re
 import textwrap
-from typing import Any, Callable, Iterable, Sequence
+import typing
+import warnings
+from typing import Any, Iterable, Literal, Sequence
+
+import tyro
+from tyro.constructors import PrimitiveConstructorSpec
 
 _KEY = "scenes.config"  # the dataclass-field metadata key of `option`
 
+# tyro's behaviour for every CLI: nested configs without a prefix (their flags are the command's own).
+MARKERS = (tyro.conf.OmitArgPrefixes,)
+
+REQUIRED: Any = tyro.MISSING
+"""The default of a field the command line must give (`--out`); a config built in code without it is refused
+by `check_fields`."""
+Positional = tyro.conf.Positional
+"""A positional argument instead of a flag."""
+UseAppendAction = tyro.conf.UseAppendAction
+"""A list flag given once per value (`--model-option a=1 --model-option b=2`), added to the default."""
+NotOnCommandLine = tyro.conf.Suppress
+"""A field that has no flag (set by the program, not the user)."""
+arg = tyro.conf.arg
+"""Per-field details: `arg(metavar="DIR")`, `arg(aliases=("-v",))`, `arg(help_behavior_hint="(default: ...)")`
+for a default that is computed at run time."""
+
+
+def _split(tokens: list[str], item: Any = str) -> list:
+    values = [v.strip() for token in tokens for v in token.split(",") if v.strip()]
+    try:
+        return [item(v) for v in values]
+    except ValueError:
+        raise ValueError(f"invalid value {','.join(tokens)!r}: expected {item.__name__} values separated by ','") \
+            from None
+
+
+def comma_list(item: Any = str, metavar: str = "A,B", container: type = list) -> PrimitiveConstructorSpec:
+    """A list option typed as one comma-separated value (`--lights near_area,hdri`)."""
+    return PrimitiveConstructorSpec(
+        nargs=1, metavar=metavar, instance_from_str=lambda tokens: container(_split(tokens, item)),
+        is_instance=lambda value: isinstance(value, (list, tuple)),
+        str_from_instance=lambda value: [",".join(map(str, value))])
+
+
+CommaList = comma_list()
+"""A list of strings typed as one comma-separated value."""
+
+
+class _Repeatable:
+    """Marker: the flag may be given several times, its values add up (the first use replaces the default)."""
+
+    def __repr__(self) -> str:
+        return "Repeatable"
+
+
+Repeatable = _Repeatable()
+
+
+def optional_value(const: str, metavar: str) -> PrimitiveConstructorSpec:
+    """A flag whose value may be left out (`--ray` means `--ray auto`)."""
+    def value(tokens: list) -> str:
+        token = tokens[0] if tokens else []  # tyro hands a flag given without its value over as [[]]
+        return token if isinstance(token, str) else (token[0] if token else const)
+
+    return PrimitiveConstructorSpec(nargs="?", metavar=metavar, instance_from_str=value,
+                                    is_instance=lambda value: value is None or isinstance(value, str),
+                                    str_from_instance=lambda value: [str(value)])
+
+
+def auto_is_none(metavar: str) -> PrimitiveConstructorSpec:
+    """A string option whose value `auto` stands for None (chosen at run time)."""
+    return PrimitiveConstructorSpec(nargs=1, metavar=metavar,
+                                    instance_from_str=lambda tokens: None if tokens[0] == "auto" else tokens[0],
+                                    is_instance=lambda value: value is None or isinstance(value, str),
+                                    str_from_instance=lambda value: ["auto" if value is None else str(value)])
+
 
 def option(default: Any = dataclasses.MISSING, *, default_factory: Any = dataclasses.MISSING,
-           flag: str | None = None, minimum: float | None = None, maximum: float | None = None,
-           above: float | None = None, below: float | None = None, choices: Sequence[Any] | None = None,
-           required: bool = False, positional: bool = False, cli: bool = True, sep: str | None = None,
-           repeat: bool = False, parse: Callable[[str], Any] | None = None, metavar: str | None = None,
-           default_text: str | None = None, expose: Sequence[str] | None = None,
-           group: str | None = None, short: str | None = None, argparse_kwargs: dict | None = None) -> Any:
-    """A dataclass field with its command-line details and checks.
+           minimum: float | None = None, maximum: float | None = None, above: float | None = None,
+           below: float | None = None, choices: Sequence[Any] | None = None) -> Any:
+    """A dataclass field with its checks (read by `check_fields`).
 
-    flag: the option name (default `--field-name`; a bool field whose default is True gets `--no-field-name`).
-    minimum / maximum: inclusive bounds; above / below: exclusive bounds (numbers are also checked finite).
-    choices: allowed values (of each element for a list). required / positional: as in argparse.
-    cli: False keeps the field off the command line. sep: a list option's values are split at `sep`
-    (default ','; '' keeps each value whole); repeat: the flag may be given several times, the values add up
-    (the first use replaces the default).
-    parse: converts the string the user typed (the default of a flag is shown as the dataclass default).
-    default_text: what `--help` says for the default instead of the value (e.g. "the recorded spp").
-    expose: for a nested config, the names of its fields that become flags (default: all of them).
-    group: the title of the `--help` section of the flag (of every flag of a nested config).
-    short: a one-letter alias such as "-v".
+    minimum / maximum: inclusive bounds; above / below: exclusive bounds (numbers are also checked finite);
+    choices: the allowed values of each element of a list (a single value's choices are its `Literal` type).
     """
-    meta = {"flag": flag, "minimum": minimum, "maximum": maximum, "above": above, "below": below,
-            "choices": tuple(choices) if choices is not None else None, "required": required,
-            "positional": positional, "cli": cli, "sep": sep,
-            "repeat": repeat, "parse": parse, "metavar": metavar, "default_text": default_text,
-            "expose": tuple(expose) if expose is not None else None, "group": group, "short": short,
-            "argparse": dict(argparse_kwargs or {})}
+    meta = {"minimum": minimum, "maximum": maximum, "above": above, "below": below,
+            "choices": tuple(choices) if choices is not None else None}
     kwargs: dict[str, Any] = {"metadata": {_KEY: meta}}
     if default_factory is not dataclasses.MISSING:
         kwargs["default_factory"] = default_factory
@@ -63,19 +118,25 @@ def option(default: Any = dataclasses.MISSING, *, default_factory: Any = datacla
     return dataclasses.field(**kwargs)
 
 
-def _meta(f: dataclasses.Field) -> dict:
-    return f.metadata.get(_KEY, {})
+# ---------------------------------------------------------------- types of the fields
 
 
-def flag_name(f: dataclasses.Field) -> str:
-    """The command-line name of a field (`--out`, `--no-floors`, or the positional's name)."""
-    meta = _meta(f)
-    if meta.get("flag"):
-        return meta["flag"]
-    if meta.get("positional"):
-        return f.name.upper()
-    name = f.name.replace("_", "-")
-    return f"--no-{name}" if _base_type(f) == "bool" and _default(f) is True else f"--{name}"
+def _hints(cls: type) -> dict[str, Any]:
+    return typing.get_type_hints(cls, include_extras=True)
+
+
+def _strip(tp: Any) -> tuple[Any, tuple]:
+    """(the type without Annotated and None, the Annotated metadata)."""
+    extras: tuple = ()
+    while typing.get_origin(tp) is typing.Annotated:
+        extras += tuple(tp.__metadata__)
+        tp = typing.get_args(tp)[0]
+    if typing.get_origin(tp) in (typing.Union, getattr(__import__("types"), "UnionType", None)):
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        if len(args) == 1:
+            inner, more = _strip(args[0])
+            return inner, extras + more
+    return tp, extras
 
 
 def _default(f: dataclasses.Field) -> Any:
@@ -86,23 +147,23 @@ def _default(f: dataclasses.Field) -> Any:
     return None
 
 
-def _base_type(f: dataclasses.Field) -> str:
-    """'int', 'float', 'str', 'bool', 'list' (of str) or 'nested' (a config dataclass), from the annotation."""
-    if dataclasses.is_dataclass(_default(f)):
-        return "nested"
-    text = f.type if isinstance(f.type, str) else getattr(f.type, "__name__", str(f.type))
-    parts = [p.strip() for p in text.split("|") if p.strip() != "None"]
-    base = parts[0] if parts else "str"
-    if base.startswith(("list", "tuple", "Sequence")):
-        return "list"
-    return base if base in ("int", "float", "bool") else "str"
+def _is_nested(tp: Any) -> bool:
+    return dataclasses.is_dataclass(tp) and isinstance(tp, type)
 
 
-def _item_type(f: dataclasses.Field) -> str:
-    """'int', 'float' or 'str': the element type of a list field (from its annotation)."""
-    text = f.type if isinstance(f.type, str) else str(f.type)
-    inner = text[text.find("[") + 1:] if "[" in text else ""
-    return next((t for t in ("int", "float") if inner.startswith(t)), "str")
+def on_command_line(cls: type, f: dataclasses.Field) -> bool:
+    _, extras = _strip(_hints(cls)[f.name])
+    return not any(e is NotOnCommandLine or "Suppress" in repr(e) for e in extras)
+
+
+def flag_name(cls: type, f: dataclasses.Field) -> str:
+    """The command-line name of a field (`--out`, or a positional's metavar)."""
+    tp, extras = _strip(_hints(cls)[f.name])
+    confs = [e for e in extras if type(e).__name__ == "_ArgConfig"]
+    if any("Positional" in repr(e) for e in extras):
+        return next((c.metavar for c in confs if c.metavar), f.name.upper())
+    name = next((c.name for c in confs if c.name), f.name)
+    return f"--{name.replace('_', '-')}"
 
 
 def field_docs(cls: type) -> dict[str, str]:
@@ -126,29 +187,13 @@ def field_docs(cls: type) -> dict[str, str]:
 
 def undocumented_fields(cls: type) -> list[str]:
     """Fields of `cls` and of its nested configs without a docstring (a test keeps this empty)."""
-    docs = field_docs(cls)
+    docs, hints = field_docs(cls), _hints(cls)
     missing = [f"{cls.__name__}.{f.name}" for f in dataclasses.fields(cls) if f.name not in docs]
     for f in dataclasses.fields(cls):
-        if _base_type(f) == "nested":
-            missing += undocumented_fields(type(_default(f)))
+        tp, _ = _strip(hints[f.name])
+        if _is_nested(tp):
+            missing += undocumented_fields(tp)
     return missing
-
-
-def flagged_fields(cls: type, only: Sequence[str] | None = None) -> Iterable[tuple[dataclasses.Field, Any]]:
-    """(field, its default) of every field of `cls` that has a flag, the fields of nested configs included."""
-    for f in dataclasses.fields(cls):
-        meta = _meta(f)
-        if not meta.get("cli", True) or (only is not None and f.name not in only):
-            continue
-        if _base_type(f) == "nested":
-            yield from flagged_fields(type(_default(f)), meta.get("expose"))
-        else:
-            yield f, _default(f)
-
-
-def is_switch(f: dataclasses.Field) -> bool:
-    """A bool field: a flag without a value."""
-    return _base_type(f) == "bool"
 
 
 # ---------------------------------------------------------------- checks
@@ -202,27 +247,37 @@ def check_choice(value: Any, name: str, choices: Iterable[Any]) -> Any:
 
 
 def check_fields(cfg: Any) -> Any:
-    """Check every field of a config against its annotation and `option` bounds and choices (None passes
-    where the annotation allows it); nested configs are checked by their own `validate`. Returns `cfg`."""
+    """Check every field of a config against its type and `option` bounds and choices (None passes where the
+    type allows it); nested configs are checked by their own `validate`. Returns `cfg`."""
+    cls, hints = type(cfg), _hints(type(cfg))
     for f in dataclasses.fields(cfg):
-        meta, kind, value = _meta(f), _base_type(f), getattr(cfg, f.name)
-        name = flag_name(f)
-        optional = isinstance(f.type, str) and "None" in f.type
-        if value is None and optional or kind == "nested":
+        tp, _ = _strip(hints[f.name])
+        meta, value, name = f.metadata.get(_KEY, {}), getattr(cfg, f.name), flag_name(cls, f)
+        if value is tyro.MISSING:
+            raise ValueError(f"{name}: required")
+        optional = type(None) in typing.get_args(typing.get_args(hints[f.name])[0]
+                                                 if typing.get_origin(hints[f.name]) is typing.Annotated
+                                                 else hints[f.name])
+        if (value is None and optional) or _is_nested(tp):
             continue
         bounds = {k: meta.get(k) for k in ("minimum", "maximum")}
-        if kind == "int":
+        origin = typing.get_origin(tp)
+        if tp is int:
             check_int(value, name, **bounds)
-        elif kind == "float":
+        elif tp is float:
             check_number(value, name, **bounds, above=meta.get("above"), below=meta.get("below"))
-        elif kind == "bool" and not isinstance(value, bool):
+        elif tp is bool and not isinstance(value, bool):
             raise ValueError(f"{name}: got {value!r}, expected true or false")
-        elif kind == "list" and _item_type(f) != "str":
-            check = check_int if _item_type(f) == "int" else check_number
-            for v in value:
-                check(v, name, **bounds)
+        elif origin is Literal:
+            check_choice(value, name, typing.get_args(tp))
+        elif origin in (list, tuple):
+            item = typing.get_args(tp)[0] if typing.get_args(tp) else str
+            if item in (int, float):
+                check = check_int if item is int else check_number
+                for v in value:
+                    check(v, name, **bounds)
         if meta.get("choices") is not None:
-            for v in (value if kind == "list" else [value]):
+            for v in (value if origin in (list, tuple) else [value]):
                 check_choice(v, name, meta["choices"])
     return cfg
 
@@ -241,134 +296,171 @@ def parse_range(text: Any, name: str, minimum: float, maximum: float, what: str,
     return tuple(vals)
 
 
-# ---------------------------------------------------------------- parser
+# ---------------------------------------------------------------- the command line
 
 
-class _CommaList(argparse.Action):
-    """A list option: each use gives values split at `sep`; the first use replaces the default."""
-
-    def __init__(self, *args: Any, sep: str = ",", repeat: bool = False, item: Callable[[str], Any] = str,
-                 **kwargs: Any) -> None:
-        self.sep, self.repeat, self.item = sep, repeat, item
-        super().__init__(*args, **kwargs)
-
-    def __call__(self, parser, namespace, values, option_string=None) -> None:
-        items = [v.strip() for v in (str(values).split(self.sep) if self.sep else [str(values)]) if v.strip()]
-        try:
-            items = [self.item(v) for v in items]
-        except ValueError:
-            raise argparse.ArgumentError(self, f"invalid value {values!r}: expected {self.item.__name__} values "
-                                               f"separated by {self.sep!r}") from None
-        current = getattr(namespace, self.dest, None)
-        if not self.repeat or current is self.default or current is None:
-            current = []
-        setattr(namespace, self.dest, [*current, *items] if items or self.repeat else [])
+def _flat_fields(cls: type) -> Iterable[tuple[type, dataclasses.Field]]:
+    """(owner class, field) of every field on the command line, the fields of nested configs included."""
+    hints = _hints(cls)
+    for f in dataclasses.fields(cls):
+        tp, _ = _strip(hints[f.name])
+        if not on_command_line(cls, f):
+            continue
+        if _is_nested(tp):
+            yield from _flat_fields(tp)
+        else:
+            yield cls, f
 
 
-def _show(value: Any) -> str:
+def _usage_message(event: Any) -> str:
+    """One line for a tyro parse error: the flag, the value and what was expected."""
+    from tyro import _errors
+
+    def flag(argument: Any) -> str:
+        if argument is None:
+            return "argument"
+        names = argument.lowered.name_or_flags
+        return names[-1] if names else argument.lowered.metavar or argument.field.intern_name
+
+    if isinstance(event, _errors.MissingArgs):
+        return "the following arguments are required: " + ", ".join(flag(a.arg) for a in event.missing_arguments)
+    if isinstance(event, _errors.UnrecognizedArgs):
+        return "unrecognized arguments: " + " ".join(event.tokens)
+    if isinstance(event, _errors.InvalidChoice):
+        return f"{flag(event.argument)}: got {event.value!r}, expected one of {', '.join(event.choices)}"
+    if isinstance(event, _errors.BadValue):
+        what = "expected a value" if event.offending_value is None else f"takes no value, got {event.offending_value!r}"
+        return f"{flag(event.argument)}: {what}"
+    if isinstance(event, _errors.InstantiationFailure):
+        message = " ".join(str(event.message).split())
+        union = re.match(r"no type matching (\S+) could be instantiated from \[(.*?)\]", message)
+        if union:  # a value of none of an optional field's types: say which value and what was expected
+            message = f"got {union.group(2)}, expected {union.group(1)}"
+        return f"{flag(event.argument)}: {message}" if event.argument is not None else message
+    return f"bad command line ({type(event).__name__})"
+
+
+@dataclasses.dataclass(frozen=True)
+class Flag:
+    """One option of a command line as the docs list it."""
+
+    group: str
+    """'' for the command's own options, else the field name of the nested config they belong to."""
+    invocation: str
+    """As `--help` shows it: `--out DIR`, `--floors, --no-floors`, or a positional's metavar."""
+    default: str
+    """`required`, `on` / `off` for a switch, the default value (lists comma-separated, `-` for none) or the
+    text of a default chosen at run time."""
+    meaning: str
+    """The field's docstring."""
+
+
+def _default_cell(f: dataclasses.Field, extras: tuple) -> str:
+    hint = next((e.help_behavior_hint for e in extras if getattr(e, "help_behavior_hint", None)), None)
+    value = _default(f)
+    if value is tyro.MISSING:
+        return "required"
+    if hint:
+        return re.sub(r"^\(default:?\s*(.*)\)$", r"\1", hint)
+    if isinstance(value, bool):
+        return "on" if value else "off"
     if isinstance(value, (list, tuple)):
-        return ",".join(map(str, value))
-    return str(value)
+        value = ",".join(map(str, value))
+    return "-" if value in (None, "") else str(value)
 
 
-def add_config_arguments(parser: argparse.ArgumentParser, cls: type,
-                         only: Sequence[str] | None = None, group: Any = None, seen: dict | None = None) -> None:
-    """Add one flag per field of `cls` (and of its nested configs) to `parser`, help from the docstrings."""
-    docs = field_docs(cls)
-    target = group if group is not None else parser
-    seen = {} if seen is None else seen
-    for f in dataclasses.fields(cls):
-        meta, kind = _meta(f), _base_type(f)
-        if not meta.get("cli", True) or (only is not None and f.name not in only):
-            continue
-        default = _default(f)
-        where = _group(parser, meta["group"]) if meta.get("group") else target
-        if kind == "nested":
-            add_config_arguments(parser, type(default), meta.get("expose"), where, seen)
-            continue
-        if f.name in seen:
-            raise ValueError(f"{cls.__name__}.{f.name}: the option is defined twice ({seen[f.name]})")
-        seen[f.name] = cls.__name__
-        name = flag_name(f)
-        help_text = docs.get(f.name, "").replace("%", "%%")  # argparse expands %(...)s in help texts
-        kwargs: dict[str, Any] = {"help": help_text}
-        empty = default is None or default is False or (isinstance(default, (str, list, tuple)) and not default)
-        shown = meta.get("default_text") or (None if empty else _show(default))
-        if kind == "bool":
-            kwargs["action"] = "store_false" if default is True else "store_true"
-            if default is True and not meta.get("flag"):  # --no-<field>: the docstring says what the field turns on
-                kwargs["help"] = f"Switch off (on by default): {help_text[:1].lower()}{help_text[1:]}"
-        else:
-            if kind == "list":
-                kwargs.update(action=_CommaList, sep="," if meta.get("sep") is None else meta["sep"],
-                              item={"int": int, "float": float}.get(_item_type(f), str), repeat=meta.get("repeat", False),
-                              default=list(default) if default is not None else None)
-                kwargs["metavar"] = meta.get("metavar") or "A,B"
-                if meta.get("choices"):
-                    kwargs["help"] = f"{help_text} (from: {', '.join(map(str, meta['choices']))})"
+@dataclasses.dataclass(frozen=True)
+class Command:
+    """A command line: the config dataclass it fills, how it is called and what it does (one line)."""
+
+    config: type
+    prog: str
+    description: str
+
+    def parse(self, argv: Sequence[str] | None = None) -> Any:
+        """The config of `argv` (not validated: call its `validate()`); a bad command line is a UsageError of
+        one line. `--help` prints tyro's help and exits 0."""
+        import sys
+
+        from tyro import _errors
+
+        from scenes.cli import UsageError
+
+        def refuse(event: Any) -> None:
+            raise UsageError(_usage_message(event))
+
+        argv = list(sys.argv[1:] if argv is None else argv)
+        with _errors.on_parse_error(refuse):
+            return tyro.cli(self.config, args=self._join_repeated(argv), prog=self.prog,
+                            description=self.description, config=MARKERS)
+
+    def parser(self) -> argparse.ArgumentParser:
+        """tyro's argparse form of the command line (the flags, their help and groups), for the generated docs."""
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            return tyro.extras.get_parser(self.config, prog=self.prog, description=self.description,
+                                          config=MARKERS)
+
+    def help(self) -> str:
+        """What `--help` prints."""
+        import contextlib
+        import io
+
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out), contextlib.suppress(SystemExit):
+            tyro.cli(self.config, args=["--help"], prog=self.prog, description=self.description, config=MARKERS)
+        return out.getvalue()
+
+    def options(self) -> list[Flag]:
+        """Every option of the command line, in `--help`'s order, as the docs list them."""
+        parser = self.parser()
+        fields = {}
+        for owner, f in _flat_fields(self.config):
+            fields[f.name] = (owner, f)
+        groups = {f.name for f in dataclasses.fields(self.config) if _is_nested(_strip(_hints(self.config)[f.name])[0])}
+        out = []
+        for action in parser._actions:
+            if action.dest == "help":
+                continue
+            *prefix, name = action.dest.split(".")
+            owner, f = fields[name.replace("-", "_")]
+            extras = _strip(_hints(owner)[f.name])[1]
+            metavar = f" {action.metavar}" if action.metavar and action.option_strings and action.nargs != 0 else ""
+            if action.nargs == "?" and metavar:
+                metavar = f" [{action.metavar}]"
+            invocation = ", ".join(action.option_strings) + metavar if action.option_strings else action.metavar
+            group = next((g for g in prefix if g in groups), prefix[0] if prefix else "")
+            out.append(Flag(group, invocation, _default_cell(f, extras), field_docs(owner).get(f.name, "")))
+        return out
+
+    def flags(self) -> dict[str, str]:
+        """Field name -> its flag, for every field on the command line."""
+        return {f.name: flag_name(owner, f) for owner, f in _flat_fields(self.config)}
+
+    def given(self, argv: Sequence[str] | None) -> set[str]:
+        """Names of the fields whose flags are on the command line `argv` (not left at their defaults)."""
+        by_flag = {flag: name for name, flag in self.flags().items() if flag.startswith("-")}
+        return {by_flag[t.split("=", 1)[0]] for t in (argv or []) if t.split("=", 1)[0] in by_flag}
+
+    def _join_repeated(self, argv: list[str]) -> list[str]:
+        """A `Repeatable` flag given several times becomes one comma-separated value (its uses add up)."""
+        repeat = {flag_name(owner, f) for owner, f in _flat_fields(self.config)
+                  if Repeatable in _strip(_hints(owner)[f.name])[1]}
+        out: list[str] = []
+        seen: dict[str, int] = {}
+        i = 0
+        while i < len(argv):
+            token = argv[i]
+            name, eq, value = token.partition("=")
+            if name in repeat and (eq or i + 1 < len(argv)):
+                if not eq:
+                    value, i = argv[i + 1], i + 1
+                if name in seen:
+                    out[seen[name]] += "," + value
+                else:
+                    out += [name, value]
+                    seen[name] = len(out) - 1
             else:
-                kwargs["type"] = meta.get("parse") or {"int": int, "float": float}.get(kind, str)
-                kwargs["default"] = default
-                choices = meta.get("choices")
-                kwargs["metavar"] = meta.get("metavar") or ("{" + ",".join(map(str, choices)) + "}" if choices
-                                                            else None)
-            if meta.get("required"):
-                kwargs["required"] = True
-                shown = None
-            if shown is not None:
-                kwargs["help"] = f"{kwargs['help']} (default: {shown.replace('%', '%%')})"
-        if meta.get("positional"):
-            kwargs.pop("required", None)
-            kwargs["metavar"] = meta.get("metavar") or name
-            where.add_argument(f.name, **{**kwargs, **meta.get("argparse", {})})
-        else:
-            if kwargs.get("metavar") is None:
-                kwargs.pop("metavar", None)
-            names = [meta["short"], name] if meta.get("short") else [name]
-            where.add_argument(*names, dest=f.name, **{**kwargs, **meta.get("argparse", {})})
-
-
-def _group(parser: argparse.ArgumentParser, title: str) -> Any:
-    """The argument group of `parser` titled `title` (created at its first use)."""
-    for g in parser._action_groups:
-        if g.title == title:
-            return g
-    return parser.add_argument_group(title)
-
-
-def config_parser(cls: type, prog: str, description: str, **kwargs: Any) -> argparse.ArgumentParser:
-    """The command line of config dataclass `cls`: a `scenes.cli.UsageErrorParser` (errors raise UsageError,
-    one line) with one flag per field."""
-    from scenes.cli import UsageErrorParser
-
-    parser = UsageErrorParser(prog=prog, description=description, **kwargs)
-    add_config_arguments(parser, cls)
-    return parser
-
-
-def config_from_args(cls: type, args: argparse.Namespace) -> Any:
-    """An instance of `cls` (nested configs included) from parsed arguments; fields that are not on the
-    command line keep their defaults. Not validated: call its `validate()`."""
-    values = {}
-    for f in dataclasses.fields(cls):
-        meta, kind = _meta(f), _base_type(f)
-        if kind == "nested":
-            values[f.name] = config_from_args(type(_default(f)), args)
-            continue
-        if not meta.get("cli", True) or not hasattr(args, f.name):
-            continue
-        value = getattr(args, f.name)
-        if kind == "list" and value is not None and isinstance(_default(f), tuple):
-            value = tuple(value)
-        values[f.name] = value
-    return cls(**values)
-
-
-def given_flags(build_parser: Callable[[], argparse.ArgumentParser], argv: Sequence[str] | None) -> set[str]:
-    """Destinations of the options given on the command line (not defaulted): `argv` parsed again by a fresh
-    parser from `build_parser` whose defaults are all left unset."""
-    p = build_parser()
-    for action in p._actions:
-        action.default = argparse.SUPPRESS
-        action.required = False
-    return set(vars(p.parse_args(argv)))
+                out.append(token)
+            i += 1
+        return out

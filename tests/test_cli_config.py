@@ -1,15 +1,16 @@
-"""Every CLI is generated from its config dataclass (`scenes.config`): a flag per field, help from the field's
-docstring, defaults written once (in the dataclass), one set of option checks."""
+"""Every CLI is its config dataclass read by tyro (`scenes.config.Command`): a flag per field, help from the
+field's docstring, defaults written once (in the dataclass), one set of option checks, errors of one line."""
 from __future__ import annotations
 
-import argparse
+import dataclasses
 import importlib
+import typing
 
 import pytest
+import tyro
 
-from scenes.cli import UsageError, UsageErrorParser, check_output_folder, make_output_folder
-from scenes.config import (check_choice, check_int, check_number, config_from_args, flag_name, flagged_fields,
-                           given_flags, is_switch, undocumented_fields)
+from scenes.cli import UsageError, check_output_folder, make_output_folder
+from scenes.config import Command, check_choice, check_int, check_number, undocumented_fields
 
 # Each CLI module and the dataclass its command line is generated from.
 CLIS = {
@@ -29,25 +30,47 @@ CLIS = {
 }
 
 
+def _leaves(cls: type) -> dict[str, object]:
+    """Field name -> default of every non-nested field of `cls` and of its nested configs."""
+    out = {}
+    for f in dataclasses.fields(cls):
+        value = f.default if f.default is not dataclasses.MISSING else f.default_factory()
+        out.update(_leaves(type(value)) if dataclasses.is_dataclass(value) else {f.name: value})
+    return out
+
+
 @pytest.mark.parametrize("module", sorted(CLIS))
-def test_every_field_is_documented_and_is_a_flag_with_the_dataclass_default(module):
+def test_every_field_is_documented_and_the_empty_command_line_gives_the_dataclass_defaults(module):
     mod = importlib.import_module(module)
     cls = getattr(mod, CLIS[module])
     assert undocumented_fields(cls) == []
-    parser = mod.build_parser()
-    assert isinstance(parser, UsageErrorParser)  # errors are one line, never argparse's usage + exit
-    actions = {a.dest: a for a in parser._actions}
-    for f, default in flagged_fields(cls):
-        action = actions.get(f.name)
-        assert action is not None, f"{module}: {f.name} has no flag"
-        assert flag_name(f) in action.option_strings or not action.option_strings, (module, f.name)
-        if is_switch(f):
-            assert action.default is (default is True), (module, f.name)
-        elif isinstance(default, (list, tuple)):
-            assert list(action.default) == list(default), (module, f.name)
-        else:
-            assert action.default == default, (module, f.name)
-        assert action.help, (module, f.name)
+    assert isinstance(mod.COMMAND, Command) and mod.COMMAND.config is cls
+    required = [name for name, value in _leaves(cls).items() if value is tyro.MISSING]
+    if required:  # a command line without them is one UsageError naming each
+        with pytest.raises(UsageError, match="required: " + ".*".join("--" + n.replace("_", "-") for n in required)):
+            mod.COMMAND.parse([])
+    given = {n: _a_value(cls, n) for n in required}
+    parsed = _leaves_of(mod.COMMAND.parse([a for n, v in given.items() for a in ("--" + n.replace("_", "-"), v)]))
+    for name, value in _leaves(cls).items():
+        assert parsed[name] == value or str(parsed[name]) == given.get(name), (module, name)
+    flags = mod.COMMAND.flags()
+    assert all(flag.startswith("--") or flag.isupper() for flag in flags.values()), flags
+    for flag in flags.values():  # every flag is in --help
+        assert flag in mod.COMMAND.help() or flag.isupper(), (module, flag)
+
+
+def _a_value(cls: type, name: str) -> str:
+    """A value a required field accepts: its first choice when it has choices, else 'x'."""
+    hint = typing.get_type_hints(cls, include_extras=True)[name]
+    return str(typing.get_args(hint)[0]) if typing.get_origin(hint) is typing.Literal else "x"
+
+
+def _leaves_of(cfg) -> dict[str, object]:
+    out = {}
+    for f in dataclasses.fields(cfg):
+        value = getattr(cfg, f.name)
+        out.update(_leaves_of(value) if dataclasses.is_dataclass(value) else {f.name: value})
+    return out
 
 
 def test_rerender_and_refine_defaults_come_from_the_fit_config():
@@ -56,31 +79,38 @@ def test_rerender_and_refine_defaults_come_from_the_fit_config():
     from validate.fit import FitConfig
 
     for mod in (rerender, refine):
-        actions = {a.dest: a for a in mod.build_parser()._actions}
+        opts = mod.COMMAND.parse(["--data", "d", "--normals", "n"])
+        fit = opts.fitted if mod is rerender else opts.refine.fit
         for name in ("steps", "max_pixels", "light_model", "seed"):
-            assert actions[name].default == getattr(FitConfig(), name), (mod.__name__, name)
-    assert "floor_maps" not in {a.dest for a in refine.build_parser()._actions}  # refine computes no floor
-    opts = config_from_args(refine.RefineOptions, refine.build_parser().parse_args(
-        ["--data", "d", "--normals", "n", "--steps", "7", "--refine-steps", "3", "--holdout", "0.2", "--no-shadows"]))
+            assert getattr(fit, name) == getattr(FitConfig(), name), (mod.__name__, name)
+    assert "floor_maps" not in refine.COMMAND.flags()  # refine computes no floor
+    with pytest.raises(UsageError, match="--floor-maps"):
+        refine.COMMAND.parse(["--data", "d", "--normals", "n", "--floor-maps", "constant"])
+    opts = refine.COMMAND.parse(
+        ["--data", "d", "--normals", "n", "--steps", "7", "--refine-steps", "3", "--holdout", "0.2", "--no-shadows"])
     assert (opts.refine.fit.steps, opts.refine.refine_steps, opts.refine.holdout_fraction) == (7, 3, 0.2)
     assert opts.refine.fit.shadows is False and opts.refine.fit.specular is True
-    opts = config_from_args(rerender.RerenderOptions, rerender.build_parser().parse_args(
-        ["--data", "d", "--normals", "n", "--floor-maps", "constant,silhouette", "--supersample", "3", "--no-floors"]))
+    opts = rerender.COMMAND.parse(
+        ["--data", "d", "--normals", "n", "--floor-maps", "constant,silhouette", "--supersample", "3", "--no-floors"])
     assert opts.fitted.floor_maps == ("constant", "silhouette") and opts.check.visibility.supersample == 3
     assert opts.check.floors is False
+    with pytest.raises(UsageError, match="--base-tolerance"):  # the visibility tolerances are not flags
+        rerender.COMMAND.parse(["--data", "d", "--normals", "n", "--base-tolerance", "1"])
 
 
-def test_generator_fields_without_a_flag_before_have_one_and_reach_the_config():
-    from wildgen.make import build_parser, options_from_args
+def test_generator_fields_reach_the_config_and_a_repeated_list_flag_adds_up():
+    from wildgen.make import COMMAND, options_from_args
 
-    opts = options_from_args(build_parser().parse_args(
-        ["--out", "o", "--margin", "0.1", "--max-backfacing", "0.25", "--res", "48", "--lights", "point",
-         "--lights", "hdri,mixed", "--variant", "auto"]))
+    argv = ["--out", "o", "--margin", "0.1", "--max-backfacing", "0.25", "--res", "48", "--lights", "point",
+            "--lights", "hdri,mixed", "--variant", "auto", "--ray"]
+    opts = options_from_args(argv)
     gen = opts.gen.validate()
     assert (gen.margin, gen.max_backfacing, gen.width, gen.height) == (0.1, 0.25, 48, 48)
     assert gen.lights == ["point", "hdri", "mixed"] and gen.variant is None  # a repeated list replaces the default
-    assert options_from_args(build_parser().parse_args(["--out", "o"])).gen.lights == ["near_area"]
-    assert given_flags(build_parser, ["--out", "o", "--margin", "0.1", "--quiet"]) == {"out", "margin", "quiet"}
+    assert opts.ray == "auto"  # --ray without its value
+    assert options_from_args(["--out", "o", "--ray", "h:1"]).ray == "h:1"
+    assert options_from_args(["--out", "o"]).gen.lights == ["near_area"]
+    assert COMMAND.given(["--out", "o", "--margin=0.1", "--quiet"]) == {"out", "margin", "quiet"}
 
 
 def test_one_set_of_checks_names_the_flag_the_value_and_what_was_expected():
@@ -111,10 +141,13 @@ def test_output_folder_is_checked_without_creating_anything(tmp_path):
 
 
 def test_a_config_error_in_a_parser_is_one_usage_error():
-    from unips.train import build_parser
+    from unips.train import COMMAND
 
     with pytest.raises(UsageError, match="--steps"):
-        build_parser().parse_args(["--data", "d", "--out", "o", "--steps", "many"])
+        COMMAND.parse(["--data", "d", "--out", "o", "--steps", "many"])
     with pytest.raises(UsageError, match="--counts"):
-        importlib.import_module("orchestrate.benchmark").build_parser().parse_args(["--counts", "1,x"])
-    assert isinstance(build_parser(), argparse.ArgumentParser)
+        importlib.import_module("orchestrate.benchmark").COMMAND.parse(["--counts", "1,x"])
+    with pytest.raises(UsageError, match="^unrecognized arguments: --colour$"):
+        COMMAND.parse(["--data", "d", "--out", "o", "--colour"])
+    with pytest.raises(UsageError, match="^--schedule: got 'linear', expected one of cosine, step$"):
+        COMMAND.parse(["--data", "d", "--out", "o", "--schedule", "linear"])

@@ -12,7 +12,7 @@
 """
 from __future__ import annotations
 
-import argparse
+import dataclasses
 import importlib
 import json
 import re
@@ -266,45 +266,54 @@ def _flag_rows(module: str) -> dict[str, dict[str, str]]:
     return rows
 
 
-def _expected_default(action: argparse.Action) -> str:
-    if action.required or not action.option_strings:
-        return "required"
-    if action.nargs == 0:
-        return "off"
-    if action.default is None or action.default in ("", []):
-        return "-"
-    if isinstance(action.default, (list, tuple)):
-        return ",".join(map(str, action.default))
-    return str(action.default)
+def _written_default(value) -> str:
+    """A dataclass default as a reader types it, computed here (not with the docs generator's code)."""
+    if isinstance(value, bool):
+        return "on" if value else "off"
+    if isinstance(value, (list, tuple)):
+        return ",".join(str(v) for v in value) or "-"
+    return "-" if value in (None, "") else str(value)
 
 
 @pytest.mark.parametrize("module", docs.CLIS)
-def test_flag_table_has_every_flag_and_default(module):
-    parser = importlib.import_module(module).build_parser()
-    help_text = "".join(parser.format_help().split())  # what `--help` prints, without the wrapping
+def test_flag_table_has_every_flag_of_help_with_the_dataclass_default(module):
+    """Every flag `--help` prints has a row, and the row's default is the config dataclass's own default (or
+    `required`, or the run-time default `--help` states in words)."""
+    import tyro
+
+    from scenes.config import field_docs
+
+    command = importlib.import_module(module).COMMAND
+    help_text = "".join(command.help().split())  # what `--help` prints, without the wrapping and the frames
     rows = _flag_rows(module)
-    for action in parser._actions:
-        if isinstance(action, argparse._HelpAction):
+    invocations = [re.split(r"\s{2,}", m.group(1))[0] for line in command.help().splitlines()
+                   if (m := re.match(r"^(?:│ |  )(-\S.*)", line))]  # the flag column of --help's option sections
+    flags = [t for inv in invocations for t in re.findall(r"--[a-z][a-z0-9-]*", inv) if t != "--help"]
+    assert flags, module
+    for flag in flags:
+        assert flag in rows, f"{module}: {flag} (in --help) has no row in docs"
+
+    def defaults(cls, out):
+        for f in dataclasses.fields(cls):
+            value = f.default if f.default is not dataclasses.MISSING else f.default_factory()
+            if dataclasses.is_dataclass(value):
+                defaults(type(value), out)
+            else:
+                out[f.name] = (value, field_docs(cls).get(f.name, ""))
+        return out
+
+    for name, (value, doc) in defaults(command.config, {}).items():
+        flag = "--" + name.replace("_", "-")
+        if flag not in rows:  # a positional or a field kept off the command line
+            assert flag not in flags, (module, flag)
             continue
-        name = action.option_strings[0] if action.option_strings else action.metavar or action.dest
-        assert name in rows, f"{module}: {name} has no row in docs"
-        row = rows[name]
-        cell = row["default"].strip("`")
-        shown = " ".join(parser._get_formatter()._expand_help(action).split()) if action.help else ""  # argparse's own
-        stated = [s.strip() for s in re.findall(r"\(default:?\s+((?:[^()]|\([^()]*\))*)\)", shown) if s.strip() != "None"]
-        for value in stated:  # every default that --help states is in the docs' row
-            assert "".join(value.split()) in help_text
-            extra = value[len(cell):].strip(" ;,") if value.startswith(cell) else None
-            assert value.removeprefix("./") == cell.removeprefix("./") or (extra and extra in row["meaning"]) \
-                or value in row["meaning"], f"{module} {name}: --help says default {value!r}, docs say {cell!r}"
-        expected = _expected_default(action)
-        if expected == "-" and stated:
-            expected = stated[0]
-        assert cell == expected, f"{module} {name}: docs say default {cell!r}, the parser {expected!r}"
-        if action.default is not None and stated and expected not in ("required", "off"):
-            # a help text that states another default than its parser holds is stale
-            assert any(s.removeprefix("./").startswith(expected.removeprefix("./")) for s in stated), \
-                f"{module} {name}: --help states {stated}, the parser's default is {expected!r}"
+        cell = rows[flag]["default"].strip("`")
+        if value is tyro.MISSING:
+            assert cell == "required", (module, flag, cell)
+        elif _written_default(value) != cell:  # a default chosen at run time: --help states the same words
+            assert value is None and "".join(cell.split()) in help_text, (module, flag, cell, value)
+        assert "".join(doc.replace("`", "").split())[:40] in "".join(rows[flag]["meaning"].replace("`", "").split()), \
+            (module, flag)
 
 
 def test_every_cli_has_a_flag_table_and_is_documented_once():
@@ -378,10 +387,9 @@ def test_readme_has_one_example_per_cli_and_each_parses():
     commands = _readme_commands()
     assert {c[0] for c in commands} >= set(docs.CLIS), f"no README example for {set(docs.CLIS) - {c[0] for c in commands}}"
     for module, *argv in commands:
-        parser = importlib.import_module(module).build_parser()
         try:
-            parser.parse_args(argv)
-        except (SystemExit, Exception) as exc:  # UsageErrorParser raises UsageError, argparse SystemExit
+            importlib.import_module(module).COMMAND.parse(argv)
+        except (SystemExit, Exception) as exc:  # a bad command line is a UsageError
             pytest.fail(f"README example python -m {module} {' '.join(argv)} does not parse: {exc}")
 
 

@@ -183,10 +183,10 @@ def test_display_patches_are_on_the_screen_and_out_of_view():
 
 
 def resolve(*argv: str):
-    from wildgen.make import _explicit_flags, build_parser, options_from_args
+    from wildgen.make import _explicit_flags, options_from_args
 
     args = ["--out", "o", *argv]
-    return options_from_args(build_parser().parse_args(args), _explicit_flags(args)).gen.validate()
+    return options_from_args(args, _explicit_flags(args)).gen.validate()
 
 
 def test_each_preset_sets_its_entry_and_nothing_else():

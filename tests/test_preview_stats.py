@@ -255,7 +255,7 @@ def test_bad_input_is_one_line(dataset, tmp_path, capsys):
 
 
 def test_stats_flag_is_documented():
-    from wildgen.preview import build_parser
+    from wildgen.preview import COMMAND
 
-    text = build_parser().format_help()
+    text = " ".join(COMMAND.help().split())
     assert "--stats" in text and "dataset card" in text

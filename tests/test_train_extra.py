@@ -20,7 +20,7 @@ from unips.checkpoint import load_model, load_training_checkpoint, save_checkpoi
 from unips.models import create_model
 from unips.probes import probe_images, probe_object, summarise
 from scenes.config import field_docs
-from unips.train import TrainConfig, build_parser, main
+from unips.train import COMMAND, TrainConfig, main
 from unips.train_run import lr_factor
 
 from test_train import _train, dataset, write_object  # noqa: F401  (the module-scoped fixture)
@@ -32,7 +32,7 @@ def test_every_config_field_has_a_docstring_and_a_flag() -> None:
     docs = field_docs(TrainConfig)
     names = [f.name for f in dataclasses.fields(TrainConfig)]
     assert set(names) == set(docs), set(names) ^ set(docs)
-    help_text = build_parser().format_help()
+    help_text = COMMAND.help()
     for name in names:
         assert "--" + name.replace("_", "-") in help_text
 

@@ -15,7 +15,6 @@ without a prediction is listed as missing and makes the exit status 1 unless ``-
 
 from __future__ import annotations
 
-import argparse
 import csv
 import io
 import json
@@ -28,8 +27,7 @@ from typing import Any
 import numpy as np
 
 from scenes.cli import UsageError, check_output_folder, claim_outputs, one_line, report_error
-from scenes.config import config_parser, option
-from scenes.config import config_from_args as parse_config
+from scenes.config import Command, REQUIRED
 from scenes.objfolder import angular_error_deg, atomic_write_text, object_name, prediction_file, read_normals
 from scenes.layouts import detect_layout
 from unips.data import find_objects, load_ground_truth
@@ -194,10 +192,10 @@ def format_table(summary: dict[str, Any]) -> str:
 class EvaluateOptions:
     """The command line of unips.evaluate."""
 
-    pred: Path = option(None, required=True, parse=Path)
+    pred: Path = REQUIRED
     """Directory written by unips.predict (<pred>/<object>/normal.*); metrics.json, metrics.csv and the error
     maps are written into it."""
-    gt: Path = option(None, required=True, parse=Path)
+    gt: Path = REQUIRED
     """Object folder or dataset directory with the ground truth."""
     allow_missing: bool = False
     """Exit 0 even when some ground-truth objects have no prediction."""
@@ -205,15 +203,13 @@ class EvaluateOptions:
     """Replace the metrics and error maps of an earlier evaluation in --pred (nothing else is touched)."""
 
 
-def build_parser() -> argparse.ArgumentParser:
-    return config_parser(EvaluateOptions, prog="python -m unips.evaluate", description=__doc__.split("\n\n")[0])
+COMMAND = Command(EvaluateOptions, prog="python -m unips.evaluate", description=__doc__.split("\n\n")[0])
 
 
 def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
-    parser = build_parser()
     try:
-        args = parse_config(EvaluateOptions, parser.parse_args(argv))
+        args = COMMAND.parse(argv)
         summary = evaluate(args.pred, args.gt, overwrite=args.overwrite)
     except (UsageError, ValueError, FileNotFoundError, OSError) as exc:
         return report_error(exc)

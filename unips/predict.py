@@ -20,21 +20,19 @@ augmentation, N forward passes; `unips.inference.model_normals`).
 
 from __future__ import annotations
 
-import argparse
 import json
 import logging
 import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 
 from scenes.cli import (INPUT_ERRORS, Progress, UsageError, check_memory, check_output_folder, claim_outputs, one_line,
                         report_error)
-from scenes.config import check_fields, config_parser, option
-from scenes.config import config_from_args as parse_config
+from scenes.config import Command, REQUIRED, arg, check_fields, option
 from scenes.objfolder import (PREDICTION_FILES, PREDICTION_INFO, atomic_write_text, object_name, write_normal_exr,
                               write_normal_map, write_normal_visual)
 from scenes.layouts import detect_layout
@@ -118,21 +116,21 @@ def write_prediction(out_dir: Path, normals: np.ndarray, info: dict[str, Any]) -
 class PredictOptions:
     """The command line of unips.predict."""
 
-    method: str = option("", required=True, choices=METHODS)
+    method: Literal[METHODS] = REQUIRED
     """The network ('model') or a classical baseline."""
-    checkpoint: Path | None = option(None, parse=Path, default_text="the shipped weights of unips.models.DEFAULT_MODEL")
+    checkpoint: Annotated[Path | None, arg(help_behavior_hint="(default: the shipped weights of unips.models.DEFAULT_MODEL)")] = None
     """Model file (.safetensors with its .json, or a training .pt); --method model only."""
-    input: Path = option(None, required=True, parse=Path)
+    input: Path = REQUIRED
     """An object folder or a directory of them."""
-    out: Path = option(None, required=True, parse=Path)
+    out: Path = REQUIRED
     """Output directory: <out>/<object>/normal.png, normal.exr, normal_vis.png, predict.json."""
-    max_images: int | None = option(None, minimum=1, default_text="all")
+    max_images: Annotated[int | None, arg(help_behavior_hint="(default: all)")] = option(None, minimum=1)
     """Use the first K images of each object."""
     device: str = "cpu"
     """Torch device for --method model (cpu, cuda, cuda:0)."""
-    res: int | None = option(None, minimum=8, default_text="the crop's own size")
+    res: Annotated[int | None, arg(help_behavior_hint="(default: the crop's own size)")] = option(None, minimum=8)
     """Working resolution of the network (the crop is resized to R x R); --method model only."""
-    tta: int | None = option(None, choices=TTA_VIEWS, default_text=str(DEFAULT_TTA))
+    tta: Annotated[Literal[TTA_VIEWS] | None, arg(help_behavior_hint=f"(default: {str(DEFAULT_TTA)})")] = None
     """Views averaged (test-time augmentation by flips and transposes); N forward passes; --method model only."""
     overwrite: bool = False
     """Replace the predictions of an earlier run in --out (folders with its predict.json; nothing else is touched)."""
@@ -147,15 +145,14 @@ class PredictOptions:
         return self
 
 
-def build_parser() -> argparse.ArgumentParser:
-    return config_parser(PredictOptions, prog="python -m unips.predict", description=__doc__.split("\n\n")[0])
+COMMAND = Command(PredictOptions, prog="python -m unips.predict", description=__doc__.split("\n\n")[0])
 
 
 def check_args(argv: list[str]) -> PredictOptions:
     """What can be checked of a prediction command line before its input exists (orchestrate.demo checks its
     prediction steps with this before rendering their data): the flags, --out, and the network file loaded;
     writes nothing."""
-    args = parse_config(PredictOptions, build_parser().parse_args(argv)).validate()
+    args = COMMAND.parse(argv).validate()
     if args.method == "model":
         load_network(args.checkpoint, args.device)
     return args
@@ -167,7 +164,7 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     failures: list[tuple[str, str]] = []
     try:
-        args = parse_config(PredictOptions, build_parser().parse_args(argv)).validate()
+        args = COMMAND.parse(argv).validate()
         folders = find_objects(args.input)
         single = detect_layout(args.input) is not None
         names = [object_name(f) for f in folders]
@@ -216,7 +213,7 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _predict_one(args: argparse.Namespace, net, folder: Path, name: str) -> None:
+def _predict_one(args: PredictOptions, net, folder: Path, name: str) -> None:
     obj = load_object(folder, max_images=args.max_images)
     start = time.perf_counter()
     tta = (args.tta or DEFAULT_TTA) if net else None

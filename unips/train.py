@@ -25,7 +25,6 @@ checkpoint, every `--ckpt-every` steps and at the end), `final.safetensors` (+ .
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import logging
 import math
@@ -38,8 +37,7 @@ from typing import Any, Sequence
 import torch
 
 from scenes.cli import Progress
-from scenes.config import config_parser
-from scenes.config import config_from_args as parse_config
+from scenes.config import Command
 from unips.train_config import TrainConfig
 from unips.train_data import Batch, curriculum_pool, make_batch, normal_loss, probe_samples, step_rng
 from unips.train_run import Run, append_log, check_run, open_stream, resume_run, save_last, setup_run
@@ -47,14 +45,12 @@ from unips.train_run import Run, append_log, check_run, open_stream, resume_run,
 log = logging.getLogger(__name__)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The CLI of `TrainConfig`: one flag per field, help from the field's docstring."""
-    return config_parser(TrainConfig, prog="python -m unips.train", description=__doc__.split("\n\n")[0])
+COMMAND = Command(TrainConfig, prog="python -m unips.train", description=__doc__.split("\n\n")[0])
 
 
-def config_from_args(args: argparse.Namespace) -> TrainConfig:
-    """The TrainConfig of parsed CLI arguments (validated)."""
-    cfg = parse_config(TrainConfig, args)
+def config_from_args(argv: Sequence[str] | None) -> TrainConfig:
+    """The TrainConfig of a command line (validated)."""
+    cfg = COMMAND.parse(argv)
     if "all" not in cfg.val_probes:
         cfg.val_probes = ["all", *cfg.val_probes]
     return cfg.validate()
@@ -68,7 +64,7 @@ def check_args(argv: Sequence[str]) -> TrainConfig:
     from scenes.cli import check_output_folder, check_threads
     from unips.models import list_models, load_model
 
-    cfg = config_from_args(build_parser().parse_args(argv))
+    cfg = config_from_args(argv)
     check_output_folder(cfg.out)
     check_threads(cfg.threads or None, "--threads")
     if cfg.init_from:
@@ -146,11 +142,11 @@ def _out_of_time(run: Run, seconds: float) -> bool:
     return over
 
 
-def train(cfg: TrainConfig | argparse.Namespace) -> dict[str, Any]:
+def train(cfg: TrainConfig | Sequence[str]) -> dict[str, Any]:
     """Run training as configured; returns a summary dict."""
     from unips.checkpoint import save_checkpoint
 
-    if isinstance(cfg, argparse.Namespace):
+    if not isinstance(cfg, TrainConfig):  # a command line
         cfg = config_from_args(cfg)
     cfg.validate()
     run = _start(cfg)
@@ -224,9 +220,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     from scenes.cli import INPUT_ERRORS, report_error
 
     try:
-        args = build_parser().parse_args(argv)
+        cfg = config_from_args(argv)
         logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-        summary = train(config_from_args(args))
+        summary = train(cfg)
     except INPUT_ERRORS as exc:
         return report_error(exc)
     except OSError as exc:  # e.g. a full disk while writing a checkpoint: one line naming the file
@@ -238,7 +234,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         msg += f", best validation mean angular error {summary['best_val']:.2f} deg"
     print(msg)
     best = ", best.safetensors (+ .json)" if summary.get("best_val") is not None else ""
-    print(f"wrote {Path(args.out) / 'final.safetensors'} (+ .json){best}, last.pt and log.jsonl")
+    print(f"wrote {Path(cfg.out) / 'final.safetensors'} (+ .json){best}, last.pt and log.jsonl")
     return 0
 
 

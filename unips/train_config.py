@@ -2,18 +2,20 @@
 generated from (a flag per documented field, `scenes.config`), its checks, and the settings a resumed run must keep."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import Annotated, Literal
 
-from scenes.config import check_choice, check_fields, option
+from dataclasses import dataclass, field
+
+from scenes.config import CommaList, REQUIRED, UseAppendAction, arg, check_choice, check_fields, option
 
 @dataclass
 class TrainConfig:
     """Everything that determines a training run; the CLI fills it (`python -m unips.train --help`)."""
 
-    data: str = option("", required=True)
+    data: str = REQUIRED
     """Training dataset directory (object folders with ground-truth normals), or several separated by commas
     (pooled, e.g. sets rendered with different seeds); or WebDataset shards of wildgen.export: 'SHARDS/{000000..000099}.tar' or the SHARDS folder."""
-    out: str = option("", required=True)
+    out: str = REQUIRED
     """Run directory: log.jsonl, last.pt, best.safetensors and final.safetensors (+ .json sidecars)."""
     val: str | None = None
     """Validation dataset directory (object folders with normal.tif); held-out assets, test-like settings."""
@@ -29,7 +31,7 @@ class TrainConfig:
     """Peak AdamW learning rate."""
     weight_decay: float = option(0.05, minimum=0)
     """AdamW weight decay."""
-    schedule: str = option("cosine", choices=("cosine", "step"))
+    schedule: Literal["cosine", "step"] = "cosine"
     """'cosine': linear warm-up over `warmup` steps then cosine decay to `min_lr_ratio` * lr; 'step': x`decay` every `decay_every` steps."""
     warmup: int = option(100, minimum=0)
     """Warm-up steps of the cosine schedule."""
@@ -61,7 +63,7 @@ class TrainConfig:
     """Steps between validations."""
     val_pixels: int = option(2000, minimum=0)
     """Masked pixels scored per validation object (a fixed seeded subset; 0: all)."""
-    val_probes: list[str] = option(default_factory=lambda: ["all", "one", "mask", "shuffled"], metavar="P1,P2")
+    val_probes: Annotated[list[str], CommaList, arg(metavar="P1,P2")] = option(default_factory=lambda: ["all", "one", "mask", "shuffled"])
     """Probes of every validation (`unips.probes.PROBES`); 'all' is always included."""
     ckpt_every: int = option(200, minimum=1)
     """Steps between last.pt saves."""
@@ -75,7 +77,7 @@ class TrainConfig:
     """torch CPU threads (0: all cores, divided among local processes under torchrun)."""
     device: str = "cpu"
     """torch device ('cpu', 'cuda'; under torchrun each process takes cuda:LOCAL_RANK)."""
-    precision: str = option("fp32", choices=("fp32", "bf16"))
+    precision: Literal["fp32", "bf16"] = "fp32"
     """'fp32' or 'bf16' (autocast of the forward pass; for GPUs)."""
     no_augment: bool = False
     """Disable flips / transpose / RGB permutation."""
@@ -83,7 +85,7 @@ class TrainConfig:
     """Probability that a training sample is a square cut from inside the object's mask and resized to the working resolution: no outline, so the normals must come from the images."""
     no_progress: bool = False
     """No progress bar."""
-    model_option: list[str] = option(default_factory=list, repeat=True, sep="", metavar="KEY=VALUE")
+    model_option: Annotated[list[str], UseAppendAction, arg(metavar="KEY=VALUE")] = field(default_factory=list)
     """Model config overrides KEY=VALUE (JSON value), e.g. uniform_context=true; repeatable."""
     shuffle_buffer: int = option(0, minimum=0)
     """Shards only. 0: read every object into memory, as from folders (the same batches as the folders the shards came from); N > 0: stream the shards (data larger than memory), split across processes and loader workers, shuffled through a buffer of N objects per worker (unips.shards)."""

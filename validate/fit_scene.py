@@ -14,11 +14,11 @@ report):
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Annotated, Any, Callable, Literal
 
 import numpy as np
 
-from scenes.config import check_fields, option
+from scenes.config import arg, check_fields, comma_list, option
 from scenes.variant import require_ad_variant
 from validate import heightfield
 from validate.lights import LIGHT_MODELS, closed_form_directional, point_start
@@ -32,7 +32,7 @@ Progress = Callable[[int, int, str], None]
 class FitConfig:
     """Options of the scene fit (fitted mode)."""
 
-    light_model: str = option("directional", choices=LIGHT_MODELS + ("auto",))
+    light_model: Literal[LIGHT_MODELS + ("auto",)] = "directional"
     """'directional' (+ ambient), 'point' (near point light + ambient), 'environment' (order-2 SH), or
     'auto': fit each with a third of the steps and keep the one with the lowest residual."""
     steps: int = option(120, minimum=0)
@@ -53,9 +53,9 @@ class FitConfig:
     """Add one bounce of inter-reflection (needs ao_rays > 0)."""
     max_pixels: int = option(16000, minimum=1)
     """Fit at a downsampled resolution with at most this many mask pixels (box filter); reported."""
-    downsample: int | None = option(None, minimum=1, default_text="from --max-pixels")
+    downsample: Annotated[int | None, arg(help_behavior_hint="(default: from --max-pixels)")] = option(None, minimum=1)
     """Force this downsampling factor."""
-    floor_maps: tuple[str, ...] = option(("constant",), choices=("constant", "silhouette"))
+    floor_maps: Annotated[tuple[str, ...], comma_list(str, container=tuple)] = option(("constant",), choices=("constant", "silhouette"))
     """No-information normal maps whose fitted residual is the floor, comma-separated."""
     seed: int = 0
     """Seed of every random choice (image batches, ray directions)."""

@@ -23,11 +23,11 @@ from __future__ import annotations
 import json
 import logging
 from dataclasses import asdict, dataclass
-from typing import Any, Callable
+from typing import Annotated, Any, Callable
 
 import numpy as np
 
-from scenes.config import check_fields, option
+from scenes.config import NotOnCommandLine, check_fields, option
 from scenes.variant import require_jit_variant
 from validate.projection import CameraProjection
 
@@ -48,11 +48,11 @@ class VisibilityConfig:
 
     supersample: int = option(2, minimum=1)
     """Depth-map ray casts per pixel side (2 = 2x2 per pixel)."""
-    base_tolerance: float = option(0.5, minimum=0)
+    base_tolerance: Annotated[float, NotOnCommandLine] = option(0.5, minimum=0)
     """Depth tolerance at normal incidence, in depth-map texels (world size of a pixel / supersample)."""
-    slope_factor: float = option(1.5, minimum=0)
+    slope_factor: Annotated[float, NotOnCommandLine] = option(1.5, minimum=0)
     """Extra tolerance per unit of tan(angle between surface normal and view direction), in texels."""
-    max_tan: float = option(6.0, minimum=0)
+    max_tan: Annotated[float, NotOnCommandLine] = option(6.0, minimum=0)
     """Cap of that tangent (about 80 deg): steeper points would otherwise accept hidden surfaces behind them."""
 
     def validate(self) -> "VisibilityConfig":

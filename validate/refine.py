@@ -22,20 +22,18 @@ and DIR/<object>/refine_report.json.
 """
 from __future__ import annotations
 
-import argparse
 import json
 import logging
 import sys
 import time
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 
 from scenes.cli import INPUT_ERRORS, check_output_folder, check_threads, claim_outputs, progress_bar, report_error
-from scenes.config import check_fields, config_parser, option
-from scenes.config import config_from_args as parse_config
+from scenes.config import Command, NotOnCommandLine, REQUIRED, arg, check_fields, option
 from scenes.variant import require_ad_variant
 from validate.fit import fit_normals, run_fit
 from validate.fit_report import full_config_dict, judge_capture, provenance, saturated_fraction
@@ -54,16 +52,27 @@ REFINE_OUTPUTS = ("normal.png", "refine_report.json")
 
 
 @dataclass
+class RefineFit(FitConfig):
+    """The scene fit of refinement: `FitConfig` without the floor maps and the bas-relief score, which only the
+    check computes."""
+
+    floor_maps: Annotated[tuple[str, ...], NotOnCommandLine] = FitConfig.floor_maps
+    """Not used by refinement."""
+    bas_relief: Annotated[bool, NotOnCommandLine] = FitConfig.bas_relief
+    """Not used by refinement."""
+
+
+@dataclass
 class RefineConfig:
     """Options of the refinement."""
 
-    fit: FitConfig = option(default_factory=FitConfig, expose=tuple(f.name for f in fields(FitConfig) if f.name not in ("floor_maps", "bas_relief")))
+    fit: RefineFit = field(default_factory=lambda: RefineFit())
     """Scene fit (light model, steps of the fixed-normal stage, resolution, seed); its floor maps are not used."""
     refine_steps: int = option(300, minimum=0)
     """Adam steps of the joint stage (normals and lights)."""
-    lights: str = option("fitted", choices=LIGHT_SOURCES)
+    lights: Literal[LIGHT_SOURCES] = "fitted"
     """'fitted' (lights fitted to the images) or 'calibrated' (the folder's calibrated directional lights, held fixed)."""
-    holdout_fraction: float = option(0.1, flag="--holdout", minimum=0, below=0.5)
+    holdout_fraction: Annotated[float, arg(name="holdout")] = option(0.1, minimum=0, below=0.5)
     """Fraction of the images held out for early stopping (at least one when K >= 5, none below)."""
     patience: int = option(4, minimum=1)
     """Refreshes without a better held-out residual before stopping."""
@@ -401,22 +410,22 @@ class RefineOptions:
     """The command line of validate.refine: the refinement (`RefineConfig`, with its scene fit) and where it
     reads and writes."""
 
-    data: str = option("", required=True)
+    data: str = REQUIRED
     """Object folder: ours (with or without scene.json), UniPS .data, or DiLiGenT *PNG."""
-    normals: str = option("", required=True)
+    normals: str = REQUIRED
     """Starting normal map file (.png/.exr/.npy/.tif) or a folder with <object>/normal.*."""
     out: str = "refined"
     """Output folder: <out>/<object>/normal.png and refine_report.json."""
     refine: RefineConfig = option(default_factory=RefineConfig)
     """The refinement."""
-    variant: str | None = option(None, default_text="cuda_ad_rgb if usable, else llvm_ad_rgb")
+    variant: Annotated[str | None, arg(help_behavior_hint="(default: cuda_ad_rgb if usable, else llvm_ad_rgb)")] = None
     """Mitsuba variant (one with automatic differentiation)."""
-    threads: int | None = option(None, minimum=1, default_text="one per core")
+    threads: Annotated[int | None, arg(help_behavior_hint="(default: one per core)")] = option(None, minimum=1)
     """Dr.Jit threads; with 1 the output is byte-identical run to run (with more, gradients are summed in a
     varying order)."""
     overwrite: bool = False
     """Replace the refined map and report of an earlier run in --out (nothing else is touched)."""
-    verbose: bool = option(False, short="-v")
+    verbose: Annotated[bool, arg(aliases=("-v",))] = False
     """Debug logging."""
 
     def validate(self) -> "RefineOptions":
@@ -427,15 +436,13 @@ class RefineOptions:
         return self
 
 
-def build_parser() -> argparse.ArgumentParser:
-    return config_parser(RefineOptions, prog="python -m validate.refine",
-                         description="Refine a normal map by fitting light, reflectance and normals to the images "
+COMMAND = Command(RefineOptions, prog="python -m validate.refine", description="Refine a normal map by fitting light, reflectance and normals to the images "
                                      "through Mitsuba.")
 
 
 def main(argv: list[str] | None = None) -> int:
     try:
-        args = parse_config(RefineOptions, build_parser().parse_args(argv))
+        args = COMMAND.parse(argv)
         logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
                             format="%(levelname)s %(name)s: %(message)s")
         config = args.validate().refine

@@ -23,19 +23,19 @@ Usage:
 """
 from __future__ import annotations
 
-import argparse
+from typing import Annotated
+
 import json
 import logging
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from scenes.cli import UsageError, check_output_folder, check_threads, claim_outputs, progress_bar, report_error
-from scenes.config import check_fields, config_parser, option
-from scenes.config import config_from_args as parse_config
+from scenes.config import Command, REQUIRED, arg, check_fields, option
 from scenes.objfolder import atomic_write_text, find_prediction, list_object_folders, object_name
 from scenes.variant import require_jit_variant
 from validate.fit_scene import FitConfig
@@ -189,26 +189,26 @@ class RerenderOptions:
     """The command line of validate.rerender: the known-scene check (`RerenderConfig`) and the fitted mode
     (`validate.fit_scene.FitConfig`)."""
 
-    data: str = option("", required=True)
+    data: str = REQUIRED
     """Object folder (with scene.json) or dataset folder of *.data folders."""
-    normals: str = option("", required=True)
+    normals: str = REQUIRED
     """Object: normal map file (.png/.exr/.npy/.tif) or its folder; dataset: folder with <object>/normal.*."""
     out: str = "rerender"
     """Output folder: <out>/<object>/report.json, figure.png; summary.csv."""
-    variant: str | None = option(None, default_text="cuda_ad_rgb, then llvm_ad_rgb")
+    variant: Annotated[str | None, arg(help_behavior_hint="(default: cuda_ad_rgb, then llvm_ad_rgb)")] = None
     """Mitsuba variant."""
     check: RerenderConfig = option(default_factory=RerenderConfig)
     """The known-scene check."""
-    fit: bool = option(False, group=FITTED_GROUP)
+    fit: bool = False
     """Use the fitted mode even when the folder has a scene.json."""
-    fitted: FitConfig = option(default_factory=FitConfig, group=FITTED_GROUP)
+    fitted: FitConfig = field(default_factory=FitConfig)
     """The scene fit of the fitted mode."""
-    threads: int | None = option(None, minimum=1, default_text="one per core")
+    threads: Annotated[int | None, arg(help_behavior_hint="(default: one per core)")] = option(None, minimum=1)
     """Dr.Jit threads of the fitted mode; with 1 the fit is byte-identical run to run (with more, gradients are
     summed in a varying order)."""
     overwrite: bool = False
     """Replace the reports, figures and summary.csv of an earlier run in --out (nothing else is touched)."""
-    verbose: bool = option(False, short="-v")
+    verbose: Annotated[bool, arg(aliases=("-v",))] = False
     """Debug logging."""
 
     def validate(self) -> "RerenderOptions":
@@ -220,9 +220,7 @@ class RerenderOptions:
         return self
 
 
-def build_parser() -> argparse.ArgumentParser:
-    return config_parser(RerenderOptions, prog="python -m validate.rerender",
-                         description="Re-render the known scenes of an object (or dataset) with predicted normals and "
+COMMAND = Command(RerenderOptions, prog="python -m validate.rerender", description="Re-render the known scenes of an object (or dataset) with predicted normals and "
                                      "compare with the inputs.")
 
 
@@ -261,7 +259,7 @@ def main(argv: list[str] | None = None) -> int:
     A folder without scene.json (DiLiGenT, official UniPS layout) or `--fit`: the fitted mode (validate.fit_report)."""
     failed: dict[str, str] = {}
     try:
-        args = parse_config(RerenderOptions, build_parser().parse_args(argv)).validate()
+        args = COMMAND.parse(argv).validate()
         logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
                             format="%(levelname)s %(name)s: %(message)s")
         from scenes.layouts import detect_layout, has_scene

@@ -12,11 +12,11 @@ import gc
 import hashlib
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Annotated, Any, Callable, Literal
 
 import numpy as np
 
-from scenes.config import check_fields, option
+from scenes.config import arg, check_fields, option
 from validate.io import ObjectData
 from validate.metrics import expose
 from validate.normal_bsdf import (
@@ -45,16 +45,16 @@ Progress = Callable[[int, int, str], None]
 class RerenderConfig:
     """Options of the re-render check."""
 
-    spp: int | None = option(None, minimum=1, default_text="the recorded spp")
+    spp: Annotated[int | None, arg(help_behavior_hint="(default: the recorded spp)")] = option(None, minimum=1)
     """Samples per pixel; None = the recorded render.spp (required for common random numbers)."""
-    seed_mode: str = option("same", choices=SEED_MODES)
+    seed_mode: Literal[SEED_MODES] = "same"
     """'same': each image's recorded seed (noise largely cancels); 'independent': fresh seeds."""
     floors: bool = True
     """Also render the independent-seed noise floor and the reproduction check (2 more renders per image)."""
-    visibility: VisibilityConfig = option(default_factory=VisibilityConfig, expose=("supersample",))
+    visibility: VisibilityConfig = field(default_factory=VisibilityConfig)
     """How camera visibility of surface points is decided (on the command line: the depth-map rays per pixel
     side; the tolerances are fixed)."""
-    threshold: float | None = option(None, above=0, default_text="99th percentile of the noise-floor residual map")
+    threshold: Annotated[float | None, arg(help_behavior_hint="(default: 99th percentile of the noise-floor residual map)")] = option(None, above=0)
     """Per-pixel relative residual counted in frac_above_threshold; None = 99th percentile of the
     noise-floor residual map (needs floors)."""
     figure_rows: int = option(4, minimum=1)

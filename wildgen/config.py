@@ -2,8 +2,9 @@
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import Annotated, Literal
 
-from scenes.config import check_fields, option
+from scenes.config import CommaList, Repeatable, arg, auto_is_none, check_fields, option
 from scenes.variant import PREFERENCE as VARIANTS  # the RGB variants the scenes are built for, in auto's order
 from scenes.sensor import SENSORS
 from wildgen.lighting import LIGHT_FAMILIES
@@ -20,7 +21,7 @@ MAX_ENTROPY = 8.0
 class GenConfig:
     """Everything that determines a dataset; with the same values the same files come out."""
 
-    preset: str | None = option(None, choices=tuple(PRESETS), metavar="{" + ",".join(PRESETS) + "}")
+    preset: Literal[tuple(PRESETS)] | None = None
     """Capture preset (`wildgen.presets.PRESETS`): sets --lights, --images, --width, --height, --camera and
     --sensor to imitate a kind of rig (DiLiGenT's LED grid, a phone with flash, a light stage, a screen); flags
     given explicitly keep their values. Recorded in the manifest's configuration."""
@@ -28,13 +29,13 @@ class GenConfig:
     """Complexity level (`wildgen.levels.LEVELS`, 1 simple to 5 complex): sets --shapes, --shape-kinds,
     --materials, --lights, --detail and --cluster (flags given explicitly keep their values); recorded in each
     scene.json as `level` for `unips.train --curriculum`."""
-    lights: list[str] = option(default_factory=lambda: ["near_area"], repeat=True, metavar="FAMILY",
-                                choices=tuple(LIGHT_FAMILIES))
+    lights: Annotated[list[str], CommaList, Repeatable, arg(metavar="{" + ",".join(LIGHT_FAMILIES) + "}")] = option(
+        default_factory=lambda: ["near_area"], choices=tuple(LIGHT_FAMILIES))
     """Light families (keys of `wildgen.lighting.LIGHT_FAMILIES`), cycled across objects (object i gets
     lights[i % len(lights)]); repeatable or comma-separated."""
     objects: int = option(4, minimum=1)
     """Number of objects to render."""
-    sensor: str = option("ideal", choices=tuple(SENSORS))
+    sensor: Literal[tuple(SENSORS)] = "ideal"
     """Camera sensor preset (`scenes.sensor.SENSORS`) that turns each image's radiance into its PNG: `ideal` writes
     the linear 16-bit rendering; the others add noise, black level, response, bit depth, vignetting, mosaic."""
     images: int = option(10, minimum=1)
@@ -47,36 +48,37 @@ class GenConfig:
     """Samples per pixel of the path-traced images (PS-Wild: 256)."""
     bounces: int = option(10, minimum=0)
     """Indirect bounces as in the paper; Mitsuba max_depth = bounces + 2."""
-    camera: str = option("orthographic", choices=("orthographic", "perspective"))
+    camera: Literal["orthographic", "perspective"] = "orthographic"
     """'orthographic' (the model's assumption) or 'perspective'."""
-    focal: str | None = option(None, metavar="A-B", default_text="a fixed 30 deg field of view")
+    focal: Annotated[str | None, arg(metavar="A-B", help_behavior_hint="(default: a fixed 30 deg field of view)")] = None
     """With --camera perspective: 35 mm-equivalent focal lengths (mm) drawn per object, log-uniform in [A, B]
     (e.g. 15-300: wide angle to telephoto); the camera distance follows so that the object fills the frame.
     Recorded as camera.focal_mm and camera.fov in scene.json; aux/view.exr holds the per-pixel view directions."""
     seed: int = option(0, minimum=0)
     """Root seed: object i draws from (seed, i) only, whatever the order or worker."""
-    materials: str = option("any", choices=MATERIAL_CLASSES + ("any",))
+    materials: Literal[MATERIAL_CLASSES + ("any",)] = "any"
     """Material class: diffuse, specular, metallic or any (uniform over the three)."""
-    assets: str | None = None
+    assets: Annotated[str | None, arg(metavar="DIR")] = None
     """Optional folder with hdri/, meshes/, textures/; without it everything is procedural."""
-    cluster: str | None = option(None, metavar="A-B", default_text="one object per scene")
+    cluster: Annotated[str | None, arg(metavar="A-B", help_behavior_hint="(default: one object per scene)")] = None
     """Objects per scene, drawn uniformly in [A, B] (at most 8): shapes slid together until they touch, then pressed a
     little, so that cast shadows and inter-reflections between them appear; one material and one mesh for the whole cluster
     (scene.json `parts`), aux/instances.png holds the 16-bit id of the object at each pixel (0: background).
     The fill-the-frame and entropy rules apply to the cluster as a whole."""
-    detail: float | None = option(None, minimum=0, maximum=1, default_text="texture sets' own normal maps only")
+    detail: Annotated[float | None, arg(metavar="P", help_behavior_hint="(default: texture sets' own normal maps only)")] = \
+        option(None, minimum=0, maximum=1)
     """Fraction P of objects given normal-mapped surface detail (`scenes.detail`: bumps, scratches, fabric,
     stone; or the texture set's own normal map when it has one); the others get none. Drawn from a stream of
     its own, so an object is the same with or without detail. Every object with a normal map also gets
     normal_base.tif, the normals of its geometry without the detail."""
-    detail_strength: str = option("5-25", metavar="A-B")
+    detail_strength: Annotated[str, arg(metavar="A-B")] = "5-25"
     """Tilt of the procedural detail normals (their 95th percentile), degrees, drawn uniformly in [A, B] per
     detailed object. Above about 25 deg Mitsuba's normal map shades more pixels near the silhouette black
     (docs/generator.md, "Surface detail")."""
-    shapes: str = option("any", choices=("procedural", "mesh", "any"))
+    shapes: Literal["procedural", "mesh", "any"] = "any"
     """'procedural', 'mesh' (needs assets) or 'any' (meshes half of the time when assets have them)."""
-    shape_kinds: list[str] = option(default_factory=lambda: list(PROCEDURAL_KINDS), choices=PROCEDURAL_KINDS,
-                                    metavar="KIND")
+    shape_kinds: Annotated[list[str], CommaList, arg(metavar="KIND")] = option(
+        default_factory=lambda: list(PROCEDURAL_KINDS), choices=PROCEDURAL_KINDS)
     """Procedural shape kinds drawn from (comma-separated): blob, superquadric (always convex), bumpy_sphere,
     torus."""
     entropy_threshold: float = option(4.0, minimum=0, maximum=MAX_ENTROPY)
@@ -97,7 +99,7 @@ class GenConfig:
     """Side of procedural texture images."""
     env_width: int = option(256, minimum=1)
     """Width of procedural environment maps."""
-    variant: str | None = option(None, parse=lambda v: None if v == "auto" else v, default_text="auto")
+    variant: Annotated[str | None, auto_is_none("VARIANT"), arg(help_behavior_hint="(default: auto)")] = None
     """Mitsuba variant: 'auto' (None: cuda_ad_rgb, else llvm_ad_rgb, else scalar_rgb, the first usable one,
     chosen at run time and recorded in the manifest) or one of those three."""
     max_backfacing: float = option(0.1, minimum=0, maximum=1)

@@ -23,10 +23,10 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Literal
 
 from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, claim_outputs, progress_bar, report_error
-from scenes.config import check_fields, config_from_args, config_parser, option
+from scenes.config import Command, REQUIRED, check_fields, option
 from scenes.shards import (ENCODINGS, FORMAT, FORMAT_VERSION, INDEX_FILE, SHARD_NAME, check_encoding, sample_key,
                            shard_name, shard_pattern, write_index, write_shard)
 
@@ -39,16 +39,16 @@ DEFAULT_SHARD_SIZE = 100
 class ExportOptions:
     """The command line of wildgen.export."""
 
-    data: str = option("", required=True)
+    data: str = REQUIRED
     """Dataset folder of object folders (wildgen.make, wildgen.sensor, or any layout the readers know)."""
-    out: str = option("", required=True)
+    out: str = REQUIRED
     """Folder of the shards (000000.tar ...) and their index.json; apart from --data."""
-    format: str = option("webdataset", choices=FORMATS)
+    format: Literal[FORMATS] = "webdataset"
     """Output format: 'webdataset' (tar shards, one sample per object folder, read by unips.train --data)."""
     shard_size: int = option(DEFAULT_SHARD_SIZE, minimum=1)
     """Objects per shard (the last one holds the rest). Streaming training splits shards across processes and
     loader workers, so a dataset needs at least processes x workers shards."""
-    encoding: str = option("files", choices=ENCODINGS)
+    encoding: Literal[ENCODINGS] = "files"
     """'files': each object's files as they are (PNG, TIFF, JSON; a sample unpacks into a folder the official loaders
     read). 'decoded': the arrays the one reader returns for the folder (integer image codes, mask, normals, the
     reader's metadata, scene.json), which training reads without decoding a PNG: several times faster to read
@@ -66,9 +66,7 @@ class ExportOptions:
         return self
 
 
-def build_parser():
-    return config_parser(ExportOptions, prog="python -m wildgen.export",
-                         description="Write a dataset of object folders as WebDataset tar shards with an index of "
+COMMAND = Command(ExportOptions, prog="python -m wildgen.export", description="Write a dataset of object folders as WebDataset tar shards with an index of "
                                      "checksums (for training that streams its data).")
 
 
@@ -158,7 +156,7 @@ def export_after_make(data: str | Path, out: str | Path, encoding: str = "files"
 
 def main(argv: list[str] | None = None) -> int:
     try:
-        opts = config_from_args(ExportOptions, build_parser().parse_args(argv)).validate()
+        opts = COMMAND.parse(argv).validate()
         t0 = time.perf_counter()
         if opts.quiet:
             index = export_dataset(opts.data, opts.out, opts.shard_size, opts.aux, opts.overwrite,

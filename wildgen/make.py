@@ -4,19 +4,19 @@ Example: python -m wildgen.make --lights near_area --objects 2 --images 4 --res 
 """
 from __future__ import annotations
 
-import argparse
 import logging
 import os
 import sys
 import time
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 from scenes.cli import (Progress, UsageError, check_output_folder, check_threads, gib, logs_above_progress,
                         make_output_folder, report_error)
 from scenes.cli import check_memory as check_memory_bytes
-from scenes.config import check_fields, check_int, config_parser, given_flags, option
-from scenes.config import config_from_args as parse_config
+from typing import Annotated, Literal
+
+from scenes.config import REQUIRED, Command, arg, check_fields, check_int, optional_value, option
 from scenes.shards import ENCODINGS
 from wildgen.config import GenConfig
 from wildgen.levels import LEVELS, apply_level
@@ -27,17 +27,19 @@ class MakeOptions:
     """The command line of wildgen.make: the dataset's configuration (`GenConfig`, recorded in its manifest)
     and how this run renders it."""
 
-    out: str = option("", required=True)
+    out: Annotated[str, arg(metavar="DIR")] = REQUIRED
     """Output dataset directory."""
     res: int | None = None
     """Square resolution: sets both --width and --height."""
-    gen: GenConfig = option(default_factory=GenConfig)
+    gen: GenConfig = field(default_factory=GenConfig)
     """The dataset: what is rendered (every flag of `GenConfig`)."""
-    threads: int | None = option(None, minimum=1, default_text="cores // workers, at least 1; with --ray: 1")
+    threads: Annotated[int | None, arg(help_behavior_hint="(default: cores // workers, at least 1; with --ray: 1)")] = \
+        option(None, minimum=1)
     """Dr.Jit threads per worker."""
-    workers: int | None = option(None, minimum=0, default_text="one per core, at most one per object, 1 with a cuda variant")
+    workers: Annotated[int | None, arg(help_behavior_hint="(default: one per core, at most one per object, 1 with a cuda "
+                                                          "variant)")] = option(None, minimum=0)
     """Local worker processes (0: render in this process)."""
-    ray: str | None = option(None, metavar="ADDRESS", argparse_kwargs={"nargs": "?", "const": "auto"})
+    ray: Annotated[str | None, optional_value("auto", "ADDRESS")] = None
     """Run one Ray task per object: no ADDRESS or 'auto' joins this machine's Ray cluster or starts a local one;
     else HOST:PORT or ray://... (needs pip install 'unips-toolkit[ray]')."""
     resume: bool = False
@@ -51,10 +53,10 @@ class MakeOptions:
     """Objects a worker process renders before a fresh process replaces it (bounds memory)."""
     quiet: bool = False
     """No progress bar."""
-    shards: str | None = None
+    shards: Annotated[str | None, arg(metavar="DIR")] = None
     """Also write the finished dataset as WebDataset shards into this folder (python -m wildgen.export, default
     shard size; an earlier export there is replaced)."""
-    shard_encoding: str = option("files", choices=ENCODINGS)
+    shard_encoding: Literal[ENCODINGS] = "files"
     """Encoding of --shards (wildgen.export --encoding): 'files' as they are, or 'decoded' (the reader's arrays,
     faster to train on)."""
 
@@ -68,16 +70,15 @@ class MakeOptions:
         return self
 
 
-def build_parser() -> argparse.ArgumentParser:
-    return config_parser(MakeOptions, prog="python -m wildgen.make",
-                         description="Render a PS-Wild-style photometric stereo dataset with Mitsuba 3 (one <object>.data "
-                                     "folder per object).")
+COMMAND = Command(MakeOptions, prog="python -m wildgen.make",
+                  description="Render a PS-Wild-style photometric stereo dataset with Mitsuba 3 (one <object>.data "
+                              "folder per object).")
 
 
-def options_from_args(args: argparse.Namespace, given: set[str] = frozenset()) -> MakeOptions:
-    """The options of parsed arguments (not validated): the values of --preset on the dataset's fields whose flags
+def options_from_args(argv: list[str] | None, given: set[str] = frozenset()) -> MakeOptions:
+    """The options of a command line (not validated): the values of --preset on the dataset's fields whose flags
     are not in `given` (the flags on the command line), then --res on its width and height."""
-    opts = parse_config(MakeOptions, args)
+    opts = COMMAND.parse(argv)
     apply_preset(opts.gen, given)
     apply_level(opts.gen, given)
     if opts.res is not None:
@@ -91,7 +92,7 @@ CONFIG_FLAGS = (*(f.name for f in fields(GenConfig)), "res")
 
 def _explicit_flags(argv: list[str] | None) -> set[str]:
     """Names of the options given on the command line (not defaulted)."""
-    return given_flags(build_parser, argv)
+    return COMMAND.given(argv)
 
 
 def _resume_config(opts: MakeOptions, explicit: set[str], manifest: dict) -> GenConfig:
@@ -196,9 +197,8 @@ def check_args(argv: list[str]) -> MakeOptions:
     """Everything `main` checks before it reads --out, on a command line, writing nothing: the flags, the
     dataset's configuration (`check_config`: assets decoded, memory, threads). What orchestrate checks of a
     wildgen.make step before running any step (`orchestrate.steps.check_step`)."""
-    parsed = build_parser().parse_args(argv)
     explicit = _explicit_flags(argv)
-    args = options_from_args(parsed, explicit)
+    args = options_from_args(argv, explicit)
     check_flags(args, explicit)
     if not args.resume:  # a resumed configuration is the manifest's, read when the step runs
         check_config(args, args.gen.validate())
@@ -309,9 +309,8 @@ def main(argv: list[str] | None = None) -> int:
 def _run(argv: list[str] | None, state: dict) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
-        parsed = build_parser().parse_args(argv)
         explicit = _explicit_flags(argv)
-        args = options_from_args(parsed, explicit)
+        args = options_from_args(argv, explicit)
         out = Path(args.out)
         check_flags(args, explicit)
         cfg, variant = resolve_run(args, explicit, out)

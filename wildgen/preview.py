@@ -14,6 +14,8 @@ read (`failed`, one line each), which are left out of everything else.
 """
 from __future__ import annotations
 
+from typing import Annotated
+
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,8 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from scenes.cli import check_output_folder, make_output_folder
-from scenes.config import config_from_args as parse_config
-from scenes.config import config_parser, option
+from scenes.config import Command, Positional, arg
 
 TILE = 128
 """Pixels of one tile of a contact sheet."""
@@ -150,9 +151,9 @@ def write_stats(dataset: str | Path, out: str | Path | None = None, overwrite: b
 class PreviewOptions:
     """The command line of wildgen.preview."""
 
-    dataset: str = option("", positional=True, metavar="DIR")
+    dataset: Annotated[str, Positional, arg(metavar="DIR")] = ""
     """Dataset directory (or one <object>.data folder)."""
-    out: str | None = option(None, default_text="DIR/preview")
+    out: Annotated[str | None, arg(help_behavior_hint="(default: DIR/preview)")] = None
     """Output folder: one <object>.png per object and overview.png (with --stats: stats.png and stats.json)."""
     stats: bool = False
     """Instead of the contact sheets, write the dataset card: stats.png plots the distributions to check before
@@ -164,9 +165,7 @@ class PreviewOptions:
     never touched)."""
 
 
-def build_parser():
-    return config_parser(PreviewOptions, prog="python -m wildgen.preview",
-                         description="Contact sheet PNG per object and one overview PNG of a dataset; with --stats, "
+COMMAND = Command(PreviewOptions, prog="python -m wildgen.preview", description="Contact sheet PNG per object and one overview PNG of a dataset; with --stats, "
                                      "the dataset card (stats.png, stats.json) instead.")
 
 
@@ -174,7 +173,7 @@ def main(argv: list[str] | None = None) -> int:
     from scenes.cli import UsageError, report_error
 
     try:
-        args = parse_config(PreviewOptions, build_parser().parse_args(argv))
+        args = COMMAND.parse(argv)
         if args.stats:
             written = write_stats(args.dataset, args.out, args.overwrite)  # outputs checked before any read
         else:

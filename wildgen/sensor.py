@@ -20,10 +20,10 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Literal
 
 from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, progress_bar, report_error
-from scenes.config import check_fields, config_from_args, config_parser, option
+from scenes.config import Command, REQUIRED, check_fields, option
 from scenes.objfolder import (AUX_DIR, SCENE_FILE, atomic_write_text, image_files, image_name, list_object_folders,
                               object_name, radiance_name, read_exr, read_scene, write_scene)
 from scenes.sensor import (SCENE_KEY, SENSORS, Sensor, read_sensor_record, rederive_image, scale_camera_lights, sensor_named,
@@ -37,11 +37,11 @@ from wildgen.writer import TMP_PREFIX, publish_folder
 class SensorOptions:
     """The command line of wildgen.sensor."""
 
-    data: str = option("", required=True)
+    data: str = REQUIRED
     """Dataset folder made by wildgen.make (object folders holding their radiance, aux/radiance_XXX.exr)."""
-    sensor: str = option("", required=True, choices=tuple(SENSORS))
+    sensor: Literal[tuple(SENSORS)] = REQUIRED
     """Sensor preset whose files replace the images (a key of scenes.sensor.SENSORS)."""
-    out: str = option("", required=True)
+    out: str = REQUIRED
     """New dataset folder; an existing one that is not empty is refused unless --overwrite."""
     seed: int = option(0, minimum=0)
     """Noise seed: image i draws its noise from (seed, its sampler seed); 0 gives the images of wildgen.make
@@ -56,9 +56,7 @@ class SensorOptions:
         return self
 
 
-def build_parser():
-    return config_parser(SensorOptions, prog="python -m wildgen.sensor",
-                         description="Re-apply a camera sensor (noise, black level, response, bit depth, vignetting, "
+COMMAND = Command(SensorOptions, prog="python -m wildgen.sensor", description="Re-apply a camera sensor (noise, black level, response, bit depth, vignetting, "
                                      "Bayer filter, white balance) to the radiance of an existing dataset, without "
                                      "rendering.")
 
@@ -206,7 +204,7 @@ def apply_to_dataset(data: str | Path, out: str | Path, sensor: Sensor, seed: in
 
 def main(argv: list[str] | None = None) -> int:
     try:
-        opts = config_from_args(SensorOptions, build_parser().parse_args(argv)).validate()
+        opts = COMMAND.parse(argv).validate()
         sensor = sensor_named(opts.sensor)
         t0 = time.perf_counter()
         if opts.quiet:
