@@ -17,5 +17,5 @@ def markdown_table(header: Sequence[Any], rows: Iterable[Sequence[Any]]) -> str:
     for row in body:
         if len(row) != len(header):
             raise ValueError(f"markdown_table: a row has {len(row)} cells, the header {len(header)}: {row}")
-    lines = [header, ["---"] * len(header), *body]
-    return "\n".join("| " + " | ".join(cells) + " |" for cells in lines)
+    rows = ["| " + " | ".join(cells) + " |" for cells in (header, *body)]
+    return "\n".join([rows[0], "|" + "---|" * len(header), *rows[1:]])
