@@ -440,7 +440,10 @@ class Command:
     def given(self, argv: Sequence[str] | None) -> set[str]:
         """Names of the fields whose flags are on the command line `argv` (not left at their defaults)."""
         by_flag = {flag: name for name, flag in self.flags().items() if flag.startswith("-")}
-        return {by_flag[t.split("=", 1)[0]] for t in (argv or []) if t.split("=", 1)[0] in by_flag}
+        import sys
+
+        tokens = sys.argv[1:] if argv is None else argv  # as `parse` reads it
+        return {by_flag[t.split("=", 1)[0]] for t in tokens if t.split("=", 1)[0] in by_flag}
 
     def _join_repeated(self, argv: list[str]) -> list[str]:
         """A `Repeatable` flag given several times becomes one comma-separated value (its uses add up)."""

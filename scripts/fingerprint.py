@@ -24,7 +24,8 @@ from pathlib import Path
 # JSON keys whose values are wall-clock measurements or the run's environment, not results.
 VOLATILE_KEYS = {"seconds", "elapsed_s", "time_s", "timings", "wall_s", "started", "finished", "host", "hostname",
                  "pid", "created", "duration_s", "render_seconds", "peak_rss_mb", "node", "worker", "date",
-                 "python", "platform", "argv", "command", "updated"}
+                 "python", "platform", "argv", "command", "updated",
+                 "rerender_over_original"}
 FIGURE_SUFFIXES = (".png",)
 FIGURE_DIRS = ("preview", "figures")
 FIGURE_NAMES = ("figure.png", "error.png", "overview.png", "stats.png")

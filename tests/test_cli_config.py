@@ -113,6 +113,17 @@ def test_generator_fields_reach_the_config_and_a_repeated_list_flag_adds_up():
     assert COMMAND.given(["--out", "o", "--margin=0.1", "--quiet"]) == {"out", "margin", "quiet"}
 
 
+def test_a_command_line_read_from_sys_argv_keeps_its_given_flags(monkeypatch):
+    """`python -m wildgen.make` reads sys.argv: the flags typed there win over a preset, as with an argv list."""
+    from wildgen.make import COMMAND, _explicit_flags, options_from_args
+
+    argv = ["--out", "o", "--preset", "phone-flash", "--images", "4"]
+    monkeypatch.setattr("sys.argv", ["python -m wildgen.make", *argv])
+    assert COMMAND.given(None) == {"out", "preset", "images"} == _explicit_flags(None)
+    gen = options_from_args(None, _explicit_flags(None)).gen.validate()
+    assert gen.images == 4 and gen.lights == ["flash"]
+
+
 def test_one_set_of_checks_names_the_flag_the_value_and_what_was_expected():
     assert check_int(3, "--n", minimum=1) == 3
     for bad in (0, 2.5, True, "3", None):
