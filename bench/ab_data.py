@@ -54,7 +54,7 @@ def make(out: Path, flags: list[str], label: str) -> Path:
 
 def score_set(net, folder: Path) -> dict:
     """Mean angular error over the objects of a dataset, all images and mask only (the photometric gain)."""
-    from scenes.objfolder import mean_angular_error
+    from scenes.metrics import mean_angular_error
     from unips.data import find_objects, load_object
     from unips.inference import predict_object
     from orchestrate.benchmark import probe_inputs
@@ -209,7 +209,7 @@ def record(results: dict, w: Path, args) -> None:
     card["data_ab"] = {"protocol": __doc__.split("\n\n")[1].strip(), "steps": args.steps, "objects": args.objects,
                        "results": {k: {a: v[a] for a in ("fixed_validation", "new_kinds", "diligent")}
                                    for k, v in results.items()}}
-    from scenes.objfolder import atomic_write_text
+    from scenes.files import atomic_write_text
 
     atomic_write_text(card_path, json.dumps(card, indent=1))
     print(f"recorded {len(results) - 1} runs in {card_path}")

@@ -342,7 +342,7 @@ def blender_job(folder: Path, scene: dict, lights: dict[str, list[dict]], render
 
 def rgb_copy(folder: Path, rel: str) -> str:
     """An RGB copy of a texture EXR next to it (same values in every channel for scalar maps)."""
-    from scenes.objfolder import read_exr, write_exr
+    from scenes.images import read_exr, write_exr
 
     arr = read_exr(folder / rel)
     if arr.shape[2] == 3:
@@ -376,8 +376,8 @@ def mitsuba_renders(folder: Path, scene: dict, lights: dict[str, list[dict]], pl
 
     from scenes.description import ImageDesc, SceneDescription
     from scenes.lights import light_from_dict
-    from scenes.mitsuba_build import build_scene
-    from scenes.render import render_ground_truth, render_image
+    from scenes.renderer.build import build_scene
+    from scenes.renderer.render import render_ground_truth, render_image
 
     dr.set_thread_count(threads)
     d = {k: v for k, v in scene.items() if k not in ("camera_lights", "format_version")}
@@ -429,7 +429,7 @@ def main() -> int:
         return 0
 
     from scenes.description import multijitter_spp
-    from scenes.variant import choose_variant
+    from scenes.renderer.variant import choose_variant
 
     variant = choose_variant("llvm_ad_rgb")
     work = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="bench_cycles_"))

@@ -52,7 +52,7 @@ def main() -> int:
     p.add_argument("--out", type=Path, default=None, help="write the JSON rows here")
     args = p.parse_args()
 
-    from scenes.objfolder import read_mask, read_normals, read_exr
+    from scenes.images import read_mask, read_normals, read_exr
 
     tmp = Path(tempfile.mkdtemp(prefix="bench_detail_"))
     rows = []

@@ -4,7 +4,7 @@
   python bench/bench_determinism.py --sizes 64:32 --images 6 --repeats 3
 
 Old: `mi.render` (atomic scatter-add into the film; bytes depend on the thread count). New:
-`scenes.render.render_film` (each sample to its own slot, pixels summed in NumPy in a fixed order). Both
+`scenes.renderer.render.render_film` (each sample to its own slot, pixels summed in NumPy in a fixed order). Both
 render the same images of one `mixed`-light object, interleaved image by image in one process so that load
 from other processes hits both alike; the first image of each (compilation) is not timed. Also reports
 whether each path gave identical bytes with 1 and 2 threads.
@@ -30,14 +30,14 @@ def main() -> int:
     p.add_argument("--variant", default="llvm_ad_rgb")
     args = p.parse_args()
 
-    from scenes.variant import choose_variant
+    from scenes.renderer.variant import choose_variant
 
     choose_variant(args.variant)
     import drjit as dr
     import mitsuba as mi
 
-    from scenes.mitsuba_build import build_scene
-    from scenes.render import render_film
+    from scenes.renderer.build import build_scene
+    from scenes.renderer.render import render_film
     from wildgen.assets import AssetLibrary
     from wildgen.config import GenConfig
     from wildgen.sampling import sample_object
@@ -75,7 +75,7 @@ def main() -> int:
             same = all(np.array_equal(a, b) for a, b in zip(outputs[(name, thread_list[0])], outputs[(name, thread_list[-1])]))
             rows.append((f"{res}x{res}", desc.render.spp, f"{name}: {thread_list[0]} vs {thread_list[-1]} threads identical", same))
     print(f"variant {args.variant}, {args.images} images, median seconds per image over {args.repeats} renders each")
-    from scenes.tables import markdown_table
+    from scenes.report.tables import markdown_table
 
     print(markdown_table(["size", "spp", "threads", "old mi.render (s)", "new render_film (s)", "new / old"],
                          [[*r[:3], f"{r[3]:.4f}", f"{r[4]:.4f}", f"{r[5]:.2f}"] for r in rows if len(r) == 6]))

@@ -62,7 +62,7 @@ def diligent(args, net, out: dict) -> None:
     from validate.capture import downsample_normals, load_capture
     from validate.fit import FitConfig, fit_normals, prepare
     from validate.lights import angular_errors_deg, directions_of
-    from scenes.objfolder import mean_angular_error as mae_deg
+    from scenes.metrics import mean_angular_error as mae_deg
     from validate.refine import RefineConfig, refine_object
 
     for name in ("ball", "cat"):
@@ -122,7 +122,7 @@ def diligent(args, net, out: dict) -> None:
 def synthetic(args, net, out: dict) -> None:
     from validate.capture import load_capture
     from validate.fit import FitConfig, fit_normals
-    from scenes.objfolder import mean_angular_error as mae_deg
+    from scenes.metrics import mean_angular_error as mae_deg
     from validate.refine import RefineConfig, refine_object
     from validate.rerender import RerenderConfig, rerender_object
 
@@ -203,7 +203,7 @@ def main(argv: list[str] | None = None) -> int:
     args.angles = [float(a) for a in args.angles.split(",")]
     args.synthetic_angles = [float(a) for a in args.synthetic_angles.split(",")]
     args.kinds = args.kinds.split(",")
-    from scenes.variant import choose_variant, set_jit_threads
+    from scenes.renderer.variant import choose_variant, set_jit_threads
     from unips.inference import load_network
 
     choose_variant("llvm_ad_rgb")

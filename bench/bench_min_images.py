@@ -80,7 +80,7 @@ def render(n: np.ndarray, mask: np.ndarray, lights: np.ndarray, seed: int) -> tu
 
 def measure(n: np.ndarray, mask: np.ndarray, imgs: np.ndarray, noise: float, cfg) -> dict:
     """Scores of the ground truth and the perturbed maps, and refinement of the ground truth (module doc)."""
-    from scenes.objfolder import mean_angular_error
+    from scenes.metrics import mean_angular_error
     from validate.fit import fit_normals
     from validate.judgeable import lit_pixels
     from validate.perturb import perturb_normals
@@ -115,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--threads", type=int, default=None, help="Dr.Jit threads (default one per core)")
     ap.add_argument("--draws", type=int, default=4, help="light subsets per image count")
     args = ap.parse_args(argv)
-    from scenes.variant import choose_variant, set_jit_threads
+    from scenes.renderer.variant import choose_variant, set_jit_threads
     from validate.fit_scene import FitConfig
 
     choose_variant("llvm_ad_rgb")

@@ -41,8 +41,8 @@ COLUMNS = ("s_per_object", "cpu_s_per_object", "s_per_image", "first_image_s", "
 
 def measure(family: str, args, tmp: Path, overrides: dict | None = None) -> dict[str, list[float]]:
     """One round of `args.objects` objects of `family` (GenConfig `overrides` on top): per object, each column."""
-    from scenes.mitsuba_build import build_scene
-    from scenes.render import render_image
+    from scenes.renderer.build import build_scene
+    from scenes.renderer.render import render_image
     from wildgen.assets import AssetLibrary
     from wildgen.config import GenConfig
     from wildgen.sampling import sample_object
@@ -93,7 +93,7 @@ def main() -> int:
     p.add_argument("--variant", default=None)
     args = p.parse_args()
 
-    from scenes.variant import choose_variant
+    from scenes.renderer.variant import choose_variant
     from wildgen.assets import AssetLibrary
     from wildgen.config import GenConfig
     from wildgen.writer import make_object

@@ -45,7 +45,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from scipy.stats import spearmanr
 
-    from scenes.variant import choose_variant
+    from scenes.renderer.variant import choose_variant
 
     choose_variant(args.variant)
     import mitsuba as mi

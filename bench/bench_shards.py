@@ -3,7 +3,7 @@
     python bench/bench_shards.py [--objects 200] [--images 8] [--res 64] [--shard-size 100] [--out shards.json]
 
 Writes `--objects` synthetic object folders (a Lambertian ellipsoid with a random albedo under random
-directional lights plus sensor-like noise, 16-bit PNGs of `--res` px, written through `scenes.objfolder`; no
+directional lights plus sensor-like noise, 16-bit PNGs of `--res` px, written through `scenes.folder.format`; no
 rendering) into a temporary folder, exports them twice with `wildgen.export` (`--shard-size` objects per shard):
 `--encoding files` (the folder's files as they are) and `--encoding decoded` (the one reader's arrays), and reads
 the three sources back three ways, each timed cold and warm:
@@ -41,7 +41,7 @@ sys.path.insert(0, str(ROOT))
 def write_objects(root: Path, count: int, images: int, res: int, seed: int = 0) -> None:
     """`count` object folders 00000.data ... of synthetic Lambertian ellipsoids (noisy, so PNGs do not shrink to
     nothing)."""
-    from scenes.objfolder import write_object_folder
+    from scenes.folder.format import write_object_folder
 
     rng = np.random.default_rng(seed)
     i, j = np.mgrid[0:res, 0:res] + 0.5
@@ -85,7 +85,7 @@ def read_folder_files(data: Path) -> int:
 
 
 def read_shard_files(pattern: str) -> int:
-    from scenes.shards import iter_samples, verify_shard
+    from scenes.folder.shards import iter_samples, verify_shard
     from unips.shards import resolve_shards
 
     n = 0
@@ -122,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
     import torch
 
     importlib.import_module("webdataset")  # imported now, not inside the first timed pass
-    from scenes.shards import ENCODINGS
+    from scenes.folder.shards import ENCODINGS
     from unips.train_data import load_samples
     from wildgen.export import export_dataset
 
@@ -170,7 +170,7 @@ def main(argv: list[str] | None = None) -> int:
                         rates[source] = max(rates.get(source, 0.0), n / seconds)
                 rows.append({"read": what, "cache": cache, **{f"{s}_per_s": round(rates[s], 1) for s in sources},
                              **{f"ratio_{e}": round(rates[e] / rates["folders"], 2) for e in ENCODINGS}})
-    from scenes.tables import markdown_table
+    from scenes.report.tables import markdown_table
 
     print()
     print(markdown_table(["read", "cache", "folders (objects/s)", "shards, files (objects/s)", "shards, decoded (objects/s)",

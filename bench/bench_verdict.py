@@ -101,8 +101,8 @@ def main() -> int:
                    "light model (overrides --tile and --light-model)")
     args = p.parse_args()
 
-    from scenes.objfolder import mean_angular_error
-    from scenes.variant import choose_variant
+    from scenes.metrics import mean_angular_error
+    from scenes.renderer.variant import choose_variant
 
     choose_variant("llvm_ad_rgb")
     from unips.data import load_object

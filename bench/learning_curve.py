@@ -37,7 +37,7 @@ def _cell(v: float | None) -> str:
 
 
 def table(run: Path, families: bool = False) -> str:
-    from scenes.tables import markdown_table
+    from scenes.report.tables import markdown_table
     from unips.probes import PROBE_TITLES, format_table
 
     rows = validations(run)
@@ -76,7 +76,7 @@ def fit_log2(hours: list[float], errors: list[float]) -> tuple[float, float]:
 
 
 def card_table(card: dict, target: float) -> str:
-    from scenes.tables import markdown_table
+    from scenes.report.tables import markdown_table
 
     chain = shipped_chain(card)
     if not chain:

@@ -30,11 +30,13 @@ from typing import Annotated, Any, Literal
 
 import numpy as np
 
-from scenes.cli import (INPUT_ERRORS, UsageError, check_memory, check_output_folder, check_threads, claim_outputs,
-                        make_output_folder, report_error)
-from scenes.config import Command, arg, check_fields, comma_list, option
-from scenes.objfolder import atomic_write_text, mean_angular_error
-from scenes.tables import markdown_table
+from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
+from scenes.cli.limits import check_memory, check_threads
+from scenes.cli.outputs import check_output_folder, claim_outputs, make_output_folder
+from scenes.cli.options import Command, arg, check_fields, comma_list, option
+from scenes.files import atomic_write_text
+from scenes.metrics import mean_angular_error
+from scenes.report.tables import markdown_table
 from unips.data import find_objects, load_object
 from unips.inference import DEFAULT_TTA, TTA_VIEWS, load_network, predict_object
 from unips.probes import PROBES
@@ -374,7 +376,7 @@ def check_inputs(args: BenchmarkOptions, data: bool = True) -> None:
     """Every input read (without its images) and sized before any model runs: each synthetic object has ground
     truth, each DiLiGenT object has ground truth and enough images for --diligent-subset, the re-render
     options are valid, and the largest object fits in memory (`unips.inference.prediction_memory`)."""
-    from scenes.layouts import read_folder
+    from scenes.folder.layouts import read_folder
     from unips.inference import prediction_memory
     from unips.preprocess import crop_box
 
@@ -434,7 +436,7 @@ def main(argv: list[str] | None = None) -> int:
                                "tta": args.tta}
         if args.data:
             if args.rerender_objects > 0:
-                from scenes.variant import choose_variant
+                from scenes.renderer.variant import choose_variant
 
                 res["variant"] = choose_variant(args.variant)
                 if args.threads:

@@ -25,10 +25,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from orchestrate.steps import StepFailed, check_step, run_step
-from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, claim_outputs, report_error
-from scenes.objfolder import atomic_write_text
-from scenes.tables import markdown_table
-from scenes.config import Command, arg, check_fields, option
+from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
+from scenes.cli.outputs import check_output_folder, claim_outputs
+from scenes.files import atomic_write_text
+from scenes.report.tables import markdown_table
+from scenes.cli.options import Command, arg, check_fields, option
 
 FAMILIES = "near_area,hdri,mixed,directional"
 
@@ -115,7 +116,7 @@ class DemoOptions:
 
     def validate(self) -> "DemoOptions":
         """The flags and --out: an earlier demo's output is replaced only with --overwrite
-        (`scenes.cli.claim_outputs`); the steps' own arguments: `check_steps`."""
+        (`scenes.cli.outputs.claim_outputs`); the steps' own arguments: `check_steps`."""
         check_fields(self)
         check_output_folder(self.out)
         claim_outputs([self.out / "summary.md"], self.overwrite, owner="orchestrate.demo")

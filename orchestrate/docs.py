@@ -23,15 +23,15 @@ import sys
 from pathlib import Path
 from typing import Any, Callable
 
-from scenes.cli import UsageError, report_error
-from scenes.config import Command
-from scenes.tables import markdown_table
+from scenes.cli.errors import UsageError, report_error
+from scenes.cli.options import Command
+from scenes.report.tables import markdown_table
 
 REPO = Path(__file__).resolve().parents[1]
 CARD = REPO / "unips" / "weights" / "model_card.json"
 
 # Every command-line entry point of the packages, in the order a reader meets them. Each module has a
-# `COMMAND` (`scenes.config.Command`); each needs a `flags:MODULE` block somewhere in the docs (checked).
+# `COMMAND` (`scenes.cli.options.Command`); each needs a `flags:MODULE` block somewhere in the docs (checked).
 CLIS = (
     "wildgen.make",
     "wildgen.preview",
@@ -72,7 +72,7 @@ def flag_table(module: str) -> str:
     """The flag table(s) of `module`'s command line: its own options, then one table per nested config."""
     cli = importlib.import_module(module)
     if not isinstance(getattr(cli, "COMMAND", None), Command):
-        raise UsageError(f"generated:flags:{module}: {module} has no COMMAND (scenes.config.Command)")
+        raise UsageError(f"generated:flags:{module}: {module} has no COMMAND (scenes.cli.options.Command)")
     groups: dict[str, list] = {}
     for flag in cli.COMMAND.options():
         groups.setdefault(flag.group, []).append(flag)

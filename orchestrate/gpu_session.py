@@ -38,9 +38,10 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from orchestrate.steps import StepFailed, check_step, run_step
-from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, report_error
-from scenes.config import Command, check_fields, option
-from scenes.objfolder import atomic_write_text
+from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
+from scenes.cli.outputs import check_output_folder
+from scenes.cli.options import Command, check_fields, option
+from scenes.files import atomic_write_text
 
 REPO = Path(__file__).resolve().parents[1]
 UPLOAD_LIMIT = 64 * 2**20
@@ -198,8 +199,8 @@ def compare_datasets(main: Path, check: Path, names: list[str], spp: int, noise_
     import cv2
     import numpy as np
 
-    from scenes.layouts import read_folder
-    from scenes.objfolder import angles_deg
+    from scenes.folder.layouts import read_folder
+    from scenes.metrics import angles_deg
 
     tol = noise_cv * math.sqrt(2.0 / spp)
     objects = []
@@ -246,7 +247,7 @@ def missing_mitsuba() -> str | None:
 
 
 def _choose(requested: str, avoid: str | None = None) -> str:
-    from scenes.variant import choose_variant
+    from scenes.renderer.variant import choose_variant
 
     if requested != "auto":
         return choose_variant(requested)
@@ -284,8 +285,8 @@ def curve_records(log: Path) -> list[dict]:
 
 
 def curve_figure(records: list[dict], title: str):
-    """Training loss against step, a matplotlib Figure (640 x 400 pixels; `scenes.charts`)."""
-    from scenes.charts import new_figure
+    """Training loss against step, a matplotlib Figure (640 x 400 pixels; `scenes.report.charts`)."""
+    from scenes.report.charts import new_figure
 
     fig = new_figure(640, 400, layout="constrained")
     ax = fig.subplots()
@@ -297,7 +298,7 @@ def curve_figure(records: list[dict], title: str):
 
 def plot_curve(records: list[dict], path: Path, title: str) -> None:
     """Write `curve_figure` as a PNG."""
-    from scenes.charts import write_figure
+    from scenes.report.charts import write_figure
 
     write_figure(path, curve_figure(records, title))
 
@@ -338,7 +339,7 @@ def session(opts: SessionOptions, t0: float | None = None) -> dict:
     if check:
         n = min(opts.check_objects, opts.objects)
         run_step([py, "-m", "wildgen.make", *_make_argv(opts, again, check, n, None)], cwd=REPO)
-        from scenes.layouts import find_object_folders
+        from scenes.folder.layouts import find_object_folders
 
         names = [f.name for f in find_object_folders(again, "--work") if (data / f.name).is_dir()]
         check_report = {"variant": variant, "check_variant": check,

@@ -7,7 +7,7 @@ subprocess, its arguments checked up front and its failure reported as one line.
   after the hours of the steps before it.
 - `run_step(cmd)`: runs one step, its standard output and error passed through as they come, except its own
   `error: ...` line, which is held back: a failed step raises `StepFailed`, whose message is that line with the
-  step named, and the command reports it as its one error line (`scenes.cli.report_error`), never a traceback.
+  step named, and the command reports it as its one error line (`scenes.cli.errors.report_error`), never a traceback.
 """
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ import subprocess
 import sys
 from typing import Any
 
-from scenes.cli import UsageError
+from scenes.cli.errors import UsageError
 
 
 class StepFailed(UsageError):

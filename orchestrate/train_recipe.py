@@ -41,9 +41,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from orchestrate.steps import StepFailed, check_step, run_step
-from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, report_error
-from scenes.objfolder import atomic_write, atomic_write_text
-from scenes.config import Command, REQUIRED, arg, check_fields, comma_list, option
+from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
+from scenes.cli.outputs import check_output_folder
+from scenes.files import atomic_write, atomic_write_text
+from scenes.cli.options import Command, REQUIRED, arg, check_fields, comma_list, option
 from wildgen.lighting import PS_WILD_FAMILIES
 
 REPO = Path(__file__).resolve().parents[1]
@@ -100,7 +101,7 @@ def existing_split(work: Path) -> dict[Path, Path]:
 
 def check_split(assets: Path | None, work: Path, overwrite: bool) -> bool:
     """Whether the split must be (re)written: False when --work holds the same split already. A split of another
-    asset folder is replaced only with --overwrite (`scenes.cli.claim_outputs`' rule); foreign files never."""
+    asset folder is replaced only with --overwrite (`scenes.cli.outputs.claim_outputs`' rule); foreign files never."""
     found = existing_split(work)
     if assets is None:
         return False

@@ -2,7 +2,7 @@
 
 Everything needed to render one object under K lightings lives in these dataclasses. They hold only
 numbers, strings and lists, round-trip through JSON exactly (`to_json` / `from_json`), and are checked
-by `validate()`; `scenes.mitsuba_build` is the only module that turns them into Mitsuba objects.
+by `validate()`; `scenes.renderer.build` is the only module that turns them into Mitsuba objects.
 
 Frames: the world frame is right-handed; the default camera sits on +z looking at the origin with +y up,
 so that the world frame equals the camera frame (x right, y up, z toward the camera).

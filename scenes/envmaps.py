@@ -71,7 +71,7 @@ def load_environment(path: Path) -> np.ndarray:
     """Equirectangular .hdr/.exr file -> float32 (H, W, 3) RGB."""
     import cv2
 
-    from scenes.objfolder import read_exr
+    from scenes.images import read_exr
 
     if not path.is_file():
         raise FileNotFoundError(f"environment.file: {str(path)!r} does not exist")

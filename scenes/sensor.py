@@ -306,7 +306,7 @@ def apply_sensor(linear: np.ndarray, sensor: Sensor, rng: np.random.Generator | 
     """The file pixels of one image: (H, W, 3) linear float (>= 0, after the image's exposure; 1 is the white
     level) -> (H, W, 3) uint8 (8 bits) or uint16 (12 bits as DN * 16, 16 bits), by the model of the module
     docstring. `rng` draws the noise (required when `sensor.noisy`). The arithmetic stays in the input's float
-    type, so `ideal` gives exactly `scenes.objfolder.to_uint16(linear)`."""
+    type, so `ideal` gives exactly `scenes.images.to_uint16(linear)`."""
     x = np.asarray(linear)
     if x.ndim != 3 or x.shape[2] != 3 or not np.issubdtype(x.dtype, np.floating):
         raise ValueError(f"apply_sensor: expected a float (H, W, 3) image, got {x.dtype} {x.shape}")
@@ -389,7 +389,8 @@ def linearize(values: np.ndarray, sensor: Sensor) -> np.ndarray:
 
 def write_image(path: str | Path, pixels: np.ndarray) -> None:
     """(H, W, 3) uint8 or uint16 file pixels of `apply_sensor` -> an 8- or 16-bit RGB PNG, atomically."""
-    from scenes.objfolder import atomic_write, write_png16
+    from scenes.files import atomic_write
+    from scenes.images import write_png16
 
     if pixels.dtype == np.uint16:
         write_png16(path, pixels)  # the writer of every 16-bit image: `ideal` gives today's bytes
@@ -408,7 +409,7 @@ def write_image(path: str | Path, pixels: np.ndarray) -> None:
 # ------------------------------------------------------------------------------------------ scene.json
 
 SCENE_KEY = "sensor"
-"""The scene.json key of the sensor record (a `scenes.objfolder.SCENE_EXTRAS` entry)."""
+"""The scene.json key of the sensor record (a `scenes.folder.format.SCENE_EXTRAS` entry)."""
 _STREAM = 0x5E4502  # keeps the noise streams apart from any other use of the image seeds
 
 
@@ -436,7 +437,7 @@ class SensorRecord:
 
 
 def read_sensor_record(extras: dict[str, Any], images: int, where: str = "the scene file") -> SensorRecord:
-    """The sensor record of scene.json's extras (`scenes.objfolder.read_scene`); a folder without one was
+    """The sensor record of scene.json's extras (`scenes.folder.format.read_scene`); a folder without one was
     written by the ideal sensor. ValueError naming the bad field."""
     if SCENE_KEY not in extras:
         return SensorRecord(noise_seeds=[0] * images)

@@ -61,7 +61,7 @@ def read_image_file(path: Path) -> np.ndarray:
     if not path.is_file():
         raise FileNotFoundError(f"texture file {str(path)!r} does not exist")
     if path.suffix.lower() == ".exr":
-        from scenes.objfolder import read_exr
+        from scenes.images import read_exr
 
         return read_exr(path)
     img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR)

@@ -20,9 +20,9 @@ test on each, and `use_variant` is the one place that decides whether one is usa
 
 def use_variant(*variants: str) -> str:
     """Set the first of `variants` (default: any of `VARIANTS`) this machine can run and return its name; skip
-    the calling test when it can run none. The only caller of `scenes.variant._usable` in the tests (the module
+    the calling test when it can run none. The only caller of `scenes.renderer.variant._usable` in the tests (the module
     has no public check that does not raise: `choose_variant` raises instead of skipping)."""
-    from scenes.variant import _usable
+    from scenes.renderer.variant import _usable
 
     for variant in variants or VARIANTS:
         if _usable(variant):  # sets it
@@ -70,9 +70,9 @@ def shared() -> Path:
 def write_synthetic_object(folder: Path, images: np.ndarray, mask: np.ndarray, normals: np.ndarray | None,
                            light_family: str | None = "directional", directions: np.ndarray | None = None,
                            irradiance: np.ndarray | None = None, other: int = 0) -> Path:
-    """An object folder in our layout written through `scenes.objfolder` (no rendering): L*.png, mask.png,
+    """An object folder in our layout written through `scenes.folder.format` (no rendering): L*.png, mask.png,
     normal.tif and a partial scene.json (light family, camera-frame directional lights when given)."""
-    from scenes.objfolder import write_object_folder
+    from scenes.folder.format import write_object_folder
 
     scene: dict = {"light_family": light_family}
     if directions is not None:

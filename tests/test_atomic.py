@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scenes.objfolder import atomic_write, read_normals, write_exr, write_normal_map
+from scenes.files import atomic_write
+from scenes.images import read_normals, write_exr, write_normal_map
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -50,7 +50,7 @@ def _double_sided_sphere(path: Path) -> None:
 @pytest.fixture(scope="module")
 def world(tmp_path_factory) -> Path:
     """Everything the rows read: a dataset, predictions, checkpoints, corrupt files, occupied folders."""
-    from scenes.objfolder import read_normals, write_normal_map
+    from scenes.images import read_normals, write_normal_map
     use_variant("llvm_ad_rgb")
     w = tmp_path_factory.mktemp("world")
     from wildgen.make import main as make
@@ -306,7 +306,7 @@ def _capture_copy(transform: Callable[[np.ndarray, np.ndarray], np.ndarray] | No
     as a capture; `scene`: keep it, e.g. for least squares' calibrated lights), with `images` images (its
     first ones, or its 4 repeated up to that many) and each image replaced by transform(image, mask)."""
     def setup(w: Path, t: Path) -> None:
-        from scenes.objfolder import read_image, read_mask, write_png16
+        from scenes.images import read_image, read_mask, write_png16
 
         src, dst = w / "data" / f"{OBJ}.data", t / f"{OBJ}.data"
         shutil.copytree(src, dst, ignore=None if scene else shutil.ignore_patterns("scene.json"))
@@ -335,7 +335,7 @@ def _clipped_where_lit(img: np.ndarray, mask: np.ndarray) -> np.ndarray:
 
 
 def _normals_times_1e30(w: Path, t: Path) -> None:
-    from scenes.objfolder import read_normals
+    from scenes.images import read_normals
 
     np.save(t / "big.npy", read_normals(w / "pred" / OBJ / "normal.png") * np.float32(1e30))
 

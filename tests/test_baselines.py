@@ -10,7 +10,7 @@ import pytest
 from fixtures import cone_lights, shading, sphere
 from unips.baselines import least_squares, run_baseline, sh_uncalibrated
 from unips.data import PSObject, load_object
-from scenes.objfolder import mean_angular_error
+from scenes.metrics import mean_angular_error
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 DILIGENT = SHARED / "data" / "diligent"

@@ -1,4 +1,4 @@
-"""Every CLI is its config dataclass read by tyro (`scenes.config.Command`): a flag per field, help from the
+"""Every CLI is its config dataclass read by tyro (`scenes.cli.options.Command`): a flag per field, help from the
 field's docstring, defaults written once (in the dataclass), one set of option checks, errors of one line."""
 from __future__ import annotations
 
@@ -9,8 +9,9 @@ import typing
 import pytest
 import tyro
 
-from scenes.cli import UsageError, check_output_folder, make_output_folder
-from scenes.config import Command, check_choice, check_int, check_number, undocumented_fields
+from scenes.cli.errors import UsageError
+from scenes.cli.outputs import check_output_folder, make_output_folder
+from scenes.cli.options import Command, check_choice, check_int, check_number, undocumented_fields
 
 # Each CLI module and the dataclass its command line is generated from.
 CLIS = {

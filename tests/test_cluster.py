@@ -20,7 +20,7 @@ def clusters(tmp_path_factory):
 
 def test_parts_cover_the_mesh_and_instances_cover_the_mask(clusters):
     from scenes.meshes import load_mesh
-    from scenes.objfolder import read_instances, read_mask
+    from scenes.images import read_instances, read_mask
 
     assert len(clusters) == 3
     seen = []
@@ -43,7 +43,7 @@ def test_instance_ids_agree_with_each_parts_projected_outline(clusters):
     Part k's pixels must lie inside the outline of part k's own projected vertices (its 2-D bounding box)."""
     from scenes.geometry import transformed_mesh
     from scenes.meshes import load_mesh
-    from scenes.objfolder import read_instances
+    from scenes.images import read_instances
 
     for folder in clusters:
         scene = json.loads((folder / "scene.json").read_text())

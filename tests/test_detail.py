@@ -22,7 +22,7 @@ def _analytic_normal(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def variant():
-    from scenes.variant import choose_variant
+    from scenes.renderer.variant import choose_variant
 
     use_variant()
     return choose_variant("auto")
@@ -32,10 +32,10 @@ def test_plane_with_a_known_bump_has_the_analytic_ground_truth(variant, tmp_path
     from scenes.description import CameraDesc, ImageDesc, MaterialDesc, SceneDescription, ShapeDesc
     from scenes.lights import DirectionalLight
     from scenes.geometry import write_mesh_ply
-    from scenes.mitsuba_build import build_scene
-    from scenes.objfolder import write_normal_map
+    from scenes.renderer.build import build_scene
+    from scenes.images import write_normal_map
     from scenes.procedural import MeshData
-    from scenes.render import render_ground_truth
+    from scenes.renderer.render import render_ground_truth
 
     # A camera-facing plane [-1, 1]^2 with u along x and v along y: tangent space = camera frame.
     pos = np.float32([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]])
@@ -100,7 +100,7 @@ def test_tangent_normals_follow_the_height_gradient():
 def test_generator_writes_detail_and_base_normals(variant, tmp_path):
     import json
 
-    from scenes.objfolder import read_normals
+    from scenes.images import read_normals
 
     folders = render_dataset(tmp_path / "ds", "--objects", "2", "--images", "2", "--res", "48", "--spp", "4",
                              "--gt-spp", "4", "--detail", "1", "--shapes", "procedural", "--seed", "2")
@@ -110,7 +110,7 @@ def test_generator_writes_detail_and_base_normals(variant, tmp_path):
         assert scene["material"]["detail"] is not None and scene["material"]["normal_map"]
         n = read_normals(folder / "normal.tif")
         b = read_normals(folder / "normal_base.tif")
-        from scenes.objfolder import read_mask
+        from scenes.images import read_mask
 
         m = read_mask(folder / "mask.png")
         ang = np.degrees(np.arccos(np.clip((n[m] * b[m]).sum(-1), -1, 1)))

@@ -3,7 +3,7 @@
 `mi.render` adds the samples of a pixel into the film with atomic scatter-adds; where the samples of one pixel
 fall into the work blocks of two threads, their float sum depends on which thread adds first. At the size used
 here (64x64, 32 spp -> 35 multijitter samples, so pixels straddle the blocks of 2 threads) the old path gave
-different radiance EXRs between --threads 1 and --threads 2. `scenes.render.render_film` writes each sample
+different radiance EXRs between --threads 1 and --threads 2. `scenes.renderer.render.render_film` writes each sample
 to its own slot and sums each pixel in NumPy in a fixed order instead.
 """
 from __future__ import annotations
@@ -50,7 +50,7 @@ def test_threads_and_workers_give_the_same_bytes(tmp_path, variant_llvm_ad_rgb):
 
 
 def _built(res: int, spp: int):
-    from scenes.mitsuba_build import build_scene
+    from scenes.renderer.build import build_scene
     from wildgen.assets import AssetLibrary
     from wildgen.config import GenConfig
     from wildgen.sampling import sample_object
@@ -64,7 +64,7 @@ def test_render_film_matches_mi_render(variant_llvm_ad_rgb):
     of the sum at more (path tracer and the ground-truth aov pass)."""
     import mitsuba as mi
 
-    from scenes.render import render_film
+    from scenes.renderer.render import render_film
 
     built = _built(32, 16)
     seed = built.desc.images[0].seed
@@ -86,7 +86,7 @@ def test_passes_are_deterministic_and_unbiased(variant_llvm_ad_rgb, monkeypatch)
     Mitsuba's own multi-pass render): still independent of the thread count, and the same noise level."""
     import drjit as dr
 
-    import scenes.render as render
+    import scenes.renderer.render as render
 
     built = _built(32, 16)
     seed = built.desc.images[0].seed
@@ -111,7 +111,7 @@ def test_passes_are_deterministic_and_unbiased(variant_llvm_ad_rgb, monkeypatch)
 def test_ground_truth_is_thread_independent(variant_llvm_ad_rgb, threads):
     import drjit as dr
 
-    from scenes.render import render_ground_truth
+    from scenes.renderer.render import render_ground_truth
 
     built = _built(64, 16)
     before = dr.thread_count()

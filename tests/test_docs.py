@@ -281,7 +281,7 @@ def test_flag_table_has_every_flag_of_help_with_the_dataclass_default(module):
     `required`, or the run-time default `--help` states in words)."""
     import tyro
 
-    from scenes.config import field_docs
+    from scenes.cli.options import field_docs
 
     command = importlib.import_module(module).COMMAND
     help_text = "".join(command.help().split())  # what `--help` prints, without the wrapping and the frames

@@ -9,7 +9,7 @@ import cv2
 import pytest
 import numpy as np
 
-from scenes.objfolder import PREDICTION_INFO, prediction_label
+from scenes.folder.format import PREDICTION_INFO, prediction_label
 from validate.figures import ANGLE_VMAX, CELL, LABEL_H, RESIDUAL_VMAX, draw_rerender_figure, mask_box, rerender_figure
 
 
@@ -162,7 +162,7 @@ def test_srgb_curves_match_the_standard():
 
 
 def test_colorbar_shows_the_map_colours_and_its_scale():
-    from scenes.charts import BAR_WIDTH, colorbar, colorbar_figure, opencv_colormap
+    from scenes.report.charts import BAR_WIDTH, colorbar, colorbar_figure, opencv_colormap
 
     lut = cv2.applyColorMap(np.arange(256, dtype=np.uint8)[:, None], cv2.COLORMAP_JET)[:, 0]
     cmap = opencv_colormap(cv2.COLORMAP_JET)

@@ -21,7 +21,7 @@ from fixtures import ortho_sphere
 
 from scenes.description import CameraDesc, ImageDesc, MaterialDesc, RenderDesc, SceneDescription, ShapeDesc, TextureDesc
 from scenes.lights import DirectionalLight, LightDesc, PointLight
-from scenes.objfolder import write_normal_map as write_normal_tif
+from scenes.images import write_normal_map as write_normal_tif
 
 R = 32
 ROOT = Path(__file__).resolve().parents[1]
@@ -51,9 +51,9 @@ def analytic_sphere(mask_radius: float = 1.0 / 1.1) -> tuple[np.ndarray, np.ndar
 def _lambertian_sphere_folder(parent: Path, name: str, lights: list[list[LightDesc]]) -> Path:
     """Render a Lambertian sphere (albedo 0.7), 32x32, one image per entry of `lights`, into
     parent/NAME.data: images, mask and ground-truth normals, no scene.json."""
-    from scenes.objfolder import write_mask, write_png16
-    from scenes.mitsuba_build import build_scene
-    from scenes.render import render_ground_truth, render_image
+    from scenes.images import write_mask, write_png16
+    from scenes.renderer.build import build_scene
+    from scenes.renderer.render import render_ground_truth, render_image
 
     desc = SceneDescription(
         name=name,
@@ -234,7 +234,7 @@ def test_point_light_model_finds_near_lights(jit, point_sphere_folder):
     directional light cannot explain the fall-off) and finds the lights where they were, up to the height
     field's free z offset; `auto` picks it, and refinement with `auto` uses it and beats the directional
     model's refinement of the same 20-deg random map."""
-    from scenes.objfolder import mean_angular_error as mae_deg
+    from scenes.metrics import mean_angular_error as mae_deg
     from validate.capture import load_capture
     from validate.fit import fit_normals
     from validate.perturb import perturb_normals
@@ -264,7 +264,7 @@ def test_saturated_observations_are_censored(jit, sphere_folder, tmp_path):
     recovers the rendered light directions, while taking the clipped values at face value does not."""
     import shutil
 
-    from scenes.objfolder import read_image, write_png16
+    from scenes.images import read_image, write_png16
     from validate.capture import downsample_capture, load_capture
     from validate.fit import fit_normals
     from validate.lights import angular_errors_deg
@@ -333,7 +333,7 @@ def test_refine_brings_perturbed_map_below_3_deg(jit, sphere_folder):
     lights: the error drops, but not to the floor (lights fitted to a noisy map are biased, and a Lambertian
     object's normals and lights can move together along the bas-relief ambiguity)."""
     from validate.capture import load_capture
-    from scenes.objfolder import mean_angular_error as mae_deg
+    from scenes.metrics import mean_angular_error as mae_deg
     from validate.perturb import perturb_normals
     from validate.refine import RefineConfig, refine_normals
 
@@ -467,7 +467,7 @@ def test_known_scene_lights_in_camera_frame():
     """Known-scene report lights: a directional light travelling along -d in the world is 'toward d' in the
     camera frame, rotated with the camera (camera on +x looking at the origin: world +x is camera +z). One
     JSON form of a camera-frame directional light: the known-scene report, the fitted report and scene.json
-    `camera_lights` (written by the generator, read by `scenes.layouts`) all say `direction_to_light`."""
+    `camera_lights` (written by the generator, read by `scenes.folder.layouts`) all say `direction_to_light`."""
     from validate.lights import known_scene_lights, report_lights
     from wildgen.writer import camera_lights
 

@@ -39,7 +39,7 @@ def perspective_set(tmp_path_factory):
 
 def test_focal_lengths_are_drawn_in_range_and_recorded(perspective_set):
     from scenes.description import fov_from_focal
-    from scenes.objfolder import read_mask
+    from scenes.images import read_mask
 
     focals = []
     for folder in perspective_set:
@@ -59,9 +59,10 @@ def test_view_directions_are_the_reverse_of_mitsubas_pixel_rays(perspective_set)
     import mitsuba as mi
 
     from scenes.geometry import camera_rotation
-    from scenes.mitsuba_build import sensor_dict
-    from scenes.objfolder import read_exr, read_scene
-    from scenes.variant import choose_variant
+    from scenes.renderer.build import sensor_dict
+    from scenes.images import read_exr
+    from scenes.folder.format import read_scene
+    from scenes.renderer.variant import choose_variant
 
     choose_variant("auto")
     for folder in perspective_set:

@@ -2,7 +2,10 @@
 
 Layers, bottom to top (ARCHITECTURE.md):
 
-    scenes                      scene description, Mitsuba build, the object folder, CLI errors
+    scenes                      what the rest stands on, in three layers of its own (SCENES_LAYER):
+                                  files, images, cli/, report/, metrics and the description's plain inputs;
+                                  the scene description (description, lights, sensor, geometry, ...);
+                                  folder/ (the object folder on disk) | renderer/ (Mitsuba), siblings
     wildgen | unips | validate  siblings: data generation, the model, the physical check;
                                 none of them imports another
     orchestrate                 demo, benchmark, training recipe (may import all of the above)
@@ -113,8 +116,8 @@ def _cycle(graph: dict[str, set[str]]) -> list[str] | None:
 
 def test_graph_is_not_empty():
     """The parser sees the project (guards the other tests against passing vacuously)."""
-    assert {"scenes.objfolder", "unips.inference", "validate.rerender", "orchestrate.benchmark"} <= set(MODULES)
-    assert "scenes.objfolder" in GRAPH["validate.io"]
+    assert {"scenes.folder.format", "unips.inference", "validate.rerender", "orchestrate.benchmark"} <= set(MODULES)
+    assert "scenes.folder.format" in GRAPH["validate.io"]
     assert "unips.inference" in GRAPH["orchestrate.benchmark"]
 
 
@@ -153,15 +156,62 @@ def test_imports_go_down(module):
     assert not bad, f"{module} imports " + ", ".join(bad)
 
 
+# ------------------------------------------------------------------ the layers inside scenes
+
+SCENES_LAYER = {
+    # 0: files and pixels, the command-line machinery, what is shown to people, plain inputs without a description
+    "scenes.files": 0, "scenes.images": 0, "scenes.metrics": 0, "scenes.cli": 0, "scenes.report": 0,
+    "scenes.dependencies": 0, "scenes.checks": 0, "scenes.colors": 0, "scenes.detail": 0, "scenes.procedural": 0,
+    # 1: the scene description and what it is made of
+    "scenes.description": 1, "scenes.lights": 1, "scenes.sensor": 1, "scenes.geometry": 1, "scenes.meshes": 1,
+    "scenes.envmaps": 1, "scenes.textures": 1,
+    # 2: siblings that stand on the description: the object folder on disk, and Mitsuba
+    "scenes.folder": 2, "scenes.renderer": 2,
+}
+"""Every module of scenes (but its __init__) belongs to one entry (its own name or its sub-package's); it imports
+only entries of its layer or below, and the two entries of layer 2 never import each other."""
+
+
+def _scenes_group(module: str) -> str | None:
+    name = module
+    while name and name not in SCENES_LAYER:
+        name = name.rpartition(".")[0]
+    return name or None
+
+
+@pytest.mark.parametrize("module", sorted(m for m in MODULES if _top(m) == "scenes" and m != "scenes"))
+def test_scenes_imports_go_down_inside_scenes(module):
+    group = _scenes_group(module)
+    assert group is not None, f"{module} has no place in SCENES_LAYER (tests/test_layers.py, ARCHITECTURE.md)"
+    bad = []
+    for target in sorted(t for t in GRAPH[module] if _top(t) == "scenes" and t != "scenes"):
+        other = _scenes_group(target)
+        if other == group:
+            continue
+        if SCENES_LAYER[other] > SCENES_LAYER[group]:
+            bad.append(f"{target} (upward: {other} is above {group})")
+        elif SCENES_LAYER[other] == SCENES_LAYER[group] == 2:
+            bad.append(f"{target} (sideways: {group} and {other} are siblings)")
+    assert not bad, f"{module} imports " + ", ".join(bad)
+
+
+def test_the_scenes_layer_check_can_fail():
+    """A made-up import of the renderer by the object folder is refused (the test above is not vacuous)."""
+    assert SCENES_LAYER[_scenes_group("scenes.folder.layouts")] == SCENES_LAYER[_scenes_group("scenes.renderer.render")]
+    assert _scenes_group("scenes.folder.layouts") != _scenes_group("scenes.renderer.render")
+    assert SCENES_LAYER[_scenes_group("scenes.images")] < SCENES_LAYER[_scenes_group("scenes.description")]
+
+
 # ------------------------------------------------------------------ who may name an object-folder file
 
-FOLDER_OWNERS = ("scenes.objfolder", "scenes.layouts")
+FOLDER_OWNERS = ("scenes.folder.format", "scenes.folder.layouts")
 """The object folder's files are named only here (the folder contract and the one reader's layout table);
 everyone else uses their constants, so a renamed or added file changes one place."""
 
 
 def _folder_file_names() -> set[str]:
-    from scenes import layouts, objfolder
+    from scenes.folder import format as objfolder
+    from scenes.folder import layouts
 
     names = {objfolder.SCENE_FILE, objfolder.MASK_FILE, objfolder.NORMAL_FILE, objfolder.AUX_DIR,
              layouts.DILIGENT_LIGHTS, layouts.DILIGENT_INTENSITIES, layouts.DILIGENT_LISTING}

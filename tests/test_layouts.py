@@ -16,8 +16,8 @@ import pytest
 from fixtures import cone_lights, sphere
 from test_unips_data import render, write_diligent, write_mask, write_ours, write_png16
 
-from scenes.layouts import LAYOUT_TABLE, LAYOUTS, MIN_NORMAL_LENGTH, detect_layout, read_folder
-from scenes.objfolder import write_exr
+from scenes.folder.layouts import LAYOUT_TABLE, LAYOUTS, MIN_NORMAL_LENGTH, detect_layout, read_folder
+from scenes.images import write_exr
 from unips.data import load_ground_truth, load_object
 from validate.capture import load_capture
 
@@ -166,8 +166,8 @@ def test_huge_ground_truth_values_do_not_overflow(tmp_path):
     folder = tmp_path / "u"
     n, mask, _ = write_unips(folder, gt=None)
     np.save(folder / "big.npy", n * 1e30)
-    from scenes.layouts import finish_normals
-    from scenes.objfolder import read_normals
+    from scenes.folder.layouts import finish_normals
+    from scenes.images import read_normals
 
     out = finish_normals(read_normals(folder / "big.npy"), mask, folder / "big.npy")
     assert np.allclose(out[mask], n[mask], atol=1e-6)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scenes.objfolder import decode_normal_image, encode_normals
+from scenes.images import decode_normal_image, encode_normals
 from validate.capture import unit_normals
 from validate.io import UNIT_TOLERANCE, check_normals
 

@@ -42,9 +42,9 @@ def scene_of(folder: Path) -> dict:
 
 def test_every_new_family_renders_and_is_recorded(families):
     from scenes.description import SceneDescription
-    from scenes.mitsuba_build import build_scene
-    from scenes.objfolder import read_exr
-    from scenes.render import render_image
+    from scenes.renderer.build import build_scene
+    from scenes.images import read_exr
+    from scenes.renderer.render import render_image
 
     expected = {"verse": {"environment", "uniform", "point", "area"}, "flash": {"point", "environment"},
                 "frontal": {"point", "uniform"}, "grid96": {"directional"}, "light_stage": {"directional"},
@@ -308,7 +308,7 @@ def test_preset_is_recorded_in_the_manifest_and_resumes(tmp_path, variant_llvm_a
 def test_sixty_four_images_per_object(tmp_path, variant_llvm_ad_rgb):
     """64 images of an object (16 px): every image written and read back; the busiest images of verse need
     slots of every light type it uses."""
-    from scenes.layouts import read_folder
+    from scenes.folder.layouts import read_folder
 
     out = tmp_path / "k64"
     assert make(out, "--lights", "light_stage,verse", "--objects", "2", "--images", "64", "--res", "16", "--spp", "1",

@@ -43,9 +43,9 @@ def jit():
 def write_object(desc: SceneDescription, out: Path, extra_files: dict[str, np.ndarray] | None = None) -> Path:
     """A minimal object folder as wildgen writes it (images with exposure, mask, normal.tif, scene.json
     with the extra top-level keys, aux/)."""
-    from scenes.objfolder import write_exr, write_mask, write_normal_map, write_png16
-    from scenes.mitsuba_build import build_scene
-    from scenes.render import render_ground_truth, render_image
+    from scenes.images import write_exr, write_mask, write_normal_map, write_png16
+    from scenes.renderer.build import build_scene
+    from scenes.renderer.render import render_ground_truth, render_image
 
     folder = out / f"{desc.name}.data"
     (folder / "aux").mkdir(parents=True)
@@ -140,8 +140,8 @@ def sphere_folder(jit, tmp_path_factory) -> Path:
 def test_projection_matches_mitsuba_sensor(jit, kind, width, height):
     """Ray casts through sub-pixel centres reproduce Mitsuba's own coverage and depth (catches flips,
     half-pixel shifts and aspect errors), and projecting the hits gives back the pixel positions."""
-    from scenes.mitsuba_build import build_scene
-    from scenes.render import render_ground_truth
+    from scenes.renderer.build import build_scene
+    from scenes.renderer.render import render_ground_truth
     from validate.normal_bsdf import depth_map
     from validate.projection import CameraProjection
 
@@ -175,7 +175,7 @@ def test_visibility_agrees_with_exact_ray_tests(jit):
     import drjit as dr
 
     mi = jit
-    from scenes.mitsuba_build import build_scene
+    from scenes.renderer.build import build_scene
     from validate.normal_bsdf import NormalSwap, depth_map, wrapper_for
     from validate.projection import CameraProjection
 
@@ -215,8 +215,8 @@ def test_visibility_agrees_with_exact_ray_tests(jit):
 def test_swapped_normals_give_analytic_lambertian_shading(jit, kind):
     """Lambertian plane facing the camera, directional light: with a predicted map whose left half is tilted
     one way and right half another, each pixel is albedo / pi * E * max(0, n' . l) for its own half."""
-    from scenes.mitsuba_build import build_scene
-    from scenes.render import render_ground_truth, render_image
+    from scenes.renderer.build import build_scene
+    from scenes.renderer.render import render_ground_truth, render_image
     from validate.normal_bsdf import MODE_PREDICTED, NormalSwap, depth_map, wrapper_for
     from validate.projection import CameraProjection
 
@@ -267,8 +267,8 @@ def test_swapped_normals_give_analytic_lambertian_shading(jit, kind):
 
 
 def test_passthrough_mode_is_bit_identical_to_the_original(jit, sphere_folder):
-    from scenes.mitsuba_build import build_scene
-    from scenes.render import render_image
+    from scenes.renderer.build import build_scene
+    from scenes.renderer.render import render_image
     from validate.io import read_scene_json
     from validate.normal_bsdf import NormalSwap, depth_map, wrapper_for
     from validate.projection import CameraProjection
@@ -364,7 +364,7 @@ def test_normal_mapped_material_wraps_the_inner_bsdf(jit, tmp_path):
 def test_normal_map_files_round_trip(tmp_path):
     import cv2
 
-    from scenes.objfolder import encode_normals, write_exr
+    from scenes.images import encode_normals, write_exr
     from validate.io import read_normal_map
 
     rng = np.random.default_rng(0)
@@ -469,7 +469,7 @@ def test_cli_dataset_end_to_end(jit, sphere_folder, tmp_path, capsys):
 
     import cv2
 
-    from scenes.objfolder import encode_normals
+    from scenes.images import encode_normals
     from validate.io import load_object
     from validate.perturb import perturb_normals
     from validate.rerender import main

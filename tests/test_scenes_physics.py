@@ -46,8 +46,8 @@ def analytic_sphere(super_sample: int = 8):
 
 
 def render(desc):
-    from scenes.mitsuba_build import build_scene
-    from scenes.render import render_ground_truth, render_images
+    from scenes.renderer.build import build_scene
+    from scenes.renderer.render import render_ground_truth, render_images
 
     built = build_scene(desc)
     return render_ground_truth(built), render_images(built)
@@ -172,8 +172,8 @@ def test_json_round_trip_is_exact():
 
 
 def test_same_seed_same_render_and_different_seed_differs(variant_llvm_ad_rgb):
-    from scenes.mitsuba_build import build_scene
-    from scenes.render import render_image
+    from scenes.renderer.build import build_scene
+    from scenes.renderer.render import render_image
 
     desc = plane_scene([[AreaLight(position=[1.2, 0.0, 0.8], width=0.3, height=0.3, radiance=20.0), EnvironmentLight(scale=0.3)]])
     a = render_image(build_scene(desc), 0)
@@ -206,7 +206,7 @@ def _mesh_desc(path) -> SceneDescription:
 
 
 def test_missing_corrupt_and_empty_meshes(tmp_path, variant_llvm_ad_rgb):
-    from scenes.mitsuba_build import build_scene
+    from scenes.renderer.build import build_scene
 
     with pytest.raises(FileNotFoundError, match="shape.file"):
         build_scene(_mesh_desc(tmp_path / "nope.obj"))
@@ -252,7 +252,7 @@ def test_unknown_json_field_is_named():
 
 
 def test_variant_choice_prefers_llvm_and_rejects_unknown():
-    from scenes.variant import PREFERENCE, choose_variant
+    from scenes.renderer.variant import PREFERENCE, choose_variant
 
     with pytest.raises(ValueError, match="--variant"):
         choose_variant("no_such_variant")
@@ -262,7 +262,7 @@ def test_variant_choice_prefers_llvm_and_rejects_unknown():
 
 def test_normal_mapped_ground_truth_matches_photometric_stereo(tmp_path, variant_llvm_ad_rgb):
     """With a normal map, GT normals are the perturbed shading normals: Woodham PS on the renders agrees."""
-    from scenes.objfolder import write_exr
+    from scenes.images import write_exr
 
     h = w = 64
     v, u = np.meshgrid((np.arange(h) + 0.5) / h, (np.arange(w) + 0.5) / w, indexing="ij")
@@ -336,8 +336,8 @@ def test_light_type_table_drives_the_description_and_the_build(any_variant):
     """Every class of `scenes.lights.LIGHT_TYPES` validates and gets its slots in table order; a class the table
     does not know is refused by the description and by the relighting of a built scene (not left dark)."""
     from scenes.lights import LIGHT_TYPES, light_type
-    from scenes.mitsuba_build import build_scene
-    from scenes.mitsuba_lights import SLOT_BUILDERS, slot_key
+    from scenes.renderer.build import build_scene
+    from scenes.renderer.lights import SLOT_BUILDERS, slot_key
 
     alone = [name for name, t in LIGHT_TYPES.items() if t.excludes]  # in an image of their own
     lights = [cls() for name, cls in LIGHT_TYPES.items() if name not in alone]

@@ -168,7 +168,7 @@ def test_bit_depths_of_the_files(tmp_path):
 
 
 def test_ideal_gives_the_bytes_of_write_png16(tmp_path):
-    from scenes.objfolder import write_png16
+    from scenes.images import write_png16
 
     rng = np.random.default_rng(3)
     x = (rng.random((40, 50, 3)) * 1.3).astype(np.float32)
@@ -281,7 +281,8 @@ def test_ideal_reapplied_gives_the_rendered_images(dataset, tmp_path):
 
 
 def test_reapply_records_rederives_and_is_deterministic(dataset, tmp_path, capsys):
-    from scenes.objfolder import image_name, read_exr, read_scene
+    from scenes.folder.format import image_name, read_scene
+    from scenes.images import read_exr
     from wildgen.dataset import verify_object
 
     a, b, c = tmp_path / "a", tmp_path / "b", tmp_path / "c"
@@ -361,8 +362,9 @@ def sensor_datasets(dataset, tmp_path_factory):
 def test_readers_undo_a_recorded_sensor_for_the_check(dataset, sensor_datasets, name, tolerance):
     """The check compares light: the one reader linearises a recorded sensor (response, black level, white
     balance, vignetting); the model's view keeps the file values, as a camera wrote them."""
-    from scenes.layouts import read_folder
-    from scenes.objfolder import read_exr, read_scene
+    from scenes.folder.layouts import read_folder
+    from scenes.images import read_exr
+    from scenes.folder.format import read_scene
     from unips.data import load_object
     from validate.capture import load_capture
 
@@ -396,7 +398,7 @@ def test_twelve_bit_saturation_is_detected(sensor_datasets, tmp_path):
 
     import cv2
 
-    from scenes.layouts import read_folder
+    from scenes.folder.layouts import read_folder
 
     folder = tmp_path / "o.data"
     shutil.copytree(sensor_datasets / "machine-vision" / "00000.data", folder)

@@ -14,8 +14,8 @@ import torch
 
 from conftest import write_synthetic_object
 from fixtures import random_lights
-from scenes.layouts import read_folder
-from scenes.shards import INDEX_FILE, extract_sample, iter_samples, sample_folder_name
+from scenes.folder.layouts import read_folder
+from scenes.folder.shards import INDEX_FILE, extract_sample, iter_samples, sample_folder_name
 from unips.train_data import load_samples, make_batch, prepare_sample
 from wildgen.export import export_dataset
 from wildgen.export import main as export_main
@@ -25,7 +25,7 @@ SHARD_SIZE = 2  # 5 shards: enough for 2 ranks x 2 loader workers, the last one 
 
 
 def _object(folder: Path, rng: np.random.Generator, size: int = 24, k: int = 4, saturate: bool = False) -> Path:
-    """A Lambertian ellipsoid under k directional lights, written through scenes.objfolder."""
+    """A Lambertian ellipsoid under k directional lights, written through scenes.folder.format."""
     i, j = np.mgrid[0:size, 0:size] + 0.5
     ri, rj = rng.uniform(0.3, 0.45, 2) * size
     x, y = (j - size / 2) / rj, -(i - size / 2) / ri
@@ -326,7 +326,7 @@ def _same_folder_data(got, want) -> None:
 
 
 def _decoded_folders(shards: Path) -> dict[str, object]:
-    from scenes.shards import decode_folder, is_decoded
+    from scenes.folder.shards import decode_folder, is_decoded
 
     out = {}
     for shard in sorted(shards.glob("*.tar")):
@@ -404,7 +404,7 @@ def test_decoded_export_is_deterministic_and_refuses_aux(data, tmp_path, capsys)
 
 
 def test_a_damaged_decoded_member_is_named(data, tmp_path):
-    from scenes.shards import decode_folder
+    from scenes.folder.shards import decode_folder
 
     export_dataset(data["ds"], tmp_path / "dec", shard_size=OBJECTS, encoding="decoded")
     files = dict(iter_samples(tmp_path / "dec" / "000000.tar"))["00002"]
@@ -420,7 +420,7 @@ def test_a_damaged_decoded_member_is_named(data, tmp_path):
 
 
 def test_a_decoded_member_of_the_wrong_type_or_shape_is_named(data, tmp_path):
-    from scenes.shards import decode_folder
+    from scenes.folder.shards import decode_folder
 
     export_dataset(data["ds"], tmp_path / "dec", shard_size=OBJECTS, encoding="decoded")
     files = dict(iter_samples(tmp_path / "dec" / "000000.tar"))["00002"]

@@ -59,7 +59,7 @@ def test_shipped_model_beats_an_untrained_one_by_a_wide_margin(rendered):
 
     from unips.data import find_objects, load_object
     from unips.models import create_model
-    from scenes.objfolder import mean_angular_error
+    from scenes.metrics import mean_angular_error
     from unips.inference import LoadedModel, load_network, predict_object
 
     trained = load_network(None)
@@ -95,7 +95,7 @@ def test_shipped_model_reads_the_images_not_only_the_outline(rendered):
     one whose error does not drop when it sees the images instead of one of them.
     """
     from orchestrate.benchmark import probe_errors
-    from scenes.objfolder import mean_angular_error
+    from scenes.metrics import mean_angular_error
     from unips.data import find_objects, load_object
     from unips.inference import load_network, predict_object
 

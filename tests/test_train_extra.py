@@ -19,7 +19,7 @@ from fixtures import ellipsoid_normals, lambertian, ortho_sphere, random_lights
 from unips.checkpoint import load_model, load_training_checkpoint, save_checkpoint
 from unips.models import create_model
 from unips.probes import probe_images, probe_object, summarise
-from scenes.config import field_docs
+from scenes.cli.options import field_docs
 from unips.train import COMMAND, TrainConfig, main
 from unips.train_run import lr_factor
 

@@ -84,7 +84,7 @@ def test_bad_view_counts_are_refused(bad) -> None:
 
 
 def test_predict_cli_records_the_views(tmp_path, capsys) -> None:
-    from scenes.objfolder import read_normals
+    from scenes.images import read_normals
     from test_predict_evaluate import write_ours
     from unips import predict as pr
 

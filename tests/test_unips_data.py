@@ -15,8 +15,8 @@ import pytest
 from unips.data import PSObject, find_objects, load_ground_truth, load_object
 from conftest import write_synthetic_object
 from fixtures import cone_lights, shading, sphere
-from scenes.objfolder import (angular_error_deg, mean_angular_error, read_normals, write_normal_exr,
-                              write_normal_map, write_normal_visual)
+from scenes.metrics import angular_error_deg, mean_angular_error
+from scenes.images import read_normals, write_normal_exr, write_normal_map, write_normal_visual
 from unips.preprocess import prepare, resize_prepared, uncrop
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
@@ -218,7 +218,7 @@ def test_bad_inputs(tmp_path):
     with pytest.raises(ValueError, match="max_images"):
         load_object(rows, max_images=0)
 
-    # Both readers share scenes.layouts: the fitted check refuses the same bad light files the model's
+    # Both readers share scenes.folder.layouts: the fitted check refuses the same bad light files the model's
     # loader does (a zero direction used to become NaN lights there).
     from validate.capture import load_capture
 
@@ -377,7 +377,8 @@ def test_angular_error_known_angle():
 
 def test_object_folder_fixture_and_one_lookup_order(synthetic_object):
     """The shared fixture's folder loads as our layout; predictions are found in one order for everyone."""
-    from scenes.objfolder import PREDICTION_FILES, find_prediction, object_name, prediction_file, read_mask
+    from scenes.folder.format import PREDICTION_FILES, find_prediction, object_name, prediction_file
+    from scenes.images import read_mask
 
     obj = load_object(synthetic_object)
     assert obj.layout == "ours" and obj.name == object_name(synthetic_object) == "ball"

@@ -92,11 +92,11 @@ def test_a_python_without_the_packages_gets_one_line_not_a_traceback():
 
 
 def test_markdown_tables_keep_cells_as_written():
-    """The one table writer (scenes.tables): cells exactly as formatted by the caller (no number re-parsing:
+    """The one table writer (scenes.report.tables): cells exactly as formatted by the caller (no number re-parsing:
     "12.0" stays "12.0", "007" stays "007"), unpadded, a row of the wrong length refused."""
     import pytest
 
-    from scenes.tables import markdown_table
+    from scenes.report.tables import markdown_table
 
     text = markdown_table(["name", "deg"], [["ball", "12.0"], ["**mean**", "007"], ["x", 3]])
     lines = text.splitlines()
@@ -116,11 +116,11 @@ class _Clock:
 
 
 def test_progress_is_a_bar_on_a_terminal_and_plain_lines_in_a_log():
-    """scenes.cli.Progress: without a terminal, one line DESC: DONE/TOTAL UNIT at most every PLAIN_EVERY_S
+    """scenes.cli.progress.Progress: without a terminal, one line DESC: DONE/TOTAL UNIT at most every PLAIN_EVERY_S
     seconds and a last one at the end, never a carriage return; on a terminal, tqdm's bar; disabled, nothing."""
     import io
 
-    from scenes.cli import PLAIN_EVERY_S, Progress
+    from scenes.cli.progress import PLAIN_EVERY_S, Progress
 
     clock, log = _Clock(), io.StringIO()
     with Progress("train", "step", total=30, stream=log, clock=clock) as shown:
@@ -156,10 +156,10 @@ def test_a_cli_writing_to_a_log_file_leaves_no_bar_redraws(tmp_path, monkeypatch
     interval set to 0), no carriage return of a bar redraw."""
     import sys
 
-    import scenes.cli
+    import scenes.cli.progress
     from wildgen.make import main
 
-    monkeypatch.setattr(scenes.cli, "PLAIN_EVERY_S", 0.0)
+    monkeypatch.setattr(scenes.cli.progress, "PLAIN_EVERY_S", 0.0)
     with open(tmp_path / "stderr.log", "w") as err:
         monkeypatch.setattr(sys, "stderr", err)
         assert main(["--out", str(tmp_path / "o"), "--objects", "2", "--images", "2", "--res", "16", "--spp", "1",

@@ -76,7 +76,7 @@ def test_a_map_that_explains_shadows_by_bending_normals_does_not_beat_the_truth(
 
 
 def test_refinement_declines_an_untrusted_capture_and_keeps_the_input(jit, tmp_path):
-    from scenes.objfolder import read_normals, write_mask, write_normal_map, write_png16
+    from scenes.images import read_normals, write_mask, write_normal_map, write_png16
     from validate.refine import refine_object
 
     n, mask = analytic_sphere()
@@ -91,7 +91,7 @@ def test_refinement_declines_an_untrusted_capture_and_keeps_the_input(jit, tmp_p
     r = refine_object(str(folder), n, None, str(tmp_path / "out"))
     assert r["accepted"] is False and r["trusted"] is False and "declined" in r["why"]
     kept = read_normals(tmp_path / "out" / "flicker" / "normal.png")
-    from scenes.objfolder import mean_angular_error
+    from scenes.metrics import mean_angular_error
 
     assert mean_angular_error(kept, n, mask) < 0.05  # the input map, as written (16-bit codes)
 

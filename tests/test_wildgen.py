@@ -54,7 +54,7 @@ def test_every_family_end_to_end(dataset):
 def test_layout_contract(dataset):
     import cv2
 
-    from scenes.objfolder import read_exr
+    from scenes.images import read_exr
 
     for folder in sorted(dataset.glob("*.data")):
         names = sorted(p.name for p in folder.iterdir())
@@ -90,9 +90,9 @@ def test_layout_contract(dataset):
 def test_scene_json_reproduces_the_images(dataset):
     """Re-rendering from scene.json alone: same seed gives the same radiance, another seed agrees within noise."""
     from scenes.description import SceneDescription
-    from scenes.objfolder import read_exr
-    from scenes.mitsuba_build import build_scene
-    from scenes.render import render_image
+    from scenes.images import read_exr
+    from scenes.renderer.build import build_scene
+    from scenes.renderer.render import render_image
 
     folder = dataset / "00002.data"
     scene = json.loads((folder / "scene.json").read_text())

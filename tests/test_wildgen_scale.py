@@ -267,7 +267,7 @@ def test_ray_missing_is_one_line(tmp_path, capsys, monkeypatch):
 RSS_SCRIPT = r"""
 import sys, tempfile
 from pathlib import Path
-from scenes.variant import choose_variant
+from scenes.renderer.variant import choose_variant
 choose_variant("llvm_ad_rgb")
 from wildgen.assets import AssetLibrary
 from wildgen.config import GenConfig
@@ -308,7 +308,7 @@ def test_scene_build_order_does_not_depend_on_process_history(variant_llvm_ad_rg
 
     from scenes.description import ImageDesc, SceneDescription, ShapeDesc
     from scenes.lights import AreaLight
-    from scenes.mitsuba_build import build_scene
+    from scenes.renderer.build import build_scene
 
     areas = [AreaLight(position=[2.0 * k - 2.0, 1.0, 3.0], target=[0.0, 0.0, 0.0], width=0.5, height=0.5,
                        radiance=5.0) for k in range(3)]

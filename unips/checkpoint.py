@@ -17,7 +17,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from scenes.objfolder import atomic_write
+from scenes.files import atomic_write
 from unips.models.builder import (TRAINING_FORMAT, WEIGHTS_FORMAT, load_model, load_state_strict,
                                   load_training_checkpoint, model_description, save_checkpoint, sidecar_path)
 

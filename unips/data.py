@@ -1,7 +1,7 @@
 """The model's view of an object folder: `PSObject` (images, mask, ground truth, lights) and `GroundTruth`.
 
 Every layout (ours, official UniPS / SDM-UniPS, DiLiGenT) is read by the one reader,
-`scenes.layouts.read_folder`, whose table and rules this module only repackages; see that module for the
+`scenes.folder.layouts.read_folder`, whose table and rules this module only repackages; see that module for the
 files of each layout. Images are returned raw, as the camera recorded them (the UniPS papers' protocol
 for uncalibrated methods: a model never sees the calibration); DiLiGenT's intensity file is returned as
 ``light_intensities`` for calibrated methods, which divide by them (`unips.baselines`).
@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from scenes.layouts import EXPECTED, LAYOUTS, FolderData, find_object_folders, read_folder
+from scenes.folder.layouts import EXPECTED, LAYOUTS, FolderData, find_object_folders, read_folder
 
 log = logging.getLogger(__name__)
 __all__ = ["EXPECTED", "LAYOUTS", "GroundTruth", "PSObject", "find_objects", "load_ground_truth", "load_object",
@@ -60,7 +60,7 @@ def _f32(x: np.ndarray | None) -> np.ndarray | None:
 
 
 def load_object(path: str | Path, max_images: int | None = None, layout: str | None = None, arg: str = "path") -> PSObject:
-    """Load one object folder (`scenes.layouts.read_folder`).
+    """Load one object folder (`scenes.folder.layouts.read_folder`).
 
     max_images: keep the first K images in the folder's order (natural sort of names, or DiLiGenT's
     filenames.txt); deterministic. layout: force ``"ours"``, ``"unips"`` or ``"diligent"``.

@@ -3,7 +3,7 @@
     python -m unips.evaluate --pred DIR --gt PATH [--allow-missing]
 
 ``--gt`` is an object folder or a dataset directory (any layout `unips.data` reads). Predictions are
-looked up as ``DIR/<object>/normal.*`` in the order of `scenes.objfolder.PREDICTION_FILES` (``.exr``
+looked up as ``DIR/<object>/normal.*`` in the order of `scenes.folder.format.PREDICTION_FILES` (``.exr``
 first, then ``.png``), ``<object>`` being the ground-truth folder's name minus a trailing ``.data``
 (what `unips.predict` writes). Writes ``DIR/metrics.json``,
 ``DIR/metrics.csv`` and ``DIR/<object>/error_map.png`` (angular error, colour-mapped, clipped at
@@ -26,10 +26,14 @@ from typing import Any
 
 import numpy as np
 
-from scenes.cli import UsageError, check_output_folder, claim_outputs, one_line, report_error
-from scenes.config import Command, REQUIRED
-from scenes.objfolder import angular_error_deg, atomic_write_text, object_name, prediction_file, read_normals
-from scenes.layouts import detect_layout
+from scenes.cli.errors import UsageError, one_line, report_error
+from scenes.cli.outputs import check_output_folder, claim_outputs
+from scenes.cli.options import Command, REQUIRED
+from scenes.metrics import angular_error_deg
+from scenes.files import atomic_write_text
+from scenes.folder.format import object_name, prediction_file
+from scenes.images import read_normals
+from scenes.folder.layouts import detect_layout
 from unips.data import find_objects, load_ground_truth
 
 log = logging.getLogger(__name__)
@@ -65,7 +69,7 @@ def error_map_image(err_map: np.ndarray, mask: np.ndarray, clip_deg: float = ERR
     enlarged by `error_map_scale`, with a colour bar in degrees on the right."""
     import cv2
 
-    from scenes.charts import colorbar
+    from scenes.report.charts import colorbar
 
     level = np.round(np.clip(err_map / clip_deg, 0.0, 1.0) * 255.0).astype(np.uint8)
     img = cv2.applyColorMap(level, cv2.COLORMAP_JET)
@@ -85,7 +89,7 @@ def error_map_scale(height: int) -> int:
 
 def write_error_map(path: Path, err_map: np.ndarray, mask: np.ndarray, clip_deg: float = ERROR_CLIP_DEG) -> None:
     """Write `error_map_image` as PNG: the map occupies the top-left (H * s, W * s) pixels, s = error_map_scale(H)."""
-    from scenes.objfolder import write_picture
+    from scenes.images import write_picture
 
     write_picture(path, error_map_image(err_map, mask, clip_deg))
 
@@ -94,7 +98,7 @@ def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True, overwrite
     """Evaluate every ground-truth object at ``gt`` against ``pred_dir``; returns the metrics dict. With
     `write`, the outputs (metrics.json, metrics.csv, <object>/error_map.png) are checked before any work: the
     folder must be writable and an earlier run's outputs are replaced only with `overwrite`
-    (`scenes.cli.claim_outputs`)."""
+    (`scenes.cli.outputs.claim_outputs`)."""
     pred_dir = Path(pred_dir)
     if not pred_dir.is_dir():
         raise FileNotFoundError(f"--pred: prediction directory {pred_dir} does not exist")

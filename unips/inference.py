@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from scenes.cli import UsageError
+from scenes.cli.errors import UsageError
 from unips.data import PSObject
 
 METHODS = ("model", "least-squares", "sh-uncalibrated")

@@ -30,12 +30,15 @@ from typing import Annotated, Any, Literal
 
 import numpy as np
 
-from scenes.cli import (INPUT_ERRORS, Progress, UsageError, check_memory, check_output_folder, claim_outputs, one_line,
-                        report_error)
-from scenes.config import Command, REQUIRED, arg, check_fields, option
-from scenes.objfolder import (PREDICTION_FILES, PREDICTION_INFO, atomic_write_text, object_name, write_normal_exr,
-                              write_normal_map, write_normal_visual)
-from scenes.layouts import detect_layout
+from scenes.cli.errors import INPUT_ERRORS, UsageError, one_line, report_error
+from scenes.cli.progress import Progress
+from scenes.cli.limits import check_memory
+from scenes.cli.outputs import check_output_folder, claim_outputs
+from scenes.cli.options import Command, REQUIRED, arg, check_fields, option
+from scenes.folder.format import PREDICTION_FILES, PREDICTION_INFO, object_name
+from scenes.files import atomic_write_text
+from scenes.images import write_normal_exr, write_normal_map, write_normal_visual
+from scenes.folder.layouts import detect_layout
 from unips.data import find_objects, load_object
 from unips.inference import DEFAULT_TTA, METHODS, TTA_VIEWS, load_network, predict_object, prediction_memory
 
@@ -69,7 +72,7 @@ PREDICTION_OUTPUTS = ("normal.png", "normal.exr", "normal_vis.png", PREDICTION_I
 
 
 def check_out_folder(folder: Path, overwrite: bool = False) -> None:
-    """The rule of every command (`scenes.cli.claim_outputs`) for one object's output folder: an earlier
+    """The rule of every command (`scenes.cli.outputs.claim_outputs`) for one object's output folder: an earlier
     prediction (its predict.json present) is replaced only with --overwrite; normal maps without predict.json
     beside them were not written by unips.predict and are never replaced."""
     if folder.exists() and not folder.is_dir():
@@ -86,7 +89,7 @@ def check_object(args: "PredictOptions", folder: Path) -> None:
     """Before any prediction: the object's folder is read without its images (mask, first image's size,
     ground truth, lights) and its memory estimated (`unips.inference.prediction_memory`) against what this
     machine has."""
-    from scenes.layouts import read_folder
+    from scenes.folder.layouts import read_folder
     from unips.preprocess import crop_box
 
     fd = read_folder(folder, max_images=args.max_images, images=False, arg="--input")

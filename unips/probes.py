@@ -69,7 +69,7 @@ def probe_object(model: torch.nn.Module, images: torch.Tensor, mask: torch.Tenso
     of that many masked pixels (the encoder still sees the whole image). Probes that do not apply
     (shuffled with K = 1) are left out of the result.
     """
-    from scenes.objfolder import angular_error_deg
+    from scenes.metrics import angular_error_deg
     from unips.models.glc import pixel_centre_coords
 
     ys, xs = eval_pixels(mask, pixels, seed)
@@ -132,7 +132,7 @@ def summarise(per_object: Mapping[str, Mapping[str, float]], families: Mapping[s
 
 def format_table(summary: Mapping[str, Any]) -> str:
     """Markdown table: rows per family + all, columns: the probes (`PROBE_TITLES`) and the gain."""
-    from scenes.tables import markdown_table
+    from scenes.report.tables import markdown_table
 
     rows = []
     for fam, b in [*summary.get("families", {}).items(), ("all", summary)]:

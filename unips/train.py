@@ -36,8 +36,8 @@ from typing import Any, Sequence
 
 import torch
 
-from scenes.cli import Progress
-from scenes.config import Command
+from scenes.cli.progress import Progress
+from scenes.cli.options import Command
 from unips.train_config import TrainConfig
 from unips.train_data import Batch, curriculum_pool, make_batch, normal_loss, probe_samples, step_rng
 from unips.train_run import Run, append_log, check_run, open_stream, resume_run, save_last, setup_run
@@ -61,7 +61,8 @@ def check_args(argv: Sequence[str]) -> TrainConfig:
     its training step with this before rendering the data, `orchestrate.steps.check_step`): the flags, the run
     folder writable, the model name registered, and --init-from read (its model name against an explicit
     --model); writes nothing."""
-    from scenes.cli import check_output_folder, check_threads
+    from scenes.cli.outputs import check_output_folder
+    from scenes.cli.limits import check_threads
     from unips.models import list_models, load_model
 
     cfg = config_from_args(argv)
@@ -217,7 +218,7 @@ def _loop(run: Run) -> tuple[int, bool]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """CLI entry point; returns the process exit status."""
-    from scenes.cli import INPUT_ERRORS, report_error
+    from scenes.cli.errors import INPUT_ERRORS, report_error
 
     try:
         cfg = config_from_args(argv)

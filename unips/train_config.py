@@ -1,12 +1,12 @@
 """The configuration of a training run (`TrainConfig`): the dataclass the `python -m unips.train` command line is
-generated from (a flag per documented field, `scenes.config`), its checks, and the settings a resumed run must keep."""
+generated from (a flag per documented field, `scenes.cli.options`), its checks, and the settings a resumed run must keep."""
 from __future__ import annotations
 
 from typing import Annotated, Literal
 
 from dataclasses import dataclass, field
 
-from scenes.config import CommaList, REQUIRED, UseAppendAction, arg, check_choice, check_fields, option
+from scenes.cli.options import CommaList, REQUIRED, UseAppendAction, arg, check_choice, check_fields, option
 
 @dataclass
 class TrainConfig:

@@ -278,7 +278,7 @@ def probe_samples(model: torch.nn.Module, samples: Sequence[Sample], max_images:
 def count_dataset_images(data: str, flag: str) -> tuple[int, int]:
     """(objects, images) under the dataset directories of --data / --val, counted without reading an image
     (shards: from their index)."""
-    from scenes.layouts import detect_layout, find_object_folders, layout_named
+    from scenes.folder.layouts import detect_layout, find_object_folders, layout_named
     from unips.shards import count_images, is_shard_source
     from unips.train_data import data_roots
 

@@ -46,7 +46,7 @@ def truncate_log(path: Path, step: int) -> None:
     """Drop records written after `step` by an interrupted run (they will be written again)."""
     if not path.exists():
         return
-    from scenes.objfolder import atomic_write_text
+    from scenes.files import atomic_write_text
 
     keep = [line for line in path.read_text().splitlines() if line.strip() and json.loads(line).get("step", 0) <= step]
     atomic_write_text(path, "".join(line + "\n" for line in keep))
@@ -124,9 +124,10 @@ gradients at the canonical resolution): twice the 36-40 MB measured for glc-smal
 
 def check_run(cfg: TrainConfig) -> None:
     """Everything about the run folder and the size of the run, before any work: --out writable, an earlier
-    run's files replaced only with --overwrite (or continued with --resume; `scenes.cli.claim_outputs`), and
+    run's files replaced only with --overwrite (or continued with --resume; `scenes.cli.outputs.claim_outputs`), and
     the memory of the cached samples and of one batch (`training_memory`) against what this machine has."""
-    from scenes.cli import check_memory, check_output_folder, check_threads, claim_outputs
+    from scenes.cli.limits import check_memory, check_threads
+    from scenes.cli.outputs import check_output_folder, claim_outputs
 
     out = Path(cfg.out)
     check_output_folder(out)

@@ -1,7 +1,7 @@
 """The fitted re-render check's view of a capture: an object folder that may have no scene.json.
 
 Every layout (ours with or without scene.json, official UniPS `.data`, DiLiGenT `*PNG`) is read by the one
-reader, `scenes.layouts.read_folder` (its table lists each layout's files and the shared rules); this
+reader, `scenes.folder.layouts.read_folder` (its table lists each layout's files and the shared rules); this
 module repackages the result as a `Capture`: DiLiGenT images divided by their light intensities (so a
 calibrated irradiance is one), saturated channels kept as lower bounds, and the downsampling of the fit.
 
@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes.layouts import read_folder
+from scenes.folder.layouts import read_folder
 from validate.io import check_normals, read_prediction
 
 log = logging.getLogger(__name__)
@@ -33,7 +33,7 @@ class Capture:
     folder: Path
     """The object folder."""
     layout: str
-    """One of `scenes.layouts.LAYOUTS`."""
+    """One of `scenes.folder.layouts.LAYOUTS`."""
     images: np.ndarray
     """(K, H, W, 3) float32 linear images (DiLiGenT: divided by the light intensities)."""
     mask: np.ndarray
@@ -83,7 +83,7 @@ def load_with_normals(folder: str | Path, normals: str | Path | np.ndarray) -> t
 
 
 def load_capture(folder: str | Path, max_images: int | None = None) -> Capture:
-    """Load an object folder of any layout (`scenes.layouts.read_folder`) for the fitted check."""
+    """Load an object folder of any layout (`scenes.folder.layouts.read_folder`) for the fitted check."""
     fd = read_folder(folder, max_images=max_images, arg="--data")
     images = fd.linear()  # the check compares light: a recorded sensor's response and black level undone
     meta: dict = {}

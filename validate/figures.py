@@ -1,4 +1,4 @@
-"""The re-render check's figure, drawn with matplotlib (`scenes.charts`).
+"""The re-render check's figure, drawn with matplotlib (`scenes.report.charts`).
 
 Title: object, method (where the judged normal map came from), mode and metric. Rows: for a few images,
 input | re-render | residual heat map; last row: mean residual over all images (judged normals), the
@@ -95,7 +95,7 @@ def draw_rerender_figure(
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
 
-    from scenes.charts import add_axes_px, new_figure
+    from scenes.report.charts import add_axes_px, new_figure
     from scenes.colors import linear_to_srgb
 
     explained_map = None
@@ -155,6 +155,6 @@ def draw_rerender_figure(
 
 def rerender_figure(path: str | Path, *args, **kwargs) -> None:
     """Write `draw_rerender_figure(*args, **kwargs)` as PNG."""
-    from scenes.charts import write_figure
+    from scenes.report.charts import write_figure
 
     write_figure(path, draw_rerender_figure(*args, **kwargs))

@@ -224,7 +224,7 @@ arrays): twice the 600 bytes measured on a 256 px object with 8 images (llvm_ad_
 def check_fit_memory(cap: Capture, f: int) -> None:
     """Refuse a fit this machine cannot hold: K x (mask pixels at 1/f) lanes (`FIT_BYTES_PER_LANE`), before any
     work, naming the flags that set the fitting resolution."""
-    from scenes.cli import check_memory
+    from scenes.cli.limits import check_memory
 
     k, pixels = int(cap.images.shape[0]), int(np.ceil(cap.mask.sum() / f**2))
     check_memory(k * pixels * FIT_BYTES_PER_LANE, "--max-pixels/--downsample",

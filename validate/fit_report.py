@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from scenes.variant import jit_threads, require_ad_variant
+from scenes.renderer.variant import jit_threads, require_ad_variant
 from validate import heightfield
 from validate.ambiguity import bas_relief_test, not_tested
 from validate.capture import Capture
@@ -113,7 +113,7 @@ def judge_capture(folder: str, normals: str | np.ndarray, config: FitConfig, use
     cap, full, source = load_with_normals(folder, normals)
     target = None
     if out_dir is not None:
-        from scenes.cli import claim_outputs
+        from scenes.cli.outputs import claim_outputs
 
         target = Path(out_dir) / cap.name
         claim_outputs([target / name for name in outputs], overwrite, owner=owner)
@@ -140,7 +140,7 @@ def rerender_fitted(
     """Fitted mode of the re-render check for one object folder (any layout); returns the report and
     writes `out_dir/<object>/report.json` and `figure.png` when out_dir is given."""
     from validate.lights import angular_errors_deg, directions_of
-    from scenes.objfolder import mean_angular_error as mae_deg
+    from scenes.metrics import mean_angular_error as mae_deg
 
     config = (config or FitConfig()).validate()
     mi = require_ad_variant()
@@ -206,7 +206,10 @@ def _write_fitted(jc: JudgedCapture, res: FitResult, report: dict) -> None:
     """report.json, figure.png and explained.png of the fitted check into `jc.target`."""
     import json
 
-    from scenes.objfolder import angular_error_deg, atomic_write_text, prediction_label, write_picture
+    from scenes.metrics import angular_error_deg
+    from scenes.files import atomic_write_text
+    from scenes.folder.format import prediction_label
+    from scenes.images import write_picture
     from validate.figures import explained_picture, rerender_figure
     from validate.metrics import relative_residual_map
 

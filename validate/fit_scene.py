@@ -18,8 +18,8 @@ from typing import Annotated, Any, Callable, Literal
 
 import numpy as np
 
-from scenes.config import arg, check_fields, comma_list, option
-from scenes.variant import require_ad_variant
+from scenes.cli.options import arg, check_fields, comma_list, option
+from scenes.renderer.variant import require_ad_variant
 from validate import heightfield
 from validate.lights import LIGHT_MODELS, closed_form_directional, point_start
 from validate.metrics import rel_l1_observations
@@ -155,7 +155,7 @@ class FitScene:
 
     # ---------------------------------------------------------------------------------------- scene
     def _build_scene(self) -> None:
-        from scenes.mitsuba_build import make_mesh
+        from scenes.renderer.build import make_mesh
         from scenes.procedural import MeshData
 
         mi = self.mi

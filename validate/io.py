@@ -1,8 +1,8 @@
-"""What the re-render check needs from an object folder and a prediction, on top of `scenes.objfolder`
+"""What the re-render check needs from an object folder and a prediction, on top of `scenes.folder.format`
 (the one owner of the folder layout, scene.json extras, mask rule, normal-map files and prediction lookup).
 
 Normal maps: camera frame (x right, y up, z toward the camera), full frame, as `unips.predict` writes
-them; read with `scenes.objfolder.read_normals`.
+them; read with `scenes.images.read_normals`.
 """
 from __future__ import annotations
 
@@ -13,8 +13,9 @@ from pathlib import Path
 import numpy as np
 
 from scenes.description import SceneDescription
-from scenes.layouts import layout_named, read_folder
-from scenes.objfolder import find_prediction, read_normals, read_scene
+from scenes.folder.layouts import layout_named, read_folder
+from scenes.folder.format import find_prediction, read_scene
+from scenes.images import read_normals
 
 log = logging.getLogger(__name__)
 
@@ -57,7 +58,7 @@ class ObjectData:
 
 
 def read_scene_json(path: str | Path) -> SceneDescription:
-    """scene.json -> SceneDescription, without the extra top-level keys (`scenes.objfolder.split_scene_extras`)."""
+    """scene.json -> SceneDescription, without the extra top-level keys (`scenes.folder.format.split_scene_extras`)."""
     desc, extras = read_scene(path)
     if extras:
         log.debug("scene.json: ignoring extra keys %s", sorted(extras))
@@ -65,7 +66,7 @@ def read_scene_json(path: str | Path) -> SceneDescription:
 
 
 def load_object(folder: str | Path) -> ObjectData:
-    """Load an object folder with its scene (`scenes.layouts.read_folder`, layout "ours"); raise
+    """Load an object folder with its scene (`scenes.folder.layouts.read_folder`, layout "ours"); raise
     FileNotFoundError / ValueError naming what is missing or inconsistent with scene.json."""
     folder = Path(folder)
     if not folder.is_dir():
@@ -85,7 +86,7 @@ def load_object(folder: str | Path) -> ObjectData:
 
 def read_normal_map(path: str | Path, what: str = "--normals") -> np.ndarray:
     """Normal-map file -> (H, W, 3) float32 camera-frame normals, background 0 (not checked against a
-    mask here); `scenes.objfolder.read_normals`, which rejects non-finite values anywhere in the map.
+    mask here); `scenes.images.read_normals`, which rejects non-finite values anywhere in the map.
     Errors name `what` (the argument the file came from)."""
     path = Path(path)
     if not path.is_file():
@@ -98,7 +99,7 @@ def read_normal_map(path: str | Path, what: str = "--normals") -> np.ndarray:
 
 def read_prediction(normals: str | Path | np.ndarray, name: str) -> tuple[np.ndarray, str]:
     """The normal map to judge and where it came from: an (H, W, 3) array as is ("array"), else the
-    prediction file of object `name` found by `scenes.objfolder.find_prediction` (its path)."""
+    prediction file of object `name` found by `scenes.folder.format.find_prediction` (its path)."""
     if isinstance(normals, np.ndarray):
         return normals, "array"
     path = find_prediction(normals, name)

@@ -225,8 +225,8 @@ def point_start(normals: np.ndarray, positions: np.ndarray, images: np.ndarray, 
 
 
 def angular_errors_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(K,) angles in degrees between rows of two (K, 3) direction arrays (`scenes.objfolder.angles_deg`)."""
-    from scenes.objfolder import angles_deg
+    """(K,) angles in degrees between rows of two (K, 3) direction arrays (`scenes.metrics.angles_deg`)."""
+    from scenes.metrics import angles_deg
 
     return angles_deg(a, b)
 

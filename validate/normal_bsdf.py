@@ -27,8 +27,8 @@ from typing import Annotated, Any, Callable
 
 import numpy as np
 
-from scenes.config import NotOnCommandLine, check_fields, option
-from scenes.variant import require_jit_variant
+from scenes.cli.options import NotOnCommandLine, check_fields, option
+from scenes.renderer.variant import require_jit_variant
 from validate.projection import CameraProjection
 
 log = logging.getLogger(__name__)
@@ -240,7 +240,7 @@ def _make_class() -> type:
 
 
 def wrapper_for(camera: CameraProjection, visibility: VisibilityConfig | None = None) -> Callable[[dict], dict]:
-    """`bsdf_wrapper` for `scenes.mitsuba_build.build_scene`.
+    """`bsdf_wrapper` for `scenes.renderer.build.build_scene`.
 
     A `normalmap` BSDF stays whole for hidden points (they keep the normal-mapped normal); visible points
     use a second instance of its *inner* BSDF with the predicted normal, which replaces the whole shading

@@ -1,7 +1,7 @@
 """The camera model of a scene as plain numbers: projecting world points to continuous pixel
 coordinates and generating the rays through given pixel positions.
 
-It reproduces Mitsuba's sensors as `scenes.mitsuba_build.sensor_dict` builds them:
+It reproduces Mitsuba's sensors as `scenes.renderer.build.sensor_dict` builds them:
 - orthographic: `look_at(origin, target, up) @ scale(s, s, 1)`; the film spans camera x in [-s, s] and
   camera y in [-s H/W, s H/W] (Mitsuba keeps square pixels);
 - perspective: `fov` is the full horizontal angle (`fov_axis = x`), the same square-pixel rule.

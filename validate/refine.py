@@ -32,9 +32,12 @@ from typing import Annotated, Any, Literal
 
 import numpy as np
 
-from scenes.cli import INPUT_ERRORS, check_output_folder, check_threads, claim_outputs, progress_bar, report_error
-from scenes.config import Command, NotOnCommandLine, REQUIRED, arg, check_fields, option
-from scenes.variant import require_ad_variant
+from scenes.cli.errors import INPUT_ERRORS, report_error
+from scenes.cli.outputs import check_output_folder, claim_outputs
+from scenes.cli.limits import check_threads
+from scenes.cli.progress import progress_bar
+from scenes.cli.options import Command, NotOnCommandLine, REQUIRED, arg, check_fields, option
+from scenes.renderer.variant import require_ad_variant
 from validate.fit import fit_normals, run_fit
 from validate.fit_report import full_config_dict, judge_capture, provenance, saturated_fraction
 from validate.fit_scene import FitConfig, FitScene, Progress, lambertian_start, to_jit
@@ -325,7 +328,7 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
                   progress: Progress | None = None, overwrite: bool = False) -> dict:
     """Refine the normal map of one object folder; write normal.png and refine_report.json under out_dir/<object>/."""
     from validate.capture import downsample_normals
-    from scenes.objfolder import mean_angular_error as mae_deg
+    from scenes.metrics import mean_angular_error as mae_deg
 
     config = (config or RefineConfig()).validate()
     mi = require_ad_variant()
@@ -397,7 +400,8 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
 
 def _write_refined(target: Path | None, normals: np.ndarray, report: dict) -> None:
     """normal.png (the refined map, or the input map where refinement declined) and refine_report.json."""
-    from scenes.objfolder import atomic_write_text, write_normal_map
+    from scenes.files import atomic_write_text
+    from scenes.images import write_normal_map
 
     if target is not None:
         target.mkdir(parents=True, exist_ok=True)
@@ -450,12 +454,12 @@ def main(argv: list[str] | None = None) -> int:
             raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
         if not Path(args.data).is_dir():
             raise FileNotFoundError(f"--data: {args.data!r} is not a folder")
-        from scenes.objfolder import object_name
+        from scenes.folder.format import object_name
 
         name = object_name(args.data)
         claim_outputs([Path(args.out) / name / f for f in REFINE_OUTPUTS], args.overwrite, owner="validate.refine")
         print(f"refining the normals of {name} (lights, reflectance and normals fitted to the images) ...", flush=True)
-        from scenes.variant import choose_variant, set_jit_threads
+        from scenes.renderer.variant import choose_variant, set_jit_threads
 
         choose_variant(args.variant)  # refine_object refuses a variant without automatic differentiation
         set_jit_threads(args.threads)

@@ -34,10 +34,14 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes.cli import UsageError, check_output_folder, check_threads, claim_outputs, progress_bar, report_error
-from scenes.config import Command, REQUIRED, arg, check_fields, option
-from scenes.objfolder import atomic_write_text, find_prediction, list_object_folders, object_name
-from scenes.variant import require_jit_variant
+from scenes.cli.errors import UsageError, report_error
+from scenes.cli.outputs import check_output_folder, claim_outputs
+from scenes.cli.limits import check_threads
+from scenes.cli.progress import progress_bar
+from scenes.cli.options import Command, REQUIRED, arg, check_fields, option
+from scenes.files import atomic_write_text
+from scenes.folder.format import find_prediction, list_object_folders, object_name
+from scenes.renderer.variant import require_jit_variant
 from validate.fit_scene import FitConfig
 from validate.io import ObjectData, check_normals, load_object, read_prediction
 from validate.rerender_passes import MIN_COVERAGE, Progress, RerenderConfig, independent_seed, render_passes
@@ -54,7 +58,7 @@ REPORT, FIGURE, SUMMARY = "report.json", "figure.png", "summary.csv"
 
 def claim_check_outputs(out: str | Path, names: list[str], overwrite: bool, summary: bool = True,
                         renders: bool = False) -> None:
-    """The outputs of the check of objects `names` in `out`, claimed before any work (`scenes.cli.claim_outputs`:
+    """The outputs of the check of objects `names` in `out`, claimed before any work (`scenes.cli.outputs.claim_outputs`:
     an earlier run's are replaced only with --overwrite, other files never)."""
     out = Path(out)
     paths = [out / n / f for n in names for f in (REPORT, FIGURE)]
@@ -127,7 +131,7 @@ def rerender_object(
         write_figure(target / "figure.png", report, data.images, passes, mask, res_map, gt_map, pred,
                      config.figure_rows)
         if config.save_renders:
-            from scenes.objfolder import write_png16
+            from scenes.images import write_png16
 
             for i in range(k):
                 write_png16(target / f"R{i:03d}.png", passes.renders[i])
@@ -226,7 +230,7 @@ COMMAND = Command(RerenderOptions, prog="python -m validate.rerender", descripti
 
 def _main_fitted(args: RerenderOptions) -> int:
     """Fitted mode (validate.fit): one object folder of any layout."""
-    from scenes.variant import choose_variant, set_jit_threads
+    from scenes.renderer.variant import choose_variant, set_jit_threads
     from validate.fit_report import rerender_fitted
 
     config = args.fitted
@@ -262,7 +266,7 @@ def main(argv: list[str] | None = None) -> int:
         args = COMMAND.parse(argv).validate()
         logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
                             format="%(levelname)s %(name)s: %(message)s")
-        from scenes.layouts import detect_layout, has_scene
+        from scenes.folder.layouts import detect_layout, has_scene
 
         if args.fit or (Path(args.data).is_dir() and detect_layout(args.data) in ("diligent", "unips")):
             return _main_fitted(args)
@@ -276,7 +280,7 @@ def main(argv: list[str] | None = None) -> int:
             raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
         claim_check_outputs(args.out, [object_name(f) for f in folders], args.overwrite, renders=config.save_renders)
 
-        from scenes.variant import choose_variant
+        from scenes.renderer.variant import choose_variant
 
         choose_variant(args.variant)
         mi = require_jit_variant()

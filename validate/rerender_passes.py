@@ -16,7 +16,7 @@ from typing import Annotated, Any, Callable, Literal
 
 import numpy as np
 
-from scenes.config import arg, check_fields, option
+from scenes.cli.options import arg, check_fields, option
 from validate.io import ObjectData
 from validate.metrics import expose
 from validate.normal_bsdf import (
@@ -81,7 +81,7 @@ def independent_seed(seed: int) -> int:
 
 
 def _render_all(built: Any, indices: range, spp: int, seeds: list[int], exposures: list[float], tick: Callable[[str], None], label: str) -> tuple[np.ndarray, list[float]]:
-    from scenes.render import render_image
+    from scenes.renderer.render import render_image
 
     out, times = [], []
     for i in indices:
@@ -116,7 +116,7 @@ class RenderPasses:
 def render_passes(data: ObjectData, pred: np.ndarray, valid: np.ndarray, config: RerenderConfig, spp: int,
                   seeds: list[int], fresh: list[int], tick: Callable[[str], None]) -> RenderPasses:
     """Render every pass of the check for one object (Mitsuba work only; no scoring)."""
-    from scenes.mitsuba_build import build_scene
+    from scenes.renderer.build import build_scene
 
     desc, k = data.desc, len(data.desc.images)
     exposures = [float(im.exposure) for im in desc.images]

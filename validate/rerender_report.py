@@ -9,7 +9,8 @@ from typing import Any
 
 import numpy as np
 
-from scenes.objfolder import atomic_write_text, mean_angular_error
+from scenes.files import atomic_write_text
+from scenes.metrics import mean_angular_error
 from validate.io import ObjectData
 from validate.metrics import finite_or_none, mean_or_none, psnr, rel_l1, relative_residual_map
 from validate.rerender_passes import RenderPasses, RerenderConfig
@@ -151,7 +152,7 @@ def _figure_rows(k: int, n: int) -> list[int]:
 def write_figure(path: Path, report: dict[str, Any], inputs: np.ndarray, passes: RenderPasses, mask: np.ndarray,
                  res_map: np.ndarray, gt_map: np.ndarray | None, pred: np.ndarray, rows: int) -> None:
     """figure.png of one object: inputs, re-renders, residual maps, the prediction."""
-    from scenes.objfolder import prediction_label
+    from scenes.folder.format import prediction_label
     from validate.figures import rerender_figure
 
     rerender_figure(

@@ -100,16 +100,16 @@ def _object_radius(shape, folder: Path) -> float | None:
 
 def object_stats(folder: Path) -> dict:
     """What the dataset card needs of one object folder: mask, normals and sensor through the one reader
-    (`scenes.layouts.read_folder`), lights, exposures, material and camera from the checked scene description
-    (`scenes.objfolder.read_scene`), with what not every dataset records (`level`, `camera.focal_mm`). Raises one of
+    (`scenes.folder.layouts.read_folder`), lights, exposures, material and camera from the checked scene description
+    (`scenes.folder.format.read_scene`), with what not every dataset records (`level`, `camera.focal_mm`). Raises one of
     READ_ERRORS when the folder cannot be read."""
     from collections import Counter
 
-    from scenes.cli import one_line
+    from scenes.cli.errors import one_line
     from scenes.geometry import camera_rotation
-    from scenes.layouts import read_folder
+    from scenes.folder.layouts import read_folder
     from scenes.lights import LIGHT_TYPES, light_class
-    from scenes.objfolder import NORMAL_FILE, SCENE_FILE, object_name, read_scene
+    from scenes.folder.format import NORMAL_FILE, SCENE_FILE, object_name, read_scene
 
     data = read_folder(folder, images=False, layout="ours", arg="DIR")
     if data.normals is None:
@@ -173,8 +173,8 @@ def object_stats(folder: Path) -> dict:
 
 def _why(exc: BaseException) -> str:
     """One line saying why an object folder could not be read."""
-    from scenes.cli import one_line
-    from scenes.objfolder import SCENE_FILE
+    from scenes.cli.errors import one_line
+    from scenes.folder.format import SCENE_FILE
 
     if isinstance(exc, KeyError):
         return f"{SCENE_FILE}: missing entry {exc.args[0]!r}"
@@ -187,7 +187,7 @@ def dataset_stats(dataset: str | Path, folders: list[Path]) -> dict:
     """The numbers of the dataset card (what stats.json holds) of the object `folders` of `dataset`. Every
     folder is read; one that cannot be read is recorded in `failed` (name: one line) and left out of the rest;
     ValueError when none can."""
-    from scenes.objfolder import object_name
+    from scenes.folder.format import object_name
 
     objects, failed = [], {}
     for folder in folders:

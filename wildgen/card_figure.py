@@ -223,7 +223,7 @@ PANELS = (_normals, _angle, _directions, _lights_per_image, _distance, _strength
 
 def draw_stats(stats: dict):
     """The dataset card as a matplotlib Figure (3 x 3 panels under a header) from stats.json's numbers."""
-    from scenes.charts import new_figure
+    from scenes.report.charts import new_figure
 
     fig = new_figure(3 * PANEL_W, HEADER_H + 3 * PANEL_H, layout="constrained")
     failed = f", {len(stats['failed'])} could not be read" if stats["failed"] else ""

@@ -4,8 +4,8 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Annotated, Literal
 
-from scenes.config import CommaList, Repeatable, arg, auto_is_none, check_fields, option
-from scenes.variant import PREFERENCE as VARIANTS  # the RGB variants the scenes are built for, in auto's order
+from scenes.cli.options import CommaList, Repeatable, arg, auto_is_none, check_fields, option
+from scenes.renderer.variant import PREFERENCE as VARIANTS
 from scenes.sensor import SENSORS
 from wildgen.lighting import LIGHT_FAMILIES
 from wildgen.presets import PRESETS
@@ -129,19 +129,19 @@ class GenConfig:
 
     def focal_range(self) -> tuple[float, float]:
         """(A, B) of `focal`, checked: 1 <= A <= B <= 5000 mm."""
-        from scenes.config import parse_range
+        from scenes.cli.options import parse_range
 
         return parse_range(self.focal, "--focal", 1.0, 5000.0, "focal lengths in mm, e.g. 15-300")
 
     def cluster_range(self) -> tuple[int, int]:
         """(A, B) of `cluster`, checked: 1 <= A <= B <= 8 objects."""
-        from scenes.config import parse_range
+        from scenes.cli.options import parse_range
 
         return parse_range(self.cluster, "--cluster", 1, 8, "whole numbers of objects, e.g. 2-4", integer=True)
 
     def detail_strength_range(self) -> tuple[float, float]:
         """(A, B) of `detail_strength`, checked: 0 <= A <= B <= 60 degrees."""
-        from scenes.config import parse_range
+        from scenes.cli.options import parse_range
 
         return parse_range(self.detail_strength, "--detail-strength", 0.0, 60.0, "tilts in degrees, e.g. 5-25")
 

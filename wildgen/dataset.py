@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterator
 
-from scenes.objfolder import atomic_write_text
+from scenes.files import atomic_write_text
 from wildgen.config import GenConfig
 from wildgen.parallel import Engine, InProcessEngine
 from wildgen.writer import TMP_PREFIX, index_name, sha256_file
@@ -187,8 +187,9 @@ def plan_run(cfg: GenConfig, out_dir: Path, variant: str, overwrite: bool = Fals
     manifest = None if overwrite else load_manifest(out_dir)
     if manifest is None:
         # Object folders without a manifest are not this tool's: never replaced, even with --overwrite
-        # (scenes.cli.claim_outputs, the rule of every command); with a manifest, --overwrite replaces them.
-        from scenes.cli import UsageError, claim_outputs
+        # (scenes.cli.outputs.claim_outputs, the rule of every command); with a manifest, --overwrite replaces them.
+        from scenes.cli.errors import UsageError
+        from scenes.cli.outputs import claim_outputs
 
         names = [out_dir / f"{index_name(i)}.data" for i in range(cfg.objects)]
         try:

@@ -9,7 +9,7 @@ object is a pure function of (config, index)) and fails the object at once. Keyb
 (no half-written object survives: folders appear by atomic rename) and propagates.
 
 Each object is a pure function of (config, index): its bytes depend neither on the engine, the number of
-workers nor the Dr.Jit threads per worker (scenes.render.render_film sums each pixel's samples in a fixed
+workers nor the Dr.Jit threads per worker (scenes.renderer.render.render_film sums each pixel's samples in a fixed
 order; tests/test_determinism.py, tests/test_wildgen_scale.py; docs/generator.md, "Crash safety, resume and
 determinism", states the guarantee).
 """
@@ -110,7 +110,7 @@ _PROCESS: dict = {}  # per worker process: variant, threads, asset libraries (se
 def init_process(variant: str, threads: int | None, assets: str | None):
     """Set the variant and the Dr.Jit thread count once per process; return the (cached) asset library."""
     if _PROCESS.get("variant") != variant:
-        from scenes.variant import choose_variant
+        from scenes.renderer.variant import choose_variant
 
         choose_variant(variant)
         _PROCESS["variant"] = variant

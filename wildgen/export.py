@@ -7,7 +7,7 @@ holds `--shard-size` objects, one WebDataset sample per object folder with its f
 (images, mask, normal map, scene.json with the lights; with --aux the aux/ files too) or, with `--encoding
 decoded`, the arrays the one reader returns for it (faster to read in training), in the order of the
 folders (sorted by name, as every reader lists them). `SHARDS/index.json` lists each shard's objects, byte
-size and sha256. The format is `scenes.shards`; `unips.train --data 'SHARDS/{000000..000009}.tar'` reads it.
+size and sha256. The format is `scenes.folder.shards`; `unips.train --data 'SHARDS/{000000..000009}.tar'` reads it.
 
 The export is deterministic (the same folders give the same bytes: fixed member order, mtime 0, uid / gid 0)
 and atomic per shard (each is written under a temporary name and renamed); index.json is written first with
@@ -25,13 +25,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Literal
 
-from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, claim_outputs, progress_bar, report_error
-from scenes.config import Command, REQUIRED, check_fields, option
-from scenes.shards import (ENCODINGS, FORMAT, FORMAT_VERSION, INDEX_FILE, SHARD_NAME, check_encoding, sample_key,
-                           shard_name, shard_pattern, write_index, write_shard)
+from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
+from scenes.cli.outputs import check_output_folder, claim_outputs
+from scenes.cli.progress import progress_bar
+from scenes.cli.options import Command, REQUIRED, check_fields, option
+from scenes.folder.shards import (ENCODINGS, FORMAT, FORMAT_VERSION, INDEX_FILE, SHARD_NAME, check_encoding,
+    sample_key, shard_name, shard_pattern, write_index, write_shard)
 
 FORMATS = ("webdataset",)
-"""Export formats (one so far: WebDataset tar shards, `scenes.shards`)."""
+"""Export formats (one so far: WebDataset tar shards, `scenes.folder.shards`)."""
 DEFAULT_SHARD_SIZE = 100
 
 
@@ -72,7 +74,7 @@ COMMAND = Command(ExportOptions, prog="python -m wildgen.export", description="W
 
 def _source_folders(data: Path) -> list[Path]:
     """The object folders of --data in reader order, checked against the dataset's manifest when it has one."""
-    from scenes.layouts import find_object_folders
+    from scenes.folder.layouts import find_object_folders
     from wildgen.dataset import MANIFEST, verify_object
 
     if not data.is_dir():

@@ -11,13 +11,15 @@ import time
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
-from scenes.cli import (Progress, UsageError, check_output_folder, check_threads, gib, logs_above_progress,
-                        make_output_folder, report_error)
-from scenes.cli import check_memory as check_memory_bytes
+from scenes.cli.progress import Progress, logs_above_progress
+from scenes.cli.errors import UsageError, report_error
+from scenes.cli.outputs import check_output_folder, make_output_folder
+from scenes.cli.limits import check_threads, gib
+from scenes.cli.limits import check_memory as check_memory_bytes
 from typing import Annotated, Literal
 
-from scenes.config import REQUIRED, Command, arg, check_fields, check_int, optional_value, option
-from scenes.shards import ENCODINGS
+from scenes.cli.options import REQUIRED, Command, arg, check_fields, check_int, optional_value, option
+from scenes.folder.shards import ENCODINGS
 from wildgen.config import GenConfig
 from wildgen.levels import LEVELS, apply_level
 from wildgen.presets import apply_preset, preset_named
@@ -157,7 +159,7 @@ def resolve_run(args: MakeOptions, explicit: set[str], out: Path) -> tuple[GenCo
         cfg = args.gen.validate()
     check_config(args, cfg, resumed=args.resume and "objects" not in explicit)
     check_out(out)
-    from scenes.variant import choose_variant
+    from scenes.renderer.variant import choose_variant
 
     requested = cfg.variant or (manifest.get("variant") if manifest and "variant" not in explicit else None)
     variant = choose_variant(requested)

@@ -55,7 +55,7 @@ class InProcessEngine:
     """How the objects were run (recorded in the manifest)."""
 
     def run(self, cfg: GenConfig, out_dir: Path, variant: str, indices: list[int], on_entry: Callable[[dict], None]) -> None:
-        from scenes.variant import choose_variant
+        from scenes.renderer.variant import choose_variant
         from wildgen.assets import AssetLibrary
         from wildgen.writer import make_object
 

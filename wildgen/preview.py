@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes.cli import check_output_folder, make_output_folder
-from scenes.config import Command, Positional, arg
+from scenes.cli.outputs import check_output_folder, make_output_folder
+from scenes.cli.options import Command, Positional, arg
 
 TILE = 128
 """Pixels of one tile of a contact sheet."""
@@ -46,7 +46,8 @@ def _tile(img: np.ndarray) -> np.ndarray:
 def object_tiles(folder: Path) -> list[tuple[np.ndarray, str]]:
     """The tiles of one object folder's contact sheet, (TILE, TILE, 3) uint8 RGB each with its label: every
     image, then the normal map and the mask."""
-    from scenes.objfolder import MASK_FILE, NORMAL_FILE, image_files, normal_visual, read_image, read_mask, read_normals
+    from scenes.folder.format import MASK_FILE, NORMAL_FILE, image_files
+    from scenes.images import normal_visual, read_image, read_mask, read_normals
 
     images = image_files(folder)
     if not images:
@@ -65,7 +66,7 @@ def object_tiles(folder: Path) -> list[tuple[np.ndarray, str]]:
 def contact_sheet(cells: list[tuple[np.ndarray, str]], cols: int):
     """A matplotlib Figure of picture cells (equal-sized uint8 RGB arrays, each with a label written in white at
     its top left), `cols` to a row, one screen pixel per picture pixel; black where a row is short."""
-    from scenes.charts import add_axes_px, new_figure
+    from scenes.report.charts import add_axes_px, new_figure
 
     h, w = cells[0][0].shape[:2]
     rows = -(-len(cells) // cols)
@@ -98,10 +99,10 @@ def _output_folder(dataset: Path, out: str | Path | None) -> Path:
 def preview(dataset: str | Path, out: str | Path | None = None, overwrite: bool = False) -> list[Path]:
     """Write contact sheets and the overview; returns the written paths. Every object is read and every sheet
     drawn before anything is written; existing sheets are replaced only with `overwrite`
-    (`scenes.cli.claim_outputs`)."""
-    from scenes.charts import to_bgr
-    from scenes.cli import claim_outputs
-    from scenes.objfolder import write_picture
+    (`scenes.cli.outputs.claim_outputs`)."""
+    from scenes.report.charts import to_bgr
+    from scenes.cli.outputs import claim_outputs
+    from scenes.images import write_picture
 
     dataset = Path(dataset)
     folders = _object_folders(dataset)
@@ -127,9 +128,10 @@ def preview(dataset: str | Path, out: str | Path | None = None, overwrite: bool 
 def write_stats(dataset: str | Path, out: str | Path | None = None, overwrite: bool = False) -> list[Path]:
     """Write the dataset card (stats.png) and its numbers (stats.json); returns their paths. Outputs are
     checked before any folder is read; existing ones are replaced only with `overwrite`."""
-    from scenes.charts import to_bgr
-    from scenes.cli import claim_outputs
-    from scenes.objfolder import atomic_write_text, write_picture
+    from scenes.report.charts import to_bgr
+    from scenes.cli.outputs import claim_outputs
+    from scenes.files import atomic_write_text
+    from scenes.images import write_picture
     from wildgen.card import STATS_PICTURE, STATS_SUMMARY, dataset_stats, json_text
     from wildgen.card_figure import draw_stats
 
@@ -170,7 +172,7 @@ COMMAND = Command(PreviewOptions, prog="python -m wildgen.preview", description=
 
 
 def main(argv: list[str] | None = None) -> int:
-    from scenes.cli import UsageError, report_error
+    from scenes.cli.errors import UsageError, report_error
 
     try:
         args = COMMAND.parse(argv)

@@ -32,7 +32,7 @@ from scenes.description import (
     multijitter_spp,
 )
 from scenes.lights import DirectionalLight
-from scenes.objfolder import AUX_DIR, MESH_FILE
+from scenes.folder.format import AUX_DIR, MESH_FILE
 from scenes.procedural import MeshData
 from wildgen.assets import AssetLibrary
 from wildgen.config import MATERIAL_CLASSES, GenConfig

@@ -22,10 +22,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Literal
 
-from scenes.cli import INPUT_ERRORS, UsageError, check_output_folder, progress_bar, report_error
-from scenes.config import Command, REQUIRED, check_fields, option
-from scenes.objfolder import (AUX_DIR, SCENE_FILE, atomic_write_text, image_files, image_name, list_object_folders,
-                              object_name, radiance_name, read_exr, read_scene, write_scene)
+from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
+from scenes.cli.outputs import check_output_folder
+from scenes.cli.progress import progress_bar
+from scenes.cli.options import Command, REQUIRED, check_fields, option
+from scenes.folder.format import (AUX_DIR, SCENE_FILE, image_files, image_name, list_object_folders, object_name,
+    radiance_name, read_scene, write_scene)
+from scenes.files import atomic_write_text
+from scenes.images import read_exr
 from scenes.sensor import (SCENE_KEY, SENSORS, Sensor, read_sensor_record, rederive_image, scale_camera_lights, sensor_named,
                            sensor_record,
                            write_image)

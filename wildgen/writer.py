@@ -2,7 +2,7 @@
 then rename), and its manifest entry (`make_object`, the unit of work every engine runs).
 
 The folder holds no timestamps or host names (those go into the manifest), so the same seed gives
-byte-identical folders whatever the Dr.Jit thread count (scenes.render.render_film; docs/generator.md,
+byte-identical folders whatever the Dr.Jit thread count (scenes.renderer.render.render_film; docs/generator.md,
 "Crash safety, resume and determinism").
 """
 from __future__ import annotations
@@ -21,11 +21,12 @@ import numpy as np
 from scenes.description import SceneDescription, TextureDesc
 from scenes.geometry import camera_rotation, view_directions, write_mesh_ply
 from scenes.lights import camera_frame
-from scenes.mitsuba_build import build_scene
-from scenes.objfolder import (AUX_DIR, FORMAT_VERSION, INSTANCES_FILE, MASK_FILE, MESH_FILE, NORMAL_BASE_FILE,
-                              NORMAL_FILE, OBJECT_SUFFIX, image_name, radiance_name, sha256_file, write_exr,
-                              write_instances, write_mask, write_normal_map, write_png16, write_scene)
-from scenes.render import instance_ids, render_ground_truth, render_images
+from scenes.renderer.build import build_scene
+from scenes.folder.format import (AUX_DIR, FORMAT_VERSION, INSTANCES_FILE, MASK_FILE, MESH_FILE, NORMAL_BASE_FILE,
+    NORMAL_FILE, OBJECT_SUFFIX, image_name, radiance_name, write_scene)
+from scenes.files import sha256_file
+from scenes.images import write_exr, write_instances, write_mask, write_normal_map, write_png16
+from scenes.renderer.render import instance_ids, render_ground_truth, render_images
 from scenes.sensor import SCENE_KEY as SENSOR_KEY
 from scenes.sensor import SENSORS, Sensor, rederive_image, scale_camera_lights, sensor_record, write_image
 from wildgen.assets import AssetLibrary

@@ -23,7 +23,7 @@ from typing import Any, Mapping
 import torch
 from torch import nn
 
-from scenes.objfolder import atomic_write, atomic_write_text
+from scenes.files import atomic_write, atomic_write_text
 
 from .registry import build_model, pretrained_weights
 

@@ -9,7 +9,7 @@ one `Layout` entry (plus its tests).
 
 Layouts, detected in table order:
 
-- ``"ours"``: the project's object folder (`scenes.objfolder` owns its files): ``L000.png ...`` (no gaps),
+- ``"ours"``: the project's object folder (`scenes.folder.format` owns its files): ``L000.png ...`` (no gaps),
   ``mask.png`` (required), ``normal.tif``, ``scene.json`` (light family; calibrated lights from its
   ``camera_lights`` when every image has exactly one directional light and nothing else).
 - ``"diligent"``: DiLiGenT ``*PNG`` folders: ``001.png ...`` (order from ``filenames.txt`` when present),
@@ -25,7 +25,7 @@ Rules shared by every layout (the divergences this module exists to prevent):
   non-negative; a folder may not mix float EXR and integer images (their scales differ);
 - a channel at an integer file's largest code is *saturated*: its true value is only known to be at least
   the stored one (`FolderData.saturated`);
-- mask: any channel > 0 is foreground (`scenes.objfolder.MASK_RULE`, the official UniPS rule);
+- mask: any channel > 0 is foreground (`scenes.folder.format.MASK_RULE`, the official UniPS rule);
 - ground-truth normals: renormalised inside the mask; a vector shorter than `MIN_NORMAL_LENGTH` is "no
   normal" and becomes 0 (an encoded zero vector decodes to length < 0.5), counted and logged;
 - calibration: light directions are unit vectors toward the light, a zero or non-finite vector is refused.
@@ -43,17 +43,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from scenes.objfolder import (
-    MASK_FILE,
-    NORMAL_FILE,
-    SCENE_FILE,
-    image_files,
-    object_name,
-    read_image,
-    read_mask,
-    read_normals,
-    read_scene_dict,
-)
+from scenes.folder.format import MASK_FILE, NORMAL_FILE, SCENE_FILE, image_files, object_name, read_scene_dict
+from scenes.images import read_image, read_mask, read_normals
 
 log = logging.getLogger(__name__)
 
@@ -321,7 +312,7 @@ class FolderData:
     """One object folder of any layout, read (see the module doc for the rules)."""
 
     name: str
-    """Object name: the folder name minus a trailing '.data' (`scenes.objfolder.object_name`)."""
+    """Object name: the folder name minus a trailing '.data' (`scenes.folder.format.object_name`)."""
     path: Path
     """The object folder."""
     layout: str
@@ -393,7 +384,7 @@ def _recorded_sensor(folder: Path, layout: str, num_images: int):
     """The sensor an object folder of ours records in scene.json (None when absent or `ideal`)."""
     if layout != "ours":
         return None
-    from scenes.objfolder import split_scene_extras
+    from scenes.folder.format import split_scene_extras
     from scenes.sensor import SCENE_KEY, SENSORS, read_sensor_record
 
     _, extras = split_scene_extras(read_scene_dict(folder / SCENE_FILE))

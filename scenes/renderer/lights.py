@@ -1,13 +1,13 @@
 """The Mitsuba side of the light types (`scenes.lights`): per light class its *slot*, the emitter created once
 switched off, and the parameters that show one light in it or switch it off again.
 
-`SLOT_BUILDERS` maps each class of `scenes.lights.LIGHT_TYPES` to its `SlotBuilder`; `scenes.mitsuba_build`
+`SLOT_BUILDERS` maps each class of `scenes.lights.LIGHT_TYPES` to its `SlotBuilder`; `scenes.renderer.build`
 creates the slots (`slot_dicts`) and writes one image's lights into them (`apply_lights`) through it. A scene
-holds, per type, as many slots as the busiest image uses (`LightSlots` in `scenes.mitsuba_build`); slots an
+holds, per type, as many slots as the busiest image uses (`LightSlots` in `scenes.renderer.build`); slots an
 image does not use get zero strength and zero sampling weight, and unused rectangles and spheres are also
 parked out of the way (they are real surfaces that would cast shadows).
 
-The functions receive the `mitsuba` module from the builder (a variant must be set, `scenes.variant`).
+The functions receive the `mitsuba` module from the builder (a variant must be set, `scenes.renderer.variant`).
 """
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ import numpy as np
 
 from scenes.lights import (LIGHT_TYPES, AreaLight, DirectionalLight, EnvironmentLight, LightDesc, PointLight,
                            UniformLight, light_class)
-from scenes.variant import require_variant
+from scenes.renderer.variant import require_variant
 
 PARK_POSITION = [0.0, 1.0e5, 0.0]  # where unused area lights wait: far above, invisibly small
 PARK_SCALE = 1.0e-6

@@ -12,7 +12,7 @@ below (`CommaList`, `Repeatable`, `Positional`, `arg(metavar=...)`). Bounds and 
     opts = COMMAND.parse(argv).validate()      # a UsageError of one line on bad input, never a traceback
 
 Errors name the flag, the value and what was expected, e.g. `--steps: got 0, expected an integer >= 1`;
-`scenes.cli.report_error` prints them.
+`scenes.cli.errors.report_error` prints them.
 """
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ from typing import Any, Iterable, Literal, Sequence
 import tyro
 from tyro.constructors import PrimitiveConstructorSpec
 
-_KEY = "scenes.config"  # the dataclass-field metadata key of `option`
+_KEY = "scenes.cli.options"  # the dataclass-field metadata key of `option`
 
 # tyro's behaviour for every CLI: nested configs without a prefix (their flags are the command's own).
 MARKERS = (tyro.conf.OmitArgPrefixes,)
@@ -384,7 +384,7 @@ class Command:
 
         from tyro import _errors
 
-        from scenes.cli import UsageError
+        from scenes.cli.errors import UsageError
 
         def refuse(event: Any) -> None:
             raise UsageError(_usage_message(event))

@@ -1,7 +1,7 @@
 """The Mitsuba variant: chosen at entry points (never at import time), checked where Mitsuba objects are made.
 
 `choose_variant` sets it; `require_variant` / `require_jit_variant` / `require_ad_variant` are the only checks
-that one is set (`scenes.mitsuba_build`, `scenes.render`, `validate.normal_bsdf` and `validate.fit` call them).
+that one is set (`scenes.renderer.build`, `scenes.renderer.render`, `validate.normal_bsdf` and `validate.fit` call them).
 """
 from __future__ import annotations
 
@@ -91,7 +91,7 @@ def require_variant() -> Any:
     import mitsuba as mi
 
     if mi.variant() is None:
-        raise RuntimeError("no Mitsuba variant is set: call scenes.variant.choose_variant() in the entry point")
+        raise RuntimeError("no Mitsuba variant is set: call scenes.renderer.variant.choose_variant() in the entry point")
     return mi
 
 

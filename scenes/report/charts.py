@@ -1,5 +1,5 @@
 """Charts and figures for people, drawn with matplotlib (Agg, without pyplot or a display): a figure sized in
-pixels, axes placed in pixels, the figure as an 8-bit BGR picture (written by `scenes.objfolder.write_picture`,
+pixels, axes placed in pixels, the figure as an 8-bit BGR picture (written by `scenes.images.write_picture`,
 atomically, like every picture), an OpenCV colour map as a matplotlib one, and the labelled colour bar of the
 heat maps that stay image pixels (`unips.evaluate`'s error maps): every colour-coded map says what its colours
 mean and in which unit."""
@@ -45,7 +45,7 @@ def to_bgr(fig) -> np.ndarray:
 
 def write_figure(path: str | Path, fig) -> None:
     """Write the figure as a picture (PNG from the extension), atomically."""
-    from scenes.objfolder import write_picture
+    from scenes.images import write_picture
 
     write_picture(path, to_bgr(fig))
 

@@ -18,9 +18,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from scenes.geometry import camera_rotation
-from scenes.mitsuba_build import BuiltScene
+from scenes.renderer.build import BuiltScene
 from scenes.textures import sample_texture
-from scenes.variant import require_variant
+from scenes.renderer.variant import require_variant
 
 log = logging.getLogger(__name__)
 

@@ -2,9 +2,9 @@
 
 A shard is a plain POSIX tar file (`SHARD_SUFFIX`) holding one *sample* per object folder, as WebDataset
 (the `webdataset` package) reads it: every member is ``<key>.<suffix>``, where the key is the object's name
-(`scenes.objfolder.object_name`, which therefore may not contain a dot) and the suffix names one file of the
+(`scenes.folder.format.object_name`, which therefore may not contain a dot) and the suffix names one file of the
 folder. The files are stored exactly as they are on disk (PNG, TIFF, JSON bytes), so reading a sample back
-means writing its files into a folder and handing it to the one reader of folders (`scenes.layouts`): there
+means writing its files into a folder and handing it to the one reader of folders (`scenes.folder.layouts`): there
 is no second decoder. Suffixes:
 
 - a top-level file keeps its name (``00017.L000.png``, ``00017.mask.png``, ``00017.normal.tif``,
@@ -18,7 +18,7 @@ reader returned for the folder, so that reading it back decodes no PNG and repea
 
 - ``<key>.decoded.json``: the reader's metadata (layout, image names, lights, sensor, which files it read);
 - ``<key>.decoded.images.npy``: the images as their integer file codes (uint16 or uint8, converted on reading by
-  `scenes.objfolder.codes_to_linear`, the conversion of `read_image`) or as float32 when they came from EXRs;
+  `scenes.images.codes_to_linear`, the conversion of `read_image`) or as float32 when they came from EXRs;
 - ``<key>.decoded.mask.npy``, and ``decoded.normals.npy`` / ``decoded.saturated.npy`` when the reader gave them;
 - ``<key>.scene.json``, the folder's scene file as it was (the scene stays re-renderable from the shard).
 
@@ -45,7 +45,8 @@ import re
 from pathlib import Path
 from typing import Any, BinaryIO, Iterator
 
-from scenes.objfolder import AUX_DIR, OBJECT_SUFFIX, atomic_write_text, object_name, sha256_file
+from scenes.folder.format import AUX_DIR, OBJECT_SUFFIX, object_name
+from scenes.files import atomic_write_text, sha256_file
 
 INDEX_FILE = "index.json"
 """The index beside the shards: per shard its objects and its sha256."""
@@ -148,7 +149,7 @@ def _as_codes(images, where: Path, arg: str):
     images themselves when no integer type does (EXR files)."""
     import numpy as np
 
-    from scenes.objfolder import CODE_SCALES, codes_to_linear
+    from scenes.images import CODE_SCALES, codes_to_linear
 
     if images.dtype != np.float32:
         raise ValueError(f"{arg}: {str(where)!r}: the reader gave {images.dtype} images; expected float32")
@@ -165,8 +166,8 @@ def _as_codes(images, where: Path, arg: str):
 def encode_decoded(folder: Path, arg: str = "--data") -> dict[str, bytes]:
     """The members (suffix -> bytes) of the decoded sample of an object folder: what `read_folder` returns for it
     (see the module docstring)."""
-    from scenes.layouts import read_folder
-    from scenes.objfolder import SCENE_FILE
+    from scenes.folder.layouts import read_folder
+    from scenes.folder.format import SCENE_FILE
 
     fd = read_folder(folder, arg=arg)
     lights = fd.lights
@@ -194,13 +195,13 @@ class _MemberError(ValueError):
 
 
 def decode_folder(files: dict[str, bytes], folder: Path):
-    """The `scenes.layouts.FolderData` of a decoded sample's members, as `read_folder` returned it for the object
+    """The `scenes.folder.layouts.FolderData` of a decoded sample's members, as `read_folder` returned it for the object
     folder; `folder` (where the sample came from, e.g. SHARD/KEY.data) stands for its path. A ValueError naming the
     member that is missing, unreadable or not of the type and shape the reader returns."""
     import numpy as np
 
-    from scenes.layouts import FolderData, Lights
-    from scenes.objfolder import CODE_SCALES, codes_to_linear
+    from scenes.folder.layouts import FolderData, Lights
+    from scenes.images import CODE_SCALES, codes_to_linear
     from scenes.sensor import Sensor
 
     def array(name: str, required: bool, dtypes: tuple, shape: tuple):
@@ -273,8 +274,8 @@ def write_shard(path: str | Path, folders: list[tuple[str, Path]], aux: bool = F
     index entry (name, bytes, sha256, objects)."""
     import webdataset as wds
 
-    from scenes.layouts import detect_layout, layout_named
-    from scenes.objfolder import atomic_write
+    from scenes.folder.layouts import detect_layout, layout_named
+    from scenes.files import atomic_write
 
     check_encoding(encoding, aux)
     path = Path(path)

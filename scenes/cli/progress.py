@@ -1,0 +1,113 @@
+"""What every command shows while it works (`Progress`, and the callback form `progress_bar`): a bar only on a
+terminal, plain lines at most every `PLAIN_EVERY_S` seconds in a log.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from contextlib import contextmanager
+from typing import Any, Callable, Iterator
+
+
+PLAIN_EVERY_S = 10.0
+"""Without a terminal on stderr (a log file, a pipe): at most one progress line per this many seconds."""
+
+
+def _is_terminal(stream: Any) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError, OSError):  # no isatty, or a closed stream
+        return False
+
+
+class Progress:
+    """The progress of one piece of work, shown the one way of every CLI: a tqdm bar on stderr when stderr is a
+    terminal; otherwise (a log file, a pipe) a plain line `DESC: DONE/TOTAL UNIT, key=value..., N s` at most
+    every `PLAIN_EVERY_S` seconds, and a last one at the end when any was printed, never a bar redraw (carriage
+    returns) in a log. With `enabled` false (--quiet, --no-progress, a rank other than 0) it shows nothing.
+    A context manager (closed on exit); `update` sets the count, `advance` adds to it."""
+
+    def __init__(self, desc: str, unit: str, total: int | None = None, done: int = 0, enabled: bool = True,
+                 stream: Any = None, clock: Callable[[], float] = time.monotonic) -> None:
+        self.desc, self.unit, self.total, self.done = desc, unit, total, done
+        self.postfix: dict[str, Any] = {}
+        self.stream = sys.stderr if stream is None else stream
+        self.enabled, self.clock = enabled, clock
+        self.start = self.last_line = clock()
+        self.lines = 0
+        self.bar = None
+        if enabled and _is_terminal(self.stream):
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, initial=done, unit=unit, desc=desc, file=self.stream, dynamic_ncols=True,
+                            leave=False)
+
+    def update(self, done: int, total: int | None = None, desc: str | None = None,
+               postfix: dict[str, Any] | None = None) -> None:
+        """The work is at `done` (of `total`, when given); `desc` replaces the description, `postfix` values
+        (name -> value) are shown after the count."""
+        step, self.done = done - self.done, done
+        self.total = self.total if total is None else total
+        self.desc = desc or self.desc
+        self.postfix.update(postfix or {})
+        if self.bar is not None:
+            self.bar.total = self.total
+            self.bar.set_description(self.desc, refresh=False)
+            if self.postfix:
+                self.bar.set_postfix(self.postfix, refresh=False)
+            self.bar.update(step)
+        elif self.enabled and self.clock() - self.last_line >= PLAIN_EVERY_S:
+            self._line()
+
+    def advance(self, n: int = 1, postfix: dict[str, Any] | None = None) -> None:
+        """`n` more units done."""
+        self.update(self.done + n, postfix=postfix)
+
+    def _line(self) -> None:
+        self.last_line = now = self.clock()
+        of = f"/{self.total}" if self.total is not None else ""
+        more = "".join(f", {k}={v}" for k, v in self.postfix.items())
+        print(f"{self.desc}: {self.done}{of} {self.unit}{more}, {now - self.start:.0f} s", file=self.stream, flush=True)
+        self.lines += 1
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
+        elif self.enabled and self.lines:
+            self._line()
+            self.enabled = False
+
+    def __enter__(self) -> "Progress":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+
+@contextmanager
+def logs_above_progress() -> Iterator[None]:
+    """Log records (warnings of a long run) printed above a progress bar instead of through it (tqdm's logging
+    redirect; harmless without a bar)."""
+    from tqdm.contrib.logging import logging_redirect_tqdm
+
+    with logging_redirect_tqdm():
+        yield
+
+
+@contextmanager
+def progress_bar(unit: str) -> Iterator[Callable[[int, int, str], None]]:
+    """A `progress(done, total, label)` callback showing one `Progress`, closed on exit. It is created at the first
+    call, so that an input error found before any work still prints one clean error line."""
+    shown: list[Progress] = []
+
+    def progress(done: int, total: int, label: str) -> None:
+        if not shown:
+            shown.append(Progress(label, unit, total))
+        shown[0].update(done, total, desc=label)
+
+    try:
+        yield progress
+    finally:
+        for p in shown:
+            p.close()

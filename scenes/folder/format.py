@@ -1,0 +1,223 @@
+"""The object folder `<name>.data/`: its file names, its scene.json and the lookup of predictions; the one module
+that knows its layout.
+
+Everything that reads or writes an object folder goes through `scenes.folder`: `wildgen` writes it, `unips` loads it
+for the model, `validate` loads it for the re-render check, `wildgen.preview` shows it, the tests build
+synthetic ones. Plain NumPy / OpenCV / OpenEXR (no Mitsuba). Layout (see ARCHITECTURE.md):
+
+- `L000.png ... L{K-1}.png`: 16-bit linear RGB, `round(clip(radiance * exposure, 0, 1) * 65535)`;
+- `mask.png`: 8-bit gray, 255 inside the object, 0 outside. Reading follows the official UniPS loaders:
+  any channel > 0 is foreground (`MASK_RULE`);
+- `normal.tif`: 16-bit RGB `round((n + 1) / 2 * 65535)`, camera frame x right, y up, z toward the camera;
+  background n = 0 is 32768 in every channel;
+- `scene.json`: the `SceneDescription` JSON plus extra top-level keys (`SCENE_EXTRAS`: `camera_lights`,
+  `format_version`, ...), split apart only by `split_scene_extras`;
+- `aux/`: float EXR ground truth, the mesh and textures used.
+
+Predictions (what `unips.predict` writes, what `unips.evaluate` and `validate.rerender` read) are
+`PRED/<object>/normal.<ext>`, looked up in the order of `PREDICTION_FILES`: the lossless float EXR first,
+then the 16-bit PNG, then `.npy` and TIFF. `<object>` is `object_name(folder)`. The pixel files themselves
+are `scenes.images`.
+"""
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from scenes.files import atomic_write_text
+from scenes.images import write_mask, write_normal_map, write_png16
+
+
+OBJECT_SUFFIX = ".data"
+
+SCENE_FILE = "scene.json"
+
+MASK_FILE = "mask.png"
+
+NORMAL_FILE = "normal.tif"
+
+NORMAL_BASE_FILE = "normal_base.tif"
+"""Normals of the geometry without its normal-mapped detail (objects with a normal map only); normal.tif holds
+the shading normals the camera sees, detail included: what methods are scored on."""
+
+AUX_DIR = "aux"
+
+MESH_FILE = "mesh.ply"
+"""In aux/: the object's mesh (a cluster's objects merged), as the generator writes it for re-rendering."""
+
+INSTANCES_FILE = "instances.png"
+"""In aux/ of a cluster: the 16-bit id of the object seen at each pixel centre (part i of scene.json `parts` is
+i + 1; 0 is the background)."""
+
+FORMAT_VERSION = 1
+"""Written into scene.json as `format_version`."""
+
+SCENE_EXTRAS = ("camera_lights", "format_version", "sensor")
+"""Top-level scene.json keys written next to the SceneDescription fields."""
+
+PREDICTION_FILES = ("normal.exr", "normal.png", "normal.npy", "normal.tif", "normal.tiff")
+"""File names of a prediction folder, in lookup order (lossless float first)."""
+
+PREDICTION_INFO = "predict.json"
+"""What `unips.predict` records beside a prediction (method, model, images used)."""
+
+MASK_RULE = "any channel > 0 is foreground (as the official UniPS loaders)"
+
+_IMAGE_RE = re.compile(r"^L(\d+)\.png$")
+
+
+def image_name(index: int) -> str:
+    """File name of input image `index` (L000.png ...)."""
+    return f"L{index:03d}.png"
+
+
+def radiance_name(index: int) -> str:
+    """File name, inside `AUX_DIR`, of the float radiance of image `index` before its exposure."""
+    return f"radiance_{index:03d}.exr"
+
+
+def object_name(path: str | Path) -> str:
+    """Name of an object folder: its name minus a trailing `.data` (`foo.data` -> `foo`, `ballPNG` stays)."""
+    name = Path(path).resolve().name
+    return name[: -len(OBJECT_SUFFIX)] if name.endswith(OBJECT_SUFFIX) and len(name) > len(OBJECT_SUFFIX) else name
+
+
+def image_files(folder: str | Path) -> list[Path]:
+    """The `L<i>.png` images of an object folder in index order; ValueError when indices have gaps."""
+    folder = Path(folder)
+    found = {}
+    for p in folder.iterdir():
+        m = _IMAGE_RE.match(p.name)
+        if m:
+            found[int(m.group(1))] = p
+    indices = sorted(found)
+    if indices != list(range(len(indices))):
+        missing = sorted(set(range(max(indices, default=-1) + 1)) - set(indices))
+        raise ValueError(f"images: {str(folder)!r} has L*.png files with gaps (missing indices {missing[:10]})")
+    return [found[i] for i in indices]
+
+
+def list_object_folders(dataset: str | Path) -> list[Path]:
+    """Object folders (`*.data` with a scene.json) of a dataset folder, sorted by name."""
+    dataset = Path(dataset)
+    folders = sorted(p for p in dataset.iterdir()
+                     if p.is_dir() and p.name.endswith(OBJECT_SUFFIX) and not p.name.startswith("."))
+    if not folders:
+        raise FileNotFoundError(f"--data: {str(dataset)!r} has no scene.json and no *.data object folders")
+    for f in folders:
+        if not (f / SCENE_FILE).is_file():
+            raise FileNotFoundError(f"--data: object folder {str(f)!r} has no scene.json")
+    return folders
+
+
+def read_scene_dict(folder_or_file: str | Path) -> dict[str, Any]:
+    """scene.json as a plain dict (description fields and extras); FileNotFoundError / ValueError."""
+    path = Path(folder_or_file)
+    if path.is_dir():
+        path = path / SCENE_FILE
+    if not path.is_file():
+        raise FileNotFoundError(f"scene.json: {str(path)!r} does not exist (is this an object folder?)")
+    try:
+        d = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"scene file {path}: cannot be parsed as JSON ({exc})") from exc
+    if not isinstance(d, dict):
+        raise ValueError(f"scene file {path}: expected a JSON object, got {type(d).__name__}")
+    return d
+
+
+def split_scene_extras(d: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(SceneDescription fields, everything else) of a scene.json dict."""
+    from dataclasses import fields
+
+    from scenes.description import SceneDescription
+
+    known = {f.name for f in fields(SceneDescription)}
+    return {k: v for k, v in d.items() if k in known}, {k: v for k, v in d.items() if k not in known}
+
+
+def read_scene(folder_or_file: str | Path):
+    """(validated SceneDescription, extras dict) of an object folder's scene.json."""
+    from scenes.description import SceneDescription
+
+    desc_dict, extras = split_scene_extras(read_scene_dict(folder_or_file))
+    return SceneDescription.from_dict(desc_dict).validate(), extras
+
+
+def scene_json_text(desc, extras: dict[str, Any] | None = None) -> str:
+    """The bytes of scene.json: description plus extras, sorted keys, no NaN."""
+    scene = desc.to_dict()
+    for key, value in (extras or {}).items():
+        scene[key] = value
+    return json.dumps(scene, indent=1, sort_keys=True, allow_nan=False)
+
+
+def write_scene(folder: str | Path, desc, extras: dict[str, Any] | None = None) -> Path:
+    """Write `folder/scene.json` (extras get `format_version` unless given)."""
+    extras = dict(extras or {})
+    extras.setdefault("format_version", FORMAT_VERSION)
+    path = Path(folder) / SCENE_FILE
+    atomic_write_text(path, scene_json_text(desc, extras))
+    return path
+
+
+def prediction_file(folder: str | Path) -> Path | None:
+    """The first of `PREDICTION_FILES` present in `folder`, or None."""
+    folder = Path(folder)
+    for fname in PREDICTION_FILES:
+        if (folder / fname).is_file():
+            return folder / fname
+    return None
+
+
+def find_prediction(pred: str | Path, name: str | None = None) -> Path:
+    """The normal-map file of an object: `pred` itself if a file, else `prediction_file(pred/name)`,
+    else `prediction_file(pred)`; FileNotFoundError when none."""
+    pred = Path(pred)
+    if pred.is_file():
+        return pred
+    folders = [pred / name, pred] if name else [pred]
+    for folder in folders:
+        found = prediction_file(folder)
+        if found is not None:
+            return found
+    where = " or ".join(str(f) for f in folders)
+    raise FileNotFoundError(f"--normals: no {'/'.join(PREDICTION_FILES)} in {where}")
+
+
+def prediction_label(source: str | Path) -> str:
+    """A short name of where a normal map came from, for titles: the method recorded in the prediction's
+    `PREDICTION_INFO` ("model glc-tiny", "least-squares"), else the file's folder and name."""
+    path = Path(source)
+    info = path.parent / PREDICTION_INFO
+    try:
+        d = json.loads(info.read_text())
+        method = str(d["method"])
+        model = d.get("model_name")
+        return f"{method} {model}" if method == "model" and model else method
+    except (OSError, ValueError, KeyError, TypeError):
+        return f"{path.parent.name}/{path.name}" if path.parent.name else path.name
+
+
+def write_object_folder(folder: str | Path, images: np.ndarray, mask: np.ndarray, normals: np.ndarray | None,
+                        desc=None, extras: dict[str, Any] | None = None, scene: dict[str, Any] | None = None) -> Path:
+    """Write the top level of an object folder: L*.png, mask.png, normal.tif (when given) and scene.json.
+
+    scene.json is `desc` plus `extras` (`write_scene`), or the plain dict `scene` as is (synthetic folders
+    of the tests, partial scene.json of other tools). Images are linear [0, 1] (K, H, W, 3)."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    for i, img in enumerate(images):
+        write_png16(folder / image_name(i), img)
+    write_mask(folder / MASK_FILE, mask)
+    if normals is not None:
+        write_normal_map(folder / NORMAL_FILE, np.where(np.asarray(mask)[..., None], normals, 0.0))
+    if desc is not None:
+        write_scene(folder, desc, extras)
+    elif scene is not None:
+        (folder / SCENE_FILE).write_text(json.dumps(scene))
+    return folder

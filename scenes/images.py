@@ -1,0 +1,323 @@
+"""The pixel files of an object folder and of predictions: images (16-bit / 8-bit PNG, float EXR), masks,
+instance ids and normal maps, each read and written one way (every write through `scenes.files.atomic_write`).
+
+Normal-map files: 16-bit PNG / TIFF `round((n + 1) / 2 * 65535)` (written with OpenCV in BGR order, so
+RGB-aware readers get RGB), 8-bit PNG (DiLiGenT's `Normal_gt.png`, visualisations) `(n + 1) / 2 * 255`,
+float EXR (channels R, G, B), `.npy` and MATLAB `.mat` holding n itself.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from scenes.files import atomic_write
+
+
+BACKGROUND_16 = 32768
+"""Encoded value of n = 0 in a 16-bit normal map."""
+
+
+def to_uint16(x: np.ndarray) -> np.ndarray:
+    """Linear [0, 1] floats to uint16, clipped and rounded."""
+    return np.round(np.clip(x, 0.0, 1.0) * 65535.0).astype(np.uint16)
+
+
+def _imwrite(path: Path, image: np.ndarray, mkdir: bool = False) -> None:
+    import cv2
+
+    if mkdir:
+        path.parent.mkdir(parents=True, exist_ok=True)
+
+    # Encoded in memory and written by Python: cv2.imwrite reports success on a full disk (0-byte file).
+    ok, data = cv2.imencode(path.suffix, image)
+    if not ok:
+        raise OSError(f"could not encode {str(path)!r} (unsupported extension {path.suffix!r})")
+    atomic_write(path, lambda tmp: tmp.write_bytes(data.tobytes()))
+
+
+def write_picture(path: str | Path, bgr: np.ndarray) -> None:
+    """Write a picture for people (figure, contact sheet, error map: 8-bit BGR as OpenCV draws it; the format
+    from the extension) atomically, detecting a full disk."""
+    _imwrite(Path(path), np.ascontiguousarray(bgr), mkdir=True)
+
+
+def write_png16(path: str | Path, rgb: np.ndarray) -> None:
+    """(H, W, 3) float in [0, 1] or uint16 -> 16-bit RGB PNG (no gamma: linear values)."""
+    data = rgb if rgb.dtype == np.uint16 else to_uint16(rgb)
+    _imwrite(Path(path), np.ascontiguousarray(data[:, :, ::-1]))
+
+
+def write_instances(path: str | Path, ids: np.ndarray) -> None:
+    """(H, W) integer ids -> one-channel 16-bit PNG (`INSTANCES_FILE`)."""
+    ids = np.asarray(ids)
+    if ids.min(initial=0) < 0 or ids.max(initial=0) > 65535:
+        raise ValueError(f"instance ids: expected values in [0, 65535], got [{ids.min()}, {ids.max()}]")
+    _imwrite(Path(path), np.ascontiguousarray(ids.astype(np.uint16)), mkdir=True)
+
+
+def read_instances(path: str | Path) -> np.ndarray:
+    """(H, W) uint16 instance ids of `write_instances`."""
+    img = _read_raw(Path(path), "instance-id")
+    if img.ndim != 2 or img.dtype != np.uint16:
+        raise ValueError(f"{path}: expected a one-channel 16-bit PNG of instance ids, got {img.dtype} {img.shape}")
+    return img
+
+
+def _read_raw(path: Path, what: str = "image"):
+    import cv2
+
+    if not path.is_file():
+        raise FileNotFoundError(f"{what} file {path} does not exist")
+    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise ValueError(f"{what} file {path}: cannot be read (corrupt or unsupported format)")
+    return img
+
+
+def _check_float_image(img: np.ndarray, path: Path) -> np.ndarray:
+    """A float image is radiance: finite and non-negative, or it is refused by name."""
+    if not np.all(np.isfinite(img)):
+        raise ValueError(f"image file {path}: contains NaN or infinite values")
+    if np.any(img < 0):
+        raise ValueError(f"image file {path}: has negative values (min {float(img.min()):.3g}); expected radiance >= 0")
+    return img
+
+
+def read_image(path: str | Path) -> np.ndarray:
+    """Read one image as (H, W, 3) float32 linear RGB (uint16 / 65535, uint8 / 255, float EXR as is; gray
+    repeated to RGB, alpha dropped). Float images must be finite and non-negative."""
+    path = Path(path)
+    if path.suffix.lower() == ".exr":
+        if not path.is_file():
+            raise FileNotFoundError(f"image file {path} does not exist")
+        img = read_exr(path)
+        img = np.repeat(img, 3, axis=2) if img.shape[2] == 1 else img[:, :, :3]
+        if img.shape[2] != 3:
+            raise ValueError(f"image file {path}: expected a gray or RGB EXR, got {img.shape[2]} channels")
+        return _check_float_image(np.ascontiguousarray(img, dtype=np.float32), path)
+    img = _read_raw(path)
+    if img.ndim == 2:
+        img = np.repeat(img[..., None], 3, axis=2)
+    elif img.ndim == 3 and img.shape[2] == 4:
+        img = img[..., :3]  # drop alpha
+    elif img.ndim == 3 and img.shape[2] == 1:
+        img = np.repeat(img, 3, axis=2)
+    if img.ndim != 3 or img.shape[2] != 3:
+        raise ValueError(f"image file {path}: expected a gray, RGB or RGBA image, got shape {img.shape}")
+    img = np.ascontiguousarray(img[..., ::-1])  # BGR -> RGB
+    if img.dtype in (np.float32, np.float64):
+        return _check_float_image(img.astype(np.float32), path)
+    if img.dtype not in CODE_SCALES:
+        raise ValueError(f"image file {path}: unsupported pixel type {img.dtype} (expected 8 or 16 bit)")
+    return codes_to_linear(img)
+
+CODE_SCALES = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0}
+"""Largest code of each integer pixel type: a file value v is the linear value v / scale."""
+
+
+def codes_to_linear(codes: np.ndarray) -> np.ndarray:
+    """Integer file values (uint8 / uint16, any shape) -> float32 in [0, 1]: the one conversion every reader of
+    integer images uses (`read_image`, and decoded shards, `scenes.folder.shards`), so both give the same bits."""
+    return codes.astype(np.float32) / CODE_SCALES[codes.dtype]
+
+
+def write_mask(path: str | Path, mask: np.ndarray) -> None:
+    """(H, W) bool -> 8-bit gray PNG, 255 inside, 0 outside."""
+    _imwrite(Path(path), np.where(mask, 255, 0).astype(np.uint8))
+
+
+def read_mask(path: str | Path, shape: tuple[int, int] | None = None) -> np.ndarray:
+    """(H, W) bool mask by `MASK_RULE` (any channel > 0); its size must be `shape` when given."""
+    path = Path(path)
+    img = _read_raw(path, "mask")
+    if img.ndim == 3:
+        img = img.max(axis=2)
+    if shape is not None and img.shape != tuple(shape):
+        raise ValueError(f"mask file {path}: size {img.shape[1]}x{img.shape[0]} (WxH) differs from the "
+                         f"images' {shape[1]}x{shape[0]}")
+    mask = img > 0
+    if not mask.any():
+        raise ValueError(f"mask file {path}: is empty (no pixel > 0)")
+    return mask
+
+
+def write_exr(path: str | Path, data: np.ndarray) -> None:
+    """float32 (H, W), (H, W, 1) or (H, W, 3) -> EXR with channels Y or R, G, B (ZIP compression)."""
+    import OpenEXR
+
+    data = np.asarray(data, np.float32)
+    if data.ndim == 3 and data.shape[2] == 1:
+        data = data[:, :, 0]
+    if data.ndim == 2:
+        channels = {"Y": np.ascontiguousarray(data)}
+    elif data.ndim == 3 and data.shape[2] == 3:
+        channels = {c: np.ascontiguousarray(data[:, :, i]) for i, c in enumerate("RGB")}
+    else:
+        raise ValueError(f"write_exr: data shape {data.shape} is not (H, W), (H, W, 1) or (H, W, 3)")
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+
+    def write(tmp: Path) -> None:
+        # OpenEXR replaces the dict's values with Channel objects: hand it a copy.
+        try:
+            with OpenEXR.File(header, dict(channels)) as f:
+                f.write(str(tmp))
+        except RuntimeError as exc:  # OpenEXR reports a full disk or an unwritable folder this way
+            raise OSError(f"could not write {str(path)!r}: {exc}") from exc
+
+    atomic_write(path, write)
+
+
+def _exr_channels(path: Path) -> dict[str, np.ndarray]:
+    import OpenEXR
+
+    if not path.is_file():
+        raise FileNotFoundError(f"EXR file {str(path)!r} does not exist")
+    try:
+        with OpenEXR.File(str(path), separate_channels=True) as f:
+            return {k: np.asarray(v.pixels, np.float32) for k, v in f.channels().items()}
+    except Exception as exc:  # OpenEXR raises several types for corrupt files
+        raise ValueError(f"cannot read EXR {str(path)!r}: {exc}") from exc
+
+
+def read_exr(path: str | Path) -> np.ndarray:
+    """EXR -> float32 (H, W, C): RGB when present, else its single channel, else all channels by name."""
+    ch = _exr_channels(Path(path))
+    if all(c in ch for c in "RGB"):
+        return np.stack([ch["R"], ch["G"], ch["B"]], -1)
+    if len(ch) == 1:
+        return next(iter(ch.values()))[:, :, None]
+    names = sorted(ch)
+    return np.stack([ch[k] for k in names], -1)
+
+
+def check_normal_array(n: np.ndarray, what: str = "n") -> np.ndarray:
+    """n as float32 (H, W, 3) after checking its shape and that it is finite."""
+    n = np.asarray(n)
+    if n.ndim != 3 or n.shape[2] != 3:
+        raise ValueError(f"{what}: expected a normal map of shape (H, W, 3), got shape {n.shape}")
+    if not np.issubdtype(n.dtype, np.number):
+        raise ValueError(f"{what}: expected a numeric array, got dtype {n.dtype}")
+    n = n.astype(np.float32)
+    if not np.all(np.isfinite(n)):
+        raise ValueError(f"{what}: normal map contains NaN or infinite values")
+    return n
+
+
+def _background(n: np.ndarray) -> np.ndarray:
+    """(H, W) bool: pixels whose normal is exactly zero."""
+    return ~np.any(n != 0, axis=2)
+
+
+def encode_normals(n: np.ndarray) -> np.ndarray:
+    """(H, W, 3) normals -> (H, W, 3) uint16 RGB, round((n + 1) / 2 * 65535), background (n = 0) 32768."""
+    check_normal_array(n)
+    n = np.asarray(n)
+    n = n if np.issubdtype(n.dtype, np.floating) else n.astype(np.float32)  # float64 input stays float64
+    enc = np.round((np.clip(n, -1.0, 1.0) + 1.0) * 0.5 * 65535.0).astype(np.uint16)
+    enc[_background(n)] = BACKGROUND_16
+    return enc
+
+
+def decode_normal_image(img: np.ndarray, what: str) -> np.ndarray:
+    """Decode an RGB integer normal image (uint8 or uint16) to float normals.
+
+    Pixels whose decoded vector is shorter than 0.5 (the encoded zero vector, 32768 or 128) become 0.
+    Float images are taken as n itself.
+    """
+    if img.ndim != 3 or img.shape[2] != 3:
+        raise ValueError(f"{what}: expected a 3-channel normal image, got shape {img.shape}")
+    if img.dtype == np.uint16:
+        n = img.astype(np.float32) / 65535.0 * 2.0 - 1.0
+    elif img.dtype == np.uint8:
+        n = img.astype(np.float32) / 255.0 * 2.0 - 1.0
+    elif np.issubdtype(img.dtype, np.floating):
+        n = img.astype(np.float32)
+    else:
+        raise ValueError(f"{what}: unsupported normal image dtype {img.dtype} (expected uint8, uint16 or float)")
+    if np.issubdtype(img.dtype, np.integer):
+        n[np.linalg.norm(n, axis=2) < 0.5] = 0.0
+    return n
+
+
+def write_normal_map(path: str | Path, n: np.ndarray) -> None:
+    """Write a 16-bit RGB normal map (PNG or TIFF, chosen by the extension; `normal.tif` of the folder)."""
+    _imwrite(Path(path), np.ascontiguousarray(encode_normals(n)[..., ::-1]), mkdir=True)  # OpenCV writes BGR
+
+
+def write_normal_exr(path: str | Path, n: np.ndarray) -> None:
+    """Write normals as a float32 OpenEXR file with channels R, G, B."""
+    n = check_normal_array(n)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_exr(path, n)
+
+
+def normal_visual(n: np.ndarray) -> np.ndarray:
+    """(H, W, 3) uint8 RGB picture of the normals, (n + 1) / 2, background black."""
+    n = check_normal_array(n)
+    vis = np.round((np.clip(n, -1.0, 1.0) + 1.0) * 0.5 * 255.0).astype(np.uint8)
+    vis[_background(n)] = 0
+    return vis
+
+
+def write_normal_visual(path: str | Path, n: np.ndarray) -> None:
+    """Write an 8-bit RGB picture of the normals, (n + 1) / 2, background black."""
+    _imwrite(Path(path), np.ascontiguousarray(normal_visual(n)[..., ::-1]), mkdir=True)
+
+
+def _read_mat(path: Path) -> np.ndarray:
+    import scipy.io
+
+    try:
+        data = scipy.io.loadmat(str(path))
+    except Exception as exc:
+        raise ValueError(f"path: cannot read MAT file {path}: {exc}") from exc
+    arrays = {k: v for k, v in data.items() if not k.startswith("__")}
+    for key in ("Normal_gt", "normal", "normals", "Normal_est", "N"):
+        if key in arrays:
+            return np.asarray(arrays[key], dtype=np.float32)
+    if len(arrays) == 1:
+        return np.asarray(next(iter(arrays.values())), dtype=np.float32)
+    raise ValueError(f"path: MAT file {path} has no 'Normal_gt' key and several arrays {sorted(arrays)}")
+
+
+def read_normals(path: str | Path) -> np.ndarray:
+    """Read a normal map: .png/.tif/.tiff (8 or 16 bit), .exr, .npy, .mat.
+
+    Returns (H, W, 3) float32; background pixels are 0. Raises FileNotFoundError for a missing file,
+    ValueError for unreadable files, wrong shapes or non-finite values.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"path: normal map {path} does not exist")
+    suffix = path.suffix.lower()
+    if suffix in (".png", ".tif", ".tiff"):
+        import cv2
+
+        img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if img is None:
+            raise ValueError(f"path: cannot read image file {path} (corrupt or unsupported)")
+        if img.ndim != 3 or img.shape[2] not in (3, 4):
+            raise ValueError(f"path: normal image {path} must be RGB, got shape {img.shape}")
+        n = decode_normal_image(np.ascontiguousarray(img[..., 2::-1]), f"path {path}")
+    elif suffix == ".exr":
+        try:
+            ch = _exr_channels(path)
+        except ValueError as exc:
+            raise ValueError(f"path: cannot read EXR file {path}: {exc}") from exc
+        missing = [c for c in "RGB" if c not in ch]
+        if missing:
+            raise ValueError(f"path: EXR file {path} lacks channels {missing} (has {sorted(ch)})")
+        n = np.stack([ch["R"], ch["G"], ch["B"]], axis=-1).astype(np.float32)
+    elif suffix == ".npy":
+        try:
+            n = np.load(path, allow_pickle=False)
+        except Exception as exc:
+            raise ValueError(f"path: cannot read NPY file {path}: {exc}") from exc
+    elif suffix == ".mat":
+        n = _read_mat(path)
+    else:
+        raise ValueError(f"path: unsupported normal-map extension {suffix!r} for {path} "
+                         "(expected .png, .tif, .tiff, .exr, .npy or .mat)")
+    return check_normal_array(n, f"normal map {path}")

@@ -1,0 +1,1 @@
+"""What commands show people: figures (matplotlib) and Markdown tables."""
