@@ -72,6 +72,8 @@ def register() -> type:
 
 def _make_class() -> type:
     """Define the BSDF class against the current variant's `mi.BSDF` (the base class is per variant)."""
+    # Over 80 lines on purpose: the body is one class (its methods are Mitsuba's BSDF interface), defined here
+    # because its base class exists only once a variant is set.
     import drjit as dr
     import mitsuba as mi
 
