@@ -13,6 +13,7 @@ import signal
 import subprocess
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -83,6 +84,20 @@ def group_alive(pgid: int) -> bool:
     return True
 
 
+@contextmanager
+def make_in_background(out: Path, *, output: bool = False):
+    """`wildgen.make` with 2 workers started in its own process group (yielded); the whole group is killed on
+    the way out if anything of it is still alive."""
+    pipe = subprocess.PIPE if output else subprocess.DEVNULL
+    proc = subprocess.Popen(command(out, "--workers", "2"), cwd=REPO, start_new_session=True, preexec_fn=_interruptible,
+                            stdout=pipe, stderr=pipe, text=output)
+    try:
+        yield proc
+    finally:
+        if group_alive(proc.pid):
+            os.killpg(proc.pid, signal.SIGKILL)
+
+
 def freeze_a_busy_worker(out: Path, timeout: float = 120) -> str:
     """SIGSTOP a worker while it is inside an object (its temporary folder, named with its pid, exists); its pid."""
     t0 = time.monotonic()
@@ -125,17 +140,12 @@ def test_one_worker_and_in_process_give_the_same_bytes(reference, tmp_path):
 
 def test_sigkill_mid_run_then_same_command_resumes(reference, tmp_path):
     out = tmp_path / "killed"
-    proc = subprocess.Popen(command(out, "--workers", "2"), cwd=REPO, start_new_session=True, preexec_fn=_interruptible,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
+    with make_in_background(out) as proc:
         wait_for(lambda: any(out.glob("*.data")) and recorded(out) > 0, 120, "the first object folder and its record")
         frozen = freeze_a_busy_worker(out)
         os.kill(proc.pid, signal.SIGKILL)  # the parent only: its workers must follow, even a stopped one
         proc.wait(10)
         wait_for(lambda: not group_alive(proc.pid), 20, "the workers to die with their parent")
-    finally:
-        if group_alive(proc.pid):
-            os.killpg(proc.pid, signal.SIGKILL)
     assert len(list(out.glob("*.data"))) < N, "the kill came too late to test anything"
     assert any(p.name.endswith("." + frozen) for p in out.glob(".tmp-*")), "the frozen worker's object should be left half-written"
 
@@ -149,15 +159,10 @@ def test_sigint_stops_cleanly_and_resume_flag_continues(reference, tmp_path):
     from wildgen.dataset import verify_object
 
     out = tmp_path / "interrupted"
-    proc = subprocess.Popen(command(out, "--workers", "2"), cwd=REPO, start_new_session=True, preexec_fn=_interruptible,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
+    with make_in_background(out, output=True) as proc:
         wait_for(lambda: recorded(out) > 0, 120, "the first recorded object")
         proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=60)
-    finally:
-        if group_alive(proc.pid):
-            os.killpg(proc.pid, signal.SIGKILL)
     assert proc.returncode == 130, err
     assert "interrupted" in err
     assert not list(out.glob(".tmp-*")) and not (out / ".wildgen.lock").exists()
@@ -175,14 +180,9 @@ def test_sigint_stops_cleanly_and_resume_flag_continues(reference, tmp_path):
 def test_killed_worker_is_retried(reference, tmp_path):
     """SIGKILL one worker in the middle of an object: the object is retried elsewhere, the run completes."""
     out = tmp_path / "crash"
-    proc = subprocess.Popen(command(out, "--workers", "2"), cwd=REPO, start_new_session=True, preexec_fn=_interruptible,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
+    with make_in_background(out, output=True) as proc:
         os.kill(int(freeze_a_busy_worker(out)), signal.SIGKILL)
         stdout, err = proc.communicate(timeout=300)
-    finally:
-        if group_alive(proc.pid):
-            os.killpg(proc.pid, signal.SIGKILL)
     assert proc.returncode == 0, err
     assert "attempt 1 failed (worker process killed by SIGKILL" in err
     assert stdout.strip().splitlines()[-1].startswith(f"{N} done, 0 skipped, 0 failed")
