@@ -1,59 +1,87 @@
-"""The field checks of the plain scene data (`scenes.description`, `scenes.lights`): each raises a ValueError
-`owner.name: expected ..., got value` naming the field and the value it refused."""
+"""The one set of value checks: every option of a command line (`scenes.cli.options.check_fields`) and every
+field of the plain scene data (`scenes.description`, `scenes.lights`) is checked here, and each refusal is one
+ValueError `NAME: got VALUE, expected WHAT` naming the flag or the field (`owner.field`) and the value."""
 from __future__ import annotations
 
 import math
-from typing import Any
+import numbers
+from typing import Any, Iterable
 
 
-def check_finite(owner: str, name: str, value: Any) -> None:
-    """Raise ValueError if `value` (number or nested list of numbers) holds NaN/inf or anything not a number."""
+def check_int(value: Any, name: str, minimum: float | None = None, maximum: float | None = None) -> int:
+    """`value` if it is an integer (not a bool) within [minimum, maximum], else ValueError naming `name`."""
+    ok = isinstance(value, numbers.Integral) and not isinstance(value, bool)
+    if not ok or (minimum is not None and value < minimum) or (maximum is not None and value > maximum):
+        if minimum is not None and maximum is not None:
+            what = f"an integer from {minimum:g} to {maximum:g}"
+        elif minimum is not None:
+            what = f"an integer >= {minimum:g}"
+        elif maximum is not None:
+            what = f"an integer <= {maximum:g}"
+        else:
+            what = "an integer"
+        raise ValueError(f"{name}: got {value!r}, expected {what}")
+    return int(value)
+
+
+def check_number(value: Any, name: str, minimum: float | None = None, maximum: float | None = None,
+                 above: float | None = None, below: float | None = None) -> float:
+    """`value` if it is a finite number within the bounds (inclusive minimum / maximum, exclusive above /
+    below), else ValueError naming `name`."""
+    ok = isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
+    if ok:
+        ok = ((minimum is None or value >= minimum) and (maximum is None or value <= maximum)
+              and (above is None or value > above) and (below is None or value < below))
+    if not ok:
+        lo = f"[{minimum:g}" if minimum is not None else f"({above:g}" if above is not None else None
+        hi = f"{maximum:g}]" if maximum is not None else f"{below:g})" if below is not None else None
+        if lo and hi:
+            what = f"a number in {lo}, {hi}"
+        elif lo:
+            what = f"a number {'>=' if minimum is not None else '>'} {lo[1:]}"
+        elif hi:
+            what = f"a number {'<=' if maximum is not None else '<'} {hi[:-1]}"
+        else:
+            what = "a finite number"
+        raise ValueError(f"{name}: got {value!r}, expected {what}")
+    return float(value)
+
+
+def check_choice(value: Any, name: str, choices: Iterable[Any]) -> Any:
+    """`value` if it is one of `choices`, else ValueError naming `name` and listing them."""
+    choices = tuple(choices)
+    if value not in choices:
+        raise ValueError(f"{name}: got {value!r}, expected one of {', '.join(map(str, choices))}")
+    return value
+
+
+def check_finite(value: Any, name: str) -> None:
+    """`value`, a number or a nested list of numbers, holds only finite numbers."""
     if isinstance(value, (list, tuple)):
         for v in value:
-            check_finite(owner, name, v)
+            check_finite(v, name)
         return
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ValueError(f"{owner}.{name}: expected a number, got {value!r}")
-    if not math.isfinite(value):
-        raise ValueError(f"{owner}.{name}: expected a finite number, got {value!r}")
+    check_number(value, name)
 
 
-def check_vector(owner: str, name: str, value: Any, n: int = 3) -> None:
+def check_vector(value: Any, name: str, n: int = 3) -> None:
     """A list of `n` finite numbers."""
     if not isinstance(value, (list, tuple)) or len(value) != n:
-        raise ValueError(f"{owner}.{name}: expected a list of {n} numbers, got {value!r}")
-    check_finite(owner, name, value)
+        raise ValueError(f"{name}: got {value!r}, expected a list of {n} numbers")
+    check_finite(value, name)
 
 
-def check_direction(owner: str, name: str, value: Any) -> None:
+def check_direction(value: Any, name: str) -> None:
     """A non-zero finite 3-vector."""
-    check_vector(owner, name, value, 3)
+    check_vector(value, name, 3)
     if sum(c * c for c in value) < 1e-12:
-        raise ValueError(f"{owner}.{name}: expected a non-zero vector, got {value!r}")
+        raise ValueError(f"{name}: got {value!r}, expected a non-zero vector")
 
 
-def check_positive(owner: str, name: str, value: Any, allow_zero: bool = False) -> None:
-    """A finite number > 0 (>= 0 with `allow_zero`)."""
-    check_finite(owner, name, value)
-    if value < 0 or (value == 0 and not allow_zero):
-        raise ValueError(f"{owner}.{name}: expected a {'non-negative' if allow_zero else 'positive'} number, got {value!r}")
-
-
-def check_non_negative(owner: str, name: str, value: Any) -> None:
-    """A finite number >= 0."""
-    check_positive(owner, name, value, allow_zero=True)
-
-
-def check_matrix4(owner: str, name: str, value: Any) -> None:
+def check_matrix4(value: Any, name: str) -> None:
     """A 4x4 matrix of finite numbers (a list of 4 lists of 4)."""
     if not isinstance(value, (list, tuple)) or len(value) != 4 or any(
         not isinstance(r, (list, tuple)) or len(r) != 4 for r in value
     ):
-        raise ValueError(f"{owner}.{name}: expected a 4x4 matrix (list of 4 lists of 4 numbers), got {value!r}")
-    check_finite(owner, name, value)
-
-
-def check_choice(owner: str, name: str, value: Any, choices: tuple[str, ...]) -> None:
-    """One of `choices`."""
-    if value not in choices:
-        raise ValueError(f"{owner}.{name}: unknown value {value!r}, expected one of {', '.join(choices)}")
+        raise ValueError(f"{name}: got {value!r}, expected a 4x4 matrix (list of 4 lists of 4 numbers)")
+    check_finite(value, name)

@@ -14,7 +14,7 @@ import math
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
-from scenes.checks import check_choice, check_finite, check_matrix4, check_positive, check_vector
+from scenes.checks import check_choice, check_finite, check_matrix4, check_number, check_vector
 from scenes.lights import IDENTITY4, LIGHT_TYPES, LightDesc, light_from_dict
 
 SHAPE_KINDS = ("mesh", "sphere", "blob", "superquadric", "bumpy_sphere", "torus", "plane")
@@ -61,14 +61,14 @@ class ShapeDesc:
     """4x4 object-to-world matrix (row-major) applied after normalisation."""
 
     def validate(self) -> None:
-        check_choice("shape", "kind", self.kind, SHAPE_KINDS)
+        check_choice(self.kind, "shape.kind", SHAPE_KINDS)
         if self.kind == "mesh" and not self.file:
             raise ValueError("shape.file: kind 'mesh' needs a mesh file path, got None")
         if not isinstance(self.resolution, int) or self.resolution < 4:
             raise ValueError(f"shape.resolution: expected an integer >= 4, got {self.resolution!r}")
         for k, v in self.params.items():
-            check_finite("shape.params", k, v)
-        check_matrix4("shape", "to_world", self.to_world)
+            check_finite(v, f"shape.params.{k}")
+        check_matrix4(self.to_world, "shape.to_world")
 
 
 @dataclass
@@ -95,15 +95,15 @@ class TextureDesc:
     """For kind 'file': decode sRGB to linear (colour photographs); False for data maps."""
 
     def validate(self, owner: str) -> None:
-        check_choice(owner, "kind", self.kind, TEXTURE_KINDS)
+        check_choice(self.kind, f"{owner}.kind", TEXTURE_KINDS)
         if not isinstance(self.value, list) or len(self.value) not in (1, 3):
             raise ValueError(f"{owner}.value: expected a list of 1 or 3 numbers, got {self.value!r}")
-        check_finite(owner, "value", self.value)
+        check_finite(self.value, f"{owner}.value")
         if self.value2 is not None:
             if len(self.value2) != len(self.value):
                 raise ValueError(f"{owner}.value2: expected {len(self.value)} numbers, got {self.value2!r}")
-            check_finite(owner, "value2", self.value2)
-        check_positive(owner, "scale", self.scale)
+            check_finite(self.value2, f"{owner}.value2")
+        check_number(self.scale, f"{owner}.scale", above=0)
         if not isinstance(self.resolution, int) or self.resolution < 1:
             raise ValueError(f"{owner}.resolution: expected a positive integer, got {self.resolution!r}")
         if self.kind == "file" and not self.file:
@@ -128,10 +128,10 @@ class DetailDesc:
     def validate(self) -> None:
         from scenes.detail import DETAIL_KINDS
 
-        check_choice("material.detail", "kind", self.kind, tuple(DETAIL_KINDS))
+        check_choice(self.kind, "material.detail.kind", tuple(DETAIL_KINDS))
         if not (isinstance(self.strength_deg, (int, float)) and 0 <= self.strength_deg < 90):
             raise ValueError(f"material.detail.strength_deg: expected degrees in [0, 90), got {self.strength_deg!r}")
-        check_positive("material.detail", "scale", self.scale)
+        check_number(self.scale, "material.detail.scale", above=0)
         if isinstance(self.resolution, bool) or not isinstance(self.resolution, int) or self.resolution < 4:
             raise ValueError(f"material.detail.resolution: expected an integer >= 4, got {self.resolution!r}")
 
@@ -159,13 +159,13 @@ class MaterialDesc:
     it to aux/ and sets `normal_map`, keeping this as the record of how it was made)."""
 
     def validate(self) -> None:
-        check_choice("material", "kind", self.kind, MATERIAL_KINDS)
+        check_choice(self.kind, "material.kind", MATERIAL_KINDS)
         if self.detail is not None:
             self.detail.validate()
         self.base_color.validate("material.base_color")
         self.roughness.validate("material.roughness")
         self.metallic.validate("material.metallic")
-        check_positive("material", "specular", self.specular, allow_zero=True)
+        check_number(self.specular, "material.specular", minimum=0)
 
 
 @dataclass
@@ -182,7 +182,7 @@ class EnvironmentDesc:
     """Width of a procedural map (height is width / 2)."""
 
     def validate(self) -> None:
-        check_choice("environment", "source", self.source, ENVIRONMENT_SOURCES)
+        check_choice(self.source, "environment.source", ENVIRONMENT_SOURCES)
         if self.source == "file" and not self.file:
             raise ValueError("environment.file: source 'file' needs a .hdr/.exr path, got None")
         if not isinstance(self.width, int) or self.width < 8:
@@ -214,16 +214,16 @@ class CameraDesc:
     one (`fov = 2 atan(FRAME_WIDTH_MM / (2 focal_mm))`, a 36 mm-wide frame); None otherwise."""
 
     def validate(self) -> None:
-        check_choice("camera", "kind", self.kind, CAMERA_KINDS)
-        check_vector("camera", "origin", self.origin, 3)
-        check_vector("camera", "target", self.target, 3)
-        check_vector("camera", "up", self.up, 3)
-        check_positive("camera", "half_size", self.half_size)
-        check_positive("camera", "fov", self.fov)
+        check_choice(self.kind, "camera.kind", CAMERA_KINDS)
+        check_vector(self.origin, "camera.origin")
+        check_vector(self.target, "camera.target")
+        check_vector(self.up, "camera.up")
+        check_number(self.half_size, "camera.half_size", above=0)
+        check_number(self.fov, "camera.fov", above=0)
         if self.fov >= 180:
             raise ValueError(f"camera.fov: expected less than 180 degrees, got {self.fov!r}")
         if self.focal_mm is not None:
-            check_positive("camera", "focal_mm", self.focal_mm)
+            check_number(self.focal_mm, "camera.focal_mm", above=0)
             if self.kind != "perspective":
                 raise ValueError(f"camera.focal_mm: a focal length needs a perspective camera, got kind {self.kind!r}")
             if abs(fov_from_focal(self.focal_mm) - self.fov) > 1e-6:
@@ -260,7 +260,7 @@ class RenderDesc:
                 raise ValueError(f"render.{name}: expected a positive integer, got {v!r}")
         if isinstance(self.bounces, bool) or not isinstance(self.bounces, int) or self.bounces < 0:
             raise ValueError(f"render.bounces: expected a non-negative integer, got {self.bounces!r}")
-        check_choice("render", "sampler", self.sampler, SAMPLERS)
+        check_choice(self.sampler, "render.sampler", SAMPLERS)
 
 
 @dataclass
@@ -291,7 +291,7 @@ class ImageDesc:
             if clash:
                 raise ValueError(f"images[{index}].lights: a {name!r} light cannot share an image with "
                                  f"{' or '.join(map(repr, clash))} lights ({name}: {LIGHT_TYPES[name].summary})")
-        check_positive(f"images[{index}]", "exposure", self.exposure)
+        check_number(self.exposure, f"images[{index}].exposure", above=0)
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise ValueError(f"images[{index}].seed: expected a non-negative integer, got {self.seed!r}")
 

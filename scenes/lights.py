@@ -22,7 +22,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from scenes.checks import check_direction, check_matrix4, check_non_negative, check_positive, check_vector
+from scenes.checks import check_direction, check_matrix4, check_number, check_vector
 
 IDENTITY4 = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
 
@@ -66,7 +66,7 @@ class LightDesc:
     def validate(self, owner: str) -> None:
         """Check the light (a registered type) and its colour; each type checks its own fields after this."""
         light_class(self, owner)
-        check_vector(owner, "color", self.color, 3)
+        check_vector(self.color, f"{owner}.color")
         if min(self.color) < 0:
             raise ValueError(f"{owner}.color: expected non-negative values, got {self.color!r}")
 
@@ -92,8 +92,8 @@ class DirectionalLight(LightDesc):
 
     def validate(self, owner: str) -> None:
         super().validate(owner)
-        check_direction(owner, "direction", self.direction)
-        check_non_negative(owner, "irradiance", self.irradiance)
+        check_direction(self.direction, f"{owner}.direction")
+        check_number(self.irradiance, f"{owner}.irradiance", minimum=0)
 
     def report(self, R: np.ndarray, target: np.ndarray, exposure: float) -> dict:
         d = -np.asarray(self.direction, np.float64)
@@ -114,8 +114,8 @@ class PointLight(LightDesc):
 
     def validate(self, owner: str) -> None:
         super().validate(owner)
-        check_vector(owner, "position", self.position)
-        check_non_negative(owner, "intensity", self.intensity)
+        check_vector(self.position, f"{owner}.position")
+        check_number(self.intensity, f"{owner}.intensity", minimum=0)
 
     def report(self, R: np.ndarray, target: np.ndarray, exposure: float) -> dict:
         return {"type": "point", "position": (R @ (np.asarray(self.position) - target)).tolist(),
@@ -144,10 +144,10 @@ class AreaLight(LightDesc):
     def validate(self, owner: str) -> None:
         super().validate(owner)
         for name in ("position", "target", "up"):
-            check_vector(owner, name, getattr(self, name))
-        check_positive(owner, "width", self.width)
-        check_positive(owner, "height", self.height)
-        check_non_negative(owner, "radiance", self.radiance)
+            check_vector(getattr(self, name), f"{owner}.{name}")
+        check_number(self.width, f"{owner}.width", above=0)
+        check_number(self.height, f"{owner}.height", above=0)
+        check_number(self.radiance, f"{owner}.radiance", minimum=0)
 
     def report(self, R: np.ndarray, target: np.ndarray, exposure: float) -> dict:
         nrm = R @ (np.asarray(self.target, np.float64) - np.asarray(self.position, np.float64))
@@ -170,8 +170,8 @@ class EnvironmentLight(LightDesc):
 
     def validate(self, owner: str) -> None:
         super().validate(owner)
-        check_matrix4(owner, "to_world", self.to_world)
-        check_non_negative(owner, "scale", self.scale)
+        check_matrix4(self.to_world, f"{owner}.to_world")
+        check_number(self.scale, f"{owner}.scale", minimum=0)
 
     def report(self, R: np.ndarray, target: np.ndarray, exposure: float) -> dict:
         return {"type": "environment", "scale": float(self.scale) * float(exposure),
@@ -191,7 +191,7 @@ class UniformLight(LightDesc):
 
     def validate(self, owner: str) -> None:
         super().validate(owner)
-        check_non_negative(owner, "radiance", self.radiance)
+        check_number(self.radiance, f"{owner}.radiance", minimum=0)
 
     def report(self, R: np.ndarray, target: np.ndarray, exposure: float) -> dict:
         return {"type": "uniform", "radiance": _exposed(self.radiance, self.color, exposure)}

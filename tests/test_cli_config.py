@@ -11,7 +11,8 @@ import tyro
 
 from scenes.cli.errors import UsageError
 from scenes.cli.outputs import check_output_folder, make_output_folder
-from scenes.cli.options import Command, check_choice, check_int, check_number, undocumented_fields
+from scenes.cli.options import Command, undocumented_fields
+from scenes.checks import check_choice, check_int, check_number
 
 # Each CLI module and the dataclass its command line is generated from.
 CLIS = {
@@ -136,6 +137,21 @@ def test_one_set_of_checks_names_the_flag_the_value_and_what_was_expected():
         check_number(0, "--lr", above=0)
     with pytest.raises(ValueError, match=r"^--m: got 'x', expected one of a, b$"):
         check_choice("x", "--m", ("a", "b"))
+
+
+def test_scene_fields_are_checked_by_the_same_rule_as_flags():
+    """A field of a scene description is refused in the same words as a flag: `owner.field: got X, expected Y`."""
+    from scenes.description import CameraDesc, ImageDesc
+    from scenes.lights import DirectionalLight
+
+    with pytest.raises(ValueError, match=r"^camera.fov: got -1.0, expected a number > 0$"):
+        CameraDesc(kind="perspective", fov=-1.0).validate()
+    with pytest.raises(ValueError, match=r"^camera.kind: got 'fisheye', expected one of orthographic, perspective$"):
+        CameraDesc(kind="fisheye").validate()
+    with pytest.raises(ValueError, match=r"^images\[0\].lights\[0\].irradiance: got nan, expected a number >= 0$"):
+        ImageDesc(lights=[DirectionalLight(irradiance=float("nan"))]).validate(0)
+    with pytest.raises(ValueError, match=r"^images\[0\].lights\[0\].direction: got \[0, 0, 0\], expected a non-zero vector$"):
+        ImageDesc(lights=[DirectionalLight(direction=[0, 0, 0])]).validate(0)
 
 
 def test_output_folder_is_checked_without_creating_anything(tmp_path):

@@ -6,7 +6,8 @@ from typing import Annotated, Literal
 
 from dataclasses import dataclass, field
 
-from scenes.cli.options import CommaList, REQUIRED, UseAppendAction, arg, check_choice, check_fields, option
+from scenes.cli.options import CommaList, REQUIRED, UseAppendAction, arg, check_fields, option
+from scenes.checks import check_choice
 
 @dataclass
 class TrainConfig:

@@ -18,7 +18,8 @@ from scenes.cli.limits import check_threads, gib
 from scenes.cli.limits import check_memory as check_memory_bytes
 from typing import Annotated, Literal
 
-from scenes.cli.options import REQUIRED, Command, arg, check_fields, check_int, optional_value, option
+from scenes.cli.options import REQUIRED, Command, arg, check_fields, optional_value, option
+from scenes.checks import check_int
 from scenes.folder.shards import ENCODINGS
 from wildgen.config import GenConfig
 from wildgen.levels import LEVELS, apply_level

@@ -21,7 +21,6 @@ import ast
 import dataclasses
 import inspect
 import math
-import numbers
 import re
 import textwrap
 import typing
@@ -30,6 +29,8 @@ from typing import Any, Iterable, Literal, Sequence
 
 import tyro
 from tyro.constructors import PrimitiveConstructorSpec
+
+from scenes.checks import check_choice, check_int, check_number
 
 _KEY = "scenes.cli.options"  # the dataclass-field metadata key of `option`
 
@@ -194,56 +195,6 @@ def undocumented_fields(cls: type) -> list[str]:
         if _is_nested(tp):
             missing += undocumented_fields(tp)
     return missing
-
-
-# ---------------------------------------------------------------- checks
-
-
-def check_int(value: Any, name: str, minimum: float | None = None, maximum: float | None = None) -> int:
-    """`value` if it is an integer (not a bool) within [minimum, maximum], else ValueError naming `name`."""
-    ok = isinstance(value, numbers.Integral) and not isinstance(value, bool)
-    if not ok or (minimum is not None and value < minimum) or (maximum is not None and value > maximum):
-        if minimum is not None and maximum is not None:
-            what = f"an integer from {minimum:g} to {maximum:g}"
-        elif minimum is not None:
-            what = f"an integer >= {minimum:g}"
-        elif maximum is not None:
-            what = f"an integer <= {maximum:g}"
-        else:
-            what = "an integer"
-        raise ValueError(f"{name}: got {value!r}, expected {what}")
-    return int(value)
-
-
-def check_number(value: Any, name: str, minimum: float | None = None, maximum: float | None = None,
-                 above: float | None = None, below: float | None = None) -> float:
-    """`value` if it is a finite number within the bounds (inclusive minimum / maximum, exclusive above /
-    below), else ValueError naming `name`."""
-    ok = isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
-    if ok:
-        ok = ((minimum is None or value >= minimum) and (maximum is None or value <= maximum)
-              and (above is None or value > above) and (below is None or value < below))
-    if not ok:
-        lo = f"[{minimum:g}" if minimum is not None else f"({above:g}" if above is not None else None
-        hi = f"{maximum:g}]" if maximum is not None else f"{below:g})" if below is not None else None
-        if lo and hi:
-            what = f"a number in {lo}, {hi}"
-        elif lo:
-            what = f"a number {'>=' if minimum is not None else '>'} {lo[1:]}"
-        elif hi:
-            what = f"a number {'<=' if maximum is not None else '<'} {hi[:-1]}"
-        else:
-            what = "a finite number"
-        raise ValueError(f"{name}: got {value!r}, expected {what}")
-    return float(value)
-
-
-def check_choice(value: Any, name: str, choices: Iterable[Any]) -> Any:
-    """`value` if it is one of `choices`, else ValueError naming `name` and listing them."""
-    choices = tuple(choices)
-    if value not in choices:
-        raise ValueError(f"{name}: got {value!r}, expected one of {', '.join(map(str, choices))}")
-    return value
 
 
 def check_fields(cfg: Any) -> Any:
