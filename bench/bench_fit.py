@@ -61,7 +61,7 @@ def model_and_ls(folder: Path, net, tta: int):
 def diligent(args, net, out: dict) -> None:
     from validate.capture import downsample_normals, load_capture
     from validate.fit import FitConfig, fit_normals, prepare
-    from validate.lights import angular_errors_deg, directions_of
+    from validate.light_models import angular_errors_deg, directions_of
     from scenes.metrics import mean_angular_error as mae_deg
     from validate.refine import RefineConfig, refine_object
 

@@ -23,7 +23,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from wildgen.lighting import LIGHT_FAMILIES
+from wildgen.light_families import LIGHT_FAMILIES
 
 
 FEATURES = {

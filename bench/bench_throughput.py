@@ -27,7 +27,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from wildgen.lighting import LIGHT_FAMILIES
+from wildgen.light_families import LIGHT_FAMILIES
 
 REPO = Path(__file__).resolve().parents[1]
 

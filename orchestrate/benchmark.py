@@ -40,7 +40,7 @@ from scenes.report.tables import markdown_table
 from unips.data import find_objects, load_object
 from unips.inference import DEFAULT_TTA, TTA_VIEWS, load_network, predict_object
 from unips.probes import PROBES
-from wildgen.lighting import LIGHT_FAMILIES
+from wildgen.light_families import LIGHT_FAMILIES
 
 log = logging.getLogger(__name__)
 
@@ -184,7 +184,7 @@ def probe_errors(obj, net, all_images_error: float | None = None, seed: int = 0,
 
 def family_columns(families) -> list[str]:
     """The family columns of the tables: every family present, the generator's in its order
-    (`wildgen.lighting.LIGHT_FAMILIES`), then any other (another generator's, "unknown") by name."""
+    (`wildgen.light_families.LIGHT_FAMILIES`), then any other (another generator's, "unknown") by name."""
     present = set(families)
     return [f for f in LIGHT_FAMILIES if f in present] + sorted(present - set(LIGHT_FAMILIES))
 

@@ -7,7 +7,7 @@
 1. Split the asset folder: the last quarter of the meshes and the last fifth of the HDR maps (sorted by
    name, rounded up; with ../shared/assets: 5 of 19 meshes, 7 of 35 maps) are held out for validation
    and test; texture sets are shared (there are only eight).
-2. Render with `wildgen.make`, the PS-Wild light families (`wildgen.lighting.PS_WILD_FAMILIES`) cycled: train (seed `--train-seed`, 128 px,
+2. Render with `wildgen.make`, the PS-Wild light families (`wildgen.light_families.PS_WILD_FAMILIES`) cycled: train (seed `--train-seed`, 128 px,
    10 images, 16 spp, train assets; a new seed gives fresh data for a continued run; several seeds,
    comma-separated, give one set each, pooled for training), the fixed
    validation set (seed 4000, 100 objects, 128 px, 10 images, 32 spp, held-out assets: the test
@@ -45,7 +45,7 @@ from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.outputs import check_output_folder
 from scenes.files import atomic_write, atomic_write_text
 from scenes.cli.options import Command, REQUIRED, arg, check_fields, comma_list, option
-from wildgen.lighting import PS_WILD_FAMILIES
+from wildgen.light_families import PS_WILD_FAMILIES
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"

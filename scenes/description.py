@@ -321,7 +321,7 @@ class SceneDescription:
     environment: EnvironmentDesc | None = None
     """Environment map used by the images' 'environment' lights (required if any image has one)."""
     light_family: str = "custom"
-    """Lighting family the images were sampled from: a key of `wildgen.lighting.LIGHT_FAMILIES` for generated
+    """Lighting family the images were sampled from: a key of `wildgen.light_families.LIGHT_FAMILIES` for generated
     objects, free text otherwise."""
     name: str = "object"
     """Object name (folder name without '.data')."""

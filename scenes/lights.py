@@ -12,8 +12,8 @@ itself (`type`, `summary`, `strength`, `environment_map`, `excludes`). Each type
 `LIGHT_TYPES` maps a type name to its class, in the order their Mitsuba slots are created. Everything that
 dispatches on a light type goes through `light_type(name)` or `light_class(light)`, which refuse an unknown
 type with a ValueError naming it and the known ones. The Mitsuba side of each type (its slot, the parameters
-that switch it on and off) is `scenes.renderer.lights`; no Mitsuba here. Adding a type is one class here, its
-entry in LIGHT_TYPES and in `scenes.renderer.lights.SLOT_BUILDERS`, and its tests.
+that switch it on and off) is `scenes.renderer.light_slots`; no Mitsuba here. Adding a type is one class here, its
+entry in LIGHT_TYPES and in `scenes.renderer.light_slots.SLOT_BUILDERS`, and its tests.
 """
 from __future__ import annotations
 

@@ -49,7 +49,7 @@ def test_benchmark_keeps_every_family_of_the_data(synthetic_object, tmp_path):
     from conftest import write_synthetic_object
     from orchestrate.benchmark import family_columns, main
     from unips.data import load_object
-    from wildgen.lighting import LIGHT_FAMILIES
+    from wildgen.light_families import LIGHT_FAMILIES
 
     ball = load_object(synthetic_object)
     write_synthetic_object(synthetic_object.parent / "ring.data", ball.images, ball.mask, ball.normals,

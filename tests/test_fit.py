@@ -117,7 +117,7 @@ def test_heightfield_recovers_analytic_sphere():
 def test_closed_form_recovers_analytic_lights():
     """Lambertian images made analytically from known normals, albedo and lights: the closed form returns
     the light directions (< 0.5 deg) with attached shadows present."""
-    from validate.lights import angular_errors_deg, closed_form_directional
+    from validate.light_models import angular_errors_deg, closed_form_directional
 
     n, mask = analytic_sphere()
     N = n[mask]
@@ -139,7 +139,7 @@ def test_closed_form_survives_images_without_usable_pixels():
     """A black image, or one saturated wherever it is lit, among lit ones: that image gets no light and the
     others are still found (the closed form raised an IndexError on an empty set of pixels);
     all black: no error."""
-    from validate.lights import angular_errors_deg, closed_form_directional
+    from validate.light_models import angular_errors_deg, closed_form_directional
 
     imgs, n, mask = _analytic_images(TO_LIGHT)
     N, obs = n[mask], imgs[:, mask]
@@ -213,7 +213,7 @@ def test_fitted_lights_and_ranking(jit, sphere_folder):
     a normal map can reach, a 20-deg perturbed map clearly above, the constant map far above."""
     from validate.capture import load_capture
     from validate.fit import fit_normals
-    from validate.lights import angular_errors_deg
+    from validate.light_models import angular_errors_deg
     from validate.perturb import perturb_normals
 
     cap = load_capture(sphere_folder)
@@ -267,7 +267,7 @@ def test_saturated_observations_are_censored(jit, sphere_folder, tmp_path):
     from scenes.images import read_image, write_png16
     from validate.capture import downsample_capture, load_capture
     from validate.fit import fit_normals
-    from validate.lights import angular_errors_deg
+    from validate.light_models import angular_errors_deg
 
     clipped = tmp_path / "clipped.data"
     clipped.mkdir()
@@ -468,7 +468,7 @@ def test_known_scene_lights_in_camera_frame():
     camera frame, rotated with the camera (camera on +x looking at the origin: world +x is camera +z). One
     JSON form of a camera-frame directional light: the known-scene report, the fitted report and scene.json
     `camera_lights` (written by the generator, read by `scenes.folder.layouts`) all say `direction_to_light`."""
-    from validate.lights import known_scene_lights, report_lights
+    from validate.light_models import known_scene_lights, report_lights
     from wildgen.writer import camera_lights
 
     desc = SceneDescription(
@@ -491,7 +491,7 @@ def test_diligent_frames_agree(shared):
     """DiLiGenT's light_directions.txt and Normal_gt share our camera frame: lights solved by Lambertian
     least squares from the ground-truth normals match the calibrated ones (ball, 16 images, 1/4 size)."""
     from validate.capture import downsample_capture, load_capture
-    from validate.lights import angular_errors_deg, closed_form_directional
+    from validate.light_models import angular_errors_deg, closed_form_directional
 
     folder = shared / "data" / "diligent" / "ballPNG"
     if not folder.is_dir():

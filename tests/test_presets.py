@@ -12,7 +12,7 @@ import pytest
 from conftest import render_dataset, use_variant
 
 from scenes.description import CameraDesc
-from wildgen.lighting import LIGHT_FAMILIES, Placement
+from wildgen.light_families import LIGHT_FAMILIES, Placement
 from wildgen.presets import PRESETS
 
 NEW_FAMILIES = ["verse", "flash", "frontal", "grid96", "light_stage", "display"]
@@ -98,7 +98,7 @@ def test_verse_draws_its_recipe():
 
 
 def test_frontal_light_stays_near_the_viewing_direction():
-    from wildgen.lighting import FRONTAL_CONE_DEG
+    from wildgen.light_families import FRONTAL_CONE_DEG
 
     centre = np.array([0.1, -0.2, 0.05])
     placement = Placement(centre, 0.9, ORTHO, env_scale=0.3)
@@ -145,7 +145,7 @@ def test_grid96_spans_diligents_lights():
 
 
 def test_light_stage_spreads_its_lights_evenly():
-    from wildgen.lighting import LIGHT_STAGE_MIN_Z
+    from wildgen.light_families import LIGHT_STAGE_MIN_Z
 
     p = Placement(np.zeros(3), 1.0, ORTHO, env_scale=0.3)
     for count in (8, 64):
@@ -161,7 +161,7 @@ def test_light_stage_spreads_its_lights_evenly():
 
 
 def test_display_patches_are_on_the_screen_and_out_of_view():
-    from wildgen.lighting import SCREEN_DISTANCE, SCREEN_GRID, _occludes_view, display_patches
+    from wildgen.light_families import SCREEN_DISTANCE, SCREEN_GRID, _occludes_view, display_patches
 
     centre = np.array([0.0, 0.1, 0.0])
     for camera, expected in ((PERSPECTIVE, SCREEN_GRID[0] * SCREEN_GRID[1]), (ORTHO, 6)):
@@ -195,7 +195,7 @@ def test_each_preset_sets_its_entry_and_nothing_else():
     from dataclasses import replace
 
     from scenes.sensor import sensor_named
-    from wildgen.lighting import light_family
+    from wildgen.light_families import light_family
 
     assert list(PRESETS) == ["diligent", "phone-flash", "light-stage", "display"]  # the names of --preset
     plain = resolve()
@@ -217,7 +217,7 @@ def test_presets_configure_the_rigs_they_imitate():
     (8 bits, Bayer, noise, vignetting); diligent and light-stage a linear machine-vision camera
     (orthographic, 12 significant bits: DiLiGenT's 16-bit PNGs)."""
     from scenes.sensor import SENSORS
-    from wildgen.lighting import display_patches
+    from wildgen.light_families import display_patches
 
     flash = resolve("--preset", "phone-flash")
     assert flash.camera == "perspective"

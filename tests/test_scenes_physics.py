@@ -337,7 +337,7 @@ def test_light_type_table_drives_the_description_and_the_build(any_variant):
     does not know is refused by the description and by the relighting of a built scene (not left dark)."""
     from scenes.lights import LIGHT_TYPES, light_type
     from scenes.renderer.build import build_scene
-    from scenes.renderer.lights import SLOT_BUILDERS, slot_key
+    from scenes.renderer.light_slots import SLOT_BUILDERS, slot_key
 
     alone = [name for name, t in LIGHT_TYPES.items() if t.excludes]  # in an image of their own
     lights = [cls() for name, cls in LIGHT_TYPES.items() if name not in alone]
@@ -426,7 +426,7 @@ def test_flash_is_a_point_light_at_the_camera(any_variant):
     centre and falls off as cos / d^2, checked against the analytic radiance at a few pixels."""
     from scenes.geometry import camera_rotation
     from scenes.lights import camera_frame
-    from wildgen.lighting import IRRADIANCE, LIGHT_FAMILIES, Placement
+    from wildgen.light_families import IRRADIANCE, LIGHT_FAMILIES, Placement
 
     for camera, centre in ((CameraDesc(origin=[0.0, 0.0, 4.0], half_size=HALF, width=RES, height=RES), np.zeros(3)),
                            (CameraDesc(kind="perspective", origin=[0.3, -0.2, 5.0], target=[0.3, -0.2, 0.0]),

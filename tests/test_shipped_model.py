@@ -12,7 +12,7 @@ import pytest
 
 from conftest import render_dataset
 
-from wildgen.lighting import LIGHT_FAMILIES, PS_WILD_FAMILIES
+from wildgen.light_families import LIGHT_FAMILIES, PS_WILD_FAMILIES
 
 FAMILIES = ",".join(PS_WILD_FAMILIES)  # the families the shipped model was trained on, cycled
 

@@ -11,7 +11,7 @@ import pytest
 
 from conftest import use_variant
 
-from wildgen.lighting import LIGHT_FAMILIES
+from wildgen.light_families import LIGHT_FAMILIES
 
 FAMILIES = list(LIGHT_FAMILIES)
 SMALL = ["--objects", str(len(FAMILIES)), "--images", "3", "--res", "32", "--spp", "4", "--gt-spp", "4", "--quiet"]
@@ -186,7 +186,7 @@ def test_light_family_table_is_the_one_list():
     import wildgen.config
     from orchestrate.demo import FAMILIES as DEMO_FAMILIES
     from scenes.description import CameraDesc, EnvironmentDesc, ImageDesc, SceneDescription
-    from wildgen.lighting import Placement, sample_lighting
+    from wildgen.light_families import Placement, sample_lighting
     from wildgen.make import COMMAND
 
     assert wildgen.config.LIGHT_FAMILIES is LIGHT_FAMILIES

@@ -271,7 +271,7 @@ from scenes.renderer.variant import choose_variant
 choose_variant("llvm_ad_rgb")
 from wildgen.assets import AssetLibrary
 from wildgen.config import GenConfig
-from wildgen.lighting import LIGHT_FAMILIES
+from wildgen.light_families import LIGHT_FAMILIES
 from wildgen.writer import make_object
 
 def rss_mb():

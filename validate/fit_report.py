@@ -139,7 +139,7 @@ def rerender_fitted(
 ) -> dict:
     """Fitted mode of the re-render check for one object folder (any layout); returns the report and
     writes `out_dir/<object>/report.json` and `figure.png` when out_dir is given."""
-    from validate.lights import angular_errors_deg, directions_of
+    from validate.light_models import angular_errors_deg, directions_of
     from scenes.metrics import mean_angular_error as mae_deg
 
     config = (config or FitConfig()).validate()

@@ -21,7 +21,7 @@ import numpy as np
 from scenes.cli.options import arg, check_fields, comma_list, option
 from scenes.renderer.variant import require_ad_variant
 from validate import heightfield
-from validate.lights import LIGHT_MODELS, closed_form_directional, point_start
+from validate.light_models import LIGHT_MODELS, closed_form_directional, point_start
 from validate.metrics import rel_l1_observations
 
 Progress = Callable[[int, int, str], None]
@@ -253,7 +253,7 @@ class FitScene:
 
     # ---------------------------------------------------------------------------------------- params
     def init_params(self, start: dict) -> None:
-        """Dr.Jit parameters from a closed-form start (see validate.lights.closed_form_directional)."""
+        """Dr.Jit parameters from a closed-form start (see validate.light_models.closed_form_directional)."""
         mi = self.mi
         self.albedo_np = np.asarray(start["albedo"], np.float64)
         self.dirty = True
@@ -273,7 +273,7 @@ class FitScene:
         else:
             # A directional light of irradiance E along d has SH radiance coefficients E * Y(d); a constant
             # ambient radiance A has L_00 = A / Y_00. Irradiance = sum_j W_j L_j Y_j(n) (Ramamoorthi-Hanrahan).
-            from validate.lights import sh_basis
+            from validate.light_models import sh_basis
 
             y = sh_basis(np.asarray(start["directions"]))  # (K, 9)
             coef = E[:, None, :] * y[:, :, None]  # (K, 9, 3)
@@ -389,7 +389,7 @@ class FitScene:
 
     def shade(self, batch):
         """Differentiable D and S (each a Vector3f of width B * P, lane = image-in-batch * P + pixel) for the
-        images `batch` (numpy indices or a Dr.Jit UInt32 array): render = albedo * D + S (validate.lights).
+        images `batch` (numpy indices or a Dr.Jit UInt32 array): render = albedo * D + S (validate.light_models).
         Also returns the lane -> image and lane -> pixel index arrays."""
         mi, dr = self.mi, self.dr
         if self.dirty:
@@ -400,7 +400,7 @@ class FitScene:
         ao = dr.gather(mi.Float, self.dev["ao"], p_idx)
         ind = dr.gather(mi.Vector3f, self.dev["ind"], flat) if self.config.interreflection else mi.Vector3f(0)
         if self.model == "environment":
-            from validate.lights import SH_BAND_WEIGHT as W
+            from validate.light_models import SH_BAND_WEIGHT as W
 
             x, y, z = n.x, n.y, n.z
             basis = [0.282095 + 0 * x, 0.488603 * y, 0.488603 * z, 0.488603 * x, 1.092548 * x * y, 1.092548 * y * z,

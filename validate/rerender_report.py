@@ -99,7 +99,7 @@ def build_report(data: ObjectData, pred: np.ndarray, valid: np.ndarray, source: 
 
     t_orig_med = float(np.median(passes.original_s)) if passes.original_s else None
     t_re_med = float(np.median(passes.rerender_s))
-    from validate.lights import known_scene_lights
+    from validate.light_models import known_scene_lights
 
     exposures = [float(im.exposure) for im in desc.images]
     return {

@@ -7,7 +7,7 @@ from typing import Annotated, Literal
 from scenes.cli.options import CommaList, Repeatable, arg, auto_is_none, check_fields, option
 from scenes.renderer.variant import PREFERENCE as VARIANTS
 from scenes.sensor import SENSORS
-from wildgen.lighting import LIGHT_FAMILIES
+from wildgen.light_families import LIGHT_FAMILIES
 from wildgen.presets import PRESETS
 
 MATERIAL_CLASSES = ("diffuse", "specular", "metallic")
@@ -31,7 +31,7 @@ class GenConfig:
     scene.json as `level` for `unips.train --curriculum`."""
     lights: Annotated[list[str], CommaList, Repeatable, arg(metavar="{" + ",".join(LIGHT_FAMILIES) + "}")] = option(
         default_factory=lambda: ["near_area"], choices=tuple(LIGHT_FAMILIES))
-    """Light families (keys of `wildgen.lighting.LIGHT_FAMILIES`), cycled across objects (object i gets
+    """Light families (keys of `wildgen.light_families.LIGHT_FAMILIES`), cycled across objects (object i gets
     lights[i % len(lights)]); repeatable or comma-separated."""
     objects: int = option(4, minimum=1)
     """Number of objects to render."""

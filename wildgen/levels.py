@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from wildgen.config import PROCEDURAL_KINDS
-from wildgen.lighting import LIGHT_FAMILIES
+from wildgen.light_families import LIGHT_FAMILIES
 from wildgen.presets import fill_unless_given
 
 

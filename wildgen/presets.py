@@ -3,7 +3,7 @@
 `PRESETS` is the one list: `wildgen.make --preset NAME` fills the dataset's configuration from an entry (flags
 given on the command line keep their values over the preset's), the docs' table of presets is generated from
 it (`orchestrate.docs`, block `generator:presets`) and the tests check each entry against the configuration it
-produces. A preset holds only names of the existing tables: a light family of `wildgen.lighting.LIGHT_FAMILIES`
+produces. A preset holds only names of the existing tables: a light family of `wildgen.light_families.LIGHT_FAMILIES`
 (a fixed light pattern is such a family) and a sensor of `scenes.sensor.SENSORS`.
 """
 from __future__ import annotations
@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from scenes.sensor import SENSORS
-from wildgen.lighting import LIGHT_FAMILIES
+from wildgen.light_families import LIGHT_FAMILIES
 
 
 @dataclass(frozen=True)
@@ -24,7 +24,7 @@ class CapturePreset:
     about: str
     """What rig it imitates and how (for the docs)."""
     lights: str
-    """Light family (a key of `wildgen.lighting.LIGHT_FAMILIES`); a fixed light pattern is a family whose image i
+    """Light family (a key of `wildgen.light_families.LIGHT_FAMILIES`); a fixed light pattern is a family whose image i
     gets light i of the pattern."""
     images: int
     """Images per object."""

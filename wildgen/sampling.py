@@ -2,7 +2,7 @@
 
 Object i draws only from `np.random.default_rng([seed, i])`, so the dataset does not depend on the
 order in which objects are made or on which worker makes them. The lights of each image come from the
-object's light family (`wildgen.lighting.LIGHT_FAMILIES`).
+object's light family (`wildgen.light_families.LIGHT_FAMILIES`).
 
 Entropy rule: the visible normals' distribution is a 16 x 16 histogram of (n_x, n_y) in the camera
 frame over [-1, 1]^2, weighted by each camera-facing triangle's projected area (self-occlusion
@@ -36,7 +36,7 @@ from scenes.folder.format import AUX_DIR, MESH_FILE
 from scenes.procedural import MeshData
 from wildgen.assets import AssetLibrary
 from wildgen.config import MATERIAL_CLASSES, GenConfig
-from wildgen.lighting import IRRADIANCE, Placement, random_rotation, sample_lighting
+from wildgen.light_families import IRRADIANCE, Placement, random_rotation, sample_lighting
 
 log = logging.getLogger(__name__)
 

@@ -4,7 +4,7 @@ One Mitsuba scene is built per object. It holds a fixed set of light *slots* (pe
 lights of that type any of its images uses; the environment map once if any image uses it); each image's
 lighting is applied by writing the slots through `mi.traverse`, so changing the image never rebuilds the
 scene or recompiles a kernel. The slot of each light class, and how one light is switched on or off in it,
-is `scenes.renderer.lights` (dispatching on the class of `scenes.lights`).
+is `scenes.renderer.light_slots` (dispatching on the class of `scenes.lights`).
 
 Requires a Mitsuba variant to be set by the caller (see `scenes.renderer.variant`).
 """
@@ -21,7 +21,7 @@ from scenes.description import SceneDescription, TextureDesc
 from scenes.envmaps import realize_environment
 from scenes.geometry import mesh_data_for, transformed_mesh
 from scenes.lights import LIGHT_TYPES
-from scenes.renderer.lights import apply_lights, slot_dicts
+from scenes.renderer.light_slots import apply_lights, slot_dicts
 from scenes.procedural import MeshData
 from scenes.textures import realize_texture
 from scenes.renderer.variant import require_variant
