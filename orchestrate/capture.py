@@ -1,0 +1,284 @@
+"""`python -m orchestrate.capture`: your own photos in, a checked normal map out.
+
+    python -m orchestrate.capture --input PHOTOS --out OUT [--mask FILE|auto] [--convention opengl|opencv]
+
+1. reads a folder of photos (JPEG, 8/16-bit PNG or TIFF, EXR; any file names, natural order; 8-bit files
+   linearised from sRGB, EXIF exposure differences normalised: `scenes.folder.photos`), or an object folder
+   in one of the toolkit's layouts through the one reader;
+2. takes the mask from `--mask FILE`, or finds it from the images alone (`--mask auto`:
+   `validate.usable.auto_mask`), or refuses in one line asking for one;
+3. says whether the capture is usable before any model runs (`validate.usable.capture_warnings`): too few
+   images, too dark, saturated, light from one side only or only near the view axis, camera moved; the fatal
+   ones stop, the others are recorded in report.json `warnings`;
+4. predicts normals with the shipped model (or `--checkpoint`), runs the fitted physical check, and where
+   the check can judge the capture refines the map, keeping the refined map only when the check accepts it;
+5. writes OUT/normal.png (16-bit, (n + 1) / 2), OUT/normal.exr, OUT/mask.png, OUT/light_variation.png and
+   OUT/report.json (every stage, the verdict, the warnings, timings and peak memory); the check's and the
+   refinement's own reports lie in OUT/check/ and OUT/refine/.
+
+Normals are in the camera frame: `--convention opengl` (the default; Blender, Meshroom): x right, y up, z toward
+the camera; `opencv`: x right, y down, z away from the camera (the same vectors with y and z negated).
+"""
+from __future__ import annotations
+
+import json
+import resource
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import numpy as np
+
+from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
+from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
+from scenes.cli.outputs import check_output_folder, claim_outputs
+from scenes.files import atomic_write_text
+from scenes.folder.format import MASK_FILE, write_object_folder
+from scenes.images import read_mask, write_mask, write_normal_exr, write_normal_map, write_picture
+
+OUTPUTS = ("normal.png", "normal.exr", MASK_FILE, "light_variation.png", "report.json")
+"""What the command writes at the top of --out (its working folders: work/, check/, refine/)."""
+CONVENTIONS = {"opengl": np.array([1.0, 1.0, 1.0]), "opencv": np.array([1.0, -1.0, -1.0])}
+"""Per convention, the signs that turn the camera frame (x right, y up, z toward the camera) into it."""
+
+
+@dataclass
+class CaptureOptions:
+    """The command line of orchestrate.capture."""
+
+    input: Annotated[str, arg(metavar="DIR")] = REQUIRED
+    """Folder of photos (JPEG, PNG, TIFF, EXR; any names) of one object under different lights, the camera
+    still; or an object folder in one of the toolkit's layouts."""
+    out: Annotated[str, arg(metavar="DIR")] = REQUIRED
+    """Output folder: normal.png, normal.exr, mask.png, light_variation.png, report.json."""
+    mask: Annotated[str, arg(metavar="{FILE,auto}")] = "auto"
+    """Object mask (white object on black, the size of the photos), or 'auto' to find it from how the light
+    changes each pixel (refused in one line where it cannot)."""
+    input_encoding: Literal["auto", "srgb", "linear"] = "auto"
+    """How the photos' values are encoded: auto (sRGB for 8-bit files, linear for 16-bit and EXR), srgb or
+    linear."""
+    convention: Literal["opengl", "opencv"] = "opengl"
+    """Frame of the written normals: opengl (x right, y up, z toward the camera) or opencv (y down, z away)."""
+    max_side: Annotated[int | None, arg(help_behavior_hint="(default: the photos' own size)")] = option(None, minimum=32)
+    """Downscale the photos so that their longer side is at most this many pixels."""
+    checkpoint: Annotated[str | None, arg(metavar="FILE", help_behavior_hint="(default: the shipped model)")] = None
+    """Model weights to predict with."""
+    refine: bool = True
+    """Refine the map where the physical check can judge the capture (kept only when the check accepts it)."""
+    rotation_search: bool = False
+    """Let the refinement search a global tilt of the normals (validate.refine --rotation-search)."""
+    threads: Annotated[int | None, arg(help_behavior_hint="(default: one per core)")] = option(None, minimum=1)
+    """Dr.Jit threads of the check and the refinement (1: byte-identical run to run)."""
+    overwrite: bool = False
+    """Replace the outputs of an earlier run in --out."""
+
+    def validate(self) -> "CaptureOptions":
+        check_fields(self)
+        return self
+
+
+COMMAND = Command(CaptureOptions, prog="python -m orchestrate.capture", description=__doc__.split("\n\n")[0])
+
+
+@dataclass
+class Shot:
+    """The capture as read: linear images, the mask, and where each came from."""
+
+    name: str
+    images: np.ndarray
+    saturated: np.ndarray | None
+    names: list[str]
+    source: dict[str, Any]
+
+
+def read_input(opts: CaptureOptions) -> Shot:
+    """The photos (or the object folder) of --input, linear."""
+    from scenes.folder.layouts import detect_layout, read_folder
+    from scenes.folder.photos import read_photos
+
+    folder = Path(opts.input)
+    if detect_layout(folder) is not None:
+        fd = read_folder(folder, arg="--input")
+        return Shot(fd.name, fd.images, fd.saturated, [p.name for p in fd.image_paths],
+                    {"kind": f"object folder ({fd.layout})", "mask": fd.mask})
+    photos = read_photos(folder, opts.input_encoding, opts.max_side)
+    return Shot(folder.name or "capture", photos.images, photos.saturated, photos.names,
+                {"kind": "photos", "encoding": photos.encoding, "bit_depth": photos.bit_depth,
+                 "exposure": photos.exposure})
+
+
+def find_mask(opts: CaptureOptions, shot: Shot) -> tuple[np.ndarray, dict]:
+    from validate.usable import auto_mask
+
+    shape = shot.images.shape[1:3]
+    if opts.mask != "auto":
+        try:
+            mask = read_mask(opts.mask, None)
+        except (ValueError, FileNotFoundError) as exc:
+            raise type(exc)(f"--mask: {exc}") from None
+        if mask.shape != shape:
+            raise ValueError(f"--mask: {opts.mask!r} is {mask.shape[1]}x{mask.shape[0]}, the photos "
+                             f"{shape[1]}x{shape[0]}")
+        if not mask.any():
+            raise ValueError(f"--mask: {opts.mask!r} marks no pixel of the object (expected white on black)")
+        return mask, {"method": "file", "file": opts.mask}
+    if "mask" in shot.source:  # an object folder brings its own
+        return shot.source.pop("mask"), {"method": "the object folder's mask.png"}
+    return auto_mask(shot.images)
+
+
+def _to_convention(n: np.ndarray, convention: str) -> np.ndarray:
+    return (n * CONVENTIONS[convention]).astype(np.float32)
+
+
+def predict(opts: CaptureOptions, work: Path) -> np.ndarray:
+    from scenes.folder.layouts import read_folder
+    from unips.data import object_from_folder
+    from unips.inference import load_network, run_model
+
+    net = load_network(opts.checkpoint)
+    return run_model(net, object_from_folder(read_folder(work, arg="--input")))
+
+
+def check_and_refine(opts: CaptureOptions, work: Path, out: Path, normals: np.ndarray) -> tuple[np.ndarray, dict, dict | None]:
+    """The fitted check of the model's map, and the refinement where the check trusts the capture: (final map,
+    check report, refine report or None)."""
+    from dataclasses import replace
+
+    from scenes.renderer.variant import choose_variant, set_jit_threads
+    from validate.fit_report import rerender_fitted
+    from validate.refine import RefineConfig, refine_object
+
+    choose_variant(None)
+    set_jit_threads(opts.threads)
+    check = rerender_fitted(str(work), normals, out_dir=str(out / "check"), overwrite=True)
+    if not (opts.refine and check["trusted"]):
+        return normals, check, None
+    refined = refine_object(str(work), normals, replace(RefineConfig(), rotation_search=opts.rotation_search),
+                            out_dir=str(out / "refine"), overwrite=True)
+    if not refined["accepted"]:
+        return normals, check, refined
+    from scenes.images import read_normals
+
+    return read_normals(out / "refine" / work.name.removesuffix(".data") / "normal.png"), check, refined
+
+
+def verdict(check: dict, refined: dict | None) -> dict:
+    """What the user has in hand, in words: can the images judge this capture, how well does the final map explain
+    them, was it refined."""
+    noise = check.get("noise_rel_l1")
+    judged = refined["judged_after_rel_l1"] if refined and refined.get("accepted") else check.get("judged_rel_l1")
+    out = {"images_can_judge": bool(check["trusted"]), "why": check.get("why"),
+           "explained_fraction": check.get("explained_fraction"), "judged_rel_l1": judged, "noise_rel_l1": noise,
+           "residual_in_noise_units": (judged / noise) if judged is not None and noise else None,
+           "refined": bool(refined and refined.get("accepted")),
+           "refinement": refined.get("why") if refined else "not run: the images cannot judge this capture"
+           if not check["trusted"] else "not run (--no-refine)"}
+    if not check["trusted"]:
+        out["summary"] = ("The images cannot judge this capture, so the normal map is the model's, unchecked: "
+                          f"{check.get('why')}")
+    else:
+        units = out["residual_in_noise_units"]
+        out["summary"] = (f"The images can judge this capture ({check['explained_fraction']:.0%} of the object is "
+                          f"explained by the fitted light); the final map leaves a residual of "
+                          f"{units:.1f} times the image noise" if units is not None else "The images can judge this capture")
+        out["summary"] += ("; it was refined." if out["refined"] else "; the model's map is kept.")
+    return out
+
+
+def _variation_picture(images: np.ndarray, path: Path) -> None:
+    from validate.usable import variation_map
+
+    v = variation_map(images)
+    import cv2
+
+    v8 = (np.clip(v / max(float(np.percentile(v, 99.5)), 1e-6), 0, 1) * 255).astype(np.uint8)
+    write_picture(path, cv2.applyColorMap(v8, cv2.COLORMAP_VIRIDIS))
+
+
+def _plain(value: Any) -> Any:
+    """JSON-ready: NumPy scalars as Python numbers, NaN (a measurement that could not be made) as null."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, (np.floating, float)):
+        return None if not np.isfinite(value) else float(value)
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.bool_):
+        return bool(value)
+    return value
+
+
+def run(opts: CaptureOptions) -> dict:
+    """The whole command (main without the error handling); returns report.json's content."""
+    from validate.usable import as_dicts, capture_warnings
+
+    t0, times = time.perf_counter(), {}
+    out = Path(opts.out)
+    check_output_folder(out)
+    claim_outputs([out / n for n in OUTPUTS], opts.overwrite, owner="orchestrate.capture")
+    shot = read_input(opts)
+    times["read_s"] = time.perf_counter() - t0
+    found = capture_warnings(shot.images, None, names=shot.names)[0]
+    if found and found[0].fatal:
+        raise UsageError(f"--input: {found[0].message}")
+    mask, mask_info = find_mask(opts, shot)
+    warnings, facts = capture_warnings(shot.images, mask, shot.saturated, shot.names)
+    if warnings and warnings[0].fatal:
+        raise UsageError(f"--input: {warnings[0].message}")
+    for w in warnings:
+        print(f"warning: {w.code}: {w.message}", file=sys.stderr)
+    times["mask_and_checks_s"] = time.perf_counter() - t0 - times["read_s"]
+    scale = 1.0 / max(float(shot.images[:, mask].max()), 1e-12)
+    work = write_object_folder(out / "work" / f"{shot.name}.data", np.clip(shot.images * scale, 0, 1), mask, None)
+    t1 = time.perf_counter()
+    model_map = predict(opts, work)
+    times["predict_s"] = time.perf_counter() - t1
+    t1 = time.perf_counter()
+    final, check, refined = check_and_refine(opts, work, out, model_map)
+    times["check_and_refine_s"] = time.perf_counter() - t1
+    final = np.where(mask[..., None], final, 0.0)
+    write_normal_map(out / "normal.png", _to_convention(final, opts.convention))
+    write_normal_exr(out / "normal.exr", _to_convention(final, opts.convention))
+    write_mask(out / MASK_FILE, mask)
+    _variation_picture(shot.images, out / "light_variation.png")
+    times["total_s"] = time.perf_counter() - t0
+    report = {"input": {"folder": str(opts.input), "images": len(shot.names), "names": shot.names,
+                        "size": list(shot.images.shape[1:3]), **{k: v for k, v in shot.source.items() if k != "mask"}},
+              "mask": {**mask_info, "pixels": int(mask.sum())},
+              "warnings": as_dicts(warnings), "measurements": facts,
+              "normals": {"convention": opts.convention,
+                          "frame": "x right, y up, z toward the camera" if opts.convention == "opengl"
+                          else "x right, y down, z away from the camera",
+                          "encoding": "normal.png: 16-bit (n + 1) / 2; normal.exr: float32 n; 0 outside the mask",
+                          "source": "refined" if refined and refined.get("accepted") else "model"},
+              "verdict": verdict(check, refined),
+              "stages": {"check": "check/" + shot.name + "/report.json",
+                         "refine": ("refine/" + shot.name + "/refine_report.json") if refined else None,
+                         "work_folder": str(work.relative_to(out))},
+              "timings": times,
+              "peak_memory_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+    atomic_write_text(out / "report.json", json.dumps(_plain(report), indent=1, allow_nan=False) + "\n")
+    return report
+
+
+def main(argv: list[str] | None = None) -> int:
+    try:
+        opts = COMMAND.parse(argv).validate()
+        report = run(opts)
+    except INPUT_ERRORS as exc:
+        return report_error(exc)
+    except OSError as exc:
+        return report_error(exc, 1)
+    print(report["verdict"]["summary"])
+    print(f"wrote {Path(opts.out) / 'normal.png'}, normal.exr, mask.png, light_variation.png and report.json "
+          f"({len(report['warnings'])} warning(s))")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

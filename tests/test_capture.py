@@ -1,0 +1,227 @@
+"""Users' own photos (`orchestrate.capture`): the photo reader, the capture checks, the automatic mask and the
+whole command on real files. Expectations come from the geometry and from the sRGB standard written out here,
+not from the code under test."""
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+from fixtures import sphere
+
+from scenes.folder.photos import read_photos
+from validate.usable import auto_mask, capture_warnings
+
+
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    """IEC 61966-2-1, written out."""
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def lights(polars, azimuths) -> np.ndarray:
+    p, a = np.radians(polars), np.radians(azimuths)
+    return np.stack([np.sin(p) * np.cos(a), np.sin(p) * np.sin(a), np.cos(p)], -1)
+
+
+def lambertian(n: np.ndarray, mask: np.ndarray, L: np.ndarray, albedo: float = 0.6) -> np.ndarray:
+    """(K, H, W, 3) float32 shading of normals under distant lights, black off the object."""
+    img = np.clip(np.einsum("hwc,kc->khw", n, L), 0, None) * albedo * mask
+    return np.repeat(img[..., None], 3, -1).astype(np.float32)
+
+
+SPREAD = lights([40, 50, 35, 45, 40, 55, 30, 45], np.arange(8) * 45)
+FRONTAL = lights([5, 10, 15, 12, 8, 15, 3, 14], np.arange(8) * 45)
+ONE_SIDE = lights([40, 50, 30, 45, 35, 55], [-50, -20, 0, 20, 40, 60])
+
+
+def write_jpegs(folder, images: np.ndarray, names=None) -> list:
+    folder.mkdir(parents=True, exist_ok=True)
+    names = names or [f"IMG_{i + 1:04d}.jpg" for i in range(len(images))]
+    for name, img in zip(names, images):
+        c = np.where(img <= 0.0031308, img * 12.92, 1.055 * np.clip(img, 0, 1) ** (1 / 2.4) - 0.055)
+        cv2.imwrite(str(folder / name), np.round(np.clip(c, 0, 1) * 255).astype(np.uint8)[..., ::-1],
+                    [cv2.IMWRITE_JPEG_QUALITY, 98])
+    return names
+
+
+# ------------------------------------------------------------------------------------------ reading photos
+
+
+def test_eight_bit_files_are_srgb_sixteen_bit_and_exr_linear_in_natural_order(tmp_path):
+    from scenes.images import write_exr
+
+    rng = np.random.default_rng(0)
+    codes8 = rng.integers(0, 256, (3, 5, 7, 3), dtype=np.uint8)
+    for i, name in enumerate(["img_10.png", "IMG_2.png", "img_1.png"]):
+        cv2.imwrite(str(tmp_path / name), codes8[i][..., ::-1])
+    photos = read_photos(tmp_path)
+    assert photos.names == ["img_1.png", "IMG_2.png", "img_10.png"] and photos.encoding == ["srgb"] * 3
+    np.testing.assert_allclose(photos.images[0], srgb_to_linear(codes8[2] / 255.0), atol=1e-6)
+    assert read_photos(tmp_path, "linear").images[0] == pytest.approx(codes8[2] / 255.0, abs=1e-7)
+
+    d16 = tmp_path / "sixteen"
+    d16.mkdir()
+    codes16 = rng.integers(0, 65536, (2, 5, 7, 3), dtype=np.uint16)
+    for i in range(2):
+        cv2.imwrite(str(d16 / f"{i}.tif"), codes16[i][..., ::-1])
+    photos = read_photos(d16)
+    assert photos.bit_depth == 16 and photos.encoding == ["linear"] * 2
+    np.testing.assert_array_equal(photos.images, (codes16 / 65535.0).astype(np.float32))
+    assert photos.saturated.sum() == (codes16 == 65535).sum()
+
+    dexr = tmp_path / "exr"
+    dexr.mkdir()
+    values = rng.random((2, 5, 7, 3)).astype(np.float32) * 3
+    for i in range(2):
+        write_exr(dexr / f"{i}.exr", values[i])
+    np.testing.assert_array_equal(read_photos(dexr).images, values)
+
+
+def _jpeg_with_exif(path, a: np.ndarray, orientation: int = 1, exposure_s: float | None = None) -> None:
+    from PIL import Image
+
+    img = Image.fromarray(a)
+    exif = img.getexif()
+    exif[0x0112] = orientation
+    if exposure_s is not None:
+        ifd = exif.get_ifd(0x8769)
+        ifd[0x829A], ifd[0x8827] = exposure_s, 100
+    img.save(path, exif=exif, quality=100)
+
+
+def test_exif_orientation_and_exposure_are_applied(tmp_path):
+    a = (np.random.default_rng(1).random((6, 9, 3)) * 200 + 20).astype(np.uint8)
+    (tmp_path / "upright").mkdir()
+    (tmp_path / "turned").mkdir()
+    for i in range(2):
+        _jpeg_with_exif(tmp_path / "upright" / f"p{i}.jpg", a, 1, exposure_s=0.01 * (i + 1))
+        _jpeg_with_exif(tmp_path / "turned" / f"p{i}.jpg", a, 6)  # the camera held turned 90 deg clockwise
+    upright, turned = read_photos(tmp_path / "upright"), read_photos(tmp_path / "turned")
+    assert turned.images.shape == (2, 9, 6, 3)
+    np.testing.assert_array_equal(turned.images[0], np.rot90(upright.images[0], k=-1))
+    # the second photo had twice the exposure: brought to the first's
+    np.testing.assert_allclose(upright.images[1], upright.images[0] * 0.5, rtol=1e-6)
+    assert [e["scale"] for e in upright.exposure] == [1.0, 0.5] and upright.exposure[1]["exposure_time_s"] == 0.02
+    assert [e["scale"] for e in turned.exposure] == [1.0, 1.0]
+
+
+def test_mixed_photos_are_one_line_naming_the_file(tmp_path):
+    cv2.imwrite(str(tmp_path / "a.png"), np.zeros((4, 6, 3), np.uint8))
+    cv2.imwrite(str(tmp_path / "b.png"), np.zeros((4, 5, 3), np.uint8))
+    with pytest.raises(ValueError, match=r"^--input: b.png differs in size from a.png"):
+        read_photos(tmp_path)
+    cv2.imwrite(str(tmp_path / "b.png"), np.zeros((6, 4, 3), np.uint8))
+    with pytest.raises(ValueError, match=r"^--input: b.png differs in orientation"):
+        read_photos(tmp_path)
+    cv2.imwrite(str(tmp_path / "b.png"), np.zeros((4, 6, 3), np.uint16))
+    with pytest.raises(ValueError, match=r"^--input: b.png differs in bit depth"):
+        read_photos(tmp_path)
+    with pytest.raises(FileNotFoundError, match=r"^--input: .*missing' is not a folder"):
+        read_photos(tmp_path / "missing")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(ValueError, match=r"^--input: no photos in"):
+        read_photos(tmp_path / "empty")
+
+
+# ------------------------------------------------------------------------------------------ capture checks
+
+N96, M96 = sphere(96, pad=8)
+
+
+def codes(images) -> list[str]:
+    return [w.code for w in capture_warnings(images, M96)[0]]
+
+
+def test_a_good_capture_gets_no_warning_and_each_fault_its_own():
+    good = lambertian(N96, M96, SPREAD)
+    assert codes(good) == []
+    assert codes(lambertian(N96, M96, FRONTAL)) == ["frontal_light"]
+    assert codes(lambertian(N96, M96, ONE_SIDE)) == ["one_sided_light"]
+    assert codes(good * 0.02) == ["too_dark"]
+    assert codes(good[::2]) == ["too_few_images"]  # 4 images, lit from all four sides
+    (fatal,), _ = capture_warnings(good[:2], M96)
+    assert fatal.code == "too_few_images" and fatal.fatal
+    (black,), _ = capture_warnings(good * 0.0, M96)
+    assert black.code == "too_dark" and black.fatal
+    clipped = np.clip(good * 3.0, 0, 1)
+    warnings, facts = capture_warnings(clipped, M96, saturated=clipped >= 1.0)
+    assert [w.code for w in warnings] == ["saturated"] and max(facts["saturated_share"]) > 0.1
+
+
+def test_a_camera_moved_by_a_few_pixels_in_half_the_images_is_flagged():
+    good = lambertian(N96, M96, SPREAD)
+    moved = good.copy()
+    moved[4:] = np.roll(moved[4:], (2, 3), axis=(1, 2))
+    warnings, facts = capture_warnings(moved, M96)
+    assert [w.code for w in warnings] == ["camera_moved"]
+    assert max(abs(v) for s in facts["camera_shift_px"] if s for v in s) == 3
+    assert codes(good) == []
+
+
+def test_auto_mask_finds_the_object_or_refuses():
+    mask, info = auto_mask(lambertian(N96, M96, SPREAD))
+    assert (mask & M96).sum() / (mask | M96).sum() >= 0.95 and info["separability"] > 0.6
+    backdrop = (0.3 + 0.5 * np.random.default_rng(0).random(8))[:, None, None, None] * np.ones((1, 96, 96, 3))
+    lit_backdrop = np.where(M96[None, ..., None], lambertian(N96, M96, SPREAD), backdrop).astype(np.float32)
+    with pytest.raises(ValueError, match=r"^--mask: auto cannot separate the object from the background: .*; give a mask"):
+        auto_mask(lit_backdrop)
+
+
+# ------------------------------------------------------------------------------------------ the command
+
+
+@pytest.fixture(scope="module")
+def photos(tmp_path_factory):
+    """A sphere under 8 distant lights as 8-bit sRGB JPEG photos with camera names, no mask."""
+    folder = tmp_path_factory.mktemp("photos") / "shoot"
+    write_jpegs(folder, lambertian(N96, M96, SPREAD))
+    return folder
+
+
+def test_photos_in_a_normal_map_out_in_both_conventions(photos, tmp_path, variant_llvm_ad_rgb):
+    from orchestrate.capture import main
+    from scenes.images import read_mask, read_normals
+
+    outs = {}
+    for convention in ("opengl", "opencv"):
+        out = tmp_path / convention
+        assert main(["--input", str(photos), "--out", str(out), "--convention", convention, "--no-refine",
+                     "--threads", "1"]) == 0
+        outs[convention] = read_normals(out / "normal.png")
+        report = json.loads((out / "report.json").read_text())
+        assert report["warnings"] == [] and report["mask"]["method"].startswith("otsu")
+        assert report["normals"]["convention"] == convention and report["input"]["encoding"] == ["srgb"] * 8
+        assert set(report["verdict"]) >= {"images_can_judge", "summary", "residual_in_noise_units"}
+        mask = read_mask(out / "mask.png")
+        assert (mask & M96).sum() / (mask | M96).sum() >= 0.95
+    gl, cv = outs["opengl"], outs["opencv"]
+    m = mask & M96
+    np.testing.assert_allclose(cv[m] * [1, -1, -1], gl[m], atol=1e-4)  # the same map, y and z negated
+    upper, right = m & (np.arange(96)[:, None] < 40), m & (np.arange(96)[None, :] > 56)
+    assert gl[upper][:, 1].mean() > 0.3 and gl[right][:, 0].mean() > 0.3 and gl[m][:, 2].mean() > 0.5  # y up
+    assert np.degrees(np.arccos(np.clip((gl[m] * N96[m]).sum(-1), -1, 1))).mean() < 25
+
+
+def test_bad_captures_stop_in_one_line(photos, tmp_path, capsys):
+    import shutil
+
+    from orchestrate.capture import main
+
+    two = tmp_path / "two"
+    two.mkdir()
+    for f in sorted(photos.iterdir())[:2]:
+        shutil.copy(f, two / f.name)
+    assert main(["--input", str(two), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "only 2 image(s)" in err[0] and "Traceback" not in err[0]
+    cv2.imwrite(str(tmp_path / "small_mask.png"), np.full((10, 10), 255, np.uint8))
+    assert main(["--input", str(photos), "--out", str(tmp_path / "o"), "--mask", str(tmp_path / "small_mask.png")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --mask: ") and "is 10x10, the photos 96x96" in err
+    assert main(["--input", str(photos), "--out", str(tmp_path / "o"), "--mask", str(tmp_path / "none.png")]) == 2
+    assert capsys.readouterr().err.startswith("error: --mask: ")
+    (tmp_path / "taken").mkdir()
+    (tmp_path / "taken" / "report.json").write_text("{}")
+    assert main(["--input", str(photos), "--out", str(tmp_path / "taken")]) == 2
+    assert "--overwrite" in capsys.readouterr().err and (tmp_path / "taken" / "report.json").read_text() == "{}"
