@@ -12,9 +12,10 @@
    ones stop, the others are recorded in report.json `warnings`;
 4. predicts normals with the shipped model (or `--checkpoint`), runs the fitted physical check, and where
    the check can judge the capture refines the map, keeping the refined map only when the check accepts it;
-5. writes OUT/normal.png (16-bit, (n + 1) / 2), OUT/normal.exr, OUT/mask.png, OUT/light_variation.png and
-   OUT/report.json (every stage, the verdict, the warnings, timings and peak memory); the check's and the
-   refinement's own reports lie in OUT/check/ and OUT/refine/.
+5. writes OUT/normal.png (16-bit, (n + 1) / 2), OUT/normal.exr, OUT/mask.png, OUT/light_variation.png,
+   OUT/report.json (every stage, the verdict, the warnings, timings and peak memory) and OUT/report.html (the
+   same for a person, one self-contained page); the check's and the refinement's own reports lie in OUT/check/
+   and OUT/refine/.
 
 Normals are in the camera frame: `--convention opengl` (the default; Blender, Meshroom): x right, y up, z toward
 the camera; `opencv`: x right, y down, z away from the camera (the same vectors with y and z negated).
@@ -38,7 +39,7 @@ from scenes.files import atomic_write_text
 from scenes.folder.format import MASK_FILE, write_object_folder
 from scenes.images import read_mask, write_mask, write_normal_exr, write_normal_map, write_picture
 
-OUTPUTS = ("normal.png", "normal.exr", MASK_FILE, "light_variation.png", "report.json")
+OUTPUTS = ("normal.png", "normal.exr", MASK_FILE, "light_variation.png", "report.json", "report.html")
 """What the command writes at the top of --out (its working folders: work/, check/, refine/)."""
 CONVENTIONS = {"opengl": np.array([1.0, 1.0, 1.0]), "opencv": np.array([1.0, -1.0, -1.0])}
 """Per convention, the signs that turn the camera frame (x right, y up, z toward the camera) into it."""
@@ -263,6 +264,11 @@ def run(opts: CaptureOptions) -> dict:
               "timings": times,
               "peak_memory_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
     atomic_write_text(out / "report.json", json.dumps(_plain(report), indent=1, allow_nan=False) + "\n")
+    from orchestrate.capture_page import pictures, write_page
+
+    refined_used = report["normals"]["source"] == "refined"
+    write_page(out / "report.html", _plain(report), pictures(out, shot.name, shot.images, shot.names, mask, final,
+                                                             model_map, refined_used))
     return report
 
 
@@ -275,7 +281,7 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:
         return report_error(exc, 1)
     print(report["verdict"]["summary"])
-    print(f"wrote {Path(opts.out) / 'normal.png'}, normal.exr, mask.png, light_variation.png and report.json "
+    print(f"wrote {Path(opts.out) / 'normal.png'}, normal.exr, mask.png, light_variation.png, report.json and report.html "
           f"({len(report['warnings'])} warning(s))")
     return 0
 

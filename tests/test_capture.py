@@ -203,6 +203,42 @@ def test_photos_in_a_normal_map_out_in_both_conventions(photos, tmp_path, varian
     assert np.degrees(np.arccos(np.clip((gl[m] * N96[m]).sum(-1), -1, 1))).mean() < 25
 
 
+def _chromium() -> str:
+    import shutil
+
+    found = shutil.which("chromium") or shutil.which("chromium-browser")
+    if found is None:
+        pytest.skip("headless Chromium is not installed (scripts/setup.sh installs Debian's chromium as root)")
+    return found
+
+
+def test_report_html_is_a_page_in_a_real_browser(photos, tmp_path, variant_llvm_ad_rgb):
+    """The page opens in headless Chromium: its DOM holds the verdict and every picture, and the screenshot shows
+    the page's own title band (not a browser error page)."""
+    import subprocess
+
+    from orchestrate.capture import main
+    from orchestrate.capture_page import HEADER_RGB
+
+    browser = _chromium()
+    out = tmp_path / "page"
+    assert main(["--input", str(photos), "--out", str(out), "--no-refine", "--threads", "1"]) == 0
+    page = (out / "report.html").resolve()
+    report = json.loads((out / "report.json").read_text())
+    flags = ["--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", f"--user-data-dir={tmp_path / 'profile'}"]
+    dom = subprocess.run([browser, *flags, "--dump-dom", page.as_uri()], capture_output=True, text=True, timeout=120).stdout
+    assert report["verdict"]["summary"][:20] in dom and report["verdict"]["summary"].startswith("The images can")
+    assert dom.count('src="data:image/png;base64,') >= 5 and "What to improve in the capture" in dom
+    shot = tmp_path / "shot.png"
+    subprocess.run([browser, *flags, "--window-size=1000,1400", f"--screenshot={shot}", page.as_uri()],
+                   capture_output=True, timeout=120)
+    picture = cv2.imread(str(shot))[..., ::-1]
+    assert picture.shape[:2] == (1400, 1000)
+    band = picture[5:40, 5:500].reshape(-1, 3)  # the title band's background
+    assert (np.abs(band.astype(int) - HEADER_RGB).max(axis=1) <= 3).mean() > 0.8
+    assert len(np.unique(picture.reshape(-1, 3), axis=0)) > 200  # pictures drawn, not a blank page
+
+
 def test_bad_captures_stop_in_one_line(photos, tmp_path, capsys):
     import shutil
 

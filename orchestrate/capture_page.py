@@ -1,0 +1,131 @@
+"""report.html of `orchestrate.capture`: one self-contained page a person reads without the code (every picture
+embedded as a PNG data URL, the styles inline): the verdict in words, what to improve in the capture, a
+contact sheet of the photos, the mask and the light variation, the normal map (before and after refinement
+where it was refined), the re-render residual of the physical check, and the details."""
+from __future__ import annotations
+
+import base64
+import html
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+HEADER_RGB = (31, 78, 121)
+"""The colour of the page's title band (tests find the page in a screenshot by it)."""
+
+
+def _png_data(bgr: np.ndarray) -> str:
+    import cv2
+
+    ok, data = cv2.imencode(".png", bgr)
+    if not ok:
+        raise ValueError("report.html: a picture could not be encoded")
+    return "data:image/png;base64," + base64.b64encode(data.tobytes()).decode("ascii")
+
+
+def _file_data(path: Path) -> str | None:
+    return "data:image/png;base64," + base64.b64encode(path.read_bytes()).decode("ascii") if path.is_file() else None
+
+
+def contact_sheet(images: np.ndarray, names: list[str], most: int = 12, width: int = 160) -> np.ndarray:
+    """Up to `most` photos side by side (sRGB for display, each scaled to the capture's bright level), BGR."""
+    import cv2
+
+    from scenes.colors import linear_to_srgb
+
+    pick = np.unique(np.linspace(0, len(images) - 1, min(most, len(images))).round().astype(int))
+    level = max(float(np.percentile(images, 99.5)), 1e-6)
+    h = max(1, round(images.shape[1] * width / images.shape[2]))
+    tiles = []
+    for i in pick:
+        shown = (np.clip(linear_to_srgb(np.clip(images[i] / level, 0, 1)), 0, 1) * 255).astype(np.uint8)
+        tile = cv2.resize(shown[..., ::-1], (width, h), interpolation=cv2.INTER_AREA)
+        cv2.putText(tile, names[i][:22], (4, h - 6), cv2.FONT_HERSHEY_SIMPLEX, 0.35, (255, 255, 255), 1, cv2.LINE_AA)
+        tiles.append(tile)
+    cols = min(6, len(tiles))
+    rows = [np.concatenate(tiles[r:r + cols] + [np.zeros_like(tiles[0])] * (cols - len(tiles[r:r + cols])), axis=1)
+            for r in range(0, len(tiles), cols)]
+    return np.concatenate(rows, axis=0)
+
+
+def _figure(title: str, src: str | None, caption: str) -> str:
+    if src is None:
+        return ""
+    return (f'<figure><img src="{src}" alt="{html.escape(title)}"><figcaption><b>{html.escape(title)}</b>: '
+            f"{html.escape(caption)}</figcaption></figure>")
+
+
+def write_page(path: Path, report: dict[str, Any], pictures: dict[str, str | None]) -> None:
+    """Write report.html from report.json's content and the pictures (name -> data URL or None)."""
+    from scenes.files import atomic_write_text
+
+    v = report["verdict"]
+    warnings = "".join(f"<li><b>{html.escape(w['code'])}</b>: {html.escape(w['message'])}</li>"
+                       for w in report["warnings"]) or "<li>none: the capture looks usable</li>"
+    judge = ("yes" if v["images_can_judge"] else "no") + f" ({html.escape(str(v.get('why') or ''))})"
+    units = v.get("residual_in_noise_units")
+    r, g, b = HEADER_RGB
+    body = f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>Normal map of {html.escape(report['input']['folder'])}</title>
+<style>
+body {{ font-family: sans-serif; margin: 0; color: #222; }}
+header {{ background: rgb({r},{g},{b}); color: white; padding: 18px 24px; }}
+main {{ padding: 8px 24px 40px; max-width: 1200px; }}
+figure {{ display: inline-block; margin: 8px 16px 8px 0; vertical-align: top; max-width: 100%; }}
+figure img {{ max-width: 100%; min-width: 192px; image-rendering: pixelated; border: 1px solid #ccc; }}
+figcaption {{ font-size: 0.9em; max-width: 520px; }}
+.verdict {{ font-size: 1.15em; background: #eef3f8; padding: 12px 16px; border-left: 6px solid rgb({r},{g},{b}); }}
+table {{ border-collapse: collapse; }} td, th {{ border: 1px solid #ccc; padding: 4px 8px; text-align: left; }}
+</style></head><body>
+<header><h1>Normal map of {html.escape(Path(report['input']['folder']).name)}</h1>
+{report['input']['images']} photos, {report['input']['size'][1]} x {report['input']['size'][0]} px</header>
+<main>
+<h2>Verdict</h2>
+<p class="verdict">{html.escape(v['summary'])}</p>
+<table>
+<tr><th>Can the images judge this capture?</th><td>{judge}</td></tr>
+<tr><th>Share of the object the fitted light explains</th><td>{_pct(v.get('explained_fraction'))}</td></tr>
+<tr><th>Residual of the final map, in units of the image noise</th><td>{'-' if units is None else f'{units:.1f}'}</td></tr>
+<tr><th>Refined</th><td>{'yes' if v['refined'] else 'no'}: {html.escape(str(v.get('refinement')))}</td></tr>
+<tr><th>Normal map</th><td>{html.escape(report['normals']['frame'])} ({html.escape(report['normals']['convention'])}); {html.escape(report['normals']['encoding'])}</td></tr>
+</table>
+<h2>What to improve in the capture</h2>
+<ul>{warnings}</ul>
+<h2>The photos</h2>
+{_figure('Photos', pictures.get('contact_sheet'), 'a sample of the inputs, shown in sRGB')}
+{_figure('Mask', pictures.get('mask'), report['mask']['method'])}
+{_figure('Light variation', pictures.get('light_variation'), 'how much each pixel changes across the photos (bright: a lot); the object should stand out')}
+<h2>The normal map</h2>
+{_figure('Final normal map', pictures.get('normals'), 'colour = (n + 1) / 2: red right, green up, blue toward the camera')}
+{_figure("The model's map before refinement", pictures.get('model_normals'), 'shown where the map was refined')}
+<h2>The physical check</h2>
+{_figure('Re-render residual', pictures.get('check_figure'), 'the photos, their re-rendering with the fitted light and the normal map, and the relative residual')}
+{_figure('Explained', pictures.get('explained'), 'where the fitted light explains the photos (the judged part)')}
+<h2>Details</h2>
+<table>
+<tr><th>Timings (s)</th><td>{html.escape(', '.join(f'{k} {t:.1f}' for k, t in report['timings'].items()))}</td></tr>
+<tr><th>Peak memory</th><td>{report['peak_memory_mib']:.0f} MiB</td></tr>
+<tr><th>Full report</th><td>report.json; the check's and the refinement's own reports under check/ and refine/</td></tr>
+</table>
+</main></body></html>
+"""
+    atomic_write_text(path, body)
+
+
+def _pct(x: float | None) -> str:
+    return "-" if x is None else f"{x:.0%}"
+
+
+def pictures(out: Path, name: str, images: np.ndarray, names: list[str], mask: np.ndarray, final: np.ndarray,
+             model: np.ndarray, refined: bool) -> dict[str, str | None]:
+    """The pictures of the page, as data URLs."""
+    from scenes.images import normal_visual
+
+    return {"contact_sheet": _png_data(contact_sheet(images, names)),
+            "mask": _png_data(np.where(mask, 255, 0).astype(np.uint8)),
+            "light_variation": _file_data(out / "light_variation.png"),
+            "normals": _png_data(normal_visual(final)[..., ::-1]),  # RGB -> OpenCV's BGR
+            "model_normals": _png_data(normal_visual(model)[..., ::-1]) if refined else None,
+            "check_figure": _file_data(out / "check" / name / "figure.png"),
+            "explained": _file_data(out / "check" / name / "explained.png")}
