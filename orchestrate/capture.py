@@ -12,7 +12,8 @@
    ones stop, the others are recorded in report.json `warnings`;
 4. predicts normals with the shipped model (or `--checkpoint`), runs the fitted physical check, and where
    the check can judge the capture refines the map, keeping the refined map only when the check accepts it;
-5. writes OUT/normal.png (16-bit, (n + 1) / 2), OUT/normal.exr, OUT/mask.png, OUT/light_variation.png,
+5. writes OUT/normal.png (16-bit, (n + 1) / 2), OUT/normal.exr, OUT/normal_model.png (the model's map, before
+   any refinement), OUT/mask.png, OUT/light_variation.png,
    OUT/report.json (every stage, the verdict, the warnings, timings and peak memory) and OUT/report.html (the
    same for a person, one self-contained page); the check's and the refinement's own reports lie in OUT/check/
    and OUT/refine/.
@@ -39,7 +40,7 @@ from scenes.files import atomic_write_text
 from scenes.folder.format import MASK_FILE, write_object_folder
 from scenes.images import read_mask, write_mask, write_normal_exr, write_normal_map, write_picture
 
-OUTPUTS = ("normal.png", "normal.exr", MASK_FILE, "light_variation.png", "report.json", "report.html")
+OUTPUTS = ("normal.png", "normal.exr", "normal_model.png", MASK_FILE, "light_variation.png", "report.json", "report.html")
 """What the command writes at the top of --out (its working folders: work/, check/, refine/)."""
 CONVENTIONS = {"opengl": np.array([1.0, 1.0, 1.0]), "opencv": np.array([1.0, -1.0, -1.0])}
 """Per convention, the signs that turn the camera frame (x right, y up, z toward the camera) into it."""
@@ -92,6 +93,28 @@ class Shot:
     saturated: np.ndarray | None
     names: list[str]
     source: dict[str, Any]
+
+
+def probe_input(opts: CaptureOptions) -> tuple[int, int, int]:
+    """(photos, height, width) of --input after --max-side, from the file list and one image: what the estimate
+    needs before anything large is read."""
+    import cv2
+
+    from scenes.folder.layouts import detect_layout, read_folder
+    from scenes.folder.photos import photo_files
+
+    folder = Path(opts.input)
+    if detect_layout(folder) is not None:
+        fd = read_folder(folder, images=False, arg="--input")
+        k, (h, w) = fd.num_files, fd.shape
+    else:
+        files = photo_files(folder)
+        first = cv2.imread(str(files[0]), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
+        if first is None:
+            raise ValueError(f"--input: cannot read {str(files[0])!r} as an image")
+        k, (h, w) = len(files), first.shape[:2]
+    f = min(1.0, opts.max_side / max(h, w)) if opts.max_side else 1.0
+    return k, max(1, round(h * f)), max(1, round(w * f))
 
 
 def read_input(opts: CaptureOptions) -> Shot:
@@ -214,6 +237,40 @@ def _plain(value: Any) -> Any:
     return value
 
 
+BASE_MIB = 900.0
+"""Memory of the process before the photos: Python, torch, Mitsuba / Dr.Jit, the model (measured, bench_capture)."""
+BYTES_PER_VALUE = 40.0
+"""Bytes per photo value (K x H x W x 3) held at the peak besides the model's working copies: the float32 stack,
+its per-file float64 decoding, the clipped copy written as the work folder and the folder read back
+(measured, bench_capture)."""
+SECONDS_BASE = 60.0
+"""Seconds that do not grow with the photos: start-up, the fitted check and the refinement at their fitting
+resolution (measured on 2 cores, bench_capture)."""
+SECONDS_PER_MVALUE = 1.0
+"""Seconds per million photo values (reading, the mask, the checks, writing, the model) on 2 cores."""
+
+
+def estimate(k: int, h: int, w: int) -> dict:
+    """The command's peak memory (MiB) and time (s) for K photos of h x w, before it runs (bench_capture
+    compares them with what it measures)."""
+    from unips.inference import DEFAULT_TTA, prediction_memory
+
+    values = k * h * w * 3
+    model = prediction_memory("model", (h, w), k, max(h, w), tta=DEFAULT_TTA)
+    return {"peak_mib": round(BASE_MIB + (BYTES_PER_VALUE * values + model) / 2**20),
+            "seconds": round(SECONDS_BASE + SECONDS_PER_MVALUE * values / 1e6, 1)}
+
+
+def check_resources(opts: CaptureOptions, k: int, h: int, w: int) -> dict:
+    """The estimate, refused in one line above the memory this machine has available."""
+    from scenes.cli.limits import check_memory
+
+    need = estimate(k, h, w)
+    check_memory(need["peak_mib"] * 2**20, "--max-side", f"{k} photos of {w} x {h} px",
+                 "give --max-side (e.g. --max-side 1024) to downscale them, or use fewer photos")
+    return need
+
+
 def run(opts: CaptureOptions) -> dict:
     """The whole command (main without the error handling); returns report.json's content."""
     from validate.usable import as_dicts, capture_warnings
@@ -222,6 +279,7 @@ def run(opts: CaptureOptions) -> dict:
     out = Path(opts.out)
     check_output_folder(out)
     claim_outputs([out / n for n in OUTPUTS], opts.overwrite, owner="orchestrate.capture")
+    need = check_resources(opts, *probe_input(opts))
     shot = read_input(opts)
     times["read_s"] = time.perf_counter() - t0
     found = capture_warnings(shot.images, None, names=shot.names)[0]
@@ -245,6 +303,7 @@ def run(opts: CaptureOptions) -> dict:
     final = np.where(mask[..., None], final, 0.0)
     write_normal_map(out / "normal.png", _to_convention(final, opts.convention))
     write_normal_exr(out / "normal.exr", _to_convention(final, opts.convention))
+    write_normal_map(out / "normal_model.png", _to_convention(model_map, opts.convention))
     write_mask(out / MASK_FILE, mask)
     _variation_picture(shot.images, out / "light_variation.png")
     times["total_s"] = time.perf_counter() - t0
@@ -261,7 +320,7 @@ def run(opts: CaptureOptions) -> dict:
               "stages": {"check": "check/" + shot.name + "/report.json",
                          "refine": ("refine/" + shot.name + "/refine_report.json") if refined else None,
                          "work_folder": str(work.relative_to(out))},
-              "timings": times,
+              "timings": times, "estimate": need,
               "peak_memory_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
     atomic_write_text(out / "report.json", json.dumps(_plain(report), indent=1, allow_nan=False) + "\n")
     from orchestrate.capture_page import pictures, write_page

@@ -278,7 +278,22 @@ def shards_throughput(card: dict) -> str:
                               "shards, decoded (objects/s)", "files / folders", "decoded / folders"], rows))
 
 
-BENCH_BLOCKS = {"model:shards-throughput": SHARDS_BENCH}
+CAPTURE_BENCH = REPO / "bench" / "results" / "capture.json"
+"""The output of `python bench/bench_capture.py --out bench/results/capture.json` (its last run, committed)."""
+
+
+def capture_resources(card: dict) -> str:
+    """Time and peak memory of orchestrate.capture by photo count and size, measured against its own estimate."""
+    d = json.loads(CAPTURE_BENCH.read_text())
+    rows = [[str(r["images"]), f"{r['size'][1]} x {r['size'][0]}", f"{r['prepare_s']:.1f}",
+             f"{r['predict_s']:.1f}", f"{r['check_and_refine_s']:.1f}", f"{r['wall_s']:.0f}", f"{r['estimate_s']:.0f}",
+             str(r["peak_mib"]), str(r["estimate_mib"])] for r in d["rows"] if "error" not in r]
+    return (f"Measured on {d['machine']['cpus']} cores (`{d['command']}`), one Dr.Jit thread:\n\n"
+            + markdown_table(["photos", "size (px)", "read, mask, checks (s)", "model (s)", "check + refine (s)",
+                              "total (s)", "estimated (s)", "peak memory (MiB)", "estimated (MiB)"], rows))
+
+
+BENCH_BLOCKS = {"model:shards-throughput": SHARDS_BENCH, "capture:resources": CAPTURE_BENCH}
 """Blocks generated from a benchmark's recorded output instead of the model card."""
 
 # Generated blocks other than flag tables: name -> renderer of the model card.
@@ -297,6 +312,7 @@ BLOCKS: dict[str, Callable[[dict], str]] = {
     "generator:levels": complexity_levels,
     "model:data-ab": data_ab,
     "model:shards-throughput": shards_throughput,
+    "capture:resources": capture_resources,
 }
 
 

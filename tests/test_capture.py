@@ -193,6 +193,8 @@ def test_photos_in_a_normal_map_out_in_both_conventions(photos, tmp_path, varian
         assert report["warnings"] == [] and report["mask"]["method"].startswith("otsu")
         assert report["normals"]["convention"] == convention and report["input"]["encoding"] == ["srgb"] * 8
         assert set(report["verdict"]) >= {"images_can_judge", "summary", "residual_in_noise_units"}
+        assert report["estimate"]["peak_mib"] > 0 and report["peak_memory_mib"] > 0
+        assert read_normals(out / "normal_model.png").shape == (96, 96, 3)  # the model's map, kept beside
         mask = read_mask(out / "mask.png")
         assert (mask & M96).sum() / (mask | M96).sum() >= 0.95
     gl, cv = outs["opengl"], outs["opencv"]
@@ -237,6 +239,19 @@ def test_report_html_is_a_page_in_a_real_browser(photos, tmp_path, variant_llvm_
     band = picture[5:40, 5:500].reshape(-1, 3)  # the title band's background
     assert (np.abs(band.astype(int) - HEADER_RGB).max(axis=1) <= 3).mean() > 0.8
     assert len(np.unique(picture.reshape(-1, 3), axis=0)) > 200  # pictures drawn, not a blank page
+
+
+def test_a_capture_too_large_for_the_memory_is_refused_before_any_work(photos, tmp_path, capsys, monkeypatch):
+    """The estimate is checked against the memory this machine has (here made small), in one line naming --max-side."""
+    from orchestrate.capture import estimate, main
+
+    need = estimate(8, 96, 96)["peak_mib"]
+    monkeypatch.setattr("scenes.cli.limits.available_memory", lambda: int(need * 2**20 * 0.5))
+    assert main(["--input", str(photos), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --max-side: 8 photos of 96 x 96 px needs about") and "--max-side 1024" in err
+    assert not (tmp_path / "o" / "normal.png").exists()
+    assert estimate(96, 512, 612)["peak_mib"] > estimate(16, 512, 612)["peak_mib"] > estimate(16, 256, 306)["peak_mib"]
 
 
 def test_bad_captures_stop_in_one_line(photos, tmp_path, capsys):

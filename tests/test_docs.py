@@ -246,7 +246,8 @@ def test_benchmark_tables_equal_the_recorded_output():
         rows = [r for t in _tables(_block(name)) for r in t]
         assert len(rows) == len(recorded["rows"]) > 0
         for row, want in zip(rows, recorded["rows"]):
-            assert row["cache"] == want["cache"]
+            if "cache" in want:  # the shards table's row key
+                assert row["cache"] == want["cache"]
             for cell in row.values():
                 value = cell.strip("*` x")
                 if re.fullmatch(r"-?\d+(\.\d+)?", value):

@@ -1,0 +1,89 @@
+"""Time and peak memory of `python -m orchestrate.capture` by the number of photos K and their long side:
+reading, prediction, the physical check and refinement, next to the command's own estimate.
+
+    python bench/bench_capture.py --out bench/results/capture.json [--images 4,16,96] [--sides 256,512,1024]
+
+Each case is a synthetic capture written as 16-bit PNG photos (an ellipsoid with a bumpy surface, Lambertian,
+distant lights spread around the camera, a dark background; no mask, so the automatic mask runs too) at an
+aspect of 4:3, run as a real subprocess with one Dr.Jit thread; its peak memory is the process's maximum
+resident set size (`resource.getrusage` of the child). The table of docs/capture.md is generated from the
+output file by `python -m orchestrate.docs`.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def synthetic_capture(folder: Path, k: int, side: int, seed: int = 0) -> None:
+    """K 16-bit PNG photos (side x 3/4 side) of a bumpy ellipsoid under distant lights."""
+    h, w = round(side * 3 / 4), side
+    rows, cols = np.mgrid[0:h, 0:w] + 0.5
+    x, y = (cols - w / 2) / (0.38 * w), -(rows - h / 2) / (0.42 * h)
+    q = 1 - x * x - y * y
+    mask = q > 0.01
+    bump = 0.05 * np.sin(9 * x) * np.cos(7 * y)
+    n = np.stack([x + bump, y - bump, np.sqrt(np.clip(q, 0, None)) + 0.2], -1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    rng = np.random.default_rng(seed)
+    polar, azimuth = np.radians(rng.uniform(20, 55, k)), np.radians(np.linspace(0, 360, k, endpoint=False))
+    lights = np.stack([np.sin(polar) * np.cos(azimuth), np.sin(polar) * np.sin(azimuth), np.cos(polar)], -1)
+    albedo = np.array([0.7, 0.55, 0.4])
+    folder.mkdir(parents=True, exist_ok=True)
+    for i, l in enumerate(lights):
+        img = np.clip(n @ l, 0, None)[..., None] * albedo * mask[..., None] + 0.002
+        cv2.imwrite(str(folder / f"DSC{i + 1:05d}.png"), np.round(np.clip(img, 0, 1) * 65535).astype(np.uint16)[..., ::-1])
+
+
+def run_case(k: int, side: int, work: Path) -> dict:
+    photos, out = work / f"k{k}_s{side}", work / f"out_k{k}_s{side}"
+    synthetic_capture(photos, k, side)
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-m", "orchestrate.capture", "--input", str(photos), "--out", str(out),
+                           "--threads", "1", "--overwrite"], cwd=REPO, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    if proc.returncode != 0:
+        return {"images": k, "side": side, "error": proc.stderr.strip().splitlines()[-1]}
+    report = json.loads((out / "report.json").read_text())
+    t = report["timings"]
+    return {"images": k, "side": side, "size": report["input"]["size"], "wall_s": round(wall, 1),
+            "prepare_s": round(t["read_s"] + t["mask_and_checks_s"], 2),
+            "predict_s": round(t["predict_s"], 2), "check_and_refine_s": round(t["check_and_refine_s"], 2),
+            "refined": report["verdict"]["refined"], "peak_mib": round(report["peak_memory_mib"]),
+            "estimate_mib": report["estimate"]["peak_mib"], "estimate_s": report["estimate"]["seconds"]}
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--images", default="4,16,96")
+    p.add_argument("--sides", default="256,512,1024")
+    args = p.parse_args(argv)
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for side in [int(s) for s in args.sides.split(",")]:
+            for k in [int(s) for s in args.images.split(",")]:
+                row = run_case(k, side, Path(tmp))
+                print(json.dumps(row), flush=True)
+                rows.append(row)
+    result = {"machine": {"cpus": __import__("os").cpu_count(), "platform": platform.platform()},
+              "command": "python bench/bench_capture.py " + " ".join(argv or sys.argv[1:]), "rows": rows}
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(result, indent=1) + "\n")
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
