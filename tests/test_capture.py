@@ -241,6 +241,23 @@ def test_report_html_is_a_page_in_a_real_browser(photos, tmp_path, variant_llvm_
     assert len(np.unique(picture.reshape(-1, 3), axis=0)) > 200  # pictures drawn, not a blank page
 
 
+def test_three_photos_give_the_models_map_and_say_the_images_cannot_judge_it(photos, tmp_path, variant_llvm_ad_rgb):
+    """Three photos determine a normal but not a judgement: the check abstains (its rank-4 test needs 5
+    observations a pixel) instead of failing inside."""
+    import shutil
+
+    from orchestrate.capture import main
+
+    three = tmp_path / "three"
+    three.mkdir()
+    for f in sorted(photos.iterdir())[::3]:
+        shutil.copy(f, three / f.name)
+    assert main(["--input", str(three), "--out", str(tmp_path / "o"), "--threads", "1"]) == 0
+    report = json.loads((tmp_path / "o" / "report.json").read_text())
+    assert report["verdict"]["images_can_judge"] is False and "only 3 images" in report["verdict"]["why"]
+    assert report["normals"]["source"] == "model" and "too_few_images" in [w["code"] for w in report["warnings"]]
+
+
 def test_a_capture_too_large_for_the_memory_is_refused_before_any_work(photos, tmp_path, capsys, monkeypatch):
     """The estimate is checked against the memory this machine has (here made small), in one line naming --max-side."""
     from orchestrate.capture import estimate, main

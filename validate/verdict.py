@@ -97,6 +97,7 @@ def noise_sigma(images: np.ndarray, mask: np.ndarray) -> float:
 def _weighted_low_rank(m: np.ndarray, w: np.ndarray, rank: int, iters: int = 30) -> np.ndarray:
     """Alternating least squares for m (P, K) ~ B (P, r) @ S (r, K) over the entries with w = 1. Returns B @ S."""
     p, k = m.shape
+    rank = min(rank, k)  # fewer images than the rank: the model is exact (and such a capture is not judged)
     filled = np.where(w > 0, m, (m * w).sum(1, keepdims=True) / np.maximum(w.sum(1, keepdims=True), 1))
     u, s, vt = np.linalg.svd(filled, full_matrices=False)
     S = (np.sqrt(s[:rank])[:, None] * vt[:rank])  # (r, K)
@@ -152,6 +153,10 @@ def explain(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None =
 def verdict(ex: Explanation) -> tuple[bool, str]:
     """(trusted, why) of a capture's explanation."""
     frac = ex.explained_fraction
+    images = ex.keep.shape[0]
+    if images < MIN_OBSERVATIONS:
+        return False, (f"only {images} images: a pixel needs at least {MIN_OBSERVATIONS} unshadowed observations "
+                       "before the images can say whether a normal map explains it")
     if frac >= MIN_EXPLAINED:
         return True, (f"{frac:.0%} of the object is explained by distant lights on a Lambertian surface (at least "
                       f"{MIN_EXPLAINED:.0%} needed): scored on those pixels' unshadowed, unsaturated observations")
