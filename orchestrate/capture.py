@@ -89,10 +89,17 @@ class Shot:
     """The capture as read: linear images, the mask, and where each came from."""
 
     name: str
+    """The object's name (the folder's)."""
     images: np.ndarray
+    """(K, H, W, 3) float32 linear."""
     saturated: np.ndarray | None
+    """(K, H, W, 3) bool: clipped values (lower bounds)."""
     names: list[str]
+    """File names, in the order of `images`."""
     source: dict[str, Any]
+    """What the files said about themselves (report.json `input`)."""
+    mask: np.ndarray | None = None
+    """An object folder's own mask; None for photos."""
 
 
 def probe_input(opts: CaptureOptions) -> tuple[int, int, int]:
@@ -126,7 +133,7 @@ def read_input(opts: CaptureOptions) -> Shot:
     if detect_layout(folder) is not None:
         fd = read_folder(folder, arg="--input")
         return Shot(fd.name, fd.images, fd.saturated, [p.name for p in fd.image_paths],
-                    {"kind": f"object folder ({fd.layout})", "mask": fd.mask})
+                    {"kind": f"object folder ({fd.layout})"}, mask=fd.mask)
     photos = read_photos(folder, opts.input_encoding, opts.max_side)
     return Shot(folder.name or "capture", photos.images, photos.saturated, photos.names,
                 {"kind": "photos", "encoding": photos.encoding, "bit_depth": photos.bit_depth,
@@ -134,6 +141,7 @@ def read_input(opts: CaptureOptions) -> Shot:
 
 
 def find_mask(opts: CaptureOptions, shot: Shot) -> tuple[np.ndarray, dict]:
+    """The object mask (from --mask FILE, the object folder's own, or found from the images) and how it was made."""
     from validate.usable import auto_mask
 
     shape = shot.images.shape[1:3]
@@ -148,8 +156,8 @@ def find_mask(opts: CaptureOptions, shot: Shot) -> tuple[np.ndarray, dict]:
         if not mask.any():
             raise ValueError(f"--mask: {opts.mask!r} marks no pixel of the object (expected white on black)")
         return mask, {"method": "file", "file": opts.mask}
-    if "mask" in shot.source:  # an object folder brings its own
-        return shot.source.pop("mask"), {"method": "the object folder's mask.png"}
+    if shot.mask is not None:  # an object folder brings its own
+        return shot.mask, {"method": "the object folder's mask.png"}
     return auto_mask(shot.images)
 
 
@@ -308,7 +316,7 @@ def run(opts: CaptureOptions) -> dict:
     _variation_picture(shot.images, out / "light_variation.png")
     times["total_s"] = time.perf_counter() - t0
     report = {"input": {"folder": str(opts.input), "images": len(shot.names), "names": shot.names,
-                        "size": list(shot.images.shape[1:3]), **{k: v for k, v in shot.source.items() if k != "mask"}},
+                        "size": list(shot.images.shape[1:3]), **shot.source},
               "mask": {**mask_info, "pixels": int(mask.sum())},
               "warnings": as_dicts(warnings), "measurements": facts,
               "normals": {"convention": opts.convention,
