@@ -2,6 +2,7 @@
 reading, prediction, the physical check and refinement, next to the command's own estimate.
 
     python bench/bench_capture.py --out bench/results/capture.json [--images 4,16,96] [--sides 256,512,1024]
+    python bench/bench_capture.py --reestimate bench/results/capture.json   # the estimate columns from today's code
 
 Each case is a synthetic capture written as 16-bit PNG photos (an ellipsoid with a bumpy surface, Lambertian,
 distant lights spread around the camera, a dark background; no mask, so the automatic mask runs too) at an
@@ -66,10 +67,25 @@ def run_case(k: int, side: int, work: Path) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--out", type=Path)
     p.add_argument("--images", default="4,16,96")
     p.add_argument("--sides", default="256,512,1024")
+    p.add_argument("--reestimate", type=Path, help="rewrite the estimate columns of a recorded output with the "
+                   "command's current estimate (the measurements are kept as recorded)")
     args = p.parse_args(argv)
+    if args.reestimate:
+        from orchestrate.capture import estimate
+
+        result = json.loads(args.reestimate.read_text())
+        for row in result["rows"]:
+            if "error" not in row:
+                e = estimate(row["images"], *row["size"])
+                row["estimate_mib"], row["estimate_s"] = e["peak_mib"], e["seconds"]
+        args.reestimate.write_text(json.dumps(result, indent=1) + "\n")
+        print(f"rewrote the estimates of {args.reestimate}")
+        return 0
+    if args.out is None:
+        p.error("--out is required (unless --reestimate)")
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for side in [int(s) for s in args.sides.split(",")]:

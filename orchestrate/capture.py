@@ -245,28 +245,32 @@ def _plain(value: Any) -> Any:
     return value
 
 
-BASE_MIB = 900.0
-"""Memory of the process before the photos: Python, torch, Mitsuba / Dr.Jit, the model (measured, bench_capture)."""
-BYTES_PER_VALUE = 40.0
-"""Bytes per photo value (K x H x W x 3) held at the peak besides the model's working copies: the float32 stack,
-its per-file float64 decoding, the clipped copy written as the work folder and the folder read back
-(measured, bench_capture)."""
-SECONDS_BASE = 60.0
-"""Seconds that do not grow with the photos: start-up, the fitted check and the refinement at their fitting
-resolution (measured on 2 cores, bench_capture)."""
-SECONDS_PER_MVALUE = 1.0
-"""Seconds per million photo values (reading, the mask, the checks, writing, the model) on 2 cores."""
+# The estimate: a linear fit to bench/bench_capture.py's measurements on 2 cores (4 to 96 photos, 256 to 1024 px;
+# within 4 % of every measured peak and 30 % of every measured time there).
+BASE_MIB = 950.0
+"""Memory before the photos: Python, torch, Mitsuba / Dr.Jit and the model."""
+MIB_PER_IMAGE = 12.5
+"""Memory per photo that does not grow with its size (the model's per-image state, the fit's per-image arrays)."""
+MIB_PER_MVALUE = 19.5
+"""Memory per 2^20 photo values (K x H x W x 3): the float32 stack, its decoding, the work folder read back,
+the model's working copies."""
+SECONDS_BASE = 5.3
+"""Start-up and the fixed part of the check."""
+SECONDS_REFINE = 18.6
+"""The fixed part of the refinement, run from 5 photos on (the check cannot judge fewer)."""
+SECONDS_PER_IMAGE = 0.75
+"""The check and the refinement per photo (at their fitting resolution)."""
+SECONDS_PER_MVALUE = 2.0
+"""Reading, the mask, the capture checks, the model and writing, per million photo values."""
 
 
 def estimate(k: int, h: int, w: int) -> dict:
-    """The command's peak memory (MiB) and time (s) for K photos of h x w, before it runs (bench_capture
-    compares them with what it measures)."""
-    from unips.inference import DEFAULT_TTA, prediction_memory
-
+    """The command's peak memory (MiB) and time (s, on 2 cores) for K photos of h x w, before it runs
+    (bench_capture compares them with what it measures)."""
     values = k * h * w * 3
-    model = prediction_memory("model", (h, w), k, max(h, w), tta=DEFAULT_TTA)
-    return {"peak_mib": round(BASE_MIB + (BYTES_PER_VALUE * values + model) / 2**20),
-            "seconds": round(SECONDS_BASE + SECONDS_PER_MVALUE * values / 1e6, 1)}
+    refine = SECONDS_REFINE if k >= 5 else 0.0
+    return {"peak_mib": round(BASE_MIB + MIB_PER_IMAGE * k + MIB_PER_MVALUE * values / 2**20),
+            "seconds": round(SECONDS_BASE + refine + SECONDS_PER_IMAGE * k + SECONDS_PER_MVALUE * values / 1e6, 1)}
 
 
 def check_resources(opts: CaptureOptions, k: int, h: int, w: int) -> dict:
