@@ -17,7 +17,9 @@ Light directions are estimated from the images alone on the object's outline, wh
 in the image plane along the outline's normal (the occluding contour): the brightness along the outline,
 summed as a vector of its outward normals, points to the light's azimuth, and its length over the object's
 bright level grows with the light's angle from the viewing direction; that length is turned into an angle
-with the curve of an analytic Lambertian sphere (`_strength_curve`). Elongated shapes and albedo patterns on
+with the curve of an analytic Lambertian sphere (`_outline_curves`); light from all around (an environment) leaves
+the vector short but the outline bright, so the mean brightness of the outline gives a second angle and the
+larger is taken. Elongated shapes and albedo patterns on
 the outline bias it: the two light warnings are hints, never fatal.
 """
 from __future__ import annotations
@@ -41,7 +43,8 @@ the view axis). Set above 15 deg so that lights within 15 deg are caught on shap
 ONE_SIDED_DEG = 10.0
 """Images lit from further off the view axis than this count for the one-sided test."""
 SHIFT_PX = 1.0
-"""A shift between two images above this many pixels means the camera moved (`camera_shifts`)."""
+"""A shift between two images above this many pixels, seen in at least two of them, means the camera moved
+(`camera_shifts`)."""
 MIN_SEPARABILITY = 0.6
 """Otsu's separability of the variation map below which the automatic mask refuses."""
 BACKDROP_RATIO = 0.5
@@ -156,40 +159,44 @@ def _contour(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return ring, np.stack([nx[ring], ny[ring]], axis=1) / norm[ring][:, None]
 
 
-def _contour_light(images: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per image: (strength, azimuth in degrees) of the light on the outline: 4 |mean(I n)| over the object's
-    bright level (99th percentile), n the outline's outward normal; on a Lambertian sphere the strength is
-    about sin(polar angle), the azimuth the light's."""
+def _contour_light(images: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per image: (strength, mean, azimuth in degrees) of the light on the outline: strength 4 |mean(I n)| and mean
+    mean(I), both over the object's bright level (99th percentile), n the outline's outward normal. On a
+    Lambertian sphere under one distant light the strength is about sin(polar angle) and the azimuth the light's;
+    light from all around (an environment) leaves the strength small but the outline bright, which the mean sees."""
     ring, normals = _contour(mask)
     gray = _gray(images)
     values = gray[:, ring]  # (K, N)
     level = np.maximum(np.percentile(gray[:, mask], 99, axis=1), 1e-12)
     vx, vy = (values * normals[:, 0]).mean(axis=1), (values * normals[:, 1]).mean(axis=1)
-    return 4 * np.hypot(vx, vy) / level, np.degrees(np.arctan2(vy, vx))
+    return 4 * np.hypot(vx, vy) / level, values.mean(axis=1) / level, np.degrees(np.arctan2(vy, vx))
 
 
-@lru_cache(maxsize=1)
-def _strength_curve() -> tuple[np.ndarray, np.ndarray]:
-    """(polar angle in degrees, outline strength) of a Lambertian sphere of radius 100 px lit from that angle
-    (the band inside the outline sees some light even from the front: the curve calibrates that away)."""
-    size = 216
+@lru_cache(maxsize=8)
+def _outline_curves(radius: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(polar angle in degrees, outline strength, outline mean) of a Lambertian sphere of `radius` pixels (the
+    object's equivalent radius: the outline band's width in pixels matters) lit from that angle (the band inside
+    the outline sees some light even from the front: the curves calibrate that away)."""
+    radius = max(radius, 8)
+    size = 2 * radius + 16
     rows, cols = np.mgrid[0:size, 0:size] + 0.5
-    x, y = (cols - size / 2) / 100, -(rows - size / 2) / 100
+    x, y = (cols - size / 2) / radius, -(rows - size / 2) / radius
     mask = x * x + y * y < 1
     z = np.sqrt(np.clip(1 - x * x - y * y, 0, 1))
     thetas = np.arange(0.0, 90.5, 1.0)
     t = np.radians(thetas)
     images = np.clip(x[None] * np.sin(t)[:, None, None] + z[None] * np.cos(t)[:, None, None], 0, None) * mask
-    strength, _ = _contour_light(np.repeat(images[..., None], 3, axis=-1), mask)
-    return thetas, np.maximum.accumulate(strength)
+    strength, mean, _ = _contour_light(np.repeat(images[..., None], 3, axis=-1), mask)
+    return thetas, np.maximum.accumulate(strength), np.maximum.accumulate(mean)
 
 
 def light_angles(images: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per image: (angle from the viewing direction, azimuth), degrees, estimated from the light on the object's
-    outline (module doc); NaN for an image with no light on the object."""
-    strength, azimuth = _contour_light(images, mask)
-    thetas, curve = _strength_curve()
-    polar = np.interp(strength, curve, thetas)
+    outline (module doc): the larger of the angles its strength and its mean say; NaN for an image with no light
+    on the object."""
+    strength, mean, azimuth = _contour_light(images, mask)
+    thetas, strength_curve, mean_curve = _outline_curves(int(round(np.sqrt(mask.sum() / np.pi))))
+    polar = np.maximum(np.interp(strength, strength_curve, thetas), np.interp(mean, mean_curve, thetas))
     dark = _gray(images)[:, mask].max(axis=1) <= 0
     polar[dark], azimuth[dark] = np.nan, np.nan
     return polar, azimuth
@@ -203,7 +210,9 @@ def _largest_gap_deg(angles: np.ndarray) -> float:
 
 def _best_shift(a: np.ndarray, b: np.ndarray, lit_a: np.ndarray, lit_b: np.ndarray, reach: int) -> tuple[int, int]:
     """The shift (dx, dy) of image b (log values) onto image a that leaves the least edge energy in their log ratio
-    where both are lit, when it cuts the energy at (0, 0) by a fifth; else (0, 0)."""
+    where both are lit. Taken only when it lies strictly inside the searched square (a minimum on its border is
+    where the overlap of two differently lit images shrinks to a few smooth pixels, not a motion: measured on
+    rendered objects) and cuts the energy at (0, 0) by more than a third; else (0, 0)."""
     r = reach
     ref, ref_lit = a[r:-r, r:-r], lit_a[r:-r, r:-r]
     h, w = ref.shape
@@ -212,9 +221,10 @@ def _best_shift(a: np.ndarray, b: np.ndarray, lit_a: np.ndarray, lit_b: np.ndarr
         for dx in range(-r, r + 1):
             both = ref_lit & lit_b[r + dy:r + dy + h, r + dx:r + dx + w]
             gy, gx = np.gradient(b[r + dy:r + dy + h, r + dx:r + dx + w] - ref)
-            energy[(dx, dy)] = float(np.hypot(gx, gy)[both].mean()) if both.any() else np.inf
+            energy[(dx, dy)] = float(np.hypot(gx, gy)[both].mean()) if both.sum() >= 50 else np.inf
     best = min(energy, key=energy.get)
-    return best if best != (0, 0) and energy[best] < 0.8 * energy[(0, 0)] else (0, 0)
+    inside = max(abs(best[0]), abs(best[1])) < r
+    return best if inside and best != (0, 0) and energy[best] < 0.65 * energy[(0, 0)] else (0, 0)
 
 
 def camera_shifts(images: np.ndarray, reach: int = 6, sample: int = 24, references: int = 4) -> np.ndarray:
@@ -247,6 +257,16 @@ def camera_shifts(images: np.ndarray, reach: int = 6, sample: int = 24, referenc
     return out
 
 
+def _agree(shifts: np.ndarray) -> bool:
+    """Two or more shifts that are the same motion (within a pixel), seen from either side (s or -s): what a camera
+    moved between two groups of photos leaves; a lone shift is not taken."""
+    for i in range(len(shifts)):
+        for j in range(i + 1, len(shifts)):
+            if min(np.abs(shifts[i] - shifts[j]).max(), np.abs(shifts[i] + shifts[j]).max()) <= 1:
+                return True
+    return False
+
+
 def _names(names: list[str], idx) -> str:
     idx = list(idx)
     shown = ", ".join(names[i] for i in idx[:4])
@@ -272,6 +292,8 @@ def capture_warnings(images: np.ndarray, mask: np.ndarray | None, saturated: np.
     shifts = camera_shifts(images)
     size = np.hypot(shifts[:, 0], shifts[:, 1])
     moved = np.nonzero(np.nan_to_num(size) > SHIFT_PX)[0]
+    if not _agree(shifts[moved]):
+        moved = moved[:0]  # one image alone with a shift is a chance minimum, not a camera that moved
     facts["camera_shift_px"] = [None if np.isnan(x) else [int(x), int(y)] for x, y in shifts]
     if len(moved):
         out.append(CaptureWarning("camera_moved", f"the camera moved: {len(moved)} image(s) are shifted against the "

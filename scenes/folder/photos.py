@@ -153,7 +153,8 @@ def read_photos(folder: str | Path, encoding: str = "auto", max_side: int | None
         if first is None:
             first = (codes.shape, depth)
         elif (codes.shape, depth) != first:
-            what = "orientation" if codes.shape[:2] == first[0][1::-1] else "size" if codes.shape != first[0] else "bit depth"
+            what = ("bit depth" if codes.shape == first[0] else "orientation" if codes.shape[:2] == first[0][1::-1]
+                    else "size")
             raise ValueError(f"{flag}: {path.name} differs in {what} from {files[0].name} "
                              f"({codes.shape[1]}x{codes.shape[0]} {depth}-bit, expected {first[0][1]}x{first[0][0]} "
                              f"{first[1]}-bit): every photo of a capture must come from one camera setting")
