@@ -273,7 +273,7 @@ def estimate(k: int, h: int, w: int) -> dict:
             "seconds": round(SECONDS_BASE + refine + SECONDS_PER_IMAGE * k + SECONDS_PER_MVALUE * values / 1e6, 1)}
 
 
-def check_resources(opts: CaptureOptions, k: int, h: int, w: int) -> dict:
+def check_resources(k: int, h: int, w: int) -> dict:
     """The estimate, refused in one line above the memory this machine has available."""
     from scenes.cli.limits import check_memory
 
@@ -291,7 +291,7 @@ def run(opts: CaptureOptions) -> dict:
     out = Path(opts.out)
     check_output_folder(out)
     claim_outputs([out / n for n in OUTPUTS], opts.overwrite, owner="orchestrate.capture")
-    need = check_resources(opts, *probe_input(opts))
+    need = check_resources(*probe_input(opts))
     shot = read_input(opts)
     times["read_s"] = time.perf_counter() - t0
     found = capture_warnings(shot.images, None, names=shot.names)[0]

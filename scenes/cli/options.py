@@ -23,6 +23,7 @@ import inspect
 import math
 import re
 import textwrap
+import types
 import typing
 import warnings
 from typing import Any, Iterable, Literal, Sequence
@@ -132,12 +133,18 @@ def _strip(tp: Any) -> tuple[Any, tuple]:
     while typing.get_origin(tp) is typing.Annotated:
         extras += tuple(tp.__metadata__)
         tp = typing.get_args(tp)[0]
-    if typing.get_origin(tp) in (typing.Union, getattr(__import__("types"), "UnionType", None)):
+    if typing.get_origin(tp) in (typing.Union, types.UnionType):
         args = [a for a in typing.get_args(tp) if a is not type(None)]
         if len(args) == 1:
             inner, more = _strip(args[0])
             return inner, extras + more
     return tp, extras
+
+
+def _allows_none(tp: Any) -> bool:
+    while typing.get_origin(tp) is typing.Annotated:
+        tp = typing.get_args(tp)[0]
+    return type(None) in typing.get_args(tp)
 
 
 def _default(f: dataclasses.Field) -> Any:
@@ -206,10 +213,7 @@ def check_fields(cfg: Any) -> Any:
         meta, value, name = f.metadata.get(_KEY, {}), getattr(cfg, f.name), flag_name(cls, f)
         if value is tyro.MISSING:
             raise ValueError(f"{name}: required")
-        optional = type(None) in typing.get_args(typing.get_args(hints[f.name])[0]
-                                                 if typing.get_origin(hints[f.name]) is typing.Annotated
-                                                 else hints[f.name])
-        if (value is None and optional) or _is_nested(tp):
+        if (value is None and _allows_none(hints[f.name])) or _is_nested(tp):
             continue
         bounds = {k: meta.get(k) for k in ("minimum", "maximum")}
         origin = typing.get_origin(tp)
