@@ -285,7 +285,7 @@ def check_resources(k: int, h: int, w: int) -> dict:
 
 def run(opts: CaptureOptions) -> dict:
     """The whole command (main without the error handling); returns report.json's content."""
-    from validate.usable import as_dicts, capture_warnings
+    from validate.usable import as_dicts, capture_warnings, image_count_warning
 
     t0, times = time.perf_counter(), {}
     out = Path(opts.out)
@@ -294,9 +294,9 @@ def run(opts: CaptureOptions) -> dict:
     need = check_resources(*probe_input(opts))
     shot = read_input(opts)
     times["read_s"] = time.perf_counter() - t0
-    found = capture_warnings(shot.images, None, names=shot.names)[0]
-    if found and found[0].fatal:
-        raise UsageError(f"--input: {found[0].message}")
+    count = image_count_warning(len(shot.images))
+    if count and count.fatal:  # before the mask: two photos say nothing about one
+        raise UsageError(f"--input: {count.message}")
     mask, mask_info = find_mask(opts, shot)
     warnings, facts = capture_warnings(shot.images, mask, shot.saturated, shot.names)
     if warnings and warnings[0].fatal:

@@ -273,22 +273,28 @@ def _names(names: list[str], idx) -> str:
     return shown + (f" and {len(idx) - 4} more" if len(idx) > 4 else "")
 
 
-def capture_warnings(images: np.ndarray, mask: np.ndarray | None, saturated: np.ndarray | None = None,
+def image_count_warning(k: int) -> CaptureWarning | None:
+    """The warning of a capture of `k` photos, fatal below MIN_IMAGES (known before anything else is looked at)."""
+    if k < MIN_IMAGES:
+        return CaptureWarning("too_few_images", f"only {k} image(s): photometric stereo needs at least {MIN_IMAGES} "
+                              f"photos under different lights (take {FEW_IMAGES} or more, the lamp moved around the "
+                              "camera between shots)", fatal=True)
+    if k < FEW_IMAGES:
+        return CaptureWarning("too_few_images", f"{k} images: with unknown lights the normals are poorly determined "
+                              f"below {FEW_IMAGES}; take more photos with the lamp in other places")
+    return None
+
+
+def capture_warnings(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None = None,
                      names: list[str] | None = None) -> tuple[list[CaptureWarning], dict]:
-    """The warnings of a capture (the fatal ones first) and the measurements behind them. `mask` None: only
-    the checks that need no mask (image count, camera motion)."""
+    """The warnings of a capture (the fatal ones first) and the measurements behind them."""
     k = len(images)
     names = names or [f"image {i}" for i in range(k)]
-    out: list[CaptureWarning] = []
     facts: dict = {"images": k}
-    if k < MIN_IMAGES:
-        out.append(CaptureWarning("too_few_images", f"only {k} image(s): photometric stereo needs at least {MIN_IMAGES} "
-                                  f"photos under different lights (take {FEW_IMAGES} or more, the lamp moved around "
-                                  "the camera between shots)", fatal=True))
+    count = image_count_warning(k)
+    out: list[CaptureWarning] = [count] if count else []
+    if count and count.fatal:
         return out, facts
-    if k < FEW_IMAGES:
-        out.append(CaptureWarning("too_few_images", f"{k} images: with unknown lights the normals are poorly "
-                                  f"determined below {FEW_IMAGES}; take more photos with the lamp in other places"))
     shifts = camera_shifts(images)
     size = np.hypot(shifts[:, 0], shifts[:, 1])
     moved = np.nonzero(np.nan_to_num(size) > SHIFT_PX)[0]
@@ -299,8 +305,6 @@ def capture_warnings(images: np.ndarray, mask: np.ndarray | None, saturated: np.
         out.append(CaptureWarning("camera_moved", f"the camera moved: {len(moved)} image(s) are shifted against the "
                                   f"others ({_names(names, moved)}, up to {np.nanmax(size):.0f} px): fix the camera on "
                                   "a tripod and release it remotely or with a timer"))
-    if mask is None:
-        return out, facts
     gray = _gray(images)[:, mask]
     level = np.percentile(gray, 99, axis=1)
     facts["object_level_p99"] = np.round(level, 4).tolist()
