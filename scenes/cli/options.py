@@ -166,7 +166,7 @@ def on_command_line(cls: type, f: dataclasses.Field) -> bool:
 
 def flag_name(cls: type, f: dataclasses.Field) -> str:
     """The command-line name of a field (`--out`, or a positional's metavar)."""
-    tp, extras = _strip(_hints(cls)[f.name])
+    _, extras = _strip(_hints(cls)[f.name])
     confs = [e for e in extras if type(e).__name__ == "_ArgConfig"]
     if any("Positional" in repr(e) for e in extras):
         return next((c.metavar for c in confs if c.metavar), f.name.upper())
