@@ -225,8 +225,9 @@ def capture_presets(card: dict) -> str:
     """The table of capture presets, from `wildgen.presets.PRESETS` (the card is not used)."""
     from wildgen.presets import PRESETS
 
-    rows = [[f"`{p.name}`", p.about, f"`{p.lights}`", f"{p.images} images of {p.width} x {p.height} px", p.camera,
-             f"`{p.sensor}`"] for p in PRESETS.values()]
+    rows = [[f"`{name}`", p.about, ", ".join(f"`{f}`" for f in p.config.lights),
+             f"{p.config.images} images of {p.config.width} x {p.config.height} px", p.config.camera,
+             f"`{p.config.sensor}`"] for name, p in PRESETS.items()]
     return markdown_table(["preset", "imitates", "lights", "images", "camera", "sensor"], rows)
 
 
@@ -234,9 +235,9 @@ def complexity_levels(card: dict) -> str:
     """The table of complexity levels, from `wildgen.levels.LEVELS` (the card is not used)."""
     from wildgen.levels import LEVELS
 
-    rows = [[str(lv.level), lv.about, ", ".join(f"`{f}`" for f in lv.lights), lv.materials,
-             f"{lv.shapes} ({', '.join(lv.shape_kinds)})", f"{lv.detail:.0%}", lv.cluster or "1"]
-            for lv in LEVELS.values()]
+    rows = [[str(n), lv.about, ", ".join(f"`{f}`" for f in lv.config.lights), lv.config.materials,
+             f"{lv.config.shapes} ({', '.join(lv.config.shape_kinds)})", f"{lv.config.detail:.0%}",
+             lv.config.cluster or "1"] for n, lv in LEVELS.items()]
     return markdown_table(["level", "scenes", "lights", "materials", "shapes (procedural kinds)", "detail", "objects"], rows)
 
 

@@ -78,7 +78,7 @@ def test_level_fills_the_configuration_and_is_recorded(tmp_path):
     level5 = render_dataset(tmp_path / "l5", *tiny, "--level", "5", "--lights", "point")
     for folder in level1:
         scene = json.loads((folder / "scene.json").read_text())
-        assert scene["level"] == 1 and scene["light_family"] in LEVELS[1].lights
+        assert scene["level"] == 1 and scene["light_family"] in LEVELS[1].config.lights
         assert scene["material"]["material_class"] == "diffuse" and scene["parts"] == []
     for folder in level5:
         scene = json.loads((folder / "scene.json").read_text())

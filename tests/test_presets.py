@@ -201,7 +201,8 @@ def test_each_preset_sets_its_entry_and_nothing_else():
     plain = resolve()
     for name, preset in PRESETS.items():
         assert resolve("--preset", name) == replace(plain, preset=name, **preset.overrides()), name
-        assert sensor_named(preset.sensor).name == preset.sensor and light_family(preset.lights), name
+        assert sensor_named(preset.config.sensor).name == preset.config.sensor, name
+        assert all(light_family(f) for f in preset.config.lights), name
         assert preset.about.strip()
 
 

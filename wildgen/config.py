@@ -8,11 +8,15 @@ from scenes.cli.options import CommaList, Repeatable, arg, auto_is_none, check_f
 from scenes.renderer.variant import PREFERENCE as VARIANTS
 from scenes.sensor import SENSORS
 from wildgen.light_families import LIGHT_FAMILIES
-from wildgen.presets import PRESETS
 
 MATERIAL_CLASSES = ("diffuse", "specular", "metallic")
 PROCEDURAL_KINDS = ("blob", "superquadric", "bumpy_sphere", "torus")
 """Procedural shapes the generator draws (`scenes.procedural`)."""
+PRESET_NAMES = ("diligent", "phone-flash", "light-stage", "display")
+"""The names of the capture presets (`wildgen.presets.PRESETS`, which builds them as `GenConfig` instances
+and checks that it holds exactly these), in the order of --help."""
+LEVEL_NUMBERS = (1, 2, 3, 4, 5)
+"""The complexity levels (`wildgen.levels.LEVELS`, likewise checked), simplest first."""
 MAX_ENTROPY = 8.0
 """Largest entropy (bits) of the visible normals' 16 x 16 histogram: log2(256)."""
 
@@ -21,11 +25,11 @@ MAX_ENTROPY = 8.0
 class GenConfig:
     """Everything that determines a dataset; with the same values the same files come out."""
 
-    preset: Literal[tuple(PRESETS)] | None = None
+    preset: Literal[PRESET_NAMES] | None = None
     """Capture preset (`wildgen.presets.PRESETS`): sets --lights, --images, --width, --height, --camera and
     --sensor to imitate a kind of rig (DiLiGenT's LED grid, a phone with flash, a light stage, a screen); flags
     given explicitly keep their values. Recorded in the manifest's configuration."""
-    level: int | None = option(None, minimum=1, maximum=5)
+    level: int | None = option(None, minimum=LEVEL_NUMBERS[0], maximum=LEVEL_NUMBERS[-1])
     """Complexity level (`wildgen.levels.LEVELS`, 1 simple to 5 complex): sets --shapes, --shape-kinds,
     --materials, --lights, --detail and --cluster (flags given explicitly keep their values); recorded in each
     scene.json as `level` for `unips.train --curriculum`."""
