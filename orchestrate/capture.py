@@ -2,8 +2,9 @@
 
     python -m orchestrate.capture --input PHOTOS --out OUT [--mask FILE|auto] [--convention opengl|opencv]
 
-1. reads a folder of photos (JPEG, 8/16-bit PNG or TIFF, EXR; any file names, natural order; 8-bit files
-   linearised from sRGB, EXIF exposure differences normalised: `scenes.folder.photos`), or an object folder
+1. reads a folder of photos (JPEG, 8/16-bit PNG or TIFF, EXR, camera RAW; any file names, natural order; 8-bit
+   files linearised from sRGB, RAW files developed linear by LibRaw, EXIF exposure differences normalised:
+   `scenes.folder.photos`), or an object folder
    in one of the toolkit's layouts through the one reader;
 2. takes the mask from `--mask FILE`, or finds it from the images alone (`--mask auto`:
    `validate.usable.auto_mask`), or refuses in one line asking for one;
@@ -51,16 +52,17 @@ class CaptureOptions:
     """The command line of orchestrate.capture."""
 
     input: Annotated[str, arg(metavar="DIR")] = REQUIRED
-    """Folder of photos (JPEG, PNG, TIFF, EXR; any names) of one object under different lights, the camera
-    still; or an object folder in one of the toolkit's layouts."""
+    """Folder of photos (JPEG, PNG, TIFF, EXR, or camera RAW: DNG, CR2, CR3, NEF, ARW, ORF, RW2, RAF; any names)
+    of one object under different lights, the camera still; or an object folder in one of the toolkit's
+    layouts."""
     out: Annotated[str, arg(metavar="DIR")] = REQUIRED
     """Output folder: normal.png, normal.exr, mask.png, light_variation.png, report.json."""
     mask: Annotated[str, arg(metavar="{FILE,auto}")] = "auto"
     """Object mask (white object on black, the size of the photos), or 'auto' to find it from how the light
     changes each pixel (refused in one line where it cannot)."""
     input_encoding: Literal["auto", "srgb", "linear"] = "auto"
-    """How the photos' values are encoded: auto (sRGB for 8-bit files, linear for 16-bit and EXR), srgb or
-    linear."""
+    """How the photos' values are encoded: auto (sRGB for 8-bit files, linear for 16-bit, EXR and camera RAW),
+    srgb (refused for RAW files) or linear."""
     convention: Literal["opengl", "opencv"] = "opengl"
     """Frame of the written normals: opengl (x right, y up, z toward the camera) or opencv (y down, z away)."""
     max_side: Annotated[int | None, arg(help_behavior_hint="(default: the photos' own size)")] = option(None, minimum=32)
@@ -105,10 +107,8 @@ class Shot:
 def probe_input(opts: CaptureOptions) -> tuple[int, int, int]:
     """(photos, height, width) of --input after --max-side, from the file list and one image: what the estimate
     needs before anything large is read."""
-    import cv2
-
     from scenes.folder.layouts import detect_layout, read_folder
-    from scenes.folder.photos import photo_files
+    from scenes.folder.photos import photo_files, photo_shape
 
     folder = Path(opts.input)
     if detect_layout(folder) is not None:
@@ -116,10 +116,7 @@ def probe_input(opts: CaptureOptions) -> tuple[int, int, int]:
         k, (h, w) = fd.num_files, fd.shape
     else:
         files = photo_files(folder)
-        first = cv2.imread(str(files[0]), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
-        if first is None:
-            raise ValueError(f"--input: cannot read {str(files[0])!r} as an image")
-        k, (h, w) = len(files), first.shape[:2]
+        k, (h, w) = len(files), photo_shape(files[0])
     f = min(1.0, opts.max_side / max(h, w)) if opts.max_side else 1.0
     return k, max(1, round(h * f)), max(1, round(w * f))
 
@@ -137,7 +134,7 @@ def read_input(opts: CaptureOptions) -> Shot:
     photos = read_photos(folder, opts.input_encoding, opts.max_side)
     return Shot(folder.name or "capture", photos.images, photos.saturated, photos.names,
                 {"kind": "photos", "encoding": photos.encoding, "bit_depth": photos.bit_depth,
-                 "exposure": photos.exposure})
+                 "exposure": photos.exposure, **({"raw": photos.raw} if photos.raw else {})})
 
 
 def find_mask(opts: CaptureOptions, shot: Shot) -> tuple[np.ndarray, dict]:

@@ -1,4 +1,5 @@
-"""A plain folder of photos: any file names, 8/16-bit PNG and TIFF, JPEG, float EXR; no mask, no light files.
+"""A plain folder of photos: any file names, 8/16-bit PNG and TIFF, JPEG, float EXR, camera RAW; no mask, no light
+files.
 
 `read_photos` returns the images linear, in one float32 array, with what each file said about itself:
 
@@ -8,8 +9,12 @@
   takes 8-bit files as sRGB (as cameras and phones write JPEG and PNG; an EXIF colour space other than sRGB
   is refused in auto mode, since the curve would be unknown) and 16-bit and EXR files as linear; `srgb` or
   `linear` force one for all files;
-- EXIF exposure time and ISO, where every image has them and they differ, normalise the images to the first
-  image's exposure (a photo taken at twice the exposure is halved), recorded per image;
+- camera RAW files (DNG, CR2, CR3, NEF, ARW, ORF, RW2, RAF) are developed linear by LibRaw (`scenes.folder.raw`:
+  linear demosaic, camera white balance, no tone curve, linear sRGB), recorded per image; they are linear, so
+  `srgb` is refused for them, and a folder mixing RAW and other files is refused (their scales differ);
+- EXIF exposure time and ISO (for RAW files, as LibRaw reads them), where every image has them and they differ,
+  normalise the images to the first image's exposure (a photo taken at twice the exposure is halved), recorded
+  per image with the fields a file did not give;
 - a channel at the file's largest code is saturated (a lower bound of the true value), recorded;
 - mixed sizes, orientations or bit depths are one ValueError naming the first file that differs.
 
@@ -24,7 +29,9 @@ from typing import Any
 
 import numpy as np
 
-PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".exr")
+from scenes.folder.raw import RAW_SUFFIXES, is_raw, raw_shape, read_raw
+
+PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".exr", *RAW_SUFFIXES)
 """File suffixes read as photos (case-insensitive)."""
 ENCODINGS = ("auto", "srgb", "linear")
 """How encoded values become linear: `auto` (sRGB for 8-bit files, linear otherwise), or one for all files."""
@@ -46,9 +53,13 @@ class Photos:
     encoding: list[str]
     """Per image: 'srgb' or 'linear', how its values were linearised."""
     bit_depth: int
-    """8, 16 or 32 (float EXR), the same for every file."""
+    """8, 16 or 32 (float EXR), the same for every file (16 for RAW files: LibRaw develops them to 16 bits)."""
     exposure: list[dict[str, Any]] = field(default_factory=list)
-    """Per image: EXIF `exposure_time_s` and `iso` where present, and the `scale` applied (1 when none)."""
+    """Per image: EXIF `exposure_time_s` and `iso` where present, `not_in_file` (those of the two the file did
+    not give, where any), and the `scale` applied (1 when none)."""
+    raw: list[dict[str, Any]] = field(default_factory=list)
+    """Per image, for a folder of camera RAW files: how LibRaw developed it (`scenes.folder.raw`: white-balance
+    multipliers, black and white levels, demosaic, colour space, rawpy / LibRaw versions); empty otherwise."""
 
 
 def photo_files(folder: str | Path, flag: str = "--input") -> list[Path]:
@@ -61,7 +72,29 @@ def photo_files(folder: str | Path, flag: str = "--input") -> list[Path]:
     files = [p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in PHOTO_SUFFIXES]
     if not files:
         raise ValueError(f"{flag}: no photos in {str(folder)!r} (expected files ending in {', '.join(PHOTO_SUFFIXES)})")
-    return natsorted(files, key=lambda p: p.name, alg=ns.IGNORECASE)
+    files = natsorted(files, key=lambda p: p.name, alg=ns.IGNORECASE)
+    raws = [p for p in files if is_raw(p)]
+    if raws and len(raws) != len(files):
+        other = next(p for p in files if not is_raw(p))
+        raise ValueError(f"{flag}: {str(folder)!r} mixes camera RAW files ({raws[0].name}) with other photos "
+                         f"({other.name}): their values are on different scales; expected one kind per capture")
+    return files
+
+
+def photo_shape(path: str | Path, flag: str = "--input") -> tuple[int, int]:
+    """(height, width) of one photo as `read_photos` reads it (orientation applied)."""
+    if is_raw(path):
+        return raw_shape(path, flag)
+    if Path(path).suffix.lower() == ".exr":
+        from scenes.images import read_exr
+
+        return read_exr(path).shape[:2]
+    import cv2
+
+    first = cv2.imread(str(path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
+    if first is None:
+        raise ValueError(f"{flag}: cannot read {str(path)!r} as an image")
+    return first.shape[:2]
 
 
 def _exif(img: Any) -> dict[str, Any]:
@@ -85,6 +118,26 @@ def _read_exif(path: Path) -> dict[str, Any]:
             return _exif(img)
     except (UnidentifiedImageError, OSError):
         return {}  # no EXIF to read; the pixels are read (or refused) by OpenCV
+
+
+@dataclass
+class _File:
+    """One photo as read: its codes, what it said about itself and, for RAW files, how it was developed."""
+
+    codes: np.ndarray
+    """(H, W, 3) float64: codes in [0, 1] (EXR: linear floats; RAW: developed linear)."""
+    depth: int
+    exif: dict[str, Any]
+    saturated: np.ndarray | None = None
+    """(H, W, 3) bool where the reader knows better than 'at the largest code' (RAW files)."""
+    raw: dict[str, Any] | None = None
+
+
+def _read_file(path: Path, flag: str) -> _File:
+    if is_raw(path):
+        codes, saturated, exif, record = read_raw(path, flag)
+        return _File(codes, 16, exif, saturated, record)
+    return _File(*_read_one(path, flag))
 
 
 def _read_one(path: Path, flag: str) -> tuple[np.ndarray, int, dict[str, Any]]:
@@ -139,6 +192,14 @@ def _downscale(image: np.ndarray, max_side: int | None) -> np.ndarray:
     return cv2.resize(image, size, interpolation=cv2.INTER_AREA)
 
 
+def _exposure_record(exif: dict[str, Any], scale: float) -> dict[str, Any]:
+    """What report.json records of one image's exposure: the EXIF fields read, those the file did not give, the
+    scale applied."""
+    out = {k: v for k, v in exif.items() if k != "color_space"}
+    missing = [k for k in ("exposure_time_s", "iso") if k not in exif]
+    return {**out, **({"not_in_file": missing} if missing else {}), "scale": scale}
+
+
 def read_photos(folder: str | Path, encoding: str = "auto", max_side: int | None = None,
                 flag: str = "--input") -> Photos:
     """Every photo of `folder`, linear (see the module doc); `max_side` downscales (area average) so that the
@@ -146,10 +207,14 @@ def read_photos(folder: str | Path, encoding: str = "auto", max_side: int | None
     if encoding not in ENCODINGS:
         raise ValueError(f"--input-encoding: got {encoding!r}, expected one of {', '.join(ENCODINGS)}")
     files = photo_files(folder, flag)
-    images, saturated, kinds, exifs = [], [], [], []
+    if encoding == "srgb" and is_raw(files[0]):
+        raise ValueError(f"--input-encoding: got 'srgb' for camera RAW files ({files[0].name}, ...), which hold linear "
+                         "sensor values; expected auto or linear")
+    images, saturated, kinds, exifs, records = [], [], [], [], []
     first: tuple[tuple[int, ...], int] | None = None
     for path in files:
-        codes, depth, exif = _read_one(path, flag)
+        f = _read_file(path, flag)
+        codes, depth = f.codes, f.depth
         if first is None:
             first = (codes.shape, depth)
         elif (codes.shape, depth) != first:
@@ -158,16 +223,18 @@ def read_photos(folder: str | Path, encoding: str = "auto", max_side: int | None
             raise ValueError(f"{flag}: {path.name} differs in {what} from {files[0].name} "
                              f"({codes.shape[1]}x{codes.shape[0]} {depth}-bit, expected {first[0][1]}x{first[0][0]} "
                              f"{first[1]}-bit): every photo of a capture must come from one camera setting")
-        lin, kind = _linear(codes, depth, encoding, exif, path, flag)
+        lin, kind = _linear(codes, depth, encoding, f.exif, path, flag)
         if not np.all(np.isfinite(lin)):
             raise ValueError(f"{flag}: {path.name} holds NaN or infinite values")
-        saturated.append(_downscale((codes >= 1.0).astype(np.uint8), max_side) > 0 if depth != 32
+        sat = f.saturated if f.saturated is not None else codes >= 1.0
+        saturated.append(_downscale(sat.astype(np.uint8), max_side) > 0 if depth != 32
                          else np.zeros(_downscale(codes, max_side).shape, bool))
         images.append(_downscale(lin.astype(np.float32), max_side))
         kinds.append(kind)
-        exifs.append(exif)
+        exifs.append(f.exif)
+        if f.raw is not None:
+            records.append(f.raw)
     scales = _exposure_scales(exifs)
     stack = np.stack([img * np.float32(s) for img, s in zip(images, scales)])
-    exposure = [{**{k: v for k, v in e.items() if k != "color_space"}, "scale": s} for e, s in zip(exifs, scales)]
     return Photos(images=stack, saturated=np.stack(saturated), names=[p.name for p in files], encoding=kinds,
-                  bit_depth=first[1], exposure=exposure)
+                  bit_depth=first[1], exposure=[_exposure_record(e, s) for e, s in zip(exifs, scales)], raw=records)
