@@ -124,6 +124,20 @@ def test_mixed_photos_are_one_line_naming_the_file(tmp_path):
         read_photos(tmp_path / "empty")
 
 
+def test_the_size_probe_before_reading_takes_exr_and_turned_photos_as_the_reader_does(tmp_path):
+    """orchestrate.capture sizes its memory estimate from one file before reading: OpenCV alone does not
+    decode EXR, so the probe goes through the reader's own decoders."""
+    from orchestrate.capture import CaptureOptions, probe_input
+    from scenes.images import write_exr
+
+    for i in range(2):
+        write_exr(tmp_path / f"{i}.exr", np.ones((5, 7, 3), np.float32))
+    assert probe_input(CaptureOptions(input=str(tmp_path), out=str(tmp_path / "o"))) == (2, 5, 7)
+    (tmp_path / "jpg").mkdir()
+    _jpeg_with_exif(tmp_path / "jpg" / "p.jpg", np.zeros((6, 9, 3), np.uint8), 6)
+    assert probe_input(CaptureOptions(input=str(tmp_path / "jpg"), out=str(tmp_path / "o"))) == (1, 9, 6)  # turned
+
+
 # ------------------------------------------------------------------------------------------ capture checks
 
 N96, M96 = sphere(96, pad=8)

@@ -77,7 +77,8 @@ def photo_files(folder: str | Path, flag: str = "--input") -> list[Path]:
     if raws and len(raws) != len(files):
         other = next(p for p in files if not is_raw(p))
         raise ValueError(f"{flag}: {str(folder)!r} mixes camera RAW files ({raws[0].name}) with other photos "
-                         f"({other.name}): their values are on different scales; expected one kind per capture")
+                         f"({other.name}): their values are on different scales; expected one kind per capture (move the RAW "
+                         "or the other files out of the folder)")
     return files
 
 
