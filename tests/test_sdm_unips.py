@@ -9,6 +9,7 @@ both networks run on the same tiny input (canonical 32, 64 x 64 px: the publishe
 from __future__ import annotations
 
 import importlib
+import json
 import sys
 import types
 from pathlib import Path
@@ -221,3 +222,57 @@ def test_unreadable_files_are_one_line(tmp_path) -> None:
     (tmp_path / "list" / "normal").mkdir(parents=True)
     torch.save([torch.zeros(1)], tmp_path / "list" / "normal" / "nml.pytmodel")
     assert "expected a state dict" in _one_line_error(tmp_path / "list")
+
+
+# -- the published preprocessing and the prediction CLI ------------------------------------------------------
+
+def _object_folder(tmp_path: Path) -> Path:
+    """An 80 x 80 px object of 3 noisy 16-bit images (a disk mask) in our layout, which the published loader
+    reads too (L*.png, mask.png, normal.tif)."""
+    from conftest import write_synthetic_object
+
+    yy, xx = np.mgrid[:80, :80]
+    mask = (yy - 40) ** 2 + (xx - 38) ** 2 < 25 ** 2
+    images = (np.random.default_rng(0).random((3, 80, 80, 3)) * 0.8).astype(np.float32)
+    normals = np.zeros((80, 80, 3), np.float32)
+    normals[..., 2] = 1
+    return write_synthetic_object(tmp_path / "obj.data", images, mask, normals)
+
+
+def test_preprocessing_equals_the_reference_loader(tmp_path) -> None:
+    """Crop, working side, mask and normalised images against the published data loader (same image order)."""
+    from unips.data import load_object
+    from unips.sdm_preprocess import sdm_crop, sdm_inputs
+
+    loader = _reference("io.dataloader.realdata").dataloader(10, outdir=str(tmp_path / "ref"), mask_margin=8)
+    folder = _object_folder(tmp_path)
+    np.random.seed(3)  # the published loader draws the order of the images
+    loader.load(str(folder), prefix="L*", max_image_resolution=4096)
+    order = np.random.RandomState(3).permutation(3)
+    obj = load_object(folder)
+    crop = sdm_crop(obj.mask)
+    images, mask = sdm_inputs(obj, crop)
+    assert [crop.r0, crop.r1, crop.c0, crop.c1] == list(loader.roi[2:]) and crop.side == loader.h == 512
+    assert np.array_equal(mask, loader.mask[..., 0])
+    assert np.abs(images[order] - loader.I.transpose(3, 0, 1, 2)).max() < 1e-4  # 16-bit files: rounding only
+
+
+def test_predict_cli_runs_published_weights(tiny_state, tmp_path, capsys) -> None:
+    from unips.predict import main
+
+    folder = _object_folder(tmp_path)
+    ckpt = _save_official(tiny_state, tmp_path / "ckpt")
+    out = tmp_path / "pred"
+    assert main(["--method", "model", "--model", "sdm-unips-tiny", "--checkpoint", str(ckpt), "--input", str(folder),
+                 "--out", str(out), "--res", "128"]) == 0
+    info = json.loads((out / "obj" / "predict.json").read_text())
+    assert info["model_name"] == "sdm-unips-tiny" and info["tta"] == 1
+    capsys.readouterr()
+    # A folder of published weights without --model, and a checkpoint with a tensor missing: one line each.
+    for flags, words in ((["--checkpoint", str(ckpt)], "--model"),
+                         (["--model", "sdm-unips-tiny", "--checkpoint", str(_save_official(
+                             {k: v for k, v in tiny_state.items() if "regressor" not in k}, tmp_path / "part"))],
+                          "missing tensors ['regressor.")):
+        assert main(["--method", "model", *flags, "--input", str(folder), "--out", str(tmp_path / "p2")]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("error: ") and words in err[0]

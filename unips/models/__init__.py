@@ -11,12 +11,13 @@ from .builder import convert_official, create_model, load_model, load_official, 
 from .config import GLCConfig
 from .glc import GLCUniPS
 from .official import OfficialWeights
-from .registry import (Pretrained, list_models, list_pretrained, official_entry, pretrained_entry, pretrained_weights,
-                       register_model)
+from .registry import (Pretrained, list_models, list_pretrained, model_inputs, official_entry, pretrained_entry,
+                       pretrained_weights, register_model)
 from .sdm import SDMUniPS
 from .sdm_config import SDMConfig
 from .zoo import DEFAULT_MODEL  # importing zoo registers the built-in configurations
 
 __all__ = ["DEFAULT_MODEL", "GLCConfig", "GLCUniPS", "OfficialWeights", "Pretrained", "SDMConfig", "SDMUniPS",
            "convert_official", "create_model", "list_models", "list_pretrained", "load_model", "load_official",
-           "official_entry", "pretrained_entry", "pretrained_weights", "register_model", "save_checkpoint"]
+           "model_inputs", "official_entry", "pretrained_entry", "pretrained_weights", "register_model",
+           "save_checkpoint"]

@@ -48,16 +48,27 @@ class Pretrained:
 _REGISTRY: dict[str, ModelFactory] = {}
 _PRETRAINED: dict[str, Pretrained] = {}
 _OFFICIAL: dict[str, OfficialWeights] = {}
+_INPUTS: dict[str, str] = {}
+
+INPUTS = ("unips", "sdm-unips")
+"""The preprocessing a model's inputs get in `unips.inference.run_model`: "unips" (`unips.preprocess`: square
+crop with a 4 px margin, each image divided by its masked mean, TTA views) or "sdm-unips" (the published
+SDM-UniPS loader, `unips.sdm_preprocess`)."""
 
 
-def register_model(name: str, pretrained: Pretrained | None = None,
-                   official: OfficialWeights | None = None) -> Callable[[ModelFactory], ModelFactory]:
+def register_model(name: str, pretrained: Pretrained | None = None, official: OfficialWeights | None = None,
+                   inputs: str = "unips") -> Callable[[ModelFactory], ModelFactory]:
     """Decorator registering `factory(**overrides) -> nn.Module` under `name`, with the place of its shipped
-    weights and the layout of the authors' published checkpoint when it has them."""
+    weights and the layout of the authors' published checkpoint when it has them, and the preprocessing its
+    inputs get (one of `INPUTS`)."""
+    if inputs not in INPUTS:
+        raise ValueError(f"inputs: got {inputs!r}, expected one of {', '.join(INPUTS)}")
+
     def deco(factory: ModelFactory) -> ModelFactory:
         if name in _REGISTRY:
             raise ValueError(f"model name {name!r} is already registered")
         _REGISTRY[name] = factory
+        _INPUTS[name] = inputs
         if pretrained is not None:
             _PRETRAINED[name] = pretrained
         if official is not None:
@@ -89,6 +100,12 @@ def pretrained_entry(name: str) -> Pretrained:
         raise ValueError(f"pretrained: model {name!r} has no shipped-weights entry in the registry "
                          f"(models with one: {with_entry})")
     return _PRETRAINED[name]
+
+
+def model_inputs(name: str) -> str:
+    """The preprocessing of model `name`'s inputs (one of `INPUTS`); ValueError when the name is unknown."""
+    _check_name(name)
+    return _INPUTS[name]
 
 
 def official_entry(name: str) -> OfficialWeights:

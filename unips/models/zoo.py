@@ -132,13 +132,13 @@ SDM_TINY = SDMConfig(
 )
 
 
-@register_model("sdm-unips", official=SDM_OFFICIAL)
+@register_model("sdm-unips", official=SDM_OFFICIAL, inputs="sdm-unips")
 def sdm_unips(**overrides: Any) -> SDMUniPS:
     """SDM-UniPS as published (Ikehata, CVPR 2023); `checkpoint_path=` the authors' checkpoint folder."""
     return SDMUniPS(config_with_overrides(SDM_UNIPS, overrides))
 
 
-@register_model("sdm-unips-tiny", official=SDM_OFFICIAL)
+@register_model("sdm-unips-tiny", official=SDM_OFFICIAL, inputs="sdm-unips")
 def sdm_unips_tiny(**overrides: Any) -> SDMUniPS:
     """Minimal SDM-UniPS for unit tests (canonical 32); reads files in the published layout of its own size."""
     return SDMUniPS(config_with_overrides(SDM_TINY, overrides))
