@@ -13,6 +13,7 @@ use this module; nothing here parses arguments or writes files.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -31,6 +32,12 @@ budgets on 2 CPU cores (96 DiLiGenT images at full size under 60 s, 10 images at
 on the fixed validation set 1 / 2 / 4 / 8 views gave 14.86 / 14.59 / 14.48 / 14.41 deg."""
 
 
+def default_tta(inputs: str) -> int:
+    """Views by default for a model whose inputs are `inputs`: one for the published SDM-UniPS (as its code
+    runs), `DEFAULT_TTA` otherwise."""
+    return 1 if inputs == "sdm-unips" else DEFAULT_TTA
+
+
 @dataclass
 class LoadedModel:
     """A network ready for inference and where it came from."""
@@ -41,18 +48,37 @@ class LoadedModel:
     device: str  # torch device string
 
 
-def load_network(checkpoint: str | Path | None, device: str = "cpu") -> LoadedModel:
-    """Load a model file (or, when `checkpoint` is None, the shipped weights of `DEFAULT_MODEL`) onto
-    `device`."""
+    @property
+    def inputs(self) -> str:
+        """The preprocessing its inputs get (`unips.models.registry.INPUTS`), from its registry entry."""
+        from unips.models import model_inputs
+
+        return model_inputs(self.meta["model_name"])
+
+
+def load_network(checkpoint: str | Path | None, device: str = "cpu", model: str | None = None) -> LoadedModel:
+    """Load a model file (or, when `checkpoint` is None, the shipped weights of `model`, default `DEFAULT_MODEL`)
+    onto `device`. A folder (or `.pytmodel` file) of the authors' published weights needs `model`, the registered
+    network that reads it (e.g. "sdm-unips"); with a model file, `model` must be the file's."""
     import torch
 
-    from unips.models import DEFAULT_MODEL, load_model, pretrained_weights
+    from unips.models import DEFAULT_MODEL, create_model, load_model, pretrained_weights
+    from unips.models.official import is_official_path
 
     if device.startswith("cuda") and not torch.cuda.is_available():
         raise UsageError(f"--device {device}: CUDA is not available on this machine")
-    path = Path(checkpoint) if checkpoint is not None else pretrained_weights(DEFAULT_MODEL)
-    model, meta = load_model(path, map_location=device)
-    return LoadedModel(model=model.eval(), meta=dict(meta), checkpoint=path, device=device)
+    path = Path(checkpoint) if checkpoint is not None else pretrained_weights(model or DEFAULT_MODEL)
+    if is_official_path(path):
+        if model is None:
+            raise UsageError(f"--checkpoint {str(path)!r} is a folder of published weights: name the network "
+                             "that reads it with --model (e.g. --model sdm-unips)")
+        net = create_model(model, checkpoint_path=path, device=device)
+        meta = {"model_name": model, "config": dataclasses.asdict(net.config), "extra": {"published_weights": True}}
+        return LoadedModel(model=net, meta=meta, checkpoint=path, device=device)
+    net, meta = load_model(path, map_location=device)
+    if model is not None and meta.get("model_name") != model:
+        raise UsageError(f"--model {model}: {str(path)!r} holds model {meta.get('model_name')!r}")
+    return LoadedModel(model=net.eval(), meta=dict(meta), checkpoint=path, device=device)
 
 
 def check_tta(tta: int, name: str = "tta") -> int:
@@ -94,10 +120,14 @@ def run_model(net: LoadedModel, obj: PSObject, res: int | None = None, margin: i
               tta: int = DEFAULT_TTA) -> np.ndarray:
     """Normals (H, W, 3) of `obj` from the network, in the original frame, zero outside the mask.
 
-    `tta` > 1 averages the predictions of that many flipped / transposed views (`model_normals`)."""
+    `tta` > 1 averages the predictions of that many flipped / transposed views (`model_normals`). A model whose
+    inputs are "sdm-unips" gets the published SDM-UniPS preprocessing instead (`run_sdm`)."""
     import torch
 
     from unips.preprocess import prepare, resize_prepared, uncrop
+
+    if net.inputs == "sdm-unips":
+        return run_sdm(net, obj, res=res, tta=tta)
 
     prepared = prepare(obj, margin=margin)
     work = resize_prepared(prepared, res) if res is not None else prepared
@@ -112,23 +142,51 @@ def run_model(net: LoadedModel, obj: PSObject, res: int | None = None, margin: i
     return uncrop(n, prepared.crop, mask=obj.mask)
 
 
+def run_sdm(net: LoadedModel, obj: PSObject, res: int | None = None, tta: int = 1) -> np.ndarray:
+    """Normals (H, W, 3) of `obj` through the published SDM-UniPS preprocessing (`unips.sdm_preprocess`); `res`
+    replaces the published working side (a multiple of the model's canonical resolution), `tta` > 1 averages
+    flipped / transposed views as for the other models (the published code has none)."""
+    import torch
+
+    from unips.sdm_preprocess import sdm_crop, sdm_inputs, sdm_output
+
+    crop = sdm_crop(obj.mask)
+    canonical = net.model.config.canonical_resolution
+    if res is not None:
+        if res % canonical:
+            raise UsageError(f"--res {res}: {net.meta['model_name']} needs a multiple of its canonical "
+                             f"resolution {canonical}")
+        crop = dataclasses.replace(crop, side=res)
+    images, mask = sdm_inputs(obj, crop)
+    x = torch.from_numpy(np.ascontiguousarray(images.transpose(0, 3, 1, 2))).to(net.device)  # (K, 3, S, S)
+    out = model_normals(net.model, x, torch.from_numpy(mask)[None].to(net.device), tta)  # (3, S, S)
+    n = out.permute(1, 2, 0).cpu().numpy() * mask[..., None]
+    if not np.all(np.isfinite(n)):
+        raise ValueError(f"model: produced non-finite normals for {obj.name}")
+    return sdm_output(n, crop, obj.mask)
+
+
 MODEL_BYTES_PER_IMAGE = 25 * 2**20
 """Memory of the network per input image that does not grow with the resolution (the encoder works at the
 canonical resolution)."""
 
 
-def prediction_memory(method: str, shape: tuple[int, int], num_images: int, work_res: int, tta: int = DEFAULT_TTA) -> int:
+def prediction_memory(method: str, shape: tuple[int, int], num_images: int, work_res: int, tta: int = DEFAULT_TTA,
+                      inputs: str = "unips") -> int:
     """Bytes one object needs to be predicted (a conservative estimate, about 1.5 to 2 times the peak measured
     on the CPU for the shipped model at 256 to 2048 px): its K float32 RGB images of `shape` (H, W) as read,
     and for the model, per working pixel (`work_res`^2: the crop's side or --res) the images in 2 + 2 x `tta`
     copies (crop, resize, each view and its masked copy) and 64 bytes of mask and output, plus
-    MODEL_BYTES_PER_IMAGE per image. The classical baselines hold about three copies of the images."""
+    MODEL_BYTES_PER_IMAGE per image. The classical baselines hold about three copies of the images. The published
+    SDM-UniPS (`inputs` "sdm-unips") adds its decoder's chunk of 10000 pixels: three feed-forward activations of
+    1024 floats per pixel and image (an estimate from its shapes, not a measurement)."""
     h, w = int(shape[0]), int(shape[1])
     images = num_images * h * w * 12
     if method != "model":
         return 3 * images
     pixels = int(work_res) ** 2
-    return images + num_images * MODEL_BYTES_PER_IMAGE + pixels * (12 * num_images * (2 + 2 * tta) + 64)
+    chunk = 10000 * num_images * 1024 * 4 * 3 if inputs == "sdm-unips" else 0
+    return images + num_images * MODEL_BYTES_PER_IMAGE + pixels * (12 * num_images * (2 + 2 * tta) + 64) + chunk
 
 
 def predict_object(obj: PSObject, method: str, net: LoadedModel | None = None,

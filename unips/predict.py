@@ -1,6 +1,6 @@
 """Predict surface normals for one object folder or a directory of them.
 
-    python -m unips.predict --method {model,least-squares,sh-uncalibrated} [--checkpoint CKPT]
+    python -m unips.predict --method {model,least-squares,sh-uncalibrated} [--checkpoint CKPT] [--model NAME]
                             --input PATH --out DIR [--max-images K] [--device cpu] [--res R] [--tta N]
 
 For each object, ``DIR/<object>/`` receives ``normal.png`` (16-bit, (n + 1) / 2, the full original
@@ -15,7 +15,9 @@ uses the shipped weights of `unips.models.DEFAULT_MODEL` (the registry's pretrai
 to run when that file is absent (never random weights). The network sees the UniPS preprocessing (`unips.preprocess.prepare`), at the
 crop's own size or at ``--res R``, and its output is put back into the original frame. ``--tta N``
 averages the network's predictions over N flipped / transposed views of the object (test-time
-augmentation, N forward passes; `unips.inference.model_normals`).
+augmentation, N forward passes; `unips.inference.model_normals`). ``--model sdm-unips --checkpoint DIR`` runs
+the authors' published SDM-UniPS weights (their checkpoint folder) with their preprocessing
+(`unips.sdm_preprocess`, one view unless ``--tta`` says otherwise).
 """
 
 from __future__ import annotations
@@ -40,7 +42,8 @@ from scenes.files import atomic_write_text
 from scenes.images import write_normal_exr, write_normal_map, write_normal_visual
 from scenes.folder.layouts import detect_layout
 from unips.data import find_objects, load_object
-from unips.inference import DEFAULT_TTA, METHODS, TTA_VIEWS, load_network, predict_object, prediction_memory
+from unips.inference import (DEFAULT_TTA, METHODS, TTA_VIEWS, default_tta, load_network, predict_object,
+                             prediction_memory)
 
 log = logging.getLogger(__name__)
 
@@ -85,6 +88,18 @@ def check_out_folder(folder: Path, overwrite: bool = False) -> None:
                          "move it away or use another --out")
 
 
+def _models() -> list[str]:
+    from unips.models import list_models  # torch: imported only when a network is named
+
+    return list_models()
+
+
+def _model_inputs(name: str) -> str:
+    from unips.models import model_inputs
+
+    return model_inputs(name)
+
+
 def check_object(args: "PredictOptions", folder: Path) -> None:
     """Before any prediction: the object's folder is read without its images (mask, first image's size,
     ground truth, lights) and its memory estimated (`unips.inference.prediction_memory`) against what this
@@ -94,10 +109,16 @@ def check_object(args: "PredictOptions", folder: Path) -> None:
 
     fd = read_folder(folder, max_images=args.max_images, images=False, arg="--input")
     k = len(fd.image_paths)
-    work = args.res if args.res is not None else crop_box(fd.mask).size
-    tta = (args.tta or DEFAULT_TTA) if args.method == "model" else 1
-    need = prediction_memory(args.method, fd.shape, k, work, tta)
-    at = (f"at {work} x {work} px (--res)" if args.res is not None else f"at its crop's size, {work} x {work} px")
+    inputs = _model_inputs(args.model) if args.model else "unips"
+    if inputs == "sdm-unips":
+        from unips.sdm_preprocess import SDM_MAX_IMAGES, sdm_crop
+
+        k = min(k, SDM_MAX_IMAGES)
+    work = args.res if args.res is not None else (sdm_crop(fd.mask).side if inputs == "sdm-unips"
+                                                  else crop_box(fd.mask).size)
+    tta = (args.tta or default_tta(inputs)) if args.method == "model" else 1
+    need = prediction_memory(args.method, fd.shape, k, work, tta, inputs=inputs)
+    at = (f"at {work} x {work} px (--res)" if args.res is not None else f"at {work} x {work} px from its crop")
     check_memory(need, "--res" if args.method == "model" else "--max-images",
                  f"--method {args.method} on {fd.name} ({k} images of {fd.shape[1]} x {fd.shape[0]} px"
                  + (f", the network {at}, {tta} view(s))" if args.method == "model" else ")"),
@@ -122,7 +143,11 @@ class PredictOptions:
     method: Literal[METHODS] = REQUIRED
     """The network ('model') or a classical baseline."""
     checkpoint: Annotated[Path | None, arg(help_behavior_hint="(default: the shipped weights of unips.models.DEFAULT_MODEL)")] = None
-    """Model file (.safetensors with its .json, or a training .pt); --method model only."""
+    """Model file (.safetensors with its .json, or a training .pt), or a folder of the authors' published weights
+    (with --model); --method model only."""
+    model: str | None = None
+    """Registered network (unips.models.list_models()): the one that reads a folder of published weights
+    (--model sdm-unips --checkpoint DIR); with a model file, the file's; without --checkpoint, its shipped weights."""
     input: Path = REQUIRED
     """An object folder or a directory of them."""
     out: Path = REQUIRED
@@ -132,8 +157,10 @@ class PredictOptions:
     device: str = "cpu"
     """Torch device for --method model (cpu, cuda, cuda:0)."""
     res: Annotated[int | None, arg(help_behavior_hint="(default: the crop's own size)")] = option(None, minimum=8)
-    """Working resolution of the network (the crop is resized to R x R); --method model only."""
-    tta: Annotated[Literal[TTA_VIEWS] | None, arg(help_behavior_hint=f"(default: {str(DEFAULT_TTA)})")] = None
+    """Working resolution of the network (the crop is resized to R x R); --method model only. SDM-UniPS: a
+    multiple of its canonical resolution, by default the published side (a multiple of 512)."""
+    tta: Annotated[Literal[TTA_VIEWS] | None,
+                   arg(help_behavior_hint=f"(default: {str(DEFAULT_TTA)}; 1 for SDM-UniPS)")] = None
     """Views averaged (test-time augmentation by flips and transposes); N forward passes; --method model only."""
     overwrite: bool = False
     """Replace the predictions of an earlier run in --out (folders with its predict.json; nothing else is touched)."""
@@ -141,9 +168,12 @@ class PredictOptions:
     def validate(self) -> "PredictOptions":
         check_fields(self)
         if self.method != "model":
-            for flag, value in (("--checkpoint", self.checkpoint), ("--res", self.res), ("--tta", self.tta)):
+            for flag, value in (("--checkpoint", self.checkpoint), ("--model", self.model), ("--res", self.res),
+                                ("--tta", self.tta)):
                 if value is not None:
                     raise UsageError(f"{flag}: only used with --method model, not --method {self.method}")
+        if self.model is not None and self.model not in _models():
+            raise UsageError(f"--model: {self.model!r} is not registered; known models: {', '.join(_models())}")
         check_output_folder(self.out)
         return self
 
@@ -157,7 +187,7 @@ def check_args(argv: list[str]) -> PredictOptions:
     writes nothing."""
     args = COMMAND.parse(argv).validate()
     if args.method == "model":
-        load_network(args.checkpoint, args.device)
+        load_network(args.checkpoint, args.device, args.model)
     return args
 
 
@@ -185,7 +215,7 @@ def main(argv: list[str] | None = None) -> int:
                 if single or exc.__class__ is UsageError:  # a size this machine cannot hold: the flags' fault
                     raise
                 failures.append((name, one_line(exc)))
-        net = load_network(args.checkpoint, args.device) if args.method == "model" else None
+        net = load_network(args.checkpoint, args.device, args.model) if args.method == "model" else None
         written: list[str] = []
         where = args.out / todo[0][1] if single and todo else args.out
         print(f"predicting {len(todo)} object(s) with --method {args.method} into {where} ...", flush=True)
@@ -219,7 +249,7 @@ def main(argv: list[str] | None = None) -> int:
 def _predict_one(args: PredictOptions, net, folder: Path, name: str) -> None:
     obj = load_object(folder, max_images=args.max_images)
     start = time.perf_counter()
-    tta = (args.tta or DEFAULT_TTA) if net else None
+    tta = (args.tta or default_tta(net.inputs)) if net else None
     normals = predict_object(obj, args.method, net=net, res=args.res, tta=tta or 1)
     elapsed = time.perf_counter() - start
     constant = constant_map(normals, obj.mask)

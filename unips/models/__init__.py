@@ -1,14 +1,23 @@
 """Photometric-stereo networks behind a name registry: `create_model("glc-tiny", pretrained=True)`, ...
 
-`registry.py` maps names to factories and to shipped weights, `zoo.py` registers the configurations,
-`builder.py` builds a model (fresh, shipped weights, or a model file) and reads / writes model files.
+`registry.py` maps names to factories, to shipped weights and to the layout of published checkpoints, `zoo.py`
+registers the configurations, `builder.py` builds a model (fresh, shipped weights, a model file, or the authors'
+published files read by `official.py`) and reads / writes model files. GLC-UniPS: `config.py`, `glc.py`
+(`encoder.py`, `decoder.py`, `layers.py`); SDM-UniPS: `sdm_config.py`, `sdm.py` (`sdm_encoder.py`,
+`convnext.py`, `set_attention.py`).
 """
 
-from .builder import create_model, load_model, save_checkpoint
+from .builder import convert_official, create_model, load_model, load_official, save_checkpoint
 from .config import GLCConfig
 from .glc import GLCUniPS
-from .registry import Pretrained, list_models, list_pretrained, pretrained_entry, pretrained_weights, register_model
+from .official import OfficialWeights
+from .registry import (Pretrained, list_models, list_pretrained, model_inputs, official_entry, pretrained_entry,
+                       pretrained_weights, register_model)
+from .sdm import SDMUniPS
+from .sdm_config import SDMConfig
 from .zoo import DEFAULT_MODEL  # importing zoo registers the built-in configurations
 
-__all__ = ["DEFAULT_MODEL", "GLCConfig", "GLCUniPS", "Pretrained", "create_model", "list_models", "list_pretrained",
-           "load_model", "pretrained_entry", "pretrained_weights", "register_model", "save_checkpoint"]
+__all__ = ["DEFAULT_MODEL", "GLCConfig", "GLCUniPS", "OfficialWeights", "Pretrained", "SDMConfig", "SDMUniPS",
+           "convert_official", "create_model", "list_models", "list_pretrained", "load_model", "load_official",
+           "model_inputs", "official_entry", "pretrained_entry", "pretrained_weights", "register_model",
+           "save_checkpoint"]

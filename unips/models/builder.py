@@ -5,6 +5,7 @@
     create_model("glc-test")                                   # fresh weights (random initialisation)
     create_model("glc-tiny", pretrained=True)                  # the shipped weights, eval mode
     create_model("glc-tiny", checkpoint_path="best.safetensors")  # any model file of that model, eval mode
+    create_model("sdm-unips", checkpoint_path="checkpoint")     # the authors' published files, converted
 
 Shipping format: `NAME.safetensors` holds the state dict; `NAME.json` next to it holds
 `{"format": ..., "model_name": ..., "config": {...}, "extra": {...}}`, enough to rebuild the network with
@@ -25,7 +26,8 @@ from torch import nn
 
 from scenes.files import atomic_write, atomic_write_text
 
-from .registry import build_model, pretrained_weights
+from .official import is_official_path, read_official
+from .registry import build_model, official_entry, pretrained_weights
 
 WEIGHTS_FORMAT = "unips-weights/1"
 TRAINING_FORMAT = "unips-training/1"
@@ -36,19 +38,45 @@ def create_model(name: str, pretrained: bool = False, checkpoint_path: str | Pat
     """Model `name` of the registry (timm's `create_model(name, pretrained=..., checkpoint_path=...)`).
 
     checkpoint_path: a model file (.safetensors with its .json, or a training .pt) whose recorded model is
-    `name`, loaded in eval mode; pretrained: the shipped weights of `name` (the registry's pretrained entry;
-    FileNotFoundError when they are not shipped, never fresh weights instead); neither: fresh weights with
-    config `overrides` (training mode, as torch builds modules).
+    `name`, loaded in eval mode; or, for a model with an official entry, the authors' checkpoint folder (or
+    its `.pytmodel` file), converted into the model's configuration (`load_official`: the files hold no
+    config, so `overrides` may set what the published code takes at run time); pretrained: the shipped
+    weights of `name` (the registry's pretrained entry; FileNotFoundError when they are not shipped, never
+    fresh weights instead); neither: fresh weights with config `overrides` (training mode, as torch builds
+    modules).
     """
     if checkpoint_path is None and not pretrained:
         return build_model(name, **overrides).to(device)
+    path = Path(checkpoint_path) if checkpoint_path is not None else pretrained_weights(name)
+    if is_official_path(path):
+        return load_official(name, path, device, **overrides)
     if overrides:
         raise ValueError(f"overrides {sorted(overrides)}: not allowed with weights (the file holds the config)")
-    path = Path(checkpoint_path) if checkpoint_path is not None else pretrained_weights(name)
     model, meta = load_model(path, map_location=device)
     if meta.get("model_name") != name:
         raise ValueError(f"checkpoint_path: {str(path)!r} holds model {meta.get('model_name')!r}, not {name!r}")
     return model
+
+
+def load_official(name: str, path: str | Path, device: str | torch.device = "cpu", **overrides: Any) -> nn.Module:
+    """Model `name` with the authors' published weights read from `path` (a checkpoint folder, or its `.pytmodel`
+    file when there is one), in eval mode. The files hold no configuration: `overrides` change the registered
+    one, e.g. what the published code takes at run time (SDM-UniPS: canonical_resolution, pixel_samples).
+    Nothing is left at random: a missing file, a missing, unexpected or misshaped tensor is a ValueError
+    (FileNotFoundError for files) of one line."""
+    spec = official_entry(name)
+    model = build_model(name, **overrides)
+    load_state_strict(model, read_official(spec, path), f"checkpoint {str(path)!r}")
+    return model.to(device).eval()
+
+
+def convert_official(name: str, path: str | Path, out: str | Path, **overrides: Any) -> Path:
+    """Read the published weights of `name` from `path` once and write them as our model file `out`
+    (.safetensors with its .json sidecar, which `create_model(name, checkpoint_path=out)` reads)."""
+    model = load_official(name, path, **overrides)
+    return save_checkpoint(out, model, extra={"converted_from": str(Path(path).resolve()),
+                                              "weights_source": official_entry(name).source,
+                                              "weights_licence": official_entry(name).licence})
 
 
 def sidecar_path(path: str | Path) -> Path:

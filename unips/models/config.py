@@ -122,9 +122,10 @@ class GLCConfig:
         return self.canonical_resolution // 4
 
 
-def config_with_overrides(base: GLCConfig, overrides: Mapping[str, Any]) -> GLCConfig:
-    """`base` with some fields replaced; an unknown key raises ValueError naming it."""
-    known = {f.name for f in dataclasses.fields(GLCConfig)}
+def config_with_overrides(base: Any, overrides: Mapping[str, Any]) -> Any:
+    """`base` (a config dataclass: GLCConfig, SDMConfig) with some fields replaced; an unknown key raises
+    ValueError naming it."""
+    known = {f.name for f in dataclasses.fields(base)}
     for key in overrides:
         if key not in known:
             raise ValueError(f"unknown model option {key!r}; known options: {', '.join(sorted(known))}")

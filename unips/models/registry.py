@@ -1,5 +1,6 @@
 """Model registry: each name maps to a factory (fresh weights from config overrides) and, optionally, to
-its shipped weights and model card (a pretrained entry, as timm's registry keeps per-model weight sources).
+its shipped weights and model card (a pretrained entry, as timm's registry keeps per-model weight sources), and,
+for the published networks, to the authors' checkpoint files (an official entry, `unips.models.official`).
 
 `unips.models.create_model` (in `builder.py`) is the one entry point that builds a model: fresh, from
 the shipped weights (`pretrained=True`) or from a weights file (`checkpoint_path=`).
@@ -12,6 +13,8 @@ from pathlib import Path
 from typing import Any, Callable
 
 from torch import nn
+
+from .official import OfficialWeights
 
 ModelFactory = Callable[..., nn.Module]
 
@@ -44,17 +47,32 @@ class Pretrained:
 
 _REGISTRY: dict[str, ModelFactory] = {}
 _PRETRAINED: dict[str, Pretrained] = {}
+_OFFICIAL: dict[str, OfficialWeights] = {}
+_INPUTS: dict[str, str] = {}
+
+INPUTS = ("unips", "sdm-unips")
+"""The preprocessing a model's inputs get in `unips.inference.run_model`: "unips" (`unips.preprocess`: square
+crop with a 4 px margin, each image divided by its masked mean, TTA views) or "sdm-unips" (the published
+SDM-UniPS loader, `unips.sdm_preprocess`)."""
 
 
-def register_model(name: str, pretrained: Pretrained | None = None) -> Callable[[ModelFactory], ModelFactory]:
+def register_model(name: str, pretrained: Pretrained | None = None, official: OfficialWeights | None = None,
+                   inputs: str = "unips") -> Callable[[ModelFactory], ModelFactory]:
     """Decorator registering `factory(**overrides) -> nn.Module` under `name`, with the place of its shipped
-    weights when it has one."""
+    weights and the layout of the authors' published checkpoint when it has them, and the preprocessing its
+    inputs get (one of `INPUTS`)."""
+    if inputs not in INPUTS:
+        raise ValueError(f"inputs: got {inputs!r}, expected one of {', '.join(INPUTS)}")
+
     def deco(factory: ModelFactory) -> ModelFactory:
         if name in _REGISTRY:
             raise ValueError(f"model name {name!r} is already registered")
         _REGISTRY[name] = factory
+        _INPUTS[name] = inputs
         if pretrained is not None:
             _PRETRAINED[name] = pretrained
+        if official is not None:
+            _OFFICIAL[name] = official
         return factory
     return deco
 
@@ -82,6 +100,22 @@ def pretrained_entry(name: str) -> Pretrained:
         raise ValueError(f"pretrained: model {name!r} has no shipped-weights entry in the registry "
                          f"(models with one: {with_entry})")
     return _PRETRAINED[name]
+
+
+def model_inputs(name: str) -> str:
+    """The preprocessing of model `name`'s inputs (one of `INPUTS`); ValueError when the name is unknown."""
+    _check_name(name)
+    return _INPUTS[name]
+
+
+def official_entry(name: str) -> OfficialWeights:
+    """The published-checkpoint entry of `name`; ValueError when the name is unknown or has none."""
+    _check_name(name)
+    if name not in _OFFICIAL:
+        with_entry = ", ".join(sorted(_OFFICIAL)) or "none"
+        raise ValueError(f"checkpoint: model {name!r} has no published checkpoint format to read (models with "
+                         f"one: {with_entry}); pass a .safetensors or .pt model file")
+    return _OFFICIAL[name]
 
 
 def pretrained_weights(name: str) -> Path:

@@ -1,5 +1,6 @@
-"""The registered GLC-UniPS configurations (the paper's network, two CPU-trainable ones, a test one), their
-shipped weights and model cards, and the model used when no weights file is given."""
+"""The registered configurations: GLC-UniPS (the paper's network, two CPU-trainable ones, a test one) with
+their shipped weights and model cards, SDM-UniPS (the published network, whose authors' checkpoint loads, and
+a test one), and the model used when no weights file is given."""
 
 from __future__ import annotations
 
@@ -8,7 +9,10 @@ from typing import Any
 
 from .config import GLCConfig, config_with_overrides
 from .glc import GLCUniPS
+from .official import OfficialWeights
 from .registry import Pretrained, register_model
+from .sdm import SDMUniPS
+from .sdm_config import SDMConfig
 
 # The paper's "base + pre-fusion" network: Swin-S, canonical 256, contexts 64x64x256 (about 69 M).
 GLC_UNIPS = GLCConfig()
@@ -97,3 +101,44 @@ def glc_small(**overrides: Any) -> GLCUniPS:
 def glc_test(**overrides: Any) -> GLCUniPS:
     """Minimal GLC-UniPS for unit tests (canonical 32)."""
     return GLCUniPS(config_with_overrides(GLC_TEST, overrides))
+
+
+# SDM-UniPS as published (ConvNeXt-T, canonical 256, about 63 M): the authors' checkpoint loads into it.
+SDM_UNIPS = SDMConfig()
+
+SDM_OFFICIAL = OfficialWeights(
+    files=(("normal/*.pytmodel", ""),),
+    source="the authors' SDM-UniPS-CVPR2023 repository (github.com/satoshi-ikehata/SDM-UniPS-CVPR2023), README "
+           "section 'Download Pretrained Models': checkpoint.zip, whose normal/nml.pytmodel is read",
+    licence="MIT with a non-commercial clause (the SDM-UniPS licence)",
+)
+
+# Same code, small dims: a forward pass at 64 x 64 in a fraction of a second (tests).
+SDM_TINY = SDMConfig(
+    canonical_resolution=32,
+    convnext_dims=(8, 16, 32, 64),
+    convnext_depths=(1, 1, 1, 1),
+    comm_layers=(0, 1, 1, 1),
+    heads=2,
+    context_dim=16,
+    ppm_scales=(1, 2),
+    upsample_dim=16,
+    aggregation_dim=16,
+    aggregation_layers=1,
+    pooling_ff=16,
+    ff_dim=32,
+    dropout=0.0,
+    pixel_samples=2048,
+)
+
+
+@register_model("sdm-unips", official=SDM_OFFICIAL, inputs="sdm-unips")
+def sdm_unips(**overrides: Any) -> SDMUniPS:
+    """SDM-UniPS as published (Ikehata, CVPR 2023); `checkpoint_path=` the authors' checkpoint folder."""
+    return SDMUniPS(config_with_overrides(SDM_UNIPS, overrides))
+
+
+@register_model("sdm-unips-tiny", official=SDM_OFFICIAL, inputs="sdm-unips")
+def sdm_unips_tiny(**overrides: Any) -> SDMUniPS:
+    """Minimal SDM-UniPS for unit tests (canonical 32); reads files in the published layout of its own size."""
+    return SDMUniPS(config_with_overrides(SDM_TINY, overrides))
