@@ -4,7 +4,7 @@ Each timed case runs in its own subprocess so its peak RSS (VmHWM) is its own. I
 (random weights, random images) with a disk mask covering about 70 % of the square crop, like a
 preprocessed object. Usage:
 
-    python bench/bench_model.py                  # full table (glc-unips at 256 and 512: minutes)
+    python bench/bench_model.py                  # full table (glc-unips, the published network, at 256 and 512: minutes)
     python bench/bench_model.py --quick          # glc-tiny / glc-test only
 """
 

@@ -27,7 +27,7 @@ def pixel_centre_coords(ys: torch.Tensor, xs: torch.Tensor, height: int, width: 
     return torch.stack([x, y], dim=-1)
 
 
-def _check_inputs(images: torch.Tensor, mask: torch.Tensor) -> None:
+def check_inputs(images: torch.Tensor, mask: torch.Tensor) -> None:
     if not isinstance(images, torch.Tensor) or images.ndim != 5 or images.shape[2] != 3:
         shape = tuple(images.shape) if isinstance(images, torch.Tensor) else type(images).__name__
         raise ValueError(f"images: got {shape}, expected a tensor (B, K, 3, H, W) with K >= 1")
@@ -52,7 +52,7 @@ class GLCUniPS(nn.Module):
     # -- encoder ----------------------------------------------------------------------------
     def encode(self, images: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
         """Global lighting contexts `(B, K, C, s/4, s/4)` from images and mask at any resolution."""
-        _check_inputs(images, mask)
+        check_inputs(images, mask)
         b, k, _, h, w = images.shape
         s = self.config.canonical_resolution
         mask = mask.to(images.dtype)
@@ -111,7 +111,7 @@ class GLCUniPS(nn.Module):
     def decode_pixels(self, contexts: torch.Tensor, images: torch.Tensor, mask: torch.Tensor,
                       coords: torch.Tensor) -> torch.Tensor:
         """Normals `(B, N, 3)` at `coords (B, N, 2)` (grid_sample convention) of the input images."""
-        _check_inputs(images, mask)
+        check_inputs(images, mask)
         b, k, _, h, w = images.shape
         if coords.ndim != 3 or coords.shape[0] != b or coords.shape[2] != 2:
             raise ValueError(f"coords: got {tuple(coords.shape)}, expected (B={b}, N, 2)")

@@ -50,10 +50,10 @@ _PRETRAINED: dict[str, Pretrained] = {}
 _OFFICIAL: dict[str, OfficialWeights] = {}
 _INPUTS: dict[str, str] = {}
 
-INPUTS = ("unips", "sdm-unips")
-"""The preprocessing a model's inputs get in `unips.inference.run_model`: "unips" (`unips.preprocess`: square
-crop with a 4 px margin, each image divided by its masked mean, TTA views) or "sdm-unips" (the published
-SDM-UniPS loader, `unips.sdm_preprocess`)."""
+INPUTS = ("unips", "glc-unips", "sdm-unips")
+"""The preprocessing a model's inputs get in `unips.inference.run_model`: "unips" (ours, `unips.preprocess`: square
+crop with a 4 px margin, each image divided by its masked mean, TTA views), "glc-unips" (the published UniPS
+loader, `unips.glc_preprocess`) or "sdm-unips" (the published SDM-UniPS loader, `unips.sdm_preprocess`)."""
 
 
 def register_model(name: str, pretrained: Pretrained | None = None, official: OfficialWeights | None = None,

@@ -24,7 +24,7 @@ from torch import nn
 
 from .sdm_config import SDMConfig
 from .sdm_encoder import ScaleInvariantEncoder
-from .set_attention import SetAggregation, SetEncoder
+from .set_attention import NormalHead, SetAggregation, SetEncoder
 
 RGB = 3
 
@@ -62,17 +62,6 @@ class ContextAggregation(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return self.aggregation(x)
-
-
-class NormalHead(nn.Module):
-    """`(n, A) -> (n, 3)` raw normals: A -> A/2 -> 3 with ReLU."""
-
-    def __init__(self, dim: int) -> None:
-        super().__init__()
-        self.regression = nn.Sequential(nn.Linear(dim, dim // 2), nn.ReLU(), nn.Linear(dim // 2, RGB))
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.regression(x)
 
 
 class PixelRegressor(nn.Module):

@@ -1,6 +1,12 @@
-"""The registered configurations: GLC-UniPS (the paper's network, two CPU-trainable ones, a test one) with
-their shipped weights and model cards, SDM-UniPS (the published network, whose authors' checkpoint loads, and
-a test one), and the model used when no weights file is given."""
+"""The registered configurations and the model used when no weights file is given.
+
+- The published networks, whose authors' checkpoint files load (`official=`) and whose inputs get the authors'
+  preprocessing (`inputs=`): UniPS, CVPR 2022 (`glc-unips`, `unips22.py`) and SDM-UniPS, CVPR 2023
+  (`sdm-unips`, `sdm.py`), each with a tiny instance of the same code for tests.
+- Our own reading of the UniPS paper (`glc.py`, `GLCConfig`: timm's Swin, pre-norm Transformer layers, our
+  preprocessing), not weight-compatible with the published one: the CPU-trained `glc-tiny` (shipped) and
+  `glc-small`, `glc-base` at the paper's size, `glc-test` for tests.
+"""
 
 from __future__ import annotations
 
@@ -13,9 +19,12 @@ from .official import OfficialWeights
 from .registry import Pretrained, register_model
 from .sdm import SDMUniPS
 from .sdm_config import SDMConfig
+from .unips22 import UniPS22
+from .unips22_config import UniPS22Config
 
-# The paper's "base + pre-fusion" network: Swin-S, canonical 256, contexts 64x64x256 (about 69 M).
-GLC_UNIPS = GLCConfig()
+# Our reading of the paper's "base + pre-fusion" network at its size: Swin-S, canonical 256, contexts 64x64x256
+# (about 69 M); never trained here, and not the published network (that is glc-unips).
+GLC_BASE = GLCConfig()
 
 # Same structure, small enough to train on a 2-core CPU in about an hour.
 GLC_TINY = GLCConfig(
@@ -74,10 +83,10 @@ GLC_TEST = GLCConfig(
 )
 
 
-@register_model("glc-unips")
-def glc_unips(**overrides: Any) -> GLCUniPS:
-    """GLC-UniPS as in the paper (Swin-S backbone, pre-fusion communication)."""
-    return GLCUniPS(config_with_overrides(GLC_UNIPS, overrides))
+@register_model("glc-base")
+def glc_base(**overrides: Any) -> GLCUniPS:
+    """Our reading of GLC-UniPS at the paper's size (Swin-S backbone, pre-fusion communication); untrained."""
+    return GLCUniPS(config_with_overrides(GLC_BASE, overrides))
 
 
 DEFAULT_MODEL = "glc-tiny"
@@ -142,3 +151,47 @@ def sdm_unips(**overrides: Any) -> SDMUniPS:
 def sdm_unips_tiny(**overrides: Any) -> SDMUniPS:
     """Minimal SDM-UniPS for unit tests (canonical 32); reads files in the published layout of its own size."""
     return SDMUniPS(config_with_overrides(SDM_TINY, overrides))
+
+
+# UniPS as published (Swin-S with its stem, canonical 256, about 70 M): the authors' checkpoint loads into it.
+GLC_UNIPS = UniPS22Config()
+
+GLC_OFFICIAL = OfficialWeights(
+    files=(("*_enc.pytmodel", "encoder."), ("*_agg.pytmodel", "aggregation."), ("*_pred.pytmodel", "prediction.")),
+    source="the authors' Universal-PS-CVPR2022 repository (github.com/satoshi-ikehata/Universal-PS-CVPR2022), README "
+           "section 'Download pretrained model': the checkpoint folder, whose *_enc, *_agg and *_pred.pytmodel are "
+           "read",
+    licence="GPL-3.0 (the Universal-PS-CVPR2022 licence)",
+)
+
+# Same code, small widths: a forward pass at 64 x 64 in a fraction of a second (tests).
+GLC_UNIPS_TINY = UniPS22Config(
+    canonical_resolution=32,
+    swin_embed_dim=8,
+    swin_depths=(1, 2, 1, 1),
+    swin_heads=(1, 2, 2, 4),
+    swin_window=4,
+    swin_drop_path=0.0,
+    heads=2,
+    context_dim=16,
+    ppm_scales=(1, 2),
+    aggregation_dim=32,
+    aggregation_layers=1,
+    aggregation_ff=64,
+    pooling_ff=32,
+    dropout=0.0,
+    pixel_chunk=2048,
+)
+
+
+@register_model("glc-unips", official=GLC_OFFICIAL, inputs="glc-unips")
+def glc_unips(**overrides: Any) -> UniPS22:
+    """UniPS as published (Ikehata, CVPR 2022); `checkpoint_path=` the authors' checkpoint folder."""
+    return UniPS22(config_with_overrides(GLC_UNIPS, overrides))
+
+
+@register_model("glc-unips-tiny", official=GLC_OFFICIAL, inputs="glc-unips")
+def glc_unips_tiny(**overrides: Any) -> UniPS22:
+    """Minimal published-UniPS network for unit tests (canonical 32); reads files in the published layout of its own
+    size."""
+    return UniPS22(config_with_overrides(GLC_UNIPS_TINY, overrides))
