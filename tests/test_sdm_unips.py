@@ -8,10 +8,7 @@ both networks run on the same tiny input (canonical 32, 64 x 64 px: the publishe
 
 from __future__ import annotations
 
-import importlib
 import json
-import sys
-import types
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +20,7 @@ from unips.models.sdm import gaussian_blur
 from unips.models.sdm_encoder import merge_interleaved, split_interleaved
 
 from conftest import SHARED
+from published import angle_deg, randomise, reference_module
 
 REFERENCE = SHARED / "reference" / "SDM-UniPS-CVPR2023" / "sdm_unips" / "modules"
 ALIAS = "sdm_unips_reference"  # the authors' package is named `modules`: imported under a name of its own
@@ -31,29 +29,9 @@ CANONICAL, SIDE, IMAGES, PIXELS = 32, 64, 2, 128  # PIXELS: chunks of the pixel-
 
 def _reference(module: str):
     """A module of the authors' code (`model.model`, `utils.gauss_filter`, ...); skips without it."""
-    if not REFERENCE.is_dir():
-        pytest.skip("../shared/reference/SDM-UniPS-CVPR2023 is not present")
-    pytest.importorskip("einops", reason="the reference code imports einops (pip install -e '.[test]')")
-    if ALIAS not in sys.modules:
-        package = types.ModuleType(ALIAS)
-        package.__path__ = [str(REFERENCE)]  # a namespace package: its relative imports resolve inside it
-        sys.modules[ALIAS] = package
-    return importlib.import_module(f"{ALIAS}.{module}")
-
-
-def _randomise(net: torch.nn.Module, seed: int) -> None:
-    """Seeded values in every tensor, scaled so activations stay of order one; unlike the published
-    initialisation, layer scales and seeds are far from 0 or uninitialised memory, so every path counts."""
-    g = torch.Generator().manual_seed(seed)
-    with torch.no_grad():
-        for name, p in net.named_parameters():
-            noise = torch.randn(p.shape, generator=g)
-            if p.ndim >= 2:
-                p.copy_(noise * p[0].numel() ** -0.5)
-            elif name.endswith("weight") or name.endswith("gamma"):
-                p.copy_(1.0 + 0.1 * noise)
-            else:
-                p.copy_(0.1 * noise)
+    if REFERENCE.is_dir():
+        pytest.importorskip("einops", reason="the reference code imports einops (pip install -e '.[test]')")
+    return reference_module(REFERENCE, ALIAS, module)
 
 
 def _save_official(state: dict[str, torch.Tensor], folder: Path) -> Path:
@@ -76,7 +54,7 @@ def official(tmp_path_factory):
     """(the authors' network with seeded weights in eval mode, its checkpoint folder)."""
     ref = _reference("model.model")
     net = ref.Net(PIXELS, "normal", torch.device("cpu"))
-    _randomise(net, seed=0)
+    randomise(net, seed=0)
     folder = tmp_path_factory.mktemp("sdm_official")
     torch.save(torch.nn.DataParallel(net).state_dict(), _save_official({}, folder) / "normal" / "nml.pytmodel")
     return net.eval(), folder
@@ -86,13 +64,6 @@ def official(tmp_path_factory):
 def ours(official):
     _, folder = official
     return create_model("sdm-unips", checkpoint_path=folder, canonical_resolution=CANONICAL, pixel_samples=PIXELS)
-
-
-def _angle_deg(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    """Angles between `(B, 3, H, W)` normal maps; atan2 in float64 (acos of a float32 dot product near 1 is
-    off by hundredths of a degree)."""
-    a, b = a.double(), b.double()
-    return torch.rad2deg(torch.atan2(torch.linalg.cross(a, b, dim=1).norm(dim=1), (a * b).sum(dim=1)))
 
 
 def test_registry_has_the_published_and_the_tiny_network() -> None:
@@ -113,7 +84,7 @@ def test_normal_maps_equal_the_reference(official, ours) -> None:
     inside = mask[:, 0] > 0
     assert torch.equal(mine.norm(dim=1)[~inside], torch.zeros_like(mine.norm(dim=1)[~inside]))
     diff = (mine - theirs * mask).abs().max().item()
-    angle = _angle_deg(mine, theirs)[inside].max().item()
+    angle = angle_deg(mine, theirs)[inside].max().item()
     print(f"\nsdm-unips vs reference: max |normal difference| {diff:.2e}, max angle {angle:.2e} deg")
     assert diff < 1e-4 and angle < 0.01
 

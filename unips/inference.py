@@ -32,10 +32,14 @@ budgets on 2 CPU cores (96 DiLiGenT images at full size under 60 s, 10 images at
 on the fixed validation set 1 / 2 / 4 / 8 views gave 14.86 / 14.59 / 14.48 / 14.41 deg."""
 
 
+PUBLISHED_INPUTS = ("glc-unips", "sdm-unips")
+"""The inputs (`unips.models.registry.INPUTS`) of the published networks: their authors' preprocessing."""
+
+
 def default_tta(inputs: str) -> int:
-    """Views by default for a model whose inputs are `inputs`: one for the published SDM-UniPS (as its code
-    runs), `DEFAULT_TTA` otherwise."""
-    return 1 if inputs == "sdm-unips" else DEFAULT_TTA
+    """Views by default for a model whose inputs are `inputs`: one for the published UniPS and SDM-UniPS (as their
+    code runs), `DEFAULT_TTA` otherwise."""
+    return 1 if inputs in PUBLISHED_INPUTS else DEFAULT_TTA
 
 
 @dataclass
@@ -59,7 +63,7 @@ class LoadedModel:
 def load_network(checkpoint: str | Path | None, device: str = "cpu", model: str | None = None) -> LoadedModel:
     """Load a model file (or, when `checkpoint` is None, the shipped weights of `model`, default `DEFAULT_MODEL`)
     onto `device`. A folder (or `.pytmodel` file) of the authors' published weights needs `model`, the registered
-    network that reads it (e.g. "sdm-unips"); with a model file, `model` must be the file's."""
+    network that reads it (e.g. "glc-unips", "sdm-unips"); with a model file, `model` must be the file's."""
     import torch
 
     from unips.models import DEFAULT_MODEL, create_model, load_model, pretrained_weights
@@ -71,7 +75,7 @@ def load_network(checkpoint: str | Path | None, device: str = "cpu", model: str 
     if is_official_path(path):
         if model is None:
             raise UsageError(f"--checkpoint {str(path)!r} is a folder of published weights: name the network "
-                             "that reads it with --model (e.g. --model sdm-unips)")
+                             "that reads it with --model (--model glc-unips or sdm-unips)")
         net = create_model(model, checkpoint_path=path, device=device)
         meta = {"model_name": model, "config": dataclasses.asdict(net.config), "extra": {"published_weights": True}}
         return LoadedModel(model=net, meta=meta, checkpoint=path, device=device)
@@ -121,13 +125,13 @@ def run_model(net: LoadedModel, obj: PSObject, res: int | None = None, margin: i
     """Normals (H, W, 3) of `obj` from the network, in the original frame, zero outside the mask.
 
     `tta` > 1 averages the predictions of that many flipped / transposed views (`model_normals`). A model whose
-    inputs are "sdm-unips" gets the published SDM-UniPS preprocessing instead (`run_sdm`)."""
+    inputs are "glc-unips" or "sdm-unips" gets its authors' preprocessing instead (`run_published`)."""
     import torch
 
     from unips.preprocess import prepare, resize_prepared, uncrop
 
-    if net.inputs == "sdm-unips":
-        return run_sdm(net, obj, res=res, tta=tta)
+    if net.inputs in PUBLISHED_INPUTS:
+        return run_published(net, obj, res=res, tta=tta)
 
     prepared = prepare(obj, margin=margin)
     work = resize_prepared(prepared, res) if res is not None else prepared
@@ -142,22 +146,25 @@ def run_model(net: LoadedModel, obj: PSObject, res: int | None = None, margin: i
     return uncrop(n, prepared.crop, mask=obj.mask)
 
 
-def run_sdm(net: LoadedModel, obj: PSObject, res: int | None = None, tta: int = 1) -> np.ndarray:
-    """Normals (H, W, 3) of `obj` through the published SDM-UniPS preprocessing (`unips.sdm_preprocess`); `res`
-    replaces the published working side (a multiple of the model's canonical resolution), `tta` > 1 averages
-    flipped / transposed views as for the other models (the published code has none)."""
+def run_published(net: LoadedModel, obj: PSObject, res: int | None = None, tta: int = 1) -> np.ndarray:
+    """Normals (H, W, 3) of `obj` through its authors' preprocessing: UniPS's (`unips.glc_preprocess`) or
+    SDM-UniPS's (`unips.sdm_preprocess`); `res` replaces the published working side (for SDM-UniPS a multiple of the
+    model's canonical resolution), `tta` > 1 averages flipped / transposed views as for the other models (the
+    published code has none)."""
     import torch
 
+    from unips.glc_preprocess import glc_crop, glc_inputs
     from unips.sdm_preprocess import sdm_crop, sdm_inputs, sdm_output
 
-    crop = sdm_crop(obj.mask)
+    sdm = net.inputs == "sdm-unips"
+    crop = sdm_crop(obj.mask) if sdm else glc_crop(obj.mask)
     canonical = net.model.config.canonical_resolution
     if res is not None:
-        if res % canonical:
+        if sdm and res % canonical:
             raise UsageError(f"--res {res}: {net.meta['model_name']} needs a multiple of its canonical "
                              f"resolution {canonical}")
         crop = dataclasses.replace(crop, side=res)
-    images, mask = sdm_inputs(obj, crop)
+    images, mask = sdm_inputs(obj, crop) if sdm else glc_inputs(obj, crop)
     x = torch.from_numpy(np.ascontiguousarray(images.transpose(0, 3, 1, 2))).to(net.device)  # (K, 3, S, S)
     out = model_normals(net.model, x, torch.from_numpy(mask)[None].to(net.device), tta)  # (3, S, S)
     n = out.permute(1, 2, 0).cpu().numpy() * mask[..., None]
@@ -178,14 +185,14 @@ def prediction_memory(method: str, shape: tuple[int, int], num_images: int, work
     and for the model, per working pixel (`work_res`^2: the crop's side or --res) the images in 2 + 2 x `tta`
     copies (crop, resize, each view and its masked copy) and 64 bytes of mask and output, plus
     MODEL_BYTES_PER_IMAGE per image. The classical baselines hold about three copies of the images. The published
-    SDM-UniPS (`inputs` "sdm-unips") adds its decoder's chunk of 10000 pixels: three feed-forward activations of
-    1024 floats per pixel and image (an estimate from its shapes, not a measurement)."""
+    UniPS and SDM-UniPS (`inputs` "glc-unips", "sdm-unips") add their decoder's chunk of 10000 pixels: three
+    feed-forward activations of 1024 floats per pixel and image (an estimate from their shapes, not a measurement)."""
     h, w = int(shape[0]), int(shape[1])
     images = num_images * h * w * 12
     if method != "model":
         return 3 * images
     pixels = int(work_res) ** 2
-    chunk = 10000 * num_images * 1024 * 4 * 3 if inputs == "sdm-unips" else 0
+    chunk = 10000 * num_images * 1024 * 4 * 3 if inputs in PUBLISHED_INPUTS else 0
     return images + num_images * MODEL_BYTES_PER_IMAGE + pixels * (12 * num_images * (2 + 2 * tta) + 64) + chunk
 
 

@@ -15,9 +15,10 @@ uses the shipped weights of `unips.models.DEFAULT_MODEL` (the registry's pretrai
 to run when that file is absent (never random weights). The network sees the UniPS preprocessing (`unips.preprocess.prepare`), at the
 crop's own size or at ``--res R``, and its output is put back into the original frame. ``--tta N``
 averages the network's predictions over N flipped / transposed views of the object (test-time
-augmentation, N forward passes; `unips.inference.model_normals`). ``--model sdm-unips --checkpoint DIR`` runs
-the authors' published SDM-UniPS weights (their checkpoint folder) with their preprocessing
-(`unips.sdm_preprocess`, one view unless ``--tta`` says otherwise).
+augmentation, N forward passes; `unips.inference.model_normals`). ``--model glc-unips --checkpoint DIR`` and
+``--model sdm-unips --checkpoint DIR`` run the authors' published UniPS and SDM-UniPS weights (their checkpoint
+folders) with their preprocessing (`unips.glc_preprocess`, `unips.sdm_preprocess`; one view unless ``--tta`` says
+otherwise).
 """
 
 from __future__ import annotations
@@ -113,9 +114,14 @@ def check_object(args: "PredictOptions", folder: Path) -> None:
     if inputs == "sdm-unips":
         from unips.sdm_preprocess import SDM_MAX_IMAGES, sdm_crop
 
-        k = min(k, SDM_MAX_IMAGES)
-    work = args.res if args.res is not None else (sdm_crop(fd.mask).side if inputs == "sdm-unips"
-                                                  else crop_box(fd.mask).size)
+        k, side = min(k, SDM_MAX_IMAGES), sdm_crop(fd.mask).side
+    elif inputs == "glc-unips":
+        from unips.glc_preprocess import GLC_MAX_IMAGES, GLC_SIDE
+
+        k, side = min(k, GLC_MAX_IMAGES), GLC_SIDE
+    else:
+        side = crop_box(fd.mask).size
+    work = args.res if args.res is not None else side
     tta = (args.tta or default_tta(inputs)) if args.method == "model" else 1
     need = prediction_memory(args.method, fd.shape, k, work, tta, inputs=inputs)
     at = (f"at {work} x {work} px (--res)" if args.res is not None else f"at {work} x {work} px from its crop")
@@ -147,7 +153,8 @@ class PredictOptions:
     (with --model); --method model only."""
     model: str | None = None
     """Registered network (unips.models.list_models()): the one that reads a folder of published weights
-    (--model sdm-unips --checkpoint DIR); with a model file, the file's; without --checkpoint, its shipped weights."""
+    (--model glc-unips or sdm-unips --checkpoint DIR); with a model file, the file's; without --checkpoint, its
+    shipped weights."""
     input: Path = REQUIRED
     """An object folder or a directory of them."""
     out: Path = REQUIRED
@@ -157,10 +164,11 @@ class PredictOptions:
     device: str = "cpu"
     """Torch device for --method model (cpu, cuda, cuda:0)."""
     res: Annotated[int | None, arg(help_behavior_hint="(default: the crop's own size)")] = option(None, minimum=8)
-    """Working resolution of the network (the crop is resized to R x R); --method model only. SDM-UniPS: a
-    multiple of its canonical resolution, by default the published side (a multiple of 512)."""
+    """Working resolution of the network (the crop is resized to R x R); --method model only. UniPS (glc-unips): by
+    default the published 512. SDM-UniPS: a multiple of its canonical resolution, by default the published side (a
+    multiple of 512)."""
     tta: Annotated[Literal[TTA_VIEWS] | None,
-                   arg(help_behavior_hint=f"(default: {str(DEFAULT_TTA)}; 1 for SDM-UniPS)")] = None
+                   arg(help_behavior_hint=f"(default: {str(DEFAULT_TTA)}; 1 for glc-unips, sdm-unips)")] = None
     """Views averaged (test-time augmentation by flips and transposes); N forward passes; --method model only."""
     overwrite: bool = False
     """Replace the predictions of an earlier run in --out (folders with its predict.json; nothing else is touched)."""
