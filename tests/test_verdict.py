@@ -34,6 +34,34 @@ def test_explained_and_trusted_on_a_lambertian_sphere_not_on_flicker():
     assert "not a judgement" in why2
 
 
+def test_images_that_vary_in_fewer_than_three_ways_are_not_judged():
+    """Explained is not enough: 8 scaled copies of one image (one light, rank 1) and 8 lights in one plane (rank
+    2: the normals' component across the plane is free) are explained by any map, so the check abstains and
+    says why; the same sphere under 8 lights around it (rank 3) is judged. Noise at 0.2 % of the scale."""
+    from validate.verdict import DIMENSION_NOISE, explain, verdict
+
+    n, mask = analytic_sphere()
+    rng = np.random.default_rng(1)
+
+    def noisy(images):
+        return (images + rng.normal(0, 0.002, images.shape) * mask[None, ..., None]).astype(np.float32)
+
+    good = _lambertian(n, mask)
+    copies = np.stack([good[0] * s for s in np.linspace(0.6, 1.3, 8)])
+    t = np.radians(np.linspace(-60, 60, 8))
+    plane = np.stack([np.sin(t), np.zeros(8), np.cos(t)], 1)  # every light in the x-z plane
+    flat = np.repeat((np.clip(np.einsum("hwc,kc->khw", n, plane), 0, None) * 0.8 * mask)[..., None], 3, 3)
+    for images, dims in ((copies, 1), (flat, 2), (good, 3)):
+        ex = explain(noisy(images), mask)
+        trusted, why = verdict(ex)
+        assert ex.light_dimensions == dims, (dims, ex.dimensions)
+        if dims < 3:
+            assert not trusted and f"only {dims} independent way" in why, why
+            assert ex.dimensions[dims] < DIMENSION_NOISE <= ex.dimensions[dims - 1]
+        else:
+            assert trusted, why
+
+
 def test_observations_come_from_the_images_alone_and_leave_out_shadows():
     from validate.verdict import explain
 

@@ -20,14 +20,11 @@ from typing import Any
 
 import numpy as np
 
-from validate.verdict import SEPARATION, Explanation, judged_rel_l1
+from validate.verdict import SEPARATION, TIE_FLOOR, Explanation, judged_rel_l1
 
 VARIANTS = ((0.7, 0.0, 0.0), (1.0, 0.2, 0.0))
 """(lambda, mu, nu) of the transforms tested: a flatter relief, and a tilt about the y axis (about 11 degrees at
 the image centre). Each costs one short fit."""
-TIE_FLOOR = 0.002
-"""Judged residuals closer than this (0.2 % of the mean observation) are tied whatever their ratio: on
-noise-free renders both maps score near 0 and their ratio says nothing."""
 STEPS_FRACTION = 4
 """Each transform's fit runs steps / STEPS_FRACTION Adam steps (it starts where the Lambertian part is optimal)."""
 

@@ -24,7 +24,12 @@ from validate.capture import Capture
 from validate.fit import FitResult, fit_normals, prepare
 from validate.fit_scene import FitConfig, Progress
 from validate.judgeable import check_judgeable
-from validate.verdict import Explanation, channel_noise_sigmas, explain, judged_rel_l1, verdict
+from validate.verdict import Explanation, channel_noise_sigmas, explain, judged_rel_l1, told_apart, verdict
+
+
+RESOLUTION_NOTE = ("two judged scores of this capture closer than `resolution` are not told apart by the images: "
+                   "a map fitted against the score (refined) can sit that far below the true surface, absorbing what "
+                   "the physics lacks; compare maps by score only outside it")
 
 
 def estimate_noise_rel_l1(images: np.ndarray, mask: np.ndarray) -> float:
@@ -174,6 +179,11 @@ def rerender_fitted(
         "explained_fraction": ex.explained_fraction,
         "judged_rel_l1": finite(judged),
         "judged_floor_rel_l1": finite(min(judged_floors.values())) if judged_floors else None,
+        "resolution": finite(ex.resolution),
+        "resolution_note": RESOLUTION_NOTE,
+        "told_apart_from_floor": (told_apart(judged, min(judged_floors.values()), ex) if judged_floors else None),
+        "light_dimensions": ex.light_dimensions,
+        "light_dimension_noise_units": [round(d, 2) for d in ex.dimensions],
         "ambiguity": ambiguity,
         "rel_l1": res.rel_l1,
         "noise_rel_l1": finite(estimate_noise_rel_l1(small.images, small.mask)),

@@ -42,7 +42,7 @@ from validate.fit import fit_normals, run_fit
 from validate.fit_report import full_config_dict, judge_capture, provenance, saturated_fraction
 from validate.fit_scene import FitConfig, FitScene, Progress, lambertian_start, to_jit
 from validate.regulariser import make_regulariser
-from validate.verdict import SEPARATION
+from validate.verdict import SEPARATION, judged_rel_l1, told_apart
 
 log = logging.getLogger(__name__)
 
@@ -126,6 +126,9 @@ class RefineResult:
     """Light model used ('auto' resolved: the model with the lowest residual around the starting map)."""
     rotation: dict | None = None
     """The last rotation search (`search_rotation`'s record: chosen tilt, equally good tilts and their spread)."""
+    holdout: tuple[int, ...] = ()
+    """Indices of the images held out of every step that moves the normals (early stopping reads them): the
+    check can judge the refined map on them."""
 
 
 ROTATION_TIE = 0.005
@@ -303,7 +306,7 @@ def refine_normals(
     n_best = n_best / np.linalg.norm(n_best, axis=1, keepdims=True)
     out = np.zeros(mask.shape + (3,), np.float32)
     out[mask] = n_best
-    return RefineResult(normals=out, holdout_curve=curve, best_step=int(best["step"]) if len(holdout) else config.refine_steps,
+    return RefineResult(normals=out, holdout=tuple(int(i) for i in holdout), holdout_curve=curve, best_step=int(best["step"]) if len(holdout) else config.refine_steps,
                         seconds=time.perf_counter() - t0, light_model=cfg.light_model, rotation=rotation or None)
 
 
@@ -324,6 +327,16 @@ def upsample_change(full: np.ndarray, mask_full: np.ndarray, start_small: np.nda
     return np.where(mask_full[..., None], n, 0).astype(np.float32)
 
 
+def _declined(jc: Any, mae_in: float | None, t0: float) -> dict:
+    """The report (written with the input map) of a capture the check does not judge."""
+    report = {"mode": "refine", "object": jc.cap.name, "folder": str(jc.cap.folder), "prediction": jc.source,
+              "accepted": False, "why": f"declined, the input map is kept: {jc.why}", "trusted": False,
+              "explained_fraction": jc.explanation.explained_fraction, "refined_fraction": 0.0,
+              "before": {"mae_deg": mae_in}, "after": {"mae_deg": mae_in}, "timings": {"total_s": time.perf_counter() - t0}}
+    _write_refined(jc.target, jc.full, report)
+    return report
+
+
 def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig | None = None, out_dir: str | None = None,
                   progress: Progress | None = None, overwrite: bool = False) -> dict:
     """Refine the normal map of one object folder; write normal.png and refine_report.json under out_dir/<object>/."""
@@ -337,21 +350,15 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
     cap, full, small, n_small, ex, f = jc.cap, jc.full, jc.small, jc.normals, jc.explanation, jc.downsample
     mae_in = mae_deg(full, cap.normal_gt, cap.mask) if cap.normal_gt is not None else None
     if not jc.trusted:
-        report = {"mode": "refine", "object": cap.name, "folder": str(cap.folder), "prediction": jc.source,
-                  "accepted": False, "why": f"declined, the input map is kept: {jc.why}", "trusted": False,
-                  "explained_fraction": ex.explained_fraction, "refined_fraction": 0.0,
-                  "before": {"mae_deg": mae_in}, "after": {"mae_deg": mae_in},
-                  "timings": {"total_s": time.perf_counter() - t0}}
-        _write_refined(jc.target, full, report)
-        return report
+        return _declined(jc, mae_in, t0)
     calibrated = None
     if small.light_directions is not None and small.light_irradiance is not None:
         calibrated = (small.light_directions, small.light_irradiance)
     res = refine_normals(small.images, small.mask, n_small, config, calibrated, progress, small.saturated)
     # Only the pixels the physics explains may change; elsewhere the input map stays.
-    keep_input = np.zeros(small.mask.shape, bool)
-    keep_input[small.mask] = ~ex.explained
-    res.normals = np.where(keep_input[..., None], n_small, res.normals).astype(np.float32)
+    unexplained = small.mask.copy()
+    unexplained[small.mask] = ~ex.explained
+    res.normals = np.where(unexplained[..., None], n_small, res.normals).astype(np.float32)
     refined_full = upsample_change(full, cap.mask, n_small, res.normals)
     refined_small = downsample_normals(refined_full, small.mask, f) if f > 1 else refined_full
     # Both scores with the light model the refinement used ('auto' resolved), so that they compare.
@@ -359,21 +366,25 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
     before, judged_before = jc.score(n_small, fit_cfg, progress, "score before")
     after, judged_after = jc.score(refined_small, fit_cfg, progress, "score after")
     accepted = bool(judged_after < judged_before * (1.0 - MIN_GAIN))
-    why = (f"the judged residual fell {judged_before:.4f} -> {judged_after:.4f} on the observations every map shares; "
-           f"{ex.explained_fraction:.0%} of the object was refined, the rest keeps the input map" if accepted else
+    apart = told_apart(judged_before, judged_after, ex)
+    held = None if not res.holdout else {  # evidence the refined normals were never fitted to
+        "images": list(res.holdout), "before_rel_l1": judged_rel_l1(before.render, jc.observed, ex, res.holdout),
+        "after_rel_l1": judged_rel_l1(after.render, jc.observed, ex, res.holdout),
+        "note": "judged on the held-out images only, which no step that moved the normals used"}
+    why = (f"the judged residual fell {judged_before:.4f} -> {judged_after:.4f} on the observations every map shares"
+           + ("" if apart else f", within the capture's resolution {ex.resolution:.4f}: the images do not tell the maps "
+              "apart (the refined one fits the physics best, not shown closer to the surface)")
+           + f"; {ex.explained_fraction:.0%} of the object was refined, the rest keeps the input map" if accepted else
            f"declined, the input map is kept: the judged residual did not fall by {MIN_GAIN:.0%} "
            f"({judged_before:.4f} -> {judged_after:.4f})")
     if not accepted:
         refined_full = full
     report: dict[str, Any] = {
-        "mode": "refine",
-        "accepted": accepted,
-        "why": why,
-        "trusted": True,
-        "explained_fraction": ex.explained_fraction,
-        "refined_fraction": ex.explained_fraction if accepted else 0.0,
-        "judged_before_rel_l1": judged_before,
-        "judged_after_rel_l1": judged_after,
+        "mode": "refine", "accepted": accepted, "why": why, "trusted": True,
+        "explained_fraction": ex.explained_fraction, "refined_fraction": ex.explained_fraction if accepted else 0.0,
+        "judged_before_rel_l1": judged_before, "judged_after_rel_l1": judged_after,
+        "resolution": ex.resolution, "told_apart": apart,
+        "holdout_judged": held,
         "lights_source": config.lights,
         "light_model": res.light_model,
         "object": cap.name,

@@ -251,6 +251,9 @@ def _main_fitted(args: RerenderOptions) -> int:
     judged = r["judged_rel_l1"]
     print(("TRUSTED" if r["trusted"] else "NOT TRUSTED (the check abstains)") + f": {r['why']}"
           + (f"; judged rel_l1 {judged:.4f} (constant map {r['judged_floor_rel_l1'] or float('nan'):.4f})" if judged is not None else ""))
+    if r["resolution"] is not None:
+        print(f"resolution {r['resolution']:.4f}: judged scores of this capture closer than that are not told apart by "
+              "the images (a refined map can score that far below the true surface)")
     if r["ambiguity"]["tested"]:
         print(f"bas-relief ambiguity: {r['ambiguity']['note']}")
     print(f"report in {args.out}/{r['object']}/report.json, where the check judges in {args.out}/{r['object']}/explained.png")

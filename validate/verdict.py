@@ -18,8 +18,24 @@ not come from the map being judged. Here they come from the images only:
    metals and inter-reflections break the model: there the fitted light models were measured to rank a wrong
    map (the shipped model's, 11-18 degrees off) above the truth, so the check abstains
    (`bench/bench_verdict.py`).
-3. **Verdict** (`verdict`): trusted when at least `MIN_EXPLAINED` of the mask is explained; otherwise the check
-   abstains (`trusted: false` with the reason) and its score is printed but marked untrusted.
+3. **Constrained** (`explain`, `Explanation.light_dimensions`): being explained is not enough: 8 scaled copies of
+   one image are explained by any map (rank 1), and lights that lie near one plane (rank 2) leave one component
+   of every normal free. The rank-4 fit of the explained pixels' kept observations (channel mean) is read for its
+   singular values; a dimension counts when its singular value exceeds `DIMENSION_NOISE` times what the image
+   noise alone gives a matrix of that size (sigma (sqrt(P) + sqrt(K))). With fewer than three light dimensions
+   the check abstains: a map and its mirror image (n_x negated, the lights turned with it) then score alike.
+   Lights from one side only are not refused as such: with three dimensions the truth still ranked first
+   (DiLiGenT ball, 8 and 40 images all lit from the right: the mirrored map scores 14 % higher).
+4. **Verdict** (`verdict`): trusted when the capture is constrained and at least `MIN_EXPLAINED` of the mask is
+   explained; otherwise the check abstains (`trusted: false` with the reason) and its score is printed but marked
+   untrusted.
+5. **Resolution** (`Explanation.resolution`, `told_apart`): the fitted physics is simpler than the world, so a map
+   optimised against the score (refined) absorbs part of what the physics lacks into its normals and can score
+   below the true surface. How far below is bounded by what no Lambertian explanation removes: the residual of
+   the rank-4 model itself (`bound`, free normals and albedo per pixel and a free light per image, on the judged
+   observations). Two maps whose judged scores differ by less than that are "not told apart": the images do not
+   rank them. Measured: refining the true map of DiLiGenT cat lowers its score by 0.013 (bound 0.016), of a
+   rendered glossy object by 0.011 (bound 0.019), while maps 10 degrees off score 0.04 or more above the truth.
 
 The constants were chosen on rendered objects with ground truth and the two DiLiGenT objects at hand
 (`bench/bench_verdict.py`, docs/check.md), never on one real capture alone.
@@ -48,6 +64,14 @@ EXPLAINED_RELATIVE = 0.05
 kept observation (noise counts too: a capture this noisy cannot rank maps 10 degrees apart)."""
 MIN_EXPLAINED = 0.5
 """Fraction of the mask pixels that must be explained for a trusted verdict."""
+DIMENSION_NOISE = 8.0
+"""A light dimension of the capture (a singular value of the explained observations) counts when it is at least
+this many times the singular value of the image noise alone. Measured on DiLiGenT ball (bench/bench_verdict.py
+--degenerate): 5 one-sided images whose third value is 3.5 times the noise let a mirrored map (54 degrees off)
+score below the truth; 5 or 8 images with 17 or more rank the truth first."""
+TIE_FLOOR = 0.002
+"""Judged residuals closer than this (0.2 % of the mean observation) are tied whatever else: on noise-free renders
+every map near the truth scores near 0."""
 RANK = 4
 """Rank of the distant-light Lambertian model per colour channel: [normal, 1] (3 + ambient)."""
 SEPARATION = 0.02
@@ -67,6 +91,24 @@ class Explanation:
     """(P,) rms residual of each pixel's kept observations under the rank-4 model, relative to their mean."""
     sigma: float
     """Image noise standard deviation (same units as the images)."""
+    dimensions: tuple[float, ...] = ()
+    """The first three singular values of the explained pixels' kept observations (channel mean, completed by the
+    rank-4 model), in units of the noise's singular value (sigma (sqrt(P) + sqrt(K)))."""
+
+    bound: float = float("nan")
+    """The judged rel_l1 of the rank-4 model itself: what the best Lambertian explanation leaves (any normals and
+    albedo per pixel, any light per image), on the observations every map is scored on."""
+
+    @property
+    def resolution(self) -> float:
+        """The smallest difference of judged rel_l1 the capture resolves (module doc, 5): `bound`, at least
+        `TIE_FLOOR`. Two maps closer than this are not told apart by the images."""
+        return max(float(self.bound), TIE_FLOOR) if np.isfinite(self.bound) else float("nan")
+
+    @property
+    def light_dimensions(self) -> int:
+        """How many of the three dimensions a normal has the lights reach above the noise (`DIMENSION_NOISE`)."""
+        return int(sum(d >= DIMENSION_NOISE for d in self.dimensions))
 
     @property
     def explained_fraction(self) -> float:
@@ -134,10 +176,8 @@ def explain(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None =
     intensity = obs.mean(axis=2)  # (K, P)
     for _ in range(2):  # twice: fit, then drop the outliers (highlights, inter-reflections)
         w = keep.T.astype(np.float64)  # (P, K)
-        res = np.zeros((p, k))
-        for c in range(3):
-            res += (obs[:, :, c].T - _weighted_low_rank(obs[:, :, c].T, w, RANK)) ** 2
-        res = np.sqrt(res / 3.0)  # (P, K) rms over channels
+        model = np.stack([_weighted_low_rank(obs[:, :, c].T, w, RANK).T for c in range(3)], axis=2)  # (K, P, 3)
+        res = np.sqrt(((obs - model) ** 2).mean(axis=2)).T  # (P, K) rms over channels
         kept = res[w > 0]
         floor = max(sigma, SCALE_FLOOR * float(intensity[keep].mean()) if keep.any() else sigma)
         scale = max(1.4826 * float(np.median(kept)) if kept.size else floor, floor)
@@ -147,7 +187,22 @@ def explain(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None =
     level = np.where(keep, intensity, 0.0).sum(0) / np.maximum(count, 1)  # (P,) mean kept observation
     # Relative, not in noise units: a capture whose noise is a large part of the signal cannot be judged either.
     explained = (count >= MIN_OBSERVATIONS) & (rms <= EXPLAINED_RELATIVE * level)
-    return Explanation(keep=keep, explained=explained, residual=rms / np.maximum(level, 1e-12), sigma=sigma)
+    judged = keep & explained[None]  # (K, P) the observations every map is scored on
+    bound = rel_l1_observations(model, obs, where=judged) if judged.any() else float("nan")
+    return Explanation(keep=keep, explained=explained, residual=rms / np.maximum(level, 1e-12), sigma=sigma,
+                       dimensions=_dimensions(intensity, keep, explained, sigma), bound=bound)
+
+
+def _dimensions(intensity: np.ndarray, keep: np.ndarray, explained: np.ndarray, sigma: float) -> tuple[float, ...]:
+    """The first three singular values of the rank-4 completion of the explained pixels' kept observations
+    (K, P) -> (P_e, K), over the noise's singular value sigma (sqrt(P_e) + sqrt(K))."""
+    m, w = intensity[:, explained].T, keep[:, explained].T.astype(np.float64)  # (P_e, K)
+    if m.shape[0] < RANK or m.shape[1] < 2:
+        return (0.0, 0.0, 0.0)
+    s = np.linalg.svd(_weighted_low_rank(m, w, RANK), compute_uv=False)
+    s = np.concatenate([s, np.zeros(3)])[:3]
+    return tuple(float(v) for v in s / (sigma * (np.sqrt(m.shape[0]) + np.sqrt(m.shape[1]))))
+
 
 
 def verdict(ex: Explanation) -> tuple[bool, str]:
@@ -157,15 +212,30 @@ def verdict(ex: Explanation) -> tuple[bool, str]:
     if images < MIN_OBSERVATIONS:
         return False, (f"only {images} images: a pixel needs at least {MIN_OBSERVATIONS} unshadowed observations "
                        "before the images can say whether a normal map explains it")
-    if frac >= MIN_EXPLAINED:
-        return True, (f"{frac:.0%} of the object is explained by distant lights on a Lambertian surface (at least "
-                      f"{MIN_EXPLAINED:.0%} needed): scored on those pixels' unshadowed, unsaturated observations")
-    return False, (f"only {frac:.0%} of the object is explained by distant lights on a Lambertian surface (at least "
-                   f"{MIN_EXPLAINED:.0%} needed): near or environment light, metals, cast "
-                   "shadows or inter-reflections the check cannot model; the score is not a judgement of the normals")
+    if frac < MIN_EXPLAINED:
+        return False, (f"only {frac:.0%} of the object is explained by distant lights on a Lambertian surface (at "
+                       f"least {MIN_EXPLAINED:.0%} needed): near or environment light, metals, cast "
+                       "shadows or inter-reflections the check cannot model; the score is not a judgement of the normals")
+    if ex.dimensions and ex.light_dimensions < 3:
+        return False, (f"the images vary in only {ex.light_dimensions} independent way(s) above the noise (a normal has "
+                       "3): the lights are copies of one or lie near one plane, so any map is explained as well as "
+                       "the true one; the score is not a judgement of the normals; take photos with the light moved "
+                       "further, above, below and to the sides")
+    return True, (f"{frac:.0%} of the object is explained by distant lights on a Lambertian surface (at least "
+                  f"{MIN_EXPLAINED:.0%} needed) and the lights vary in all 3 directions: scored on those pixels' "
+                  "unshadowed, unsaturated observations")
 
 
-def judged_rel_l1(render: np.ndarray, images: np.ndarray, ex: Explanation) -> float:
+def judged_rel_l1(render: np.ndarray, images: np.ndarray, ex: Explanation, only: tuple[int, ...] | None = None) -> float:
     """rel_l1 of a fitted render (K, P, 3) against the images (K, P, 3) over the kept observations of the
-    explained pixels: the same observations for every map of the capture."""
-    return rel_l1_observations(render, images, where=ex.keep & ex.explained[None])  # (K, P) selection
+    explained pixels: the same observations for every map of the capture; `only`: of those images alone."""
+    where = ex.keep & ex.explained[None]  # (K, P) selection
+    if only is not None:
+        where = where & np.isin(np.arange(len(where)), list(only))[:, None]
+    return rel_l1_observations(render, images, where=where)
+
+
+def told_apart(a: float, b: float, ex: Explanation) -> bool:
+    """Whether judged scores `a` and `b` of two maps of one capture differ by more than its resolution
+    (`Explanation.resolution`); False when either is not finite."""
+    return bool(np.isfinite(a) and np.isfinite(b) and abs(a - b) > ex.resolution)
