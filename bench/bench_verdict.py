@@ -60,6 +60,30 @@ def explain_by_tile(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray 
                        sigma=float(np.median(sigmas)) if sigmas else 0.0)
 
 
+def optimised_maps(maps: dict, cap, small, cfg) -> None:
+    """--optimised: refine each starting map (validate.refine's defaults, fitted lights) at the fitting resolution
+    and add it to `maps` as '<name>*' (upsampled by nearest neighbour to be scored and measured like the others)."""
+    import cv2
+
+    from unips.data import load_object
+    from unips.inference import predict_object
+    from validate.fit import prepare
+    from validate.refine import RefineConfig, refine_normals
+
+    starts = {k: maps[k] for k in ("gt", "gt+10", "gt+25", "model") if k in maps}
+    if cap.light_directions is not None:
+        starts["least-squares"] = maps["least-squares"] = predict_object(load_object(cap.folder), "least-squares", None)
+    h, w = cap.mask.shape
+    for name, m in starts.items():
+        _, nm, _ = prepare(cap, m, cfg)
+        t0 = time.perf_counter()
+        r = refine_normals(small.images, small.mask, nm, RefineConfig(), saturated=small.saturated)
+        up = cv2.resize(r.normals, (w, h), interpolation=cv2.INTER_NEAREST)
+        up = np.where(cap.mask[..., None], up / np.maximum(np.linalg.norm(up, axis=-1, keepdims=True), 1e-12), 0)
+        maps[name + "*"] = np.where(np.linalg.norm(up, axis=-1, keepdims=True) > 0.5, up, m).astype(np.float32)
+        print(f"  refined {name} in {time.perf_counter() - t0:.0f} s", flush=True)
+
+
 NEAR_MIN_EXPLAINED = 0.55
 """--near trial: share of the mask a tile-by-tile test must explain (above the whole-object test's 0.5)."""
 NEAR_TILES_ACROSS = 4
@@ -91,6 +115,9 @@ def main() -> int:
     p.add_argument("--no-model", action="store_true", help="skip the shipped model's map")
     p.add_argument("--refine", action="store_true", help="also refine the shipped model's map (validate.refine's "
                    "defaults) and report its error before and after, and whether the refinement was accepted")
+    p.add_argument("--optimised", action="store_true", help="on each trusted capture also refine the ground truth, "
+                   "GT+10, GT+25, the shipped model's map and calibrated least squares (where the folder has lights) with "
+                   "validate.refine's defaults at the fitting resolution, and score the refined maps ('<map>*') too")
     p.add_argument("--light-model", default="directional", choices=("directional", "point", "environment"),
                    help="light model of every fit (the check's default: directional)")
     p.add_argument("--tile", type=int, default=0, help="trial: run the images-only rank-4 test per square tile of "
@@ -111,7 +138,7 @@ def main() -> int:
     from validate.fit import fit_normals, prepare
     from validate.fit_scene import FitConfig
     from validate.perturb import perturb_normals
-    from validate.verdict import explain, judged_rel_l1, verdict
+    from validate.verdict import explain, judged_rel_l1, told_apart, verdict
 
     base = FitConfig(light_model=args.light_model).validate()
     net = None if args.no_model else load_network(None)
@@ -139,6 +166,8 @@ def main() -> int:
         if net is not None:
             maps["model"] = predict_object(load_object(folder), "model", net)
         maps["constant"] = np.where(cap.mask[..., None], np.float32([0, 0, 1]), 0).astype(np.float32)
+        if args.optimised and trusted:
+            optimised_maps(maps, cap, small, cfg)
         row = {"capture": folder.name, "explained": ex.explained_fraction, "trusted": trusted, "why": why,
                "test": test, "light_model": cfg.light_model, "maps": {}}
         for name, m in maps.items():
@@ -158,10 +187,18 @@ def main() -> int:
         far = [k for k, v in row["maps"].items() if k != "gt" and v["mae_deg"] >= 10]
         row["gt_first"] = all(s["gt"] < s[k] for k in far)
         row["ordered"] = s["gt+10"] < s["gt+25"] < s["constant"]
+        # With the resolution: first or not told apart; in order or not told apart.
+        row["resolution"] = ex.resolution
+        row["gt_first_or_tied"] = all(s["gt"] < s[k] or not told_apart(s["gt"], s[k], ex) for k in far)
+        row["ordered_or_tied"] = all(a < b or not told_apart(a, b, ex) for a, b in
+                                     ((s["gt+10"], s["gt+25"]), (s["gt+25"], s["constant"])))
+        row["below_gt_told_apart"] = [k for k in s if k != "gt" and s[k] < s["gt"] and told_apart(s["gt"], s[k], ex)]
         row["gt_first_old_score"] = all(row["maps"]["gt"]["rel_l1"] < row["maps"][k]["rel_l1"] for k in far)
         row["seconds"] = time.perf_counter() - t0
         rows.append(row)
-        print(f"{row['capture']:<14} {test} {cfg.light_model} explained {row['explained']:.2f} trusted {str(trusted):<5} gt_first {row['gt_first']!s:<5} "
+        print(f"{row['capture']:<14} {test} {cfg.light_model} explained {row['explained']:.2f} trusted {str(trusted):<5} "
+              f"resolution {row['resolution']:.4f} first-or-tied {row['gt_first_or_tied']!s:<5} ordered-or-tied "
+              f"{row['ordered_or_tied']!s:<5} gt_first {row['gt_first']!s:<5} "
               f"ordered {row['ordered']!s:<5} (old score gt_first {row['gt_first_old_score']})  "
               + "  ".join(f"{k} {v['mae_deg']:.1f}deg {v['judged_rel_l1']:.4f}" for k, v in row["maps"].items()), flush=True)
     judged = [r for r in rows if r["trusted"]]
@@ -170,6 +207,9 @@ def main() -> int:
                "near": args.near, "trusted_by_tiles": sum(r["test"] != "whole object" for r in judged),
                "abstention_rate": 1 - len(judged) / len(rows) if rows else None,
                "trusted_gt_first": sum(r["gt_first"] for r in judged), "trusted_ordered": sum(r["ordered"] for r in judged),
+               "trusted_gt_first_or_tied": sum(r["gt_first_or_tied"] for r in judged),
+               "trusted_ordered_or_tied": sum(r["ordered_or_tied"] for r in judged),
+               "trusted_with_a_map_told_apart_below_gt": sum(bool(r["below_gt_told_apart"]) for r in judged),
                "all_gt_first_judged_score": sum(r["gt_first"] for r in rows),
                "all_gt_first_old_score": sum(r["gt_first_old_score"] for r in rows)}
     refined = [r["refine"] for r in rows if "refine" in r]
