@@ -38,7 +38,7 @@ from scenes.files import atomic_write_text
 from scenes.metrics import mean_angular_error
 from scenes.report.tables import markdown_table
 from unips.data import find_objects, load_object
-from unips.inference import DEFAULT_TTA, TTA_VIEWS, load_network, predict_object
+from unips.inference import DEFAULT_TTA, TTA_VIEWS, check_model_name, load_network, predict_object
 from unips.probes import PROBES
 from wildgen.light_families import LIGHT_FAMILIES
 
@@ -311,6 +311,9 @@ class BenchmarkOptions:
     """Held-out synthetic dataset directory (object folders with normal.tif)."""
     checkpoint: Annotated[str | None, arg(help_behavior_hint="(default: the shipped weights of unips.models.DEFAULT_MODEL)")] = None
     """Model file."""
+    model: str | None = None
+    """Registered network (unips.models.list_models()) that reads --checkpoint when it is a folder of the authors'
+    published weights (--model glc-unips or sdm-unips --checkpoint DIR); without --checkpoint, its shipped weights."""
     ablation_checkpoint: str | None = None
     """Weights of the same model trained with uniform contexts (the ablation column)."""
     diligent: str | None = None
@@ -354,6 +357,7 @@ class BenchmarkOptions:
             raise UsageError(f"--diligent-subset: got {self.diligent_subset}, expected fewer than --diligent-images "
                              f"{self.diligent_images} (a subset of all the images is no subset; or --diligent-subsets 0)")
         check_threads(self.threads)
+        check_model_name(self.model)
         check_output_folder(self.out)
         claim_outputs([Path(self.out) / f for f in OUTPUTS], self.overwrite, owner="orchestrate.benchmark")
         return self
@@ -430,7 +434,7 @@ def main(argv: list[str] | None = None) -> int:
 
         if args.threads:
             torch.set_num_threads(args.threads)
-        net = load_network(args.checkpoint)
+        net = load_network(args.checkpoint, model=args.model)
         ablation = load_network(args.ablation_checkpoint) if args.ablation_checkpoint else None
         res: dict[str, Any] = {"checkpoint": str(net.checkpoint), "ablation_checkpoint": args.ablation_checkpoint, "images": args.images, "data": args.data,
                                "tta": args.tta}

@@ -68,7 +68,10 @@ class CaptureOptions:
     max_side: Annotated[int | None, arg(help_behavior_hint="(default: the photos' own size)")] = option(None, minimum=32)
     """Downscale the photos so that their longer side is at most this many pixels."""
     checkpoint: Annotated[str | None, arg(metavar="FILE", help_behavior_hint="(default: the shipped model)")] = None
-    """Model weights to predict with."""
+    """Model weights to predict with: a model file, or a folder of the authors' published weights with --model."""
+    model: str | None = None
+    """Registered network (unips.models.list_models()) that reads --checkpoint when it is a folder of published
+    weights (--model glc-unips or sdm-unips); without --checkpoint, its shipped weights."""
     refine: bool = True
     """Refine the map where the physical check can judge the capture (kept only when the check accepts it)."""
     rotation_search: bool = False
@@ -79,7 +82,10 @@ class CaptureOptions:
     """Replace the outputs of an earlier run in --out."""
 
     def validate(self) -> "CaptureOptions":
+        from unips.inference import check_model_name
+
         check_fields(self)
+        check_model_name(self.model)
         return self
 
 
@@ -167,7 +173,7 @@ def predict(opts: CaptureOptions, work: Path) -> np.ndarray:
     from unips.data import object_from_folder
     from unips.inference import load_network, run_model
 
-    net = load_network(opts.checkpoint)
+    net = load_network(opts.checkpoint, model=opts.model)
     return run_model(net, object_from_folder(read_folder(work, arg="--input")))
 
 
@@ -202,7 +208,7 @@ def verdict(check: dict, refined: dict | None) -> dict:
     out = {"images_can_judge": bool(check["trusted"]), "why": check.get("why"),
            "explained_fraction": check.get("explained_fraction"), "judged_rel_l1": judged, "noise_rel_l1": noise,
            "residual_in_noise_units": (judged / noise) if judged is not None and noise else None,
-           "refined": bool(refined and refined.get("accepted")),
+           "refined": bool(refined and refined.get("accepted")), "resolution": check.get("resolution"),
            "refinement": refined.get("why") if refined else "not run: the images cannot judge this capture"
            if not check["trusted"] else "not run (--no-refine)"}
     if not check["trusted"]:
@@ -213,7 +219,11 @@ def verdict(check: dict, refined: dict | None) -> dict:
         out["summary"] = (f"The images can judge this capture ({check['explained_fraction']:.0%} of the object is "
                           f"explained by the fitted light); the final map leaves a residual of "
                           f"{units:.1f} times the image noise" if units is not None else "The images can judge this capture")
-        out["summary"] += ("; it was refined." if out["refined"] else "; the model's map is kept.")
+        out["summary"] += ("; the model's map is kept." if not out["refined"] else
+                           "; it was refined, and the images tell the refined map apart from the model's." if
+                           refined.get("told_apart") else
+                           "; it was refined, but the change is within what the images resolve: the refined map fits "
+                           "the physics better, which does not show it is closer to the surface.")
     return out
 
 

@@ -659,6 +659,8 @@ ROWS: list[Row] = [
     Row("bench-subsets-negative", BM, ["--diligent", "{W}/empty", "--out", "{T}/b", "--diligent-subsets", "-1"], 2,
         ("--diligent-subsets", "-1")),
     Row("bench-unknown-flag", BM, ["--data", "{W}/data", "--fast"], 2, ("--fast",)),
+    Row("bench-model-unknown", BM, ["--data", "{W}/data", "--out", "{T}/b", "--model", "nope"], 2, ("--model", "nope"),
+        check=_not_written("b")),
     # ---- orchestrate.train_recipe (checked before any dataset is rendered)
     Row("recipe-work-is-file", RC, ["--work", "{W}/afile"], 2, ("--work", "afile")),
     Row("recipe-ship-without-registry-entry", RC, ["--work", "{T}/w", "--model", "glc-test", "--ship"], 2,

@@ -307,3 +307,6 @@ def test_bad_captures_stop_in_one_line(photos, tmp_path, capsys):
     (tmp_path / "taken" / "report.json").write_text("{}")
     assert main(["--input", str(photos), "--out", str(tmp_path / "taken")]) == 2
     assert "--overwrite" in capsys.readouterr().err and (tmp_path / "taken" / "report.json").read_text() == "{}"
+    assert main(["--input", str(photos), "--out", str(tmp_path / "m"), "--model", "nope"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --model: 'nope' is not registered") and not (tmp_path / "m").exists()

@@ -60,6 +60,16 @@ class LoadedModel:
         return model_inputs(self.meta["model_name"])
 
 
+def check_model_name(model: str | None, flag: str = "--model") -> None:
+    """A registered network name (or None); one UsageError naming the flag and the known models otherwise."""
+    if model is None:
+        return
+    from unips.models import list_models  # torch: imported only when a network is named
+
+    if model not in list_models():
+        raise UsageError(f"{flag}: {model!r} is not registered; known models: {', '.join(list_models())}")
+
+
 def load_network(checkpoint: str | Path | None, device: str = "cpu", model: str | None = None) -> LoadedModel:
     """Load a model file (or, when `checkpoint` is None, the shipped weights of `model`, default `DEFAULT_MODEL`)
     onto `device`. A folder (or `.pytmodel` file) of the authors' published weights needs `model`, the registered

@@ -43,8 +43,8 @@ from scenes.files import atomic_write_text
 from scenes.images import write_normal_exr, write_normal_map, write_normal_visual
 from scenes.folder.layouts import detect_layout
 from unips.data import find_objects, load_object
-from unips.inference import (DEFAULT_TTA, METHODS, TTA_VIEWS, default_tta, load_network, predict_object,
-                             prediction_memory)
+from unips.inference import (DEFAULT_TTA, METHODS, TTA_VIEWS, check_model_name, default_tta, load_network,
+                             predict_object, prediction_memory)
 
 log = logging.getLogger(__name__)
 
@@ -87,12 +87,6 @@ def check_out_folder(folder: Path, overwrite: bool = False) -> None:
     if others:  # a prediction file of another kind beside ours: the lookup would not find what this run writes
         raise UsageError(f"--out: {str(others[0])!r} was not written by unips.predict; it is never replaced: "
                          "move it away or use another --out")
-
-
-def _models() -> list[str]:
-    from unips.models import list_models  # torch: imported only when a network is named
-
-    return list_models()
 
 
 def _model_inputs(name: str) -> str:
@@ -180,8 +174,7 @@ class PredictOptions:
                                 ("--tta", self.tta)):
                 if value is not None:
                     raise UsageError(f"{flag}: only used with --method model, not --method {self.method}")
-        if self.model is not None and self.model not in _models():
-            raise UsageError(f"--model: {self.model!r} is not registered; known models: {', '.join(_models())}")
+        check_model_name(self.model)
         check_output_folder(self.out)
         return self
 
