@@ -27,7 +27,7 @@ import dataclasses
 import numpy as np
 
 from unips.data import PSObject
-from unips.sdm_preprocess import SDMCrop, sdm_crop
+from unips.sdm_preprocess import SDMCrop, image_subset, sdm_crop
 
 GLC_MARGIN = 4
 """Pixels around the mask's bounding box (fixed in the published loader)."""
@@ -47,9 +47,7 @@ def glc_inputs(obj: PSObject, crop: SDMCrop, max_images: int = GLC_MAX_IMAGES,
     """images `(K, S, S, 3)` float32 (normalised, zero outside the mask) and mask `(S, S)` float32 in {0, 1}."""
     import cv2
 
-    chosen = np.arange(obj.num_images)
-    if obj.num_images > max_images:
-        chosen = np.sort(np.random.default_rng(seed).permutation(obj.num_images)[:max_images])
+    chosen = image_subset(obj.num_images, max_images, seed)
     s = crop.side
     mask = cv2.resize(obj.mask[crop.r0:crop.r1, crop.c0:crop.c1].astype(np.float32), (s, s),
                       interpolation=cv2.INTER_NEAREST)  # (S, S) in {0, 1}

@@ -69,14 +69,20 @@ def sdm_crop(mask: np.ndarray, margin: int = SDM_MARGIN, largest: int = SDM_LARG
     return SDMCrop(r0, r1, c0, c1, side)
 
 
+def image_subset(k: int, max_images: int, seed: int) -> np.ndarray:
+    """Indices of the images a published network reads: all K, or a seeded random `max_images` of them in
+    their order (the authors draw an unseeded subset; ours is repeatable)."""
+    if k <= max_images:
+        return np.arange(k)
+    return np.sort(np.random.default_rng(seed).permutation(k)[:max_images])
+
+
 def sdm_inputs(obj: PSObject, crop: SDMCrop, max_images: int = SDM_MAX_IMAGES,
                seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """images `(K, S, S, 3)` float32 (normalised) and mask `(S, S)` float32 in {0, 1} of the crop."""
     import cv2
 
-    chosen = np.arange(obj.num_images)
-    if obj.num_images > max_images:
-        chosen = np.sort(np.random.default_rng(seed).permutation(obj.num_images)[:max_images])
+    chosen = image_subset(obj.num_images, max_images, seed)
     s = crop.side
     mask = cv2.resize(obj.mask[crop.r0:crop.r1, crop.c0:crop.c1].astype(np.float32), (s, s),
                       interpolation=cv2.INTER_CUBIC) > 0.5
