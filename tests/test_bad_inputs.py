@@ -240,6 +240,9 @@ class Row:
     replaces: tuple[str, ...] = ()
     """Files of T (relative paths) the row asks the command to replace (--overwrite): they must change; every
     other pre-existing file must not."""
+    removes: tuple[str, ...] = ()
+    """Files of T the row asks the command to remove (an earlier run's leftovers, with --overwrite): they must be
+    gone; every other pre-existing file must stay."""
 
 
 def _copy(src: str, dst: str) -> Callable[[Path, Path], None]:
@@ -779,6 +782,80 @@ ROWS: list[Row] = [
 ]
 
 
+# --------------------------------------------------------------------------- issue 40: the third sweep
+
+EXP = "wildgen.export"
+HELD: list[int] = []
+"""Descriptors of folder locks a row's setup holds (another export at work), closed by its check."""
+
+
+def _earlier_export(rel: str, *extra: tuple[str, str]) -> Callable[[Path, Path], None]:
+    """Setup: T/<rel>, an earlier wildgen.export of the world's dataset (one shard per object), and `extra` files."""
+    def setup(w: Path, t: Path) -> None:
+        from wildgen.export import export_dataset
+
+        export_dataset(w / "data", t / rel, shard_size=1)
+        _put(*extra)(w, t)
+    return setup
+
+
+def _export_running(rel: str) -> Callable[[Path, Path], None]:
+    """Setup: T/<rel>, an earlier export whose folder another export holds locked right now."""
+    def setup(w: Path, t: Path) -> None:
+        from scenes.files import folder_lock
+
+        _earlier_export(rel)(w, t)
+        HELD.append(folder_lock(t / rel))
+    return setup
+
+
+def _release(w: Path, t: Path) -> None:
+    while HELD:
+        os.close(HELD.pop())
+
+
+ROWS += [
+    # ---- data loss: what no export wrote is never replaced; an earlier export's leftovers go with --overwrite
+    Row("make-shards-user-index", MK, ["--out", "{T}/o", "--shards", "{T}/s", *TINY], 2,
+        ("--shards", "index.json", "not a shard index"), setup=_put(("s/index.json", '{"mine": 1}\n')),
+        absent=("rendering",), check=_not_written("o")),
+    Row("make-shards-user-index-even-with-overwrite", MK, ["--out", "{T}/o", "--shards", "{T}/s", "--overwrite", *TINY],
+        2, ("--shards", "index.json"), setup=_put(("s/index.json", '{"mine": 1}\n')), absent=("rendering",)),
+    Row("export-user-index-even-with-overwrite", EXP, ["--data", "{W}/data", "--out", "{T}/s", "--overwrite",
+                                                       "--quiet"], 2, ("--out", "index.json", "not a shard index"),
+        setup=_put(("s/index.json", '{"mine": 1}\n'))),
+    Row("export-user-index-not-called-earlier-run", EXP, ["--data", "{W}/data", "--out", "{T}/s", "--quiet"], 2,
+        ("--out", "index.json", "never replaced"), setup=_put(("s/index.json", "[1, 2]\n")), absent=("earlier run",)),
+    Row("export-overwrite-removes-killed-temporaries", EXP, ["--data", "{W}/data", "--out", "{T}/s", "--shard-size",
+                                                             "3", "--overwrite", "--quiet"], 0, ("wrote 3 objects",),
+        setup=_earlier_export("s", ("s/.000005.tmp4242.tar", "half"), ("s/.index.tmp4242.json", "half"),
+                              ("s/.notes.tmp1.txt", "mine")),
+        replaces=("s/index.json", "s/000000.tar"),
+        removes=("s/000001.tar", "s/000002.tar", "s/.000005.tmp4242.tar", "s/.index.tmp4242.json")),
+    # ---- damaged state: two exports into one folder
+    Row("export-concurrent-into-one-folder", EXP, ["--data", "{W}/data", "--out", "{T}/s", "--overwrite", "--quiet"],
+        2, ("--out", "another export is writing"), setup=_export_running("s"), check=_release),
+    # ---- tracebacks: a failed shard leaves no tar writer to be closed at exit into a closed file
+    Row("export-decoded-bad-image-one-line", EXP, ["--data", "{W}/data_onebad", "--out", "{T}/s", "--encoding",
+                                                   "decoded", "--quiet"], 2, ("L001.png",), sub=True,
+        absent=("Exception ignored", "closed file")),
+    # ---- slow failures: every --shards problem before the render
+    Row("make-shards-inside-out", MK, ["--out", "{T}/o", "--shards", "{T}/o/s", *TINY], 2, ("--shards", "apart"),
+        absent=("rendering",), check=_not_written("o")),
+    Row("make-shards-equal-out", MK, ["--out", "{T}/o", "--shards", "{T}/o", *TINY], 2, ("--shards", "apart"),
+        absent=("rendering",), check=_not_written("o")),
+    Row("make-shards-is-file", MK, ["--out", "{T}/o", "--shards", "{W}/afile", *TINY], 2, ("--shards", "afile"),
+        absent=("rendering",), check=_not_written("o")),
+    Row("make-shards-read-only", MK, ["--out", "{T}/o", "--shards", "{RO}/s", *TINY], 2, ("--shards", "not writable"),
+        absent=("rendering",), check=_not_written("o")),
+    Row("make-shards-foreign-shard", MK, ["--out", "{T}/o", "--shards", "{T}/s", *TINY], 2,
+        ("--shards", "000000.tar", "not written by wildgen.export"), setup=_put(("s/000000.tar", "mine\n")),
+        absent=("rendering",), check=_not_written("o")),
+    Row("make-shards-other-export", MK, ["--out", "{T}/o", "--shards", "{T}/s", *TINY], 2, ("--shards", "--overwrite"),
+        setup=_earlier_export("s"), absent=("rendering",), check=_not_written("o")),
+]
+
+
 def _snapshot(root: Path) -> dict[str, str]:
     """relative path -> sha256 of every file (and 'dir' for every folder) under root."""
     out = {}
@@ -827,8 +904,10 @@ def test_bad_input(row: Row, world: Path, tmp_path: Path, capsys, request):
         assert err.strip().splitlines()[-1].startswith("error:"), err
     assert _snapshot(world) == before_world, "a pre-existing file of the world changed"
     after_t = _snapshot(t)
-    changed = [k for k, v in before_t.items() if after_t.get(k) != v and k not in row.replaces]
+    changed = [k for k, v in before_t.items() if after_t.get(k) != v and k not in row.replaces + row.removes]
     assert not changed, f"pre-existing files changed or removed: {changed}"
+    left = [k for k in row.removes if k in after_t]
+    assert not left, f"files the row asked to remove are still there: {left}"
     kept = [k for k in row.replaces if after_t.get(k) in (None, before_t.get(k))]
     assert not kept, f"files the row asked to replace were not replaced: {kept}"
     if row.check is not None:

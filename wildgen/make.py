@@ -58,7 +58,8 @@ class MakeOptions:
     """No progress bar."""
     shards: Annotated[str | None, arg(metavar="DIR")] = None
     """Also write the finished dataset as WebDataset shards into this folder (python -m wildgen.export, default
-    shard size; an earlier export there is replaced)."""
+    shard size; checked before the render; an earlier export there is replaced when it was made from this dataset
+    or with --overwrite)."""
     shard_encoding: Literal[ENCODINGS] = "files"
     """Encoding of --shards (wildgen.export --encoding): 'files' as they are, or 'decoded' (the reader's arrays,
     faster to train on)."""
@@ -139,6 +140,10 @@ def check_flags(opts: MakeOptions, explicit: set[str]) -> None:
         given = " and ".join(f"--{f}" for f in ("width", "height") if f in explicit)
         raise ValueError(f"--res: sets both sides; it cannot be combined with {given} (use --res R or --width W --height H)")
     check_output_folder(opts.out)
+    if opts.shards:  # the whole target, before the render: not found only when the dataset is done
+        from wildgen.export import check_target, replaces_export
+
+        check_target(opts.out, opts.shards, opts.overwrite or replaces_export(opts.shards, opts.out), "--shards")
     if opts.ray is not None:
         from wildgen.parallel import RAY_INSTALL, ray_available
 
@@ -355,7 +360,7 @@ def _run(argv: list[str] | None, state: dict) -> int:
     if args.shards:
         from wildgen.export import export_after_make
 
-        return export_after_make(out, args.shards, args.shard_encoding)
+        return export_after_make(out, args.shards, args.shard_encoding, overwrite=args.overwrite)
     return 0
 
 

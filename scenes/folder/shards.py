@@ -31,7 +31,8 @@ mtime 0, uid / gid 0, empty owner names and mode 0444, so the same folders give 
 
 Beside the shards, `INDEX_FILE` (index.json) holds `format` ("webdataset"), `format_version`, `encoding`
 (absent in exports written before it: `files`), `objects`,
-`shard_size`, `aux_files`, `pattern` (the brace pattern of all shards) and `shards`: per shard its `name`,
+`shard_size`, `aux_files`, `pattern` (the brace pattern of all shards), `source` (the dataset folder, absolute;
+absent in older exports) and `shards`: per shard its `name`,
 `bytes`, `sha256` and `objects` (`name`, source `folder`, `images`), in order; `complete` is false while an
 export is running. Readers refuse a shard that the index does not list, whose checksum differs, or whose
 index is incomplete.
@@ -287,19 +288,29 @@ def write_shard(path: str | Path, folders: list[tuple[str, Path]], aux: bool = F
             stream = _HashingWriter(f)
             # Fixed metadata: the same folders give the same bytes (mtime 0, uid / gid 0, no owner names).
             writer = wds.TarWriter(stream, user="", group="", mode=0o444, mtime=0, encoder=False)
-            for key, folder in folders:
-                sample: dict[str, Any] = {"__key__": key}
-                if encoding == DECODED:
-                    sample.update(encode_decoded(folder, arg))
-                else:
-                    for suffix, p in sample_files(folder, aux, arg):
-                        sample[suffix] = p.read_bytes()
-                writer.write(sample)
-                layout = detect_layout(folder)
-                images = len(layout_named(layout).images(folder)) if layout else 0
-                objects.append({"name": key, "folder": folder.name, "images": images})
+            try:
+                _write_samples(writer)
+            except BaseException:
+                try:  # closed while its file is open: never again at garbage collection, into a closed file
+                    writer.close()
+                except Exception:  # a full disk fails the close too; the first error is the one reported
+                    pass
+                raise
             writer.close()
             result.update(bytes=stream.size, sha256=stream.sha.hexdigest())
+
+    def _write_samples(writer) -> None:
+        for key, folder in folders:
+            sample: dict[str, Any] = {"__key__": key}
+            if encoding == DECODED:
+                sample.update(encode_decoded(folder, arg))
+            else:
+                for suffix, p in sample_files(folder, aux, arg):
+                    sample[suffix] = p.read_bytes()
+            writer.write(sample)
+            layout = detect_layout(folder)
+            images = len(layout_named(layout).images(folder)) if layout else 0
+            objects.append({"name": key, "folder": folder.name, "images": images})
 
     atomic_write(path, write)
     return {"name": path.name, **result, "objects": objects}
