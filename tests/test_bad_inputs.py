@@ -163,6 +163,19 @@ def readonly(tmp_path_factory):
     subprocess.run(["umount", str(d)], check=False)
 
 
+@pytest.fixture(scope="module")
+def full_disk(tmp_path_factory):
+    """{FULL} of the rows: a folder on a 1 MiB file system (a tmpfs; skipped where mounting is not allowed): a
+    training log fits, a checkpoint does not."""
+    d = tmp_path_factory.mktemp("full") / "disk"
+    d.mkdir()
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(d)], capture_output=True, text=True)
+    if r.returncode != 0:
+        pytest.skip(f"cannot mount a small tmpfs here: {r.stderr.strip()}")
+    yield d
+    subprocess.run(["umount", str(d)], check=False)
+
+
 def _put(*files: tuple[str, str]) -> Callable[[Path, Path], None]:
     """Setup: text files at paths relative to T (an earlier run's outputs, a user's notes)."""
     def setup(w: Path, t: Path) -> None:
@@ -809,6 +822,46 @@ def _export_running(rel: str) -> Callable[[Path, Path], None]:
     return setup
 
 
+def _trained(rel: str, then: Callable[[Path], None]) -> Callable[[Path, Path], None]:
+    """Setup: T/<rel>, a real unips.train run of one step on the world's dataset, then `then(run folder)`."""
+    def setup(w: Path, t: Path) -> None:
+        from unips.train import main
+
+        assert main([*TRAIN_ONE, "--steps", "1", "--data", str(w / "data"), "--out", str(t / rel)]) == 0
+        then(t / rel)
+    return setup
+
+
+TRAIN_ONE = ["--model", "glc-test", "--res", "16", "--no-progress", "--threads", "1"]
+
+
+def _flip_a_weight_bit(run: Path) -> None:
+    """One bit of the largest tensor's bytes in last.pt flipped (torch's reader checks none of them)."""
+    import zipfile
+
+    path = run / "last.pt"
+    with zipfile.ZipFile(path) as z:
+        big = max((i for i in z.infolist() if "/data/" in i.filename), key=lambda i: i.file_size)
+    raw = bytearray(path.read_bytes())
+    extra = int.from_bytes(raw[big.header_offset + 28:big.header_offset + 30], "little")
+    raw[big.header_offset + 30 + len(big.filename.encode()) + extra + 3] ^= 0x40  # a float32's exponent
+    path.write_bytes(bytes(raw))
+
+
+def _torn_log(last: bool) -> Callable[[Path], None]:
+    def tear(run: Path) -> None:
+        log = run / "log.jsonl"
+        good = log.read_text()
+        log.write_text(good + '{"step": 2, "lo' if last else '{"step": 0, "lo\n' + good)
+    return tear
+
+
+def _log_steps(*steps: int) -> Callable[[Path, Path], None]:
+    def check(w: Path, t: Path) -> None:
+        assert [json.loads(line)["step"] for line in (t / "run" / "log.jsonl").read_text().splitlines()] == list(steps)
+    return check
+
+
 def _release(w: Path, t: Path) -> None:
     while HELD:
         os.close(HELD.pop())
@@ -851,6 +904,20 @@ ROWS += [
     Row("make-shards-foreign-shard", MK, ["--out", "{T}/o", "--shards", "{T}/s", *TINY], 2,
         ("--shards", "000000.tar", "not written by wildgen.export"), setup=_put(("s/000000.tar", "mine\n")),
         absent=("rendering",), check=_not_written("o")),
+    # ---- damaged state: a training checkpoint that changed after it was written
+    Row("train-resume-bit-flip-in-last", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "2",
+                                              "--resume"], 2, ("--resume", "last.pt", "damaged"),
+        setup=_trained("run", _flip_a_weight_bit)),
+    # ---- tracebacks and unclear messages of training
+    Row("train-full-disk-at-checkpoint", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{FULL}/run", "--steps", "1"], 1,
+        ("last.pt", "MiB free"), sub=True),
+    Row("train-resume-torn-last-log-line", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "2",
+                                                "--resume"], 0, ("trained steps 1..2",),
+        setup=_trained("run", _torn_log(last=True)), check=_log_steps(1, 2),
+        replaces=("run/log.jsonl", "run/last.pt", "run/final.safetensors", "run/final.json")),
+    Row("train-resume-damaged-log-line", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "2",
+                                              "--resume"], 2, ("--resume", "line 1", "log.jsonl"),
+        setup=_trained("run", _torn_log(last=False))),
     Row("make-shards-other-export", MK, ["--out", "{T}/o", "--shards", "{T}/s", *TINY], 2, ("--shards", "--overwrite"),
         setup=_earlier_export("s"), absent=("rendering",), check=_not_written("o")),
 ]
@@ -888,8 +955,9 @@ def test_bad_input(row: Row, world: Path, tmp_path: Path, capsys, request):
     if row.setup is not None:
         row.setup(world, t)
     ro = request.getfixturevalue("readonly") if any("{RO}" in a for a in row.args) else None
+    full = request.getfixturevalue("full_disk") if any("{FULL}" in a for a in row.args) else None
     before_world, before_t = _snapshot(world), _snapshot(t)
-    argv = [a.format(W=world, T=t, RO=ro) for a in row.args]
+    argv = [a.format(W=world, T=t, RO=ro, FULL=full) for a in row.args]
     rc, out, err = _run(row, argv, capsys)
     assert rc == row.rc, f"exit {rc}, expected {row.rc}\nstdout: {out[-2000:]}\nstderr: {err[-2000:]}"
     assert "Traceback" not in err and "Traceback" not in out, err
