@@ -918,6 +918,17 @@ ROWS += [
     Row("train-resume-damaged-log-line", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "2",
                                               "--resume"], 2, ("--resume", "line 1", "log.jsonl"),
         setup=_trained("run", _torn_log(last=False))),
+    # ---- still accepted: a value refused up front, not after the render started
+    Row("make-bounces-beyond-mitsuba", MK, ["--out", "{T}/o", "--bounces", "3000000000", *TINY], 2,
+        ("--bounces", "3000000000", "2147483645"), sub=True, check=_not_written("o")),
+    # ---- misleading: a flag whose value nothing reads, and two flags that set one field differently
+    Row("make-detail-strength-without-detail", MK, ["--out", "{T}/o", "--detail-strength", "3-9", *TINY], 2,
+        ("--detail-strength", "3-9", "--detail"), check=_not_written("o")),
+    Row("make-level-and-preset-disagree", MK, ["--out", "{T}/o", "--level", "5", "--preset", "diligent", *TINY], 2,
+        ("--level", "--preset", "--lights"), check=_not_written("o")),
+    Row("train-curriculum-fraction-without-curriculum", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run",
+                                                             "--steps", "1", "--curriculum-fraction", "0.3"], 2,
+        ("--curriculum-fraction", "0.3", "--curriculum"), check=_not_written("run")),
     Row("make-shards-other-export", MK, ["--out", "{T}/o", "--shards", "{T}/s", *TINY], 2, ("--shards", "--overwrite"),
         setup=_earlier_export("s"), absent=("rendering",), check=_not_written("o")),
 ]
