@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib
+import io
 import json
 import os
 import shutil
@@ -862,6 +863,26 @@ def _log_steps(*steps: int) -> Callable[[Path, Path], None]:
     return check
 
 
+def _shard_with_a_sample_dropped(w: Path, t: Path) -> None:
+    """Setup: T/s, a decoded export of the world's dataset in one shard, from which the members of object 00001
+    were removed and whose index.json was rewritten with the shard's new size and checksum (its objects kept)."""
+    import tarfile
+
+    from scenes.files import sha256_file
+    from wildgen.export import export_dataset
+
+    export_dataset(w / "data", t / "s", shard_size=3, encoding="decoded")
+    shard = t / "s" / "000000.tar"
+    with tarfile.open(shard) as src:
+        kept = [(m, src.extractfile(m).read()) for m in src.getmembers() if not m.name.startswith("00001.")]
+    with tarfile.open(shard, "w", format=tarfile.USTAR_FORMAT) as dst:
+        for m, data in kept:
+            dst.addfile(m, io.BytesIO(data))
+    index = json.loads((t / "s" / "index.json").read_text())
+    index["shards"][0].update(bytes=shard.stat().st_size, sha256=sha256_file(shard))
+    (t / "s" / "index.json").write_text(json.dumps(index))
+
+
 def _release(w: Path, t: Path) -> None:
     while HELD:
         os.close(HELD.pop())
@@ -929,6 +950,10 @@ ROWS += [
     Row("train-curriculum-fraction-without-curriculum", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run",
                                                              "--steps", "1", "--curriculum-fraction", "0.3"], 2,
         ("--curriculum-fraction", "0.3", "--curriculum"), check=_not_written("run")),
+    # ---- damaged state: a shard whose samples are not the objects its (rewritten) index lists
+    Row("train-shard-samples-differ-from-index", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps",
+                                                      "1"], 2, ("000000.tar", "'00001'", "index"),
+        setup=_shard_with_a_sample_dropped, check=_not_written("run/final.safetensors")),
     Row("make-shards-other-export", MK, ["--out", "{T}/o", "--shards", "{T}/s", *TINY], 2, ("--shards", "--overwrite"),
         setup=_earlier_export("s"), absent=("rendering",), check=_not_written("o")),
 ]

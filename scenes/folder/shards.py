@@ -375,6 +375,24 @@ def iter_samples(path: str | Path, arg: str = "--data") -> Iterator[tuple[str, d
         raise ValueError(f"{arg}: shard {str(path)!r} cannot be read ({first:.200})") from None
 
 
+def listed_samples(path: str | Path, entry: dict[str, Any], arg: str = "--data") -> Iterator[tuple[str, dict[str, bytes]]]:
+    """`iter_samples` of a shard checked against its index entry: the checksum first (`verify_shard`), then each
+    sample's key against the objects the entry lists, in order, and their number (ValueError naming the shard and
+    the object): samples that were damaged, dropped or renamed and an index rewritten to match are refused."""
+    verify_shard(path, entry, arg)
+    listed = [str(o.get("name")) if isinstance(o, dict) else repr(o) for o in entry["objects"]]
+    n = 0
+    for n, (key, files) in enumerate(iter_samples(path, arg), 1):
+        if n > len(listed) or key != listed[n - 1]:
+            want = f"object {listed[n - 1]!r}" if n <= len(listed) else f"no sample after its {len(listed)} objects"
+            raise ValueError(f"{arg}: shard {str(path)!r} holds sample {key!r} at position {n}, where {INDEX_FILE} "
+                             f"lists {want} (the shard and its index disagree)")
+        yield key, files
+    if n < len(listed):
+        raise ValueError(f"{arg}: shard {str(path)!r} holds {n} samples, {INDEX_FILE} lists {len(listed)} objects "
+                         f"(first missing: {listed[n]!r})")
+
+
 def extract_sample(files: dict[str, bytes], folder: str | Path) -> Path:
     """Write the files of one sample into `folder` (created; must not exist), as the object folder held them."""
     folder = Path(folder)
