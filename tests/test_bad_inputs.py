@@ -954,6 +954,15 @@ ROWS += [
     Row("train-shard-samples-differ-from-index", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps",
                                                       "1"], 2, ("000000.tar", "'00001'", "index"),
         setup=_shard_with_a_sample_dropped, check=_not_written("run/final.safetensors")),
+    # ---- messages that name the user's flag, not `path:` or `obj:`
+    Row("evaluate-corrupt-prediction-names-pred", EV, ["--pred", "{T}/p", "--gt", OBJDIR], 2, ("--pred", "normal.png"),
+        setup=lambda w, t: _random(t / "p" / OBJ / "normal.png"), absent=("path:",)),
+    Row("evaluate-corrupt-truth-names-gt", EV, ["--pred", "{T}/p", "--gt", "{W}/objs/badnormal.data"], 2,
+        ("--gt", "normal.tif"), setup=lambda w, t: shutil.copytree(w / "pred" / OBJ, t / "p" / "badnormal"),
+        absent=("path:",)),
+    Row("predict-least-squares-uncalibrated-names-method", PR, ["--method", "least-squares", "--input",
+                                                                "{T}/00000.data", "--out", "{T}/p"], 2,
+        ("--method least-squares", "light directions"), setup=_capture_copy(), absent=("obj:",)),
     Row("make-shards-other-export", MK, ["--out", "{T}/o", "--shards", "{T}/s", *TINY], 2, ("--shards", "--overwrite"),
         setup=_earlier_export("s"), absent=("rendering",), check=_not_written("o")),
 ]

@@ -480,7 +480,7 @@ def read_folder(path: str | Path, max_images: int | None = None, layout: str | N
     for name in entry.ground_truth:
         if (folder / name).is_file():
             normals_file = folder / name
-            normals = finish_normals(read_normals(normals_file), mask, normals_file)
+            normals = finish_normals(read_normals(normals_file, arg), mask, normals_file)
             break
     return FolderData(name=object_name(folder), path=folder, layout=layout, image_paths=list(paths),
                       num_files=len(all_paths), shape=tuple(shape), images=stack, saturated=saturated, mask=mask,

@@ -116,13 +116,15 @@ def load_state_strict(model: nn.Module, state: Mapping[str, torch.Tensor], sourc
     missing = [k for k in own if k not in state]
     unexpected = [k for k in state if k not in own]
     if missing or unexpected:
-        raise ValueError(f"{source}: state does not match the model: missing tensors {missing[:5]}"
-                         f"{'...' if len(missing) > 5 else ''}, unexpected tensors {unexpected[:5]}"
-                         f"{'...' if len(unexpected) > 5 else ''}")
+        def names(keys: list[str]) -> str:
+            return (", ".join(keys[:5]) or "none") + (f" and {len(keys) - 5} more" if len(keys) > 5 else "")
+
+        raise ValueError(f"{source}: state does not match the model: missing tensors {names(missing)}; unexpected "
+                         f"tensors {names(unexpected)}")
     for k, v in own.items():
         if tuple(state[k].shape) != tuple(v.shape):
-            raise ValueError(f"{source}: tensor {k!r} has shape {tuple(state[k].shape)} in the file "
-                             f"but {tuple(v.shape)} in the model built from its config")
+            raise ValueError(f"{source}: tensor {k} has shape {'x'.join(map(str, state[k].shape))} in the file but "
+                             f"{'x'.join(map(str, v.shape))} in the model built from its config")
     model.load_state_dict(state, strict=True)
 
 
