@@ -883,6 +883,20 @@ def _shard_with_a_sample_dropped(w: Path, t: Path) -> None:
     (t / "s" / "index.json").write_text(json.dumps(index))
 
 
+def _diligent_listing_twice(w: Path, t: Path) -> None:
+    """Setup: T/dil, a DiLiGenT folder of 8 images whose filenames.txt lists 001.png twice (and 008.png never)."""
+    from test_predict_evaluate import write_diligent
+
+    write_diligent(t / "dil")
+    names = (t / "dil" / "filenames.txt").read_text().split()
+    (t / "dil" / "filenames.txt").write_text("\n".join([*names[:7], names[0]]) + "\n")
+
+
+def _dataset_with_dangling_link(w: Path, t: Path) -> None:
+    shutil.copytree(w / "data", t / "ds", symlinks=True)
+    os.symlink(t / "gone" / "00009.data", t / "ds" / "00009.data")
+
+
 def _release(w: Path, t: Path) -> None:
     while HELD:
         os.close(HELD.pop())
@@ -963,6 +977,11 @@ ROWS += [
     Row("predict-least-squares-uncalibrated-names-method", PR, ["--method", "least-squares", "--input",
                                                                 "{T}/00000.data", "--out", "{T}/p"], 2,
         ("--method least-squares", "light directions"), setup=_capture_copy(), absent=("obj:",)),
+    # ---- still accepted or silent: one image listed twice, an object folder that went away
+    Row("predict-diligent-listing-twice", PR, ["--method", "least-squares", "--input", "{T}/dil", "--out", "{T}/p"], 2,
+        ("--input", "filenames.txt", "001.png twice"), setup=_diligent_listing_twice, check=_not_written("p")),
+    Row("predict-dataset-dangling-link", PR, ["--method", "least-squares", "--input", "{T}/ds", "--out", "{T}/p"], 2,
+        ("--input", "00009.data", "does not exist"), setup=_dataset_with_dangling_link, check=_not_written("p")),
     Row("make-shards-other-export", MK, ["--out", "{T}/o", "--shards", "{T}/s", *TINY], 2, ("--shards", "--overwrite"),
         setup=_earlier_export("s"), absent=("rendering",), check=_not_written("o")),
 ]
@@ -976,7 +995,8 @@ def _snapshot(root: Path) -> dict[str, str]:
             out[str(Path(dirpath, d).relative_to(root))] = "dir"
         for f in filenames:
             p = Path(dirpath, f)
-            out[str(p.relative_to(root))] = hashlib.sha256(p.read_bytes()).hexdigest()
+            out[str(p.relative_to(root))] = (f"link to {os.readlink(p)}" if p.is_symlink() and not p.exists() else
+                                             hashlib.sha256(p.read_bytes()).hexdigest())
     return out
 
 

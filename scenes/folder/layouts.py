@@ -36,6 +36,7 @@ Errors are FileNotFoundError / ValueError with one line that names the argument 
 from __future__ import annotations
 
 import logging
+import os
 import re
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -91,7 +92,13 @@ def diligent_images(folder: str | Path) -> list[Path]:
     folder = Path(folder)
     listing = folder / DILIGENT_LISTING
     if listing.is_file():
-        return [folder / line.strip() for line in listing.read_text().splitlines() if line.strip()]
+        names = [line.strip() for line in listing.read_text().splitlines() if line.strip()]
+        first: dict[str, int] = {}
+        for n, name in enumerate(names, 1):
+            if name in first:  # the same image twice would be two observations of one light
+                raise ValueError(f"{listing} lists {name} twice (entries {first[name]} and {n}); each image once")
+            first[name] = n
+        return [folder / name for name in names]
     return digit_images(folder)
 
 
@@ -298,7 +305,13 @@ def find_object_folders(path: str | Path, arg: str = "path") -> list[Path]:
     if detect_layout(root) is not None:
         return [root]
     if root.is_dir():
-        found = [p for p in sorted(root.iterdir(), key=lambda p: p.name) if detect_layout(p) is not None]
+        entries = sorted(root.iterdir(), key=lambda p: p.name)
+        dangling = [p for p in entries if p.is_symlink() and not p.exists()]
+        if dangling:  # an object folder that went away is never skipped without a word
+            raise FileNotFoundError(f"{arg}: {dangling[0]} is a link to {os.readlink(dangling[0])}, which does not "
+                                    f"exist{f' (and {len(dangling) - 1} more such links)' if len(dangling) > 1 else ''}; "
+                                    "restore it or remove the link")
+        found = [p for p in entries if detect_layout(p) is not None]
         if found:
             return found
     raise FileNotFoundError(f"{arg}: no object folder found at {root} (expected {EXPECTED})")
@@ -449,7 +462,10 @@ def read_folder(path: str | Path, max_images: int | None = None, layout: str | N
     entry = layout_named(layout)
     if max_images is not None and (isinstance(max_images, bool) or int(max_images) != max_images or max_images < 1):
         raise ValueError(f"max_images: must be an integer >= 1, got {max_images!r}")
-    all_paths = entry.images(folder)
+    try:
+        all_paths = entry.images(folder)
+    except ValueError as exc:
+        raise ValueError(f"{arg}: {exc}") from None
     if not all_paths:
         raise FileNotFoundError(f"{arg}: no images found in {folder} (expected {EXPECTED})")
     paths = all_paths[: int(max_images)] if max_images is not None else all_paths
