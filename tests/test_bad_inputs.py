@@ -897,6 +897,13 @@ def _dataset_with_dangling_link(w: Path, t: Path) -> None:
     os.symlink(t / "gone" / "00009.data", t / "ds" / "00009.data")
 
 
+def _header_says(text: str, wrong: str) -> Callable[[Path, Path], None]:
+    def check(w: Path, t: Path) -> None:
+        tables = (t / "b" / "tables.md").read_text()
+        assert text in tables and wrong not in tables, tables[:400]
+    return check
+
+
 def _release(w: Path, t: Path) -> None:
     while HELD:
         os.close(HELD.pop())
@@ -982,6 +989,10 @@ ROWS += [
         ("--input", "filenames.txt", "001.png twice"), setup=_diligent_listing_twice, check=_not_written("p")),
     Row("predict-dataset-dangling-link", PR, ["--method", "least-squares", "--input", "{T}/ds", "--out", "{T}/p"], 2,
         ("--input", "00009.data", "does not exist"), setup=_dataset_with_dangling_link, check=_not_written("p")),
+    # ---- output that misleads: the header's image count is what the objects had, not --images
+    Row("bench-header-images-the-objects-had", BM, ["--data", "{W}/data", "--out", "{T}/b", "--counts", "1",
+                                                    "--rerender-objects", "0", "--tta", "1"], 0, ("wrote",),
+        check=_header_says("3 objects, 4 images each", "10 images each")),
     Row("make-shards-other-export", MK, ["--out", "{T}/o", "--shards", "{T}/s", *TINY], 2, ("--shards", "--overwrite"),
         setup=_earlier_export("s"), absent=("rendering",), check=_not_written("o")),
 ]
