@@ -93,11 +93,9 @@ def diligent_images(folder: str | Path) -> list[Path]:
     listing = folder / DILIGENT_LISTING
     if listing.is_file():
         names = [line.strip() for line in listing.read_text().splitlines() if line.strip()]
-        first: dict[str, int] = {}
-        for n, name in enumerate(names, 1):
-            if name in first:  # the same image twice would be two observations of one light
-                raise ValueError(f"{listing} lists {name} twice (entries {first[name]} and {n}); each image once")
-            first[name] = n
+        twice = next((n for n, name in enumerate(names) if name in names[:n]), None)  # two observations of one light
+        if twice is not None:
+            raise ValueError(f"{listing} lists {names[twice]} twice, entries {names.index(names[twice]) + 1} and {twice + 1}")
         return [folder / name for name in names]
     return digit_images(folder)
 
@@ -306,11 +304,9 @@ def find_object_folders(path: str | Path, arg: str = "path") -> list[Path]:
         return [root]
     if root.is_dir():
         entries = sorted(root.iterdir(), key=lambda p: p.name)
-        dangling = [p for p in entries if p.is_symlink() and not p.exists()]
-        if dangling:  # an object folder that went away is never skipped without a word
-            raise FileNotFoundError(f"{arg}: {dangling[0]} is a link to {os.readlink(dangling[0])}, which does not "
-                                    f"exist{f' (and {len(dangling) - 1} more such links)' if len(dangling) > 1 else ''}; "
-                                    "restore it or remove the link")
+        gone = next((p for p in entries if p.is_symlink() and not p.exists()), None)  # never skipped silently
+        if gone is not None:
+            raise FileNotFoundError(f"{arg}: {gone} is a link to {os.readlink(gone)}, which does not exist")
         found = [p for p in entries if detect_layout(p) is not None]
         if found:
             return found
