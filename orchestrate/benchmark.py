@@ -87,7 +87,8 @@ def synthetic_tables(data: Path, net, ablation, images: int, counts: list[int], 
         obj = load_object(folder, max_images=images)
         if obj.normals is None:
             raise ValueError(f"--data: {str(folder)!r} has no ground-truth normals")
-        row = {"name": obj.name, "family": obj.light_family or "unknown", "folder": str(folder), "mae": {}, "pred": {}}
+        row = {"name": obj.name, "family": obj.light_family or "unknown", "folder": str(folder), "mae": {}, "pred": {},
+               "images": int(obj.images.shape[0])}
         for name, model in methods:
             t0 = time.perf_counter()
             try:
@@ -255,7 +256,10 @@ def _synthetic_tables(syn: dict, res: dict) -> list[str]:
     from unips.probes import format_table
 
     fams = syn["families"]
-    lines = [f"Mean angular error (deg) on the held-out synthetic set ({res['data']}, {len(syn['objects'])} objects, {res['images']} images each)", "",
+    used = sorted({r.get("images", res["images"]) for r in syn["objects"]}) or [res["images"]]  # not --images
+    each = f"{used[0]} images each" if len(used) == 1 else f"{used[0]} to {used[-1]} images (--images {res['images']})"
+    lines = [f"Mean angular error (deg) on the held-out synthetic set ({res['data']}, {len(syn['objects'])} objects, "
+             f"{each})", "",
              markdown_table(["method", *fams, "all"],
                             [[m, *(_fmt(row[f]) for f in fams), _fmt(row["all"])] for m, row in syn["family_table"].items()])]
     failed = {m: sum(m in r.get("failed", {}) for r in syn["objects"]) for m in syn["family_table"]}

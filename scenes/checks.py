@@ -12,12 +12,15 @@ def check_int(value: Any, name: str, minimum: float | None = None, maximum: floa
     """`value` if it is an integer (not a bool) within [minimum, maximum], else ValueError naming `name`."""
     ok = isinstance(value, numbers.Integral) and not isinstance(value, bool)
     if not ok or (minimum is not None and value < minimum) or (maximum is not None and value > maximum):
+        def n(bound: float) -> str:  # integers in full (2147483645, not 2.14748e+09)
+            return str(int(bound)) if float(bound).is_integer() else f"{bound:g}"
+
         if minimum is not None and maximum is not None:
-            what = f"an integer from {minimum:g} to {maximum:g}"
+            what = f"an integer from {n(minimum)} to {n(maximum)}"
         elif minimum is not None:
-            what = f"an integer >= {minimum:g}"
+            what = f"an integer >= {n(minimum)}"
         elif maximum is not None:
-            what = f"an integer <= {maximum:g}"
+            what = f"an integer <= {n(maximum)}"
         else:
             what = "an integer"
         raise ValueError(f"{name}: got {value!r}, expected {what}")

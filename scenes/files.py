@@ -4,6 +4,7 @@ SHA-256 checksums: used by object folders, shards, model checkpoints and reports
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 
@@ -21,6 +22,16 @@ def sha256_file(path: str | Path) -> str:
 def _temporary(path: Path) -> Path:
     """A hidden name beside `path` with the same extension (image writers choose the format by it)."""
     return path.with_name(f".{path.stem}.tmp{os.getpid()}{path.suffix}")
+
+
+_TEMPORARY = re.compile(r"^\.(?P<stem>.+)\.tmp\d+(?P<suffix>(\.[^.]*)?)$")
+
+
+def temporary_target(name: str) -> str | None:
+    """The file name whose temporary (`atomic_write`: `.<stem>.tmp<pid><suffix>`) `name` is, or None: what a
+    killed writer left behind, which an --overwrite of the same outputs removes."""
+    m = _TEMPORARY.match(name)
+    return None if m is None else m["stem"] + m["suffix"]
 
 
 def atomic_write(path: str | Path, write) -> None:
@@ -44,3 +55,22 @@ def atomic_write(path: str | Path, write) -> None:
 def atomic_write_text(path: str | Path, text: str) -> None:
     """Write a text file through a temporary name and rename, so readers never see half a file."""
     atomic_write(path, lambda tmp: tmp.write_text(text))
+
+
+class FolderBusy(ValueError):
+    """Another process holds the lock of a folder (`folder_lock`)."""
+
+
+def folder_lock(folder: str | Path):
+    """An exclusive advisory lock (`flock`) on the folder itself, held until the returned descriptor is closed
+    (`os.close`; the kernel releases it when the process dies). Nothing is written into the folder. Raises
+    FolderBusy when another process holds it."""
+    import fcntl
+
+    fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        os.close(fd)
+        raise FolderBusy(str(folder)) from None
+    return fd

@@ -266,58 +266,59 @@ def write_normal_visual(path: str | Path, n: np.ndarray) -> None:
     _imwrite(Path(path), np.ascontiguousarray(normal_visual(n)[..., ::-1]), mkdir=True)
 
 
-def _read_mat(path: Path) -> np.ndarray:
+def _read_mat(path: Path, arg: str = "normal map") -> np.ndarray:
     import scipy.io
 
     try:
         data = scipy.io.loadmat(str(path))
     except Exception as exc:
-        raise ValueError(f"path: cannot read MAT file {path}: {exc}") from exc
+        raise ValueError(f"{arg}: cannot read MAT file {path}: {exc}") from exc
     arrays = {k: v for k, v in data.items() if not k.startswith("__")}
     for key in ("Normal_gt", "normal", "normals", "Normal_est", "N"):
         if key in arrays:
             return np.asarray(arrays[key], dtype=np.float32)
     if len(arrays) == 1:
         return np.asarray(next(iter(arrays.values())), dtype=np.float32)
-    raise ValueError(f"path: MAT file {path} has no 'Normal_gt' key and several arrays {sorted(arrays)}")
+    raise ValueError(f"{arg}: MAT file {path} has no 'Normal_gt' key and several arrays {', '.join(sorted(arrays))}")
 
 
-def read_normals(path: str | Path) -> np.ndarray:
+def read_normals(path: str | Path, arg: str = "normal map") -> np.ndarray:
     """Read a normal map: .png/.tif/.tiff (8 or 16 bit), .exr, .npy, .mat.
 
     Returns (H, W, 3) float32; background pixels are 0. Raises FileNotFoundError for a missing file,
-    ValueError for unreadable files, wrong shapes or non-finite values.
+    ValueError for unreadable files, wrong shapes or non-finite values; each message starts with `arg`, the flag
+    the file came from (a CLI passes its own, e.g. --pred).
     """
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"path: normal map {path} does not exist")
+        raise FileNotFoundError(f"{arg}: normal map {path} does not exist")
     suffix = path.suffix.lower()
     if suffix in (".png", ".tif", ".tiff"):
         import cv2
 
         img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
         if img is None:
-            raise ValueError(f"path: cannot read image file {path} (corrupt or unsupported)")
+            raise ValueError(f"{arg}: cannot read image file {path} (corrupt or unsupported)")
         if img.ndim != 3 or img.shape[2] not in (3, 4):
-            raise ValueError(f"path: normal image {path} must be RGB, got shape {img.shape}")
-        n = decode_normal_image(np.ascontiguousarray(img[..., 2::-1]), f"path {path}")
+            raise ValueError(f"{arg}: normal image {path} must be RGB, got shape {'x'.join(map(str, img.shape))}")
+        n = decode_normal_image(np.ascontiguousarray(img[..., 2::-1]), f"{arg} {path}")
     elif suffix == ".exr":
         try:
             ch = _exr_channels(path)
         except ValueError as exc:
-            raise ValueError(f"path: cannot read EXR file {path}: {exc}") from exc
+            raise ValueError(f"{arg}: cannot read EXR file {path}: {exc}") from exc
         missing = [c for c in "RGB" if c not in ch]
         if missing:
-            raise ValueError(f"path: EXR file {path} lacks channels {missing} (has {sorted(ch)})")
+            raise ValueError(f"{arg}: EXR file {path} lacks channels {', '.join(missing)} (has {', '.join(sorted(ch))})")
         n = np.stack([ch["R"], ch["G"], ch["B"]], axis=-1).astype(np.float32)
     elif suffix == ".npy":
         try:
             n = np.load(path, allow_pickle=False)
         except Exception as exc:
-            raise ValueError(f"path: cannot read NPY file {path}: {exc}") from exc
+            raise ValueError(f"{arg}: cannot read NPY file {path}: {exc}") from exc
     elif suffix == ".mat":
-        n = _read_mat(path)
+        n = _read_mat(path, arg)
     else:
-        raise ValueError(f"path: unsupported normal-map extension {suffix!r} for {path} "
+        raise ValueError(f"{arg}: unsupported normal-map extension {suffix!r} for {path} "
                          "(expected .png, .tif, .tiff, .exr, .npy or .mat)")
     return check_normal_array(n, f"normal map {path}")

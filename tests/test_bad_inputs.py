@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib
+import io
 import json
 import os
 import shutil
@@ -163,6 +164,19 @@ def readonly(tmp_path_factory):
     subprocess.run(["umount", str(d)], check=False)
 
 
+@pytest.fixture(scope="module")
+def full_disk(tmp_path_factory):
+    """{FULL} of the rows: a folder on a 1 MiB file system (a tmpfs; skipped where mounting is not allowed): a
+    training log fits, a checkpoint does not."""
+    d = tmp_path_factory.mktemp("full") / "disk"
+    d.mkdir()
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(d)], capture_output=True, text=True)
+    if r.returncode != 0:
+        pytest.skip(f"cannot mount a small tmpfs here: {r.stderr.strip()}")
+    yield d
+    subprocess.run(["umount", str(d)], check=False)
+
+
 def _put(*files: tuple[str, str]) -> Callable[[Path, Path], None]:
     """Setup: text files at paths relative to T (an earlier run's outputs, a user's notes)."""
     def setup(w: Path, t: Path) -> None:
@@ -240,6 +254,9 @@ class Row:
     replaces: tuple[str, ...] = ()
     """Files of T (relative paths) the row asks the command to replace (--overwrite): they must change; every
     other pre-existing file must not."""
+    removes: tuple[str, ...] = ()
+    """Files of T the row asks the command to remove (an earlier run's leftovers, with --overwrite): they must be
+    gone; every other pre-existing file must stay."""
 
 
 def _copy(src: str, dst: str) -> Callable[[Path, Path], None]:
@@ -781,6 +798,208 @@ ROWS: list[Row] = [
 ]
 
 
+# --------------------------------------------------------------------------- issue 40: the third sweep
+
+EXP = "wildgen.export"
+HELD: list[int] = []
+"""Descriptors of folder locks a row's setup holds (another export at work), closed by its check."""
+
+
+def _earlier_export(rel: str, *extra: tuple[str, str]) -> Callable[[Path, Path], None]:
+    """Setup: T/<rel>, an earlier wildgen.export of the world's dataset (one shard per object), and `extra` files."""
+    def setup(w: Path, t: Path) -> None:
+        from wildgen.export import export_dataset
+
+        export_dataset(w / "data", t / rel, shard_size=1)
+        _put(*extra)(w, t)
+    return setup
+
+
+def _export_running(rel: str) -> Callable[[Path, Path], None]:
+    """Setup: T/<rel>, an earlier export whose folder another export holds locked right now."""
+    def setup(w: Path, t: Path) -> None:
+        from scenes.files import folder_lock
+
+        _earlier_export(rel)(w, t)
+        HELD.append(folder_lock(t / rel))
+    return setup
+
+
+def _trained(rel: str, then: Callable[[Path], None]) -> Callable[[Path, Path], None]:
+    """Setup: T/<rel>, a real unips.train run of one step on the world's dataset, then `then(run folder)`."""
+    def setup(w: Path, t: Path) -> None:
+        from unips.train import main
+
+        assert main([*TRAIN_ONE, "--steps", "1", "--data", str(w / "data"), "--out", str(t / rel)]) == 0
+        then(t / rel)
+    return setup
+
+
+TRAIN_ONE = ["--model", "glc-test", "--res", "16", "--no-progress", "--threads", "1"]
+
+
+def _flip_a_weight_bit(run: Path) -> None:
+    """One bit of the largest tensor's bytes in last.pt flipped (torch's reader checks none of them)."""
+    import zipfile
+
+    path = run / "last.pt"
+    with zipfile.ZipFile(path) as z:
+        big = max((i for i in z.infolist() if "/data/" in i.filename), key=lambda i: i.file_size)
+    raw = bytearray(path.read_bytes())
+    extra = int.from_bytes(raw[big.header_offset + 28:big.header_offset + 30], "little")
+    raw[big.header_offset + 30 + len(big.filename.encode()) + extra + 3] ^= 0x40  # a float32's exponent
+    path.write_bytes(bytes(raw))
+
+
+def _torn_log(last: bool) -> Callable[[Path], None]:
+    def tear(run: Path) -> None:
+        log = run / "log.jsonl"
+        good = log.read_text()
+        log.write_text(good + '{"step": 2, "lo' if last else '{"step": 0, "lo\n' + good)
+    return tear
+
+
+def _log_steps(*steps: int) -> Callable[[Path, Path], None]:
+    def check(w: Path, t: Path) -> None:
+        assert [json.loads(line)["step"] for line in (t / "run" / "log.jsonl").read_text().splitlines()] == list(steps)
+    return check
+
+
+def _shard_with_a_sample_dropped(w: Path, t: Path) -> None:
+    """Setup: T/s, a decoded export of the world's dataset in one shard, from which the members of object 00001
+    were removed and whose index.json was rewritten with the shard's new size and checksum (its objects kept)."""
+    import tarfile
+
+    from scenes.files import sha256_file
+    from wildgen.export import export_dataset
+
+    export_dataset(w / "data", t / "s", shard_size=3, encoding="decoded")
+    shard = t / "s" / "000000.tar"
+    with tarfile.open(shard) as src:
+        kept = [(m, src.extractfile(m).read()) for m in src.getmembers() if not m.name.startswith("00001.")]
+    with tarfile.open(shard, "w", format=tarfile.USTAR_FORMAT) as dst:
+        for m, data in kept:
+            dst.addfile(m, io.BytesIO(data))
+    index = json.loads((t / "s" / "index.json").read_text())
+    index["shards"][0].update(bytes=shard.stat().st_size, sha256=sha256_file(shard))
+    (t / "s" / "index.json").write_text(json.dumps(index))
+
+
+def _diligent_listing_twice(w: Path, t: Path) -> None:
+    """Setup: T/dil, a DiLiGenT folder of 8 images whose filenames.txt lists 001.png twice (and 008.png never)."""
+    from test_predict_evaluate import write_diligent
+
+    write_diligent(t / "dil")
+    names = (t / "dil" / "filenames.txt").read_text().split()
+    (t / "dil" / "filenames.txt").write_text("\n".join([*names[:7], names[0]]) + "\n")
+
+
+def _dataset_with_dangling_link(w: Path, t: Path) -> None:
+    shutil.copytree(w / "data", t / "ds", symlinks=True)
+    os.symlink(t / "gone" / "00009.data", t / "ds" / "00009.data")
+
+
+def _header_says(text: str, wrong: str) -> Callable[[Path, Path], None]:
+    def check(w: Path, t: Path) -> None:
+        tables = (t / "b" / "tables.md").read_text()
+        assert text in tables and wrong not in tables, tables[:400]
+    return check
+
+
+def _release(w: Path, t: Path) -> None:
+    while HELD:
+        os.close(HELD.pop())
+
+
+ROWS += [
+    # ---- data loss: what no export wrote is never replaced; an earlier export's leftovers go with --overwrite
+    Row("make-shards-user-index", MK, ["--out", "{T}/o", "--shards", "{T}/s", *TINY], 2,
+        ("--shards", "index.json", "not a shard index"), setup=_put(("s/index.json", '{"mine": 1}\n')),
+        absent=("rendering",), check=_not_written("o")),
+    Row("make-shards-user-index-even-with-overwrite", MK, ["--out", "{T}/o", "--shards", "{T}/s", "--overwrite", *TINY],
+        2, ("--shards", "index.json"), setup=_put(("s/index.json", '{"mine": 1}\n')), absent=("rendering",)),
+    Row("export-user-index-even-with-overwrite", EXP, ["--data", "{W}/data", "--out", "{T}/s", "--overwrite",
+                                                       "--quiet"], 2, ("--out", "index.json", "not a shard index"),
+        setup=_put(("s/index.json", '{"mine": 1}\n'))),
+    Row("export-user-index-not-called-earlier-run", EXP, ["--data", "{W}/data", "--out", "{T}/s", "--quiet"], 2,
+        ("--out", "index.json", "never replaced"), setup=_put(("s/index.json", "[1, 2]\n")), absent=("earlier run",)),
+    Row("export-overwrite-removes-killed-temporaries", EXP, ["--data", "{W}/data", "--out", "{T}/s", "--shard-size",
+                                                             "3", "--overwrite", "--quiet"], 0, ("wrote 3 objects",),
+        setup=_earlier_export("s", ("s/.000005.tmp4242.tar", "half"), ("s/.index.tmp4242.json", "half"),
+                              ("s/.notes.tmp1.txt", "mine")),
+        replaces=("s/index.json", "s/000000.tar"),
+        removes=("s/000001.tar", "s/000002.tar", "s/.000005.tmp4242.tar", "s/.index.tmp4242.json")),
+    # ---- damaged state: two exports into one folder
+    Row("export-concurrent-into-one-folder", EXP, ["--data", "{W}/data", "--out", "{T}/s", "--overwrite", "--quiet"],
+        2, ("--out", "another export is writing"), setup=_export_running("s"), check=_release),
+    # ---- tracebacks: a failed shard leaves no tar writer to be closed at exit into a closed file
+    Row("export-decoded-bad-image-one-line", EXP, ["--data", "{W}/data_onebad", "--out", "{T}/s", "--encoding",
+                                                   "decoded", "--quiet"], 2, ("L001.png",), sub=True,
+        absent=("Exception ignored", "closed file")),
+    # ---- slow failures: every --shards problem before the render
+    Row("make-shards-inside-out", MK, ["--out", "{T}/o", "--shards", "{T}/o/s", *TINY], 2, ("--shards", "apart"),
+        absent=("rendering",), check=_not_written("o")),
+    Row("make-shards-equal-out", MK, ["--out", "{T}/o", "--shards", "{T}/o", *TINY], 2, ("--shards", "apart"),
+        absent=("rendering",), check=_not_written("o")),
+    Row("make-shards-is-file", MK, ["--out", "{T}/o", "--shards", "{W}/afile", *TINY], 2, ("--shards", "afile"),
+        absent=("rendering",), check=_not_written("o")),
+    Row("make-shards-read-only", MK, ["--out", "{T}/o", "--shards", "{RO}/s", *TINY], 2, ("--shards", "not writable"),
+        absent=("rendering",), check=_not_written("o")),
+    Row("make-shards-foreign-shard", MK, ["--out", "{T}/o", "--shards", "{T}/s", *TINY], 2,
+        ("--shards", "000000.tar", "not written by wildgen.export"), setup=_put(("s/000000.tar", "mine\n")),
+        absent=("rendering",), check=_not_written("o")),
+    # ---- damaged state: a training checkpoint that changed after it was written
+    Row("train-resume-bit-flip-in-last", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "2",
+                                              "--resume"], 2, ("--resume", "last.pt", "damaged"),
+        setup=_trained("run", _flip_a_weight_bit)),
+    # ---- tracebacks and unclear messages of training
+    Row("train-full-disk-at-checkpoint", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{FULL}/run", "--steps", "1"], 1,
+        ("last.pt", "MiB free"), sub=True),
+    Row("train-resume-torn-last-log-line", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "2",
+                                                "--resume"], 0, ("trained steps 1..2",),
+        setup=_trained("run", _torn_log(last=True)), check=_log_steps(1, 2),
+        replaces=("run/log.jsonl", "run/last.pt", "run/final.safetensors", "run/final.json")),
+    Row("train-resume-damaged-log-line", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "2",
+                                              "--resume"], 2, ("--resume", "line 1", "log.jsonl"),
+        setup=_trained("run", _torn_log(last=False))),
+    # ---- still accepted: a value refused up front, not after the render started
+    Row("make-bounces-beyond-mitsuba", MK, ["--out", "{T}/o", "--bounces", "3000000000", *TINY], 2,
+        ("--bounces", "3000000000", "2147483645"), sub=True, check=_not_written("o")),
+    # ---- misleading: a flag whose value nothing reads, and two flags that set one field differently
+    Row("make-detail-strength-without-detail", MK, ["--out", "{T}/o", "--detail-strength", "3-9", *TINY], 2,
+        ("--detail-strength", "3-9", "--detail"), check=_not_written("o")),
+    Row("make-level-and-preset-disagree", MK, ["--out", "{T}/o", "--level", "5", "--preset", "diligent", *TINY], 2,
+        ("--level", "--preset", "--lights"), check=_not_written("o")),
+    Row("train-curriculum-fraction-without-curriculum", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run",
+                                                             "--steps", "1", "--curriculum-fraction", "0.3"], 2,
+        ("--curriculum-fraction", "0.3", "--curriculum"), check=_not_written("run")),
+    # ---- damaged state: a shard whose samples are not the objects its (rewritten) index lists
+    Row("train-shard-samples-differ-from-index", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps",
+                                                      "1"], 2, ("000000.tar", "'00001'", "index"),
+        setup=_shard_with_a_sample_dropped, check=_not_written("run/final.safetensors")),
+    # ---- messages that name the user's flag, not `path:` or `obj:`
+    Row("evaluate-corrupt-prediction-names-pred", EV, ["--pred", "{T}/p", "--gt", OBJDIR], 2, ("--pred", "normal.png"),
+        setup=lambda w, t: _random(t / "p" / OBJ / "normal.png"), absent=("path:",)),
+    Row("evaluate-corrupt-truth-names-gt", EV, ["--pred", "{T}/p", "--gt", "{W}/objs/badnormal.data"], 2,
+        ("--gt", "normal.tif"), setup=lambda w, t: shutil.copytree(w / "pred" / OBJ, t / "p" / "badnormal"),
+        absent=("path:",)),
+    Row("predict-least-squares-uncalibrated-names-method", PR, ["--method", "least-squares", "--input",
+                                                                "{T}/00000.data", "--out", "{T}/p"], 2,
+        ("--method least-squares", "light directions"), setup=_capture_copy(), absent=("obj:",)),
+    # ---- still accepted or silent: one image listed twice, an object folder that went away
+    Row("predict-diligent-listing-twice", PR, ["--method", "least-squares", "--input", "{T}/dil", "--out", "{T}/p"], 2,
+        ("--input", "filenames.txt", "001.png twice"), setup=_diligent_listing_twice, check=_not_written("p")),
+    Row("predict-dataset-dangling-link", PR, ["--method", "least-squares", "--input", "{T}/ds", "--out", "{T}/p"], 2,
+        ("--input", "00009.data", "does not exist"), setup=_dataset_with_dangling_link, check=_not_written("p")),
+    # ---- output that misleads: the header's image count is what the objects had, not --images
+    Row("bench-header-images-the-objects-had", BM, ["--data", "{W}/data", "--out", "{T}/b", "--counts", "1",
+                                                    "--rerender-objects", "0", "--tta", "1"], 0, ("wrote",),
+        check=_header_says("3 objects, 4 images each", "10 images each")),
+    Row("make-shards-other-export", MK, ["--out", "{T}/o", "--shards", "{T}/s", *TINY], 2, ("--shards", "--overwrite"),
+        setup=_earlier_export("s"), absent=("rendering",), check=_not_written("o")),
+]
+
+
 def _snapshot(root: Path) -> dict[str, str]:
     """relative path -> sha256 of every file (and 'dir' for every folder) under root."""
     out = {}
@@ -789,7 +1008,8 @@ def _snapshot(root: Path) -> dict[str, str]:
             out[str(Path(dirpath, d).relative_to(root))] = "dir"
         for f in filenames:
             p = Path(dirpath, f)
-            out[str(p.relative_to(root))] = hashlib.sha256(p.read_bytes()).hexdigest()
+            out[str(p.relative_to(root))] = (f"link to {os.readlink(p)}" if p.is_symlink() and not p.exists() else
+                                             hashlib.sha256(p.read_bytes()).hexdigest())
     return out
 
 
@@ -813,8 +1033,9 @@ def test_bad_input(row: Row, world: Path, tmp_path: Path, capsys, request):
     if row.setup is not None:
         row.setup(world, t)
     ro = request.getfixturevalue("readonly") if any("{RO}" in a for a in row.args) else None
+    full = request.getfixturevalue("full_disk") if any("{FULL}" in a for a in row.args) else None
     before_world, before_t = _snapshot(world), _snapshot(t)
-    argv = [a.format(W=world, T=t, RO=ro) for a in row.args]
+    argv = [a.format(W=world, T=t, RO=ro, FULL=full) for a in row.args]
     rc, out, err = _run(row, argv, capsys)
     assert rc == row.rc, f"exit {rc}, expected {row.rc}\nstdout: {out[-2000:]}\nstderr: {err[-2000:]}"
     assert "Traceback" not in err and "Traceback" not in out, err
@@ -829,8 +1050,10 @@ def test_bad_input(row: Row, world: Path, tmp_path: Path, capsys, request):
         assert err.strip().splitlines()[-1].startswith("error:"), err
     assert _snapshot(world) == before_world, "a pre-existing file of the world changed"
     after_t = _snapshot(t)
-    changed = [k for k, v in before_t.items() if after_t.get(k) != v and k not in row.replaces]
+    changed = [k for k, v in before_t.items() if after_t.get(k) != v and k not in row.replaces + row.removes]
     assert not changed, f"pre-existing files changed or removed: {changed}"
+    left = [k for k in row.removes if k in after_t]
+    assert not left, f"files the row asked to remove are still there: {left}"
     kept = [k for k in row.replaces if after_t.get(k) in (None, before_t.get(k))]
     assert not kept, f"files the row asked to replace were not replaced: {kept}"
     if row.check is not None:

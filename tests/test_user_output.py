@@ -168,3 +168,40 @@ def test_a_cli_writing_to_a_log_file_leaves_no_bar_redraws(tmp_path, monkeypatch
     assert "\r" not in text
     lines = [line for line in text.splitlines() if line.startswith("wildgen: ")]
     assert lines[0].startswith("wildgen: 1/2 obj, done=") and lines[-1].startswith("wildgen: 2/2 obj, done=")
+
+
+def test_a_training_run_logged_to_a_file_writes_a_few_plain_lines(tmp_path):
+    """Issue 40: a real `unips.train` subprocess with its progress on (the default) and stderr a file: no bar redraw
+    (no carriage return), and only plain lines: the run's log records and at most one progress line per
+    PLAIN_EVERY_S seconds of the run plus the last (the issue saw about 125 KB of redraws in such a file)."""
+    import os
+    import re
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    from scenes.cli.progress import PLAIN_EVERY_S
+    from wildgen.make import main as make
+
+    repo = Path(__file__).resolve().parents[1]
+    assert make(["--out", str(tmp_path / "ds"), "--objects", "2", "--images", "3", "--res", "16", "--spp", "1",
+                 "--gt-spp", "1", "--workers", "0", "--quiet", "--lights", "directional"]) == 0
+    log = tmp_path / "stderr.log"
+    t0 = time.monotonic()
+    with open(log, "w") as err:
+        r = subprocess.run([sys.executable, "-m", "unips.train", "--data", str(tmp_path / "ds"), "--out",
+                            str(tmp_path / "run"), "--model", "glc-test", "--steps", "40", "--res", "16", "--threads",
+                            "1", "--log-every", "1"], stdout=subprocess.DEVNULL, stderr=err, cwd=repo,
+                           env={**os.environ, "PYTHONPATH": str(repo)}, timeout=600)
+    seconds = time.monotonic() - t0
+    text = log.read_text()
+    assert r.returncode == 0, text[-2000:]
+    assert "\r" not in text and "\x1b" not in text
+    lines = text.splitlines()
+    progress = [line for line in lines if line.startswith("train: ")]
+    assert all(re.fullmatch(r"train: \d+/40 step, loss=[\d.]+, k=\d+, \d+ s", line) for line in progress), progress
+    assert len(progress) <= seconds / PLAIN_EVERY_S + 1
+    others = [line for line in lines if not line.startswith("train: ")]
+    assert all(re.match(r"(INFO|WARNING) [\w.]+: ", line) for line in others), others
+    assert len(text) < 200 * (len(progress) + len(others)) < 4000

@@ -93,7 +93,7 @@ def least_squares(obj: PSObject, chunk: int = 65536) -> np.ndarray:
     black in every image gets no estimate (0); images leaving more than half the mask so are refused
     (`MIN_LS_COVERAGE`)."""
     if obj.light_directions is None:
-        raise ValueError(f"obj: {obj.name} has no light directions; least-squares needs calibrated "
+        raise ValueError(f"--method least-squares: object {obj.name} has no light directions; it needs calibrated "
                          "directional lights (one directional light per image)")
     L = np.asarray(obj.light_directions, np.float64)  # (K, 3)
     K = obj.images.shape[0]
@@ -277,7 +277,7 @@ def sh_uncalibrated(obj: PSObject, config: SHUncalibratedConfig | None = None) -
     cfg = config or SHUncalibratedConfig()
     K = obj.images.shape[0]
     if K < 4:
-        raise ValueError(f"obj: {obj.name} has {K} images; sh-uncalibrated needs at least 4 "
+        raise ValueError(f"--method sh-uncalibrated: object {obj.name} has {K} images; it needs at least 4 "
                          "(ambient + 3 lighting components)")
     mask = obj.mask
     band, direction = contour_band(mask, cfg.band_width, cfg.contour_sigma)
@@ -292,18 +292,18 @@ def sh_uncalibrated(obj: PSObject, config: SHUncalibratedConfig | None = None) -
     lo = np.percentile(M, 1, axis=0)
     hi = np.percentile(M, 99, axis=0)
     if np.all(hi - lo <= 0):
-        raise ValueError(f"obj: {obj.name}: the images are constant on the object; nothing to fit")
+        raise ValueError(f"--method sh-uncalibrated: object {obj.name}: the images are constant on the object; nothing to fit")
     W = _shadow_weights(M, lo, hi, cfg.shadow_threshold)
     S, a, L = _factorise(M, W, cfg.als_iterations)
     if np.linalg.matrix_rank(L, tol=1e-8 * max(np.abs(L).max(), 1e-30)) < 3:
-        raise ValueError(f"obj: {obj.name}: the lighting varies in fewer than 3 independent ways across "
+        raise ValueError(f"--method sh-uncalibrated: object {obj.name}: the lighting varies in fewer than 3 independent ways across "
                          "the images; normals cannot be recovered")
     good = W.sum(axis=1) >= 4  # pixels whose factor rests on enough lit entries
     St = np.concatenate([S, np.ones((S.shape[0], 1))], axis=1)
 
     band_fit = in_band[fit_idx] & good
     if int(band_fit.sum()) < cfg.min_band_pixels:
-        raise ValueError(f"obj: {obj.name}: only {int(band_fit.sum())} usable contour pixels (need "
+        raise ValueError(f"--method sh-uncalibrated: object {obj.name}: only {int(band_fit.sum())} usable contour pixels (need "
                          f"{cfg.min_band_pixels}); the mask must show the object's silhouette inside the image")
     ys, xs = np.nonzero(mask)
     c = direction[ys[fit_idx][band_fit], xs[fit_idx][band_fit]]

@@ -18,8 +18,9 @@ import torch
 from torch import nn
 
 from scenes.files import atomic_write
-from unips.models.builder import (TRAINING_FORMAT, WEIGHTS_FORMAT, load_model, load_state_strict,
-                                  load_training_checkpoint, model_description, save_checkpoint, sidecar_path)
+from unips.models.builder import (CHECKSUM_KEY, TRAINING_FORMAT, WEIGHTS_FORMAT, content_digest, load_model,
+                                  load_state_strict, load_training_checkpoint, model_description, save_checkpoint,
+                                  sidecar_path)
 
 __all__ = ["TRAINING_FORMAT", "WEIGHTS_FORMAT", "git_revision", "load_model", "load_state_strict",
            "load_training_checkpoint", "model_description", "rng_states", "save_checkpoint",
@@ -78,6 +79,19 @@ def save_training_checkpoint(path: str | Path, *, model: nn.Module, optimizer: t
         "git_revision": git_revision(),
         "extra": dict(extra or {}),
     }
+    ckpt[CHECKSUM_KEY] = content_digest(ckpt)  # compared when it is read back: a damaged byte is refused
     path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write(path, lambda tmp: torch.save(ckpt, tmp))  # a kill or a full disk never leaves half a last.pt
+
+    def write(tmp: Path) -> None:
+        try:
+            torch.save(ckpt, tmp)
+        except RuntimeError as exc:  # torch's zip writer reports a full disk as RuntimeError ("file write failed")
+            import shutil
+
+            free = shutil.disk_usage(tmp.parent).free / 2**20
+            first = (str(exc).splitlines() or [type(exc).__name__])[0]
+            raise OSError(f"could not write {str(path)!r}: {free:.1f} MiB free on its disk, not enough for the "
+                          f"checkpoint ({first:.120})") from None
+
+    atomic_write(path, write)  # a kill or a full disk never leaves half a last.pt
     return path

@@ -157,7 +157,7 @@ def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True, overwrite
 
 
 def _evaluate_one(folder: Path, pred_dir: Path, write: bool, results: dict, missing: list, no_gt: list) -> None:
-    truth = load_ground_truth(folder)
+    truth = load_ground_truth(folder, arg="--gt")
     if truth.normals is None:
         no_gt.append(truth.name)
         log.warning("%s has no ground-truth normals; skipped", folder)
@@ -166,10 +166,10 @@ def _evaluate_one(folder: Path, pred_dir: Path, write: bool, results: dict, miss
     if pred_path is None:
         missing.append(truth.name)
         return
-    pred = read_normals(pred_path)
+    pred = read_normals(pred_path, "--pred")
     if pred.shape != truth.normals.shape:
-        raise ValueError(f"pred: {pred_path} has shape {pred.shape}, the ground truth {folder} has "
-                         f"{truth.normals.shape}")
+        raise ValueError(f"--pred: {pred_path} has shape {'x'.join(map(str, pred.shape))}, the ground truth "
+                         f"{folder} has {'x'.join(map(str, truth.normals.shape))}")
     metrics, err_map = object_metrics(pred, truth.normals, truth.mask)
     results[truth.name] = {**metrics, "light_family": truth.light_family, "prediction": str(pred_path)}
     if write:

@@ -199,12 +199,12 @@ def main(argv: list[str] | None = None) -> int:
     failures: list[tuple[str, str]] = []
     try:
         args = COMMAND.parse(argv).validate()
-        folders = find_objects(args.input)
+        folders = find_objects(args.input, "--input")
         single = detect_layout(args.input) is not None
         names = [object_name(f) for f in folders]
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
-            raise UsageError(f"--input: several object folders share the name(s) {dup} (e.g. foo and foo.data)")
+            raise UsageError(f"--input: several object folders share the name(s) {', '.join(dup)} (e.g. foo and foo.data)")
         for name in names:
             check_out_folder(args.out / name, args.overwrite)
         todo = []
@@ -248,7 +248,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _predict_one(args: PredictOptions, net, folder: Path, name: str) -> None:
-    obj = load_object(folder, max_images=args.max_images)
+    obj = load_object(folder, max_images=args.max_images, arg="--input")
     start = time.perf_counter()
     tta = (args.tta or default_tta(net.inputs)) if net else None
     normals = predict_object(obj, args.method, net=net, res=args.res, tta=tta or 1)

@@ -34,8 +34,8 @@ from typing import Any, Callable, Iterator
 import numpy as np
 import torch
 
-from scenes.folder.shards import (INDEX_FILE, SHARD_SUFFIX, decode_folder, extract_sample, is_decoded, iter_samples,
-    read_index, sample_folder_name, verify_shard)
+from scenes.folder.shards import (INDEX_FILE, SHARD_SUFFIX, decode_folder, extract_sample, is_decoded, listed_samples,
+    read_index, sample_folder_name)
 from unips.data import PSObject, load_object, object_from_folder
 
 
@@ -150,8 +150,7 @@ def iter_objects(root: str | Path, arg: str = "--data") -> Iterator[PSObject]:
     """Every object of the shards of a --data entry, in order (each shard's checksum verified first)."""
     seen: set[str] = set()
     for shard in resolve_shards(root, arg):
-        verify_shard(shard.path, shard.entry, arg)
-        for key, files in iter_samples(shard.path, arg):
+        for key, files in listed_samples(shard.path, shard.entry, arg):
             if key in seen:
                 raise ValueError(f"{arg}: object {key!r} appears twice (again in shard {str(shard.path)!r})")
             seen.add(key)
@@ -212,8 +211,7 @@ class ShardStream(torch.utils.data.IterableDataset):
 
 
 def _verified_samples(shard: Shard, arg: str) -> Iterator[tuple[str, dict[str, bytes]]]:
-    verify_shard(shard.path, shard.entry, arg)
-    yield from iter_samples(shard.path, arg)
+    yield from listed_samples(shard.path, shard.entry, arg)
 
 
 def check_split(shards: list[Shard], world: int, workers: int, arg: str = "--data") -> None:

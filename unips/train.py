@@ -51,6 +51,9 @@ COMMAND = Command(TrainConfig, prog="python -m unips.train", description=__doc__
 def config_from_args(argv: Sequence[str] | None) -> TrainConfig:
     """The TrainConfig of a command line (validated)."""
     cfg = COMMAND.parse(argv)
+    if "curriculum_fraction" in COMMAND.given(argv) and not cfg.curriculum:
+        raise ValueError(f"--curriculum-fraction: {cfg.curriculum_fraction:g} is the share of the steps of the "
+                         "curriculum, which is off; give --curriculum too, or leave it out")
     if "all" not in cfg.val_probes:
         cfg.val_probes = ["all", *cfg.val_probes]
     return cfg.validate()

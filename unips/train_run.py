@@ -43,12 +43,26 @@ def append_log(path: Path, record: dict[str, Any]) -> None:
 
 
 def truncate_log(path: Path, step: int) -> None:
-    """Drop records written after `step` by an interrupted run (they will be written again)."""
+    """Drop records written after `step` by an interrupted run (they will be written again), and a last line torn
+    by a kill; a damaged line before it is a ValueError naming the file and the line."""
     if not path.exists():
         return
     from scenes.files import atomic_write_text
 
-    keep = [line for line in path.read_text().splitlines() if line.strip() and json.loads(line).get("step", 0) <= step]
+    lines = [line for line in path.read_text(errors="replace").splitlines() if line.strip()]
+    keep = []
+    for n, line in enumerate(lines, 1):
+        try:
+            record = json.loads(line)
+        except ValueError:
+            if n == len(lines):  # the last record, torn by a kill while it was appended: written again
+                break
+            raise ValueError(f"--resume: line {n} of {str(path)!r} is not a JSON record (the run's log is damaged); "
+                             "move it away to resume without it") from None
+        if not isinstance(record, dict):
+            raise ValueError(f"--resume: line {n} of {str(path)!r} is not a JSON object (the run's log is damaged)")
+        if record.get("step", 0) <= step:
+            keep.append(line)
     atomic_write_text(path, "".join(line + "\n" for line in keep))
 
 
@@ -285,7 +299,10 @@ def resume_run(run: Run) -> None:
     from unips.checkpoint import load_state_strict, load_training_checkpoint, set_rng_states
 
     cfg = run.cfg
-    ckpt = load_training_checkpoint(run.last_path)
+    try:
+        ckpt = load_training_checkpoint(run.last_path)
+    except ValueError as exc:
+        raise ValueError(f"--resume: {exc}") from None
     old = ckpt["extra"].get("train_args", {})
     defaults = dataclasses.asdict(TrainConfig())
     # A resumed run keeps its weights (last.pt), so --resume takes no --init-from: the run's lineage is the

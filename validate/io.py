@@ -91,10 +91,7 @@ def read_normal_map(path: str | Path, what: str = "--normals") -> np.ndarray:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{what}: {str(path)!r} does not exist")
-    try:
-        return read_normals(path)
-    except ValueError as exc:
-        raise ValueError(f"{what}: {exc}") from exc
+    return read_normals(path, what)
 
 
 def read_prediction(normals: str | Path | np.ndarray, name: str) -> tuple[np.ndarray, str]:

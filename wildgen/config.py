@@ -21,6 +21,10 @@ MAX_ENTROPY = 8.0
 """Largest entropy (bits) of the visible normals' 16 x 16 histogram: log2(256)."""
 
 
+MAX_BOUNCES = 2**31 - 3
+"""The most --bounces Mitsuba takes: its max_depth (bounces + 2) is a signed 32-bit integer."""
+
+
 @dataclass
 class GenConfig:
     """Everything that determines a dataset; with the same values the same files come out."""
@@ -50,8 +54,8 @@ class GenConfig:
     """Image height in pixels."""
     spp: int = option(64, minimum=1)
     """Samples per pixel of the path-traced images (PS-Wild: 256)."""
-    bounces: int = option(10, minimum=0)
-    """Indirect bounces as in the paper; Mitsuba max_depth = bounces + 2."""
+    bounces: int = option(10, minimum=0, maximum=MAX_BOUNCES)
+    """Indirect bounces as in the paper; Mitsuba max_depth = bounces + 2 (a 32-bit integer)."""
     camera: Literal["orthographic", "perspective"] = "orthographic"
     """'orthographic' (the model's assumption) or 'perspective'."""
     focal: Annotated[str | None, arg(metavar="A-B", help_behavior_hint="(default: a fixed 30 deg field of view)")] = None

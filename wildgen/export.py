@@ -12,8 +12,11 @@ size and sha256. The format is `scenes.folder.shards`; `unips.train --data 'SHAR
 The export is deterministic (the same folders give the same bytes: fixed member order, mtime 0, uid / gid 0)
 and atomic per shard (each is written under a temporary name and renamed); index.json is written first with
 `complete: false` and rewritten complete at the end, so an interrupted export is never read as a finished one.
+--out is locked while an export writes into it (a second export into it is refused), and index.json records
+the dataset folder it was made from (`source`).
 When --data has a manifest.json (wildgen.make, wildgen.sensor), every object it records is checked against its
-checksums first. An existing export in --out is replaced only with --overwrite.
+checksums first. An existing export in --out (its index.json, shards, and the temporaries of a killed export) is replaced
+only with --overwrite; an index.json that wildgen.export did not write, or shards without one, never.
 """
 from __future__ import annotations
 
@@ -29,8 +32,9 @@ from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.outputs import check_output_folder, claim_outputs
 from scenes.cli.progress import progress_bar
 from scenes.cli.options import Command, REQUIRED, check_fields, option
+from scenes.files import FolderBusy, folder_lock, temporary_target
 from scenes.folder.shards import (ENCODINGS, FORMAT, FORMAT_VERSION, INDEX_FILE, SHARD_NAME, check_encoding,
-    sample_key, shard_name, shard_pattern, write_index, write_shard)
+    sample_files, sample_key, shard_name, shard_pattern, write_index, write_shard)
 
 FORMATS = ("webdataset",)
 """Export formats (one so far: WebDataset tar shards, `scenes.folder.shards`)."""
@@ -100,17 +104,46 @@ def _source_folders(data: Path) -> list[Path]:
     return folders
 
 
-def _claim_out(data: Path, out: Path, overwrite: bool, flag: str = "--out") -> list[Path]:
-    """--out apart from --data; the index and shards of an earlier export replaced only with --overwrite, and
-    never shards that no index.json claims. Returns the earlier shards (removed before writing)."""
+def _earlier_export(index_path: Path) -> dict[str, Any] | None:
+    """The index.json of an earlier wildgen.export (a JSON object of format 'webdataset' with a list of shards),
+    or None when the file is something else: a user's own index.json is never taken for an export."""
+    try:
+        index = json.loads(index_path.read_text())
+    except (OSError, UnicodeDecodeError, ValueError):
+        return None
+    ok = isinstance(index, dict) and index.get("format") == FORMAT and isinstance(index.get("shards"), list)
+    return index if ok else None
+
+
+def check_target(data: str | Path, out: str | Path, overwrite: bool, flag: str = "--out") -> list[Path]:
+    """Everything about the shard folder `out` that can be known before any work, writing nothing: apart from
+    --data, writable, and holding nothing this command would replace without leave. An earlier export (an
+    index.json that wildgen.export wrote, its shards and the temporaries a killed export left) is replaced only
+    with `overwrite`; an index.json that is not an export's, or shards without an index, never. Returns the
+    earlier export's files (removed before writing). One line naming `flag` otherwise."""
+    data, out = Path(data), Path(out)
     d, o = data.resolve(), out.resolve()
     if o == d or d in o.parents or o in d.parents:
         raise UsageError(f"{flag}: {str(out)!r} must be a folder apart from --data {str(data)!r} (not it, inside it "
                          "or around it)")
     check_output_folder(out, flag)
-    old = sorted(p for p in out.iterdir() if SHARD_NAME.match(p.name)) if out.is_dir() else []
-    claim_outputs([out / INDEX_FILE, *old], overwrite, flag=flag, owner="wildgen.export", marker=out / INDEX_FILE)
-    return old
+    index = out / INDEX_FILE
+    if index.is_file() and not index.is_symlink() and _earlier_export(index) is None:
+        raise UsageError(f"{flag}: {str(index)!r} is not a shard index of wildgen.export; it is never replaced, even "
+                         f"with --overwrite: move it away or use another {flag}")
+    names = sorted(p.name for p in out.iterdir()) if out.is_dir() else []
+    old = [out / n for n in names if SHARD_NAME.match(n)]
+    claim_outputs([index, *old], overwrite, flag=flag, owner="wildgen.export", marker=index)
+    targets = [(n, temporary_target(n)) for n in names]
+    leftovers = [out / n for n, t in targets if t is not None and (t == INDEX_FILE or SHARD_NAME.match(t))]
+    return [*old, *(leftovers if os.path.lexists(index) else [])]
+
+
+def replaces_export(out: str | Path, data: str | Path) -> bool:
+    """True when `out` holds an export of the dataset folder `data` (its index records it as its source)."""
+    out, data = Path(out), Path(data)
+    index = _earlier_export(out / INDEX_FILE) if (out / INDEX_FILE).is_file() else None
+    return index is not None and index.get("source") == str(data.resolve())
 
 
 def export_dataset(data: str | Path, out: str | Path, shard_size: int = DEFAULT_SHARD_SIZE, aux: bool = False,
@@ -123,12 +156,31 @@ def export_dataset(data: str | Path, out: str | Path, shard_size: int = DEFAULT_
         raise ValueError(f"--shard-size: got {shard_size!r}, expected an integer >= 1")
     check_encoding(encoding, aux)  # before --out is claimed
     folders = _source_folders(data)
-    old = _claim_out(data, out, overwrite, flag)
+    if encoding != "decoded":  # every file name storable, before anything is replaced
+        for folder in folders:
+            sample_files(folder, aux)
+    check_target(data, out, overwrite, flag)
     out.mkdir(parents=True, exist_ok=True)
+    try:
+        lock = folder_lock(out)
+    except FolderBusy:
+        raise UsageError(f"{flag}: another export is writing into {str(out)!r}; wait for it or use another "
+                         f"{flag}") from None
+    try:
+        return _export_locked(data, out, folders, shard_size, aux, overwrite, progress, flag, encoding)
+    finally:
+        os.close(lock)
+
+
+def _export_locked(data: Path, out: Path, folders: list[Path], shard_size: int, aux: bool, overwrite: bool,
+                   progress: Callable[[int, int, str], None] | None, flag: str, encoding: str) -> dict[str, Any]:
+    """`export_dataset` under the lock of --out (checked again under it: what another export left is seen)."""
+    old = check_target(data, out, overwrite, flag)
     groups = [folders[i:i + shard_size] for i in range(0, len(folders), shard_size)]
     index: dict[str, Any] = {"format": FORMAT, "format_version": FORMAT_VERSION, "complete": False,
                              "encoding": encoding, "objects": len(folders), "shard_size": shard_size,
-                             "aux_files": bool(aux), "pattern": shard_pattern(len(groups)), "shards": []}
+                             "aux_files": bool(aux), "pattern": shard_pattern(len(groups)), "shards": [],
+                             "source": str(data.resolve())}
     write_index(out, index)  # first: from now on --out is this command's (an interrupted export is replaced)
     for p in old:
         p.unlink(missing_ok=True)
@@ -142,11 +194,13 @@ def export_dataset(data: str | Path, out: str | Path, shard_size: int = DEFAULT_
     return index
 
 
-def export_after_make(data: str | Path, out: str | Path, encoding: str = "files") -> int:
-    """`wildgen.make --shards OUT [--shard-encoding E]`: export the finished dataset (default shard size; an earlier
-    export in OUT is replaced, since it was made from this dataset). Returns the exit status; errors are one line."""
+def export_after_make(data: str | Path, out: str | Path, encoding: str = "files", overwrite: bool = False) -> int:
+    """`wildgen.make --shards OUT [--shard-encoding E]`: export the finished dataset (default shard size). An earlier
+    export in OUT is replaced when it was made from this dataset (or with --overwrite: `overwrite`); the target was
+    checked before the render (`check_target`). Returns the exit status; errors are one line."""
     try:
-        index = export_dataset(data, out, overwrite=True, flag="--shards", encoding=encoding)
+        replace = overwrite or replaces_export(out, data)
+        index = export_dataset(data, out, overwrite=replace, flag="--shards", encoding=encoding)
     except INPUT_ERRORS as exc:
         return report_error(exc)
     except OSError as exc:

@@ -62,6 +62,28 @@ for _n, _lv in LEVELS.items():  # a level names only entries of the existing tab
     _lv.config.validate()
 
 
+def _flag_value(value: Any) -> str:
+    return ",".join(map(str, value)) if isinstance(value, (list, tuple)) else str(value)
+
+
+def check_level_and_preset(cfg: GenConfig, given: set[str]) -> None:
+    """--level and --preset together: refused (ValueError, one line) where both set one field to different values
+    that the user did not choose with its own flag (e.g. --level 5 --preset diligent: the level's light families
+    or the preset's directional lights); elsewhere each sets its own fields."""
+    if cfg.level is None or cfg.preset is None:
+        return
+    from wildgen.presets import preset_named
+
+    level, preset = LEVELS[cfg.level].overrides(), preset_named(cfg.preset).overrides()
+    given = set(given) | ({"width", "height"} if "res" in given else set())
+    both = [k for k in level if k in preset and k not in given and level[k] != preset[k]]
+    if both:
+        flag = "--" + both[0].replace("_", "-")
+        raise ValueError(f"--level: level {cfg.level} sets {flag} {_flag_value(level[both[0]])} and --preset "
+                         f"{cfg.preset} sets {flag} {_flag_value(preset[both[0]])}; give {flag} to choose, or leave "
+                         "out --level or --preset")
+
+
 def apply_level(cfg: GenConfig, given: set[str]) -> set[str]:
     """Set the values of level `cfg.level` on the fields of `cfg` not in `given` (the flags the user gave keep
     their values). Returns the names of the fields it set; nothing happens when `cfg.level` is None."""

@@ -22,7 +22,7 @@ from scenes.cli.options import REQUIRED, Command, arg, check_fields, optional_va
 from scenes.checks import check_int
 from scenes.folder.shards import ENCODINGS
 from wildgen.config import GenConfig
-from wildgen.levels import LEVELS, apply_level
+from wildgen.levels import LEVELS, apply_level, check_level_and_preset
 from wildgen.presets import apply_preset, preset_named
 
 @dataclass
@@ -58,7 +58,8 @@ class MakeOptions:
     """No progress bar."""
     shards: Annotated[str | None, arg(metavar="DIR")] = None
     """Also write the finished dataset as WebDataset shards into this folder (python -m wildgen.export, default
-    shard size; an earlier export there is replaced)."""
+    shard size; checked before the render; an earlier export there is replaced when it was made from this dataset
+    or with --overwrite)."""
     shard_encoding: Literal[ENCODINGS] = "files"
     """Encoding of --shards (wildgen.export --encoding): 'files' as they are, or 'decoded' (the reader's arrays,
     faster to train on)."""
@@ -82,6 +83,7 @@ def options_from_args(argv: list[str] | None, given: set[str] = frozenset()) -> 
     """The options of a command line (not validated): the values of --preset on the dataset's fields whose flags
     are not in `given` (the flags on the command line), then --res on its width and height."""
     opts = COMMAND.parse(argv)
+    check_level_and_preset(opts.gen, given)
     apply_preset(opts.gen, given)
     apply_level(opts.gen, given)
     if opts.res is not None:
@@ -139,6 +141,10 @@ def check_flags(opts: MakeOptions, explicit: set[str]) -> None:
         given = " and ".join(f"--{f}" for f in ("width", "height") if f in explicit)
         raise ValueError(f"--res: sets both sides; it cannot be combined with {given} (use --res R or --width W --height H)")
     check_output_folder(opts.out)
+    if opts.shards:  # the whole target, before the render: not found only when the dataset is done
+        from wildgen.export import check_target, replaces_export
+
+        check_target(opts.out, opts.shards, opts.overwrite or replaces_export(opts.shards, opts.out), "--shards")
     if opts.ray is not None:
         from wildgen.parallel import RAY_INSTALL, ray_available
 
@@ -158,6 +164,7 @@ def resolve_run(args: MakeOptions, explicit: set[str], out: Path) -> tuple[GenCo
         cfg = _resume_config(args, explicit, manifest)
     else:
         cfg = args.gen.validate()
+    check_given(cfg, explicit)
     check_config(args, cfg, resumed=args.resume and "objects" not in explicit)
     check_out(out)
     from scenes.renderer.variant import choose_variant
@@ -172,6 +179,14 @@ def resolve_run(args: MakeOptions, explicit: set[str], out: Path) -> tuple[GenCo
         except RuntimeError as exc:  # what the limits above did not foresee
             raise UsageError(f"--threads: cannot start {args.threads} Dr.Jit threads ({exc})") from None
     return cfg, variant
+
+
+def check_given(cfg: GenConfig, explicit: set[str]) -> None:
+    """A flag given on the command line that the configuration to render never reads is refused (not ignored)."""
+    if "detail_strength" in explicit and not cfg.detail:
+        off = "not given" if cfg.detail is None else f"--detail {cfg.detail:g}"
+        raise ValueError(f"--detail-strength: {cfg.detail_strength} is the tilt of the procedural detail, which is off "
+                         f"({off}); give --detail P (a fraction above 0) or a --level that sets it")
 
 
 def _check_threads(args: MakeOptions, cfg: GenConfig) -> None:
@@ -204,7 +219,8 @@ def check_args(argv: list[str]) -> MakeOptions:
     args = options_from_args(argv, explicit)
     check_flags(args, explicit)
     if not args.resume:  # a resumed configuration is the manifest's, read when the step runs
-        check_config(args, args.gen.validate())
+        check_given(args.gen.validate(), explicit)
+        check_config(args, args.gen)
     return args
 
 
@@ -355,7 +371,7 @@ def _run(argv: list[str] | None, state: dict) -> int:
     if args.shards:
         from wildgen.export import export_after_make
 
-        return export_after_make(out, args.shards, args.shard_encoding)
+        return export_after_make(out, args.shards, args.shard_encoding, overwrite=args.overwrite)
     return 0
 
 

@@ -54,7 +54,7 @@ def object_tiles(folder: Path) -> list[tuple[np.ndarray, str]]:
         raise FileNotFoundError(f"DIR: object folder {str(folder)!r} has no L*.png images")
     try:
         tiles = [(_tile(_to_display(read_image(p))), p.stem) for p in images]
-        n = read_normals(folder / NORMAL_FILE)
+        n = read_normals(folder / NORMAL_FILE, "DIR")
         mask = read_mask(folder / MASK_FILE).astype(np.uint8) * 255
     except (OSError, ValueError) as exc:
         raise ValueError(f"DIR: object folder {str(folder)!r}: {exc}") from exc

@@ -36,6 +36,7 @@ Errors are FileNotFoundError / ValueError with one line that names the argument 
 from __future__ import annotations
 
 import logging
+import os
 import re
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -91,7 +92,11 @@ def diligent_images(folder: str | Path) -> list[Path]:
     folder = Path(folder)
     listing = folder / DILIGENT_LISTING
     if listing.is_file():
-        return [folder / line.strip() for line in listing.read_text().splitlines() if line.strip()]
+        names = [line.strip() for line in listing.read_text().splitlines() if line.strip()]
+        twice = next((n for n, name in enumerate(names) if name in names[:n]), None)  # two observations of one light
+        if twice is not None:
+            raise ValueError(f"{listing} lists {names[twice]} twice, entries {names.index(names[twice]) + 1} and {twice + 1}")
+        return [folder / name for name in names]
     return digit_images(folder)
 
 
@@ -298,7 +303,11 @@ def find_object_folders(path: str | Path, arg: str = "path") -> list[Path]:
     if detect_layout(root) is not None:
         return [root]
     if root.is_dir():
-        found = [p for p in sorted(root.iterdir(), key=lambda p: p.name) if detect_layout(p) is not None]
+        entries = sorted(root.iterdir(), key=lambda p: p.name)
+        gone = next((p for p in entries if p.is_symlink() and not p.exists()), None)  # never skipped silently
+        if gone is not None:
+            raise FileNotFoundError(f"{arg}: {gone} is a link to {os.readlink(gone)}, which does not exist")
+        found = [p for p in entries if detect_layout(p) is not None]
         if found:
             return found
     raise FileNotFoundError(f"{arg}: no object folder found at {root} (expected {EXPECTED})")
@@ -449,7 +458,10 @@ def read_folder(path: str | Path, max_images: int | None = None, layout: str | N
     entry = layout_named(layout)
     if max_images is not None and (isinstance(max_images, bool) or int(max_images) != max_images or max_images < 1):
         raise ValueError(f"max_images: must be an integer >= 1, got {max_images!r}")
-    all_paths = entry.images(folder)
+    try:
+        all_paths = entry.images(folder)
+    except ValueError as exc:
+        raise ValueError(f"{arg}: {exc}") from None
     if not all_paths:
         raise FileNotFoundError(f"{arg}: no images found in {folder} (expected {EXPECTED})")
     paths = all_paths[: int(max_images)] if max_images is not None else all_paths
@@ -480,7 +492,7 @@ def read_folder(path: str | Path, max_images: int | None = None, layout: str | N
     for name in entry.ground_truth:
         if (folder / name).is_file():
             normals_file = folder / name
-            normals = finish_normals(read_normals(normals_file), mask, normals_file)
+            normals = finish_normals(read_normals(normals_file, arg), mask, normals_file)
             break
     return FolderData(name=object_name(folder), path=folder, layout=layout, image_paths=list(paths),
                       num_files=len(all_paths), shape=tuple(shape), images=stack, saturated=saturated, mask=mask,

@@ -31,7 +31,8 @@ mtime 0, uid / gid 0, empty owner names and mode 0444, so the same folders give 
 
 Beside the shards, `INDEX_FILE` (index.json) holds `format` ("webdataset"), `format_version`, `encoding`
 (absent in exports written before it: `files`), `objects`,
-`shard_size`, `aux_files`, `pattern` (the brace pattern of all shards) and `shards`: per shard its `name`,
+`shard_size`, `aux_files`, `pattern` (the brace pattern of all shards), `source` (the dataset folder, absolute;
+absent in older exports) and `shards`: per shard its `name`,
 `bytes`, `sha256` and `objects` (`name`, source `folder`, `images`), in order; `complete` is false while an
 export is running. Readers refuse a shard that the index does not list, whose checksum differs, or whose
 index is incomplete.
@@ -287,19 +288,29 @@ def write_shard(path: str | Path, folders: list[tuple[str, Path]], aux: bool = F
             stream = _HashingWriter(f)
             # Fixed metadata: the same folders give the same bytes (mtime 0, uid / gid 0, no owner names).
             writer = wds.TarWriter(stream, user="", group="", mode=0o444, mtime=0, encoder=False)
-            for key, folder in folders:
-                sample: dict[str, Any] = {"__key__": key}
-                if encoding == DECODED:
-                    sample.update(encode_decoded(folder, arg))
-                else:
-                    for suffix, p in sample_files(folder, aux, arg):
-                        sample[suffix] = p.read_bytes()
-                writer.write(sample)
-                layout = detect_layout(folder)
-                images = len(layout_named(layout).images(folder)) if layout else 0
-                objects.append({"name": key, "folder": folder.name, "images": images})
+            try:
+                _write_samples(writer)
+            except BaseException:
+                try:  # closed while its file is open: never again at garbage collection, into a closed file
+                    writer.close()
+                except Exception:  # a full disk fails the close too; the first error is the one reported
+                    pass
+                raise
             writer.close()
             result.update(bytes=stream.size, sha256=stream.sha.hexdigest())
+
+    def _write_samples(writer) -> None:
+        for key, folder in folders:
+            sample: dict[str, Any] = {"__key__": key}
+            if encoding == DECODED:
+                sample.update(encode_decoded(folder, arg))
+            else:
+                for suffix, p in sample_files(folder, aux, arg):
+                    sample[suffix] = p.read_bytes()
+            writer.write(sample)
+            layout = detect_layout(folder)
+            images = len(layout_named(layout).images(folder)) if layout else 0
+            objects.append({"name": key, "folder": folder.name, "images": images})
 
     atomic_write(path, write)
     return {"name": path.name, **result, "objects": objects}
@@ -362,6 +373,24 @@ def iter_samples(path: str | Path, arg: str = "--data") -> Iterator[tuple[str, d
     except (tarfile.TarError, ValueError, OSError) as exc:
         first = (str(exc).splitlines() or [type(exc).__name__])[0]
         raise ValueError(f"{arg}: shard {str(path)!r} cannot be read ({first:.200})") from None
+
+
+def listed_samples(path: str | Path, entry: dict[str, Any], arg: str = "--data") -> Iterator[tuple[str, dict[str, bytes]]]:
+    """`iter_samples` of a shard checked against its index entry: the checksum first (`verify_shard`), then each
+    sample's key against the objects the entry lists, in order, and their number (ValueError naming the shard and
+    the object): samples that were damaged, dropped or renamed and an index rewritten to match are refused."""
+    verify_shard(path, entry, arg)
+    listed = [str(o.get("name")) if isinstance(o, dict) else repr(o) for o in entry["objects"]]
+    n = 0
+    for n, (key, files) in enumerate(iter_samples(path, arg), 1):
+        if n > len(listed) or key != listed[n - 1]:
+            want = f"object {listed[n - 1]!r}" if n <= len(listed) else f"no sample after its {len(listed)} objects"
+            raise ValueError(f"{arg}: shard {str(path)!r} holds sample {key!r} at position {n}, where {INDEX_FILE} "
+                             f"lists {want} (the shard and its index disagree)")
+        yield key, files
+    if n < len(listed):
+        raise ValueError(f"{arg}: shard {str(path)!r} holds {n} samples, {INDEX_FILE} lists {len(listed)} objects "
+                         f"(first missing: {listed[n]!r})")
 
 
 def extract_sample(files: dict[str, bytes], folder: str | Path) -> Path:

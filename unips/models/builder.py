@@ -116,13 +116,15 @@ def load_state_strict(model: nn.Module, state: Mapping[str, torch.Tensor], sourc
     missing = [k for k in own if k not in state]
     unexpected = [k for k in state if k not in own]
     if missing or unexpected:
-        raise ValueError(f"{source}: state does not match the model: missing tensors {missing[:5]}"
-                         f"{'...' if len(missing) > 5 else ''}, unexpected tensors {unexpected[:5]}"
-                         f"{'...' if len(unexpected) > 5 else ''}")
+        def names(keys: list[str]) -> str:
+            return (", ".join(keys[:5]) or "none") + (f" and {len(keys) - 5} more" if len(keys) > 5 else "")
+
+        raise ValueError(f"{source}: state does not match the model: missing tensors {names(missing)}; unexpected "
+                         f"tensors {names(unexpected)}")
     for k, v in own.items():
         if tuple(state[k].shape) != tuple(v.shape):
-            raise ValueError(f"{source}: tensor {k!r} has shape {tuple(state[k].shape)} in the file "
-                             f"but {tuple(v.shape)} in the model built from its config")
+            raise ValueError(f"{source}: tensor {k} has shape {'x'.join(map(str, state[k].shape))} in the file but "
+                             f"{'x'.join(map(str, v.shape))} in the model built from its config")
     model.load_state_dict(state, strict=True)
 
 
@@ -184,8 +186,45 @@ def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> tu
     return model.to(map_location).eval(), meta
 
 
+CHECKSUM_KEY = "checksum"
+"""The training checkpoint's record of its own contents (`content_digest`), written last and compared on reading."""
+
+
+def content_digest(ckpt: Mapping[str, Any]) -> str:
+    """SHA-256 of a training checkpoint's contents (every tensor's dtype, shape and bytes, every other value's
+    repr, in key order; the checksum itself left out): one flipped bit of a weight, an optimiser moment or a
+    random state changes it. Torch's own reader checks none of these bytes."""
+    import hashlib
+
+    h = hashlib.sha256()
+
+    def walk(value: Any) -> None:
+        if isinstance(value, torch.Tensor):
+            t = value.detach().cpu().contiguous()
+            h.update(f"T{t.dtype}{tuple(t.shape)}".encode())
+            h.update(t.reshape(-1).view(torch.uint8).numpy().tobytes() if t.numel() else b"")
+        elif isinstance(value, Mapping):
+            h.update(b"{")
+            for k in sorted(value, key=str):
+                if k != CHECKSUM_KEY:
+                    h.update(repr(k).encode())
+                    walk(value[k])
+            h.update(b"}")
+        elif isinstance(value, (list, tuple)):
+            h.update(b"[")
+            for v in value:
+                walk(v)
+            h.update(b"]")
+        else:
+            h.update(repr(value).encode())
+
+    walk(ckpt)
+    return h.hexdigest()
+
+
 def load_training_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") -> dict[str, Any]:
-    """Read a training checkpoint written by `unips.checkpoint.save_training_checkpoint`."""
+    """Read a training checkpoint written by `unips.checkpoint.save_training_checkpoint`, checked against the
+    checksum of its contents it holds (one written before checksums has none) and for non-finite weights."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"training checkpoint not found: {str(path)!r}")
@@ -200,4 +239,12 @@ def load_training_checkpoint(path: str | Path, map_location: str | torch.device 
                if k not in ckpt]
     if missing:
         raise ValueError(f"{str(path)!r}: training checkpoint lacks {', '.join(missing)}")
+    if CHECKSUM_KEY in ckpt and content_digest(ckpt) != ckpt[CHECKSUM_KEY]:
+        raise ValueError(f"{str(path)!r}: the training checkpoint is damaged: its contents differ from the checksum "
+                         "written with them (a changed byte); resume from a good copy or start afresh with --overwrite")
+    bad = next((k for k, v in ckpt["model"].items() if torch.is_tensor(v) and v.is_floating_point()
+                and not bool(torch.isfinite(v).all())), None)
+    if bad is not None:
+        raise ValueError(f"{str(path)!r}: the training checkpoint's weight {bad} holds NaN or infinite values; "
+                         "resume from a good copy or start afresh with --overwrite")
     return ckpt
