@@ -4,7 +4,9 @@
     python -m orchestrate.gpu_session --pack .carry --wheels .whl      (here, before the session)
 
 Made for a machine that has torch and timm but no Mitsuba and no internet, whose commands run at most 10
-minutes and whose folder `--out` comes back (at most 8 files). In `--minutes` of wall time it:
+minutes and whose folder `--out` comes back (at most 8 files). On a machine where torch sees no GPU it stops at
+once (one line, exit 2) unless `--cpu-rehearsal` asks for a small run of the whole session on the CPU. In
+`--minutes` of wall time, counted from the command's start (`scenes.cli.budget`), it:
 
 1. renders `--objects` objects with `wildgen.make` (seed `--seed`) into `--work`, with the first usable variant
    of cuda_ad_rgb, llvm_ad_rgb (`--variant auto`; the log and summary.json say which);
@@ -16,6 +18,12 @@ minutes and whose folder `--out` comes back (at most 8 files). In `--minutes` of
    `--ckpt-minutes` into `--out`/run and stopping before the budget (`--time-limit` of unips.train);
 5. writes the learning curve (learning_curve.png from run/log.jsonl), model_card.json (a fragment for the
    model card: data, steps, time, hardware) and summary.json.
+
+The budget holds whatever the stage: a budget not above `--reserve-s` is refused before anything runs; each
+stage starts only while more than the reserve is left, a render still running when only the reserve is left is
+stopped (what it finished stays in --work, and the same command resumes it), training stops itself before
+that (`unips.train --time-limit`), and the reserve is kept for the files that follow; a stage stopped by the
+budget is one line naming --minutes (exit 2).
 
 What comes back: run/log.jsonl, run/last.pt, run/final.safetensors (+ final.json, loaded by
 `unips.models.create_model(NAME, checkpoint_path=...)`), learning_curve.png, variant_check.json,
@@ -37,7 +45,8 @@ import zipfile
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from orchestrate.steps import StepFailed, check_step, run_step
+from orchestrate.steps import OutOfTime, StepFailed, check_step, run_step
+from scenes.cli.budget import process_start
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.outputs import check_output_folder
 from scenes.cli.options import Command, check_fields, option
@@ -100,6 +109,10 @@ class SessionOptions:
     """Minutes between saves of run/last.pt in --out."""
     device: Literal["auto", "cuda", "cpu"] = "auto"
     """Training device; auto: cuda when torch sees a GPU. On cuda the forward pass runs under bf16 autocast."""
+    cpu_rehearsal: bool = False
+    """Run on a machine where torch sees no GPU: a rehearsal of the whole session on the CPU (llvm_ad_rgb, torch
+    on the CPU), within --minutes like a real session; give it small --objects, --res and --spp. Without it such
+    a machine is refused at once."""
     overwrite: bool = False
     """Replace an earlier session's dataset, shards and run in --work / --out."""
     pack: str | None = None
@@ -112,6 +125,9 @@ class SessionOptions:
     def validate(self) -> "SessionOptions":
         check_fields(self)
         if self.pack is None:
+            if self.minutes * 60 <= self.reserve_s:
+                raise ValueError(f"--minutes: {self.minutes:g} min ({self.minutes * 60:g} s) is not above --reserve-s "
+                                 f"{self.reserve_s:g} s (expected a budget above the seconds kept for the last files)")
             if not self.out:
                 raise ValueError("--out: required (the folder that comes back), or --pack DIR")
             check_output_folder(self.out)
@@ -313,15 +329,26 @@ def _device(requested: str) -> str:
     return requested
 
 
+def require_gpu(opts: SessionOptions) -> None:
+    """A machine where torch sees no GPU runs the session only as --cpu-rehearsal: UsageError at once otherwise."""
+    import torch
+
+    if not opts.cpu_rehearsal and not torch.cuda.is_available():
+        raise UsageError(f"--device: {opts.device!r}, but torch sees no GPU here (expected a GPU machine: the session "
+                         "renders and trains for --minutes; pass --cpu-rehearsal for a small rehearsal on the CPU)")
+
+
 def session(opts: SessionOptions, t0: float | None = None) -> dict:
-    """The whole session (module doc, steps 1-5); returns summary.json's content."""
-    t0 = time.time() if t0 is None else t0
+    """The whole session (module doc, steps 1-5); returns summary.json's content. `t0`: when the budget started
+    (default: this process's start)."""
+    t0 = process_start() if t0 is None else t0
     deadline = t0 + opts.minutes * 60
     out, work = Path(opts.out), Path(opts.work)
+    require_gpu(opts)
     why = missing_mitsuba()
     if why:
         raise UsageError(why)
-    device = _device(opts.device)
+    device = "cpu" if opts.cpu_rehearsal and opts.device == "auto" else _device(opts.device)
     variant = _choose(opts.variant)
     check = None if opts.check_variant == "none" else _choose(opts.check_variant, avoid=variant) \
         if opts.check_variant == "auto" else _choose(opts.check_variant)
@@ -333,12 +360,22 @@ def session(opts: SessionOptions, t0: float | None = None) -> dict:
           flush=True)
     py = sys.executable
     out.mkdir(parents=True, exist_ok=True)
-    run_step([py, "-m", "wildgen.make", *_make_argv(opts, data, variant, opts.objects, shards)], cwd=REPO)
+    stages = deadline - opts.reserve_s  # what follows the stages keeps the reserve
+    over = f"--minutes: {opts.minutes:g} min, less --reserve-s {opts.reserve_s:g} s, ran out"
+    advice = ("; expected a budget that fits the session: lower --objects, --res or --spp, or raise --minutes (what "
+              "was rendered stays in --work, and the same command resumes it)")
+
+    def step(argv: list[str], until: float = stages) -> None:
+        try:
+            run_step([py, "-m", *argv], cwd=REPO, deadline=until, out_of_time=over)
+        except OutOfTime as exc:
+            raise UsageError(f"{exc}{advice}") from None
+
+    step(["wildgen.make", *_make_argv(opts, data, variant, opts.objects, shards)])
     t_render = time.time() - t0
     check_report: dict = {"variant": variant, "check_variant": None, "skipped": "--check-variant none"}
     if check:
-        n = min(opts.check_objects, opts.objects)
-        run_step([py, "-m", "wildgen.make", *_make_argv(opts, again, check, n, None)], cwd=REPO)
+        step(["wildgen.make", *_make_argv(opts, again, check, min(opts.check_objects, opts.objects), None)])
         from scenes.folder.layouts import find_object_folders
 
         names = [f.name for f in find_object_folders(again, "--work") if (data / f.name).is_dir()]
@@ -350,11 +387,12 @@ def session(opts: SessionOptions, t0: float | None = None) -> dict:
               f"images {'within' if check_report['images_within_noise'] else 'OUTSIDE'} noise", flush=True)
     atomic_write_text(out / "variant_check.json", json.dumps(check_report, indent=1))
     left = (deadline - time.time() - opts.reserve_s) / 60
-    if left <= 0:
+    if left <= 0:  # each stage starts only while more than the reserve is left
         raise UsageError(f"--minutes: rendering and the check took {(time.time() - t0) / 60:.1f} of {opts.minutes:g} "
                          "minutes, none is left to train (lower --objects, --res or --spp, or raise --minutes)")
     t_train = time.time()
-    run_step([py, "-m", "unips.train", *_train_argv(opts, shards, run, device, left)], cwd=REPO)
+    # unips.train stops itself before `stages` (its --time-limit); stopped here only if it did not
+    step(["unips.train", *_train_argv(opts, shards, run, device, left)], until=stages + opts.reserve_s / 2)
     records = curve_records(run / "log.jsonl")
     plot_curve(records, out / "learning_curve.png", f"{opts.model}, {opts.objects} objects, {device}")
     summary = _write_card(opts, out, run, records, variant, device, check_report, t_render, time.time() - t_train)
@@ -400,7 +438,7 @@ COMMAND = Command(SessionOptions, prog="python -m orchestrate.gpu_session", desc
 
 
 def main(argv: list[str] | None = None) -> int:
-    t0 = time.time()
+    t0 = process_start() if argv is None else time.time()  # the command's clock; a call from Python: from the call
     try:
         opts = COMMAND.parse(argv).validate()
         if opts.pack is not None:

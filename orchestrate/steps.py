@@ -8,6 +8,8 @@ subprocess, its arguments checked up front and its failure reported as one line.
 - `run_step(cmd)`: runs one step, its standard output and error passed through as they come, except its own
   `error: ...` line, which is held back: a failed step raises `StepFailed`, whose message is that line with the
   step named, and the command reports it as its one error line (`scenes.cli.errors.report_error`), never a traceback.
+  With a `deadline` (a command's time budget), a step still running then is stopped (SIGTERM, the steps keep what
+  they finished; SIGKILL `STOP_GRACE_S` later) and `OutOfTime` names the budget and the step.
 """
 from __future__ import annotations
 
@@ -16,6 +18,8 @@ import importlib
 import os
 import subprocess
 import sys
+import threading
+import time
 from typing import Any
 
 from scenes.cli.errors import UsageError
@@ -27,6 +31,14 @@ class StepFailed(UsageError):
     def __init__(self, message: str, code: int) -> None:
         super().__init__(message)
         self.code = code
+
+
+class OutOfTime(StepFailed):
+    """A step was stopped at the deadline of the command's time budget."""
+
+
+STOP_GRACE_S = 5.0
+"""Seconds a step stopped at its deadline has to finish its clean-up (SIGTERM) before SIGKILL."""
 
 
 def check_step(module: str, argv: list[str]) -> Any:
@@ -49,16 +61,39 @@ def _describe(cmd: list[str]) -> str:
     return f"{module}{f' --out {out}' if out else ''}"
 
 
-def run_step(cmd: list[str], partial_ok: bool = False, cwd: str | os.PathLike | None = None) -> bool:
+def run_step(cmd: list[str], partial_ok: bool = False, cwd: str | os.PathLike | None = None,
+             deadline: float | None = None, out_of_time: str = "the time budget ran out") -> bool:
     """Run one step (printed first as `+ module args`). Returns True when it succeeded; with `partial_ok`, exit
     status 1 of a dataset command (some objects failed, listed by the command, the others written) returns
     False and its error line is passed through. Any other failure raises `StepFailed` with the step's own error
-    line (its output is above it)."""
+    line (its output is above it). A step still running at `deadline` (time.time()) is stopped: `OutOfTime`,
+    whose message is `out_of_time` with the step named."""
     shown = cmd[2:] if len(cmd) > 2 and cmd[1] == "-m" else cmd
     print("+ " + " ".join(map(str, shown)), flush=True)
+    if deadline is not None and time.time() >= deadline:
+        raise OutOfTime(f"{out_of_time} before step {_describe(cmd)} started", 2)
     proc = subprocess.Popen([str(c) for c in cmd], stderr=subprocess.PIPE, cwd=cwd)
-    held = _pass_through(proc)
-    code = proc.wait()
+    stopped: list[float] = []
+    timers = []
+    if deadline is not None:
+        def stop(sig_kill: bool) -> None:
+            if proc.poll() is None:
+                stopped.append(time.time())
+                (proc.kill if sig_kill else proc.terminate)()
+
+        for delay, hard in ((0.0, False), (STOP_GRACE_S, True)):
+            timer = threading.Timer(max(0.0, deadline - time.time()) + delay, stop, args=(hard,))
+            timer.daemon = True
+            timer.start()
+            timers.append(timer)
+    try:
+        held = _pass_through(proc)
+        code = proc.wait()
+    finally:
+        for timer in timers:
+            timer.cancel()
+    if stopped:
+        raise OutOfTime(f"{out_of_time} while step {_describe(cmd)} ran (stopped at the deadline)", 2)
     if code == 0 or (code == 1 and partial_ok):
         for line in held:
             sys.stderr.write(line + "\n")

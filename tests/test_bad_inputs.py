@@ -275,6 +275,7 @@ TR = "unips.train"
 DEMO = "orchestrate.demo"
 BM = "orchestrate.benchmark"
 RC = "orchestrate.train_recipe"
+GS = "orchestrate.gpu_session"
 PV = "wildgen.preview"
 OBJDIR = "{W}/data/00000.data"
 
@@ -643,6 +644,9 @@ ROWS: list[Row] = [
         ("--curriculum-fraction", "0")),
     Row("train-data-missing", TR, ["--data", "{W}/nowhere", "--out", "{T}/run", "--model", "glc-test", "--steps", "2"], 2,
         ("nowhere",)),
+    Row("train-time-limit-before-first-step", TR, ["--data", "{W}/data", "--out", "{T}/run", "--model", "glc-test",
+                                                   "--steps", "100", "--time-limit", "0.0001", "--no-progress"], 2,
+        ("--time-limit", "0.0001", "before the first step"), check=_not_written("run/last.pt", "run/final.safetensors")),
     Row("train-model-unknown", TR, ["--data", "{W}/data", "--out", "{T}/run", "--model", "glc-nope", "--steps", "2"], 2,
         ("glc-nope",)),
     Row("train-steps-0", TR, ["--data", "{W}/data", "--out", "{T}/run", "--model", "glc-test", "--steps", "0"], 2, ("steps",)),
@@ -686,6 +690,10 @@ ROWS: list[Row] = [
         check=_not_written("w")),
     Row("recipe-steps-0", RC, ["--work", "{T}/w", "--steps", "0"], 2, ("--steps", "0"), check=_not_written("w")),
     Row("recipe-unknown-flag", RC, ["--work", "{T}/w", "--fast"], 2, ("--fast",)),
+    # ---- orchestrate.gpu_session (issue 40: a budget not above its reserve, refused before rendering)
+    Row("gpu-session-minutes-below-reserve", GS, ["--out", "{T}/o", "--work", "{T}/w", "--minutes", "0.5",
+                                                  "--cpu-rehearsal"], 2, ("--minutes", "0.5", "--reserve-s 45"),
+        check=_not_written("o", "w")),
     # ---- orchestrate.demo (fast-failing cases: the full demo is `make demo`)
     Row("demo-objects-0", DEMO, ["--out", "{T}/d", "--objects", "0"], 2, ("--objects",), check=_not_written("d")),
     Row("demo-res-small", DEMO, ["--out", "{T}/d", "--res", "8"], 2, ("--res",), check=_not_written("d")),

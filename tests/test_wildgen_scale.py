@@ -46,9 +46,9 @@ def object_bytes(root: Path) -> dict[str, bytes]:
 
 
 def entries(root: Path) -> list[dict]:
-    """Manifest objects without their timings (the only per-run field of an entry)."""
+    """Manifest objects without their timings and Ray node (the per-run fields of an entry)."""
     objects = json.loads((root / "manifest.json").read_text())["objects"]
-    return [{k: v for k, v in e.items() if k != "timings"} for e in objects]
+    return [{k: v for k, v in e.items() if k not in ("timings", "node")} for e in objects]
 
 
 def assert_same_dataset(a: Path, b: Path) -> None:

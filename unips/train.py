@@ -36,6 +36,8 @@ from typing import Any, Sequence
 
 import torch
 
+from scenes.cli.budget import Budget, process_start
+from scenes.cli.errors import UsageError
 from scenes.cli.progress import Progress
 from scenes.cli.options import Command
 from unips.train_config import TrainConfig
@@ -132,11 +134,12 @@ def _validation(run: Run, step: int) -> None:
         save_checkpoint(run.out / "best.safetensors", run.model, {"step": step, "val": res, "train_args": run.train_args})
 
 
-def _out_of_time(run: Run, seconds: float) -> bool:
-    """Whether --time-limit is reached; under torchrun every process stops at the same step (rank 0 decides)."""
-    if not run.cfg.time_limit:
+def _out_of_time(run: Run, budget: Budget, *kinds: str) -> bool:
+    """Whether work of `kinds` (the longest of each so far) would end past --time-limit; under torchrun every
+    process stops at the same step (rank 0 decides)."""
+    if budget.seconds is None:
         return False
-    over = seconds >= run.cfg.time_limit * 60
+    over = not budget.fits(*kinds)
     if run.dist.world > 1:
         import torch.distributed as tdist
 
@@ -146,15 +149,17 @@ def _out_of_time(run: Run, seconds: float) -> bool:
     return over
 
 
-def train(cfg: TrainConfig | Sequence[str]) -> dict[str, Any]:
-    """Run training as configured; returns a summary dict."""
+def train(cfg: TrainConfig | Sequence[str], started: float | None = None) -> dict[str, Any]:
+    """Run training as configured; returns a summary dict. `started`: when --time-limit's clock started (default:
+    now)."""
     from unips.checkpoint import save_checkpoint
 
+    started = time.time() if started is None else started
     if not isinstance(cfg, TrainConfig):  # a command line
         cfg = config_from_args(cfg)
     cfg.validate()
     run = _start(cfg)
-    done, stopped = _loop(run)
+    done, stopped = _loop(run, started)
     if run.dist.main and (run.start < cfg.steps or not (run.out / "final.safetensors").exists()):
         save_checkpoint(run.out / "final.safetensors", run.model,
                         {"step": done if stopped else cfg.steps, "train_args": run.train_args})
@@ -186,36 +191,53 @@ def _start(cfg: TrainConfig) -> Run:
     return run
 
 
-def _loop(run: Run) -> tuple[int, bool]:
+def _loop(run: Run, started: float) -> tuple[int, bool]:
     """The steps from `run.start`: each step's log record, validation and last.pt when due, until --steps or
-    --time-limit. Returns (steps done, whether --time-limit stopped it)."""
+    --time-limit (`scenes.cli.budget`: counted from this process's start; a step, a validation and a save start
+    only when the longest of each so far still fits). Returns (steps done, whether --time-limit stopped it)."""
     cfg = run.cfg
     autocast = torch.autocast(device_type=run.device.type, dtype=torch.bfloat16, enabled=cfg.precision == "bf16")
     run.model.train()
-    done, stopped = run.start, False
-    t_proc = last_ckpt = time.time()  # --time-limit and --ckpt-minutes count this process's training time
+    done, stopped, saved = run.start, False, run.start
+    budget = Budget(cfg.time_limit * 60 if cfg.time_limit else None, start=started)
+    last_ckpt = time.time()
     with Progress("train", "step", total=cfg.steps, done=run.start,
                   enabled=not cfg.no_progress and run.dist.main) as shown:
         for step in range(run.start, cfg.steps):
+            if _out_of_time(run, budget, "step", "save"):
+                if done == run.start:  # not one step fits: nothing is written
+                    raise UsageError(f"--time-limit: {cfg.time_limit:g} min ran out before the first step (the start "
+                                     f"took {budget.spent():.1f} s); expected a limit above that")
+                stopped = True
+                break
+            t = time.time()
             parts, k = _train_step(run, step, autocast)
+            budget.timed("step", time.time() - t)
             done = step + 1
             shown.update(done, postfix={"loss": f"{parts['loss']:.4f}", "k": k})
             run.summary["last_loss"] = parts["loss"]
             if run.dist.main and (done % cfg.log_every == 0 or done == cfg.steps):
                 append_log(run.log_path, {"step": done, **parts, "k": k, "lr": run.optimizer.param_groups[0]["lr"],
                                           "elapsed_s": round(run.elapsed(), 3)})
-            if run.val_samples and (done % cfg.val_every == 0 or done == cfg.steps):
-                _validation(run, done)
+            if run.val_samples and (done % cfg.val_every == 0 or done == cfg.steps):  # rank 0 alone: no collective
+                guess = budget.longest["step"] * max(1, math.ceil(len(run.val_samples) / max(1, cfg.batch)))
+                if budget.seconds is not None and not budget.fits("validation", "save", first_guess=guess):
+                    log.info("validation at step %d skipped: --time-limit %g min would be passed", done, cfg.time_limit)
+                else:
+                    t = time.time()
+                    _validation(run, done)
+                    budget.timed("validation", time.time() - t)
             now = time.time()
-            stopped = done < cfg.steps and _out_of_time(run, now - t_proc)
-            if (done % cfg.ckpt_every == 0 or done == cfg.steps or stopped
+            if (done % cfg.ckpt_every == 0 or done == cfg.steps
                     or (cfg.ckpt_minutes and now - last_ckpt >= cfg.ckpt_minutes * 60)):
                 save_last(run, done)
-                last_ckpt = now
-            if stopped:
-                log.info("--time-limit %g min reached: stopped at step %d of %d", cfg.time_limit, done, cfg.steps)
-                run.summary["stopped_at"] = done
-                break
+                budget.timed("save", time.time() - now)
+                last_ckpt, saved = time.time(), done
+    if stopped:
+        if saved != done or not (run.out / "last.pt").exists():
+            save_last(run, done)
+        log.info("--time-limit %g min reached: stopped at step %d of %d", cfg.time_limit, done, cfg.steps)
+        run.summary["stopped_at"] = done
     return done, stopped
 
 
@@ -223,10 +245,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     """CLI entry point; returns the process exit status."""
     from scenes.cli.errors import INPUT_ERRORS, report_error
 
+    started = process_start() if argv is None else time.time()  # the command's clock; a call from Python: the call's
     try:
         cfg = config_from_args(argv)
         logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-        summary = train(cfg)
+        summary = train(cfg, started)
     except INPUT_ERRORS as exc:
         return report_error(exc)
     except OSError as exc:  # e.g. a full disk while writing a checkpoint: one line naming the file

@@ -71,7 +71,7 @@ class TrainConfig:
     ckpt_minutes: float = option(0.0, minimum=0)
     """Also save last.pt every this many minutes of training (0: only every --ckpt-every steps)."""
     time_limit: float = option(0.0, minimum=0)
-    """Stop after this many minutes of training in this process (0: no limit), at the step reached: last.pt and final.safetensors are written as at the end; --steps still sets the schedule."""
+    """Wall-time budget of this command in minutes, counted from its start (0: no limit): a step, a validation and a save start only while the longest of each so far still fits; at the step reached last.pt and final.safetensors are written as at the end; --steps still sets the schedule."""
     log_every: int = option(10, minimum=1)
     """Steps between training records in log.jsonl."""
     threads: int = option(0, minimum=0)

@@ -1,10 +1,17 @@
 """The Ray engine of `wildgen.make --ray`: one Ray task per object, on a local Ray started here or on a running
-cluster (the contract and the retries: `wildgen.engine_base`). Ray is an optional extra (`RAY_INSTALL`)."""
+cluster (the contract and the retries: `wildgen.engine_base`). Ray is an optional extra (`RAY_INSTALL`).
+
+On a cluster every object's manifest entry names the Ray node that rendered it (`node`, its id) and the run's
+record (`run.nodes`) holds each node's host, address and object count; a node that dies mid-object costs that
+object an attempt, retried on the nodes left (its temporary folder is hidden and removed at the end)."""
 from __future__ import annotations
 
 import logging
+import os
 import socket
 import sys
+import tempfile
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -33,16 +40,56 @@ def ray_available() -> bool:
     return True
 
 
-def _ray_make_object(cfg: GenConfig, out_dir: str, variant: str, threads: int | None, index: int) -> tuple[str, object, str]:
+AUTH_HINT = ("a head started with Ray's token authentication (Ray 2.60 turns it on where a token exists) admits only "
+             "nodes and drivers with RAY_AUTH_MODE=token and the head's token (~/.ray/auth_token, RAY_AUTH_TOKEN or "
+             "RAY_AUTH_TOKEN_PATH); see docs/generator.md, 'Scaling out'")
+"""What a driver that cannot join a cluster is told when it has not turned token authentication on."""
+
+
+def _this_node() -> dict:
+    """The Ray node this task runs on: its id, host name and address."""
+    import ray
+
+    return {"id": ray.get_runtime_context().get_node_id(), "host": socket.gethostname(),
+            "ip": ray.util.get_node_ip_address()}
+
+
+def _ray_make_object(cfg: GenConfig, out_dir: str, variant: str, threads: int | None, index: int) -> tuple[str, object, dict]:
     """Ray task: one object in a Ray worker process (variant and threads set on its first task)."""
-    host = socket.gethostname()
+    node = _this_node()
     try:
         lib = init_process(variant, threads, cfg.assets)
         from wildgen.writer import make_object
 
-        return "ok", make_object(cfg, index, Path(out_dir), lib), host
+        return "ok", make_object(cfg, index, Path(out_dir), lib), node
     except Exception as exc:  # reported to the driver, which retries or records the failure
-        return ("error" if transient(exc) else "fatal"), f"{describe_error(exc)} (on {host})", host
+        return ("error" if transient(exc) else "fatal"), f"{describe_error(exc)} (on {node['host']})", node
+
+
+@contextmanager
+def _held_stderr():
+    """Hold what is written to file descriptor 2 inside the block (C++ included), yielding a function that returns
+    it so far: written out afterwards, unless the block raises ConnectionError (whose one line says what matters)."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as tmp:
+        def text() -> str:
+            tmp.seek(0)
+            return tmp.read().decode(errors="replace")
+
+        os.dup2(tmp.fileno(), 2)
+        keep = True
+        try:
+            yield text
+        except ConnectionError:
+            keep = False
+            raise
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            if keep:
+                sys.stderr.write(text())
+                sys.stderr.flush()
 
 
 @dataclass
@@ -64,7 +111,7 @@ class RayEngine:
     local_cpus: int | None = None
     """CPUs of a local Ray started here (None: all cores)."""
     used: dict = field(default_factory=dict)
-    """Filled by run(): how Ray was reached and its CPUs."""
+    """Filled by run(): how Ray was reached, its CPUs, and the nodes that rendered objects (`nodes`)."""
 
     def _connect(self, ray) -> bool:
         """Join or start Ray; True when this call started a local instance (shut down at the end)."""
@@ -72,7 +119,16 @@ class RayEngine:
             return False
         quiet = {"logging_level": logging.WARNING, "log_to_driver": True}
         if self.address and self.address != "auto":
-            ray.init(address=self.address, **quiet)
+            with _held_stderr() as held:  # Ray's C++ core warns once a second while it retries to reach the head
+                try:
+                    ray.init(address=self.address, **quiet)
+                except (ConnectionError, RuntimeError, ray.exceptions.RayError) as exc:
+                    why = " ".join(str(exc).split())[:300]
+                    if "InvalidAuthToken" in held() + why:
+                        why += ", the head refused this driver's token"
+                    token = os.environ.get("RAY_AUTH_MODE", "").lower() == "token"
+                    raise ConnectionError(f"--ray: cannot join the Ray cluster at {self.address!r} ({why})"
+                                          + ("" if token else f"; {AUTH_HINT}")) from None
             return True  # ray.shutdown() only disconnects from a remote cluster
         try:
             ray.init(address="auto", **quiet)
@@ -108,12 +164,12 @@ class RayEngine:
                 for ref in ready:
                     index = pending.pop(ref)
                     try:
-                        kind, payload, _host = ray.get(ref)
+                        kind, payload, node = ray.get(ref)
                     except RayError as exc:  # worker crashed, node lost, out of memory
                         attempts.failure(index, describe_error(exc).split("\n")[0][:500])
                         continue
                     if kind == "ok":
-                        attempts.success(payload)
+                        attempts.success(self._on_node(payload, node))
                     else:
                         attempts.failure(index, payload, retry=kind != "fatal")
         finally:
@@ -121,9 +177,9 @@ class RayEngine:
                 try:
                     for ref in ray.wait(list(pending), num_returns=len(pending), timeout=0)[0]:
                         pending.pop(ref)
-                        kind, payload, _host = ray.get(ref, timeout=1)
+                        kind, payload, node = ray.get(ref, timeout=1)
                         if kind == "ok":
-                            attempts.success(payload)
+                            attempts.success(self._on_node(payload, node))
                 except Exception:  # best effort: an unrecorded object is simply rendered again on resume
                     pass
             for ref in pending:
@@ -133,3 +189,10 @@ class RayEngine:
                     pass
             if connected:
                 ray.shutdown()
+
+    def _on_node(self, entry: dict, node: dict) -> dict:
+        """The manifest entry of an object with the node that rendered it; the node counted in `used['nodes']`."""
+        seen = self.used.setdefault("nodes", {}).setdefault(node["id"], {"host": node["host"], "ip": node["ip"],
+                                                                       "objects": 0})
+        seen["objects"] += 1
+        return {**entry, "node": node["id"]}

@@ -200,7 +200,8 @@ def apply_to_dataset(data: str | Path, out: str | Path, sensor: Sensor, seed: in
                     progress(sum(e.get("status") == "done" for e in written), len(done), entry.get("folder", "?"))
                 folder, files = apply_to_object(data / entry["folder"], out, sensor, seed)
                 entry = {**entry, "folder": folder, "files": files}
-                entry.pop("timings", None)  # the render's timings are not this run's
+                entry.pop("timings", None)  # the render's timings and Ray node are not this run's
+                entry.pop("node", None)
             written.append(entry)
         write_manifest(written)
     return manifest

@@ -1,0 +1,104 @@
+"""Time budgets hold: `unips.train --time-limit`, `orchestrate.gpu_session --minutes` (each stage checks what is
+left; a render still running when only the reserve is left is stopped), counted from the command's start and
+measured here from outside, as a user's clock would: no command ends more than 10 % past its budget. A GPU-only
+command on a machine without a GPU stops at once unless --cpu-rehearsal asks for a CPU run; a budget not above
+the reserve is refused before anything runs."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from test_train import dataset  # noqa: F401  (the module-scoped fixture)
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def timed(argv: list[str], timeout: float = 300) -> tuple[subprocess.CompletedProcess, float]:
+    """Run `python -m ARGV`; its result and its wall time from launch to exit."""
+    t0 = time.monotonic()
+    r = subprocess.run([sys.executable, "-m", *argv], cwd=REPO, env={**os.environ, "PYTHONPATH": str(REPO)},
+                       capture_output=True, text=True, timeout=timeout)
+    return r, time.monotonic() - t0
+
+
+def one_error_line(r: subprocess.CompletedProcess) -> str:
+    lines = [x for x in r.stderr.splitlines() if x.startswith("error:")]
+    assert len(lines) == 1 and "Traceback" not in r.stderr, r.stderr[-2000:]
+    return lines[0]
+
+
+def test_no_gpu_stops_at_once_without_the_rehearsal_flag(tmp_path):
+    import torch
+
+    if torch.cuda.is_available():
+        pytest.skip("this machine has a GPU")
+    r, wall = timed(["orchestrate.gpu_session", "--out", str(tmp_path / "o"), "--work", str(tmp_path / "w")])
+    assert r.returncode == 2
+    line = one_error_line(r)
+    assert line.startswith("error: --device: 'auto', but torch sees no GPU here") and "--cpu-rehearsal" in line
+    assert r.stdout == "" and not (tmp_path / "o").exists() and not (tmp_path / "w").exists()
+    assert wall < 30  # at once: the interpreter and torch's import, no render
+
+
+def test_a_budget_not_above_the_reserve_is_refused_before_anything_runs(tmp_path):
+    r, _ = timed(["orchestrate.gpu_session", "--out", str(tmp_path / "o"), "--work", str(tmp_path / "w"),
+                  "--minutes", "0.5", "--cpu-rehearsal"])
+    assert r.returncode == 2
+    assert one_error_line(r) == ("error: --minutes: 0.5 min (30 s) is not above --reserve-s 45 s (expected a budget "
+                                 "above the seconds kept for the last files)")
+    assert not (tmp_path / "o").exists() and not (tmp_path / "w").exists()
+
+
+@pytest.mark.slow
+def test_train_time_limit_holds(dataset, tmp_path):
+    limit = 0.25  # minutes
+    out = tmp_path / "run"
+    r, wall = timed(["unips.train", "--data", str(dataset["train"]), "--val", str(dataset["val"]), "--val-every", "5",
+                     "--model", "glc-test", "--out", str(out), "--batch", "2", "--res", "32", "--pixels", "100",
+                     "--max-images", "4", "--threads", "1", "--no-progress", "--steps", "100000",
+                     "--time-limit", str(limit)])
+    assert r.returncode == 0, r.stderr[-2000:]
+    print(f"unips.train --time-limit {limit * 60:g} s: ended after {wall:.1f} s")
+    assert wall <= 1.1 * limit * 60
+    assert "(--time-limit reached)" in r.stdout
+    meta = json.loads((out / "final.json").read_text())
+    assert 0 < meta["extra"]["step"] < 100000
+
+
+SESSION = ["--images", "2", "--res", "24", "--spp", "2", "--variant", "llvm_ad_rgb", "--check-variant", "none",
+           "--model", "glc-test", "--batch", "2", "--log-every", "1", "--cpu-rehearsal"]
+
+
+@pytest.mark.slow
+def test_gpu_session_stops_a_render_that_does_not_fit(tmp_path):
+    minutes, work = 0.5, tmp_path / "w"
+    r, wall = timed(["orchestrate.gpu_session", "--out", str(tmp_path / "o"), "--work", str(work), "--minutes",
+                     str(minutes), "--reserve-s", "8", "--objects", "2000", "--steps", "4", *SESSION])
+    print(f"gpu_session --minutes {minutes * 60:g} s, a render too long: ended after {wall:.1f} s")
+    assert r.returncode == 2
+    line = one_error_line(r)
+    assert line.startswith("error: --minutes: 0.5 min, less --reserve-s 8 s, ran out while step wildgen.make") \
+        and "lower --objects" in line
+    assert wall <= 1.1 * minutes * 60
+    data = work / "data"
+    assert not list(data.glob(".tmp-*"))  # nothing half-written: finished objects only, the manifest says which
+    done = [e for e in json.loads((data / "manifest.json").read_text())["objects"] if e["status"] == "done"]
+    assert sorted(e["folder"] for e in done) == sorted(p.name for p in data.glob("*.data"))
+
+
+@pytest.mark.slow
+def test_gpu_session_training_ends_within_the_budget(tmp_path):
+    minutes, out = 0.75, tmp_path / "o"
+    r, wall = timed(["orchestrate.gpu_session", "--out", str(out), "--work", str(tmp_path / "w"), "--minutes",
+                     str(minutes), "--reserve-s", "10", "--objects", "2", "--steps", "100000", *SESSION])
+    print(f"gpu_session --minutes {minutes * 60:g} s, training too long: ended after {wall:.1f} s")
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert wall <= 1.1 * minutes * 60
+    summary = json.loads((out / "summary.json").read_text())
+    assert 0 < summary["steps"] < 100000 and summary["wall_s"] <= minutes * 60
