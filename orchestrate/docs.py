@@ -294,7 +294,38 @@ def capture_resources(card: dict) -> str:
                               "total (s)", "estimated (s)", "peak memory (MiB)", "estimated (MiB)"], rows))
 
 
-BENCH_BLOCKS = {"model:shards-throughput": SHARDS_BENCH, "capture:resources": CAPTURE_BENCH}
+VERDICT_BENCH = REPO / "bench" / "results" / "verdict_optimised.json"
+"""The outputs of `python bench/bench_verdict.py --optimised` on DiLiGenT and a rendered set (committed)."""
+
+
+def check_resolution(card: dict) -> str:
+    """Per trusted capture: the resolution, the truth's score, the lowest-scoring map at least 10 degrees off, the
+    lowest-scoring refined map, and whether the truth is first (or not told apart) and the perturbed maps ordered."""
+    d = json.loads(VERDICT_BENCH.read_text())
+    rows, lines = [], []
+    for run in d["runs"]:
+        trusted = [r for r in run["rows"] if r["trusted"]]
+        s = run["summary"]
+        lines.append(f"- {run['set']}: trusted {s['trusted']} of {s['captures']}; truth first or not told apart "
+                     f"{s['trusted_gt_first_or_tied']} of {len(trusted)} (first by the score alone: "
+                     f"{s['trusted_gt_first']}); GT+10 < GT+25 < constant or not told apart "
+                     f"{s['trusted_ordered_or_tied']} (by the score alone: {s['trusted_ordered']}); a map scored below "
+                     f"the truth by more than the resolution: {s['trusted_with_a_map_told_apart_below_gt']}")
+        for r in trusted:
+            m, res = r["maps"], r["resolution"]
+            far = min((k for k, v in m.items() if k != "gt" and v["mae_deg"] >= 10), key=lambda k: m[k]["judged_rel_l1"])
+            opt = min((k for k in m if k.endswith("*")), key=lambda k: m[k]["judged_rel_l1"], default=None)
+            cell = (lambda k: f"`{k}` {m[k]['mae_deg']:.1f} deg, {m[k]['judged_rel_l1']:.4f}")  # noqa: E731
+            rows.append([r["capture"].removesuffix(".data"), f"{res:.4f}", f"{m['gt']['judged_rel_l1']:.4f}", cell(far),
+                         cell(opt) if opt else "-", f"{m['gt*']['mae_deg']:.1f}" if "gt*" in m else "-",
+                         "yes" if r["gt_first_or_tied"] else "**no**", "yes" if r["ordered_or_tied"] else "**no**"])
+    return ("\n".join(lines) + "\n\n" + markdown_table(
+        ["capture", "resolution", "truth", "lowest map >= 10 deg off", "lowest refined map", "truth refined: moved (deg)",
+         "truth first or not told apart", "GT+10 < GT+25 < constant or not told apart"], rows))
+
+
+BENCH_BLOCKS = {"model:shards-throughput": SHARDS_BENCH, "capture:resources": CAPTURE_BENCH,
+                "check:resolution": VERDICT_BENCH}
 """Blocks generated from a benchmark's recorded output instead of the model card."""
 
 # Generated blocks other than flag tables: name -> renderer of the model card.
@@ -314,6 +345,7 @@ BLOCKS: dict[str, Callable[[dict], str]] = {
     "model:data-ab": data_ab,
     "model:shards-throughput": shards_throughput,
     "capture:resources": capture_resources,
+    "check:resolution": check_resolution,
 }
 
 

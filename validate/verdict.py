@@ -34,8 +34,9 @@ not come from the map being judged. Here they come from the images only:
    below the true surface. How far below is bounded by what no Lambertian explanation removes: the residual of
    the rank-4 model itself (`bound`, free normals and albedo per pixel and a free light per image, on the judged
    observations). Two maps whose judged scores differ by less than that are "not told apart": the images do not
-   rank them. Measured: refining the true map of DiLiGenT cat lowers its score by 0.013 (bound 0.016), of a
-   rendered glossy object by 0.011 (bound 0.019), while maps 10 degrees off score 0.04 or more above the truth.
+   rank them. Measured (`bench/bench_verdict.py --optimised`, docs/check.md): refining the true map of DiLiGenT
+   cat lowers its score by 0.012 (resolution 0.017), of a rendered glossy object by 0.011 (0.018); no map,
+   refined or not, scored below the truth by more than the resolution on the 8 trusted captures measured.
 
 The constants were chosen on rendered objects with ground truth and the two DiLiGenT objects at hand
 (`bench/bench_verdict.py`, docs/check.md), never on one real capture alone.
