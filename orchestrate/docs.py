@@ -303,22 +303,21 @@ def check_resolution(card: dict) -> str:
     lowest-scoring refined map, and whether the truth is first (or not told apart) and the perturbed maps ordered."""
     d = json.loads(VERDICT_BENCH.read_text())
     rows, lines = [], []
-    for run in d["runs"]:
-        trusted = [r for r in run["rows"] if r["trusted"]]
+    for run in d["sets"]:
         s = run["summary"]
         lines.append(f"- {run['set']}: trusted {s['trusted']} of {s['captures']}; truth first or not told apart "
-                     f"{s['trusted_gt_first_or_tied']} of {len(trusted)} (first by the score alone: "
+                     f"{s['trusted_gt_first_or_tied']} of {s['trusted']} (first by the score alone: "
                      f"{s['trusted_gt_first']}); GT+10 < GT+25 < constant or not told apart "
                      f"{s['trusted_ordered_or_tied']} (by the score alone: {s['trusted_ordered']}); a map scored below "
                      f"the truth by more than the resolution: {s['trusted_with_a_map_told_apart_below_gt']}")
-        for r in trusted:
-            m, res = r["maps"], r["resolution"]
-            far = min((k for k, v in m.items() if k != "gt" and v["mae_deg"] >= 10), key=lambda k: m[k]["judged_rel_l1"])
-            opt = min((k for k in m if k.endswith("*")), key=lambda k: m[k]["judged_rel_l1"], default=None)
-            cell = (lambda k: f"`{k}` {m[k]['mae_deg']:.1f} deg, {m[k]['judged_rel_l1']:.4f}")  # noqa: E731
-            rows.append([r["capture"].removesuffix(".data"), f"{res:.4f}", f"{m['gt']['judged_rel_l1']:.4f}", cell(far),
-                         cell(opt) if opt else "-", f"{m['gt*']['mae_deg']:.1f}" if "gt*" in m else "-",
-                         "yes" if r["gt_first_or_tied"] else "**no**", "yes" if r["ordered_or_tied"] else "**no**"])
+    for r in d["rows"]:  # the trusted captures
+        m, res = r["maps"], r["resolution"]
+        far = min((k for k, v in m.items() if k != "gt" and v["mae_deg"] >= 10), key=lambda k: m[k]["judged_rel_l1"])
+        opt = min((k for k in m if k.endswith("*")), key=lambda k: m[k]["judged_rel_l1"], default=None)
+        cell = (lambda k: f"`{k}` {m[k]['mae_deg']:.1f} deg, {m[k]['judged_rel_l1']:.4f}")  # noqa: E731
+        rows.append([r["capture"].removesuffix(".data"), f"{res:.4f}", f"{m['gt']['judged_rel_l1']:.4f}", cell(far),
+                     cell(opt) if opt else "-", f"{m['gt*']['mae_deg']:.1f}" if "gt*" in m else "-",
+                     "yes" if r["gt_first_or_tied"] else "**no**", "yes" if r["ordered_or_tied"] else "**no**"])
     return ("\n".join(lines) + "\n\n" + markdown_table(
         ["capture", "resolution", "truth", "lowest map >= 10 deg off", "lowest refined map", "truth refined: moved (deg)",
          "truth first or not told apart", "GT+10 < GT+25 < constant or not told apart"], rows))
