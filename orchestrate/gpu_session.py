@@ -31,13 +31,19 @@ model_card.json, summary.json. Mitsuba and Dr.Jit travel as `--pack`'s site.tar.
 """
 from __future__ import annotations
 
-from typing import Literal
+import sys
+
+if __name__ == "__main__":  # the pack's packages first: the imports below need tyro, which travels in --carry
+    from orchestrate.relay import boot_site
+
+    boot_site(sys.argv[1:])
+
+from typing import Literal  # noqa: E402
 
 import json
 import math
 import os
 import platform
-import sys
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path

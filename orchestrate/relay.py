@@ -39,6 +39,17 @@ ASSET_RULE = (f"the training split of orchestrate.train_recipe.split_plan (the l
               f"last fifth of the HDR maps by name are held out and never packed); every training mesh folder; "
               f"every training HDR map area-resampled to {HDR_WIDTH} px wide; then whole texture sets in name order "
               f"while the upload limit allows")
+PACKED = ("mitsuba==3.9.1", "drjit==1.5.0", "OpenEXR", "trimesh", "colour-science", "colour-demosaicing", "webdataset",
+          "braceexpand", "matplotlib", "cycler", "kiwisolver", "pyparsing", "fonttools", "python-dateutil",
+          "tyro==1.0.17", "docstring-parser", "typeguard")
+"""The wheels docs/model.md downloads for the pack (what the GPU image lacks, or lacks in this version)."""
+GPU_IMAGE = tuple("""absl-py accelerate certifi charset-normalizer click cloudpickle contourpy cycler filelock fonttools fsspec
+h5py huggingface-hub idna imageio jinja2 joblib kiwisolver lazy-loader markupsafe matplotlib mpmath networkx numpy
+opencv-python-headless packaging pandas pillow psutil pyparsing python-dateutil pyyaml regex requests safetensors
+scikit-image scipy setuptools six sympy tifffile timm torch torchvision tqdm typing-extensions urllib3
+zipp""".split())
+"""Packages of the GPU machines' image ('cuda', /work/.library/device/KINDS.md, 2026-11-17) that this project may
+import: the rehearsal's fresh environment holds these and the pack, nothing else."""
 MARGIN = 2**20
 """Bytes of the upload limit kept free when the assets are chosen (the tree grows between pack and run)."""
 SITE_MEASURED = int(41.5 * 2**20)
@@ -270,18 +281,43 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
 # ---------------------------------------------------------------- on the GPU machine
 
 
+def _flag(argv: list[str], name: str, default: str | None) -> str | None:
+    for i, a in enumerate(argv):
+        if a == name and i + 1 < len(argv):
+            return argv[i + 1]
+        if a.startswith(name + "="):
+            return a.split("=", 1)[1]
+    return default
+
+
+def boot_site(argv: list[str]) -> None:
+    """Before gpu_session imports its command-line machinery (tyro travels in the pack): with `--carry`, unpack
+    the pack's site.tar.xz into --work/site and put it on the path (`unpack_carry` does the rest later). Bad
+    values are left to the command's own checks."""
+    carry, work = _flag(argv, "--carry", None), _flag(argv, "--work", "/tmp/gpu_session")
+    if carry and _flag(argv, "--pack", None) is None and (Path(carry) / SITE_ARCHIVE).is_file():
+        _site(Path(carry), Path(work))
+
+
+def _site(carry: Path, work: Path) -> Path:
+    site = work / "site"
+    if str(site) not in sys.path:
+        site.mkdir(parents=True, exist_ok=True)
+        with tarfile.open(carry / SITE_ARCHIVE) as tar:
+            tar.extractall(site, filter="fully_trusted")
+        sys.path.insert(0, str(site))
+        os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (str(site), os.environ.get("PYTHONPATH")) if p)
+    return site
+
+
 def unpack_carry(carry: Path, work: Path) -> Path | None:
     """Unpack carry/site.tar.xz into work/site (put first on sys.path and on the steps' PYTHONPATH) and
     carry/assets.tar.xz into work/ (work/assets); returns the asset folder, or None when none was packed."""
     if not carry.is_dir() or not (carry / SITE_ARCHIVE).is_file():
         raise UsageError(f"--carry: {str(carry)!r} holds no {SITE_ARCHIVE} (expected the folder written here by "
                          "`python -m orchestrate.gpu_session --pack .carry`)")
-    site = work / "site"
-    for archive, into in ((carry / SITE_ARCHIVE, site), (carry / ASSET_ARCHIVE, work)):
-        if archive.is_file():
-            into.mkdir(parents=True, exist_ok=True)
-            with tarfile.open(archive) as tar:
-                tar.extractall(into, filter="fully_trusted" if archive.name == SITE_ARCHIVE else "data")
-    sys.path.insert(0, str(site))
-    os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (str(site), os.environ.get("PYTHONPATH")) if p)
+    _site(carry, work)
+    if (carry / ASSET_ARCHIVE).is_file():
+        with tarfile.open(carry / ASSET_ARCHIVE) as tar:
+            tar.extractall(work, filter="data")
     return work / "assets" if (work / "assets").is_dir() else None
