@@ -31,17 +31,20 @@ model_card.json, summary.json. Mitsuba and Dr.Jit travel as `--pack`'s site.tar.
 """
 from __future__ import annotations
 
-from typing import Literal
+import sys
+
+if __name__ == "__main__":  # the pack's packages first: the imports below need tyro, which travels in --carry
+    from orchestrate.relay import boot_site
+
+    boot_site(sys.argv[1:])
+
+from typing import Literal  # noqa: E402
 
 import json
 import math
 import os
 import platform
-import subprocess
-import sys
-import tarfile
 import time
-import zipfile
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -52,12 +55,9 @@ from scenes.cli.outputs import check_output_folder
 from scenes.cli.options import Command, check_fields, option
 from scenes.files import atomic_write_text
 
-REPO = Path(__file__).resolve().parents[1]
-UPLOAD_LIMIT = 64 * 2**20
-"""Bytes that may travel to the GPU machine: the working tree plus what is carried."""
-KEEP_VARIANTS = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
-"""The Mitsuba variants the packed Mitsuba keeps (render, check, and the check's fallback)."""
-SITE_ARCHIVE = "site.tar.xz"
+from orchestrate.relay import REPO, SITE_ARCHIVE, UPLOAD_LIMIT, pack, resolve_init, tree_bytes, unpack_carry  # noqa: F401
+
+SHARED_ASSETS = REPO.parent / "shared" / "assets"
 RUN = "run"
 CHECK_VARIANTS = ("llvm_ad_rgb", "scalar_rgb")
 """The check's variants in auto's order (the first that runs here and differs from the render's)."""
@@ -95,8 +95,11 @@ class SessionOptions:
     noise_cv: float = option(4.0, above=0)
     """Assumed coefficient of variation of one path-traced sample: images agree when the relative RMS difference
     of two renders is at most noise_cv * sqrt(2 / spp)."""
-    model: str = "glc-small"
-    """Registered model to train (`unips.models.list_models()`)."""
+    model: str | None = None
+    """Registered model to train (`unips.models.list_models()`; default: the --init weights' model, else glc-small)."""
+    init: str | None = None
+    """Weights to continue from: `shipped` (the registry's shipped weights) or a previous run's final.safetensors /
+    last.pt; their model must be the shipped architecture (refused in one line otherwise). Default: fresh weights."""
     steps: int = option(20000, minimum=1)
     """Length of the learning-rate schedule; the run stops earlier when the budget ends."""
     batch: int = option(16, minimum=1)
@@ -105,7 +108,7 @@ class SessionOptions:
     """Peak learning rate."""
     log_every: int = option(10, minimum=1)
     """Steps between records of the learning curve."""
-    ckpt_minutes: float = option(2.0, above=0)
+    ckpt_minutes: float = option(1.0, above=0)
     """Minutes between saves of run/last.pt in --out."""
     device: Literal["auto", "cuda", "cpu"] = "auto"
     """Training device; auto: cuda when torch sees a GPU. On cuda the forward pass runs under bf16 autocast."""
@@ -115,6 +118,12 @@ class SessionOptions:
     a machine is refused at once."""
     overwrite: bool = False
     """Replace an earlier session's dataset, shards and run in --work / --out."""
+    carry: str | None = None
+    """Folder written by --pack (carried to the GPU machine): its site.tar.xz is unpacked into --work and put on
+    the path, its assets.tar.xz unpacked and rendered with."""
+    assets: str | None = None
+    """Asset folder: with --pack, the one whose training split is packed (default ../shared/assets when it exists;
+    `none`: no assets); in a session, the one rendered with (default: --carry's packed assets, else none)."""
     pack: str | None = None
     """Instead of a session: write what must be carried into this folder (site.tar.xz from --wheels) and check
     the upload limit."""
@@ -133,71 +142,6 @@ class SessionOptions:
             check_output_folder(self.out)
             check_output_folder(self.work, "--work")
         return self
-
-
-# ---------------------------------------------------------------- packing (here)
-
-
-def _keep_member(name: str) -> bool:
-    """Whether a wheel member is needed at run time: Mitsuba without its other variants, and neither package's
-    headers, type stubs, CMake / pkg-config files or byte code."""
-    parts = name.split("/")
-    if parts[-1].endswith((".pyi", ".pyc")) or "__pycache__" in parts:
-        return False
-    if parts[0] in ("mitsuba", "drjit") and len(parts) > 1 and parts[1] in ("include", "cmake", "pkgconfig",
-                                                                              "mitsuba_stubs", "stubs"):
-        return False
-    if parts[0] == "mitsuba" and len(parts) == 2:
-        stem = parts[1].split(".")[0]
-        variant_like = stem.startswith(("scalar_", "llvm_", "cuda_")) and parts[1].endswith(".so")
-        if variant_like and stem not in KEEP_VARIANTS:
-            return False
-    return True
-
-
-def tree_bytes(root: Path = REPO) -> int:
-    """Bytes of the working tree that travels (git's tracked and untracked, not ignored files)."""
-    try:
-        names = subprocess.run(["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"], cwd=root,
-                               capture_output=True, check=True).stdout.split(b"\0")
-    except (OSError, subprocess.CalledProcessError):
-        return 0
-    return sum((root / n.decode()).stat().st_size for n in names if n and (root / n.decode()).is_file())
-
-
-def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None = None) -> int:
-    """Write dest/site.tar.xz: every wheel in `wheels` unpacked as pip would (`_keep_member` filters Mitsuba to
-    KEEP_VARIANTS), compressed. Returns the bytes that travel (the archive plus the working tree `tree`);
-    UsageError with the measured size when they exceed `limit`."""
-    found = sorted(wheels.glob("*.whl")) if wheels.is_dir() else []
-    if not found:
-        raise UsageError(f"--wheels: {str(wheels)!r} holds no .whl files (expected the Python 3.12 x86-64 wheels of "
-                         "mitsuba, drjit and the packages the GPU machine lacks; see docs/model.md)")
-    if not any(w.name.startswith("mitsuba-") for w in found):
-        raise UsageError(f"--wheels: {str(wheels)!r} has no mitsuba wheel (expected mitsuba-3.9.1-cp312-...whl)")
-    dest.mkdir(parents=True, exist_ok=True)
-    archive = dest / SITE_ARCHIVE
-    tmp = archive.with_name(archive.name + ".tmp")
-    with tarfile.open(tmp, "w:xz", preset=6) as tar:
-        for wheel in found:
-            with zipfile.ZipFile(wheel) as z:
-                for info in z.infolist():
-                    if info.is_dir() or not _keep_member(info.filename):
-                        continue
-                    ti = tarfile.TarInfo(info.filename)
-                    ti.size, ti.mode = info.file_size, 0o755 if info.filename.endswith(".so") else 0o644
-                    with z.open(info) as f:
-                        tar.addfile(ti, f)
-    os.replace(tmp, archive)
-    tree = tree_bytes() if tree is None else tree
-    total = archive.stat().st_size + tree
-    mib = (f"{total} bytes = {total / 2**20:.1f} MiB ({archive.stat().st_size / 2**20:.1f} MiB {archive}, "
-           f"{tree / 2**20:.1f} MiB working tree)")
-    if total > limit:
-        raise UsageError(f"--pack: what would travel is {mib}, over the {limit} bytes ({limit / 2**20:.0f} MiB) upload limit: "
-                         "leave out wheels the GPU machine has, or render the data here and carry shards instead")
-    print(f"packed {archive}: {mib}, within {limit / 2**20:.0f} MiB")
-    return total
 
 
 # ---------------------------------------------------------------- the variant check
@@ -278,15 +222,17 @@ def _choose(requested: str, avoid: str | None = None) -> str:
                      else "--variant: no Mitsuba variant runs here")
 
 
-def _make_argv(opts: SessionOptions, out: Path, variant: str, objects: int, shards: Path | None) -> list[str]:
-    return ["--objects", str(objects), "--images", str(opts.images), "--res", str(opts.res), "--spp", str(opts.spp),
+def _make_argv(opts: SessionOptions, out: Path, variant: str, objects: int, shards: Path | None,
+               assets: str | None = None) -> list[str]:
+    return [*(["--assets", assets] if assets else []), "--objects", str(objects), "--images", str(opts.images), "--res", str(opts.res), "--spp", str(opts.spp),
             "--seed", str(opts.seed), "--variant", variant, "--out", str(out), "--quiet",
             *(["--shards", str(shards), "--shard-encoding", "decoded"] if shards else []),
             *(["--overwrite"] if opts.overwrite else [])]
 
 
-def _train_argv(opts: SessionOptions, shards: Path, run: Path, device: str, minutes: float) -> list[str]:
-    return ["--data", str(shards), "--out", str(run), "--model", opts.model, "--steps", str(opts.steps),
+def _train_argv(opts: SessionOptions, shards: Path, run: Path, device: str, minutes: float,
+                init: str | None = None) -> list[str]:
+    return ["--data", str(shards), "--out", str(run), *(["--init-from", init] if init else ["--model", opts.model]), "--steps", str(opts.steps),
             "--batch", str(opts.batch), "--lr", str(opts.lr), "--res", str(opts.res), "--max-images", str(opts.images),
             "--device", device, "--precision", "bf16" if device == "cuda" else "fp32",
             "--ckpt-minutes", str(opts.ckpt_minutes), "--time-limit", f"{minutes:.4f}",
@@ -345,6 +291,11 @@ def session(opts: SessionOptions, t0: float | None = None) -> dict:
     deadline = t0 + opts.minutes * 60
     out, work = Path(opts.out), Path(opts.work)
     require_gpu(opts)
+    init, opts.model = resolve_init(opts.init, opts.model)  # an architecture change is refused before any work
+    assets = opts.assets if opts.assets not in (None, "none") else None
+    if opts.carry is not None:
+        packed = unpack_carry(Path(opts.carry), work)
+        assets = assets or (str(packed) if packed else None)
     why = missing_mitsuba()
     if why:
         raise UsageError(why)
@@ -353,8 +304,8 @@ def session(opts: SessionOptions, t0: float | None = None) -> dict:
     check = None if opts.check_variant == "none" else _choose(opts.check_variant, avoid=variant) \
         if opts.check_variant == "auto" else _choose(opts.check_variant)
     data, again, shards, run = work / "data", work / "check", work / "shards", out / RUN
-    check_step("wildgen.make", _make_argv(opts, data, variant, opts.objects, shards))
-    check_step("unips.train", _train_argv(opts, shards, run, device, 1.0))
+    check_step("wildgen.make", _make_argv(opts, data, variant, opts.objects, shards, assets))
+    check_step("unips.train", _train_argv(opts, shards, run, device, 1.0, init))
     print(f"gpu session: rendering {opts.objects} objects with {variant}; check with {check or 'none'}; training "
           f"{opts.model} on {device}{' (bf16 autocast)' if device == 'cuda' else ''}; budget {opts.minutes:g} min",
           flush=True)
@@ -371,11 +322,11 @@ def session(opts: SessionOptions, t0: float | None = None) -> dict:
         except OutOfTime as exc:
             raise UsageError(f"{exc}{advice}") from None
 
-    step(["wildgen.make", *_make_argv(opts, data, variant, opts.objects, shards)])
+    step(["wildgen.make", *_make_argv(opts, data, variant, opts.objects, shards, assets)])
     t_render = time.time() - t0
     check_report: dict = {"variant": variant, "check_variant": None, "skipped": "--check-variant none"}
     if check:
-        step(["wildgen.make", *_make_argv(opts, again, check, min(opts.check_objects, opts.objects), None)])
+        step(["wildgen.make", *_make_argv(opts, again, check, min(opts.check_objects, opts.objects), None, assets)])
         from scenes.folder.layouts import find_object_folders
 
         names = [f.name for f in find_object_folders(again, "--work") if (data / f.name).is_dir()]
@@ -392,17 +343,18 @@ def session(opts: SessionOptions, t0: float | None = None) -> dict:
                          "minutes, none is left to train (lower --objects, --res or --spp, or raise --minutes)")
     t_train = time.time()
     # unips.train stops itself before `stages` (its --time-limit); stopped here only if it did not
-    step(["unips.train", *_train_argv(opts, shards, run, device, left)], until=stages + opts.reserve_s / 2)
+    step(["unips.train", *_train_argv(opts, shards, run, device, left, init)], until=stages + opts.reserve_s / 2)
     records = curve_records(run / "log.jsonl")
     plot_curve(records, out / "learning_curve.png", f"{opts.model}, {opts.objects} objects, {device}")
-    summary = _write_card(opts, out, run, records, variant, device, check_report, t_render, time.time() - t_train)
+    summary = _write_card(opts, out, run, records, variant, device, check_report, t_render, time.time() - t_train,
+                          init, assets)
     summary["wall_s"] = round(time.time() - t0, 1)
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=1))
     return summary
 
 
 def _write_card(opts: SessionOptions, out: Path, run: Path, records: list[dict], variant: str, device: str,
-                check: dict, t_render: float, t_train: float) -> dict:
+                check: dict, t_render: float, t_train: float, init: str | None = None, assets: str | None = None) -> dict:
     """model_card.json (a fragment for a model card) and the content of summary.json."""
     import torch
 
@@ -415,14 +367,15 @@ def _write_card(opts: SessionOptions, out: Path, run: Path, records: list[dict],
         "model": meta.get("model_name"), "weights": f"{RUN}/final.safetensors",
         "parameters": sum(p.numel() for p in model.parameters()),
         "data": f"wildgen.make seed {opts.seed}, {opts.objects} objects, {opts.res} px, {opts.images} images, "
-                f"{opts.spp} spp, {variant}",
+                f"{opts.spp} spp, {variant}, assets: {_assets_note(opts, assets)}",
+        "init_from": opts.init, "init_weights": init and Path(init).name,
         "steps": step, "schedule_steps": opts.steps, "batch": opts.batch, "lr": opts.lr,
         "precision": "bf16 autocast" if device == "cuda" else "fp32",
         "final_loss": records[-1]["loss"] if records else None,
         "train_minutes": round(t_train / 60, 2),
         "hardware": f"{gpu or platform.processor() or platform.machine()}, torch {torch.__version__}",
         "recipe": "python -m orchestrate.gpu_session " + " ".join(f"--{k.replace('_', '-')} {v}" for k, v in (
-            ("minutes", opts.minutes), ("objects", opts.objects), ("res", opts.res), ("spp", opts.spp),
+            ("init", opts.init), ("minutes", opts.minutes), ("objects", opts.objects), ("res", opts.res), ("spp", opts.spp),
             ("seed", opts.seed), ("model", opts.model), ("steps", opts.steps), ("batch", opts.batch))),
     }
     atomic_write_text(out / "model_card.json", json.dumps(card, indent=1))
@@ -434,6 +387,16 @@ def _write_card(opts: SessionOptions, out: Path, run: Path, records: list[dict],
             "curve_points": len(records), "files_over_16_mib": big, "options": asdict(opts)}
 
 
+def _assets_note(opts: SessionOptions, assets: str | None) -> str:
+    """What the card says of the assets: the pack's manifest (its rule and counts) when they came from --carry."""
+    manifest = Path(opts.carry or "-") / "manifest.json"
+    if assets and opts.carry and manifest.is_file():
+        a = json.loads(manifest.read_text()).get("assets", {})
+        return (f"packed training split, {len(a.get('meshes', []))} meshes, {len(a.get('hdri', []))} HDR maps, "
+                f"{len(a.get('texture_sets', []))} texture sets ({a.get('rule', '')})")
+    return assets or "none (procedural shapes and lights only)"
+
+
 COMMAND = Command(SessionOptions, prog="python -m orchestrate.gpu_session", description=__doc__)
 
 
@@ -442,7 +405,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         opts = COMMAND.parse(argv).validate()
         if opts.pack is not None:
-            pack(Path(opts.pack), Path(opts.wheels))
+            assets = opts.assets or (str(SHARED_ASSETS) if SHARED_ASSETS.is_dir() else "none")
+            pack(Path(opts.pack), Path(opts.wheels), assets=None if assets == "none" else Path(assets))
             return 0
         summary = session(opts, t0)
     except StepFailed as exc:

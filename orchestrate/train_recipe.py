@@ -351,6 +351,18 @@ MEASURED_KEYS = ("test_set", "test_set_deg", "diligent", "diligent_deg")
 VALIDATION_DATA = "seed 4000, 100 objects, 128 px, 10 images, 32 spp, held-out meshes and HDR maps"
 
 
+def install_weights(weights: Path, entry, card: dict) -> None:
+    """Copy `weights` (and its .json sidecar) to the registry's pretrained entry `entry` and write its model card
+    `card` (orchestrate.ship uses this too)."""
+    from unips.models.builder import sidecar_path
+
+    current = entry.weights_path
+    current.parent.mkdir(parents=True, exist_ok=True)
+    for src, dst in ((weights, current), (sidecar_path(weights), sidecar_path(current))):  # never half a weights file
+        atomic_write(dst, lambda tmp, src=src: shutil.copyfile(src, tmp))
+    atomic_write_text(entry.card_path, json.dumps(card, indent=1))
+
+
 def ship(val: Path, run_dir: Path, args: RecipeOptions) -> bool:
     """Ship the run's best weights if they beat the shipped weights of the same model on the fixed validation set
     `val`: copy them (with the .json sidecar) to the registry's pretrained entry of that model, where
@@ -359,7 +371,6 @@ def ship(val: Path, run_dir: Path, args: RecipeOptions) -> bool:
 
     from unips.checkpoint import git_revision
     from unips.models import load_model, pretrained_entry
-    from unips.models.builder import sidecar_path
     from unips.train import TrainConfig
 
     best = run_dir / "best.safetensors"
@@ -412,10 +423,7 @@ def ship(val: Path, run_dir: Path, args: RecipeOptions) -> bool:
         "replaced_model_probes_fixed_validation": _probe_card(old, val_pixels) if old else None,
         "lineage": lineage,
     })
-    current.parent.mkdir(parents=True, exist_ok=True)
-    for src, dst in ((best, current), (sidecar_path(best), sidecar_path(current))):  # never half a weights file
-        atomic_write(dst, lambda tmp, src=src: shutil.copyfile(src, tmp))
-    atomic_write_text(entry.card_path, json.dumps(card, indent=1))
+    install_weights(best, entry, card)
     print(f"shipped {name}: {_display(current)} (create_model({name!r}, pretrained=True)); model card "
           f"{_display(entry.card_path)}: copy the benchmark's test-set and DiLiGenT figures in and review "
           "known_weaknesses", flush=True)

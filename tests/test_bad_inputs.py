@@ -276,6 +276,7 @@ DEMO = "orchestrate.demo"
 BM = "orchestrate.benchmark"
 RC = "orchestrate.train_recipe"
 GS = "orchestrate.gpu_session"
+SHIP = "orchestrate.ship"
 PV = "wildgen.preview"
 OBJDIR = "{W}/data/00000.data"
 
@@ -694,6 +695,16 @@ ROWS: list[Row] = [
     Row("gpu-session-minutes-below-reserve", GS, ["--out", "{T}/o", "--work", "{T}/w", "--minutes", "0.5",
                                                   "--cpu-rehearsal"], 2, ("--minutes", "0.5", "--reserve-s 45"),
         check=_not_written("o", "w")),
+    # ---- issue 41: the relay (--init refused before any work, --carry without a pack, ship's candidate)
+    Row("gpu-session-init-missing", GS, ["--out", "{T}/o", "--work", "{T}/w", "--init", "{T}/nope.safetensors",
+                                         "--cpu-rehearsal"], 2, ("--init", "nope.safetensors", "expected"),
+        check=_not_written("o", "w")),
+    Row("gpu-session-carry-empty", GS, ["--out", "{T}/o", "--work", "{T}/w", "--carry", "{W}", "--cpu-rehearsal"], 2,
+        ("--carry", "site.tar.xz")),
+    Row("ship-candidate-empty", SHIP, ["--candidate", "{W}", "--val", "{W}", "--diligent", "none"], 2,
+        ("--candidate", "run/final.safetensors")),
+    Row("ship-val-missing", SHIP, ["--candidate", "{W}", "--val", "{T}/nope", "--diligent", "none"], 2,
+        ("--val", "nope")),
     # ---- orchestrate.demo (fast-failing cases: the full demo is `make demo`)
     Row("demo-objects-0", DEMO, ["--out", "{T}/d", "--objects", "0"], 2, ("--objects",), check=_not_written("d")),
     Row("demo-res-small", DEMO, ["--out", "{T}/d", "--res", "8"], 2, ("--res",), check=_not_written("d")),

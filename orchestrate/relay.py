@@ -1,0 +1,323 @@
+"""The relay of short GPU runs (issue 41): what orchestrate.gpu_session needs besides the session itself.
+
+- `resolve_init`: `--init shipped|PATH`, the weights a session continues from, checked against the shipped
+  architecture before any work (a session never restarts from fresh weights by accident, and never trains a
+  model that could not replace the shipped one).
+- `pack_assets`: the training assets that travel in the pack, chosen by `ASSET_RULE` (recorded in the pack's
+  manifest.json): the recipe's training split only (`orchestrate.train_recipe.split_plan`, never a held-out
+  mesh or HDR map), every training mesh, every training HDR map reduced to `HDR_WIDTH` px, then whole texture
+  sets in name order while the upload limit allows.
+- `unpack_carry`: on the GPU machine, the pack's archives unpacked into --work (Mitsuba's site folder put on
+  the path of this process and of its steps).
+"""
+from __future__ import annotations
+
+import io
+import json
+import lzma
+import os
+import subprocess
+import sys
+import tarfile
+import zipfile
+from pathlib import Path
+
+from scenes.cli.errors import UsageError
+
+REPO = Path(__file__).resolve().parents[1]
+UPLOAD_LIMIT = 64 * 2**20
+"""Bytes that may travel to the GPU machine: the working tree plus what is carried."""
+KEEP_VARIANTS = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
+"""The Mitsuba variants the packed Mitsuba keeps (render, check, and the check's fallback)."""
+SITE_ARCHIVE = "site.tar.xz"
+ASSET_ARCHIVE = "assets.tar.xz"
+MANIFEST = "manifest.json"
+HDR_WIDTH = 256
+"""Width of the packed HDR maps (equirectangular, 256 x 128; area-averaged, so each light keeps its energy):
+renders are 128 px, and a 1k map alone is 1.5 MiB, 28 of them more than the upload limit leaves."""
+ASSET_RULE = (f"the training split of orchestrate.train_recipe.split_plan (the last quarter of the meshes and the "
+              f"last fifth of the HDR maps by name are held out and never packed); every training mesh folder; "
+              f"every training HDR map area-resampled to {HDR_WIDTH} px wide; then whole texture sets in name order "
+              f"while the upload limit allows")
+PACKED = ("mitsuba==3.9.1", "drjit==1.5.0", "OpenEXR", "trimesh", "colour-science", "colour-demosaicing", "webdataset",
+          "braceexpand", "matplotlib", "cycler", "kiwisolver", "pyparsing", "fonttools", "python-dateutil",
+          "tyro==1.0.17", "docstring-parser", "typeguard")
+"""The wheels docs/model.md downloads for the pack (what the GPU image lacks, or lacks in this version)."""
+GPU_IMAGE = tuple("""absl-py accelerate certifi charset-normalizer click cloudpickle contourpy cycler filelock fonttools fsspec
+h5py huggingface-hub idna imageio jinja2 joblib kiwisolver lazy-loader markupsafe matplotlib mpmath networkx numpy
+opencv-python-headless packaging pandas pillow psutil pyparsing python-dateutil pyyaml regex requests safetensors
+scikit-image scipy setuptools six sympy tifffile timm torch torchvision tqdm typing-extensions urllib3
+zipp""".split())
+"""Packages of the GPU machines' image ('cuda', /work/.library/device/KINDS.md, 2026-11-17) that this project may
+import: the rehearsal's fresh environment holds these and the pack, nothing else."""
+MARGIN = 2**20
+"""Bytes of the upload limit kept free when the assets are chosen (the tree grows between pack and run)."""
+SITE_MEASURED = int(41.5 * 2**20)
+"""The real site.tar.xz of docs/model.md's wheels, as measured (what the assets test budgets for)."""
+
+
+# ---------------------------------------------------------------- --init
+
+
+def resolve_init(init: str | None, model: str | None) -> tuple[str | None, str]:
+    """(weights path or None, model name) of a session's `--init` and `--model`. `shipped`: the registry's
+    shipped weights (of --model, or of the one model that has them); PATH: a .safetensors/.pt weights file
+    whose model name and configuration equal the shipped weights' of that model (when it has shipped weights).
+    UsageError (one line) otherwise."""
+    from unips.models import list_models, list_pretrained, load_model
+    from unips.models.registry import pretrained_entry
+
+    if init is None:
+        name = model or "glc-small"
+        if name not in list_models():
+            raise UsageError(f"--model: got {name!r}, expected one of {', '.join(list_models())}")
+        return None, name
+    if init == "shipped":
+        names = [model] if model else list_pretrained()
+        if len(names) != 1 or names[0] not in list_pretrained():
+            raise UsageError(f"--init: 'shipped', but {'--model ' + repr(model) + ' has' if model else 'the registry has'} "
+                             f"no single shipped weights file (shipped: {', '.join(list_pretrained()) or 'none'}; "
+                             "expected --model naming one of them)")
+        return str(pretrained_entry(names[0]).weights_path), names[0]
+    path = Path(init)
+    if not path.is_file():
+        raise UsageError(f"--init: {init!r} is not a file (expected 'shipped' or a previous run's "
+                         "final.safetensors / last.pt)")
+    try:
+        _, meta = load_model(path)
+    except Exception as exc:  # any unreadable weights file is one line
+        raise UsageError(f"--init: {init!r} is not a weights file this package reads ({type(exc).__name__}: "
+                         f"{str(exc).splitlines()[0] if str(exc) else ''})") from None
+    name = meta.get("model_name")
+    if model and name != model:
+        raise UsageError(f"--init: {init!r} holds a {name!r} model, but --model is {model!r} (expected the same "
+                         "architecture: the relay continues one model, it never restarts)")
+    check_architecture(path, name, meta.get("config"), "--init")
+    return str(path), name
+
+
+def check_architecture(path: Path, name: str | None, config: dict | None, flag: str) -> None:
+    """UsageError when `name`/`config` differ from the shipped weights of that model (if it has them)."""
+    from unips.models import list_pretrained, load_model
+    from unips.models.registry import pretrained_entry
+
+    if name not in list_pretrained():
+        raise UsageError(f"{flag}: {str(path)!r} holds a {name!r} model, which has no shipped weights (expected the "
+                         f"shipped architecture, one of: {', '.join(list_pretrained()) or 'none'}; the relay continues "
+                         "the shipped model)")
+    shipped = pretrained_entry(name).weights_path
+    ref = json.loads(json.dumps(load_model(shipped)[1].get("config") or {}))
+    config = json.loads(json.dumps(config or {}, default=str))  # tuples of a .pt as lists, like the sidecar's
+    diff = sorted(k for k in set(ref) | set(config) if ref.get(k) != config.get(k))
+    if diff:
+        raise UsageError(f"{flag}: {str(path)!r} is a {name!r} whose configuration differs from the shipped "
+                         f"weights' in {', '.join(diff[:4])} (expected the shipped architecture: an architecture "
+                         "change is a new model, trained by orchestrate.train_recipe, not a relay run)")
+
+
+# ---------------------------------------------------------------- the assets (here)
+
+
+def asset_choice(assets: Path) -> tuple[list[tuple[Path, str]], list[tuple[Path, str]], list[list[tuple[Path, str]]], list[str]]:
+    """(meshes, HDR maps, texture sets, held-out names) of the training split: (file, name in the archive) pairs."""
+    from orchestrate.train_recipe import SPLIT_FOLDERS, split_plan
+
+    plan = split_plan(assets, Path("/split"))
+    train = Path("/split") / SPLIT_FOLDERS[0]
+    meshes, hdris, held = [], [], []
+    for link, src in sorted(plan.items()):
+        if link.parent.name in SPLIT_FOLDERS:  # the shared texture folder: chosen below
+            continue
+        if train not in link.parents:
+            held.append(f"{link.parent.name}/{src.name}")
+        elif link.parent.name == "meshes":
+            files = sorted(p for p in src.rglob("*") if p.is_file()) if src.is_dir() else [src]
+            meshes += [(p, f"meshes/{p.relative_to(src.parent)}") for p in files]
+        else:
+            hdris.append((src, f"hdri/{src.stem}.hdr"))
+    tex = assets / "textures"
+    sets = []
+    if tex.is_dir():
+        for d in sorted({p.parent for p in tex.rglob("*") if p.is_file() and p.suffix.lower() in (".jpg", ".jpeg", ".png", ".exr", ".tif", ".tiff")}):
+            sets.append([(p, f"textures/{p.relative_to(tex)}") for p in sorted(d.iterdir()) if p.is_file()])
+    return meshes, hdris, sets, held
+
+
+def _small_hdr(src: Path) -> bytes:
+    import cv2
+
+    img = cv2.imread(str(src), cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)
+    if img is None:
+        raise UsageError(f"--assets: {str(src)!r} is not an HDR map OpenCV reads")
+    img = cv2.resize(img, (HDR_WIDTH, HDR_WIDTH // 2), interpolation=cv2.INTER_AREA)
+    ok, buf = cv2.imencode(".hdr", img)
+    return buf.tobytes()
+
+
+def pack_assets(assets: Path, dest: Path, budget: int) -> dict:
+    """Write dest/assets.tar.xz (`ASSET_RULE`, within `budget` bytes) and return its manifest entry."""
+    if not assets.is_dir():
+        raise UsageError(f"--assets: {str(assets)!r} is not a folder (expected an asset folder with meshes/ and hdri/, "
+                         "or 'none')")
+    meshes, hdris, sets, held = asset_choice(assets)
+    if not meshes and not hdris:
+        raise UsageError(f"--assets: {str(assets)!r} has too few meshes and HDR maps to split into training and "
+                         "held-out assets (expected meshes/ and hdri/ as in ../shared/assets)")
+    members: list[tuple[str, bytes]] = [(a, p.read_bytes()) for p, a in meshes]
+    members += [(a, _small_hdr(p)) for p, a in hdris]
+    used = sum(len(lzma.compress(b, preset=6)) for _, b in members)
+    if used > budget:
+        raise UsageError(f"--assets: the training meshes and maps of {str(assets)!r} need {used} bytes compressed, "
+                         f"over the {budget} bytes the upload limit leaves (expected a smaller asset folder)")
+    packed_sets, skipped = [], []
+    for files in sets:
+        data = [(a, p.read_bytes()) for p, a in files]
+        size = sum(len(lzma.compress(b, preset=6)) for _, b in data)
+        name = str(Path(files[0][1]).parent)
+        if used + size <= budget:
+            members += data
+            used += size
+            packed_sets.append(name)
+        else:
+            skipped.append(name)
+    dest.mkdir(parents=True, exist_ok=True)
+    tmp = dest / (ASSET_ARCHIVE + ".tmp")
+    with tarfile.open(tmp, "w:xz", preset=6) as tar:
+        for arc, data in members:
+            ti = tarfile.TarInfo(f"assets/{arc}")
+            ti.size, ti.mode = len(data), 0o644
+            tar.addfile(ti, io.BytesIO(data))
+    os.replace(tmp, dest / ASSET_ARCHIVE)
+    size = (dest / ASSET_ARCHIVE).stat().st_size
+    if size > budget:
+        raise UsageError(f"--assets: {ASSET_ARCHIVE} is {size} bytes, over the {budget} bytes the upload limit leaves")
+    return {"source": str(assets), "rule": ASSET_RULE, "bytes": size, "budget_bytes": budget,
+            "meshes": sorted({a.split("/")[1] for _, a in meshes}), "hdri": [a for _, a in hdris],
+            "texture_sets": packed_sets, "texture_sets_left_out": skipped, "held_out_never_packed": held}
+
+
+def write_manifest(dest: Path, entries: dict) -> None:
+    from scenes.files import atomic_write_text
+
+    atomic_write_text(dest / MANIFEST, json.dumps(entries, indent=1))
+
+
+# ---------------------------------------------------------------- packing (here)
+
+
+def _keep_member(name: str) -> bool:
+    """Whether a wheel member is needed at run time: Mitsuba without its other variants, and neither package's
+    headers, type stubs, CMake / pkg-config files or byte code."""
+    parts = name.split("/")
+    if parts[-1].endswith((".pyi", ".pyc")) or "__pycache__" in parts:
+        return False
+    if parts[0] in ("mitsuba", "drjit") and len(parts) > 1 and parts[1] in ("include", "cmake", "pkgconfig",
+                                                                              "mitsuba_stubs", "stubs"):
+        return False
+    if parts[0] == "mitsuba" and len(parts) == 2:
+        stem = parts[1].split(".")[0]
+        variant_like = stem.startswith(("scalar_", "llvm_", "cuda_")) and parts[1].endswith(".so")
+        if variant_like and stem not in KEEP_VARIANTS:
+            return False
+    return True
+
+
+def tree_bytes(root: Path = REPO) -> int:
+    """Bytes of the working tree that travels (git's tracked and untracked, not ignored files)."""
+    try:
+        names = subprocess.run(["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"], cwd=root,
+                               capture_output=True, check=True).stdout.split(b"\0")
+    except (OSError, subprocess.CalledProcessError):
+        return 0
+    return sum((root / n.decode()).stat().st_size for n in names if n and (root / n.decode()).is_file())
+
+
+def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None = None,
+         assets: Path | None = None) -> int:
+    """Write dest/site.tar.xz: every wheel in `wheels` unpacked as pip would (`_keep_member` filters Mitsuba to
+    KEEP_VARIANTS), compressed; with `assets`, dest/assets.tar.xz (`pack_assets`, in what the limit leaves);
+    dest/manifest.json records both. Returns the bytes that travel (the archives plus the working tree `tree`);
+    UsageError with the measured size when they exceed `limit`."""
+    found = sorted(wheels.glob("*.whl")) if wheels.is_dir() else []
+    if not found:
+        raise UsageError(f"--wheels: {str(wheels)!r} holds no .whl files (expected the Python 3.12 x86-64 wheels of "
+                         "mitsuba, drjit and the packages the GPU machine lacks; see docs/model.md)")
+    if not any(w.name.startswith("mitsuba-") for w in found):
+        raise UsageError(f"--wheels: {str(wheels)!r} has no mitsuba wheel (expected mitsuba-3.9.1-cp312-...whl)")
+    dest.mkdir(parents=True, exist_ok=True)
+    archive = dest / SITE_ARCHIVE
+    tmp = archive.with_name(archive.name + ".tmp")
+    with tarfile.open(tmp, "w:xz", preset=6) as tar:
+        for wheel in found:
+            with zipfile.ZipFile(wheel) as z:
+                for info in z.infolist():
+                    if info.is_dir() or not _keep_member(info.filename):
+                        continue
+                    ti = tarfile.TarInfo(info.filename)
+                    ti.size, ti.mode = info.file_size, 0o755 if info.filename.endswith(".so") else 0o644
+                    with z.open(info) as f:
+                        tar.addfile(ti, f)
+    os.replace(tmp, archive)
+    tree = tree_bytes() if tree is None else tree
+    site = archive.stat().st_size
+    manifest = {"site": {"archive": SITE_ARCHIVE, "bytes": site, "wheels": [w.name for w in found]}, "tree_bytes": tree,
+                "upload_limit_bytes": limit}
+    if assets is not None:
+        (dest / ASSET_ARCHIVE).unlink(missing_ok=True)
+        manifest["assets"] = pack_assets(assets, dest, limit - site - tree - MARGIN)
+    asset_bytes = manifest.get("assets", {}).get("bytes", 0)
+    total = site + asset_bytes + tree
+    manifest["total_bytes"] = total
+    write_manifest(dest, manifest)
+    mib = (f"{total} bytes = {total / 2**20:.1f} MiB ({site / 2**20:.1f} MiB {archive}, {asset_bytes / 2**20:.1f} MiB "
+           f"{ASSET_ARCHIVE}, {tree / 2**20:.1f} MiB working tree)")
+    if total > limit:
+        raise UsageError(f"--pack: what would travel is {mib}, over the {limit} bytes ({limit / 2**20:.0f} MiB) upload limit: "
+                         "leave out wheels the GPU machine has, or render the data here and carry shards instead")
+    print(f"packed {archive}: {mib}, within {limit / 2**20:.0f} MiB")
+    return total
+
+
+# ---------------------------------------------------------------- on the GPU machine
+
+
+def _flag(argv: list[str], name: str, default: str | None) -> str | None:
+    for i, a in enumerate(argv):
+        if a == name and i + 1 < len(argv):
+            return argv[i + 1]
+        if a.startswith(name + "="):
+            return a.split("=", 1)[1]
+    return default
+
+
+def boot_site(argv: list[str]) -> None:
+    """Before gpu_session imports its command-line machinery (tyro travels in the pack): with `--carry`, unpack
+    the pack's site.tar.xz into --work/site and put it on the path (`unpack_carry` does the rest later). Bad
+    values are left to the command's own checks."""
+    carry, work = _flag(argv, "--carry", None), _flag(argv, "--work", "/tmp/gpu_session")
+    if carry and _flag(argv, "--pack", None) is None and (Path(carry) / SITE_ARCHIVE).is_file():
+        _site(Path(carry), Path(work))
+
+
+def _site(carry: Path, work: Path) -> Path:
+    site = work / "site"
+    if str(site) not in sys.path:
+        site.mkdir(parents=True, exist_ok=True)
+        with tarfile.open(carry / SITE_ARCHIVE) as tar:
+            tar.extractall(site, filter="fully_trusted")
+        sys.path.insert(0, str(site))
+        os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (str(site), os.environ.get("PYTHONPATH")) if p)
+    return site
+
+
+def unpack_carry(carry: Path, work: Path) -> Path | None:
+    """Unpack carry/site.tar.xz into work/site (put first on sys.path and on the steps' PYTHONPATH) and
+    carry/assets.tar.xz into work/ (work/assets); returns the asset folder, or None when none was packed."""
+    if not carry.is_dir() or not (carry / SITE_ARCHIVE).is_file():
+        raise UsageError(f"--carry: {str(carry)!r} holds no {SITE_ARCHIVE} (expected the folder written here by "
+                         "`python -m orchestrate.gpu_session --pack .carry`)")
+    _site(carry, work)
+    if (carry / ASSET_ARCHIVE).is_file():
+        with tarfile.open(carry / ASSET_ARCHIVE) as tar:
+            tar.extractall(work, filter="data")
+    return work / "assets" if (work / "assets").is_dir() else None
