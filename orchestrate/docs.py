@@ -46,6 +46,7 @@ CLIS = (
     "orchestrate.benchmark",
     "orchestrate.train_recipe",
     "orchestrate.gpu_session",
+    "orchestrate.ship",
     "orchestrate.capture",
     "orchestrate.docs",
 )

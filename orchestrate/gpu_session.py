@@ -1,20 +1,25 @@
 """One command for a short session on a GPU machine: render, check the variant, write shards, train, bring back.
 
-    python -m orchestrate.gpu_session --out $OUT [--minutes 9] [--objects 300] [--model glc-small]
-    python -m orchestrate.gpu_session --pack .carry --wheels .whl      (here, before the session)
+    python -m orchestrate.gpu_session --pack .carry --wheels .whl      (here, before the session: Mitsuba,
+                                                                       the wheels and the training assets)
+    python -m orchestrate.gpu_session --carry .carry --init shipped --out $OUT --minutes 9 --objects 300
+                                                                      (on the GPU machine)
+    python -m orchestrate.ship --candidate OUT --val VAL               (here, after: ship or not, by rule)
 
 Made for a machine that has torch and timm but no Mitsuba and no internet, whose commands run at most 10
 minutes and whose folder `--out` comes back (at most 8 files). On a machine where torch sees no GPU it stops at
 once (one line, exit 2) unless `--cpu-rehearsal` asks for a small run of the whole session on the CPU. In
 `--minutes` of wall time, counted from the command's start (`scenes.cli.budget`), it:
 
-1. renders `--objects` objects with `wildgen.make` (seed `--seed`) into `--work`, with the first usable variant
+1. renders `--objects` objects with `wildgen.make` (seed `--seed`, the pack's training assets) into `--work`,
+   with the first usable variant
    of cuda_ad_rgb, llvm_ad_rgb (`--variant auto`; the log and summary.json say which);
 2. renders the first `--check-objects` of them again with `--check-variant` (auto: llvm_ad_rgb when it runs
    here, else scalar_rgb) and compares them: variant_check.json (`compare_datasets`);
 3. writes the dataset as WebDataset shards of the reader's decoded arrays (`wildgen.make --shards
    --shard-encoding decoded`, the fastest to train on);
-4. trains `--model` with `unips.train` on the shards (bf16 autocast on CUDA), saving last.pt every
+4. trains `--model` with `unips.train` on the shards (bf16 autocast on CUDA), from `--init` (the shipped
+   weights or a previous run's, never from scratch when given; another architecture is refused), saving last.pt every
    `--ckpt-minutes` into `--out`/run and stopping before the budget (`--time-limit` of unips.train);
 5. writes the learning curve (learning_curve.png from run/log.jsonl), model_card.json (a fragment for the
    model card: data, steps, time, hardware) and summary.json.
