@@ -247,3 +247,101 @@ def test_predict_cli_runs_published_weights(tiny_state, tmp_path, capsys) -> Non
         assert main(["--method", "model", *flags, "--input", str(folder), "--out", str(tmp_path / "p2")]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("error: ") and words in err[0]
+
+
+# -- --scalable: the working image as interleaved sub-images ---------------------------------------------------
+
+PATCH, TILED_SIDE = 64, 128  # the published patch is 512 (canonical 256); the same ratio here at canonical 32
+
+
+def _official_builder():
+    """The authors' `builder` module (their `main.py --scalable` loop), its literal 512 px patch replaced by PATCH
+    and its `cv2.imwrite` replaced by a recorder (`module.written[name]`: the float array it would have saved)."""
+    import types
+
+    import cv2
+
+    _reference("model.model")  # registers the package the builder's imports are redirected to
+    path = REFERENCE / "builder" / "builder.py"
+    source = path.read_text()
+    assert source.count("patch_size = 512") == 1, "the reference builder changed: its patch size is not found"
+    source = source.replace("from modules.", f"from {ALIAS}.").replace("patch_size = 512", f"patch_size = {PATCH}")
+    module = types.ModuleType(f"{ALIAS}.scalable_builder")
+    exec(compile(source, str(path), "exec"), module.__dict__)
+    module.written = {}
+    module.cv2 = types.SimpleNamespace(resize=cv2.resize, INTER_CUBIC=cv2.INTER_CUBIC,
+                                       imwrite=lambda name, a: module.written.__setitem__(Path(name).name, a.copy()))
+    return module
+
+
+class _Prepared(torch.utils.data.Dataset):
+    """One object as the authors' data loader hands it to their builder (already preprocessed)."""
+
+    def __init__(self, images: np.ndarray, mask: np.ndarray, crop, frame: tuple[int, int], workspace: Path) -> None:
+        import types
+
+        self.item = (images.transpose(3, 1, 2, 0), np.zeros((3,) + mask.shape, np.float32), mask[None],
+                     len(images), np.array([*frame, crop.r0, crop.r1, crop.c0, crop.c1]))
+        self.data = types.SimpleNamespace(h=mask.shape[0], data_workspace=str(workspace), objname="obj")
+        self.max_image_resolution = None
+
+    def __getitem__(self, index: int):
+        return self.item
+
+    def __len__(self) -> int:
+        return 1
+
+
+def test_scalable_prediction_equals_the_reference(official, ours, tmp_path) -> None:
+    """`run_published(..., patch=PATCH)` against the authors' `--scalable` run (their builder's loop, their
+    post-processing) on a 128 px working image: 4 sub-images of 64 px, each in 2 x 2 tiles of the canonical 32 and
+    several chunks of pixels (the same shuffles: one generator shared by the sub-images in turn)."""
+    import types
+
+    from unips.data import load_object
+    from unips.inference import LoadedModel, run_published
+    from unips.sdm_preprocess import sdm_crop, sdm_inputs
+
+    obj = load_object(_object_folder(tmp_path))
+    crop = sdm_crop(obj.mask)
+    crop = type(crop)(crop.r0, crop.r1, crop.c0, crop.c1, TILED_SIDE)
+    images, mask = sdm_inputs(obj, crop)
+    assert mask[::2, ::2].sum() > 2 * PIXELS  # every sub-image has several chunks
+    module = _official_builder()
+    args = types.SimpleNamespace(target="normal", checkpoint=str(official[1]), pixel_samples=PIXELS,
+                                 canonical_resolution=CANONICAL, scalable=True)
+    runner = module.builder(args, torch.device("cpu"))
+    np.random.seed(5)
+    runner.run(canonical_resolution=CANONICAL, testdata=_Prepared(images, mask, crop, obj.mask.shape, tmp_path),
+               max_image_resolution=4096)
+    theirs = (module.written["normal.png"] / 127.5 - 1)[:, :, ::-1]  # 255 * (1 + n) / 2 in BGR order
+    net = LoadedModel(model=ours, meta={"model_name": "sdm-unips"}, checkpoint=official[1], device="cpu")
+    mine = run_published(net, obj, res=TILED_SIDE, patch=PATCH, rng=np.random.RandomState(5))
+    whole = run_published(net, obj, res=TILED_SIDE, rng=np.random.RandomState(5))
+    inside = obj.mask
+    both = torch.from_numpy(np.ascontiguousarray(np.stack([mine, theirs]).transpose(0, 3, 1, 2)))
+    angle = angle_deg(both[:1], both[1:])[0][torch.from_numpy(inside)].max().item()
+    diff = np.abs(mine - theirs).max()
+    apart = angle_deg(both[:1], torch.from_numpy(whole.transpose(2, 0, 1))[None])[0][torch.from_numpy(inside)]
+    print(f"\n--scalable vs reference: max |normal difference| {diff:.2e}, max angle {angle:.2e} deg; "
+          f"vs the whole image at once: mean {apart.mean().item():.1f} deg")
+    assert diff < 1e-4 and angle < 0.01
+    assert apart.mean().item() > 1.0  # the sub-images really are predicted on their own
+
+
+def test_scalable_skips_sub_images_without_object() -> None:
+    from unips.sdm_preprocess import scalable_forward
+
+    calls = []
+
+    def model(images, mask, rng):
+        calls.append(tuple(images.shape))
+        return mask.expand(-1, 3, -1, -1) * images[:, 0]
+
+    images, mask = torch.rand(1, 2, 3, 8, 8), torch.zeros(1, 1, 8, 8)
+    mask[..., 1::2, 0::2] = 1  # only the sub-image at offset (1, 0)
+    out = scalable_forward(model, images, mask, patch=4)
+    assert calls == [(1, 2, 3, 4, 4)]
+    assert torch.equal(out, mask.expand(-1, 3, -1, -1) * images[:, 0])
+    with pytest.raises(ValueError, match="patch: 3 does not divide the working side 8"):
+        scalable_forward(model, images, mask, patch=3)
