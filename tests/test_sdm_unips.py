@@ -254,8 +254,8 @@ def test_predict_cli_runs_published_weights(tiny_state, tmp_path, capsys) -> Non
 PATCH, TILED_SIDE = 64, 128  # the published patch is 512 (canonical 256); the same ratio here at canonical 32
 
 
-def _official_builder():
-    """The authors' `builder` module (their `main.py --scalable` loop), its literal 512 px patch replaced by PATCH
+def _official_builder(patch: int = PATCH):
+    """The authors' `builder` module (their `main.py` prediction loop), its literal 512 px patch replaced by `patch`
     and its `cv2.imwrite` replaced by a recorder (`module.written[name]`: the float array it would have saved)."""
     import types
 
@@ -265,7 +265,7 @@ def _official_builder():
     path = REFERENCE / "builder" / "builder.py"
     source = path.read_text()
     assert source.count("patch_size = 512") == 1, "the reference builder changed: its patch size is not found"
-    source = source.replace("from modules.", f"from {ALIAS}.").replace("patch_size = 512", f"patch_size = {PATCH}")
+    source = source.replace("from modules.", f"from {ALIAS}.").replace("patch_size = 512", f"patch_size = {patch}")
     module = types.ModuleType(f"{ALIAS}.scalable_builder")
     exec(compile(source, str(path), "exec"), module.__dict__)
     module.written = {}
@@ -292,36 +292,72 @@ class _Prepared(torch.utils.data.Dataset):
         return 1
 
 
+def _against_builder(official_folder: Path, obj, side: int, patch: int | None, canonical: int, pixels: int,
+                     workspace: Path, model=None) -> tuple[float, float]:
+    """(max |normal difference|, max angle in deg inside the mask) between the authors' builder run (`--scalable`
+    with `patch`, or the whole image at once when None) and `run_published` on `obj` at working side `side` (our
+    network `model`, default: read from `official_folder`)."""
+    import types
+
+    from unips.inference import LoadedModel, run_published
+    from unips.models import create_model
+    from unips.sdm_preprocess import sdm_crop, sdm_inputs
+
+    crop = sdm_crop(obj.mask)
+    crop = type(crop)(crop.r0, crop.r1, crop.c0, crop.c1, side)
+    images, mask = sdm_inputs(obj, crop)
+    module = _official_builder(patch or PATCH)
+    args = types.SimpleNamespace(target="normal", checkpoint=str(official_folder), pixel_samples=pixels,
+                                 canonical_resolution=canonical, scalable=patch is not None)
+    runner = module.builder(args, torch.device("cpu"))
+    np.random.seed(5)
+    runner.run(canonical_resolution=canonical, testdata=_Prepared(images, mask, crop, obj.mask.shape, workspace),
+               max_image_resolution=4096)
+    theirs = (module.written["normal.png"] / 127.5 - 1)[:, :, ::-1]  # 255 * (1 + n) / 2 in BGR order
+    model = model or create_model("sdm-unips", checkpoint_path=official_folder, canonical_resolution=canonical,
+                         pixel_samples=pixels)
+    net = LoadedModel(model=model, meta={"model_name": "sdm-unips"}, checkpoint=official_folder, device="cpu")
+    mine = run_published(net, obj, res=side, patch=patch, rng=np.random.RandomState(5))
+    both = torch.from_numpy(np.ascontiguousarray(np.stack([mine, theirs]).transpose(0, 3, 1, 2)))
+    assert np.abs(theirs[obj.mask]).max() > 0.1  # a map, not an empty frame
+    return float(np.abs(mine - theirs).max()), angle_deg(both[:1], both[1:])[0][torch.from_numpy(obj.mask)].max().item()
+
+
 def test_scalable_prediction_equals_the_reference(official, ours, tmp_path) -> None:
     """`run_published(..., patch=PATCH)` against the authors' `--scalable` run (their builder's loop, their
     post-processing) on a 128 px working image: 4 sub-images of 64 px, each in 2 x 2 tiles of the canonical 32 and
     several chunks of pixels of a ring (the same shuffles: one generator shared by the sub-images in turn)."""
-    import types
-
     from unips.data import load_object
-    from unips.inference import LoadedModel, run_published
-    from unips.sdm_preprocess import sdm_crop, sdm_inputs
 
     obj = load_object(_object_folder(tmp_path, hole=21))
-    crop = sdm_crop(obj.mask)
-    crop = type(crop)(crop.r0, crop.r1, crop.c0, crop.c1, TILED_SIDE)
-    images, mask = sdm_inputs(obj, crop)
-    assert mask[::2, ::2].sum() > 2 * PIXELS  # every sub-image has several chunks
-    module = _official_builder()
-    args = types.SimpleNamespace(target="normal", checkpoint=str(official[1]), pixel_samples=PIXELS,
-                                 canonical_resolution=CANONICAL, scalable=True)
-    runner = module.builder(args, torch.device("cpu"))
-    np.random.seed(5)
-    runner.run(canonical_resolution=CANONICAL, testdata=_Prepared(images, mask, crop, obj.mask.shape, tmp_path),
-               max_image_resolution=4096)
-    theirs = (module.written["normal.png"] / 127.5 - 1)[:, :, ::-1]  # 255 * (1 + n) / 2 in BGR order
-    net = LoadedModel(model=ours, meta={"model_name": "sdm-unips"}, checkpoint=official[1], device="cpu")
-    mine = run_published(net, obj, res=TILED_SIDE, patch=PATCH, rng=np.random.RandomState(5))
-    inside = obj.mask
-    both = torch.from_numpy(np.ascontiguousarray(np.stack([mine, theirs]).transpose(0, 3, 1, 2)))
-    angle = angle_deg(both[:1], both[1:])[0][torch.from_numpy(inside)].max().item()
-    diff = np.abs(mine - theirs).max()
+    diff, angle = _against_builder(official[1], obj, TILED_SIDE, PATCH, CANONICAL, PIXELS, tmp_path, ours)
     print(f"\n--scalable vs reference: max |normal difference| {diff:.2e}, max angle {angle:.2e} deg")
+    assert diff < 1e-4 and angle < 0.01
+
+
+def _dots_object(tmp_path: Path, k: int):
+    """`k` images of 5 isolated pixels spanning 50 px of an 80 px frame: a full-size working image with few pixels
+    to decode."""
+    from conftest import write_synthetic_object
+    from unips.data import load_object
+
+    mask = np.zeros((80, 80), bool)
+    mask[[15, 15, 65, 65, 40], [15, 65, 15, 65, 40]] = True
+    images = (np.random.default_rng(0).random((k, 80, 80, 3)) * 0.8).astype(np.float32)
+    normals = np.zeros((80, 80, 3), np.float32)
+    normals[..., 2] = 1
+    return load_object(write_synthetic_object(tmp_path / "dots.data", images, mask, normals))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("side, patch, k", [(512, None, 2), (1024, 512, 1)], ids=["whole-512", "scalable-1024"])
+def test_full_size_prediction_equals_the_reference(official, tmp_path, side, patch, k) -> None:
+    """The published shape end to end: canonical 256, 10000-pixel chunks; the whole 512 px working image of 2
+    images, and `--scalable` on a 1024 px one with the authors' own 512 px patch (4 sub-images; 1 image: with 2 it
+    takes 3 minutes). About 50 and 110 s on 2 CPU cores (the encoder: ConvNeXt-T on 5 tiles of 256 px per image and
+    sub-image, on both sides)."""
+    diff, angle = _against_builder(official[1], _dots_object(tmp_path, k), side, patch, 256, 10000, tmp_path)
+    print(f"\nfull size {side} px, patch {patch}: max |normal difference| {diff:.2e}, max angle {angle:.2e} deg")
     assert diff < 1e-4 and angle < 0.01
 
 
