@@ -197,13 +197,13 @@ def test_unreadable_files_are_one_line(tmp_path) -> None:
 
 # -- the published preprocessing and the prediction CLI ------------------------------------------------------
 
-def _object_folder(tmp_path: Path) -> Path:
-    """An 80 x 80 px object of 3 noisy 16-bit images (a disk mask) in our layout, which the published loader
-    reads too (L*.png, mask.png, normal.tif)."""
+def _object_folder(tmp_path: Path, hole: int = 0) -> Path:
+    """An 80 x 80 px object of 3 noisy 16-bit images (a disk mask, with a hole of radius `hole`: fewer pixels to
+    decode) in our layout, which the published loader reads too (L*.png, mask.png, normal.tif)."""
     from conftest import write_synthetic_object
 
     yy, xx = np.mgrid[:80, :80]
-    mask = (yy - 40) ** 2 + (xx - 38) ** 2 < 25 ** 2
+    mask = (hole ** 2 <= (yy - 40) ** 2 + (xx - 38) ** 2) & ((yy - 40) ** 2 + (xx - 38) ** 2 < 25 ** 2)
     images = (np.random.default_rng(0).random((3, 80, 80, 3)) * 0.8).astype(np.float32)
     normals = np.zeros((80, 80, 3), np.float32)
     normals[..., 2] = 1
@@ -247,3 +247,169 @@ def test_predict_cli_runs_published_weights(tiny_state, tmp_path, capsys) -> Non
         assert main(["--method", "model", *flags, "--input", str(folder), "--out", str(tmp_path / "p2")]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("error: ") and words in err[0]
+
+
+# -- --scalable: the working image as interleaved sub-images ---------------------------------------------------
+
+PATCH, TILED_SIDE = 64, 128  # the published patch is 512 (canonical 256); the same ratio here at canonical 32
+
+
+def _official_builder(patch: int = PATCH):
+    """The authors' `builder` module (their `main.py` prediction loop), its literal 512 px patch replaced by `patch`
+    and its `cv2.imwrite` replaced by a recorder (`module.written[name]`: the float array it would have saved)."""
+    import types
+
+    import cv2
+
+    _reference("model.model")  # registers the package the builder's imports are redirected to
+    path = REFERENCE / "builder" / "builder.py"
+    source = path.read_text()
+    assert source.count("patch_size = 512") == 1, "the reference builder changed: its patch size is not found"
+    source = source.replace("from modules.", f"from {ALIAS}.").replace("patch_size = 512", f"patch_size = {patch}")
+    module = types.ModuleType(f"{ALIAS}.scalable_builder")
+    exec(compile(source, str(path), "exec"), module.__dict__)
+    module.written = {}
+    module.cv2 = types.SimpleNamespace(resize=cv2.resize, INTER_CUBIC=cv2.INTER_CUBIC,
+                                       imwrite=lambda name, a: module.written.__setitem__(Path(name).name, a.copy()))
+    return module
+
+
+class _Prepared(torch.utils.data.Dataset):
+    """One object as the authors' data loader hands it to their builder (already preprocessed)."""
+
+    def __init__(self, images: np.ndarray, mask: np.ndarray, crop, frame: tuple[int, int], workspace: Path) -> None:
+        import types
+
+        self.item = (images.transpose(3, 1, 2, 0), np.zeros((3,) + mask.shape, np.float32), mask[None],
+                     len(images), np.array([*frame, crop.r0, crop.r1, crop.c0, crop.c1]))
+        self.data = types.SimpleNamespace(h=mask.shape[0], data_workspace=str(workspace), objname="obj")
+        self.max_image_resolution = None
+
+    def __getitem__(self, index: int):
+        return self.item
+
+    def __len__(self) -> int:
+        return 1
+
+
+def _against_builder(official_folder: Path, obj, side: int, patch: int | None, canonical: int, pixels: int,
+                     workspace: Path, model=None) -> tuple[float, float]:
+    """(max |normal difference|, max angle in deg inside the mask) between the authors' builder run (`--scalable`
+    with `patch`, or the whole image at once when None) and `run_published` on `obj` at working side `side` (our
+    network `model`, default: read from `official_folder`)."""
+    import types
+
+    from unips.inference import LoadedModel, run_published
+    from unips.models import create_model
+    from unips.sdm_preprocess import sdm_crop, sdm_inputs
+
+    crop = sdm_crop(obj.mask)
+    crop = type(crop)(crop.r0, crop.r1, crop.c0, crop.c1, side)
+    images, mask = sdm_inputs(obj, crop)
+    module = _official_builder(patch or PATCH)
+    args = types.SimpleNamespace(target="normal", checkpoint=str(official_folder), pixel_samples=pixels,
+                                 canonical_resolution=canonical, scalable=patch is not None)
+    runner = module.builder(args, torch.device("cpu"))
+    np.random.seed(5)
+    runner.run(canonical_resolution=canonical, testdata=_Prepared(images, mask, crop, obj.mask.shape, workspace),
+               max_image_resolution=4096)
+    theirs = (module.written["normal.png"] / 127.5 - 1)[:, :, ::-1]  # 255 * (1 + n) / 2 in BGR order
+    model = model or create_model("sdm-unips", checkpoint_path=official_folder, canonical_resolution=canonical,
+                         pixel_samples=pixels)
+    net = LoadedModel(model=model, meta={"model_name": "sdm-unips"}, checkpoint=official_folder, device="cpu")
+    mine = run_published(net, obj, res=side, patch=patch, rng=np.random.RandomState(5))
+    both = torch.from_numpy(np.ascontiguousarray(np.stack([mine, theirs]).transpose(0, 3, 1, 2)))
+    assert np.abs(theirs[obj.mask]).max() > 0.1  # a map, not an empty frame
+    return float(np.abs(mine - theirs).max()), angle_deg(both[:1], both[1:])[0][torch.from_numpy(obj.mask)].max().item()
+
+
+def test_scalable_prediction_equals_the_reference(official, ours, tmp_path) -> None:
+    """`run_published(..., patch=PATCH)` against the authors' `--scalable` run (their builder's loop, their
+    post-processing) on a 128 px working image: 4 sub-images of 64 px, each in 2 x 2 tiles of the canonical 32 and
+    several chunks of pixels of a ring (the same shuffles: one generator shared by the sub-images in turn)."""
+    from unips.data import load_object
+
+    obj = load_object(_object_folder(tmp_path, hole=21))
+    diff, angle = _against_builder(official[1], obj, TILED_SIDE, PATCH, CANONICAL, PIXELS, tmp_path, ours)
+    print(f"\n--scalable vs reference: max |normal difference| {diff:.2e}, max angle {angle:.2e} deg")
+    assert diff < 1e-4 and angle < 0.01
+
+
+def _dots_object(tmp_path: Path, k: int):
+    """`k` images of 5 isolated pixels spanning 50 px of an 80 px frame: a full-size working image with few pixels
+    to decode."""
+    from conftest import write_synthetic_object
+    from unips.data import load_object
+
+    mask = np.zeros((80, 80), bool)
+    mask[[15, 15, 65, 65, 40], [15, 65, 15, 65, 40]] = True
+    images = (np.random.default_rng(0).random((k, 80, 80, 3)) * 0.8).astype(np.float32)
+    normals = np.zeros((80, 80, 3), np.float32)
+    normals[..., 2] = 1
+    return load_object(write_synthetic_object(tmp_path / "dots.data", images, mask, normals))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("side, patch, k", [(512, None, 2), (1024, 512, 1)], ids=["whole-512", "scalable-1024"])
+def test_full_size_prediction_equals_the_reference(official, tmp_path, side, patch, k) -> None:
+    """The published shape end to end: canonical 256, 10000-pixel chunks; the whole 512 px working image of 2
+    images, and `--scalable` on a 1024 px one with the authors' own 512 px patch (4 sub-images; 1 image: with 2 it
+    takes 3 minutes). About 50 and 110 s on 2 CPU cores (the encoder: ConvNeXt-T on 5 tiles of 256 px per image and
+    sub-image, on both sides)."""
+    diff, angle = _against_builder(official[1], _dots_object(tmp_path, k), side, patch, 256, 10000, tmp_path)
+    print(f"\nfull size {side} px, patch {patch}: max |normal difference| {diff:.2e}, max angle {angle:.2e} deg")
+    assert diff < 1e-4 and angle < 0.01
+
+
+def test_scalable_skips_sub_images_without_object() -> None:
+    from unips.sdm_preprocess import scalable_forward
+
+    calls = []
+
+    def model(images, mask, rng):
+        calls.append(tuple(images.shape))
+        return mask.expand(-1, 3, -1, -1) * images[:, 0]
+
+    images, mask = torch.rand(1, 2, 3, 8, 8), torch.zeros(1, 1, 8, 8)
+    mask[..., 1::2, 0::2] = 1  # only the sub-image at offset (1, 0)
+    out = scalable_forward(model, images, mask, patch=4)
+    assert calls == [(1, 2, 3, 4, 4)]
+    assert torch.equal(out, mask.expand(-1, 3, -1, -1) * images[:, 0])
+    with pytest.raises(ValueError, match="patch: 3 does not divide the working side 8"):
+        scalable_forward(model, images, mask, patch=3)
+
+
+def test_predict_cli_scalable_and_its_refusals(tiny_state, tmp_path, capsys, monkeypatch) -> None:
+    """`--scalable` runs (at --res 512: one sub-image, the several of a larger side are compared with the reference
+    above at a smaller patch); misuse and a run that would not fit are one line
+    naming the flag, before any prediction."""
+    from scenes.cli import limits
+    from unips.inference import prediction_memory
+    from unips.predict import main
+
+    folder = _object_folder(tmp_path)
+    ckpt = _save_official(tiny_state, tmp_path / "ckpt")
+    run = ["--method", "model", "--model", "sdm-unips-tiny", "--checkpoint", str(ckpt), "--input", str(folder)]
+    assert main([*run, "--out", str(tmp_path / "pred"), "--res", "512", "--scalable"]) == 0
+    info = json.loads((tmp_path / "pred" / "obj" / "predict.json").read_text())
+    assert info["scalable"] is True and info["resolution"] == 512
+    capsys.readouterr()
+
+    def refused(flags: list[str], words: str) -> str:
+        assert main([*flags, "--out", str(tmp_path / "p2")]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("error: ") and words in err[0], err
+        return err[0]
+
+    refused(["--method", "least-squares", "--input", str(folder), "--scalable"], "--scalable: only used with --method model")
+    refused([*run[:2], "--model", "glc-test", *run[4:], "--scalable"], "--scalable: only for the SDM-UniPS networks")
+    refused([*run, "--res", "768", "--scalable"], "--res 768: --scalable needs a multiple of its 512 px sub-images")
+    whole = prediction_memory("model", (80, 80), 3, 1024, 1, inputs="sdm-unips")
+    tiled = prediction_memory("model", (80, 80), 3, 1024, 1, inputs="sdm-unips", patch=512)
+    assert tiled < whole / 2
+    monkeypatch.setattr(limits, "available_memory", lambda: (whole + tiled) // 2)
+    line = refused([*run, "--res", "1024"], "--res: --method model on obj (3 images of 80 x 80 px")
+    assert "add --scalable (512 px sub-images" in line
+    monkeypatch.setattr(limits, "available_memory", lambda: tiled - 1)
+    line = refused([*run, "--res", "1024", "--scalable"], "--scalable: --method model on obj")
+    assert "in 4 sub-images of 512 px (--scalable)" in line and "lower --res or --max-images" in line

@@ -131,17 +131,21 @@ def model_normals(model: Any, images: Any, mask: Any, tta: int = 1) -> Any:
 
 
 def run_model(net: LoadedModel, obj: PSObject, res: int | None = None, margin: int = 4,
-              tta: int = DEFAULT_TTA) -> np.ndarray:
+              tta: int = DEFAULT_TTA, patch: int | None = None) -> np.ndarray:
     """Normals (H, W, 3) of `obj` from the network, in the original frame, zero outside the mask.
 
     `tta` > 1 averages the predictions of that many flipped / transposed views (`model_normals`). A model whose
-    inputs are "glc-unips" or "sdm-unips" gets its authors' preprocessing instead (`run_published`)."""
+    inputs are "glc-unips" or "sdm-unips" gets its authors' preprocessing instead (`run_published`); `patch`
+    (SDM-UniPS only): its `--scalable` sub-images' side."""
     import torch
 
     from unips.preprocess import prepare, resize_prepared, uncrop
 
+    if patch is not None and net.inputs != "sdm-unips":
+        raise UsageError(f"--scalable: only for the SDM-UniPS networks (inputs 'sdm-unips'), not "
+                         f"{net.meta.get('model_name')!r}")
     if net.inputs in PUBLISHED_INPUTS:
-        return run_published(net, obj, res=res, tta=tta)
+        return run_published(net, obj, res=res, tta=tta, patch=patch)
 
     prepared = prepare(obj, margin=margin)
     work = resize_prepared(prepared, res) if res is not None else prepared
@@ -156,15 +160,20 @@ def run_model(net: LoadedModel, obj: PSObject, res: int | None = None, margin: i
     return uncrop(n, prepared.crop, mask=obj.mask)
 
 
-def run_published(net: LoadedModel, obj: PSObject, res: int | None = None, tta: int = 1) -> np.ndarray:
+def run_published(net: LoadedModel, obj: PSObject, res: int | None = None, tta: int = 1,
+                  patch: int | None = None, rng: Any = None) -> np.ndarray:
     """Normals (H, W, 3) of `obj` through its authors' preprocessing: UniPS's (`unips.glc_preprocess`) or
     SDM-UniPS's (`unips.sdm_preprocess`); `res` replaces the published working side (for SDM-UniPS a multiple of the
     model's canonical resolution), `tta` > 1 averages flipped / transposed views as for the other models (the
-    published code has none)."""
+    published code has none). `patch` (SDM-UniPS only): predict the working image as its interleaved sub-images of
+    this side (`unips.sdm_preprocess.scalable_forward`; the published `--scalable` is `SDM_PATCH`); `rng`: what
+    shuffles the decoder's pixels (default: seeded with 0 for each view)."""
+    import functools
+
     import torch
 
     from unips.glc_preprocess import glc_crop, glc_inputs
-    from unips.sdm_preprocess import sdm_crop, sdm_inputs, sdm_output
+    from unips.sdm_preprocess import scalable_forward, sdm_crop, sdm_inputs, sdm_output
 
     sdm = net.inputs == "sdm-unips"
     crop = sdm_crop(obj.mask) if sdm else glc_crop(obj.mask)
@@ -174,9 +183,17 @@ def run_published(net: LoadedModel, obj: PSObject, res: int | None = None, tta: 
             raise UsageError(f"--res {res}: {net.meta['model_name']} needs a multiple of its canonical "
                              f"resolution {canonical}")
         crop = dataclasses.replace(crop, side=res)
+    forward = functools.partial(net.model, rng=rng) if sdm and rng is not None else net.model
+    if patch is not None:
+        if not sdm or patch % canonical:
+            raise ValueError(f"patch: {patch} needs an SDM-UniPS network and a multiple of its canonical resolution "
+                             f"{canonical}")
+        if crop.side % patch:
+            raise UsageError(f"--res {crop.side}: --scalable needs a multiple of its patch side {patch}")
+        forward = functools.partial(scalable_forward, net.model, patch=patch, rng=rng)
     images, mask = sdm_inputs(obj, crop) if sdm else glc_inputs(obj, crop)
     x = torch.from_numpy(np.ascontiguousarray(images.transpose(0, 3, 1, 2))).to(net.device)  # (K, 3, S, S)
-    out = model_normals(net.model, x, torch.from_numpy(mask)[None].to(net.device), tta)  # (3, S, S)
+    out = model_normals(forward, x, torch.from_numpy(mask)[None].to(net.device), tta)  # (3, S, S)
     n = out.permute(1, 2, 0).cpu().numpy() * mask[..., None]
     if not np.all(np.isfinite(n)):
         raise ValueError(f"model: produced non-finite normals for {obj.name}")
@@ -186,33 +203,44 @@ def run_published(net: LoadedModel, obj: PSObject, res: int | None = None, tta: 
 MODEL_BYTES_PER_IMAGE = 25 * 2**20
 """Memory of the network per input image that does not grow with the resolution (the encoder works at the
 canonical resolution)."""
+SDM_ENCODER_BYTES = 1024
+"""Memory of SDM-UniPS's encoder per image and pixel it sees (its working side squared plus the canonical 256
+squared: it runs on all the interleaved tiles and the resized image at once): ConvNeXt's first stage and the
+UPerNet fusion at a quarter of the resolution (up to 1024 channels of float32 per quarter-resolution pixel) and the
+context maps; an estimate from their shapes."""
 
 
 def prediction_memory(method: str, shape: tuple[int, int], num_images: int, work_res: int, tta: int = DEFAULT_TTA,
-                      inputs: str = "unips") -> int:
+                      inputs: str = "unips", patch: int | None = None) -> int:
     """Bytes one object needs to be predicted (a conservative estimate, about 1.5 to 2 times the peak measured
     on the CPU for the shipped model at 256 to 2048 px): its K float32 RGB images of `shape` (H, W) as read,
     and for the model, per working pixel (`work_res`^2: the crop's side or --res) the images in 2 + 2 x `tta`
     copies (crop, resize, each view and its masked copy) and 64 bytes of mask and output, plus
     MODEL_BYTES_PER_IMAGE per image. The classical baselines hold about three copies of the images. The published
     UniPS and SDM-UniPS (`inputs` "glc-unips", "sdm-unips") add their decoder's chunk of 10000 pixels: three
-    feed-forward activations of 1024 floats per pixel and image (an estimate from their shapes, not a measurement)."""
+    feed-forward activations of 1024 floats per pixel and image (an estimate from their shapes, not a measurement);
+    SDM-UniPS its encoder (`SDM_ENCODER_BYTES`) at the side it sees: `work_res`, or with `--scalable` the `patch`
+    side of its sub-images (the whole working images are still held)."""
     h, w = int(shape[0]), int(shape[1])
     images = num_images * h * w * 12
     if method != "model":
         return 3 * images
     pixels = int(work_res) ** 2
     chunk = 10000 * num_images * 1024 * 4 * 3 if inputs in PUBLISHED_INPUTS else 0
+    if inputs == "sdm-unips":
+        seen = int(patch or work_res)
+        chunk += num_images * (seen ** 2 + 256 ** 2) * SDM_ENCODER_BYTES
     return images + num_images * MODEL_BYTES_PER_IMAGE + pixels * (12 * num_images * (2 + 2 * tta) + 64) + chunk
 
 
 def predict_object(obj: PSObject, method: str, net: LoadedModel | None = None,
-                   res: int | None = None, tta: int = DEFAULT_TTA) -> np.ndarray:
-    """(H, W, 3) unit normals of `obj` by `method` (zero outside the mask); `tta`: views, model only."""
+                   res: int | None = None, tta: int = DEFAULT_TTA, patch: int | None = None) -> np.ndarray:
+    """(H, W, 3) unit normals of `obj` by `method` (zero outside the mask); `tta`: views, `patch`: the side of
+    SDM-UniPS's `--scalable` sub-images, model only."""
     if method == "model":
         if net is None:
             raise ValueError("net: --method model needs a loaded network")
-        return run_model(net, obj, res=res, tta=tta)
+        return run_model(net, obj, res=res, tta=tta, patch=patch)
     from unips.baselines import run_baseline
 
     return run_baseline(method, obj)

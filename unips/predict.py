@@ -2,6 +2,7 @@
 
     python -m unips.predict --method {model,least-squares,sh-uncalibrated} [--checkpoint CKPT] [--model NAME]
                             --input PATH --out DIR [--max-images K] [--device cpu] [--res R] [--tta N]
+                            [--scalable]
 
 For each object, ``DIR/<object>/`` receives ``normal.png`` (16-bit, (n + 1) / 2, the full original
 frame, background 32768), ``normal.exr`` (float32), ``normal_vis.png`` (8-bit picture) and
@@ -18,7 +19,9 @@ averages the network's predictions over N flipped / transposed views of the obje
 augmentation, N forward passes; `unips.inference.model_normals`). ``--model glc-unips --checkpoint DIR`` and
 ``--model sdm-unips --checkpoint DIR`` run the authors' published UniPS and SDM-UniPS weights (their checkpoint
 folders) with their preprocessing (`unips.glc_preprocess`, `unips.sdm_preprocess`; one view unless ``--tta`` says
-otherwise).
+otherwise); ``--scalable`` runs SDM-UniPS on the 512 px interleaved sub-images of a large working image, as the
+authors' ``--scalable`` does. Each object's memory is estimated before any work and a run that would not fit is
+refused in one line.
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ import numpy as np
 
 from scenes.cli.errors import INPUT_ERRORS, UsageError, one_line, report_error
 from scenes.cli.progress import Progress
-from scenes.cli.limits import check_memory
+from scenes.cli.limits import check_memory, gib
 from scenes.cli.outputs import check_output_folder, claim_outputs
 from scenes.cli.options import Command, REQUIRED, arg, check_fields, option
 from scenes.folder.format import PREDICTION_FILES, PREDICTION_INFO, object_name
@@ -105,10 +108,12 @@ def check_object(args: "PredictOptions", folder: Path) -> None:
     fd = read_folder(folder, max_images=args.max_images, images=False, arg="--input")
     k = len(fd.image_paths)
     inputs = _model_inputs(args.model) if args.model else "unips"
+    patch = None
     if inputs == "sdm-unips":
-        from unips.sdm_preprocess import SDM_MAX_IMAGES, sdm_crop
+        from unips.sdm_preprocess import SDM_MAX_IMAGES, SDM_PATCH, sdm_crop
 
         k, side = min(k, SDM_MAX_IMAGES), sdm_crop(fd.mask).side
+        patch = SDM_PATCH if args.scalable else None
     elif inputs == "glc-unips":
         from unips.glc_preprocess import GLC_MAX_IMAGES, GLC_SIDE
 
@@ -117,12 +122,18 @@ def check_object(args: "PredictOptions", folder: Path) -> None:
         side = crop_box(fd.mask).size
     work = args.res if args.res is not None else side
     tta = (args.tta or default_tta(inputs)) if args.method == "model" else 1
-    need = prediction_memory(args.method, fd.shape, k, work, tta, inputs=inputs)
+    need = prediction_memory(args.method, fd.shape, k, work, tta, inputs=inputs, patch=patch)
     at = (f"at {work} x {work} px (--res)" if args.res is not None else f"at {work} x {work} px from its crop")
-    check_memory(need, "--res" if args.method == "model" else "--max-images",
+    if patch is not None:
+        at += f" in {(work // patch) ** 2} sub-images of {patch} px (--scalable)"
+    advice = "lower --res or --max-images"
+    if inputs == "sdm-unips" and patch is None and work > SDM_PATCH:
+        tiled = prediction_memory(args.method, fd.shape, k, work, tta, inputs=inputs, patch=SDM_PATCH)
+        advice = f"add --scalable ({SDM_PATCH} px sub-images, about {gib(tiled)}), or {advice}"
+    check_memory(need, ("--scalable" if patch is not None else "--res") if args.method == "model" else "--max-images",
                  f"--method {args.method} on {fd.name} ({k} images of {fd.shape[1]} x {fd.shape[0]} px"
                  + (f", the network {at}, {tta} view(s))" if args.method == "model" else ")"),
-                 "lower --res or --max-images" if args.method == "model" else "lower --max-images")
+                 advice if args.method == "model" else "lower --max-images")
 
 
 def write_prediction(out_dir: Path, normals: np.ndarray, info: dict[str, Any]) -> None:
@@ -164,6 +175,10 @@ class PredictOptions:
     tta: Annotated[Literal[TTA_VIEWS] | None,
                    arg(help_behavior_hint=f"(default: {str(DEFAULT_TTA)}; 1 for glc-unips, sdm-unips)")] = None
     """Views averaged (test-time augmentation by flips and transposes); N forward passes; --method model only."""
+    scalable: bool = False
+    """SDM-UniPS only (--model sdm-unips): predict a working image larger than 512 px as its 512 x 512 px interleaved
+    sub-images, one after the other, as the authors' --scalable does: the network's memory is that of a 512 px
+    image whatever the side (the working side or --res must be a multiple of 512)."""
     overwrite: bool = False
     """Replace the predictions of an earlier run in --out (folders with its predict.json; nothing else is touched)."""
 
@@ -174,7 +189,13 @@ class PredictOptions:
                                 ("--tta", self.tta)):
                 if value is not None:
                     raise UsageError(f"{flag}: only used with --method model, not --method {self.method}")
+            if self.scalable:
+                raise UsageError(f"--scalable: only used with --method model --model sdm-unips, not --method {self.method}")
         check_model_name(self.model)
+        if self.scalable and self.model is not None and _model_inputs(self.model) != "sdm-unips":
+            raise UsageError(f"--scalable: only for the SDM-UniPS networks (--model sdm-unips), not --model {self.model}")
+        if self.scalable and self.res is not None and self.res % 512:
+            raise UsageError(f"--res {self.res}: --scalable needs a multiple of its 512 px sub-images")
         check_output_folder(self.out)
         return self
 
@@ -251,7 +272,12 @@ def _predict_one(args: PredictOptions, net, folder: Path, name: str) -> None:
     obj = load_object(folder, max_images=args.max_images, arg="--input")
     start = time.perf_counter()
     tta = (args.tta or default_tta(net.inputs)) if net else None
-    normals = predict_object(obj, args.method, net=net, res=args.res, tta=tta or 1)
+    patch = None
+    if args.scalable:
+        from unips.sdm_preprocess import SDM_PATCH
+
+        patch = SDM_PATCH
+    normals = predict_object(obj, args.method, net=net, res=args.res, tta=tta or 1, patch=patch)
     elapsed = time.perf_counter() - start
     constant = constant_map(normals, obj.mask)
     if constant:
@@ -268,6 +294,7 @@ def _predict_one(args: PredictOptions, net, folder: Path, name: str) -> None:
         "device": args.device if net else "cpu",
         "resolution": args.res,
         "tta": tta,
+        "scalable": args.scalable,
         "num_images": obj.num_images,
         "images_used": obj.image_names,
         "time_s": round(elapsed, 4),

@@ -9,6 +9,11 @@ asks for it (`unips.models.registry`: inputs "sdm-unips"); `unips.inference.run_
 - Normalisation: each image divided by the maximum over the masked pixels of its channel mean (+ 1e-6).
 - Images: at most `SDM_MAX_IMAGES` (10), a seeded random subset when there are more (the published loader
   draws one at random on every run).
+- `--scalable` (`scalable_forward`): the working image split into its (side / `SDM_PATCH`)^2 interleaved sub-images
+  `x[i::m, j::m]` (each of side `SDM_PATCH`, each the whole object at a coarser sampling, not a spatial piece),
+  each predicted on its own as a working image of side `SDM_PATCH` (the encoder at the canonical resolution and
+  its own 2 x 2 interleaved tiles), sub-images without object pixels skipped, the maps put back in their
+  interleaved places (no overlap, no blending). The network's memory is then that of a `SDM_PATCH` image.
 - Back: the network's map (zero outside the resized mask) resized bicubically to the crop, kept where its
   length is within 0.5 of 1, normalised, put into the full frame; zero outside the object's mask.
 
@@ -22,6 +27,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -36,6 +42,8 @@ SDM_LARGEST = 4096
 """Largest working side (the published --max_image_res)."""
 SDM_MAX_IMAGES = 10
 """Most images the network sees (the published --max_image_num)."""
+SDM_PATCH = 512
+"""Side of the sub-images of `--scalable` (fixed at 512 in the published code; a parameter here, for tests)."""
 
 
 @dataclass(frozen=True)
@@ -106,3 +114,24 @@ def sdm_output(normals: np.ndarray, crop: SDMCrop, mask: np.ndarray) -> np.ndarr
     out = np.zeros(mask.shape + (3,), np.float32)
     out[crop.r0:crop.r1, crop.c0:crop.c1] = n
     return np.where(mask[..., None], out, 0.0).astype(np.float32)
+
+
+def scalable_forward(model: Any, images: Any, mask: Any, patch: int = SDM_PATCH, rng: Any = None) -> Any:
+    """The published `--scalable` prediction: `model` (an `SDMUniPS`) run on each of the (S / patch)^2 interleaved
+    sub-images of images `(B, K, 3, S, S)` and mask `(B, 1, S, S)` (S a multiple of `patch`), in row-major order
+    of their offsets, skipping those with no mask pixel; returns `(B, 3, S, S)`, each sub-image's normals in its
+    interleaved places. `rng` (default: a generator seeded with 0) is shared by the sub-images in turn, as the
+    published code shares numpy's global one."""
+    side = images.shape[-1]
+    if patch <= 0 or side % patch:
+        raise ValueError(f"patch: {patch} does not divide the working side {side}; expected a divisor such as "
+                         f"{SDM_PATCH} of a side that is a multiple of it")
+    m = side // patch
+    rng = np.random.default_rng(0) if rng is None else rng
+    out = images.new_zeros(images.shape[0], 3, side, side)
+    for i in range(m):
+        for j in range(m):
+            sub_mask = mask[..., i::m, j::m]
+            if sub_mask.any():
+                out[..., i::m, j::m] = model(images[..., i::m, j::m].contiguous(), sub_mask.contiguous(), rng=rng)
+    return out
