@@ -18,7 +18,7 @@ DiLiGenT ball and cat (96 photos of 612 x 512 px, the true mask.png):
 
 Rendered object folders (`--suite`, each a `wildgen.make` dataset; no camera motion, the true mask): no
 camera_moved, and frontal_light exactly where every image's lights are within 20 deg of the viewing direction
-seen from the object's centre (scene.json; an environment or uniform light counts as light from all around).
+seen from the object's centre (scene.json; `true_max_polar` says how environment and uniform lights count).
 A case is a row: what was expected, what was raised, and whether that is right.
 """
 from __future__ import annotations
@@ -158,7 +158,9 @@ def diligent_rows(folder: Path, args, work: Path) -> list[dict]:
 
 def true_max_polar(scene: dict) -> float:
     """Largest angle (deg) between the viewing direction and any light of any image, seen from the object's
-    centre (the world origin, the camera on +z); 180 for an environment or uniform light (from all around)."""
+    centre (the world origin, the camera on +z). A uniform light has no direction (it is left out); an environment
+    map is light from all around (180), except the dim room (5-20 %) around the `flash` family's lamp at the
+    camera, which the generator adds so that the images differ at all."""
     worst = 0.0
     for image in scene["images"]:
         for light in image["lights"]:
@@ -167,8 +169,10 @@ def true_max_polar(scene: dict) -> float:
                 d = -np.asarray(light["direction"], float)
             elif kind in ("point", "area"):
                 d = np.asarray(light["position"], float)
+            elif kind == "environment" and scene.get("light_family") != "flash":
+                return 180.0
             else:
-                return 180.0 if float(light.get("scale", 1.0) or 0) > 0 else worst
+                continue
             worst = max(worst, float(np.degrees(np.arccos(np.clip(d[2] / np.linalg.norm(d), -1, 1)))))
     return worst
 
