@@ -169,7 +169,7 @@ def test_a_camera_moved_by_a_few_pixels_in_half_the_images_is_flagged():
     moved[4:] = np.roll(moved[4:], (2, 3), axis=(1, 2))
     warnings, facts = capture_warnings(moved, M96)
     assert [w.code for w in warnings] == ["camera_moved"]
-    assert max(abs(v) for s in facts["camera_shift_px"] if s for v in s) == 3
+    assert np.abs(np.abs(facts["camera_shift_px"]) - [3, 2]).max() <= 1  # 3 px right, 2 down (y up), or back
     assert codes(good) == []
 
 

@@ -1,0 +1,83 @@
+"""The capture checks' camera motion and frontal light (`validate.usable`, `validate.camera_motion`) on analytic
+captures whose truth is known: a textured ellipsoid seen by a camera that moved between two groups of photos, and
+lights whose angle from the viewing direction is drawn. Written from the geometry, not from the code under test."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from fixtures import ellipsoid_normals, sphere
+
+from validate.usable import capture_warnings, light_spread_deg
+
+H, W, PAD = 104, 120, 8
+
+
+def ring(polar_deg: float, k: int = 8, turn: float = 0.0) -> np.ndarray:
+    a = np.radians(np.arange(k) * 360.0 / k + turn)
+    t = np.radians(polar_deg)
+    return np.stack([np.sin(t) * np.cos(a), np.sin(t) * np.sin(a), np.full(k, np.cos(t))], -1)
+
+
+def scene(lights: np.ndarray, texture: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """(K, H + 2 PAD, W + 2 PAD, 3) Lambertian shading of an ellipsoid with a spotted albedo, and its mask."""
+    n, mask = ellipsoid_normals(H + 2 * PAD, W + 2 * PAD, (H + 2 * PAD) / 2, (W + 2 * PAD) / 2, 40, 50)
+    i, j = np.mgrid[0:H + 2 * PAD, 0:W + 2 * PAD]
+    albedo = 0.5 + (0.25 * np.sign(np.sin(i / 3.1) * np.sin(j / 4.3)) if texture else 0.0)
+    img = np.clip(np.einsum("hwc,kc->khw", n, lights), 0, None) * albedo * mask
+    return np.repeat(img[..., None], 3, -1).astype(np.float32), mask
+
+
+def cut(images: np.ndarray, dx: int = 0, dy: int = 0) -> np.ndarray:
+    """The frame less PAD on each side, its content moved by dx columns right and dy rows down (no wrap-around)."""
+    return images[:, PAD - dy:PAD - dy + H, PAD - dx:PAD - dx + W]
+
+
+def codes(images: np.ndarray, mask: np.ndarray) -> list[str]:
+    return [w.code for w in capture_warnings(images, mask)[0]]
+
+
+LIGHTS = np.concatenate([ring(35, 8), ring(50, 8, 22.5)])
+
+
+@pytest.mark.parametrize("shift", [(2, 0), (0, 3), (3, 3)])
+@pytest.mark.parametrize("moved", ["alternate", "second half"])
+def test_a_camera_moved_by_two_or_three_pixels_in_half_the_photos_is_flagged(shift, moved):
+    images, mask = scene(LIGHTS)
+    mask = cut(mask[None])[0]
+    still, shifted = cut(images), cut(images, *shift)
+    take = np.arange(1, 16, 2) if moved == "alternate" else np.arange(8, 16)
+    capture = still.copy()
+    capture[take] = shifted[take]
+    warnings, facts = capture_warnings(capture, mask)
+    assert [w.code for w in warnings] == ["camera_moved"]
+    dx, dy = shift
+    assert np.abs(np.abs(facts["camera_shift_px"]) - [dx, dy]).max() <= 1  # x right, y up: seen from either side
+    assert codes(still, mask) == []
+
+
+def test_a_still_camera_without_texture_is_not_flagged_as_moved():
+    images, mask = scene(LIGHTS, texture=False)
+    assert codes(cut(images), cut(mask[None])[0]) == []
+
+
+def test_light_spread_reads_the_ring_of_lights_on_a_sphere_whatever_the_albedo():
+    n, mask = sphere(96, pad=6)
+    albedo = 0.3 + 0.6 * (np.arange(96)[None, :] // 12 % 2)
+    for polar in (10, 25, 40):
+        img = np.clip(np.einsum("hwc,kc->khw", n, ring(polar, 12, 10)), 0, None) * albedo * mask
+        assert light_spread_deg(np.repeat(img[..., None], 3, -1), mask) == pytest.approx(polar, abs=3)
+
+
+def test_frontal_light_is_told_apart_from_light_all_around_and_from_one_side():
+    rng = np.random.default_rng(3)
+    tilt, turn = np.radians(rng.uniform(3, 15, 12)), rng.uniform(0, 2 * np.pi, 12)
+    near = np.stack([np.sin(tilt) * np.cos(turn), np.sin(tilt) * np.sin(turn), np.cos(tilt)], -1)
+    images, mask = scene(near)
+    assert codes(images, mask) == ["frontal_light"]  # all within 15 deg, on a shape less round than a sphere
+    images, mask = scene(LIGHTS)
+    assert codes(images, mask) == []
+    side = np.radians(np.linspace(-40, 40, 8))  # 45 deg off the axis, all from the right: varies little
+    one_side = np.stack([np.sin(np.radians(45)) * np.cos(side), np.sin(np.radians(45)) * np.sin(side),
+                         np.full(8, np.cos(np.radians(45)))], -1)
+    images, mask = scene(one_side)
+    assert codes(images, mask) == ["one_sided_light"]
