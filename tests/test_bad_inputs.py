@@ -1008,6 +1008,45 @@ ROWS += [
 ]
 
 
+# --------------------------------------------------------------------------- issue 40: the rest
+
+SEN = "wildgen.sensor"
+
+
+def _sensor_stopped_after_one(w: Path, t: Path) -> None:
+    """Setup: T/ph, a wildgen.sensor run on the world's dataset interrupted (Ctrl-C) after its first object."""
+    from scenes.sensor import sensor_named
+    from wildgen.sensor import apply_to_dataset
+
+    def stop(done: int, total: int, name: str) -> None:
+        if done == 1:
+            raise KeyboardInterrupt
+    with pytest.raises(KeyboardInterrupt):
+        apply_to_dataset(w / "data", t / "ph", sensor_named("phone"), progress=stop)
+    assert (t / "ph" / "00000.data").is_dir() and not (t / "ph" / "00001.data").exists()
+
+
+def _radiance_missing_in_last(w: Path, t: Path) -> None:
+    """Setup: T/ds, the world's object folders without a manifest (nothing to check them against), the last one
+    missing a radiance file."""
+    shutil.copytree(w / "data", t / "ds", ignore=shutil.ignore_patterns("manifest.json"))
+    (t / "ds" / "00002.data" / "aux" / "radiance_001.exr").unlink()
+
+
+ROWS += [
+    # ---- a dataset says it is incomplete: what a stopped wildgen.sensor wrote is never read as a dataset
+    Row("export-sensor-output-stopped-half-way", EXP, ["--data", "{T}/ph", "--out", "{T}/s", "--quiet"], 2,
+        ("--data", "incomplete dataset", "complete: false"), setup=_sensor_stopped_after_one, check=_not_written("s")),
+    Row("train-sensor-output-stopped-half-way", TR, [*TRAIN_ONE, "--data", "{T}/ph", "--out", "{T}/run", "--steps",
+                                                     "1"], 2, ("--data", "incomplete dataset"),
+        setup=_sensor_stopped_after_one, check=_not_written("run/final.safetensors")),
+    # ---- slow failure: every source object checked before the first is written
+    Row("sensor-radiance-missing-in-a-later-object", SEN, ["--data", "{T}/ds", "--sensor", "phone", "--out", "{T}/o",
+                                                          "--quiet"], 2, ("--data", "00002.data", "radiance_001.exr"),
+        setup=_radiance_missing_in_last, check=_not_written("o")),
+]
+
+
 def _snapshot(root: Path) -> dict[str, str]:
     """relative path -> sha256 of every file (and 'dir' for every folder) under root."""
     out = {}

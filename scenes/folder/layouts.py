@@ -44,7 +44,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from scenes.folder.format import MASK_FILE, NORMAL_FILE, SCENE_FILE, image_files, object_name, read_scene_dict
+from scenes.folder.format import MASK_FILE, NORMAL_FILE, SCENE_FILE, check_dataset_complete, image_files, object_name, read_scene_dict
 from scenes.images import read_image, read_mask, read_normals
 
 log = logging.getLogger(__name__)
@@ -303,12 +303,12 @@ def find_object_folders(path: str | Path, arg: str = "path") -> list[Path]:
     if detect_layout(root) is not None:
         return [root]
     if root.is_dir():
+        check_dataset_complete(root, arg)
         entries = sorted(root.iterdir(), key=lambda p: p.name)
         gone = next((p for p in entries if p.is_symlink() and not p.exists()), None)  # never skipped silently
         if gone is not None:
             raise FileNotFoundError(f"{arg}: {gone} is a link to {os.readlink(gone)}, which does not exist")
-        found = [p for p in entries if detect_layout(p) is not None]
-        if found:
+        if found := [p for p in entries if detect_layout(p) is not None]:
             return found
     raise FileNotFoundError(f"{arg}: no object folder found at {root} (expected {EXPECTED})")
 
