@@ -1033,7 +1033,19 @@ def _radiance_missing_in_last(w: Path, t: Path) -> None:
     (t / "ds" / "00002.data" / "aux" / "radiance_001.exr").unlink()
 
 
+def _truncated_shard(w: Path, t: Path) -> None:
+    """Setup: T/s, an export of the world's dataset (one shard per object) whose 000001.tar lost its second half."""
+    _earlier_export("s")(w, t)
+    shard = t / "s" / "000001.tar"
+    shard.write_bytes(shard.read_bytes()[: shard.stat().st_size // 2])
+
+
 ROWS += [
+    # ---- a loader worker's error is one line naming the shard, not the worker's traceback
+    Row("train-truncated-shard-loader-workers", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps", "2",
+                                                     "--shuffle-buffer", "2", "--loader-workers", "2"], 2,
+        ("--data", "000001.tar", "corrupt"), sub=True, setup=_truncated_shard, absent=("DataLoader worker", "File \""),
+        check=_not_written("run/final.safetensors")),
     # ---- a dataset says it is incomplete: what a stopped wildgen.sensor wrote is never read as a dataset
     Row("export-sensor-output-stopped-half-way", EXP, ["--data", "{T}/ph", "--out", "{T}/s", "--quiet"], 2,
         ("--data", "incomplete dataset", "complete: false"), setup=_sensor_stopped_after_one, check=_not_written("s")),
