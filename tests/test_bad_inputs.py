@@ -177,6 +177,27 @@ def full_disk(tmp_path_factory):
     subprocess.run(["umount", str(d)], check=False)
 
 
+@pytest.fixture(scope="module")
+def full_tmp(tmp_path_factory):
+    """{TMPFULL} of the rows: a 64 KiB tmpfs filled by a file but for 8 KiB (skipped where mounting is not
+    allowed): a TMPDIR Python accepts, with no room for an object."""
+    d = tmp_path_factory.mktemp("fulltmp") / "tmp"
+    d.mkdir()
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(d)], capture_output=True, text=True)
+    if r.returncode != 0:
+        pytest.skip(f"cannot mount a small tmpfs here: {r.stderr.strip()}")
+    fd = os.open(d / "filler", os.O_WRONLY | os.O_CREAT)
+    try:
+        while os.write(fd, b"\0" * 1024):
+            pass
+    except OSError:
+        pass
+    os.ftruncate(fd, os.fstat(fd).st_size - 8192)  # room for Python's probe of TMPDIR (else it takes /tmp)
+    os.close(fd)
+    yield d
+    subprocess.run(["umount", str(d)], check=False)
+
+
 def _put(*files: tuple[str, str]) -> Callable[[Path, Path], None]:
     """Setup: text files at paths relative to T (an earlier run's outputs, a user's notes)."""
     def setup(w: Path, t: Path) -> None:
@@ -257,6 +278,8 @@ class Row:
     removes: tuple[str, ...] = ()
     """Files of T the row asks the command to remove (an earlier run's leftovers, with --overwrite): they must be
     gone; every other pre-existing file must stay."""
+    env: dict[str, str] = field(default_factory=dict)
+    """Environment variables of the subprocess (`sub=True`), formatted like the arguments."""
 
 
 def _copy(src: str, dst: str) -> Callable[[Path, Path], None]:
@@ -1046,6 +1069,10 @@ ROWS += [
                                                      "--shuffle-buffer", "2", "--loader-workers", "2"], 2,
         ("--data", "000001.tar", "corrupt"), sub=True, setup=_truncated_shard, absent=("DataLoader worker", "File \""),
         check=_not_written("run/final.safetensors")),
+    # ---- a full TMPDIR is one line naming the folder (errno 28 names no file)
+    Row("train-shards-full-tmpdir", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps", "1"], 1,
+        ("--data", "no space left in the scratch folder", "TMPDIR"), sub=True, env={"TMPDIR": "{TMPFULL}"},
+        setup=_earlier_export("s"), absent=("[Errno 28]",), check=_not_written("run/final.safetensors")),
     # ---- a dataset says it is incomplete: what a stopped wildgen.sensor wrote is never read as a dataset
     Row("export-sensor-output-stopped-half-way", EXP, ["--data", "{T}/ph", "--out", "{T}/s", "--quiet"], 2,
         ("--data", "incomplete dataset", "complete: false"), setup=_sensor_stopped_after_one, check=_not_written("s")),
@@ -1072,9 +1099,9 @@ def _snapshot(root: Path) -> dict[str, str]:
     return out
 
 
-def _run(row: Row, argv: list[str], capsys) -> tuple[int, str, str]:
+def _run(row: Row, argv: list[str], capsys, **places: Path | None) -> tuple[int, str, str]:
     if row.sub:
-        env = {**os.environ, "PYTHONPATH": str(REPO)}
+        env = {**os.environ, "PYTHONPATH": str(REPO), **{k: v.format(**places) for k, v in row.env.items()}}
         r = subprocess.run([sys.executable, "-m", row.cli, *argv], capture_output=True, text=True, cwd=REPO, env=env,
                            timeout=300)
         return r.returncode, r.stdout, r.stderr
@@ -1093,9 +1120,11 @@ def test_bad_input(row: Row, world: Path, tmp_path: Path, capsys, request):
         row.setup(world, t)
     ro = request.getfixturevalue("readonly") if any("{RO}" in a for a in row.args) else None
     full = request.getfixturevalue("full_disk") if any("{FULL}" in a for a in row.args) else None
+    tmpfull = request.getfixturevalue("full_tmp") if any("{TMPFULL}" in a for a in row.env.values()) else None
     before_world, before_t = _snapshot(world), _snapshot(t)
-    argv = [a.format(W=world, T=t, RO=ro, FULL=full) for a in row.args]
-    rc, out, err = _run(row, argv, capsys)
+    places = dict(W=world, T=t, RO=ro, FULL=full, TMPFULL=tmpfull)
+    argv = [a.format(**places) for a in row.args]
+    rc, out, err = _run(row, argv, capsys, **places)
     assert rc == row.rc, f"exit {rc}, expected {row.rc}\nstdout: {out[-2000:]}\nstderr: {err[-2000:]}"
     assert "Traceback" not in err and "Traceback" not in out, err
     text = err + out
