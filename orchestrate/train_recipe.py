@@ -387,7 +387,18 @@ def shipped_name(args: RecipeOptions) -> str:
         which = f"--init-from {args.init_from!r} holds" if args.init_from else "--model is"
         raise ValueError(f"--ship: {which} {name!r}, which has no place for shipped weights in the registry "
                          f"({exc})") from None
+    _card(pretrained_entry(name).card_path)  # a damaged card is found before any work, not after training
     return name
+
+
+def _card(path: Path) -> dict:
+    """The model card --ship updates, one line naming --ship and the file when it is damaged."""
+    from unips.models.registry import read_model_card
+
+    try:
+        return read_model_card(path)
+    except ValueError as exc:
+        raise ValueError(f"--ship: {exc}") from None
 
 
 def _probe_card(res: dict, val_pixels: int) -> dict:
@@ -437,7 +448,7 @@ def ship(val: Path, run_dir: Path, args: RecipeOptions) -> bool:
         return False
     # Continued from the shipped weights: the card's lineage goes on; otherwise the new weights start their own.
     continued = bool(args.init_from) and current.is_file() and Path(args.init_from).resolve() == current.resolve()
-    card = json.loads(entry.card_path.read_text()) if entry.card_path.is_file() else {}
+    card = _card(entry.card_path)
     lineage = card.get("lineage", []) if continued else []
     if card.get("lineage") and not continued:
         card["replaced_model_lineage"] = card["lineage"]
