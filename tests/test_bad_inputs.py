@@ -1056,6 +1056,12 @@ def _radiance_missing_in_last(w: Path, t: Path) -> None:
     (t / "ds" / "00002.data" / "aux" / "radiance_001.exr").unlink()
 
 
+def _mae_resolution(rel: str, label: str) -> Callable[[Path, Path], None]:
+    def check(w: Path, t: Path) -> None:
+        assert json.loads((t / rel).read_text())["mae_resolution"] == label
+    return check
+
+
 def _truncated_shard(w: Path, t: Path) -> None:
     """Setup: T/s, an export of the world's dataset (one shard per object) whose 000001.tar lost its second half."""
     _earlier_export("s")(w, t)
@@ -1073,6 +1079,11 @@ ROWS += [
     Row("train-shards-full-tmpdir", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps", "1"], 1,
         ("--data", "no space left in the scratch folder", "TMPDIR"), sub=True, env={"TMPDIR": "{TMPFULL}"},
         setup=_earlier_export("s"), absent=("[Errno 28]",), check=_not_written("run/final.safetensors")),
+    # ---- output that misleads: the fitted mode's MAE says at which resolution; the floor has one name
+    Row("rerender-fitted-mae-states-resolution", RR, ["--data", "{T}/00000.data", "--normals", "{W}/pred/00000/normal.png",
+                                                      "--out", "{T}/o", "--downsample", "2"], 0,
+        ("mae 0.00 deg at 16x16 (1/2 of 32x32)", "judged floor"), setup=_capture_copy(images=8), absent=("constant map",),
+        check=_mae_resolution("o/00000/report.json", "at 16x16 (1/2 of 32x32)")),
     # ---- a dataset says it is incomplete: what a stopped wildgen.sensor wrote is never read as a dataset
     Row("export-sensor-output-stopped-half-way", EXP, ["--data", "{T}/ph", "--out", "{T}/s", "--quiet"], 2,
         ("--data", "incomplete dataset", "complete: false"), setup=_sensor_stopped_after_one, check=_not_written("s")),
