@@ -1084,6 +1084,10 @@ ROWS += [
                                                       "--out", "{T}/o", "--downsample", "2"], 0,
         ("mae 0.00 deg at 16x16 (1/2 of 32x32)", "judged floor"), setup=_capture_copy(images=8), absent=("constant map",),
         check=_mae_resolution("o/00000/report.json", "at 16x16 (1/2 of 32x32)")),
+    # ---- a message that is true: validate.refine reads one object folder, not "a directory of such folders"
+    Row("refine-dataset-folder-names-one-object", RF, ["--data", "{W}/data", "--normals", "{W}/pred", "--out", "{T}/r"],
+        2, ("--data", "is not an object folder", "pass one of them", "00000.data"), absent=("directory of such",),
+        check=_not_written("r")),
     # ---- a dataset says it is incomplete: what a stopped wildgen.sensor wrote is never read as a dataset
     Row("export-sensor-output-stopped-half-way", EXP, ["--data", "{T}/ph", "--out", "{T}/s", "--quiet"], 2,
         ("--data", "incomplete dataset", "complete: false"), setup=_sensor_stopped_after_one, check=_not_written("s")),

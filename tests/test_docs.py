@@ -438,3 +438,17 @@ def test_a_truncated_model_card_is_one_line_naming_it(tmp_path):
     with pytest.raises(ValueError, match="holds a JSON list, expected an object"):
         read_model_card(card)
     assert read_model_card(tmp_path / "none.json") == {}
+
+
+def test_readme_data_has_the_images_its_refine_example_needs():
+    """Issue 40: the README's validate.refine example failed on the README's own 4-image data (refinement needs
+    validate.judgeable.MIN_IMAGES['refine']); its data commands give each object that many images."""
+    from validate.judgeable import MIN_IMAGES
+    from wildgen.make import COMMAND as MAKE
+
+    commands = _readme_commands()
+    refine = next(argv for module, *argv in commands if module == "validate.refine")
+    data = Path(refine[refine.index("--data") + 1]).parts[0]
+    made = [MAKE.parse(argv) for module, *argv in commands if module == "wildgen.make"]
+    source = next(opts for opts in made if Path(opts.out).parts[0] == data)
+    assert source.gen.images >= MIN_IMAGES["refine"], (data, source.gen.images)
