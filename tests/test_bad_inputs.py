@@ -1062,6 +1062,16 @@ def _mae_resolution(rel: str, label: str) -> Callable[[Path, Path], None]:
     return check
 
 
+def _scene_light_field(name: str) -> Callable[[Path, Path], None]:
+    """Setup: T/00000.data, the world's object 00000 whose scene.json gives its first light an unknown field."""
+    def setup(w: Path, t: Path) -> None:
+        shutil.copytree(w / "data" / f"{OBJ}.data", t / f"{OBJ}.data")
+        scene = json.loads((t / f"{OBJ}.data" / "scene.json").read_text())
+        scene["images"][0]["lights"][0][name] = 2
+        (t / f"{OBJ}.data" / "scene.json").write_text(json.dumps(scene))
+    return setup
+
+
 def _truncated_shard(w: Path, t: Path) -> None:
     """Setup: T/s, an export of the world's dataset (one shard per object) whose 000001.tar lost its second half."""
     _earlier_export("s")(w, t)
@@ -1088,6 +1098,13 @@ ROWS += [
     Row("refine-dataset-folder-names-one-object", RF, ["--data", "{W}/data", "--normals", "{W}/pred", "--out", "{T}/r"],
         2, ("--data", "is not an object folder", "pass one of them", "00000.data"), absent=("directory of such",),
         check=_not_written("r")),
+    # ---- no Python list or tuple reprs in messages: names joined
+    Row("make-lights-unknown-names-joined", MK, ["--out", "{T}/o", "--lights", "directional,laser", *TINY], 2,
+        ("--lights", "unknown family 'laser'", "expected from directional, point"), absent=("['",),
+        check=_not_written("o")),
+    Row("rerender-scene-unknown-light-field-joined", RR, ["--data", "{T}/00000.data", "--normals", "{W}/pred", "--out",
+                                                          "{T}/o"], 2, ("unknown field(s) zoom", "expected some of "),
+        setup=_scene_light_field("zoom"), absent=("['", "']")),
     # ---- a dataset says it is incomplete: what a stopped wildgen.sensor wrote is never read as a dataset
     Row("export-sensor-output-stopped-half-way", EXP, ["--data", "{T}/ph", "--out", "{T}/s", "--quiet"], 2,
         ("--data", "incomplete dataset", "complete: false"), setup=_sensor_stopped_after_one, check=_not_written("s")),

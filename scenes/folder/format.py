@@ -101,7 +101,7 @@ def image_files(folder: str | Path) -> list[Path]:
     indices = sorted(found)
     if indices != list(range(len(indices))):
         missing = sorted(set(range(max(indices, default=-1) + 1)) - set(indices))
-        raise ValueError(f"images: {str(folder)!r} has L*.png files with gaps (missing indices {missing[:10]})")
+        raise ValueError(f"images: {str(folder)!r} has L*.png files with gaps (missing indices {', '.join(map(str, missing[:10]))})")
     return [found[i] for i in indices]
 
 

@@ -274,7 +274,7 @@ _BY_NAME = {layout.name: layout for layout in LAYOUT_TABLE}
 def layout_named(name: str) -> Layout:
     """The table entry called `name`; ValueError naming the known ones."""
     if name not in _BY_NAME:
-        raise ValueError(f"layout: unknown layout {name!r}, expected one of {LAYOUTS}")
+        raise ValueError(f"layout: unknown layout {name!r}, expected one of {', '.join(LAYOUTS)}")
     return _BY_NAME[name]
 
 
