@@ -395,9 +395,14 @@ def regenerate(text: str, card: dict, where: str = "") -> tuple[str, list[str]]:
     return "\n".join(out), names
 
 
-def run(check: bool, root: Path = REPO) -> list[Path]:
-    """Regenerate (or, with check, compare) every doc file; the files that were (or would be) changed."""
-    card = json.loads(CARD.read_text())
+def run(check: bool, root: Path = REPO, card_path: Path = CARD) -> list[Path]:
+    """Regenerate (or, with check, compare) every doc file (result tables from the model card `card_path`); the
+    files that were (or would be) changed."""
+    from unips.models.registry import read_model_card
+
+    card = read_model_card(card_path)
+    if not card:
+        raise FileNotFoundError(f"model card {str(card_path)!r} does not exist (the result tables come from it)")
     changed, seen = {}, set()
     for path in doc_files(root):
         text = path.read_text()

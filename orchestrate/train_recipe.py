@@ -22,6 +22,10 @@
    (figures, lineage: continued when `--init-from` is the shipped file, restarted otherwise). A model
    without a pretrained entry is refused before any work.
 5. Evaluate with `python -m orchestrate.benchmark` on the test set (and DiLiGenT when ../shared has it).
+`--minutes` is the wall time of the whole recipe (`scenes.cli.budget`, counted from its start): each step starts
+only while time is left, a step still running at the end is stopped, and a training run stops itself before it
+(`unips.train --time-limit`; such a run is not finished: the next run of the recipe resumes it). The recipe then
+stops with one line naming --minutes (exit 2).
 Every step resumes or is skipped when its output already exists, so an interrupted recipe is re-run as is;
 `--overwrite` starts afresh instead. Every step's arguments (and --assets, decoded) are checked before the
 first step runs, and a failed step is reported as one line (`orchestrate.steps`).
@@ -40,7 +44,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from orchestrate.steps import StepFailed, check_step, run_step
+from orchestrate.steps import STOP_GRACE_S, OutOfTime, StepFailed, check_step, run_step
+from scenes.cli.budget import END_SHARE, Budget
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.outputs import check_output_folder
 from scenes.files import atomic_write, atomic_write_text
@@ -144,8 +149,9 @@ def make_argv(args: RecipeOptions, work: Path, name: str, assets: str | None) ->
             *(["--overwrite"] if args.overwrite else [])]
 
 
-def train_argv(args: RecipeOptions, work: Path, name: str, extra: list[str]) -> list[str]:
-    """The unips.train command line of run `name` (resumed when its last.pt exists, unless --overwrite)."""
+def train_argv(args: RecipeOptions, work: Path, name: str, extra: list[str], minutes: float = 0.0) -> list[str]:
+    """The unips.train command line of run `name` (resumed when its last.pt exists, unless --overwrite); `minutes`:
+    its --time-limit (0: none)."""
     out = work / "runs" / name
     resume = ["--resume"] if (out / "last.pt").is_file() and not args.overwrite else []
     init = ["--init-from", args.init_from] if args.init_from and not resume and not extra else []
@@ -154,6 +160,7 @@ def train_argv(args: RecipeOptions, work: Path, name: str, extra: list[str]) -> 
     return ["--data", data, "--val", str(work / "val128"), *model, *init, "--out", str(out), "--steps", str(args.steps),
             "--batch", "4", "--lr", str(args.lr), "--val-every", "500", "--ckpt-every", "250", "--seed", "0",
             "--threads", str(args.threads), "--no-progress", *extra, *resume,
+            *(["--time-limit", f"{minutes:.4f}"] if minutes else []),
             *(["--overwrite"] if args.overwrite else [])]
 
 
@@ -171,16 +178,64 @@ def bench_argv(args: RecipeOptions, work: Path) -> list[str]:
     return argv + (["--overwrite"] if args.overwrite else [])
 
 
-def train_run(py: str, work: Path, name: str, args: RecipeOptions, extra: list[str]) -> Path:
-    """Train one run into work/runs/NAME (resumed when interrupted, skipped when finished unless --overwrite);
-    returns the run folder."""
-    out = work / "runs" / name
-    if (out / "final.safetensors").is_file() and not args.overwrite:
-        print(f"run {out} is finished (final.safetensors), kept", flush=True)
+def trained_steps(run: Path) -> int | None:
+    """The step a run's final.safetensors was written at (its final.json), None without one: a run stopped by
+    its time limit writes it too, at the step reached."""
+    try:
+        step = json.loads((run / "final.json").read_text())["extra"]["step"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return step if isinstance(step, int) else None
+
+
+class Clock:
+    """--minutes of the whole recipe (`scenes.cli.budget`): each step starts only while time is left, and is
+    stopped (SIGTERM, then SIGKILL after `STOP_GRACE_S`) early enough for the recipe to end within the budget."""
+
+    def __init__(self, minutes: float):
+        self.minutes, self.budget = minutes, Budget(minutes * 60 if minutes else None)
+
+    @property
+    def stop_at(self) -> float | None:
+        """When a running step is stopped (None: no budget)."""
+        if not self.minutes:
+            return None
+        return self.budget.deadline - END_SHARE * self.minutes * 60 - STOP_GRACE_S
+
+    def over(self, what: str) -> OutOfTime:
+        return OutOfTime(f"--minutes: {self.minutes:g} min ran out {what} (after {self.budget.spent():.0f} s; expected "
+                         "a budget that fits the recipe: re-run the same command to continue, or raise --minutes)", 2)
+
+    def step(self, cmd: list[str], **kw) -> bool:
+        if self.stop_at is not None and time.time() >= self.stop_at:
+            raise self.over(f"before step {' '.join(map(str, cmd[2:4]))}")
+        return run_step(cmd, cwd=REPO, deadline=self.stop_at, out_of_time=f"--minutes: {self.minutes:g} min ran out",
+                        **kw)
+
+    def train_minutes(self) -> float:
+        """The --time-limit of a training run started now: what is left before `stop_at` (0: no budget)."""
+        if self.stop_at is None:
+            return 0.0
+        left = self.stop_at - time.time()
+        if left <= 0:
+            raise self.over("before a training run")
+        return left / 60
+
+
+def train_run(py: str, work: Path, name: str, args: RecipeOptions, extra: list[str], clock: Clock | None = None) -> Path:
+    """Train one run into work/runs/NAME (resumed when interrupted or stopped by a time limit, skipped when
+    finished, i.e. trained to --steps, unless --overwrite); returns the run folder."""
+    out, clock = work / "runs" / name, clock or Clock(0.0)
+    if (trained_steps(out) or 0) >= args.steps and not args.overwrite:
+        print(f"run {out} is finished (final.safetensors at step {args.steps}), kept", flush=True)
         return out
     t0 = time.time()
-    run_step([py, "-m", "unips.train", *train_argv(args, work, name, extra)], cwd=REPO)
+    clock.step([py, "-m", "unips.train", *train_argv(args, work, name, extra, clock.train_minutes())])
     atomic_write_text(out / "wall_time_s.txt", f"{time.time() - t0:.0f}\n")
+    reached = trained_steps(out)
+    if reached is not None and reached < args.steps:
+        raise clock.over(f"during training run {name} (stopped at step {reached} of {args.steps}; re-run the same "
+                         "command to resume it)")
     return out
 
 
@@ -208,6 +263,9 @@ class RecipeOptions:
     """Torch threads of the (single) training run."""
     ablation: bool = False
     """Then train the uniform-context ablation, same budget."""
+    minutes: float = option(0.0, minimum=0)
+    """Wall-time budget of the whole recipe in minutes, counted from its start (0: no limit): each step starts only
+    while time is left; a training run stops before the end and is resumed by the next run of the recipe."""
     ship: bool = False
     """Ship the best weights if the fixed validation improves (see 4. above)."""
     overwrite: bool = False
@@ -260,6 +318,8 @@ def main(argv: list[str] | None = None) -> int:
             args.assets = str(SHARED / "assets")
         split = check_steps(args)
         return recipe(args, split)
+    except OutOfTime as exc:  # says how to go on itself
+        return report_error(exc, code=exc.code)
     except StepFailed as exc:
         return report_error(UsageError(f"{exc} (the finished steps are kept: once this is fixed, the same command "
                                        "resumes)"), code=exc.code)
@@ -270,7 +330,7 @@ def main(argv: list[str] | None = None) -> int:
 def recipe(args: RecipeOptions, split: bool = True) -> int:
     """Every step of the recipe (see the module doc), after the options and steps were checked (`check_steps`);
     `split`: write the asset split (False: --work holds it already)."""
-    py = sys.executable
+    py, clock = sys.executable, Clock(args.minutes)
     work = Path(args.work)
     print(f"training recipe in {work}: datasets {', '.join(f'train{s}' for s in args.train_seed)}, val128, test128; "
           f"runs main{', uniform' if args.ablation else ''}; benchmark", flush=True)
@@ -282,17 +342,18 @@ def recipe(args: RecipeOptions, split: bool = True) -> int:
         assets = (str(work / SPLIT_FOLDERS[0]), str(work / SPLIT_FOLDERS[1]))
     for name in [*(f"train{seed}" for seed in args.train_seed), "val128", "test128"]:
         # Always run: on an existing dataset wildgen.make resumes (verifies finished objects, renders the rest).
-        run_step([py, "-m", "wildgen.make", *make_argv(args, work, name, assets[0 if name.startswith("train") else 1])],
-                 cwd=REPO)
-    main_run = train_run(py, work, "main", args, [])
+        clock.step([py, "-m", "wildgen.make", *make_argv(args, work, name, assets[0 if name.startswith("train") else 1])])
+    main_run = train_run(py, work, "main", args, [], clock)
     if args.ablation:
-        train_run(py, work, "uniform", args, ABLATION)
+        train_run(py, work, "uniform", args, ABLATION, clock)
     if args.ship:
+        if clock.stop_at is not None and time.time() >= clock.stop_at:
+            raise clock.over("before --ship")
         ship(work / "val128", main_run, args)
     if (work / "benchmark" / "benchmark.json").is_file() and not args.overwrite:
         print(f"benchmark {work / 'benchmark'} exists, kept (--overwrite computes it again)", flush=True)
     else:
-        run_step([py, "-m", "orchestrate.benchmark", *bench_argv(args, work)], cwd=REPO)
+        clock.step([py, "-m", "orchestrate.benchmark", *bench_argv(args, work)])
     print(f"recipe done: weights {main_run / 'best.safetensors'}, tables {work / 'benchmark' / 'tables.md'}")
     return 0
 
@@ -326,7 +387,18 @@ def shipped_name(args: RecipeOptions) -> str:
         which = f"--init-from {args.init_from!r} holds" if args.init_from else "--model is"
         raise ValueError(f"--ship: {which} {name!r}, which has no place for shipped weights in the registry "
                          f"({exc})") from None
+    _card(pretrained_entry(name).card_path)  # a damaged card is found before any work, not after training
     return name
+
+
+def _card(path: Path) -> dict:
+    """The model card --ship updates, one line naming --ship and the file when it is damaged."""
+    from unips.models.registry import read_model_card
+
+    try:
+        return read_model_card(path)
+    except ValueError as exc:
+        raise ValueError(f"--ship: {exc}") from None
 
 
 def _probe_card(res: dict, val_pixels: int) -> dict:
@@ -387,7 +459,7 @@ def ship(val: Path, run_dir: Path, args: RecipeOptions) -> bool:
         return False
     # Continued from the shipped weights: the card's lineage goes on; otherwise the new weights start their own.
     continued = bool(args.init_from) and current.is_file() and Path(args.init_from).resolve() == current.resolve()
-    card = json.loads(entry.card_path.read_text()) if entry.card_path.is_file() else {}
+    card = _card(entry.card_path)
     lineage = card.get("lineage", []) if continued else []
     if card.get("lineage") and not continued:
         card["replaced_model_lineage"] = card["lineage"]

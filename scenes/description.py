@@ -396,7 +396,7 @@ def _from_dict(cls: type, d: Any, owner: str) -> Any:
     names = {f.name for f in fields(cls)}
     unknown = sorted(set(d) - names)
     if unknown:
-        raise ValueError(f"{owner}: unknown field(s) {unknown}, expected some of {sorted(names)}")
+        raise ValueError(f"{owner}: unknown field(s) {', '.join(unknown)}, expected some of {', '.join(sorted(names))}")
     kwargs: dict[str, Any] = {}
     for key, value in d.items():
         if key == "images" and cls is SceneDescription:

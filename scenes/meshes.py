@@ -27,7 +27,7 @@ def load_mesh(path: str | Path, normalize: bool = True) -> MeshData:
     if not path.is_file():
         raise FileNotFoundError(f"shape.file: mesh file {str(path)!r} does not exist")
     if path.suffix.lower() not in MESH_SUFFIXES:
-        raise ValueError(f"shape.file: {str(path)!r} has suffix {path.suffix!r}, expected one of {MESH_SUFFIXES}")
+        raise ValueError(f"shape.file: {str(path)!r} has suffix {path.suffix!r}, expected one of {', '.join(MESH_SUFFIXES)}")
     if path.suffix.lower() == ".obj":  # a text format: refuse binary garbage here, not deep inside trimesh
         try:
             path.read_bytes().decode("utf-8")

@@ -166,7 +166,7 @@ class Sensor:
         names = [f.name for f in fields(cls)]
         unknown = sorted(set(d) - set(names))
         if unknown:
-            raise ValueError(f"{where}: unknown field(s) {unknown}, expected some of {names}")
+            raise ValueError(f"{where}: unknown field(s) {', '.join(unknown)}, expected some of {', '.join(names)}")
         kwargs = dict(d)
         for key in ("sensitivity", "white_balance"):
             if isinstance(kwargs.get(key), list):

@@ -177,6 +177,27 @@ def full_disk(tmp_path_factory):
     subprocess.run(["umount", str(d)], check=False)
 
 
+@pytest.fixture(scope="module")
+def full_tmp(tmp_path_factory):
+    """{TMPFULL} of the rows: a 64 KiB tmpfs filled by a file but for 8 KiB (skipped where mounting is not
+    allowed): a TMPDIR Python accepts, with no room for an object."""
+    d = tmp_path_factory.mktemp("fulltmp") / "tmp"
+    d.mkdir()
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(d)], capture_output=True, text=True)
+    if r.returncode != 0:
+        pytest.skip(f"cannot mount a small tmpfs here: {r.stderr.strip()}")
+    fd = os.open(d / "filler", os.O_WRONLY | os.O_CREAT)
+    try:
+        while os.write(fd, b"\0" * 1024):
+            pass
+    except OSError:
+        pass
+    os.ftruncate(fd, os.fstat(fd).st_size - 8192)  # room for Python's probe of TMPDIR (else it takes /tmp)
+    os.close(fd)
+    yield d
+    subprocess.run(["umount", str(d)], check=False)
+
+
 def _put(*files: tuple[str, str]) -> Callable[[Path, Path], None]:
     """Setup: text files at paths relative to T (an earlier run's outputs, a user's notes)."""
     def setup(w: Path, t: Path) -> None:
@@ -257,6 +278,8 @@ class Row:
     removes: tuple[str, ...] = ()
     """Files of T the row asks the command to remove (an earlier run's leftovers, with --overwrite): they must be
     gone; every other pre-existing file must stay."""
+    env: dict[str, str] = field(default_factory=dict)
+    """Environment variables of the subprocess (`sub=True`), formatted like the arguments."""
 
 
 def _copy(src: str, dst: str) -> Callable[[Path, Path], None]:
@@ -1019,6 +1042,93 @@ ROWS += [
 ]
 
 
+# --------------------------------------------------------------------------- issue 40: the rest
+
+SEN = "wildgen.sensor"
+
+
+def _sensor_stopped_after_one(w: Path, t: Path) -> None:
+    """Setup: T/ph, a wildgen.sensor run on the world's dataset interrupted (Ctrl-C) after its first object."""
+    from scenes.sensor import sensor_named
+    from wildgen.sensor import apply_to_dataset
+
+    def stop(done: int, total: int, name: str) -> None:
+        if done == 1:
+            raise KeyboardInterrupt
+    with pytest.raises(KeyboardInterrupt):
+        apply_to_dataset(w / "data", t / "ph", sensor_named("phone"), progress=stop)
+    assert (t / "ph" / "00000.data").is_dir() and not (t / "ph" / "00001.data").exists()
+
+
+def _radiance_missing_in_last(w: Path, t: Path) -> None:
+    """Setup: T/ds, the world's object folders without a manifest (nothing to check them against), the last one
+    missing a radiance file."""
+    shutil.copytree(w / "data", t / "ds", ignore=shutil.ignore_patterns("manifest.json"))
+    (t / "ds" / "00002.data" / "aux" / "radiance_001.exr").unlink()
+
+
+def _mae_resolution(rel: str, label: str) -> Callable[[Path, Path], None]:
+    def check(w: Path, t: Path) -> None:
+        assert json.loads((t / rel).read_text())["mae_resolution"] == label
+    return check
+
+
+def _scene_light_field(name: str) -> Callable[[Path, Path], None]:
+    """Setup: T/00000.data, the world's object 00000 whose scene.json gives its first light an unknown field."""
+    def setup(w: Path, t: Path) -> None:
+        shutil.copytree(w / "data" / f"{OBJ}.data", t / f"{OBJ}.data")
+        scene = json.loads((t / f"{OBJ}.data" / "scene.json").read_text())
+        scene["images"][0]["lights"][0][name] = 2
+        (t / f"{OBJ}.data" / "scene.json").write_text(json.dumps(scene))
+    return setup
+
+
+def _truncated_shard(w: Path, t: Path) -> None:
+    """Setup: T/s, an export of the world's dataset (one shard per object) whose 000001.tar lost its second half."""
+    _earlier_export("s")(w, t)
+    shard = t / "s" / "000001.tar"
+    shard.write_bytes(shard.read_bytes()[: shard.stat().st_size // 2])
+
+
+ROWS += [
+    # ---- a loader worker's error is one line naming the shard, not the worker's traceback
+    Row("train-truncated-shard-loader-workers", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps", "2",
+                                                     "--shuffle-buffer", "2", "--loader-workers", "2"], 2,
+        ("--data", "000001.tar", "corrupt"), sub=True, setup=_truncated_shard, absent=("DataLoader worker", "File \""),
+        check=_not_written("run/final.safetensors")),
+    # ---- a full TMPDIR is one line naming the folder (errno 28 names no file)
+    Row("train-shards-full-tmpdir", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps", "1"], 1,
+        ("--data", "no space left in the scratch folder", "TMPDIR"), sub=True, env={"TMPDIR": "{TMPFULL}"},
+        setup=_earlier_export("s"), absent=("[Errno 28]",), check=_not_written("run/final.safetensors")),
+    # ---- output that misleads: the fitted mode's MAE says at which resolution; the floor has one name
+    Row("rerender-fitted-mae-states-resolution", RR, ["--data", "{T}/00000.data", "--normals", "{W}/pred/00000/normal.png",
+                                                      "--out", "{T}/o", "--downsample", "2"], 0,
+        ("mae 0.00 deg at 16x16 (1/2 of 32x32)", "judged floor"), setup=_capture_copy(images=8), absent=("constant map",),
+        check=_mae_resolution("o/00000/report.json", "at 16x16 (1/2 of 32x32)")),
+    # ---- a message that is true: validate.refine reads one object folder, not "a directory of such folders"
+    Row("refine-dataset-folder-names-one-object", RF, ["--data", "{W}/data", "--normals", "{W}/pred", "--out", "{T}/r"],
+        2, ("--data", "is not an object folder", "pass one of them", "00000.data"), absent=("directory of such",),
+        check=_not_written("r")),
+    # ---- no Python list or tuple reprs in messages: names joined
+    Row("make-lights-unknown-names-joined", MK, ["--out", "{T}/o", "--lights", "directional,laser", *TINY], 2,
+        ("--lights", "unknown family 'laser'", "expected from directional, point"), absent=("['",),
+        check=_not_written("o")),
+    Row("rerender-scene-unknown-light-field-joined", RR, ["--data", "{T}/00000.data", "--normals", "{W}/pred", "--out",
+                                                          "{T}/o"], 2, ("unknown field(s) zoom", "expected some of "),
+        setup=_scene_light_field("zoom"), absent=("['", "']")),
+    # ---- a dataset says it is incomplete: what a stopped wildgen.sensor wrote is never read as a dataset
+    Row("export-sensor-output-stopped-half-way", EXP, ["--data", "{T}/ph", "--out", "{T}/s", "--quiet"], 2,
+        ("--data", "incomplete dataset", "complete: false"), setup=_sensor_stopped_after_one, check=_not_written("s")),
+    Row("train-sensor-output-stopped-half-way", TR, [*TRAIN_ONE, "--data", "{T}/ph", "--out", "{T}/run", "--steps",
+                                                     "1"], 2, ("--data", "incomplete dataset"),
+        setup=_sensor_stopped_after_one, check=_not_written("run/final.safetensors")),
+    # ---- slow failure: every source object checked before the first is written
+    Row("sensor-radiance-missing-in-a-later-object", SEN, ["--data", "{T}/ds", "--sensor", "phone", "--out", "{T}/o",
+                                                          "--quiet"], 2, ("--data", "00002.data", "radiance_001.exr"),
+        setup=_radiance_missing_in_last, check=_not_written("o")),
+]
+
+
 def _snapshot(root: Path) -> dict[str, str]:
     """relative path -> sha256 of every file (and 'dir' for every folder) under root."""
     out = {}
@@ -1032,9 +1142,9 @@ def _snapshot(root: Path) -> dict[str, str]:
     return out
 
 
-def _run(row: Row, argv: list[str], capsys) -> tuple[int, str, str]:
+def _run(row: Row, argv: list[str], capsys, **places: Path | None) -> tuple[int, str, str]:
     if row.sub:
-        env = {**os.environ, "PYTHONPATH": str(REPO)}
+        env = {**os.environ, "PYTHONPATH": str(REPO), **{k: v.format(**places) for k, v in row.env.items()}}
         r = subprocess.run([sys.executable, "-m", row.cli, *argv], capture_output=True, text=True, cwd=REPO, env=env,
                            timeout=300)
         return r.returncode, r.stdout, r.stderr
@@ -1053,9 +1163,11 @@ def test_bad_input(row: Row, world: Path, tmp_path: Path, capsys, request):
         row.setup(world, t)
     ro = request.getfixturevalue("readonly") if any("{RO}" in a for a in row.args) else None
     full = request.getfixturevalue("full_disk") if any("{FULL}" in a for a in row.args) else None
+    tmpfull = request.getfixturevalue("full_tmp") if any("{TMPFULL}" in a for a in row.env.values()) else None
     before_world, before_t = _snapshot(world), _snapshot(t)
-    argv = [a.format(W=world, T=t, RO=ro, FULL=full) for a in row.args]
-    rc, out, err = _run(row, argv, capsys)
+    places = dict(W=world, T=t, RO=ro, FULL=full, TMPFULL=tmpfull)
+    argv = [a.format(**places) for a in row.args]
+    rc, out, err = _run(row, argv, capsys, **places)
     assert rc == row.rc, f"exit {rc}, expected {row.rc}\nstdout: {out[-2000:]}\nstderr: {err[-2000:]}"
     assert "Traceback" not in err and "Traceback" not in out, err
     text = err + out

@@ -102,3 +102,49 @@ def test_gpu_session_training_ends_within_the_budget(tmp_path):
     assert wall <= 1.1 * minutes * 60
     summary = json.loads((out / "summary.json").read_text())
     assert 0 < summary["steps"] < 100000 and summary["wall_s"] <= minutes * 60
+
+
+def _two_meshes(folder: Path) -> Path:
+    import trimesh
+
+    (folder / "meshes").mkdir(parents=True)
+    for name in ("a.ply", "b.ply"):
+        trimesh.creation.icosphere(subdivisions=1).export(folder / "meshes" / name)
+    return folder
+
+
+@pytest.mark.slow
+def test_train_recipe_minutes_hold(tmp_path):
+    """orchestrate.train_recipe --minutes: its 100-object validation set cannot be rendered in 40 s on a CPU; the
+    step is stopped and the recipe ends with one line naming --minutes, within the budget + 10 %."""
+    minutes, work = 40 / 60, tmp_path / "w"
+    r, wall = timed(["orchestrate.train_recipe", "--work", str(work), "--assets", str(_two_meshes(tmp_path / "a")),
+                     "--model", "glc-test", "--train-objects", "1", "--steps", "100000", "--minutes", f"{minutes:.6f}"])
+    print(f"train_recipe --minutes {minutes * 60:g} s: ended after {wall:.1f} s")
+    assert r.returncode == 2, r.stderr[-2000:]
+    assert one_error_line(r).startswith("error: --minutes: 0.666667 min ran out"), r.stderr[-2000:]
+    assert wall <= 1.1 * minutes * 60
+    assert not (work / "runs" / "main" / "final.safetensors").exists()
+
+
+@pytest.mark.slow
+def test_recipe_resumes_a_run_its_clock_stopped(dataset, tmp_path):
+    """A run whose final.safetensors was written before --steps (a time limit stopped it) is not finished: the
+    recipe resumes it instead of keeping it, and keeps it once it reached --steps."""
+    from orchestrate.train_recipe import COMMAND, train_argv, train_run, trained_steps
+    from unips.train import main as train
+
+    work = tmp_path / "w"
+    run = work / "runs" / "main"
+    (work / "runs").mkdir(parents=True)
+    (work / "train5000").symlink_to(dataset["train"])
+    (work / "val128").symlink_to(dataset["val"])
+    args = COMMAND.parse(["--work", str(work), "--model", "glc-test", "--steps", "2", "--threads", "1"])
+    first = COMMAND.parse(["--work", str(work), "--model", "glc-test", "--steps", "1", "--threads", "1"])
+    assert train(train_argv(first, work, "main", [])) == 0  # the recipe's own run, its final written at step 1
+    assert trained_steps(run) == 1  # final.safetensors written at step 1, as a run stopped by its clock
+    train_run(sys.executable, work, "main", args, [])
+    assert trained_steps(run) == 2
+    before = (run / "final.safetensors").read_bytes()
+    train_run(sys.executable, work, "main", args, [])
+    assert (run / "final.safetensors").read_bytes() == before

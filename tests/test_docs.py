@@ -417,3 +417,38 @@ def test_relative_links_resolve():
             assert path.exists(), f"{name}: link to {target} (no such file)"
             if anchor:
                 assert anchor in _anchors(path), f"{name}: link to {target} (no such heading)"
+
+
+def test_a_truncated_model_card_is_one_line_naming_it(tmp_path):
+    """Issue 40: a truncated model_card.json was a bare JSON error ('Expecting ...: line 5 column 1'), naming no
+    file; orchestrate.docs and train_recipe --ship (before any work) read it through one reader that names it."""
+    from orchestrate import docs
+    from orchestrate.train_recipe import _card
+    from unips.models.registry import read_model_card
+
+    card = tmp_path / "model_card.json"
+    card.write_bytes(docs.CARD.read_bytes()[:200])
+    for call in (lambda: docs.run(True, card_path=card), lambda: read_model_card(card)):
+        with pytest.raises(ValueError) as err:
+            call()
+        assert str(err.value).startswith(f"model card {str(card)!r} is not readable JSON") and "\n" not in str(err.value)
+    with pytest.raises(ValueError, match=r"^--ship: model card .* is not readable JSON"):
+        _card(card)
+    card.write_text("[1, 2]\n")
+    with pytest.raises(ValueError, match="holds a JSON list, expected an object"):
+        read_model_card(card)
+    assert read_model_card(tmp_path / "none.json") == {}
+
+
+def test_readme_data_has_the_images_its_refine_example_needs():
+    """Issue 40: the README's validate.refine example failed on the README's own 4-image data (refinement needs
+    validate.judgeable.MIN_IMAGES['refine']); its data commands give each object that many images."""
+    from validate.judgeable import MIN_IMAGES
+    from wildgen.make import COMMAND as MAKE
+
+    commands = _readme_commands()
+    refine = next(argv for module, *argv in commands if module == "validate.refine")
+    data = Path(refine[refine.index("--data") + 1]).parts[0]
+    made = [MAKE.parse(argv) for module, *argv in commands if module == "wildgen.make"]
+    source = next(opts for opts in made if Path(opts.out).parts[0] == data)
+    assert source.gen.images >= MIN_IMAGES["refine"], (data, source.gen.images)

@@ -391,8 +391,8 @@ def test_scene_json_lights_are_keyed_by_type():
     with pytest.raises(ValueError, match=r"images\[0\]\.lights\[1\]\.direction: a 'point' light has no direction "
                        r"\(the old flat form may hold it only at its default \[0\.0, 0\.0, -1\.0\]\), got \[1, 0, 0\]"):
         light_from_dict(dict(old[1], direction=[1, 0, 0]), "images[0].lights[1]")
-    with pytest.raises(ValueError, match=r"light: unknown field\(s\) \['zoom'\], expected some of \['color', 'intensity', "
-                       r"'position', 'temperature_k', 'type'\]"):
+    with pytest.raises(ValueError, match=r"light: unknown field\(s\) zoom, expected some of color, intensity, "
+                       r"position, temperature_k, type$"):
         light_from_dict({"type": "point", "zoom": 2})
     d["images"][1]["lights"][0]["type"] = "laser"
     with pytest.raises(ValueError, match=r"images\[1\]\.lights\[0\]\.type: unknown light type 'laser'"):

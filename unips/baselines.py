@@ -339,5 +339,5 @@ METHODS: dict[str, Callable[[PSObject], np.ndarray]] = {
 def run_baseline(method: str, obj: PSObject) -> np.ndarray:
     """Run a baseline by name (a key of METHODS)."""
     if method not in METHODS:
-        raise ValueError(f"method: unknown baseline {method!r}, expected one of {sorted(METHODS)}")
+        raise ValueError(f"method: unknown baseline {method!r}, expected one of {', '.join(sorted(METHODS))}")
     return METHODS[method](obj)

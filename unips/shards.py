@@ -23,6 +23,7 @@ byte-identical to its folder. A sample of the `decoded` encoding holds what that
 from __future__ import annotations
 
 import dataclasses
+import errno
 import itertools
 import os
 import random
@@ -135,14 +136,22 @@ def decode_object(key: str, files: dict[str, bytes], shard: Path, arg: str = "--
         except ValueError as exc:
             raise ValueError(f"{arg}: object {key!r} of shard {str(shard)!r}: {exc}") from None
     size = sum(len(v) for v in files.values())
-    with tempfile.TemporaryDirectory(prefix="unips-shard-", dir=scratch_dir(size)) as tmp:
-        folder = extract_sample(files, Path(tmp) / sample_folder_name(key))
-        try:
-            obj = load_object(folder, arg=arg)
-        except (ValueError, FileNotFoundError) as exc:
-            where = f"{shard}[{key}]"
-            raise ValueError(f"{arg}: object {key!r} of shard {str(shard)!r}: "
-                             f"{str(exc).replace(str(folder), where)}") from None
+    try:
+        with tempfile.TemporaryDirectory(prefix="unips-shard-", dir=scratch_dir(size)) as tmp:
+            folder = extract_sample(files, Path(tmp) / sample_folder_name(key))
+            try:
+                obj = load_object(folder, arg=arg)
+            except (ValueError, FileNotFoundError) as exc:
+                where = f"{shard}[{key}]"
+                raise ValueError(f"{arg}: object {key!r} of shard {str(shard)!r}: "
+                                 f"{str(exc).replace(str(folder), where)}") from None
+    except OSError as exc:  # a full scratch folder: errno 28 names no file, this names the folder and the fix
+        if exc.errno not in (errno.ENOSPC, errno.EDQUOT):
+            raise
+        where = scratch_dir(size) or tempfile.gettempdir()
+        raise OSError(f"{arg}: no space left in the scratch folder {where!r} (TMPDIR, else the system's temporary "
+                      f"folder) to unpack object {key!r} of shard {str(shard)!r} ({size} bytes); expected TMPDIR to "
+                      "name a folder with room") from None
     return dataclasses.replace(obj, path=shard / folder.name)
 
 

@@ -190,6 +190,7 @@ def rerender_fitted(
         "floor_rel_l1": min(floors.values()) if floors else None,
         "floors": floors,
         "mae_deg": mae_deg(n_small, small.normal_gt, small.mask) if small.normal_gt is not None else None,
+        "mae_resolution": fit_resolution_label(jc.downsample, small.mask.shape, cap.mask.shape),
         "light_model": res.model,
         "lights": res.lights,
         "specular": res.specular,
@@ -233,13 +234,20 @@ def _write_fitted(jc: JudgedCapture, res: FitResult, report: dict) -> None:
         target / "figure.png", small.images, renders, small.mask, rows,
         relative_residual_map(renders, small.images, small.mask), None, n_small,
         title=f"{jc.cap.name}, {prediction_label(jc.source)} (fitted lights, {'trusted' if jc.trusted else 'NOT TRUSTED'}): "
-        f"judged rel_l1 {report['judged_rel_l1'] or float('nan'):.4f}, constant map "
+        f"judged rel_l1 {report['judged_rel_l1'] or float('nan'):.4f}, floor "
         f"{report['judged_floor_rel_l1'] or float('nan'):.4f}"
-        + (f", MAE {report['mae_deg']:.2f} deg" if report.get("mae_deg") is not None else ""),
+        + (f", MAE {report['mae_deg']:.2f} deg {report['mae_resolution']}" if report.get("mae_deg") is not None else ""),
         angular_error=None if small.normal_gt is None else angular_error_deg(n_small, small.normal_gt, small.mask),
         explained=ex.explained,
     )
     atomic_write_text(target / "report.json", json.dumps(report, indent=1, allow_nan=False))
+
+
+def fit_resolution_label(downsample: int, fitted: tuple[int, ...], full: tuple[int, ...]) -> str:
+    """Where the fitted mode's numbers (its MAE too) were computed: 'at 32x32 (1/2 of 64x64)' or 'at 64x64 (full
+    resolution)'; `unips.evaluate` scores at full resolution, so the two differ when this says 1/2."""
+    size = f"{fitted[1]}x{fitted[0]}"
+    return f"at {size} (1/{downsample} of {full[1]}x{full[0]})" if downsample > 1 else f"at {size} (full resolution)"
 
 
 def saturated_fraction(cap: Capture) -> float:

@@ -245,12 +245,12 @@ def _main_fitted(args: RerenderOptions) -> int:
         r = rerender_fitted(args.data, args.normals, config, args.out, progress, overwrite=args.overwrite)
     cal = r.get("calibrated_light_error_deg")
     print(f"{r['object']}: rel_l1 {r['rel_l1']:.4f}  floor {r['floor_rel_l1']:.4f}  noise {r['noise_rel_l1'] or float('nan'):.4f}"
-          + (f"  mae {r['mae_deg']:.2f} deg" if r["mae_deg"] is not None else "")
+          + (f"  mae {r['mae_deg']:.2f} deg {r['mae_resolution']}" if r["mae_deg"] is not None else "")
           + (f"  light error vs calibration {cal['mean']:.2f} deg" if cal else "")
           + f"  ({r['note']}, {r['timings']['total_s']:.0f} s)")
     judged = r["judged_rel_l1"]
     print(("TRUSTED" if r["trusted"] else "NOT TRUSTED (the check abstains)") + f": {r['why']}"
-          + (f"; judged rel_l1 {judged:.4f} (constant map {r['judged_floor_rel_l1'] or float('nan'):.4f})" if judged is not None else ""))
+          + (f"; judged rel_l1 {judged:.4f} (judged floor {r['judged_floor_rel_l1'] or float('nan'):.4f})" if judged is not None else ""))
     if r["resolution"] is not None:
         print(f"resolution {r['resolution']:.4f}: judged scores of this capture closer than that are not told apart by "
               "the images (a refined map can score that far below the true surface)")

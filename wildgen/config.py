@@ -121,7 +121,8 @@ class GenConfig:
         """Raise ValueError naming the first bad field as its flag."""
         unknown = [f for f in self.lights if f not in LIGHT_FAMILIES]
         if not self.lights or unknown:
-            raise ValueError(f"--lights: unknown family {unknown or self.lights!r}, expected from {', '.join(LIGHT_FAMILIES)}")
+            raise ValueError(f"--lights: unknown family {', '.join(map(repr, unknown)) or repr(','.join(self.lights))}, expected from "
+                             f"{', '.join(LIGHT_FAMILIES)}")
         check_fields(self)
         self.detail_strength_range()
         if self.cluster is not None:

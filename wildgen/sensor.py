@@ -7,7 +7,9 @@ and its recorded exposure by the sensor preset (`scenes.sensor.SENSORS`; the mod
 every other file (mask, normal map, aux/) is copied unchanged, and scene.json records the sensor and each
 image's noise seed (`scenes.sensor.sensor_record`), so any image can be re-derived. Each object is written
 under a temporary name and renamed when complete; --out gets a manifest.json with the sha256 checksum of every
-file (the source's manifest with the new checksums and a `sensor` entry). The same --data, --sensor and --seed
+file (the source's manifest with the new checksums and a `sensor` entry), `complete: false` until the last object
+is written (every reader refuses a dataset of a run stopped half-way). Every source object is checked (scene.json,
+radiance files) before the first is written. The same --data, --sensor and --seed
 give byte-identical files; --seed 0 gives the images that `wildgen.make --sensor NAME` writes.
 """
 from __future__ import annotations
@@ -26,7 +28,7 @@ from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.outputs import check_output_folder
 from scenes.cli.progress import progress_bar
 from scenes.cli.options import Command, REQUIRED, check_fields, option
-from scenes.folder.format import (AUX_DIR, SCENE_FILE, image_files, image_name, list_object_folders, object_name,
+from scenes.folder.format import (AUX_DIR, check_dataset_complete, SCENE_FILE, image_files, image_name, list_object_folders, object_name,
     radiance_name, read_scene, write_scene)
 from scenes.files import atomic_write_text
 from scenes.images import read_exr
@@ -78,9 +80,9 @@ def _sensor_versions() -> dict[str, str]:
     return out
 
 
-def apply_to_object(src: Path, out_dir: Path, sensor: Sensor, seed: int = 0) -> tuple[str, dict[str, str]]:
-    """Write `out_dir/<src name>` from object folder `src` with `sensor` (atomically: a temporary name, then a
-    rename). Returns (folder name, {relative path: sha256})."""
+def check_source_object(src: Path) -> tuple:
+    """What `apply_to_object` reads of object folder `src`, checked (its scene.json, sensor record and every
+    radiance file present): (description, scene.json extras, old sensor record, radiance paths)."""
     desc, extras = read_scene(src)
     old = read_sensor_record(extras, len(desc.images), where=f"--data: {str(src / SCENE_FILE)!r}")
     radiance = [src / AUX_DIR / radiance_name(i) for i in range(len(desc.images))]
@@ -88,6 +90,13 @@ def apply_to_object(src: Path, out_dir: Path, sensor: Sensor, seed: int = 0) -> 
     if missing:
         raise FileNotFoundError(f"--data: object folder {str(src)!r} has no {AUX_DIR}/{missing[0]} (the radiance a "
                                 f"sensor is applied to; {len(missing)} of {len(radiance)} missing)")
+    return desc, extras, old, radiance
+
+
+def apply_to_object(src: Path, out_dir: Path, sensor: Sensor, seed: int = 0) -> tuple[str, dict[str, str]]:
+    """Write `out_dir/<src name>` from object folder `src` with `sensor` (atomically: a temporary name, then a
+    rename). Returns (folder name, {relative path: sha256})."""
+    desc, extras, old, radiance = check_source_object(src)
     top_images = {p.name for p in image_files(src)}
 
     def skip(folder: str, names: list[str]) -> list[str]:  # the files this tool writes anew
@@ -162,6 +171,7 @@ def apply_to_dataset(data: str | Path, out: str | Path, sensor: Sensor, seed: in
     if not data.is_dir():
         raise FileNotFoundError(f"--data: {str(data)!r} is not a folder")
     sensor = sensor.validate()
+    check_dataset_complete(data)
     source = _read_source_manifest(data)
     if source is not None:
         entries = [e for e in source["objects"] if isinstance(e, dict)]
@@ -176,6 +186,8 @@ def apply_to_dataset(data: str | Path, out: str | Path, sensor: Sensor, seed: in
         entries = [{"index": i, "name": object_name(f), "folder": f.name, "status": "done"}
                    for i, f in enumerate(folders)]
         done = entries
+    for e in done:  # every input before the first object is written
+        check_source_object(data / e["folder"])
     _prepare_out(data, out, overwrite)
 
     manifest = copy.deepcopy(source) if source is not None else {"format_version": 1}
@@ -185,14 +197,14 @@ def apply_to_dataset(data: str | Path, out: str | Path, sensor: Sensor, seed: in
     manifest["sensor"] = {"name": sensor.name, "model": sensor.to_dict(), "seed": int(seed),
                           "source": str(data.resolve()), "versions": _sensor_versions()}
 
-    def write_manifest(objects: list[dict]) -> None:
-        manifest["objects"] = objects
+    def write_manifest(objects: list[dict], complete: bool) -> None:
+        manifest["objects"], manifest["complete"] = objects, complete  # readers refuse an incomplete dataset
         atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=1, sort_keys=True, allow_nan=False))
 
     with dataset_lock(out):
         if overwrite:
             _remove_dataset(out)
-        write_manifest([])  # from the start: an interrupted run can be replaced with --overwrite
+        write_manifest([], False)  # from the start: an interrupted run can be replaced with --overwrite
         written = []
         for entry in entries:
             if entry.get("status") == "done":
@@ -203,7 +215,7 @@ def apply_to_dataset(data: str | Path, out: str | Path, sensor: Sensor, seed: in
                 entry.pop("timings", None)  # the render's timings and Ray node are not this run's
                 entry.pop("node", None)
             written.append(entry)
-        write_manifest(written)
+        write_manifest(written, True)
     return manifest
 
 

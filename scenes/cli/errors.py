@@ -21,9 +21,26 @@ INPUT_ERRORS: tuple[type[BaseException], ...] = (UsageError, ValueError, FileNot
 """Exceptions every CLI reports as one line with `report_error`."""
 
 
+TRACEBACK = "Traceback (most recent call last):"
+
+
+def _without_traceback(text: str) -> str:
+    """The original message of an error that carries another process's traceback in its text (torch's DataLoader
+    re-raises a worker's error as "Caught ValueError in DataLoader worker process 1.\nOriginal Traceback ...");
+    other text as it is."""
+    if TRACEBACK not in text:
+        return text
+    lines = text[text.rindex(TRACEBACK) + len(TRACEBACK):].splitlines()
+    start = next((i for i, line in enumerate(lines) if line.strip() and not line.startswith(" ")), None)
+    if start is None:
+        return text
+    kind, sep, message = "\n".join(lines[start:]).partition(": ")
+    return message if sep and kind.replace(".", "").replace("_", "").isalnum() else kind + sep + message
+
+
 def one_line(exc: BaseException) -> str:
-    """The message of `exc` on one line."""
-    return str(exc).replace("\n", " ")
+    """The message of `exc` on one line (without a traceback another process put into it)."""
+    return _without_traceback(str(exc)).replace("\n", " ")
 
 
 def report_error(exc: BaseException, code: int = EXIT_USAGE) -> int:

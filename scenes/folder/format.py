@@ -65,6 +65,10 @@ PREDICTION_FILES = ("normal.exr", "normal.png", "normal.npy", "normal.tif", "nor
 PREDICTION_INFO = "predict.json"
 """What `unips.predict` records beside a prediction (method, model, images used)."""
 
+DATASET_MANIFEST = "manifest.json"
+"""A dataset folder's record of the run that wrote it (wildgen.make, wildgen.sensor). `complete: false` while a
+run writes it (true at its end): the object folders of a run stopped half-way are never read as a dataset."""
+
 MASK_RULE = "any channel > 0 is foreground (as the official UniPS loaders)"
 
 _IMAGE_RE = re.compile(r"^L(\d+)\.png$")
@@ -97,13 +101,28 @@ def image_files(folder: str | Path) -> list[Path]:
     indices = sorted(found)
     if indices != list(range(len(indices))):
         missing = sorted(set(range(max(indices, default=-1) + 1)) - set(indices))
-        raise ValueError(f"images: {str(folder)!r} has L*.png files with gaps (missing indices {missing[:10]})")
+        raise ValueError(f"images: {str(folder)!r} has L*.png files with gaps (missing indices {', '.join(map(str, missing[:10]))})")
     return [found[i] for i in indices]
 
 
+def check_dataset_complete(dataset: str | Path, arg: str = "--data") -> None:
+    """ValueError naming `arg` when the manifest of dataset folder `dataset` says a run still writes it or was
+    stopped before its end (`complete: false`); a folder without such a record is taken as it is."""
+    path = Path(dataset) / DATASET_MANIFEST
+    try:
+        complete = json.loads(path.read_text()).get("complete", True)
+    except (OSError, ValueError, AttributeError):
+        return
+    if complete is False:
+        raise ValueError(f"{arg}: {str(dataset)!r} is an incomplete dataset ({DATASET_MANIFEST} says complete: "
+                         "false: the command that writes it is still running or was stopped before its end); run it "
+                         "again to finish the dataset, or pass a complete one")
+
+
 def list_object_folders(dataset: str | Path) -> list[Path]:
-    """Object folders (`*.data` with a scene.json) of a dataset folder, sorted by name."""
+    """Object folders (`*.data` with a scene.json) of a complete dataset folder, sorted by name."""
     dataset = Path(dataset)
+    check_dataset_complete(dataset)
     folders = sorted(p for p in dataset.iterdir()
                      if p.is_dir() and p.name.endswith(OBJECT_SUFFIX) and not p.name.startswith("."))
     if not folders:

@@ -44,7 +44,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from scenes.folder.format import MASK_FILE, NORMAL_FILE, SCENE_FILE, image_files, object_name, read_scene_dict
+from scenes.folder.format import MASK_FILE, NORMAL_FILE, SCENE_FILE, check_dataset_complete, image_files, object_name, read_scene_dict
 from scenes.images import read_image, read_mask, read_normals
 
 log = logging.getLogger(__name__)
@@ -55,14 +55,13 @@ FLOAT_SUFFIXES = (".exr",)
 """Float image suffixes: linear radiance, not clipped, so never saturated."""
 ALL_IMAGE_SUFFIXES = IMAGE_SUFFIXES + FLOAT_SUFFIXES
 MIN_NORMAL_LENGTH = 0.5
-"""A ground-truth vector shorter than this is "no normal" (the 16-bit code 32768 and the 8-bit 128 decode to
-length < 0.5; a unit normal rounded to 8 bits is within 0.01 of 1)."""
+"""A ground-truth vector shorter than this is "no normal" (16-bit 32768 and 8-bit 128 decode to length < 0.5)."""
 
 DILIGENT_LIGHTS = "light_directions.txt"
 DILIGENT_INTENSITIES = "light_intensities.txt"
 DILIGENT_LISTING = "filenames.txt"
-EXPECTED = ("an object folder: L*.png + scene.json (ours), L* images (UniPS), or DiLiGenT "
-            "001.png... + light_directions.txt; or a directory of such folders")
+ONE_FOLDER = "an object folder: L*.png + scene.json (ours), L* images (UniPS), or DiLiGenT 001.png... + light_directions.txt"
+EXPECTED = f"{ONE_FOLDER}; or a directory of such folders"  # where a dataset is read (find_object_folders)
 
 
 # -------------------------------------------------------------------------------------- listing
@@ -275,7 +274,7 @@ _BY_NAME = {layout.name: layout for layout in LAYOUT_TABLE}
 def layout_named(name: str) -> Layout:
     """The table entry called `name`; ValueError naming the known ones."""
     if name not in _BY_NAME:
-        raise ValueError(f"layout: unknown layout {name!r}, expected one of {LAYOUTS}")
+        raise ValueError(f"layout: unknown layout {name!r}, expected one of {', '.join(LAYOUTS)}")
     return _BY_NAME[name]
 
 
@@ -303,12 +302,11 @@ def find_object_folders(path: str | Path, arg: str = "path") -> list[Path]:
     if detect_layout(root) is not None:
         return [root]
     if root.is_dir():
+        check_dataset_complete(root, arg)
         entries = sorted(root.iterdir(), key=lambda p: p.name)
-        gone = next((p for p in entries if p.is_symlink() and not p.exists()), None)  # never skipped silently
-        if gone is not None:
+        if (gone := next((p for p in entries if p.is_symlink() and not p.exists()), None)) is not None:  # never skipped
             raise FileNotFoundError(f"{arg}: {gone} is a link to {os.readlink(gone)}, which does not exist")
-        found = [p for p in entries if detect_layout(p) is not None]
-        if found:
+        if found := [p for p in entries if detect_layout(p) is not None]:
             return found
     raise FileNotFoundError(f"{arg}: no object folder found at {root} (expected {EXPECTED})")
 
@@ -450,11 +448,13 @@ def read_folder(path: str | Path, max_images: int | None = None, layout: str | N
     """
     folder = Path(path)
     if not folder.is_dir():
-        raise FileNotFoundError(f"{arg}: object folder {folder} does not exist (expected {EXPECTED})")
+        raise FileNotFoundError(f"{arg}: object folder {folder} does not exist (expected {ONE_FOLDER})")
     if layout is None:
         layout = detect_layout(folder)
         if layout is None:
-            raise FileNotFoundError(f"{arg}: {folder} is not an object folder (expected {EXPECTED})")
+            inside = next((p for p in sorted(folder.iterdir()) if p.is_dir() and detect_layout(p)), None)
+            raise FileNotFoundError(f"{arg}: {folder} is not an object folder (expected {ONE_FOLDER})"
+                                    + (f"; it holds object folders: pass one of them, e.g. {inside}" if inside else ""))
     entry = layout_named(layout)
     if max_images is not None and (isinstance(max_images, bool) or int(max_images) != max_images or max_images < 1):
         raise ValueError(f"max_images: must be an integer >= 1, got {max_images!r}")
@@ -463,7 +463,7 @@ def read_folder(path: str | Path, max_images: int | None = None, layout: str | N
     except ValueError as exc:
         raise ValueError(f"{arg}: {exc}") from None
     if not all_paths:
-        raise FileNotFoundError(f"{arg}: no images found in {folder} (expected {EXPECTED})")
+        raise FileNotFoundError(f"{arg}: no images found in {folder} (expected {ONE_FOLDER})")
     paths = all_paths[: int(max_images)] if max_images is not None else all_paths
     lights = entry.lights(folder, len(all_paths))
     k = len(paths)

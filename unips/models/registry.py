@@ -8,6 +8,7 @@ the shipped weights (`pretrained=True`) or from a weights file (`checkpoint_path
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
@@ -138,3 +139,18 @@ def build_model(name: str, **overrides: Any) -> nn.Module:
     model = _REGISTRY[name](**overrides)
     model.model_name = name
     return model
+
+
+def read_model_card(path: Path) -> dict[str, Any]:
+    """A model card (the JSON object beside shipped weights: figures, lineage), {} when there is none. A damaged
+    one (truncated, not JSON, not an object) is a ValueError naming the file, never a bare JSON error."""
+    if not path.is_file():
+        return {}
+    try:
+        card = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise ValueError(f"model card {str(path)!r} is not readable JSON ({exc}; truncated?); expected the card as "
+                         "written (restore it, e.g. git checkout)") from None
+    if not isinstance(card, dict):
+        raise ValueError(f"model card {str(path)!r} holds a JSON {type(card).__name__}, expected an object")
+    return card
