@@ -82,7 +82,7 @@ def main() -> int:
                         "data_ab entry, from which the docs' A/B table is generated")
     p.add_argument("--tag", default="", help="suffix of the run folders and result names (several settings in one WORK)")
     args = p.parse_args()
-    from orchestrate.train_recipe import SPLIT_FOLDERS, check_split, split_assets
+    from orchestrate.asset_split import SPLIT_FOLDERS, check_split, split_assets
 
     w = args.work
     w.mkdir(parents=True, exist_ok=True)

@@ -4,7 +4,7 @@
   architecture before any work (a session never restarts from fresh weights by accident, and never trains a
   model that could not replace the shipped one).
 - `pack_assets`: the training assets that travel in the pack, chosen by `ASSET_RULE` (recorded in the pack's
-  manifest.json): the recipe's training split only (`orchestrate.train_recipe.split_plan`, never a held-out
+  manifest.json): the recipe's training split only (`orchestrate.asset_split.split_plan`, never a held-out
   mesh or HDR map), every training mesh, every training HDR map reduced to `HDR_WIDTH` px, then whole texture
   sets in name order while the upload limit allows.
 - `unpack_carry`: on the GPU machine, the pack's archives unpacked into --work (Mitsuba's site folder put on
@@ -35,7 +35,7 @@ MANIFEST = "manifest.json"
 HDR_WIDTH = 256
 """Width of the packed HDR maps (equirectangular, 256 x 128; area-averaged, so each light keeps its energy):
 renders are 128 px, and a 1k map alone is 1.5 MiB, 28 of them more than the upload limit leaves."""
-ASSET_RULE = (f"the training split of orchestrate.train_recipe.split_plan (the last quarter of the meshes and the "
+ASSET_RULE = (f"the training split of orchestrate.asset_split.split_plan (the last quarter of the meshes and the "
               f"last fifth of the HDR maps by name are held out and never packed); every training mesh folder; "
               f"every training HDR map area-resampled to {HDR_WIDTH} px wide; then whole texture sets in name order "
               f"while the upload limit allows")
@@ -120,7 +120,7 @@ def check_architecture(path: Path, name: str | None, config: dict | None, flag: 
 
 def asset_choice(assets: Path) -> tuple[list[tuple[Path, str]], list[tuple[Path, str]], list[list[tuple[Path, str]]], list[str]]:
     """(meshes, HDR maps, texture sets, held-out names) of the training split: (file, name in the archive) pairs."""
-    from orchestrate.train_recipe import SPLIT_FOLDERS, split_plan
+    from orchestrate.asset_split import SPLIT_FOLDERS, split_plan
 
     plan = split_plan(assets, Path("/split"))
     train = Path("/split") / SPLIT_FOLDERS[0]

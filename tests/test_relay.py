@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from orchestrate import relay, ship
-from orchestrate.train_recipe import split_plan
+from orchestrate.asset_split import split_plan
 from scenes.cli.errors import UsageError
 
 REPO = Path(__file__).resolve().parents[1]
