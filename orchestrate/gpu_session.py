@@ -308,6 +308,10 @@ def session(opts: SessionOptions, t0: float | None = None) -> dict:
     variant = _choose(opts.variant)
     check = None if opts.check_variant == "none" else _choose(opts.check_variant, avoid=variant) \
         if opts.check_variant == "auto" else _choose(opts.check_variant)
+    if check is not None and check == variant:  # the same variant renders the same bytes: that checks nothing
+        raise UsageError(f"--check-variant: {check} is the variant the data is rendered with (--variant "
+                         f"{opts.variant}), expected another variant (or none): comparing a variant with itself checks "
+                         "nothing")
     data, again, shards, run = work / "data", work / "check", work / "shards", out / RUN
     check_step("wildgen.make", _make_argv(opts, data, variant, opts.objects, shards, assets))
     check_step("unips.train", _train_argv(opts, shards, run, device, 1.0, init))

@@ -718,6 +718,9 @@ ROWS: list[Row] = [
     Row("gpu-session-minutes-below-reserve", GS, ["--out", "{T}/o", "--work", "{T}/w", "--minutes", "0.5",
                                                   "--cpu-rehearsal"], 2, ("--minutes", "0.5", "--reserve-s 45"),
         check=_not_written("o", "w")),
+    Row("gpu-session-check-variant-is-the-render-variant", GS,
+        ["--out", "{T}/o", "--work", "{T}/w", "--variant", "llvm_ad_rgb", "--check-variant", "llvm_ad_rgb",
+         "--cpu-rehearsal"], 2, ("--check-variant", "llvm_ad_rgb", "checks nothing"), check=_not_written("o")),
     # ---- issue 41: the relay (--init refused before any work, --carry without a pack, ship's candidate)
     Row("gpu-session-init-missing", GS, ["--out", "{T}/o", "--work", "{T}/w", "--init", "{T}/nope.safetensors",
                                          "--cpu-rehearsal"], 2, ("--init", "nope.safetensors", "expected"),
