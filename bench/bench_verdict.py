@@ -84,6 +84,66 @@ def optimised_maps(maps: dict, cap, small, cfg) -> None:
         print(f"  refined {name} in {time.perf_counter() - t0:.0f} s", flush=True)
 
 
+def _subsets(cap) -> dict[str, object]:
+    """The --degenerate sweep of one calibrated capture: name -> image indices, or ('copies', i) for 8 scaled
+    copies of image i (the image lit most nearly from the camera)."""
+    L = cap.light_directions  # (K, 3) toward the light
+    right = np.nonzero(L[:, 0] > 0.15)[0]
+    spread = lambda idx, n: idx[np.linspace(0, len(idx) - 1, n).round().astype(int)]  # noqa: E731
+    return {"8 copies of one image": ("copies", int(np.argmin(np.abs(L[:, 0]) + np.abs(L[:, 1])))),
+            "5 lights most to the right": np.argsort(-L[:, 0])[:5], "5 of the right half": spread(right, 5),
+            "40 of the right half": spread(right, min(40, len(right))), "5 spread over all": spread(np.arange(len(L)), 5),
+            "8 spread over all": spread(np.arange(len(L)), 8)}
+
+
+def degenerate_sweep(captures: list[Path], out: Path) -> int:
+    """--degenerate: per capture and subset, the light dimensions and verdict from the images alone, and the judged
+    scores of the truth, its mirror image (n_x negated) and the constant map."""
+    import dataclasses
+
+    from scenes.renderer.variant import choose_variant
+
+    choose_variant("llvm_ad_rgb")
+    from validate.capture import load_capture
+    from validate.fit import fit_normals, prepare
+    from validate.fit_scene import FitConfig
+    from validate.verdict import explain, judged_rel_l1, verdict
+
+    cfg, rows = FitConfig().validate(), []
+    for folder in captures:
+        full = load_capture(folder)
+        if full.light_directions is None or full.normal_gt is None:
+            print(f"{folder}: needs calibrated lights and ground truth, skipped", file=sys.stderr)
+            continue
+        for name, sel in _subsets(full).items():
+            if isinstance(sel, tuple):
+                imgs = np.stack([full.images[sel[1]] * s for s in np.linspace(0.6, 1.3, 8)]).astype(np.float32)
+                cap = dataclasses.replace(full, images=imgs, saturated=None, light_directions=None, light_irradiance=None,
+                                          image_names=[f"copy{i}" for i in range(8)])
+            else:
+                cap = dataclasses.replace(full, images=full.images[sel], light_directions=full.light_directions[sel],
+                                          light_irradiance=None, image_names=[full.image_names[i] for i in sel],
+                                          saturated=None if full.saturated is None else full.saturated[sel])
+            gt = cap.normal_gt
+            small, _, _ = prepare(cap, gt, cfg)
+            ex = explain(small.images, small.mask, small.saturated)
+            trusted, why = verdict(ex)
+            row = {"capture": folder.name, "subset": name, "images": len(small.images),
+                   "dimensions": [round(d, 1) for d in ex.dimensions], "trusted": trusted, "why": why, "judged": {}}
+            maps = {"gt": gt, "mirrored": gt * np.float32([-1, 1, 1]),
+                    "constant": np.where(cap.mask[..., None], np.float32([0, 0, 1]), 0).astype(np.float32)}
+            for key, m in maps.items():
+                _, nm, _ = prepare(cap, m, cfg)
+                r = fit_normals(small.images, small.mask, nm, cfg, saturated=small.saturated)
+                row["judged"][key] = judged_rel_l1(r.render, small.images[:, small.mask], ex)
+            rows.append(row)
+            print(f"{folder.name:<10} {name:<28} K={row['images']:<3} dimensions {row['dimensions']} trusted "
+                  f"{trusted!s:<5} " + "  ".join(f"{k} {v:.4f}" for k, v in row["judged"].items()), flush=True)
+    out.write_text(json.dumps({"rows": rows}, indent=1))
+    print(f"wrote {out}")
+    return 0
+
+
 NEAR_MIN_EXPLAINED = 0.55
 """--near trial: share of the mask a tile-by-tile test must explain (above the whole-object test's 0.5)."""
 NEAR_TILES_ACROSS = 4
@@ -126,7 +186,13 @@ def main() -> int:
     p.add_argument("--near", action="store_true", help="trial: the whole-object test, then where it abstains the "
                    "test per tile of a quarter of the object, trusted from 55 %% explained and judged with the point "
                    "light model (overrides --tile and --light-model)")
+    p.add_argument("--degenerate", action="store_true", help="instead: the sweep of nearly unjudgeable captures made "
+                   "from each calibrated capture (8 scaled copies of one image; the 5 lights most to the right; 5 and 40 "
+                   "of the right half; 5 and 8 spread over all): light dimensions, verdict, and the judged scores of the "
+                   "truth, the truth mirrored left to right (lights turned with it) and the constant map")
     args = p.parse_args()
+    if args.degenerate:
+        return degenerate_sweep(args.captures, args.out)
 
     from scenes.metrics import mean_angular_error
     from scenes.renderer.variant import choose_variant

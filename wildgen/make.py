@@ -316,6 +316,13 @@ def main(argv: list[str] | None = None) -> int:
     previous = {s: signal.signal(s, on_signal) for s in handled} if _main_thread() else {}
     try:
         return _run(argv, state)
+    except Exception:
+        if "signal" not in state:
+            raise
+        # The interrupt reached a library mid-import or mid-call and came out as another error (drjit's import
+        # turns it into a NameError): still the user's Ctrl-C, not a fault.
+        print("interrupted: finished objects are kept; re-run the same command to continue", file=sys.stderr)
+        return 128 + state["signal"]
     except KeyboardInterrupt:
         print("interrupted: finished objects are kept; re-run the same command to continue", file=sys.stderr)
         return 128 + state.get("signal", signal.SIGINT)
