@@ -68,7 +68,7 @@ MIN_EXPLAINED = 0.5
 DIMENSION_NOISE = 8.0
 """A light dimension of the capture (a singular value of the explained observations) counts when it is at least
 this many times the singular value of the image noise alone. Measured on DiLiGenT ball (bench/bench_verdict.py
---degenerate): 5 one-sided images whose third value is 3.5 times the noise let a mirrored map (54 degrees off)
+--degenerate): 5 one-sided images whose third value is 4.1 times the noise let a mirrored map (54 degrees off)
 score below the truth; 5 or 8 images with 17 or more rank the truth first."""
 TIE_FLOOR = 0.002
 """Judged residuals closer than this (0.2 % of the mean observation) are tied whatever else: on noise-free renders
