@@ -44,3 +44,15 @@ def angle_deg(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     off by hundredths of a degree)."""
     a, b = a.double(), b.double()
     return torch.rad2deg(torch.atan2(torch.linalg.cross(a, b, dim=1).norm(dim=1), (a * b).sum(dim=1)))
+
+
+def load_error(path: Path, name: str) -> str:
+    """The message with which `create_model(name, checkpoint_path=path)` refuses a published checkpoint, checked to
+    be one line."""
+    from unips.models import create_model
+
+    with pytest.raises((ValueError, FileNotFoundError)) as err:
+        create_model(name, checkpoint_path=path)
+    text = str(err.value)
+    assert "\n" not in text
+    return text

@@ -95,7 +95,6 @@ class Explanation:
     dimensions: tuple[float, ...] = ()
     """The first three singular values of the explained pixels' kept observations (channel mean, completed by the
     rank-4 model), in units of the noise's singular value (sigma (sqrt(P) + sqrt(K)))."""
-
     bound: float = float("nan")
     """The judged rel_l1 of the rank-4 model itself: what the best Lambertian explanation leaves (any normals and
     albedo per pixel, any light per image), on the observations every map is scored on."""
@@ -203,7 +202,6 @@ def _dimensions(intensity: np.ndarray, keep: np.ndarray, explained: np.ndarray, 
     s = np.linalg.svd(_weighted_low_rank(m, w, RANK), compute_uv=False)
     s = np.concatenate([s, np.zeros(3)])[:3]
     return tuple(float(v) for v in s / (sigma * (np.sqrt(m.shape[0]) + np.sqrt(m.shape[1]))))
-
 
 
 def verdict(ex: Explanation) -> tuple[bool, str]:
