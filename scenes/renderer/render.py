@@ -5,8 +5,8 @@ Every render goes through `render_film`. On the JIT variants (llvm_ad_rgb, cuda_
 accumulation: `mi.render` adds the samples of a pixel into the film with atomic scatter-adds, and where the
 samples of one pixel fall into the work blocks of two Dr.Jit threads their float sum depends on which thread
 adds first. Here every sample's value is written to its own slot (no scatter, no atomics) and the samples of
-each pixel are summed by NumPy in a fixed order (float64, then divided by the sample count and rounded to
-float32). The bytes therefore depend only on (scene, spp, seed), not on the thread count or the machine's
+each pixel are summed in sample order by one Dr.Jit lane (`pixel_sums`: float64, then divided by the sample
+count and rounded to float32). The bytes therefore depend only on (scene, spp, seed), not on the thread count or the machine's
 scheduling. The scalar variant keeps `mi.render`: its image tiles do not overlap under the box filter, so
 each pixel is rendered by one thread (measured identical for 1, 2 and 3 Dr.Jit threads at 32x32).
 """
@@ -80,10 +80,31 @@ def render_film(scene, spp: int, seed: int, integrator=None) -> np.ndarray:
             sampler.advance()
             sampler.schedule_state()
         dr.eval(*channels)
-        samples = np.stack([np.asarray(c, dtype=np.float32) for c in channels], axis=-1).reshape(height, width, per, -1)
-        part = samples.sum(axis=2, dtype=np.float64)  # one thread, fixed order
+        part = pixel_sums(mi, channels, per, width * height).reshape(height, width, -1)
         total = part if total is None else total + part
     return (total / spp).astype(np.float32)
+
+
+def pixel_sums(mi, channels: list, per: int, pixels: int) -> np.ndarray:
+    """(pixels, C) float64: the sum of each pixel's `per` consecutive samples of every channel (each a Float of
+    pixels * per evaluated values), added one after the other in sample order in float64.
+
+    One Dr.Jit lane per pixel runs the loop, so the order of the additions (hence every bit of the result) does not
+    depend on how the lanes are split over threads; it is the order NumPy's `sum(axis=..., dtype=float64)` over the
+    sample axis used before (tests/test_determinism.py compares the two), without reading the per-sample buffer
+    back. The loop is symbolic and `per` opaque: one compiled kernel serves every sample count."""
+    import drjit as dr
+
+    first = dr.arange(mi.UInt32, pixels) * dr.opaque(mi.UInt32, per)
+    zero = [dr.zeros(mi.Float64, pixels) for _ in channels]
+
+    def body(s, sums):
+        return s + 1, [acc + mi.Float64(dr.gather(mi.Float, c, first + s)) for acc, c in zip(sums, channels)]
+
+    _, sums = dr.while_loop(state=(mi.UInt32(0), zero), cond=lambda s, sums: s < dr.opaque(mi.UInt32, per),
+                            body=body, labels=("s", "sums"))
+    dr.eval(sums)
+    return np.stack([np.asarray(v, dtype=np.float64) for v in sums], axis=-1)
 
 
 @dataclass
