@@ -91,7 +91,7 @@ def test_passes_are_deterministic_and_unbiased(variant_llvm_ad_rgb, monkeypatch)
     built = _built(32, 16)
     seed = built.desc.images[0].seed
     single = render.render_film(built.scene, 16, seed)
-    monkeypatch.setattr(render, "MAX_SAMPLES_PER_PASS", 32 * 32 * 4)
+    monkeypatch.setattr(render, "MAX_SAMPLES_PER_PASS", 32 * 32 * 4)  # 4 channels: passes of 4 spp
     before = dr.thread_count()
     try:
         dr.set_thread_count(1)

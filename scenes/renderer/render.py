@@ -24,10 +24,14 @@ from scenes.renderer.variant import require_variant
 
 log = logging.getLogger(__name__)
 
-MAX_SAMPLES_PER_PASS = 1 << 20
-"""Samples traced in one kernel launch of `render_film` (bounds the per-sample output buffers: at most
-~100 MB for the 12-channel ground-truth pass); more samples are split into passes of spp / p samples per
-pixel, p the smallest divisor of spp that fits, and the passes are summed in order."""
+MAX_SAMPLES_PER_PASS = 1 << 22
+"""Samples of a 4-channel film traced in one kernel launch of `render_film` (films with C channels: 4 / C of it),
+which bounds the per-sample output buffer to 64 MiB; more samples are split into passes of spp / p samples per
+pixel, p the smallest divisor of spp that fits, and the passes are summed in order. Each pass traces the
+integrator again and launches its own kernel: at 128 x 128 px and 256 spp one pass instead of four renders 6 %
+faster (bench/bench_profile.py). Raised from 1 << 20 in issue 42, which changed the bytes of path-traced images
+above 1M samples (e.g. 128 px at 256 spp, 256 px at 64 or 256 spp); the ground-truth pass (12 channels) splits
+as before at 128-512 px."""
 
 
 def render_film(scene, spp: int, seed: int, integrator=None) -> np.ndarray:
@@ -47,10 +51,12 @@ def render_film(scene, spp: int, seed: int, integrator=None) -> np.ndarray:
         raise ValueError("render_film needs a box-filtered film without crop offset or border sampling")
     width, height = (int(v) for v in film.crop_size())
     names = list(integrator.aov_names())
+    channels = 4 + sum(not name.startswith("integrator.") for name in names)
+    limit = MAX_SAMPLES_PER_PASS * 4 // channels
     sampler = sensor.sampler()
     sampler.set_sample_count(int(spp))
     spp = int(sampler.sample_count())  # a stratified sampler may round the count
-    per = next(p for p in range(spp, 0, -1) if spp % p == 0 and (width * height * p <= MAX_SAMPLES_PER_PASS or p == 1))
+    per = next(p for p in range(spp, 0, -1) if spp % p == 0 and (width * height * p <= limit or p == 1))
     passes, n = spp // per, width * height * per
     sampler.set_samples_per_wavefront(per)
     seed_v = mi.UInt32(int(seed))

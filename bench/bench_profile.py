@@ -1,0 +1,280 @@
+"""Where one object's render time goes, stage by stage, and objects per hour: this tree against another commit.
+
+  python bench/bench_profile.py --out bench/results/profile.json                  # this tree only
+  python bench/bench_profile.py --baseline fc0f278~1 --out bench/results/profile.json   # also that commit, side by side
+  python bench/bench_profile.py --settings default --objects 3 --rate-objects 4    # quicker
+
+Not a test: prints a table and writes JSON (its `rows` feed the generated table in docs/generator.md). Each tree
+(this one and, with --baseline, a git worktree of that commit made in a temporary folder) runs in its own fresh
+Python process with one Dr.Jit thread, so a stage's wall time is its CPU time on one core. Per setting (`SETTINGS`:
+the defaults 128 px / 10 images / 64 spp, and 256 px / 10 images / 256 spp) it renders objects 0..N-1 of the same
+dataset with `wildgen.writer.make_object`, the function every engine calls, and times each stage by wrapping the
+functions `wildgen.writer` calls (`sample_object`, `build_scene`, `render_ground_truth`, `render_images`,
+`publish_folder`) plus Dr.Jit's kernel history:
+
+  sampling        drawing the object, its material, lights and camera from the seed (`sample_object`)
+  building        the Mitsuba scene from its description (`build_scene`)
+  ground truth    the normal / depth / material pass (`render_ground_truth`)
+  tracing         Python building each image's computation (render_image up to its first `drjit.eval`)
+  compiling       LLVM compiling kernels not in Dr.Jit's caches (kernel history: codegen + backend time)
+  path tracing    executing the path tracer's kernels (kernel history: the kernels of 300 or more operations)
+  reduction       everything else in rendering the images: summing each pixel's samples, reading them back, NumPy
+  writing         encoding and writing PNG / EXR / scene.json, checksums, the atomic rename
+The first object of a process also pays for imports and the asset scan: it is reported apart ("first object");
+the table's figures are the mean over the objects after it. Kernels: per object, how many path-tracing kernels were
+compiled, loaded from Dr.Jit's disk cache, or reused from memory.
+
+Objects per hour come from the real CLI in each tree (`python -m wildgen.make` at the setting, default workers and
+threads, a fresh output folder), run alternately baseline / this tree --rounds times; its wall time includes
+starting Python and the workers. Both trees must give byte-identical objects (the script compares the checksums in
+the manifests) unless --allow-different-bytes is given (a commit that changes the bytes on purpose).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+
+SETTINGS = {
+    "default": {"res": 128, "images": 10, "spp": 64},
+    "large": {"res": 256, "images": 10, "spp": 256},
+}
+COUNTS = {"default": (5, 8), "large": (3, 4)}
+"""Objects profiled, and objects per wildgen.make run, per setting (unless --objects / --rate-objects)."""
+"""The two object sizes the profile is taken at (wildgen.make's defaults, and PS-Wild's 256 spp at 256 px)."""
+
+STAGES = ("sampling", "building", "ground_truth", "tracing", "compiling", "path_tracing", "reduction", "writing")
+BIG_KERNEL_OPS = 300  # the path tracer's kernels have thousands of operations; copies, seeding and sums a few dozen
+
+
+# --------------------------------------------------------------------------- one tree, in its own process
+
+
+def profile_objects(setting: str, objects: int, seed: int, lights: str) -> dict:
+    """Runs in the tree under test (its modules first on sys.path): stage seconds of objects 0..N-1."""
+    import drjit as dr
+
+    from scenes.renderer.variant import choose_variant
+
+    choose_variant("llvm_ad_rgb")
+    dr.set_thread_count(1)
+    import wildgen.writer as writer
+    from wildgen.assets import AssetLibrary
+    from wildgen.config import GenConfig
+
+    s = SETTINGS[setting]
+    cfg = GenConfig(lights=lights.split(","), objects=objects, images=s["images"], width=s["res"], height=s["res"],
+                    spp=s["spp"], seed=seed)
+    clock: dict[str, float] = {}
+    kernels = {"compiled": 0, "from_disk": 0, "reused": 0}
+    first_eval: list[float] = []
+
+    def timed(stage, fn):
+        def wrapper(*args, **kwargs):
+            t0 = time.perf_counter()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                clock[stage] = clock.get(stage, 0.0) + time.perf_counter() - t0
+        return wrapper
+
+    real_eval = dr.eval
+
+    def eval_spy(*args, **kwargs):
+        if not first_eval:
+            first_eval.append(time.perf_counter())
+        return real_eval(*args, **kwargs)
+
+    def render_images(built, spp=None):
+        import scenes.renderer.render as render
+
+        images = []
+        for i in range(len(built.desc.images)):
+            first_eval.clear()
+            dr.kernel_history()  # drop what came before
+            t0 = time.perf_counter()
+            dr.eval = eval_spy
+            try:
+                images.append(render.render_image(built, i, spp=spp))
+            finally:
+                dr.eval = real_eval
+            wall = time.perf_counter() - t0
+            history = dr.kernel_history()
+            compile_s = sum(k.get("codegen_time", 0.0) + k.get("backend_time", 0.0) for k in history) / 1e3
+            trace_s = sum(k.get("execution_time", 0.0) for k in history
+                          if (k.get("operation_count") or 0) >= BIG_KERNEL_OPS) / 1e3
+            for k in history:
+                if (k.get("operation_count") or 0) >= BIG_KERNEL_OPS:
+                    kind = "reused" if k.get("cache_hit") and not k.get("cache_disk") else (
+                        "from_disk" if k.get("cache_disk") else "compiled")
+                    kernels[kind] += 1
+            python_s = (first_eval[0] - t0) if first_eval else 0.0
+            for stage, value in (("tracing", python_s), ("compiling", compile_s), ("path_tracing", trace_s),
+                                 ("reduction", max(wall - python_s - compile_s - trace_s, 0.0))):
+                clock[stage] = clock.get(stage, 0.0) + value
+        return images
+
+    writer.sample_object = timed("sampling", writer.sample_object)
+    writer.build_scene = timed("building", writer.build_scene)
+    writer.render_ground_truth = timed("ground_truth", writer.render_ground_truth)
+    writer.publish_folder = timed("publish", writer.publish_folder)
+    writer.render_images = render_images
+    lib = AssetLibrary.scan(cfg.assets)
+    out = Path(tempfile.mkdtemp(prefix="bench_profile_"))
+    rows = []
+    try:
+        for index in range(objects):
+            clock.clear()
+            kernels.update(compiled=0, from_disk=0, reused=0)
+            t0 = time.perf_counter()
+            entry = writer.make_object(cfg, index, out, lib)
+            total = time.perf_counter() - t0
+            if entry["status"] != "done":
+                rows.append({"index": index, "status": entry["status"]})
+                continue
+            row = {stage: clock.get(stage, 0.0) for stage in STAGES if stage != "writing"}
+            row["writing"] = entry["timings"]["write_s"] + clock.get("publish", 0.0)
+            # sampling's wrapper sees only sample_object; the rest of make_object (localising assets) is building
+            row["building"] += entry["timings"]["build_s"] - clock.get("building", 0.0)
+            row.update(index=index, status="done", total_s=total, kernels=dict(kernels))
+            rows.append(row)
+    finally:
+        shutil.rmtree(out, ignore_errors=True)
+    return {"setting": setting, "objects": rows}
+
+
+# --------------------------------------------------------------------------- side by side
+
+
+def run_profile(tree: Path, setting: str, objects: int, seed: int, lights: str) -> dict:
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    code = (f"import sys, json; sys.path.insert(0, {str(tree)!r}); sys.path.insert(1, {str(REPO / 'bench')!r}); "
+            f"import bench_profile as b; print(json.dumps(b.profile_objects({setting!r}, {objects}, {seed}, "
+            f"{lights!r})))")
+    proc = subprocess.run([sys.executable, "-c", code], cwd=tree, env=env, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise SystemExit(f"error: profiling {tree} failed:\n{proc.stderr[-3000:]}")
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def run_cli(tree: Path, setting: str, objects: int, seed: int, lights: str) -> tuple[float, dict]:
+    """Wall seconds of `wildgen.make` in `tree` and the checksums of what it wrote."""
+    s = SETTINGS[setting]
+    out = Path(tempfile.mkdtemp(prefix="bench_profile_cli_")) / "ds"
+    cmd = [sys.executable, "-m", "wildgen.make", "--out", str(out), "--objects", str(objects), "--res", str(s["res"]),
+           "--images", str(s["images"]), "--spp", str(s["spp"]), "--seed", str(seed), "--lights", lights, "--quiet"]
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, cwd=tree, env=dict(os.environ, PYTHONPATH=str(tree)), capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    try:
+        if proc.returncode != 0:
+            raise SystemExit(f"error: wildgen.make in {tree} failed:\n{proc.stderr[-3000:]}")
+        manifest = json.loads((out / "manifest.json").read_text())
+        files = {e["name"]: e.get("files") for e in manifest["objects"]}
+    finally:
+        shutil.rmtree(out.parent, ignore_errors=True)
+    return wall, files
+
+
+def mean_stages(result: dict) -> dict:
+    """Mean stage seconds over the objects after the first (the first pays for imports and the first compiles)."""
+    done = [r for r in result["objects"] if r["status"] == "done"]
+    steady = done[1:] or done
+    out = {stage: sum(r[stage] for r in steady) / len(steady) for stage in STAGES}
+    out["total_s"] = sum(r["total_s"] for r in steady) / len(steady)
+    out["first_object_s"] = done[0]["total_s"] if done else None
+    out["objects"] = len(steady)
+    out["kernels"] = {k: sum(r["kernels"][k] for r in steady) / len(steady) for k in ("compiled", "from_disk", "reused")}
+    return out
+
+
+def baseline_tree(rev: str, where: Path) -> Path:
+    tree = where / "baseline"
+    proc = subprocess.run(["git", "worktree", "add", "--detach", str(tree), rev], cwd=REPO, capture_output=True,
+                          text=True)
+    if proc.returncode != 0:
+        raise SystemExit(f"error: --baseline: cannot check out {rev!r}: {proc.stderr.strip()}")
+    return tree
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--baseline", default=None, help="a git revision to profile side by side with this tree")
+    p.add_argument("--settings", default=",".join(SETTINGS), help=f"comma list of {', '.join(SETTINGS)}")
+    p.add_argument("--objects", type=int, default=None,
+                   help="objects profiled per setting (the first is reported apart; default: COUNTS)")
+    p.add_argument("--rate-objects", type=int, default=None,
+                   help="objects of each wildgen.make run for objects per hour (default: COUNTS)")
+    p.add_argument("--rounds", type=int, default=2, help="wildgen.make runs per tree (alternating trees)")
+    p.add_argument("--lights", default="near_area", help="light families of the profiled dataset")
+    p.add_argument("--seed", type=int, default=7)
+    p.add_argument("--allow-different-bytes", action="store_true")
+    p.add_argument("--out", default=None, help="write the JSON here")
+    args = p.parse_args()
+    settings = args.settings.split(",")
+    bad = [s for s in settings if s not in SETTINGS]
+    if bad:
+        raise SystemExit(f"error: --settings: {bad[0]!r} is not one of {', '.join(SETTINGS)}")
+    tmp = Path(tempfile.mkdtemp(prefix="bench_profile_trees_"))
+    trees = {"this tree": REPO}
+    head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO, capture_output=True, text=True).stdout.strip()
+    revisions = {"this tree": head + ("+" if subprocess.run(["git", "diff", "--quiet", "HEAD"], cwd=REPO).returncode
+                                      else "")}
+    try:
+        if args.baseline:
+            trees = {"baseline": baseline_tree(args.baseline, tmp), **trees}
+            revisions["baseline"] = subprocess.run(["git", "rev-parse", "--short", args.baseline], cwd=REPO,
+                                                   capture_output=True, text=True).stdout.strip()
+        rows = []
+        for setting in settings:
+            n_profile = args.objects or COUNTS[setting][0]
+            n_rate = args.rate_objects or COUNTS[setting][1]
+            stages, rates, checks = {}, {name: [] for name in trees}, {}
+            for name, tree in trees.items():
+                print(f"[{setting}] profiling {name} ({revisions[name]}) ...", flush=True)
+                stages[name] = mean_stages(run_profile(tree, setting, n_profile, args.seed, args.lights))
+            for r in range(args.rounds):
+                for name, tree in trees.items():
+                    wall, files = run_cli(tree, setting, n_rate, args.seed, args.lights)
+                    rates[name].append(n_rate * 3600.0 / wall)
+                    checks.setdefault(name, files)
+                    print(f"[{setting}] wildgen.make {name} round {r + 1}: {wall:.1f} s, "
+                          f"{rates[name][-1]:.0f} objects/h", flush=True)
+            if args.baseline and checks["baseline"] != checks["this tree"] and not args.allow_different_bytes:
+                raise SystemExit(f"error: [{setting}] the two trees wrote different bytes (object checksums differ); "
+                                 "pass --allow-different-bytes when that is intended")
+            for name in trees:
+                rows.append({"setting": setting, **SETTINGS[setting], "tree": name, "revision": revisions[name],
+                             **{k: round(v, 4) if isinstance(v, float) else v for k, v in stages[name].items()},
+                             "objects_per_hour": round(sum(rates[name]) / len(rates[name]), 1)})
+    finally:
+        if args.baseline:
+            subprocess.run(["git", "worktree", "remove", "--force", str(tmp / "baseline")], cwd=REPO,
+                           capture_output=True)
+        shutil.rmtree(tmp, ignore_errors=True)
+    header = f"{'setting':8s} {'tree':10s} " + " ".join(f"{s[:9]:>9s}" for s in STAGES) + f" {'total':>7s} {'obj/h':>7s}"
+    print(header)
+    for r in rows:
+        print(f"{r['setting']:8s} {r['tree']:10s} " + " ".join(f"{r[s]:9.3f}" for s in STAGES)
+              + f" {r['total_s']:7.2f} {r['objects_per_hour']:7.0f}")
+    result = {"machine": {"cpus": os.cpu_count(), "platform": platform.platform()},
+              "command": "python bench/bench_profile.py " + " ".join(sys.argv[1:]),
+              "lights": args.lights, "seed": args.seed, "same_bytes": bool(args.baseline) and not args.allow_different_bytes,
+              "rows": rows}
+    if args.out:
+        Path(args.out).write_text(json.dumps(result, indent=1) + "\n")
+        print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
