@@ -15,7 +15,9 @@ functions `wildgen.writer` calls (`sample_object`, `build_scene`, `render_ground
   sampling        drawing the object, its material, lights and camera from the seed (`sample_object`)
   building        the Mitsuba scene from its description (`build_scene`)
   ground truth    the normal / depth / material pass (`render_ground_truth`)
-  tracing         Python building each image's computation (render_image up to its first `drjit.eval`)
+  relighting      writing each image's lights into the scene (`BuiltScene.apply_image`: Mitsuba updates the
+                  scene, and rebuilds its ray-tracing acceleration structure when an area light moved)
+  tracing         Python and Mitsuba building each image's computation (up to its first `drjit.eval`)
   compiling       LLVM compiling kernels not in Dr.Jit's caches (kernel history: codegen + backend time)
   path tracing    executing the path tracer's kernels (kernel history: the kernels of 300 or more operations)
   reduction       everything else in rendering the images: summing each pixel's samples, reading them back, NumPy
@@ -52,7 +54,7 @@ COUNTS = {"default": (5, 8), "large": (3, 4)}
 """Objects profiled, and objects per wildgen.make run, per setting (unless --objects / --rate-objects)."""
 """The two object sizes the profile is taken at (wildgen.make's defaults, and PS-Wild's 256 spp at 256 px)."""
 
-STAGES = ("sampling", "building", "ground_truth", "tracing", "compiling", "path_tracing", "reduction", "writing")
+STAGES = ("sampling", "building", "ground_truth", "relighting", "tracing", "compiling", "path_tracing", "reduction", "writing")
 BIG_KERNEL_OPS = 300  # the path tracer's kernels have thousands of operations; copies, seeding and sums a few dozen
 
 
@@ -67,6 +69,7 @@ def profile_objects(setting: str, objects: int, seed: int, lights: str) -> dict:
 
     choose_variant("llvm_ad_rgb")
     dr.set_thread_count(1)
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
     import wildgen.writer as writer
     from wildgen.assets import AssetLibrary
     from wildgen.config import GenConfig
@@ -77,6 +80,7 @@ def profile_objects(setting: str, objects: int, seed: int, lights: str) -> dict:
     clock: dict[str, float] = {}
     kernels = {"compiled": 0, "from_disk": 0, "reused": 0}
     first_eval: list[float] = []
+    first_eval_armed: list[bool] = []  # non-empty while render_images renders
 
     def timed(stage, fn):
         def wrapper(*args, **kwargs):
@@ -90,7 +94,7 @@ def profile_objects(setting: str, objects: int, seed: int, lights: str) -> dict:
     real_eval = dr.eval
 
     def eval_spy(*args, **kwargs):
-        if not first_eval:
+        if len(first_eval) == 1:  # [end of relighting] -> [.., first evaluation after it]
             first_eval.append(time.perf_counter())
         return real_eval(*args, **kwargs)
 
@@ -101,12 +105,15 @@ def profile_objects(setting: str, objects: int, seed: int, lights: str) -> dict:
         for i in range(len(built.desc.images)):
             first_eval.clear()
             dr.kernel_history()  # drop what came before
+            relit_before = clock.get("relighting", 0.0)
             t0 = time.perf_counter()
             dr.eval = eval_spy
+            first_eval_armed.append(True)
             try:
                 images.append(render.render_image(built, i, spp=spp))
             finally:
                 dr.eval = real_eval
+                first_eval_armed.clear()
             wall = time.perf_counter() - t0
             history = dr.kernel_history()
             compile_s = sum(k.get("codegen_time", 0.0) + k.get("backend_time", 0.0) for k in history) / 1e3
@@ -117,12 +124,26 @@ def profile_objects(setting: str, objects: int, seed: int, lights: str) -> dict:
                     kind = "reused" if k.get("cache_hit") and not k.get("cache_disk") else (
                         "from_disk" if k.get("cache_disk") else "compiled")
                     kernels[kind] += 1
-            python_s = (first_eval[0] - t0) if first_eval else 0.0
+            python_s = (first_eval[1] - first_eval[0]) if len(first_eval) > 1 else 0.0
+            relit = clock.get("relighting", 0.0) - relit_before
             for stage, value in (("tracing", python_s), ("compiling", compile_s), ("path_tracing", trace_s),
-                                 ("reduction", max(wall - python_s - compile_s - trace_s, 0.0))):
+                                 ("reduction", max(wall - relit - python_s - compile_s - trace_s, 0.0))):
                 clock[stage] = clock.get(stage, 0.0) + value
         return images
 
+    from scenes.renderer.build import BuiltScene
+
+    original_apply = BuiltScene.apply_image
+    relight = timed("relighting", original_apply)
+
+    def apply_image(built, index):
+        if not first_eval_armed:  # building and the ground-truth pass relight too: theirs is their own stage
+            return original_apply(built, index)
+        relight(built, index)
+        first_eval.clear()  # the update's own evaluations are relighting; tracing starts here
+        first_eval.append(time.perf_counter())
+
+    BuiltScene.apply_image = apply_image
     writer.sample_object = timed("sampling", writer.sample_object)
     writer.build_scene = timed("building", writer.build_scene)
     writer.render_ground_truth = timed("ground_truth", writer.render_ground_truth)
@@ -249,11 +270,13 @@ def main() -> int:
                     checks.setdefault(name, files)
                     print(f"[{setting}] wildgen.make {name} round {r + 1}: {wall:.1f} s, "
                           f"{rates[name][-1]:.0f} objects/h", flush=True)
-            if args.baseline and checks["baseline"] != checks["this tree"] and not args.allow_different_bytes:
+            same = checks["baseline"] == checks["this tree"] if args.baseline else None
+            if same is False and not args.allow_different_bytes:
                 raise SystemExit(f"error: [{setting}] the two trees wrote different bytes (object checksums differ); "
                                  "pass --allow-different-bytes when that is intended")
             for name in trees:
                 rows.append({"setting": setting, **SETTINGS[setting], "tree": name, "revision": revisions[name],
+                             "same_bytes_as_baseline": same,
                              **{k: round(v, 4) if isinstance(v, float) else v for k, v in stages[name].items()},
                              "objects_per_hour": round(sum(rates[name]) / len(rates[name]), 1)})
     finally:
@@ -268,8 +291,7 @@ def main() -> int:
               + f" {r['total_s']:7.2f} {r['objects_per_hour']:7.0f}")
     result = {"machine": {"cpus": os.cpu_count(), "platform": platform.platform()},
               "command": "python bench/bench_profile.py " + " ".join(sys.argv[1:]),
-              "lights": args.lights, "seed": args.seed, "same_bytes": bool(args.baseline) and not args.allow_different_bytes,
-              "rows": rows}
+              "lights": args.lights, "seed": args.seed, "rows": rows}
     if args.out:
         Path(args.out).write_text(json.dumps(result, indent=1) + "\n")
         print(f"wrote {args.out}")

@@ -108,17 +108,19 @@ class BuiltScene:
     environment: np.ndarray | None = None
     """The environment map array (H, W, 3), if any."""
     current_image: int | None = None
+    off_slots: set[str] = field(default_factory=set)
+    """Keys of the light slots switched off now (`build_scene` starts with all of them: fresh slots are off)."""
 
     def apply_image(self, index: int) -> None:
         """Write the lights of image `index` into the slots (no rebuild, no recompilation)."""
         if not 0 <= index < len(self.desc.images):
             raise ValueError(f"image index: {index} out of range for {len(self.desc.images)} images")
-        apply_lights(self.params, self.slots.counts, self.desc.images[index].lights)
+        apply_lights(self.params, self.slots.counts, self.desc.images[index].lights, self.off_slots)
         self.current_image = index
 
     def park_lights(self) -> None:
         """Switch every light off and move area-light rectangles out of view (ground-truth pass)."""
-        apply_lights(self.params, self.slots.counts, [])
+        apply_lights(self.params, self.slots.counts, [], self.off_slots)
         self.current_image = None
 
 
@@ -166,11 +168,13 @@ def build_scene(desc: SceneDescription, base_dir: str | Path | None = None, bsdf
     slots = LightSlots.for_description(desc)
     uses_env = any(slots.counts[t] for t, light_cls in LIGHT_TYPES.items() if light_cls.environment_map)
     env_arr = realize_environment(desc.environment, base) if uses_env else None
-    scene.update(slot_dicts(slots.counts, env_arr))  # the table's order is the emitter order
+    slot_entries = slot_dicts(slots.counts, env_arr)
+    scene.update(slot_entries)  # the table's order is the emitter order
     # optimize=False: Mitsuba's shape merging orders area lights by memory address, which would make the emitter
     # order (hence the noise pattern) depend on what the process allocated before.
     loaded = mi.load_dict(scene, optimize=False)
-    built = BuiltScene(desc=desc, scene=loaded, params=mi.traverse(loaded), slots=slots, textures=arrays, environment=env_arr)
+    built = BuiltScene(desc=desc, scene=loaded, params=mi.traverse(loaded), slots=slots, textures=arrays, environment=env_arr,
+                       off_slots=set(slot_entries))
     built.apply_image(0)
     return built
 
