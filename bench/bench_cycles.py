@@ -419,6 +419,8 @@ def main() -> int:
                    help="material class of the object")
     p.add_argument("--area-factor", type=float, default=4.0, help="Cycles area-light power = FACTOR x area x radiance")
     p.add_argument("--keep", default=None, help="keep the renders in this folder")
+    p.add_argument("--out", default=None, help="also write the equal-noise figures as JSON here (docs/generator.md's "
+                                               "table reads bench/results/cycles.json)")
     p.add_argument("--install-only", action="store_true", help="only make sure Blender is installed")
     args = p.parse_args()
 
@@ -515,7 +517,8 @@ def main() -> int:
             fits[name] = (t0, per_spp, slope, icpt)
             print(f"{name:8s}: time = {t0:.3f} s + {per_spp * 1e3:.3f} ms/spp ({per_spp / (args.res ** 2) * 1e9:.1f} ns per sample), "
                   f"rmse ~ spp^{slope:.3f}")
-        for target in (me[len(me) // 2], me[-1]):
+        rows = []
+        for level, target in ((levels[len(me) // 2], me[len(me) // 2]), (levels[-1], me[-1])):
             row = {}
             for name, (t0, per_spp, slope, icpt) in fits.items():
                 spp_needed = math.exp((math.log(target) - icpt) / slope)
@@ -524,7 +527,20 @@ def main() -> int:
             print(f"equal noise {target:.4f}: Cycles {cs:.0f} spp {cw:.2f} s ({cp:.2f} s path tracing), "
                   f"Mitsuba {ms:.0f} spp {mw:.3f} s ({mp:.3f} s) -> Mitsuba {cw / mw:.1f}x faster per render, "
                   f"{cp / mp:.1f}x in path tracing alone")
+            rows.append({"noise_of_spp": level, "relative_rmse": round(target, 5), "cycles_spp": round(cs),
+                         "cycles_s": round(cw, 3), "mitsuba_spp": round(ms), "mitsuba_s": round(mw, 3),
+                         "speedup": round(cw / mw, 2), "speedup_path_tracing": round(cp / mp, 2)})
         print(f"load average now {os.getloadavg()[0]:.2f}")
+        if args.out:
+            import platform
+
+            Path(args.out).write_text(json.dumps({
+                "machine": {"cpus": os.cpu_count(), "platform": platform.platform()},
+                "command": "python bench/bench_cycles.py " + " ".join(sys.argv[1:]), "blender": version,
+                "res": args.res, "threads": args.threads, "reference_spp": ref,
+                "ns_per_sample": {name: round(f[1] / args.res ** 2 * 1e9, 1) for name, f in fits.items()},
+                "rows": rows}, indent=1) + "\n")
+            print(f"wrote {args.out}")
     finally:
         if not args.keep:
             shutil.rmtree(work, ignore_errors=True)

@@ -27,9 +27,11 @@ the table's figures are the mean over the objects after it. Kernels: per object,
 compiled, loaded from Dr.Jit's disk cache, or reused from memory.
 
 Objects per hour come from the real CLI in each tree (`python -m wildgen.make` at the setting, default workers and
-threads, a fresh output folder), run alternately baseline / this tree --rounds times; its wall time includes
-starting Python and the workers. Both trees must give byte-identical objects (the script compares the checksums in
-the manifests) unless --allow-different-bytes is given (a commit that changes the bytes on purpose).
+threads, a fresh output folder), alternately baseline / this tree, --rounds times: a run of SHORT_RUN objects and
+one of N (--rate-objects), and the rate of a long run is (N - SHORT_RUN) objects over the difference of their wall
+times, which cancels starting Python, the workers and their first kernels (the N-object run's own rate, start-up
+included, is recorded too). Both trees must give byte-identical objects (the script compares the checksums in the
+manifests) unless --allow-different-bytes is given (a commit that changes the bytes on purpose).
 """
 from __future__ import annotations
 
@@ -50,8 +52,10 @@ SETTINGS = {
     "default": {"res": 128, "images": 10, "spp": 64},
     "large": {"res": 256, "images": 10, "spp": 256},
 }
-COUNTS = {"default": (5, 8), "large": (3, 4)}
-"""Objects profiled, and objects per wildgen.make run, per setting (unless --objects / --rate-objects)."""
+COUNTS = {"default": (5, 10), "large": (3, 0)}
+"""Objects profiled, and objects of the longer wildgen.make run for objects per hour (0: not measured), per setting
+(unless --objects / --rate-objects)."""
+SHORT_RUN = 2  # objects of the shorter wildgen.make run: one per default worker
 """The two object sizes the profile is taken at (wildgen.make's defaults, and PS-Wild's 256 spp at 256 px)."""
 
 STAGES = ("sampling", "building", "ground_truth", "relighting", "tracing", "compiling", "path_tracing", "reduction", "writing")
@@ -166,7 +170,7 @@ def profile_objects(setting: str, objects: int, seed: int, lights: str) -> dict:
             row["writing"] = entry["timings"]["write_s"] + clock.get("publish", 0.0)
             # sampling's wrapper sees only sample_object; the rest of make_object (localising assets) is building
             row["building"] += entry["timings"]["build_s"] - clock.get("building", 0.0)
-            row.update(index=index, status="done", total_s=total, kernels=dict(kernels))
+            row.update(index=index, status="done", total_s=total, kernels=dict(kernels), files=entry["files"])
             rows.append(row)
     finally:
         shutil.rmtree(out, ignore_errors=True)
@@ -262,14 +266,19 @@ def main() -> int:
             stages, rates, checks = {}, {name: [] for name in trees}, {}
             for name, tree in trees.items():
                 print(f"[{setting}] profiling {name} ({revisions[name]}) ...", flush=True)
-                stages[name] = mean_stages(run_profile(tree, setting, n_profile, args.seed, args.lights))
-            for r in range(args.rounds):
+                profiled = run_profile(tree, setting, n_profile, args.seed, args.lights)
+                stages[name] = mean_stages(profiled)
+                checks[name] = [r.get("files") for r in profiled["objects"]]
+            walls = {name: [] for name in trees}
+            for r in range(args.rounds if n_rate > SHORT_RUN else 0):
                 for name, tree in trees.items():
+                    short, _ = run_cli(tree, setting, SHORT_RUN, args.seed, args.lights)
                     wall, files = run_cli(tree, setting, n_rate, args.seed, args.lights)
-                    rates[name].append(n_rate * 3600.0 / wall)
-                    checks.setdefault(name, files)
-                    print(f"[{setting}] wildgen.make {name} round {r + 1}: {wall:.1f} s, "
-                          f"{rates[name][-1]:.0f} objects/h", flush=True)
+                    rates[name].append((n_rate - SHORT_RUN) * 3600.0 / max(wall - short, 1e-9))
+                    walls[name].append(wall)
+                    checks[name].append(files)
+                    print(f"[{setting}] wildgen.make {name} round {r + 1}: {SHORT_RUN} objects {short:.1f} s, "
+                          f"{n_rate} objects {wall:.1f} s: {rates[name][-1]:.0f} objects/h", flush=True)
             same = checks["baseline"] == checks["this tree"] if args.baseline else None
             if same is False and not args.allow_different_bytes:
                 raise SystemExit(f"error: [{setting}] the two trees wrote different bytes (object checksums differ); "
@@ -278,7 +287,10 @@ def main() -> int:
                 rows.append({"setting": setting, **SETTINGS[setting], "tree": name, "revision": revisions[name],
                              "same_bytes_as_baseline": same,
                              **{k: round(v, 4) if isinstance(v, float) else v for k, v in stages[name].items()},
-                             "objects_per_hour": round(sum(rates[name]) / len(rates[name]), 1)})
+                             "objects_per_hour": round(sum(rates[name]) / len(rates[name]), 1) if rates[name] else None,
+                             "run_objects": n_rate if rates[name] else None,
+                             "run_objects_per_hour": round(n_rate * 3600.0 * len(walls[name]) / sum(walls[name]), 1)
+                             if walls[name] else None})
     finally:
         if args.baseline:
             subprocess.run(["git", "worktree", "remove", "--force", str(tmp / "baseline")], cwd=REPO,
@@ -288,7 +300,7 @@ def main() -> int:
     print(header)
     for r in rows:
         print(f"{r['setting']:8s} {r['tree']:10s} " + " ".join(f"{r[s]:9.3f}" for s in STAGES)
-              + f" {r['total_s']:7.2f} {r['objects_per_hour']:7.0f}")
+              + f" {r['total_s']:7.2f} {r['objects_per_hour'] or 0:7.0f}")
     result = {"machine": {"cpus": os.cpu_count(), "platform": platform.platform()},
               "command": "python bench/bench_profile.py " + " ".join(sys.argv[1:]),
               "lights": args.lights, "seed": args.seed, "rows": rows}

@@ -17,12 +17,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import importlib
-import json
 import re
 import sys
 from pathlib import Path
 from typing import Any, Callable
 
+from orchestrate.bench_docs import BENCH_BLOCKS, capture_resources, check_resolution, cycles_speed, render_profile, \
+    shards_throughput
 from scenes.cli.errors import UsageError, report_error
 from scenes.cli.options import Command
 from scenes.report.tables import markdown_table
@@ -259,76 +260,8 @@ def data_ab(card: dict) -> str:
                    "ball K=96", "ball K=16", "cat K=96", "cat K=16"], rows)
 
 
-SHARDS_BENCH = REPO / "bench" / "results" / "shards.json"
-"""The output of `python bench/bench_shards.py --out bench/results/shards.json` (its last run, committed)."""
-_READS = {"files": "files (every file's bytes)", "objects": "objects (decoded by the loader)",
-          "samples": "training samples (`load_samples`)"}
-
-
-def shards_throughput(card: dict) -> str:
-    """Folders against shards of both encodings, from the benchmark's recorded output (not the model card)."""
-    d = json.loads(SHARDS_BENCH.read_text())
-    st, sz = d["settings"], d["sizes"]
-    rows = [[_READS[r["read"]], r["cache"], f"{r['folders_per_s']:.0f}", f"{r['files_per_s']:.0f}",
-             f"{r['decoded_per_s']:.0f}", f"{r['ratio_files']:.2f}x", f"**{r['ratio_decoded']:.2f}x**"]
-            for r in d["rows"]]
-    mib = (lambda b: f"{b / 2**20:.1f} MiB")
-    return (f"{st['objects']} synthetic objects of {st['images']} images at {st['res']} x {st['res']} px, shards of "
-            f"{st['shard_size']}; on disk: {sz['folder_files']} files of folders {mib(sz['folder_bytes'])}, shards "
-            f"of files {mib(sz['shard_bytes_files'])}, decoded shards {mib(sz['shard_bytes_decoded'])}.\n\n"
-            + markdown_table(["read", "cache", "folders (objects/s)", "shards, files (objects/s)",
-                              "shards, decoded (objects/s)", "files / folders", "decoded / folders"], rows))
-
-
-CAPTURE_BENCH = REPO / "bench" / "results" / "capture.json"
-"""The output of `python bench/bench_capture.py --out bench/results/capture.json` (its last run, committed)."""
-
-
-def capture_resources(card: dict) -> str:
-    """Time and peak memory of orchestrate.capture by photo count and size, measured against its own estimate."""
-    d = json.loads(CAPTURE_BENCH.read_text())
-    rows = [[str(r["images"]), f"{r['size'][1]} x {r['size'][0]}", f"{r['prepare_s']:.1f}",
-             f"{r['predict_s']:.1f}", f"{r['check_and_refine_s']:.1f}", f"{r['wall_s']:.0f}", f"{r['estimate_s']:.0f}",
-             str(r["peak_mib"]), str(r["estimate_mib"])] for r in d["rows"] if "error" not in r]
-    return (f"Measured on {d['machine']['cpus']} cores (`{d['command']}`), one Dr.Jit thread:\n\n"
-            + markdown_table(["photos", "size (px)", "read, mask, checks (s)", "model (s)", "check + refine (s)",
-                              "total (s)", "estimated (s)", "peak memory (MiB)", "estimated (MiB)"], rows))
-
-
-VERDICT_BENCH = REPO / "bench" / "results" / "verdict_optimised.json"
-"""The outputs of `python bench/bench_verdict.py --optimised` on DiLiGenT and a rendered set (committed)."""
-
-
-def check_resolution(card: dict) -> str:
-    """Per trusted capture: the resolution, the truth's score, the lowest-scoring map at least 10 degrees off, the
-    lowest-scoring refined map, and whether the truth is first (or not told apart) and the perturbed maps ordered."""
-    d = json.loads(VERDICT_BENCH.read_text())
-    rows, lines = [], []
-    for run in d["sets"]:
-        s = run["summary"]
-        lines.append(f"- {run['set']}: trusted {s['trusted']} of {s['captures']}; truth first or not told apart "
-                     f"{s['trusted_gt_first_or_tied']} of {s['trusted']} (first by the score alone: "
-                     f"{s['trusted_gt_first']}); GT+10 < GT+25 < constant or not told apart "
-                     f"{s['trusted_ordered_or_tied']} (by the score alone: {s['trusted_ordered']}); a map scored below "
-                     f"the truth by more than the resolution: {s['trusted_with_a_map_told_apart_below_gt']}")
-    for r in d["rows"]:  # the trusted captures
-        m, res = r["maps"], r["resolution"]
-        far = min((k for k, v in m.items() if k != "gt" and v["mae_deg"] >= 10), key=lambda k: m[k]["judged_rel_l1"])
-        opt = min((k for k in m if k.endswith("*")), key=lambda k: m[k]["judged_rel_l1"], default=None)
-        cell = (lambda k: f"`{k}` {m[k]['mae_deg']:.1f} deg, {m[k]['judged_rel_l1']:.4f}")  # noqa: E731
-        rows.append([r["capture"].removesuffix(".data"), f"{res:.4f}", f"{m['gt']['judged_rel_l1']:.4f}", cell(far),
-                     cell(opt) if opt else "-", f"{m['gt*']['mae_deg']:.1f}" if "gt*" in m else "-",
-                     "yes" if r["gt_first_or_tied"] else "**no**", "yes" if r["ordered_or_tied"] else "**no**"])
-    return ("\n".join(lines) + "\n\n" + markdown_table(
-        ["capture", "resolution", "truth", "lowest map >= 10 deg off", "lowest refined map", "truth refined: moved (deg)",
-         "truth first or not told apart", "GT+10 < GT+25 < constant or not told apart"], rows))
-
-
-BENCH_BLOCKS = {"model:shards-throughput": SHARDS_BENCH, "capture:resources": CAPTURE_BENCH,
-                "check:resolution": VERDICT_BENCH}
-"""Blocks generated from a benchmark's recorded output instead of the model card."""
-
 # Generated blocks other than flag tables: name -> renderer of the model card.
+# Blocks from a benchmark's output (BENCH_BLOCKS, orchestrate.bench_docs) are in it too.
 BLOCKS: dict[str, Callable[[dict], str]] = {
     "readme:headline": readme_headline,
     "model:facts": model_facts,
@@ -346,6 +279,8 @@ BLOCKS: dict[str, Callable[[dict], str]] = {
     "model:shards-throughput": shards_throughput,
     "capture:resources": capture_resources,
     "check:resolution": check_resolution,
+    "generator:profile": render_profile,
+    "generator:cycles": cycles_speed,
 }
 
 
@@ -357,6 +292,8 @@ def render(name: str, card: dict) -> str:
         return flag_table(module)
     if name not in BLOCKS:
         raise UsageError(f"generated:{name}: unknown block, expected flags:MODULE or one of {', '.join(BLOCKS)}")
+    if name in BENCH_BLOCKS and not BENCH_BLOCKS[name].is_file():
+        raise UsageError(f"generated:{name}: {BENCH_BLOCKS[name]} does not exist: run the benchmark that writes it")
     return BLOCKS[name](card)
 
 

@@ -1,0 +1,121 @@
+"""Tables of docs/ generated from a benchmark's recorded output (bench/results/*.json) instead of the model card:
+`orchestrate.docs` renders them into the blocks named in `BENCH_BLOCKS`, and tests/test_docs.py checks that every
+figure of such a table is in its JSON, one table row per JSON row."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from scenes.report.tables import markdown_table
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+SHARDS_BENCH = REPO / "bench" / "results" / "shards.json"
+"""The output of `python bench/bench_shards.py --out bench/results/shards.json` (its last run, committed)."""
+_READS = {"files": "files (every file's bytes)", "objects": "objects (decoded by the loader)",
+          "samples": "training samples (`load_samples`)"}
+
+
+def shards_throughput(card: dict) -> str:
+    """Folders against shards of both encodings, from the benchmark's recorded output (not the model card)."""
+    d = json.loads(SHARDS_BENCH.read_text())
+    st, sz = d["settings"], d["sizes"]
+    rows = [[_READS[r["read"]], r["cache"], f"{r['folders_per_s']:.0f}", f"{r['files_per_s']:.0f}",
+             f"{r['decoded_per_s']:.0f}", f"{r['ratio_files']:.2f}x", f"**{r['ratio_decoded']:.2f}x**"]
+            for r in d["rows"]]
+    mib = (lambda b: f"{b / 2**20:.1f} MiB")
+    return (f"{st['objects']} synthetic objects of {st['images']} images at {st['res']} x {st['res']} px, shards of "
+            f"{st['shard_size']}; on disk: {sz['folder_files']} files of folders {mib(sz['folder_bytes'])}, shards "
+            f"of files {mib(sz['shard_bytes_files'])}, decoded shards {mib(sz['shard_bytes_decoded'])}.\n\n"
+            + markdown_table(["read", "cache", "folders (objects/s)", "shards, files (objects/s)",
+                              "shards, decoded (objects/s)", "files / folders", "decoded / folders"], rows))
+
+
+CAPTURE_BENCH = REPO / "bench" / "results" / "capture.json"
+"""The output of `python bench/bench_capture.py --out bench/results/capture.json` (its last run, committed)."""
+
+
+def capture_resources(card: dict) -> str:
+    """Time and peak memory of orchestrate.capture by photo count and size, measured against its own estimate."""
+    d = json.loads(CAPTURE_BENCH.read_text())
+    rows = [[str(r["images"]), f"{r['size'][1]} x {r['size'][0]}", f"{r['prepare_s']:.1f}",
+             f"{r['predict_s']:.1f}", f"{r['check_and_refine_s']:.1f}", f"{r['wall_s']:.0f}", f"{r['estimate_s']:.0f}",
+             str(r["peak_mib"]), str(r["estimate_mib"])] for r in d["rows"] if "error" not in r]
+    return (f"Measured on {d['machine']['cpus']} cores (`{d['command']}`), one Dr.Jit thread:\n\n"
+            + markdown_table(["photos", "size (px)", "read, mask, checks (s)", "model (s)", "check + refine (s)",
+                              "total (s)", "estimated (s)", "peak memory (MiB)", "estimated (MiB)"], rows))
+
+
+VERDICT_BENCH = REPO / "bench" / "results" / "verdict_optimised.json"
+"""The outputs of `python bench/bench_verdict.py --optimised` on DiLiGenT and a rendered set (committed)."""
+
+
+def check_resolution(card: dict) -> str:
+    """Per trusted capture: the resolution, the truth's score, the lowest-scoring map at least 10 degrees off, the
+    lowest-scoring refined map, and whether the truth is first (or not told apart) and the perturbed maps ordered."""
+    d = json.loads(VERDICT_BENCH.read_text())
+    rows, lines = [], []
+    for run in d["sets"]:
+        s = run["summary"]
+        lines.append(f"- {run['set']}: trusted {s['trusted']} of {s['captures']}; truth first or not told apart "
+                     f"{s['trusted_gt_first_or_tied']} of {s['trusted']} (first by the score alone: "
+                     f"{s['trusted_gt_first']}); GT+10 < GT+25 < constant or not told apart "
+                     f"{s['trusted_ordered_or_tied']} (by the score alone: {s['trusted_ordered']}); a map scored below "
+                     f"the truth by more than the resolution: {s['trusted_with_a_map_told_apart_below_gt']}")
+    for r in d["rows"]:  # the trusted captures
+        m, res = r["maps"], r["resolution"]
+        far = min((k for k, v in m.items() if k != "gt" and v["mae_deg"] >= 10), key=lambda k: m[k]["judged_rel_l1"])
+        opt = min((k for k in m if k.endswith("*")), key=lambda k: m[k]["judged_rel_l1"], default=None)
+        cell = (lambda k: f"`{k}` {m[k]['mae_deg']:.1f} deg, {m[k]['judged_rel_l1']:.4f}")  # noqa: E731
+        rows.append([r["capture"].removesuffix(".data"), f"{res:.4f}", f"{m['gt']['judged_rel_l1']:.4f}", cell(far),
+                     cell(opt) if opt else "-", f"{m['gt*']['mae_deg']:.1f}" if "gt*" in m else "-",
+                     "yes" if r["gt_first_or_tied"] else "**no**", "yes" if r["ordered_or_tied"] else "**no**"])
+    return ("\n".join(lines) + "\n\n" + markdown_table(
+        ["capture", "resolution", "truth", "lowest map >= 10 deg off", "lowest refined map", "truth refined: moved (deg)",
+         "truth first or not told apart", "GT+10 < GT+25 < constant or not told apart"], rows))
+
+
+PROFILE_BENCH = REPO / "bench" / "results" / "profile.json"
+"""The output of `python bench/bench_profile.py --baseline REV --out bench/results/profile.json` (committed)."""
+
+_STAGE_COLUMNS = {"sampling": "sampling", "building": "building", "ground_truth": "ground truth",
+                  "relighting": "relighting", "tracing": "tracing", "compiling": "compiling",
+                  "path_tracing": "path tracing", "reduction": "reduction", "writing": "writing"}
+
+
+def render_profile(card: dict) -> str:
+    """Seconds per object by stage on one core, and objects per hour of wildgen.make, per setting and tree."""
+    d = json.loads(PROFILE_BENCH.read_text())
+    same = {True: "identical", False: "changed", None: "-"}
+    rows = [[f"{r['res']} px, {r['images']} images, {r['spp']} spp", f"{r['tree']} (`{r['revision']}`)",
+             *[f"{r[k]:.3f}" for k in _STAGE_COLUMNS], f"**{r['total_s']:.2f}**", f"{r['first_object_s']:.2f}",
+             f"**{r['objects_per_hour']:.0f}**", same[r.get("same_bytes_as_baseline")]] for r in d["rows"]]
+    return (f"Measured on {d['machine']['cpus']} cores (`{d['command']}`, light family `{d['lights']}`): seconds per "
+            "object and stage on one core (one Dr.Jit thread; the mean over the objects after the first, which also "
+            "pays for imports, the asset scan and the first kernels), and objects per hour of the real CLI "
+            "(`wildgen.make`, default workers and threads, start-up included):\n\n"
+            + markdown_table(["object", "tree", *_STAGE_COLUMNS.values(), "total (s)", "first object (s)",
+                              "objects / hour", "bytes vs baseline"], rows))
+
+
+CYCLES_BENCH = REPO / "bench" / "results" / "cycles.json"
+"""The output of `python bench/bench_cycles.py --out bench/results/cycles.json` (committed)."""
+
+
+def cycles_speed(card: dict) -> str:
+    """Time to the same noise as our renderer at two sample counts, Blender Cycles against ours, one run."""
+    d = json.loads(CYCLES_BENCH.read_text())
+    rows = [[str(r["noise_of_spp"]), f"{r['relative_rmse']:.4f}", str(r["cycles_spp"]), f"{r['cycles_s']:.2f}",
+             str(r["mitsuba_spp"]), f"{r['mitsuba_s']:.3f}", f"**{r['speedup']:.1f}x**", f"{r['speedup_path_tracing']:.1f}x"]
+            for r in d["rows"]]
+    return (f"Measured side by side on {d['machine']['cpus']} cores (`{d['command']}`; {d['blender']}, "
+            f"{d['res']} x {d['res']} px, {d['threads']} threads each; references at {d['reference_spp']} spp):\n\n"
+            + markdown_table(["noise of our render at (spp)", "relative RMSE", "Cycles spp", "Cycles (s)", "ours spp",
+                              "ours (s)", "ours faster per render", "in path tracing alone"], rows))
+
+
+BENCH_BLOCKS = {"model:shards-throughput": SHARDS_BENCH, "capture:resources": CAPTURE_BENCH,
+                "check:resolution": VERDICT_BENCH, "generator:profile": PROFILE_BENCH,
+                "generator:cycles": CYCLES_BENCH}
+"""Blocks generated from a benchmark's recorded output instead of the model card."""
