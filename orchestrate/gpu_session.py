@@ -15,7 +15,8 @@ once (one line, exit 2) unless `--cpu-rehearsal` asks for a small run of the who
    with the first usable variant
    of cuda_ad_rgb, llvm_ad_rgb (`--variant auto`; the log and summary.json say which);
 2. renders the first `--check-objects` of them again with `--check-variant` (auto: llvm_ad_rgb when it runs
-   here, else scalar_rgb) and compares them: variant_check.json (`compare_datasets`);
+   here, else scalar_rgb) on one CPU core and compares them: variant_check.json (`compare_datasets`), with the
+   seconds per object and objects per hour of both renders (`render_speed`);
 3. writes the dataset as WebDataset shards of the reader's decoded arrays (`wildgen.make --shards
    --shard-encoding decoded`, the fastest to train on);
 4. trains `--model` with `unips.train` on the shards (bf16 autocast on CUDA), from `--init` (the shipped
@@ -196,6 +197,20 @@ def compare_datasets(main: Path, check: Path, names: list[str], spp: int, noise_
     }
 
 
+def render_speed(folder: Path, wall_s: float | None = None) -> dict:
+    """Seconds per object of a wildgen.make run (the median of its manifest's per-object `total_s`, so a first
+    object's compiles do not count) and the objects per hour that makes for one worker; with `wall_s`, also the
+    run's own objects per hour (start-up and every worker included)."""
+    import statistics
+
+    done = [e for e in json.loads((folder / "manifest.json").read_text())["objects"] if e.get("status") == "done"]
+    per = statistics.median(e["timings"]["total_s"] for e in done) if done else float("nan")
+    out = {"objects": len(done), "seconds_per_object": round(per, 3), "objects_per_hour_one_worker": round(3600 / per, 1)}
+    if wall_s:
+        out["objects_per_hour_run"] = round(len(done) * 3600 / wall_s, 1)
+    return out
+
+
 # ---------------------------------------------------------------- the session (on the GPU machine)
 
 
@@ -335,12 +350,15 @@ def session(opts: SessionOptions, t0: float | None = None) -> dict:
     t_render = time.time() - t0
     check_report: dict = {"variant": variant, "check_variant": None, "skipped": "--check-variant none"}
     if check:
-        step(["wildgen.make", *_make_argv(opts, again, check, min(opts.check_objects, opts.objects), None, assets)])
+        # one worker with one thread: the check's render times are one CPU core's (issue 42's comparison)
+        step(["wildgen.make", *_make_argv(opts, again, check, min(opts.check_objects, opts.objects), None, assets),
+              "--workers", "1", "--threads", "1"])
         from scenes.folder.layouts import find_object_folders
 
         names = [f.name for f in find_object_folders(again, "--work") if (data / f.name).is_dir()]
         check_report = {"variant": variant, "check_variant": check,
-                        **compare_datasets(data, again, names, opts.spp, opts.noise_cv)}
+                        **compare_datasets(data, again, names, opts.spp, opts.noise_cv),
+                        "speed": {variant: render_speed(data, t_render), f"{check}, one CPU core": render_speed(again)}}
         print(f"variant check {variant} vs {check} on {len(names)} objects: ground truth "
               f"{'identical' if check_report['ground_truth_identical'] else 'not identical'} (masks differ "
               f"{'only on the outline' if check_report['masks_differ_only_on_outline'] else 'off the outline'}), "
@@ -391,7 +409,7 @@ def _write_card(opts: SessionOptions, out: Path, run: Path, records: list[dict],
     big = [str(p.relative_to(out)) for p in out.rglob("*") if p.is_file() and p.stat().st_size > 16 * 2**20]
     return {"variant": variant, "check_variant": check.get("check_variant"), "device": device,
             "ground_truth_identical": check.get("ground_truth_identical"),
-            "images_within_noise": check.get("images_within_noise"),
+            "images_within_noise": check.get("images_within_noise"), "render_speed": check.get("speed"),
             "render_s": round(t_render, 1), "train_s": round(t_train, 1), "steps": step,
             "curve_points": len(records), "files_over_16_mib": big, "options": asdict(opts)}
 

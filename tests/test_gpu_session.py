@@ -57,6 +57,16 @@ def test_whole_session_in_miniature(tmp_path, variant_llvm_ad_rgb):
     assert check["masks_differ_only_on_outline"] is True
     assert check["images_within_noise"] is True
     assert check["image_tolerance_rel_rms"] == pytest.approx(4 * (2 / 8) ** 0.5, abs=1e-4)
+    # render speed of both variants from their manifests: the check's on one CPU core
+    speed = check["speed"]
+    assert sorted(speed) == ["llvm_ad_rgb", "scalar_rgb, one CPU core"] and summary["render_speed"] == speed
+    assert speed["llvm_ad_rgb"]["objects"] == 3 and speed["scalar_rgb, one CPU core"]["objects"] == 2
+    for v in speed.values():
+        assert v["seconds_per_object"] > 0
+        assert v["objects_per_hour_one_worker"] == pytest.approx(3600 / v["seconds_per_object"], rel=1e-2)
+    assert 0 < speed["llvm_ad_rgb"]["objects_per_hour_run"] < speed["llvm_ad_rgb"]["objects_per_hour_one_worker"] * 2
+    manifest = json.loads((work / "check" / "manifest.json").read_text())
+    assert manifest["run"]["workers"] == 1 and manifest["run"]["threads_per_worker"] == 1
 
     # A folder compared with itself is identical.
     same = gpu_session.compare_datasets(work / "data", work / "data", ["00000.data"], spp=8, noise_cv=4)
