@@ -4,7 +4,7 @@
   python bench/bench_determinism.py --sizes 64:32 --images 6 --repeats 3
 
 Old: `mi.render` (atomic scatter-add into the film; bytes depend on the thread count). New:
-`scenes.renderer.render.render_film` (each sample to its own slot, pixels summed in NumPy in a fixed order). Both
+`scenes.renderer.render.render_film` (each sample to its own slot, each pixel summed in sample order by one Dr.Jit lane). Both
 render the same images of one `mixed`-light object, interleaved image by image in one process so that load
 from other processes hits both alike; the first image of each (compilation) is not timed. Also reports
 whether each path gave identical bytes with 1 and 2 threads.
