@@ -50,9 +50,9 @@ def render_film(scene, spp: int, seed: int, integrator=None) -> np.ndarray:
     if film.sample_border() or not film.rfilter().is_box_filter() or any(int(v) for v in film.crop_offset()):
         raise ValueError("render_film needs a box-filtered film without crop offset or border sampling")
     width, height = (int(v) for v in film.crop_size())
-    names = list(integrator.aov_names())
-    channels = 4 + sum(not name.startswith("integrator.") for name in names)
-    limit = MAX_SAMPLES_PER_PASS * 4 // channels
+    # A nested integrator's own values (AOVs named `integrator.*`) are not in mi.render's output either.
+    kept = [not name.startswith("integrator.") for name in integrator.aov_names()]
+    limit = MAX_SAMPLES_PER_PASS * 4 // (4 + sum(kept))
     sampler = sensor.sampler()
     sampler.set_sample_count(int(spp))
     spp = int(sampler.sample_count())  # a stratified sampler may round the count
@@ -79,8 +79,7 @@ def render_film(scene, spp: int, seed: int, integrator=None) -> np.ndarray:
             ray.scale_differential(diff_scale)
         spec, valid, aovs = integrator.sample(scene, sampler, ray, None, True)
         rgb = weight * spec
-        # A nested integrator's own values (AOVs named `integrator.*`) are not in mi.render's output either.
-        aovs = [a for a, name in zip(aovs, names) if not name.startswith("integrator.")]
+        aovs = [a for a, keep in zip(aovs, kept) if keep]
         channels = [rgb.x, rgb.y, rgb.z, dr.select(valid, mi.Float(1.0), mi.Float(0.0)), *aovs]
         if passes > 1:
             sampler.advance()
@@ -101,14 +100,15 @@ def pixel_sums(mi, channels: list, per: int, pixels: int) -> np.ndarray:
     back. The loop is symbolic and `per` opaque: one compiled kernel serves every sample count."""
     import drjit as dr
 
-    first = dr.arange(mi.UInt32, pixels) * dr.opaque(mi.UInt32, per)
+    count = dr.opaque(mi.UInt32, per)
+    first = dr.arange(mi.UInt32, pixels) * count
     zero = [dr.zeros(mi.Float64, pixels) for _ in channels]
 
     def body(s, sums):
         return s + 1, [acc + mi.Float64(dr.gather(mi.Float, c, first + s)) for acc, c in zip(sums, channels)]
 
-    _, sums = dr.while_loop(state=(mi.UInt32(0), zero), cond=lambda s, sums: s < dr.opaque(mi.UInt32, per),
-                            body=body, labels=("s", "sums"))
+    _, sums = dr.while_loop(state=(mi.UInt32(0), zero), cond=lambda s, sums: s < count, body=body,
+                            labels=("s", "sums"))
     dr.eval(sums)
     return np.stack([np.asarray(v, dtype=np.float64) for v in sums], axis=-1)
 
