@@ -52,11 +52,11 @@ SETTINGS = {
     "default": {"res": 128, "images": 10, "spp": 64},
     "large": {"res": 256, "images": 10, "spp": 256},
 }
+"""The two object sizes the profile is taken at (wildgen.make's defaults, and PS-Wild's 256 spp at 256 px)."""
 COUNTS = {"default": (5, 10), "large": (3, 0)}
 """Objects profiled, and objects of the longer wildgen.make run for objects per hour (0: not measured), per setting
 (unless --objects / --rate-objects)."""
 SHORT_RUN = 2  # objects of the shorter wildgen.make run: one per default worker
-"""The two object sizes the profile is taken at (wildgen.make's defaults, and PS-Wild's 256 spp at 256 px)."""
 
 STAGES = ("sampling", "building", "ground_truth", "relighting", "tracing", "compiling", "path_tracing", "reduction", "writing")
 BIG_KERNEL_OPS = 300  # the path tracer's kernels have thousands of operations; copies, seeding and sums a few dozen
@@ -83,8 +83,8 @@ def profile_objects(setting: str, objects: int, seed: int, lights: str) -> dict:
                     spp=s["spp"], seed=seed)
     clock: dict[str, float] = {}
     kernels = {"compiled": 0, "from_disk": 0, "reused": 0}
-    first_eval: list[float] = []
-    first_eval_armed: list[bool] = []  # non-empty while render_images renders
+    # While render_images renders an image: when its relighting ended, and when the first evaluation after it began.
+    image: dict[str, float | None] = {}
 
     def timed(stage, fn):
         def wrapper(*args, **kwargs):
@@ -98,42 +98,9 @@ def profile_objects(setting: str, objects: int, seed: int, lights: str) -> dict:
     real_eval = dr.eval
 
     def eval_spy(*args, **kwargs):
-        if len(first_eval) == 1:  # [end of relighting] -> [.., first evaluation after it]
-            first_eval.append(time.perf_counter())
+        if image.get("relit") is not None and image.get("traced") is None:
+            image["traced"] = time.perf_counter()
         return real_eval(*args, **kwargs)
-
-    def render_images(built, spp=None):
-        import scenes.renderer.render as render
-
-        images = []
-        for i in range(len(built.desc.images)):
-            first_eval.clear()
-            dr.kernel_history()  # drop what came before
-            relit_before = clock.get("relighting", 0.0)
-            t0 = time.perf_counter()
-            dr.eval = eval_spy
-            first_eval_armed.append(True)
-            try:
-                images.append(render.render_image(built, i, spp=spp))
-            finally:
-                dr.eval = real_eval
-                first_eval_armed.clear()
-            wall = time.perf_counter() - t0
-            history = dr.kernel_history()
-            compile_s = sum(k.get("codegen_time", 0.0) + k.get("backend_time", 0.0) for k in history) / 1e3
-            trace_s = sum(k.get("execution_time", 0.0) for k in history
-                          if (k.get("operation_count") or 0) >= BIG_KERNEL_OPS) / 1e3
-            for k in history:
-                if (k.get("operation_count") or 0) >= BIG_KERNEL_OPS:
-                    kind = "reused" if k.get("cache_hit") and not k.get("cache_disk") else (
-                        "from_disk" if k.get("cache_disk") else "compiled")
-                    kernels[kind] += 1
-            python_s = (first_eval[1] - first_eval[0]) if len(first_eval) > 1 else 0.0
-            relit = clock.get("relighting", 0.0) - relit_before
-            for stage, value in (("tracing", python_s), ("compiling", compile_s), ("path_tracing", trace_s),
-                                 ("reduction", max(wall - relit - python_s - compile_s - trace_s, 0.0))):
-                clock[stage] = clock.get(stage, 0.0) + value
-        return images
 
     from scenes.renderer.build import BuiltScene
 
@@ -141,11 +108,42 @@ def profile_objects(setting: str, objects: int, seed: int, lights: str) -> dict:
     relight = timed("relighting", original_apply)
 
     def apply_image(built, index):
-        if not first_eval_armed:  # building and the ground-truth pass relight too: theirs is their own stage
+        if not image:  # building and the ground-truth pass relight too: theirs is their own stage
             return original_apply(built, index)
-        relight(built, index)
-        first_eval.clear()  # the update's own evaluations are relighting; tracing starts here
-        first_eval.append(time.perf_counter())
+        relight(built, index)  # the update's own evaluations are relighting; tracing starts after it
+        image.update(relit=time.perf_counter(), traced=None)
+
+    def render_images(built, spp=None):
+        import scenes.renderer.render as render
+
+        images = []
+        for i in range(len(built.desc.images)):
+            dr.kernel_history()  # drop what came before
+            relit_before = clock.get("relighting", 0.0)
+            t0 = time.perf_counter()
+            image.update(relit=None, traced=None)
+            dr.eval = eval_spy
+            try:
+                images.append(render.render_image(built, i, spp=spp))
+            finally:
+                dr.eval = real_eval
+            wall = time.perf_counter() - t0
+            tracing_s = image["traced"] - image["relit"] if image["relit"] and image["traced"] else 0.0
+            image.clear()
+            history = dr.kernel_history()
+            compile_s = sum(k.get("codegen_time", 0.0) + k.get("backend_time", 0.0) for k in history) / 1e3
+            trace_s = 0.0
+            for k in history:
+                if (k.get("operation_count") or 0) >= BIG_KERNEL_OPS:
+                    trace_s += k.get("execution_time", 0.0) / 1e3
+                    kind = "reused" if k.get("cache_hit") and not k.get("cache_disk") else (
+                        "from_disk" if k.get("cache_disk") else "compiled")
+                    kernels[kind] += 1
+            relit = clock.get("relighting", 0.0) - relit_before
+            for stage, value in (("tracing", tracing_s), ("compiling", compile_s), ("path_tracing", trace_s),
+                                 ("reduction", max(wall - relit - tracing_s - compile_s - trace_s, 0.0))):
+                clock[stage] = clock.get(stage, 0.0) + value
+        return images
 
     BuiltScene.apply_image = apply_image
     writer.sample_object = timed("sampling", writer.sample_object)

@@ -18,7 +18,7 @@ class RotationSteps(Protocol):
     rotation_steps: int
 
 
-log = logging.getLogger("validate.refine")
+log = logging.getLogger("validate.refine")  # the refinement's log, as before the search had its own module
 
 
 ROTATION_TIE = 0.005
