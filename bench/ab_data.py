@@ -54,10 +54,10 @@ def make(out: Path, flags: list[str], label: str) -> Path:
 
 def score_set(net, folder: Path) -> dict:
     """Mean angular error over the objects of a dataset, all images and mask only (the photometric gain)."""
+    from orchestrate.benchmark import probe_inputs
     from scenes.metrics import mean_angular_error
     from unips.data import find_objects, load_object
     from unips.inference import predict_object
-    from orchestrate.benchmark import probe_inputs
 
     errs, masks = [], []
     for f in find_objects(folder):
@@ -76,11 +76,18 @@ def main() -> int:
     p.add_argument("--steps", type=int, default=1000)
     p.add_argument("--arms", default="today,new,sensor")
     p.add_argument("--threads", type=int, default=2)
-    p.add_argument("--lr", default="1.5e-4", help="peak learning rate of every arm (the model card's last stage: 1.5e-4)")
-    p.add_argument("--record", action="store_true",
-                   help="append every scored arm to the model card's lineage (not shipped) and its scores to the card's "
-                        "data_ab entry, from which the docs' A/B table is generated")
-    p.add_argument("--tag", default="", help="suffix of the run folders and result names (several settings in one WORK)")
+    p.add_argument(
+        "--lr", default="1.5e-4", help="peak learning rate of every arm (the model card's last stage: 1.5e-4)"
+    )
+    p.add_argument(
+        "--record",
+        action="store_true",
+        help="append every scored arm to the model card's lineage (not shipped) and its scores to the card's "
+        "data_ab entry, from which the docs' A/B table is generated",
+    )
+    p.add_argument(
+        "--tag", default="", help="suffix of the run folders and result names (several settings in one WORK)"
+    )
     args = p.parse_args()
     from orchestrate.asset_split import SPLIT_FOLDERS, check_split, split_assets
 
@@ -91,16 +98,44 @@ def main() -> int:
     train_assets, held = (str(w / d) for d in SPLIT_FOLDERS)
     val = make(w / "val", ["--objects", "100", "--spp", "32", "--seed", "4000", "--lights", FAMILIES, "--assets", held],
                "fixed validation set")
-    newval = [make(w / "newval4", ["--objects", "30", "--spp", "32", "--seed", "4104", "--level", "4", "--assets", held],
-                   "held-out new kinds, level 4"),
-              make(w / "newval5", ["--objects", "30", "--spp", "32", "--seed", "4105", "--level", "5", "--camera", "perspective",
-                                   "--focal", "15-300", "--assets", held], "held-out new kinds, level 5, perspective")]
+    newval = [
+        make(
+            w / "newval4",
+            ["--objects", "30", "--spp", "32", "--seed", "4104", "--level", "4", "--assets", held],
+            "held-out new kinds, level 4",
+        ),
+        make(
+            w / "newval5",
+            [
+                "--objects",
+                "30",
+                "--spp",
+                "32",
+                "--seed",
+                "4105",
+                "--level",
+                "5",
+                "--camera",
+                "perspective",
+                "--focal",
+                "15-300",
+                "--assets",
+                held,
+            ],
+            "held-out new kinds, level 5, perspective",
+        ),
+    ]
     n = args.objects
     data = {}
     arms = args.arms.split(",")
     if "today" in arms or "sensor" in arms:
-        data["today"] = [make(w / "train_today", ["--objects", str(n), "--spp", "16", "--seed", "20000", "--lights", FAMILIES,
-                                                 "--assets", train_assets], "train: today")]
+        data["today"] = [
+            make(
+                w / "train_today",
+                ["--objects", str(n), "--spp", "16", "--seed", "20000", "--lights", FAMILIES, "--assets", train_assets],
+                "train: today",
+            )
+        ]
     if "sensor" in arms:
         out = w / "train_sensor"
         if not (out / "manifest.json").is_file():
@@ -187,8 +222,14 @@ def record(results: dict, w: Path, args) -> None:
         steps = max(x["step"] for x in log if "step" in x)
         train_t = {x["step"]: x["elapsed_s"] for x in log if "loss" in x and "elapsed_s" in x}
         lr = name.split("_lr", 1)[1] if "_lr" in name else "1.5e-4"  # the tag this script gives a --lr run
-        n = sum(len(list(Path(d).glob("*.data"))) for d in {"today": [w / "train_today"], "sensor": [w / "train_sensor"],
-                "new": sorted(w.glob("train_new_l*"))}[arm])
+        n = sum(
+            len(list(Path(d).glob("*.data")))
+            for d in {
+                "today": [w / "train_today"],
+                "sensor": [w / "train_sensor"],
+                "new": sorted(w.glob("train_new_l*")),
+            }[arm]
+        )
         stage = f"data A/B: {arm}, lr {lr} (not shipped)"
         if stage in stages:
             continue

@@ -44,7 +44,9 @@ def synthetic_capture(folder: Path, k: int, side: int, seed: int = 0) -> None:
     folder.mkdir(parents=True, exist_ok=True)
     for i, l in enumerate(lights):
         img = np.clip(n @ l, 0, None)[..., None] * albedo * mask[..., None] + 0.002
-        cv2.imwrite(str(folder / f"DSC{i + 1:05d}.png"), np.round(np.clip(img, 0, 1) * 65535).astype(np.uint16)[..., ::-1])
+        cv2.imwrite(
+            str(folder / f"DSC{i + 1:05d}.png"), np.round(np.clip(img, 0, 1) * 65535).astype(np.uint16)[..., ::-1]
+        )
 
 
 def run_case(k: int, side: int, work: Path) -> dict:

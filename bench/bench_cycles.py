@@ -61,10 +61,14 @@ def ensure_blender() -> str:
     env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
     print("installing Debian's blender package (apt-get install --no-install-recommends blender) ...", flush=True)
     t0 = time.perf_counter()
-    r = subprocess.run(["apt-get", "install", "-y", "--no-install-recommends", "blender"], env=env, capture_output=True, text=True)
+    r = subprocess.run(
+        ["apt-get", "install", "-y", "--no-install-recommends", "blender"], env=env, capture_output=True, text=True
+    )
     if r.returncode != 0:
         subprocess.run(["apt-get", "update"], env=env, capture_output=True, text=True)
-        r = subprocess.run(["apt-get", "install", "-y", "--no-install-recommends", "blender"], env=env, capture_output=True, text=True)
+        r = subprocess.run(
+            ["apt-get", "install", "-y", "--no-install-recommends", "blender"], env=env, capture_output=True, text=True
+        )
     if r.returncode != 0 or not shutil.which("blender"):
         tail = (r.stderr or r.stdout).strip().splitlines()[-3:]
         raise SystemExit(f"error: apt-get install blender failed (exit {r.returncode}): {' | '.join(tail)}")
@@ -453,8 +457,22 @@ def main() -> int:
         (work / "job.json").write_text(json.dumps(job))
         (work / "scene_to_blender.py").write_text(BLENDER_SCRIPT)
         t0 = time.perf_counter()
-        r = subprocess.run([blender, "-b", "--factory-startup", "-noaudio", "-t", str(args.threads), "--python",
-                            str(work / "scene_to_blender.py"), "--", str(work / "job.json")], capture_output=True, text=True)
+        r = subprocess.run(
+            [
+                blender,
+                "-b",
+                "--factory-startup",
+                "-noaudio",
+                "-t",
+                str(args.threads),
+                "--python",
+                str(work / "scene_to_blender.py"),
+                "--",
+                str(work / "job.json"),
+            ],
+            capture_output=True,
+            text=True,
+        )
         cycles_wall = time.perf_counter() - t0
         if r.returncode != 0 or not (work / "cycles_times.json").exists():
             tail = "\n".join((r.stdout + r.stderr).strip().splitlines()[-15:])
@@ -467,7 +485,9 @@ def main() -> int:
         mitsuba_wall = time.perf_counter() - t0
         mask = gt.coverage > 0.999
 
-        print(f"\nwall: Blender process {cycles_wall:.1f} s (incl. start and scene import), Mitsuba {mitsuba_wall:.1f} s (incl. compiles)")
+        print(
+            f"\nwall: Blender process {cycles_wall:.1f} s (incl. start and scene import), Mitsuba {mitsuba_wall:.1f} s (incl. compiles)"
+        )
         print(f"\nagreement at {ref} spp (each renderer's own reference), Cycles / Mitsuba:")
         print(f"{'lighting':9s} {'object ratio':>12s} {'R':>6s} {'G':>6s} {'B':>6s} {'image ratio':>11s} {'corr':>6s}")
         for n in lights:
@@ -478,8 +498,12 @@ def main() -> int:
                   f"{c.mean() / m.mean():11.4f} {corr:6.4f}")
 
         # Superposition: in Mitsuba the area light is a real rectangle that also hides the environment behind it.
-        lin_c = cyc[("both", ref)]["combined"][mask].mean() / (cyc[("area", ref)]["combined"][mask].mean() + cyc[("env", ref)]["combined"][mask].mean())
-        lin_m = mi_images[("both", ref)][mask].mean() / (mi_images[("area", ref)][mask].mean() + mi_images[("env", ref)][mask].mean())
+        lin_c = cyc[("both", ref)]["combined"][mask].mean() / (
+            cyc[("area", ref)]["combined"][mask].mean() + cyc[("env", ref)]["combined"][mask].mean()
+        )
+        lin_m = mi_images[("both", ref)][mask].mean() / (
+            mi_images[("area", ref)][mask].mean() + mi_images[("env", ref)][mask].mean()
+        )
         print(f"both / (area + env) on object pixels: Cycles {lin_c:.4f}, Mitsuba {lin_m:.4f}")
 
         from scenes.geometry import camera_rotation
@@ -494,7 +518,9 @@ def main() -> int:
         print(f"\nnormals (Cycles Normal pass vs our ground truth, {mask.sum()} object pixels): "
               f"mean {ang.mean():.3f} deg, median {np.median(ang):.3f}, 99th pct {np.percentile(ang, 99):.3f}")
 
-        print(f"\nnoise vs time, lighting 'both' (relative RMSE on object pixels against the renderer's own {ref}-spp reference):")
+        print(
+            f"\nnoise vs time, lighting 'both' (relative RMSE on object pixels against the renderer's own {ref}-spp reference):"
+        )
         print(f"{'spp':>5s} {'Cycles s':>9s} {'rmse':>7s} {'Mitsuba s':>10s} {'rmse':>7s}")
         k0 = len(lights)
         ct, ce, mt, me = [], [], [], []
@@ -515,8 +541,10 @@ def main() -> int:
             per_spp, t0 = np.polyfit(np.array(levels, float), np.asarray(times), 1)  # time = t0 + per_spp * spp
             slope, icpt = np.polyfit(np.log(levels), np.log(errors), 1)  # log rmse = icpt + slope * log spp
             fits[name] = (t0, per_spp, slope, icpt)
-            print(f"{name:8s}: time = {t0:.3f} s + {per_spp * 1e3:.3f} ms/spp ({per_spp / (args.res ** 2) * 1e9:.1f} ns per sample), "
-                  f"rmse ~ spp^{slope:.3f}")
+            print(
+                f"{name:8s}: time = {t0:.3f} s + {per_spp * 1e3:.3f} ms/spp ({per_spp / (args.res**2) * 1e9:.1f} ns per sample), "
+                f"rmse ~ spp^{slope:.3f}"
+            )
         rows = []
         for level, target in ((levels[len(me) // 2], me[len(me) // 2]), (levels[-1], me[-1])):
             row = {}

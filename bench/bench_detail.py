@@ -33,8 +33,26 @@ def render(out: Path, args, extra: list[str]) -> float:
     from wildgen.make import main as make
 
     t0 = time.perf_counter()
-    rc = make(["--objects", str(args.objects), "--images", str(args.images), "--res", str(args.res), "--spp", str(args.spp),
-               "--lights", args.lights, "--seed", str(args.seed), "--quiet", "--out", str(out), *extra])
+    rc = make(
+        [
+            "--objects",
+            str(args.objects),
+            "--images",
+            str(args.images),
+            "--res",
+            str(args.res),
+            "--spp",
+            str(args.spp),
+            "--lights",
+            args.lights,
+            "--seed",
+            str(args.seed),
+            "--quiet",
+            "--out",
+            str(out),
+            *extra,
+        ]
+    )
     if rc != 0:
         raise SystemExit(f"wildgen.make failed ({rc})")
     return (time.perf_counter() - t0) / args.objects
@@ -52,13 +70,15 @@ def main() -> int:
     p.add_argument("--out", type=Path, default=None, help="write the JSON rows here")
     args = p.parse_args()
 
-    from scenes.images import read_mask, read_normals, read_exr
+    from scenes.images import read_exr, read_mask, read_normals
 
     tmp = Path(tempfile.mkdtemp(prefix="bench_detail_"))
     rows = []
     try:
         base_s = render(tmp / "plain", args, [])
-        print(f"{'strength':>8s} {'flipped':>8s} {'black':>8s} {'flipped@sil':>11s} {'black@sil':>9s} {'s/obj':>6s} {'plain s/obj':>11s}")
+        print(
+            f"{'strength':>8s} {'flipped':>8s} {'black':>8s} {'flipped@sil':>11s} {'black@sil':>9s} {'s/obj':>6s} {'plain s/obj':>11s}"
+        )
         for s in map(float, args.strengths.split(",")):
             sec = render(tmp / f"d{s:g}", args, ["--detail", "1", "--detail-strength", f"{s:g}-{s:g}"])
             flip = black = sil = flip_sil = black_sil = obs = obs_sil = pix = 0
@@ -77,9 +97,15 @@ def main() -> int:
                     ref = max(float(np.percentile(q, 99)), 1e-12)
                     k = (d < 1e-4 * ref) & (q > 0.05 * ref)
                     black += int(k.sum()); black_sil += int((k & near).sum()); obs += len(q); obs_sil += int(near.sum())
-            row = {"strength_deg": s, "flipped": flip / max(pix, 1), "black": black / max(obs, 1),
-                   "flipped_near_silhouette": flip_sil / max(sil, 1), "black_near_silhouette": black_sil / max(obs_sil, 1),
-                   "s_per_object": sec, "plain_s_per_object": base_s}
+            row = {
+                "strength_deg": s,
+                "flipped": flip / max(pix, 1),
+                "black": black / max(obs, 1),
+                "flipped_near_silhouette": flip_sil / max(sil, 1),
+                "black_near_silhouette": black_sil / max(obs_sil, 1),
+                "s_per_object": sec,
+                "plain_s_per_object": base_s,
+            }
             rows.append(row)
             print(f"{s:8.0f} {row['flipped']:8.2%} {row['black']:8.2%} {row['flipped_near_silhouette']:11.2%} "
                   f"{row['black_near_silhouette']:9.2%} {sec:6.2f} {base_s:11.2f}", flush=True)

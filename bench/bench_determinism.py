@@ -23,7 +23,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 def main() -> int:
     p = argparse.ArgumentParser()
-    p.add_argument("--sizes", default="128:64,32:4,64:32", help="comma-separated RES:SPP (64:32 is 35 multijitter samples: pixels straddle thread blocks)")
+    p.add_argument(
+        "--sizes",
+        default="128:64,32:4,64:32",
+        help="comma-separated RES:SPP (64:32 is 35 multijitter samples: pixels straddle thread blocks)",
+    )
     p.add_argument("--images", type=int, default=6)
     p.add_argument("--repeats", type=int, default=2, help="timed renders of every image per path")
     p.add_argument("--threads", default="1,2")
@@ -49,7 +53,9 @@ def main() -> int:
         desc = sample_object(cfg, 0, AssetLibrary.scan(None)).desc
         built = build_scene(desc)
         paths = {
-            "old": lambda i: np.array(mi.render(built.scene, spp=desc.render.spp, seed=desc.images[i].seed), np.float32),
+            "old": lambda i: np.array(
+                mi.render(built.scene, spp=desc.render.spp, seed=desc.images[i].seed), np.float32
+            ),
             "new": lambda i: render_film(built.scene, desc.render.spp, desc.images[i].seed),
         }
         outputs: dict[tuple[str, int], list[np.ndarray]] = {}
@@ -72,8 +78,17 @@ def main() -> int:
             rows.append((f"{res}x{res}", desc.render.spp, threads, old, new, new / old))
         thread_list = [int(t) for t in args.threads.split(",")]
         for name in paths:
-            same = all(np.array_equal(a, b) for a, b in zip(outputs[(name, thread_list[0])], outputs[(name, thread_list[-1])]))
-            rows.append((f"{res}x{res}", desc.render.spp, f"{name}: {thread_list[0]} vs {thread_list[-1]} threads identical", same))
+            same = all(
+                np.array_equal(a, b) for a, b in zip(outputs[(name, thread_list[0])], outputs[(name, thread_list[-1])])
+            )
+            rows.append(
+                (
+                    f"{res}x{res}",
+                    desc.render.spp,
+                    f"{name}: {thread_list[0]} vs {thread_list[-1]} threads identical",
+                    same,
+                )
+            )
     print(f"variant {args.variant}, {args.images} images, median seconds per image over {args.repeats} renders each")
     from scenes.report.tables import markdown_table
 

@@ -17,9 +17,9 @@ PUBLISHED = {"ball": 4.10, "cat": 8.41}
 
 
 def main(argv: list[str] | None = None) -> int:
+    from scenes.metrics import mean_angular_error
     from unips.baselines import least_squares, sh_uncalibrated
     from unips.data import load_object
-    from scenes.metrics import mean_angular_error
 
     default = Path(__file__).resolve().parents[2] / "shared" / "data" / "diligent"
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])

@@ -59,10 +59,10 @@ def model_and_ls(folder: Path, net, tta: int):
 
 
 def diligent(args, net, out: dict) -> None:
+    from scenes.metrics import mean_angular_error as mae_deg
     from validate.capture import downsample_normals, load_capture
     from validate.fit import FitConfig, fit_normals, prepare
     from validate.light_models import angular_errors_deg, directions_of
-    from scenes.metrics import mean_angular_error as mae_deg
     from validate.refine import RefineConfig, refine_object
 
     for name in ("ball", "cat"):
@@ -77,7 +77,9 @@ def diligent(args, net, out: dict) -> None:
 
         def score(n_full: np.ndarray):
             n = downsample_normals(n_full, small.mask, f)
-            n = np.where(small.mask[..., None] & (np.linalg.norm(n, axis=-1, keepdims=True) < 0.5), np.float32([0, 0, 1]), n)
+            n = np.where(
+                small.mask[..., None] & (np.linalg.norm(n, axis=-1, keepdims=True) < 0.5), np.float32([0, 0, 1]), n
+            )
             return fit_normals(small.images, small.mask, n, cfg, saturated=small.saturated)
 
         t0 = time.perf_counter()
@@ -91,15 +93,22 @@ def diligent(args, net, out: dict) -> None:
         for label, n in (("least squares (calibrated)", ls), ("model", model), ("constant", const)):
             ranking[label] = (mae_deg(n, cap.normal_gt, cap.mask), score(n).rel_l1)
         row["ranking"] = {k: {"mae_deg": v[0], "rel_l1": v[1]} for k, v in ranking.items()}
-        print(f"{name}: light error {err.mean():.2f} deg (median {np.median(err):.2f}), fit {row['fit_minutes']:.2f} min (1/{f} res)")
+        print(
+            f"{name}: light error {err.mean():.2f} deg (median {np.median(err):.2f}), fit {row['fit_minutes']:.2f} min (1/{f} res)"
+        )
         for k, (m, s) in ranking.items():
             print(f"  {k:<28} mae {m:6.2f}  rel_l1 {s:.4f}")
         pert = []
         for kind, a, n in series(cap.normal_gt, cap.mask, args.angles, args.kinds, args.seed):
-            pert.append({"kind": kind, "angle": a, "mae_deg": mae_deg(n, cap.normal_gt, cap.mask), "rel_l1": score(n).rel_l1})
+            pert.append(
+                {"kind": kind, "angle": a, "mae_deg": mae_deg(n, cap.normal_gt, cap.mask), "rel_l1": score(n).rel_l1}
+            )
         row["perturbations"] = pert
         row["spearman"] = spearman([p["rel_l1"] for p in pert], [p["mae_deg"] for p in pert])
-        row["spearman_per_kind"] = {k: spearman([p["rel_l1"] for p in pert if p["kind"] == k], [p["mae_deg"] for p in pert if p["kind"] == k]) for k in args.kinds}
+        row["spearman_per_kind"] = {
+            k: spearman([p["rel_l1"] for p in pert if p["kind"] == k], [p["mae_deg"] for p in pert if p["kind"] == k])
+            for k in args.kinds
+        }
         print(f"  perturbations: Spearman(score, error) {row['spearman']:.3f}  per kind {row['spearman_per_kind']}")
         if not args.skip_refine:
             ref = {}
@@ -109,28 +118,51 @@ def diligent(args, net, out: dict) -> None:
                                               ("least squares, fitted lights", ls, "fitted", False),
                                               ("ground truth, fitted lights", cap.normal_gt, "fitted", False)):
                 t0 = time.perf_counter()
-                r = refine_object(str(folder), start, RefineConfig(fit=FitConfig(seed=args.seed), lights=lights, rotation_search=rot))
+                r = refine_object(
+                    str(folder), start, RefineConfig(fit=FitConfig(seed=args.seed), lights=lights, rotation_search=rot)
+                )
                 ref[label] = {"before_mae": r["before"]["mae_deg"], "after_mae": r["after"]["mae_deg"],
                               "before_rel_l1": r["before"]["rel_l1"], "after_rel_l1": r["after"]["rel_l1"],
                               "minutes": (time.perf_counter() - t0) / 60}
-                print(f"  refine {label:<30} mae {ref[label]['before_mae']:.2f} -> {ref[label]['after_mae']:.2f}  "
-                      f"rel_l1 {ref[label]['before_rel_l1']:.4f} -> {ref[label]['after_rel_l1']:.4f}  {ref[label]['minutes']:.1f} min")
+                print(
+                    f"  refine {label:<30} mae {ref[label]['before_mae']:.2f} -> {ref[label]['after_mae']:.2f}  "
+                    f"rel_l1 {ref[label]['before_rel_l1']:.4f} -> {ref[label]['after_rel_l1']:.4f}  {ref[label]['minutes']:.1f} min"
+                )
             row["refine"] = ref
         out["diligent"][name] = row
 
 
 def synthetic(args, net, out: dict) -> None:
+    from scenes.metrics import mean_angular_error as mae_deg
     from validate.capture import load_capture
     from validate.fit import FitConfig, fit_normals
-    from scenes.metrics import mean_angular_error as mae_deg
     from validate.refine import RefineConfig, refine_object
     from validate.rerender import RerenderConfig, rerender_object
 
     work = Path(tempfile.mkdtemp(prefix="bench_fit_"))
     try:
-        cmd = [sys.executable, "-m", "wildgen.make", "--out", str(work / "data"), "--objects", str(args.synthetic),
-               "--images", str(args.images), "--res", str(args.res), "--spp", "32", "--lights", "directional,point,near_area",
-               "--seed", str(args.synthetic_seed), "--workers", "0", "--quiet"]
+        cmd = [
+            sys.executable,
+            "-m",
+            "wildgen.make",
+            "--out",
+            str(work / "data"),
+            "--objects",
+            str(args.synthetic),
+            "--images",
+            str(args.images),
+            "--res",
+            str(args.res),
+            "--spp",
+            "32",
+            "--lights",
+            "directional,point,near_area",
+            "--seed",
+            str(args.synthetic_seed),
+            "--workers",
+            "0",
+            "--quiet",
+        ]
         subprocess.run(cmd, check=True, cwd=ROOT)
         folders = sorted((work / "data").glob("*.data"))
         rows = {}
@@ -143,14 +175,26 @@ def synthetic(args, net, out: dict) -> None:
             if light_model == "auto":
                 # Chosen once per object around the model's prediction (the map a user has), then held for
                 # every map: a light model chosen per map would make the scores of the series incomparable.
-                light_model = fit_normals(cap.images, cap.mask, model, FitConfig(seed=args.seed, light_model="auto"), saturated=cap.saturated).model
+                light_model = fit_normals(
+                    cap.images, cap.mask, model, FitConfig(seed=args.seed, light_model="auto"), saturated=cap.saturated
+                ).model
             cfg = FitConfig(seed=args.seed, light_model=light_model)
-            maps = [("gt", 0, cap.normal_gt)] + list(series(cap.normal_gt, cap.mask, args.synthetic_angles, args.kinds, args.seed))
+            maps = [("gt", 0, cap.normal_gt)] + list(
+                series(cap.normal_gt, cap.mask, args.synthetic_angles, args.kinds, args.seed)
+            )
             res = []
             for kind, a, n in maps:
                 fitted = fit_normals(cap.images, cap.mask, n, cfg, saturated=cap.saturated).rel_l1
                 known = rerender_object(folder, n, RerenderConfig(floors=False))["rel_l1"]
-                res.append({"kind": kind, "angle": a, "mae_deg": mae_deg(n, cap.normal_gt, cap.mask), "fitted": fitted, "known": known})
+                res.append(
+                    {
+                        "kind": kind,
+                        "angle": a,
+                        "mae_deg": mae_deg(n, cap.normal_gt, cap.mask),
+                        "fitted": fitted,
+                        "known": known,
+                    }
+                )
             family = json.loads((folder / "scene.json").read_text()).get("light_family")
             row = {"light_family": family, "light_model": light_model, "maps": res,
                    "spearman_fitted_known": spearman([r["fitted"] for r in res], [r["known"] for r in res]),
@@ -165,13 +209,22 @@ def synthetic(args, net, out: dict) -> None:
                 for k, rs in by_kind.items()}
             if not args.skip_refine:
                 r = refine_object(str(bare), model, RefineConfig(fit=cfg))
-                row["refine_model"] = {"before_mae": r["before"]["mae_deg"], "after_mae": r["after"]["mae_deg"],
-                                       "least_squares_mae": mae_deg(ls, cap.normal_gt, cap.mask) if ls is not None else None}
+                row["refine_model"] = {
+                    "before_mae": r["before"]["mae_deg"],
+                    "after_mae": r["after"]["mae_deg"],
+                    "least_squares_mae": mae_deg(ls, cap.normal_gt, cap.mask) if ls is not None else None,
+                }
             rows[folder.name] = row
-            print(f"{folder.name} ({family}, light model {light_model}): Spearman fitted~known {row['spearman_fitted_known']:.3f}, fitted~error "
-                  f"{row['spearman_fitted_error']:.3f}, known~error {row['spearman_known_error']:.3f}"
-                  + (f"; refine model {row['refine_model']['before_mae']:.2f} -> {row['refine_model']['after_mae']:.2f} deg"
-                     f" (calibrated LS {row['refine_model']['least_squares_mae']})" if "refine_model" in row else ""))
+            print(
+                f"{folder.name} ({family}, light model {light_model}): Spearman fitted~known {row['spearman_fitted_known']:.3f}, fitted~error "
+                f"{row['spearman_fitted_error']:.3f}, known~error {row['spearman_known_error']:.3f}"
+                + (
+                    f"; refine model {row['refine_model']['before_mae']:.2f} -> {row['refine_model']['after_mae']:.2f} deg"
+                    f" (calibrated LS {row['refine_model']['least_squares_mae']})"
+                    if "refine_model" in row
+                    else ""
+                )
+            )
         out["synthetic"] = rows
     finally:
         shutil.rmtree(work, ignore_errors=True)
@@ -179,7 +232,12 @@ def synthetic(args, net, out: dict) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--diligent", type=Path, default=ROOT.parent / "shared" / "data" / "diligent", help="folder with ballPNG/, catPNG/")
+    p.add_argument(
+        "--diligent",
+        type=Path,
+        default=ROOT.parent / "shared" / "data" / "diligent",
+        help="folder with ballPNG/, catPNG/",
+    )
     p.add_argument("--synthetic", type=int, default=3, help="held-out wildgen objects (0: none)")
     p.add_argument("--synthetic-seed", type=int, default=913, help="wildgen seed of the held-out objects")
     p.add_argument("--images", type=int, default=16, help="images per synthetic object")
@@ -193,7 +251,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--skip-diligent", action="store_true", help="synthetic objects only")
     p.add_argument("--skip-refine", action="store_true", help="no refinement runs")
     p.add_argument("--seed", type=int, default=0, help="seed of perturbations and fits")
-    p.add_argument("--threads", type=int, default=None, help="Dr.Jit threads (default: one per core; 1: byte-identical figures run to run)")
+    p.add_argument(
+        "--threads",
+        type=int,
+        default=None,
+        help="Dr.Jit threads (default: one per core; 1: byte-identical figures run to run)",
+    )
     p.add_argument("--tta", type=int, default=None, help="views of the model's prediction (default: unips.predict's)")
     p.add_argument("--out", type=Path, default=None, help="also write the figures as JSON")
     args = p.parse_args(argv)

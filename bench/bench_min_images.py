@@ -105,8 +105,10 @@ HEADER = f"{'lit px':>7} {'noise':>7} {'GT':>7} {'worst':>7} {'gap':>6} {'ranks'
 def fmt(r: dict) -> str:
     """One table row: lit pixels (fewest of one image), noise level, rel_l1 of the GT map and of the best
     perturbed map ('worst' case for ranking), their gap in noise levels, and the refined GT map's error."""
-    return (f"{r['lit_pixels_min']:>7} {r['noise_rel_l1']:>7.4f} {r['gt_rel_l1']:>7.4f} {min(r['perturbed_rel_l1'].values()):>7.4f} "
-            f"{r['gap_in_noise']:>6.1f} {str(r['ranks']):>6} {r['refine_gt_mae_deg']:>10.2f}")
+    return (
+        f"{r['lit_pixels_min']:>7} {r['noise_rel_l1']:>7.4f} {r['gt_rel_l1']:>7.4f} {min(r['perturbed_rel_l1'].values()):>7.4f} "
+        f"{r['gap_in_noise']:>6.1f} {str(r['ranks']):>6} {r['refine_gt_mae_deg']:>10.2f}"
+    )
 
 
 def main(argv: list[str] | None = None) -> int:

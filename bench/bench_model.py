@@ -128,8 +128,10 @@ def main(argv: list[str] | None = None) -> int:
         cases = [("glc-unips", 256, a.images), ("glc-unips", 512, a.images)] + cases
     print(f"\nload average before: {os.getloadavg()[0]:.2f} (the machine may be shared: compare CPU s)")
     print(f"\ninference, disk mask, {a.threads} threads, random weights")
-    print(f"  {'model':10s} {'res':>5s} {'images':>6s} {'pixels':>8s} {'encode s':>9s} {'forward s':>10s} {'CPU s':>8s} "
-          f"{'peak RSS MiB':>13s} {'extra MiB':>10s}")
+    print(
+        f"  {'model':10s} {'res':>5s} {'images':>6s} {'pixels':>8s} {'encode s':>9s} {'forward s':>10s} {'CPU s':>8s} "
+        f"{'peak RSS MiB':>13s} {'extra MiB':>10s}"
+    )
     for name, res, k in cases:
         r = _sub(["--threads", str(a.threads), "--case", "infer", name, str(res), str(k)])
         print(f"  {name:10s} {res:5d} {k:6d} {r['pixels']:8d} {r['encode_s']:9.2f} {r['forward_s']:10.2f} "

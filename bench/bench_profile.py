@@ -58,7 +58,17 @@ COUNTS = {"default": (5, 10), "large": (3, 0)}
 (unless --objects / --rate-objects)."""
 SHORT_RUN = 2  # objects of the shorter wildgen.make run: one per default worker
 
-STAGES = ("sampling", "building", "ground_truth", "relighting", "tracing", "compiling", "path_tracing", "reduction", "writing")
+STAGES = (
+    "sampling",
+    "building",
+    "ground_truth",
+    "relighting",
+    "tracing",
+    "compiling",
+    "path_tracing",
+    "reduction",
+    "writing",
+)
 BIG_KERNEL_OPS = 300  # the path tracer's kernels have thousands of operations; copies, seeding and sums a few dozen
 
 
@@ -216,7 +226,9 @@ def mean_stages(result: dict) -> dict:
     out["total_s"] = sum(r["total_s"] for r in steady) / len(steady)
     out["first_object_s"] = done[0]["total_s"] if done else None
     out["objects"] = len(steady)
-    out["kernels"] = {k: sum(r["kernels"][k] for r in steady) / len(steady) for k in ("compiled", "from_disk", "reused")}
+    out["kernels"] = {
+        k: sum(r["kernels"][k] for r in steady) / len(steady) for k in ("compiled", "from_disk", "reused")
+    }
     return out
 
 
@@ -249,7 +261,9 @@ def main() -> int:
         raise SystemExit(f"error: --settings: {bad[0]!r} is not one of {', '.join(SETTINGS)}")
     tmp = Path(tempfile.mkdtemp(prefix="bench_profile_trees_"))
     trees = {"this tree": REPO}
-    head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO, capture_output=True, text=True).stdout.strip()
+    head = subprocess.run(
+        ["git", "rev-parse", "--short", "HEAD"], cwd=REPO, capture_output=True, text=True
+    ).stdout.strip()
     revisions = {"this tree": head + ("+" if subprocess.run(["git", "diff", "--quiet", "HEAD"], cwd=REPO).returncode
                                       else "")}
     try:
@@ -294,7 +308,9 @@ def main() -> int:
             subprocess.run(["git", "worktree", "remove", "--force", str(tmp / "baseline")], cwd=REPO,
                            capture_output=True)
         shutil.rmtree(tmp, ignore_errors=True)
-    header = f"{'setting':8s} {'tree':10s} " + " ".join(f"{s[:9]:>9s}" for s in STAGES) + f" {'total':>7s} {'obj/h':>7s}"
+    header = (
+        f"{'setting':8s} {'tree':10s} " + " ".join(f"{s[:9]:>9s}" for s in STAGES) + f" {'total':>7s} {'obj/h':>7s}"
+    )
     print(header)
     for r in rows:
         print(f"{r['setting']:8s} {r['tree']:10s} " + " ".join(f"{r[s]:9.3f}" for s in STAGES)

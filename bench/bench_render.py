@@ -25,7 +25,6 @@ from pathlib import Path
 
 from wildgen.light_families import LIGHT_FAMILIES
 
-
 FEATURES = {
     "default": {},
     "perspective": {"camera": "perspective"},
@@ -85,7 +84,9 @@ def main() -> int:
     p.add_argument("--spp", type=int, default=64)
     p.add_argument("--images", type=int, default=10)
     p.add_argument("--objects", type=int, default=2, help="objects per family")
-    p.add_argument("--families", default=",".join(LIGHT_FAMILIES), help="light families, comma-separated (default: all)")
+    p.add_argument(
+        "--families", default=",".join(LIGHT_FAMILIES), help="light families, comma-separated (default: all)"
+    )
     p.add_argument("--rounds", type=int, default=1,
                    help="rounds over all families; each figure is the smallest of its rounds (robust to other load)")
     p.add_argument("--features", default=None,
@@ -103,7 +104,11 @@ def main() -> int:
     unknown = [f for f in features if f is not None and f not in FEATURES]
     if unknown:
         p.error(f"--features: unknown {unknown}, expected from {', '.join(FEATURES)}")
-    setups = {(f if feat is None else f"{f}+{feat}"): (f, FEATURES.get(feat, {})) for f in args.families.split(",") for feat in features}
+    setups = {
+        (f if feat is None else f"{f}+{feat}"): (f, FEATURES.get(feat, {}))
+        for f in args.families.split(",")
+        for feat in features
+    }
     families = list(setups)
     print(f"variant {variant}, {args.res}x{args.res}, {args.spp} spp, {args.images} images/object, "
           f"{args.objects} objects/family, min of {args.rounds} round(s)")
@@ -112,8 +117,15 @@ def main() -> int:
     try:
         # One object first, not timed: the first render of a process compiles kernels and fills caches, which
         # would be charged to whichever family comes first.
-        warm = GenConfig(lights=[setups[families[0]][0]], objects=1, images=args.images, width=args.res, height=args.res,
-                         spp=args.spp, seed=99).validate()
+        warm = GenConfig(
+            lights=[setups[families[0]][0]],
+            objects=1,
+            images=args.images,
+            width=args.res,
+            height=args.res,
+            spp=args.spp,
+            seed=99,
+        ).validate()
         make_object(warm, 0, tmp / "warmup", AssetLibrary.scan(None))
         for _ in range(args.rounds):  # interleaved, so slow periods of a shared machine hit every family
             for family in families:

@@ -27,12 +27,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--data", default=None, help="existing dataset folder (*.data); default: render one with wildgen.make")
+    p.add_argument(
+        "--data", default=None, help="existing dataset folder (*.data); default: render one with wildgen.make"
+    )
     p.add_argument("--res", type=int, default=64, help="resolution of the rendered dataset")
     p.add_argument("--spp", type=int, default=64, help="samples per pixel of the rendered dataset")
     p.add_argument("--objects", type=int, default=3, help="objects to render")
     p.add_argument("--images", type=int, default=4, help="images per object")
-    p.add_argument("--lights", default="near_area,hdri,mixed", help="light families for wildgen.make (cycled over objects)")
+    p.add_argument(
+        "--lights", default="near_area,hdri,mixed", help="light families for wildgen.make (cycled over objects)"
+    )
     p.add_argument("--bounces", type=int, default=4, help="bounces of the rendered dataset")
     p.add_argument("--seed", type=int, default=0, help="dataset and perturbation seed")
     p.add_argument("--levels", default="2,5,10,20,40", help="perturbation angles in degrees")
@@ -70,7 +74,9 @@ def main(argv: list[str] | None = None) -> int:
         if rc != 0:
             print(f"error: wildgen.make failed with exit code {rc}", file=sys.stderr)
             return 1
-        print(f"dataset: {args.objects} objects x {args.images} images at {args.res}^2, {args.spp} spp in {time.perf_counter() - t0:.1f} s")
+        print(
+            f"dataset: {args.objects} objects x {args.images} images at {args.res}^2, {args.spp} spp in {time.perf_counter() - t0:.1f} s"
+        )
     else:
         data = Path(args.data)
     levels = [float(x) for x in args.levels.split(",")]
@@ -88,20 +94,34 @@ def main(argv: list[str] | None = None) -> int:
             for level in levels:
                 pred = perturb_normals(obj.normal_gt, obj.mask, kind, level, seed=args.seed + 1)
                 r = rerender_object(folder, pred, RerenderConfig(seed_mode=args.seed_mode, floors=False))
-                rows.append({"object": obj.name, "family": obj.desc.light_family, "kind": kind, "level": level,
-                             "mae_deg": r["mae_deg"], "rel_l1": r["rel_l1"], "psnr": r["psnr"], "gt_rel_l1": base["gt_rel_l1"]})
+                rows.append(
+                    {
+                        "object": obj.name,
+                        "family": obj.desc.light_family,
+                        "kind": kind,
+                        "level": level,
+                        "mae_deg": r["mae_deg"],
+                        "rel_l1": r["rel_l1"],
+                        "psnr": r["psnr"],
+                        "gt_rel_l1": base["gt_rel_l1"],
+                    }
+                )
 
     print()
     print("object                family     gt_rel_l1  noise_floor  reproduce  rerender_s  original_s  ratio")
     for b in baselines:
         t = b["timings"]
         family = load_object(b["folder"]).desc.light_family
-        print(f"{b['object']:<21} {family:<10} {b['gt_rel_l1']:<10.4f} {b['noise_floor_rel_l1']:<12.4f} "
-              f"{b['reproduce_rel_l1']:<10.2g} {t['rerender_s']:<11.4f} {t['original_render_s']:<11.4f} {t['rerender_over_original']:.3f}")
+        print(
+            f"{b['object']:<21} {family:<10} {b['gt_rel_l1']:<10.4f} {b['noise_floor_rel_l1']:<12.4f} "
+            f"{b['reproduce_rel_l1']:<10.2g} {t['rerender_s']:<11.4f} {t['original_render_s']:<11.4f} {t['rerender_over_original']:.3f}"
+        )
     print()
     print("object                kind    level   MAE     rel_l1   rel_l1/gt")
     for r in rows:
-        print(f"{r['object']:<21} {r['kind']:<7} {r['level']:<7g} {r['mae_deg']:<7.2f} {r['rel_l1']:<8.4f} {r['rel_l1'] / r['gt_rel_l1']:.2f}")
+        print(
+            f"{r['object']:<21} {r['kind']:<7} {r['level']:<7g} {r['mae_deg']:<7.2f} {r['rel_l1']:<8.4f} {r['rel_l1'] / r['gt_rel_l1']:.2f}"
+        )
 
     mae = np.array([r["mae_deg"] for r in rows])
     res = np.array([r["rel_l1"] for r in rows])
@@ -124,10 +144,22 @@ def main(argv: list[str] | None = None) -> int:
     print(f"Spearman(rel_l1, MAE): pooled {pooled:.3f} over {len(rows)} cases; per object "
           + ", ".join(f"{k} {v:.3f}" for k, v in per_object.items()))
     print(f"monotonic series: {monotonic}/{series}")
-    print(f"re-render / original render time (median per image): {np.median(ratios):.3f} (per object {', '.join(f'{x:.3f}' for x in ratios)})")
+    print(
+        f"re-render / original render time (median per image): {np.median(ratios):.3f} (per object {', '.join(f'{x:.3f}' for x in ratios)})"
+    )
     if args.json:
-        Path(args.json).write_text(json.dumps({"rows": rows, "baselines": baselines, "spearman_pooled": pooled,
-                                               "spearman_per_object": per_object, "monotonic": [monotonic, series]}, indent=1))
+        Path(args.json).write_text(
+            json.dumps(
+                {
+                    "rows": rows,
+                    "baselines": baselines,
+                    "spearman_pooled": pooled,
+                    "spearman_per_object": per_object,
+                    "monotonic": [monotonic, series],
+                },
+                indent=1,
+            )
+        )
     if tmp is not None:
         tmp.cleanup()
     return 0

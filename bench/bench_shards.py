@@ -173,10 +173,31 @@ def main(argv: list[str] | None = None) -> int:
     from scenes.report.tables import markdown_table
 
     print()
-    print(markdown_table(["read", "cache", "folders (objects/s)", "shards, files (objects/s)", "shards, decoded (objects/s)",
-                          "files / folders", "decoded / folders"],
-                         [[r["read"], r["cache"], f"{r['folders_per_s']:.0f}", f"{r['files_per_s']:.0f}",
-                           f"{r['decoded_per_s']:.0f}", f"{r['ratio_files']:.2f}x", f"{r['ratio_decoded']:.2f}x"] for r in rows]))
+    print(
+        markdown_table(
+            [
+                "read",
+                "cache",
+                "folders (objects/s)",
+                "shards, files (objects/s)",
+                "shards, decoded (objects/s)",
+                "files / folders",
+                "decoded / folders",
+            ],
+            [
+                [
+                    r["read"],
+                    r["cache"],
+                    f"{r['folders_per_s']:.0f}",
+                    f"{r['files_per_s']:.0f}",
+                    f"{r['decoded_per_s']:.0f}",
+                    f"{r['ratio_files']:.2f}x",
+                    f"{r['ratio_decoded']:.2f}x",
+                ]
+                for r in rows
+            ],
+        )
+    )
     if args.out:
         args.out.write_text(json.dumps({"settings": vars(args) | {"out": str(args.out)}, "sizes": sizes, "rows": rows},
                                        indent=1))

@@ -49,7 +49,9 @@ def run_cli(out: Path, flags: list[str]) -> tuple[float, dict]:
                        capture_output=True, text=True)
     wall = time.perf_counter() - t0
     if r.returncode != 0:
-        raise SystemExit(f"error: wildgen.make {' '.join(flags)} failed ({r.returncode}): {r.stderr.strip().splitlines()[-1:]}")
+        raise SystemExit(
+            f"error: wildgen.make {' '.join(flags)} failed ({r.returncode}): {r.stderr.strip().splitlines()[-1:]}"
+        )
     return wall, json.loads((out / "manifest.json").read_text())
 
 
@@ -99,8 +101,10 @@ def main() -> int:
               "--objects", str(args.objects), "--seed", "0"]
     tiny = ["--lights", "directional", "--res", "8", "--spp", "1", "--images", "1", "--objects", "1", "--gt-spp", "1"]
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    print(f"{args.objects} objects, {args.res}x{args.res}, {args.spp} spp, {args.images} images/object, lights {args.lights}; "
-          f"{cores} cores, load average {os.getloadavg()[0]:.2f}")
+    print(
+        f"{args.objects} objects, {args.res}x{args.res}, {args.spp} spp, {args.images} images/object, lights {args.lights}; "
+        f"{cores} cores, load average {os.getloadavg()[0]:.2f}"
+    )
     print(f"{'engine':8s} {'wall s':>7s} {'fixed s':>8s} {'obj/hour':>9s} {'w/o fixed':>10s} {'speed-up':>9s}")
     rows, sums, manifests = {}, {}, {}
     try:
@@ -113,12 +117,16 @@ def main() -> int:
             manifests[e] = manifest
         base = rows[engines[0]]
         for e, (wall, fixed, done) in rows.items():
-            print(f"{e:8s} {wall:7.1f} {fixed:8.1f} {3600 * done / wall:9.0f} {3600 * done / max(wall - fixed, 1e-9):10.0f} "
-                  f"{base[0] / wall:8.2f}x")
+            print(
+                f"{e:8s} {wall:7.1f} {fixed:8.1f} {3600 * done / wall:9.0f} {3600 * done / max(wall - fixed, 1e-9):10.0f} "
+                f"{base[0] / wall:8.2f}x"
+            )
         if "w1t1" in rows and "w2t1" in rows:
             eff = rows["w1t1"][0] / rows["w2t1"][0] / 2
             eff_net = (rows["w1t1"][0] - rows["w1t1"][1]) / (rows["w2t1"][0] - rows["w2t1"][1]) / 2
-            print(f"scaling efficiency 2 workers vs 1 (1 thread each): {100 * eff:.0f} % (without fixed costs {100 * eff_net:.0f} %)")
+            print(
+                f"scaling efficiency 2 workers vs 1 (1 thread each): {100 * eff:.0f} % (without fixed costs {100 * eff_net:.0f} %)"
+            )
         if "w1t2" in rows and "w2t1" in rows:
             print(f"2 workers x 1 thread vs 1 worker x 2 threads: {rows['w1t2'][0] / rows['w2t1'][0]:.2f}x")
         first = next(iter(sums.values()))
@@ -127,8 +135,22 @@ def main() -> int:
 
         label = "w1t2" if "w1t2" in manifests else engines[0]
         overhead_table(manifests[label], f"{label} at {args.spp} spp")
-        over = ["--lights", args.lights, "--res", str(args.res), "--spp", str(args.overhead_spp), "--images", str(args.images),
-                "--objects", str(args.overhead_objects), "--seed", "0", "--workers", "1"]
+        over = [
+            "--lights",
+            args.lights,
+            "--res",
+            str(args.res),
+            "--spp",
+            str(args.overhead_spp),
+            "--images",
+            str(args.images),
+            "--objects",
+            str(args.overhead_objects),
+            "--seed",
+            "0",
+            "--workers",
+            "1",
+        ]
         _, manifest = run_cli(work / "overhead", over)
         overhead_table(manifest, f"w1 at {args.overhead_spp} spp")
         print(f"load average now {os.getloadavg()[0]:.2f}")

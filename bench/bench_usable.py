@@ -104,10 +104,13 @@ def _row(source: str, obj: str, encoding: str, subset: str, case: str, expect: s
 
 
 def _print(row: dict) -> None:
-    print(f"{'ok ' if row['ok'] else 'BAD'} {row['source']:<9} {row['object']:<10} {row['encoding']:<8} "
-          f"{row['subset']:<15} {row['case']:<24} expected {','.join(row['expected']) or '-':<14} raised "
-          f"{','.join(row['raised']) or '-':<28} shifted pairs {row['shifted_pairs']:>2} polar {row['max_light_polar_deg']} "
-          f"({row['seconds']:.1f} s)", flush=True)
+    print(
+        f"{'ok ' if row['ok'] else 'BAD'} {row['source']:<9} {row['object']:<10} {row['encoding']:<8} "
+        f"{row['subset']:<15} {row['case']:<24} expected {','.join(row['expected']) or '-':<14} raised "
+        f"{','.join(row['raised']) or '-':<28} shifted pairs {row['shifted_pairs']:>2} polar {row['max_light_polar_deg']} "
+        f"({row['seconds']:.1f} s)",
+        flush=True,
+    )
 
 
 def diligent_rows(folder: Path, args, work: Path) -> list[dict]:

@@ -90,10 +90,14 @@ def _subsets(cap) -> dict[str, object]:
     L = cap.light_directions  # (K, 3) toward the light
     right = np.nonzero(L[:, 0] > 0.15)[0]
     spread = lambda idx, n: idx[np.linspace(0, len(idx) - 1, n).round().astype(int)]  # noqa: E731
-    return {"8 copies of one image": ("copies", int(np.argmin(np.abs(L[:, 0]) + np.abs(L[:, 1])))),
-            "5 lights most to the right": np.argsort(-L[:, 0])[:5], "5 of the right half": spread(right, 5),
-            "40 of the right half": spread(right, min(40, len(right))), "5 spread over all": spread(np.arange(len(L)), 5),
-            "8 spread over all": spread(np.arange(len(L)), 8)}
+    return {
+        "8 copies of one image": ("copies", int(np.argmin(np.abs(L[:, 0]) + np.abs(L[:, 1])))),
+        "5 lights most to the right": np.argsort(-L[:, 0])[:5],
+        "5 of the right half": spread(right, 5),
+        "40 of the right half": spread(right, min(40, len(right))),
+        "5 spread over all": spread(np.arange(len(L)), 5),
+        "8 spread over all": spread(np.arange(len(L)), 8),
+    }
 
 
 def degenerate_sweep(captures: list[Path], out: Path) -> int:
@@ -118,8 +122,14 @@ def degenerate_sweep(captures: list[Path], out: Path) -> int:
         for name, sel in _subsets(full).items():
             if isinstance(sel, tuple):
                 imgs = np.stack([full.images[sel[1]] * s for s in np.linspace(0.6, 1.3, 8)]).astype(np.float32)
-                cap = dataclasses.replace(full, images=imgs, saturated=None, light_directions=None, light_irradiance=None,
-                                          image_names=[f"copy{i}" for i in range(8)])
+                cap = dataclasses.replace(
+                    full,
+                    images=imgs,
+                    saturated=None,
+                    light_directions=None,
+                    light_irradiance=None,
+                    image_names=[f"copy{i}" for i in range(8)],
+                )
             else:
                 cap = dataclasses.replace(full, images=full.images[sel], light_directions=full.light_directions[sel],
                                           light_irradiance=None, image_names=[full.image_names[i] for i in sel],
@@ -175,9 +185,13 @@ def main() -> int:
     p.add_argument("--no-model", action="store_true", help="skip the shipped model's map")
     p.add_argument("--refine", action="store_true", help="also refine the shipped model's map (validate.refine's "
                    "defaults) and report its error before and after, and whether the refinement was accepted")
-    p.add_argument("--optimised", action="store_true", help="on each trusted capture also refine the ground truth, "
-                   "GT+10, GT+25, the shipped model's map and calibrated least squares (where the folder has lights) with "
-                   "validate.refine's defaults at the fitting resolution, and score the refined maps ('<map>*') too")
+    p.add_argument(
+        "--optimised",
+        action="store_true",
+        help="on each trusted capture also refine the ground truth, "
+        "GT+10, GT+25, the shipped model's map and calibrated least squares (where the folder has lights) with "
+        "validate.refine's defaults at the fitting resolution, and score the refined maps ('<map>*') too",
+    )
     p.add_argument("--light-model", default="directional", choices=("directional", "point", "environment"),
                    help="light model of every fit (the check's default: directional)")
     p.add_argument("--tile", type=int, default=0, help="trial: run the images-only rank-4 test per square tile of "
@@ -186,10 +200,14 @@ def main() -> int:
     p.add_argument("--near", action="store_true", help="trial: the whole-object test, then where it abstains the "
                    "test per tile of a quarter of the object, trusted from 55 %% explained and judged with the point "
                    "light model (overrides --tile and --light-model)")
-    p.add_argument("--degenerate", action="store_true", help="instead: the sweep of nearly unjudgeable captures made "
-                   "from each calibrated capture (8 scaled copies of one image; the 5 lights most to the right; 5 and 40 "
-                   "of the right half; 5 and 8 spread over all): light dimensions, verdict, and the judged scores of the "
-                   "truth, the truth mirrored left to right (lights turned with it) and the constant map")
+    p.add_argument(
+        "--degenerate",
+        action="store_true",
+        help="instead: the sweep of nearly unjudgeable captures made "
+        "from each calibrated capture (8 scaled copies of one image; the 5 lights most to the right; 5 and 40 "
+        "of the right half; 5 and 8 spread over all): light dimensions, verdict, and the judged scores of the "
+        "truth, the truth mirrored left to right (lights turned with it) and the constant map",
+    )
     args = p.parse_args()
     if args.degenerate:
         return degenerate_sweep(args.captures, args.out)
@@ -247,8 +265,11 @@ def main() -> int:
             rr = refine_object(str(folder), maps["model"])
             row["refine"] = {"before_deg": rr["before"]["mae_deg"], "after_deg": rr["after"]["mae_deg"],
                              "accepted": rr["accepted"], "why": rr["why"], "seconds": rr["timings"]["total_s"]}
-            print(f"  refine: {rr['before']['mae_deg']:.2f} -> {rr['after']['mae_deg']:.2f} deg, accepted {rr['accepted']} "
-                  f"({rr['timings']['total_s']:.0f} s)", flush=True)
+            print(
+                f"  refine: {rr['before']['mae_deg']:.2f} -> {rr['after']['mae_deg']:.2f} deg, accepted {rr['accepted']} "
+                f"({rr['timings']['total_s']:.0f} s)",
+                flush=True,
+            )
         s = {k: v["judged_rel_l1"] for k, v in row["maps"].items()}
         far = [k for k, v in row["maps"].items() if k != "gt" and v["mae_deg"] >= 10]
         row["gt_first"] = all(s["gt"] < s[k] for k in far)
@@ -262,22 +283,31 @@ def main() -> int:
         row["gt_first_old_score"] = all(row["maps"]["gt"]["rel_l1"] < row["maps"][k]["rel_l1"] for k in far)
         row["seconds"] = time.perf_counter() - t0
         rows.append(row)
-        print(f"{row['capture']:<14} {test} {cfg.light_model} explained {row['explained']:.2f} trusted {str(trusted):<5} "
-              f"resolution {row['resolution']:.4f} first-or-tied {row['gt_first_or_tied']!s:<5} ordered-or-tied "
-              f"{row['ordered_or_tied']!s:<5} gt_first {row['gt_first']!s:<5} "
-              f"ordered {row['ordered']!s:<5} (old score gt_first {row['gt_first_old_score']})  "
-              + "  ".join(f"{k} {v['mae_deg']:.1f}deg {v['judged_rel_l1']:.4f}" for k, v in row["maps"].items()), flush=True)
+        print(
+            f"{row['capture']:<14} {test} {cfg.light_model} explained {row['explained']:.2f} trusted {str(trusted):<5} "
+            f"resolution {row['resolution']:.4f} first-or-tied {row['gt_first_or_tied']!s:<5} ordered-or-tied "
+            f"{row['ordered_or_tied']!s:<5} gt_first {row['gt_first']!s:<5} "
+            f"ordered {row['ordered']!s:<5} (old score gt_first {row['gt_first_old_score']})  "
+            + "  ".join(f"{k} {v['mae_deg']:.1f}deg {v['judged_rel_l1']:.4f}" for k, v in row["maps"].items()),
+            flush=True,
+        )
     judged = [r for r in rows if r["trusted"]]
-    summary = {"captures": len(rows), "trusted": len(judged),
-               "light_model": "verdict (--near)" if args.near else args.light_model, "tile": args.tile,
-               "near": args.near, "trusted_by_tiles": sum(r["test"] != "whole object" for r in judged),
-               "abstention_rate": 1 - len(judged) / len(rows) if rows else None,
-               "trusted_gt_first": sum(r["gt_first"] for r in judged), "trusted_ordered": sum(r["ordered"] for r in judged),
-               "trusted_gt_first_or_tied": sum(r["gt_first_or_tied"] for r in judged),
-               "trusted_ordered_or_tied": sum(r["ordered_or_tied"] for r in judged),
-               "trusted_with_a_map_told_apart_below_gt": sum(bool(r["below_gt_told_apart"]) for r in judged),
-               "all_gt_first_judged_score": sum(r["gt_first"] for r in rows),
-               "all_gt_first_old_score": sum(r["gt_first_old_score"] for r in rows)}
+    summary = {
+        "captures": len(rows),
+        "trusted": len(judged),
+        "light_model": "verdict (--near)" if args.near else args.light_model,
+        "tile": args.tile,
+        "near": args.near,
+        "trusted_by_tiles": sum(r["test"] != "whole object" for r in judged),
+        "abstention_rate": 1 - len(judged) / len(rows) if rows else None,
+        "trusted_gt_first": sum(r["gt_first"] for r in judged),
+        "trusted_ordered": sum(r["ordered"] for r in judged),
+        "trusted_gt_first_or_tied": sum(r["gt_first_or_tied"] for r in judged),
+        "trusted_ordered_or_tied": sum(r["ordered_or_tied"] for r in judged),
+        "trusted_with_a_map_told_apart_below_gt": sum(bool(r["below_gt_told_apart"]) for r in judged),
+        "all_gt_first_judged_score": sum(r["gt_first"] for r in rows),
+        "all_gt_first_old_score": sum(r["gt_first_old_score"] for r in rows),
+    }
     refined = [r["refine"] for r in rows if "refine" in r]
     if refined:
         change = [r["after_deg"] - r["before_deg"] for r in refined]

@@ -41,8 +41,15 @@ def table(run: Path, families: bool = False) -> str:
     from unips.probes import PROBE_TITLES, format_table
 
     rows = validations(run)
-    body = [[r["step"], f"{r['val'].get('elapsed_s', 0) / 3600:.2f}",
-             *(_cell(r["val"].get("probes", {}).get(k)) for k in PROBE_TITLES), _cell(r["val"].get("gain"))] for r in rows]
+    body = [
+        [
+            r["step"],
+            f"{r['val'].get('elapsed_s', 0) / 3600:.2f}",
+            *(_cell(r["val"].get("probes", {}).get(k)) for k in PROBE_TITLES),
+            _cell(r["val"].get("gain")),
+        ]
+        for r in rows
+    ]
     lines = [f"{run}", "", markdown_table(["step", "hours", *PROBE_TITLES.values(), "photometric gain"], body)]
     if families and rows:
         last = rows[-1]["val"]  # unips.train_data.probe_samples renames summarise's "mean" dict to "probes"
@@ -129,8 +136,15 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("runs", nargs="*", type=Path, help="unips.train run folders")
     p.add_argument("--families", action="store_true", help="also the per-family probes of the last validation")
-    p.add_argument("--card", type=Path, default=None, help="a model card: the curve across its lineage's shipped stages")
-    p.add_argument("--target", type=float, default=15.0, help="test-set error (deg) the --card trend is extrapolated to (default 15)")
+    p.add_argument(
+        "--card", type=Path, default=None, help="a model card: the curve across its lineage's shipped stages"
+    )
+    p.add_argument(
+        "--target",
+        type=float,
+        default=15.0,
+        help="test-set error (deg) the --card trend is extrapolated to (default 15)",
+    )
     args = p.parse_args(argv)
     try:
         if not args.runs and args.card is None:

@@ -24,8 +24,16 @@ def split_plan(assets: Path, work: Path) -> dict[Path, Path]:
     for d in (train, held):
         if (assets / "textures").is_dir():
             links[d / "textures"] = assets / "textures"
-    meshes = sorted(p for p in (assets / "meshes").iterdir() if p.is_dir() or p.suffix.lower() in (".obj", ".ply", ".stl")) if (assets / "meshes").is_dir() else []
-    hdris = sorted(p for p in (assets / "hdri").iterdir() if p.suffix.lower() in (".hdr", ".exr")) if (assets / "hdri").is_dir() else []
+    meshes = (
+        sorted(p for p in (assets / "meshes").iterdir() if p.is_dir() or p.suffix.lower() in (".obj", ".ply", ".stl"))
+        if (assets / "meshes").is_dir()
+        else []
+    )
+    hdris = (
+        sorted(p for p in (assets / "hdri").iterdir() if p.suffix.lower() in (".hdr", ".exr"))
+        if (assets / "hdri").is_dir()
+        else []
+    )
     for items, sub, share in ((meshes, "meshes", 4), (hdris, "hdri", 5)):
         cut = len(items) - math.ceil(len(items) / share)
         for i, p in enumerate(items):
@@ -52,8 +60,10 @@ def existing_split(work: Path) -> dict[Path, Path]:
             if e.is_symlink():
                 found[e] = Path(os.readlink(e))
             elif not (e.parent == d and e.name in ("meshes", "hdri") and e.is_dir()):
-                raise UsageError(f"--work: {str(e)!r} was not written by orchestrate.train_recipe (its asset split holds "
-                                 "only links to --assets); it is never deleted: move it away or use another --work")
+                raise UsageError(
+                    f"--work: {str(e)!r} was not written by orchestrate.train_recipe (its asset split holds "
+                    "only links to --assets); it is never deleted: move it away or use another --work"
+                )
     return found
 
 

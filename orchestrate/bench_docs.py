@@ -71,9 +71,23 @@ def check_resolution(card: dict) -> str:
         rows.append([r["capture"].removesuffix(".data"), f"{res:.4f}", f"{m['gt']['judged_rel_l1']:.4f}", cell(far),
                      cell(opt) if opt else "-", f"{m['gt*']['mae_deg']:.1f}" if "gt*" in m else "-",
                      "yes" if r["gt_first_or_tied"] else "**no**", "yes" if r["ordered_or_tied"] else "**no**"])
-    return ("\n".join(lines) + "\n\n" + markdown_table(
-        ["capture", "resolution", "truth", "lowest map >= 10 deg off", "lowest refined map", "truth refined: moved (deg)",
-         "truth first or not told apart", "GT+10 < GT+25 < constant or not told apart"], rows))
+    return (
+        "\n".join(lines)
+        + "\n\n"
+        + markdown_table(
+            [
+                "capture",
+                "resolution",
+                "truth",
+                "lowest map >= 10 deg off",
+                "lowest refined map",
+                "truth refined: moved (deg)",
+                "truth first or not told apart",
+                "GT+10 < GT+25 < constant or not told apart",
+            ],
+            rows,
+        )
+    )
 
 
 PROFILE_BENCH = REPO / "bench" / "results" / "profile.json"
@@ -109,9 +123,19 @@ CYCLES_BENCH = REPO / "bench" / "results" / "cycles.json"
 def cycles_speed(card: dict) -> str:
     """Time to the same noise as our renderer at two sample counts, Blender Cycles against ours, one run."""
     d = json.loads(CYCLES_BENCH.read_text())
-    rows = [[str(r["noise_of_spp"]), f"{r['relative_rmse']:.4f}", str(r["cycles_spp"]), f"{r['cycles_s']:.2f}",
-             str(r["mitsuba_spp"]), f"{r['mitsuba_s']:.3f}", f"**{r['speedup']:.1f}x**", f"{r['speedup_path_tracing']:.1f}x"]
-            for r in d["rows"]]
+    rows = [
+        [
+            str(r["noise_of_spp"]),
+            f"{r['relative_rmse']:.4f}",
+            str(r["cycles_spp"]),
+            f"{r['cycles_s']:.2f}",
+            str(r["mitsuba_spp"]),
+            f"{r['mitsuba_s']:.3f}",
+            f"**{r['speedup']:.1f}x**",
+            f"{r['speedup_path_tracing']:.1f}x",
+        ]
+        for r in d["rows"]
+    ]
     return (f"Measured side by side on {d['machine']['cpus']} cores (`{d['command']}`; {d['blender']}, "
             f"{d['res']} x {d['res']} px, {d['threads']} threads each; references at {d['reference_spp']} spp):\n\n"
             + markdown_table(["noise of our render at (spp)", "relative RMSE", "Cycles spp", "Cycles (s)", "ours spp",

@@ -41,7 +41,15 @@ from scenes.files import atomic_write_text
 from scenes.folder.format import MASK_FILE, write_object_folder
 from scenes.images import read_mask, write_mask, write_normal_exr, write_normal_map, write_picture
 
-OUTPUTS = ("normal.png", "normal.exr", "normal_model.png", MASK_FILE, "light_variation.png", "report.json", "report.html")
+OUTPUTS = (
+    "normal.png",
+    "normal.exr",
+    "normal_model.png",
+    MASK_FILE,
+    "light_variation.png",
+    "report.json",
+    "report.html",
+)
 """What the command writes at the top of --out (its working folders: work/, check/, refine/)."""
 CONVENTIONS = {"opengl": np.array([1.0, 1.0, 1.0]), "opencv": np.array([1.0, -1.0, -1.0])}
 """Per convention, the signs that turn the camera frame (x right, y up, z toward the camera) into it."""
@@ -65,7 +73,9 @@ class CaptureOptions:
     srgb (refused for RAW files) or linear."""
     convention: Literal["opengl", "opencv"] = "opengl"
     """Frame of the written normals: opengl (x right, y up, z toward the camera) or opencv (y down, z away)."""
-    max_side: Annotated[int | None, arg(help_behavior_hint="(default: the photos' own size)")] = option(None, minimum=32)
+    max_side: Annotated[int | None, arg(help_behavior_hint="(default: the photos' own size)")] = option(
+        None, minimum=32
+    )
     """Downscale the photos so that their longer side is at most this many pixels."""
     checkpoint: Annotated[str | None, arg(metavar="FILE", help_behavior_hint="(default: the shipped model)")] = None
     """Model weights to predict with: a model file, or a folder of the authors' published weights with --model."""
@@ -177,7 +187,9 @@ def predict(opts: CaptureOptions, work: Path) -> np.ndarray:
     return run_model(net, object_from_folder(read_folder(work, arg="--input")))
 
 
-def check_and_refine(opts: CaptureOptions, work: Path, out: Path, normals: np.ndarray) -> tuple[np.ndarray, dict, dict | None]:
+def check_and_refine(
+    opts: CaptureOptions, work: Path, out: Path, normals: np.ndarray
+) -> tuple[np.ndarray, dict, dict | None]:
     """The fitted check of the model's map, and the refinement where the check trusts the capture: (final map,
     check report, refine report or None)."""
     from dataclasses import replace
@@ -216,9 +228,13 @@ def verdict(check: dict, refined: dict | None) -> dict:
                           f"{check.get('why')}")
     else:
         units = out["residual_in_noise_units"]
-        out["summary"] = (f"The images can judge this capture ({check['explained_fraction']:.0%} of the object is "
-                          f"explained by the fitted light); the final map leaves a residual of "
-                          f"{units:.1f} times the image noise" if units is not None else "The images can judge this capture")
+        out["summary"] = (
+            f"The images can judge this capture ({check['explained_fraction']:.0%} of the object is "
+            f"explained by the fitted light); the final map leaves a residual of "
+            f"{units:.1f} times the image noise"
+            if units is not None
+            else "The images can judge this capture"
+        )
         out["summary"] += ("; the model's map is kept." if not out["refined"] else
                            "; it was refined, and the images tell the refined map apart from the model's." if
                            refined.get("told_apart") else
@@ -359,8 +375,10 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:
         return report_error(exc, 1)
     print(report["verdict"]["summary"])
-    print(f"wrote {Path(opts.out) / 'normal.png'}, normal.exr, mask.png, light_variation.png, report.json and report.html "
-          f"({len(report['warnings'])} warning(s))")
+    print(
+        f"wrote {Path(opts.out) / 'normal.png'}, normal.exr, mask.png, light_variation.png, report.json and report.html "
+        f"({len(report['warnings'])} warning(s))"
+    )
     return 0
 
 

@@ -67,7 +67,7 @@ def write_page(path: Path, report: dict[str, Any], pictures: dict[str, str | Non
     units = v.get("residual_in_noise_units")
     r, g, b = HEADER_RGB
     body = f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8"><title>Normal map of {html.escape(report['input']['folder'])}</title>
+<html lang="en"><head><meta charset="utf-8"><title>Normal map of {html.escape(report["input"]["folder"])}</title>
 <style>
 body {{ font-family: sans-serif; margin: 0; color: #222; }}
 header {{ background: rgb({r},{g},{b}); color: white; padding: 18px 24px; }}
@@ -78,34 +78,34 @@ figcaption {{ font-size: 0.9em; max-width: 520px; }}
 .verdict {{ font-size: 1.15em; background: #eef3f8; padding: 12px 16px; border-left: 6px solid rgb({r},{g},{b}); }}
 table {{ border-collapse: collapse; }} td, th {{ border: 1px solid #ccc; padding: 4px 8px; text-align: left; }}
 </style></head><body>
-<header><h1>Normal map of {html.escape(Path(report['input']['folder']).name)}</h1>
-{report['input']['images']} photos, {report['input']['size'][1]} x {report['input']['size'][0]} px</header>
+<header><h1>Normal map of {html.escape(Path(report["input"]["folder"]).name)}</h1>
+{report["input"]["images"]} photos, {report["input"]["size"][1]} x {report["input"]["size"][0]} px</header>
 <main>
 <h2>Verdict</h2>
-<p class="verdict">{html.escape(v['summary'])}</p>
+<p class="verdict">{html.escape(v["summary"])}</p>
 <table>
 <tr><th>Can the images judge this capture?</th><td>{judge}</td></tr>
-<tr><th>Share of the object the fitted light explains</th><td>{_pct(v.get('explained_fraction'))}</td></tr>
-<tr><th>Residual of the final map, in units of the image noise</th><td>{'-' if units is None else f'{units:.1f}'}</td></tr>
-<tr><th>Refined</th><td>{'yes' if v['refined'] else 'no'}: {html.escape(str(v.get('refinement')))}</td></tr>
-<tr><th>Normal map</th><td>{html.escape(report['normals']['frame'])} ({html.escape(report['normals']['convention'])}); {html.escape(report['normals']['encoding'])}</td></tr>
+<tr><th>Share of the object the fitted light explains</th><td>{_pct(v.get("explained_fraction"))}</td></tr>
+<tr><th>Residual of the final map, in units of the image noise</th><td>{"-" if units is None else f"{units:.1f}"}</td></tr>
+<tr><th>Refined</th><td>{"yes" if v["refined"] else "no"}: {html.escape(str(v.get("refinement")))}</td></tr>
+<tr><th>Normal map</th><td>{html.escape(report["normals"]["frame"])} ({html.escape(report["normals"]["convention"])}); {html.escape(report["normals"]["encoding"])}</td></tr>
 </table>
 <h2>What to improve in the capture</h2>
 <ul>{warnings}</ul>
 <h2>The photos</h2>
-{_figure('Photos', pictures.get('contact_sheet'), 'a sample of the inputs, shown in sRGB')}
-{_figure('Mask', pictures.get('mask'), report['mask']['method'])}
-{_figure('Light variation', pictures.get('light_variation'), 'how much each pixel changes across the photos (bright: a lot); the object should stand out')}
+{_figure("Photos", pictures.get("contact_sheet"), "a sample of the inputs, shown in sRGB")}
+{_figure("Mask", pictures.get("mask"), report["mask"]["method"])}
+{_figure("Light variation", pictures.get("light_variation"), "how much each pixel changes across the photos (bright: a lot); the object should stand out")}
 <h2>The normal map</h2>
-{_figure('Final normal map', pictures.get('normals'), 'colour = (n + 1) / 2: red right, green up, blue toward the camera')}
-{_figure("The model's map before refinement", pictures.get('model_normals'), 'shown where the map was refined')}
+{_figure("Final normal map", pictures.get("normals"), "colour = (n + 1) / 2: red right, green up, blue toward the camera")}
+{_figure("The model's map before refinement", pictures.get("model_normals"), "shown where the map was refined")}
 <h2>The physical check</h2>
-{_figure('Re-render residual', pictures.get('check_figure'), 'the photos, their re-rendering with the fitted light and the normal map, and the relative residual')}
-{_figure('Explained', pictures.get('explained'), 'where the fitted light explains the photos (the judged part)')}
+{_figure("Re-render residual", pictures.get("check_figure"), "the photos, their re-rendering with the fitted light and the normal map, and the relative residual")}
+{_figure("Explained", pictures.get("explained"), "where the fitted light explains the photos (the judged part)")}
 <h2>Details</h2>
 <table>
-<tr><th>Timings (s)</th><td>{html.escape(', '.join(f'{k} {t:.1f}' for k, t in report['timings'].items()))}</td></tr>
-<tr><th>Peak memory</th><td>{report['peak_memory_mib']:.0f} MiB</td></tr>
+<tr><th>Timings (s)</th><td>{html.escape(", ".join(f"{k} {t:.1f}" for k, t in report["timings"].items()))}</td></tr>
+<tr><th>Peak memory</th><td>{report["peak_memory_mib"]:.0f} MiB</td></tr>
 <tr><th>Full report</th><td>report.json; the check's and the refinement's own reports under check/ and refine/</td></tr>
 </table>
 </main></body></html>

@@ -17,19 +17,18 @@ replaced only with --overwrite.
 """
 from __future__ import annotations
 
-from typing import Annotated, Literal
-
 import json
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated, Literal
 
 from orchestrate.steps import StepFailed, check_step, run_step
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
+from scenes.cli.options import Command, arg, check_fields, option
 from scenes.cli.outputs import check_output_folder, claim_outputs
 from scenes.files import atomic_write_text
 from scenes.report.tables import markdown_table
-from scenes.cli.options import Command, arg, check_fields, option
 
 FAMILIES = "near_area,hdri,mixed,directional"
 
@@ -53,7 +52,12 @@ def summary_table(out: Path, methods: list[str]) -> str:
     metrics = {m: json.loads((out / "pred" / m / "metrics.json").read_text()) for m in methods}
     reports = {m: _reports(out / "rerender" / m) for m in methods}
     names = sorted({n for m in methods for n in metrics[m]["objects"]})
-    head = ["object", "family"] + [f"{m} MAE (deg)" for m in methods] + [f"{m} re-render rel. L1" for m in methods] + ["GT normals rel. L1"]
+    head = (
+        ["object", "family"]
+        + [f"{m} MAE (deg)" for m in methods]
+        + [f"{m} re-render rel. L1" for m in methods]
+        + ["GT normals rel. L1"]
+    )
     rows = []
 
     def cell(v, fmt):
@@ -105,7 +109,9 @@ class DemoOptions:
     """Samples per pixel."""
     seed: int = option(0, minimum=0)
     """Dataset seed."""
-    checkpoint: Annotated[Path | None, arg(help_behavior_hint="(default: the shipped weights of unips.models.DEFAULT_MODEL)")] = None
+    checkpoint: Annotated[
+        Path | None, arg(help_behavior_hint="(default: the shipped weights of unips.models.DEFAULT_MODEL)")
+    ] = None
     """Model file."""
     baseline: Literal["sh-uncalibrated", "least-squares"] = "sh-uncalibrated"
     """Classical baseline to compare with (least-squares needs directional lights only)."""
@@ -158,7 +164,9 @@ def check_steps(args: DemoOptions) -> None:
     check_step("wildgen.preview", [str(args.out / "data"), *_again(args)])
     for m in ("model", args.baseline):
         check_step("unips.predict", predict_argv(args, m))
-        check_step("unips.evaluate", ["--pred", str(args.out / "pred" / m), "--gt", str(args.out / "data"), *_again(args)])
+        check_step(
+            "unips.evaluate", ["--pred", str(args.out / "pred" / m), "--gt", str(args.out / "data"), *_again(args)]
+        )
         check_step("validate.rerender", rerender_argv(args, m))
 
 

@@ -15,15 +15,21 @@ model. Everything outside the markers is written by hand and left alone.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 import importlib
 import re
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from orchestrate.bench_docs import BENCH_BLOCKS, capture_resources, check_resolution, cycles_speed, render_profile, \
-    shards_throughput
+from orchestrate.bench_docs import (
+    BENCH_BLOCKS,
+    capture_resources,
+    check_resolution,
+    cycles_speed,
+    render_profile,
+    shards_throughput,
+)
 from scenes.cli.errors import UsageError, report_error
 from scenes.cli.options import Command
 from scenes.report.tables import markdown_table
@@ -118,14 +124,23 @@ def readme_headline(card: dict) -> str:
     model = test["mean_deg"]["model"]
     ls = test["mean_deg"].get("least squares (calibrated)", {})
     probes = test["per_family_probes"]
-    rows = [[f"synthetic test set, all {sum(p['n'] for p in probes.values())} objects", fmt(model["all"]), "-", "-"],
-            [f"synthetic test set, its {probes['directional']['n']} directional-light objects", fmt(model["directional"]),
-             fmt(ls.get("directional")), "-"]]
+    rows = [
+        [f"synthetic test set, all {sum(p['n'] for p in probes.values())} objects", fmt(model["all"]), "-", "-"],
+        [
+            f"synthetic test set, its {probes['directional']['n']} directional-light objects",
+            fmt(model["directional"]),
+            fmt(ls.get("directional")),
+            "-",
+        ],
+    ]
     for obj in ("ball", "cat"):
         o = dil[obj]
         rows.append([f"DiLiGenT {obj} ({o['images']} images)", fmt(_ball_cat(o, "model_deg"), 2),
                      fmt(o["least_squares_calibrated_deg"]), fmt(o["published_unips_deg"])])
-    return markdown_table(["mean angular error, degrees (lower is better)", "this model", "calibrated least squares", "published UniPS"], rows)
+    return markdown_table(
+        ["mean angular error, degrees (lower is better)", "this model", "calibrated least squares", "published UniPS"],
+        rows,
+    )
 
 
 def test_set_methods(card: dict) -> str:
@@ -152,7 +167,9 @@ def _probe_table(card: dict, per_family: dict, overall: dict, gain: float) -> st
             for f, p in ((f, per_family[f]) for f in _families(card, per_family))]
     rows.append(["all", str(sum(p["n"] for p in per_family.values())), fmt(overall["all"]), fmt(overall["one"]),
                  fmt(overall["mask"]), fmt(overall["shuffled"]), fmt(gain)])
-    return markdown_table(["family", "objects", "all images", "one image", "mask only", "shuffled", "photometric gain"], rows)
+    return markdown_table(
+        ["family", "objects", "all images", "one image", "mask only", "shuffled", "photometric gain"], rows
+    )
 
 
 def image_count(card: dict) -> str:
@@ -169,22 +186,49 @@ def diligent(card: dict) -> str:
     rows = []
     for obj in ("ball", "cat"):
         o = d[obj]
-        rows.append([obj, str(o["images"]), fmt(_ball_cat(o, "model_deg"), 2), fmt(o["model_k16_mean_deg"]), fmt(o["model_mask_only_deg"]),
-                     fmt(o["model_seconds"]), fmt(o["least_squares_calibrated_deg"]), fmt(o["published_l2_deg"], 2),
-                     fmt(o["published_unips_deg"])])
-    return markdown_table(["object", "images", "this model", "this model, 16 images", "mask only", "seconds", "calibrated least squares",
-                   "published least squares", "published UniPS"], rows)
+        rows.append(
+            [
+                obj,
+                str(o["images"]),
+                fmt(_ball_cat(o, "model_deg"), 2),
+                fmt(o["model_k16_mean_deg"]),
+                fmt(o["model_mask_only_deg"]),
+                fmt(o["model_seconds"]),
+                fmt(o["least_squares_calibrated_deg"]),
+                fmt(o["published_l2_deg"], 2),
+                fmt(o["published_unips_deg"]),
+            ]
+        )
+    return markdown_table(
+        [
+            "object",
+            "images",
+            "this model",
+            "this model, 16 images",
+            "mask only",
+            "seconds",
+            "calibrated least squares",
+            "published least squares",
+            "published UniPS",
+        ],
+        rows,
+    )
 
 
 def model_facts(card: dict) -> str:
     t = card["training"]
-    rows = [["model", f"`{card['model']}` ({card['parameters']:,} parameters), `{card['weights']}`"],
-            ["training data", f"{card['train_objects']} rendered objects (see the lineage below)"],
-            ["steps in all", f"{card['steps']} (last stage {t['steps']}, weights of its step {card['best_step']})"],
-            ["training time in all", f"{card['wall_time_s'] / 3600:.2f} h on {card['hardware']}"],
-            ["fixed validation set", f"{fmt(card['validation_mean_deg'], 2)} deg mean angular error"],
-            ["held-out test set", f"{fmt(card['test_set']['mean_deg']['model']['all'])} deg, photometric gain "
-                                  f"{fmt(card['test_set']['photometric_gain_deg'])} deg ({card['test_set']['views']} views)"]]
+    rows = [
+        ["model", f"`{card['model']}` ({card['parameters']:,} parameters), `{card['weights']}`"],
+        ["training data", f"{card['train_objects']} rendered objects (see the lineage below)"],
+        ["steps in all", f"{card['steps']} (last stage {t['steps']}, weights of its step {card['best_step']})"],
+        ["training time in all", f"{card['wall_time_s'] / 3600:.2f} h on {card['hardware']}"],
+        ["fixed validation set", f"{fmt(card['validation_mean_deg'], 2)} deg mean angular error"],
+        [
+            "held-out test set",
+            f"{fmt(card['test_set']['mean_deg']['model']['all'])} deg, photometric gain "
+            f"{fmt(card['test_set']['photometric_gain_deg'])} deg ({card['test_set']['views']} views)",
+        ],
+    ]
     return markdown_table(["", "shipped model"], rows)
 
 
@@ -200,9 +244,22 @@ def lineage(card: dict) -> str:
     for stage in card["lineage"]:
         fv = _at_best(stage)
         shipped = "no" if stage.get("shipped") is False or "not shipped" in stage["stage"] else "yes"
-        rows.append([_cell(stage["stage"]), _cell(stage.get("init_from") or "random"), str(stage["steps"]), fmt(stage.get("hours"), 2),
-                     fmt(fv.get("all"), 2), fmt(fv.get("gain"), 2), shipped, _cell(stage["data"])])
-    return markdown_table(["stage", "started from", "steps", "hours", "validation: all images", "photometric gain", "shipped", "data"], rows)
+        rows.append(
+            [
+                _cell(stage["stage"]),
+                _cell(stage.get("init_from") or "random"),
+                str(stage["steps"]),
+                fmt(stage.get("hours"), 2),
+                fmt(fv.get("all"), 2),
+                fmt(fv.get("gain"), 2),
+                shipped,
+                _cell(stage["data"]),
+            ]
+        )
+    return markdown_table(
+        ["stage", "started from", "steps", "hours", "validation: all images", "photometric gain", "shipped", "data"],
+        rows,
+    )
 
 
 def lineage_families(card: dict) -> str:
@@ -219,7 +276,9 @@ def sensor_presets(card: dict) -> str:
     rows = []
     for s in SENSORS.values():
         depth = f"{s.bits} in 16" if s.bits == 12 else str(s.bits)
-        rows.append([f"`{s.name}`", s.about, f"{depth}-bit {s.response}" + (f" {s.gamma:g}" if s.response == "gamma" else "")])
+        rows.append(
+            [f"`{s.name}`", s.about, f"{depth}-bit {s.response}" + (f" {s.gamma:g}" if s.response == "gamma" else "")]
+        )
     return markdown_table(["preset", "imitates", "file"], rows)
 
 
@@ -240,7 +299,9 @@ def complexity_levels(card: dict) -> str:
     rows = [[str(n), lv.about, ", ".join(f"`{f}`" for f in lv.config.lights), lv.config.materials,
              f"{lv.config.shapes} ({', '.join(lv.config.shape_kinds)})", f"{lv.config.detail:.0%}",
              lv.config.cluster or "1"] for n, lv in LEVELS.items()]
-    return markdown_table(["level", "scenes", "lights", "materials", "shapes (procedural kinds)", "detail", "objects"], rows)
+    return markdown_table(
+        ["level", "scenes", "lights", "materials", "shapes (procedural kinds)", "detail", "objects"], rows
+    )
 
 
 def data_ab(card: dict) -> str:
@@ -253,11 +314,33 @@ def data_ab(card: dict) -> str:
         fv, (l4, l5), d = r["fixed_validation"], r["new_kinds"], r["diligent"]
         arm, _, lr = name.partition("_lr")
         label = "shipped weights" if name == "shipped" else f"`{arm}`, lr {lr or '1.5e-4'}"
-        rows.append([label, fmt(fv["mean_deg"], 2), fmt(fv["gain_deg"], 2), fmt(l4["mean_deg"], 2), fmt(l5["mean_deg"], 2),
-                     fmt(d["ball"]["k96_deg"], 2), fmt(d["ball"]["k16_deg"], 2), fmt(d["cat"]["k96_deg"], 2),
-                     fmt(d["cat"]["k16_deg"], 2)])
-    return markdown_table(["model", "fixed validation", "photometric gain", "held-out level 4", "held-out level 5 (perspective)",
-                   "ball K=96", "ball K=16", "cat K=96", "cat K=16"], rows)
+        rows.append(
+            [
+                label,
+                fmt(fv["mean_deg"], 2),
+                fmt(fv["gain_deg"], 2),
+                fmt(l4["mean_deg"], 2),
+                fmt(l5["mean_deg"], 2),
+                fmt(d["ball"]["k96_deg"], 2),
+                fmt(d["ball"]["k16_deg"], 2),
+                fmt(d["cat"]["k96_deg"], 2),
+                fmt(d["cat"]["k16_deg"], 2),
+            ]
+        )
+    return markdown_table(
+        [
+            "model",
+            "fixed validation",
+            "photometric gain",
+            "held-out level 4",
+            "held-out level 5 (perspective)",
+            "ball K=96",
+            "ball K=16",
+            "cat K=96",
+            "cat K=16",
+        ],
+        rows,
+    )
 
 
 # Generated blocks other than flag tables: name -> renderer of the model card.

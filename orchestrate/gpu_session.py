@@ -44,24 +44,21 @@ if __name__ == "__main__":  # the pack's packages first: the imports below need 
 
     boot_site(sys.argv[1:])
 
-from typing import Literal  # noqa: E402
-
 import json
 import math
-import os
 import platform
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Literal  # noqa: E402
 
+from orchestrate.relay import REPO, SITE_ARCHIVE, UPLOAD_LIMIT, pack, resolve_init, tree_bytes, unpack_carry  # noqa: F401
 from orchestrate.steps import OutOfTime, StepFailed, check_step, run_step
 from scenes.cli.budget import process_start
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
-from scenes.cli.outputs import check_output_folder
 from scenes.cli.options import Command, check_fields, option
+from scenes.cli.outputs import check_output_folder
 from scenes.files import atomic_write_text
-
-from orchestrate.relay import REPO, SITE_ARCHIVE, UPLOAD_LIMIT, pack, resolve_init, tree_bytes, unpack_carry  # noqa: F401
 
 SHARED_ASSETS = REPO.parent / "shared" / "assets"
 RUN = "run"
@@ -173,7 +170,9 @@ def compare_datasets(main: Path, check: Path, names: list[str], spp: int, noise_
     for name in names:
         a, b = read_folder(main / name, arg="--work"), read_folder(check / name, arg="--work")
         kernel = np.ones((3, 3), np.uint8)
-        outline = cv2.dilate(a.mask.astype(np.uint8), kernel).astype(bool) & ~cv2.erode(a.mask.astype(np.uint8), kernel).astype(bool)
+        outline = cv2.dilate(a.mask.astype(np.uint8), kernel).astype(bool) & ~cv2.erode(
+            a.mask.astype(np.uint8), kernel
+        ).astype(bool)
         differ = a.mask != b.mask
         inner = cv2.erode((a.mask & b.mask).astype(np.uint8), kernel).astype(bool)
         ang = angles_deg(a.normals[inner], b.normals[inner]) if inner.any() else np.zeros(1)
@@ -205,7 +204,11 @@ def render_speed(folder: Path, wall_s: float | None = None) -> dict:
 
     done = [e for e in json.loads((folder / "manifest.json").read_text())["objects"] if e.get("status") == "done"]
     per = statistics.median(e["timings"]["total_s"] for e in done) if done else float("nan")
-    out = {"objects": len(done), "seconds_per_object": round(per, 3), "objects_per_hour_one_worker": round(3600 / per, 1)}
+    out = {
+        "objects": len(done),
+        "seconds_per_object": round(per, 3),
+        "objects_per_hour_one_worker": round(3600 / per, 1),
+    }
     if wall_s:
         out["objects_per_hour_run"] = round(len(done) * 3600 / wall_s, 1)
     return out
@@ -220,9 +223,11 @@ def missing_mitsuba() -> str | None:
         import drjit  # noqa: F401
         import mitsuba  # noqa: F401
     except ImportError as exc:
-        return (f"Mitsuba is not importable here ({exc}): carry it: here run `python -m orchestrate.gpu_session --pack "
-                ".carry --wheels .whl`, then on the GPU machine carry .carry and unpack .carry/site.tar.xz into a folder "
-                "on PYTHONPATH first (docs/model.md, 'Training on a GPU session')")
+        return (
+            f"Mitsuba is not importable here ({exc}): carry it: here run `python -m orchestrate.gpu_session --pack "
+            ".carry --wheels .whl`, then on the GPU machine carry .carry and unpack .carry/site.tar.xz into a folder "
+            "on PYTHONPATH first (docs/model.md, 'Training on a GPU session')"
+        )
     return None
 
 
@@ -244,20 +249,61 @@ def _choose(requested: str, avoid: str | None = None) -> str:
 
 def _make_argv(opts: SessionOptions, out: Path, variant: str, objects: int, shards: Path | None,
                assets: str | None = None) -> list[str]:
-    return [*(["--assets", assets] if assets else []), "--objects", str(objects), "--images", str(opts.images), "--res", str(opts.res), "--spp", str(opts.spp),
-            "--seed", str(opts.seed), "--variant", variant, "--out", str(out), "--quiet",
-            *(["--shards", str(shards), "--shard-encoding", "decoded"] if shards else []),
-            *(["--overwrite"] if opts.overwrite else [])]
+    return [
+        *(["--assets", assets] if assets else []),
+        "--objects",
+        str(objects),
+        "--images",
+        str(opts.images),
+        "--res",
+        str(opts.res),
+        "--spp",
+        str(opts.spp),
+        "--seed",
+        str(opts.seed),
+        "--variant",
+        variant,
+        "--out",
+        str(out),
+        "--quiet",
+        *(["--shards", str(shards), "--shard-encoding", "decoded"] if shards else []),
+        *(["--overwrite"] if opts.overwrite else []),
+    ]
 
 
 def _train_argv(opts: SessionOptions, shards: Path, run: Path, device: str, minutes: float,
                 init: str | None = None) -> list[str]:
-    return ["--data", str(shards), "--out", str(run), *(["--init-from", init] if init else ["--model", opts.model]), "--steps", str(opts.steps),
-            "--batch", str(opts.batch), "--lr", str(opts.lr), "--res", str(opts.res), "--max-images", str(opts.images),
-            "--device", device, "--precision", "bf16" if device == "cuda" else "fp32",
-            "--ckpt-minutes", str(opts.ckpt_minutes), "--time-limit", f"{minutes:.4f}",
-            "--log-every", str(opts.log_every), "--seed", "0", "--no-progress",
-            *(["--overwrite"] if opts.overwrite else [])]
+    return [
+        "--data",
+        str(shards),
+        "--out",
+        str(run),
+        *(["--init-from", init] if init else ["--model", opts.model]),
+        "--steps",
+        str(opts.steps),
+        "--batch",
+        str(opts.batch),
+        "--lr",
+        str(opts.lr),
+        "--res",
+        str(opts.res),
+        "--max-images",
+        str(opts.images),
+        "--device",
+        device,
+        "--precision",
+        "bf16" if device == "cuda" else "fp32",
+        "--ckpt-minutes",
+        str(opts.ckpt_minutes),
+        "--time-limit",
+        f"{minutes:.4f}",
+        "--log-every",
+        str(opts.log_every),
+        "--seed",
+        "0",
+        "--no-progress",
+        *(["--overwrite"] if opts.overwrite else []),
+    ]
 
 
 def curve_records(log: Path) -> list[dict]:
@@ -380,8 +426,19 @@ def session(opts: SessionOptions, t0: float | None = None) -> dict:
     return summary
 
 
-def _write_card(opts: SessionOptions, out: Path, run: Path, records: list[dict], variant: str, device: str,
-                check: dict, t_render: float, t_train: float, init: str | None = None, assets: str | None = None) -> dict:
+def _write_card(
+    opts: SessionOptions,
+    out: Path,
+    run: Path,
+    records: list[dict],
+    variant: str,
+    device: str,
+    check: dict,
+    t_render: float,
+    t_train: float,
+    init: str | None = None,
+    assets: str | None = None,
+) -> dict:
     """model_card.json (a fragment for a model card) and the content of summary.json."""
     import torch
 
@@ -391,19 +448,36 @@ def _write_card(opts: SessionOptions, out: Path, run: Path, records: list[dict],
     step = meta.get("extra", {}).get("step")
     gpu = torch.cuda.get_device_name(0) if device == "cuda" else None
     card = {
-        "model": meta.get("model_name"), "weights": f"{RUN}/final.safetensors",
+        "model": meta.get("model_name"),
+        "weights": f"{RUN}/final.safetensors",
         "parameters": sum(p.numel() for p in model.parameters()),
         "data": f"wildgen.make seed {opts.seed}, {opts.objects} objects, {opts.res} px, {opts.images} images, "
-                f"{opts.spp} spp, {variant}, assets: {_assets_note(opts, assets)}",
-        "init_from": opts.init, "init_weights": init and Path(init).name,
-        "steps": step, "schedule_steps": opts.steps, "batch": opts.batch, "lr": opts.lr,
+        f"{opts.spp} spp, {variant}, assets: {_assets_note(opts, assets)}",
+        "init_from": opts.init,
+        "init_weights": init and Path(init).name,
+        "steps": step,
+        "schedule_steps": opts.steps,
+        "batch": opts.batch,
+        "lr": opts.lr,
         "precision": "bf16 autocast" if device == "cuda" else "fp32",
         "final_loss": records[-1]["loss"] if records else None,
         "train_minutes": round(t_train / 60, 2),
         "hardware": f"{gpu or platform.processor() or platform.machine()}, torch {torch.__version__}",
-        "recipe": "python -m orchestrate.gpu_session " + " ".join(f"--{k.replace('_', '-')} {v}" for k, v in (
-            ("init", opts.init), ("minutes", opts.minutes), ("objects", opts.objects), ("res", opts.res), ("spp", opts.spp),
-            ("seed", opts.seed), ("model", opts.model), ("steps", opts.steps), ("batch", opts.batch))),
+        "recipe": "python -m orchestrate.gpu_session "
+        + " ".join(
+            f"--{k.replace('_', '-')} {v}"
+            for k, v in (
+                ("init", opts.init),
+                ("minutes", opts.minutes),
+                ("objects", opts.objects),
+                ("res", opts.res),
+                ("spp", opts.spp),
+                ("seed", opts.seed),
+                ("model", opts.model),
+                ("steps", opts.steps),
+                ("batch", opts.batch),
+            )
+        ),
     }
     atomic_write_text(out / "model_card.json", json.dumps(card, indent=1))
     big = [str(p.relative_to(out)) for p in out.rglob("*") if p.is_file() and p.stat().st_size > 16 * 2**20]
@@ -440,8 +514,10 @@ def main(argv: list[str] | None = None) -> int:
         return report_error(exc, code=exc.code)
     except (*INPUT_ERRORS, OSError) as exc:
         return report_error(exc)
-    print(f"gpu session done in {summary['wall_s']:.0f} s: {summary['steps']} steps; wrote {opts.out}/{RUN}/final.safetensors "
-          f"(+ .json, last.pt, log.jsonl), learning_curve.png, variant_check.json, model_card.json, summary.json")
+    print(
+        f"gpu session done in {summary['wall_s']:.0f} s: {summary['steps']} steps; wrote {opts.out}/{RUN}/final.safetensors "
+        f"(+ .json, last.pt, log.jsonl), learning_curve.png, variant_check.json, model_card.json, summary.json"
+    )
     return 0
 
 

@@ -43,11 +43,13 @@ PACKED = ("mitsuba==3.9.1", "drjit==1.5.0", "OpenEXR", "trimesh", "colour-scienc
           "braceexpand", "matplotlib", "cycler", "kiwisolver", "pyparsing", "fonttools", "python-dateutil",
           "tyro==1.0.17", "docstring-parser", "typeguard")
 """The wheels docs/model.md downloads for the pack (what the GPU image lacks, or lacks in this version)."""
-GPU_IMAGE = tuple("""absl-py accelerate certifi charset-normalizer click cloudpickle contourpy cycler filelock fonttools fsspec
+GPU_IMAGE = tuple(
+    """absl-py accelerate certifi charset-normalizer click cloudpickle contourpy cycler filelock fonttools fsspec
 h5py huggingface-hub idna imageio jinja2 joblib kiwisolver lazy-loader markupsafe matplotlib mpmath networkx numpy
 opencv-python-headless packaging pandas pillow psutil pyparsing python-dateutil pyyaml regex requests safetensors
 scikit-image scipy setuptools six sympy tifffile timm torch torchvision tqdm typing-extensions urllib3
-zipp""".split())
+zipp""".split()
+)
 """Packages of the GPU machines' image ('cuda', /work/.library/device/KINDS.md, 2026-11-17) that this project may
 import: the rehearsal's fresh environment holds these and the pack, nothing else."""
 MARGIN = 2**20
@@ -75,9 +77,11 @@ def resolve_init(init: str | None, model: str | None) -> tuple[str | None, str]:
     if init == "shipped":
         names = [model] if model else list_pretrained()
         if len(names) != 1 or names[0] not in list_pretrained():
-            raise UsageError(f"--init: 'shipped', but {'--model ' + repr(model) + ' has' if model else 'the registry has'} "
-                             f"no single shipped weights file (shipped: {', '.join(list_pretrained()) or 'none'}; "
-                             "expected --model naming one of them)")
+            raise UsageError(
+                f"--init: 'shipped', but {'--model ' + repr(model) + ' has' if model else 'the registry has'} "
+                f"no single shipped weights file (shipped: {', '.join(list_pretrained()) or 'none'}; "
+                "expected --model naming one of them)"
+            )
         return str(pretrained_entry(names[0]).weights_path), names[0]
     path = Path(init)
     if not path.is_file():
@@ -118,7 +122,9 @@ def check_architecture(path: Path, name: str | None, config: dict | None, flag: 
 # ---------------------------------------------------------------- the assets (here)
 
 
-def asset_choice(assets: Path) -> tuple[list[tuple[Path, str]], list[tuple[Path, str]], list[list[tuple[Path, str]]], list[str]]:
+def asset_choice(
+    assets: Path,
+) -> tuple[list[tuple[Path, str]], list[tuple[Path, str]], list[list[tuple[Path, str]]], list[str]]:
     """(meshes, HDR maps, texture sets, held-out names) of the training split: (file, name in the archive) pairs."""
     from orchestrate.asset_split import SPLIT_FOLDERS, split_plan
 
@@ -138,7 +144,13 @@ def asset_choice(assets: Path) -> tuple[list[tuple[Path, str]], list[tuple[Path,
     tex = assets / "textures"
     sets = []
     if tex.is_dir():
-        for d in sorted({p.parent for p in tex.rglob("*") if p.is_file() and p.suffix.lower() in (".jpg", ".jpeg", ".png", ".exr", ".tif", ".tiff")}):
+        for d in sorted(
+            {
+                p.parent
+                for p in tex.rglob("*")
+                if p.is_file() and p.suffix.lower() in (".jpg", ".jpeg", ".png", ".exr", ".tif", ".tiff")
+            }
+        ):
             sets.append([(p, f"textures/{p.relative_to(tex)}") for p in sorted(d.iterdir()) if p.is_file()])
     return meshes, hdris, sets, held
 
@@ -272,8 +284,10 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
     mib = (f"{total} bytes = {total / 2**20:.1f} MiB ({site / 2**20:.1f} MiB {archive}, {asset_bytes / 2**20:.1f} MiB "
            f"{ASSET_ARCHIVE}, {tree / 2**20:.1f} MiB working tree)")
     if total > limit:
-        raise UsageError(f"--pack: what would travel is {mib}, over the {limit} bytes ({limit / 2**20:.0f} MiB) upload limit: "
-                         "leave out wheels the GPU machine has, or render the data here and carry shards instead")
+        raise UsageError(
+            f"--pack: what would travel is {mib}, over the {limit} bytes ({limit / 2**20:.0f} MiB) upload limit: "
+            "leave out wheels the GPU machine has, or render the data here and carry shards instead"
+        )
     print(f"packed {archive}: {mib}, within {limit / 2**20:.0f} MiB")
     return total
 

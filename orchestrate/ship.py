@@ -18,8 +18,6 @@ card's lineage either way (hardware, minutes, steps, data, figures, shipped or n
 """
 from __future__ import annotations
 
-from typing import Annotated
-
 import json
 import os
 import platform
@@ -28,6 +26,7 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
 
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
@@ -86,7 +85,9 @@ def candidate_weights(folder: Path, scratch: Path) -> tuple[Path, str]:
     try:
         pretrained_entry(name)
     except ValueError as exc:
-        raise UsageError(f"--candidate: {str(found)!r} holds {name!r}, which has no shipped-weights entry ({exc})") from None
+        raise UsageError(
+            f"--candidate: {str(found)!r} holds {name!r}, which has no shipped-weights entry ({exc})"
+        ) from None
     check_architecture(found, name, meta.get("config"), "--candidate")
     if found.suffix != ".safetensors":
         found = save_checkpoint(scratch / "candidate.safetensors", model, extra=meta.get("extra"))
@@ -181,16 +182,21 @@ def decide(opts: ShipOptions) -> bool:
                 if key in card:
                     card[f"replaced_model_{key}"] = card.pop(key)
             model, meta = load_model(weights)
-            card.update({
-                "model": name, "weights": _display(current), "parameters": sum(p.numel() for p in model.parameters()),
-                "validation_data": f"orchestrate/train_recipe.py fixed validation set: wildgen.make {VALIDATION_DATA}",
-                "steps": sum(s.get("steps") or 0 for s in card["lineage"] if s.get("shipped", True)),
-                "validation_mean_deg": round(new["mean"], 2),
-                "hardware": record["hardware"] or f"{platform.machine()}, {os.cpu_count()} cores, torch {torch.__version__}",
-                "git_revision": git_revision(REPO),
-                "probes_fixed_validation": _probe_card(new["_res"], val_pixels),
-                "replaced_model_probes_fixed_validation": _probe_card(old["_res"], val_pixels) if old else None,
-            })
+            card.update(
+                {
+                    "model": name,
+                    "weights": _display(current),
+                    "parameters": sum(p.numel() for p in model.parameters()),
+                    "validation_data": f"orchestrate/train_recipe.py fixed validation set: wildgen.make {VALIDATION_DATA}",
+                    "steps": sum(s.get("steps") or 0 for s in card["lineage"] if s.get("shipped", True)),
+                    "validation_mean_deg": round(new["mean"], 2),
+                    "hardware": record["hardware"]
+                    or f"{platform.machine()}, {os.cpu_count()} cores, torch {torch.__version__}",
+                    "git_revision": git_revision(REPO),
+                    "probes_fixed_validation": _probe_card(new["_res"], val_pixels),
+                    "replaced_model_probes_fixed_validation": _probe_card(old["_res"], val_pixels) if old else None,
+                }
+            )
             install_weights(weights, entry, card)
         else:
             from scenes.files import atomic_write_text

@@ -32,8 +32,6 @@ first step runs, and a failed step is reported as one line (`orchestrate.steps`)
 """
 from __future__ import annotations
 
-from typing import Annotated
-
 import json
 import os
 import platform
@@ -42,14 +40,15 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
 
 from orchestrate.asset_split import SPLIT_FOLDERS, check_split, split_assets
 from orchestrate.steps import STOP_GRACE_S, OutOfTime, StepFailed, check_step, run_step
 from scenes.cli.budget import END_SHARE, Budget
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
+from scenes.cli.options import REQUIRED, Command, arg, check_fields, comma_list, option
 from scenes.cli.outputs import check_output_folder
 from scenes.files import atomic_write, atomic_write_text
-from scenes.cli.options import Command, REQUIRED, arg, check_fields, comma_list, option
 from wildgen.light_families import PS_WILD_FAMILIES
 
 REPO = Path(__file__).resolve().parents[1]
@@ -144,7 +143,9 @@ class Clock:
         return left / 60
 
 
-def train_run(py: str, work: Path, name: str, args: RecipeOptions, extra: list[str], clock: Clock | None = None) -> Path:
+def train_run(
+    py: str, work: Path, name: str, args: RecipeOptions, extra: list[str], clock: Clock | None = None
+) -> Path:
     """Train one run into work/runs/NAME (resumed when interrupted or stopped by a time limit, skipped when
     finished, i.e. trained to --steps, unless --overwrite); returns the run folder."""
     out, clock = work / "runs" / name, clock or Clock(0.0)
@@ -173,7 +174,9 @@ class RecipeOptions:
     """Registered model trained from scratch (`unips.models.list_models()`)."""
     init_from: str | None = None
     """Weights to continue from (weights only; e.g. unips/weights/...)."""
-    train_seed: Annotated[list[int], comma_list(int), arg(metavar="SEED[,SEED...]")] = option(default_factory=lambda: [5000], minimum=0)
+    train_seed: Annotated[list[int], comma_list(int), arg(metavar="SEED[,SEED...]")] = option(
+        default_factory=lambda: [5000], minimum=0
+    )
     """Seed of the training data (new seed: fresh data); several, comma-separated: one set each, pooled."""
     train_objects: int = option(800, minimum=1)
     """Objects per training set."""
@@ -264,7 +267,9 @@ def recipe(args: RecipeOptions, split: bool = True) -> int:
         assets = (str(work / SPLIT_FOLDERS[0]), str(work / SPLIT_FOLDERS[1]))
     for name in [*(f"train{seed}" for seed in args.train_seed), "val128", "test128"]:
         # Always run: on an existing dataset wildgen.make resumes (verifies finished objects, renders the rest).
-        clock.step([py, "-m", "wildgen.make", *make_argv(args, work, name, assets[0 if name.startswith("train") else 1])])
+        clock.step(
+            [py, "-m", "wildgen.make", *make_argv(args, work, name, assets[0 if name.startswith("train") else 1])]
+        )
     main_run = train_run(py, work, "main", args, [], clock)
     if args.ablation:
         train_run(py, work, "uniform", args, ABLATION, clock)
@@ -389,34 +394,47 @@ def ship(val: Path, run_dir: Path, args: RecipeOptions) -> bool:
     seeds = ",".join(map(str, args.train_seed))
     data = f"wildgen.make seed(s) {seeds}, {args.train_objects} objects each, 128 px, 10 images, 16 spp, train assets"
     val_pixels = TrainConfig().val_pixels
-    lineage.append({"stage": f"orchestrate.train_recipe, {time.strftime('%Y-%m-%d')}",
-                    "init_from": args.init_from, "data": data, "steps": args.steps,
-                    "hours": round(wall / 3600, 3) if wall else None, "shipped": True,
-                    "best_step": meta.get("extra", {}).get("step"),
-                    "fixed_validation": {"all": round(new["mean"], 2), "gain": round(new["gain"], 2)},
-                    "per_family_at_best": {f: {"all": round(b["mean"]["all"], 2), "gain": round(b["gain"], 2),
-                                               "n": b["n"]} for f, b in new.get("families", {}).items() if "gain" in b}})
+    lineage.append(
+        {
+            "stage": f"orchestrate.train_recipe, {time.strftime('%Y-%m-%d')}",
+            "init_from": args.init_from,
+            "data": data,
+            "steps": args.steps,
+            "hours": round(wall / 3600, 3) if wall else None,
+            "shipped": True,
+            "best_step": meta.get("extra", {}).get("step"),
+            "fixed_validation": {"all": round(new["mean"], 2), "gain": round(new["gain"], 2)},
+            "per_family_at_best": {
+                f: {"all": round(b["mean"]["all"], 2), "gain": round(b["gain"], 2), "n": b["n"]}
+                for f, b in new.get("families", {}).items()
+                if "gain" in b
+            },
+        }
+    )
     for key in MEASURED_KEYS:
         if key in card:
             card[f"replaced_model_{key}"] = card.pop(key)
-    card.update({
-        "model": name, "weights": _display(current),
-        "parameters": sum(p.numel() for p in model.parameters()),
-        "data_recipe": f"python -m orchestrate.train_recipe --train-seed {seeds} --train-objects {args.train_objects} "
-                       f"--steps {args.steps} --lr {args.lr}" + (f" --init-from {args.init_from}" if args.init_from else ""),
-        "validation_data": f"orchestrate/train_recipe.py fixed validation set: wildgen.make {VALIDATION_DATA}",
-        "train_objects": args.train_objects * len(args.train_seed),
-        "steps": sum(s.get("steps") or 0 for s in lineage),
-        "best_step": lineage[-1]["best_step"],
-        "validation_mean_deg": round(new["mean"], 2),
-        "validation_per_family_deg": {f: v["all"] for f, v in lineage[-1]["per_family_at_best"].items()},
-        "wall_time_s": round(sum(s.get("hours") or 0 for s in lineage) * 3600),
-        "hardware": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, torch {torch.__version__}",
-        "git_revision": git_revision(REPO),
-        "probes_fixed_validation": _probe_card(new, val_pixels),
-        "replaced_model_probes_fixed_validation": _probe_card(old, val_pixels) if old else None,
-        "lineage": lineage,
-    })
+    card.update(
+        {
+            "model": name,
+            "weights": _display(current),
+            "parameters": sum(p.numel() for p in model.parameters()),
+            "data_recipe": f"python -m orchestrate.train_recipe --train-seed {seeds} --train-objects {args.train_objects} "
+            f"--steps {args.steps} --lr {args.lr}" + (f" --init-from {args.init_from}" if args.init_from else ""),
+            "validation_data": f"orchestrate/train_recipe.py fixed validation set: wildgen.make {VALIDATION_DATA}",
+            "train_objects": args.train_objects * len(args.train_seed),
+            "steps": sum(s.get("steps") or 0 for s in lineage),
+            "best_step": lineage[-1]["best_step"],
+            "validation_mean_deg": round(new["mean"], 2),
+            "validation_per_family_deg": {f: v["all"] for f, v in lineage[-1]["per_family_at_best"].items()},
+            "wall_time_s": round(sum(s.get("hours") or 0 for s in lineage) * 3600),
+            "hardware": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, torch {torch.__version__}",
+            "git_revision": git_revision(REPO),
+            "probes_fixed_validation": _probe_card(new, val_pixels),
+            "replaced_model_probes_fixed_validation": _probe_card(old, val_pixels) if old else None,
+            "lineage": lineage,
+        }
+    )
     install_weights(best, entry, card)
     print(f"shipped {name}: {_display(current)} (create_model({name!r}, pretrained=True)); model card "
           f"{_display(entry.card_path)}: copy the benchmark's test-set and DiLiGenT figures in and review "

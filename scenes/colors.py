@@ -16,7 +16,11 @@ def temperature_to_rgb(kelvin: float) -> tuple[float, float, float]:
         warnings.simplefilter("ignore")  # colour-science warns about optional matplotlib at import
         import colour
 
-        xy = colour.temperature.CCT_to_xy_Kang2002(kelvin) if kelvin >= 1667 else colour.temperature.CCT_to_xy_Krystek1985(kelvin)
+        xy = (
+            colour.temperature.CCT_to_xy_Kang2002(kelvin)
+            if kelvin >= 1667
+            else colour.temperature.CCT_to_xy_Krystek1985(kelvin)
+        )
         xyz = colour.xy_to_XYZ(xy)
         rgb = colour.XYZ_to_RGB(xyz, colour.RGB_COLOURSPACES["sRGB"], apply_cctf_encoding=False)
     rgb = np.clip(np.asarray(rgb, np.float64), 0, None)

@@ -29,7 +29,9 @@ def _bumps(res: int, scale: float, rng: np.random.Generator) -> np.ndarray:
     u, v = _grid(res)
     h = np.zeros_like(u)
     n = max(4, int(scale * scale * 2))
-    for cu, cv, r, a in zip(rng.uniform(0, 1, n), rng.uniform(0, 1, n), rng.uniform(0.3, 1.0, n) / scale, rng.uniform(-1, 1, n)):
+    for cu, cv, r, a in zip(
+        rng.uniform(0, 1, n), rng.uniform(0, 1, n), rng.uniform(0.3, 1.0, n) / scale, rng.uniform(-1, 1, n)
+    ):
         h += a * np.exp(-(_wrap(u - cu) ** 2 + _wrap(v - cv) ** 2) / (2 * (0.5 * r) ** 2))
     return h
 

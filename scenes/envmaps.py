@@ -58,7 +58,9 @@ def sky(seed: int, width: int) -> np.ndarray:
     up = d[..., 1:2]
     zenith = np.array([0.25, 0.45, 1.0]) * rng.uniform(0.5, 1.5)
     horizon = np.array([0.9, 0.9, 1.0]) * rng.uniform(0.5, 1.5)
-    env = np.where(up > 0, horizon + (zenith - horizon) * np.sqrt(np.clip(up, 0, 1)), 0.3 * horizon * np.array([0.8, 0.7, 0.6]))
+    env = np.where(
+        up > 0, horizon + (zenith - horizon) * np.sqrt(np.clip(up, 0, 1)), 0.3 * horizon * np.array([0.8, 0.7, 0.6])
+    )
     elev = rng.uniform(0.1, 1.3)
     az = rng.uniform(0, 2 * np.pi)
     sun = np.array([np.cos(elev) * np.sin(az), np.sin(elev), -np.cos(elev) * np.cos(az)])

@@ -13,7 +13,6 @@ import numpy as np
 
 from scenes.files import atomic_write
 
-
 BACKGROUND_16 = 32768
 """Encoded value of n = 0 in a 16-bit normal map."""
 
@@ -309,7 +308,9 @@ def read_normals(path: str | Path, arg: str = "normal map") -> np.ndarray:
             raise ValueError(f"{arg}: cannot read EXR file {path}: {exc}") from exc
         missing = [c for c in "RGB" if c not in ch]
         if missing:
-            raise ValueError(f"{arg}: EXR file {path} lacks channels {', '.join(missing)} (has {', '.join(sorted(ch))})")
+            raise ValueError(
+                f"{arg}: EXR file {path} lacks channels {', '.join(missing)} (has {', '.join(sorted(ch))})"
+            )
         n = np.stack([ch["R"], ch["G"], ch["B"]], axis=-1).astype(np.float32)
     elif suffix == ".npy":
         try:

@@ -242,7 +242,9 @@ def light_from_dict(d: Any, owner: str = "light") -> LightDesc:
     names = {f.name for f in fields(cls)}
     unknown = sorted(set(d) - names - {"type"} - set(FLAT_FORM_DEFAULTS))
     if unknown:
-        raise ValueError(f"{owner}: unknown field(s) {', '.join(unknown)}, expected some of {', '.join(sorted(names | {'type'}))}")
+        raise ValueError(
+            f"{owner}: unknown field(s) {', '.join(unknown)}, expected some of {', '.join(sorted(names | {'type'}))}"
+        )
     for key in sorted(set(d) - names - {"type"}):
         if d[key] != FLAT_FORM_DEFAULTS[key]:
             raise ValueError(f"{owner}.{key}: a {cls.type!r} light has no {key} (the old flat form may hold it "

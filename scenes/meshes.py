@@ -27,12 +27,16 @@ def load_mesh(path: str | Path, normalize: bool = True) -> MeshData:
     if not path.is_file():
         raise FileNotFoundError(f"shape.file: mesh file {str(path)!r} does not exist")
     if path.suffix.lower() not in MESH_SUFFIXES:
-        raise ValueError(f"shape.file: {str(path)!r} has suffix {path.suffix!r}, expected one of {', '.join(MESH_SUFFIXES)}")
+        raise ValueError(
+            f"shape.file: {str(path)!r} has suffix {path.suffix!r}, expected one of {', '.join(MESH_SUFFIXES)}"
+        )
     if path.suffix.lower() == ".obj":  # a text format: refuse binary garbage here, not deep inside trimesh
         try:
             path.read_bytes().decode("utf-8")
         except UnicodeDecodeError as exc:
-            raise ValueError(f"shape.file: {str(path)!r} is not a text OBJ file (byte {exc.start} is not UTF-8 text)") from None
+            raise ValueError(
+                f"shape.file: {str(path)!r} is not a text OBJ file (byte {exc.start} is not UTF-8 text)"
+            ) from None
     own = _read_own_ply(path)
     if own is not None:
         if normalize:
@@ -42,7 +46,9 @@ def load_mesh(path: str | Path, normalize: bool = True) -> MeshData:
     try:
         loaded = trimesh.load(str(path), process=False, force="mesh")
     except ImportError as exc:  # an optional decoder trimesh wants for this file: the file is the problem
-        raise ValueError(f"shape.file: cannot read mesh {str(path)!r}: not a mesh trimesh can decode ({exc.name or exc})") from exc
+        raise ValueError(
+            f"shape.file: cannot read mesh {str(path)!r}: not a mesh trimesh can decode ({exc.name or exc})"
+        ) from exc
     except Exception as exc:  # trimesh raises many types for corrupt files
         raise ValueError(f"shape.file: cannot read mesh {str(path)!r}: {type(exc).__name__}: {exc}") from exc
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.vertices) == 0 or len(loaded.faces) == 0:
@@ -81,8 +87,12 @@ def normalize_mesh(
     n = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
     if uvs is None:
         d = p / np.maximum(np.linalg.norm(p, axis=1, keepdims=True), 1e-12)
-        uvs = np.stack([0.5 + np.arctan2(d[:, 2], d[:, 0]) / (2 * np.pi), np.arccos(np.clip(d[:, 1], -1, 1)) / np.pi], 1)
-    return MeshData(p.astype(np.float32), faces.astype(np.int32), n.astype(np.float32), np.mod(uvs, 1.0).astype(np.float32))
+        uvs = np.stack(
+            [0.5 + np.arctan2(d[:, 2], d[:, 0]) / (2 * np.pi), np.arccos(np.clip(d[:, 1], -1, 1)) / np.pi], 1
+        )
+    return MeshData(
+        p.astype(np.float32), faces.astype(np.int32), n.astype(np.float32), np.mod(uvs, 1.0).astype(np.float32)
+    )
 
 
 def _file_has_normals(path: Path) -> bool:

@@ -182,7 +182,9 @@ class Sensor:
             v = getattr(self, name)
             ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
             if not (ok and (v > lo if lo_open else v >= lo) and (hi is None or v < hi)):
-                raise bad(name, f"a number {'>' if lo_open else '>='} {lo:g}" + ("" if hi is None else f" and < {hi:g}"))
+                raise bad(
+                    name, f"a number {'>' if lo_open else '>='} {lo:g}" + ("" if hi is None else f" and < {hi:g}")
+                )
 
         for name in ("name", "about"):
             if not isinstance(getattr(self, name), str):
@@ -449,7 +451,9 @@ def read_sensor_record(extras: dict[str, Any], images: int, where: str = "the sc
     seeds = rec["noise_seeds"]
     if not isinstance(seeds, list) or len(seeds) != images or not all(
             isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in seeds):
-        raise ValueError(f"{key}.noise_seeds: expected {images} non-negative integers (one per image), got {seeds!r:.80}")
+        raise ValueError(
+            f"{key}.noise_seeds: expected {images} non-negative integers (one per image), got {seeds!r:.80}"
+        )
     if isinstance(rec["seed"], bool) or not isinstance(rec["seed"], int) or rec["seed"] < 0:
         raise ValueError(f"{key}.seed: expected a non-negative integer, got {rec['seed']!r}")
     return SensorRecord(sensor=sensor, seed=rec["seed"], noise_seeds=list(seeds))

@@ -96,7 +96,9 @@ def tiny_disk(tmp_path):
     subprocess.run(["umount", str(mnt)], check=False)
 
 
-def test_full_disk_leaves_no_truncated_file_and_the_summary_says_none_was_written(tiny_disk, tmp_path, synthetic_object):
+def test_full_disk_leaves_no_truncated_file_and_the_summary_says_none_was_written(
+    tiny_disk, tmp_path, synthetic_object
+):
     import shutil
 
     from unips.predict import main

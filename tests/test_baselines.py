@@ -6,11 +6,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from fixtures import cone_lights, shading, sphere
+
+from scenes.metrics import mean_angular_error
 from unips.baselines import least_squares, run_baseline, sh_uncalibrated
 from unips.data import PSObject, load_object
-from scenes.metrics import mean_angular_error
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 DILIGENT = SHARED / "data" / "diligent"

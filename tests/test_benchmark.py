@@ -6,11 +6,10 @@ import json
 
 import numpy as np
 import torch
+from test_unips_data import write_diligent
 
 from unips.checkpoint import save_checkpoint
 from unips.models import create_model
-
-from test_unips_data import write_diligent
 
 
 def test_benchmark_reports_probes_and_diligent_subsets(synthetic_object, tmp_path):
@@ -47,6 +46,7 @@ def test_benchmark_keeps_every_family_of_the_data(synthetic_object, tmp_path):
     """A family the generator's table does not know (another generator's, or none recorded) gets its own column
     after the table's families, in the per-family and probe tables: it is never dropped from them."""
     from conftest import write_synthetic_object
+
     from orchestrate.benchmark import family_columns, main
     from unips.data import load_object
     from wildgen.light_families import LIGHT_FAMILIES
@@ -79,7 +79,9 @@ def test_learning_curve_card_trend_and_extrapolation(tmp_path) -> None:
     import importlib.util
     from pathlib import Path
 
-    spec = importlib.util.spec_from_file_location("learning_curve", Path(__file__).resolve().parents[1] / "bench" / "learning_curve.py")
+    spec = importlib.util.spec_from_file_location(
+        "learning_curve", Path(__file__).resolve().parents[1] / "bench" / "learning_curve.py"
+    )
     lc = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(lc)
     err = lambda h: 20 - 1.5 * np.log2(h)  # noqa: E731
@@ -87,11 +89,31 @@ def test_learning_curve_card_trend_and_extrapolation(tmp_path) -> None:
     for i, h in enumerate([1.0, 1.0, 2.0, 4.0]):
         cum += h
         e = float(err(cum))
-        lineage.append({"stage": f"s{i}", "steps": 100, "hours": h, "best_step": 100,
-                        "curve": [{"step": 100, "all": e, "gain": 5.0}], "per_family_at_best": {"hdri": {"all": e, "gain": 5.0, "n": 20}}})
-    lineage.insert(2, {"stage": "side run (not shipped)", "steps": 100, "hours": 50.0, "curve": [{"step": 100, "all": 1.0, "gain": 0.0}],
-                       "per_family_at_best": {"hdri": {"all": 1.0, "gain": 0.0, "n": 20}}})
-    card = {"lineage": lineage, "test_set_deg": {"hdri": err(8.0) + 2.0}, "validation_per_family_deg": {"hdri": err(8.0)}}
+        lineage.append(
+            {
+                "stage": f"s{i}",
+                "steps": 100,
+                "hours": h,
+                "best_step": 100,
+                "curve": [{"step": 100, "all": e, "gain": 5.0}],
+                "per_family_at_best": {"hdri": {"all": e, "gain": 5.0, "n": 20}},
+            }
+        )
+    lineage.insert(
+        2,
+        {
+            "stage": "side run (not shipped)",
+            "steps": 100,
+            "hours": 50.0,
+            "curve": [{"step": 100, "all": 1.0, "gain": 0.0}],
+            "per_family_at_best": {"hdri": {"all": 1.0, "gain": 0.0, "n": 20}},
+        },
+    )
+    card = {
+        "lineage": lineage,
+        "test_set_deg": {"hdri": err(8.0) + 2.0},
+        "validation_per_family_deg": {"hdri": err(8.0)},
+    }
     assert [s["stage"] for s in lc.shipped_chain(card)] == ["s0", "s1", "s2", "s3"]
     a, b = lc.fit_log2([1, 2, 4, 8], [err(h) for h in (1, 2, 4, 8)])
     assert abs(a - 20) < 1e-9 and abs(b - 1.5) < 1e-9

@@ -178,7 +178,9 @@ def test_auto_mask_finds_the_object_or_refuses():
     assert (mask & M96).sum() / (mask | M96).sum() >= 0.95 and info["separability"] > 0.6
     backdrop = (0.3 + 0.5 * np.random.default_rng(0).random(8))[:, None, None, None] * np.ones((1, 96, 96, 3))
     lit_backdrop = np.where(M96[None, ..., None], lambertian(N96, M96, SPREAD), backdrop).astype(np.float32)
-    with pytest.raises(ValueError, match=r"^--mask: auto cannot separate the object from the background: .*; give a mask"):
+    with pytest.raises(
+        ValueError, match=r"^--mask: auto cannot separate the object from the background: .*; give a mask"
+    ):
         auto_mask(lit_backdrop)
 
 
@@ -241,8 +243,16 @@ def test_report_html_is_a_page_in_a_real_browser(photos, tmp_path, variant_llvm_
     assert main(["--input", str(photos), "--out", str(out), "--no-refine", "--threads", "1"]) == 0
     page = (out / "report.html").resolve()
     report = json.loads((out / "report.json").read_text())
-    flags = ["--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", f"--user-data-dir={tmp_path / 'profile'}"]
-    dom = subprocess.run([browser, *flags, "--dump-dom", page.as_uri()], capture_output=True, text=True, timeout=120).stdout
+    flags = [
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--hide-scrollbars",
+        f"--user-data-dir={tmp_path / 'profile'}",
+    ]
+    dom = subprocess.run(
+        [browser, *flags, "--dump-dom", page.as_uri()], capture_output=True, text=True, timeout=120
+    ).stdout
     assert report["verdict"]["summary"][:20] in dom and report["verdict"]["summary"].startswith("The images can")
     assert dom.count('src="data:image/png;base64,') >= 5 and "What to improve in the capture" in dom
     shot = tmp_path / "shot.png"

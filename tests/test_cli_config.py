@@ -9,10 +9,10 @@ import typing
 import pytest
 import tyro
 
-from scenes.cli.errors import UsageError
-from scenes.cli.outputs import check_output_folder, make_output_folder
-from scenes.cli.options import Command, undocumented_fields
 from scenes.checks import check_choice, check_int, check_number
+from scenes.cli.errors import UsageError
+from scenes.cli.options import Command, undocumented_fields
+from scenes.cli.outputs import check_output_folder, make_output_folder
 
 # Each CLI module and the dataclass its command line is generated from.
 CLIS = {
@@ -150,7 +150,9 @@ def test_scene_fields_are_checked_by_the_same_rule_as_flags():
         CameraDesc(kind="fisheye").validate()
     with pytest.raises(ValueError, match=r"^images\[0\].lights\[0\].irradiance: got nan, expected a number >= 0$"):
         ImageDesc(lights=[DirectionalLight(irradiance=float("nan"))]).validate(0)
-    with pytest.raises(ValueError, match=r"^images\[0\].lights\[0\].direction: got \[0, 0, 0\], expected a non-zero vector$"):
+    with pytest.raises(
+        ValueError, match=r"^images\[0\].lights\[0\].direction: got \[0, 0, 0\], expected a non-zero vector$"
+    ):
         ImageDesc(lights=[DirectionalLight(direction=[0, 0, 0])]).validate(0)
 
 

@@ -7,7 +7,6 @@ import json
 
 import numpy as np
 import pytest
-
 from conftest import render_dataset
 
 
@@ -19,8 +18,8 @@ def clusters(tmp_path_factory):
 
 
 def test_parts_cover_the_mesh_and_instances_cover_the_mask(clusters):
-    from scenes.meshes import load_mesh
     from scenes.images import read_instances, read_mask
+    from scenes.meshes import load_mesh
 
     assert len(clusters) == 3
     seen = []
@@ -42,8 +41,8 @@ def test_instance_ids_agree_with_each_parts_projected_outline(clusters):
     """Orthographic camera looking down -z: pixel (i, j) of an object point (x, y) is ((x + h) / 2h W, (h - y) / 2h H).
     Part k's pixels must lie inside the outline of part k's own projected vertices (its 2-D bounding box)."""
     from scenes.geometry import transformed_mesh
-    from scenes.meshes import load_mesh
     from scenes.images import read_instances
+    from scenes.meshes import load_mesh
 
     for folder in clusters:
         scene = json.loads((folder / "scene.json").read_text())
@@ -60,7 +59,12 @@ def test_instance_ids_agree_with_each_parts_projected_outline(clusters):
             ii, jj = np.nonzero(ids == k)
             if not len(ii):
                 continue  # hidden behind the others
-            inside = (jj + 0.5 >= col.min() - 1) & (jj + 0.5 <= col.max() + 1) & (ii + 0.5 >= row.min() - 1) & (ii + 0.5 <= row.max() + 1)
+            inside = (
+                (jj + 0.5 >= col.min() - 1)
+                & (jj + 0.5 <= col.max() + 1)
+                & (ii + 0.5 >= row.min() - 1)
+                & (ii + 0.5 <= row.max() + 1)
+            )
             assert inside.all(), (folder.name, k, (~inside).sum())
 
 
@@ -72,7 +76,7 @@ def test_one_object_scenes_have_no_parts_and_no_instance_file(tmp_path):
 
 
 def test_parts_must_follow_each_other():
-    from scenes.description import PartDesc, SceneDescription, ShapeDesc, ImageDesc
+    from scenes.description import ImageDesc, PartDesc, SceneDescription, ShapeDesc
     from scenes.lights import DirectionalLight
 
     d = SceneDescription(shape=ShapeDesc(kind="mesh", file="m.ply"), images=[ImageDesc(lights=[DirectionalLight()])],

@@ -7,7 +7,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import render_dataset
 from test_train import write_object
 
@@ -62,8 +61,26 @@ def test_early_batches_hold_only_the_simplest_level(levelled):
 def test_a_curriculum_run_trains_and_refuses_unlevelled_data(levelled, tmp_path):
     from unips.train import main
 
-    base = ["--model", "glc-test", "--batch", "2", "--res", "32", "--pixels", "200", "--max-images", "4", "--threads", "1",
-            "--no-progress", "--steps", "6", "--curriculum", "--curriculum-fraction", "0.5"]
+    base = [
+        "--model",
+        "glc-test",
+        "--batch",
+        "2",
+        "--res",
+        "32",
+        "--pixels",
+        "200",
+        "--max-images",
+        "4",
+        "--threads",
+        "1",
+        "--no-progress",
+        "--steps",
+        "6",
+        "--curriculum",
+        "--curriculum-fraction",
+        "0.5",
+    ]
     assert main(["--data", f"{levelled['L1']},{levelled['L3']}", "--out", str(tmp_path / "run"), *base]) == 0
     log = [json.loads(line) for line in (tmp_path / "run" / "log.jsonl").read_text().splitlines()]
     assert log and all(np.isfinite(r["loss"]) for r in log if "loss" in r)

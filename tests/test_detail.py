@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from conftest import render_dataset, use_variant
 
 A, F = 0.05, 2  # height field h(u, v) = A sin(2 pi F u) sin(2 pi F v) over the UV square
@@ -30,11 +29,11 @@ def variant():
 
 def test_plane_with_a_known_bump_has_the_analytic_ground_truth(variant, tmp_path):
     from scenes.description import CameraDesc, ImageDesc, MaterialDesc, SceneDescription, ShapeDesc
-    from scenes.lights import DirectionalLight
     from scenes.geometry import write_mesh_ply
-    from scenes.renderer.build import build_scene
     from scenes.images import write_normal_map
+    from scenes.lights import DirectionalLight
     from scenes.procedural import MeshData
+    from scenes.renderer.build import build_scene
     from scenes.renderer.render import render_ground_truth
 
     # A camera-facing plane [-1, 1]^2 with u along x and v along y: tangent space = camera frame.

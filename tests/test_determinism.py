@@ -27,7 +27,12 @@ def _make(out: Path, *extra: str) -> None:
 
 
 def object_files(root: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(root)): p.read_bytes() for d in sorted(root.glob("*.data")) for p in sorted(d.rglob("*")) if p.is_file()}
+    return {
+        str(p.relative_to(root)): p.read_bytes()
+        for d in sorted(root.glob("*.data"))
+        for p in sorted(d.rglob("*"))
+        if p.is_file()
+    }
 
 
 def assert_same_dataset(a: Path, b: Path) -> None:

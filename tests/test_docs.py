@@ -30,14 +30,18 @@ README_MAX_LINES = 150
 
 
 def _doc_texts() -> dict[str, str]:
-    return {str(p.relative_to(REPO)): p.read_text() for p in [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]}
+    return {
+        str(p.relative_to(REPO)): p.read_text() for p in [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
+    }
 
 
 def _block(name: str) -> str:
     """The text between the markers of generated block `name` (it must exist exactly once)."""
     found = []
     for text in _doc_texts().values():
-        found += re.findall(rf"<!-- BEGIN generated:{re.escape(name)} -->\n(.*?)\n<!-- END generated:{re.escape(name)} -->", text, re.S)
+        found += re.findall(
+            rf"<!-- BEGIN generated:{re.escape(name)} -->\n(.*?)\n<!-- END generated:{re.escape(name)} -->", text, re.S
+        )
     assert len(found) == 1, f"generated:{name}: expected one block in README.md / docs/*.md, found {len(found)}"
     return found[0]
 
@@ -115,7 +119,9 @@ def test_unknown_block_is_refused_and_nothing_is_written(tmp_path):
     before = {p: p.read_text() for p in tmp_path.rglob("*.md")}
     stale = tmp_path / "docs" / "results.md"
     _make_stale(stale)
-    (tmp_path / "docs" / "zz.md").write_text("<!-- BEGIN generated:results:nope -->\n<!-- END generated:results:nope -->\n")
+    (tmp_path / "docs" / "zz.md").write_text(
+        "<!-- BEGIN generated:results:nope -->\n<!-- END generated:results:nope -->\n"
+    )
     with pytest.raises(docs.UsageError, match="results:nope"):
         docs.run(check=False, root=tmp_path)
     assert STALE.search(stale.read_text())  # the valid stale block was not rewritten either
@@ -132,7 +138,9 @@ def test_headline_equals_card():
     assert _equal(overall["this model"], test["mean_deg"]["model"]["all"])
     directional = next(r for k, r in rows.items() if "directional" in k)
     assert _equal(directional["this model"], test["mean_deg"]["model"]["directional"])
-    assert _equal(directional["calibrated least squares"], test["mean_deg"]["least squares (calibrated)"]["directional"])
+    assert _equal(
+        directional["calibrated least squares"], test["mean_deg"]["least squares (calibrated)"]["directional"]
+    )
     for obj in ("ball", "cat"):
         row = next(r for k, r in rows.items() if k.startswith(f"DiLiGenT {obj}"))
         assert _equal(row["this model"], dil[obj]["model_deg_2dp"])
@@ -179,16 +187,24 @@ def test_image_count_table_equals_card():
     for row in _table("results:image-count"):
         for column, cell in row.items():
             if column.startswith("K="):
-                assert _equal(cell, test["vs_image_count_deg"][row["method"]][column[2:]]), f"{row['method']} / {column}"
+                assert _equal(cell, test["vs_image_count_deg"][row["method"]][column[2:]]), (
+                    f"{row['method']} / {column}"
+                )
             elif column == "all images":
                 assert _equal(cell, test["mean_deg"][row["method"]]["all"])
 
 
 def test_diligent_table_equals_card():
-    columns = {"images": "images", "this model": "model_deg_2dp", "this model, 16 images": "model_k16_mean_deg",
-               "mask only": "model_mask_only_deg", "seconds": "model_seconds",
-               "calibrated least squares": "least_squares_calibrated_deg", "published least squares": "published_l2_deg",
-               "published UniPS": "published_unips_deg"}
+    columns = {
+        "images": "images",
+        "this model": "model_deg_2dp",
+        "this model, 16 images": "model_k16_mean_deg",
+        "mask only": "model_mask_only_deg",
+        "seconds": "model_seconds",
+        "calibrated least squares": "least_squares_calibrated_deg",
+        "published least squares": "published_l2_deg",
+        "published UniPS": "published_unips_deg",
+    }
     rows = _table("results:diligent")
     assert {r["object"] for r in rows} == {"ball", "cat"}
     for row in rows:
@@ -233,7 +249,9 @@ def test_every_number_of_every_result_table_is_a_card_figure():
                     value = cell.strip("*` ")
                     # object counts are sums over families (checked per table above), not card figures
                     if column != "objects" and re.fullmatch(r"-?\d+(\.\d+)?", value):
-                        assert any(_equal(value, x) for x in numbers), f"generated:{name} {column}: {value} is not in the model card"
+                        assert any(_equal(value, x) for x in numbers), (
+                            f"generated:{name} {column}: {value} is not in the model card"
+                        )
                         checked += 1
     assert checked > 100
 
@@ -329,7 +347,9 @@ def test_every_cli_has_a_flag_table_and_is_documented_once():
 def test_readme_is_a_front_page():
     readme = (REPO / "README.md").read_text()
     lines = readme.splitlines()
-    assert len(lines) <= README_MAX_LINES, f"README.md has {len(lines)} lines; keep it a front page (move details to docs/)"
+    assert len(lines) <= README_MAX_LINES, (
+        f"README.md has {len(lines)} lines; keep it a front page (move details to docs/)"
+    )
     for needed in ("make setup", "source .venv/bin/activate", "make demo", "make test", "GB"):
         assert needed in readme, needed
     for page in sorted((REPO / "docs").glob("*.md")):
@@ -386,7 +406,9 @@ def _readme_commands() -> list[list[str]]:
 
 def test_readme_has_one_example_per_cli_and_each_parses():
     commands = _readme_commands()
-    assert {c[0] for c in commands} >= set(docs.CLIS), f"no README example for {set(docs.CLIS) - {c[0] for c in commands}}"
+    assert {c[0] for c in commands} >= set(docs.CLIS), (
+        f"no README example for {set(docs.CLIS) - {c[0] for c in commands}}"
+    )
     for module, *argv in commands:
         try:
             importlib.import_module(module).COMMAND.parse(argv)
@@ -431,7 +453,9 @@ def test_a_truncated_model_card_is_one_line_naming_it(tmp_path):
     for call in (lambda: docs.run(True, card_path=card), lambda: read_model_card(card)):
         with pytest.raises(ValueError) as err:
             call()
-        assert str(err.value).startswith(f"model card {str(card)!r} is not readable JSON") and "\n" not in str(err.value)
+        assert str(err.value).startswith(f"model card {str(card)!r} is not readable JSON") and "\n" not in str(
+            err.value
+        )
     with pytest.raises(ValueError, match=r"^--ship: model card .* is not readable JSON"):
         _card(card)
     card.write_text("[1, 2]\n")

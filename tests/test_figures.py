@@ -6,8 +6,8 @@ from __future__ import annotations
 import json
 
 import cv2
-import pytest
 import numpy as np
+import pytest
 
 from scenes.folder.format import PREDICTION_INFO, prediction_label
 from validate.figures import ANGLE_VMAX, CELL, LABEL_H, RESIDUAL_VMAX, draw_rerender_figure, mask_box, rerender_figure

@@ -15,13 +15,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import use_variant
 from fixtures import ortho_sphere
 
 from scenes.description import CameraDesc, ImageDesc, MaterialDesc, RenderDesc, SceneDescription, ShapeDesc, TextureDesc
-from scenes.lights import DirectionalLight, LightDesc, PointLight
 from scenes.images import write_normal_map as write_normal_tif
+from scenes.lights import DirectionalLight, LightDesc, PointLight
 
 R = 32
 ROOT = Path(__file__).resolve().parents[1]
@@ -332,8 +331,8 @@ def test_refine_brings_perturbed_map_below_3_deg(jit, sphere_folder):
     """Known lights (the known-scene mode of refinement): a 20-deg smooth error goes below 3 deg. Fitted
     lights: the error drops, but not to the floor (lights fitted to a noisy map are biased, and a Lambertian
     object's normals and lights can move together along the bas-relief ambiguity)."""
-    from validate.capture import load_capture
     from scenes.metrics import mean_angular_error as mae_deg
+    from validate.capture import load_capture
     from validate.perturb import perturb_normals
     from validate.refine import RefineConfig, refine_normals
 
@@ -354,11 +353,11 @@ def test_rotation_search_tilts_only_and_never_raises_the_residual(jit, sphere_fo
     identity's), and rotates the normals as a whole (every normal by the same rotation). On this diffuse
     sphere nothing pins the tilt (which is why the search is off by default), so where it ends is not
     asserted."""
+    from scipy.spatial.transform import Rotation
+
     from validate.capture import load_capture
     from validate.fit import run_fit
     from validate.fit_scene import FitScene, lambertian_start
-    from scipy.spatial.transform import Rotation
-
     from validate.refine import RefineConfig, search_rotation
 
     cap = load_capture(sphere_folder)
@@ -397,9 +396,13 @@ def _cli(*args: str) -> subprocess.CompletedProcess:
 
 @pytest.mark.parametrize("module", ["validate.rerender", "validate.refine"])
 def test_bad_inputs_one_line_error(jit, sphere_folder, tmp_path, module):
-    missing = _cli(module, "--data", str(sphere_folder), "--normals", str(tmp_path / "nope.png"), "--out", str(tmp_path / "o"))
+    missing = _cli(
+        module, "--data", str(sphere_folder), "--normals", str(tmp_path / "nope.png"), "--out", str(tmp_path / "o")
+    )
     assert missing.returncode != 0
-    assert missing.stderr.strip().count("\n") == 0 and "--normals" in missing.stderr and "Traceback" not in missing.stderr
+    assert (
+        missing.stderr.strip().count("\n") == 0 and "--normals" in missing.stderr and "Traceback" not in missing.stderr
+    )
     wrong = tmp_path / "wrong.npy"
     np.save(wrong, np.zeros((5, 7, 3), np.float32))
     bad = _cli(module, "--data", str(sphere_folder), "--normals", str(wrong), "--out", str(tmp_path / "o"))
@@ -413,6 +416,7 @@ def test_refine_with_one_thread_is_byte_identical_across_processes(jit, sphere_f
     differs run to run in the last bits: the reverse-mode scatter-adds of gathers are summed in a varying
     order. That is measured, not asserted: it is not guaranteed.) A bad --threads is a one-line error."""
     import drjit as dr
+
     from validate.capture import load_capture
     from validate.fit import FitConfig
     from validate.perturb import perturb_normals
@@ -435,9 +439,26 @@ def test_refine_with_one_thread_is_byte_identical_across_processes(jit, sphere_f
     assert run.returncode == 0, run.stderr
     there = json.loads((tmp_path / "cli" / "lsphere" / "refine_report.json").read_text())
     assert there["jit_threads"] == 1 and there["after"]["rel_l1"] == here["after"]["rel_l1"]
-    assert (tmp_path / "cli" / "lsphere" / "normal.png").read_bytes() == (tmp_path / "here" / "lsphere" / "normal.png").read_bytes()
-    bad = _cli("validate.refine", "--data", str(sphere_folder), "--normals", str(start), "--out", str(tmp_path / "bad"), "--threads", "0")
-    assert bad.returncode != 0 and bad.stderr.strip().count("\n") == 0 and "--threads" in bad.stderr and "Traceback" not in bad.stderr
+    assert (tmp_path / "cli" / "lsphere" / "normal.png").read_bytes() == (
+        tmp_path / "here" / "lsphere" / "normal.png"
+    ).read_bytes()
+    bad = _cli(
+        "validate.refine",
+        "--data",
+        str(sphere_folder),
+        "--normals",
+        str(start),
+        "--out",
+        str(tmp_path / "bad"),
+        "--threads",
+        "0",
+    )
+    assert (
+        bad.returncode != 0
+        and bad.stderr.strip().count("\n") == 0
+        and "--threads" in bad.stderr
+        and "Traceback" not in bad.stderr
+    )
     assert not (tmp_path / "bad").exists()
 
 
@@ -446,8 +467,19 @@ def test_cli_fitted_report_contract(jit, sphere_folder, tmp_path):
     light list per image whose directional light points toward the light it was rendered with; a second run
     refuses to overwrite without --overwrite."""
     out = tmp_path / "out"
-    args = ("validate.rerender", "--data", str(sphere_folder), "--normals", str(sphere_folder / "normal.tif"), "--out", str(out),
-            "--steps", "40", "--max-pixels", "100000")
+    args = (
+        "validate.rerender",
+        "--data",
+        str(sphere_folder),
+        "--normals",
+        str(sphere_folder / "normal.tif"),
+        "--out",
+        str(out),
+        "--steps",
+        "40",
+        "--max-pixels",
+        "100000",
+    )
     run = _cli(*args)
     assert run.returncode == 0, run.stderr
     report = json.loads((out / "lsphere" / "report.json").read_text())
@@ -484,7 +516,11 @@ def test_known_scene_lights_in_camera_frame():
     assert entry == {"directional": [{k: v for k, v in light.items() if k != "type"}], "other": 0}
     fitted = report_lights("directional", {"directions": [[0.0, 0.0, 2.0]], "irradiance": [[1.0, 0.5, 0.25]],
                                             "ambient": [[0.0, 0.0, 0.0]]})
-    assert fitted[0][0] == {"type": "directional", "direction_to_light": [0.0, 0.0, 1.0], "irradiance": [1.0, 0.5, 0.25]}
+    assert fitted[0][0] == {
+        "type": "directional",
+        "direction_to_light": [0.0, 0.0, 1.0],
+        "irradiance": [1.0, 0.5, 0.25],
+    }
 
 
 def test_diligent_frames_agree(shared):

@@ -8,7 +8,6 @@ import math
 
 import numpy as np
 import pytest
-
 from conftest import render_dataset
 
 
@@ -47,7 +46,9 @@ def test_focal_lengths_are_drawn_in_range_and_recorded(perspective_set):
         assert cam["kind"] == "perspective" and 15 <= cam["focal_mm"] <= 300
         assert cam["fov"] == pytest.approx(fov_from_focal(cam["focal_mm"]), abs=1e-9)
         # distance follows the field of view: the object fills the frame at every focal length
-        assert cam["origin"][2] * math.tan(math.radians(cam["fov"] / 2)) == pytest.approx(4.0 * math.tan(math.radians(15)))
+        assert cam["origin"][2] * math.tan(math.radians(cam["fov"] / 2)) == pytest.approx(
+            4.0 * math.tan(math.radians(15))
+        )
         mask = read_mask(folder / "mask.png")
         ys, xs = np.nonzero(mask)
         assert max(np.ptp(xs), np.ptp(ys)) + 1 >= 0.8 * mask.shape[1]
@@ -58,10 +59,10 @@ def test_focal_lengths_are_drawn_in_range_and_recorded(perspective_set):
 def test_view_directions_are_the_reverse_of_mitsubas_pixel_rays(perspective_set):
     import mitsuba as mi
 
-    from scenes.geometry import camera_rotation
-    from scenes.renderer.build import sensor_dict
-    from scenes.images import read_exr
     from scenes.folder.format import read_scene
+    from scenes.geometry import camera_rotation
+    from scenes.images import read_exr
+    from scenes.renderer.build import sensor_dict
     from scenes.renderer.variant import choose_variant
 
     choose_variant("auto")
@@ -73,7 +74,9 @@ def test_view_directions_are_the_reverse_of_mitsubas_pixel_rays(perspective_set)
         np.testing.assert_allclose(np.linalg.norm(view, axis=-1), 1.0, atol=1e-5)
         sensor = mi.load_dict(sensor_dict(desc, 1))
         ii, jj = np.meshgrid(np.arange(cam.height), np.arange(cam.width), indexing="ij")
-        uv = mi.Point2f(((jj.ravel() + 0.5) / cam.width).astype(np.float32), ((ii.ravel() + 0.5) / cam.height).astype(np.float32))
+        uv = mi.Point2f(
+            ((jj.ravel() + 0.5) / cam.width).astype(np.float32), ((ii.ravel() + 0.5) / cam.height).astype(np.float32)
+        )
         ray, _ = sensor.sample_ray(0.0, 0.5, uv, mi.Point2f(0.5, 0.5))
         d_world = np.array(ray.d).reshape(3, -1).T if np.array(ray.d).shape[0] == 3 else np.array(ray.d).reshape(-1, 3)
         d_cam = d_world @ camera_rotation(cam.origin, cam.target, cam.up).T
@@ -81,7 +84,9 @@ def test_view_directions_are_the_reverse_of_mitsubas_pixel_rays(perspective_set)
         # the centre pixel looks almost straight along the axis, a corner at the half field of view's angle
         edge = view[cam.height // 2, 0]
         half_px = math.atan(math.tan(math.radians(cam.fov / 2)) * (1 - 1 / cam.width))
-        assert math.degrees(math.acos(edge[2] / np.hypot(edge[0], edge[2]))) == pytest.approx(math.degrees(half_px), abs=1e-3)
+        assert math.degrees(math.acos(edge[2] / np.hypot(edge[0], edge[2]))) == pytest.approx(
+            math.degrees(half_px), abs=1e-3
+        )
 
 
 def test_orthographic_view_is_the_axis(tmp_path):

@@ -17,11 +17,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-
-from unips.models import convert_official, create_model, list_models
-
 from conftest import SHARED
 from published import angle_deg, load_error, randomise, reference_module
+
+from unips.models import convert_official, create_model, list_models
 
 REFERENCE = SHARED / "reference" / "Universal-PS-CVPR2022" / "source" / "modules"
 ALIAS = "unips22_reference"  # the authors' package is named `modules`: imported under a name of its own

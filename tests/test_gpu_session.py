@@ -113,11 +113,19 @@ def test_pack_keeps_the_needed_variants_and_checks_the_limit(tmp_path, capsys):
 
     wheels = tmp_path / "whl"
     wheels.mkdir()
-    _wheel(wheels / "mitsuba-3.9.1-cp312-cp312-manylinux_2_17_x86_64.whl", {
-        "mitsuba/__init__.py": "", "mitsuba/libmitsuba.so": "x" * 100, "mitsuba/cuda_ad_rgb.cpython-312-x86_64-linux-gnu.so": "c",
-        "mitsuba/cuda_ad_spectral.cpython-312-x86_64-linux-gnu.so": "s", "mitsuba/scalar_rgb.cpython-312-x86_64-linux-gnu.so": "r",
-        "mitsuba/include/mitsuba.h": "h", "mitsuba/plugins/path.so": "p", "mitsuba/__init__.pyi": "",
-    })
+    _wheel(
+        wheels / "mitsuba-3.9.1-cp312-cp312-manylinux_2_17_x86_64.whl",
+        {
+            "mitsuba/__init__.py": "",
+            "mitsuba/libmitsuba.so": "x" * 100,
+            "mitsuba/cuda_ad_rgb.cpython-312-x86_64-linux-gnu.so": "c",
+            "mitsuba/cuda_ad_spectral.cpython-312-x86_64-linux-gnu.so": "s",
+            "mitsuba/scalar_rgb.cpython-312-x86_64-linux-gnu.so": "r",
+            "mitsuba/include/mitsuba.h": "h",
+            "mitsuba/plugins/path.so": "p",
+            "mitsuba/__init__.pyi": "",
+        },
+    )
     _wheel(wheels / "drjit-1.5.0-cp312-cp312-manylinux_2_17_x86_64.whl",
            {"drjit/__init__.py": "", "drjit/include/x.h": "h", "drjit/libdrjit-core.so": "d"})
     total = gpu_session.pack(tmp_path / "carry", wheels, tree=1000)

@@ -248,5 +248,7 @@ def test_only_the_folder_owners_name_object_folder_files():
 
 def test_the_file_name_check_can_fail(tmp_path):
     probe = tmp_path / "probe.py"
-    probe.write_text('"""Mentions scene.json in a docstring: fine."""\nP = folder / "scene.json"\nQ = f"{x}/mask.png"\n')
+    probe.write_text(
+        '"""Mentions scene.json in a docstring: fine."""\nP = folder / "scene.json"\nQ = f"{x}/mask.png"\n'
+    )
     assert _named_files(probe, _folder_file_names()) == ["line 2: 'scene.json'", "line 3: '/mask.png'"]

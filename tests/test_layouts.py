@@ -12,7 +12,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from fixtures import cone_lights, sphere
 from test_unips_data import render, write_diligent, write_mask, write_ours, write_png16
 
@@ -83,7 +82,9 @@ def test_every_view_sees_the_same_folder(tmp_path, layout):
     if layout == "unips":
         assert obj.light_directions is None and cap.light_directions is None
     else:
-        assert np.allclose(obj.light_directions, L, atol=1e-5) and np.array_equal(obj.light_directions, cap.light_directions)
+        assert np.allclose(obj.light_directions, L, atol=1e-5) and np.array_equal(
+            obj.light_directions, cap.light_directions
+        )
 
 
 def test_malformed_camera_light_is_a_clean_error_in_every_reader(tmp_path):

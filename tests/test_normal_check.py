@@ -21,7 +21,10 @@ def test_normal_map_rule_is_one_for_both_modes():
     n[0, :3] = d
     quantised = decode_normal_image(encode_normals(n), "n")  # through 16-bit PNG codes
     assert 0 < np.abs(np.linalg.norm(quantised[0, :3], axis=-1) - 1).max() < 1e-4
-    for check in (lambda m, what="--normals": check_normals(m, mask, what)[0], lambda m, what="--normals": unit_normals(m, mask, what)):
+    for check in (
+        lambda m, what="--normals": check_normals(m, mask, what)[0],
+        lambda m, what="--normals": unit_normals(m, mask, what),
+    ):
         out = check(quantised)
         np.testing.assert_allclose(np.linalg.norm(out[0, :3], axis=-1), 1, atol=1e-6)
         np.testing.assert_allclose(out[0, :3], np.tile(d, (3, 1)), atol=1e-4)
@@ -32,7 +35,9 @@ def test_normal_map_rule_is_one_for_both_modes():
         np.testing.assert_allclose(check(edge)[0, 0], d, atol=1e-6)
         short = n.copy()
         short[0, :2] *= 0.5  # two clearly non-unit vectors
-        with pytest.raises(ValueError, match=r"^src: 2 normal\(s\) inside the mask are not unit length \(\|n\| from 0.500"):
+        with pytest.raises(
+            ValueError, match=r"^src: 2 normal\(s\) inside the mask are not unit length \(\|n\| from 0.500"
+        ):
             check(short, "src")
         bad = n.copy()
         bad[0, 1, 2] = np.nan

@@ -9,13 +9,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-
 from conftest import write_synthetic_object
 from fixtures import cone_lights, shading, sphere
+
+from scenes.images import read_normals, write_normal_exr, write_normal_map
+from scenes.metrics import mean_angular_error
 from unips import evaluate as ev
 from unips import predict as pr
-from scenes.metrics import mean_angular_error
-from scenes.images import read_normals, write_normal_exr, write_normal_map
 
 
 def write_png16(path: Path, rgb: np.ndarray) -> None:

@@ -8,7 +8,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import render_dataset, use_variant
 
 from scenes.description import CameraDesc
@@ -32,7 +31,9 @@ def make(out: Path, *extra: str) -> int:
 def families(tmp_path_factory) -> Path:
     use_variant("llvm_ad_rgb")
     out = tmp_path_factory.mktemp("families") / "data"
-    assert make(out, "--lights", ",".join(NEW_FAMILIES), "--objects", str(len(NEW_FAMILIES)), "--seed", "5", *SMALL) == 0
+    assert (
+        make(out, "--lights", ",".join(NEW_FAMILIES), "--objects", str(len(NEW_FAMILIES)), "--seed", "5", *SMALL) == 0
+    )
     return out
 
 
@@ -42,8 +43,8 @@ def scene_of(folder: Path) -> dict:
 
 def test_every_new_family_renders_and_is_recorded(families):
     from scenes.description import SceneDescription
-    from scenes.renderer.build import build_scene
     from scenes.images import read_exr
+    from scenes.renderer.build import build_scene
     from scenes.renderer.render import render_image
 
     expected = {"verse": {"environment", "uniform", "point", "area"}, "flash": {"point", "environment"},
@@ -57,10 +58,15 @@ def test_every_new_family_renders_and_is_recorded(families):
         types = {l["type"] for im in scene["images"] for l in im["lights"]}
         assert types <= expected[family], (family, types)
         assert len(scene["camera_lights"]) == 3
-        desc = SceneDescription.from_dict({k: v for k, v in scene.items() if k not in ("camera_lights", "format_version")})
+        desc = SceneDescription.from_dict(
+            {k: v for k, v in scene.items() if k not in ("camera_lights", "format_version")}
+        )
         built = build_scene(desc.validate(), base_dir=folder)
         for i in range(3):  # re-renderable from scene.json alone, byte for byte
-            assert np.array_equal(render_image(built, i), read_exr(folder / "aux" / f"radiance_{i:03d}.exr")), (family, i)
+            assert np.array_equal(render_image(built, i), read_exr(folder / "aux" / f"radiance_{i:03d}.exr")), (
+                family,
+                i,
+            )
 
 
 def test_new_families_pass_the_rerender_check_with_true_normals(families):
@@ -288,7 +294,9 @@ def test_explicit_flags_override_the_preset():
 def test_unknown_preset_is_a_one_line_error(tmp_path, capsys):
     rc = make(tmp_path / "o", "--preset", "studio", "--quiet")
     err = capsys.readouterr().err.strip()
-    assert rc == 2 and err.startswith("error: --preset:") and "'studio'" in err and "diligent" in err and "\n" not in err
+    assert (
+        rc == 2 and err.startswith("error: --preset:") and "'studio'" in err and "diligent" in err and "\n" not in err
+    )
     assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
 
 
@@ -301,7 +309,11 @@ def test_preset_is_recorded_in_the_manifest_and_resumes(tmp_path, variant_llvm_a
     assert manifest["config"]["preset"] == "diligent" and manifest["config"]["lights"] == ["grid96"]
     assert manifest["config"]["sensor"] == "machine-vision" and manifest["config"]["images"] == 2
     scene = scene_of(out / "00000.data")
-    assert scene["camera"]["width"] == 24 and scene["camera"]["height"] == 20 and scene["sensor"]["model"]["name"] == "machine-vision"
+    assert (
+        scene["camera"]["width"] == 24
+        and scene["camera"]["height"] == 20
+        and scene["sensor"]["model"]["name"] == "machine-vision"
+    )
     assert make(out, *args) == 0  # the same command again: the same configuration, nothing re-rendered
     assert make(out, "--resume", "--quiet", "--workers", "0") == 0
 

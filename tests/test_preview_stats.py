@@ -10,7 +10,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import use_variant
 
 FAMILIES = ["directional", "point", "near_area", "mixed"]  # directional, point, area and environment lights
@@ -95,7 +94,9 @@ def test_card_numbers_match_the_scene_files(dataset, tmp_path, capsys):
     for t, e in stats["lights"]["per_type"].items():
         assert sum(e["per_image"].values()) == len(images)
         assert e["images_with"] == sum(1 for im in images if any(l["type"] == t for l in im["lights"]))
-    assert stats["lights"]["per_image"] == {str(k): v for k, v in sorted(Counter(len(im["lights"]) for im in images).items())}
+    assert stats["lights"]["per_image"] == {
+        str(k): v for k, v in sorted(Counter(len(im["lights"]) for im in images).items())
+    }
 
     # Visible normals: every mask pixel with a normal counted once, in the right bin.
     n = [normals_of(dataset / f"{name}.data") for name in scenes]
@@ -116,7 +117,11 @@ def test_card_numbers_match_the_scene_files(dataset, tmp_path, capsys):
     # the origin with +y up, so its frame is the world frame.
     elevation, distance = [], []
     for s, l in lights:
-        assert s["camera"]["target"] == [0, 0, 0] and s["camera"]["up"] == [0, 1, 0] and s["camera"]["origin"][:2] == [0, 0]
+        assert (
+            s["camera"]["target"] == [0, 0, 0]
+            and s["camera"]["up"] == [0, 1, 0]
+            and s["camera"]["origin"][:2] == [0, 0]
+        )
         to_world = np.asarray(s["shape"]["to_world"])
         if l["type"] == "directional":
             d = -np.asarray(l["direction"])
@@ -147,7 +152,11 @@ def test_card_numbers_match_the_scene_files(dataset, tmp_path, capsys):
     focal = [s["camera"]["focal_mm"] for s in scenes.values() if s["camera"].get("focal_mm") is not None]
     assert camera["focal_mm"] == "not recorded" if not focal else close(camera["focal_mm"], summary(focal))
     levels = [s["level"] for s in scenes.values() if s.get("level") is not None]
-    assert stats["levels"] == "not recorded" if not levels else stats["levels"]["counts"] == dict(Counter(map(str, levels)))
+    assert (
+        stats["levels"] == "not recorded"
+        if not levels
+        else stats["levels"]["counts"] == dict(Counter(map(str, levels)))
+    )
     assert stats["sensors"] == {"webcam": len(scenes)}
 
     # The picture: each panel plots the numbers computed here.

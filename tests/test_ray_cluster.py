@@ -100,10 +100,27 @@ def start_node(args: list[str], env: dict, timeout: float = 120) -> Node:
     log = temp.with_suffix(".log")
     ray_cli = [sys.executable, "-m", "ray.scripts.scripts"]
     with open(log, "w") as out:
-        proc = subprocess.Popen([*ray_cli, "start", "--block", *args, "--num-cpus", "1", "--node-ip-address", "127.0.0.1",
-                                 "--temp-dir", str(temp), "--object-store-memory", str(128 * 2**20),
-                                 "--disable-usage-stats"], env=env, stdout=out, stderr=subprocess.STDOUT,
-                                start_new_session=True)
+        proc = subprocess.Popen(
+            [
+                *ray_cli,
+                "start",
+                "--block",
+                *args,
+                "--num-cpus",
+                "1",
+                "--node-ip-address",
+                "127.0.0.1",
+                "--temp-dir",
+                str(temp),
+                "--object-store-memory",
+                str(128 * 2**20),
+                "--disable-usage-stats",
+            ],
+            env=env,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )
     node = Node(proc, temp, log)
     t0 = time.monotonic()
     while "Ray runtime started" not in log.read_text():
@@ -186,7 +203,10 @@ def test_objects_spread_over_both_nodes_and_the_bytes_are_a_local_runs(cluster, 
     per_object, nodes = nodes_of(out)
     assert set(per_object) == set(cluster.ids.values()), per_object  # both nodes rendered objects
     assert set(nodes) == set(per_object)
-    print("objects per node:", {("head" if k == cluster.ids["head"] else "second"): v["objects"] for k, v in nodes.items()})
+    print(
+        "objects per node:",
+        {("head" if k == cluster.ids["head"] else "second"): v["objects"] for k, v in nodes.items()},
+    )
     assert sorted(n["objects"] for n in nodes.values()) == sorted(per_object.count(k) for k in nodes)
     assert_same_dataset(reference, out)
 

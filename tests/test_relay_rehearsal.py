@@ -7,7 +7,6 @@ fails here, not on the GPU machine.
 from __future__ import annotations
 
 import importlib.metadata as md
-import os
 import re
 import shutil
 import subprocess

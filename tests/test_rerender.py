@@ -14,7 +14,6 @@ from typing import ClassVar
 
 import numpy as np
 import pytest
-
 from conftest import use_variant
 
 from scenes.description import (
@@ -81,7 +80,9 @@ def shading_normals(built) -> np.ndarray:
     from scenes.geometry import camera_rotation
 
     built.park_lights()
-    aov = mi.load_dict({"type": "aov", "aovs": "nn:sh_normal", "integrator": {"type": "path", "max_depth": 1, "hide_emitters": True}})
+    aov = mi.load_dict(
+        {"type": "aov", "aovs": "nn:sh_normal", "integrator": {"type": "path", "max_depth": 1, "hide_emitters": True}}
+    )
     out = np.array(mi.render(built.scene, integrator=aov, spp=64, seed=0), np.float64)
     built.apply_image(0)
     n = out[:, :, 4:7]
@@ -122,7 +123,9 @@ def torus_desc(camera_kind: str = "orthographic", width: int = R, height: int = 
         name="torus",
         shape=ShapeDesc(kind="torus", seed=1, resolution=32),
         material=MaterialDesc(kind="principled"),
-        camera=CameraDesc(kind=camera_kind, width=width, height=height, half_size=1.1, origin=[0.5, 1.5, 4.0], fov=35.0),
+        camera=CameraDesc(
+            kind=camera_kind, width=width, height=height, half_size=1.1, origin=[0.5, 1.5, 4.0], fov=35.0
+        ),
         render=RenderDesc(spp=8, bounces=2),
         images=[ImageDesc(lights=[DirectionalLight(direction=[0.3, -0.4, -1.0])], seed=1)],
     )
@@ -345,8 +348,14 @@ def test_normal_mapped_material_wraps_the_inner_bsdf(jit, tmp_path):
     desc = sphere_desc(name="mapped", normal_map="nmap.exr")
     folder = write_object(desc, tmp_path, {"nmap.exr": ((tangent + 1) / 2).astype(np.float32)})
 
-    wrapped = wrapper_for(CameraProjection.from_camera(desc.camera))({"type": "normalmap", "normalmap": {}, "bsdf": {"type": "principled"}})
-    assert wrapped["type"] == PLUGIN_NAME and wrapped["bsdf"]["type"] == "normalmap" and wrapped["inner"]["type"] == "principled"
+    wrapped = wrapper_for(CameraProjection.from_camera(desc.camera))(
+        {"type": "normalmap", "normalmap": {}, "bsdf": {"type": "principled"}}
+    )
+    assert (
+        wrapped["type"] == PLUGIN_NAME
+        and wrapped["bsdf"]["type"] == "normalmap"
+        and wrapped["inner"]["type"] == "principled"
+    )
 
     obj = load_object(folder)
     r = rerender_object(folder, obj.normal_gt, RerenderConfig())
@@ -354,7 +363,9 @@ def test_normal_mapped_material_wraps_the_inner_bsdf(jit, tmp_path):
     assert r["gt_rel_l1"] < 0.5 * r["noise_floor_rel_l1"]
     from validate.perturb import perturb_normals
 
-    bad = rerender_object(folder, perturb_normals(obj.normal_gt, obj.mask, "smooth", 15, seed=1), RerenderConfig(floors=False))
+    bad = rerender_object(
+        folder, perturb_normals(obj.normal_gt, obj.mask, "smooth", 15, seed=1), RerenderConfig(floors=False)
+    )
     assert bad["rel_l1"] > 3 * r["gt_rel_l1"]
 
 
@@ -491,7 +502,16 @@ def test_cli_dataset_end_to_end(jit, sphere_folder, tmp_path, capsys):
     reports = {}
     for name in ("a", "b"):
         report = json.loads((out / name / "report.json").read_text())
-        for key in ("rel_l1", "psnr", "gt_rel_l1", "noise_floor_rel_l1", "mae_deg", "frac_above_threshold", "images", "timings"):
+        for key in (
+            "rel_l1",
+            "psnr",
+            "gt_rel_l1",
+            "noise_floor_rel_l1",
+            "mae_deg",
+            "frac_above_threshold",
+            "images",
+            "timings",
+        ):
             assert key in report, key
         assert len(report["images"]) == 3
         fig = cv2.imread(str(out / name / "figure.png"))
@@ -527,5 +547,7 @@ def test_known_scene_report_refuses_an_unknown_light_type():
         type: ClassVar[str] = "sky_dome"
 
     desc.images[0].lights[2] = SkyDome(to_world=env, scale=0.5)
-    with pytest.raises(ValueError, match="unknown light type 'sky_dome', expected one of directional, point, area, environment"):
+    with pytest.raises(
+        ValueError, match="unknown light type 'sky_dome', expected one of directional, point, area, environment"
+    ):
         known_scene_lights(desc, [2.0])

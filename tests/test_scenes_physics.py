@@ -6,8 +6,8 @@ from typing import ClassVar
 
 import numpy as np
 import pytest
-
 from fixtures import ortho_sphere
+
 from scenes.description import (
     CameraDesc,
     EnvironmentDesc,
@@ -18,8 +18,15 @@ from scenes.description import (
     ShapeDesc,
     TextureDesc,
 )
-from scenes.lights import (AreaLight, DirectionalLight, EnvironmentLight, LightDesc, PointLight, UniformLight,
-                           light_from_dict)
+from scenes.lights import (
+    AreaLight,
+    DirectionalLight,
+    EnvironmentLight,
+    LightDesc,
+    PointLight,
+    UniformLight,
+    light_from_dict,
+)
 
 RES = 32
 HALF = 1.1  # orthographic half size: the unit sphere fills most of the frame
@@ -104,7 +111,9 @@ def test_least_squares_photometric_stereo_recovers_normals(any_variant):
         l[2] = abs(l[2]) + 0.6
         dirs.append(l / np.linalg.norm(l))
     L = np.array(dirs)
-    desc = sphere_scene([[DirectionalLight(direction=(-l).tolist(), irradiance=1.5)] for l in L], spp=16, albedo=[0.7, 0.7, 0.7])
+    desc = sphere_scene(
+        [[DirectionalLight(direction=(-l).tolist(), irradiance=1.5)] for l in L], spp=16, albedo=[0.7, 0.7, 0.7]
+    )
     gt, images = render(desc)
     I = np.stack([im.mean(-1) for im in images], -1)  # (H, W, K)
     full = gt.coverage > 0.999
@@ -154,8 +163,22 @@ def test_every_light_type_and_mixture_renders_and_near_light_varies(variant_llvm
 def test_json_round_trip_is_exact():
     desc = plane_scene(
         [
-            [AreaLight(position=[1.2, 0.1, 0.8], width=0.31, height=0.27, radiance=20.123456789, color=[1.0, 0.9, 0.8], temperature_k=4123.5)],
-            [EnvironmentLight(scale=0.1 + 0.2, to_world=[[0.0, 1.0, 0.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]])],
+            [
+                AreaLight(
+                    position=[1.2, 0.1, 0.8],
+                    width=0.31,
+                    height=0.27,
+                    radiance=20.123456789,
+                    color=[1.0, 0.9, 0.8],
+                    temperature_k=4123.5,
+                )
+            ],
+            [
+                EnvironmentLight(
+                    scale=0.1 + 0.2,
+                    to_world=[[0.0, 1.0, 0.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
+                )
+            ],
         ]
     )
     desc.material = MaterialDesc(
@@ -164,7 +187,12 @@ def test_json_round_trip_is_exact():
         roughness=TextureDesc(kind="noise", value=[0.1], value2=[0.4], seed=2), metallic=TextureDesc(value=[0.9]),
         specular=0.123, normal_map="aux/n.png",
     )
-    desc.shape = ShapeDesc(kind="blob", seed=11, params={"lumps": 4.0}, to_world=[[0.5, 0.0, 0.0, 0.1], [0.0, 0.5, 0.0, -0.2], [0.0, 0.0, 0.5, 0.3], [0.0, 0.0, 0.0, 1.0]])
+    desc.shape = ShapeDesc(
+        kind="blob",
+        seed=11,
+        params={"lumps": 4.0},
+        to_world=[[0.5, 0.0, 0.0, 0.1], [0.0, 0.5, 0.0, -0.2], [0.0, 0.0, 0.5, 0.3], [0.0, 0.0, 0.0, 1.0]],
+    )
     text = desc.to_json()
     back = SceneDescription.from_json(text)
     assert back == desc
@@ -175,7 +203,9 @@ def test_same_seed_same_render_and_different_seed_differs(variant_llvm_ad_rgb):
     from scenes.renderer.build import build_scene
     from scenes.renderer.render import render_image
 
-    desc = plane_scene([[AreaLight(position=[1.2, 0.0, 0.8], width=0.3, height=0.3, radiance=20.0), EnvironmentLight(scale=0.3)]])
+    desc = plane_scene(
+        [[AreaLight(position=[1.2, 0.0, 0.8], width=0.3, height=0.3, radiance=20.0), EnvironmentLight(scale=0.3)]]
+    )
     a = render_image(build_scene(desc), 0)
     b = render_image(build_scene(SceneDescription.from_json(desc.to_json())), 0)
     c = render_image(build_scene(desc), 0, seed=99)
@@ -202,7 +232,11 @@ def test_procedural_shapes_are_seeded_and_closed():
 
 
 def _mesh_desc(path) -> SceneDescription:
-    return SceneDescription(shape=ShapeDesc(kind="mesh", file=str(path)), camera=CameraDesc(width=8, height=8), images=[ImageDesc(lights=[DirectionalLight()])])
+    return SceneDescription(
+        shape=ShapeDesc(kind="mesh", file=str(path)),
+        camera=CameraDesc(width=8, height=8),
+        images=[ImageDesc(lights=[DirectionalLight()])],
+    )
 
 
 def test_missing_corrupt_and_empty_meshes(tmp_path, variant_llvm_ad_rgb):
@@ -416,7 +450,9 @@ def test_uniform_background_gives_albedo_times_radiance(any_variant):
     np.testing.assert_allclose(img[~hit.any(-1)], np.broadcast_to(colour, img[~hit.any(-1)].shape), rtol=1e-5)
     assert lit_by_point[~hit.any(-1)].max() == 0.0  # background of the next image: the sphere is parked
     desc.images[0].lights.append(DirectionalLight())
-    with pytest.raises(ValueError, match=r"images\[0\]\.lights: a 'uniform' light cannot share an image with 'directional'"):
+    with pytest.raises(
+        ValueError, match=r"images\[0\]\.lights: a 'uniform' light cannot share an image with 'directional'"
+    ):
         desc.validate()
 
 

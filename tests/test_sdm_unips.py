@@ -14,13 +14,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from conftest import SHARED
+from published import angle_deg, load_error, randomise, reference_module
 
 from unips.models import convert_official, create_model, list_models
 from unips.models.sdm import gaussian_blur
 from unips.models.sdm_encoder import merge_interleaved, split_interleaved
-
-from conftest import SHARED
-from published import angle_deg, load_error, randomise, reference_module
 
 REFERENCE = SHARED / "reference" / "SDM-UniPS-CVPR2023" / "sdm_unips" / "modules"
 ALIAS = "sdm_unips_reference"  # the authors' package is named `modules`: imported under a name of its own
@@ -335,6 +334,7 @@ def _dots_object(tmp_path: Path, k: int):
     """`k` images of 5 isolated pixels spanning 50 px of an 80 px frame: a full-size working image with few pixels
     to decode."""
     from conftest import write_synthetic_object
+
     from unips.data import load_object
 
     mask = np.zeros((80, 80), bool)
@@ -397,7 +397,9 @@ def test_predict_cli_scalable_and_its_refusals(tiny_state, tmp_path, capsys, mon
         assert len(err) == 1 and err[0].startswith("error: ") and words in err[0], err
         return err[0]
 
-    refused(["--method", "least-squares", "--input", str(folder), "--scalable"], "--scalable: only used with --method model")
+    refused(
+        ["--method", "least-squares", "--input", str(folder), "--scalable"], "--scalable: only used with --method model"
+    )
     refused([*run[:2], "--model", "glc-test", *run[4:], "--scalable"], "--scalable: only for the SDM-UniPS networks")
     refused([*run, "--res", "768", "--scalable"], "--res 768: --scalable needs a multiple of its 512 px sub-images")
     whole = prediction_memory("model", (80, 80), 3, 1024, 1, inputs="sdm-unips")

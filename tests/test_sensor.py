@@ -13,11 +13,20 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import use_variant
 
-from scenes.sensor import (CFA_PATTERNS, DEMOSAIC_METHODS, SENSORS, Sensor, apply_sensor, demosaic, mosaic,
-                           read_sensor_record, rederive_image, write_image)
+from scenes.sensor import (
+    CFA_PATTERNS,
+    DEMOSAIC_METHODS,
+    SENSORS,
+    Sensor,
+    apply_sensor,
+    demosaic,
+    mosaic,
+    read_sensor_record,
+    rederive_image,
+    write_image,
+)
 
 
 def recorded(sensor: Sensor) -> Sensor:
@@ -306,7 +315,9 @@ def test_reapply_records_rederives_and_is_deterministic(dataset, tmp_path, capsy
             assert pixels.dtype == np.uint8 and png_bit_depth(folder / name) == 8
             radiance = read_exr(folder / "aux" / f"radiance_{i:03d}.exr")
             # any image is re-derived from what the folder records
-            np.testing.assert_array_equal(rederive_image(radiance, image.exposure, rec.sensor, rec.noise_seeds[i]), pixels)
+            np.testing.assert_array_equal(
+                rederive_image(radiance, image.exposure, rec.sensor, rec.noise_seeds[i]), pixels
+            )
             assert (c / entry["folder"] / name).read_bytes() != (folder / name).read_bytes()  # another seed
         # camera_lights irradiance includes the exposure: scaled by the sensor's 1.15
         _, old_extras = read_scene(dataset / entry["folder"])
@@ -362,9 +373,9 @@ def sensor_datasets(dataset, tmp_path_factory):
 def test_readers_undo_a_recorded_sensor_for_the_check(dataset, sensor_datasets, name, tolerance):
     """The check compares light: the one reader linearises a recorded sensor (response, black level, white
     balance, vignetting); the model's view keeps the file values, as a camera wrote them."""
+    from scenes.folder.format import read_scene
     from scenes.folder.layouts import read_folder
     from scenes.images import read_exr
-    from scenes.folder.format import read_scene
     from unips.data import load_object
     from validate.capture import load_capture
 

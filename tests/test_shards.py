@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-
 from conftest import write_synthetic_object
 from fixtures import random_lights
+
 from scenes.folder.layouts import read_folder
 from scenes.folder.shards import INDEX_FILE, extract_sample, iter_samples, sample_folder_name
 from unips.train_data import load_samples, make_batch, prepare_sample
@@ -123,7 +123,9 @@ def test_shard_training_draws_the_folder_batches(data, tmp_path):
         assert main(["--data", str(source), "--out", str(out), "--model", "glc-test", "--steps", "3", "--batch", "2",
                      "--res", "32", "--pixels", "100", "--max-images", "3", "--threads", "1", "--no-progress",
                      "--log-every", "1"]) == 0
-        logs.append([(r["step"], r["loss"], r["k"]) for r in map(json.loads, (out / "log.jsonl").read_text().splitlines())])
+        logs.append(
+            [(r["step"], r["loss"], r["k"]) for r in map(json.loads, (out / "log.jsonl").read_text().splitlines())]
+        )
     assert logs[0] == logs[1] and len(logs[0]) == 3
     a, b = (load_training_checkpoint(tmp_path / n / "last.pt")["model"] for n in ("folders", "shards"))
     assert all(torch.equal(v, b[k]) for k, v in a.items())
@@ -180,7 +182,11 @@ def test_export_is_deterministic(data, tmp_path):
     assert export_main(["--data", str(data["ds"]), "--out", str(tmp_path / "again"), "--shard-size", str(SHARD_SIZE),
                         "--quiet"]) == 0
     names = sorted(p.name for p in data["sh"].iterdir())
-    assert names == sorted(p.name for p in (tmp_path / "again").iterdir()) == [f"{i:06d}.tar" for i in range(5)] + [INDEX_FILE]
+    assert (
+        names
+        == sorted(p.name for p in (tmp_path / "again").iterdir())
+        == [f"{i:06d}.tar" for i in range(5)] + [INDEX_FILE]
+    )
     for name in names:
         assert (data["sh"] / name).read_bytes() == (tmp_path / "again" / name).read_bytes(), name
     index = json.loads((data["sh"] / INDEX_FILE).read_text())
@@ -252,8 +258,10 @@ def test_export_refuses_what_it_cannot_do_in_one_line(data, tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("error:") and expected in err[0], (argv, err)
     assert (taken / "000000.tar").read_bytes() == b"not ours"
-    for argv, expected in [(["--data", str(data["ds"]), "--shuffle-buffer", "4"], "--shuffle-buffer"),
-                           (["--data", str(data["sh"] / "000000.tar"), "--shuffle-buffer", "4"], "expected at least 2")]:
+    for argv, expected in [
+        (["--data", str(data["ds"]), "--shuffle-buffer", "4"], "--shuffle-buffer"),
+        (["--data", str(data["sh"] / "000000.tar"), "--shuffle-buffer", "4"], "expected at least 2"),
+    ]:
         assert train_main([*argv, "--out", str(tmp_path / "run"), "--model", "glc-test", "--no-progress"]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and expected in err[0], err
@@ -353,9 +361,9 @@ def test_decoded_samples_of_8_bit_and_exr_images_and_a_recorded_sensor(data, tmp
     """The integer codes are stored in the type that gives the reader's floats back exactly (uint8 for 8-bit files,
     uint16 for 16-bit), EXR radiance as float32; a recorded sensor travels in the metadata."""
     import cv2
+    from test_layouts import write_unips
 
     from scenes.sensor import SENSORS, sensor_record
-    from test_layouts import write_unips
 
     ds = tmp_path / "ds"
     eight = ds / "eight.data"

@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import render_dataset
 
 from wildgen.light_families import LIGHT_FAMILIES, PS_WILD_FAMILIES
@@ -40,7 +39,6 @@ def test_shipped_weights_are_in_the_package_with_a_model_card():
 def test_shipped_model_predicts_unit_normals_on_a_rendered_object(rendered):
     from unips.data import find_objects, load_object
     from unips.inference import load_network, predict_object
-
     from unips.models import DEFAULT_MODEL
 
     net = load_network(None)
@@ -57,10 +55,10 @@ def test_shipped_model_predicts_unit_normals_on_a_rendered_object(rendered):
 def test_shipped_model_beats_an_untrained_one_by_a_wide_margin(rendered):
     import torch
 
-    from unips.data import find_objects, load_object
-    from unips.models import create_model
     from scenes.metrics import mean_angular_error
+    from unips.data import find_objects, load_object
     from unips.inference import LoadedModel, load_network, predict_object
+    from unips.models import create_model
 
     trained = load_network(None)
     torch.manual_seed(0)
@@ -125,8 +123,14 @@ def _registered_test_model(monkeypatch, tmp_path: Path) -> str:
 
     name = "glc-test-shipped"
     monkeypatch.setitem(registry._REGISTRY, name, zoo.glc_test)
-    monkeypatch.setitem(registry._PRETRAINED, name, Pretrained(weights=str(tmp_path / "shipped" / f"{name}.safetensors"),
-                                                               card=str(tmp_path / "shipped" / f"{name}.card.json")))
+    monkeypatch.setitem(
+        registry._PRETRAINED,
+        name,
+        Pretrained(
+            weights=str(tmp_path / "shipped" / f"{name}.safetensors"),
+            card=str(tmp_path / "shipped" / f"{name}.card.json"),
+        ),
+    )
     return name
 
 

@@ -9,15 +9,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-
 from fixtures import ellipsoid_normals, lambertian, random_lights
-from unips.augment import (HFLIP_MATRIX, TRANSPOSE_MATRIX, VFLIP_MATRIX, Augmentation, apply_augmentation,
-                           augment, sample_augmentation)
+
+from unips.augment import (
+    HFLIP_MATRIX,
+    TRANSPOSE_MATRIX,
+    VFLIP_MATRIX,
+    Augmentation,
+    apply_augmentation,
+    augment,
+    sample_augmentation,
+)
 from unips.checkpoint import load_model, load_training_checkpoint, save_checkpoint, sidecar_path
 from unips.models import create_model
 from unips.train import main
 from unips.train_data import load_samples, make_batch
-
 
 # -- analytic scenes ------------------------------------------------------------------------
 

@@ -14,16 +14,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-
 from fixtures import ellipsoid_normals, lambertian, ortho_sphere, random_lights
+from test_train import _train, dataset, write_object  # noqa: F401  (the module-scoped fixture)
+
+from scenes.cli.options import field_docs
 from unips.checkpoint import load_model, load_training_checkpoint, save_checkpoint
 from unips.models import create_model
 from unips.probes import probe_images, probe_object, summarise
-from scenes.cli.options import field_docs
 from unips.train import COMMAND, TrainConfig, main
 from unips.train_run import lr_factor
-
-from test_train import _train, dataset, write_object  # noqa: F401  (the module-scoped fixture)
 
 REPO = Path(__file__).resolve().parents[1]
 

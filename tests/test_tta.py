@@ -8,13 +8,12 @@ import json
 import numpy as np
 import pytest
 import torch
+from fixtures import ellipsoid_normals, lambertian, random_lights
 
 from unips.augment import DIHEDRAL, apply_augmentation, invert_normals
 from unips.checkpoint import save_checkpoint
 from unips.inference import DEFAULT_TTA, check_tta, model_normals
 from unips.models import create_model
-
-from fixtures import ellipsoid_normals, lambertian, random_lights
 
 
 def _matrices(views) -> list[np.ndarray]:
@@ -84,8 +83,9 @@ def test_bad_view_counts_are_refused(bad) -> None:
 
 
 def test_predict_cli_records_the_views(tmp_path, capsys) -> None:
-    from scenes.images import read_normals
     from test_predict_evaluate import write_ours
+
+    from scenes.images import read_normals
     from unips import predict as pr
 
     torch.manual_seed(0)

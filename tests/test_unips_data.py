@@ -11,12 +11,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-
-from unips.data import PSObject, find_objects, load_ground_truth, load_object
 from conftest import write_synthetic_object
 from fixtures import cone_lights, shading, sphere
-from scenes.metrics import angular_error_deg, mean_angular_error
+
 from scenes.images import read_normals, write_normal_exr, write_normal_map, write_normal_visual
+from scenes.metrics import angular_error_deg, mean_angular_error
+from unips.data import PSObject, find_objects, load_ground_truth, load_object
 from unips.preprocess import prepare, resize_prepared, uncrop
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
@@ -142,7 +142,9 @@ def test_max_images_natural_order(tmp_path):
     folder = tmp_path / "nat"
     folder.mkdir()
     for i in (1, 2, 10, 11):
-        img = np.full((8, 8, 3), i / 20.0) + np.linspace(0, 0.01, 8)[None, :, None]  # not flat: flat captures are refused
+        img = (
+            np.full((8, 8, 3), i / 20.0) + np.linspace(0, 0.01, 8)[None, :, None]
+        )  # not flat: flat captures are refused
         write_png16(folder / f"L{i}.png", img)
     obj = load_object(folder, max_images=3)
     assert obj.image_names == ["L1.png", "L2.png", "L10.png"]

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import numpy as np
-
 from fixtures import sphere
 
 
@@ -16,7 +15,7 @@ def _tilt(n: np.ndarray, deg: np.ndarray) -> np.ndarray:
 
 
 def test_near_constant_maps_are_flagged_and_real_surfaces_are_not():
-    from unips.predict import CONSTANT_DEG, constant_map
+    from unips.predict import constant_map
 
     n, mask = sphere(32)
     assert not constant_map(n, mask)  # a sphere deviates by tens of degrees

@@ -5,8 +5,6 @@ declines where it cannot judge and keeps the input map."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
-
 from test_fit import TO_LIGHT, analytic_sphere, jit, small_config, sphere_folder  # noqa: F401  (fixtures)
 
 
@@ -127,8 +125,8 @@ def test_refinement_declines_an_untrusted_capture_and_keeps_the_input(jit, tmp_p
 def test_fitted_report_says_trusted_and_writes_explained(jit, sphere_folder, tmp_path):
     import json
 
-    from validate.fit_report import rerender_fitted
     from validate.capture import load_capture
+    from validate.fit_report import rerender_fitted
 
     gt = load_capture(sphere_folder).normal_gt
     r = rerender_fitted(str(sphere_folder), gt, small_config(), str(tmp_path))
@@ -146,7 +144,11 @@ def test_bas_relief_transform_keeps_lambertian_shading():
     n, mask = analytic_sphere()
     nm = n[mask].astype(np.float64)
     rng = np.random.default_rng(0)
-    params = {"directions": TO_LIGHT, "irradiance": rng.uniform(0.5, 2, (len(TO_LIGHT), 3)), "ambient": np.zeros((len(TO_LIGHT), 3))}
+    params = {
+        "directions": TO_LIGHT,
+        "irradiance": rng.uniform(0.5, 2, (len(TO_LIGHT), 3)),
+        "ambient": np.zeros((len(TO_LIGHT), 3)),
+    }
     albedo = rng.uniform(0.2, 0.9, (len(nm), 3))
     for lam, mu, nu in ((0.7, 0.0, 0.0), (1.3, 0.2, -0.1)):
         st = gbr_start(params, albedo, nm, lam, mu, nu)

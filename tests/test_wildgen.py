@@ -8,7 +8,6 @@ from typing import ClassVar
 
 import numpy as np
 import pytest
-
 from conftest import use_variant
 
 from wildgen.light_families import LIGHT_FAMILIES
@@ -173,7 +172,22 @@ def test_bad_asset_folder_leaves_no_partial_object(tmp_path, capsys, variant_llv
 
 def test_with_shared_assets(shared, tmp_path, variant_llvm_ad_rgb):
     out = tmp_path / "a"
-    assert make(out, "--assets", str(shared / "assets"), "--lights", "hdri", "--shapes", "mesh", "--objects", "2", "--seed", "3") == 0
+    assert (
+        make(
+            out,
+            "--assets",
+            str(shared / "assets"),
+            "--lights",
+            "hdri",
+            "--shapes",
+            "mesh",
+            "--objects",
+            "2",
+            "--seed",
+            "3",
+        )
+        == 0
+    )
     for folder in sorted(out.glob("*.data")):
         scene = json.loads((folder / "scene.json").read_text())
         assert scene["environment"]["file"].startswith("aux/environment.hdr")
@@ -224,5 +238,7 @@ def test_camera_lights_refuse_an_unknown_light_type():
     np.testing.assert_allclose(entry["directional"][0]["direction_to_light"], [0, 0, 1])
     assert entry["directional"][0]["irradiance"] == [2.0, 2.0, 2.0]
     desc.images[0].lights[1] = Spot()
-    with pytest.raises(ValueError, match="unknown light type 'spot', expected one of directional, point, area, environment"):
+    with pytest.raises(
+        ValueError, match="unknown light type 'spot', expected one of directional, point, area, environment"
+    ):
         camera_lights(desc)

@@ -17,7 +17,6 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
-
 from conftest import use_variant
 
 REPO = Path(__file__).resolve().parents[1]
@@ -42,7 +41,12 @@ def cli(out: Path, *extra: str, timeout: float = 300) -> subprocess.CompletedPro
 
 def object_bytes(root: Path) -> dict[str, bytes]:
     """Every file under the object folders, by path relative to the dataset."""
-    return {str(p.relative_to(root)): p.read_bytes() for folder in sorted(root.glob("*.data")) for p in sorted(folder.rglob("*")) if p.is_file()}
+    return {
+        str(p.relative_to(root)): p.read_bytes()
+        for folder in sorted(root.glob("*.data"))
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
 
 
 def entries(root: Path) -> list[dict]:
@@ -147,7 +151,9 @@ def test_sigkill_mid_run_then_same_command_resumes(reference, tmp_path):
         proc.wait(10)
         wait_for(lambda: not group_alive(proc.pid), 20, "the workers to die with their parent")
     assert len(list(out.glob("*.data"))) < N, "the kill came too late to test anything"
-    assert any(p.name.endswith("." + frozen) for p in out.glob(".tmp-*")), "the frozen worker's object should be left half-written"
+    assert any(p.name.endswith("." + frozen) for p in out.glob(".tmp-*")), (
+        "the frozen worker's object should be left half-written"
+    )
 
     r = cli(out, "--workers", "2")
     assert r.returncode == 0, r.stderr
@@ -240,7 +246,9 @@ def test_bad_asset_is_refused_up_front(tmp_path, capsys):
     assets = tmp_path / "assets"
     _write_assets(assets)
     out = tmp_path / "d"
-    rc = main(["--out", str(out), *SMALL, "--assets", str(assets), "--shapes", "mesh", "--workers", "2", "--max-retries", "1"])
+    rc = main(
+        ["--out", str(out), *SMALL, "--assets", str(assets), "--shapes", "mesh", "--workers", "2", "--max-retries", "1"]
+    )
     err = capsys.readouterr().err.strip()
     assert rc == 2
     assert err.startswith("error: --assets:") and "bad.obj" in err and "non-finite" in err and "\n" not in err
@@ -294,7 +302,9 @@ print("done", done)
 
 @pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="needs /proc (Linux)")
 def test_worker_memory_stays_bounded_over_200_scenes(tmp_path, variant_llvm_ad_rgb):
-    r = subprocess.run([sys.executable, "-c", RSS_SCRIPT, str(tmp_path)], cwd=REPO, capture_output=True, text=True, timeout=600)
+    r = subprocess.run(
+        [sys.executable, "-c", RSS_SCRIPT, str(tmp_path)], cwd=REPO, capture_output=True, text=True, timeout=600
+    )
     assert r.returncode == 0, r.stderr
     lines = dict(line.split() for line in r.stdout.strip().splitlines())
     rss20, rss200 = float(lines["20"]), float(lines["200"])

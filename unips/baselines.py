@@ -107,9 +107,11 @@ def least_squares(obj: PSObject, chunk: int = 65536) -> np.ndarray:
     seen = (gray > 0).any(axis=1)
     if seen.mean() < MIN_LS_COVERAGE:
         names = f" ({obj.image_names[0]} .. {obj.image_names[-1]})" if obj.image_names else ""
-        raise ValueError(f"images: {obj.path}{names}: only {int(seen.sum())} of {seen.size} mask pixels are above black in "
-                         f"any image; least-squares needs at least {MIN_LS_COVERAGE:.0%} of them (black or nearly black "
-                         "images give no normals)")
+        raise ValueError(
+            f"images: {obj.path}{names}: only {int(seen.sum())} of {seen.size} mask pixels are above black in "
+            f"any image; least-squares needs at least {MIN_LS_COVERAGE:.0%} of them (black or nearly black "
+            "images give no normals)"
+        )
     if not seen.all():
         log.warning("least-squares: %s: %d of %d mask pixels are black in every image; they get no normal (0)",
                     obj.name, int((~seen).sum()), seen.size)
@@ -127,7 +129,9 @@ def least_squares(obj: PSObject, chunk: int = 65536) -> np.ndarray:
 class SHUncalibratedConfig:
     """Settings of the uncalibrated first-order SH baseline."""
 
-    shadow_threshold: float = 0.05  # fraction of each image's [1st, 99th] percentile range below which an entry is "shadow"
+    shadow_threshold: float = (
+        0.05  # fraction of each image's [1st, 99th] percentile range below which an entry is "shadow"
+    )
     als_iterations: int = 50  # alternating least-squares sweeps of the factorisation
     band_width: int = 2  # width in pixels of the border band used for the contour constraint
     contour_sigma: float = 1.5  # Gaussian blur (pixels) of the mask before taking its gradient
@@ -292,19 +296,25 @@ def sh_uncalibrated(obj: PSObject, config: SHUncalibratedConfig | None = None) -
     lo = np.percentile(M, 1, axis=0)
     hi = np.percentile(M, 99, axis=0)
     if np.all(hi - lo <= 0):
-        raise ValueError(f"--method sh-uncalibrated: object {obj.name}: the images are constant on the object; nothing to fit")
+        raise ValueError(
+            f"--method sh-uncalibrated: object {obj.name}: the images are constant on the object; nothing to fit"
+        )
     W = _shadow_weights(M, lo, hi, cfg.shadow_threshold)
     S, a, L = _factorise(M, W, cfg.als_iterations)
     if np.linalg.matrix_rank(L, tol=1e-8 * max(np.abs(L).max(), 1e-30)) < 3:
-        raise ValueError(f"--method sh-uncalibrated: object {obj.name}: the lighting varies in fewer than 3 independent ways across "
-                         "the images; normals cannot be recovered")
+        raise ValueError(
+            f"--method sh-uncalibrated: object {obj.name}: the lighting varies in fewer than 3 independent ways across "
+            "the images; normals cannot be recovered"
+        )
     good = W.sum(axis=1) >= 4  # pixels whose factor rests on enough lit entries
     St = np.concatenate([S, np.ones((S.shape[0], 1))], axis=1)
 
     band_fit = in_band[fit_idx] & good
     if int(band_fit.sum()) < cfg.min_band_pixels:
-        raise ValueError(f"--method sh-uncalibrated: object {obj.name}: only {int(band_fit.sum())} usable contour pixels (need "
-                         f"{cfg.min_band_pixels}); the mask must show the object's silhouette inside the image")
+        raise ValueError(
+            f"--method sh-uncalibrated: object {obj.name}: only {int(band_fit.sum())} usable contour pixels (need "
+            f"{cfg.min_band_pixels}); the mask must show the object's silhouette inside the image"
+        )
     ys, xs = np.nonzero(mask)
     c = direction[ys[fit_idx][band_fit], xs[fit_idx][band_fit]]
     gxy = _contour_columns(St[band_fit], c)

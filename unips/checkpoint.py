@@ -18,9 +18,18 @@ import torch
 from torch import nn
 
 from scenes.files import atomic_write
-from unips.models.builder import (CHECKSUM_KEY, TRAINING_FORMAT, WEIGHTS_FORMAT, content_digest, load_model,
-                                  load_state_strict, load_training_checkpoint, model_description, save_checkpoint,
-                                  sidecar_path)
+from unips.models.builder import (
+    CHECKSUM_KEY,
+    TRAINING_FORMAT,
+    WEIGHTS_FORMAT,
+    content_digest,
+    load_model,
+    load_state_strict,
+    load_training_checkpoint,
+    model_description,
+    save_checkpoint,
+    sidecar_path,
+)
 
 __all__ = ["TRAINING_FORMAT", "WEIGHTS_FORMAT", "git_revision", "load_model", "load_state_strict",
            "load_training_checkpoint", "model_description", "rng_states", "save_checkpoint",

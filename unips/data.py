@@ -59,7 +59,9 @@ def _f32(x: np.ndarray | None) -> np.ndarray | None:
     return None if x is None else np.asarray(x, np.float32)
 
 
-def load_object(path: str | Path, max_images: int | None = None, layout: str | None = None, arg: str = "path") -> PSObject:
+def load_object(
+    path: str | Path, max_images: int | None = None, layout: str | None = None, arg: str = "path"
+) -> PSObject:
     """Load one object folder (`scenes.folder.layouts.read_folder`).
 
     max_images: keep the first K images in the folder's order (natural sort of names, or DiLiGenT's

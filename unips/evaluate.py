@@ -27,13 +27,13 @@ from typing import Any
 import numpy as np
 
 from scenes.cli.errors import UsageError, one_line, report_error
+from scenes.cli.options import REQUIRED, Command
 from scenes.cli.outputs import check_output_folder, claim_outputs
-from scenes.cli.options import Command, REQUIRED
-from scenes.metrics import angular_error_deg
 from scenes.files import atomic_write_text
 from scenes.folder.format import object_name, prediction_file
-from scenes.images import read_normals
 from scenes.folder.layouts import detect_layout
+from scenes.images import read_normals
+from scenes.metrics import angular_error_deg
 from unips.data import find_objects, load_ground_truth
 
 log = logging.getLogger(__name__)

@@ -37,17 +37,25 @@ from typing import Annotated, Any, Literal
 import numpy as np
 
 from scenes.cli.errors import INPUT_ERRORS, UsageError, one_line, report_error
-from scenes.cli.progress import Progress
 from scenes.cli.limits import check_memory, gib
+from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import check_output_folder, claim_outputs
-from scenes.cli.options import Command, REQUIRED, arg, check_fields, option
-from scenes.folder.format import PREDICTION_FILES, PREDICTION_INFO, object_name
+from scenes.cli.progress import Progress
 from scenes.files import atomic_write_text
-from scenes.images import write_normal_exr, write_normal_map, write_normal_visual
+from scenes.folder.format import PREDICTION_FILES, PREDICTION_INFO, object_name
 from scenes.folder.layouts import detect_layout
+from scenes.images import write_normal_exr, write_normal_map, write_normal_visual
 from unips.data import find_objects, load_object
-from unips.inference import (DEFAULT_TTA, METHODS, TTA_VIEWS, check_model_name, default_tta, load_network,
-                             predict_object, prediction_memory)
+from unips.inference import (
+    DEFAULT_TTA,
+    METHODS,
+    TTA_VIEWS,
+    check_model_name,
+    default_tta,
+    load_network,
+    predict_object,
+    prediction_memory,
+)
 
 log = logging.getLogger(__name__)
 
@@ -153,7 +161,9 @@ class PredictOptions:
 
     method: Literal[METHODS] = REQUIRED
     """The network ('model') or a classical baseline."""
-    checkpoint: Annotated[Path | None, arg(help_behavior_hint="(default: the shipped weights of unips.models.DEFAULT_MODEL)")] = None
+    checkpoint: Annotated[
+        Path | None, arg(help_behavior_hint="(default: the shipped weights of unips.models.DEFAULT_MODEL)")
+    ] = None
     """Model file (.safetensors with its .json, or a training .pt), or a folder of the authors' published weights
     (with --model); --method model only."""
     model: str | None = None
@@ -190,10 +200,14 @@ class PredictOptions:
                 if value is not None:
                     raise UsageError(f"{flag}: only used with --method model, not --method {self.method}")
             if self.scalable:
-                raise UsageError(f"--scalable: only used with --method model --model sdm-unips, not --method {self.method}")
+                raise UsageError(
+                    f"--scalable: only used with --method model --model sdm-unips, not --method {self.method}"
+                )
         check_model_name(self.model)
         if self.scalable and self.model is not None and _model_inputs(self.model) != "sdm-unips":
-            raise UsageError(f"--scalable: only for the SDM-UniPS networks (--model sdm-unips), not --model {self.model}")
+            raise UsageError(
+                f"--scalable: only for the SDM-UniPS networks (--model sdm-unips), not --model {self.model}"
+            )
         if self.scalable and self.res is not None and self.res % 512:
             raise UsageError(f"--res {self.res}: --scalable needs a multiple of its 512 px sub-images")
         check_output_folder(self.out)
@@ -225,7 +239,9 @@ def main(argv: list[str] | None = None) -> int:
         names = [object_name(f) for f in folders]
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
-            raise UsageError(f"--input: several object folders share the name(s) {', '.join(dup)} (e.g. foo and foo.data)")
+            raise UsageError(
+                f"--input: several object folders share the name(s) {', '.join(dup)} (e.g. foo and foo.data)"
+            )
         for name in names:
             check_out_folder(args.out / name, args.overwrite)
         todo = []
@@ -281,9 +297,11 @@ def _predict_one(args: PredictOptions, net, folder: Path, name: str) -> None:
     elapsed = time.perf_counter() - start
     constant = constant_map(normals, obj.mask)
     if constant:
-        print(f"warning: {name}: --method {args.method} returned a constant normal map (normals within "
-              f"{CONSTANT_DEG} deg of one direction on average): degenerate unless the object is a plane; flagged in predict.json",
-              file=sys.stderr)
+        print(
+            f"warning: {name}: --method {args.method} returned a constant normal map (normals within "
+            f"{CONSTANT_DEG} deg of one direction on average): degenerate unless the object is a plane; flagged in predict.json",
+            file=sys.stderr,
+        )
     info = {
         "object": name,
         "input": str(folder.resolve()),

@@ -25,7 +25,6 @@ so values differ by at most half a code (1/510 of the range for 8-bit files, 1/1
 from __future__ import annotations
 
 from dataclasses import dataclass
-
 from pathlib import Path
 from typing import Any
 

@@ -35,8 +35,16 @@ from typing import Any, Callable, Iterator
 import numpy as np
 import torch
 
-from scenes.folder.shards import (INDEX_FILE, SHARD_SUFFIX, decode_folder, extract_sample, is_decoded, listed_samples,
-    read_index, sample_folder_name)
+from scenes.folder.shards import (
+    INDEX_FILE,
+    SHARD_SUFFIX,
+    decode_folder,
+    extract_sample,
+    is_decoded,
+    listed_samples,
+    read_index,
+    sample_folder_name,
+)
 from unips.data import PSObject, load_object, object_from_folder
 
 
@@ -90,8 +98,10 @@ def resolve_shards(root: str | Path, arg: str = "--data") -> list[Shard]:
             raise FileNotFoundError(f"{arg}: shard {str(p)!r} does not exist")
         known = entries(p.parent)
         if p.name not in known:
-            raise ValueError(f"{arg}: shard {str(p)!r} is not listed in {str(p.parent / INDEX_FILE)!r} (expected one of "
-                             f"{', '.join(list(known)[:3])}{', ...' if len(known) > 3 else ''})")
+            raise ValueError(
+                f"{arg}: shard {str(p)!r} is not listed in {str(p.parent / INDEX_FILE)!r} (expected one of "
+                f"{', '.join(list(known)[:3])}{', ...' if len(known) > 3 else ''})"
+            )
         shards.append(Shard(p, known[p.name]))
     if len({s.path.resolve() for s in shards}) != len(shards):
         raise ValueError(f"{arg}: {text!r} names a shard twice")

@@ -38,8 +38,8 @@ import torch
 
 from scenes.cli.budget import Budget, process_start
 from scenes.cli.errors import UsageError
-from scenes.cli.progress import Progress
 from scenes.cli.options import Command
+from scenes.cli.progress import Progress
 from unips.train_config import TrainConfig
 from unips.train_data import Batch, curriculum_pool, make_batch, normal_loss, probe_samples, step_rng
 from unips.train_run import Run, append_log, check_run, open_stream, resume_run, save_last, setup_run
@@ -66,8 +66,8 @@ def check_args(argv: Sequence[str]) -> TrainConfig:
     its training step with this before rendering the data, `orchestrate.steps.check_step`): the flags, the run
     folder writable, the model name registered, and --init-from read (its model name against an explicit
     --model); writes nothing."""
-    from scenes.cli.outputs import check_output_folder
     from scenes.cli.limits import check_threads
+    from scenes.cli.outputs import check_output_folder
     from unips.models import list_models, load_model
 
     cfg = config_from_args(argv)
@@ -131,7 +131,9 @@ def _validation(run: Run, step: int) -> None:
     log.info("step %d validation: all images %.2f deg%s", step, res["mean"], gain)
     if res["mean"] < run.best:
         run.best = res["mean"]
-        save_checkpoint(run.out / "best.safetensors", run.model, {"step": step, "val": res, "train_args": run.train_args})
+        save_checkpoint(
+            run.out / "best.safetensors", run.model, {"step": step, "val": res, "train_args": run.train_args}
+        )
 
 
 def _out_of_time(run: Run, budget: Budget, *kinds: str) -> bool:

@@ -1,13 +1,14 @@
 """The configuration of a training run (`TrainConfig`): the dataclass the `python -m unips.train` command line is
 generated from (a flag per documented field, `scenes.cli.options`), its checks, and the settings a resumed run must keep."""
+
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from typing import Annotated, Literal
 
-from dataclasses import dataclass, field
-
-from scenes.cli.options import CommaList, REQUIRED, UseAppendAction, arg, check_fields, option
 from scenes.checks import check_choice
+from scenes.cli.options import REQUIRED, CommaList, UseAppendAction, arg, check_fields, option
+
 
 @dataclass
 class TrainConfig:
@@ -64,7 +65,9 @@ class TrainConfig:
     """Steps between validations."""
     val_pixels: int = option(2000, minimum=0)
     """Masked pixels scored per validation object (a fixed seeded subset; 0: all)."""
-    val_probes: Annotated[list[str], CommaList, arg(metavar="P1,P2")] = option(default_factory=lambda: ["all", "one", "mask", "shuffled"])
+    val_probes: Annotated[list[str], CommaList, arg(metavar="P1,P2")] = option(
+        default_factory=lambda: ["all", "one", "mask", "shuffled"]
+    )
     """Probes of every validation (`unips.probes.PROBES`); 'all' is always included."""
     ckpt_every: int = option(200, minimum=1)
     """Steps between last.pt saves."""
@@ -125,8 +128,10 @@ class TrainConfig:
 
             folders = [str(r) for r in data_roots(self.data) if not is_shard_source(r)]
             if folders:
-                raise ValueError(f"--shuffle-buffer: streams WebDataset shards, {folders[0]!r} in --data is not a shard "
-                                 "source (export it with python -m wildgen.export, or use --shuffle-buffer 0)")
+                raise ValueError(
+                    f"--shuffle-buffer: streams WebDataset shards, {folders[0]!r} in --data is not a shard "
+                    "source (export it with python -m wildgen.export, or use --shuffle-buffer 0)"
+                )
         return self
 
 

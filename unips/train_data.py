@@ -190,7 +190,8 @@ def make_batch(samples: Sequence[Sample], step: int, *, seed: int, batch: int, m
     (every random draw is made for the whole batch, so the union over ranks is the 1-process batch).
     `pool` (`curriculum_pool`) restricts the objects drawn to those indices; None: all.
     """
-    from unips.augment import apply_augmentation, interior_crop as cut_interior, sample_augmentation
+    from unips.augment import apply_augmentation, sample_augmentation
+    from unips.augment import interior_crop as cut_interior
 
     if pool is None:
         idx = batch_indices(seed, step, batch, len(samples))

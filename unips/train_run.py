@@ -147,7 +147,9 @@ def check_run(cfg: TrainConfig) -> None:
     check_output_folder(out)
     check_threads(cfg.threads or None, "--threads")
     if not cfg.resume:
-        claim_outputs([out / n for n in RUN_FILES], cfg.overwrite, owner="unips.train", resume="--resume to continue it")
+        claim_outputs(
+            [out / n for n in RUN_FILES], cfg.overwrite, owner="unips.train", resume="--resume to continue it"
+        )
     objects, images = count_dataset_images(cfg.data, "--data")
     if cfg.shuffle_buffer:  # streamed: only the samples in flight are decoded (loader queues and one batch)
         in_flight = min(objects, 2 * max(cfg.loader_workers, 1) + cfg.batch)
@@ -242,7 +244,9 @@ def setup_run(cfg: TrainConfig) -> Run:
         log.info("curriculum over levels %s in the first %d of %d steps", sorted({s.level for s in samples}),
                  int(cfg.curriculum_fraction * cfg.steps), cfg.steps)
     too_few = [s.name for s in samples if s.num_images < cfg.min_images]
-    too_few += [o for o, k in zip(data_desc["objects"], data_desc["images"]) if cfg.shuffle_buffer and k < cfg.min_images]
+    too_few += [
+        o for o, k in zip(data_desc["objects"], data_desc["images"]) if cfg.shuffle_buffer and k < cfg.min_images
+    ]
     if too_few:
         raise ValueError(f"--min-images={cfg.min_images}: objects with fewer images: {too_few[:5]}")
     canonical = model.config.canonical_resolution

@@ -47,7 +47,9 @@ def gbr_start(params: dict, albedo: np.ndarray, normals: np.ndarray, lam: float,
     g = np.array([[1.0, 0, 0], [0, 1.0, 0], [mu, nu, lam]])
     d = np.asarray(params["directions"], np.float64) @ g.T  # (K, 3) = G d
     dn = np.linalg.norm(d, axis=1, keepdims=True)
-    gtn = np.linalg.norm(_scaled_gbr(np.asarray(normals, np.float64), lam, mu, nu), axis=1, keepdims=True) / lam  # |G^-T n|
+    gtn = (
+        np.linalg.norm(_scaled_gbr(np.asarray(normals, np.float64), lam, mu, nu), axis=1, keepdims=True) / lam
+    )  # |G^-T n|
     return {"directions": d / dn, "irradiance": np.asarray(params["irradiance"]) * dn,
             "ambient": np.asarray(params["ambient"]), "albedo": np.asarray(albedo, np.float64) * gtn}
 
@@ -79,9 +81,11 @@ def bas_relief_test(images: np.ndarray, mask: np.ndarray, normals: np.ndarray, f
         note = ("a bas-relief transform of the map scores better than the tie tolerance"
                 ": the map's depth scale or tilt is not the one the images prefer")
     elif ties:
-        note = (f"{len(ties)} of {len(rows)} bas-relief transforms (up to {max(r['mean_angle_deg'] for r in ties):.1f} deg "
-                f"from the map) score within the tie tolerance of it: the images cannot decide the map's depth scale "
-                "or global tilt, the score judges the map up to that family")
+        note = (
+            f"{len(ties)} of {len(rows)} bas-relief transforms (up to {max(r['mean_angle_deg'] for r in ties):.1f} deg "
+            f"from the map) score within the tie tolerance of it: the images cannot decide the map's depth scale "
+            "or global tilt, the score judges the map up to that family"
+        )
     else:
         note = ("every bas-relief transform tested scores worse by more than the tie tolerance: the images (specular "
                 "lobe, ambient, shadows) decide the depth scale and tilt here")

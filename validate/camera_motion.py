@@ -130,7 +130,9 @@ def camera_shifts(images: np.ndarray, mask: np.ndarray | None = None, sample: in
     return pairs, shifts
 
 
-def camera_motion(pairs: list[tuple[int, int]], shifts: np.ndarray, min_px: float) -> tuple[np.ndarray | None, np.ndarray]:
+def camera_motion(
+    pairs: list[tuple[int, int]], shifts: np.ndarray, min_px: float
+) -> tuple[np.ndarray | None, np.ndarray]:
     """(the motion (x, y) in pixels, or None; the indices of the pairs that show it): the shift longer than `min_px`
     found (within a pixel, as s or -s) in the most pairs, taken when it parts the photos into two groups of at least
     two each (the photos shifted by s against those shifted by -s) and those pairs are at least MIN_SUPPORT of

@@ -95,8 +95,8 @@ def draw_rerender_figure(
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
 
-    from scenes.report.charts import add_axes_px, new_figure
     from scenes.colors import linear_to_srgb
+    from scenes.report.charts import add_axes_px, new_figure
 
     explained_map = None
     if explained is not None:

@@ -139,7 +139,12 @@ def run_fit(
 
     # Every step's image batch, drawn now and kept on the device (a new array per step would recompile).
     bsize = min(cfg.batch_images, len(train))
-    plan = to_jit(mi.UInt32, np.concatenate([fs.rng.choice(train, size=bsize, replace=False) for _ in range(max(steps, 1))]).astype(np.uint32))
+    plan = to_jit(
+        mi.UInt32,
+        np.concatenate([fs.rng.choice(train, size=bsize, replace=False) for _ in range(max(steps, 1))]).astype(
+            np.uint32
+        ),
+    )
     fs.refresh_occlusion()
     # The wide lobe search once per light fit, not while normals move (the lobe was fitted to the lights).
     refresh(wide_lobe=(not optimise_normals) if wide_lobe is None else wide_lobe)
@@ -153,7 +158,9 @@ def run_fit(
                     break
         batch = dr.gather(mi.UInt32, plan, dr.arange(mi.UInt32, bsize) + dr.opaque(mi.UInt32, step * bsize))
         decay = 0.1 + 0.9 * 0.5 * (1 + np.cos(np.pi * step / max(steps, 1)))  # cosine decay to 10 %
-        opt.set_learning_rate({name: cfg.lr * decay * (0.5 if name == "normals" else 1.0) for name, _ in fs.param_list(optimise_normals)})
+        opt.set_learning_rate(
+            {name: cfg.lr * decay * (0.5 if name == "normals" else 1.0) for name, _ in fs.param_list(optimise_normals)}
+        )
         pull()
         loss = fs.loss(batch)
         total = loss + regulariser(opt["normals"]) if (regulariser is not None and optimise_normals) else loss

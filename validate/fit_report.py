@@ -26,7 +26,6 @@ from validate.fit_scene import FitConfig, Progress
 from validate.judgeable import check_judgeable
 from validate.verdict import Explanation, channel_noise_sigmas, explain, judged_rel_l1, told_apart, verdict
 
-
 RESOLUTION_NOTE = ("two judged scores of this capture closer than `resolution` are not told apart by the images: "
                    "a map fitted against the score (refined) can sit that far below the true surface, absorbing what "
                    "the physics lacks; compare maps by score only outside it")
@@ -100,7 +99,9 @@ class JudgedCapture:
         """(K, P, 3) the images over the mask pixels at the fitting resolution."""
         return self.small.images[:, self.small.mask]
 
-    def score(self, normals: np.ndarray, config: FitConfig, progress: Progress | None, label: str) -> tuple[FitResult, float]:
+    def score(
+        self, normals: np.ndarray, config: FitConfig, progress: Progress | None, label: str
+    ) -> tuple[FitResult, float]:
         """Fit lights and reflectance around `normals` (fitting resolution) held fixed: (the fit, its judged
         rel_l1 on the observations every map of the capture shares)."""
         s = self.small
@@ -144,13 +145,15 @@ def rerender_fitted(
 ) -> dict:
     """Fitted mode of the re-render check for one object folder (any layout); returns the report and
     writes `out_dir/<object>/report.json` and `figure.png` when out_dir is given."""
-    from validate.light_models import angular_errors_deg, directions_of
     from scenes.metrics import mean_angular_error as mae_deg
+    from validate.light_models import angular_errors_deg, directions_of
 
     config = (config or FitConfig()).validate()
     mi = require_ad_variant()
     t0 = time.perf_counter()
-    jc = judge_capture(folder, normals, config, "check", out_dir, ("report.json", "figure.png"), "validate.rerender", overwrite)
+    jc = judge_capture(
+        folder, normals, config, "check", out_dir, ("report.json", "figure.png"), "validate.rerender", overwrite
+    )
     cap, small, n_small, ex, trusted = jc.cap, jc.small, jc.normals, jc.explanation, jc.trusted
     res, judged = jc.score(n_small, config, progress, "fit")
     floors, judged_floors = {}, {}
@@ -164,7 +167,9 @@ def rerender_fitted(
     elif res.model != "directional":
         ambiguity = not_tested(f"not tested: the test needs the directional light model (fitted: {res.model})")
     else:
-        ambiguity = bas_relief_test(small.images, small.mask, n_small, res, judged, ex, config, small.saturated, progress)
+        ambiguity = bas_relief_test(
+            small.images, small.mask, n_small, res, judged, ex, config, small.saturated, progress
+        )
     report: dict[str, Any] = {
         "mode": "fitted",
         "object": cap.name,
@@ -199,14 +204,21 @@ def rerender_fitted(
         "fit_resolution": list(small.mask.shape),
         "fit_mask_pixels": int(small.mask.sum()),
         "saturated_fraction": saturated_fraction(small),
-        "note": (f"fitted and scored at 1/{jc.downsample} resolution ({small.mask.shape[1]}x{small.mask.shape[0]}, box filter)"
-                 if jc.downsample > 1 else "fitted and scored at full resolution"),
+        "note": (
+            f"fitted and scored at 1/{jc.downsample} resolution ({small.mask.shape[1]}x{small.mask.shape[0]}, box filter)"
+            if jc.downsample > 1
+            else "fitted and scored at full resolution"
+        ),
         "config": full_config_dict(config),
         **provenance(mi),
     }
     if small.light_directions is not None:
         err = angular_errors_deg(directions_of(res.model, res.light_params), small.light_directions)
-        report["calibrated_light_error_deg"] = {"mean": float(err.mean()), "median": float(np.median(err)), "max": float(err.max())}
+        report["calibrated_light_error_deg"] = {
+            "mean": float(err.mean()),
+            "median": float(np.median(err)),
+            "max": float(err.max()),
+        }
     report["timings"] = {"fit_s": res.seconds, "total_s": time.perf_counter() - t0}
     if jc.target is not None:
         _write_fitted(jc, res, report)
@@ -217,10 +229,10 @@ def _write_fitted(jc: JudgedCapture, res: FitResult, report: dict) -> None:
     """report.json, figure.png and explained.png of the fitted check into `jc.target`."""
     import json
 
-    from scenes.metrics import angular_error_deg
     from scenes.files import atomic_write_text
     from scenes.folder.format import prediction_label
     from scenes.images import write_picture
+    from scenes.metrics import angular_error_deg
     from validate.figures import explained_picture, rerender_figure
     from validate.metrics import relative_residual_map
 
@@ -231,12 +243,20 @@ def _write_fitted(jc: JudgedCapture, res: FitResult, report: dict) -> None:
     rows = sorted(set(np.linspace(0, k - 1, min(k, 4)).round().astype(int).tolist()))
     write_picture(target / "explained.png", explained_picture(small.mask, ex.explained))
     rerender_figure(
-        target / "figure.png", small.images, renders, small.mask, rows,
-        relative_residual_map(renders, small.images, small.mask), None, n_small,
+        target / "figure.png",
+        small.images,
+        renders,
+        small.mask,
+        rows,
+        relative_residual_map(renders, small.images, small.mask),
+        None,
+        n_small,
         title=f"{jc.cap.name}, {prediction_label(jc.source)} (fitted lights, {'trusted' if jc.trusted else 'NOT TRUSTED'}): "
         f"judged rel_l1 {report['judged_rel_l1'] or float('nan'):.4f}, floor "
         f"{report['judged_floor_rel_l1'] or float('nan'):.4f}"
-        + (f", MAE {report['mae_deg']:.2f} deg {report['mae_resolution']}" if report.get("mae_deg") is not None else ""),
+        + (
+            f", MAE {report['mae_deg']:.2f} deg {report['mae_resolution']}" if report.get("mae_deg") is not None else ""
+        ),
         angular_error=None if small.normal_gt is None else angular_error_deg(n_small, small.normal_gt, small.mask),
         explained=ex.explained,
     )

@@ -55,7 +55,9 @@ class FitConfig:
     """Fit at a downsampled resolution with at most this many mask pixels (box filter); reported."""
     downsample: Annotated[int | None, arg(help_behavior_hint="(default: from --max-pixels)")] = option(None, minimum=1)
     """Force this downsampling factor."""
-    floor_maps: Annotated[tuple[str, ...], comma_list(str, container=tuple)] = option(("constant",), choices=("constant", "silhouette"))
+    floor_maps: Annotated[tuple[str, ...], comma_list(str, container=tuple)] = option(
+        ("constant",), choices=("constant", "silhouette")
+    )
     """No-information normal maps whose fitted residual is the floor, comma-separated."""
     seed: int = 0
     """Seed of every random choice (image batches, ray directions)."""
@@ -92,7 +94,10 @@ def footprint_roughness(normals: np.ndarray, mask: np.ndarray) -> float:
     sharper lobe falls between them and its gradients blow up (measured: a 32x32 Lambertian sphere fitted
     roughness 0.05 and its light directions moved by 2 deg)."""
     angles = []
-    for a, b, m in ((normals[:, :-1], normals[:, 1:], mask[:, :-1] & mask[:, 1:]), (normals[:-1], normals[1:], mask[:-1] & mask[1:])):
+    for a, b, m in (
+        (normals[:, :-1], normals[:, 1:], mask[:, :-1] & mask[:, 1:]),
+        (normals[:-1], normals[1:], mask[:-1] & mask[1:]),
+    ):
         angles.append(np.arccos(np.clip((a[m] * b[m]).sum(-1), -1.0, 1.0)))
     a = np.concatenate(angles)
     return float(np.clip(np.sqrt(np.median(a)), 0.05, 1.0)) if a.size else 0.05
@@ -137,14 +142,18 @@ class FitScene:
         # Specular lobe: `principled` with a black base colour, i.e. its specular lobe alone. (The principled
         # diffuse lobe is not Lambertian: fitted to a Lambertian sphere it biased the light directions by ~1 deg.)
         self.bsdf_white = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": 1.0}})
-        self.bsdf_black = mi.load_dict({"type": "principled", "base_color": {"type": "rgb", "value": 0.0}, "roughness": 0.5, "specular": 0.5})
+        self.bsdf_black = mi.load_dict(
+            {"type": "principled", "base_color": {"type": "rgb", "value": 0.0}, "roughness": 0.5, "specular": 0.5}
+        )
         self.bp_black = mi.traverse(self.bsdf_black)
         self.normals = to_jit(mi.Vector3f, self.n_np.astype(np.float32))
         self.albedo_np = np.full((self.p, 3), 0.5)
         self.vis = None  # (K * P,) visibility of the main light
         self.ao = np.ones(self.p)
         self.hits = None  # (P, R) pixel index hit by each AO ray, -1 = miss
-        self.indirect = np.zeros((self.k, self.p, 3))  # incident one-bounce radiance (K, P, 3), times albedo in the model
+        self.indirect = np.zeros(
+            (self.k, self.p, 3)
+        )  # incident one-bounce radiance (K, P, 3), times albedo in the model
         self.params: dict[str, Any] = {}
         self.dirty = True
         """The numpy inputs changed since the last `upload`."""
@@ -155,8 +164,8 @@ class FitScene:
 
     # ---------------------------------------------------------------------------------------- scene
     def _build_scene(self) -> None:
-        from scenes.renderer.build import make_mesh
         from scenes.procedural import MeshData
+        from scenes.renderer.build import make_mesh
 
         mi = self.mi
         h, w = self.mask.shape
@@ -265,7 +274,9 @@ class FitScene:
             p["dir"] = f(start["directions"])
             p["log_e"] = f(np.log(E))
         elif self.model == "point":
-            pos, inten, self.albedo_np = point_start(self.n_np, self.pos_np, self.images, start, None if self.sat is None else self.sat.any(-1))
+            pos, inten, self.albedo_np = point_start(
+                self.n_np, self.pos_np, self.images, start, None if self.sat is None else self.sat.any(-1)
+            )
             p["pos"] = f(pos)
             p["log_e"] = f(np.log(inten))
         if self.model in ("directional", "point"):
@@ -348,7 +359,12 @@ class FitScene:
                 return float(self.loss(batch).array[0])
 
             cur = score(best)
-            for cand in ([best[0] * 0.7, best[1]], [best[0] / 0.7, best[1]], [best[0], best[1] * 0.6], [best[0], min(best[1] / 0.6 + 0.02, 1.0)]):
+            for cand in (
+                [best[0] * 0.7, best[1]],
+                [best[0] / 0.7, best[1]],
+                [best[0], best[1] * 0.6],
+                [best[0], min(best[1] / 0.6 + 0.02, 1.0)],
+            ):
                 cand = [float(np.clip(cand[0], self.min_roughness, 1.0)), float(np.clip(cand[1], 0.0, 1.0))]
                 v = score(cand)
                 if v < cur:
@@ -444,7 +460,11 @@ class FitScene:
                 part = batch[s : s + chunk]
                 D, S, _, _ = self.shade(part)
                 Ds.append(np.array(D, np.float64).T.reshape(len(part), self.p, 3))
-                Ss.append(np.array(S, np.float64).T.reshape(len(part), self.p, 3) if self.model != "environment" else np.zeros((len(part), self.p, 3)))
+                Ss.append(
+                    np.array(S, np.float64).T.reshape(len(part), self.p, 3)
+                    if self.model != "environment"
+                    else np.zeros((len(part), self.p, 3))
+                )
         return np.concatenate(Ds), np.concatenate(Ss)
 
     def _albedo_ls(self, D: np.ndarray, S: np.ndarray, batch: np.ndarray | None = None) -> np.ndarray:

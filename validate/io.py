@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from scenes.description import SceneDescription
-from scenes.folder.layouts import layout_named, read_folder
 from scenes.folder.format import find_prediction, read_scene
+from scenes.folder.layouts import layout_named, read_folder
 from scenes.images import read_normals
 
 log = logging.getLogger(__name__)
@@ -116,7 +116,9 @@ def check_normals(
     """
     n = np.asarray(n)
     if n.ndim != 3 or n.shape[2] != 3 or n.shape[:2] != mask.shape:
-        raise ValueError(f"{source}: normal map has shape {n.shape}, expected {mask.shape + (3,)} (the size of the input images)")
+        raise ValueError(
+            f"{source}: normal map has shape {n.shape}, expected {mask.shape + (3,)} (the size of the input images)"
+        )
     valid = mask.copy()
     if allow_missing:
         valid &= np.any(n != 0, axis=-1)
@@ -126,7 +128,11 @@ def check_normals(
     off = np.abs(norm - 1.0) > UNIT_TOLERANCE
     if off.any():
         zero = int(np.sum(norm[off] == 0))
-        hint = f"; {zero} of them are exactly 0 (no estimate): --allow-missing keeps the surface's own normal there" if zero else ""
+        hint = (
+            f"; {zero} of them are exactly 0 (no estimate): --allow-missing keeps the surface's own normal there"
+            if zero
+            else ""
+        )
         raise ValueError(
             f"{source}: {int(off.sum())} normal(s) inside the mask are not unit length "
             f"(|n| from {norm.min():.3f} to {norm.max():.3f}, tolerance {UNIT_TOLERANCE}){hint}"

@@ -91,7 +91,9 @@ def check_judgeable(cap: Capture, use: str, arg: str = "--data") -> None:
     inside = cap.images[:, cap.mask]  # (K, P, 3)
     finite = np.isfinite(inside).all(axis=(1, 2))
     if not finite.all():
-        raise ValueError(f"{where}: image {_names(cap, np.flatnonzero(~finite))} has NaN or infinite values inside the mask")
+        raise ValueError(
+            f"{where}: image {_names(cap, np.flatnonzero(~finite))} has NaN or infinite values inside the mask"
+        )
     if not (inside > 0).any():
         raise ValueError(f"{where}: every image is black inside the mask; {need}")
     constant = _constant(cap.images, cap.mask)
@@ -105,5 +107,7 @@ def check_judgeable(cap: Capture, use: str, arg: str = "--data") -> None:
     if (counts == 0).all() and cap.saturated is not None and (lit_pixels(cap.images, cap.mask) > 0).any():
         raise ValueError(f"{where}: every lit mask pixel is saturated (at the file's largest code) in every image; "
                          f"{need}: expose so that the object stays below white")
-    raise ValueError(f"{where}: only {int(good.sum())} of {k} images have at least {MIN_LIT_PIXELS} lit, unsaturated "
-                     f"mask pixels{scale} (lit pixels of the others: {_names(cap, np.flatnonzero(~good), counts)}); {need}")
+    raise ValueError(
+        f"{where}: only {int(good.sum())} of {k} images have at least {MIN_LIT_PIXELS} lit, unsaturated "
+        f"mask pixels{scale} (lit pixels of the others: {_names(cap, np.flatnonzero(~good), counts)}); {need}"
+    )

@@ -61,7 +61,12 @@ def sh_basis(n: np.ndarray) -> np.ndarray:
 
 
 def closed_form_directional(
-    normals: np.ndarray, images: np.ndarray, iterations: int = 6, lit_fraction: float = 0.2, trim: float = 0.1, ambient: bool = False,
+    normals: np.ndarray,
+    images: np.ndarray,
+    iterations: int = 6,
+    lit_fraction: float = 0.2,
+    trim: float = 0.1,
+    ambient: bool = False,
     exclude: np.ndarray | None = None,
 ) -> dict:
     """Least-squares Lambertian fit with the normals held fixed (no shadows, no specular, no rendering).
@@ -213,12 +218,16 @@ def point_start(normals: np.ndarray, positions: np.ndarray, images: np.ndarray, 
             else:
                 r0 = np.linalg.norm(pos[i] - centre)
                 dirs = _cone((pos[i] - centre) / r0, np.radians(10), 48, rng)
-                lp = (centre[None, None] + dirs[:, None, :] * (r0 * np.array([0.8, 0.9, 1.0, 1.1, 1.25]))[None, :, None]).reshape(-1, 3)
+                lp = (
+                    centre[None, None] + dirs[:, None, :] * (r0 * np.array([0.8, 0.9, 1.0, 1.1, 1.25]))[None, :, None]
+                ).reshape(-1, 3)
                 pos[i] = best(lp, shading(lp, x[sub], n[sub]), i)
         shade = shading(pos, x, n)  # (K, P)
         # Intensity on all pixels, then the albedo.
         m = albedo[None] * shade[..., None] * use[..., None]
-        inten = np.maximum((m * (images - albedo[None] * amb[:, None, :])).sum(1) / np.maximum((m * m).sum(1), 1e-12), 1e-9)
+        inten = np.maximum(
+            (m * (images - albedo[None] * amb[:, None, :])).sum(1) / np.maximum((m * m).sum(1), 1e-12), 1e-9
+        )
         m = (shade[..., None] * inten[:, None, :] + amb[:, None, :]) * use[..., None]  # (K, P, 3)
         albedo = np.maximum((images * m).sum(0) / np.maximum((m * m).sum(0), 1e-12), 0)
     return pos, inten, albedo
@@ -250,7 +259,11 @@ def report_lights(model: str, params: dict) -> list[list[dict]]:
             ]
         elif model == "point":
             entry = [
-                {"type": "point", "position": np.asarray(params["positions"][i]).tolist(), "intensity": np.asarray(params["intensity"][i]).tolist()},
+                {
+                    "type": "point",
+                    "position": np.asarray(params["positions"][i]).tolist(),
+                    "intensity": np.asarray(params["intensity"][i]).tolist(),
+                },
                 {"type": "ambient", "radiance": np.asarray(params["ambient"][i]).tolist()},
             ]
         else:

@@ -84,7 +84,9 @@ def _make_class() -> type:
             mi.BSDF.__init__(self, props)
             children = {name: obj for name, obj in props.objects() if isinstance(obj, mi.BSDF)}
             if "bsdf" not in children or set(children) - {"bsdf", "inner"}:
-                raise ValueError(f"{PLUGIN_NAME}: expected a nested 'bsdf' (and optionally 'inner'), got {sorted(children)}")
+                raise ValueError(
+                    f"{PLUGIN_NAME}: expected a nested 'bsdf' (and optionally 'inner'), got {sorted(children)}"
+                )
             self.nested = children["bsdf"]  # the object's own BSDF, used where the normal is not swapped
             self.inner = children.get("inner")  # the BSDF inside a normalmap, which takes the swapped frame
             self.camera = CameraProjection(**json.loads(props["camera"]))
@@ -135,7 +137,12 @@ def _make_class() -> type:
             xi0, yi0 = mi.Int32(x0), mi.Int32(y0)
             acc = dr.zeros(mi.Vector3f)
             wsum = dr.zeros(mi.Float)
-            for dx, dy, wk in ((0, 0, (1 - fx) * (1 - fy)), (1, 0, fx * (1 - fy)), (0, 1, (1 - fx) * fy), (1, 1, fx * fy)):
+            for dx, dy, wk in (
+                (0, 0, (1 - fx) * (1 - fy)),
+                (1, 0, fx * (1 - fy)),
+                (0, 1, (1 - fx) * fy),
+                (1, 1, fx * fy),
+            ):
                 xi, yi = xi0 + dx, yi0 + dy
                 ok = visible & (xi >= 0) & (xi < w) & (yi >= 0) & (yi < h)
                 nk = dr.gather(mi.Vector3f, self.normals, mi.UInt32(dr.select(ok, yi * w + xi, 0)), ok)
@@ -279,7 +286,12 @@ class NormalSwap:
         keys = [k for k in params.keys() if k.endswith("." + _PARAM_MODE) or k == _PARAM_MODE]
         if len(keys) != 1:
             raise ValueError(f"scene: expected exactly one {PLUGIN_NAME} BSDF, found {len(keys)} ({keys})")
-        return cls(params=params, prefix=keys[0][: -len(_PARAM_MODE)], camera=camera, visibility=(visibility or VisibilityConfig()))
+        return cls(
+            params=params,
+            prefix=keys[0][: -len(_PARAM_MODE)],
+            camera=camera,
+            visibility=(visibility or VisibilityConfig()),
+        )
 
     def set_mode(self, mode: int) -> None:
         import drjit as dr
@@ -296,7 +308,9 @@ class NormalSwap:
 
         h, w = self.camera.height, self.camera.width
         if normals_cam.shape != (h, w, 3) or valid.shape != (h, w):
-            raise ValueError(f"normals: expected shapes ({h}, {w}, 3) and ({h}, {w}), got {normals_cam.shape} and {valid.shape}")
+            raise ValueError(
+                f"normals: expected shapes ({h}, {w}, 3) and ({h}, {w}), got {normals_cam.shape} and {valid.shape}"
+            )
         n_world = np.asarray(normals_cam, np.float64) @ self.camera.rotation  # rows: n_world = R.T @ n_cam
         n_world = np.where(valid[..., None], n_world, 0.0).astype(np.float32)
         self.params[self.prefix + _PARAM_NORMALS] = mi.Float(np.ascontiguousarray(n_world).ravel())
@@ -323,7 +337,9 @@ def depth_map(scene: Any, camera: CameraProjection, supersample: int) -> np.ndar
     hs, ws = camera.height * ss, camera.width * ss
     jj, ii = np.meshgrid((np.arange(ws) + 0.5) / ss, (np.arange(hs) + 0.5) / ss)
     origins, dirs = camera.rays(jj.ravel(), ii.ravel())
-    ray = mi.Ray3f(mi.Point3f(np.ascontiguousarray(origins.T, np.float32)), mi.Vector3f(np.ascontiguousarray(dirs.T, np.float32)))
+    ray = mi.Ray3f(
+        mi.Point3f(np.ascontiguousarray(origins.T, np.float32)), mi.Vector3f(np.ascontiguousarray(dirs.T, np.float32))
+    )
     si = scene.ray_intersect(ray)
     t = np.array(si.t, np.float64)
     hit = np.array(si.is_valid(), bool) & np.isfinite(t)

@@ -25,7 +25,9 @@ def _tilt(n: np.ndarray, direction: np.ndarray, angle_rad: float) -> np.ndarray:
     return np.cos(angle_rad) * n + np.sin(angle_rad) * t
 
 
-def perturb_normals(n: np.ndarray, mask: np.ndarray, kind: str, angle_deg: float, seed: int, smooth_sigma: float | None = None) -> np.ndarray:
+def perturb_normals(
+    n: np.ndarray, mask: np.ndarray, kind: str, angle_deg: float, seed: int, smooth_sigma: float | None = None
+) -> np.ndarray:
     """A perturbed copy of the camera-frame normal map n (H, W, 3), changed inside `mask` (H, W) only.
 
     smooth_sigma: Gaussian width (pixels) of the `smooth` field; default a sixth of the image size.

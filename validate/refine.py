@@ -33,10 +33,10 @@ from typing import Annotated, Any, Literal
 import numpy as np
 
 from scenes.cli.errors import INPUT_ERRORS, report_error
-from scenes.cli.outputs import check_output_folder, claim_outputs
 from scenes.cli.limits import check_threads
+from scenes.cli.options import REQUIRED, Command, NotOnCommandLine, arg, check_fields, option
+from scenes.cli.outputs import check_output_folder, claim_outputs
 from scenes.cli.progress import progress_bar
-from scenes.cli.options import Command, NotOnCommandLine, REQUIRED, arg, check_fields, option
 from scenes.renderer.variant import require_ad_variant
 from validate.fit import fit_normals, run_fit
 from validate.fit_report import full_config_dict, judge_capture, provenance, saturated_fraction
@@ -154,7 +154,9 @@ def refine_normals(
     if cfg.light_model == "auto":
         # Chosen once, around the starting map, and then held: a model switching mid-way would make the
         # held-out curve and the before / after scores incomparable.
-        cfg = replace(cfg, light_model=fit_normals(images, mask, normals, cfg, progress, "refine: light model", saturated).model)
+        cfg = replace(
+            cfg, light_model=fit_normals(images, mask, normals, cfg, progress, "refine: light model", saturated).model
+        )
         log.info("refine: light model %s (lowest residual around the starting map)", cfg.light_model)
     fs = FitScene(images, mask, normals, cfg, cfg.light_model, saturated)
     rotation: dict = {}
@@ -162,7 +164,9 @@ def refine_normals(
     fixed: set[str] = set()
     if config.lights == "calibrated":
         if calibrated is None:
-            raise ValueError("--lights calibrated: the folder has no calibrated directional lights (DiLiGenT files or scene.json camera_lights)")
+            raise ValueError(
+                "--lights calibrated: the folder has no calibrated directional lights (DiLiGenT files or scene.json camera_lights)"
+            )
         start["directions"] = np.asarray(calibrated[0], np.float64)
         start["irradiance"] = np.asarray(calibrated[1], np.float64)
         fixed = {"dir", "log_e"}
@@ -197,7 +201,12 @@ def refine_normals(
         # Lights (and lobe, albedo) for the current normals, held fixed: errors-in-variables make lights fitted
         # to a noisy map biased, so they are re-fitted as the map improves.
         fs.param_list = only(fixed)  # type: ignore[method-assign]
-        run_fit(fs, cfg.steps if r == 0 else max(1, cfg.steps // 2), progress=progress, label=f"refine: lights {r + 1}/{config.rounds}")
+        run_fit(
+            fs,
+            cfg.steps if r == 0 else max(1, cfg.steps // 2),
+            progress=progress,
+            label=f"refine: lights {r + 1}/{config.rounds}",
+        )
         if config.rotation_search and not fixed and r > 0:
             rotation = {}
             search_rotation(fs, np.setdiff1d(np.arange(k), holdout), config, progress=progress,
@@ -206,8 +215,16 @@ def refine_normals(
             on_eval(0, fs.score(fs.render(holdout), holdout))
         stale[0] = 0
         fs.param_list = only(fixed if config.update_lights else fixed | light_keys)  # type: ignore[method-assign]
-        run_fit(fs, per_round, optimise_normals=True, regulariser=reg, holdout=holdout if len(holdout) else None,
-                on_eval=on_eval if len(holdout) else None, progress=progress, label=f"refine: normals {r + 1}/{config.rounds}")
+        run_fit(
+            fs,
+            per_round,
+            optimise_normals=True,
+            regulariser=reg,
+            holdout=holdout if len(holdout) else None,
+            on_eval=on_eval if len(holdout) else None,
+            progress=progress,
+            label=f"refine: normals {r + 1}/{config.rounds}",
+        )
         offset[0] += per_round
         if len(holdout):
             on_eval(0, fs.score(fs.render(holdout), holdout))
@@ -221,11 +238,20 @@ def refine_normals(
     n_best = n_best / np.linalg.norm(n_best, axis=1, keepdims=True)
     out = np.zeros(mask.shape + (3,), np.float32)
     out[mask] = n_best
-    return RefineResult(normals=out, holdout=tuple(int(i) for i in holdout), holdout_curve=curve, best_step=int(best["step"]) if len(holdout) else config.refine_steps,
-                        seconds=time.perf_counter() - t0, light_model=cfg.light_model, rotation=rotation or None)
+    return RefineResult(
+        normals=out,
+        holdout=tuple(int(i) for i in holdout),
+        holdout_curve=curve,
+        best_step=int(best["step"]) if len(holdout) else config.refine_steps,
+        seconds=time.perf_counter() - t0,
+        light_model=cfg.light_model,
+        rotation=rotation or None,
+    )
 
 
-def upsample_change(full: np.ndarray, mask_full: np.ndarray, start_small: np.ndarray, refined_small: np.ndarray) -> np.ndarray:
+def upsample_change(
+    full: np.ndarray, mask_full: np.ndarray, start_small: np.ndarray, refined_small: np.ndarray
+) -> np.ndarray:
     """Apply the change refined_small - start_small (h, w, 3), upsampled bilinearly, to the full map (H, W, 3)."""
     import cv2
 
@@ -234,7 +260,11 @@ def upsample_change(full: np.ndarray, mask_full: np.ndarray, start_small: np.nda
     h, w = mask_full.shape
     f = h // start_small.shape[0]
     delta = np.zeros((start_small.shape[0] * f, start_small.shape[1] * f, 3), np.float32)
-    delta[:] = cv2.resize((refined_small - start_small).astype(np.float32), (start_small.shape[1] * f, start_small.shape[0] * f), interpolation=cv2.INTER_LINEAR)
+    delta[:] = cv2.resize(
+        (refined_small - start_small).astype(np.float32),
+        (start_small.shape[1] * f, start_small.shape[0] * f),
+        interpolation=cv2.INTER_LINEAR,
+    )
     big = np.zeros_like(full)
     big[: delta.shape[0], : delta.shape[1]] = delta
     n = full + big
@@ -244,19 +274,35 @@ def upsample_change(full: np.ndarray, mask_full: np.ndarray, start_small: np.nda
 
 def _declined(jc: Any, mae_in: float | None, t0: float) -> dict:
     """The report (written with the input map) of a capture the check does not judge."""
-    report = {"mode": "refine", "object": jc.cap.name, "folder": str(jc.cap.folder), "prediction": jc.source,
-              "accepted": False, "why": f"declined, the input map is kept: {jc.why}", "trusted": False,
-              "explained_fraction": jc.explanation.explained_fraction, "refined_fraction": 0.0,
-              "before": {"mae_deg": mae_in}, "after": {"mae_deg": mae_in}, "timings": {"total_s": time.perf_counter() - t0}}
+    report = {
+        "mode": "refine",
+        "object": jc.cap.name,
+        "folder": str(jc.cap.folder),
+        "prediction": jc.source,
+        "accepted": False,
+        "why": f"declined, the input map is kept: {jc.why}",
+        "trusted": False,
+        "explained_fraction": jc.explanation.explained_fraction,
+        "refined_fraction": 0.0,
+        "before": {"mae_deg": mae_in},
+        "after": {"mae_deg": mae_in},
+        "timings": {"total_s": time.perf_counter() - t0},
+    }
     _write_refined(jc.target, jc.full, report)
     return report
 
 
-def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig | None = None, out_dir: str | None = None,
-                  progress: Progress | None = None, overwrite: bool = False) -> dict:
+def refine_object(
+    folder: str,
+    normals: str | np.ndarray,
+    config: RefineConfig | None = None,
+    out_dir: str | None = None,
+    progress: Progress | None = None,
+    overwrite: bool = False,
+) -> dict:
     """Refine the normal map of one object folder; write normal.png and refine_report.json under out_dir/<object>/."""
-    from validate.capture import downsample_normals
     from scenes.metrics import mean_angular_error as mae_deg
+    from validate.capture import downsample_normals
 
     config = (config or RefineConfig()).validate()
     mi = require_ad_variant()
@@ -286,19 +332,32 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
         "images": list(res.holdout), "before_rel_l1": judged_rel_l1(before.render, jc.observed, ex, res.holdout),
         "after_rel_l1": judged_rel_l1(after.render, jc.observed, ex, res.holdout),
         "note": "judged on the held-out images only, which no step that moved the normals used"}
-    why = (f"the judged residual fell {judged_before:.4f} -> {judged_after:.4f} on the observations every map shares"
-           + ("" if apart else f", within the capture's resolution {ex.resolution:.4f}: the images do not tell the maps "
-              "apart (the refined one fits the physics best, not shown closer to the surface)")
-           + f"; {ex.explained_fraction:.0%} of the object was refined, the rest keeps the input map" if accepted else
-           f"declined, the input map is kept: the judged residual did not fall by {MIN_GAIN:.0%} "
-           f"({judged_before:.4f} -> {judged_after:.4f})")
+    why = (
+        f"the judged residual fell {judged_before:.4f} -> {judged_after:.4f} on the observations every map shares"
+        + (
+            ""
+            if apart
+            else f", within the capture's resolution {ex.resolution:.4f}: the images do not tell the maps "
+            "apart (the refined one fits the physics best, not shown closer to the surface)"
+        )
+        + f"; {ex.explained_fraction:.0%} of the object was refined, the rest keeps the input map"
+        if accepted
+        else f"declined, the input map is kept: the judged residual did not fall by {MIN_GAIN:.0%} "
+        f"({judged_before:.4f} -> {judged_after:.4f})"
+    )
     if not accepted:
         refined_full = full
     report: dict[str, Any] = {
-        "mode": "refine", "accepted": accepted, "why": why, "trusted": True,
-        "explained_fraction": ex.explained_fraction, "refined_fraction": ex.explained_fraction if accepted else 0.0,
-        "judged_before_rel_l1": judged_before, "judged_after_rel_l1": judged_after,
-        "resolution": ex.resolution, "told_apart": apart,
+        "mode": "refine",
+        "accepted": accepted,
+        "why": why,
+        "trusted": True,
+        "explained_fraction": ex.explained_fraction,
+        "refined_fraction": ex.explained_fraction if accepted else 0.0,
+        "judged_before_rel_l1": judged_before,
+        "judged_after_rel_l1": judged_after,
+        "resolution": ex.resolution,
+        "told_apart": apart,
         "holdout_judged": held,
         "lights_source": config.lights,
         "light_model": res.light_model,
@@ -307,15 +366,22 @@ def refine_object(folder: str, normals: str | np.ndarray, config: RefineConfig |
         "prediction": jc.source,
         "images_count": int(cap.images.shape[0]),
         "before": {"rel_l1": before.rel_l1, "mae_deg": mae_in},
-        "after": {"rel_l1": after.rel_l1, "mae_deg": mae_deg(refined_full, cap.normal_gt, cap.mask) if cap.normal_gt is not None else None},
+        "after": {
+            "rel_l1": after.rel_l1,
+            "mae_deg": mae_deg(refined_full, cap.normal_gt, cap.mask) if cap.normal_gt is not None else None,
+        },
         "rotation_search": res.rotation,
         "holdout_curve": [[int(s), float(v)] for s, v in res.holdout_curve],
         "best_step": res.best_step,
         "lights": after.lights,
         "fit_downsample": f,
         "saturated_fraction": saturated_fraction(small),
-        "note": (f"refined and scored at 1/{f} resolution ({small.mask.shape[1]}x{small.mask.shape[0]}); the change is upsampled "
-                 "bilinearly onto the full-resolution input map" if f > 1 else "refined and scored at full resolution"),
+        "note": (
+            f"refined and scored at 1/{f} resolution ({small.mask.shape[1]}x{small.mask.shape[0]}); the change is upsampled "
+            "bilinearly onto the full-resolution input map"
+            if f > 1
+            else "refined and scored at full resolution"
+        ),
         "config": {**{k: v for k, v in asdict(config).items() if k != "fit"}, "fit": full_config_dict(config.fit)},
         **provenance(mi),
         "timings": {"refine_s": res.seconds, "total_s": time.perf_counter() - t0},
@@ -366,8 +432,11 @@ class RefineOptions:
         return self
 
 
-COMMAND = Command(RefineOptions, prog="python -m validate.refine", description="Refine a normal map by fitting light, reflectance and normals to the images "
-                                     "through Mitsuba.")
+COMMAND = Command(
+    RefineOptions,
+    prog="python -m validate.refine",
+    description="Refine a normal map by fitting light, reflectance and normals to the images through Mitsuba.",
+)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -396,7 +465,9 @@ def main(argv: list[str] | None = None) -> int:
     b, a = r["before"], r["after"]
     mae = f"  mae {b['mae_deg']:.2f} -> {a['mae_deg']:.2f} deg" if b["mae_deg"] is not None else ""
     if "rel_l1" in b:
-        print(f"{r['object']}: rel_l1 {b['rel_l1']:.4f} -> {a['rel_l1']:.4f}{mae}  ({r['note']}, {r['timings']['total_s']:.0f} s)")
+        print(
+            f"{r['object']}: rel_l1 {b['rel_l1']:.4f} -> {a['rel_l1']:.4f}{mae}  ({r['note']}, {r['timings']['total_s']:.0f} s)"
+        )
     print(("accepted" if r["accepted"] else "NOT ACCEPTED") + f": {r['why']}" + (mae if "rel_l1" not in b else ""))
     if r.get("rotation_search"):
         rs = r["rotation_search"]

@@ -23,30 +23,37 @@ Usage:
 """
 from __future__ import annotations
 
-from typing import Annotated
-
 import json
 import logging
 import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 
 from scenes.cli.errors import UsageError, report_error
-from scenes.cli.outputs import check_output_folder, claim_outputs
 from scenes.cli.limits import check_threads
+from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
+from scenes.cli.outputs import check_output_folder, claim_outputs
 from scenes.cli.progress import progress_bar
-from scenes.cli.options import Command, REQUIRED, arg, check_fields, option
 from scenes.files import atomic_write_text
 from scenes.folder.format import find_prediction, list_object_folders, object_name
 from scenes.renderer.variant import require_jit_variant
 from validate.fit_scene import FitConfig
 from validate.io import ObjectData, check_normals, load_object, read_prediction
 from validate.rerender_passes import MIN_COVERAGE, Progress, RerenderConfig, independent_seed, render_passes
-from validate.rerender_report import (build_report, coverage, format_table, penalise_missing, score_images, score_maps,
-                                      write_figure, write_summary)
+from validate.rerender_report import (
+    build_report,
+    coverage,
+    format_table,
+    penalise_missing,
+    score_images,
+    score_maps,
+    write_figure,
+    write_summary,
+)
 
 log = logging.getLogger(__name__)
 
@@ -81,8 +88,10 @@ def check_inputs(
     pred, valid = check_normals(normals, data.mask, what, allow_missing)
     cov = coverage(valid, data.mask)
     if cov < min_coverage:
-        raise ValueError(f"{what}: covers {cov:.1%} of the object's {int(data.mask.sum())} mask pixels "
-                         f"({int(data.mask.sum() - valid.sum())} without an estimate), below --min-coverage {min_coverage:g}")
+        raise ValueError(
+            f"{what}: covers {cov:.1%} of the object's {int(data.mask.sum())} mask pixels "
+            f"({int(data.mask.sum() - valid.sum())} without an estimate), below --min-coverage {min_coverage:g}"
+        )
     return data, pred, valid, source
 
 
@@ -224,8 +233,12 @@ class RerenderOptions:
         return self
 
 
-COMMAND = Command(RerenderOptions, prog="python -m validate.rerender", description="Re-render the known scenes of an object (or dataset) with predicted normals and "
-                                     "compare with the inputs.")
+COMMAND = Command(
+    RerenderOptions,
+    prog="python -m validate.rerender",
+    description="Re-render the known scenes of an object (or dataset) with predicted normals and "
+    "compare with the inputs.",
+)
 
 
 def _main_fitted(args: RerenderOptions) -> int:
@@ -244,19 +257,30 @@ def _main_fitted(args: RerenderOptions) -> int:
     with progress_bar("step") as progress:
         r = rerender_fitted(args.data, args.normals, config, args.out, progress, overwrite=args.overwrite)
     cal = r.get("calibrated_light_error_deg")
-    print(f"{r['object']}: rel_l1 {r['rel_l1']:.4f}  floor {r['floor_rel_l1']:.4f}  noise {r['noise_rel_l1'] or float('nan'):.4f}"
-          + (f"  mae {r['mae_deg']:.2f} deg {r['mae_resolution']}" if r["mae_deg"] is not None else "")
-          + (f"  light error vs calibration {cal['mean']:.2f} deg" if cal else "")
-          + f"  ({r['note']}, {r['timings']['total_s']:.0f} s)")
+    print(
+        f"{r['object']}: rel_l1 {r['rel_l1']:.4f}  floor {r['floor_rel_l1']:.4f}  noise {r['noise_rel_l1'] or float('nan'):.4f}"
+        + (f"  mae {r['mae_deg']:.2f} deg {r['mae_resolution']}" if r["mae_deg"] is not None else "")
+        + (f"  light error vs calibration {cal['mean']:.2f} deg" if cal else "")
+        + f"  ({r['note']}, {r['timings']['total_s']:.0f} s)"
+    )
     judged = r["judged_rel_l1"]
-    print(("TRUSTED" if r["trusted"] else "NOT TRUSTED (the check abstains)") + f": {r['why']}"
-          + (f"; judged rel_l1 {judged:.4f} (judged floor {r['judged_floor_rel_l1'] or float('nan'):.4f})" if judged is not None else ""))
+    print(
+        ("TRUSTED" if r["trusted"] else "NOT TRUSTED (the check abstains)")
+        + f": {r['why']}"
+        + (
+            f"; judged rel_l1 {judged:.4f} (judged floor {r['judged_floor_rel_l1'] or float('nan'):.4f})"
+            if judged is not None
+            else ""
+        )
+    )
     if r["resolution"] is not None:
         print(f"resolution {r['resolution']:.4f}: judged scores of this capture closer than that are not told apart by "
               "the images (a refined map can score that far below the true surface)")
     if r["ambiguity"]["tested"]:
         print(f"bas-relief ambiguity: {r['ambiguity']['note']}")
-    print(f"report in {args.out}/{r['object']}/report.json, where the check judges in {args.out}/{r['object']}/explained.png")
+    print(
+        f"report in {args.out}/{r['object']}/report.json, where the check judges in {args.out}/{r['object']}/explained.png"
+    )
     return 0
 
 
@@ -289,7 +313,9 @@ def main(argv: list[str] | None = None) -> int:
         mi = require_jit_variant()
         mi.set_log_level(mi.LogLevel.Error)  # e.g. multijitter's per-render "sample count rounded up"
 
-        print(f"re-rendering {len(folders)} object(s) with the normals of {args.normals} into {args.out} ...", flush=True)
+        print(
+            f"re-rendering {len(folders)} object(s) with the normals of {args.normals} into {args.out} ...", flush=True
+        )
         with progress_bar("render") as progress:
             if single:
                 check_inputs(data, args.normals, config.allow_missing, config.min_coverage)

@@ -29,7 +29,6 @@ from validate.normal_bsdf import (
 )
 from validate.projection import CameraProjection
 
-
 SEED_MODES = ("same", "independent")
 
 
@@ -54,7 +53,9 @@ class RerenderConfig:
     visibility: VisibilityConfig = field(default_factory=VisibilityConfig)
     """How camera visibility of surface points is decided (on the command line: the depth-map rays per pixel
     side; the tolerances are fixed)."""
-    threshold: Annotated[float | None, arg(help_behavior_hint="(default: 99th percentile of the noise-floor residual map)")] = option(None, above=0)
+    threshold: Annotated[
+        float | None, arg(help_behavior_hint="(default: 99th percentile of the noise-floor residual map)")
+    ] = option(None, above=0)
     """Per-pixel relative residual counted in frac_above_threshold; None = 99th percentile of the
     noise-floor residual map (needs floors)."""
     figure_rows: int = option(4, minimum=1)
@@ -80,7 +81,15 @@ def independent_seed(seed: int) -> int:
     return int.from_bytes(hashlib.sha256(f"rerender-independent:{seed}".encode()).digest()[:4], "little")
 
 
-def _render_all(built: Any, indices: range, spp: int, seeds: list[int], exposures: list[float], tick: Callable[[str], None], label: str) -> tuple[np.ndarray, list[float]]:
+def _render_all(
+    built: Any,
+    indices: range,
+    spp: int,
+    seeds: list[int],
+    exposures: list[float],
+    tick: Callable[[str], None],
+    label: str,
+) -> tuple[np.ndarray, list[float]]:
     from scenes.renderer.render import render_image
 
     out, times = [], []

@@ -15,7 +15,6 @@ from validate.io import ObjectData
 from validate.metrics import finite_or_none, mean_or_none, psnr, rel_l1, relative_residual_map
 from validate.rerender_passes import RenderPasses, RerenderConfig
 
-
 SUMMARY_COLUMNS = (
     "object",
     "images",
@@ -53,7 +52,9 @@ def penalise_missing(renders: np.ndarray, inputs: np.ndarray, missing: np.ndarra
     return out
 
 
-def score_images(passes: RenderPasses, inputs: np.ndarray, mask: np.ndarray, desc: Any, seeds: list[int]) -> list[dict[str, Any]]:
+def score_images(
+    passes: RenderPasses, inputs: np.ndarray, mask: np.ndarray, desc: Any, seeds: list[int]
+) -> list[dict[str, Any]]:
     """Per-image scores of every pass against the input images."""
     per_image = []
     for i, image in enumerate(desc.images):

@@ -11,7 +11,6 @@ from validate.fit import run_fit
 from validate.fit_scene import FitScene, Progress, to_jit
 
 
-
 class RotationSteps(Protocol):
     """What the search reads of `validate.refine.RefineConfig` (which imports this module)."""
 
@@ -103,5 +102,12 @@ def search_rotation(fs: FitScene, train: np.ndarray, config: RotationSteps, delt
                             "one tilt scores best"))
     if last[0] != key(best):
         apply(best)  # back to the winner: same batches and rays, so the same state as at its evaluation
-    log.info("%s: %.2f deg (rel_l1 %.5f -> %.5f on %d images)", label, np.degrees(np.linalg.norm(best)), cache[key(np.zeros(3))], s_best, len(train))
+    log.info(
+        "%s: %.2f deg (rel_l1 %.5f -> %.5f on %d images)",
+        label,
+        np.degrees(np.linalg.norm(best)),
+        cache[key(np.zeros(3))],
+        s_best,
+        len(train),
+    )
     return best

@@ -134,7 +134,9 @@ def auto_mask(images: np.ndarray, flag: str = "--mask") -> tuple[np.ndarray, dic
                "its variation): a lit backdrop")
     if why is None:
         bright = _gray(images).max(axis=0)
-        picture = (np.clip(bright / max(float(np.percentile(bright, 99.5)), 1e-6), 0, 1) ** (1 / 2.2) * 255).astype(np.uint8)
+        picture = (np.clip(bright / max(float(np.percentile(bright, 99.5)), 1e-6), 0, 1) ** (1 / 2.2) * 255).astype(
+            np.uint8
+        )
         gc = np.where(seed, cv2.GC_PR_FGD, cv2.GC_PR_BGD).astype(np.uint8)
         gc[ring & ~seed] = cv2.GC_BGD
         bgd, fgd = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
@@ -312,8 +314,13 @@ def capture_warnings(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray
         facts["saturated_share"] = np.round(share, 4).tolist()
         over = np.nonzero(share > SATURATED_SHARE)[0]
         if len(over):
-            out.append(CaptureWarning("saturated", f"{len(over)} image(s) clip part of the object ({_names(names, over)}, "
-                                      f"up to {share.max():.0%} of it): expose shorter or move the lamp away"))
+            out.append(
+                CaptureWarning(
+                    "saturated",
+                    f"{len(over)} image(s) clip part of the object ({_names(names, over)}, "
+                    f"up to {share.max():.0%} of it): expose shorter or move the lamp away",
+                )
+            )
     polar, azimuth = light_angles(images, mask)
     facts["light_polar_deg"] = np.round(polar, 1).tolist()
     facts["light_azimuth_deg"] = np.round(azimuth, 1).tolist()
@@ -323,10 +330,15 @@ def capture_warnings(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray
     tilt = _outline_tilt_deg(images, mask)[lit]  # (the outline's mean is left out: an ambient light brightens it)
     frontal = lit.any() and float(tilt.max()) < FRONTAL_DEG and spread < FRONTAL_DEG
     if frontal:  # (one-sided then says nothing more)
-        out.append(CaptureWarning("frontal_light", "every image is lit from near the camera's direction (the light "
-                                  f"varies like a ring of lights {spread:.0f} deg off the axis; a flash or a lamp beside "
-                                  "the lens): hold the lamp further to the side, 30 to 60 deg off the camera's axis, in "
-                                  "turn above, below, left and right"))
+        out.append(
+            CaptureWarning(
+                "frontal_light",
+                "every image is lit from near the camera's direction (the light "
+                f"varies like a ring of lights {spread:.0f} deg off the axis; a flash or a lamp beside "
+                "the lens): hold the lamp further to the side, 30 to 60 deg off the camera's axis, in "
+                "turn above, below, left and right",
+            )
+        )
     off = lit & (polar > ONE_SIDED_DEG)
     if not frontal and off.sum() >= 2 and _largest_gap_deg(azimuth[off]) > 180.0:
         mid = np.degrees(np.arctan2(np.sin(np.radians(azimuth[off])).mean(), np.cos(np.radians(azimuth[off])).mean()))

@@ -121,8 +121,11 @@ def channel_noise_sigmas(images: np.ndarray, inner: np.ndarray) -> list[float]:
     from scipy.ndimage import convolve
 
     kern = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float64)
-    return [float(np.median(np.abs(convolve(im[:, :, c].astype(np.float64), kern, mode="nearest")[inner]))) / 0.6745 / 6.0
-            for im in images for c in range(im.shape[2])]
+    return [
+        float(np.median(np.abs(convolve(im[:, :, c].astype(np.float64), kern, mode="nearest")[inner]))) / 0.6745 / 6.0
+        for im in images
+        for c in range(im.shape[2])
+    ]
 
 
 def noise_sigma(images: np.ndarray, mask: np.ndarray) -> float:
@@ -212,20 +215,26 @@ def verdict(ex: Explanation) -> tuple[bool, str]:
         return False, (f"only {images} images: a pixel needs at least {MIN_OBSERVATIONS} unshadowed observations "
                        "before the images can say whether a normal map explains it")
     if frac < MIN_EXPLAINED:
-        return False, (f"only {frac:.0%} of the object is explained by distant lights on a Lambertian surface (at "
-                       f"least {MIN_EXPLAINED:.0%} needed): near or environment light, metals, cast "
-                       "shadows or inter-reflections the check cannot model; the score is not a judgement of the normals")
+        return False, (
+            f"only {frac:.0%} of the object is explained by distant lights on a Lambertian surface (at "
+            f"least {MIN_EXPLAINED:.0%} needed): near or environment light, metals, cast "
+            "shadows or inter-reflections the check cannot model; the score is not a judgement of the normals"
+        )
     if ex.dimensions and ex.light_dimensions < 3:
-        return False, (f"the images vary in only {ex.light_dimensions} independent way(s) above the noise (a normal has "
-                       "3): the lights are copies of one or lie near one plane, so any map is explained as well as "
-                       "the true one; the score is not a judgement of the normals; take photos with the light moved "
-                       "further, above, below and to the sides")
+        return False, (
+            f"the images vary in only {ex.light_dimensions} independent way(s) above the noise (a normal has "
+            "3): the lights are copies of one or lie near one plane, so any map is explained as well as "
+            "the true one; the score is not a judgement of the normals; take photos with the light moved "
+            "further, above, below and to the sides"
+        )
     return True, (f"{frac:.0%} of the object is explained by distant lights on a Lambertian surface (at least "
                   f"{MIN_EXPLAINED:.0%} needed) and the lights vary in all 3 directions: scored on those pixels' "
                   "unshadowed, unsaturated observations")
 
 
-def judged_rel_l1(render: np.ndarray, images: np.ndarray, ex: Explanation, only: tuple[int, ...] | None = None) -> float:
+def judged_rel_l1(
+    render: np.ndarray, images: np.ndarray, ex: Explanation, only: tuple[int, ...] | None = None
+) -> float:
     """rel_l1 of a fitted render (K, P, 3) against the images (K, P, 3) over the kept observations of the
     explained pixels: the same observations for every map of the capture; `only`: of those images alone."""
     where = ex.keep & ex.explained[None]  # (K, P) selection

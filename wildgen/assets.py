@@ -76,7 +76,9 @@ class AssetLibrary:
 
         jobs = [(p, load_mesh) for p in self.meshes] + [(p, load_environment) for p in self.hdris]
         for ts in self.textures:
-            jobs += [(p, read_image_file) for p in (ts.base_color, ts.roughness, ts.metallic, ts.normal) if p is not None]
+            jobs += [
+                (p, read_image_file) for p in (ts.base_color, ts.roughness, ts.metallic, ts.normal) if p is not None
+            ]
         bad = []
         for path, read in dict(jobs).items():
             try:

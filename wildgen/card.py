@@ -106,10 +106,10 @@ def object_stats(folder: Path) -> dict:
     from collections import Counter
 
     from scenes.cli.errors import one_line
-    from scenes.geometry import camera_rotation
-    from scenes.folder.layouts import read_folder
-    from scenes.lights import LIGHT_TYPES, light_class
     from scenes.folder.format import NORMAL_FILE, SCENE_FILE, object_name, read_scene
+    from scenes.folder.layouts import read_folder
+    from scenes.geometry import camera_rotation
+    from scenes.lights import LIGHT_TYPES, light_class
 
     data = read_folder(folder, images=False, layout="ours", arg="DIR")
     if data.normals is None:

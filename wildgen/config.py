@@ -58,7 +58,9 @@ class GenConfig:
     """Indirect bounces as in the paper; Mitsuba max_depth = bounces + 2 (a 32-bit integer)."""
     camera: Literal["orthographic", "perspective"] = "orthographic"
     """'orthographic' (the model's assumption) or 'perspective'."""
-    focal: Annotated[str | None, arg(metavar="A-B", help_behavior_hint="(default: a fixed 30 deg field of view)")] = None
+    focal: Annotated[str | None, arg(metavar="A-B", help_behavior_hint="(default: a fixed 30 deg field of view)")] = (
+        None
+    )
     """With --camera perspective: 35 mm-equivalent focal lengths (mm) drawn per object, log-uniform in [A, B]
     (e.g. 15-300: wide angle to telephoto); the camera distance follows so that the object fills the frame.
     Recorded as camera.focal_mm and camera.fov in scene.json; aux/view.exr holds the per-pixel view directions."""
@@ -73,8 +75,9 @@ class GenConfig:
     little, so that cast shadows and inter-reflections between them appear; one material and one mesh for the whole cluster
     (scene.json `parts`), aux/instances.png holds the 16-bit id of the object at each pixel (0: background).
     The fill-the-frame and entropy rules apply to the cluster as a whole."""
-    detail: Annotated[float | None, arg(metavar="P", help_behavior_hint="(default: texture sets' own normal maps only)")] = \
-        option(None, minimum=0, maximum=1)
+    detail: Annotated[
+        float | None, arg(metavar="P", help_behavior_hint="(default: texture sets' own normal maps only)")
+    ] = option(None, minimum=0, maximum=1)
     """Fraction P of objects given normal-mapped surface detail (`scenes.detail`: bumps, scratches, fabric,
     stone; or the texture set's own normal map when it has one); the others get none. Drawn from a stream of
     its own, so an object is the same with or without detail. Every object with a normal map also gets
@@ -121,8 +124,10 @@ class GenConfig:
         """Raise ValueError naming the first bad field as its flag."""
         unknown = [f for f in self.lights if f not in LIGHT_FAMILIES]
         if not self.lights or unknown:
-            raise ValueError(f"--lights: unknown family {', '.join(map(repr, unknown)) or repr(','.join(self.lights))}, expected from "
-                             f"{', '.join(LIGHT_FAMILIES)}")
+            raise ValueError(
+                f"--lights: unknown family {', '.join(map(repr, unknown)) or repr(','.join(self.lights))}, expected from "
+                f"{', '.join(LIGHT_FAMILIES)}"
+            )
         check_fields(self)
         self.detail_strength_range()
         if self.cluster is not None:
@@ -132,8 +137,10 @@ class GenConfig:
             if self.camera != "perspective":
                 raise ValueError(f"--focal: {self.focal!r} needs --camera perspective (got --camera {self.camera})")
         if self.variant is not None and self.variant not in VARIANTS:
-            raise ValueError(f"--variant: {self.variant!r} is not supported, expected auto or one of {', '.join(VARIANTS)} "
-                             "(the scenes use RGB colours)")
+            raise ValueError(
+                f"--variant: {self.variant!r} is not supported, expected auto or one of {', '.join(VARIANTS)} "
+                "(the scenes use RGB colours)"
+            )
         return self
 
     def focal_range(self) -> tuple[float, float]:

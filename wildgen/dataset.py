@@ -31,7 +31,6 @@ from wildgen.config import GenConfig
 from wildgen.parallel import Engine, InProcessEngine
 from wildgen.writer import TMP_PREFIX, index_name, sha256_file
 
-
 log = logging.getLogger(__name__)
 
 MANIFEST = "manifest.json"
@@ -59,7 +58,9 @@ def versions() -> dict[str, str]:
     return out
 
 
-def write_manifest(out_dir: Path, cfg: GenConfig, variant: str, entries: dict[int, dict], extra: dict | None = None) -> None:
+def write_manifest(
+    out_dir: Path, cfg: GenConfig, variant: str, entries: dict[int, dict], extra: dict | None = None
+) -> None:
     """Write DIR/manifest.json atomically: resolved config, seed, versions, variant, objects."""
     manifest = {
         "format_version": 1,
@@ -86,7 +87,9 @@ def load_manifest(out_dir: str | Path) -> dict | None:
         if not isinstance(manifest.get("config"), dict) or not isinstance(manifest.get("objects"), list):
             raise ValueError("no 'config' or 'objects'")
     except (ValueError, OSError) as exc:
-        raise DatasetError(f"--out: {str(path)!r} is not a readable manifest ({exc}); pass --overwrite to start afresh") from exc
+        raise DatasetError(
+            f"--out: {str(path)!r} is not a readable manifest ({exc}); pass --overwrite to start afresh"
+        ) from exc
     return manifest
 
 
@@ -223,7 +226,10 @@ def plan_run(cfg: GenConfig, out_dir: Path, variant: str, overwrite: bool = Fals
         old_versions = manifest.get("versions", {})
         changed = [k for k in ("mitsuba", "drjit", "numpy") if old_versions.get(k) != now.get(k)]
         if changed:
-            log.warning("manifest was written with other versions of %s: resumed objects may differ in bytes", ", ".join(changed))
+            log.warning(
+                "manifest was written with other versions of %s: resumed objects may differ in bytes",
+                ", ".join(changed),
+            )
         plan.resumed = True
     old = {int(e["index"]): e for e in (manifest or {}).get("objects", []) if isinstance(e, dict) and "index" in e}
     for index in range(cfg.objects):
@@ -275,7 +281,9 @@ def dataset_lock(out_dir: Path) -> Iterator[None]:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             holder = os.pread(fd, 200, 0).decode(errors="replace").strip() or "another process"
-            raise DatasetError(f"--out: {str(out_dir)!r} is being written by {holder}; wait for it or use another folder") from None
+            raise DatasetError(
+                f"--out: {str(out_dir)!r} is being written by {holder}; wait for it or use another folder"
+            ) from None
         os.ftruncate(fd, 0)
         os.pwrite(fd, f"pid {os.getpid()} on {socket.gethostname()}\n".encode(), 0)
         try:

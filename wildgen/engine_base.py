@@ -69,8 +69,9 @@ def describe_error(exc: BaseException) -> str:
 
 
 class Engine(Protocol):
-    def run(self, cfg: GenConfig, out_dir: Path, variant: str, indices: list[int], on_entry: Callable[[dict], None]) -> None:
-        ...
+    def run(
+        self, cfg: GenConfig, out_dir: Path, variant: str, indices: list[int], on_entry: Callable[[dict], None]
+    ) -> None: ...
 
 
 class Attempts:

@@ -29,12 +29,24 @@ from pathlib import Path
 from typing import Any, Callable, Literal
 
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
+from scenes.cli.options import REQUIRED, Command, check_fields, option
 from scenes.cli.outputs import check_output_folder, claim_outputs
 from scenes.cli.progress import progress_bar
-from scenes.cli.options import Command, REQUIRED, check_fields, option
 from scenes.files import FolderBusy, folder_lock, temporary_target
-from scenes.folder.shards import (ENCODINGS, FORMAT, FORMAT_VERSION, INDEX_FILE, SHARD_NAME, check_encoding,
-    sample_files, sample_key, shard_name, shard_pattern, write_index, write_shard)
+from scenes.folder.shards import (
+    ENCODINGS,
+    FORMAT,
+    FORMAT_VERSION,
+    INDEX_FILE,
+    SHARD_NAME,
+    check_encoding,
+    sample_files,
+    sample_key,
+    shard_name,
+    shard_pattern,
+    write_index,
+    write_shard,
+)
 
 FORMATS = ("webdataset",)
 """Export formats (one so far: WebDataset tar shards, `scenes.folder.shards`)."""
@@ -72,8 +84,12 @@ class ExportOptions:
         return self
 
 
-COMMAND = Command(ExportOptions, prog="python -m wildgen.export", description="Write a dataset of object folders as WebDataset tar shards with an index of "
-                                     "checksums (for training that streams its data).")
+COMMAND = Command(
+    ExportOptions,
+    prog="python -m wildgen.export",
+    description="Write a dataset of object folders as WebDataset tar shards with an index of "
+    "checksums (for training that streams its data).",
+)
 
 
 def _source_folders(data: Path) -> list[Path]:

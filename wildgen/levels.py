@@ -58,7 +58,9 @@ LEVELS: dict[int, Level] = {
 
 assert tuple(LEVELS) == LEVEL_NUMBERS, (tuple(LEVELS), LEVEL_NUMBERS)  # the values --level accepts
 for _n, _lv in LEVELS.items():  # a level names only entries of the existing tables
-    assert all(f in LIGHT_FAMILIES for f in _lv.config.lights) and set(_lv.config.shape_kinds) <= set(PROCEDURAL_KINDS), _n
+    assert all(f in LIGHT_FAMILIES for f in _lv.config.lights) and set(_lv.config.shape_kinds) <= set(
+        PROCEDURAL_KINDS
+    ), _n
     _lv.config.validate()
 
 

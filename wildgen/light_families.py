@@ -319,7 +319,9 @@ def light_family(name: str) -> LightFamily:
     return LIGHT_FAMILIES[name]
 
 
-def sample_lighting(rng: np.random.Generator, family: str, n_images: int, placement: Placement) -> list[list[LightDesc]]:
+def sample_lighting(
+    rng: np.random.Generator, family: str, n_images: int, placement: Placement
+) -> list[list[LightDesc]]:
     """The lights of each of `n_images` images for one light family."""
     sample = light_family(family).sample
     return [sample(rng, placement, i, n_images) for i in range(n_images)]

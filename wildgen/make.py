@@ -10,20 +10,20 @@ import sys
 import time
 from dataclasses import dataclass, field, fields
 from pathlib import Path
-
-from scenes.cli.progress import Progress, logs_above_progress
-from scenes.cli.errors import UsageError, report_error
-from scenes.cli.outputs import check_output_folder, make_output_folder
-from scenes.cli.limits import check_threads, gib
-from scenes.cli.limits import check_memory as check_memory_bytes
 from typing import Annotated, Literal
 
-from scenes.cli.options import REQUIRED, Command, arg, check_fields, optional_value, option
 from scenes.checks import check_int
+from scenes.cli.errors import UsageError, report_error
+from scenes.cli.limits import check_memory as check_memory_bytes
+from scenes.cli.limits import check_threads, gib
+from scenes.cli.options import REQUIRED, Command, arg, check_fields, option, optional_value
+from scenes.cli.outputs import check_output_folder, make_output_folder
+from scenes.cli.progress import Progress, logs_above_progress
 from scenes.folder.shards import ENCODINGS
 from wildgen.config import GenConfig
 from wildgen.levels import LEVELS, apply_level, check_level_and_preset
 from wildgen.presets import apply_preset, preset_named
+
 
 @dataclass
 class MakeOptions:
@@ -39,8 +39,9 @@ class MakeOptions:
     threads: Annotated[int | None, arg(help_behavior_hint="(default: cores // workers, at least 1; with --ray: 1)")] = \
         option(None, minimum=1)
     """Dr.Jit threads per worker."""
-    workers: Annotated[int | None, arg(help_behavior_hint="(default: one per core, at most one per object, 1 with a cuda "
-                                                          "variant)")] = option(None, minimum=0)
+    workers: Annotated[
+        int | None, arg(help_behavior_hint="(default: one per core, at most one per object, 1 with a cuda variant)")
+    ] = option(None, minimum=0)
     """Local worker processes (0: render in this process)."""
     ray: Annotated[str | None, optional_value("auto", "ADDRESS")] = None
     """Run one Ray task per object: no ADDRESS or 'auto' joins this machine's Ray cluster or starts a local one;
@@ -117,7 +118,9 @@ def _resume_config(opts: MakeOptions, explicit: set[str], manifest: dict) -> Gen
     return cfg.validate()
 
 
-def _summary(entries: dict[int, dict], rendered: dict[str, int], plan, seconds: float, variant: str, how: str) -> tuple[str, int]:
+def _summary(
+    entries: dict[int, dict], rendered: dict[str, int], plan, seconds: float, variant: str, how: str
+) -> tuple[str, int]:
     failed = sum(e.get("status") == "failed" for e in entries.values())
     done = rendered.get("done", 0)
     skipped = plan.complete + plan.rejected + rendered.get("skipped", 0)
@@ -125,7 +128,9 @@ def _summary(entries: dict[int, dict], rendered: dict[str, int], plan, seconds: 
     if plan.complete:
         detail.append(f"{plan.complete} already complete")
     if plan.rejected + rendered.get("skipped", 0):
-        detail.append(f"{plan.rejected + rendered.get('skipped', 0)} rejected by the entropy rule or the ground-truth check")
+        detail.append(
+            f"{plan.rejected + rendered.get('skipped', 0)} rejected by the entropy rule or the ground-truth check"
+        )
     line = f"{done} done, {skipped} skipped, {failed} failed" + (f" ({', '.join(detail)})" if detail else "")
     return f"{line} in {seconds:.1f} s [{variant}, {how}]", failed
 
@@ -139,7 +144,9 @@ def check_flags(opts: MakeOptions, explicit: set[str]) -> None:
         raise ValueError("--resume: cannot be combined with --overwrite")
     if opts.res is not None and explicit & {"width", "height"}:
         given = " and ".join(f"--{f}" for f in ("width", "height") if f in explicit)
-        raise ValueError(f"--res: sets both sides; it cannot be combined with {given} (use --res R or --width W --height H)")
+        raise ValueError(
+            f"--res: sets both sides; it cannot be combined with {given} (use --res R or --width W --height H)"
+        )
     check_output_folder(opts.out)
     if opts.shards:  # the whole target, before the render: not found only when the dataset is done
         from wildgen.export import check_target, replaces_export
@@ -160,7 +167,9 @@ def resolve_run(args: MakeOptions, explicit: set[str], out: Path) -> tuple[GenCo
     manifest = None if args.overwrite else load_manifest(out)
     if args.resume:
         if manifest is None:
-            raise FileNotFoundError(f"--resume: no manifest.json in {str(out)!r} to resume; run without --resume to start")
+            raise FileNotFoundError(
+                f"--resume: no manifest.json in {str(out)!r} to resume; run without --resume to start"
+            )
         cfg = _resume_config(args, explicit, manifest)
     else:
         cfg = args.gen.validate()
@@ -275,8 +284,11 @@ class _Progress:
         # One line before the long work, also with --quiet (which only hides the bar): what and where.
         what = f"{self.cfg.width}x{self.cfg.height} px, {self.cfg.images} images, {self.cfg.spp} spp"
         if plan.resumed:
-            print(f"resuming {self.out}: {plan.complete} complete, {plan.rejected} rejected, {len(plan.todo)} to render "
-                  f"({what})" + (f", {plan.leftovers} interrupted removed" if plan.leftovers else ""), flush=True)
+            print(
+                f"resuming {self.out}: {plan.complete} complete, {plan.rejected} rejected, {len(plan.todo)} to render "
+                f"({what})" + (f", {plan.leftovers} interrupted removed" if plan.leftovers else ""),
+                flush=True,
+            )
         else:
             print(f"rendering {len(plan.todo)} object(s) ({what}) into {self.out}", flush=True)
         self.bar = Progress("wildgen", "obj", total=self.cfg.objects, done=plan.complete + plan.rejected,
@@ -372,8 +384,10 @@ def _run(argv: list[str] | None, state: dict) -> int:
         return 1
     if entries and not any(e.get("status") == "done" for e in entries.values()):
         first = next(e for e in entries.values() if e.get("status") == "skipped")
-        print(f"error: none of the {len(entries)} object(s) was written, all were rejected (first: {first.get('reason')})",
-              file=sys.stderr)
+        print(
+            f"error: none of the {len(entries)} object(s) was written, all were rejected (first: {first.get('reason')})",
+            file=sys.stderr,
+        )
         return 1
     if args.shards:
         from wildgen.export import export_after_make

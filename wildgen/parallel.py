@@ -20,13 +20,37 @@ from pathlib import Path
 from typing import Any, Callable
 
 from wildgen.config import GenConfig
-from wildgen.engine_base import (STOP_SIGNALS, Attempts, Engine, available_cores, check_stop, default_workers,
-                                 describe_error, init_process, threads_per_worker, transient)
+from wildgen.engine_base import (
+    STOP_SIGNALS,
+    Attempts,
+    Engine,
+    available_cores,
+    check_stop,
+    default_workers,
+    describe_error,
+    init_process,
+    threads_per_worker,
+    transient,
+)
 from wildgen.ray_engine import RAY_INSTALL, RayEngine, import_ray, ray_available
 
-__all__ = ["STOP_SIGNALS", "RAY_INSTALL", "Engine", "InProcessEngine", "ProcessEngine", "RayEngine", "WorkersCannotStart",
-           "available_cores", "choose_engine", "default_workers", "describe_error", "import_ray", "ray_available",
-           "threads_per_worker", "transient"]
+__all__ = [
+    "STOP_SIGNALS",
+    "RAY_INSTALL",
+    "Engine",
+    "InProcessEngine",
+    "ProcessEngine",
+    "RayEngine",
+    "WorkersCannotStart",
+    "available_cores",
+    "choose_engine",
+    "default_workers",
+    "describe_error",
+    "import_ray",
+    "ray_available",
+    "threads_per_worker",
+    "transient",
+]
 """The engines' names, importable from here as before the split (the shared ones live in `wildgen.engine_base`,
 Ray's in `wildgen.ray_engine`)."""
 
@@ -54,7 +78,9 @@ class InProcessEngine:
     used: dict = field(default_factory=lambda: {"engine": "in-process"})
     """How the objects were run (recorded in the manifest)."""
 
-    def run(self, cfg: GenConfig, out_dir: Path, variant: str, indices: list[int], on_entry: Callable[[dict], None]) -> None:
+    def run(
+        self, cfg: GenConfig, out_dir: Path, variant: str, indices: list[int], on_entry: Callable[[dict], None]
+    ) -> None:
         from scenes.renderer.variant import choose_variant
         from wildgen.assets import AssetLibrary
         from wildgen.writer import make_object
@@ -89,7 +115,9 @@ def _die_with_parent(parent_pid: int) -> None:
         os._exit(1)
 
 
-def _worker_main(conn, cfg: GenConfig, out_dir: str, variant: str, threads: int | None, parent_pid: int, log_level: int) -> None:
+def _worker_main(
+    conn, cfg: GenConfig, out_dir: str, variant: str, threads: int | None, parent_pid: int, log_level: int
+) -> None:
     """Body of a local worker process: receive indices, send back entries, until None or EOF."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides how to stop on Ctrl-C
     _die_with_parent(parent_pid)
@@ -150,17 +178,23 @@ class ProcessEngine:
     used: dict = field(default_factory=dict)
     """Filled by run(): the worker and thread counts actually used."""
 
-    def run(self, cfg: GenConfig, out_dir: Path, variant: str, indices: list[int], on_entry: Callable[[dict], None]) -> None:
+    def run(
+        self, cfg: GenConfig, out_dir: Path, variant: str, indices: list[int], on_entry: Callable[[dict], None]
+    ) -> None:
         import multiprocessing as mp
 
         if self.recycle_after is not None and self.recycle_after < 1:
             raise ValueError(f"--recycle-after: expected a positive integer, got {self.recycle_after!r}")
         n_workers = min(self.workers or default_workers(len(indices)), max(1, len(indices)))
         threads = self.threads or threads_per_worker(n_workers)
-        self.used.update(engine="processes", workers=n_workers, threads_per_worker=threads, recycle_after=self.recycle_after)
+        self.used.update(
+            engine="processes", workers=n_workers, threads_per_worker=threads, recycle_after=self.recycle_after
+        )
         worker_args = (cfg, str(Path(out_dir).resolve()), variant, threads, os.getpid(),
                        logging.getLogger().getEffectiveLevel())
-        pool = _Pool(self, mp.get_context("spawn"), worker_args, Attempts(indices, self.max_retries, on_entry), n_workers)
+        pool = _Pool(
+            self, mp.get_context("spawn"), worker_args, Attempts(indices, self.max_retries, on_entry), n_workers
+        )
         try:
             while pool.attempts.queue or any(w.index is not None for w in pool.workers):
                 pool.round()

@@ -14,16 +14,15 @@ read (`failed`, one line each), which are left out of everything else.
 """
 from __future__ import annotations
 
-from typing import Annotated
-
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 
-from scenes.cli.outputs import check_output_folder, make_output_folder
 from scenes.cli.options import Command, Positional, arg
+from scenes.cli.outputs import check_output_folder, make_output_folder
 
 TILE = 128
 """Pixels of one tile of a contact sheet."""
@@ -100,9 +99,9 @@ def preview(dataset: str | Path, out: str | Path | None = None, overwrite: bool 
     """Write contact sheets and the overview; returns the written paths. Every object is read and every sheet
     drawn before anything is written; existing sheets are replaced only with `overwrite`
     (`scenes.cli.outputs.claim_outputs`)."""
-    from scenes.report.charts import to_bgr
     from scenes.cli.outputs import claim_outputs
     from scenes.images import write_picture
+    from scenes.report.charts import to_bgr
 
     dataset = Path(dataset)
     folders = _object_folders(dataset)
@@ -128,10 +127,10 @@ def preview(dataset: str | Path, out: str | Path | None = None, overwrite: bool 
 def write_stats(dataset: str | Path, out: str | Path | None = None, overwrite: bool = False) -> list[Path]:
     """Write the dataset card (stats.png) and its numbers (stats.json); returns their paths. Outputs are
     checked before any folder is read; existing ones are replaced only with `overwrite`."""
-    from scenes.report.charts import to_bgr
     from scenes.cli.outputs import claim_outputs
     from scenes.files import atomic_write_text
     from scenes.images import write_picture
+    from scenes.report.charts import to_bgr
     from wildgen.card import STATS_PICTURE, STATS_SUMMARY, dataset_stats, json_text
     from wildgen.card_figure import draw_stats
 
@@ -167,8 +166,12 @@ class PreviewOptions:
     never touched)."""
 
 
-COMMAND = Command(PreviewOptions, prog="python -m wildgen.preview", description="Contact sheet PNG per object and one overview PNG of a dataset; with --stats, "
-                                     "the dataset card (stats.png, stats.json) instead.")
+COMMAND = Command(
+    PreviewOptions,
+    prog="python -m wildgen.preview",
+    description="Contact sheet PNG per object and one overview PNG of a dataset; with --stats, "
+    "the dataset card (stats.png, stats.json) instead.",
+)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -54,7 +54,9 @@ def _this_node() -> dict:
             "ip": ray.util.get_node_ip_address()}
 
 
-def _ray_make_object(cfg: GenConfig, out_dir: str, variant: str, threads: int | None, index: int) -> tuple[str, object, dict]:
+def _ray_make_object(
+    cfg: GenConfig, out_dir: str, variant: str, threads: int | None, index: int
+) -> tuple[str, object, dict]:
     """Ray task: one object in a Ray worker process (variant and threads set on its first task)."""
     node = _this_node()
     try:
@@ -140,7 +142,9 @@ class RayEngine:
         self.used["started_local"] = True
         return True
 
-    def run(self, cfg: GenConfig, out_dir: Path, variant: str, indices: list[int], on_entry: Callable[[dict], None]) -> None:
+    def run(
+        self, cfg: GenConfig, out_dir: Path, variant: str, indices: list[int], on_entry: Callable[[dict], None]
+    ) -> None:
         ray = import_ray()
         from ray.exceptions import RayError
 

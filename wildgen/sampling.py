@@ -31,8 +31,8 @@ from scenes.description import (
     fov_from_focal,
     multijitter_spp,
 )
-from scenes.lights import DirectionalLight
 from scenes.folder.format import AUX_DIR, MESH_FILE
+from scenes.lights import DirectionalLight
 from scenes.procedural import MeshData
 from wildgen.assets import AssetLibrary
 from wildgen.config import MATERIAL_CLASSES, GenConfig
@@ -67,7 +67,9 @@ def visible_normal_entropy(mesh: MeshData, rotation: np.ndarray) -> float:
     if not facing.any():
         return 0.0
     weights = area2[facing] * n[facing, 2]
-    hist, _, _ = np.histogram2d(n[facing, 0], n[facing, 1], bins=ENTROPY_BINS, range=[[-1, 1], [-1, 1]], weights=weights)
+    hist, _, _ = np.histogram2d(
+        n[facing, 0], n[facing, 1], bins=ENTROPY_BINS, range=[[-1, 1], [-1, 1]], weights=weights
+    )
     prob = hist.ravel() / max(hist.sum(), 1e-18)
     prob = prob[prob > 0]
     return float(-(prob * np.log2(prob)).sum())
@@ -125,7 +127,14 @@ def _scalar_map(rng: np.random.Generator, lo: float, hi: float, res: int) -> Tex
     if rng.random() < 0.5:
         return TextureDesc(kind="constant", value=[float(a)])
     kind = str(rng.choice(["noise", "cells", "stripes"]))
-    return TextureDesc(kind=kind, value=[float(a)], value2=[float(b)], scale=float(rng.uniform(2, 8)), seed=int(rng.integers(2**31)), resolution=res)
+    return TextureDesc(
+        kind=kind,
+        value=[float(a)],
+        value2=[float(b)],
+        scale=float(rng.uniform(2, 8)),
+        seed=int(rng.integers(2**31)),
+        resolution=res,
+    )
 
 
 def sample_material(rng: np.random.Generator, cls: str, lib: AssetLibrary, tex_res: int) -> MaterialDesc:
@@ -139,7 +148,14 @@ def sample_material(rng: np.random.Generator, cls: str, lib: AssetLibrary, tex_r
         base = TextureDesc(kind="file", value=[0.5, 0.5, 0.5], file=str(ts.base_color), srgb=True)
     else:
         kind = str(rng.choice(["noise", "cells", "stripes", "constant"], p=[0.35, 0.25, 0.2, 0.2]))
-        base = TextureDesc(kind=kind, value=_linear_colour(rng), value2=_linear_colour(rng), scale=float(rng.uniform(2, 8)), seed=int(rng.integers(2**31)), resolution=tex_res)
+        base = TextureDesc(
+            kind=kind,
+            value=_linear_colour(rng),
+            value2=_linear_colour(rng),
+            scale=float(rng.uniform(2, 8)),
+            seed=int(rng.integers(2**31)),
+            resolution=tex_res,
+        )
     roughness = _scalar_map(rng, *rough_range, tex_res)
     metallic = _scalar_map(rng, 0.7, 1.0, tex_res) if cls == "metallic" else TextureDesc(kind="constant", value=[0.0])
     normal_map = None
@@ -151,7 +167,15 @@ def sample_material(rng: np.random.Generator, cls: str, lib: AssetLibrary, tex_r
             metallic = TextureDesc(kind="file", value=[1.0], file=str(ts.metallic), channel=ts.metallic_channel)
         if ts.normal is not None and rng.random() < 0.5:
             normal_map = str(ts.normal)
-    return MaterialDesc(kind="principled", material_class=cls, base_color=base, roughness=roughness, metallic=metallic, specular=float(spec), normal_map=normal_map)
+    return MaterialDesc(
+        kind="principled",
+        material_class=cls,
+        base_color=base,
+        roughness=roughness,
+        metallic=metallic,
+        specular=float(spec),
+        normal_map=normal_map,
+    )
 
 
 DETAIL_SCALE = (3.0, 12.0)
@@ -326,7 +350,9 @@ def sample_object(cfg: GenConfig, index: int, lib: AssetLibrary, name: str | Non
     env = _environment_desc(rng, lib, cfg.env_width)
     env_scale = _environment_scale(env)
     if cfg.camera == "orthographic":
-        camera = CameraDesc(kind="orthographic", origin=[0.0, 0.0, ORTHO_DISTANCE], half_size=1.0, width=cfg.width, height=cfg.height)
+        camera = CameraDesc(
+            kind="orthographic", origin=[0.0, 0.0, ORTHO_DISTANCE], half_size=1.0, width=cfg.width, height=cfg.height
+        )
     else:
         camera = CameraDesc(kind="perspective", origin=[0.0, 0.0, perspective_distance(fov)], fov=fov, width=cfg.width,
                             height=cfg.height, focal_mm=focal_mm)

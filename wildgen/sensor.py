@@ -25,16 +25,34 @@ from pathlib import Path
 from typing import Callable, Literal
 
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
+from scenes.cli.options import REQUIRED, Command, check_fields, option
 from scenes.cli.outputs import check_output_folder
 from scenes.cli.progress import progress_bar
-from scenes.cli.options import Command, REQUIRED, check_fields, option
-from scenes.folder.format import (AUX_DIR, check_dataset_complete, SCENE_FILE, image_files, image_name, list_object_folders, object_name,
-    radiance_name, read_scene, write_scene)
 from scenes.files import atomic_write_text
+from scenes.folder.format import (
+    AUX_DIR,
+    SCENE_FILE,
+    check_dataset_complete,
+    image_files,
+    image_name,
+    list_object_folders,
+    object_name,
+    radiance_name,
+    read_scene,
+    write_scene,
+)
 from scenes.images import read_exr
-from scenes.sensor import (SCENE_KEY, SENSORS, Sensor, read_sensor_record, rederive_image, scale_camera_lights, sensor_named,
-                           sensor_record,
-                           write_image)
+from scenes.sensor import (
+    SCENE_KEY,
+    SENSORS,
+    Sensor,
+    read_sensor_record,
+    rederive_image,
+    scale_camera_lights,
+    sensor_named,
+    sensor_record,
+    write_image,
+)
 from wildgen.dataset import MANIFEST, clean_leftovers, dataset_lock, verify_object
 from wildgen.writer import TMP_PREFIX, publish_folder
 
@@ -62,9 +80,13 @@ class SensorOptions:
         return self
 
 
-COMMAND = Command(SensorOptions, prog="python -m wildgen.sensor", description="Re-apply a camera sensor (noise, black level, response, bit depth, vignetting, "
-                                     "Bayer filter, white balance) to the radiance of an existing dataset, without "
-                                     "rendering.")
+COMMAND = Command(
+    SensorOptions,
+    prog="python -m wildgen.sensor",
+    description="Re-apply a camera sensor (noise, black level, response, bit depth, vignetting, "
+    "Bayer filter, white balance) to the radiance of an existing dataset, without "
+    "rendering.",
+)
 
 
 def _sensor_versions() -> dict[str, str]:

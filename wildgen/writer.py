@@ -19,13 +19,24 @@ from pathlib import Path
 import numpy as np
 
 from scenes.description import SceneDescription, TextureDesc
+from scenes.files import sha256_file
+from scenes.folder.format import (
+    AUX_DIR,
+    FORMAT_VERSION,
+    INSTANCES_FILE,
+    MASK_FILE,
+    MESH_FILE,
+    NORMAL_BASE_FILE,
+    NORMAL_FILE,
+    OBJECT_SUFFIX,
+    image_name,
+    radiance_name,
+    write_scene,
+)
 from scenes.geometry import camera_rotation, view_directions, write_mesh_ply
+from scenes.images import write_exr, write_instances, write_mask, write_normal_map, write_png16
 from scenes.lights import camera_frame
 from scenes.renderer.build import build_scene
-from scenes.folder.format import (AUX_DIR, FORMAT_VERSION, INSTANCES_FILE, MASK_FILE, MESH_FILE, NORMAL_BASE_FILE,
-    NORMAL_FILE, OBJECT_SUFFIX, image_name, radiance_name, write_scene)
-from scenes.files import sha256_file
-from scenes.images import write_exr, write_instances, write_mask, write_normal_map, write_png16
 from scenes.renderer.render import instance_ids, render_ground_truth, render_images
 from scenes.sensor import SCENE_KEY as SENSOR_KEY
 from scenes.sensor import SENSORS, Sensor, rederive_image, scale_camera_lights, sensor_record, write_image
@@ -73,7 +84,9 @@ def _localise(desc: SceneDescription, sampled: SampledObject, folder: Path) -> S
         arr = realize_texture(tex)
         write_exr(aux / f"{name}.exr", np.ascontiguousarray(arr[::-1]))  # files keep row 0 at the top
         channels = len(tex.value)
-        return TextureDesc(kind="file", value=tex.value, file=f"{AUX_DIR}/{name}.exr", channel=0 if channels == 1 else None)
+        return TextureDesc(
+            kind="file", value=tex.value, file=f"{AUX_DIR}/{name}.exr", channel=0 if channels == 1 else None
+        )
 
     d.material.base_color = local_texture(d.material.base_color, "texture_base_color")
     d.material.roughness = local_texture(d.material.roughness, "texture_roughness")

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import sys
 
-
 EXIT_USAGE = 2
 """Exit status of a usage or input error (argparse's own)."""
 

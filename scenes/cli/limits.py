@@ -24,8 +24,10 @@ def _meminfo(key: str) -> int | None:
 
 def _cgroup_left() -> int | None:
     """Bytes the cgroup (v2 or v1) of this process may still use, or None without a limit."""
-    for limit, usage in (("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
-                         ("/sys/fs/cgroup/memory/memory.limit_in_bytes", "/sys/fs/cgroup/memory/memory.usage_in_bytes")):
+    for limit, usage in (
+        ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
+        ("/sys/fs/cgroup/memory/memory.limit_in_bytes", "/sys/fs/cgroup/memory/memory.usage_in_bytes"),
+    ):
         try:
             text = Path(limit).read_text().strip()
             if text == "max" or int(text) >= 2**60:
@@ -96,6 +98,8 @@ def check_threads(threads: int | None, flag: str = "--threads", processes: int =
         return
     if threads * processes > limit:
         per = f" x {processes} processes" if processes > 1 else ""
-        raise UsageError(f"{flag}: got {threads}{per}, this machine lets this process start at most {limit} more "
-                         f"threads; expected at most {max(1, limit // max(processes, 1))} (one per core is usually best: "
-                         f"{os.cpu_count() or 1})")
+        raise UsageError(
+            f"{flag}: got {threads}{per}, this machine lets this process start at most {limit} more "
+            f"threads; expected at most {max(1, limit // max(processes, 1))} (one per core is usually best: "
+            f"{os.cpu_count() or 1})"
+        )

@@ -64,7 +64,15 @@ def claim_outputs(paths: Iterable[str | os.PathLike], overwrite: bool, flag: str
     want = "a folder" if folders else "a file"
     for p in existing:
         if p.is_symlink() or not (p.is_dir() if folders else p.is_file()):
-            kind = "a link" if p.is_symlink() else "a folder" if p.is_dir() else "a file" if p.is_file() else "not a plain file"
+            kind = (
+                "a link"
+                if p.is_symlink()
+                else "a folder"
+                if p.is_dir()
+                else "a file"
+                if p.is_file()
+                else "not a plain file"
+            )
             raise UsageError(f"{flag}: {str(p)!r} is {kind}, where {owner} writes {want}; it is never replaced: "
                              f"move it away or use another {flag}")
     if existing and marker is not None and not os.path.lexists(marker):

@@ -8,7 +8,6 @@ import time
 from contextlib import contextmanager
 from typing import Any, Callable, Iterator
 
-
 PLAIN_EVERY_S = 10.0
 """Without a terminal on stderr (a log file, a pipe): at most one progress line per this many seconds."""
 

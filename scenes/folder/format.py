@@ -31,7 +31,6 @@ import numpy as np
 from scenes.files import atomic_write_text
 from scenes.images import write_mask, write_normal_map, write_png16
 
-
 OBJECT_SUFFIX = ".data"
 
 SCENE_FILE = "scene.json"
@@ -101,7 +100,9 @@ def image_files(folder: str | Path) -> list[Path]:
     indices = sorted(found)
     if indices != list(range(len(indices))):
         missing = sorted(set(range(max(indices, default=-1) + 1)) - set(indices))
-        raise ValueError(f"images: {str(folder)!r} has L*.png files with gaps (missing indices {', '.join(map(str, missing[:10]))})")
+        raise ValueError(
+            f"images: {str(folder)!r} has L*.png files with gaps (missing indices {', '.join(map(str, missing[:10]))})"
+        )
     return [found[i] for i in indices]
 
 

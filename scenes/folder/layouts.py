@@ -44,7 +44,15 @@ from typing import Any, Callable
 
 import numpy as np
 
-from scenes.folder.format import MASK_FILE, NORMAL_FILE, SCENE_FILE, check_dataset_complete, image_files, object_name, read_scene_dict
+from scenes.folder.format import (
+    MASK_FILE,
+    NORMAL_FILE,
+    SCENE_FILE,
+    check_dataset_complete,
+    image_files,
+    object_name,
+    read_scene_dict,
+)
 from scenes.images import read_image, read_mask, read_normals
 
 log = logging.getLogger(__name__)
@@ -60,7 +68,9 @@ MIN_NORMAL_LENGTH = 0.5
 DILIGENT_LIGHTS = "light_directions.txt"
 DILIGENT_INTENSITIES = "light_intensities.txt"
 DILIGENT_LISTING = "filenames.txt"
-ONE_FOLDER = "an object folder: L*.png + scene.json (ours), L* images (UniPS), or DiLiGenT 001.png... + light_directions.txt"
+ONE_FOLDER = (
+    "an object folder: L*.png + scene.json (ours), L* images (UniPS), or DiLiGenT 001.png... + light_directions.txt"
+)
 EXPECTED = f"{ONE_FOLDER}; or a directory of such folders"  # where a dataset is read (find_object_folders)
 
 
@@ -75,8 +85,10 @@ def natural_key(name: str) -> list[Any]:
 def l_images(folder: str | Path, suffixes: tuple[str, ...] = ALL_IMAGE_SUFFIXES) -> list[Path]:
     """Files ``L*`` with one of `suffixes`, in natural order."""
     folder = Path(folder)
-    return sorted((p for p in folder.iterdir() if p.is_file() and p.name.startswith("L") and p.suffix.lower() in suffixes),
-                  key=lambda p: natural_key(p.name))
+    return sorted(
+        (p for p in folder.iterdir() if p.is_file() and p.name.startswith("L") and p.suffix.lower() in suffixes),
+        key=lambda p: natural_key(p.name),
+    )
 
 
 def digit_images(folder: str | Path) -> list[Path]:
@@ -94,7 +106,9 @@ def diligent_images(folder: str | Path) -> list[Path]:
         names = [line.strip() for line in listing.read_text().splitlines() if line.strip()]
         twice = next((n for n, name in enumerate(names) if name in names[:n]), None)  # two observations of one light
         if twice is not None:
-            raise ValueError(f"{listing} lists {names[twice]} twice, entries {names.index(names[twice]) + 1} and {twice + 1}")
+            raise ValueError(
+                f"{listing} lists {names[twice]} twice, entries {names.index(names[twice]) + 1} and {twice + 1}"
+            )
         return [folder / name for name in names]
     return digit_images(folder)
 
@@ -125,7 +139,9 @@ def read_text_matrix(path: Path, rows: int, what: str) -> np.ndarray:
         raise FileNotFoundError(f"{what} file {path} does not exist")
     try:
         text = path.read_text().replace(",", " ")
-        values = np.array([[float(v) for v in line.split()] for line in text.splitlines() if line.strip()], dtype=np.float64)
+        values = np.array(
+            [[float(v) for v in line.split()] for line in text.splitlines() if line.strip()], dtype=np.float64
+        )
     except (ValueError, UnicodeDecodeError) as exc:
         raise ValueError(f"{what} file {path}: cannot parse numbers ({exc})") from exc
     if values.ndim != 2 or values.shape[1] != 3:
@@ -141,7 +157,9 @@ def _unit_directions(d: np.ndarray, where: str) -> np.ndarray:
     """Rows of `d` normalised; a zero row is refused (it has no direction)."""
     norms = np.linalg.norm(d, axis=1)
     if np.any(norms < 1e-9):
-        raise ValueError(f"{where}: row {int(np.argmin(norms)) + 1} is a zero vector (expected a direction toward the light)")
+        raise ValueError(
+            f"{where}: row {int(np.argmin(norms)) + 1} is a zero vector (expected a direction toward the light)"
+        )
     return d / norms[:, None]
 
 
@@ -252,7 +270,9 @@ def _is_ours(folder: Path) -> bool:
 
 
 def _is_diligent(folder: Path) -> bool:
-    return (folder / DILIGENT_LIGHTS).is_file() and ((folder / DILIGENT_LISTING).is_file() or bool(digit_images(folder)))
+    return (folder / DILIGENT_LIGHTS).is_file() and (
+        (folder / DILIGENT_LISTING).is_file() or bool(digit_images(folder))
+    )
 
 
 def _is_unips(folder: Path) -> bool:
@@ -260,12 +280,33 @@ def _is_unips(folder: Path) -> bool:
 
 
 LAYOUT_TABLE: tuple[Layout, ...] = (
-    Layout("ours", "this toolkit's object folder (wildgen.make): L000.png.., mask.png, normal.tif, scene.json",
-           _is_ours, image_files, (NORMAL_FILE,), True, _ours_lights),
-    Layout("diligent", "DiLiGenT benchmark folder: 001.png.., light_directions.txt, light_intensities.txt, mask.png, Normal_gt.mat",
-           _is_diligent, diligent_images, ("Normal_gt.mat", "Normal_gt.png"), False, _diligent_lights),
-    Layout("unips", "official UniPS / SDM-UniPS folder: L* images (8/16-bit or EXR), optional mask.png and normal.tif",
-           _is_unips, l_images, (NORMAL_FILE, "Normal_gt.png", "Normal_gt.mat"), False, _no_lights),
+    Layout(
+        "ours",
+        "this toolkit's object folder (wildgen.make): L000.png.., mask.png, normal.tif, scene.json",
+        _is_ours,
+        image_files,
+        (NORMAL_FILE,),
+        True,
+        _ours_lights,
+    ),
+    Layout(
+        "diligent",
+        "DiLiGenT benchmark folder: 001.png.., light_directions.txt, light_intensities.txt, mask.png, Normal_gt.mat",
+        _is_diligent,
+        diligent_images,
+        ("Normal_gt.mat", "Normal_gt.png"),
+        False,
+        _diligent_lights,
+    ),
+    Layout(
+        "unips",
+        "official UniPS / SDM-UniPS folder: L* images (8/16-bit or EXR), optional mask.png and normal.tif",
+        _is_unips,
+        l_images,
+        (NORMAL_FILE, "Normal_gt.png", "Normal_gt.mat"),
+        False,
+        _no_lights,
+    ),
 )
 LAYOUTS = tuple(layout.name for layout in LAYOUT_TABLE)
 _BY_NAME = {layout.name: layout for layout in LAYOUT_TABLE}
@@ -383,7 +424,9 @@ def finish_normals(n: np.ndarray, mask: np.ndarray, path: Path) -> np.ndarray:
     out = np.where(keep, scaled / np.maximum(scaled_norm, 1e-300), 0.0)
     missing = int(np.sum(mask & ~keep[..., 0]))
     if missing:
-        log.warning("%s: %d mask pixels have no ground-truth normal (shorter than %.1f)", path, missing, MIN_NORMAL_LENGTH)
+        log.warning(
+            "%s: %d mask pixels have no ground-truth normal (shorter than %.1f)", path, missing, MIN_NORMAL_LENGTH
+        )
     return out.astype(np.float32)
 
 
@@ -424,7 +467,9 @@ def _read_stack(paths: list[Path], white: float = 1.0) -> tuple[np.ndarray, np.n
     return stack, (saturated if saturated.any() else None)
 
 
-def _check_informative(images: np.ndarray, saturated: np.ndarray | None, mask: np.ndarray, folder: Path, arg: str) -> None:
+def _check_informative(
+    images: np.ndarray, saturated: np.ndarray | None, mask: np.ndarray, folder: Path, arg: str
+) -> None:
     """Refuse a capture in which no image carries information about the object: every image constant inside
     the mask (all black, or one flat value), or every object pixel clipped in every image."""
     inside = images[:, mask]  # (K, P, 3)

@@ -76,9 +76,11 @@ def photo_files(folder: str | Path, flag: str = "--input") -> list[Path]:
     raws = [p for p in files if is_raw(p)]
     if raws and len(raws) != len(files):
         other = next(p for p in files if not is_raw(p))
-        raise ValueError(f"{flag}: {str(folder)!r} mixes camera RAW files ({raws[0].name}) with other photos "
-                         f"({other.name}): their values are on different scales; expected one kind per capture (move the RAW "
-                         "or the other files out of the folder)")
+        raise ValueError(
+            f"{flag}: {str(folder)!r} mixes camera RAW files ({raws[0].name}) with other photos "
+            f"({other.name}): their values are on different scales; expected one kind per capture (move the RAW "
+            "or the other files out of the folder)"
+        )
     return files
 
 
@@ -161,7 +163,9 @@ def _read_one(path: Path, flag: str) -> tuple[np.ndarray, int, dict[str, Any]]:
     return raw[..., ::-1].astype(np.float64) / (255.0 if depth == 8 else 65535.0), depth, _read_exif(path)
 
 
-def _linear(codes: np.ndarray, depth: int, encoding: str, exif: dict[str, Any], path: Path, flag: str) -> tuple[np.ndarray, str]:
+def _linear(
+    codes: np.ndarray, depth: int, encoding: str, exif: dict[str, Any], path: Path, flag: str
+) -> tuple[np.ndarray, str]:
     import colour
 
     kind = encoding if encoding != "auto" else ("srgb" if depth == 8 else "linear")

@@ -46,8 +46,8 @@ import re
 from pathlib import Path
 from typing import Any, BinaryIO, Iterator
 
-from scenes.folder.format import AUX_DIR, OBJECT_SUFFIX, object_name
 from scenes.files import atomic_write_text, sha256_file
+from scenes.folder.format import AUX_DIR, OBJECT_SUFFIX, object_name
 
 INDEX_FILE = "index.json"
 """The index beside the shards: per shard its objects and its sha256."""
@@ -167,8 +167,8 @@ def _as_codes(images, where: Path, arg: str):
 def encode_decoded(folder: Path, arg: str = "--data") -> dict[str, bytes]:
     """The members (suffix -> bytes) of the decoded sample of an object folder: what `read_folder` returns for it
     (see the module docstring)."""
-    from scenes.folder.layouts import read_folder
     from scenes.folder.format import SCENE_FILE
+    from scenes.folder.layouts import read_folder
 
     fd = read_folder(folder, arg=arg)
     lights = fd.lights
@@ -275,8 +275,8 @@ def write_shard(path: str | Path, folders: list[tuple[str, Path]], aux: bool = F
     index entry (name, bytes, sha256, objects)."""
     import webdataset as wds
 
-    from scenes.folder.layouts import detect_layout, layout_named
     from scenes.files import atomic_write
+    from scenes.folder.layouts import detect_layout, layout_named
 
     check_encoding(encoding, aux)
     path = Path(path)
@@ -375,7 +375,9 @@ def iter_samples(path: str | Path, arg: str = "--data") -> Iterator[tuple[str, d
         raise ValueError(f"{arg}: shard {str(path)!r} cannot be read ({first:.200})") from None
 
 
-def listed_samples(path: str | Path, entry: dict[str, Any], arg: str = "--data") -> Iterator[tuple[str, dict[str, bytes]]]:
+def listed_samples(
+    path: str | Path, entry: dict[str, Any], arg: str = "--data"
+) -> Iterator[tuple[str, dict[str, bytes]]]:
     """`iter_samples` of a shard checked against its index entry: the checksum first (`verify_shard`), then each
     sample's key against the objects the entry lists, in order, and their number (ValueError naming the shard and
     the object): samples that were damaged, dropped or renamed and an index rewritten to match are refused."""

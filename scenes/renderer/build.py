@@ -21,10 +21,10 @@ from scenes.description import SceneDescription, TextureDesc
 from scenes.envmaps import realize_environment
 from scenes.geometry import mesh_data_for, transformed_mesh
 from scenes.lights import LIGHT_TYPES
-from scenes.renderer.light_slots import apply_lights, slot_dicts
 from scenes.procedural import MeshData
-from scenes.textures import realize_texture
+from scenes.renderer.light_slots import apply_lights, slot_dicts
 from scenes.renderer.variant import require_variant
+from scenes.textures import realize_texture
 
 log = logging.getLogger(__name__)
 
@@ -60,7 +60,13 @@ def bsdf_dict(desc: SceneDescription, base_dir: Path | None) -> tuple[dict, dict
     else:
         rough, arrays["roughness"] = _texture_dict(mat.roughness, base_dir)
         metal, arrays["metallic"] = _texture_dict(mat.metallic, base_dir)
-        d = {"type": "principled", "base_color": base, "roughness": rough, "metallic": metal, "specular": float(mat.specular)}
+        d = {
+            "type": "principled",
+            "base_color": base,
+            "roughness": rough,
+            "metallic": metal,
+            "specular": float(mat.specular),
+        }
     if mat.normal_map or mat.detail is not None:
         if mat.normal_map:
             nm_arr = realize_texture(TextureDesc(kind="file", value=[0.5, 0.5, 1.0], file=mat.normal_map), base_dir)
@@ -139,7 +145,12 @@ def sensor_dict(desc: SceneDescription, spp: int) -> dict:
     }
     sampler = {"type": desc.render.sampler, "sample_count": spp}
     if cam.kind == "orthographic":
-        return {"type": "orthographic", "to_world": look @ T().scale([cam.half_size, cam.half_size, 1.0]), "film": film, "sampler": sampler}
+        return {
+            "type": "orthographic",
+            "to_world": look @ T().scale([cam.half_size, cam.half_size, 1.0]),
+            "film": film,
+            "sampler": sampler,
+        }
     return {"type": "perspective", "to_world": look, "fov": cam.fov, "fov_axis": "x", "film": film, "sampler": sampler}
 
 
@@ -173,8 +184,15 @@ def build_scene(desc: SceneDescription, base_dir: str | Path | None = None, bsdf
     # optimize=False: Mitsuba's shape merging orders area lights by memory address, which would make the emitter
     # order (hence the noise pattern) depend on what the process allocated before.
     loaded = mi.load_dict(scene, optimize=False)
-    built = BuiltScene(desc=desc, scene=loaded, params=mi.traverse(loaded), slots=slots, textures=arrays, environment=env_arr,
-                       off_slots=set(slot_entries))
+    built = BuiltScene(
+        desc=desc,
+        scene=loaded,
+        params=mi.traverse(loaded),
+        slots=slots,
+        textures=arrays,
+        environment=env_arr,
+        off_slots=set(slot_entries),
+    )
     built.apply_image(0)
     return built
 

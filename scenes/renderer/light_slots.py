@@ -16,8 +16,16 @@ from typing import Any, Callable
 
 import numpy as np
 
-from scenes.lights import (LIGHT_TYPES, AreaLight, DirectionalLight, EnvironmentLight, LightDesc, PointLight,
-                           UniformLight, light_class)
+from scenes.lights import (
+    LIGHT_TYPES,
+    AreaLight,
+    DirectionalLight,
+    EnvironmentLight,
+    LightDesc,
+    PointLight,
+    UniformLight,
+    light_class,
+)
 from scenes.renderer.variant import require_variant
 
 PARK_POSITION = [0.0, 1.0e5, 0.0]  # where unused area lights wait: far above, invisibly small

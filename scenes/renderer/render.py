@@ -19,8 +19,8 @@ import numpy as np
 
 from scenes.geometry import camera_rotation
 from scenes.renderer.build import BuiltScene
-from scenes.textures import sample_texture
 from scenes.renderer.variant import require_variant
+from scenes.textures import sample_texture
 
 log = logging.getLogger(__name__)
 
@@ -183,7 +183,9 @@ def render_ground_truth(built: BuiltScene, spp: int | None = None) -> GroundTrut
 
     def lookup(name: str, channels: int) -> np.ndarray:
         arr = built.textures[name]
-        vals = arr[0, 0] * np.ones(uv.shape[:2] + (arr.shape[2],)) if arr.shape[:2] == (1, 1) else sample_texture(arr, uv)
+        vals = (
+            arr[0, 0] * np.ones(uv.shape[:2] + (arr.shape[2],)) if arr.shape[:2] == (1, 1) else sample_texture(arr, uv)
+        )
         vals = np.where(hit[..., None], vals, 0.0)
         return vals[..., :channels] if channels > 1 else vals[..., 0]
 

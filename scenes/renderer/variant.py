@@ -49,10 +49,14 @@ def choose_variant(requested: str | None = None) -> str:
         requested = None
     if requested:
         if requested not in PREFERENCE:
-            raise ValueError(f"--variant: {requested!r} is not supported, expected auto or one of {', '.join(PREFERENCE)} "
-                             "(the scenes use RGB colours)")
+            raise ValueError(
+                f"--variant: {requested!r} is not supported, expected auto or one of {', '.join(PREFERENCE)} "
+                "(the scenes use RGB colours)"
+            )
         if requested not in mi.variants():
-            raise ValueError(f"--variant: {requested!r} is not built into this Mitsuba, expected one of {', '.join(mi.variants())}")
+            raise ValueError(
+                f"--variant: {requested!r} is not built into this Mitsuba, expected one of {', '.join(mi.variants())}"
+            )
         if not _usable(requested):
             hint = f"; {LLVM_FIX}" if requested.startswith("llvm") else ""
             raise ValueError(f"--variant: {requested!r} cannot run on this machine{hint}")
@@ -60,7 +64,9 @@ def choose_variant(requested: str | None = None) -> str:
     for variant in PREFERENCE:
         if _usable(variant):
             if variant.startswith("scalar"):
-                warnings.warn(f"Mitsuba falls back to the slow scalar_rgb variant: {LLVM_FIX}", RuntimeWarning, stacklevel=2)
+                warnings.warn(
+                    f"Mitsuba falls back to the slow scalar_rgb variant: {LLVM_FIX}", RuntimeWarning, stacklevel=2
+                )
             return variant
     raise RuntimeError("no usable Mitsuba variant among " + ", ".join(PREFERENCE))
 
@@ -91,7 +97,9 @@ def require_variant() -> Any:
     import mitsuba as mi
 
     if mi.variant() is None:
-        raise RuntimeError("no Mitsuba variant is set: call scenes.renderer.variant.choose_variant() in the entry point")
+        raise RuntimeError(
+            "no Mitsuba variant is set: call scenes.renderer.variant.choose_variant() in the entry point"
+        )
     return mi
 
 
@@ -114,5 +122,7 @@ def require_ad_variant() -> Any:
 
     v = mi.variant()
     if v is None or "_ad_" not in v:
-        raise ValueError(f"--variant: fitted mode needs llvm_ad_rgb or cuda_ad_rgb (automatic differentiation), got {v!r}")
+        raise ValueError(
+            f"--variant: fitted mode needs llvm_ad_rgb or cuda_ad_rgb (automatic differentiation), got {v!r}"
+        )
     return mi

@@ -12,8 +12,16 @@ from .builder import convert_official, create_model, load_model, load_official, 
 from .config import GLCConfig
 from .glc import GLCUniPS
 from .official import OfficialWeights
-from .registry import (Pretrained, list_models, list_pretrained, model_inputs, official_entry, pretrained_entry,
-                       pretrained_weights, register_model)
+from .registry import (
+                       Pretrained,
+                       list_models,
+                       list_pretrained,
+                       model_inputs,
+                       official_entry,
+                       pretrained_entry,
+                       pretrained_weights,
+                       register_model,
+)
 from .sdm import SDMUniPS
 from .sdm_config import SDMConfig
 from .unips22 import UniPS22

@@ -51,7 +51,9 @@ def create_model(name: str, pretrained: bool = False, checkpoint_path: str | Pat
     if is_official_path(path):
         return load_official(name, path, device, **overrides)
     if overrides:
-        raise ValueError(f"overrides {', '.join(sorted(overrides))}: not allowed with weights (the file holds the config)")
+        raise ValueError(
+            f"overrides {', '.join(sorted(overrides))}: not allowed with weights (the file holds the config)"
+        )
     model, meta = load_model(path, map_location=device)
     if meta.get("model_name") != name:
         raise ValueError(f"checkpoint_path: {str(path)!r} holds model {meta.get('model_name')!r}, not {name!r}")

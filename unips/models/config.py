@@ -6,7 +6,6 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any, Mapping
 
-
 # Decoder pixel-token kinds and their channel counts (see GLCConfig.pixel_token).
 PIXEL_TOKENS = {"rgb": 3, "normalized": 6}
 
