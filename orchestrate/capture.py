@@ -88,6 +88,9 @@ class CaptureOptions:
     """Let the refinement search a global tilt of the normals (validate.refine --rotation-search)."""
     threads: Annotated[int | None, arg(help_behavior_hint="(default: one per core)")] = option(None, minimum=1)
     """Dr.Jit threads of the check and the refinement (1: byte-identical run to run)."""
+    keep_work: bool = False
+    """Also write the scaled photos and the mask as an object folder, OUT/work/<name>.data (16-bit PNG), for other
+    commands to read; the command itself works on them in memory."""
     overwrite: bool = False
     """Replace the outputs of an earlier run in --out."""
 
@@ -178,38 +181,46 @@ def _to_convention(n: np.ndarray, convention: str) -> np.ndarray:
     return (n * CONVENTIONS[convention]).astype(np.float32)
 
 
-def predict(opts: CaptureOptions, work: Path) -> np.ndarray:
-    from scenes.folder.layouts import read_folder
-    from unips.data import object_from_folder
+def predict(opts: CaptureOptions, shot: Shot, images: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """The model's map (H, W, 3) of the capture's images (linear, scaled to 1 at the brightest mask value)."""
+    from unips.data import PSObject
     from unips.inference import load_network, run_model
 
     net = load_network(opts.checkpoint, model=opts.model)
-    return run_model(net, object_from_folder(read_folder(work, arg="--input")))
+    obj = PSObject(name=shot.name, images=images, mask=mask, normals=None, light_family=None, light_directions=None,
+                   light_intensities=None, path=Path(opts.input), layout="memory", image_names=shot.names)
+    return run_model(net, obj)
 
 
-def check_and_refine(
-    opts: CaptureOptions, work: Path, out: Path, normals: np.ndarray
-) -> tuple[np.ndarray, dict, dict | None]:
-    """The fitted check of the model's map, and the refinement where the check trusts the capture: (final map,
-    check report, refine report or None)."""
+def check_and_refine(opts: CaptureOptions, shot: Shot, images: np.ndarray, mask: np.ndarray, out: Path,
+                     normals: np.ndarray) -> tuple[np.ndarray, dict, dict | None]:
+    """The fitted check of the model's map, and the refinement where the check trusts the capture, on one judged
+    capture held in memory (read, reduced and explained once; the model map's fit made once for both): (final map,
+    float, check report, refine report or None). Their reports and figures go to OUT/check/ and OUT/refine/."""
     from dataclasses import replace
 
     from scenes.renderer.variant import choose_variant, set_jit_threads
-    from validate.fit_report import rerender_fitted
-    from validate.refine import RefineConfig, refine_object
+    from validate.capture import capture_from_arrays, unit_normals
+    from validate.fit_report import judge, rerender_fitted
+    from validate.fit_scene import FitConfig
+    from validate.judgeable import check_judgeable
+    from validate.refine import RefineConfig, refine_judged, write_refined
 
     choose_variant(None)
     set_jit_threads(opts.threads)
-    check = rerender_fitted(str(work), normals, out_dir=str(out / "check"), overwrite=True)
+    cap = capture_from_arrays(shot.name, images, mask, shot.names, shot.saturated, opts.input)
+    config = FitConfig()
+    jc = judge(cap, unit_normals(normals, mask), config, "check")
+    check = rerender_fitted(jc, config=config, out_dir=str(out / "check"), overwrite=True)  # claimed by run()
     if not (opts.refine and check["trusted"]):
         return normals, check, None
-    refined = refine_object(str(work), normals, replace(RefineConfig(), rotation_search=opts.rotation_search),
-                            out_dir=str(out / "refine"), overwrite=True)
-    if not refined["accepted"]:
-        return normals, check, refined
-    from scenes.images import read_normals
-
-    return read_normals(out / "refine" / work.name.removesuffix(".data") / "normal.png"), check, refined
+    try:
+        check_judgeable(jc.small, "refine")
+    except ValueError as exc:  # the check can judge, the refinement needs more (images with lit pixels)
+        return normals, check, {"accepted": False, "why": f"not run: {str(exc).removeprefix('--data: ')}"}
+    refined, final = refine_judged(jc, replace(RefineConfig(), rotation_search=opts.rotation_search).validate())
+    write_refined(out / "refine" / shot.name, final, refined)
+    return (final if refined["accepted"] else normals), check, refined
 
 
 def verdict(check: dict, refined: dict | None) -> dict:
@@ -291,7 +302,9 @@ def estimate(k: int, h: int, w: int) -> dict:
     """The command's peak memory (MiB) and time (s, on 2 cores) for K photos of h x w, before it runs
     (bench_capture compares them with what it measures)."""
     values = k * h * w * 3
-    refine = SECONDS_REFINE if k >= 5 else 0.0
+    from validate.judgeable import MIN_IMAGES
+
+    refine = SECONDS_REFINE if k >= MIN_IMAGES["refine"] else 0.0
     return {"peak_mib": round(BASE_MIB + MIB_PER_IMAGE * k + MIB_PER_MVALUE * values / 2**20),
             "seconds": round(SECONDS_BASE + refine + SECONDS_PER_IMAGE * k + SECONDS_PER_MVALUE * values / 1e6, 1)}
 
@@ -308,6 +321,8 @@ def check_resources(k: int, h: int, w: int) -> dict:
 
 def run(opts: CaptureOptions) -> dict:
     """The whole command (main without the error handling); returns report.json's content."""
+    from validate.fit_report import CHECK_OUTPUTS
+    from validate.refine import REFINE_OUTPUTS
     from validate.usable import as_dicts, capture_warnings, image_count_warning
 
     t0, times = time.perf_counter(), {}
@@ -316,6 +331,9 @@ def run(opts: CaptureOptions) -> dict:
     claim_outputs([out / n for n in OUTPUTS], opts.overwrite, owner="orchestrate.capture")
     need = check_resources(*probe_input(opts))
     shot = read_input(opts)
+    stages = {"check": [out / "check" / shot.name / n for n in CHECK_OUTPUTS],
+              "refine": [out / "refine" / shot.name / n for n in REFINE_OUTPUTS]}
+    claim_outputs([p for paths in stages.values() for p in paths], opts.overwrite, owner="orchestrate.capture")
     times["read_s"] = time.perf_counter() - t0
     count = image_count_warning(len(shot.images))
     if count and count.fatal:  # before the mask: two photos say nothing about one
@@ -327,13 +345,18 @@ def run(opts: CaptureOptions) -> dict:
     for w in warnings:
         print(f"warning: {w.code}: {w.message}", file=sys.stderr)
     times["mask_and_checks_s"] = time.perf_counter() - t0 - times["read_s"]
+    # One scale for every photo (their relative exposures are kept): the brightest mask value becomes 1, as the
+    # model expects; the clipped channels stay those the files said (shot.saturated), not re-derived from values.
     scale = 1.0 / max(float(shot.images[:, mask].max()), 1e-12)
-    work = write_object_folder(out / "work" / f"{shot.name}.data", np.clip(shot.images * scale, 0, 1), mask, None)
+    images = np.clip(shot.images * scale, 0, 1).astype(np.float32)
+    work = None
+    if opts.keep_work:
+        work = write_object_folder(out / "work" / f"{shot.name}.data", images, mask, None)
     t1 = time.perf_counter()
-    model_map = predict(opts, work)
+    model_map = predict(opts, shot, images, mask)
     times["predict_s"] = time.perf_counter() - t1
     t1 = time.perf_counter()
-    final, check, refined = check_and_refine(opts, work, out, model_map)
+    final, check, refined = check_and_refine(opts, shot, images, mask, out, model_map)
     times["check_and_refine_s"] = time.perf_counter() - t1
     final = np.where(mask[..., None], final, 0.0)
     write_normal_map(out / "normal.png", _to_convention(final, opts.convention))
@@ -353,8 +376,9 @@ def run(opts: CaptureOptions) -> dict:
                           "source": "refined" if refined and refined.get("accepted") else "model"},
               "verdict": verdict(check, refined),
               "stages": {"check": "check/" + shot.name + "/report.json",
-                         "refine": ("refine/" + shot.name + "/refine_report.json") if refined else None,
-                         "work_folder": str(work.relative_to(out))},
+                         "refine": ("refine/" + shot.name + "/refine_report.json") if refined and "mode" in refined
+                         else None,
+                         "work_folder": str(work.relative_to(out)) if work else None},
               "timings": times, "estimate": need,
               "peak_memory_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
     atomic_write_text(out / "report.json", json.dumps(_plain(report), indent=1, allow_nan=False) + "\n")

@@ -7,7 +7,7 @@ decided by the images. Only what the Lambertian model lacks (a specular lobe, an
 can break the tie. So instead of trusting one map of the family, the check fits two transforms of the judged
 map, each started from the transformed fit (lights d' = G d, albedo times |G^-T n|, where the Lambertian part
 is exactly as good as the map's; the better of that start and a short fit from it), and reports whether they
-score worse by at least `validate.verdict.SEPARATION` (or `TIE_FLOOR`, whichever is larger). When they do not,
+score worse by more than `validate.verdict.TIES['bas_relief']`. When they do not,
 the report says that the images cannot decide the map's depth scale or tilt: the score judges the map up to that
 family.
 
@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from validate.verdict import SEPARATION, TIE_FLOOR, Explanation, judged_rel_l1
+from validate.verdict import TIES, Explanation, judged_rel_l1
 
 VARIANTS = ((0.7, 0.0, 0.0), (1.0, 0.2, 0.0))
 """(lambda, mu, nu) of the transforms tested: a flatter relief, and a tilt about the y axis (about 11 degrees at
@@ -74,9 +74,9 @@ def bas_relief_test(images: np.ndarray, mask: np.ndarray, normals: np.ndarray, f
         cos = np.clip(np.sum(nv[mask] * normals[mask], 1), -1, 1)
         rows.append({"lambda": lam, "mu": mu, "nu": nu, "mean_angle_deg": float(np.degrees(np.arccos(cos)).mean()),
                      "judged_rel_l1": score, "relative_change": score / judged - 1 if judged > 0 else float("nan")})
-    tied = lambda r: abs(r["judged_rel_l1"] - judged) < max(SEPARATION * judged, TIE_FLOOR)  # noqa: E731
-    ties = [r for r in rows if tied(r)]
-    better = [r for r in rows if not tied(r) and r["judged_rel_l1"] < judged]
+    tie = TIES["bas_relief"]
+    ties = [r for r in rows if tie.same(judged, r["judged_rel_l1"])]
+    better = [r for r in rows if not tie.same(judged, r["judged_rel_l1"]) and r["judged_rel_l1"] < judged]
     if better:
         note = ("a bas-relief transform of the map scores better than the tie tolerance"
                 ": the map's depth scale or tilt is not the one the images prefer")
@@ -90,7 +90,7 @@ def bas_relief_test(images: np.ndarray, mask: np.ndarray, normals: np.ndarray, f
         note = ("every bas-relief transform tested scores worse by more than the tie tolerance: the images (specular "
                 "lobe, ambient, shadows) decide the depth scale and tilt here")
     return {"family": "generalized bas-relief", "tested": True, "variants": rows, "separated": not ties and not better,
-            "tolerance": {"relative": SEPARATION, "absolute": TIE_FLOOR}, "note": note}
+            "tolerance": {"relative": tie.relative, "absolute": tie.absolute}, "note": note}
 
 
 def not_tested(why: str) -> dict:

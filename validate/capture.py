@@ -33,7 +33,7 @@ class Capture:
     folder: Path
     """The object folder."""
     layout: str
-    """One of `scenes.folder.layouts.LAYOUTS`."""
+    """One of `scenes.folder.layouts.LAYOUTS`, or "memory" for a capture built from arrays."""
     images: np.ndarray
     """(K, H, W, 3) float32 linear images (DiLiGenT: divided by the light intensities)."""
     mask: np.ndarray
@@ -72,6 +72,35 @@ def unit_normals(n: np.ndarray, mask: np.ndarray, what: str = "--normals") -> np
         log.warning("%s: %d pixels inside the mask have no normal; using (0, 0, 1) there", what, int(missing.sum()))
         out[missing] = np.float32([0.0, 0.0, 1.0])
     return out
+
+
+def capture_from_arrays(
+    name: str,
+    images: np.ndarray,
+    mask: np.ndarray,
+    image_names: list[str],
+    saturated: np.ndarray | None = None,
+    folder: str | Path = ".",
+) -> Capture:
+    """A capture held in memory (no object folder on disk): linear images (K, H, W, 3), mask (H, W), and the
+    clipped channels (K, H, W, 3) kept exactly as given, so that a channel clipped in the photo stays a lower
+    bound whatever scaling the images went through (codes re-derived from a rescaled file would not say it)."""
+    k = len(images)
+    if images.ndim != 4 or images.shape[-1] != 3 or images.shape[1:3] != mask.shape:
+        raise ValueError(f"images: shape {images.shape} with mask {mask.shape}, expected (K, H, W, 3) and (H, W)")
+    if saturated is not None and saturated.shape != images.shape:
+        raise ValueError(f"saturated: shape {saturated.shape}, expected that of the images {images.shape}")
+    if len(image_names) != k:
+        raise ValueError(f"image_names: {len(image_names)} names for {k} images")
+    return Capture(
+        name=name,
+        folder=Path(folder),
+        layout="memory",
+        images=np.asarray(images, np.float32),
+        mask=np.asarray(mask, bool),
+        image_names=list(image_names),
+        saturated=saturated if saturated is not None and saturated.any() else None,
+    )
 
 
 def load_with_normals(folder: str | Path, normals: str | Path | np.ndarray) -> tuple[Capture, np.ndarray, str]:

@@ -3,15 +3,16 @@
 The verdict (`trusted`, `why`, `explained_fraction`, `explained.png`) and the observations of `judged_rel_l1` come
 from the images alone (`validate.verdict`), so every map of a capture is judged on the same observations; the
 check abstains (trusted false) where the images are not explained by the physics it can model.
-Reference levels beside the score `rel_l1`: `noise_rel_l1` (the image noise estimated from the data), and
+Reference levels beside the score `rel_l1`: `noise_rel_l1` (the image noise, `validate.verdict.noise_rel_l1`), and
 `floor_rel_l1`, the score the same fit (same budget, same seed) reaches with a normal map that carries no
 information (constant (0, 0, 1), optionally also a silhouette-only map): a normal map scoring at or above
 the floor explains nothing.
 """
 from __future__ import annotations
 
+import hashlib
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -21,28 +22,14 @@ from scenes.renderer.variant import jit_threads, require_ad_variant
 from validate import heightfield
 from validate.ambiguity import bas_relief_test, not_tested
 from validate.capture import Capture
-from validate.fit import FitResult, fit_normals, prepare
+from validate.fit import FitResult, choose_downsample, fit_normals, prepare
 from validate.fit_scene import FitConfig, Progress
 from validate.judgeable import check_judgeable
-from validate.verdict import Explanation, channel_noise_sigmas, explain, judged_rel_l1, told_apart, verdict
+from validate.verdict import Explanation, explain, judged_rel_l1, noise_rel_l1, told_apart, verdict
 
 RESOLUTION_NOTE = ("two judged scores of this capture closer than `resolution` are not told apart by the images: "
                    "a map fitted against the score (refined) can sit that far below the true surface, absorbing what "
                    "the physics lacks; compare maps by score only outside it")
-
-
-def estimate_noise_rel_l1(images: np.ndarray, mask: np.ndarray) -> float:
-    """Image noise as a relative L1 level: the mean of the per-channel noise standard deviations sigma inside the
-    (eroded) mask (`validate.verdict.channel_noise_sigmas`), turned into the mean absolute value of Gaussian
-    noise sigma * sqrt(2 / pi), divided by the mean input over the mask. images (K, H, W, 3)."""
-    from scipy.ndimage import binary_erosion
-
-    inner = binary_erosion(mask, iterations=2)
-    if inner.sum() < 16:
-        return float("nan")
-    sigma = float(np.mean([s * np.sqrt(np.pi / 2) * 0.7979 for s in channel_noise_sigmas(images, inner)]))
-    denom = float(np.abs(images[:, mask]).mean())
-    return sigma * np.sqrt(2 / np.pi) / denom if denom > 0 else float("nan")
 
 
 def no_information_maps(mask: np.ndarray, kinds: tuple[str, ...]) -> dict[str, np.ndarray]:
@@ -69,10 +56,22 @@ def _scatter(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return out
 
 
+NOT_FITTED = ("floor_maps", "bas_relief")
+"""Fields of a fit configuration that the fit around one map does not read (only the check's extra fits do):
+two configurations differing only there give the same fit."""
+
+
+def _fit_key(normals: np.ndarray, config: FitConfig) -> tuple:
+    """What decides a fit of one capture: the map's bytes and every configuration field the fit reads."""
+    fields = tuple((k, repr(v)) for k, v in sorted(asdict(config).items()) if k not in NOT_FITTED)
+    return hashlib.sha256(np.ascontiguousarray(normals, np.float32).tobytes()).hexdigest(), fields
+
+
 @dataclass
 class JudgedCapture:
-    """A capture and its normal map, prepared for fitting, with the verdict of its images: the start that the
-    fitted check (`rerender_fitted`) and refinement (`validate.refine.refine_object`) share."""
+    """A capture and its normal map, prepared for fitting, with the verdict of its images: what the fitted check
+    (`check_judged`) and the refinement (`validate.refine.refine_judged`) share, so a capture is read, reduced and
+    explained once, and a fit they both need (the input map's, same configuration) is made once."""
 
     cap: Capture
     """The capture as read (full resolution)."""
@@ -91,8 +90,8 @@ class JudgedCapture:
     trusted: bool
     why: str
     """The verdict (`validate.verdict.verdict`)."""
-    target: Path | None
-    """`out_dir/<object>`, its outputs claimed, or None without out_dir."""
+    fits: dict = field(default_factory=dict, repr=False)
+    """Fits made so far, by `_fit_key`: the same fit asked twice is made once."""
 
     @property
     def observed(self) -> np.ndarray:
@@ -103,31 +102,55 @@ class JudgedCapture:
         self, normals: np.ndarray, config: FitConfig, progress: Progress | None, label: str
     ) -> tuple[FitResult, float]:
         """Fit lights and reflectance around `normals` (fitting resolution) held fixed: (the fit, its judged
-        rel_l1 on the observations every map of the capture shares)."""
-        s = self.small
-        res = fit_normals(s.images, s.mask, normals, config, progress, label, s.saturated)
-        return res, judged_rel_l1(res.render, self.observed, self.explanation)
+        rel_l1 on the observations every map of the capture shares). Deterministic for a given map and
+        configuration, so a second request returns the first fit."""
+        key = _fit_key(normals, config)
+        if key not in self.fits:
+            s = self.small
+            res = fit_normals(s.images, s.mask, normals, config, progress, label, s.saturated)
+            self.fits[key] = res, judged_rel_l1(res.render, self.observed, self.explanation)
+        return self.fits[key]
+
+    def check_fit(self, config: FitConfig) -> None:
+        """Refuse a configuration that would reduce the capture otherwise than it was (the shared start holds for
+        one fitting resolution)."""
+        f = config.downsample or choose_downsample(self.cap.mask, config.max_pixels)
+        if f != self.downsample:
+            raise ValueError(f"config: fits at 1/{f} resolution, the judged capture was reduced to 1/{self.downsample}")
 
 
-def judge_capture(folder: str, normals: str | np.ndarray, config: FitConfig, use: str, out_dir: str | None,
-                  outputs: tuple[str, ...], owner: str, overwrite: bool) -> JudgedCapture:
-    """Read an object folder (any layout) and its normal map, claim `out_dir/<object>/outputs` for `owner`,
-    reduce both to the fitting resolution, check that the images can judge (`validate.judgeable`, for `use`)
-    before any fitting, and explain them (the verdict)."""
-    from validate.capture import load_with_normals
-
-    cap, full, source = load_with_normals(folder, normals)
-    target = None
-    if out_dir is not None:
-        from scenes.cli.outputs import claim_outputs
-
-        target = Path(out_dir) / cap.name
-        claim_outputs([target / name for name in outputs], overwrite, owner=owner)
+def judge(cap: Capture, full: np.ndarray, config: FitConfig, use: str, source: str = "array") -> JudgedCapture:
+    """A capture (read from a folder or built from arrays) and its normal map (H, W, 3, already checked:
+    `validate.capture.unit_normals`), both reduced to the fitting resolution, the images checked to be judgeable
+    for `use` (`validate.judgeable`) before any fitting, and explained (the verdict)."""
     small, n_small, f = prepare(cap, full, config)
     check_judgeable(small, use)  # before any fitting: enough images and lit pixels
     ex = explain(small.images, small.mask, small.saturated)  # from the images alone: the same for every map
     trusted, why = verdict(ex)
-    return JudgedCapture(cap, full, source, small, n_small, f, ex, trusted, why, target)
+    return JudgedCapture(cap, full, source, small, n_small, f, ex, trusted, why)
+
+
+def judge_capture(folder: str, normals: str | np.ndarray, config: FitConfig, use: str, out_dir: str | None,
+                  outputs: tuple[str, ...], owner: str, overwrite: bool) -> tuple[JudgedCapture, Path | None]:
+    """Read an object folder (any layout, once) and its normal map, claim `out_dir/<object>/outputs` for `owner`,
+    then `judge`: (the judged capture, the claimed target or None)."""
+    from validate.capture import load_with_normals
+
+    cap, full, source = load_with_normals(folder, normals)
+    target = claim_target(out_dir, cap.name, outputs, owner, overwrite)
+    return judge(cap, full, config, use, source), target
+
+
+def claim_target(out_dir: str | Path | None, name: str, outputs: tuple[str, ...], owner: str,
+                 overwrite: bool) -> Path | None:
+    """`out_dir/<name>` with its `outputs` claimed for `owner` (the one --overwrite rule), or None without out_dir."""
+    if out_dir is None:
+        return None
+    from scenes.cli.outputs import claim_outputs
+
+    target = Path(out_dir) / name
+    claim_outputs([target / n for n in outputs], overwrite, owner=owner)
+    return target
 
 
 def provenance(mi: Any) -> dict:
@@ -135,25 +158,42 @@ def provenance(mi: Any) -> dict:
     return {"variant": mi.variant(), "jit_threads": jit_threads()}
 
 
+CHECK_OUTPUTS = ("report.json", "figure.png", "explained.png")
+"""What the fitted check writes into <out>/<object>/."""
+
+
 def rerender_fitted(
-    folder: str,
-    normals: str | np.ndarray,
+    data: str | JudgedCapture,
+    normals: str | np.ndarray | None = None,
     config: FitConfig | None = None,
     out_dir: str | None = None,
     progress: Progress | None = None,
     overwrite: bool = False,
 ) -> dict:
-    """Fitted mode of the re-render check for one object folder (any layout); returns the report and
-    writes `out_dir/<object>/report.json` and `figure.png` when out_dir is given."""
+    """Fitted mode of the re-render check for one object folder (any layout) and its `normals`, or for a capture
+    already judged (`judge`: in memory, shared with a refinement); returns the report and writes
+    `out_dir/<object>/report.json`, `figure.png` and `explained.png` when out_dir is given."""
+    config = (config or FitConfig()).validate()
+    require_ad_variant()
+    if isinstance(data, JudgedCapture):
+        data.check_fit(config)
+        jc, target = data, claim_target(out_dir, data.cap.name, CHECK_OUTPUTS, "validate.rerender", overwrite)
+    else:
+        jc, target = judge_capture(data, normals, config, "check", out_dir, CHECK_OUTPUTS, "validate.rerender",
+                                   overwrite)
+    report, res = check_judged(jc, config, progress)
+    if target is not None:
+        _write_fitted(jc, target, res, report)
+    return report
+
+
+def check_judged(jc: JudgedCapture, config: FitConfig, progress: Progress | None = None) -> tuple[dict, FitResult]:
+    """The fitted check of a judged capture's map: (report, the fit of the map)."""
     from scenes.metrics import mean_angular_error as mae_deg
     from validate.light_models import angular_errors_deg, directions_of
 
-    config = (config or FitConfig()).validate()
     mi = require_ad_variant()
     t0 = time.perf_counter()
-    jc = judge_capture(
-        folder, normals, config, "check", out_dir, ("report.json", "figure.png"), "validate.rerender", overwrite
-    )
     cap, small, n_small, ex, trusted = jc.cap, jc.small, jc.normals, jc.explanation, jc.trusted
     res, judged = jc.score(n_small, config, progress, "fit")
     floors, judged_floors = {}, {}
@@ -191,7 +231,7 @@ def rerender_fitted(
         "light_dimension_noise_units": [round(d, 2) for d in ex.dimensions],
         "ambiguity": ambiguity,
         "rel_l1": res.rel_l1,
-        "noise_rel_l1": finite(estimate_noise_rel_l1(small.images, small.mask)),
+        "noise_rel_l1": finite(noise_rel_l1(ex, jc.observed)),
         "floor_rel_l1": min(floors.values()) if floors else None,
         "floors": floors,
         "mae_deg": mae_deg(n_small, small.normal_gt, small.mask) if small.normal_gt is not None else None,
@@ -220,12 +260,10 @@ def rerender_fitted(
             "max": float(err.max()),
         }
     report["timings"] = {"fit_s": res.seconds, "total_s": time.perf_counter() - t0}
-    if jc.target is not None:
-        _write_fitted(jc, res, report)
-    return report
+    return report, res
 
 
-def _write_fitted(jc: JudgedCapture, res: FitResult, report: dict) -> None:
+def _write_fitted(jc: JudgedCapture, target: Path, res: FitResult, report: dict) -> None:
     """report.json, figure.png and explained.png of the fitted check into `jc.target`."""
     import json
 
@@ -236,7 +274,7 @@ def _write_fitted(jc: JudgedCapture, res: FitResult, report: dict) -> None:
     from validate.figures import explained_picture, rerender_figure
     from validate.metrics import relative_residual_map
 
-    small, n_small, ex, target = jc.small, jc.normals, jc.explanation, jc.target
+    small, n_small, ex = jc.small, jc.normals, jc.explanation
     target.mkdir(parents=True, exist_ok=True)
     renders = _scatter(res.render, small.mask)
     k = renders.shape[0]

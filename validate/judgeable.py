@@ -25,9 +25,16 @@ import numpy as np
 
 from validate.capture import Capture
 
-MIN_IMAGES = {"check": 3, "refine": 5}
-"""Fewest informative images per use: "check", the fitted re-render check (`validate.fit_report`), and
-"refine", refinement (`validate.refine`, fitted or calibrated lights); see the module doc."""
+MIN_IMAGES = {
+    "photos": 3,  # fewer do not determine a normal (three unknowns per pixel): a capture is refused
+    "advised": 6,  # below, a warning: unknown light needs more views than the three of calibrated stereo
+    "check": 3,  # the fitted re-render check runs (informative images)
+    "verdict": 5,  # a pixel needs this many unshadowed observations for the check to trust it (4 unknowns + 1)
+    "refine": 5,  # refinement runs (informative images)
+    "holdout": 5,  # refinement holds images out for early stopping from this many on
+}
+"""The one table of image counts: the fewest images each use needs (informative ones for "check" and "refine",
+see the module doc; measured by `bench/bench_min_images.py`, docs/check.md "What can be judged")."""
 MIN_LIT_PIXELS = 8
 """Fewest lit, unsaturated mask pixels (at the fitting resolution) that make an image informative: the
 smallest count measured (a 4 px sphere), and about the unknowns of one image's light (direction 2, RGB
@@ -75,8 +82,8 @@ def check_judgeable(cap: Capture, use: str, arg: str = "--data") -> None:
     "check") or refinement ("refine") cannot judge a normal map on `cap`, a capture at the fitting resolution:
     fewer images than `MIN_IMAGES[use]`, non-finite values, every image black, constant, or saturated
     wherever it is lit, or fewer informative images (see the module doc) than `MIN_IMAGES[use]`."""
-    if use not in MIN_IMAGES:
-        raise ValueError(f"use: unknown use {use!r}, expected one of {', '.join(MIN_IMAGES)}")
+    if use not in ("check", "refine"):
+        raise ValueError(f"use: unknown use {use!r}, expected check or refine")
     k, least = len(cap.images), MIN_IMAGES[use]
     what = "the fitted check" if use == "check" else "refinement"
     need = (f"{what} needs at least {least} images with at least {MIN_LIT_PIXELS} lit, unsaturated mask pixels "

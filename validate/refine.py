@@ -39,18 +39,23 @@ from scenes.cli.outputs import check_output_folder, claim_outputs
 from scenes.cli.progress import progress_bar
 from scenes.renderer.variant import require_ad_variant
 from validate.fit import fit_normals, run_fit
-from validate.fit_report import full_config_dict, judge_capture, provenance, saturated_fraction
+from validate.fit_report import (
+    JudgedCapture,
+    claim_target,
+    full_config_dict,
+    judge_capture,
+    provenance,
+    saturated_fraction,
+)
 from validate.fit_scene import FitConfig, FitScene, Progress, lambertian_start, to_jit
+from validate.judgeable import MIN_IMAGES, check_judgeable
 from validate.regulariser import make_regulariser
 from validate.rotation_search import search_rotation
-from validate.verdict import SEPARATION, judged_rel_l1, told_apart
+from validate.verdict import TIES, judged_rel_l1, told_apart
 
 log = logging.getLogger(__name__)
 
 LIGHT_SOURCES = ("fitted", "calibrated")
-MIN_GAIN = SEPARATION
-"""A refinement is accepted only when the judged residual (observations every map shares, `validate.verdict`)
-falls by at least this fraction; otherwise the input map is kept."""
 REFINE_OUTPUTS = ("normal.png", "refine_report.json")
 """What refinement writes into <out>/<object>/."""
 
@@ -178,8 +183,9 @@ def refine_normals(
         return lambda with_normals: [(n, v) for n, v in base_list(with_normals) if n not in exclude]
 
     k = fs.k
-    n_hold = int(round(config.holdout_fraction * k)) if k >= 5 else 0
-    n_hold = max(n_hold, 1) if k >= 5 and config.holdout_fraction > 0 else n_hold
+    enough = k >= MIN_IMAGES["holdout"]
+    n_hold = int(round(config.holdout_fraction * k)) if enough else 0
+    n_hold = max(n_hold, 1) if enough and config.holdout_fraction > 0 else n_hold
     holdout = np.sort(fs.rng.choice(k, size=n_hold, replace=False)) if n_hold else np.zeros(0, np.int64)
     best = {"score": np.inf, "normals": fs.n_np.copy(), "step": 0}
     curve: list[tuple[int, float]] = []
@@ -272,7 +278,7 @@ def upsample_change(
     return np.where(mask_full[..., None], n, 0).astype(np.float32)
 
 
-def _declined(jc: Any, mae_in: float | None, t0: float) -> dict:
+def _declined(jc: JudgedCapture, mae_in: float | None, t0: float) -> dict:
     """The report (written with the input map) of a capture the check does not judge."""
     report = {
         "mode": "refine",
@@ -288,30 +294,45 @@ def _declined(jc: Any, mae_in: float | None, t0: float) -> dict:
         "after": {"mae_deg": mae_in},
         "timings": {"total_s": time.perf_counter() - t0},
     }
-    _write_refined(jc.target, jc.full, report)
     return report
 
 
 def refine_object(
-    folder: str,
-    normals: str | np.ndarray,
+    data: str | JudgedCapture,
+    normals: str | np.ndarray | None = None,
     config: RefineConfig | None = None,
     out_dir: str | None = None,
     progress: Progress | None = None,
     overwrite: bool = False,
 ) -> dict:
-    """Refine the normal map of one object folder; write normal.png and refine_report.json under out_dir/<object>/."""
+    """Refine the normal map of one object folder (or of a capture already judged: `validate.fit_report.judge`,
+    shared with the check); write normal.png and refine_report.json under out_dir/<object>/."""
+    config = (config or RefineConfig()).validate()
+    if isinstance(data, JudgedCapture):
+        data.check_fit(config.fit)
+        check_judgeable(data.small, "refine")
+        jc, target = data, claim_target(out_dir, data.cap.name, REFINE_OUTPUTS, "validate.refine", overwrite)
+    else:
+        jc, target = judge_capture(data, normals, config.fit, "refine", out_dir, REFINE_OUTPUTS, "validate.refine",
+                                   overwrite)
+    report, refined = refine_judged(jc, config, progress)
+    if target is not None:
+        write_refined(target, refined, report)
+    return report
+
+
+def refine_judged(jc: JudgedCapture, config: RefineConfig, progress: Progress | None = None) -> tuple[dict, np.ndarray]:
+    """Refine a judged capture's map: (report, the full-resolution map to keep: the refined one where accepted,
+    else the input map; float, unit inside the mask)."""
     from scenes.metrics import mean_angular_error as mae_deg
     from validate.capture import downsample_normals
 
-    config = (config or RefineConfig()).validate()
     mi = require_ad_variant()
     t0 = time.perf_counter()
-    jc = judge_capture(folder, normals, config.fit, "refine", out_dir, REFINE_OUTPUTS, "validate.refine", overwrite)
     cap, full, small, n_small, ex, f = jc.cap, jc.full, jc.small, jc.normals, jc.explanation, jc.downsample
     mae_in = mae_deg(full, cap.normal_gt, cap.mask) if cap.normal_gt is not None else None
     if not jc.trusted:
-        return _declined(jc, mae_in, t0)
+        return _declined(jc, mae_in, t0), full
     calibrated = None
     if small.light_directions is not None and small.light_irradiance is not None:
         calibrated = (small.light_directions, small.light_irradiance)
@@ -326,7 +347,8 @@ def refine_object(
     fit_cfg = replace(config.fit, light_model=res.light_model)
     before, judged_before = jc.score(n_small, fit_cfg, progress, "score before")
     after, judged_after = jc.score(refined_small, fit_cfg, progress, "score after")
-    accepted = bool(judged_after < judged_before * (1.0 - MIN_GAIN))
+    # Accepted only when the judged residual (observations every map shares) falls by more than the tie.
+    accepted = judged_after < judged_before and not TIES["refinement"].same(judged_before, judged_after)
     apart = told_apart(judged_before, judged_after, ex)
     held = None if not res.holdout else {  # evidence the refined normals were never fitted to
         "images": list(res.holdout), "before_rel_l1": judged_rel_l1(before.render, jc.observed, ex, res.holdout),
@@ -342,7 +364,7 @@ def refine_object(
         )
         + f"; {ex.explained_fraction:.0%} of the object was refined, the rest keeps the input map"
         if accepted
-        else f"declined, the input map is kept: the judged residual did not fall by {MIN_GAIN:.0%} "
+        else f"declined, the input map is kept: the judged residual did not fall by {TIES['refinement'].relative:.0%} "
         f"({judged_before:.4f} -> {judged_after:.4f})"
     )
     if not accepted:
@@ -386,19 +408,17 @@ def refine_object(
         **provenance(mi),
         "timings": {"refine_s": res.seconds, "total_s": time.perf_counter() - t0},
     }
-    _write_refined(jc.target, refined_full, report)
-    return report
+    return report, refined_full
 
 
-def _write_refined(target: Path | None, normals: np.ndarray, report: dict) -> None:
+def write_refined(target: Path, normals: np.ndarray, report: dict) -> None:
     """normal.png (the refined map, or the input map where refinement declined) and refine_report.json."""
     from scenes.files import atomic_write_text
     from scenes.images import write_normal_map
 
-    if target is not None:
-        target.mkdir(parents=True, exist_ok=True)
-        write_normal_map(target / "normal.png", normals)
-        atomic_write_text(target / "refine_report.json", json.dumps(report, indent=1, allow_nan=False))
+    target.mkdir(parents=True, exist_ok=True)
+    write_normal_map(target / "normal.png", normals)
+    atomic_write_text(target / "refine_report.json", json.dumps(report, indent=1, allow_nan=False))
 
 
 @dataclass

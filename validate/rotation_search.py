@@ -9,6 +9,7 @@ import numpy as np
 
 from validate.fit import run_fit
 from validate.fit_scene import FitScene, Progress, to_jit
+from validate.verdict import TIES
 
 
 class RotationSteps(Protocol):
@@ -20,10 +21,6 @@ class RotationSteps(Protocol):
 log = logging.getLogger("validate.refine")  # the refinement's log, as before the search had its own module
 
 
-ROTATION_TIE = 0.005
-"""Candidate tilts whose residual is within this fraction of the best one's are reported as equally good: the
-images do not decide between them (DiLiGenT cat: tilts 1.5 deg apart gave final maps 6.9 to 8.4 deg off at
-one residual)."""
 
 
 def search_rotation(fs: FitScene, train: np.ndarray, config: RotationSteps, deltas_deg: tuple[float, ...] = (4.0, 2.0),
@@ -36,7 +33,7 @@ def search_rotation(fs: FitScene, train: np.ndarray, config: RotationSteps, delt
     image batches and rays (the candidates differ only by the rotation), then the censored rel_l1. Leaves
     `fs` at the best candidate; returns its rotation vector (radians). The identity is a candidate, so the
     residual never rises. `record`, when given, receives the chosen tilt and the spread of the candidates that
-    score within `ROTATION_TIE` of it (the tilts the images cannot separate)."""
+    score within `validate.verdict.TIES['rotation']` of it (the tilts the images cannot separate)."""
     from scipy.spatial.transform import Rotation
 
     if fs.model not in ("directional", "point"):
@@ -92,12 +89,12 @@ def search_rotation(fs: FitScene, train: np.ndarray, config: RotationSteps, delt
                     cands.append((score(best + t * e), best + t * e))
             s_best, best = min(cands, key=lambda c: c[0])
     if record is not None:
-        ties = [np.array(w) for w, v in cache.items() if v <= s_best * (1 + ROTATION_TIE)]
+        ties = [np.array(w) for w, v in cache.items() if TIES["rotation"].same(s_best, v)]
         best_key = np.array(key(best))
         spread = max(float(np.degrees(np.linalg.norm(w - best_key))) for w in ties)
         record.update(tilt_deg=float(np.degrees(np.linalg.norm(best))), equally_good=len(ties),
-                      equally_good_spread_deg=spread, candidates=len(cache), tie_tolerance=ROTATION_TIE,
-                      note=(f"{len(ties)} of {len(cache)} tilts score within {ROTATION_TIE:.1%} of the best, up to "
+                      equally_good_spread_deg=spread, candidates=len(cache), tie_tolerance=TIES["rotation"].relative,
+                      note=(f"{len(ties)} of {len(cache)} tilts score within {TIES['rotation'].relative:.1%} of the best, up to "
                             f"{spread:.1f} deg from it: the images do not decide among them" if len(ties) > 1 else
                             "one tilt scores best"))
     if last[0] != key(best):

@@ -32,11 +32,10 @@ from functools import lru_cache
 import numpy as np
 
 from validate.camera_motion import camera_motion, camera_shifts
+from validate.judgeable import MIN_IMAGES as COUNTS
 
-MIN_IMAGES = 3
-"""Fewer images do not determine a normal (three unknowns per pixel): fatal."""
-FEW_IMAGES = 6
-"""Below this many images a warning: unknown light needs more views than the three of calibrated stereo."""
+MIN_IMAGES, FEW_IMAGES = COUNTS["photos"], COUNTS["advised"]
+"""Fewer images than MIN_IMAGES are fatal, fewer than FEW_IMAGES a warning (`validate.judgeable.MIN_IMAGES`)."""
 DARK_LEVEL = 0.03
 """Linear level below which the object's bright part (99th percentile in the mask) counts as too dark."""
 SATURATED_SHARE = 0.02

@@ -47,6 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from validate.judgeable import MIN_IMAGES
 from validate.metrics import rel_l1_observations
 
 SHADOW_FRACTION = 0.1
@@ -58,7 +59,7 @@ OUTLIER_SIGMAS = 4.0
 SCALE_FLOOR = 0.01
 """The robust residual scale is at least this fraction of the mean kept observation (on noise-free images every
 rounding would otherwise be an outlier)."""
-MIN_OBSERVATIONS = 5
+MIN_OBSERVATIONS = MIN_IMAGES["verdict"]
 """Observations a pixel must keep to be judged (4 unknowns of the rank-4 model per channel, plus 1 to test it)."""
 EXPLAINED_RELATIVE = 0.05
 """A pixel is explained when the rms residual of the rank-4 model is within this fraction of its mean
@@ -70,14 +71,58 @@ DIMENSION_NOISE = 8.0
 this many times the singular value of the image noise alone. Measured on DiLiGenT ball (bench/bench_verdict.py
 --degenerate): 5 one-sided images whose third value is 4.1 times the noise let a mirrored map (54 degrees off)
 score below the truth; 5 or 8 images with 17 or more rank the truth first."""
+RANK = 4
+"""Rank of the distant-light Lambertian model per colour channel: [normal, 1] (3 + ambient)."""
+
+
+# ---------------------------------------------------------------------------------------------- same score?
+# One rule answers "do two judged scores of one capture differ?" (`Tie.same`); each use has its tolerance in
+# TIES, and where two uses' tolerances differ the entry says why.
+
 TIE_FLOOR = 0.002
 """Judged residuals closer than this (0.2 % of the mean observation) are tied whatever else: on noise-free renders
 every map near the truth scores near 0."""
-RANK = 4
-"""Rank of the distant-light Lambertian model per colour channel: [normal, 1] (3 + ambient)."""
 SEPARATION = 0.02
-"""Two maps whose judged residuals differ by less than this fraction are not separated by the check (the
-refinement's acceptance threshold and the bas-relief test of `validate.ambiguity`)."""
+"""A 2 % relative difference of judged residuals: the margin a refined map must win by, and a bas-relief
+transform must lose by, to count (docs/check.md, "How well it works": refinements that gained less than this
+did not move DiLiGenT cat's map closer to the truth)."""
+ROTATION_TIE = 0.005
+"""Candidate tilts of one rotation search whose residual is within this fraction of the best one's are equally
+good (DiLiGenT cat: tilts 1.5 deg apart gave final maps 6.9 to 8.4 deg off at one residual)."""
+
+
+@dataclass(frozen=True)
+class Tie:
+    """Two judged scores count as the same when |other - reference| <= max(relative * reference, absolute)."""
+
+    relative: float
+    absolute: float
+    why: str
+    """Why this use has this tolerance."""
+
+    def same(self, reference: float, other: float) -> bool:
+        """True when `other` does not differ from `reference` (NaN never differs: nothing is told apart)."""
+        if not (np.isfinite(reference) and np.isfinite(other)):
+            return True
+        return bool(abs(other - reference) <= max(self.relative * reference, self.absolute))
+
+
+TIES = {
+    "refinement": Tie(SEPARATION, 0.0, "a refined map is kept only when it lowers the residual by a clear relative "
+                      "margin: the refinement fits the score itself, so a smaller gain is what fitting noise gives"),
+    "bas_relief": Tie(SEPARATION, TIE_FLOOR, "the same margin as the refinement's, since a transform that refinement "
+                      "could reach must lose by it; with the absolute floor, as on noise-free renders every transform "
+                      "near the map scores near 0"),
+    "rotation": Tie(ROTATION_TIE, 0.0, "candidates of one search share their image batches and rays, so their "
+                    "residuals differ by less noise than two separate fits: a finer relative tolerance"),
+}
+"""The tolerance of each use of `Tie.same` but the capture's own resolution (`resolution_tie`)."""
+
+
+def resolution_tie(ex: "Explanation") -> Tie:
+    """Two maps of a capture are told apart by its images only beyond its resolution (module doc, 5): an absolute
+    tolerance measured on the capture itself, not a fixed margin."""
+    return Tie(0.0, ex.resolution, "the capture's resolution (Explanation.resolution)")
 
 
 @dataclass
@@ -137,6 +182,14 @@ def noise_sigma(images: np.ndarray, mask: np.ndarray) -> float:
     if inner.sum() < 16:
         inner = mask
     return max(float(np.median(channel_noise_sigmas(images, inner))), 1.0 / 65535.0)
+
+
+def noise_rel_l1(ex: "Explanation", observed: np.ndarray) -> float:
+    """The image noise of a capture as a relative L1 level, comparable with a judged rel_l1: the mean absolute
+    value of Gaussian noise of the capture's one noise estimate (`Explanation.sigma`, from `noise_sigma`),
+    sigma sqrt(2 / pi), over the mean observation (K, P, 3) of the mask."""
+    denom = float(np.abs(observed).mean()) if observed.size else 0.0
+    return ex.sigma * float(np.sqrt(2 / np.pi)) / denom if denom > 0 else float("nan")
 
 
 def _weighted_low_rank(m: np.ndarray, w: np.ndarray, rank: int, iters: int = 30) -> np.ndarray:
@@ -245,5 +298,5 @@ def judged_rel_l1(
 
 def told_apart(a: float, b: float, ex: Explanation) -> bool:
     """Whether judged scores `a` and `b` of two maps of one capture differ by more than its resolution
-    (`Explanation.resolution`); False when either is not finite."""
-    return bool(np.isfinite(a) and np.isfinite(b) and abs(a - b) > ex.resolution)
+    (`resolution_tie`); False when either is not finite."""
+    return not resolution_tie(ex).same(a, b)

@@ -1,0 +1,120 @@
+"""`orchestrate.capture` on DiLiGenT objects turned into photos, in this tree and in a baseline commit: which
+outputs moved, and by how much, when a change should leave them alone or fixes something.
+
+    python bench/bench_capture_trees.py --baseline 4694c24 [--objects ball,cat] [--out bench/results/capture_trees.json]
+
+Each object (96 photos of 612 x 512 px) is written as 8-bit sRGB JPEG files (quality 95, exposed so that 0.1 % of
+the object's values clip, as docs/capture.md's table), with its true mask as --mask; the same folder is captured by
+both trees (each in a fresh process, `--threads 1`: byte-identical run to run). Per object and tree: the mean angular
+error of the model's map and of the final map against the ground truth, the check's saturated fraction, judged
+residual and verdict, whether the refinement was accepted, and the largest angle between the two trees' maps.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))  # this tree's toolkit, not another checkout's installed one
+
+from scenes.cli.options import REQUIRED, Command  # noqa: E402
+
+CLIP_FRACTION = 0.001
+"""Fraction of the object's values (all images) that clip in the JPEG files."""
+
+
+@dataclass
+class Options:
+    """The command line of bench_capture_trees."""
+
+    baseline: str = REQUIRED
+    """Commit to compare with (checked out into a temporary git worktree, removed after)."""
+    data: str = str(REPO.parent / "shared" / "data" / "diligent")
+    """Folder of DiLiGenT objects (<name>PNG)."""
+    objects: str = "ball,cat"
+    """Comma-separated DiLiGenT objects."""
+    out: str = "bench/results/capture_trees.json"
+    """Where the table goes (JSON)."""
+
+
+COMMAND = Command(Options, prog="python bench/bench_capture_trees.py", description=__doc__.split("\n\n")[0])
+
+
+def write_photos(folder: Path, images: np.ndarray, mask: np.ndarray) -> None:
+    """The images as 8-bit sRGB JPEG files, exposed so that CLIP_FRACTION of the object's values clip."""
+    from scenes.colors import linear_to_srgb
+
+    folder.mkdir(parents=True)
+    scale = 1.0 / float(np.quantile(images[:, mask], 1.0 - CLIP_FRACTION))
+    for i, img in enumerate(images):
+        codes = np.round(np.clip(linear_to_srgb(np.clip(img * scale, 0, 1)), 0, 1) * 255).astype(np.uint8)
+        cv2.imwrite(str(folder / f"IMG_{i + 1:04d}.jpg"), codes[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, 95])
+
+
+def capture(tree: Path, photos: Path, mask: Path, out: Path) -> dict:
+    """Run the tree's orchestrate.capture in a fresh process; its report.json and check report."""
+    cmd = [sys.executable, "-m", "orchestrate.capture", "--input", str(photos), "--out", str(out), "--mask",
+           str(mask), "--threads", "1"]
+    r = subprocess.run(cmd, cwd=tree, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise RuntimeError(f"{tree}: {r.stderr.strip().splitlines()[-1] if r.stderr.strip() else r.returncode}")
+    report = json.loads((out / "report.json").read_text())
+    check = json.loads((out / "check" / photos.name / "report.json").read_text())
+    return {"report": report, "check": check}
+
+
+def main(argv: list[str] | None = None) -> int:
+    from scenes.folder.layouts import read_folder
+    from scenes.images import read_normals, write_mask
+    from scenes.metrics import angular_error_deg, mean_angular_error
+
+    opts = COMMAND.parse(argv)
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        base = tmp / "baseline"
+        subprocess.run(["git", "-C", str(REPO), "worktree", "add", "-q", "--detach", str(base), opts.baseline],
+                       check=True)
+        try:
+            for name in opts.objects.split(","):
+                fd = read_folder(Path(opts.data) / f"{name}PNG", arg="--data")
+                photos, mask = tmp / name / name, tmp / name / "mask.png"
+                write_photos(photos, fd.images, fd.mask)
+                write_mask(mask, fd.mask)
+                maps = {}
+                for label, tree in (("baseline", base), ("this tree", REPO)):
+                    out = tmp / name / label.replace(" ", "_")
+                    r = capture(tree, photos, mask, out)
+                    final, model = read_normals(out / "normal.png"), read_normals(out / "normal_model.png")
+                    maps[label] = final
+                    v, c = r["report"]["verdict"], r["check"]
+                    row = {"object": name, "tree": label,
+                           "mae_model_deg": mean_angular_error(model, fd.normals, fd.mask),
+                           "mae_final_deg": mean_angular_error(final, fd.normals, fd.mask),
+                           "saturated_fraction": c["saturated_fraction"], "judged_rel_l1": c["judged_rel_l1"],
+                           "images_can_judge": v["images_can_judge"], "refined": v["refined"],
+                           "seconds": r["report"]["timings"]["total_s"]}
+                    rows.append(row)
+                    print(json.dumps(row), flush=True)
+                diff = angular_error_deg(maps["baseline"], maps["this tree"], fd.mask)[fd.mask]
+                rows.append({"object": name, "final_maps_max_angle_deg": float(diff.max()),
+                             "final_maps_mean_angle_deg": float(diff.mean())})
+                print(json.dumps(rows[-1]), flush=True)
+        finally:
+            subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", str(base)], check=False)
+    Path(opts.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(opts.out).write_text(json.dumps({"baseline": opts.baseline, "rows": rows}, indent=1) + "\n")
+    print(f"wrote {opts.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
