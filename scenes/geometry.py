@@ -85,3 +85,16 @@ def write_mesh_ply(path: str | Path, data: MeshData) -> None:
     faces["n"] = 3
     faces["idx"] = data.faces
     Path(path).write_bytes(header + verts.tobytes() + faces.tobytes())
+
+
+def lights_in_camera_frame(desc: SceneDescription, exposures: list[float] | None = None) -> list[list[dict]]:
+    """Per image of a scene description, its lights in the camera frame in the report form of their types
+    (`scenes.lights.camera_frame`), scaled by the image's exposure (or by `exposures`, the ones actually applied):
+    the one conversion that the generator's scene.json `camera_lights` and the check's report.json `lights` share.
+    An unknown light type is a ValueError, never reported as another type."""
+    from scenes.lights import camera_frame
+
+    cam = desc.camera
+    R = camera_rotation(cam.origin, cam.target, cam.up)
+    exposures = [image.exposure for image in desc.images] if exposures is None else exposures
+    return [camera_frame(image.lights, R, cam.target, exp) for image, exp in zip(desc.images, exposures)]

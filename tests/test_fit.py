@@ -500,7 +500,8 @@ def test_known_scene_lights_in_camera_frame():
     camera frame, rotated with the camera (camera on +x looking at the origin: world +x is camera +z). One
     JSON form of a camera-frame directional light: the known-scene report, the fitted report and scene.json
     `camera_lights` (written by the generator, read by `scenes.folder.layouts`) all say `direction_to_light`."""
-    from validate.light_models import known_scene_lights, report_lights
+    from scenes.geometry import lights_in_camera_frame as known_scene_lights
+    from validate.light_models import report_lights
     from wildgen.writer import camera_lights
 
     desc = SceneDescription(

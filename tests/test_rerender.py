@@ -529,7 +529,7 @@ def test_cli_dataset_end_to_end(jit, sphere_folder, tmp_path, capsys):
 def test_known_scene_report_refuses_an_unknown_light_type():
     """The known-scene report lists each light in its type's camera-frame form (`scenes.lights`); a type the
     table does not know is a ValueError naming it, never reported as an environment light."""
-    from validate.light_models import known_scene_lights
+    from scenes.geometry import lights_in_camera_frame as known_scene_lights
 
     env = np.eye(4).tolist()
     desc = SceneDescription(

@@ -282,15 +282,3 @@ def directions_of(model: str, params: dict, centre: np.ndarray | None = None) ->
     else:
         d = np.asarray(params["sh"], np.float64).mean(-1)[:, [3, 1, 2]]  # first-order band: (x, y, z)
     return d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
-
-
-def known_scene_lights(desc, exposures: list[float]) -> list[list[dict]]:
-    """report.json `lights` of a known scene (a `scenes.description.SceneDescription`): per image, its
-    lights in the camera frame with the exposure applied, each in the report form of its type
-    (`scenes.lights.LIGHT_TYPES`). An unknown type is a ValueError, never reported as another type."""
-    from scenes.geometry import camera_rotation
-    from scenes.lights import camera_frame
-
-    cam = desc.camera
-    R = camera_rotation(cam.origin, cam.target, cam.up)
-    return [camera_frame(image.lights, R, cam.target, exp) for image, exp in zip(desc.images, exposures)]

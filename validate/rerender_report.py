@@ -100,7 +100,7 @@ def build_report(data: ObjectData, pred: np.ndarray, valid: np.ndarray, source: 
 
     t_orig_med = float(np.median(passes.original_s)) if passes.original_s else None
     t_re_med = float(np.median(passes.rerender_s))
-    from validate.light_models import known_scene_lights
+    from scenes.geometry import lights_in_camera_frame
 
     exposures = [float(im.exposure) for im in desc.images]
     return {
@@ -125,7 +125,7 @@ def build_report(data: ObjectData, pred: np.ndarray, valid: np.ndarray, source: 
         "threshold": threshold,
         "threshold_source": threshold_source,
         "images": per_image,
-        "lights": known_scene_lights(desc, exposures),
+        "lights": lights_in_camera_frame(desc, exposures),
         "timings": {
             "original_render_s": t_orig_med,
             "rerender_s": t_re_med,

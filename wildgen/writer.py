@@ -33,9 +33,8 @@ from scenes.folder.format import (
     radiance_name,
     write_scene,
 )
-from scenes.geometry import camera_rotation, view_directions, write_mesh_ply
+from scenes.geometry import lights_in_camera_frame, view_directions, write_mesh_ply
 from scenes.images import write_exr, write_instances, write_mask, write_normal_map, write_png16
-from scenes.lights import camera_frame
 from scenes.renderer.build import build_scene
 from scenes.renderer.render import instance_ids, render_ground_truth, render_images
 from scenes.sensor import SCENE_KEY as SENSOR_KEY
@@ -121,10 +120,8 @@ def camera_lights(desc: SceneDescription) -> list[dict]:
     """Per image, the directional lights in the camera frame (toward the light, irradiance x exposure), for
     calibrated methods, and how many other lights the image has. Every light goes through its type's report
     form (`scenes.lights.LIGHT_TYPES`): an unknown type is a ValueError, never counted as another."""
-    R = camera_rotation(desc.camera.origin, desc.camera.target, desc.camera.up)
     out = []
-    for image in desc.images:
-        lights = camera_frame(image.lights, R, desc.camera.target, image.exposure)
+    for lights in lights_in_camera_frame(desc):
         dirs = [{k: v for k, v in l.items() if k != "type"} for l in lights if l["type"] == "directional"]
         out.append({"directional": dirs, "other": len(lights) - len(dirs)})
     return out
