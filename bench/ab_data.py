@@ -20,17 +20,22 @@ step is skipped when its output exists; results go to WORK/ab.json and a table i
 """
 from __future__ import annotations
 
-import argparse
 import json
 import subprocess
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+
+from bench.cli_common import parse  # noqa: E402
+from scenes.cli.options import REQUIRED, Command, arg, option  # noqa: E402
+
 PY = sys.executable
 SHIPPED = ROOT / "unips" / "weights" / "glc-tiny.safetensors"
 BASE = ["--images", "10", "--res", "128", "--quiet"]
@@ -68,27 +73,39 @@ def score_set(net, folder: Path) -> dict:
             "gain_deg": float(np.mean(masks) - np.mean(errs))}
 
 
-def main() -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--work", type=Path, required=True)
-    p.add_argument("--assets", type=Path, default=ROOT.parent / "shared" / "assets")
-    p.add_argument("--objects", type=int, default=300, help="training objects per arm")
-    p.add_argument("--steps", type=int, default=1000)
-    p.add_argument("--arms", default="today,new,sensor")
-    p.add_argument("--threads", type=int, default=2)
-    p.add_argument(
-        "--lr", default="1.5e-4", help="peak learning rate of every arm (the model card's last stage: 1.5e-4)"
+@dataclass
+class Options:
+    """The command line of bench/ab_data.py."""
+
+    work: Annotated[Path, arg(metavar="WORK")] = REQUIRED
+    """Working folder: the asset split, the datasets, the runs and ab.json (every step skipped when its output
+    exists)."""
+    assets: Annotated[Path, arg(metavar="DIR", help_behavior_hint="(default: ../shared/assets)")] = (
+        ROOT.parent / "shared" / "assets"
     )
-    p.add_argument(
-        "--record",
-        action="store_true",
-        help="append every scored arm to the model card's lineage (not shipped) and its scores to the card's "
-        "data_ab entry, from which the docs' A/B table is generated",
-    )
-    p.add_argument(
-        "--tag", default="", help="suffix of the run folders and result names (several settings in one WORK)"
-    )
-    args = p.parse_args()
+    """Asset library, split into the recipe's train and held-out halves."""
+    objects: int = option(300, minimum=1)
+    """training objects per arm"""
+    steps: int = option(1000, minimum=1)
+    """Training steps of every arm."""
+    arms: str = "today,new,sensor"
+    """Arms to train and score, comma-separated (today, new, sensor)."""
+    threads: int = option(2, minimum=1)
+    """CPU threads of training and scoring."""
+    lr: str = "1.5e-4"
+    """peak learning rate of every arm (the model card's last stage: 1.5e-4)"""
+    record: bool = False
+    """append every scored arm to the model card's lineage (not shipped) and its scores to the card's data_ab
+    entry, from which the docs' A/B table is generated"""
+    tag: str = ""
+    """suffix of the run folders and result names (several settings in one WORK)"""
+
+
+COMMAND = Command(Options, prog="python bench/ab_data.py", description=__doc__.split("\n\n")[0])
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse(COMMAND, argv)
     from orchestrate.asset_split import SPLIT_FOLDERS, check_split, split_assets
 
     w = args.work

@@ -12,19 +12,25 @@ output file by `python -m orchestrate.docs`.
 """
 from __future__ import annotations
 
-import argparse
 import json
 import platform
 import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
 
 import cv2
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from bench.cli_common import parse  # noqa: E402
+from scenes.cli.errors import UsageError  # noqa: E402
+from scenes.cli.options import Command, arg, check_fields  # noqa: E402
 
 
 def synthetic_capture(folder: Path, k: int, side: int, seed: int = 0) -> None:
@@ -67,14 +73,32 @@ def run_case(k: int, side: int, work: Path) -> dict:
             "estimate_mib": report["estimate"]["peak_mib"], "estimate_s": report["estimate"]["seconds"]}
 
 
+@dataclass
+class Options:
+    """The command line of bench/bench_capture.py."""
+
+    out: Annotated[Path | None, arg(metavar="FILE")] = None
+    """Write the measurements as JSON here (required unless --reestimate)."""
+    images: str = "4,16,96"
+    """Numbers of photos K, comma-separated."""
+    sides: str = "256,512,1024"
+    """Long sides of the photos in pixels, comma-separated."""
+    reestimate: Annotated[Path | None, arg(metavar="FILE")] = None
+    """rewrite the estimate columns of a recorded output with the command's current estimate (the measurements
+    are kept as recorded)"""
+
+    def validate(self) -> "Options":
+        check_fields(self)
+        if self.out is None and self.reestimate is None:
+            raise UsageError("--out is required (unless --reestimate)")
+        return self
+
+
+COMMAND = Command(Options, prog="python bench/bench_capture.py", description=__doc__.split("\n\n")[0])
+
+
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", type=Path)
-    p.add_argument("--images", default="4,16,96")
-    p.add_argument("--sides", default="256,512,1024")
-    p.add_argument("--reestimate", type=Path, help="rewrite the estimate columns of a recorded output with the "
-                   "command's current estimate (the measurements are kept as recorded)")
-    args = p.parse_args(argv)
+    args = parse(COMMAND, argv)
     if args.reestimate:
         from orchestrate.capture import estimate
 
@@ -86,8 +110,6 @@ def main(argv: list[str] | None = None) -> int:
         args.reestimate.write_text(json.dumps(result, indent=1) + "\n")
         print(f"rewrote the estimates of {args.reestimate}")
         return 0
-    if args.out is None:
-        p.error("--out is required (unless --reestimate)")
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for side in [int(s) for s in args.sides.split(",")]:

@@ -15,18 +15,22 @@ over the mask pixels:
 """
 from __future__ import annotations
 
-import argparse
 import json
 import shutil
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+
+from bench.cli_common import parse  # noqa: E402
+from scenes.cli.options import Command, arg, option  # noqa: E402
 
 
 def render(out: Path, args, extra: list[str]) -> float:
@@ -58,17 +62,33 @@ def render(out: Path, args, extra: list[str]) -> float:
     return (time.perf_counter() - t0) / args.objects
 
 
-def main() -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--objects", type=int, default=12)
-    p.add_argument("--images", type=int, default=6)
-    p.add_argument("--res", type=int, default=64)
-    p.add_argument("--spp", type=int, default=16)
-    p.add_argument("--lights", default="directional,point")
-    p.add_argument("--seed", type=int, default=11)
-    p.add_argument("--strengths", default="10,25,40")
-    p.add_argument("--out", type=Path, default=None, help="write the JSON rows here")
-    args = p.parse_args()
+@dataclass
+class Options:
+    """The command line of bench/bench_detail.py."""
+
+    objects: int = option(12, minimum=1)
+    """Objects rendered per strength (and without detail)."""
+    images: int = option(6, minimum=1)
+    """Images per object."""
+    res: int = option(64, minimum=1)
+    """Image side in pixels."""
+    spp: int = option(16, minimum=1)
+    """Samples per pixel."""
+    lights: str = "directional,point"
+    """Light families for wildgen.make, comma-separated."""
+    seed: int = 11
+    """wildgen seed of the objects (the same for every strength)."""
+    strengths: str = "10,25,40"
+    """Detail strengths in degrees (--detail-strength S-S each), comma-separated."""
+    out: Annotated[Path | None, arg(metavar="FILE")] = None
+    """write the JSON rows here"""
+
+
+COMMAND = Command(Options, prog="python bench/bench_detail.py", description=__doc__.split("\n\n")[0])
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse(COMMAND, argv)
 
     from scenes.images import read_exr, read_mask, read_normals
 
@@ -77,7 +97,8 @@ def main() -> int:
     try:
         base_s = render(tmp / "plain", args, [])
         print(
-            f"{'strength':>8s} {'flipped':>8s} {'black':>8s} {'flipped@sil':>11s} {'black@sil':>9s} {'s/obj':>6s} {'plain s/obj':>11s}"
+            f"{'strength':>8s} {'flipped':>8s} {'black':>8s} {'flipped@sil':>11s} {'black@sil':>9s} {'s/obj':>6s} "
+            f"{'plain s/obj':>11s}"
         )
         for s in map(float, args.strengths.split(",")):
             sec = render(tmp / f"d{s:g}", args, ["--detail", "1", "--detail-strength", f"{s:g}-{s:g}"])
@@ -90,13 +111,19 @@ def main() -> int:
                 n, b = read_normals(folder / "normal.tif")[m], read_normals(folder / "normal_base.tif")[m]
                 near = b[:, 2] < np.sin(np.radians(30))
                 f = (n[:, 2] < 0) & (b[:, 2] >= 0)
-                flip += int(f.sum()); flip_sil += int((f & near).sum()); pix += int(m.sum()); sil += int(near.sum())
+                flip += int(f.sum())
+                flip_sil += int((f & near).sum())
+                pix += int(m.sum())
+                sil += int(near.sum())
                 for r in sorted((folder / "aux").glob("radiance_*.exr")):
                     d = read_exr(r)[..., :3].mean(-1)[m]
                     q = read_exr(plain / "aux" / r.name)[..., :3].mean(-1)[m]
                     ref = max(float(np.percentile(q, 99)), 1e-12)
                     k = (d < 1e-4 * ref) & (q > 0.05 * ref)
-                    black += int(k.sum()); black_sil += int((k & near).sum()); obs += len(q); obs_sil += int(near.sum())
+                    black += int(k.sum())
+                    black_sil += int((k & near).sum())
+                    obs += len(q)
+                    obs_sil += int(near.sum())
             row = {
                 "strength_deg": s,
                 "flipped": flip / max(pix, 1),

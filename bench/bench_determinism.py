@@ -1,38 +1,52 @@
 """Cost of thread-independent rendering (issue 14). Not a test: prints a table.
 
-  python bench/bench_determinism.py                          # 128x128 / 64 spp, 32x32 / 4 spp, 64x64 / 32 spp; 1 and 2 threads
+  python bench/bench_determinism.py          # 128x128 / 64 spp, 32x32 / 4 spp, 64x64 / 32 spp; 1 and 2 threads
   python bench/bench_determinism.py --sizes 64:32 --images 6 --repeats 3
 
 Old: `mi.render` (atomic scatter-add into the film; bytes depend on the thread count). New:
-`scenes.renderer.render.render_film` (each sample to its own slot, each pixel summed in sample order by one Dr.Jit lane). Both
-render the same images of one `mixed`-light object, interleaved image by image in one process so that load
+`scenes.renderer.render.render_film` (each sample to its own slot, each pixel summed in sample order by one Dr.Jit
+lane). Both render the same images of one `mixed`-light object, interleaved image by image in one process so that load
 from other processes hits both alike; the first image of each (compilation) is not timed. Also reports
 whether each path gave identical bytes with 1 and 2 threads.
 """
 from __future__ import annotations
 
-import argparse
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from bench.cli_common import parse  # noqa: E402
+from scenes.cli.options import Command, arg, option  # noqa: E402
 
 
-def main() -> int:
-    p = argparse.ArgumentParser()
-    p.add_argument(
-        "--sizes",
-        default="128:64,32:4,64:32",
-        help="comma-separated RES:SPP (64:32 is 35 multijitter samples: pixels straddle thread blocks)",
-    )
-    p.add_argument("--images", type=int, default=6)
-    p.add_argument("--repeats", type=int, default=2, help="timed renders of every image per path")
-    p.add_argument("--threads", default="1,2")
-    p.add_argument("--variant", default="llvm_ad_rgb")
-    args = p.parse_args()
+@dataclass
+class Options:
+    """The command line of bench/bench_determinism.py."""
+
+    sizes: Annotated[str, arg(metavar="RES:SPP,...")] = "128:64,32:4,64:32"
+    """comma-separated RES:SPP (64:32 is 35 multijitter samples: pixels straddle thread blocks)"""
+    images: int = option(6, minimum=1)
+    """Images of the object per size (the first, compilation, is not timed)."""
+    repeats: int = option(2, minimum=1)
+    """timed renders of every image per path"""
+    threads: str = "1,2"
+    """Dr.Jit thread counts, comma-separated."""
+    variant: str = "llvm_ad_rgb"
+    """Mitsuba variant."""
+
+
+COMMAND = Command(Options, prog="python bench/bench_determinism.py", description=__doc__.split("\n\n")[0])
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse(COMMAND, argv)
 
     from scenes.renderer.variant import choose_variant
 
@@ -70,7 +84,7 @@ def main() -> int:
                 for _ in range(args.repeats):
                     for name, fn in paths.items():
                         t0 = time.perf_counter()
-                        out = fn(i)
+                        fn(i)
                         times[name].append(time.perf_counter() - t0)
                 for name, fn in paths.items():
                     outputs.setdefault((name, threads), []).append(fn(i))

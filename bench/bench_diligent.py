@@ -8,12 +8,34 @@ cat 8.41) and the uncalibrated sh-uncalibrated error, with load and solve times 
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from bench.cli_common import DILIGENT, parse  # noqa: E402
+from scenes.cli.options import Command, arg, option  # noqa: E402
 
 PUBLISHED = {"ball": 4.10, "cat": 8.41}
+
+
+@dataclass
+class Options:
+    """The command line of bench/bench_diligent.py."""
+
+    data: Annotated[Path, arg(metavar="DIR", help_behavior_hint="(default: ../shared/data/diligent)")] = DILIGENT
+    """folder holding ballPNG/ and catPNG/"""
+    max_images: Annotated[int | None, arg(metavar="K", help_behavior_hint="(default: all 96)")] = option(
+        None, minimum=1
+    )
+    """first K images only"""
+
+
+COMMAND = Command(Options, prog="python bench/bench_diligent.py", description=__doc__.split("\n\n")[0])
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -21,11 +43,7 @@ def main(argv: list[str] | None = None) -> int:
     from unips.baselines import least_squares, sh_uncalibrated
     from unips.data import load_object
 
-    default = Path(__file__).resolve().parents[2] / "shared" / "data" / "diligent"
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--data", type=Path, default=default, help="folder holding ballPNG/ and catPNG/")
-    p.add_argument("--max-images", type=int, default=None, help="first K images only (default: all 96)")
-    args = p.parse_args(argv)
+    args = parse(COMMAND, argv)
     if not args.data.is_dir():
         print(f"error: DiLiGenT folder {args.data} not found", file=sys.stderr)
         return 2

@@ -1,15 +1,16 @@
 """Fitted mode of the re-render check and refinement: the figures of docs/check.md, "How well it works".
 
-    python bench/bench_fit.py [--diligent ../shared/data/diligent] [--synthetic 3] [--threads T] [--tta N] [--out bench_fit.json]
+    python bench/bench_fit.py [--diligent ../shared/data/diligent] [--synthetic 3] [--threads T] [--tta N] \
+        [--out bench_fit.json]
 
 DiLiGenT (ball, cat; skipped when the folder is absent):
 - fitted light directions with the ground-truth normals vs the calibrated ones (mean angular error);
 - the score (rel_l1) of ground truth, calibrated least squares (unips.baselines), the shipped model and the
   constant (0, 0, 1) map, with their angular errors;
 - perturbation series of the ground truth (random, smooth, bias; 5-40 deg): Spearman(score, angular error);
-- refinement from the shipped model's prediction (fitted lights, with and without the rotation search, and the calibrated lights held), from
-  calibrated least squares, and from the ground truth itself (how far the refinement moves a perfect map:
-  the error floor its data term sets on this object): angular error before / after, minutes.
+- refinement from the shipped model's prediction (fitted lights, with and without the rotation search, and the
+  calibrated lights held), from calibrated least squares, and from the ground truth itself (how far the refinement
+  moves a perfect map: the error floor its data term sets on this object): angular error before / after, minutes.
 Synthetic (held-out wildgen objects rendered here, scene.json removed for the fitted mode): the same
 perturbation series scored in fitted and in known-scene mode (validate.rerender), Spearman between the
 two, and refinement from the model vs calibrated least squares on directional objects.
@@ -17,19 +18,23 @@ Wall-clock times on this machine (2 CPU cores shared with other jobs when they r
 """
 from __future__ import annotations
 
-import argparse
 import json
 import shutil
 import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated, Literal
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+
+from bench.cli_common import DILIGENT, parse  # noqa: E402
+from scenes.cli.options import Command, arg, option  # noqa: E402
 
 
 def spearman(a, b) -> float:
@@ -94,7 +99,8 @@ def diligent(args, net, out: dict) -> None:
             ranking[label] = (mae_deg(n, cap.normal_gt, cap.mask), score(n).rel_l1)
         row["ranking"] = {k: {"mae_deg": v[0], "rel_l1": v[1]} for k, v in ranking.items()}
         print(
-            f"{name}: light error {err.mean():.2f} deg (median {np.median(err):.2f}), fit {row['fit_minutes']:.2f} min (1/{f} res)"
+            f"{name}: light error {err.mean():.2f} deg (median {np.median(err):.2f}), "
+            f"fit {row['fit_minutes']:.2f} min (1/{f} res)"
         )
         for k, (m, s) in ranking.items():
             print(f"  {k:<28} mae {m:6.2f}  rel_l1 {s:.4f}")
@@ -126,7 +132,8 @@ def diligent(args, net, out: dict) -> None:
                               "minutes": (time.perf_counter() - t0) / 60}
                 print(
                     f"  refine {label:<30} mae {ref[label]['before_mae']:.2f} -> {ref[label]['after_mae']:.2f}  "
-                    f"rel_l1 {ref[label]['before_rel_l1']:.4f} -> {ref[label]['after_rel_l1']:.4f}  {ref[label]['minutes']:.1f} min"
+                    f"rel_l1 {ref[label]['before_rel_l1']:.4f} -> {ref[label]['after_rel_l1']:.4f}  "
+                    f"{ref[label]['minutes']:.1f} min"
                 )
             row["refine"] = ref
         out["diligent"][name] = row
@@ -216,10 +223,12 @@ def synthetic(args, net, out: dict) -> None:
                 }
             rows[folder.name] = row
             print(
-                f"{folder.name} ({family}, light model {light_model}): Spearman fitted~known {row['spearman_fitted_known']:.3f}, fitted~error "
+                f"{folder.name} ({family}, light model {light_model}): "
+                f"Spearman fitted~known {row['spearman_fitted_known']:.3f}, fitted~error "
                 f"{row['spearman_fitted_error']:.3f}, known~error {row['spearman_known_error']:.3f}"
                 + (
-                    f"; refine model {row['refine_model']['before_mae']:.2f} -> {row['refine_model']['after_mae']:.2f} deg"
+                    f"; refine model {row['refine_model']['before_mae']:.2f} -> "
+                    f"{row['refine_model']['after_mae']:.2f} deg"
                     f" (calibrated LS {row['refine_model']['least_squares_mae']})"
                     if "refine_model" in row
                     else ""
@@ -230,36 +239,50 @@ def synthetic(args, net, out: dict) -> None:
         shutil.rmtree(work, ignore_errors=True)
 
 
+@dataclass
+class Options:
+    """The command line of bench/bench_fit.py."""
+
+    diligent: Annotated[Path, arg(metavar="DIR", help_behavior_hint="(default: ../shared/data/diligent)")] = DILIGENT
+    """folder with ballPNG/, catPNG/"""
+    synthetic: int = option(3, minimum=0)
+    """held-out wildgen objects (0: none)"""
+    synthetic_seed: int = 913
+    """wildgen seed of the held-out objects"""
+    images: int = option(16, minimum=1)
+    """images per synthetic object"""
+    res: int = option(64, minimum=1)
+    """synthetic resolution"""
+    angles: str = "5,10,20,40"
+    """perturbation angles (deg), DiLiGenT"""
+    synthetic_angles: str = "5,10,20,40"
+    """perturbation angles (deg), synthetic"""
+    kinds: str = "random,smooth,bias"
+    """perturbation kinds"""
+    light_model: Literal["directional", "point", "environment", "auto"] = "directional"
+    """light model of the synthetic objects' fits and refinement; auto: chosen once per object by residual around
+    the model's prediction, then held (DiLiGenT: always directional)"""
+    skip_diligent: bool = False
+    """synthetic objects only"""
+    skip_refine: bool = False
+    """no refinement runs"""
+    seed: int = 0
+    """seed of perturbations and fits"""
+    threads: Annotated[int | None, arg(metavar="T", help_behavior_hint="(default: one per core)")] = option(
+        None, minimum=1
+    )
+    """Dr.Jit threads (1: byte-identical figures run to run)"""
+    tta: Annotated[int | None, arg(metavar="N", help_behavior_hint="(default: unips.predict's)")] = None
+    """views of the model's prediction"""
+    out: Annotated[Path | None, arg(metavar="FILE")] = None
+    """also write the figures as JSON"""
+
+
+COMMAND = Command(Options, prog="python bench/bench_fit.py", description=__doc__.split("\n\n")[0])
+
+
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument(
-        "--diligent",
-        type=Path,
-        default=ROOT.parent / "shared" / "data" / "diligent",
-        help="folder with ballPNG/, catPNG/",
-    )
-    p.add_argument("--synthetic", type=int, default=3, help="held-out wildgen objects (0: none)")
-    p.add_argument("--synthetic-seed", type=int, default=913, help="wildgen seed of the held-out objects")
-    p.add_argument("--images", type=int, default=16, help="images per synthetic object")
-    p.add_argument("--res", type=int, default=64, help="synthetic resolution")
-    p.add_argument("--angles", default="5,10,20,40", help="perturbation angles (deg), DiLiGenT")
-    p.add_argument("--synthetic-angles", default="5,10,20,40", help="perturbation angles (deg), synthetic")
-    p.add_argument("--kinds", default="random,smooth,bias", help="perturbation kinds")
-    p.add_argument("--light-model", default="directional", choices=("directional", "point", "environment", "auto"),
-                   help="light model of the synthetic objects' fits and refinement; auto: chosen once per object by "
-                   "residual around the model's prediction, then held (DiLiGenT: always directional)")
-    p.add_argument("--skip-diligent", action="store_true", help="synthetic objects only")
-    p.add_argument("--skip-refine", action="store_true", help="no refinement runs")
-    p.add_argument("--seed", type=int, default=0, help="seed of perturbations and fits")
-    p.add_argument(
-        "--threads",
-        type=int,
-        default=None,
-        help="Dr.Jit threads (default: one per core; 1: byte-identical figures run to run)",
-    )
-    p.add_argument("--tta", type=int, default=None, help="views of the model's prediction (default: unips.predict's)")
-    p.add_argument("--out", type=Path, default=None, help="also write the figures as JSON")
-    args = p.parse_args(argv)
+    args = parse(COMMAND, argv)
     from unips.inference import DEFAULT_TTA, check_tta
 
     args.tta = check_tta(DEFAULT_TTA if args.tta is None else args.tta, "--tta")

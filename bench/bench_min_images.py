@@ -23,16 +23,20 @@ through the sphere's size (4 to 32 px), 8 lights in front. Lit pixels are counte
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+
+from bench.cli_common import parse  # noqa: E402
+from scenes.cli.options import Command, arg, option  # noqa: E402
 
 NOISE = 0.003
 IRRADIANCE = 2.0
@@ -106,17 +110,31 @@ def fmt(r: dict) -> str:
     """One table row: lit pixels (fewest of one image), noise level, rel_l1 of the GT map and of the best
     perturbed map ('worst' case for ranking), their gap in noise levels, and the refined GT map's error."""
     return (
-        f"{r['lit_pixels_min']:>7} {r['noise_rel_l1']:>7.4f} {r['gt_rel_l1']:>7.4f} {min(r['perturbed_rel_l1'].values()):>7.4f} "
+        f"{r['lit_pixels_min']:>7} {r['noise_rel_l1']:>7.4f} {r['gt_rel_l1']:>7.4f} "
+        f"{min(r['perturbed_rel_l1'].values()):>7.4f} "
         f"{r['gap_in_noise']:>6.1f} {str(r['ranks']):>6} {r['refine_gt_mae_deg']:>10.2f}"
     )
 
 
+@dataclass
+class Options:
+    """The command line of bench/bench_min_images.py."""
+
+    out: Annotated[str | None, arg(metavar="FILE")] = None
+    """write every row as JSON here"""
+    threads: Annotated[int | None, arg(metavar="T", help_behavior_hint="(default one per core)")] = option(
+        None, minimum=1
+    )
+    """Dr.Jit threads"""
+    draws: int = option(4, minimum=1)
+    """light subsets per image count"""
+
+
+COMMAND = Command(Options, prog="python bench/bench_min_images.py", description=__doc__.splitlines()[0])
+
+
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default=None, help="write every row as JSON here")
-    ap.add_argument("--threads", type=int, default=None, help="Dr.Jit threads (default one per core)")
-    ap.add_argument("--draws", type=int, default=4, help="light subsets per image count")
-    args = ap.parse_args(argv)
+    args = parse(COMMAND, argv)
     from scenes.renderer.variant import choose_variant, set_jit_threads
     from validate.fit_scene import FitConfig
 

@@ -4,21 +4,26 @@ Each timed case runs in its own subprocess so its peak RSS (VmHWM) is its own. I
 (random weights, random images) with a disk mask covering about 70 % of the square crop, like a
 preprocessed object. Usage:
 
-    python bench/bench_model.py                  # full table (glc-unips, the published network, at 256 and 512: minutes)
-    python bench/bench_model.py --quick          # glc-tiny / glc-test only
+    python bench/bench_model.py              # full table (glc-unips, the published network, at 256 and 512: minutes)
+    python bench/bench_model.py --quick      # glc-tiny / glc-test only
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import subprocess
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from bench.cli_common import parse  # noqa: E402
+from scenes.cli.options import Command, arg, option  # noqa: E402
 
 
 def _status_mib(key: str) -> float:
@@ -102,13 +107,27 @@ def _sub(args: list[str]) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+@dataclass
+class Options:
+    """The command line of bench/bench_model.py."""
+
+    quick: bool = False
+    """skip glc-unips inference"""
+    threads: Annotated[int, arg(help_behavior_hint="(default: one per core)")] = option(
+        os.cpu_count() or 1, minimum=1
+    )
+    """CPU threads of inference and training."""
+    images: int = option(16, minimum=1)
+    """Images of the glc-unips and glc-tiny inference cases."""
+    case: Annotated[list[str] | None, arg(metavar="CASE")] = None
+    """internal: the one case a subprocess of this script times (infer MODEL RES K, or train RES K BATCH PIXELS)"""
+
+
+COMMAND = Command(Options, prog="python bench/bench_model.py", description=__doc__.split("\n\n")[0])
+
+
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--quick", action="store_true", help="skip glc-unips inference")
-    p.add_argument("--threads", type=int, default=os.cpu_count() or 1)
-    p.add_argument("--images", type=int, default=16)
-    p.add_argument("--case", nargs="+", help=argparse.SUPPRESS)  # internal: one subprocess case
-    a = p.parse_args(argv)
+    a = parse(COMMAND, argv)
     if a.case:
         if a.case[0] == "infer":
             print(json.dumps(run_inference_case(a.case[1], int(a.case[2]), int(a.case[3]), a.threads)))

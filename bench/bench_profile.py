@@ -35,7 +35,6 @@ manifests) unless --allow-different-bytes is given (a commit that changes the by
 """
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import platform
@@ -44,9 +43,16 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from bench.cli_common import parse  # noqa: E402
+from scenes.cli.errors import UsageError  # noqa: E402
+from scenes.cli.options import Command, arg, check_fields, option  # noqa: E402
 
 SETTINGS = {
     "default": {"res": 128, "images": 10, "spp": 64},
@@ -241,24 +247,43 @@ def baseline_tree(rev: str, where: Path) -> Path:
     return tree
 
 
-def main() -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--baseline", default=None, help="a git revision to profile side by side with this tree")
-    p.add_argument("--settings", default=",".join(SETTINGS), help=f"comma list of {', '.join(SETTINGS)}")
-    p.add_argument("--objects", type=int, default=None,
-                   help="objects profiled per setting (the first is reported apart; default: COUNTS)")
-    p.add_argument("--rate-objects", type=int, default=None,
-                   help="objects of each wildgen.make run for objects per hour (default: COUNTS)")
-    p.add_argument("--rounds", type=int, default=2, help="wildgen.make runs per tree (alternating trees)")
-    p.add_argument("--lights", default="near_area", help="light families of the profiled dataset")
-    p.add_argument("--seed", type=int, default=7)
-    p.add_argument("--allow-different-bytes", action="store_true")
-    p.add_argument("--out", default=None, help="write the JSON here")
-    args = p.parse_args()
+@dataclass
+class Options:
+    """The command line of bench/bench_profile.py."""
+
+    baseline: Annotated[str | None, arg(metavar="REV")] = None
+    """a git revision to profile side by side with this tree"""
+    settings: str = ",".join(SETTINGS)
+    """comma list of default, large"""
+    objects: Annotated[int | None, arg(help_behavior_hint="(default: COUNTS)")] = option(None, minimum=1)
+    """objects profiled per setting (the first is reported apart)"""
+    rate_objects: Annotated[int | None, arg(help_behavior_hint="(default: COUNTS)")] = option(None, minimum=0)
+    """objects of each wildgen.make run for objects per hour"""
+    rounds: int = option(2, minimum=1)
+    """wildgen.make runs per tree (alternating trees)"""
+    lights: str = "near_area"
+    """light families of the profiled dataset"""
+    seed: int = 7
+    """wildgen seed of the profiled objects."""
+    allow_different_bytes: bool = False
+    """Go on when the baseline's files differ from this tree's (by default that stops the run)."""
+    out: Annotated[str | None, arg(metavar="FILE")] = None
+    """write the JSON here"""
+
+    def validate(self) -> "Options":
+        check_fields(self)
+        bad = [s for s in self.settings.split(",") if s not in SETTINGS]
+        if bad:
+            raise UsageError(f"--settings: {bad[0]!r} is not one of {', '.join(SETTINGS)}")
+        return self
+
+
+COMMAND = Command(Options, prog="python bench/bench_profile.py", description=__doc__.splitlines()[0])
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse(COMMAND, argv)
     settings = args.settings.split(",")
-    bad = [s for s in settings if s not in SETTINGS]
-    if bad:
-        raise SystemExit(f"error: --settings: {bad[0]!r} is not one of {', '.join(SETTINGS)}")
     tmp = Path(tempfile.mkdtemp(prefix="bench_profile_trees_"))
     trees = {"this tree": REPO}
     head = subprocess.run(

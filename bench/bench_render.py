@@ -14,16 +14,23 @@ writing, peak RSS of the process.
 """
 from __future__ import annotations
 
-import argparse
 import json
 import resource
 import shutil
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
 
-from wildgen.light_families import LIGHT_FAMILIES
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from bench.cli_common import parse  # noqa: E402
+from scenes.cli.errors import UsageError  # noqa: E402
+from scenes.cli.options import Command, arg, check_fields, option  # noqa: E402
+from wildgen.light_families import LIGHT_FAMILIES  # noqa: E402
 
 FEATURES = {
     "default": {},
@@ -78,21 +85,41 @@ def measure(family: str, args, tmp: Path, overrides: dict | None = None) -> dict
     return out
 
 
-def main() -> int:
-    p = argparse.ArgumentParser()
-    p.add_argument("--res", type=int, default=256)
-    p.add_argument("--spp", type=int, default=64)
-    p.add_argument("--images", type=int, default=10)
-    p.add_argument("--objects", type=int, default=2, help="objects per family")
-    p.add_argument(
-        "--families", default=",".join(LIGHT_FAMILIES), help="light families, comma-separated (default: all)"
-    )
-    p.add_argument("--rounds", type=int, default=1,
-                   help="rounds over all families; each figure is the smallest of its rounds (robust to other load)")
-    p.add_argument("--features", default=None,
-                   help=f"generator features, comma-separated ({', '.join(FEATURES)}): one row per family and feature")
-    p.add_argument("--variant", default=None)
-    args = p.parse_args()
+@dataclass
+class Options:
+    """The command line of bench/bench_render.py."""
+
+    res: int = option(256, minimum=1)
+    """Image side in pixels."""
+    spp: int = option(64, minimum=1)
+    """Samples per pixel."""
+    images: int = option(10, minimum=1)
+    """Images per object."""
+    objects: int = option(2, minimum=1)
+    """objects per family"""
+    families: Annotated[str, arg(help_behavior_hint="(default: all)")] = ",".join(LIGHT_FAMILIES)
+    """light families, comma-separated"""
+    rounds: int = option(1, minimum=1)
+    """rounds over all families; each figure is the smallest of its rounds (robust to other load)"""
+    features: str | None = None
+    """generator features, comma-separated (default, perspective, focal, detail, cluster): one row per family and
+    feature"""
+    variant: str | None = None
+    """Mitsuba variant (default: cuda, llvm, scalar, the first this machine runs)."""
+
+    def validate(self) -> "Options":
+        check_fields(self)
+        unknown = [f for f in (self.features or "").split(",") if f and f not in FEATURES]
+        if unknown:
+            raise UsageError(f"--features: unknown {unknown}, expected from {', '.join(FEATURES)}")
+        return self
+
+
+COMMAND = Command(Options, prog="python bench/bench_render.py", description=__doc__.split("\n\n")[0])
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse(COMMAND, argv)
 
     from scenes.renderer.variant import choose_variant
     from wildgen.assets import AssetLibrary
@@ -101,9 +128,6 @@ def main() -> int:
 
     variant = choose_variant(args.variant)
     features = args.features.split(",") if args.features else [None]
-    unknown = [f for f in features if f is not None and f not in FEATURES]
-    if unknown:
-        p.error(f"--features: unknown {unknown}, expected from {', '.join(FEATURES)}")
     setups = {
         (f if feat is None else f"{f}+{feat}"): (f, FEATURES.get(feat, {}))
         for f in args.families.split(",")

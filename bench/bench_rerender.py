@@ -12,39 +12,63 @@ fraction of monotonic series, and the re-render / original render time ratio.
 """
 from __future__ import annotations
 
-import argparse
 import json
 import logging
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated, Literal
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from bench.cli_common import parse  # noqa: E402
+from scenes.cli.options import Command, arg, option  # noqa: E402
+
+
+@dataclass
+class Options:
+    """The command line of bench/bench_rerender.py."""
+
+    data: Annotated[str | None, arg(metavar="DIR", help_behavior_hint="(default: render one with wildgen.make)")] = (
+        None
+    )
+    """existing dataset folder (*.data)"""
+    res: int = option(64, minimum=1)
+    """resolution of the rendered dataset"""
+    spp: int = option(64, minimum=1)
+    """samples per pixel of the rendered dataset"""
+    objects: int = option(3, minimum=1)
+    """objects to render"""
+    images: int = option(4, minimum=1)
+    """images per object"""
+    lights: str = "near_area,hdri,mixed"
+    """light families for wildgen.make (cycled over objects)"""
+    bounces: int = option(4, minimum=0)
+    """bounces of the rendered dataset"""
+    seed: int = 0
+    """dataset and perturbation seed"""
+    levels: str = "2,5,10,20,40"
+    """perturbation angles in degrees"""
+    kinds: str = "random,smooth,bias"
+    """perturbation kinds"""
+    seed_mode: Literal["same", "independent"] = "same"
+    """Seeds of the re-render: the recorded ones (same) or new ones (independent)."""
+    variant: str | None = None
+    """Mitsuba variant (default: cuda, llvm, scalar, the first this machine runs)."""
+    json: Annotated[str | None, arg(metavar="FILE")] = None
+    """write all numbers to this JSON file"""
+
+
+COMMAND = Command(Options, prog="python bench/bench_rerender.py", description=__doc__)
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument(
-        "--data", default=None, help="existing dataset folder (*.data); default: render one with wildgen.make"
-    )
-    p.add_argument("--res", type=int, default=64, help="resolution of the rendered dataset")
-    p.add_argument("--spp", type=int, default=64, help="samples per pixel of the rendered dataset")
-    p.add_argument("--objects", type=int, default=3, help="objects to render")
-    p.add_argument("--images", type=int, default=4, help="images per object")
-    p.add_argument(
-        "--lights", default="near_area,hdri,mixed", help="light families for wildgen.make (cycled over objects)"
-    )
-    p.add_argument("--bounces", type=int, default=4, help="bounces of the rendered dataset")
-    p.add_argument("--seed", type=int, default=0, help="dataset and perturbation seed")
-    p.add_argument("--levels", default="2,5,10,20,40", help="perturbation angles in degrees")
-    p.add_argument("--kinds", default="random,smooth,bias", help="perturbation kinds")
-    p.add_argument("--seed-mode", default="same", choices=("same", "independent"))
-    p.add_argument("--variant", default=None)
-    p.add_argument("--json", default=None, help="write all numbers to this JSON file")
-    args = p.parse_args(argv)
+    args = parse(COMMAND, argv)
     logging.basicConfig(level=logging.WARNING)
 
     from scipy.stats import spearmanr
@@ -75,7 +99,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"error: wildgen.make failed with exit code {rc}", file=sys.stderr)
             return 1
         print(
-            f"dataset: {args.objects} objects x {args.images} images at {args.res}^2, {args.spp} spp in {time.perf_counter() - t0:.1f} s"
+            f"dataset: {args.objects} objects x {args.images} images at {args.res}^2, {args.spp} spp "
+            f"in {time.perf_counter() - t0:.1f} s"
         )
     else:
         data = Path(args.data)
@@ -114,13 +139,15 @@ def main(argv: list[str] | None = None) -> int:
         family = load_object(b["folder"]).desc.light_family
         print(
             f"{b['object']:<21} {family:<10} {b['gt_rel_l1']:<10.4f} {b['noise_floor_rel_l1']:<12.4f} "
-            f"{b['reproduce_rel_l1']:<10.2g} {t['rerender_s']:<11.4f} {t['original_render_s']:<11.4f} {t['rerender_over_original']:.3f}"
+            f"{b['reproduce_rel_l1']:<10.2g} {t['rerender_s']:<11.4f} {t['original_render_s']:<11.4f} "
+            f"{t['rerender_over_original']:.3f}"
         )
     print()
     print("object                kind    level   MAE     rel_l1   rel_l1/gt")
     for r in rows:
         print(
-            f"{r['object']:<21} {r['kind']:<7} {r['level']:<7g} {r['mae_deg']:<7.2f} {r['rel_l1']:<8.4f} {r['rel_l1'] / r['gt_rel_l1']:.2f}"
+            f"{r['object']:<21} {r['kind']:<7} {r['level']:<7g} {r['mae_deg']:<7.2f} {r['rel_l1']:<8.4f} "
+            f"{r['rel_l1'] / r['gt_rel_l1']:.2f}"
         )
 
     mae = np.array([r["mae_deg"] for r in rows])
@@ -145,7 +172,8 @@ def main(argv: list[str] | None = None) -> int:
           + ", ".join(f"{k} {v:.3f}" for k, v in per_object.items()))
     print(f"monotonic series: {monotonic}/{series}")
     print(
-        f"re-render / original render time (median per image): {np.median(ratios):.3f} (per object {', '.join(f'{x:.3f}' for x in ratios)})"
+        f"re-render / original render time (median per image): {np.median(ratios):.3f} "
+        f"(per object {', '.join(f'{x:.3f}' for x in ratios)})"
     )
     if args.json:
         Path(args.json).write_text(

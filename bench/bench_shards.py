@@ -23,19 +23,24 @@ objects/s over folder objects/s. Measured on a shared machine: rerun it before t
 """
 from __future__ import annotations
 
-import argparse
+import dataclasses
 import json
 import os
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+
+from bench.cli_common import parse  # noqa: E402
+from scenes.cli.options import Command, arg, option  # noqa: E402
 
 
 def write_objects(root: Path, count: int, images: int, res: int, seed: int = 0) -> None:
@@ -107,15 +112,29 @@ def decode_shards(pattern: str) -> int:
     return sum(1 for _ in iter_objects(pattern))
 
 
+@dataclass
+class Options:
+    """The command line of bench/bench_shards.py."""
+
+    objects: int = option(200, minimum=1)
+    """Objects written and read."""
+    images: int = option(8, minimum=1)
+    """Images per object."""
+    res: int = option(64, minimum=1)
+    """Image side in pixels."""
+    shard_size: int = option(100, minimum=1)
+    """Objects per shard."""
+    repeats: int = option(3, minimum=1)
+    """warm passes of each reader (the fastest is kept)"""
+    out: Annotated[Path | None, arg(metavar="FILE")] = None
+    """also write the results as JSON here"""
+
+
+COMMAND = Command(Options, prog="python bench/bench_shards.py", description=__doc__.split("\n\n")[0])
+
+
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--objects", type=int, default=200)
-    ap.add_argument("--images", type=int, default=8)
-    ap.add_argument("--res", type=int, default=64)
-    ap.add_argument("--shard-size", type=int, default=100)
-    ap.add_argument("--repeats", type=int, default=3, help="warm passes of each reader (the fastest is kept)")
-    ap.add_argument("--out", type=Path, default=None, help="also write the results as JSON here")
-    args = ap.parse_args(argv)
+    args = parse(COMMAND, argv)
 
     import importlib
 
@@ -199,8 +218,8 @@ def main(argv: list[str] | None = None) -> int:
         )
     )
     if args.out:
-        args.out.write_text(json.dumps({"settings": vars(args) | {"out": str(args.out)}, "sizes": sizes, "rows": rows},
-                                       indent=1))
+        settings = dataclasses.asdict(args) | {"out": str(args.out)}
+        args.out.write_text(json.dumps({"settings": settings, "sizes": sizes, "rows": rows}, indent=1))
     return 0
 
 

@@ -17,7 +17,6 @@ the script checks the checksums in the manifests.
 """
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import shutil
@@ -25,11 +24,16 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
-
-from wildgen.light_families import LIGHT_FAMILIES
+from typing import Annotated
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from bench.cli_common import parse  # noqa: E402
+from scenes.cli.options import Command, arg, option  # noqa: E402
+from wildgen.light_families import LIGHT_FAMILIES  # noqa: E402
 
 
 def engine_flags(name: str) -> list[str]:
@@ -73,18 +77,35 @@ def overhead_table(manifest: dict, label: str) -> None:
     print(f"{label}: {total / max(len(done), 1):.2f} s per object in the worker: {parts}")
 
 
-def main() -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--res", type=int, default=128)
-    p.add_argument("--spp", type=int, default=64)
-    p.add_argument("--images", type=int, default=10)
-    p.add_argument("--objects", type=int, default=8)
-    p.add_argument("--engines", default="w1t1,w1t2,w2t1,ray")
-    p.add_argument("--overhead-spp", type=int, default=256)
-    p.add_argument("--overhead-objects", type=int, default=3)
-    p.add_argument("--lights", default=",".join(LIGHT_FAMILIES), help="light families for wildgen.make (default: all)")
-    p.add_argument("--keep", default=None, help="keep the datasets in this folder")
-    args = p.parse_args()
+@dataclass
+class Options:
+    """The command line of bench/bench_throughput.py."""
+
+    res: int = option(128, minimum=1)
+    """Image side in pixels."""
+    spp: int = option(64, minimum=1)
+    """Samples per pixel."""
+    images: int = option(10, minimum=1)
+    """Images per object."""
+    objects: int = option(8, minimum=1)
+    """Objects of each engine's dataset."""
+    engines: str = "w1t1,w1t2,w2t1,ray"
+    """Engines, comma-separated: w<W>t<T> (W local worker processes with T Dr.Jit threads each), ray or inproc."""
+    overhead_spp: int = option(256, minimum=1)
+    """Samples per pixel of the overhead-share run."""
+    overhead_objects: int = option(3, minimum=1)
+    """Objects of the overhead-share run."""
+    lights: Annotated[str, arg(help_behavior_hint="(default: all)")] = ",".join(LIGHT_FAMILIES)
+    """light families for wildgen.make"""
+    keep: Annotated[str | None, arg(metavar="DIR")] = None
+    """keep the datasets in this folder"""
+
+
+COMMAND = Command(Options, prog="python bench/bench_throughput.py", description=__doc__.split("\n\n")[0])
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse(COMMAND, argv)
 
     engines = args.engines.split(",")
     for e in engines:
@@ -102,7 +123,8 @@ def main() -> int:
     tiny = ["--lights", "directional", "--res", "8", "--spp", "1", "--images", "1", "--objects", "1", "--gt-spp", "1"]
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     print(
-        f"{args.objects} objects, {args.res}x{args.res}, {args.spp} spp, {args.images} images/object, lights {args.lights}; "
+        f"{args.objects} objects, {args.res}x{args.res}, {args.spp} spp, {args.images} images/object, "
+        f"lights {args.lights}; "
         f"{cores} cores, load average {os.getloadavg()[0]:.2f}"
     )
     print(f"{'engine':8s} {'wall s':>7s} {'fixed s':>8s} {'obj/hour':>9s} {'w/o fixed':>10s} {'speed-up':>9s}")
@@ -118,14 +140,16 @@ def main() -> int:
         base = rows[engines[0]]
         for e, (wall, fixed, done) in rows.items():
             print(
-                f"{e:8s} {wall:7.1f} {fixed:8.1f} {3600 * done / wall:9.0f} {3600 * done / max(wall - fixed, 1e-9):10.0f} "
+                f"{e:8s} {wall:7.1f} {fixed:8.1f} {3600 * done / wall:9.0f} "
+                f"{3600 * done / max(wall - fixed, 1e-9):10.0f} "
                 f"{base[0] / wall:8.2f}x"
             )
         if "w1t1" in rows and "w2t1" in rows:
             eff = rows["w1t1"][0] / rows["w2t1"][0] / 2
             eff_net = (rows["w1t1"][0] - rows["w1t1"][1]) / (rows["w2t1"][0] - rows["w2t1"][1]) / 2
             print(
-                f"scaling efficiency 2 workers vs 1 (1 thread each): {100 * eff:.0f} % (without fixed costs {100 * eff_net:.0f} %)"
+                f"scaling efficiency 2 workers vs 1 (1 thread each): {100 * eff:.0f} % "
+                f"(without fixed costs {100 * eff_net:.0f} %)"
             )
         if "w1t2" in rows and "w2t1" in rows:
             print(f"2 workers x 1 thread vs 1 worker x 2 threads: {rows['w1t2'][0] / rows['w2t1'][0]:.2f}x")

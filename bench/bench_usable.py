@@ -23,18 +23,23 @@ A case is a row: what was expected, what was raised, and whether that is right.
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import tempfile
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Annotated
 
 import cv2
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))  # this tree's toolkit, not another checkout's installed one
+
+from bench.cli_common import DILIGENT, parse  # noqa: E402
+from scenes.cli.options import CommaList, Command, UseAppendAction, arg, comma_list, option  # noqa: E402
+
 MARGIN = 8
 """Pixels cut from each side of DiLiGenT's frames, so that a moved window stays inside the photo."""
 DIRECTIONS = {"x": (1, 0), "y": (0, 1), "diag": (1, 1)}
@@ -107,7 +112,8 @@ def _print(row: dict) -> None:
     print(
         f"{'ok ' if row['ok'] else 'BAD'} {row['source']:<9} {row['object']:<10} {row['encoding']:<8} "
         f"{row['subset']:<15} {row['case']:<24} expected {','.join(row['expected']) or '-':<14} raised "
-        f"{','.join(row['raised']) or '-':<28} shifted pairs {row['shifted_pairs']:>2} polar {row['max_light_polar_deg']} "
+        f"{','.join(row['raised']) or '-':<28} shifted pairs {row['shifted_pairs']:>2} "
+        f"polar {row['max_light_polar_deg']} "
         f"({row['seconds']:.1f} s)",
         flush=True,
     )
@@ -209,29 +215,45 @@ def suite_rows(suite: Path, shifts: list[int]) -> list[dict]:
     return rows
 
 
+@dataclass
+class Options:
+    """The command line of bench/bench_usable.py."""
+
+    data: Annotated[Path, arg(metavar="DIR", help_behavior_hint="(default: ../shared/data/diligent)")] = DILIGENT
+    """folder holding ballPNG/ and catPNG/"""
+    suite: Annotated[list[Path], UseAppendAction, arg(metavar="DIR")] = field(default_factory=list)
+    """a wildgen.make dataset"""
+    suite_shifts: Annotated[list[int], comma_list(int, "N,N")] = field(default_factory=lambda: [2, 4])
+    """also each rendered object with its second half moved by these px"""
+    out: Annotated[Path | None, arg(metavar="FILE")] = None
+    """write every row as JSON here"""
+    objects: Annotated[list[str], CommaList] = field(default_factory=lambda: ["ball", "cat"])
+    """DiLiGenT objects (folders NAMEPNG/ under --data)."""
+    encodings: Annotated[list[str], CommaList] = option(
+        default_factory=lambda: ["linear16", "jpeg"], choices=("linear16", "jpeg")
+    )
+    """How the photos are written before the check reads them."""
+    subsets: Annotated[list[int], comma_list(int, "N,N")] = field(default_factory=lambda: [96, 48, 16, 8])
+    """Numbers of images of the light subsets."""
+    shifts: Annotated[list[int], comma_list(int, "N,N")] = field(default_factory=lambda: [2, 3, 4, 6])
+    """Camera shifts in px, applied to half of the images."""
+    directions: Annotated[list[str], CommaList] = option(
+        default_factory=lambda: list(DIRECTIONS), choices=tuple(DIRECTIONS)
+    )
+    """Directions of the shifts."""
+    halves: Annotated[list[str], CommaList] = option(
+        default_factory=lambda: ["alternate", "second"], choices=("alternate", "second")
+    )
+    """Which half of the images is moved: every second one (alternate) or the second half (second)."""
+    frontal: Annotated[list[float], comma_list(float, "DEG,DEG")] = field(default_factory=lambda: [15.0, 10.0])
+    """also the lights within these degrees of the viewing direction"""
+
+
+COMMAND = Command(Options, prog="python bench/bench_usable.py", description=__doc__.split("\n\n")[0])
+
+
 def main(argv: list[str] | None = None) -> int:
-    def ints(s):
-        return [int(x) for x in s.split(",") if x]
-
-    def names(s):
-        return [x for x in s.split(",") if x]
-
-    default = REPO.parent / "shared" / "data" / "diligent"
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--data", type=Path, default=default, help="folder holding ballPNG/ and catPNG/")
-    p.add_argument("--suite", type=Path, action="append", default=[], help="a wildgen.make dataset (repeatable)")
-    p.add_argument("--suite-shifts", type=ints, default=[2, 4], help="also each rendered object with its second "
-                   "half moved by these px")
-    p.add_argument("--out", type=Path, help="write every row as JSON here")
-    p.add_argument("--objects", type=names, default=["ball", "cat"])
-    p.add_argument("--encodings", type=names, default=["linear16", "jpeg"])
-    p.add_argument("--subsets", type=ints, default=[96, 48, 16, 8])
-    p.add_argument("--shifts", type=ints, default=[2, 3, 4, 6])
-    p.add_argument("--directions", type=names, default=list(DIRECTIONS))
-    p.add_argument("--halves", type=names, default=["alternate", "second"])
-    p.add_argument("--frontal", type=lambda s: [float(x) for x in s.split(",") if x], default=[15.0, 10.0],
-                   help="also the lights within these degrees of the viewing direction")
-    args = p.parse_args(argv)
+    args = parse(COMMAND, argv)
     rows: list[dict] = []
     with tempfile.TemporaryDirectory() as tmp:
         for obj in args.objects:

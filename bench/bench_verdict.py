@@ -8,7 +8,9 @@ meshes and HDR maps, glossy and metallic materials, near point and area lights):
 
     python -m wildgen.make --objects 40 --images 12 --res 64 --spp 64 --lights directional,point,near_area,hdri,mixed \\
         --assets ASSETS --shapes mesh --seed 777 --out HARD
-    for d in HARD/*.data; do mkdir -p HARDNOS/$(basename $d); cp $d/L*.png $d/mask.png $d/normal.tif HARDNOS/$(basename $d)/; done
+    for d in HARD/*.data; do
+        mkdir -p HARDNOS/$(basename $d); cp $d/L*.png $d/mask.png $d/normal.tif HARDNOS/$(basename $d)/
+    done
 
 For each capture: the verdict from the images alone (`validate.verdict`: explained fraction, trusted), and
 for each map (ground truth; the truth tilted locally by 10 and 25 degrees about an axis that varies across the
@@ -20,16 +22,21 @@ docs/check.md (a test per tile where the whole-object test abstains; measured, n
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated, Literal
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+
+from bench.cli_common import parse  # noqa: E402
+from scenes.cli.errors import UsageError  # noqa: E402
+from scenes.cli.options import REQUIRED, Command, Positional, arg, check_fields, option  # noqa: E402
 
 
 def explain_by_tile(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None, tile: int,
@@ -178,37 +185,49 @@ def near_judgement(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray |
     return ex, False, why, "directional", "whole object"
 
 
-def main() -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("captures", nargs="+", type=Path)
-    p.add_argument("--out", type=Path, default=Path("bench_verdict.json"))
-    p.add_argument("--no-model", action="store_true", help="skip the shipped model's map")
-    p.add_argument("--refine", action="store_true", help="also refine the shipped model's map (validate.refine's "
-                   "defaults) and report its error before and after, and whether the refinement was accepted")
-    p.add_argument(
-        "--optimised",
-        action="store_true",
-        help="on each trusted capture also refine the ground truth, "
-        "GT+10, GT+25, the shipped model's map and calibrated least squares (where the folder has lights) with "
-        "validate.refine's defaults at the fitting resolution, and score the refined maps ('<map>*') too",
-    )
-    p.add_argument("--light-model", default="directional", choices=("directional", "point", "environment"),
-                   help="light model of every fit (the check's default: directional)")
-    p.add_argument("--tile", type=int, default=0, help="trial: run the images-only rank-4 test per square tile of "
-                   "this many pixels at the fitting resolution (a near light is locally distant) instead of over the "
-                   "whole object (0, the check's test)")
-    p.add_argument("--near", action="store_true", help="trial: the whole-object test, then where it abstains the "
-                   "test per tile of a quarter of the object, trusted from 55 %% explained and judged with the point "
-                   "light model (overrides --tile and --light-model)")
-    p.add_argument(
-        "--degenerate",
-        action="store_true",
-        help="instead: the sweep of nearly unjudgeable captures made "
-        "from each calibrated capture (8 scaled copies of one image; the 5 lights most to the right; 5 and 40 "
-        "of the right half; 5 and 8 spread over all): light dimensions, verdict, and the judged scores of the "
-        "truth, the truth mirrored left to right (lights turned with it) and the constant map",
-    )
-    args = p.parse_args()
+@dataclass
+class Options:
+    """The command line of bench/bench_verdict.py."""
+
+    captures: Positional[Annotated[list[Path], arg(metavar="CAPTURE")]] = REQUIRED
+    """Object folders with ground-truth normals, one or more."""
+    out: Annotated[Path, arg(metavar="FILE")] = Path("bench_verdict.json")
+    """Write the rows and the summary as JSON here."""
+    model: bool = True
+    """score the shipped model's map (--no-model: skip it)"""
+    refine: bool = False
+    """also refine the shipped model's map (validate.refine's defaults) and report its error before and after, and
+    whether the refinement was accepted"""
+    optimised: bool = False
+    """on each trusted capture also refine the ground truth, GT+10, GT+25, the shipped model's map and calibrated
+    least squares (where the folder has lights) with validate.refine's defaults at the fitting resolution, and score
+    the refined maps ('<map>*') too"""
+    light_model: Literal["directional", "point", "environment"] = "directional"
+    """light model of every fit (the check's default: directional)"""
+    tile: int = option(0, minimum=0)
+    """trial: run the images-only rank-4 test per square tile of this many pixels at the fitting resolution (a near
+    light is locally distant) instead of over the whole object (0, the check's test)"""
+    near: bool = False
+    """trial: the whole-object test, then where it abstains the test per tile of a quarter of the object, trusted
+    from 55 % explained and judged with the point light model (overrides --tile and --light-model)"""
+    degenerate: bool = False
+    """instead: the sweep of nearly unjudgeable captures made from each calibrated capture (8 scaled copies of one
+    image; the 5 lights most to the right; 5 and 40 of the right half; 5 and 8 spread over all): light dimensions,
+    verdict, and the judged scores of the truth, the truth mirrored left to right (lights turned with it) and the
+    constant map"""
+
+    def validate(self) -> "Options":
+        check_fields(self)
+        if not self.captures:
+            raise UsageError("the following arguments are required: CAPTURE")
+        return self
+
+
+COMMAND = Command(Options, prog="python bench/bench_verdict.py", description=__doc__.split("\n\n")[0])
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse(COMMAND, argv)
     if args.degenerate:
         return degenerate_sweep(args.captures, args.out)
 
@@ -225,7 +244,7 @@ def main() -> int:
     from validate.verdict import explain, judged_rel_l1, told_apart, verdict
 
     base = FitConfig(light_model=args.light_model).validate()
-    net = None if args.no_model else load_network(None)
+    net = None if not args.model else load_network(None)
     rows = []
     for folder in args.captures:
         t0 = time.perf_counter()
@@ -266,7 +285,8 @@ def main() -> int:
             row["refine"] = {"before_deg": rr["before"]["mae_deg"], "after_deg": rr["after"]["mae_deg"],
                              "accepted": rr["accepted"], "why": rr["why"], "seconds": rr["timings"]["total_s"]}
             print(
-                f"  refine: {rr['before']['mae_deg']:.2f} -> {rr['after']['mae_deg']:.2f} deg, accepted {rr['accepted']} "
+                f"  refine: {rr['before']['mae_deg']:.2f} -> {rr['after']['mae_deg']:.2f} deg, "
+                f"accepted {rr['accepted']} "
                 f"({rr['timings']['total_s']:.0f} s)",
                 flush=True,
             )

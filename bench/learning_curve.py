@@ -17,10 +17,17 @@ not a measurement: it says how far the remaining gap is at the rate measured so 
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Annotated
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from bench.cli_common import parse  # noqa: E402
+from scenes.cli.options import Command, Positional, arg  # noqa: E402
 
 
 def validations(run: Path) -> list[dict]:
@@ -132,20 +139,25 @@ def card_table(card: dict, target: float) -> str:
     return "\n".join(out)
 
 
+@dataclass
+class Options:
+    """The command line of bench/learning_curve.py."""
+
+    runs: Positional[Annotated[list[Path], arg(metavar="RUN")]] = field(default_factory=list)
+    """unips.train run folders"""
+    families: bool = False
+    """also the per-family probes of the last validation"""
+    card: Annotated[Path | None, arg(metavar="CARD")] = None
+    """a model card: the curve across its lineage's shipped stages"""
+    target: float = 15.0
+    """test-set error (deg) the --card trend is extrapolated to"""
+
+
+COMMAND = Command(Options, prog="python bench/learning_curve.py", description=__doc__.split("\n\n")[0])
+
+
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("runs", nargs="*", type=Path, help="unips.train run folders")
-    p.add_argument("--families", action="store_true", help="also the per-family probes of the last validation")
-    p.add_argument(
-        "--card", type=Path, default=None, help="a model card: the curve across its lineage's shipped stages"
-    )
-    p.add_argument(
-        "--target",
-        type=float,
-        default=15.0,
-        help="test-set error (deg) the --card trend is extrapolated to (default 15)",
-    )
-    args = p.parse_args(argv)
+    args = parse(COMMAND, argv)
     try:
         if not args.runs and args.card is None:
             raise ValueError("expected RUN folders or --card CARD")

@@ -77,12 +77,14 @@ def test_learning_curve_card_trend_and_extrapolation(tmp_path) -> None:
     recovers a = 20, b = 1.5, and the hours at which the trend reaches the target (shifted by the family's
     test - validation difference) are 2^((a - need) / b); a stage marked 'not shipped' is left out."""
     import importlib.util
+    import sys
     from pathlib import Path
 
     spec = importlib.util.spec_from_file_location(
         "learning_curve", Path(__file__).resolve().parents[1] / "bench" / "learning_curve.py"
     )
     lc = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = lc  # its options dataclass is read from its module's namespace
     spec.loader.exec_module(lc)
     err = lambda h: 20 - 1.5 * np.log2(h)  # noqa: E731
     lineage, cum = [], 0.0
