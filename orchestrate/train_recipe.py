@@ -419,10 +419,9 @@ def ship(val: Path, run_dir: Path, args: RecipeOptions) -> bool:
             "model": name,
             "weights": _display(current),
             "parameters": sum(p.numel() for p in model.parameters()),
-            "data_recipe": (
-                f"python -m orchestrate.train_recipe --train-seed {seeds} --train-objects {args.train_objects} "
-                f"--steps {args.steps} --lr {args.lr}" + (f" --init-from {args.init_from}" if args.init_from else "")
-            ),
+            "data_recipe": f"python -m orchestrate.train_recipe --train-seed {seeds} "
+            f"--train-objects {args.train_objects} --steps {args.steps} --lr {args.lr}"
+            + (f" --init-from {args.init_from}" if args.init_from else ""),
             "validation_data": f"orchestrate/train_recipe.py fixed validation set: wildgen.make {VALIDATION_DATA}",
             "train_objects": args.train_objects * len(args.train_seed),
             "steps": sum(s.get("steps") or 0 for s in lineage),
@@ -430,9 +429,8 @@ def ship(val: Path, run_dir: Path, args: RecipeOptions) -> bool:
             "validation_mean_deg": round(new["mean"], 2),
             "validation_per_family_deg": {f: v["all"] for f, v in lineage[-1]["per_family_at_best"].items()},
             "wall_time_s": round(sum(s.get("hours") or 0 for s in lineage) * 3600),
-            "hardware": (
-                f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, torch {torch.__version__}"
-            ),
+            "hardware": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+            f"torch {torch.__version__}",
             "git_revision": git_revision(REPO),
             "probes_fixed_validation": _probe_card(new, val_pixels),
             "replaced_model_probes_fixed_validation": _probe_card(old, val_pixels) if old else None,
