@@ -1,17 +1,20 @@
 # Two commands do everything on a fresh machine: `make demo` (the main job) and `make test`.
 # `make test` leaves out the tests marked `slow` (pytest.mark.slow, pyproject.toml); `make test-slow` runs only
-# those; CI (.ci/run) runs both.
+# those; `make lint` runs ruff (its rules in pyproject.toml); CI (.ci/run) runs the lint, then both.
 VENV ?= .venv
 PY := $(VENV)/bin/python
 DEMO_OUT ?= demo_out
 
-.PHONY: setup demo test test-slow docs bench clean
+.PHONY: setup demo lint test test-slow docs bench clean
 
 setup:
 	EXTRAS=$(EXTRAS) bash scripts/setup.sh
 
 demo: setup
 	$(PY) -m orchestrate.demo --out $(DEMO_OUT) --overwrite
+
+lint: setup
+	$(PY) -m ruff check .
 
 test: setup
 	$(PY) -m pytest -q -x --durations=15 -m "not slow" tests

@@ -24,7 +24,10 @@ def shards_throughput(card: dict) -> str:
     rows = [[_READS[r["read"]], r["cache"], f"{r['folders_per_s']:.0f}", f"{r['files_per_s']:.0f}",
              f"{r['decoded_per_s']:.0f}", f"{r['ratio_files']:.2f}x", f"**{r['ratio_decoded']:.2f}x**"]
             for r in d["rows"]]
-    mib = (lambda b: f"{b / 2**20:.1f} MiB")
+
+    def mib(b):
+        return f"{b / 2**20:.1f} MiB"
+
     return (f"{st['objects']} synthetic objects of {st['images']} images at {st['res']} x {st['res']} px, shards of "
             f"{st['shard_size']}; on disk: {sz['folder_files']} files of folders {mib(sz['folder_bytes'])}, shards "
             f"of files {mib(sz['shard_bytes_files'])}, decoded shards {mib(sz['shard_bytes_decoded'])}.\n\n"

@@ -313,7 +313,8 @@ def _synthetic_tables(syn: dict, res: dict) -> list[str]:
     if syn["rerender"]:
         lines += [
             "",
-            "Re-render residual (relative L1 over the mask, same seeds) beside angular error, per method (mean over the re-rendered objects)",
+            "Re-render residual (relative L1 over the mask, same seeds) beside angular error, per method "
+            "(mean over the re-rendered objects)",
             "",
         ]
         rows = []
@@ -338,7 +339,8 @@ def _synthetic_tables(syn: dict, res: dict) -> list[str]:
             rho = spearmanr([r["mae_deg"] for r in syn["rerender"]], [r["rel_l1"] for r in syn["rerender"]]).statistic
             lines.append("")
             lines.append(
-                f"Spearman rank correlation between re-render residual and MAE over all {len(syn['rerender'])} (object, method) pairs: {rho:.2f}"
+                "Spearman rank correlation between re-render residual and MAE over all "
+                f"{len(syn['rerender'])} (object, method) pairs: {rho:.2f}"
             )
     return lines
 

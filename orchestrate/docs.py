@@ -10,8 +10,9 @@ A generated block lies between two markers, NAME being one of `BLOCKS` or `flags
     <!-- END generated:NAME -->
 
 Flag tables come from each CLI's `COMMAND` (tyro's argparse form of its command line), imported at run time
-(so a changed config changes the docs on the next run); result tables come from `unips/weights/model_card.json`, the record of the shipped
-model. Everything outside the markers is written by hand and left alone.
+(so a changed config changes the docs on the next run); result tables come from
+`unips/weights/model_card.json`, the record of the shipped model. Everything outside the markers is written by
+hand and left alone.
 """
 from __future__ import annotations
 

@@ -515,7 +515,8 @@ def main(argv: list[str] | None = None) -> int:
     except (*INPUT_ERRORS, OSError) as exc:
         return report_error(exc)
     print(
-        f"gpu session done in {summary['wall_s']:.0f} s: {summary['steps']} steps; wrote {opts.out}/{RUN}/final.safetensors "
+        f"gpu session done in {summary['wall_s']:.0f} s: {summary['steps']} steps; "
+        f"wrote {opts.out}/{RUN}/final.safetensors "
         f"(+ .json, last.pt, log.jsonl), learning_curve.png, variant_check.json, model_card.json, summary.json"
     )
     return 0

@@ -187,7 +187,9 @@ def decide(opts: ShipOptions) -> bool:
                     "model": name,
                     "weights": _display(current),
                     "parameters": sum(p.numel() for p in model.parameters()),
-                    "validation_data": f"orchestrate/train_recipe.py fixed validation set: wildgen.make {VALIDATION_DATA}",
+                    "validation_data": (
+                        f"orchestrate/train_recipe.py fixed validation set: wildgen.make {VALIDATION_DATA}"
+                    ),
                     "steps": sum(s.get("steps") or 0 for s in card["lineage"] if s.get("shipped", True)),
                     "validation_mean_deg": round(new["mean"], 2),
                     "hardware": record["hardware"]

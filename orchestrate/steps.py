@@ -43,8 +43,8 @@ STOP_GRACE_S = 5.0
 
 def check_step(module: str, argv: list[str]) -> Any:
     """Check the command line `argv` of step `module` (`python -m module argv`) without running it: the module's
-    `check_args(argv)` where it has one, else its command line (`COMMAND.parse`). Raises the step's own one-line error (UsageError /
-    ValueError / FileNotFoundError) prefixed with the step's name."""
+    `check_args(argv)` where it has one, else its command line (`COMMAND.parse`). Raises the step's own one-line
+    error (UsageError / ValueError / FileNotFoundError) prefixed with the step's name."""
     mod = importlib.import_module(module)
     try:
         if hasattr(mod, "check_args"):

@@ -7,9 +7,9 @@
 1. Split the asset folder: the last quarter of the meshes and the last fifth of the HDR maps (sorted by
    name, rounded up; with ../shared/assets: 5 of 19 meshes, 7 of 35 maps) are held out for validation
    and test; texture sets are shared (there are only eight).
-2. Render with `wildgen.make`, the PS-Wild light families (`wildgen.light_families.PS_WILD_FAMILIES`) cycled: train (seed `--train-seed`, 128 px,
-   10 images, 16 spp, train assets; a new seed gives fresh data for a continued run; several seeds,
-   comma-separated, give one set each, pooled for training), the fixed
+2. Render with `wildgen.make`, the PS-Wild light families (`wildgen.light_families.PS_WILD_FAMILIES`) cycled:
+   train (seed `--train-seed`, 128 px, 10 images, 16 spp, train assets; a new seed gives fresh data for a
+   continued run; several seeds, comma-separated, give one set each, pooled for training), the fixed
    validation set (seed 4000, 100 objects, 128 px, 10 images, 32 spp, held-out assets: the test
    distribution) and the test set (seed 3000, 100 objects, same settings).
 3. Train with `unips.train` (warm-up + cosine, gradient clipping, 1..10 images per sample, probes at
@@ -419,8 +419,9 @@ def ship(val: Path, run_dir: Path, args: RecipeOptions) -> bool:
             "model": name,
             "weights": _display(current),
             "parameters": sum(p.numel() for p in model.parameters()),
-            "data_recipe": f"python -m orchestrate.train_recipe --train-seed {seeds} --train-objects {args.train_objects} "
-            f"--steps {args.steps} --lr {args.lr}" + (f" --init-from {args.init_from}" if args.init_from else ""),
+            "data_recipe": f"python -m orchestrate.train_recipe --train-seed {seeds} "
+            f"--train-objects {args.train_objects} --steps {args.steps} --lr {args.lr}"
+            + (f" --init-from {args.init_from}" if args.init_from else ""),
             "validation_data": f"orchestrate/train_recipe.py fixed validation set: wildgen.make {VALIDATION_DATA}",
             "train_objects": args.train_objects * len(args.train_seed),
             "steps": sum(s.get("steps") or 0 for s in lineage),
@@ -428,7 +429,8 @@ def ship(val: Path, run_dir: Path, args: RecipeOptions) -> bool:
             "validation_mean_deg": round(new["mean"], 2),
             "validation_per_family_deg": {f: v["all"] for f, v in lineage[-1]["per_family_at_best"].items()},
             "wall_time_s": round(sum(s.get("hours") or 0 for s in lineage) * 3600),
-            "hardware": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, torch {torch.__version__}",
+            "hardware": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+            f"torch {torch.__version__}",
             "git_revision": git_revision(REPO),
             "probes_fixed_validation": _probe_card(new, val_pixels),
             "replaced_model_probes_fixed_validation": _probe_card(old, val_pixels) if old else None,

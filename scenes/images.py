@@ -127,7 +127,8 @@ def write_mask(path: str | Path, mask: np.ndarray) -> None:
 
 
 def read_mask(path: str | Path, shape: tuple[int, int] | None = None) -> np.ndarray:
-    """(H, W) bool mask by `MASK_RULE` (any channel > 0); its size must be `shape` when given."""
+    """(H, W) bool mask, foreground where any channel > 0 (the official UniPS loaders' rule); its size must be
+    `shape` when given."""
     path = Path(path)
     img = _read_raw(path, "mask")
     if img.ndim == 3:

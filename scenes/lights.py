@@ -201,9 +201,6 @@ LIGHT_TYPES: dict[str, type[LightDesc]] = {t.type: t for t in (
     DirectionalLight, PointLight, AreaLight, EnvironmentLight, UniformLight)}
 """The light types, in the order their slots are created and written (the emitter order of a built scene)."""
 
-assert all(other in LIGHT_TYPES for t in LIGHT_TYPES.values() for other in t.excludes)
-assert all(t.strength in {f.name for f in fields(t)} for t in LIGHT_TYPES.values())
-
 
 def light_type(name: Any, owner: str = "light") -> type[LightDesc]:
     """The class of light type `name`; a ValueError naming `owner`.type, the value and the known types for

@@ -46,13 +46,3 @@ def mean_angular_error(pred: np.ndarray, gt: np.ndarray, mask: np.ndarray) -> fl
         raise ValueError("mask: is empty, cannot average the angular error")
     err = angular_error_deg(pred, gt, mask)
     return float(np.mean(err[mask], dtype=np.float64))
-
-
-def angular_errors_chw(pred, gt, mask) -> np.ndarray:
-    """Angular errors in degrees of the pixels inside `mask`, as a flat float32 array, for channel-first
-    maps (the training loop's layout): pred, gt (3, H, W), mask (1, H, W) with > 0.5 inside. NumPy arrays
-    or CPU tensors; same rule as `angular_error_deg`."""
-    m = np.asarray(mask)[0] > 0.5
-    p = np.moveaxis(np.asarray(pred, dtype=np.float32), 0, -1)
-    g = np.moveaxis(np.asarray(gt, dtype=np.float32), 0, -1)
-    return angular_error_deg(p, g, m)[m]

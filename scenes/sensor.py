@@ -411,7 +411,7 @@ def write_image(path: str | Path, pixels: np.ndarray) -> None:
 # ------------------------------------------------------------------------------------------ scene.json
 
 SCENE_KEY = "sensor"
-"""The scene.json key of the sensor record (a `scenes.folder.format.SCENE_EXTRAS` entry)."""
+"""The scene.json key of the sensor record (an extra top-level key, `scenes.folder.format`)."""
 _STREAM = 0x5E4502  # keeps the noise streams apart from any other use of the image seeds
 
 

@@ -13,10 +13,10 @@ a trailing ``.data`` (``foo.data`` -> ``foo``; DiLiGenT's ``ballPNG`` stays ``ba
 Inference itself is the library `unips.inference` (this module parses arguments and writes files).
 ``--method model`` loads a network with `unips.models.load_model`; without ``--checkpoint`` it
 uses the shipped weights of `unips.models.DEFAULT_MODEL` (the registry's pretrained entry) and refuses
-to run when that file is absent (never random weights). The network sees the UniPS preprocessing (`unips.preprocess.prepare`), at the
-crop's own size or at ``--res R``, and its output is put back into the original frame. ``--tta N``
-averages the network's predictions over N flipped / transposed views of the object (test-time
-augmentation, N forward passes; `unips.inference.model_normals`). ``--model glc-unips --checkpoint DIR`` and
+to run when that file is absent (never random weights). The network sees the UniPS preprocessing
+(`unips.preprocess.prepare`), at the crop's own size or at ``--res R``, and its output is put back into the
+original frame. ``--tta N`` averages the network's predictions over N flipped / transposed views of the object
+(test-time augmentation, N forward passes; `unips.inference.model_normals`). ``--model glc-unips --checkpoint DIR`` and
 ``--model sdm-unips --checkpoint DIR`` run the authors' published UniPS and SDM-UniPS weights (their checkpoint
 folders) with their preprocessing (`unips.glc_preprocess`, `unips.sdm_preprocess`; one view unless ``--tta`` says
 otherwise); ``--scalable`` runs SDM-UniPS on the 512 px interleaved sub-images of a large working image, as the
@@ -299,7 +299,8 @@ def _predict_one(args: PredictOptions, net, folder: Path, name: str) -> None:
     if constant:
         print(
             f"warning: {name}: --method {args.method} returned a constant normal map (normals within "
-            f"{CONSTANT_DEG} deg of one direction on average): degenerate unless the object is a plane; flagged in predict.json",
+            f"{CONSTANT_DEG} deg of one direction on average): degenerate unless the object is a plane; "
+            "flagged in predict.json",
             file=sys.stderr,
         )
     info = {

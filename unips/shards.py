@@ -114,11 +114,6 @@ def count_images(root: str | Path, arg: str = "--data") -> tuple[int, int]:
     return len(objects), sum(int(o.get("images", 0)) for o in objects)
 
 
-def object_names(root: str | Path, arg: str = "--data") -> list[str]:
-    """The object names of the shards of a --data entry, in stream order of the cached mode."""
-    return [o["name"] for s in resolve_shards(root, arg) for o in s.objects]
-
-
 SHM = "/dev/shm"
 """Memory-backed file system where decoding writes its temporary folders when it has room: creating and
 removing a folder of small files there costs a sixth of what it costs on a journaling disk file system."""

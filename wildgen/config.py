@@ -72,8 +72,8 @@ class GenConfig:
     """Optional folder with hdri/, meshes/, textures/; without it everything is procedural."""
     cluster: Annotated[str | None, arg(metavar="A-B", help_behavior_hint="(default: one object per scene)")] = None
     """Objects per scene, drawn uniformly in [A, B] (at most 8): shapes slid together until they touch, then pressed a
-    little, so that cast shadows and inter-reflections between them appear; one material and one mesh for the whole cluster
-    (scene.json `parts`), aux/instances.png holds the 16-bit id of the object at each pixel (0: background).
+    little, so that cast shadows and inter-reflections between them appear; one material and one mesh for the whole
+    cluster (scene.json `parts`), aux/instances.png holds the 16-bit id of the object at each pixel (0: background).
     The fill-the-frame and entropy rules apply to the cluster as a whole."""
     detail: Annotated[
         float | None, arg(metavar="P", help_behavior_hint="(default: texture sets' own normal maps only)")
@@ -125,7 +125,8 @@ class GenConfig:
         unknown = [f for f in self.lights if f not in LIGHT_FAMILIES]
         if not self.lights or unknown:
             raise ValueError(
-                f"--lights: unknown family {', '.join(map(repr, unknown)) or repr(','.join(self.lights))}, expected from "
+                f"--lights: unknown family {', '.join(map(repr, unknown)) or repr(','.join(self.lights))}, "
+                "expected from "
                 f"{', '.join(LIGHT_FAMILIES)}"
             )
         check_fields(self)

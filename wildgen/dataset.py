@@ -116,11 +116,9 @@ class ManifestWriter:
         self.budget = budget
         self._last_end = 0.0
         self._last_cost = 0.0
-        self._dirty = False
 
     def update(self, entry: dict) -> None:
         self.entries[entry["index"]] = entry
-        self._dirty = True
         if time.perf_counter() - self._last_end >= self.budget * self._last_cost:
             self.flush()
 
@@ -129,7 +127,6 @@ class ManifestWriter:
         write_manifest(self.out_dir, self.cfg, self.variant, self.entries, self.extra)
         self._last_end = time.perf_counter()
         self._last_cost = self._last_end - t0
-        self._dirty = False
 
 
 def verify_object(out_dir: Path, entry: dict) -> str | None:

@@ -15,8 +15,8 @@ and atomic per shard (each is written under a temporary name and renamed); index
 --out is locked while an export writes into it (a second export into it is refused), and index.json records
 the dataset folder it was made from (`source`).
 When --data has a manifest.json (wildgen.make, wildgen.sensor), every object it records is checked against its
-checksums first. An existing export in --out (its index.json, shards, and the temporaries of a killed export) is replaced
-only with --overwrite; an index.json that wildgen.export did not write, or shards without one, never.
+checksums first. An existing export in --out (its index.json, shards, and the temporaries of a killed export) is
+replaced only with --overwrite; an index.json that wildgen.export did not write, or shards without one, never.
 """
 from __future__ import annotations
 

@@ -385,7 +385,8 @@ def _run(argv: list[str] | None, state: dict) -> int:
     if entries and not any(e.get("status") == "done" for e in entries.values()):
         first = next(e for e in entries.values() if e.get("status") == "skipped")
         print(
-            f"error: none of the {len(entries)} object(s) was written, all were rejected (first: {first.get('reason')})",
+            f"error: none of the {len(entries)} object(s) was written, all were rejected "
+            f"(first: {first.get('reason')})",
             file=sys.stderr,
         )
         return 1

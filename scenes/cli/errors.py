@@ -2,8 +2,8 @@
 
 Defined at the bottom layer so that `wildgen`, `unips`, `validate` and `orchestrate` CLIs share it without
 importing each other: a CLI raises `UsageError` (or lets its library raise ValueError /
-FileNotFoundError), and its `main` turns that into one line `error: ...` on stderr and a non-zero exit
-status with `report_error`, never a traceback.
+FileNotFoundError, or importing `scenes` raise `MissingDependencyError`), and its `main` turns that into one line
+`error: ...` on stderr and a non-zero exit status with `report_error`, never a traceback.
 """
 from __future__ import annotations
 
@@ -16,7 +16,13 @@ EXIT_USAGE = 2
 class UsageError(Exception):
     """A usage or input error that a CLI reports as one line."""
 
-INPUT_ERRORS: tuple[type[BaseException], ...] = (UsageError, ValueError, FileNotFoundError)
+
+class MissingDependencyError(ModuleNotFoundError):
+    """This Python lacks packages every command needs (`scenes.dependencies`, raised by importing `scenes`); its
+    message is one line naming them and the fix."""
+
+
+INPUT_ERRORS: tuple[type[BaseException], ...] = (UsageError, ValueError, FileNotFoundError, MissingDependencyError)
 """Exceptions every CLI reports as one line with `report_error`."""
 
 

@@ -7,11 +7,11 @@ synthetic ones. Plain NumPy / OpenCV / OpenEXR (no Mitsuba). Layout (see ARCHITE
 
 - `L000.png ... L{K-1}.png`: 16-bit linear RGB, `round(clip(radiance * exposure, 0, 1) * 65535)`;
 - `mask.png`: 8-bit gray, 255 inside the object, 0 outside. Reading follows the official UniPS loaders:
-  any channel > 0 is foreground (`MASK_RULE`);
+  any channel > 0 is foreground;
 - `normal.tif`: 16-bit RGB `round((n + 1) / 2 * 65535)`, camera frame x right, y up, z toward the camera;
   background n = 0 is 32768 in every channel;
-- `scene.json`: the `SceneDescription` JSON plus extra top-level keys (`SCENE_EXTRAS`: `camera_lights`,
-  `format_version`, ...), split apart only by `split_scene_extras`;
+- `scene.json`: the `SceneDescription` JSON plus extra top-level keys (`camera_lights`, `format_version`,
+  `sensor`), split apart only by `split_scene_extras`;
 - `aux/`: float EXR ground truth, the mesh and textures used.
 
 Predictions (what `unips.predict` writes, what `unips.evaluate` and `validate.rerender` read) are
@@ -55,9 +55,6 @@ i + 1; 0 is the background)."""
 FORMAT_VERSION = 1
 """Written into scene.json as `format_version`."""
 
-SCENE_EXTRAS = ("camera_lights", "format_version", "sensor")
-"""Top-level scene.json keys written next to the SceneDescription fields."""
-
 PREDICTION_FILES = ("normal.exr", "normal.png", "normal.npy", "normal.tif", "normal.tiff")
 """File names of a prediction folder, in lookup order (lossless float first)."""
 
@@ -67,8 +64,6 @@ PREDICTION_INFO = "predict.json"
 DATASET_MANIFEST = "manifest.json"
 """A dataset folder's record of the run that wrote it (wildgen.make, wildgen.sensor). `complete: false` while a
 run writes it (true at its end): the object folders of a run stopped half-way are never read as a dataset."""
-
-MASK_RULE = "any channel > 0 is foreground (as the official UniPS loaders)"
 
 _IMAGE_RE = re.compile(r"^L(\d+)\.png$")
 

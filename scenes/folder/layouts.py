@@ -25,7 +25,7 @@ Rules shared by every layout (the divergences this module exists to prevent):
   non-negative; a folder may not mix float EXR and integer images (their scales differ);
 - a channel at an integer file's largest code is *saturated*: its true value is only known to be at least
   the stored one (`FolderData.saturated`);
-- mask: any channel > 0 is foreground (`scenes.folder.format.MASK_RULE`, the official UniPS rule);
+- mask: any channel > 0 is foreground (`scenes.images.read_mask`, the official UniPS rule);
 - ground-truth normals: renormalised inside the mask; a vector shorter than `MIN_NORMAL_LENGTH` is "no
   normal" and becomes 0 (an encoded zero vector decodes to length < 0.5), counted and logged;
 - calibration: light directions are unit vectors toward the light, a zero or non-finite vector is refused.

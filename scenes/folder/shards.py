@@ -240,7 +240,10 @@ def decode_folder(files: dict[str, bytes], folder: Path):
         vectors = [None if d[key] is None else np.asarray(d[key], np.float64) for key in ("directions", "intensities")]
         if any(v is not None and (v.ndim != 2 or v.shape[1] != 3) for v in vectors):
             raise ValueError("lights: expected (N, 3) directions and intensities")
-        file = (lambda name: None if name is None else folder / str(name))
+
+        def file(name):
+            return None if name is None else folder / str(name)
+
         return FolderData(name=str(meta["name"]), path=folder, layout=str(meta["layout"]),
                           image_paths=[folder / str(n) for n in meta["image_names"]], num_files=int(meta["num_files"]),
                           shape=(h, w), images=images, saturated=array("saturated", False, flag, (k, h, w, 3)),

@@ -6,8 +6,8 @@ accumulation: `mi.render` adds the samples of a pixel into the film with atomic 
 samples of one pixel fall into the work blocks of two Dr.Jit threads their float sum depends on which thread
 adds first. Here every sample's value is written to its own slot (no scatter, no atomics) and the samples of
 each pixel are summed in sample order by one Dr.Jit lane (`pixel_sums`: float64, then divided by the sample
-count and rounded to float32). The bytes therefore depend only on (scene, spp, seed), not on the thread count or the machine's
-scheduling. The scalar variant keeps `mi.render`: its image tiles do not overlap under the box filter, so
+count and rounded to float32). The bytes therefore depend only on (scene, spp, seed), not on the thread count or
+the machine's scheduling. The scalar variant keeps `mi.render`: its image tiles do not overlap under the box filter, so
 each pixel is rendered by one thread (measured identical for 1, 2 and 3 Dr.Jit threads at 32x32).
 """
 from __future__ import annotations
@@ -149,8 +149,8 @@ def render_images(built: BuiltScene, spp: int | None = None) -> list[np.ndarray]
 def render_ground_truth(built: BuiltScene, spp: int | None = None) -> GroundTruth:
     """Normals, mask, depth and material maps from an `aov` pass (box filter, lights parked).
 
-    The nested `depth` integrator makes alpha the pixel coverage (a one-bounce path tracer does not on scalar_rgb); AOVs of rays
-    that miss are 0, so dividing by alpha gives the mean over the object's part of each pixel.
+    The nested `depth` integrator makes alpha the pixel coverage (a one-bounce path tracer does not on scalar_rgb);
+    AOVs of rays that miss are 0, so dividing by alpha gives the mean over the object's part of each pixel.
     """
     mi = require_variant()
 

@@ -115,11 +115,6 @@ class GLCConfig:
         """Channels of a pixel's own observation per image in the decoder's tokens."""
         return PIXEL_TOKENS[self.pixel_token]
 
-    @property
-    def context_resolution(self) -> int:
-        """Side of the context maps (a quarter of the canonical resolution)."""
-        return self.canonical_resolution // 4
-
 
 def config_with_overrides(base: Any, overrides: Mapping[str, Any]) -> Any:
     """`base` (a config dataclass: GLCConfig, SDMConfig) with some fields replaced; an unknown key raises
