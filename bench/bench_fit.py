@@ -65,10 +65,10 @@ def model_and_ls(folder: Path, net, tta: int):
 
 def diligent(args, net, out: dict) -> None:
     from scenes.metrics import mean_angular_error as mae_deg
-    from validate.capture import downsample_normals, load_capture
-    from validate.fit import FitConfig, fit_normals, prepare
-    from validate.light_models import angular_errors_deg, directions_of
-    from validate.refine import RefineConfig, refine_object
+    from validate.fitted.fit import FitConfig, fit_normals, prepare
+    from validate.fitted.light_models import angular_errors_deg, directions_of
+    from validate.fitted.refinement import RefineConfig, refine_object
+    from validate.observations import downsample_normals, load_capture
 
     for name in ("ball", "cat"):
         folder = args.diligent / f"{name}PNG"
@@ -141,9 +141,9 @@ def diligent(args, net, out: dict) -> None:
 
 def synthetic(args, net, out: dict) -> None:
     from scenes.metrics import mean_angular_error as mae_deg
-    from validate.capture import load_capture
-    from validate.fit import FitConfig, fit_normals
-    from validate.refine import RefineConfig, refine_object
+    from validate.fitted.fit import FitConfig, fit_normals
+    from validate.fitted.refinement import RefineConfig, refine_object
+    from validate.observations import load_capture
     from validate.rerender import RerenderConfig, rerender_object
 
     work = Path(tempfile.mkdtemp(prefix="bench_fit_"))

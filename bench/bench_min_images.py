@@ -7,7 +7,7 @@ come from this script. Every capture is an analytic Lambertian sphere (orthograp
 0.4-0.9, directional lights of irradiance 2, Gaussian noise of sigma 0.003, about DiLiGenT's noise level
 relative to the mean value), so it costs a few seconds per row. Per capture:
 
-- ranking: the fitted score (rel_l1, `validate.fit.fit_normals`, light and albedo fitted with the map held)
+- ranking: the fitted score (rel_l1, `validate.fitted.fit.fit_normals`, light and albedo fitted with the map held)
   of the ground-truth map and of three perturbed maps (random 5 deg, random 10 deg, smooth 10 deg); `gap`
   is (lowest perturbed score - GT score) in units of the image noise (its rel_l1, known exactly here), and
   the capture "ranks" when the gap is at least one noise level (a smaller one would not survive another
@@ -85,10 +85,10 @@ def render(n: np.ndarray, mask: np.ndarray, lights: np.ndarray, seed: int) -> tu
 def measure(n: np.ndarray, mask: np.ndarray, imgs: np.ndarray, noise: float, cfg) -> dict:
     """Scores of the ground truth and the perturbed maps, and refinement of the ground truth (module doc)."""
     from scenes.metrics import mean_angular_error
-    from validate.fit import fit_normals
+    from validate.fitted.fit import fit_normals
+    from validate.fitted.refinement import RefineConfig, refine_normals
     from validate.judgeable import lit_pixels
     from validate.perturb import perturb_normals
-    from validate.refine import RefineConfig, refine_normals
 
     t0 = time.perf_counter()
     gt = fit_normals(imgs, mask, n, cfg).rel_l1
@@ -136,7 +136,7 @@ COMMAND = Command(Options, prog="python bench/bench_min_images.py", description=
 def main(argv: list[str] | None = None) -> int:
     args = parse(COMMAND, argv)
     from scenes.renderer.variant import choose_variant, set_jit_threads
-    from validate.fit_scene import FitConfig
+    from validate.fitted.fit_scene import FitConfig
 
     choose_variant("llvm_ad_rgb")
     set_jit_threads(args.threads)

@@ -1,5 +1,5 @@
-"""Which warnings `validate.usable.capture_warnings` raises on real and rendered captures whose faults are known:
-the `camera_moved` and `frontal_light` targets of the capture checks, and no false warning on good captures.
+"""Which warnings `validate.diagnosis.usable.capture_warnings` raises on real and rendered captures whose faults are
+known: the `camera_moved` and `frontal_light` targets of the capture checks, and no false warning on good captures.
 
     python bench/bench_usable.py [--data ../shared/data/diligent] [--suite DIR ...] [--out bench/results/usable.json]
                                  [--objects ball,cat] [--encodings linear16,jpeg] [--subsets 96,48,16,8]
@@ -90,7 +90,7 @@ def _halves(n: int, names: list[str]) -> dict[str, np.ndarray]:
 
 
 def _raised(images: np.ndarray, mask: np.ndarray) -> tuple[list[str], dict]:
-    from validate.usable import capture_warnings
+    from validate.diagnosis.usable import capture_warnings
 
     warnings, facts = capture_warnings(images, mask)
     return [w.code for w in warnings], facts

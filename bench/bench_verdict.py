@@ -12,7 +12,7 @@ meshes and HDR maps, glossy and metallic materials, near point and area lights):
         mkdir -p HARDNOS/$(basename $d); cp $d/L*.png $d/mask.png $d/normal.tif HARDNOS/$(basename $d)/
     done
 
-For each capture: the verdict from the images alone (`validate.verdict`: explained fraction, trusted), and
+For each capture: the verdict from the images alone (`validate.fitted.verdict`: explained fraction, trusted), and
 for each map (ground truth; the truth tilted locally by 10 and 25 degrees about an axis that varies across the
 image, `smooth`; 10 degrees per pixel, `random`; the shipped model's prediction; the constant (0, 0, 1) map)
 its angular error, the fitted score over all observations (`rel_l1`) and over the observations every map
@@ -41,10 +41,10 @@ from scenes.cli.options import REQUIRED, Command, Positional, arg, check_fields,
 
 def explain_by_tile(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None, tile: int,
                     from_box: bool = False):
-    """`validate.verdict.explain` run on each tile x tile square of the mask separately (tiles of fewer than 12
+    """`validate.fitted.verdict.explain` run on each tile x tile square of the mask separately (tiles of fewer than 12
     mask pixels are not explained): a trial of a test for near lights, which are locally distant. Squares laid
     from the image's corner, or from the mask's bounding box (`from_box`, the --near trial)."""
-    from validate.verdict import Explanation, explain
+    from validate.fitted.verdict import Explanation, explain
 
     p = int(mask.sum())
     keep, explained, residual = np.zeros((images.shape[0], p), bool), np.zeros(p, bool), np.full(p, np.inf)
@@ -74,8 +74,8 @@ def optimised_maps(maps: dict, cap, small, cfg) -> None:
 
     from unips.data import load_object
     from unips.inference import predict_object
-    from validate.fit import prepare
-    from validate.refine import RefineConfig, refine_normals
+    from validate.fitted.fit import prepare
+    from validate.fitted.refinement import RefineConfig, refine_normals
 
     starts = {k: maps[k] for k in ("gt", "gt+10", "gt+25", "model") if k in maps}
     if cap.light_directions is not None:
@@ -115,10 +115,10 @@ def degenerate_sweep(captures: list[Path], out: Path) -> int:
     from scenes.renderer.variant import choose_variant
 
     choose_variant("llvm_ad_rgb")
-    from validate.capture import load_capture
-    from validate.fit import fit_normals, prepare
-    from validate.fit_scene import FitConfig
-    from validate.verdict import explain, judged_rel_l1, verdict
+    from validate.fitted.fit import fit_normals, prepare
+    from validate.fitted.fit_scene import FitConfig
+    from validate.fitted.verdict import explain, judged_rel_l1, verdict
+    from validate.observations import load_capture
 
     cfg, rows = FitConfig().validate(), []
     for folder in captures:
@@ -171,7 +171,7 @@ def near_judgement(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray |
     """--near trial: the check's whole-object test first; where it abstains, the rank-4 test per tile of a quarter of
     the object (a near light is locally distant), trusted at `NEAR_MIN_EXPLAINED` and judged with the point light
     model. Returns (explanation, trusted, why, light model, test)."""
-    from validate.verdict import explain, verdict
+    from validate.fitted.verdict import explain, verdict
 
     ex = explain(images, mask, saturated)
     trusted, why = verdict(ex)
@@ -237,11 +237,11 @@ def main(argv: list[str] | None = None) -> int:
     choose_variant("llvm_ad_rgb")
     from unips.data import load_object
     from unips.inference import load_network, predict_object
-    from validate.capture import load_capture
-    from validate.fit import fit_normals, prepare
-    from validate.fit_scene import FitConfig
+    from validate.fitted.fit import fit_normals, prepare
+    from validate.fitted.fit_scene import FitConfig
+    from validate.fitted.verdict import explain, judged_rel_l1, told_apart, verdict
+    from validate.observations import load_capture
     from validate.perturb import perturb_normals
-    from validate.verdict import explain, judged_rel_l1, told_apart, verdict
 
     base = FitConfig(light_model=args.light_model).validate()
     net = None if not args.model else load_network(None)
@@ -279,7 +279,7 @@ def main(argv: list[str] | None = None) -> int:
             row["maps"][name] = {"mae_deg": mean_angular_error(m, gt, cap.mask), "rel_l1": r.rel_l1,
                                  "judged_rel_l1": judged_rel_l1(r.render, small.images[:, small.mask], ex)}
         if args.refine and "model" in maps:
-            from validate.refine import refine_object
+            from validate.fitted.refinement import refine_object
 
             rr = refine_object(str(folder), maps["model"])
             row["refine"] = {"before_deg": rr["before"]["mae_deg"], "after_deg": rr["after"]["mae_deg"],

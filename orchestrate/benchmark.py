@@ -457,7 +457,7 @@ def check_inputs(args: BenchmarkOptions, data: bool = True) -> None:
                 raise UsageError(f"--data: {str(folder)!r} has no ground-truth normals")
             sized.append(("--data", fd))
         if args.rerender_objects > 0:
-            from validate.rerender_passes import RerenderConfig
+            from validate.known.rerender_passes import RerenderConfig
 
             RerenderConfig(spp=args.rerender_spp, allow_missing=True).validate()
     if args.diligent is not None:

@@ -7,8 +7,8 @@
    `scenes.folder.photos`), or an object folder
    in one of the toolkit's layouts through the one reader;
 2. takes the mask from `--mask FILE`, or finds it from the images alone (`--mask auto`:
-   `validate.usable.auto_mask`), or refuses in one line asking for one;
-3. says whether the capture is usable before any model runs (`validate.usable.capture_warnings`): too few
+   `validate.diagnosis.usable.auto_mask`), or refuses in one line asking for one;
+3. says whether the capture is usable before any model runs (`validate.diagnosis.usable.capture_warnings`): too few
    images, too dark, saturated, light from one side only or only near the view axis, camera moved; the fatal
    ones stop, the others are recorded in report.json `warnings`;
 4. predicts normals with the shipped model (or `--checkpoint`), runs the fitted physical check, and where
@@ -158,7 +158,7 @@ def read_input(opts: CaptureOptions) -> Shot:
 
 def find_mask(opts: CaptureOptions, shot: Shot) -> tuple[np.ndarray, dict]:
     """The object mask (from --mask FILE, the object folder's own, or found from the images) and how it was made."""
-    from validate.usable import auto_mask
+    from validate.diagnosis.usable import auto_mask
 
     shape = shot.images.shape[1:3]
     if opts.mask != "auto":
@@ -200,11 +200,11 @@ def check_and_refine(opts: CaptureOptions, shot: Shot, images: np.ndarray, mask:
     from dataclasses import replace
 
     from scenes.renderer.variant import choose_variant, set_jit_threads
-    from validate.capture import capture_from_arrays, unit_normals
-    from validate.fit_report import judge, rerender_fitted
-    from validate.fit_scene import FitConfig
+    from validate.fitted.fit_report import judge, rerender_fitted
+    from validate.fitted.fit_scene import FitConfig
+    from validate.fitted.refinement import RefineConfig, refine_judged, write_refined
     from validate.judgeable import check_judgeable
-    from validate.refine import RefineConfig, refine_judged, write_refined
+    from validate.observations import capture_from_arrays, unit_normals
 
     choose_variant(None)
     set_jit_threads(opts.threads)
@@ -255,7 +255,7 @@ def verdict(check: dict, refined: dict | None) -> dict:
 
 
 def _variation_picture(images: np.ndarray, path: Path) -> None:
-    from validate.usable import variation_map
+    from validate.diagnosis.usable import variation_map
 
     v = variation_map(images)
     import cv2
@@ -321,9 +321,9 @@ def check_resources(k: int, h: int, w: int) -> dict:
 
 def run(opts: CaptureOptions) -> dict:
     """The whole command (main without the error handling); returns report.json's content."""
-    from validate.fit_report import CHECK_OUTPUTS
-    from validate.refine import REFINE_OUTPUTS
-    from validate.usable import as_dicts, capture_warnings, image_count_warning
+    from validate.diagnosis.usable import as_dicts, capture_warnings, image_count_warning
+    from validate.fitted.fit_report import CHECK_OUTPUTS
+    from validate.fitted.refinement import REFINE_OUTPUTS
 
     t0, times = time.perf_counter(), {}
     out = Path(opts.out)
@@ -400,8 +400,8 @@ def main(argv: list[str] | None = None) -> int:
         return report_error(exc, 1)
     print(report["verdict"]["summary"])
     print(
-        f"wrote {Path(opts.out) / 'normal.png'}, normal.exr, mask.png, light_variation.png, report.json and report.html "
-        f"({len(report['warnings'])} warning(s))"
+        f"wrote {Path(opts.out) / 'normal.png'}, normal.exr, mask.png, light_variation.png, report.json and "
+        f"report.html ({len(report['warnings'])} warning(s))"
     )
     return 0
 

@@ -65,6 +65,18 @@ def write_page(path: Path, report: dict[str, Any], pictures: dict[str, str | Non
                        for w in report["warnings"]) or "<li>none: the capture looks usable</li>"
     judge = ("yes" if v["images_can_judge"] else "no") + f" ({html.escape(str(v.get('why') or ''))})"
     units = v.get("residual_in_noise_units")
+    residual = "-" if units is None else f"{units:.1f}"
+    refined = ("yes" if v["refined"] else "no") + f": {html.escape(str(v.get('refinement')))}"
+    n = report["normals"]
+    normal_map = (f"{html.escape(n['frame'])} ({html.escape(n['convention'])}); "
+                  f"{html.escape(n['encoding'])}")
+    variation = _figure("Light variation", pictures.get("light_variation"),
+                        "how much each pixel changes across the photos (bright: a lot); the object should stand out")
+    final_map = _figure("Final normal map", pictures.get("normals"),
+                        "colour = (n + 1) / 2: red right, green up, blue toward the camera")
+    residual_figure = _figure("Re-render residual", pictures.get("check_figure"),
+                              "the photos, their re-rendering with the fitted light and the normal map, "
+                              "and the relative residual")
     r, g, b = HEADER_RGB
     body = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>Normal map of {html.escape(report["input"]["folder"])}</title>
@@ -86,21 +98,21 @@ table {{ border-collapse: collapse; }} td, th {{ border: 1px solid #ccc; padding
 <table>
 <tr><th>Can the images judge this capture?</th><td>{judge}</td></tr>
 <tr><th>Share of the object the fitted light explains</th><td>{_pct(v.get("explained_fraction"))}</td></tr>
-<tr><th>Residual of the final map, in units of the image noise</th><td>{"-" if units is None else f"{units:.1f}"}</td></tr>
-<tr><th>Refined</th><td>{"yes" if v["refined"] else "no"}: {html.escape(str(v.get("refinement")))}</td></tr>
-<tr><th>Normal map</th><td>{html.escape(report["normals"]["frame"])} ({html.escape(report["normals"]["convention"])}); {html.escape(report["normals"]["encoding"])}</td></tr>
+<tr><th>Residual of the final map, in units of the image noise</th><td>{residual}</td></tr>
+<tr><th>Refined</th><td>{refined}</td></tr>
+<tr><th>Normal map</th><td>{normal_map}</td></tr>
 </table>
 <h2>What to improve in the capture</h2>
 <ul>{warnings}</ul>
 <h2>The photos</h2>
 {_figure("Photos", pictures.get("contact_sheet"), "a sample of the inputs, shown in sRGB")}
 {_figure("Mask", pictures.get("mask"), report["mask"]["method"])}
-{_figure("Light variation", pictures.get("light_variation"), "how much each pixel changes across the photos (bright: a lot); the object should stand out")}
+{variation}
 <h2>The normal map</h2>
-{_figure("Final normal map", pictures.get("normals"), "colour = (n + 1) / 2: red right, green up, blue toward the camera")}
+{final_map}
 {_figure("The model's map before refinement", pictures.get("model_normals"), "shown where the map was refined")}
 <h2>The physical check</h2>
-{_figure("Re-render residual", pictures.get("check_figure"), "the photos, their re-rendering with the fitted light and the normal map, and the relative residual")}
+{residual_figure}
 {_figure("Explained", pictures.get("explained"), "where the fitted light explains the photos (the judged part)")}
 <h2>Details</h2>
 <table>

@@ -1,6 +1,6 @@
 """Plain NumPy geometry of a scene description: camera frame, object mesh in world space, PLY files.
 
-No Mitsuba here: `wildgen` (camera-frame lights, mesh files), `validate.projection` and `scenes.renderer.render`
+No Mitsuba here: `wildgen` (camera-frame lights, mesh files), `validate.known.projection` and `scenes.renderer.render`
 use these without building anything; `scenes.renderer.build` turns their results into Mitsuba objects.
 """
 from __future__ import annotations

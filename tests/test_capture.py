@@ -11,7 +11,7 @@ import pytest
 from fixtures import sphere
 
 from scenes.folder.photos import read_photos
-from validate.usable import auto_mask, capture_warnings
+from validate.diagnosis.usable import auto_mask, capture_warnings
 
 
 def srgb_to_linear(c: np.ndarray) -> np.ndarray:

@@ -78,7 +78,7 @@ def _leaves_of(cfg) -> dict[str, object]:
 def test_rerender_and_refine_defaults_come_from_the_fit_config():
     """No default restated by hand: the fitted mode's flags are FitConfig's fields, in both CLIs."""
     from validate import refine, rerender
-    from validate.fit import FitConfig
+    from validate.fitted.fit import FitConfig
 
     for mod in (rerender, refine):
         opts = mod.COMMAND.parse(["--data", "d", "--normals", "n"])

@@ -1,4 +1,4 @@
-"""Fitted mode of the re-render check and refinement (validate.fit, validate.refine), on a Lambertian sphere
+"""Fitted mode of the re-render check and refinement (validate.fitted.fit, validate.refine), on a Lambertian sphere
 rendered by the scenes API under known directional lights, written without scene.json.
 
 Physics is checked against analytic answers: the lights the sphere was rendered with (camera frame = world
@@ -92,7 +92,7 @@ def point_sphere_folder(jit, tmp_path_factory) -> Path:
 
 
 def small_config(**kw):
-    from validate.fit import FitConfig
+    from validate.fitted.fit import FitConfig
 
     base = dict(steps=40, batch_images=8, refresh_every=10, ao_rays=4, max_pixels=100000, seed=0)
     base.update(kw)
@@ -103,7 +103,7 @@ def test_heightfield_recovers_analytic_sphere():
     """Integrating analytic sphere normals gives the sphere's heights up to a constant (interior pixels)."""
     from scipy.ndimage import binary_erosion
 
-    from validate.heightfield import build
+    from validate.fitted.heightfield import build
 
     n, mask = analytic_sphere()
     hf = build(n, mask)
@@ -116,7 +116,7 @@ def test_heightfield_recovers_analytic_sphere():
 def test_closed_form_recovers_analytic_lights():
     """Lambertian images made analytically from known normals, albedo and lights: the closed form returns
     the light directions (< 0.5 deg) with attached shadows present."""
-    from validate.light_models import angular_errors_deg, closed_form_directional
+    from validate.fitted.light_models import angular_errors_deg, closed_form_directional
 
     n, mask = analytic_sphere()
     N = n[mask]
@@ -138,7 +138,7 @@ def test_closed_form_survives_images_without_usable_pixels():
     """A black image, or one saturated wherever it is lit, among lit ones: that image gets no light and the
     others are still found (the closed form raised an IndexError on an empty set of pixels);
     all black: no error."""
-    from validate.light_models import angular_errors_deg, closed_form_directional
+    from validate.fitted.light_models import angular_errors_deg, closed_form_directional
 
     imgs, n, mask = _analytic_images(TO_LIGHT)
     N, obs = n[mask], imgs[:, mask]
@@ -154,7 +154,7 @@ def test_closed_form_survives_images_without_usable_pixels():
 
 
 def _capture(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None = None):
-    from validate.capture import Capture
+    from validate.observations import Capture
 
     return Capture(name="sphere", folder=Path("sphere"), layout="unips", images=images, mask=mask,
                    image_names=[f"L{i:03d}.png" for i in range(len(images))], saturated=saturated)
@@ -210,9 +210,9 @@ def test_judgeable_rule_counts_informative_images():
 def test_fitted_lights_and_ranking(jit, sphere_folder):
     """Fitted light directions within 1 deg of the rendered ones; ground-truth normals at the floor of what
     a normal map can reach, a 20-deg perturbed map clearly above, the constant map far above."""
-    from validate.capture import load_capture
-    from validate.fit import fit_normals
-    from validate.light_models import angular_errors_deg
+    from validate.observations import load_capture
+    from validate.fitted.fit import fit_normals
+    from validate.fitted.light_models import angular_errors_deg
     from validate.perturb import perturb_normals
 
     cap = load_capture(sphere_folder)
@@ -234,10 +234,10 @@ def test_point_light_model_finds_near_lights(jit, point_sphere_folder):
     field's free z offset; `auto` picks it, and refinement with `auto` uses it and beats the directional
     model's refinement of the same 20-deg random map."""
     from scenes.metrics import mean_angular_error as mae_deg
-    from validate.capture import load_capture
-    from validate.fit import fit_normals
+    from validate.observations import load_capture
+    from validate.fitted.fit import fit_normals
     from validate.perturb import perturb_normals
-    from validate.refine import RefineConfig, refine_normals
+    from validate.fitted.refinement import RefineConfig, refine_normals
 
     cap = load_capture(point_sphere_folder)
     point = fit_normals(cap.images, cap.mask, cap.normal_gt, small_config(light_model="point"))
@@ -264,9 +264,9 @@ def test_saturated_observations_are_censored(jit, sphere_folder, tmp_path):
     import shutil
 
     from scenes.images import read_image, write_png16
-    from validate.capture import downsample_capture, load_capture
-    from validate.fit import fit_normals
-    from validate.light_models import angular_errors_deg
+    from validate.observations import downsample_capture, load_capture
+    from validate.fitted.fit import fit_normals
+    from validate.fitted.light_models import angular_errors_deg
 
     clipped = tmp_path / "clipped.data"
     clipped.mkdir()
@@ -294,8 +294,8 @@ def test_gradients_flow_to_light_parameters(jit, sphere_folder):
     finite differences."""
     import drjit as dr
 
-    from validate.capture import load_capture
-    from validate.fit_scene import FitScene, lambertian_start
+    from validate.observations import load_capture
+    from validate.fitted.fit_scene import FitScene, lambertian_start
 
     cap = load_capture(sphere_folder)
     fs = FitScene(cap.images, cap.mask, cap.normal_gt, small_config(specular=False), "directional")
@@ -332,9 +332,9 @@ def test_refine_brings_perturbed_map_below_3_deg(jit, sphere_folder):
     lights: the error drops, but not to the floor (lights fitted to a noisy map are biased, and a Lambertian
     object's normals and lights can move together along the bas-relief ambiguity)."""
     from scenes.metrics import mean_angular_error as mae_deg
-    from validate.capture import load_capture
+    from validate.observations import load_capture
     from validate.perturb import perturb_normals
-    from validate.refine import RefineConfig, refine_normals
+    from validate.fitted.refinement import RefineConfig, refine_normals
 
     cap = load_capture(sphere_folder)
     start = perturb_normals(cap.normal_gt, cap.mask, "smooth", 20, seed=2)
@@ -355,10 +355,11 @@ def test_rotation_search_tilts_only_and_never_raises_the_residual(jit, sphere_fo
     asserted."""
     from scipy.spatial.transform import Rotation
 
-    from validate.capture import load_capture
-    from validate.fit import run_fit
-    from validate.fit_scene import FitScene, lambertian_start
-    from validate.refine import RefineConfig, search_rotation
+    from validate.observations import load_capture
+    from validate.fitted.fit import run_fit
+    from validate.fitted.fit_scene import FitScene, lambertian_start
+    from validate.fitted.refinement import RefineConfig
+    from validate.fitted.rotation_search import search_rotation
 
     cap = load_capture(sphere_folder)
     m = cap.mask
@@ -417,10 +418,10 @@ def test_refine_with_one_thread_is_byte_identical_across_processes(jit, sphere_f
     order. That is measured, not asserted: it is not guaranteed.) A bad --threads is a one-line error."""
     import drjit as dr
 
-    from validate.capture import load_capture
-    from validate.fit import FitConfig
+    from validate.observations import load_capture
+    from validate.fitted.fit import FitConfig
     from validate.perturb import perturb_normals
-    from validate.refine import RefineConfig, refine_object
+    from validate.fitted.refinement import RefineConfig, refine_object
 
     cap = load_capture(sphere_folder)
     start = tmp_path / "start.npy"
@@ -501,7 +502,7 @@ def test_known_scene_lights_in_camera_frame():
     JSON form of a camera-frame directional light: the known-scene report, the fitted report and scene.json
     `camera_lights` (written by the generator, read by `scenes.folder.layouts`) all say `direction_to_light`."""
     from scenes.geometry import lights_in_camera_frame as known_scene_lights
-    from validate.light_models import report_lights
+    from validate.fitted.light_models import report_lights
     from wildgen.writer import camera_lights
 
     desc = SceneDescription(
@@ -527,8 +528,8 @@ def test_known_scene_lights_in_camera_frame():
 def test_diligent_frames_agree(shared):
     """DiLiGenT's light_directions.txt and Normal_gt share our camera frame: lights solved by Lambertian
     least squares from the ground-truth normals match the calibrated ones (ball, 16 images, 1/4 size)."""
-    from validate.capture import downsample_capture, load_capture
-    from validate.light_models import angular_errors_deg, closed_form_directional
+    from validate.observations import downsample_capture, load_capture
+    from validate.fitted.light_models import angular_errors_deg, closed_form_directional
 
     folder = shared / "data" / "diligent" / "ballPNG"
     if not folder.is_dir():

@@ -202,6 +202,54 @@ def test_the_scenes_layer_check_can_fail():
     assert SCENES_LAYER[_scenes_group("scenes.images")] < SCENES_LAYER[_scenes_group("scenes.description")]
 
 
+# ------------------------------------------------------------------ the rooms of validate
+
+VALIDATE_ROOM = {
+    # 0: what every mode shares: normal-map files and predictions, residuals, figures, perturbations, a capture's
+    # record (observations) and what a capture can judge (judgeable, with the one table of image counts)
+    "validate.io": 0, "validate.residuals": 0, "validate.figures": 0, "validate.perturb": 0,
+    "validate.observations": 0, "validate.judgeable": 0,
+    # 1: the modes, siblings: known scene, fitted (and refinement), capture diagnosis
+    "validate.known": 1, "validate.fitted": 1, "validate.diagnosis": 1,
+    # 2: the command lines, which use the modes
+    "validate.rerender": 2, "validate.refine": 2,
+}
+"""Every module of validate (but its __init__) belongs to one room (its own name or its sub-package's); it imports
+only rooms below its own, or its own, and the three modes never import each other."""
+
+
+def _validate_room(module: str) -> str | None:
+    name = module
+    while name and name not in VALIDATE_ROOM:
+        name = name.rpartition(".")[0]
+    return name or None
+
+
+@pytest.mark.parametrize("module", sorted(m for m in MODULES if _top(m) == "validate" and m != "validate"))
+def test_validate_imports_go_down_its_rooms(module):
+    room = _validate_room(module)
+    assert room is not None, f"{module} has no room in VALIDATE_ROOM (tests/test_layers.py, ARCHITECTURE.md)"
+    bad = []
+    for target in sorted(t for t in GRAPH[module] if _top(t) == "validate" and t != "validate"):
+        other = _validate_room(target)
+        if other == room:
+            continue
+        if VALIDATE_ROOM[other] > VALIDATE_ROOM[room]:
+            bad.append(f"{target} (upward: {other} is above {room})")
+        elif VALIDATE_ROOM[other] == VALIDATE_ROOM[room] and VALIDATE_ROOM[room] >= 1:
+            bad.append(f"{target} (sideways: {room} and {other} are siblings)")
+    assert not bad, f"{module} imports " + ", ".join(bad)
+
+
+def test_the_validate_room_check_can_fail():
+    """The three modes are separate rooms of one layer, above the shared modules (the test above is not vacuous)."""
+    rooms = {_validate_room(m) for m in ("validate.known.rerender_passes", "validate.fitted.verdict",
+                                         "validate.diagnosis.usable")}
+    assert len(rooms) == 3 and {VALIDATE_ROOM[r] for r in rooms} == {1}
+    assert VALIDATE_ROOM[_validate_room("validate.observations")] < VALIDATE_ROOM[_validate_room("validate.fitted.fit")]
+    assert any(_validate_room(m) is None for m in ("validate.capture", "validate.nowhere"))
+
+
 # ------------------------------------------------------------------ who may name an object-folder file
 
 FOLDER_OWNERS = ("scenes.folder.format", "scenes.folder.layouts")

@@ -1,4 +1,4 @@
-"""One reader for every folder layout: the model's loader (`unips.data`), the fitted check (`validate.capture`)
+"""One reader for every folder layout: the model's loader (`unips.data`), the fitted check (`validate.observations`)
 and the known-scene check (`validate.io`) see the same images, mask, ground truth and lights, and refuse the
 same bad folders with the same one-line errors.
 
@@ -18,11 +18,11 @@ from test_unips_data import render, write_diligent, write_mask, write_ours, writ
 from scenes.folder.layouts import LAYOUT_TABLE, LAYOUTS, MIN_NORMAL_LENGTH, detect_layout, read_folder
 from scenes.images import write_exr
 from unips.data import load_ground_truth, load_object
-from validate.capture import load_capture
+from validate.observations import load_capture
 
 
 def _readers():
-    return {"unips.data": load_object, "validate.capture": load_capture}
+    return {"unips.data": load_object, "validate.observations": load_capture}
 
 
 def _edit_camera_lights(folder: Path, edit) -> None:

@@ -1,4 +1,4 @@
-"""The relative L1 residual of the check (`validate.metrics`): one rule, hand-worked numbers."""
+"""The relative L1 residual of the check (`validate.residuals`): one rule, hand-worked numbers."""
 from __future__ import annotations
 
 import json
@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from validate.metrics import finite_or_none, rel_l1, rel_l1_observations, relative_l1
+from validate.residuals import finite_or_none, rel_l1, rel_l1_observations, relative_l1
 
 
 def test_rel_l1_rule_and_its_degenerate_case():

@@ -1,12 +1,12 @@
 """The one check of a normal map to judge (`validate.io.check_normals`; the fitted modes' view of it,
-`validate.capture.unit_normals`): hand-made maps at the edges of the rule."""
+`validate.observations.unit_normals`): hand-made maps at the edges of the rule."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
 from scenes.images import decode_normal_image, encode_normals
-from validate.capture import unit_normals
+from validate.observations import unit_normals
 from validate.io import UNIT_TOLERANCE, check_normals
 
 

@@ -145,8 +145,8 @@ def test_projection_matches_mitsuba_sensor(jit, kind, width, height):
     half-pixel shifts and aspect errors), and projecting the hits gives back the pixel positions."""
     from scenes.renderer.build import build_scene
     from scenes.renderer.render import render_ground_truth
-    from validate.normal_bsdf import depth_map
-    from validate.projection import CameraProjection
+    from validate.known.normal_bsdf import depth_map
+    from validate.known.projection import CameraProjection
 
     desc = torus_desc(kind, width, height)
     built = build_scene(desc)
@@ -179,8 +179,8 @@ def test_visibility_agrees_with_exact_ray_tests(jit):
 
     mi = jit
     from scenes.renderer.build import build_scene
-    from validate.normal_bsdf import NormalSwap, depth_map, wrapper_for
-    from validate.projection import CameraProjection
+    from validate.known.normal_bsdf import NormalSwap, depth_map, wrapper_for
+    from validate.known.projection import CameraProjection
 
     desc = torus_desc()
     cam = CameraProjection.from_camera(desc.camera)
@@ -220,8 +220,8 @@ def test_swapped_normals_give_analytic_lambertian_shading(jit, kind):
     one way and right half another, each pixel is albedo / pi * E * max(0, n' . l) for its own half."""
     from scenes.renderer.build import build_scene
     from scenes.renderer.render import render_ground_truth, render_image
-    from validate.normal_bsdf import MODE_PREDICTED, NormalSwap, depth_map, wrapper_for
-    from validate.projection import CameraProjection
+    from validate.known.normal_bsdf import MODE_PREDICTED, NormalSwap, depth_map, wrapper_for
+    from validate.known.projection import CameraProjection
 
     albedo, irradiance = 0.5, 2.0
     l = np.array([0.3, 0.2, 1.0])
@@ -273,8 +273,8 @@ def test_passthrough_mode_is_bit_identical_to_the_original(jit, sphere_folder):
     from scenes.renderer.build import build_scene
     from scenes.renderer.render import render_image
     from validate.io import read_scene_json
-    from validate.normal_bsdf import NormalSwap, depth_map, wrapper_for
-    from validate.projection import CameraProjection
+    from validate.known.normal_bsdf import NormalSwap, depth_map, wrapper_for
+    from validate.known.projection import CameraProjection
 
     desc = read_scene_json(sphere_folder / "scene.json")
     built = build_scene(desc, sphere_folder)
@@ -338,8 +338,8 @@ def test_normal_mapped_material_wraps_the_inner_bsdf(jit, tmp_path):
     and visible ones feed the prediction to a second instance of the inner BSDF; ground-truth normals
     (which include the normal map) still explain the images."""
     from validate.io import load_object
-    from validate.normal_bsdf import PLUGIN_NAME, wrapper_for
-    from validate.projection import CameraProjection
+    from validate.known.normal_bsdf import PLUGIN_NAME, wrapper_for
+    from validate.known.projection import CameraProjection
     from validate.rerender import RerenderConfig, rerender_object
 
     yy, xx = np.mgrid[0:64, 0:64] / 64.0
@@ -458,7 +458,7 @@ def test_bad_inputs_are_named(jit, sphere_folder, tmp_path, capsys):
 def test_scalar_variant_is_refused_clearly():
     import mitsuba as mi
 
-    from validate.normal_bsdf import register
+    from validate.known.normal_bsdf import register
 
     if "scalar_rgb" not in mi.variants():
         pytest.skip("scalar_rgb is not built in")

@@ -377,7 +377,7 @@ def test_readers_undo_a_recorded_sensor_for_the_check(dataset, sensor_datasets, 
     from scenes.folder.layouts import read_folder
     from scenes.images import read_exr
     from unips.data import load_object
-    from validate.capture import load_capture
+    from validate.observations import load_capture
 
     folder = sensor_datasets / name / "00000.data"
     fd = read_folder(folder)

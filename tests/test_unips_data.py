@@ -222,7 +222,7 @@ def test_bad_inputs(tmp_path):
 
     # Both readers share scenes.folder.layouts: the fitted check refuses the same bad light files the model's
     # loader does (a zero direction used to become NaN lights there).
-    from validate.capture import load_capture
+    from validate.observations import load_capture
 
     zero = tmp_path / "zero"
     write_diligent(zero)

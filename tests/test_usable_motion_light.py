@@ -1,4 +1,4 @@
-"""The capture checks' camera motion and frontal light (`validate.usable`, `validate.camera_motion`) on analytic
+"""The capture checks' camera motion and frontal light (`validate.diagnosis.usable`, `validate.diagnosis.camera_motion`) on analytic
 captures whose truth is known: a textured ellipsoid seen by a camera that moved between two groups of photos, and
 lights whose angle from the viewing direction is drawn. Written from the geometry, not from the code under test."""
 from __future__ import annotations
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from fixtures import ellipsoid_normals, sphere
 
-from validate.usable import capture_warnings, light_spread_deg
+from validate.diagnosis.usable import capture_warnings, light_spread_deg
 
 H, W, PAD = 104, 120, 8
 

@@ -1,4 +1,4 @@
-"""The fitted check judges only where the images say it can (validate.verdict): trusted on a capture that
+"""The fitted check judges only where the images say it can (validate.fitted.verdict): trusted on a capture that
 smooth Lambertian shading explains, abstaining on one it does not; every map of a capture is scored on the
 same observations, so a map that bends its normals to explain shadows does not beat the truth; refinement
 declines where it cannot judge and keeps the input map."""
@@ -15,7 +15,7 @@ def _lambertian(n: np.ndarray, mask: np.ndarray, albedo: float = 0.7, irradiance
 
 
 def test_explained_and_trusted_on_a_lambertian_sphere_not_on_flicker():
-    from validate.verdict import MIN_EXPLAINED, explain, verdict
+    from validate.fitted.verdict import MIN_EXPLAINED, explain, verdict
 
     n, mask = analytic_sphere()
     images = _lambertian(n, mask)
@@ -36,7 +36,7 @@ def test_images_that_vary_in_fewer_than_three_ways_are_not_judged():
     """Explained is not enough: 8 scaled copies of one image (one light, rank 1) and 8 lights in one plane (rank
     2: the normals' component across the plane is free) are explained by any map, so the check abstains and
     says why; the same sphere under 8 lights around it (rank 3) is judged. Noise at 0.2 % of the scale."""
-    from validate.verdict import DIMENSION_NOISE, explain, verdict
+    from validate.fitted.verdict import DIMENSION_NOISE, explain, verdict
 
     n, mask = analytic_sphere()
     rng = np.random.default_rng(1)
@@ -61,7 +61,7 @@ def test_images_that_vary_in_fewer_than_three_ways_are_not_judged():
 
 
 def test_observations_come_from_the_images_alone_and_leave_out_shadows():
-    from validate.verdict import explain
+    from validate.fitted.verdict import explain
 
     n, mask = analytic_sphere()
     images = _lambertian(n, mask)
@@ -76,8 +76,8 @@ def test_a_map_that_explains_shadows_by_bending_normals_does_not_beat_the_truth(
     explains all observations (shadowed ones included) under the true lights is a bent map. Over all
     observations the two score alike (0.278 vs 0.281 when written); over the shared, unshadowed observations
     the truth wins by a clear margin (0.056 vs 0.071)."""
-    from validate.fit import fit_normals
-    from validate.verdict import explain, judged_rel_l1
+    from validate.fitted.fit import fit_normals
+    from validate.fitted.verdict import explain, judged_rel_l1
 
     n, mask = analytic_sphere()
     images = _lambertian(n, mask)
@@ -103,7 +103,7 @@ def test_a_map_that_explains_shadows_by_bending_normals_does_not_beat_the_truth(
 
 def test_refinement_declines_an_untrusted_capture_and_keeps_the_input(jit, tmp_path):
     from scenes.images import read_normals, write_mask, write_normal_map, write_png16
-    from validate.refine import refine_object
+    from validate.fitted.refinement import refine_object
 
     n, mask = analytic_sphere()
     rng = np.random.default_rng(1)
@@ -125,8 +125,8 @@ def test_refinement_declines_an_untrusted_capture_and_keeps_the_input(jit, tmp_p
 def test_fitted_report_says_trusted_and_writes_explained(jit, sphere_folder, tmp_path):
     import json
 
-    from validate.capture import load_capture
-    from validate.fit_report import rerender_fitted
+    from validate.observations import load_capture
+    from validate.fitted.fit_report import rerender_fitted
 
     gt = load_capture(sphere_folder).normal_gt
     r = rerender_fitted(str(sphere_folder), gt, small_config(), str(tmp_path))
@@ -139,7 +139,7 @@ def test_fitted_report_says_trusted_and_writes_explained(jit, sphere_folder, tmp
 
 def test_bas_relief_transform_keeps_lambertian_shading():
     """Belhumeur-Kriegman-Yuille: the GBR-transformed normals, lights and albedo give the same n . l shading."""
-    from validate.ambiguity import gbr_normals, gbr_start
+    from validate.fitted.ambiguity import gbr_normals, gbr_start
 
     n, mask = analytic_sphere()
     nm = n[mask].astype(np.float64)
@@ -162,9 +162,9 @@ def test_bas_relief_transform_keeps_lambertian_shading():
 def test_report_says_when_the_images_cannot_decide_the_bas_relief(jit):
     """A Lambertian sphere under distant lights: its bas-relief transforms explain the images as well as the
     truth (theory), so the ambiguity report must not call the map separated from them."""
-    from validate.ambiguity import bas_relief_test
-    from validate.fit import fit_normals
-    from validate.verdict import explain, judged_rel_l1
+    from validate.fitted.ambiguity import bas_relief_test
+    from validate.fitted.fit import fit_normals
+    from validate.fitted.verdict import explain, judged_rel_l1
 
     n, mask = analytic_sphere()
     images = _lambertian(n, mask)
@@ -183,10 +183,10 @@ def test_a_map_optimised_against_the_score_is_not_told_apart_from_the_truth(jit)
     resolution, so the check reports them as not told apart; the truth tilted by 10 degrees is told apart and
     ranked behind. The resolution comes from the images alone (the rank-4 model's own residual)."""
     from scenes.metrics import mean_angular_error
-    from validate.fit import fit_normals
+    from validate.fitted.fit import fit_normals
     from validate.perturb import perturb_normals
-    from validate.refine import RefineConfig, refine_normals
-    from validate.verdict import explain, judged_rel_l1, told_apart
+    from validate.fitted.refinement import RefineConfig, refine_normals
+    from validate.fitted.verdict import explain, judged_rel_l1, told_apart
 
     n, mask = analytic_sphere()
     shade = np.clip(np.einsum("hwc,kc->khw", n, TO_LIGHT), 0, None) ** 1.5 * 0.84

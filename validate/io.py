@@ -107,7 +107,7 @@ def check_normals(
     n: np.ndarray, mask: np.ndarray, source: str = "--normals", allow_missing: bool = False
 ) -> tuple[np.ndarray, np.ndarray]:
     """Check a normal map against an object mask: the one rule of both modes of the check and of refinement
-    (`validate.capture.unit_normals` is the fitted modes' view of it).
+    (`validate.observations.unit_normals` is the fitted modes' view of it).
 
     Returns (normals renormalised where valid and 0 elsewhere, valid (H, W) bool). Valid is the mask,
     minus the exactly-zero normals inside it when `allow_missing` (a predictor's "no estimate", e.g.

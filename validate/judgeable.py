@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from validate.capture import Capture
+from validate.observations import Capture
 
 MIN_IMAGES = {
     "photos": 3,  # fewer do not determine a normal (three unknowns per pixel): a capture is refused

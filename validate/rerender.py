@@ -2,7 +2,7 @@
 
 For each object folder, the scene of every input image is rebuilt from scene.json and rendered again with
 the shading normal of every camera-visible surface point replaced by the predicted normal of the pixel it
-projects to (`validate.normal_bsdf`); hidden points keep their own normals, so shadows and
+projects to (`validate.known.normal_bsdf`); hidden points keep their own normals, so shadows and
 inter-reflections stay physical. The re-render uses each image's recorded seed (common random numbers,
 `--seed-mode same`) and spp, gets the recorded exposure, and is compared in linear space with the input.
 
@@ -13,9 +13,9 @@ Reference levels written next to the score, all over the object mask:
 - `reproduce_rel_l1`: the wrapper switched off, recorded seed: should be ~0 (checks that scene.json and
   this Mitsuba reproduce the stored images).
 
-The renders are `validate.rerender_passes` (with the options, `RerenderConfig`), the scores, report,
-figure and summary table `validate.rerender_report`; this module checks the inputs, runs one object or a
-dataset, and is the CLI (which also dispatches the fitted mode, `validate.fit_report`).
+The renders are `validate.known.rerender_passes` (with the options, `RerenderConfig`), the scores, report,
+figure and summary table `validate.known.rerender_report`; this module checks the inputs, runs one object or a
+dataset, and is the CLI (which also dispatches the fitted mode, `validate.fitted.fit_report`).
 
 Usage:
     python -m validate.rerender --data OBJ.data --normals PRED/OBJ/normal.png --out DIR
@@ -41,10 +41,10 @@ from scenes.cli.progress import progress_bar
 from scenes.files import atomic_write_text
 from scenes.folder.format import find_prediction, list_object_folders, object_name
 from scenes.renderer.variant import require_jit_variant
-from validate.fit_scene import FitConfig
+from validate.fitted.fit_scene import FitConfig
 from validate.io import ObjectData, check_normals, load_object, read_prediction
-from validate.rerender_passes import MIN_COVERAGE, Progress, RerenderConfig, independent_seed, render_passes
-from validate.rerender_report import (
+from validate.known.rerender_passes import MIN_COVERAGE, Progress, RerenderConfig, independent_seed, render_passes
+from validate.known.rerender_report import (
     build_report,
     coverage,
     format_table,
@@ -65,8 +65,8 @@ REPORT, FIGURE, SUMMARY = "report.json", "figure.png", "summary.csv"
 
 def claim_check_outputs(out: str | Path, names: list[str], overwrite: bool, summary: bool = True,
                         renders: bool = False) -> None:
-    """The outputs of the check of objects `names` in `out`, claimed before any work (`scenes.cli.outputs.claim_outputs`:
-    an earlier run's are replaced only with --overwrite, other files never)."""
+    """The outputs of the check of objects `names` in `out`, claimed before any work
+    (`scenes.cli.outputs.claim_outputs`: an earlier run's are replaced only with --overwrite, other files never)."""
     out = Path(out)
     paths = [out / n / f for n in names for f in (REPORT, FIGURE)]
     if renders:
@@ -200,7 +200,7 @@ FITTED_GROUP = "fitted mode (folders without scene.json, or --fit): light and re
 @dataclass
 class RerenderOptions:
     """The command line of validate.rerender: the known-scene check (`RerenderConfig`) and the fitted mode
-    (`validate.fit_scene.FitConfig`)."""
+    (`validate.fitted.fit_scene.FitConfig`)."""
 
     data: str = REQUIRED
     """Object folder (with scene.json) or dataset folder of *.data folders."""
@@ -242,9 +242,9 @@ COMMAND = Command(
 
 
 def _main_fitted(args: RerenderOptions) -> int:
-    """Fitted mode (validate.fit): one object folder of any layout."""
+    """Fitted mode (validate.fitted.fit): one object folder of any layout."""
     from scenes.renderer.variant import choose_variant, set_jit_threads
-    from validate.fit_report import rerender_fitted
+    from validate.fitted.fit_report import rerender_fitted
 
     config = args.fitted
     if not Path(args.normals).exists():
@@ -258,7 +258,8 @@ def _main_fitted(args: RerenderOptions) -> int:
         r = rerender_fitted(args.data, args.normals, config, args.out, progress, overwrite=args.overwrite)
     cal = r.get("calibrated_light_error_deg")
     print(
-        f"{r['object']}: rel_l1 {r['rel_l1']:.4f}  floor {r['floor_rel_l1']:.4f}  noise {r['noise_rel_l1'] or float('nan'):.4f}"
+        f"{r['object']}: rel_l1 {r['rel_l1']:.4f}  floor {r['floor_rel_l1']:.4f}  "
+        f"noise {r['noise_rel_l1'] or float('nan'):.4f}"
         + (f"  mae {r['mae_deg']:.2f} deg {r['mae_resolution']}" if r["mae_deg"] is not None else "")
         + (f"  light error vs calibration {cal['mean']:.2f} deg" if cal else "")
         + f"  ({r['note']}, {r['timings']['total_s']:.0f} s)"
@@ -279,7 +280,8 @@ def _main_fitted(args: RerenderOptions) -> int:
     if r["ambiguity"]["tested"]:
         print(f"bas-relief ambiguity: {r['ambiguity']['note']}")
     print(
-        f"report in {args.out}/{r['object']}/report.json, where the check judges in {args.out}/{r['object']}/explained.png"
+        f"report in {args.out}/{r['object']}/report.json, where the check judges in "
+        f"{args.out}/{r['object']}/explained.png"
     )
     return 0
 
@@ -287,7 +289,8 @@ def _main_fitted(args: RerenderOptions) -> int:
 def main(argv: list[str] | None = None) -> int:
     """One object: a failure is one line `error: ...`, exit 2. A dataset: a failed object is recorded (summary.csv
     row with its error), the others go on, the failures are listed at the end and the exit status is 1.
-    A folder without scene.json (DiLiGenT, official UniPS layout) or `--fit`: the fitted mode (validate.fit_report)."""
+    A folder without scene.json (DiLiGenT, official UniPS layout) or `--fit`: the fitted mode
+    (validate.fitted.fit_report)."""
     failed: dict[str, str] = {}
     try:
         args = COMMAND.parse(argv).validate()

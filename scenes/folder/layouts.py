@@ -3,7 +3,7 @@
 `LAYOUT_TABLE` describes each layout a user may hand us: how it is recognised, how its images are listed
 (and in which order), which files hold its calibration and its ground-truth normals, and whether a mask
 file is required. `read_folder` reads any of them into one plain structure, `FolderData`; the model's
-loader (`unips.data`), the fitted re-render check (`validate.capture`) and the known-scene check
+loader (`unips.data`), the fitted re-render check (`validate.observations`) and the known-scene check
 (`validate.io`) are thin views of it, so a folder means the same thing to all of them. Adding a layout is
 one `Layout` entry (plus its tests).
 

@@ -1,7 +1,7 @@
 """The Mitsuba variant: chosen at entry points (never at import time), checked where Mitsuba objects are made.
 
 `choose_variant` sets it; `require_variant` / `require_jit_variant` / `require_ad_variant` are the only checks
-that one is set (`scenes.renderer.build`, `scenes.renderer.render`, `validate.normal_bsdf` and `validate.fit` call
+that one is set (`scenes.renderer.build`, `scenes.renderer.render`, `validate.known.normal_bsdf` and `validate.fitted.fit` call
 them).
 """
 from __future__ import annotations
@@ -74,7 +74,7 @@ def choose_variant(requested: str | None = None) -> str:
 
 def set_jit_threads(threads: int | None) -> None:
     """Set Dr.Jit's worker thread count (None: leave its default, one per core). The fitted mode and the
-    refinement (`validate.fit`, `validate.refine`) are byte-identical run to run only with 1: with more, the
+    refinement (`validate.fitted.fit`, `validate.refine`) are byte-identical run to run only with 1: with more, the
     reverse-mode derivatives of gathers are atomic scatter-adds whose order varies between runs, so the last
     float bits of gradients, and hence of every later step, change."""
     if threads is None:

@@ -22,7 +22,7 @@ the vector short but the outline bright, so the mean brightness of the outline g
 larger is taken. Elongated shapes, albedo patterns and highlights on the outline bias it (real objects read
 low), so frontal light also asks the light spread (`light_spread_deg`): how much each pixel's brightness varies
 across the images over its mean (the albedo cancels), as the ring of lights that gives a sphere the same. The two
-light warnings are hints, never fatal. Camera motion: `validate.camera_motion`.
+light warnings are hints, never fatal. Camera motion: `validate.diagnosis.camera_motion`.
 """
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from validate.camera_motion import camera_motion, camera_shifts
+from validate.diagnosis.camera_motion import camera_motion, camera_shifts
 from validate.judgeable import MIN_IMAGES as COUNTS
 
 MIN_IMAGES, FEW_IMAGES = COUNTS["photos"], COUNTS["advised"]
@@ -51,7 +51,7 @@ ONE_SIDED_DEG = 10.0
 """Images lit from further off the view axis than this count for the one-sided test."""
 SHIFT_PX = 1.5
 """A shift between photos longer than this (2 px or more), the same in a good share of the compared pairs, means
-the camera moved (`validate.camera_motion`)."""
+the camera moved (`validate.diagnosis.camera_motion`)."""
 MIN_SEPARABILITY = 0.6
 """Otsu's separability of the variation map below which the automatic mask refuses."""
 BACKDROP_RATIO = 0.5
@@ -127,7 +127,8 @@ def auto_mask(images: np.ndarray, flag: str = "--mask") -> tuple[np.ndarray, dic
     border = float(scaled[ring].mean())
     why = None
     if separability < MIN_SEPARABILITY:
-        why = f"the light variation does not split into two classes (separability {separability:.2f} < {MIN_SEPARABILITY})"
+        why = (f"the light variation does not split into two classes (separability {separability:.2f} < "
+               f"{MIN_SEPARABILITY})")
     elif inside <= 0 or border >= BACKDROP_RATIO * inside:
         why = (f"the border of the frame changes with the light like the object ({border / max(inside, 1e-9):.0%} of "
                "its variation): a lit backdrop")

@@ -11,10 +11,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from validate.fit_scene import to_jit
+from validate.fitted.fit_scene import to_jit
 
 if TYPE_CHECKING:
-    from validate.fit_scene import FitScene
+    from validate.fitted.fit_scene import FitScene
 
 
 def _pairs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -1,8 +1,8 @@
 """The fitted scene of a capture: geometry and differentiable shading around a normal map (fitted mode).
 
-No scene description is needed (see `validate.fit` for the optimiser and `validate.fit_report` for the
+No scene description is needed (see `validate.fitted.fit` for the optimiser and `validate.fitted.fit_report` for the
 report):
-1. geometry: the normal map is integrated to a height field inside the mask (`validate.heightfield`,
+1. geometry: the normal map is integrated to a height field inside the mask (`validate.fitted.heightfield`,
    orthographic) and loaded as a Mitsuba mesh; the camera looks down -z;
 2. each mask pixel is shaded at its pixel centre on that surface, with its normal from the map and its
    own albedo, by Mitsuba's `diffuse` BSDF plus the specular lobe of a `principled` BSDF with a black
@@ -20,9 +20,9 @@ import numpy as np
 
 from scenes.cli.options import arg, check_fields, comma_list, option
 from scenes.renderer.variant import require_ad_variant
-from validate import heightfield
-from validate.light_models import LIGHT_MODELS, closed_form_directional, point_start
-from validate.metrics import rel_l1_observations
+from validate.fitted import heightfield
+from validate.fitted.light_models import LIGHT_MODELS, closed_form_directional, point_start
+from validate.residuals import rel_l1_observations
 
 Progress = Callable[[int, int, str], None]
 """progress(done, total, label)."""
@@ -56,14 +56,14 @@ class FitConfig:
     downsample: Annotated[int | None, arg(help_behavior_hint="(default: from --max-pixels)")] = option(None, minimum=1)
     """Force this downsampling factor."""
     floor_maps: Annotated[tuple[str, ...], comma_list(str, container=tuple)] = option(
-        ("constant",), choices=("constant", "silhouette")
-    )
+        ("constant",), choices=("constant", "silhouette"))
     """No-information normal maps whose fitted residual is the floor, comma-separated."""
     seed: int = 0
     """Seed of every random choice (image batches, ray directions)."""
     bas_relief: bool = True
     """Test whether the images separate the map from two of its generalized bas-relief transforms (report.json
-    `ambiguity`, `validate.ambiguity`: two short extra fits, directional light model on trusted captures only)."""
+    `ambiguity`, `validate.fitted.ambiguity`: two short extra fits, directional light model on trusted captures
+    only)."""
     min_nz: float = option(0.15, above=0, below=1)
     """Smallest |n_z| used when integrating normals to heights (bounds silhouette slopes)."""
 
@@ -114,7 +114,7 @@ class FitScene:
     Arrays: P mask pixels (row-major), K images. `images` (K, P, 3) float32 numpy; Dr.Jit parameters live
     in `self.params` (dict name -> Dr.Jit array) and are optimised in place.
 
-    Saturated observations (`saturated`, (K, H, W, 3) bool, see `validate.capture.Capture.saturated`) are
+    Saturated observations (`saturated`, (K, H, W, 3) bool, see `validate.observations.Capture.saturated`) are
     censored: the true value is only known to be at least the stored one, so a render above it costs
     nothing, one below it costs the difference (in the loss and the score), and the closed-form albedo
     ignores them. Without this a sharp specular lobe is punished for exceeding clipped highlight cores.
@@ -151,9 +151,8 @@ class FitScene:
         self.vis = None  # (K * P,) visibility of the main light
         self.ao = np.ones(self.p)
         self.hits = None  # (P, R) pixel index hit by each AO ray, -1 = miss
-        self.indirect = np.zeros(
-            (self.k, self.p, 3)
-        )  # incident one-bounce radiance (K, P, 3), times albedo in the model
+        # incident one-bounce radiance (K, P, 3), times albedo in the model
+        self.indirect = np.zeros((self.k, self.p, 3))
         self.params: dict[str, Any] = {}
         self.dirty = True
         """The numpy inputs changed since the last `upload`."""
@@ -262,7 +261,7 @@ class FitScene:
 
     # ---------------------------------------------------------------------------------------- params
     def init_params(self, start: dict) -> None:
-        """Dr.Jit parameters from a closed-form start (see validate.light_models.closed_form_directional)."""
+        """Dr.Jit parameters from a closed-form start (see validate.fitted.light_models.closed_form_directional)."""
         mi = self.mi
         self.albedo_np = np.asarray(start["albedo"], np.float64)
         self.dirty = True
@@ -284,7 +283,7 @@ class FitScene:
         else:
             # A directional light of irradiance E along d has SH radiance coefficients E * Y(d); a constant
             # ambient radiance A has L_00 = A / Y_00. Irradiance = sum_j W_j L_j Y_j(n) (Ramamoorthi-Hanrahan).
-            from validate.light_models import sh_basis
+            from validate.fitted.light_models import sh_basis
 
             y = sh_basis(np.asarray(start["directions"]))  # (K, 9)
             coef = E[:, None, :] * y[:, :, None]  # (K, 9, 3)
@@ -405,7 +404,7 @@ class FitScene:
 
     def shade(self, batch):
         """Differentiable D and S (each a Vector3f of width B * P, lane = image-in-batch * P + pixel) for the
-        images `batch` (numpy indices or a Dr.Jit UInt32 array): render = albedo * D + S (validate.light_models).
+        images `batch` (numpy indices or a Dr.Jit UInt32 array): render = albedo * D + S (validate.fitted.light_models).
         Also returns the lane -> image and lane -> pixel index arrays."""
         mi, dr = self.mi, self.dr
         if self.dirty:
@@ -416,7 +415,7 @@ class FitScene:
         ao = dr.gather(mi.Float, self.dev["ao"], p_idx)
         ind = dr.gather(mi.Vector3f, self.dev["ind"], flat) if self.config.interreflection else mi.Vector3f(0)
         if self.model == "environment":
-            from validate.light_models import SH_BAND_WEIGHT as W
+            from validate.fitted.light_models import SH_BAND_WEIGHT as W
 
             x, y, z = n.x, n.y, n.z
             basis = [0.282095 + 0 * x, 0.488603 * y, 0.488603 * z, 0.488603 * x, 1.092548 * x * y, 1.092548 * y * z,
@@ -460,11 +459,8 @@ class FitScene:
                 part = batch[s : s + chunk]
                 D, S, _, _ = self.shade(part)
                 Ds.append(np.array(D, np.float64).T.reshape(len(part), self.p, 3))
-                Ss.append(
-                    np.array(S, np.float64).T.reshape(len(part), self.p, 3)
-                    if self.model != "environment"
-                    else np.zeros((len(part), self.p, 3))
-                )
+                Ss.append(np.array(S, np.float64).T.reshape(len(part), self.p, 3) if self.model != "environment"
+                          else np.zeros((len(part), self.p, 3)))
         return np.concatenate(Ds), np.concatenate(Ss)
 
     def _albedo_ls(self, D: np.ndarray, S: np.ndarray, batch: np.ndarray | None = None) -> np.ndarray:

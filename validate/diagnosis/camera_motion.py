@@ -1,4 +1,4 @@
-"""Did the camera move between the photos of a capture? From the images alone (`validate.usable` raises the
+"""Did the camera move between the photos of a capture? From the images alone (`validate.diagnosis.usable` raises the
 `camera_moved` warning from it).
 
 A change of light changes the shading smoothly, so the log ratio of two photos taken by a still camera is smooth
@@ -138,14 +138,14 @@ def camera_motion(
     two each (the photos shifted by s against those shifted by -s) and those pairs are at least MIN_SUPPORT of
     the pairs with a shift longer than `min_px`: one odd photo, or chance minima, do not."""
     long = np.nonzero(np.hypot(shifts[:, 0], shifts[:, 1]) > min_px)[0]
-    best, support, sides = None, np.zeros(0, int), (set(), set())
+    best, support, _sides = None, np.zeros(0, int), (set(), set())
     for n in long:
         s = shifts[n]
         near = [m for m in long if min(np.abs(shifts[m] - s).max(), np.abs(shifts[m] + s).max()) <= 1]
         ahead = {pairs[m][1] if np.abs(shifts[m] - s).max() <= 1 else pairs[m][0] for m in near}
         behind = {pairs[m][0] if np.abs(shifts[m] - s).max() <= 1 else pairs[m][1] for m in near}
         if len(near) > len(support) and min(len(ahead), len(behind)) >= 2:
-            best, support, sides = s, np.array(near), (ahead, behind)
+            best, support, _sides = s, np.array(near), (ahead, behind)
     if best is None or len(support) < MIN_SUPPORT * len(long):
         return None, np.zeros(0, int)
     return best, support

@@ -7,7 +7,7 @@ decided by the images. Only what the Lambertian model lacks (a specular lobe, an
 can break the tie. So instead of trusting one map of the family, the check fits two transforms of the judged
 map, each started from the transformed fit (lights d' = G d, albedo times |G^-T n|, where the Lambertian part
 is exactly as good as the map's; the better of that start and a short fit from it), and reports whether they
-score worse by more than `validate.verdict.TIES['bas_relief']`. When they do not,
+score worse by more than `validate.fitted.verdict.TIES['bas_relief']`. When they do not,
 the report says that the images cannot decide the map's depth scale or tilt: the score judges the map up to that
 family.
 
@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from validate.verdict import TIES, Explanation, judged_rel_l1
+from validate.fitted.verdict import TIES, Explanation, judged_rel_l1
 
 VARIANTS = ((0.7, 0.0, 0.0), (1.0, 0.2, 0.0))
 """(lambda, mu, nu) of the transforms tested: a flatter relief, and a tilt about the y axis (about 11 degrees at
@@ -56,9 +56,9 @@ def gbr_start(params: dict, albedo: np.ndarray, normals: np.ndarray, lam: float,
 
 def bas_relief_test(images: np.ndarray, mask: np.ndarray, normals: np.ndarray, fit: Any, judged: float, ex: Explanation,
                     config: Any, saturated: np.ndarray | None = None, progress: Any = None) -> dict:
-    """report.json `ambiguity` for a map (H, W, 3) whose directional fit is `fit` (a `validate.fit.FitResult`)
+    """report.json `ambiguity` for a map (H, W, 3) whose directional fit is `fit` (a `validate.fitted.fit.FitResult`)
     with judged residual `judged`, at the fitting resolution."""
-    from validate.fit import fit_normals
+    from validate.fitted.fit import fit_normals
 
     short = dataclasses.replace(config, light_model="directional", steps=max(1, config.steps // STEPS_FRACTION))
     observed = images[:, mask]

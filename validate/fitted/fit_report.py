@@ -1,10 +1,10 @@
 """The report of the fitted mode of the re-render check (`validate.rerender` on a folder without scene.json).
 
 The verdict (`trusted`, `why`, `explained_fraction`, `explained.png`) and the observations of `judged_rel_l1` come
-from the images alone (`validate.verdict`), so every map of a capture is judged on the same observations; the
+from the images alone (`validate.fitted.verdict`), so every map of a capture is judged on the same observations; the
 check abstains (trusted false) where the images are not explained by the physics it can model.
-Reference levels beside the score `rel_l1`: `noise_rel_l1` (the image noise, `validate.verdict.noise_rel_l1`), and
-`floor_rel_l1`, the score the same fit (same budget, same seed) reaches with a normal map that carries no
+Reference levels beside the score `rel_l1`: `noise_rel_l1` (the image noise, `validate.fitted.verdict.noise_rel_l1`),
+and `floor_rel_l1`, the score the same fit (same budget, same seed) reaches with a normal map that carries no
 information (constant (0, 0, 1), optionally also a silhouette-only map): a normal map scoring at or above
 the floor explains nothing.
 """
@@ -19,13 +19,13 @@ from typing import Any
 import numpy as np
 
 from scenes.renderer.variant import jit_threads, require_ad_variant
-from validate import heightfield
-from validate.ambiguity import bas_relief_test, not_tested
-from validate.capture import Capture
-from validate.fit import FitResult, choose_downsample, fit_normals, prepare
-from validate.fit_scene import FitConfig, Progress
+from validate.fitted import heightfield
+from validate.fitted.ambiguity import bas_relief_test, not_tested
+from validate.fitted.fit import FitResult, choose_downsample, fit_normals, prepare
+from validate.fitted.fit_scene import FitConfig, Progress
+from validate.fitted.verdict import Explanation, explain, judged_rel_l1, noise_rel_l1, told_apart, verdict
 from validate.judgeable import check_judgeable
-from validate.verdict import Explanation, explain, judged_rel_l1, noise_rel_l1, told_apart, verdict
+from validate.observations import Capture
 
 RESOLUTION_NOTE = ("two judged scores of this capture closer than `resolution` are not told apart by the images: "
                    "a map fitted against the score (refined) can sit that far below the true surface, absorbing what "
@@ -86,10 +86,10 @@ class JudgedCapture:
     downsample: int
     """Factor from the full to the fitting resolution."""
     explanation: Explanation
-    """What the images alone explain (`validate.verdict.explain`): the same for every map of the capture."""
+    """What the images alone explain (`validate.fitted.verdict.explain`): the same for every map of the capture."""
     trusted: bool
     why: str
-    """The verdict (`validate.verdict.verdict`)."""
+    """The verdict (`validate.fitted.verdict.verdict`)."""
     fits: dict = field(default_factory=dict, repr=False)
     """Fits made so far, by `_fit_key`: the same fit asked twice is made once."""
 
@@ -121,7 +121,7 @@ class JudgedCapture:
 
 def judge(cap: Capture, full: np.ndarray, config: FitConfig, use: str, source: str = "array") -> JudgedCapture:
     """A capture (read from a folder or built from arrays) and its normal map (H, W, 3, already checked:
-    `validate.capture.unit_normals`), both reduced to the fitting resolution, the images checked to be judgeable
+    `validate.observations.unit_normals`), both reduced to the fitting resolution, the images checked to be judgeable
     for `use` (`validate.judgeable`) before any fitting, and explained (the verdict)."""
     small, n_small, f = prepare(cap, full, config)
     check_judgeable(small, use)  # before any fitting: enough images and lit pixels
@@ -134,7 +134,7 @@ def judge_capture(folder: str, normals: str | np.ndarray, config: FitConfig, use
                   outputs: tuple[str, ...], owner: str, overwrite: bool) -> tuple[JudgedCapture, Path | None]:
     """Read an object folder (any layout, once) and its normal map, claim `out_dir/<object>/outputs` for `owner`,
     then `judge`: (the judged capture, the claimed target or None)."""
-    from validate.capture import load_with_normals
+    from validate.observations import load_with_normals
 
     cap, full, source = load_with_normals(folder, normals)
     target = claim_target(out_dir, cap.name, outputs, owner, overwrite)
@@ -190,7 +190,7 @@ def rerender_fitted(
 def check_judged(jc: JudgedCapture, config: FitConfig, progress: Progress | None = None) -> tuple[dict, FitResult]:
     """The fitted check of a judged capture's map: (report, the fit of the map)."""
     from scenes.metrics import mean_angular_error as mae_deg
-    from validate.light_models import angular_errors_deg, directions_of
+    from validate.fitted.light_models import angular_errors_deg, directions_of
 
     mi = require_ad_variant()
     t0 = time.perf_counter()
@@ -245,7 +245,8 @@ def check_judged(jc: JudgedCapture, config: FitConfig, progress: Progress | None
         "fit_mask_pixels": int(small.mask.sum()),
         "saturated_fraction": saturated_fraction(small),
         "note": (
-            f"fitted and scored at 1/{jc.downsample} resolution ({small.mask.shape[1]}x{small.mask.shape[0]}, box filter)"
+            f"fitted and scored at 1/{jc.downsample} resolution ({small.mask.shape[1]}x{small.mask.shape[0]}, "
+            "box filter)"
             if jc.downsample > 1
             else "fitted and scored at full resolution"
         ),
@@ -272,7 +273,7 @@ def _write_fitted(jc: JudgedCapture, target: Path, res: FitResult, report: dict)
     from scenes.images import write_picture
     from scenes.metrics import angular_error_deg
     from validate.figures import explained_picture, rerender_figure
-    from validate.metrics import relative_residual_map
+    from validate.residuals import relative_residual_map
 
     small, n_small, ex = jc.small, jc.normals, jc.explanation
     target.mkdir(parents=True, exist_ok=True)
@@ -289,7 +290,8 @@ def _write_fitted(jc: JudgedCapture, target: Path, res: FitResult, report: dict)
         relative_residual_map(renders, small.images, small.mask),
         None,
         n_small,
-        title=f"{jc.cap.name}, {prediction_label(jc.source)} (fitted lights, {'trusted' if jc.trusted else 'NOT TRUSTED'}): "
+        title=f"{jc.cap.name}, {prediction_label(jc.source)} "
+        f"(fitted lights, {'trusted' if jc.trusted else 'NOT TRUSTED'}): "
         f"judged rel_l1 {report['judged_rel_l1'] or float('nan'):.4f}, floor "
         f"{report['judged_floor_rel_l1'] or float('nan'):.4f}"
         + (

@@ -29,7 +29,7 @@ import numpy as np
 
 from scenes.cli.options import NotOnCommandLine, check_fields, option
 from scenes.renderer.variant import require_jit_variant
-from validate.projection import CameraProjection
+from validate.known.projection import CameraProjection
 
 log = logging.getLogger(__name__)
 

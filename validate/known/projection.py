@@ -8,7 +8,7 @@ It reproduces Mitsuba's sensors as `scenes.renderer.build.sensor_dict` builds th
 Pixel (i, j) (row i from the top, column j from the left) covers [j, j+1] x [i, i+1] in continuous
 coordinates (u, v): u grows to the right, v grows downward.
 
-The same formulas are written once more in Dr.Jit inside `validate.normal_bsdf`; the tests check both
+The same formulas are written once more in Dr.Jit inside `validate.known.normal_bsdf`; the tests check both
 against Mitsuba's own ground-truth pass.
 """
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The options of the known-scene re-render check and its renders (`validate.rerender`).
 
 Every image's scene is rebuilt from scene.json once, wrapped so that the shading normal of each
-camera-visible surface point can be swapped for the predicted one (`validate.normal_bsdf`), and rendered
+camera-visible surface point can be swapped for the predicted one (`validate.known.normal_bsdf`), and rendered
 with each image's recorded seed and spp: with the predicted normals (the score), with the ground-truth
 normals, with the wrapper switched off (reproduction check), and the original scene with independent
 seeds (noise floor).
@@ -18,8 +18,7 @@ import numpy as np
 
 from scenes.cli.options import arg, check_fields, option
 from validate.io import ObjectData
-from validate.metrics import expose
-from validate.normal_bsdf import (
+from validate.known.normal_bsdf import (
     MODE_PASSTHROUGH,
     MODE_PREDICTED,
     NormalSwap,
@@ -27,7 +26,8 @@ from validate.normal_bsdf import (
     depth_map,
     wrapper_for,
 )
-from validate.projection import CameraProjection
+from validate.known.projection import CameraProjection
+from validate.residuals import expose
 
 SEED_MODES = ("same", "independent")
 

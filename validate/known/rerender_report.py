@@ -12,8 +12,8 @@ import numpy as np
 from scenes.files import atomic_write_text
 from scenes.metrics import mean_angular_error
 from validate.io import ObjectData
-from validate.metrics import finite_or_none, mean_or_none, psnr, rel_l1, relative_residual_map
-from validate.rerender_passes import RenderPasses, RerenderConfig
+from validate.known.rerender_passes import RenderPasses, RerenderConfig
+from validate.residuals import finite_or_none, mean_or_none, psnr, rel_l1, relative_residual_map
 
 SUMMARY_COLUMNS = (
     "object",
@@ -113,7 +113,8 @@ def build_report(data: ObjectData, pred: np.ndarray, valid: np.ndarray, source: 
         "missing_pixels": int(mask.sum() - valid.sum()),
         "coverage": coverage(valid, mask),
         "min_coverage": config.min_coverage,
-        "missing_scoring": "a pixel without an estimate scores max(|render - input|, |input|) (a black render or worse)",
+        "missing_scoring": ("a pixel without an estimate scores max(|render - input|, |input|) "
+                            "(a black render or worse)"),
         "rel_l1": avg("rel_l1"),
         "psnr": avg("psnr"),
         "gt_rel_l1": avg("gt_rel_l1"),
@@ -165,7 +166,8 @@ def write_figure(path: Path, report: dict[str, Any], inputs: np.ndarray, passes:
         res_map,
         gt_map,
         pred,
-        title=f"{report['object']}, {prediction_label(report['prediction'])} (known scene): rel_l1 {report['rel_l1']:.4f}, "
+        title=f"{report['object']}, {prediction_label(report['prediction'])} (known scene): "
+        f"rel_l1 {report['rel_l1']:.4f}, "
         f"coverage {report['coverage']:.1%}"
         + (f" (GT normals {report['gt_rel_l1']:.4f})" if report["gt_rel_l1"] is not None else "")
         + (f", MAE {report['mae_deg']:.2f} deg" if report["mae_deg"] is not None else ""),

@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from validate.judgeable import MIN_IMAGES
-from validate.metrics import rel_l1_observations
+from validate.residuals import rel_l1_observations
 
 SHADOW_FRACTION = 0.1
 """An observation darker than this fraction of its pixel's bright level (its 90th percentile over the images)

@@ -7,9 +7,9 @@ from typing import Protocol
 
 import numpy as np
 
-from validate.fit import run_fit
-from validate.fit_scene import FitScene, Progress, to_jit
-from validate.verdict import TIES
+from validate.fitted.fit import run_fit
+from validate.fitted.fit_scene import FitScene, Progress, to_jit
+from validate.fitted.verdict import TIES
 
 
 class RotationSteps(Protocol):
@@ -33,7 +33,7 @@ def search_rotation(fs: FitScene, train: np.ndarray, config: RotationSteps, delt
     image batches and rays (the candidates differ only by the rotation), then the censored rel_l1. Leaves
     `fs` at the best candidate; returns its rotation vector (radians). The identity is a candidate, so the
     residual never rises. `record`, when given, receives the chosen tilt and the spread of the candidates that
-    score within `validate.verdict.TIES['rotation']` of it (the tilts the images cannot separate)."""
+    score within `validate.fitted.verdict.TIES['rotation']` of it (the tilts the images cannot separate)."""
     from scipy.spatial.transform import Rotation
 
     if fs.model not in ("directional", "point"):
@@ -94,9 +94,9 @@ def search_rotation(fs: FitScene, train: np.ndarray, config: RotationSteps, delt
         spread = max(float(np.degrees(np.linalg.norm(w - best_key))) for w in ties)
         record.update(tilt_deg=float(np.degrees(np.linalg.norm(best))), equally_good=len(ties),
                       equally_good_spread_deg=spread, candidates=len(cache), tie_tolerance=TIES["rotation"].relative,
-                      note=(f"{len(ties)} of {len(cache)} tilts score within {TIES['rotation'].relative:.1%} of the best, up to "
-                            f"{spread:.1f} deg from it: the images do not decide among them" if len(ties) > 1 else
-                            "one tilt scores best"))
+                      note=(f"{len(ties)} of {len(cache)} tilts score within {TIES['rotation'].relative:.1%} of the "
+                            f"best, up to {spread:.1f} deg from it: the images do not decide among them"
+                            if len(ties) > 1 else "one tilt scores best"))
     if last[0] != key(best):
         apply(best)  # back to the winner: same batches and rays, so the same state as at its evaluation
     log.info(

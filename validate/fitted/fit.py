@@ -1,15 +1,15 @@
 """The optimiser of the fitted mode: light and reflectance fitted around a normal map by Adam.
 
-On the scene of `validate.fit_scene`, light (per image, `validate.light_models`) and reflectance are fitted by
-Adam on a robust L1 loss with Dr.Jit automatic differentiation through the BSDF and the light model
+On the scene of `validate.fitted.fit_scene`, light (per image, `validate.fitted.light_models`) and reflectance are
+fitted by Adam on a robust L1 loss with Dr.Jit automatic differentiation through the BSDF and the light model
 (`llvm_ad_rgb` on a CPU, `cuda_ad_rgb` on a GPU); visibility is recomputed (not differentiated) every
 `refresh_every` steps, and the albedo is solved in closed form (linear least squares) at the same time;
-the start is the closed-form Lambertian least-squares fit of `validate.light_models.closed_form_directional`.
+the start is the closed-form Lambertian least-squares fit of `validate.fitted.light_models.closed_form_directional`.
 `validate.refine` runs the same optimiser with the normals free too.
 
 Score: rel_l1 = sum |render - input| / sum |input| over the mask pixels of all images (all channels), at
 the fitting resolution (`prepare` downsamples the capture). The report with its reference levels is
-`validate.fit_report`.
+`validate.fitted.fit_report`.
 """
 from __future__ import annotations
 
@@ -20,9 +20,9 @@ from typing import Any, Callable
 
 import numpy as np
 
-from validate.capture import Capture
-from validate.fit_scene import FitConfig, FitScene, Progress, lambertian_start, to_jit
-from validate.light_models import LIGHT_MODELS, report_lights
+from validate.fitted.fit_scene import FitConfig, FitScene, Progress, lambertian_start, to_jit
+from validate.fitted.light_models import LIGHT_MODELS, report_lights
+from validate.observations import Capture
 
 log = logging.getLogger(__name__)
 
@@ -47,7 +47,7 @@ class FitResult:
     lights: list[list[dict]]
     """report.json `lights`."""
     light_params: dict
-    """Fitted light arrays (numpy), see validate.light_models.report_lights."""
+    """Fitted light arrays (numpy), see validate.fitted.light_models.report_lights."""
     specular: dict
     """{'roughness': r, 'specular': s} of the principled lobe."""
     model: str
@@ -188,7 +188,8 @@ def fit_normals(
     """Fit light and reflectance around a fixed normal map. images (K, H, W, 3), mask (H, W), normals
     (H, W, 3) unit inside the mask, saturated (K, H, W, 3) bool or None (censored observations, see
     `FitScene`), all at the fitting resolution (see `prepare`). start: the parameters to start from
-    (`validate.light_models.closed_form_directional`'s form, one light model only) instead of the closed-form start."""
+    (`validate.fitted.light_models.closed_form_directional`'s form, one light model only) instead of the closed-form
+    start."""
     config = (config or FitConfig()).validate()
     models = LIGHT_MODELS if config.light_model == "auto" else (config.light_model,)
     best: FitResult | None = None
@@ -241,7 +242,7 @@ def check_fit_memory(cap: Capture, f: int) -> None:
 
 def prepare(cap: Capture, normals: np.ndarray, config: FitConfig) -> tuple[Capture, np.ndarray, int]:
     """Downsample a capture and its normal map (H, W, 3) for fitting. Returns (capture, normals, factor)."""
-    from validate.capture import downsample_capture, downsample_normals
+    from validate.observations import downsample_capture, downsample_normals
 
     f = config.downsample or choose_downsample(cap.mask, config.max_pixels)
     check_fit_memory(cap, f)

@@ -1,6 +1,6 @@
 """Light models of the fitted re-render scene, their closed-form start, and their report form.
 
-All in the camera frame (x right, y up, z toward the camera), scene units of `validate.heightfield`
+All in the camera frame (x right, y up, z toward the camera), scene units of `validate.fitted.heightfield`
 (the image spans [-1, 1] along its longer side). Pixel values are modelled as
     I = albedo * (D * E * V + A * ao + indirect) + S * E * V
 with D, S the diffuse and specular parts of the BSDF (cosine included), E the light's irradiance (RGB)
@@ -16,7 +16,8 @@ Models (`LIGHT_MODELS`):
   coefficients) whose Lambertian irradiance uses Ramamoorthi and Hanrahan's closed form; no specular.
 
 Report form (report.json `lights`, one list per image): `{"type": "directional", "direction_to_light": [x, y, z],
-"irradiance": [r, g, b]}` (`scenes.lights.camera_directional`, the form of scene.json `camera_lights` too), `{"type": "ambient", "radiance": [r, g, b]}`, `{"type": "point",
+"irradiance": [r, g, b]}` (`scenes.lights.camera_directional`, the form of scene.json `camera_lights` too),
+`{"type": "ambient", "radiance": [r, g, b]}`, `{"type": "point",
 "position": [x, y, z], "intensity": [r, g, b]}`, `{"type": "environment_sh2", "coefficients": 9 x [r, g, b]}`,
 in image units with the albedo normalised so that its mean over the mask is 0.5.
 """
