@@ -25,6 +25,8 @@ import cv2
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))  # this tree's toolkit (scenes.files)
 
 
 def synthetic_capture(folder: Path, k: int, side: int, seed: int = 0) -> None:
@@ -68,6 +70,8 @@ def run_case(k: int, side: int, work: Path) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from scenes.files import write_json
+
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--out", type=Path)
     p.add_argument("--images", default="4,16,96")
@@ -83,7 +87,7 @@ def main(argv: list[str] | None = None) -> int:
             if "error" not in row:
                 e = estimate(row["images"], *row["size"])
                 row["estimate_mib"], row["estimate_s"] = e["peak_mib"], e["seconds"]
-        args.reestimate.write_text(json.dumps(result, indent=1) + "\n")
+        write_json(args.reestimate, result, indent=1, newline=True)
         print(f"rewrote the estimates of {args.reestimate}")
         return 0
     if args.out is None:
@@ -98,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
     result = {"machine": {"cpus": __import__("os").cpu_count(), "platform": platform.platform()},
               "command": "python bench/bench_capture.py " + " ".join(argv or sys.argv[1:]), "rows": rows}
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=1) + "\n")
+    write_json(args.out, result, indent=1, newline=True)
     print(f"wrote {args.out}")
     return 0
 

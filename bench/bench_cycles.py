@@ -412,6 +412,8 @@ def rel_rmse(img: np.ndarray, ref: np.ndarray, mask: np.ndarray) -> float:
 
 
 def main() -> int:
+    from scenes.files import write_json
+
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--res", type=int, default=128, help="image side")
     p.add_argument("--levels", default="4,16,64,256", help="sample counts for the noise/time curves")
@@ -454,7 +456,7 @@ def main() -> int:
         renders = [{"area": n != "env", "env": n != "area", "spp": s, "seed": 7 if k < len(lights) else 1,
                     "out": str(work / f"cycles_{n}_{s}.exr")} for k, (n, s) in enumerate(plan)]
         job = blender_job(folder, scene, lights, renders, args.threads, args.area_factor, work)
-        (work / "job.json").write_text(json.dumps(job))
+        write_json(work / "job.json", job, indent=None)
         (work / "scene_to_blender.py").write_text(BLENDER_SCRIPT)
         t0 = time.perf_counter()
         r = subprocess.run(
@@ -562,12 +564,12 @@ def main() -> int:
         if args.out:
             import platform
 
-            Path(args.out).write_text(json.dumps({
+            write_json(Path(args.out), {
                 "machine": {"cpus": os.cpu_count(), "platform": platform.platform()},
                 "command": "python bench/bench_cycles.py " + " ".join(sys.argv[1:]), "blender": version,
                 "res": args.res, "threads": args.threads, "reference_spp": ref,
                 "ns_per_sample": {name: round(f[1] / args.res ** 2 * 1e9, 1) for name, f in fits.items()},
-                "rows": rows}, indent=1) + "\n")
+                "rows": rows}, indent=1, newline=True)
             print(f"wrote {args.out}")
     finally:
         if not args.keep:

@@ -47,6 +47,8 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))  # this tree's scenes.files for the output (the profiled trees run in subprocesses)
 
 SETTINGS = {
     "default": {"res": 128, "images": 10, "spp": 64},
@@ -319,7 +321,9 @@ def main() -> int:
               "command": "python bench/bench_profile.py " + " ".join(sys.argv[1:]),
               "lights": args.lights, "seed": args.seed, "rows": rows}
     if args.out:
-        Path(args.out).write_text(json.dumps(result, indent=1) + "\n")
+        from scenes.files import write_json
+
+        write_json(Path(args.out), result, indent=1, newline=True)
         print(f"wrote {args.out}")
     return 0
 

@@ -13,7 +13,6 @@ fraction of monotonic series, and the re-render / original render time ratio.
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import sys
 import tempfile
@@ -148,17 +147,18 @@ def main(argv: list[str] | None = None) -> int:
         f"re-render / original render time (median per image): {np.median(ratios):.3f} (per object {', '.join(f'{x:.3f}' for x in ratios)})"
     )
     if args.json:
-        Path(args.json).write_text(
-            json.dumps(
-                {
-                    "rows": rows,
-                    "baselines": baselines,
-                    "spearman_pooled": pooled,
-                    "spearman_per_object": per_object,
-                    "monotonic": [monotonic, series],
-                },
-                indent=1,
-            )
+        from scenes.files import write_json
+
+        write_json(
+            Path(args.json),
+            {
+                "rows": rows,
+                "baselines": baselines,
+                "spearman_pooled": pooled,
+                "spearman_per_object": per_object,
+                "monotonic": [monotonic, series],
+            },
+            indent=1,
         )
     if tmp is not None:
         tmp.cleanup()

@@ -24,7 +24,6 @@ objects/s over folder objects/s. Measured on a shared machine: rerun it before t
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import tempfile
@@ -199,8 +198,9 @@ def main(argv: list[str] | None = None) -> int:
         )
     )
     if args.out:
-        args.out.write_text(json.dumps({"settings": vars(args) | {"out": str(args.out)}, "sizes": sizes, "rows": rows},
-                                       indent=1))
+        from scenes.files import write_json
+
+        write_json(args.out, {"settings": vars(args) | {"out": str(args.out)}, "sizes": sizes, "rows": rows}, indent=1)
     return 0
 
 

@@ -13,9 +13,9 @@ a trailing ``.data`` (``foo.data`` -> ``foo``; DiLiGenT's ``ballPNG`` stays ``ba
 Inference itself is the library `unips.inference` (this module parses arguments and writes files).
 ``--method model`` loads a network with `unips.models.load_model`; without ``--checkpoint`` it
 uses the shipped weights of `unips.models.DEFAULT_MODEL` (the registry's pretrained entry) and refuses
-to run when that file is absent (never random weights). The network sees the UniPS preprocessing (`unips.preprocess.prepare`), at the
-crop's own size or at ``--res R``, and its output is put back into the original frame. ``--tta N``
-averages the network's predictions over N flipped / transposed views of the object (test-time
+to run when that file is absent (never random weights). The network sees the UniPS preprocessing
+(`unips.preprocess.prepare`), at the crop's own size or at ``--res R``, and its output is put back into the original
+frame. ``--tta N`` averages the network's predictions over N flipped / transposed views of the object (test-time
 augmentation, N forward passes; `unips.inference.model_normals`). ``--model glc-unips --checkpoint DIR`` and
 ``--model sdm-unips --checkpoint DIR`` run the authors' published UniPS and SDM-UniPS weights (their checkpoint
 folders) with their preprocessing (`unips.glc_preprocess`, `unips.sdm_preprocess`; one view unless ``--tta`` says
@@ -26,7 +26,6 @@ refused in one line.
 
 from __future__ import annotations
 
-import json
 import logging
 import sys
 import time
@@ -41,7 +40,7 @@ from scenes.cli.limits import check_memory, gib
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import check_output_folder, claim_outputs
 from scenes.cli.progress import Progress
-from scenes.files import atomic_write_text
+from scenes.files import write_json
 from scenes.folder.format import PREDICTION_FILES, PREDICTION_INFO, object_name
 from scenes.folder.layouts import detect_layout
 from scenes.images import write_normal_exr, write_normal_map, write_normal_visual
@@ -149,7 +148,7 @@ def write_prediction(out_dir: Path, normals: np.ndarray, info: dict[str, Any]) -
     name: a kill or a full disk leaves no truncated file, and predict.json (written first) marks the folder
     as this command's, so a rerun replaces what a killed run left."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(out_dir / PREDICTION_INFO, json.dumps(info, indent=2, sort_keys=True))
+    write_json(out_dir / PREDICTION_INFO, info, indent=2, sort_keys=True)
     write_normal_map(out_dir / "normal.png", normals)
     write_normal_exr(out_dir / "normal.exr", normals)
     write_normal_visual(out_dir / "normal_vis.png", normals)
@@ -299,7 +298,8 @@ def _predict_one(args: PredictOptions, net, folder: Path, name: str) -> None:
     if constant:
         print(
             f"warning: {name}: --method {args.method} returned a constant normal map (normals within "
-            f"{CONSTANT_DEG} deg of one direction on average): degenerate unless the object is a plane; flagged in predict.json",
+            f"{CONSTANT_DEG} deg of one direction on average): degenerate unless the object is a plane; "
+            "flagged in predict.json",
             file=sys.stderr,
         )
     info = {
