@@ -35,6 +35,7 @@ sys.path.insert(0, str(ROOT))
 
 from bench.cli_common import parse  # noqa: E402
 from scenes.cli.options import REQUIRED, Command, arg, option  # noqa: E402
+from scenes.files import write_json  # noqa: E402
 
 PY = sys.executable
 SHIPPED = ROOT / "unips" / "weights" / "glc-tiny.safetensors"
@@ -198,7 +199,7 @@ def main(argv: list[str] | None = None) -> int:
                          for k, v in dil.items()}
         r["seconds"] = time.perf_counter() - t0
         results[name] = r
-        results_path.write_text(json.dumps(results, indent=1))
+        write_json(results_path, results, indent=1)
         print(f"scored {name} in {r['seconds']:.0f} s", flush=True)
     print(f"\n{'model':10s} {'fixed val':>9s} {'gain':>5s} {'new L4':>7s} {'new L5':>7s} {'ball96':>7s} {'ball16':>7s} "
           f"{'cat96':>6s} {'cat16':>6s}")
@@ -224,6 +225,8 @@ ARM_DATA = {
 def record(results: dict, w: Path, args) -> None:
     """Append each arm's run to the model card's lineage (not shipped: none of them is compared for shipping
     here) and the A/B scores to `data_ab`."""
+    from scenes.files import write_json
+
     card_path = ROOT / "unips" / "weights" / "model_card.json"
     card = json.loads(card_path.read_text())
     shipped_stage = next((s["stage"] for s in reversed(card["lineage"]) if s.get("shipped") is not False
@@ -267,9 +270,7 @@ def record(results: dict, w: Path, args) -> None:
     card["data_ab"] = {"protocol": __doc__.split("\n\n")[1].strip(), "steps": args.steps, "objects": args.objects,
                        "results": {k: {a: v[a] for a in ("fixed_validation", "new_kinds", "diligent")}
                                    for k, v in results.items()}}
-    from scenes.files import atomic_write_text
-
-    atomic_write_text(card_path, json.dumps(card, indent=1))
+    write_json(card_path, card, indent=1)
     print(f"recorded {len(results) - 1} runs in {card_path}")
 
 

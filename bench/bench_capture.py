@@ -31,6 +31,7 @@ sys.path.insert(0, str(REPO))
 from bench.cli_common import parse  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import Command, arg, check_fields  # noqa: E402
+from scenes.files import write_json  # noqa: E402
 
 
 def synthetic_capture(folder: Path, k: int, side: int, seed: int = 0) -> None:
@@ -107,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
             if "error" not in row:
                 e = estimate(row["images"], *row["size"])
                 row["estimate_mib"], row["estimate_s"] = e["peak_mib"], e["seconds"]
-        args.reestimate.write_text(json.dumps(result, indent=1) + "\n")
+        write_json(args.reestimate, result, indent=1, newline=True)
         print(f"rewrote the estimates of {args.reestimate}")
         return 0
     rows = []
@@ -120,7 +121,7 @@ def main(argv: list[str] | None = None) -> int:
     result = {"machine": {"cpus": __import__("os").cpu_count(), "platform": platform.platform()},
               "command": "python bench/bench_capture.py " + " ".join(argv or sys.argv[1:]), "rows": rows}
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=1) + "\n")
+    write_json(args.out, result, indent=1, newline=True)
     print(f"wrote {args.out}")
     return 0
 

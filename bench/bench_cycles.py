@@ -53,6 +53,7 @@ from bench.cycles_blender import (  # noqa: E402
     read_multilayer,
 )
 from scenes.cli.options import Command, arg, option  # noqa: E402
+from scenes.files import write_json  # noqa: E402
 
 # --------------------------------------------------------------------------- scene choice
 
@@ -185,7 +186,7 @@ def main(argv: list[str] | None = None) -> int:
         renders = [{"area": n != "env", "env": n != "area", "spp": s, "seed": 7 if k < len(lights) else 1,
                     "out": str(work / f"cycles_{n}_{s}.exr")} for k, (n, s) in enumerate(plan)]
         job = blender_job(folder, scene, lights, renders, args.threads, args.area_factor, work)
-        (work / "job.json").write_text(json.dumps(job))
+        write_json(work / "job.json", job, indent=None)
         (work / "scene_to_blender.py").write_text(BLENDER_SCRIPT)
         t0 = time.perf_counter()
         r = subprocess.run(
@@ -297,12 +298,12 @@ def main(argv: list[str] | None = None) -> int:
         if args.out:
             import platform
 
-            Path(args.out).write_text(json.dumps({
+            write_json(Path(args.out), {
                 "machine": {"cpus": os.cpu_count(), "platform": platform.platform()},
                 "command": "python bench/bench_cycles.py " + " ".join(sys.argv[1:]), "blender": version,
                 "res": args.res, "threads": args.threads, "reference_spp": ref,
                 "ns_per_sample": {name: round(f[1] / args.res ** 2 * 1e9, 1) for name, f in fits.items()},
-                "rows": rows}, indent=1) + "\n")
+                "rows": rows}, indent=1, newline=True)
             print(f"wrote {args.out}")
     finally:
         if not args.keep:

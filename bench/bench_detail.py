@@ -140,7 +140,9 @@ def main(argv: list[str] | None = None) -> int:
         shutil.rmtree(tmp, ignore_errors=True)
     print(json.dumps(rows))
     if args.out:
-        args.out.write_text(json.dumps(rows, indent=1))
+        from scenes.files import write_json
+
+        write_json(args.out, rows, indent=1)
         print(f"wrote {args.out}")
     return 0
 

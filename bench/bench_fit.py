@@ -305,7 +305,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.synthetic > 0:
         synthetic(args, net, out)
     if args.out is not None:
-        args.out.write_text(json.dumps(out, indent=1))
+        from scenes.files import write_json
+
+        write_json(args.out, out, indent=1)
     return 0
 
 

@@ -23,7 +23,6 @@ through the sphere's size (4 to 32 px), 8 lights in front. Lit pixels are counte
 """
 from __future__ import annotations
 
-import json
 import sys
 import time
 from dataclasses import dataclass
@@ -174,7 +173,9 @@ def main(argv: list[str] | None = None) -> int:
         rows["size"].append(r)
         print(f"{res:>5} {r['mask_pixels']:>8} " + fmt(r), flush=True)
     if args.out:
-        Path(args.out).write_text(json.dumps(rows, indent=1))
+        from scenes.files import write_json
+
+        write_json(Path(args.out), rows, indent=1)
     return 0
 
 

@@ -344,7 +344,9 @@ def main(argv: list[str] | None = None) -> int:
               "command": "python bench/bench_profile.py " + " ".join(sys.argv[1:]),
               "lights": args.lights, "seed": args.seed, "rows": rows}
     if args.out:
-        Path(args.out).write_text(json.dumps(result, indent=1) + "\n")
+        from scenes.files import write_json
+
+        write_json(Path(args.out), result, indent=1, newline=True)
         print(f"wrote {args.out}")
     return 0
 

@@ -12,7 +12,6 @@ fraction of monotonic series, and the re-render / original render time ratio.
 """
 from __future__ import annotations
 
-import json
 import logging
 import sys
 import tempfile
@@ -176,17 +175,18 @@ def main(argv: list[str] | None = None) -> int:
         f"(per object {', '.join(f'{x:.3f}' for x in ratios)})"
     )
     if args.json:
-        Path(args.json).write_text(
-            json.dumps(
-                {
-                    "rows": rows,
-                    "baselines": baselines,
-                    "spearman_pooled": pooled,
-                    "spearman_per_object": per_object,
-                    "monotonic": [monotonic, series],
-                },
-                indent=1,
-            )
+        from scenes.files import write_json
+
+        write_json(
+            Path(args.json),
+            {
+                "rows": rows,
+                "baselines": baselines,
+                "spearman_pooled": pooled,
+                "spearman_per_object": per_object,
+                "monotonic": [monotonic, series],
+            },
+            indent=1,
         )
     if tmp is not None:
         tmp.cleanup()

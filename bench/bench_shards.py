@@ -24,7 +24,6 @@ objects/s over folder objects/s. Measured on a shared machine: rerun it before t
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
 import sys
 import tempfile
@@ -218,8 +217,10 @@ def main(argv: list[str] | None = None) -> int:
         )
     )
     if args.out:
+        from scenes.files import write_json
+
         settings = dataclasses.asdict(args) | {"out": str(args.out)}
-        args.out.write_text(json.dumps({"settings": settings, "sizes": sizes, "rows": rows}, indent=1))
+        write_json(args.out, {"settings": settings, "sizes": sizes, "rows": rows}, indent=1)
     return 0
 
 

@@ -274,7 +274,9 @@ def main(argv: list[str] | None = None) -> int:
               f"{len(rows) - len(want)}")
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps({"rows": rows}, indent=1) + "\n")
+        from scenes.files import write_json
+
+        write_json(args.out, {"rows": rows}, indent=1, newline=True)
     return 0
 
 

@@ -156,7 +156,9 @@ def degenerate_sweep(captures: list[Path], out: Path) -> int:
             rows.append(row)
             print(f"{folder.name:<10} {name:<28} K={row['images']:<3} dimensions {row['dimensions']} trusted "
                   f"{trusted!s:<5} " + "  ".join(f"{k} {v:.4f}" for k, v in row["judged"].items()), flush=True)
-    out.write_text(json.dumps({"rows": rows}, indent=1))
+    from scenes.files import write_json
+
+    write_json(out, {"rows": rows}, indent=1)
     print(f"wrote {out}")
     return 0
 
@@ -334,7 +336,9 @@ def main(argv: list[str] | None = None) -> int:
         summary["refine"] = {"objects": len(refined), "accepted": sum(r["accepted"] for r in refined),
                              "mean_change_deg": float(np.mean(change)), "largest_rise_deg": float(max(change))}
     print(json.dumps(summary))
-    args.out.write_text(json.dumps({"summary": summary, "rows": rows}, indent=1))
+    from scenes.files import write_json
+
+    write_json(args.out, {"summary": summary, "rows": rows}, indent=1)
     print(f"wrote {args.out}")
     return 0
 

@@ -20,7 +20,6 @@ Every model figure (probes included) uses the same ``--tta`` views (`unips.infer
 """
 from __future__ import annotations
 
-import json
 import logging
 import sys
 import time
@@ -34,7 +33,7 @@ from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.limits import check_memory, check_threads
 from scenes.cli.options import Command, arg, check_fields, comma_list, option
 from scenes.cli.outputs import check_output_folder, claim_outputs, make_output_folder
-from scenes.files import atomic_write_text
+from scenes.files import atomic_write_text, write_json
 from scenes.metrics import mean_angular_error
 from scenes.report.tables import markdown_table
 from unips.data import find_objects, load_object
@@ -539,7 +538,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         make_output_folder(out)
         atomic_write_text(out / "tables.md", tables)
-        atomic_write_text(out / "benchmark.json", json.dumps(res, indent=1, default=float))
+        write_json(out / "benchmark.json", res, indent=1)
     except (UsageError, OSError) as exc:  # e.g. a full disk: one line naming the file, never a traceback
         return report_error(exc, code=1)
     print(tables)

@@ -24,7 +24,6 @@ the camera; `opencv`: x right, y down, z away from the camera (the same vectors 
 """
 from __future__ import annotations
 
-import json
 import resource
 import sys
 import time
@@ -37,7 +36,7 @@ import numpy as np
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import check_output_folder, claim_outputs
-from scenes.files import atomic_write_text
+from scenes.files import to_plain, write_json
 from scenes.folder.format import MASK_FILE, write_object_folder
 from scenes.images import read_mask, write_mask, write_normal_exr, write_normal_map, write_picture
 
@@ -264,21 +263,6 @@ def _variation_picture(images: np.ndarray, path: Path) -> None:
     write_picture(path, cv2.applyColorMap(v8, cv2.COLORMAP_VIRIDIS))
 
 
-def _plain(value: Any) -> Any:
-    """JSON-ready: NumPy scalars as Python numbers, NaN (a measurement that could not be made) as null."""
-    if isinstance(value, dict):
-        return {k: _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, (np.floating, float)):
-        return None if not np.isfinite(value) else float(value)
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, np.bool_):
-        return bool(value)
-    return value
-
-
 # The estimate: a linear fit to bench/bench_capture.py's measurements on 2 cores (4 to 96 photos, 256 to 1024 px;
 # within 4 % of every measured peak and 30 % of every measured time there).
 BASE_MIB = 950.0
@@ -381,11 +365,11 @@ def run(opts: CaptureOptions) -> dict:
                          "work_folder": str(work.relative_to(out)) if work else None},
               "timings": times, "estimate": need,
               "peak_memory_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
-    atomic_write_text(out / "report.json", json.dumps(_plain(report), indent=1, allow_nan=False) + "\n")
+    write_json(out / "report.json", report, indent=1, newline=True)
     from orchestrate.capture_page import pictures, write_page
 
     refined_used = report["normals"]["source"] == "refined"
-    write_page(out / "report.html", _plain(report), pictures(out, shot.name, shot.images, shot.names, mask, final,
+    write_page(out / "report.html", to_plain(report), pictures(out, shot.name, shot.images, shot.names, mask, final,
                                                              model_map, refined_used))
     return report
 

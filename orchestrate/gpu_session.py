@@ -58,7 +58,7 @@ from scenes.cli.budget import process_start
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import Command, check_fields, option
 from scenes.cli.outputs import check_output_folder
-from scenes.files import atomic_write_text
+from scenes.files import write_json
 
 SHARED_ASSETS = REPO.parent / "shared" / "assets"
 RUN = "run"
@@ -409,7 +409,7 @@ def session(opts: SessionOptions, t0: float | None = None) -> dict:
               f"{'identical' if check_report['ground_truth_identical'] else 'not identical'} (masks differ "
               f"{'only on the outline' if check_report['masks_differ_only_on_outline'] else 'off the outline'}), "
               f"images {'within' if check_report['images_within_noise'] else 'OUTSIDE'} noise", flush=True)
-    atomic_write_text(out / "variant_check.json", json.dumps(check_report, indent=1))
+    write_json(out / "variant_check.json", check_report, indent=1)
     left = (deadline - time.time() - opts.reserve_s) / 60
     if left <= 0:  # each stage starts only while more than the reserve is left
         raise UsageError(f"--minutes: rendering and the check took {(time.time() - t0) / 60:.1f} of {opts.minutes:g} "
@@ -422,7 +422,7 @@ def session(opts: SessionOptions, t0: float | None = None) -> dict:
     summary = _write_card(opts, out, run, records, variant, device, check_report, t_render, time.time() - t_train,
                           init, assets)
     summary["wall_s"] = round(time.time() - t0, 1)
-    atomic_write_text(out / "summary.json", json.dumps(summary, indent=1))
+    write_json(out / "summary.json", summary, indent=1)
     return summary
 
 
@@ -479,7 +479,7 @@ def _write_card(
             )
         ),
     }
-    atomic_write_text(out / "model_card.json", json.dumps(card, indent=1))
+    write_json(out / "model_card.json", card, indent=1)
     big = [str(p.relative_to(out)) for p in out.rglob("*") if p.is_file() and p.stat().st_size > 16 * 2**20]
     return {"variant": variant, "check_variant": check.get("check_variant"), "device": device,
             "ground_truth_identical": check.get("ground_truth_identical"),

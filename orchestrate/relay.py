@@ -209,9 +209,9 @@ def pack_assets(assets: Path, dest: Path, budget: int) -> dict:
 
 
 def write_manifest(dest: Path, entries: dict) -> None:
-    from scenes.files import atomic_write_text
+    from scenes.files import write_json
 
-    atomic_write_text(dest / MANIFEST, json.dumps(entries, indent=1))
+    write_json(dest / MANIFEST, entries, indent=1)
 
 
 # ---------------------------------------------------------------- packing (here)

@@ -201,9 +201,9 @@ def decide(opts: ShipOptions) -> bool:
             )
             install_weights(weights, entry, card)
         else:
-            from scenes.files import atomic_write_text
+            from scenes.files import write_json
 
-            atomic_write_text(entry.card_path, json.dumps(card, indent=1))
+            write_json(entry.card_path, card, indent=1)
     print(f"{'shipped' if shipped else 'recorded'}: {_display(entry.card_path)} lineage "
           f"+1 ({len(card['lineage'])} entries)" + (f"; weights {_display(current)}" if shipped else ""), flush=True)
     return shipped

@@ -48,7 +48,7 @@ from scenes.cli.budget import END_SHARE, Budget
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, comma_list, option
 from scenes.cli.outputs import check_output_folder
-from scenes.files import atomic_write, atomic_write_text
+from scenes.files import atomic_write, atomic_write_text, write_json
 from wildgen.light_families import PS_WILD_FAMILIES
 
 REPO = Path(__file__).resolve().parents[1]
@@ -359,7 +359,7 @@ def install_weights(weights: Path, entry, card: dict) -> None:
     current.parent.mkdir(parents=True, exist_ok=True)
     for src, dst in ((weights, current), (sidecar_path(weights), sidecar_path(current))):  # never half a weights file
         atomic_write(dst, lambda tmp, src=src: shutil.copyfile(src, tmp))
-    atomic_write_text(entry.card_path, json.dumps(card, indent=1))
+    write_json(entry.card_path, card, indent=1)
 
 
 def ship(val: Path, run_dir: Path, args: RecipeOptions) -> bool:

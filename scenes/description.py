@@ -15,6 +15,7 @@ from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 from scenes.checks import check_choice, check_finite, check_matrix4, check_number, check_vector
+from scenes.files import json_text
 from scenes.lights import IDENTITY4, LIGHT_TYPES, LightDesc, light_from_dict
 
 SHAPE_KINDS = ("mesh", "sphere", "blob", "superquadric", "bumpy_sphere", "torus", "plane")
@@ -365,7 +366,7 @@ class SceneDescription:
         return d
 
     def to_json(self, indent: int | None = 1) -> str:
-        return json.dumps(self.to_dict(), indent=indent, sort_keys=True, allow_nan=False)
+        return json_text(self.to_dict(), indent=indent, sort_keys=True, strict=True)
 
     @classmethod
     def from_dict(cls, d: dict) -> "SceneDescription":

@@ -1,5 +1,6 @@
 """Writing files so that a reader never sees half of one (write to a temporary name, then rename), and their
-SHA-256 checksums: used by object folders, shards, model checkpoints and reports alike.
+SHA-256 checksums: used by object folders, shards, model checkpoints and reports alike; and the one JSON writer
+(`write_json`: NumPy values as plain ones, non-finite numbers as null, written atomically).
 """
 from __future__ import annotations
 
@@ -74,3 +75,69 @@ def folder_lock(folder: str | Path):
         os.close(fd)
         raise FolderBusy(str(folder)) from None
     return fd
+
+
+def to_plain(value, *, strict: bool = False, where: str = ""):
+    """`value` as plain JSON values: dicts (keys as str, int, float, bool or None, like `json`), lists (from
+    lists and tuples), str, int, float, bool and None. NumPy scalars and arrays become Python numbers and lists,
+    Paths strings, dataclasses dicts; a non-finite float (a measurement that could not be made) becomes None,
+    or with `strict` raises ValueError naming where it is (`where` prefixes that path: "scene.json").
+    Anything else raises TypeError, also naming where."""
+    import dataclasses
+    import math
+
+    import numpy as np
+
+    if value is None or isinstance(value, (str, bool)):
+        return value
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        if math.isfinite(value):
+            return float(value)
+        if strict:
+            raise ValueError(f"{where or 'value'}: got {float(value)}, JSON has no non-finite numbers")
+        return None
+    if isinstance(value, dict):
+        return {_plain_key(k, where): to_plain(v, strict=strict, where=f"{where}.{k}" if where else str(k))
+                for k, v in value.items()}
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if isinstance(value, (list, tuple)):
+        return [to_plain(v, strict=strict, where=f"{where}[{i}]") for i, v in enumerate(value)]
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return to_plain(dataclasses.asdict(value), strict=strict, where=where)
+    raise TypeError(f"{where or 'value'}: {type(value).__name__} is not JSON serializable")
+
+
+def _plain_key(key, where: str):
+    """A dict key as `json` takes it (str, int, float, bool, None); NumPy scalars as Python ones."""
+    import numpy as np
+
+    if isinstance(key, np.generic):
+        return key.item()
+    if key is None or isinstance(key, (str, int, float, bool)):
+        return key
+    raise TypeError(f"{where or 'value'}: a key of type {type(key).__name__} is not JSON serializable")
+
+
+def json_text(obj, *, indent: int | None = 1, sort_keys: bool = False, newline: bool = False,
+              strict: bool = False) -> str:
+    """The JSON text of `to_plain(obj)`: valid JSON always (no NaN or Infinity literals). `indent`, `sort_keys`
+    and a trailing `newline` are as each file has always been written (the bytes of a dataset's scene.json,
+    manifest.json and index.json must not change); `strict` raises on a non-finite number instead of null."""
+    import json
+
+    text = json.dumps(to_plain(obj, strict=strict), indent=indent, sort_keys=sort_keys, allow_nan=False)
+    return text + "\n" if newline else text
+
+
+def write_json(path: str | Path, obj, *, indent: int | None = 1, sort_keys: bool = False, newline: bool = False,
+               strict: bool = False) -> None:
+    """Write `json_text(obj, ...)` to `path` atomically (`atomic_write_text`): the one JSON writer of the
+    project (scene.json, manifests, indexes, reports, model cards, sidecars)."""
+    atomic_write_text(path, json_text(obj, indent=indent, sort_keys=sort_keys, newline=newline, strict=strict))

@@ -123,7 +123,10 @@ def main(argv: list[str] | None = None) -> int:
         p.error("--work and --out are required without --compare")
     if not args.hash_only:
         produce(args.work.resolve(), args.assets.resolve() if args.assets else None)
-    args.out.write_text(json.dumps(fingerprint(args.work.resolve()), indent=1, sort_keys=True) + "\n")
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this tree's scenes.files
+    from scenes.files import write_json
+
+    write_json(args.out, fingerprint(args.work.resolve()), indent=1, sort_keys=True, newline=True)
     print(f"wrote {args.out}")
     return 0
 

@@ -210,9 +210,9 @@ def test_judgeable_rule_counts_informative_images():
 def test_fitted_lights_and_ranking(jit, sphere_folder):
     """Fitted light directions within 1 deg of the rendered ones; ground-truth normals at the floor of what
     a normal map can reach, a 20-deg perturbed map clearly above, the constant map far above."""
-    from validate.observations import load_capture
     from validate.fitted.fit import fit_normals
     from validate.fitted.light_models import angular_errors_deg
+    from validate.observations import load_capture
     from validate.perturb import perturb_normals
 
     cap = load_capture(sphere_folder)
@@ -234,10 +234,10 @@ def test_point_light_model_finds_near_lights(jit, point_sphere_folder):
     field's free z offset; `auto` picks it, and refinement with `auto` uses it and beats the directional
     model's refinement of the same 20-deg random map."""
     from scenes.metrics import mean_angular_error as mae_deg
-    from validate.observations import load_capture
     from validate.fitted.fit import fit_normals
-    from validate.perturb import perturb_normals
     from validate.fitted.refinement import RefineConfig, refine_normals
+    from validate.observations import load_capture
+    from validate.perturb import perturb_normals
 
     cap = load_capture(point_sphere_folder)
     point = fit_normals(cap.images, cap.mask, cap.normal_gt, small_config(light_model="point"))
@@ -264,9 +264,9 @@ def test_saturated_observations_are_censored(jit, sphere_folder, tmp_path):
     import shutil
 
     from scenes.images import read_image, write_png16
-    from validate.observations import downsample_capture, load_capture
     from validate.fitted.fit import fit_normals
     from validate.fitted.light_models import angular_errors_deg
+    from validate.observations import downsample_capture, load_capture
 
     clipped = tmp_path / "clipped.data"
     clipped.mkdir()
@@ -294,8 +294,8 @@ def test_gradients_flow_to_light_parameters(jit, sphere_folder):
     finite differences."""
     import drjit as dr
 
-    from validate.observations import load_capture
     from validate.fitted.fit_scene import FitScene, lambertian_start
+    from validate.observations import load_capture
 
     cap = load_capture(sphere_folder)
     fs = FitScene(cap.images, cap.mask, cap.normal_gt, small_config(specular=False), "directional")
@@ -332,9 +332,9 @@ def test_refine_brings_perturbed_map_below_3_deg(jit, sphere_folder):
     lights: the error drops, but not to the floor (lights fitted to a noisy map are biased, and a Lambertian
     object's normals and lights can move together along the bas-relief ambiguity)."""
     from scenes.metrics import mean_angular_error as mae_deg
+    from validate.fitted.refinement import RefineConfig, refine_normals
     from validate.observations import load_capture
     from validate.perturb import perturb_normals
-    from validate.fitted.refinement import RefineConfig, refine_normals
 
     cap = load_capture(sphere_folder)
     start = perturb_normals(cap.normal_gt, cap.mask, "smooth", 20, seed=2)
@@ -355,11 +355,11 @@ def test_rotation_search_tilts_only_and_never_raises_the_residual(jit, sphere_fo
     asserted."""
     from scipy.spatial.transform import Rotation
 
-    from validate.observations import load_capture
     from validate.fitted.fit import run_fit
     from validate.fitted.fit_scene import FitScene, lambertian_start
     from validate.fitted.refinement import RefineConfig
     from validate.fitted.rotation_search import search_rotation
+    from validate.observations import load_capture
 
     cap = load_capture(sphere_folder)
     m = cap.mask
@@ -418,10 +418,10 @@ def test_refine_with_one_thread_is_byte_identical_across_processes(jit, sphere_f
     order. That is measured, not asserted: it is not guaranteed.) A bad --threads is a one-line error."""
     import drjit as dr
 
-    from validate.observations import load_capture
     from validate.fitted.fit import FitConfig
-    from validate.perturb import perturb_normals
     from validate.fitted.refinement import RefineConfig, refine_object
+    from validate.observations import load_capture
+    from validate.perturb import perturb_normals
 
     cap = load_capture(sphere_folder)
     start = tmp_path / "start.npy"
@@ -528,8 +528,8 @@ def test_known_scene_lights_in_camera_frame():
 def test_diligent_frames_agree(shared):
     """DiLiGenT's light_directions.txt and Normal_gt share our camera frame: lights solved by Lambertian
     least squares from the ground-truth normals match the calibrated ones (ball, 16 images, 1/4 size)."""
-    from validate.observations import downsample_capture, load_capture
     from validate.fitted.light_models import angular_errors_deg, closed_form_directional
+    from validate.observations import downsample_capture, load_capture
 
     folder = shared / "data" / "diligent" / "ballPNG"
     if not folder.is_dir():

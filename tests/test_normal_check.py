@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from scenes.images import decode_normal_image, encode_normals
-from validate.observations import unit_normals
 from validate.io import UNIT_TOLERANCE, check_normals
+from validate.observations import unit_normals
 
 
 def test_normal_map_rule_is_one_for_both_modes():

@@ -125,8 +125,8 @@ def test_refinement_declines_an_untrusted_capture_and_keeps_the_input(jit, tmp_p
 def test_fitted_report_says_trusted_and_writes_explained(jit, sphere_folder, tmp_path):
     import json
 
-    from validate.observations import load_capture
     from validate.fitted.fit_report import rerender_fitted
+    from validate.observations import load_capture
 
     gt = load_capture(sphere_folder).normal_gt
     r = rerender_fitted(str(sphere_folder), gt, small_config(), str(tmp_path))
@@ -184,9 +184,9 @@ def test_a_map_optimised_against_the_score_is_not_told_apart_from_the_truth(jit)
     ranked behind. The resolution comes from the images alone (the rank-4 model's own residual)."""
     from scenes.metrics import mean_angular_error
     from validate.fitted.fit import fit_normals
-    from validate.perturb import perturb_normals
     from validate.fitted.refinement import RefineConfig, refine_normals
     from validate.fitted.verdict import explain, judged_rel_l1, told_apart
+    from validate.perturb import perturb_normals
 
     n, mask = analytic_sphere()
     shade = np.clip(np.einsum("hwc,kc->khw", n, TO_LIGHT), 0, None) ** 1.5 * 0.84

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import logging
 import sys
 from dataclasses import dataclass
@@ -29,7 +28,7 @@ import numpy as np
 from scenes.cli.errors import UsageError, one_line, report_error
 from scenes.cli.options import REQUIRED, Command
 from scenes.cli.outputs import check_output_folder, claim_outputs
-from scenes.files import atomic_write_text
+from scenes.files import atomic_write_text, write_json
 from scenes.folder.format import object_name, prediction_file
 from scenes.folder.layouts import detect_layout
 from scenes.images import read_normals
@@ -151,7 +150,7 @@ def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True, overwrite
         writer.writeheader()
         for name, m in results.items():
             writer.writerow({"object": name, **{k: m[k] for k in CSV_FIELDS[1:]}})
-        atomic_write_text(pred_dir / METRICS_JSON, json.dumps(summary, indent=2, sort_keys=True))
+        write_json(pred_dir / METRICS_JSON, summary, indent=2, sort_keys=True)
         atomic_write_text(pred_dir / METRICS_CSV, table.getvalue())
     return summary
 

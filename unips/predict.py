@@ -26,7 +26,6 @@ refused in one line.
 
 from __future__ import annotations
 
-import json
 import logging
 import sys
 import time
@@ -41,7 +40,7 @@ from scenes.cli.limits import check_memory, gib
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import check_output_folder, claim_outputs
 from scenes.cli.progress import Progress
-from scenes.files import atomic_write_text
+from scenes.files import write_json
 from scenes.folder.format import PREDICTION_FILES, PREDICTION_INFO, object_name
 from scenes.folder.layouts import detect_layout
 from scenes.images import write_normal_exr, write_normal_map, write_normal_visual
@@ -149,7 +148,7 @@ def write_prediction(out_dir: Path, normals: np.ndarray, info: dict[str, Any]) -
     name: a kill or a full disk leaves no truncated file, and predict.json (written first) marks the folder
     as this command's, so a rerun replaces what a killed run left."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(out_dir / PREDICTION_INFO, json.dumps(info, indent=2, sort_keys=True))
+    write_json(out_dir / PREDICTION_INFO, info, indent=2, sort_keys=True)
     write_normal_map(out_dir / "normal.png", normals)
     write_normal_exr(out_dir / "normal.exr", normals)
     write_normal_visual(out_dir / "normal_vis.png", normals)

@@ -38,8 +38,11 @@ def model_options(items: Sequence[str]) -> dict[str, Any]:
 
 
 def append_log(path: Path, record: dict[str, Any]) -> None:
+    """Append `record` to log.jsonl as one line (a non-finite loss as null: every line stays valid JSON)."""
+    from scenes.files import json_text
+
     with path.open("a") as f:
-        f.write(json.dumps(record, sort_keys=True) + "\n")
+        f.write(json_text(record, indent=None, sort_keys=True, newline=True))
 
 
 def truncate_log(path: Path, step: int) -> None:

@@ -23,7 +23,6 @@ Usage:
 """
 from __future__ import annotations
 
-import json
 import logging
 import sys
 import time
@@ -38,7 +37,7 @@ from scenes.cli.limits import check_threads
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import check_output_folder, claim_outputs
 from scenes.cli.progress import progress_bar
-from scenes.files import atomic_write_text
+from scenes.files import write_json
 from scenes.folder.format import find_prediction, list_object_folders, object_name
 from scenes.renderer.variant import require_jit_variant
 from validate.fitted.fit_scene import FitConfig
@@ -145,7 +144,7 @@ def rerender_object(
             for i in range(k):
                 write_png16(target / f"R{i:03d}.png", passes.renders[i])
         report["timings"]["total_s"] = time.perf_counter() - t_start
-        atomic_write_text(target / REPORT, json.dumps(report, indent=1, allow_nan=False))
+        write_json(target / REPORT, report, indent=1)
     else:
         report["timings"]["total_s"] = time.perf_counter() - t_start
     return report

@@ -5,6 +5,8 @@ from typing import Any
 
 import numpy as np
 
+from scenes.files import to_plain
+
 
 def expose(radiance: np.ndarray, exposure: float) -> np.ndarray:
     """What the dataset stores: clip(radiance * exposure, 0, 1), rounded to 16 bit, as float32."""
@@ -57,8 +59,8 @@ def relative_residual_map(images: np.ndarray, references: np.ndarray, mask: np.n
 
 
 def finite_or_none(x: float | None) -> float | None:
-    """JSON has no inf/NaN: map them to None."""
-    return float(x) if x is not None and np.isfinite(x) else None
+    """JSON has no inf/NaN: map them to None (`scenes.files.to_plain` of one number)."""
+    return None if x is None else to_plain(float(x))
 
 
 def mean_or_none(values: list[float | None]) -> float | None:

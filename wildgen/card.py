@@ -293,9 +293,10 @@ def _lights_numbers(objects: list[dict]) -> dict:
 
 def json_text(stats: dict) -> str:
     """stats.json: indented, but each list of numbers (bin edges, counts) on one line."""
-    import json
     import re
 
-    text = json.dumps(stats, indent=1, allow_nan=False)
+    from scenes.files import json_text as plain_json_text
+
+    text = plain_json_text(stats, indent=1)
     return re.sub(r"\[[^\[\]{}\"]*\]", lambda m: re.sub(r"\s+", " ", m.group(0)).replace("[ ", "[").replace(" ]", "]"),
                   text) + "\n"

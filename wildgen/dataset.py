@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterator
 
-from scenes.files import atomic_write_text
+from scenes.files import write_json
 from wildgen.config import GenConfig
 from wildgen.parallel import Engine, InProcessEngine
 from wildgen.writer import TMP_PREFIX, index_name, sha256_file
@@ -74,7 +74,7 @@ def write_manifest(
     }
     if extra:
         manifest.update(extra)
-    atomic_write_text(Path(out_dir) / MANIFEST, json.dumps(manifest, indent=1, sort_keys=True))
+    write_json(Path(out_dir) / MANIFEST, manifest, indent=1, sort_keys=True)
 
 
 def load_manifest(out_dir: str | Path) -> dict | None:

@@ -28,7 +28,7 @@ from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, check_fields, option
 from scenes.cli.outputs import check_output_folder
 from scenes.cli.progress import progress_bar
-from scenes.files import atomic_write_text
+from scenes.files import write_json
 from scenes.folder.format import (
     AUX_DIR,
     SCENE_FILE,
@@ -221,7 +221,7 @@ def apply_to_dataset(data: str | Path, out: str | Path, sensor: Sensor, seed: in
 
     def write_manifest(objects: list[dict], complete: bool) -> None:
         manifest["objects"], manifest["complete"] = objects, complete  # readers refuse an incomplete dataset
-        atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=1, sort_keys=True, allow_nan=False))
+        write_json(out / MANIFEST, manifest, indent=1, sort_keys=True)
 
     with dataset_lock(out):
         if overwrite:

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from scenes.files import atomic_write_text
+from scenes.files import atomic_write_text, json_text, write_json
 from scenes.images import write_mask, write_normal_map, write_png16
 
 OBJECT_SUFFIX = ".data"
@@ -168,7 +168,7 @@ def scene_json_text(desc, extras: dict[str, Any] | None = None) -> str:
     scene = desc.to_dict()
     for key, value in (extras or {}).items():
         scene[key] = value
-    return json.dumps(scene, indent=1, sort_keys=True, allow_nan=False)
+    return json_text(scene, indent=1, sort_keys=True, strict=True)
 
 
 def write_scene(folder: str | Path, desc, extras: dict[str, Any] | None = None) -> Path:
@@ -234,5 +234,5 @@ def write_object_folder(folder: str | Path, images: np.ndarray, mask: np.ndarray
     if desc is not None:
         write_scene(folder, desc, extras)
     elif scene is not None:
-        (folder / SCENE_FILE).write_text(json.dumps(scene))
+        write_json(folder / SCENE_FILE, scene, indent=None)
     return folder

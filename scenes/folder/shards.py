@@ -46,7 +46,7 @@ import re
 from pathlib import Path
 from typing import Any, BinaryIO, Iterator
 
-from scenes.files import atomic_write_text, sha256_file
+from scenes.files import json_text, sha256_file, write_json
 from scenes.folder.format import AUX_DIR, OBJECT_SUFFIX, object_name
 
 INDEX_FILE = "index.json"
@@ -184,7 +184,7 @@ def encode_decoded(folder: Path, arg: str = "--data") -> dict[str, bytes]:
     arrays.update((name, getattr(fd, name)) for name in _DECODED_ARRAYS[1:] if getattr(fd, name) is not None)
     # dtype and shape again in the metadata: the reader maps each array without parsing its .npy header.
     meta["arrays"] = {name: {"dtype": a.dtype.str, "shape": list(a.shape)} for name, a in arrays.items()}
-    members = {DECODED_META: (json.dumps(meta, sort_keys=True) + "\n").encode()}
+    members = {DECODED_META: json_text(meta, indent=None, sort_keys=True, newline=True).encode()}
     members.update((f"{DECODED}.{name}.npy", _npy(a)) for name, a in arrays.items())
     if (folder / SCENE_FILE).is_file():
         members[SCENE_FILE] = (folder / SCENE_FILE).read_bytes()
@@ -321,7 +321,7 @@ def write_shard(path: str | Path, folders: list[tuple[str, Path]], aux: bool = F
 
 def write_index(folder: str | Path, index: dict[str, Any]) -> None:
     """Write `folder/index.json` atomically (sorted keys: the same export gives the same bytes)."""
-    atomic_write_text(Path(folder) / INDEX_FILE, json.dumps(index, indent=1, sort_keys=True) + "\n")
+    write_json(Path(folder) / INDEX_FILE, index, indent=1, sort_keys=True, newline=True)
 
 
 def read_index(folder: str | Path, arg: str = "--data") -> dict[str, Any]:

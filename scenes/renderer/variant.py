@@ -1,8 +1,8 @@
 """The Mitsuba variant: chosen at entry points (never at import time), checked where Mitsuba objects are made.
 
 `choose_variant` sets it; `require_variant` / `require_jit_variant` / `require_ad_variant` are the only checks
-that one is set (`scenes.renderer.build`, `scenes.renderer.render`, `validate.known.normal_bsdf` and `validate.fitted.fit` call
-them).
+that one is set (`scenes.renderer.build`, `scenes.renderer.render`, `validate.known.normal_bsdf` and
+`validate.fitted.fit` call them).
 """
 from __future__ import annotations
 

@@ -24,7 +24,7 @@ from typing import Any, Mapping
 import torch
 from torch import nn
 
-from scenes.files import atomic_write, atomic_write_text
+from scenes.files import atomic_write, write_json
 
 from .official import is_official_path, read_official
 from .registry import build_model, official_entry, pretrained_weights
@@ -108,7 +108,7 @@ def save_checkpoint(path: str | Path, model: nn.Module, extra: Mapping[str, Any]
     state = {k: v.detach().contiguous().cpu() for k, v in model.state_dict().items()}
     # Through temporary names and renames, so a reader never sees half a file (and a failure leaves none).
     atomic_write(path, lambda tmp: save_file(state, str(tmp), metadata={"model_name": meta["model_name"]}))
-    atomic_write_text(sidecar_path(path), json.dumps(meta, indent=2, sort_keys=True))
+    write_json(sidecar_path(path), meta, indent=2, sort_keys=True)
     return path
 
 

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from scenes.files import to_plain
 from scenes.renderer.variant import jit_threads, require_ad_variant
 from validate.fitted import heightfield
 from validate.fitted.ambiguity import bas_relief_test, not_tested
@@ -222,16 +223,16 @@ def check_judged(jc: JudgedCapture, config: FitConfig, progress: Progress | None
         "trusted": trusted,
         "why": jc.why,
         "explained_fraction": ex.explained_fraction,
-        "judged_rel_l1": finite(judged),
-        "judged_floor_rel_l1": finite(min(judged_floors.values())) if judged_floors else None,
-        "resolution": finite(ex.resolution),
+        "judged_rel_l1": to_plain(judged),
+        "judged_floor_rel_l1": to_plain(min(judged_floors.values())) if judged_floors else None,
+        "resolution": to_plain(ex.resolution),
         "resolution_note": RESOLUTION_NOTE,
         "told_apart_from_floor": (told_apart(judged, min(judged_floors.values()), ex) if judged_floors else None),
         "light_dimensions": ex.light_dimensions,
         "light_dimension_noise_units": [round(d, 2) for d in ex.dimensions],
         "ambiguity": ambiguity,
         "rel_l1": res.rel_l1,
-        "noise_rel_l1": finite(noise_rel_l1(ex, jc.observed)),
+        "noise_rel_l1": to_plain(noise_rel_l1(ex, jc.observed)),
         "floor_rel_l1": min(floors.values()) if floors else None,
         "floors": floors,
         "mae_deg": mae_deg(n_small, small.normal_gt, small.mask) if small.normal_gt is not None else None,
@@ -266,9 +267,8 @@ def check_judged(jc: JudgedCapture, config: FitConfig, progress: Progress | None
 
 def _write_fitted(jc: JudgedCapture, target: Path, res: FitResult, report: dict) -> None:
     """report.json, figure.png and explained.png of the fitted check into `jc.target`."""
-    import json
 
-    from scenes.files import atomic_write_text
+    from scenes.files import write_json
     from scenes.folder.format import prediction_label
     from scenes.images import write_picture
     from scenes.metrics import angular_error_deg
@@ -300,7 +300,7 @@ def _write_fitted(jc: JudgedCapture, target: Path, res: FitResult, report: dict)
         angular_error=None if small.normal_gt is None else angular_error_deg(n_small, small.normal_gt, small.mask),
         explained=ex.explained,
     )
-    atomic_write_text(target / "report.json", json.dumps(report, indent=1, allow_nan=False))
+    write_json(target / "report.json", report, indent=1)
 
 
 def fit_resolution_label(downsample: int, fitted: tuple[int, ...], full: tuple[int, ...]) -> str:
@@ -315,7 +315,3 @@ def saturated_fraction(cap: Capture) -> float:
     if cap.saturated is None:
         return 0.0
     return float(cap.saturated[:, cap.mask].mean())
-
-
-def finite(x: float | None) -> float | None:
-    return float(x) if x is not None and np.isfinite(x) else None

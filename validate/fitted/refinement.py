@@ -22,7 +22,6 @@ and DIR/<object>/refine_report.json.
 """
 from __future__ import annotations
 
-import json
 import logging
 import time
 from dataclasses import asdict, dataclass, field, replace
@@ -410,9 +409,9 @@ def refine_judged(jc: JudgedCapture, config: RefineConfig, progress: Progress | 
 
 def write_refined(target: Path, normals: np.ndarray, report: dict) -> None:
     """normal.png (the refined map, or the input map where refinement declined) and refine_report.json."""
-    from scenes.files import atomic_write_text
+    from scenes.files import write_json
     from scenes.images import write_normal_map
 
     target.mkdir(parents=True, exist_ok=True)
     write_normal_map(target / "normal.png", normals)
-    atomic_write_text(target / "refine_report.json", json.dumps(report, indent=1, allow_nan=False))
+    write_json(target / "refine_report.json", report, indent=1)

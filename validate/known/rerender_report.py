@@ -9,11 +9,11 @@ from typing import Any
 
 import numpy as np
 
-from scenes.files import atomic_write_text
+from scenes.files import atomic_write_text, to_plain
 from scenes.metrics import mean_angular_error
 from validate.io import ObjectData
 from validate.known.rerender_passes import RenderPasses, RerenderConfig
-from validate.residuals import finite_or_none, mean_or_none, psnr, rel_l1, relative_residual_map
+from validate.residuals import mean_or_none, psnr, rel_l1, relative_residual_map
 
 SUMMARY_COLUMNS = (
     "object",
@@ -64,12 +64,12 @@ def score_images(
             "seed": int(image.seed),
             "rerender_seed": seeds[i],
             "exposure": float(image.exposure),
-            "rel_l1": finite_or_none(rel_l1(r[i], inputs[i], mask)),
-            "psnr": finite_or_none(psnr(r[i], inputs[i], mask)),
-            "gt_rel_l1": finite_or_none(rel_l1(g[i], inputs[i], mask)) if g is not None else None,
-            "gt_psnr": finite_or_none(psnr(g[i], inputs[i], mask)) if g is not None else None,
-            "noise_floor_rel_l1": finite_or_none(rel_l1(f[i], inputs[i], mask)) if f is not None else None,
-            "reproduce_rel_l1": finite_or_none(rel_l1(p[i], inputs[i], mask)) if p is not None else None,
+            "rel_l1": to_plain(rel_l1(r[i], inputs[i], mask)),
+            "psnr": to_plain(psnr(r[i], inputs[i], mask)),
+            "gt_rel_l1": to_plain(rel_l1(g[i], inputs[i], mask)) if g is not None else None,
+            "gt_psnr": to_plain(psnr(g[i], inputs[i], mask)) if g is not None else None,
+            "noise_floor_rel_l1": to_plain(rel_l1(f[i], inputs[i], mask)) if f is not None else None,
+            "reproduce_rel_l1": to_plain(rel_l1(p[i], inputs[i], mask)) if p is not None else None,
             "rerender_s": passes.rerender_s[i],
             "original_render_s": passes.original_s[i] if passes.original_s else None,
         })
