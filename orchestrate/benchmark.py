@@ -75,65 +75,20 @@ def _fmt(v: float | None) -> str:
     return "-" if v is None or not np.isfinite(v) else f"{v:.1f}"
 
 
-def synthetic_tables(
-    data: Path,
-    net,
-    ablation,
-    images: int,
-    counts: list[int],
-    rerender_objects: int,
-    rr_spp: int | None,
-    tta: int = DEFAULT_TTA,
-) -> dict:
+def synthetic_tables(data: Path, net, ablation, images: int, counts: list[int], rerender_objects: int,
+                     rr_spp: int | None, tta: int = DEFAULT_TTA) -> dict:
     """Per-family errors, error vs image count and re-render residuals on a held-out synthetic set."""
     methods = _methods(net, ablation)
-    folders = find_objects(data)
     per_obj: list[dict] = []
     by_count: dict[str, dict[int, list[float]]] = {m: {k: [] for k in counts} for m, _ in methods}
-    for folder in folders:
-        obj = load_object(folder, max_images=images)
-        if obj.normals is None:
-            raise ValueError(f"--data: {str(folder)!r} has no ground-truth normals")
-        row = {"name": obj.name, "family": obj.light_family or "unknown", "folder": str(folder), "mae": {}, "pred": {},
-               "images": int(obj.images.shape[0])}
-        for name, model in methods:
-            t0 = time.perf_counter()
-            try:
-                n = _predict(name, model, obj, tta)
-            except ValueError as exc:  # a baseline that cannot run on this object: counted as a failure
-                row.setdefault("failed", {})[name] = str(exc)
-                continue
-            if n is None:
-                continue
-            row["mae"][name] = _mae(n, obj.normals, obj.mask)
-            row["pred"][name] = n
-            row.setdefault("seconds", {})[name] = time.perf_counter() - t0
-        for name, model in methods:
-            if name.startswith("model") and name in row["mae"]:
-                row.setdefault("probes", {})[name] = probe_errors(obj, model, row["mae"][name], tta=tta)
-        for k in counts:
-            if k > obj.images.shape[0]:
-                continue
-            sub = load_object(folder, max_images=k)
-            for name, model in methods:
-                try:
-                    n = _predict(name, model, sub, tta)
-                except ValueError as exc:  # e.g. too few images for a baseline: a blank cell
-                    log.debug("%s with K=%d: %s", name, k, exc)
-                    continue
-                if n is not None:
-                    by_count[name][k].append(_mae(n, obj.normals, obj.mask))
+    for folder in find_objects(data):
+        row = _object_row(folder, methods, images, counts, by_count, tta)
         per_obj.append(row)
-        log.info("%s (%s): %s", obj.name, row["family"], {k: round(v, 1) for k, v in row["mae"].items()})
+        log.info("%s (%s): %s", row["name"], row["family"], {k: round(v, 1) for k, v in row["mae"].items()})
 
     families = family_columns(r["family"] for r in per_obj)
-    family_table = {
-        name: {
-            f: _mean([r["mae"][name] for r in per_obj if r["family"] == f and name in r["mae"]])
-            for f in families + ["all"]
-        }
-        for name, _ in methods
-    }
+    family_table = {name: {f: _mean([r["mae"][name] for r in per_obj if r["family"] == f and name in r["mae"]])
+                           for f in families + ["all"]} for name, _ in methods}
     for name, _ in methods:
         family_table[name]["all"] = _mean([r["mae"][name] for r in per_obj if name in r["mae"]])
     count_table = {name: {k: _mean(v) for k, v in ks.items()} for name, ks in by_count.items()}
@@ -146,40 +101,70 @@ def synthetic_tables(
         per = {r["name"]: r["probes"][name] for r in per_obj if name in r.get("probes", {})}
         if per:
             probe_table[name] = summarise(per, {r["name"]: r["family"] for r in per_obj})
-
-    rerender_rows = []
-    if rerender_objects > 0:
-        from validate.rerender import RerenderConfig, rerender_object
-
-        picked = _spread(per_obj, families, rerender_objects)
-        cfg = RerenderConfig(spp=rr_spp, allow_missing=True)
-        for r in picked:
-            for name, _ in methods:
-                if name not in r["pred"]:
-                    continue
-                rep = rerender_object(r["folder"], r["pred"][name], cfg)
-                rerender_rows.append(
-                    {
-                        "object": r["name"],
-                        "family": r["family"],
-                        "method": name,
-                        "mae_deg": r["mae"][name],
-                        "rel_l1": rep["rel_l1"],
-                        "gt_rel_l1": rep.get("gt_rel_l1"),
-                        "noise_floor_rel_l1": rep.get("noise_floor_rel_l1"),
-                    }
-                )
+    rerender_rows = _rerender_rows(per_obj, families, methods, rerender_objects, rr_spp)
     for r in per_obj:
         r.pop("pred")
-    return {
-        "objects": per_obj,
-        "families": families,
-        "family_table": family_table,
-        "count_table": count_table,
-        "probe_table": probe_table,
-        "counts": counts,
-        "rerender": rerender_rows,
-    }
+    return {"objects": per_obj, "families": families, "family_table": family_table, "count_table": count_table,
+            "probe_table": probe_table, "counts": counts, "rerender": rerender_rows}
+
+
+def _object_row(folder: Path, methods: list[tuple[str, Any]], images: int, counts: list[int],
+                by_count: dict[str, dict[int, list[float]]], tta: int) -> dict:
+    """One synthetic object: each method's error, prediction and seconds, the models' probes; its errors with
+    the first K images appended to `by_count`."""
+    obj = load_object(folder, max_images=images)
+    if obj.normals is None:
+        raise ValueError(f"--data: {str(folder)!r} has no ground-truth normals")
+    row = {"name": obj.name, "family": obj.light_family or "unknown", "folder": str(folder), "mae": {}, "pred": {},
+           "images": int(obj.images.shape[0])}
+    for name, model in methods:
+        t0 = time.perf_counter()
+        try:
+            n = _predict(name, model, obj, tta)
+        except ValueError as exc:  # a baseline that cannot run on this object: counted as a failure
+            row.setdefault("failed", {})[name] = str(exc)
+            continue
+        if n is None:
+            continue
+        row["mae"][name] = _mae(n, obj.normals, obj.mask)
+        row["pred"][name] = n
+        row.setdefault("seconds", {})[name] = time.perf_counter() - t0
+    for name, model in methods:
+        if name.startswith("model") and name in row["mae"]:
+            row.setdefault("probes", {})[name] = probe_errors(obj, model, row["mae"][name], tta=tta)
+    for k in counts:
+        if k > obj.images.shape[0]:
+            continue
+        sub = load_object(folder, max_images=k)
+        for name, model in methods:
+            try:
+                n = _predict(name, model, sub, tta)
+            except ValueError as exc:  # e.g. too few images for a baseline: a blank cell
+                log.debug("%s with K=%d: %s", name, k, exc)
+                continue
+            if n is not None:
+                by_count[name][k].append(_mae(n, obj.normals, obj.mask))
+    return row
+
+
+def _rerender_rows(per_obj: list[dict], families: list[str], methods: list[tuple[str, Any]], n: int,
+                   spp: int | None) -> list[dict]:
+    """The re-render residual of each method's prediction on `n` objects spread over the families."""
+    rows: list[dict] = []
+    if n <= 0:
+        return rows
+    from validate.rerender import RerenderConfig, rerender_object
+
+    cfg = RerenderConfig(spp=spp, allow_missing=True)
+    for r in _spread(per_obj, families, n):
+        for name, _ in methods:
+            if name not in r["pred"]:
+                continue
+            rep = rerender_object(r["folder"], r["pred"][name], cfg)
+            rows.append({"object": r["name"], "family": r["family"], "method": name, "mae_deg": r["mae"][name],
+                         "rel_l1": rep["rel_l1"], "gt_rel_l1": rep.get("gt_rel_l1"),
+                         "noise_floor_rel_l1": rep.get("noise_floor_rel_l1")})
+    return rows
 
 
 def probe_inputs(obj, probe: str, seed: int = 0):
@@ -286,22 +271,15 @@ def _synthetic_tables(syn: dict, res: dict) -> list[str]:
     fams = syn["families"]
     used = sorted({r.get("images", res["images"]) for r in syn["objects"]}) or [res["images"]]  # not --images
     each = f"{used[0]} images each" if len(used) == 1 else f"{used[0]} to {used[-1]} images (--images {res['images']})"
-    lines = [
-        f"Mean angular error (deg) on the held-out synthetic set ({res['data']}, {len(syn['objects'])} objects, "
-        f"{each})",
-        "",
-        markdown_table(
-            ["method", *fams, "all"],
-            [[m, *(_fmt(row[f]) for f in fams), _fmt(row["all"])] for m, row in syn["family_table"].items()],
-        ),
-    ]
+    lines = [f"Mean angular error (deg) on the held-out synthetic set ({res['data']}, {len(syn['objects'])} objects, "
+             f"{each})", "",
+             markdown_table(["method", *fams, "all"],
+                            [[m, *(_fmt(row[f]) for f in fams), _fmt(row["all"])]
+                             for m, row in syn["family_table"].items()])]
     failed = {m: sum(m in r.get("failed", {}) for r in syn["objects"]) for m in syn["family_table"]}
     if any(failed.values()):
-        lines += [
-            "",
-            "Objects a method could not run on (left out of its means): "
-            + ", ".join(f"{m}: {c}" for m, c in failed.items() if c),
-        ]
+        lines += ["", "Objects a method could not run on (left out of its means): "
+                  + ", ".join(f"{m}: {c}" for m, c in failed.items() if c)]
     for m, summ in syn.get("probe_table", {}).items():
         lines += ["", f"Probes of {m} (mean angular error, deg; photometric gain = mask only - all images)", "",
                   format_table(summ)]
@@ -310,37 +288,22 @@ def _synthetic_tables(syn: dict, res: dict) -> list[str]:
     lines.append(markdown_table(["method", *(f"K={k}" for k in ks)],
                                 [[m, *(_fmt(row.get(k)) for k in ks)] for m, row in syn["count_table"].items()]))
     if syn["rerender"]:
-        lines += [
-            "",
-            "Re-render residual (relative L1 over the mask, same seeds) beside angular error, per method "
-            "(mean over the re-rendered objects)",
-            "",
-        ]
+        lines += ["", "Re-render residual (relative L1 over the mask, same seeds) beside angular error, per method "
+                  "(mean over the re-rendered objects)", ""]
         rows = []
         for m in dict.fromkeys(r["method"] for r in syn["rerender"]):
             mine = [r for r in syn["rerender"] if r["method"] == m]
             gt = [r["gt_rel_l1"] for r in mine if r["gt_rel_l1"] is not None]
-            rows.append(
-                [
-                    m,
-                    len(mine),
-                    f"{_mean([r['mae_deg'] for r in mine]):.1f}",
-                    f"{_mean([r['rel_l1'] for r in mine]):.3f}",
-                    f"{(_mean(gt) if gt else float('nan')):.3f}",
-                ]
-            )
-        lines.append(
-            markdown_table(["method", "objects", "MAE (deg)", "re-render rel. L1", "GT-normals rel. L1 (floor)"], rows)
-        )
+            rows.append([m, len(mine), f"{_mean([r['mae_deg'] for r in mine]):.1f}",
+                         f"{_mean([r['rel_l1'] for r in mine]):.3f}", f"{(_mean(gt) if gt else float('nan')):.3f}"])
+        lines.append(markdown_table(["method", "objects", "MAE (deg)", "re-render rel. L1",
+                                     "GT-normals rel. L1 (floor)"], rows))
         if len(syn["rerender"]) >= 4:
             from scipy.stats import spearmanr
 
             rho = spearmanr([r["mae_deg"] for r in syn["rerender"]], [r["rel_l1"] for r in syn["rerender"]]).statistic
-            lines.append("")
-            lines.append(
-                "Spearman rank correlation between re-render residual and MAE over all "
-                f"{len(syn['rerender'])} (object, method) pairs: {rho:.2f}"
-            )
+            lines += ["", "Spearman rank correlation between re-render residual and MAE over all "
+                          f"{len(syn['rerender'])} (object, method) pairs: {rho:.2f}"]
     return lines
 
 
@@ -367,9 +330,8 @@ class BenchmarkOptions:
 
     data: str | None = None
     """Held-out synthetic dataset directory (object folders with normal.tif)."""
-    checkpoint: Annotated[
-        str | None, arg(help_behavior_hint="(default: the shipped weights of unips.models.DEFAULT_MODEL)")
-    ] = None
+    checkpoint: Annotated[str | None,
+                          arg(help_behavior_hint="(default: the shipped weights of unips.models.DEFAULT_MODEL)")] = None
     """Model file."""
     model: str | None = None
     """Registered network (unips.models.list_models()) that reads --checkpoint when it is a folder of the authors'
@@ -381,8 +343,7 @@ class BenchmarkOptions:
     images: int = option(10, minimum=1)
     """Images per synthetic object."""
     counts: Annotated[list[int], comma_list(int), arg(metavar="K1,K2")] = option(
-        default_factory=lambda: [1, 2, 4, 8, 16], minimum=1
-    )
+        default_factory=lambda: [1, 2, 4, 8, 16], minimum=1)
     """Image counts of the error-vs-K table."""
     diligent_images: int = option(96, minimum=1)
     """Images per DiLiGenT object."""
@@ -416,10 +377,9 @@ class BenchmarkOptions:
             raise UsageError("--rerender-spp: only used by the re-render table, which needs --data and "
                              "--rerender-objects >= 1")
         if self.diligent is not None and self.diligent_subsets > 0 and self.diligent_subset >= self.diligent_images:
-            raise UsageError(
-                f"--diligent-subset: got {self.diligent_subset}, expected fewer than --diligent-images "
-                f"{self.diligent_images} (a subset of all the images is no subset; or --diligent-subsets 0)"
-            )
+            raise UsageError(f"--diligent-subset: got {self.diligent_subset}, expected fewer than --diligent-images "
+                             f"{self.diligent_images} (a subset of all the images is no subset; or "
+                             "--diligent-subsets 0)")
         check_threads(self.threads)
         check_model_name(self.model)
         check_output_folder(self.out)
@@ -466,10 +426,8 @@ def check_inputs(args: BenchmarkOptions, data: bool = True) -> None:
                 raise UsageError(f"--diligent: {str(folder)!r} has no ground-truth normals")
             k = len(fd.image_paths)
             if args.diligent_subsets > 0 and args.diligent_subset >= k:
-                raise UsageError(
-                    f"--diligent-subset: got {args.diligent_subset}, expected fewer than the {k} images of "
-                    f"{str(folder)!r}"
-                )
+                raise UsageError(f"--diligent-subset: got {args.diligent_subset}, expected fewer than the {k} "
+                                 f"images of {str(folder)!r}")
             sized.append(("--diligent-images", fd))
     for flag, fd in sized:
         need = prediction_memory("model", fd.shape, len(fd.image_paths), crop_box(fd.mask).size, args.tta)
@@ -487,11 +445,8 @@ def diligent_folders(root: Path) -> list[Path]:
     return folders
 
 
-COMMAND = Command(
-    BenchmarkOptions,
-    prog="python -m orchestrate.benchmark",
-    description="Evaluation tables: per light family, vs image count, re-render residuals, DiLiGenT.",
-)
+COMMAND = Command(BenchmarkOptions, prog="python -m orchestrate.benchmark",
+                  description="Evaluation tables: per light family, vs image count, re-render residuals, DiLiGenT.")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -506,13 +461,8 @@ def main(argv: list[str] | None = None) -> int:
             torch.set_num_threads(args.threads)
         net = load_network(args.checkpoint, model=args.model)
         ablation = load_network(args.ablation_checkpoint) if args.ablation_checkpoint else None
-        res: dict[str, Any] = {
-            "checkpoint": str(net.checkpoint),
-            "ablation_checkpoint": args.ablation_checkpoint,
-            "images": args.images,
-            "data": args.data,
-            "tta": args.tta,
-        }
+        res: dict[str, Any] = {"checkpoint": str(net.checkpoint), "ablation_checkpoint": args.ablation_checkpoint,
+                               "images": args.images, "data": args.data, "tta": args.tta}
         if args.data:
             if args.rerender_objects > 0:
                 from scenes.renderer.variant import choose_variant
@@ -525,9 +475,8 @@ def main(argv: list[str] | None = None) -> int:
         which = " and ".join(f"{f} {v}" for f, v in (("--data", args.data), ("--diligent", args.diligent)) if v)
         print(f"benchmarking {net.checkpoint} on {which}; tables into {args.out}", flush=True)
         if args.data:
-            res["synthetic"] = synthetic_tables(
-                Path(args.data), net, ablation, args.images, counts, args.rerender_objects, args.rerender_spp, args.tta
-            )
+            res["synthetic"] = synthetic_tables(Path(args.data), net, ablation, args.images, counts,
+                                                args.rerender_objects, args.rerender_spp, args.tta)
         if args.diligent:
             res["diligent"] = diligent_table(Path(args.diligent), net, ablation, args.diligent_images,
                                              args.diligent_subset, args.diligent_subsets, args.seed, args.tta)

@@ -170,9 +170,8 @@ def compare_datasets(main: Path, check: Path, names: list[str], spp: int, noise_
     for name in names:
         a, b = read_folder(main / name, arg="--work"), read_folder(check / name, arg="--work")
         kernel = np.ones((3, 3), np.uint8)
-        outline = cv2.dilate(a.mask.astype(np.uint8), kernel).astype(bool) & ~cv2.erode(
-            a.mask.astype(np.uint8), kernel
-        ).astype(bool)
+        m = a.mask.astype(np.uint8)
+        outline = cv2.dilate(m, kernel).astype(bool) & ~cv2.erode(m, kernel).astype(bool)
         differ = a.mask != b.mask
         inner = cv2.erode((a.mask & b.mask).astype(np.uint8), kernel).astype(bool)
         ang = angles_deg(a.normals[inner], b.normals[inner]) if inner.any() else np.zeros(1)
@@ -204,11 +203,8 @@ def render_speed(folder: Path, wall_s: float | None = None) -> dict:
 
     done = [e for e in json.loads((folder / "manifest.json").read_text())["objects"] if e.get("status") == "done"]
     per = statistics.median(e["timings"]["total_s"] for e in done) if done else float("nan")
-    out = {
-        "objects": len(done),
-        "seconds_per_object": round(per, 3),
-        "objects_per_hour_one_worker": round(3600 / per, 1),
-    }
+    out = {"objects": len(done), "seconds_per_object": round(per, 3),
+           "objects_per_hour_one_worker": round(3600 / per, 1)}
     if wall_s:
         out["objects_per_hour_run"] = round(len(done) * 3600 / wall_s, 1)
     return out
@@ -223,11 +219,9 @@ def missing_mitsuba() -> str | None:
         import drjit  # noqa: F401
         import mitsuba  # noqa: F401
     except ImportError as exc:
-        return (
-            f"Mitsuba is not importable here ({exc}): carry it: here run `python -m orchestrate.gpu_session --pack "
-            ".carry --wheels .whl`, then on the GPU machine carry .carry and unpack .carry/site.tar.xz into a folder "
-            "on PYTHONPATH first (docs/model.md, 'Training on a GPU session')"
-        )
+        return (f"Mitsuba is not importable here ({exc}): carry it: here run `python -m orchestrate.gpu_session "
+                "--pack .carry --wheels .whl`, then on the GPU machine carry .carry and unpack .carry/site.tar.xz into "
+                "a folder on PYTHONPATH first (docs/model.md, 'Training on a GPU session')")
     return None
 
 
@@ -249,61 +243,21 @@ def _choose(requested: str, avoid: str | None = None) -> str:
 
 def _make_argv(opts: SessionOptions, out: Path, variant: str, objects: int, shards: Path | None,
                assets: str | None = None) -> list[str]:
-    return [
-        *(["--assets", assets] if assets else []),
-        "--objects",
-        str(objects),
-        "--images",
-        str(opts.images),
-        "--res",
-        str(opts.res),
-        "--spp",
-        str(opts.spp),
-        "--seed",
-        str(opts.seed),
-        "--variant",
-        variant,
-        "--out",
-        str(out),
-        "--quiet",
-        *(["--shards", str(shards), "--shard-encoding", "decoded"] if shards else []),
-        *(["--overwrite"] if opts.overwrite else []),
-    ]
+    return [*(["--assets", assets] if assets else []), "--objects", str(objects), "--images", str(opts.images),
+            "--res", str(opts.res), "--spp", str(opts.spp), "--seed", str(opts.seed), "--variant", variant,
+            "--out", str(out), "--quiet",
+            *(["--shards", str(shards), "--shard-encoding", "decoded"] if shards else []),
+            *(["--overwrite"] if opts.overwrite else [])]
 
 
 def _train_argv(opts: SessionOptions, shards: Path, run: Path, device: str, minutes: float,
                 init: str | None = None) -> list[str]:
-    return [
-        "--data",
-        str(shards),
-        "--out",
-        str(run),
-        *(["--init-from", init] if init else ["--model", opts.model]),
-        "--steps",
-        str(opts.steps),
-        "--batch",
-        str(opts.batch),
-        "--lr",
-        str(opts.lr),
-        "--res",
-        str(opts.res),
-        "--max-images",
-        str(opts.images),
-        "--device",
-        device,
-        "--precision",
-        "bf16" if device == "cuda" else "fp32",
-        "--ckpt-minutes",
-        str(opts.ckpt_minutes),
-        "--time-limit",
-        f"{minutes:.4f}",
-        "--log-every",
-        str(opts.log_every),
-        "--seed",
-        "0",
-        "--no-progress",
-        *(["--overwrite"] if opts.overwrite else []),
-    ]
+    return ["--data", str(shards), "--out", str(run), *(["--init-from", init] if init else ["--model", opts.model]),
+            "--steps", str(opts.steps), "--batch", str(opts.batch), "--lr", str(opts.lr), "--res", str(opts.res),
+            "--max-images", str(opts.images), "--device", device, "--precision", "bf16" if device == "cuda" else "fp32",
+            "--ckpt-minutes", str(opts.ckpt_minutes), "--time-limit", f"{minutes:.4f}",
+            "--log-every", str(opts.log_every), "--seed", "0", "--no-progress",
+            *(["--overwrite"] if opts.overwrite else [])]
 
 
 def curve_records(log: Path) -> list[dict]:
@@ -426,19 +380,9 @@ def session(opts: SessionOptions, t0: float | None = None) -> dict:
     return summary
 
 
-def _write_card(
-    opts: SessionOptions,
-    out: Path,
-    run: Path,
-    records: list[dict],
-    variant: str,
-    device: str,
-    check: dict,
-    t_render: float,
-    t_train: float,
-    init: str | None = None,
-    assets: str | None = None,
-) -> dict:
+def _write_card(opts: SessionOptions, out: Path, run: Path, records: list[dict], variant: str, device: str,
+                check: dict, t_render: float, t_train: float, init: str | None = None,
+                assets: str | None = None) -> dict:
     """model_card.json (a fragment for a model card) and the content of summary.json."""
     import torch
 
@@ -463,21 +407,11 @@ def _write_card(
         "final_loss": records[-1]["loss"] if records else None,
         "train_minutes": round(t_train / 60, 2),
         "hardware": f"{gpu or platform.processor() or platform.machine()}, torch {torch.__version__}",
-        "recipe": "python -m orchestrate.gpu_session "
-        + " ".join(
+        "recipe": "python -m orchestrate.gpu_session " + " ".join(
             f"--{k.replace('_', '-')} {v}"
-            for k, v in (
-                ("init", opts.init),
-                ("minutes", opts.minutes),
-                ("objects", opts.objects),
-                ("res", opts.res),
-                ("spp", opts.spp),
-                ("seed", opts.seed),
-                ("model", opts.model),
-                ("steps", opts.steps),
-                ("batch", opts.batch),
-            )
-        ),
+            for k, v in (("init", opts.init), ("minutes", opts.minutes), ("objects", opts.objects), ("res", opts.res),
+                         ("spp", opts.spp), ("seed", opts.seed), ("model", opts.model), ("steps", opts.steps),
+                         ("batch", opts.batch))),
     }
     write_json(out / "model_card.json", card, indent=1)
     big = [str(p.relative_to(out)) for p in out.rglob("*") if p.is_file() and p.stat().st_size > 16 * 2**20]
@@ -514,11 +448,9 @@ def main(argv: list[str] | None = None) -> int:
         return report_error(exc, code=exc.code)
     except (*INPUT_ERRORS, OSError) as exc:
         return report_error(exc)
-    print(
-        f"gpu session done in {summary['wall_s']:.0f} s: {summary['steps']} steps; "
-        f"wrote {opts.out}/{RUN}/final.safetensors "
-        f"(+ .json, last.pt, log.jsonl), learning_curve.png, variant_check.json, model_card.json, summary.json"
-    )
+    print(f"gpu session done in {summary['wall_s']:.0f} s: {summary['steps']} steps; "
+          f"wrote {opts.out}/{RUN}/final.safetensors (+ .json, last.pt, log.jsonl), learning_curve.png, "
+          "variant_check.json, model_card.json, summary.json")
     return 0
 
 

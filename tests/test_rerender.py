@@ -270,13 +270,13 @@ def test_swapped_normals_give_analytic_lambertian_shading(jit, kind):
 
 
 def test_passthrough_mode_is_bit_identical_to_the_original(jit, sphere_folder):
+    from scenes.folder.format import read_scene
     from scenes.renderer.build import build_scene
     from scenes.renderer.render import render_image
-    from validate.io import read_scene_json
     from validate.known.normal_bsdf import NormalSwap, depth_map, wrapper_for
     from validate.known.projection import CameraProjection
 
-    desc = read_scene_json(sphere_folder / "scene.json")
+    desc, _ = read_scene(sphere_folder / "scene.json")
     built = build_scene(desc, sphere_folder)
     original = [render_image(built, i) for i in range(len(desc.images))]
     del built

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from scenes.description import SceneDescription
-from scenes.folder.format import find_prediction, read_scene
+from scenes.folder.format import find_prediction, read_scene_dict, scene_from_dict
 from scenes.folder.layouts import layout_named, read_folder
 from scenes.images import read_normals
 
@@ -49,39 +49,35 @@ class ObjectData:
     """Folder name without '.data'."""
     desc: SceneDescription
     """The scene of the K images."""
-    images: np.ndarray
-    """(K, H, W, 3) float32 linear input images (exposure applied; a recorded camera sensor undone)."""
+    images: np.ndarray | None
+    """(K, H, W, 3) float32 linear input images (exposure applied; a recorded camera sensor undone); None when
+    loaded without them (`load_object(images=False)`)."""
     mask: np.ndarray
     """(H, W) bool object mask."""
     normal_gt: np.ndarray | None
     """(H, W, 3) float32 ground-truth camera-frame normals from normal.tif (0 outside the mask), or None."""
 
 
-def read_scene_json(path: str | Path) -> SceneDescription:
-    """scene.json -> SceneDescription, without the extra top-level keys (`scenes.folder.format.split_scene_extras`)."""
-    desc, extras = read_scene(path)
-    if extras:
-        log.debug("scene.json: ignoring extra keys %s", sorted(extras))
-    return desc
-
-
-def load_object(folder: str | Path) -> ObjectData:
-    """Load an object folder with its scene (`scenes.folder.layouts.read_folder`, layout "ours"); raise
-    FileNotFoundError / ValueError naming what is missing or inconsistent with scene.json."""
+def load_object(folder: str | Path, images: bool = True) -> ObjectData:
+    """Load an object folder with its scene (`scenes.folder.layouts.read_folder`, layout "ours"; scene.json parsed
+    once); raise FileNotFoundError / ValueError naming what is missing or inconsistent with scene.json.
+    images: False reads only the first image (its size): what the checks before any rendering need."""
     folder = Path(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"--data: {str(folder)!r} is not a folder")
-    desc = read_scene_json(folder)
+    scene = read_scene_dict(folder)
+    desc = scene_from_dict(scene)
     files = layout_named("ours").images(folder)  # counted first: a missing image is named as such
     if len(files) != len(desc.images):
         raise ValueError(f"images: {str(folder)!r} has {len(files)} L*.png files but scene.json describes "
                          f"{len(desc.images)} images")
-    fd = read_folder(folder, layout="ours", arg="--data")
+    fd = read_folder(folder, layout="ours", arg="--data", images=images, scene=scene)
     h, w = desc.camera.height, desc.camera.width
     if fd.shape != (h, w):
         raise ValueError(f"images: {str(fd.image_paths[0])!r} are {fd.shape[1]}x{fd.shape[0]}, expected {w}x{h} "
                          "from the scene file's camera")
-    return ObjectData(folder=folder, name=fd.name, desc=desc, images=fd.linear(), mask=fd.mask, normal_gt=fd.normals)
+    return ObjectData(folder=folder, name=fd.name, desc=desc, images=fd.linear() if images else None, mask=fd.mask,
+                      normal_gt=fd.normals)
 
 
 def read_normal_map(path: str | Path, what: str = "--normals") -> np.ndarray:

@@ -75,13 +75,14 @@ def claim_check_outputs(out: str | Path, names: list[str], overwrite: bool, summ
 
 def check_inputs(
     folder: str | Path, normals: np.ndarray | str | Path, allow_missing: bool = False,
-    min_coverage: float = MIN_COVERAGE,
+    min_coverage: float = MIN_COVERAGE, images: bool = True,
 ) -> tuple[ObjectData, np.ndarray, np.ndarray, str]:
-    """Load an object folder and its prediction and check them against each other (no rendering).
+    """Load an object folder (its images too unless `images` is False) and its prediction and check them against
+    each other (no rendering).
 
     Returns (object data, normals (renormalised where valid, 0 elsewhere), valid mask, where they came from).
     A map covering less than `min_coverage` of the mask is a ValueError."""
-    data = load_object(folder)
+    data = load_object(folder, images=images)
     normals, source = read_prediction(normals, data.name)
     what = f"--normals ({source})" if source != "array" else "--normals"
     pred, valid = check_normals(normals, data.mask, what, allow_missing)
@@ -100,17 +101,21 @@ def rerender_object(
     config: RerenderConfig | None = None,
     out_dir: str | Path | None = None,
     progress: Progress | None = None,
+    inputs: tuple[ObjectData, np.ndarray, np.ndarray, str] | None = None,
 ) -> dict:
     """Re-render one object folder with predicted normals; return the report (and write it to
     `out_dir/<object>/` with figure.png when out_dir is given).
 
     normals: camera-frame normal map (H, W, 3), or a normal-map file, or a folder holding one.
+    inputs: what `check_inputs` returned for them, when the caller checked them already (read once).
     Raises FileNotFoundError / ValueError for bad inputs (missing files, wrong sizes, bad normals).
     """
     config = (config or RerenderConfig()).validate()
     mi = require_jit_variant()
     t_start = time.perf_counter()
-    data, pred, valid, source = check_inputs(folder, normals, config.allow_missing, config.min_coverage)
+    if inputs is None or inputs[0].images is None:
+        inputs = check_inputs(folder, normals, config.allow_missing, config.min_coverage)
+    data, pred, valid, source = inputs
     desc, mask = data.desc, data.mask
     k = len(desc.images)
     spp = int(config.spp or desc.render.spp)
@@ -167,10 +172,10 @@ def rerender_dataset(
     folders = list_object_folders(data_dir)
     errors: dict[str, str] = {}
     preds = {}
-    for f in folders:  # every input is checked before the first (slow) render
+    for f in folders:  # every input is checked before the first (slow) render; the images are read at its turn
         try:
             preds[f] = find_prediction(Path(pred_dir) / object_name(f))
-            check_inputs(f, preds[f], config.allow_missing, config.min_coverage)
+            check_inputs(f, preds[f], config.allow_missing, config.min_coverage, images=False)
         except (ValueError, FileNotFoundError) as exc:
             if failed is None:
                 raise
@@ -320,8 +325,8 @@ def main(argv: list[str] | None = None) -> int:
         )
         with progress_bar("render") as progress:
             if single:
-                check_inputs(data, args.normals, config.allow_missing, config.min_coverage)
-                reports = [rerender_object(data, args.normals, config, args.out, progress)]
+                inputs = check_inputs(data, args.normals, config.allow_missing, config.min_coverage)
+                reports = [rerender_object(data, args.normals, config, args.out, progress, inputs)]
                 write_summary(Path(args.out) / "summary.csv", reports)
             else:
                 reports = rerender_dataset(data, args.normals, config, args.out, progress, failed=failed)

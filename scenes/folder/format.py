@@ -155,12 +155,17 @@ def split_scene_extras(d: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any
     return {k: v for k, v in d.items() if k in known}, {k: v for k, v in d.items() if k not in known}
 
 
-def read_scene(folder_or_file: str | Path):
-    """(validated SceneDescription, extras dict) of an object folder's scene.json."""
+def scene_from_dict(scene: dict[str, Any]):
+    """The validated SceneDescription of a parsed scene.json (`read_scene_dict`), its extra keys left aside."""
     from scenes.description import SceneDescription
 
-    desc_dict, extras = split_scene_extras(read_scene_dict(folder_or_file))
-    return SceneDescription.from_dict(desc_dict).validate(), extras
+    return SceneDescription.from_dict(split_scene_extras(scene)[0]).validate()
+
+
+def read_scene(folder_or_file: str | Path):
+    """(validated SceneDescription, extras dict) of an object folder's scene.json."""
+    scene = read_scene_dict(folder_or_file)
+    return scene_from_dict(scene), split_scene_extras(scene)[1]
 
 
 def scene_json_text(desc, extras: dict[str, Any] | None = None) -> str:

@@ -220,9 +220,9 @@ def camera_lights(scene: dict[str, Any], num_images: int, path: Path) -> tuple[n
     return np.asarray(dirs), np.asarray(irr)
 
 
-def _ours_lights(folder: Path, num_images: int) -> Lights:
+def _ours_lights(folder: Path, num_images: int, scene: dict | None) -> Lights:
     path = folder / SCENE_FILE
-    scene = read_scene_dict(path)
+    scene = read_scene_dict(path) if scene is None else scene
     family = scene.get("light_family")
     if family is not None and not isinstance(family, str):
         raise ValueError(f"scene file {path}: light_family must be a string, got {family!r}")
@@ -233,12 +233,12 @@ def _ours_lights(folder: Path, num_images: int) -> Lights:
     return Lights(family=family, directions=directions, intensities=intensities, level=level)
 
 
-def _diligent_lights(folder: Path, num_images: int) -> Lights:
+def _diligent_lights(folder: Path, num_images: int, scene: dict | None) -> Lights:
     directions, raw = read_diligent_lights(folder, num_images)
     return Lights(family="directional", directions=directions, intensities=raw)
 
 
-def _no_lights(folder: Path, num_images: int) -> Lights:
+def _no_lights(folder: Path, num_images: int, scene: dict | None) -> Lights:
     return Lights()
 
 
@@ -261,8 +261,8 @@ class Layout:
     """Ground-truth normal-map file names, the first present one is read."""
     mask_required: bool
     """True: a missing ``mask.png`` is an error; False: the whole image is the object."""
-    lights: Callable[[Path, int], Lights]
-    """Calibration and light family for the folder's N image files."""
+    lights: Callable[[Path, int, dict | None], Lights]
+    """Calibration and light family for the folder's N image files (and its scene.json, parsed once, or None)."""
 
 
 def _is_ours(folder: Path) -> bool:
@@ -430,14 +430,15 @@ def finish_normals(n: np.ndarray, mask: np.ndarray, path: Path) -> np.ndarray:
     return out.astype(np.float32)
 
 
-def _recorded_sensor(folder: Path, layout: str, num_images: int):
-    """The sensor an object folder of ours records in scene.json (None when absent or `ideal`)."""
-    if layout != "ours":
+def _recorded_sensor(folder: Path, scene: dict | None, num_images: int):
+    """The sensor an object folder of ours records in its scene.json (parsed: `scene`; None when absent or
+    `ideal`)."""
+    if scene is None:
         return None
     from scenes.folder.format import split_scene_extras
     from scenes.sensor import SCENE_KEY, SENSORS, read_sensor_record
 
-    _, extras = split_scene_extras(read_scene_dict(folder / SCENE_FILE))
+    _, extras = split_scene_extras(scene)
     if SCENE_KEY not in extras:
         return None
     sensor = read_sensor_record(extras, num_images, f"scene file {folder / SCENE_FILE}").sensor
@@ -484,12 +485,13 @@ def _check_informative(
 
 
 def read_folder(path: str | Path, max_images: int | None = None, layout: str | None = None, images: bool = True,
-                arg: str = "path") -> FolderData:
+                arg: str = "path", scene: dict | None = None) -> FolderData:
     """Read one object folder of any layout in `LAYOUT_TABLE`.
 
     max_images: keep the first K images in loader order (deterministic). layout: force one (else detected).
     images: False reads only the first image (for its size): mask, ground truth and lights for evaluation.
-    arg: the argument the folder came from, named in errors about the folder itself.
+    arg: the argument the folder came from, named in errors about the folder itself. scene: its scene.json as
+    `read_scene_dict` returned it, when the caller already read it (every reader parses it once).
     """
     folder = Path(path)
     if not folder.is_dir():
@@ -510,12 +512,14 @@ def read_folder(path: str | Path, max_images: int | None = None, layout: str | N
     if not all_paths:
         raise FileNotFoundError(f"{arg}: no images found in {folder} (expected {ONE_FOLDER})")
     paths = all_paths[: int(max_images)] if max_images is not None else all_paths
-    lights = entry.lights(folder, len(all_paths))
+    if scene is None and layout == "ours":
+        scene = read_scene_dict(folder / SCENE_FILE)
+    lights = entry.lights(folder, len(all_paths), scene)
     k = len(paths)
     # Cut the per-image calibration to the K images read; every other field is kept as the layout gave it.
     lights = replace(lights, directions=None if lights.directions is None else lights.directions[:k],
                      intensities=None if lights.intensities is None else lights.intensities[:k])
-    sensor = _recorded_sensor(folder, layout, len(all_paths))
+    sensor = _recorded_sensor(folder, scene if layout == "ours" else None, len(all_paths))
     if images:
         from scenes.sensor import saturation_value
 
