@@ -10,7 +10,7 @@ the three sources back three ways, each timed cold and warm:
 
 - files: every file of every object read into memory (folders: list the folder, read each file; shards:
   verify the checksum, then webdataset's tar reader), the part that storage decides;
-- objects: decoded by the model's loader (folders: `unips.data.load_object`; shards: `unips.shards.iter_objects`,
+- objects: decoded by the model's loader (folders: `unips.data.load_object`; shards: `unips.shard_data.iter_objects`,
   which writes each `files` sample to a temporary folder and reads it with the same loader, and maps a `decoded`
   sample's arrays);
 - samples: the training samples (`unips.train_data.load_samples` of the folder and of the shard pattern,
@@ -89,8 +89,8 @@ def read_folder_files(data: Path) -> int:
 
 
 def read_shard_files(pattern: str) -> int:
-    from scenes.folder.shards import iter_samples, verify_shard
-    from unips.shards import resolve_shards
+    from scenes.folder.shard_format import iter_samples, verify_shard
+    from unips.shard_data import resolve_shards
 
     n = 0
     for shard in resolve_shards(pattern):
@@ -106,7 +106,7 @@ def decode_folders(data: Path) -> int:
 
 
 def decode_shards(pattern: str) -> int:
-    from unips.shards import iter_objects
+    from unips.shard_data import iter_objects
 
     return sum(1 for _ in iter_objects(pattern))
 
@@ -140,7 +140,7 @@ def main(argv: list[str] | None = None) -> int:
     import torch
 
     importlib.import_module("webdataset")  # imported now, not inside the first timed pass
-    from scenes.folder.shards import ENCODINGS
+    from scenes.folder.shard_format import ENCODINGS
     from unips.train_data import load_samples
     from wildgen.export import export_dataset
 

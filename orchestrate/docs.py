@@ -271,8 +271,8 @@ def lineage_families(card: dict) -> str:
 
 
 def sensor_presets(card: dict) -> str:
-    """The table of camera sensor presets, from `scenes.sensor.SENSORS` (the card is not used)."""
-    from scenes.sensor import SENSORS
+    """The table of camera sensor presets, from `scenes.camera_sensor.SENSORS` (the card is not used)."""
+    from scenes.camera_sensor import SENSORS
 
     rows = []
     for s in SENSORS.values():

@@ -117,7 +117,7 @@ CODE_SCALES = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0}
 
 def codes_to_linear(codes: np.ndarray) -> np.ndarray:
     """Integer file values (uint8 / uint16, any shape) -> float32 in [0, 1]: the one conversion every reader of
-    integer images uses (`read_image`, and decoded shards, `scenes.folder.shards`), so both give the same bits."""
+    integer images uses (`read_image`, and decoded shards, `scenes.folder.shard_format`), so both give the same bits."""
     return codes.astype(np.float32) / CODE_SCALES[codes.dtype]
 
 

@@ -2356,7 +2356,7 @@ SEN = "wildgen.sensor"
 
 def _sensor_stopped_after_one(w: Path, t: Path) -> None:
     """Setup: T/ph, a wildgen.sensor run on the world's dataset interrupted (Ctrl-C) after its first object."""
-    from scenes.sensor import sensor_named
+    from scenes.camera_sensor import sensor_named
     from wildgen.sensor import apply_to_dataset
 
     def stop(done: int, total: int, name: str) -> None:

@@ -163,7 +163,7 @@ SCENES_LAYER = {
     "scenes.files": 0, "scenes.images": 0, "scenes.metrics": 0, "scenes.cli": 0, "scenes.report": 0,
     "scenes.dependencies": 0, "scenes.checks": 0, "scenes.colors": 0, "scenes.detail": 0, "scenes.procedural": 0,
     # 1: the scene description and what it is made of
-    "scenes.description": 1, "scenes.lights": 1, "scenes.sensor": 1, "scenes.geometry": 1, "scenes.meshes": 1,
+    "scenes.description": 1, "scenes.lights": 1, "scenes.camera_sensor": 1, "scenes.geometry": 1, "scenes.meshes": 1,
     "scenes.envmaps": 1, "scenes.textures": 1,
     # 2: siblings that stand on the description: the object folder on disk, and Mitsuba
     "scenes.folder": 2, "scenes.renderer": 2,
@@ -247,7 +247,7 @@ def test_the_validate_room_check_can_fail():
                                          "validate.diagnosis.usable")}
     assert len(rooms) == 3 and {VALIDATE_ROOM[r] for r in rooms} == {1}
     assert VALIDATE_ROOM[_validate_room("validate.observations")] < VALIDATE_ROOM[_validate_room("validate.fitted.fit")]
-    assert any(_validate_room(m) is None for m in ("validate.capture", "validate.nowhere"))
+    assert any(_validate_room(m) is None for m in ("validate.observations", "validate.nowhere"))
 
 
 # ------------------------------------------------------------------ who may name an object-folder file

@@ -200,7 +200,7 @@ def test_each_preset_sets_its_entry_and_nothing_else():
     at its default; each entry names a light family and a sensor that exist, and says what it imitates."""
     from dataclasses import replace
 
-    from scenes.sensor import sensor_named
+    from scenes.camera_sensor import sensor_named
     from wildgen.light_families import light_family
 
     assert list(PRESETS) == ["diligent", "phone-flash", "light-stage", "display"]  # the names of --preset
@@ -223,7 +223,7 @@ def test_presets_configure_the_rigs_they_imitate():
     screen patch per image, as many images as a perspective camera leaves patches, written by a webcam
     (8 bits, Bayer, noise, vignetting); diligent and light-stage a linear machine-vision camera
     (orthographic, 12 significant bits: DiLiGenT's 16-bit PNGs)."""
-    from scenes.sensor import SENSORS
+    from scenes.camera_sensor import SENSORS
     from wildgen.light_families import display_patches
 
     flash = resolve("--preset", "phone-flash")

@@ -1,4 +1,4 @@
-"""The sensor model (scenes.sensor) against its own stated physics, and `python -m wildgen.sensor` on a real dataset.
+"""The sensor model (scenes.camera_sensor) against its own stated physics, and `python -m wildgen.sensor` on a real dataset.
 
 The statistics are checked against the recorded parameters analytically (photon transfer, the clipped share of
 a ramp and of noisy flat fields, the cos^4 vignetting law, the sRGB and gamma curves written out here), never
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from conftest import use_variant
 
-from scenes.sensor import (
+from scenes.camera_sensor import (
     CFA_PATTERNS,
     DEMOSAIC_METHODS,
     SENSORS,

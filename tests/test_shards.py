@@ -15,7 +15,7 @@ from conftest import write_synthetic_object
 from fixtures import random_lights
 
 from scenes.folder.layouts import read_folder
-from scenes.folder.shards import INDEX_FILE, extract_sample, iter_samples, sample_folder_name
+from scenes.folder.shard_format import INDEX_FILE, extract_sample, iter_samples, sample_folder_name
 from unips.train_data import load_samples, make_batch, prepare_sample
 from wildgen.export import export_dataset
 from wildgen.export import main as export_main
@@ -135,7 +135,7 @@ def test_shard_training_draws_the_folder_batches(data, tmp_path):
 
 
 def _stream_names(shards, monkeypatch, rank: int, world: int, workers: int, seed: int, epochs: int = 1) -> list[str]:
-    from unips.shards import ShardStream
+    from unips.shard_data import ShardStream
 
     monkeypatch.setenv("RANK", str(rank))  # what webdataset.split_by_node reads (torchrun sets it)
     monkeypatch.setenv("WORLD_SIZE", str(world))
@@ -145,7 +145,7 @@ def _stream_names(shards, monkeypatch, rank: int, world: int, workers: int, seed
 
 
 def test_streaming_covers_every_object_once_per_epoch_across_ranks_and_workers(data, monkeypatch):
-    from unips.shards import check_split, resolve_shards
+    from unips.shard_data import check_split, resolve_shards
 
     shards = resolve_shards(data["sh"])
     everything = sorted(f"{i:05d}" for i in range(OBJECTS))
@@ -298,7 +298,7 @@ def test_make_writes_shards_of_its_dataset(tmp_path, capsys, variant_scalar_rgb)
 
 
 def test_decoding_leaves_no_temporary_folder(data, tmp_path, monkeypatch):
-    import unips.shards as us
+    import unips.shard_data as us
 
     def leftovers(where: Path) -> list[Path]:
         return sorted(where.glob("unips-shard-*"))
@@ -334,7 +334,7 @@ def _same_folder_data(got, want) -> None:
 
 
 def _decoded_folders(shards: Path) -> dict[str, object]:
-    from scenes.folder.shards import decode_folder, is_decoded
+    from scenes.folder.shard_format import decode_folder, is_decoded
 
     out = {}
     for shard in sorted(shards.glob("*.tar")):
@@ -363,7 +363,7 @@ def test_decoded_samples_of_8_bit_and_exr_images_and_a_recorded_sensor(data, tmp
     import cv2
     from test_layouts import write_unips
 
-    from scenes.sensor import SENSORS, sensor_record
+    from scenes.camera_sensor import SENSORS, sensor_record
 
     ds = tmp_path / "ds"
     eight = ds / "eight.data"
@@ -412,7 +412,7 @@ def test_decoded_export_is_deterministic_and_refuses_aux(data, tmp_path, capsys)
 
 
 def test_a_damaged_decoded_member_is_named(data, tmp_path):
-    from scenes.folder.shards import decode_folder
+    from scenes.folder.shard_format import decode_folder
 
     export_dataset(data["ds"], tmp_path / "dec", shard_size=OBJECTS, encoding="decoded")
     files = dict(iter_samples(tmp_path / "dec" / "000000.tar"))["00002"]
@@ -428,7 +428,7 @@ def test_a_damaged_decoded_member_is_named(data, tmp_path):
 
 
 def test_a_decoded_member_of_the_wrong_type_or_shape_is_named(data, tmp_path):
-    from scenes.folder.shards import decode_folder
+    from scenes.folder.shard_format import decode_folder
 
     export_dataset(data["ds"], tmp_path / "dec", shard_size=OBJECTS, encoding="decoded")
     files = dict(iter_samples(tmp_path / "dec" / "000000.tar"))["00002"]

@@ -9,8 +9,8 @@ from dataclasses import fields
 
 import pytest
 
+from scenes.camera_sensor import SENSORS
 from scenes.lights import LIGHT_TYPES
-from scenes.sensor import SENSORS
 from wildgen.config import LEVEL_NUMBERS, PRESET_NAMES, PROCEDURAL_KINDS
 from wildgen.levels import LEVELS
 from wildgen.light_families import LIGHT_FAMILIES, PS_WILD_FAMILIES

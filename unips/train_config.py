@@ -100,7 +100,7 @@ class TrainConfig:
     shuffle_buffer: int = option(0, minimum=0)
     """Shards only. 0: read every object into memory, as from folders (the same batches as the folders the shards
     came from); N > 0: stream the shards (data larger than memory), split across processes and loader workers,
-    shuffled through a buffer of N objects per worker (unips.shards)."""
+    shuffled through a buffer of N objects per worker (unips.shard_data)."""
     loader_workers: int = option(2, minimum=0)
     """Worker processes decoding the streamed shards (with --shuffle-buffer; 0: in the training process)."""
     curriculum: bool = False
@@ -131,7 +131,7 @@ class TrainConfig:
             raise ValueError("--curriculum: needs every object in memory to choose them by level, "
                              f"got --shuffle-buffer {self.shuffle_buffer} (use --shuffle-buffer 0)")
         if self.shuffle_buffer:
-            from unips.shards import is_shard_source
+            from unips.shard_data import is_shard_source
             from unips.train_data import data_roots
 
             folders = [str(r) for r in data_roots(self.data) if not is_shard_source(r)]

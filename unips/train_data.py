@@ -48,9 +48,9 @@ def to_tensors(images: np.ndarray, mask: np.ndarray, normals: np.ndarray | None
 
 
 def data_roots(data: str | Path) -> list[Path]:
-    """The entries of a --data value: one dataset directory or shard source (`unips.shards`), or several
+    """The entries of a --data value: one dataset directory or shard source (`unips.shard_data`), or several
     separated by commas (commas inside a shard pattern's braces, {a,b}, do not separate)."""
-    from unips.shards import source_label
+    from unips.shard_data import source_label
 
     parts, depth, start, text = [], 0, 0, str(data)
     for i, c in enumerate(text + ","):
@@ -82,10 +82,10 @@ def prepare_sample(obj: Any, res: int, require_normals: bool = True, name: str |
 def load_samples(root: str | Path, res: int, require_normals: bool = True) -> list[Sample]:
     """Load, crop, normalise and resize every object under `root` (one dataset directory or shard source, or
     several separated by commas: their objects are pooled and named DIRNAME/OBJECT). Shards are read in the
-    order given (`unips.shards.iter_objects`): the samples of shards exported from a dataset are those of its
+    order given (`unips.shard_data.iter_objects`): the samples of shards exported from a dataset are those of its
     folders, in the same order."""
     from unips.data import find_objects, load_object
-    from unips.shards import is_shard_source, iter_objects, source_label
+    from unips.shard_data import is_shard_source, iter_objects, source_label
 
     roots = data_roots(root)
     samples = []
@@ -280,7 +280,7 @@ def count_dataset_images(data: str, flag: str) -> tuple[int, int]:
     """(objects, images) under the dataset directories of --data / --val, counted without reading an image
     (shards: from their index)."""
     from scenes.folder.layouts import detect_layout, find_object_folders, layout_named
-    from unips.shards import count_images, is_shard_source
+    from unips.shard_data import count_images, is_shard_source
     from unips.train_data import data_roots
 
     objects = images = 0

@@ -277,7 +277,7 @@ def stream_description(cfg: TrainConfig, dist: Dist) -> dict[str, Any]:
     workers (each reads its own)."""
     from types import SimpleNamespace
 
-    from unips.shards import check_split, resolve_shards
+    from unips.shard_data import check_split, resolve_shards
     from unips.train_data import data_roots
 
     shards = [s for r in data_roots(cfg.data) for s in resolve_shards(r)]
@@ -287,11 +287,11 @@ def stream_description(cfg: TrainConfig, dist: Dist) -> dict[str, Any]:
 
 
 def open_stream(run: Run) -> Any:
-    """This process's endless iterator of streamed training samples (`unips.shards.stream_samples`: its rank's
+    """This process's endless iterator of streamed training samples (`unips.shard_data.stream_samples`: its rank's
     shards, shuffled, seeded by --seed), past the samples that the steps before `run.start` took (a resume)."""
     from functools import partial
 
-    from unips.shards import stream_samples
+    from unips.shard_data import stream_samples
     from unips.train_data import data_roots, prepare_sample
 
     cfg = run.cfg

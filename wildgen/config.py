@@ -4,9 +4,9 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Annotated, Literal
 
+from scenes.camera_sensor import SENSORS
 from scenes.cli.options import CommaList, Repeatable, arg, auto_is_none, check_fields, option
 from scenes.renderer.variant import PREFERENCE as VARIANTS
-from scenes.sensor import SENSORS
 from wildgen.light_families import LIGHT_FAMILIES
 
 MATERIAL_CLASSES = ("diffuse", "specular", "metallic")
@@ -44,7 +44,7 @@ class GenConfig:
     objects: int = option(4, minimum=1)
     """Number of objects to render."""
     sensor: Literal[tuple(SENSORS)] = "ideal"
-    """Camera sensor preset (`scenes.sensor.SENSORS`) that turns each image's radiance into its PNG: `ideal` writes
+    """Camera sensor preset (`scenes.camera_sensor.SENSORS`) that turns each image's radiance into its PNG: `ideal` writes
     the linear 16-bit rendering; the others add noise, black level, response, bit depth, vignetting, mosaic."""
     images: int = option(10, minimum=1)
     """Images per object (PS-Wild: 10)."""

@@ -7,7 +7,8 @@ holds `--shard-size` objects, one WebDataset sample per object folder with its f
 (images, mask, normal map, scene.json with the lights; with --aux the aux/ files too) or, with `--encoding
 decoded`, the arrays the one reader returns for it (faster to read in training), in the order of the
 folders (sorted by name, as every reader lists them). `SHARDS/index.json` lists each shard's objects, byte
-size and sha256. The format is `scenes.folder.shards`; `unips.train --data 'SHARDS/{000000..000009}.tar'` reads it.
+size and sha256. The format is `scenes.folder.shard_format`; `unips.train --data 'SHARDS/{000000..000009}.tar'`
+reads it.
 
 The export is deterministic (the same folders give the same bytes: fixed member order, mtime 0, uid / gid 0)
 and atomic per shard (each is written under a temporary name and renamed); index.json is written first with
@@ -33,7 +34,7 @@ from scenes.cli.options import REQUIRED, Command, check_fields, option
 from scenes.cli.outputs import check_output_folder, claim_outputs
 from scenes.cli.progress import progress_bar
 from scenes.files import FolderBusy, folder_lock, temporary_target
-from scenes.folder.shards import (
+from scenes.folder.shard_format import (
     ENCODINGS,
     FORMAT,
     FORMAT_VERSION,
@@ -49,7 +50,7 @@ from scenes.folder.shards import (
 )
 
 FORMATS = ("webdataset",)
-"""Export formats (one so far: WebDataset tar shards, `scenes.folder.shards`)."""
+"""Export formats (one so far: WebDataset tar shards, `scenes.folder.shard_format`)."""
 DEFAULT_SHARD_SIZE = 100
 
 

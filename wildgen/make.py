@@ -19,7 +19,7 @@ from scenes.cli.limits import check_threads, gib
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option, optional_value
 from scenes.cli.outputs import check_output_folder, make_output_folder
 from scenes.cli.progress import Progress, logs_above_progress
-from scenes.folder.shards import ENCODINGS
+from scenes.folder.shard_format import ENCODINGS
 from wildgen.config import GenConfig
 from wildgen.levels import LEVELS, apply_level, check_level_and_preset
 from wildgen.presets import apply_preset, preset_named

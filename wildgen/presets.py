@@ -6,7 +6,7 @@ every field whose value differs from `GenConfig()`'s default (flags given on the
 values over the preset's). The docs' table of presets is generated from it (`orchestrate.docs`, block
 `generator:presets`) and the tests check each entry against the configuration it produces. A preset holds
 only names of the existing tables: a light family of `wildgen.light_families.LIGHT_FAMILIES` (a fixed light
-pattern is such a family) and a sensor of `scenes.sensor.SENSORS`.
+pattern is such a family) and a sensor of `scenes.camera_sensor.SENSORS`.
 """
 from __future__ import annotations
 

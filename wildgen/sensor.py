@@ -3,9 +3,9 @@
 Example: python -m wildgen.sensor --data DS --sensor phone --out DS_phone
 
 For every object folder of --data, each image is made again from its float radiance (`aux/radiance_XXX.exr`)
-and its recorded exposure by the sensor preset (`scenes.sensor.SENSORS`; the model is in `scenes.sensor`);
+and its recorded exposure by the sensor preset (`scenes.camera_sensor.SENSORS`; the model is in `scenes.camera_sensor`);
 every other file (mask, normal map, aux/) is copied unchanged, and scene.json records the sensor and each
-image's noise seed (`scenes.sensor.sensor_record`), so any image can be re-derived. Each object is written
+image's noise seed (`scenes.camera_sensor.sensor_record`), so any image can be re-derived. Each object is written
 under a temporary name and renamed when complete; --out gets a manifest.json with the sha256 checksum of every
 file (the source's manifest with the new checksums and a `sensor` entry), `complete: false` until the last object
 is written (every reader refuses a dataset of a run stopped half-way). Every source object is checked (scene.json,
@@ -24,6 +24,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Literal
 
+from scenes.camera_sensor import (
+    SCENE_KEY,
+    SENSORS,
+    Sensor,
+    read_sensor_record,
+    rederive_image,
+    scale_camera_lights,
+    sensor_named,
+    sensor_record,
+    write_image,
+)
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, check_fields, option
 from scenes.cli.outputs import check_output_folder
@@ -42,17 +53,6 @@ from scenes.folder.format import (
     write_scene,
 )
 from scenes.images import read_exr
-from scenes.sensor import (
-    SCENE_KEY,
-    SENSORS,
-    Sensor,
-    read_sensor_record,
-    rederive_image,
-    scale_camera_lights,
-    sensor_named,
-    sensor_record,
-    write_image,
-)
 from wildgen.dataset import MANIFEST, clean_leftovers, dataset_lock, verify_object
 from wildgen.writer import TMP_PREFIX, publish_folder
 
@@ -64,7 +64,7 @@ class SensorOptions:
     data: str = REQUIRED
     """Dataset folder made by wildgen.make (object folders holding their radiance, aux/radiance_XXX.exr)."""
     sensor: Literal[tuple(SENSORS)] = REQUIRED
-    """Sensor preset whose files replace the images (a key of scenes.sensor.SENSORS)."""
+    """Sensor preset whose files replace the images (a key of scenes.camera_sensor.SENSORS)."""
     out: str = REQUIRED
     """New dataset folder; an existing one that is not empty is refused unless --overwrite."""
     seed: int = option(0, minimum=0)

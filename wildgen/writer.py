@@ -18,6 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
+from scenes.camera_sensor import SCENE_KEY as SENSOR_KEY
+from scenes.camera_sensor import SENSORS, Sensor, rederive_image, scale_camera_lights, sensor_record, write_image
 from scenes.description import SceneDescription, TextureDesc
 from scenes.files import sha256_file
 from scenes.folder.format import (
@@ -37,8 +39,6 @@ from scenes.geometry import lights_in_camera_frame, view_directions, write_mesh_
 from scenes.images import write_exr, write_instances, write_mask, write_normal_map, write_png16
 from scenes.renderer.build import build_scene
 from scenes.renderer.render import instance_ids, render_ground_truth, render_images
-from scenes.sensor import SCENE_KEY as SENSOR_KEY
-from scenes.sensor import SENSORS, Sensor, rederive_image, scale_camera_lights, sensor_record, write_image
 from wildgen.assets import AssetLibrary
 from wildgen.config import GenConfig
 from wildgen.sampling import SampledObject, SkippedObject, sample_object
@@ -180,7 +180,7 @@ def write_object(sampled: SampledObject, out_dir: Path, percentile: float, level
                  max_backfacing: float = 0.1, sensor: Sensor | None = None) -> ObjectResult:
     """Render `sampled` and write `out_dir/<name>.data`, atomically. Returns the manifest entry.
 
-    sensor: what turns each image's radiance into its PNG (`scenes.sensor`); None or `ideal` writes the linear
+    sensor: what turns each image's radiance into its PNG (`scenes.camera_sensor`); None or `ideal` writes the linear
     16-bit rendering and records nothing (the folder is byte-identical to one written before sensors existed);
     any other sensor is recorded in scene.json with each image's noise seed, so every PNG can be re-derived.
 

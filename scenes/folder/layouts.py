@@ -389,15 +389,15 @@ class FolderData:
     has_scene: bool
     """True when the folder has a scene file."""
     sensor: Any = None
-    """The camera sensor the folder records (`scenes.sensor.Sensor`; ours only), None for a linear file (no
+    """The camera sensor the folder records (`scenes.camera_sensor.Sensor`; ours only), None for a linear file (no
     record, or the `ideal` sensor): then `images` are light. With a sensor they are file values; `linear()`
     undoes the sensor's deterministic steps."""
 
     def linear(self) -> np.ndarray | None:
-        """The images as light (`scenes.sensor.linearize` when a sensor is recorded, else `images`)."""
+        """The images as light (`scenes.camera_sensor.linearize` when a sensor is recorded, else `images`)."""
         if self.images is None or self.sensor is None:
             return self.images
-        from scenes.sensor import linearize
+        from scenes.camera_sensor import linearize
 
         return linearize(self.images, self.sensor)
 
@@ -435,8 +435,8 @@ def _recorded_sensor(folder: Path, scene: dict | None, num_images: int):
     `ideal`)."""
     if scene is None:
         return None
+    from scenes.camera_sensor import SCENE_KEY, SENSORS, read_sensor_record
     from scenes.folder.format import split_scene_extras
-    from scenes.sensor import SCENE_KEY, SENSORS, read_sensor_record
 
     _, extras = split_scene_extras(scene)
     if SCENE_KEY not in extras:
@@ -521,7 +521,7 @@ def read_folder(path: str | Path, max_images: int | None = None, layout: str | N
                      intensities=None if lights.intensities is None else lights.intensities[:k])
     sensor = _recorded_sensor(folder, scene if layout == "ours" else None, len(all_paths))
     if images:
-        from scenes.sensor import saturation_value
+        from scenes.camera_sensor import saturation_value
 
         stack, saturated = _read_stack(paths, saturation_value(sensor) if sensor is not None else 1.0)
         shape = stack.shape[1:3]

@@ -201,9 +201,9 @@ def decode_folder(files: dict[str, bytes], folder: Path):
     member that is missing, unreadable or not of the type and shape the reader returns."""
     import numpy as np
 
+    from scenes.camera_sensor import Sensor
     from scenes.folder.layouts import FolderData, Lights
     from scenes.images import CODE_SCALES, codes_to_linear
-    from scenes.sensor import Sensor
 
     def array(name: str, required: bool, dtypes: tuple, shape: tuple):
         suffix = f"{DECODED}.{name}.npy"

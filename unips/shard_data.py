@@ -1,4 +1,4 @@
-"""Training data from WebDataset shards (`wildgen.export`; the format is `scenes.folder.shards`).
+"""Training data from WebDataset shards (`wildgen.export`; the format is `scenes.folder.shard_format`).
 
 A `--data` value names shards when it ends in ``.tar`` (one shard, or a brace pattern such as
 ``SHARDS/{000000..000099}.tar``) or is a folder holding `index.json`. Every shard must be listed, complete and
@@ -9,7 +9,7 @@ A sample of the `files` encoding is decoded by writing its files (stored as they
 into a temporary folder and reading that with the model's loader (`unips.data.load_object`, a view of
 `scenes.folder.layouts.read_folder`): the same files through the same reader give the same arrays, so a shard object is
 byte-identical to its folder. A sample of the `decoded` encoding holds what that reader returned at export
-(`scenes.folder.shards.decode_folder`), bit for bit, and is read without decoding a PNG. Two ways to read shards:
+(`scenes.folder.shard_format.decode_folder`), bit for bit, and is read without decoding a PNG. Two ways to read shards:
 
 - cached (`iter_objects`, what `unips.train` does by default): the shards are read in the order given and
   every object kept in memory, like folders, so training draws exactly the batches it draws from the folders
@@ -35,7 +35,7 @@ from typing import Any, Callable, Iterator
 import numpy as np
 import torch
 
-from scenes.folder.shards import (
+from scenes.folder.shard_format import (
     INDEX_FILE,
     SHARD_SUFFIX,
     decode_folder,
@@ -134,7 +134,7 @@ def scratch_dir(size: int) -> str | None:
 def decode_object(key: str, files: dict[str, bytes], shard: Path, arg: str = "--data") -> PSObject:
     """The `PSObject` of one sample (`path` names the shard and the object). A `files` sample: its files written
     into a temporary folder (`scratch_dir`) and read by `load_object`, exactly as the object folder they came
-    from. A `decoded` sample: the reader's arrays as the exporter stored them (`scenes.folder.shards.decode_folder`)."""
+    from. A `decoded` sample: the reader's arrays as the exporter stored them (`scenes.folder.shard_format.decode_folder`)."""
     if is_decoded(files):
         try:
             return object_from_folder(decode_folder(files, shard / sample_folder_name(key)))
