@@ -262,7 +262,7 @@ def _folder_file_names() -> set[str]:
     from scenes.folder import layouts
 
     names = {objfolder.SCENE_FILE, objfolder.MASK_FILE, objfolder.NORMAL_FILE, objfolder.AUX_DIR,
-             layouts.DILIGENT_LIGHTS, layouts.DILIGENT_INTENSITIES, layouts.DILIGENT_LISTING}
+             objfolder.DILIGENT_LIGHTS, objfolder.DILIGENT_INTENSITIES, layouts.DILIGENT_LISTING}
     for entry in layouts.LAYOUT_TABLE:
         names.update(entry.ground_truth)
     return names

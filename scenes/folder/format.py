@@ -34,6 +34,9 @@ from scenes.images import write_mask, write_normal_map, write_png16
 OBJECT_SUFFIX = ".data"
 
 SCENE_FILE = "scene.json"
+DILIGENT_LIGHTS = "light_directions.txt"
+DILIGENT_INTENSITIES = "light_intensities.txt"
+"""DiLiGenT's light files: unit directions toward the light, and RGB intensities, one row per image."""
 
 MASK_FILE = "mask.png"
 

@@ -44,7 +44,9 @@ from typing import Any, Callable
 
 import numpy as np
 
+from scenes.folder.calibration import Lights, diligent_lights, no_lights, ours_lights
 from scenes.folder.format import (
+    DILIGENT_LIGHTS,
     MASK_FILE,
     NORMAL_FILE,
     SCENE_FILE,
@@ -65,8 +67,6 @@ ALL_IMAGE_SUFFIXES = IMAGE_SUFFIXES + FLOAT_SUFFIXES
 MIN_NORMAL_LENGTH = 0.5
 """A ground-truth vector shorter than this is "no normal" (16-bit 32768 and 8-bit 128 decode to length < 0.5)."""
 
-DILIGENT_LIGHTS = "light_directions.txt"
-DILIGENT_INTENSITIES = "light_intensities.txt"
 DILIGENT_LISTING = "filenames.txt"
 ONE_FOLDER = (
     "an object folder: L*.png + scene.json (ours), L* images (UniPS), or DiLiGenT 001.png... + light_directions.txt"
@@ -111,135 +111,6 @@ def diligent_images(folder: str | Path) -> list[Path]:
             )
         return [folder / name for name in names]
     return digit_images(folder)
-
-
-# ---------------------------------------------------------------------------------- calibration
-
-
-@dataclass
-class Lights:
-    """What a folder says about its lighting (all None / unknown for a layout without calibration)."""
-
-    family: str | None = None
-    """Light family of the capture ("directional", "point", ...; scene.json's `light_family`), None if unknown."""
-    directions: np.ndarray | None = None
-    """(N, 3) float64 unit vectors toward the light, camera frame, one per image file; directional captures only."""
-    intensities: np.ndarray | None = None
-    """(N, 3) float64 RGB intensity of each light as the images record it (ours: irradiance times exposure;
-    DiLiGenT: `light_intensities.txt`, which calibrated methods divide the raw images by)."""
-    level: int | None = None
-    """Complexity level of a generated scene (scene.json `level`, `wildgen.make --level`), read from the same file
-    as the family; None if unknown."""
-
-
-def read_text_matrix(path: Path, rows: int, what: str) -> np.ndarray:
-    """(rows, 3) float64 matrix from a whitespace / comma separated text file (DiLiGenT's light files),
-    checked: one line, naming `what`, for a missing file, non-numbers, a wrong shape or non-finite values."""
-    if not path.is_file():
-        raise FileNotFoundError(f"{what} file {path} does not exist")
-    try:
-        text = path.read_text().replace(",", " ")
-        values = np.array(
-            [[float(v) for v in line.split()] for line in text.splitlines() if line.strip()], dtype=np.float64
-        )
-    except (ValueError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{what} file {path}: cannot parse numbers ({exc})") from exc
-    if values.ndim != 2 or values.shape[1] != 3:
-        raise ValueError(f"{what} file {path}: expected 3 numbers per row, got shape {values.shape}")
-    if values.shape[0] != rows:
-        raise ValueError(f"{what} file {path}: has {values.shape[0]} rows, expected {rows} (one per image)")
-    if not np.all(np.isfinite(values)):
-        raise ValueError(f"{what} file {path}: contains NaN or infinite values")
-    return values
-
-
-def _unit_directions(d: np.ndarray, where: str) -> np.ndarray:
-    """Rows of `d` normalised; a zero row is refused (it has no direction)."""
-    norms = np.linalg.norm(d, axis=1)
-    if np.any(norms < 1e-9):
-        raise ValueError(
-            f"{where}: row {int(np.argmin(norms)) + 1} is a zero vector (expected a direction toward the light)"
-        )
-    return d / norms[:, None]
-
-
-def read_diligent_lights(folder: str | Path, rows: int) -> tuple[np.ndarray, np.ndarray]:
-    """A DiLiGenT folder's calibration: (unit directions toward the light (rows, 3), raw RGB intensities
-    (rows, 3), ones when ``light_intensities.txt`` is absent), both float64 and checked."""
-    folder = Path(folder)
-    path = folder / DILIGENT_LIGHTS
-    directions = _unit_directions(read_text_matrix(path, rows, "light_directions"), f"light_directions file {path}")
-    int_path = folder / DILIGENT_INTENSITIES
-    raw = read_text_matrix(int_path, rows, "light_intensities") if int_path.is_file() else np.ones((rows, 3))
-    if np.any(raw <= 0):
-        raise ValueError(f"light_intensities file {int_path}: intensities must be > 0")
-    return directions, raw
-
-
-def _vector3(value: Any, where: str, name: str) -> np.ndarray:
-    try:
-        v = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{where}: {name} is not a list of 3 numbers ({exc})") from exc
-    if v.shape != (3,) or not np.all(np.isfinite(v)):
-        raise ValueError(f"{where}: {name} must be 3 finite numbers, got {value!r}")
-    return v
-
-
-def camera_lights(scene: dict[str, Any], num_images: int, path: Path) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """scene.json's `camera_lights`, checked entry by entry: (unit directions, irradiances), both (N, 3)
-    float64, when every image has exactly one directional light and nothing else; (None, None) when the key is
-    absent or any image has other lights. A malformed entry, a zero direction or a count other than one
-    entry per image file is refused."""
-    cam = scene.get("camera_lights")
-    if cam is None:
-        return None, None
-    if not isinstance(cam, list) or len(cam) != num_images:
-        got = f"{len(cam)} entries" if isinstance(cam, list) else f"a {type(cam).__name__}"
-        raise ValueError(f"scene file {path}: camera_lights has {got}, expected a list of {num_images} (one per image)")
-    dirs, irr, single = [], [], True
-    for i, entry in enumerate(cam):
-        where = f"scene file {path}: camera_lights[{i}]"
-        if not isinstance(entry, dict) or not isinstance(entry.get("directional", []), list):
-            raise ValueError(f"{where} is malformed (expected {{'directional': [...], 'other': N}}, got {entry!r:.80})")
-        other = entry.get("other", 0)
-        if not isinstance(other, int) or isinstance(other, bool) or other < 0:
-            raise ValueError(f"{where}: 'other' must be a count >= 0, got {other!r}")
-        for j, light in enumerate(entry.get("directional", [])):
-            if not isinstance(light, dict):
-                raise ValueError(f"{where}.directional[{j}] is malformed (expected a dict, got {light!r:.80})")
-            d = _vector3(light.get("direction_to_light"), f"{where}.directional[{j}]", "direction_to_light")
-            e = _vector3(light.get("irradiance"), f"{where}.directional[{j}]", "irradiance")
-            if np.linalg.norm(d) < 1e-9:
-                raise ValueError(f"{where}.directional[{j}]: direction_to_light is a zero vector")
-            dirs.append(d / np.linalg.norm(d))
-            irr.append(e)
-        single = single and len(entry.get("directional", [])) == 1 and other == 0
-    if not single:
-        return None, None
-    return np.asarray(dirs), np.asarray(irr)
-
-
-def _ours_lights(folder: Path, num_images: int, scene: dict | None) -> Lights:
-    path = folder / SCENE_FILE
-    scene = read_scene_dict(path) if scene is None else scene
-    family = scene.get("light_family")
-    if family is not None and not isinstance(family, str):
-        raise ValueError(f"scene file {path}: light_family must be a string, got {family!r}")
-    directions, intensities = camera_lights(scene, num_images, path)
-    level = scene.get("level")
-    if level is not None and (isinstance(level, bool) or not isinstance(level, int)):
-        raise ValueError(f"scene file {path}: level must be a whole number, got {level!r}")
-    return Lights(family=family, directions=directions, intensities=intensities, level=level)
-
-
-def _diligent_lights(folder: Path, num_images: int, scene: dict | None) -> Lights:
-    directions, raw = read_diligent_lights(folder, num_images)
-    return Lights(family="directional", directions=directions, intensities=raw)
-
-
-def _no_lights(folder: Path, num_images: int, scene: dict | None) -> Lights:
-    return Lights()
 
 
 # ---------------------------------------------------------------------------------- the table
@@ -287,7 +158,7 @@ LAYOUT_TABLE: tuple[Layout, ...] = (
         image_files,
         (NORMAL_FILE,),
         True,
-        _ours_lights,
+        ours_lights,
     ),
     Layout(
         "diligent",
@@ -296,7 +167,7 @@ LAYOUT_TABLE: tuple[Layout, ...] = (
         diligent_images,
         ("Normal_gt.mat", "Normal_gt.png"),
         False,
-        _diligent_lights,
+        diligent_lights,
     ),
     Layout(
         "unips",
@@ -305,7 +176,7 @@ LAYOUT_TABLE: tuple[Layout, ...] = (
         l_images,
         (NORMAL_FILE, "Normal_gt.png", "Normal_gt.mat"),
         False,
-        _no_lights,
+        no_lights,
     ),
 )
 LAYOUTS = tuple(layout.name for layout in LAYOUT_TABLE)
