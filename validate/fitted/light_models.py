@@ -61,15 +61,8 @@ def sh_basis(n: np.ndarray) -> np.ndarray:
     )
 
 
-def closed_form_directional(
-    normals: np.ndarray,
-    images: np.ndarray,
-    iterations: int = 6,
-    lit_fraction: float = 0.2,
-    trim: float = 0.1,
-    ambient: bool = False,
-    exclude: np.ndarray | None = None,
-) -> dict:
+def closed_form_directional(normals: np.ndarray, images: np.ndarray, iterations: int = 6, lit_fraction: float = 0.2,
+                            trim: float = 0.1, ambient: bool = False, exclude: np.ndarray | None = None) -> dict:
     """Least-squares Lambertian fit with the normals held fixed (no shadows, no specular, no rendering).
 
     normals: (P, 3) unit; images: (K, P, 3). Model per image k: I_k(p) = albedo(p) * c_k * (n_p . b_k + a_k),
@@ -137,12 +130,7 @@ def closed_form_directional(
     bn = np.linalg.norm(B[:, :3], axis=1)
     dirs = B[:, :3] / np.maximum(bn, 1e-12)[:, None]
     dirs[bn < 1e-12] = [0.0, 0.0, 1.0]
-    return {
-        "directions": dirs,
-        "irradiance": np.pi * bn[:, None] * c,
-        "ambient": amb[:, None] * c,
-        "albedo": rho3,
-    }
+    return {"directions": dirs, "irradiance": np.pi * bn[:, None] * c, "ambient": amb[:, None] * c, "albedo": rho3}
 
 
 def _fibonacci_directions(count: int, min_z: float) -> np.ndarray:

@@ -317,6 +317,17 @@ def refine_object(
     return report
 
 
+def _verdict_words(accepted: bool, apart: bool, before: float, after: float, ex) -> str:
+    """refine_report.json `why`: what the judged residual did and what that says."""
+    if not accepted:
+        return (f"declined, the input map is kept: the judged residual did not fall by "
+                f"{TIES['refinement'].relative:.0%} ({before:.4f} -> {after:.4f})")
+    within = ("" if apart else f", within the capture's resolution {ex.resolution:.4f}: the images do not tell the "
+              "maps apart (the refined one fits the physics best, not shown closer to the surface)")
+    return (f"the judged residual fell {before:.4f} -> {after:.4f} on the observations every map shares{within}; "
+            f"{ex.explained_fraction:.0%} of the object was refined, the rest keeps the input map")
+
+
 def refine_judged(jc: JudgedCapture, config: RefineConfig, progress: Progress | None = None) -> tuple[dict, np.ndarray]:
     """Refine a judged capture's map: (report, the full-resolution map to keep: the refined one where accepted,
     else the input map; float, unit inside the mask)."""
@@ -350,19 +361,7 @@ def refine_judged(jc: JudgedCapture, config: RefineConfig, progress: Progress | 
         "images": list(res.holdout), "before_rel_l1": judged_rel_l1(before.render, jc.observed, ex, res.holdout),
         "after_rel_l1": judged_rel_l1(after.render, jc.observed, ex, res.holdout),
         "note": "judged on the held-out images only, which no step that moved the normals used"}
-    why = (
-        f"the judged residual fell {judged_before:.4f} -> {judged_after:.4f} on the observations every map shares"
-        + (
-            ""
-            if apart
-            else f", within the capture's resolution {ex.resolution:.4f}: the images do not tell the maps "
-            "apart (the refined one fits the physics best, not shown closer to the surface)"
-        )
-        + f"; {ex.explained_fraction:.0%} of the object was refined, the rest keeps the input map"
-        if accepted
-        else f"declined, the input map is kept: the judged residual did not fall by {TIES['refinement'].relative:.0%} "
-        f"({judged_before:.4f} -> {judged_after:.4f})"
-    )
+    why = _verdict_words(accepted, apart, judged_before, judged_after, ex)
     if not accepted:
         refined_full = full
     report: dict[str, Any] = {
@@ -384,10 +383,8 @@ def refine_judged(jc: JudgedCapture, config: RefineConfig, progress: Progress | 
         "prediction": jc.source,
         "images_count": int(cap.images.shape[0]),
         "before": {"rel_l1": before.rel_l1, "mae_deg": mae_in},
-        "after": {
-            "rel_l1": after.rel_l1,
-            "mae_deg": mae_deg(refined_full, cap.normal_gt, cap.mask) if cap.normal_gt is not None else None,
-        },
+        "after": {"rel_l1": after.rel_l1,
+                  "mae_deg": mae_deg(refined_full, cap.normal_gt, cap.mask) if cap.normal_gt is not None else None},
         "rotation_search": res.rotation,
         "holdout_curve": [[int(s), float(v)] for s, v in res.holdout_curve],
         "best_step": res.best_step,

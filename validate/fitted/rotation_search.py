@@ -99,12 +99,6 @@ def search_rotation(fs: FitScene, train: np.ndarray, config: RotationSteps, delt
                             if len(ties) > 1 else "one tilt scores best"))
     if last[0] != key(best):
         apply(best)  # back to the winner: same batches and rays, so the same state as at its evaluation
-    log.info(
-        "%s: %.2f deg (rel_l1 %.5f -> %.5f on %d images)",
-        label,
-        np.degrees(np.linalg.norm(best)),
-        cache[key(np.zeros(3))],
-        s_best,
-        len(train),
-    )
+    log.info("%s: %.2f deg (rel_l1 %.5f -> %.5f on %d images)", label, np.degrees(np.linalg.norm(best)),
+             cache[key(np.zeros(3))], s_best, len(train))
     return best
