@@ -27,9 +27,9 @@ from __future__ import annotations
 import resource
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Literal
 
 import numpy as np
 
@@ -39,6 +39,7 @@ from scenes.cli.outputs import check_output_folder, claim_outputs
 from scenes.files import to_plain, write_json
 from scenes.folder.format import MASK_FILE, write_object_folder
 from scenes.images import read_mask, write_mask, write_normal_exr, write_normal_map, write_picture
+from validate.observations import Capture
 
 OUTPUTS = (
     "normal.png",
@@ -104,24 +105,6 @@ class CaptureOptions:
 COMMAND = Command(CaptureOptions, prog="python -m orchestrate.capture", description=__doc__.split("\n\n")[0])
 
 
-@dataclass
-class Shot:
-    """The capture as read: linear images, the mask, and where each came from."""
-
-    name: str
-    """The object's name (the folder's)."""
-    images: np.ndarray
-    """(K, H, W, 3) float32 linear."""
-    saturated: np.ndarray | None
-    """(K, H, W, 3) bool: clipped values (lower bounds)."""
-    names: list[str]
-    """File names, in the order of `images`."""
-    source: dict[str, Any]
-    """What the files said about themselves (report.json `input`)."""
-    mask: np.ndarray | None = None
-    """An object folder's own mask; None for photos."""
-
-
 def probe_input(opts: CaptureOptions) -> tuple[int, int, int]:
     """(photos, height, width) of --input after --max-side, from the file list and one image: what the estimate
     needs before anything large is read."""
@@ -139,27 +122,30 @@ def probe_input(opts: CaptureOptions) -> tuple[int, int, int]:
     return k, max(1, round(h * f)), max(1, round(w * f))
 
 
-def read_input(opts: CaptureOptions) -> Shot:
-    """The photos (or the object folder) of --input, linear."""
+def read_input(opts: CaptureOptions) -> Capture:
+    """The capture of --input, linear: its photos (mask None until `find_mask`) or an object folder (with its
+    mask); `meta["input"]` says what the files said about themselves (report.json `input`)."""
     from scenes.folder.layouts import detect_layout, read_folder
     from scenes.folder.photos import read_photos
+    from validate.observations import capture_from_arrays
 
     folder = Path(opts.input)
     if detect_layout(folder) is not None:
         fd = read_folder(folder, arg="--input")
-        return Shot(fd.name, fd.images, fd.saturated, [p.name for p in fd.image_paths],
-                    {"kind": f"object folder ({fd.layout})"}, mask=fd.mask)
+        return capture_from_arrays(fd.name, fd.images, fd.mask, [p.name for p in fd.image_paths], fd.saturated,
+                                   folder, {"input": {"kind": f"object folder ({fd.layout})"}})
     photos = read_photos(folder, opts.input_encoding, opts.max_side)
-    return Shot(folder.name or "capture", photos.images, photos.saturated, photos.names,
-                {"kind": "photos", "encoding": photos.encoding, "bit_depth": photos.bit_depth,
-                 "exposure": photos.exposure, **({"raw": photos.raw} if photos.raw else {})})
+    source = {"kind": "photos", "encoding": photos.encoding, "bit_depth": photos.bit_depth,
+              "exposure": photos.exposure, **({"raw": photos.raw} if photos.raw else {})}
+    return capture_from_arrays(folder.name or "capture", photos.images, None, photos.names, photos.saturated, folder,
+                               {"input": source})
 
 
-def find_mask(opts: CaptureOptions, shot: Shot) -> tuple[np.ndarray, dict]:
+def find_mask(opts: CaptureOptions, cap: Capture) -> tuple[np.ndarray, dict]:
     """The object mask (from --mask FILE, the object folder's own, or found from the images) and how it was made."""
     from validate.diagnosis.usable import auto_mask
 
-    shape = shot.images.shape[1:3]
+    shape = cap.images.shape[1:3]
     if opts.mask != "auto":
         try:
             mask = read_mask(opts.mask, None)
@@ -171,27 +157,28 @@ def find_mask(opts: CaptureOptions, shot: Shot) -> tuple[np.ndarray, dict]:
         if not mask.any():
             raise ValueError(f"--mask: {opts.mask!r} marks no pixel of the object (expected white on black)")
         return mask, {"method": "file", "file": opts.mask}
-    if shot.mask is not None:  # an object folder brings its own
-        return shot.mask, {"method": "the object folder's mask.png"}
-    return auto_mask(shot.images)
+    if cap.mask is not None:  # an object folder brings its own
+        return cap.mask, {"method": "the object folder's mask.png"}
+    return auto_mask(cap.images)
 
 
 def _to_convention(n: np.ndarray, convention: str) -> np.ndarray:
     return (n * CONVENTIONS[convention]).astype(np.float32)
 
 
-def predict(opts: CaptureOptions, shot: Shot, images: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """The model's map (H, W, 3) of the capture's images (linear, scaled to 1 at the brightest mask value)."""
+def predict(opts: CaptureOptions, cap: Capture) -> np.ndarray:
+    """The model's map (H, W, 3) of a capture (linear images scaled to 1 at the brightest mask value)."""
     from unips.data import PSObject
     from unips.inference import load_network, run_model
 
     net = load_network(opts.checkpoint, model=opts.model)
-    obj = PSObject(name=shot.name, images=images, mask=mask, normals=None, light_family=None, light_directions=None,
-                   light_intensities=None, path=Path(opts.input), layout="memory", image_names=shot.names)
+    obj = PSObject(name=cap.name, images=cap.images, mask=cap.mask, normals=None, light_family=None,
+                   light_directions=None, light_intensities=None, path=cap.folder, layout=cap.layout,
+                   image_names=cap.image_names)
     return run_model(net, obj)
 
 
-def check_and_refine(opts: CaptureOptions, shot: Shot, images: np.ndarray, mask: np.ndarray, out: Path,
+def check_and_refine(opts: CaptureOptions, cap: Capture, out: Path,
                      normals: np.ndarray) -> tuple[np.ndarray, dict, dict | None]:
     """The fitted check of the model's map, and the refinement where the check trusts the capture, on one judged
     capture held in memory (read, reduced and explained once; the model map's fit made once for both): (final map,
@@ -203,13 +190,12 @@ def check_and_refine(opts: CaptureOptions, shot: Shot, images: np.ndarray, mask:
     from validate.fitted.fit_scene import FitConfig
     from validate.fitted.refinement import RefineConfig, refine_judged, write_refined
     from validate.judgeable import check_judgeable
-    from validate.observations import capture_from_arrays, unit_normals
+    from validate.observations import unit_normals
 
     choose_variant(None)
     set_jit_threads(opts.threads)
-    cap = capture_from_arrays(shot.name, images, mask, shot.names, shot.saturated, opts.input)
     config = FitConfig()
-    jc = judge(cap, unit_normals(normals, mask), config, "check")
+    jc = judge(cap, unit_normals(normals, cap.mask), config, "check")
     check = rerender_fitted(jc, config=config, out_dir=str(out / "check"), overwrite=True)  # claimed by run()
     if not (opts.refine and check["trusted"]):
         return normals, check, None
@@ -218,7 +204,7 @@ def check_and_refine(opts: CaptureOptions, shot: Shot, images: np.ndarray, mask:
     except ValueError as exc:  # the check can judge, the refinement needs more (images with lit pixels)
         return normals, check, {"accepted": False, "why": f"not run: {str(exc).removeprefix('--data: ')}"}
     refined, final = refine_judged(jc, replace(RefineConfig(), rotation_search=opts.rotation_search).validate())
-    write_refined(out / "refine" / shot.name, final, refined)
+    write_refined(out / "refine" / cap.name, final, refined)
     return (final if refined["accepted"] else normals), check, refined
 
 
@@ -314,43 +300,42 @@ def run(opts: CaptureOptions) -> dict:
     check_output_folder(out)
     claim_outputs([out / n for n in OUTPUTS], opts.overwrite, owner="orchestrate.capture")
     need = check_resources(*probe_input(opts))
-    shot = read_input(opts)
-    stages = {"check": [out / "check" / shot.name / n for n in CHECK_OUTPUTS],
-              "refine": [out / "refine" / shot.name / n for n in REFINE_OUTPUTS]}
+    read = read_input(opts)
+    stages = {"check": [out / "check" / read.name / n for n in CHECK_OUTPUTS],
+              "refine": [out / "refine" / read.name / n for n in REFINE_OUTPUTS]}
     claim_outputs([p for paths in stages.values() for p in paths], opts.overwrite, owner="orchestrate.capture")
     times["read_s"] = time.perf_counter() - t0
-    count = image_count_warning(len(shot.images))
+    count = image_count_warning(len(read.images))
     if count and count.fatal:  # before the mask: two photos say nothing about one
         raise UsageError(f"--input: {count.message}")
-    mask, mask_info = find_mask(opts, shot)
-    warnings, facts = capture_warnings(shot.images, mask, shot.saturated, shot.names)
+    mask, mask_info = find_mask(opts, read)
+    read = replace(read, mask=mask)
+    warnings, facts = capture_warnings(read.images, mask, read.saturated, read.image_names)
     if warnings and warnings[0].fatal:
         raise UsageError(f"--input: {warnings[0].message}")
     for w in warnings:
         print(f"warning: {w.code}: {w.message}", file=sys.stderr)
     times["mask_and_checks_s"] = time.perf_counter() - t0 - times["read_s"]
     # One scale for every photo (their relative exposures are kept): the brightest mask value becomes 1, as the
-    # model expects; the clipped channels stay those the files said (shot.saturated), not re-derived from values.
-    scale = 1.0 / max(float(shot.images[:, mask].max()), 1e-12)
-    images = np.clip(shot.images * scale, 0, 1).astype(np.float32)
-    work = None
-    if opts.keep_work:
-        work = write_object_folder(out / "work" / f"{shot.name}.data", images, mask, None)
+    # model expects; the clipped channels stay those the files said (read.saturated), not re-derived from values.
+    scale = 1.0 / max(float(read.images[:, mask].max()), 1e-12)
+    cap = replace(read, images=np.clip(read.images * scale, 0, 1).astype(np.float32))
+    work = write_object_folder(out / "work" / f"{cap.name}.data", cap.images, mask, None) if opts.keep_work else None
     t1 = time.perf_counter()
-    model_map = predict(opts, shot, images, mask)
+    model_map = predict(opts, cap)
     times["predict_s"] = time.perf_counter() - t1
     t1 = time.perf_counter()
-    final, check, refined = check_and_refine(opts, shot, images, mask, out, model_map)
+    final, check, refined = check_and_refine(opts, cap, out, model_map)
     times["check_and_refine_s"] = time.perf_counter() - t1
     final = np.where(mask[..., None], final, 0.0)
     write_normal_map(out / "normal.png", _to_convention(final, opts.convention))
     write_normal_exr(out / "normal.exr", _to_convention(final, opts.convention))
     write_normal_map(out / "normal_model.png", _to_convention(model_map, opts.convention))
     write_mask(out / MASK_FILE, mask)
-    _variation_picture(shot.images, out / "light_variation.png")
+    _variation_picture(read.images, out / "light_variation.png")
     times["total_s"] = time.perf_counter() - t0
-    report = {"input": {"folder": str(opts.input), "images": len(shot.names), "names": shot.names,
-                        "size": list(shot.images.shape[1:3]), **shot.source},
+    report = {"input": {"folder": str(opts.input), "images": len(read.image_names), "names": read.image_names,
+                        "size": list(read.images.shape[1:3]), **read.meta["input"]},
               "mask": {**mask_info, "pixels": int(mask.sum())},
               "warnings": as_dicts(warnings), "measurements": facts,
               "normals": {"convention": opts.convention,
@@ -359,8 +344,8 @@ def run(opts: CaptureOptions) -> dict:
                           "encoding": "normal.png: 16-bit (n + 1) / 2; normal.exr: float32 n; 0 outside the mask",
                           "source": "refined" if refined and refined.get("accepted") else "model"},
               "verdict": verdict(check, refined),
-              "stages": {"check": "check/" + shot.name + "/report.json",
-                         "refine": ("refine/" + shot.name + "/refine_report.json") if refined and "mode" in refined
+              "stages": {"check": "check/" + cap.name + "/report.json",
+                         "refine": ("refine/" + cap.name + "/refine_report.json") if refined and "mode" in refined
                          else None,
                          "work_folder": str(work.relative_to(out)) if work else None},
               "timings": times, "estimate": need,
@@ -369,8 +354,8 @@ def run(opts: CaptureOptions) -> dict:
     from orchestrate.capture_page import pictures, write_page
 
     refined_used = report["normals"]["source"] == "refined"
-    write_page(out / "report.html", to_plain(report), pictures(out, shot.name, shot.images, shot.names, mask, final,
-                                                             model_map, refined_used))
+    write_page(out / "report.html", to_plain(report), pictures(out, cap.name, read.images, read.image_names, mask,
+                                                             final, model_map, refined_used))
     return report
 
 

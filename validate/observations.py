@@ -37,7 +37,7 @@ class Capture:
     images: np.ndarray
     """(K, H, W, 3) float32 linear images (DiLiGenT: divided by the light intensities)."""
     mask: np.ndarray
-    """(H, W) bool object mask."""
+    """(H, W) bool object mask (None only for photos read before their mask is found: `orchestrate.capture`)."""
     image_names: list[str]
     """File name of each image, in loader order (the order of report.json's `lights`)."""
     normal_gt: np.ndarray | None = None
@@ -77,17 +77,20 @@ def unit_normals(n: np.ndarray, mask: np.ndarray, what: str = "--normals") -> np
 def capture_from_arrays(
     name: str,
     images: np.ndarray,
-    mask: np.ndarray,
+    mask: np.ndarray | None,
     image_names: list[str],
     saturated: np.ndarray | None = None,
     folder: str | Path = ".",
+    meta: dict | None = None,
 ) -> Capture:
-    """A capture held in memory (no object folder on disk): linear images (K, H, W, 3), mask (H, W), and the
-    clipped channels (K, H, W, 3) kept exactly as given, so that a channel clipped in the photo stays a lower
-    bound whatever scaling the images went through (codes re-derived from a rescaled file would not say it)."""
+    """A capture held in memory (no object folder on disk): linear images (K, H, W, 3), mask (H, W) (None: not
+    found yet), and the clipped channels (K, H, W, 3) kept exactly as given, so that a channel clipped in the photo
+    stays a lower bound whatever scaling the images went through (codes re-derived from a rescaled file would not
+    say it)."""
     k = len(images)
-    if images.ndim != 4 or images.shape[-1] != 3 or images.shape[1:3] != mask.shape:
-        raise ValueError(f"images: shape {images.shape} with mask {mask.shape}, expected (K, H, W, 3) and (H, W)")
+    if images.ndim != 4 or images.shape[-1] != 3 or (mask is not None and images.shape[1:3] != mask.shape):
+        raise ValueError(f"images: shape {images.shape} with mask {None if mask is None else mask.shape}, expected "
+                         "(K, H, W, 3) and (H, W)")
     if saturated is not None and saturated.shape != images.shape:
         raise ValueError(f"saturated: shape {saturated.shape}, expected that of the images {images.shape}")
     if len(image_names) != k:
@@ -97,9 +100,10 @@ def capture_from_arrays(
         folder=Path(folder),
         layout="memory",
         images=np.asarray(images, np.float32),
-        mask=np.asarray(mask, bool),
+        mask=None if mask is None else np.asarray(mask, bool),
         image_names=list(image_names),
         saturated=saturated if saturated is not None and saturated.any() else None,
+        meta=dict(meta or {}),
     )
 
 
