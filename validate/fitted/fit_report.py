@@ -131,13 +131,19 @@ def judge(cap: Capture, full: np.ndarray, config: FitConfig, use: str, source: s
     return JudgedCapture(cap, full, source, small, n_small, f, ex, trusted, why)
 
 
-def judge_capture(folder: str, normals: str | np.ndarray, config: FitConfig, use: str, out_dir: str | None,
-                  outputs: tuple[str, ...], owner: str, overwrite: bool) -> tuple[JudgedCapture, Path | None]:
-    """Read an object folder (any layout, once) and its normal map, claim `out_dir/<object>/outputs` for `owner`,
-    then `judge`: (the judged capture, the claimed target or None)."""
+def judge_capture(data: str | JudgedCapture, normals: str | np.ndarray | None, config: FitConfig, use: str,
+                  out_dir: str | None, outputs: tuple[str, ...], owner: str,
+                  overwrite: bool) -> tuple[JudgedCapture, Path | None]:
+    """The judged capture for `use` and `out_dir/<object>/outputs` claimed for `owner`: an object folder (any
+    layout, read once) and its normal map (claimed before judging), or a capture already judged (in memory, shared
+    by the check and the refinement: its fitting resolution must be the one `config` asks for)."""
     from validate.observations import load_with_normals
 
-    cap, full, source = load_with_normals(folder, normals)
+    if isinstance(data, JudgedCapture):
+        data.check_fit(config)
+        check_judgeable(data.small, use)
+        return data, claim_target(out_dir, data.cap.name, outputs, owner, overwrite)
+    cap, full, source = load_with_normals(data, normals)
     target = claim_target(out_dir, cap.name, outputs, owner, overwrite)
     return judge(cap, full, config, use, source), target
 
@@ -176,12 +182,7 @@ def rerender_fitted(
     `out_dir/<object>/report.json`, `figure.png` and `explained.png` when out_dir is given."""
     config = (config or FitConfig()).validate()
     require_ad_variant()
-    if isinstance(data, JudgedCapture):
-        data.check_fit(config)
-        jc, target = data, claim_target(out_dir, data.cap.name, CHECK_OUTPUTS, "validate.rerender", overwrite)
-    else:
-        jc, target = judge_capture(data, normals, config, "check", out_dir, CHECK_OUTPUTS, "validate.rerender",
-                                   overwrite)
+    jc, target = judge_capture(data, normals, config, "check", out_dir, CHECK_OUTPUTS, "validate.rerender", overwrite)
     report, res = check_judged(jc, config, progress)
     if target is not None:
         _write_fitted(jc, target, res, report)

@@ -35,7 +35,6 @@ from scenes.renderer.variant import require_ad_variant
 from validate.fitted.fit import fit_normals, run_fit
 from validate.fitted.fit_report import (
     JudgedCapture,
-    claim_target,
     full_config_dict,
     judge_capture,
     provenance,
@@ -45,7 +44,7 @@ from validate.fitted.fit_scene import FitConfig, FitScene, Progress, lambertian_
 from validate.fitted.regulariser import make_regulariser
 from validate.fitted.rotation_search import search_rotation
 from validate.fitted.verdict import TIES, judged_rel_l1, told_apart
-from validate.judgeable import MIN_IMAGES, check_judgeable
+from validate.judgeable import MIN_IMAGES
 
 log = logging.getLogger(__name__)
 
@@ -304,13 +303,8 @@ def refine_object(
     """Refine the normal map of one object folder (or of a capture already judged: `validate.fitted.fit_report.judge`,
     shared with the check); write normal.png and refine_report.json under out_dir/<object>/."""
     config = (config or RefineConfig()).validate()
-    if isinstance(data, JudgedCapture):
-        data.check_fit(config.fit)
-        check_judgeable(data.small, "refine")
-        jc, target = data, claim_target(out_dir, data.cap.name, REFINE_OUTPUTS, "validate.refine", overwrite)
-    else:
-        jc, target = judge_capture(data, normals, config.fit, "refine", out_dir, REFINE_OUTPUTS, "validate.refine",
-                                   overwrite)
+    jc, target = judge_capture(data, normals, config.fit, "refine", out_dir, REFINE_OUTPUTS, "validate.refine",
+                               overwrite)
     report, refined = refine_judged(jc, config, progress)
     if target is not None:
         write_refined(target, refined, report)
