@@ -32,7 +32,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 PY = sys.executable
-SHIPPED = ROOT / "unips" / "weights" / "glc-tiny.safetensors"
+from unips.models import DEFAULT_MODEL, pretrained_entry  # noqa: E402 (after the path above)
+
+SHIPPED = pretrained_entry(DEFAULT_MODEL).weights_path
 BASE = ["--images", "10", "--res", "128", "--quiet"]
 FAMILIES = "directional,point,near_area,hdri,mixed"
 
@@ -154,7 +156,7 @@ def main() -> int:
     for arm in arms:
         out = w / f"run_{arm}{args.tag}"
         if not (out / "best.safetensors").is_file():
-            run(["unips.train", "--data", ",".join(map(str, data[arm])), "--val", str(val), "--model", "glc-tiny",
+            run(["unips.train", "--data", ",".join(map(str, data[arm])), "--val", str(val), "--model", DEFAULT_MODEL,
                  "--init-from", str(SHIPPED), "--out", str(out), "--steps", str(args.steps), "--lr", args.lr,
                  "--warmup", "50", "--val-every", str(args.steps), "--ckpt-every", str(args.steps), "--seed", "0",
                  "--threads", str(args.threads), "--no-progress", *(["--curriculum"] if arm == "new" else [])],

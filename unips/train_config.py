@@ -1,5 +1,6 @@
 """The configuration of a training run (`TrainConfig`): the dataclass the `python -m unips.train` command line is
-generated from (a flag per documented field, `scenes.cli.options`), its checks, and the settings a resumed run must keep."""
+generated from (a flag per documented field, `scenes.cli.options`), its checks, and the settings a resumed run must
+keep."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from typing import Annotated, Literal
 
 from scenes.checks import check_choice
 from scenes.cli.options import REQUIRED, CommaList, UseAppendAction, arg, check_fields, option
+from unips.models.zoo import DEFAULT_TRAIN_MODEL
 
 
 @dataclass
@@ -15,13 +17,14 @@ class TrainConfig:
     """Everything that determines a training run; the CLI fills it (`python -m unips.train --help`)."""
 
     data: str = REQUIRED
-    """Training dataset directory (object folders with ground-truth normals), or several separated by commas
-    (pooled, e.g. sets rendered with different seeds); or WebDataset shards of wildgen.export: 'SHARDS/{000000..000099}.tar' or the SHARDS folder."""
+    """Training dataset directory (object folders with ground-truth normals), or several separated by commas (pooled,
+    e.g. sets rendered with different seeds); or WebDataset shards of wildgen.export: 'SHARDS/{000000..000099}.tar' or
+    the SHARDS folder."""
     out: str = REQUIRED
     """Run directory: log.jsonl, last.pt, best.safetensors and final.safetensors (+ .json sidecars)."""
     val: str | None = None
     """Validation dataset directory (object folders with normal.tif); held-out assets, test-like settings."""
-    model: str = "glc-small"
+    model: str = DEFAULT_TRAIN_MODEL
     """Registered model name (`unips.models.list_models()`); with `init_from`, the weights' model."""
     init_from: str | None = None
     """Weights (.safetensors or .pt) to start from: weights only, with fresh optimiser, schedule and data."""
@@ -34,7 +37,8 @@ class TrainConfig:
     weight_decay: float = option(0.05, minimum=0)
     """AdamW weight decay."""
     schedule: Literal["cosine", "step"] = "cosine"
-    """'cosine': linear warm-up over `warmup` steps then cosine decay to `min_lr_ratio` * lr; 'step': x`decay` every `decay_every` steps."""
+    """'cosine': linear warm-up over `warmup` steps then cosine decay to `min_lr_ratio` * lr; 'step': x`decay` every
+    `decay_every` steps."""
     warmup: int = option(100, minimum=0)
     """Warm-up steps of the cosine schedule."""
     min_lr_ratio: float = option(0.05, minimum=0, maximum=1)
@@ -74,7 +78,9 @@ class TrainConfig:
     ckpt_minutes: float = option(0.0, minimum=0)
     """Also save last.pt every this many minutes of training (0: only every --ckpt-every steps)."""
     time_limit: float = option(0.0, minimum=0)
-    """Wall-time budget of this command in minutes, counted from its start (0: no limit): a step, a validation and a save start only while the longest of each so far still fits; at the step reached last.pt and final.safetensors are written as at the end; --steps still sets the schedule."""
+    """Wall-time budget of this command in minutes, counted from its start (0: no limit): a step, a validation and a
+    save start only while the longest of each so far still fits; at the step reached last.pt and final.safetensors are
+    written as at the end; --steps still sets the schedule."""
     log_every: int = option(10, minimum=1)
     """Steps between training records in log.jsonl."""
     threads: int = option(0, minimum=0)
@@ -86,13 +92,16 @@ class TrainConfig:
     no_augment: bool = False
     """Disable flips / transpose / RGB permutation."""
     interior_crop: float = option(0.0, minimum=0, maximum=1)
-    """Probability that a training sample is a square cut from inside the object's mask and resized to the working resolution: no outline, so the normals must come from the images."""
+    """Probability that a training sample is a square cut from inside the object's mask and resized to the working
+    resolution: no outline, so the normals must come from the images."""
     no_progress: bool = False
     """No progress bar."""
     model_option: Annotated[list[str], UseAppendAction, arg(metavar="KEY=VALUE")] = field(default_factory=list)
     """Model config overrides KEY=VALUE (JSON value), e.g. uniform_context=true; repeatable."""
     shuffle_buffer: int = option(0, minimum=0)
-    """Shards only. 0: read every object into memory, as from folders (the same batches as the folders the shards came from); N > 0: stream the shards (data larger than memory), split across processes and loader workers, shuffled through a buffer of N objects per worker (unips.shards)."""
+    """Shards only. 0: read every object into memory, as from folders (the same batches as the folders the shards came
+    from); N > 0: stream the shards (data larger than memory), split across processes and loader workers, shuffled
+    through a buffer of N objects per worker (unips.shards)."""
     loader_workers: int = option(2, minimum=0)
     """Worker processes decoding the streamed shards (with --shuffle-buffer; 0: in the training process)."""
     curriculum: bool = False
