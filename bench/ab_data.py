@@ -38,7 +38,9 @@ from scenes.cli.options import REQUIRED, Command, arg, option  # noqa: E402
 from scenes.files import write_json  # noqa: E402
 
 PY = sys.executable
-SHIPPED = ROOT / "unips" / "weights" / "glc-tiny.safetensors"
+from unips.models import DEFAULT_MODEL, pretrained_entry  # noqa: E402 (after the path above)
+
+SHIPPED = pretrained_entry(DEFAULT_MODEL).weights_path
 BASE = ["--images", "10", "--res", "128", "--quiet"]
 FAMILIES = "directional,point,near_area,hdri,mixed"
 
@@ -172,7 +174,7 @@ def main(argv: list[str] | None = None) -> int:
     for arm in arms:
         out = w / f"run_{arm}{args.tag}"
         if not (out / "best.safetensors").is_file():
-            run(["unips.train", "--data", ",".join(map(str, data[arm])), "--val", str(val), "--model", "glc-tiny",
+            run(["unips.train", "--data", ",".join(map(str, data[arm])), "--val", str(val), "--model", DEFAULT_MODEL,
                  "--init-from", str(SHIPPED), "--out", str(out), "--steps", str(args.steps), "--lr", args.lr,
                  "--warmup", "50", "--val-every", str(args.steps), "--ckpt-every", str(args.steps), "--seed", "0",
                  "--threads", str(args.threads), "--no-progress", *(["--curriculum"] if arm == "new" else [])],

@@ -233,6 +233,21 @@ def model_facts(card: dict) -> str:
     return markdown_table(["", "shipped model"], rows)
 
 
+def model_inputs(card: dict) -> str:
+    """Each registered model's data contract, read from its registry entry (`unips.models.input_contract`)."""
+    from unips.models import DEFAULT_MODEL, DEFAULT_TRAIN_MODEL, input_contract, list_models
+
+    def px(v: int | None, none: str) -> str:
+        return none if v is None else f"{v} px"
+
+    rows = [[f"`{n}`" + {DEFAULT_MODEL: " (predict)", DEFAULT_TRAIN_MODEL: " (train)"}.get(n, ""), c.preprocess,
+             f"{c.margin} px", px(c.side, "the crop's" if c.preprocess == "unips" else "512 x n"),
+             str(c.max_images or "all"), str(c.views), px(c.patch, "-"), px(c.train_resolution, "-")]
+            for n in list_models() for c in [input_contract(n)]]
+    return markdown_table(["model (default for)", "preprocessing", "crop margin", "working side", "images",
+                           "views", "--scalable", "trained at"], rows)
+
+
 def _at_best(stage: dict) -> dict:
     """A lineage stage's fixed-validation probes at its best step."""
     if "fixed_validation" in stage:
@@ -349,6 +364,7 @@ def data_ab(card: dict) -> str:
 BLOCKS: dict[str, Callable[[dict], str]] = {
     "readme:headline": readme_headline,
     "model:facts": model_facts,
+    "model:inputs": model_inputs,
     "results:test-set-methods": test_set_methods,
     "results:test-set-probes": test_set_probes,
     "results:image-count": image_count,

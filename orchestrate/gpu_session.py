@@ -99,7 +99,8 @@ class SessionOptions:
     """Assumed coefficient of variation of one path-traced sample: images agree when the relative RMS difference
     of two renders is at most noise_cv * sqrt(2 / spp)."""
     model: str | None = None
-    """Registered model to train (`unips.models.list_models()`; default: the --init weights' model, else glc-small)."""
+    """Registered model to train (`unips.models.list_models()`; default: the --init weights' model, else
+    unips.models.DEFAULT_TRAIN_MODEL)."""
     init: str | None = None
     """Weights to continue from: `shipped` (the registry's shipped weights) or a previous run's final.safetensors /
     last.pt; their model must be the shipped architecture (refused in one line otherwise). Default: fresh weights."""

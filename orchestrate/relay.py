@@ -66,11 +66,11 @@ def resolve_init(init: str | None, model: str | None) -> tuple[str | None, str]:
     shipped weights (of --model, or of the one model that has them); PATH: a .safetensors/.pt weights file
     whose model name and configuration equal the shipped weights' of that model (when it has shipped weights).
     UsageError (one line) otherwise."""
-    from unips.models import list_models, list_pretrained, load_model
+    from unips.models import DEFAULT_TRAIN_MODEL, list_models, list_pretrained, load_model
     from unips.models.registry import pretrained_entry
 
     if init is None:
-        name = model or "glc-small"
+        name = model or DEFAULT_TRAIN_MODEL
         if name not in list_models():
             raise UsageError(f"--model: got {name!r}, expected one of {', '.join(list_models())}")
         return None, name

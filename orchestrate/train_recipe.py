@@ -1,6 +1,6 @@
 """The reproducible training recipe: data, held-out split, training, the ship decision, evaluation.
 
-    python -m orchestrate.train_recipe --work /tmp/recipe [--assets ../shared/assets] [--model glc-small]
+    python -m orchestrate.train_recipe --work /tmp/recipe [--assets ../shared/assets] [--model NAME]
                                        [--init-from WEIGHTS] [--train-seed 5000[,SEED...]] [--train-objects 800]
                                        [--steps 4000] [--threads 2] [--ablation] [--ship]
 
@@ -76,7 +76,7 @@ def train_argv(args: RecipeOptions, work: Path, name: str, extra: list[str], min
     out = work / "runs" / name
     resume = ["--resume"] if (out / "last.pt").is_file() and not args.overwrite else []
     init = ["--init-from", args.init_from] if args.init_from and not resume and not extra else []
-    model = [] if init else ["--model", args.model]
+    model = [] if init or args.model is None else ["--model", args.model]  # None: unips.train's, DEFAULT_TRAIN_MODEL
     data = ",".join(str(work / f"train{seed}") for seed in args.train_seed)
     return ["--data", data, "--val", str(work / "val128"), *model, *init, "--out", str(out), "--steps", str(args.steps),
             "--batch", "4", "--lr", str(args.lr), "--val-every", "500", "--ckpt-every", "250", "--seed", "0",
@@ -170,7 +170,7 @@ class RecipeOptions:
     """Working folder (datasets, runs, benchmark output)."""
     assets: Annotated[str | None, arg(help_behavior_hint="(default: ../shared/assets when it exists)")] = None
     """Asset folder, split into train / held-out assets."""
-    model: str = "glc-small"
+    model: Annotated[str | None, arg(help_behavior_hint="(default: unips.models.DEFAULT_TRAIN_MODEL)")] = None
     """Registered model trained from scratch (`unips.models.list_models()`)."""
     init_from: str | None = None
     """Weights to continue from (weights only; e.g. unips/weights/...)."""
@@ -305,9 +305,9 @@ def _val_probes(weights: Path, val: Path, threads: int) -> dict:
 def shipped_name(args: RecipeOptions) -> str:
     """The registered model a recipe run trains (`--model`, or the model of `--init-from`), checked to have a
     shipped-weights entry in the registry: called before any work when `--ship` is given."""
-    from unips.models import load_model, pretrained_entry
+    from unips.models import DEFAULT_TRAIN_MODEL, load_model, pretrained_entry
 
-    name = load_model(args.init_from)[1]["model_name"] if args.init_from else args.model
+    name = load_model(args.init_from)[1]["model_name"] if args.init_from else args.model or DEFAULT_TRAIN_MODEL
     try:
         pretrained_entry(name)
     except ValueError as exc:

@@ -236,12 +236,23 @@ def _card_numbers(node) -> list[float]:
     return [float(node)] if isinstance(node, (int, float)) and not isinstance(node, bool) else []
 
 
+def test_the_input_contract_table_is_the_registry_entries():
+    from unips.models import input_contract, list_models
+
+    rows = _table("model:inputs")
+    assert [r["model (default for)"].split("`")[1] for r in rows] == list_models()
+    for row in rows:
+        contract = input_contract(row["model (default for)"].split("`")[1])
+        assert row["preprocessing"] == contract.preprocess and row["views"] == str(contract.views)
+        assert row["images"] == str(contract.max_images or "all")
+
+
 def test_every_number_of_every_result_table_is_a_card_figure():
     """Catch-all for a result table added later: each numeric cell is one of the card's figures."""
     numbers = _card_numbers(CARD)
     checked = 0
     for name in docs.BLOCKS:
-        if name in docs.BENCH_BLOCKS:  # from a benchmark's output, checked below
+        if name in docs.BENCH_BLOCKS or name == "model:inputs":  # a benchmark's output / the registry: checked apart
             continue
         for table in _tables(_block(name)):
             for row in table:

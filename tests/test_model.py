@@ -153,6 +153,31 @@ def test_bad_names_and_options_raise() -> None:
         create_model("glc-test", canonical_resolution=48)
     with pytest.raises(ValueError, match="decoder_heads"):
         create_model("glc-test", decoder_heads=3)
+    # One base class (unips.models.config_base.ModelConfig) gives every config the same one-line errors.
+    from unips.models import SDMConfig, UniPS22Config
+
+    for make, message in ((lambda: create_model("glc-test", decoder_heads=0), "GLCConfig.decoder_heads=0: "),
+                          (lambda: UniPS22Config(heads=0), "UniPS22Config.heads=0: expected a positive integer"),
+                          (lambda: SDMConfig(dropout=1.0), r"SDMConfig.dropout=1.0: expected a probability in \["),
+                          (lambda: SDMConfig(ppm_scales=[]), r"SDMConfig.ppm_scales=\(\): expected positive pooled")):
+        with pytest.raises(ValueError, match="^" + message):
+            make()
+    assert UniPS22Config(swin_depths=[2, 2, 18, 2]) == UniPS22Config()  # JSON lists back to tuples
+
+
+def test_each_entry_carries_its_input_contract() -> None:
+    from unips.inference import DEFAULT_TTA, TTA_VIEWS
+    from unips.models import DEFAULT_MODEL, DEFAULT_TRAIN_MODEL, InputContract, input_contract, list_pretrained
+    from unips.models.contract import UNIPS_INPUTS, VIEWS
+
+    assert DEFAULT_MODEL in list_pretrained() and DEFAULT_TRAIN_MODEL in list_models()
+    assert TTA_VIEWS == VIEWS and DEFAULT_TTA == UNIPS_INPUTS.views
+    assert input_contract("glc-test") == UNIPS_INPUTS and input_contract(DEFAULT_MODEL).train_resolution == 128
+    glc, sdm = input_contract("glc-unips"), input_contract("sdm-unips-tiny")
+    assert (glc.preprocess, glc.side, glc.max_images, glc.views, glc.patch) == ("glc-unips", 512, 64, 1, None)
+    assert (sdm.preprocess, sdm.margin, sdm.max_images, sdm.views, sdm.patch) == ("sdm-unips", 8, 10, 1, 512)
+    with pytest.raises(ValueError, match=r"^InputContract.views=3: expected one of 1, 2, 4, 8$"):
+        InputContract(views=3)
 
 
 def test_bad_inputs_raise(test_model) -> None:

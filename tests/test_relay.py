@@ -137,13 +137,13 @@ def test_ship_refusals_are_one_line(tmp_path, registry, val_set, capsys, monkeyp
 
 
 def test_init_continues_the_shipped_model_or_refuses(tmp_path, registry):
-    from unips.models import create_model
+    from unips.models import DEFAULT_TRAIN_MODEL, create_model
     from unips.models.builder import save_checkpoint
 
     path, name = relay.resolve_init("shipped", None)
     assert name == "glc-tiny" and Path(path) == registry["dir"] / "glc-tiny.safetensors"
     assert relay.resolve_init(str(registry["real"]), "glc-tiny") == (str(registry["real"]), "glc-tiny")
-    assert relay.resolve_init(None, None) == (None, "glc-small")
+    assert relay.resolve_init(None, None) == (None, DEFAULT_TRAIN_MODEL)
     with pytest.raises(UsageError, match=r"^--init: .* holds a 'glc-tiny' model, but --model is 'glc-small'"):
         relay.resolve_init(str(registry["real"]), "glc-small")
     changed = save_checkpoint(tmp_path / "c.safetensors", create_model("glc-tiny", decoder_layers=1))

@@ -34,6 +34,12 @@ def test_shipped_weights_are_in_the_package_with_a_model_card():
     assert card["model"] == DEFAULT_MODEL
     for key in ("data_recipe", "steps", "wall_time_s", "hardware", "validation_mean_deg", "known_weaknesses"):
         assert card.get(key) not in (None, ""), key
+    # The entry's contract is what the code reads; the sidecar written with the weights records the same resolution.
+    from unips.models import input_contract
+    from unips.models.builder import sidecar_path
+
+    sidecar = json.loads(sidecar_path(path).read_text())
+    assert input_contract(DEFAULT_MODEL).train_resolution == sidecar["extra"]["train_args"]["res"]
 
 
 def test_shipped_model_predicts_unit_normals_on_a_rendered_object(rendered):

@@ -1,5 +1,6 @@
 """The published UniPS preprocessing (the test-time data loader of its `main.py`), for the models whose registry
-entry asks for it (`unips.models.registry`: inputs "glc-unips"); `unips.inference.run_model` dispatches here.
+entry's contract asks for it (`unips.models.contract`: preprocess "glc-unips"); `unips.inference.run_model`
+dispatches here.
 
 - Crop: the box of SDM-UniPS's loader (`unips.sdm_preprocess.sdm_crop`, the same rule) with a margin of
   `GLC_MARGIN` px: the mask's bounding box grown by 4 px, its shorter side grown by half the difference on each side
@@ -27,19 +28,20 @@ import dataclasses
 import numpy as np
 
 from unips.data import PSObject
+from unips.models.contract import GLC_UNIPS_INPUTS
 from unips.sdm_preprocess import SDMCrop, image_subset, sdm_crop
 
-GLC_MARGIN = 4
-"""Pixels around the mask's bounding box (fixed in the published loader)."""
-GLC_SIDE = 512
-"""Working side: the published test run's loader and decoder size."""
-GLC_MAX_IMAGES = 64
-"""Most images the network sees (the published test configuration's test_maxNumberOfImages)."""
+GLC_MARGIN = GLC_UNIPS_INPUTS.margin
+"""Pixels around the mask's bounding box (fixed in the published loader; the registry entry's contract)."""
+GLC_SIDE = GLC_UNIPS_INPUTS.side
+"""Working side: the published test run's loader and decoder size (the contract's `side`)."""
+GLC_MAX_IMAGES = GLC_UNIPS_INPUTS.max_images
+"""Most images the network sees (the published test configuration's test_maxNumberOfImages; the contract's)."""
 
 
-def glc_crop(mask: np.ndarray, side: int = GLC_SIDE) -> SDMCrop:
+def glc_crop(mask: np.ndarray, side: int = GLC_SIDE, margin: int = GLC_MARGIN) -> SDMCrop:
     """The published crop of `mask (H, W)` and its working side."""
-    return dataclasses.replace(sdm_crop(mask, margin=GLC_MARGIN), side=side)
+    return dataclasses.replace(sdm_crop(mask, margin=margin), side=side)
 
 
 def glc_inputs(obj: PSObject, crop: SDMCrop, max_images: int = GLC_MAX_IMAGES,

@@ -25,21 +25,25 @@ from unips.data import PSObject
 
 METHODS = ("model", "least-squares", "sh-uncalibrated")
 TTA_VIEWS = (1, 2, 4, 8)
-"""Allowed numbers of test-time augmentation views (`unips.augment.DIHEDRAL`'s first N)."""
+"""Allowed numbers of test-time augmentation views (`unips.augment.DIHEDRAL`'s first N; the same as
+`unips.models.contract.VIEWS`, kept here so that this module imports without torch)."""
 DEFAULT_TTA = 2
-"""Views by default: the object and its mirror image. The most views that keep the prediction time
+"""Views by default for our models (their contract's `views`, `unips.models.contract.UNIPS_INPUTS`; the published
+networks' contracts say 1): the object and its mirror image. The most views that keep the prediction time
 budgets on 2 CPU cores (96 DiLiGenT images at full size under 60 s, 10 images at 256 px under 10 s);
 on the fixed validation set 1 / 2 / 4 / 8 views gave 14.86 / 14.59 / 14.48 / 14.41 deg."""
 
 
-PUBLISHED_INPUTS = ("glc-unips", "sdm-unips")
-"""The inputs (`unips.models.registry.INPUTS`) of the published networks: their authors' preprocessing."""
+def model_contract(model: str | None) -> Any:
+    """The data contract (`unips.models.InputContract`) of the registered network `model`; ours
+    (`UNIPS_INPUTS`, a model file's network being read from the file later) when None."""
+    if model is None:
+        from unips.models.contract import UNIPS_INPUTS
 
+        return UNIPS_INPUTS
+    from unips.models import input_contract
 
-def default_tta(inputs: str) -> int:
-    """Views by default for a model whose inputs are `inputs`: one for the published UniPS and SDM-UniPS (as their
-    code runs), `DEFAULT_TTA` otherwise."""
-    return 1 if inputs in PUBLISHED_INPUTS else DEFAULT_TTA
+    return input_contract(model)
 
 
 @dataclass
@@ -53,11 +57,9 @@ class LoadedModel:
 
 
     @property
-    def inputs(self) -> str:
-        """The preprocessing its inputs get (`unips.models.registry.INPUTS`), from its registry entry."""
-        from unips.models import model_inputs
-
-        return model_inputs(self.meta["model_name"])
+    def contract(self) -> Any:
+        """What it expects of its inputs (`unips.models.InputContract`), from its registry entry."""
+        return model_contract(self.meta["model_name"])
 
 
 def check_model_name(model: str | None, flag: str = "--model") -> None:
@@ -130,24 +132,32 @@ def model_normals(model: Any, images: Any, mask: Any, tta: int = 1) -> Any:
     return total
 
 
-def run_model(net: LoadedModel, obj: PSObject, res: int | None = None, margin: int = 4,
+def scalable_patch(net: LoadedModel) -> int:
+    """The side of `net`'s `--scalable` sub-images (its contract's `patch`); UsageError when it has none."""
+    if net.contract.patch is None:
+        raise UsageError(f"--scalable: only for the SDM-UniPS networks (inputs 'sdm-unips'), not "
+                         f"{net.meta.get('model_name')!r}")
+    return net.contract.patch
+
+
+def run_model(net: LoadedModel, obj: PSObject, res: int | None = None, margin: int | None = None,
               tta: int = DEFAULT_TTA, patch: int | None = None) -> np.ndarray:
     """Normals (H, W, 3) of `obj` from the network, in the original frame, zero outside the mask.
 
     `tta` > 1 averages the predictions of that many flipped / transposed views (`model_normals`). A model whose
-    inputs are "glc-unips" or "sdm-unips" gets its authors' preprocessing instead (`run_published`); `patch`
-    (SDM-UniPS only): its `--scalable` sub-images' side."""
+    contract names a published preprocessing ("glc-unips", "sdm-unips") gets it instead (`run_published`);
+    `margin`: the crop's, by default the contract's; `patch` (SDM-UniPS only): its `--scalable` sub-images' side."""
     import torch
 
     from unips.preprocess import prepare, resize_prepared, uncrop
 
-    if patch is not None and net.inputs != "sdm-unips":
-        raise UsageError(f"--scalable: only for the SDM-UniPS networks (inputs 'sdm-unips'), not "
-                         f"{net.meta.get('model_name')!r}")
-    if net.inputs in PUBLISHED_INPUTS:
+    contract = net.contract
+    if patch is not None:
+        scalable_patch(net)
+    if contract.published:
         return run_published(net, obj, res=res, tta=tta, patch=patch)
 
-    prepared = prepare(obj, margin=margin)
+    prepared = prepare(obj, margin=contract.margin if margin is None else margin)
     work = resize_prepared(prepared, res) if res is not None else prepared
     images = torch.from_numpy(np.ascontiguousarray(work.images.transpose(0, 3, 1, 2)))  # (K, 3, R, R)
     mask = torch.from_numpy(work.mask.astype(np.float32))[None]  # (1, R, R)
@@ -175,8 +185,9 @@ def run_published(net: LoadedModel, obj: PSObject, res: int | None = None, tta: 
     from unips.glc_preprocess import glc_crop, glc_inputs
     from unips.sdm_preprocess import scalable_forward, sdm_crop, sdm_inputs, sdm_output
 
-    sdm = net.inputs == "sdm-unips"
-    crop = sdm_crop(obj.mask) if sdm else glc_crop(obj.mask)
+    contract = net.contract
+    sdm = contract.preprocess == "sdm-unips"
+    crop = sdm_crop(obj.mask, margin=contract.margin) if sdm else glc_crop(obj.mask, contract.side, contract.margin)
     canonical = net.model.config.canonical_resolution
     if res is not None:
         if sdm and res % canonical:
@@ -191,7 +202,8 @@ def run_published(net: LoadedModel, obj: PSObject, res: int | None = None, tta: 
         if crop.side % patch:
             raise UsageError(f"--res {crop.side}: --scalable needs a multiple of its patch side {patch}")
         forward = functools.partial(scalable_forward, net.model, patch=patch, rng=rng)
-    images, mask = sdm_inputs(obj, crop) if sdm else glc_inputs(obj, crop)
+    load_inputs = sdm_inputs if sdm else glc_inputs
+    images, mask = load_inputs(obj, crop, max_images=contract.max_images)
     x = torch.from_numpy(np.ascontiguousarray(images.transpose(0, 3, 1, 2))).to(net.device)  # (K, 3, S, S)
     out = model_normals(forward, x, torch.from_numpy(mask)[None].to(net.device), tta)  # (3, S, S)
     n = out.permute(1, 2, 0).cpu().numpy() * mask[..., None]
@@ -213,20 +225,20 @@ context maps; an estimate from their shapes."""
 def prediction_memory(method: str, shape: tuple[int, int], num_images: int, work_res: int, tta: int = DEFAULT_TTA,
                       inputs: str = "unips", patch: int | None = None) -> int:
     """Bytes one object needs to be predicted (a conservative estimate, about 1.5 to 2 times the peak measured
-    on the CPU for the shipped model at 256 to 2048 px): its K float32 RGB images of `shape` (H, W) as read,
-    and for the model, per working pixel (`work_res`^2: the crop's side or --res) the images in 2 + 2 x `tta`
-    copies (crop, resize, each view and its masked copy) and 64 bytes of mask and output, plus
-    MODEL_BYTES_PER_IMAGE per image. The classical baselines hold about three copies of the images. The published
-    UniPS and SDM-UniPS (`inputs` "glc-unips", "sdm-unips") add their decoder's chunk of 10000 pixels: three
-    feed-forward activations of 1024 floats per pixel and image (an estimate from their shapes, not a measurement);
-    SDM-UniPS its encoder (`SDM_ENCODER_BYTES`) at the side it sees: `work_res`, or with `--scalable` the `patch`
-    side of its sub-images (the whole working images are still held)."""
+    on the CPU for the shipped model at 256 to 2048 px): its K float32 RGB images of `shape` (H, W) as read, and for the
+    model, per working pixel (`work_res`^2: the crop's side or --res) the images in 2 + 2 x `tta` copies (crop, resize,
+    each view and its masked copy) and 64 bytes of mask and output, plus MODEL_BYTES_PER_IMAGE per image. The classical
+    baselines hold about three copies of the images. The published UniPS and SDM-UniPS (`inputs`, their contract's
+    preprocess: "glc-unips", "sdm-unips") add their decoder's chunk of 10000 pixels: three feed-forward activations of
+    1024 floats per pixel and image (an estimate from their shapes, not a measurement); SDM-UniPS its encoder
+    (`SDM_ENCODER_BYTES`) at the side it sees: `work_res`, or with `--scalable` the `patch` side of its sub-images (the
+    whole working images are still held)."""
     h, w = int(shape[0]), int(shape[1])
     images = num_images * h * w * 12
     if method != "model":
         return 3 * images
     pixels = int(work_res) ** 2
-    chunk = 10000 * num_images * 1024 * 4 * 3 if inputs in PUBLISHED_INPUTS else 0
+    chunk = 10000 * num_images * 1024 * 4 * 3 if inputs != "unips" else 0
     if inputs == "sdm-unips":
         seen = int(patch or work_res)
         chunk += num_images * (seen ** 2 + 256 ** 2) * SDM_ENCODER_BYTES

@@ -10,18 +10,18 @@ frame, background 32768), ``normal.exr`` (float32), ``normal_vis.png`` (8-bit pi
 a trailing ``.data`` (``foo.data`` -> ``foo``; DiLiGenT's ``ballPNG`` stays ``ballPNG``), the name
 `unips.evaluate` matches ground truth by.
 
-Inference itself is the library `unips.inference` (this module parses arguments and writes files).
-``--method model`` loads a network with `unips.models.load_model`; without ``--checkpoint`` it
-uses the shipped weights of `unips.models.DEFAULT_MODEL` (the registry's pretrained entry) and refuses
-to run when that file is absent (never random weights). The network sees the UniPS preprocessing
-(`unips.preprocess.prepare`), at the crop's own size or at ``--res R``, and its output is put back into the
-original frame. ``--tta N`` averages the network's predictions over N flipped / transposed views of the object
-(test-time augmentation, N forward passes; `unips.inference.model_normals`). ``--model glc-unips --checkpoint DIR`` and
-``--model sdm-unips --checkpoint DIR`` run the authors' published UniPS and SDM-UniPS weights (their checkpoint
-folders) with their preprocessing (`unips.glc_preprocess`, `unips.sdm_preprocess`; one view unless ``--tta`` says
-otherwise); ``--scalable`` runs SDM-UniPS on the 512 px interleaved sub-images of a large working image, as the
-authors' ``--scalable`` does. Each object's memory is estimated before any work and a run that would not fit is
-refused in one line.
+Inference itself is the library `unips.inference` (this module parses arguments and writes files). ``--method model``
+loads a network with `unips.models.load_model`; without ``--checkpoint`` it uses the shipped weights of
+`unips.models.DEFAULT_MODEL` (the registry's pretrained entry) and refuses to run when that file is absent (never random
+weights). The network sees the preprocessing of its registry entry's contract (`unips.models.input_contract`; ours:
+`unips.preprocess.prepare`), at the crop's own size or at ``--res R``, and its output is put back into the original
+frame. ``--tta N`` averages the network's predictions over N flipped / transposed views of the object (test-time
+augmentation, N forward passes; `unips.inference.model_normals`). ``--model glc-unips --checkpoint DIR`` and ``--model
+sdm-unips --checkpoint DIR`` run the authors' published UniPS and SDM-UniPS weights (their checkpoint folders) with
+their preprocessing (`unips.glc_preprocess`, `unips.sdm_preprocess`; one view unless ``--tta`` says otherwise);
+``--scalable`` runs SDM-UniPS on the 512 px interleaved sub-images of a large working image, as the authors'
+``--scalable`` does. Each object's memory is estimated before any work and a run that would not fit is refused in one
+line.
 """
 
 from __future__ import annotations
@@ -50,10 +50,11 @@ from unips.inference import (
     METHODS,
     TTA_VIEWS,
     check_model_name,
-    default_tta,
     load_network,
+    model_contract,
     predict_object,
     prediction_memory,
+    scalable_patch,
 )
 
 log = logging.getLogger(__name__)
@@ -99,12 +100,6 @@ def check_out_folder(folder: Path, overwrite: bool = False) -> None:
                          "move it away or use another --out")
 
 
-def _model_inputs(name: str) -> str:
-    from unips.models import model_inputs
-
-    return model_inputs(name)
-
-
 def check_object(args: "PredictOptions", folder: Path) -> None:
     """Before any prediction: the object's folder is read without its images (mask, first image's size,
     ground truth, lights) and its memory estimated (`unips.inference.prediction_memory`) against what this
@@ -113,30 +108,28 @@ def check_object(args: "PredictOptions", folder: Path) -> None:
     from unips.preprocess import crop_box
 
     fd = read_folder(folder, max_images=args.max_images, images=False, arg="--input")
-    k = len(fd.image_paths)
-    inputs = _model_inputs(args.model) if args.model else "unips"
-    patch = None
-    if inputs == "sdm-unips":
-        from unips.sdm_preprocess import SDM_MAX_IMAGES, SDM_PATCH, sdm_crop
+    contract = model_contract(args.model)
+    inputs = contract.preprocess
+    k = min(len(fd.image_paths), contract.max_images or len(fd.image_paths))
+    patch = contract.patch if args.scalable else None
+    if contract.side is not None:
+        side = contract.side
+    elif inputs == "sdm-unips":
+        from unips.sdm_preprocess import sdm_crop
 
-        k, side = min(k, SDM_MAX_IMAGES), sdm_crop(fd.mask).side
-        patch = SDM_PATCH if args.scalable else None
-    elif inputs == "glc-unips":
-        from unips.glc_preprocess import GLC_MAX_IMAGES, GLC_SIDE
-
-        k, side = min(k, GLC_MAX_IMAGES), GLC_SIDE
+        side = sdm_crop(fd.mask, margin=contract.margin).side
     else:
-        side = crop_box(fd.mask).size
+        side = crop_box(fd.mask, margin=contract.margin).size
     work = args.res if args.res is not None else side
-    tta = (args.tta or default_tta(inputs)) if args.method == "model" else 1
+    tta = (args.tta or contract.views) if args.method == "model" else 1
     need = prediction_memory(args.method, fd.shape, k, work, tta, inputs=inputs, patch=patch)
     at = (f"at {work} x {work} px (--res)" if args.res is not None else f"at {work} x {work} px from its crop")
     if patch is not None:
         at += f" in {(work // patch) ** 2} sub-images of {patch} px (--scalable)"
     advice = "lower --res or --max-images"
-    if inputs == "sdm-unips" and patch is None and work > SDM_PATCH:
-        tiled = prediction_memory(args.method, fd.shape, k, work, tta, inputs=inputs, patch=SDM_PATCH)
-        advice = f"add --scalable ({SDM_PATCH} px sub-images, about {gib(tiled)}), or {advice}"
+    if contract.patch is not None and patch is None and work > contract.patch:
+        tiled = prediction_memory(args.method, fd.shape, k, work, tta, inputs=inputs, patch=contract.patch)
+        advice = f"add --scalable ({contract.patch} px sub-images, about {gib(tiled)}), or {advice}"
     check_memory(need, ("--scalable" if patch is not None else "--res") if args.method == "model" else "--max-images",
                  f"--method {args.method} on {fd.name} ({k} images of {fd.shape[1]} x {fd.shape[0]} px"
                  + (f", the network {at}, {tta} view(s))" if args.method == "model" else ")"),
@@ -203,12 +196,16 @@ class PredictOptions:
                     f"--scalable: only used with --method model --model sdm-unips, not --method {self.method}"
                 )
         check_model_name(self.model)
-        if self.scalable and self.model is not None and _model_inputs(self.model) != "sdm-unips":
-            raise UsageError(
-                f"--scalable: only for the SDM-UniPS networks (--model sdm-unips), not --model {self.model}"
-            )
-        if self.scalable and self.res is not None and self.res % 512:
-            raise UsageError(f"--res {self.res}: --scalable needs a multiple of its 512 px sub-images")
+        if self.scalable:  # without --model, the network is known once its file is read: the published side till then
+            from unips.models.contract import SDM_UNIPS_INPUTS
+
+            patch = (model_contract(self.model) if self.model is not None else SDM_UNIPS_INPUTS).patch
+            if patch is None:
+                raise UsageError(
+                    f"--scalable: only for the SDM-UniPS networks (--model sdm-unips), not --model {self.model}"
+                )
+            if self.res is not None and self.res % patch:
+                raise UsageError(f"--res {self.res}: --scalable needs a multiple of its {patch} px sub-images")
         check_output_folder(self.out)
         return self
 
@@ -286,12 +283,8 @@ def main(argv: list[str] | None = None) -> int:
 def _predict_one(args: PredictOptions, net, folder: Path, name: str) -> None:
     obj = load_object(folder, max_images=args.max_images, arg="--input")
     start = time.perf_counter()
-    tta = (args.tta or default_tta(net.inputs)) if net else None
-    patch = None
-    if args.scalable:
-        from unips.sdm_preprocess import SDM_PATCH
-
-        patch = SDM_PATCH
+    tta = (args.tta or net.contract.views) if net else None
+    patch = scalable_patch(net) if net and args.scalable else None
     normals = predict_object(obj, args.method, net=net, res=args.res, tta=tta or 1, patch=patch)
     elapsed = time.perf_counter() - start
     constant = constant_map(normals, obj.mask)

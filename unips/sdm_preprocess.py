@@ -1,5 +1,6 @@
-"""The published SDM-UniPS preprocessing (the data loader of its `main.py`), for the models whose registry entry
-asks for it (`unips.models.registry`: inputs "sdm-unips"); `unips.inference.run_model` dispatches here.
+"""The published SDM-UniPS preprocessing (the data loader of its `main.py`), for the models whose registry entry's
+contract asks for it (`unips.models.contract`: preprocess "sdm-unips"); `unips.inference.run_model` dispatches
+here.
 
 - Crop: the mask's bounding box grown by `SDM_MARGIN` px, its shorter side grown by half the difference on each
   side (clipped to the image); when the grown box would touch the image border, the whole image instead (then
@@ -32,17 +33,19 @@ import numpy as np
 
 from scenes.folder.layouts import FLOAT_SUFFIXES
 from unips.data import PSObject
+from unips.models.contract import SDM_UNIPS_INPUTS
 
-SDM_MARGIN = 8
-"""Pixels around the mask's bounding box (the published --mask_margin)."""
+SDM_MARGIN = SDM_UNIPS_INPUTS.margin
+"""Pixels around the mask's bounding box (the published --mask_margin; the registry entry's contract)."""
 SDM_STEP = 512
 """The working side is a multiple of this."""
 SDM_LARGEST = 4096
 """Largest working side (the published --max_image_res)."""
-SDM_MAX_IMAGES = 10
-"""Most images the network sees (the published --max_image_num)."""
-SDM_PATCH = 512
-"""Side of the sub-images of `--scalable` (fixed at 512 in the published code; a parameter here, for tests)."""
+SDM_MAX_IMAGES = SDM_UNIPS_INPUTS.max_images
+"""Most images the network sees (the published --max_image_num; the contract's)."""
+SDM_PATCH = SDM_UNIPS_INPUTS.patch
+"""Side of the sub-images of `--scalable` (fixed at 512 in the published code; the contract's `patch`; a
+parameter of `scalable_forward`, for tests)."""
 
 
 @dataclass(frozen=True)

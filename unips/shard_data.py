@@ -134,7 +134,8 @@ def scratch_dir(size: int) -> str | None:
 def decode_object(key: str, files: dict[str, bytes], shard: Path, arg: str = "--data") -> PSObject:
     """The `PSObject` of one sample (`path` names the shard and the object). A `files` sample: its files written
     into a temporary folder (`scratch_dir`) and read by `load_object`, exactly as the object folder they came
-    from. A `decoded` sample: the reader's arrays as the exporter stored them (`scenes.folder.shard_format.decode_folder`)."""
+    from. A `decoded` sample: the reader's arrays as the exporter stored them
+    (`scenes.folder.shard_format.decode_folder`)."""
     if is_decoded(files):
         try:
             return object_from_folder(decode_folder(files, shard / sample_folder_name(key)))

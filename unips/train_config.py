@@ -9,6 +9,7 @@ from typing import Annotated, Literal
 
 from scenes.checks import check_choice
 from scenes.cli.options import REQUIRED, CommaList, UseAppendAction, arg, check_fields, option
+from unips.models.zoo import DEFAULT_TRAIN_MODEL
 
 
 @dataclass
@@ -23,7 +24,7 @@ class TrainConfig:
     """Run directory: log.jsonl, last.pt, best.safetensors and final.safetensors (+ .json sidecars)."""
     val: str | None = None
     """Validation dataset directory (object folders with normal.tif); held-out assets, test-like settings."""
-    model: str = "glc-small"
+    model: str = DEFAULT_TRAIN_MODEL
     """Registered model name (`unips.models.list_models()`); with `init_from`, the weights' model."""
     init_from: str | None = None
     """Weights (.safetensors or .pt) to start from: weights only, with fresh optimiser, schedule and data."""

@@ -44,8 +44,9 @@ class GenConfig:
     objects: int = option(4, minimum=1)
     """Number of objects to render."""
     sensor: Literal[tuple(SENSORS)] = "ideal"
-    """Camera sensor preset (`scenes.camera_sensor.SENSORS`) that turns each image's radiance into its PNG: `ideal` writes
-    the linear 16-bit rendering; the others add noise, black level, response, bit depth, vignetting, mosaic."""
+    """Camera sensor preset (`scenes.camera_sensor.SENSORS`) that turns each image's radiance into its PNG:
+    `ideal` writes the linear 16-bit rendering; the others add noise, black level, response, bit depth, vignetting,
+    mosaic."""
     images: int = option(10, minimum=1)
     """Images per object (PS-Wild: 10)."""
     width: int = option(128, minimum=1)

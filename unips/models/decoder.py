@@ -11,8 +11,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from .config import GLCConfig
 from .layers import PoolingByAttention, TransformerLayer
+from .net_config import GLCConfig
 
 
 class PixelDecoder(nn.Module):

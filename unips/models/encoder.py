@@ -12,8 +12,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from .config import GLCConfig
 from .layers import TransformerLayer
+from .net_config import GLCConfig
 
 # timm builder used for the backbone; its architecture arguments are overridden from GLCConfig
 # (with GLCConfig's defaults it is exactly Swin-S). Never built with pretrained weights.

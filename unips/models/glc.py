@@ -15,9 +15,9 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from .config import GLCConfig
 from .decoder import PixelDecoder
 from .encoder import GLCEncoder
+from .net_config import GLCConfig
 
 
 def pixel_centre_coords(ys: torch.Tensor, xs: torch.Tensor, height: int, width: int) -> torch.Tensor:

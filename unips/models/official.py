@@ -18,6 +18,8 @@ from typing import Mapping
 
 import torch
 
+from .contract import InputContract
+
 OFFICIAL_SUFFIX = ".pytmodel"
 DATA_PARALLEL_PREFIX = "module."
 
@@ -33,6 +35,9 @@ class OfficialWeights:
     """Where users download them (the authors' page), for messages and docs."""
     licence: str
     """The weights' licence, for messages and docs."""
+    inputs: InputContract
+    """What the network expects of its inputs: its authors' preprocessing and limits
+    (`unips.models.contract.GLC_UNIPS_INPUTS`, `SDM_UNIPS_INPUTS`)."""
 
 
 def _read_state(path: Path) -> dict[str, torch.Tensor]:

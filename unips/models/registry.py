@@ -1,6 +1,8 @@
 """Model registry: each name maps to a factory (fresh weights from config overrides) and, optionally, to
 its shipped weights and model card (a pretrained entry, as timm's registry keeps per-model weight sources), and,
-for the published networks, to the authors' checkpoint files (an official entry, `unips.models.official`).
+for the published networks, to the authors' checkpoint files (an official entry, `unips.models.official`). Each
+entry carries its data contract (`unips.models.contract.InputContract`, as timm's pretrained_cfg carries its input
+size and normalisation); a model with neither entry gets ours (`UNIPS_INPUTS`): `input_contract(name)`.
 
 `unips.models.create_model` (in `builder.py`) is the one entry point that builds a model: fresh, from
 the shipped weights (`pretrained=True`) or from a weights file (`checkpoint_path=`).
@@ -15,6 +17,7 @@ from typing import Any, Callable
 
 from torch import nn
 
+from .contract import UNIPS_INPUTS, InputContract
 from .official import OfficialWeights
 
 ModelFactory = Callable[..., nn.Module]
@@ -36,6 +39,9 @@ class Pretrained:
     """The `.safetensors` file; its `.json` sidecar (model name and config) lies next to it."""
     card: str
     """The model card (JSON): data recipe, training, validation and test figures, lineage, weaknesses."""
+    inputs: InputContract = UNIPS_INPUTS
+    """What the weights expect of their inputs, with the resolution they were trained at (`train_resolution`, the
+    same as the `.json` sidecar's `extra.train_args.res`, which is kept for provenance and never read)."""
 
     @property
     def weights_path(self) -> Path:
@@ -49,27 +55,20 @@ class Pretrained:
 _REGISTRY: dict[str, ModelFactory] = {}
 _PRETRAINED: dict[str, Pretrained] = {}
 _OFFICIAL: dict[str, OfficialWeights] = {}
-_INPUTS: dict[str, str] = {}
-
-INPUTS = ("unips", "glc-unips", "sdm-unips")
-"""The preprocessing a model's inputs get in `unips.inference.run_model`: "unips" (ours, `unips.preprocess`: square
-crop with a 4 px margin, each image divided by its masked mean, TTA views), "glc-unips" (the published UniPS
-loader, `unips.glc_preprocess`) or "sdm-unips" (the published SDM-UniPS loader, `unips.sdm_preprocess`)."""
 
 
-def register_model(name: str, pretrained: Pretrained | None = None, official: OfficialWeights | None = None,
-                   inputs: str = "unips") -> Callable[[ModelFactory], ModelFactory]:
+def register_model(name: str, pretrained: Pretrained | None = None,
+                   official: OfficialWeights | None = None) -> Callable[[ModelFactory], ModelFactory]:
     """Decorator registering `factory(**overrides) -> nn.Module` under `name`, with the place of its shipped
-    weights and the layout of the authors' published checkpoint when it has them, and the preprocessing its
-    inputs get (one of `INPUTS`)."""
-    if inputs not in INPUTS:
-        raise ValueError(f"inputs: got {inputs!r}, expected one of {', '.join(INPUTS)}")
+    weights and the layout of the authors' published checkpoint when it has them (each with its data contract;
+    both must then agree on it)."""
+    if pretrained is not None and official is not None and pretrained.inputs != official.inputs:
+        raise ValueError(f"model {name!r}: its pretrained and official entries have different input contracts")
 
     def deco(factory: ModelFactory) -> ModelFactory:
         if name in _REGISTRY:
             raise ValueError(f"model name {name!r} is already registered")
         _REGISTRY[name] = factory
-        _INPUTS[name] = inputs
         if pretrained is not None:
             _PRETRAINED[name] = pretrained
         if official is not None:
@@ -103,10 +102,12 @@ def pretrained_entry(name: str) -> Pretrained:
     return _PRETRAINED[name]
 
 
-def model_inputs(name: str) -> str:
-    """The preprocessing of model `name`'s inputs (one of `INPUTS`); ValueError when the name is unknown."""
+def input_contract(name: str) -> InputContract:
+    """The data contract of model `name`: its pretrained entry's, else its official entry's, else ours
+    (`UNIPS_INPUTS`); ValueError when the name is unknown."""
     _check_name(name)
-    return _INPUTS[name]
+    entry = _PRETRAINED.get(name) or _OFFICIAL.get(name)
+    return entry.inputs if entry is not None else UNIPS_INPUTS
 
 
 def official_entry(name: str) -> OfficialWeights:

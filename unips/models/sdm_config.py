@@ -8,9 +8,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from .config_base import ModelConfig
+
 
 @dataclass
-class SDMConfig:
+class SDMConfig(ModelConfig):
     """Hyper-parameters of an SDM-UniPS network; `dataclasses.asdict` round-trips through JSON."""
 
     canonical_resolution: int = 256
@@ -54,41 +56,22 @@ class SDMConfig:
     """Blur the context maps with a Gaussian (sigma 1 px, kernel 10 x input side / canonical + 1) before they
     are sampled at the pixels, as the published network does at test time."""
 
-    def __post_init__(self) -> None:
-        # JSON turns tuples into lists: normalise so configs compare equal after a round trip.
-        for name in ("convnext_dims", "convnext_depths", "comm_layers", "ppm_scales"):
-            setattr(self, name, tuple(int(v) for v in getattr(self, name)))
-        self.validate()
+    POSITIVE = ("heads", "pooling_ff", "ff_dim", "pixel_samples")
+    NON_NEGATIVE = ("upsample_layers", "aggregation_layers", "regressor_layers")
 
-    def validate(self) -> None:
-        """Raise ValueError naming the first inconsistent field."""
-        def bad(name: str, expected: str) -> ValueError:
-            return ValueError(f"SDMConfig.{name}={getattr(self, name)!r}: expected {expected}")
-
-        if self.canonical_resolution <= 0 or self.canonical_resolution % 32:
-            raise bad("canonical_resolution", "a positive multiple of 32")
+    def check(self) -> None:
         for name in ("convnext_dims", "convnext_depths", "comm_layers"):
             if len(getattr(self, name)) != 4:
-                raise bad(name, "4 values, one per backbone stage")
+                raise self.bad(name, "4 values, one per backbone stage")
         if min(self.convnext_dims) < 1 or min(self.convnext_depths) < 1:
-            raise bad("convnext_dims" if min(self.convnext_dims) < 1 else "convnext_depths", "positive values")
+            raise self.bad("convnext_dims" if min(self.convnext_dims) < 1 else "convnext_depths", "positive values")
         if min(self.comm_layers) < 0:
-            raise bad("comm_layers", "non-negative layer counts")
+            raise self.bad("comm_layers", "non-negative layer counts")
         for c, n in zip(self.convnext_dims, self.comm_layers):
             if n and c % self.heads:
-                raise bad("heads", f"a divisor of the stage widths with attention {self.convnext_dims}")
+                raise self.bad("heads", f"a divisor of the stage widths with attention {self.convnext_dims}")
         for name in ("context_dim", "upsample_dim", "aggregation_dim"):
             if getattr(self, name) < 1 or getattr(self, name) % self.heads:
-                raise bad(name, f"a positive multiple of heads={self.heads}")
-        for name in ("heads", "pooling_ff", "ff_dim", "pixel_samples"):
-            if getattr(self, name) < 1:
-                raise bad(name, "a positive integer")
-        for name in ("upsample_layers", "aggregation_layers", "regressor_layers"):
-            if getattr(self, name) < 0:
-                raise bad(name, "a non-negative integer")
-        if not self.ppm_scales or min(self.ppm_scales) < 1:
-            raise bad("ppm_scales", "positive pooled sizes")
-        if not 0.0 <= self.dropout < 1.0:
-            raise bad("dropout", "a probability in [0, 1)")
+                raise self.bad(name, f"a positive multiple of heads={self.heads}")
         if self.aggregation_dim % 2:
-            raise bad("aggregation_dim", "an even width (the normal head halves it)")
+            raise self.bad("aggregation_dim", "an even width (the normal head halves it)")

@@ -10,9 +10,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from .config_base import ModelConfig
+
 
 @dataclass
-class UniPS22Config:
+class UniPS22Config(ModelConfig):
     """Hyper-parameters of a published-UniPS network; `dataclasses.asdict` round-trips through JSON."""
 
     canonical_resolution: int = 256
@@ -49,41 +51,23 @@ class UniPS22Config:
     """Most pixels decoded at once; bounds the decoder's memory. Pixels are decoded independently, so the result
     does not depend on it (the published test run splits the pixels into chunks of about 10000)."""
 
-    def __post_init__(self) -> None:
-        # JSON turns tuples into lists: normalise so configs compare equal after a round trip.
-        for name in ("swin_depths", "swin_heads", "ppm_scales"):
-            setattr(self, name, tuple(int(v) for v in getattr(self, name)))
-        self.validate()
+    POSITIVE = ("swin_window", "heads", "context_dim", "aggregation_ff", "pooling_ff", "pixel_chunk")
+    NON_NEGATIVE = ("aggregation_layers",)
+    PROBABILITIES = ("dropout", "swin_drop_path")
 
-    def validate(self) -> None:
-        """Raise ValueError naming the first inconsistent field."""
-        def bad(name: str, expected: str) -> ValueError:
-            return ValueError(f"UniPS22Config.{name}={getattr(self, name)!r}: expected {expected}")
-
-        if self.canonical_resolution <= 0 or self.canonical_resolution % 32:
-            raise bad("canonical_resolution", "a positive multiple of 32")
+    def check(self) -> None:
         for name in ("swin_depths", "swin_heads"):
             if len(getattr(self, name)) != 4 or min(getattr(self, name)) < 1:
-                raise bad(name, "4 positive values, one per Swin stage")
+                raise self.bad(name, "4 positive values, one per Swin stage")
         if self.swin_embed_dim < 2 or self.swin_embed_dim % 2:
-            raise bad("swin_embed_dim", "an even positive width (the stem halves it)")
+            raise self.bad("swin_embed_dim", "an even positive width (the stem halves it)")
         for c, h in zip(self.stage_channels, self.swin_heads):
             if c % h:
-                raise bad("swin_heads", f"head counts dividing the stage widths {self.stage_channels}")
+                raise self.bad("swin_heads", f"head counts dividing the stage widths {self.stage_channels}")
             if c % self.heads:
-                raise bad("heads", f"a divisor of every stage width {self.stage_channels}")
+                raise self.bad("heads", f"a divisor of every stage width {self.stage_channels}")
         if self.aggregation_dim % self.heads or self.aggregation_dim % 2:
-            raise bad("aggregation_dim", f"an even multiple of heads={self.heads} (the normal head halves it)")
-        for name in ("swin_window", "heads", "context_dim", "aggregation_ff", "pooling_ff", "pixel_chunk"):
-            if getattr(self, name) < 1:
-                raise bad(name, "a positive integer")
-        if self.aggregation_layers < 0:
-            raise bad("aggregation_layers", "a non-negative integer")
-        if not self.ppm_scales or min(self.ppm_scales) < 1:
-            raise bad("ppm_scales", "positive pooled sizes")
-        for name in ("dropout", "swin_drop_path"):
-            if not 0.0 <= getattr(self, name) < 1.0:
-                raise bad(name, "a probability in [0, 1)")
+            raise self.bad("aggregation_dim", f"an even multiple of heads={self.heads} (the normal head halves it)")
 
     @property
     def stage_channels(self) -> tuple[int, ...]:

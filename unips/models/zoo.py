@@ -1,7 +1,8 @@
-"""The registered configurations and the model used when no weights file is given.
+"""The registered configurations, their entries' data contracts, and the default model name of each purpose
+(`DEFAULT_MODEL` to predict, `DEFAULT_TRAIN_MODEL` to train).
 
 - The published networks, whose authors' checkpoint files load (`official=`) and whose inputs get the authors'
-  preprocessing (`inputs=`): UniPS, CVPR 2022 (`glc-unips`, `unips22.py`) and SDM-UniPS, CVPR 2023
+  preprocessing (the official entry's `inputs`): UniPS, CVPR 2022 (`glc-unips`, `unips22.py`) and SDM-UniPS, CVPR 2023
   (`sdm-unips`, `sdm.py`), each with a tiny instance of the same code for tests.
 - Our own reading of the UniPS paper (`glc.py`, `GLCConfig`: timm's Swin, pre-norm Transformer layers, our
   preprocessing), not weight-compatible with the published one: the CPU-trained `glc-tiny` (shipped) and
@@ -13,8 +14,10 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from .config import GLCConfig, config_with_overrides
+from .config_base import config_with_overrides
+from .contract import GLC_UNIPS_INPUTS, SDM_UNIPS_INPUTS, UNIPS_INPUTS
 from .glc import GLCUniPS
+from .net_config import GLCConfig
 from .official import OfficialWeights
 from .registry import Pretrained, register_model
 from .sdm import SDMUniPS
@@ -90,17 +93,26 @@ def glc_base(**overrides: Any) -> GLCUniPS:
 
 
 DEFAULT_MODEL = "glc-tiny"
-"""The shipped model: what `unips.predict`, `orchestrate.benchmark` and `orchestrate.demo` run without
-`--checkpoint` (its weights: `create_model(DEFAULT_MODEL, pretrained=True)`)."""
+"""The model to predict with, the shipped one: what `unips.predict`, `orchestrate.benchmark`, `orchestrate.demo`
+and `orchestrate.capture` run without `--checkpoint` (its weights: `create_model(DEFAULT_MODEL, pretrained=True)`)."""
+DEFAULT_TRAIN_MODEL = "glc-small"
+"""The model to train by default: `unips.train --model`, `orchestrate.train_recipe --model` and
+`orchestrate.gpu_session` without `--init`."""
+
+# The shipped glc-tiny was trained on 128 px renders (its sidecar records the same, extra.train_args.res, checked by
+# tests/test_shipped_model.py); glc-small is sized for them too (orchestrate.train_recipe renders its data at 128).
+TRAINED_AT_128 = dataclasses.replace(UNIPS_INPUTS, train_resolution=128)
 
 
-@register_model("glc-tiny", pretrained=Pretrained(weights="glc-tiny.safetensors", card="model_card.json"))
+@register_model("glc-tiny", pretrained=Pretrained(weights="glc-tiny.safetensors", card="model_card.json",
+                                                  inputs=TRAINED_AT_128))
 def glc_tiny(**overrides: Any) -> GLCUniPS:
     """Narrow GLC-UniPS for CPU training (canonical 64)."""
     return GLCUniPS(config_with_overrides(GLC_TINY, overrides))
 
 
-@register_model("glc-small", pretrained=Pretrained(weights="glc-small.safetensors", card="glc-small.card.json"))
+@register_model("glc-small", pretrained=Pretrained(weights="glc-small.safetensors", card="glc-small.card.json",
+                                                   inputs=TRAINED_AT_128))
 def glc_small(**overrides: Any) -> GLCUniPS:
     """CPU-trainable GLC-UniPS with photometric pixel tokens and a wider decoder (canonical 96)."""
     return GLCUniPS(config_with_overrides(GLC_SMALL, overrides))
@@ -120,6 +132,7 @@ SDM_OFFICIAL = OfficialWeights(
     source="the authors' SDM-UniPS-CVPR2023 repository (github.com/satoshi-ikehata/SDM-UniPS-CVPR2023), README "
            "section 'Download Pretrained Models': checkpoint.zip, whose normal/nml.pytmodel is read",
     licence="MIT with a non-commercial clause (the SDM-UniPS licence)",
+    inputs=SDM_UNIPS_INPUTS,
 )
 
 # Same code, small dims: a forward pass at 64 x 64 in a fraction of a second (tests).
@@ -141,13 +154,13 @@ SDM_TINY = SDMConfig(
 )
 
 
-@register_model("sdm-unips", official=SDM_OFFICIAL, inputs="sdm-unips")
+@register_model("sdm-unips", official=SDM_OFFICIAL)
 def sdm_unips(**overrides: Any) -> SDMUniPS:
     """SDM-UniPS as published (Ikehata, CVPR 2023); `checkpoint_path=` the authors' checkpoint folder."""
     return SDMUniPS(config_with_overrides(SDM_UNIPS, overrides))
 
 
-@register_model("sdm-unips-tiny", official=SDM_OFFICIAL, inputs="sdm-unips")
+@register_model("sdm-unips-tiny", official=SDM_OFFICIAL)
 def sdm_unips_tiny(**overrides: Any) -> SDMUniPS:
     """Minimal SDM-UniPS for unit tests (canonical 32); reads files in the published layout of its own size."""
     return SDMUniPS(config_with_overrides(SDM_TINY, overrides))
@@ -162,6 +175,7 @@ GLC_OFFICIAL = OfficialWeights(
            "section 'Download pretrained model': the checkpoint folder, whose *_enc, *_agg and *_pred.pytmodel are "
            "read",
     licence="GPL-3.0 (the Universal-PS-CVPR2022 licence)",
+    inputs=GLC_UNIPS_INPUTS,
 )
 
 # Same code, small widths: a forward pass at 64 x 64 in a fraction of a second (tests).
@@ -184,13 +198,13 @@ GLC_UNIPS_TINY = UniPS22Config(
 )
 
 
-@register_model("glc-unips", official=GLC_OFFICIAL, inputs="glc-unips")
+@register_model("glc-unips", official=GLC_OFFICIAL)
 def glc_unips(**overrides: Any) -> UniPS22:
     """UniPS as published (Ikehata, CVPR 2022); `checkpoint_path=` the authors' checkpoint folder."""
     return UniPS22(config_with_overrides(GLC_UNIPS, overrides))
 
 
-@register_model("glc-unips-tiny", official=GLC_OFFICIAL, inputs="glc-unips")
+@register_model("glc-unips-tiny", official=GLC_OFFICIAL)
 def glc_unips_tiny(**overrides: Any) -> UniPS22:
     """Minimal published-UniPS network for unit tests (canonical 32); reads files in the published layout of its own
     size."""

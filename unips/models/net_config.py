@@ -2,16 +2,16 @@
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
-from typing import Any, Mapping
+
+from .config_base import ModelConfig
 
 # Decoder pixel-token kinds and their channel counts (see GLCConfig.pixel_token).
 PIXEL_TOKENS = {"rgb": 3, "normalized": 6}
 
 
 @dataclass
-class GLCConfig:
+class GLCConfig(ModelConfig):
     """Hyper-parameters of a GLC-UniPS network; `dataclasses.asdict` round-trips through JSON."""
 
     canonical_resolution: int = 256
@@ -62,47 +62,28 @@ class GLCConfig:
     """Multiply the images by the mask before resizing them to the canonical resolution, so that background
     pixels never bleed into the object's border (old checkpoints: False)."""
 
-    def __post_init__(self) -> None:
-        # JSON turns tuples into lists: normalise so configs compare equal after a round trip.
-        for name in ("swin_depths", "swin_heads", "ppm_scales"):
-            setattr(self, name, tuple(int(v) for v in getattr(self, name)))
-        self.validate()
+    POSITIVE = ("swin_embed_dim", "swin_window", "comm_heads", "context_dim", "decoder_dim", "decoder_heads",
+                "decoder_ff", "predictor_hidden", "pixel_chunk")
+    NON_NEGATIVE = ("decoder_layers",)
+    PROBABILITIES = ("dropout", "swin_drop_path")
 
-    def validate(self) -> None:
-        """Raise ValueError naming the first inconsistent field."""
-        def bad(name: str, expected: str) -> ValueError:
-            return ValueError(f"GLCConfig.{name}={getattr(self, name)!r}: expected {expected}")
-
-        if self.canonical_resolution <= 0 or self.canonical_resolution % 32:
-            raise bad("canonical_resolution", "a positive multiple of 32")
+    def check(self) -> None:
         if len(self.swin_depths) != 4 or min(self.swin_depths) < 1:
-            raise bad("swin_depths", "4 positive stage depths")
+            raise self.bad("swin_depths", "4 positive stage depths")
         if len(self.swin_heads) != 4 or min(self.swin_heads) < 1:
-            raise bad("swin_heads", "4 positive head counts")
+            raise self.bad("swin_heads", "4 positive head counts")
         for i, h in enumerate(self.swin_heads):
             if (self.swin_embed_dim * 2 ** i) % h:
-                raise bad("swin_heads", f"head counts dividing the stage widths {self.stage_channels}")
+                raise self.bad("swin_heads", f"head counts dividing the stage widths {self.stage_channels}")
         for c in self.stage_channels:
             if c % self.comm_heads:
-                raise bad("comm_heads", f"a divisor of every stage width {self.stage_channels}")
+                raise self.bad("comm_heads", f"a divisor of every stage width {self.stage_channels}")
         if self.decoder_dim % self.decoder_heads:
-            raise bad("decoder_heads", f"a divisor of decoder_dim={self.decoder_dim}")
-        for name in ("swin_embed_dim", "context_dim", "decoder_dim", "decoder_ff", "predictor_hidden",
-                     "pixel_chunk", "swin_window"):
-            if int(getattr(self, name)) < 1:
-                raise bad(name, "a positive integer")
-        if self.decoder_layers < 0:
-            raise bad("decoder_layers", "a non-negative integer")
-        if not self.ppm_scales or min(self.ppm_scales) < 1:
-            raise bad("ppm_scales", "positive pooled sizes")
-        if not 0.0 <= self.dropout < 1.0:
-            raise bad("dropout", "a probability in [0, 1)")
-        if not 0.0 <= self.swin_drop_path < 1.0:
-            raise bad("swin_drop_path", "a probability in [0, 1)")
+            raise self.bad("decoder_heads", f"a divisor of decoder_dim={self.decoder_dim}")
         if self.pixel_token not in PIXEL_TOKENS:
-            raise bad("pixel_token", f"one of {', '.join(PIXEL_TOKENS)}")
+            raise self.bad("pixel_token", f"one of {', '.join(PIXEL_TOKENS)}")
         if self.stem_channels < 0:
-            raise bad("stem_channels", "0 (automatic) or a positive integer")
+            raise self.bad("stem_channels", "0 (automatic) or a positive integer")
 
     @property
     def stage_channels(self) -> tuple[int, int, int, int]:
@@ -115,12 +96,3 @@ class GLCConfig:
         """Channels of a pixel's own observation per image in the decoder's tokens."""
         return PIXEL_TOKENS[self.pixel_token]
 
-
-def config_with_overrides(base: Any, overrides: Mapping[str, Any]) -> Any:
-    """`base` (a config dataclass: GLCConfig, SDMConfig) with some fields replaced; an unknown key raises
-    ValueError naming it."""
-    known = {f.name for f in dataclasses.fields(base)}
-    for key in overrides:
-        if key not in known:
-            raise ValueError(f"unknown model option {key!r}; known options: {', '.join(sorted(known))}")
-    return dataclasses.replace(base, **dict(overrides))
