@@ -158,23 +158,44 @@ def _weighted_low_rank(m: np.ndarray, w: np.ndarray, rank: int, iters: int = 30)
     return B @ S
 
 
-def select_observations(images: np.ndarray, saturated: np.ndarray | None = None) -> np.ndarray:
+@dataclass(frozen=True)
+class VerdictRules:
+    """The constants of the verdict in one value, so that a sweep can vary one of them at a time
+    (`bench/bench_verdict_sweep.py`) without changing the module; the defaults are the module's constants, which
+    every call without `rules` uses."""
+
+    shadow_fraction: float = SHADOW_FRACTION
+    outlier_sigmas: float = OUTLIER_SIGMAS
+    scale_floor: float = SCALE_FLOOR
+    min_observations: int = MIN_OBSERVATIONS
+    explained_relative: float = EXPLAINED_RELATIVE
+    min_explained: float = MIN_EXPLAINED
+    dimension_noise: float = DIMENSION_NOISE
+
+
+def select_observations(
+    images: np.ndarray, saturated: np.ndarray | None = None, rules: VerdictRules | None = None
+) -> np.ndarray:
     """(K, P) bool: observations that are neither shadowed nor saturated, from (K, P, 3) images alone."""
+    rules = rules or VerdictRules()
     intensity = images.mean(axis=2)  # (K, P)
     bright = np.percentile(intensity, 90, axis=0)  # (P,)
-    keep = intensity > SHADOW_FRACTION * bright[None]
+    keep = intensity > rules.shadow_fraction * bright[None]
     if saturated is not None:
         keep &= ~saturated.any(axis=2)
     return keep
 
 
-def explain(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None = None) -> Explanation:
+def explain(
+    images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None = None, rules: VerdictRules | None = None
+) -> Explanation:
     """The observations to score and the explained pixels of a capture: images (K, H, W, 3), mask (H, W),
-    saturated (K, H, W, 3) or None; from the images alone."""
+    saturated (K, H, W, 3) or None; from the images alone. rules: the constants (default: the module's)."""
+    rules = rules or VerdictRules()
     sigma = noise_sigma(images, mask)
     obs = images[:, mask].astype(np.float64)  # (K, P, 3)
     sat = None if saturated is None else saturated[:, mask]
-    keep = select_observations(obs, sat)  # (K, P)
+    keep = select_observations(obs, sat, rules)  # (K, P)
     k, p, _ = obs.shape
     intensity = obs.mean(axis=2)  # (K, P)
     for _ in range(2):  # twice: fit, then drop the outliers (highlights, inter-reflections)
@@ -182,14 +203,14 @@ def explain(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None =
         model = np.stack([_weighted_low_rank(obs[:, :, c].T, w, RANK).T for c in range(3)], axis=2)  # (K, P, 3)
         res = np.sqrt(((obs - model) ** 2).mean(axis=2)).T  # (P, K) rms over channels
         kept = res[w > 0]
-        floor = max(sigma, SCALE_FLOOR * float(intensity[keep].mean()) if keep.any() else sigma)
+        floor = max(sigma, rules.scale_floor * float(intensity[keep].mean()) if keep.any() else sigma)
         scale = max(1.4826 * float(np.median(kept)) if kept.size else floor, floor)
-        keep = keep & (res.T <= OUTLIER_SIGMAS * scale)
+        keep = keep & (res.T <= rules.outlier_sigmas * scale)
     count = keep.sum(0)
     rms = np.sqrt((np.where(keep.T, res, 0.0) ** 2).sum(1) / np.maximum(count, 1))  # (P,)
     level = np.where(keep, intensity, 0.0).sum(0) / np.maximum(count, 1)  # (P,) mean kept observation
     # Relative, not in noise units: a capture whose noise is a large part of the signal cannot be judged either.
-    explained = (count >= MIN_OBSERVATIONS) & (rms <= EXPLAINED_RELATIVE * level)
+    explained = (count >= rules.min_observations) & (rms <= rules.explained_relative * level)
     judged = keep & explained[None]  # (K, P) the observations every map is scored on
     bound = rel_l1_observations(model, obs, where=judged) if judged.any() else float("nan")
     return Explanation(keep=keep, explained=explained, residual=rms / np.maximum(level, 1e-12), sigma=sigma,
@@ -207,28 +228,30 @@ def _dimensions(intensity: np.ndarray, keep: np.ndarray, explained: np.ndarray, 
     return tuple(float(v) for v in s / (sigma * (np.sqrt(m.shape[0]) + np.sqrt(m.shape[1]))))
 
 
-def verdict(ex: Explanation) -> tuple[bool, str]:
-    """(trusted, why) of a capture's explanation."""
+def verdict(ex: Explanation, rules: VerdictRules | None = None) -> tuple[bool, str]:
+    """(trusted, why) of a capture's explanation; rules: the constants (default: the module's)."""
+    rules = rules or VerdictRules()
     frac = ex.explained_fraction
     images = ex.keep.shape[0]
-    if images < MIN_OBSERVATIONS:
-        return False, (f"only {images} images: a pixel needs at least {MIN_OBSERVATIONS} unshadowed observations "
-                       "before the images can say whether a normal map explains it")
-    if frac < MIN_EXPLAINED:
+    dimensions = int(sum(d >= rules.dimension_noise for d in ex.dimensions))  # ex.light_dimensions by default
+    if images < rules.min_observations:
+        return False, (f"only {images} images: a pixel needs at least {rules.min_observations} unshadowed "
+                       "observations before the images can say whether a normal map explains it")
+    if frac < rules.min_explained:
         return False, (
             f"only {frac:.0%} of the object is explained by distant lights on a Lambertian surface (at "
-            f"least {MIN_EXPLAINED:.0%} needed): near or environment light, metals, cast "
+            f"least {rules.min_explained:.0%} needed): near or environment light, metals, cast "
             "shadows or inter-reflections the check cannot model; the score is not a judgement of the normals"
         )
-    if ex.dimensions and ex.light_dimensions < 3:
+    if ex.dimensions and dimensions < 3:
         return False, (
-            f"the images vary in only {ex.light_dimensions} independent way(s) above the noise (a normal has "
+            f"the images vary in only {dimensions} independent way(s) above the noise (a normal has "
             "3): the lights are copies of one or lie near one plane, so any map is explained as well as "
             "the true one; the score is not a judgement of the normals; take photos with the light moved "
             "further, above, below and to the sides"
         )
     return True, (f"{frac:.0%} of the object is explained by distant lights on a Lambertian surface (at least "
-                  f"{MIN_EXPLAINED:.0%} needed) and the lights vary in all 3 directions: scored on those pixels' "
+                  f"{rules.min_explained:.0%} needed) and the lights vary in all 3 directions: scored on those pixels' "
                   "unshadowed, unsaturated observations")
 
 
