@@ -21,7 +21,7 @@ Per constant value (one constant changed, the others at their defaults, `validat
 images are explained again (`explain`, where the constant enters it), the verdict taken (`verdict`), and every map
 scored on that explanation's observations (`judged_rel_l1`). Counted per value, over the captures:
 - trusted;
-- false trust: trusted, and a wrong map (every one is at least 10 degrees off) scores at or below the truth (the
+- false trust: trusted, and a wrong map (one at least 10 degrees off, `WRONG_DEG`) scores at or below the truth (the
   error the verdict exists to prevent); of those, where that map is below the truth by more than the capture's
   resolution (`told_apart`);
 - needless abstention: not trusted, yet the truth scores below every wrong map by more than the resolution.
@@ -63,7 +63,10 @@ VERDICT_ONLY = ("min_explained", "dimension_noise")
 FAMILIES = "directional,point,near_area,hdri,mixed"
 """The light families of the rendered suite, cycled over its objects."""
 WRONG = ("gt+10", "gt+25", "mirrored", "constant")
-"""The wrong maps, each at least 10 degrees from the truth."""
+"""The wrong maps."""
+WRONG_DEG = 9.99
+"""A wrong map counts when it is at least this far from the truth (mean angular error, degrees): GT+10 is 10
+degrees off at every pixel; a mirrored map of a nearly flat object can be closer, and is then left out."""
 
 
 @dataclass
@@ -149,13 +152,15 @@ def fitted_renders(cap, config) -> tuple[dict[str, np.ndarray], dict[str, float]
 
 
 def judge(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None, renders: dict[str, np.ndarray],
-          sweep: dict[str, tuple[float, ...]] = SWEEP) -> dict[str, dict[float, dict]]:
+          sweep: dict[str, tuple[float, ...]] = SWEEP, wrong: list[str] | None = None) -> dict[str, dict[float, dict]]:
     """The cheap part, per constant value: constant -> value -> {explained, light_dimensions, resolution, trusted,
     judged (map -> judged rel_l1), truth_first, below_truth_told_apart, truth_first_told_apart}. images (K, H, W, 3)
-    at the fitting resolution, renders (K, P, 3) of its mask pixels, "gt" and wrong maps."""
+    at the fitting resolution, renders (K, P, 3) of its mask pixels, "gt" and other maps; wrong: the maps the
+    truth must score below (default: every map but "gt")."""
     from validate.verdict import VerdictRules, explain, judged_rel_l1, told_apart, verdict
 
     observed = images[:, mask]
+    wrong = [k for k in renders if k != "gt"] if wrong is None else wrong
     cache: dict = {}
     out: dict[str, dict[float, dict]] = {}
     for name, values in sweep.items():
@@ -169,7 +174,6 @@ def judge(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None, re
             ex = cache[key]
             trusted, _ = verdict(ex, rules)
             s = {k: judged_rel_l1(r, observed, ex) for k, r in renders.items()}
-            wrong = [k for k in s if k != "gt"]
             out[name][value] = {
                 "explained": ex.explained_fraction,
                 "light_dimensions": int(sum(d >= rules.dimension_noise for d in ex.dimensions)),
@@ -256,7 +260,8 @@ def run(opts: SweepOptions) -> dict:
         renders, errors, seconds = fitted_renders(cap, config)
         t1 = time.perf_counter()
         small, _, _ = prepare(cap, cap.normal_gt, config)
-        res = judge(small.images, small.mask, small.saturated, renders)
+        wrong = [k for k in WRONG if errors[k] >= WRONG_DEG]
+        res = judge(small.images, small.mask, small.saturated, renders, wrong=wrong)
         t2 = time.perf_counter()
         fit_s, judge_s = fit_s + t1 - t0, judge_s + t2 - t1
         results.append(res)

@@ -51,25 +51,32 @@ from validate.metrics import rel_l1_observations
 
 SHADOW_FRACTION = 0.1
 """An observation darker than this fraction of its pixel's bright level (its 90th percentile over the images)
-is a shadow (attached or cast): left out."""
+is a shadow (attached or cast): left out. Swept in docs/check.md, "Verdict constants" (0.02-0.3: no false trust,
+0.1 trusted the most)."""
 OUTLIER_SIGMAS = 4.0
 """An observation farther than this many robust standard deviations of the rank-4 model is an outlier
-(highlight, inter-reflection): left out."""
+(highlight, inter-reflection): left out. Swept in docs/check.md, "Verdict constants" (2.5-10: no false trust)."""
 SCALE_FLOOR = 0.01
 """The robust residual scale is at least this fraction of the mean kept observation (on noise-free images every
-rounding would otherwise be an outlier)."""
+rounding would otherwise be an outlier). Swept in docs/check.md, "Verdict constants" (0.003-0.03: no verdict
+changed on noisy renders)."""
 MIN_OBSERVATIONS = 5
-"""Observations a pixel must keep to be judged (4 unknowns of the rank-4 model per channel, plus 1 to test it)."""
+"""Observations a pixel must keep to be judged (4 unknowns of the rank-4 model per channel, plus 1 to test it).
+Swept in docs/check.md, "Verdict constants" (6 and 8 abstain on captures the default judges correctly)."""
 EXPLAINED_RELATIVE = 0.05
 """A pixel is explained when the rms residual of the rank-4 model is within this fraction of its mean
-kept observation (noise counts too: a capture this noisy cannot rank maps 10 degrees apart)."""
+kept observation (noise counts too: a capture this noisy cannot rank maps 10 degrees apart). Swept in
+docs/check.md, "Verdict constants" (0.12 trusted an environment-lit capture falsely; 0.08 did not)."""
 MIN_EXPLAINED = 0.5
-"""Fraction of the mask pixels that must be explained for a trusted verdict."""
+"""Fraction of the mask pixels that must be explained for a trusted verdict: the guard against trusting near,
+environment and mixed light. Swept in docs/check.md, "Verdict constants" (0 trusted 4 captures falsely, 0.25 and
+up none; 0.5 the conservative end of that)."""
 DIMENSION_NOISE = 8.0
 """A light dimension of the capture (a singular value of the explained observations) counts when it is at least
 this many times the singular value of the image noise alone. Measured on DiLiGenT ball (bench/bench_verdict.py
 --degenerate): 5 one-sided images whose third value is 4.1 times the noise let a mirrored map (54 degrees off)
-score below the truth; 5 or 8 images with 17 or more rank the truth first."""
+score below the truth; 5 or 8 images with 17 or more rank the truth first. Swept in docs/check.md, "Verdict
+constants" (0-8 alike on rendered suites, 16 and 32 refuse captures judged correctly)."""
 TIE_FLOOR = 0.002
 """Judged residuals closer than this (0.2 % of the mean observation) are tied whatever else: on noise-free renders
 every map near the truth scores near 0."""
