@@ -93,6 +93,30 @@ def check_resolution(card: dict) -> str:
     )
 
 
+VERDICT_SWEEP_BENCH = REPO / "bench" / "results" / "verdict_sweep.json"
+"""The output of `python bench/bench_verdict_sweep.py --out bench/results/verdict_sweep.json` (committed)."""
+
+
+def verdict_sweep(card: dict) -> str:
+    """Per value of each verdict constant (one changed at a time): trusted captures, false trust (the truth not
+    first among the maps >= 10 deg off), of it beyond the resolution, and needless abstentions."""
+    d = json.loads(VERDICT_SWEEP_BENCH.read_text())
+    st, n = d["settings"], d["settings"]["captures"]
+    families = ", ".join(f"{v} {k}" for k, v in st["families"].items())
+    every = all(v >= 9.99 for c in d["captures"] for k, v in c["mae_deg"].items() if k != "gt")
+    rows = [[f"`{r['constant']}`", f"**{r['value']:g}** (default)" if r["default"] else f"{r['value']:g}",
+             f"{r['trusted']}", f"**{r['false_trust']}**" if r["false_trust"] else "0",
+             f"{r['false_trust_told_apart']}", f"{r['needless_abstention']}"] for r in d["rows"]]
+    return (f"Measured on {n} rendered captures ({families}; `{d['command']}`, {d['seconds']['total']:.0f} s on "
+            f"{d['machine']['cpus']} busy cores), each map fitted once ({', '.join(st['maps'])}; the wrong maps "
+            f"are those at least 10 degrees off{', here all but the truth' if every else ''}), one constant changed at "
+            "a time, the others at their defaults:\n\n"
+            + markdown_table(["constant", "value", f"trusted (of {n})",
+                              "false trust: a wrong map at or below the truth",
+                              "of which below it by more than the resolution",
+                              "needless abstention: truth first beyond the resolution"], rows))
+
+
 PROFILE_BENCH = REPO / "bench" / "results" / "profile.json"
 """The output of `python bench/bench_profile.py --baseline REV --out bench/results/profile.json` (committed)."""
 
@@ -146,6 +170,7 @@ def cycles_speed(card: dict) -> str:
 
 
 BENCH_BLOCKS = {"model:shards-throughput": SHARDS_BENCH, "capture:resources": CAPTURE_BENCH,
-                "check:resolution": VERDICT_BENCH, "generator:profile": PROFILE_BENCH,
+                "check:resolution": VERDICT_BENCH, "check:verdict-sweep": VERDICT_SWEEP_BENCH,
+                "generator:profile": PROFILE_BENCH,
                 "generator:cycles": CYCLES_BENCH}
 """Blocks generated from a benchmark's recorded output instead of the model card."""

@@ -30,6 +30,7 @@ from orchestrate.bench_docs import (
     cycles_speed,
     render_profile,
     shards_throughput,
+    verdict_sweep,
 )
 from scenes.cli.errors import UsageError, report_error
 from scenes.cli.options import Command
@@ -379,6 +380,7 @@ BLOCKS: dict[str, Callable[[dict], str]] = {
     "model:shards-throughput": shards_throughput,
     "capture:resources": capture_resources,
     "check:resolution": check_resolution,
+    "check:verdict-sweep": verdict_sweep,
     "generator:profile": render_profile,
     "generator:cycles": cycles_speed,
 }

@@ -50,27 +50,37 @@ import numpy as np
 from validate.judgeable import MIN_IMAGES
 from validate.residuals import rel_l1_observations
 
+BRIGHT_PERCENTILE = 90
+"""A pixel's bright level: this percentile of its observations over the images (a percentile, not the maximum, so
+one highlight does not set it)."""
 SHADOW_FRACTION = 0.1
 """An observation darker than this fraction of its pixel's bright level (its 90th percentile over the images)
-is a shadow (attached or cast): left out."""
+is a shadow (attached or cast): left out. Swept in docs/check.md, "Verdict constants" (0.02-0.3: no false trust,
+0.1 trusted the most)."""
 OUTLIER_SIGMAS = 4.0
 """An observation farther than this many robust standard deviations of the rank-4 model is an outlier
-(highlight, inter-reflection): left out."""
+(highlight, inter-reflection): left out. Swept in docs/check.md, "Verdict constants" (2.5-10: no false trust)."""
 SCALE_FLOOR = 0.01
 """The robust residual scale is at least this fraction of the mean kept observation (on noise-free images every
-rounding would otherwise be an outlier)."""
+rounding would otherwise be an outlier). Swept in docs/check.md, "Verdict constants" (0.003-0.03: no verdict
+changed on noisy renders)."""
 MIN_OBSERVATIONS = MIN_IMAGES["verdict"]
-"""Observations a pixel must keep to be judged (4 unknowns of the rank-4 model per channel, plus 1 to test it)."""
+"""Observations a pixel must keep to be judged (4 unknowns of the rank-4 model per channel, plus 1 to test it).
+Swept in docs/check.md, "Verdict constants" (6 and 8 abstain on captures the default judges correctly)."""
 EXPLAINED_RELATIVE = 0.05
 """A pixel is explained when the rms residual of the rank-4 model is within this fraction of its mean
-kept observation (noise counts too: a capture this noisy cannot rank maps 10 degrees apart)."""
+kept observation (noise counts too: a capture this noisy cannot rank maps 10 degrees apart). Swept in
+docs/check.md, "Verdict constants" (0.12 trusted an environment-lit capture falsely; 0.08 did not)."""
 MIN_EXPLAINED = 0.5
-"""Fraction of the mask pixels that must be explained for a trusted verdict."""
+"""Fraction of the mask pixels that must be explained for a trusted verdict: the guard against trusting near,
+environment and mixed light. Swept in docs/check.md, "Verdict constants" (0 trusted 4 captures falsely, 0.25 and
+up none; 0.5 the conservative end of that)."""
 DIMENSION_NOISE = 8.0
 """A light dimension of the capture (a singular value of the explained observations) counts when it is at least
 this many times the singular value of the image noise alone. Measured on DiLiGenT ball (bench/bench_verdict.py
 --degenerate): 5 one-sided images whose third value is 4.1 times the noise let a mirrored map (54 degrees off)
-score below the truth; 5 or 8 images with 17 or more rank the truth first."""
+score below the truth; 5 or 8 images with 17 or more rank the truth first. Swept in docs/check.md, "Verdict
+constants" (0-8 alike on rendered suites, 16 and 32 refuse captures judged correctly)."""
 RANK = 4
 """Rank of the distant-light Lambertian model per colour channel: [normal, 1] (3 + ambient)."""
 
@@ -160,12 +170,20 @@ class Explanation:
         return float(self.explained.mean()) if self.explained.size else 0.0
 
 
+NOISE_EDGE_PX = 2
+"""Pixels left out along the mask's edge for the noise estimate: the object's outline is a step, not noise."""
+MIN_NOISE_PIXELS = 16
+"""Fewer pixels inside the eroded mask than this: the noise is estimated over the whole mask instead."""
+
+
 def channel_noise_sigmas(images: np.ndarray, inner: np.ndarray) -> list[float]:
     """Per image and channel of (K, H, W, 3) images, the noise standard deviation over the pixels `inner`:
     Immerkaer's Laplacian-difference estimate, median-based so that shading edges do not count."""
     from scipy.ndimage import convolve
 
     kern = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float64)
+    # median |response| / 0.6745: a Gaussian's sigma from its median absolute value; / 6: the kernel's gain
+    # (sqrt of the sum of its squared weights, 36) on white noise.
     return [
         float(np.median(np.abs(convolve(im[:, :, c].astype(np.float64), kern, mode="nearest")[inner]))) / 0.6745 / 6.0
         for im in images
@@ -178,8 +196,8 @@ def noise_sigma(images: np.ndarray, mask: np.ndarray) -> float:
     median), floored at one 16-bit code."""
     from scipy.ndimage import binary_erosion
 
-    inner = binary_erosion(mask, iterations=2)
-    if inner.sum() < 16:
+    inner = binary_erosion(mask, iterations=NOISE_EDGE_PX)
+    if inner.sum() < MIN_NOISE_PIXELS:
         inner = mask
     return max(float(np.median(channel_noise_sigmas(images, inner))), 1.0 / 65535.0)
 
@@ -211,23 +229,44 @@ def _weighted_low_rank(m: np.ndarray, w: np.ndarray, rank: int, iters: int = 30)
     return B @ S
 
 
-def select_observations(images: np.ndarray, saturated: np.ndarray | None = None) -> np.ndarray:
+@dataclass(frozen=True)
+class VerdictRules:
+    """The constants of the verdict in one value, so that a sweep can vary one of them at a time
+    (`bench/bench_verdict_sweep.py`) without changing the module; the defaults are the module's constants, which
+    every call without `rules` uses."""
+
+    shadow_fraction: float = SHADOW_FRACTION
+    outlier_sigmas: float = OUTLIER_SIGMAS
+    scale_floor: float = SCALE_FLOOR
+    min_observations: int = MIN_OBSERVATIONS
+    explained_relative: float = EXPLAINED_RELATIVE
+    min_explained: float = MIN_EXPLAINED
+    dimension_noise: float = DIMENSION_NOISE
+
+
+def select_observations(
+    images: np.ndarray, saturated: np.ndarray | None = None, rules: VerdictRules | None = None
+) -> np.ndarray:
     """(K, P) bool: observations that are neither shadowed nor saturated, from (K, P, 3) images alone."""
+    rules = rules or VerdictRules()
     intensity = images.mean(axis=2)  # (K, P)
-    bright = np.percentile(intensity, 90, axis=0)  # (P,)
-    keep = intensity > SHADOW_FRACTION * bright[None]
+    bright = np.percentile(intensity, BRIGHT_PERCENTILE, axis=0)  # (P,)
+    keep = intensity > rules.shadow_fraction * bright[None]
     if saturated is not None:
         keep &= ~saturated.any(axis=2)
     return keep
 
 
-def explain(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None = None) -> Explanation:
+def explain(
+    images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None = None, rules: VerdictRules | None = None
+) -> Explanation:
     """The observations to score and the explained pixels of a capture: images (K, H, W, 3), mask (H, W),
-    saturated (K, H, W, 3) or None; from the images alone."""
+    saturated (K, H, W, 3) or None; from the images alone. rules: the constants (default: the module's)."""
+    rules = rules or VerdictRules()
     sigma = noise_sigma(images, mask)
     obs = images[:, mask].astype(np.float64)  # (K, P, 3)
     sat = None if saturated is None else saturated[:, mask]
-    keep = select_observations(obs, sat)  # (K, P)
+    keep = select_observations(obs, sat, rules)  # (K, P)
     k, p, _ = obs.shape
     intensity = obs.mean(axis=2)  # (K, P)
     for _ in range(2):  # twice: fit, then drop the outliers (highlights, inter-reflections)
@@ -235,14 +274,14 @@ def explain(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None =
         model = np.stack([_weighted_low_rank(obs[:, :, c].T, w, RANK).T for c in range(3)], axis=2)  # (K, P, 3)
         res = np.sqrt(((obs - model) ** 2).mean(axis=2)).T  # (P, K) rms over channels
         kept = res[w > 0]
-        floor = max(sigma, SCALE_FLOOR * float(intensity[keep].mean()) if keep.any() else sigma)
-        scale = max(1.4826 * float(np.median(kept)) if kept.size else floor, floor)
-        keep = keep & (res.T <= OUTLIER_SIGMAS * scale)
+        floor = max(sigma, rules.scale_floor * float(intensity[keep].mean()) if keep.any() else sigma)
+        scale = max(1.4826 * float(np.median(kept)) if kept.size else floor, floor)  # 1.4826 MAD: a Gaussian sigma
+        keep = keep & (res.T <= rules.outlier_sigmas * scale)
     count = keep.sum(0)
     rms = np.sqrt((np.where(keep.T, res, 0.0) ** 2).sum(1) / np.maximum(count, 1))  # (P,)
     level = np.where(keep, intensity, 0.0).sum(0) / np.maximum(count, 1)  # (P,) mean kept observation
     # Relative, not in noise units: a capture whose noise is a large part of the signal cannot be judged either.
-    explained = (count >= MIN_OBSERVATIONS) & (rms <= EXPLAINED_RELATIVE * level)
+    explained = (count >= rules.min_observations) & (rms <= rules.explained_relative * level)
     judged = keep & explained[None]  # (K, P) the observations every map is scored on
     bound = rel_l1_observations(model, obs, where=judged) if judged.any() else float("nan")
     return Explanation(keep=keep, explained=explained, residual=rms / np.maximum(level, 1e-12), sigma=sigma,
@@ -260,28 +299,30 @@ def _dimensions(intensity: np.ndarray, keep: np.ndarray, explained: np.ndarray, 
     return tuple(float(v) for v in s / (sigma * (np.sqrt(m.shape[0]) + np.sqrt(m.shape[1]))))
 
 
-def verdict(ex: Explanation) -> tuple[bool, str]:
-    """(trusted, why) of a capture's explanation."""
+def verdict(ex: Explanation, rules: VerdictRules | None = None) -> tuple[bool, str]:
+    """(trusted, why) of a capture's explanation; rules: the constants (default: the module's)."""
+    rules = rules or VerdictRules()
     frac = ex.explained_fraction
     images = ex.keep.shape[0]
-    if images < MIN_OBSERVATIONS:
-        return False, (f"only {images} images: a pixel needs at least {MIN_OBSERVATIONS} unshadowed observations "
-                       "before the images can say whether a normal map explains it")
-    if frac < MIN_EXPLAINED:
+    dimensions = int(sum(d >= rules.dimension_noise for d in ex.dimensions))  # ex.light_dimensions by default
+    if images < rules.min_observations:
+        return False, (f"only {images} images: a pixel needs at least {rules.min_observations} unshadowed "
+                       "observations before the images can say whether a normal map explains it")
+    if frac < rules.min_explained:
         return False, (
             f"only {frac:.0%} of the object is explained by distant lights on a Lambertian surface (at "
-            f"least {MIN_EXPLAINED:.0%} needed): near or environment light, metals, cast "
+            f"least {rules.min_explained:.0%} needed): near or environment light, metals, cast "
             "shadows or inter-reflections the check cannot model; the score is not a judgement of the normals"
         )
-    if ex.dimensions and ex.light_dimensions < 3:
+    if ex.dimensions and dimensions < 3:
         return False, (
-            f"the images vary in only {ex.light_dimensions} independent way(s) above the noise (a normal has "
+            f"the images vary in only {dimensions} independent way(s) above the noise (a normal has "
             "3): the lights are copies of one or lie near one plane, so any map is explained as well as "
             "the true one; the score is not a judgement of the normals; take photos with the light moved "
             "further, above, below and to the sides"
         )
     return True, (f"{frac:.0%} of the object is explained by distant lights on a Lambertian surface (at least "
-                  f"{MIN_EXPLAINED:.0%} needed) and the lights vary in all 3 directions: scored on those pixels' "
+                  f"{rules.min_explained:.0%} needed) and the lights vary in all 3 directions: scored on those pixels' "
                   "unshadowed, unsaturated observations")
 
 
