@@ -1,6 +1,7 @@
-"""Shared fixtures: the Mitsuba variants of the tests (generated from one list, skipped in one place), the optional
-../shared folder, small rendered datasets and synthetic object folders. Analytic inputs (sphere, ellipsoid, light
-draws) are plain factories in `tests/fixtures.py`."""
+"""The tests' fixtures, and only fixtures (no test file imports this module; the helpers they share are in
+tests/fixtures.py): the Mitsuba variants, set and cleaned up around each test as Mitsuba's own test fixtures do
+(generated from one list, skipped in one place), a seeded numpy generator, the optional ../shared folder, and the
+object folders and datasets that several test files read."""
 from __future__ import annotations
 
 import os
@@ -8,34 +9,31 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from fixtures import (
+    SHARED,
+    TO_LIGHT,
+    VARIANTS,
+    release_drjit,
+    render_lambertian_sphere_folder,
+    shading,
+    sphere,
+    use_variant,
+    write_object,
+    write_synthetic_object,
+)
 
-SHARED = Path(__file__).resolve().parents[2] / "shared"
-
-os.environ.setdefault("DRJIT_CACHE_DIR", str(Path.home() / ".drjit"))
-
-VARIANTS = ("llvm_ad_rgb", "scalar_rgb")
-"""The Mitsuba variants the tests run on, fastest first: each gets a fixture `variant_<name>`, `any_variant` runs a
-test on each, and `use_variant` is the one place that decides whether one is usable here."""
-
-
-def use_variant(*variants: str) -> str:
-    """Set the first of `variants` (default: any of `VARIANTS`) this machine can run and return its name; skip
-    the calling test when it can run none. The only caller of `scenes.renderer.variant._usable` in the tests (the module
-    has no public check that does not raise: `choose_variant` raises instead of skipping)."""
-    from scenes.renderer.variant import _usable
-
-    for variant in variants or VARIANTS:
-        if _usable(variant):  # sets it
-            return variant
-    pytest.skip(f"Mitsuba variant {' / '.join(variants or VARIANTS)} is not usable on this machine")
+os.environ.setdefault("DRJIT_CACHE_DIR", str(Path.home() / ".drjit"))  # before any test imports Dr.Jit
 
 
 def _variant_fixture(variant: str):
     @pytest.fixture(name=f"variant_{variant}")
-    def fixture() -> str:
-        return use_variant(variant)
+    def fixture():
+        release_drjit()  # what earlier tests and module-scoped fixtures left
+        yield use_variant(variant)
+        release_drjit()
 
-    fixture.__doc__ = f"Set Mitsuba variant {variant} for the test (skipped where it is not usable)."
+    fixture.__doc__ = (f"Set Mitsuba variant {variant} for the test (skipped where it is not usable); Dr.Jit's "
+                       "caches and registry are released before and after (`fixtures.release_drjit`).")
     return fixture
 
 
@@ -44,20 +42,27 @@ for _variant in VARIANTS:  # variant_llvm_ad_rgb, variant_scalar_rgb
 
 
 @pytest.fixture(params=VARIANTS)
-def any_variant(request) -> str:
-    """Run a test on each variant of `VARIANTS` (the physics must not depend on the backend)."""
-    return use_variant(request.param)
+def any_variant(request):
+    """Run a test on each variant of `VARIANTS` (the physics must not depend on the backend), cleaned up as
+    `variant_*`."""
+    release_drjit()
+    yield use_variant(request.param)
+    release_drjit()
 
 
-def render_dataset(out: Path, *flags: str, variant: str | None = None) -> list[Path]:
-    """Render a small dataset with `wildgen.make` in this process (`flags` as on its command line, plus --workers 0
-    --quiet) and return its object folders, sorted; the test is skipped when `variant` (default: any of
-    `VARIANTS`) is not usable. `variant` is only checked: pass --variant in `flags` to render with it."""
-    use_variant(*([variant] if variant else []))
-    from wildgen.make import main
+@pytest.fixture
+def jit(variant_llvm_ad_rgb):
+    """The `mitsuba` module on llvm_ad_rgb (a JIT variant: the re-render check's Python BSDF and the fitted mode's
+    derivatives need one; install libllvm19 where it is skipped)."""
+    import mitsuba as mi
 
-    assert main([*flags, "--workers", "0", "--quiet", "--out", str(out)]) == 0
-    return sorted(Path(out).glob("*.data"))
+    return mi
+
+
+@pytest.fixture
+def np_rng() -> np.random.Generator:
+    """A seeded numpy generator for a test's scratch data (seed 0, the one the tests used on their own)."""
+    return np.random.default_rng(0)
 
 
 @pytest.fixture
@@ -67,31 +72,37 @@ def shared() -> Path:
     return SHARED
 
 
-def write_synthetic_object(folder: Path, images: np.ndarray, mask: np.ndarray, normals: np.ndarray | None,
-                           light_family: str | None = "directional", directions: np.ndarray | None = None,
-                           irradiance: np.ndarray | None = None, other: int = 0) -> Path:
-    """An object folder in our layout written through `scenes.folder.format` (no rendering): L*.png, mask.png,
-    normal.tif and a partial scene.json (light family, camera-frame directional lights when given)."""
-    from scenes.folder.format import write_object_folder
-
-    scene: dict = {"light_family": light_family}
-    if directions is not None:
-        irr = np.ones((len(directions), 3)) if irradiance is None else np.asarray(irradiance)
-        scene["camera_lights"] = [{"directional": [{"direction_to_light": np.asarray(d).tolist(),
-                                                    "irradiance": np.asarray(e).tolist()}], "other": other}
-                                  for d, e in zip(directions, irr)]
-    return write_object_folder(folder, images, mask, normals, scene=scene)
-
-
 @pytest.fixture
 def synthetic_object(tmp_path) -> Path:
     """A Lambertian sphere (32 x 32, 6 directional lights) as an object folder `tmp_path/ball.data`."""
-    from fixtures import sphere
-
     k = 6
     n, mask = sphere(32)
     th = np.radians(np.linspace(10, 40, k))
     ph = np.linspace(0, 2 * np.pi, k, endpoint=False)
     L = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], 1)
-    images = 0.8 * np.clip(np.einsum("hwc,kc->khw", n, L), 0, None)[..., None] * np.array([0.9, 0.7, 0.5])
+    images = 0.8 * shading(n, L)[..., None] * np.array([0.9, 0.7, 0.5])
     return write_synthetic_object(tmp_path / "ball.data", images, mask, n, directions=L)
+
+
+@pytest.fixture(scope="module")
+def lambertian_sphere_folder(tmp_path_factory) -> Path:
+    """The fitted check's sphere: Lambertian (albedo 0.7) under 8 directional lights toward `fixtures.TO_LIGHT`
+    (irradiance 2), 32x32, no scene.json (rendered on llvm_ad_rgb)."""
+    from scenes.lights import DirectionalLight
+
+    use_variant("llvm_ad_rgb")
+    lights = [[DirectionalLight(direction=(-d).tolist(), irradiance=2.0)] for d in TO_LIGHT]
+    return render_lambertian_sphere_folder(tmp_path_factory.mktemp("fit"), "lsphere", lights)
+
+
+@pytest.fixture(scope="module")
+def train_dataset(tmp_path_factory) -> dict[str, Path]:
+    """Training objects (`fixtures.write_object`): 6 directional ones in "train", a directional and a point one in
+    "val", 40x40, 6 images each."""
+    root = tmp_path_factory.mktemp("data")
+    rng = np.random.default_rng(123)
+    for i in range(6):
+        write_object(root / "train" / f"obj{i}.data", rng, 40, 6, "directional")
+    for i, family in enumerate(["directional", "point"]):
+        write_object(root / "val" / f"val{i}.data", rng, 40, 6, family)
+    return {"train": root / "train", "val": root / "val"}

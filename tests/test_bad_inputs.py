@@ -24,7 +24,7 @@ from typing import Callable
 
 import numpy as np
 import pytest
-from conftest import use_variant
+from fixtures import use_variant, write_predict_diligent
 
 REPO = Path(__file__).resolve().parents[1]
 OBJ = "00000"
@@ -2058,9 +2058,7 @@ def _shard_with_a_sample_dropped(w: Path, t: Path) -> None:
 
 def _diligent_listing_twice(w: Path, t: Path) -> None:
     """Setup: T/dil, a DiLiGenT folder of 8 images whose filenames.txt lists 001.png twice (and 008.png never)."""
-    from test_predict_evaluate import write_diligent
-
-    write_diligent(t / "dil")
+    write_predict_diligent(t / "dil")
     names = (t / "dil" / "filenames.txt").read_text().split()
     (t / "dil" / "filenames.txt").write_text("\n".join([*names[:7], names[0]]) + "\n")
 

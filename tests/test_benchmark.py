@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 import torch
-from test_unips_data import write_diligent
+from fixtures import write_diligent, write_synthetic_object
 
 from unips.checkpoint import save_checkpoint
 from unips.models import create_model
@@ -45,8 +45,6 @@ def test_benchmark_reports_probes_and_diligent_subsets(synthetic_object, tmp_pat
 def test_benchmark_keeps_every_family_of_the_data(synthetic_object, tmp_path):
     """A family the generator's table does not know (another generator's, or none recorded) gets its own column
     after the table's families, in the per-family and probe tables: it is never dropped from them."""
-    from conftest import write_synthetic_object
-
     from orchestrate.benchmark import family_columns, main
     from unips.data import load_object
     from wildgen.light_families import LIGHT_FAMILIES

@@ -13,7 +13,6 @@ import time
 from pathlib import Path
 
 import pytest
-from test_train import dataset  # noqa: F401  (the module-scoped fixture)
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -55,10 +54,11 @@ def test_a_budget_not_above_the_reserve_is_refused_before_anything_runs(tmp_path
 
 
 @pytest.mark.slow
-def test_train_time_limit_holds(dataset, tmp_path):
+def test_train_time_limit_holds(train_dataset, tmp_path):
     limit = 0.25  # minutes
     out = tmp_path / "run"
-    r, wall = timed(["unips.train", "--data", str(dataset["train"]), "--val", str(dataset["val"]), "--val-every", "5",
+    r, wall = timed(["unips.train", "--data", str(train_dataset["train"]), "--val", str(train_dataset["val"]),
+                     "--val-every", "5",
                      "--model", "glc-test", "--out", str(out), "--batch", "2", "--res", "32", "--pixels", "100",
                      "--max-images", "4", "--threads", "1", "--no-progress", "--steps", "100000",
                      "--time-limit", str(limit)])
@@ -127,7 +127,7 @@ def test_train_recipe_minutes_hold(tmp_path):
 
 
 @pytest.mark.slow
-def test_recipe_resumes_a_run_its_clock_stopped(dataset, tmp_path):
+def test_recipe_resumes_a_run_its_clock_stopped(train_dataset, tmp_path):
     """A run whose final.safetensors was written before --steps (a time limit stopped it) is not finished: the
     recipe resumes it instead of keeping it, and keeps it once it reached --steps."""
     from orchestrate.train_recipe import COMMAND, train_argv, train_run, trained_steps
@@ -136,8 +136,8 @@ def test_recipe_resumes_a_run_its_clock_stopped(dataset, tmp_path):
     work = tmp_path / "w"
     run = work / "runs" / "main"
     (work / "runs").mkdir(parents=True)
-    (work / "train5000").symlink_to(dataset["train"])
-    (work / "val128").symlink_to(dataset["val"])
+    (work / "train5000").symlink_to(train_dataset["train"])
+    (work / "val128").symlink_to(train_dataset["val"])
     args = COMMAND.parse(["--work", str(work), "--model", "glc-test", "--steps", "2", "--threads", "1"])
     first = COMMAND.parse(["--work", str(work), "--model", "glc-test", "--steps", "1", "--threads", "1"])
     assert train(train_argv(first, work, "main", [])) == 0  # the recipe's own run, its final written at step 1

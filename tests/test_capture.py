@@ -8,7 +8,7 @@ import json
 import cv2
 import numpy as np
 import pytest
-from fixtures import sphere
+from fixtures import shading, sphere
 
 from scenes.folder.photos import read_photos
 from validate.diagnosis.usable import auto_mask, capture_warnings
@@ -26,7 +26,7 @@ def lights(polars, azimuths) -> np.ndarray:
 
 def lambertian(n: np.ndarray, mask: np.ndarray, L: np.ndarray, albedo: float = 0.6) -> np.ndarray:
     """(K, H, W, 3) float32 shading of normals under distant lights, black off the object."""
-    img = np.clip(np.einsum("hwc,kc->khw", n, L), 0, None) * albedo * mask
+    img = shading(n, L) * albedo * mask
     return np.repeat(img[..., None], 3, -1).astype(np.float32)
 
 
@@ -48,11 +48,10 @@ def write_jpegs(folder, images: np.ndarray, names=None) -> list:
 # ------------------------------------------------------------------------------------------ reading photos
 
 
-def test_eight_bit_files_are_srgb_sixteen_bit_and_exr_linear_in_natural_order(tmp_path):
+def test_eight_bit_files_are_srgb_sixteen_bit_and_exr_linear_in_natural_order(tmp_path, np_rng):
     from scenes.images import write_exr
 
-    rng = np.random.default_rng(0)
-    codes8 = rng.integers(0, 256, (3, 5, 7, 3), dtype=np.uint8)
+    codes8 = np_rng.integers(0, 256, (3, 5, 7, 3), dtype=np.uint8)
     for i, name in enumerate(["img_10.png", "IMG_2.png", "img_1.png"]):
         cv2.imwrite(str(tmp_path / name), codes8[i][..., ::-1])
     photos = read_photos(tmp_path)
@@ -62,7 +61,7 @@ def test_eight_bit_files_are_srgb_sixteen_bit_and_exr_linear_in_natural_order(tm
 
     d16 = tmp_path / "sixteen"
     d16.mkdir()
-    codes16 = rng.integers(0, 65536, (2, 5, 7, 3), dtype=np.uint16)
+    codes16 = np_rng.integers(0, 65536, (2, 5, 7, 3), dtype=np.uint16)
     for i in range(2):
         cv2.imwrite(str(d16 / f"{i}.tif"), codes16[i][..., ::-1])
     photos = read_photos(d16)
@@ -72,7 +71,7 @@ def test_eight_bit_files_are_srgb_sixteen_bit_and_exr_linear_in_natural_order(tm
 
     dexr = tmp_path / "exr"
     dexr.mkdir()
-    values = rng.random((2, 5, 7, 3)).astype(np.float32) * 3
+    values = np_rng.random((2, 5, 7, 3)).astype(np.float32) * 3
     for i in range(2):
         write_exr(dexr / f"{i}.exr", values[i])
     np.testing.assert_array_equal(read_photos(dexr).images, values)
@@ -173,10 +172,10 @@ def test_a_camera_moved_by_a_few_pixels_in_half_the_images_is_flagged():
     assert codes(good) == []
 
 
-def test_auto_mask_finds_the_object_or_refuses():
+def test_auto_mask_finds_the_object_or_refuses(np_rng):
     mask, info = auto_mask(lambertian(N96, M96, SPREAD))
     assert (mask & M96).sum() / (mask | M96).sum() >= 0.95 and info["separability"] > 0.6
-    backdrop = (0.3 + 0.5 * np.random.default_rng(0).random(8))[:, None, None, None] * np.ones((1, 96, 96, 3))
+    backdrop = (0.3 + 0.5 * np_rng.random(8))[:, None, None, None] * np.ones((1, 96, 96, 3))
     lit_backdrop = np.where(M96[None, ..., None], lambertian(N96, M96, SPREAD), backdrop).astype(np.float32)
     with pytest.raises(
         ValueError, match=r"^--mask: auto cannot separate the object from the background: .*; give a mask"

@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import render_dataset
+from fixtures import render_dataset
 
 
 @pytest.fixture(scope="module")

@@ -7,8 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import render_dataset
-from test_train import write_object
+from fixtures import render_dataset, write_object
 
 
 def test_pool_adds_the_levels_one_stage_at_a_time():

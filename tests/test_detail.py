@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import render_dataset, use_variant
+from fixtures import render_dataset, use_variant
 
 A, F = 0.05, 2  # height field h(u, v) = A sin(2 pi F u) sin(2 pi F v) over the UV square
 

@@ -6,97 +6,39 @@ frame for the default camera), the analytic sphere normals and heights, finite d
 """
 from __future__ import annotations
 
-import gc
 import json
-import math
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import use_variant
-from fixtures import ortho_sphere
-
-from scenes.description import CameraDesc, ImageDesc, MaterialDesc, RenderDesc, SceneDescription, ShapeDesc, TextureDesc
-from scenes.images import write_normal_map as write_normal_tif
-from scenes.lights import DirectionalLight, LightDesc, PointLight
-
-R = 32
-ROOT = Path(__file__).resolve().parents[1]
-# Directions toward the light (camera frame), elevations 35-70 deg all around.
-TO_LIGHT = np.array(
-    [[math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)]
-     for e, a in zip(np.radians([40, 55, 70, 35, 50, 65, 45, 60]), np.radians([0, 45, 90, 135, 180, 225, 270, 315]))]
+from fixtures import (
+    FIT_RES,
+    TO_LIGHT,
+    analytic_sphere,
+    ortho_sphere,
+    render_lambertian_sphere_folder,
+    shading,
+    small_config,
+    use_variant,
 )
 
+from scenes.description import CameraDesc, ImageDesc, SceneDescription, ShapeDesc
+from scenes.lights import DirectionalLight, PointLight
+
+R = FIT_RES
+ROOT = Path(__file__).resolve().parents[1]
 POINT_DISTANCE = 2.0  # point lights of the near-light sphere, in sphere radii from its centre
 
-@pytest.fixture(scope="module")
-def jit():
-    use_variant("llvm_ad_rgb")  # install libllvm19 where it is skipped
-    import mitsuba as mi
-
-    return mi
-
-
-def analytic_sphere(mask_radius: float = 1.0 / 1.1) -> tuple[np.ndarray, np.ndarray]:
-    """Normals (R, R, 3) and mask of a unit sphere seen by the default orthographic camera (half size 1.1)."""
-    n, r2 = ortho_sphere(R, 1.1)
-    mask = r2 < 0.97
-    return np.where(mask[..., None], n, 0).astype(np.float32), mask
-
-
-def _lambertian_sphere_folder(parent: Path, name: str, lights: list[list[LightDesc]]) -> Path:
-    """Render a Lambertian sphere (albedo 0.7), 32x32, one image per entry of `lights`, into
-    parent/NAME.data: images, mask and ground-truth normals, no scene.json."""
-    from scenes.images import write_mask, write_png16
-    from scenes.renderer.build import build_scene
-    from scenes.renderer.render import render_ground_truth, render_image
-
-    desc = SceneDescription(
-        name=name,
-        shape=ShapeDesc(kind="sphere"),
-        material=MaterialDesc(kind="lambertian", base_color=TextureDesc(value=[0.7, 0.7, 0.7])),
-        camera=CameraDesc(width=R, height=R, half_size=1.1),
-        render=RenderDesc(spp=64, bounces=1),
-        images=[ImageDesc(lights=l, seed=i) for i, l in enumerate(lights)],
-    )
-    folder = parent / f"{name}.data"
-    folder.mkdir()
-    built = build_scene(desc)
-    gt = render_ground_truth(built, spp=64)
-    for i in range(len(desc.images)):
-        write_png16(folder / f"L{i:03d}.png", render_image(built, i))
-    mask = gt.coverage > 0.999
-    write_mask(folder / "mask.png", mask)
-    write_normal_tif(folder / "normal.tif", np.where(mask[..., None], gt.normal, 0.0))
-    del built
-    gc.collect()
-    return folder
-
 
 @pytest.fixture(scope="module")
-def sphere_folder(jit, tmp_path_factory) -> Path:
-    """A Lambertian sphere (albedo 0.7) under 8 directional lights (irradiance 2), 32x32, no scene.json."""
-    lights = [[DirectionalLight(direction=(-d).tolist(), irradiance=2.0)] for d in TO_LIGHT]
-    return _lambertian_sphere_folder(tmp_path_factory.mktemp("fit"), "lsphere", lights)
-
-
-@pytest.fixture(scope="module")
-def point_sphere_folder(jit, tmp_path_factory) -> Path:
-    """The same sphere under 8 point lights 2 radii from its centre along TO_LIGHT (intensity 0.5 * 2^2, so
-    the near side gets the directional sphere's irradiance 2, and nothing clips), no scene.json."""
+def point_sphere_folder(tmp_path_factory) -> Path:
+    """The fitted check's sphere under 8 point lights 2 radii from its centre along TO_LIGHT (intensity 0.5 * 2^2,
+    so the near side gets the directional sphere's irradiance 2, and nothing clips), no scene.json."""
+    use_variant("llvm_ad_rgb")
     lights = [[PointLight(position=(POINT_DISTANCE * d).tolist(), intensity=0.5 * POINT_DISTANCE**2)] for d in TO_LIGHT]
-    return _lambertian_sphere_folder(tmp_path_factory.mktemp("fitpoint"), "psphere", lights)
-
-
-def small_config(**kw):
-    from validate.fitted.fit import FitConfig
-
-    base = dict(steps=40, batch_images=8, refresh_every=10, ao_rays=4, max_pixels=100000, seed=0)
-    base.update(kw)
-    return FitConfig(**base)
+    return render_lambertian_sphere_folder(tmp_path_factory.mktemp("fitpoint"), "psphere", lights)
 
 
 def test_heightfield_recovers_analytic_sphere():
@@ -113,15 +55,14 @@ def test_heightfield_recovers_analytic_sphere():
     assert np.abs(d - d.mean()).max() < 0.03
 
 
-def test_closed_form_recovers_analytic_lights():
+def test_closed_form_recovers_analytic_lights(np_rng):
     """Lambertian images made analytically from known normals, albedo and lights: the closed form returns
     the light directions (< 0.5 deg) with attached shadows present."""
     from validate.fitted.light_models import angular_errors_deg, closed_form_directional
 
     n, mask = analytic_sphere()
     N = n[mask]
-    rng = np.random.default_rng(0)
-    albedo = rng.uniform(0.3, 0.9, size=(len(N), 3))
+    albedo = np_rng.uniform(0.3, 0.9, size=(len(N), 3))
     imgs = np.stack([albedo / np.pi * 2.0 * np.maximum(N @ d, 0)[:, None] for d in TO_LIGHT])
     out = closed_form_directional(N, imgs)
     assert angular_errors_deg(out["directions"], TO_LIGHT).max() < 0.5
@@ -130,7 +71,7 @@ def test_closed_form_recovers_analytic_lights():
 def _analytic_images(lights: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(K, R, R, 3) Lambertian images of the analytic sphere (albedo 0.7, irradiance 2), its normals, mask."""
     n, mask = analytic_sphere()
-    imgs = 0.7 / np.pi * 2.0 * np.maximum(np.einsum("hwc,kc->khw", n, lights), 0)[..., None] * np.ones(3)
+    imgs = 0.7 / np.pi * 2.0 * shading(n, lights)[..., None] * np.ones(3)
     return np.where(mask[None, ..., None], imgs, 0).astype(np.float32), n, mask
 
 
@@ -207,7 +148,7 @@ def test_judgeable_rule_counts_informative_images():
     assert "L006.png" in refused(bad) and "NaN" in refused(bad)
 
 
-def test_fitted_lights_and_ranking(jit, sphere_folder):
+def test_fitted_lights_and_ranking(jit, lambertian_sphere_folder):
     """Fitted light directions within 1 deg of the rendered ones; ground-truth normals at the floor of what
     a normal map can reach, a 20-deg perturbed map clearly above, the constant map far above."""
     from validate.fitted.fit import fit_normals
@@ -215,7 +156,7 @@ def test_fitted_lights_and_ranking(jit, sphere_folder):
     from validate.observations import load_capture
     from validate.perturb import perturb_normals
 
-    cap = load_capture(sphere_folder)
+    cap = load_capture(lambertian_sphere_folder)
     assert cap.layout == "unips" and not cap.has_scene
     cfg = small_config()
     gt = fit_normals(cap.images, cap.mask, cap.normal_gt, cfg)
@@ -257,7 +198,7 @@ def test_point_light_model_finds_near_lights(jit, point_sphere_folder):
     assert mae_deg(auto.normals, cap.normal_gt, cap.mask) < mae_deg(plain.normals, cap.normal_gt, cap.mask) - 3
 
 
-def test_saturated_observations_are_censored(jit, sphere_folder, tmp_path):
+def test_saturated_observations_are_censored(jit, lambertian_sphere_folder, tmp_path):
     """The sphere's images brightened until their lit half clips at the 16-bit maximum: the loader flags
     those channels (also through a box downsampling), and the fit that treats them as lower bounds
     recovers the rendered light directions, while taking the clipped values at face value does not."""
@@ -271,13 +212,13 @@ def test_saturated_observations_are_censored(jit, sphere_folder, tmp_path):
     clipped = tmp_path / "clipped.data"
     clipped.mkdir()
     for name in ("mask.png", "normal.tif"):
-        shutil.copy(sphere_folder / name, clipped / name)
-    for p in sorted(sphere_folder.glob("L*.png")):
+        shutil.copy(lambertian_sphere_folder / name, clipped / name)
+    for p in sorted(lambertian_sphere_folder.glob("L*.png")):
         write_png16(clipped / p.name, read_image(p) * 3.0)
     cap = load_capture(clipped)
     frac = cap.saturated[:, cap.mask].mean()
     assert 0.1 < frac < 0.6, frac
-    assert load_capture(sphere_folder).saturated is None
+    assert load_capture(lambertian_sphere_folder).saturated is None
     small = downsample_capture(cap, 2)
     assert small.saturated[:, small.mask].mean() >= frac  # a block with any clipped source stays a lower bound
     cfg = small_config(specular=False)
@@ -289,7 +230,7 @@ def test_saturated_observations_are_censored(jit, sphere_folder, tmp_path):
     assert err["face value"].mean() > err["censored"].mean() + 2.0, err
 
 
-def test_gradients_flow_to_light_parameters(jit, sphere_folder):
+def test_gradients_flow_to_light_parameters(jit, lambertian_sphere_folder):
     """d loss / d (light direction, log irradiance) from Dr.Jit AD through the Mitsuba BSDF matches central
     finite differences."""
     import drjit as dr
@@ -297,7 +238,7 @@ def test_gradients_flow_to_light_parameters(jit, sphere_folder):
     from validate.fitted.fit_scene import FitScene, lambertian_start
     from validate.observations import load_capture
 
-    cap = load_capture(sphere_folder)
+    cap = load_capture(lambertian_sphere_folder)
     fs = FitScene(cap.images, cap.mask, cap.normal_gt, small_config(specular=False), "directional")
     start = lambertian_start(fs)
     start["directions"] = start["directions"] + np.array([0.05, -0.03, 0.0])  # off the optimum
@@ -327,7 +268,7 @@ def test_gradients_flow_to_light_parameters(jit, sphere_folder):
         assert abs(ad - fd) < 0.1 * abs(fd) + 1e-5, (name, ad, fd)
 
 
-def test_refine_brings_perturbed_map_below_3_deg(jit, sphere_folder):
+def test_refine_brings_perturbed_map_below_3_deg(jit, lambertian_sphere_folder):
     """Known lights (the known-scene mode of refinement): a 20-deg smooth error goes below 3 deg. Fitted
     lights: the error drops, but not to the floor (lights fitted to a noisy map are biased, and a Lambertian
     object's normals and lights can move together along the bas-relief ambiguity)."""
@@ -336,7 +277,7 @@ def test_refine_brings_perturbed_map_below_3_deg(jit, sphere_folder):
     from validate.observations import load_capture
     from validate.perturb import perturb_normals
 
-    cap = load_capture(sphere_folder)
+    cap = load_capture(lambertian_sphere_folder)
     start = perturb_normals(cap.normal_gt, cap.mask, "smooth", 20, seed=2)
     assert mae_deg(start, cap.normal_gt, cap.mask) > 15
     known = refine_normals(cap.images, cap.mask, start, RefineConfig(fit=small_config(), lights="calibrated"),
@@ -347,7 +288,7 @@ def test_refine_brings_perturbed_map_below_3_deg(jit, sphere_folder):
     assert mae_deg(fitted.normals, cap.normal_gt, cap.mask) < mae_deg(noisy, cap.normal_gt, cap.mask) - 4
 
 
-def test_rotation_search_tilts_only_and_never_raises_the_residual(jit, sphere_folder):
+def test_rotation_search_tilts_only_and_never_raises_the_residual(jit, lambertian_sphere_folder):
     """The ground-truth sphere map tilted by 10 deg, lights fitted to it. The search never turns about the
     view axis, leaves the scene at its winner (the residual there is the best candidate's, at most the
     identity's), and rotates the normals as a whole (every normal by the same rotation). On this diffuse
@@ -361,7 +302,7 @@ def test_rotation_search_tilts_only_and_never_raises_the_residual(jit, sphere_fo
     from validate.fitted.rotation_search import search_rotation
     from validate.observations import load_capture
 
-    cap = load_capture(sphere_folder)
+    cap = load_capture(lambertian_sphere_folder)
     m = cap.mask
     tilted = np.zeros_like(cap.normal_gt)
     tilted[m] = cap.normal_gt[m] @ Rotation.from_rotvec(np.radians([10.0, 0, 0])).as_matrix().T
@@ -396,22 +337,21 @@ def _cli(*args: str) -> subprocess.CompletedProcess:
 
 
 @pytest.mark.parametrize("module", ["validate.rerender", "validate.refine"])
-def test_bad_inputs_one_line_error(jit, sphere_folder, tmp_path, module):
-    missing = _cli(
-        module, "--data", str(sphere_folder), "--normals", str(tmp_path / "nope.png"), "--out", str(tmp_path / "o")
-    )
+def test_bad_inputs_one_line_error(jit, lambertian_sphere_folder, tmp_path, module):
+    missing = _cli(module, "--data", str(lambertian_sphere_folder), "--normals", str(tmp_path / "nope.png"),
+                   "--out", str(tmp_path / "o"))
     assert missing.returncode != 0
     assert (
         missing.stderr.strip().count("\n") == 0 and "--normals" in missing.stderr and "Traceback" not in missing.stderr
     )
     wrong = tmp_path / "wrong.npy"
     np.save(wrong, np.zeros((5, 7, 3), np.float32))
-    bad = _cli(module, "--data", str(sphere_folder), "--normals", str(wrong), "--out", str(tmp_path / "o"))
+    bad = _cli(module, "--data", str(lambertian_sphere_folder), "--normals", str(wrong), "--out", str(tmp_path / "o"))
     assert bad.returncode != 0
     assert bad.stderr.strip().count("\n") == 0 and "shape" in bad.stderr and "Traceback" not in bad.stderr
 
 
-def test_refine_with_one_thread_is_byte_identical_across_processes(jit, sphere_folder, tmp_path):
+def test_refine_with_one_thread_is_byte_identical_across_processes(jit, lambertian_sphere_folder, tmp_path):
     """With one Dr.Jit thread, `validate.refine --threads 1` in a new process writes the same normal.png,
     byte for byte, as refine_object in this one. (With 2 threads the same refinement of this 32 px sphere
     differs run to run in the last bits: the reverse-mode scatter-adds of gathers are summed in a varying
@@ -423,7 +363,7 @@ def test_refine_with_one_thread_is_byte_identical_across_processes(jit, sphere_f
     from validate.observations import load_capture
     from validate.perturb import perturb_normals
 
-    cap = load_capture(sphere_folder)
+    cap = load_capture(lambertian_sphere_folder)
     start = tmp_path / "start.npy"
     np.save(start, perturb_normals(cap.normal_gt, cap.mask, "random", 20, seed=2).astype(np.float32))
     # The configuration the CLI call below builds (its defaults, --steps 40 --refine-steps 30 --rounds 2).
@@ -431,12 +371,13 @@ def test_refine_with_one_thread_is_byte_identical_across_processes(jit, sphere_f
     before = dr.thread_count()
     dr.set_thread_count(1)
     try:
-        here = refine_object(str(sphere_folder), str(start), config, str(tmp_path / "here"))
+        here = refine_object(str(lambertian_sphere_folder), str(start), config, str(tmp_path / "here"))
     finally:
         dr.set_thread_count(before)
     assert here["jit_threads"] == 1
-    run = _cli("validate.refine", "--data", str(sphere_folder), "--normals", str(start), "--out", str(tmp_path / "cli"),
-               "--steps", "40", "--refine-steps", "30", "--rounds", "2", "--threads", "1")
+    run = _cli("validate.refine", "--data", str(lambertian_sphere_folder), "--normals", str(start),
+               "--out", str(tmp_path / "cli"), "--steps", "40", "--refine-steps", "30", "--rounds", "2",
+               "--threads", "1")
     assert run.returncode == 0, run.stderr
     there = json.loads((tmp_path / "cli" / "lsphere" / "refine_report.json").read_text())
     assert there["jit_threads"] == 1 and there["after"]["rel_l1"] == here["after"]["rel_l1"]
@@ -446,7 +387,7 @@ def test_refine_with_one_thread_is_byte_identical_across_processes(jit, sphere_f
     bad = _cli(
         "validate.refine",
         "--data",
-        str(sphere_folder),
+        str(lambertian_sphere_folder),
         "--normals",
         str(start),
         "--out",
@@ -463,7 +404,7 @@ def test_refine_with_one_thread_is_byte_identical_across_processes(jit, sphere_f
     assert not (tmp_path / "bad").exists()
 
 
-def test_cli_fitted_report_contract(jit, sphere_folder, tmp_path):
+def test_cli_fitted_report_contract(jit, lambertian_sphere_folder, tmp_path):
     """validate.rerender on a folder without scene.json: fitted mode, report.json with mode, rel_l1 and one
     light list per image whose directional light points toward the light it was rendered with; a second run
     refuses to overwrite without --overwrite."""
@@ -471,9 +412,9 @@ def test_cli_fitted_report_contract(jit, sphere_folder, tmp_path):
     args = (
         "validate.rerender",
         "--data",
-        str(sphere_folder),
+        str(lambertian_sphere_folder),
         "--normals",
-        str(sphere_folder / "normal.tif"),
+        str(lambertian_sphere_folder / "normal.tif"),
         "--out",
         str(out),
         "--steps",

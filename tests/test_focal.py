@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import render_dataset
+from fixtures import render_dataset
 
 
 def test_fov_from_focal_matches_the_35mm_definition():

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from conftest import SHARED
+from fixtures import SHARED, write_synthetic_object
 from published import angle_deg, load_error, randomise, reference_module
 
 from unips.models import convert_official, create_model, list_models
@@ -188,8 +188,6 @@ def test_mismatched_tensors_are_one_line_naming_them(tiny_state, tmp_path) -> No
 def _object_folder(path: Path, centre: tuple[int, int] = (40, 38), axes: tuple[int, int] = (18, 27)) -> Path:
     """An 80 x 80 px object of 3 noisy 16-bit images (an elliptic mask) in our layout, which the published loader
     reads too (L*.png, mask.png)."""
-    from conftest import write_synthetic_object
-
     yy, xx = np.mgrid[:80, :80]
     mask = ((yy - centre[0]) / axes[0]) ** 2 + ((xx - centre[1]) / axes[1]) ** 2 < 1
     images = (np.random.default_rng(0).random((3, 80, 80, 3)) * 0.8).astype(np.float32)

@@ -12,8 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from fixtures import cone_lights, sphere
-from test_unips_data import render, write_diligent, write_mask, write_ours, write_png16
+from fixtures import write_diligent, write_ours, write_png16, write_unips
 
 from scenes.folder.layouts import LAYOUT_TABLE, LAYOUTS, MIN_NORMAL_LENGTH, detect_layout, read_folder
 from scenes.images import write_exr
@@ -29,23 +28,6 @@ def _edit_camera_lights(folder: Path, edit) -> None:
     scene = json.loads((folder / "scene.json").read_text())
     edit(scene["camera_lights"])
     (folder / "scene.json").write_text(json.dumps(scene))
-
-
-def write_unips(folder: Path, k: int = 5, size: int = 24, exr: bool = False, gt: str | None = None) -> tuple:
-    folder.mkdir(parents=True)
-    n, mask = sphere(size)
-    imgs = render(n, mask, cone_lights(k, 3))
-    for i, im in enumerate(imgs):
-        if exr:
-            write_exr(folder / f"L{i:02d}.exr", (im * 3.0).astype(np.float32))  # radiance, beyond 1 is fine
-        else:
-            write_png16(folder / f"L{i:02d}.png", im)
-    write_mask(folder / "mask.png", mask)
-    if gt == "mat":
-        import scipy.io
-
-        scipy.io.savemat(folder / "Normal_gt.mat", {"Normal_gt": n})
-    return n, mask, imgs
 
 
 def test_table_names_and_detection(tmp_path):

@@ -4,13 +4,11 @@ from __future__ import annotations
 
 import csv
 import json
-from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
-from conftest import write_synthetic_object
-from fixtures import cone_lights, shading, sphere
+from fixtures import write_predict_diligent, write_predict_ours
 
 from scenes.images import read_normals, write_normal_exr, write_normal_map
 from scenes.metrics import mean_angular_error
@@ -18,47 +16,12 @@ from unips import evaluate as ev
 from unips import predict as pr
 
 
-def write_png16(path: Path, rgb: np.ndarray) -> None:
-    assert cv2.imwrite(str(path), np.round(np.clip(rgb, 0, 1) * 65535).astype(np.uint16)[..., ::-1])
-
-
-def write_ours(folder: Path, size: int = 32, k: int = 8, seed: int = 0, family: str = "directional"):
-    """Our layout: L*.png, mask.png, normal.tif, scene.json with camera-frame directional lights."""
-    n, mask = sphere(size)
-    L = cone_lights(k, seed, max_deg=30.0)
-    shade = shading(n, L)
-    imgs = 0.8 * shade[..., None] * np.array([0.9, 0.7, 0.5])
-    imgs[:, ~mask] = 0
-    write_synthetic_object(folder, imgs, mask, n, light_family=family, directions=L)
-    return n, mask
-
-
-def write_diligent(folder: Path, size: int = 28, k: int = 8, seed: int = 5):
-    import scipy.io
-
-    folder.mkdir(parents=True)
-    n, mask = sphere(size)
-    L = cone_lights(k, seed, max_deg=30.0)
-    shade = shading(n, L)
-    names = [f"{i + 1:03d}.png" for i in range(k)]
-    for i, name in enumerate(names):
-        img = 0.5 * shade[i][..., None] * np.ones(3)
-        img[~mask] = 0
-        write_png16(folder / name, img)
-    (folder / "filenames.txt").write_text("\n".join(names))
-    np.savetxt(folder / "light_directions.txt", L)
-    np.savetxt(folder / "light_intensities.txt", np.ones((k, 3)))
-    assert cv2.imwrite(str(folder / "mask.png"), mask.astype(np.uint8) * 255)
-    scipy.io.savemat(folder / "Normal_gt.mat", {"Normal_gt": n})
-    return n, mask
-
-
 @pytest.fixture
 def dataset(tmp_path):
     root = tmp_path / "data"
-    truth = {"alpha": write_ours(root / "alpha.data"),
-             "beta": write_ours(root / "beta.data", seed=1, family="hdri"),
-             "gamma": write_diligent(root / "gamma")}
+    truth = {"alpha": write_predict_ours(root / "alpha.data"),
+             "beta": write_predict_ours(root / "beta.data", seed=1, family="hdri"),
+             "gamma": write_predict_diligent(root / "gamma")}
     return root, truth
 
 

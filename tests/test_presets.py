@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import render_dataset, use_variant
+from fixtures import render_dataset, use_variant
 
 from scenes.description import CameraDesc
 from wildgen.light_families import LIGHT_FAMILIES, Placement
@@ -86,14 +86,13 @@ def test_new_families_pass_the_rerender_check_with_true_normals(families):
         assert types == {l["type"] for im in scene_of(folder)["images"] for l in im["lights"]}
 
 
-def test_verse_draws_its_recipe():
+def test_verse_draws_its_recipe(np_rng):
     """Per image: exactly one background (environment map or uniform), 0-3 point lights, 0-1 rectangle; over
     many images every count occurs."""
     placement = Placement(np.zeros(3), 1.0, ORTHO, env_scale=0.3)
-    rng = np.random.default_rng(0)
     points, areas, backgrounds = set(), set(), set()
     for i in range(200):
-        lights = LIGHT_FAMILIES["verse"].sample(rng, placement, i, 200)
+        lights = LIGHT_FAMILIES["verse"].sample(np_rng, placement, i, 200)
         kinds = [l.type for l in lights]
         assert kinds[0] in ("environment", "uniform") and kinds.count("environment") + kinds.count("uniform") == 1
         assert set(kinds[1:]) <= {"point", "area"}
@@ -216,7 +215,7 @@ def _dirs_to_light(lights) -> np.ndarray:
     return np.array([-np.asarray(l.direction) for l in lights])
 
 
-def test_presets_configure_the_rigs_they_imitate():
+def test_presets_configure_the_rigs_they_imitate(np_rng):
     """What each preset's configuration makes, checked against the rig it names (not against the table):
     phone-flash a point light at the camera of a perspective view, written as a phone writes (8-bit sRGB,
     Bayer mosaic, noise, vignetting); light-stage one distant light per image, all different; display one
@@ -229,9 +228,8 @@ def test_presets_configure_the_rigs_they_imitate():
     flash = resolve("--preset", "phone-flash")
     assert flash.camera == "perspective"
     p = Placement(np.zeros(3), 1.0, PERSPECTIVE, env_scale=0.3)
-    rng = np.random.default_rng(0)
     for i in range(flash.images):
-        lamp = LIGHT_FAMILIES[flash.lights[0]].sample(rng, p, i, flash.images)[0]
+        lamp = LIGHT_FAMILIES[flash.lights[0]].sample(np_rng, p, i, flash.images)[0]
         assert lamp.type == "point" and lamp.position == list(PERSPECTIVE.origin)
     for name in ("phone-flash", "display"):
         sensor = SENSORS[resolve("--preset", name).sensor]

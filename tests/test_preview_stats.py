@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import use_variant
+from fixtures import use_variant
 
 FAMILIES = ["directional", "point", "near_area", "mixed"]  # directional, point, area and environment lights
 SMALL = ["--objects", str(len(FAMILIES)), "--lights", ",".join(FAMILIES), "--images", "2", "--res", "16",

@@ -28,7 +28,7 @@ import pytest
 
 pytest.importorskip("ray")
 
-from test_wildgen_scale import REPO, _interruptible, assert_same_dataset, cli, command  # noqa: E402
+from fixtures import REPO, assert_same_dataset, interruptible, make_cli, make_command  # noqa: E402
 
 pytestmark = pytest.mark.slow
 
@@ -144,7 +144,8 @@ class Cluster:
 NODE_IDS = """
 import json, ray
 ray.init(address="{address}", logging_level="ERROR")
-print(json.dumps({{("second" if "second_node" in n["Resources"] else "head"): n["NodeID"] for n in ray.nodes() if n["Alive"]}}))
+print(json.dumps({{("second" if "second_node" in n["Resources"] else "head"): n["NodeID"]
+                  for n in ray.nodes() if n["Alive"]}}))
 """
 
 
@@ -179,13 +180,13 @@ def cluster(tmp_path_factory):
 def reference(tmp_path_factory) -> Path:
     """The same dataset made on this machine alone, with 2 local worker processes."""
     out = tmp_path_factory.mktemp("cluster_ref") / "ds"
-    r = cli(out, "--workers", "2")
+    r = make_cli(out, "--workers", "2")
     assert r.returncode == 0, r.stderr
     return out
 
 
 def run_on(cluster: Cluster, out: Path, timeout: float = 600) -> subprocess.CompletedProcess:
-    return subprocess.run(command(out, "--ray", cluster.address), cwd=REPO, env=cluster.env, capture_output=True,
+    return subprocess.run(make_command(out, "--ray", cluster.address), cwd=REPO, env=cluster.env, capture_output=True,
                           text=True, timeout=timeout)
 
 
@@ -213,7 +214,7 @@ def test_objects_spread_over_both_nodes_and_the_bytes_are_a_local_runs(cluster, 
 
 def test_a_driver_without_the_token_is_one_line(cluster, tmp_path):
     env = {k: v for k, v in cluster.env.items() if not k.startswith("RAY_AUTH")}
-    r = subprocess.run(command(tmp_path / "ds", "--ray", cluster.address), cwd=REPO, env=env, capture_output=True,
+    r = subprocess.run(make_command(tmp_path / "ds", "--ray", cluster.address), cwd=REPO, env=env, capture_output=True,
                        text=True, timeout=300)
     assert r.returncode == 2, r.stderr
     lines = r.stderr.strip().splitlines()
@@ -248,8 +249,8 @@ def busy_on(node: Node, out: Path, driver: subprocess.Popen, timeout: float = 30
 def test_killing_a_node_mid_object_ends_in_the_same_dataset(cluster, reference, tmp_path):
     """Runs last in this module: the second node does not come back."""
     out = tmp_path / "ds"
-    proc = subprocess.Popen(command(out, "--ray", cluster.address), cwd=REPO, env=cluster.env, text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=_interruptible)
+    proc = subprocess.Popen(make_command(out, "--ray", cluster.address), cwd=REPO, env=cluster.env, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=interruptible)
     try:
         caught = busy_on(cluster.second, out, proc)
         cluster.second.kill()  # the node's raylet, its workers and agents: as if the machine went away

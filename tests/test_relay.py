@@ -13,6 +13,7 @@ import tarfile
 from pathlib import Path
 
 import pytest
+from fixtures import render_dataset
 
 from orchestrate import relay, ship
 from orchestrate.asset_split import split_plan
@@ -64,8 +65,6 @@ def _candidate(folder: Path, weights: Path) -> Path:
 
 @pytest.fixture(scope="module")
 def val_set(tmp_path_factory):
-    from conftest import render_dataset
-
     out = tmp_path_factory.mktemp("val") / "val"
     render_dataset(out, "--objects", "2", "--images", "3", "--res", "32", "--spp", "4", "--seed", "4000")
     return out

@@ -14,7 +14,7 @@ from typing import ClassVar
 
 import numpy as np
 import pytest
-from conftest import use_variant
+from fixtures import use_variant
 
 from scenes.description import (
     CameraDesc,
@@ -28,15 +28,6 @@ from scenes.description import (
 from scenes.lights import AreaLight, DirectionalLight, EnvironmentLight, PointLight
 
 R = 32
-
-
-@pytest.fixture(scope="module")
-def jit():
-    """llvm_ad_rgb (the wrapper is a Python BSDF: it needs a JIT variant; install libllvm19 where it is skipped)."""
-    use_variant("llvm_ad_rgb")
-    import mitsuba as mi
-
-    return mi
 
 
 def write_object(desc: SceneDescription, out: Path, extra_files: dict[str, np.ndarray] | None = None) -> Path:
@@ -132,7 +123,8 @@ def torus_desc(camera_kind: str = "orthographic", width: int = R, height: int = 
 
 
 @pytest.fixture(scope="module")
-def sphere_folder(jit, tmp_path_factory) -> Path:
+def sphere_folder(tmp_path_factory) -> Path:
+    use_variant("llvm_ad_rgb")  # the wrapper is a Python BSDF: it needs a JIT variant
     return write_object(sphere_desc(), tmp_path_factory.mktemp("data"))
 
 
@@ -168,11 +160,9 @@ def test_projection_matches_mitsuba_sensor(jit, kind, width, height):
     pu, pv, pz = cam.project(origins + 3.0 * dirs)
     np.testing.assert_allclose(pu, u, atol=1e-9)
     np.testing.assert_allclose(pv, v, atol=1e-9)
-    del built
-    gc.collect()
 
 
-def test_visibility_agrees_with_exact_ray_tests(jit):
+def test_visibility_agrees_with_exact_ray_tests(jit, np_rng):
     """Random surface points reached from random directions: the depth-map test agrees with exact ray tests
     toward the camera (shadow ray + facing + inside the frame) on >= 99 % of them."""
     import drjit as dr
@@ -189,11 +179,10 @@ def test_visibility_agrees_with_exact_ray_tests(jit):
     swap.set_depth(depth_map(built.scene, cam, swap.visibility.supersample))
     bsdf = built.scene.shapes()[0].bsdf()
 
-    rng = np.random.default_rng(0)
     n = 40000
-    d = rng.normal(size=(n, 3))
+    d = np_rng.normal(size=(n, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
-    o = rng.uniform(-1, 1, size=(n, 3)) - 5 * d
+    o = np_rng.uniform(-1, 1, size=(n, 3)) - 5 * d
     ray = mi.Ray3f(mi.Point3f(o.T.astype(np.float32)), mi.Vector3f(d.T.astype(np.float32)))
     si = built.scene.ray_intersect(ray)
     valid = np.array(si.is_valid())
@@ -207,8 +196,6 @@ def test_visibility_agrees_with_exact_ray_tests(jit):
     got = np.array(visible)
     assert inside.sum() > 10000 and 0.2 < exact[inside].mean() < 0.8  # a real mix of seen and hidden points
     assert (got == exact)[inside].mean() > 0.99
-    del bsdf, swap, built, si
-    gc.collect()
 
 
 # --- the BSDF against analytic shading ------------------------------------------------------------------
@@ -265,8 +252,6 @@ def test_swapped_normals_give_analytic_lambertian_shading(jit, kind):
     # The unchanged plane would be much brighter on both sides: the swap really happened.
     unchanged = albedo / math.pi * irradiance * l[2]
     assert img[left].mean() < 0.8 * unchanged and img[right].mean() < 0.8 * unchanged
-    del swap, built
-    gc.collect()
 
 
 def test_passthrough_mode_is_bit_identical_to_the_original(jit, sphere_folder):
@@ -287,8 +272,6 @@ def test_passthrough_mode_is_bit_identical_to_the_original(jit, sphere_folder):
     swap.set_depth(depth_map(built.scene, cam, swap.visibility.supersample))
     for i, ref in enumerate(original):
         assert np.array_equal(render_image(built, i), ref)
-    del swap, built
-    gc.collect()
 
 
 # --- floors and response to errors ----------------------------------------------------------------------
@@ -372,14 +355,13 @@ def test_normal_mapped_material_wraps_the_inner_bsdf(jit, tmp_path):
 # --- files, bad inputs, CLI -----------------------------------------------------------------------------
 
 
-def test_normal_map_files_round_trip(tmp_path):
+def test_normal_map_files_round_trip(tmp_path, np_rng):
     import cv2
 
     from scenes.images import encode_normals, write_exr
     from validate.io import read_normal_map
 
-    rng = np.random.default_rng(0)
-    n = rng.normal(size=(6, 5, 3))
+    n = np_rng.normal(size=(6, 5, 3))
     n /= np.linalg.norm(n, axis=-1, keepdims=True)
     n[0, 0] = 0.0  # background
     cv2.imwrite(str(tmp_path / "n.png"), encode_normals(n)[:, :, ::-1])

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from conftest import SHARED
+from fixtures import SHARED, write_synthetic_object
 from published import angle_deg, load_error, randomise, reference_module
 
 from unips.models import convert_official, create_model, list_models
@@ -195,8 +195,6 @@ def test_unreadable_files_are_one_line(tmp_path) -> None:
 def _object_folder(tmp_path: Path, hole: int = 0) -> Path:
     """An 80 x 80 px object of 3 noisy 16-bit images (a disk mask, with a hole of radius `hole`: fewer pixels to
     decode) in our layout, which the published loader reads too (L*.png, mask.png, normal.tif)."""
-    from conftest import write_synthetic_object
-
     yy, xx = np.mgrid[:80, :80]
     mask = (hole ** 2 <= (yy - 40) ** 2 + (xx - 38) ** 2) & ((yy - 40) ** 2 + (xx - 38) ** 2 < 25 ** 2)
     images = (np.random.default_rng(0).random((3, 80, 80, 3)) * 0.8).astype(np.float32)
@@ -333,8 +331,6 @@ def test_scalable_prediction_equals_the_reference(official, ours, tmp_path) -> N
 def _dots_object(tmp_path: Path, k: int):
     """`k` images of 5 isolated pixels spanning 50 px of an 80 px frame: a full-size working image with few pixels
     to decode."""
-    from conftest import write_synthetic_object
-
     from unips.data import load_object
 
     mask = np.zeros((80, 80), bool)

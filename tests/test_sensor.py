@@ -1,4 +1,5 @@
-"""The sensor model (scenes.camera_sensor) against its own stated physics, and `python -m wildgen.sensor` on a real dataset.
+"""The sensor model (scenes.camera_sensor) against its own stated physics, and `python -m wildgen.sensor` on a real
+dataset.
 
 The statistics are checked against the recorded parameters analytically (photon transfer, the clipped share of
 a ramp and of noisy flat fields, the cos^4 vignetting law, the sRGB and gamma curves written out here), never
@@ -13,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import use_variant
+from fixtures import use_variant
 
 from scenes.camera_sensor import (
     CFA_PATTERNS,
@@ -157,17 +158,16 @@ def test_vignetting_profile_follows_cos4():
 # ------------------------------------------------------------------------------------------ files
 
 
-def test_bit_depths_of_the_files(tmp_path):
+def test_bit_depths_of_the_files(tmp_path, np_rng):
     """8-bit files are 8-bit PNGs that use all 256 levels; 12-bit files are 16-bit PNGs holding only multiples
     of 16 and reaching 4095 * 16; 16-bit files are 16-bit PNGs."""
-    rng = np.random.default_rng(0)
     ramp = np.linspace(0.0, 1.2, 256 * 512, dtype=np.float32).reshape(256, 512, 1).repeat(3, 2)
     for name in ("phone", "webcam"):
-        write_image(tmp_path / f"{name}.png", apply_sensor(ramp, SENSORS[name], rng))
+        write_image(tmp_path / f"{name}.png", apply_sensor(ramp, SENSORS[name], np_rng))
         back = read_png(tmp_path / f"{name}.png")
         assert png_bit_depth(tmp_path / f"{name}.png") == 8 and back.dtype == np.uint8
         assert set(np.unique(back).tolist()) == set(range(256)), name
-    write_image(tmp_path / "mv.png", apply_sensor(ramp, SENSORS["machine-vision"], rng))
+    write_image(tmp_path / "mv.png", apply_sensor(ramp, SENSORS["machine-vision"], np_rng))
     back = read_png(tmp_path / "mv.png")
     assert png_bit_depth(tmp_path / "mv.png") == 16 and back.dtype == np.uint16
     assert np.all(back % 16 == 0) and back.max() == 4095 * 16

@@ -11,8 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from conftest import write_synthetic_object
-from fixtures import random_lights
+from fixtures import random_lights, shading, write_synthetic_object, write_unips
 
 from scenes.folder.layouts import read_folder
 from scenes.folder.shard_format import INDEX_FILE, extract_sample, iter_samples, sample_folder_name
@@ -34,7 +33,7 @@ def _object(folder: Path, rng: np.random.Generator, size: int = 24, k: int = 4, 
     n = np.stack([x, y, np.sqrt(np.clip(q, 0, None))], -1)
     n = np.where(mask[..., None], n / np.linalg.norm(n, axis=-1, keepdims=True), 0.0)
     lights = random_lights(rng, k)
-    images = np.clip(np.einsum("hwc,kc->khw", n, lights), 0, None)[..., None] * rng.uniform(0.3, 0.9, 3)
+    images = shading(n, lights)[..., None] * rng.uniform(0.3, 0.9, 3)
     if saturate:
         images = images * 3.0  # clipped at the file's largest code: saturated channels
     return write_synthetic_object(folder, images, mask, n, directions=lights)
@@ -361,7 +360,6 @@ def test_decoded_samples_of_8_bit_and_exr_images_and_a_recorded_sensor(data, tmp
     """The integer codes are stored in the type that gives the reader's floats back exactly (uint8 for 8-bit files,
     uint16 for 16-bit), EXR radiance as float32; a recorded sensor travels in the metadata."""
     import cv2
-    from test_layouts import write_unips
 
     from scenes.camera_sensor import SENSORS, sensor_record
 

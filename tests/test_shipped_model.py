@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import render_dataset
+from fixtures import render_dataset
 
 from wildgen.light_families import LIGHT_FAMILIES, PS_WILD_FAMILIES
 

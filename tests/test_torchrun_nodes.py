@@ -12,7 +12,6 @@ import sys
 from pathlib import Path
 
 import pytest
-from test_train import dataset  # noqa: F401  (the module-scoped fixture)
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -23,8 +22,8 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def _train_argv(dataset, out: Path) -> list[str]:
-    return ["-m", "unips.train", "--data", str(dataset["train"]), "--model", "glc-test", "--out", str(out),
+def _train_argv(train_dataset, out: Path) -> list[str]:
+    return ["-m", "unips.train", "--data", str(train_dataset["train"]), "--model", "glc-test", "--out", str(out),
             "--batch", "2", "--res", "32", "--pixels", "100", "--max-images", "4", "--threads", "1", "--no-progress",
             "--steps", "3", "--log-every", "1", "--seed", "7"]
 
@@ -55,11 +54,11 @@ def _weights(out: Path) -> dict:
 
 
 @pytest.mark.slow
-def test_two_nodes_give_the_weights_of_one_node_with_the_same_world_size(dataset, tmp_path) -> None:
+def test_two_nodes_give_the_weights_of_one_node_with_the_same_world_size(train_dataset, tmp_path) -> None:
     one, two = tmp_path / "one_node", tmp_path / "two_nodes"
-    _finish([_launch(1, 2, 0, f"127.0.0.1:{_free_port()}", _train_argv(dataset, one))])
+    _finish([_launch(1, 2, 0, f"127.0.0.1:{_free_port()}", _train_argv(train_dataset, one))])
     endpoint = f"127.0.0.1:{_free_port()}"
-    _finish([_launch(2, 1, rank, endpoint, _train_argv(dataset, two)) for rank in (0, 1)])
+    _finish([_launch(2, 1, rank, endpoint, _train_argv(train_dataset, two)) for rank in (0, 1)])
 
     logs = [[json.loads(x) for x in (o / "log.jsonl").read_text().splitlines()] for o in (one, two)]
     assert [r["step"] for r in logs[1]] == [1, 2, 3]  # rank 0 alone writes, once per step

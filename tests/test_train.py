@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from fixtures import ellipsoid_normals, lambertian, random_lights
+from fixtures import ellipsoid_normals, lambertian, random_lights, train
 
 from unips.augment import (
     HFLIP_MATRIX,
@@ -25,48 +25,7 @@ from unips.models import create_model
 from unips.train import main
 from unips.train_data import load_samples, make_batch
 
-# -- analytic scenes ------------------------------------------------------------------------
-
-def write_object(folder: Path, rng: np.random.Generator, size: int, k: int, family: str) -> None:
-    """An object folder in the project layout (16-bit PNGs, mask.png, normal.tif, scene.json)."""
-    import cv2
-    import tifffile
-
-    folder.mkdir(parents=True)
-    ri, rj = rng.uniform(0.25, 0.42, 2) * size
-    ci, cj = size / 2 + rng.uniform(-3, 3, 2)
-    normals, mask = ellipsoid_normals(size, size, ci, cj, ri, rj)
-    lights = random_lights(rng, k)
-    albedo = np.tile(rng.uniform(0.3, 0.9, 3), (k, 1))
-    irradiance = rng.uniform(0.6, 1.0, (k, 1)) * np.ones((1, 3))
-    images = lambertian(normals, mask, lights, albedo * irradiance)
-    for i in range(k):
-        rgb16 = np.round(np.clip(images[i].transpose(1, 2, 0), 0, 1) * 65535).astype(np.uint16)
-        cv2.imwrite(str(folder / f"L{i:03d}.png"), rgb16[..., ::-1])  # OpenCV writes BGR
-    cv2.imwrite(str(folder / "mask.png"), (mask * 255).astype(np.uint8))
-    tifffile.imwrite(folder / "normal.tif", np.round((normals + 1) / 2 * 65535).astype(np.uint16))
-    cams = [{"directional": [{"direction_to_light": lights[i].tolist(), "irradiance": irradiance[i].tolist()}],
-             "other": 0} for i in range(k)]
-    (folder / "scene.json").write_text(json.dumps({"light_family": family, "camera_lights": cams}))
-
-
-@pytest.fixture(scope="module")
-def dataset(tmp_path_factory) -> dict[str, Path]:
-    root = tmp_path_factory.mktemp("data")
-    rng = np.random.default_rng(123)
-    for i in range(6):
-        write_object(root / "train" / f"obj{i}.data", rng, 40, 6, "directional")
-    for i, family in enumerate(["directional", "point"]):
-        write_object(root / "val" / f"val{i}.data", rng, 40, 6, family)
-    return {"train": root / "train", "val": root / "val"}
-
-
-def _train(dataset: dict[str, Path], out: Path, *extra: str) -> int:
-    args = ["--data", str(dataset["train"]), "--model", "glc-test", "--out", str(out), "--batch", "2",
-            "--res", "32", "--pixels", "200", "--max-images", "4", "--threads", "1", "--no-progress",
-            "--log-every", "1", *extra]
-    return main(args)
-
+# -- helpers --------------------------------------------------------------------------------
 
 def _log(out: Path) -> list[dict]:
     return [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
@@ -74,8 +33,8 @@ def _log(out: Path) -> list[dict]:
 
 # -- training -------------------------------------------------------------------------------
 
-def test_samples_load_from_disk(dataset) -> None:
-    samples = load_samples(dataset["train"], 32)
+def test_samples_load_from_disk(train_dataset) -> None:
+    samples = load_samples(train_dataset["train"], 32)
     assert len(samples) == 6
     s = samples[0]
     assert tuple(s.images.shape) == (6, 3, 32, 32) and tuple(s.mask.shape) == (1, 32, 32)
@@ -84,19 +43,19 @@ def test_samples_load_from_disk(dataset) -> None:
     assert s.light_family == "directional"
 
 
-def test_several_data_directories_are_pooled(dataset) -> None:
-    both = f"{dataset['train']},{dataset['val']}"
+def test_several_data_directories_are_pooled(train_dataset) -> None:
+    both = f"{train_dataset['train']},{train_dataset['val']}"
     samples = load_samples(both, 32)
     assert [s.name for s in samples] == [f"train/obj{i}" for i in range(6)] + ["val/val0", "val/val1"]
-    assert torch.equal(samples[0].images, load_samples(dataset["train"], 32)[0].images)
+    assert torch.equal(samples[0].images, load_samples(train_dataset["train"], 32)[0].images)
     with pytest.raises(ValueError, match="same name"):
-        load_samples(f"{dataset['train']},{dataset['train']}", 32)
+        load_samples(f"{train_dataset['train']},{train_dataset['train']}", 32)
     with pytest.raises(FileNotFoundError, match="nowhere"):
-        load_samples(f"{dataset['train']},{dataset['train'].parent / 'nowhere'}", 32)
+        load_samples(f"{train_dataset['train']},{train_dataset['train'].parent / 'nowhere'}", 32)
 
 
-def test_batches_are_a_function_of_seed_and_step(dataset) -> None:
-    samples = load_samples(dataset["train"], 32)
+def test_batches_are_a_function_of_seed_and_step(train_dataset) -> None:
+    samples = load_samples(train_dataset["train"], 32)
     kw = dict(seed=3, batch=2, min_images=2, max_images=4, pixels=50, canonical=32)
     a, b, c = make_batch(samples, 5, **kw), make_batch(samples, 5, **kw), make_batch(samples, 6, **kw)
     assert torch.equal(a.images, b.images) and torch.equal(a.coords, b.coords)
@@ -109,9 +68,9 @@ def test_batches_are_a_function_of_seed_and_step(dataset) -> None:
     assert n_can >= int(a.weight[0, a.is_canonical].sum()) > 100
 
 
-def test_training_reduces_the_loss(dataset, tmp_path) -> None:
+def test_training_reduces_the_loss(train_dataset, tmp_path) -> None:
     out = tmp_path / "run"
-    assert _train(dataset, out, "--steps", "40", "--lr", "3e-3", "--val", str(dataset["val"]),
+    assert train(train_dataset, out, "--steps", "40", "--lr", "3e-3", "--val", str(train_dataset["val"]),
                   "--val-every", "40", "--ckpt-every", "40") == 0
     records = _log(out)
     losses = [r["loss"] for r in records if "loss" in r]
@@ -128,15 +87,15 @@ def test_training_reduces_the_loss(dataset, tmp_path) -> None:
     assert meta["model_name"] == "glc-test" and meta["extra"]["step"] == 40
 
 
-def test_resume_is_bit_for_bit(dataset, tmp_path) -> None:
+def test_resume_is_bit_for_bit(train_dataset, tmp_path) -> None:
     # Dropout and drop path on, so the torch RNG matters too.
     opts = ["--model-option", "dropout=0.1", "--model-option", "swin_drop_path=0.1", "--lr", "3e-3",
-            "--decay-every", "2", "--ckpt-every", "3", "--val", str(dataset["val"]), "--val-every", "2"]
+            "--decay-every", "2", "--ckpt-every", "3", "--val", str(train_dataset["val"]), "--val-every", "2"]
     full, part = tmp_path / "full", tmp_path / "part"
-    assert _train(dataset, full, "--steps", "6", *opts) == 0
-    assert _train(dataset, part, "--steps", "3", *opts) == 0
+    assert train(train_dataset, full, "--steps", "6", *opts) == 0
+    assert train(train_dataset, part, "--steps", "3", *opts) == 0
     seconds_at_3 = load_training_checkpoint(part / "last.pt")["extra"]["elapsed_s"]
-    assert _train(dataset, part, "--steps", "6", "--resume", *opts) == 0
+    assert train(train_dataset, part, "--steps", "6", "--resume", *opts) == 0
     a = load_training_checkpoint(full / "last.pt")
     b = load_training_checkpoint(part / "last.pt")
     assert a["step"] == b["step"] == 6
@@ -144,7 +103,9 @@ def test_resume_is_bit_for_bit(dataset, tmp_path) -> None:
         assert torch.equal(value, b["model"][key]), key
     for sa, sb in zip(a["optimizer"]["state"].values(), b["optimizer"]["state"].values()):
         assert all(torch.equal(sa[k], sb[k]) for k in sa)
-    losses = lambda out: [(r["step"], r["loss"], r["lr"], r["k"]) for r in _log(out) if "loss" in r]
+    def losses(out):
+        return [(r["step"], r["loss"], r["lr"], r["k"]) for r in _log(out) if "loss" in r]
+
     assert losses(full) == losses(part) and len(losses(full)) == 6
     # The log's elapsed time goes on from the checkpoint's at a resume instead of restarting at 0.
     times = {r["step"]: r["elapsed_s"] for r in _log(part) if "loss" in r}
@@ -153,16 +114,16 @@ def test_resume_is_bit_for_bit(dataset, tmp_path) -> None:
     fresh = create_model("glc-test", dropout=0.1, swin_drop_path=0.1).state_dict()
     assert any(not torch.equal(v, fresh[k]) for k, v in a["model"].items())
     # Changing a trajectory setting on resume is refused.
-    assert _train(dataset, part, "--steps", "8", "--resume", *opts, "--seed", "9") == 2
+    assert train(train_dataset, part, "--steps", "8", "--resume", *opts, "--seed", "9") == 2
 
 
-def test_cli_errors_are_one_line(dataset, tmp_path, capsys) -> None:
+def test_cli_errors_are_one_line(train_dataset, tmp_path, capsys) -> None:
     assert main(["--data", str(tmp_path / "nope"), "--out", str(tmp_path / "o"), "--no-progress"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error:") and "nope" in err[0]
-    assert _train(dataset, tmp_path / "o2", "--steps", "0") == 2
+    assert train(train_dataset, tmp_path / "o2", "--steps", "0") == 2
     assert "--steps" in capsys.readouterr().err
-    assert _train(dataset, tmp_path / "o3", "--steps", "2", "--resume") == 2
+    assert train(train_dataset, tmp_path / "o3", "--steps", "2", "--resume") == 2
     assert "last.pt" in capsys.readouterr().err
 
 
@@ -193,7 +154,9 @@ def test_augmentation_matches_rendering_the_transformed_scene(aug: Augmentation)
     albedo = rng.uniform(0.2, 1.0, (k, 3))
     images = lambertian(normals, mask, lights, albedo)
 
-    t = lambda a: torch.from_numpy(np.ascontiguousarray(a, dtype=np.float32))
+    def t(a):
+        return torch.from_numpy(np.ascontiguousarray(a, dtype=np.float32))
+
     aug_images, aug_mask, aug_normals = apply_augmentation(
         aug, t(images), t(mask[None]), t(normals.transpose(2, 0, 1)))
 

@@ -14,8 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from fixtures import ellipsoid_normals, lambertian, ortho_sphere, random_lights
-from test_train import _train, dataset, write_object  # noqa: F401  (the module-scoped fixture)
+from fixtures import ellipsoid_normals, lambertian, ortho_sphere, random_lights, shading, train
 
 from scenes.cli.options import field_docs
 from unips.checkpoint import load_model, load_training_checkpoint, save_checkpoint
@@ -53,44 +52,45 @@ def _digest(folder: Path) -> dict[str, str]:
     return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.iterdir()) if p.is_file()}
 
 
-def test_an_existing_run_is_never_overwritten_without_the_flag(dataset, tmp_path, capsys) -> None:
+def test_an_existing_run_is_never_overwritten_without_the_flag(train_dataset, tmp_path, capsys) -> None:
     out = tmp_path / "run"
-    assert _train(dataset, out, "--steps", "2") == 0
+    assert train(train_dataset, out, "--steps", "2") == 0
     before = _digest(out)
-    assert _train(dataset, out, "--steps", "3") == 2
+    assert train(train_dataset, out, "--steps", "3") == 2
     err = capsys.readouterr().err
     assert "--out" in err and "--resume" in err and "Traceback" not in err
     assert _digest(out) == before
-    assert _train(dataset, out, "--steps", "3", "--overwrite") == 0
+    assert train(train_dataset, out, "--steps", "3", "--overwrite") == 0
     assert json.loads((out / "log.jsonl").read_text().splitlines()[-1])["step"] == 3
 
 
-def test_init_from_takes_weights_only(dataset, tmp_path, capsys) -> None:
+def test_init_from_takes_weights_only(train_dataset, tmp_path, capsys) -> None:
     torch.manual_seed(5)
     src = create_model("glc-test")
     save_checkpoint(tmp_path / "w.safetensors", src)
     out = tmp_path / "run"
     # --steps 1 with a tiny lr: the trained weights stay next to the initial ones, far from a fresh init.
-    assert _train(dataset, out, "--steps", "1", "--lr", "1e-9", "--init-from", str(tmp_path / "w.safetensors")) == 0
+    assert train(train_dataset, out, "--steps", "1", "--lr", "1e-9",
+                 "--init-from", str(tmp_path / "w.safetensors")) == 0
     trained, _ = load_model(out / "final.safetensors")
     ref = src.state_dict()
     for k, v in trained.state_dict().items():
         assert torch.allclose(v, ref[k], atol=1e-6), k
-    assert _train(dataset, tmp_path / "r2", "--steps", "1", "--model", "glc-tiny",
+    assert train(train_dataset, tmp_path / "r2", "--steps", "1", "--model", "glc-tiny",
                   "--init-from", str(tmp_path / "w.safetensors")) == 2
     assert "--model" in capsys.readouterr().err
 
 
-def test_a_run_started_with_init_from_resumes_bit_for_bit(dataset, tmp_path) -> None:
+def test_a_run_started_with_init_from_resumes_bit_for_bit(train_dataset, tmp_path) -> None:
     """--resume takes no --init-from (the weights come from last.pt); the resumed run ends where an
     uninterrupted one does and keeps the lineage."""
     torch.manual_seed(6)
     save_checkpoint(tmp_path / "w.safetensors", create_model("glc-test"))
     opts = ["--lr", "3e-3", "--ckpt-every", "2", "--init-from", str(tmp_path / "w.safetensors")]
     full, part = tmp_path / "full", tmp_path / "part"
-    assert _train(dataset, full, "--steps", "4", *opts) == 0
-    assert _train(dataset, part, "--steps", "2", *opts) == 0
-    assert _train(dataset, part, "--steps", "4", "--resume", *opts[:-2]) == 0
+    assert train(train_dataset, full, "--steps", "4", *opts) == 0
+    assert train(train_dataset, part, "--steps", "2", *opts) == 0
+    assert train(train_dataset, part, "--steps", "4", "--resume", *opts[:-2]) == 0
     a, b = load_training_checkpoint(full / "last.pt"), load_training_checkpoint(part / "last.pt")
     assert a["step"] == b["step"] == 4
     assert all(torch.equal(v, b["model"][k]) for k, v in a["model"].items())
@@ -114,10 +114,9 @@ def test_probes_remove_what_they_say() -> None:
     assert torch.equal(probe_images(images, mask, "shuffled", seed=3), s)
 
 
-def test_probe_object_and_summary() -> None:
+def test_probe_object_and_summary(np_rng) -> None:
     normals, mask = ellipsoid_normals(32, 32, 16, 16, 12, 12)
-    rng = np.random.default_rng(0)
-    imgs = lambertian(normals, mask, random_lights(rng, 4), np.ones((4, 3)) * 0.7)
+    imgs = lambertian(normals, mask, random_lights(np_rng, 4), np.ones((4, 3)) * 0.7)
     model = create_model("glc-test").eval()
     args = (torch.from_numpy(imgs).float(), torch.from_numpy(mask[None]).float(),
             torch.from_numpy(normals.transpose(2, 0, 1)).float())
@@ -133,9 +132,9 @@ def test_probe_object_and_summary() -> None:
     assert summ["families"]["unknown"]["n"] == 1
 
 
-def test_validation_logs_probes_and_gain(dataset, tmp_path) -> None:
+def test_validation_logs_probes_and_gain(train_dataset, tmp_path) -> None:
     out = tmp_path / "run"
-    assert _train(dataset, out, "--steps", "2", "--val", str(dataset["val"]), "--val-every", "2",
+    assert train(train_dataset, out, "--steps", "2", "--val", str(train_dataset["val"]), "--val-every", "2",
                   "--val-pixels", "100") == 0
     rec = [json.loads(x) for x in (out / "log.jsonl").read_text().splitlines() if '"val"' in x][-1]["val"]
     assert {"all", "one", "mask", "shuffled"} <= set(rec["probes"]) and "gain" in rec
@@ -149,14 +148,14 @@ def _free_port() -> int:
 
 
 @pytest.mark.slow
-def test_torchrun_two_processes_gloo(dataset, tmp_path) -> None:
+def test_torchrun_two_processes_gloo(train_dataset, tmp_path) -> None:
     """The CLI runs unchanged under torchrun (2 CPU processes, gloo); two runs give identical weights."""
     digests = []
     for name in ("a", "b"):
         out = tmp_path / name
         cmd = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node", "2", "--master_addr", "127.0.0.1",
-               "--master_port", str(_free_port()), "-m", "unips.train", "--data", str(dataset["train"]),
-               "--val", str(dataset["val"]), "--val-every", "3", "--val-pixels", "50", "--model", "glc-test",
+               "--master_port", str(_free_port()), "-m", "unips.train", "--data", str(train_dataset["train"]),
+               "--val", str(train_dataset["val"]), "--val-every", "3", "--val-pixels", "50", "--model", "glc-test",
                "--out", str(out), "--batch", "2", "--res", "32", "--pixels", "100", "--max-images", "4",
                "--threads", "1", "--no-progress", "--steps", "3", "--log-every", "1"]
         env = {**os.environ, "PYTHONPATH": str(REPO)}
@@ -225,21 +224,20 @@ def _lambertian_sphere(size: int, lights: np.ndarray) -> tuple[torch.Tensor, tor
     points, r2 = ortho_sphere(size, 1.0)
     inside = r2 < 0.95 ** 2
     n = points.transpose(2, 0, 1) * inside  # (3, H, W)
-    shade = np.clip(np.einsum("kc,chw->khw", lights, n), 0, None) * inside  # (K, H, W)
+    shade = shading(n.transpose(1, 2, 0), lights) * inside  # (K, H, W)
     images = np.repeat(shade[:, None], 3, axis=1) * np.array([0.8, 0.5, 0.3])[None, :, None, None]
     return (torch.from_numpy(images).float(), torch.from_numpy(inside[None].astype(np.float32)),
             torch.from_numpy(n).float())
 
 
-def test_interior_crop_keeps_images_and_normals_consistent_and_drops_the_outline() -> None:
+def test_interior_crop_keeps_images_and_normals_consistent_and_drops_the_outline(np_rng) -> None:
     from unips.augment import interior_crop
 
     lights = np.array([[0.0, 0.0, 1.0], [0.5, 0.3, 0.81], [-0.4, 0.2, 0.89]])
     lights /= np.linalg.norm(lights, axis=1, keepdims=True)
     images, mask, normals = _lambertian_sphere(96, lights)
-    rng = np.random.default_rng(0)
     for _ in range(5):
-        crop, m, n = interior_crop(images, mask, normals, rng)
+        crop, m, n = interior_crop(images, mask, normals, np_rng)
         assert crop.shape == images.shape and m.shape == mask.shape and n.shape == normals.shape
         assert torch.all(m == 1)  # no outline left
         assert torch.allclose(n.norm(dim=0), torch.ones(96, 96), atol=1e-5)
@@ -253,13 +251,13 @@ def test_interior_crop_keeps_images_and_normals_consistent_and_drops_the_outline
     # A mask too small for the smallest square: no crop.
     tiny = torch.zeros_like(mask)
     tiny[:, 40:50, 40:50] = 1
-    assert interior_crop(images, tiny, normals, rng, min_fraction=16 / 96) is None
+    assert interior_crop(images, tiny, normals, np_rng, min_fraction=16 / 96) is None
 
 
-def test_interior_crop_enters_batches_only_when_asked(dataset) -> None:
+def test_interior_crop_enters_batches_only_when_asked(train_dataset) -> None:
     from unips.train_data import load_samples, make_batch
 
-    samples = load_samples(dataset["train"], 32)
+    samples = load_samples(train_dataset["train"], 32)
     kw = dict(seed=3, batch=2, min_images=2, max_images=4, pixels=50, canonical=16)
     plain, none = make_batch(samples, 5, **kw), make_batch(samples, 5, interior_crop=0.0, **kw)
     assert torch.equal(plain.images, none.images)  # probability 0 draws nothing: old trajectories kept

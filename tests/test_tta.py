@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 import torch
-from fixtures import ellipsoid_normals, lambertian, random_lights
+from fixtures import ellipsoid_normals, lambertian, random_lights, write_predict_ours
 
 from unips.augment import DIHEDRAL, apply_augmentation, invert_normals
 from unips.checkpoint import save_checkpoint
@@ -83,14 +83,12 @@ def test_bad_view_counts_are_refused(bad) -> None:
 
 
 def test_predict_cli_records_the_views(tmp_path, capsys) -> None:
-    from test_predict_evaluate import write_ours
-
     from scenes.images import read_normals
     from unips import predict as pr
 
     torch.manual_seed(0)
     ckpt = save_checkpoint(tmp_path / "w.safetensors", create_model("glc-test"))
-    _, mask = write_ours(tmp_path / "data" / "alpha.data")
+    _, mask = write_predict_ours(tmp_path / "data" / "alpha.data")
     maps = {}
     for tta in (None, "1", "4"):
         out = tmp_path / f"p{tta}"

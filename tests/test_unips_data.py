@@ -11,67 +11,23 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from conftest import write_synthetic_object
-from fixtures import cone_lights, shading, sphere
+from fixtures import (
+    SHARED,
+    SPHERE_ALBEDO,
+    cone_lights,
+    shading,
+    sphere,
+    sphere_images,
+    write_diligent,
+    write_mask,
+    write_ours,
+    write_png16,
+)
 
 from scenes.images import read_normals, write_normal_exr, write_normal_map, write_normal_visual
 from scenes.metrics import angular_error_deg, mean_angular_error
 from unips.data import PSObject, find_objects, load_ground_truth, load_object
 from unips.preprocess import prepare, resize_prepared, uncrop
-
-SHARED = Path(__file__).resolve().parents[2] / "shared"
-ALBEDO = np.array([0.9, 0.6, 0.3])
-
-
-def render(n: np.ndarray, mask: np.ndarray, L: np.ndarray, intensities: np.ndarray | None = None) -> np.ndarray:
-    """(K, H, W, 3) Lambertian images in [0, 1): albedo * intensity * max(0, n . l)."""
-    shade = shading(n, L)
-    inten = np.ones((len(L), 3)) if intensities is None else intensities
-    img = 0.9 * shade[..., None] * ALBEDO * inten[:, None, None, :]
-    img[:, ~mask] = 0.0
-    return img
-
-
-def write_png16(path: Path, rgb: np.ndarray) -> None:
-    assert cv2.imwrite(str(path), np.round(np.clip(rgb, 0, 1) * 65535).astype(np.uint16)[..., ::-1])
-
-
-def write_mask(path: Path, mask: np.ndarray) -> None:
-    assert cv2.imwrite(str(path), mask.astype(np.uint8) * 255)
-
-
-def write_ours(folder: Path, k: int = 6, size: int = 32, other: int = 0, seed: int = 0):
-    n, mask = sphere(size)
-    L = cone_lights(k, seed)
-    irr = np.linspace(0.8, 1.1, k)[:, None] * np.array([1.0, 0.95, 0.9])
-    imgs = render(n, mask, L, irr)
-    write_synthetic_object(folder, imgs, mask, n, directions=L, irradiance=irr, other=other)
-    return n, mask, L, irr, imgs
-
-
-def write_diligent(folder: Path, k: int = 6, size: int = 32, seed: int = 1, gt: str = "mat"):
-    import scipy.io
-
-    folder.mkdir(parents=True)
-    n, mask = sphere(size)
-    L = cone_lights(k, seed)
-    inten = np.linspace(0.5, 0.9, k)[:, None] * np.array([1.0, 0.8, 0.6])
-    imgs = render(n, mask, L, inten)
-    names = [f"{i + 1:03d}.png" for i in range(k)]
-    for name, im in zip(names, imgs):
-        write_png16(folder / name, im)
-    (folder / "filenames.txt").write_text("\n".join(names) + "\n")
-    np.savetxt(folder / "light_directions.txt", L, fmt="%.6f")
-    np.savetxt(folder / "light_intensities.txt", inten, fmt="%.6f")
-    write_mask(folder / "mask.png", np.repeat(mask[..., None], 3, axis=2))  # DiLiGenT ball's mask is RGB
-    if gt == "mat":
-        scipy.io.savemat(folder / "Normal_gt.mat", {"Normal_gt": n})
-    else:
-        enc = np.round((n + 1) / 2 * 255).astype(np.uint8)
-        enc[~mask] = 0  # DiLiGenT's PNG background is black
-        assert cv2.imwrite(str(folder / "Normal_gt.png"), enc[..., ::-1])
-    return n, mask, L, inten, imgs
-
 
 # ------------------------------------------------------------------------------------------ loaders
 
@@ -103,8 +59,8 @@ def test_load_diligent_layout_keeps_raw_images(tmp_path):
     n, mask, L, inten, imgs = write_diligent(tmp_path / "sphPNG")
     obj = load_object(tmp_path / "sphPNG")
     assert obj.layout == "diligent" and obj.name == "sphPNG" and obj.light_family == "directional"
-    shade = np.clip(np.einsum("hwc,kc->khw", n, L), 0, None)
-    expected = 0.9 * shade[..., None] * ALBEDO * inten[:, None, None, :]  # not divided by the intensities
+    shade = shading(n, L)
+    expected = 0.9 * shade[..., None] * SPHERE_ALBEDO * inten[:, None, None, :]  # not divided by the intensities
     assert np.abs(obj.images - expected).max() < 2e-4
     assert np.allclose(obj.light_directions, L / np.linalg.norm(L, axis=1, keepdims=True), atol=1e-5)
     assert np.allclose(obj.light_intensities, inten, atol=1e-6)
@@ -124,7 +80,7 @@ def test_load_unips_layout_8bit_no_mask(tmp_path):
     folder = tmp_path / "u.data"
     folder.mkdir()
     n, mask = sphere(24)
-    imgs = render(n, mask, cone_lights(4))
+    imgs = sphere_images(n, mask, cone_lights(4))
     for i, im in enumerate(imgs):
         assert cv2.imwrite(str(folder / f"L{i + 1}.png"), np.round(im * 255).astype(np.uint8)[..., ::-1])
     (folder / "L_notes.txt").write_text("not an image")
@@ -255,7 +211,7 @@ def test_real_diligent_ball_frame():
     # Same frame for lights and normals: gray intensity must follow max(0, n . l) (a flipped axis
     # would decorrelate it).
     gray = obj.images[:, obj.mask] @ np.array([0.2989, 0.587, 0.114], np.float32)
-    shade = np.clip(obj.normals[obj.mask] @ obj.light_directions.T, 0, None).T
+    shade = shading(obj.normals[obj.mask], obj.light_directions)
     corr = [np.corrcoef(gray[k], shade[k])[0, 1] for k in range(8)]
     assert min(corr) > 0.9, corr
     # The top of the ball faces up (+y), its left side faces left (-x).
@@ -269,7 +225,7 @@ def test_real_diligent_ball_frame():
 
 
 def _object(n, mask, k=3) -> PSObject:
-    imgs = render(n, mask, cone_lights(k)).astype(np.float32)
+    imgs = sphere_images(n, mask, cone_lights(k)).astype(np.float32)
     return PSObject(name="t", images=imgs, mask=mask, normals=n.astype(np.float32), light_family=None,
                     light_directions=None, light_intensities=None, path=Path("."), layout="test")
 

@@ -1,11 +1,12 @@
-"""The capture checks' camera motion and frontal light (`validate.diagnosis.usable`, `validate.diagnosis.camera_motion`) on analytic
+"""The capture checks' camera motion and frontal light (`validate.diagnosis.usable`,
+`validate.diagnosis.camera_motion`) on analytic
 captures whose truth is known: a textured ellipsoid seen by a camera that moved between two groups of photos, and
 lights whose angle from the viewing direction is drawn. Written from the geometry, not from the code under test."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from fixtures import ellipsoid_normals, sphere
+from fixtures import ellipsoid_normals, shading, sphere
 
 from validate.diagnosis.usable import capture_warnings, light_spread_deg
 
@@ -23,7 +24,7 @@ def scene(lights: np.ndarray, texture: bool = True) -> tuple[np.ndarray, np.ndar
     n, mask = ellipsoid_normals(H + 2 * PAD, W + 2 * PAD, (H + 2 * PAD) / 2, (W + 2 * PAD) / 2, 40, 50)
     i, j = np.mgrid[0:H + 2 * PAD, 0:W + 2 * PAD]
     albedo = 0.5 + (0.25 * np.sign(np.sin(i / 3.1) * np.sin(j / 4.3)) if texture else 0.0)
-    img = np.clip(np.einsum("hwc,kc->khw", n, lights), 0, None) * albedo * mask
+    img = shading(n, lights) * albedo * mask
     return np.repeat(img[..., None], 3, -1).astype(np.float32), mask
 
 
@@ -64,7 +65,7 @@ def test_light_spread_reads_the_ring_of_lights_on_a_sphere_whatever_the_albedo()
     n, mask = sphere(96, pad=6)
     albedo = 0.3 + 0.6 * (np.arange(96)[None, :] // 12 % 2)
     for polar in (10, 25, 40):
-        img = np.clip(np.einsum("hwc,kc->khw", n, ring(polar, 12, 10)), 0, None) * albedo * mask
+        img = shading(n, ring(polar, 12, 10)) * albedo * mask
         assert light_spread_deg(np.repeat(img[..., None], 3, -1), mask) == pytest.approx(polar, abs=3)
 
 

@@ -5,16 +5,16 @@ declines where it cannot judge and keeps the input map."""
 from __future__ import annotations
 
 import numpy as np
-from test_fit import TO_LIGHT, analytic_sphere, jit, small_config, sphere_folder  # noqa: F401  (fixtures)
+from fixtures import TO_LIGHT, analytic_sphere, shading, small_config
 
 
 def _lambertian(n: np.ndarray, mask: np.ndarray, albedo: float = 0.7, irradiance: float = 1.2) -> np.ndarray:
     """(K, H, W, 3) images of a Lambertian surface under the TO_LIGHT directions."""
-    shade = np.clip(np.einsum("hwc,kc->khw", n, TO_LIGHT), 0, None) * albedo * irradiance
+    shade = shading(n, TO_LIGHT) * albedo * irradiance
     return np.repeat(np.where(mask[None], shade, 0.0)[..., None], 3, axis=3).astype(np.float32)
 
 
-def test_explained_and_trusted_on_a_lambertian_sphere_not_on_flicker():
+def test_explained_and_trusted_on_a_lambertian_sphere_not_on_flicker(np_rng):
     from validate.fitted.verdict import MIN_EXPLAINED, explain, verdict
 
     n, mask = analytic_sphere()
@@ -24,8 +24,7 @@ def test_explained_and_trusted_on_a_lambertian_sphere_not_on_flicker():
     assert trusted and ex.explained_fraction > 0.75, why  # the rest: pixels lit in fewer than 5 of the 8 images
     # Light that flickers per pixel and image (caustics, inter-reflections the physics cannot model): the same
     # sphere multiplied by an independent random factor per observation is explained nowhere.
-    rng = np.random.default_rng(0)
-    flicker = images * rng.uniform(0.3, 1.7, images.shape[:3])[..., None].astype(np.float32)
+    flicker = images * np_rng.uniform(0.3, 1.7, images.shape[:3])[..., None].astype(np.float32)
     ex2 = explain(flicker, mask)
     trusted2, why2 = verdict(ex2)
     assert not trusted2 and ex2.explained_fraction < MIN_EXPLAINED, why2
@@ -48,7 +47,7 @@ def test_images_that_vary_in_fewer_than_three_ways_are_not_judged():
     copies = np.stack([good[0] * s for s in np.linspace(0.6, 1.3, 8)])
     t = np.radians(np.linspace(-60, 60, 8))
     plane = np.stack([np.sin(t), np.zeros(8), np.cos(t)], 1)  # every light in the x-z plane
-    flat = np.repeat((np.clip(np.einsum("hwc,kc->khw", n, plane), 0, None) * 0.8 * mask)[..., None], 3, 3)
+    flat = np.repeat((shading(n, plane) * 0.8 * mask)[..., None], 3, 3)
     for images, dims in ((copies, 1), (flat, 2), (good, 3)):
         ex = explain(noisy(images), mask)
         trusted, why = verdict(ex)
@@ -122,14 +121,14 @@ def test_refinement_declines_an_untrusted_capture_and_keeps_the_input(jit, tmp_p
     assert mean_angular_error(kept, n, mask) < 0.05  # the input map, as written (16-bit codes)
 
 
-def test_fitted_report_says_trusted_and_writes_explained(jit, sphere_folder, tmp_path):
+def test_fitted_report_says_trusted_and_writes_explained(jit, lambertian_sphere_folder, tmp_path):
     import json
 
     from validate.fitted.fit_report import rerender_fitted
     from validate.observations import load_capture
 
-    gt = load_capture(sphere_folder).normal_gt
-    r = rerender_fitted(str(sphere_folder), gt, small_config(), str(tmp_path))
+    gt = load_capture(lambertian_sphere_folder).normal_gt
+    r = rerender_fitted(str(lambertian_sphere_folder), gt, small_config(), str(tmp_path))
     assert r["trusted"] is True and r["explained_fraction"] > 0.5
     assert r["judged_rel_l1"] < r["judged_floor_rel_l1"]
     assert r["ambiguity"]["tested"] and r["ambiguity"]["variants"]  # a trusted directional capture is tested
@@ -137,19 +136,18 @@ def test_fitted_report_says_trusted_and_writes_explained(jit, sphere_folder, tmp
     assert (out / "explained.png").is_file() and json.loads((out / "report.json").read_text())["why"]
 
 
-def test_bas_relief_transform_keeps_lambertian_shading():
+def test_bas_relief_transform_keeps_lambertian_shading(np_rng):
     """Belhumeur-Kriegman-Yuille: the GBR-transformed normals, lights and albedo give the same n . l shading."""
     from validate.fitted.ambiguity import gbr_normals, gbr_start
 
     n, mask = analytic_sphere()
     nm = n[mask].astype(np.float64)
-    rng = np.random.default_rng(0)
     params = {
         "directions": TO_LIGHT,
-        "irradiance": rng.uniform(0.5, 2, (len(TO_LIGHT), 3)),
+        "irradiance": np_rng.uniform(0.5, 2, (len(TO_LIGHT), 3)),
         "ambient": np.zeros((len(TO_LIGHT), 3)),
     }
-    albedo = rng.uniform(0.2, 0.9, (len(nm), 3))
+    albedo = np_rng.uniform(0.2, 0.9, (len(nm), 3))
     for lam, mu, nu in ((0.7, 0.0, 0.0), (1.3, 0.2, -0.1)):
         st = gbr_start(params, albedo, nm, lam, mu, nu)
         nv = gbr_normals(nm, lam, mu, nu)
@@ -176,7 +174,7 @@ def test_report_says_when_the_images_cannot_decide_the_bas_relief(jit):
     assert all(v["mean_angle_deg"] > 4 for v in amb["variants"])  # the transforms are far from the map
 
 
-def test_a_map_optimised_against_the_score_is_not_told_apart_from_the_truth(jit):
+def test_a_map_optimised_against_the_score_is_not_told_apart_from_the_truth(jit, np_rng):
     """A surface darker toward its terminator than Lambertian ((n . l)^1.5, which the fitted physics cannot
     model), 8 lights, noise: normals refined against the score from the truth itself absorb part of the
     mismatch and score below the truth (the failure the resolution exists for), yet by less than the capture's
@@ -189,10 +187,9 @@ def test_a_map_optimised_against_the_score_is_not_told_apart_from_the_truth(jit)
     from validate.perturb import perturb_normals
 
     n, mask = analytic_sphere()
-    shade = np.clip(np.einsum("hwc,kc->khw", n, TO_LIGHT), 0, None) ** 1.5 * 0.84
-    rng = np.random.default_rng(0)
+    shade = shading(n, TO_LIGHT) ** 1.5 * 0.84
     images = np.repeat(np.where(mask[None], shade, 0)[..., None], 3, 3)
-    images = (images + rng.normal(0, 0.003, images.shape) * mask[None, ..., None]).astype(np.float32)
+    images = (images + np_rng.normal(0, 0.003, images.shape) * mask[None, ..., None]).astype(np.float32)
     ex = explain(images, mask)
     cfg = small_config()
     # No held-out images: refinement optimises the score as far as it goes.

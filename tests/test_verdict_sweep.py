@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from test_fit import TO_LIGHT, analytic_sphere
+from fixtures import TO_LIGHT, analytic_sphere
 
 ROOT = Path(__file__).resolve().parents[1]
 

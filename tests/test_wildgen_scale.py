@@ -17,51 +17,16 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
-from conftest import use_variant
-
-REPO = Path(__file__).resolve().parents[1]
-N = 6
-SMALL = ["--lights", "directional,near_area,hdri,point", "--objects", str(N), "--images", "3", "--res", "32",
-         "--spp", "4", "--gt-spp", "4", "--seed", "11", "--variant", "llvm_ad_rgb", "--quiet"]
-
-
-def _interruptible() -> None:
-    """Child set-up: take SIGINT as a terminal's Ctrl-C would deliver it, even when the test runner itself was
-    started in the background (where the shell leaves SIGINT ignored, and children inherit that)."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
-def command(out: Path, *extra: str) -> list[str]:
-    return [sys.executable, "-m", "wildgen.make", "--out", str(out), *SMALL, *extra]
-
-
-def cli(out: Path, *extra: str, timeout: float = 300) -> subprocess.CompletedProcess:
-    return subprocess.run(command(out, *extra), cwd=REPO, capture_output=True, text=True, timeout=timeout)
-
-
-def object_bytes(root: Path) -> dict[str, bytes]:
-    """Every file under the object folders, by path relative to the dataset."""
-    return {
-        str(p.relative_to(root)): p.read_bytes()
-        for folder in sorted(root.glob("*.data"))
-        for p in sorted(folder.rglob("*"))
-        if p.is_file()
-    }
-
-
-def entries(root: Path) -> list[dict]:
-    """Manifest objects without their timings and Ray node (the per-run fields of an entry)."""
-    objects = json.loads((root / "manifest.json").read_text())["objects"]
-    return [{k: v for k, v in e.items() if k not in ("timings", "node")} for e in objects]
-
-
-def assert_same_dataset(a: Path, b: Path) -> None:
-    fa, fb = object_bytes(a), object_bytes(b)
-    assert sorted(fa) == sorted(fb)
-    different = [rel for rel in fa if fa[rel] != fb[rel]]
-    assert not different, different[:5]
-    assert entries(a) == entries(b)
-    assert not list(b.glob(".tmp-*"))
+from fixtures import (
+    REPO,
+    SCALE_FLAGS,
+    SCALE_N,
+    assert_same_dataset,
+    interruptible,
+    make_cli,
+    make_command,
+    use_variant,
+)
 
 
 def wait_for(predicate, timeout: float, what: str) -> None:
@@ -93,8 +58,8 @@ def make_in_background(out: Path, *, output: bool = False):
     """`wildgen.make` with 2 workers started in its own process group (yielded); the whole group is killed on
     the way out if anything of it is still alive."""
     pipe = subprocess.PIPE if output else subprocess.DEVNULL
-    proc = subprocess.Popen(command(out, "--workers", "2"), cwd=REPO, start_new_session=True, preexec_fn=_interruptible,
-                            stdout=pipe, stderr=pipe, text=output)
+    proc = subprocess.Popen(make_command(out, "--workers", "2"), cwd=REPO, start_new_session=True,
+                            preexec_fn=interruptible, stdout=pipe, stderr=pipe, text=output)
     try:
         yield proc
     finally:
@@ -124,21 +89,21 @@ def reference(tmp_path_factory) -> Path:
     """An uninterrupted run with 2 worker processes."""
     use_variant("llvm_ad_rgb")
     out = tmp_path_factory.mktemp("ref") / "data"
-    r = cli(out, "--workers", "2")
+    r = make_cli(out, "--workers", "2")
     assert r.returncode == 0, r.stderr
-    assert r.stdout.strip().splitlines()[-1].startswith(f"{N} done, 0 skipped, 0 failed"), r.stdout
+    assert r.stdout.strip().splitlines()[-1].startswith(f"{SCALE_N} done, 0 skipped, 0 failed"), r.stdout
     manifest = json.loads((out / "manifest.json").read_text())
-    assert manifest["run"]["workers"] == 2 and [e["status"] for e in manifest["objects"]] == ["done"] * N
+    assert manifest["run"]["workers"] == 2 and [e["status"] for e in manifest["objects"]] == ["done"] * SCALE_N
     return out
 
 
 def test_one_worker_and_in_process_give_the_same_bytes(reference, tmp_path):
-    r = cli(tmp_path / "w1", "--workers", "1", "--recycle-after", "2")  # 3 successive worker processes
+    r = make_cli(tmp_path / "w1", "--workers", "1", "--recycle-after", "2")  # 3 successive worker processes
     assert r.returncode == 0, r.stderr
     assert_same_dataset(reference, tmp_path / "w1")
     from wildgen.make import main
 
-    assert main(["--out", str(tmp_path / "w0"), *SMALL, "--workers", "0"]) == 0
+    assert main(["--out", str(tmp_path / "w0"), *SCALE_FLAGS, "--workers", "0"]) == 0
     assert_same_dataset(reference, tmp_path / "w0")
 
 
@@ -150,12 +115,12 @@ def test_sigkill_mid_run_then_same_command_resumes(reference, tmp_path):
         os.kill(proc.pid, signal.SIGKILL)  # the parent only: its workers must follow, even a stopped one
         proc.wait(10)
         wait_for(lambda: not group_alive(proc.pid), 20, "the workers to die with their parent")
-    assert len(list(out.glob("*.data"))) < N, "the kill came too late to test anything"
+    assert len(list(out.glob("*.data"))) < SCALE_N, "the kill came too late to test anything"
     assert any(p.name.endswith("." + frozen) for p in out.glob(".tmp-*")), (
         "the frozen worker's object should be left half-written"
     )
 
-    r = cli(out, "--workers", "2")
+    r = make_cli(out, "--workers", "2")
     assert r.returncode == 0, r.stderr
     assert "already complete" in r.stdout
     assert_same_dataset(reference, out)
@@ -191,7 +156,7 @@ def test_killed_worker_is_retried(reference, tmp_path):
         stdout, err = proc.communicate(timeout=300)
     assert proc.returncode == 0, err
     assert "attempt 1 failed (worker process killed by SIGKILL" in err
-    assert stdout.strip().splitlines()[-1].startswith(f"{N} done, 0 skipped, 0 failed")
+    assert stdout.strip().splitlines()[-1].startswith(f"{SCALE_N} done, 0 skipped, 0 failed")
     assert_same_dataset(reference, out)
 
 
@@ -204,10 +169,10 @@ def test_corrupt_and_missing_objects_are_rendered_again(reference, tmp_path):
     png.write_bytes(bytes(data))
     shutil.rmtree(out / "00002.data")
     (out / ".tmp-00003.data.99999" / "aux").mkdir(parents=True)  # an interrupted object's leftovers
-    r = cli(out, "--workers", "1")
+    r = make_cli(out, "--workers", "1")
     assert r.returncode == 0, r.stderr
     assert "checksum mismatch in L001.png" in r.stderr and "folder missing" in r.stderr
-    assert r.stdout.strip().splitlines()[-1].startswith(f"2 done, {N - 2} skipped, 0 failed")
+    assert r.stdout.strip().splitlines()[-1].startswith(f"2 done, {SCALE_N - 2} skipped, 0 failed")
     assert_same_dataset(reference, out)
 
 
@@ -215,7 +180,7 @@ def test_other_config_in_the_folder_is_refused_unless_overwrite(tmp_path, capsys
     from wildgen.make import main
 
     out = tmp_path / "d"
-    small = [*SMALL, "--workers", "0", "--objects", "1"]
+    small = [*SCALE_FLAGS, "--workers", "0", "--objects", "1"]
     assert main(["--out", str(out), *small]) == 0
     capsys.readouterr()
     assert main(["--out", str(out), *small, "--spp", "8"]) == 2
@@ -247,7 +212,8 @@ def test_bad_asset_is_refused_up_front(tmp_path, capsys):
     _write_assets(assets)
     out = tmp_path / "d"
     rc = main(
-        ["--out", str(out), *SMALL, "--assets", str(assets), "--shapes", "mesh", "--workers", "2", "--max-retries", "1"]
+        ["--out", str(out), *SCALE_FLAGS, "--assets", str(assets), "--shapes", "mesh", "--workers", "2",
+         "--max-retries", "1"]
     )
     err = capsys.readouterr().err.strip()
     assert rc == 2
@@ -257,7 +223,7 @@ def test_bad_asset_is_refused_up_front(tmp_path, capsys):
 
 def test_ray_local_gives_the_same_bytes(reference, tmp_path):
     pytest.importorskip("ray")
-    r = cli(tmp_path / "ray", "--ray")
+    r = make_cli(tmp_path / "ray", "--ray")
     assert r.returncode == 0, r.stderr
     assert json.loads((tmp_path / "ray" / "manifest.json").read_text())["run"]["engine"] == "ray"
     assert_same_dataset(reference, tmp_path / "ray")
