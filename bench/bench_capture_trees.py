@@ -26,6 +26,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))  # this tree's toolkit, not another checkout's installed one
 
 from scenes.cli.options import REQUIRED, Command  # noqa: E402
+from scenes.files import write_json  # noqa: E402
 
 CLIP_FRACTION = 0.001
 """Fraction of the object's values (all images) that clip in the JPEG files."""
@@ -111,7 +112,7 @@ def main(argv: list[str] | None = None) -> int:
         finally:
             subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", str(base)], check=False)
     Path(opts.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(opts.out).write_text(json.dumps({"baseline": opts.baseline, "rows": rows}, indent=1) + "\n")
+    write_json(Path(opts.out), {"baseline": opts.baseline, "rows": rows}, indent=1, newline=True)
     print(f"wrote {opts.out}")
     return 0
 
