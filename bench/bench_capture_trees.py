@@ -25,6 +25,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))  # this tree's toolkit, not another checkout's installed one
 
+from bench.cli_common import DILIGENT, parse  # noqa: E402
 from scenes.cli.options import REQUIRED, Command  # noqa: E402
 from scenes.files import write_json  # noqa: E402
 
@@ -38,7 +39,7 @@ class Options:
 
     baseline: str = REQUIRED
     """Commit to compare with (checked out into a temporary git worktree, removed after)."""
-    data: str = str(REPO.parent / "shared" / "data" / "diligent")
+    data: str = str(DILIGENT)
     """Folder of DiLiGenT objects (<name>PNG)."""
     objects: str = "ball,cat"
     """Comma-separated DiLiGenT objects."""
@@ -77,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     from scenes.images import read_normals, write_mask
     from scenes.metrics import angular_error_deg, mean_angular_error
 
-    opts = COMMAND.parse(argv)
+    opts = parse(COMMAND, argv)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
