@@ -94,8 +94,8 @@ TIE_FLOOR = 0.002
 every map near the truth scores near 0."""
 SEPARATION = 0.02
 """A 2 % relative difference of judged residuals: the margin a refined map must win by, and a bas-relief
-transform must lose by, to count (docs/check.md, "How well it works": refinements that gained less than this
-did not move DiLiGenT cat's map closer to the truth)."""
+transform must lose by, to count. A chosen margin, not yet swept like the verdict constants (docs/check.md);
+the capture's own resolution (`resolution_tie`) is what says whether the images tell two maps apart."""
 ROTATION_TIE = 0.005
 """Candidate tilts of one rotation search whose residual is within this fraction of the best one's are equally
 good (DiLiGenT cat: tilts 1.5 deg apart gave final maps 6.9 to 8.4 deg off at one residual)."""
