@@ -78,7 +78,8 @@ def main(argv: list[str] | None = None) -> int:
     import mitsuba as mi
 
     mi.set_log_level(mi.LogLevel.Error)
-    from validate.io import list_objects, load_object
+    from scenes.folder.format import list_object_folders
+    from validate.observations import load_known_scene
     from validate.perturb import perturb_normals
     from validate.rerender import RerenderConfig, rerender_object
 
@@ -107,8 +108,8 @@ def main(argv: list[str] | None = None) -> int:
     kinds = args.kinds.split(",")
 
     rows, baselines = [], []
-    for folder in list_objects(data):
-        obj = load_object(folder)
+    for folder in list_object_folders(data):
+        obj = load_known_scene(folder)
         if obj.normal_gt is None:
             print(f"skipping {obj.name}: no normal.tif")
             continue
@@ -135,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
     print("object                family     gt_rel_l1  noise_floor  reproduce  rerender_s  original_s  ratio")
     for b in baselines:
         t = b["timings"]
-        family = load_object(b["folder"]).desc.light_family
+        family = load_known_scene(b["folder"]).desc.light_family
         print(
             f"{b['object']:<21} {family:<10} {b['gt_rel_l1']:<10.4f} {b['noise_floor_rel_l1']:<12.4f} "
             f"{b['reproduce_rel_l1']:<10.2g} {t['rerender_s']:<11.4f} {t['original_render_s']:<11.4f} "

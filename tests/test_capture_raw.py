@@ -219,7 +219,7 @@ def test_raw_photos_reach_the_report_and_bad_ones_stop_the_command_in_one_line(t
         write_dng(tmp_path / "in" / f"{i}.dng", flat(400 + 100 * i), exposure_s=1 / 100, iso=100, orientation=6)
     opts = CaptureOptions(input=str(tmp_path / "in"), out=str(tmp_path / "o"))
     assert probe_input(opts) == (3, W, H)
-    source = read_input(opts).source
+    source = read_input(opts).meta["input"]
     json.dumps(source)  # report.json takes it as it is
     assert source["bit_depth"] == 16 and len(source["raw"]) == 3 and source["raw"][0]["orientation_flip"] == 6
     (tmp_path / "in" / "2.dng").write_bytes(b"\0" * 100)

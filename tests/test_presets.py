@@ -72,13 +72,13 @@ def test_every_new_family_renders_and_is_recorded(families):
 def test_new_families_pass_the_rerender_check_with_true_normals(families):
     """The known-scene check rebuilds every light of these families (a uniform background included) and reports
     it in its type's camera-frame form; the true normals reproduce the images."""
-    from validate.io import load_object
+    from validate.observations import load_known_scene
     from validate.rerender import RerenderConfig, rerender_object
 
     for folder, family in zip(sorted(families.glob("*.data")), NEW_FAMILIES):
         if family not in ("verse", "frontal", "display"):
             continue
-        obj = load_object(folder)
+        obj = load_known_scene(folder)
         report = rerender_object(folder, obj.normal_gt, RerenderConfig(seed_mode="same"))
         assert report["reproduce_rel_l1"] == 0.0, family
         assert report["mae_deg"] < 0.01 and report["rel_l1"] < 0.5 * report["noise_floor_rel_l1"], family

@@ -278,10 +278,10 @@ def test_passthrough_mode_is_bit_identical_to_the_original(jit, sphere_folder):
 
 
 def test_ground_truth_normals_reach_the_noise_floor(jit, sphere_folder):
-    from validate.io import load_object
+    from validate.observations import load_known_scene
     from validate.rerender import RerenderConfig, rerender_object
 
-    obj = load_object(sphere_folder)
+    obj = load_known_scene(sphere_folder)
     same = rerender_object(sphere_folder, obj.normal_gt, RerenderConfig(seed_mode="same"))
     indep = rerender_object(sphere_folder, obj.normal_gt, RerenderConfig(seed_mode="independent", floors=False))
     floor = same["noise_floor_rel_l1"]
@@ -297,11 +297,11 @@ def test_ground_truth_normals_reach_the_noise_floor(jit, sphere_folder):
 
 @pytest.mark.parametrize("kind", ["random", "smooth", "bias"])
 def test_residual_grows_with_the_normal_error(jit, sphere_folder, kind):
-    from validate.io import load_object
+    from validate.observations import load_known_scene
     from validate.perturb import perturb_normals
     from validate.rerender import RerenderConfig, rerender_object
 
-    obj = load_object(sphere_folder)
+    obj = load_known_scene(sphere_folder)
     floor = rerender_object(sphere_folder, obj.normal_gt, RerenderConfig(floors=False))["rel_l1"]
     scores, maes = [], []
     for angle in (5, 20, 40):
@@ -320,9 +320,9 @@ def test_normal_mapped_material_wraps_the_inner_bsdf(jit, tmp_path):
     """With a `normalmap` material, hidden points keep the normal-mapped normal (the normalmap BSDF is kept)
     and visible ones feed the prediction to a second instance of the inner BSDF; ground-truth normals
     (which include the normal map) still explain the images."""
-    from validate.io import load_object
     from validate.known.normal_bsdf import PLUGIN_NAME, wrapper_for
     from validate.known.projection import CameraProjection
+    from validate.observations import load_known_scene
     from validate.rerender import RerenderConfig, rerender_object
 
     yy, xx = np.mgrid[0:64, 0:64] / 64.0
@@ -340,7 +340,7 @@ def test_normal_mapped_material_wraps_the_inner_bsdf(jit, tmp_path):
         and wrapped["inner"]["type"] == "principled"
     )
 
-    obj = load_object(folder)
+    obj = load_known_scene(folder)
     r = rerender_object(folder, obj.normal_gt, RerenderConfig())
     assert r["reproduce_rel_l1"] == 0.0
     assert r["gt_rel_l1"] < 0.5 * r["noise_floor_rel_l1"]
@@ -382,10 +382,10 @@ def _one_line_error(capsys) -> str:
 def test_bad_inputs_are_named(jit, sphere_folder, tmp_path, capsys):
     import shutil
 
-    from validate.io import load_object
+    from validate.observations import load_known_scene
     from validate.rerender import RerenderConfig, main, rerender_object
 
-    obj = load_object(sphere_folder)
+    obj = load_known_scene(sphere_folder)
     out = str(tmp_path / "out")
 
     np.save(tmp_path / "small.npy", np.zeros((R - 1, R, 3), np.float32))
@@ -463,7 +463,7 @@ def test_cli_dataset_end_to_end(jit, sphere_folder, tmp_path, capsys):
     import cv2
 
     from scenes.images import encode_normals
-    from validate.io import load_object
+    from validate.observations import load_known_scene
     from validate.perturb import perturb_normals
     from validate.rerender import main
 
@@ -471,7 +471,7 @@ def test_cli_dataset_end_to_end(jit, sphere_folder, tmp_path, capsys):
     data.mkdir()
     shutil.copytree(sphere_folder, data / "a.data")
     shutil.copytree(sphere_folder, data / "b.data")
-    obj = load_object(sphere_folder)
+    obj = load_known_scene(sphere_folder)
     preds = {"a": obj.normal_gt, "b": perturb_normals(obj.normal_gt, obj.mask, "smooth", 20, seed=3)}
     for name, n in preds.items():
         (tmp_path / "pred" / name).mkdir(parents=True)

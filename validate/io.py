@@ -1,5 +1,5 @@
-"""What the re-render check needs from an object folder and a prediction, on top of `scenes.folder.format`
-(the one owner of the folder layout, scene.json extras, mask rule, normal-map files and prediction lookup).
+"""The normal maps the check judges: read (a file, an array or a prediction folder, located by
+`scenes.folder.format`, the one owner of the folder layout and prediction lookup) and checked against a mask.
 
 Normal maps: camera frame (x right, y up, z toward the camera), full frame, as `unips.predict` writes
 them; read with `scenes.images.read_normals`.
@@ -7,14 +7,11 @@ them; read with `scenes.images.read_normals`.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from scenes.description import SceneDescription
-from scenes.folder.format import find_prediction, read_scene_dict, scene_from_dict
-from scenes.folder.layouts import layout_named, read_folder
+from scenes.folder.format import find_prediction
 from scenes.images import read_normals
 
 log = logging.getLogger(__name__)
@@ -37,47 +34,6 @@ def check_magnitude(inside: np.ndarray, what: str) -> None:
         raise ValueError(f"{what}: {int(big.sum())} normal(s) inside the mask have components up to "
                          f"{float(np.abs(inside).max()):.3g}, above {MAX_NORMAL_VALUE:g}; expected unit vectors "
                          "(the map is scaled wrongly or corrupt)")
-
-
-@dataclass
-class ObjectData:
-    """One object folder, loaded."""
-
-    folder: Path
-    """The `<name>.data` folder (relative paths in scene.json resolve against it)."""
-    name: str
-    """Folder name without '.data'."""
-    desc: SceneDescription
-    """The scene of the K images."""
-    images: np.ndarray | None
-    """(K, H, W, 3) float32 linear input images (exposure applied; a recorded camera sensor undone); None when
-    loaded without them (`load_object(images=False)`)."""
-    mask: np.ndarray
-    """(H, W) bool object mask."""
-    normal_gt: np.ndarray | None
-    """(H, W, 3) float32 ground-truth camera-frame normals from normal.tif (0 outside the mask), or None."""
-
-
-def load_object(folder: str | Path, images: bool = True) -> ObjectData:
-    """Load an object folder with its scene (`scenes.folder.layouts.read_folder`, layout "ours"; scene.json parsed
-    once); raise FileNotFoundError / ValueError naming what is missing or inconsistent with scene.json.
-    images: False reads only the first image (its size): what the checks before any rendering need."""
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise FileNotFoundError(f"--data: {str(folder)!r} is not a folder")
-    scene = read_scene_dict(folder)
-    desc = scene_from_dict(scene)
-    files = layout_named("ours").images(folder)  # counted first: a missing image is named as such
-    if len(files) != len(desc.images):
-        raise ValueError(f"images: {str(folder)!r} has {len(files)} L*.png files but scene.json describes "
-                         f"{len(desc.images)} images")
-    fd = read_folder(folder, layout="ours", arg="--data", images=images, scene=scene)
-    h, w = desc.camera.height, desc.camera.width
-    if fd.shape != (h, w):
-        raise ValueError(f"images: {str(fd.image_paths[0])!r} are {fd.shape[1]}x{fd.shape[0]}, expected {w}x{h} "
-                         "from the scene file's camera")
-    return ObjectData(folder=folder, name=fd.name, desc=desc, images=fd.linear() if images else None, mask=fd.mask,
-                      normal_gt=fd.normals)
 
 
 def read_normal_map(path: str | Path, what: str = "--normals") -> np.ndarray:

@@ -18,7 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes.folder.layouts import read_folder
+from scenes.description import SceneDescription
+from scenes.folder.format import read_scene_dict, scene_from_dict
+from scenes.folder.layouts import layout_named, read_folder
 from validate.io import check_normals, read_prediction
 
 log = logging.getLogger(__name__)
@@ -35,7 +37,8 @@ class Capture:
     layout: str
     """One of `scenes.folder.layouts.LAYOUTS`, or "memory" for a capture built from arrays."""
     images: np.ndarray
-    """(K, H, W, 3) float32 linear images (DiLiGenT: divided by the light intensities)."""
+    """(K, H, W, 3) float32 linear images (DiLiGenT: divided by the light intensities); None only for a known scene
+    read without them (`load_known_scene(images=False)`, the checks before any rendering)."""
     mask: np.ndarray
     """(H, W) bool object mask (None only for photos read before their mask is found: `orchestrate.capture`)."""
     image_names: list[str]
@@ -55,6 +58,8 @@ class Capture:
     saturated: np.ndarray | None = None
     """(K, H, W, 3) bool: channels stored at the file's largest code (8/16-bit files), whose true value is
     only known to be at least the stored one; None when no channel is saturated (or the files are float)."""
+    desc: SceneDescription | None = None
+    """The scene of the K images, for the known-scene check (`load_known_scene`); None otherwise."""
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -140,6 +145,30 @@ def load_capture(folder: str | Path, max_images: int | None = None) -> Capture:
         meta=meta,
         saturated=fd.saturated,
     )
+
+
+def load_known_scene(folder: str | Path, images: bool = True) -> Capture:
+    """An object folder with its scene, for the known-scene check (`scenes.folder.layouts.read_folder`, layout
+    "ours"; scene.json parsed once): linear images (exposure applied, a recorded camera sensor undone), mask,
+    ground truth and `desc`. FileNotFoundError / ValueError naming what is missing or inconsistent with scene.json.
+    images: False reads only the first image (its size): what the checks before any rendering need."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"--data: {str(folder)!r} is not a folder")
+    scene = read_scene_dict(folder)
+    desc = scene_from_dict(scene)
+    files = layout_named("ours").images(folder)  # counted first: a missing image is named as such
+    if len(files) != len(desc.images):
+        raise ValueError(f"images: {str(folder)!r} has {len(files)} L*.png files but scene.json describes "
+                         f"{len(desc.images)} images")
+    fd = read_folder(folder, layout="ours", arg="--data", images=images, scene=scene)
+    h, w = desc.camera.height, desc.camera.width
+    if fd.shape != (h, w):
+        raise ValueError(f"images: {str(fd.image_paths[0])!r} are {fd.shape[1]}x{fd.shape[0]}, expected {w}x{h} "
+                         "from the scene file's camera")
+    return Capture(name=fd.name, folder=fd.path, layout=fd.layout, images=fd.linear() if images else None,
+                   mask=fd.mask, image_names=fd.image_names, normal_gt=fd.normals, has_scene=True,
+                   saturated=fd.saturated, desc=desc)
 
 
 def box_downsample(x: np.ndarray, f: int) -> np.ndarray:

@@ -41,7 +41,7 @@ from scenes.files import write_json
 from scenes.folder.format import find_prediction, list_object_folders, object_name
 from scenes.renderer.variant import require_jit_variant
 from validate.fitted.fit_scene import FitConfig
-from validate.io import ObjectData, check_normals, load_object, read_prediction
+from validate.io import check_normals, read_prediction
 from validate.known.rerender_passes import MIN_COVERAGE, Progress, RerenderConfig, independent_seed, render_passes
 from validate.known.rerender_report import (
     build_report,
@@ -53,6 +53,7 @@ from validate.known.rerender_report import (
     write_figure,
     write_summary,
 )
+from validate.observations import Capture, load_known_scene
 
 log = logging.getLogger(__name__)
 
@@ -76,13 +77,13 @@ def claim_check_outputs(out: str | Path, names: list[str], overwrite: bool, summ
 def check_inputs(
     folder: str | Path, normals: np.ndarray | str | Path, allow_missing: bool = False,
     min_coverage: float = MIN_COVERAGE, images: bool = True,
-) -> tuple[ObjectData, np.ndarray, np.ndarray, str]:
+) -> tuple[Capture, np.ndarray, np.ndarray, str]:
     """Load an object folder (its images too unless `images` is False) and its prediction and check them against
     each other (no rendering).
 
     Returns (object data, normals (renormalised where valid, 0 elsewhere), valid mask, where they came from).
     A map covering less than `min_coverage` of the mask is a ValueError."""
-    data = load_object(folder, images=images)
+    data = load_known_scene(folder, images=images)
     normals, source = read_prediction(normals, data.name)
     what = f"--normals ({source})" if source != "array" else "--normals"
     pred, valid = check_normals(normals, data.mask, what, allow_missing)
@@ -101,7 +102,7 @@ def rerender_object(
     config: RerenderConfig | None = None,
     out_dir: str | Path | None = None,
     progress: Progress | None = None,
-    inputs: tuple[ObjectData, np.ndarray, np.ndarray, str] | None = None,
+    inputs: tuple[Capture, np.ndarray, np.ndarray, str] | None = None,
 ) -> dict:
     """Re-render one object folder with predicted normals; return the report (and write it to
     `out_dir/<object>/` with figure.png when out_dir is given).

@@ -17,7 +17,6 @@ from typing import Annotated, Any, Callable, Literal
 import numpy as np
 
 from scenes.cli.options import arg, check_fields, option
-from validate.io import ObjectData
 from validate.known.normal_bsdf import (
     MODE_PASSTHROUGH,
     MODE_PREDICTED,
@@ -27,6 +26,7 @@ from validate.known.normal_bsdf import (
     wrapper_for,
 )
 from validate.known.projection import CameraProjection
+from validate.observations import Capture
 from validate.residuals import expose
 
 SEED_MODES = ("same", "independent")
@@ -122,7 +122,7 @@ class RenderPasses:
     depth_map_s: float = 0.0
 
 
-def render_passes(data: ObjectData, pred: np.ndarray, valid: np.ndarray, config: RerenderConfig, spp: int,
+def render_passes(data: Capture, pred: np.ndarray, valid: np.ndarray, config: RerenderConfig, spp: int,
                   seeds: list[int], fresh: list[int], tick: Callable[[str], None]) -> RenderPasses:
     """Render every pass of the check for one object (Mitsuba work only; no scoring)."""
     from scenes.renderer.build import build_scene

@@ -11,8 +11,8 @@ import numpy as np
 
 from scenes.files import atomic_write_text, to_plain
 from scenes.metrics import mean_angular_error
-from validate.io import ObjectData
 from validate.known.rerender_passes import RenderPasses, RerenderConfig
+from validate.observations import Capture
 from validate.residuals import mean_or_none, psnr, rel_l1, relative_residual_map
 
 SUMMARY_COLUMNS = (
@@ -89,7 +89,7 @@ def score_maps(passes: RenderPasses, inputs: np.ndarray, mask: np.ndarray,
     return res_map, gt_map, threshold, source if threshold is not None else None, frac
 
 
-def build_report(data: ObjectData, pred: np.ndarray, valid: np.ndarray, source: str, passes: RenderPasses,
+def build_report(data: Capture, pred: np.ndarray, valid: np.ndarray, source: str, passes: RenderPasses,
                  per_image: list[dict[str, Any]], threshold: float | None, threshold_source: str | None,
                  frac: float | None, config: RerenderConfig, spp: int, variant: str) -> dict[str, Any]:
     """The report.json of one object (total_s is filled in by the caller)."""
