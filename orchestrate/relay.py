@@ -305,20 +305,52 @@ def _flag(argv: list[str], name: str, default: str | None) -> str | None:
 
 
 def boot_site(argv: list[str]) -> None:
-    """Before gpu_session imports its command-line machinery (tyro travels in the pack): with `--carry`, unpack
-    the pack's site.tar.xz into --work/site and put it on the path (`unpack_carry` does the rest later). Bad
-    values are left to the command's own checks."""
+    """Before gpu_session imports its command-line machinery: where tyro is missing (a bare GPU machine: it travels
+    in the pack), unpack the pack's site.tar.xz into --work/site and put it on the path, since the arguments cannot
+    be parsed without it. Where tyro is installed nothing is unpacked here: `unpack_carry` does it after the
+    arguments are checked (and `--help` touches no file). Bad values and archives are left to the command's own
+    checks, which report them in one line."""
+    import importlib.util
+
+    if importlib.util.find_spec("tyro") is not None:
+        return
     carry, work = _flag(argv, "--carry", None), _flag(argv, "--work", "/tmp/gpu_session")
     if carry and _flag(argv, "--pack", None) is None and (Path(carry) / SITE_ARCHIVE).is_file():
-        _site(Path(carry), Path(work))
+        try:
+            _site(Path(carry), Path(work))
+        except UsageError:
+            pass  # reported by unpack_carry, once the command's error handling is in place
+
+
+def safe_extract(archive: Path, target: Path, flag: str = "--carry") -> None:
+    """The one rule for every archive the toolkit unpacks (the relay's packs): every member name relative and
+    without '..' (checked before anything is written), then tarfile's `data` filter, so that no member lands
+    outside `target` after resolution (links out and devices are refused) and no setuid or group/other write bit
+    is kept; a damaged, empty or foreign archive is a UsageError in one line naming it."""
+    from pathlib import PurePosixPath
+
+    try:
+        with tarfile.open(archive) as tar:
+            for member in tar.getmembers():  # every name checked before the first byte is written
+                name = PurePosixPath(member.name)
+                if name.is_absolute() or ".." in name.parts:
+                    raise UsageError(f"{flag}: {str(archive)!r} holds member {member.name[:120]!r}, whose name would "
+                                     f"lead outside {str(target)!r} (expected names relative to it); refused")
+            tar.extractall(target, filter="data")
+    except tarfile.FilterError as exc:
+        raise UsageError(f"{flag}: {str(archive)!r} holds a member that would be unpacked outside {str(target)!r} "
+                         f"({exc}); refused") from None
+    except (tarfile.TarError, EOFError, lzma.LZMAError, OSError) as exc:
+        first = (str(exc).splitlines() or [type(exc).__name__])[0]
+        raise UsageError(f"{flag}: {str(archive)!r} cannot be unpacked ({first:.200}); expected the archive "
+                         "`python -m orchestrate.gpu_session --pack` writes") from None
 
 
 def _site(carry: Path, work: Path) -> Path:
     site = work / "site"
     if str(site) not in sys.path:
         site.mkdir(parents=True, exist_ok=True)
-        with tarfile.open(carry / SITE_ARCHIVE) as tar:
-            tar.extractall(site, filter="fully_trusted")
+        safe_extract(carry / SITE_ARCHIVE, site)
         sys.path.insert(0, str(site))
         os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (str(site), os.environ.get("PYTHONPATH")) if p)
     return site
@@ -332,6 +364,5 @@ def unpack_carry(carry: Path, work: Path) -> Path | None:
                          "`python -m orchestrate.gpu_session --pack .carry`)")
     _site(carry, work)
     if (carry / ASSET_ARCHIVE).is_file():
-        with tarfile.open(carry / ASSET_ARCHIVE) as tar:
-            tar.extractall(work, filter="data")
+        safe_extract(carry / ASSET_ARCHIVE, work)
     return work / "assets" if (work / "assets").is_dir() else None

@@ -37,9 +37,15 @@ def _tops(name: str) -> list[Path]:
     return [Path(dist.locate_file(t)) for t in sorted(tops)]
 
 
+BOOT = ("tyro==1.0.17", "docstring-parser", "typeguard")
+"""What gpu_session needs before it can parse its arguments: packed as real files in the rehearsal's site.tar.xz
+(the unpacking rule refuses links out of the archive, so the rest of the pack, hundreds of MiB, is linked into the
+rehearsal's image instead)."""
+
+
 def _image(dest: Path) -> None:
     dest.mkdir(parents=True)
-    for name in relay.GPU_IMAGE:
+    for name in relay.GPU_IMAGE + tuple(n for n in relay.PACKED if n not in BOOT):
         try:
             tops = _tops(name)
         except md.PackageNotFoundError:
@@ -51,12 +57,10 @@ def _image(dest: Path) -> None:
 
 def _site(archive: Path) -> None:
     with tarfile.open(archive, "w:xz", preset=0) as tar:
-        for name in relay.PACKED:
+        for name in BOOT:
             for top in _tops(name):
                 if top.exists():
-                    ti = tarfile.TarInfo(top.name)
-                    ti.type, ti.linkname = tarfile.SYMTYPE, str(top)
-                    tar.addfile(ti)
+                    tar.add(top, arcname=top.name, filter=lambda ti: None if "__pycache__" in ti.name else ti)
 
 
 def _assets(root: Path) -> Path:

@@ -78,11 +78,22 @@ def shard_pattern(count: int) -> str:
     return f"{{{shard_name(0)[:-len(SHARD_SUFFIX)]}..{shard_name(count - 1)[:-len(SHARD_SUFFIX)]}}}{SHARD_SUFFIX}"
 
 
+class ShardKeyError(ValueError):
+    """A sample key that is not a plain object name (`is_plain_key`): a damaged or hostile shard."""
+
+
+def is_plain_key(key: str) -> bool:
+    """The one rule of a sample key, written (`sample_key`) and read (`iter_samples`): an object name without dots
+    (WebDataset splits a member name at the first dot), path separators or control characters, not starting with
+    '_' (WebDataset's own metadata): a key read from a shard can never name a folder outside the target."""
+    return (bool(key) and not key.startswith("_") and not any(c in key for c in "./\\")
+            and key.isprintable())
+
+
 def sample_key(folder: Path, arg: str = "--data") -> str:
-    """The WebDataset key of an object folder: its object name, which must be usable as a key (WebDataset
-    splits a member name at the first dot of its file name)."""
+    """The WebDataset key of an object folder: its object name, which must be usable as a key (`is_plain_key`)."""
     key = object_name(folder)
-    if not key or "." in key or key.startswith("_"):
+    if not is_plain_key(key):
         raise ValueError(f"{arg}: object folder {str(folder)!r} is named {key!r}; a shard key must be a name without "
                          "dots that does not start with '_' (WebDataset splits member names at the first dot)")
     return key
@@ -372,7 +383,13 @@ def iter_samples(path: str | Path, arg: str = "--data") -> Iterator[tuple[str, d
             members = tar_file_expander([{"url": str(path), "stream": f}])
             for sample in group_by_keys(members, lcase=False):
                 key = sample["__key__"]
+                if not is_plain_key(key):  # the shard is untrusted: its names never become paths as they are
+                    raise ShardKeyError(f"{arg}: shard {str(path)!r} holds sample {key[:80]!r}, not a plain object "
+                                        "name (expected what wildgen.export writes: no '/', '.', '\\' or leading "
+                                        "'_'); nothing of it is unpacked")
                 yield key, {k: v for k, v in sample.items() if not k.startswith("__")}
+    except ShardKeyError:
+        raise
     except (tarfile.TarError, ValueError, OSError) as exc:
         first = (str(exc).splitlines() or [type(exc).__name__])[0]
         raise ValueError(f"{arg}: shard {str(path)!r} cannot be read ({first:.200})") from None
@@ -399,8 +416,14 @@ def listed_samples(
 
 
 def extract_sample(files: dict[str, bytes], folder: str | Path) -> Path:
-    """Write the files of one sample into `folder` (created; must not exist), as the object folder held them."""
+    """Write the files of one sample into `folder` (created; must not exist), as the object folder held them; a
+    member whose path would leave the folder is refused before anything is written."""
     folder = Path(folder)
+    inside = folder.resolve()
+    for suffix in files:
+        if not (folder / suffix_path(suffix)).resolve().is_relative_to(inside) or suffix_path(suffix).is_absolute():
+            raise ValueError(f"member {suffix[:80]!r} of sample {folder.name!r} would be written outside its folder; "
+                             "nothing of it is unpacked")
     folder.mkdir(parents=True)
     for suffix, data in files.items():
         target = folder / suffix_path(suffix)

@@ -1,0 +1,137 @@
+"""Archives the toolkit reads are untrusted (issue 50, item 1): a shard or a relay pack whose member names lead
+outside the target is refused in one line and writes nothing there, even when its index was rewritten to match
+(a checksum is not authentication)."""
+
+from __future__ import annotations
+
+import io
+import json
+import tarfile
+from pathlib import Path
+
+import pytest
+
+from scenes.files import sha256_file
+
+
+def _export(folder: Path, out: Path) -> Path:
+    """The one object folder, exported as shards into `out` (a dataset folder apart from it)."""
+    import shutil
+
+    from wildgen.export import export_dataset
+
+    data = out.parent / "dataset"
+    shutil.copytree(folder, data / folder.name)
+    export_dataset(data, out)
+    return out
+
+
+def _rename_samples(shards: Path, new_key: str) -> None:
+    """What whoever ships the shards can do: rename every member's key and rewrite index.json to match."""
+    from scenes.folder.shard_format import INDEX_FILE
+
+    index = json.loads((shards / INDEX_FILE).read_text())
+    for entry in index["shards"]:
+        path = shards / entry["name"]
+        with tarfile.open(path) as src:
+            members = [(m, src.extractfile(m).read()) for m in src.getmembers() if m.isfile()]
+        buf = io.BytesIO()
+        with tarfile.open(fileobj=buf, mode="w") as dst:
+            for m, data in members:
+                info = tarfile.TarInfo(new_key + m.name[m.name.index("."):])
+                info.size = len(data)
+                dst.addfile(info, io.BytesIO(data))
+        path.write_bytes(buf.getvalue())
+        entry.update(sha256=sha256_file(path), bytes=path.stat().st_size,
+                     objects=[{**o, "name": new_key} for o in entry["objects"]])
+    (shards / INDEX_FILE).write_text(json.dumps(index))
+
+
+@pytest.mark.parametrize("key", ["../../escaped", "/tmp/escaped-abs", "a\\b"])
+def test_a_shard_whose_names_lead_outside_is_refused_and_writes_nothing(synthetic_object, tmp_path, capsys, key):
+    from scenes.folder.shard_format import extract_sample, iter_samples
+    from unips.train import main
+    from unips.train_data import load_samples
+
+    shards = _export(synthetic_object, tmp_path / "shards")
+    _rename_samples(shards, key)
+    with pytest.raises(ValueError, match="not a plain object name"):
+        list(iter_samples(shards / "000000.tar"))
+    with pytest.raises(ValueError, match="not a plain object name"):
+        load_samples(shards, 32)
+    before = sorted(p for p in tmp_path.rglob("*"))
+    assert main(["--data", str(shards), "--out", str(tmp_path / "run"), "--model", "glc-test", "--steps", "1",
+                 "--res", "32", "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "not a plain object name" in err[0], err
+    assert not list(tmp_path.parent.glob("escaped*")) and not Path("/tmp/escaped-abs.data").exists()
+    assert [p for p in sorted(tmp_path.rglob("*")) if p not in before and "run" not in p.parts] == []
+    # The writer of one sample refuses a member path that leaves its folder before writing anything.
+    with pytest.raises(ValueError, match="outside its folder"):
+        extract_sample({"scene.json": b"{}", "../../x.json": b"{}"}, tmp_path / "one.data")
+    assert not (tmp_path / "one.data").exists()
+
+
+def _archive(path: Path, members: list[tuple[tarfile.TarInfo, bytes | None]]) -> Path:
+    with tarfile.open(path, "w:xz") as tar:
+        for info, data in members:
+            tar.addfile(info, io.BytesIO(data) if data is not None else None)
+    return path
+
+
+def _file(name: str, data: bytes = b"x") -> tuple[tarfile.TarInfo, bytes]:
+    info = tarfile.TarInfo(name)
+    info.size = len(data)
+    return info, data
+
+
+def _link(name: str, target: str) -> tuple[tarfile.TarInfo, None]:
+    info = tarfile.TarInfo(name)
+    info.type, info.linkname = tarfile.SYMTYPE, target
+    return info, None
+
+
+@pytest.mark.parametrize("member", ["dotdot", "absolute", "link_out"])
+def test_a_relay_pack_member_outside_its_folder_is_refused(tmp_path, member):
+    from orchestrate.relay import SITE_ARCHIVE, unpack_carry
+    from scenes.cli.errors import UsageError
+
+    carry, work = tmp_path / "carry", tmp_path / "work"
+    carry.mkdir()
+    bad = {"dotdot": _file("../../outside.txt"), "absolute": _file(str(tmp_path / "abs.txt")),
+           "link_out": _link("pkg/evil", "/etc/passwd")}[member]
+    _archive(carry / SITE_ARCHIVE, [_file("pkg/__init__.py", b""), bad])
+    with pytest.raises(UsageError, match="outside"):
+        unpack_carry(carry, work)
+    assert not (tmp_path / "outside.txt").exists() and not (tmp_path.parent / "outside.txt").exists()
+    assert not (tmp_path / "abs.txt").exists() and not (work / "site" / "pkg" / "evil").exists()
+
+
+@pytest.mark.parametrize("content", [b"", b"not an archive at all", None])
+def test_a_damaged_relay_pack_is_one_line(tmp_path, capsys, content):
+    """An empty, foreign or truncated site.tar.xz: one line naming --carry and the file, exit 2, no traceback."""
+    from orchestrate.gpu_session import main
+    from orchestrate.relay import SITE_ARCHIVE
+
+    carry = tmp_path / "carry"
+    carry.mkdir()
+    if content is None:  # a real archive cut in half
+        whole = _archive(tmp_path / "whole.tar.xz", [_file(f"pkg/m{i}.py", bytes(range(256)) * 64) for i in range(8)])
+        content = whole.read_bytes()[: whole.stat().st_size // 2]
+    (carry / SITE_ARCHIVE).write_bytes(content)
+    code = main(["--carry", str(carry), "--work", str(tmp_path / "work"), "--out", str(tmp_path / "out"),
+                 "--cpu-rehearsal"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and err[0].startswith("error: --carry:") and SITE_ARCHIVE in err[0], err
+
+
+def test_help_unpacks_nothing_where_the_packages_are_installed(tmp_path):
+    """boot_site (run before gpu_session's imports) leaves the pack alone where tyro is installed: the arguments
+    are checked first, and --help touches no file."""
+    from orchestrate.relay import SITE_ARCHIVE, boot_site
+
+    carry, work = tmp_path / "carry", tmp_path / "work"
+    carry.mkdir()
+    _archive(carry / SITE_ARCHIVE, [_file("pkg/__init__.py", b"")])
+    boot_site(["--carry", str(carry), "--work", str(work), "--help"])
+    assert not work.exists()
