@@ -176,7 +176,7 @@ def judge(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None, re
             s = {k: judged_rel_l1(r, observed, ex) for k, r in renders.items()}
             out[name][value] = {
                 "explained": ex.explained_fraction,
-                "light_dimensions": int(sum(d >= rules.dimension_noise for d in ex.dimensions)),
+                "light_dimensions": ex.dimensions_above(rules.dimension_noise),
                 "resolution": ex.resolution,
                 "trusted": trusted,
                 "judged": s,

@@ -172,26 +172,38 @@ SCENES_LAYER = {
 only entries of its layer or below, and the two entries of layer 2 never import each other."""
 
 
-def _scenes_group(module: str) -> str | None:
+def _group(module: str, table: dict[str, int]) -> str | None:
+    """The entry of `table` a module belongs to: its own name or that of its closest enclosing package."""
     name = module
-    while name and name not in SCENES_LAYER:
+    while name and name not in table:
         name = name.rpartition(".")[0]
     return name or None
 
 
-@pytest.mark.parametrize("module", sorted(m for m in MODULES if _top(m) == "scenes" and m != "scenes"))
-def test_scenes_imports_go_down_inside_scenes(module):
-    group = _scenes_group(module)
-    assert group is not None, f"{module} has no place in SCENES_LAYER (tests/test_layers.py, ARCHITECTURE.md)"
+def _scenes_group(module: str) -> str | None:
+    return _group(module, SCENES_LAYER)
+
+
+def _inside_violations(module: str, table: dict[str, int], sealed: set[int]) -> list[str]:
+    """The imports of `module` that break the layers of its package's `table`: upward, or sideways between two
+    entries of one layer in `sealed` (layers whose entries are siblings that never import each other)."""
+    top, group = _top(module), _group(module, table)
+    assert group is not None, f"{module} has no place in the table of {top} (tests/test_layers.py, ARCHITECTURE.md)"
     bad = []
-    for target in sorted(t for t in GRAPH[module] if _top(t) == "scenes" and t != "scenes"):
-        other = _scenes_group(target)
+    for target in sorted(t for t in GRAPH[module] if _top(t) == top and t != top):
+        other = _group(target, table)
         if other == group:
             continue
-        if SCENES_LAYER[other] > SCENES_LAYER[group]:
+        if table[other] > table[group]:
             bad.append(f"{target} (upward: {other} is above {group})")
-        elif SCENES_LAYER[other] == SCENES_LAYER[group] == 2:
+        elif table[other] == table[group] and table[group] in sealed:
             bad.append(f"{target} (sideways: {group} and {other} are siblings)")
+    return bad
+
+
+@pytest.mark.parametrize("module", sorted(m for m in MODULES if _top(m) == "scenes" and m != "scenes"))
+def test_scenes_imports_go_down_inside_scenes(module):
+    bad = _inside_violations(module, SCENES_LAYER, sealed={2})
     assert not bad, f"{module} imports " + ", ".join(bad)
 
 
@@ -219,25 +231,12 @@ only rooms below its own, or its own, and the three modes never import each othe
 
 
 def _validate_room(module: str) -> str | None:
-    name = module
-    while name and name not in VALIDATE_ROOM:
-        name = name.rpartition(".")[0]
-    return name or None
+    return _group(module, VALIDATE_ROOM)
 
 
 @pytest.mark.parametrize("module", sorted(m for m in MODULES if _top(m) == "validate" and m != "validate"))
 def test_validate_imports_go_down_its_rooms(module):
-    room = _validate_room(module)
-    assert room is not None, f"{module} has no room in VALIDATE_ROOM (tests/test_layers.py, ARCHITECTURE.md)"
-    bad = []
-    for target in sorted(t for t in GRAPH[module] if _top(t) == "validate" and t != "validate"):
-        other = _validate_room(target)
-        if other == room:
-            continue
-        if VALIDATE_ROOM[other] > VALIDATE_ROOM[room]:
-            bad.append(f"{target} (upward: {other} is above {room})")
-        elif VALIDATE_ROOM[other] == VALIDATE_ROOM[room] and VALIDATE_ROOM[room] >= 1:
-            bad.append(f"{target} (sideways: {room} and {other} are siblings)")
+    bad = _inside_violations(module, VALIDATE_ROOM, sealed={1, 2})
     assert not bad, f"{module} imports " + ", ".join(bad)
 
 

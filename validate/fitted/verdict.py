@@ -163,7 +163,12 @@ class Explanation:
     @property
     def light_dimensions(self) -> int:
         """How many of the three dimensions a normal has the lights reach above the noise (`DIMENSION_NOISE`)."""
-        return int(sum(d >= DIMENSION_NOISE for d in self.dimensions))
+        return self.dimensions_above(DIMENSION_NOISE)
+
+    def dimensions_above(self, noise: float) -> int:
+        """How many of the three dimensions reach `noise` times the noise's singular value (the one counting rule of
+        `light_dimensions` and of a sweep of `DIMENSION_NOISE`)."""
+        return int(sum(d >= noise for d in self.dimensions))
 
     @property
     def explained_fraction(self) -> float:
@@ -304,7 +309,7 @@ def verdict(ex: Explanation, rules: VerdictRules | None = None) -> tuple[bool, s
     rules = rules or VerdictRules()
     frac = ex.explained_fraction
     images = ex.keep.shape[0]
-    dimensions = int(sum(d >= rules.dimension_noise for d in ex.dimensions))  # ex.light_dimensions by default
+    dimensions = ex.dimensions_above(rules.dimension_noise)
     if images < rules.min_observations:
         return False, (f"only {images} images: a pixel needs at least {rules.min_observations} unshadowed "
                        "observations before the images can say whether a normal map explains it")
