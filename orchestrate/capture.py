@@ -200,9 +200,9 @@ def check_and_refine(opts: CaptureOptions, cap: Capture, out: Path,
     if not (opts.refine and check["trusted"]):
         return normals, check, None
     try:
-        check_judgeable(jc.small, "refine")
+        check_judgeable(jc.small, "refine", arg="--input")
     except ValueError as exc:  # the check can judge, the refinement needs more (images with lit pixels)
-        return normals, check, {"accepted": False, "why": f"not run: {str(exc).removeprefix('--data: ')}"}
+        return normals, check, {"accepted": False, "why": f"not run: {exc}"}
     refined, final = refine_judged(jc, replace(RefineConfig(), rotation_search=opts.rotation_search).validate())
     write_refined(out / "refine" / cap.name, final, refined)
     return (final if refined["accepted"] else normals), check, refined
