@@ -18,7 +18,9 @@ SPLIT_FOLDERS = ("train_assets", "heldout_assets")
 
 def split_plan(assets: Path, work: Path) -> dict[Path, Path]:
     """The asset split as {link in --work: the --assets file it points to}: the last quarter of the meshes and
-    the last fifth of the HDR maps (sorted by name, rounded up) held out, the texture folder shared."""
+    the last fifth of the HDR maps (sorted by name, rounded up) held out, the texture folder shared. The links point
+    to absolute paths (a relative --assets would be read from the link's own folder, and break)."""
+    assets = Path(assets).resolve()
     train, held = (work / d for d in SPLIT_FOLDERS)
     links: dict[Path, Path] = {}
     for d in (train, held):

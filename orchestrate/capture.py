@@ -39,6 +39,8 @@ from scenes.cli.outputs import check_output_folder, claim_outputs
 from scenes.files import to_plain, write_json
 from scenes.folder.format import MASK_FILE, write_object_folder
 from scenes.images import read_mask, write_mask, write_normal_exr, write_normal_map, write_picture
+from unips.expected_error import FILES as EXPECTED_FILES
+from unips.expected_error import write_stated
 from validate.observations import Capture
 
 OUTPUTS = (
@@ -49,6 +51,7 @@ OUTPUTS = (
     "light_variation.png",
     "report.json",
     "report.html",
+    *EXPECTED_FILES,
 )
 """What the command writes at the top of --out (its working folders: work/, check/, refine/)."""
 CONVENTIONS = {"opengl": np.array([1.0, 1.0, 1.0]), "opencv": np.array([1.0, -1.0, -1.0])}
@@ -166,16 +169,22 @@ def _to_convention(n: np.ndarray, convention: str) -> np.ndarray:
     return (n * CONVENTIONS[convention]).astype(np.float32)
 
 
-def predict(opts: CaptureOptions, cap: Capture) -> np.ndarray:
-    """The model's map (H, W, 3) of a capture (linear images scaled to 1 at the brightest mask value)."""
+def predict(opts: CaptureOptions, cap: Capture) -> tuple[np.ndarray, object | None, str | None]:
+    """The model's map (H, W, 3) of a capture (linear images scaled to 1 at the brightest mask value), its stated
+    error (`unips.expected_error.Stated`) and None, or the map, None and why no error is stated."""
     from unips.data import PSObject
+    from unips.expected_error import for_weights, gather
     from unips.inference import load_network, run_model
 
     net = load_network(opts.checkpoint, model=opts.model)
     obj = PSObject(name=cap.name, images=cap.images, mask=cap.mask, normals=None, light_family=None,
                    light_directions=None, light_intensities=None, path=cap.folder, layout=cap.layout,
                    image_names=cap.image_names)
-    return run_model(net, obj)
+    em, why = for_weights(net.checkpoint)
+    if em is None:
+        return run_model(net, obj), None, why
+    normals, evidence = gather(net, obj, tta=net.contract.views)
+    return normals, em.state(evidence), None
 
 
 def check_and_refine(opts: CaptureOptions, cap: Capture, out: Path,
@@ -206,6 +215,41 @@ def check_and_refine(opts: CaptureOptions, cap: Capture, out: Path,
     refined, final = refine_judged(jc, replace(RefineConfig(), rotation_search=opts.rotation_search).validate())
     write_refined(out / "refine" / cap.name, final, refined)
     return (final if refined["accepted"] else normals), check, refined
+
+
+USABLE_DEG = 15.0
+"""A map is "usable" when its stated mean error is at most this (and the check judged it, nothing below demotes it):
+about the error of a good calibrated photometric-stereo method on DiLiGenT's harder objects; beyond it, shape and
+shading derived from the map are visibly off."""
+PIXEL_USABLE_DEG = 25.0
+"""The headline's "over N % of the object": the share of its pixels whose stated error is at most this."""
+DEMOTING_WARNINGS = {
+    "doubtful_mask": "the automatic mask may be wrong",
+    "camera_moved": "the camera moved between photos",
+}
+"""Capture warnings that keep a map from "usable" whatever its stated error (the error model never saw them)."""
+LEVELS = ("usable", "use with care", "not checked")
+"""The verdict's levels, best first (report.json `verdict.level`)."""
+
+
+def level(check: dict, stated, why_unstated: str | None, warnings: list) -> tuple[str, str]:
+    """(verdict level, the headline a photographer reads first) of a capture: "not checked" where the images cannot
+    judge it or no error is stated, else "usable" when the stated mean is at most USABLE_DEG and no warning of
+    DEMOTING_WARNINGS was raised, else "use with care"."""
+    if stated is None:
+        return "not checked", f"not checked: no expected error is stated ({why_unstated})"
+    share = float(np.mean(stated.per_pixel[np.isfinite(stated.per_pixel)] <= PIXEL_USABLE_DEG))
+    lo, hi = stated.interval_80
+    figure = (f"expected error about {stated.mean:.0f} deg (80 %: {lo:.0f}-{hi:.0f} deg), within {PIXEL_USABLE_DEG:.0f}"
+              f" deg over {share:.0%} of the object")
+    if not check["trusted"]:
+        return "not checked", f"not checked: {check.get('why')}; the model's {figure}"
+    demoted = [DEMOTING_WARNINGS[w.code] for w in warnings if w.code in DEMOTING_WARNINGS]
+    if stated.mean > USABLE_DEG:
+        demoted.insert(0, f"above the {USABLE_DEG:.0f} deg of a usable map")
+    if demoted:
+        return "use with care", f"use with care: {figure}; {'; '.join(demoted)}"
+    return "usable", f"usable: {figure}"
 
 
 def verdict(check: dict, refined: dict | None) -> dict:
@@ -322,7 +366,7 @@ def run(opts: CaptureOptions) -> dict:
     cap = replace(read, images=np.clip(read.images * scale, 0, 1).astype(np.float32))
     work = write_object_folder(out / "work" / f"{cap.name}.data", cap.images, mask, None) if opts.keep_work else None
     t1 = time.perf_counter()
-    model_map = predict(opts, cap)
+    model_map, stated, why_unstated = predict(opts, cap)
     times["predict_s"] = time.perf_counter() - t1
     t1 = time.perf_counter()
     final, check, refined = check_and_refine(opts, cap, out, model_map)
@@ -332,8 +376,11 @@ def run(opts: CaptureOptions) -> dict:
     write_normal_exr(out / "normal.exr", _to_convention(final, opts.convention))
     write_normal_map(out / "normal_model.png", _to_convention(model_map, opts.convention))
     write_mask(out / MASK_FILE, mask)
+    if stated is not None:
+        write_stated(out, stated)
     _variation_picture(read.images, out / "light_variation.png")
     times["total_s"] = time.perf_counter() - t0
+    lv, headline = level(check, stated, why_unstated, warnings)
     report = {"input": {"folder": str(opts.input), "images": len(read.image_names), "names": read.image_names,
                         "size": list(read.images.shape[1:3]), **read.meta["input"]},
               "mask": {**mask_info, "pixels": int(mask.sum())},
@@ -343,7 +390,13 @@ def run(opts: CaptureOptions) -> dict:
                           else "x right, y down, z away from the camera",
                           "encoding": "normal.png: 16-bit (n + 1) / 2; normal.exr: float32 n; 0 outside the mask",
                           "source": "refined" if refined and refined.get("accepted") else "model"},
-              "verdict": verdict(check, refined),
+              "expected_error_deg": None if stated is None else {
+                  **stated.summary(), "map": "the model's map" + (
+                      " (the refined map was kept: the check accepted it, its own error is not stated)"
+                      if refined and refined.get("accepted") else ""),
+                  "files": list(EXPECTED_FILES)},
+              **({"expected_error_note": why_unstated} if stated is None else {}),
+              "verdict": {"level": lv, "headline": headline, **verdict(check, refined)},
               "stages": {"check": "check/" + cap.name + "/report.json",
                          "refine": ("refine/" + cap.name + "/refine_report.json") if refined and "mode" in refined
                          else None,
@@ -367,9 +420,12 @@ def main(argv: list[str] | None = None) -> int:
         return report_error(exc)
     except OSError as exc:
         return report_error(exc, 1)
+    print(report["verdict"]["headline"])
     print(report["verdict"]["summary"])
     print(
-        f"wrote {Path(opts.out) / 'normal.png'}, normal.exr, mask.png, light_variation.png, report.json and "
+        f"wrote {Path(opts.out) / 'normal.png'}, normal.exr, mask.png, light_variation.png, "
+        + ("expected_error_deg.npy, .exr, expected_error.png, " if report["expected_error_deg"] else "")
+        + "report.json and "
         f"report.html ({len(report['warnings'])} warning(s))"
     )
     return 0

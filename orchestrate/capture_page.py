@@ -77,6 +77,9 @@ def write_page(path: Path, report: dict[str, Any], pictures: dict[str, str | Non
     residual_figure = _figure("Re-render residual", pictures.get("check_figure"),
                               "the photos, their re-rendering with the fitted light and the normal map, "
                               "and the relative residual")
+    e = report.get("expected_error_deg")
+    expected = (f"how far off each normal is expected to be (degrees, 0 to 45); object mean {e['mean']:.1f} deg, 80 % "
+                f"interval {e['interval_80'][0]:.1f}-{e['interval_80'][1]:.1f} deg; of {e['map']}" if e else "")
     r, g, b = HEADER_RGB
     body = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>Normal map of {html.escape(report["input"]["folder"])}</title>
@@ -94,7 +97,8 @@ table {{ border-collapse: collapse; }} td, th {{ border: 1px solid #ccc; padding
 {report["input"]["images"]} photos, {report["input"]["size"][1]} x {report["input"]["size"][0]} px</header>
 <main>
 <h2>Verdict</h2>
-<p class="verdict">{html.escape(v["summary"])}</p>
+<p class="verdict"><b>{html.escape(v.get("headline", ""))}</b></p>
+<p>{html.escape(v["summary"])}</p>
 <table>
 <tr><th>Can the images judge this capture?</th><td>{judge}</td></tr>
 <tr><th>Share of the object the fitted light explains</th><td>{_pct(v.get("explained_fraction"))}</td></tr>
@@ -110,6 +114,7 @@ table {{ border-collapse: collapse; }} td, th {{ border: 1px solid #ccc; padding
 {variation}
 <h2>The normal map</h2>
 {final_map}
+{_figure("Expected error", pictures.get("expected_error"), expected)}
 {_figure("The model's map before refinement", pictures.get("model_normals"), "shown where the map was refined")}
 <h2>The physical check</h2>
 {residual_figure}
@@ -139,5 +144,6 @@ def pictures(out: Path, name: str, images: np.ndarray, names: list[str], mask: n
             "light_variation": _file_data(out / "light_variation.png"),
             "normals": _png_data(normal_visual(final)[..., ::-1]),  # RGB -> OpenCV's BGR
             "model_normals": _png_data(normal_visual(model)[..., ::-1]) if refined else None,
+            "expected_error": _file_data(out / "expected_error.png"),
             "check_figure": _file_data(out / "check" / name / "figure.png"),
             "explained": _file_data(out / "check" / name / "explained.png")}

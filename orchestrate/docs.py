@@ -28,6 +28,7 @@ from orchestrate.bench_docs import (
     capture_resources,
     check_resolution,
     cycles_speed,
+    expected_error,
     render_profile,
     shards_throughput,
     verdict_sweep,
@@ -56,6 +57,7 @@ CLIS = (
     "orchestrate.train_recipe",
     "orchestrate.gpu_session",
     "orchestrate.ship",
+    "orchestrate.error_calibration",
     "orchestrate.capture",
     "orchestrate.docs",
 )
@@ -383,6 +385,7 @@ BLOCKS: dict[str, Callable[[dict], str]] = {
     "check:verdict-sweep": verdict_sweep,
     "generator:profile": render_profile,
     "generator:cycles": cycles_speed,
+    "model:expected-error": expected_error,
 }
 
 

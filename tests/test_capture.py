@@ -207,7 +207,12 @@ def test_photos_in_a_normal_map_out_in_both_conventions(photos, tmp_path, varian
         report = json.loads((out / "report.json").read_text())
         assert report["warnings"] == [] and report["mask"]["method"].startswith("otsu")
         assert report["normals"]["convention"] == convention and report["input"]["encoding"] == ["srgb"] * 8
-        assert set(report["verdict"]) >= {"images_can_judge", "summary", "residual_in_noise_units"}
+        assert set(report["verdict"]) >= {"images_can_judge", "summary", "residual_in_noise_units", "level", "headline"}
+        e = report["expected_error_deg"]
+        assert e["interval_80"][0] < e["mean"] < e["interval_80"][1] and report["verdict"]["level"] == "usable"
+        assert report["verdict"]["headline"].startswith(f"usable: expected error about {e['mean']:.0f} deg")
+        per = np.load(out / "expected_error_deg.npy")
+        assert np.isfinite(per[read_mask(out / "mask.png")]).all() and np.isnan(per[~read_mask(out / "mask.png")]).all()
         assert report["estimate"]["peak_mib"] > 0 and report["peak_memory_mib"] > 0
         assert read_normals(out / "normal_model.png").shape == (96, 96, 3)  # the model's map, kept beside
         mask = read_mask(out / "mask.png")
@@ -229,9 +234,9 @@ def _chromium() -> str:
     return found
 
 
-def test_report_html_is_a_page_in_a_real_browser(photos, tmp_path, variant_llvm_ad_rgb):
+def test_report_html_is_a_page_in_a_real_browser(photos, tmp_path, variant_llvm_ad_rgb, capsys):
     """The page opens in headless Chromium: its DOM holds the verdict and every picture, and the screenshot shows
-    the page's own title band (not a browser error page)."""
+    the page's own title band (not a browser error page). The verdict's headline is the CLI's first line."""
     import subprocess
 
     from orchestrate.capture import main
@@ -239,9 +244,11 @@ def test_report_html_is_a_page_in_a_real_browser(photos, tmp_path, variant_llvm_
 
     browser = _chromium()
     out = tmp_path / "page"
+    capsys.readouterr()
     assert main(["--input", str(photos), "--out", str(out), "--no-refine", "--threads", "1"]) == 0
     page = (out / "report.html").resolve()
     report = json.loads((out / "report.json").read_text())
+    assert capsys.readouterr().out.splitlines()[0] == report["verdict"]["headline"]
     flags = [
         "--headless",
         "--no-sandbox",
@@ -253,7 +260,8 @@ def test_report_html_is_a_page_in_a_real_browser(photos, tmp_path, variant_llvm_
         [browser, *flags, "--dump-dom", page.as_uri()], capture_output=True, text=True, timeout=120
     ).stdout
     assert report["verdict"]["summary"][:20] in dom and report["verdict"]["summary"].startswith("The images can")
-    assert dom.count('src="data:image/png;base64,') >= 5 and "What to improve in the capture" in dom
+    assert report["verdict"]["headline"] in dom and 'alt="Expected error"' in dom
+    assert dom.count('src="data:image/png;base64,') >= 6 and "What to improve in the capture" in dom
     shot = tmp_path / "shot.png"
     subprocess.run([browser, *flags, "--window-size=1000,1400", f"--screenshot={shot}", page.as_uri()],
                    capture_output=True, timeout=120)
@@ -278,6 +286,7 @@ def test_three_photos_give_the_models_map_and_say_the_images_cannot_judge_it(pho
     assert main(["--input", str(three), "--out", str(tmp_path / "o"), "--threads", "1"]) == 0
     report = json.loads((tmp_path / "o" / "report.json").read_text())
     assert report["verdict"]["images_can_judge"] is False and "only 3 images" in report["verdict"]["why"]
+    assert report["verdict"]["level"] == "not checked" and report["verdict"]["headline"].startswith("not checked: ")
     assert report["normals"]["source"] == "model" and "too_few_images" in [w["code"] for w in report["warnings"]]
 
 
@@ -319,3 +328,29 @@ def test_bad_captures_stop_in_one_line(photos, tmp_path, capsys):
     assert main(["--input", str(photos), "--out", str(tmp_path / "m"), "--model", "nope"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: --model: 'nope' is not registered") and not (tmp_path / "m").exists()
+
+
+def test_the_verdict_level_follows_its_rule():
+    """usable only when checked, under USABLE_DEG and with no warning that the error model never saw; a doubtful
+    mask or a moved camera never reads usable, whatever the stated figure."""
+    from orchestrate.capture import USABLE_DEG, level
+    from unips.expected_error import Stated
+    from validate.diagnosis.usable import CaptureWarning
+
+    mask = np.ones((4, 4), bool)
+
+    def stated(deg: float) -> Stated:
+        return Stated(per_pixel=np.where(mask, deg, np.nan).astype(np.float32), mean=deg, interval_80=(deg * .8,
+                                                                                                       deg * 1.3))
+
+    trusted, untrusted = {"trusted": True}, {"trusted": False, "why": "near light"}
+    assert level(trusted, stated(9.0), None, [])[0] == "usable"
+    assert level(trusted, stated(USABLE_DEG + 1), None, [])[0] == "use with care"
+    for code in ("doubtful_mask", "camera_moved"):
+        lv, line = level(trusted, stated(5.0), None, [CaptureWarning(code, "...")])
+        assert lv == "use with care" and line.startswith("use with care: expected error about 5 deg")
+    assert level(trusted, stated(5.0), None, [CaptureWarning("too_dark", "...")])[0] == "usable"
+    lv, line = level(untrusted, stated(5.0), None, [])
+    assert lv == "not checked" and "near light" in line and "5 deg" in line
+    lv, line = level(trusted, None, "no error model was fitted for x.safetensors", [])
+    assert lv == "not checked" and "no error model" in line

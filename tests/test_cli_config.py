@@ -29,6 +29,7 @@ CLIS = {
     "orchestrate.train_recipe": "RecipeOptions",
     "orchestrate.demo": "DemoOptions",
     "orchestrate.gpu_session": "SessionOptions",
+    "orchestrate.error_calibration": "CalibrationOptions",
 }
 
 

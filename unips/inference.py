@@ -105,13 +105,14 @@ def check_tta(tta: int, name: str = "tta") -> int:
     return int(tta)
 
 
-def model_normals(model: Any, images: Any, mask: Any, tta: int = 1) -> Any:
+def model_normals(model: Any, images: Any, mask: Any, tta: int = 1, views: list | None = None) -> Any:
     """Unnormalised mean network output `(3, R, R)` over the first `tta` views of `unips.augment.DIHEDRAL`.
 
     images `(K, 3, R, R)`, mask `(1, R, R)` (torch tensors on the model's device). Each view is the
     object flipped / transposed as in training; its prediction is taken back to the original frame
     (`invert_normals`) before averaging, so a network that were exactly equivariant would give its
-    single-view answer. Costs `tta` forward passes.
+    single-view answer. Costs `tta` forward passes. `views`, a list: each view's unit normals `(3, R, R)` in the
+    original frame are appended to it (the network's disagreement with itself, `unips.expected_error`).
     """
     import torch
 
@@ -128,6 +129,8 @@ def model_normals(model: Any, images: Any, mask: Any, tta: int = 1) -> Any:
             n = invert_normals(aug, out[0].float())
             if tta > 1:  # unit vectors before averaging: no view weighs more for a longer raw output
                 n = n / n.norm(dim=0, keepdim=True).clamp_min(1e-12)
+            if views is not None:
+                views.append(n / n.norm(dim=0, keepdim=True).clamp_min(1e-12))
             total = n if total is None else total + n
     return total
 
@@ -141,12 +144,13 @@ def scalable_patch(net: LoadedModel) -> int:
 
 
 def run_model(net: LoadedModel, obj: PSObject, res: int | None = None, margin: int | None = None,
-              tta: int = DEFAULT_TTA, patch: int | None = None) -> np.ndarray:
+              tta: int = DEFAULT_TTA, patch: int | None = None, views: list | None = None) -> np.ndarray:
     """Normals (H, W, 3) of `obj` from the network, in the original frame, zero outside the mask.
 
     `tta` > 1 averages the predictions of that many flipped / transposed views (`model_normals`). A model whose
     contract names a published preprocessing ("glc-unips", "sdm-unips") gets it instead (`run_published`);
-    `margin`: the crop's, by default the contract's; `patch` (SDM-UniPS only): its `--scalable` sub-images' side."""
+    `margin`: the crop's, by default the contract's; `patch` (SDM-UniPS only): its `--scalable` sub-images' side;
+    `views`, a list: each view's own map (H, W, 3) in the original frame is appended to it."""
     import torch
 
     from unips.preprocess import prepare, resize_prepared, uncrop
@@ -155,29 +159,36 @@ def run_model(net: LoadedModel, obj: PSObject, res: int | None = None, margin: i
     if patch is not None:
         scalable_patch(net)
     if contract.published:
-        return run_published(net, obj, res=res, tta=tta, patch=patch)
+        return run_published(net, obj, res=res, tta=tta, patch=patch, views=views)
 
     prepared = prepare(obj, margin=contract.margin if margin is None else margin)
     work = resize_prepared(prepared, res) if res is not None else prepared
     images = torch.from_numpy(np.ascontiguousarray(work.images.transpose(0, 3, 1, 2)))  # (K, 3, R, R)
     mask = torch.from_numpy(work.mask.astype(np.float32))[None]  # (1, R, R)
-    out = model_normals(net.model, images.to(net.device), mask.to(net.device), tta)  # (3, R, R)
-    n = out.permute(1, 2, 0).cpu().numpy()  # (R, R, 3)
-    if not np.all(np.isfinite(n)):
-        raise ValueError(f"model: produced non-finite normals for {obj.name}")
-    norm = np.linalg.norm(n, axis=2, keepdims=True)
-    n = np.where(work.mask[..., None] & (norm > 1e-8), n / np.maximum(norm, 1e-12), 0.0).astype(np.float32)
-    return uncrop(n, prepared.crop, mask=obj.mask)
+    each: list = []
+    out = model_normals(net.model, images.to(net.device), mask.to(net.device), tta, each)  # (3, R, R)
+
+    def back(t: Any) -> np.ndarray:  # (3, R, R) -> unit (H, W, 3) in the original frame
+        n = t.permute(1, 2, 0).cpu().numpy()  # (R, R, 3)
+        if not np.all(np.isfinite(n)):
+            raise ValueError(f"model: produced non-finite normals for {obj.name}")
+        norm = np.linalg.norm(n, axis=2, keepdims=True)
+        n = np.where(work.mask[..., None] & (norm > 1e-8), n / np.maximum(norm, 1e-12), 0.0).astype(np.float32)
+        return uncrop(n, prepared.crop, mask=obj.mask)
+
+    if views is not None:
+        views.extend(back(v) for v in each)
+    return back(out)
 
 
 def run_published(net: LoadedModel, obj: PSObject, res: int | None = None, tta: int = 1,
-                  patch: int | None = None, rng: Any = None) -> np.ndarray:
+                  patch: int | None = None, rng: Any = None, views: list | None = None) -> np.ndarray:
     """Normals (H, W, 3) of `obj` through its authors' preprocessing: UniPS's (`unips.glc_preprocess`) or
     SDM-UniPS's (`unips.sdm_preprocess`); `res` replaces the published working side (for SDM-UniPS a multiple of the
     model's canonical resolution), `tta` > 1 averages flipped / transposed views as for the other models (the
     published code has none). `patch` (SDM-UniPS only): predict the working image as its interleaved sub-images of
     this side (`unips.sdm_preprocess.scalable_forward`; the published `--scalable` is `SDM_PATCH`); `rng`: what
-    shuffles the decoder's pixels (default: seeded with 0 for each view)."""
+    shuffles the decoder's pixels (default: seeded with 0 for each view); `views`: as `run_model`'s."""
     import functools
 
     import torch
@@ -205,11 +216,18 @@ def run_published(net: LoadedModel, obj: PSObject, res: int | None = None, tta: 
     load_inputs = sdm_inputs if sdm else glc_inputs
     images, mask = load_inputs(obj, crop, max_images=contract.max_images)
     x = torch.from_numpy(np.ascontiguousarray(images.transpose(0, 3, 1, 2))).to(net.device)  # (K, 3, S, S)
-    out = model_normals(forward, x, torch.from_numpy(mask)[None].to(net.device), tta)  # (3, S, S)
-    n = out.permute(1, 2, 0).cpu().numpy() * mask[..., None]
-    if not np.all(np.isfinite(n)):
-        raise ValueError(f"model: produced non-finite normals for {obj.name}")
-    return sdm_output(n, crop, obj.mask)
+    each: list = []
+    out = model_normals(forward, x, torch.from_numpy(mask)[None].to(net.device), tta, each)  # (3, S, S)
+
+    def back(t: Any) -> np.ndarray:  # (3, S, S) -> (H, W, 3) in the original frame
+        n = t.permute(1, 2, 0).cpu().numpy() * mask[..., None]
+        if not np.all(np.isfinite(n)):
+            raise ValueError(f"model: produced non-finite normals for {obj.name}")
+        return sdm_output(n, crop, obj.mask)
+
+    if views is not None:
+        views.extend(back(v) for v in each)
+    return back(out)
 
 
 MODEL_BYTES_PER_IMAGE = 25 * 2**20

@@ -45,6 +45,7 @@ from scenes.folder.format import PREDICTION_FILES, PREDICTION_INFO, object_name
 from scenes.folder.layouts import detect_layout
 from scenes.images import write_normal_exr, write_normal_map, write_normal_visual
 from unips.data import find_objects, load_object
+from unips.expected_error import for_weights, gather, model_path, write_stated
 from unips.inference import (
     DEFAULT_TTA,
     METHODS,
@@ -181,6 +182,10 @@ class PredictOptions:
     """SDM-UniPS only (--model sdm-unips): predict a working image larger than 512 px as its 512 x 512 px interleaved
     sub-images, one after the other, as the authors' --scalable does: the network's memory is that of a 512 px
     image whatever the side (the working side or --res must be a multiple of 512)."""
+    expected_error: bool = True
+    """Also state the map's expected angular error per pixel and per object (`unips.expected_error`: two more passes
+    of one view on two halves of the images), where an error model was fitted for the weights: expected_error_deg.npy,
+    .exr, expected_error.png and predict.json `expected_error_deg`; --method model only."""
     overwrite: bool = False
     """Replace the predictions of an earlier run in --out (folders with its predict.json; nothing else is touched)."""
 
@@ -250,13 +255,16 @@ def main(argv: list[str] | None = None) -> int:
                     raise
                 failures.append((name, one_line(exc)))
         net = load_network(args.checkpoint, args.device, args.model) if args.method == "model" else None
+        errors = error_model(args, net)
+        if errors[1] and args.expected_error:
+            print(f"note: no expected error is stated: {errors[1]}", flush=True)
         written: list[str] = []
         where = args.out / todo[0][1] if single and todo else args.out
         print(f"predicting {len(todo)} object(s) with --method {args.method} into {where} ...", flush=True)
         with Progress(f"predicting ({args.method})", "obj", total=len(todo), enabled=len(todo) >= 2) as shown:
             for folder, name in todo:
                 try:
-                    _predict_one(args, net, folder, name)
+                    _predict_one(args, net, folder, name, errors)
                     written.append(name)
                 except (*INPUT_ERRORS, OSError, np.linalg.LinAlgError) as exc:
                     if single:
@@ -280,12 +288,31 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _predict_one(args: PredictOptions, net, folder: Path, name: str) -> None:
+def error_model(args: PredictOptions, net) -> tuple[Any, str | None]:
+    """(the expected-error model of the run's weights, None) or (None, why no error is stated)."""
+    if not args.expected_error:
+        return None, "--no-expected-error"
+    if net is None:
+        return None, f"--method {args.method}: the expected error is fitted for a network's weights only"
+    if args.scalable:
+        return None, "--scalable: no error model was fitted for the interleaved sub-images"
+    return for_weights(net.checkpoint)
+
+
+def _predict_one(args: PredictOptions, net, folder: Path, name: str,
+                 errors: tuple[Any, str | None] = (None, "not asked")) -> None:
     obj = load_object(folder, max_images=args.max_images, arg="--input")
     start = time.perf_counter()
     tta = (args.tta or net.contract.views) if net else None
     patch = scalable_patch(net) if net and args.scalable else None
-    normals = predict_object(obj, args.method, net=net, res=args.res, tta=tta or 1, patch=patch)
+    em, why = errors
+    stated = None
+    if em is not None and obj.num_images >= 2:
+        normals, evidence = gather(net, obj, res=args.res, tta=tta or 1)
+        stated = em.state(evidence)
+    else:
+        why = why or f"{obj.num_images} image: two halves of the images are needed"
+        normals = predict_object(obj, args.method, net=net, res=args.res, tta=tta or 1, patch=patch)
     elapsed = time.perf_counter() - start
     constant = constant_map(normals, obj.mask)
     if constant:
@@ -311,8 +338,13 @@ def _predict_one(args: PredictOptions, net, folder: Path, name: str) -> None:
         "time_s": round(elapsed, 4),
         "image_size": [int(obj.mask.shape[1]), int(obj.mask.shape[0])],
         "constant_map": constant,
+        "expected_error_deg": stated.summary() if stated else None,
+        "expected_error_model": model_path(net.checkpoint).name if stated else None,
+        **({"expected_error_note": why} if stated is None else {}),
     }
     write_prediction(args.out / name, normals, info)
+    if stated is not None:
+        write_stated(args.out / name, stated)
     log.info("%s: %s in %.2f s", name, args.method, elapsed)
 
 

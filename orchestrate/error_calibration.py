@@ -1,0 +1,199 @@
+"""Fit the expected-error model of a network's weights on renders with exact ground truth (one command).
+
+    python -m orchestrate.error_calibration --work /tmp/errcal [--assets ../shared/assets] [--weights W] [--objects 8]
+
+1. Splits --assets as the training recipe does (`orchestrate.asset_split`): only the training half is used here;
+   the held-out meshes and HDR maps are left to the bench (`bench/bench_expected_error.py`).
+2. Renders the suite `SUITE` with `wildgen.make` into --work: every PS-Wild light family, complexity levels 1-5,
+   4 to 16 images, the sensor presets (noise, response, mosaic) and capture presets, a perspective camera;
+   --objects per row, seed `--seed` + the row's index.
+3. Runs the network on every object with the evidence of `unips.expected_error.gather` and measures the true
+   angular error per pixel.
+4. Fits `unips.expected_error.ErrorModel` (Poisson GLM per pixel, up to --pixels pixels per object, objects weighted
+   equally), centres it on the objects' median ratio true / stated and takes that ratio's 10th and 90th percentiles as
+   the interval; writes it beside the weights (`<stem>.expected_error.json`) or to --out.
+
+The rendered suite is resumed when the command is run again (wildgen.make resumes a dataset).
+"""
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+
+from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
+from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
+
+REPO = Path(__file__).resolve().parents[1]
+FAMILIES = "directional,point,near_area,hdri,mixed"
+
+SUITE: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("level1", ("--level", "1", "--lights", FAMILIES, "--images", "10")),
+    ("level2", ("--level", "2", "--lights", FAMILIES, "--images", "6")),
+    ("level3", ("--level", "3", "--lights", FAMILIES, "--images", "16")),
+    ("level4", ("--level", "4", "--lights", FAMILIES, "--images", "8")),
+    ("level5", ("--level", "5", "--lights", FAMILIES, "--images", "10", "--camera", "perspective")),
+    ("few", ("--lights", FAMILIES, "--images", "4")),
+    ("phone", ("--lights", FAMILIES, "--images", "10", "--sensor", "phone")),
+    ("machine_vision", ("--lights", FAMILIES, "--images", "12", "--sensor", "machine-vision")),
+    ("diligent", ("--preset", "diligent", "--images", "12")),
+    ("phone_flash", ("--preset", "phone-flash", "--images", "8")),
+)
+"""The renders the error model is fitted on (and, with the held-out assets and another seed, judged on): name, the
+wildgen.make flags of the row (each row cycles the five PS-Wild light families unless a preset sets the lights)."""
+COMMON = ("--res", "128", "--spp", "16")
+"""Flags every row shares."""
+
+
+def render_suite(work: Path, assets: str | None, objects: int, seed: int, rows=SUITE, quiet: bool = True) -> list[Path]:
+    """Render (or resume) each row of `rows` into work/<name>; returns the dataset folders."""
+    out = []
+    for i, (name, flags) in enumerate(rows):
+        dest = work / name
+        argv = [sys.executable, "-m", "wildgen.make", *flags, *COMMON, "--objects", str(objects), "--seed",
+                str(seed + 100 * i), "--out", str(dest), *(["--assets", assets] if assets else []),
+                *(["--quiet"] if quiet else [])]
+        done = subprocess.run(argv, cwd=REPO, capture_output=True, text=True)
+        if done.returncode != 0:
+            raise UsageError(f"wildgen.make for suite row {name!r} failed: {done.stderr.strip().splitlines()[-1:]}")
+        out.append(dest)
+    return out
+
+
+def measure(net, folder: Path, max_pixels: int | None = None, rng: np.random.Generator | None = None) -> dict:
+    """One object's evidence and true error: {'features': (P, F), 'error': (P,), 'evidence': Evidence, 'normals',
+    'truth', 'family', 'images'} (P: all mask pixels, or `max_pixels` of them drawn with `rng`)."""
+    from unips.data import load_object
+    from unips.expected_error import angle_deg, gather
+
+    obj = load_object(folder)
+    if obj.normals is None:
+        raise ValueError(f"{folder}: no ground-truth normals")
+    normals, ev = gather(net, obj)
+    err = angle_deg(normals[ev.mask], obj.normals[ev.mask])
+    feats = ev.features()
+    if max_pixels is not None and len(err) > max_pixels:
+        pick = (rng or np.random.default_rng(0)).choice(len(err), max_pixels, replace=False)
+        feats, err = feats[pick], err[pick]
+    return {"features": feats, "error": err, "evidence": ev, "normals": normals, "truth": obj.normals,
+            "family": obj.light_family, "images": obj.num_images, "name": obj.name}
+
+
+def objects_of(datasets: list[Path]) -> list[Path]:
+    from scenes.folder.layouts import find_object_folders
+
+    out = []
+    for d in datasets:
+        out += find_object_folders(d, "--work")
+    return out
+
+
+@dataclass
+class CalibrationOptions:
+    """The command line of orchestrate.error_calibration."""
+
+    work: Annotated[str, arg(metavar="DIR")] = REQUIRED
+    """Folder of the asset split and the rendered suite (resumed when run again)."""
+    assets: Annotated[str, arg(help_behavior_hint="(default: ../shared/assets)")] = str(REPO.parent / "shared" /
+                                                                                        "assets")
+    """Asset folder (hdri/, meshes/, textures/; 'none': procedural shapes and lights only); only its training half
+    is rendered."""
+    weights: Annotated[str | None, arg(help_behavior_hint="(default: the shipped weights of the default model)")] = None
+    """Weights to fit the error model for."""
+    out: Annotated[str | None, arg(help_behavior_hint="(default: beside --weights, <stem>.expected_error.json)")] = None
+    """Where to write the fitted model."""
+    objects: int = option(8, minimum=1)
+    """Objects per suite row (10 rows)."""
+    seed: int = option(7000)
+    """Seed of the first row (row i: seed + 100 i); the bench uses another."""
+    pixels: int = option(1500, minimum=1)
+    """Pixels per object the model is fitted on (drawn with --seed)."""
+    threads: int = option(2, minimum=1)
+    """Torch threads."""
+
+    def validate(self) -> "CalibrationOptions":
+        check_fields(self)
+        return self
+
+
+COMMAND = Command(CalibrationOptions, prog="python -m orchestrate.error_calibration", description=__doc__)
+
+
+def calibrate(samples: list[dict], weights: Path, model_name: str, note: dict) -> "object":
+    """The ErrorModel of `samples` (`measure`'s dicts) for `weights` (see the module doc)."""
+    from unips.expected_error import FEATURES, ErrorModel, Evidence, fit, sha256  # noqa: F401
+
+    w, b, mean, std = fit([(s["features"], s["error"]) for s in samples])
+    em = ErrorModel(weights_sha256=sha256(weights), model_name=model_name, features=list(FEATURES),
+                    mean=mean.tolist(), std=std.tolist(), coef=w.tolist(), intercept=b, scale=1.0,
+                    ratio_quantiles=[1.0, 1.0])
+    stated = np.array([em.state(s["evidence"]).mean for s in samples])
+    true = np.array([float(np.mean(_all_errors(s))) for s in samples])
+    ratio = true / stated
+    em.scale = float(np.median(ratio))
+    em.ratio_quantiles = [float(np.quantile(ratio / em.scale, 0.1)), float(np.quantile(ratio / em.scale, 0.9))]
+    em.calibration = {**note, "objects": len(samples), "median_ratio_true_over_fitted": round(em.scale, 4),
+                      "true_mean_deg": round(float(true.mean()), 2)}
+    return em
+
+
+def _all_errors(s: dict) -> np.ndarray:
+    from unips.expected_error import angle_deg
+
+    m = s["evidence"].mask
+    return angle_deg(s["normals"][m], s["truth"][m])
+
+
+def main(argv: list[str] | None = None) -> int:
+    try:
+        return run(COMMAND.parse(argv).validate())
+    except (*INPUT_ERRORS, OSError) as exc:
+        return report_error(exc)
+
+
+def run(opts: CalibrationOptions) -> int:
+    import torch
+
+    from orchestrate.asset_split import split_assets
+    from unips.inference import load_network
+    from unips.models import DEFAULT_MODEL
+    from unips.models.registry import pretrained_entry
+
+    torch.set_num_threads(opts.threads)
+    work = Path(opts.work)
+    work.mkdir(parents=True, exist_ok=True)
+    assets = None
+    if opts.assets != "none":
+        if not Path(opts.assets).is_dir():
+            raise UsageError(f"--assets: {opts.assets!r} is not a folder (expected hdri/, meshes/, textures/, "
+                             "or 'none')")
+        assets = str(split_assets(Path(opts.assets), work)[0])
+    weights = Path(opts.weights) if opts.weights else pretrained_entry(DEFAULT_MODEL).weights_path
+    net = load_network(weights)
+    t0 = time.time()
+    datasets = render_suite(work, assets, opts.objects, opts.seed)
+    print(f"rendered the suite ({len(SUITE)} rows x {opts.objects} objects) in {work} in {time.time() - t0:.0f} s",
+          flush=True)
+    rng = np.random.default_rng(opts.seed)
+    samples = []
+    for folder in objects_of(datasets):
+        samples.append(measure(net, folder, opts.pixels, rng))
+    em = calibrate(samples, weights, net.meta.get("model_name", ""), {
+        "suite": [name for name, _ in SUITE], "assets": "training split" if assets else "none (procedural)",
+        "seed": opts.seed, "objects_per_row": opts.objects, "pixels_per_object": opts.pixels,
+        "command": f"python -m orchestrate.error_calibration --work WORK --objects {opts.objects} --seed {opts.seed}"})
+    from unips.expected_error import model_path
+
+    dest = Path(opts.out) if opts.out else model_path(weights)
+    em.save(dest)
+    print(f"fitted the expected-error model of {weights.name} on {len(samples)} objects; wrote {dest}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,282 @@
+"""The expected angular error of a network's normal map, per pixel and per object, in degrees.
+
+No one states how wrong a photometric-stereo map is likely to be. The evidence here is what the network and the
+images say about themselves, gathered at prediction time (`gather`):
+
+- `views_deg`: the angle between the map's first two views (the object and its mirror image, `unips.augment.DIHEDRAL`;
+  free with the default two views);
+- `halves_deg`: the angle between the maps from two disjoint random halves of the images (two more passes of one
+  view on K/2 images each): where the images under-determine a normal, its two halves disagree;
+- `lit`: the share of the images in which the pixel is lit (above `LIT` of its brightest value);
+- `grazing`: 1 - n_z of the map (foreshortened surface near the outline);
+- `edge_px`: the distance to the mask's outline;
+- the image count K and the object's mean disagreements.
+
+`ErrorModel` turns them into E[angular error | evidence] per pixel: a log-linear model (a Poisson GLM on the features
+of `FEATURES`, each object weighted equally), fitted on renders with exact ground truth from the training assets
+(`orchestrate.error_calibration`, one command), times one scale that centres the objects' ratio true / stated. The
+object's stated mean is the mean of its pixel map; its 80 % interval is that mean times the 10th and 90th percentiles
+of the calibration objects' ratio true / stated. The fitted model is a small JSON beside the weights it belongs to
+(`<weights stem>.expected_error.json`), tied to them by their SHA-256: other weights get no stated error, and say why.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+LIT = 0.1
+"""A pixel counts as lit in an image above this share of its brightest value over the images (shadowed below)."""
+HALVES_SEED = 0
+"""Seed of the random split of the images into two halves (the same split for the same image count)."""
+FEATURES = ("halves", "views", "object_halves", "object_views", "grazing", "edge", "lit", "images")
+"""The model's inputs per pixel, in order (`features`): log1p of the halves' and the views' angle (deg), log1p of
+their object means, 1 - n_z, log1p of the outline distance (px), the lit share, log of K."""
+SUFFIX = ".expected_error.json"
+"""The fitted model of weights `W.safetensors` is `W.expected_error.json` beside them."""
+INTERVAL = 0.8
+"""The stated interval should hold the true mean error this often (the 10th to the 90th percentile)."""
+
+
+def angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle (deg) between the vectors of (..., 3) arrays `a` and `b` (normalised here)."""
+    a = a / np.maximum(np.linalg.norm(a, axis=-1, keepdims=True), 1e-12)
+    b = b / np.maximum(np.linalg.norm(b, axis=-1, keepdims=True), 1e-12)
+    return np.degrees(np.arccos(np.clip((a * b).sum(-1), -1.0, 1.0))).astype(np.float32)
+
+
+@dataclass
+class Evidence:
+    """What a map says about itself, per pixel (H, W) float32 (0 outside the mask), and its image count."""
+
+    views_deg: np.ndarray
+    halves_deg: np.ndarray
+    lit: np.ndarray
+    grazing: np.ndarray
+    edge_px: np.ndarray
+    mask: np.ndarray  # (H, W) bool
+    images: int
+
+    def features(self) -> np.ndarray:
+        """(P, len(FEATURES)) float64 features of the P mask pixels, in `FEATURES` order."""
+        m = self.mask
+        halves, views = self.halves_deg[m].astype(np.float64), self.views_deg[m].astype(np.float64)
+        cols = [np.log1p(halves), np.log1p(views), np.full_like(halves, np.log1p(halves.mean())),
+                np.full_like(halves, np.log1p(views.mean())), self.grazing[m], np.log1p(self.edge_px[m]), self.lit[m],
+                np.full_like(halves, np.log(max(self.images, 1)))]
+        return np.stack(cols, axis=1)
+
+
+def lit_share(images: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """(H, W) share of the K images (K, H, W, 3) in which each mask pixel is above LIT of its brightest value."""
+    gray = images.mean(axis=-1)  # (K, H, W)
+    peak = gray.max(axis=0)
+    return np.where(mask, (gray > LIT * np.maximum(peak, 1e-12)).mean(axis=0), 0.0).astype(np.float32)
+
+
+def halves(k: int, seed: int = HALVES_SEED) -> tuple[np.ndarray, np.ndarray]:
+    """Two disjoint random halves of range(k) (sorted; for odd k one image is left out)."""
+    perm = np.random.default_rng(seed).permutation(k)
+    return np.sort(perm[: k // 2]), np.sort(perm[k // 2: 2 * (k // 2)])
+
+
+def evidence_from(normals: np.ndarray, views: list[np.ndarray], half_maps: tuple[np.ndarray, np.ndarray],
+                  images: np.ndarray, mask: np.ndarray) -> Evidence:
+    """Evidence of a map `normals` (H, W, 3) from its first two views' maps, the two halves' maps and the images."""
+    from scipy import ndimage
+
+    def inside(x: np.ndarray) -> np.ndarray:
+        return np.where(mask, x, 0.0).astype(np.float32)
+
+    return Evidence(views_deg=inside(angle_deg(views[0], views[1])), halves_deg=inside(angle_deg(*half_maps)),
+                    lit=lit_share(images, mask), grazing=inside(1.0 - np.clip(normals[..., 2], -1.0, 1.0)),
+                    edge_px=ndimage.distance_transform_edt(mask).astype(np.float32), mask=mask.astype(bool),
+                    images=int(len(images)))
+
+
+def gather(net: Any, obj: Any, res: int | None = None, tta: int = 2, seed: int = HALVES_SEED
+           ) -> tuple[np.ndarray, Evidence]:
+    """The network's map of `obj` (as `unips.inference.run_model` gives it with `tta` views) and its evidence: two
+    views (the map's own when `tta` >= 2, else two more passes) and two halves of the images (one view each)."""
+    import dataclasses
+
+    from unips.inference import run_model
+
+    if obj.num_images < 2:
+        raise ValueError(f"images: {obj.num_images}, the expected error needs at least 2 (two halves)")
+    views: list[np.ndarray] = []
+    normals = run_model(net, obj, res=res, tta=tta, views=views)
+    if len(views) < 2:
+        views = []
+        run_model(net, obj, res=res, tta=2, views=views)
+
+    def subset(idx: np.ndarray) -> Any:
+        def pick(a: Any) -> Any:
+            return None if a is None else a[idx]
+
+        return dataclasses.replace(obj, images=obj.images[idx], light_directions=pick(obj.light_directions),
+                                   light_intensities=pick(obj.light_intensities),
+                                   image_names=[obj.image_names[i] for i in idx] if obj.image_names else [])
+
+    a, b = halves(obj.num_images, seed)
+    half_maps = (run_model(net, subset(a), res=res, tta=1), run_model(net, subset(b), res=res, tta=1))
+    return normals, evidence_from(normals, views[:2], half_maps, obj.images, obj.mask)
+
+
+# ---------------------------------------------------------------- the fitted model
+
+
+@dataclass
+class Stated:
+    """The stated error of one map: per pixel (H, W) float32 (NaN outside the mask), its mean and 80 % interval."""
+
+    per_pixel: np.ndarray
+    mean: float
+    interval_80: tuple[float, float]
+
+    def summary(self) -> dict:
+        """report.json's / predict.json's `expected_error_deg`."""
+        return {"mean": round(self.mean, 2), "interval_80": [round(self.interval_80[0], 2),
+                                                              round(self.interval_80[1], 2)]}
+
+
+@dataclass
+class ErrorModel:
+    """E[angular error (deg) | evidence] = scale x exp(b + w . (f - mean) / std), per pixel (see the module doc)."""
+
+    weights_sha256: str
+    model_name: str
+    features: list[str]
+    mean: list[float]
+    std: list[float]
+    coef: list[float]
+    intercept: float
+    scale: float
+    ratio_quantiles: list[float]  # the calibration objects' true / stated at the 10th and 90th percentile
+    calibration: dict = field(default_factory=dict)  # what it was fitted on, the command, the objects' figures
+
+    def per_pixel(self, ev: Evidence) -> np.ndarray:
+        """(H, W) float32 expected error (deg), NaN outside the mask."""
+        if list(self.features) != list(FEATURES):
+            raise ValueError(f"error model: features {self.features}, expected {list(FEATURES)} (fitted by another "
+                             "version of the toolkit: fit it again, orchestrate.error_calibration)")
+        x = (ev.features() - np.asarray(self.mean)) / np.asarray(self.std)
+        out = np.full(ev.mask.shape, np.nan, np.float32)
+        out[ev.mask] = self.scale * np.exp(np.clip(self.intercept + x @ np.asarray(self.coef), -10, 10))
+        return out
+
+    def state(self, ev: Evidence) -> Stated:
+        """The stated error of the map behind `ev`."""
+        pix = self.per_pixel(ev)
+        m = float(np.nanmean(pix)) if ev.mask.any() else float("nan")
+        lo, hi = self.ratio_quantiles
+        return Stated(per_pixel=pix, mean=m, interval_80=(m * lo, m * hi))
+
+    def save(self, path: Path) -> None:
+        from scenes.files import write_json
+
+        write_json(path, asdict(self), indent=1)
+
+    @classmethod
+    def load(cls, path: Path) -> ErrorModel:
+        return cls(**json.loads(Path(path).read_text()))
+
+
+def sha256(path: Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def model_path(weights: Path) -> Path:
+    """Where the fitted error model of `weights` lies (`SUFFIX` beside them)."""
+    weights = Path(weights)
+    return weights.with_name(weights.name.split(".")[0] + SUFFIX)
+
+
+def for_weights(weights: Path | None) -> tuple[ErrorModel | None, str | None]:
+    """(the error model fitted for exactly these weights, None) or (None, why there is none)."""
+    if weights is None:
+        return None, "no weights file"
+    path = model_path(weights)
+    if not path.is_file():
+        return None, f"no error model was fitted for {Path(weights).name} ({path.name} is absent)"
+    em = ErrorModel.load(path)
+    if em.weights_sha256 != sha256(weights):
+        return None, f"{path.name} was fitted for other weights than {Path(weights).name} (SHA-256 differs)"
+    return em, None
+
+
+# ---------------------------------------------------------------- fitting
+
+
+def fit(samples: list[tuple[np.ndarray, np.ndarray]], ridge: float = 1e-3) -> tuple[np.ndarray, float, np.ndarray,
+                                                                                     np.ndarray]:
+    """Fit log E[err] = b + w . (f - mean) / std on `samples` ((P_i, F) features, (P_i,) true errors in deg per
+    object), each object weighted equally (Poisson deviance, L-BFGS; a small ridge on w). Returns (w, b, mean, std)."""
+    from scipy.optimize import minimize
+
+    x = np.concatenate([f for f, _ in samples])
+    y = np.concatenate([e for _, e in samples]).astype(np.float64)
+    wt = np.concatenate([np.full(len(e), 1.0 / len(e)) for _, e in samples])
+    wt /= wt.sum()
+    mean, std = x.mean(axis=0), x.std(axis=0)
+    std = np.where(std > 1e-9, std, 1.0)
+    z = (x - mean) / std
+
+    def loss(p: np.ndarray) -> tuple[float, np.ndarray]:
+        eta = np.clip(p[0] + z @ p[1:], -30, 30)
+        mu = np.exp(eta)
+        r = wt * (mu - y)
+        return float((wt * (mu - y * eta)).sum() + ridge * (p[1:] ** 2).sum()), np.concatenate(
+            [[r.sum()], z.T @ r + 2 * ridge * p[1:]])
+
+    p0 = np.zeros(z.shape[1] + 1)
+    p0[0] = np.log(max(float((wt * y).sum()), 1e-6))
+    res = minimize(loss, p0, jac=True, method="L-BFGS-B", options={"maxiter": 2000})
+    return res.x[1:], float(res.x[0]), mean, std
+
+
+# ---------------------------------------------------------------- files
+
+FILES = ("expected_error_deg.npy", "expected_error_deg.exr", "expected_error.png")
+"""What a prediction folder gains: the per-pixel stated error (float32 (H, W) degrees, NaN outside the mask) as NumPy
+and EXR arrays, and a picture of it on the fixed scale 0..`PICTURE_MAX_DEG`."""
+PICTURE_MAX_DEG = 45.0
+"""Top of the picture's colour scale (larger errors share its colour): the same scale for every map."""
+
+
+def error_picture(per_pixel: np.ndarray) -> np.ndarray:
+    """(H, W + bar, 3) uint8 BGR picture of a stated-error map, white outside the mask, with its colour bar."""
+    import cv2
+
+    from scenes.report.charts import colorbar
+
+    inside = np.isfinite(per_pixel)
+    codes = np.clip(np.nan_to_num(per_pixel) / PICTURE_MAX_DEG * 255, 0, 255).astype(np.uint8)
+    bgr = cv2.applyColorMap(codes, cv2.COLORMAP_INFERNO)
+    bgr[~inside] = 255
+    bar = colorbar(bgr.shape[0], PICTURE_MAX_DEG, cv2.COLORMAP_INFERNO, "deg", fmt="{:.0f}")
+    h = max(bgr.shape[0], bar.shape[0])
+
+    def pad(a: np.ndarray) -> np.ndarray:
+        return np.pad(a, ((0, h - a.shape[0]), (0, 0), (0, 0)), constant_values=255)
+
+    return np.concatenate([pad(bgr), pad(bar)], axis=1)
+
+
+def write_stated(folder: Path, stated: Stated) -> None:
+    """Write `FILES` of `stated` into `folder`."""
+    from scenes.files import atomic_write
+    from scenes.images import write_exr, write_picture
+
+    def save(tmp: Path) -> None:
+        with open(tmp, "wb") as f:  # a file object: np.save would add .npy to the temporary name
+            np.save(f, stated.per_pixel.astype(np.float32), allow_pickle=False)
+
+    folder.mkdir(parents=True, exist_ok=True)
+    atomic_write(folder / FILES[0], save)
+    write_exr(folder / FILES[1], stated.per_pixel)
+    write_picture(folder / FILES[2], error_picture(stated.per_pixel))
