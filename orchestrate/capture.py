@@ -9,12 +9,13 @@
 2. takes the mask from `--mask FILE`, or finds it from the images alone (`--mask auto`:
    `validate.diagnosis.usable.auto_mask`), or refuses in one line asking for one;
 3. says whether the capture is usable before any model runs (`validate.diagnosis.usable.capture_warnings`): too few
-   images, too dark, saturated, light from one side only or only near the view axis, camera moved; the fatal
-   ones stop, the others are recorded in report.json `warnings`;
+   images, too dark, saturated, light from one side only or only near the view axis, camera moved, and an
+   automatic mask the light variation does not support (`mask_doubts`); the fatal ones stop, the others are
+   recorded in report.json `warnings`;
 4. predicts normals with the shipped model (or `--checkpoint`), runs the fitted physical check, and where
    the check can judge the capture refines the map, keeping the refined map only when the check accepts it;
 5. writes OUT/normal.png (16-bit, (n + 1) / 2), OUT/normal.exr, OUT/normal_model.png (the model's map, before
-   any refinement), OUT/mask.png, OUT/light_variation.png,
+   any refinement), OUT/mask.png, OUT/mask_overlay.png (the mask over the photos), OUT/light_variation.png,
    OUT/report.json (every stage, the verdict, the warnings, timings and peak memory) and OUT/report.html (the
    same for a person, one self-contained page); the check's and the refinement's own reports lie in OUT/check/
    and OUT/refine/.
@@ -48,6 +49,7 @@ OUTPUTS = (
     "normal.exr",
     "normal_model.png",
     MASK_FILE,
+    "mask_overlay.png",
     "light_variation.png",
     "report.json",
     "report.html",
@@ -335,7 +337,7 @@ def check_resources(k: int, h: int, w: int) -> dict:
 
 def run(opts: CaptureOptions) -> dict:
     """The whole command (main without the error handling); returns report.json's content."""
-    from validate.diagnosis.usable import as_dicts, capture_warnings, image_count_warning
+    from validate.diagnosis.usable import as_dicts, capture_warnings, image_count_warning, mask_doubts
     from validate.fitted.fit_report import CHECK_OUTPUTS
     from validate.fitted.refinement import REFINE_OUTPUTS
 
@@ -353,10 +355,14 @@ def run(opts: CaptureOptions) -> dict:
     if count and count.fatal:  # before the mask: two photos say nothing about one
         raise UsageError(f"--input: {count.message}")
     mask, mask_info = find_mask(opts, read)
+    automatic = opts.mask == "auto" and read.mask is None  # found from the images: it may be wrong (mask_doubts)
     read = replace(read, mask=mask)
     warnings, facts = capture_warnings(read.images, mask, read.saturated, read.image_names)
     if warnings and warnings[0].fatal:
         raise UsageError(f"--input: {warnings[0].message}")
+    if automatic:
+        doubt, facts["mask_doubts"] = mask_doubts(read.images, mask)
+        warnings += [doubt] if doubt else []
     for w in warnings:
         print(f"warning: {w.code}: {w.message}", file=sys.stderr)
     times["mask_and_checks_s"] = time.perf_counter() - t0 - times["read_s"]
@@ -378,6 +384,9 @@ def run(opts: CaptureOptions) -> dict:
     write_mask(out / MASK_FILE, mask)
     if stated is not None:
         write_stated(out, stated)
+    from orchestrate.capture_page import mask_overlay
+
+    write_picture(out / "mask_overlay.png", mask_overlay(read.images, mask))
     _variation_picture(read.images, out / "light_variation.png")
     times["total_s"] = time.perf_counter() - t0
     lv, headline = level(check, stated, why_unstated, warnings)
@@ -423,10 +432,9 @@ def main(argv: list[str] | None = None) -> int:
     print(report["verdict"]["headline"])
     print(report["verdict"]["summary"])
     print(
-        f"wrote {Path(opts.out) / 'normal.png'}, normal.exr, mask.png, light_variation.png, "
+        f"wrote {Path(opts.out) / 'normal.png'}, normal.exr, mask.png, mask_overlay.png, light_variation.png, "
         + ("expected_error_deg.npy, .exr, expected_error.png, " if report["expected_error_deg"] else "")
-        + "report.json and "
-        f"report.html ({len(report['warnings'])} warning(s))"
+        + f"report.json and report.html ({len(report['warnings'])} warning(s))"
     )
     return 0
 

@@ -1,7 +1,7 @@
 """report.html of `orchestrate.capture`: one self-contained page a person reads without the code (every picture
 embedded as a PNG data URL, the styles inline): the verdict in words, what to improve in the capture, a
-contact sheet of the photos, the mask and the light variation, the normal map (before and after refinement
-where it was refined), the re-render residual of the physical check, and the details."""
+contact sheet of the photos, the mask (alone and over the photos) and the light variation, the normal map (before
+and after refinement where it was refined), the re-render residual of the physical check, and the details."""
 from __future__ import annotations
 
 import base64
@@ -47,6 +47,29 @@ def contact_sheet(images: np.ndarray, names: list[str], most: int = 12, width: i
     rows = [np.concatenate(tiles[r:r + cols] + [np.zeros_like(tiles[0])] * (cols - len(tiles[r:r + cols])), axis=1)
             for r in range(0, len(tiles), cols)]
     return np.concatenate(rows, axis=0)
+
+
+MASK_TINT_BGR = (0, 140, 255)
+"""The colour of the mask overlay's outline and tint (orange)."""
+
+
+def mask_overlay(images: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """BGR picture of the mask over the photos: each pixel's brightest value across the photos (sRGB, scaled to the
+    capture's bright level: the object whole, whichever photo lights each part), the mask tinted and outlined, so
+    that a person sees at once whether it follows the object."""
+    import cv2
+
+    from scenes.colors import linear_to_srgb
+
+    bright = images.max(axis=0).mean(axis=-1)
+    gray = (linear_to_srgb(bright / max(float(np.percentile(bright, 99.5)), 1e-6)) * 255).astype(np.uint8)
+    picture = np.repeat(gray[..., None], 3, axis=-1).astype(np.float32)
+    tint = np.array(MASK_TINT_BGR, np.float32)
+    picture[mask] = 0.7 * picture[mask] + 0.3 * tint
+    width = max(1, round(min(mask.shape) / 256))  # the outline stays visible where the page shrinks a large photo
+    edge = mask & ~(cv2.erode(mask.astype(np.uint8), np.ones((2 * width + 1,) * 2, np.uint8)) > 0)
+    picture[edge] = tint
+    return picture.round().astype(np.uint8)
 
 
 def _figure(title: str, src: str | None, caption: str) -> str:
@@ -111,6 +134,8 @@ table {{ border-collapse: collapse; }} td, th {{ border: 1px solid #ccc; padding
 <h2>The photos</h2>
 {_figure("Photos", pictures.get("contact_sheet"), "a sample of the inputs, shown in sRGB")}
 {_figure("Mask", pictures.get("mask"), report["mask"]["method"])}
+{_figure("Mask over the photos", pictures.get("mask_overlay"), "the mask tinted and outlined in orange over each "
+         "pixel's brightest value across the photos: the outline should follow the object")}
 {variation}
 <h2>The normal map</h2>
 {final_map}
@@ -141,6 +166,7 @@ def pictures(out: Path, name: str, images: np.ndarray, names: list[str], mask: n
 
     return {"contact_sheet": _png_data(contact_sheet(images, names)),
             "mask": _png_data(np.where(mask, 255, 0).astype(np.uint8)),
+            "mask_overlay": _file_data(out / "mask_overlay.png"),
             "light_variation": _file_data(out / "light_variation.png"),
             "normals": _png_data(normal_visual(final)[..., ::-1]),  # RGB -> OpenCV's BGR
             "model_normals": _png_data(normal_visual(model)[..., ::-1]) if refined else None,
