@@ -40,9 +40,10 @@ ASSET_RULE = (f"the training split of orchestrate.asset_split.split_plan (the la
               f"every training HDR map area-resampled to {HDR_WIDTH} px wide; then whole texture sets in name order "
               f"while the upload limit allows")
 PACKED = ("mitsuba==3.9.1", "drjit==1.5.0", "OpenEXR", "trimesh", "colour-science", "colour-demosaicing", "webdataset",
-          "braceexpand", "matplotlib", "cycler", "kiwisolver", "pyparsing", "fonttools", "python-dateutil",
-          "tyro==1.0.17", "docstring-parser", "typeguard")
-"""The wheels docs/model.md downloads for the pack (what the GPU image lacks, or lacks in this version)."""
+          "braceexpand", "tyro==1.0.17", "docstring-parser", "typeguard")
+"""The wheels docs/model.md downloads for the pack: what the GPU image lacks, or lacks in this version (matplotlib
+and its dependencies are in the image, `GPU_IMAGE`: packing them too made site.tar.xz 52 MiB, over the upload limit
+with the assets, on 2026-11-28)."""
 GPU_IMAGE = tuple(
     """absl-py accelerate certifi charset-normalizer click cloudpickle contourpy cycler filelock fonttools fsspec
 h5py huggingface-hub idna imageio jinja2 joblib kiwisolver lazy-loader markupsafe matplotlib mpmath networkx numpy

@@ -40,7 +40,13 @@ def test_evidence_measures_the_angles_it_is_given():
     n, mask = _sphere()
     images = np.random.default_rng(0).uniform(0.2, 1.0, (6,) + mask.shape + (3,)).astype(np.float32)
     ev = evidence_from(n, [n, _rotate_x(n, 7.0)], (n, _rotate_x(n, 20.0)), images, mask)
-    assert np.allclose(ev.views_deg[mask], 7.0, atol=1e-3) and np.allclose(ev.halves_deg[mask], 20.0, atol=1e-3)
+
+    def turned(deg: float) -> np.ndarray:  # the angle a rotation by `deg` about x turns each unit normal by
+        nx2 = n[mask][:, 0] ** 2
+        return np.degrees(np.arccos(nx2 + (1 - nx2) * np.cos(np.radians(deg))))
+
+    assert np.allclose(ev.views_deg[mask], turned(7.0), atol=1e-2)
+    assert np.allclose(ev.halves_deg[mask], turned(20.0), atol=1e-2) and ev.halves_deg[mask].max() > 19.9
     assert np.all(ev.views_deg[~mask] == 0)
     assert np.allclose(ev.grazing[mask], 1 - n[mask][:, 2], atol=1e-6)
     # the outline distance of the centre pixel is the disc's radius in pixels, about
@@ -230,3 +236,21 @@ def test_a_baseline_states_no_error_and_says_why(rendered, tmp_path):
     info = json.loads(next((tmp_path / "p").glob("*/predict.json")).read_text())
     assert info["expected_error_deg"] is None and "network" in info["expected_error_note"]
 
+
+
+def test_refine_carries_the_input_maps_expected_error(jit, lambertian_sphere_folder, tmp_path):
+    """validate.refine of a unips.predict prediction copies its expected error beside the refined map and says in
+    refine_report.json which map it describes (the input's: no error model was fitted for refined maps)."""
+    from unips.predict import main as predict
+    from validate.refine import main as refine
+
+    assert predict(["--method", "model", "--input", str(lambertian_sphere_folder), "--out", str(tmp_path / "p")]) == 0
+    stated = json.loads((tmp_path / "p" / "lsphere" / "predict.json").read_text())["expected_error_deg"]
+    assert refine(["--data", str(lambertian_sphere_folder), "--normals", str(tmp_path / "p"), "--out",
+                   str(tmp_path / "r"), "--steps", "20", "--refine-steps", "10", "--rounds", "1",
+                   "--threads", "1"]) == 0
+    report = json.loads((tmp_path / "r" / "lsphere" / "refine_report.json").read_text())
+    e = report["expected_error_deg"]
+    assert e["mean"] == stated["mean"] and e["interval_80"] == stated["interval_80"] and "input map" in e["map"]
+    for f in FILES:
+        assert (tmp_path / "r" / "lsphere" / f).read_bytes() == (tmp_path / "p" / "lsphere" / f).read_bytes()

@@ -29,6 +29,8 @@ from typing import Any
 
 import numpy as np
 
+from scenes.folder.format import EXPECTED_ERROR_FILES
+
 LIT = 0.1
 """A pixel counts as lit in an image above this share of its brightest value over the images (shadowed below)."""
 HALVES_SEED = 0
@@ -241,8 +243,8 @@ def fit(samples: list[tuple[np.ndarray, np.ndarray]], ridge: float = 1e-3) -> tu
 
 # ---------------------------------------------------------------- files
 
-FILES = ("expected_error_deg.npy", "expected_error_deg.exr", "expected_error.png")
-"""What a prediction folder gains: the per-pixel stated error (float32 (H, W) degrees, NaN outside the mask) as NumPy
+FILES = EXPECTED_ERROR_FILES
+"""What a prediction folder gains (`scenes.folder.format.EXPECTED_ERROR_FILES`): the per-pixel stated error as NumPy
 and EXR arrays, and a picture of it on the fixed scale 0..`PICTURE_MAX_DEG`."""
 PICTURE_MAX_DEG = 45.0
 """Top of the picture's colour scale (larger errors share its colour): the same scale for every map."""

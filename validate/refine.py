@@ -20,6 +20,7 @@ from scenes.cli.limits import check_threads
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import check_output_folder, claim_outputs
 from scenes.cli.progress import progress_bar
+from scenes.folder.format import EXPECTED_ERROR_FILES
 from validate.fitted.refinement import REFINE_OUTPUTS, RefineConfig, refine_object
 
 
@@ -61,6 +62,42 @@ COMMAND = Command(
 )
 
 
+def input_error(normals: str, name: str) -> tuple[Path, dict] | None:
+    """(the prediction folder, its predict.json `expected_error_deg`) when --normals is a prediction of unips.predict
+    that states one, else None."""
+    import json
+
+    from scenes.folder.format import PREDICTION_INFO, find_prediction
+
+    try:
+        folder = find_prediction(normals, name).parent
+        info = json.loads((folder / PREDICTION_INFO).read_text())
+    except (OSError, ValueError, AttributeError):
+        return None
+    stated = info.get("expected_error_deg")
+    if not stated or not all((folder / f).is_file() for f in EXPECTED_ERROR_FILES):
+        return None
+    return folder, stated
+
+
+def carry_error(stated: tuple[Path, dict], target: Path, report: dict) -> dict:
+    """Copy the input map's expected error beside the refined map and say so in refine_report.json: the refinement's
+    own error is not stated (no error model was fitted for refined maps); an accepted refinement explains the images
+    better, so the input map's figure is the one to expect at worst."""
+    import shutil
+
+    from scenes.files import write_json
+
+    folder, figure = stated
+    for f in EXPECTED_ERROR_FILES:
+        shutil.copyfile(folder / f, target / f)
+    report = {**report, "expected_error_deg": {**figure, "map": "the input map, before refinement (the refined map's "
+                                                           "own error is not stated)",
+                                               "files": list(EXPECTED_ERROR_FILES)}}
+    write_json(target / REFINE_OUTPUTS[1], report, indent=1)
+    return report
+
+
 def main(argv: list[str] | None = None) -> int:
     try:
         args = COMMAND.parse(argv)
@@ -80,8 +117,14 @@ def main(argv: list[str] | None = None) -> int:
 
         choose_variant(args.variant)  # refine_object refuses a variant without automatic differentiation
         set_jit_threads(args.threads)
+        stated = input_error(args.normals, name)
+        if stated:
+            claim_outputs([Path(args.out) / name / f for f in EXPECTED_ERROR_FILES], args.overwrite,
+                          owner="validate.refine")
         with progress_bar("step") as progress:
             r = refine_object(args.data, args.normals, config, args.out, progress, overwrite=args.overwrite)
+        if stated:
+            r = carry_error(stated, Path(args.out) / name, r)
     except (*INPUT_ERRORS, OSError) as exc:
         return report_error(exc)
     b, a = r["before"], r["after"]
@@ -95,6 +138,10 @@ def main(argv: list[str] | None = None) -> int:
     if r.get("rotation_search"):
         rs = r["rotation_search"]
         print(f"rotation search: tilted by {rs['tilt_deg']:.1f} deg; {rs['note']}")
+    if "expected_error_deg" in r:
+        e = r["expected_error_deg"]
+        print(f"expected error of the input map: about {e['mean']:.0f} deg (80 %: {e['interval_80'][0]:.0f}-"
+              f"{e['interval_80'][1]:.0f} deg), copied beside the refined map ({', '.join(EXPECTED_ERROR_FILES)})")
     print(f"normals in {args.out}/{r['object']}/normal.png, report in {args.out}/{r['object']}/refine_report.json")
     return 0
 

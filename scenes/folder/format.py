@@ -64,6 +64,10 @@ PREDICTION_FILES = ("normal.exr", "normal.png", "normal.npy", "normal.tif", "nor
 PREDICTION_INFO = "predict.json"
 """What `unips.predict` records beside a prediction (method, model, images used)."""
 
+EXPECTED_ERROR_FILES = ("expected_error_deg.npy", "expected_error_deg.exr", "expected_error.png")
+"""A prediction's expected angular error (`unips.expected_error`): float32 (H, W) degrees, NaN outside the mask, as
+NumPy and EXR arrays, and a picture; PREDICTION_INFO's `expected_error_deg` holds its mean and 80 % interval."""
+
 DATASET_MANIFEST = "manifest.json"
 """A dataset folder's record of the run that wrote it (wildgen.make, wildgen.sensor). `complete: false` while a
 run writes it (true at its end): the object folders of a run stopped half-way are never read as a dataset."""
