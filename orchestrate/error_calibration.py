@@ -127,8 +127,7 @@ class CalibrationOptions:
 
     work: Annotated[str, arg(metavar="DIR")] = REQUIRED
     """Folder of the asset split and the rendered suite (resumed when run again)."""
-    assets: Annotated[str, arg(help_behavior_hint="(default: ../shared/assets)")] = str(REPO.parent / "shared" /
-                                                                                        "assets")
+    assets: Annotated[str | None, arg(help_behavior_hint="(default: ../shared/assets)")] = None
     """Asset folder (hdri/, meshes/, textures/; 'none': procedural shapes and lights only); only its training half
     is rendered."""
     weights: Annotated[str | None, arg(help_behavior_hint="(default: the shipped weights of the default model)")] = None
@@ -197,6 +196,7 @@ def run(opts: CalibrationOptions) -> int:
     work = Path(opts.work)
     work.mkdir(parents=True, exist_ok=True)
     assets = None
+    opts.assets = opts.assets or str(REPO.parent / "shared" / "assets")
     if opts.assets != "none":
         if not Path(opts.assets).is_dir():
             raise UsageError(f"--assets: {opts.assets!r} is not a folder (expected hdri/, meshes/, textures/, "

@@ -145,6 +145,8 @@ def lineage_entry(folder: Path, new: dict, old: dict | None, shipped: bool) -> d
                      f"{'' if shipped else ' (not shipped)'}",
             "init_from": card.get("init_from"), "hardware": card.get("hardware"),
             "minutes": card.get("train_minutes"), "wall_s": summary.get("wall_s"),
+            # the lineage table's column, as every other stage records it (training time, here on the GPU)
+            "hours": round(card["train_minutes"] / 60, 3) if card.get("train_minutes") is not None else None,
             "steps": card.get("steps"), "batch": card.get("batch"), "data": card.get("data"),
             "recipe": card.get("recipe"), "shipped": shipped,
             "fixed_validation": {"all": round(new["mean"], 2), "gain": round(new["gain"], 2), "probes": new["probes"]},

@@ -166,6 +166,7 @@ def _stated_and_true(net, em, obj):
     return st, float(angle_deg(normals[obj.mask], obj.normals[obj.mask]).mean())
 
 
+@pytest.mark.slow
 def test_the_stated_error_is_calibrated_on_renders_it_never_saw(rendered, shipped):
     """The calibration rule on a small rendered set (another seed than the fit's): the stated mean follows the true
     one (within a factor 2 on every object, the interval holding at least half of them), and ranks the objects."""
@@ -183,24 +184,30 @@ def test_the_stated_error_is_calibrated_on_renders_it_never_saw(rendered, shippe
     assert covered >= len(true) // 2, (stated, true)
 
 
+@pytest.mark.slow
 def test_the_stated_error_rises_with_fewer_images_and_a_moved_camera(rendered, shipped):
+    """3 of 10 images raise the stated error on every object; every second photo shifted by 3 px raises it on average
+    and on most objects (bench_expected_error measures the shares on 50 held-out objects: 94 % and 86 %). A mask
+    grown by 4 px into the background is not asserted: here it raised it on 3 of 6 objects only (78 % in the bench);
+    a doubtful automatic mask keeps a capture's map from "usable" instead (validate.diagnosis.usable.mask_doubts,
+    tests/test_capture.py test_the_verdict_level_follows_its_rule)."""
     import dataclasses
 
+    from orchestrate.error_calibration import camera_moved
     from unips.data import load_object
 
     net, em = shipped
-    rose_fewer = rose_moved = 0
+    base, few, moved = [], [], []
     for folder in rendered:
         obj = load_object(folder)
-        base, _ = _stated_and_true(net, em, obj)
-        few = dataclasses.replace(obj, images=obj.images[:3], light_directions=None, light_intensities=None,
-                                  image_names=obj.image_names[:3])
-        imgs = obj.images.copy()
-        imgs[1::2] = np.roll(imgs[1::2], (3, 3), axis=(1, 2))
-        moved = dataclasses.replace(obj, images=imgs)
-        rose_fewer += _stated_and_true(net, em, few)[0].mean > base.mean
-        rose_moved += _stated_and_true(net, em, moved)[0].mean > base.mean
-    assert rose_fewer == len(rendered) and rose_moved >= len(rendered) - 1, (rose_fewer, rose_moved)
+        base.append(_stated_and_true(net, em, obj)[0].mean)
+        three = dataclasses.replace(obj, images=obj.images[:3], light_directions=None, light_intensities=None,
+                                    image_names=obj.image_names[:3])
+        few.append(_stated_and_true(net, em, three)[0].mean)
+        moved.append(_stated_and_true(net, em, camera_moved(obj, 3))[0].mean)
+    base, few, moved = map(np.array, (base, few, moved))
+    assert np.all(few > base), (base, few)
+    assert moved.mean() > base.mean() and (moved > base).sum() >= len(base) // 2 + 1, (base, moved)
 
 
 def test_predict_writes_the_expected_error(rendered, tmp_path):
@@ -220,7 +227,7 @@ def test_predict_writes_the_expected_error(rendered, tmp_path):
     mask = np.any(read_normals(folder / "normal.exr") != 0, axis=-1)
     assert per.dtype == np.float32 and np.isnan(per[~mask]).all() and np.isfinite(per[mask]).all()
     assert np.nanmean(per) == pytest.approx(e["mean"], abs=0.01)
-    assert np.allclose(read_exr(folder / FILES[1]), per, equal_nan=True)
+    assert np.allclose(read_exr(folder / FILES[1])[..., 0], per, equal_nan=True)
     assert (folder / FILES[2]).stat().st_size > 0
     # stating the error leaves the map itself untouched, byte for byte
     assert (folder / "normal.png").read_bytes() == (tmp_path / "plain" / "obj" / "normal.png").read_bytes()

@@ -195,3 +195,19 @@ def test_recipe_refuses_to_ship_a_model_without_a_pretrained_entry(tmp_path):
     with pytest.raises(ValueError, match="--ship: --model is 'glc-test'.*no shipped-weights entry"):
         RecipeOptions(work=str(tmp_path / "w"), model="glc-test", ship=True).validate()
     assert not (tmp_path / "w").exists()
+
+
+def test_a_relay_runs_lineage_entry_renders_in_the_lineage_table(tmp_path):
+    """orchestrate.ship records a GPU run with the columns the lineage table reads (its training hours too): the
+    first real relay run was recorded without them and broke the docs' table."""
+    from orchestrate.docs import lineage
+    from orchestrate.ship import lineage_entry
+    from scenes.files import write_json
+
+    write_json(tmp_path / "model_card.json", {"train_minutes": 3.48, "steps": 1858, "data": "200 objects"})
+    write_json(tmp_path / "summary.json", {"wall_s": 420.4})
+    score = {"mean": 16.29, "gain": 6.87, "probes": {"all": 16.29}, "diligent": {}}
+    entry = lineage_entry(tmp_path, score, {**score, "mean": 14.57}, shipped=False)
+    assert entry["hours"] == 0.058 and entry["steps"] == 1858
+    row = lineage({"lineage": [entry]}).splitlines()[-1]
+    assert "| 1858 | 0.06 | 16.29 | 6.87 | no |" in row, row
