@@ -37,6 +37,7 @@ import numpy as np
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import check_output_folder, claim_outputs
+from scenes.cli.progress import stage
 from scenes.files import to_plain, write_json
 from scenes.folder.format import MASK_FILE, write_object_folder
 from scenes.images import read_mask, write_mask, write_normal_exr, write_normal_map, write_picture
@@ -69,10 +70,12 @@ class CaptureOptions:
     of one object under different lights, the camera still; or an object folder in one of the toolkit's
     layouts."""
     out: Annotated[str, arg(metavar="DIR")] = REQUIRED
-    """Output folder: normal.png, normal.exr, mask.png, light_variation.png, report.json."""
-    mask: Annotated[str, arg(metavar="{FILE,auto}")] = "auto"
+    """Output folder: normal.png, normal.exr, normal_model.png, mask.png, mask_overlay.png, light_variation.png,
+    expected_error_deg.npy / .exr, expected_error.png, report.json and report.html (docs/capture.md, "Outputs")."""
+    mask: Annotated[str, arg(metavar="{FILE,auto,none}")] = "auto"
     """Object mask (white object on black, the size of the photos), or 'auto' to find it from how the light
-    changes each pixel (refused in one line where it cannot)."""
+    changes each pixel (refused in one line where it cannot), or 'none': the whole frame is the scene (a table
+    with things on it; a file named none: ./none)."""
     input_encoding: Literal["auto", "srgb", "linear"] = "auto"
     """How the photos' values are encoded: auto (sRGB for 8-bit files, linear for 16-bit, EXR and camera RAW),
     srgb (refused for RAW files) or linear."""
@@ -146,11 +149,20 @@ def read_input(opts: CaptureOptions) -> Capture:
                                {"input": source})
 
 
+WHOLE_FRAME = ("every pixel gets a normal, the background's too; the model was trained on single objects on a dark "
+               "background, so expect larger errors on a scene; the check fits one light and reflectance model to the "
+               "whole frame and judges it where that explains the photos: the edges between things at different "
+               "depths (cast shadows, occlusions) are not modelled")
+"""What report.json says of --mask none."""
+
+
 def find_mask(opts: CaptureOptions, cap: Capture) -> tuple[np.ndarray, dict]:
     """The object mask (from --mask FILE, the object folder's own, or found from the images) and how it was made."""
     from validate.diagnosis.usable import auto_mask
 
     shape = cap.images.shape[1:3]
+    if opts.mask == "none":
+        return np.ones(shape, bool), {"method": "none: the whole frame is the scene", "note": WHOLE_FRAME}
     if opts.mask != "auto":
         try:
             mask = read_mask(opts.mask, None)
@@ -321,8 +333,9 @@ def estimate(k: int, h: int, w: int) -> dict:
     from validate.judgeable import MIN_IMAGES
 
     refine = SECONDS_REFINE if k >= MIN_IMAGES["refine"] else 0.0
+    check = SECONDS_BASE + refine + SECONDS_PER_IMAGE * k
     return {"peak_mib": round(BASE_MIB + MIB_PER_IMAGE * k + MIB_PER_MVALUE * values / 2**20),
-            "seconds": round(SECONDS_BASE + refine + SECONDS_PER_IMAGE * k + SECONDS_PER_MVALUE * values / 1e6, 1)}
+            "seconds": round(check + SECONDS_PER_MVALUE * values / 1e6, 1), "check_s": round(check, 1)}
 
 
 def check_resources(k: int, h: int, w: int) -> dict:
@@ -336,7 +349,8 @@ def check_resources(k: int, h: int, w: int) -> dict:
 
 
 def run(opts: CaptureOptions) -> dict:
-    """The whole command (main without the error handling); returns report.json's content."""
+    """The whole command (main without the error handling); returns report.json's content. Each stage says when it
+    starts, that it is alive at least every 10 s, and when it ends (`scenes.cli.progress.stage`, on stderr)."""
     from validate.diagnosis.usable import as_dicts, capture_warnings, image_count_warning, mask_doubts
     from validate.fitted.fit_report import CHECK_OUTPUTS
     from validate.fitted.refinement import REFINE_OUTPUTS
@@ -345,8 +359,12 @@ def run(opts: CaptureOptions) -> dict:
     out = Path(opts.out)
     check_output_folder(out)
     claim_outputs([out / n for n in OUTPUTS], opts.overwrite, owner="orchestrate.capture")
-    need = check_resources(*probe_input(opts))
-    read = read_input(opts)
+    k, h, w = probe_input(opts)
+    need = check_resources(k, h, w)
+    print(f"capture: {k} photos of {w} x {h} px into {out}; estimated about {need['seconds']:.0f} s and "
+          f"{need['peak_mib']} MiB at most", file=sys.stderr, flush=True)
+    with stage("capture", "reading the photos"):
+        read = read_input(opts)
     stages = {"check": [out / "check" / read.name / n for n in CHECK_OUTPUTS],
               "refine": [out / "refine" / read.name / n for n in REFINE_OUTPUTS]}
     claim_outputs([p for paths in stages.values() for p in paths], opts.overwrite, owner="orchestrate.capture")
@@ -354,17 +372,18 @@ def run(opts: CaptureOptions) -> dict:
     count = image_count_warning(len(read.images))
     if count and count.fatal:  # before the mask: two photos say nothing about one
         raise UsageError(f"--input: {count.message}")
-    mask, mask_info = find_mask(opts, read)
-    automatic = opts.mask == "auto" and read.mask is None  # found from the images: it may be wrong (mask_doubts)
-    read = replace(read, mask=mask)
-    warnings, facts = capture_warnings(read.images, mask, read.saturated, read.image_names)
-    if warnings and warnings[0].fatal:
-        raise UsageError(f"--input: {warnings[0].message}")
-    if automatic:
-        doubt, facts["mask_doubts"] = mask_doubts(read.images, mask)
-        warnings += [doubt] if doubt else []
-    for w in warnings:
-        print(f"warning: {w.code}: {w.message}", file=sys.stderr)
+    with stage("capture", "the mask and the capture checks"):
+        mask, mask_info = find_mask(opts, read)
+        automatic = opts.mask == "auto" and read.mask is None  # found from the images: it may be wrong (mask_doubts)
+        read = replace(read, mask=mask)
+        warnings, facts = capture_warnings(read.images, mask, read.saturated, read.image_names)
+        if warnings and warnings[0].fatal:
+            raise UsageError(f"--input: {warnings[0].message}")
+        if automatic:
+            doubt, facts["mask_doubts"] = mask_doubts(read.images, mask)
+            warnings += [doubt] if doubt else []
+    for warning in warnings:
+        print(f"warning: {warning.code}: {warning.message}", file=sys.stderr)
     times["mask_and_checks_s"] = time.perf_counter() - t0 - times["read_s"]
     # One scale for every photo (their relative exposures are kept): the brightest mask value becomes 1, as the
     # model expects; the clipped channels stay those the files said (read.saturated), not re-derived from values.
@@ -372,40 +391,22 @@ def run(opts: CaptureOptions) -> dict:
     cap = replace(read, images=np.clip(read.images * scale, 0, 1).astype(np.float32))
     work = write_object_folder(out / "work" / f"{cap.name}.data", cap.images, mask, None) if opts.keep_work else None
     t1 = time.perf_counter()
-    model_map, stated, why_unstated = predict(opts, cap)
+    with stage("capture", "the model's map and its expected error"):
+        model_map, stated, why_unstated = predict(opts, cap)
     times["predict_s"] = time.perf_counter() - t1
     t1 = time.perf_counter()
-    final, check, refined = check_and_refine(opts, cap, out, model_map)
+    with stage("capture", "the physical check" + (" and the refinement" if opts.refine else ""),
+               estimate(k, h, w)["check_s"]):
+        final, check, refined = check_and_refine(opts, cap, out, model_map)
     times["check_and_refine_s"] = time.perf_counter() - t1
     final = np.where(mask[..., None], final, 0.0)
-    write_normal_map(out / "normal.png", _to_convention(final, opts.convention))
-    write_normal_exr(out / "normal.exr", _to_convention(final, opts.convention))
-    write_normal_map(out / "normal_model.png", _to_convention(model_map, opts.convention))
-    write_mask(out / MASK_FILE, mask)
-    if stated is not None:
-        write_stated(out, stated)
-    from orchestrate.capture_page import mask_overlay
-
-    write_picture(out / "mask_overlay.png", mask_overlay(read.images, mask))
-    _variation_picture(read.images, out / "light_variation.png")
+    write_maps(opts, out, read.images, mask, final, model_map, stated)
     times["total_s"] = time.perf_counter() - t0
-    lv, headline = level(check, stated, why_unstated, warnings)
     report = {"input": {"folder": str(opts.input), "images": len(read.image_names), "names": read.image_names,
                         "size": list(read.images.shape[1:3]), **read.meta["input"]},
               "mask": {**mask_info, "pixels": int(mask.sum())},
               "warnings": as_dicts(warnings), "measurements": facts,
-              "normals": {"convention": opts.convention,
-                          "frame": "x right, y up, z toward the camera" if opts.convention == "opengl"
-                          else "x right, y down, z away from the camera",
-                          "encoding": "normal.png: 16-bit (n + 1) / 2; normal.exr: float32 n; 0 outside the mask",
-                          "source": "refined" if refined and refined.get("accepted") else "model"},
-              "expected_error_deg": None if stated is None else {
-                  **stated.summary(), "map": "the model's map" + (
-                      " (the refined map was kept: the check accepted it, its own error is not stated)"
-                      if refined and refined.get("accepted") else ""),
-                  "files": list(EXPECTED_FILES)},
-              **({"expected_error_note": why_unstated} if stated is None else {}),
-              "verdict": {"level": lv, "headline": headline, **verdict(check, refined)},
+              **outcome(opts, check, refined, stated, why_unstated, warnings),
               "stages": {"check": "check/" + cap.name + "/report.json",
                          "refine": ("refine/" + cap.name + "/refine_report.json") if refined and "mode" in refined
                          else None,
@@ -419,6 +420,40 @@ def run(opts: CaptureOptions) -> dict:
     write_page(out / "report.html", to_plain(report), pictures(out, cap.name, read.images, read.image_names, mask,
                                                              final, model_map, refined_used))
     return report
+
+
+def write_maps(opts: CaptureOptions, out: Path, images: np.ndarray, mask: np.ndarray, final: np.ndarray,
+               model_map: np.ndarray, stated) -> None:
+    """The maps and pictures of OUTPUTS (report.json and report.html aside)."""
+    from orchestrate.capture_page import mask_overlay
+
+    write_normal_map(out / "normal.png", _to_convention(final, opts.convention))
+    write_normal_exr(out / "normal.exr", _to_convention(final, opts.convention))
+    write_normal_map(out / "normal_model.png", _to_convention(model_map, opts.convention))
+    write_mask(out / MASK_FILE, mask)
+    if stated is not None:
+        write_stated(out, stated)
+    write_picture(out / "mask_overlay.png", mask_overlay(images, mask))
+    _variation_picture(images, out / "light_variation.png")
+
+
+def outcome(opts: CaptureOptions, check: dict, refined: dict | None, stated, why_unstated: str | None,
+            warnings: list) -> dict:
+    """report.json's `normals`, `expected_error_deg` (or `expected_error_note`) and `verdict`."""
+    lv, headline = level(check, stated, why_unstated, warnings)
+    kept_refined = bool(refined and refined.get("accepted"))
+    return {"normals": {"convention": opts.convention,
+                        "frame": "x right, y up, z toward the camera" if opts.convention == "opengl"
+                        else "x right, y down, z away from the camera",
+                        "encoding": "normal.png: 16-bit (n + 1) / 2; normal.exr: float32 n; 0 outside the mask",
+                        "source": "refined" if kept_refined else "model"},
+            "expected_error_deg": None if stated is None else {
+                **stated.summary(), "map": "the model's map" + (
+                    " (the refined map was kept: the check accepted it, its own error is not stated)"
+                    if kept_refined else ""),
+                "files": list(EXPECTED_FILES)},
+            **({"expected_error_note": why_unstated} if stated is None else {}),
+            "verdict": {"level": lv, "headline": headline, **verdict(check, refined)}}
 
 
 def main(argv: list[str] | None = None) -> int:

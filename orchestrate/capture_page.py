@@ -98,8 +98,9 @@ def write_page(path: Path, report: dict[str, Any], pictures: dict[str, str | Non
     final_map = _figure("Final normal map", pictures.get("normals"),
                         "colour = (n + 1) / 2: red right, green up, blue toward the camera")
     residual_figure = _figure("Re-render residual", pictures.get("check_figure"),
-                              "the photos, their re-rendering with the fitted light and the normal map, "
-                              "and the relative residual")
+                              "the photos, their re-rendering with the fitted light and the model's map (the check "
+                              "judges the model's map, before any refinement: its figures are that map's), and the "
+                              "relative residual")
     e = report.get("expected_error_deg")
     expected = (f"how far off each normal is expected to be (degrees, 0 to 45); object mean {e['mean']:.1f} deg, 80 % "
                 f"interval {e['interval_80'][0]:.1f}-{e['interval_80'][1]:.1f} deg; of {e['map']}" if e else "")

@@ -354,3 +354,18 @@ def test_the_verdict_level_follows_its_rule():
     assert lv == "not checked" and "near light" in line and "5 deg" in line
     lv, line = level(trusted, None, "no error model was fitted for x.safetensors", [])
     assert lv == "not checked" and "no error model" in line
+
+
+def test_mask_none_makes_the_whole_frame_the_scene(photos, tmp_path, variant_llvm_ad_rgb):
+    """--mask none: no mask is found or doubted, every pixel gets a normal, and report.json says what that means."""
+    from orchestrate.capture import WHOLE_FRAME, main
+    from scenes.images import read_mask, read_normals
+
+    out = tmp_path / "scene"
+    assert main(["--input", str(photos), "--out", str(out), "--mask", "none", "--no-refine", "--threads", "1"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["mask"]["method"].startswith("none") and report["mask"]["note"] == WHOLE_FRAME
+    assert read_mask(out / "mask.png").all() and "mask_doubts" not in report["measurements"]
+    n = read_normals(out / "normal.exr")
+    assert (np.linalg.norm(n, axis=-1) > 0.5).mean() > 0.99
+    assert np.isfinite(np.load(out / "expected_error_deg.npy")).all()

@@ -179,8 +179,9 @@ def auto_mask(images: np.ndarray, flag: str = "--mask") -> tuple[np.ndarray, dic
     border = float(scaled[ring].mean())
     why = None
     if separability < MIN_SEPARABILITY:
-        why = (f"the light variation does not split into two classes (separability {separability:.2f} < "
-               f"{MIN_SEPARABILITY})")
+        shown = np.floor(separability * 1000) / 1000  # rounded down: 0.5996 must not read "0.60 < 0.6"
+        why = (f"the light variation does not split into two classes (separability {shown:.3f} < "
+               f"{MIN_SEPARABILITY:g})")
     elif inside <= 0 or border >= BACKDROP_RATIO * inside:
         why = (f"the border of the frame changes with the light like the object ({border / max(inside, 1e-9):.0%} of "
                "its variation): a lit backdrop")
@@ -406,6 +407,10 @@ def capture_warnings(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray
                     f"up to {share.max():.0%} of it): expose shorter or move the lamp away",
                 )
             )
+    if not _contour(mask)[0].any():  # a whole-frame mask (--mask none): no outline to read the lights from
+        facts["light_angles"] = "not measured: the mask has no outline inside the frame"
+        out.sort(key=lambda w: not w.fatal)
+        return out, facts
     polar, azimuth = light_angles(images, mask)
     facts["light_polar_deg"] = np.round(polar, 1).tolist()
     facts["light_azimuth_deg"] = np.round(azimuth, 1).tolist()
