@@ -171,14 +171,16 @@ def _to_convention(n: np.ndarray, convention: str) -> np.ndarray:
     return (n * CONVENTIONS[convention]).astype(np.float32)
 
 
-def predict(opts: CaptureOptions, cap: Capture) -> tuple[np.ndarray, object | None, str | None]:
+def predict(opts: CaptureOptions, cap: Capture, net=None) -> tuple[np.ndarray, object | None, str | None]:
     """The model's map (H, W, 3) of a capture (linear images scaled to 1 at the brightest mask value), its stated
-    error (`unips.expected_error.Stated`) and None, or the map, None and why no error is stated."""
+    error (`unips.expected_error.Stated`) and None, or the map, None and why no error is stated. `net`: the network
+    run() loaded before reading the photos (loaded here from --checkpoint / --model when None)."""
     from unips.data import PSObject
     from unips.expected_error import for_weights, gather
     from unips.inference import load_network, run_model
 
-    net = load_network(opts.checkpoint, model=opts.model)
+    if net is None:
+        net = load_network(opts.checkpoint, model=opts.model)
     obj = PSObject(name=cap.name, images=cap.images, mask=cap.mask, normals=None, light_family=None,
                    light_directions=None, light_intensities=None, path=cap.folder, layout=cap.layout,
                    image_names=cap.image_names)
@@ -335,6 +337,22 @@ def check_resources(k: int, h: int, w: int) -> dict:
     return need
 
 
+def load_network_first(opts: CaptureOptions) -> tuple[object, float]:
+    """The network of --checkpoint / --model, loaded (its weights checked: `unips.models.tensors`) before the photos
+    are read, so that a bad one costs no reading; and the seconds it took. A refusal names the flag."""
+    from unips.inference import load_network
+
+    t0 = time.perf_counter()
+    try:
+        net = load_network(opts.checkpoint, model=opts.model)
+    except (ValueError, FileNotFoundError) as exc:  # its message names the file, or the registry: the flag too
+        flag = "--checkpoint" if opts.checkpoint is not None else "--model"
+        if str(exc).startswith(flag):
+            raise
+        raise type(exc)(f"{flag}: {exc}") from None
+    return net, time.perf_counter() - t0
+
+
 def run(opts: CaptureOptions) -> dict:
     """The whole command (main without the error handling); returns report.json's content."""
     from validate.diagnosis.usable import as_dicts, capture_warnings, image_count_warning, mask_doubts
@@ -346,11 +364,12 @@ def run(opts: CaptureOptions) -> dict:
     check_output_folder(out)
     claim_outputs([out / n for n in OUTPUTS], opts.overwrite, owner="orchestrate.capture")
     need = check_resources(*probe_input(opts))
+    net, times["load_model_s"] = load_network_first(opts)
     read = read_input(opts)
     stages = {"check": [out / "check" / read.name / n for n in CHECK_OUTPUTS],
               "refine": [out / "refine" / read.name / n for n in REFINE_OUTPUTS]}
     claim_outputs([p for paths in stages.values() for p in paths], opts.overwrite, owner="orchestrate.capture")
-    times["read_s"] = time.perf_counter() - t0
+    times["read_s"] = time.perf_counter() - t0 - times["load_model_s"]
     count = image_count_warning(len(read.images))
     if count and count.fatal:  # before the mask: two photos say nothing about one
         raise UsageError(f"--input: {count.message}")
@@ -365,14 +384,14 @@ def run(opts: CaptureOptions) -> dict:
         warnings += [doubt] if doubt else []
     for w in warnings:
         print(f"warning: {w.code}: {w.message}", file=sys.stderr)
-    times["mask_and_checks_s"] = time.perf_counter() - t0 - times["read_s"]
+    times["mask_and_checks_s"] = time.perf_counter() - t0 - times["read_s"] - times["load_model_s"]
     # One scale for every photo (their relative exposures are kept): the brightest mask value becomes 1, as the
     # model expects; the clipped channels stay those the files said (read.saturated), not re-derived from values.
     scale = 1.0 / max(float(read.images[:, mask].max()), 1e-12)
     cap = replace(read, images=np.clip(read.images * scale, 0, 1).astype(np.float32))
     work = write_object_folder(out / "work" / f"{cap.name}.data", cap.images, mask, None) if opts.keep_work else None
     t1 = time.perf_counter()
-    model_map, stated, why_unstated = predict(opts, cap)
+    model_map, stated, why_unstated = predict(opts, cap, net)
     times["predict_s"] = time.perf_counter() - t1
     t1 = time.perf_counter()
     final, check, refined = check_and_refine(opts, cap, out, model_map)
