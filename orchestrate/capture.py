@@ -183,14 +183,16 @@ def _to_convention(n: np.ndarray, convention: str) -> np.ndarray:
     return (n * CONVENTIONS[convention]).astype(np.float32)
 
 
-def predict(opts: CaptureOptions, cap: Capture) -> tuple[np.ndarray, object | None, str | None]:
+def predict(opts: CaptureOptions, cap: Capture, net=None) -> tuple[np.ndarray, object | None, str | None]:
     """The model's map (H, W, 3) of a capture (linear images scaled to 1 at the brightest mask value), its stated
-    error (`unips.expected_error.Stated`) and None, or the map, None and why no error is stated."""
+    error (`unips.expected_error.Stated`) and None, or the map, None and why no error is stated. `net`: the network
+    run() loaded before reading the photos (loaded here from --checkpoint / --model when None)."""
     from unips.data import PSObject
     from unips.expected_error import for_weights, gather
     from unips.inference import load_network, run_model
 
-    net = load_network(opts.checkpoint, model=opts.model)
+    if net is None:
+        net = load_network(opts.checkpoint, model=opts.model)
     obj = PSObject(name=cap.name, images=cap.images, mask=cap.mask, normals=None, light_family=None,
                    light_directions=None, light_intensities=None, path=cap.folder, layout=cap.layout,
                    image_names=cap.image_names)
@@ -348,6 +350,22 @@ def check_resources(k: int, h: int, w: int) -> dict:
     return need
 
 
+def load_network_first(opts: CaptureOptions) -> tuple[object, float]:
+    """The network of --checkpoint / --model, loaded (its weights checked: `unips.models.tensors`) before the photos
+    are read, so that a bad one costs no reading; and the seconds it took. A refusal names the flag."""
+    from unips.inference import load_network
+
+    t0 = time.perf_counter()
+    try:
+        net = load_network(opts.checkpoint, model=opts.model)
+    except (ValueError, FileNotFoundError) as exc:  # its message names the file, or the registry: the flag too
+        flag = "--checkpoint" if opts.checkpoint is not None else "--model"
+        if str(exc).startswith(flag):
+            raise
+        raise type(exc)(f"{flag}: {exc}") from None
+    return net, time.perf_counter() - t0
+
+
 def run(opts: CaptureOptions) -> dict:
     """The whole command (main without the error handling); returns report.json's content. Each stage says when it
     starts, that it is alive at least every 10 s, and when it ends (`scenes.cli.progress.stage`, on stderr)."""
@@ -361,14 +379,14 @@ def run(opts: CaptureOptions) -> dict:
     claim_outputs([out / n for n in OUTPUTS], opts.overwrite, owner="orchestrate.capture")
     k, h, w = probe_input(opts)
     need = check_resources(k, h, w)
-    print(f"capture: {k} photos of {w} x {h} px into {out}; estimated about {need['seconds']:.0f} s and "
-          f"{need['peak_mib']} MiB at most", file=sys.stderr, flush=True)
-    with stage("capture", "reading the photos"):
+    net, times["load_model_s"] = load_network_first(opts)
+    with stage("capture", f"reading {k} photos of {w} x {h} px (the whole run: about {need['seconds']:.0f} s, "
+               f"{need['peak_mib']} MiB at most)"):
         read = read_input(opts)
     stages = {"check": [out / "check" / read.name / n for n in CHECK_OUTPUTS],
               "refine": [out / "refine" / read.name / n for n in REFINE_OUTPUTS]}
     claim_outputs([p for paths in stages.values() for p in paths], opts.overwrite, owner="orchestrate.capture")
-    times["read_s"] = time.perf_counter() - t0
+    times["read_s"] = time.perf_counter() - t0 - times["load_model_s"]
     count = image_count_warning(len(read.images))
     if count and count.fatal:  # before the mask: two photos say nothing about one
         raise UsageError(f"--input: {count.message}")
@@ -384,7 +402,7 @@ def run(opts: CaptureOptions) -> dict:
             warnings += [doubt] if doubt else []
     for warning in warnings:
         print(f"warning: {warning.code}: {warning.message}", file=sys.stderr)
-    times["mask_and_checks_s"] = time.perf_counter() - t0 - times["read_s"]
+    times["mask_and_checks_s"] = time.perf_counter() - t0 - times["read_s"] - times["load_model_s"]
     # One scale for every photo (their relative exposures are kept): the brightest mask value becomes 1, as the
     # model expects; the clipped channels stay those the files said (read.saturated), not re-derived from values.
     scale = 1.0 / max(float(read.images[:, mask].max()), 1e-12)
@@ -392,7 +410,7 @@ def run(opts: CaptureOptions) -> dict:
     work = write_object_folder(out / "work" / f"{cap.name}.data", cap.images, mask, None) if opts.keep_work else None
     t1 = time.perf_counter()
     with stage("capture", "the model's map and its expected error"):
-        model_map, stated, why_unstated = predict(opts, cap)
+        model_map, stated, why_unstated = predict(opts, cap, net)
     times["predict_s"] = time.perf_counter() - t1
     t1 = time.perf_counter()
     with stage("capture", "the physical check" + (" and the refinement" if opts.refine else ""),

@@ -1,11 +1,19 @@
 """Writing files so that a reader never sees half of one (write to a temporary name, then rename), and their
 SHA-256 checksums: used by object folders, shards, model checkpoints and reports alike; and the one JSON writer
-(`write_json`: NumPy values as plain ones, non-finite numbers as null, written atomically).
+(`write_json`: NumPy values as plain ones, non-finite numbers as null, written atomically); and what native
+decoders write to the process's standard error about a file they read (`caught_stderr`: libjpeg through OpenCV,
+'Premature end of JPEG file'; LibRaw, 'Unexpected end of file'), caught so that a refusal stays one line and a
+decoder's complaint can be told from its silence.
 """
 from __future__ import annotations
 
 import os
 import re
+import sys
+import tempfile
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 
@@ -141,3 +149,38 @@ def write_json(path: str | Path, obj, *, indent: int | None = 1, sort_keys: bool
     """Write `json_text(obj, ...)` to `path` atomically (`atomic_write_text`): the one JSON writer of the
     project (scene.json, manifests, indexes, reports, model cards, sidecars)."""
     atomic_write_text(path, json_text(obj, indent=indent, sort_keys=sort_keys, newline=newline, strict=strict))
+
+
+_LOCK = threading.RLock()
+
+
+@contextmanager
+def caught_stderr() -> Iterator[list[str]]:
+    """Catch what is written to file descriptor 2 in the block; the list yielded is filled, one stripped non-empty
+    line per entry, when the block ends (also when it raises). One capture at a time in this process (a lock; a
+    capture inside another catches its own block); none where the process has no standard error or no room for the
+    temporary file (the block then runs uncaught)."""
+    said: list[str] = []
+    with _LOCK:
+        sys.stderr.flush()
+        try:
+            saved = os.dup(2)
+        except OSError:  # no standard error: nothing to catch
+            yield said
+            return
+        try:
+            caught = tempfile.TemporaryFile()
+        except OSError:  # no room for the file: run uncaught
+            os.close(saved)
+            yield said
+            return
+        with caught:
+            os.dup2(caught.fileno(), 2)
+            try:
+                yield said
+            finally:
+                os.dup2(saved, 2)
+                os.close(saved)
+                caught.seek(0)
+                said.extend(line.strip() for line in caught.read().decode(errors="replace").splitlines()
+                            if line.strip())

@@ -4,14 +4,21 @@ instance ids and normal maps, each read and written one way (every write through
 Normal-map files: 16-bit PNG / TIFF `round((n + 1) / 2 * 65535)` (written with OpenCV in BGR order, so
 RGB-aware readers get RGB), 8-bit PNG (DiLiGenT's `Normal_gt.png`, visualisations) `(n + 1) / 2 * 255`,
 float EXR (channels R, G, B), `.npy` and MATLAB `.mat` holding n itself.
+
+Every integer picture is decoded strictly (`decode_image`): OpenCV returns a truncated JPEG grey-filled and a TIFF
+whose compressed data breaks off with the rows it could read; such a file is refused naming it.
+
+Masks (`read_mask`) are binary: 0 outside the object and one other value on it, read from the alpha channel where
+the file has one that is not fully opaque, else from the colour channels (their largest); see `read_mask`.
 """
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
 
-from scenes.files import atomic_write
+from scenes.files import atomic_write, caught_stderr
 
 BACKGROUND_16 = 32768
 """Encoded value of n = 0 in a 16-bit normal map."""
@@ -63,12 +70,71 @@ def read_instances(path: str | Path) -> np.ndarray:
     return img
 
 
+JPEG_DAMAGE = ("Premature end of JPEG file", "Corrupt JPEG data")
+"""How libjpeg (OpenCV's JPEG decoder) words its warnings about a file it could not decode whole: a truncated file,
+damaged compressed data. OpenCV decodes such a file anyway, the missing part grey. (Its 'Corrupt JPEG data: bad ICC
+marker' is about the colour profile, which is not read: not damage.)"""
+_JPEG_MAGIC = b"\xff\xd8\xff"
+_TIFF_MAGICS = (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+")
+
+
+def _tiff_damage(path: Path) -> str | None:
+    """Why Pillow cannot decode the TIFF `path` whole (OpenCV returns the rows it could read), or None (decoded,
+    or of a kind Pillow does not read: OpenCV's reading stands)."""
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        img = Image.open(path)
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError):
+        return None
+    with img:
+        try:
+            img.load()
+        except OSError as exc:
+            return None if "not available" in str(exc) else str(exc) or type(exc).__name__
+        except (SyntaxError, ValueError):  # a layout Pillow does not support
+            return None
+    return None
+
+
+def decode_image(path: Path, flags: int, where: str):
+    """`cv2.imread(path, flags)`, strictly: a JPEG whose decoder reports it truncated or corrupt (`JPEG_DAMAGE`), or
+    a TIFF Pillow cannot decode whole, is a ValueError beginning with `where` (the flag and the file); None where
+    OpenCV cannot read the file at all (the caller says so). What the decoders print about such a file is caught into
+    the message; what they print about a file that is read is shown as they printed it. Other files (PNG: libpng
+    fails on damage, and OpenCV returns None) are read as they are."""
+    import cv2
+
+    try:
+        with open(path, "rb") as f:
+            head = f.read(4)
+    except OSError as exc:  # a folder, a file without read permission
+        raise ValueError(f"{where} cannot be opened: {exc.strerror or exc}") from None
+    jpeg, tiff = head.startswith(_JPEG_MAGIC), head in _TIFF_MAGICS
+    if not (jpeg or tiff):
+        return cv2.imread(str(path), flags)
+    with caught_stderr() as said:
+        img = cv2.imread(str(path), flags)
+        tiff_damage = _tiff_damage(path) if tiff and img is not None else None
+    jpeg_damage = [line for line in said if any(d in line for d in JPEG_DAMAGE) and "bad ICC marker" not in line]
+    if img is not None and jpeg_damage:
+        raise ValueError(f"{where} is damaged: the JPEG decoder says {'; '.join(dict.fromkeys(jpeg_damage))!r} (a "
+                         "truncated or corrupt file, decoded only in part); expected a complete JPEG (copy it again "
+                         "from the camera)")
+    if tiff_damage is not None:
+        raise ValueError(f"{where} is damaged: the TIFF decoder says {tiff_damage!r} (a truncated or corrupt file, "
+                         "readable only in part); expected a complete TIFF")
+    if said:  # not about damage: shown as the decoders printed it
+        print("\n".join(said), file=sys.stderr)
+    return img
+
+
 def _read_raw(path: Path, what: str = "image"):
     import cv2
 
     if not path.is_file():
         raise FileNotFoundError(f"{what} file {path} does not exist")
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    img = decode_image(path, cv2.IMREAD_UNCHANGED, f"{what} file {path}")
     if img is None:
         raise ValueError(f"{what} file {path}: cannot be read (corrupt or unsupported format)")
     return img
@@ -126,20 +192,94 @@ def write_mask(path: str | Path, mask: np.ndarray) -> None:
     _imwrite(Path(path), np.where(mask, 255, 0).astype(np.uint8))
 
 
+MASK_ALPHA_RULE = ("a mask with an alpha channel is read from its alpha where the alpha is not fully opaque (some "
+                   "pixel below the largest code), else from its colour; a colour mask from the largest of its "
+                   "channels")
+"""Which values of a mask file are its mask (docs/capture.md)."""
+MASK_FAR_SHARE = 0.1
+"""A mask with this share of its pixels or more in the middle half of its range (far from both 0 and its largest
+value) is called a photo, a gradient or a blurred mask in the refusal; with fewer, soft edges (or, for a JPEG, the
+values its compression adds along the edges)."""
+
+
+def _mask_values(img: np.ndarray) -> tuple[np.ndarray, str]:
+    """(H, W) values of a mask file as `MASK_ALPHA_RULE` says, and which of its channels they are (for messages)."""
+    if img.ndim == 2:
+        return img, ""
+    channels = img.shape[2]
+    if channels in (2, 4):
+        alpha = img[..., channels - 1]
+        top = np.iinfo(img.dtype).max if np.issubdtype(img.dtype, np.integer) else 1.0
+        if np.any(alpha < top):
+            return alpha, " (read from its alpha channel, which is not fully opaque)"
+        img = img[..., : channels - 1]
+        where = " (read from its colour: its alpha is fully opaque)"
+    else:
+        where = "" if channels == 1 else " (the largest of its colour channels)"
+    return img.max(axis=2), where
+
+
+def _distinct(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct values of a mask and how many pixels hold each (bincount for 8 and 16-bit files: np.unique
+    sorts every pixel)."""
+    if values.dtype in (np.uint8, np.uint16):
+        counts = np.bincount(values.ravel(), minlength=1)
+        found = np.flatnonzero(counts)
+        return found.astype(values.dtype), counts[found]
+    return np.unique(values, return_counts=True)
+
+
 def read_mask(path: str | Path, shape: tuple[int, int] | None = None) -> np.ndarray:
-    """(H, W) bool mask, foreground where any channel > 0 (the official UniPS loaders' rule); its size must be
-    `shape` when given."""
+    """(H, W) bool mask, True on the object; its size must be `shape` when given.
+
+    Which values are read: `MASK_ALPHA_RULE`. They must be binary: 0 outside the object and one other value on it
+    (any: 1, 255, 65535); one value everywhere is allowed only where it is the file's largest code (all white: the
+    whole frame is the object). Anything else is a ValueError saying what was found: a background code other than
+    0, a gradient or a photo, soft edges, the edge values a JPEG's compression adds (save masks as PNG), an empty
+    mask.
+    """
     path = Path(path)
     img = _read_raw(path, "mask")
-    if img.ndim == 3:
-        img = img.max(axis=2)
-    if shape is not None and img.shape != tuple(shape):
-        raise ValueError(f"mask file {path}: size {img.shape[1]}x{img.shape[0]} (WxH) differs from the "
+    values, channel = _mask_values(img)
+    where = f"mask file {path}{channel}"
+    if shape is not None and values.shape != tuple(shape):
+        raise ValueError(f"mask file {path}: size {values.shape[1]}x{values.shape[0]} (WxH) differs from the "
                          f"images' {shape[1]}x{shape[0]}")
-    mask = img > 0
-    if not mask.any():
-        raise ValueError(f"mask file {path}: is empty (no pixel > 0)")
-    return mask
+    if np.issubdtype(values.dtype, np.floating) and not np.all(np.isfinite(values)):
+        raise ValueError(f"{where}: holds NaN or infinite values; expected 0 outside the object and one other value "
+                         "on it")
+    found, counts = _distinct(values)
+    top = np.iinfo(values.dtype).max if np.issubdtype(values.dtype, np.integer) else 1.0
+
+    def shown(v) -> str:
+        return f"{v:.6g}" if np.issubdtype(found.dtype, np.floating) else str(int(v))
+
+    has_zero = bool(np.any(found == 0))
+    if len(found) == 2 and has_zero and found[-1] > 0:
+        return values > 0
+    if len(found) == 1 and has_zero:
+        raise ValueError(f"{where}: is empty (0 everywhere, no pixel > 0)")
+    if len(found) == 1 and found[0] == top:
+        return np.ones(values.shape, dtype=bool)  # all white: the whole frame is the object
+    expected = "expected 0 outside the object and one other value on it"
+    if len(found) == 1:
+        raise ValueError(f"{where}: is {shown(found[0])} everywhere; {expected} (all white, {shown(top)}, where the "
+                         "object fills the frame)")
+    if len(found) == 2 and not has_zero:
+        raise ValueError(f"{where}: holds two values, {shown(found[0])} and {shown(found[1])}, and no 0: a background "
+                         f"code of {shown(found[0])}?; {expected}")
+    if len(found) == 2:
+        raise ValueError(f"{where}: holds 0 and {shown(found[0])}; {expected}, above 0")
+    lo, hi = float(found[0]), float(found[-1])
+    far = float(counts[(found > lo + (hi - lo) / 4) & (found < hi - (hi - lo) / 4)].sum()) / values.size
+    listed = ", ".join(shown(v) for v in found[:4]) + (f", ..., {shown(found[-1])}" if len(found) > 4 else "")
+    with open(path, "rb") as f:
+        jpeg = f.read(3) == _JPEG_MAGIC
+    why = ("a photo, a gradient or a blurred mask?" if far >= MASK_FAR_SHARE else
+           "a JPEG: its lossy compression adds values along the mask's edges; save the mask as PNG" if jpeg else
+           "soft (blurred or anti-aliased) edges, or several labels?")
+    raise ValueError(f"{where}: is not binary: {len(found)} distinct values ({listed}), {far:.0%} of the pixels in "
+                     f"the middle half of their range: {why}; {expected}")
 
 
 def write_exr(path: str | Path, data: np.ndarray) -> None:
@@ -296,7 +436,7 @@ def read_normals(path: str | Path, arg: str = "normal map") -> np.ndarray:
     if suffix in (".png", ".tif", ".tiff"):
         import cv2
 
-        img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        img = decode_image(path, cv2.IMREAD_UNCHANGED, f"{arg}: image file {path}")
         if img is None:
             raise ValueError(f"{arg}: cannot read image file {path} (corrupt or unsupported)")
         if img.ndim != 3 or img.shape[2] not in (3, 4):

@@ -132,6 +132,7 @@ def world(tmp_path_factory) -> Path:
     shutil.copy(weights, ck / "listcfg.safetensors")
     (ck / "listcfg.json").write_text(json.dumps({**sidecar, "config": [1, 2]}))
     (ck / "weights.txt").write_text("not a model\n")
+    _bad_weights(w, weights, sidecar)
     # Training runs: a truncated and a random last.pt, and an old run.
     last = _training_checkpoint(_mk(w / "run_old"))
     (w / "run_old" / "log.jsonl").write_text('{"step": 1}\n')
@@ -143,6 +144,41 @@ def world(tmp_path_factory) -> Path:
 def _mk(p: Path) -> Path:
     p.mkdir(parents=True, exist_ok=True)
     return p
+
+
+def _bad_weights(w: Path, weights: Path, sidecar: dict) -> None:
+    """W/ck/{nan,inf,int64}.safetensors: the shipped weights with one value NaN or infinite, or one weight stored as
+    int64; W/run_int64/last.pt: a training checkpoint (its checksum rewritten to match) with an int64 weight;
+    W/pub_{nan,int64}: the published SDM-UniPS layout (normal/nml.pytmodel, keys `module.*`) of the tiny network,
+    one tensor NaN or int64."""
+    import torch
+    from safetensors.torch import load_file, save_file
+
+    from unips.models import create_model
+    from unips.models.builder import CHECKSUM_KEY, content_digest
+
+    good = load_file(str(weights))
+    name = next(k for k, v in good.items() if v.is_floating_point() and v.numel() > 1)
+    for tag, value in (("nan", float("nan")), ("inf", float("inf"))):
+        bad = good[name].clone()
+        bad.view(-1)[1] = value
+        save_file({**good, name: bad}, str(w / "ck" / f"{tag}.safetensors"))
+        (w / "ck" / f"{tag}.json").write_text(json.dumps(sidecar))
+    save_file({**good, name: (good[name] * 100).round().to(torch.int64)}, str(w / "ck" / "int64.safetensors"))
+    (w / "ck" / "int64.json").write_text(json.dumps(sidecar))
+    last = _training_checkpoint(_mk(w / "run_int64"))
+    ckpt = torch.load(last, weights_only=True)
+    key = next(k for k, v in ckpt["model"].items() if v.is_floating_point() and v.ndim >= 2)
+    ckpt["model"][key] = (ckpt["model"][key] * 100).round().to(torch.int64)
+    ckpt[CHECKSUM_KEY] = content_digest(ckpt)
+    torch.save(ckpt, last)
+    torch.manual_seed(0)
+    state = create_model("sdm-unips-tiny").state_dict()
+    key = next(k for k, v in state.items() if v.is_floating_point() and v.ndim >= 2)
+    for tag, value in (("nan", state[key].clone().fill_(float("nan"))), ("int64", state[key].round().to(torch.int64))):
+        _mk(w / f"pub_{tag}" / "normal")
+        torch.save({f"module.{k}": (value if k == key else v) for k, v in state.items()},
+                   w / f"pub_{tag}" / "normal" / "nml.pytmodel")
 
 
 @pytest.fixture(scope="module")
@@ -2518,6 +2554,255 @@ def _snapshot(root: Path) -> dict[str, str]:
     return out
 
 
+# --------------------------------------------------------------------------- issue 50: inputs are what they say
+
+CAP = "orchestrate.capture"
+CAPTURE = ["--input", "{T}/photos", "--out", "{T}/o", "--no-refine", "--threads", "1"]
+"""A capture of T/photos (`_photos`) into T/o, without the refinement (its rows are about what is read)."""
+WORLD_MASK = "{W}/data/00000.data/mask.png"
+
+
+def _srgb_codes(w: Path) -> list[np.ndarray]:
+    """The world's object 00000 as a camera writes it: (H, W, 3) 8-bit sRGB codes (IEC 61966-2-1), one per image."""
+    from scenes.images import read_image
+
+    out = []
+    for p in sorted((w / "data" / f"{OBJ}.data").glob("L*.png")):
+        lin = np.clip(read_image(p), 0.0, 1.0)
+        c = np.where(lin <= 0.0031308, lin * 12.92, 1.055 * lin ** (1 / 2.4) - 0.055)
+        out.append(np.round(c * 255).astype(np.uint8))
+    return out
+
+
+def _photos(ext: str = ".jpg", tags: dict[int, dict[int, object]] | None = None,
+            damage: Callable[[bytes], bytes] | None = None, at: int = 2) -> Callable[[Path, Path], None]:
+    """Setup: T/photos, the world's object 00000 as a camera's files IMG_0001<ext> ... (JPEG and PNG by Pillow with
+    the EXIF `tags` of each image index: orientation 0x0112 in the main IFD, the others in the Exif IFD; TIFF by
+    OpenCV, LZW-compressed), photo index `at` replaced by `damage` of its bytes."""
+    def setup(w: Path, t: Path) -> None:
+        import cv2
+        from PIL import Image
+
+        for i, codes in enumerate(_srgb_codes(w)):
+            path = _mk(t / "photos") / f"IMG_{i + 1:04d}{ext}"
+            if ext == ".tif":
+                assert cv2.imwrite(str(path), codes[..., ::-1])
+            else:
+                img = Image.fromarray(codes)
+                exif = img.getexif()
+                for tag, value in (tags or {}).get(i, {}).items():
+                    if tag == 0x0112:
+                        exif[tag] = value
+                    else:
+                        exif.get_ifd(0x8769)[tag] = value
+                img.save(path, exif=exif, **({"quality": 95} if ext == ".jpg" else {}))
+            if damage is not None and i == at:
+                path.write_bytes(damage(path.read_bytes()))
+    return setup
+
+
+def _exposures(*seconds) -> dict[int, dict[int, object]]:
+    """EXIF tags of `_photos`: ExposureTime `seconds[i]` (a float, or a Pillow rational) and ISO 100 per image."""
+    return {i: {0x829A: s, 0x8827: 100} for i, s in enumerate(seconds)}
+
+
+def _jpeg_scan(data: bytes) -> tuple[int, int]:
+    """Where a baseline JPEG's compressed data begins and ends (after the SOS header, before EOI)."""
+    sos = data.index(b"\xff\xda")
+    return sos + 2 + int.from_bytes(data[sos + 2:sos + 4], "big"), data.rindex(b"\xff\xd9")
+
+
+def _cut_in_scan(data: bytes) -> bytes:
+    """A JPEG cut off half-way through its compressed data (a copy or a download that stopped)."""
+    start, end = _jpeg_scan(data)
+    return data[: (start + end) // 2]
+
+
+def _marker_in_scan(data: bytes) -> bytes:
+    """A JPEG whose compressed data holds a stray marker half-way (damaged bytes; the file is whole)."""
+    start, end = _jpeg_scan(data)
+    mid = (start + end) // 2
+    return data[:mid] + b"\xff\xd3" + data[mid + 2:]
+
+
+def _lzw_broken(data: bytes) -> bytes:
+    """An LZW TIFF whose compressed strip is broken at 30 % of the file (the directory, at its end, intact)."""
+    k = int(len(data) * 0.3)
+    return data[:k] + b"\xff" * 4 + data[k + 4:]
+
+
+def _mask_file(name: str, make: Callable[[np.ndarray], np.ndarray], how: str = "cv2") -> Callable[[Path, Path], None]:
+    """Setup: T/photos (`_photos()`) and T/<name>, `make(world mask as bool)` written by OpenCV (BGR / BGRA order) or,
+    `how="jpeg"`, by Pillow as a JPEG of quality 75."""
+    def setup(w: Path, t: Path) -> None:
+        import cv2
+        from PIL import Image
+
+        from scenes.images import read_mask
+
+        _photos()(w, t)
+        data = make(read_mask(w / "data" / f"{OBJ}.data" / "mask.png"))
+        if how == "jpeg":
+            Image.fromarray(data).save(t / name, quality=75)
+        else:
+            assert cv2.imwrite(str(t / name), data)
+    return setup
+
+
+def _rgba_opaque(m: np.ndarray) -> np.ndarray:
+    """White on black, with an alpha channel that is opaque everywhere (a mask saved from a layer)."""
+    v = np.where(m, 255, 0).astype(np.uint8)
+    return np.stack([v, v, v, np.full_like(v, 255)], -1)
+
+
+def _rgba_soft_alpha(m: np.ndarray) -> np.ndarray:
+    """White everywhere, the object in the alpha channel with soft (blurred) edges."""
+    import cv2
+
+    alpha = cv2.GaussianBlur(np.where(m, 255, 0).astype(np.uint8), (5, 5), 0)
+    return np.stack([np.full_like(alpha, 255)] * 3 + [alpha], -1)
+
+
+def _gradient(m: np.ndarray) -> np.ndarray:
+    return (np.arange(m.size) % 200).reshape(m.shape).astype(np.uint8)
+
+
+def _same_mask_written(w: Path, t: Path) -> None:
+    from scenes.images import read_mask
+
+    assert np.array_equal(read_mask(t / "o" / "mask.png"), read_mask(w / "data" / f"{OBJ}.data" / "mask.png"))
+
+
+def _object_mask(make: Callable[[np.ndarray], np.ndarray]) -> Callable[[Path, Path], None]:
+    """Setup: T/00000.data, the world's object 00000 whose mask.png is `make(its mask)` (written by OpenCV)."""
+    def setup(w: Path, t: Path) -> None:
+        import cv2
+
+        from scenes.images import read_mask
+
+        shutil.copytree(w / "data" / f"{OBJ}.data", t / f"{OBJ}.data")
+        assert cv2.imwrite(str(t / f"{OBJ}.data" / "mask.png"), make(read_mask(t / f"{OBJ}.data" / "mask.png")))
+    return setup
+
+
+def _bad_png_third(w: Path, t: Path) -> None:
+    """Setup: T/photos (PNG) whose third photo is cut in half: refused naming it whenever the photos are read."""
+    _photos(".png", damage=lambda b: b[: len(b) // 2])(w, t)
+
+
+def _rational(numerator: int, denominator: int):
+    from PIL.TiffImagePlugin import IFDRational
+
+    return IFDRational(numerator, denominator)
+
+
+def _unips_jpeg_images(folder: Path) -> None:
+    """The object folder's L*.png as 8-bit JPEG files L000.jpg ... (the official UniPS layout reads them), without
+    its scene file; L002.jpg cut half-way through its compressed data."""
+    import cv2
+
+    (folder / "scene.json").unlink()
+    for p in sorted(folder.glob("L*.png")):
+        img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+        assert cv2.imwrite(str(p.with_suffix(".jpg")), (img // 257).astype(np.uint8), [cv2.IMWRITE_JPEG_QUALITY, 95])
+        p.unlink()
+    bad = folder / "L002.jpg"
+    bad.write_bytes(_cut_in_scan(bad.read_bytes()))
+
+
+ROWS += [
+    # ---- photos are decoded strictly: a file its decoder cannot read whole is refused naming it
+    Row("capture-jpeg-truncated", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "IMG_0003.jpg", "damaged", "Premature end of JPEG file"), setup=_photos(damage=_cut_in_scan),
+        check=_not_written("o/normal.png")),
+    Row("capture-jpeg-corrupt", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "IMG_0003.jpg", "damaged", "Corrupt JPEG data"), setup=_photos(damage=_marker_in_scan),
+        check=_not_written("o/normal.png")),
+    Row("capture-tiff-lzw-broken", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "IMG_0003.tif", "damaged", "TIFF"), setup=_photos(".tif", damage=_lzw_broken),
+        check=_not_written("o/normal.png")),
+    Row("predict-object-image-jpeg-truncated", PR,
+        ["--method", "model", "--input", "{T}/00000.data", "--out", "{T}/p"], 2,
+        ("L002.jpg", "damaged", "Premature end of JPEG file"),
+        setup=lambda w, t: (_copy("data/00000.data", "00000.data")(w, t), _unips_jpeg_images(t / "00000.data")),
+        check=_not_written("p")),
+    # ---- every photo says the same orientation, square or not
+    Row("capture-exif-one-turned-square", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "IMG_0002.jpg", "turned 90 deg clockwise", "EXIF orientation 6", "IMG_0001.jpg", "upright"),
+        setup=_photos(tags={1: {0x0112: 6}}), check=_not_written("o/normal.png")),
+    Row("capture-exif-one-mirrored-square", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "IMG_0004.jpg", "EXIF orientation 2"), setup=_photos(tags={3: {0x0112: 2}}),
+        check=_not_written("o/normal.png")),
+    # ---- EXIF exposures: finite, above 0, at most MAX_EXPOSURE_RATIO apart
+    Row("capture-exif-exposure-one-over-zero", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "IMG_0002.jpg", "ExposureTime", "1/0"),
+        setup=_photos(tags=_exposures(0.01, _rational(1, 0), 0.01, 0.01)), check=_not_written("o/normal.png")),
+    Row("capture-exif-exposure-zero", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "IMG_0003.jpg", "ExposureTime", "0"), setup=_photos(tags=_exposures(0.01, 0.01, 0.0, 0.01)),
+        check=_not_written("o/normal.png")),
+    Row("capture-exif-iso-zero", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "IMG_0001.jpg", "ISOSpeedRatings", "0"),
+        setup=_photos(tags={**_exposures(0.01, 0.01, 0.01, 0.01), 0: {0x829A: 0.01, 0x8827: 0}}),
+        check=_not_written("o/normal.png")),
+    Row("capture-exif-exposure-ratio-extreme", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "IMG_0004.jpg", "IMG_0001.jpg", "1024", "times"),
+        setup=_photos(tags=_exposures(1 / 8000, 1 / 100, 1 / 100, 30.0)), check=_not_written("o/normal.png")),
+    # ---- masks are binary: 0 and one other value, after the alpha rule (scenes.images.MASK_ALPHA_RULE)
+    Row("capture-mask-rgba-opaque-alpha", CAP, [*CAPTURE, "--mask", "{T}/m.png"], 0, ("wrote",),
+        setup=_mask_file("m.png", _rgba_opaque), check=_same_mask_written),
+    Row("capture-mask-soft-alpha", CAP, [*CAPTURE, "--mask", "{T}/m.png"], 2,
+        ("--mask", "m.png", "alpha channel", "not binary", "blurred"),
+        setup=_mask_file("m.png", _rgba_soft_alpha), check=_not_written("o/normal.png")),
+    Row("capture-mask-background-3", CAP, [*CAPTURE, "--mask", "{T}/m.png"], 2,
+        ("--mask", "m.png", "3 and 255", "no 0"), setup=_mask_file("m.png", lambda m: np.where(m, 255, 3).astype(
+            np.uint8)), check=_not_written("o/normal.png")),
+    Row("capture-mask-one-grey-value", CAP, [*CAPTURE, "--mask", "{T}/m.png"], 2, ("--mask", "m.png", "128 everywhere"),
+        setup=_mask_file("m.png", lambda m: np.full(m.shape, 128, np.uint8)), check=_not_written("o/normal.png")),
+    Row("capture-mask-gradient", CAP, [*CAPTURE, "--mask", "{T}/m.png"], 2,
+        ("--mask", "m.png", "200 distinct values", "a gradient"), setup=_mask_file("m.png", _gradient),
+        check=_not_written("o/normal.png")),
+    Row("capture-mask-is-a-photo", CAP, [*CAPTURE, "--mask", "{T}/photos/IMG_0001.jpg"], 2,
+        ("--mask", "IMG_0001.jpg", "not binary", "a photo"), setup=_photos(), check=_not_written("o/normal.png")),
+    Row("capture-mask-saved-as-jpeg", CAP, [*CAPTURE, "--mask", "{T}/m.jpg"], 2,
+        ("--mask", "m.jpg", "not binary", "JPEG", "PNG"),
+        setup=_mask_file("m.jpg", lambda m: np.where(m, 255, 0).astype(np.uint8), how="jpeg"),
+        check=_not_written("o/normal.png")),
+    Row("predict-object-mask-gradient", PR,
+        ["--method", "least-squares", "--input", "{T}/00000.data", "--out", "{T}/p"], 2,
+        ("mask.png", "200 distinct values"), setup=_object_mask(_gradient), check=_not_written("p")),
+    Row("rerender-object-mask-background-3", RR,
+        ["--data", "{T}/00000.data", "--normals", "{W}/pred", "--out", "{T}/o"], 2, ("mask.png", "no 0"),
+        setup=_object_mask(lambda m: np.where(m, 255, 3).astype(np.uint8)), check=_not_written("o")),
+    # ---- weights are finite floats, refused when loaded, naming the file
+    Row("predict-weights-nan", PR, ["--method", "model", "--checkpoint", "{W}/ck/nan.safetensors", "--input", OBJDIR,
+                                    "--out", "{T}/p"], 2, ("nan.safetensors", "1 NaN"), check=_not_written("p")),
+    Row("predict-weights-inf", PR, ["--method", "model", "--checkpoint", "{W}/ck/inf.safetensors", "--input", OBJDIR,
+                                    "--out", "{T}/p"], 2, ("inf.safetensors", "1 infinite"), check=_not_written("p")),
+    Row("predict-weights-int64", PR, ["--method", "model", "--checkpoint", "{W}/ck/int64.safetensors", "--input",
+                                      OBJDIR, "--out", "{T}/p"], 2, ("int64.safetensors", "int64", "floating-point"),
+        check=_not_written("p")),
+    Row("predict-training-checkpoint-int64", PR, ["--method", "model", "--checkpoint", "{W}/run_int64/last.pt",
+                                                  "--input", OBJDIR, "--out", "{T}/p"], 2,
+        ("last.pt", "int64", "floating-point"), check=_not_written("p")),
+    Row("predict-published-nan", PR, ["--method", "model", "--model", "sdm-unips-tiny", "--checkpoint", "{W}/pub_nan",
+                                      "--input", OBJDIR, "--out", "{T}/p"], 2, ("nml.pytmodel", "NaN"),
+        check=_not_written("p")),
+    Row("predict-published-int64", PR, ["--method", "model", "--model", "sdm-unips-tiny", "--checkpoint",
+                                        "{W}/pub_int64", "--input", OBJDIR, "--out", "{T}/p"], 2,
+        ("nml.pytmodel", "int64"), check=_not_written("p")),
+    # ---- capture: --checkpoint / --model loaded before the photos are read (the third photo would be refused)
+    Row("capture-checkpoint-missing-before-photos", CAP, [*CAPTURE, "--checkpoint", "{W}/ck/none.safetensors"], 2,
+        ("--checkpoint", "none.safetensors"), setup=_bad_png_third, absent=("IMG_0003",)),
+    Row("capture-checkpoint-nan-before-photos", CAP, [*CAPTURE, "--checkpoint", "{W}/ck/nan.safetensors"], 2,
+        ("--checkpoint", "nan.safetensors", "NaN"), setup=_bad_png_third, absent=("IMG_0003",)),
+    Row("capture-model-not-shipped-before-photos", CAP, [*CAPTURE, "--model", "glc-unips"], 2, ("--model", "glc-unips"),
+        setup=_bad_png_third, absent=("IMG_0003",)),
+    Row("capture-published-int64-before-photos", CAP, [*CAPTURE, "--model", "sdm-unips-tiny", "--checkpoint",
+                                                       "{W}/pub_int64"], 2, ("--checkpoint", "nml.pytmodel", "int64"),
+        setup=_bad_png_third, absent=("IMG_0003",)),
+]
+
+
 def _run(row: Row, argv: list[str], capsys, **places: Path | None) -> tuple[int, str, str]:
     if row.sub:
         env = {**os.environ, "PYTHONPATH": str(REPO), **{k: v.format(**places) for k, v in row.env.items()}}
@@ -2570,7 +2855,7 @@ def test_bad_input(row: Row, world: Path, tmp_path: Path, capsys, request):
 def test_table_size():
     assert len(ROWS) >= 100
     assert len({r.id for r in ROWS}) == len(ROWS)
-    assert {r.cli for r in ROWS} >= {MK, PV, PR, EV, RR, RF, TR, DEMO, BM, RC}
+    assert {r.cli for r in ROWS} >= {MK, PV, PR, EV, RR, RF, TR, DEMO, BM, RC, CAP}
 
 
 @pytest.mark.parametrize("how", ["after-lock", "at-1s"])

@@ -105,6 +105,46 @@ def test_exif_orientation_and_exposure_are_applied(tmp_path):
     assert [e["scale"] for e in turned.exposure] == [1.0, 1.0]
 
 
+def test_exif_exposures_must_be_finite_positive_and_at_most_ten_stops_apart(tmp_path):
+    """The longest exposure over the shortest (time x ISO) may be MAX_EXPOSURE_RATIO (1024, 10 stops), not more; a
+    value that is not a positive number is refused naming the file and the value as written (issue 50)."""
+    from PIL.TiffImagePlugin import IFDRational
+
+    a = (np.random.default_rng(2).random((6, 9, 3)) * 200 + 20).astype(np.uint8)
+    for i, seconds in enumerate([0.001, 1.024]):
+        _jpeg_with_exif(tmp_path / f"p{i}.jpg", a, exposure_s=seconds)
+    photos = read_photos(tmp_path)
+    assert [e["scale"] for e in photos.exposure] == [1.0, pytest.approx(1 / 1024)]
+    _jpeg_with_exif(tmp_path / "p1.jpg", a, exposure_s=1.025)
+    with pytest.raises(ValueError, match=r"^--input: EXIF exposures differ 1.02e\+03 times, p1.jpg \(1.025 s at ISO "
+                                         r"100\) against p0.jpg \(0.001 s at ISO 100\); expected at most 1024 times"):
+        read_photos(tmp_path)
+    for value, shown in ((IFDRational(1, 0), "1/0"), (IFDRational(-1, 100), "-1/100")):
+        _jpeg_with_exif(tmp_path / "p1.jpg", a, exposure_s=value)
+        with pytest.raises(ValueError, match=rf"^--input: p1.jpg: EXIF ExposureTime is {shown}; expected a finite "):
+            read_photos(tmp_path)
+
+
+def test_a_damaged_jpeg_is_one_line_naming_it_and_the_decoder_says_nothing_else(tmp_path, capfd):
+    """OpenCV decodes a JPEG cut short with its missing part grey and libjpeg's complaint on the terminal: refused
+    naming the file, the complaint in the one line (issue 50); the size probe refuses it too."""
+    from scenes.folder.photos import photo_shape
+
+    a = (np.random.default_rng(3).random((48, 64, 3)) * 200 + 20).astype(np.uint8)
+    for name in ("a.jpg", "b.jpg"):
+        cv2.imwrite(str(tmp_path / name), a)
+    whole = (tmp_path / "b.jpg").read_bytes()
+    (tmp_path / "b.jpg").write_bytes(whole[: len(whole) * 3 // 4])
+    capfd.readouterr()
+    with pytest.raises(ValueError, match=r"^--input: '.*b.jpg' is damaged: the JPEG decoder says 'Premature end of "
+                                         r"JPEG file'") as err:
+        read_photos(tmp_path)
+    assert "\n" not in str(err.value)
+    with pytest.raises(ValueError, match=r"b.jpg' is damaged"):
+        photo_shape(tmp_path / "b.jpg")
+    assert capfd.readouterr().err == ""
+
+
 def test_mixed_photos_are_one_line_naming_the_file(tmp_path):
     cv2.imwrite(str(tmp_path / "a.png"), np.zeros((4, 6, 3), np.uint8))
     cv2.imwrite(str(tmp_path / "b.png"), np.zeros((4, 5, 3), np.uint8))

@@ -228,3 +228,15 @@ def test_raw_photos_reach_the_report_and_bad_ones_stop_the_command_in_one_line(t
     assert len(err) == 1 and err[0].startswith("error: --input: cannot read") and "2.dng" in err[0]
     assert main(["--input", str(tmp_path / "in"), "--out", str(tmp_path / "o"), "--input-encoding", "srgb"]) == 2
     assert capsys.readouterr().err.startswith("error: --input-encoding: got 'srgb' for camera RAW files")
+
+
+def test_square_raw_files_turned_differently_are_refused(tmp_path):
+    """The camera turned for one photo of a square frame: the shapes agree, LibRaw's flips do not (issue 50)."""
+    square = mosaic_of(np.broadcast_to(np.array(NEUTRAL) * 500, (W, W, 3)))
+    write_dng(tmp_path / "a.dng", square)
+    write_dng(tmp_path / "b.dng", square, orientation=6)
+    with pytest.raises(ValueError, match=r"^--input: b.dng differs in orientation from a.dng \(it is to be shown "
+                                         r"LibRaw flip 6, a.dng LibRaw flip 0\)"):
+        read_photos(tmp_path)
+    write_dng(tmp_path / "a.dng", square, orientation=6)
+    assert read_photos(tmp_path).images.shape == (2, W, W, 3)  # turned alike: read, both turned back

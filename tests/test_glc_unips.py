@@ -236,3 +236,24 @@ def test_predict_cli_runs_published_weights(tiny_state, tmp_path, capsys) -> Non
         assert main(["--method", "model", *flags, "--input", str(folder), "--out", str(tmp_path / "p2")]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("error: ") and words in err[0]
+
+
+def test_non_finite_or_integer_weights_are_one_line_naming_the_file(tiny_state, tmp_path) -> None:
+    """A NaN weight or a float weight stored as int64 in one published file is refused when loaded, naming that file
+    and the tensor (issue 50: they loaded without a word); the network's own int64 buffers (the Swin windows'
+    relative_position_index) stay int64, and float16 weights are floats."""
+    nan = dict(tiny_state, **{"aggregation.dec.0.S": torch.full_like(tiny_state["aggregation.dec.0.S"], float("nan"))})
+    text = _one_line_error(_save_official(nan, tmp_path / "nan"))
+    assert text.startswith(f"{str(tmp_path / 'nan' / 'tiny_agg.pytmodel')!r}: tensor aggregation.dec.0.S holds ")
+    assert "NaN" in text
+    weight = "prediction.regression.0.weight"
+    as_int = dict(tiny_state, **{weight: tiny_state[weight].round().to(torch.int64)})
+    assert f"tiny_pred.pytmodel': tensor {weight} is int64, expected floating-point values" in _one_line_error(
+        _save_official(as_int, tmp_path / "int"))
+    index = next(k for k, v in tiny_state.items() if not v.is_floating_point())
+    as_float = dict(tiny_state, **{index: tiny_state[index].float()})
+    assert f"tensor {index} is float32, expected integer values" in _one_line_error(
+        _save_official(as_float, tmp_path / "float_index"))
+    half = {k: v.half() if v.is_floating_point() else v for k, v in tiny_state.items()}
+    model = create_model("glc-unips-tiny", checkpoint_path=_save_official(half, tmp_path / "half"))
+    assert model.state_dict()[index].dtype == torch.int64

@@ -200,3 +200,53 @@ def test_captures_without_information_are_refused_by_every_reader(tmp_path):
     write_unips(one_dark)
     write_png16(one_dark / "L00.png", np.zeros((24, 24, 3)))
     assert load_object(one_dark).num_images == 5
+
+
+def test_masks_are_binary_after_the_alpha_rule(tmp_path):
+    """A mask is 0 outside the object and one other value on it, read from its alpha where that is not fully opaque,
+    else from its colour (issue 50). Today's files of every kind still read; a soft alpha, a cut-out whose colour
+    fills the frame, a JPEG, a grey level everywhere are each one line saying what was found."""
+    import cv2
+    from PIL import Image
+
+    from scenes.images import read_mask
+
+    yy, xx = np.mgrid[:20, :24]
+    m = (yy - 10) ** 2 + (xx - 12) ** 2 < 49
+    v8 = np.where(m, 255, 0).astype(np.uint8)
+    white = np.full_like(v8, 255)
+
+    def read(name: str, data: np.ndarray) -> np.ndarray:
+        assert cv2.imwrite(str(tmp_path / name), data)
+        return read_mask(tmp_path / name)
+
+    # a cut-out: colour white everywhere, the object in the alpha (by the "any channel > 0" rule: the whole frame)
+    assert np.array_equal(read("cutout.png", np.stack([white, white, white, v8], -1)), m)
+    Image.fromarray(np.stack([white, v8], -1), "LA").save(tmp_path / "la.png")  # grey + alpha
+    assert np.array_equal(read_mask(tmp_path / "la.png"), m)
+    # opaque alpha: the colour is the mask; a colour mask counts its largest channel
+    assert np.array_equal(read("opaque.png", np.stack([v8, v8, v8, white], -1)), m)
+    assert np.array_equal(read("red.png", np.stack([0 * v8, 0 * v8, v8], -1)), m)
+    for name, data in (("one.png", m.astype(np.uint8)), ("sixteen.png", m.astype(np.uint16) * 65535),
+                       ("sixteen_low.png", m.astype(np.uint16) * 300), ("bits.tif", v8)):
+        assert np.array_equal(read(name, data), m), name
+    assert read("white.png", white).all()  # all white: the whole frame is the object
+    for name, data, words in (
+        ("soft.png", np.stack([white, white, white, cv2.GaussianBlur(v8, (5, 5), 0)], -1),
+         "(read from its alpha channel, which is not fully opaque): is not binary"),
+        ("grey.png", np.full_like(v8, 7), ": is 7 everywhere; expected 0 outside the object"),
+        ("code3.png", np.where(m, 255, 3).astype(np.uint8), ": holds two values, 3 and 255, and no 0"),
+        ("labels.png", np.where(m, np.where(xx < 12, 100, 200), 0).astype(np.uint8), "3 distinct values (0, 100, 200)"),
+        ("empty.png", 0 * v8, ": is empty"),
+    ):
+        with pytest.raises(ValueError, match=r"^mask file .*" + name.replace(".", r"\.")) as err:
+            read(name, data)
+        assert words in str(err.value) and "\n" not in str(err.value), (name, str(err.value))
+    Image.fromarray(v8).save(tmp_path / "saved.jpg", quality=75)
+    with pytest.raises(ValueError, match=r"saved.jpg: is not binary: .* a JPEG: .* save the mask as PNG"):
+        read_mask(tmp_path / "saved.jpg")
+    # our own object folders (scenes.images.write_mask, what wildgen.make writes) read back as written
+    from scenes.images import write_mask
+
+    write_mask(tmp_path / "ours.png", m)
+    assert np.array_equal(read_mask(tmp_path / "ours.png"), m)

@@ -115,20 +115,21 @@ def progress_bar(unit: str) -> Iterator[Callable[[int, int, str], None]]:
 @contextmanager
 def stage(command: str, name: str, estimate_s: float | None = None, every_s: float = PLAIN_EVERY_S,
           stream: Any = None, clock: Callable[[], float] = time.monotonic) -> Iterator[None]:
-    """One stage of a long command, shown as lines on stderr: `COMMAND: NAME (about N s) ...` when it starts, then
-    `COMMAND: NAME, N s so far` at least every `every_s` seconds while it runs (a stage that reports no steps of its
-    own, e.g. a model's forward pass, still shows that the command is alive), and `COMMAND: NAME done in N s`."""
+    """One stage of a long command, shown on stderr only once it lasts: `COMMAND: NAME (about N s), N s so far` at
+    least every `every_s` seconds while it runs (a stage that reports no steps of its own, e.g. a model's forward
+    pass, still shows that the command is alive), then `COMMAND: NAME done in N s`. A stage shorter than `every_s`
+    prints nothing, so that a command refusing a bad input in its first seconds still says one line."""
     import threading
 
     out = sys.stderr if stream is None else stream
     t0 = clock()
     about = f" (about {estimate_s:.0f} s)" if estimate_s is not None else ""
-    print(f"{command}: {name}{about} ...", file=out, flush=True)
-    stop = threading.Event()
+    stop, beats = threading.Event(), []
 
     def beat() -> None:
         while not stop.wait(every_s):
-            print(f"{command}: {name}, {clock() - t0:.0f} s so far{about}", file=out, flush=True)
+            beats.append(1)
+            print(f"{command}: {name}{about}, {clock() - t0:.0f} s so far", file=out, flush=True)
 
     ticker = threading.Thread(target=beat, daemon=True)
     ticker.start()
@@ -137,4 +138,5 @@ def stage(command: str, name: str, estimate_s: float | None = None, every_s: flo
     finally:
         stop.set()
         ticker.join()
-    print(f"{command}: {name} done in {clock() - t0:.1f} s", file=out, flush=True)
+    if beats:
+        print(f"{command}: {name} done in {clock() - t0:.1f} s", file=out, flush=True)

@@ -6,8 +6,8 @@ for the model, `validate` loads it for the re-render check, `wildgen.preview` sh
 synthetic ones. Plain NumPy / OpenCV / OpenEXR (no Mitsuba). Layout (see ARCHITECTURE.md):
 
 - `L000.png ... L{K-1}.png`: 16-bit linear RGB, `round(clip(radiance * exposure, 0, 1) * 65535)`;
-- `mask.png`: 8-bit gray, 255 inside the object, 0 outside. Reading follows the official UniPS loaders:
-  any channel > 0 is foreground;
+- `mask.png`: 8-bit gray, 255 inside the object, 0 outside. Read by `scenes.images.read_mask`: binary, 0 and one
+  other value (foreground), from the alpha where it is not fully opaque, else the largest colour channel;
 - `normal.tif`: 16-bit RGB `round((n + 1) / 2 * 65535)`, camera frame x right, y up, z toward the camera;
   background n = 0 is 32768 in every channel;
 - `scene.json`: the `SceneDescription` JSON plus extra top-level keys (`camera_lights`, `format_version`,

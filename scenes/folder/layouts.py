@@ -25,7 +25,10 @@ Rules shared by every layout (the divergences this module exists to prevent):
   non-negative; a folder may not mix float EXR and integer images (their scales differ);
 - a channel at an integer file's largest code is *saturated*: its true value is only known to be at least
   the stored one (`FolderData.saturated`);
-- mask: any channel > 0 is foreground (`scenes.images.read_mask`, the official UniPS rule);
+- mask: binary, 0 outside and one other value on the object (`scenes.images.read_mask`: read from the alpha where
+  it is not fully opaque, else the largest colour channel; the official UniPS loaders' "any channel > 0" agrees on
+  every binary mask without a transparent alpha, and a mask that is not binary is refused rather than read as they
+  would);
 - ground-truth normals: renormalised inside the mask; a vector shorter than `MIN_NORMAL_LENGTH` is "no
   normal" and becomes 0 (an encoded zero vector decodes to length < 0.5), counted and logged;
 - calibration: light directions are unit vectors toward the light, a zero or non-finite vector is refused.

@@ -4,7 +4,10 @@ files.
 `read_photos` returns the images linear, in one float32 array, with what each file said about itself:
 
 - files are taken in natural order (`IMG_2.jpg` before `IMG_10.jpg`, `natsort`), by suffix (`PHOTO_SUFFIXES`);
-- EXIF orientation is applied (OpenCV's decoder), so a photo shows as the camera was held;
+- files are decoded strictly (`scenes.images.decode_image`): a JPEG its decoder reports truncated or corrupt, a
+  TIFF that does not decode whole, is refused naming it (OpenCV would return it grey-filled or in part);
+- EXIF orientation is applied (OpenCV's decoder), so a photo shows as the camera was held; every photo must say the
+  same orientation (EXIF tag 0x0112, 1 where absent; LibRaw's flip for RAW files), square or not;
 - encoded values are linearised with colour-science's sRGB decoding where the file is sRGB: `encoding="auto"`
   takes 8-bit files as sRGB (as cameras and phones write JPEG and PNG; an EXIF colour space other than sRGB
   is refused in auto mode, since the curve would be unknown) and 16-bit and EXR files as linear; `srgb` or
@@ -14,7 +17,9 @@ files.
   `srgb` is refused for them, and a folder mixing RAW and other files is refused (their scales differ);
 - EXIF exposure time and ISO (for RAW files, as LibRaw reads them), where every image has them and they differ,
   normalise the images to the first image's exposure (a photo taken at twice the exposure is halved), recorded
-  per image with the fields a file did not give;
+  per image with the fields a file did not give; a value that is there must be a finite number > 0, and the
+  exposures (time x ISO) of one capture may differ at most `MAX_EXPOSURE_RATIO` times, or the file is refused
+  naming the value;
 - a channel at the file's largest code is saturated (a lower bound of the true value), recorded;
 - mixed sizes, orientations or bit depths are one ValueError naming the first file that differs.
 
@@ -38,6 +43,14 @@ ENCODINGS = ("auto", "srgb", "linear")
 _EXIF_IFD = 0x8769
 _EXPOSURE_TIME, _ISO, _COLOR_SPACE = 0x829A, 0x8827, 0xA001
 _SRGB_COLOR_SPACE = 1
+_ORIENTATION = 0x0112
+MAX_EXPOSURE_RATIO = 1024.0
+"""The most the EXIF exposures (time x ISO) of one capture may differ, longest over shortest: 10 stops. Between
+8-bit photos further apart the darker one holds nothing the brighter does not; such values are a wrong EXIF
+field or photos of different captures, and normalising by them would scale a photo out of range."""
+_EXIF_NAMES = {"exposure_time_s": ("ExposureTime", "exposure time in seconds"), "iso": ("ISOSpeedRatings", "ISO")}
+_SHOWN = {1: "upright", 2: "mirrored", 3: "turned 180 deg", 4: "mirrored upside down", 5: "transposed",
+          6: "turned 90 deg clockwise", 7: "transversed", 8: "turned 90 deg counter-clockwise"}
 
 
 @dataclass
@@ -94,22 +107,45 @@ def photo_shape(path: str | Path, flag: str = "--input") -> tuple[int, int]:
         return read_exr(path).shape[:2]
     import cv2
 
-    first = cv2.imread(str(path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
+    from scenes.images import decode_image
+
+    first = decode_image(Path(path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR, f"{flag}: {str(path)!r}")
     if first is None:
         raise ValueError(f"{flag}: cannot read {str(path)!r} as an image")
     return first.shape[:2]
 
 
+def _exif_number(value: Any, key: str) -> float:
+    """One EXIF exposure field as a float: a finite number > 0, else ValueError naming the field and the value as
+    written (a rational 1/0 as '1/0')."""
+    if isinstance(value, (tuple, list)) and value:
+        value = value[0]
+    num, den = getattr(value, "numerator", None), getattr(value, "denominator", None)
+    rational = isinstance(num, int) and isinstance(den, int) and den != 1
+    text = f"{num}/{den}" if rational else repr(value)
+    try:
+        number = float("nan") if rational and den == 0 else float(value)
+    except (TypeError, ValueError, ZeroDivisionError):
+        number = float("nan")
+    if not (np.isfinite(number) and number > 0):
+        tag, what = _EXIF_NAMES[key]
+        raise ValueError(f"EXIF {tag} is {text}; expected a finite {what} > 0 (correct it, or remove the tag from "
+                         "every photo to read them without exposure normalisation)")
+    return number
+
+
 def _exif(img: Any) -> dict[str, Any]:
-    ifd = img.getexif().get_ifd(_EXIF_IFD)
+    exif = img.getexif()
+    ifd = exif.get_ifd(_EXIF_IFD)
     out: dict[str, Any] = {}
     if _EXPOSURE_TIME in ifd:
-        out["exposure_time_s"] = float(ifd[_EXPOSURE_TIME])
+        out["exposure_time_s"] = _exif_number(ifd[_EXPOSURE_TIME], "exposure_time_s")
     if _ISO in ifd:
-        iso = ifd[_ISO]
-        out["iso"] = float(iso[0] if isinstance(iso, (tuple, list)) else iso)
+        out["iso"] = _exif_number(ifd[_ISO], "iso")
     if _COLOR_SPACE in ifd:
         out["color_space"] = int(ifd[_COLOR_SPACE])
+    if _ORIENTATION in exif:
+        out["orientation"] = exif[_ORIENTATION]
     return out
 
 
@@ -131,6 +167,8 @@ class _File:
     """(H, W, 3) float64: codes in [0, 1] (EXR: linear floats; RAW: developed linear)."""
     depth: int
     exif: dict[str, Any]
+    """The exposure fields (`exposure_time_s`, `iso`) where given, `color_space` and `orientation` (EXIF tag
+    0x0112) where the file has them."""
     saturated: np.ndarray | None = None
     """(H, W, 3) bool where the reader knows better than 'at the largest code' (RAW files)."""
     raw: dict[str, Any] | None = None
@@ -141,6 +179,20 @@ def _read_file(path: Path, flag: str) -> _File:
         codes, saturated, exif, record = read_raw(path, flag)
         return _File(codes, 16, exif, saturated, record)
     return _File(*_read_one(path, flag))
+
+
+def _orientation(f: _File) -> tuple[str, int]:
+    """How a file says it is to be shown: its EXIF orientation (1, upright, where it has none; EXR has none), or
+    LibRaw's flip for a RAW file."""
+    if f.raw is not None:
+        return "LibRaw flip", int(f.raw.get("orientation_flip", 0))
+    value = f.exif.get("orientation", 1)
+    return "EXIF orientation", int(value) if isinstance(value, int) else -1
+
+
+def _shown(orientation: tuple[str, int]) -> str:
+    kind, value = orientation
+    return f"{_SHOWN[value]} ({kind} {value})" if kind == "EXIF orientation" and value in _SHOWN else f"{kind} {value}"
 
 
 def _read_one(path: Path, flag: str) -> tuple[np.ndarray, int, dict[str, Any]]:
@@ -154,13 +206,19 @@ def _read_one(path: Path, flag: str) -> tuple[np.ndarray, int, dict[str, Any]]:
         return data.astype(np.float64), 32, {}
     import cv2
 
-    raw = cv2.imread(str(path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
+    from scenes.images import decode_image
+
+    raw = decode_image(path, cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR, f"{flag}: {str(path)!r}")
     if raw is None:
         raise ValueError(f"{flag}: cannot read {str(path)!r} as an image")
     if raw.dtype not in (np.uint8, np.uint16):
         raise ValueError(f"{flag}: {str(path)!r} holds {raw.dtype} values, expected 8 or 16-bit integers (or an EXR)")
     depth = 8 if raw.dtype == np.uint8 else 16
-    return raw[..., ::-1].astype(np.float64) / (255.0 if depth == 8 else 65535.0), depth, _read_exif(path)
+    try:
+        exif = _read_exif(path)
+    except ValueError as exc:
+        raise ValueError(f"{flag}: {path.name}: {exc}") from None
+    return raw[..., ::-1].astype(np.float64) / (255.0 if depth == 8 else 65535.0), depth, exif
 
 
 def _linear(
@@ -177,12 +235,27 @@ def _linear(
     return codes, "linear"
 
 
-def _exposure_scales(exifs: list[dict[str, Any]]) -> list[float]:
-    """Per image: the factor that brings it to the first image's exposure (1 where EXIF does not tell)."""
+def _exposure_scales(exifs: list[dict[str, Any]], names: list[str], flag: str) -> list[float]:
+    """Per image: the factor that brings it to the first image's exposure (1 where EXIF does not tell); exposures
+    that are not finite and positive, or further apart than `MAX_EXPOSURE_RATIO`, are one ValueError naming the
+    files."""
     if not all("exposure_time_s" in e and "iso" in e for e in exifs):
         return [1.0] * len(exifs)
     light = [e["exposure_time_s"] * e["iso"] for e in exifs]
-    if min(light) <= 0 or len(set(light)) == 1:
+
+    def said(i: int) -> str:
+        return f"{names[i]} ({exifs[i]['exposure_time_s']:.6g} s at ISO {exifs[i]['iso']:.6g})"
+
+    bad = next((i for i, v in enumerate(light) if not (np.isfinite(v) and v > 0)), None)
+    if bad is not None:
+        raise ValueError(f"{flag}: {said(bad)}: EXIF exposure time x ISO is {light[bad]:.6g}; expected a finite "
+                         "value > 0")
+    lo, hi = int(np.argmin(light)), int(np.argmax(light))
+    if light[hi] / light[lo] > MAX_EXPOSURE_RATIO:
+        raise ValueError(f"{flag}: EXIF exposures differ {light[hi] / light[lo]:.3g} times, {said(hi)} against "
+                         f"{said(lo)}; expected at most {MAX_EXPOSURE_RATIO:.0f} times (10 stops) between the photos "
+                         "of one capture: a wrong EXIF value, or photos of another capture?")
+    if len(set(light)) == 1:
         return [1.0] * len(exifs)
     return [light[0] / v for v in light]
 
@@ -200,7 +273,7 @@ def _downscale(image: np.ndarray, max_side: int | None) -> np.ndarray:
 def _exposure_record(exif: dict[str, Any], scale: float) -> dict[str, Any]:
     """What report.json records of one image's exposure: the EXIF fields read, those the file did not give, the
     scale applied."""
-    out = {k: v for k, v in exif.items() if k != "color_space"}
+    out = {k: v for k, v in exif.items() if k not in ("color_space", "orientation")}
     missing = [k for k in ("exposure_time_s", "iso") if k not in exif]
     return {**out, **({"not_in_file": missing} if missing else {}), "scale": scale}
 
@@ -221,7 +294,12 @@ def read_photos(folder: str | Path, encoding: str = "auto", max_side: int | None
         f = _read_file(path, flag)
         codes, depth = f.codes, f.depth
         if first is None:
-            first = (codes.shape, depth)
+            first, turned = (codes.shape, depth), _orientation(f)
+        elif _orientation(f) != turned:
+            raise ValueError(f"{flag}: {path.name} differs in orientation from {files[0].name} (it is to be shown "
+                             f"{_shown(_orientation(f))}, {files[0].name} {_shown(turned)}): every photo of a capture "
+                             "must be taken with the camera held one way (where it did not turn, e.g. a phone looking "
+                             "straight down, give every file the same EXIF orientation)")
         elif (codes.shape, depth) != first:
             what = ("bit depth" if codes.shape == first[0] else "orientation" if codes.shape[:2] == first[0][1::-1]
                     else "size")
@@ -239,7 +317,7 @@ def read_photos(folder: str | Path, encoding: str = "auto", max_side: int | None
         exifs.append(f.exif)
         if f.raw is not None:
             records.append(f.raw)
-    scales = _exposure_scales(exifs)
+    scales = _exposure_scales(exifs, [p.name for p in files], flag)
     stack = np.stack([img * np.float32(s) for img, s in zip(images, scales)])
     return Photos(images=stack, saturated=np.stack(saturated), names=[p.name for p in files], encoding=kinds,
                   bit_depth=first[1], exposure=[_exposure_record(e, s) for e, s in zip(exifs, scales)], raw=records)

@@ -23,15 +23,12 @@ LibRaw versions. Errors are one-line ValueErrors naming the flag and the file.
 """
 from __future__ import annotations
 
-import os
-import sys
-import tempfile
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from scenes.files import caught_stderr as _libraw_said
 
 RAW_SUFFIXES = (".dng", ".cr2", ".cr3", ".nef", ".arw", ".orf", ".rw2", ".raf")
 """File suffixes read as camera RAW files (case-insensitive)."""
@@ -49,25 +46,6 @@ def is_raw(path: str | Path) -> bool:
 def _libraw_message(err: Exception) -> str:
     msg = err.args[0] if err.args else type(err).__name__
     return (msg.decode(errors="replace") if isinstance(msg, bytes) else str(msg)).strip() or type(err).__name__
-
-
-@contextmanager
-def _libraw_said() -> Iterator[list[str]]:
-    """LibRaw writes its complaints about a file ('Unexpected end of file') to the process's standard error
-    itself; they are caught here (the list, filled on exit) so that a refusal stays one line and a file read
-    despite them has them in its record."""
-    said: list[str] = []
-    sys.stderr.flush()
-    saved = os.dup(2)
-    with tempfile.TemporaryFile() as caught:
-        os.dup2(caught.fileno(), 2)
-        try:
-            yield said
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-            caught.seek(0)
-            said.extend(line.strip() for line in caught.read().decode(errors="replace").splitlines() if line.strip())
 
 
 def _refusal(what: str, err: Exception, said: list[str]) -> str:

@@ -28,6 +28,7 @@ from scenes.files import atomic_write, write_json
 
 from .official import is_official_path, read_official
 from .registry import build_model, official_entry, pretrained_weights
+from .tensors import check_weights
 
 WEIGHTS_FORMAT = "unips-weights/1"
 TRAINING_FORMAT = "unips-training/1"
@@ -64,11 +65,12 @@ def load_official(name: str, path: str | Path, device: str | torch.device = "cpu
     """Model `name` with the authors' published weights read from `path` (a checkpoint folder, or its `.pytmodel`
     file when there is one), in eval mode. The files hold no configuration: `overrides` change the registered
     one, e.g. what the published code takes at run time (SDM-UniPS: canonical_resolution, pixel_samples).
-    Nothing is left at random: a missing file, a missing, unexpected or misshaped tensor is a ValueError
+    Nothing is left at random: a missing file, a missing, unexpected or misshaped tensor, a non-finite one or one of
+    another kind than the model's (`unips.models.tensors.check_weights`, naming the file) is a ValueError
     (FileNotFoundError for files) of one line."""
     spec = official_entry(name)
     model = build_model(name, **overrides)
-    load_state_strict(model, read_official(spec, path), f"checkpoint {str(path)!r}")
+    load_state_strict(model, read_official(spec, path, model.state_dict()), f"checkpoint {str(path)!r}")
     return model.to(device).eval()
 
 
@@ -113,7 +115,8 @@ def save_checkpoint(path: str | Path, model: nn.Module, extra: Mapping[str, Any]
 
 
 def load_state_strict(model: nn.Module, state: Mapping[str, torch.Tensor], source: str = "checkpoint") -> None:
-    """Load `state` into `model`; missing / unexpected keys or shape mismatches raise ValueError."""
+    """Load `state` into `model`; missing / unexpected keys, shape mismatches, non-finite tensors and tensors of
+    another kind than the model's (an int64 weight: `unips.models.tensors.check_weights`) raise ValueError."""
     own = model.state_dict()
     missing = [k for k in own if k not in state]
     unexpected = [k for k in state if k not in own]
@@ -127,6 +130,7 @@ def load_state_strict(model: nn.Module, state: Mapping[str, torch.Tensor], sourc
         if tuple(state[k].shape) != tuple(v.shape):
             raise ValueError(f"{source}: tensor {k} has shape {'x'.join(map(str, state[k].shape))} in the file but "
                              f"{'x'.join(map(str, v.shape))} in the model built from its config")
+    check_weights(state, source, own)
     model.load_state_dict(state, strict=True)
 
 

@@ -19,6 +19,7 @@ from typing import Mapping
 import torch
 
 from .contract import InputContract
+from .tensors import check_weights
 
 OFFICIAL_SUFFIX = ".pytmodel"
 DATA_PARALLEL_PREFIX = "module."
@@ -74,13 +75,16 @@ def official_files(spec: OfficialWeights, path: str | Path) -> list[tuple[Path, 
     return found
 
 
-def read_official(spec: OfficialWeights, path: str | Path) -> dict[str, torch.Tensor]:
-    """The state dict in our names of the published files of `spec` under `path` (not yet checked against a
-    model: `unips.models.builder.load_state_strict` does that)."""
+def read_official(spec: OfficialWeights, path: str | Path,
+                  expected: Mapping[str, torch.Tensor] | None = None) -> dict[str, torch.Tensor]:
+    """The state dict in our names of the published files of `spec` under `path`, each file's tensors finite and,
+    where `expected` (the model's state dict) names them, of the model's kind (`check_weights`, naming the file);
+    its names and shapes are not yet checked against a model: `unips.models.builder.load_state_strict` does that."""
     state: dict[str, torch.Tensor] = {}
     for file, prefix in official_files(spec, path):
-        for key, value in _read_state(file).items():
-            state[prefix + key] = value
+        part = {prefix + key: value for key, value in _read_state(file).items()}
+        check_weights(part, repr(str(file)), expected)
+        state.update(part)
     return state
 
 

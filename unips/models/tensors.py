@@ -1,0 +1,43 @@
+"""What every weight loader asks of the tensors it reads (`unips.models.builder.load_state_strict` for our model
+files, `unips.models.official.read_official` for each of the authors' files): tensors, finite where floating point,
+and of the kind the model holds (floating point where the model's is, integer where the model's is: a float
+parameter given as int64 would be cast without a word, and a NaN weight is found only after a forward pass)."""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+import torch
+
+
+def _kind(t: torch.Tensor) -> str:
+    if t.is_floating_point():
+        return "floating-point"
+    if t.is_complex():
+        return "complex"
+    return "boolean" if t.dtype == torch.bool else "integer"
+
+
+def _dtype(t: torch.Tensor) -> str:
+    return str(t.dtype).removeprefix("torch.")
+
+
+def check_weights(state: Mapping[str, Any], source: str, expected: Mapping[str, torch.Tensor] | None = None) -> None:
+    """Every value of `state` a tensor, every floating-point one finite and, where `expected` (the model's own state
+    dict) has its name, of the model's kind; else one ValueError beginning with `source` (the file) that names the
+    tensor and what it holds."""
+    for key, value in state.items():
+        if not isinstance(value, torch.Tensor):
+            raise ValueError(f"{source}: entry {key} is a {type(value).__name__}, expected a tensor")
+        own = expected.get(key) if expected is not None else None
+        if own is not None and _kind(own) != _kind(value):
+            raise ValueError(f"{source}: tensor {key} is {_dtype(value)}, expected {_kind(own)} values (the model "
+                             f"holds {_dtype(own)}): a damaged file, or not weights of this network")
+        if value.is_floating_point() or value.is_complex():
+            finite = torch.isfinite(value)
+            if not bool(finite.all()):
+                nan = int(torch.isnan(value).sum())
+                inf = value.numel() - int(finite.sum()) - nan
+                raise ValueError(f"{source}: tensor {key} holds {nan} NaN and {inf} infinite values (of "
+                                 f"{value.numel()}); expected finite weights (a training run that diverged, or a "
+                                 "damaged file)")
