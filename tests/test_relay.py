@@ -212,3 +212,24 @@ def test_the_real_assets_fit_the_upload_next_to_mitsuba(tmp_path):
     packed = {n.split("/")[2] for n in names if n.startswith(("assets/meshes/", "assets/hdri/"))}
     assert held and not packed & held and not packed & {Path(h).stem + ".hdr" for h in held}
     assert len(m["meshes"]) == 14 and len(m["hdri"]) == 28  # every training mesh and map of the recipe's split
+
+
+def test_an_asset_split_of_a_relative_folder_links_to_real_files(tmp_path, monkeypatch):
+    """split_assets with a relative --assets (as users type it): every link resolves to the asset file. The links
+    once kept the relative path, which a link reads from its own folder: every one of them was broken."""
+    import os
+
+    from orchestrate.asset_split import split_assets
+
+    root = tmp_path / "assets"
+    for i in range(4):
+        (root / "meshes").mkdir(parents=True, exist_ok=True)
+        (root / "meshes" / f"m{i}.obj").write_text("v 0 0 0\n")
+    (root / "hdri").mkdir()
+    for i in range(5):
+        (root / "hdri" / f"h{i}.hdr").write_bytes(b"#?RADIANCE\n")
+    monkeypatch.chdir(tmp_path)
+    train, held = split_assets(Path("assets"), tmp_path / "work")
+    links = [p for d in (train, held) for sub in ("meshes", "hdri") for p in (d / sub).iterdir()]
+    assert len(links) == 9 and all(p.is_symlink() and os.path.isabs(os.readlink(p)) and p.exists() for p in links)
+    assert sorted(p.name for p in (held / "meshes").iterdir()) == ["m3.obj"]
