@@ -34,6 +34,7 @@ from typing import Annotated, Literal
 
 import numpy as np
 
+from orchestrate.capture_verdict import level, verdict
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import check_output_folder, claim_outputs
@@ -233,72 +234,6 @@ def check_and_refine(opts: CaptureOptions, cap: Capture, out: Path,
     return (final if refined["accepted"] else normals), check, refined
 
 
-USABLE_DEG = 15.0
-"""A map is "usable" when its stated mean error is at most this (and the check judged it, nothing below demotes it):
-about the error of a good calibrated photometric-stereo method on DiLiGenT's harder objects; beyond it, shape and
-shading derived from the map are visibly off."""
-PIXEL_USABLE_DEG = 25.0
-"""The headline's "over N % of the object": the share of its pixels whose stated error is at most this."""
-DEMOTING_WARNINGS = {
-    "doubtful_mask": "the automatic mask may be wrong",
-    "camera_moved": "the camera moved between photos",
-}
-"""Capture warnings that keep a map from "usable" whatever its stated error (the error model never saw them)."""
-LEVELS = ("usable", "use with care", "not checked")
-"""The verdict's levels, best first (report.json `verdict.level`)."""
-
-
-def level(check: dict, stated, why_unstated: str | None, warnings: list) -> tuple[str, str]:
-    """(verdict level, the headline a photographer reads first) of a capture: "not checked" where the images cannot
-    judge it or no error is stated, else "usable" when the stated mean is at most USABLE_DEG and no warning of
-    DEMOTING_WARNINGS was raised, else "use with care"."""
-    if stated is None:
-        return "not checked", f"not checked: no expected error is stated ({why_unstated})"
-    share = float(np.mean(stated.per_pixel[np.isfinite(stated.per_pixel)] <= PIXEL_USABLE_DEG))
-    lo, hi = stated.interval_80
-    figure = (f"expected error about {stated.mean:.0f} deg (80 %: {lo:.0f}-{hi:.0f} deg), within {PIXEL_USABLE_DEG:.0f}"
-              f" deg over {share:.0%} of the object")
-    if not check["trusted"]:
-        return "not checked", f"not checked: {check.get('why')}; the model's {figure}"
-    demoted = [DEMOTING_WARNINGS[w.code] for w in warnings if w.code in DEMOTING_WARNINGS]
-    if stated.mean > USABLE_DEG:
-        demoted.insert(0, f"above the {USABLE_DEG:.0f} deg of a usable map")
-    if demoted:
-        return "use with care", f"use with care: {figure}; {'; '.join(demoted)}"
-    return "usable", f"usable: {figure}"
-
-
-def verdict(check: dict, refined: dict | None) -> dict:
-    """What the user has in hand, in words: can the images judge this capture, how well does the final map explain
-    them, was it refined."""
-    noise = check.get("noise_rel_l1")
-    judged = refined["judged_after_rel_l1"] if refined and refined.get("accepted") else check.get("judged_rel_l1")
-    out = {"images_can_judge": bool(check["trusted"]), "why": check.get("why"),
-           "explained_fraction": check.get("explained_fraction"), "judged_rel_l1": judged, "noise_rel_l1": noise,
-           "residual_in_noise_units": (judged / noise) if judged is not None and noise else None,
-           "refined": bool(refined and refined.get("accepted")), "resolution": check.get("resolution"),
-           "refinement": refined.get("why") if refined else "not run: the images cannot judge this capture"
-           if not check["trusted"] else "not run (--no-refine)"}
-    if not check["trusted"]:
-        out["summary"] = ("The images cannot judge this capture, so the normal map is the model's, unchecked: "
-                          f"{check.get('why')}")
-    else:
-        units = out["residual_in_noise_units"]
-        out["summary"] = (
-            f"The images can judge this capture ({check['explained_fraction']:.0%} of the object is "
-            f"explained by the fitted light); the final map leaves a residual of "
-            f"{units:.1f} times the image noise"
-            if units is not None
-            else "The images can judge this capture"
-        )
-        out["summary"] += ("; the model's map is kept." if not out["refined"] else
-                           "; it was refined, and the images tell the refined map apart from the model's." if
-                           refined.get("told_apart") else
-                           "; it was refined, but the change is within what the images resolve: the refined map fits "
-                           "the physics better, which does not show it is closer to the surface.")
-    return out
-
-
 def _variation_picture(images: np.ndarray, path: Path) -> None:
     from validate.diagnosis.usable import variation_map
 
@@ -369,7 +304,7 @@ def load_network_first(opts: CaptureOptions) -> tuple[object, float]:
 def run(opts: CaptureOptions) -> dict:
     """The whole command (main without the error handling); returns report.json's content. Each stage says when it
     starts, that it is alive at least every 10 s, and when it ends (`scenes.cli.progress.stage`, on stderr)."""
-    from validate.diagnosis.usable import as_dicts, capture_warnings, image_count_warning, mask_doubts
+    from validate.diagnosis.usable import as_dicts, capture_warnings, image_count_warning, light_warnings, mask_doubts
     from validate.fitted.fit_report import CHECK_OUTPUTS
     from validate.fitted.refinement import REFINE_OUTPUTS
 
@@ -394,7 +329,8 @@ def run(opts: CaptureOptions) -> dict:
         mask, mask_info = find_mask(opts, read)
         automatic = opts.mask == "auto" and read.mask is None  # found from the images: it may be wrong (mask_doubts)
         read = replace(read, mask=mask)
-        warnings, facts = capture_warnings(read.images, mask, read.saturated, read.image_names)
+        # the light warnings wait for the model's map: the lights are read from the shading under it
+        warnings, facts = capture_warnings(read.images, mask, read.saturated, read.image_names, lights=False)
         if warnings and warnings[0].fatal:
             raise UsageError(f"--input: {warnings[0].message}")
         if automatic:
@@ -411,6 +347,11 @@ def run(opts: CaptureOptions) -> dict:
     t1 = time.perf_counter()
     with stage("capture", "the model's map and its expected error"):
         model_map, stated, why_unstated = predict(opts, cap, net)
+    more, light_facts = light_warnings(read.images, mask, model_map)
+    facts.update(light_facts)
+    for warning in more:
+        print(f"warning: {warning.code}: {warning.message}", file=sys.stderr)
+    warnings += more
     times["predict_s"] = time.perf_counter() - t1
     t1 = time.perf_counter()
     with stage("capture", "the physical check" + (" and the refinement" if opts.refine else ""),

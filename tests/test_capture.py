@@ -373,7 +373,7 @@ def test_bad_captures_stop_in_one_line(photos, tmp_path, capsys):
 def test_the_verdict_level_follows_its_rule():
     """usable only when checked, under USABLE_DEG and with no warning that the error model never saw; a doubtful
     mask or a moved camera never reads usable, whatever the stated figure."""
-    from orchestrate.capture import USABLE_DEG, level
+    from orchestrate.capture_verdict import USABLE_DEG, level
     from unips.expected_error import Stated
     from validate.diagnosis.usable import CaptureWarning
 

@@ -82,3 +82,29 @@ def test_frontal_light_is_told_apart_from_light_all_around_and_from_one_side():
                          np.full(8, np.cos(np.radians(45)))], -1)
     images, mask = scene(one_side)
     assert codes(images, mask) == ["one_sided_light"]
+
+
+def test_lights_read_from_the_shading_under_a_map_are_the_true_ones():
+    """Under the object's normals, each photo's light is read from the shading of the whole object (a textured
+    ellipsoid here): its angle from the axis within 3 deg of the truth, where the outline reads 20-45 deg lights
+    several times too close to the axis on real objects; and the warnings follow the true directions: lights 20-40
+    deg off the axis all around are not frontal, all from above is one-sided naming the missing bottom."""
+    from validate.diagnosis.usable import light_warnings, shading_light_angles
+
+    n, _ = ellipsoid_normals(H + 2 * PAD, W + 2 * PAD, (H + 2 * PAD) / 2, (W + 2 * PAD) / 2, 40, 50)
+    around = np.concatenate([ring(20, 6), ring(40, 6, 30.0)])
+    images, mask = scene(around)
+    polar, azimuth = shading_light_angles(images, mask, n)
+    true_polar = np.degrees(np.arccos(around[:, 2]))
+    assert np.abs(polar - true_polar).max() < 3.0, (polar, true_polar)
+    assert light_warnings(images, mask, n)[0] == []
+    above = np.radians(np.linspace(30, 150, 7))  # 40 deg off the axis, every lamp in the upper half
+    top = np.stack([np.sin(np.radians(40)) * np.cos(above), np.sin(np.radians(40)) * np.sin(above),
+                    np.full(7, np.cos(np.radians(40)))], -1)
+    images, mask = scene(top)
+    warned, facts = light_warnings(images, mask, n)
+    assert [w.code for w in warned] == ["one_sided_light"] and "(the top; no photo is lit from the bottom)" in \
+        warned[0].message and facts["light_angles"].startswith("from the shading")
+    near = ring(12, 8)
+    images, mask = scene(near)
+    assert [w.code for w in light_warnings(images, mask, n)[0]] == ["frontal_light"]
