@@ -37,7 +37,7 @@ import numpy as np
 from orchestrate.capture_verdict import level, verdict
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
-from scenes.cli.outputs import check_output_folder, claim_outputs
+from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import stage
 from scenes.files import to_plain, write_json
 from scenes.folder.format import MASK_FILE, write_object_folder
@@ -321,6 +321,8 @@ def run(opts: CaptureOptions) -> dict:
     stages = {"check": [out / "check" / read.name / n for n in CHECK_OUTPUTS],
               "refine": [out / "refine" / read.name / n for n in REFINE_OUTPUTS]}
     claim_outputs([p for paths in stages.values() for p in paths], opts.overwrite, owner="orchestrate.capture")
+    claim_outputs([out / "work" / f"{read.name}.data"] if opts.keep_work else [], opts.overwrite,
+                  owner="orchestrate.capture", folders=True)  # --keep-work's folder too (no link on the way)
     times["read_s"] = time.perf_counter() - t0 - times["load_model_s"]
     count = image_count_warning(len(read.images))
     if count and count.fatal:  # before the mask: two photos say nothing about one
@@ -418,7 +420,8 @@ def outcome(opts: CaptureOptions, check: dict, refined: dict | None, stated, why
 def main(argv: list[str] | None = None) -> int:
     try:
         opts = COMMAND.parse(argv).validate()
-        report = run(opts)
+        with output_lock(opts.out, inputs={"--input": opts.input}):  # one writer, never into --input
+            report = run(opts)
     except INPUT_ERRORS as exc:
         return report_error(exc)
     except OSError as exc:

@@ -46,8 +46,10 @@ if __name__ == "__main__":  # the pack's packages first: the imports below need 
 
 import json
 import math
+import os
 import platform
 import time
+from contextlib import nullcontext
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Literal  # noqa: E402
@@ -57,7 +59,7 @@ from orchestrate.steps import OutOfTime, StepFailed, check_step, run_step
 from scenes.cli.budget import process_start
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import Command, check_fields, option
-from scenes.cli.outputs import check_output_folder
+from scenes.cli.outputs import check_output_folder, output_lock
 from scenes.files import write_json
 
 SHARED_ASSETS = REPO.parent / "shared" / "assets"
@@ -307,8 +309,16 @@ def require_gpu(opts: SessionOptions) -> None:
 
 def session(opts: SessionOptions, t0: float | None = None) -> dict:
     """The whole session (module doc, steps 1-5); returns summary.json's content. `t0`: when the budget started
-    (default: this process's start)."""
+    (default: this process's start). --out and --work are held for the whole session
+    (`scenes.cli.outputs.output_lock`: a second session into either is refused)."""
     t0 = process_start() if t0 is None else t0
+    same = os.path.realpath(opts.out) == os.path.realpath(opts.work)  # one folder for both: held once
+    with output_lock(opts.out, "--out"), nullcontext() if same else output_lock(opts.work, "--work"):
+        return _session(opts, t0)
+
+
+def _session(opts: SessionOptions, t0: float) -> dict:
+    """`session` with its folders held."""
     deadline = t0 + opts.minutes * 60
     out, work = Path(opts.out), Path(opts.work)
     require_gpu(opts)

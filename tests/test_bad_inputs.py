@@ -316,6 +316,8 @@ class Row:
     gone; every other pre-existing file must stay."""
     env: dict[str, str] = field(default_factory=dict)
     """Environment variables of the subprocess (`sub=True`), formatted like the arguments."""
+    needs: tuple[str, ...] = ()
+    """Optional extras the row needs (modules, e.g. "ray"): skipped where one is not installed."""
 
 
 def _copy(src: str, dst: str) -> Callable[[Path, Path], None]:
@@ -2172,7 +2174,7 @@ ROWS += [
         EXP,
         ["--data", "{W}/data", "--out", "{T}/s", "--overwrite", "--quiet"],
         2,
-        ("--out", "another export is writing"),
+        ("--out", "another run holds"),
         setup=_export_running("s"),
         check=_release,
     ),
@@ -2803,6 +2805,120 @@ ROWS += [
 ]
 
 
+# --------------------------------------------------------------------------- issue 50: one writer per output folder
+
+
+def _running(rel: str) -> Callable[[Path, Path], None]:
+    """Setup: T/<rel>, a folder another run holds right now (its lock, `scenes.files.folder_lock`, taken here as
+    that run would; released by `_released`)."""
+    def setup(w: Path, t: Path) -> None:
+        from scenes.files import folder_lock
+
+        HELD.append(folder_lock(_mk(t / rel)))
+    return setup
+
+
+def _released(*checks: Callable[[Path, Path], None]) -> Callable[[Path, Path], None]:
+    """Check: the locks of `_running` released, then `checks`."""
+    def check(w: Path, t: Path) -> None:
+        _release(w, t)
+        for c in checks:
+            c(w, t)
+    return check
+
+
+def _both(*setups: Callable[[Path, Path], None]) -> Callable[[Path, Path], None]:
+    def setup(w: Path, t: Path) -> None:
+        for s in setups:
+            s(w, t)
+    return setup
+
+
+def _link(rel: str, target: str) -> Callable[[Path, Path], None]:
+    """Setup: T/<rel>, a link to the folder T/<target> (made if missing)."""
+    def setup(w: Path, t: Path) -> None:
+        _mk(t / target)
+        _mk((t / rel).parent)
+        os.symlink(t / target, t / rel)
+    return setup
+
+
+def _diligent(w: Path, t: Path) -> None:
+    """Setup: T/dil, a DiLiGenT object folder (8 images of a grey sphere, mask.png, lights, Normal_gt.mat)."""
+    write_predict_diligent(t / "dil")
+
+
+CAPTURE_ALL = [*CAPTURE, "--mask", WORLD_MASK]
+"""A capture of T/photos into T/o that would run to the end."""
+TINY_RAY = ["--objects", "1", "--images", "2", "--res", "16", "--spp", "1", "--gt-spp", "1", "--quiet"]
+"""TINY without --workers (--ray schedules by its CPUs)."""
+PREDICT_LS = ["--method", "least-squares", "--input", OBJDIR, "--out", "{T}/p"]
+REFINE_8 = ["--data", "{T}/00000.data", "--normals", "{W}/pred/00000/normal.png"]
+"""validate.refine of a copy of object 00000 with 8 images (`_capture_copy(images=8)`): enough to refine."""
+SESSION = ["--out", "{T}/o", "--work", "{T}/w", "--init", "{T}/nope.safetensors", "--cpu-rehearsal"]
+"""A session refused at its first check after its folders (a missing --init)."""
+
+ROWS += [
+    # ---- one writer per output folder: a folder another run holds is refused in one line, whatever the command
+    Row("capture-concurrent-into-one-folder", CAP, CAPTURE_ALL, 2, ("--out", "another run holds", "o'"),
+        setup=_both(_photos(), _running("o")), check=_released(_not_written("o/normal.png", "o/report.json"))),
+    Row("predict-concurrent-into-one-folder", PR, PREDICT_LS, 2, ("--out", "another run holds"), setup=_running("p"),
+        sub=True, check=_released(_not_written("p/00000"))),  # a process of its own: the lock holds across processes
+    Row("train-concurrent-into-one-run-folder", TR, [*TRAIN_ONE, "--steps", "1", "--data", "{W}/data", "--out",
+                                                    "{T}/run"], 2, ("--out", "another run holds"),
+        setup=_running("run"), check=_released(_not_written("run/log.jsonl", "run/final.safetensors"))),
+    Row("rerender-concurrent-into-one-folder", RR, ["--data", OBJDIR, "--normals", "{W}/pred", "--out", "{T}/o",
+                                                    "--no-floors", "--spp", "1"], 2, ("--out", "another run holds"),
+        setup=_running("o"), check=_released(_not_written("o/00000", "o/summary.csv"))),
+    Row("refine-concurrent-into-one-folder", RF, [*REFINE_8, "--out", "{T}/o"], 2, ("--out", "another run holds"),
+        setup=_both(_capture_copy(images=8), _running("o")), check=_released(_not_written("o/00000"))),
+    Row("make-into-a-folder-another-command-holds", MK, ["--out", "{T}/o", *TINY], 2, ("--out", "another run holds"),
+        setup=_running("o"), check=_released(_not_written("o/manifest.json", "o/00000.data"))),
+    Row("gpu-session-concurrent-out", GS, SESSION, 2, ("--out", "another run holds"), setup=_running("o"),
+        absent=("--init",), check=_released(_not_written("w"))),
+    Row("gpu-session-concurrent-work", GS, SESSION, 2, ("--work", "another run holds"), setup=_running("w"),
+        absent=("--init",), check=_released(_not_written("o"))),
+    # ---- every file and subfolder a command writes is claimed; a link inside --out is never followed out of it
+    Row("capture-keep-work-link-out-of-out", CAP, [*CAPTURE_ALL, "--keep-work"], 2, ("--out", "o/work'", "is a link"),
+        setup=_both(_photos(), _link("o/work", "elsewhere")), check=_not_written("elsewhere/photos.data",
+                                                                                "o/normal.png")),
+    Row("capture-keep-work-replaces-no-user-folder", CAP, [*CAPTURE_ALL, "--keep-work"], 2,
+        ("--out", "work/photos.data", "exists", "--overwrite"),
+        setup=_both(_photos(), _put(("o/work/photos.data/L000.png", "mine, not a photo\n"))),
+        check=_not_written("o/normal.png")),
+    Row("capture-check-link-out-of-out", CAP, CAPTURE_ALL, 2, ("--out", "o/check'", "is a link"),
+        setup=_both(_photos(), _link("o/check", "elsewhere")), check=_not_written("elsewhere/photos", "o/normal.png")),
+    Row("predict-object-folder-link-out-of-out", PR, PREDICT_LS, 2, ("--out", "p/00000'", "is a link"),
+        setup=_link("p/00000", "elsewhere"), check=_not_written("elsewhere/normal.png", "elsewhere/predict.json")),
+    # ---- --out never is, lies inside, or leads by a link into what the command reads
+    Row("capture-out-is-diligent-input-overwrite", CAP, ["--input", "{T}/dil", "--out", "{T}/dil", "--no-refine",
+                                                         "--threads", "1", "--overwrite"], 2,
+        ("--out", "dil' is --input", "never writes into"), setup=_diligent),
+    Row("capture-out-inside-input", CAP, ["--input", "{T}/photos", "--out", "{T}/photos/o", "--mask", WORLD_MASK,
+                                          "--no-refine", "--threads", "1"], 2, ("--out", "lies inside --input"),
+        setup=_photos(), check=_not_written("photos/o")),
+    Row("capture-out-link-into-input", CAP, CAPTURE_ALL, 2, ("--out", "is a link to --input"),
+        setup=_both(_photos(), _link("o", "photos")), check=_not_written("photos/normal.png")),
+    Row("predict-out-is-diligent-input", PR, ["--method", "least-squares", "--input", "{T}/dil", "--out", "{T}/dil"],
+        2, ("--out", "is --input"), setup=_diligent, check=_not_written("dil/dil")),
+    Row("predict-out-around-diligent-input", PR, ["--method", "least-squares", "--input", "{T}/dil", "--out", "{T}"],
+        2, ("--out", "dil/normal.png", "lies inside --input"), setup=_diligent,
+        check=_not_written("dil/normal.png", "dil/predict.json")),
+    Row("rerender-out-inside-data", RR, ["--data", "{T}/00000.data", "--normals", "{W}/pred", "--out",
+                                         "{T}/00000.data/check", "--no-floors", "--spp", "1"], 2,
+        ("--out", "lies inside --data"), setup=_copy("data/00000.data", "00000.data"),
+        check=_not_written("00000.data/check")),
+    Row("refine-out-is-data", RF, [*REFINE_8, "--out", "{T}/00000.data"], 2, ("--out", "is --data"),
+        setup=_capture_copy(images=8), check=_not_written("00000.data/00000")),
+    # ---- engines that do not answer: --ray ADDRESS refused at once, or after a bounded wait, naming it
+    Row("make-ray-nothing-listens", MK, ["--out", "{T}/o", "--ray", "127.0.0.1:1", *TINY_RAY], 2,
+        ("--ray", "'127.0.0.1:1'", "connection refused"), sub=True, needs=("ray",), check=_not_written("o")),
+    Row("make-ray-host-unresolvable", MK, ["--out", "{T}/o", "--ray", "nosuchhost.invalid:6379", *TINY_RAY], 2,
+        ("--ray", "'nosuchhost.invalid:6379'", "does not resolve"), sub=True, needs=("ray",),
+        check=_not_written("o")),
+]
+
+
 def _run(row: Row, argv: list[str], capsys, **places: Path | None) -> tuple[int, str, str]:
     if row.sub:
         env = {**os.environ, "PYTHONPATH": str(REPO), **{k: v.format(**places) for k, v in row.env.items()}}
@@ -2818,6 +2934,8 @@ def _run(row: Row, argv: list[str], capsys, **places: Path | None) -> tuple[int,
 
 @pytest.mark.parametrize("row", ROWS, ids=[r.id for r in ROWS])
 def test_bad_input(row: Row, world: Path, tmp_path: Path, capsys, request):
+    for module in row.needs:
+        pytest.importorskip(module)
     t = tmp_path / "T"
     t.mkdir()
     if row.setup is not None:
@@ -2904,3 +3022,52 @@ def test_ctrl_c_early_in_process_run_stops(world: Path, tmp_path: Path, how: str
     assert proc.returncode == 130, (proc.returncode, stdout, stderr)
     assert "Traceback" not in stderr and "interrupted" in stderr
     assert not list(out.glob(".tmp-*")) if out.exists() else True
+
+
+def test_ray_address_that_does_not_answer_is_refused_after_the_bounded_wait(tmp_path: Path, capsys, monkeypatch):
+    """`wildgen.make --ray HOST:PORT` where nothing answers (a port whose accept queue is full: the kernel drops
+    further connection requests unanswered, as a firewall does) is refused after CONNECT_TIMEOUT_S (set to 1 s
+    here) in one line naming --ray and the address; ray.init() alone waits on such an address for many minutes.
+    The command runs in a thread so that a wait without end fails the test after 120 s instead of hanging it."""
+    pytest.importorskip("ray")
+    import socket
+    import threading
+
+    from wildgen import ray_engine
+    from wildgen.make import main
+
+    monkeypatch.setattr(ray_engine, "CONNECT_TIMEOUT_S", 1.0, raising=False)
+    server = socket.socket()
+    queued = []
+    try:
+        server.bind(("127.0.0.1", 0))
+        server.listen(0)
+        port = server.getsockname()[1]
+        for _ in range(4):  # never accepted: the queue fills, later requests get no answer
+            c = socket.socket()
+            c.setblocking(False)
+            try:
+                c.connect(("127.0.0.1", port))
+            except BlockingIOError:
+                pass
+            queued.append(c)
+        address = f"127.0.0.1:{port}"
+        result: dict = {}
+        capsys.readouterr()
+        t0 = time.monotonic()
+        thread = threading.Thread(target=lambda: result.update(rc=main(["--out", str(tmp_path / "o"), "--ray", address,
+                                                                          *TINY_RAY])), daemon=True)
+        thread.start()
+        thread.join(120)
+        elapsed = time.monotonic() - t0
+    finally:
+        for c in [*queued, server]:
+            c.close()
+    assert not thread.is_alive(), f"--ray {address}: still waiting after {elapsed:.0f} s"
+    err = capsys.readouterr().err
+    assert result["rc"] == 2 and elapsed < 30, (result, elapsed, err)
+    assert "Traceback" not in err
+    errors = [line for line in err.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and "--ray" in errors[0] and f"'{address}'" in errors[0], err
+    assert "no answer within 1 s" in errors[0], err
+    assert not (tmp_path / "o").exists()

@@ -68,7 +68,9 @@ def test_every_command_says_what_it_does_and_where_it_wrote(synthetic_object, tm
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith("training glc-test for 1 steps") and str(tmp_path / "run") in out[0]
     assert out[-1].startswith(f"wrote {tmp_path / 'run' / 'final.safetensors'}")
-    assert predict(["--method", "least-squares", "--input", str(data), "--out", str(tmp_path / "pred")]) == 0
+    # the object folder, not its parent: --out inside --input is refused (a command never writes into what it reads)
+    assert predict(["--method", "least-squares", "--input", str(synthetic_object), "--out",
+                    str(tmp_path / "pred")]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith("predicting 1 object(s) with --method least-squares into") and out[-1].startswith("wrote")
     assert evaluate(["--pred", str(tmp_path / "pred"), "--gt", str(data)]) == 0

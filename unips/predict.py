@@ -29,6 +29,7 @@ from __future__ import annotations
 import logging
 import sys
 import time
+from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -38,7 +39,7 @@ import numpy as np
 from scenes.cli.errors import INPUT_ERRORS, UsageError, one_line, report_error
 from scenes.cli.limits import check_memory, gib
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
-from scenes.cli.outputs import check_output_folder, claim_outputs
+from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import Progress
 from scenes.files import write_json
 from scenes.folder.format import PREDICTION_FILES, PREDICTION_INFO, object_name
@@ -230,11 +231,18 @@ def check_args(argv: list[str]) -> PredictOptions:
 
 def main(argv: list[str] | None = None) -> int:
     """One object: a failure is one line `error: ...`, exit 2. A dataset: a failed object is recorded, the others
-    go on, the failures are listed at the end (`failed NAME: reason`) and the exit status is 1."""
+    go on, the failures are listed at the end (`failed NAME: reason`) and the exit status is 1. --out is held for
+    the length of the run (`scenes.cli.outputs.output_lock`)."""
+    with ExitStack() as held:
+        return _main(argv, held)
+
+
+def _main(argv: list[str] | None, held: ExitStack) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     failures: list[tuple[str, str]] = []
     try:
         args = COMMAND.parse(argv).validate()
+        held.enter_context(output_lock(args.out, inputs={"--input": args.input}))
         folders = find_objects(args.input, "--input")
         single = detect_layout(args.input) is not None
         names = [object_name(f) for f in folders]

@@ -25,6 +25,7 @@ checkpoint, every `--ckpt-every` steps and at the end), `final.safetensors` (+ .
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import logging
 import math
@@ -154,22 +155,25 @@ def _out_of_time(run: Run, budget: Budget, *kinds: str) -> bool:
 def train(cfg: TrainConfig | Sequence[str], started: float | None = None) -> dict[str, Any]:
     """Run training as configured; returns a summary dict. `started`: when --time-limit's clock started (default:
     now)."""
+    from scenes.cli.outputs import output_lock
     from unips.checkpoint import save_checkpoint
 
     started = time.time() if started is None else started
     if not isinstance(cfg, TrainConfig):  # a command line
         cfg = config_from_args(cfg)
     cfg.validate()
-    run = _start(cfg)
-    done, stopped = _loop(run, started)
-    if run.dist.main and (run.start < cfg.steps or not (run.out / "final.safetensors").exists()):
-        save_checkpoint(run.out / "final.safetensors", run.model,
-                        {"step": done if stopped else cfg.steps, "train_args": run.train_args})
-    if run.dist.world > 1:
-        import torch.distributed as tdist
+    # One writer per run folder: rank 0, the process that writes every file, holds it for the whole run.
+    with output_lock(cfg.out) if int(os.environ.get("RANK", "0")) == 0 else contextlib.nullcontext():
+        run = _start(cfg)
+        done, stopped = _loop(run, started)
+        if run.dist.main and (run.start < cfg.steps or not (run.out / "final.safetensors").exists()):
+            save_checkpoint(run.out / "final.safetensors", run.model,
+                            {"step": done if stopped else cfg.steps, "train_args": run.train_args})
+        if run.dist.world > 1:
+            import torch.distributed as tdist
 
-        tdist.barrier()
-        tdist.destroy_process_group()
+            tdist.barrier()
+            tdist.destroy_process_group()
     run.summary["best_val"] = run.best if math.isfinite(run.best) else None
     return run.summary
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 import sys
+from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
@@ -18,7 +19,7 @@ from typing import Annotated
 from scenes.cli.errors import INPUT_ERRORS, report_error
 from scenes.cli.limits import check_threads
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
-from scenes.cli.outputs import check_output_folder, claim_outputs
+from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import progress_bar
 from scenes.folder.format import EXPECTED_ERROR_FILES
 from validate.fitted.refinement import REFINE_OUTPUTS, RefineConfig, refine_object
@@ -99,11 +100,18 @@ def carry_error(stated: tuple[Path, dict], target: Path, report: dict) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The command; --out is held for the length of the run (`scenes.cli.outputs.output_lock`)."""
+    with ExitStack() as held:
+        return _main(argv, held)
+
+
+def _main(argv: list[str] | None, held: ExitStack) -> int:
     try:
         args = COMMAND.parse(argv)
         logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
                             format="%(levelname)s %(name)s: %(message)s")
         config = args.validate().refine
+        held.enter_context(output_lock(args.out, inputs={"--data": args.data}))
         if not Path(args.normals).exists():
             raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
         if not Path(args.data).is_dir():

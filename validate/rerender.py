@@ -26,6 +26,7 @@ from __future__ import annotations
 import logging
 import sys
 import time
+from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated
@@ -35,7 +36,7 @@ import numpy as np
 from scenes.cli.errors import UsageError, report_error
 from scenes.cli.limits import check_threads
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
-from scenes.cli.outputs import check_output_folder, claim_outputs
+from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import progress_bar
 from scenes.files import write_json
 from scenes.folder.format import find_prediction, list_object_folders, object_name
@@ -295,10 +296,16 @@ def main(argv: list[str] | None = None) -> int:
     """One object: a failure is one line `error: ...`, exit 2. A dataset: a failed object is recorded (summary.csv
     row with its error), the others go on, the failures are listed at the end and the exit status is 1.
     A folder without scene.json (DiLiGenT, official UniPS layout) or `--fit`: the fitted mode
-    (validate.fitted.fit_report)."""
+    (validate.fitted.fit_report). --out is held for the length of the run (`scenes.cli.outputs.output_lock`)."""
+    with ExitStack() as held:
+        return _main(argv, held)
+
+
+def _main(argv: list[str] | None, held: ExitStack) -> int:
     failed: dict[str, str] = {}
     try:
         args = COMMAND.parse(argv).validate()
+        held.enter_context(output_lock(args.out, inputs={"--data": args.data}))
         logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
                             format="%(levelname)s %(name)s: %(message)s")
         from scenes.folder.layouts import detect_layout, has_scene

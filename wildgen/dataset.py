@@ -265,14 +265,21 @@ def _remove_dataset(out_dir: Path) -> None:
 def dataset_lock(out_dir: Path) -> Iterator[None]:
     """Hold an exclusive lock on `out_dir` (two runs writing one folder would delete each other's work).
 
-    An advisory `flock`: released by the kernel if the process dies, so a killed run never blocks the
-    next one. Not reliable on every network filesystem; one driver per output folder is the rule.
+    Two advisory `flock`s: LOCK, whose text names the holder (pid and host) for a second wildgen.make, and the
+    folder's own (`scenes.files.folder_lock`), the one every command that writes a folder takes
+    (`scenes.cli.outputs.output_lock`): no other run writes into the folder meanwhile. Released by the kernel
+    if the process dies, so a killed run never blocks the next one. Not reliable on every network filesystem;
+    one driver per output folder is the rule.
     """
     import fcntl
+
+    from scenes.cli.outputs import busy_message
+    from scenes.files import FolderBusy, folder_lock
 
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / LOCK
     fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    held = None
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -281,6 +288,11 @@ def dataset_lock(out_dir: Path) -> Iterator[None]:
             raise DatasetError(
                 f"--out: {str(out_dir)!r} is being written by {holder}; wait for it or use another folder"
             ) from None
+        try:
+            held = folder_lock(out_dir)
+        except FolderBusy:
+            os.unlink(path)
+            raise DatasetError(busy_message(out_dir)) from None
         os.ftruncate(fd, 0)
         os.pwrite(fd, f"pid {os.getpid()} on {socket.gethostname()}\n".encode(), 0)
         try:
@@ -288,6 +300,8 @@ def dataset_lock(out_dir: Path) -> Iterator[None]:
         finally:
             os.unlink(path)
     finally:
+        if held is not None:
+            os.close(held)
         os.close(fd)
 
 

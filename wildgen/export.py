@@ -13,7 +13,8 @@ reads it.
 The export is deterministic (the same folders give the same bytes: fixed member order, mtime 0, uid / gid 0)
 and atomic per shard (each is written under a temporary name and renamed); index.json is written first with
 `complete: false` and rewritten complete at the end, so an interrupted export is never read as a finished one.
---out is locked while an export writes into it (a second export into it is refused), and index.json records
+--out is locked while an export writes into it (a second run into it, of any command, is refused:
+`scenes.cli.outputs.output_lock`), and index.json records
 the dataset folder it was made from (`source`).
 When --data has a manifest.json (wildgen.make, wildgen.sensor), every object it records is checked against its
 checksums first. An existing export in --out (its index.json, shards, and the temporaries of a killed export) is
@@ -31,9 +32,9 @@ from typing import Any, Callable, Literal
 
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, check_fields, option
-from scenes.cli.outputs import check_output_folder, claim_outputs
+from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import progress_bar
-from scenes.files import FolderBusy, folder_lock, temporary_target
+from scenes.files import temporary_target
 from scenes.folder.shard_format import (
     ENCODINGS,
     FORMAT,
@@ -177,16 +178,8 @@ def export_dataset(data: str | Path, out: str | Path, shard_size: int = DEFAULT_
         for folder in folders:
             sample_files(folder, aux)
     check_target(data, out, overwrite, flag)
-    out.mkdir(parents=True, exist_ok=True)
-    try:
-        lock = folder_lock(out)
-    except FolderBusy:
-        raise UsageError(f"{flag}: another export is writing into {str(out)!r}; wait for it or use another "
-                         f"{flag}") from None
-    try:
+    with output_lock(out, flag, inputs={"--data": data}):  # one writer per folder, whatever the command
         return _export_locked(data, out, folders, shard_size, aux, overwrite, progress, flag, encoding)
-    finally:
-        os.close(lock)
 
 
 def _export_locked(data: Path, out: Path, folders: list[Path], shard_size: int, aux: bool, overwrite: bool,

@@ -157,6 +157,9 @@ def check_flags(opts: MakeOptions, explicit: set[str]) -> None:
 
         if not ray_available():
             raise ValueError(f"--ray: Ray is not installed; {RAY_INSTALL}")
+        from wildgen.ray_engine import probe_address
+
+        probe_address(opts.ray)  # an address that does not answer, refused after a bounded wait
 
 
 def resolve_run(args: MakeOptions, explicit: set[str], out: Path) -> tuple[GenConfig, str]:

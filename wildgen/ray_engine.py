@@ -11,6 +11,7 @@ import os
 import socket
 import sys
 import tempfile
+import threading
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,6 +45,76 @@ AUTH_HINT = ("a head started with Ray's token authentication (Ray 2.60 turns it 
              "nodes and drivers with RAY_AUTH_MODE=token and the head's token (~/.ray/auth_token, RAY_AUTH_TOKEN or "
              "RAY_AUTH_TOKEN_PATH); see docs/generator.md, 'Scaling out'")
 """What a driver that cannot join a cluster is told when it has not turned token authentication on."""
+
+
+CONNECT_TIMEOUT_S = 20.0
+"""How long `--ray HOST:PORT` (or ray://HOST:PORT) waits for the address to answer, resolving the host and opening a
+TCP connection to it (`probe_address`), before the run is refused naming --ray and the address: Ray's own
+ray.init() has no time-out and keeps retrying a head that does not answer for many minutes."""
+RAY_HEAD_HINT = "expected the address of a running Ray head (`ray start --head` prints it)"
+
+
+def _host_port(address: str) -> tuple[str, int] | None:
+    """(host, port) of 'HOST:PORT', 'ray://HOST:PORT' or '[IPv6]:PORT'; None for anything else ('auto', 'local')."""
+    rest = address.split("://", 1)[1] if "://" in address else address
+    host, sep, port = rest.rstrip("/").rpartition(":")
+    if not sep or not host or not port.isdigit():
+        return None
+    return host.strip("[]"), int(port)
+
+
+def _reach(host: str, port: int, timeout: float) -> None:
+    """Open (and close) a TCP connection to host:port; raises what socket raises."""
+    socket.create_connection((host, port), timeout=timeout).close()
+
+
+def probe_address(address: str, timeout: float | None = None) -> None:
+    """Refuse a --ray address where no Ray head can answer, before ray.init() waits for it: a host that does not
+    resolve, a port where nothing listens, or no answer within `timeout` seconds (default CONNECT_TIMEOUT_S; the
+    host's name resolution included, in a thread of its own). Raises ConnectionError, one line naming --ray and
+    the address. 'auto', 'local' and addresses without a port are Ray's to read. A loopback host is also tried
+    at the address Ray itself dials for it (this machine's node address)."""
+    target = _host_port(address)
+    if target is None:
+        return
+    host, port = target
+    timeout = CONNECT_TIMEOUT_S if timeout is None else timeout
+    hosts = [host]
+    try:
+        from ray._private.services import resolve_ip_for_localhost  # Ray's own rewrite of 127.0.0.1 / localhost
+
+        if resolve_ip_for_localhost(host) != host:
+            hosts.append(resolve_ip_for_localhost(host))
+    except Exception:  # a private helper of Ray: without it, the address as given
+        pass
+    outcome: dict = {}
+
+    def attempt() -> None:
+        errors = []
+        for h in hosts:
+            try:
+                _reach(h, port, timeout)
+                outcome["ok"] = True
+                return
+            except OSError as exc:
+                errors.append(exc)
+        outcome["error"] = errors[0]
+
+    thread = threading.Thread(target=attempt, name="ray-probe", daemon=True)
+    thread.start()
+    thread.join(timeout * len(hosts))
+    if outcome.get("ok"):
+        return
+    exc = outcome.get("error")
+    if exc is None or isinstance(exc, (TimeoutError, socket.timeout)):
+        why = f"no answer within {timeout:g} s"
+    elif isinstance(exc, socket.gaierror):
+        why = f"the host {host!r} does not resolve: {exc.strerror or exc}"
+    elif isinstance(exc, ConnectionRefusedError):
+        why = "nothing listens there: connection refused"
+    else:
+        why = exc.strerror or str(exc)
+    raise ConnectionError(f"--ray: cannot reach {address!r} ({why}); {RAY_HEAD_HINT}")
 
 
 def _this_node() -> dict:
@@ -121,6 +192,7 @@ class RayEngine:
             return False
         quiet = {"logging_level": logging.WARNING, "log_to_driver": True}
         if self.address and self.address != "auto":
+            probe_address(self.address)  # ray.init() would wait for a silent address for many minutes
             with _held_stderr() as held:  # Ray's C++ core warns once a second while it retries to reach the head
                 try:
                     ray.init(address=self.address, **quiet)

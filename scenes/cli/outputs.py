@@ -1,10 +1,15 @@
 """What a command may write: `check_output_folder` refuses an output folder that cannot be written before any
-work (`make_output_folder` then creates it); `claim_outputs` is the one rule of `--overwrite` (see its
-docstring and docs/development.md, "Outputs and --overwrite").
+work (`make_output_folder` then creates it); `output_lock` holds an output folder for the length of a run (one
+writer per folder; never inside what the run reads); `claim_outputs` is the one rule of `--overwrite` (see their
+docstrings and docs/development.md, "Outputs and --overwrite").
 """
 from __future__ import annotations
 
 import os
+import threading
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable
 
@@ -43,6 +48,117 @@ def make_output_folder(path: str | os.PathLike, flag: str = "--out") -> str | os
     return path
 
 
+@dataclass
+class _Held:
+    """An output folder this process holds (`output_lock`)."""
+
+    folder: str  # absolute, as given (the claims below it are built from it)
+    flag: str
+    inputs: list[tuple[str, str, str]]  # (flag, as given, real path) of what the run reads
+
+
+_HELD: dict[str, _Held] = {}
+"""The output folders this process holds, by real path."""
+_HELD_LOCK = threading.Lock()
+
+
+def busy_message(folder: str | os.PathLike, flag: str = "--out") -> str:
+    """The one line of a folder another run holds (`scenes.files.FolderBusy`)."""
+    return (f"{flag}: another run holds the folder {str(folder)!r} (it is writing there; one writer per output "
+            f"folder): wait for it to end, or use another {flag}")
+
+
+def _inside(real: str, folder: str) -> bool:
+    return real == folder or real.startswith(folder.rstrip(os.sep) + os.sep)
+
+
+def check_apart(path: str | os.PathLike, inputs: Mapping[str, str | os.PathLike | None], flag: str = "--out") -> None:
+    """Refuse an output folder that is one of the folders the run reads (`inputs`: flag -> path; None skipped),
+    lies inside one, or leads into one through a link: a run never writes into its own input (a rerun would read
+    its outputs as input, and --overwrite would replace the input's own files). Creates nothing."""
+    real = os.path.realpath(path)
+    for in_flag, given in inputs.items():
+        if given is None:
+            continue
+        folder = os.path.realpath(given)
+        if not _inside(real, folder):
+            continue
+        where = ("is a link to" if os.path.islink(path) else "is") if real == folder else (
+            "is a link into" if os.path.islink(path) else "lies inside")
+        raise UsageError(f"{flag}: {str(path)!r} {where} {in_flag} {str(given)!r}; expected a folder outside "
+                         f"{in_flag}: a command never writes into what it reads")
+
+
+@contextmanager
+def output_lock(path: str | os.PathLike, flag: str = "--out",
+                inputs: Mapping[str, str | os.PathLike | None] | None = None) -> Iterator[Path]:
+    """Hold the output folder `path` for the length of a run: one writer per output folder.
+
+    Before anything is created: `check_apart` (not inside `inputs`) and `check_output_folder`. Then the folder
+    is created (with its parents) and locked with `scenes.files.folder_lock`, the lock `wildgen.make` and
+    `wildgen.export` take: a second run into it, by any command, is refused in one line naming `flag`
+    (`busy_message`); the kernel releases the lock when a process dies. Folders created here that are still
+    empty when the block ends are removed (a refused run leaves nothing behind). The lock is not re-entrant:
+    taken twice for one folder, in one process too, the second is refused.
+
+    While it is held, `claim_outputs` also refuses an output below it reached through a link (a link inside
+    the folder is never followed out of it) and an output inside one of `inputs`."""
+    from scenes.files import FolderBusy, folder_lock
+
+    inputs = dict(inputs or {})
+    check_apart(path, inputs, flag)
+    check_output_folder(path, flag)
+    created = []
+    parent = os.path.abspath(path)
+    while not os.path.exists(parent):
+        created.append(parent)
+        parent = os.path.dirname(parent)
+    try:
+        make_output_folder(path, flag)
+        try:
+            fd = folder_lock(path)
+        except FolderBusy:
+            raise UsageError(busy_message(path, flag)) from None
+        real = os.path.realpath(path)
+        record = _Held(os.path.abspath(path), flag,
+                       [(f, str(g), os.path.realpath(g)) for f, g in inputs.items() if g is not None])
+        with _HELD_LOCK:
+            _HELD[real] = record
+        try:
+            yield Path(path)
+        finally:
+            with _HELD_LOCK:
+                _HELD.pop(real, None)
+            os.close(fd)
+    finally:
+        for folder in created:  # deepest first
+            try:
+                os.rmdir(folder)
+            except OSError:  # not empty (the run wrote there), or gone
+                break
+
+
+def _check_held(path: Path, owner: str) -> None:
+    """Within the output folders this process holds (`output_lock`): refuse a link on the way from the folder to
+    `path` (it would lead the write out of the folder), and `path` inside what the run reads."""
+    target = os.path.abspath(path)
+    with _HELD_LOCK:
+        held = list(_HELD.values())
+    for h in held:
+        if target.startswith(h.folder.rstrip(os.sep) + os.sep):
+            here = h.folder
+            for part in Path(target[len(h.folder.rstrip(os.sep)) + 1:]).parts[:-1]:
+                here = os.path.join(here, part)
+                if os.path.islink(here):
+                    raise UsageError(f"{h.flag}: {here!r} is a link, where {owner} writes a folder; a link inside "
+                                     f"{h.flag} is never followed: move it away or use another {h.flag}")
+        real = os.path.realpath(target)
+        for in_flag, given, folder in h.inputs:
+            if _inside(real, folder):
+                raise UsageError(f"{h.flag}: {str(path)!r} lies inside {in_flag} {given!r}, where {owner} would write; "
+                                 f"a command never writes into what it reads: use another {h.flag}")
+
+
 def claim_outputs(paths: Iterable[str | os.PathLike], overwrite: bool, flag: str = "--out", owner: str = "this command",
                   marker: str | os.PathLike | None = None, folders: bool = False, resume: str = "") -> list[Path]:
     """The one rule of every command that writes, applied before any work to the outputs it is about to write.
@@ -58,8 +174,13 @@ def claim_outputs(paths: Iterable[str | os.PathLike], overwrite: bool, flag: str
     `folders`: the outputs are folders (e.g. object folders) rather than files. `resume`: how the command
     continues an earlier run instead, for the message (e.g. "--resume to continue it"). Files that are not
     among `paths` are never touched. Returns the outputs that exist (those to be replaced).
+
+    Under `output_lock`, an output reached through a link inside the locked folder, or lying inside one of the
+    run's inputs, is refused too.
     """
     paths = [Path(p) for p in paths]
+    for p in paths:
+        _check_held(p, owner)
     existing = [p for p in paths if os.path.lexists(p)]
     want = "a folder" if folders else "a file"
     for p in existing:
