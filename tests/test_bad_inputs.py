@@ -2827,6 +2827,12 @@ def _released(*checks: Callable[[Path, Path], None]) -> Callable[[Path, Path], N
     return check
 
 
+def _pred_kept(w: Path, t: Path) -> None:
+    """The input prediction (T/pred, a copy of W/pred) is untouched: refine never replaces the map it reads."""
+    assert (t / "pred" / OBJ / "normal.png").read_bytes() == (w / "pred" / OBJ / "normal.png").read_bytes()
+    assert not (t / "pred" / OBJ / "refine_report.json").exists()
+
+
 def _both(*setups: Callable[[Path, Path], None]) -> Callable[[Path, Path], None]:
     def setup(w: Path, t: Path) -> None:
         for s in setups:
@@ -2910,6 +2916,9 @@ ROWS += [
         check=_not_written("00000.data/check")),
     Row("refine-out-is-data", RF, [*REFINE_8, "--out", "{T}/00000.data"], 2, ("--out", "is --data"),
         setup=_capture_copy(images=8), check=_not_written("00000.data/00000")),
+    Row("refine-out-is-normals", RF, ["--data", "{T}/00000.data", "--normals", "{T}/pred", "--out", "{T}/pred",
+                                      "--overwrite"], 2, ("--out", "is --normals"),
+        setup=_both(_capture_copy(images=8), _copy("pred", "pred")), check=_pred_kept),
     # ---- engines that do not answer: --ray ADDRESS refused at once, or after a bounded wait, naming it
     Row("make-ray-nothing-listens", MK, ["--out", "{T}/o", "--ray", "127.0.0.1:1", *TINY_RAY], 2,
         ("--ray", "'127.0.0.1:1'", "connection refused"), sub=True, needs=("ray",), check=_not_written("o")),

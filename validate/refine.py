@@ -111,7 +111,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
                             format="%(levelname)s %(name)s: %(message)s")
         config = args.validate().refine
-        held.enter_context(output_lock(args.out, inputs={"--data": args.data}))
+        held.enter_context(output_lock(args.out, inputs={"--data": args.data, "--normals": args.normals}))
         if not Path(args.normals).exists():
             raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
         if not Path(args.data).is_dir():
