@@ -95,6 +95,8 @@ class CaptureOptions:
     """Refine the map where the physical check can judge the capture (kept only when the check accepts it)."""
     rotation_search: bool = False
     """Let the refinement search a global tilt of the normals (validate.refine --rotation-search)."""
+    rotation_steps: int = option(80, minimum=1)
+    """Adam steps of the light fit at each candidate tilt of --rotation-search (validate.refine --rotation-steps)."""
     threads: Annotated[int | None, arg(help_behavior_hint="(default: one per core)")] = option(None, minimum=1)
     """Dr.Jit threads of the check and the refinement (1: byte-identical run to run)."""
     keep_work: bool = False
@@ -229,7 +231,8 @@ def check_and_refine(opts: CaptureOptions, cap: Capture, out: Path,
         check_judgeable(jc.small, "refine", arg="--input")
     except ValueError as exc:  # the check can judge, the refinement needs more (images with lit pixels)
         return normals, check, {"accepted": False, "why": f"not run: {exc}"}
-    refined, final = refine_judged(jc, replace(RefineConfig(), rotation_search=opts.rotation_search).validate())
+    refined, final = refine_judged(jc, replace(RefineConfig(), rotation_search=opts.rotation_search,
+                                              rotation_steps=opts.rotation_steps).validate())
     write_refined(out / "refine" / cap.name, final, refined)
     return (final if refined["accepted"] else normals), check, refined
 
@@ -420,7 +423,9 @@ def outcome(opts: CaptureOptions, check: dict, refined: dict | None, stated, why
 def main(argv: list[str] | None = None) -> int:
     try:
         opts = COMMAND.parse(argv).validate()
-        with output_lock(opts.out, inputs={"--input": opts.input}):  # one writer, never into --input
+        mask_file = None if opts.mask in ("auto", "none") else opts.mask  # read too: never written over
+        # one writer, never into what it reads
+        with output_lock(opts.out, inputs={"--input": opts.input, "--mask": mask_file}):
             report = run(opts)
     except INPUT_ERRORS as exc:
         return report_error(exc)

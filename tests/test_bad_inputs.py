@@ -2833,6 +2833,16 @@ def _pred_kept(w: Path, t: Path) -> None:
     assert not (t / "pred" / OBJ / "refine_report.json").exists()
 
 
+def _mask_in_out(w: Path, t: Path) -> None:
+    """Setup: T/o/mask.png, the user's mask, where an earlier capture into T/o wrote its own."""
+    _mk(t / "o")
+    shutil.copy(w / "data" / f"{OBJ}.data" / "mask.png", t / "o" / "mask.png")
+
+
+def _same_file(a: Path, b: Path) -> None:
+    assert a.read_bytes() == b.read_bytes(), a
+
+
 def _both(*setups: Callable[[Path, Path], None]) -> Callable[[Path, Path], None]:
     def setup(w: Path, t: Path) -> None:
         for s in setups:
@@ -2900,6 +2910,9 @@ ROWS += [
     Row("capture-out-is-diligent-input-overwrite", CAP, ["--input", "{T}/dil", "--out", "{T}/dil", "--no-refine",
                                                          "--threads", "1", "--overwrite"], 2,
         ("--out", "dil' is --input", "never writes into"), setup=_diligent),
+    Row("capture-mask-is-an-output", CAP, [*CAPTURE, "--mask", "{T}/o/mask.png", "--overwrite"], 2,
+        ("--out", "lies inside --mask"), setup=_both(_photos(), _mask_in_out),
+        check=lambda w, t: _same_file(t / "o" / "mask.png", w / "data" / f"{OBJ}.data" / "mask.png")),
     Row("capture-out-inside-input", CAP, ["--input", "{T}/photos", "--out", "{T}/photos/o", "--mask", WORLD_MASK,
                                           "--no-refine", "--threads", "1"], 2, ("--out", "lies inside --input"),
         setup=_photos(), check=_not_written("photos/o")),
