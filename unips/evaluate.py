@@ -15,6 +15,7 @@ without a prediction is listed as missing and makes the exit status 1 unless ``-
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import logging
@@ -27,7 +28,7 @@ import numpy as np
 
 from scenes.cli.errors import UsageError, one_line, report_error
 from scenes.cli.options import REQUIRED, Command
-from scenes.cli.outputs import check_output_folder, claim_outputs
+from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
 from scenes.files import atomic_write_text, write_json
 from scenes.folder.format import object_name, prediction_file
 from scenes.folder.layouts import detect_layout
@@ -213,7 +214,10 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
         args = COMMAND.parse(argv)
-        summary = evaluate(args.pred, args.gt, overwrite=args.overwrite)
+        with contextlib.ExitStack() as held:
+            if Path(args.pred).is_dir():  # one writer in --pred (a missing one is evaluate's one-line error)
+                held.enter_context(output_lock(args.pred, "--pred"))
+            summary = evaluate(args.pred, args.gt, overwrite=args.overwrite)
     except (UsageError, ValueError, FileNotFoundError, OSError) as exc:
         return report_error(exc)
     print(format_table(summary))
