@@ -36,6 +36,7 @@ import numpy as np
 
 from orchestrate.capture_verdict import level, verdict
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
+from scenes.cli.limits import check_threads
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import stage
@@ -110,6 +111,7 @@ class CaptureOptions:
 
         check_fields(self)
         check_model_name(self.model)
+        check_threads(self.threads, "--threads")  # Dr.Jit would fail later with a traceback
         return self
 
 

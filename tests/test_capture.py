@@ -409,3 +409,25 @@ def test_mask_none_makes_the_whole_frame_the_scene(photos, tmp_path, variant_llv
     n = read_normals(out / "normal.exr")
     assert (np.linalg.norm(n, axis=-1) > 0.5).mean() > 0.99
     assert np.isfinite(np.load(out / "expected_error_deg.npy")).all()
+
+
+def test_exr_photos_of_one_channel_are_grey_and_of_two_are_refused_naming_the_file(tmp_path):
+    """A grey (Y) EXR is read as three equal channels (it used to reach the capture as one channel and fail
+    there); an EXR of two channels is refused naming the file (it was a message about array shapes)."""
+    import OpenEXR
+
+    from scenes.images import write_exr
+
+    grey, two = tmp_path / "grey", tmp_path / "two"
+    grey.mkdir()
+    two.mkdir()
+    rng = np.random.default_rng(0)
+    for i in range(3):
+        write_exr(grey / f"IMG_{i}.exr", rng.uniform(0.1, 1, (6, 8)).astype(np.float32))
+        channels = {c: rng.uniform(0.1, 1, (6, 8)).astype(np.float32) for c in "RG"}
+        with OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}, channels) as f:
+            f.write(str(two / f"IMG_{i}.exr"))
+    photos = read_photos(grey)
+    assert photos.images.shape == (3, 6, 8, 3) and np.array_equal(photos.images[..., 0], photos.images[..., 2])
+    with pytest.raises(ValueError, match=r"IMG_0\.exr' is an EXR of 2 channels"):
+        read_photos(two)

@@ -201,8 +201,11 @@ def _read_one(path: Path, flag: str) -> tuple[np.ndarray, int, dict[str, Any]]:
     if path.suffix.lower() == ".exr":
         from scenes.images import read_exr
 
-        data = read_exr(path)
-        data = np.repeat(data[..., None], 3, axis=2) if data.ndim == 2 else data[..., :3]
+        data = read_exr(path)  # (H, W, C): R, G, B when present, else its channels by name
+        if data.shape[2] not in (1, 3):
+            raise ValueError(f"{flag}: {str(path)!r} is an EXR of {data.shape[2]} channels, expected one (grey) or "
+                             "R, G and B")
+        data = np.repeat(data, 3, axis=2) if data.shape[2] == 1 else data
         return data.astype(np.float64), 32, {}
     import cv2
 
