@@ -433,6 +433,10 @@ def main(argv: list[str] | None = None) -> int:
         return report_error(exc)
     except OSError as exc:
         return report_error(exc, 1)
+    except KeyboardInterrupt:  # Ctrl-C: the user's, not a fault; every file is written whole or not at all
+        print("interrupted: --out holds only the files finished before it (each whole), --input is untouched; run "
+              "the command again with --overwrite", file=sys.stderr)
+        return 130
     print(report["verdict"]["headline"])
     print(report["verdict"]["summary"])
     print(

@@ -4,6 +4,7 @@ not from the code under test."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -431,3 +432,23 @@ def test_exr_photos_of_one_channel_are_grey_and_of_two_are_refused_naming_the_fi
     assert photos.images.shape == (3, 6, 8, 3) and np.array_equal(photos.images[..., 0], photos.images[..., 2])
     with pytest.raises(ValueError, match=r"IMG_0\.exr' is an EXR of 2 channels"):
         read_photos(two)
+
+
+@pytest.mark.slow
+def test_ctrl_c_during_a_capture_is_one_line_and_status_130(photos, tmp_path):
+    """Ctrl-C (SIGINT) in the middle of a capture: one line saying what is left, exit 130, no traceback."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    root = Path(__file__).resolve().parents[1]
+    proc = subprocess.Popen([sys.executable, "-m", "orchestrate.capture", "--input", str(photos), "--out",
+                             str(tmp_path / "o"), "--threads", "1"], cwd=root, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    time.sleep(8)  # past the imports, inside the model or the check
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, (proc.returncode, err[-2000:])
+    lines = [line for line in err.splitlines() if not line.startswith("capture: ")]  # progress lines aside
+    assert lines == [lines[-1]] and lines[-1].startswith("interrupted: ") and "Traceback" not in err, err
