@@ -78,12 +78,13 @@ def grown(obj, px: int = GROW_PX):
 
 def state(net, em, obj) -> tuple[float, np.ndarray, np.ndarray, object]:
     """(stated mean, per-pixel stated (P,), per-pixel true (P,) on the true mask, stated) of `obj`."""
-    from unips.expected_error import angle_deg, gather
+    from scenes.metrics import angles_deg
+    from unips.expected_error import gather
 
     normals, ev = gather(net, obj, tta=net.contract.views)
     st = em.state(ev)
     m = ev.mask & np.any(obj.normals != 0, axis=-1)
-    return st.mean, st.per_pixel[m], angle_deg(normals[m], obj.normals[m]), st
+    return st.mean, st.per_pixel[m], angles_deg(normals[m], obj.normals[m]), st
 
 
 def jpeg_object(obj, quality: int = 95):

@@ -92,24 +92,26 @@ def render_suite(work: Path, assets: str | None, objects: int, seed: int, rows=S
 
 def measure(net, folder: Path | object, max_pixels: int | None = None, rng: np.random.Generator | None = None,
             fault=None) -> dict:
-    """One object's evidence and true error: {'features': (P, F), 'error': (P,), 'evidence': Evidence, 'normals',
-    'truth', 'family', 'images'} (P: all mask pixels, or `max_pixels` of them drawn with `rng`); `folder` an object
-    folder or a loaded PSObject, `fault` one of FAULTS' functions applied to it first."""
+    """One object's evidence and true error: {'features': (P, F), 'error': (P,), 'true_mean' (over every mask
+    pixel), 'evidence': Evidence, 'family', 'images', 'name'} (P: all mask pixels, or `max_pixels` of them drawn with
+    `rng`); `folder` an object folder or a loaded PSObject, `fault` one of FAULTS' functions applied to it first."""
+    from scenes.metrics import angles_deg
     from unips.data import load_object
-    from unips.expected_error import angle_deg, gather
+    from unips.expected_error import gather
 
     obj = load_object(folder) if isinstance(folder, (str, Path)) else folder
     obj = fault(obj) if fault is not None else obj
     if obj.normals is None:
         raise ValueError(f"{folder}: no ground-truth normals")
     normals, ev = gather(net, obj)
-    err = angle_deg(normals[ev.mask], obj.normals[ev.mask])
+    err = angles_deg(normals[ev.mask], obj.normals[ev.mask])
+    true_mean = float(err.mean())
     feats = ev.features()
     if max_pixels is not None and len(err) > max_pixels:
         pick = (rng or np.random.default_rng(0)).choice(len(err), max_pixels, replace=False)
         feats, err = feats[pick], err[pick]
-    return {"features": feats, "error": err, "evidence": ev, "normals": normals, "truth": obj.normals,
-            "family": obj.light_family, "images": obj.num_images, "name": obj.name}
+    return {"features": feats, "error": err, "true_mean": true_mean, "evidence": ev, "family": obj.light_family,
+            "images": obj.num_images, "name": obj.name}
 
 
 def objects_of(datasets: list[Path]) -> list[Path]:
@@ -154,27 +156,20 @@ COMMAND = Command(CalibrationOptions, prog="python -m orchestrate.error_calibrat
 
 def calibrate(samples: list[dict], weights: Path, model_name: str, note: dict) -> "object":
     """The ErrorModel of `samples` (`measure`'s dicts) for `weights` (see the module doc)."""
-    from unips.expected_error import FEATURES, ErrorModel, Evidence, fit, sha256  # noqa: F401
+    from unips.expected_error import FEATURES, ErrorModel, fit, sha256
 
     w, b, mean, std = fit([(s["features"], s["error"]) for s in samples])
     em = ErrorModel(weights_sha256=sha256(weights), model_name=model_name, features=list(FEATURES),
                     mean=mean.tolist(), std=std.tolist(), coef=w.tolist(), intercept=b, scale=1.0,
                     ratio_quantiles=[1.0, 1.0])
     stated = np.array([em.state(s["evidence"]).mean for s in samples])
-    true = np.array([float(np.mean(_all_errors(s))) for s in samples])
+    true = np.array([s["true_mean"] for s in samples])
     ratio = true / stated
     em.scale = float(np.median(ratio))
     em.ratio_quantiles = [float(np.quantile(ratio / em.scale, 0.1)), float(np.quantile(ratio / em.scale, 0.9))]
     em.calibration = {**note, "objects": len(samples), "median_ratio_true_over_fitted": round(em.scale, 4),
                       "true_mean_deg": round(float(true.mean()), 2)}
     return em
-
-
-def _all_errors(s: dict) -> np.ndarray:
-    from unips.expected_error import angle_deg
-
-    m = s["evidence"].mask
-    return angle_deg(s["normals"][m], s["truth"][m])
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -8,12 +8,12 @@ import shutil
 import numpy as np
 import pytest
 
+from scenes.metrics import angles_deg
 from tests.fixtures import render_dataset
 from unips.expected_error import (
     FEATURES,
     FILES,
     ErrorModel,
-    angle_deg,
     evidence_from,
     fit,
     for_weights,
@@ -163,7 +163,7 @@ def _stated_and_true(net, em, obj):
 
     normals, ev = gather(net, obj, tta=net.contract.views)
     st = em.state(ev)
-    return st, float(angle_deg(normals[obj.mask], obj.normals[obj.mask]).mean())
+    return st, float(angles_deg(normals[obj.mask], obj.normals[obj.mask]).mean())
 
 
 @pytest.mark.slow

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from scenes.folder.format import EXPECTED_ERROR_FILES
+from scenes.metrics import angles_deg
 
 LIT = 0.1
 """A pixel counts as lit in an image above this share of its brightest value over the images (shadowed below)."""
@@ -42,13 +43,6 @@ SUFFIX = ".expected_error.json"
 """The fitted model of weights `W.safetensors` is `W.expected_error.json` beside them."""
 INTERVAL = 0.8
 """The stated interval should hold the true mean error this often (the 10th to the 90th percentile)."""
-
-
-def angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Angle (deg) between the vectors of (..., 3) arrays `a` and `b` (normalised here)."""
-    a = a / np.maximum(np.linalg.norm(a, axis=-1, keepdims=True), 1e-12)
-    b = b / np.maximum(np.linalg.norm(b, axis=-1, keepdims=True), 1e-12)
-    return np.degrees(np.arccos(np.clip((a * b).sum(-1), -1.0, 1.0))).astype(np.float32)
 
 
 @dataclass
@@ -94,7 +88,7 @@ def evidence_from(normals: np.ndarray, views: list[np.ndarray], half_maps: tuple
     def inside(x: np.ndarray) -> np.ndarray:
         return np.where(mask, x, 0.0).astype(np.float32)
 
-    return Evidence(views_deg=inside(angle_deg(views[0], views[1])), halves_deg=inside(angle_deg(*half_maps)),
+    return Evidence(views_deg=inside(angles_deg(views[0], views[1])), halves_deg=inside(angles_deg(*half_maps)),
                     lit=lit_share(images, mask), grazing=inside(1.0 - np.clip(normals[..., 2], -1.0, 1.0)),
                     edge_px=ndimage.distance_transform_edt(mask).astype(np.float32), mask=mask.astype(bool),
                     images=int(len(images)))
