@@ -88,20 +88,20 @@ def state(net, em, obj) -> tuple[float, np.ndarray, np.ndarray, object]:
 
 
 def jpeg_object(obj, quality: int = 95):
-    """`obj` as 8-bit sRGB JPEG photos read back linear (each image scaled to its own brightest value first, as a
-    camera's exposure would)."""
+    """`obj` as 8-bit sRGB JPEG photos read back linear, as `orchestrate.capture` reads 8-bit photos (the sRGB curve
+    both ways, `scenes.colors`), all images scaled by one factor first (the brightest mask value to 1): one exposure
+    for every photo, their relative brightness kept."""
     import cv2
 
-    from scenes.images import codes_to_linear
+    from scenes.colors import linear_to_srgb, srgb_to_linear
 
     out = []
     top = float(obj.images[:, obj.mask].max())
     for im in obj.images:
-        srgb = np.clip(im / max(top, 1e-12), 0, 1) ** (1 / 2.2)
-        ok, buf = cv2.imencode(".jpg", (srgb[..., ::-1] * 255 + 0.5).astype(np.uint8),
-                               [cv2.IMWRITE_JPEG_QUALITY, quality])
+        codes = np.round(np.clip(linear_to_srgb(np.clip(im / max(top, 1e-12), 0, 1)), 0, 1) * 255).astype(np.uint8)
+        ok, buf = cv2.imencode(".jpg", codes[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, quality])
         back = cv2.imdecode(buf, cv2.IMREAD_COLOR)[..., ::-1]
-        out.append(codes_to_linear(back))
+        out.append(srgb_to_linear(back / 255.0))
     return dataclasses.replace(obj, images=np.stack(out).astype(np.float32))
 
 
