@@ -164,7 +164,7 @@ SCENES_LAYER = {
     "scenes.dependencies": 0, "scenes.checks": 0, "scenes.colors": 0, "scenes.detail": 0, "scenes.procedural": 0,
     # 1: the scene description and what it is made of
     "scenes.description": 1, "scenes.lights": 1, "scenes.camera_sensor": 1, "scenes.geometry": 1, "scenes.meshes": 1,
-    "scenes.envmaps": 1, "scenes.textures": 1,
+    "scenes.envmaps": 1, "scenes.textures": 1, "scenes.surface": 1,
     # 2: siblings that stand on the description: the object folder on disk, and Mitsuba
     "scenes.folder": 2, "scenes.renderer": 2,
 }

@@ -1,0 +1,101 @@
+"""The inputs of the integrator, checked: a normal map, its mask and the camera's intrinsics.
+
+Each check raises a ValueError whose message starts with the flag the value came from and says what was
+expected, so that a command turns it into one line (`scenes.cli.errors.report_error`)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from scenes.surface.integrate import FACING_AWAY_LIMIT, Intrinsics
+
+UNIT_TOLERANCE = 0.1
+"""A normal counts as unit length when | |n| - 1 | is at most this (16-bit PNG quantisation and resampling stay
+far below it)."""
+UNIT_SHARE = 0.99
+"""The share of the mask's normals that must be unit length; the rest are renormalised."""
+MIN_PIXELS = 4
+"""The fewest mask pixels worth integrating."""
+CENTRE_SLACK = 0.25
+"""The principal point may lie this fraction of the image size from the image centre; further, the intrinsics
+are taken to belong to another image size."""
+
+
+def check_normals(normals: np.ndarray, mask: np.ndarray, flag: str = "--normals") -> np.ndarray:
+    """Unit camera-frame normals over `mask` (H, W, 3) float64: NaN, a map that is not unit length, or one whose
+    normals face away from the camera are refused."""
+    n = np.asarray(normals, np.float64)
+    inside = n[mask]
+    bad = ~np.isfinite(inside).all(axis=1)
+    if bad.any():
+        raise ValueError(f"{flag}: {int(bad.sum())} normal(s) inside the mask are NaN or infinite; expected finite "
+                         "unit vectors over the whole mask")
+    length = np.linalg.norm(inside, axis=1)
+    unit = np.abs(length - 1.0) <= UNIT_TOLERANCE
+    if unit.mean() < UNIT_SHARE:
+        raise ValueError(f"{flag}: {100 * (1 - unit.mean()):.1f}% of the normals inside the mask are not unit "
+                         f"length (median length {np.median(length):.3f}); expected unit vectors (a 16-bit map "
+                         "stores (n + 1) / 2)")
+    away = inside[:, 2] < 0
+    if away.mean() > FACING_AWAY_LIMIT:
+        raise ValueError(f"{flag}: {100 * away.mean():.1f}% of the normals inside the mask face away from the camera "
+                         f"(n_z < 0; at most {100 * FACING_AWAY_LIMIT:.0f}% may); expected the camera frame x right, "
+                         "y up, z toward the camera")
+    out = np.zeros_like(n)
+    out[mask] = inside / np.maximum(length, 1e-12)[:, None]
+    return out
+
+
+def check_mask(mask: np.ndarray, shape: tuple[int, int], flag: str = "--mask") -> np.ndarray:
+    """A (H, W) bool mask of the normal map's size with at least `MIN_PIXELS` pixels and one neighbour pair."""
+    mask = np.asarray(mask)
+    if mask.shape != tuple(shape):
+        raise ValueError(f"{flag}: mask is {'x'.join(map(str, mask.shape))}, the normal map {shape[0]}x{shape[1]}; "
+                         "expected the same height and width")
+    mask = mask.astype(bool)
+    if int(mask.sum()) < MIN_PIXELS:
+        raise ValueError(f"{flag}: the mask has {int(mask.sum())} pixel(s); expected at least {MIN_PIXELS}")
+    if not ((mask[:, 1:] & mask[:, :-1]).any() or (mask[1:] & mask[:-1]).any()):
+        raise ValueError(f"{flag}: no two mask pixels are neighbours; expected a region, not scattered pixels")
+    return mask
+
+
+def check_intrinsics(k: np.ndarray, shape: tuple[int, int], flag: str = "--intrinsics") -> Intrinsics:
+    """A 3 x 3 pinhole matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] for an image of `shape` (H, W)."""
+    k = np.asarray(k, np.float64)
+    if k.shape != (3, 3):
+        raise ValueError(f"{flag}: intrinsics of shape {'x'.join(map(str, k.shape))}; expected a 3 x 3 matrix "
+                         "[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]")
+    if not np.isfinite(k).all():
+        raise ValueError(f"{flag}: the intrinsics hold NaN or infinite values; expected a finite 3 x 3 matrix")
+    if k[0, 0] <= 0 or k[1, 1] <= 0:
+        raise ValueError(f"{flag}: focal lengths fx = {k[0, 0]:g}, fy = {k[1, 1]:g}; expected both above 0 (pixels)")
+    if abs(k[0, 1]) > 1e-9 or k[1, 0] or k[2, 0] or k[2, 1] or abs(k[2, 2] - 1) > 1e-9:
+        raise ValueError(f"{flag}: expected [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (no skew), got "
+                         f"{np.array2string(k, separator=', ')}")
+    h, w = shape
+    cx, cy = k[0, 2], k[1, 2]
+    if abs(cx - (w - 1) / 2) > CENTRE_SLACK * w or abs(cy - (h - 1) / 2) > CENTRE_SLACK * h:
+        raise ValueError(f"{flag}: principal point ({cx:g}, {cy:g}) is far from the centre of the {w} x {h} normal "
+                         "map; expected intrinsics for this image size")
+    return Intrinsics.from_matrix(k)
+
+
+def read_intrinsics(path: str | Path, shape: tuple[int, int], flag: str = "--intrinsics") -> Intrinsics:
+    """Intrinsics from a text file of 3 rows of 3 numbers (np.savetxt of K)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{flag}: {str(path)!r} does not exist")
+    try:
+        k = np.loadtxt(path, dtype=np.float64, ndmin=2)
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{flag}: cannot read {path} as numbers ({exc}); expected 3 rows of 3 numbers") from None
+    return check_intrinsics(k, shape, flag)
+
+
+def focal_intrinsics(focal_px: float, shape: tuple[int, int], flag: str = "--focal-px") -> Intrinsics:
+    """Square pixels of focal length `focal_px`, the principal point at the image centre."""
+    if not np.isfinite(focal_px) or focal_px <= 0:
+        raise ValueError(f"{flag}: {focal_px!r}; expected a focal length above 0 in pixels")
+    return Intrinsics.from_focal(focal_px, *shape)
