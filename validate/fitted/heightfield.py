@@ -4,10 +4,8 @@ Frame: camera frame x right, y up, z toward the camera; pixel (i, j) (row i from
 at x = (j + 0.5 - W / 2) * s, y = (H / 2 - i - 0.5) * s, with s = 2 / max(H, W) (the image spans [-1, 1]
 along its longer side). Heights are in the same units.
 
-Integration is least squares over the mask: for horizontal neighbours z[i, j+1] - z[i, j] equals the mean
-of -nx / nz at the two pixels, for vertical neighbours z[i+1, j] - z[i, j] the mean of +ny / nz (rows go
-down, y goes up); nz is clamped to `min_nz` so that slopes at the silhouette stay finite. A tiny pull to 0
-fixes the free offset of each connected region.
+Integration is the toolkit's one integrator (`scenes.surface.integrate`, orthographic): bilateral normal
+integration, which keeps depth jumps instead of smearing them; the mesh leaves out the triangles across them.
 """
 from __future__ import annotations
 
@@ -45,69 +43,39 @@ def pixel_positions(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     return np.stack([(jj + 0.5 - w / 2) * s, (h / 2 - ii - 0.5) * s], 1), np.stack([ii, jj], 1), s
 
 
-def integrate(normals: np.ndarray, mask: np.ndarray, min_nz: float = 0.15, damping: float = 1e-6) -> np.ndarray:
-    """Least-squares height field (H, W) in pixel units from camera-frame normals (H, W, 3) over `mask`."""
-    import scipy.sparse as sp
-    from scipy.sparse.linalg import spsolve
+def integrate(normals: np.ndarray, mask: np.ndarray, min_nz: float = 0.15) -> tuple[np.ndarray, object]:
+    """Height field (H, W) in pixel units (0 outside the mask, median 0) from camera-frame normals (H, W, 3), by the
+    toolkit's one integrator (`scenes.surface.integrate`, orthographic, depth jumps kept), and its Surface.
 
-    h, w = mask.shape
-    idx = -np.ones((h, w), np.int64)
-    idx[mask] = np.arange(int(mask.sum()))
-    nz = np.maximum(normals[..., 2].astype(np.float64), min_nz)
-    p = -normals[..., 0] / nz  # dz / dx (x right), per pixel
-    q = normals[..., 1] / nz  # dz / d(row) (rows go down, y up)
-    rows, cols, vals, rhs = [], [], [], []
-    r = 0
-    for di, dj, g in ((0, 1, p), (1, 0, q)):
-        a = mask[: h - di, : w - dj] & mask[di:, dj:]
-        ia, ja = np.nonzero(a)
-        i0, i1 = idx[ia, ja], idx[ia + di, ja + dj]
-        n = len(i0)
-        eq = np.arange(r, r + n)
-        rows += [eq, eq]
-        cols += [i1, i0]
-        vals += [np.ones(n), -np.ones(n)]
-        rhs.append(0.5 * (g[ia, ja] + g[ia + di, ja + dj]))
-        r += n
-    m = int(mask.sum())
-    A = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(r, m))
-    b = np.concatenate(rhs) if rhs else np.zeros(0)
-    z = spsolve((A.T @ A + damping * sp.identity(m)).tocsc(), A.T @ b)
-    out = np.zeros((h, w))
-    out[mask] = z - np.median(z)
-    return out
+    nz is raised to `min_nz` first: a judged map may hold normals facing away from the camera, which the
+    integrator refuses; here they only make the silhouette steeper."""
+    from scenes.surface.integrate import integrate as integrate_surface
+
+    n = np.asarray(normals, np.float64).copy()
+    n[..., 2] = np.maximum(n[..., 2], min_nz)
+    n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-12)
+    surface = integrate_surface(n, mask)
+    out = np.zeros(mask.shape)
+    height = -surface.depth[mask]  # depth grows away from the camera, height toward it
+    out[mask] = height - np.median(height)
+    return out, surface
 
 
-def build(normals: np.ndarray, mask: np.ndarray, min_nz: float = 0.15, max_step: float = 3.0) -> HeightField:
+def build(normals: np.ndarray, mask: np.ndarray, min_nz: float = 0.15) -> HeightField:
     """Integrate `normals` (H, W, 3) over `mask` and triangulate the mask pixel centres.
 
-    Triangles with a height step above `max_step` pixels between two of their corners are left out: they
-    are the walls a continuous height field puts across depth discontinuities (e.g. a head in front of a
-    body), which would otherwise cast false shadows (seen on DiLiGenT cat)."""
+    No triangle spans a depth discontinuity the integrator found (`scenes.surface.mesh.faces`): a wall across a
+    jump (e.g. a head in front of a body) would otherwise cast false shadows (seen on DiLiGenT cat)."""
+    from scenes.surface.mesh import faces
+
     h, w = mask.shape
-    z_px = integrate(normals, mask, min_nz)
+    z_px, surface = integrate(normals, mask, min_nz)
     xy, ij, s = pixel_positions(mask)
     z = z_px * s
     idx = -np.ones((h, w), np.int64)
     idx[mask] = np.arange(int(mask.sum()))
     positions = np.concatenate([xy, z[mask][:, None]], 1).astype(np.float32)
-    tl, tr = idx[:-1, :-1], idx[:-1, 1:]
-    bl, br = idx[1:, :-1], idx[1:, 1:]
-    faces = []
-    full = (tl >= 0) & (tr >= 0) & (bl >= 0) & (br >= 0)
-    faces.append(np.stack([tl[full], bl[full], br[full]], 1))
-    faces.append(np.stack([tl[full], br[full], tr[full]], 1))
-    for a, b, c, sel in (  # blocks with exactly three mask pixels: one triangle
-        (tl, bl, br, (tr < 0) & (tl >= 0) & (bl >= 0) & (br >= 0)),
-        (tl, br, tr, (bl < 0) & (tl >= 0) & (br >= 0) & (tr >= 0)),
-        (tl, bl, tr, (br < 0) & (tl >= 0) & (bl >= 0) & (tr >= 0)),
-        (bl, br, tr, (tl < 0) & (bl >= 0) & (br >= 0) & (tr >= 0)),
-    ):
-        faces.append(np.stack([a[sel], b[sel], c[sel]], 1))
-    faces_arr = np.concatenate(faces).astype(np.int64)
-    zf = z_px[mask][faces_arr]  # (F, 3) corner heights in pixels
-    keep = (zf.max(1) - zf.min(1)) <= max_step
-    faces_arr = faces_arr[keep].astype(np.uint32)
+    faces_arr = faces(mask, surface.edge_cut_u, surface.edge_cut_v).astype(np.uint32)
     return HeightField(z=z, mask=mask, pixel_size=s, positions=positions, faces=faces_arr, pixel_index=idx)
 
 
