@@ -193,7 +193,34 @@ def expected_error(card: dict) -> str:
                               "sparsification ratio"], rows))
 
 
-BENCH_BLOCKS = {"model:shards-throughput": SHARDS_BENCH, "capture:resources": CAPTURE_BENCH,
+SURFACE_BENCH = REPO / "bench" / "results" / "surface.json"
+"""The output of `python bench/bench_surface.py --work WORK` (committed)."""
+
+
+def surface_integration(card: dict) -> str:
+    """Per case family: MADE of ours, the reference BiNI and least squares (all pixels and near true depth jumps),
+    and the whole-process times side by side."""
+    d = json.loads(SURFACE_BENCH.read_text())
+    methods = ("ours", "reference", "least_squares")
+
+    def cell(v):
+        return "-" if v is None else f"{v:.4f}"
+
+    rows = [[r["cases"], str(r["count"])] + [cell(r[m]) for m in methods]
+            + [cell(r[f"{m}_near_jumps"]) if not r["cases"].endswith("(mm)") else "-" for m in methods]
+            for r in d["rows"]]
+    w = d["whole_process_seconds"]
+    return (f"`{d['command']}` ({d['machine']}; renders: {d['objects']} objects a family, seed {d['seed']}, "
+            f"assets {d['assets']}). MADE after one global scale (perspective) or the known pixel size and one offset "
+            "(orthographic); near jumps: pixels within 3 px of a true depth jump. Whole processes over all "
+            f"{len(d['cases'])} cases: ours {w['ours']:.1f} s, the reference {w['reference']:.1f} s "
+            f"(ratio {w['ours'] / w['reference']:.2f}), least squares {w['least_squares']:.1f} s.\n\n"
+            + markdown_table(["cases", "count", "ours", "reference BiNI", "least squares", "ours near jumps",
+                              "BiNI near jumps", "least squares near jumps"], rows))
+
+
+BENCH_BLOCKS = {"model:shards-throughput": SHARDS_BENCH, "surface:bench": SURFACE_BENCH,
+                "capture:resources": CAPTURE_BENCH,
                 "check:resolution": VERDICT_BENCH, "check:verdict-sweep": VERDICT_SWEEP_BENCH,
                 "generator:profile": PROFILE_BENCH,
                 "generator:cycles": CYCLES_BENCH, "model:expected-error": EXPECTED_ERROR_BENCH}

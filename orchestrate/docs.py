@@ -31,6 +31,7 @@ from orchestrate.bench_docs import (
     expected_error,
     render_profile,
     shards_throughput,
+    surface_integration,
     verdict_sweep,
 )
 from scenes.cli.errors import UsageError, report_error
@@ -59,6 +60,7 @@ CLIS = (
     "orchestrate.ship",
     "orchestrate.error_calibration",
     "orchestrate.capture",
+    "orchestrate.surface",
     "orchestrate.docs",
 )
 
@@ -386,6 +388,7 @@ BLOCKS: dict[str, Callable[[dict], str]] = {
     "generator:profile": render_profile,
     "generator:cycles": cycles_speed,
     "model:expected-error": expected_error,
+    "surface:bench": surface_integration,
 }
 
 

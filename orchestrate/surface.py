@@ -76,7 +76,11 @@ def load_inputs(args: SurfaceOptions):
     normals = read_normals(args.normals, "--normals")
     shape = normals.shape[:2]
     if args.mask is not None:
-        mask = check_mask(read_mask(args.mask), shape, "--mask")
+        try:
+            mask = read_mask(args.mask)
+        except ValueError as exc:  # the reader's messages name the file, not the flag
+            raise ValueError(f"--mask: {exc}") from None
+        mask = check_mask(mask, shape, "--mask")
     else:
         mask = check_mask(np.abs(normals).sum(-1) > 0, shape, "--normals (its non-zero pixels, no --mask)")
     normals = check_normals(normals, mask, "--normals")

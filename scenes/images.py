@@ -463,4 +463,4 @@ def read_normals(path: str | Path, arg: str = "normal map") -> np.ndarray:
     else:
         raise ValueError(f"{arg}: unsupported normal-map extension {suffix!r} for {path} "
                          "(expected .png, .tif, .tiff, .exr, .npy or .mat)")
-    return check_normal_array(n, f"normal map {path}")
+    return check_normal_array(n, f"{arg}: normal map {path}" if arg != "normal map" else f"normal map {path}")

@@ -69,7 +69,9 @@ class IntegrationConfig:
     max_iter: int = 150
     """Most reweighting iterations."""
     tol: float = 1e-4
-    """Stop when the energy changes by less than this fraction between two iterations."""
+    """Stop when the energy changes by less than this fraction between two iterations ..."""
+    weight_tol: float = 0.05
+    """... and no side weight changed by more than this in the last iteration."""
     cg_rtol: float = 1e-4
     """Relative residual of each conjugate-gradient solve (against the right-hand side)."""
     cg_max_iter: int = 500
@@ -279,9 +281,13 @@ def _solve(sy: _System, config: IntegrationConfig):
         lf[0, sy.i[:nu]], lf[1, sy.i[nu:]] = sy.a_f[:nu] * d[:nu], sy.a_f[nu:] * d[nu:]
         lb[0, sy.j[:nu]], lb[1, sy.j[nu:]] = sy.a_b[:nu] * d[:nu], sy.a_b[nu:] * d[nu:]
         s = 1.0 / (1.0 + np.exp(np.clip(-config.k * (lb ** 2 - lf ** 2), -700, 700)))
+        moved = float(np.abs(np.where(both, s, sy.has_f) - wf).max()) if p else 0.0
         wf = np.where(both, s, sy.has_f.astype(float))
         wb = np.where(both, 1.0 - s, sy.has_b.astype(float))
-        done = energy is not None and abs(new_energy - energy) <= config.tol * max(energy, 1e-300)
+        # Stop when the energy has settled and the weights no longer move: a flat start (the smooth surface fits
+        # well while the weights have barely begun to find a jump) must not pass for convergence.
+        done = (energy is not None and abs(new_energy - energy) <= config.tol * max(energy, 1e-300)
+                and moved <= config.weight_tol)
         energy = new_energy
         if done:
             break
