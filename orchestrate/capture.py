@@ -73,7 +73,8 @@ class CaptureOptions:
     layouts."""
     out: Annotated[str, arg(metavar="DIR")] = REQUIRED
     """Output folder: normal.png, normal.exr, normal_model.png, mask.png, mask_overlay.png, light_variation.png,
-    expected_error_deg.npy / .exr, expected_error.png, report.json and report.html (docs/capture.md, "Outputs")."""
+    expected_error_deg.npy / .exr, expected_error.png, report.json, report.html and surface/ (docs/capture.md,
+    "Outputs")."""
     mask: Annotated[str, arg(metavar="{FILE,auto,none}")] = "auto"
     """Object mask (white object on black, the size of the photos), or 'auto' to find it from how the light
     changes each pixel (refused in one line where it cannot), or 'none': the whole frame is the scene (a table
@@ -309,6 +310,8 @@ def load_network_first(opts: CaptureOptions) -> tuple[object, float]:
 def run(opts: CaptureOptions) -> dict:
     """The whole command (main without the error handling); returns report.json's content. Each stage says when it
     starts, that it is alive at least every 10 s, and when it ends (`scenes.cli.progress.stage`, on stderr)."""
+    from orchestrate.capture_surface import SHADED_PICTURE, write_capture_surface
+    from scenes.surface.write import SURFACE_DIR, surface_outputs
     from validate.diagnosis.usable import as_dicts, capture_warnings, image_count_warning, light_warnings, mask_doubts
     from validate.fitted.fit_report import CHECK_OUTPUTS
     from validate.fitted.refinement import REFINE_OUTPUTS
@@ -323,7 +326,8 @@ def run(opts: CaptureOptions) -> dict:
     with stage("capture", f"reading {k} photos of {w} x {h} px (the whole run: about {need['seconds']:.0f} s, "
                f"{need['peak_mib']} MiB at most)"):
         read = read_input(opts)
-    stages = {"check": [out / "check" / read.name / n for n in CHECK_OUTPUTS],
+    stages = {"surface": surface_outputs(out / SURFACE_DIR, ("ply",)) + [out / SURFACE_DIR / SHADED_PICTURE],
+              "check": [out / "check" / read.name / n for n in CHECK_OUTPUTS],
               "refine": [out / "refine" / read.name / n for n in REFINE_OUTPUTS]}
     claim_outputs([p for paths in stages.values() for p in paths], opts.overwrite, owner="orchestrate.capture")
     claim_outputs([out / "work" / f"{read.name}.data"] if opts.keep_work else [], opts.overwrite,
@@ -367,11 +371,15 @@ def run(opts: CaptureOptions) -> dict:
     times["check_and_refine_s"] = time.perf_counter() - t1
     final = np.where(mask[..., None], final, 0.0)
     write_maps(opts, out, read.images, mask, final, model_map, stated)
+    t1 = time.perf_counter()
+    with stage("capture", "the surface from the final map"):
+        surface = write_capture_surface(out / SURFACE_DIR, final, mask, read.meta["input"])
+    times["surface_s"] = time.perf_counter() - t1
     times["total_s"] = time.perf_counter() - t0
     report = {"input": {"folder": str(opts.input), "images": len(read.image_names), "names": read.image_names,
                         "size": list(read.images.shape[1:3]), **read.meta["input"]},
               "mask": {**mask_info, "pixels": int(mask.sum())},
-              "warnings": as_dicts(warnings), "measurements": facts,
+              "warnings": as_dicts(warnings), "measurements": facts, "surface": surface,
               **outcome(opts, check, refined, stated, why_unstated, warnings),
               "stages": {"check": "check/" + cap.name + "/report.json",
                          "refine": ("refine/" + cap.name + "/refine_report.json") if refined and "mode" in refined
@@ -442,7 +450,7 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"wrote {Path(opts.out) / 'normal.png'}, normal.exr, mask.png, mask_overlay.png, light_variation.png, "
         + ("expected_error_deg.npy, .exr, expected_error.png, " if report["expected_error_deg"] else "")
-        + f"report.json and report.html ({len(report['warnings'])} warning(s))"
+        + f"report.json, report.html and surface/ ({len(report['warnings'])} warning(s))"
     )
     return 0
 

@@ -142,6 +142,7 @@ table {{ border-collapse: collapse; }} td, th {{ border: 1px solid #ccc; padding
 {final_map}
 {_figure("Expected error", pictures.get("expected_error"), expected)}
 {_figure("The model's map before refinement", pictures.get("model_normals"), "shown where the map was refined")}
+{_figure("The surface", pictures.get("surface"), _surface_caption(report.get("surface")))}
 <h2>The physical check</h2>
 {residual_figure}
 {_figure("Explained", pictures.get("explained"), "where the fitted light explains the photos (the judged part)")}
@@ -154,6 +155,13 @@ table {{ border-collapse: collapse; }} td, th {{ border: 1px solid #ccc; padding
 </main></body></html>
 """
     atomic_write_text(path, body)
+
+
+def _surface_caption(surface: dict | None) -> str:
+    if not surface:
+        return ""
+    return (f"the final map integrated into a surface ({surface['camera']}) and rendered under one light from the "
+            f"upper left; {surface['discontinuity_pixels']} pixels beside a depth jump; depth map and mesh in surface/")
 
 
 def _pct(x: float | None) -> str:
@@ -173,4 +181,5 @@ def pictures(out: Path, name: str, images: np.ndarray, names: list[str], mask: n
             "model_normals": _png_data(normal_visual(model)[..., ::-1]) if refined else None,
             "expected_error": _file_data(out / "expected_error.png"),
             "check_figure": _file_data(out / "check" / name / "figure.png"),
-            "explained": _file_data(out / "check" / name / "explained.png")}
+            "explained": _file_data(out / "check" / name / "explained.png"),
+            "surface": _file_data(out / "surface" / "shaded.png")}

@@ -256,6 +256,9 @@ def test_photos_in_a_normal_map_out_in_both_conventions(photos, tmp_path, varian
         assert np.isfinite(per[read_mask(out / "mask.png")]).all() and np.isnan(per[~read_mask(out / "mask.png")]).all()
         assert report["estimate"]["peak_mib"] > 0 and report["peak_memory_mib"] > 0
         assert read_normals(out / "normal_model.png").shape == (96, 96, 3)  # the model's map, kept beside
+        depth = np.load(out / "surface" / "depth.npy")  # the final map's surface, orthographic (no EXIF focal)
+        assert np.isfinite(depth[read_mask(out / "mask.png")]).all() and report["surface"]["camera"].startswith("ortho")
+        assert (out / "surface" / "mesh.ply").is_file() and (out / "surface" / "shaded.png").is_file()
         mask = read_mask(out / "mask.png")
         assert (mask & M96).sum() / (mask | M96).sum() >= 0.95
     gl, cv = outs["opengl"], outs["opencv"]
@@ -301,7 +304,7 @@ def test_report_html_is_a_page_in_a_real_browser(photos, tmp_path, variant_llvm_
         [browser, *flags, "--dump-dom", page.as_uri()], capture_output=True, text=True, timeout=120
     ).stdout
     assert report["verdict"]["summary"][:20] in dom and report["verdict"]["summary"].startswith("The images can")
-    assert report["verdict"]["headline"] in dom and 'alt="Expected error"' in dom
+    assert report["verdict"]["headline"] in dom and 'alt="Expected error"' in dom and 'alt="The surface"' in dom
     assert dom.count('src="data:image/png;base64,') >= 6 and "What to improve in the capture" in dom
     shot = tmp_path / "shot.png"
     subprocess.run([browser, *flags, "--window-size=1000,1400", f"--screenshot={shot}", page.as_uri()],

@@ -385,3 +385,45 @@ def test_cli_writes_depth_mesh_and_report_and_needs_overwrite_to_replace_them(tm
     assert {p.name for p in out.iterdir()} == names
     # The same depth again (not bit for bit: pyamg draws a random start vector for its spectral radius estimate).
     np.testing.assert_allclose(np.load(out / "depth.npy"), d, rtol=1e-5)
+
+
+# ---------------------------------------------------------------- the capture's camera and the shaded picture
+
+
+def test_exif_35mm_focal_length_is_read_and_gives_the_capture_a_pinhole_camera(tmp_path):
+    """A JPEG's EXIF FocalLengthIn35mmFilm is read; one value for all photos gives f_px = f35 * diagonal / 43.27 mm,
+    photos that disagree or say nothing give an orthographic camera."""
+    from PIL import Image
+
+    from orchestrate.capture_surface import capture_camera
+    from scenes.folder.photos import _read_exif
+
+    exif = Image.Exif()
+    exif.get_ifd(0x8769)[0xA405] = 28
+    Image.fromarray(np.full((30, 40, 3), 128, np.uint8)).save(tmp_path / "a.jpg", exif=exif)
+    assert _read_exif(tmp_path / "a.jpg")["focal_35mm_mm"] == 28.0
+    intr, said = capture_camera({"exposure": [{"focal_35mm_mm": 28.0}] * 3}, (300, 400))
+    assert intr is not None and said.startswith("perspective")
+    assert intr.fx == pytest.approx(28.0 * 500.0 / np.hypot(36.0, 24.0)) and intr.cx == pytest.approx(199.5)
+    assert capture_camera({"exposure": [{"focal_35mm_mm": 28.0}, {"focal_35mm_mm": 50.0}]}, (30, 40))[0] is None
+    assert capture_camera({"exposure": [{}, {}]}, (30, 40))[0] is None
+
+
+def test_the_shaded_surface_of_a_plane_is_lambertian_under_the_sun_and_the_sky(variant_llvm_ad_rgb):
+    """A flat square facing the camera, rendered by Mitsuba: radiance = albedo (n.l / pi + ambient), the analytic
+    Lambertian value of a directional light of irradiance 1 and a uniform sky, in both camera models."""
+    from scenes.renderer.shaded import AMBIENT, LIGHT_FROM, shaded_surface
+    from scenes.surface.mesh import faces
+
+    h = w = 24
+    mask = np.ones((h, w), bool)
+    v, u = np.nonzero(mask)
+    light = np.asarray(LIGHT_FROM) / np.linalg.norm(LIGHT_FROM)
+    want = 0.7 * (light[2] / np.pi + AMBIENT)
+    ortho = np.stack([u - (w - 1) / 2, (h - 1) / 2 - v, np.full(u.shape, -50.0)], 1)  # beyond the frame: all covered
+    img = shaded_surface(ortho * [1.2, 1.2, 1], faces(mask), (h, w), None)
+    assert img[4:-4, 4:-4].mean() == pytest.approx(want, rel=0.02)
+    f, z = 30.0, 10.0
+    persp = np.stack([(u - (w - 1) / 2) / f * z * 1.3, -(v - (h - 1) / 2) / f * z * 1.3, np.full(u.shape, -z)], 1)
+    img = shaded_surface(persp, faces(mask), (h, w), f)
+    assert img[4:-4, 4:-4].mean() == pytest.approx(want, rel=0.02)

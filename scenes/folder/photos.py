@@ -44,6 +44,7 @@ _EXIF_IFD = 0x8769
 _EXPOSURE_TIME, _ISO, _COLOR_SPACE = 0x829A, 0x8827, 0xA001
 _SRGB_COLOR_SPACE = 1
 _ORIENTATION = 0x0112
+_FOCAL_35MM = 0xA405  # FocalLengthIn35mmFilm: the lens as a 35 mm-equivalent focal length, whole mm
 MAX_EXPOSURE_RATIO = 1024.0
 """The most the EXIF exposures (time x ISO) of one capture may differ, longest over shortest: 10 stops. Between
 8-bit photos further apart the darker one holds nothing the brighter does not; such values are a wrong EXIF
@@ -146,6 +147,9 @@ def _exif(img: Any) -> dict[str, Any]:
         out["color_space"] = int(ifd[_COLOR_SPACE])
     if _ORIENTATION in exif:
         out["orientation"] = exif[_ORIENTATION]
+    focal = ifd.get(_FOCAL_35MM)
+    if isinstance(focal, (int, float)) and np.isfinite(focal) and focal > 0:  # 0 means unknown in EXIF
+        out["focal_35mm_mm"] = float(focal)
     return out
 
 

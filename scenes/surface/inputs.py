@@ -99,3 +99,14 @@ def focal_intrinsics(focal_px: float, shape: tuple[int, int], flag: str = "--foc
     if not np.isfinite(focal_px) or focal_px <= 0:
         raise ValueError(f"{flag}: {focal_px!r}; expected a focal length above 0 in pixels")
     return Intrinsics.from_focal(focal_px, *shape)
+
+
+FULL_FRAME_DIAGONAL_MM = float(np.hypot(36.0, 24.0))
+"""The diagonal of a 35 mm frame: a 35 mm-equivalent focal length is relative to it."""
+
+
+def intrinsics_from_35mm(focal_35mm: float, shape: tuple[int, int]) -> Intrinsics:
+    """A camera from a 35 mm-equivalent focal length (EXIF FocalLengthIn35mmFilm): the same field of view across the
+    image's diagonal, square pixels, the principal point at the centre (an uncropped photo, any size)."""
+    h, w = shape
+    return Intrinsics.from_focal(focal_35mm * float(np.hypot(h, w)) / FULL_FRAME_DIAGONAL_MM, h, w)
