@@ -10,7 +10,8 @@ Cases, each with ground-truth normals, mask and depth:
   about 1): `single_persp` single objects seen by a short lens (35 mm-equivalent focal 18-35 mm), `cluster_ortho`
   2-4 objects in front of each other (orthographic), `cluster_persp` 2-3 objects, focal 24-50 mm.
 
-MADE (the field's score): perspective, the estimate times the median of true / estimated depth; orthographic (depth
+MADE (the field's score, over the mask pixels with a true depth): perspective, the estimate times the median of true /
+estimated depth; orthographic (depth
 in pixel widths), the estimate times the known pixel size plus the median offset; then the mean absolute difference
 over the mask. `boundary`: the same mean over the pixels within 3 px of a true depth jump (a neighbour's depth more
 than 2 % away). Times: each method runs all cases in one process, timed whole (start-up and imports included),
@@ -28,7 +29,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench.cli_common import ROOT, parse  # noqa: E402
-from scenes.cli.options import Command  # noqa: E402
+from scenes.cli.options import REQUIRED, Command  # noqa: E402
 
 SUITES = {
     "single_persp": ["--camera", "perspective", "--focal", "18-35", "--cluster", "1-1"],
@@ -46,7 +47,7 @@ MIN_PIXELS = 2000
 class SurfaceBenchOptions:
     """The command line of bench/bench_surface.py."""
 
-    work: str
+    work: str = REQUIRED
     """Working folder: renders, cases, the reference's environment and outputs (reused when present)."""
     out: str = str(ROOT / "bench" / "results" / "surface.json")
     """Where the results go."""
@@ -150,8 +151,7 @@ def diligent_case(folder: Path) -> dict:
     mask = read_mask(folder / "mask.png")
     normals = read_normals(folder / "normal_map.png").astype(np.float64)
     normals /= np.maximum(np.linalg.norm(normals, axis=-1, keepdims=True), 1e-12)
-    depth = np.load(folder / "depth_gt.npz")["depth_gt"].astype(np.float64)
-    mask &= np.isfinite(depth)
+    depth = np.load(folder / "depth_gt.npz")["depth_gt"].astype(np.float64)  # NaN where unknown: not scored
     return {"normals": normals, "mask": mask, "K": np.loadtxt(folder / "K.txt"), "depth": depth, "pixel_size": 0.0}
 
 
@@ -198,6 +198,7 @@ def timed(cmd: list[str], log: Path, env: dict | None = None) -> float:
 def made(est, gt, mask, pixel_size, sel=None):
     import numpy as np
 
+    mask = mask & np.isfinite(gt)  # every mask pixel is integrated; those with a true depth are scored
     sel = mask if sel is None else sel & mask
     if pixel_size:  # orthographic: known pixel size, unknown offset
         e = est * pixel_size
