@@ -427,3 +427,17 @@ def test_the_shaded_surface_of_a_plane_is_lambertian_under_the_sun_and_the_sky(v
     persp = np.stack([(u - (w - 1) / 2) / f * z * 1.3, -(v - (h - 1) / 2) / f * z * 1.3, np.full(u.shape, -z)], 1)
     img = shaded_surface(persp, faces(mask), (h, w), f)
     assert img[4:-4, 4:-4].mean() == pytest.approx(want, rel=0.02)
+
+
+def test_a_map_too_large_for_the_memory_is_refused_before_the_solve(tmp_path, capsys, monkeypatch):
+    """The integrator's memory estimate is checked against what the machine has (here made small): one line naming
+    the flags that set the size, nothing written."""
+    from orchestrate.surface import main
+
+    _sphere_inputs(tmp_path)
+    monkeypatch.setattr("scenes.cli.limits.available_memory", lambda: 1000)
+    assert main(["--normals", str(tmp_path / "normals.npy"), "--mask", str(tmp_path / "mask.png"), "--out",
+                 str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("error: --normals/--mask: integrating") and "memory" in err
+    assert not (tmp_path / "o").exists()
