@@ -2954,6 +2954,87 @@ ROWS += [
 ]
 
 
+# --------------------------------------------------------------------------- issue 51: orchestrate.surface
+
+SF = "orchestrate.surface"
+SURF = ["--normals", "{W}/pred/00000/normal.png", "--mask", WORLD_MASK]
+"""The world's object 00000: its (true) normal map and mask."""
+
+
+def _array(rel: str, make: Callable[[Path], np.ndarray]) -> Callable[[Path, Path], None]:
+    """Setup: T/<rel>, a .npy normal map made from the world's object 00000 (W/data/00000.data/normal.tif)."""
+    def setup(w: Path, t: Path) -> None:
+        from scenes.images import read_normals
+
+        np.save(_mk((t / rel).parent) / Path(rel).name, make(read_normals(w / "data" / f"{OBJ}.data" / "normal.tif")))
+    return setup
+
+
+def _mask_png(rel: str, make: Callable[[Path], np.ndarray]) -> Callable[[Path, Path], None]:
+    """Setup: T/<rel>, an 8-bit mask image made from the world's mask."""
+    def setup(w: Path, t: Path) -> None:
+        import cv2
+
+        from scenes.images import read_mask
+
+        assert cv2.imwrite(str(_mk((t / rel).parent) / Path(rel).name), make(read_mask(w / "data" / f"{OBJ}.data" /
+                                                                                      "mask.png")))
+    return setup
+
+
+def _nan_inside(n: np.ndarray) -> np.ndarray:
+    n = n.copy()
+    ys, xs = np.nonzero(np.any(n != 0, axis=-1))
+    n[ys[0], xs[0]] = np.nan
+    return n
+
+
+ROWS += [
+    Row("surface-normals-missing", SF, ["--normals", "{T}/none.png", "--out", "{T}/o"], 2, ("--normals",),
+        check=_not_written("o")),
+    Row("surface-normals-not-an-image", SF, ["--normals", "{T}/n.png", "--out", "{T}/o"], 2, ("--normals", "n.png"),
+        setup=_put(("n.png", "not a picture\n")), check=_not_written("o")),
+    Row("surface-normals-nan", SF, ["--normals", "{T}/n.npy", "--mask", WORLD_MASK, "--out", "{T}/o"], 2,
+        ("--normals", "NaN"), setup=_array("n.npy", _nan_inside), check=_not_written("o")),
+    Row("surface-normals-half-length", SF, ["--normals", "{T}/n.npy", "--mask", WORLD_MASK, "--out", "{T}/o"], 2,
+        ("--normals", "unit"), setup=_array("n.npy", lambda n: n * 0.5), check=_not_written("o")),
+    Row("surface-normals-facing-away", SF, ["--normals", "{T}/n.npy", "--mask", WORLD_MASK, "--out", "{T}/o"], 2,
+        ("--normals", "face away"), setup=_array("n.npy", lambda n: n * [1, 1, -1]), check=_not_written("o")),
+    Row("surface-mask-other-size", SF, [*SURF[:2], "--mask", "{T}/m.png", "--out", "{T}/o"], 2, ("--mask", "32"),
+        setup=_mask_png("m.png", lambda m: np.where(np.pad(m, 4), 255, 0).astype(np.uint8)), check=_not_written("o")),
+    Row("surface-mask-gradient", SF, [*SURF[:2], "--mask", "{T}/m.png", "--out", "{T}/o"], 2, ("--mask",),
+        setup=_mask_png("m.png", lambda m: np.tile(np.arange(32, dtype=np.uint8) * 8, (32, 1))),
+        check=_not_written("o")),
+    Row("surface-mask-empty", SF, [*SURF[:2], "--mask", "{T}/m.png", "--out", "{T}/o"], 2, ("--mask",),
+        setup=_mask_png("m.png", lambda m: np.zeros(m.shape, np.uint8)), check=_not_written("o")),
+    Row("surface-intrinsics-missing", SF, [*SURF, "--intrinsics", "{T}/K.txt", "--out", "{T}/o"], 2,
+        ("--intrinsics", "K.txt"), check=_not_written("o")),
+    Row("surface-intrinsics-words", SF, [*SURF, "--intrinsics", "{T}/K.txt", "--out", "{T}/o"], 2,
+        ("--intrinsics",), setup=_put(("K.txt", "focal fifty\n")), check=_not_written("o")),
+    Row("surface-intrinsics-2x3", SF, [*SURF, "--intrinsics", "{T}/K.txt", "--out", "{T}/o"], 2,
+        ("--intrinsics", "3 x 3"), setup=_put(("K.txt", "100 0 15.5\n0 100 15.5\n")), check=_not_written("o")),
+    Row("surface-intrinsics-other-image", SF, [*SURF, "--intrinsics", "{T}/K.txt", "--out", "{T}/o"], 2,
+        ("--intrinsics", "principal point"), setup=_put(("K.txt", "3772 0 305.9\n0 3759 255.1\n0 0 1\n")),
+        check=_not_written("o")),
+    Row("surface-intrinsics-nan", SF, [*SURF, "--intrinsics", "{T}/K.txt", "--out", "{T}/o"], 2,
+        ("--intrinsics", "NaN"), setup=_put(("K.txt", "nan 0 15.5\n0 100 15.5\n0 0 1\n")), check=_not_written("o")),
+    Row("surface-focal-negative", SF, [*SURF, "--focal-px", "-5", "--out", "{T}/o"], 2, ("--focal-px",),
+        check=_not_written("o")),
+    Row("surface-two-cameras", SF, [*SURF, "--focal-px", "50", "--intrinsics", "{T}/K.txt", "--out", "{T}/o"], 2,
+        ("--intrinsics", "--focal-px"), check=_not_written("o")),
+    Row("surface-k-negative", SF, [*SURF, "--k", "-1", "--out", "{T}/o"], 2, ("--k",), check=_not_written("o")),
+    Row("surface-mesh-format", SF, [*SURF, "--mesh", "ply,stl", "--out", "{T}/o"], 2, ("--mesh", "stl"),
+        check=_not_written("o")),
+    Row("surface-earlier-output-kept", SF, [*SURF, "--out", "{T}/o"], 2, ("depth.npy", "--overwrite"),
+        setup=_put(("o/depth.npy", "an earlier run's\n")), check=_not_written("o/mesh.ply")),
+    Row("surface-out-held", SF, [*SURF, "--out", "{T}/o"], 2, ("--out",), setup=_running("o"),
+        check=_released(_not_written("o/depth.npy"))),
+    Row("surface-good-orthographic", SF, [*SURF, "--out", "{T}/o", "--mesh", "ply,obj"], 0, ("mesh.obj",),
+        check=_written("o/depth.npy", "o/depth.exr", "o/mesh.ply", "o/mesh.obj", "o/report.json",
+                       "o/discontinuities.png")),
+]
+
+
 def _run(row: Row, argv: list[str], capsys, **places: Path | None) -> tuple[int, str, str]:
     if row.sub:
         env = {**os.environ, "PYTHONPATH": str(REPO), **{k: v.format(**places) for k, v in row.env.items()}}
@@ -3008,7 +3089,7 @@ def test_bad_input(row: Row, world: Path, tmp_path: Path, capsys, request):
 def test_table_size():
     assert len(ROWS) >= 100
     assert len({r.id for r in ROWS}) == len(ROWS)
-    assert {r.cli for r in ROWS} >= {MK, PV, PR, EV, RR, RF, TR, DEMO, BM, RC, CAP}
+    assert {r.cli for r in ROWS} >= {MK, PV, PR, EV, RR, RF, TR, DEMO, BM, RC, CAP, SF}
 
 
 @pytest.mark.parametrize("how", ["after-lock", "at-1s"])
