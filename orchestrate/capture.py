@@ -310,11 +310,9 @@ def load_network_first(opts: CaptureOptions) -> tuple[object, float]:
 def run(opts: CaptureOptions) -> dict:
     """The whole command (main without the error handling); returns report.json's content. Each stage says when it
     starts, that it is alive at least every 10 s, and when it ends (`scenes.cli.progress.stage`, on stderr)."""
-    from orchestrate.capture_surface import SHADED_PICTURE, write_capture_surface
-    from scenes.surface.write import SURFACE_DIR, surface_outputs
+    from orchestrate.capture_surface import write_capture_surface
+    from scenes.surface.write import SURFACE_DIR
     from validate.diagnosis.usable import as_dicts, capture_warnings, image_count_warning, light_warnings, mask_doubts
-    from validate.fitted.fit_report import CHECK_OUTPUTS
-    from validate.fitted.refinement import REFINE_OUTPUTS
 
     t0, times = time.perf_counter(), {}
     out = Path(opts.out)
@@ -326,12 +324,7 @@ def run(opts: CaptureOptions) -> dict:
     with stage("capture", f"reading {k} photos of {w} x {h} px (the whole run: about {need['seconds']:.0f} s, "
                f"{need['peak_mib']} MiB at most)"):
         read = read_input(opts)
-    stages = {"surface": surface_outputs(out / SURFACE_DIR, ("ply",)) + [out / SURFACE_DIR / SHADED_PICTURE],
-              "check": [out / "check" / read.name / n for n in CHECK_OUTPUTS],
-              "refine": [out / "refine" / read.name / n for n in REFINE_OUTPUTS]}
-    claim_outputs([p for paths in stages.values() for p in paths], opts.overwrite, owner="orchestrate.capture")
-    claim_outputs([out / "work" / f"{read.name}.data"] if opts.keep_work else [], opts.overwrite,
-                  owner="orchestrate.capture", folders=True)  # --keep-work's folder too (no link on the way)
+    claim_stages(opts, out, read.name)
     times["read_s"] = time.perf_counter() - t0 - times["load_model_s"]
     count = image_count_warning(len(read.images))
     if count and count.fatal:  # before the mask: two photos say nothing about one
@@ -394,6 +387,22 @@ def run(opts: CaptureOptions) -> dict:
     write_page(out / "report.html", to_plain(report), pictures(out, cap.name, read.images, read.image_names, mask,
                                                              final, model_map, refined_used))
     return report
+
+
+def claim_stages(opts: CaptureOptions, out: Path, name: str) -> None:
+    """Claim every file the stages write below --out (surface/, check/<name>/, refine/<name>/, --keep-work's folder)
+    before the first write (`scenes.cli.outputs.claim_outputs`)."""
+    from orchestrate.capture_surface import SHADED_PICTURE
+    from scenes.surface.write import SURFACE_DIR, surface_outputs
+    from validate.fitted.fit_report import CHECK_OUTPUTS
+    from validate.fitted.refinement import REFINE_OUTPUTS
+
+    stages = {"surface": surface_outputs(out / SURFACE_DIR, ("ply",)) + [out / SURFACE_DIR / SHADED_PICTURE],
+              "check": [out / "check" / name / n for n in CHECK_OUTPUTS],
+              "refine": [out / "refine" / name / n for n in REFINE_OUTPUTS]}
+    claim_outputs([p for paths in stages.values() for p in paths], opts.overwrite, owner="orchestrate.capture")
+    claim_outputs([out / "work" / f"{name}.data"] if opts.keep_work else [], opts.overwrite,
+                  owner="orchestrate.capture", folders=True)  # --keep-work's folder too (no link on the way)
 
 
 def write_maps(opts: CaptureOptions, out: Path, images: np.ndarray, mask: np.ndarray, final: np.ndarray,
