@@ -450,10 +450,21 @@ COMMAND = Command(BenchmarkOptions, prog="python -m orchestrate.benchmark",
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The command; --out is held for the length of the run (`scenes.cli.outputs.output_lock`)."""
+    from contextlib import ExitStack
+
+    with ExitStack() as held:
+        return _main(argv, held)
+
+
+def _main(argv: list[str] | None, held) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     try:
         args = COMMAND.parse(argv).validate()
         check_inputs(args)
+        from scenes.cli.outputs import output_lock
+
+        held.enter_context(output_lock(args.out))  # one benchmark per folder
         counts = args.counts
         import torch
 

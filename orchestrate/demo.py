@@ -178,7 +178,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         args = COMMAND.parse(argv).validate()
         check_steps(args)
-        return demo(args)
+        from scenes.cli.outputs import output_lock
+
+        with output_lock(args.out):  # one demo per folder (its steps hold their own subfolders too)
+            return demo(args)
     except StepFailed as exc:
         return report_error(exc, code=exc.code)
     except (*INPUT_ERRORS, OSError) as exc:

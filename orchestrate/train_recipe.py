@@ -242,7 +242,10 @@ def main(argv: list[str] | None = None) -> int:
         if args.assets is None and (SHARED / "assets").is_dir():
             args.assets = str(SHARED / "assets")
         split = check_steps(args)
-        return recipe(args, split)
+        from scenes.cli.outputs import output_lock
+
+        with output_lock(args.work, "--work"):  # one recipe per folder (its steps hold their own subfolders too)
+            return recipe(args, split)
     except OutOfTime as exc:  # says how to go on itself
         return report_error(exc, code=exc.code)
     except StepFailed as exc:

@@ -179,6 +179,23 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         args = COMMAND.parse(argv)
+        from contextlib import ExitStack
+
+        from scenes.cli.outputs import output_lock
+
+        held = ExitStack()
+        if Path(args.dataset).is_dir():  # a missing dataset is refused by the reader, naming it
+            held.enter_context(output_lock(_output_folder(Path(args.dataset), args.out)))  # one writer per folder
+    except (UsageError, ValueError, OSError) as exc:
+        return report_error(exc)
+    with held:
+        return _write(args)
+
+
+def _write(args) -> int:
+    from scenes.cli.errors import UsageError, report_error
+
+    try:
         if args.stats:
             written = write_stats(args.dataset, args.out, args.overwrite)  # outputs checked before any read
         else:
