@@ -273,12 +273,16 @@ def estimate(k: int, h: int, w: int) -> dict:
     """The command's peak memory (MiB) and time (s, on 2 cores) for K photos of h x w, before it runs
     (bench_capture compares them with what it measures)."""
     values = k * h * w * 3
+    from orchestrate.surface import BYTES_PER_IMAGE_PIXEL, BYTES_PER_PIXEL, SECONDS_PER_MPIXEL
     from validate.judgeable import MIN_IMAGES
 
     refine = SECONDS_REFINE if k >= MIN_IMAGES["refine"] else 0.0
     check = SECONDS_BASE + refine + SECONDS_PER_IMAGE * k
-    return {"peak_mib": round(BASE_MIB + MIB_PER_IMAGE * k + MIB_PER_MVALUE * values / 2**20),
-            "seconds": round(check + SECONDS_PER_MVALUE * values / 1e6, 1), "check_s": round(check, 1)}
+    # The surface of the final map, at most every pixel, added whole: the estimate stays an upper bound.
+    surface_mib = (BYTES_PER_PIXEL + BYTES_PER_IMAGE_PIXEL) * h * w / 2**20
+    return {"peak_mib": round(BASE_MIB + MIB_PER_IMAGE * k + MIB_PER_MVALUE * values / 2**20 + surface_mib),
+            "seconds": round(check + SECONDS_PER_MVALUE * values / 1e6 + SECONDS_PER_MPIXEL * h * w / 1e6, 1),
+            "check_s": round(check, 1)}
 
 
 def check_resources(k: int, h: int, w: int) -> dict:
