@@ -67,6 +67,22 @@ def test_a_hole_in_the_mask_and_grazing_normals_do_not_disturb_the_sphere():
     assert err.mean() < 0.01 * radius
 
 
+def test_outlier_normals_hurt_the_bilateral_surface_less_than_least_squares():
+    """5 % of a sphere's normals replaced by random ones: the surface stays within 1 % of the radius (measured 0.78 %)
+    and clearly closer than plain least squares (k = 0, measured 1.16 %)."""
+    h, w, radius = 96, 112, 40.0
+    n, depth, mask = _ortho_sphere(h, w, (57.8, 46.3), radius, z_centre=200.0)
+    rng = np.random.default_rng(0)
+    ys, xs = np.nonzero(mask)
+    pick = rng.random(len(ys)) < 0.05
+    wild = rng.normal(size=(int(pick.sum()), 3))
+    wild[:, 2] = np.abs(wild[:, 2]) + 0.3
+    n[ys[pick], xs[pick]] = _unit(wild)
+    err = {k: np.abs(_offset_aligned(integrate(n, mask, None, IntegrationConfig(k=k)).depth, depth, mask)
+                     - depth)[mask].mean() for k in (2.0, 0.0)}
+    assert err[2.0] < 0.01 * radius and err[2.0] < 0.85 * err[0.0]
+
+
 def _ortho_sphere(h: int, w: int, centre_uv: tuple[float, float], radius: float, z_centre: float,
                   nz_min: float = 0.1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Normals, depth and mask of the front of a sphere (radius in pixel widths, centre at pixel `centre_uv` and
