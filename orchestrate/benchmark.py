@@ -23,6 +23,7 @@ from __future__ import annotations
 import logging
 import sys
 import time
+from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -32,7 +33,7 @@ import numpy as np
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.limits import check_memory, check_threads
 from scenes.cli.options import Command, arg, check_fields, comma_list, option
-from scenes.cli.outputs import check_output_folder, claim_outputs, make_output_folder
+from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
 from scenes.files import atomic_write_text, write_json
 from scenes.metrics import mean_angular_error
 from scenes.report.tables import markdown_table
@@ -272,10 +273,9 @@ def _synthetic_tables(syn: dict, res: dict) -> list[str]:
     used = sorted({r.get("images", res["images"]) for r in syn["objects"]}) or [res["images"]]  # not --images
     each = f"{used[0]} images each" if len(used) == 1 else f"{used[0]} to {used[-1]} images (--images {res['images']})"
     lines = [f"Mean angular error (deg) on the held-out synthetic set ({res['data']}, {len(syn['objects'])} objects, "
-             f"{each})", "",
-             markdown_table(["method", *fams, "all"],
-                            [[m, *(_fmt(row[f]) for f in fams), _fmt(row["all"])]
-                             for m, row in syn["family_table"].items()])]
+             f"{each})", "", markdown_table(["method", *fams, "all"], [[m, *(_fmt(row[f]) for f in fams),
+                                                                           _fmt(row["all"])]
+                                                                      for m, row in syn["family_table"].items()])]
     failed = {m: sum(m in r.get("failed", {}) for r in syn["objects"]) for m in syn["family_table"]}
     if any(failed.values()):
         lines += ["", "Objects a method could not run on (left out of its means): "
@@ -449,10 +449,7 @@ COMMAND = Command(BenchmarkOptions, prog="python -m orchestrate.benchmark",
                   description="Evaluation tables: per light family, vs image count, re-render residuals, DiLiGenT.")
 
 
-def main(argv: list[str] | None = None) -> int:
-    """The command; --out is held for the length of the run (`scenes.cli.outputs.output_lock`)."""
-    from contextlib import ExitStack
-
+def main(argv: list[str] | None = None) -> int:  # --out is held for the length of the run (output_lock)
     with ExitStack() as held:
         return _main(argv, held)
 
@@ -462,8 +459,6 @@ def _main(argv: list[str] | None, held) -> int:
     try:
         args = COMMAND.parse(argv).validate()
         check_inputs(args)
-        from scenes.cli.outputs import output_lock
-
         held.enter_context(output_lock(args.out))  # one benchmark per folder
         counts = args.counts
         import torch
@@ -474,15 +469,11 @@ def _main(argv: list[str] | None, held) -> int:
         ablation = load_network(args.ablation_checkpoint) if args.ablation_checkpoint else None
         res: dict[str, Any] = {"checkpoint": str(net.checkpoint), "ablation_checkpoint": args.ablation_checkpoint,
                                "images": args.images, "data": args.data, "tta": args.tta}
-        if args.data:
-            if args.rerender_objects > 0:
-                from scenes.renderer.variant import choose_variant
+        if args.data and args.rerender_objects > 0:
+            from scenes.renderer.variant import choose_variant, set_jit_threads
 
-                res["variant"] = choose_variant(args.variant)
-                if args.threads:
-                    import drjit as dr
-
-                    dr.set_thread_count(args.threads)
+            res["variant"] = choose_variant(args.variant)
+            set_jit_threads(args.threads or None)
         which = " and ".join(f"{f} {v}" for f, v in (("--data", args.data), ("--diligent", args.diligent)) if v)
         print(f"benchmarking {net.checkpoint} on {which}; tables into {args.out}", flush=True)
         if args.data:
@@ -495,8 +486,7 @@ def _main(argv: list[str] | None, held) -> int:
         return report_error(exc)
     out = Path(args.out)
     tables = format_tables(res)
-    try:
-        make_output_folder(out)
+    try:  # --out exists: output_lock made it
         atomic_write_text(out / "tables.md", tables)
         write_json(out / "benchmark.json", res, indent=1)
     except (UsageError, OSError) as exc:  # e.g. a full disk: one line naming the file, never a traceback
