@@ -35,8 +35,8 @@ def write_capture_surface(folder: Path, final: np.ndarray, mask: np.ndarray, met
     from scenes.surface.write import write_surface
 
     intr, camera = capture_camera(meta, mask.shape)
-    n = np.asarray(final, np.float64).copy()
-    n[..., 2] = np.maximum(n[..., 2], 0.0)  # a few normals of a predicted map may face away; here they are grazing
+    # The integrator leaves out the equations of the few normals a predicted map may have facing away.
+    n = np.asarray(final, np.float64)
     n = np.where(mask[..., None], n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-12), 0.0)
     surface = integrate(n, mask, intr)
     folder.mkdir(parents=True, exist_ok=True)

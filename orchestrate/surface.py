@@ -74,7 +74,7 @@ def load_inputs(args: SurfaceOptions):
     import numpy as np
 
     from scenes.images import read_mask, read_normals
-    from scenes.surface.inputs import check_mask, check_normals, focal_intrinsics, read_intrinsics
+    from scenes.surface.inputs import check_facing, check_mask, check_normals, focal_intrinsics, read_intrinsics
 
     normals = read_normals(args.normals, "--normals")
     shape = normals.shape[:2]
@@ -88,10 +88,13 @@ def load_inputs(args: SurfaceOptions):
         mask = check_mask(np.abs(normals).sum(-1) > 0, shape, "--normals (its non-zero pixels, no --mask)")
     normals = check_normals(normals, mask, "--normals")
     if args.intrinsics is not None:
-        return normals, mask, read_intrinsics(args.intrinsics, shape), f"perspective, --intrinsics {args.intrinsics}"
-    if args.focal_px is not None:
-        return normals, mask, focal_intrinsics(args.focal_px, shape), f"perspective, --focal-px {args.focal_px:g}"
-    return normals, mask, None, "orthographic (no --intrinsics or --focal-px)"
+        intr, camera = read_intrinsics(args.intrinsics, shape), f"perspective, --intrinsics {args.intrinsics}"
+    elif args.focal_px is not None:
+        intr, camera = focal_intrinsics(args.focal_px, shape), f"perspective, --focal-px {args.focal_px:g}"
+    else:
+        intr, camera = None, "orthographic (no --intrinsics or --focal-px)"
+    check_facing(normals, mask, intr, "--normals")
+    return normals, mask, intr, camera
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -133,7 +136,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         return report_error(exc)
     s = report["solver"]
     print(f"surface of {report['pixels']} pixels in {s['seconds']:.1f} s ({s['iterations']} iterations, "
-          f"{report['discontinuity_pixels']} discontinuity edges, {s['parts']} part(s)); wrote "
+          f"{report['discontinuity_pixels']} pixels at a depth jump, {s['parts']} part(s)); wrote "
           f"{', '.join(p.name for p in surface_outputs(args.out, args.mesh))} in {args.out}")
     return 0
 

@@ -8,13 +8,16 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes.surface.integrate import FACING_AWAY_LIMIT, Intrinsics
+from scenes.surface.integrate import Intrinsics, facing_away
 
 UNIT_TOLERANCE = 0.1
 """A normal counts as unit length when | |n| - 1 | is at most this (16-bit PNG quantisation and resampling stay
 far below it)."""
 UNIT_SHARE = 0.99
 """The share of the mask's normals that must be unit length; the rest are renormalised."""
+FACING_AWAY_LIMIT = 0.01
+"""The largest share of mask pixels whose normal may face away from the camera (the integrator leaves their
+equations out); above it a user's map is refused: it is not in the camera frame x right, y up, z toward the camera."""
 MIN_PIXELS = 4
 """The fewest mask pixels worth integrating."""
 CENTRE_SLACK = 0.25
@@ -23,8 +26,8 @@ are taken to belong to another image size."""
 
 
 def check_normals(normals: np.ndarray, mask: np.ndarray, flag: str = "--normals") -> np.ndarray:
-    """Unit camera-frame normals over `mask` (H, W, 3) float64: NaN, a map that is not unit length, or one whose
-    normals face away from the camera are refused."""
+    """Unit camera-frame normals over `mask` (H, W, 3) float64: NaN or a map that is not unit length is refused
+    (normals facing away: `check_facing`, once the camera is known)."""
     n = np.asarray(normals, np.float64)
     inside = n[mask]
     bad = ~np.isfinite(inside).all(axis=1)
@@ -37,14 +40,20 @@ def check_normals(normals: np.ndarray, mask: np.ndarray, flag: str = "--normals"
         raise ValueError(f"{flag}: {100 * (1 - unit.mean()):.1f}% of the normals inside the mask are not unit "
                          f"length (median length {np.median(length):.3f}); expected unit vectors (a 16-bit map "
                          "stores (n + 1) / 2)")
-    away = inside[:, 2] < 0
-    if away.mean() > FACING_AWAY_LIMIT:
-        raise ValueError(f"{flag}: {100 * away.mean():.1f}% of the normals inside the mask face away from the camera "
-                         f"(n_z < 0; at most {100 * FACING_AWAY_LIMIT:.0f}% may); expected the camera frame x right, "
-                         "y up, z toward the camera")
     out = np.zeros_like(n)
     out[mask] = inside / np.maximum(length, 1e-12)[:, None]
     return out
+
+
+def check_facing(normals: np.ndarray, mask: np.ndarray, intrinsics: Intrinsics | None,
+                 flag: str = "--normals") -> None:
+    """Refuse a map whose normals face away from the camera (`integrate.facing_away`, with its camera) on more than
+    `FACING_AWAY_LIMIT` of the mask."""
+    away = facing_away(normals, mask, intrinsics)
+    if away.mean() > FACING_AWAY_LIMIT:
+        raise ValueError(f"{flag}: {100 * away.mean():.1f}% of the normals inside the mask face away from the camera "
+                         f"(at most {100 * FACING_AWAY_LIMIT:.0f}% may); expected the camera frame x right, y up, z "
+                         "toward the camera")
 
 
 def check_mask(mask: np.ndarray, shape: tuple[int, int], flag: str = "--mask") -> np.ndarray:

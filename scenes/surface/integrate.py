@@ -27,10 +27,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-FACING_AWAY_LIMIT = 0.01
-"""The largest share of mask pixels whose normal may face away from the camera (they are left out of the
-equations); above it the map is refused: it is not in the camera frame x right, y up, z toward the camera."""
-
 CUT_WEIGHT = 0.1
 """An edge between two pixels is a depth discontinuity when its two equations' weights sum to less than this
 (a smooth edge has 0.5 + 0.5)."""
@@ -131,6 +127,13 @@ def _coefficients(n: np.ndarray, mask: np.ndarray, intr: Intrinsics | None):
     return a_u, nx, a_v, -ny
 
 
+def facing_away(normals: np.ndarray, mask: np.ndarray, intrinsics: Intrinsics | None) -> np.ndarray:
+    """(P,) bool per mask pixel (row-major): its normal faces away from the camera along its pixel's ray, so that its
+    equations would have the wrong sign (a_u <= 0 or a_v <= 0; orthographic: n_z <= 0)."""
+    a_u, _, a_v, _ = _coefficients(normals, mask, intrinsics)
+    return (a_u <= 0) | (a_v <= 0)
+
+
 def _edges(mask: np.ndarray, idx: np.ndarray, axis: int):
     """Neighbour pairs (i, j) along `axis` (1: columns, j the right neighbour; 0: rows, j the one below)."""
     if axis == 1:
@@ -176,8 +179,8 @@ def integrate(normals: np.ndarray, mask: np.ndarray, intrinsics: Intrinsics | No
               config: IntegrationConfig = IntegrationConfig()) -> Surface:
     """Integrate unit camera-frame normals (H, W, 3) over `mask` (H, W) into a surface (module doc).
 
-    The caller has checked the inputs (`scenes.surface.inputs`); normals facing away from the camera beyond
-    `FACING_AWAY_LIMIT` of the mask are a ValueError."""
+    The caller has checked the inputs (`scenes.surface.inputs`); the equations of normals facing away from the
+    camera (`facing_away`) are left out, and `info["facing_away_pixels"]` counts them."""
     from threadpoolctl import threadpool_limits
 
     # Vector operations on one thread: threaded BLAS made each solve 3-5 times slower on a busy 2-core machine.
@@ -216,11 +219,7 @@ def _system(normals: np.ndarray, mask: np.ndarray, intrinsics: Intrinsics | None
     idx = -np.ones((h, w), np.int64)
     idx[mask] = np.arange(p)
     a_u, g_u, a_v, g_v = _coefficients(normals, mask, intrinsics)
-    away = (a_u <= 0) | (a_v <= 0)
-    if away.mean() > FACING_AWAY_LIMIT:
-        raise ValueError(f"{100 * away.mean():.1f}% of the mask's normals face away from the camera (at most "
-                         f"{100 * FACING_AWAY_LIMIT:.0f}%): not a normal map in the camera frame x right, y up, z "
-                         "toward the camera")
+    away = (a_u <= 0) | (a_v <= 0)  # the rule of facing_away, on the coefficients at hand
     a_u, a_v = np.where(away, 0.0, a_u), np.where(away, 0.0, a_v)  # void equations, not wrong-signed ones
     iu, ju = _edges(mask, idx, 1)
     iv, jv = _edges(mask, idx, 0)
@@ -285,9 +284,9 @@ def _solve(sy: _System, config: IntegrationConfig):
         lf[0, sy.i[:nu]], lf[1, sy.i[nu:]] = sy.a_f[:nu] * d[:nu], sy.a_f[nu:] * d[nu:]
         lb[0, sy.j[:nu]], lb[1, sy.j[nu:]] = sy.a_b[:nu] * d[:nu], sy.a_b[nu:] * d[nu:]
         s = 1.0 / (1.0 + np.exp(np.clip(-config.k * (lb ** 2 - lf ** 2), -700, 700)))
-        moved = float(np.abs(np.where(both, s, sy.has_f) - wf).max()) if p else 0.0
-        wf = np.where(both, s, sy.has_f.astype(float))
-        wb = np.where(both, 1.0 - s, sy.has_b.astype(float))
+        new_wf = np.where(both, s, sy.has_f.astype(float))
+        moved = float(np.abs(new_wf - wf).max()) if p else 0.0
+        wf, wb = new_wf, np.where(both, 1.0 - s, sy.has_b.astype(float))
         # Stop when the energy has settled and the weights no longer move: a flat start (the smooth surface fits
         # well while the weights have barely begun to find a jump) must not pass for convergence.
         done = (energy is not None and abs(new_energy - energy) <= config.tol * max(energy, 1e-300)

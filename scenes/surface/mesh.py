@@ -47,15 +47,13 @@ def surface_mesh(surface: Surface):
                                                                    surface.edge_cut_v), process=False)
 
 
-def write_mesh(surface: Surface, path: str | Path) -> int:
-    """Write the mesh (the format from the extension, one of `MESH_FORMATS`) atomically; returns the triangle count."""
+def write_mesh(mesh, path: str | Path) -> None:
+    """Write a `surface_mesh` (the format from the extension, one of `MESH_FORMATS`) atomically."""
     from scenes.files import atomic_write
 
     path = Path(path)
     fmt = path.suffix.lower().lstrip(".")
     if fmt not in MESH_FORMATS:
         raise ValueError(f"mesh format {fmt!r}; expected one of {', '.join(MESH_FORMATS)}")
-    mesh = surface_mesh(surface)
     data = mesh.export(file_type=fmt)
     atomic_write(path, lambda tmp: Path(tmp).write_bytes(data if isinstance(data, bytes) else data.encode()))
-    return len(mesh.faces)

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from scenes.surface.integrate import Surface
-from scenes.surface.mesh import write_mesh
+from scenes.surface.mesh import surface_mesh, write_mesh
 
 SURFACE_FILES = ("depth.npy", "depth.exr", "discontinuities.png", "report.json")
 """The surface integrated from a normal map (`scenes.surface`, `orchestrate.surface`): float32 (H, W) depth along the
@@ -42,22 +42,24 @@ def discontinuity_picture(surface: Surface) -> np.ndarray:
 
 def write_surface(surface: Surface, folder: str | Path, mesh_formats: tuple[str, ...], record: dict) -> dict:
     """Write everything into `folder`; `record` (inputs, camera) goes into the report with the solver's info."""
-    from scenes.files import write_json
+    from scenes.files import atomic_write, write_json
     from scenes.images import write_exr, write_picture
 
     folder = Path(folder)
     depth = surface.depth.astype(np.float32)
-    np.save(folder / SURFACE_FILES[0], depth)
+    atomic_write(folder / SURFACE_FILES[0], lambda tmp: np.save(tmp, depth))
     write_exr(folder / SURFACE_FILES[1], depth)
     write_picture(folder / SURFACE_FILES[2], discontinuity_picture(surface))
-    triangles = {fmt: write_mesh(surface, folder / f"{SURFACE_MESH}.{fmt}") for fmt in mesh_formats}
+    mesh = surface_mesh(surface)  # built once for every format
+    for fmt in mesh_formats:
+        write_mesh(mesh, folder / f"{SURFACE_MESH}.{fmt}")
     finite = depth[surface.mask]
     report = {
         **record,
         "pixels": int(surface.mask.sum()),
         "depth": {"min": float(finite.min()), "median": float(np.median(finite)), "max": float(finite.max())},
         "discontinuity_pixels": int((surface.edge_cut_u | surface.edge_cut_v).sum()),
-        "triangles": int(next(iter(triangles.values()))) if triangles else None,
+        "triangles": len(mesh.faces),
         "meshes": [f"{SURFACE_MESH}.{fmt}" for fmt in mesh_formats],
         "solver": {"method": "bilateral normal integration, conjugate gradients with algebraic multigrid "
                              "(scenes.surface.integrate)", **surface.info},

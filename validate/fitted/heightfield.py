@@ -47,8 +47,9 @@ def integrate(normals: np.ndarray, mask: np.ndarray, min_nz: float = 0.15) -> tu
     """Height field (H, W) in pixel units (0 outside the mask, median 0) from camera-frame normals (H, W, 3), by the
     toolkit's one integrator (`scenes.surface.integrate`, orthographic, depth jumps kept), and its Surface.
 
-    nz is raised to `min_nz` first: a judged map may hold normals facing away from the camera, which the
-    integrator refuses; here they only make the silhouette steeper."""
+    nz is raised to `min_nz` first (`FitConfig.min_nz`), as the check's own least squares did before: the judged
+    map's grazing and back-facing normals make a steep silhouette instead of void equations, and the check's figures
+    were measured so."""
     from scenes.surface.integrate import integrate as integrate_surface
 
     n = np.asarray(normals, np.float64).copy()
