@@ -24,7 +24,7 @@ from typing import Callable
 
 import numpy as np
 import pytest
-from fixtures import use_variant, write_predict_diligent
+from fixtures import interruptible, use_variant, write_predict_diligent
 
 REPO = Path(__file__).resolve().parents[1]
 OBJ = "00000"
@@ -3130,6 +3130,7 @@ def test_ctrl_c_early_in_process_run_stops(world: Path, tmp_path: Path, how: str
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        preexec_fn=interruptible,
     )
     try:
         if how == "after-lock":

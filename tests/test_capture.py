@@ -9,7 +9,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from fixtures import shading, sphere
+from fixtures import interruptible, shading, sphere
 
 from scenes.folder.photos import read_photos
 from validate.diagnosis.usable import auto_mask, capture_warnings
@@ -448,7 +448,7 @@ def test_ctrl_c_during_a_capture_is_one_line_and_status_130(photos, tmp_path):
     root = Path(__file__).resolve().parents[1]
     proc = subprocess.Popen([sys.executable, "-m", "orchestrate.capture", "--input", str(photos), "--out",
                              str(tmp_path / "o"), "--threads", "1"], cwd=root, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True, preexec_fn=interruptible)
     time.sleep(8)  # past the imports, inside the model or the check
     proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=120)
