@@ -13,8 +13,8 @@ model's error on every object (`unips.expected_error`) and compares it with the 
   highest stated error first, the mean true error of what remains, against the oracle (dropping by true error) and a
   random order (a flat line); the area between ours and the oracle as a share of the area between random and the
   oracle (`ause_ratio`; target at most 0.4; 0 is the oracle, 1 no better than random);
-- probes where the stated error must rise: the same objects with half their images (K/2, at least 2) and with every
-  second photo shifted by 3 px (a moved camera), and with the mask grown by 4 px into the background.
+- probes where the stated error must rise: the same objects with half their images (K/2, at least 2), with 3 images,
+  with every second photo shifted by 3 px (a moved camera), and with the mask grown by 4 px into the background.
 
 With --diligent (default ../shared/data/diligent when it exists), DiLiGenT ball and cat are turned into 8-bit JPEG
 photos (sRGB, quality 95; read back linear as `orchestrate.capture` reads photos) and stated the same way, with their
@@ -194,7 +194,7 @@ def main(argv: list[str] | None = None) -> int:
                              "stated_when": {name: round(state(net, em, f(obj))[0], 2) for name, f in FAULTS.items()}})
             print(diligent[-1], flush=True)
     rises = {p: round(float(np.mean([r["stated_when"][p] > r["stated_mean"] for r in rows])), 3)
-             for p in ("half_images", "camera_moved", "mask_grown")}
+             for p in ("half_images", "three_images", "camera_moved", "mask_grown")}
     everything = sparsification(*(np.concatenate([x for f in pooled.values() for x in f[i]]) for i in (0, 1)))
     table = [{"set": fam, "objects": f["objects"], "true_mean": f["true_mean"], "stated_mean": f["stated_mean"],
               "hit_share": f["hit_share"], "coverage": f["coverage"], "ause_ratio": f["ause_ratio_pooled"]}

@@ -188,7 +188,7 @@ def expected_error(card: dict) -> str:
             "Coverage: the 80 % interval holds the true mean (target 0.70-0.90). Sparsification ratio: the area "
             "between our curve and the oracle's over the area between random and the oracle, pixels pooled per "
             f"family (0: the oracle's ranking, 1: no better than random). The stated error rose on {rises} of the "
-            "objects (half the images, every second photo shifted by 3 px, the mask grown by 4 px):\n\n"
+            "objects (half the images, 3 images, every second photo shifted by 3 px, the mask grown by 4 px):\n\n"
             + markdown_table(["objects", "count", "true mean (deg)", "stated mean (deg)", "hit", "coverage",
                               "sparsification ratio"], rows))
 

@@ -9,10 +9,11 @@
    --objects per row, seed `--seed` + the row's index.
 3. Runs the network on every object with the evidence of `unips.expected_error.gather` and measures the true
    angular error per pixel.
-4. Fits `unips.expected_error.ErrorModel` (Poisson GLM per pixel, up to --pixels pixels per object, objects weighted
-   equally; every second object counted once more with its camera moved, `FAULTS`), centres it on the objects' median
-   ratio true / stated and takes that ratio's 10th and 90th percentiles as
-   the interval; writes it beside the weights (`<stem>.expected_error.json`) or to --out.
+4. Fits `unips.expected_error.ErrorModel`: its pixel stage (Poisson GLM per pixel, up to --pixels pixels per object,
+   objects weighted equally; every second object counted once more with its camera moved, every third with half
+   its images and every fourth with 3 images, `FAULTS`), then its object stage (the object's mean); the interval
+   is the 10th and 90th percentile of the ratio true / stated out of fold (`FOLDS`); writes it beside the weights
+   (`<stem>.expected_error.json`) or to --out.
 
 The rendered suite is resumed when the command is run again (wildgen.make resumes a dataset).
 """
@@ -69,10 +70,20 @@ def half_images(obj):
                                image_names=obj.image_names[:k])
 
 
-FAULTS = {"camera_moved": camera_moved, "half_images": half_images}
+def three_images(obj):
+    """`obj` with its first 3 images (the fewest a capture is usually given with)."""
+    import dataclasses
+
+    return dataclasses.replace(obj, images=obj.images[:3], light_directions=None, light_intensities=None,
+                               image_names=obj.image_names[:3])
+
+
+FAULTS = {"camera_moved": camera_moved, "half_images": half_images, "three_images": three_images}
 """Capture faults the evidence should see. The calibration adds every second object once more with its camera moved
-(2 or 3 px, alternately; the true error is measured on the moved images against the unmoved truth), so that the fit
-learns what disagreement such a capture shows; the bench applies each to the held-out objects as a probe."""
+(2 or 3 px, alternately; the true error is measured on the moved images against the unmoved truth), every third
+with half its images and every fourth with 3 images, so that the fit learns what disagreement such captures show and
+how the error grows with fewer images (`unips.expected_error.fit_object_stage`); the bench applies each to the
+held-out objects as a probe."""
 
 
 def render_suite(work: Path, assets: str | None, objects: int, seed: int, rows=SUITE, quiet: bool = True) -> list[Path]:
@@ -91,10 +102,11 @@ def render_suite(work: Path, assets: str | None, objects: int, seed: int, rows=S
 
 
 def measure(net, folder: Path | object, max_pixels: int | None = None, rng: np.random.Generator | None = None,
-            fault=None) -> dict:
+            fault=None, name: str | None = None) -> dict:
     """One object's evidence and true error: {'features': (P, F), 'error': (P,), 'true_mean' (over every mask
     pixel), 'evidence': Evidence, 'family', 'images', 'name'} (P: all mask pixels, or `max_pixels` of them drawn with
-    `rng`); `folder` an object folder or a loaded PSObject, `fault` one of FAULTS' functions applied to it first."""
+    `rng`); `folder` an object folder or a loaded PSObject, `fault` one of FAULTS' functions applied to it first,
+    `name` the object's (default its own; a faulted copy keeps the name of its object)."""
     from scenes.metrics import angles_deg
     from unips.data import load_object
     from unips.expected_error import gather
@@ -111,7 +123,7 @@ def measure(net, folder: Path | object, max_pixels: int | None = None, rng: np.r
         pick = (rng or np.random.default_rng(0)).choice(len(err), max_pixels, replace=False)
         feats, err = feats[pick], err[pick]
     return {"features": feats, "error": err, "true_mean": true_mean, "evidence": ev, "family": obj.light_family,
-            "images": obj.num_images, "name": obj.name}
+            "images": obj.num_images, "name": name or obj.name}
 
 
 def objects_of(datasets: list[Path]) -> list[Path]:
@@ -136,7 +148,7 @@ class CalibrationOptions:
     """Weights to fit the error model for."""
     out: Annotated[str | None, arg(help_behavior_hint="(default: beside --weights, <stem>.expected_error.json)")] = None
     """Where to write the fitted model."""
-    objects: int = option(16, minimum=1)
+    objects: int = option(32, minimum=1)
     """Objects per suite row (10 rows)."""
     seed: int = option(11000)
     """Seed of the first row (row i: seed + 100 i): none of the seeds the shipped model was trained, validated or
@@ -154,21 +166,49 @@ class CalibrationOptions:
 COMMAND = Command(CalibrationOptions, prog="python -m orchestrate.error_calibration", description=__doc__)
 
 
-def calibrate(samples: list[dict], weights: Path, model_name: str, note: dict) -> "object":
-    """The ErrorModel of `samples` (`measure`'s dicts) for `weights` (see the module doc)."""
-    from unips.expected_error import FEATURES, ErrorModel, fit, sha256
+FOLDS = 5
+"""The interval's ratios are measured out of fold: each object stated by the model fitted on the other folds."""
+
+
+def _fit_stages(samples: list[dict], em) -> None:
+    """Fit `em`'s pixel stage and then its object stage on `samples` (in place)."""
+    from unips.expected_error import fit, fit_object_stage
 
     w, b, mean, std = fit([(s["features"], s["error"]) for s in samples])
-    em = ErrorModel(weights_sha256=sha256(weights), model_name=model_name, features=list(FEATURES),
-                    mean=mean.tolist(), std=std.tolist(), coef=w.tolist(), intercept=b, scale=1.0,
-                    ratio_quantiles=[1.0, 1.0])
-    stated = np.array([em.state(s["evidence"]).mean for s in samples])
+    em.mean, em.std, em.coef, em.intercept, em.scale = mean.tolist(), std.tolist(), w.tolist(), b, 1.0
+    raw = np.array([float(np.nanmean(em.per_pixel(s["evidence"]))) for s in samples])
+    images = [s["evidence"].images for s in samples]
+    em.object_images = [int(min(images)), int(max(images))]
+    em.object_coef = fit_object_stage(raw, np.array(images),
+                                      np.array([s["true_mean"] for s in samples]),
+                                      np.array([s["name"] for s in samples]))
+
+
+def calibrate(samples: list[dict], weights: Path, model_name: str, note: dict, seed: int = 0) -> "object":
+    """The ErrorModel of `samples` (`measure`'s dicts; a sample's faulted copies share its `name`) for `weights`: both
+    stages fitted on every sample, the interval's ratios true / stated out of fold (`FOLDS`, grouped by object)."""
+    import dataclasses
+
+    from unips.expected_error import FEATURES, ErrorModel, sha256
+
+    em = ErrorModel(weights_sha256=sha256(weights), model_name=model_name, features=list(FEATURES), mean=[], std=[],
+                    coef=[], intercept=0.0, scale=1.0, ratio_quantiles=[1.0, 1.0])
+    names = sorted({s["name"] for s in samples})
+    fold = dict(zip(names, np.random.default_rng(seed).permutation(len(names)) % FOLDS))
     true = np.array([s["true_mean"] for s in samples])
-    ratio = true / stated
-    em.scale = float(np.median(ratio))
-    em.ratio_quantiles = [float(np.quantile(ratio / em.scale, 0.1)), float(np.quantile(ratio / em.scale, 0.9))]
-    em.calibration = {**note, "objects": len(samples), "median_ratio_true_over_fitted": round(em.scale, 4),
-                      "true_mean_deg": round(float(true.mean()), 2)}
+    out_of_fold = np.full(len(samples), np.nan)
+    for k in range(FOLDS):
+        held = np.array([fold[s["name"]] == k for s in samples])
+        part = dataclasses.replace(em)
+        _fit_stages([s for s, h in zip(samples, held) if not h], part)
+        out_of_fold[held] = [part.state(s["evidence"]).mean for s, h in zip(samples, held) if h]
+    _fit_stages(samples, em)
+    ratio = true / out_of_fold
+    em.ratio_quantiles = [float(np.quantile(ratio, 0.1)), float(np.quantile(ratio, 0.9))]
+    hits = np.abs(out_of_fold - true) <= np.maximum(2.0, 0.25 * true)
+    em.calibration = {**note, "objects": len(samples), "true_mean_deg": round(float(true.mean()), 2),
+                      "out_of_fold": {"folds": FOLDS, "hit_share": round(float(hits.mean()), 3),
+                                      "median_ratio_true_over_stated": round(float(np.median(ratio)), 4)}}
     return em
 
 
@@ -209,14 +249,20 @@ def run(opts: CalibrationOptions) -> int:
 
     folders = objects_of(datasets)
     for i, folder in enumerate(folders):
-        obj = load_object(folder)
-        samples.append(measure(net, obj, opts.pixels, rng))
+        obj, name = load_object(folder), f"{folder.parent.name}/{folder.name}"
+        samples.append(measure(net, obj, opts.pixels, rng, name=name))
         if i % 2 == 0:
-            samples.append(measure(net, obj, opts.pixels, rng, lambda o, px=2 + (i // 2) % 2: camera_moved(o, px)))
+            samples.append(measure(net, obj, opts.pixels, rng, lambda o, px=2 + (i // 2) % 2: camera_moved(o, px),
+                                   name=name))
+        if i % 3 == 1:
+            samples.append(measure(net, obj, opts.pixels, rng, half_images, name=name))
+        if i % 4 == 3 and obj.num_images > 3:
+            samples.append(measure(net, obj, opts.pixels, rng, three_images, name=name))
         print(f"\r{i + 1}/{len(folders)} objects measured", end="", flush=True)
     print(flush=True)
     em = calibrate(samples, weights, net.meta.get("model_name", ""), {
-        "suite": [name for name, _ in SUITE], "faults": "every second object also with its camera moved by 2 or 3 px",
+        "suite": [name for name, _ in SUITE], "faults": "every second object also with its camera moved by 2 or 3 px, "
+        "every third also with half its images, every fourth also with 3 images",
         "assets": "training split" if assets else "none (procedural)",
         "seed": opts.seed, "objects_per_row": opts.objects, "pixels_per_object": opts.pixels,
         "command": f"python -m orchestrate.error_calibration --work WORK --objects {opts.objects} --seed {opts.seed}"})

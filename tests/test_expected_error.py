@@ -109,6 +109,82 @@ def test_a_model_states_its_mean_and_interval():
         _model(features=["other"]).state(ev)
 
 
+def test_the_object_stage_recovers_a_known_law_and_scales_the_map():
+    from unips.expected_error import fit_object_stage
+
+    u, k = np.geomspace(2.0, 60.0, 25), np.tile([4, 8, 16, 32, 96], 5)
+    assert np.allclose(fit_object_stage(u, k, np.exp(1.0 + 0.4 * np.log(u) - 0.2 * np.log(k))), [1.0, 0.4, -0.2])
+    n, mask = _sphere()
+    images = np.ones((4,) + mask.shape + (3,), np.float32)
+    ev = evidence_from(n, [n, n], (n, _rotate_x(n, 30.0)), images, mask)
+    em = _model(coef=[0.5] + [0.0] * (len(FEATURES) - 1))
+    raw = em.per_pixel(ev)
+    st = _model(coef=em.coef, object_coef=[1.0, 0.4, -0.2]).state(ev)
+    want = np.exp(1.0 + 0.4 * np.log(np.nanmean(raw)) - 0.2 * np.log(4))
+    assert st.mean == pytest.approx(want, rel=1e-5) and st.interval_80 == pytest.approx((0.8 * want, 1.3 * want))
+    # the same map, scaled: its order is kept (the sparsification), its mean is the stated one
+    assert np.allclose(st.per_pixel[mask], raw[mask] * want / np.nanmean(raw), rtol=1e-5)
+    # the image count's term stays within the counts it was measured on
+    held = _model(coef=em.coef, object_coef=[1.0, 0.4, -0.2], object_images=[6, 16])
+    assert held.state(ev).mean == pytest.approx(np.exp(1.0 + 0.4 * np.log(np.nanmean(raw)) - 0.2 * np.log(6)))
+    assert held.object_mean(10.0, 96) == pytest.approx(held.object_mean(10.0, 16))
+
+
+def test_the_image_counts_effect_is_measured_within_objects():
+    """Objects given more images are also harder in a way the pixel map does not show (as the calibration's rows
+    are: level 3 has 16 images and the most complex shapes): pooled, the law's c2 = -0.3 reads as no effect;
+    measured within objects (each also seen with fewer images) it is found."""
+    from unips.expected_error import fit_object_stage
+
+    rng = np.random.default_rng(2)
+    u, k, t, g = [], [], [], []
+    for i in range(60):
+        k0 = int(rng.choice([4, 8, 16]))
+        unseen = 0.5 * np.log(k0) + rng.normal(0, 0.05)  # difficulty the pixel map misses, larger with more images
+        for kk in (k0, max(2, k0 // 2), 3):
+            pix = float(np.exp(2.0 + rng.normal(0, 0.3)))
+            u.append(pix)
+            k.append(kk)
+            t.append(np.exp(0.5 + 0.8 * np.log(pix) - 0.3 * np.log(kk) + unseen))
+            g.append(i)
+    u, k, t = map(np.array, (u, k, t))
+    pooled = fit_object_stage(u, k, t)
+    within = fit_object_stage(u, k, t, np.array(g))
+    assert abs(within[2] + 0.3) < 0.03 and abs(within[1] - 0.8) < 0.05, within
+    assert pooled[2] > -0.1, pooled  # the confounded estimate the within-object one avoids
+
+
+def test_calibrate_fits_both_stages_and_an_out_of_fold_interval(tmp_path):
+    """Synthetic objects whose true error per pixel is 1.5 x the halves' angle times a per-object factor (log-normal,
+    sd 0.2): the stated means follow the truth on new objects, and the out-of-fold interval holds the truth about 8
+    times in 10."""
+    from orchestrate.error_calibration import calibrate
+
+    n, mask = _sphere(16)
+    images = np.ones((6,) + mask.shape + (3,), np.float32)
+    rng = np.random.default_rng(5)
+
+    def sample(i: int) -> dict:
+        deg = float(rng.uniform(3.0, 40.0))
+        ev = evidence_from(n, [n, _rotate_x(n, deg / 3)], (n, _rotate_x(n, deg)), images, mask)
+        err = 1.5 * ev.halves_deg[mask] * np.exp(rng.normal(0, 0.2)) * rng.gamma(8.0, 1 / 8.0, mask.sum())
+        return {"features": ev.features(), "error": err, "true_mean": float(err.mean()), "evidence": ev,
+                "name": f"o{i}"}
+
+    w = tmp_path / "net.safetensors"
+    w.write_bytes(b"weights")
+    em = calibrate([sample(i) for i in range(60)], w, "glc-tiny", {})
+    new = [sample(100 + i) for i in range(40)]
+    stated = np.array([em.state(s["evidence"]).mean for s in new])
+    true = np.array([s["true_mean"] for s in new])
+    assert np.median(np.abs(np.log(stated / true))) < 0.2, (stated, true)
+    lo, hi = em.ratio_quantiles
+    assert 0.6 < lo < 1.0 < hi < 1.6, em.ratio_quantiles
+    covered = np.mean((stated * lo <= true) & (true <= stated * hi))
+    assert 0.6 <= covered <= 0.95, covered
+    assert em.calibration["out_of_fold"]["folds"] == 5 and em.calibration["objects"] == 60
+
+
 def test_the_error_model_belongs_to_its_weights(tmp_path):
     w = tmp_path / "net.safetensors"
     w.write_bytes(b"weights")
@@ -187,13 +263,11 @@ def test_the_stated_error_is_calibrated_on_renders_it_never_saw(rendered, shippe
 @pytest.mark.slow
 def test_the_stated_error_rises_with_fewer_images_and_a_moved_camera(rendered, shipped):
     """3 of 10 images raise the stated error on every object; every second photo shifted by 3 px raises it on average
-    and on most objects (bench_expected_error measures the shares on 50 held-out objects: 94 % and 86 %). A mask
+    and on most objects (bench_expected_error measures the shares on 50 held-out objects: 98 % and 88 %). A mask
     grown by 4 px into the background is not asserted: here it raised it on 3 of 6 objects only (78 % in the bench);
     a doubtful automatic mask keeps a capture's map from "usable" instead (validate.diagnosis.usable.mask_doubts,
     tests/test_capture.py test_the_verdict_level_follows_its_rule)."""
-    import dataclasses
-
-    from orchestrate.error_calibration import camera_moved
+    from orchestrate.error_calibration import camera_moved, three_images
     from unips.data import load_object
 
     net, em = shipped
@@ -201,9 +275,7 @@ def test_the_stated_error_rises_with_fewer_images_and_a_moved_camera(rendered, s
     for folder in rendered:
         obj = load_object(folder)
         base.append(_stated_and_true(net, em, obj)[0].mean)
-        three = dataclasses.replace(obj, images=obj.images[:3], light_directions=None, light_intensities=None,
-                                    image_names=obj.image_names[:3])
-        few.append(_stated_and_true(net, em, three)[0].mean)
+        few.append(_stated_and_true(net, em, three_images(obj))[0].mean)
         moved.append(_stated_and_true(net, em, camera_moved(obj, 3))[0].mean)
     base, few, moved = map(np.array, (base, few, moved))
     assert np.all(few > base), (base, few)

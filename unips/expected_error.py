@@ -12,12 +12,20 @@ images say about themselves, gathered at prediction time (`gather`):
 - `edge_px`: the distance to the mask's outline;
 - the image count K and the object's mean disagreements.
 
-`ErrorModel` turns them into E[angular error | evidence] per pixel: a log-linear model (a Poisson GLM on the features
-of `FEATURES`, each object weighted equally), fitted on renders with exact ground truth from the training assets
-(`orchestrate.error_calibration`, one command), times one scale that centres the objects' ratio true / stated. The
-object's stated mean is the mean of its pixel map; its 80 % interval is that mean times the 10th and 90th percentiles
-of the calibration objects' ratio true / stated. The fitted model is a small JSON beside the weights it belongs to
-(`<weights stem>.expected_error.json`), tied to them by their SHA-256: other weights get no stated error, and say why.
+`ErrorModel` turns them into E[angular error | evidence] in two stages, both fitted on renders with exact ground truth
+from the training assets (`orchestrate.error_calibration`, one command):
+
+1. per pixel, a log-linear model (a Poisson GLM on the features of `FEATURES`, each object weighted equally): where on
+   the object the error lies;
+2. per object, log(stated mean) = c0 + c1 log(mean of the pixel map) + c2 log K (`object_coef`, least squares over
+   the objects, K the image count): how large it is. c2 is measured within objects (`fit_object_stage`): the
+   calibration's faulted copies with fewer images tell it apart from the objects' other differences; the pixel map
+   is then scaled to the stated mean, which keeps its order (the sparsification) and makes its mean the stated one.
+
+The 80 % interval is the stated mean times the 10th and 90th percentiles of the ratio true / stated measured out of
+fold (each calibration object stated by the two stages fitted without it and its faulted copies). The fitted model
+is a small JSON beside the weights it belongs to (`<weights stem>.expected_error.json`), tied to them by their
+SHA-256: other weights get no stated error, and say why.
 """
 from __future__ import annotations
 
@@ -154,9 +162,20 @@ class ErrorModel:
     scale: float
     ratio_quantiles: list[float]  # the calibration objects' true / stated at the 10th and 90th percentile
     calibration: dict = field(default_factory=dict)  # what it was fitted on, the command, the objects' figures
+    object_coef: list[float] = field(default_factory=lambda: [0.0, 1.0, 0.0])  # [c0, c1, c2] of the object stage
+    object_images: list[int] = field(default_factory=lambda: [1, 1_000_000])  # the image counts c2 was measured on
+
+    def object_mean(self, pixel_mean: float, images: int) -> float:
+        """The stated mean (deg) of an object of `images` images whose pixel map (`per_pixel`) averages
+        `pixel_mean`. The image count's term is held within the counts it was measured on (no extrapolation: 96
+        photos count as the calibration's most)."""
+        c0, c1, c2 = self.object_coef
+        k = min(max(images, self.object_images[0], 1), self.object_images[1])
+        return float(np.exp(c0 + c1 * np.log(max(pixel_mean, 1e-6)) + c2 * np.log(k)))
 
     def per_pixel(self, ev: Evidence) -> np.ndarray:
-        """(H, W) float32 expected error (deg), NaN outside the mask."""
+        """(H, W) float32 expected error (deg) of the pixel stage alone, NaN outside the mask (`state` scales it to
+        the object's stated mean)."""
         if list(self.features) != list(FEATURES):
             raise ValueError(f"error model: features {self.features}, expected {list(FEATURES)} (fitted by another "
                              "version of the toolkit: fit it again, orchestrate.error_calibration)")
@@ -168,9 +187,13 @@ class ErrorModel:
     def state(self, ev: Evidence) -> Stated:
         """The stated error of the map behind `ev`."""
         pix = self.per_pixel(ev)
-        m = float(np.nanmean(pix)) if ev.mask.any() else float("nan")
+        if not ev.mask.any():
+            return Stated(per_pixel=pix, mean=float("nan"), interval_80=(float("nan"), float("nan")))
+        raw = float(np.nanmean(pix))
+        m = self.object_mean(raw, ev.images)
+        pix *= np.float32(m / raw)  # the map keeps its order and takes the object's stated mean
         lo, hi = self.ratio_quantiles
-        return Stated(per_pixel=pix, mean=m, interval_80=(m * lo, m * hi))
+        return Stated(per_pixel=pix, mean=float(np.nanmean(pix)), interval_80=(m * lo, m * hi))
 
     def save(self, path: Path) -> None:
         from scenes.files import write_json
@@ -233,6 +256,32 @@ def fit(samples: list[tuple[np.ndarray, np.ndarray]], ridge: float = 1e-3) -> tu
     p0[0] = np.log(max(float((wt * y).sum()), 1e-6))
     res = minimize(loss, p0, jac=True, method="L-BFGS-B", options={"maxiter": 2000})
     return res.x[1:], float(res.x[0]), mean, std
+
+
+def fit_object_stage(pixel_means: np.ndarray, images: np.ndarray, true_means: np.ndarray,
+                     groups: np.ndarray | None = None) -> list[float]:
+    """[c0, c1, c2] of log(true mean) = c0 + c1 log(pixel mean) + c2 log(images), least squares over the objects.
+
+    With `groups` (one label per sample; an object and its faulted copies share one), c2 is measured within the
+    groups (each group's own means taken out: the same object with fewer images), where the image count is not
+    mixed up with the other differences between objects (the calibration's rows differ in K and in shape at once);
+    then c0 and c1 over every sample with c2 held."""
+    x1, xk = np.log(np.maximum(pixel_means, 1e-6)), np.log(np.maximum(images, 1)).astype(np.float64)
+    y = np.log(np.maximum(true_means, 1e-6))
+    if groups is None:
+        coef, *_ = np.linalg.lstsq(np.stack([np.ones(len(y)), x1, xk], axis=1), y, rcond=None)
+        return [float(c) for c in coef]
+    _, g = np.unique(np.asarray(groups), return_inverse=True)
+
+    def within(v: np.ndarray) -> np.ndarray:
+        return v - (np.bincount(g, v) / np.bincount(g))[g]
+
+    wk = within(xk)
+    c2 = 0.0
+    if np.abs(wk).max() > 1e-9:  # some object was seen with two image counts
+        (_, c2), *_ = np.linalg.lstsq(np.stack([within(x1), wk], axis=1), within(y), rcond=None)
+    (c0, c1), *_ = np.linalg.lstsq(np.stack([np.ones(len(y)), x1], axis=1), y - c2 * xk, rcond=None)
+    return [float(c0), float(c1), float(c2)]
 
 
 # ---------------------------------------------------------------- files
