@@ -1,5 +1,6 @@
 """Time and peak memory of `python -m orchestrate.capture` by the number of photos K and their long side:
-reading, prediction, the physical check and refinement, next to the command's own estimate.
+reading, prediction, the physical check and refinement, the surface, next to the command's own estimate, and the
+longest silence on stderr (no progress line for that long).
 
     python bench/bench_capture.py --out bench/results/capture.json [--images 4,16,96] [--sides 256,512,1024]
     python bench/bench_capture.py --reestimate bench/results/capture.json   # the estimate columns from today's code
@@ -60,17 +61,25 @@ def run_case(k: int, side: int, work: Path) -> dict:
     photos, out = work / f"k{k}_s{side}", work / f"out_k{k}_s{side}"
     synthetic_capture(photos, k, side)
     t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "orchestrate.capture", "--input", str(photos), "--out", str(out),
-                           "--threads", "1", "--overwrite"], cwd=REPO, capture_output=True, text=True)
+    proc = subprocess.Popen([sys.executable, "-m", "orchestrate.capture", "--input", str(photos), "--out", str(out),
+                             "--threads", "1", "--overwrite"], cwd=REPO, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
+    seen, lines = [t0], []
+    for line in proc.stderr:  # the progress lines as they come: the longest silence is measured, not assumed
+        seen.append(time.perf_counter())
+        lines.append(line.rstrip())
+    proc.wait()
     wall = time.perf_counter() - t0
+    seen.append(t0 + wall)
     if proc.returncode != 0:
-        return {"images": k, "side": side, "error": proc.stderr.strip().splitlines()[-1]}
+        return {"images": k, "side": side, "error": (lines or ["(no message)"])[-1]}
     report = json.loads((out / "report.json").read_text())
     t = report["timings"]
     return {"images": k, "side": side, "size": report["input"]["size"], "wall_s": round(wall, 1),
             "prepare_s": round(t["read_s"] + t["mask_and_checks_s"], 2),
             "predict_s": round(t["predict_s"], 2), "check_and_refine_s": round(t["check_and_refine_s"], 2),
-            "refined": report["verdict"]["refined"], "peak_mib": round(report["peak_memory_mib"]),
+            "surface_s": round(t["surface_s"], 2), "refined": report["verdict"]["refined"],
+            "peak_mib": round(report["peak_memory_mib"]), "longest_silence_s": round(float(np.diff(seen).max()), 1),
             "estimate_mib": report["estimate"]["peak_mib"], "estimate_s": report["estimate"]["seconds"]}
 
 

@@ -42,12 +42,18 @@ CAPTURE_BENCH = REPO / "bench" / "results" / "capture.json"
 def capture_resources(card: dict) -> str:
     """Time and peak memory of orchestrate.capture by photo count and size, measured against its own estimate."""
     d = json.loads(CAPTURE_BENCH.read_text())
+    def opt(r: dict, key: str) -> str:  # rows recorded before a column existed show a dash
+        return f"{r[key]:.1f}" if key in r else "-"
+
     rows = [[str(r["images"]), f"{r['size'][1]} x {r['size'][0]}", f"{r['prepare_s']:.1f}",
-             f"{r['predict_s']:.1f}", f"{r['check_and_refine_s']:.1f}", f"{r['wall_s']:.0f}", f"{r['estimate_s']:.0f}",
-             str(r["peak_mib"]), str(r["estimate_mib"])] for r in d["rows"] if "error" not in r]
-    return (f"Measured on {d['machine']['cpus']} cores (`{d['command']}`), one Dr.Jit thread:\n\n"
+             f"{r['predict_s']:.1f}", f"{r['check_and_refine_s']:.1f}", opt(r, "surface_s"), f"{r['wall_s']:.0f}",
+             f"{r['estimate_s']:.0f}", str(r["peak_mib"]), str(r["estimate_mib"]), opt(r, "longest_silence_s")]
+            for r in d["rows"] if "error" not in r]
+    return (f"Measured on {d['machine']['cpus']} cores (`{d['command']}`), one Dr.Jit thread; the longest silence is "
+            "the longest time without a line on stderr:\n\n"
             + markdown_table(["photos", "size (px)", "read, mask, checks (s)", "model (s)", "check + refine (s)",
-                              "total (s)", "estimated (s)", "peak memory (MiB)", "estimated (MiB)"], rows))
+                              "surface (s)", "total (s)", "estimated (s)", "peak memory (MiB)", "estimated (MiB)",
+                              "longest silence (s)"], rows))
 
 
 VERDICT_BENCH = REPO / "bench" / "results" / "verdict_optimised.json"

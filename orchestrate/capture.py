@@ -39,7 +39,7 @@ from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.limits import check_threads
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
-from scenes.cli.progress import stage
+from scenes.cli.progress import heartbeat, stage
 from scenes.files import to_plain, write_json
 from scenes.folder.format import MASK_FILE, write_object_folder
 from scenes.images import read_mask, write_mask, write_normal_exr, write_normal_map, write_picture
@@ -448,7 +448,7 @@ def main(argv: list[str] | None = None) -> int:
         opts = COMMAND.parse(argv).validate()
         mask_file = None if opts.mask in ("auto", "none") else opts.mask  # read too: never written over
         # one writer, never into what it reads
-        with output_lock(opts.out, inputs={"--input": opts.input, "--mask": mask_file}):
+        with output_lock(opts.out, inputs={"--input": opts.input, "--mask": mask_file}), heartbeat("capture"):
             report = run(opts)
     except INPUT_ERRORS as exc:
         return report_error(exc)

@@ -227,3 +227,46 @@ def test_a_stage_says_it_is_alive_and_when_it_ended_once_it_lasts():
     with stage("capture", "fast", stream=quiet):
         pass
     assert quiet.getvalue() == ""
+
+
+def test_a_heartbeat_covers_the_whole_run_between_and_across_stages():
+    """Inside `heartbeat`, short stages and the work between them share one clock: no silence longer than every_s
+    (plus scheduling), the running stage named, `working` between stages; a run shorter than every_s prints nothing."""
+    import io
+    import threading
+    import time
+
+    from scenes.cli.progress import heartbeat, stage
+
+    class Stamped(io.StringIO):  # each line with the time it was written
+        def __init__(self) -> None:
+            super().__init__()
+            self.times: list[float] = []
+            self.lock = threading.Lock()
+
+        def write(self, text: str) -> int:
+            with self.lock:
+                self.times += [time.monotonic()] * text.count("\n")
+                return super().write(text)
+
+    out, every = Stamped(), 0.1
+    t0 = time.monotonic()
+    with heartbeat("capture", every_s=every, stream=out):
+        for i in range(4):  # stages each shorter than every_s, with work between them: silent one by one
+            with stage("capture", f"step {i}", stream=out):
+                time.sleep(0.07)
+            time.sleep(0.07)
+        with stage("capture", "the long one", 3.0, stream=out):
+            time.sleep(0.35)
+    t1 = time.monotonic()
+    lines = out.getvalue().splitlines()
+    gaps = [b - a for a, b in zip([t0, *out.times], [*out.times, t1])]
+    assert max(gaps) < every + 0.08, (gaps, lines)
+    assert any(line.startswith("capture: the long one (about 3 s), ") for line in lines), lines
+    assert lines[-1].startswith("capture: the long one done in ")
+    assert any(line.startswith("capture: step ") or line.startswith("capture: working") for line in lines), lines
+    quiet = io.StringIO()
+    with heartbeat("capture", every_s=5.0, stream=quiet):
+        with stage("capture", "fast", stream=quiet):
+            pass
+    assert quiet.getvalue() == ""

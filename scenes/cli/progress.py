@@ -4,6 +4,7 @@ terminal, plain lines at most every `PLAIN_EVERY_S` seconds in a log.
 from __future__ import annotations
 
 import sys
+import threading
 import time
 from contextlib import contextmanager
 from typing import Any, Callable, Iterator
@@ -112,18 +113,85 @@ def progress_bar(unit: str) -> Iterator[Callable[[int, int, str], None]]:
             p.close()
 
 
+class _Heartbeat:
+    """The state `heartbeat` shares with the stages run inside it: the stage now running and the last line."""
+
+    def __init__(self, command: str, out: Any, clock: Callable[[], float]) -> None:
+        self.command, self.out, self.clock = command, out, clock
+        self.lock = threading.Lock()
+        self.last = clock()
+        self.current: tuple[str, str, float] | None = None  # (name, " (about N s)", start)
+        self.beats = 0
+
+    def say(self, text: str) -> None:
+        with self.lock:
+            print(text, file=self.out, flush=True)
+            self.last = self.clock()
+
+    def beat(self) -> None:
+        with self.lock:
+            current = self.current
+        if current is None:
+            self.say(f"{self.command}: working, {self.clock() - self.last:.0f} s since the last line")
+        else:
+            name, about, t0 = current
+            self.say(f"{self.command}: {name}{about}, {self.clock() - t0:.0f} s so far")
+        self.beats += 1
+
+
+_ACTIVE: list[_Heartbeat] = []
+"""The heartbeat of the command running in this process, if any (one at a time)."""
+
+
+@contextmanager
+def heartbeat(command: str, every_s: float = PLAIN_EVERY_S, stream: Any = None,
+              clock: Callable[[], float] = time.monotonic) -> Iterator[None]:
+    """For the whole of a command's run: never more than `every_s` seconds without a line on stderr. The stages
+    run inside it (`stage`) name what is running; between them (writing outputs) the line says `working`. Without
+    it, each stage keeps its own clock (silences between stages are then not covered)."""
+    hb = _Heartbeat(command, sys.stderr if stream is None else stream, clock)
+    stop = threading.Event()
+
+    def tick() -> None:
+        while not stop.wait(max(0.01, every_s - (hb.clock() - hb.last))):
+            if hb.clock() - hb.last >= every_s:
+                hb.beat()
+
+    _ACTIVE.append(hb)
+    ticker = threading.Thread(target=tick, daemon=True)
+    ticker.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        ticker.join()
+        _ACTIVE.remove(hb)
+
+
 @contextmanager
 def stage(command: str, name: str, estimate_s: float | None = None, every_s: float = PLAIN_EVERY_S,
           stream: Any = None, clock: Callable[[], float] = time.monotonic) -> Iterator[None]:
     """One stage of a long command, shown on stderr only once it lasts: `COMMAND: NAME (about N s), N s so far` at
     least every `every_s` seconds while it runs (a stage that reports no steps of its own, e.g. a model's forward
     pass, still shows that the command is alive), then `COMMAND: NAME done in N s`. A stage shorter than `every_s`
-    prints nothing, so that a command refusing a bad input in its first seconds still says one line."""
-    import threading
-
+    prints nothing, so that a command refusing a bad input in its first seconds still says one line. Inside a
+    `heartbeat` the clock is the command's (the last line of any stage), not the stage's own."""
+    about = f" (about {estimate_s:.0f} s)" if estimate_s is not None else ""
+    if _ACTIVE:
+        hb = _ACTIVE[-1]
+        t0, before = hb.clock(), hb.beats
+        with hb.lock:
+            hb.current = (name, about, t0)
+        try:
+            yield
+        finally:
+            with hb.lock:
+                hb.current = None
+        if hb.beats > before:
+            hb.say(f"{command}: {name} done in {hb.clock() - t0:.1f} s")
+        return
     out = sys.stderr if stream is None else stream
     t0 = clock()
-    about = f" (about {estimate_s:.0f} s)" if estimate_s is not None else ""
     stop, beats = threading.Event(), []
 
     def beat() -> None:
