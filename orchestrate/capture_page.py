@@ -35,7 +35,9 @@ def contact_sheet(images: np.ndarray, names: list[str], most: int = 12, width: i
     from scenes.colors import linear_to_srgb
 
     pick = np.unique(np.linspace(0, len(images) - 1, min(most, len(images))).round().astype(int))
-    level = max(float(np.percentile(images, 99.5)), 1e-6)
+    # every 4th row and column of every photo: the same level within display precision, and a 96-photo 1024 px
+    # capture no longer spends 30 s in one percentile holding the interpreter (no progress line meanwhile)
+    level = max(float(np.percentile(images[:, ::4, ::4], 99.5)), 1e-6)
     h = max(1, round(images.shape[1] * width / images.shape[2]))
     tiles = []
     for i in pick:
