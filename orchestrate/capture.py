@@ -250,8 +250,9 @@ def _variation_picture(images: np.ndarray, path: Path) -> None:
     write_picture(path, cv2.applyColorMap(v8, cv2.COLORMAP_VIRIDIS))
 
 
-# The estimate: a linear fit to bench/bench_capture.py's measurements on 2 cores (4 to 96 photos, 256 to 1024 px;
-# within 4 % of every measured peak and 30 % of every measured time there).
+# The estimate: linear fits to bench/bench_capture.py's measurements on 2 cores (4 to 96 photos, 256 to 1024 px):
+# memory an upper bound of every measured peak there, time within a factor 1.5 of every measured time (the docs'
+# table shows both side by side).
 BASE_MIB = 950.0
 """Memory before the photos: Python, torch, Mitsuba / Dr.Jit and the model."""
 MIB_PER_IMAGE = 12.5
@@ -259,29 +260,38 @@ MIB_PER_IMAGE = 12.5
 MIB_PER_MVALUE = 19.5
 """Memory per 2^20 photo values (K x H x W x 3): the float32 stack, its decoding, the work folder read back,
 the model's working copies."""
-SECONDS_BASE = 5.3
-"""Start-up and the fixed part of the check."""
-SECONDS_REFINE = 18.6
+SECONDS_START = 6.4
+"""Start-up: Python, torch, Mitsuba / Dr.Jit and the model loaded."""
+SECONDS_BASE = 1.84
+"""The fixed part of the check."""
+SECONDS_REFINE = 17.3
 """The fixed part of the refinement, run from 5 photos on (the check cannot judge fewer)."""
-SECONDS_PER_IMAGE = 0.75
-"""The check and the refinement per photo (at their fitting resolution)."""
-SECONDS_PER_MVALUE = 2.0
-"""Reading, the mask, the capture checks, the model and writing, per million photo values."""
+SECONDS_PER_IMAGE = 0.399
+"""The check and the refinement per photo, apart from its size."""
+SECONDS_PER_IMAGE_MPIXEL = 1.188
+"""The check and the refinement per photo and megapixel (their fitting resolution grows with the photos')."""
+SECONDS_PER_MVALUE = 1.396
+"""Reading, the mask, the capture checks, the model and writing, per million photo values (K x H x W x 3)."""
+SECONDS_SURFACE_PER_MPIXEL = 13.0
+"""The surface of the final map per megapixel of the frame (bench_capture: 10 to 12 s over masks of about 60 % of
+the frame; the surface command's own bound, `orchestrate.surface.SECONDS_PER_MPIXEL`, is per mask pixel)."""
 
 
 def estimate(k: int, h: int, w: int) -> dict:
     """The command's peak memory (MiB) and time (s, on 2 cores) for K photos of h x w, before it runs
     (bench_capture compares them with what it measures)."""
     values = k * h * w * 3
-    from orchestrate.surface import BYTES_PER_IMAGE_PIXEL, BYTES_PER_PIXEL, SECONDS_PER_MPIXEL
+    from orchestrate.surface import BYTES_PER_IMAGE_PIXEL, BYTES_PER_PIXEL
     from validate.judgeable import MIN_IMAGES
 
     refine = SECONDS_REFINE if k >= MIN_IMAGES["refine"] else 0.0
-    check = SECONDS_BASE + refine + SECONDS_PER_IMAGE * k
-    # The surface of the final map, at most every pixel, added whole: the estimate stays an upper bound.
+    mpx = h * w / 1e6
+    check = SECONDS_BASE + refine + (SECONDS_PER_IMAGE + SECONDS_PER_IMAGE_MPIXEL * mpx) * k
+    # The surface of the final map, at most every pixel, added whole: the memory estimate stays an upper bound.
     surface_mib = (BYTES_PER_PIXEL + BYTES_PER_IMAGE_PIXEL) * h * w / 2**20
     return {"peak_mib": round(BASE_MIB + MIB_PER_IMAGE * k + MIB_PER_MVALUE * values / 2**20 + surface_mib),
-            "seconds": round(check + SECONDS_PER_MVALUE * values / 1e6 + SECONDS_PER_MPIXEL * h * w / 1e6, 1),
+            "seconds": round(SECONDS_START + check + SECONDS_PER_MVALUE * values / 1e6
+                             + SECONDS_SURFACE_PER_MPIXEL * mpx, 1),
             "check_s": round(check, 1)}
 
 
