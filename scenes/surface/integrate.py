@@ -127,11 +127,16 @@ def _coefficients(n: np.ndarray, mask: np.ndarray, intr: Intrinsics | None):
     return a_u, nx, a_v, -ny
 
 
+def _away(a_u: np.ndarray, a_v: np.ndarray) -> np.ndarray:
+    """The rule: a normal faces away when either of its equations' coefficients is not positive (wrong sign)."""
+    return (a_u <= 0) | (a_v <= 0)
+
+
 def facing_away(normals: np.ndarray, mask: np.ndarray, intrinsics: Intrinsics | None) -> np.ndarray:
     """(P,) bool per mask pixel (row-major): its normal faces away from the camera along its pixel's ray, so that its
     equations would have the wrong sign (a_u <= 0 or a_v <= 0; orthographic: n_z <= 0)."""
     a_u, _, a_v, _ = _coefficients(normals, mask, intrinsics)
-    return (a_u <= 0) | (a_v <= 0)
+    return _away(a_u, a_v)
 
 
 def _edges(mask: np.ndarray, idx: np.ndarray, axis: int):
@@ -219,7 +224,7 @@ def _system(normals: np.ndarray, mask: np.ndarray, intrinsics: Intrinsics | None
     idx = -np.ones((h, w), np.int64)
     idx[mask] = np.arange(p)
     a_u, g_u, a_v, g_v = _coefficients(normals, mask, intrinsics)
-    away = (a_u <= 0) | (a_v <= 0)  # the rule of facing_away, on the coefficients at hand
+    away = _away(a_u, a_v)  # facing_away's rule, on the coefficients at hand
     a_u, a_v = np.where(away, 0.0, a_u), np.where(away, 0.0, a_v)  # void equations, not wrong-signed ones
     iu, ju = _edges(mask, idx, 1)
     iv, jv = _edges(mask, idx, 0)
