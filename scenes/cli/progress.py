@@ -180,36 +180,21 @@ def stage(command: str, name: str, estimate_s: float | None = None, every_s: flo
     least every `every_s` seconds while it runs (a stage that reports no steps of its own, e.g. a model's forward
     pass, still shows that the command is alive), then `COMMAND: NAME done in N s`. A stage shorter than `every_s`
     prints nothing, so that a command refusing a bad input in its first seconds still says one line. Inside a
-    `heartbeat` the clock is the command's (the last line of any stage), not the stage's own."""
-    about = f" (about {estimate_s:.0f} s)" if estimate_s is not None else ""
-    if _ACTIVE:
-        hb = _ACTIVE[-1]
-        t0, before = hb.clock(), hb.beats
-        with hb.lock:
-            hb.current = (name, about, t0)
-        try:
+    `heartbeat` the clock is the command's (the last line of any stage); alone, the stage runs in a heartbeat of its
+    own (`every_s`, `stream`, `clock`)."""
+    if not _ACTIVE:  # a stage on its own is a run of its own: its heartbeat starts and ends with it
+        with heartbeat(command, every_s, stream, clock), stage(command, name, estimate_s):
             yield
-        finally:
-            with hb.lock:
-                hb.current = None
-        if hb.beats > before:
-            hb.say(f"{command}: {name} done in {hb.clock() - t0:.1f} s")
         return
-    out = sys.stderr if stream is None else stream
-    t0 = clock()
-    stop, beats = threading.Event(), []
-
-    def beat() -> None:
-        while not stop.wait(every_s):
-            beats.append(1)
-            print(f"{command}: {name}{about}, {clock() - t0:.0f} s so far", file=out, flush=True)
-
-    ticker = threading.Thread(target=beat, daemon=True)
-    ticker.start()
+    about = f" (about {estimate_s:.0f} s)" if estimate_s is not None else ""
+    hb = _ACTIVE[-1]
+    t0, before = hb.clock(), hb.beats
+    with hb.lock:
+        hb.current = (name, about, t0)
     try:
         yield
     finally:
-        stop.set()
-        ticker.join()
-    if beats:
-        print(f"{command}: {name} done in {clock() - t0:.1f} s", file=out, flush=True)
+        with hb.lock:
+            hb.current = None
+    if hb.beats > before:
+        hb.say(f"{command}: {name} done in {hb.clock() - t0:.1f} s")
