@@ -21,13 +21,14 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import cv2
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "tests"))  # the DNG writer of the RAW tests
 
 from bench.cli_common import parse  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
@@ -35,15 +36,18 @@ from scenes.cli.options import Command, arg, check_fields  # noqa: E402
 from scenes.files import write_json  # noqa: E402
 
 
-def synthetic_capture(folder: Path, k: int, side: int, seed: int = 0) -> None:
-    """K 16-bit PNG photos (side x 3/4 side) of a bumpy ellipsoid under distant lights."""
+def synthetic_capture(folder: Path, k: int, side: int, seed: int = 0, fmt: str = "png") -> None:
+    """K photos (side x 3/4 side) of a bumpy ellipsoid under distant lights: 16-bit PNG, 8-bit sRGB JPEG (quality
+    95) with `fmt` 'jpeg', or camera RAW with 'dng' (uncompressed Bayer DNG, tests/dng.py)."""
     h, w = round(side * 3 / 4), side
-    rows, cols = np.mgrid[0:h, 0:w] + 0.5
+    rows, cols = np.mgrid[0:h, 0:w].astype(np.float32) + 0.5
     x, y = (cols - w / 2) / (0.38 * w), -(rows - h / 2) / (0.42 * h)
+    del rows, cols
     q = 1 - x * x - y * y
     mask = q > 0.01
     bump = 0.05 * np.sin(9 * x) * np.cos(7 * y)
     n = np.stack([x + bump, y - bump, np.sqrt(np.clip(q, 0, None)) + 0.2], -1)
+    del x, y, q, bump
     n /= np.linalg.norm(n, axis=-1, keepdims=True)
     rng = np.random.default_rng(seed)
     polar, azimuth = np.radians(rng.uniform(20, 55, k)), np.radians(np.linspace(0, 360, k, endpoint=False))
@@ -51,15 +55,22 @@ def synthetic_capture(folder: Path, k: int, side: int, seed: int = 0) -> None:
     albedo = np.array([0.7, 0.55, 0.4])
     folder.mkdir(parents=True, exist_ok=True)
     for i, l in enumerate(lights):
-        img = np.clip(n @ l, 0, None)[..., None] * albedo * mask[..., None] + 0.002
-        cv2.imwrite(
-            str(folder / f"DSC{i + 1:05d}.png"), np.round(np.clip(img, 0, 1) * 65535).astype(np.uint16)[..., ::-1]
-        )
+        img = np.clip(np.clip(n @ l.astype(np.float32), 0, None)[..., None] * albedo * mask[..., None] + 0.002, 0, 1)
+        if fmt == "dng":  # camera RAW: the linear values as a Bayer mosaic of 12-bit sensor values
+            from dng import BLACK, NEUTRAL, WHITE, mosaic_of, write_dng
+
+            write_dng(folder / f"DSC{i + 1:05d}.dng", mosaic_of(img * (WHITE - BLACK) * np.array(NEUTRAL)))
+        elif fmt == "jpeg":
+            srgb = np.where(img <= 0.0031308, 12.92 * img, 1.055 * img ** (1 / 2.4) - 0.055)
+            cv2.imwrite(str(folder / f"DSC{i + 1:05d}.jpg"), np.round(srgb * 255).astype(np.uint8)[..., ::-1],
+                        [cv2.IMWRITE_JPEG_QUALITY, 95])
+        else:
+            cv2.imwrite(str(folder / f"DSC{i + 1:05d}.png"), np.round(img * 65535).astype(np.uint16)[..., ::-1])
 
 
-def run_case(k: int, side: int, work: Path) -> dict:
-    photos, out = work / f"k{k}_s{side}", work / f"out_k{k}_s{side}"
-    synthetic_capture(photos, k, side)
+def run_case(k: int, side: int, work: Path, fmt: str = "png") -> dict:
+    photos, out = work / f"k{k}_s{side}_{fmt}", work / f"out_k{k}_s{side}_{fmt}"
+    synthetic_capture(photos, k, side, fmt=fmt)
     t0 = time.perf_counter()
     proc = subprocess.Popen([sys.executable, "-m", "orchestrate.capture", "--input", str(photos), "--out", str(out),
                              "--threads", "1", "--overwrite"], cwd=REPO, stdout=subprocess.DEVNULL,
@@ -75,7 +86,11 @@ def run_case(k: int, side: int, work: Path) -> dict:
         return {"images": k, "side": side, "error": (lines or ["(no message)"])[-1]}
     report = json.loads((out / "report.json").read_text())
     t = report["timings"]
-    return {"images": k, "side": side, "size": report["input"]["size"], "wall_s": round(wall, 1),
+    import shutil
+
+    shutil.rmtree(photos)  # 24-megapixel cases take room
+    return {"images": k, "side": side, "format": fmt, "size": report["input"]["size"],
+            "working_size": report["input"]["working_size"], "wall_s": round(wall, 1),
             "prepare_s": round(t["read_s"] + t["mask_and_checks_s"], 2),
             "predict_s": round(t["predict_s"], 2), "check_and_refine_s": round(t["check_and_refine_s"], 2),
             "surface_s": round(t["surface_s"], 2), "refined": report["verdict"]["refined"],
@@ -93,6 +108,10 @@ class Options:
     """Numbers of photos K, comma-separated."""
     sides: str = "256,512,1024"
     """Long sides of the photos in pixels, comma-separated."""
+    format: Literal["png", "jpeg", "dng"] = "png"
+    """Photo files: png (16-bit), jpeg (8-bit sRGB, quality 95) or dng (camera RAW, developed by LibRaw)."""
+    append: bool = False
+    """Add the rows to those already in --out (its command is recorded after the earlier ones)."""
     reestimate: Annotated[Path | None, arg(metavar="FILE")] = None
     """rewrite the estimate columns of a recorded output with the command's current estimate (the measurements
     are kept as recorded)"""
@@ -115,7 +134,7 @@ def main(argv: list[str] | None = None) -> int:
         result = json.loads(args.reestimate.read_text())
         for row in result["rows"]:
             if "error" not in row:
-                e = estimate(row["images"], *row["size"])
+                e = estimate(row["images"], *row.get("working_size", row["size"]), full=tuple(row["size"]))
                 row["estimate_mib"], row["estimate_s"] = e["peak_mib"], e["seconds"]
         write_json(args.reestimate, result, indent=1, newline=True)
         print(f"rewrote the estimates of {args.reestimate}")
@@ -124,11 +143,15 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         for side in [int(s) for s in args.sides.split(",")]:
             for k in [int(s) for s in args.images.split(",")]:
-                row = run_case(k, side, Path(tmp))
+                row = run_case(k, side, Path(tmp), args.format)
                 print(json.dumps(row), flush=True)
                 rows.append(row)
+    commands = ["python bench/bench_capture.py " + " ".join(argv or sys.argv[1:])]
+    if args.append and args.out.is_file():
+        before = json.loads(args.out.read_text())
+        rows, commands = before["rows"] + rows, before.get("commands", [before["command"]]) + commands
     result = {"machine": {"cpus": __import__("os").cpu_count(), "platform": platform.platform()},
-              "command": "python bench/bench_capture.py " + " ".join(argv or sys.argv[1:]), "rows": rows}
+              "commands": commands, "rows": rows}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     write_json(args.out, result, indent=1, newline=True)
     print(f"wrote {args.out}")

@@ -45,15 +45,20 @@ def capture_resources(card: dict) -> str:
     def opt(r: dict, key: str) -> str:  # rows recorded before a column existed show a dash
         return f"{r[key]:.1f}" if key in r else "-"
 
-    rows = [[str(r["images"]), f"{r['size'][1]} x {r['size'][0]}", f"{r['prepare_s']:.1f}",
+    def size(r: dict) -> str:  # the photos' size, and the working size where smaller
+        work = r.get("working_size", r["size"])
+        return f"{r['size'][1]} x {r['size'][0]}" + (f" ({work[1]} x {work[0]})" if work != r["size"] else "")
+
+    rows = [[str(r["images"]), r.get("format", "png").upper(), size(r), f"{r['prepare_s']:.1f}",
              f"{r['predict_s']:.1f}", f"{r['check_and_refine_s']:.1f}", opt(r, "surface_s"), f"{r['wall_s']:.0f}",
              f"{r['estimate_s']:.0f}", str(r["peak_mib"]), str(r["estimate_mib"]), opt(r, "longest_silence_s")]
             for r in d["rows"] if "error" not in r]
-    return (f"Measured on {d['machine']['cpus']} cores (`{d['command']}`), one Dr.Jit thread; the longest silence is "
+    commands = ", ".join(f"`{c}`" for c in d.get("commands", [d.get("command")]))
+    return (f"Measured on {d['machine']['cpus']} cores ({commands}), one Dr.Jit thread; the longest silence is "
             "the longest time without a line on stderr:\n\n"
-            + markdown_table(["photos", "size (px)", "read, mask, checks (s)", "model (s)", "check + refine (s)",
-                              "surface (s)", "total (s)", "estimated (s)", "peak memory (MiB)", "estimated (MiB)",
-                              "longest silence (s)"], rows))
+            + markdown_table(["photos", "files", "size (px; worked at)", "read, mask, checks (s)", "model (s)",
+                              "check + refine (s)", "surface (s)", "total (s)", "estimated (s)", "peak memory (MiB)",
+                              "estimated (MiB)", "longest silence (s)"], rows))
 
 
 VERDICT_BENCH = REPO / "bench" / "results" / "verdict_optimised.json"
@@ -199,6 +204,65 @@ def expected_error(card: dict) -> str:
                               "sparsification ratio"], rows))
 
 
+FULL_SIZE_BENCH = REPO / "bench" / "results" / "full_size.json"
+"""The output of `python bench/bench_full_size.py --out bench/results/full_size.json` (committed)."""
+
+
+def full_size(card: dict) -> str:
+    """Per working side: the mean angular error of the map brought back to the rendered size, and the outline's wrong
+    pixels guided by the photos against a plain upsampling."""
+    d = json.loads(FULL_SIZE_BENCH.read_text())
+
+    def share(r: dict, key: str) -> str:
+        return f"{r[key]:.2%}" if key in r else "-"
+
+    rows = [[f"{r['working_side']} px" + (" (the photos' own)" if r["working_side"] == d["side"] else ""),
+             f"{r['mean_error_deg']:.2f}", share(r, "outline_wrong_guided"), share(r, "outline_wrong_linear")]
+            for r in d["rows"]]
+    return (f"{d['objects']} held-out objects rendered at {d['side']} x {d['side']} px (`{d['command']}`); the map "
+            "made at the working side and brought back to the rendered size, its mean angular error against the exact "
+            "normals; the outline brought back from the working mask, its wrong pixels as a share of the object:\n\n"
+            + markdown_table(["working side", "mean error at the photos' size (deg)", "outline wrong, guided",
+                              "outline wrong, plain upsampling"], rows))
+
+
+REFINE_RULE_BENCH = REPO / "bench" / "results" / "refine_rule.json"
+"""The output of `python bench/bench_refine_rule.py --out bench/results/refine_rule.json` (committed)."""
+
+
+def refine_rule(card: dict) -> str:
+    """Per rule of keeping the refined map, on each independently rendered held-out set: how many refined maps it
+    kept, the mean true error of the kept maps, the refined maps it kept that were worse and declined that were
+    better."""
+    d = json.loads(REFINE_RULE_BENCH.read_text())
+    seeds = [str(x["seed"]) for x in d["sets"]]
+    header = ["rule"] + [h for seed in seeds for h in (f"seed {seed}: kept", "mean error (deg)", "hurt", "missed")]
+    rows = [[r["rule"]] + [c for seed in seeds for c in (str(r["by_seed"][seed]["kept_refined"]),
+                                                         f"{r['by_seed'][seed]['mean_error_deg']:.2f}",
+                                                         str(r["by_seed"][seed]["hurt"]),
+                                                         str(r["by_seed"][seed]["missed"]))] for r in d["rows"]]
+    return (f"`{d['command']}`: {' and '.join(str(x['judged']) for x in d['sets'])} captures judged of "
+            f"{' and '.join(str(x['objects']) for x in d['sets'])} rendered; hurt: a kept refined map more than "
+            f"{d['hurt_deg']} deg worse than the model's, missed: a declined one as much better:\n\n"
+            + markdown_table(header, rows))
+
+
+ERROR_EVIDENCE_BENCH = REPO / "bench" / "results" / "error_evidence.json"
+"""The output of `python bench/bench_error_evidence.py --out bench/results/error_evidence.json` (committed)."""
+
+
+def error_evidence(card: dict) -> str:
+    """Per kind of evidence: how much of the object-level error it predicts out of fold (the spread of log(true /
+    predicted) and the hit share)."""
+    d = json.loads(ERROR_EVIDENCE_BENCH.read_text())
+    rows = [[r["evidence"], str(r["added_features"]), f"{r['spread']:.3f}", f"{r['hit_share']:.2f}"] for r in d["rows"]]
+    return (f"Measured on the {d['samples']} calibration samples ({d['objects']} objects and their faulted copies; "
+            f"`{d['command']}`), {d['folds']} folds grouped by object, ridge {d['ridge']:g}; a hit share of 0.8 needs "
+            f"a spread of about {d['needed_spread']}:\n\n"
+            + markdown_table(["evidence added to the stated error's inputs", "features", "spread of log(true / "
+                              "predicted)", "hit share"], rows))
+
+
 SURFACE_BENCH = REPO / "bench" / "results" / "surface.json"
 """The output of `python bench/bench_surface.py --work WORK` (committed)."""
 
@@ -229,5 +293,7 @@ BENCH_BLOCKS = {"model:shards-throughput": SHARDS_BENCH, "surface:bench": SURFAC
                 "capture:resources": CAPTURE_BENCH,
                 "check:resolution": VERDICT_BENCH, "check:verdict-sweep": VERDICT_SWEEP_BENCH,
                 "generator:profile": PROFILE_BENCH,
-                "generator:cycles": CYCLES_BENCH, "model:expected-error": EXPECTED_ERROR_BENCH}
+                "generator:cycles": CYCLES_BENCH, "model:expected-error": EXPECTED_ERROR_BENCH,
+                "model:error-evidence": ERROR_EVIDENCE_BENCH, "capture:full-size": FULL_SIZE_BENCH,
+                "check:refine-rule": REFINE_RULE_BENCH}
 """Blocks generated from a benchmark's recorded output instead of the model card."""

@@ -34,6 +34,8 @@ from typing import Annotated, Literal
 
 import numpy as np
 
+from orchestrate.capture_estimate import check_resources, estimate
+from orchestrate.capture_full import DEFAULT_MAX_SIDE, guide_image, upsample
 from orchestrate.capture_verdict import level, verdict
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.limits import check_threads
@@ -84,10 +86,9 @@ class CaptureOptions:
     srgb (refused for RAW files) or linear."""
     convention: Literal["opengl", "opencv"] = "opengl"
     """Frame of the written normals: opengl (x right, y up, z toward the camera) or opencv (y down, z away)."""
-    max_side: Annotated[int | None, arg(help_behavior_hint="(default: the photos' own size)")] = option(
-        None, minimum=32
-    )
-    """Downscale the photos so that their longer side is at most this many pixels."""
+    max_side: int = option(DEFAULT_MAX_SIDE, minimum=0)
+    """Work on copies of the photos whose longer side is at most this many pixels (0: the photos' own size);
+    normal.png, normal.exr and mask.png are written at the photos' size (docs/capture.md, "Big photos")."""
     checkpoint: Annotated[str | None, arg(metavar="FILE", help_behavior_hint="(default: the shipped model)")] = None
     """Model weights to predict with: a model file, or a folder of the authors' published weights with --model."""
     model: str | None = None
@@ -119,21 +120,20 @@ class CaptureOptions:
 COMMAND = Command(CaptureOptions, prog="python -m orchestrate.capture", description=__doc__.split("\n\n")[0])
 
 
-def probe_input(opts: CaptureOptions) -> tuple[int, int, int]:
-    """(photos, height, width) of --input after --max-side, from the file list and one image: what the estimate
-    needs before anything large is read."""
+def probe_input(opts: CaptureOptions) -> tuple[int, int, int, tuple[int, int]]:
+    """(photos, height, width after --max-side, the photos' own (height, width)) of --input, from the file list and
+    one image: what the estimate needs before anything large is read. An object folder is worked on at its size."""
     from scenes.folder.layouts import detect_layout, read_folder
     from scenes.folder.photos import photo_files, photo_shape
 
     folder = Path(opts.input)
     if detect_layout(folder) is not None:
         fd = read_folder(folder, images=False, arg="--input")
-        k, (h, w) = fd.num_files, fd.shape
-    else:
-        files = photo_files(folder)
-        k, (h, w) = len(files), photo_shape(files[0])
+        return fd.num_files, *fd.shape, fd.shape
+    files = photo_files(folder)
+    k, (h, w) = len(files), photo_shape(files[0])
     f = min(1.0, opts.max_side / max(h, w)) if opts.max_side else 1.0
-    return k, max(1, round(h * f)), max(1, round(w * f))
+    return k, max(1, round(h * f)), max(1, round(w * f)), (h, w)
 
 
 def read_input(opts: CaptureOptions) -> Capture:
@@ -148,11 +148,11 @@ def read_input(opts: CaptureOptions) -> Capture:
         fd = read_folder(folder, arg="--input")
         return capture_from_arrays(fd.name, fd.images, fd.mask, [p.name for p in fd.image_paths], fd.saturated,
                                    folder, {"input": {"kind": f"object folder ({fd.layout})"}})
-    photos = read_photos(folder, opts.input_encoding, opts.max_side)
+    photos = read_photos(folder, opts.input_encoding, opts.max_side or None, guide=True)
     source = {"kind": "photos", "encoding": photos.encoding, "bit_depth": photos.bit_depth,
               "exposure": photos.exposure, **({"raw": photos.raw} if photos.raw else {})}
     return capture_from_arrays(folder.name or "capture", photos.images, None, photos.names, photos.saturated, folder,
-                               {"input": source})
+                               {"input": source, "guide": photos.guide})
 
 
 WHOLE_FRAME = ("every pixel gets a normal, the background's too; the model was trained on single objects on a dark "
@@ -162,8 +162,10 @@ WHOLE_FRAME = ("every pixel gets a normal, the background's too; the model was t
 """What report.json says of --mask none."""
 
 
-def find_mask(opts: CaptureOptions, cap: Capture) -> tuple[np.ndarray, dict]:
-    """The object mask (from --mask FILE, the object folder's own, or found from the images) and how it was made."""
+def find_mask(opts: CaptureOptions, cap: Capture, full: tuple[int, int]) -> tuple[np.ndarray, dict]:
+    """The object mask at the working size (from --mask FILE, the object folder's own, or found from the images) and
+    how it was made; a mask file may have the photos' own size `full` (kept as `full_mask` in the dict)."""
+    from orchestrate.capture_full import downscale_mask
     from validate.diagnosis.usable import auto_mask
 
     shape = cap.images.shape[1:3]
@@ -174,11 +176,14 @@ def find_mask(opts: CaptureOptions, cap: Capture) -> tuple[np.ndarray, dict]:
             mask = read_mask(opts.mask, None)
         except (ValueError, FileNotFoundError) as exc:
             raise type(exc)(f"--mask: {exc}") from None
-        if mask.shape != shape:
+        if mask.shape not in (shape, full):
+            at = f" (worked on at {shape[1]}x{shape[0]})" if shape != full else ""
             raise ValueError(f"--mask: {opts.mask!r} is {mask.shape[1]}x{mask.shape[0]}, the photos "
-                             f"{shape[1]}x{shape[0]}")
+                             f"{full[1]}x{full[0]}{at}")
         if not mask.any():
             raise ValueError(f"--mask: {opts.mask!r} marks no pixel of the object (expected white on black)")
+        if mask.shape != shape:
+            return downscale_mask(mask, shape), {"method": "file", "file": opts.mask, "full_mask": mask}
         return mask, {"method": "file", "file": opts.mask}
     if cap.mask is not None:  # an object folder brings its own
         return cap.mask, {"method": "the object folder's mask.png"}
@@ -250,61 +255,6 @@ def _variation_picture(images: np.ndarray, path: Path) -> None:
     write_picture(path, cv2.applyColorMap(v8, cv2.COLORMAP_VIRIDIS))
 
 
-# The estimate: linear fits to bench/bench_capture.py's measurements on 2 cores (4 to 96 photos, 256 to 1024 px):
-# memory an upper bound of every measured peak there, time within a factor 1.5 of every measured time (the docs'
-# table shows both side by side).
-BASE_MIB = 950.0
-"""Memory before the photos: Python, torch, Mitsuba / Dr.Jit and the model."""
-MIB_PER_IMAGE = 12.5
-"""Memory per photo that does not grow with its size (the model's per-image state, the fit's per-image arrays)."""
-MIB_PER_MVALUE = 19.5
-"""Memory per 2^20 photo values (K x H x W x 3): the float32 stack, its decoding, the work folder read back,
-the model's working copies."""
-SECONDS_START = 6.4
-"""Start-up: Python, torch, Mitsuba / Dr.Jit and the model loaded."""
-SECONDS_BASE = 1.84
-"""The fixed part of the check."""
-SECONDS_REFINE = 17.3
-"""The fixed part of the refinement, run from 5 photos on (the check cannot judge fewer)."""
-SECONDS_PER_IMAGE = 0.399
-"""The check and the refinement per photo, apart from its size."""
-SECONDS_PER_IMAGE_MPIXEL = 1.188
-"""The check and the refinement per photo and megapixel (their fitting resolution grows with the photos')."""
-SECONDS_PER_MVALUE = 1.396
-"""Reading, the mask, the capture checks, the model and writing, per million photo values (K x H x W x 3)."""
-SECONDS_SURFACE_PER_MPIXEL = 13.0
-"""The surface of the final map per megapixel of the frame (bench_capture: 10 to 12 s over masks of about 60 % of
-the frame; the surface command's own bound, `orchestrate.surface.SECONDS_PER_MPIXEL`, is per mask pixel)."""
-
-
-def estimate(k: int, h: int, w: int) -> dict:
-    """The command's peak memory (MiB) and time (s, on 2 cores) for K photos of h x w, before it runs
-    (bench_capture compares them with what it measures)."""
-    values = k * h * w * 3
-    from orchestrate.surface import BYTES_PER_IMAGE_PIXEL, BYTES_PER_PIXEL
-    from validate.judgeable import MIN_IMAGES
-
-    refine = SECONDS_REFINE if k >= MIN_IMAGES["refine"] else 0.0
-    mpx = h * w / 1e6
-    check = SECONDS_BASE + refine + (SECONDS_PER_IMAGE + SECONDS_PER_IMAGE_MPIXEL * mpx) * k
-    # The surface of the final map, at most every pixel, added whole: the memory estimate stays an upper bound.
-    surface_mib = (BYTES_PER_PIXEL + BYTES_PER_IMAGE_PIXEL) * h * w / 2**20
-    return {"peak_mib": round(BASE_MIB + MIB_PER_IMAGE * k + MIB_PER_MVALUE * values / 2**20 + surface_mib),
-            "seconds": round(SECONDS_START + check + SECONDS_PER_MVALUE * values / 1e6
-                             + SECONDS_SURFACE_PER_MPIXEL * mpx, 1),
-            "check_s": round(check, 1)}
-
-
-def check_resources(k: int, h: int, w: int) -> dict:
-    """The estimate, refused in one line above the memory this machine has available."""
-    from scenes.cli.limits import check_memory
-
-    need = estimate(k, h, w)
-    check_memory(need["peak_mib"] * 2**20, "--max-side", f"{k} photos of {w} x {h} px",
-                 "give --max-side (e.g. --max-side 1024) to downscale them, or use fewer photos")
-    return need
-
-
 def load_network_first(opts: CaptureOptions) -> tuple[object, float]:
     """The network of --checkpoint / --model, loaded (its weights checked: `unips.models.tensors`) before the photos
     are read, so that a bad one costs no reading; and the seconds it took. A refusal names the flag."""
@@ -332,19 +282,22 @@ def run(opts: CaptureOptions) -> dict:
     out = Path(opts.out)
     check_output_folder(out)
     claim_outputs([out / n for n in OUTPUTS], opts.overwrite, owner="orchestrate.capture")
-    k, h, w = probe_input(opts)
-    need = check_resources(k, h, w)
+    k, h, w, full = probe_input(opts)
+    need = check_resources(k, h, w, full)
     net, times["load_model_s"] = load_network_first(opts)
-    with stage("capture", f"reading {k} photos of {w} x {h} px (the whole run: about {need['seconds']:.0f} s, "
-               f"{need['peak_mib']} MiB at most)"):
+    into = f" into {w} x {h} px" if full != (h, w) else ""
+    with stage("capture", f"reading {k} photos of {full[1]} x {full[0]} px{into} (the whole run: about "
+               f"{need['seconds']:.0f} s, {need['peak_mib']} MiB at most)"):
         read = read_input(opts)
+    guide = read.meta.pop("guide", None)  # the photos' mean at their own size, when worked on smaller copies
     claim_stages(opts, out, read.name)
     times["read_s"] = time.perf_counter() - t0 - times["load_model_s"]
     count = image_count_warning(len(read.images))
     if count and count.fatal:  # before the mask: two photos say nothing about one
         raise UsageError(f"--input: {count.message}")
     with stage("capture", "the mask and the capture checks"):
-        mask, mask_info = find_mask(opts, read)
+        mask, mask_info = find_mask(opts, read, full)
+        full_mask = mask_info.pop("full_mask", None)
         automatic = opts.mask == "auto" and read.mask is None  # found from the images: it may be wrong (mask_doubts)
         read = replace(read, mask=mask)
         # the light warnings wait for the model's map: the lights are read from the shading under it
@@ -377,14 +330,16 @@ def run(opts: CaptureOptions) -> dict:
         final, check, refined = check_and_refine(opts, cap, out, model_map)
     times["check_and_refine_s"] = time.perf_counter() - t1
     final = np.where(mask[..., None], final, 0.0)
-    write_maps(opts, out, read.images, mask, final, model_map, stated)
+    big = None if guide is None else upsample(final, mask, guide_image(guide), full_mask)
+    del guide
+    write_maps(opts, out, read.images, mask, final, model_map, stated, big)
     t1 = time.perf_counter()
     with stage("capture", "the surface from the final map"):
         surface = write_capture_surface(out / SURFACE_DIR, final, mask, read.meta["input"])
     times["surface_s"] = time.perf_counter() - t1
     times["total_s"] = time.perf_counter() - t0
     report = {"input": {"folder": str(opts.input), "images": len(read.image_names), "names": read.image_names,
-                        "size": list(read.images.shape[1:3]), **read.meta["input"]},
+                        "size": list(full), "working_size": list(read.images.shape[1:3]), **read.meta["input"]},
               "mask": {**mask_info, "pixels": int(mask.sum())},
               "warnings": as_dicts(warnings), "measurements": facts, "surface": surface,
               **outcome(opts, check, refined, stated, why_unstated, warnings),
@@ -394,6 +349,7 @@ def run(opts: CaptureOptions) -> dict:
                          "work_folder": str(work.relative_to(out)) if work else None},
               "timings": times, "estimate": need,
               "peak_memory_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+    report["normals"]["size"] = list((big[0] if big is not None else final).shape[:2])  # normal.png, mask.png
     write_json(out / "report.json", report, indent=1, newline=True)
     from orchestrate.capture_page import pictures, write_page
 
@@ -420,14 +376,16 @@ def claim_stages(opts: CaptureOptions, out: Path, name: str) -> None:
 
 
 def write_maps(opts: CaptureOptions, out: Path, images: np.ndarray, mask: np.ndarray, final: np.ndarray,
-               model_map: np.ndarray, stated) -> None:
-    """The maps and pictures of OUTPUTS (report.json and report.html aside)."""
+               model_map: np.ndarray, stated, big: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+    """The maps and pictures of OUTPUTS (report.json and report.html aside); `big`: the final map and its mask at
+    the photos' size (`orchestrate.capture_full.upsample`), written as normal.png, normal.exr and mask.png."""
     from orchestrate.capture_page import mask_overlay
 
-    write_normal_map(out / "normal.png", _to_convention(final, opts.convention))
-    write_normal_exr(out / "normal.exr", _to_convention(final, opts.convention))
+    normals, outline = big if big is not None else (final, mask)
+    write_normal_map(out / "normal.png", _to_convention(normals, opts.convention))
+    write_normal_exr(out / "normal.exr", _to_convention(normals, opts.convention))
     write_normal_map(out / "normal_model.png", _to_convention(model_map, opts.convention))
-    write_mask(out / MASK_FILE, mask)
+    write_mask(out / MASK_FILE, outline)
     if stated is not None:
         write_stated(out, stated)
     write_picture(out / "mask_overlay.png", mask_overlay(images, mask))
@@ -475,6 +433,10 @@ def main(argv: list[str] | None = None) -> int:
         + ("expected_error_deg.npy, .exr, expected_error.png, " if report["expected_error_deg"] else "")
         + f"report.json, report.html and surface/ ({len(report['warnings'])} warning(s))"
     )
+    (h, w), (hw, ww) = report["input"]["size"], report["input"]["working_size"]
+    if (h, w) != (hw, ww):
+        print(f"normal.png, normal.exr and mask.png at the photos' size ({w} x {h} px), the rest at the working size "
+              f"({ww} x {hw} px, --max-side {opts.max_side})")
     return 0
 
 

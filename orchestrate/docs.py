@@ -28,7 +28,10 @@ from orchestrate.bench_docs import (
     capture_resources,
     check_resolution,
     cycles_speed,
+    error_evidence,
     expected_error,
+    full_size,
+    refine_rule,
     render_profile,
     shards_throughput,
     surface_integration,
@@ -388,6 +391,9 @@ BLOCKS: dict[str, Callable[[dict], str]] = {
     "generator:profile": render_profile,
     "generator:cycles": cycles_speed,
     "model:expected-error": expected_error,
+    "model:error-evidence": error_evidence,
+    "capture:full-size": full_size,
+    "check:refine-rule": refine_rule,
     "surface:bench": surface_integration,
 }
 

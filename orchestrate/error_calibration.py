@@ -86,6 +86,20 @@ how the error grows with fewer images (`unips.expected_error.fit_object_stage`);
 held-out objects as a probe."""
 
 
+def fault_schedule(i: int, obj) -> list[tuple[str, object]]:
+    """The calibration's copies of its `i`-th object `obj` (`FAULTS`): [(tag, fault or None)], the object itself
+    first ('clean'), then its camera moved by 2 or 3 px (every second object, alternately), half its images (every
+    third) and its first 3 images (every fourth, when it has more)."""
+    out: list[tuple[str, object]] = [("clean", None)]
+    if i % 2 == 0:
+        out.append(("camera_moved", lambda o, px=2 + (i // 2) % 2: camera_moved(o, px)))
+    if i % 3 == 1:
+        out.append(("half_images", half_images))
+    if i % 4 == 3 and obj.num_images > 3:
+        out.append(("three_images", three_images))
+    return out
+
+
 def render_suite(work: Path, assets: str | None, objects: int, seed: int, rows=SUITE, quiet: bool = True) -> list[Path]:
     """Render (or resume) each row of `rows` into work/<name>; returns the dataset folders."""
     out = []
@@ -250,14 +264,7 @@ def run(opts: CalibrationOptions) -> int:
     folders = objects_of(datasets)
     for i, folder in enumerate(folders):
         obj, name = load_object(folder), f"{folder.parent.name}/{folder.name}"
-        samples.append(measure(net, obj, opts.pixels, rng, name=name))
-        if i % 2 == 0:
-            samples.append(measure(net, obj, opts.pixels, rng, lambda o, px=2 + (i // 2) % 2: camera_moved(o, px),
-                                   name=name))
-        if i % 3 == 1:
-            samples.append(measure(net, obj, opts.pixels, rng, half_images, name=name))
-        if i % 4 == 3 and obj.num_images > 3:
-            samples.append(measure(net, obj, opts.pixels, rng, three_images, name=name))
+        samples += [measure(net, obj, opts.pixels, rng, fault, name=name) for _, fault in fault_schedule(i, obj)]
         print(f"\r{i + 1}/{len(folders)} objects measured", end="", flush=True)
     print(flush=True)
     em = calibrate(samples, weights, net.meta.get("model_name", ""), {

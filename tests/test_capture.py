@@ -172,10 +172,11 @@ def test_the_size_probe_before_reading_takes_exr_and_turned_photos_as_the_reader
 
     for i in range(2):
         write_exr(tmp_path / f"{i}.exr", np.ones((5, 7, 3), np.float32))
-    assert probe_input(CaptureOptions(input=str(tmp_path), out=str(tmp_path / "o"))) == (2, 5, 7)
+    assert probe_input(CaptureOptions(input=str(tmp_path), out=str(tmp_path / "o"))) == (2, 5, 7, (5, 7))
     (tmp_path / "jpg").mkdir()
     _jpeg_with_exif(tmp_path / "jpg" / "p.jpg", np.zeros((6, 9, 3), np.uint8), 6)
-    assert probe_input(CaptureOptions(input=str(tmp_path / "jpg"), out=str(tmp_path / "o"))) == (1, 9, 6)  # turned
+    turned = CaptureOptions(input=str(tmp_path / "jpg"), out=str(tmp_path / "o"))
+    assert probe_input(turned) == (1, 9, 6, (9, 6))  # the reader's orientation: 9 rows of 6
 
 
 # ------------------------------------------------------------------------------------------ capture checks

@@ -74,6 +74,9 @@ class Photos:
     raw: list[dict[str, Any]] = field(default_factory=list)
     """Per image, for a folder of camera RAW files: how LibRaw developed it (`scenes.folder.raw`: white-balance
     multipliers, black and white levels, demosaic, colour space, rawpy / LibRaw versions); empty otherwise."""
+    guide: np.ndarray | None = None
+    """With `read_photos(guide=True)` and photos larger than `max_side`: (H, W) float32, the mean linear gray of the
+    photos at their own size (each at its own exposure), to bring a map made at the smaller size back to theirs."""
 
 
 def photo_files(folder: str | Path, flag: str = "--input") -> list[Path]:
@@ -168,7 +171,8 @@ class _File:
     """One photo as read: its codes, what it said about itself and, for RAW files, how it was developed."""
 
     codes: np.ndarray
-    """(H, W, 3) float64: codes in [0, 1] (EXR: linear floats; RAW: developed linear)."""
+    """(H, W, 3): the file's integer codes (uint8 or uint16), or float linear values (EXR; RAW developed linear, in
+    [0, 1])."""
     depth: int
     exif: dict[str, Any]
     """The exposure fields (`exposure_time_s`, `iso`) where given, `color_space` and `orientation` (EXIF tag
@@ -200,8 +204,8 @@ def _shown(orientation: tuple[str, int]) -> str:
 
 
 def _read_one(path: Path, flag: str) -> tuple[np.ndarray, int, dict[str, Any]]:
-    """(H, W, 3) RGB codes as float64 in [0, 1] (EXR: linear floats), the bit depth, the EXIF fields. OpenCV
-    decodes the pixels at their own depth and turns them as the EXIF orientation says."""
+    """(H, W, 3) RGB codes as the file holds them (uint8 or uint16; EXR: linear float32), the bit depth, the EXIF
+    fields. OpenCV decodes the pixels at their own depth and turns them as the EXIF orientation says."""
     if path.suffix.lower() == ".exr":
         from scenes.images import read_exr
 
@@ -210,7 +214,7 @@ def _read_one(path: Path, flag: str) -> tuple[np.ndarray, int, dict[str, Any]]:
             raise ValueError(f"{flag}: {str(path)!r} is an EXR of {data.shape[2]} channels, expected one (grey) or "
                              "R, G and B")
         data = np.repeat(data, 3, axis=2) if data.shape[2] == 1 else data
-        return data.astype(np.float64), 32, {}
+        return data.astype(np.float32), 32, {}
     import cv2
 
     from scenes.images import decode_image
@@ -225,7 +229,7 @@ def _read_one(path: Path, flag: str) -> tuple[np.ndarray, int, dict[str, Any]]:
         exif = _read_exif(path)
     except ValueError as exc:
         raise ValueError(f"{flag}: {path.name}: {exc}") from None
-    return raw[..., ::-1].astype(np.float64) / (255.0 if depth == 8 else 65535.0), depth, exif
+    return raw[..., ::-1], depth, exif
 
 
 def _linear(
@@ -237,9 +241,16 @@ def _linear(
     if encoding == "auto" and depth == 8 and exif.get("color_space", _SRGB_COLOR_SPACE) != _SRGB_COLOR_SPACE:
         raise ValueError(f"{flag}: {str(path)!r} declares EXIF colour space {exif['color_space']} (not sRGB); give "
                          f"--input-encoding srgb or linear to say how its values are encoded")
-    if kind == "srgb" and depth != 32:
-        return np.asarray(colour.cctf_decoding(codes, function="sRGB"), np.float64), kind
-    return codes, "linear"
+    if codes.dtype.kind == "f":  # EXR and RAW: linear values already
+        return codes.astype(np.float32, copy=False), "linear"
+    # Integer codes through a table of every code's value (the decoding evaluated once per code, in float64): a
+    # 24-megapixel photo becomes float32 values directly, without float64 copies of the whole frame.
+    top = np.iinfo(codes.dtype).max
+    table = np.arange(top + 1, dtype=np.float64) / top
+    if kind == "srgb":
+        table = np.asarray(colour.cctf_decoding(table, function="sRGB"), np.float64)
+        return table.astype(np.float32)[codes], kind
+    return table.astype(np.float32)[codes], "linear"
 
 
 def _exposure_scales(exifs: list[dict[str, Any]], names: list[str], flag: str) -> list[float]:
@@ -286,9 +297,10 @@ def _exposure_record(exif: dict[str, Any], scale: float) -> dict[str, Any]:
 
 
 def read_photos(folder: str | Path, encoding: str = "auto", max_side: int | None = None,
-                flag: str = "--input") -> Photos:
+                flag: str = "--input", guide: bool = False) -> Photos:
     """Every photo of `folder`, linear (see the module doc); `max_side` downscales (area average) so that the
-    longer side is at most that many pixels."""
+    longer side is at most that many pixels; `guide`: also their mean gray at their own size (`Photos.guide`), summed
+    photo by photo as they are read."""
     if encoding not in ENCODINGS:
         raise ValueError(f"--input-encoding: got {encoding!r}, expected one of {', '.join(ENCODINGS)}")
     files = photo_files(folder, flag)
@@ -297,6 +309,7 @@ def read_photos(folder: str | Path, encoding: str = "auto", max_side: int | None
                          "sensor values; expected auto or linear")
     images, saturated, kinds, exifs, records = [], [], [], [], []
     first: tuple[tuple[int, ...], int] | None = None
+    total: np.ndarray | None = None
     for path in files:
         f = _read_file(path, flag)
         codes, depth = f.codes, f.depth
@@ -316,10 +329,19 @@ def read_photos(folder: str | Path, encoding: str = "auto", max_side: int | None
         lin, kind = _linear(codes, depth, encoding, f.exif, path, flag)
         if not np.all(np.isfinite(lin)):
             raise ValueError(f"{flag}: {path.name} holds NaN or infinite values")
-        sat = f.saturated if f.saturated is not None else codes >= 1.0
-        saturated.append(_downscale(sat.astype(np.uint8), max_side) > 0 if depth != 32
-                         else np.zeros(_downscale(codes, max_side).shape, bool))
-        images.append(_downscale(lin.astype(np.float32), max_side))
+        sat = f.saturated if f.saturated is not None else (
+            codes >= 1.0 if codes.dtype.kind == "f" else codes == np.iinfo(codes.dtype).max)
+        small = _downscale(lin, max_side)
+        saturated.append(_downscale(sat.astype(np.uint8), max_side) > 0 if depth != 32 else np.zeros(small.shape, bool))
+        if guide and small.shape != lin.shape:
+            gray = lin.mean(axis=-1, dtype=np.float32)
+            gray /= len(files)
+            if total is None:
+                total = gray
+            else:
+                total += gray
+        images.append(small)
+        del lin, codes, sat  # one photo at its own size at a time
         kinds.append(kind)
         exifs.append(f.exif)
         if f.raw is not None:
@@ -327,4 +349,5 @@ def read_photos(folder: str | Path, encoding: str = "auto", max_side: int | None
     scales = _exposure_scales(exifs, [p.name for p in files], flag)
     stack = np.stack([img * np.float32(s) for img, s in zip(images, scales)])
     return Photos(images=stack, saturated=np.stack(saturated), names=[p.name for p in files], encoding=kinds,
-                  bit_depth=first[1], exposure=[_exposure_record(e, s) for e, s in zip(exifs, scales)], raw=records)
+                  bit_depth=first[1], exposure=[_exposure_record(e, s) for e, s in zip(exifs, scales)], raw=records,
+                  guide=total)

@@ -356,6 +356,8 @@ def refine_judged(jc: JudgedCapture, config: RefineConfig, progress: Progress | 
         "after_rel_l1": judged_rel_l1(after.render, jc.observed, ex, res.holdout),
         "note": "judged on the held-out images only, which no step that moved the normals used"}
     why = _verdict_words(accepted, apart, judged_before, judged_after, ex)
+    # The refined map's own error (with ground truth), kept or not: what a rule of keeping is measured on.
+    mae_refined = mae_deg(refined_full, cap.normal_gt, cap.mask) if cap.normal_gt is not None else None
     if not accepted:
         refined_full = full
     report: dict[str, Any] = {
@@ -379,6 +381,7 @@ def refine_judged(jc: JudgedCapture, config: RefineConfig, progress: Progress | 
         "before": {"rel_l1": before.rel_l1, "mae_deg": mae_in},
         "after": {"rel_l1": after.rel_l1,
                   "mae_deg": mae_deg(refined_full, cap.normal_gt, cap.mask) if cap.normal_gt is not None else None},
+        "refined_mae_deg": mae_refined,
         "rotation_search": res.rotation,
         "holdout_curve": [[int(s), float(v)] for s, v in res.holdout_curve],
         "best_step": res.best_step,
