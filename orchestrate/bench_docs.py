@@ -289,11 +289,18 @@ def surface_integration(card: dict) -> str:
                               "BiNI near jumps", "least squares near jumps"], rows))
 
 
-BENCH_BLOCKS = {"model:shards-throughput": SHARDS_BENCH, "surface:bench": SURFACE_BENCH,
-                "capture:resources": CAPTURE_BENCH,
-                "check:resolution": VERDICT_BENCH, "check:verdict-sweep": VERDICT_SWEEP_BENCH,
-                "generator:profile": PROFILE_BENCH,
-                "generator:cycles": CYCLES_BENCH, "model:expected-error": EXPECTED_ERROR_BENCH,
-                "model:error-evidence": ERROR_EVIDENCE_BENCH, "capture:full-size": FULL_SIZE_BENCH,
-                "check:refine-rule": REFINE_RULE_BENCH}
-"""Blocks generated from a benchmark's recorded output instead of the model card."""
+BENCH_TABLES = {
+    "model:shards-throughput": (SHARDS_BENCH, shards_throughput),
+    "surface:bench": (SURFACE_BENCH, surface_integration),
+    "capture:resources": (CAPTURE_BENCH, capture_resources),
+    "capture:full-size": (FULL_SIZE_BENCH, full_size),
+    "check:resolution": (VERDICT_BENCH, check_resolution),
+    "check:verdict-sweep": (VERDICT_SWEEP_BENCH, verdict_sweep),
+    "check:refine-rule": (REFINE_RULE_BENCH, refine_rule),
+    "generator:profile": (PROFILE_BENCH, render_profile),
+    "generator:cycles": (CYCLES_BENCH, cycles_speed),
+    "model:expected-error": (EXPECTED_ERROR_BENCH, expected_error),
+    "model:error-evidence": (ERROR_EVIDENCE_BENCH, error_evidence),
+}
+"""Blocks generated from a benchmark's recorded output instead of the model card: name -> (the output, its table)."""
+BENCH_BLOCKS = {name: path for name, (path, _) in BENCH_TABLES.items()}

@@ -307,8 +307,7 @@ def run(opts: CaptureOptions) -> dict:
         if automatic:
             doubt, facts["mask_doubts"] = mask_doubts(read.images, mask)
             warnings += [doubt] if doubt else []
-    for warning in warnings:
-        print(f"warning: {warning.code}: {warning.message}", file=sys.stderr)
+    say(warnings)
     times["mask_and_checks_s"] = time.perf_counter() - t0 - times["read_s"] - times["load_model_s"]
     # One scale for every photo (their relative exposures are kept): the brightest mask value becomes 1, as the
     # model expects; the clipped channels stay those the files said (read.saturated), not re-derived from values.
@@ -320,8 +319,7 @@ def run(opts: CaptureOptions) -> dict:
         model_map, stated, why_unstated = predict(opts, cap, net)
     more, light_facts = light_warnings(read.images, mask, model_map)
     facts.update(light_facts)
-    for warning in more:
-        print(f"warning: {warning.code}: {warning.message}", file=sys.stderr)
+    say(more)
     warnings += more
     times["predict_s"] = time.perf_counter() - t1
     t1 = time.perf_counter()
@@ -330,9 +328,7 @@ def run(opts: CaptureOptions) -> dict:
         final, check, refined = check_and_refine(opts, cap, out, model_map)
     times["check_and_refine_s"] = time.perf_counter() - t1
     final = np.where(mask[..., None], final, 0.0)
-    big = None if guide is None else upsample(final, mask, guide_image(guide), full_mask)
-    del guide
-    write_maps(opts, out, read.images, mask, final, model_map, stated, big)
+    size = write_maps(opts, out, read.images, mask, final, model_map, stated, guide, full_mask)
     t1 = time.perf_counter()
     with stage("capture", "the surface from the final map"):
         surface = write_capture_surface(out / SURFACE_DIR, final, mask, read.meta["input"])
@@ -343,13 +339,10 @@ def run(opts: CaptureOptions) -> dict:
               "mask": {**mask_info, "pixels": int(mask.sum())},
               "warnings": as_dicts(warnings), "measurements": facts, "surface": surface,
               **outcome(opts, check, refined, stated, why_unstated, warnings),
-              "stages": {"check": "check/" + cap.name + "/report.json",
-                         "refine": ("refine/" + cap.name + "/refine_report.json") if refined and "mode" in refined
-                         else None,
-                         "work_folder": str(work.relative_to(out)) if work else None},
+              "stages": stage_reports(cap.name, refined, work.relative_to(out) if work else None),
               "timings": times, "estimate": need,
               "peak_memory_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
-    report["normals"]["size"] = list((big[0] if big is not None else final).shape[:2])  # normal.png, mask.png
+    report["normals"]["size"] = size  # normal.png's and mask.png's
     write_json(out / "report.json", report, indent=1, newline=True)
     from orchestrate.capture_page import pictures, write_page
 
@@ -357,6 +350,19 @@ def run(opts: CaptureOptions) -> dict:
     write_page(out / "report.html", to_plain(report), pictures(out, cap.name, read.images, read.image_names, mask,
                                                              final, model_map, refined_used))
     return report
+
+
+def say(warnings: list) -> None:
+    """Each warning as one line on stderr."""
+    for warning in warnings:
+        print(f"warning: {warning.code}: {warning.message}", file=sys.stderr)
+
+
+def stage_reports(name: str, refined: dict | None, work: Path | None) -> dict:
+    """report.json `stages`: where the check's and the refinement's own reports and --keep-work's folder lie."""
+    return {"check": f"check/{name}/report.json",
+            "refine": f"refine/{name}/refine_report.json" if refined and "mode" in refined else None,
+            "work_folder": str(work) if work else None}
 
 
 def claim_stages(opts: CaptureOptions, out: Path, name: str) -> None:
@@ -376,12 +382,14 @@ def claim_stages(opts: CaptureOptions, out: Path, name: str) -> None:
 
 
 def write_maps(opts: CaptureOptions, out: Path, images: np.ndarray, mask: np.ndarray, final: np.ndarray,
-               model_map: np.ndarray, stated, big: tuple[np.ndarray, np.ndarray] | None = None) -> None:
-    """The maps and pictures of OUTPUTS (report.json and report.html aside); `big`: the final map and its mask at
-    the photos' size (`orchestrate.capture_full.upsample`), written as normal.png, normal.exr and mask.png."""
+               model_map: np.ndarray, stated, guide: np.ndarray | None = None,
+               full_mask: np.ndarray | None = None) -> list[int]:
+    """The maps and pictures of OUTPUTS (report.json and report.html aside); with `guide` (the photos' mean at
+    their own size, when the work was on smaller copies) normal.png, normal.exr and mask.png at the photos' size
+    (`orchestrate.capture_full.upsample`; `full_mask`: the user's mask file at that size). Returns their size."""
     from orchestrate.capture_page import mask_overlay
 
-    normals, outline = big if big is not None else (final, mask)
+    normals, outline = (final, mask) if guide is None else upsample(final, mask, guide_image(guide), full_mask)
     write_normal_map(out / "normal.png", _to_convention(normals, opts.convention))
     write_normal_exr(out / "normal.exr", _to_convention(normals, opts.convention))
     write_normal_map(out / "normal_model.png", _to_convention(model_map, opts.convention))
@@ -390,6 +398,7 @@ def write_maps(opts: CaptureOptions, out: Path, images: np.ndarray, mask: np.nda
         write_stated(out, stated)
     write_picture(out / "mask_overlay.png", mask_overlay(images, mask))
     _variation_picture(images, out / "light_variation.png")
+    return list(outline.shape)
 
 
 def outcome(opts: CaptureOptions, check: dict, refined: dict | None, stated, why_unstated: str | None,

@@ -23,20 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from orchestrate.bench_docs import (
-    BENCH_BLOCKS,
-    capture_resources,
-    check_resolution,
-    cycles_speed,
-    error_evidence,
-    expected_error,
-    full_size,
-    refine_rule,
-    render_profile,
-    shards_throughput,
-    surface_integration,
-    verdict_sweep,
-)
+from orchestrate.bench_docs import BENCH_BLOCKS, BENCH_TABLES
 from scenes.cli.errors import UsageError, report_error
 from scenes.cli.options import Command
 from scenes.report.tables import markdown_table
@@ -384,17 +371,7 @@ BLOCKS: dict[str, Callable[[dict], str]] = {
     "generator:presets": capture_presets,
     "generator:levels": complexity_levels,
     "model:data-ab": data_ab,
-    "model:shards-throughput": shards_throughput,
-    "capture:resources": capture_resources,
-    "check:resolution": check_resolution,
-    "check:verdict-sweep": verdict_sweep,
-    "generator:profile": render_profile,
-    "generator:cycles": cycles_speed,
-    "model:expected-error": expected_error,
-    "model:error-evidence": error_evidence,
-    "capture:full-size": full_size,
-    "check:refine-rule": refine_rule,
-    "surface:bench": surface_integration,
+    **{name: table for name, (_, table) in BENCH_TABLES.items()},
 }
 
 
