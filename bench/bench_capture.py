@@ -3,9 +3,12 @@ reading, prediction, the physical check and refinement, the surface, next to the
 longest silence on stderr (no progress line for that long).
 
     python bench/bench_capture.py --out bench/results/capture.json [--images 4,16,96] [--sides 256,512,1024]
+    python bench/bench_capture.py --out bench/results/capture.json --images 7 --sides 5760 --format jpeg --append
     python bench/bench_capture.py --reestimate bench/results/capture.json   # the estimate columns from today's code
 
-Each case is a synthetic capture written as 16-bit PNG photos (an ellipsoid with a bumpy surface, Lambertian,
+Each case is a synthetic capture written as photos (16-bit PNG, 8-bit JPEG or camera RAW DNG, `--format`; photos
+larger than the default working size are worked on at it and the map written back at their size; an ellipsoid
+with a bumpy surface, Lambertian,
 distant lights spread around the camera, a dark background; no mask, so the automatic mask runs too) at an
 aspect of 4:3, run as a real subprocess with one Dr.Jit thread; its peak memory is the process's maximum
 resident set size (`resource.getrusage` of the child). The table of docs/capture.md is generated from the

@@ -31,8 +31,20 @@ def gpu_command() -> str:
     return " ".join(line.rstrip("\\ ").strip() for line in block.strip().splitlines())
 
 
+SAME_MODULE = {"opencv-python-headless": "opencv-contrib-python-headless"}
+"""The image's package -> the one this environment provides the same module with: the GPU image's OpenCV is the
+plain build, this project installs the contrib build (the same cv2 and more; only orchestrate.capture_full uses a
+contrib module, and the GPU session never reaches it)."""
+
+
 def _tops(name: str) -> list[Path]:
-    dist = md.distribution(re.split(r"[=<>]", name)[0])
+    name = re.split(r"[=<>]", name)[0]
+    try:
+        dist = md.distribution(name)
+    except md.PackageNotFoundError:
+        if name not in SAME_MODULE:
+            raise
+        dist = md.distribution(SAME_MODULE[name])
     tops = {f.parts[0] for f in dist.files or [] if f.parts[0] not in ("..", "__pycache__", "share", "bin")}
     return [Path(dist.locate_file(t)) for t in sorted(tops)]
 

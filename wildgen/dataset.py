@@ -50,7 +50,9 @@ def versions() -> dict[str, str]:
     from importlib import metadata
 
     out = {"python": platform.python_version()}
-    for pkg in ("mitsuba", "drjit", "numpy", "unips-toolkit", "opencv-python-headless", "OpenEXR"):
+    # OpenCV under either build name: the project installs the contrib build, the GPU image has the plain one
+    for pkg in ("mitsuba", "drjit", "numpy", "unips-toolkit", "opencv-contrib-python-headless",
+                "opencv-python-headless", "OpenEXR"):
         try:
             out[pkg] = metadata.version(pkg)
         except metadata.PackageNotFoundError:

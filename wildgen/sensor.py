@@ -94,7 +94,9 @@ def _sensor_versions() -> dict[str, str]:
     from importlib import metadata
 
     out = {}
-    for pkg in ("numpy", "colour-demosaicing", "colour-science", "opencv-python-headless"):
+    # OpenCV under either build name: the project installs the contrib build, the GPU image has the plain one
+    for pkg in ("numpy", "colour-demosaicing", "colour-science", "opencv-contrib-python-headless",
+                "opencv-python-headless"):
         try:
             out[pkg] = metadata.version(pkg)
         except metadata.PackageNotFoundError:
