@@ -17,7 +17,6 @@ output file by `python -m orchestrate.docs`.
 from __future__ import annotations
 
 import json
-import platform
 import subprocess
 import sys
 import tempfile
@@ -33,7 +32,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "tests"))  # the DNG writer of the RAW tests
 
-from bench.cli_common import parse  # noqa: E402
+from bench.cli_common import machine, parse  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import Command, arg, check_fields  # noqa: E402
 from scenes.files import write_json  # noqa: E402
@@ -153,7 +152,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.append and args.out.is_file():
         before = json.loads(args.out.read_text())
         rows, commands = before["rows"] + rows, before.get("commands", [before["command"]]) + commands
-    result = {"machine": {"cpus": __import__("os").cpu_count(), "platform": platform.platform()},
+    result = {"machine": machine(),
               "commands": commands, "rows": rows}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     write_json(args.out, result, indent=1, newline=True)

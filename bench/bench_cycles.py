@@ -43,7 +43,7 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-from bench.cli_common import parse  # noqa: E402
+from bench.cli_common import machine, parse  # noqa: E402
 from bench.cycles_blender import (  # noqa: E402
     BLENDER_SCRIPT,
     TO_BLENDER,
@@ -296,10 +296,8 @@ def main(argv: list[str] | None = None) -> int:
                          "speedup": round(cw / mw, 2), "speedup_path_tracing": round(cp / mp, 2)})
         print(f"load average now {os.getloadavg()[0]:.2f}")
         if args.out:
-            import platform
-
             write_json(Path(args.out), {
-                "machine": {"cpus": os.cpu_count(), "platform": platform.platform()},
+                "machine": machine(),
                 "command": "python bench/bench_cycles.py " + " ".join(sys.argv[1:]), "blender": version,
                 "res": args.res, "threads": args.threads, "reference_spp": ref,
                 "ns_per_sample": {name: round(f[1] / args.res ** 2 * 1e9, 1) for name, f in fits.items()},

@@ -26,8 +26,6 @@ normal spread s the hit share is about Phi(0.288 / s) - Phi(-0.223 / s): 80 % ne
 from __future__ import annotations
 
 import dataclasses
-import os
-import platform
 import sys
 import time
 from dataclasses import dataclass
@@ -39,7 +37,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import parse  # noqa: E402
+from bench.cli_common import machine, parse  # noqa: E402
 from scenes.cli.options import Command, arg, option  # noqa: E402
 
 SETS = {"stated": (), "summary": ("summary",), "network": ("network",), "resimulated": ("resimulated",),
@@ -214,7 +212,7 @@ def main(argv: list[str] | None = None) -> int:
                          f"--seed {opts.seed}", "samples": len(samples), "objects": len(folders),
               "suite": [name for name, _ in SUITE], "ridge": opts.ridge, "needed_spread": NEEDED_SPREAD,
               "folds": 5, "rows": rows, "seconds": round(time.time() - t0, 1),
-              "machine": {"cpus": os.cpu_count(), "platform": platform.platform()}}
+              "machine": machine()}
     write_json(Path(opts.out), result, indent=1)
     print(f"wrote {opts.out}")
     return 0

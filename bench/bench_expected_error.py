@@ -23,8 +23,6 @@ own masks (their error is the model map's, the one the stated error describes).
 from __future__ import annotations
 
 import dataclasses
-import os
-import platform
 import sys
 import tempfile
 import time
@@ -37,7 +35,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import DILIGENT, parse  # noqa: E402
+from bench.cli_common import DILIGENT, machine, parse  # noqa: E402
 from scenes.cli.options import Command, arg, option  # noqa: E402
 
 HIT_FLOOR_DEG = 2.0
@@ -210,7 +208,7 @@ def main(argv: list[str] | None = None) -> int:
               for d in diligent]
     result = {
         "command": "python bench/bench_expected_error.py " + " ".join(argv if argv is not None else sys.argv[1:]),
-        "machine": {"cpus": os.cpu_count(), "platform": platform.platform()},
+        "machine": machine(),
         "error_model": {"weights_sha256": em.weights_sha256[:12], "calibration": em.calibration},
         "suite": [name for name, _ in SUITE], "objects_per_row": opts.objects, "seed": opts.seed,
         "assets": "held-out split" if held else "none", "render_s": round(render_s, 1), "hit_rule": HIT_RULE,

@@ -13,8 +13,6 @@ wrong pixels of the true mask's area.
 from __future__ import annotations
 
 import dataclasses
-import os
-import platform
 import sys
 import time
 from dataclasses import dataclass
@@ -26,7 +24,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import parse  # noqa: E402
+from bench.cli_common import machine, parse  # noqa: E402
 from scenes.cli.options import Command, arg, option  # noqa: E402
 
 
@@ -105,7 +103,7 @@ def main(argv: list[str] | None = None) -> int:
     result = {"command": f"python bench/bench_full_size.py --work WORK --objects {opts.objects} --side {opts.side} "
                          f"--working {opts.working} --seed {opts.seed}", "side": opts.side, "objects": opts.objects,
               "rows": rows, "seconds": round(time.time() - t0, 1),
-              "machine": {"cpus": os.cpu_count(), "platform": platform.platform()}}
+              "machine": machine()}
     write_json(Path(opts.out), result, indent=1)
     for r in rows:
         print(r["working_side"], r["mean_error_deg"], r.get("outline_wrong_guided"), r.get("outline_wrong_linear"))

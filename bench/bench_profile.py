@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import json
 import os
-import platform
 import shutil
 import subprocess
 import sys
@@ -50,7 +49,7 @@ from typing import Annotated
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from bench.cli_common import parse  # noqa: E402
+from bench.cli_common import machine, parse  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import Command, arg, check_fields, option  # noqa: E402
 
@@ -340,7 +339,7 @@ def main(argv: list[str] | None = None) -> int:
     for r in rows:
         print(f"{r['setting']:8s} {r['tree']:10s} " + " ".join(f"{r[s]:9.3f}" for s in STAGES)
               + f" {r['total_s']:7.2f} {r['objects_per_hour'] or 0:7.0f}")
-    result = {"machine": {"cpus": os.cpu_count(), "platform": platform.platform()},
+    result = {"machine": machine(),
               "command": "python bench/bench_profile.py " + " ".join(sys.argv[1:]),
               "lights": args.lights, "seed": args.seed, "rows": rows}
     if args.out:

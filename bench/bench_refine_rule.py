@@ -15,8 +15,6 @@ the oracle (the better of the two).
 """
 from __future__ import annotations
 
-import os
-import platform
 import sys
 import time
 from dataclasses import dataclass
@@ -28,7 +26,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import parse  # noqa: E402
+from bench.cli_common import machine, parse  # noqa: E402
 from scenes.cli.options import Command, arg, option  # noqa: E402
 
 ROWS = (
@@ -158,7 +156,7 @@ def main(argv: list[str] | None = None) -> int:
     result = {"command": f"python bench/bench_refine_rule.py --work WORK --objects {opts.objects} "
                          f"--seeds {opts.seeds}", "rows_rendered": [name for name, _ in ROWS], "hurt_deg": HURT_DEG,
               "rows": rows, "sets": sets, "seconds": round(time.time() - t0, 1),
-              "machine": {"cpus": os.cpu_count(), "platform": platform.platform()}}
+              "machine": machine()}
     write_json(Path(opts.out), result, indent=1)
     print(f"wrote {opts.out}")
     return 0

@@ -1,5 +1,5 @@
 """What the bench scripts' command lines share: the toolkit's tyro CLI (`scenes.cli.options.Command`), read the
-same way, and the default DiLiGenT folder.
+same way, the default DiLiGenT folder and the record of the machine a result was measured on.
 
 Each script (run as `python bench/NAME.py`, with the repository root put first on sys.path) declares its options
 as a config dataclass and `COMMAND = Command(Options, prog="python bench/NAME.py", description=...)`; its `main`
@@ -28,3 +28,11 @@ def parse(command: Command, argv: Sequence[str] | None = None) -> Any:
         return cfg.validate() if hasattr(cfg, "validate") else check_fields(cfg)
     except INPUT_ERRORS as exc:
         raise SystemExit(report_error(exc)) from None
+
+
+def machine() -> dict:
+    """The `machine` record of a bench's output: the machine's cores and platform."""
+    import os
+    import platform
+
+    return {"cpus": os.cpu_count(), "platform": platform.platform()}
