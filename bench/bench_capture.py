@@ -131,7 +131,7 @@ COMMAND = Command(Options, prog="python bench/bench_capture.py", description=__d
 def main(argv: list[str] | None = None) -> int:
     args = parse(COMMAND, argv)
     if args.reestimate:
-        from orchestrate.capture import estimate
+        from orchestrate.capture_estimate import estimate
 
         result = json.loads(args.reestimate.read_text())
         for row in result["rows"]:

@@ -34,7 +34,7 @@ from typing import Annotated, Literal
 
 import numpy as np
 
-from orchestrate.capture_estimate import check_resources, estimate
+from orchestrate.capture_estimate import check_resources
 from orchestrate.capture_full import DEFAULT_MAX_SIDE, guide_image, upsample
 from orchestrate.capture_verdict import level, verdict
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
@@ -324,7 +324,7 @@ def run(opts: CaptureOptions) -> dict:
     times["predict_s"] = time.perf_counter() - t1
     t1 = time.perf_counter()
     with stage("capture", "the physical check" + (" and the refinement" if opts.refine else ""),
-               estimate(k, h, w)["check_s"]):
+               need["check_s"]):
         final, check, refined = check_and_refine(opts, cap, out, model_map)
     times["check_and_refine_s"] = time.perf_counter() - t1
     final = np.where(mask[..., None], final, 0.0)

@@ -337,7 +337,8 @@ def test_three_photos_give_the_models_map_and_say_the_images_cannot_judge_it(pho
 
 def test_a_capture_too_large_for_the_memory_is_refused_before_any_work(photos, tmp_path, capsys, monkeypatch):
     """The estimate is checked against the memory this machine has (here made small), in one line naming --max-side."""
-    from orchestrate.capture import estimate, main
+    from orchestrate.capture import main
+    from orchestrate.capture_estimate import estimate
 
     need = estimate(8, 96, 96)["peak_mib"]
     monkeypatch.setattr("scenes.cli.limits.available_memory", lambda: int(need * 2**20 * 0.5))

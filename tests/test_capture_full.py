@@ -93,7 +93,7 @@ def test_the_capture_writes_the_map_at_the_photos_size(tmp_path, capsys, variant
 
 def test_the_estimate_counts_the_photos_own_size():
     """Working on smaller copies costs the full-size decoding and the full-size map on top of the working size's."""
-    from orchestrate.capture import estimate
+    from orchestrate.capture_estimate import estimate
 
     small, big = estimate(7, 1024, 1536), estimate(7, 1024, 1536, full=(4000, 6000))
     assert big["peak_mib"] > small["peak_mib"] + 1000 and big["seconds"] > small["seconds"]

@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from scenes.folder.raw import RAW_SUFFIXES, is_raw, raw_shape, read_raw
+from scenes.images import CODE_SCALES
 
 PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".exr", *RAW_SUFFIXES)
 """File suffixes read as photos (case-insensitive)."""
@@ -245,12 +246,11 @@ def _linear(
         return codes.astype(np.float32, copy=False), "linear"
     # Integer codes through a table of every code's value (the decoding evaluated once per code, in float64): a
     # 24-megapixel photo becomes float32 values directly, without float64 copies of the whole frame.
-    top = np.iinfo(codes.dtype).max
-    table = np.arange(top + 1, dtype=np.float64) / top
+    top = CODE_SCALES[codes.dtype]
+    table = np.arange(int(top) + 1, dtype=np.float64) / top
     if kind == "srgb":
         table = np.asarray(colour.cctf_decoding(table, function="sRGB"), np.float64)
-        return table.astype(np.float32)[codes], kind
-    return table.astype(np.float32)[codes], "linear"
+    return table.astype(np.float32)[codes], kind
 
 
 def _exposure_scales(exifs: list[dict[str, Any]], names: list[str], flag: str) -> list[float]:
@@ -330,7 +330,7 @@ def read_photos(folder: str | Path, encoding: str = "auto", max_side: int | None
         if not np.all(np.isfinite(lin)):
             raise ValueError(f"{flag}: {path.name} holds NaN or infinite values")
         sat = f.saturated if f.saturated is not None else (
-            codes >= 1.0 if codes.dtype.kind == "f" else codes == np.iinfo(codes.dtype).max)
+            codes >= 1.0 if codes.dtype.kind == "f" else codes == CODE_SCALES[codes.dtype])
         small = _downscale(lin, max_side)
         saturated.append(_downscale(sat.astype(np.uint8), max_side) > 0 if depth != 32 else np.zeros(small.shape, bool))
         if guide and small.shape != lin.shape:
