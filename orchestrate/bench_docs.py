@@ -35,6 +35,30 @@ def shards_throughput(card: dict) -> str:
                               "shards, decoded (objects/s)", "files / folders", "decoded / folders"], rows))
 
 
+CAPTURE_DILIGENT_BENCH = REPO / "bench" / "results" / "capture_diligent.json"
+"""The output of `python bench/bench_capture_diligent.py --work WORK` (committed)."""
+_DILIGENT_CASES = {"jpeg_true": "JPEG, true mask", "jpeg_auto": "JPEG, `--mask auto`",
+                   "png_true": "16-bit PNG, true mask"}
+
+
+def capture_diligent(card: dict) -> str:
+    """Per DiLiGenT object and capture: the final and the model's map's error, which was kept and the residuals
+    behind the choice, time and memory."""
+    d = json.loads(CAPTURE_DILIGENT_BENCH.read_text())
+    rows = []
+    for r in d["rows"]:
+        held = (f"{r['held_before']:.4f} -> {r['held_after']:.4f}" if r.get("held_before") is not None else "-")
+        iou = f" (IoU {r['mask_iou']:.3f})" if "mask_iou" in r else ""
+        rows.append([r["object"], _DILIGENT_CASES[r["case"]] + iou,
+                     f"{r['final_deg']:.2f}", f"{r['model_deg']:.2f}", "refined" if r["refined_kept"] else "model's",
+                     f"{r['judged_before']:.4f} -> {r['judged_after']:.4f}", held, f"{r['wall_s']:.0f}",
+                     str(r["peak_mib"])])
+    return (f"`{d['command']}` (all 96 photos, {d['clip_share']:.1%} of the object's values clipped in the JPEG "
+            "files; mean angular error against the ground truth, degrees):\n\n"
+            + markdown_table(["object", "photos", "final map", "model's map", "kept", "judged residual",
+                              "held-out residual", "time (s)", "peak (MiB)"], rows))
+
+
 CAPTURE_BENCH = REPO / "bench" / "results" / "capture.json"
 """The output of `python bench/bench_capture.py --out bench/results/capture.json` (its last run, committed)."""
 
@@ -294,6 +318,7 @@ BENCH_TABLES = {
     "surface:bench": (SURFACE_BENCH, surface_integration),
     "capture:resources": (CAPTURE_BENCH, capture_resources),
     "capture:full-size": (FULL_SIZE_BENCH, full_size),
+    "capture:diligent": (CAPTURE_DILIGENT_BENCH, capture_diligent),
     "check:resolution": (VERDICT_BENCH, check_resolution),
     "check:verdict-sweep": (VERDICT_SWEEP_BENCH, verdict_sweep),
     "check:refine-rule": (REFINE_RULE_BENCH, refine_rule),

@@ -89,7 +89,8 @@ def test_lights_read_from_the_shading_under_a_map_are_the_true_ones():
     ellipsoid here): its angle from the axis within 3 deg of the truth, where the outline reads 20-45 deg lights
     several times too close to the axis on real objects; and the warnings follow the true directions: lights 20-40
     deg off the axis all around are not frontal, all from above is one-sided naming the missing bottom."""
-    from validate.diagnosis.usable import light_warnings, shading_light_angles
+    from validate.diagnosis.light_reading import shading_light_angles
+    from validate.diagnosis.usable import light_warnings
 
     n, _ = ellipsoid_normals(H + 2 * PAD, W + 2 * PAD, (H + 2 * PAD) / 2, (W + 2 * PAD) / 2, 40, 50)
     around = np.concatenate([ring(20, 6), ring(40, 6, 30.0)])

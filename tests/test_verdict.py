@@ -202,3 +202,25 @@ def test_a_map_optimised_against_the_score_is_not_told_apart_from_the_truth(jit,
     assert scores["refined"] < scores["gt"] * 0.9, scores  # the optimised map beats the truth on the score ...
     assert not told_apart(scores["gt"], scores["refined"], ex), (scores, ex.resolution)  # ... within the resolution
     assert told_apart(scores["gt"], scores["gt+10"], ex) and scores["gt"] < scores["gt+10"], (scores, ex.resolution)
+
+
+def test_the_rule_of_keeping_asks_the_held_out_images_too():
+    """A refined map is kept only when the judged residual falls by the refinement's tie (2 %) and the residual on
+    the held-out images, which no step used, by theirs (30 %); without held-out images nothing confirms the fall.
+    Each decline says which residual did not fall."""
+    from types import SimpleNamespace
+
+    from validate.fitted.refinement import _held_fell, _verdict_words
+    from validate.fitted.verdict import HOLDOUT_FALL, TIES
+
+    assert TIES["refinement_holdout"].relative == HOLDOUT_FALL == 0.3
+    ex = SimpleNamespace(resolution=0.01, explained_fraction=0.8)
+    assert _held_fell({"before_rel_l1": 0.10, "after_rel_l1": 0.06})
+    assert not _held_fell({"before_rel_l1": 0.10, "after_rel_l1": 0.075})  # 25 %: the noise a fit also removes
+    assert not _held_fell({"before_rel_l1": 0.10, "after_rel_l1": 0.12}) and not _held_fell(None)
+    kept = _verdict_words(True, {"before_rel_l1": 0.10, "after_rel_l1": 0.06}, True, 0.05, 0.03, ex)
+    assert not kept.startswith("declined") and "held-out" in kept
+    small = _verdict_words(True, {"before_rel_l1": 0.10, "after_rel_l1": 0.09}, True, 0.05, 0.03, ex)
+    assert small.startswith("declined") and "held-out images" in small and "30%" in small
+    assert "no image was held out" in _verdict_words(True, None, True, 0.05, 0.03, ex)
+    assert "did not fall by 2%" in _verdict_words(False, None, True, 0.05, 0.0495, ex)

@@ -26,7 +26,9 @@ the vector short but the outline bright, so the mean brightness of the outline g
 larger is taken. Elongated shapes, albedo patterns and highlights on the outline bias it (real objects read
 low), so frontal light also asks the light spread (`light_spread_deg`): how much each pixel's brightness varies
 across the images over its mean (the albedo cancels), as the ring of lights that gives a sphere the same. The two
-light warnings are hints, never fatal. Camera motion: `validate.diagnosis.camera_motion`.
+light warnings are hints, never fatal. Once a normal map exists (the capture's model map), the light warnings read
+the lights from the shading of the whole object under it instead (`validate.diagnosis.light_reading`). Camera
+motion: `validate.diagnosis.camera_motion`.
 """
 from __future__ import annotations
 
@@ -36,6 +38,7 @@ from functools import lru_cache
 import numpy as np
 
 from validate.diagnosis.camera_motion import camera_motion, camera_shifts
+from validate.diagnosis.light_reading import shading_light_angles
 from validate.judgeable import MIN_IMAGES as COUNTS
 
 MIN_IMAGES, FEW_IMAGES = COUNTS["photos"], COUNTS["advised"]
@@ -53,9 +56,6 @@ sphere), all 96 lights (up to 43 deg) like 41 to 43 deg; rendered captures lit f
 and more (bench/bench_usable.py)."""
 ONE_SIDED_DEG = 10.0
 """Images lit from further off the view axis than this count for the one-sided test."""
-SHADING_LIT = 0.2
-"""`shading_light_angles` reads an image's light from the pixels brighter than this share of its 95th percentile
-(the attached shadow and its dim edge, where I = n . b does not hold, left out)."""
 SHIFT_PX = 1.5
 """A shift between photos longer than this (2 px or more), the same in a good share of the compared pairs, means
 the camera moved (`validate.diagnosis.camera_motion`)."""
@@ -418,33 +418,6 @@ def capture_warnings(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray
         facts.update(light_facts)
     out.sort(key=lambda w: not w.fatal)
     return out, facts
-
-
-def shading_light_angles(images: np.ndarray, mask: np.ndarray, normals: np.ndarray,
-                         rounds: int = 4) -> tuple[np.ndarray, np.ndarray]:
-    """Per image: (angle from the viewing direction, azimuth), degrees, of the light read from the shading of the
-    whole object under a normal map: I = albedo x n . b, fitted in turns (`rounds`): each image's b by least squares
-    over the pixels lit above SHADING_LIT of its bright level, then each pixel's albedo from every image's shading
-    (a near or environment light gives its mean direction). NaN for an image with fewer than 10 such pixels. On 31
-    rendered directional captures (128 px, levels 1-5, sensor presets; orchestrate.error_calibration's suite) under
-    the shipped model's map: the direction 9.7 deg off and the angle from the axis 6.6 deg off (medians; 5.7 and
-    2.8 under the true normals), where the outline's estimate of that angle was 34 deg off."""
-    gray = _gray(images)[:, mask].astype(np.float64)  # (K, P)
-    n = normals[mask].astype(np.float64)  # (P, 3)
-    k = len(gray)
-    top = np.percentile(gray, 95, axis=1) if gray.shape[1] else np.zeros(k)
-    use = (gray > SHADING_LIT * top[:, None]) & (top[:, None] > 0)  # (K, P)
-    albedo = np.ones(gray.shape[1])
-    b = np.full((k, 3), np.nan)
-    for _ in range(rounds):
-        for i in range(k):
-            if use[i].sum() >= 10:
-                b[i] = np.linalg.lstsq(n[use[i]], gray[i, use[i]] / albedo[use[i]], rcond=None)[0]
-        shade = np.where(use, np.clip(np.nan_to_num(b) @ n.T, 0, None), 0.0)  # (K, P)
-        albedo = np.where((shade ** 2).sum(0) > 0, (gray * shade).sum(0) / np.maximum((shade ** 2).sum(0), 1e-12), 1)
-        albedo = np.clip(albedo / max(float(np.median(albedo)), 1e-12), 0.05, 20.0)
-    b = b / np.maximum(np.linalg.norm(b, axis=1, keepdims=True), 1e-12)
-    return np.degrees(np.arccos(np.clip(b[:, 2], -1, 1))), np.degrees(np.arctan2(b[:, 1], b[:, 0]))
 
 
 def light_warnings(images: np.ndarray, mask: np.ndarray, normals: np.ndarray | None = None

@@ -311,15 +311,33 @@ def refine_object(
     return report
 
 
-def _verdict_words(accepted: bool, apart: bool, before: float, after: float, ex) -> str:
-    """refine_report.json `why`: what the judged residual did and what that says."""
-    if not accepted:
+def _verdict_words(judged_fell: bool, held: dict | None, apart: bool, before: float, after: float, ex) -> str:
+    """refine_report.json `why`: what the judged and the held-out residuals did and what that says."""
+    if not judged_fell:
         return (f"declined, the input map is kept: the judged residual did not fall by "
                 f"{TIES['refinement'].relative:.0%} ({before:.4f} -> {after:.4f})")
+    if held is None:
+        return ("declined, the input map is kept: no image was held out of the refinement (fewer than "
+                f"{MIN_IMAGES['holdout']} images, or --holdout 0), so nothing it was not fitted to confirms the judged "
+                f"fall ({before:.4f} -> {after:.4f})")
+    h0, h1 = held["before_rel_l1"], held["after_rel_l1"]
+    if not _held_fell(held):
+        return (f"declined, the input map is kept: the judged residual fell ({before:.4f} -> {after:.4f}) but on the "
+                f"held-out images, which no step used, it did not fall by {TIES['refinement_holdout'].relative:.0%} "
+                f"({h0:.4f} -> {h1:.4f}): the refinement may have fitted the other images' noise")
     within = ("" if apart else f", within the capture's resolution {ex.resolution:.4f}: the images do not tell the "
               "maps apart (the refined one fits the physics best, not shown closer to the surface)")
-    return (f"the judged residual fell {before:.4f} -> {after:.4f} on the observations every map shares{within}; "
-            f"{ex.explained_fraction:.0%} of the object was refined, the rest keeps the input map")
+    return (f"the judged residual fell {before:.4f} -> {after:.4f} on the observations every map shares and "
+            f"{h0:.4f} -> {h1:.4f} on the held-out images{within}; {ex.explained_fraction:.0%} of the object was "
+            "refined, the rest keeps the input map")
+
+
+def _held_fell(held: dict | None) -> bool:
+    """The held-out residual fell by more than its tie (`TIES['refinement_holdout']`)."""
+    if held is None:
+        return False
+    h0, h1 = held["before_rel_l1"], held["after_rel_l1"]
+    return h1 < h0 and not TIES["refinement_holdout"].same(h0, h1)
 
 
 def refine_judged(jc: JudgedCapture, config: RefineConfig, progress: Progress | None = None) -> tuple[dict, np.ndarray]:
@@ -348,14 +366,16 @@ def refine_judged(jc: JudgedCapture, config: RefineConfig, progress: Progress | 
     fit_cfg = replace(config.fit, light_model=res.light_model)
     before, judged_before = jc.score(n_small, fit_cfg, progress, "score before")
     after, judged_after = jc.score(refined_small, fit_cfg, progress, "score after")
-    # Accepted only when the judged residual (observations every map shares) falls by more than the tie.
-    accepted = judged_after < judged_before and not TIES["refinement"].same(judged_before, judged_after)
     apart = told_apart(judged_before, judged_after, ex)
     held = None if not res.holdout else {  # evidence the refined normals were never fitted to
         "images": list(res.holdout), "before_rel_l1": judged_rel_l1(before.render, jc.observed, ex, res.holdout),
         "after_rel_l1": judged_rel_l1(after.render, jc.observed, ex, res.holdout),
         "note": "judged on the held-out images only, which no step that moved the normals used"}
-    why = _verdict_words(accepted, apart, judged_before, judged_after, ex)
+    # Kept only when the judged residual (observations every map shares) falls by more than its tie and the
+    # held-out images' residual by more than theirs: the judged fall alone also rewards fitting noise.
+    judged_fell = judged_after < judged_before and not TIES["refinement"].same(judged_before, judged_after)
+    accepted = judged_fell and _held_fell(held)
+    why = _verdict_words(judged_fell, held, apart, judged_before, judged_after, ex)
     # The refined map's own error (with ground truth), kept or not: what a rule of keeping is measured on.
     mae_refined = mae_deg(refined_full, cap.normal_gt, cap.mask) if cap.normal_gt is not None else None
     if not accepted:

@@ -1,0 +1,230 @@
+"""Do the capture's light warnings (`frontal_light`, `one_sided_light`, read from the shading under the model's map
+as `orchestrate.capture` reads them) agree with the true lights of rendered captures? (docs/capture.md, "The lights,
+read from the shading").
+
+    python bench/bench_light_warnings.py --suite DIR [--suite DIR ...] --out bench/results/light_warnings.json
+
+Each --suite is a `wildgen.make` dataset; objects whose images each have one light placed somewhere (families
+`FAMILIES`: directional, point, a near area light, a DiLiGenT-like grid, a flash or lamp at the lens) count; environment
+and mixed lights have no one direction and are left out. Each image's true direction is its light's (a point or area
+light: from the object's centre to it) in the camera frame. Every object gives the captures of `SUBSETS`, made by
+choosing photos by their true light (all of them; those lit from one side; those lit from above; those lit from near
+the axis), each predicted by the shipped model on its own photos, then warned about with the true mask.
+
+The truth of a capture applies the warnings' own definitions to the true directions: frontal when no light is further
+than `FRONTAL_DEG` off the axis; one-sided when it is not frontal and the lights further off the axis than
+`ONE_SIDED_DEG` leave a gap of more than 180 deg around it. A capture within `MARGIN_DEG` of a boundary (its largest
+angle from the axis within MARGIN_DEG of FRONTAL_DEG, its gap within 2 x MARGIN_DEG of 180) is `borderline` and
+counted apart: there a few degrees of error in reading the light decide.
+"""
+from __future__ import annotations
+
+import json
+import sys
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from bench.cli_common import machine, parse  # noqa: E402
+from scenes.cli.options import Command, UseAppendAction, arg  # noqa: E402
+
+FAMILIES = ("directional", "point", "near_area", "grid96", "flash", "frontal")
+"""Light families whose images each have one light with a direction (beside a dim environment at most)."""
+SUBSETS = ("all", "one_side", "above", "near_axis")
+"""Captures made of each object's photos: all; those whose light's azimuth lies within 75 deg of the first lit
+photo's; those lit from above (light y > 0.1); those lit within 20 deg of the axis."""
+MARGIN_DEG = 5.0
+"""A capture this close to a warning's boundary is borderline (module doc)."""
+MIN_PHOTOS = 4
+"""A subset of fewer photos is not made."""
+
+
+def true_directions(folder: Path) -> np.ndarray | None:
+    """(K, 3) unit direction to each image's light in the camera frame, or None when an image has no one light."""
+    from scenes.folder.format import read_scene
+    from scenes.geometry import lights_in_camera_frame
+
+    desc = read_scene(folder)[0]
+    out = []
+    for lights in lights_in_camera_frame(desc):
+        placed = [light for light in lights if light["type"] != "environment"]
+        if len(placed) != 1:
+            return None
+        light = placed[0]
+        d = np.asarray(light["direction_to_light"] if light["type"] == "directional" else light["position"], float)
+        out.append(d / np.linalg.norm(d))
+    return np.array(out)
+
+
+def truth(directions: np.ndarray) -> dict:
+    """The warnings the true directions call for, and whether the capture is borderline (module doc)."""
+    from validate.diagnosis.usable import FRONTAL_DEG, ONE_SIDED_DEG, _largest_gap_deg
+
+    polar = np.degrees(np.arccos(np.clip(directions[:, 2], -1, 1)))
+    azimuth = np.degrees(np.arctan2(directions[:, 1], directions[:, 0]))
+    frontal = bool(polar.max() < FRONTAL_DEG)
+    off = polar > ONE_SIDED_DEG
+    gap = _largest_gap_deg(azimuth[off]) if off.sum() >= 2 else 0.0
+    one_sided = not frontal and off.sum() >= 2 and gap > 180.0
+    border = abs(polar.max() - FRONTAL_DEG) < MARGIN_DEG or (not frontal and off.sum() >= 2
+                                                               and abs(gap - 180.0) < 2 * MARGIN_DEG)
+    return {"frontal_light": frontal, "one_sided_light": one_sided, "borderline": bool(border),
+            "max_polar_deg": round(float(polar.max()), 1), "gap_deg": round(float(gap), 1)}
+
+
+def subsets(directions: np.ndarray) -> dict[str, np.ndarray]:
+    """Image indices of each capture of `SUBSETS` with at least MIN_PHOTOS photos."""
+    polar = np.degrees(np.arccos(np.clip(directions[:, 2], -1, 1)))
+    azimuth = np.degrees(np.arctan2(directions[:, 1], directions[:, 0]))
+    lit = np.nonzero(polar > ONE_SIDED)[0]
+    picks = {"all": np.arange(len(directions)), "above": np.nonzero(directions[:, 1] > 0.1)[0],
+             "near_axis": np.nonzero(polar < 20.0)[0]}
+    if len(lit):
+        turn = np.abs((azimuth - azimuth[lit[0]] + 180.0) % 360.0 - 180.0)
+        picks["one_side"] = np.nonzero((turn < 75.0) & (polar > ONE_SIDED))[0]
+    return {name: idx for name, idx in picks.items() if len(idx) >= MIN_PHOTOS}
+
+
+ONE_SIDED = 10.0  # (the subsets' own choice, kept apart from the warning's constant)
+
+
+def capture_rows(name: str, family: str, material: str, images: np.ndarray, mask: np.ndarray,
+                 directions: np.ndarray, net, picks: dict[str, np.ndarray]) -> list[dict]:
+    """One row per capture of `picks` (name -> photo indices): the model's map of those photos alone, the light
+    warnings under it with `mask`, and the truth of their true `directions`."""
+    from unips.data import PSObject
+    from unips.inference import run_model
+    from validate.diagnosis.usable import light_warnings
+
+    rows = []
+    seen: set[tuple[int, ...]] = set()
+    for capture, idx in picks.items():
+        if tuple(idx) in seen:  # (one object's "above" may be all of it)
+            continue
+        seen.add(tuple(idx))
+        chosen = images[idx]
+        scaled = np.clip(chosen / max(float(chosen[:, mask].max()), 1e-12), 0, 1).astype(np.float32)  # as the capture
+        obj = PSObject(name=name, images=scaled, mask=mask, normals=None, light_family=None, light_directions=None,
+                       light_intensities=None, path=None, layout="photos")
+        normals = run_model(net, obj, tta=net.contract.views)
+        warnings, facts = light_warnings(chosen, mask, normals)
+        said = {w.code for w in warnings}
+        want = truth(directions[idx])
+        agree = all((code in said) == want[code] for code in ("frontal_light", "one_sided_light"))
+        rows.append({"object": name, "family": family, "material": material, "capture": capture,
+                     "photos": len(idx), **want, "said": sorted(said), "agree": agree,
+                     "read_polar_deg": facts.get("light_polar_deg"),
+                     "read_azimuth_deg": facts.get("light_azimuth_deg")})
+    return rows
+
+
+def object_rows(folder: Path, net) -> list[dict]:
+    """The rows of one rendered object: one per capture of `subsets`."""
+    from scenes.folder.format import read_scene_dict
+    from unips.data import load_object
+
+    directions = true_directions(folder)
+    if directions is None:
+        return []
+    obj = load_object(folder)
+    material = read_scene_dict(folder)["material"]["material_class"]
+    return capture_rows(f"{folder.parent.name}/{folder.name}", obj.light_family, material, obj.images, obj.mask,
+                        directions, net, subsets(directions))
+
+
+def real_rows(folder: Path, net) -> list[dict]:
+    """The rows of real captures with measured lights: a folder of object folders of photos with `<object>.mask.png`
+    beside them and `lights.txt` (the count, then x y z per photo; the course objects of ../shared/data/real/psm),
+    all photos; or a DiLiGenT folder (`*PNG`: its calibrated lights), every 6th photo (16) and all 96."""
+    from scenes.folder.photos import read_photos
+    from scenes.images import read_mask
+    from unips.data import load_object
+
+    if folder.name.endswith("PNG"):
+        obj = load_object(folder)
+        d = obj.light_directions / np.linalg.norm(obj.light_directions, axis=1, keepdims=True)
+        k = len(d)
+        return capture_rows(f"diligent/{folder.name}", "diligent (real)", "real", obj.images, obj.mask, d, net,
+                            {"16 evenly spaced": np.arange(0, k, k // 16)[:16], "all": np.arange(k)})
+    d = np.loadtxt(folder / "lights.txt", skiprows=1)  # (the first line is the count)
+    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    rows = []
+    for sub in sorted(p for p in folder.iterdir() if p.is_dir()):
+        photos = read_photos(sub, "auto")
+        mask = read_mask(folder / f"{sub.name}.mask.png")
+        rows += capture_rows(f"{folder.name}/{sub.name}", f"{folder.name} (real)", "real", photos.images, mask, d,
+                             net, {"all": np.arange(len(d))})
+    return rows
+
+
+def summary(rows: list[dict]) -> dict:
+    """Agreement overall, apart from the borderline captures, and per family and capture kind."""
+    def share(rs):
+        return {"captures": len(rs), "agree": sum(r["agree"] for r in rs),
+                "share": round(sum(r["agree"] for r in rs) / len(rs), 3) if rs else None}
+    clear = [r for r in rows if not r["borderline"]]
+    out = {"all": share(rows), "clear": share(clear), "borderline": share([r for r in rows if r["borderline"]])}
+    for key in ("family", "material", "capture"):
+        out[f"by_{key}"] = {v: share([r for r in clear if r[key] == v]) for v in sorted({r[key] for r in rows})}
+    truths = Counter((r["frontal_light"], r["one_sided_light"]) for r in clear)
+    out["clear_truths"] = {f"frontal={f}, one_sided={o}": n for (f, o), n in sorted(truths.items())}
+    return out
+
+
+@dataclass
+class Options:
+    """The command line of bench/bench_light_warnings.py."""
+
+    suite: Annotated[list[Path], arg(metavar="DIR"), UseAppendAction] = field(default_factory=list)
+    """a wildgen.make dataset (repeatable)"""
+    real: Annotated[list[Path], arg(metavar="DIR"), UseAppendAction] = field(default_factory=list)
+    """real captures with measured lights (repeatable): ../shared/data/real/psm, or a DiLiGenT object folder
+    (ballPNG, catPNG)"""
+    out: Annotated[Path | None, arg(metavar="FILE")] = None
+    """write the rows and the summary as JSON here"""
+    threads: int = 2
+    """torch threads"""
+
+
+COMMAND = Command(Options, prog="python bench/bench_light_warnings.py", description=__doc__.split("\n\n")[0])
+
+
+def main(argv: list[str] | None = None) -> int:
+    import torch
+
+    from unips.inference import load_network
+
+    args = parse(COMMAND, argv)
+    torch.set_num_threads(args.threads)
+    net = load_network(None)
+    rows: list[dict] = []
+    sources = [(f, object_rows) for suite in args.suite for f in sorted(Path(suite).glob("*.data"))]
+    for folder, rows_of in sources + [(f, real_rows) for f in args.real]:
+        new = rows_of(folder, net)
+        for r in new:
+            if not r["agree"]:
+                print(f"disagrees: {r['object']} {r['family']} {r['capture']}: truth frontal={r['frontal_light']} "
+                      f"one_sided={r['one_sided_light']} (max {r['max_polar_deg']} deg, gap {r['gap_deg']}), "
+                      f"said {r['said']}{' (borderline)' if r['borderline'] else ''}", flush=True)
+        rows += new
+    real = [r for r in rows if r["material"] == "real"]
+    result = {**summary([r for r in rows if r["material"] != "real"]), "real": real} if rows else {}
+    print(json.dumps(result, indent=1))
+    if args.out:
+        from scenes.files import write_json
+
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        flags = [f"--suite {s}" for s in args.suite] + [f"--real {s}" for s in args.real]
+        write_json(args.out, {"command": "python bench/bench_light_warnings.py " + " ".join(flags), "summary": result,
+                              "rows": rows, "machine": machine()}, indent=1, newline=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
