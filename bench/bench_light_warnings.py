@@ -117,7 +117,7 @@ def capture_rows(name: str, family: str, material: str, images: np.ndarray, mask
         said = {w.code for w in warnings}
         want = truth(directions[idx])
         agree = all((code in said) == want[code] for code in ("frontal_light", "one_sided_light"))
-        rows.append({"object": name, "family": family, "material": material, "capture": capture,
+        rows.append({"object": name, "suite": name.split("/")[0], "family": family, "material": material, "capture": capture,
                      "photos": len(idx), **want, "said": sorted(said), "agree": agree,
                      "read_polar_deg": facts.get("light_polar_deg"),
                      "read_azimuth_deg": facts.get("light_azimuth_deg")})
@@ -170,7 +170,7 @@ def summary(rows: list[dict]) -> dict:
                 "share": round(sum(r["agree"] for r in rs) / len(rs), 3) if rs else None}
     clear = [r for r in rows if not r["borderline"]]
     out = {"all": share(rows), "clear": share(clear), "borderline": share([r for r in rows if r["borderline"]])}
-    for key in ("family", "material", "capture"):
+    for key in ("suite", "family", "material", "capture"):
         out[f"by_{key}"] = {v: share([r for r in clear if r[key] == v]) for v in sorted({r[key] for r in rows})}
     truths = Counter((r["frontal_light"], r["one_sided_light"]) for r in clear)
     out["clear_truths"] = {f"frontal={f}, one_sided={o}": n for (f, o), n in sorted(truths.items())}

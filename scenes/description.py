@@ -14,7 +14,7 @@ import math
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
-from scenes.checks import check_choice, check_finite, check_matrix4, check_number, check_vector
+from scenes.checks import check_choice, check_direction, check_finite, check_matrix4, check_number, check_vector
 from scenes.files import json_text
 from scenes.lights import IDENTITY4, LIGHT_TYPES, LightDesc, light_from_dict
 
@@ -191,6 +191,31 @@ class EnvironmentDesc:
 
 
 @dataclass
+class FloorDesc:
+    """A flat surface the object stands on (a table, a cushion; tilted toward the camera, a backdrop): a square seen
+    wherever the object does not hide it, lit by the images' lights and casting nothing on them from below. Never
+    part of the object's mask or ground truth (`wildgen.make --floor`)."""
+
+    point: list[float] = field(default_factory=lambda: [0.0, -1.0, 0.0])
+    """A point of the plane (world units), where the object touches it."""
+    normal: list[float] = field(default_factory=lambda: [0.0, 1.0, 0.0])
+    """The plane's unit normal, on the object's side."""
+    size: float = 20.0
+    """Side of the square, centred on `point` (large enough to reach past the frame)."""
+    base_color: TextureDesc = field(default_factory=lambda: TextureDesc(value=[0.5, 0.5, 0.5]))
+    """Its diffuse colour (linear), repeated over the square."""
+    roughness: TextureDesc = field(default_factory=lambda: TextureDesc(value=[0.8]))
+    """Its roughness (a non-metal, principled BSDF)."""
+
+    def validate(self) -> None:
+        check_vector(self.point, "floor.point")
+        check_direction(self.normal, "floor.normal")
+        check_number(self.size, "floor.size", minimum=1e-6)
+        self.base_color.validate("floor.base_color")
+        self.roughness.validate("floor.roughness")
+
+
+@dataclass
 class CameraDesc:
     """Sensor: orthographic (the model's assumption) or perspective, looking at `target`."""
 
@@ -331,6 +356,9 @@ class SceneDescription:
     parts: list[PartDesc] = field(default_factory=list)
     """The objects of a cluster (`wildgen.make --cluster`), in the order of their triangles in the shape's mesh;
     empty for a single object. Part i has instance id i + 1 in aux/instances.png (0: background)."""
+    floor: FloorDesc | None = None
+    """The surface the object stands on, seen around it (`wildgen.make --floor`); None: a black background. Left out
+    of scene.json when None (older scenes read the same)."""
 
     def validate(self) -> "SceneDescription":
         """Check every field; raise ValueError naming the first bad one. Returns self."""
@@ -355,12 +383,16 @@ class SceneDescription:
             raise ValueError("environment: images use an 'environment' light but no environment map is given")
         if self.environment is not None:
             self.environment.validate()
+        if self.floor is not None:
+            self.floor.validate()
         return self
 
     # --- JSON -------------------------------------------------------------------------------
     def to_dict(self) -> dict:
         """The JSON form; each light keyed by its `type` with its own fields (`scenes.lights.LightDesc.to_dict`)."""
         d = asdict(self)
+        if self.floor is None:
+            del d["floor"]
         for image, image_dict in zip(self.images, d["images"]):
             image_dict["lights"] = [light.to_dict() for light in image.lights]
         return d
@@ -384,6 +416,7 @@ _NESTED = {
     "camera": CameraDesc,
     "render": RenderDesc,
     "environment": EnvironmentDesc,
+    "floor": FloorDesc,
     "base_color": TextureDesc,
     "roughness": TextureDesc,
     "metallic": TextureDesc,

@@ -83,6 +83,12 @@ class GenConfig:
     stone; or the texture set's own normal map when it has one); the others get none. Drawn from a stream of
     its own, so an object is the same with or without detail. Every object with a normal map also gets
     normal_base.tif, the normals of its geometry without the detail."""
+    floor: Annotated[float | None, arg(metavar="P", help_behavior_hint="(default: none)")] = option(
+        None, minimum=0, maximum=1)
+    """Fraction P of objects standing on a flat textured surface seen around them (a table, a cushion; tilted
+    20-70 deg toward the camera, up to a backdrop), lit by the same lights and never in the mask or the ground
+    truth; the others on black. Drawn from a stream of its own, so an object is the same with or without it. With
+    the default --margin the object fills the frame: give a larger one (e.g. 0.6) to see the floor."""
     detail_strength: Annotated[str, arg(metavar="A-B")] = "5-25"
     """Tilt of the procedural detail normals (their 95th percentile), degrees, drawn uniformly in [A, B] per
     detailed object. Above about 25 deg Mitsuba's normal map shades more pixels near the silhouette black

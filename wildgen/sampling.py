@@ -22,6 +22,7 @@ import numpy as np
 from scenes.description import (
     CameraDesc,
     EnvironmentDesc,
+    FloorDesc,
     ImageDesc,
     MaterialDesc,
     RenderDesc,
@@ -32,7 +33,7 @@ from scenes.description import (
     multijitter_spp,
 )
 from scenes.folder.format import AUX_DIR, MESH_FILE
-from scenes.lights import DirectionalLight
+from scenes.lights import AreaLight, DirectionalLight, PointLight
 from scenes.procedural import MeshData
 from wildgen.assets import AssetLibrary
 from wildgen.config import MATERIAL_CLASSES, GenConfig
@@ -176,6 +177,61 @@ def sample_material(rng: np.random.Generator, cls: str, lib: AssetLibrary, tex_r
         specular=float(spec),
         normal_map=normal_map,
     )
+
+
+FLOOR_TILT = (20.0, 70.0)
+"""Angle (deg) between the floor's normal and the world's up, toward the camera: a table seen from above (small) to
+a backdrop behind the object (large)."""
+FLOOR_SIZE = (2.5, 8.0)
+"""Side of the floor's square over the object's bounding radius."""
+FLOOR_ROLL = 15.0
+"""The floor turns up to this much (deg) about the viewing axis: a table not quite level in the picture."""
+
+
+def sample_floor(cfg: GenConfig, index: int, positions: np.ndarray, radius: float) -> FloorDesc | None:
+    """The floor of object `index` (a fraction `cfg.floor` of objects), touching the object's world-space vertices
+    `positions` (N, 3) from below, a square of `FLOOR_SIZE` times the object's bounding `radius` (a cushion under
+    it to a table past the frame), drawn from the stream (seed, index, 2) so that the object's other draws do not
+    change. Procedural textures only: the scene stays re-renderable from its folder."""
+    rng = np.random.default_rng([cfg.seed, index, 2])
+    if cfg.floor is None or rng.random() >= cfg.floor:
+        return None
+    tilt, roll = math.radians(rng.uniform(*FLOOR_TILT)), math.radians(rng.uniform(-FLOOR_ROLL, FLOOR_ROLL))
+    normal = np.array([-math.sin(roll) * math.cos(tilt), math.cos(roll) * math.cos(tilt), math.sin(tilt)])
+    contact = positions[int(np.argmin(positions @ normal))]
+    base = TextureDesc(kind=str(rng.choice(["noise", "cells", "stripes", "constant"])), value=_linear_colour(rng),
+                       value2=_linear_colour(rng), scale=float(rng.uniform(20, 60)), seed=int(rng.integers(2**31)),
+                       resolution=cfg.texture_resolution)
+    return FloorDesc(point=[float(c) for c in contact], normal=[float(c) for c in normal],
+                     size=float(radius * rng.uniform(*FLOOR_SIZE)),
+                     base_color=base, roughness=TextureDesc(value=[float(rng.uniform(0.3, 1.0))]))
+
+
+def above_floor(lights: list, floor: FloorDesc | None) -> list:
+    """`lights` with each directional, point or area light that lies below the floor mirrored above it (nobody puts
+    the lamp under the table: it would light nothing); the others as they are."""
+    if floor is None:
+        return lights
+    n, o = np.asarray(floor.normal, float), np.asarray(floor.point, float)
+    n = n / np.linalg.norm(n)
+
+    def mirror_point(p: list[float]) -> list[float]:
+        q = np.asarray(p, float)
+        side = float((q - o) @ n)
+        return [float(c) for c in (q - 2 * side * n if side < 0 else q)]
+
+    out = []
+    for light in lights:
+        if isinstance(light, DirectionalLight) and float(np.asarray(light.direction) @ n) > 0:  # travels up: from below
+            d = np.asarray(light.direction, float)
+            light = dataclasses.replace(light, direction=[float(c) for c in d - 2 * float(d @ n) * n])
+        elif isinstance(light, (PointLight, AreaLight)) and float((np.asarray(light.position) - o) @ n) < 0:
+            moved = {"position": mirror_point(light.position)}
+            if isinstance(light, AreaLight):
+                moved["target"] = mirror_point(light.target)
+            light = dataclasses.replace(light, **moved)
+        out.append(light)
+    return out
 
 
 DETAIL_SCALE = (3.0, 12.0)
@@ -358,17 +414,19 @@ def sample_object(cfg: GenConfig, index: int, lib: AssetLibrary, name: str | Non
                             height=cfg.height, focal_mm=focal_mm)
     lights = sample_lighting(rng, family, cfg.images, Placement(centre, radius, camera, env_scale))
     seeds = rng.integers(0, 2**31 - 1, cfg.images)
+    floor = sample_floor(cfg, index, mesh.positions @ to_world[:3, :3].T + to_world[:3, 3], radius)
     uses_env = any(l.environment_map for ls in lights for l in ls)
     desc = SceneDescription(
         shape=shape,
         material=material,
         camera=camera,
         render=RenderDesc(spp=multijitter_spp(cfg.spp), bounces=cfg.bounces, gt_spp=cfg.gt_spp),
-        images=[ImageDesc(lights=ls, seed=int(s)) for ls, s in zip(lights, seeds)],
+        images=[ImageDesc(lights=above_floor(ls, floor), seed=int(s)) for ls, s in zip(lights, seeds)],
         environment=env if uses_env else None,
         light_family=family,
         name=name or f"{index:05d}",
         level=cfg.level,
         parts=parts,
+        floor=floor,
     )
     return SampledObject(desc=desc.validate(), mesh=mesh, shape_source=source)

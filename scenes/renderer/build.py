@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from scenes.description import SceneDescription, TextureDesc
+from scenes.description import FloorDesc, SceneDescription, TextureDesc
 from scenes.envmaps import realize_environment
 from scenes.geometry import mesh_data_for, transformed_mesh
 from scenes.lights import LIGHT_TYPES
@@ -116,6 +116,9 @@ class BuiltScene:
     current_image: int | None = None
     off_slots: set[str] = field(default_factory=set)
     """Keys of the light slots switched off now (`build_scene` starts with all of them: fresh slots are off)."""
+    object_scene: Any = None
+    """The object alone (no floor, no lights) for the ground-truth pass and instance ids; `scene` when the
+    description has no floor."""
 
     def apply_image(self, index: int) -> None:
         """Write the lights of image `index` into the slots (no rebuild, no recompilation)."""
@@ -172,10 +175,18 @@ def build_scene(desc: SceneDescription, base_dir: str | Path | None = None, bsdf
         "sensor": sensor_dict(desc, desc.render.spp),
     }
     data = mesh_data_for(desc, base)
-    if data is None:
-        scene["object"] = {"type": "sphere", "to_world": T(np.asarray(desc.shape.to_world, np.float64)), "bsdf": bsdf}
-    else:
-        scene["object"] = make_mesh("object", transformed_mesh(data, desc.shape.to_world), bsdf)
+
+    def the_object() -> Any:
+        if data is None:
+            return {"type": "sphere", "to_world": T(np.asarray(desc.shape.to_world, np.float64)), "bsdf": bsdf}
+        return make_mesh("object", transformed_mesh(data, desc.shape.to_world), bsdf)
+
+    scene["object"] = the_object()
+    object_scene = None
+    if desc.floor is not None:
+        # The ground truth sees the object alone: a second scene without the floor (and without lights).
+        object_scene = mi.load_dict({**scene, "object": the_object()}, optimize=False)
+        scene["floor"] = floor_dict(desc.floor, base)
     slots = LightSlots.for_description(desc)
     uses_env = any(slots.counts[t] for t, light_cls in LIGHT_TYPES.items() if light_cls.environment_map)
     env_arr = realize_environment(desc.environment, base) if uses_env else None
@@ -193,8 +204,28 @@ def build_scene(desc: SceneDescription, base_dir: str | Path | None = None, bsdf
         environment=env_arr,
         off_slots=set(slot_entries),
     )
+    built.object_scene = object_scene if object_scene is not None else loaded
     built.apply_image(0)
     return built
+
+
+def floor_dict(floor: FloorDesc, base_dir: Path | None) -> dict:
+    """The floor's Mitsuba shape: a square of side `floor.size` centred on `floor.point`, facing `floor.normal`,
+    with a non-metal principled BSDF."""
+    mi = require_variant()
+    n = np.asarray(floor.normal, np.float64)
+    n /= np.linalg.norm(n)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    u = np.cross(helper, n)
+    u /= np.linalg.norm(u)
+    v = np.cross(n, u)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2] = u * floor.size / 2, v * floor.size / 2, n  # the rectangle's +z is its normal
+    m[:3, 3] = floor.point
+    base, _ = _texture_dict(floor.base_color, base_dir)
+    rough, _ = _texture_dict(floor.roughness, base_dir)
+    return {"type": "rectangle", "to_world": mi.ScalarTransform4f(m),
+            "bsdf": {"type": "principled", "base_color": base, "roughness": rough, "metallic": 0.0}}
 
 
 def make_mesh(name: str, data: MeshData, bsdf: dict | Any):

@@ -163,7 +163,8 @@ def render_ground_truth(built: BuiltScene, spp: int | None = None) -> GroundTrut
             "integrator": {"type": "depth"},  # cheap; its alpha is the coverage on every variant
         }
     )
-    out = render_film(built.scene, spp=int(spp or desc.render.gt_spp), seed=0, integrator=integrator).astype(np.float64)
+    out = render_film(built.object_scene, spp=int(spp or desc.render.gt_spp), seed=0,
+                      integrator=integrator).astype(np.float64)  # the object alone: no floor in the truth
     if built.current_image is None and desc.images:
         built.apply_image(0)
     alpha = out[:, :, 3]
@@ -212,11 +213,11 @@ def instance_ids(built: BuiltScene, mask: np.ndarray) -> np.ndarray:
     desc = built.desc
     cam = desc.camera
     h, w = cam.height, cam.width
-    sensor = built.scene.sensors()[0]
+    sensor = built.object_scene.sensors()[0]
     jj, ii = np.meshgrid(np.arange(w), np.arange(h))
     uv = mi.Point2f(((jj.ravel() + 0.5) / w).astype(np.float32), ((ii.ravel() + 0.5) / h).astype(np.float32))
     ray, _ = sensor.sample_ray(0.0, 0.5, uv, mi.Point2f(0.5, 0.5))
-    si = built.scene.ray_intersect(ray)
+    si = built.object_scene.ray_intersect(ray)
     valid = np.array(si.is_valid(), bool).reshape(h, w)
     prim = np.array(si.prim_index, np.int64).reshape(h, w)
     ends = np.cumsum([p.faces for p in desc.parts])
