@@ -93,7 +93,7 @@ def with_cushion(images: np.ndarray, mask: np.ndarray, tilt_deg: float, albedo: 
     return out.astype(np.float32), region
 
 
-def object_rows(folder: Path, rng: np.random.Generator) -> list[dict]:
+def object_rows(folder: Path, rng: np.random.Generator, cushions: bool = True) -> list[dict]:
     """The rows of one rendered object (module doc)."""
     from unips.data import load_object
     from validate.diagnosis.usable import auto_mask, mask_doubts
@@ -112,6 +112,8 @@ def object_rows(folder: Path, rng: np.random.Generator) -> list[dict]:
         try:
             mask, _ = auto_mask(shown)
         except ValueError:
+            rows.append({"object": f"{folder.parent.name}/{folder.name}", "lights": obj.light_family,
+                         "group": f"{group}_refused", "kind": kind, "iou_true": None, "doubtful": None})
             return False
         iou = (mask & true).sum() / (mask | true).sum()
         add(f"{group}_{'good' if iou >= GOOD_IOU else 'wrong' if iou < WRONG_IOU else 'between'}", kind, mask, shown)
@@ -127,7 +129,7 @@ def object_rows(folder: Path, rng: np.random.Generator) -> list[dict]:
         for f in SHIFTED:
             add("shifted", f"shifted {f}", np.roll(true, int(round(f * r)), axis=1))
             add("shifted", f"shifted {f} diagonally", np.roll(true, (round(f * r * 0.7),) * 2, axis=(0, 1)))
-    for tilt, albedo, shadow in CUSHIONS:
+    for tilt, albedo, shadow in CUSHIONS if cushions else ():
         shown, region = with_cushion(images, true, tilt, albedo, shadow, rng)
         kind = f"cushion {tilt} deg, albedo {albedo}{', shadow' if shadow else ''}"
         if found:
@@ -146,6 +148,9 @@ def summary(rows: list[dict]) -> list[str]:
     lines = [f"{'group':20s} {'masks':>5s} {'fires':>5s}  " + "  ".join(f"{k + ' min/med/max':>34s}" for k in keys)]
     for name in sorted(groups):
         rs = groups[name]
+        if name.endswith("_refused"):
+            lines.append(f"{name:20s} {len(rs):5d}")
+            continue
         cells = []
         for k in keys:
             v = np.array([r[k] for r in rs])
@@ -164,6 +169,9 @@ class Options:
     """write every row as JSON here"""
     seed: int = 0
     """seed of the cushions' fabric texture"""
+    cushions: bool = True
+    """also paint lit cushions under each object (module doc); off for suites rendered with `--floor`, whose
+    surfaces are rendered"""
 
 
 COMMAND = Command(Options, prog="python bench/bench_doubtful_mask.py", description=__doc__.split("\n\n")[0])
@@ -175,8 +183,17 @@ def main(argv: list[str] | None = None) -> int:
     rows: list[dict] = []
     for suite in args.suite:
         for folder in sorted(Path(suite).glob("*.data")):
-            rows += object_rows(folder, rng)
+            rows += object_rows(folder, rng, args.cushions)
     print("\n".join(summary(rows)) if rows else "no object folders (give --suite DIR)")
+    auto = [r for r in rows if r["kind"] == "auto" or r["group"].startswith("cushion_auto")]
+    silent = [r for r in auto if r["iou_true"] is not None and r["iou_true"] < GOOD_IOU and not r["doubtful"]]
+    print(f"automatic masks: {len(auto)}; refused {sum(r['iou_true'] is None for r in auto)}, good (IoU >= "
+          f"{GOOD_IOU}) {sum(r['iou_true'] is not None and r['iou_true'] >= GOOD_IOU for r in auto)}, flagged below it "
+          f"{sum(r['iou_true'] is not None and r['iou_true'] < GOOD_IOU and bool(r['doubtful']) for r in auto)}, "
+          f"silent below it {len(silent)}")
+    for r in silent:
+        print(f"silent: {r['object']} {r['kind']}: IoU {r['iou_true']}, seed agreement {r['seed_agreement_iou']}, "
+              f"weak inside {r['weak_inside_share']}, varying outside {r['varying_outside_share']}")
     for row in rows:
         if row["doubtful"] and row["group"] in ("auto_good", "cushion_auto_good", "true"):
             print(f"fires on a good mask: {row['object']} {row['kind']}: seed agreement {row['seed_agreement_iou']}, "

@@ -295,7 +295,9 @@ def surface_integration(card: dict) -> str:
     """Per case family: MADE of ours, the reference BiNI and least squares (all pixels and near true depth jumps),
     and the whole-process times side by side."""
     d = json.loads(SURFACE_BENCH.read_text())
-    methods = ("ours", "reference", "least_squares")
+    methods = [m for m in ("ours", "reference", "reference_converged", "least_squares") if m in d["rows"][0]]
+    names = {"ours": "ours", "reference": "reference BiNI", "reference_converged": "BiNI converged",
+             "least_squares": "least squares"}
 
     def cell(v):
         return "-" if v is None else f"{v:.4f}"
@@ -309,8 +311,8 @@ def surface_integration(card: dict) -> str:
             "(orthographic); near jumps: pixels within 3 px of a true depth jump. Whole processes over all "
             f"{len(d['cases'])} cases: ours {w['ours']:.1f} s, the reference {w['reference']:.1f} s "
             f"(ratio {w['ours'] / w['reference']:.2f}), least squares {w['least_squares']:.1f} s.\n\n"
-            + markdown_table(["cases", "count", "ours", "reference BiNI", "least squares", "ours near jumps",
-                              "BiNI near jumps", "least squares near jumps"], rows))
+            + markdown_table(["cases", "count", *(names[m] for m in methods),
+                              *(f"{names[m]} near jumps" for m in methods)], rows))
 
 
 BENCH_TABLES = {

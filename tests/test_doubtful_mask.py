@@ -160,3 +160,37 @@ def test_capture_with_a_given_mask_does_not_doubt_it(tmp_path, variant_llvm_ad_r
     report = json.loads((out / "report.json").read_text())
     assert "doubtful_mask" not in [w["code"] for w in report["warnings"]]
     assert "mask_doubts" not in report["measurements"] and (out / "mask_overlay.png").is_file()
+
+
+def sphere_on_a_tilted_floor() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(images, the sphere's mask, the floor's): the sphere standing on a textured flat floor leaning toward the
+    camera (its normal 37 deg up from the viewing axis), which the lamps light as strongly as the sphere and on which
+    the sphere casts its shadow away from each lamp."""
+    n, ball = sphere(SIZE, pad=28, center=(36, 48))
+    rows, cols = np.mgrid[0:SIZE, 0:SIZE] + 0.5
+    floor = (rows > 40) & (rows < 88) & (cols > 8) & (cols < 88) & ~ball
+    texture = 1 + 0.2 * np.sin(cols / 3.0) * np.cos(rows / 5.0)
+    lights = _lights()
+    normal = np.array([0.0, 0.6, 0.8])
+    shade = shading(n, lights) * 0.6 * ball
+    photos = []
+    for k, light in enumerate(lights):
+        lit = 0.7 * max(float(light @ normal), 0.0) * texture
+        dy, dx = int(round(12 * light[1])), int(round(-12 * light[0]))  # the shadow falls away from the lamp
+        lit = np.where(np.roll(ball, (dy, dx), axis=(0, 1)), 0.1 * lit, lit)
+        photos.append(np.where(floor, lit, shade[k]))
+    return _photos(np.stack(photos)), ball, floor
+
+
+def test_a_mask_that_took_a_lit_floor_with_the_object_is_doubted_as_one_flat_surface():
+    """A floor the lamps light as much as the object varies like it, so the light variation puts it with the object
+    (the blind spot of the first three measurements); but every pixel of it follows one profile across the photos
+    (times its texture, left out where the sphere's shadow falls): one flat surface, which the fourth sees."""
+    images, ball, floor = sphere_on_a_tilted_floor()
+    warning, facts = mask_doubts(images, ball)
+    assert facts["flat_share"] < 0.2, facts
+    warning, facts = mask_doubts(images, ball | floor)
+    assert facts["weak_inside_share"] < 0.25 and facts["varying_outside_share"] < 0.1, facts  # the blind spot:
+    assert facts["seed_agreement_iou"] > 0.9, facts  # the floor is in the seed too
+    assert warning is not None and facts["flat_share"] > 0.5, facts
+    assert "one flat surface lit alike in every photo" in warning.message

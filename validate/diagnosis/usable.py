@@ -38,6 +38,7 @@ from functools import lru_cache
 import numpy as np
 
 from validate.diagnosis.camera_motion import camera_motion, camera_shifts
+from validate.diagnosis.flat_region import flat_share
 from validate.diagnosis.light_reading import shading_light_angles
 from validate.judgeable import MIN_IMAGES as COUNTS
 
@@ -104,6 +105,14 @@ shifted ones, 5 of auto_mask's 7 failures as rendered and 124 of its 241 failure
 Otsu's threshold puts with the object (turned toward the lamp, or any bright one against a black background: a flat
 patch facing the camera varies like the middle of a sphere) is in the seed too, and nothing in the light variation
 tells it from the object."""
+STILL_LIGHT_DEG = 15.0
+"""An automatic mask is doubted where the light hardly moves (`light_spread_deg` over it below this): a flash at the
+lens or a lamp that stays put lights every surface alike across the photos, so their variation (the automatic mask's
+only evidence) cannot tell object from floor. Rendered flash captures read 4 to 8 deg; DiLiGenT's grid 26 to 43."""
+FLAT_SHARE_MAX = 0.4
+"""An automatic mask more than this share of which one flat surface explains (`validate.diagnosis.flat_region`) is
+doubted: the surface under the object taken with it (or for it). Rendered objects' true masks read 0.35 at most (a
+flat-faced shape), real objects' 0.13; automatic masks that took a rendered floor 0.44 and more."""
 
 
 @dataclass
@@ -212,7 +221,9 @@ def auto_mask(images: np.ndarray, flag: str = "--mask") -> tuple[np.ndarray, dic
 def mask_doubts(images: np.ndarray, mask: np.ndarray) -> tuple[CaptureWarning | None, dict]:
     """Whether an automatic mask may be wrong (`doubtful_mask`, not fatal), and the measurements behind it: its IoU
     with the seed of the light variation (`SEED_AGREEMENT_MIN`), the share of the seed it leaves out
-    (`MISSED_SHARE_MAX`) and the share of it that varies weakly (`WEAK_SHARE_MAX`); any one of the three."""
+    (`MISSED_SHARE_MAX`), the share of it that varies weakly (`WEAK_SHARE_MAX`) and the share of it one flat surface
+    explains (`FLAT_SHARE_MAX`, `validate.diagnosis.flat_region`); any one of the four, or a light that hardly moves
+(`STILL_LIGHT_DEG`), where none of them can tell."""
     import cv2
 
     scaled, threshold, _ = _variation_seed(images)
@@ -223,8 +234,9 @@ def mask_doubts(images: np.ndarray, mask: np.ndarray) -> tuple[CaptureWarning | 
     agreement = float((mask & seed).sum() / max((mask | seed).sum(), 1))
     missed = float((seed & ~grown).sum() / max(seed.sum(), 1))
     weak = float((mask & (scaled < WEAK_LEVEL * threshold)).sum() / max(mask.sum(), 1))
+    flat, spread = flat_share(images, mask), light_spread_deg(images, mask)
     facts = {"seed_agreement_iou": round(agreement, 4), "varying_outside_share": round(missed, 4),
-             "weak_inside_share": round(weak, 4)}
+             "weak_inside_share": round(weak, 4), "flat_share": round(flat, 4), "light_spread_deg": round(spread, 1)}
     seen = []
     if missed > MISSED_SHARE_MAX:
         seen.append(f"{missed:.0%} of the pixels that change most with the light lie outside it (part of the object "
@@ -234,6 +246,12 @@ def mask_doubts(images: np.ndarray, mask: np.ndarray) -> tuple[CaptureWarning | 
                     "the object stands on, or the backdrop)")
     if agreement < SEED_AGREEMENT_MIN:
         seen.append(f"it overlaps the part of the picture that changes with the light by only {agreement:.0%}")
+    if spread < STILL_LIGHT_DEG:  # every surface then varies alike: one profile says nothing
+        seen.append(f"the light hardly moves across the photos (it spreads like a ring {spread:.0f} deg around the "
+                    "axis), so what changes with it cannot tell the object from what surrounds it")
+    elif flat > FLAT_SHARE_MAX:
+        seen.append(f"{flat:.0%} of it is one flat surface lit alike in every photo (the table, cloth or backdrop "
+                    "under the object?)")
     facts["doubtful"] = bool(seen)
     if not seen:
         return None, facts
