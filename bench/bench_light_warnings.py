@@ -13,9 +13,9 @@ the axis), each predicted by the shipped model on its own photos, then warned ab
 
 The truth of a capture applies the warnings' own definitions to the true directions: frontal when no light is further
 than `FRONTAL_DEG` off the axis; one-sided when it is not frontal and the lights further off the axis than
-`ONE_SIDED_DEG` leave a gap of more than 180 deg around it. A capture within `MARGIN_DEG` of a boundary (its largest
-angle from the axis within MARGIN_DEG of FRONTAL_DEG, its gap within 2 x MARGIN_DEG of 180) is `borderline` and
-counted apart: there a few degrees of error in reading the light decide.
+`ONE_SIDED_DEG` leave a gap of more than 180 deg around it. A capture whose truth changes when one light moves by
+`MARGIN_DEG` from the axis or twice that around it is `borderline` and counted apart: there a few degrees of error
+in reading the light decide.
 """
 from __future__ import annotations
 
@@ -40,7 +40,8 @@ SUBSETS = ("all", "one_side", "above", "near_axis")
 """Captures made of each object's photos: all; those whose light's azimuth lies within 75 deg of the first lit
 photo's; those lit from above (light y > 0.1); those lit within 20 deg of the axis."""
 MARGIN_DEG = 5.0
-"""A capture this close to a warning's boundary is borderline (module doc)."""
+"""A capture whose truth changes when one light moves this much from the axis (twice as much around it) is
+borderline (module doc)."""
 MIN_PHOTOS = 4
 """A subset of fewer photos is not made."""
 
@@ -62,19 +63,30 @@ def true_directions(folder: Path) -> np.ndarray | None:
     return np.array(out)
 
 
-def truth(directions: np.ndarray) -> dict:
-    """The warnings the true directions call for, and whether the capture is borderline (module doc)."""
+def _classes(polar: np.ndarray, azimuth: np.ndarray) -> tuple[bool, bool, float]:
+    """(frontal, one-sided, the gap in deg) of lights at these angles, by the warnings' own definitions."""
     from validate.diagnosis.usable import FRONTAL_DEG, ONE_SIDED_DEG, _largest_gap_deg
 
-    polar = np.degrees(np.arccos(np.clip(directions[:, 2], -1, 1)))
-    azimuth = np.degrees(np.arctan2(directions[:, 1], directions[:, 0]))
     frontal = bool(polar.max() < FRONTAL_DEG)
     off = polar > ONE_SIDED_DEG
     gap = _largest_gap_deg(azimuth[off]) if off.sum() >= 2 else 0.0
-    one_sided = not frontal and off.sum() >= 2 and gap > 180.0
-    border = abs(polar.max() - FRONTAL_DEG) < MARGIN_DEG or (not frontal and off.sum() >= 2
-                                                               and abs(gap - 180.0) < 2 * MARGIN_DEG)
-    return {"frontal_light": frontal, "one_sided_light": one_sided, "borderline": bool(border),
+    return frontal, bool(not frontal and off.sum() >= 2 and gap > 180.0), gap
+
+
+def truth(directions: np.ndarray) -> dict:
+    """The warnings the true directions call for, and whether the capture is borderline: the truth changes when one
+    light moves by MARGIN_DEG from the axis or twice that around it (module doc)."""
+    polar = np.degrees(np.arccos(np.clip(directions[:, 2], -1, 1)))
+    azimuth = np.degrees(np.arctan2(directions[:, 1], directions[:, 0]))
+    frontal, one_sided, gap = _classes(polar, azimuth)
+    border = False
+    for i in range(len(polar)):
+        for dp in (-MARGIN_DEG, 0.0, MARGIN_DEG):
+            for da in (-2 * MARGIN_DEG, 0.0, 2 * MARGIN_DEG):
+                p, a = polar.copy(), azimuth.copy()
+                p[i], a[i] = max(p[i] + dp, 0.0), a[i] + da
+                border = border or _classes(p, a)[:2] != (frontal, one_sided)
+    return {"frontal_light": frontal, "one_sided_light": one_sided, "borderline": border,
             "max_polar_deg": round(float(polar.max()), 1), "gap_deg": round(float(gap), 1)}
 
 
@@ -117,7 +129,8 @@ def capture_rows(name: str, family: str, material: str, images: np.ndarray, mask
         said = {w.code for w in warnings}
         want = truth(directions[idx])
         agree = all((code in said) == want[code] for code in ("frontal_light", "one_sided_light"))
-        rows.append({"object": name, "suite": name.split("/")[0], "family": family, "material": material, "capture": capture,
+        rows.append({"object": name, "suite": name.split("/")[0], "family": family, "material": material,
+                     "capture": capture,
                      "photos": len(idx), **want, "said": sorted(said), "agree": agree,
                      "read_polar_deg": facts.get("light_polar_deg"),
                      "read_azimuth_deg": facts.get("light_azimuth_deg")})

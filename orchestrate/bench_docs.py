@@ -59,6 +59,31 @@ def capture_diligent(card: dict) -> str:
                               "held-out residual", "time (s)", "peak (MiB)"], rows))
 
 
+LIGHT_WARNINGS_BENCH = REPO / "bench" / "results" / "light_warnings.json"
+"""The output of `python bench/bench_light_warnings.py ... --out bench/results/light_warnings.json` (committed)."""
+
+
+def light_warnings(card: dict) -> str:
+    """How often the light warnings agree with the true lights: overall, per material, per kind of capture, per
+    rendered suite; and each real capture with measured lights."""
+    d = json.loads(LIGHT_WARNINGS_BENCH.read_text())
+    s = d["summary"]
+
+    def row(name: str, x: dict) -> list[str]:
+        return [name, str(x["captures"]), str(x["agree"]), f"{x['share']:.1%}" if x["share"] is not None else "-"]
+
+    rows = [row("all rendered captures, borderline apart", s["clear"]), row("borderline", s["borderline"])]
+    rows += [row(f"material: {k}", v) for k, v in s["by_material"].items()]
+    rows += [row(f"photos chosen: {k}", v) for k, v in s["by_capture"].items()]
+    rows += [row(f"suite: {k}", v) for k, v in s["by_suite"].items()]
+    real = [[r["object"], f"{r['capture']} ({r['photos']})",
+             ", ".join(k for k in ("frontal_light", "one_sided_light") if r[k]) or "none",
+             ", ".join(r["said"]) or "none"] for r in s["real"]]
+    return (f"`{d['command']}`:\n\n" + markdown_table(["captures", "count", "agree", "share"], rows)
+            + "\n\nReal captures with measured lights:\n\n"
+            + markdown_table(["capture", "photos", "the true lights call for", "said"], real))
+
+
 CAPTURE_BENCH = REPO / "bench" / "results" / "capture.json"
 """The output of `python bench/bench_capture.py --out bench/results/capture.json` (its last run, committed)."""
 
@@ -321,6 +346,7 @@ BENCH_TABLES = {
     "capture:resources": (CAPTURE_BENCH, capture_resources),
     "capture:full-size": (FULL_SIZE_BENCH, full_size),
     "capture:diligent": (CAPTURE_DILIGENT_BENCH, capture_diligent),
+    "capture:light-warnings": (LIGHT_WARNINGS_BENCH, light_warnings),
     "check:resolution": (VERDICT_BENCH, check_resolution),
     "check:verdict-sweep": (VERDICT_SWEEP_BENCH, verdict_sweep),
     "check:refine-rule": (REFINE_RULE_BENCH, refine_rule),

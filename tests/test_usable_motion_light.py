@@ -109,3 +109,30 @@ def test_lights_read_from_the_shading_under_a_map_are_the_true_ones():
     near = ring(12, 8)
     images, mask = scene(near)
     assert [w.code for w in light_warnings(images, mask, n)[0]] == ["frontal_light"]
+
+
+def test_the_lights_of_a_glossy_metal_object_are_read_from_its_highlights():
+    """A metal-like ellipsoid (a faint diffuse term, a Blinn-Phong highlight of exponent 50): each photo is mostly a
+    highlight on a dark surface. The reader's lobe finds every light within 6 deg of the truth; lights all from above
+    read as one-sided, lights all around as neither warning."""
+    from validate.diagnosis.light_reading import shading_light_angles
+    from validate.diagnosis.usable import light_warnings
+
+    n, mask = ellipsoid_normals(H + 2 * PAD, W + 2 * PAD, (H + 2 * PAD) / 2, (W + 2 * PAD) / 2, 40, 50)
+
+    def photos(lights: np.ndarray) -> np.ndarray:
+        half = lights + np.array([0.0, 0.0, 1.0])
+        half /= np.linalg.norm(half, axis=1, keepdims=True)
+        lobe = np.clip(np.einsum("hwc,kc->khw", n, half), 0, None) ** 50
+        img = (0.03 * shading(n, lights) + lobe) * mask
+        return np.repeat(img[..., None], 3, -1).astype(np.float32)
+
+    around = np.concatenate([ring(30, 6), ring(45, 6, 30.0)])
+    polar, azimuth = shading_light_angles(photos(around), mask, n)
+    read = np.stack([np.sin(np.radians(polar)) * np.cos(np.radians(azimuth)),
+                     np.sin(np.radians(polar)) * np.sin(np.radians(azimuth)), np.cos(np.radians(polar))], -1)
+    off = np.degrees(np.arccos(np.clip((read * around).sum(-1), -1, 1)))
+    assert off.max() < 6.0, off
+    assert light_warnings(photos(around), mask, n)[0] == []
+    top = around[around[:, 1] > 0.1]
+    assert [w.code for w in light_warnings(photos(top), mask, n)[0]] == ["one_sided_light"]
