@@ -284,7 +284,11 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(row)
         print(f"{key:28s} MADE ours {row['ours']['made']:.4f}  reference {row['reference']['made']:.4f}  "
               f"least squares {row['least_squares']['made']:.4f}", flush=True)
-    result = {"command": "python bench/bench_surface.py --work WORK", "assets": opts.assets, "objects": opts.objects,
+    # the renders' own assets (reused renders keep those they were made with, whatever --assets says now)
+    made_with = {json.loads((work / "renders" / name / "manifest.json").read_text())["config"].get("assets")
+                 for name in SUITES}
+    result = {"command": "python bench/bench_surface.py --work WORK", "assets": ", ".join(sorted(map(str, made_with))),
+              "objects": opts.objects,
               "seed": opts.seed, "whole_process_seconds": whole,
               "rows": summary_rows(rows), "cases": rows, "machine": f"{os.cpu_count()} cores"}
     from scenes.files import write_json
