@@ -4,9 +4,10 @@ read from the shading").
 
     python bench/bench_light_warnings.py --suite DIR [--suite DIR ...] --out bench/results/light_warnings.json
 
-Each --suite is a `wildgen.make` dataset; objects whose images each have one light placed somewhere (families
-`FAMILIES`: directional, point, a near area light, a DiLiGenT-like grid, a flash or lamp at the lens) count; environment
-and mixed lights have no one direction and are left out. Each image's true direction is its light's (a point or area
+Each --suite is a `wildgen.make` dataset; objects whose every image has exactly one placed light (directional, point
+or area, beside a dim environment at most: the directional, point, near-area, grid, flash and frontal families, and
+the odd mixed object drawn with one) count; an environment alone or several lights have no one direction and are
+left out. Each image's true direction is its light's (a point or area
 light: from the object's centre to it) in the camera frame. Every object gives the captures of `SUBSETS`, made by
 choosing photos by their true light (all of them; those lit from one side; those lit from above; those lit from near
 the axis), each predicted by the shipped model on its own photos, then warned about with the true mask.
@@ -34,8 +35,6 @@ sys.path.insert(0, str(REPO))
 from bench.cli_common import machine, parse  # noqa: E402
 from scenes.cli.options import Command, UseAppendAction, arg  # noqa: E402
 
-FAMILIES = ("directional", "point", "near_area", "grid96", "flash", "frontal")
-"""Light families whose images each have one light with a direction (beside a dim environment at most)."""
 SUBSETS = ("all", "one_side", "above", "near_axis")
 """Captures made of each object's photos: all; those whose light's azimuth lies within 75 deg of the first lit
 photo's; those lit from above (light y > 0.1); those lit within 20 deg of the axis."""
@@ -44,6 +43,9 @@ MARGIN_DEG = 5.0
 borderline (module doc)."""
 MIN_PHOTOS = 4
 """A subset of fewer photos is not made."""
+SIDE_FROM_DEG = 10.0
+"""The `one_side` subset takes lights further than this from the axis (the subsets' own choice, kept apart from the
+warning's constant)."""
 
 
 def true_directions(folder: Path) -> np.ndarray | None:
@@ -94,16 +96,13 @@ def subsets(directions: np.ndarray) -> dict[str, np.ndarray]:
     """Image indices of each capture of `SUBSETS` with at least MIN_PHOTOS photos."""
     polar = np.degrees(np.arccos(np.clip(directions[:, 2], -1, 1)))
     azimuth = np.degrees(np.arctan2(directions[:, 1], directions[:, 0]))
-    lit = np.nonzero(polar > ONE_SIDED)[0]
+    lit = np.nonzero(polar > SIDE_FROM_DEG)[0]
     picks = {"all": np.arange(len(directions)), "above": np.nonzero(directions[:, 1] > 0.1)[0],
              "near_axis": np.nonzero(polar < 20.0)[0]}
     if len(lit):
         turn = np.abs((azimuth - azimuth[lit[0]] + 180.0) % 360.0 - 180.0)
-        picks["one_side"] = np.nonzero((turn < 75.0) & (polar > ONE_SIDED))[0]
+        picks["one_side"] = np.nonzero((turn < 75.0) & (polar > SIDE_FROM_DEG))[0]
     return {name: idx for name, idx in picks.items() if len(idx) >= MIN_PHOTOS}
-
-
-ONE_SIDED = 10.0  # (the subsets' own choice, kept apart from the warning's constant)
 
 
 def capture_rows(name: str, family: str, material: str, images: np.ndarray, mask: np.ndarray,
