@@ -207,6 +207,20 @@ class Options:
 COMMAND = Command(Options, prog="python bench/bench_light_warnings.py", description=__doc__.split("\n\n")[0])
 
 
+def table_rows(result: dict) -> list[dict]:
+    """The rows of the docs' tables, in their order: the rendered captures' agreement (overall, borderline, per
+    material, kind of capture and suite), then each real capture."""
+    def row(name: str, x: dict) -> dict:
+        return {"captures": name, "count": x["captures"], "agree": x["agree"], "share": x["share"]}
+
+    rows = [row("all rendered captures, borderline apart", result["clear"]), row("borderline", result["borderline"])]
+    for key, label in (("by_material", "material"), ("by_capture", "photos chosen"), ("by_suite", "suite")):
+        rows += [row(f"{label}: {k}", v) for k, v in result[key].items()]
+    return rows + [{"real": r["object"], "capture": r["capture"], "photos": r["photos"],
+                    "truth": [k for k in ("frontal_light", "one_sided_light") if r[k]], "said": r["said"]}
+                   for r in result["real"]]
+
+
 def main(argv: list[str] | None = None) -> int:
     import torch
 
@@ -234,7 +248,8 @@ def main(argv: list[str] | None = None) -> int:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         flags = [f"--suite {s}" for s in args.suite] + [f"--real {s}" for s in args.real]
         write_json(args.out, {"command": "python bench/bench_light_warnings.py " + " ".join(flags), "summary": result,
-                              "rows": rows, "machine": machine()}, indent=1, newline=True)
+                              "rows": table_rows(result) if rows else [], "captures": rows, "machine": machine()},
+                   indent=1, newline=True)
     return 0
 
 

@@ -65,21 +65,13 @@ LIGHT_WARNINGS_BENCH = REPO / "bench" / "results" / "light_warnings.json"
 
 def light_warnings(card: dict) -> str:
     """How often the light warnings agree with the true lights: overall, per material, per kind of capture, per
-    rendered suite; and each real capture with measured lights."""
+    rendered suite; and each real capture with measured lights (the bench's rows, in order)."""
     d = json.loads(LIGHT_WARNINGS_BENCH.read_text())
-    s = d["summary"]
-
-    def row(name: str, x: dict) -> list[str]:
-        return [name, str(x["captures"]), str(x["agree"]), f"{x['share']:.1%}" if x["share"] is not None else "-"]
-
-    rows = [row("all rendered captures, borderline apart", s["clear"]), row("borderline", s["borderline"])]
-    rows += [row(f"material: {k}", v) for k, v in s["by_material"].items()]
-    rows += [row(f"photos chosen: {k}", v) for k, v in s["by_capture"].items()]
-    rows += [row(f"suite: {k}", v) for k, v in s["by_suite"].items()]
-    real = [[r["object"], f"{r['capture']} ({r['photos']})",
-             ", ".join(k for k in ("frontal_light", "one_sided_light") if r[k]) or "none",
-             ", ".join(r["said"]) or "none"] for r in s["real"]]
-    return (f"`{d['command']}`:\n\n" + markdown_table(["captures", "count", "agree", "share"], rows)
+    rendered = [[r["captures"], str(r["count"]), str(r["agree"]), "-" if r["share"] is None else f"{r['share']:.1%}"]
+                for r in d["rows"] if "captures" in r]
+    real = [[r["real"], f"{r['capture']} ({r['photos']})", ", ".join(r["truth"]) or "none",
+             ", ".join(r["said"]) or "none"] for r in d["rows"] if "real" in r]
+    return (f"`{d['command']}`:\n\n" + markdown_table(["captures", "count", "agree", "share"], rendered)
             + "\n\nReal captures with measured lights:\n\n"
             + markdown_table(["capture", "photos", "the true lights call for", "said"], real))
 
