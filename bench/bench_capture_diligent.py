@@ -32,7 +32,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from bench.cli_common import DILIGENT, machine, parse  # noqa: E402
+from bench.cli_common import DILIGENT, clipping_scale, machine, parse, write_jpeg_photos  # noqa: E402
 from scenes.cli.options import Command, arg  # noqa: E402
 from scenes.files import write_json  # noqa: E402
 
@@ -43,19 +43,12 @@ CASES = ("jpeg_true", "jpeg_auto", "png_true")
 
 def _photos(obj, folder: Path, case: str, source: Path) -> None:
     """Write the photos of `case` into `folder` (module doc)."""
-    import cv2
-
-    from scenes.colors import linear_to_srgb
-
     folder.mkdir(parents=True, exist_ok=True)
     if case == "png_true":
         for i, f in enumerate(sorted(p for p in source.glob("*.png") if p.stem.isdigit()), 1):
             shutil.copyfile(f, folder / f"{i:03d}.png")
         return
-    scale = float(np.quantile(obj.images[:, obj.mask], 1 - CLIP_SHARE))
-    for i, im in enumerate(obj.images, 1):
-        codes = np.round(np.clip(linear_to_srgb(np.clip(im / scale, 0, 1)), 0, 1) * 255).astype(np.uint8)
-        cv2.imwrite(str(folder / f"IMG_{i:04d}.jpg"), codes[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, 95])
+    write_jpeg_photos(folder, obj.images, clipping_scale(obj.images, obj.mask, CLIP_SHARE))
 
 
 def run_case(obj, source: Path, case: str, work: Path) -> dict:

@@ -19,13 +19,12 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))  # this tree's toolkit, not another checkout's installed one
 
-from bench.cli_common import DILIGENT, parse  # noqa: E402
+from bench.cli_common import DILIGENT, clipping_scale, parse, write_jpeg_photos  # noqa: E402
 from scenes.cli.options import REQUIRED, Command  # noqa: E402
 from scenes.files import write_json  # noqa: E402
 
@@ -52,13 +51,8 @@ COMMAND = Command(Options, prog="python bench/bench_capture_trees.py", descripti
 
 def write_photos(folder: Path, images: np.ndarray, mask: np.ndarray) -> None:
     """The images as 8-bit sRGB JPEG files, exposed so that CLIP_FRACTION of the object's values clip."""
-    from scenes.colors import linear_to_srgb
-
     folder.mkdir(parents=True)
-    scale = 1.0 / float(np.quantile(images[:, mask], 1.0 - CLIP_FRACTION))
-    for i, img in enumerate(images):
-        codes = np.round(np.clip(linear_to_srgb(np.clip(img * scale, 0, 1)), 0, 1) * 255).astype(np.uint8)
-        cv2.imwrite(str(folder / f"IMG_{i + 1:04d}.jpg"), codes[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, 95])
+    write_jpeg_photos(folder, images, clipping_scale(images, mask, CLIP_FRACTION))
 
 
 def capture(tree: Path, photos: Path, mask: Path, out: Path) -> dict:

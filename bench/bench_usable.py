@@ -31,13 +31,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated
 
-import cv2
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))  # this tree's toolkit, not another checkout's installed one
 
-from bench.cli_common import DILIGENT, parse  # noqa: E402
+from bench.cli_common import DILIGENT, parse, write_jpeg_photos  # noqa: E402
 from scenes.cli.options import CommaList, Command, UseAppendAction, arg, comma_list, option  # noqa: E402
 
 MARGIN = 8
@@ -57,13 +56,10 @@ def _crop(images: np.ndarray, dx: int = 0, dy: int = 0) -> np.ndarray:
 
 def _jpeg_round_trip(images: np.ndarray, scale: float, work: Path) -> np.ndarray:
     """The images as 8-bit sRGB JPEG files (quality 95, linear values times `scale`), read back by read_photos."""
-    from scenes.colors import linear_to_srgb
     from scenes.folder.photos import read_photos
 
     folder = Path(tempfile.mkdtemp(dir=work))
-    for i, img in enumerate(images):
-        codes = np.round(np.clip(linear_to_srgb(np.clip(img * scale, 0, 1)), 0, 1) * 255).astype(np.uint8)
-        cv2.imwrite(str(folder / f"IMG_{i + 1:04d}.jpg"), codes[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, 95])
+    write_jpeg_photos(folder, images, scale)
     photos = read_photos(folder)
     for f in folder.iterdir():
         f.unlink()

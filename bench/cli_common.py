@@ -36,3 +36,24 @@ def machine() -> dict:
     import platform
 
     return {"cpus": os.cpu_count(), "platform": platform.platform()}
+
+
+def clipping_scale(images, mask, share: float) -> float:
+    """The one factor for every image that makes `share` of the object's values (all images, `mask`) clip: a
+    user's exposure, bright but not blown."""
+    import numpy as np
+
+    return 1.0 / float(np.quantile(images[:, mask], 1.0 - share))
+
+
+def write_jpeg_photos(folder: Path, images, scale: float) -> None:
+    """Linear images (K, H, W, 3) times `scale` as 8-bit sRGB JPEG files `IMG_0001.jpg` ... (quality 95) in the
+    existing `folder`, as a camera writes them."""
+    import cv2
+    import numpy as np
+
+    from scenes.colors import linear_to_srgb
+
+    for i, img in enumerate(images):
+        codes = np.round(np.clip(linear_to_srgb(np.clip(img * scale, 0, 1)), 0, 1) * 255).astype(np.uint8)
+        cv2.imwrite(str(folder / f"IMG_{i + 1:04d}.jpg"), codes[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, 95])
