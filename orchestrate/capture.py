@@ -42,6 +42,7 @@ from scenes.cli.limits import check_threads
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import heartbeat, stage
+from scenes.cli.supervise import INTERRUPTED, run_supervised
 from scenes.files import to_plain, write_json
 from scenes.folder.format import MASK_FILE, write_object_folder
 from scenes.images import read_mask, write_mask, write_normal_exr, write_normal_map, write_picture
@@ -432,8 +433,7 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:
         return report_error(exc, 1)
     except KeyboardInterrupt:  # Ctrl-C: the user's, not a fault; every file is written whole or not at all
-        print("interrupted: --out holds only the files finished before it (each whole), --input is untouched; run "
-              "the command again with --overwrite", file=sys.stderr)
+        print(INTERRUPTED, file=sys.stderr)
         return 130
     print(report["verdict"]["headline"])
     print(report["verdict"]["summary"])
@@ -449,5 +449,5 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+if __name__ == "__main__":  # Ctrl-C kills the work whole (scenes.cli.supervise: Mitsuba's own handler aside)
+    sys.exit(run_supervised("orchestrate.capture", main, INTERRUPTED))

@@ -41,6 +41,7 @@ from scenes.cli.limits import check_memory, gib
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import Progress
+from scenes.cli.supervise import run_supervised
 from scenes.files import write_json
 from scenes.folder.format import PREDICTION_FILES, PREDICTION_INFO, object_name
 from scenes.folder.layouts import detect_layout
@@ -356,5 +357,5 @@ def _predict_one(args: PredictOptions, net, folder: Path, name: str,
     log.info("%s: %s in %.2f s", name, args.method, elapsed)
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+if __name__ == "__main__":  # Ctrl-C kills the work whole (scenes.cli.supervise)
+    sys.exit(run_supervised("unips.predict", main))

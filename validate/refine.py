@@ -21,6 +21,7 @@ from scenes.cli.limits import check_threads
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import progress_bar
+from scenes.cli.supervise import run_supervised
 from scenes.folder.format import EXPECTED_ERROR_FILES
 from validate.fitted.refinement import REFINE_OUTPUTS, RefineConfig, refine_object
 
@@ -154,5 +155,5 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
     return 0
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+if __name__ == "__main__":  # Ctrl-C kills the work whole (scenes.cli.supervise)
+    sys.exit(run_supervised("validate.refine", main))

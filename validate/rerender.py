@@ -38,6 +38,7 @@ from scenes.cli.limits import check_threads
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import progress_bar
+from scenes.cli.supervise import run_supervised
 from scenes.files import write_json
 from scenes.folder.format import find_prediction, list_object_folders, object_name
 from scenes.renderer.variant import require_jit_variant
@@ -351,5 +352,5 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
     return 0
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+if __name__ == "__main__":  # Ctrl-C kills the work whole (scenes.cli.supervise)
+    sys.exit(run_supervised("validate.rerender", main))

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
+from scenes.cli.supervise import die_with_parent
 from wildgen.config import GenConfig
 from wildgen.engine_base import (
     STOP_SIGNALS,
@@ -100,27 +101,12 @@ class InProcessEngine:
             attempts.success(entry)
 
 
-def _die_with_parent(parent_pid: int) -> None:
-    """Ask Linux to SIGKILL this process when its parent dies (no orphans writing into the dataset)."""
-    if not sys.platform.startswith("linux"):
-        return
-    import ctypes
-
-    PR_SET_PDEATHSIG = 1
-    try:
-        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
-    except (OSError, AttributeError):
-        return
-    if os.getppid() != parent_pid:  # the parent died before prctl took effect
-        os._exit(1)
-
-
 def _worker_main(
     conn, cfg: GenConfig, out_dir: str, variant: str, threads: int | None, parent_pid: int, log_level: int
 ) -> None:
     """Body of a local worker process: receive indices, send back entries, until None or EOF."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides how to stop on Ctrl-C
-    _die_with_parent(parent_pid)
+    die_with_parent(parent_pid)
     logging.basicConfig(level=log_level, format="%(levelname)s %(name)s: %(message)s")
     try:
         lib = init_process(variant, threads, cfg.assets)

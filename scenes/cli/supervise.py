@@ -1,0 +1,121 @@
+"""Ctrl-C for commands whose work runs inside Mitsuba and Dr.Jit: the command runs as a child process in a session
+of its own, and this process (the one the user started) only waits for it.
+
+Why not a KeyboardInterrupt: Mitsuba's `Integrator.render` binding installs its own C-level SIGINT handler while it
+renders (it logs, cancels the render and re-raises), Dr.Jit turns a KeyboardInterrupt raised inside a custom
+operation into a RuntimeError, and a handler restored out of order by nested or concurrent renders stays installed
+with a dangling integrator. Measured in the capture's slow test: an interrupt during the check ended once in SIGSEGV
+and once swallowed (exit 0). A child in its own session never sees the terminal's Ctrl-C; the parent kills it
+whole (SIGKILL: no unwinding through native code), removes the temporaries of the file it was writing
+(`scenes.files.atomic_write` names them after the writer's pid), says in one line what is left, and exits 130.
+Every output file is written whole or not at all, so what the child finished stays valid.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+CHILD = "PS_TOOLKIT_SUPERVISED"
+"""Set in the child's environment: the command then runs its work directly."""
+INTERRUPTED = ("interrupted: --out holds only the files finished before it (each whole), the inputs are untouched; "
+               "run the command again with --overwrite")
+"""The one line of a stopped command."""
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+"""What stops a supervised run (Ctrl-C, `kill`, the terminal closing)."""
+
+
+def die_with_parent(parent_pid: int) -> None:
+    """Ask Linux to SIGKILL this process when its parent dies (no orphan goes on writing after its parent is
+    killed); called first thing in a child."""
+    if not sys.platform.startswith("linux"):
+        return
+    import ctypes
+
+    pr_set_pdeathsig = 1
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, int(signal.SIGKILL), 0, 0, 0)
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != parent_pid:  # the parent died before prctl took effect
+        os._exit(1)
+
+
+def flag_value(argv: list[str], flag: str) -> str | None:
+    """The value of `--flag VALUE` or `--flag=VALUE` in `argv` (the last one given), or None."""
+    value = None
+    for i, arg in enumerate(argv):
+        if arg == flag and i + 1 < len(argv):
+            value = argv[i + 1]
+        elif arg.startswith(flag + "="):
+            value = arg[len(flag) + 1:]
+    return value
+
+
+def remove_temporaries(folder: str | Path | None, pid: int) -> int:
+    """Remove the temporary files (`scenes.files.atomic_write`) process `pid` left anywhere under `folder`, never
+    following links; how many."""
+    from scenes.files import temporary_target
+
+    if not folder or not Path(folder).is_dir():
+        return 0
+    removed = 0
+    for root, _dirs, files in os.walk(folder):
+        for name in files:
+            if temporary_target(name) is not None and f".tmp{pid}" in name:
+                try:
+                    os.unlink(os.path.join(root, name))
+                    removed += 1
+                except OSError:
+                    pass
+    return removed
+
+
+def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTERRUPTED,
+                   argv: list[str] | None = None) -> int:
+    """`python -m module` with Ctrl-C handled as the module doc says: in the child, `main()`; in the process the
+    user started, the same command as a child in its own session, waited for. `interrupted` is the line printed on
+    a stop (`--out` is read from the arguments to remove the child's temporaries)."""
+    if os.environ.get(CHILD) == str(os.getppid()):
+        die_with_parent(os.getppid())
+        return main()
+    argv = sys.argv[1:] if argv is None else argv
+    stop: dict[str, int] = {}
+    children: list[subprocess.Popen] = []
+
+    def on_stop(signum, _frame) -> None:
+        stop.setdefault("signal", signum)
+        for c in children:
+            c.kill()
+
+    # Handlers first (a Ctrl-C right at the start kills the child too); a signal the user's shell ignores (a run
+    # under nohup, or in the background) stays ignored.
+    previous = {s: signal.getsignal(s) for s in STOP_SIGNALS}
+    for s in STOP_SIGNALS:
+        if previous[s] is not signal.SIG_IGN:
+            signal.signal(s, on_stop)
+    try:
+        child = subprocess.Popen([sys.executable, "-m", module, *argv], env={**os.environ, CHILD: str(os.getpid())},
+                                 start_new_session=True)
+        children.append(child)
+        if stop:
+            child.kill()
+        code = child.wait()
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+    if stop:
+        child.wait()
+        remove_temporaries(flag_value(argv, "--out"), child.pid)
+        print(interrupted, file=sys.stderr)
+        return 130 if stop["signal"] == signal.SIGINT else 128 + stop["signal"]
+    if code < 0:  # killed from outside (the kernel's out-of-memory killer, a kill -9)
+        name = signal.Signals(-code).name
+        hint = " (out of memory?)" if -code == signal.SIGKILL else ""
+        print(f"{module}: the work was killed by {name}{hint}; every file in --out is whole; run the command "
+              f"again with --overwrite", file=sys.stderr)
+        return 128 - code
+    return code

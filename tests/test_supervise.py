@@ -1,0 +1,113 @@
+"""Ctrl-C through `scenes.cli.supervise`: the command's work runs in a child of its own session, killed whole on a
+stop signal; one line, exit 130 (SIGTERM: 143), the child's temporaries removed, finished files kept, no orphan.
+The child here is a real Python process that installs a C-level SIGINT handler of its own that swallows the signal,
+as Mitsuba's render binding does while it renders: the stop must not depend on the child's handlers."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+from fixtures import interruptible
+
+REPO = Path(__file__).resolve().parents[1]
+
+WORK = """
+import ctypes, os, signal, sys, time
+from pathlib import Path
+from scenes.cli.supervise import run_supervised
+from scenes.files import atomic_write_text
+
+def main():
+    out = Path(sys.argv[sys.argv.index("--out") + 1])
+    atomic_write_text(out / "finished.txt", "whole")
+    (out / "pid").write_text(str(os.getpid()))
+    # a native handler that swallows SIGINT, as a render in progress would have installed
+    handler = ctypes.CFUNCTYPE(None, ctypes.c_int)(lambda _s: None)
+    ctypes.CDLL(None).signal(signal.SIGINT, handler)
+    # a file half written, under the name atomic_write gives it, when the stop comes
+    (out / f".normal.tmp{os.getpid()}.png").write_bytes(b"half")
+    (out / "started").write_text("")
+    time.sleep(120)
+    return 0
+
+if __name__ == "__main__":
+    sys.exit(run_supervised("slowwork", main, "interrupted: one line"))
+"""
+
+
+@pytest.fixture
+def slow_command(tmp_path):
+    mod = tmp_path / "mods"
+    mod.mkdir()
+    (mod / "slowwork.py").write_text(textwrap.dedent(WORK))
+    out = tmp_path / "out"
+    out.mkdir()
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(mod), str(REPO)])}
+    return [sys.executable, "-m", "slowwork", "--out", str(out)], out, env
+
+
+def _start(cmd, out, env):
+    proc = subprocess.Popen(cmd, cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=interruptible)
+    t0 = time.monotonic()
+    while not (out / "started").exists():
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() - t0 < 60
+        time.sleep(0.05)
+    return proc, int((out / "pid").read_text())
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    # a zombie is dead work: only its parent (here: gone) could still reap it
+    stat = Path(f"/proc/{pid}/stat")
+    return not (stat.exists() and stat.read_text().split(")")[-1].split()[0] == "Z")
+
+
+@pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_a_stop_kills_the_work_whole_in_one_line(slow_command, sig, code):
+    cmd, out, env = slow_command
+    proc, child = _start(cmd, out, env)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == code, err
+    assert err.strip().splitlines() == ["interrupted: one line"], err
+    assert (out / "finished.txt").read_text() == "whole"  # what was finished stays
+    assert not list(out.glob(".*.tmp*")), sorted(p.name for p in out.iterdir())  # the half-written file goes
+    t0 = time.monotonic()
+    while _alive(child) and time.monotonic() - t0 < 10:
+        time.sleep(0.05)
+    assert not _alive(child)
+
+
+def test_the_terminal_ctrl_c_reaches_only_the_supervisor_and_a_kill_of_it_takes_the_work_along(slow_command):
+    cmd, out, env = slow_command
+    proc, child = _start(cmd, out, env)
+    assert os.getpgid(child) != os.getpgid(proc.pid)  # its own session: the terminal's Ctrl-C goes to the parent
+    proc.kill()  # the supervisor itself killed: the child must not go on as an orphan
+    proc.communicate(timeout=30)
+    t0 = time.monotonic()
+    while _alive(child) and time.monotonic() - t0 < 10:
+        time.sleep(0.05)
+    assert not _alive(child)
+
+
+def test_the_child_exit_status_passes_through(tmp_path):
+    mod = tmp_path / "m"
+    mod.mkdir()
+    (mod / "fails.py").write_text("import sys\nfrom scenes.cli.supervise import run_supervised\n"
+                                  "if __name__ == '__main__':\n"
+                                  "    sys.exit(run_supervised('fails', lambda: print('bad --x: 3') or 2, 'stop'))\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(mod), str(REPO)])}
+    r = subprocess.run([sys.executable, "-m", "fails"], cwd=REPO, env=env, capture_output=True, text=True,
+                       timeout=60)
+    assert (r.returncode, r.stdout.strip(), r.stderr) == (2, "bad --x: 3", "")
