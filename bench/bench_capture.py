@@ -138,6 +138,8 @@ def main(argv: list[str] | None = None) -> int:
             if "error" not in row:
                 e = estimate(row["images"], *row.get("working_size", row["size"]), full=tuple(row["size"]))
                 row["estimate_mib"], row["estimate_s"] = e["peak_mib"], e["seconds"]
+        command = "python bench/bench_capture.py --reestimate " + str(args.reestimate)
+        result["commands"] = [c for c in result.get("commands", [result.get("command")]) if c != command] + [command]
         write_json(args.reestimate, result, indent=1, newline=True)
         print(f"rewrote the estimates of {args.reestimate}")
         return 0
