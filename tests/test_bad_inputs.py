@@ -3197,3 +3197,47 @@ def test_ray_address_that_does_not_answer_is_refused_after_the_bounded_wait(tmp_
     assert len(errors) == 1 and "--ray" in errors[0] and f"'{address}'" in errors[0], err
     assert "no answer within 1 s" in errors[0], err
     assert not (tmp_path / "o").exists()
+
+
+def test_ray_address_of_something_else_than_a_ray_head_is_refused_at_once(tmp_path: Path, capsys, monkeypatch):
+    """`--ray HOST:PORT` where a web server answers: ray.init() would retry it for minutes (measured: still waiting
+    after 5 min, a log line every 5 s); the probe asks for gRPC's HTTP/2 greeting first and refuses in one line. A
+    server that greets as gRPC does (a SETTINGS frame) passes the same probe."""
+    pytest.importorskip("ray")
+    import http.server
+    import socket
+    import threading
+
+    from wildgen.make import main
+    from wildgen.ray_engine import _speaks_grpc
+
+    web = http.server.HTTPServer(("127.0.0.1", 0), http.server.BaseHTTPRequestHandler)
+    threading.Thread(target=web.serve_forever, daemon=True).start()
+    grpc_like = socket.socket()
+    grpc_like.bind(("127.0.0.1", 0))
+    grpc_like.listen(1)
+
+    def greet() -> None:
+        conn, _ = grpc_like.accept()
+        conn.recv(64)
+        conn.sendall(bytes([0, 0, 0, 4, 0, 0, 0, 0, 0]))  # an empty SETTINGS frame on stream 0
+        conn.close()
+
+    threading.Thread(target=greet, daemon=True).start()
+    try:
+        address = f"127.0.0.1:{web.server_address[1]}"
+        t0 = time.monotonic()
+        rc = main(["--out", str(tmp_path / "o"), "--ray", address, *TINY_RAY])
+        elapsed = time.monotonic() - t0
+        assert _speaks_grpc("127.0.0.1", grpc_like.getsockname()[1], 5.0)
+        monkeypatch.setenv("RAY_ADDRESS", address)  # what --ray auto joins first
+        rc_auto = main(["--out", str(tmp_path / "o"), "--ray", "auto", *TINY_RAY])
+    finally:
+        web.shutdown()
+        grpc_like.close()
+    err = capsys.readouterr().err
+    errors = [line for line in err.splitlines() if line.startswith("error:")]
+    assert rc == 2 and elapsed < 30 and "Traceback" not in err, (rc, elapsed, err)
+    assert len(errors) == 2 and all(f"'{address}'" in e and "not as a Ray head does" in e for e in errors), err
+    assert rc_auto == 2 and errors[1].startswith("error: --ray auto: RAY_ADDRESS cannot reach"), err
+    assert not (tmp_path / "o").exists()

@@ -269,3 +269,34 @@ def test_killing_a_node_mid_object_ends_in_the_same_dataset(cluster, reference, 
     node_of = {e["folder"]: e["node"] for e in manifest["objects"]}
     assert node_of[caught] == cluster.ids["head"]  # the object the dead node held was rendered again on the head
     assert set(node_of.values()) <= set(cluster.ids.values())
+
+
+def test_losing_the_whole_cluster_mid_run_is_one_line_and_the_run_resumes(cluster, reference, tmp_path):
+    """Runs after the second node's death: the head too goes away while objects are being made. One line naming
+    --ray, status 1, within seconds (Ray itself would wait 60 s and end the process with a log line of its own); the
+    objects finished by then are recorded, and the same command without --ray makes the rest: the same dataset."""
+    out = tmp_path / "ds"
+    proc = subprocess.Popen(make_command(out, "--ray", cluster.address), cwd=REPO, env=cluster.env, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=interruptible)
+    try:
+        t0 = time.monotonic()
+        while not list(out.glob("*.data")) and proc.poll() is None and time.monotonic() - t0 < 300:
+            time.sleep(0.1)
+        cluster.head.kill()
+        killed = time.monotonic()
+        _, stderr = proc.communicate(timeout=120)
+        waited = time.monotonic() - killed
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 1, stderr
+    lines = [line for line in stderr.strip().splitlines() if "attempt 1 failed" not in line]
+    assert len(lines) == 1 and lines[0].startswith(f"error: --ray: the Ray cluster at '{cluster.address}' stopped "
+                                                   "answering mid-run"), stderr
+    assert waited < 45, waited
+    finished = json.loads((out / "manifest.json").read_text())["objects"]
+    assert all((out / e["folder"]).is_dir() for e in finished)
+    r = make_cli(out, "--workers", "0")
+    assert r.returncode == 0, r.stderr
+    assert f"{len(finished)} already complete" in r.stdout
+    assert_same_dataset(reference, out)

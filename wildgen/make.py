@@ -157,9 +157,9 @@ def check_flags(opts: MakeOptions, explicit: set[str]) -> None:
 
         if not ray_available():
             raise ValueError(f"--ray: Ray is not installed; {RAY_INSTALL}")
-        from wildgen.ray_engine import probe_address
+        from wildgen.ray_engine import probe_ray
 
-        probe_address(opts.ray)  # an address that does not answer, refused after a bounded wait
+        probe_ray(opts.ray)  # an address that does not answer, refused after a bounded wait
 
 
 def resolve_run(args: MakeOptions, explicit: set[str], out: Path) -> tuple[GenConfig, str]:
@@ -360,6 +360,7 @@ def _run(argv: list[str] | None, state: dict) -> int:
 
     from wildgen.dataset import make_dataset
     from wildgen.parallel import WorkersCannotStart, choose_engine
+    from wildgen.ray_engine import ClusterLost
 
     engine = choose_engine(variant, ray=args.ray, workers=args.workers, threads=args.threads,
                            max_retries=args.max_retries, recycle_after=args.recycle_after)
@@ -369,6 +370,10 @@ def _run(argv: list[str] | None, state: dict) -> int:
         with logs_above_progress():  # warnings (retries, failures) print above the bar, not through it
             entries = make_dataset(cfg, out, variant, bar.progress, engine=engine, overwrite=args.overwrite,
                                    on_plan=bar.on_plan, extra={"run": engine.used})
+    except ClusterLost as exc:  # a runtime loss, not a bad input: status 1 (the finished objects are recorded)
+        bar.close()
+        state["lost"] = True
+        return report_error(exc, 1)
     except (ValueError, OSError, ImportError, WorkersCannotStart) as exc:
         bar.close()
         return report_error(exc)

@@ -68,6 +68,27 @@ def _reach(host: str, port: int, timeout: float) -> None:
     socket.create_connection((host, port), timeout=timeout).close()
 
 
+HTTP2_PREFACE = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes([0, 0, 0, 4, 0, 0, 0, 0, 0])
+"""A client's HTTP/2 connection preface and an empty SETTINGS frame."""
+
+
+def _speaks_grpc(host: str, port: int, timeout: float) -> bool:
+    """Whether host:port answers an HTTP/2 connection preface with a SETTINGS frame, as every gRPC server (a Ray
+    head's GCS among them) does first; a web server, a database or a silent port do not."""
+    try:
+        with socket.create_connection((host, port), timeout=timeout) as conn:
+            conn.sendall(HTTP2_PREFACE)
+            head = b""
+            while len(head) < 9:
+                chunk = conn.recv(9 - len(head))
+                if not chunk:
+                    return False
+                head += chunk
+    except OSError:
+        return False
+    return head[3] == 4 and head[5:9] == bytes(4)  # frame type SETTINGS on stream 0
+
+
 def probe_address(address: str, timeout: float | None = None) -> None:
     """Refuse a --ray address where no Ray head can answer, before ray.init() waits for it: a host that does not
     resolve, a port where nothing listens, or no answer within `timeout` seconds (default CONNECT_TIMEOUT_S; the
@@ -94,19 +115,25 @@ def probe_address(address: str, timeout: float | None = None) -> None:
         for h in hosts:
             try:
                 _reach(h, port, timeout)
-                outcome["ok"] = True
-                return
+                # a Ray head's port (not ray:// Client's) speaks gRPC; ray.init() retries anything else for minutes
+                outcome["ok"] = "://" in address or _speaks_grpc(h, port, timeout)
+                outcome.setdefault("not_grpc", not outcome["ok"])
+                if outcome["ok"]:
+                    return
             except OSError as exc:
                 errors.append(exc)
-        outcome["error"] = errors[0]
+        if errors:
+            outcome["error"] = errors[0]
 
     thread = threading.Thread(target=attempt, name="ray-probe", daemon=True)
     thread.start()
-    thread.join(timeout * len(hosts))
+    thread.join(2 * timeout * len(hosts))  # (a connection, then the gRPC answer, per host)
     if outcome.get("ok"):
         return
     exc = outcome.get("error")
-    if exc is None or isinstance(exc, (TimeoutError, socket.timeout)):
+    if outcome.get("not_grpc"):
+        why = "it answers, but not as a Ray head does (no gRPC)"
+    elif exc is None or isinstance(exc, (TimeoutError, socket.timeout)):
         why = f"no answer within {timeout:g} s"
     elif isinstance(exc, socket.gaierror):
         why = f"the host {host!r} does not resolve: {exc.strerror or exc}"
@@ -115,6 +142,30 @@ def probe_address(address: str, timeout: float | None = None) -> None:
     else:
         why = exc.strerror or str(exc)
     raise ConnectionError(f"--ray: cannot reach {address!r} ({why}); {RAY_HEAD_HINT}")
+
+
+def probe_ray(address: str | None) -> None:
+    """`probe_address` of a --ray value; 'auto' (or none) joins RAY_ADDRESS first when it is set, so that one is
+    probed, named as such."""
+    if address in (None, "auto") and os.environ.get("RAY_ADDRESS"):
+        try:
+            probe_address(os.environ["RAY_ADDRESS"])
+        except ConnectionError as exc:
+            raise ConnectionError(str(exc).replace("--ray:", f"--ray {address or 'auto'}: RAY_ADDRESS", 1)) from None
+    elif address:
+        probe_address(address)
+
+
+WAIT_S = 5.0
+"""The driver waits this long for a result before it checks that the head still answers (`ClusterLost`)."""
+ALIVE_TIMEOUT_S = 3.0
+"""How long a head that ran this job may take to answer that check."""
+
+
+class ClusterLost(ConnectionError):
+    """The head of the cluster a run joined stopped answering mid-run. Without this check Ray's own core worker
+    waits 60 s for it, prints a log line and ends the process; the objects finished by then are in the manifest
+    and re-running the command resumes."""
 
 
 def _this_node() -> dict:
@@ -204,6 +255,7 @@ class RayEngine:
                     raise ConnectionError(f"--ray: cannot join the Ray cluster at {self.address!r} ({why})"
                                           + ("" if token else f"; {AUTH_HINT}")) from None
             return True  # ray.shutdown() only disconnects from a remote cluster
+        probe_ray(self.address)
         try:
             ray.init(address="auto", **quiet)
             return True
@@ -236,20 +288,29 @@ class RayEngine:
                 while attempts.queue and len(pending) < window:
                     index = attempts.queue.popleft()
                     pending[task.remote(cfg, out, variant, threads, index)] = index
-                ready, _ = ray.wait(list(pending), num_returns=1)
+                ready, _ = ray.wait(list(pending), num_returns=1, timeout=WAIT_S)
+                if not ready:
+                    self._check_head()
                 for ref in ready:
                     index = pending.pop(ref)
                     try:
                         kind, payload, node = ray.get(ref)
                     except RayError as exc:  # worker crashed, node lost, out of memory
+                        self._check_head()  # a lost head is not the object's failure
                         attempts.failure(index, describe_error(exc).split("\n")[0][:500])
                         continue
                     if kind == "ok":
                         attempts.success(self._on_node(payload, node))
                     else:
                         attempts.failure(index, payload, retry=kind != "fatal")
+        except ClusterLost:
+            # Nothing more can be asked of a cluster without its head (cancel and shutdown would wait for it).
+            self.used["lost"] = True
+            raise
         finally:
-            if pending and sys.exc_info()[0] is not None:  # interrupted: keep what has finished already
+            if self.used.get("lost"):
+                pass
+            elif pending and sys.exc_info()[0] is not None:  # interrupted: keep what has finished already
                 try:
                     for ref in ray.wait(list(pending), num_returns=len(pending), timeout=0)[0]:
                         pending.pop(ref)
@@ -258,13 +319,25 @@ class RayEngine:
                             attempts.success(self._on_node(payload, node))
                 except Exception:  # best effort: an unrecorded object is simply rendered again on resume
                     pass
-            for ref in pending:
+            for ref in pending if not self.used.get("lost") else ():
                 try:
                     ray.cancel(ref, force=True)
                 except Exception:  # already finished or the cluster is gone
                     pass
-            if connected:
+            if connected and not self.used.get("lost"):
                 ray.shutdown()
+
+    def _check_head(self) -> None:
+        """Raise ClusterLost when the head of an explicit --ray address no longer answers."""
+        if not self.address or _host_port(self.address) is None:
+            return  # a local Ray, or one found by 'auto': it lives and dies with this machine
+        try:
+            probe_address(self.address, timeout=ALIVE_TIMEOUT_S)
+        except ConnectionError as exc:
+            why = str(exc).split("(", 1)[1].split(")", 1)[0] if "(" in str(exc) else str(exc)
+            raise ClusterLost(f"--ray: the Ray cluster at {self.address!r} stopped answering mid-run ({why}); the "
+                              "objects finished so far are kept in --out (manifest.json): run the same command "
+                              "again to render the rest, on a running cluster or without --ray") from None
 
     def _on_node(self, entry: dict, node: dict) -> dict:
         """The manifest entry of an object with the node that rendered it; the node counted in `used['nodes']`."""
