@@ -88,7 +88,8 @@ class CaptureOptions:
     convention: Literal["opengl", "opencv"] = "opengl"
     """Frame of the written normals: opengl (x right, y up, z toward the camera) or opencv (y down, z away)."""
     max_side: int = option(DEFAULT_MAX_SIDE, minimum=0)
-    """Work on copies of the photos whose longer side is at most this many pixels (0: the photos' own size);
+    """Work on copies of the photos whose longer side is at most this many pixels (0: the photos' own size; else
+    at least 32);
     normal.png, normal.exr and mask.png are written at the photos' size (docs/capture.md, "Big photos")."""
     checkpoint: Annotated[str | None, arg(metavar="FILE", help_behavior_hint="(default: the shipped model)")] = None
     """Model weights to predict with: a model file, or a folder of the authors' published weights with --model."""
@@ -113,11 +114,16 @@ class CaptureOptions:
         from unips.inference import check_model_name
 
         check_fields(self)
+        if 0 < self.max_side < MIN_SIDE:  # smaller copies lose their short side (a resize to 0 px)
+            raise UsageError(f"--max-side: got {self.max_side}, expected 0 (the photos' own size) or at least "
+                             f"{MIN_SIDE} px")
         check_model_name(self.model)
         check_threads(self.threads, "--threads")  # Dr.Jit would fail later with a traceback
         return self
 
 
+MIN_SIDE = 32
+"""The smallest --max-side other than 0."""
 COMMAND = Command(CaptureOptions, prog="python -m orchestrate.capture", description=__doc__.split("\n\n")[0])
 
 

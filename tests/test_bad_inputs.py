@@ -2603,6 +2603,24 @@ def _photos(ext: str = ".jpg", tags: dict[int, dict[int, object]] | None = None,
     return setup
 
 
+def _exr_photos(first: Callable[[np.ndarray], np.ndarray]) -> Callable[[Path, Path], None]:
+    """Setup: T/photos, the world's object 00000 as linear EXR photos IMG_0001.exr ..., the first one's values
+    replaced by `first` of them."""
+    def setup(w: Path, t: Path) -> None:
+        from scenes.images import read_image, write_exr
+
+        for i, p in enumerate(sorted((w / "data" / f"{OBJ}.data").glob("L*.png"))):
+            lin = read_image(p).astype(np.float32)
+            write_exr(_mk(t / "photos") / f"IMG_{i + 1:04d}.exr", first(lin) if i == 0 else lin)
+    return setup
+
+
+def _dangling_photo(w: Path, t: Path) -> None:
+    """Setup: the JPEG photos and IMG_0009.jpg, a link to a file that is gone (a photo that silently went missing)."""
+    _photos()(w, t)
+    (t / "photos" / "IMG_0009.jpg").symlink_to(t / "gone.jpg")
+
+
 def _exposures(*seconds) -> dict[int, dict[int, object]]:
     """EXIF tags of `_photos`: ExposureTime `seconds[i]` (a float, or a Pillow rational) and ISO 100 per image."""
     return {i: {0x829A: s, 0x8827: 100} for i, s in enumerate(seconds)}
@@ -2728,6 +2746,18 @@ ROWS += [
         ("L002.jpg", "damaged", "Premature end of JPEG file"),
         setup=lambda w, t: (_copy("data/00000.data", "00000.data")(w, t), _unips_jpeg_images(t / "00000.data")),
         check=_not_written("p")),
+    # ---- linear photos hold linear light; a photo-named entry is a photo (the second fault sweep)
+    Row("capture-exr-negative", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "IMG_0001.exr", "negative values", "-0.5"), setup=_exr_photos(lambda x: np.full_like(x, -0.5)),
+        check=_not_written("o/normal.png")),
+    Row("capture-exr-huge", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "IMG_0001.exr", "values up to 3e+38"), setup=_exr_photos(lambda x: x + np.float32(3e38) * (
+            x >= x.max())), check=_not_written("o/normal.png"), absent=("RuntimeWarning",)),
+    Row("capture-photo-dangling-link", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "IMG_0009.jpg", "link to a missing file"), setup=_dangling_photo,
+        check=_not_written("o/normal.png")),
+    Row("capture-max-side-1", CAP, [*CAPTURE, "--mask", WORLD_MASK, "--max-side", "1"], 2,
+        ("--max-side", "got 1", "at least 32"), setup=_photos(), sub=True, check=_not_written("o")),
     # ---- every photo says the same orientation, square or not
     Row("capture-exif-one-turned-square", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
         ("--input", "IMG_0002.jpg", "turned 90 deg clockwise", "EXIF orientation 6", "IMG_0001.jpg", "upright"),

@@ -80,6 +80,13 @@ class Photos:
     photos at their own size (each at its own exposure), to bring a map made at the smaller size back to theirs."""
 
 
+NEGATIVE_SHARE = 0.01
+"""A float photo (EXR) may dip below 0 by this share of its brightest value (sensor noise after a black level was
+subtracted); further down it is not linear light."""
+MAX_LINEAR = 1e9
+"""Values above this are refused: squares of them overflow float32 arithmetic (about 1.8e19) in later steps."""
+
+
 def photo_files(folder: str | Path, flag: str = "--input") -> list[Path]:
     """The photo files of `folder` in natural order; FileNotFoundError / ValueError naming `flag`."""
     from natsort import natsorted, ns
@@ -87,7 +94,13 @@ def photo_files(folder: str | Path, flag: str = "--input") -> list[Path]:
     folder = Path(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"{flag}: {str(folder)!r} is not a folder")
-    files = [p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in PHOTO_SUFFIXES]
+    named = [p for p in folder.iterdir() if p.suffix.lower() in PHOTO_SUFFIXES]
+    broken = next((p for p in named if not p.is_file()), None)
+    if broken is not None:  # a photo that silently went missing would change the capture
+        what = "a link to a missing file" if broken.is_symlink() and not broken.exists() else "not a file"
+        raise ValueError(f"{flag}: {broken.name} in {str(folder)!r} is {what}; expected every photo-named entry to be "
+                         "a photo (remove it or restore the file)")
+    files = named
     if not files:
         raise ValueError(f"{flag}: no photos in {str(folder)!r} (expected files ending in {', '.join(PHOTO_SUFFIXES)})")
     files = natsorted(files, key=lambda p: p.name, alg=ns.IGNORECASE)
@@ -329,6 +342,13 @@ def read_photos(folder: str | Path, encoding: str = "auto", max_side: int | None
         lin, kind = _linear(codes, depth, encoding, f.exif, path, flag)
         if not np.all(np.isfinite(lin)):
             raise ValueError(f"{flag}: {path.name} holds NaN or infinite values")
+        low, high = float(lin.min()), float(lin.max())
+        if low < -NEGATIVE_SHARE * max(high, 0.0) or high <= 0 < -low:
+            raise ValueError(f"{flag}: {path.name} holds negative values (down to {low:.3g}, brightest {high:.3g}); "
+                             "expected linear light, 0 or more")
+        if high > MAX_LINEAR:
+            raise ValueError(f"{flag}: {path.name} holds values up to {high:.3g}; expected linear light below "
+                             f"{MAX_LINEAR:g} (rescale the file)")
         sat = f.saturated if f.saturated is not None else (
             codes >= 1.0 if codes.dtype.kind == "f" else codes == CODE_SCALES[codes.dtype])
         small = _downscale(lin, max_side)
