@@ -67,12 +67,12 @@ def true_directions(folder: Path) -> np.ndarray | None:
 
 def _classes(polar: np.ndarray, azimuth: np.ndarray) -> tuple[bool, bool, float]:
     """(frontal, one-sided, the gap in deg) of lights at these angles, by the warnings' own definitions."""
-    from validate.diagnosis.usable import FRONTAL_DEG, ONE_SIDED_DEG, _largest_gap_deg
+    from validate.diagnosis.usable import FRONTAL_DEG, ONE_SIDED_DEG, ONE_SIDED_GAP_DEG, _largest_gap_deg
 
     frontal = bool(polar.max() < FRONTAL_DEG)
     off = polar > ONE_SIDED_DEG
     gap = _largest_gap_deg(azimuth[off]) if off.sum() >= 2 else 0.0
-    return frontal, bool(not frontal and off.sum() >= 2 and gap > 180.0), gap
+    return frontal, bool(not frontal and off.sum() >= 2 and gap > ONE_SIDED_GAP_DEG[0]), gap
 
 
 def truth(directions: np.ndarray) -> dict:
