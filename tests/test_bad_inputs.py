@@ -2621,6 +2621,19 @@ def _dangling_photo(w: Path, t: Path) -> None:
     (t / "photos" / "IMG_0009.jpg").symlink_to(t / "gone.jpg")
 
 
+def _manifest_naming(folder: str) -> Callable[[Path, Path], None]:
+    """Setup: T/ds, the world's dataset whose manifest names `folder` as object 0's folder (whoever hands over a
+    dataset writes its manifest), and T/victim.data/mine.txt, a user's folder beside it."""
+    def setup(w: Path, t: Path) -> None:
+        shutil.copytree(w / "data", t / "ds")
+        m = json.loads((t / "ds" / "manifest.json").read_text())
+        m["objects"][0]["folder"] = folder.replace("{T}", str(t))
+        (t / "ds" / "manifest.json").write_text(json.dumps(m))
+        _mk(t / "victim.data")
+        (t / "victim.data" / "mine.txt").write_text("mine\n")
+    return setup
+
+
 def _exposures(*seconds) -> dict[int, dict[int, object]]:
     """EXIF tags of `_photos`: ExposureTime `seconds[i]` (a float, or a Pillow rational) and ISO 100 per image."""
     return {i: {0x829A: s, 0x8827: 100} for i, s in enumerate(seconds)}
@@ -2756,6 +2769,14 @@ ROWS += [
     Row("capture-photo-dangling-link", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
         ("--input", "IMG_0009.jpg", "link to a missing file"), setup=_dangling_photo,
         check=_not_written("o/normal.png")),
+    Row("make-resume-manifest-folder-above", MK, ["--out", "{T}/ds", "--resume", "--workers", "0", "--quiet"], 2,
+        ("manifest.json", "'../victim.data'", "--overwrite"), setup=_manifest_naming("../victim.data")),
+    Row("make-resume-manifest-folder-absolute", MK, ["--out", "{T}/ds", "--resume", "--workers", "0", "--quiet"],
+        2, ("manifest.json", "victim.data'", "--overwrite"), setup=_manifest_naming("{T}/victim.data")),
+    Row("predict-object-named-dotdot", PR, ["--method", "least-squares", "--input", "{T}/in/...data", "--out",
+                                            "{T}/in/o"], 0, ("wrote",),
+        setup=_copy("data/00000.data", "in/...data"),
+        check=lambda w, t: (_written("in/o/...data/normal.png")(w, t), _not_written("in/normal.png")(w, t))),
     Row("capture-max-side-1", CAP, [*CAPTURE, "--mask", WORLD_MASK, "--max-side", "1"], 2,
         ("--max-side", "got 1", "at least 32"), setup=_photos(), sub=True, check=_not_written("o")),
     # ---- every photo says the same orientation, square or not

@@ -92,7 +92,22 @@ def load_manifest(out_dir: str | Path) -> dict | None:
         raise DatasetError(
             f"--out: {str(path)!r} is not a readable manifest ({exc}); pass --overwrite to start afresh"
         ) from exc
+    for entry in manifest["objects"]:  # names read from a file: never a path out of --out (resume removes them)
+        if not isinstance(entry, dict):
+            continue
+        folder, files = entry.get("folder"), entry.get("files") or {}
+        bad = (folder if folder is not None and not (isinstance(folder, str) and OBJECT_FOLDER.match(folder))
+               else next((f for f in files if not _inside(f)), None) if isinstance(files, dict) else files)
+        if bad is not None:
+            raise DatasetError(f"--out: {str(path)!r} names {bad!r} for object {entry.get('index', '?')}, not a "
+                               "file or folder this tool writes inside --out; pass --overwrite to start afresh")
     return manifest
+
+
+def _inside(rel: object) -> bool:
+    """A relative path of a manifest's file list that stays inside its object folder."""
+    p = Path(rel) if isinstance(rel, str) else None
+    return p is not None and not p.is_absolute() and ".." not in p.parts and rel not in ("", ".")
 
 
 def config_differences(manifest: dict, cfg: GenConfig) -> list[str]:

@@ -88,7 +88,8 @@ def radiance_name(index: int) -> str:
 def object_name(path: str | Path) -> str:
     """Name of an object folder: its name minus a trailing `.data` (`foo.data` -> `foo`, `ballPNG` stays)."""
     name = Path(path).resolve().name
-    return name[: -len(OBJECT_SUFFIX)] if name.endswith(OBJECT_SUFFIX) and len(name) > len(OBJECT_SUFFIX) else name
+    stem = name[: -len(OBJECT_SUFFIX)] if name.endswith(OBJECT_SUFFIX) and len(name) > len(OBJECT_SUFFIX) else name
+    return name if stem in (".", "..") else stem  # '...data' would name '..', a folder above the outputs
 
 
 def image_files(folder: str | Path) -> list[Path]:
