@@ -100,8 +100,9 @@ class CaptureOptions:
     """Refine the map where the physical check can judge the capture (kept only when the check accepts it)."""
     rotation_search: bool = False
     """Let the refinement search a global tilt of the normals (validate.refine --rotation-search)."""
-    rotation_steps: int = option(80, minimum=1)
-    """Adam steps of the light fit at each candidate tilt of --rotation-search (validate.refine --rotation-steps)."""
+    rotation_steps: int = option(80, minimum=1, maximum=8000)
+    """Adam steps of the light fit at each candidate tilt of --rotation-search (validate.refine --rotation-steps; at
+    most 100 times the default)."""
     threads: Annotated[int | None, arg(help_behavior_hint="(default: one per core)")] = option(None, minimum=1)
     """Dr.Jit threads of the check and the refinement (1: byte-identical run to run)."""
     keep_work: bool = False
@@ -238,12 +239,12 @@ def check_and_refine(opts: CaptureOptions, cap: Capture, out: Path,
     choose_variant(None)
     set_jit_threads(opts.threads)
     config = FitConfig()
-    jc = judge(cap, unit_normals(normals, cap.mask), config, "check")
+    jc = judge(cap, unit_normals(normals, cap.mask), config, "check", args=("--input", "--mask"))
     check = rerender_fitted(jc, config=config, out_dir=str(out / "check"), overwrite=True)  # claimed by run()
     if not (opts.refine and check["trusted"]):
         return normals, check, None
     try:
-        check_judgeable(jc.small, "refine", arg="--input")
+        check_judgeable(jc.small, "refine", "--input", "--mask")
     except ValueError as exc:  # the check can judge, the refinement needs more (images with lit pixels)
         return normals, check, {"accepted": False, "why": f"not run: {exc}"}
     refined, final = refine_judged(jc, replace(RefineConfig(), rotation_search=opts.rotation_search,
@@ -278,6 +279,11 @@ def load_network_first(opts: CaptureOptions) -> tuple[object, float]:
     return net, time.perf_counter() - t0
 
 
+REPORT_KEYS = ("input", "verdict", "timings")
+"""Keys every capture report.json holds: an existing report.json without them is not the capture's (never replaced,
+`scenes.cli.outputs.claim_outputs`)."""
+
+
 def run(opts: CaptureOptions) -> dict:
     """The whole command (main without the error handling); returns report.json's content. Each stage says when it
     starts, that it is alive at least every 10 s, and when it ends (`scenes.cli.progress.stage`, on stderr)."""
@@ -288,7 +294,8 @@ def run(opts: CaptureOptions) -> dict:
     t0, times = time.perf_counter(), {}
     out = Path(opts.out)
     check_output_folder(out)
-    claim_outputs([out / n for n in OUTPUTS], opts.overwrite, owner="orchestrate.capture")
+    claim_outputs([out / n for n in OUTPUTS], opts.overwrite, owner="orchestrate.capture",
+                  signed={out / "report.json": REPORT_KEYS})
     k, h, w, full = probe_input(opts)
     need = check_resources(k, h, w, full)
     net, times["load_model_s"] = load_network_first(opts)
@@ -376,6 +383,7 @@ def claim_stages(opts: CaptureOptions, out: Path, name: str) -> None:
     """Claim every file the stages write below --out (surface/, check/<name>/, refine/<name>/, --keep-work's folder)
     before the first write (`scenes.cli.outputs.claim_outputs`)."""
     from orchestrate.capture_surface import SHADED_PICTURE
+    from scenes.surface.write import REPORT_KEYS as SURFACE_REPORT_KEYS
     from scenes.surface.write import SURFACE_DIR, surface_outputs
     from validate.fitted.fit_report import CHECK_OUTPUTS
     from validate.fitted.refinement import REFINE_OUTPUTS
@@ -383,7 +391,8 @@ def claim_stages(opts: CaptureOptions, out: Path, name: str) -> None:
     stages = {"surface": surface_outputs(out / SURFACE_DIR, ("ply",)) + [out / SURFACE_DIR / SHADED_PICTURE],
               "check": [out / "check" / name / n for n in CHECK_OUTPUTS],
               "refine": [out / "refine" / name / n for n in REFINE_OUTPUTS]}
-    claim_outputs([p for paths in stages.values() for p in paths], opts.overwrite, owner="orchestrate.capture")
+    claim_outputs([p for paths in stages.values() for p in paths], opts.overwrite, owner="orchestrate.capture",
+                  signed={out / SURFACE_DIR / "report.json": SURFACE_REPORT_KEYS})
     claim_outputs([out / "work" / f"{name}.data"] if opts.keep_work else [], opts.overwrite,
                   owner="orchestrate.capture", folders=True)  # --keep-work's folder too (no link on the way)
 

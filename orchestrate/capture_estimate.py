@@ -4,7 +4,8 @@ the refusal when the machine does not have the memory.
 Linear fits to bench/bench_capture.py's measurements on 2 cores (4 to 96 photos of 0.05 to 25 megapixels, 16-bit PNG,
 JPEG and camera RAW): memory 5 % above every measured peak or more (the fixed, per-photo and per-value terms the
 smallest that are, by linear programming, with the surface's and the full-size terms set from their own
-measurements), then widened by the run-to-run spread of one capture's peak (`PEAK_SPREAD`), time within a factor 1.5 of every measured time (docs/capture.md shows both side by side).
+measurements), then widened by the run-to-run spread of one capture's peak (`PEAK_SPREAD`), time within a factor
+1.5 of every measured time (docs/capture.md shows both side by side).
 """
 from __future__ import annotations
 

@@ -147,6 +147,10 @@ class SessionOptions:
                 raise ValueError("--out: required (the folder that comes back), or --pack DIR")
             check_output_folder(self.out)
             check_output_folder(self.work, "--work")
+            out, work = Path(self.out).resolve(), Path(self.work).resolve()
+            if out == work or out in work.parents or work in out.parents:  # the session's files would mix
+                raise ValueError(f"--work: {self.work!r} overlaps --out {self.out!r}; expected two separate folders "
+                                 "(--out comes back whole, --work stays on the machine)")
         return self
 
 

@@ -14,6 +14,7 @@ import sys
 import time
 from contextlib import ExitStack
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Annotated
 
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
@@ -106,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
 def _main(argv: list[str] | None, held: ExitStack) -> int:
     from scenes.cli.limits import check_memory
     from scenes.surface.integrate import IntegrationConfig, integrate
-    from scenes.surface.write import surface_outputs, write_surface
+    from scenes.surface.write import REPORT_KEYS, surface_outputs, write_surface
 
     try:
         args = COMMAND.parse(argv).validate()
@@ -117,7 +118,8 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         pixels = int(mask.sum())
         check_memory(BYTES_PER_PIXEL * pixels + BYTES_PER_IMAGE_PIXEL * mask.size, "--normals/--mask",
                      f"integrating {pixels} pixels", "integrate a smaller map or a smaller mask")
-        claim_outputs(surface_outputs(args.out, args.mesh), args.overwrite, owner="orchestrate.surface")
+        claim_outputs(surface_outputs(args.out, args.mesh), args.overwrite, owner="orchestrate.surface",
+                      signed={Path(args.out) / "report.json": REPORT_KEYS})
         print(f"integrating {pixels} pixels ({camera}) ...", flush=True)
         surface = integrate(normals, mask, intr, IntegrationConfig(k=args.k))
     except (*INPUT_ERRORS, OSError) as exc:

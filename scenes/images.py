@@ -132,6 +132,8 @@ def decode_image(path: Path, flags: int, where: str):
 def _read_raw(path: Path, what: str = "image"):
     import cv2
 
+    if path.is_dir():
+        raise ValueError(f"{what} file {path} is a folder; expected an image file")
     if not path.is_file():
         raise FileNotFoundError(f"{what} file {path} does not exist")
     img = decode_image(path, cv2.IMREAD_UNCHANGED, f"{what} file {path}")
@@ -458,9 +460,29 @@ def read_normals(path: str | Path, arg: str = "normal map") -> np.ndarray:
             n = np.load(path, allow_pickle=False)
         except Exception as exc:
             raise ValueError(f"{arg}: cannot read NPY file {path}: {exc}") from exc
+        if n.dtype.kind != "f":  # integer codes are an encoded map's (a PNG's), not vectors
+            raise ValueError(f"{arg}: NPY file {path} holds {n.dtype} values; expected float unit vectors (x, y, z) "
+                             "(an 8 or 16-bit encoded map belongs in a PNG)")
     elif suffix == ".mat":
         n = _read_mat(path, arg)
     else:
         raise ValueError(f"{arg}: unsupported normal-map extension {suffix!r} for {path} "
                          "(expected .png, .tif, .tiff, .exr, .npy or .mat)")
-    return check_normal_array(n, f"{arg}: normal map {path}" if arg != "normal map" else f"normal map {path}")
+    what = f"{arg}: normal map {path}" if arg != "normal map" else f"normal map {path}"
+    n = check_normal_array(n, what)
+    if suffix in (".exr", ".npy", ".mat"):
+        _check_unit_length(n, what)
+    return n
+
+
+UNIT_LENGTH_TOLERANCE = 0.1
+"""A float normal map whose nonzero vectors have a median length further than this from 1 is refused: (n + 1) / 2
+values saved as floats, or an unnormalised output, would be scored as if they were directions."""
+
+
+def _check_unit_length(n: np.ndarray, what: str) -> None:
+    lengths = np.linalg.norm(n, axis=-1)
+    lengths = lengths[lengths > 0]
+    if lengths.size and abs(float(np.median(lengths)) - 1.0) > UNIT_LENGTH_TOLERANCE:
+        raise ValueError(f"{what}: its vectors are not of unit length (median {float(np.median(lengths)):.3g}); "
+                         "expected unit normals x, y, z in [-1, 1] (an encoded map (n + 1) / 2 belongs in a PNG)")

@@ -2634,6 +2634,37 @@ def _manifest_naming(folder: str) -> Callable[[Path, Path], None]:
     return setup
 
 
+def _diligent_edited(listing=None, lights=None) -> Callable[[Path, Path], None]:
+    """Setup: T/dil, a DiLiGenT folder whose filenames.txt lines go through `listing` and light directions through
+    `lights`; T/x/001.png, a file outside it."""
+    def setup(w: Path, t: Path) -> None:
+        write_predict_diligent(t / "dil")
+        _mk(t / "x").joinpath("001.png").write_bytes((t / "dil" / "001.png").read_bytes())
+        if listing is not None:
+            names = (t / "dil" / "filenames.txt").read_text().split()
+            (t / "dil" / "filenames.txt").write_text("\n".join(listing(names)) + "\n")
+        if lights is not None:
+            np.savetxt(t / "dil" / "light_directions.txt", lights(np.loadtxt(t / "dil" / "light_directions.txt")))
+    return setup
+
+
+def _prediction_npy(make: Callable[[np.ndarray], np.ndarray]) -> Callable[[Path, Path], None]:
+    """Setup: T/p/00000/normal.npy, `make` of the world's true normals of object 00000."""
+    def setup(w: Path, t: Path) -> None:
+        from scenes.images import read_normals
+
+        np.save(_mk(t / "p" / OBJ) / "normal.npy", make(read_normals(w / "data" / f"{OBJ}.data" / "normal.tif")))
+    return setup
+
+
+def _capture_with_foreign(rel: str) -> Callable[[Path, Path], None]:
+    """Setup: the JPEG photos and T/o/<rel>, a JSON file of the user's own under a report's name."""
+    def setup(w: Path, t: Path) -> None:
+        _photos()(w, t)
+        _mk((t / "o" / rel).parent).joinpath(Path(rel).name).write_text('{"mine": true}\n')
+    return setup
+
+
 def _exposures(*seconds) -> dict[int, dict[int, object]]:
     """EXIF tags of `_photos`: ExposureTime `seconds[i]` (a float, or a Pillow rational) and ISO 100 per image."""
     return {i: {0x829A: s, 0x8827: 100} for i, s in enumerate(seconds)}
@@ -3106,6 +3137,66 @@ def _run(row: Row, argv: list[str], capsys, **places: Path | None) -> tuple[int,
     rc = module.main(argv)
     captured = capsys.readouterr()
     return rc, captured.out, captured.err
+
+
+# ---- the second fault sweep of issue 50 (323 new cases): each row failed on the code before it
+ROWS += [
+    Row("predict-diligent-listing-outside", PR, ["--method", "least-squares", "--input", "{T}/dil", "--out",
+                                                 "{T}/p"], 2, ("filenames.txt", "'../x/001.png'"),
+        setup=_diligent_edited(listing=lambda n: ["../x/001.png", *n[1:]]), check=_not_written("p")),
+    Row("predict-diligent-listing-absolute", PR, ["--method", "least-squares", "--input", "{T}/dil", "--out",
+                                                  "{T}/p"], 2, ("filenames.txt", "'/etc/hostname'"),
+        setup=_diligent_edited(listing=lambda n: ["/etc/hostname", *n[1:]]), check=_not_written("p")),
+    Row("predict-diligent-lights-behind", PR, ["--method", "least-squares", "--input", "{T}/dil", "--out", "{T}/p"],
+        2, ("light_directions", "points away from the camera"),
+        setup=_diligent_edited(lights=lambda d: d * [1, 1, -1]), check=_not_written("p")),
+    Row("predict-device-unknown", PR, ["--method", "model", "--input", OBJDIR, "--out", "{T}/p", "--device", "tpu"],
+        2, ("--device", "'tpu'"), check=_not_written("p")),
+    Row("evaluate-npy-codes", EV, ["--pred", "{T}/p", "--gt", OBJDIR], 2, ("normal.npy", "uint8", "PNG"),
+        setup=_prediction_npy(lambda n: np.round((n + 1) / 2 * 255).astype(np.uint8))),
+    Row("evaluate-npy-encoded-floats", EV, ["--pred", "{T}/p", "--gt", OBJDIR], 2, ("normal.npy", "unit length"),
+        setup=_prediction_npy(lambda n: np.where(np.any(n != 0, axis=-1, keepdims=True), (n + 1) / 2, 0))),
+    Row("evaluate-no-prediction-names-pred", EV, ["--pred", "{T}/p", "--gt", "{W}/data"], 1, ("--pred", "'", "p'"),
+        setup=lambda w, t: _mk(t / "p" / "other")),
+    Row("surface-focal-px-huge", SF, [*SURF, "--focal-px", "1e30", "--out", "{T}/o"], 2, ("--focal-px", "1e+30"),
+        check=_not_written("o")),
+    Row("surface-focal-px-tiny", SF, [*SURF, "--focal-px", "1e-30", "--out", "{T}/o"], 2, ("--focal-px", "1e-30"),
+        check=_not_written("o")),
+    Row("capture-report-json-foreign", CAP, [*CAPTURE, "--mask", WORLD_MASK, "--overwrite"], 2,
+        ("--out", "report.json", "was not written by orchestrate.capture"), setup=_capture_with_foreign("report.json"),
+        check=_not_written("o/normal.png")),
+    Row("capture-surface-report-foreign", CAP, [*CAPTURE, "--mask", WORLD_MASK, "--overwrite"], 2,
+        ("--out", "surface/report.json", "was not written by orchestrate.capture"),
+        setup=_capture_with_foreign("surface/report.json"), check=_not_written("o/surface/depth.npy")),
+    Row("surface-report-json-foreign", SF, [*SURF, "--out", "{T}/o", "--overwrite"], 2,
+        ("--out", "report.json", "was not written by orchestrate.surface"),
+        setup=lambda w, t: _mk(t / "o").joinpath("report.json").write_text('{"verdict": 1}\n'),
+        check=_not_written("o/depth.npy")),
+    Row("capture-mask-is-a-folder", CAP, [*CAPTURE, "--mask", "{T}/m"], 2, ("--mask", "is a folder"),
+        setup=lambda w, t: (_photos()(w, t), _mk(t / "m")), check=_not_written("o/normal.png")),
+    Row("capture-rotation-steps-huge", CAP, [*CAPTURE, "--mask", WORLD_MASK, "--rotation-search", "--rotation-steps",
+                                             "1000000000"], 2, ("--rotation-steps", "1000000000"), setup=_photos(),
+        check=_not_written("o")),
+    Row("refine-steps-huge", RF, [*REFINE_8, "--out", "{T}/o", "--refine-steps", "1000000000"], 2,
+        ("--refine-steps", "1000000000"), check=_not_written("o")),
+    Row("rerender-spp-huge", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{T}/o", "--spp",
+                                  "100000000"], 2, ("--spp", "100000000"), check=_not_written("o")),
+    Row("rerender-supersample-huge", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{T}/o",
+                                          "--supersample", "100000"], 2, ("--supersample", "100000"),
+        check=_not_written("o")),
+    Row("make-texture-resolution-huge", MK, ["--out", "{T}/o", *TINY, "--texture-resolution", "10000000"], 2,
+        ("--texture-resolution", "10000000"), check=_not_written("o")),
+    Row("make-env-width-huge", MK, ["--out", "{T}/o", *TINY, "--env-width", "100000000"], 2,
+        ("--env-width", "100000000"), check=_not_written("o")),
+    Row("make-width-1", MK, ["--out", "{T}/o", *[a for a in TINY if a not in ("--res", "16")], "--width", "1"], 2,
+        ("--width", "got 1"), check=_not_written("o")),
+    Row("make-gt-spp-huge", MK, ["--out", "{T}/o", *TINY[:-1], "--gt-spp", "1000000000"], 2, ("--gt-spp",),
+        check=_not_written("o")),
+    Row("train-seed-negative", TR, ["--data", "{W}/data", "--out", "{T}/r", "--model", "glc-test", "--steps", "2",
+                                    "--seed", "-1", "--no-progress"], 2, ("--seed", "-1"), check=_not_written("r")),
+    Row("gpu-session-work-is-out", GS, ["--out", "{T}/o", "--work", "{T}/o", "--minutes", "5", "--cpu-rehearsal"], 2,
+        ("--work", "overlaps --out"), check=_not_written("o")),
+]
 
 
 @pytest.mark.parametrize("row", ROWS, ids=[r.id for r in ROWS])

@@ -30,7 +30,7 @@ from scenes.cli.errors import UsageError, one_line, report_error
 from scenes.cli.options import REQUIRED, Command
 from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
 from scenes.files import atomic_write_text, write_json
-from scenes.folder.format import object_name, prediction_file
+from scenes.folder.format import PREDICTION_FILES, object_name, prediction_file
 from scenes.folder.layouts import detect_layout
 from scenes.images import read_normals
 from scenes.metrics import angular_error_deg
@@ -231,8 +231,9 @@ def main(argv: list[str] | None = None) -> int:
               "(the others are in metrics.json)", file=sys.stderr)
         status = 1
     if summary["missing"] and not args.allow_missing:
-        print(f"error: no prediction for {len(summary['missing'])} object(s): {', '.join(summary['missing'])} "
-              "(use --allow-missing to accept)", file=sys.stderr)
+        print(f"error: --pred: no prediction in {str(args.pred)!r} for {len(summary['missing'])} object(s): "
+              f"{', '.join(summary['missing'])} (expected <object>/normal.png or another of "
+              f"{', '.join(PREDICTION_FILES)} for each object of --gt; use --allow-missing to accept)", file=sys.stderr)
         status = 1
     return status
 

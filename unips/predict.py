@@ -150,6 +150,16 @@ def write_prediction(out_dir: Path, normals: np.ndarray, info: dict[str, Any]) -
     write_normal_visual(out_dir / "normal_vis.png", normals)
 
 
+
+def check_device(device: str, flag: str = "--device") -> None:
+    """A torch device this command can compute on (cpu, cuda, cuda:N, mps), refused in one line otherwise (torch
+    would fail later, in the weights' reader, without naming the flag)."""
+    import re
+
+    if not re.fullmatch(r"cpu|cuda(:\d+)?|mps", device):
+        raise UsageError(f"{flag}: got {device!r}, expected cpu, cuda, cuda:N or mps")
+
+
 @dataclass
 class PredictOptions:
     """The command line of unips.predict."""
@@ -193,6 +203,7 @@ class PredictOptions:
 
     def validate(self) -> "PredictOptions":
         check_fields(self)
+        check_device(self.device)
         if self.method != "model":
             for flag, value in (("--checkpoint", self.checkpoint), ("--model", self.model), ("--res", self.res),
                                 ("--tta", self.tta)):

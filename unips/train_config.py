@@ -59,7 +59,7 @@ class TrainConfig:
     """At most this many masked canonical-grid points per object in the loss (0: all of them)."""
     res: int = option(128, minimum=1)
     """Working resolution of the cached crops (the test resolution; above the canonical resolution)."""
-    seed: int = 0
+    seed: int = option(0, minimum=0, maximum=2**32 - 1)
     """Seed of every random choice (initial weights, objects, image subsets, pixels, augmentation)."""
     resume: bool = False
     """Continue from RUN/last.pt, bit for bit."""

@@ -77,11 +77,12 @@ def _names(cap: Capture, idx: np.ndarray, counts: np.ndarray | None = None, limi
     return ", ".join(shown) + (f" and {len(idx) - limit} more" if len(idx) > limit else "")
 
 
-def check_judgeable(cap: Capture, use: str, arg: str = "--data") -> None:
+def check_judgeable(cap: Capture, use: str, arg: str = "--data", mask_arg: str | None = None) -> None:
     """Raise ValueError (one line naming `arg`, the folder and the minimum) when the fitted check (`use`
     "check") or refinement ("refine") cannot judge a normal map on `cap`, a capture at the fitting resolution:
     fewer images than `MIN_IMAGES[use]`, non-finite values, every image black, constant, or saturated
-    wherever it is lit, or fewer informative images (see the module doc) than `MIN_IMAGES[use]`."""
+    wherever it is lit, or fewer informative images (see the module doc) than `MIN_IMAGES[use]`. A mask too small
+    is named by `mask_arg` (default `arg`)."""
     if use not in ("check", "refine"):
         raise ValueError(f"use: unknown use {use!r}, expected check or refine")
     k, least = len(cap.images), MIN_IMAGES[use]
@@ -94,7 +95,8 @@ def check_judgeable(cap: Capture, use: str, arg: str = "--data") -> None:
                          "wrong normal map about as well as the right one")
     scale = f" at the fitting resolution (1/{cap.downsample}: raise --max-pixels)" if cap.downsample > 1 else ""
     if int(cap.mask.sum()) < MIN_LIT_PIXELS:
-        raise ValueError(f"{where}: the mask has {int(cap.mask.sum())} pixels{scale}; {need}")
+        raise ValueError(f"{mask_arg or arg}: the mask of {cap.folder} has {int(cap.mask.sum())} pixels{scale}; "
+                         f"{need}")
     inside = cap.images[:, cap.mask]  # (K, P, 3)
     finite = np.isfinite(inside).all(axis=(1, 2))
     if not finite.all():

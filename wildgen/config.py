@@ -49,10 +49,10 @@ class GenConfig:
     mosaic."""
     images: int = option(10, minimum=1)
     """Images per object (PS-Wild: 10)."""
-    width: int = option(128, minimum=1)
-    """Image width in pixels."""
-    height: int = option(128, minimum=1)
-    """Image height in pixels."""
+    width: int = option(128, minimum=8)
+    """Image width in pixels (at least 8: an object needs pixels to be kept)."""
+    height: int = option(128, minimum=8)
+    """Image height in pixels (at least 8)."""
     spp: int = option(64, minimum=1)
     """Samples per pixel of the path-traced images (PS-Wild: 256)."""
     bounces: int = option(10, minimum=0, maximum=MAX_BOUNCES)
@@ -113,10 +113,10 @@ class GenConfig:
     """Target linear value of that percentile (headroom below 1 limits clipping)."""
     gt_spp: int = option(16, minimum=1)
     """Samples per pixel of the ground-truth pass."""
-    texture_resolution: int = option(256, minimum=1)
-    """Side of procedural texture images."""
-    env_width: int = option(256, minimum=1)
-    """Width of procedural environment maps."""
+    texture_resolution: int = option(256, minimum=1, maximum=4096)
+    """Side of procedural texture images (at most 4096: some are made at twice the side, in float64)."""
+    env_width: int = option(256, minimum=1, maximum=8192)
+    """Width of procedural environment maps (at most 8192)."""
     variant: Annotated[str | None, auto_is_none("VARIANT"), arg(help_behavior_hint="(default: auto)")] = None
     """Mitsuba variant: 'auto' (None: cuda_ad_rgb, else llvm_ad_rgb, else scalar_rgb, the first usable one,
     chosen at run time and recorded in the manifest) or one of those three."""

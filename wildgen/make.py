@@ -71,7 +71,7 @@ class MakeOptions:
         if self.shard_encoding != "files" and not self.shards:
             raise UsageError(f"--shard-encoding: {self.shard_encoding!r} needs --shards (the folder to export to)")
         if self.res is not None:
-            check_int(self.res, "--res", minimum=1)
+            check_int(self.res, "--res", minimum=8)
         return self
 
 
@@ -261,9 +261,10 @@ def check_memory(cfg: GenConfig, workers: int | None, ray: bool, resumed: bool =
         check_memory_bytes(manifest + per_object * concurrent, f"--objects{where}",
                            f"the manifest of {cfg.objects} objects", "lower --objects or split the dataset")
     who = f" x {concurrent} workers" if concurrent > 1 else ""
-    check_memory_bytes(per_object * concurrent + manifest, f"--res/--images/--spp{where}",
-                       f"one object at {cfg.width}x{cfg.height} px, {cfg.images} images, {cfg.spp} spp "
-                       f"(about {gib(per_object)}{who})", "lower --res, --images, --spp or --workers")
+    check_memory_bytes(per_object * concurrent + manifest, f"--res/--images/--spp/--gt-spp{where}",
+                       f"one object at {cfg.width}x{cfg.height} px, {cfg.images} images, {cfg.spp} spp, "
+                       f"{cfg.gt_spp} spp for the ground truth (about {gib(per_object)}{who})",
+                       "lower --res, --images, --spp, --gt-spp or --workers")
 
 
 def check_out(out: Path) -> None:

@@ -159,8 +159,20 @@ def _check_held(path: Path, owner: str) -> None:
                                  f"a command never writes into what it reads: use another {h.flag}")
 
 
+def _holds_keys(path: Path, keys: tuple[str, ...]) -> bool:
+    """Whether `path` is a JSON object holding every key of `keys`."""
+    import json
+
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(data, dict) and all(k in data for k in keys)
+
+
 def claim_outputs(paths: Iterable[str | os.PathLike], overwrite: bool, flag: str = "--out", owner: str = "this command",
-                  marker: str | os.PathLike | None = None, folders: bool = False, resume: str = "") -> list[Path]:
+                  marker: str | os.PathLike | None = None, folders: bool = False, resume: str = "",
+                  signed: dict[str | os.PathLike, tuple[str, ...]] | None = None) -> list[Path]:
     """The one rule of every command that writes, applied before any work to the outputs it is about to write.
 
     - An output that does not exist yet is written.
@@ -170,6 +182,9 @@ def claim_outputs(paths: Iterable[str | os.PathLike], overwrite: bool, flag: str
       link where a file is written, a file where a folder is), and, when `marker` is given (the file that marks
       a folder as a command's own, e.g. predict.json or manifest.json), any output that exists while the
       marker does not: those are not the command's files.
+
+    - Never replaced either: a JSON report among `signed` (path -> the keys every report of the command holds)
+      that exists without those keys, e.g. a report.json of another command or the user's own.
 
     `folders`: the outputs are folders (e.g. object folders) rather than files. `resume`: how the command
     continues an earlier run instead, for the message (e.g. "--resume to continue it"). Files that are not
@@ -201,6 +216,11 @@ def claim_outputs(paths: Iterable[str | os.PathLike], overwrite: bool, flag: str
         raise UsageError(f"{flag}: {str(existing[0])!r}{more} was not written by {owner} (no {Path(marker).name} in "
                          f"{str(Path(marker).parent)!r}); it is never replaced, even with --overwrite: move it away or "
                          f"use another {flag}")
+    for report, keys in (signed or {}).items():
+        if os.path.lexists(report) and not _holds_keys(Path(report), keys):
+            raise UsageError(f"{flag}: {str(report)!r} was not written by {owner} (it lacks the keys "
+                             f"{', '.join(keys)} of its reports); it is never replaced, even with --overwrite: move "
+                             f"it away or use another {flag}")
     if existing and not overwrite:
         more = f" (and {len(existing) - 1} more)" if len(existing) > 1 else ""
         also = f", {resume}" if resume else ""

@@ -60,12 +60,21 @@ def _unit_directions(d: np.ndarray, where: str) -> np.ndarray:
     return d / norms[:, None]
 
 
+BEHIND_Z = 0.05
+"""A calibrated light direction with z below -BEHIND_Z (behind the object, away from the camera) is refused."""
+
+
 def read_diligent_lights(folder: str | Path, rows: int) -> tuple[np.ndarray, np.ndarray]:
     """A DiLiGenT folder's calibration: (unit directions toward the light (rows, 3), raw RGB intensities
     (rows, 3), ones when ``light_intensities.txt`` is absent), both float64 and checked."""
     folder = Path(folder)
     path = folder / DILIGENT_LIGHTS
     directions = _unit_directions(read_text_matrix(path, rows, "light_directions"), f"light_directions file {path}")
+    behind = np.flatnonzero(directions[:, 2] < -BEHIND_Z)
+    if len(behind):  # a light behind the object lights none of what the camera sees: a flipped axis, most likely
+        raise ValueError(f"light_directions file {path}: row {behind[0] + 1} points away from the camera (z = "
+                         f"{directions[behind[0], 2]:.2f}; {len(behind)} of {rows} rows); expected directions toward "
+                         "the light in the camera frame, x right, y up, z toward the camera")
     int_path = folder / DILIGENT_INTENSITIES
     raw = read_text_matrix(int_path, rows, "light_intensities") if int_path.is_file() else np.ones((rows, 3))
     if np.any(raw <= 0):

@@ -112,6 +112,10 @@ def diligent_images(folder: str | Path) -> list[Path]:
             raise ValueError(
                 f"{listing} lists {names[twice]} twice, entries {names.index(names[twice]) + 1} and {twice + 1}"
             )
+        outside = next((name for name in names if Path(name).name != name or name in (".", "..")), None)
+        if outside is not None:  # a name read from a file stays inside its folder
+            raise ValueError(f"{listing} lists {outside!r}, not a file name in that folder; expected the names of its "
+                             "images (001.png ...)")
         return [folder / name for name in names]
     return digit_images(folder)
 

@@ -84,6 +84,7 @@ def check_intrinsics(k: np.ndarray, shape: tuple[int, int], flag: str = "--intri
         raise ValueError(f"{flag}: expected [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (no skew), got "
                          f"{np.array2string(k, separator=', ')}")
     h, w = shape
+    _check_focal(min(k[0, 0], k[1, 1]), max(k[0, 0], k[1, 1]), shape, flag)
     cx, cy = k[0, 2], k[1, 2]
     if abs(cx - (w - 1) / 2) > CENTRE_SLACK * w or abs(cy - (h - 1) / 2) > CENTRE_SLACK * h:
         raise ValueError(f"{flag}: principal point ({cx:g}, {cy:g}) is far from the centre of the {w} x {h} normal "
@@ -107,7 +108,23 @@ def focal_intrinsics(focal_px: float, shape: tuple[int, int], flag: str = "--foc
     """Square pixels of focal length `focal_px`, the principal point at the image centre."""
     if not np.isfinite(focal_px) or focal_px <= 0:
         raise ValueError(f"{flag}: {focal_px!r}; expected a focal length above 0 in pixels")
+    _check_focal(focal_px, focal_px, shape, flag)
     return Intrinsics.from_focal(focal_px, *shape)
+
+
+FOCAL_RANGE = (0.05, 1e5)
+"""Focal lengths in image diagonals: below the first the view is wider than about 170 deg (no pinhole camera),
+above the second narrower than 0.001 deg, where a perspective solve loses its precision (leave the intrinsics out:
+orthographic)."""
+
+
+def _check_focal(low: float, high: float, shape: tuple[int, int], flag: str) -> None:
+    diagonal = float(np.hypot(*shape))
+    if low < FOCAL_RANGE[0] * diagonal or high > FOCAL_RANGE[1] * diagonal:
+        bad = low if low < FOCAL_RANGE[0] * diagonal else high
+        raise ValueError(f"{flag}: a focal length of {bad:g} px for a {shape[1]} x {shape[0]} map; expected "
+                         f"{FOCAL_RANGE[0] * diagonal:g} to {FOCAL_RANGE[1] * diagonal:g} px (without intrinsics the "
+                         "camera is orthographic)")
 
 
 FULL_FRAME_DIAGONAL_MM = float(np.hypot(36.0, 24.0))

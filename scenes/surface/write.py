@@ -21,6 +21,10 @@ its SURFACE_DIR."""
 SURFACE_DIR = "surface"
 """The folder of a capture's surface, beside its normal map."""
 
+REPORT_KEYS = ("camera", "solver", "depth")
+"""Keys every surface report.json holds: an existing report.json without them is not the surface's (never replaced,
+`scenes.cli.outputs.claim_outputs`)."""
+
 
 def surface_outputs(folder: str | Path, mesh_formats: tuple[str, ...]) -> list[Path]:
     """Every file `write_surface` writes into `folder`."""

@@ -120,12 +120,14 @@ class JudgedCapture:
             raise ValueError(f"config: fits at 1/{f} resolution, the judged capture was reduced to 1/{self.downsample}")
 
 
-def judge(cap: Capture, full: np.ndarray, config: FitConfig, use: str, source: str = "array") -> JudgedCapture:
+def judge(cap: Capture, full: np.ndarray, config: FitConfig, use: str, source: str = "array",
+          args: tuple[str, str] = ("--data", "--data")) -> JudgedCapture:
     """A capture (read from a folder or built from arrays) and its normal map (H, W, 3, already checked:
     `validate.observations.unit_normals`), both reduced to the fitting resolution, the images checked to be judgeable
-    for `use` (`validate.judgeable`) before any fitting, and explained (the verdict)."""
+    for `use` (`validate.judgeable`) before any fitting, and explained (the verdict). `args`: the flags that gave
+    the images and the mask, named when they are refused."""
     small, n_small, f = prepare(cap, full, config)
-    check_judgeable(small, use)  # before any fitting: enough images and lit pixels
+    check_judgeable(small, use, *args)  # before any fitting: enough images and lit pixels
     ex = explain(small.images, small.mask, small.saturated)  # from the images alone: the same for every map
     trusted, why = verdict(ex)
     return JudgedCapture(cap, full, source, small, n_small, f, ex, trusted, why)

@@ -70,8 +70,8 @@ class RefineConfig:
 
     fit: RefineFit = field(default_factory=lambda: RefineFit())
     """Scene fit (light model, steps of the fixed-normal stage, resolution, seed); its floor maps are not used."""
-    refine_steps: int = option(300, minimum=0)
-    """Adam steps of the joint stage (normals and lights)."""
+    refine_steps: int = option(300, minimum=0, maximum=30000)
+    """Adam steps of the joint stage (normals and lights; at most 100 times the default, a bound against typos)."""
     lights: Literal[LIGHT_SOURCES] = "fitted"
     """'fitted' (lights fitted to the images) or 'calibrated' (the folder's calibrated directional lights, held
     fixed)."""
@@ -97,8 +97,8 @@ class RefineConfig:
     residual differences (the 32 px test sphere, tilted 10 deg about x: it leaves that tilt and adds 2-4 deg
     about y). A turn about the view axis is never searched: it leaves every image as it is. Directional and
     point lights."""
-    rotation_steps: int = option(80, minimum=1)
-    """Adam steps of the light fit at each candidate rotation."""
+    rotation_steps: int = option(80, minimum=1, maximum=8000)
+    """Adam steps of the light fit at each candidate rotation (at most 100 times the default)."""
     update_lights: bool = False
     """Keep optimising the lights while the normals move. Off by default: with the lights free, a Lambertian
     scene's normals and lights can drift together along the generalized bas-relief ambiguity (measured on

@@ -46,8 +46,8 @@ _CLASSES: dict[str, type] = {}
 class VisibilityConfig:
     """How a surface point is judged visible from the camera."""
 
-    supersample: int = option(2, minimum=1)
-    """Depth-map ray casts per pixel side (2 = 2x2 per pixel)."""
+    supersample: int = option(2, minimum=1, maximum=16)
+    """Depth-map ray casts per pixel side (2 = 2x2 per pixel; at most 16: the casts grow with its square)."""
     base_tolerance: Annotated[float, NotOnCommandLine] = option(0.5, minimum=0)
     """Depth tolerance at normal incidence, in depth-map texels (world size of a pixel / supersample)."""
     slope_factor: Annotated[float, NotOnCommandLine] = option(1.5, minimum=0)

@@ -44,8 +44,9 @@ Progress = Callable[[int, int, str], None]
 class RerenderConfig:
     """Options of the re-render check."""
 
-    spp: Annotated[int | None, arg(help_behavior_hint="(default: the recorded spp)")] = option(None, minimum=1)
-    """Samples per pixel; None = the recorded render.spp (required for common random numbers)."""
+    spp: Annotated[int | None, arg(help_behavior_hint="(default: the recorded spp)")] = option(None, minimum=1,
+                                                                                                    maximum=65536)
+    """Samples per pixel (at most 65536); None = the recorded render.spp (required for common random numbers)."""
     seed_mode: Literal[SEED_MODES] = "same"
     """'same': each image's recorded seed (noise largely cancels); 'independent': fresh seeds."""
     floors: bool = True
