@@ -468,20 +468,18 @@ def read_normals(path: str | Path, arg: str = "normal map") -> np.ndarray:
     else:
         raise ValueError(f"{arg}: unsupported normal-map extension {suffix!r} for {path} "
                          "(expected .png, .tif, .tiff, .exr, .npy or .mat)")
-    what = f"{arg}: normal map {path}" if arg != "normal map" else f"normal map {path}"
-    n = check_normal_array(n, what)
-    if suffix in (".exr", ".npy", ".mat"):
-        _check_unit_length(n, what)
-    return n
+    return check_normal_array(n, f"{arg}: normal map {path}" if arg != "normal map" else f"normal map {path}")
 
 
 UNIT_LENGTH_TOLERANCE = 0.1
-"""A float normal map whose nonzero vectors have a median length further than this from 1 is refused: (n + 1) / 2
-values saved as floats, or an unnormalised output, would be scored as if they were directions."""
+"""A predicted normal map whose nonzero vectors have a median length further than this from 1 is refused
+(`check_unit_length`): (n + 1) / 2 values saved as floats, or an unnormalised output, would be scored as if they
+were directions. (Ground-truth files of any scale are normalised by their readers.)"""
 
 
-def _check_unit_length(n: np.ndarray, what: str) -> None:
-    lengths = np.linalg.norm(n, axis=-1)
+def check_unit_length(n: np.ndarray, what: str) -> None:
+    """Refuse a float normal map (H, W, 3) whose nonzero vectors are not of unit length (median)."""
+    lengths = np.linalg.norm(n.astype(np.float64), axis=-1)
     lengths = lengths[lengths > 0]
     if lengths.size and abs(float(np.median(lengths)) - 1.0) > UNIT_LENGTH_TOLERANCE:
         raise ValueError(f"{what}: its vectors are not of unit length (median {float(np.median(lengths)):.3g}); "

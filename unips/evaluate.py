@@ -32,7 +32,7 @@ from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
 from scenes.files import atomic_write_text, write_json
 from scenes.folder.format import PREDICTION_FILES, object_name, prediction_file
 from scenes.folder.layouts import detect_layout
-from scenes.images import read_normals
+from scenes.images import check_unit_length, read_normals
 from scenes.metrics import angular_error_deg
 from unips.data import find_objects, load_ground_truth
 
@@ -167,6 +167,8 @@ def _evaluate_one(folder: Path, pred_dir: Path, write: bool, results: dict, miss
         missing.append(truth.name)
         return
     pred = read_normals(pred_path, "--pred")
+    if pred_path.suffix.lower() in (".exr", ".npy", ".mat"):  # (an image file holds encoded unit vectors)
+        check_unit_length(pred, f"--pred: normal map {pred_path}")
     if pred.shape != truth.normals.shape:
         raise ValueError(f"--pred: {pred_path} has shape {'x'.join(map(str, pred.shape))}, the ground truth "
                          f"{folder} has {'x'.join(map(str, truth.normals.shape))}")
