@@ -141,7 +141,9 @@ def probe_address(address: str, timeout: float | None = None) -> None:
         why = "nothing listens there: connection refused"
     else:
         why = exc.strerror or str(exc)
-    raise ConnectionError(f"--ray: cannot reach {address!r} ({why}); {RAY_HEAD_HINT}")
+    err = ConnectionError(f"--ray: cannot reach {address!r} ({why}); {RAY_HEAD_HINT}")
+    err.why = why  # (the reason alone, for the lost-cluster line)
+    raise err
 
 
 def probe_ray(address: str | None) -> None:
@@ -328,14 +330,17 @@ class RayEngine:
                 ray.shutdown()
 
     def _check_head(self) -> None:
-        """Raise ClusterLost when the head of an explicit --ray address no longer answers."""
-        if not self.address or _host_port(self.address) is None:
-            return  # a local Ray, or one found by 'auto': it lives and dies with this machine
+        """Raise ClusterLost when the head of the cluster joined (an explicit --ray address, or RAY_ADDRESS that
+        'auto' joined) no longer answers."""
+        joined = self.address if self.address not in (None, "auto") else (
+            None if self.used.get("started_local") else os.environ.get("RAY_ADDRESS"))
+        if not joined or _host_port(joined) is None:
+            return  # a local Ray: it lives and dies with this machine
         try:
-            probe_address(self.address, timeout=ALIVE_TIMEOUT_S)
+            probe_address(joined, timeout=ALIVE_TIMEOUT_S)
         except ConnectionError as exc:
-            why = str(exc).split("(", 1)[1].split(")", 1)[0] if "(" in str(exc) else str(exc)
-            raise ClusterLost(f"--ray: the Ray cluster at {self.address!r} stopped answering mid-run ({why}); the "
+            raise ClusterLost(f"--ray: the Ray cluster at {joined!r} stopped answering mid-run "
+                              f"({getattr(exc, 'why', exc)}); the "
                               "objects finished so far are kept in --out (manifest.json): run the same command "
                               "again to render the rest, on a running cluster or without --ray") from None
 
