@@ -92,16 +92,25 @@ def load_manifest(out_dir: str | Path) -> dict | None:
         raise DatasetError(
             f"--out: {str(path)!r} is not a readable manifest ({exc}); pass --overwrite to start afresh"
         ) from exc
-    for entry in manifest["objects"]:  # names read from a file: never a path out of --out (resume removes them)
+    check_manifest_names(manifest, path, "--out", "; pass --overwrite to start afresh")
+    return manifest
+
+
+def check_manifest_names(manifest: dict, path: Path, flag: str, hint: str = "",
+                         folder_re: re.Pattern | None = OBJECT_FOLDER) -> None:
+    """Names read from a manifest never lead out of its dataset (a resume or an --overwrite removes them, a reader
+    reads them): each object's folder a plain name (matching `folder_re` when given), each of its files a relative
+    path inside it. DatasetError naming `flag` otherwise."""
+    for entry in manifest["objects"]:
         if not isinstance(entry, dict):
             continue
         folder, files = entry.get("folder"), entry.get("files") or {}
-        bad = (folder if folder is not None and not (isinstance(folder, str) and OBJECT_FOLDER.match(folder))
+        plain = isinstance(folder, str) and Path(folder).name == folder and folder not in ("", ".", "..")
+        bad = (folder if folder is not None and not (plain and (folder_re is None or folder_re.match(folder)))
                else next((f for f in files if not _inside(f)), None) if isinstance(files, dict) else files)
         if bad is not None:
-            raise DatasetError(f"--out: {str(path)!r} names {bad!r} for object {entry.get('index', '?')}, not a "
-                               "file or folder this tool writes inside --out; pass --overwrite to start afresh")
-    return manifest
+            raise DatasetError(f"{flag}: {str(path)!r} names {bad!r} for object {entry.get('index', '?')}, not a "
+                               f"file or folder inside its dataset{hint}")
 
 
 def _inside(rel: object) -> bool:

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import sys
 import time
 from dataclasses import dataclass
@@ -150,11 +151,24 @@ def check_target(data: str | Path, out: str | Path, overwrite: bool, flag: str =
         raise UsageError(f"{flag}: {str(index)!r} is not a shard index of wildgen.export; it is never replaced, even "
                          f"with --overwrite: move it away or use another {flag}")
     names = sorted(p.name for p in out.iterdir()) if out.is_dir() else []
-    old = [out / n for n in names if SHARD_NAME.match(n)]
+    earlier = _earlier_export(index) if index.is_file() and not index.is_symlink() else None
+    mine = _planned_shards(earlier) if earlier is not None else None
+    old = [out / n for n in names if SHARD_NAME.match(n) and (mine is None or n in mine)]
     claim_outputs([index, *old], overwrite, flag=flag, owner="wildgen.export", marker=index)
     targets = [(n, temporary_target(n)) for n in names]
     leftovers = [out / n for n, t in targets if t is not None and (t == INDEX_FILE or SHARD_NAME.match(t))]
     return [*old, *(leftovers if os.path.lexists(index) else [])]
+
+
+def _planned_shards(index: dict[str, Any]) -> set[str]:
+    """The shard names an earlier export wrote or was about to write: those its index lists and those of its
+    pattern ({000000..000009}.tar; a killed export's shards are renamed before they are listed). A shard-like
+    file outside them is not the export's and is left alone."""
+    planned = {str(s.get("name")) for s in index.get("shards", []) if isinstance(s, dict)}
+    m = re.fullmatch(r"\{(\d+)\.\.(\d+)\}(\.\w+)", str(index.get("pattern", "")))
+    if m and int(m[2]) - int(m[1]) < 10**6:
+        planned |= {shard_name(i) for i in range(int(m[1]), int(m[2]) + 1)}
+    return planned
 
 
 def replaces_export(out: str | Path, data: str | Path) -> bool:

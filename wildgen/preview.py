@@ -21,6 +21,7 @@ from typing import Annotated
 
 import numpy as np
 
+from scenes.cli.errors import UsageError
 from scenes.cli.options import Command, Positional, arg
 from scenes.cli.outputs import check_output_folder, make_output_folder
 
@@ -95,6 +96,21 @@ def _output_folder(dataset: Path, out: str | Path | None) -> Path:
     return out_dir
 
 
+def _check_sheet_names(folders: list[Path], out_dir: Path) -> None:
+    """Refuse sheets that would land inside an object folder (over its own images) or share a name: an object
+    named 'overview' (the overview's file) or '' (a folder named '.data')."""
+    o = out_dir.resolve()
+    inside = next((f for f in folders if f.resolve() == o or f.resolve() in o.parents), None)
+    if inside is not None:
+        raise UsageError(f"--out: {str(out_dir)!r} lies in the object folder {str(inside)!r}; the sheets would mix "
+                         "with its files: expected a folder outside every object folder")
+    clash = next((f for f in folders if f.name[:-5] in ("", "overview")), None)
+    if clash is not None:
+        raise UsageError(f"DIR: the object folder {clash.name!r} would give its sheet the name "
+                         f"{clash.name[:-5] + '.png'!r}, which is {'the overview' if clash.name[:-5] else 'no name'}; "
+                         "rename the folder")
+
+
 def preview(dataset: str | Path, out: str | Path | None = None, overwrite: bool = False) -> list[Path]:
     """Write contact sheets and the overview; returns the written paths. Every object is read and every sheet
     drawn before anything is written; existing sheets are replaced only with `overwrite`
@@ -106,6 +122,7 @@ def preview(dataset: str | Path, out: str | Path | None = None, overwrite: bool 
     dataset = Path(dataset)
     folders = _object_folders(dataset)
     out_dir = _output_folder(dataset, out)
+    _check_sheet_names(folders, out_dir)
     targets = [out_dir / f"{folder.name[:-5]}.png" for folder in folders] + [out_dir / "overview.png"]
     claim_outputs(targets, overwrite, owner="wildgen.preview")
     print(f"drawing contact sheets of {len(folders)} object(s) into {out_dir}", flush=True)

@@ -53,7 +53,7 @@ from scenes.folder.format import (
     write_scene,
 )
 from scenes.images import read_exr
-from wildgen.dataset import MANIFEST, clean_leftovers, dataset_lock, verify_object
+from wildgen.dataset import MANIFEST, check_manifest_names, clean_leftovers, dataset_lock, verify_object
 from wildgen.writer import TMP_PREFIX, publish_folder
 
 
@@ -160,6 +160,7 @@ def _read_source_manifest(data: Path) -> dict | None:
             raise ValueError("no 'objects' list")
     except (OSError, ValueError) as exc:
         raise ValueError(f"--data: {str(path)!r} is not a readable manifest ({exc})") from None
+    check_manifest_names(manifest, path, "--data", folder_re=None)  # any dataset's folder names, but plain ones
     return manifest
 
 
@@ -180,11 +181,17 @@ def _prepare_out(data: Path, out: Path, overwrite: bool) -> None:
 
 
 def _remove_dataset(out: Path) -> None:
-    """--overwrite: the manifest, the object folders and temporary folders of an interrupted run."""
+    """--overwrite: the manifest, the object folders it lists and temporary folders of an interrupted run (a
+    folder the manifest does not list is the user's, even with a scene.json in it)."""
+    try:
+        listed = {e.get("folder") for e in json.loads((out / MANIFEST).read_text()).get("objects", [])
+                  if isinstance(e, dict)}
+    except (OSError, ValueError, AttributeError):
+        listed = set()
     (out / MANIFEST).unlink(missing_ok=True)
     clean_leftovers(out)
     for p in out.iterdir():
-        if p.is_dir() and not p.is_symlink() and (p.name.startswith(TMP_PREFIX) or (p / SCENE_FILE).is_file()):
+        if p.is_dir() and not p.is_symlink() and (p.name.startswith(TMP_PREFIX) or p.name in listed):
             shutil.rmtree(p)
 
 

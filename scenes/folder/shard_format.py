@@ -355,6 +355,13 @@ def read_index(folder: str | Path, arg: str = "--data") -> dict[str, Any]:
         if not (isinstance(entry, dict) and isinstance(entry.get("name"), str) and isinstance(entry.get("sha256"), str)
                 and isinstance(entry.get("objects"), list)):
             raise ValueError(f"{arg}: {str(path)!r} has a malformed shard entry {entry!r:.80}")
+        if not SHARD_NAME.match(entry["name"]):  # a name read from a file never leads out of its folder
+            raise ValueError(f"{arg}: {str(path)!r} lists the shard {entry['name']!r}; expected names of shards beside "
+                             "it (000000.tar ...)")
+    names = [e["name"] for e in index["shards"]]
+    twice = next((n for i, n in enumerate(names) if n in names[:i]), None)
+    if twice is not None:
+        raise ValueError(f"{arg}: {str(path)!r} lists the shard {twice!r} twice")
     return index
 
 
