@@ -432,6 +432,8 @@ def read_normals(path: str | Path, arg: str = "normal map") -> np.ndarray:
     the file came from (a CLI passes its own, e.g. --pred).
     """
     path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"{arg}: normal map {path} is a folder; expected a normal map file")
     if not path.is_file():
         raise FileNotFoundError(f"{arg}: normal map {path} does not exist")
     suffix = path.suffix.lower()

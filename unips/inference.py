@@ -62,6 +62,27 @@ class LoadedModel:
         return model_contract(self.meta["model_name"])
 
 
+def check_device(device: str, flag: str = "--device") -> None:
+    """A torch device this machine can compute on (cpu, cuda, cuda:N, mps), refused in one line otherwise, before
+    any work (torch would fail later, in the weights' reader or the first step, without naming the flag)."""
+    import re
+
+    import torch
+
+    from scenes.cli.errors import UsageError
+
+    m = re.fullmatch(r"cpu|cuda(?::(\d+))?|mps", device)
+    if m is None:
+        raise UsageError(f"{flag}: got {device!r}, expected cpu, cuda, cuda:N or mps")
+    if device.startswith("cuda"):
+        count = torch.cuda.device_count() if torch.cuda.is_available() else 0
+        if count == 0 or (m[1] is not None and int(m[1]) >= count):
+            raise UsageError(f"{flag}: got {device!r}, but torch sees {count} GPU(s) here; expected cpu"
+                             + (f" or cuda:0 to cuda:{count - 1}" if count else ""))
+    elif device == "mps" and not (hasattr(torch.backends, "mps") and torch.backends.mps.is_available()):
+        raise UsageError(f"{flag}: got 'mps', but torch sees no Apple GPU here; expected cpu")
+
+
 def check_model_name(model: str | None, flag: str = "--model") -> None:
     """A registered network name (or None); one UsageError naming the flag and the known models otherwise."""
     if model is None:

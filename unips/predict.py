@@ -52,6 +52,7 @@ from unips.inference import (
     DEFAULT_TTA,
     METHODS,
     TTA_VIEWS,
+    check_device,
     check_model_name,
     load_network,
     model_contract,
@@ -149,15 +150,6 @@ def write_prediction(out_dir: Path, normals: np.ndarray, info: dict[str, Any]) -
     write_normal_exr(out_dir / "normal.exr", normals)
     write_normal_visual(out_dir / "normal_vis.png", normals)
 
-
-
-def check_device(device: str, flag: str = "--device") -> None:
-    """A torch device this command can compute on (cpu, cuda, cuda:N, mps), refused in one line otherwise (torch
-    would fail later, in the weights' reader, without naming the flag)."""
-    import re
-
-    if not re.fullmatch(r"cpu|cuda(:\d+)?|mps", device):
-        raise UsageError(f"{flag}: got {device!r}, expected cpu, cuda, cuda:N or mps")
 
 
 @dataclass

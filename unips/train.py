@@ -75,7 +75,10 @@ def check_args(argv: Sequence[str]) -> TrainConfig:
     check_output_folder(cfg.out)
     check_threads(cfg.threads or None, "--threads")
     if cfg.init_from:
-        name = load_model(cfg.init_from)[1].get("model_name")
+        try:
+            name = load_model(cfg.init_from)[1].get("model_name")
+        except (ValueError, FileNotFoundError) as exc:  # the reader's message, with the flag that named the file
+            raise type(exc)(f"--init-from: {exc}") from None
         if cfg.model != TrainConfig.model and cfg.model != name:
             raise ValueError(f"--model={cfg.model!r}: --init-from {cfg.init_from!r} holds a {name!r} model")
         if cfg.model_option:

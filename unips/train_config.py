@@ -120,6 +120,9 @@ class TrainConfig:
         if not self.out:
             raise ValueError("--out: required (a run directory)")
         check_fields(self)
+        from unips.inference import check_device
+
+        check_device(self.device)  # before any data is read (torch failed in the first step)
         if self.min_images > self.max_images:
             raise ValueError(f"--min-images={self.min_images} exceeds --max-images={self.max_images}")
         for p in self.val_probes:

@@ -122,7 +122,10 @@ def load_init_weights(cfg: TrainConfig, device: torch.device) -> torch.nn.Module
     """The model of `cfg.init_from` (weights only); its name must agree with an explicit --model."""
     from unips.checkpoint import load_model
 
-    model, meta = load_model(cfg.init_from)
+    try:
+        model, meta = load_model(cfg.init_from)
+    except (ValueError, FileNotFoundError) as exc:  # the reader's message, with the flag that named the file
+        raise type(exc)(f"--init-from: {exc}") from None
     name = meta.get("model_name")
     if cfg.model != TrainConfig.model and cfg.model != name:
         raise ValueError(f"--model={cfg.model!r}: --init-from {cfg.init_from!r} holds a {name!r} model")

@@ -148,6 +148,8 @@ def read_scene_dict(folder_or_file: str | Path) -> dict[str, Any]:
         d = json.loads(path.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ValueError(f"scene file {path}: cannot be parsed as JSON ({exc})") from exc
+    except RecursionError:  # nested deeper than the parser's stack: not a scene description
+        raise ValueError(f"scene file {path}: nested too deeply to be a scene description") from None
     if not isinstance(d, dict):
         raise ValueError(f"scene file {path}: expected a JSON object, got {type(d).__name__}")
     return d

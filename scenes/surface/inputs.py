@@ -95,6 +95,8 @@ def check_intrinsics(k: np.ndarray, shape: tuple[int, int], flag: str = "--intri
 def read_intrinsics(path: str | Path, shape: tuple[int, int], flag: str = "--intrinsics") -> Intrinsics:
     """Intrinsics from a text file of 3 rows of 3 numbers (np.savetxt of K)."""
     path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"{flag}: {str(path)!r} is a folder; expected a text file of 3 rows of 3 numbers")
     if not path.is_file():
         raise FileNotFoundError(f"{flag}: {str(path)!r} does not exist")
     try:

@@ -164,6 +164,8 @@ def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> tu
     training checkpoint, step, data and git_revision).
     """
     path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"model file {str(path)!r} is a folder; expected a weights file (.safetensors or .pt)")
     if not path.is_file():
         raise FileNotFoundError(f"model file not found: {str(path)!r}")
     if path.suffix == ".pt":
@@ -232,6 +234,8 @@ def load_training_checkpoint(path: str | Path, map_location: str | torch.device 
     """Read a training checkpoint written by `unips.checkpoint.save_training_checkpoint`, checked against the
     checksum of its contents it holds (one written before checksums has none) and for non-finite weights."""
     path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"training checkpoint {str(path)!r} is a folder; expected a .pt file")
     if not path.is_file():
         raise FileNotFoundError(f"training checkpoint not found: {str(path)!r}")
     try:
