@@ -24,6 +24,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Literal
 
+import numpy as np
+
 from scenes.camera_sensor import (
     SCENE_KEY,
     SENSORS,
@@ -136,6 +138,13 @@ def apply_to_object(src: Path, out_dir: Path, sensor: Sensor, seed: int = 0) -> 
             rad = read_exr(path)  # (H, W, 3) float32, before exposure
             if rad.ndim != 3 or rad.shape[2] != 3:
                 raise ValueError(f"--data: {str(path)!r} has shape {rad.shape}, expected an RGB image")
+            want = (desc.camera.height, desc.camera.width)
+            if rad.shape[:2] != want:
+                raise ValueError(f"--data: {str(path)!r} is {rad.shape[1]} x {rad.shape[0]} px, expected the "
+                                 f"object's {want[1]} x {want[0]} (its scene.json camera)")
+            if not np.isfinite(rad).all() or float(rad.min()) < 0:
+                raise ValueError(f"--data: {str(path)!r} holds NaN, infinite or negative values; expected the "
+                                 "radiance a render wrote (finite, 0 or more)")
             write_image(tmp / image_name(i), rederive_image(rad, image.exposure, sensor, record["noise_seeds"][i]))
         extras = dict(extras)
         extras[SCENE_KEY] = record
