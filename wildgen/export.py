@@ -98,7 +98,7 @@ COMMAND = Command(
 def _source_folders(data: Path) -> list[Path]:
     """The object folders of --data in reader order, checked against the dataset's manifest when it has one."""
     from scenes.folder.layouts import find_object_folders
-    from wildgen.dataset import MANIFEST, verify_object
+    from wildgen.dataset import MANIFEST, check_manifest_names, verify_object
 
     if not data.is_dir():
         raise FileNotFoundError(f"--data: {str(data)!r} is not a folder (expected a dataset of object folders)")
@@ -106,9 +106,17 @@ def _source_folders(data: Path) -> list[Path]:
     if (data / MANIFEST).is_file():
         try:
             manifest = json.loads((data / MANIFEST).read_text())
+            if not isinstance(manifest, dict) or not isinstance(manifest.get("objects"), list):
+                raise ValueError("no 'objects' list")
             entries = [e for e in manifest["objects"] if isinstance(e, dict) and e.get("status") == "done"]
+            odd = next((e.get("status") for e in manifest["objects"] if isinstance(e, dict)
+                        and e.get("status") not in ("done", "skipped", "failed")), None)
+            if odd is not None:
+                raise ValueError(f"an object with status {odd!r}, expected done, skipped or failed (a run that did "
+                                 "not finish: run wildgen.make again to complete it)")
         except (OSError, ValueError, KeyError, TypeError) as exc:
             raise ValueError(f"--data: {str(data / MANIFEST)!r} is not a readable manifest ({exc})") from None
+        check_manifest_names(manifest, data / MANIFEST, "--data", folder_re=None)
         for e in entries:
             problem = verify_object(data, e)
             if problem is not None:
