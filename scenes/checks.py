@@ -88,3 +88,8 @@ def check_matrix4(value: Any, name: str) -> None:
     ):
         raise ValueError(f"{name}: got {value!r}, expected a 4x4 matrix (list of 4 lists of 4 numbers)")
     check_finite(value, name)
+    import numpy as np
+
+    if abs(float(np.linalg.det(np.asarray(value, np.float64)[:3, :3]))) < 1e-12:  # a placement must be invertible
+        raise ValueError(f"{name}: a singular matrix (its 3x3 part has determinant 0); expected an invertible "
+                         "placement (scale, rotation, translation)")

@@ -244,6 +244,12 @@ class CameraDesc:
         check_vector(self.origin, "camera.origin")
         check_vector(self.target, "camera.target")
         check_vector(self.up, "camera.up")
+        forward = [t - o for t, o in zip(self.target, self.origin)]
+        side = [forward[1] * self.up[2] - forward[2] * self.up[1], forward[2] * self.up[0] - forward[0] * self.up[2],
+                forward[0] * self.up[1] - forward[1] * self.up[0]]
+        if sum(f * f for f in forward) == 0 or sum(c * c for c in side) == 0:  # no viewing direction, or no roll
+            raise ValueError(f"camera: origin {self.origin!r}, target {self.target!r} and up {self.up!r} define no "
+                             "view (expected a target apart from the origin and an up vector not along the view)")
         check_number(self.half_size, "camera.half_size", above=0)
         check_number(self.fov, "camera.fov", above=0)
         if self.fov >= 180:

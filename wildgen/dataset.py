@@ -111,6 +111,10 @@ def check_manifest_names(manifest: dict, path: Path, flag: str, hint: str = "",
         if bad is not None:
             raise DatasetError(f"{flag}: {str(path)!r} names {bad!r} for object {entry.get('index', '?')}, not a "
                                f"file or folder inside its dataset{hint}")
+    folders = [e.get("folder") for e in manifest["objects"] if isinstance(e, dict) and e.get("folder") is not None]
+    twice = next((f for i, f in enumerate(folders) if f in folders[:i]), None)
+    if twice is not None:
+        raise DatasetError(f"{flag}: {str(path)!r} names the folder {twice!r} for two objects{hint}")
 
 
 def _inside(rel: object) -> bool:
@@ -258,6 +262,10 @@ def plan_run(cfg: GenConfig, out_dir: Path, variant: str, overwrite: bool = Fals
     for index in range(cfg.objects):
         entry = old.get(index)
         status = entry.get("status") if entry else None
+        target = out_dir / (entry or {}).get("folder", f"{index_name(index)}.data")
+        if target.is_symlink() or target.exists() and not target.is_dir():  # the user's, never replaced
+            raise DatasetError(f"--out: {str(target)!r} is {'a link' if target.is_symlink() else 'a file'} where "
+                               "object folders are written; it is never replaced: move it away")
         if status == "done":
             problem = verify_object(out_dir, entry)
             if problem is None:

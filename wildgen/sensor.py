@@ -173,8 +173,9 @@ def _read_source_manifest(data: Path) -> dict | None:
     return manifest
 
 
-def _prepare_out(data: Path, out: Path, overwrite: bool) -> None:
-    """Refuse --out when it is --data, inside it or around it, or an existing dataset without --overwrite."""
+def _prepare_out(data: Path, out: Path, overwrite: bool, names: list[str]) -> None:
+    """Refuse --out when it is --data, inside it or around it, an existing dataset without --overwrite, or holds a
+    link or a file under the name of an object folder it will write (never replaced)."""
     d, o = data.resolve(), out.resolve()
     if o == d or d in o.parents or o in d.parents:
         raise UsageError(f"--out: {str(out)!r} must be a folder apart from --data {str(data)!r} (not it, inside it "
@@ -187,6 +188,11 @@ def _prepare_out(data: Path, out: Path, overwrite: bool) -> None:
         if not (out / MANIFEST).is_file():
             raise UsageError(f"--out: {str(out)!r} is not empty and holds no {MANIFEST}: --overwrite only replaces a "
                              "dataset, choose another folder")
+        odd = next((out / n for n in names if (out / n).is_symlink() or (out / n).exists() and not (out / n).is_dir()),
+                   None)
+        if odd is not None:
+            raise UsageError(f"--out: {str(odd)!r} is {'a link' if odd.is_symlink() else 'a file'} where an object "
+                             "folder is written; it is never replaced: move it away or choose another folder")
 
 
 def _remove_dataset(out: Path) -> None:
@@ -228,7 +234,7 @@ def apply_to_dataset(data: str | Path, out: str | Path, sensor: Sensor, seed: in
         done = entries
     for e in done:  # every input before the first object is written
         check_source_object(data / e["folder"])
-    _prepare_out(data, out, overwrite)
+    _prepare_out(data, out, overwrite, [str(e["folder"]) for e in done])
 
     manifest = copy.deepcopy(source) if source is not None else {"format_version": 1}
     manifest["objects"] = []

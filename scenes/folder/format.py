@@ -142,6 +142,8 @@ def read_scene_dict(folder_or_file: str | Path) -> dict[str, Any]:
     path = Path(folder_or_file)
     if path.is_dir():
         path = path / SCENE_FILE
+    if path.is_dir():
+        raise ValueError(f"scene file {path}: is a folder; expected the object's scene.json file")
     if not path.is_file():
         raise FileNotFoundError(f"scene.json: {str(path)!r} does not exist (is this an object folder?)")
     try:
@@ -152,6 +154,10 @@ def read_scene_dict(folder_or_file: str | Path) -> dict[str, Any]:
         raise ValueError(f"scene file {path}: nested too deeply to be a scene description") from None
     if not isinstance(d, dict):
         raise ValueError(f"scene file {path}: expected a JSON object, got {type(d).__name__}")
+    version = d.get("format_version", FORMAT_VERSION)
+    if not isinstance(version, int) or isinstance(version, bool) or not 1 <= version <= FORMAT_VERSION:
+        raise ValueError(f"scene file {path}: format_version {version!r}; this toolkit reads versions 1 to "
+                         f"{FORMAT_VERSION} (a newer toolkit wrote it?)")
     return d
 
 

@@ -209,8 +209,12 @@ def detect_layout(path: str | Path) -> str | None:
 
 
 def has_scene(folder: str | Path) -> bool:
-    """True when an object folder has a scene file (the known-scene re-render check is possible)."""
-    return (Path(folder) / SCENE_FILE).is_file()
+    """True when an object folder has a scene file (the known-scene re-render check is possible); a folder under
+    that name is refused (it would silently switch the check to its fitted mode)."""
+    path = Path(folder) / SCENE_FILE
+    if path.is_dir():
+        raise ValueError(f"scene file {path}: is a folder; expected the object's scene.json file")
+    return path.is_file()
 
 
 def find_object_folders(path: str | Path, arg: str = "path") -> list[Path]:
