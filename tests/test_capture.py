@@ -106,6 +106,26 @@ def test_exif_orientation_and_exposure_are_applied(tmp_path):
     assert [e["scale"] for e in turned.exposure] == [1.0, 1.0]
 
 
+def test_the_f_number_counts_in_the_exposure_when_every_photo_gives_one(tmp_path):
+    """Light gathered ~ time x ISO / N^2: 0.01 s at f/2 and 0.04 s at f/4 gather the same light (scale 1), 0.01 s at
+    f/4 a quarter of it (scale 4); without an f-number in every photo, time and ISO alone."""
+    from PIL import Image
+
+    a = (np.random.default_rng(2).random((6, 9, 3)) * 200 + 20).astype(np.uint8)
+    for folder, stops in (("all", [(0.01, 2.0), (0.04, 4.0), (0.01, 4.0)]), ("some", [(0.01, 2.0), (0.01, None)])):
+        (tmp_path / folder).mkdir()
+        for i, (t, n) in enumerate(stops):
+            img = Image.fromarray(a)
+            exif = img.getexif()
+            ifd = exif.get_ifd(0x8769)
+            ifd[0x829A], ifd[0x8827] = t, 100
+            if n is not None:
+                ifd[0x829D] = n
+            img.save(tmp_path / folder / f"p{i}.jpg", exif=exif, quality=100)
+    assert [e["scale"] for e in read_photos(tmp_path / "all").exposure] == pytest.approx([1.0, 1.0, 4.0])
+    assert [e["scale"] for e in read_photos(tmp_path / "some").exposure] == [1.0, 1.0]
+
+
 def test_exif_exposures_must_be_finite_positive_and_at_most_ten_stops_apart(tmp_path):
     """The longest exposure over the shortest (time x ISO) may be MAX_EXPOSURE_RATIO (1024, 10 stops), not more; a
     value that is not a positive number is refused naming the file and the value as written (issue 50)."""

@@ -16,7 +16,8 @@ files.
   linear demosaic, camera white balance, no tone curve, linear sRGB), recorded per image; they are linear, so
   `srgb` is refused for them, and a folder mixing RAW and other files is refused (their scales differ);
 - EXIF exposure time and ISO (for RAW files, as LibRaw reads them), where every image has them and they differ,
-  normalise the images to the first image's exposure (a photo taken at twice the exposure is halved), recorded
+  normalise the images to the first image's exposure (a photo taken at twice the exposure is halved; divided by
+  the f-number squared where every image gives its aperture), recorded
   per image with the fields a file did not give; a value that is there must be a finite number > 0, and the
   exposures (time x ISO) of one capture may differ at most `MAX_EXPOSURE_RATIO` times, or the file is refused
   naming the value;
@@ -42,7 +43,7 @@ PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".exr", *RAW_SUFFIXE
 ENCODINGS = ("auto", "srgb", "linear")
 """How encoded values become linear: `auto` (sRGB for 8-bit files, linear otherwise), or one for all files."""
 _EXIF_IFD = 0x8769
-_EXPOSURE_TIME, _ISO, _COLOR_SPACE = 0x829A, 0x8827, 0xA001
+_EXPOSURE_TIME, _ISO, _COLOR_SPACE, _F_NUMBER = 0x829A, 0x8827, 0xA001, 0x829D
 _SRGB_COLOR_SPACE = 1
 _ORIENTATION = 0x0112
 _FOCAL_35MM = 0xA405  # FocalLengthIn35mmFilm: the lens as a 35 mm-equivalent focal length, whole mm
@@ -160,6 +161,12 @@ def _exif(img: Any) -> dict[str, Any]:
         out["exposure_time_s"] = _exif_number(ifd[_EXPOSURE_TIME], "exposure_time_s")
     if _ISO in ifd:
         out["iso"] = _exif_number(ifd[_ISO], "iso")
+    aperture = ifd.get(_F_NUMBER)
+    try:
+        if aperture is not None and np.isfinite(float(aperture)) and float(aperture) > 0:  # 0: unknown in EXIF
+            out["f_number"] = float(aperture)
+    except (TypeError, ValueError, ZeroDivisionError):  # an unreadable aperture is as good as none
+        pass
     if _COLOR_SPACE in ifd:
         out["color_space"] = int(ifd[_COLOR_SPACE])
     if _ORIENTATION in exif:
@@ -272,15 +279,19 @@ def _exposure_scales(exifs: list[dict[str, Any]], names: list[str], flag: str) -
     files."""
     if not all("exposure_time_s" in e and "iso" in e for e in exifs):
         return [1.0] * len(exifs)
-    light = [e["exposure_time_s"] * e["iso"] for e in exifs]
+    # The light a photo gathers grows with the time and the gain, and falls with the square of the f-number (used
+    # when every photo gives one: a lens stopped down 4 times lets in 16 times less).
+    apertures = all("f_number" in e for e in exifs)
+    light = [e["exposure_time_s"] * e["iso"] / (e["f_number"] ** 2 if apertures else 1.0) for e in exifs]
 
     def said(i: int) -> str:
-        return f"{names[i]} ({exifs[i]['exposure_time_s']:.6g} s at ISO {exifs[i]['iso']:.6g})"
+        stop = f", f/{exifs[i]['f_number']:.3g}" if apertures else ""
+        return f"{names[i]} ({exifs[i]['exposure_time_s']:.6g} s at ISO {exifs[i]['iso']:.6g}{stop})"
 
     bad = next((i for i, v in enumerate(light) if not (np.isfinite(v) and v > 0)), None)
     if bad is not None:
-        raise ValueError(f"{flag}: {said(bad)}: EXIF exposure time x ISO is {light[bad]:.6g}; expected a finite "
-                         "value > 0")
+        raise ValueError(f"{flag}: {said(bad)}: EXIF exposure time x ISO / f-number^2 is {light[bad]:.6g}; expected "
+                         "a finite value > 0")
     lo, hi = int(np.argmin(light)), int(np.argmax(light))
     if light[hi] / light[lo] > MAX_EXPOSURE_RATIO:
         raise ValueError(f"{flag}: EXIF exposures differ {light[hi] / light[lo]:.3g} times, {said(hi)} against "

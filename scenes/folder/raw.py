@@ -111,6 +111,8 @@ def _exposure(raw: Any) -> dict[str, float]:
         out["exposure_time_s"] = float(f"{other.shutter_speed:.6g}")  # LibRaw holds them as float32
     if other.iso_speed > 0:
         out["iso"] = float(f"{other.iso_speed:.6g}")
+    if getattr(other, "aperture", 0) > 0:
+        out["f_number"] = float(f"{other.aperture:.6g}")
     return out
 
 
