@@ -3139,6 +3139,165 @@ def _run(row: Row, argv: list[str], capsys, **places: Path | None) -> tuple[int,
     return rc, captured.out, captured.err
 
 
+# ---- the third fault sweep of issue 50 (268 new cases): each row failed on the code before it
+
+
+def _dataset_edited(edit: Callable[[dict], None] | None = None, files: Callable[[Path], None] | None = None
+                    ) -> Callable[[Path, Path], None]:
+    """Setup: T/ds, the world's dataset whose manifest goes through `edit` and whose folder through `files`;
+    T/victim.data/mine.txt, a user's folder beside it."""
+    def setup(w: Path, t: Path) -> None:
+        shutil.copytree(w / "data", t / "ds")
+        if edit is not None:
+            m = json.loads((t / "ds" / "manifest.json").read_text())
+            edit(m)
+            (t / "ds" / "manifest.json").write_text(json.dumps(m))
+        if files is not None:
+            files(t / "ds")
+        _mk(t / "victim.data").joinpath("mine.txt").write_text("mine\n")
+    return setup
+
+
+def _scene_text(text: Callable[[dict], str]) -> Callable[[Path, Path], None]:
+    """Setup: T/00000.data, the world's object 00000 whose scene.json is `text` of its parsed content."""
+    def setup(w: Path, t: Path) -> None:
+        shutil.copytree(w / "data" / f"{OBJ}.data", t / f"{OBJ}.data")
+        path = t / f"{OBJ}.data" / "scene.json"
+        path.write_text(text(json.loads(path.read_text())))
+    return setup
+
+
+def _scene_set(key: str, field_: str, value) -> Callable[[dict], str]:
+    def text(d: dict) -> str:
+        d[key][field_] = value
+        return json.dumps(d)
+    return text
+
+
+def _index_edited(edit: Callable[[dict], None]) -> Callable[[Path, Path], None]:
+    """Setup: T/s, an earlier export of the world's dataset whose index.json goes through `edit`."""
+    def setup(w: Path, t: Path) -> None:
+        _earlier_export("s")(w, t)
+        index = json.loads((t / "s" / "index.json").read_text())
+        edit(index)
+        (t / "s" / "index.json").write_text(json.dumps(index))
+    return setup
+
+
+def _radiance_edited(make: Callable[[np.ndarray], np.ndarray]) -> Callable[[Path, Path], None]:
+    """Setup: T/ds, the world's dataset without its manifest, object 00000's radiance_001.exr through `make`."""
+    def setup(w: Path, t: Path) -> None:
+        from scenes.images import read_exr, write_exr
+
+        shutil.copytree(w / "data", t / "ds", ignore=shutil.ignore_patterns("manifest.json"))
+        path = t / "ds" / f"{OBJ}.data" / "aux" / "radiance_001.exr"
+        write_exr(path, make(read_exr(path)))
+    return setup
+
+
+def _sensor_before(extra: Callable[[Path], None]) -> Callable[[Path, Path], None]:
+    """Setup: T/o, an earlier wildgen.sensor run on the world's dataset, then `extra` of it."""
+    def setup(w: Path, t: Path) -> None:
+        from scenes.camera_sensor import sensor_named
+        from wildgen.sensor import apply_to_dataset
+
+        apply_to_dataset(w / "data", t / "o", sensor_named("phone"))
+        extra(t / "o")
+    return setup
+
+
+def _user_folder_with_scene(o: Path) -> None:
+    _mk(o / "keep").joinpath("scene.json").write_text("{}\n")
+    (o / "keep" / "notes.txt").write_text("mine\n")
+
+
+def _linked_object(o: Path) -> None:
+    shutil.rmtree(o / "00001.data")
+    _mk(o.parent / "elsewhere").joinpath("mine.txt").write_text("mine\n")
+    (o / "00001.data").symlink_to(o.parent / "elsewhere")
+
+
+def _made_with_file_for_folder(w: Path, t: Path) -> None:
+    """Setup: T/ds, the world's dataset whose 00000.data folder is now a file of the user's."""
+    shutil.copytree(w / "data", t / "ds")
+    shutil.rmtree(t / "ds" / "00000.data")
+    (t / "ds" / "00000.data").write_text("mine\n")
+
+
+def _deep(d: dict) -> str:
+    return '{"shape": ' + "[" * 100000 + "]" * 100000 + "}"
+
+
+SWEEP3 = ["--data", "{T}/00000.data", "--normals", "{W}/pred/00000", "--out", "{T}/o", "--no-floors", "--spp", "1"]
+ROWS += [
+    Row("export-overwrite-keeps-a-user-shard", EXP, ["--data", "{W}/data", "--out", "{T}/s", "--overwrite"], 0,
+        ("wrote",), setup=_both(_earlier_export("s"), _put(("s/000007.tar", "mine\n"))),
+        replaces=("s/index.json", "s/000000.tar"), removes=("s/000001.tar", "s/000002.tar")),
+    Row("export-source-manifest-object-running", EXP, ["--data", "{T}/ds", "--out", "{T}/s"], 2,
+        ("manifest.json", "'running'"), setup=_dataset_edited(lambda m: m["objects"][0].update(status="running")),
+        check=_not_written("s")),
+    Row("export-source-manifest-objects-not-a-list", EXP, ["--data", "{T}/ds", "--out", "{T}/s"], 2,
+        ("manifest.json", "objects"), setup=_dataset_edited(lambda m: m.update(objects={"0": m["objects"][0]})),
+        check=_not_written("s")),
+    Row("sensor-source-manifest-folder-above", SEN, ["--data", "{T}/ds", "--sensor", "phone", "--out", "{T}/o",
+                                                     "--quiet"], 2, ("manifest.json", "'../victim.data'"),
+        setup=_dataset_edited(lambda m: m["objects"][0].update(folder="../victim.data")), check=_not_written("o")),
+    Row("sensor-source-manifest-one-folder-twice", SEN, ["--data", "{T}/ds", "--sensor", "phone", "--out", "{T}/o",
+                                                         "--quiet"], 2, ("manifest.json", "two objects"),
+        setup=_dataset_edited(lambda m: m["objects"][1].update(folder=m["objects"][0]["folder"])),
+        check=_not_written("o")),
+    Row("sensor-overwrite-keeps-a-user-folder", SEN, ["--data", "{W}/data", "--sensor", "phone", "--out", "{T}/o",
+                                                      "--quiet", "--overwrite"], 0, ("wrote",),
+        setup=_sensor_before(_user_folder_with_scene)),
+    Row("sensor-overwrite-linked-object-folder", SEN, ["--data", "{W}/data", "--sensor", "phone", "--out", "{T}/o",
+                                                       "--quiet", "--overwrite"], 2, ("--out", "00001.data", "link"),
+        setup=_sensor_before(_linked_object)),
+    Row("sensor-radiance-negative", SEN, ["--data", "{T}/ds", "--sensor", "phone", "--out", "{T}/o", "--quiet"], 2,
+        ("radiance_001.exr", "negative"), setup=_radiance_edited(lambda r: r * 0 - 1)),
+    Row("sensor-radiance-other-size", SEN, ["--data", "{T}/ds", "--sensor", "phone", "--out", "{T}/o", "--quiet"], 2,
+        ("radiance_001.exr", "8 x 8"), setup=_radiance_edited(lambda r: r[:8, :8])),
+    Row("train-shard-index-name-above", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps", "1"], 2,
+        ("index.json", "'../other/000001.tar'"),
+        setup=_index_edited(lambda i: i["shards"][1].update(name="../other/000001.tar")), check=_not_written("run")),
+    Row("train-shard-index-name-twice", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps", "1"], 2,
+        ("index.json", "'000000.tar' twice"),
+        setup=_index_edited(lambda i: i["shards"][1].update(name="000000.tar")), check=_not_written("run")),
+    Row("train-init-from-a-folder", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1",
+                                         "--init-from", "{T}/dir"], 2, ("--init-from", "is a folder"),
+        setup=lambda w, t: _mk(t / "dir")),
+    Row("train-device-without-that-gpu", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1",
+                                              "--device", "cuda:99"], 2, ("--device", "'cuda:99'", "GPU"),
+        check=_not_written("run")),
+    Row("surface-intrinsics-a-folder", SF, [*SURF, "--intrinsics", "{T}/K.txt", "--out", "{T}/o"], 2,
+        ("--intrinsics", "is a folder"), setup=lambda w, t: _mk(t / "K.txt"), check=_not_written("o")),
+    Row("surface-normals-a-folder", SF, ["--normals", "{W}/pred/00000", "--mask", WORLD_MASK, "--out", "{T}/o"], 2,
+        ("--normals", "is a folder"), check=_not_written("o")),
+    Row("preview-out-in-an-object-folder", PV, ["{T}/ds", "--out", "{T}/ds/00000.data", "--overwrite"], 2,
+        ("--out", "object folder"), setup=_dataset_edited()),
+    Row("preview-object-named-overview", PV, ["{T}/ds", "--out", "{T}/p"], 2, ("overview.data", "overview.png"),
+        setup=_dataset_edited(files=lambda d: (d / "00001.data").rename(d / "overview.data")),
+        check=_not_written("p")),
+    Row("preview-stats-json-of-the-user", PV, ["{W}/data", "--stats", "--out", "{T}/p", "--overwrite"], 2,
+        ("stats.json", "was not written by wildgen.preview"), setup=_put(("p/stats.json", '{"mine": 1}\n'))),
+    Row("make-resume-a-file-for-an-object-folder", MK, ["--out", "{T}/ds", "--resume", "--workers", "0", "--quiet"],
+        2, ("--out", "00000.data", "a file"), setup=_made_with_file_for_folder),
+    Row("rerender-scene-json-a-folder", RR, SWEEP3, 2, ("scene.json", "is a folder"),
+        setup=lambda w, t: (shutil.copytree(w / "data" / f"{OBJ}.data", t / f"{OBJ}.data"),
+                            (t / f"{OBJ}.data" / "scene.json").unlink(), _mk(t / f"{OBJ}.data" / "scene.json")),
+        check=_not_written("o")),
+    Row("rerender-scene-json-newer-format", RR, SWEEP3, 2, ("scene.json", "format_version 99"),
+        setup=_scene_text(lambda d: json.dumps({**d, "format_version": 99})), check=_not_written("o")),
+    Row("rerender-scene-json-nested-deep", RR, SWEEP3, 2, ("scene.json", "nested too deeply"),
+        setup=_scene_text(_deep), check=_not_written("o")),
+    Row("rerender-scene-camera-without-view", RR, SWEEP3, 2, ("camera", "define no view"),
+        setup=_scene_text(lambda d: _scene_set("camera", "target", d["camera"]["origin"])(d)),
+        check=_not_written("o")),
+    Row("rerender-scene-placement-singular", RR, SWEEP3, 2, ("shape.to_world", "singular"),
+        setup=_scene_text(_scene_set("shape", "to_world", [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 0, 0],
+                                                             [0, 0, 0, 1]])), check=_not_written("o")),
+]
+
+
 # ---- the second fault sweep of issue 50 (323 new cases): each row failed on the code before it
 ROWS += [
     Row("predict-diligent-listing-outside", PR, ["--method", "least-squares", "--input", "{T}/dil", "--out",
