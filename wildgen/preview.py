@@ -53,7 +53,12 @@ def object_tiles(folder: Path) -> list[tuple[np.ndarray, str]]:
     if not images:
         raise FileNotFoundError(f"DIR: object folder {str(folder)!r} has no L*.png images")
     try:
-        tiles = [(_tile(_to_display(read_image(p))), p.stem) for p in images]
+        pictures = [read_image(p) for p in images]
+        odd = next((p for p, im in zip(images, pictures) if im.shape[:2] != pictures[0].shape[:2]), None)
+        if odd is not None:  # every reader refuses such an object: the sheet would hide it
+            raise ValueError(f"{odd.name} differs in size from {images[0].name} (every image of an object has one "
+                             "size)")
+        tiles = [(_tile(_to_display(im)), p.stem) for p, im in zip(images, pictures)]
         n = read_normals(folder / NORMAL_FILE, "DIR")
         mask = read_mask(folder / MASK_FILE).astype(np.uint8) * 255
     except (OSError, ValueError) as exc:
