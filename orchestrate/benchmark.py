@@ -415,6 +415,10 @@ def check_inputs(args: BenchmarkOptions, data: bool = True) -> None:
             if fd.normals is None:
                 raise UsageError(f"--data: {str(folder)!r} has no ground-truth normals")
             sized.append(("--data", fd))
+        most = max((fd.num_files for _, fd in sized), default=0)
+        if sized and min(args.counts) > most:  # a table no object can fill would read as dashes only
+            raise UsageError(f"--counts: {','.join(map(str, args.counts))}, all more than the {most} image(s) of every "
+                             f"object in --data; expected counts up to {most}")
         if args.rerender_objects > 0:
             from validate.known.rerender_passes import RerenderConfig
 
