@@ -6,15 +6,14 @@
 Tables (markdown, printed and written to OUT/tables.md, figures in OUT/benchmark.json):
 1. mean angular error per light family: the model, the model with spatially uniform contexts (if a
    checkpoint is given), calibrated least squares (directional objects only), the uncalibrated baseline;
-2. the probes of each model (`unips.probes`) per light family: all images, one image, mask only
-   (every image replaced by the mask), shuffled (each pixel's observations permuted across images),
-   and the photometric gain = error(mask only) - error(all images), the figure that says the model
-   does photometric stereo rather than shape from outline;
+2. the probes of each model (`unips.probes`) per light family: all images, one image, mask only (every image
+   replaced by the mask), shuffled (each pixel's observations permuted across images), and the photometric gain =
+   error(mask only) - error(all images), the figure that says the model does photometric stereo, not shape from outline;
 3. mean angular error against the number of input images;
 4. the re-render residual (`validate.rerender`) of each method beside its angular error;
-5. DiLiGenT, every `*PNG` object in the folder, uncalibrated protocol for the model (raw images, no
-   light files, no intensity division): K=96 and K=16 (mean over `--diligent-subsets` random subsets,
-   seeded), the model's mask-only probe, calibrated least squares beside it, published figures.
+5. DiLiGenT, every `*PNG` object in the folder, uncalibrated protocol for the model (raw images, no light files, no
+   intensity division): K=96 and K=16 (mean over `--diligent-subsets` random subsets, seeded), the model's mask-only
+   probe, calibrated least squares beside it, published figures.
 
 Every model figure (probes included) uses the same ``--tta`` views (`unips.inference.model_normals`).
 """
@@ -401,9 +400,8 @@ def check_args(argv: list[str]) -> BenchmarkOptions:
 
 
 def check_inputs(args: BenchmarkOptions, data: bool = True) -> None:
-    """Every input read (without its images) and sized before any model runs: each synthetic object has ground
-    truth, each DiLiGenT object has ground truth and enough images for --diligent-subset, the re-render
-    options are valid, and the largest object fits in memory (`unips.inference.prediction_memory`)."""
+    """Every input read (not its images) and sized before any model runs: ground truth everywhere, enough DiLiGenT
+    images for --diligent-subset, valid re-render options, the largest object in memory (`prediction_memory`)."""
     from scenes.folder.layouts import read_folder
     from unips.inference import prediction_memory
     from unips.preprocess import crop_box
@@ -415,10 +413,8 @@ def check_inputs(args: BenchmarkOptions, data: bool = True) -> None:
             if fd.normals is None:
                 raise UsageError(f"--data: {str(folder)!r} has no ground-truth normals")
             sized.append(("--data", fd))
-        most = max((fd.num_files for _, fd in sized), default=0)
-        if sized and min(args.counts) > most:  # a table no object can fill would read as dashes only
-            raise UsageError(f"--counts: {','.join(map(str, args.counts))}, all more than the {most} image(s) of every "
-                             f"object in --data; expected counts up to {most}")
+        if sized and min(args.counts) > (most := max(fd.num_files for _, fd in sized)):  # only dashes to show
+            raise UsageError(f"--counts: {min(args.counts)}, more than the {most} image(s) of every object in --data")
         if args.rerender_objects > 0:
             from validate.known.rerender_passes import RerenderConfig
 
