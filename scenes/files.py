@@ -33,7 +33,7 @@ def _temporary(path: Path) -> Path:
     return path.with_name(f".{path.stem}.tmp{os.getpid()}{path.suffix}")
 
 
-_TEMPORARY = re.compile(r"^\.(?P<stem>.+)\.tmp\d+(?P<suffix>(\.[^.]*)?)$")
+_TEMPORARY = re.compile(r"^\.(?P<stem>.+)\.tmp(?P<pid>\d+)(?P<suffix>(\.[^.]*)?)$")
 
 
 def temporary_target(name: str) -> str | None:
@@ -41,6 +41,12 @@ def temporary_target(name: str) -> str | None:
     killed writer left behind, which an --overwrite of the same outputs removes."""
     m = _TEMPORARY.match(name)
     return None if m is None else m["stem"] + m["suffix"]
+
+
+def temporary_writer(name: str) -> int | None:
+    """The pid of the process whose temporary (`atomic_write`) `name` is, or None for another name."""
+    m = _TEMPORARY.match(name)
+    return None if m is None else int(m["pid"])
 
 
 def atomic_write(path: str | Path, write) -> None:

@@ -73,8 +73,6 @@ def load_object(
 def object_from_folder(fd: FolderData) -> PSObject:
     """The `PSObject` of what the one reader returned for a folder (`read_folder`, or a decoded shard sample)."""
     meta: dict[str, Any] = {}
-    if fd.images is not None and not np.isfinite(fd.images).all():  # (a decoded shard's arrays come unchecked)
-        raise ValueError(f"{fd.path}: its images hold NaN or infinite values")
     if fd.layout == "diligent":
         meta["light_intensities_file"] = fd.lights.intensities
     obj = PSObject(name=fd.name, images=fd.images, mask=fd.mask, normals=fd.normals, light_family=fd.lights.family,

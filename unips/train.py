@@ -69,20 +69,14 @@ def check_args(argv: Sequence[str]) -> TrainConfig:
     --model); writes nothing."""
     from scenes.cli.limits import check_threads
     from scenes.cli.outputs import check_output_folder
-    from unips.models import list_models, load_model
+    from unips.models import list_models
+    from unips.train_run import read_init_weights
 
     cfg = config_from_args(argv)
     check_output_folder(cfg.out)
     check_threads(cfg.threads or None, "--threads")
     if cfg.init_from:
-        try:
-            name = load_model(cfg.init_from)[1].get("model_name")
-        except (ValueError, FileNotFoundError) as exc:  # the reader's message, with the flag that named the file
-            raise type(exc)(f"--init-from: {exc}") from None
-        if cfg.model != TrainConfig.model and cfg.model != name:
-            raise ValueError(f"--model={cfg.model!r}: --init-from {cfg.init_from!r} holds a {name!r} model")
-        if cfg.model_option:
-            raise ValueError("--model-option: not allowed with --init-from (the weights fix the configuration)")
+        read_init_weights(cfg)
     elif cfg.model not in list_models():
         raise ValueError(f"--model: got {cfg.model!r}, expected one of {', '.join(list_models())}")
     return cfg

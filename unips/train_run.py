@@ -119,7 +119,13 @@ def init_distributed(cfg: TrainConfig) -> Dist:
 
 
 def load_init_weights(cfg: TrainConfig, device: torch.device) -> torch.nn.Module:
-    """The model of `cfg.init_from` (weights only); its name must agree with an explicit --model."""
+    """The model of `cfg.init_from` (weights only) on `device`, in training mode (`read_init_weights`)."""
+    return read_init_weights(cfg).to(device).train()
+
+
+def read_init_weights(cfg: TrainConfig) -> torch.nn.Module:
+    """The model of `cfg.init_from` (weights only, on the CPU); its name must agree with an explicit --model, and
+    no --model-option may reshape it. Every refusal names the flag."""
     from unips.checkpoint import load_model
 
     try:
@@ -131,7 +137,7 @@ def load_init_weights(cfg: TrainConfig, device: torch.device) -> torch.nn.Module
         raise ValueError(f"--model={cfg.model!r}: --init-from {cfg.init_from!r} holds a {name!r} model")
     if cfg.model_option:
         raise ValueError("--model-option: not allowed with --init-from (the weights fix the configuration)")
-    return model.to(device).train()
+    return model
 
 
 RUN_FILES = ("log.jsonl", "last.pt", "best.safetensors", "best.json", "final.safetensors", "final.json")

@@ -106,8 +106,12 @@ def check_manifest_names(manifest: dict, path: Path, flag: str, hint: str = "",
             continue
         folder, files = entry.get("folder"), entry.get("files") or {}
         plain = isinstance(folder, str) and Path(folder).name == folder and folder not in ("", ".", "..")
-        bad = (folder if folder is not None and not (plain and (folder_re is None or folder_re.match(folder)))
-               else next((f for f in files if not _inside(f)), None) if isinstance(files, dict) else files)
+        if folder is not None and not (plain and (folder_re is None or folder_re.match(folder))):
+            bad = folder
+        elif not isinstance(files, dict):
+            bad = files
+        else:
+            bad = next((f for f in files if not _inside(f)), None)
         if bad is not None:
             raise DatasetError(f"{flag}: {str(path)!r} names {bad!r} for object {entry.get('index', '?')}, not a "
                                f"file or folder inside its dataset{hint}")

@@ -373,7 +373,6 @@ def _run(argv: list[str] | None, state: dict) -> int:
                                    on_plan=bar.on_plan, extra={"run": engine.used})
     except ClusterLost as exc:  # a runtime loss, not a bad input: status 1 (the finished objects are recorded)
         bar.close()
-        state["lost"] = True
         return report_error(exc, 1)
     except (ValueError, OSError, ImportError, WorkersCannotStart) as exc:
         bar.close()

@@ -58,15 +58,14 @@ def flag_value(argv: list[str], flag: str) -> str | None:
 def remove_temporaries(folder: str | Path | None, pid: int) -> int:
     """Remove the temporary files (`scenes.files.atomic_write`) process `pid` left anywhere under `folder`, never
     following links; how many."""
-    import re
+    from scenes.files import temporary_writer
 
     if not folder or not Path(folder).is_dir():
         return 0
-    mine = re.compile(rf"^\..+\.tmp{pid}(\.[^.]*)?$")  # `scenes.files._temporary`'s names, this pid's only
     removed = 0
     for root, _dirs, files in os.walk(folder):
         for name in files:
-            if mine.match(name):
+            if temporary_writer(name) == pid:
                 try:
                     os.unlink(os.path.join(root, name))
                     removed += 1

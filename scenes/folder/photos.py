@@ -353,7 +353,7 @@ def read_photos(folder: str | Path, encoding: str = "auto", max_side: int | None
         lin, kind = _linear(codes, depth, encoding, f.exif, path, flag)
         if not np.all(np.isfinite(lin)):
             raise ValueError(f"{flag}: {path.name} holds NaN or infinite values")
-        low, high = float(lin.min()), float(lin.max())
+        low, high = (float(lin.min()), float(lin.max())) if codes.dtype.kind == "f" else (0.0, 1.0)
         if low < -NEGATIVE_SHARE * max(high, 0.0) or high <= 0 < -low:
             raise ValueError(f"{flag}: {path.name} holds negative values (down to {low:.3g}, brightest {high:.3g}); "
                              "expected linear light, 0 or more")

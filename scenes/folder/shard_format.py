@@ -246,6 +246,8 @@ def decode_folder(files: dict[str, bytes], folder: Path):
             raise ValueError(f"shape {h}x{w} with {k} images")
         codes = array("images", True, (*CODE_SCALES, np.dtype(np.float32)), (k, h, w, 3))
         images = codes if codes.dtype.kind == "f" else codes_to_linear(codes)
+        if codes.dtype.kind == "f" and not np.isfinite(images).all():  # (integer codes are finite by construction)
+            raise _MemberError(f"{folder}: member {DECODED}.images.npy holds NaN or infinite values")
         flag, f32 = (np.dtype(bool),), (np.dtype(np.float32),)
         d = meta["lights"]
         vectors = [None if d[key] is None else np.asarray(d[key], np.float64) for key in ("directions", "intensities")]
