@@ -385,7 +385,13 @@ def _session(opts: SessionOptions, t0: float) -> dict:
                          "minutes, none is left to train (lower --objects, --res or --spp, or raise --minutes)")
     t_train = time.time()
     # unips.train stops itself before `stages` (its --time-limit); stopped here only if it did not
-    step(["unips.train", *_train_argv(opts, shards, run, device, left, init)], until=stages + opts.reserve_s / 2)
+    try:
+        step(["unips.train", *_train_argv(opts, shards, run, device, left, init)], until=stages + opts.reserve_s / 2)
+    except StepFailed as exc:  # the --time-limit this command gave train, said as the user's own flag
+        if "--time-limit:" not in str(exc) or "before the first step" not in str(exc):
+            raise
+        raise UsageError(f"{over} before training's first step ({left:.2f} min were left after rendering and the "
+                         f"check){advice}") from None
     records = curve_records(run / "log.jsonl")
     plot_curve(records, out / "learning_curve.png", f"{opts.model}, {opts.objects} objects, {device}")
     summary = _write_card(opts, out, run, records, variant, device, check_report, t_render, time.time() - t_train,

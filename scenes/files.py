@@ -29,8 +29,12 @@ def sha256_file(path: str | Path) -> str:
 
 
 def _temporary(path: Path) -> Path:
-    """A hidden name beside `path` with the same extension (image writers choose the format by it)."""
-    return path.with_name(f".{path.stem}.tmp{os.getpid()}{path.suffix}")
+    """A hidden name beside `path` with the same extension (image writers choose the format by it); the stem is
+    cut where the name would pass the file system's 255 bytes (the real name itself may be that long)."""
+    tail = f".tmp{os.getpid()}{path.suffix}"
+    room = 255 - 1 - len(tail.encode())
+    stem = path.stem.encode()[:room].decode(errors="ignore")
+    return path.with_name(f".{stem}{tail}")
 
 
 _TEMPORARY = re.compile(r"^\.(?P<stem>.+)\.tmp(?P<pid>\d+)(?P<suffix>(\.[^.]*)?)$")

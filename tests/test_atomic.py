@@ -35,6 +35,16 @@ def test_a_failed_write_leaves_neither_the_file_nor_its_temporary(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["normal.png"]
 
 
+def test_a_name_of_the_longest_length_is_written_through_a_temporary_that_fits(tmp_path):
+    from scenes.files import temporary_writer
+
+    target = tmp_path / ("\u00e9" * 100 + "L" * 50 + ".png")  # 254 bytes: the file system's limit is 255
+    seen = []
+    atomic_write(target, lambda tmp: (seen.append(tmp.name), tmp.write_bytes(b"x")))
+    assert target.read_bytes() == b"x" and len(seen[0].encode()) <= 255 and seen[0].endswith(".png")
+    assert temporary_writer(seen[0]) is not None  # a killed writer's leftover is still found by its pid
+
+
 def test_image_and_exr_writers_are_atomic(tmp_path, monkeypatch):
     n = np.zeros((8, 8, 3), np.float32)
     n[..., 2] = 1

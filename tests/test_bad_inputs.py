@@ -356,6 +356,12 @@ def _not_written(*rel: str) -> Callable[[Path, Path], None]:
     return check
 
 
+def _kept(rel: str, text: str) -> Callable[[Path, Path], None]:
+    def check(w: Path, t: Path) -> None:
+        assert (t / rel).read_text() == text, rel
+    return check
+
+
 def _user_files_kept(w: Path, t: Path) -> None:
     assert (t / "out" / "notes.txt").read_text() == "mine\n"
     assert (t / "out" / ".tmp-mine").read_text() == "mine too\n"
@@ -2615,6 +2621,23 @@ def _exr_photos(first: Callable[[np.ndarray], np.ndarray]) -> Callable[[Path, Pa
     return setup
 
 
+def _damaged_exif(data: bytes) -> bytes:
+    """A JPEG with a second APP1 'Exif' segment of junk after its start (a damaged EXIF block)."""
+    junk = b"Exif\x00\x00MM\x00\x2a\x00\x00\x00\x08" + np.random.default_rng(7).integers(0, 256, 300, np.uint8).tobytes()
+    return data[:2] + b"\xff\xe1" + (len(junk) + 2).to_bytes(2, "big") + junk + data[2:]
+
+
+def _nan_ground_truth(rel: str) -> Callable[[Path, Path], None]:
+    """Setup: T/<rel>, the world's dataset without its manifest, object 00000's normal.tif all NaN."""
+    def setup(w: Path, t: Path) -> None:
+        import tifffile
+
+        shutil.copytree(w / "data", t / rel, ignore=shutil.ignore_patterns("manifest.json"))
+        tifffile.imwrite(t / rel / f"{OBJ}.data" / "normal.tif", np.full((32, 32, 3), np.nan, np.float32),
+                         photometric="rgb")
+    return setup
+
+
 def _dangling_photo(w: Path, t: Path) -> None:
     """Setup: the JPEG photos and IMG_0009.jpg, a link to a file that is gone (a photo that silently went missing)."""
     _photos()(w, t)
@@ -2821,6 +2844,8 @@ ROWS += [
     Row("capture-exif-exposure-one-over-zero", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
         ("--input", "IMG_0002.jpg", "ExposureTime", "1/0"),
         setup=_photos(tags=_exposures(0.01, _rational(1, 0), 0.01, 0.01)), check=_not_written("o/normal.png")),
+    Row("capture-exif-block-damaged", CAP, [*CAPTURE, "--mask", WORLD_MASK], 0, ("EXIF block", "IMG_0003.jpg"),
+        setup=_photos(damage=_damaged_exif), absent=("UserWarning", "warnings.warn")),
     Row("capture-exif-exposure-zero", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
         ("--input", "IMG_0003.jpg", "ExposureTime", "0"), setup=_photos(tags=_exposures(0.01, 0.01, 0.0, 0.01)),
         check=_not_written("o/normal.png")),
@@ -3265,6 +3290,9 @@ ROWS += [
     Row("train-init-from-a-folder", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1",
                                          "--init-from", "{T}/dir"], 2, ("--init-from", "is a folder"),
         setup=lambda w, t: _mk(t / "dir")),
+    Row("train-ground-truth-nan-named-by-its-flag", TR, [*TRAIN_ONE, "--data", "{W}/data", "--val", "{T}/v", "--out",
+                                                        "{T}/run", "--steps", "1"], 2,
+        ("--val: normal map", "normal.tif", "NaN"), setup=_nan_ground_truth("v"), check=_not_written("run")),
     Row("train-device-without-that-gpu", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1",
                                               "--device", "cuda:99"], 2, ("--device", "'cuda:99'", "GPU"),
         check=_not_written("run")),
@@ -3277,6 +3305,9 @@ ROWS += [
     Row("preview-object-named-overview", PV, ["{T}/ds", "--out", "{T}/p"], 2, ("overview.data", "overview.png"),
         setup=_dataset_edited(files=lambda d: (d / "00001.data").rename(d / "overview.data")),
         check=_not_written("p")),
+    Row("preview-overview-png-of-the-user", PV, ["{W}/data", "--out", "{T}/p", "--overwrite"], 2,
+        ("overview.png", "was not written by wildgen.preview"), setup=_put(("p/overview.png", "mine\n")),
+        check=lambda w, t: (_not_written("p/00000.png")(w, t), _kept("p/overview.png", "mine\n")(w, t))),
     Row("preview-stats-json-of-the-user", PV, ["{W}/data", "--stats", "--out", "{T}/p", "--overwrite"], 2,
         ("stats.json", "was not written by wildgen.preview"), setup=_put(("p/stats.json", '{"mine": 1}\n'))),
     Row("make-resume-a-file-for-an-object-folder", MK, ["--out", "{T}/ds", "--resume", "--workers", "0", "--quiet"],
@@ -3289,6 +3320,13 @@ ROWS += [
         setup=_scene_text(lambda d: json.dumps({**d, "format_version": 99})), check=_not_written("o")),
     Row("rerender-scene-json-nested-deep", RR, SWEEP3, 2, ("scene.json", "nested too deeply"),
         setup=_scene_text(_deep), check=_not_written("o")),
+    Row("rerender-scene-names-a-mesh-by-absolute-path", RR, SWEEP3, 2, ("shape.file", "outside the object folder"),
+        setup=_scene_text(lambda d: _scene_set("shape", "file", "/etc/hostname")(d)), check=_not_written("o")),
+    Row("rerender-scene-names-a-texture-above-its-folder", RR, SWEEP3, 2,
+        ("material.base_color.file", "'../victim.exr'", "outside the object folder"),
+        setup=_scene_text(lambda d: _scene_set("material", "base_color", {"kind": "file", "file": "../victim.exr",
+                                                                          "value": [0.5] * 3})(d)),
+        check=_not_written("o")),
     Row("rerender-scene-camera-without-view", RR, SWEEP3, 2, ("camera", "define no view"),
         setup=_scene_text(lambda d: _scene_set("camera", "target", d["camera"]["origin"])(d)),
         check=_not_written("o")),

@@ -47,7 +47,7 @@ def to_tensors(images: np.ndarray, mask: np.ndarray, normals: np.ndarray | None
     return imgs.contiguous(), m, None if n is None else n.contiguous()
 
 
-def data_roots(data: str | Path) -> list[Path]:
+def data_roots(data: str | Path, arg: str = "--data") -> list[Path]:
     """The entries of a --data value: one dataset directory or shard source (`unips.shard_data`), or several
     separated by commas (commas inside a shard pattern's braces, {a,b}, do not separate)."""
     from unips.shard_data import source_label
@@ -60,10 +60,10 @@ def data_roots(data: str | Path) -> list[Path]:
             start = i + 1
     roots = [Path(p.strip()) for p in parts if p.strip()]
     if not roots:
-        raise ValueError(f"--data: {str(data)!r} names no directory")
+        raise ValueError(f"{arg}: {str(data)!r} names no directory")
     names = [source_label(r) for r in roots]
     if len(set(names)) != len(names):
-        raise ValueError(f"--data: {str(data)!r} names two directories with the same name (object names would collide)")
+        raise ValueError(f"{arg}: {str(data)!r} names two directories with the same name (object names would collide)")
     return roots
 
 
@@ -79,7 +79,7 @@ def prepare_sample(obj: Any, res: int, require_normals: bool = True, name: str |
     return Sample(name or obj.name, imgs.to(torch.float16), m, n, obj.light_family, obj.level)
 
 
-def load_samples(root: str | Path, res: int, require_normals: bool = True) -> list[Sample]:
+def load_samples(root: str | Path, res: int, require_normals: bool = True, arg: str = "--data") -> list[Sample]:
     """Load, crop, normalise and resize every object under `root` (one dataset directory or shard source, or
     several separated by commas: their objects are pooled and named DIRNAME/OBJECT). Shards are read in the
     order given (`unips.shard_data.iter_objects`): the samples of shards exported from a dataset are those of its
@@ -87,13 +87,13 @@ def load_samples(root: str | Path, res: int, require_normals: bool = True) -> li
     from unips.data import find_objects, load_object
     from unips.shard_data import is_shard_source, iter_objects, source_label
 
-    roots = data_roots(root)
+    roots = data_roots(root, arg)
     samples = []
     for r in roots:
         if is_shard_source(r):
-            objects = iter_objects(r)
+            objects = iter_objects(r, arg)
         else:
-            objects = (load_object(p) for p in find_objects(r))  # FileNotFoundError naming the path when there is none
+            objects = (load_object(p, arg=arg) for p in find_objects(r, arg))  # FileNotFoundError naming the path when there is none
         for obj in objects:
             name = obj.name if len(roots) == 1 else f"{source_label(r)}/{obj.name}"
             samples.append(prepare_sample(obj, res, require_normals, name, str(r)))

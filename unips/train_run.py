@@ -250,7 +250,7 @@ def setup_run(cfg: TrainConfig) -> Run:
     else:
         samples = load_samples(cfg.data, cfg.res)
         data_desc = describe_data(samples, cfg.data, cfg.res)
-    val_samples = load_samples(cfg.val, cfg.res) if cfg.val and dist.main else []
+    val_samples = load_samples(cfg.val, cfg.res, arg="--val") if cfg.val and dist.main else []
     if cfg.curriculum:
         curriculum_pool([s.level for s in samples], 0, cfg.steps, cfg.curriculum_fraction)  # every level recorded
         log.info("curriculum over levels %s in the first %d of %d steps", sorted({s.level for s in samples}),

@@ -1,8 +1,9 @@
 """`python -m wildgen.preview DIR`: contact sheets (images, normal map, mask) per object and an overview;
 with `--stats`, the dataset card instead.
 
-Writes DIR/preview/<object>.png (every image, the normal map and the mask, labelled) and DIR/preview/overview.png
-(per object its first image and normal map). Images are linear; they are shown with the sRGB curve
+Writes DIR/preview/<object>.png (every image, the normal map and the mask, labelled), DIR/preview/overview.png
+(per object its first image and normal map) and DIR/preview/preview.json (the sheets it wrote: a PNG carries no
+mark of its writer, so --overwrite replaces only the sheets listed there). Images are linear; they are shown with the sRGB curve
 (`scenes.colors.linear_to_srgb`) so that dark regions stay visible. The dataset's numbers are `wildgen.card`,
 its picture `wildgen.card_figure`.
 
@@ -28,6 +29,8 @@ from scenes.cli.outputs import check_output_folder, make_output_folder
 TILE = 128
 """Pixels of one tile of a contact sheet."""
 SHEET_COLUMNS, OVERVIEW_COLUMNS = 6, 4
+SHEETS_RECORD = "preview.json"
+"""The list of sheets a preview wrote into its output folder: the only PNGs a later --overwrite replaces."""
 
 
 def _to_display(rgb: np.ndarray) -> np.ndarray:
@@ -121,6 +124,7 @@ def preview(dataset: str | Path, out: str | Path | None = None, overwrite: bool 
     drawn before anything is written; existing sheets are replaced only with `overwrite`
     (`scenes.cli.outputs.claim_outputs`)."""
     from scenes.cli.outputs import claim_outputs
+    from scenes.files import write_json
     from scenes.images import write_picture
     from scenes.report.charts import to_bgr
 
@@ -129,7 +133,9 @@ def preview(dataset: str | Path, out: str | Path | None = None, overwrite: bool 
     out_dir = _output_folder(dataset, out)
     _check_sheet_names(folders, out_dir)
     targets = [out_dir / f"{folder.name[:-5]}.png" for folder in folders] + [out_dir / "overview.png"]
-    claim_outputs(targets, overwrite, owner="wildgen.preview")
+    record = out_dir / SHEETS_RECORD
+    claim_outputs([*targets, record], overwrite, owner="wildgen.preview", signed={record: ("dataset", "sheets")})
+    _check_own_sheets(record, targets)
     print(f"drawing contact sheets of {len(folders)} object(s) into {out_dir}", flush=True)
     sheets, summaries = [], []
     for folder in folders:
@@ -141,7 +147,32 @@ def preview(dataset: str | Path, out: str | Path | None = None, overwrite: bool 
     make_output_folder(out_dir)
     for path, image in zip(targets, [*sheets, overview]):
         write_picture(path, image)
+    earlier = _listed_sheets(record)
+    write_json(record, {"dataset": str(dataset), "sheets": sorted(earlier | {p.name for p in targets})})
     return targets
+
+
+def _listed_sheets(record: Path) -> set[str]:
+    """The sheet names an earlier preview listed in `record` (none when there is no readable record)."""
+    import json
+
+    try:
+        sheets = json.loads(record.read_text()).get("sheets", [])
+    except (OSError, ValueError, AttributeError):
+        return set()
+    return {s for s in sheets if isinstance(s, str)} if isinstance(sheets, list) else set()
+
+
+def _check_own_sheets(record: Path, targets: list[Path]) -> None:
+    """Refuse to replace a PNG under a sheet's name that no earlier preview listed in `record` (the user's)."""
+    import os
+
+    listed = _listed_sheets(record)
+    foreign = next((p for p in targets if os.path.lexists(p) and p.name not in listed), None)
+    if foreign is not None:
+        raise UsageError(f"--out: {str(foreign)!r} was not written by wildgen.preview (it is not listed in "
+                         f"{str(record)!r}); it is never replaced, even with --overwrite: move it away or use "
+                         "another --out")
 
 
 # ---------------------------------------------------------------------------------- the dataset card
@@ -178,15 +209,16 @@ class PreviewOptions:
     dataset: Annotated[str, Positional, arg(metavar="DIR")] = ""
     """Dataset directory (or one <object>.data folder)."""
     out: Annotated[str | None, arg(help_behavior_hint="(default: DIR/preview)")] = None
-    """Output folder: one <object>.png per object and overview.png (with --stats: stats.png and stats.json)."""
+    """Output folder: one <object>.png per object, overview.png and preview.json, the list of sheets written
+    (with --stats: stats.png and stats.json)."""
     stats: bool = False
     """Instead of the contact sheets, write the dataset card: stats.png plots the distributions to check before
     training (visible normals, light directions, distances and strengths, exposures, materials, light
     families, camera, sensor) and stats.json holds the numbers behind it, with the object folders that could
     not be read under `failed`."""
     overwrite: bool = False
-    """Replace the contact sheets (or the dataset card) of an earlier run in the output folder (other files are
-    never touched)."""
+    """Replace the contact sheets listed in an earlier run's preview.json (or the dataset card) in the output
+    folder (other files are never touched)."""
 
 
 COMMAND = Command(

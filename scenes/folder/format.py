@@ -158,7 +158,33 @@ def read_scene_dict(folder_or_file: str | Path) -> dict[str, Any]:
     if not isinstance(version, int) or isinstance(version, bool) or not 1 <= version <= FORMAT_VERSION:
         raise ValueError(f"scene file {path}: format_version {version!r}; this toolkit reads versions 1 to "
                          f"{FORMAT_VERSION} (a newer toolkit wrote it?)")
+    try:
+        check_scene_files(d, path)
+    except RecursionError:
+        raise ValueError(f"scene file {path}: nested too deeply to be a scene description") from None
     return d
+
+
+ASSET_KEYS = ("file", "normal_map")
+"""The keys of a scene.json whose string values name an asset file (meshes, textures, maps)."""
+
+
+def check_scene_files(scene: Any, path: Path, where: str = "") -> None:
+    """Every asset a scene.json names lies inside its object folder (the generator copies them to aux/).
+
+    The file is untrusted: an absolute name, `..` or a link out would make a check read another object's mesh
+    or any file of the machine while reporting on this one."""
+    items = scene.items() if isinstance(scene, dict) else enumerate(scene) if isinstance(scene, list) else ()
+    for key, value in items:
+        here = f"{where}.{key}" if where else str(key)
+        if key in ASSET_KEYS and isinstance(value, str):
+            folder = path.parent.resolve()
+            target = (folder / value).resolve()
+            if Path(value).is_absolute() or not target.is_relative_to(folder):
+                raise ValueError(f"scene file {path}: {here} names {value!r}, outside the object folder; scene.json "
+                                 "names its assets relative to its folder (aux/...)")
+        else:
+            check_scene_files(value, path, here)
 
 
 def split_scene_extras(d: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:

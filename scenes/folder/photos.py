@@ -29,6 +29,8 @@ argument (`--input`) and the file.
 """
 from __future__ import annotations
 
+import sys
+
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -180,11 +182,18 @@ def _exif(img: Any) -> dict[str, Any]:
 def _read_exif(path: Path) -> dict[str, Any]:
     from PIL import Image, UnidentifiedImageError
 
+    import warnings
+
     try:
-        with Image.open(path) as img:
-            return _exif(img)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")  # PIL warns of a damaged EXIF block without naming the file
+            with Image.open(path) as img:
+                exif = _exif(img)
     except (UnidentifiedImageError, OSError):
         return {}  # no EXIF to read; the pixels are read (or refused) by OpenCV
+    if caught:
+        exif["exif_damaged"] = str(caught[0].message).splitlines()[0]
+    return exif
 
 
 @dataclass
@@ -377,6 +386,10 @@ def read_photos(folder: str | Path, encoding: str = "auto", max_side: int | None
         exifs.append(f.exif)
         if f.raw is not None:
             records.append(f.raw)
+    damaged = [i for i, e in enumerate(exifs) if "exif_damaged" in e]
+    if damaged:  # one line for the capture, not PIL's warning per file naming none
+        print(f"warning: {flag}: the EXIF block of {len(damaged)} photo(s) is damaged ({files[damaged[0]].name}: "
+              f"{exifs[damaged[0]]['exif_damaged'].strip()}); what could be read of it is used", file=sys.stderr)
     scales = _exposure_scales(exifs, [p.name for p in files], flag)
     stack = np.stack([img * np.float32(s) for img, s in zip(images, scales)])
     return Photos(images=stack, saturated=np.stack(saturated), names=[p.name for p in files], encoding=kinds,
