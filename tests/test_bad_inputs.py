@@ -2623,7 +2623,7 @@ def _exr_photos(first: Callable[[np.ndarray], np.ndarray]) -> Callable[[Path, Pa
 
 def _damaged_exif(data: bytes) -> bytes:
     """A JPEG with a second APP1 'Exif' segment of junk after its start (a damaged EXIF block)."""
-    junk = b"Exif\x00\x00MM\x00\x2a\x00\x00\x00\x08" + np.random.default_rng(7).integers(0, 256, 300, np.uint8).tobytes()
+    junk = b"Exif\x00\x00MM\x00\x2a\x00\x00\x00\x08" + np.random.default_rng(7).bytes(300)
     return data[:2] + b"\xff\xe1" + (len(junk) + 2).to_bytes(2, "big") + junk + data[2:]
 
 

@@ -93,7 +93,8 @@ def load_samples(root: str | Path, res: int, require_normals: bool = True, arg: 
         if is_shard_source(r):
             objects = iter_objects(r, arg)
         else:
-            objects = (load_object(p, arg=arg) for p in find_objects(r, arg))  # FileNotFoundError naming the path when there is none
+            # FileNotFoundError naming the path when there is none
+            objects = (load_object(p, arg=arg) for p in find_objects(r, arg))
         for obj in objects:
             name = obj.name if len(roots) == 1 else f"{source_label(r)}/{obj.name}"
             samples.append(prepare_sample(obj, res, require_normals, name, str(r)))

@@ -30,7 +30,6 @@ argument (`--input`) and the file.
 from __future__ import annotations
 
 import sys
-
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -180,9 +179,9 @@ def _exif(img: Any) -> dict[str, Any]:
 
 
 def _read_exif(path: Path) -> dict[str, Any]:
-    from PIL import Image, UnidentifiedImageError
-
     import warnings
+
+    from PIL import Image, UnidentifiedImageError
 
     try:
         with warnings.catch_warnings(record=True) as caught:
