@@ -4,8 +4,8 @@ with `--stats`, the dataset card instead.
 Writes DIR/preview/<object>.png (every image, the normal map and the mask, labelled), DIR/preview/overview.png
 (per object its first image and normal map) and DIR/preview/preview.json (the sheets it wrote: a PNG carries no
 mark of its writer, so --overwrite replaces only the sheets listed there). Images are linear; they are shown with
-the sRGB curve (`scenes.colors.linear_to_srgb`) so that dark regions stay visible. The dataset's numbers are `wildgen.card`,
-its picture `wildgen.card_figure`.
+the sRGB curve (`scenes.colors.linear_to_srgb`) so that dark regions stay visible. The dataset's numbers are
+`wildgen.card`, its picture `wildgen.card_figure`.
 
 The dataset card (`--stats`) is what to look at before training on a dataset: DIR/preview/stats.png plots the
 distributions of the visible normals, the light directions, distances and strengths, the exposures, the
