@@ -123,7 +123,8 @@ class SessionOptions:
     on the CPU), within --minutes like a real session; give it small --objects, --res and --spp. Without it such
     a machine is refused at once."""
     overwrite: bool = False
-    """Replace an earlier session's dataset, shards and run in --work / --out."""
+    """Replace an earlier session's dataset, shards and run in --work / --out (with --pack: an earlier pack's
+    archives and manifest.json)."""
     carry: str | None = None
     """Folder written by --pack (carried to the GPU machine): its site.tar.xz is unpacked into --work and put on
     the path, its assets.tar.xz unpacked and rendered with."""
@@ -139,7 +140,15 @@ class SessionOptions:
 
     def validate(self) -> "SessionOptions":
         check_fields(self)
-        if self.pack is None:
+        if self.pack is not None:  # packing writes the carry folder only: a session's flag would be ignored
+            from dataclasses import fields
+
+            given = next((f.name for f in fields(self) if f.name not in PACK_FLAGS and getattr(self, f.name) != (
+                f.default_factory() if callable(f.default_factory) else f.default)), None)
+            if given is not None:
+                raise ValueError(f"--{given.replace('_', '-')}: a session's flag, not used with --pack (which only "
+                                 "writes the carry folder); give it to the session that carries the folder")
+        else:
             if self.minutes * 60 <= self.reserve_s:
                 raise ValueError(f"--minutes: {self.minutes:g} min ({self.minutes * 60:g} s) is not above --reserve-s "
                                  f"{self.reserve_s:g} s (expected a budget above the seconds kept for the last files)")
@@ -453,6 +462,8 @@ def _assets_note(opts: SessionOptions, assets: str | None) -> str:
     return assets or "none (procedural shapes and lights only)"
 
 
+PACK_FLAGS = ("pack", "wheels", "assets", "overwrite")
+"""The flags --pack reads; any other given with it is refused."""
 COMMAND = Command(SessionOptions, prog="python -m orchestrate.gpu_session", description=__doc__)
 
 
@@ -462,7 +473,9 @@ def main(argv: list[str] | None = None) -> int:
         opts = COMMAND.parse(argv).validate()
         if opts.pack is not None:
             assets = opts.assets or (str(SHARED_ASSETS) if SHARED_ASSETS.is_dir() else "none")
-            pack(Path(opts.pack), Path(opts.wheels), assets=None if assets == "none" else Path(assets))
+            with output_lock(opts.pack, "--pack"):  # one writer per folder
+                pack(Path(opts.pack), Path(opts.wheels), assets=None if assets == "none" else Path(assets),
+                     overwrite=opts.overwrite)
             return 0
         summary = session(opts, t0)
     except StepFailed as exc:
@@ -476,4 +489,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from scenes.cli.supervise import run_supervised
+
+    sys.exit(run_supervised("orchestrate.gpu_session", main))

@@ -246,11 +246,16 @@ def tree_bytes(root: Path = REPO) -> int:
 
 
 def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None = None,
-         assets: Path | None = None) -> int:
+         assets: Path | None = None, overwrite: bool = False) -> int:
     """Write dest/site.tar.xz: every wheel in `wheels` unpacked as pip would (`_keep_member` filters Mitsuba to
     KEEP_VARIANTS), compressed; with `assets`, dest/assets.tar.xz (`pack_assets`, in what the limit leaves);
     dest/manifest.json records both. Returns the bytes that travel (the archives plus the working tree `tree`);
-    UsageError with the measured size when they exceed `limit`."""
+    UsageError with the measured size when they exceed `limit`. An earlier pack's files are replaced only with
+    `overwrite` (and a manifest.json that is not a pack's never)."""
+    from scenes.cli.outputs import claim_outputs
+
+    claim_outputs([dest / SITE_ARCHIVE, dest / MANIFEST, dest / ASSET_ARCHIVE], overwrite, "--pack",
+                  "orchestrate.gpu_session --pack", signed={dest / MANIFEST: ("site", "tree_bytes")})
     found = sorted(wheels.glob("*.whl")) if wheels.is_dir() else []
     if not found:
         raise UsageError(f"--wheels: {str(wheels)!r} holds no .whl files (expected the Python 3.12 x86-64 wheels of "
@@ -266,6 +271,11 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
                              "pip downloads (see docs/model.md): download it again") from None
         if bad is not None:
             raise UsageError(f"--wheels: {str(wheel)!r} is damaged (member {bad!r} fails its CRC); download it again")
+        with zipfile.ZipFile(wheel) as z:  # a member packed as named would leave --carry's folder on unpacking
+            odd = next((n for n in z.namelist() if n.startswith("/") or ".." in n.split("/")), None)
+        if odd is not None:
+            raise UsageError(f"--wheels: {str(wheel)!r} holds member {odd[:120]!r}, whose name leads outside the "
+                             "folder it is unpacked into (expected names relative to it); not a wheel pip writes")
     dest.mkdir(parents=True, exist_ok=True)
     archive = dest / SITE_ARCHIVE
     tmp = archive.with_name(archive.name + ".tmp")
@@ -332,11 +342,13 @@ def boot_site(argv: list[str]) -> None:
             pass  # reported by unpack_carry, once the command's error handling is in place
 
 
-def safe_extract(archive: Path, target: Path, flag: str = "--carry") -> None:
+def safe_extract(archive: Path, target: Path, flag: str = "--carry", under: str | None = None) -> None:
     """The one rule for every archive the toolkit unpacks (the relay's packs): every member name relative and
     without '..' (checked before anything is written), then tarfile's `data` filter, so that no member lands
     outside `target` after resolution (links out and devices are refused) and no setuid or group/other write bit
-    is kept; a damaged, empty or foreign archive is a UsageError in one line naming it."""
+    is kept; with `under`, every member lies in that folder of `target` (the assets' archive writes work/assets
+    only, never the session's other files or code on its path); a damaged, empty or foreign archive is a
+    UsageError in one line naming it."""
     from pathlib import PurePosixPath
 
     try:
@@ -346,6 +358,9 @@ def safe_extract(archive: Path, target: Path, flag: str = "--carry") -> None:
                 if name.is_absolute() or ".." in name.parts:
                     raise UsageError(f"{flag}: {str(archive)!r} holds member {member.name[:120]!r}, whose name would "
                                      f"lead outside {str(target)!r} (expected names relative to it); refused")
+                if under is not None and (not name.parts or name.parts[0] != under):
+                    raise UsageError(f"{flag}: {str(archive)!r} holds member {member.name[:120]!r} outside its "
+                                     f"{under}/ folder (expected every member under {under}/); refused")
             tar.extractall(target, filter="data")
     except tarfile.FilterError as exc:
         raise UsageError(f"{flag}: {str(archive)!r} holds a member that would be unpacked outside {str(target)!r} "
@@ -374,5 +389,5 @@ def unpack_carry(carry: Path, work: Path) -> Path | None:
                          "`python -m orchestrate.gpu_session --pack .carry`)")
     _site(carry, work)
     if (carry / ASSET_ARCHIVE).is_file():
-        safe_extract(carry / ASSET_ARCHIVE, work)
+        safe_extract(carry / ASSET_ARCHIVE, work, under="assets")
     return work / "assets" if (work / "assets").is_dir() else None

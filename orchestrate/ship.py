@@ -72,7 +72,7 @@ def candidate_weights(folder: Path, scratch: Path) -> tuple[Path, str]:
     from unips.models.builder import save_checkpoint
 
     run = folder / "run"
-    found = next((p for p in (run / "final.safetensors", run / "last.pt") if p.is_file()), None)
+    found = next((p for p in (run / "final.safetensors", run / "last.pt") if os.path.lexists(p)), None)
     if found is None:
         raise UsageError(f"--candidate: {str(folder)!r} holds neither run/final.safetensors nor run/last.pt (expected "
                          "the folder orchestrate.gpu_session --out brought back)")
@@ -132,10 +132,24 @@ def score(weights: Path, val: Path, diligent: Path | None, threads: int) -> dict
 
 
 def _read(path: Path) -> dict:
-    try:
-        return json.loads(path.read_text()) if path.is_file() else {}
-    except ValueError:
+    """A record the session brought back (model_card.json, summary.json): {} when absent; a file that is not a
+    JSON object is a UsageError naming it (checked before any evaluation: `check_records`)."""
+    if not os.path.lexists(path):
         return {}
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise UsageError(f"--candidate: {str(path)!r} cannot be read as JSON ({str(exc)[:120]}); expected the file "
+                         "orchestrate.gpu_session wrote") from None
+    if not isinstance(record, dict):
+        raise UsageError(f"--candidate: {str(path)!r} holds a JSON {type(record).__name__}, expected the object "
+                         "orchestrate.gpu_session writes")
+    return record
+
+
+def check_records(folder: Path) -> None:
+    """The session's records are read (or refused) before the evaluation, not after it."""
+    _read(folder / "model_card.json"), _read(folder / "summary.json")
 
 
 def lineage_entry(folder: Path, new: dict, old: dict | None, shipped: bool) -> dict:
@@ -165,6 +179,7 @@ def decide(opts: ShipOptions) -> bool:
 
     folder, val = Path(opts.candidate), Path(opts.val)
     diligent = None if opts.diligent in (None, "none") else Path(opts.diligent)
+    check_records(folder)
     with tempfile.TemporaryDirectory() as scratch:
         weights, name = candidate_weights(folder, Path(scratch))
         entry = pretrained_entry(name)

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from scenes.description import EnvironmentDesc
+from scenes.files import not_a_file
 
 
 def directions(h: int, w: int) -> np.ndarray:
@@ -75,8 +76,8 @@ def load_environment(path: Path) -> np.ndarray:
 
     from scenes.images import read_exr
 
-    if not path.is_file():
-        raise FileNotFoundError(f"environment.file: {str(path)!r} does not exist")
+    if why := not_a_file(path):
+        raise FileNotFoundError(f"environment.file: {str(path)!r} {why}")
     suffix = path.suffix.lower()
     if suffix == ".exr":
         img = read_exr(path)[:, :, :3]

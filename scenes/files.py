@@ -28,6 +28,22 @@ def sha256_file(path: str | Path) -> str:
     return h.hexdigest()
 
 
+def not_a_file(path: str | os.PathLike) -> str:
+    """Why `path` cannot be read as a file, as the words after its name ('' for a regular file or a link to one):
+    'does not exist', 'is a link to T, which does not exist', 'is a folder' or 'is not a regular file (a device, a
+    pipe or a socket)'. One rule, so that a device or a pipe is never reported as missing (or read forever)."""
+    p = Path(path)
+    if p.is_file():
+        return ""
+    if p.is_symlink() and not p.exists():
+        return f"is a link to {os.readlink(p)}, which does not exist"
+    if p.is_dir():
+        return "is a folder; expected a file"
+    if p.exists():
+        return "is not a regular file (a device, a pipe or a socket); expected a file"
+    return "does not exist"
+
+
 def _temporary(path: Path) -> Path:
     """A hidden name beside `path` with the same extension (image writers choose the format by it); the stem is
     cut where the name would pass the file system's 255 bytes (the real name itself may be that long)."""

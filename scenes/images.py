@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes.files import atomic_write, caught_stderr
+from scenes.files import atomic_write, caught_stderr, not_a_file
 
 BACKGROUND_16 = 32768
 """Encoded value of n = 0 in a 16-bit normal map."""
@@ -111,11 +111,16 @@ def decode_image(path: Path, flags: int, where: str):
     except OSError as exc:  # a folder, a file without read permission
         raise ValueError(f"{where} cannot be opened: {exc.strerror or exc}") from None
     jpeg, tiff = head.startswith(_JPEG_MAGIC), head in _TIFF_MAGICS
-    if not (jpeg or tiff):
-        return cv2.imread(str(path), flags)
-    with caught_stderr() as said:
-        img = cv2.imread(str(path), flags)
-        tiff_damage = _tiff_damage(path) if tiff and img is not None else None
+    try:
+        if not (jpeg or tiff):
+            return cv2.imread(str(path), flags)
+        with caught_stderr() as said:
+            img = cv2.imread(str(path), flags)
+            tiff_damage = _tiff_damage(path) if tiff and img is not None else None
+    except cv2.error as exc:  # OpenCV's own refusals (a header declaring more pixels than it decodes)
+        why = next((line.split("error: ", 1)[-1] for line in str(exc).splitlines() if "error:" in line), str(exc))
+        raise ValueError(f"{where} cannot be decoded ({why.strip()[:160]}); expected an image of at most "
+                         f"{2**30} pixels") from None
     jpeg_damage = [line for line in said if any(d in line for d in JPEG_DAMAGE) and "bad ICC marker" not in line]
     if img is not None and jpeg_damage:
         raise ValueError(f"{where} is damaged: the JPEG decoder says {'; '.join(dict.fromkeys(jpeg_damage))!r} (a "
@@ -134,8 +139,8 @@ def _read_raw(path: Path, what: str = "image"):
 
     if path.is_dir():
         raise ValueError(f"{what} file {path} is a folder; expected an image file")
-    if not path.is_file():
-        raise FileNotFoundError(f"{what} file {path} does not exist")
+    if why := not_a_file(path):
+        raise FileNotFoundError(f"{what} file {path} {why}")
     img = decode_image(path, cv2.IMREAD_UNCHANGED, f"{what} file {path}")
     if img is None:
         raise ValueError(f"{what} file {path}: cannot be read (corrupt or unsupported format)")
@@ -156,8 +161,8 @@ def read_image(path: str | Path) -> np.ndarray:
     repeated to RGB, alpha dropped). Float images must be finite and non-negative."""
     path = Path(path)
     if path.suffix.lower() == ".exr":
-        if not path.is_file():
-            raise FileNotFoundError(f"image file {path} does not exist")
+        if why := not_a_file(path):
+            raise FileNotFoundError(f"image file {path} {why}")
         img = read_exr(path)
         img = np.repeat(img, 3, axis=2) if img.shape[2] == 1 else img[:, :, :3]
         if img.shape[2] != 3:
@@ -313,8 +318,8 @@ def write_exr(path: str | Path, data: np.ndarray) -> None:
 def _exr_channels(path: Path) -> dict[str, np.ndarray]:
     import OpenEXR
 
-    if not path.is_file():
-        raise FileNotFoundError(f"EXR file {str(path)!r} does not exist")
+    if why := not_a_file(path):
+        raise FileNotFoundError(f"EXR file {str(path)!r} {why}")
     try:
         with OpenEXR.File(str(path), separate_channels=True) as f:
             return {k: np.asarray(v.pixels, np.float32) for k, v in f.channels().items()}
@@ -434,8 +439,8 @@ def read_normals(path: str | Path, arg: str = "normal map") -> np.ndarray:
     path = Path(path)
     if path.is_dir():
         raise ValueError(f"{arg}: normal map {path} is a folder; expected a normal map file")
-    if not path.is_file():
-        raise FileNotFoundError(f"{arg}: normal map {path} does not exist")
+    if why := not_a_file(path):
+        raise FileNotFoundError(f"{arg}: normal map {path} {why}")
     suffix = path.suffix.lower()
     if suffix in (".png", ".tif", ".tiff"):
         import cv2

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from scenes.files import not_a_file
 from scenes.procedural import MeshData, smooth_normals
 
 log = logging.getLogger(__name__)
@@ -24,8 +25,8 @@ def load_mesh(path: str | Path, normalize: bool = True) -> MeshData:
     import trimesh
 
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"shape.file: mesh file {str(path)!r} does not exist")
+    if why := not_a_file(path):
+        raise FileNotFoundError(f"shape.file: mesh file {str(path)!r} {why}")
     if path.suffix.lower() not in MESH_SUFFIXES:
         raise ValueError(
             f"shape.file: {str(path)!r} has suffix {path.suffix!r}, expected one of {', '.join(MESH_SUFFIXES)}"

@@ -11,6 +11,7 @@ import numpy as np
 
 from scenes.colors import srgb_to_linear
 from scenes.description import TextureDesc
+from scenes.files import not_a_file
 
 
 def _pattern(kind: str, res: int, scale: float, seed: int) -> np.ndarray:
@@ -58,8 +59,8 @@ def read_image_file(path: Path) -> np.ndarray:
     """Float32 (H, W, C) from EXR/HDR/PNG/JPG, in file orientation (row 0 at the top), RGB order."""
     import cv2
 
-    if not path.is_file():
-        raise FileNotFoundError(f"texture file {str(path)!r} does not exist")
+    if why := not_a_file(path):
+        raise FileNotFoundError(f"texture file {str(path)!r} {why}")
     if path.suffix.lower() == ".exr":
         from scenes.images import read_exr
 

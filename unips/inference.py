@@ -112,7 +112,11 @@ def load_network(checkpoint: str | Path | None, device: str = "cpu", model: str 
         net = create_model(model, checkpoint_path=path, device=device)
         meta = {"model_name": model, "config": dataclasses.asdict(net.config), "extra": {"published_weights": True}}
         return LoadedModel(model=net, meta=meta, checkpoint=path, device=device)
-    net, meta = load_model(path, map_location=device)
+    try:
+        net, meta = load_model(path, map_location=device)
+    except (FileNotFoundError, ValueError) as exc:  # said as the flag the file came from
+        flag = "--checkpoint" if checkpoint is not None else f"--model {model or DEFAULT_MODEL}"
+        raise type(exc)(f"{flag}: {exc}") from None
     if model is not None and meta.get("model_name") != model:
         raise UsageError(f"--model {model}: {str(path)!r} holds model {meta.get('model_name')!r}")
     return LoadedModel(model=net.eval(), meta=dict(meta), checkpoint=path, device=device)

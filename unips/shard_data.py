@@ -35,6 +35,7 @@ from typing import Any, Callable, Iterator
 import numpy as np
 import torch
 
+from scenes.files import not_a_file
 from scenes.folder.shard_format import (
     INDEX_FILE,
     SHARD_SUFFIX,
@@ -51,7 +52,8 @@ from unips.data import PSObject, load_object, object_from_folder
 def is_shard_source(root: str | Path) -> bool:
     """True when a --data entry names shards (a ``.tar`` path or pattern, or a folder with index.json)."""
     text = str(root)
-    return text.endswith(SHARD_SUFFIX) or (Path(text).is_dir() and (Path(text) / INDEX_FILE).is_file())
+    # an index that is not a regular file is still the index, refused by its reader
+    return text.endswith(SHARD_SUFFIX) or (Path(text).is_dir() and os.path.lexists(Path(text) / INDEX_FILE))
 
 
 def source_label(root: str | Path) -> str:
@@ -94,8 +96,8 @@ def resolve_shards(root: str | Path, arg: str = "--data") -> list[Shard]:
         raise ValueError(f"{arg}: {text!r} names no shard")
     shards = []
     for p in paths:
-        if not p.is_file():
-            raise FileNotFoundError(f"{arg}: shard {str(p)!r} does not exist")
+        if why := not_a_file(p):
+            raise FileNotFoundError(f"{arg}: shard {str(p)!r} {why}")
         known = entries(p.parent)
         if p.name not in known:
             raise ValueError(
@@ -161,6 +163,16 @@ def decode_object(key: str, files: dict[str, bytes], shard: Path, arg: str = "--
     return dataclasses.replace(obj, path=shard / folder.name)
 
 
+def check_images(obj: PSObject, shard: Shard, arg: str = "--data") -> PSObject:
+    """Refuse an object whose image count differs from the one its shard's index entry lists."""
+    listed = next((o.get("images") for o in shard.entry["objects"]
+                   if isinstance(o, dict) and o.get("name") == obj.name), None)
+    if listed is not None and listed != obj.images.shape[0]:
+        raise ValueError(f"{arg}: object {obj.name!r} of shard {str(shard.path)!r} holds {obj.images.shape[0]} images, "
+                         f"where {INDEX_FILE} lists {listed} (the shard and its index disagree)")
+    return obj
+
+
 def iter_objects(root: str | Path, arg: str = "--data") -> Iterator[PSObject]:
     """Every object of the shards of a --data entry, in order (each shard's checksum verified first)."""
     seen: set[str] = set()
@@ -169,7 +181,7 @@ def iter_objects(root: str | Path, arg: str = "--data") -> Iterator[PSObject]:
             if key in seen:
                 raise ValueError(f"{arg}: object {key!r} appears twice (again in shard {str(shard.path)!r})")
             seen.add(key)
-            yield decode_object(key, files, shard.path, arg)
+            yield check_images(decode_object(key, files, shard.path, arg), shard, arg)
 
 
 # ------------------------------------------------------------------------------------------- streaming
@@ -199,7 +211,7 @@ class ShardStream(torch.utils.data.IterableDataset):
         self.shards, self.prepare, self.seed, self.buffer = list(shards), prepare, int(seed), int(buffer)
         self.epochs, self.skip, self.arg = epochs, int(skip), arg
 
-    def _raw(self, rank: int, worker: int) -> Iterator[tuple[str, dict[str, bytes], Path]]:
+    def _raw(self, rank: int, worker: int) -> Iterator[tuple[str, dict[str, bytes], Shard]]:
         import webdataset as wds
 
         epochs = itertools.count() if self.epochs is None else range(self.epochs)
@@ -208,7 +220,7 @@ class ShardStream(torch.utils.data.IterableDataset):
             mine = list(wds.split_by_worker(wds.split_by_node([self.shards[i] for i in order])))
             if not mine:
                 return
-            samples = ((key, files, shard.path) for shard in mine
+            samples = ((key, files, shard) for shard in mine
                        for key, files in _verified_samples(shard, self.arg))
             rng = random.Random(_seed(self.seed, 7_002, epoch, rank, worker))
             yield from wds.shuffle(bufsize=self.buffer, initial=self.buffer, rng=rng)(samples)
@@ -222,7 +234,7 @@ class ShardStream(torch.utils.data.IterableDataset):
             if next(raw, None) is None:
                 return
         for key, files, shard in raw:
-            yield self.prepare(decode_object(key, files, shard, self.arg))
+            yield self.prepare(check_images(decode_object(key, files, shard.path, self.arg), shard, self.arg))
 
 
 def _verified_samples(shard: Shard, arg: str) -> Iterator[tuple[str, dict[str, bytes]]]:

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from scenes.files import not_a_file
 from scenes.folder.format import find_prediction
 from scenes.images import read_normals
 
@@ -41,8 +42,8 @@ def read_normal_map(path: str | Path, what: str = "--normals") -> np.ndarray:
     mask here); `scenes.images.read_normals`, which rejects non-finite values anywhere in the map.
     Errors name `what` (the argument the file came from)."""
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{what}: {str(path)!r} does not exist")
+    if why := not_a_file(path):
+        raise FileNotFoundError(f"{what}: {str(path)!r} {why}")
     return read_normals(path, what)
 
 

@@ -171,7 +171,9 @@ def verify_object(out_dir: Path, entry: dict) -> str | None:
     files = entry.get("files") or {}
     on_disk = {str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file()}
     if on_disk != set(files):
-        return f"files differ from the manifest ({len(on_disk ^ set(files))} added or missing)"
+        first = sorted(on_disk ^ set(files))[0]
+        return (f"files differ from the manifest ({len(on_disk ^ set(files))} added or missing, the first "
+                f"{first!r}, {'not listed' if first in on_disk else 'missing or not a regular file'})")
     for rel, digest in files.items():
         if sha256_file(folder / rel) != digest:
             return f"checksum mismatch in {rel}"

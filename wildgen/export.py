@@ -149,11 +149,11 @@ def check_target(data: str | Path, out: str | Path, overwrite: bool, flag: str =
     with `overwrite`; an index.json that is not an export's, or shards without an index, never. Returns the
     earlier export's files (removed before writing). One line naming `flag` otherwise."""
     data, out = Path(data), Path(out)
+    check_output_folder(out, flag)  # first: a loop of links is refused before anything resolves it
     d, o = data.resolve(), out.resolve()
     if o == d or d in o.parents or o in d.parents:
         raise UsageError(f"{flag}: {str(out)!r} must be a folder apart from --data {str(data)!r} (not it, inside it "
                          "or around it)")
-    check_output_folder(out, flag)
     index = out / INDEX_FILE
     if index.is_file() and not index.is_symlink() and _earlier_export(index) is None:
         raise UsageError(f"{flag}: {str(index)!r} is not a shard index of wildgen.export; it is never replaced, even "

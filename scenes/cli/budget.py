@@ -16,9 +16,14 @@ END_SHARE = 0.05
 
 def process_start() -> float:
     """When this process started (seconds since the epoch): Linux's record of it (/proc), else the time this
-    module was first imported."""
+    module was first imported. A supervised command's work (`scenes.cli.supervise`) counts from its supervisor's
+    start, the process the user started."""
+    from scenes.cli.supervise import CHILD
+
+    parent = os.getppid()
+    who = str(parent) if os.environ.get(CHILD) == str(parent) else "self"
     try:
-        with open("/proc/self/stat") as f:
+        with open(f"/proc/{who}/stat") as f:
             ticks = int(f.read().rsplit(")", 1)[1].split()[19])  # field 22: start time, clock ticks after boot
         with open("/proc/stat") as f:
             boot = next(int(line.split()[1]) for line in f if line.startswith("btime "))

@@ -232,6 +232,9 @@ def check_fields(cfg: Any) -> Any:
                 for v in value:
                     check(v, name, **bounds)
         if meta.get("choices") is not None:
+            if origin in (list, tuple) and not value:  # a list of choices given empty ('') chooses nothing
+                raise ValueError(f"{name}: got an empty list, expected one or more of "
+                                 f"{', '.join(map(str, meta['choices']))}")
             for v in (value if origin in (list, tuple) else [value]):
                 check_choice(v, name, meta["choices"])
     return cfg

@@ -21,6 +21,9 @@ def check_output_folder(path: str | os.PathLike, flag: str = "--out") -> str | o
     file, or a folder (or the nearest existing parent of a new one) this process may not write. Creates
     nothing. Returns `path`."""
     target = os.path.abspath(path)
+    if os.path.islink(target) and not os.path.exists(target):  # dangling, or a loop of links
+        raise UsageError(f"{flag}: {str(path)!r} is a link to {os.readlink(target)!r}, which leads to no folder (it "
+                         "is missing, or the links loop); expected a folder")
     if os.path.exists(target):
         if not os.path.isdir(target):
             raise UsageError(f"{flag}: {str(path)!r} is an existing file, expected a folder")

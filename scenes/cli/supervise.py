@@ -44,6 +44,14 @@ def die_with_parent(parent_pid: int) -> None:
         os._exit(1)
 
 
+def _kill_session(child: subprocess.Popen) -> None:
+    """SIGKILL the child and every process it started (its session's group: the steps a pipeline runs too)."""
+    try:
+        os.killpg(child.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        child.kill()
+
+
 def flag_value(argv: list[str], flag: str) -> str | None:
     """The value of `--flag VALUE` or `--flag=VALUE` in `argv` (the last one given), or None."""
     value = None
@@ -89,7 +97,7 @@ def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTE
     def on_stop(signum, _frame) -> None:
         stop.setdefault("signal", signum)
         for c in children:
-            c.kill()
+            _kill_session(c)
 
     # Handlers first (a Ctrl-C right at the start kills the child too); a signal the user's shell ignores (a run
     # under nohup, or in the background) stays ignored.
@@ -102,7 +110,7 @@ def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTE
                                  start_new_session=True)
         children.append(child)
         if stop:
-            child.kill()
+            _kill_session(child)
         code = child.wait()
     finally:
         for s, handler in previous.items():

@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from scenes.files import not_a_file
 from scenes.folder.format import DILIGENT_INTENSITIES, DILIGENT_LIGHTS, SCENE_FILE, read_scene_dict
 
 
@@ -32,8 +33,8 @@ class Lights:
 def read_text_matrix(path: Path, rows: int, what: str) -> np.ndarray:
     """(rows, 3) float64 matrix from a whitespace / comma separated text file (DiLiGenT's light files),
     checked: one line, naming `what`, for a missing file, non-numbers, a wrong shape or non-finite values."""
-    if not path.is_file():
-        raise FileNotFoundError(f"{what} file {path} does not exist")
+    if why := not_a_file(path):
+        raise FileNotFoundError(f"{what} file {path} {why}")
     try:
         text = path.read_text().replace(",", " ")
         values = np.array(

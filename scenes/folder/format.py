@@ -22,6 +22,7 @@ are `scenes.images`.
 from __future__ import annotations
 
 import json
+import os
 import re
 from pathlib import Path
 from typing import Any
@@ -142,10 +143,14 @@ def read_scene_dict(folder_or_file: str | Path) -> dict[str, Any]:
     path = Path(folder_or_file)
     if path.is_dir():
         path = path / SCENE_FILE
-    if path.is_dir():
-        raise ValueError(f"scene file {path}: is a folder; expected the object's scene.json file")
-    if not path.is_file():
-        raise FileNotFoundError(f"scene.json: {str(path)!r} does not exist (is this an object folder?)")
+    from scenes.files import not_a_file
+
+    why = not_a_file(path)
+    if os.path.lexists(path) and why:
+        said = why.replace("expected a file", "expected the object's scene.json file")
+        raise ValueError(f"scene file {path}: {said}")
+    if why:
+        raise FileNotFoundError(f"scene.json: {str(path)!r} {why} (is this an object folder?)")
     try:
         d = json.loads(path.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
@@ -231,7 +236,7 @@ def prediction_file(folder: str | Path) -> Path | None:
     """The first of `PREDICTION_FILES` present in `folder`, or None."""
     folder = Path(folder)
     for fname in PREDICTION_FILES:
-        if (folder / fname).is_file():
+        if os.path.lexists(folder / fname) and not (folder / fname).is_dir():  # a device too: refused by name
             return folder / fname
     return None
 
@@ -240,7 +245,7 @@ def find_prediction(pred: str | Path, name: str | None = None) -> Path:
     """The normal-map file of an object: `pred` itself if a file, else `prediction_file(pred/name)`,
     else `prediction_file(pred)`; FileNotFoundError when none."""
     pred = Path(pred)
-    if pred.is_file():
+    if os.path.lexists(pred) and not pred.is_dir():  # whatever it is, its reader refuses it by name
         return pred
     folders = [pred / name, pred] if name else [pred]
     for folder in folders:

@@ -211,10 +211,14 @@ def detect_layout(path: str | Path) -> str | None:
 def has_scene(folder: str | Path) -> bool:
     """True when an object folder has a scene file (the known-scene re-render check is possible); a folder under
     that name is refused (it would silently switch the check to its fitted mode)."""
+    from scenes.files import not_a_file
+
     path = Path(folder) / SCENE_FILE
-    if path.is_dir():
-        raise ValueError(f"scene file {path}: is a folder; expected the object's scene.json file")
-    return path.is_file()
+    why = not_a_file(path)
+    if os.path.lexists(path) and why:  # anything under that name but a file would silently mean "no scene"
+        said = why.replace("expected a file", "expected the object's scene.json file")
+        raise ValueError(f"scene file {path}: {said}")
+    return not why
 
 
 def find_object_folders(path: str | Path, arg: str = "path") -> list[Path]:
@@ -411,7 +415,7 @@ def read_folder(path: str | Path, max_images: int | None = None, layout: str | N
         stack = saturated = None
         shape = read_image(paths[0]).shape[:2]
     mask_path = folder / MASK_FILE
-    if mask_path.is_file():
+    if os.path.lexists(mask_path):  # read (or refused by name) whatever it is
         mask, mask_file = read_mask(mask_path, shape), mask_path
     elif entry.mask_required:
         raise FileNotFoundError(f"mask file {mask_path} does not exist (a {layout} folder needs one)")

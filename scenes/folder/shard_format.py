@@ -46,7 +46,7 @@ import re
 from pathlib import Path
 from typing import Any, BinaryIO, Iterator
 
-from scenes.files import json_text, sha256_file, write_json
+from scenes.files import json_text, not_a_file, sha256_file, write_json
 from scenes.folder.format import AUX_DIR, OBJECT_SUFFIX, object_name
 
 INDEX_FILE = "index.json"
@@ -82,12 +82,16 @@ class ShardKeyError(ValueError):
     """A sample key that is not a plain object name (`is_plain_key`): a damaged or hostile shard."""
 
 
+MAX_KEY_BYTES = 200
+"""The longest sample key: its object folder's name (<key>.data, and a temporary beside it) fits a file name."""
+
+
 def is_plain_key(key: str) -> bool:
     """The one rule of a sample key, written (`sample_key`) and read (`iter_samples`): an object name without dots
     (WebDataset splits a member name at the first dot), path separators or control characters, not starting with
     '_' (WebDataset's own metadata): a key read from a shard can never name a folder outside the target."""
     return (bool(key) and not key.startswith("_") and not any(c in key for c in "./\\")
-            and key.isprintable())
+            and key.isprintable() and len(key.encode()) <= MAX_KEY_BYTES)
 
 
 def sample_key(folder: Path, arg: str = "--data") -> str:
@@ -248,6 +252,9 @@ def decode_folder(files: dict[str, bytes], folder: Path):
         images = codes if codes.dtype.kind == "f" else codes_to_linear(codes)
         if codes.dtype.kind == "f" and not np.isfinite(images).all():  # (integer codes are finite by construction)
             raise _MemberError(f"{folder}: member {DECODED}.images.npy holds NaN or infinite values")
+        mask = array("mask", True, (np.dtype(bool),), (h, w))
+        if not mask.any():
+            raise _MemberError(f"{folder}: member {DECODED}.mask.npy is empty (no object pixel)")
         flag, f32 = (np.dtype(bool),), (np.dtype(np.float32),)
         d = meta["lights"]
         vectors = [None if d[key] is None else np.asarray(d[key], np.float64) for key in ("directions", "intensities")]
@@ -260,7 +267,7 @@ def decode_folder(files: dict[str, bytes], folder: Path):
         return FolderData(name=str(meta["name"]), path=folder, layout=str(meta["layout"]),
                           image_paths=[folder / str(n) for n in meta["image_names"]], num_files=int(meta["num_files"]),
                           shape=(h, w), images=images, saturated=array("saturated", False, flag, (k, h, w, 3)),
-                          mask=array("mask", True, flag, (h, w)), mask_file=file(meta["mask_file"]),
+                          mask=mask, mask_file=file(meta["mask_file"]),
                           normals=array("normals", False, f32, (h, w, 3)), normals_file=file(meta["normals_file"]),
                           lights=Lights(d["family"], *vectors, d["level"]), has_scene=bool(meta["has_scene"]),
                           sensor=None if meta["sensor"] is None else Sensor.from_dict(meta["sensor"]))
@@ -341,13 +348,15 @@ def read_index(folder: str | Path, arg: str = "--data") -> dict[str, Any]:
     """index.json of a shard folder, checked: the format, complete, and each shard with a name, sha256 and
     objects. FileNotFoundError / ValueError naming `arg`."""
     path = Path(folder) / INDEX_FILE
-    if not path.is_file():
-        raise FileNotFoundError(f"{arg}: {str(path)!r} does not exist (shards need the index that wildgen.export "
-                                "writes beside them, with their checksums)")
+    if why := not_a_file(path):
+        raise FileNotFoundError(f"{arg}: {str(path)!r} {why} (shards need the index that wildgen.export writes "
+                                "beside them, with their checksums)")
     try:
         index = json.loads(path.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ValueError(f"{arg}: {str(path)!r} cannot be read as JSON ({exc})") from None
+    except RecursionError:  # nested deeper than the parser's stack: not an index
+        raise ValueError(f"{arg}: {str(path)!r} is nested too deeply to be a shard index") from None
     if not isinstance(index, dict) or index.get("format") != FORMAT or not isinstance(index.get("shards"), list):
         raise ValueError(f"{arg}: {str(path)!r} is not a shard index of wildgen.export (expected format "
                          f"{FORMAT!r} and a list of shards)")
@@ -364,7 +373,26 @@ def read_index(folder: str | Path, arg: str = "--data") -> dict[str, Any]:
     twice = next((n for i, n in enumerate(names) if n in names[:i]), None)
     if twice is not None:
         raise ValueError(f"{arg}: {str(path)!r} lists the shard {twice!r} twice")
+    _check_counts(index, path, arg)
     return index
+
+
+def _count(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 0
+
+
+def _check_counts(index: dict[str, Any], path: Path, arg: str) -> None:
+    """The index's numbers agree with what it lists: its object count with its shards' objects, each object's
+    image count a count (the shards' samples are checked against them as they are read)."""
+    listed = sum(len(e["objects"]) for e in index["shards"])
+    if "objects" in index and (not _count(index["objects"]) or index["objects"] != listed):
+        raise ValueError(f"{arg}: {str(path)!r} says objects {index['objects']!r}, but its shards list {listed}; the "
+                         "index was edited (expected the index wildgen.export wrote)")
+    odd = next((o for e in index["shards"] for o in e["objects"]
+                if not isinstance(o, dict) or "images" in o and not (_count(o["images"]) and o["images"] > 0)), None)
+    if odd is not None:
+        raise ValueError(f"{arg}: {str(path)!r} lists the object {odd!r:.80}; expected an object with its name and "
+                         "image count")
 
 
 def verify_shard(path: str | Path, entry: dict[str, Any], arg: str = "--data") -> None:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from scenes.files import not_a_file
 from scenes.surface.integrate import Intrinsics, facing_away
 
 UNIT_TOLERANCE = 0.1
@@ -97,8 +98,8 @@ def read_intrinsics(path: str | Path, shape: tuple[int, int], flag: str = "--int
     path = Path(path)
     if path.is_dir():
         raise ValueError(f"{flag}: {str(path)!r} is a folder; expected a text file of 3 rows of 3 numbers")
-    if not path.is_file():
-        raise FileNotFoundError(f"{flag}: {str(path)!r} does not exist")
+    if why := not_a_file(path):
+        raise FileNotFoundError(f"{flag}: {str(path)!r} {why}")
     try:
         k = np.loadtxt(path, dtype=np.float64, ndmin=2)
     except (ValueError, UnicodeDecodeError) as exc:

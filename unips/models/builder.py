@@ -24,7 +24,7 @@ from typing import Any, Mapping
 import torch
 from torch import nn
 
-from scenes.files import atomic_write, write_json
+from scenes.files import atomic_write, not_a_file, write_json
 
 from .official import is_official_path, read_official
 from .registry import build_model, official_entry, pretrained_weights
@@ -166,8 +166,8 @@ def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> tu
     path = Path(path)
     if path.is_dir():
         raise ValueError(f"model file {str(path)!r} is a folder; expected a weights file (.safetensors or .pt)")
-    if not path.is_file():
-        raise FileNotFoundError(f"model file not found: {str(path)!r}")
+    if why := not_a_file(path):
+        raise FileNotFoundError(f"model file {str(path)!r} {why}")
     if path.suffix == ".pt":
         ckpt = load_training_checkpoint(path, map_location=map_location)
         model = _build(ckpt, str(path))
@@ -177,8 +177,8 @@ def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> tu
     if path.suffix != ".safetensors":
         raise ValueError(f"path: got {str(path)!r}, expected a .safetensors or .pt file")
     side = sidecar_path(path)
-    if not side.is_file():
-        raise FileNotFoundError(f"model sidecar not found: {str(side)!r} (needed next to {str(path)!r})")
+    if why := not_a_file(side):
+        raise FileNotFoundError(f"model sidecar {str(side)!r} {why} (needed next to {str(path)!r})")
     try:
         meta = json.loads(side.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
@@ -236,8 +236,8 @@ def load_training_checkpoint(path: str | Path, map_location: str | torch.device 
     path = Path(path)
     if path.is_dir():
         raise ValueError(f"training checkpoint {str(path)!r} is a folder; expected a .pt file")
-    if not path.is_file():
-        raise FileNotFoundError(f"training checkpoint not found: {str(path)!r}")
+    if why := not_a_file(path):
+        raise FileNotFoundError(f"training checkpoint {str(path)!r} {why}")
     try:
         ckpt = torch.load(path, map_location=map_location, weights_only=True)
     except Exception as exc:  # truncated or corrupt files raise from pickle, zipfile or torch itself
