@@ -190,8 +190,12 @@ def find_mask(opts: CaptureOptions, cap: Capture, full: tuple[int, int]) -> tupl
                              f"{full[1]}x{full[0]}{at}")
         if not mask.any():
             raise ValueError(f"--mask: {opts.mask!r} marks no pixel of the object (expected white on black)")
+        work = downscale_mask(mask, shape) if mask.shape != shape else mask
+        if not (work[:-1, :-1] & work[1:, :-1] & work[:-1, 1:] & work[1:, 1:]).any():  # the check builds a surface
+            raise ValueError(f"--mask: {opts.mask!r} holds no 2x2 block of object pixels at the working size "
+                             f"{shape[1]}x{shape[0]} (a line or dots); expected the object's area, white on black")
         if mask.shape != shape:
-            return downscale_mask(mask, shape), {"method": "file", "file": opts.mask, "full_mask": mask}
+            return work, {"method": "file", "file": opts.mask, "full_mask": mask}
         return mask, {"method": "file", "file": opts.mask}
     if cap.mask is not None:  # an object folder brings its own
         return cap.mask, {"method": "the object folder's mask.png"}
@@ -254,7 +258,7 @@ def check_and_refine(opts: CaptureOptions, cap: Capture, out: Path,
 
 
 def _variation_picture(images: np.ndarray, path: Path) -> None:
-    from validate.diagnosis.usable import variation_map
+    from validate.diagnosis.mask_seed import variation_map
 
     v = variation_map(images)
     import cv2

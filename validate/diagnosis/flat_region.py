@@ -32,16 +32,42 @@ CANDIDATES = 300
 def flat_share(images: np.ndarray, mask: np.ndarray) -> float:
     """Share of `mask` that one flat surface under the photos' lights explains (module doc); 0 for fewer than 3
     photos or an empty mask."""
-    k = images.shape[0]
     gray = images.mean(axis=-1)[:, mask]  # (K, P)
-    if k < 3 or gray.shape[1] == 0:
+    if images.shape[0] < 3 or gray.shape[1] == 0:
         return 0.0
     pick = np.unique(np.linspace(0, gray.shape[1] - 1, min(gray.shape[1], PIXELS)).astype(np.int64))
-    g = gray[:, pick].T.astype(np.float64)  # (P, K)
+    return float(_follows(gray[:, pick].T.astype(np.float64)).mean())
+
+
+def flat_outside_share(images: np.ndarray, mask: np.ndarray) -> float:
+    """Share of `mask` that is flat (`flat_share`'s surface, small specks opened away) and lies outside the convex
+    hull of the rest of it: a surface that reaches out beside and under the object, as a cushion or a table taken
+    with it does. An object's own flat faces lie within its outline's hull. The mask is read on a grid of every
+    f-th pixel (f so that at most `PIXELS` of it remain); 0 for fewer than 3 photos or an empty mask."""
+    import cv2
+
+    f = max(1, int(np.ceil(np.sqrt(mask.sum() / PIXELS))))
+    mask = mask[::f, ::f]
+    if images.shape[0] < 3 or not mask.any():
+        return 0.0
+    flat = np.zeros(mask.shape, np.uint8)
+    flat[mask] = _follows(images[:, ::f, ::f].mean(axis=-1)[:, mask].T.astype(np.float64))
+    flat = cv2.morphologyEx(flat, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8)) > 0
+    rest = np.argwhere(mask & ~flat)[:, ::-1].astype(np.int32)  # (N, 2) x, y
+    if len(rest) < 3:
+        return 0.0
+    hull = np.zeros(mask.shape, np.uint8)
+    cv2.fillConvexPoly(hull, cv2.convexHull(rest), 1)
+    return float((flat & (hull == 0)).sum() / mask.sum())
+
+
+def _follows(g: np.ndarray) -> np.ndarray:
+    """(P,) bool: the pixels of `g` (P, K gray values across the photos) that follow the profile most of them follow
+    (module doc)."""
     norm = np.linalg.norm(g, axis=1)
     lit = norm > 1e-6 * max(float(norm.max()), 1e-30)
     if not lit.any():
-        return 0.0
+        return lit
     u = np.where(lit[:, None], g / np.maximum(norm, 1e-30)[:, None], 0.0)
     cos = np.cos(np.radians(FLAT_ANGLE_DEG))
     tried = np.nonzero(lit)[0][np.unique(np.linspace(0, lit.sum() - 1, min(int(lit.sum()), CANDIDATES)).astype(int))]
@@ -52,5 +78,4 @@ def flat_share(images: np.ndarray, mask: np.ndarray) -> float:
     shadow = g[:, strong] < FLAT_DARK * np.maximum(scale[:, None] * m[None], 1e-30)  # (P, S)
     seen = np.where(shadow, 0.0, g[:, strong])
     along = seen @ m / np.maximum(np.linalg.norm(seen, axis=1) * np.sqrt(((~shadow) * m ** 2).sum(1)), 1e-30)
-    follows = lit & (along > cos) & ((~shadow).sum(1) >= max(3, int(strong.sum()) // 2))
-    return float(follows.mean())
+    return lit & (along > cos) & ((~shadow).sum(1) >= max(3, int(strong.sum()) // 2))

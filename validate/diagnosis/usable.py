@@ -38,8 +38,9 @@ from functools import lru_cache
 import numpy as np
 
 from validate.diagnosis.camera_motion import camera_motion, camera_shifts
-from validate.diagnosis.flat_region import flat_share
+from validate.diagnosis.flat_region import flat_outside_share, flat_share
 from validate.diagnosis.light_reading import shading_light_angles
+from validate.diagnosis.mask_seed import border_ring, gray, grown_object, log_seed, variation_seed
 from validate.judgeable import MIN_IMAGES as COUNTS
 
 MIN_IMAGES, FEW_IMAGES = COUNTS["photos"], COUNTS["advised"]
@@ -123,6 +124,15 @@ doubted: the surface under the object taken with it (or for it). Of 282 rendered
 more. Flat objects (a blade seen from its side) read high too: the warning asks a look at mask_overlay.png."""
 
 
+FLAT_OUTSIDE_MAX = 0.1
+"""An automatic mask is doubted where more than this share of it is flat and lies outside the convex hull of the rest
+(`validate.diagnosis.flat_region.flat_outside_share`): a cushion or table beside and under the object."""
+SECOND_READING_MIN = 0.9
+"""An automatic mask is doubted where the mask grown from the second reading of the light variation (its logarithm,
+`validate.diagnosis.mask_seed`) overlaps it by less than this IoU, the pixels where the two differ counted only where
+they are not one flat surface (a lit floor or cushion the logarithm lifts, which the flat measurements judge)."""
+
+
 @dataclass
 class CaptureWarning:
     """One thing about the capture a person can change."""
@@ -138,63 +148,12 @@ class CaptureWarning:
         return {"code": self.code, "message": self.message}
 
 
-def _gray(images: np.ndarray) -> np.ndarray:
-    return images.mean(axis=-1)  # (K, H, W)
-
-
-def variation_map(images: np.ndarray) -> np.ndarray:
-    """(H, W) float32: standard deviation over the images of each pixel's gray value, over the capture's bright
-    level (99.5th percentile of the mean image), so about 0 for what the light does not change."""
-    gray = _gray(images)
-    level = max(float(np.percentile(gray.mean(axis=0), 99.5)), 1e-6)
-    return (gray.std(axis=0) / level).astype(np.float32)
-
-
-def _otsu(values: np.ndarray) -> tuple[float, float]:
-    """(threshold, separability) of Otsu's method on `values` in [0, 1] (256 bins)."""
-    hist, edges = np.histogram(np.clip(values, 0, 1), bins=256, range=(0, 1))
-    p = hist / max(hist.sum(), 1)
-    centers = (edges[:-1] + edges[1:]) / 2
-    w0 = np.cumsum(p)
-    mu = np.cumsum(p * centers)
-    total = mu[-1]
-    between = (total * w0 - mu) ** 2 / np.maximum(w0 * (1 - w0), 1e-12)
-    k = int(np.argmax(between))
-    var = float(np.sum(p * (centers - total) ** 2))
-    return float(centers[k]), float(between[k] / var) if var > 0 else 0.0
-
-
-def _largest_filled(mask: np.ndarray) -> np.ndarray:
-    import cv2
-    from scipy import ndimage
-
-    n, labels, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
-    if n <= 1:
-        return np.zeros_like(mask, bool)
-    biggest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-    return ndimage.binary_fill_holes(labels == biggest)
-
-
-def _variation_seed(images: np.ndarray) -> tuple[np.ndarray, float, float]:
-    """(light variation over its 99.5th percentile, Otsu's threshold on it, Otsu's separability): above the
-    threshold is the seed of the automatic mask."""
-    var = variation_map(images)
-    scaled = var / max(float(np.percentile(var, 99.5)), 1e-6)
-    threshold, separability = _otsu(scaled)
-    return scaled, threshold, separability
-
-
 def auto_mask(images: np.ndarray, flag: str = "--mask") -> tuple[np.ndarray, dict]:
     """(H, W) bool object mask from the images alone, and how sure it is (see the module doc); ValueError
     naming `flag` where the images cannot separate object and background."""
-    import cv2
-
-    scaled, threshold, separability = _variation_seed(images)
+    scaled, threshold, separability = variation_seed(images)
     seed = scaled > threshold
-    h, w = seed.shape
-    ring = np.zeros_like(seed)
-    b = max(1, round(0.03 * min(h, w)))
-    ring[:b], ring[-b:], ring[:, :b], ring[:, -b:] = True, True, True, True
+    ring = border_ring(seed.shape)
     inside = float(scaled[seed].mean()) if seed.any() else 0.0
     border = float(scaled[ring].mean())
     why = None
@@ -206,15 +165,7 @@ def auto_mask(images: np.ndarray, flag: str = "--mask") -> tuple[np.ndarray, dic
         why = (f"the border of the frame changes with the light like the object ({border / max(inside, 1e-9):.0%} of "
                "its variation): a lit backdrop")
     if why is None:
-        bright = _gray(images).max(axis=0)
-        picture = (np.clip(bright / max(float(np.percentile(bright, 99.5)), 1e-6), 0, 1) ** (1 / 2.2) * 255).astype(
-            np.uint8
-        )
-        gc = np.where(seed, cv2.GC_PR_FGD, cv2.GC_PR_BGD).astype(np.uint8)
-        gc[ring & ~seed] = cv2.GC_BGD
-        bgd, fgd = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
-        cv2.grabCut(np.repeat(picture[..., None], 3, axis=2), gc, None, bgd, fgd, 5, cv2.GC_INIT_WITH_MASK)
-        mask = _largest_filled(np.isin(gc, (cv2.GC_FGD, cv2.GC_PR_FGD)))
+        mask = grown_object(images, seed, scaled, threshold)
         share = float(mask.mean())
         if not 0.002 <= share <= 0.9:
             why = f"the mask found covers {share:.1%} of the frame"
@@ -234,7 +185,7 @@ def mask_doubts(images: np.ndarray, mask: np.ndarray) -> tuple[CaptureWarning | 
 (`STILL_LIGHT_DEG`), where none of them can tell."""
     import cv2
 
-    scaled, threshold, _ = _variation_seed(images)
+    scaled, threshold, _ = variation_seed(images)
     seed = scaled > threshold
     radius = np.sqrt(mask.sum() / np.pi)
     rim = max(1, round(MISSED_RIM * radius))
@@ -243,9 +194,20 @@ def mask_doubts(images: np.ndarray, mask: np.ndarray) -> tuple[CaptureWarning | 
     missed = float((seed & ~grown).sum() / max(seed.sum(), 1))
     weak = float((mask & (scaled < WEAK_LEVEL * threshold)).sum() / max(mask.sum(), 1))
     flat, spread = flat_share(images, mask), light_spread_deg(images, mask)
+    beside = flat_outside_share(images, mask)
+    second = grown_object(images, log_seed(scaled), scaled, threshold, touching=mask)  # the parts it reads anew
+    union = max(int((mask | second).sum()), 1)
+    differ = (mask ^ second).sum() * (1 - flat_share(images, mask ^ second))  # a lit floor is flat, left out
+    second_iou = 1 - float(differ) / union
     facts = {"seed_agreement_iou": round(agreement, 4), "varying_outside_share": round(missed, 4),
-             "weak_inside_share": round(weak, 4), "flat_share": round(flat, 4), "light_spread_deg": round(spread, 1)}
+             "weak_inside_share": round(weak, 4), "flat_share": round(flat, 4),
+             "flat_outside_share": round(beside, 4), "second_reading_iou": round(second_iou, 4),
+             "light_spread_deg": round(spread, 1)}
     seen = []
+    if second_iou < SECOND_READING_MIN:
+        seen.append(f"read from the logarithm of the light variation, the object's outline changes (the two masks "
+                    f"overlap by {second_iou:.0%}, a flat surface aside): a shiny object's highlights taken for all of "
+                    "it, or a dim part left out")
     if missed > MISSED_SHARE_MAX:
         seen.append(f"{missed:.0%} of the pixels that change most with the light lie outside it (part of the object "
                     "left out, or the mask on something else)")
@@ -260,6 +222,9 @@ def mask_doubts(images: np.ndarray, mask: np.ndarray) -> tuple[CaptureWarning | 
     elif flat > FLAT_SHARE_MAX:
         seen.append(f"{flat:.0%} of it is one flat surface lit alike in every photo (the table, cloth or backdrop "
                     "under the object?)")
+    elif beside > FLAT_OUTSIDE_MAX:
+        seen.append(f"{beside:.0%} of it is a flat surface reaching out beside the rest (the table or cloth under "
+                    "the object?)")
     facts["doubtful"] = bool(seen)
     if not seen:
         return None, facts
@@ -290,9 +255,9 @@ def _contour_light(images: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np
     Lambertian sphere under one distant light the strength is about sin(polar angle) and the azimuth the light's;
     light from all around (an environment) leaves the strength small but the outline bright, which the mean sees."""
     ring, normals = _contour(mask)
-    gray = _gray(images)
-    values = gray[:, ring]  # (K, N)
-    level = np.maximum(np.percentile(gray[:, mask], 99, axis=1), 1e-12)
+    g = gray(images)
+    values = g[:, ring]  # (K, N)
+    level = np.maximum(np.percentile(g[:, mask], 99, axis=1), 1e-12)
     vx, vy = (values * normals[:, 0]).mean(axis=1), (values * normals[:, 1]).mean(axis=1)
     return 4 * np.hypot(vx, vy) / level, values.mean(axis=1) / level, np.degrees(np.arctan2(vy, vx))
 
@@ -329,7 +294,7 @@ def light_angles(images: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.n
     strength, mean, azimuth = _contour_light(images, mask)
     thetas, strength_curve, mean_curve = _outline_curves(int(round(np.sqrt(mask.sum() / np.pi))))
     polar = np.maximum(np.interp(strength, strength_curve, thetas), np.interp(mean, mean_curve, thetas))
-    dark = _gray(images)[:, mask].max(axis=1) <= 0
+    dark = gray(images)[:, mask].max(axis=1) <= 0
     polar[dark], azimuth[dark] = np.nan, np.nan
     return polar, azimuth
 
@@ -366,7 +331,7 @@ def light_spread_deg(images: np.ndarray, mask: np.ndarray) -> float:
     the images; the albedo cancels). It reads the spread of the light's directions, not their angle from the axis:
     light from one side that hardly moves reads low too."""
     angles, curve = _spread_curve()
-    return float(np.interp(_spread(_gray(images)[:, mask]), curve, angles))
+    return float(np.interp(_spread(gray(images)[:, mask]), curve, angles))
 
 
 def _largest_gap_deg(angles: np.ndarray) -> float:
@@ -415,8 +380,7 @@ def capture_warnings(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray
                                   f"compared are shifted by about {np.hypot(*motion):.0f} px against each other "
                                   f"({_names(names, seen)}): fix the camera on a tripod and release it remotely or "
                                   "with a timer"))
-    gray = _gray(images)[:, mask]
-    level = np.percentile(gray, 99, axis=1)
+    level = np.percentile(gray(images)[:, mask], 99, axis=1)
     facts["object_level_p99"] = np.round(level, 4).tolist()
     if float(level.max()) < 1.0 / 255:
         out.insert(0, CaptureWarning("too_dark", "the object is black in every image (nothing above the darkest "
