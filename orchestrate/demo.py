@@ -101,8 +101,8 @@ class DemoOptions:
     """Output folder: data/, pred/, rerender/ and summary.md."""
     objects: int = option(4, minimum=1)
     """Objects to render."""
-    images: int = option(8, minimum=1)
-    """Images per object."""
+    images: int = option(8, minimum=4)
+    """Images per object (at least 4: the spherical-harmonics baseline's ambient and three lighting terms)."""
     res: int = option(64, minimum=16)
     """Square resolution."""
     spp: int = option(32, minimum=1)

@@ -72,7 +72,11 @@ def run_step(cmd: list[str], partial_ok: bool = False, cwd: str | os.PathLike | 
     print("+ " + " ".join(map(str, shown)), flush=True)
     if deadline is not None and time.time() >= deadline:
         raise OutOfTime(f"{out_of_time} before step {_describe(cmd)} started", 2)
-    proc = subprocess.Popen([str(c) for c in cmd], stderr=subprocess.PIPE, cwd=cwd)
+    from scenes.cli.supervise import die_with_parent
+
+    me = os.getpid()  # a step dies with the pipeline that runs it (no orphan writes on after a kill -9)
+    proc = subprocess.Popen([str(c) for c in cmd], stderr=subprocess.PIPE, cwd=cwd,
+                            preexec_fn=lambda: die_with_parent(me))
     stopped: list[float] = []
     timers = []
     if deadline is not None:

@@ -2557,8 +2557,8 @@ def _snapshot(root: Path) -> dict[str, str]:
             out[str(Path(dirpath, d).relative_to(root))] = "dir"
         for f in filenames:
             p = Path(dirpath, f)
-            out[str(p.relative_to(root))] = (f"link to {os.readlink(p)}" if p.is_symlink() and not p.exists() else
-                                             hashlib.sha256(p.read_bytes()).hexdigest())
+            out[str(p.relative_to(root))] = (f"link to {os.readlink(p)}" if p.is_symlink() and not p.is_file() else
+                                             hashlib.sha256(p.read_bytes()).hexdigest())  # (never a device read)
     return out
 
 
@@ -3399,6 +3399,119 @@ ROWS += [
 ]
 
 
+def _device_link(rel: str, device: str = "/dev/zero") -> Callable[[Path, Path], None]:
+    """Setup: T/<rel>, a link to a device (a file name that is no regular file)."""
+    def setup(w: Path, t: Path) -> None:
+        _mk((t / rel).parent)
+        os.symlink(device, t / rel)
+    return setup
+
+
+def _object_with(rel: str, then: Callable[[Path], None]) -> Callable[[Path, Path], None]:
+    """Setup: T/00000.data, the world's object 00000 whose file `rel` goes through `then`."""
+    def setup(w: Path, t: Path) -> None:
+        shutil.copytree(w / "data" / f"{OBJ}.data", t / f"{OBJ}.data")
+        then(t / f"{OBJ}.data" / rel)
+    return setup
+
+
+def _replaced_by_link(device: str) -> Callable[[Path], None]:
+    def then(path: Path) -> None:
+        path.unlink()
+        os.symlink(device, path)
+    return then
+
+
+def _huge_png_header(w: Path, t: Path) -> None:
+    """Setup: PNG photos whose IMG_0002.png declares 60000 x 60000 pixels in its header (its data unchanged)."""
+    import struct
+    import zlib
+
+    _photos(".png")(w, t)
+    path = t / "photos" / "IMG_0002.png"
+    data = bytearray(path.read_bytes())
+    assert data[12:16] == b"IHDR"
+    data[16:24] = struct.pack(">II", 60000, 60000)
+    data[29:33] = struct.pack(">I", zlib.crc32(bytes(data[12:29])))
+    path.write_bytes(bytes(data))
+
+
+def _one_row_mask(w: Path, t: Path) -> None:
+    import cv2
+
+    _photos()(w, t)
+    mask = np.zeros((32, 32), np.uint8)
+    mask[16, 4:28] = 255
+    cv2.imwrite(str(t / "mask.png"), mask)
+
+
+def _card_a_list(w: Path, t: Path) -> None:
+    """Setup: T/cand, a session's folder whose model_card.json is a JSON list."""
+    _put(("cand/model_card.json", "[1, 2]\n"))(w, t)
+
+
+def _sensor_user_file_in_object(o: Path) -> None:
+    (o / "00000.data" / "notes.txt").write_text("mine\n")
+
+
+ROWS += [
+    # ---- sweep 4: files that are not regular files, counts an index claims, engines' addresses, bounds
+    Row("rerender-scene-json-a-device", RR, SWEEP3, 2, ("scene.json", "not a regular file"),
+        setup=_object_with("scene.json", _replaced_by_link("/dev/zero")), check=_not_written("o")),
+    Row("predict-checkpoint-a-device", PR, ["--input", "{W}/data/00000.data", "--out", "{T}/o", "--method", "model",
+                                            "--checkpoint", "/dev/zero"], 2,
+        ("--checkpoint", "/dev/zero", "not a regular file")),
+    Row("predict-image-a-device", PR, ["--input", "{T}/00000.data", "--out", "{T}/o", "--method", "least-squares"],
+        2, ("L001.png", "not a regular file"), setup=_object_with("L001.png", _replaced_by_link("/dev/zero"))),
+    Row("capture-mask-a-device", CAP, [*CAPTURE, "--mask", "{T}/m.png"], 2, ("--mask", "not a regular file"),
+        setup=_both(_photos(), _device_link("m.png"))),
+    Row("capture-photo-header-too-big", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "IMG_0002.png", "cannot be decoded"), setup=_huge_png_header),
+    Row("capture-mask-one-row", CAP, [*CAPTURE, "--mask", "{T}/mask.png"], 2, ("--mask", "no 2x2 block"),
+        setup=_one_row_mask, check=_not_written("o/normal.png")),
+    Row("train-shard-index-object-count-edited", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps",
+                                                     "1"], 2, ("index.json", "says objects 5"),
+        setup=_index_edited(lambda i: i.update(objects=5)), check=_not_written("run")),
+    Row("train-shard-index-image-count-edited", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps",
+                                                    "1"], 2, ("000000.tar", "holds 4 images", "lists 9"),
+        setup=_index_edited(lambda i: i["shards"][0]["objects"][0].update(images=9)), check=_not_written("run")),
+    Row("train-shard-index-nested-deep", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps", "1"], 2,
+        ("index.json", "nested too deeply"),
+        setup=_both(_earlier_export("s"), _put(("s/index.json", "[" * 100000 + "]" * 100000))),
+        check=_not_written("run")),
+    Row("train-out-inside-data", TR, [*TRAIN_ONE, "--data", "{T}/ds", "--out", "{T}/ds/run", "--steps", "1"], 2,
+        ("--out", "lies inside --data"), setup=_copy("data", "ds"), check=_not_written("ds/run")),
+    Row("rerender-out-inside-normals", RR, ["--data", "{W}/data/00000.data", "--normals", "{T}/p", "--out",
+                                            "{T}/p/check", "--no-floors", "--spp", "1"], 2,
+        ("--out", "lies inside --normals"), setup=_copy("pred/00000", "p"), check=_not_written("p/check")),
+    Row("rerender-floor-maps-empty", RR, ["--data", "{W}/data/00000.data", "--normals", "{W}/pred/00000", "--out",
+                                          "{T}/o", "--fit", "--floor-maps", ""], 2, ("--floor-maps", "empty list")),
+    Row("export-out-a-loop-of-links", EXP, ["--data", "{W}/data", "--out", "{T}/o", "--quiet"], 2,
+        ("--out", "leads to no folder"),
+        setup=lambda w, t: (os.symlink(t / "o2", t / "o"), os.symlink(t / "o", t / "o2"))),
+    Row("sensor-overwrite-keeps-a-user-file-in-an-object", SEN, ["--data", "{W}/data", "--sensor", "phone", "--out",
+                                                                 "{T}/o", "--quiet", "--overwrite"], 2,
+        ("notes.txt", "was not written by wildgen.sensor"), setup=_sensor_before(_sensor_user_file_in_object),
+        check=_kept("o/00000.data/notes.txt", "mine\n")),
+    Row("ship-model-card-a-list", SHIP, ["--candidate", "{T}/cand", "--val", "{W}/data", "--diligent", "none"], 2,
+        ("--candidate", "model_card.json", "JSON list"), setup=_card_a_list),
+    Row("make-ray-empty-address", MK, ["--out", "{T}/o", *TINY, "--ray", ""], 2, ("--ray", "got ''"),
+        check=_not_written("o")),
+    Row("make-ray-port-missing", MK, ["--out", "{T}/o", *TINY, "--ray", "127.0.0.1:"], 2,
+        ("--ray", "'127.0.0.1:'", "HOST:PORT"), check=_not_written("o")),
+    Row("make-ray-another-scheme", MK, ["--out", "{T}/o", *TINY, "--ray", "http://127.0.0.1:1"], 2,
+        ("--ray", "http://"), check=_not_written("o")),
+    Row("make-height-too-large", MK, ["--out", "{T}/o", "--objects", "1", "--images", "2", "--width", "8", "--height",
+                                      "1000000", "--workers", "0", "--quiet"], 2, ("--height", "8192"),
+        check=_not_written("o")),
+    Row("make-sides-a-sliver", MK, ["--out", "{T}/o", "--objects", "1", "--images", "2", "--width", "8", "--height",
+                                    "4096", "--workers", "0", "--quiet"], 2, ("--height", "8x4096", "8 times"),
+        check=_not_written("o")),
+    Row("demo-images-too-few", DEMO, ["--out", "{T}/d", "--objects", "1", "--images", "1"], 2, ("--images", "1"),
+        check=_not_written("d/data")),
+]
+
+
 @pytest.mark.parametrize("row", ROWS, ids=[r.id for r in ROWS])
 def test_bad_input(row: Row, world: Path, tmp_path: Path, capsys, request):
     for module in row.needs:
@@ -3583,3 +3696,4 @@ def test_ray_address_of_something_else_than_a_ray_head_is_refused_at_once(tmp_pa
     assert len(errors) == 2 and all(f"'{address}'" in e and "not as a Ray head does" in e for e in errors), err
     assert rc_auto == 2 and errors[1].startswith("error: --ray auto: RAY_ADDRESS cannot reach"), err
     assert not (tmp_path / "o").exists()
+

@@ -18,15 +18,20 @@ from fixtures import interruptible
 REPO = Path(__file__).resolve().parents[1]
 
 WORK = """
-import ctypes, os, signal, sys, time
+import ctypes, os, signal, subprocess, sys, time
 from pathlib import Path
-from scenes.cli.supervise import run_supervised
+from scenes.cli.supervise import die_with_parent, run_supervised
 from scenes.files import atomic_write_text
 
 def main():
     out = Path(sys.argv[sys.argv.index("--out") + 1])
     atomic_write_text(out / "finished.txt", "whole")
     (out / "pid").write_text(str(os.getpid()))
+    # a step the work runs, as a pipeline's (gpu_session's wildgen.make): it goes when the work is stopped
+    me = os.getpid()
+    step = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(120)"],
+                            preexec_fn=lambda: die_with_parent(me))  # as orchestrate.steps.run_step starts steps
+    (out / "step_pid").write_text(str(step.pid))
     # a native handler that swallows SIGINT, as a render in progress would have installed
     handler = ctypes.CFUNCTYPE(None, ctypes.c_int)(lambda _s: None)
     ctypes.CDLL(None).signal(signal.SIGINT, handler)
@@ -83,10 +88,11 @@ def test_a_stop_kills_the_work_whole_in_one_line(slow_command, sig, code):
     assert err.strip().splitlines() == ["interrupted: one line"], err
     assert (out / "finished.txt").read_text() == "whole"  # what was finished stays
     assert not list(out.glob(".*.tmp*")), sorted(p.name for p in out.iterdir())  # the half-written file goes
+    step = int((out / "step_pid").read_text())
     t0 = time.monotonic()
-    while _alive(child) and time.monotonic() - t0 < 10:
+    while (_alive(child) or _alive(step)) and time.monotonic() - t0 < 10:
         time.sleep(0.05)
-    assert not _alive(child)
+    assert not _alive(child) and not _alive(step)  # the work's own steps too: its whole session is killed
 
 
 def test_the_terminal_ctrl_c_reaches_only_the_supervisor_and_a_kill_of_it_takes_the_work_along(slow_command):

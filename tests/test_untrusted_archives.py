@@ -135,3 +135,54 @@ def test_help_unpacks_nothing_where_the_packages_are_installed(tmp_path):
     _archive(carry / SITE_ARCHIVE, [_file("pkg/__init__.py", b"")])
     boot_site(["--carry", str(carry), "--work", str(work), "--help"])
     assert not work.exists()
+
+
+@pytest.mark.parametrize("member", ["site/sitecustomize.py", "victim.txt", "data/manifest.json"])
+def test_the_assets_archive_writes_only_under_work_assets(tmp_path, member):
+    """A carried assets.tar.xz unpacks into work/assets and nowhere else in --work: not onto the steps' path
+    (code that would run), not over the user's files or a step's dataset."""
+    from orchestrate.relay import ASSET_ARCHIVE, SITE_ARCHIVE, unpack_carry
+    from scenes.cli.errors import UsageError
+
+    carry, work = tmp_path / "carry", tmp_path / "work"
+    carry.mkdir()
+    work.mkdir()
+    (work / "victim.txt").write_text("mine\n")
+    _archive(carry / SITE_ARCHIVE, [_file("pkg/__init__.py", b"")])
+    _archive(carry / ASSET_ARCHIVE, [_file("assets/meshes/a.ply", b"ply"), _file(member, b"import os\n")])
+    with pytest.raises(UsageError, match=f"{member}.*outside its assets/ folder"):
+        unpack_carry(carry, work)
+    assert (work / "victim.txt").read_text() == "mine\n"
+    assert not (work / "site" / "sitecustomize.py").exists() and not (work / "data").exists()
+
+
+def _wheel(path: Path, names: list[str]) -> Path:
+    import zipfile
+
+    with zipfile.ZipFile(path, "w") as z:
+        for n in names:
+            z.writestr(n, b"x")
+    return path
+
+
+def test_a_pack_refuses_wheel_members_outside_and_never_replaces_the_users_files(tmp_path, capsys):
+    from orchestrate.gpu_session import main
+
+    wheels, pack = tmp_path / "wh", tmp_path / "pk"
+    wheels.mkdir()
+    bad = _wheel(wheels / "mitsuba-3.9.1-cp312-cp312-manylinux_2_17_x86_64.whl", ["mitsuba/__init__.py",
+                                                                                  "../../evil.py"])
+    assert main(["--pack", str(pack), "--wheels", str(wheels), "--assets", "none"]) == 2
+    err = capsys.readouterr().err
+    assert "--wheels" in err and "../../evil.py" in err and not (pack / "site.tar.xz").exists()
+    bad.unlink()
+    _wheel(wheels / "mitsuba-3.9.1-cp312-cp312-manylinux_2_17_x86_64.whl", ["mitsuba/__init__.py"])
+    pack.mkdir(exist_ok=True)
+    (pack / "site.tar.xz").write_bytes(b"the user's own")
+    assert main(["--pack", str(pack), "--wheels", str(wheels), "--assets", "none"]) == 2
+    assert "--overwrite" in capsys.readouterr().err and (pack / "site.tar.xz").read_bytes() == b"the user's own"
+    (pack / "manifest.json").write_text('{"mine": 1}\n')
+    assert main(["--pack", str(pack), "--wheels", str(wheels), "--assets", "none", "--overwrite"]) == 2
+    assert "was not written by" in capsys.readouterr().err and (pack / "site.tar.xz").read_bytes() == b"the user's own"
+    assert main(["--pack", str(pack), "--wheels", str(wheels), "--init", "shipped"]) == 2
+    assert "--init: a session's flag, not used with --pack" in capsys.readouterr().err

@@ -160,6 +160,17 @@ def model_normals(model: Any, images: Any, mask: Any, tta: int = 1, views: list 
     return total
 
 
+def _weights_flag(net: LoadedModel) -> str:
+    """The flag a network's weights came from, for its messages."""
+    from unips.models import DEFAULT_MODEL, pretrained_weights
+
+    try:
+        shipped = net.checkpoint.resolve() == pretrained_weights(net.meta.get("model_name") or DEFAULT_MODEL).resolve()
+    except (KeyError, ValueError, OSError):  # a network with no shipped weights
+        shipped = False
+    return f"--model {net.meta.get('model_name')}" if shipped else "--checkpoint"
+
+
 def scalable_patch(net: LoadedModel) -> int:
     """The side of `net`'s `--scalable` sub-images (its contract's `patch`); UsageError when it has none."""
     if net.contract.patch is None:
@@ -196,7 +207,8 @@ def run_model(net: LoadedModel, obj: PSObject, res: int | None = None, margin: i
     def back(t: Any) -> np.ndarray:  # (3, R, R) -> unit (H, W, 3) in the original frame
         n = t.permute(1, 2, 0).cpu().numpy()  # (R, R, 3)
         if not np.all(np.isfinite(n)):
-            raise ValueError(f"model: produced non-finite normals for {obj.name}")
+            raise ValueError(f"{_weights_flag(net)}: the network {str(net.checkpoint)!r} produced non-finite normals "
+                             f"for {obj.name} (weights that overflow on these images: damaged or not trained?)")
         norm = np.linalg.norm(n, axis=2, keepdims=True)
         n = np.where(work.mask[..., None] & (norm > 1e-8), n / np.maximum(norm, 1e-12), 0.0).astype(np.float32)
         return uncrop(n, prepared.crop, mask=obj.mask)
@@ -247,7 +259,8 @@ def run_published(net: LoadedModel, obj: PSObject, res: int | None = None, tta: 
     def back(t: Any) -> np.ndarray:  # (3, S, S) -> (H, W, 3) in the original frame
         n = t.permute(1, 2, 0).cpu().numpy() * mask[..., None]
         if not np.all(np.isfinite(n)):
-            raise ValueError(f"model: produced non-finite normals for {obj.name}")
+            raise ValueError(f"{_weights_flag(net)}: the network {str(net.checkpoint)!r} produced non-finite normals "
+                             f"for {obj.name} (weights that overflow on these images: damaged or not trained?)")
         return sdm_output(n, crop, obj.mask)
 
     if views is not None:

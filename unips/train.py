@@ -149,6 +149,17 @@ def _out_of_time(run: Run, budget: Budget, *kinds: str) -> bool:
     return over
 
 
+def _inputs(cfg) -> dict:
+    """The folders the run reads (its --out may not lie inside them): --data's and --val's entries."""
+    from unips.train_data import data_roots
+
+    inputs = {}
+    for flag, value in (("--data", cfg.data), ("--val", cfg.val)):
+        for i, root in enumerate(data_roots(value, flag) if value else []):
+            inputs[flag if i == 0 else f"{flag} ({root})"] = root
+    return inputs
+
+
 def train(cfg: TrainConfig | Sequence[str], started: float | None = None) -> dict[str, Any]:
     """Run training as configured; returns a summary dict. `started`: when --time-limit's clock started (default:
     now)."""
@@ -160,7 +171,8 @@ def train(cfg: TrainConfig | Sequence[str], started: float | None = None) -> dic
         cfg = config_from_args(cfg)
     cfg.validate()
     # One writer per run folder: rank 0, the process that writes every file, holds it for the whole run.
-    with output_lock(cfg.out) if int(os.environ.get("RANK", "0")) == 0 else contextlib.nullcontext():
+    main_rank = int(os.environ.get("RANK", "0")) == 0
+    with output_lock(cfg.out, inputs=_inputs(cfg)) if main_rank else contextlib.nullcontext():
         run = _start(cfg)
         done, stopped = _loop(run, started)
         if run.dist.main and (run.start < cfg.steps or not (run.out / "final.safetensors").exists()):

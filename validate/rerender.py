@@ -306,7 +306,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
     failed: dict[str, str] = {}
     try:
         args = COMMAND.parse(argv).validate()
-        held.enter_context(output_lock(args.out, inputs={"--data": args.data}))
+        held.enter_context(output_lock(args.out, inputs={"--data": args.data, "--normals": args.normals}))
         logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
                             format="%(levelname)s %(name)s: %(message)s")
         from scenes.folder.layouts import detect_layout, has_scene

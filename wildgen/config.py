@@ -25,6 +25,10 @@ MAX_BOUNCES = 2**31 - 3
 """The most --bounces Mitsuba takes: its max_depth (bounces + 2) is a signed 32-bit integer."""
 
 
+MAX_ASPECT = 8
+"""The longer side of the images at most this many times the shorter (the object is framed in the shorter)."""
+
+
 @dataclass
 class GenConfig:
     """Everything that determines a dataset; with the same values the same files come out."""
@@ -49,10 +53,10 @@ class GenConfig:
     mosaic."""
     images: int = option(10, minimum=1)
     """Images per object (PS-Wild: 10)."""
-    width: int = option(128, minimum=8)
-    """Image width in pixels (at least 8: an object needs pixels to be kept)."""
-    height: int = option(128, minimum=8)
-    """Image height in pixels (at least 8)."""
+    width: int = option(128, minimum=8, maximum=8192)
+    """Image width in pixels (8 to 8192: an object needs pixels to be kept)."""
+    height: int = option(128, minimum=8, maximum=8192)
+    """Image height in pixels (8 to 8192; the longer side at most `MAX_ASPECT` times the shorter)."""
     spp: int = option(64, minimum=1)
     """Samples per pixel of the path-traced images (PS-Wild: 256)."""
     bounces: int = option(10, minimum=0, maximum=MAX_BOUNCES)
@@ -137,6 +141,9 @@ class GenConfig:
                 f"{', '.join(LIGHT_FAMILIES)}"
             )
         check_fields(self)
+        if max(self.width, self.height) > MAX_ASPECT * min(self.width, self.height):
+            raise ValueError(f"--height: {self.width}x{self.height} (--width x --height) is more than {MAX_ASPECT} "
+                             "times longer one way than the other; the object would fill a sliver of the frame")
         self.detail_strength_range()
         if self.cluster is not None:
             self.cluster_range()

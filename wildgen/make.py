@@ -71,7 +71,11 @@ class MakeOptions:
         if self.shard_encoding != "files" and not self.shards:
             raise UsageError(f"--shard-encoding: {self.shard_encoding!r} needs --shards (the folder to export to)")
         if self.res is not None:
-            check_int(self.res, "--res", minimum=8)
+            check_int(self.res, "--res", minimum=8, maximum=8192)
+        if self.ray is not None:
+            from wildgen.ray_engine import check_ray_address
+
+            check_ray_address(self.ray)
         return self
 
 

@@ -63,6 +63,29 @@ def _host_port(address: str) -> tuple[str, int] | None:
     return host.strip("[]"), int(port)
 
 
+def check_ray_address(address: str) -> None:
+    """The form of a --ray value, before anything runs: auto, local, HOST:PORT (port 1 to 65535) or
+    ray://HOST:PORT (Ray Client, which needs `ray[client]`); UsageError naming --ray otherwise. An empty value (an
+    unset variable) is refused, not read as a private local cluster."""
+    from scenes.cli.errors import UsageError
+
+    if address in ("auto", "local"):
+        return
+    target = _host_port(address)
+    scheme = address.split("://", 1)[0] if "://" in address else None
+    if target is None or not 1 <= target[1] <= 65535 or scheme not in (None, "ray"):
+        raise UsageError(f"--ray: got {address!r}, expected auto, local, HOST:PORT (port 1 to 65535) or "
+                         "ray://HOST:PORT")
+    if address.startswith("ray://"):
+        try:
+            from ray._private.utils import get_ray_client_dependency_error  # Ray's own test of its client
+        except ImportError:  # no Ray at all: refused as such where Ray is needed
+            return
+        if get_ray_client_dependency_error() is not None:
+            raise UsageError(f"--ray: {address!r} is a Ray Client address, which needs pip install 'ray[client]'; "
+                             "install it, or give the head's HOST:PORT (its GCS port, 6379 by default)")
+
+
 def _reach(host: str, port: int, timeout: float) -> None:
     """Open (and close) a TCP connection to host:port; raises what socket raises."""
     socket.create_connection((host, port), timeout=timeout).close()
