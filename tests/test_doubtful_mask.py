@@ -194,3 +194,43 @@ def test_a_mask_that_took_a_lit_floor_with_the_object_is_doubted_as_one_flat_sur
     assert facts["seed_agreement_iou"] > 0.9, facts  # the floor is in the seed too
     assert warning is not None and facts["flat_share"] > 0.5, facts
     assert "one flat surface lit alike in every photo" in warning.message
+
+
+def test_a_shiny_objects_highlights_taken_for_all_of_it_are_doubted():
+    """A dim sphere with a strong highlight under each lamp: the highlights vary far more than the body, so the
+    first reading of the variation keeps them only (a third of the sphere); the second reading (its logarithm)
+    finds the whole sphere, and the mask is doubted."""
+    lights = _lights()
+    n, ball = sphere(SIZE, pad=20)
+    half = lights + np.array([0.0, 0.0, 1.0])
+    half /= np.linalg.norm(half, axis=1, keepdims=True)
+    highlight = np.clip(np.einsum("...c,kc->k...", n, half), 0, None) ** 60
+    images = _photos((0.03 * shading(n, lights) + 2.0 * highlight) * ball)
+    mask, _ = auto_mask(images)
+    assert _iou(mask, ball) < 0.5  # the fragment
+    warning, facts = mask_doubts(images, mask)
+    assert warning is not None and facts["second_reading_iou"] < 0.5, facts
+    assert "logarithm" in warning.message
+
+
+def test_a_hole_the_background_shows_through_stays_open():
+    """A ring (a torus seen from above, the black background through its hole): the automatic mask keeps the
+    hole open; a pocket of the object that varies (it is lit from some side) would be filled."""
+    rows, cols = np.mgrid[0:SIZE, 0:SIZE] + 0.5
+    r = np.hypot(rows - 48, cols - 48)
+    ring = (r < 36) & (r > 14)
+    d = np.clip((r - 25.0) / 11.0, -1, 1)  # across the tube of radius 11 around the circle of radius 25
+    n = np.stack([d * (cols - 48) / r, -d * (rows - 48) / r, np.sqrt(np.clip(1 - d * d, 0, None))], -1)
+    images = _photos(0.6 * shading(n * ring[..., None], _lights()) * ring)
+    mask, _ = auto_mask(images)
+    assert not mask[48, 48] and _iou(mask, ring) > 0.95
+    assert mask_doubts(images, mask)[0] is None
+
+
+def test_a_flat_surface_reaching_out_beside_the_object_is_measured():
+    """The cushion taken with the sphere reaches out on both sides of it: most of it lies outside the convex hull
+    of the rest of the mask (`flat_outside_share`); the sphere alone has none."""
+    images, ball, cushion = sphere_on_cushion()
+    _, union = mask_doubts(images, ball | cushion)
+    _, alone = mask_doubts(images, ball)
+    assert union["flat_outside_share"] > 0.1 and alone["flat_outside_share"] == 0.0, (union, alone)

@@ -1,11 +1,12 @@
 """Is this capture usable? What the images alone say before any model runs: the per-pixel light variation, an
 object mask when none is given, and the warnings a person can act on.
 
-- `variation_map`: how much each pixel changes across the images (standard deviation of its gray value over
-  the images, relative to the bright level of the capture); the object changes with the light, a far or dark
-  background does not.
+- `validate.diagnosis.mask_seed.variation_map`: how much each pixel changes across the images (standard deviation
+  of its gray value over the images, relative to the bright level of the capture); the object changes with the
+  light, a far or dark background does not.
 - `auto_mask`: Otsu's threshold on the variation map as the seed, refined by GrabCut (OpenCV) on the capture's
-  brightest image, the largest connected part kept and its holes filled. Its confidence is Otsu's
+  brightest image, the largest connected part kept and its holes filled, except holes the background shows
+  through (they vary like it: `mask_seed.HOLE_LEVEL`). Its confidence is Otsu's
   separability (between-class over total variance of the variation map, 1 = two perfectly apart classes).
   It refuses (ValueError asking for `--mask FILE`) where it cannot tell object from background: a backdrop
   that changes with the light about as much as the object (the border of the frame varies like the object),
@@ -13,7 +14,8 @@ object mask when none is given, and the warnings a person can act on.
 - `mask_doubts`: whether an automatic mask may be wrong though it was found (`doubtful_mask`, never fatal): the
   light variation is the only evidence of where the object is, and a mask it does not support (one that leaves out
   much of what changes with the light, is made largely of what hardly changes, or largely of one flat surface lit
-  alike in every photo) may have followed a lit surface under the object, a highlight, or only a part of it.
+  alike in every photo, or holds a flat surface reaching out beside the rest, or changes when the variation is
+  read on a logarithmic scale) may have followed a lit surface under the object, a highlight, or only a part of it.
 - `capture_warnings`: `too_few_images`, `too_dark`, `saturated`, `frontal_light`, `one_sided_light`,
   `camera_moved`, each a `CaptureWarning` with a message saying what to change; the fatal ones stop.
 
@@ -127,10 +129,12 @@ more. Flat objects (a blade seen from its side) read high too: the warning asks 
 FLAT_OUTSIDE_MAX = 0.1
 """An automatic mask is doubted where more than this share of it is flat and lies outside the convex hull of the rest
 (`validate.diagnosis.flat_region.flat_outside_share`): a cushion or table beside and under the object."""
-SECOND_READING_MIN = 0.9
+SECOND_READING_MIN, SECOND_READING_BORDER_MAX = 0.9, 0.25
 """An automatic mask is doubted where the mask grown from the second reading of the light variation (its logarithm,
 `validate.diagnosis.mask_seed`) overlaps it by less than this IoU, the pixels where the two differ counted only where
-they are not one flat surface (a lit floor or cushion the logarithm lifts, which the flat measurements judge)."""
+they are not one flat surface (a lit floor or cushion the logarithm lifts, which the flat measurements judge). The
+second reading abstains where its seed covers more than the second share of the frame's border: there the logarithm
+lifts a backdrop, a floor or the sensor's noise along with the object."""
 
 
 @dataclass
@@ -195,13 +199,18 @@ def mask_doubts(images: np.ndarray, mask: np.ndarray) -> tuple[CaptureWarning | 
     weak = float((mask & (scaled < WEAK_LEVEL * threshold)).sum() / max(mask.sum(), 1))
     flat, spread = flat_share(images, mask), light_spread_deg(images, mask)
     beside = flat_outside_share(images, mask)
-    second = grown_object(images, log_seed(scaled), scaled, threshold, touching=mask)  # the parts it reads anew
-    union = max(int((mask | second).sum()), 1)
-    differ = (mask ^ second).sum() * (1 - flat_share(images, mask ^ second))  # a lit floor is flat, left out
-    second_iou = 1 - float(differ) / union
+    low = log_seed(scaled)
+    border = float(low[border_ring(low.shape)].mean())
+    second_iou = 1.0  # where the logarithm lifts the frame's border (a backdrop, a floor, noise) it cannot tell
+    if border <= SECOND_READING_BORDER_MAX:
+        second = grown_object(images, low, scaled, threshold, touching=mask)  # the parts it reads anew
+        union = max(int((mask | second).sum()), 1)
+        differ = (mask ^ second).sum() * (1 - flat_share(images, mask ^ second))  # a lit floor is flat, left out
+        second_iou = 1 - float(differ) / union
     facts = {"seed_agreement_iou": round(agreement, 4), "varying_outside_share": round(missed, 4),
              "weak_inside_share": round(weak, 4), "flat_share": round(flat, 4),
              "flat_outside_share": round(beside, 4), "second_reading_iou": round(second_iou, 4),
+             "second_reading_border_share": round(border, 4),
              "light_spread_deg": round(spread, 1)}
     seen = []
     if second_iou < SECOND_READING_MIN:
