@@ -103,7 +103,7 @@ class DemoOptions:
     """Objects to render."""
     images: int = option(8, minimum=4)
     """Images per object (at least 4: the spherical-harmonics baseline's ambient and three lighting terms)."""
-    res: int = option(64, minimum=16)
+    res: int = option(64, minimum=16, maximum=8192)
     """Square resolution."""
     spp: int = option(32, minimum=1)
     """Samples per pixel."""
