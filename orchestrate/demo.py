@@ -201,6 +201,10 @@ def demo(args: DemoOptions) -> int:
     for m in methods:
         pred = out / "pred" / m
         complete = run_step(py + ["unips.predict", *predict_argv(args, m)], partial_ok=True)
+        if not complete and not any(pred.glob("*/predict.json")):  # nothing to evaluate or re-render
+            flag = "--checkpoint" if m == "model" else f"--baseline {m}"
+            raise UsageError(f"{flag}: predicted none of the {args.objects} object(s) (why is above); expected a "
+                             "method that runs on these renders: raise --res or --images, or choose another --baseline")
         run_step(py + ["unips.evaluate", "--pred", str(pred), "--gt", str(data), *_again(args)]
                  + ([] if complete else ["--allow-missing"]), partial_ok=True)
         run_step(py + ["validate.rerender", *rerender_argv(args, m)], partial_ok=True)

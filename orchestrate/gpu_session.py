@@ -160,6 +160,10 @@ class SessionOptions:
             if out == work or out in work.parents or work in out.parents:  # the session's files would mix
                 raise ValueError(f"--work: {self.work!r} overlaps --out {self.out!r}; expected two separate folders "
                                  "(--out comes back whole, --work stays on the machine)")
+            carry = Path(self.carry).resolve() if self.carry else None
+            if carry is not None and (out == carry or out in carry.parents or carry in out.parents):
+                raise ValueError(f"--out: {self.out!r} overlaps --carry {self.carry!r}; expected a folder apart from "
+                                 "the pack (the session's results would mix with what was carried)")
         return self
 
 

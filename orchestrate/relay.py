@@ -263,6 +263,10 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
     if not any(w.name.startswith("mitsuba-") for w in found):
         raise UsageError(f"--wheels: {str(wheels)!r} has no mitsuba wheel (expected mitsuba-3.9.1-cp312-...whl)")
     for wheel in found:  # every wheel readable before anything is written or the long compression starts
+        from scenes.files import not_a_file
+
+        if why := not_a_file(wheel):
+            raise UsageError(f"--wheels: {str(wheel)!r} {why}")
         try:
             with zipfile.ZipFile(wheel) as z:
                 bad = z.testzip()
@@ -361,6 +365,9 @@ def safe_extract(archive: Path, target: Path, flag: str = "--carry", under: str 
                 if under is not None and (not name.parts or name.parts[0] != under):
                     raise UsageError(f"{flag}: {str(archive)!r} holds member {member.name[:120]!r} outside its "
                                      f"{under}/ folder (expected every member under {under}/); refused")
+                if under is not None and not (member.isfile() or member.isdir()):  # a link would lead writes out
+                    raise UsageError(f"{flag}: {str(archive)!r} holds member {member.name[:120]!r}, a link or "
+                                     "special file (expected plain files and folders only); refused")
             tar.extractall(target, filter="data")
     except tarfile.FilterError as exc:
         raise UsageError(f"{flag}: {str(archive)!r} holds a member that would be unpacked outside {str(target)!r} "
@@ -384,9 +391,14 @@ def _site(carry: Path, work: Path) -> Path:
 def unpack_carry(carry: Path, work: Path) -> Path | None:
     """Unpack carry/site.tar.xz into work/site (put first on sys.path and on the steps' PYTHONPATH) and
     carry/assets.tar.xz into work/ (work/assets); returns the asset folder, or None when none was packed."""
-    if not carry.is_dir() or not (carry / SITE_ARCHIVE).is_file():
+    from scenes.files import not_a_file
+
+    if not carry.is_dir() or not os.path.lexists(carry / SITE_ARCHIVE):
         raise UsageError(f"--carry: {str(carry)!r} holds no {SITE_ARCHIVE} (expected the folder written here by "
                          "`python -m orchestrate.gpu_session --pack .carry`)")
+    for archive in (carry / SITE_ARCHIVE, carry / ASSET_ARCHIVE):
+        if os.path.lexists(archive) and (why := not_a_file(archive)):
+            raise UsageError(f"--carry: {str(archive)!r} {why}")
     _site(carry, work)
     if (carry / ASSET_ARCHIVE).is_file():
         safe_extract(carry / ASSET_ARCHIVE, work, under="assets")

@@ -125,7 +125,7 @@ def score(weights: Path, val: Path, diligent: Path | None, threads: int) -> dict
     """Fixed-validation mean (all images), its probes and gain, and the DiLiGenT figures of `weights`."""
     from orchestrate.train_recipe import _val_probes
 
-    res = _val_probes(weights, val, threads)
+    res = _val_probes(weights, val, threads, "--val")
     return {"mean": res["mean"], "gain": res["gain"], "probes": {p: round(res["probes"][p], 2) for p in PROBES
                                                                if p in res["probes"]},
             "families": res.get("families", {}), "diligent": diligent_scores(weights, diligent, threads), "_res": res}
@@ -134,8 +134,12 @@ def score(weights: Path, val: Path, diligent: Path | None, threads: int) -> dict
 def _read(path: Path) -> dict:
     """A record the session brought back (model_card.json, summary.json): {} when absent; a file that is not a
     JSON object is a UsageError naming it (checked before any evaluation: `check_records`)."""
+    from scenes.files import not_a_file
+
     if not os.path.lexists(path):
         return {}
+    if why := not_a_file(path):
+        raise UsageError(f"--candidate: {str(path)!r} {why}")
     try:
         record = json.loads(path.read_text())
     except (OSError, ValueError) as exc:

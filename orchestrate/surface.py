@@ -119,7 +119,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         check_memory(BYTES_PER_PIXEL * pixels + BYTES_PER_IMAGE_PIXEL * mask.size, "--normals/--mask",
                      f"integrating {pixels} pixels", "integrate a smaller map or a smaller mask")
         claim_outputs(surface_outputs(args.out, args.mesh), args.overwrite, owner="orchestrate.surface",
-                      signed={Path(args.out) / "report.json": REPORT_KEYS})
+                      marker=Path(args.out) / "report.json", signed={Path(args.out) / "report.json": REPORT_KEYS})
         print(f"integrating {pixels} pixels ({camera}) ...", flush=True)
         surface = integrate(normals, mask, intr, IntegrationConfig(k=args.k))
     except (*INPUT_ERRORS, OSError) as exc:

@@ -288,7 +288,7 @@ def recipe(args: RecipeOptions, split: bool = True) -> int:
     return 0
 
 
-def _val_probes(weights: Path, val: Path, threads: int) -> dict:
+def _val_probes(weights: Path, val: Path, threads: int, flag: str = "--data") -> dict:
     """Probe summary of `weights` on the fixed validation set (as unips.train validates)."""
     import torch
 
@@ -299,7 +299,8 @@ def _val_probes(weights: Path, val: Path, threads: int) -> dict:
     torch.set_num_threads(threads)
     cfg = TrainConfig()
     model, _ = load_model(weights)
-    res = probe_samples(model, load_samples(val, cfg.res), cfg.max_images, torch.device("cpu"), probes=cfg.val_probes,
+    samples = load_samples(val, cfg.res, arg=flag)
+    res = probe_samples(model, samples, cfg.max_images, torch.device("cpu"), probes=cfg.val_probes,
                         pixels=cfg.val_pixels)
     res.pop("objects", None)
     return res

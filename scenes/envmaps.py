@@ -74,7 +74,7 @@ def load_environment(path: Path) -> np.ndarray:
     """Equirectangular .hdr/.exr file -> float32 (H, W, 3) RGB."""
     import cv2
 
-    from scenes.images import read_exr
+    from scenes.images import decode_image, read_exr
 
     if why := not_a_file(path):
         raise FileNotFoundError(f"environment.file: {str(path)!r} {why}")
@@ -82,7 +82,7 @@ def load_environment(path: Path) -> np.ndarray:
     if suffix == ".exr":
         img = read_exr(path)[:, :, :3]
     elif suffix == ".hdr":
-        img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)
+        img = decode_image(path, cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH, f"environment.file: {str(path)!r}")
         if img is None:
             raise ValueError(f"environment.file: cannot decode {str(path)!r} as a Radiance HDR image")
         img = img[:, :, ::-1]

@@ -59,13 +59,16 @@ def read_image_file(path: Path) -> np.ndarray:
     """Float32 (H, W, C) from EXR/HDR/PNG/JPG, in file orientation (row 0 at the top), RGB order."""
     import cv2
 
+    from scenes.images import decode_image
+
     if why := not_a_file(path):
         raise FileNotFoundError(f"texture file {str(path)!r} {why}")
     if path.suffix.lower() == ".exr":
         from scenes.images import read_exr
 
         return read_exr(path)
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR)
+    img = decode_image(path, cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR,
+                       f"texture file {str(path)!r}")
     if img is None:
         raise ValueError(f"texture file {str(path)!r} cannot be decoded as an image")
     if img.ndim == 2:

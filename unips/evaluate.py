@@ -232,7 +232,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {len(summary['failed'])} object(s) could not be evaluated: {', '.join(summary['failed'])} "
               "(the others are in metrics.json)", file=sys.stderr)
         status = 1
-    if summary["missing"] and not args.allow_missing:
+    if summary["missing"] and args.allow_missing and not summary["objects"]:  # "some may be missing", not all
+        print(f"error: --pred: no prediction in {str(args.pred)!r} for any of the {len(summary['missing'])} object(s) "
+              "of --gt; --allow-missing accepts some missing, not all (is --pred the right folder?)", file=sys.stderr)
+        status = 1
+    elif summary["missing"] and not args.allow_missing:
         print(f"error: --pred: no prediction in {str(args.pred)!r} for {len(summary['missing'])} object(s): "
               f"{', '.join(summary['missing'])} (expected <object>/normal.png or another of "
               f"{', '.join(PREDICTION_FILES)} for each object of --gt; use --allow-missing to accept)", file=sys.stderr)

@@ -104,7 +104,11 @@ def load_network(checkpoint: str | Path | None, device: str = "cpu", model: str 
 
     if device.startswith("cuda") and not torch.cuda.is_available():
         raise UsageError(f"--device {device}: CUDA is not available on this machine")
-    path = Path(checkpoint) if checkpoint is not None else pretrained_weights(model or DEFAULT_MODEL)
+    try:
+        path = Path(checkpoint) if checkpoint is not None else pretrained_weights(model or DEFAULT_MODEL)
+    except (KeyError, ValueError, FileNotFoundError) as exc:  # no shipped weights: said as the flag, with the way out
+        raise UsageError(f"--model {model or DEFAULT_MODEL}: {str(exc).removeprefix('pretrained: ')}; give its weights "
+                         "with --checkpoint") from None
     if is_official_path(path):
         if model is None:
             raise UsageError(f"--checkpoint {str(path)!r} is a folder of published weights: name the network "

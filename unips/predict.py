@@ -98,7 +98,8 @@ def check_out_folder(folder: Path, overwrite: bool = False) -> None:
         raise UsageError(f"--out: {str(folder)!r} is an existing file, expected a folder for the prediction")
     others = [folder / f for f in PREDICTION_FILES if f not in PREDICTION_OUTPUTS and (folder / f).exists()]
     claim_outputs([folder / f for f in PREDICTION_OUTPUTS] + others, overwrite, owner="unips.predict",
-                  marker=folder / PREDICTION_INFO)
+                  marker=folder / PREDICTION_INFO,
+                  signed={folder / PREDICTION_INFO: ("object", "method", "images_used")})
     if others:  # a prediction file of another kind beside ours: the lookup would not find what this run writes
         raise UsageError(f"--out: {str(others[0])!r} was not written by unips.predict; it is never replaced: "
                          "move it away or use another --out")

@@ -244,7 +244,14 @@ def setup_run(cfg: TrainConfig) -> Run:
     if cfg.init_from:
         model = load_init_weights(cfg, device)
     else:
-        model = create_model(cfg.model, **model_options(cfg.model_option)).to(device)
+        options = model_options(cfg.model_option)
+        try:
+            model = create_model(cfg.model, **options).to(device)
+        except (TypeError, ValueError) as exc:  # a value of the wrong kind fails deep in the model's constructor
+            if str(exc).startswith("--model-option"):
+                raise
+            raise ValueError(f"--model-option: {', '.join(cfg.model_option)} does not build {cfg.model} "
+                             f"({str(exc).splitlines()[0][:160]}); expected values of each field's type") from None
     if cfg.shuffle_buffer:  # streamed shards: nothing cached, their index describes the data (`open_stream`)
         samples, data_desc = [], stream_description(cfg, dist)
     else:

@@ -93,7 +93,8 @@ def check_judgeable(cap: Capture, use: str, arg: str = "--data", mask_arg: str |
     if k < least:
         raise ValueError(f"{where} has {k} image(s); {need}: with fewer, the fitted lights and albedo explain a "
                          "wrong normal map about as well as the right one")
-    scale = f" at the fitting resolution (1/{cap.downsample}: raise --max-pixels)" if cap.downsample > 1 else ""
+    scale = (f" at the fitting resolution (1/{cap.downsample}: raise --max-pixels, or lower --downsample where it is "
+             "given)") if cap.downsample > 1 else ""
     if int(cap.mask.sum()) < MIN_LIT_PIXELS:
         raise ValueError(f"{mask_arg or arg}: the mask of {cap.folder} has {int(cap.mask.sum())} pixels{scale}; "
                          f"{need}")

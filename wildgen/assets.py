@@ -15,11 +15,25 @@ _MAP_TAG = re.compile(
 _IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".exr", ".tif", ".tiff")
 
 
+MAX_FILES = 200_000
+"""An asset folder holding more files than this (a link to / or a home folder) is refused, not walked."""
+
+
 def _files(folder: Path) -> list[Path]:
-    """Every file below `folder`, following symbolic links (asset folders are often linked together)."""
-    out = []
-    for root, _, names in os.walk(folder, followlinks=True):
+    """Every file below `folder`, following symbolic links (asset folders are often linked together), each real
+    folder once (a link loop ends), at most `MAX_FILES` (FileNotFoundError-free ValueError naming --assets)."""
+    out: list[Path] = []
+    seen: set[str] = set()
+    for root, dirs, names in os.walk(folder, followlinks=True):
+        real = os.path.realpath(root)
+        if real in seen:
+            dirs[:] = []
+            continue
+        seen.add(real)
         out.extend(Path(root) / n for n in names)
+        if len(out) > MAX_FILES:
+            raise ValueError(f"--assets: {str(folder)!r} holds more than {MAX_FILES} files below it (at {root!r}: a "
+                             "link to a large folder?); expected a folder of meshes, textures and maps")
     return sorted(out)
 
 

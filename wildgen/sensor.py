@@ -91,6 +91,9 @@ COMMAND = Command(
 )
 
 
+MAX_EXPOSED = 1e6
+"""Radiance times exposure above this (a million times the sensor's full scale) is no render's: refused by name."""
+
 def _sensor_versions() -> dict[str, str]:
     """Versions of the packages that determine the sensor's bytes (noise streams, demosaicing)."""
     from importlib import metadata
@@ -112,7 +115,12 @@ def check_source_object(src: Path) -> tuple:
     desc, extras = read_scene(src)
     old = read_sensor_record(extras, len(desc.images), where=f"--data: {str(src / SCENE_FILE)!r}")
     radiance = [src / AUX_DIR / radiance_name(i) for i in range(len(desc.images))]
-    missing = [p.name for p in radiance if not p.is_file()]
+    missing = [p.name for p in radiance if not p.is_file()]  # a link to a device is named as such below
+    odd = next((p for p in radiance if os.path.lexists(p) and not p.is_file()), None)
+    if odd is not None:
+        from scenes.files import not_a_file
+
+        raise FileNotFoundError(f"--data: {str(odd)!r} {not_a_file(odd)} (the radiance a sensor is applied to)")
     if missing:
         raise FileNotFoundError(f"--data: object folder {str(src)!r} has no {AUX_DIR}/{missing[0]} (the radiance a "
                                 f"sensor is applied to; {len(missing)} of {len(radiance)} missing)")
@@ -145,6 +153,10 @@ def apply_to_object(src: Path, out_dir: Path, sensor: Sensor, seed: int = 0) -> 
             if not np.isfinite(rad).all() or float(rad.min()) < 0:
                 raise ValueError(f"--data: {str(path)!r} holds NaN, infinite or negative values; expected the "
                                  "radiance a render wrote (finite, 0 or more)")
+            if float(rad.max()) * image.exposure > MAX_EXPOSED:  # the sensor's photon counts would overflow
+                raise ValueError(f"--data: {str(path)!r} holds radiance up to {float(rad.max()):.3g} (times exposure "
+                                 f"{image.exposure:.3g}); expected exposed values below {MAX_EXPOSED:g} (1 is the "
+                                 "sensor's full scale)")
             write_image(tmp / image_name(i), rederive_image(rad, image.exposure, sensor, record["noise_seeds"][i]))
         extras = dict(extras)
         extras[SCENE_KEY] = record
@@ -188,6 +200,9 @@ def _prepare_out(data: Path, out: Path, overwrite: bool, names: list[str]) -> No
         if not (out / MANIFEST).is_file():
             raise UsageError(f"--out: {str(out)!r} is not empty and holds no {MANIFEST}: --overwrite only replaces a "
                              "dataset, choose another folder")
+        if not _is_sensor_manifest(out / MANIFEST):
+            raise UsageError(f"--out: {str(out / MANIFEST)!r} was not written by wildgen.sensor (no sensor record in "
+                             "it); it is never replaced, even with --overwrite: move it away or choose another folder")
         odd = next((out / n for n in names if (out / n).is_symlink() or (out / n).exists() and not (out / n).is_dir()),
                    None)
         if odd is not None:
@@ -197,6 +212,15 @@ def _prepare_out(data: Path, out: Path, overwrite: bool, names: list[str]) -> No
         if foreign is not None:
             raise UsageError(f"--out: {str(foreign)!r} was not written by wildgen.sensor (the manifest does not list "
                              "it); it is never removed, even with --overwrite: move it away or choose another folder")
+
+
+def _is_sensor_manifest(path: Path) -> bool:
+    """Whether `path` is a manifest this command wrote (its objects and its sensor record)."""
+    try:
+        d = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(d, dict) and isinstance(d.get("objects"), list) and isinstance(d.get("sensor"), dict)
 
 
 def _unlisted_file(out: Path) -> Path | None:

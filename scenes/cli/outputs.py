@@ -199,6 +199,11 @@ def claim_outputs(paths: Iterable[str | os.PathLike], overwrite: bool, flag: str
     paths = [Path(p) for p in paths]
     for p in paths:
         _check_held(p, owner)
+        above = next((a for a in p.parents if os.path.lexists(a)), None)  # the nearest thing on the way that exists
+        if above is not None and not above.is_dir():
+            raise UsageError(f"{flag}: {str(above)!r} is {'a link' if above.is_symlink() else 'a file'}, where "
+                             f"{owner} writes a folder (for {p.name}); it is never replaced: move it away or use "
+                             f"another {flag}")
     existing = [p for p in paths if os.path.lexists(p)]
     want = "a folder" if folders else "a file"
     for p in existing:

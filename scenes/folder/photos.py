@@ -336,6 +336,9 @@ def read_photos(folder: str | Path, encoding: str = "auto", max_side: int | None
     if encoding not in ENCODINGS:
         raise ValueError(f"--input-encoding: got {encoding!r}, expected one of {', '.join(ENCODINGS)}")
     files = photo_files(folder, flag)
+    if encoding == "srgb" and files[0].suffix.lower() == ".exr":
+        raise ValueError(f"--input-encoding: got 'srgb' for EXR files ({files[0].name}, ...), which hold linear "
+                         "floating point values; expected auto or linear")
     if encoding == "srgb" and is_raw(files[0]):
         raise ValueError(f"--input-encoding: got 'srgb' for camera RAW files ({files[0].name}, ...), which hold linear "
                          "sensor values; expected auto or linear")

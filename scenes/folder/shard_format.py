@@ -360,11 +360,15 @@ def read_index(folder: str | Path, arg: str = "--data") -> dict[str, Any]:
     if not isinstance(index, dict) or index.get("format") != FORMAT or not isinstance(index.get("shards"), list):
         raise ValueError(f"{arg}: {str(path)!r} is not a shard index of wildgen.export (expected format "
                          f"{FORMAT!r} and a list of shards)")
+    version = index.get("format_version", FORMAT_VERSION)
+    if not _count(version) or not 1 <= version <= FORMAT_VERSION:
+        raise ValueError(f"{arg}: {str(path)!r} has format_version {version!r}; this toolkit reads versions 1 to "
+                         f"{FORMAT_VERSION} (a newer wildgen.export wrote it?)")
     if not index.get("complete"):
         raise ValueError(f"{arg}: {str(path)!r} belongs to an export that did not finish; run wildgen.export again")
     for entry in index["shards"]:
         if not (isinstance(entry, dict) and isinstance(entry.get("name"), str) and isinstance(entry.get("sha256"), str)
-                and isinstance(entry.get("objects"), list)):
+                and isinstance(entry.get("objects"), list) and ("bytes" not in entry or _count(entry["bytes"]))):
             raise ValueError(f"{arg}: {str(path)!r} has a malformed shard entry {entry!r:.80}")
         if not SHARD_NAME.match(entry["name"]):  # a name read from a file never leads out of its folder
             raise ValueError(f"{arg}: {str(path)!r} lists the shard {entry['name']!r}; expected names of shards beside "
