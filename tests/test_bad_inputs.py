@@ -3514,6 +3514,58 @@ ROWS += [
 ]
 
 
+
+def _radiance_times(factor: float) -> Callable[[Path, Path], None]:
+    """Setup: T/ds, the world's dataset without its manifest, object 00000's radiance_001.exr times `factor`."""
+    def setup(w: Path, t: Path) -> None:
+        from scenes.images import read_exr, write_exr
+
+        shutil.copytree(w / "data", t / "ds", ignore=shutil.ignore_patterns("manifest.json"))
+        path = t / "ds" / f"{OBJ}.data" / "aux" / "radiance_001.exr"
+        write_exr(path, read_exr(path) * np.float32(factor))
+    return setup
+
+
+ROWS += [
+    # ---- sweep 5: records that are not the command's, index fields, encodings, flags named
+    Row("predict-overwrite-keeps-a-users-predict-json", PR, ["--method", "least-squares", "--input",
+                                                              "{W}/data/00000.data", "--out", "{T}/o", "--overwrite"],
+        2, ("predict.json", "was not written by unips.predict"),
+        setup=_put(("o/00000/predict.json", "mine\n"), ("o/00000/normal.png", "mine\n")),
+        check=_kept("o/00000/normal.png", "mine\n")),
+    Row("surface-overwrite-keeps-a-users-mesh", SF, [*SURF, "--out", "{T}/o", "--mesh", "obj", "--overwrite"], 2,
+        ("mesh.obj", "was not written by orchestrate.surface"), setup=_put(("o/mesh.obj", "mine\n")),
+        check=_kept("o/mesh.obj", "mine\n")),
+    Row("sensor-overwrite-keeps-a-users-manifest", SEN, ["--data", "{W}/data", "--sensor", "phone", "--out", "{T}/o",
+                                                         "--quiet", "--overwrite"], 2,
+        ("manifest.json", "was not written by wildgen.sensor"), setup=_put(("o/manifest.json", '{"mine": 1}\n')),
+        check=_kept("o/manifest.json", '{"mine": 1}\n')),
+    Row("capture-a-file-where-its-surface-folder-goes", CAP, [*CAPTURE_ALL, "--overwrite"], 2,
+        ("--out", "o/surface'", "is a file"), setup=_both(_photos(), _put(("o/surface", "mine\n"))),
+        check=lambda w, t: (_kept("o/surface", "mine\n")(w, t), _not_written("o/normal.png")(w, t))),
+    Row("train-shard-index-newer-format", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps", "1"], 2,
+        ("index.json", "format_version 2"), setup=_index_edited(lambda i: i.update(format_version=2)),
+        check=_not_written("run")),
+    Row("train-shard-index-bytes-a-string", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps", "1"],
+        2, ("index.json", "malformed shard entry"),
+        setup=_index_edited(lambda i: i["shards"][0].update(bytes=str(i["shards"][0]["bytes"]))),
+        check=_not_written("run")),
+    Row("train-model-option-of-the-wrong-kind", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps",
+                                                    "1", "--model", "glc-test", "--model-option", "decoder_dim=nan"],
+        2, ("--model-option", "decoder_dim=nan")),
+    Row("evaluate-allow-missing-with-nothing-to-evaluate", EV, ["--pred", "{T}/p", "--gt", "{W}/data",
+                                                                 "--allow-missing"], 1,
+        ("--pred", "for any of the 3 object(s)"), setup=lambda w, t: _mk(t / "p")),
+    Row("capture-srgb-encoding-of-exr-photos", CAP, [*CAPTURE_ALL, "--input-encoding", "srgb"], 2,
+        ("--input-encoding", "EXR"), setup=_exr_photos(lambda x: x), check=_not_written("o/normal.png")),
+    Row("gpu-session-out-is-the-carry-folder", GS, ["--out", "{T}/c", "--work", "{T}/w", "--carry", "{T}/c",
+                                                    "--cpu-rehearsal"], 2, ("--out", "overlaps --carry"),
+        setup=lambda w, t: _mk(t / "c")),
+    Row("sensor-radiance-beyond-any-sensor", SEN, ["--data", "{T}/ds", "--sensor", "phone", "--out", "{T}/o",
+                                                   "--quiet"], 2, ("radiance_001.exr", "holds radiance up to"),
+        setup=_radiance_times(1e30), check=_not_written("o/00000.data")),
+]
+
 @pytest.mark.parametrize("row", ROWS, ids=[r.id for r in ROWS])
 def test_bad_input(row: Row, world: Path, tmp_path: Path, capsys, request):
     for module in row.needs:

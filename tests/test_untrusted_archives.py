@@ -186,3 +186,43 @@ def test_a_pack_refuses_wheel_members_outside_and_never_replaces_the_users_files
     assert "was not written by" in capsys.readouterr().err and (pack / "site.tar.xz").read_bytes() == b"the user's own"
     assert main(["--pack", str(pack), "--wheels", str(wheels), "--init", "shipped"]) == 2
     assert "--init: a session's flag, not used with --pack" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("kind", ["symlink", "hardlink"])
+def test_a_link_in_the_assets_archive_is_refused_before_a_write_through_it(tmp_path, kind):
+    """A link member under assets/ (to the session's site folder, or to a file of --work), then a file written
+    under the link's name: the write would land outside work/assets. Links are refused in the assets archive."""
+    from orchestrate.relay import ASSET_ARCHIVE, SITE_ARCHIVE, unpack_carry
+    from scenes.cli.errors import UsageError
+
+    carry, work = tmp_path / "carry", tmp_path / "work"
+    carry.mkdir()
+    work.mkdir()
+    (work / "victim.txt").write_text("mine\n")
+    link = tarfile.TarInfo("assets/v")
+    link.type, link.linkname = ((tarfile.SYMTYPE, "../victim.txt") if kind == "symlink" else
+                                (tarfile.LNKTYPE, "victim.txt"))
+    _archive(carry / SITE_ARCHIVE, [_file("pkg/__init__.py", b"")])
+    _archive(carry / ASSET_ARCHIVE, [(link, None), _file("assets/v", b"overwritten\n")])
+    with pytest.raises(UsageError, match="assets/v.*a link or special file"):
+        unpack_carry(carry, work)
+    assert (work / "victim.txt").read_text() == "mine\n"
+
+
+def test_a_carried_archive_or_wheel_that_is_a_device_is_named_not_read(tmp_path, capsys):
+    import os
+
+    from orchestrate.gpu_session import main
+    from orchestrate.relay import SITE_ARCHIVE, unpack_carry
+    from scenes.cli.errors import UsageError
+
+    carry = tmp_path / "carry"
+    carry.mkdir()
+    os.symlink("/dev/zero", carry / SITE_ARCHIVE)
+    with pytest.raises(UsageError, match="not a regular file"):
+        unpack_carry(carry, tmp_path / "work")
+    wheels = tmp_path / "wh"
+    wheels.mkdir()
+    os.symlink("/dev/zero", wheels / "mitsuba-3.9.1-cp312-cp312-manylinux_2_17_x86_64.whl")
+    assert main(["--pack", str(tmp_path / "pk"), "--wheels", str(wheels), "--assets", "none"]) == 2
+    assert "not a regular file" in capsys.readouterr().err
