@@ -244,7 +244,8 @@ def _put(*files: tuple[str, str]) -> Callable[[Path, Path], None]:
 
 def _earlier_prediction(w: Path, t: Path) -> None:
     """Setup: T/p/00000 as unips.predict left it (predict.json beside the maps)."""
-    _mk(t / "p" / OBJ).joinpath("predict.json").write_text('{"method": "least-squares"}\n')
+    _mk(t / "p" / OBJ).joinpath("predict.json").write_text(
+        json.dumps({"object": OBJ, "method": "least-squares", "images_used": ["L000.png"]}) + "\n")
     shutil.copy(w / "pred" / OBJ / "normal.png", t / "p" / OBJ / "normal.png")
 
 
