@@ -136,7 +136,7 @@ def test_pack_keeps_the_needed_variants_and_checks_the_limit(tmp_path, capsys):
                      "mitsuba/plugins/path.so", "mitsuba/scalar_rgb.cpython-312-x86_64-linux-gnu.so"]
     assert total == (tmp_path / "carry" / "site.tar.xz").stat().st_size + 1000
     with pytest.raises(gpu_session.UsageError, match=r"--pack: what would travel is \d+ bytes = .* over the 100 bytes"):
-        gpu_session.pack(tmp_path / "carry", wheels, limit=100, tree=1000)
+        gpu_session.pack(tmp_path / "carry", wheels, limit=100, tree=1000, overwrite=True)
     assert gpu_session.main(["--pack", str(tmp_path / "c2"), "--wheels", str(tmp_path / "none")]) == 2
     assert "error: --wheels:" in capsys.readouterr().err
 
