@@ -131,6 +131,8 @@ def world(tmp_path_factory) -> Path:
     (ck / "unknown.json").write_text(json.dumps({**sidecar, "model_name": "glc-nope"}))
     shutil.copy(weights, ck / "listcfg.safetensors")
     (ck / "listcfg.json").write_text(json.dumps({**sidecar, "config": [1, 2]}))
+    shutil.copy(weights, ck / "newer.safetensors")
+    (ck / "newer.json").write_text(json.dumps({**sidecar, "format": "unips-weights/99"}))
     (ck / "weights.txt").write_text("not a model\n")
     _bad_weights(w, weights, sidecar)
     # Training runs: a truncated and a random last.pt, and an old run.
@@ -2886,6 +2888,9 @@ ROWS += [
         ["--data", "{T}/00000.data", "--normals", "{W}/pred", "--out", "{T}/o"], 2, ("mask.png", "no 0"),
         setup=_object_mask(lambda m: np.where(m, 255, 3).astype(np.uint8)), check=_not_written("o")),
     # ---- weights are finite floats, refused when loaded, naming the file
+    Row("predict-weights-of-a-newer-format", PR, ["--method", "model", "--checkpoint", "{W}/ck/newer.safetensors",
+                                                  "--input", OBJDIR, "--out", "{T}/p"], 2,
+        ("--checkpoint", "newer.json", "unips-weights/99"), check=_not_written("p")),
     Row("predict-weights-nan", PR, ["--method", "model", "--checkpoint", "{W}/ck/nan.safetensors", "--input", OBJDIR,
                                     "--out", "{T}/p"], 2, ("nan.safetensors", "1 NaN"), check=_not_written("p")),
     Row("predict-weights-inf", PR, ["--method", "model", "--checkpoint", "{W}/ck/inf.safetensors", "--input", OBJDIR,

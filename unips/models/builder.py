@@ -183,6 +183,9 @@ def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> tu
         meta = json.loads(side.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ValueError(f"{str(side)!r}: not valid JSON ({exc})") from exc
+    if isinstance(meta, Mapping) and "format" in meta and meta["format"] != WEIGHTS_FORMAT:
+        raise ValueError(f"{str(side)!r}: format {meta['format']!r}; this toolkit reads {WEIGHTS_FORMAT!r} (a newer "
+                         "toolkit wrote it?)")
     from safetensors.torch import load_file
 
     model = _build(meta, str(side))
