@@ -262,21 +262,21 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
                          "mitsuba, drjit and the packages the GPU machine lacks; see docs/model.md)")
     if not any(w.name.startswith("mitsuba-") for w in found):
         raise UsageError(f"--wheels: {str(wheels)!r} has no mitsuba wheel (expected mitsuba-3.9.1-cp312-...whl)")
-    for wheel in found:  # every wheel readable before anything is written or the long compression starts
-        from scenes.files import not_a_file
+    from scenes.files import not_a_file
 
+    for wheel in found:  # every wheel readable before anything is written or the long compression starts
         if why := not_a_file(wheel):
             raise UsageError(f"--wheels: {str(wheel)!r} {why}")
         try:
             with zipfile.ZipFile(wheel) as z:
                 bad = z.testzip()
+                # a member packed as named would leave --carry's folder on unpacking
+                odd = next((n for n in z.namelist() if n.startswith("/") or ".." in n.split("/")), None)
         except (zipfile.BadZipFile, OSError) as exc:
             raise UsageError(f"--wheels: {str(wheel)!r} is not a readable wheel ({exc}); expected the .whl files "
                              "pip downloads (see docs/model.md): download it again") from None
         if bad is not None:
             raise UsageError(f"--wheels: {str(wheel)!r} is damaged (member {bad!r} fails its CRC); download it again")
-        with zipfile.ZipFile(wheel) as z:  # a member packed as named would leave --carry's folder on unpacking
-            odd = next((n for n in z.namelist() if n.startswith("/") or ".." in n.split("/")), None)
         if odd is not None:
             raise UsageError(f"--wheels: {str(wheel)!r} holds member {odd[:120]!r}, whose name leads outside the "
                              "folder it is unpacked into (expected names relative to it); not a wheel pip writes")

@@ -119,8 +119,8 @@ def decode_image(path: Path, flags: int, where: str):
             tiff_damage = _tiff_damage(path) if tiff and img is not None else None
     except cv2.error as exc:  # OpenCV's own refusals (a header declaring more pixels than it decodes)
         why = next((line.split("error: ", 1)[-1] for line in str(exc).splitlines() if "error:" in line), str(exc))
-        raise ValueError(f"{where} cannot be decoded ({why.strip()[:160]}); expected an image of at most "
-                         f"{2**30} pixels") from None
+        limit = f"; expected an image of at most {2**30} pixels" if "MAX_IMAGE_PIXELS" in why else ""
+        raise ValueError(f"{where} cannot be decoded ({why.strip()[:160]}){limit}") from None
     jpeg_damage = [line for line in said if any(d in line for d in JPEG_DAMAGE) and "bad ICC marker" not in line]
     if img is not None and jpeg_damage:
         raise ValueError(f"{where} is damaged: the JPEG decoder says {'; '.join(dict.fromkeys(jpeg_damage))!r} (a "

@@ -135,7 +135,7 @@ def preview(dataset: str | Path, out: str | Path | None = None, overwrite: bool 
     targets = [out_dir / f"{folder.name[:-5]}.png" for folder in folders] + [out_dir / "overview.png"]
     record = out_dir / SHEETS_RECORD
     claim_outputs([*targets, record], overwrite, owner="wildgen.preview", signed={record: ("dataset", "sheets")})
-    _check_own_sheets(record, targets)
+    listed = _check_own_sheets(record, targets)
     print(f"drawing contact sheets of {len(folders)} object(s) into {out_dir}", flush=True)
     sheets, summaries = [], []
     for folder in folders:
@@ -147,8 +147,7 @@ def preview(dataset: str | Path, out: str | Path | None = None, overwrite: bool 
     make_output_folder(out_dir)
     for path, image in zip(targets, [*sheets, overview]):
         write_picture(path, image)
-    earlier = _listed_sheets(record)
-    write_json(record, {"dataset": str(dataset), "sheets": sorted(earlier | {p.name for p in targets})})
+    write_json(record, {"dataset": str(dataset), "sheets": sorted(listed | {p.name for p in targets})})
     return targets
 
 
@@ -163,8 +162,9 @@ def _listed_sheets(record: Path) -> set[str]:
     return {s for s in sheets if isinstance(s, str)} if isinstance(sheets, list) else set()
 
 
-def _check_own_sheets(record: Path, targets: list[Path]) -> None:
-    """Refuse to replace a PNG under a sheet's name that no earlier preview listed in `record` (the user's)."""
+def _check_own_sheets(record: Path, targets: list[Path]) -> set[str]:
+    """Refuse to replace a PNG under a sheet's name that no earlier preview listed in `record` (the user's);
+    returns the names listed there."""
     import os
 
     listed = _listed_sheets(record)
@@ -173,6 +173,7 @@ def _check_own_sheets(record: Path, targets: list[Path]) -> None:
         raise UsageError(f"--out: {str(foreign)!r} was not written by wildgen.preview (it is not listed in "
                          f"{str(record)!r}); it is never replaced, even with --overwrite: move it away or use "
                          "another --out")
+    return listed
 
 
 # ---------------------------------------------------------------------------------- the dataset card

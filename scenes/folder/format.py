@@ -138,19 +138,26 @@ def list_object_folders(dataset: str | Path) -> list[Path]:
     return folders
 
 
-def read_scene_dict(folder_or_file: str | Path) -> dict[str, Any]:
-    """scene.json as a plain dict (description fields and extras); FileNotFoundError / ValueError."""
-    path = Path(folder_or_file)
-    if path.is_dir():
-        path = path / SCENE_FILE
+def scene_file_present(path: Path) -> bool:
+    """Whether the scene file `path` is there: True for a file, False when nothing is under its name; anything else
+    under that name (a folder, a device, a link to nothing) is a ValueError, never read as "no scene" (which would
+    silently switch the check to its fitted mode)."""
     from scenes.files import not_a_file
 
     why = not_a_file(path)
     if os.path.lexists(path) and why:
         said = why.replace("expected a file", "expected the object's scene.json file")
         raise ValueError(f"scene file {path}: {said}")
-    if why:
-        raise FileNotFoundError(f"scene.json: {str(path)!r} {why} (is this an object folder?)")
+    return not why
+
+
+def read_scene_dict(folder_or_file: str | Path) -> dict[str, Any]:
+    """scene.json as a plain dict (description fields and extras); FileNotFoundError / ValueError."""
+    path = Path(folder_or_file)
+    if path.is_dir():
+        path = path / SCENE_FILE
+    if not scene_file_present(path):
+        raise FileNotFoundError(f"scene.json: {str(path)!r} does not exist (is this an object folder?)")
     try:
         d = json.loads(path.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:

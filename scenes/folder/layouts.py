@@ -57,6 +57,7 @@ from scenes.folder.format import (
     image_files,
     object_name,
     read_scene_dict,
+    scene_file_present,
 )
 from scenes.images import read_image, read_mask, read_normals
 
@@ -209,16 +210,9 @@ def detect_layout(path: str | Path) -> str | None:
 
 
 def has_scene(folder: str | Path) -> bool:
-    """True when an object folder has a scene file (the known-scene re-render check is possible); a folder under
-    that name is refused (it would silently switch the check to its fitted mode)."""
-    from scenes.files import not_a_file
-
-    path = Path(folder) / SCENE_FILE
-    why = not_a_file(path)
-    if os.path.lexists(path) and why:  # anything under that name but a file would silently mean "no scene"
-        said = why.replace("expected a file", "expected the object's scene.json file")
-        raise ValueError(f"scene file {path}: {said}")
-    return not why
+    """True when an object folder has a scene file (the known-scene re-render check is possible); anything else
+    under that name is refused (`scenes.folder.format.scene_file_present`)."""
+    return scene_file_present(Path(folder) / SCENE_FILE)
 
 
 def find_object_folders(path: str | Path, arg: str = "path") -> list[Path]:

@@ -21,6 +21,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from validate.diagnosis.mask_seed import gray as mean_gray
+
 LIT_SHARE = 0.2
 """The Lambertian albedo fit uses the pixels brighter than this share of the photo's 95th percentile (the attached
 shadow and its dim edge, where I = n . b does not hold, left out)."""
@@ -34,10 +36,6 @@ FINE_STEP_DEG, FINE_REACH = 1.5, 4
 """The finer grid around the best candidate: this step, this many steps each way in two directions."""
 SAMPLE_PIXELS = 2000
 """The object's pixels used in the search (evenly strided; all when fewer)."""
-
-
-def _gray(images: np.ndarray) -> np.ndarray:
-    return images.mean(axis=-1)
 
 
 @lru_cache(maxsize=1)
@@ -109,7 +107,7 @@ def _best(y: np.ndarray, n: np.ndarray, albedo: np.ndarray, dirs: np.ndarray) ->
 def shading_light_angles(images: np.ndarray, mask: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per image: (angle from the viewing direction, azimuth), degrees, of the light read from the shading of the
     whole object under a normal map (module doc). NaN for an image with fewer than 10 lit pixels."""
-    gray = _gray(images)[:, mask].astype(np.float64)  # (K, P)
+    gray = mean_gray(images)[:, mask].astype(np.float64)  # (K, P)
     n = normals[mask].astype(np.float64)  # (P, 3)
     k, p = gray.shape
     polar, azimuth = np.full(k, np.nan), np.full(k, np.nan)
