@@ -32,6 +32,7 @@ from the true mask (where it refuses, the rule is never asked); `cushion_auto` r
 """
 from __future__ import annotations
 
+import json
 import sys
 from collections import defaultdict
 from dataclasses import dataclass, field
@@ -172,16 +173,46 @@ class Options:
     cushions: bool = True
     """also paint lit cushions under each object (module doc); off for suites rendered with `--floor`, whose
     surfaces are rendered"""
+    record: Annotated[Path | None, arg(metavar="FILE")] = None
+    """add the automatic masks' counts to FILE (bench/results/doubtful_mask.json, docs/capture.md's table) as the
+    run of these suites, replacing an earlier run of the same suites and cushions"""
+    rows_from: Annotated[Path | None, arg(metavar="FILE")] = None
+    """read the rows of an earlier run's --out instead of measuring (with --record: its table, unmeasured again)"""
 
 
 COMMAND = Command(Options, prog="python bench/bench_doubtful_mask.py", description=__doc__.split("\n\n")[0])
 
 
+def automatic_run(rows: list[dict]) -> dict:
+    """One run's record (`--record`): its suites, whether cushions were painted, the automatic masks' counts (refused,
+    good, good but doubted, below GOOD_IOU doubted or silent) and the silent ones."""
+    auto = [r for r in rows if r["kind"] == "auto" or r["group"].startswith("cushion_auto")]
+    found = [r for r in auto if r["iou_true"] is not None]
+    silent = [r for r in found if r["iou_true"] < GOOD_IOU and not r["doubtful"]]
+    return {"suites": sorted({r["object"].split("/")[0] for r in rows}),
+            "cushions": any(r["group"].startswith("cushion_") for r in rows),
+            "masks": len(auto), "refused": len(auto) - len(found),
+            "good": sum(r["iou_true"] >= GOOD_IOU for r in found),
+            "good_doubted": sum(r["iou_true"] >= GOOD_IOU and bool(r["doubtful"]) for r in found),
+            "below_doubted": sum(r["iou_true"] < GOOD_IOU and bool(r["doubtful"]) for r in found),
+            "below_silent": len(silent),
+            "silent": [{"object": r["object"], "kind": r["kind"], "iou": r["iou_true"]} for r in silent]}
+
+
+def record_run(path: Path, run: dict) -> None:
+    """Add `run` to the results file `path`, replacing a run of the same suites and cushions."""
+    from scenes.files import write_json
+
+    runs = json.loads(path.read_text())["rows"] if path.is_file() else []
+    runs = [r for r in runs if (r["suites"], r["cushions"]) != (run["suites"], run["cushions"])] + [run]
+    write_json(path, {"good_iou": GOOD_IOU, "rows": runs}, indent=1, newline=True)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse(COMMAND, argv)
     rng = np.random.default_rng(args.seed)
-    rows: list[dict] = []
-    for suite in args.suite:
+    rows: list[dict] = json.loads(args.rows_from.read_text())["rows"] if args.rows_from else []
+    for suite in [] if args.rows_from else args.suite:
         for folder in sorted(Path(suite).glob("*.data")):
             rows += object_rows(folder, rng, args.cushions)
     print("\n".join(summary(rows)) if rows else "no object folders (give --suite DIR)")
@@ -203,6 +234,9 @@ def main(argv: list[str] | None = None) -> int:
 
         args.out.parent.mkdir(parents=True, exist_ok=True)
         write_json(args.out, {"rows": rows}, indent=1, newline=True)
+    if args.record and rows:
+        record_run(args.record, automatic_run(rows))
+        print(f"recorded in {args.record}")
     return 0
 
 

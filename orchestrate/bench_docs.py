@@ -76,6 +76,24 @@ def light_warnings(card: dict) -> str:
             + markdown_table(["capture", "photos", "the true lights call for", "said"], real))
 
 
+DOUBTFUL_MASK_BENCH = REPO / "bench" / "results" / "doubtful_mask.json"
+"""The runs `python bench/bench_doubtful_mask.py [--no-cushions] --suite DIR ... --record FILE` added (committed)."""
+
+
+def doubtful_mask(card: dict) -> str:
+    """Per recorded run: how many automatic masks were refused, good, doubted or silent below the IoU of a good one,
+    then the silent ones of the runs without painted cushions."""
+    d = json.loads(DOUBTFUL_MASK_BENCH.read_text())
+    rows = [[", ".join(r["suites"]) + (" (painted cushions)" if r["cushions"] else ""), str(r["masks"]),
+             str(r["refused"]), str(r["good"]), str(r["good_doubted"]), str(r["below_doubted"]), str(r["below_silent"])]
+            for r in d["rows"]]
+    silent = [f"{s['object']} ({s['iou']:.2f})" for r in d["rows"] if not r["cushions"] for s in r["silent"]]
+    below = f"below {d['good_iou']:g}"
+    return (markdown_table(["suites", "automatic masks", "refused", f"good (IoU {d['good_iou']:g} or more)",
+                            "good but doubted", f"{below}, doubted", f"{below}, silent"], rows)
+            + ("\n\nSilent renders (IoU): " + ", ".join(silent) if silent else ""))
+
+
 CAPTURE_BENCH = REPO / "bench" / "results" / "capture.json"
 """The output of `python bench/bench_capture.py --out bench/results/capture.json` (its last run, committed)."""
 
@@ -339,6 +357,7 @@ BENCH_TABLES = {
     "capture:full-size": (FULL_SIZE_BENCH, full_size),
     "capture:diligent": (CAPTURE_DILIGENT_BENCH, capture_diligent),
     "capture:light-warnings": (LIGHT_WARNINGS_BENCH, light_warnings),
+    "capture:doubtful-mask": (DOUBTFUL_MASK_BENCH, doubtful_mask),
     "check:resolution": (VERDICT_BENCH, check_resolution),
     "check:verdict-sweep": (VERDICT_SWEEP_BENCH, verdict_sweep),
     "check:refine-rule": (REFINE_RULE_BENCH, refine_rule),

@@ -54,20 +54,15 @@ def _mae(pred: np.ndarray, gt: np.ndarray, mask: np.ndarray) -> float:
 
 
 def _methods(net, ablation) -> list[tuple[str, Any]]:
-    out = [("model", net)]
-    if ablation is not None:
-        out.append(("model, uniform contexts", ablation))
-    out += [("least squares (calibrated)", None), ("sh-uncalibrated", None)]
-    return out
+    with_ablation = [("model, uniform contexts", ablation)] if ablation is not None else []
+    return [("model", net), *with_ablation, ("least squares (calibrated)", None), ("sh-uncalibrated", None)]
 
 
 def _predict(method: str, net, obj, tta: int = DEFAULT_TTA) -> np.ndarray | None:
     if method.startswith("model"):
         return predict_object(obj, "model", net=net, tta=tta)
     if method.startswith("least squares"):
-        if obj.light_directions is None:
-            return None
-        return predict_object(obj, "least-squares")
+        return None if obj.light_directions is None else predict_object(obj, "least-squares")
     return predict_object(obj, "sh-uncalibrated")
 
 
@@ -413,8 +408,13 @@ def check_inputs(args: BenchmarkOptions, data: bool = True) -> None:
             if fd.normals is None:
                 raise UsageError(f"--data: {str(folder)!r} has no ground-truth normals")
             sized.append(("--data", fd))
-        if sized and min(args.counts) > (most := max(fd.num_files for _, fd in sized)):  # only dashes to show
+        most = max((fd.num_files for _, fd in sized), default=max(args.counts))
+        if min(args.counts) > most:  # only dashes to show
             raise UsageError(f"--counts: {min(args.counts)}, more than the {most} image(s) of every object in --data")
+        if beyond := [k for k in args.counts if k > most]:  # a column of dashes each: left out, said
+            log.warning("--counts %s: more than the %d image(s) of every object in --data; left out of the table",
+                        ",".join(map(str, beyond)), most)
+            args.counts = [k for k in args.counts if k <= most]
         if args.rerender_objects > 0:
             from validate.known.rerender_passes import RerenderConfig
 

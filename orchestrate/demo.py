@@ -124,6 +124,9 @@ class DemoOptions:
         """The flags and --out: an earlier demo's output is replaced only with --overwrite
         (`scenes.cli.outputs.claim_outputs`); the steps' own arguments: `check_steps`."""
         check_fields(self)
+        if self.checkpoint is not None and self.checkpoint.is_dir():  # the published layout needs predict's --model
+            raise UsageError(f"--checkpoint: {str(self.checkpoint)!r} is a folder; the demo takes a model file "
+                             "(.safetensors or .pt): run published weights with unips.predict --model")
         check_output_folder(self.out)
         claim_outputs([self.out / "summary.md"], self.overwrite, owner="orchestrate.demo")
         claim_outputs([self.out / "pred", self.out / "rerender", self.out / "data" / "preview"], self.overwrite,

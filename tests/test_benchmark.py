@@ -12,7 +12,7 @@ from unips.checkpoint import save_checkpoint
 from unips.models import create_model
 
 
-def test_benchmark_reports_probes_and_diligent_subsets(synthetic_object, tmp_path):
+def test_benchmark_reports_probes_and_diligent_subsets(synthetic_object, tmp_path, caplog):
     from orchestrate.benchmark import main, probe_inputs
     from unips.data import load_object
 
@@ -21,7 +21,7 @@ def test_benchmark_reports_probes_and_diligent_subsets(synthetic_object, tmp_pat
     dil = tmp_path / "dil"
     write_diligent(dil / "sphPNG", k=8)
     out = tmp_path / "bench"
-    rc = main(["--data", str(synthetic_object.parent), "--checkpoint", str(weights), "--counts", "1,6",
+    rc = main(["--data", str(synthetic_object.parent), "--checkpoint", str(weights), "--counts", "1,6,50",
                "--rerender-objects", "0", "--diligent", str(dil), "--diligent-subset", "4", "--diligent-subsets", "2",
                "--out", str(out)])
     assert rc == 0
@@ -34,6 +34,9 @@ def test_benchmark_reports_probes_and_diligent_subsets(synthetic_object, tmp_pat
     assert 0 <= row["model_mask_only"] <= 180
     tables = (out / "tables.md").read_text()
     assert "photometric gain" in tables and "model K=4" in tables and "mask only" in tables
+    # A count beyond every object's 6 images would be a column of dashes: left out, and said.
+    assert res["synthetic"]["counts"] == [1, 6] and "K=50" not in tables
+    assert "--counts 50: more than the 6 image(s) of every object" in caplog.text
 
     # The mask-only probe input is the mask itself in every image, in the object's own frame.
     obj = load_object(synthetic_object)

@@ -293,6 +293,20 @@ def _main_fitted(args: RerenderOptions) -> int:
     return 0
 
 
+def _refuse_other_mode(argv: list[str] | None, fitted: bool, data: str) -> None:
+    """A flag of the mode not run would be silently ignored: refused in one line, with the way to the other mode."""
+    other = COMMAND.given_flags(argv, RerenderConfig if fitted else FitConfig)
+    if not fitted and "threads" in COMMAND.given(argv):  # the fitted mode's Dr.Jit threads
+        other.append("--threads")
+    if not other:
+        return
+    if fitted:
+        raise UsageError(f"{other[0]}: an option of the known-scene check, but --data {data!r} is checked in the "
+                         "fitted mode (no scene.json, or --fit): drop it")
+    raise UsageError(f"{other[0]}: an option of the fitted mode, but --data {data!r} has a scene.json and gets the "
+                     "known-scene check: add --fit for the fitted mode, or drop it")
+
+
 def main(argv: list[str] | None = None) -> int:
     """One object: a failure is one line `error: ...`, exit 2. A dataset: a failed object is recorded (summary.csv
     row with its error), the others go on, the failures are listed at the end and the exit status is 1.
@@ -311,7 +325,11 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
                             format="%(levelname)s %(name)s: %(message)s")
         from scenes.folder.layouts import detect_layout, has_scene
 
-        if args.fit or (Path(args.data).is_dir() and detect_layout(args.data) in ("diligent", "unips")):
+        if Path(args.data).is_dir():
+            has_scene(args.data)  # a scene.json that is not a file is refused first, named
+        fitted = args.fit or (Path(args.data).is_dir() and detect_layout(args.data) in ("diligent", "unips"))
+        _refuse_other_mode(argv, fitted, args.data)
+        if fitted:
             return _main_fitted(args)
         config = args.check
         data = Path(args.data)

@@ -257,6 +257,15 @@ def parse_range(text: Any, name: str, minimum: float, maximum: float, what: str,
 # ---------------------------------------------------------------- the command line
 
 
+def _flag_tokens(argv: Sequence[str] | None, known: set[str]) -> list[tuple[str, str]]:
+    """(as typed, its field's flag) of each token of a command line (`sys.argv` when None, as `Command.parse` reads
+    it): `--no-x` is the flag `--x` unless `--no-x` is a flag of `known` (a field named no_x)."""
+    import sys
+
+    tokens = [t.split("=", 1)[0] for t in (sys.argv[1:] if argv is None else argv)]
+    return [(t, t) if t in known else (t, "--" + t[5:] if t.startswith("--no-") else t) for t in tokens]
+
+
 def _flat_fields(cls: type) -> Iterable[tuple[type, dataclasses.Field]]:
     """(owner class, field) of every field on the command line, the fields of nested configs included."""
     hints = _hints(cls)
@@ -398,10 +407,13 @@ class Command:
     def given(self, argv: Sequence[str] | None) -> set[str]:
         """Names of the fields whose flags are on the command line `argv` (not left at their defaults)."""
         by_flag = {flag: name for name, flag in self.flags().items() if flag.startswith("-")}
-        import sys
+        return {by_flag[flag] for _, flag in _flag_tokens(argv, set(by_flag)) if flag in by_flag}
 
-        tokens = sys.argv[1:] if argv is None else argv  # as `parse` reads it
-        return {by_flag[t.split("=", 1)[0]] for t in tokens if t.split("=", 1)[0] in by_flag}
+    def given_flags(self, argv: Sequence[str] | None, within: type) -> list[str]:
+        """The flags on `argv` of the fields of the nested config `within` (its own nested configs included)."""
+        mine = {flag_name(owner, f) for owner, f in _flat_fields(within)}
+        tokens = _flag_tokens(argv, set(self.flags().values()))
+        return list(dict.fromkeys(typed for typed, flag in tokens if flag in mine))
 
     def _join_repeated(self, argv: list[str]) -> list[str]:
         """A `Repeatable` flag given several times becomes one comma-separated value (its uses add up)."""

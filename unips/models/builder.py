@@ -28,7 +28,7 @@ from scenes.files import atomic_write, not_a_file, write_json
 
 from .official import is_official_path, read_official
 from .registry import build_model, official_entry, pretrained_weights
-from .tensors import check_weights
+from .tensors import check_weights, load_torch_file
 
 WEIGHTS_FORMAT = "unips-weights/1"
 TRAINING_FORMAT = "unips-training/1"
@@ -241,11 +241,7 @@ def load_training_checkpoint(path: str | Path, map_location: str | torch.device 
         raise ValueError(f"training checkpoint {str(path)!r} is a folder; expected a .pt file")
     if why := not_a_file(path):
         raise FileNotFoundError(f"training checkpoint {str(path)!r} {why}")
-    try:
-        ckpt = torch.load(path, map_location=map_location, weights_only=True)
-    except Exception as exc:  # truncated or corrupt files raise from pickle, zipfile or torch itself
-        raise ValueError(f"{str(path)!r}: not a readable training checkpoint, the file is corrupt or truncated "
-                         f"({_first_line(exc)})") from exc
+    ckpt = load_torch_file(path, "training checkpoint", map_location)
     if not isinstance(ckpt, dict) or ckpt.get("format") != TRAINING_FORMAT:
         raise ValueError(f"{str(path)!r}: not a training checkpoint (expected format {TRAINING_FORMAT!r})")
     missing = [k for k in ("model_name", "config", "model", "optimizer", "scheduler", "step", "rng", "data", "extra")

@@ -19,7 +19,7 @@ from typing import Mapping
 import torch
 
 from .contract import InputContract
-from .tensors import check_weights
+from .tensors import check_weights, load_torch_file
 
 OFFICIAL_SUFFIX = ".pytmodel"
 DATA_PARALLEL_PREFIX = "module."
@@ -42,12 +42,7 @@ class OfficialWeights:
 
 
 def _read_state(path: Path) -> dict[str, torch.Tensor]:
-    try:
-        state = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as exc:  # pickle, zipfile and torch raise their own errors for corrupt or foreign files
-        first = str(exc).strip().splitlines()[0][:160] if str(exc).strip() else ""
-        why = type(exc).__name__ if not first or "weights_only" in first else f"{type(exc).__name__}: {first}"
-        raise ValueError(f"{str(path)!r}: not a readable checkpoint of tensors ({why})") from exc
+    state = load_torch_file(path, "checkpoint of tensors")
     if not isinstance(state, Mapping) or not all(isinstance(v, torch.Tensor) for v in state.values()):
         raise ValueError(f"{str(path)!r}: expected a state dict (names -> tensors), got {type(state).__name__}")
     if state and all(k.startswith(DATA_PARALLEL_PREFIX) for k in state):

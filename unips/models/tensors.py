@@ -41,3 +41,18 @@ def check_weights(state: Mapping[str, Any], source: str, expected: Mapping[str, 
                 raise ValueError(f"{source}: tensor {key} holds {nan} NaN and {inf} infinite values (of "
                                  f"{value.numel()}); expected finite weights (a training run that diverged, or a "
                                  "damaged file)")
+
+
+def load_torch_file(path: Any, what: str, map_location: Any = "cpu") -> Any:
+    """`torch.load` of an untrusted file with the weights-only unpickler; a file it refuses is one ValueError naming
+    `path` and `what` it should be: corrupt or truncated, or a whole pickle of objects other than tensors and plain
+    values (building those could run code from the file, so it is not read)."""
+    try:
+        return torch.load(path, map_location=map_location, weights_only=True)
+    except Exception as exc:  # pickle, zipfile and torch raise their own errors for corrupt or foreign files
+        if "Unsupported global" in str(exc):  # a whole pickle naming a class to build (a NumPy array, a module)
+            raise ValueError(f"{str(path)!r}: the {what} holds Python objects other than tensors and plain values (a "
+                             "NumPy array, a class): not read, as building them could run code from the file") from None
+        lines = str(exc).strip().splitlines()
+        why = f"{type(exc).__name__}: {lines[0][:160]}" if lines else type(exc).__name__
+        raise ValueError(f"{str(path)!r}: not a readable {what}, the file is corrupt or truncated ({why})") from exc
