@@ -147,6 +147,7 @@ def probe_input(opts: CaptureOptions) -> tuple[int, int, int, tuple[int, int]]:
 def read_input(opts: CaptureOptions) -> Capture:
     """The capture of --input, linear: its photos (mask None until `find_mask`) or an object folder (with its
     mask); `meta["input"]` says what the files said about themselves (report.json `input`)."""
+    from scenes.folder.format import object_name  # resolved: a folder reached through '..' is named as itself
     from scenes.folder.layouts import detect_layout, read_folder
     from scenes.folder.photos import read_photos
     from validate.observations import capture_from_arrays
@@ -159,7 +160,7 @@ def read_input(opts: CaptureOptions) -> Capture:
     photos = read_photos(folder, opts.input_encoding, opts.max_side or None, guide=True)
     source = {"kind": "photos", "encoding": photos.encoding, "bit_depth": photos.bit_depth,
               "exposure": photos.exposure, **({"raw": photos.raw} if photos.raw else {})}
-    return capture_from_arrays(folder.name or "capture", photos.images, None, photos.names, photos.saturated, folder,
+    return capture_from_arrays(object_name(folder) or "capture", photos.images, None, photos.names, photos.saturated, folder,
                                {"input": source, "guide": photos.guide})
 
 
@@ -270,11 +271,13 @@ def _variation_picture(images: np.ndarray, path: Path) -> None:
 def load_network_first(opts: CaptureOptions) -> tuple[object, float]:
     """The network of --checkpoint / --model, loaded (its weights checked: `unips.models.tensors`) before the photos
     are read, so that a bad one costs no reading; and the seconds it took. A refusal names the flag."""
+    from unips.expected_error import for_weights
     from unips.inference import load_network
 
     t0 = time.perf_counter()
     try:
         net = load_network(opts.checkpoint, model=opts.model)
+        for_weights(net.checkpoint)  # its error model read and checked now too, not after the model's map
     except (ValueError, FileNotFoundError) as exc:  # its message names the file, or the registry: the flag too
         flag = "--checkpoint" if opts.checkpoint is not None else "--model"
         if str(exc).startswith(flag):

@@ -3596,6 +3596,59 @@ ROWS += [
 ]
 
 
+def _error_model(edit: Callable[[dict], object]) -> Callable[[Path, Path], None]:
+    """Setup: T/w/m.safetensors (+ .json), a copy of the shipped weights, with their error model
+    m.expected_error.json (its weights' SHA-256 holds) changed by `edit` (a dict in place, or the text to write)."""
+    def setup(w: Path, t: Path) -> None:
+        from unips.expected_error import model_path
+        from unips.models import DEFAULT_MODEL, pretrained_weights
+
+        shipped = pretrained_weights(DEFAULT_MODEL)
+        _mk(t / "w")
+        shutil.copy(shipped, t / "w" / "m.safetensors")
+        shutil.copy(shipped.with_suffix(".json"), t / "w" / "m.json")
+        d = json.loads(model_path(shipped).read_text())
+        text = edit(d)
+        (t / "w" / "m.expected_error.json").write_text(text if isinstance(text, str) else json.dumps(d))
+    return setup
+
+
+def _no_dotdot_stage(report: dict) -> None:
+    """A capture's stages are folders under its --out named after the photos' folder itself, never '..'."""
+    stages = json.dumps(report["stages"])
+    assert ".." not in stages and "photos" in stages, stages
+
+
+PREDICT_MODEL = ["--method", "model", "--checkpoint", "{T}/w/m.safetensors", "--input", OBJDIR, "--out", "{T}/p",
+                 "--tta", "1"]
+ROWS += [
+    # ---- sweep 6: the error model beside the weights is read as strictly as the weights (before any photo)
+    Row("predict-error-model-a-list", PR, PREDICT_MODEL, 2, ("m.expected_error.json", "expected a JSON object"),
+        setup=_error_model(lambda d: "[]"), check=_not_written("p")),
+    Row("predict-error-model-unknown-key", PR, PREDICT_MODEL, 2, ("m.expected_error.json", "'comment'"),
+        setup=_error_model(lambda d: d.update(comment="refit")), check=_not_written("p")),
+    Row("predict-error-model-scale-nan", PR, PREDICT_MODEL, 2, ("m.expected_error.json", "scale"),
+        setup=_error_model(lambda d: d.update(scale=float("nan"))), check=_not_written("p")),
+    Row("predict-error-model-interval-reversed", PR, PREDICT_MODEL, 2, ("m.expected_error.json", "ratio_quantiles"),
+        setup=_error_model(lambda d: d.update(ratio_quantiles=[2.0, 0.5])), check=_not_written("p")),
+    Row("predict-error-model-object-stage-overflows", PR, PREDICT_MODEL, 2, ("m.expected_error.json", "object_coef"),
+        setup=_error_model(lambda d: d.update(object_coef=[400.0, 1.0, 0.0])), check=_not_written("p")),
+    Row("predict-error-model-not-json", PR, PREDICT_MODEL, 2, ("m.expected_error.json", "not valid JSON"),
+        setup=_error_model(lambda d: "not json{"), check=_not_written("p")),
+    Row("capture-error-model-scale-nan", CAP, [*CAPTURE_ALL, "--checkpoint", "{T}/w/m.safetensors"], 2,
+        ("--checkpoint", "m.expected_error.json", "scale"),
+        setup=_both(_photos(), _error_model(lambda d: d.update(scale=float("nan")))), check=_not_written("o")),
+    Row("capture-input-named-through-dotdot", CAP, ["--input", "{T}/photos/sub/..", *CAPTURE_ALL[2:]], 0,
+        ("report.json",), setup=_both(_photos(), lambda w, t: _mk(t / "photos" / "sub")),
+        check=lambda w, t: _no_dotdot_stage(json.loads((t / "o" / "report.json").read_text()))),
+    # ---- sweep 6: torchrun's variables
+    Row("train-world-size-without-torchrun", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1"],
+        2, ("WORLD_SIZE=2", "RANK", "torchrun"), env={"WORLD_SIZE": "2"}, sub=True, check=_not_written("run")),
+    Row("train-world-size-not-a-number", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1"],
+        2, ("WORLD_SIZE='two'",), env={"WORLD_SIZE": "two"}, sub=True, check=_not_written("run")),
+]
+
+
 @pytest.mark.parametrize("row", ROWS, ids=[r.id for r in ROWS])
 def test_bad_input(row: Row, world: Path, tmp_path: Path, capsys, request):
     for module in row.needs:

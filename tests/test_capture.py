@@ -78,6 +78,41 @@ def test_eight_bit_files_are_srgb_sixteen_bit_and_exr_linear_in_natural_order(tm
     np.testing.assert_array_equal(read_photos(dexr).images, values)
 
 
+def _png_with_chunk(path, codes: np.ndarray, kind: bytes, data: bytes) -> None:
+    """A PNG of `codes` (OpenCV's encoder) with one more chunk after its header (IHDR: 8 + 25 bytes in)."""
+    import struct
+    import zlib
+
+    ok, buf = cv2.imencode(".png", codes[..., ::-1])
+    raw = buf.tobytes()
+    chunk = struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+    path.write_bytes(raw[:33] + chunk + raw[33:])
+
+
+def test_a_png_says_its_own_curve(tmp_path, np_rng):
+    """A PNG's sRGB or gAMA chunk decides the curve in auto mode (a 16-bit sRGB PNG, an 8-bit linear one); a gamma
+    that is neither is refused naming the file; --input-encoding still decides for all files."""
+    import struct
+
+    codes16 = np_rng.integers(0, 65536, (2, 5, 7, 3), dtype=np.uint16)
+    codes8 = np_rng.integers(0, 256, (2, 5, 7, 3), dtype=np.uint8)
+    folders = {name: tmp_path / name for name in ("srgb16", "linear8", "gamma07")}
+    for i in range(2):
+        for f in folders.values():
+            f.mkdir(exist_ok=True)
+        _png_with_chunk(folders["srgb16"] / f"{i}.png", codes16[i], b"sRGB", bytes([0]))
+        _png_with_chunk(folders["linear8"] / f"{i}.png", codes8[i], b"gAMA", struct.pack(">I", 100000))
+        _png_with_chunk(folders["gamma07"] / f"{i}.png", codes8[i], b"gAMA", struct.pack(">I", 70000))
+    photos = read_photos(folders["srgb16"])
+    assert photos.encoding == ["srgb"] * 2
+    np.testing.assert_allclose(photos.images[0], srgb_to_linear(codes16[0] / 65535.0), atol=1e-5)
+    photos = read_photos(folders["linear8"])
+    assert photos.encoding == ["linear"] * 2 and photos.images[1] == pytest.approx(codes8[1] / 255.0, abs=1e-7)
+    with pytest.raises(ValueError, match=r"--input: .*0\.png' declares gamma 0\.7 .*--input-encoding"):
+        read_photos(folders["gamma07"])
+    assert read_photos(folders["gamma07"], "srgb").encoding == ["srgb"] * 2
+
+
 def _jpeg_with_exif(path, a: np.ndarray, orientation: int = 1, exposure_s: float | None = None) -> None:
     from PIL import Image
 

@@ -31,12 +31,14 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from scenes.files import not_a_file
 from scenes.folder.format import EXPECTED_ERROR_FILES
 from scenes.metrics import angles_deg
 
@@ -202,7 +204,70 @@ class ErrorModel:
 
     @classmethod
     def load(cls, path: Path) -> ErrorModel:
-        return cls(**json.loads(Path(path).read_text()))
+        """The model in `path`, every field checked (`check_fields`): one ValueError naming the file otherwise."""
+        try:
+            d = json.loads(Path(path).read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise ValueError(f"error model {str(path)!r}: not valid JSON ({exc})") from None
+        try:
+            return cls(**check_fields(d))
+        except ValueError as exc:
+            raise ValueError(f"error model {str(path)!r}: {exc} (fit it again: orchestrate.error_calibration)"
+                             ) from None
+
+
+def _numbers(d: dict, key: str, n: int | None, positive: bool = False, bound: float = 1e6) -> None:
+    """d[key] a list of `n` numbers (a number when `n` is None), finite, of magnitude at most `bound`, positive if
+    asked; ValueError naming the key otherwise."""
+    v = d[key]
+    values = [v] if n is None else v
+    number = lambda x: isinstance(x, (int, float)) and not isinstance(x, bool)  # noqa: E731
+    if not isinstance(values, list) or (n is not None and len(values) != n) or not all(map(number, values)):
+        raise ValueError(f"{key} must be " + ("a number" if n is None else f"a list of {n} numbers")
+                         + f", got {json.dumps(v)[:80]}")
+    if not all(np.isfinite(x) and abs(x) <= bound and (x > 0 or not positive) for x in values):
+        raise ValueError(f"{key} {json.dumps(v)[:80]}: expected finite " + ("positive " if positive else "")
+                         + f"numbers up to {bound:g} in magnitude")
+
+
+def check_fields(d: Any) -> dict:
+    """`d` (a loaded JSON value) if it holds an `ErrorModel`: every field, none other, of its type and range (a
+    stated error made of NaN, infinities or a reversed interval is never written); ValueError otherwise."""
+    from dataclasses import MISSING, fields
+
+    if not isinstance(d, dict):
+        raise ValueError(f"expected a JSON object, got {type(d).__name__}")
+    known = {f.name: f for f in fields(ErrorModel)}
+    missing = [k for k, f in known.items() if k not in d and f.default is MISSING and f.default_factory is MISSING]
+    if extra := sorted(set(d) - set(known)):
+        raise ValueError(f"unknown key(s) {', '.join(map(repr, extra))}")
+    if missing:
+        raise ValueError(f"missing key(s) {', '.join(map(repr, missing))}")
+    for key in ("weights_sha256", "model_name"):
+        if not isinstance(d[key], str):
+            raise ValueError(f"{key} must be a string, got {json.dumps(d[key])[:80]}")
+    if d["features"] != list(FEATURES):
+        raise ValueError(f"features {json.dumps(d['features'])[:120]}, expected {list(FEATURES)} (fitted by another "
+                         "version of the toolkit)")
+    n = len(FEATURES)
+    _numbers(d, "mean", n)
+    _numbers(d, "std", n, positive=True)
+    _numbers(d, "coef", n, bound=100.0)
+    _numbers(d, "intercept", None, bound=100.0)
+    _numbers(d, "scale", None, positive=True)
+    _numbers(d, "ratio_quantiles", 2, positive=True)
+    if d["ratio_quantiles"][0] > d["ratio_quantiles"][1]:
+        raise ValueError(f"ratio_quantiles {d['ratio_quantiles']}: expected the 10th percentile first (low, high)")
+    if "object_coef" in d:
+        _numbers(d, "object_coef", 3, bound=100.0)
+    if "object_images" in d:
+        v = d["object_images"]
+        if not (isinstance(v, list) and len(v) == 2 and all(type(x) is int for x in v) and 1 <= v[0] <= v[1]):
+            raise ValueError(f"object_images must be two image counts [low, high], 1 <= low <= high, got "
+                             f"{json.dumps(v)[:80]}")
+    if not isinstance(d.get("calibration", {}), dict):
+        raise ValueError("calibration must be a JSON object")
+    return d
 
 
 def sha256(path: Path) -> str:
@@ -220,8 +285,10 @@ def for_weights(weights: Path | None) -> tuple[ErrorModel | None, str | None]:
     if weights is None:
         return None, "no weights file"
     path = model_path(weights)
-    if not path.is_file():
+    if not os.path.lexists(path):
         return None, f"no error model was fitted for {Path(weights).name} ({path.name} is absent)"
+    if why := not_a_file(path):
+        raise ValueError(f"error model {str(path)!r} {why}")
     em = ErrorModel.load(path)
     if em.weights_sha256 != sha256(weights):
         return None, f"{path.name} was fitted for other weights than {Path(weights).name} (SHA-256 differs)"

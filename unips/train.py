@@ -29,7 +29,6 @@ import contextlib
 import dataclasses
 import logging
 import math
-import os
 import sys
 import time
 from pathlib import Path
@@ -43,7 +42,7 @@ from scenes.cli.options import Command
 from scenes.cli.progress import Progress
 from unips.train_config import TrainConfig
 from unips.train_data import Batch, curriculum_pool, make_batch, normal_loss, probe_samples, step_rng
-from unips.train_run import Run, append_log, check_run, open_stream, resume_run, save_last, setup_run
+from unips.train_run import Run, append_log, check_run, distributed_env, open_stream, resume_run, save_last, setup_run
 
 log = logging.getLogger(__name__)
 
@@ -73,6 +72,7 @@ def check_args(argv: Sequence[str]) -> TrainConfig:
     from unips.train_run import read_init_weights
 
     cfg = config_from_args(argv)
+    distributed_env()  # torchrun's variables, checked before anything is read
     check_output_folder(cfg.out)
     check_threads(cfg.threads or None, "--threads")
     if cfg.init_from:
@@ -171,7 +171,7 @@ def train(cfg: TrainConfig | Sequence[str], started: float | None = None) -> dic
         cfg = config_from_args(cfg)
     cfg.validate()
     # One writer per run folder: rank 0, the process that writes every file, holds it for the whole run.
-    main_rank = int(os.environ.get("RANK", "0")) == 0
+    main_rank = distributed_env().main
     with output_lock(cfg.out, inputs=_inputs(cfg)) if main_rank else contextlib.nullcontext():
         run = _start(cfg)
         done, stopped = _loop(run, started)
@@ -190,7 +190,7 @@ def train(cfg: TrainConfig | Sequence[str], started: float | None = None) -> dic
 def _start(cfg: TrainConfig) -> Run:
     """The checks before any work, the one line saying what runs, then the run set up (and resumed)."""
     check_run(cfg)
-    if int(os.environ.get("RANK", "0")) == 0:  # one line before the long work, also with --no-progress
+    if distributed_env().main:  # one line before the long work, also with --no-progress
         what = cfg.init_from or cfg.model
         print(f"{'resuming' if cfg.resume else 'training'} {what} for {cfg.steps} steps (batch {cfg.batch}, "
               f"{cfg.res} px) on --data {cfg.data}; run folder {cfg.out}", flush=True)

@@ -104,13 +104,42 @@ class Dist:
         return self.rank == 0
 
 
+TORCHRUN_VARIABLES = ("WORLD_SIZE", "RANK", "LOCAL_RANK", "MASTER_ADDR", "MASTER_PORT")
+"""What torchrun sets for each process of a multi-process run (`distributed_env` checks them)."""
+
+
+def distributed_env() -> Dist:
+    """This process's place in a torchrun run, from the variables torchrun sets (a single process without them);
+    one ValueError naming the variable where they are not integers in range or one is missing."""
+    env = os.environ
+
+    def number(name: str, default: str, low: int) -> int:
+        text = env.get(name, default)
+        try:
+            value = int(text)
+        except ValueError:
+            raise ValueError(f"environment variable {name}={text!r}: expected an integer (torchrun sets it)") from None
+        if value < low:
+            raise ValueError(f"environment variable {name}={text!r}: expected {low} or more")
+        return value
+
+    world = number("WORLD_SIZE", "1", 1)
+    rank, local = number("RANK", "0", 0), number("LOCAL_RANK", "0", 0)
+    if world > 1 and (missing := [v for v in TORCHRUN_VARIABLES if v not in env]):
+        raise ValueError(f"environment variable WORLD_SIZE={world} without {', '.join(missing)}: start a "
+                         "multi-process run with torchrun, which sets them all")
+    if rank >= world:
+        raise ValueError(f"environment variable RANK={rank}: expected below WORLD_SIZE={world}")
+    return Dist(rank, world, local) if world > 1 else Dist()
+
+
 def init_distributed(cfg: TrainConfig) -> Dist:
-    world = int(os.environ.get("WORLD_SIZE", "1"))
-    if world <= 1:
-        return Dist()
+    d = distributed_env()
+    if d.world <= 1:
+        return d
     import torch.distributed as dist
 
-    rank, local = int(os.environ["RANK"]), int(os.environ.get("LOCAL_RANK", "0"))
+    rank, world, local = d.rank, d.world, d.local_rank
     if cfg.batch % world:
         raise ValueError(f"--batch={cfg.batch}: expected a multiple of the {world} torchrun processes")
     if not dist.is_initialized():

@@ -10,8 +10,9 @@ files.
   same orientation (EXIF tag 0x0112, 1 where absent; LibRaw's flip for RAW files), square or not;
 - encoded values are linearised with colour-science's sRGB decoding where the file is sRGB: `encoding="auto"`
   takes 8-bit files as sRGB (as cameras and phones write JPEG and PNG; an EXIF colour space other than sRGB
-  is refused in auto mode, since the curve would be unknown) and 16-bit and EXR files as linear; `srgb` or
-  `linear` force one for all files;
+  is refused in auto mode, since the curve would be unknown) and 16-bit and EXR files as linear, except where a
+  PNG's own sRGB or gAMA chunk says otherwise (gAMA 1: linear; 1/2.2 or sRGB: sRGB; another gamma is refused);
+  `srgb` or `linear` force one for all files;
 - camera RAW files (DNG, CR2, CR3, NEF, ARW, ORF, RW2, RAF) are developed linear by LibRaw (`scenes.folder.raw`:
   linear demosaic, camera white balance, no tone curve, linear sRGB), recorded per image; they are linear, so
   `srgb` is refused for them, and a folder mixing RAW and other files is refused (their scales differ);
@@ -188,11 +189,25 @@ def _read_exif(path: Path) -> dict[str, Any]:
             warnings.simplefilter("always")  # PIL warns of a damaged EXIF block without naming the file
             with Image.open(path) as img:
                 exif = _exif(img)
+                declared = _declared_curve(img.info)
     except (UnidentifiedImageError, OSError):
         return {}  # no EXIF to read; the pixels are read (or refused) by OpenCV
     if caught:
         exif["exif_damaged"] = str(caught[0].message).splitlines()[0]
-    return exif
+    return {**exif, **({"declared_curve": declared} if declared else {})}
+
+
+def _declared_curve(info: dict[str, Any]) -> str | None:
+    """The encoding a PNG's own chunks declare: "srgb" (an sRGB chunk, or gAMA 1/2.2), "linear" (gAMA 1), "gamma G"
+    (another gAMA), None (neither)."""
+    if "srgb" in info:
+        return "srgb"
+    gamma = info.get("gamma")
+    if not isinstance(gamma, (int, float)) or not np.isfinite(gamma) or gamma <= 0:
+        return None
+    if abs(gamma - 1.0) < 0.01:
+        return "linear"
+    return "srgb" if abs(gamma - 1 / 2.2) < 0.01 else f"gamma {gamma:.5g}"
 
 
 @dataclass
@@ -266,7 +281,11 @@ def _linear(
 ) -> tuple[np.ndarray, str]:
     import colour
 
-    kind = encoding if encoding != "auto" else ("srgb" if depth == 8 else "linear")
+    declared = exif.get("declared_curve")  # a PNG's sRGB or gAMA chunk says how its codes are encoded
+    if encoding == "auto" and declared not in (None, "srgb", "linear"):
+        raise ValueError(f"{flag}: {str(path)!r} declares {declared} (a gAMA chunk, neither sRGB nor linear); give "
+                         "--input-encoding srgb or linear to say how its values are encoded")
+    kind = encoding if encoding != "auto" else declared or ("srgb" if depth == 8 else "linear")
     if encoding == "auto" and depth == 8 and exif.get("color_space", _SRGB_COLOR_SPACE) != _SRGB_COLOR_SPACE:
         raise ValueError(f"{flag}: {str(path)!r} declares EXIF colour space {exif['color_space']} (not sRGB); give "
                          f"--input-encoding srgb or linear to say how its values are encoded")
