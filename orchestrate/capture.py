@@ -160,8 +160,8 @@ def read_input(opts: CaptureOptions) -> Capture:
     photos = read_photos(folder, opts.input_encoding, opts.max_side or None, guide=True)
     source = {"kind": "photos", "encoding": photos.encoding, "bit_depth": photos.bit_depth,
               "exposure": photos.exposure, **({"raw": photos.raw} if photos.raw else {})}
-    return capture_from_arrays(object_name(folder) or "capture", photos.images, None, photos.names, photos.saturated, folder,
-                               {"input": source, "guide": photos.guide})
+    return capture_from_arrays(object_name(folder) or "capture", photos.images, None, photos.names,
+                               photos.saturated, folder, {"input": source, "guide": photos.guide})
 
 
 WHOLE_FRAME = ("every pixel gets a normal, the background's too; the model was trained on single objects on a dark "

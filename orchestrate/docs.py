@@ -417,7 +417,10 @@ def regenerate(text: str, card: dict, where: str = "") -> tuple[str, list[str]]:
             j = next(k for k in range(i, len(lines)) if lines[k].strip() == end)
         except StopIteration:
             raise UsageError(f"{where}: block generated:{name} has no closing line {end!r}") from None
-        out += [render(name, card), end]
+        try:
+            out += [render(name, card), end]
+        except (UsageError, ValueError, KeyError) as exc:  # said with the file that holds the block
+            raise UsageError(f"{where}: {str(exc).strip(chr(39))}") from None
         names.append(name)
         i = j + 1
     return "\n".join(out), names
@@ -432,7 +435,11 @@ def run(check: bool, root: Path = REPO, card_path: Path = CARD) -> list[Path]:
     if not card:
         raise FileNotFoundError(f"model card {str(card_path)!r} does not exist (the result tables come from it)")
     changed, seen = {}, set()
+    from scenes.files import not_a_file
+
     for path in doc_files(root):
+        if why := not_a_file(path):  # a link to a device is never read whole
+            raise UsageError(f"{str(path.relative_to(root))} {why}")
         text = path.read_text()
         new, names = regenerate(text, card, str(path.relative_to(root)))
         seen.update(names)

@@ -245,6 +245,42 @@ def tree_bytes(root: Path = REPO) -> int:
     return sum((root / n.decode()).stat().st_size for n in names if n and (root / n.decode()).is_file())
 
 
+DEVICE_PYTHON, DEVICE_PLATFORM = "cp312", "x86_64"
+"""The GPU machine's Python and processor: a wheel must install there (`check_wheel_names`)."""
+
+
+def check_wheel_names(wheels: Path, found: list[Path]) -> None:
+    """The wheels' file names (PEP 427): each installable on the GPU machine (CPython 3.12 or pure Python, Linux on
+    x86-64 or any platform), one version of each package, and mitsuba and drjit at the versions this toolkit runs
+    (`PACKED`); UsageError naming the wheel otherwise."""
+    from packaging.utils import InvalidWheelFilename, parse_wheel_filename
+
+    seen: dict[str, Path] = {}
+    versions: dict[str, str] = {}
+    for wheel in found:
+        try:
+            name, version, _, tags = parse_wheel_filename(wheel.name)
+        except InvalidWheelFilename as exc:
+            raise UsageError(f"--wheels: {wheel.name!r} is not a wheel's file name ({exc})") from None
+        fits = [t for t in tags if t.interpreter in (DEVICE_PYTHON, "py3", "py312") and
+                (t.platform == "any" or (t.platform.endswith(DEVICE_PLATFORM) and "linux" in t.platform))]
+        if not fits:
+            raise UsageError(f"--wheels: {wheel.name!r} does not install on the GPU machine (CPython 3.12 on Linux "
+                             f"x86-64; its tags: {', '.join(sorted(map(str, tags)))[:160]})")
+        if name in seen:
+            raise UsageError(f"--wheels: {wheel.name!r} and {seen[name].name!r} are two versions of {name}; keep one")
+        seen[name] = wheel
+        versions[name] = str(version)
+    for pin in PACKED[:2]:  # then the versions (two of one package said as such first)
+        name, pinned = pin.split("==")
+        if name in versions and versions[name] != pinned:
+            raise UsageError(f"--wheels: {seen[name].name!r} is {name} {versions[name]}; this toolkit runs {name} "
+                             f"{pinned}")
+    if missing := [p.split("==")[0] for p in PACKED[:2] if p.split("==")[0] not in seen]:
+        raise UsageError(f"--wheels: {str(wheels)!r} has no {' or '.join(missing)} wheel (expected "
+                         f"{', '.join(p.replace('==', '-') + '-cp312-...whl' for p in PACKED[:2])})")
+
+
 def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None = None,
          assets: Path | None = None, overwrite: bool = False) -> int:
     """Write dest/site.tar.xz: every wheel in `wheels` unpacked as pip would (`_keep_member` filters Mitsuba to
@@ -260,8 +296,7 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
     if not found:
         raise UsageError(f"--wheels: {str(wheels)!r} holds no .whl files (expected the Python 3.12 x86-64 wheels of "
                          "mitsuba, drjit and the packages the GPU machine lacks; see docs/model.md)")
-    if not any(w.name.startswith("mitsuba-") for w in found):
-        raise UsageError(f"--wheels: {str(wheels)!r} has no mitsuba wheel (expected mitsuba-3.9.1-cp312-...whl)")
+    check_wheel_names(wheels, found)
     from scenes.files import not_a_file
 
     for wheel in found:  # every wheel readable before anything is written or the long compression starts

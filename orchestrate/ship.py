@@ -151,9 +151,28 @@ def _read(path: Path) -> dict:
     return record
 
 
+RECORD_FIELDS = {"model_card.json": {"train_minutes": "number", "steps": "count", "batch": "count",
+                                     "init_from": "text", "hardware": "text", "data": "text", "recipe": "text"},
+                 "summary.json": {"wall_s": "number"}}
+"""The fields of the session's records the lineage entry copies, and what each must be (or null)."""
+
+
 def check_records(folder: Path) -> None:
-    """The session's records are read (or refused) before the evaluation, not after it."""
-    _read(folder / "model_card.json"), _read(folder / "summary.json")
+    """The session's records are read (or refused) before the evaluation, not after it, and the fields the lineage
+    entry copies are of their kind (`RECORD_FIELDS`): a string of minutes or a NaN never reaches the model card."""
+    import math
+
+    for name, fields in RECORD_FIELDS.items():
+        record = _read(folder / name)
+        for key, kind in fields.items():
+            v = record.get(key)
+            ok = (v is None or (kind == "text" and isinstance(v, str))
+                  or (kind != "text" and isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                      and v >= 0 and (kind == "number" or float(v).is_integer())))
+            if not ok:
+                expected = {"text": "a string", "number": "a finite number >= 0", "count": "a whole number >= 0"}[kind]
+                raise UsageError(f"--candidate: {str(folder / name)!r} field {key!r} is {json.dumps(v)[:60]}; "
+                                 f"expected {expected} or null (as orchestrate.gpu_session writes it)")
 
 
 def lineage_entry(folder: Path, new: dict, old: dict | None, shipped: bool) -> dict:

@@ -2961,6 +2961,10 @@ def _same_file(a: Path, b: Path) -> None:
 def _empty_wheel(w: Path, t: Path) -> None:
     """Setup: T/wheels/ holding a 0-byte mitsuba wheel (a download cut short)."""
     (_mk(t / "wheels") / "mitsuba-3.9.1-cp312-cp312-manylinux_2_28_x86_64.whl").write_bytes(b"")
+    import zipfile
+
+    with zipfile.ZipFile(t / "wheels" / "drjit-1.5.0-cp312-cp312-manylinux_2_28_x86_64.whl", "w") as z:
+        z.writestr("drjit/__init__.py", "")
 
 
 def _both(*setups: Callable[[Path, Path], None]) -> Callable[[Path, Path], None]:
@@ -3641,6 +3645,11 @@ ROWS += [
     Row("capture-input-named-through-dotdot", CAP, ["--input", "{T}/photos/sub/..", *CAPTURE_ALL[2:]], 0,
         ("report.json",), setup=_both(_photos(), lambda w, t: _mk(t / "photos" / "sub")),
         check=lambda w, t: _no_dotdot_stage(json.loads((t / "o" / "report.json").read_text()))),
+    Row("ship-model-card-minutes-a-string", SHIP, ["--candidate", "{T}/cand", "--val", "{W}/data", "--diligent",
+                                                   "none"], 2, ("--candidate", "train_minutes", "a finite number"),
+        setup=_put(("cand/model_card.json", '{"train_minutes": "ten", "hardware": "H100"}\n'))),
+    Row("ship-summary-wall-time-nan", SHIP, ["--candidate", "{T}/cand", "--val", "{W}/data", "--diligent", "none"], 2,
+        ("--candidate", "summary.json", "wall_s"), setup=_put(("cand/summary.json", '{"wall_s": NaN}\n'))),
     # ---- sweep 6: torchrun's variables
     Row("train-world-size-without-torchrun", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1"],
         2, ("WORLD_SIZE=2", "RANK", "torchrun"), env={"WORLD_SIZE": "2"}, sub=True, check=_not_written("run")),

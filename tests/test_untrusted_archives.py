@@ -170,6 +170,7 @@ def test_a_pack_refuses_wheel_members_outside_and_never_replaces_the_users_files
 
     wheels, pack = tmp_path / "wh", tmp_path / "pk"
     wheels.mkdir()
+    _wheel(wheels / "drjit-1.5.0-cp312-cp312-manylinux_2_17_x86_64.whl", ["drjit/__init__.py"])
     bad = _wheel(wheels / "mitsuba-3.9.1-cp312-cp312-manylinux_2_17_x86_64.whl", ["mitsuba/__init__.py",
                                                                                   "../../evil.py"])
     assert main(["--pack", str(pack), "--wheels", str(wheels), "--assets", "none"]) == 2
@@ -223,6 +224,34 @@ def test_a_carried_archive_or_wheel_that_is_a_device_is_named_not_read(tmp_path,
         unpack_carry(carry, tmp_path / "work")
     wheels = tmp_path / "wh"
     wheels.mkdir()
+    _wheel(wheels / "drjit-1.5.0-cp312-cp312-manylinux_2_17_x86_64.whl", ["drjit/__init__.py"])
     os.symlink("/dev/zero", wheels / "mitsuba-3.9.1-cp312-cp312-manylinux_2_17_x86_64.whl")
     assert main(["--pack", str(tmp_path / "pk"), "--wheels", str(wheels), "--assets", "none"]) == 2
     assert "not a regular file" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("names, said", [
+    (["mitsuba-3.9.1-cp312-cp312-win_amd64.whl"], "does not install on the GPU machine"),
+    (["mitsuba-3.9.1-cp311-cp311-manylinux_2_17_x86_64.whl"], "does not install on the GPU machine"),
+    (["mitsuba-3.9.1-cp312-cp312-manylinux_2_17_aarch64.whl"], "does not install on the GPU machine"),
+    (["mitsuba-3.9.1-cp312-cp312-manylinux_2_17_x86_64.whl", "mitsuba-3.9.0-cp312-cp312-manylinux_2_17_x86_64.whl"],
+     "two versions of mitsuba"),
+    (["mitsuba-3.9.0-cp312-cp312-manylinux_2_17_x86_64.whl"], "this toolkit runs mitsuba 3.9.1"),
+    ([], "has no drjit wheel"),
+    (["tyro-1.0.17-py3-none-any.whl", "not-a-wheel.whl"], "is not a wheel's file name"),
+])
+def test_a_pack_takes_only_wheels_that_install_on_the_gpu_machine(tmp_path, capsys, names, said):
+    """The wheels' names (PEP 427) say where they install: a Windows, Python 3.11 or ARM wheel, two versions of one
+    package, a mitsuba or drjit the toolkit does not run, or no drjit at all are refused before anything is packed."""
+    from orchestrate.gpu_session import main
+
+    wheels = tmp_path / "wh"
+    wheels.mkdir()
+    always = [] if said == "has no drjit wheel" else ["drjit-1.5.0-cp312-cp312-manylinux_2_17_x86_64.whl"]
+    if not any(n.startswith("mitsuba-") for n in names):
+        names = [*names, "mitsuba-3.9.1-cp312-cp312-manylinux_2_17_x86_64.whl"]
+    for name in [*always, *names]:
+        _wheel(wheels / name, [name.split("-")[0] + "/__init__.py"])
+    assert main(["--pack", str(tmp_path / "pk"), "--wheels", str(wheels), "--assets", "none"]) == 2
+    err = capsys.readouterr().err
+    assert said in err and err.startswith("error: --wheels") and not (tmp_path / "pk" / "site.tar.xz").exists(), err
