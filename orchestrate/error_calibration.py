@@ -110,7 +110,8 @@ def render_suite(work: Path, assets: str | None, objects: int, seed: int, rows=S
                 *(["--quiet"] if quiet else [])]
         done = subprocess.run(argv, cwd=REPO, capture_output=True, text=True)
         if done.returncode != 0:
-            raise UsageError(f"wildgen.make for suite row {name!r} failed: {done.stderr.strip().splitlines()[-1:]}")
+            said = (done.stderr.strip().splitlines() or ["no message"])[-1].removeprefix("error: ")
+            raise UsageError(f"--work: wildgen.make for suite row {name!r} into {str(dest)!r} failed: {said}")
         out.append(dest)
     return out
 
@@ -164,17 +165,43 @@ class CalibrationOptions:
     """Where to write the fitted model."""
     objects: int = option(32, minimum=1)
     """Objects per suite row (10 rows)."""
-    seed: int = option(11000)
+    seed: int = option(11000, minimum=0)
     """Seed of the first row (row i: seed + 100 i): none of the seeds the shipped model was trained, validated or
     tested on (3000-8000), nor the bench's (9000)."""
     pixels: int = option(1500, minimum=1)
     """Pixels per object the model is fitted on (drawn with --seed)."""
     threads: int = option(2, minimum=1)
     """Torch threads."""
+    overwrite: bool = False
+    """Replace the fitted model an earlier run wrote at the output (a file this command did not write, never)."""
 
     def validate(self) -> "CalibrationOptions":
+        """The flags, --work, --weights and the output (an earlier fit replaced only with --overwrite), before any
+        work."""
+        from scenes.cli.outputs import check_output_folder, claim_outputs
+        from scenes.files import not_a_file
+
         check_fields(self)
+        check_output_folder(self.work, "--work")
+        if self.weights is not None and (why := not_a_file(Path(self.weights))):
+            raise UsageError(f"--weights: {self.weights!r} {why}")
+        dest, flag = self.destination()
+        if self.weights is not None and dest.resolve() == Path(self.weights).resolve():
+            raise UsageError(f"--out: {str(dest)!r} is the --weights file itself; expected a .json file beside it")
+        claim_outputs([dest], self.overwrite, flag, "orchestrate.error_calibration",
+                      signed={dest: ("weights_sha256", "features")})
         return self
+
+    def destination(self) -> tuple[Path, str]:
+        """Where the fitted model goes, and the flag that says so (--out, else --weights: beside them)."""
+        from unips.expected_error import model_path
+        from unips.models import DEFAULT_MODEL
+        from unips.models.registry import pretrained_entry
+
+        if self.out is not None:
+            return Path(self.out), "--out"
+        weights = Path(self.weights) if self.weights else pretrained_entry(DEFAULT_MODEL).weights_path
+        return model_path(weights), "--weights" if self.weights else "--out"
 
 
 COMMAND = Command(CalibrationOptions, prog="python -m orchestrate.error_calibration", description=__doc__)
@@ -227,8 +254,13 @@ def calibrate(samples: list[dict], weights: Path, model_name: str, note: dict, s
 
 
 def main(argv: list[str] | None = None) -> int:
+    """One line `error: ...` for a bad input; --work is held for the run (one calibration per work folder)."""
+    from scenes.cli.outputs import output_lock
+
     try:
-        return run(COMMAND.parse(argv).validate())
+        opts = COMMAND.parse(argv).validate()
+        with output_lock(opts.work, "--work"):
+            return run(opts)
     except (*INPUT_ERRORS, OSError) as exc:
         return report_error(exc)
 
@@ -243,7 +275,6 @@ def run(opts: CalibrationOptions) -> int:
 
     torch.set_num_threads(opts.threads)
     work = Path(opts.work)
-    work.mkdir(parents=True, exist_ok=True)
     assets = None
     opts.assets = opts.assets or str(REPO.parent / "shared" / "assets")
     if opts.assets != "none":
@@ -252,7 +283,10 @@ def run(opts: CalibrationOptions) -> int:
                              "or 'none')")
         assets = str(split_assets(Path(opts.assets), work)[0])
     weights = Path(opts.weights) if opts.weights else pretrained_entry(DEFAULT_MODEL).weights_path
-    net = load_network(weights)
+    try:
+        net = load_network(weights)
+    except (ValueError, FileNotFoundError) as exc:  # the reader names the file; the flag is ours
+        raise type(exc)(f"--weights: {str(exc).removeprefix('--checkpoint: ')}") from None
     t0 = time.time()
     datasets = render_suite(work, assets, opts.objects, opts.seed)
     print(f"rendered the suite ({len(SUITE)} rows x {opts.objects} objects) in {work} in {time.time() - t0:.0f} s",
@@ -275,7 +309,8 @@ def run(opts: CalibrationOptions) -> int:
         "command": f"python -m orchestrate.error_calibration --work WORK --objects {opts.objects} --seed {opts.seed}"})
     from unips.expected_error import model_path
 
-    dest = Path(opts.out) if opts.out else model_path(weights)
+    dest = opts.destination()[0]
+    dest.parent.mkdir(parents=True, exist_ok=True)
     em.save(dest)
     entry = pretrained_entry(DEFAULT_MODEL)
     card = ""

@@ -3623,6 +3623,9 @@ def _no_dotdot_stage(report: dict) -> None:
     assert ".." not in stages and "photos" in stages, stages
 
 
+EC = "orchestrate.error_calibration"
+CALIBRATE = ["--work", "{T}/work", "--assets", "none", "--objects", "1", "--out", "{T}/em.json"]
+"""A calibration whose rows are all refused before it renders anything."""
 PREDICT_MODEL = ["--method", "model", "--checkpoint", "{T}/w/m.safetensors", "--input", OBJDIR, "--out", "{T}/p",
                  "--tta", "1"]
 ROWS += [
@@ -3650,6 +3653,22 @@ ROWS += [
         setup=_put(("cand/model_card.json", '{"train_minutes": "ten", "hardware": "H100"}\n'))),
     Row("ship-summary-wall-time-nan", SHIP, ["--candidate", "{T}/cand", "--val", "{W}/data", "--diligent", "none"], 2,
         ("--candidate", "summary.json", "wall_s"), setup=_put(("cand/summary.json", '{"wall_s": NaN}\n'))),
+    # ---- sweep 6: orchestrate.error_calibration, held to every command's rules before it renders
+    Row("calibration-out-a-users-file", EC, [*CALIBRATE, "--out", "{T}/mine.json"], 2, ("--out", "--overwrite"),
+        setup=_put(("mine.json", '{"my": "notes"}\n')), check=_kept("mine.json", '{"my": "notes"}\n')),
+    Row("calibration-out-a-users-file-overwrite", EC, [*CALIBRATE, "--out", "{T}/mine.json", "--overwrite"], 2,
+        ("mine.json", "was not written by orchestrate.error_calibration"),
+        setup=_put(("mine.json", '{"my": "notes"}\n')), check=_kept("mine.json", '{"my": "notes"}\n')),
+    Row("calibration-out-the-weights", EC, [*CALIBRATE, "--weights", "{T}/w/m.safetensors", "--out",
+                                            "{T}/w/m.safetensors"], 2, ("--out", "the --weights file itself"),
+        setup=_error_model(lambda d: None)),
+    Row("calibration-earlier-fit-beside-the-weights", EC, [*CALIBRATE[:-2], "--weights", "{T}/w/m.safetensors"], 2,
+        ("--weights", "m.expected_error.json", "--overwrite"), setup=_error_model(lambda d: None)),
+    Row("calibration-weights-missing", EC, [*CALIBRATE, "--weights", "{T}/none.safetensors"], 2,
+        ("--weights", "none.safetensors", "does not exist")),
+    Row("calibration-work-a-file", EC, ["--work", "{W}/afile", "--assets", "none", "--out", "{T}/em.json"], 2,
+        ("--work", "afile")),
+    Row("calibration-seed-negative", EC, [*CALIBRATE, "--seed", "-5"], 2, ("--seed", "-5")),
     # ---- sweep 6: torchrun's variables
     Row("train-world-size-without-torchrun", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1"],
         2, ("WORLD_SIZE=2", "RANK", "torchrun"), env={"WORLD_SIZE": "2"}, sub=True, check=_not_written("run")),
