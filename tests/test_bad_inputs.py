@@ -3669,6 +3669,9 @@ ROWS += [
     Row("calibration-work-a-file", EC, ["--work", "{W}/afile", "--assets", "none", "--out", "{T}/em.json"], 2,
         ("--work", "afile")),
     Row("calibration-seed-negative", EC, [*CALIBRATE, "--seed", "-5"], 2, ("--seed", "-5")),
+    Row("make-ray-address-variable-malformed", MK, ["--out", "{T}/o", *TINY, "--ray"], 2,
+        ("--ray auto: RAY_ADDRESS", "http//x::"), env={"RAY_ADDRESS": "http//x::"}, sub=True,
+        check=_not_written("o")),
     # ---- sweep 6: torchrun's variables
     Row("train-world-size-without-torchrun", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1"],
         2, ("WORLD_SIZE=2", "RANK", "torchrun"), env={"WORLD_SIZE": "2"}, sub=True, check=_not_written("run")),

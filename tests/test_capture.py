@@ -161,6 +161,26 @@ def test_the_f_number_counts_in_the_exposure_when_every_photo_gives_one(tmp_path
     assert [e["scale"] for e in read_photos(tmp_path / "some").exposure] == [1.0, 1.0]
 
 
+def test_exposures_that_differ_where_one_photo_gives_none_are_said(tmp_path, capsys):
+    """Two photos at 0.01 s and one at 0.02 s, but one of them without ISO: none can be normalised, and the
+    command says so instead of leaving the doubled exposure silently (sweep 6)."""
+    from PIL import Image
+
+    a = (np.random.default_rng(2).random((6, 9, 3)) * 200 + 20).astype(np.uint8)
+    for i, (t, iso) in enumerate([(0.01, 100), (0.02, 100), (0.01, None)]):
+        img = Image.fromarray(a)
+        exif = img.getexif()
+        ifd = exif.get_ifd(0x8769)
+        ifd[0x829A] = t
+        if iso is not None:
+            ifd[0x8827] = iso
+        img.save(tmp_path / f"p{i}.jpg", exif=exif, quality=100)
+    assert [e["scale"] for e in read_photos(tmp_path).exposure] == [1.0, 1.0, 1.0]
+    err = capsys.readouterr().err
+    assert err.startswith("warning: --input: the EXIF exposures of the photos differ, but p2.jpg") and \
+        err.count("\n") == 1, err
+
+
 def test_exif_exposures_must_be_finite_positive_and_at_most_ten_stops_apart(tmp_path):
     """The longest exposure over the shortest (time x ISO) may be MAX_EXPOSURE_RATIO (1024, 10 stops), not more; a
     value that is not a positive number is refused naming the file and the value as written (issue 50)."""

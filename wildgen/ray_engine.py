@@ -69,12 +69,17 @@ def check_ray_address(address: str) -> None:
     unset variable) is refused, not read as a private local cluster."""
     from scenes.cli.errors import UsageError
 
-    if address in ("auto", "local"):
+    if address == "local":
         return
+    named = "--ray"
+    if address == "auto":  # joins RAY_ADDRESS first where it is set: its form is checked, named as such
+        if not os.environ.get("RAY_ADDRESS") or os.environ["RAY_ADDRESS"] in ("auto", "local"):
+            return
+        address, named = os.environ["RAY_ADDRESS"], "--ray auto: RAY_ADDRESS"
     target = _host_port(address)
     scheme = address.split("://", 1)[0] if "://" in address else None
     if target is None or not 1 <= target[1] <= 65535 or scheme not in (None, "ray"):
-        raise UsageError(f"--ray: got {address!r}, expected auto, local, HOST:PORT (port 1 to 65535) or "
+        raise UsageError(f"{named}: got {address!r}, expected auto, local, HOST:PORT (port 1 to 65535) or "
                          "ray://HOST:PORT")
     if address.startswith("ray://"):
         try:

@@ -44,8 +44,23 @@ def _without_traceback(text: str) -> str:
 
 
 def one_line(exc: BaseException) -> str:
-    """The message of `exc` on one line (without a traceback another process put into it)."""
-    return _without_traceback(str(exc)).replace("\n", " ")
+    """The message of `exc` on one line (without a traceback another process put into it); a copy of a folder that
+    failed (`shutil.Error`, a list of every file) by its first file; a full disk with what to do."""
+    import errno
+    import shutil
+
+    if isinstance(exc, shutil.Error) and exc.args and isinstance(exc.args[0], list) and exc.args[0]:
+        first = exc.args[0][0]
+        src, dst, why = first if isinstance(first, tuple) and len(first) == 3 else ("?", "?", first)
+        more = f" (and {len(exc.args[0]) - 1} more file(s))" if len(exc.args[0]) > 1 else ""
+        text = f"could not copy {src!r} to {dst!r}{more}: {why}"
+        full = "No space left on device" in str(why)
+    else:
+        text = _without_traceback(str(exc))
+        full = isinstance(exc, OSError) and exc.errno == errno.ENOSPC
+    if full:
+        text += " (the disk it writes to is full: free space there, or write the output elsewhere)"
+    return text.replace("\n", " ")
 
 
 def report_error(exc: BaseException, code: int = EXIT_USAGE) -> int:

@@ -305,6 +305,13 @@ def _exposure_scales(exifs: list[dict[str, Any]], names: list[str], flag: str) -
     that are not finite and positive, or further apart than `MAX_EXPOSURE_RATIO`, are one ValueError naming the
     files."""
     if not all("exposure_time_s" in e and "iso" in e for e in exifs):
+        given = [(n, (e.get("exposure_time_s"), e.get("iso"))) for n, e in zip(names, exifs)]
+        known = {v for _, v in given if None not in v}
+        if len(known) > 1:  # some photos' exposures differ, and others cannot be brought to them: said, not hidden
+            lacking = next(n for n, v in given if None in v)
+            print(f"warning: {flag}: the EXIF exposures of the photos differ, but {lacking} (and maybe others) "
+                  "gives no exposure time or ISO: no photo is normalised to one exposure (give every photo its EXIF, "
+                  "or take them at one setting)", file=sys.stderr)
         return [1.0] * len(exifs)
     # The light a photo gathers grows with the time and the gain, and falls with the square of the f-number (used
     # when every photo gives one: a lens stopped down 4 times lets in 16 times less).
