@@ -12,8 +12,8 @@
 
 Every step is the real CLI run as a subprocess, so this is also an end-to-end check of the commands a
 user types; every step's arguments are checked before the first runs, and a failed step is reported as one
-line. Re-running with the same --out resumes a dataset an interrupted demo left; an earlier demo's output is
-replaced only with --overwrite.
+line. Re-running with the same --out resumes a dataset a demo interrupted while rendering left; once a later step
+has written (previews, predictions), an earlier demo's output is replaced only with --overwrite.
 """
 from __future__ import annotations
 
@@ -117,8 +117,8 @@ class DemoOptions:
     """Classical baseline to compare with (least-squares needs directional lights only)."""
     overwrite: bool = False
     """Replace the output of an earlier demo in --out: every step replaces its own files (the dataset is rendered
-    again); files the demo did not write are never touched. Without it, a dataset left by an interrupted demo is
-    resumed, and anything else already there is refused."""
+    again); files the demo did not write are never touched. Without it, a dataset left by a demo interrupted while
+    rendering is resumed, and anything a later step wrote is refused (previews, predictions, checks)."""
 
     def validate(self) -> "DemoOptions":
         """The flags and --out: an earlier demo's output is replaced only with --overwrite
@@ -226,5 +226,7 @@ def demo(args: DemoOptions) -> int:
     return 0
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+if __name__ == "__main__":  # Ctrl-C stops the work whole, in one line (scenes.cli.supervise)
+    from scenes.cli.supervise import run_supervised
+
+    sys.exit(run_supervised("orchestrate.demo", main))

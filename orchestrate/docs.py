@@ -26,6 +26,7 @@ from typing import Any, Callable
 from orchestrate.bench_docs import BENCH_BLOCKS, BENCH_TABLES
 from scenes.cli.errors import UsageError, report_error
 from scenes.cli.options import Command
+from scenes.files import atomic_write_text
 from scenes.report.tables import markdown_table
 
 REPO = Path(__file__).resolve().parents[1]
@@ -450,7 +451,7 @@ def run(check: bool, root: Path = REPO, card_path: Path = CARD) -> list[Path]:
         raise UsageError(f"no generated block for {', '.join(missing)} in README.md or docs/*.md")
     if not check:  # only once every block rendered: an error leaves every file as it was
         for path, new in changed.items():
-            path.write_text(new)
+            atomic_write_text(path, new)
     return list(changed)
 
 
@@ -483,5 +484,8 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+if __name__ == "__main__":  # Ctrl-C stops the work whole, in one line (scenes.cli.supervise)
+    from scenes.cli.supervise import run_supervised
+
+    stopped = ("interrupted: every doc file is whole (each is written at once); run it again")
+    sys.exit(run_supervised("orchestrate.docs", main, stopped))

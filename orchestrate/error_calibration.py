@@ -336,5 +336,8 @@ def record_in_card(card_path: Path, dest: Path, em) -> None:
     write_json(card_path, card, indent=1)
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+if __name__ == "__main__":  # Ctrl-C stops the work whole, in one line (scenes.cli.supervise)
+    from scenes.cli.supervise import run_supervised
+
+    stopped = ("interrupted: the renders finished in --work are kept (the suite resumes); run the same command again")
+    sys.exit(run_supervised("orchestrate.error_calibration", main, stopped))

@@ -260,5 +260,9 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+if __name__ == "__main__":  # Ctrl-C stops the work whole, in one line (scenes.cli.supervise)
+    from scenes.cli.supervise import run_supervised
+
+    stopped = ("interrupted: the shipped weights and the model card are each whole, as they were unless it said it "
+               "shipped; run it again")
+    sys.exit(run_supervised("orchestrate.ship", main, stopped))

@@ -143,5 +143,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
     return 0
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+if __name__ == "__main__":  # Ctrl-C stops the work whole, in one line (scenes.cli.supervise)
+    from scenes.cli.supervise import run_supervised
+
+    sys.exit(run_supervised("orchestrate.surface", main))

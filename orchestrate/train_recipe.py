@@ -448,5 +448,9 @@ def ship(val: Path, run_dir: Path, args: RecipeOptions) -> bool:
     return True
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+if __name__ == "__main__":  # Ctrl-C stops the work whole, in one line (scenes.cli.supervise)
+    from scenes.cli.supervise import run_supervised
+
+    stopped = ("interrupted: every step's finished files in --work are whole; run the same command again to go on "
+               "from the steps that finished")
+    sys.exit(run_supervised("orchestrate.train_recipe", main, stopped))

@@ -280,5 +280,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     return 0
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+if __name__ == "__main__":  # Ctrl-C stops the work whole, in one line (scenes.cli.supervise)
+    from scenes.cli.supervise import run_supervised
+
+    stopped = ("interrupted: --out keeps the last whole checkpoint (last.pt) and the log up to it; continue with "
+               "--resume")
+    sys.exit(run_supervised("unips.train", main, stopped))

@@ -265,5 +265,7 @@ def _write(args) -> int:
     return 0
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+if __name__ == "__main__":  # Ctrl-C stops the work whole, in one line (scenes.cli.supervise)
+    from scenes.cli.supervise import run_supervised
+
+    sys.exit(run_supervised("wildgen.preview", main))
