@@ -69,6 +69,20 @@ def existing_split(work: Path) -> dict[Path, Path]:
     return found
 
 
+def holds_assets(plan: dict[Path, Path], half: Path, assets: Path) -> bool:
+    """Whether the half `half` of the split `plan` is an asset folder wildgen.make accepts: a mesh or an HDR map of
+    its own, or a texture set (a folder in the shared textures/)."""
+    textures = Path(assets) / "textures"
+    return (any(link.parent.parent == half and link.parent.name in ("meshes", "hdri") for link in plan)
+            or (textures.is_dir() and any(p.is_dir() for p in textures.iterdir())))
+
+
+def _too_few(assets: Path, half: str) -> UsageError:
+    return UsageError(f"--assets: {str(assets)!r} has too few meshes and HDR maps to split (the last quarter of the "
+                      f"meshes and the last fifth of the maps are held out) and no texture sets: {half} would be "
+                      "empty; expected at least 2 meshes or 2 HDR maps, or texture sets in textures/")
+
+
 def check_split(assets: Path | None, work: Path, overwrite: bool) -> bool:
     """Whether the split must be (re)written: False when --work holds the same split already. A split of another
     asset folder is replaced only with --overwrite (`scenes.cli.outputs.claim_outputs`' rule); foreign files never."""
@@ -77,9 +91,8 @@ def check_split(assets: Path | None, work: Path, overwrite: bool) -> bool:
         return False
     planned = split_plan(assets, work)
     for name in SPLIT_FOLDERS:  # each half must be an asset folder wildgen.make accepts
-        if not any(work / name in link.parents for link in planned):
-            raise UsageError(f"--assets: {str(assets)!r} has too few meshes and HDR maps to split (the last quarter "
-                             f"of the meshes and the last fifth of the maps are held out): {name} would be empty")
+        if not holds_assets(planned, work / name, assets):
+            raise _too_few(assets, name)
     if not found or found == planned:
         return not found
     if not overwrite:
@@ -92,11 +105,14 @@ def check_split(assets: Path | None, work: Path, overwrite: bool) -> bool:
 def split_assets(assets: Path, work: Path) -> tuple[Path, Path]:
     """Write the asset split (`split_plan`): symlink folders train_assets/ and heldout_assets/, after removing the
     links of an earlier split (`existing_split`; nothing else is ever removed)."""
+    plan = split_plan(assets, work)
+    if not holds_assets(plan, work / SPLIT_FOLDERS[0], assets):
+        raise _too_few(assets, SPLIT_FOLDERS[0])
     for link in existing_split(work):
         link.unlink()
     for name in SPLIT_FOLDERS:
         for sub in ("meshes", "hdri"):
             (work / name / sub).mkdir(parents=True, exist_ok=True)
-    for link, target in split_plan(assets, work).items():
+    for link, target in plan.items():
         os.symlink(target, link)
     return work / SPLIT_FOLDERS[0], work / SPLIT_FOLDERS[1]

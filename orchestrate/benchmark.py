@@ -34,6 +34,7 @@ from scenes.cli.limits import check_memory, check_threads
 from scenes.cli.options import Command, arg, check_fields, comma_list, option
 from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
 from scenes.files import atomic_write_text, write_json
+from scenes.folder.layouts import diligent_folders
 from scenes.metrics import mean_angular_error
 from scenes.report.tables import markdown_table
 from unips.data import find_objects, load_object
@@ -435,16 +436,6 @@ def check_inputs(args: BenchmarkOptions, data: bool = True) -> None:
                      f"{fd.shape[0]} px, {args.tta} view(s))", f"lower {flag} or --tta")
 
 
-def diligent_folders(root: Path) -> list[Path]:
-    """The `*PNG` object folders of a DiLiGenT folder (UsageError naming --diligent when there is none)."""
-    if not root.is_dir():
-        raise UsageError(f"--diligent: {str(root)!r} is not a folder")
-    folders = sorted(p for p in root.iterdir() if p.is_dir() and p.name.endswith("PNG"))
-    if not folders:
-        raise UsageError(f"--diligent: no <object>PNG folders in {str(root)!r}")
-    return folders
-
-
 COMMAND = Command(BenchmarkOptions, prog="python -m orchestrate.benchmark",
                   description="Evaluation tables: per light family, vs image count, re-render residuals, DiLiGenT.")
 
@@ -467,6 +458,9 @@ def _main(argv: list[str] | None, held) -> int:
             torch.set_num_threads(args.threads)
         net = load_network(args.checkpoint, model=args.model)
         ablation = load_network(args.ablation_checkpoint) if args.ablation_checkpoint else None
+        if ablation and (theirs := ablation.meta.get("model_name")) != (ours := net.meta.get("model_name")):
+            raise UsageError(f"--ablation-checkpoint: holds {theirs!r}, not {ours!r}, the network benchmarked; "
+                             "expected the same network trained with uniform contexts")
         res: dict[str, Any] = {"checkpoint": str(net.checkpoint), "ablation_checkpoint": args.ablation_checkpoint,
                                "images": args.images, "data": args.data, "tta": args.tta}
         if args.data and args.rerender_objects > 0:

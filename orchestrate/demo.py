@@ -127,6 +127,11 @@ class DemoOptions:
         if self.checkpoint is not None and self.checkpoint.is_dir():  # the published layout needs predict's --model
             raise UsageError(f"--checkpoint: {str(self.checkpoint)!r} is a folder; the demo takes a model file "
                              "(.safetensors or .pt): run published weights with unips.predict --model")
+        directional = FAMILIES.split(",").index("directional")
+        if self.baseline == "least-squares" and self.objects <= directional:  # object i is lit by family i mod 4
+            raise UsageError(f"--baseline least-squares: needs directional lights, and with --objects {self.objects} "
+                             f"no object gets them (the families cycle {FAMILIES}): --objects {directional + 1} or "
+                             "more, or --baseline sh-uncalibrated")
         check_output_folder(self.out)
         claim_outputs([self.out / "summary.md"], self.overwrite, owner="orchestrate.demo")
         claim_outputs([self.out / "pred", self.out / "rerender", self.out / "data" / "preview"], self.overwrite,

@@ -194,13 +194,16 @@ def pack_assets(assets: Path, dest: Path, budget: int) -> dict:
         else:
             skipped.append(name)
     dest.mkdir(parents=True, exist_ok=True)
-    tmp = dest / (ASSET_ARCHIVE + ".tmp")
-    with tarfile.open(tmp, "w:xz", preset=6) as tar:
-        for arc, data in members:
-            ti = tarfile.TarInfo(f"assets/{arc}")
-            ti.size, ti.mode = len(data), 0o644
-            tar.addfile(ti, io.BytesIO(data))
-    os.replace(tmp, dest / ASSET_ARCHIVE)
+    from scenes.files import atomic_write
+
+    def write(tmp: Path) -> None:
+        with tarfile.open(tmp, "w:xz", preset=6) as tar:
+            for arc, data in members:
+                ti = tarfile.TarInfo(f"assets/{arc}")
+                ti.size, ti.mode = len(data), 0o644
+                tar.addfile(ti, io.BytesIO(data))
+
+    atomic_write(dest / ASSET_ARCHIVE, write)
     size = (dest / ASSET_ARCHIVE).stat().st_size
     if size > budget:
         raise UsageError(f"--assets: {ASSET_ARCHIVE} is {size} bytes, over the {budget} bytes the upload limit leaves")
@@ -297,7 +300,7 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
         raise UsageError(f"--wheels: {str(wheels)!r} holds no .whl files (expected the Python 3.12 x86-64 wheels of "
                          "mitsuba, drjit and the packages the GPU machine lacks; see docs/model.md)")
     check_wheel_names(wheels, found)
-    from scenes.files import not_a_file
+    from scenes.files import atomic_write, not_a_file
 
     for wheel in found:  # every wheel readable before anything is written or the long compression starts
         if why := not_a_file(wheel):
@@ -317,18 +320,20 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
                              "folder it is unpacked into (expected names relative to it); not a wheel pip writes")
     dest.mkdir(parents=True, exist_ok=True)
     archive = dest / SITE_ARCHIVE
-    tmp = archive.with_name(archive.name + ".tmp")
-    with tarfile.open(tmp, "w:xz", preset=6) as tar:
-        for wheel in found:
-            with zipfile.ZipFile(wheel) as z:
-                for info in z.infolist():
-                    if info.is_dir() or not _keep_member(info.filename):
-                        continue
-                    ti = tarfile.TarInfo(info.filename)
-                    ti.size, ti.mode = info.file_size, 0o755 if info.filename.endswith(".so") else 0o644
-                    with z.open(info) as f:
-                        tar.addfile(ti, f)
-    os.replace(tmp, archive)
+
+    def write(tmp: Path) -> None:
+        with tarfile.open(tmp, "w:xz", preset=6) as tar:
+            for wheel in found:
+                with zipfile.ZipFile(wheel) as z:
+                    for info in z.infolist():
+                        if info.is_dir() or not _keep_member(info.filename):
+                            continue
+                        ti = tarfile.TarInfo(info.filename)
+                        ti.size, ti.mode = info.file_size, 0o755 if info.filename.endswith(".so") else 0o644
+                        with z.open(info) as f:
+                            tar.addfile(ti, f)
+
+    atomic_write(archive, write)  # a full disk leaves no half archive, and says which file it was
     tree = tree_bytes() if tree is None else tree
     site = archive.stat().st_size
     manifest = {"site": {"archive": SITE_ARCHIVE, "bytes": site, "wheels": [w.name for w in found]}, "tree_bytes": tree,

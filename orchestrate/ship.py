@@ -102,7 +102,8 @@ def diligent_scores(weights: Path, root: Path | None, threads: int) -> dict:
     """{object: {probe: mean angular error}} of `weights` on DiLiGenT's ball and cat (those present in `root`)."""
     import torch
 
-    from orchestrate.benchmark import _mae, diligent_folders, probe_inputs
+    from orchestrate.benchmark import _mae, probe_inputs
+    from scenes.folder.layouts import diligent_folders
     from unips.data import load_object
     from unips.inference import load_network, predict_object
 
@@ -155,6 +156,8 @@ RECORD_FIELDS = {"model_card.json": {"train_minutes": "number", "steps": "count"
                                      "init_from": "text", "hardware": "text", "data": "text", "recipe": "text"},
                  "summary.json": {"wall_s": "number"}}
 """The fields of the session's records the lineage entry copies, and what each must be (or null)."""
+MAX_TEXT = 4000
+"""The longest text field copied into the model card (gpu_session writes a few hundred characters)."""
 
 
 def check_records(folder: Path) -> None:
@@ -166,11 +169,12 @@ def check_records(folder: Path) -> None:
         record = _read(folder / name)
         for key, kind in fields.items():
             v = record.get(key)
-            ok = (v is None or (kind == "text" and isinstance(v, str))
+            ok = (v is None or (kind == "text" and isinstance(v, str) and len(v) <= MAX_TEXT)
                   or (kind != "text" and isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
                       and v >= 0 and (kind == "number" or float(v).is_integer())))
             if not ok:
-                expected = {"text": "a string", "number": "a finite number >= 0", "count": "a whole number >= 0"}[kind]
+                expected = {"text": f"a string of at most {MAX_TEXT} characters", "number": "a finite number >= 0",
+                            "count": "a whole number >= 0"}[kind]
                 raise UsageError(f"--candidate: {str(folder / name)!r} field {key!r} is {json.dumps(v)[:60]}; "
                                  f"expected {expected} or null (as orchestrate.gpu_session writes it)")
 

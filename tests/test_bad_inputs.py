@@ -3591,6 +3591,13 @@ ROWS += [
     Row("rerender-known-scene-option-when-fitted", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out",
                                                         "{T}/o", "--fit", "--no-floors"], 2,
         ("--no-floors", "fitted mode"), check=_not_written("o")),
+    Row("bench-ablation-of-another-network", BM, ["--data", "{W}/data", "--out", "{T}/b", "--counts", "1",
+                                                  "--rerender-objects", "0", "--tta", "1", "--ablation-checkpoint",
+                                                  "{W}/run_old/last.pt"], 2,
+        ("--ablation-checkpoint", "the network benchmarked"), check=_not_written("b")),
+    Row("demo-least-squares-without-a-directional-object", DEMO, ["--out", "{T}/d", "--objects", "1", "--baseline",
+                                                                   "least-squares"], 2,
+        ("--baseline least-squares", "--objects 4"), check=_not_written("d")),
     Row("demo-checkpoint-a-folder", DEMO, ["--out", "{T}/d", "--checkpoint", "{T}/ck"], 2,
         ("--checkpoint", "is a folder", "unips.predict --model"), setup=lambda w, t: _mk(t / "ck"),
         check=_not_written("d")),
@@ -3623,6 +3630,11 @@ def _no_dotdot_stage(report: dict) -> None:
     assert ".." not in stages and "photos" in stages, stages
 
 
+def _dataset_copy(w: Path, t: Path) -> None:
+    """Setup: T/data, a copy of the world's dataset."""
+    shutil.copytree(w / "data", t / "data")
+
+
 EC = "orchestrate.error_calibration"
 CALIBRATE = ["--work", "{T}/work", "--assets", "none", "--objects", "1", "--out", "{T}/em.json"]
 """A calibration whose rows are all refused before it renders anything."""
@@ -3651,6 +3663,9 @@ ROWS += [
     Row("ship-model-card-minutes-a-string", SHIP, ["--candidate", "{T}/cand", "--val", "{W}/data", "--diligent",
                                                    "none"], 2, ("--candidate", "train_minutes", "a finite number"),
         setup=_put(("cand/model_card.json", '{"train_minutes": "ten", "hardware": "H100"}\n'))),
+    Row("ship-model-card-data-huge", SHIP, ["--candidate", "{T}/cand", "--val", "{W}/data", "--diligent", "none"], 2,
+        ("--candidate", "'data'", "at most 4000 characters"),
+        setup=_put(("cand/model_card.json", json.dumps({"data": "x" * 100_000}) + "\n"))),
     Row("ship-summary-wall-time-nan", SHIP, ["--candidate", "{T}/cand", "--val", "{W}/data", "--diligent", "none"], 2,
         ("--candidate", "summary.json", "wall_s"), setup=_put(("cand/summary.json", '{"wall_s": NaN}\n'))),
     # ---- sweep 6: orchestrate.error_calibration, held to every command's rules before it renders
@@ -3672,6 +3687,26 @@ ROWS += [
     Row("make-ray-address-variable-malformed", MK, ["--out", "{T}/o", *TINY, "--ray"], 2,
         ("--ray auto: RAY_ADDRESS", "http//x::"), env={"RAY_ADDRESS": "http//x::"}, sub=True,
         check=_not_written("o")),
+    Row("refine-overwrite-keeps-a-predictions-map", RF, [*REFINE_8, "--out", "{T}/p", "--overwrite"], 2,
+        ("normal.png", "refine_report.json"),
+        setup=_both(_capture_copy(images=8), _put(("p/00000/normal.png", "predict's\n"),
+                                                  ("p/00000/predict.json", "{}\n"))),
+        check=_kept("p/00000/normal.png", "predict's\n")),
+    # ---- sweep 6: a dataset another run is still writing is not read (wildgen.make holds it while it renders)
+    Row("preview-of-a-dataset-being-rendered", PV, ["{T}/data", "--out", "{T}/pv"], 2, ("DIR", "being written"),
+        setup=_both(_dataset_copy, _running("data")), check=_released(_not_written("pv"))),
+    Row("predict-of-a-dataset-being-rendered", PR, ["--method", "least-squares", "--input", "{T}/data", "--out",
+                                                    "{T}/p"], 2, ("--input", "being written"),
+        setup=_both(_dataset_copy, _running("data")), check=_released(_not_written("p/00000"))),
+    Row("train-on-a-dataset-being-rendered", TR, [*TRAIN_ONE, "--data", "{T}/data", "--out", "{T}/run", "--steps",
+                                                  "1"], 2, ("--data", "being written"),
+        setup=_both(_dataset_copy, _running("data")), check=_released(_not_written("run"))),
+    Row("recipe-assets-of-one-mesh", RC, ["--work", "{T}/w", "--assets", "{T}/a", "--train-objects", "1", "--steps",
+                                          "1"], 2, ("--assets", "train_assets would be empty"),
+        setup=_put(("a/meshes/one.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")), check=_not_written("w/train5000")),
+    Row("calibration-assets-of-one-mesh", EC, ["--work", "{T}/w", "--assets", "{T}/a", "--objects", "1", "--out",
+                                               "{T}/em.json"], 2, ("--assets", "train_assets would be empty"),
+        setup=_put(("a/meshes/one.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")), check=_not_written("w/level1")),
     # ---- sweep 6: torchrun's variables
     Row("train-world-size-without-torchrun", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1"],
         2, ("WORLD_SIZE=2", "RANK", "torchrun"), env={"WORLD_SIZE": "2"}, sub=True, check=_not_written("run")),

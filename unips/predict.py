@@ -39,7 +39,7 @@ import numpy as np
 from scenes.cli.errors import INPUT_ERRORS, UsageError, one_line, report_error
 from scenes.cli.limits import check_memory, gib
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
-from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
+from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import Progress
 from scenes.cli.supervise import run_supervised
 from scenes.files import write_json
@@ -248,6 +248,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
     try:
         args = COMMAND.parse(argv).validate()
         held.enter_context(output_lock(args.out, inputs={"--input": args.input}))
+        check_not_being_written(args.input, "--input")
         folders = find_objects(args.input, "--input")
         single = detect_layout(args.input) is not None
         names = [object_name(f) for f in folders]

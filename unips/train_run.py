@@ -182,10 +182,13 @@ def check_run(cfg: TrainConfig) -> None:
     run's files replaced only with --overwrite (or continued with --resume; `scenes.cli.outputs.claim_outputs`), and
     the memory of the cached samples and of one batch (`training_memory`) against what this machine has."""
     from scenes.cli.limits import check_memory, check_threads
-    from scenes.cli.outputs import check_output_folder, claim_outputs
+    from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs
 
     out = Path(cfg.out)
     check_output_folder(out)
+    for flag, value in (("--data", cfg.data), ("--val", cfg.val)):
+        for part in (value or "").split(","):
+            check_not_being_written(part, flag)  # a dataset wildgen.make is still rendering
     check_threads(cfg.threads or None, "--threads")
     if not cfg.resume:
         claim_outputs(

@@ -120,7 +120,9 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         from scenes.folder.format import object_name
 
         name = object_name(args.data)
-        claim_outputs([Path(args.out) / name / f for f in REFINE_OUTPUTS], args.overwrite, owner="validate.refine")
+        report = Path(args.out) / name / "refine_report.json"  # what marks the folder's files as refine's own
+        claim_outputs([Path(args.out) / name / f for f in REFINE_OUTPUTS], args.overwrite, owner="validate.refine",
+                      marker=report, signed={report: ("mode", "accepted", "why")})
         print(f"refining the normals of {name} (lights, reflectance and normals fitted to the images) ...", flush=True)
         from scenes.renderer.variant import choose_variant, set_jit_threads
 
@@ -129,7 +131,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         stated = input_error(args.normals, name)
         if stated:
             claim_outputs([Path(args.out) / name / f for f in EXPECTED_ERROR_FILES], args.overwrite,
-                          owner="validate.refine")
+                          owner="validate.refine", marker=report)
         with progress_bar("step") as progress:
             r = refine_object(args.data, args.normals, config, args.out, progress, overwrite=args.overwrite)
         if stated:

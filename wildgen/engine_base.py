@@ -33,6 +33,10 @@ handlers (`wildgen.make`): an interrupt that a native call turned into an ordina
 def transient(exc: BaseException) -> bool:
     """True for a failure that may not happen again (out of memory, a file-system error); any other exception
     of `make_object`, a pure function of (config, index), would repeat, so it is not retried."""
+    import errno
+
+    if isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EROFS):
+        return False  # a full disk or a read-only one does not heal between attempts seconds apart
     return isinstance(exc, (OSError, MemoryError)) or "out of memory" in str(exc).lower()
 
 

@@ -245,6 +245,9 @@ def export_after_make(data: str | Path, out: str | Path, encoding: str = "files"
 def main(argv: list[str] | None = None) -> int:
     try:
         opts = COMMAND.parse(argv).validate()
+        from scenes.cli.outputs import check_not_being_written
+
+        check_not_being_written(opts.data, "--data")
         t0 = time.perf_counter()
         if opts.quiet:
             index = export_dataset(opts.data, opts.out, opts.shard_size, opts.aux, opts.overwrite,

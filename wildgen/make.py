@@ -389,10 +389,15 @@ def _run(argv: list[str] | None, state: dict) -> int:
     line, failed = _summary(entries, bar.rendered, bar.plan, time.perf_counter() - t0, variant, how)
     print(f"dataset in {out}: <object>.data folders and manifest.json")
     print(line)
-    for e in sorted(entries.values(), key=lambda e: e["index"]):
-        if e.get("status") == "failed":
-            print(f"failed {e['name']}: {e.get('error', '?')}", file=sys.stderr)
+    bad = [e for e in sorted(entries.values(), key=lambda e: e["index"]) if e.get("status") == "failed"]
+    for e in bad:
+        print(f"failed {e['name']}: {e.get('error', '?')}", file=sys.stderr)
     if failed:
+        first = f"{bad[0]['name']}: {bad[0].get('error', '?')}"
+        full = " (the disk of --out is full: free space there)" if "No space left" in first else ""
+        kept = "the others are in --out; " if failed < len(entries) else ""
+        print(f"error: {failed} of {len(entries)} object(s) failed (first, {first}){full}; {kept}the same command "
+              "again retries the failed ones", file=sys.stderr)
         return 1
     if entries and not any(e.get("status") == "done" for e in entries.values()):
         first = next(e for e in entries.values() if e.get("status") == "skipped")

@@ -237,8 +237,9 @@ def main(argv: list[str] | None = None) -> int:
         args = COMMAND.parse(argv)
         from contextlib import ExitStack
 
-        from scenes.cli.outputs import output_lock
+        from scenes.cli.outputs import check_not_being_written, output_lock
 
+        check_not_being_written(args.dataset, "DIR")
         held = ExitStack()
         if Path(args.dataset).is_dir():  # a missing dataset is refused by the reader, naming it
             held.enter_context(output_lock(_output_folder(Path(args.dataset), args.out)))  # one writer per folder

@@ -314,6 +314,9 @@ def apply_to_dataset(data: str | Path, out: str | Path, sensor: Sensor, seed: in
 def main(argv: list[str] | None = None) -> int:
     try:
         opts = COMMAND.parse(argv).validate()
+        from scenes.cli.outputs import check_not_being_written
+
+        check_not_being_written(opts.data, "--data")
         sensor = sensor_named(opts.sensor)
         t0 = time.perf_counter()
         if opts.quiet:

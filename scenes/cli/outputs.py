@@ -16,6 +16,23 @@ from typing import Iterable
 from scenes.cli.errors import UsageError
 
 
+def check_not_being_written(path: str | os.PathLike, flag: str) -> None:
+    """Refuse to read a folder another run is writing (it holds the folder's lock, `output_lock`, as wildgen.make
+    does while it renders): what it holds now is a part of what it will hold. Takes and releases the lock at once;
+    a path that is not a folder is left to the reader."""
+    from scenes.files import FolderBusy, folder_lock
+
+    if not os.path.isdir(path):
+        return
+    try:
+        os.close(folder_lock(path))
+    except FolderBusy:
+        raise UsageError(f"{flag}: {str(path)!r} is being written by another run (it holds the folder); wait until it "
+                         "has finished, then run this again") from None
+    except OSError:  # a folder this process may not open: the reader says so
+        return
+
+
 def check_output_folder(path: str | os.PathLike, flag: str = "--out") -> str | os.PathLike:
     """Refuse an output folder that cannot be written, before any work: an existing file, a path under a
     file, or a folder (or the nearest existing parent of a new one) this process may not write. Creates

@@ -102,6 +102,16 @@ def digit_images(folder: str | Path) -> list[Path]:
                   key=lambda p: natural_key(p.name))
 
 
+def diligent_folders(root: Path, arg: str = "--diligent") -> list[Path]:
+    """The `<object>PNG` object folders of a DiLiGenT folder (ValueError naming `arg` when there is none)."""
+    if not Path(root).is_dir():
+        raise ValueError(f"{arg}: {str(root)!r} is not a folder")
+    folders = sorted(p for p in Path(root).iterdir() if p.is_dir() and p.name.endswith("PNG"))
+    if not folders:
+        raise ValueError(f"{arg}: no <object>PNG folders in {str(root)!r}")
+    return folders
+
+
 def diligent_images(folder: str | Path) -> list[Path]:
     """A DiLiGenT folder's images: in ``filenames.txt`` order when the file exists, else `digit_images`."""
     folder = Path(folder)
