@@ -3630,6 +3630,13 @@ def _no_dotdot_stage(report: dict) -> None:
     assert ".." not in stages and "photos" in stages, stages
 
 
+def _photos_all_like_the_first(w: Path, t: Path) -> None:
+    """Setup: every photo of T/photos replaced by a copy of the first (the light never moved)."""
+    files = sorted((t / "photos").iterdir())
+    for f in files[1:]:
+        shutil.copy(files[0], f)
+
+
 def _dataset_copy(w: Path, t: Path) -> None:
     """Setup: T/data, a copy of the world's dataset."""
     shutil.copytree(w / "data", t / "data")
@@ -3707,6 +3714,8 @@ ROWS += [
     Row("calibration-assets-of-one-mesh", EC, ["--work", "{T}/w", "--assets", "{T}/a", "--objects", "1", "--out",
                                                "{T}/em.json"], 2, ("--assets", "train_assets would be empty"),
         setup=_put(("a/meshes/one.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")), check=_not_written("w/level1")),
+    Row("capture-photos-all-the-same", CAP, [*CAPTURE, "--mask", "auto"], 2, ("--input", "identical"),
+        setup=_both(_photos(), _photos_all_like_the_first), check=_not_written("o/normal.png")),
     # ---- sweep 6: torchrun's variables
     Row("train-world-size-without-torchrun", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1"],
         2, ("WORLD_SIZE=2", "RANK", "torchrun"), env={"WORLD_SIZE": "2"}, sub=True, check=_not_written("run")),

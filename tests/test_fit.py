@@ -146,6 +146,14 @@ def test_judgeable_rule_counts_informative_images():
     bad = imgs.copy()
     bad[6][mask] = np.nan
     assert "L006.png" in refused(bad) and "NaN" in refused(bad)
+    # A mask on a flat patch the light does not shape, beside an object it does (sweep 6: an automatic mask on a
+    # lamp or a lit floor): the mask is blamed, by its flag, not the photos.
+    patch = np.zeros_like(mask)
+    patch[:4, :4] = True
+    beside = imgs.copy()
+    beside[:, :4, :4] = 0.3
+    with pytest.raises(ValueError, match=r"^--mask: the mask of sphere.*constant inside the mask .*a lamp or a flat"):
+        check_judgeable(_capture(beside, patch), "check", "--input", "--mask")
 
 
 def test_fitted_lights_and_ranking(jit, lambertian_sphere_folder):

@@ -104,11 +104,15 @@ def check_judgeable(cap: Capture, use: str, arg: str = "--data", mask_arg: str |
         raise ValueError(
             f"{where}: image {_names(cap, np.flatnonzero(~finite))} has NaN or infinite values inside the mask"
         )
+    # Black or constant inside the mask while the images are not: a mask that is given (or found) on the wrong
+    # part of the frame (a lamp, a flat floor), said as the mask's fault.
+    blame = (f"{mask_arg}: the mask of {cap.folder}" if mask_arg and cap.images.std(axis=0).max() > 0 else where)
     if not (inside > 0).any():
-        raise ValueError(f"{where}: every image is black inside the mask; {need}")
+        raise ValueError(f"{blame}: every image is black inside the mask; {need}")
     constant = _constant(cap.images, cap.mask)
     if constant.all():
-        raise ValueError(f"{where}: every image is constant inside the mask (one value per image); {need}")
+        raise ValueError(f"{blame}: every image is constant inside the mask (one value per image"
+                         + ("; a lamp or a flat lit surface, not the object?" if blame != where else "") + f"); {need}")
     counts = lit_pixels(cap.images, cap.mask, cap.saturated)
     counts[constant] = 0
     good = counts >= MIN_LIT_PIXELS

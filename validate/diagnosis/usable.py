@@ -367,6 +367,16 @@ def image_count_warning(k: int) -> CaptureWarning | None:
     return None
 
 
+def identical_photos_warning(images: np.ndarray) -> CaptureWarning | None:
+    """Fatal when every photo is the same (one photo copied, a light that never moved): nothing for the light to
+    tell, whatever the mask."""
+    if len(images) > 1 and all(np.array_equal(images[0], im) for im in images[1:]):
+        return CaptureWarning("too_few_images", f"the {len(images)} photos are identical (one photo copied, or a "
+                              "light that never moved): photometric stereo needs the lamp in another place for each "
+                              "photo", fatal=True)
+    return None
+
+
 def capture_warnings(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None = None,
                      names: list[str] | None = None, normals: np.ndarray | None = None,
                      lights: bool = True) -> tuple[list[CaptureWarning], dict]:
@@ -379,6 +389,9 @@ def capture_warnings(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray
     out: list[CaptureWarning] = [count] if count else []
     if count and count.fatal:
         return out, facts
+    same = identical_photos_warning(images)
+    if same:
+        return [same], facts
     pairs, shifts = camera_shifts(images, mask)
     motion, support = camera_motion(pairs, shifts, SHIFT_PX)
     facts["camera_shift_px"] = None if motion is None else [int(motion[0]), int(motion[1])]
@@ -392,8 +405,10 @@ def capture_warnings(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray
     level = np.percentile(gray(images)[:, mask], 99, axis=1)
     facts["object_level_p99"] = np.round(level, 4).tolist()
     if float(level.max()) < 1.0 / 255:
-        out.insert(0, CaptureWarning("too_dark", "the object is black in every image (nothing above the darkest "
-                                     "code): light it, or expose longer", fatal=True))
+        out.insert(0, CaptureWarning("too_dark", f"the object is all but black in every image (its bright part at "
+                                     f"most {float(level.max()):.4f} of the full scale, below one 8-bit step): light "
+                                     "it, or expose longer (16-bit files holding an 8-bit range: write them at full "
+                                     "scale)", fatal=True))
         return out, facts
     if float(np.median(level)) < DARK_LEVEL:
         out.append(CaptureWarning("too_dark", f"the object is dark (its bright part at {np.median(level):.3f} of the "
