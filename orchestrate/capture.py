@@ -159,7 +159,8 @@ def read_input(opts: CaptureOptions) -> Capture:
                                    folder, {"input": {"kind": f"object folder ({fd.layout})"}})
     photos = read_photos(folder, opts.input_encoding, opts.max_side or None, guide=True)
     source = {"kind": "photos", "encoding": photos.encoding, "bit_depth": photos.bit_depth,
-              "exposure": photos.exposure, **({"raw": photos.raw} if photos.raw else {})}
+              "exposure": photos.exposure, **({"raw": photos.raw} if photos.raw else {}),
+              **({"exposure_note": photos.exposure_note} if photos.exposure_note else {})}
     return capture_from_arrays(object_name(folder) or "capture", photos.images, None, photos.names,
                                photos.saturated, folder, {"input": source, "guide": photos.guide})
 

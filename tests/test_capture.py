@@ -175,10 +175,21 @@ def test_exposures_that_differ_where_one_photo_gives_none_are_said(tmp_path, cap
         if iso is not None:
             ifd[0x8827] = iso
         img.save(tmp_path / f"p{i}.jpg", exif=exif, quality=100)
-    assert [e["scale"] for e in read_photos(tmp_path).exposure] == [1.0, 1.0, 1.0]
+    photos = read_photos(tmp_path)
+    assert [e["scale"] for e in photos.exposure] == [1.0, 1.0, 1.0] and "p2.jpg" in photos.exposure_note
     err = capsys.readouterr().err
     assert err.startswith("warning: --input: the EXIF exposures of the photos differ, but p2.jpg") and \
         err.count("\n") == 1, err
+    # The photo without ISO is the one whose time differs (sweep 6's case): said the same way.
+    for i, (t, iso) in enumerate([(0.01, 100), (0.01, 100), (0.02, None)]):
+        img = Image.fromarray(a)
+        exif = img.getexif()
+        ifd = exif.get_ifd(0x8769)
+        ifd[0x829A] = t
+        if iso is not None:
+            ifd[0x8827] = iso
+        img.save(tmp_path / f"p{i}.jpg", exif=exif, quality=100)
+    assert "p2.jpg" in read_photos(tmp_path).exposure_note
 
 
 def test_exif_exposures_must_be_finite_positive_and_at_most_ten_stops_apart(tmp_path):

@@ -81,6 +81,8 @@ class Photos:
     guide: np.ndarray | None = None
     """With `read_photos(guide=True)` and photos larger than `max_side`: (H, W) float32, the mean linear gray of the
     photos at their own size (each at its own exposure), to bring a map made at the smaller size back to theirs."""
+    exposure_note: str | None = None
+    """Why the photos were not normalised to one exposure although their EXIF exposures differ (one gives none)."""
 
 
 NEGATIVE_SHARE = 0.01
@@ -300,18 +302,24 @@ def _linear(
     return table.astype(np.float32)[codes], kind
 
 
+def exposure_gap(exifs: list[dict[str, Any]], names: list[str]) -> str | None:
+    """Why photos whose EXIF exposures differ (a time or an ISO that not every photo shares) cannot be normalised to
+    one exposure: a photo that gives no time or ISO; None when they can, or nothing differs."""
+    if all("exposure_time_s" in e and "iso" in e for e in exifs):
+        return None
+    differ = any(len({e[k] for e in exifs if k in e}) > 1 for k in ("exposure_time_s", "iso"))
+    lacking = next((n for n, e in zip(names, exifs) if "exposure_time_s" not in e or "iso" not in e), None)
+    if not differ or lacking is None:
+        return None
+    return (f"the EXIF exposures of the photos differ, but {lacking} (and maybe others) gives no exposure time or ISO: "
+            "no photo is normalised to one exposure (give every photo its EXIF, or take them at one setting)")
+
+
 def _exposure_scales(exifs: list[dict[str, Any]], names: list[str], flag: str) -> list[float]:
     """Per image: the factor that brings it to the first image's exposure (1 where EXIF does not tell); exposures
     that are not finite and positive, or further apart than `MAX_EXPOSURE_RATIO`, are one ValueError naming the
     files."""
     if not all("exposure_time_s" in e and "iso" in e for e in exifs):
-        given = [(n, (e.get("exposure_time_s"), e.get("iso"))) for n, e in zip(names, exifs)]
-        known = {v for _, v in given if None not in v}
-        if len(known) > 1:  # some photos' exposures differ, and others cannot be brought to them: said, not hidden
-            lacking = next(n for n, v in given if None in v)
-            print(f"warning: {flag}: the EXIF exposures of the photos differ, but {lacking} (and maybe others) "
-                  "gives no exposure time or ISO: no photo is normalised to one exposure (give every photo its EXIF, "
-                  "or take them at one setting)", file=sys.stderr)
         return [1.0] * len(exifs)
     # The light a photo gathers grows with the time and the gain, and falls with the square of the f-number (used
     # when every photo gives one: a lens stopped down 4 times lets in 16 times less).
@@ -419,7 +427,9 @@ def read_photos(folder: str | Path, encoding: str = "auto", max_side: int | None
         print(f"warning: {flag}: the EXIF block of {len(damaged)} photo(s) is damaged ({files[damaged[0]].name}: "
               f"{exifs[damaged[0]]['exif_damaged'].strip()}); what could be read of it is used", file=sys.stderr)
     scales = _exposure_scales(exifs, [p.name for p in files], flag)
+    if note := exposure_gap(exifs, [p.name for p in files]):  # said, and recorded with the photos
+        print(f"warning: {flag}: {note}", file=sys.stderr)
     stack = np.stack([img * np.float32(s) for img, s in zip(images, scales)])
     return Photos(images=stack, saturated=np.stack(saturated), names=[p.name for p in files], encoding=kinds,
                   bit_depth=first[1], exposure=[_exposure_record(e, s) for e, s in zip(exifs, scales)], raw=records,
-                  guide=total)
+                  guide=total, exposure_note=note)
