@@ -248,8 +248,21 @@ def tree_bytes(root: Path = REPO) -> int:
     return sum((root / n.decode()).stat().st_size for n in names if n and (root / n.decode()).is_file())
 
 
-DEVICE_PYTHON, DEVICE_PLATFORM = "cp312", "x86_64"
-"""The GPU machine's Python and processor: a wheel must install there (`check_wheel_names`)."""
+DEVICE_PYTHON, DEVICE_GLIBC = (3, 12), (2, 39)
+"""The GPU machine's Python and the newest glibc a wheel may ask for there (Linux on x86-64; sessions saw Python
+3.12.3, Ubuntu 24.04's, whose glibc is 2.39: /work/.library/device/KINDS.md): a wheel must install there
+(`check_wheel_names`)."""
+
+
+def device_tags() -> frozenset:
+    """The wheel tags pip accepts on the GPU machine (`packaging.tags`: CPython 3.12 and its stable ABI, pure
+    Python; manylinux up to `DEVICE_GLIBC` and plain linux on x86-64)."""
+    from packaging.tags import compatible_tags, cpython_tags
+
+    platforms = ["linux_x86_64", "manylinux1_x86_64", "manylinux2010_x86_64", "manylinux2014_x86_64",
+                 *(f"manylinux_2_{minor}_x86_64" for minor in range(5, DEVICE_GLIBC[1] + 1))]
+    return frozenset([*cpython_tags(DEVICE_PYTHON, platforms=platforms),
+                      *compatible_tags(DEVICE_PYTHON, "cp312", platforms=platforms)])
 
 
 def check_wheel_names(wheels: Path, found: list[Path]) -> None:
@@ -265,9 +278,7 @@ def check_wheel_names(wheels: Path, found: list[Path]) -> None:
             name, version, _, tags = parse_wheel_filename(wheel.name)
         except InvalidWheelFilename as exc:
             raise UsageError(f"--wheels: {wheel.name!r} is not a wheel's file name ({exc})") from None
-        fits = [t for t in tags if t.interpreter in (DEVICE_PYTHON, "py3", "py312") and
-                (t.platform == "any" or (t.platform.endswith(DEVICE_PLATFORM) and "linux" in t.platform))]
-        if not fits:
+        if not tags & device_tags():
             raise UsageError(f"--wheels: {wheel.name!r} does not install on the GPU machine (CPython 3.12 on Linux "
                              f"x86-64; its tags: {', '.join(sorted(map(str, tags)))[:160]})")
         if name in seen:

@@ -255,3 +255,16 @@ def test_a_pack_takes_only_wheels_that_install_on_the_gpu_machine(tmp_path, caps
     assert main(["--pack", str(tmp_path / "pk"), "--wheels", str(wheels), "--assets", "none"]) == 2
     err = capsys.readouterr().err
     assert said in err and err.startswith("error: --wheels") and not (tmp_path / "pk" / "site.tar.xz").exists(), err
+
+
+def test_wheels_that_install_on_the_gpu_machine_pass_the_name_check(tmp_path):
+    """Real wheel names pip downloads for CPython 3.12 on Linux x86-64 (manylinux2014 pairs, the stable ABI of an
+    older CPython, pure Python for Python 2 and 3) pass; the tags come from `packaging.tags`, as pip's own."""
+    from orchestrate.relay import check_wheel_names
+
+    names = ["mitsuba-3.9.1-cp312-cp312-manylinux_2_17_x86_64.manylinux2014_x86_64.whl",
+             "drjit-1.5.0-cp312-cp312-manylinux_2_17_x86_64.manylinux2014_x86_64.whl",
+             "OpenEXR-3.3.2-cp312-cp312-manylinux_2_17_x86_64.manylinux2014_x86_64.whl",
+             "cryptography-44.0.0-cp39-abi3-manylinux_2_28_x86_64.whl",
+             "braceexpand-0.1.7-py2.py3-none-any.whl", "typeguard-4.4.1-py3-none-any.whl"]
+    check_wheel_names(tmp_path, [tmp_path / n for n in names])
