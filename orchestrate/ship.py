@@ -170,8 +170,9 @@ def check_records(folder: Path) -> None:
         for key, kind in fields.items():
             v = record.get(key)
             ok = (v is None or (kind == "text" and isinstance(v, str) and len(v) <= MAX_TEXT)
-                  or (kind != "text" and isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-                      and v >= 0 and (kind == "number" or float(v).is_integer())))
+                  or (kind != "text" and isinstance(v, (int, float)) and not isinstance(v, bool)
+                      and abs(v) < 1e300 and math.isfinite(v) and v >= 0  # a 400-digit integer: no float of it
+                      and (kind == "number" or float(v).is_integer())))
             if not ok:
                 expected = {"text": f"a string of at most {MAX_TEXT} characters", "number": "a finite number >= 0",
                             "count": "a whole number >= 0"}[kind]

@@ -111,6 +111,12 @@ def test_a_png_says_its_own_curve(tmp_path, np_rng):
     with pytest.raises(ValueError, match=r"--input: .*0\.png' declares gamma 0\.7 .*--input-encoding"):
         read_photos(folders["gamma07"])
     assert read_photos(folders["gamma07"], "srgb").encoding == ["srgb"] * 2
+    mixed = tmp_path / "mixed"  # one file says sRGB, the other nothing (16-bit: linear)
+    mixed.mkdir()
+    _png_with_chunk(mixed / "0.png", codes16[0], b"sRGB", bytes([0]))
+    cv2.imwrite(str(mixed / "1.png"), codes16[1][..., ::-1])
+    with pytest.raises(ValueError, match=r"1.png is read as linear and 0.png as srgb .*--input-encoding"):
+        read_photos(mixed)
 
 
 def _jpeg_with_exif(path, a: np.ndarray, orientation: int = 1, exposure_s: float | None = None) -> None:

@@ -247,4 +247,5 @@ def main(argv: list[str] | None = None) -> int:
 if __name__ == "__main__":  # Ctrl-C stops the work whole, in one line (scenes.cli.supervise)
     from scenes.cli.supervise import run_supervised
 
-    sys.exit(run_supervised("unips.evaluate", main))
+    stopped = "interrupted: what evaluate wrote into --pred is whole (each file at once); run it again with --overwrite"
+    sys.exit(run_supervised("unips.evaluate", main, stopped))

@@ -225,7 +225,14 @@ def _numbers(d: dict, key: str, n: int | None, positive: bool = False, bound: fl
     if not isinstance(values, list) or (n is not None and len(values) != n) or not all(map(number, values)):
         raise ValueError(f"{key} must be " + ("a number" if n is None else f"a list of {n} numbers")
                          + f", got {json.dumps(v)[:80]}")
-    if not all(np.isfinite(x) and abs(x) <= bound and (x > 0 or not positive) for x in values):
+    def fits(x: float) -> bool:
+        try:
+            x = float(x)  # an integer beyond float range overflows here: refused, not a traceback
+        except OverflowError:
+            return False
+        return bool(np.isfinite(x)) and abs(x) <= bound and (x > 0 or not positive)
+
+    if not all(map(fits, values)):
         raise ValueError(f"{key} {json.dumps(v)[:80]}: expected finite " + ("positive " if positive else "")
                          + f"numbers up to {bound:g} in magnitude")
 
@@ -281,7 +288,9 @@ def model_path(weights: Path) -> Path:
 
 
 def for_weights(weights: Path | None) -> tuple[ErrorModel | None, str | None]:
-    """(the error model fitted for exactly these weights, None) or (None, why there is none)."""
+    """(the error model fitted for exactly these weights, None) or (None, why there is none). A file under the
+    model's name that names other weights (their SHA-256) is another's, passed over whatever it holds; one that
+    names these weights and is damaged is a ValueError naming it (`ErrorModel.load`)."""
     if weights is None:
         return None, "no weights file"
     path = model_path(weights)
@@ -289,10 +298,13 @@ def for_weights(weights: Path | None) -> tuple[ErrorModel | None, str | None]:
         return None, f"no error model was fitted for {Path(weights).name} ({path.name} is absent)"
     if why := not_a_file(path):
         raise ValueError(f"error model {str(path)!r} {why}")
-    em = ErrorModel.load(path)
-    if em.weights_sha256 != sha256(weights):
+    try:
+        named = json.loads(path.read_text()).get("weights_sha256")
+    except (ValueError, AttributeError):  # not JSON, or not an object: the full reader says which
+        named = None
+    if isinstance(named, str) and named != sha256(weights):
         return None, f"{path.name} was fitted for other weights than {Path(weights).name} (SHA-256 differs)"
-    return em, None
+    return ErrorModel.load(path), None
 
 
 # ---------------------------------------------------------------- fitting

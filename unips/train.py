@@ -285,4 +285,8 @@ if __name__ == "__main__":  # Ctrl-C stops the work whole, in one line (scenes.c
 
     stopped = ("interrupted: --out keeps the last whole checkpoint (last.pt) and the log up to it; continue with "
                "--resume")
-    sys.exit(run_supervised("unips.train", main, stopped))
+    import os
+
+    # Under torchrun each process is one of its workers: torchrun stops them itself, and one line per rank would say
+    # "interrupted" where another rank had failed.
+    sys.exit(main() if "TORCHELASTIC_RUN_ID" in os.environ else run_supervised("unips.train", main, stopped))

@@ -19,7 +19,7 @@ from typing import Any, Sequence
 import torch
 
 from unips.train_config import TRAJECTORY_KEYS, TrainConfig
-from unips.train_data import Sample, count_dataset_images, curriculum_pool, describe_data, load_samples
+from unips.train_data import Sample, count_dataset_images, curriculum_pool, data_roots, describe_data, load_samples
 
 log = logging.getLogger(__name__)
 
@@ -187,8 +187,8 @@ def check_run(cfg: TrainConfig) -> None:
     out = Path(cfg.out)
     check_output_folder(out)
     for flag, value in (("--data", cfg.data), ("--val", cfg.val)):
-        for part in (value or "").split(","):
-            check_not_being_written(part, flag)  # a dataset wildgen.make is still rendering
+        for root in data_roots(value, flag) if value else []:
+            check_not_being_written(root, flag)  # a dataset wildgen.make is still rendering
     check_threads(cfg.threads or None, "--threads")
     if not cfg.resume:
         claim_outputs(
@@ -326,7 +326,6 @@ def stream_description(cfg: TrainConfig, dist: Dist) -> dict[str, Any]:
     from types import SimpleNamespace
 
     from unips.shard_data import check_split, resolve_shards
-    from unips.train_data import data_roots
 
     shards = [s for r in data_roots(cfg.data) for s in resolve_shards(r)]
     check_split(shards, dist.world, cfg.loader_workers)

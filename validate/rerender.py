@@ -303,8 +303,8 @@ def _refuse_other_mode(argv: list[str] | None, fitted: bool, data: str) -> None:
     if fitted:
         raise UsageError(f"{other[0]}: an option of the known-scene check, but --data {data!r} is checked in the "
                          "fitted mode (no scene.json, or --fit): drop it")
-    raise UsageError(f"{other[0]}: an option of the fitted mode, but --data {data!r} has a scene.json and gets the "
-                     "known-scene check: add --fit for the fitted mode, or drop it")
+    raise UsageError(f"{other[0]}: an option of the fitted mode, but --data {data!r} gets the known-scene check "
+                     "(its scene.json): drop it, or add --fit to fit one object folder without its scene")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -325,16 +325,15 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
                             format="%(levelname)s %(name)s: %(message)s")
         from scenes.folder.layouts import detect_layout, has_scene
 
-        if Path(args.data).is_dir():
-            has_scene(args.data)  # a scene.json that is not a file is refused first, named
-        fitted = args.fit or (Path(args.data).is_dir() and detect_layout(args.data) in ("diligent", "unips"))
+        if not Path(args.data).is_dir():
+            raise FileNotFoundError(f"--data: {args.data!r} is not a folder")
+        has_scene(args.data)  # a scene.json that is not a file is refused first, named
+        fitted = args.fit or detect_layout(args.data) in ("diligent", "unips")
         _refuse_other_mode(argv, fitted, args.data)
         if fitted:
             return _main_fitted(args)
         config = args.check
         data = Path(args.data)
-        if not data.is_dir():
-            raise FileNotFoundError(f"--data: {str(data)!r} is not a folder")
         single = has_scene(data)
         folders = [data] if single else list_object_folders(data)  # fails early with a clear message
         if not Path(args.normals).exists():

@@ -87,7 +87,7 @@ def check_ray_address(address: str) -> None:
         except ImportError:  # no Ray at all: refused as such where Ray is needed
             return
         if get_ray_client_dependency_error() is not None:
-            raise UsageError(f"--ray: {address!r} is a Ray Client address, which needs pip install 'ray[client]'; "
+            raise UsageError(f"{named}: {address!r} is a Ray Client address, which needs pip install 'ray[client]'; "
                              "install it, or give the head's HOST:PORT (its GCS port, 6379 by default)")
 
 

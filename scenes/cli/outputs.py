@@ -16,21 +16,38 @@ from typing import Iterable
 from scenes.cli.errors import UsageError
 
 
+def _tell_supervisor(path: str | os.PathLike) -> None:
+    """Record a held folder where the supervising process reads it after a stop (`scenes.cli.supervise.HELD_FILE`):
+    it removes the stopped work's temporaries there."""
+    from scenes.cli.supervise import HELD_FILE
+
+    if os.environ.get(HELD_FILE):
+        try:
+            with open(os.environ[HELD_FILE], "a") as f:
+                f.write(os.path.abspath(path) + "\n")
+        except OSError:  # the supervisor's own record is gone: nothing to tell
+            pass
+
+
 def check_not_being_written(path: str | os.PathLike, flag: str) -> None:
     """Refuse to read a folder another run is writing (it holds the folder's lock, `output_lock`, as wildgen.make
-    does while it renders): what it holds now is a part of what it will hold. Takes and releases the lock at once;
-    a path that is not a folder is left to the reader."""
-    from scenes.files import FolderBusy, folder_lock
+    does while it renders): what it holds now is a part of what it will hold. Probes with a shared lock, released
+    at once; a path that is not a folder is left to the reader."""
+    import fcntl
 
     if not os.path.isdir(path):
         return
     try:
-        os.close(folder_lock(path))
-    except FolderBusy:
-        raise UsageError(f"{flag}: {str(path)!r} is being written by another run (it holds the folder); wait until it "
-                         "has finished, then run this again") from None
+        fd = os.open(path, os.O_RDONLY | os.O_DIRECTORY)
     except OSError:  # a folder this process may not open: the reader says so
         return
+    try:  # a shared probe: readers started together never refuse each other, a writer's lock refuses them
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        raise UsageError(f"{flag}: {str(path)!r} is being written by another run (it holds the folder); wait until it "
+                         "has finished, then run this again") from None
+    finally:
+        os.close(fd)
 
 
 def check_output_folder(path: str | os.PathLike, flag: str = "--out") -> str | os.PathLike:
@@ -140,6 +157,7 @@ def output_lock(path: str | os.PathLike, flag: str = "--out",
         except FolderBusy:
             raise UsageError(busy_message(path, flag)) from None
         real = os.path.realpath(path)
+        _tell_supervisor(path)
         record = _Held(os.path.abspath(path), flag,
                        [(f, str(g), os.path.realpath(g)) for f, g in inputs.items() if g is not None])
         with _HELD_LOCK:

@@ -21,6 +21,9 @@ from pathlib import Path
 
 CHILD = "PS_TOOLKIT_SUPERVISED"
 """Set in the child's environment: the command then runs its work directly."""
+HELD_FILE = "PS_TOOLKIT_HELD_FILE"
+"""Set in the child's environment: a file where each output folder the work holds (`scenes.cli.outputs.output_lock`)
+is recorded, a line each, so that a stop removes the temporaries in every one of them, whatever its flag."""
 INTERRUPTED = ("interrupted: --out holds only the files finished before it (each whole), the inputs are untouched; "
                "run the command again with --overwrite")
 """The one line of a stopped command."""
@@ -63,9 +66,22 @@ def flag_value(argv: list[str], flag: str) -> str | None:
     return value
 
 
-def remove_temporaries(folder: str | Path | None, pid: int) -> int:
-    """Remove the temporary files (`scenes.files.atomic_write`) process `pid` left anywhere under `folder`, never
-    following links; how many."""
+def _dead(pid: int | None) -> bool:
+    if pid is None:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except PermissionError:  # alive, another user's
+        return False
+    return False
+
+
+def remove_temporaries(folder: str | Path | None, pid: int | None) -> int:
+    """Remove the temporary files (`scenes.files.atomic_write`) process `pid` left anywhere under `folder` (with
+    None: those of any writer no longer alive, for a folder the stopped work held, where no other run may write),
+    never following links; how many."""
     from scenes.files import temporary_writer
 
     if not folder or not Path(folder).is_dir():
@@ -73,7 +89,8 @@ def remove_temporaries(folder: str | Path | None, pid: int) -> int:
     removed = 0
     for root, _dirs, files in os.walk(folder):
         for name in files:
-            if temporary_writer(name) == pid:
+            writer = temporary_writer(name)
+            if (writer == pid) if pid is not None else _dead(writer):
                 try:
                     os.unlink(os.path.join(root, name))
                     removed += 1
@@ -105,25 +122,40 @@ def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTE
     for s in STOP_SIGNALS:
         if previous[s] is not signal.SIG_IGN:
             signal.signal(s, on_stop)
+    import tempfile
+
+    fd, held = tempfile.mkstemp(prefix="ps-toolkit-held-", suffix=".txt")
+    os.close(fd)
     try:
-        child = subprocess.Popen([sys.executable, "-m", module, *argv], env={**os.environ, CHILD: str(os.getpid())},
-                                 start_new_session=True)
-        children.append(child)
-        if stop:
-            _kill_session(child)
-        code = child.wait()
+        try:
+            child = subprocess.Popen([sys.executable, "-m", module, *argv], start_new_session=True,
+                                     env={**os.environ, CHILD: str(os.getpid()), HELD_FILE: held})
+            children.append(child)
+            if stop:
+                _kill_session(child)
+            code = child.wait()
+        finally:
+            for s, handler in previous.items():
+                signal.signal(s, handler)
+        if stop or code < 0:
+            _clean_after(child.pid, [flag_value(argv, "--out"), *Path(held).read_text().splitlines()])
     finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler)
+        os.unlink(held)
+    advice = interrupted.removeprefix("interrupted: ")
     if stop:
-        child.wait()
-        remove_temporaries(flag_value(argv, "--out"), child.pid)
         print(interrupted, file=sys.stderr)
         return 130 if stop["signal"] == signal.SIGINT else 128 + stop["signal"]
     if code < 0:  # killed from outside (the kernel's out-of-memory killer, a kill -9)
         name = signal.Signals(-code).name
         hint = " (out of memory?)" if -code == signal.SIGKILL else ""
-        print(f"{module}: the work was killed by {name}{hint}; every file in --out is whole; run the command "
-              f"again with --overwrite", file=sys.stderr)
+        print(f"{module}: the work was killed by {name}{hint}: {advice}", file=sys.stderr)
         return 128 - code
     return code
+
+
+def _clean_after(pid: int, folders: list[str | None]) -> None:
+    """The stopped work's temporaries: the child's under --out, and every dead writer's in the folders it held (its
+    steps' too: they ran in its session, which is killed whole)."""
+    remove_temporaries(folders[0], pid)
+    for folder in dict.fromkeys(f for f in folders[1:] if f):
+        remove_temporaries(folder, None)

@@ -354,10 +354,25 @@ def _downscale(image: np.ndarray, max_side: int | None) -> np.ndarray:
     return cv2.resize(image, size, interpolation=cv2.INTER_AREA)
 
 
+def _check_curves(kinds: list[str], exifs: list[dict[str, Any]], names: list[str], depth: int, encoding: str,
+                  flag: str) -> None:
+    """One curve for every photo of a capture (PNG chunks may differ from file to file: refused), and a note where
+    the files' own chunks, not their bit depth, decided it."""
+    odd = next((i for i, k in enumerate(kinds) if k != kinds[0]), None)
+    if odd is not None:
+        raise ValueError(f"{flag}: {names[odd]} is read as {kinds[odd]} and {names[0]} as {kinds[0]} (their PNG sRGB "
+                         "or gAMA chunks differ): every photo of a capture must be encoded one way; give "
+                         "--input-encoding srgb or linear to say which")
+    default = "srgb" if depth == 8 else "linear"
+    if encoding == "auto" and depth != 32 and kinds and kinds[0] != default:
+        print(f"note: {flag}: the files declare their curve ({exifs[0].get('declared_curve')}, a PNG chunk): read as "
+              f"{kinds[0]}, not as {depth}-bit files are by default; --input-encoding says otherwise", file=sys.stderr)
+
+
 def _exposure_record(exif: dict[str, Any], scale: float) -> dict[str, Any]:
     """What report.json records of one image's exposure: the EXIF fields read, those the file did not give, the
     scale applied."""
-    out = {k: v for k, v in exif.items() if k not in ("color_space", "orientation")}
+    out = {k: v for k, v in exif.items() if k not in ("color_space", "orientation", "declared_curve")}
     missing = [k for k in ("exposure_time_s", "iso") if k not in exif]
     return {**out, **({"not_in_file": missing} if missing else {}), "scale": scale}
 
@@ -422,6 +437,7 @@ def read_photos(folder: str | Path, encoding: str = "auto", max_side: int | None
         exifs.append(f.exif)
         if f.raw is not None:
             records.append(f.raw)
+    _check_curves(kinds, exifs, [p.name for p in files], first[1], encoding, flag)
     damaged = [i for i, e in enumerate(exifs) if "exif_damaged" in e]
     if damaged:  # one line for the capture, not PIL's warning per file naming none
         print(f"warning: {flag}: the EXIF block of {len(damaged)} photo(s) is damaged ({files[damaged[0]].name}: "

@@ -369,8 +369,8 @@ def image_count_warning(k: int) -> CaptureWarning | None:
 
 def identical_photos_warning(images: np.ndarray) -> CaptureWarning | None:
     """Fatal when every photo is the same (one photo copied, a light that never moved): nothing for the light to
-    tell, whatever the mask."""
-    if len(images) > 1 and all(np.array_equal(images[0], im) for im in images[1:]):
+    tell, whatever the mask. Black photos are left to the darkness rule (`too_dark`), which says more."""
+    if len(images) > 1 and float(images.max()) >= 1.0 / 255 and all(np.array_equal(images[0], im) for im in images[1:]):
         return CaptureWarning("too_few_images", f"the {len(images)} photos are identical (one photo copied, or a "
                               "light that never moved): photometric stereo needs the lamp in another place for each "
                               "photo", fatal=True)
