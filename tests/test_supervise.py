@@ -37,6 +37,15 @@ def main():
     ctypes.CDLL(None).signal(signal.SIGINT, handler)
     # a file half written, under the name atomic_write gives it, when the stop comes
     (out / f".normal.tmp{os.getpid()}.png").write_bytes(b"half")
+    if "--held" in sys.argv:  # a folder the work holds under another flag, with the step's half-written file too
+        from scenes.cli.outputs import output_lock
+
+        held = sys.argv[sys.argv.index("--held") + 1]
+        with output_lock(held, "--held"):
+            Path(held, f".a.tmp{os.getpid()}.png").write_bytes(b"half")
+            Path(held, f".b.tmp{step.pid}.png").write_bytes(b"half")
+            (out / "started").write_text("")
+            time.sleep(120)
     (out / "started").write_text("")
     time.sleep(120)
     return 0
@@ -164,3 +173,16 @@ def test_ctrl_c_in_training_keeps_whole_checkpoints_and_resumes(tmp_path):
                           cwd=REPO, capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(REPO)},
                           timeout=300)
     assert done.returncode == 0, done.stderr
+
+
+def test_a_stop_removes_the_temporaries_in_every_folder_the_work_held(slow_command, tmp_path):
+    """The work holds a second folder under another flag (`output_lock`), where it and its step were writing: the
+    supervisor learns of it from the child and removes both half-written files after the stop (the writers are
+    dead; no other run may write in a held folder)."""
+    cmd, out, env = slow_command
+    held = tmp_path / "held"
+    proc, _ = _start([*cmd, "--held", str(held)], out, env)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 130, err
+    assert held.is_dir() and not list(held.glob(".*.tmp*")), sorted(p.name for p in held.iterdir())

@@ -67,6 +67,7 @@ def flag_value(argv: list[str], flag: str) -> str | None:
 
 
 def _dead(pid: int | None) -> bool:
+    """Whether process `pid` is gone (or a zombie: dead, not yet reaped)."""
     if pid is None:
         return False
     try:
@@ -75,7 +76,10 @@ def _dead(pid: int | None) -> bool:
         return True
     except PermissionError:  # alive, another user's
         return False
-    return False
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[-1].split()[0] == "Z"
+    except (OSError, IndexError):
+        return False
 
 
 def remove_temporaries(folder: str | Path | None, pid: int | None) -> int:
@@ -124,12 +128,12 @@ def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTE
             signal.signal(s, on_stop)
     import tempfile
 
-    fd, held = tempfile.mkstemp(prefix="ps-toolkit-held-", suffix=".txt")
-    os.close(fd)
+    held = Path(tempfile.gettempdir()) / f"ps-toolkit-held-{os.getpid()}.txt"  # written by the child only if it holds
+    held.unlink(missing_ok=True)  # a record left by an earlier supervisor of this pid that was killed
     try:
         try:
             child = subprocess.Popen([sys.executable, "-m", module, *argv], start_new_session=True,
-                                     env={**os.environ, CHILD: str(os.getpid()), HELD_FILE: held})
+                                     env={**os.environ, CHILD: str(os.getpid()), HELD_FILE: str(held)})
             children.append(child)
             if stop:
                 _kill_session(child)
@@ -138,9 +142,10 @@ def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTE
             for s, handler in previous.items():
                 signal.signal(s, handler)
         if stop or code < 0:
-            _clean_after(child.pid, [flag_value(argv, "--out"), *Path(held).read_text().splitlines()])
+            _clean_after(child.pid, [flag_value(argv, "--out"), *(held.read_text().splitlines() if held.exists()
+                                                                   else [])])
     finally:
-        os.unlink(held)
+        held.unlink(missing_ok=True)
     advice = interrupted.removeprefix("interrupted: ")
     if stop:
         print(interrupted, file=sys.stderr)
@@ -153,9 +158,33 @@ def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTE
     return code
 
 
+def _group(pgid: int) -> list[str]:
+    """The pids of process group `pgid` (from /proc; empty where it cannot be read)."""
+    out = []
+    for entry in os.listdir("/proc") if os.path.isdir("/proc") else []:
+        if entry.isdigit():
+            try:
+                if int(Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[-1].split()[2]) == pgid:
+                    out.append(entry)
+            except (OSError, IndexError, ValueError):
+                continue
+    return out
+
+
 def _clean_after(pid: int, folders: list[str | None]) -> None:
     """The stopped work's temporaries: the child's under --out, and every dead writer's in the folders it held (its
-    steps' too: they ran in its session, which is killed whole)."""
+    steps' too: they ran in its session, which is killed whole; waited for, a few seconds at most)."""
+    import time
+
+    deadline = time.monotonic() + 5.0
+    while time.monotonic() < deadline:
+        try:
+            os.killpg(pid, 0)  # anything of the session left (its steps die a moment after their parent)
+        except (ProcessLookupError, PermissionError):
+            break
+        if all(_dead(int(p)) for p in _group(pid)):
+            break
+        time.sleep(0.05)
     remove_temporaries(folders[0], pid)
     for folder in dict.fromkeys(f for f in folders[1:] if f):
         remove_temporaries(folder, None)
