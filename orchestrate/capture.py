@@ -297,14 +297,7 @@ def run(opts: CaptureOptions) -> dict:
     starts, that it is alive at least every 10 s, and when it ends (`scenes.cli.progress.stage`, on stderr)."""
     from orchestrate.capture_surface import write_capture_surface
     from scenes.surface.write import SURFACE_DIR
-    from validate.diagnosis.usable import (
-        as_dicts,
-        capture_warnings,
-        identical_photos_warning,
-        image_count_warning,
-        light_warnings,
-        mask_doubts,
-    )
+    from validate.diagnosis.usable import as_dicts, capture_warnings, light_warnings, mask_doubts, unusable_photos
 
     t0, times = time.perf_counter(), {}
     out = Path(opts.out)
@@ -321,9 +314,8 @@ def run(opts: CaptureOptions) -> dict:
     guide = read.meta.pop("guide", None)  # the photos' mean at their own size, when worked on smaller copies
     claim_stages(opts, out, read.name)
     times["read_s"] = time.perf_counter() - t0 - times["load_model_s"]
-    for count in (image_count_warning(len(read.images)), identical_photos_warning(read.images)):
-        if count and count.fatal:  # before the mask: two photos (or one photo twice) say nothing about one
-            raise UsageError(f"--input: {count.message}")
+    if fatal := unusable_photos(read.images):  # before the mask: two photos (or one photo twice) say nothing
+        raise UsageError(f"--input: {fatal.message}")
     with stage("capture", "the mask and the capture checks"):
         mask, mask_info = find_mask(opts, read, full)
         full_mask = mask_info.pop("full_mask", None)

@@ -377,6 +377,14 @@ def identical_photos_warning(images: np.ndarray) -> CaptureWarning | None:
     return None
 
 
+def unusable_photos(images: np.ndarray) -> CaptureWarning | None:
+    """The fatal warning photos get before any mask is looked for: too few of them, or all the same."""
+    for warning in (image_count_warning(len(images)), identical_photos_warning(images)):
+        if warning and warning.fatal:
+            return warning
+    return None
+
+
 def capture_warnings(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None = None,
                      names: list[str] | None = None, normals: np.ndarray | None = None,
                      lights: bool = True) -> tuple[list[CaptureWarning], dict]:
