@@ -32,7 +32,7 @@ import numpy as np
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.limits import check_memory, check_threads
 from scenes.cli.options import Command, arg, check_fields, comma_list, option
-from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
+from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs, output_lock
 from scenes.files import atomic_write_text, write_json
 from scenes.folder.layouts import diligent_folders
 from scenes.metrics import mean_angular_error
@@ -450,6 +450,7 @@ def _main(argv: list[str] | None, held) -> int:
     try:
         args = COMMAND.parse(argv).validate()
         check_inputs(args)
+        check_not_being_written(args.data or "", "--data")  # a dataset still being rendered
         held.enter_context(output_lock(args.out))  # one benchmark per folder
         counts = args.counts
         import torch

@@ -143,6 +143,8 @@ def _read(path: Path) -> dict:
         raise UsageError(f"--candidate: {str(path)!r} {why}")
     try:
         record = json.loads(path.read_text())
+    except RecursionError:
+        raise UsageError(f"--candidate: {str(path)!r} is nested too deeply to be a session's record") from None
     except (OSError, ValueError) as exc:
         raise UsageError(f"--candidate: {str(path)!r} cannot be read as JSON ({str(exc)[:120]}); expected the file "
                          "orchestrate.gpu_session wrote") from None

@@ -28,7 +28,7 @@ import numpy as np
 
 from scenes.cli.errors import UsageError, one_line, report_error
 from scenes.cli.options import REQUIRED, Command
-from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
+from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs, output_lock
 from scenes.files import atomic_write_text, write_json
 from scenes.folder.format import PREDICTION_FILES, object_name, prediction_file
 from scenes.folder.layouts import detect_layout
@@ -219,6 +219,7 @@ def main(argv: list[str] | None = None) -> int:
         with contextlib.ExitStack() as held:
             if Path(args.pred).is_dir():  # one writer in --pred (a missing one is evaluate's one-line error)
                 held.enter_context(output_lock(args.pred, "--pred"))
+            check_not_being_written(args.gt, "--gt")  # a dataset wildgen.make is still rendering
             summary = evaluate(args.pred, args.gt, overwrite=args.overwrite)
     except (UsageError, ValueError, FileNotFoundError, OSError) as exc:
         return report_error(exc)

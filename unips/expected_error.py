@@ -209,11 +209,18 @@ class ErrorModel:
             d = json.loads(Path(path).read_text())
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
             raise ValueError(f"error model {str(path)!r}: not valid JSON ({exc})") from None
+        except RecursionError:  # nested deeper than the parser's stack
+            raise ValueError(f"error model {str(path)!r}: nested too deeply to be an error model") from None
         try:
             return cls(**check_fields(d))
         except ValueError as exc:
             raise ValueError(f"error model {str(path)!r}: {exc} (fit it again: orchestrate.error_calibration)"
                              ) from None
+
+
+SMALLEST = 1e-6
+"""The least a positive field of an error model may be (a spread or a scale): a subnormal spread divides the
+features into infinities."""
 
 
 def _numbers(d: dict, key: str, n: int | None, positive: bool = False, bound: float = 1e6) -> None:
@@ -225,16 +232,17 @@ def _numbers(d: dict, key: str, n: int | None, positive: bool = False, bound: fl
     if not isinstance(values, list) or (n is not None and len(values) != n) or not all(map(number, values)):
         raise ValueError(f"{key} must be " + ("a number" if n is None else f"a list of {n} numbers")
                          + f", got {json.dumps(v)[:80]}")
+
     def fits(x: float) -> bool:
         try:
             x = float(x)  # an integer beyond float range overflows here: refused, not a traceback
         except OverflowError:
             return False
-        return bool(np.isfinite(x)) and abs(x) <= bound and (x > 0 or not positive)
+        return bool(np.isfinite(x)) and abs(x) <= bound and (x >= SMALLEST or not positive)
 
     if not all(map(fits, values)):
-        raise ValueError(f"{key} {json.dumps(v)[:80]}: expected finite " + ("positive " if positive else "")
-                         + f"numbers up to {bound:g} in magnitude")
+        raise ValueError(f"{key} {json.dumps(v)[:80]}: expected finite numbers "
+                         + (f"from {SMALLEST:g} " if positive else "") + f"up to {bound:g} in magnitude")
 
 
 def check_fields(d: Any) -> dict:
@@ -300,7 +308,7 @@ def for_weights(weights: Path | None) -> tuple[ErrorModel | None, str | None]:
         raise ValueError(f"error model {str(path)!r} {why}")
     try:
         named = json.loads(path.read_text()).get("weights_sha256")
-    except (ValueError, AttributeError):  # not JSON, or not an object: the full reader says which
+    except (ValueError, AttributeError, RecursionError):  # not JSON, or not an object: the full reader says which
         named = None
     if isinstance(named, str) and named != sha256(weights):
         return None, f"{path.name} was fitted for other weights than {Path(weights).name} (SHA-256 differs)"

@@ -29,6 +29,7 @@ import contextlib
 import dataclasses
 import logging
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -256,6 +257,10 @@ def _loop(run: Run, started: float) -> tuple[int, bool]:
     return done, stopped
 
 
+STOPPED = "interrupted: --out keeps the last whole checkpoint (last.pt) and the log up to it; continue with --resume"
+"""The one line of a stopped training."""
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """CLI entry point; returns the process exit status."""
     from scenes.cli.errors import INPUT_ERRORS, report_error
@@ -269,6 +274,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return report_error(exc)
     except OSError as exc:  # e.g. a full disk while writing a checkpoint: one line naming the file
         return report_error(exc, code=1)
+    except KeyboardInterrupt:  # under torchrun (unsupervised): Ctrl-C reaches every worker; rank 0 says it
+        if os.environ.get("RANK", "0") == "0":
+            print(STOPPED, file=sys.stderr)
+        return 130
     msg = f"trained steps {summary['start']}..{summary.get('stopped_at', summary['steps'])}"
     msg += " (--time-limit reached)" if "stopped_at" in summary else ""
     msg += f", last loss {summary.get('last_loss')}"
@@ -283,10 +292,6 @@ def main(argv: Sequence[str] | None = None) -> int:
 if __name__ == "__main__":  # Ctrl-C stops the work whole, in one line (scenes.cli.supervise)
     from scenes.cli.supervise import run_supervised
 
-    stopped = ("interrupted: --out keeps the last whole checkpoint (last.pt) and the log up to it; continue with "
-               "--resume")
-    import os
-
     # Under torchrun each process is one of its workers: torchrun stops them itself, and one line per rank would say
     # "interrupted" where another rank had failed.
-    sys.exit(main() if "TORCHELASTIC_RUN_ID" in os.environ else run_supervised("unips.train", main, stopped))
+    sys.exit(main() if "TORCHELASTIC_RUN_ID" in os.environ else run_supervised("unips.train", main, STOPPED))

@@ -115,10 +115,9 @@ def distributed_env() -> Dist:
 
     def number(name: str, default: str, low: int) -> int:
         text = env.get(name, default)
-        try:
-            value = int(text)
-        except ValueError:
-            raise ValueError(f"environment variable {name}={text!r}: expected an integer (torchrun sets it)") from None
+        if not text.strip().isdigit():  # int() would take '1_0' or ' +1'; torchrun writes plain digits
+            raise ValueError(f"environment variable {name}={text!r}: expected an integer (torchrun sets it)")
+        value = int(text)
         if value < low:
             raise ValueError(f"environment variable {name}={text!r}: expected {low} or more")
         return value
@@ -130,6 +129,8 @@ def distributed_env() -> Dist:
                          "multi-process run with torchrun, which sets them all")
     if rank >= world:
         raise ValueError(f"environment variable RANK={rank}: expected below WORLD_SIZE={world}")
+    if world > 1 and not 1 <= number("MASTER_PORT", "0", 0) <= 65535:
+        raise ValueError(f"environment variable MASTER_PORT={env['MASTER_PORT']!r}: expected a port, 1 to 65535")
     return Dist(rank, world, local) if world > 1 else Dist()
 
 

@@ -19,7 +19,7 @@ from typing import Annotated
 from scenes.cli.errors import INPUT_ERRORS, report_error
 from scenes.cli.limits import check_threads
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
-from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
+from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import progress_bar
 from scenes.cli.supervise import run_supervised
 from scenes.folder.format import EXPECTED_ERROR_FILES
@@ -113,6 +113,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
                             format="%(levelname)s %(name)s: %(message)s")
         config = args.validate().refine
         held.enter_context(output_lock(args.out, inputs={"--data": args.data, "--normals": args.normals}))
+        check_not_being_written(args.data, "--data")  # an object another run is still writing
         if not Path(args.normals).exists():
             raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
         if not Path(args.data).is_dir():

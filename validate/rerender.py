@@ -36,7 +36,7 @@ import numpy as np
 from scenes.cli.errors import UsageError, report_error
 from scenes.cli.limits import check_threads
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
-from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
+from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import progress_bar
 from scenes.cli.supervise import run_supervised
 from scenes.files import write_json
@@ -321,6 +321,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
     try:
         args = COMMAND.parse(argv).validate()
         held.enter_context(output_lock(args.out, inputs={"--data": args.data, "--normals": args.normals}))
+        check_not_being_written(args.data, "--data")  # a dataset wildgen.make is still rendering
         logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
                             format="%(levelname)s %(name)s: %(message)s")
         from scenes.folder.layouts import detect_layout, has_scene

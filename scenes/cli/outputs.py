@@ -203,7 +203,7 @@ def _holds_keys(path: Path, keys: tuple[str, ...]) -> bool:
 
     try:
         data = json.loads(path.read_text())
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):  # unreadable, not JSON, nested past the parser: not a report
         return False
     return isinstance(data, dict) and all(k in data for k in keys)
 

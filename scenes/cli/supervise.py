@@ -66,35 +66,19 @@ def flag_value(argv: list[str], flag: str) -> str | None:
     return value
 
 
-def _dead(pid: int | None) -> bool:
-    """Whether process `pid` is gone (or a zombie: dead, not yet reaped)."""
-    if pid is None:
-        return False
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return True
-    except PermissionError:  # alive, another user's
-        return False
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[-1].split()[0] == "Z"
-    except (OSError, IndexError):
-        return False
-
-
-def remove_temporaries(folder: str | Path | None, pid: int | None) -> int:
-    """Remove the temporary files (`scenes.files.atomic_write`) process `pid` left anywhere under `folder` (with
-    None: those of any writer no longer alive, for a folder the stopped work held, where no other run may write),
-    never following links; how many."""
+def remove_temporaries(folder: str | Path | None, pids: int | set[int]) -> int:
+    """Remove the temporary files (`scenes.files.atomic_write`) the processes `pids` left anywhere under `folder`,
+    never following links; how many. A file is the toolkit's temporary only by its name and its writer's pid, so
+    only the pids of the stopped work count (a user's `.notes.tmp123.txt` is never taken for one)."""
     from scenes.files import temporary_writer
 
+    pids = {pids} if isinstance(pids, int) else set(pids)
     if not folder or not Path(folder).is_dir():
         return 0
     removed = 0
     for root, _dirs, files in os.walk(folder):
         for name in files:
-            writer = temporary_writer(name)
-            if (writer == pid) if pid is not None else _dead(writer):
+            if temporary_writer(name) in pids:
                 try:
                     os.unlink(os.path.join(root, name))
                     removed += 1
@@ -118,6 +102,7 @@ def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTE
     def on_stop(signum, _frame) -> None:
         stop.setdefault("signal", signum)
         for c in children:
+            stop.setdefault("pids", {c.pid, *_group(c.pid)})  # the work and its steps, before they are killed
             _kill_session(c)
 
     # Handlers first (a Ctrl-C right at the start kills the child too); a signal the user's shell ignores (a run
@@ -136,14 +121,15 @@ def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTE
                                      env={**os.environ, CHILD: str(os.getpid()), HELD_FILE: str(held)})
             children.append(child)
             if stop:
+                stop.setdefault("pids", {child.pid, *_group(child.pid)})
                 _kill_session(child)
             code = child.wait()
         finally:
             for s, handler in previous.items():
                 signal.signal(s, handler)
         if stop or code < 0:
-            _clean_after(child.pid, [flag_value(argv, "--out"), *(held.read_text().splitlines() if held.exists()
-                                                                   else [])])
+            _clean_after(child.pid, stop.get("pids", {child.pid}),
+                         [flag_value(argv, "--out"), *(held.read_text().splitlines() if held.exists() else [])])
     finally:
         held.unlink(missing_ok=True)
     advice = interrupted.removeprefix("interrupted: ")
@@ -158,22 +144,22 @@ def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTE
     return code
 
 
-def _group(pgid: int) -> list[str]:
+def _group(pgid: int) -> list[int]:
     """The pids of process group `pgid` (from /proc; empty where it cannot be read)."""
     out = []
     for entry in os.listdir("/proc") if os.path.isdir("/proc") else []:
         if entry.isdigit():
             try:
                 if int(Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[-1].split()[2]) == pgid:
-                    out.append(entry)
+                    out.append(int(entry))
             except (OSError, IndexError, ValueError):
                 continue
     return out
 
 
-def _clean_after(pid: int, folders: list[str | None]) -> None:
-    """The stopped work's temporaries: the child's under --out, and every dead writer's in the folders it held (its
-    steps' too: they ran in its session, which is killed whole; waited for, a few seconds at most)."""
+def _clean_after(pid: int, pids: set[int], folders: list[str | None]) -> None:
+    """The stopped work's temporaries (those of `pids`: the work and the steps it ran, in its session, which is killed
+    whole) in --out and in every folder it held; the session is waited for first, a few seconds at most."""
     import time
 
     deadline = time.monotonic() + 5.0
@@ -182,9 +168,16 @@ def _clean_after(pid: int, folders: list[str | None]) -> None:
             os.killpg(pid, 0)  # anything of the session left (its steps die a moment after their parent)
         except (ProcessLookupError, PermissionError):
             break
-        if all(_dead(int(p)) for p in _group(pid)):
+        if all(_zombie(p) for p in _group(pid)):
             break
         time.sleep(0.05)
-    remove_temporaries(folders[0], pid)
-    for folder in dict.fromkeys(f for f in folders[1:] if f):
-        remove_temporaries(folder, None)
+    for folder in dict.fromkeys(f for f in folders if f):
+        remove_temporaries(folder, pids)
+
+
+def _zombie(pid: int) -> bool:
+    """Whether process `pid` is dead but not yet reaped (or gone)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[-1].split()[0] == "Z"
+    except (OSError, IndexError):
+        return True
