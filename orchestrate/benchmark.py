@@ -409,11 +409,13 @@ def check_inputs(args: BenchmarkOptions, data: bool = True) -> None:
             if fd.normals is None:
                 raise UsageError(f"--data: {str(folder)!r} has no ground-truth normals")
             sized.append(("--data", fd))
-        most = max((fd.num_files for _, fd in sized), default=max(args.counts))
+        most = min(args.images, max((fd.num_files for _, fd in sized), default=max(args.counts)))  # K of --images
         if min(args.counts) > most:  # only dashes to show
-            raise UsageError(f"--counts: {min(args.counts)}, more than the {most} image(s) of every object in --data")
+            raise UsageError(f"--counts: {min(args.counts)}, more than the {most} image(s) of every object in --data "
+                             "(at most --images)")
         if beyond := [k for k in args.counts if k > most]:  # a column of dashes each: left out, said
-            log.warning("--counts %s: more than the %d image(s) of every object in --data; left out of the table",
+            log.warning("--counts %s: more than the %d image(s) of every object in --data (at most --images); left "
+                        "out of the table",
                         ",".join(map(str, beyond)), most)
             args.counts = [k for k in args.counts if k <= most]
         if args.rerender_objects > 0:

@@ -102,13 +102,16 @@ def fault_schedule(i: int, obj) -> list[tuple[str, object]]:
 
 def render_suite(work: Path, assets: str | None, objects: int, seed: int, rows=SUITE, quiet: bool = True) -> list[Path]:
     """Render (or resume) each row of `rows` into work/<name>; returns the dataset folders."""
+    from orchestrate.steps import toolkit_env
+
     out = []
     for i, (name, flags) in enumerate(rows):
         dest = work / name
         argv = [sys.executable, "-m", "wildgen.make", *flags, *COMMON, "--objects", str(objects), "--seed",
                 str(seed + 100 * i), "--out", str(dest), *(["--assets", assets] if assets else []),
                 *(["--quiet"] if quiet else [])]
-        done = subprocess.run(argv, cwd=REPO, capture_output=True, text=True)
+        # from the user's folder, the toolkit on PYTHONPATH: a relative --work means what it says
+        done = subprocess.run(argv, capture_output=True, text=True, env=toolkit_env())
         if done.returncode != 0:
             said = (done.stderr.strip().splitlines() or ["no message"])[-1].removeprefix("error: ")
             raise UsageError(f"--work: wildgen.make for suite row {name!r} into {str(dest)!r} failed: {said}")

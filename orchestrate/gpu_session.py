@@ -370,7 +370,7 @@ def _session(opts: SessionOptions, t0: float) -> dict:
 
     def step(argv: list[str], until: float = stages) -> None:
         try:
-            run_step([py, "-m", *argv], cwd=REPO, deadline=until, out_of_time=over)
+            run_step([py, "-m", *argv], deadline=until, out_of_time=over)
         except OutOfTime as exc:
             raise UsageError(f"{exc}{advice}") from None
 

@@ -270,6 +270,7 @@ def check_wheel_names(wheels: Path, found: list[Path]) -> None:
     x86-64 or any platform), one version of each package, and mitsuba and drjit at the versions this toolkit runs
     (`PACKED`); UsageError naming the wheel otherwise."""
     from packaging.utils import InvalidWheelFilename, parse_wheel_filename
+    from packaging.version import Version
 
     seen: dict[str, Path] = {}
     versions: dict[str, str] = {}
@@ -282,12 +283,13 @@ def check_wheel_names(wheels: Path, found: list[Path]) -> None:
             raise UsageError(f"--wheels: {wheel.name!r} does not install on the GPU machine (CPython 3.12 on Linux "
                              f"x86-64; its tags: {', '.join(sorted(map(str, tags)))[:160]})")
         if name in seen:
-            raise UsageError(f"--wheels: {wheel.name!r} and {seen[name].name!r} are two versions of {name}; keep one")
+            raise UsageError(f"--wheels: {wheel.name!r} and {seen[name].name!r} are two wheels of {name}; keep the "
+                             "one for the GPU machine")
         seen[name] = wheel
         versions[name] = str(version)
     for pin in PACKED[:2]:  # then the versions (two of one package said as such first)
         name, pinned = pin.split("==")
-        if name in versions and versions[name] != pinned:
+        if name in versions and Version(versions[name]) != Version(pinned):  # PEP 440: 3.9.1.0 is 3.9.1
             raise UsageError(f"--wheels: {seen[name].name!r} is {name} {versions[name]}; this toolkit runs {name} "
                              f"{pinned}")
     if missing := [p.split("==")[0] for p in PACKED[:2] if p.split("==")[0] not in seen]:

@@ -209,6 +209,9 @@ def decide(opts: ShipOptions) -> bool:
 
     folder, val = Path(opts.candidate), Path(opts.val)
     diligent = None if opts.diligent in (None, "none") else Path(opts.diligent)
+    from scenes.cli.outputs import check_not_being_written
+
+    check_not_being_written(val, "--val")  # scored twice: a dataset still growing would decide the shipping
     check_records(folder)
     with tempfile.TemporaryDirectory() as scratch:
         weights, name = candidate_weights(folder, Path(scratch))

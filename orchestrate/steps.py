@@ -20,6 +20,7 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 from typing import Any
 
 from scenes.cli.errors import UsageError
@@ -61,6 +62,13 @@ def _describe(cmd: list[str]) -> str:
     return f"{module}{f' --out {out}' if out else ''}"
 
 
+def toolkit_env() -> dict[str, str]:
+    """The environment of a step: this one, with this toolkit's folder first on PYTHONPATH, so that a step finds
+    the toolkit from the user's own folder, where the paths the user typed (relative ones too) mean what they say."""
+    repo = str(Path(__file__).resolve().parents[1])
+    return {**os.environ, "PYTHONPATH": os.pathsep.join([repo, *filter(None, [os.environ.get("PYTHONPATH")])])}
+
+
 def run_step(cmd: list[str], partial_ok: bool = False, cwd: str | os.PathLike | None = None,
              deadline: float | None = None, out_of_time: str = "the time budget ran out") -> bool:
     """Run one step (printed first as `+ module args`). Returns True when it succeeded; with `partial_ok`, exit
@@ -75,7 +83,7 @@ def run_step(cmd: list[str], partial_ok: bool = False, cwd: str | os.PathLike | 
     from scenes.cli.supervise import die_with_parent
 
     me = os.getpid()  # a step dies with the pipeline that runs it (no orphan writes on after a kill -9)
-    proc = subprocess.Popen([str(c) for c in cmd], stderr=subprocess.PIPE, cwd=cwd,
+    proc = subprocess.Popen([str(c) for c in cmd], stderr=subprocess.PIPE, cwd=cwd, env=toolkit_env(),
                             preexec_fn=lambda: die_with_parent(me))
     stopped: list[float] = []
     timers = []

@@ -130,7 +130,7 @@ class Clock:
     def step(self, cmd: list[str], **kw) -> bool:
         if self.stop_at is not None and time.time() >= self.stop_at:
             raise self.over(f"before step {' '.join(map(str, cmd[2:4]))}")
-        return run_step(cmd, cwd=REPO, deadline=self.stop_at, out_of_time=f"--minutes: {self.minutes:g} min ran out",
+        return run_step(cmd, deadline=self.stop_at, out_of_time=f"--minutes: {self.minutes:g} min ran out",
                         **kw)
 
     def train_minutes(self) -> float:
@@ -218,7 +218,10 @@ def check_steps(args: RecipeOptions) -> bool:
     work = Path(args.work)
     assets = Path(args.assets) if args.assets else None
     if assets is not None:
+        from scenes.cli.outputs import check_apart
         from wildgen.assets import AssetLibrary
+
+        check_apart(work, {"--assets": assets}, "--work")  # the split's folders would land inside the assets
 
         AssetLibrary.scan(assets)  # names --assets when it is missing or empty
     names = [f"train{args.train_seed[0]}", "val128"]

@@ -3716,6 +3716,16 @@ ROWS += [
         setup=_put(("a/meshes/one.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")), check=_not_written("w/level1")),
     Row("capture-photos-all-the-same", CAP, [*CAPTURE, "--mask", "auto"], 2, ("--input", "identical"),
         setup=_both(_photos(), _photos_all_like_the_first), check=_not_written("o/normal.png")),
+    # ---- sweep 7
+    Row("ship-val-being-rendered", SHIP, ["--candidate", "{T}/cand", "--val", "{T}/data", "--diligent", "none"], 2,
+        ("--val", "being written"), setup=_both(_dataset_copy, _running("data")), check=_released()),
+    Row("recipe-work-inside-the-assets", RC, ["--work", "{T}/a/work", "--assets", "{T}/a", "--train-objects", "1",
+                                              "--steps", "1"], 2, ("--work", "--assets"),
+        setup=_put(("a/meshes/one.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")), check=_not_written("a/work")),
+    Row("train-master-port-not-a-port", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1"], 2,
+        ("MASTER_PORT='notaport'",), env={"WORLD_SIZE": "2", "RANK": "0", "LOCAL_RANK": "0",
+                                          "MASTER_ADDR": "127.0.0.1", "MASTER_PORT": "notaport"}, sub=True,
+        check=_not_written("run")),
     # ---- sweep 6: torchrun's variables
     Row("train-world-size-without-torchrun", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1"],
         2, ("WORLD_SIZE=2", "RANK", "torchrun"), env={"WORLD_SIZE": "2"}, sub=True, check=_not_written("run")),

@@ -186,3 +186,15 @@ def test_a_stop_removes_the_temporaries_in_every_folder_the_work_held(slow_comma
     _, err = proc.communicate(timeout=30)
     assert proc.returncode == 130, err
     assert held.is_dir() and not list(held.glob(".*.tmp*")), sorted(p.name for p in held.iterdir())
+
+
+def test_a_pipeline_step_runs_in_the_users_folder(tmp_path, monkeypatch):
+    """A step (orchestrate.steps.run_step) runs where the user typed the command, with the toolkit on PYTHONPATH: a
+    relative path means what it meant to the user (sweep 7: error_calibration and gpu_session rendered a relative
+    --work into the toolkit's own folder)."""
+    from orchestrate.steps import run_step
+
+    monkeypatch.chdir(tmp_path)
+    assert run_step([sys.executable, "-m", "wildgen.make", "--out", "rel_o", "--objects", "1", "--images", "2",
+                     "--res", "16", "--spp", "1", "--gt-spp", "1", "--workers", "0", "--quiet"])
+    assert (tmp_path / "rel_o" / "manifest.json").is_file() and not (REPO / "rel_o").exists()

@@ -235,7 +235,7 @@ def test_a_carried_archive_or_wheel_that_is_a_device_is_named_not_read(tmp_path,
     (["mitsuba-3.9.1-cp311-cp311-manylinux_2_17_x86_64.whl"], "does not install on the GPU machine"),
     (["mitsuba-3.9.1-cp312-cp312-manylinux_2_17_aarch64.whl"], "does not install on the GPU machine"),
     (["mitsuba-3.9.1-cp312-cp312-manylinux_2_17_x86_64.whl", "mitsuba-3.9.0-cp312-cp312-manylinux_2_17_x86_64.whl"],
-     "two versions of mitsuba"),
+     "two wheels of mitsuba"),
     (["mitsuba-3.9.0-cp312-cp312-manylinux_2_17_x86_64.whl"], "this toolkit runs mitsuba 3.9.1"),
     ([], "has no drjit wheel"),
     (["tyro-1.0.17-py3-none-any.whl", "not-a-wheel.whl"], "is not a wheel's file name"),
@@ -267,4 +267,6 @@ def test_wheels_that_install_on_the_gpu_machine_pass_the_name_check(tmp_path):
              "OpenEXR-3.3.2-cp312-cp312-manylinux_2_17_x86_64.manylinux2014_x86_64.whl",
              "cryptography-44.0.0-cp39-abi3-manylinux_2_28_x86_64.whl",
              "braceexpand-0.1.7-py2.py3-none-any.whl", "typeguard-4.4.1-py3-none-any.whl"]
+    check_wheel_names(tmp_path, [tmp_path / n for n in names])
+    names[0] = "mitsuba-3.9.1.0-cp312-cp312-manylinux_2_17_x86_64.whl"  # PEP 440: the same version
     check_wheel_names(tmp_path, [tmp_path / n for n in names])
