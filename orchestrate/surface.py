@@ -82,8 +82,8 @@ def load_inputs(args: SurfaceOptions):
     if args.mask is not None:
         try:
             mask = read_mask(args.mask)
-        except ValueError as exc:  # the reader's messages name the file, not the flag
-            raise ValueError(f"--mask: {exc}") from None
+        except (ValueError, FileNotFoundError) as exc:  # the reader's messages name the file, not the flag
+            raise type(exc)(f"--mask: {exc}") from None
         mask = check_mask(mask, shape, "--mask")
     else:
         mask = check_mask(np.abs(normals).sum(-1) > 0, shape, "--normals (its non-zero pixels, no --mask)")

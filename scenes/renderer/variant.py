@@ -46,6 +46,9 @@ def choose_variant(requested: str | None = None) -> str:
     """
     import mitsuba as mi
 
+    if not callable(getattr(mi, "variants", None)):  # e.g. a carried package of that name that is not Mitsuba 3
+        raise ValueError(f"the 'mitsuba' package found ({getattr(mi, '__file__', None)!r}) is not Mitsuba 3 (it has "
+                         "no variants()); install mitsuba==3.9.1, or pack its real wheel")
     if requested == "auto":
         requested = None
     if requested:
