@@ -119,7 +119,9 @@ def test_a_png_says_its_own_curve(tmp_path, np_rng):
         read_photos(mixed)
 
 
-def _jpeg_with_exif(path, a: np.ndarray, orientation: int = 1, exposure_s: float | None = None) -> None:
+def _jpeg_with_exif(path, a: np.ndarray, orientation: int = 1, exposure_s: float | None = None,
+                    iso: int | None = 100) -> None:
+    """A JPEG of `a` with EXIF orientation, and exposure time and ISO where given (None: the tag is left out)."""
     from PIL import Image
 
     img = Image.fromarray(a)
@@ -127,7 +129,9 @@ def _jpeg_with_exif(path, a: np.ndarray, orientation: int = 1, exposure_s: float
     exif[0x0112] = orientation
     if exposure_s is not None:
         ifd = exif.get_ifd(0x8769)
-        ifd[0x829A], ifd[0x8827] = exposure_s, 100
+        ifd[0x829A] = exposure_s
+        if iso is not None:
+            ifd[0x8827] = iso
     img.save(path, exif=exif, quality=100)
 
 
@@ -170,17 +174,9 @@ def test_the_f_number_counts_in_the_exposure_when_every_photo_gives_one(tmp_path
 def test_exposures_that_differ_where_one_photo_gives_none_are_said(tmp_path, capsys):
     """Two photos at 0.01 s and one at 0.02 s, but one of them without ISO: none can be normalised, and the
     command says so instead of leaving the doubled exposure silently (sweep 6)."""
-    from PIL import Image
-
     a = (np.random.default_rng(2).random((6, 9, 3)) * 200 + 20).astype(np.uint8)
     for i, (t, iso) in enumerate([(0.01, 100), (0.02, 100), (0.01, None)]):
-        img = Image.fromarray(a)
-        exif = img.getexif()
-        ifd = exif.get_ifd(0x8769)
-        ifd[0x829A] = t
-        if iso is not None:
-            ifd[0x8827] = iso
-        img.save(tmp_path / f"p{i}.jpg", exif=exif, quality=100)
+        _jpeg_with_exif(tmp_path / f"p{i}.jpg", a, exposure_s=t, iso=iso)
     photos = read_photos(tmp_path)
     assert [e["scale"] for e in photos.exposure] == [1.0, 1.0, 1.0] and "p2.jpg" in photos.exposure_note
     err = capsys.readouterr().err
@@ -188,13 +184,7 @@ def test_exposures_that_differ_where_one_photo_gives_none_are_said(tmp_path, cap
         err.count("\n") == 1, err
     # The photo without ISO is the one whose time differs (sweep 6's case): said the same way.
     for i, (t, iso) in enumerate([(0.01, 100), (0.01, 100), (0.02, None)]):
-        img = Image.fromarray(a)
-        exif = img.getexif()
-        ifd = exif.get_ifd(0x8769)
-        ifd[0x829A] = t
-        if iso is not None:
-            ifd[0x8827] = iso
-        img.save(tmp_path / f"p{i}.jpg", exif=exif, quality=100)
+        _jpeg_with_exif(tmp_path / f"p{i}.jpg", a, exposure_s=t, iso=iso)
     assert "p2.jpg" in read_photos(tmp_path).exposure_note
 
 

@@ -205,17 +205,26 @@ class ErrorModel:
     @classmethod
     def load(cls, path: Path) -> ErrorModel:
         """The model in `path`, every field checked (`check_fields`): one ValueError naming the file otherwise."""
-        try:
-            d = json.loads(Path(path).read_text())
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise ValueError(f"error model {str(path)!r}: not valid JSON ({exc})") from None
-        except RecursionError:  # nested deeper than the parser's stack
-            raise ValueError(f"error model {str(path)!r}: nested too deeply to be an error model") from None
+        return cls.from_json(_read_json(path), path)
+
+    @classmethod
+    def from_json(cls, d: Any, path: Path) -> ErrorModel:
+        """The model of `d`, the JSON value read from `path` (named in the ValueError of a field that fails)."""
         try:
             return cls(**check_fields(d))
         except ValueError as exc:
             raise ValueError(f"error model {str(path)!r}: {exc} (fit it again: orchestrate.error_calibration)"
                              ) from None
+
+
+def _read_json(path: Path) -> Any:
+    """The JSON value of an error model's file; ValueError naming it where it is not JSON."""
+    try:
+        return json.loads(Path(path).read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"error model {str(path)!r}: not valid JSON ({exc})") from None
+    except RecursionError:  # nested deeper than the parser's stack
+        raise ValueError(f"error model {str(path)!r}: nested too deeply to be an error model") from None
 
 
 SMALLEST = 1e-6
@@ -306,13 +315,11 @@ def for_weights(weights: Path | None) -> tuple[ErrorModel | None, str | None]:
         return None, f"no error model was fitted for {Path(weights).name} ({path.name} is absent)"
     if why := not_a_file(path):
         raise ValueError(f"error model {str(path)!r} {why}")
-    try:
-        named = json.loads(path.read_text()).get("weights_sha256")
-    except (ValueError, AttributeError, RecursionError):  # not JSON, or not an object: the full reader says which
-        named = None
+    d = _read_json(path)  # read once: whose it is, then (if these weights') every field
+    named = d.get("weights_sha256") if isinstance(d, dict) else None
     if isinstance(named, str) and named != sha256(weights):
         return None, f"{path.name} was fitted for other weights than {Path(weights).name} (SHA-256 differs)"
-    return ErrorModel.load(path), None
+    return ErrorModel.from_json(d, path), None
 
 
 # ---------------------------------------------------------------- fitting

@@ -66,13 +66,12 @@ def flag_value(argv: list[str], flag: str) -> str | None:
     return value
 
 
-def remove_temporaries(folder: str | Path | None, pids: int | set[int]) -> int:
+def remove_temporaries(folder: str | Path | None, pids: set[int]) -> int:
     """Remove the temporary files (`scenes.files.atomic_write`) the processes `pids` left anywhere under `folder`,
     never following links; how many. A file is the toolkit's temporary only by its name and its writer's pid, so
     only the pids of the stopped work count (a user's `.notes.tmp123.txt` is never taken for one)."""
     from scenes.files import temporary_writer
 
-    pids = {pids} if isinstance(pids, int) else set(pids)
     if not folder or not Path(folder).is_dir():
         return 0
     removed = 0
@@ -144,17 +143,19 @@ def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTE
     return code
 
 
+def _stat(pid: int | str) -> list[str]:
+    """The fields of /proc/PID/stat after the command's name (state, parent, process group, ...); [] where the
+    process is gone or /proc cannot be read."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[-1].split()
+    except OSError:
+        return []
+
+
 def _group(pgid: int) -> list[int]:
     """The pids of process group `pgid` (from /proc; empty where it cannot be read)."""
-    out = []
-    for entry in os.listdir("/proc") if os.path.isdir("/proc") else []:
-        if entry.isdigit():
-            try:
-                if int(Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[-1].split()[2]) == pgid:
-                    out.append(int(entry))
-            except (OSError, IndexError, ValueError):
-                continue
-    return out
+    entries = os.listdir("/proc") if os.path.isdir("/proc") else []
+    return [int(e) for e in entries if e.isdigit() and _stat(e)[2:3] == [str(pgid)]]
 
 
 def _clean_after(pid: int, pids: set[int], folders: list[str | None]) -> None:
@@ -177,7 +178,4 @@ def _clean_after(pid: int, pids: set[int], folders: list[str | None]) -> None:
 
 def _zombie(pid: int) -> bool:
     """Whether process `pid` is dead but not yet reaped (or gone)."""
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[-1].split()[0] == "Z"
-    except (OSError, IndexError):
-        return True
+    return _stat(pid)[:1] in ([], ["Z"])
