@@ -347,6 +347,20 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
                             tar.addfile(ti, f)
 
     atomic_write(archive, write)  # a full disk leaves no half archive, and says which file it was
+    try:
+        total, mib = _finish_pack(dest, archive, found, limit, tree, assets)
+    except UsageError:  # a pack over the limit is no pack: nothing of it stays to be carried by mistake
+        for name in (SITE_ARCHIVE, ASSET_ARCHIVE, MANIFEST):
+            (dest / name).unlink(missing_ok=True)
+        raise
+    print(f"packed {archive}: {mib}, within {limit / 2**20:.0f} MiB")
+    return total
+
+
+def _finish_pack(dest: Path, archive: Path, found: list[Path], limit: int, tree: int | None,
+                 assets: Path | None) -> tuple[int, str]:
+    """The assets archive and the manifest beside a written site archive; UsageError when the whole is over
+    `limit` (the manifest is written only for a pack within it)."""
     tree = tree_bytes() if tree is None else tree
     site = archive.stat().st_size
     manifest = {"site": {"archive": SITE_ARCHIVE, "bytes": site, "wheels": [w.name for w in found]}, "tree_bytes": tree,
@@ -357,16 +371,15 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
     asset_bytes = manifest.get("assets", {}).get("bytes", 0)
     total = site + asset_bytes + tree
     manifest["total_bytes"] = total
-    write_manifest(dest, manifest)
     mib = (f"{total} bytes = {total / 2**20:.1f} MiB ({site / 2**20:.1f} MiB {archive}, {asset_bytes / 2**20:.1f} MiB "
            f"{ASSET_ARCHIVE}, {tree / 2**20:.1f} MiB working tree)")
     if total > limit:
         raise UsageError(
             f"--pack: what would travel is {mib}, over the {limit} bytes ({limit / 2**20:.0f} MiB) upload limit: "
-            "leave out wheels the GPU machine has, or render the data here and carry shards instead"
+            "leave out wheels the GPU machine has, or render the data here and carry shards instead; nothing was kept"
         )
-    print(f"packed {archive}: {mib}, within {limit / 2**20:.0f} MiB")
-    return total
+    write_manifest(dest, manifest)
+    return total, mib
 
 
 # ---------------------------------------------------------------- on the GPU machine

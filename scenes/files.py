@@ -69,6 +69,16 @@ def temporary_writer(name: str) -> int | None:
     return None if m is None else int(m["pid"])
 
 
+_TEMPORARY_FOLDER = re.compile(r"^\.tmp-.+\.(?P<pid>\d+)$")
+"""An object folder being written (`wildgen.writer.TMP_PREFIX`, then the folder's name and its writer's pid)."""
+
+
+def temporary_folder_writer(name: str) -> int | None:
+    """The pid of the process whose temporary object folder `name` is, or None for another name."""
+    m = _TEMPORARY_FOLDER.match(name)
+    return None if m is None else int(m["pid"])
+
+
 def atomic_write(path: str | Path, write) -> None:
     """Call `write(tmp)` on a temporary name beside `path`, then rename it to `path`: a kill or a full disk
     never leaves a truncated file under the real name (the temporary one is removed on failure)."""

@@ -3726,6 +3726,10 @@ ROWS += [
         ("MASTER_PORT='notaport'",), env={"WORLD_SIZE": "2", "RANK": "0", "LOCAL_RANK": "0",
                                           "MASTER_ADDR": "127.0.0.1", "MASTER_PORT": "notaport"}, sub=True,
         check=_not_written("run")),
+    Row("train-lone-rank-without-torchrun", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1"],
+        2, ("WORLD_SIZE=2", "RANK=0", "did not meet", "UNIPS_JOIN_TIMEOUT_S"),
+        env={"WORLD_SIZE": "2", "RANK": "0", "LOCAL_RANK": "0", "MASTER_ADDR": "127.0.0.1", "MASTER_PORT": "29517",
+             "UNIPS_JOIN_TIMEOUT_S": "3"}, sub=True),
     # ---- sweep 6: torchrun's variables
     Row("train-world-size-without-torchrun", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1"],
         2, ("WORLD_SIZE=2", "RANK", "torchrun"), env={"WORLD_SIZE": "2"}, sub=True, check=_not_written("run")),

@@ -137,6 +137,7 @@ def test_pack_keeps_the_needed_variants_and_checks_the_limit(tmp_path, capsys):
     assert total == (tmp_path / "carry" / "site.tar.xz").stat().st_size + 1000
     with pytest.raises(gpu_session.UsageError, match=r"--pack: what would travel is \d+ bytes = .* over the 100 bytes"):
         gpu_session.pack(tmp_path / "carry", wheels, limit=100, tree=1000, overwrite=True)
+    assert sorted(p.name for p in (tmp_path / "carry").iterdir()) == []  # a pack over the limit is not left to carry
     assert gpu_session.main(["--pack", str(tmp_path / "c2"), "--wheels", str(tmp_path / "none")]) == 2
     assert "error: --wheels:" in capsys.readouterr().err
 

@@ -37,6 +37,10 @@ def main():
     ctypes.CDLL(None).signal(signal.SIGINT, handler)
     # a file half written, under the name atomic_write gives it, when the stop comes
     (out / f".normal.tmp{os.getpid()}.png").write_bytes(b"half")
+    # an object folder half written (wildgen.sensor's), and a user's folder named alike but of no pid of the work
+    (out / f".tmp-00000.data.{os.getpid()}").mkdir()
+    (out / f".tmp-00000.data.{os.getpid()}" / "image0.png").write_bytes(b"half")
+    (out / ".tmp-notes.1").mkdir()
     if "--held" in sys.argv:  # a folder the work holds under another flag, with the step's half-written file too
         from scenes.cli.outputs import output_lock
 
@@ -97,6 +101,7 @@ def test_a_stop_kills_the_work_whole_in_one_line(slow_command, sig, code):
     assert err.strip().splitlines() == ["interrupted: one line"], err
     assert (out / "finished.txt").read_text() == "whole"  # what was finished stays
     assert not list(out.glob(".*.tmp*")), sorted(p.name for p in out.iterdir())  # the half-written file goes
+    assert sorted(p.name for p in out.glob(".tmp-*")) == [".tmp-notes.1"]  # and the half-written object folder
     step = int((out / "step_pid").read_text())
     t0 = time.monotonic()
     while (_alive(child) or _alive(step)) and time.monotonic() - t0 < 10:

@@ -136,3 +136,21 @@ def test_the_lights_of_a_glossy_metal_object_are_read_from_its_highlights():
     assert light_warnings(photos(around), mask, n)[0] == []
     top = around[around[:, 1] > 0.1]
     assert [w.code for w in light_warnings(photos(top), mask, n)[0]] == ["one_sided_light"]
+
+
+def test_photos_that_differ_only_in_brightness_are_one_light_and_fatal():
+    """The same photo under other EXIF exposures (each scaled by its own factor) tells the light once (sweep 7);
+    a sphere under four lights is not refused, even with one of them dimmed."""
+    from fixtures import sphere_images
+
+    from validate.diagnosis.usable import unusable_photos
+
+    n, mask = sphere(32)
+    lights = np.array([[0.3, 0.2, 0.93], [-0.4, 0.1, 0.9], [0.1, -0.5, 0.86], [0.5, 0.5, 0.7]])
+    lights /= np.linalg.norm(lights, axis=1, keepdims=True)
+    images = sphere_images(n, mask, lights).astype(np.float32)
+    scaled = np.stack([images[0] * f for f in (1.0, 0.5, 0.25, 2.0)])
+    same = unusable_photos(scaled)
+    assert same is not None and same.fatal and "differ only in brightness" in same.message
+    images[1] *= 0.5
+    assert unusable_photos(images) is None

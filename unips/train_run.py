@@ -144,8 +144,44 @@ def init_distributed(cfg: TrainConfig) -> Dist:
     if cfg.batch % world:
         raise ValueError(f"--batch={cfg.batch}: expected a multiple of the {world} torchrun processes")
     if not dist.is_initialized():
-        dist.init_process_group(backend="nccl" if cfg.device.startswith("cuda") else "gloo")
+        backend = "nccl" if cfg.device.startswith("cuda") else "gloo"
+        if os.environ.get("TORCHELASTIC_RUN_ID"):  # torchrun's rendezvous gathered the processes already
+            dist.init_process_group(backend=backend)
+        else:
+            dist.init_process_group(backend=backend, store=_joined_store(rank, world), rank=rank, world_size=world)
     return Dist(rank, world, local)
+
+
+JOIN_TIMEOUT_S = 300.0
+"""How long processes started by hand (the torchrun variables set without torchrun) wait for one another before
+the run is refused; `UNIPS_JOIN_TIMEOUT_S` sets it. Under torchrun its own rendezvous waits instead."""
+
+
+def _joined_store(rank: int, world: int):
+    """The process group's store once all `world` processes reached MASTER_ADDR:MASTER_PORT; a ValueError naming
+    the variables after the bounded wait (torch's default is to wait 30 minutes, silently)."""
+    from datetime import timedelta
+
+    import torch.distributed as dist
+
+    env = os.environ
+    text = env.get("UNIPS_JOIN_TIMEOUT_S", str(JOIN_TIMEOUT_S))
+    try:
+        wait = float(text)
+        if not 0 < wait < 1e6:
+            raise ValueError
+    except ValueError:
+        raise ValueError(f"environment variable UNIPS_JOIN_TIMEOUT_S={text!r}: expected seconds, above 0") from None
+    where = f"MASTER_ADDR={env['MASTER_ADDR']} MASTER_PORT={env['MASTER_PORT']}"
+    try:
+        store = dist.TCPStore(env["MASTER_ADDR"], int(env["MASTER_PORT"]), world, is_master=rank == 0,
+                              timeout=timedelta(seconds=wait), wait_for_workers=True)
+    except (RuntimeError, OSError) as exc:  # DistStoreError / DistNetworkError are RuntimeErrors
+        raise ValueError(f"environment variable WORLD_SIZE={world}: process RANK={rank} did not meet the other "
+                         f"{world - 1} at {where} within {wait:g} s ({str(exc).splitlines()[0][:120]}); start every "
+                         "rank, or start the run with torchrun (UNIPS_JOIN_TIMEOUT_S sets the wait)") from None
+    store.set_timeout(timedelta(minutes=30))  # the joined run's collectives wait as long as torch's default
+    return store
 
 
 def load_init_weights(cfg: TrainConfig, device: torch.device) -> torch.nn.Module:

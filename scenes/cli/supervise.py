@@ -13,6 +13,7 @@ Every output file is written whole or not at all, so what the child finished sta
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -67,15 +68,20 @@ def flag_value(argv: list[str], flag: str) -> str | None:
 
 
 def remove_temporaries(folder: str | Path | None, pids: set[int]) -> int:
-    """Remove the temporary files (`scenes.files.atomic_write`) the processes `pids` left anywhere under `folder`,
-    never following links; how many. A file is the toolkit's temporary only by its name and its writer's pid, so
-    only the pids of the stopped work count (a user's `.notes.tmp123.txt` is never taken for one)."""
-    from scenes.files import temporary_writer
+    """Remove the temporary files (`scenes.files.atomic_write`) and object folders (`.tmp-NAME.PID`) the processes
+    `pids` left anywhere under `folder`, never following links; how many. A file is the toolkit's temporary only
+    by its name and its writer's pid, so only the pids of the stopped work count (a user's `.notes.tmp123.txt` is
+    never taken for one)."""
+    from scenes.files import temporary_folder_writer, temporary_writer
 
     if not folder or not Path(folder).is_dir():
         return 0
     removed = 0
-    for root, _dirs, files in os.walk(folder):
+    for root, dirs, files in os.walk(folder):
+        for name in [d for d in dirs if temporary_folder_writer(d) in pids]:  # an object folder half written
+            dirs.remove(name)
+            shutil.rmtree(os.path.join(root, name), ignore_errors=True)
+            removed += 1
         for name in files:
             if temporary_writer(name) in pids:
                 try:

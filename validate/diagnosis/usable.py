@@ -351,8 +351,7 @@ def _largest_gap_deg(angles: np.ndarray) -> float:
 
 def _names(names: list[str], idx) -> str:
     idx = list(idx)
-    shown = ", ".join(names[i] for i in idx[:4])
-    return shown + (f" and {len(idx) - 4} more" if len(idx) > 4 else "")
+    return ", ".join(names[i] for i in idx[:4]) + (f" and {len(idx) - 4} more" if len(idx) > 4 else "")
 
 
 def image_count_warning(k: int) -> CaptureWarning | None:
@@ -367,13 +366,19 @@ def image_count_warning(k: int) -> CaptureWarning | None:
     return None
 
 
+def _scaled_copy(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether photo b is photo a times a factor (the same photo, or its exposure scaled by EXIF): the same light."""
+    sa, sb = float(a.sum(dtype=np.float64)), float(b.sum(dtype=np.float64))
+    return np.array_equal(a, b) if min(sa, sb) <= 0 else float(np.abs(a * (sb / sa) - b).max()) <= 1e-4 * float(b.max())
+
+
 def identical_photos_warning(images: np.ndarray) -> CaptureWarning | None:
-    """Fatal when every photo is the same (one photo copied, a light that never moved): nothing for the light to
-    tell, whatever the mask. Black photos are left to the darkness rule (`too_dark`), which says more."""
-    if len(images) > 1 and float(images.max()) >= 1.0 / 255 and all(np.array_equal(images[0], im) for im in images[1:]):
-        return CaptureWarning("too_few_images", f"the {len(images)} photos are identical (one photo copied, or a "
-                              "light that never moved): photometric stereo needs the lamp in another place for each "
-                              "photo", fatal=True)
+    """Fatal when every photo is the same up to brightness (copied, or under other EXIF exposures): nothing for the
+    light to tell, whatever the mask. Black photos are left to the darkness rule (`too_dark`), which says more."""
+    if len(images) > 1 and float(images.max()) >= 1.0 / 255 and all(_scaled_copy(images[0], im) for im in images[1:]):
+        return CaptureWarning("too_few_images", f"the {len(images)} photos are identical, or differ only in brightness "
+                              "(one photo copied, a light that never moved): photometric stereo needs the lamp in "
+                              "another place for each photo", fatal=True)
     return None
 
 
