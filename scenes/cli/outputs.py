@@ -17,16 +17,18 @@ from scenes.cli.errors import UsageError
 
 
 def _tell_supervisor(path: str | os.PathLike) -> None:
-    """Record a held folder where the supervising process reads it after a stop (`scenes.cli.supervise.HELD_FILE`):
-    it removes the stopped work's temporaries there."""
-    from scenes.cli.supervise import HELD_FILE
+    """Tell the supervising process of a held folder (`scenes.cli.supervise.HELD_FILE`, a pipe): after a stop it
+    removes the stopped work's temporaries there."""
+    from scenes.cli.supervise import CHILD, HELD_FILE
 
-    if os.environ.get(HELD_FILE):
-        try:
-            with open(os.environ[HELD_FILE], "a") as f:
-                f.write(os.path.abspath(path) + "\n")
-        except OSError:  # the supervisor's own record is gone: nothing to tell
-            pass
+    # The descriptor is this process's only where the supervisor started it (a step of a pipeline inherits the
+    # variables, not the pipe: there the number is some other file)
+    if os.environ.get(CHILD) != str(os.getppid()) or not os.environ.get(HELD_FILE, "").isdigit():
+        return
+    try:
+        os.write(int(os.environ[HELD_FILE]), os.fsencode(os.path.abspath(path) + "\n"))
+    except OSError:  # the pipe is gone or full: nothing more to tell
+        pass
 
 
 def check_not_being_written(path: str | os.PathLike, flag: str) -> None:

@@ -22,9 +22,10 @@ from pathlib import Path
 
 CHILD = "PS_TOOLKIT_SUPERVISED"
 """Set in the child's environment: the command then runs its work directly."""
-HELD_FILE = "PS_TOOLKIT_HELD_FILE"
-"""Set in the child's environment: a file where each output folder the work holds (`scenes.cli.outputs.output_lock`)
-is recorded, a line each, so that a stop removes the temporaries in every one of them, whatever its flag."""
+HELD_FILE = "PS_TOOLKIT_HELD_FD"
+"""Set in the child's environment: the descriptor of a pipe (inherited by the child alone) where each output folder
+the work holds (`scenes.cli.outputs.output_lock`) is written, a line each, so that a stop removes the temporaries in
+every one of them, whatever its flag. A pipe, not a file: a supervisor killed outright leaves nothing behind."""
 INTERRUPTED = ("interrupted: --out holds only the files finished before it (each whole), the inputs are untouched; "
                "run the command again with --overwrite")
 """The one line of a stopped command."""
@@ -116,14 +117,15 @@ def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTE
     for s in STOP_SIGNALS:
         if previous[s] is not signal.SIG_IGN:
             signal.signal(s, on_stop)
-    import tempfile
-
-    held = Path(tempfile.gettempdir()) / f"ps-toolkit-held-{os.getpid()}.txt"  # written by the child only if it holds
-    held.unlink(missing_ok=True)  # a record left by an earlier supervisor of this pid that was killed
+    held, told = os.pipe()  # the child tells the folders it holds; read (without waiting) once it is gone
+    os.set_blocking(held, False)
+    os.set_blocking(told, False)
     try:
         try:
-            child = subprocess.Popen([sys.executable, "-m", module, *argv], start_new_session=True,
-                                     env={**os.environ, CHILD: str(os.getpid()), HELD_FILE: str(held)})
+            child = subprocess.Popen([sys.executable, "-m", module, *argv], start_new_session=True, pass_fds=(told,),
+                                     env={**os.environ, CHILD: str(os.getpid()), HELD_FILE: str(told)})
+            os.close(told)
+            told = -1
             children.append(child)
             if stop:
                 stop.setdefault("pids", {child.pid, *_group(child.pid)})
@@ -133,10 +135,11 @@ def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTE
             for s, handler in previous.items():
                 signal.signal(s, handler)
         if stop or code < 0:
-            _clean_after(child.pid, stop.get("pids", {child.pid}),
-                         [flag_value(argv, "--out"), *(held.read_text().splitlines() if held.exists() else [])])
+            _clean_after(child.pid, stop.get("pids", {child.pid}), [flag_value(argv, "--out"), *_read_held(held)])
     finally:
-        held.unlink(missing_ok=True)
+        for fd in (held, told):
+            if fd >= 0:
+                os.close(fd)
     advice = interrupted.removeprefix("interrupted: ")
     if stop:
         print(interrupted, file=sys.stderr)
@@ -156,6 +159,20 @@ def _stat(pid: int | str) -> list[str]:
         return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[-1].split()
     except OSError:
         return []
+
+
+def _read_held(fd: int) -> list[str]:
+    """The folders the child wrote to the pipe `fd` (what is there now: a step still alive may keep it open)."""
+    data = b""
+    while True:
+        try:
+            chunk = os.read(fd, 65536)
+        except BlockingIOError:
+            break
+        if not chunk:
+            break
+        data += chunk
+    return os.fsdecode(data).splitlines()
 
 
 def _group(pgid: int) -> list[int]:
