@@ -453,7 +453,7 @@ def _main(argv: list[str] | None, held) -> int:
         args = COMMAND.parse(argv).validate()
         check_inputs(args)
         check_not_being_written(args.data or "", "--data")  # a dataset still being rendered
-        held.enter_context(output_lock(args.out))  # one benchmark per folder
+        held.enter_context(output_lock(args.out, inputs={"--data": args.data, "--diligent": args.diligent}))
         counts = args.counts
         import torch
 
