@@ -3731,6 +3731,13 @@ ROWS += [
         env={"WORLD_SIZE": "2", "RANK": "0", "LOCAL_RANK": "0", "MASTER_ADDR": "127.0.0.1", "MASTER_PORT": "29517",
              "UNIPS_JOIN_TIMEOUT_S": "3"}, sub=True),
     # ---- sweep 8
+    Row("rerender-overwrite-keeps-a-users-summary", RR, ["--data", "{W}/data", "--normals", "{W}/pred", "--out",
+                                                        "{T}/o", "--overwrite"], 2, ("summary.csv", "never replaced"),
+        setup=_put(("o/summary.csv", "mine\n")), check=_kept("o/summary.csv", "mine\n")),
+    Row("rerender-overwrite-keeps-a-users-render", RR, ["--data", "{W}/data", "--normals", "{W}/pred", "--out",
+                                                       "{T}/o", "--overwrite", "--save-renders"], 2,
+        ("R000.png", "report.json"), setup=_put(("o/00000/R000.png", "mine\n")),
+        check=_kept("o/00000/R000.png", "mine\n")),
     Row("benchmark-out-inside-data", BM, ["--data", "{T}/data", "--out", "{T}/data/bench"], 2,
         ("--out", "lies inside --data"), setup=_dataset_copy, check=_not_written("data/bench")),
     # ---- sweep 6: torchrun's variables

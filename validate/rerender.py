@@ -23,6 +23,7 @@ Usage:
 """
 from __future__ import annotations
 
+import json
 import logging
 import sys
 import time
@@ -70,10 +71,29 @@ def claim_check_outputs(out: str | Path, names: list[str], overwrite: bool, summ
     """The outputs of the check of objects `names` in `out`, claimed before any work
     (`scenes.cli.outputs.claim_outputs`: an earlier run's are replaced only with --overwrite, other files never)."""
     out = Path(out)
-    paths = [out / n / f for n in names for f in (REPORT, FIGURE)]
-    if renders:
-        paths += [p for n in names for p in sorted((out / n).glob("R[0-9][0-9][0-9].png"))]
-    claim_outputs(paths + ([out / SUMMARY] if summary else []), overwrite, owner="validate.rerender")
+    for n in names:  # an object folder is the check's only where its report.json is one (`REPORT_KEYS`)
+        report = out / n / REPORT
+        renders_there = sorted((out / n).glob("R[0-9][0-9][0-9].png")) if renders else []
+        claim_outputs([report, out / n / FIGURE, *renders_there], overwrite, owner="validate.rerender",
+                      marker=report, signed={report: REPORT_KEYS})
+    if summary and (out / SUMMARY).exists() and overwrite and not any(
+            _is_check_report(p) for p in out.glob(f"*/{REPORT}")):
+        raise UsageError(f"--out: {str(out / SUMMARY)!r} exists, but no object folder beside it holds a report of "
+                         "validate.rerender: it is not an earlier check's and is never replaced; move it away or use "
+                         "another --out")
+    claim_outputs([out / SUMMARY] if summary else [], overwrite, owner="validate.rerender")
+
+
+REPORT_KEYS = ("mode", "object", "folder", "prediction")
+"""What every report.json of the check holds (known-scene and fitted): the mark of an earlier check's folder."""
+
+
+def _is_check_report(path: Path) -> bool:
+    try:
+        report = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(report, dict) and all(k in report for k in REPORT_KEYS)
 
 
 def check_inputs(
