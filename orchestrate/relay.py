@@ -421,6 +421,11 @@ def safe_extract(archive: Path, target: Path, flag: str = "--carry", under: str 
     UsageError in one line naming it."""
     from pathlib import PurePosixPath
 
+    for folder in (target, target / under) if under else (target,):  # the filter resolves links, not these
+        if folder.is_symlink():
+            raise UsageError(f"{flag}: {str(folder)!r}, where {str(archive)!r} is unpacked, is a link (to "
+                             f"{os.readlink(folder)!r}); the pack is unpacked only into a folder of its own, never "
+                             "through a link into another: remove the link or use another --work")
     try:
         with tarfile.open(archive) as tar:
             for member in tar.getmembers():  # every name checked before the first byte is written

@@ -3738,6 +3738,10 @@ ROWS += [
                                                        "{T}/o", "--overwrite", "--save-renders"], 2,
         ("R000.png", "report.json"), setup=_put(("o/00000/R000.png", "mine\n")),
         check=_kept("o/00000/R000.png", "mine\n")),
+    Row("evaluate-pred-is-the-ground-truth", EV, ["--pred", "{T}/data", "--gt", "{T}/data"], 2,
+        ("--pred", "is --gt"), setup=_dataset_copy, check=_not_written("data/metrics.json")),
+    Row("rerender-scene-names-a-mesh-with-a-nul", RR, SWEEP3, 2, ("shape.file", "NUL"),
+        setup=_scene_text(lambda d: _scene_set("shape", "file", "aux/mesh.ply\x00.x")(d)), check=_not_written("o")),
     Row("benchmark-out-inside-data", BM, ["--data", "{T}/data", "--out", "{T}/data/bench"], 2,
         ("--out", "lies inside --data"), setup=_dataset_copy, check=_not_written("data/bench")),
     # ---- sweep 6: torchrun's variables

@@ -210,6 +210,27 @@ def test_a_link_in_the_assets_archive_is_refused_before_a_write_through_it(tmp_p
     assert (work / "victim.txt").read_text() == "mine\n"
 
 
+@pytest.mark.parametrize("where", ["site", "assets"])
+def test_a_work_folder_that_is_a_link_into_a_users_folder_is_never_unpacked_into(tmp_path, where):
+    """--work/site (or --work/assets) a link to a user's folder: the archive's members would replace the user's
+    files of the same name through it (sweep 8). Refused naming the link; the user's file stays."""
+    import os
+
+    from orchestrate.relay import ASSET_ARCHIVE, SITE_ARCHIVE, unpack_carry
+    from scenes.cli.errors import UsageError
+
+    carry, work, mine = tmp_path / "carry", tmp_path / "work", tmp_path / "mine"
+    for folder in (carry, work, mine):
+        folder.mkdir()
+    (mine / "keep.txt").write_text("mine\n")
+    os.symlink(mine, work / where)
+    _archive(carry / SITE_ARCHIVE, [_file("keep.txt", b"replaced\n")])
+    _archive(carry / ASSET_ARCHIVE, [_file("assets/keep.txt", b"replaced\n")])
+    with pytest.raises(UsageError, match=f"{where}'.* is a link"):
+        unpack_carry(carry, work)
+    assert (mine / "keep.txt").read_text() == "mine\n"
+
+
 def test_a_carried_archive_or_wheel_that_is_a_device_is_named_not_read(tmp_path, capsys):
     import os
 

@@ -218,7 +218,7 @@ def main(argv: list[str] | None = None) -> int:
         args = COMMAND.parse(argv)
         with contextlib.ExitStack() as held:
             if Path(args.pred).is_dir():  # one writer in --pred (a missing one is evaluate's one-line error)
-                held.enter_context(output_lock(args.pred, "--pred"))
+                held.enter_context(output_lock(args.pred, "--pred", inputs={"--gt": args.gt}))
             check_not_being_written(args.gt, "--gt")  # a dataset wildgen.make is still rendering
             summary = evaluate(args.pred, args.gt, overwrite=args.overwrite)
     except (UsageError, ValueError, FileNotFoundError, OSError) as exc:

@@ -190,6 +190,9 @@ def check_scene_files(scene: Any, path: Path, where: str = "") -> None:
     for key, value in items:
         here = f"{where}.{key}" if where else str(key)
         if key in ASSET_KEYS and isinstance(value, str):
+            if "\x00" in value or len(value) > 4096:  # no file is named so (the system would refuse it unnamed)
+                raise ValueError(f"scene file {path}: {here} names {value[:80]!r}{'...' if len(value) > 80 else ''}, "
+                                 "not a file name (a NUL byte, or longer than 4096 characters); expected aux/...")
             folder = path.parent.resolve()
             target = (folder / value).resolve()
             if Path(value).is_absolute() or not target.is_relative_to(folder):
