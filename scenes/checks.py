@@ -27,11 +27,20 @@ def check_int(value: Any, name: str, minimum: float | None = None, maximum: floa
     return int(value)
 
 
+FLOAT32_MAX = 3.4028234663852886e38
+"""The largest finite float32: a scene's numbers are rendered in single precision."""
+
+
 def check_number(value: Any, name: str, minimum: float | None = None, maximum: float | None = None,
                  above: float | None = None, below: float | None = None) -> float:
     """`value` if it is a finite number within the bounds (inclusive minimum / maximum, exclusive above /
     below), else ValueError naming `name`."""
-    ok = isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
+    real = isinstance(value, numbers.Real) and not isinstance(value, bool)
+    try:
+        big = real and math.isfinite(value) and abs(float(value)) > FLOAT32_MAX  # 1e308 is infinite in float32
+    except OverflowError:  # an integer of hundreds of digits
+        big = True
+    ok = real and not big and math.isfinite(value)
     if ok:
         ok = ((minimum is None or value >= minimum) and (maximum is None or value <= maximum)
               and (above is None or value > above) and (below is None or value < below))
@@ -46,7 +55,10 @@ def check_number(value: Any, name: str, minimum: float | None = None, maximum: f
             what = f"a number {'<=' if maximum is not None else '<'} {hi[:-1]}"
         else:
             what = "a finite number"
-        raise ValueError(f"{name}: got {value!r}, expected {what}")
+        if big:
+            what += f" (at most {FLOAT32_MAX:.3g}: rendered in single precision)"
+        shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:40] + "..."
+        raise ValueError(f"{name}: got {shown}, expected {what}")
     return float(value)
 
 

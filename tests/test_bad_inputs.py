@@ -3211,6 +3211,16 @@ def _scene_set(key: str, field_: str, value) -> Callable[[dict], str]:
     return text
 
 
+def _every_light(irradiance: float) -> Callable[[dict], str]:
+    """scene.json text with every light of every image at `irradiance` (the world's lights are directional)."""
+    def text(d: dict) -> str:
+        for image in d["images"]:
+            for light in image["lights"]:
+                light["irradiance"] = irradiance
+        return json.dumps(d)
+    return text
+
+
 def _index_edited(edit: Callable[[dict], None]) -> Callable[[Path, Path], None]:
     """Setup: T/s, an earlier export of the world's dataset whose index.json goes through `edit`."""
     def setup(w: Path, t: Path) -> None:
@@ -3742,6 +3752,9 @@ ROWS += [
         ("--pred", "is --gt"), setup=_dataset_copy, check=_not_written("data/metrics.json")),
     Row("rerender-scene-names-a-mesh-with-a-nul", RR, SWEEP3, 2, ("shape.file", "NUL"),
         setup=_scene_text(lambda d: _scene_set("shape", "file", "aux/mesh.ply\x00.x")(d)), check=_not_written("o")),
+    Row("rerender-scene-irradiance-beyond-single-precision", RR, SWEEP3, 2,
+        ("scene.json", "irradiance", "single precision"), setup=_scene_text(_every_light(1e308)),
+        check=_not_written("o")),
     Row("benchmark-out-inside-data", BM, ["--data", "{T}/data", "--out", "{T}/data/bench"], 2,
         ("--out", "lies inside --data"), setup=_dataset_copy, check=_not_written("data/bench")),
     # ---- sweep 6: torchrun's variables

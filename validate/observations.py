@@ -156,7 +156,7 @@ def load_known_scene(folder: str | Path, images: bool = True) -> Capture:
     if not folder.is_dir():
         raise FileNotFoundError(f"--data: {str(folder)!r} is not a folder")
     scene = read_scene_dict(folder)
-    desc = scene_from_dict(scene)
+    desc = scene_from_dict(scene, folder / "scene.json")
     files = layout_named("ours").images(folder)  # counted first: a missing image is named as such
     if len(files) != len(desc.images):
         raise ValueError(f"images: {str(folder)!r} has {len(files)} L*.png files but scene.json describes "

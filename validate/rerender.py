@@ -156,6 +156,9 @@ def rerender_object(
             progress(done, total, f"{data.name}: {label}")
 
     passes = render_passes(data, pred, valid, config, spp, seeds, fresh, tick)
+    if not all(np.isfinite(r).all() for r in passes.renders):  # no score means anything then
+        raise ValueError(f"--data: {str(data.folder / 'scene.json')!r} renders to infinite or NaN values (its light "
+                         "strengths or exposures overflow single precision); expected the scene a render wrote")
     passes.renders = penalise_missing(passes.renders, data.images, mask & ~valid)
     per_image = score_images(passes, data.images, mask, desc, seeds)
     res_map, gt_map, threshold, threshold_source, frac = score_maps(passes, data.images, mask, config.threshold)

@@ -10,7 +10,8 @@ from scenes.files import to_plain
 
 def expose(radiance: np.ndarray, exposure: float) -> np.ndarray:
     """What the dataset stores: clip(radiance * exposure, 0, 1), rounded to 16 bit, as float32."""
-    return (np.round(np.clip(radiance * exposure, 0.0, 1.0) * 65535.0) / 65535.0).astype(np.float32)
+    with np.errstate(over="ignore"):  # radiance beyond float32 saturates the sensor like any other
+        return (np.round(np.clip(radiance * exposure, 0.0, 1.0) * 65535.0) / 65535.0).astype(np.float32)
 
 
 def relative_l1(error: Any, reference: Any) -> float:

@@ -212,17 +212,25 @@ def split_scene_extras(d: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any
     return {k: v for k, v in d.items() if k in known}, {k: v for k, v in d.items() if k not in known}
 
 
-def scene_from_dict(scene: dict[str, Any]):
-    """The validated SceneDescription of a parsed scene.json (`read_scene_dict`), its extra keys left aside."""
+def scene_from_dict(scene: dict[str, Any], path: str | Path | None = None):
+    """The validated SceneDescription of a parsed scene.json (`read_scene_dict`), its extra keys left aside; a
+    ValueError naming the file `path` (where given) and the field."""
     from scenes.description import SceneDescription
 
-    return SceneDescription.from_dict(split_scene_extras(scene)[0]).validate()
+    try:
+        return SceneDescription.from_dict(split_scene_extras(scene)[0]).validate()
+    except (ValueError, TypeError, KeyError) as exc:
+        said = str(exc) if not isinstance(exc, KeyError) else f"{exc.args[0]}: missing"
+        if path is None or str(path) in said:
+            raise
+        raise ValueError(f"scene file {path}: {said}") from None
 
 
 def read_scene(folder_or_file: str | Path):
     """(validated SceneDescription, extras dict) of an object folder's scene.json."""
-    scene = read_scene_dict(folder_or_file)
-    return scene_from_dict(scene), split_scene_extras(scene)[1]
+    path = Path(folder_or_file)
+    scene = read_scene_dict(path)
+    return scene_from_dict(scene, path / SCENE_FILE if path.is_dir() else path), split_scene_extras(scene)[1]
 
 
 def scene_json_text(desc, extras: dict[str, Any] | None = None) -> str:
