@@ -1733,7 +1733,8 @@ ROWS: list[Row] = [
         ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{T}/o", "--no-floors", "--spp", "1", "--overwrite"],
         0,
         ("report.json",),
-        setup=_put(("o/00000/report.json", "{}\n"), ("o/notes.txt", "mine\n")),
+        setup=_put(("o/00000/report.json", '{"mode": "known_scene", "object": "00000", "folder": "f", "prediction": '
+                                           '"p"}\n'), ("o/notes.txt", "mine\n")),  # an earlier check's report
         replaces=("o/00000/report.json",),
     ),
     Row(
