@@ -3756,6 +3756,11 @@ ROWS += [
     Row("rerender-scene-irradiance-beyond-single-precision", RR, SWEEP3, 2,
         ("scene.json", "irradiance", "single precision"), setup=_scene_text(_every_light(1e308)),
         check=_not_written("o")),
+    Row("export-object-file-a-link-out", EXP, ["--data", "{T}/data", "--out", "{T}/s"], 2,
+        ("notes.txt", "outside its object folder"),
+        setup=_both(_dataset_copy, lambda w, t: ((t / "data" / "manifest.json").unlink(),
+                                                 os.symlink(w / "afile", t / "data" / f"{OBJ}.data" / "notes.txt"))),
+        check=_not_written("s/000000.tar")),
     Row("benchmark-out-inside-data", BM, ["--data", "{T}/data", "--out", "{T}/data/bench"], 2,
         ("--out", "lies inside --data"), setup=_dataset_copy, check=_not_written("data/bench")),
     # ---- sweep 6: torchrun's variables

@@ -42,6 +42,7 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import os
 import re
 from pathlib import Path
 from typing import Any, BinaryIO, Iterator
@@ -103,6 +104,15 @@ def sample_key(folder: Path, arg: str = "--data") -> str:
     return key
 
 
+def _inside(p: Path, folder: Path, arg: str) -> Path:
+    """`p` when it is a file of `folder`'s own: a link that leads out of it is refused (the dataset is untrusted:
+    a link would pack any file of the machine into the shard)."""
+    if p.is_symlink() and not os.path.realpath(p).startswith(os.path.realpath(folder) + os.sep):
+        raise ValueError(f"{arg}: {str(p)!r} is a link to {os.readlink(p)!r}, outside its object folder; a sample "
+                         "holds the object folder's own files only (copy the file in, or remove the link)")
+    return p
+
+
 def _member_suffix(name: str, where: Path, arg: str) -> str:
     if name.startswith("_"):  # WebDataset drops members whose suffix starts with "_" (its metadata)
         raise ValueError(f"{arg}: {str(where)!r}: file names starting with '_' cannot be stored in a shard")
@@ -116,8 +126,8 @@ def sample_files(folder: str | Path, aux: bool = False, arg: str = "--data") -> 
     """The (suffix, file) pairs of an object folder's sample, in member order: every top-level file (hidden
     ones, the temporaries of interrupted writes, excluded), and with `aux` every file of the aux directory."""
     folder = Path(folder)
-    out = [(_member_suffix(p.name, p, arg), p) for p in sorted(folder.iterdir(), key=lambda p: p.name)
-           if p.is_file() and not p.name.startswith(".")]
+    out = [(_member_suffix(p.name, p, arg), _inside(p, folder, arg))
+           for p in sorted(folder.iterdir(), key=lambda p: p.name) if p.is_file() and not p.name.startswith(".")]
     aux_dir = folder / AUX_DIR
     if aux and aux_dir.is_dir():
         for p in sorted(aux_dir.iterdir(), key=lambda p: p.name):
@@ -125,7 +135,7 @@ def sample_files(folder: str | Path, aux: bool = False, arg: str = "--data") -> 
                 continue
             if not p.is_file():
                 raise ValueError(f"{arg}: {str(p)!r} is not a file; --aux stores a flat {AUX_DIR} folder only")
-            out.append((_AUX_PREFIX + _member_suffix(p.name, p, arg), p))
+            out.append((_AUX_PREFIX + _member_suffix(p.name, p, arg), _inside(p, folder, arg)))
     return sorted(out)
 
 
