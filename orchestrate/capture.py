@@ -72,8 +72,8 @@ class CaptureOptions:
 
     input: Annotated[str, arg(metavar="DIR")] = REQUIRED
     """Folder of photos (JPEG, PNG, TIFF, EXR, or camera RAW: DNG, CR2, CR3, NEF, ARW, ORF, RW2, RAF; any names)
-    of one object under different lights, the camera still; or an object folder in one of the toolkit's
-    layouts."""
+    of one object under different lights, the camera still (other pictures there, WebP or HEIC, are refused by
+    name); or an object folder in one of the toolkit's layouts."""
     out: Annotated[str, arg(metavar="DIR")] = REQUIRED
     """Output folder: normal.png, normal.exr, normal_model.png, mask.png, mask_overlay.png, light_variation.png,
     expected_error_deg.npy / .exr, expected_error.png, report.json, report.html and surface/ (docs/capture.md,

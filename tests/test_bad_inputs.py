@@ -3761,6 +3761,9 @@ ROWS += [
         setup=_both(_dataset_copy, lambda w, t: ((t / "data" / "manifest.json").unlink(),
                                                  os.symlink(w / "afile", t / "data" / f"{OBJ}.data" / "notes.txt"))),
         check=_not_written("s/000000.tar")),
+    Row("capture-a-webp-among-the-jpegs", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "IMG_0009.webp", "does not read"),
+        setup=_both(_photos(), _put(("photos/IMG_0009.webp", "RIFF....WEBP"))), check=_not_written("o/normal.png")),
     Row("benchmark-out-inside-data", BM, ["--data", "{T}/data", "--out", "{T}/data/bench"], 2,
         ("--out", "lies inside --data"), setup=_dataset_copy, check=_not_written("data/bench")),
     # ---- sweep 6: torchrun's variables

@@ -41,6 +41,8 @@ from scenes.folder.raw import RAW_SUFFIXES, is_raw, raw_shape, read_raw
 from scenes.images import CODE_SCALES
 
 PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".exr", *RAW_SUFFIXES)
+OTHER_IMAGE_SUFFIXES = (".webp", ".heic", ".heif", ".avif", ".gif", ".bmp", ".jp2", ".jxl", ".hdr", ".pfm")
+"""Pictures a capture does not read: in a photo folder they are named, never silently left out of the capture."""
 """File suffixes read as photos (case-insensitive)."""
 ENCODINGS = ("auto", "srgb", "linear")
 """How encoded values become linear: `auto` (sRGB for 8-bit files, linear otherwise), or one for all files."""
@@ -105,6 +107,12 @@ def photo_files(folder: str | Path, flag: str = "--input") -> list[Path]:
         what = "a link to a missing file" if broken.is_symlink() and not broken.exists() else "not a file"
         raise ValueError(f"{flag}: {broken.name} in {str(folder)!r} is {what}; expected every photo-named entry to be "
                          "a photo (remove it or restore the file)")
+    other = sorted(p.name for p in folder.iterdir() if p.suffix.lower() in OTHER_IMAGE_SUFFIXES)
+    if other:
+        more = f", and {len(other) - 1} more" if len(other) > 1 else ""
+        raise ValueError(f"{flag}: {other[0]} in {str(folder)!r} is a picture of a kind the capture does not read "
+                         f"({Path(other[0]).suffix.lower()[1:]}{more}); expected {', '.join(PHOTO_SUFFIXES)}: "
+                         "convert it (16-bit PNG or TIFF keep the most), or move it out of the folder")
     files = named
     if not files:
         raise ValueError(f"{flag}: no photos in {str(folder)!r} (expected files ending in {', '.join(PHOTO_SUFFIXES)})")
