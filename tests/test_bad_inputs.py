@@ -359,6 +359,10 @@ def _not_written(*rel: str) -> Callable[[Path, Path], None]:
     return check
 
 
+EARLIER_BENCHMARK = '{"checkpoint": "c", "images": 4, "tta": 1}\n'
+"""An earlier benchmark's benchmark.json (the keys every one holds)."""
+
+
 def _kept(rel: str, text: str) -> Callable[[Path, Path], None]:
     def check(w: Path, t: Path) -> None:
         assert (t / rel).read_text() == text, rel
@@ -1673,7 +1677,7 @@ ROWS: list[Row] = [
         ["--data", "{W}/data", "--out", "{T}/b", "--counts", "1", "--rerender-objects", "0", "--tta", "1"],
         2,
         ("tables.md", "--overwrite"),
-        setup=_put(("b/tables.md", "an earlier run's tables\n"), ("b/benchmark.json", "{}\n")),
+        setup=_put(("b/tables.md", "an earlier run's tables\n"), ("b/benchmark.json", EARLIER_BENCHMARK)),
         absent=("00000 (",),
     ),
     Row(
@@ -1695,7 +1699,8 @@ ROWS: list[Row] = [
         0,
         ("wrote",),
         setup=_put(
-            ("b/tables.md", "an earlier run's tables\n"), ("b/benchmark.json", "{}\n"), ("b/notes.txt", "mine\n")
+            ("b/tables.md", "an earlier run's tables\n"), ("b/benchmark.json", EARLIER_BENCHMARK),
+            ("b/notes.txt", "mine\n")
         ),
         replaces=("b/tables.md", "b/benchmark.json"),
     ),
@@ -3764,6 +3769,13 @@ ROWS += [
     Row("capture-a-webp-among-the-jpegs", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
         ("--input", "IMG_0009.webp", "does not read"),
         setup=_both(_photos(), _put(("photos/IMG_0009.webp", "RIFF....WEBP"))), check=_not_written("o/normal.png")),
+    Row("evaluate-overwrite-keeps-a-users-metrics-csv", EV, ["--pred", "{T}/p", "--gt", "{W}/data", "--overwrite"], 2,
+        ("metrics.csv", "metrics.json"), setup=_both(lambda w, t: shutil.copytree(w / "pred", t / "p"),
+                                                     _put(("p/metrics.csv", "my,own\n"))),
+        check=_kept("p/metrics.csv", "my,own\n")),
+    Row("benchmark-overwrite-keeps-a-users-tables", BM, ["--data", "{W}/data", "--out", "{T}/b", "--overwrite"], 2,
+        ("tables.md", "benchmark.json"), setup=_put(("b/tables.md", "# mine\n")),
+        check=_kept("b/tables.md", "# mine\n")),
     Row("benchmark-out-inside-data", BM, ["--data", "{T}/data", "--out", "{T}/data/bench"], 2,
         ("--out", "lies inside --data"), setup=_dataset_copy, check=_not_written("data/bench")),
     # ---- sweep 6: torchrun's variables

@@ -20,7 +20,7 @@ def test_benchmark_reports_probes_and_diligent_subsets(synthetic_object, tmp_pat
     weights = save_checkpoint(tmp_path / "w.safetensors", create_model("glc-test"))
     dil = tmp_path / "dil"
     write_diligent(dil / "sphPNG", k=8)
-    out = tmp_path / "bench"
+    out = tmp_path.with_name(tmp_path.name + "-bench")  # outside --data (tmp_path holds the objects)
     rc = main(["--data", str(synthetic_object.parent), "--checkpoint", str(weights), "--counts", "1,6,50",
                "--rerender-objects", "0", "--diligent", str(dil), "--diligent-subset", "4", "--diligent-subsets", "2",
                "--out", str(out)])
@@ -59,7 +59,7 @@ def test_benchmark_keeps_every_family_of_the_data(synthetic_object, tmp_path):
                            light_family=None)
     torch.manual_seed(0)
     weights = save_checkpoint(tmp_path / "w.safetensors", create_model("glc-test"))
-    out = tmp_path / "bench"
+    out = tmp_path.with_name(tmp_path.name + "-bench")  # outside --data (tmp_path holds the objects)
     assert main(["--data", str(synthetic_object.parent), "--checkpoint", str(weights), "--counts", "1",
                  "--rerender-objects", "0", "--tta", "1", "--out", str(out)]) == 0
     syn = json.loads((out / "benchmark.json").read_text())["synthetic"]

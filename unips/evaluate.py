@@ -40,6 +40,8 @@ log = logging.getLogger(__name__)
 
 ERROR_CLIP_DEG = 90.0
 METRICS_JSON, METRICS_CSV, ERROR_MAP = "metrics.json", "metrics.csv", "error_map.png"
+METRICS_KEYS = ("objects", "missing", "failed", "gt")
+"""Keys every metrics.json of this command holds (what marks an earlier evaluation's files)."""
 """The files unips.evaluate writes: into --pred, and into each <object>/ folder of it."""
 CSV_FIELDS = ("object", "light_family", "n_pixels", "mae_deg", "median_deg", "pct_below_11_25", "pct_below_30")
 
@@ -117,7 +119,9 @@ def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True, overwrite
     if write:
         check_output_folder(pred_dir, "--pred")
         maps = [pred_dir / name / ERROR_MAP for name in sorted(seen) if (pred_dir / name).is_dir()]
-        claim_outputs([pred_dir / METRICS_JSON, pred_dir / METRICS_CSV, *maps], overwrite, "--pred", "unips.evaluate")
+        # an earlier evaluation's files only where its metrics.json says it was one
+        claim_outputs([pred_dir / METRICS_JSON, pred_dir / METRICS_CSV, *maps], overwrite, "--pred", "unips.evaluate",
+                      marker=pred_dir / METRICS_JSON, signed={pred_dir / METRICS_JSON: METRICS_KEYS})
     for folder in folders:
         name = object_name(folder)
         try:
