@@ -3776,6 +3776,10 @@ ROWS += [
     Row("benchmark-overwrite-keeps-a-users-tables", BM, ["--data", "{W}/data", "--out", "{T}/b", "--overwrite"], 2,
         ("tables.md", "benchmark.json"), setup=_put(("b/tables.md", "# mine\n")),
         check=_kept("b/tables.md", "# mine\n")),
+    Row("make-overwrite-keeps-a-users-file-in-an-object-folder", MK, ["--out", "{T}/data", *TINY, "--overwrite"], 2,
+        ("--overwrite", "mine.txt", "never deleted"), setup=_both(_dataset_copy, _put(("data/00000.data/mine.txt",
+                                                                                       "mine\n"))),
+        check=_kept("data/00000.data/mine.txt", "mine\n")),
     Row("benchmark-out-inside-data", BM, ["--data", "{T}/data", "--out", "{T}/data/bench"], 2,
         ("--out", "lies inside --data"), setup=_dataset_copy, check=_not_written("data/bench")),
     # ---- sweep 6: torchrun's variables

@@ -292,13 +292,38 @@ def plan_run(cfg: GenConfig, out_dir: Path, variant: str, overwrite: bool = Fals
 
 
 def _remove_dataset(out_dir: Path) -> None:
-    """--overwrite: delete the manifest and the object folders (only names this tool writes)."""
+    """--overwrite: delete the manifest and the object folders (only names this tool writes); a file the manifest
+    does not list inside one of them (a user's own) stops the run before anything is deleted."""
     manifest = out_dir / MANIFEST
+    if (foreign := unlisted_file(out_dir)) is not None:
+        raise DatasetError(f"--overwrite: {str(foreign)!r} is not a file of the dataset (manifest.json does not "
+                           "list it): it is never deleted; move it out of the object folder, then run again")
     if manifest.exists():
         manifest.unlink()
     for p in out_dir.iterdir():
         if p.is_dir() and OBJECT_FOLDER.match(p.name):
             shutil.rmtree(p)
+
+
+def unlisted_file(out: Path) -> Path | None:
+    """The first file inside an object folder of the dataset in `out` that its manifest.json does not list (a
+    user's, which removing the folder would take with it; the toolkit's own temporaries aside), or None."""
+    from scenes.files import temporary_writer
+
+    try:
+        entries = json.loads((out / MANIFEST).read_text()).get("objects", [])
+    except (OSError, ValueError, AttributeError):
+        return None
+    for e in entries if isinstance(entries, list) else []:
+        folder = out / str(e.get("folder", "")) if isinstance(e, dict) and e.get("folder") else None
+        files = e.get("files") if folder is not None else None
+        if not isinstance(files, dict) or not folder.is_dir() or folder.is_symlink():
+            continue
+        for p in sorted(folder.rglob("*")):
+            if (p.is_file() or p.is_symlink()) and p.relative_to(folder).as_posix() not in files and \
+                    temporary_writer(p.name) is None:
+                return p
+    return None
 
 
 @contextmanager

@@ -55,7 +55,14 @@ from scenes.folder.format import (
     write_scene,
 )
 from scenes.images import read_exr
-from wildgen.dataset import MANIFEST, check_manifest_names, clean_leftovers, dataset_lock, verify_object
+from wildgen.dataset import (
+    MANIFEST,
+    check_manifest_names,
+    clean_leftovers,
+    dataset_lock,
+    unlisted_file,
+    verify_object,
+)
 from wildgen.writer import TMP_PREFIX, publish_folder
 
 
@@ -208,7 +215,7 @@ def _prepare_out(data: Path, out: Path, overwrite: bool, names: list[str]) -> No
         if odd is not None:
             raise UsageError(f"--out: {str(odd)!r} is {'a link' if odd.is_symlink() else 'a file'} where an object "
                              "folder is written; it is never replaced: move it away or choose another folder")
-        foreign = _unlisted_file(out)
+        foreign = unlisted_file(out)
         if foreign is not None:
             raise UsageError(f"--out: {str(foreign)!r} was not written by wildgen.sensor (the manifest does not list "
                              "it); it is never removed, even with --overwrite: move it away or choose another folder")
@@ -221,24 +228,6 @@ def _is_sensor_manifest(path: Path) -> bool:
     except (OSError, ValueError):
         return False
     return isinstance(d, dict) and isinstance(d.get("objects"), list) and isinstance(d.get("sensor"), dict)
-
-
-def _unlisted_file(out: Path) -> Path | None:
-    """The first file inside an object folder of the earlier dataset in `out` that its manifest does not list
-    (the user's, which removing the folder would take with it), or None."""
-    try:
-        entries = json.loads((out / MANIFEST).read_text()).get("objects", [])
-    except (OSError, ValueError, AttributeError):
-        return None
-    for e in entries if isinstance(entries, list) else []:
-        folder = out / str(e.get("folder", "")) if isinstance(e, dict) and e.get("folder") else None
-        files = e.get("files") if folder is not None else None
-        if not isinstance(files, dict) or not folder.is_dir() or folder.is_symlink():
-            continue
-        for p in sorted(folder.rglob("*")):
-            if (p.is_file() or p.is_symlink()) and str(p.relative_to(folder)) not in files:
-                return p
-    return None
 
 
 def _remove_dataset(out: Path) -> None:
