@@ -134,6 +134,9 @@ def world(tmp_path_factory) -> Path:
     shutil.copy(weights, ck / "newer.safetensors")
     (ck / "newer.json").write_text(json.dumps({**sidecar, "format": "unips-weights/99"}))
     (ck / "weights.txt").write_text("not a model\n")
+    for tag, value in (("textcfg", "wide"), ("hugecfg", 10**7)):  # a width of the wrong kind, one of 10 million
+        shutil.copy(weights, ck / f"{tag}.safetensors")
+        (ck / f"{tag}.json").write_text(json.dumps({**sidecar, "config": {**sidecar["config"], "context_dim": value}}))
     _bad_weights(w, weights, sidecar)
     # Training runs: a truncated and a random last.pt, and an old run.
     last = _training_checkpoint(_mk(w / "run_old"))
@@ -3780,6 +3783,12 @@ ROWS += [
         ("--overwrite", "mine.txt", "never deleted"), setup=_both(_dataset_copy, _put(("data/00000.data/mine.txt",
                                                                                        "mine\n"))),
         check=_kept("data/00000.data/mine.txt", "mine\n")),
+    Row("predict-config-width-as-text", PR, ["--method", "model", "--checkpoint", "{W}/ck/textcfg.safetensors",
+                                             "--input", OBJDIR, "--out", "{T}/p"], 2,
+        ("textcfg.json", "context_dim='wide'", "an integer"), check=_not_written("p")),
+    Row("predict-config-width-of-ten-million", PR, ["--method", "model", "--checkpoint",
+                                                    "{W}/ck/hugecfg.safetensors", "--input", OBJDIR, "--out", "{T}/p"],
+        2, ("hugecfg.json", "context_dim=10000000", "at most 16384"), check=_not_written("p")),
     Row("benchmark-out-inside-data", BM, ["--data", "{T}/data", "--out", "{T}/data/bench"], 2,
         ("--out", "lies inside --data"), setup=_dataset_copy, check=_not_written("data/bench")),
     # ---- sweep 6: torchrun's variables

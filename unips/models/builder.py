@@ -144,8 +144,11 @@ def _build(meta: Mapping[str, Any], source: str) -> nn.Module:
         raise ValueError(f"{source}: 'config' must be a JSON object, got {type(meta['config']).__name__}")
     try:
         return build_model(meta["model_name"], **meta["config"])
-    except (TypeError, KeyError) as exc:  # unknown model name or config keys
-        raise ValueError(f"{source}: cannot build model {meta['model_name']!r} from its config ({exc})") from exc
+    except (TypeError, KeyError, ValueError) as exc:  # unknown model name, config keys or values
+        raise ValueError(f"{source}: cannot build model {meta['model_name']!r} from its config ({exc})") from None
+    except (MemoryError, RuntimeError) as exc:  # a config asking for more memory than the machine has
+        raise ValueError(f"{source}: the network its config describes cannot be built here ({_first_line(exc)}); "
+                         "expected the config the weights were trained with") from None
 
 
 def _first_line(exc: BaseException) -> str:

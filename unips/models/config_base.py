@@ -5,6 +5,7 @@ tuple fields come back as tuples after a JSON round trip, checked on constructio
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Any, ClassVar, Mapping
 
@@ -21,12 +22,44 @@ class ModelConfig:
     PROBABILITIES: ClassVar[tuple[str, ...]] = ("dropout",)
     """Fields that must be probabilities in [0, 1)."""
 
+    LARGEST: ClassVar[int] = 1 << 14
+    """No width, count or size of a network is above this (a file's config asking for more is not a network, and
+    building it could take all the memory); the run-time sizes (`*_chunk`, `*_samples`) only below 2**31."""
+
     def __post_init__(self) -> None:
+        self._check_kinds()
         # JSON turns tuples into lists: normalise so configs compare equal after a round trip.
         for f in dataclasses.fields(self):
             if str(f.type).startswith("tuple"):
                 setattr(self, f.name, tuple(int(v) for v in getattr(self, f.name)))
         self.validate()
+
+    def _check_kinds(self) -> None:
+        """Every field of the kind of its default (a config read from a file is untrusted): an integer field holds an
+        integer (not a bool, not text), a tuple field a list of integers, each within `LARGEST`."""
+        for f in dataclasses.fields(self):
+            value, default = getattr(self, f.name), f.default
+            if isinstance(default, bool):
+                ok = isinstance(value, bool)
+                what = "true or false"
+            elif isinstance(default, int):
+                top = (1 << 31) - 1 if f.name.endswith(("_chunk", "_samples")) else self.LARGEST
+                ok = isinstance(value, int) and not isinstance(value, bool) and abs(value) <= top
+                what = f"an integer of at most {top}"
+            elif isinstance(default, float):
+                ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+                what = "a finite number"
+            elif isinstance(default, str):
+                ok = isinstance(value, str)
+                what = "text"
+            elif isinstance(default, tuple) or str(f.type).startswith("tuple"):
+                ok = isinstance(value, (list, tuple)) and all(
+                    isinstance(v, int) and not isinstance(v, bool) and abs(v) <= self.LARGEST for v in value)
+                what = f"a list of integers of at most {self.LARGEST}"
+            else:
+                continue
+            if not ok:
+                raise self.bad(f.name, what)
 
     def bad(self, name: str, expected: str) -> ValueError:
         """The one-line error of field `name`: `Class.name=value: expected ...`."""

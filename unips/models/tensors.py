@@ -47,8 +47,12 @@ def load_torch_file(path: Any, what: str, map_location: Any = "cpu") -> Any:
     """`torch.load` of an untrusted file with the weights-only unpickler; a file it refuses is one ValueError naming
     `path` and `what` it should be: corrupt or truncated, or a whole pickle of objects other than tensors and plain
     values (building those could run code from the file, so it is not read)."""
+    import warnings
+
     try:
-        return torch.load(path, map_location=map_location, weights_only=True)
+        with warnings.catch_warnings():  # torch's notes on a foreign pickle protocol: the errors below say enough
+            warnings.simplefilter("ignore", UserWarning)
+            return torch.load(path, map_location=map_location, weights_only=True)
     except Exception as exc:  # pickle, zipfile and torch raise their own errors for corrupt or foreign files
         if "Unsupported global" in str(exc):  # a whole pickle naming a class to build (a NumPy array, a module)
             raise ValueError(f"{str(path)!r}: the {what} holds Python objects other than tensors and plain values (a "
