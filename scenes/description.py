@@ -18,6 +18,9 @@ from scenes.checks import check_choice, check_direction, check_finite, check_mat
 from scenes.files import json_text
 from scenes.lights import IDENTITY4, LIGHT_TYPES, LightDesc, light_from_dict
 
+MAX_BOUNCES = 2**31 - 3
+"""The most bounces Mitsuba takes: its max_depth (bounces + 2) is a signed 32-bit integer."""
+
 SHAPE_KINDS = ("mesh", "sphere", "blob", "superquadric", "bumpy_sphere", "torus", "plane")
 TEXTURE_KINDS = ("constant", "noise", "cells", "stripes", "file")
 MATERIAL_KINDS = ("principled", "lambertian")
@@ -290,8 +293,10 @@ class RenderDesc:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
                 raise ValueError(f"render.{name}: expected a positive integer, got {v!r}")
-        if isinstance(self.bounces, bool) or not isinstance(self.bounces, int) or self.bounces < 0:
-            raise ValueError(f"render.bounces: expected a non-negative integer, got {self.bounces!r}")
+        bounces = self.bounces
+        if isinstance(bounces, bool) or not isinstance(bounces, int) or not 0 <= bounces <= MAX_BOUNCES:
+            raise ValueError(f"render.bounces: expected an integer from 0 to {MAX_BOUNCES} (Mitsuba's max_depth, "
+                             f"bounces + 2, is a signed 32-bit integer), got {self.bounces!r}")
         check_choice(self.sampler, "render.sampler", SAMPLERS)
 
 

@@ -3789,6 +3789,8 @@ ROWS += [
     Row("predict-config-width-of-ten-million", PR, ["--method", "model", "--checkpoint",
                                                     "{W}/ck/hugecfg.safetensors", "--input", OBJDIR, "--out", "{T}/p"],
         2, ("hugecfg.json", "context_dim=10000000", "at most 16384"), check=_not_written("p")),
+    Row("rerender-scene-bounces-beyond-mitsuba", RR, SWEEP3, 2, ("scene.json", "render.bounces", "32-bit"),
+        setup=_scene_text(_scene_set("render", "bounces", 3 * 10**9)), check=_not_written("o")),
     Row("benchmark-out-inside-data", BM, ["--data", "{T}/data", "--out", "{T}/data/bench"], 2,
         ("--out", "lies inside --data"), setup=_dataset_copy, check=_not_written("data/bench")),
     # ---- sweep 6: torchrun's variables

@@ -6,6 +6,7 @@ from typing import Annotated, Literal
 
 from scenes.camera_sensor import SENSORS
 from scenes.cli.options import CommaList, Repeatable, arg, auto_is_none, check_fields, option
+from scenes.description import MAX_BOUNCES
 from scenes.renderer.variant import PREFERENCE as VARIANTS
 from wildgen.light_families import LIGHT_FAMILIES
 
@@ -21,8 +22,6 @@ MAX_ENTROPY = 8.0
 """Largest entropy (bits) of the visible normals' 16 x 16 histogram: log2(256)."""
 
 
-MAX_BOUNCES = 2**31 - 3
-"""The most --bounces Mitsuba takes: its max_depth (bounces + 2) is a signed 32-bit integer."""
 
 
 MAX_ASPECT = 8
