@@ -159,7 +159,9 @@ def asset_choice(
 def _small_hdr(src: Path) -> bytes:
     import cv2
 
-    img = cv2.imread(str(src), cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)
+    from scenes.images import decode_image
+
+    img = decode_image(src, cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH, f"--assets: {str(src)!r}")
     if img is None:
         raise UsageError(f"--assets: {str(src)!r} is not an HDR map OpenCV reads")
     img = cv2.resize(img, (HDR_WIDTH, HDR_WIDTH // 2), interpolation=cv2.INTER_AREA)

@@ -98,30 +98,37 @@ def _tiff_damage(path: Path) -> str | None:
 
 
 def decode_image(path: Path, flags: int, where: str):
-    """`cv2.imread(path, flags)`, strictly: a JPEG whose decoder reports it truncated or corrupt (`JPEG_DAMAGE`), or
-    a TIFF Pillow cannot decode whole, is a ValueError beginning with `where` (the flag and the file); None where
-    OpenCV cannot read the file at all (the caller says so). What the decoders print about such a file is caught into
-    the message; what they print about a file that is read is shown as they printed it. Other files (PNG: libpng
-    fails on damage, and OpenCV returns None) are read as they are."""
+    """`cv2.imread(path, flags)` (the file's bytes decoded by `cv2.imdecode`), strictly: a JPEG whose decoder
+    reports it truncated or corrupt (`JPEG_DAMAGE`), or a TIFF Pillow cannot decode whole, is a ValueError beginning
+    with `where` (the flag and the file); None where OpenCV cannot read the file at all (the caller says so). What
+    the decoders print about such a file is caught into the message; what they print about a file that is read is
+    shown as they printed it. Other files (PNG: libpng fails on damage, and OpenCV returns None) are read as they
+    are."""
     import cv2
 
     try:
-        with open(path, "rb") as f:
-            head = f.read(4)
+        with open(path, "rb") as f:  # read here: OpenCV's own file reading crashes on a name that is not UTF-8
+            data = np.frombuffer(f.read(), np.uint8)
     except OSError as exc:  # a folder, a file without read permission
         raise ValueError(f"{where} cannot be opened: {exc.strerror or exc}") from None
+    if not data.size:
+        return None
+    head = data[:4].tobytes()
     jpeg, tiff = head.startswith(_JPEG_MAGIC), head in _TIFF_MAGICS
     try:
         if not (jpeg or tiff):
-            return cv2.imread(str(path), flags)
+            return cv2.imdecode(data, flags)
         with caught_stderr() as said:
-            img = cv2.imread(str(path), flags)
+            img = cv2.imdecode(data, flags)
             tiff_damage = _tiff_damage(path) if tiff and img is not None else None
     except cv2.error as exc:  # OpenCV's own refusals (a header declaring more pixels than it decodes)
         why = next((line.split("error: ", 1)[-1] for line in str(exc).splitlines() if "error:" in line), str(exc))
         limit = f"; expected an image of at most {2**30} pixels" if "MAX_IMAGE_PIXELS" in why else ""
         raise ValueError(f"{where} cannot be decoded ({why.strip()[:160]}){limit}") from None
     jpeg_damage = [line for line in said if any(d in line for d in JPEG_DAMAGE) and "bad ICC marker" not in line]
+    if img is None and jpeg:  # decoded from memory, a JPEG cut short is refused whole (from a file: in part)
+        raise ValueError(f"{where} is damaged: the JPEG decoder cannot decode it{' (' + said[0] + ')' if said else ''}"
+                         " (a truncated or corrupt file); expected a complete JPEG (copy it again from the camera)")
     if img is not None and jpeg_damage:
         raise ValueError(f"{where} is damaged: the JPEG decoder says {'; '.join(dict.fromkeys(jpeg_damage))!r} (a "
                          "truncated or corrupt file, decoded only in part); expected a complete JPEG (copy it again "

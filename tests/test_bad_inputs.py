@@ -2814,7 +2814,7 @@ def _unips_jpeg_images(folder: Path) -> None:
 ROWS += [
     # ---- photos are decoded strictly: a file its decoder cannot read whole is refused naming it
     Row("capture-jpeg-truncated", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
-        ("--input", "IMG_0003.jpg", "damaged", "Premature end of JPEG file"), setup=_photos(damage=_cut_in_scan),
+        ("--input", "IMG_0003.jpg", "damaged", "truncated or corrupt"), setup=_photos(damage=_cut_in_scan),
         check=_not_written("o/normal.png")),
     Row("capture-jpeg-corrupt", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
         ("--input", "IMG_0003.jpg", "damaged", "Corrupt JPEG data"), setup=_photos(damage=_marker_in_scan),
@@ -2824,7 +2824,7 @@ ROWS += [
         check=_not_written("o/normal.png")),
     Row("predict-object-image-jpeg-truncated", PR,
         ["--method", "model", "--input", "{T}/00000.data", "--out", "{T}/p"], 2,
-        ("L002.jpg", "damaged", "Premature end of JPEG file"),
+        ("L002.jpg", "damaged", "truncated or corrupt"),
         setup=lambda w, t: (_copy("data/00000.data", "00000.data")(w, t), _unips_jpeg_images(t / "00000.data")),
         check=_not_written("p")),
     # ---- linear photos hold linear light; a photo-named entry is a photo (the second fault sweep)
@@ -3791,6 +3791,9 @@ ROWS += [
         2, ("hugecfg.json", "context_dim=10000000", "at most 16384"), check=_not_written("p")),
     Row("rerender-scene-bounces-beyond-mitsuba", RR, SWEEP3, 2, ("scene.json", "render.bounces", "32-bit"),
         setup=_scene_text(_scene_set("render", "bounces", 3 * 10**9)), check=_not_written("o")),
+    Row("capture-a-name-the-c-locale-cannot-read", CAP, ["--input", "{T}/fotos_\u00e9", "--out", "{T}/o"], 2,
+        ("--input", "fotos_", "PYTHONUTF8=1"), env={"LANG": "C", "LC_ALL": "C", "PYTHONUTF8": "0"}, sub=True,
+        check=_not_written("o")),
     Row("benchmark-out-inside-data", BM, ["--data", "{T}/data", "--out", "{T}/data/bench"], 2,
         ("--out", "lies inside --data"), setup=_dataset_copy, check=_not_written("data/bench")),
     # ---- sweep 6: torchrun's variables

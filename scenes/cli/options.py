@@ -21,6 +21,7 @@ import ast
 import dataclasses
 import inspect
 import math
+import os
 import re
 import textwrap
 import types
@@ -266,6 +267,20 @@ def _flag_tokens(argv: Sequence[str] | None, known: set[str]) -> list[tuple[str,
     return [(t, t) if t in known else (t, "--" + t[5:] if t.startswith("--no-") else t) for t in tokens]
 
 
+def _check_text(argv: Sequence[str]) -> None:
+    """A UsageError for an argument whose bytes are not text here (a non-ASCII name under LANG=C with Python's
+    UTF-8 mode off: Python keeps the bytes as lone surrogates, which figures, pages and OpenCV cannot take)."""
+    from scenes.cli.errors import UsageError
+
+    for i, arg in enumerate(argv):
+        if any("\udc80" <= ch <= "\udcff" for ch in arg):
+            flag = argv[i - 1] if i and argv[i - 1].startswith("--") else arg.split("=", 1)[0]
+            shown = arg.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
+            raise UsageError(f"{flag}: {shown!r} holds characters this locale cannot read as text (LANG="
+                             f"{os.environ.get('LANG', '')!r}, Python's UTF-8 mode off): run with PYTHONUTF8=1 or in a "
+                             "UTF-8 locale (LANG=C.UTF-8)")
+
+
 def _flat_fields(cls: type) -> Iterable[tuple[type, dataclasses.Field]]:
     """(owner class, field) of every field on the command line, the fields of nested configs included."""
     hints = _hints(cls)
@@ -357,6 +372,7 @@ class Command:
             raise UsageError(_usage_message(event))
 
         argv = list(sys.argv[1:] if argv is None else argv)
+        _check_text(argv)
         with _errors.on_parse_error(refuse):
             return tyro.cli(self.config, args=self._join_repeated(argv), prog=self.prog,
                             description=self.description, config=MARKERS)
