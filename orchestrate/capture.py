@@ -302,8 +302,8 @@ def run(opts: CaptureOptions) -> dict:
     t0, times = time.perf_counter(), {}
     out = Path(opts.out)
     check_output_folder(out)
-    claim_outputs([out / n for n in OUTPUTS], opts.overwrite, owner="orchestrate.capture",
-                  signed={out / "report.json": REPORT_KEYS})
+    claim_outputs([out / n for n in OUTPUTS], opts.overwrite, owner="orchestrate.capture", marker=out / "report.json",
+                  signed={out / "report.json": REPORT_KEYS})  # an earlier capture's files: beside its report
     k, h, w, full = probe_input(opts)
     need = check_resources(k, h, w, full)
     net, times["load_model_s"] = load_network_first(opts)
@@ -399,7 +399,7 @@ def claim_stages(opts: CaptureOptions, out: Path, name: str) -> None:
               "check": [out / "check" / name / n for n in CHECK_OUTPUTS],
               "refine": [out / "refine" / name / n for n in REFINE_OUTPUTS]}
     claim_outputs([p for paths in stages.values() for p in paths], opts.overwrite, owner="orchestrate.capture",
-                  signed={out / SURFACE_DIR / "report.json": SURFACE_REPORT_KEYS})
+                  marker=out / "report.json", signed={out / SURFACE_DIR / "report.json": SURFACE_REPORT_KEYS})
     claim_outputs([out / "work" / f"{name}.data"] if opts.keep_work else [], opts.overwrite,
                   owner="orchestrate.capture", folders=True)  # --keep-work's folder too (no link on the way)
 

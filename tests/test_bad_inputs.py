@@ -3794,6 +3794,12 @@ ROWS += [
     Row("capture-a-name-the-c-locale-cannot-read", CAP, ["--input", "{T}/fotos_\u00e9", "--out", "{T}/o"], 2,
         ("--input", "fotos_", "PYTHONUTF8=1"), env={"LANG": "C", "LC_ALL": "C", "PYTHONUTF8": "0"}, sub=True,
         check=_not_written("o")),
+    Row("capture-overwrite-keeps-a-users-page", CAP, [*CAPTURE, "--mask", WORLD_MASK, "--overwrite"], 2,
+        ("report.html", "report.json"), setup=_both(_photos(), _put(("o/report.html", "<p>mine</p>\n"))),
+        check=_kept("o/report.html", "<p>mine</p>\n")),
+    Row("train-overwrite-keeps-a-users-weights", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps",
+                                                      "1", "--overwrite"], 2, ("final.safetensors", "log.jsonl"),
+        setup=_put(("run/final.safetensors", "mine\n")), check=_kept("run/final.safetensors", "mine\n")),
     Row("benchmark-out-inside-data", BM, ["--data", "{T}/data", "--out", "{T}/data/bench"], 2,
         ("--out", "lies inside --data"), setup=_dataset_copy, check=_not_written("data/bench")),
     # ---- sweep 6: torchrun's variables

@@ -228,9 +228,9 @@ def check_run(cfg: TrainConfig) -> None:
             check_not_being_written(root, flag)  # a dataset wildgen.make is still rendering
     check_threads(cfg.threads or None, "--threads")
     if not cfg.resume:
-        claim_outputs(
-            [out / n for n in RUN_FILES], cfg.overwrite, owner="unips.train", resume="--resume to continue it"
-        )
+        claim_outputs(  # an earlier run's files: beside its log.jsonl, which every run writes from its first step
+            [out / n for n in RUN_FILES], cfg.overwrite, owner="unips.train", resume="--resume to continue it",
+            marker=out / "log.jsonl")
     objects, images = count_dataset_images(cfg.data, "--data")
     if cfg.shuffle_buffer:  # streamed: only the samples in flight are decoded (loader queues and one batch)
         in_flight = min(objects, 2 * max(cfg.loader_workers, 1) + cfg.batch)
