@@ -3800,6 +3800,8 @@ ROWS += [
     Row("train-overwrite-keeps-a-users-weights", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps",
                                                       "1", "--overwrite"], 2, ("final.safetensors", "log.jsonl"),
         setup=_put(("run/final.safetensors", "mine\n")), check=_kept("run/final.safetensors", "mine\n")),
+    Row("make-lights-with-an-empty-item", MK, ["--out", "{T}/o", *TINY, "--lights", "directional,,point"], 2,
+        ("--lights", "directional,,point", "empty item"), check=_not_written("o")),
     Row("benchmark-out-inside-data", BM, ["--data", "{T}/data", "--out", "{T}/data/bench"], 2,
         ("--out", "lies inside --data"), setup=_dataset_copy, check=_not_written("data/bench")),
     # ---- sweep 6: torchrun's variables

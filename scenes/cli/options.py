@@ -54,7 +54,11 @@ for a default that is computed at run time."""
 
 
 def _split(tokens: list[str], item: Any = str) -> list:
-    values = [v.strip() for token in tokens for v in token.split(",") if v.strip()]
+    parts = [v.strip() for token in tokens for v in token.split(",")]
+    values = [v for v in parts if v]
+    if values and len(values) != len(parts):  # '1,,2' or 'a,': a value left out by mistake, never dropped
+        raise ValueError(f"invalid value {','.join(tokens)!r}: an empty item between commas; expected "
+                         f"{item.__name__} values separated by ','")
     try:
         return [item(v) for v in values]
     except ValueError:
