@@ -177,3 +177,16 @@ def test_colorbar_shows_the_map_colours_and_its_scale():
     for end in (lut[0], lut[255]):  # both ends of the scale drawn in the map's exact colours
         assert (bar == end).all(-1).any()
     assert colorbar(10, 1.0, cv2.COLORMAP_JET, "x").shape[0] == 64  # never shorter than its labels
+
+
+def test_a_name_the_font_lacks_is_drawn_without_a_warning():
+    """A capture folder named in CJK: its title is drawn (boxes for the missing glyphs) and nothing is printed."""
+    import warnings
+
+    from scenes.report.charts import new_figure, to_bgr
+
+    fig = new_figure(200, 80)
+    fig.suptitle("pho tos \u00e9\u4e2d")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert to_bgr(fig).shape == (80, 200, 3)

@@ -37,8 +37,13 @@ def add_axes_px(fig, left: float, top: float, width: float, height: float, frame
 
 
 def to_bgr(fig) -> np.ndarray:
-    """The figure drawn (Agg) as an (H, W, 3) uint8 BGR picture."""
-    fig.canvas.draw()
+    """The figure drawn (Agg) as an (H, W, 3) uint8 BGR picture. A character of a name the font lacks (a CJK
+    folder name) is drawn as a box, without matplotlib's warning on the terminal."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Glyph .* missing from")
+        fig.canvas.draw()
     rgba = np.asarray(fig.canvas.buffer_rgba())
     return np.ascontiguousarray(rgba[:, :, 2::-1])
 
