@@ -42,8 +42,8 @@ class RefineOptions:
     variant: Annotated[str | None, arg(help_behavior_hint="(default: cuda_ad_rgb if usable, else llvm_ad_rgb)")] = None
     """Mitsuba variant (one with automatic differentiation)."""
     threads: Annotated[int | None, arg(help_behavior_hint="(default: one per core)")] = option(None, minimum=1)
-    """Dr.Jit threads; with 1 the output is byte-identical run to run (with more, gradients are summed in a
-    varying order)."""
+    """Dr.Jit threads; with 1 the maps and pictures are byte-identical run to run, the report's figures too (its
+    timings aside); with more, gradients are summed in a varying order."""
     overwrite: bool = False
     """Replace the refined map and report of an earlier run in --out (nothing else is touched)."""
     verbose: Annotated[bool, arg(aliases=("-v",))] = False

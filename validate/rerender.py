@@ -247,8 +247,8 @@ class RerenderOptions:
     fitted: FitConfig = field(default_factory=FitConfig)
     """The scene fit of the fitted mode."""
     threads: Annotated[int | None, arg(help_behavior_hint="(default: one per core)")] = option(None, minimum=1)
-    """Dr.Jit threads of the fitted mode; with 1 the fit is byte-identical run to run (with more, gradients are
-    summed in a varying order)."""
+    """Dr.Jit threads of the fitted mode; with 1 the fit is byte-identical run to run (the report's timings
+    aside); with more, gradients are summed in a varying order."""
     overwrite: bool = False
     """Replace the reports, figures and summary.csv of an earlier run in --out (nothing else is touched)."""
     verbose: Annotated[bool, arg(aliases=("-v",))] = False
