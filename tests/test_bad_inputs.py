@@ -3802,6 +3802,10 @@ ROWS += [
         setup=_put(("run/final.safetensors", "mine\n")), check=_kept("run/final.safetensors", "mine\n")),
     Row("make-lights-with-an-empty-item", MK, ["--out", "{T}/o", *TINY, "--lights", "directional,,point"], 2,
         ("--lights", "directional,,point", "empty item"), check=_not_written("o")),
+    Row("sensor-into-a-folder-being-rendered", SEN, ["--data", "{W}/data", "--sensor", "phone", "--out", "{T}/o",
+                                                    "--quiet"], 2, ("--out", "being written"),
+        setup=_both(_put(("o/00000.data/L000.png", "half\n")), _running("o")),
+        check=_released(_kept("o/00000.data/L000.png", "half\n"))),
     Row("benchmark-out-inside-data", BM, ["--data", "{T}/data", "--out", "{T}/data/bench"], 2,
         ("--out", "lies inside --data"), setup=_dataset_copy, check=_not_written("data/bench")),
     # ---- sweep 6: torchrun's variables

@@ -39,7 +39,7 @@ from scenes.camera_sensor import (
 )
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, check_fields, option
-from scenes.cli.outputs import check_output_folder
+from scenes.cli.outputs import check_not_being_written, check_output_folder
 from scenes.cli.progress import progress_bar
 from scenes.files import write_json
 from scenes.folder.format import (
@@ -200,6 +200,7 @@ def _prepare_out(data: Path, out: Path, overwrite: bool, names: list[str]) -> No
         raise UsageError(f"--out: {str(out)!r} must be a folder apart from --data {str(data)!r} (not it, inside it "
                          "or around it)")
     check_output_folder(out)
+    check_not_being_written(out, "--out")  # another run's folder is said as such, before what it holds
     if out.is_dir() and any(out.iterdir()):
         if not overwrite:
             raise UsageError(f"--out: {str(out)!r} already exists and is not empty; pass --overwrite to replace the "
@@ -303,8 +304,6 @@ def apply_to_dataset(data: str | Path, out: str | Path, sensor: Sensor, seed: in
 def main(argv: list[str] | None = None) -> int:
     try:
         opts = COMMAND.parse(argv).validate()
-        from scenes.cli.outputs import check_not_being_written
-
         check_not_being_written(opts.data, "--data")
         sensor = sensor_named(opts.sensor)
         t0 = time.perf_counter()
