@@ -165,7 +165,7 @@ def load_known_scene(folder: str | Path, images: bool = True) -> Capture:
     h, w = desc.camera.height, desc.camera.width
     if fd.shape != (h, w):
         raise ValueError(f"images: {str(fd.image_paths[0])!r} are {fd.shape[1]}x{fd.shape[0]}, expected {w}x{h} "
-                         "from the scene file's camera")
+                         f"from the camera of {str(folder / 'scene.json')!r}")
     return Capture(name=fd.name, folder=fd.path, layout=fd.layout, images=fd.linear() if images else None,
                    mask=fd.mask, image_names=fd.image_names, normal_gt=fd.normals, has_scene=True,
                    saturated=fd.saturated, desc=desc)
