@@ -72,6 +72,23 @@ def test_a_shard_whose_names_lead_outside_is_refused_and_writes_nothing(syntheti
     assert not (tmp_path / "one.data").exists()
 
 
+@pytest.mark.parametrize("kind", [tarfile.SYMTYPE, tarfile.DIRTYPE])
+def test_a_shard_member_that_is_not_a_plain_file_is_named(synthetic_object, tmp_path, kind):
+    """WebDataset's reader passes over links and folders, so a sample would silently lack a file (and fail later
+    under a misleading name): the shard is refused naming the member (sweep 8)."""
+    from scenes.folder.shard_format import iter_samples
+
+    shards = _export(synthetic_object, tmp_path / "shards")
+    path = shards / "000000.tar"
+    assert [key for key, _ in iter_samples(path)] == ["ball"]  # as exported: read
+    with tarfile.open(path, "a") as tar:
+        odd = tarfile.TarInfo("ball.extra.png")
+        odd.type, odd.linkname = kind, "/etc/hostname" if kind == tarfile.SYMTYPE else ""
+        tar.addfile(odd)
+    with pytest.raises(ValueError, match=r"holds member 'ball.extra.png', a link, folder or special file"):
+        list(iter_samples(path))
+
+
 def _archive(path: Path, members: list[tuple[tarfile.TarInfo, bytes | None]]) -> Path:
     with tarfile.open(path, "w:xz") as tar:
         for info, data in members:

@@ -85,6 +85,9 @@ class ShardKeyError(ValueError):
 
 MAX_KEY_BYTES = 200
 """The longest sample key: its object folder's name (<key>.data, and a temporary beside it) fits a file name."""
+KEY_RULE = (f"printable characters, at most {MAX_KEY_BYTES} bytes, with no '/', '.' or '\\' and no leading '_' "
+            "(WebDataset splits member names at the first dot)")
+"""`is_plain_key` in words, for the messages that refuse a key."""
 
 
 def is_plain_key(key: str) -> bool:
@@ -99,8 +102,8 @@ def sample_key(folder: Path, arg: str = "--data") -> str:
     """The WebDataset key of an object folder: its object name, which must be usable as a key (`is_plain_key`)."""
     key = object_name(folder)
     if not is_plain_key(key):
-        raise ValueError(f"{arg}: object folder {str(folder)!r} is named {key!r}; a shard key must be a name without "
-                         "dots that does not start with '_' (WebDataset splits member names at the first dot)")
+        raise ValueError(f"{arg}: object folder {str(folder)!r} is named {key[:80]!r}; a shard key must be a name of "
+                         f"{KEY_RULE}")
     return key
 
 
@@ -430,14 +433,19 @@ def iter_samples(path: str | Path, arg: str = "--data") -> Iterator[tuple[str, d
 
     path = Path(path)
     try:
+        with tarfile.open(path) as tar:  # WebDataset passes over links, devices and folders: here they are refused
+            odd = next((m for m in tar if not m.isreg()), None)
+        if odd is not None:
+            raise ShardKeyError(f"{arg}: shard {str(path)!r} holds member {odd.name[:80]!r}, a link, folder or special "
+                                "file (expected the plain files wildgen.export writes); nothing of it is unpacked")
         with open(path, "rb") as f:
             members = tar_file_expander([{"url": str(path), "stream": f}])
             for sample in group_by_keys(members, lcase=False):
                 key = sample["__key__"]
                 if not is_plain_key(key):  # the shard is untrusted: its names never become paths as they are
                     raise ShardKeyError(f"{arg}: shard {str(path)!r} holds sample {key[:80]!r}, not a plain object "
-                                        "name (expected what wildgen.export writes: no '/', '.', '\\' or leading "
-                                        "'_'); nothing of it is unpacked")
+                                        f"name (expected what wildgen.export writes: {KEY_RULE}); nothing of it is "
+                                        "unpacked")
                 yield key, {k: v for k, v in sample.items() if not k.startswith("__")}
     except ShardKeyError:
         raise
