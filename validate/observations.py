@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from scenes.description import SceneDescription
-from scenes.folder.format import read_scene_dict, scene_from_dict
+from scenes.folder.format import SCENE_FILE, read_scene_dict, scene_from_dict
 from scenes.folder.layouts import layout_named, read_folder
 from validate.io import check_normals, read_prediction
 
@@ -156,7 +156,7 @@ def load_known_scene(folder: str | Path, images: bool = True) -> Capture:
     if not folder.is_dir():
         raise FileNotFoundError(f"--data: {str(folder)!r} is not a folder")
     scene = read_scene_dict(folder)
-    desc = scene_from_dict(scene, folder / "scene.json")
+    desc = scene_from_dict(scene, folder / SCENE_FILE)
     files = layout_named("ours").images(folder)  # counted first: a missing image is named as such
     if len(files) != len(desc.images):
         raise ValueError(f"images: {str(folder)!r} has {len(files)} L*.png files but scene.json describes "
@@ -165,7 +165,7 @@ def load_known_scene(folder: str | Path, images: bool = True) -> Capture:
     h, w = desc.camera.height, desc.camera.width
     if fd.shape != (h, w):
         raise ValueError(f"images: {str(fd.image_paths[0])!r} are {fd.shape[1]}x{fd.shape[0]}, expected {w}x{h} "
-                         f"from the camera of {str(folder / 'scene.json')!r}")
+                         f"from the camera of {str(folder / SCENE_FILE)!r}")
     return Capture(name=fd.name, folder=fd.path, layout=fd.layout, images=fd.linear() if images else None,
                    mask=fd.mask, image_names=fd.image_names, normal_gt=fd.normals, has_scene=True,
                    saturated=fd.saturated, desc=desc)

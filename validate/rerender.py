@@ -41,7 +41,7 @@ from scenes.cli.outputs import check_not_being_written, check_output_folder, cla
 from scenes.cli.progress import progress_bar
 from scenes.cli.supervise import run_supervised
 from scenes.files import write_json
-from scenes.folder.format import find_prediction, list_object_folders, object_name
+from scenes.folder.format import SCENE_FILE, find_prediction, list_object_folders, object_name
 from scenes.renderer.variant import require_jit_variant
 from validate.fitted.fit_scene import FitConfig
 from validate.io import check_normals, read_prediction
@@ -157,7 +157,7 @@ def rerender_object(
 
     passes = render_passes(data, pred, valid, config, spp, seeds, fresh, tick)
     if not all(np.isfinite(r).all() for r in passes.renders):  # no score means anything then
-        raise ValueError(f"--data: {str(data.folder / 'scene.json')!r} renders to infinite or NaN values (its light "
+        raise ValueError(f"--data: {str(data.folder / SCENE_FILE)!r} renders to infinite or NaN values (its light "
                          "strengths or exposures overflow single precision); expected the scene a render wrote")
     passes.renders = penalise_missing(passes.renders, data.images, mask & ~valid)
     per_image = score_images(passes, data.images, mask, desc, seeds)
