@@ -61,7 +61,6 @@ def test_every_command_says_what_it_does_and_where_it_wrote(synthetic_object, tm
     from unips.predict import main as predict
     from unips.train import main as train
 
-    data = synthetic_object.parent
     capsys.readouterr()
     # the object folder as --data: the run folder may not lie inside what it reads
     assert train(["--data", str(synthetic_object), "--out", str(tmp_path / "run"), "--model", "glc-test", "--steps",
@@ -74,7 +73,7 @@ def test_every_command_says_what_it_does_and_where_it_wrote(synthetic_object, tm
                     str(tmp_path / "pred")]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith("predicting 1 object(s) with --method least-squares into") and out[-1].startswith("wrote")
-    assert evaluate(["--pred", str(tmp_path / "pred"), "--gt", str(data)]) == 0
+    assert evaluate(["--pred", str(tmp_path / "pred"), "--gt", str(synthetic_object)]) == 0  # --pred apart from --gt
     assert capsys.readouterr().out.splitlines()[-1].startswith(f"wrote {tmp_path / 'pred' / 'metrics.json'}")
 
 
