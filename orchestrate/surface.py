@@ -98,6 +98,24 @@ def load_inputs(args: SurfaceOptions):
     return normals, mask, intr, camera
 
 
+def _check_meshes_were_ours(out: Path, formats: tuple[str, ...]) -> None:
+    """A mesh file the earlier run's report does not list (its `meshes`) is a user's, even beside that report."""
+    import json
+
+    from scenes.surface.write import SURFACE_MESH
+
+    try:
+        listed = json.loads((out / "report.json").read_text()).get("meshes", [])
+    except (OSError, ValueError, AttributeError):
+        return  # no earlier report: claim_outputs' rule already decided
+    for fmt in formats:
+        mesh = out / f"{SURFACE_MESH}.{fmt}"
+        if mesh.exists() and mesh.name not in (listed if isinstance(listed, list) else []):
+            raise UsageError(f"--out: {str(mesh)!r} was not written by orchestrate.surface (its report.json lists "
+                             f"{listed!r}); it is never replaced, even with --overwrite: move it away or use another "
+                             "--out")
+
+
 def main(argv: list[str] | None = None) -> int:
     """The command; --out is held for the length of the run (`scenes.cli.outputs.output_lock`)."""
     with ExitStack() as held:
@@ -120,6 +138,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
                      f"integrating {pixels} pixels", "integrate a smaller map or a smaller mask")
         claim_outputs(surface_outputs(args.out, args.mesh), args.overwrite, owner="orchestrate.surface",
                       marker=Path(args.out) / "report.json", signed={Path(args.out) / "report.json": REPORT_KEYS})
+        _check_meshes_were_ours(Path(args.out), args.mesh)
         print(f"integrating {pixels} pixels ({camera}) ...", flush=True)
         surface = integrate(normals, mask, intr, IntegrationConfig(k=args.k))
     except (*INPUT_ERRORS, OSError) as exc:

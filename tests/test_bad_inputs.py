@@ -3806,6 +3806,18 @@ ROWS += [
                                                     "--quiet"], 2, ("--out", "being written"),
         setup=_both(_put(("o/00000.data/L000.png", "half\n")), _running("o")),
         check=_released(_kept("o/00000.data/L000.png", "half\n"))),
+    Row("surface-overwrite-keeps-a-users-mesh-the-earlier-run-did-not-write", SF,
+        ["--normals", "{W}/pred/00000/normal.png", "--out", "{T}/o", "--mesh", "glb", "--overwrite"], 2,
+        ("mesh.glb", "never replaced"),
+        setup=_put(("o/report.json", '{"camera": "c", "solver": {}, "depth": {}, "meshes": ["mesh.ply"]}\n'),
+                   ("o/mesh.glb", "mine\n")), check=_kept("o/mesh.glb", "mine\n")),
+    Row("train-overwrite-keeps-a-users-log", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1",
+                                                  "--overwrite"], 2, ("log.jsonl", "never replaced"),
+        setup=_put(("run/log.jsonl", "my notes\n")), check=_kept("run/log.jsonl", "my notes\n")),
+    Row("make-overwrite-a-manifest-that-is-a-link", MK, ["--out", "{T}/data", *TINY, "--overwrite"], 2,
+        ("manifest.json", "a link"),
+        setup=_both(_dataset_copy, lambda w, t: ((t / "data" / "manifest.json").unlink(), _put(("mine.json", "{}\n"))(
+            w, t), os.symlink(t / "mine.json", t / "data" / "manifest.json"))), check=_kept("mine.json", "{}\n")),
     Row("benchmark-out-inside-data", BM, ["--data", "{T}/data", "--out", "{T}/data/bench"], 2,
         ("--out", "lies inside --data"), setup=_dataset_copy, check=_not_written("data/bench")),
     # ---- sweep 6: torchrun's variables

@@ -231,6 +231,10 @@ def check_run(cfg: TrainConfig) -> None:
         claim_outputs(  # an earlier run's files: beside its log.jsonl, which every run writes from its first step
             [out / n for n in RUN_FILES], cfg.overwrite, owner="unips.train", resume="--resume to continue it",
             marker=out / "log.jsonl")
+        if cfg.overwrite and (out / "log.jsonl").exists() and not _is_training_log(out / "log.jsonl"):
+            raise ValueError(f"--out: {str(out / 'log.jsonl')!r} was not written by unips.train (its first line is "
+                             "not a step's record); it is never replaced, even with --overwrite: move it away or use "
+                             "another --out")
     objects, images = count_dataset_images(cfg.data, "--data")
     if cfg.shuffle_buffer:  # streamed: only the samples in flight are decoded (loader queues and one batch)
         in_flight = min(objects, 2 * max(cfg.loader_workers, 1) + cfg.batch)
@@ -241,6 +245,16 @@ def check_run(cfg: TrainConfig) -> None:
     check_memory(training_memory(cfg, images), "--res/--batch/--max-images",
                  f"training at {cfg.res} x {cfg.res} px on {objects} cached objects ({images} images) with batches of "
                  f"{cfg.batch} x {cfg.max_images} images", "lower --res, --batch or --max-images")
+
+
+def _is_training_log(path: Path) -> bool:
+    """Whether `path` starts as a run's log.jsonl does: a JSON object with its step."""
+    try:
+        with open(path, encoding="utf-8") as f:
+            first = json.loads(f.readline(1 << 16))
+    except (OSError, ValueError):
+        return False
+    return isinstance(first, dict) and "step" in first
 
 
 def training_memory(cfg: TrainConfig, cached_images: int) -> int:

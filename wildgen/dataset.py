@@ -295,6 +295,9 @@ def _remove_dataset(out_dir: Path) -> None:
     """--overwrite: delete the manifest and the object folders (only names this tool writes); a file the manifest
     does not list inside one of them (a user's own) stops the run before anything is deleted."""
     manifest = out_dir / MANIFEST
+    if manifest.is_symlink():  # a link make never writes: what it points to is somebody's
+        raise DatasetError(f"--overwrite: {str(manifest)!r} is a link (to {os.readlink(manifest)!r}), not a manifest "
+                           "wildgen.make wrote: it is never replaced; remove the link or use another --out")
     if (foreign := unlisted_file(out_dir)) is not None:
         raise DatasetError(f"--overwrite: {str(foreign)!r} is not a file of the dataset (manifest.json does not "
                            "list it): it is never deleted; move it out of the object folder, then run again")
