@@ -134,6 +134,8 @@ def world(tmp_path_factory) -> Path:
     shutil.copy(weights, ck / "newer.safetensors")
     (ck / "newer.json").write_text(json.dumps({**sidecar, "format": "unips-weights/99"}))
     (ck / "weights.txt").write_text("not a model\n")
+    shutil.copy(weights, ck / "othername.safetensors")  # a sidecar naming another network of the same shapes
+    (ck / "othername.json").write_text(json.dumps({**sidecar, "model_name": "glc-test"}))
     for tag, value in (("textcfg", "wide"), ("hugecfg", 10**7)):  # a width of the wrong kind, one of 10 million
         shutil.copy(weights, ck / f"{tag}.safetensors")
         (ck / f"{tag}.json").write_text(json.dumps({**sidecar, "config": {**sidecar["config"], "context_dim": value}}))
@@ -3818,6 +3820,10 @@ ROWS += [
         ("manifest.json", "a link"),
         setup=_both(_dataset_copy, lambda w, t: ((t / "data" / "manifest.json").unlink(), _put(("mine.json", "{}\n"))(
             w, t), os.symlink(t / "mine.json", t / "data" / "manifest.json"))), check=_kept("mine.json", "{}\n")),
+    Row("predict-sidecar-names-another-network", PR, ["--method", "model", "--checkpoint",
+                                                      "{W}/ck/othername.safetensors", "--input", OBJDIR, "--out",
+                                                      "{T}/p"], 2, ("othername.json", "'glc-test'", "other weights"),
+        check=_not_written("p")),
     Row("benchmark-out-inside-data", BM, ["--data", "{T}/data", "--out", "{T}/data/bench"], 2,
         ("--out", "lies inside --data"), setup=_dataset_copy, check=_not_written("data/bench")),
     # ---- sweep 6: torchrun's variables

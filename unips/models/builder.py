@@ -194,8 +194,15 @@ def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> tu
     model = _build(meta, str(side))
     try:
         state = load_file(str(path), device=str(map_location))
+        from safetensors import safe_open
+
+        with safe_open(str(path), "pt") as f:  # the weights' own record of their network (save_checkpoint)
+            written = (f.metadata() or {}).get("model_name")
     except Exception as exc:  # safetensors raises its own error type (and others) for corrupt files
         raise ValueError(f"{str(path)!r}: not a readable .safetensors weights file ({_first_line(exc)})") from exc
+    if written is not None and written != meta["model_name"]:
+        raise ValueError(f"{str(side)!r} says model {meta['model_name']!r}, but {str(path)!r} holds the weights of "
+                         f"{written!r}: the sidecar belongs to other weights")
     load_state_strict(model, state, str(path))
     return model.to(map_location).eval(), meta
 
