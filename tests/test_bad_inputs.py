@@ -3824,6 +3824,9 @@ ROWS += [
                                                       "{W}/ck/othername.safetensors", "--input", OBJDIR, "--out",
                                                       "{T}/p"], 2, ("othername.json", "'glc-test'", "other weights"),
         check=_not_written("p")),
+    Row("predict-diligent-listing-names-the-mask", PR, ["--method", "least-squares", "--input", "{T}/dil", "--out",
+                                                        "{T}/p"], 2, ("filenames.txt", "'mask.png'", "mask"),
+        setup=_diligent_edited(listing=lambda n: [*n[:-1], "mask.png"]), check=_not_written("p")),
     Row("benchmark-out-inside-data", BM, ["--data", "{T}/data", "--out", "{T}/data/bench"], 2,
         ("--out", "lies inside --data"), setup=_dataset_copy, check=_not_written("data/bench")),
     # ---- sweep 6: torchrun's variables

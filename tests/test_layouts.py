@@ -250,3 +250,11 @@ def test_masks_are_binary_after_the_alpha_rule(tmp_path):
 
     write_mask(tmp_path / "ours.png", m)
     assert np.array_equal(read_mask(tmp_path / "ours.png"), m)
+
+
+def test_a_diligent_listing_from_a_windows_editor_reads_the_same(tmp_path):
+    """filenames.txt with a byte-order mark, CRLF line ends and trailing blanks names the same images (sweep 9)."""
+    from scenes.folder.layouts import diligent_images
+
+    (tmp_path / "filenames.txt").write_bytes(b"\xef\xbb\xbf001.png\r\n002.png  \r\n\r\n")
+    assert diligent_images(tmp_path) == [tmp_path / "001.png", tmp_path / "002.png"]

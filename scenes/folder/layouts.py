@@ -117,7 +117,8 @@ def diligent_images(folder: str | Path) -> list[Path]:
     folder = Path(folder)
     listing = folder / DILIGENT_LISTING
     if listing.is_file():
-        names = [line.strip() for line in listing.read_text().splitlines() if line.strip()]
+        # a Windows editor's file reads the same: its byte-order mark and CRLF line ends are not part of the names
+        names = [line.strip() for line in listing.read_text(encoding="utf-8-sig").splitlines() if line.strip()]
         twice = next((n for n, name in enumerate(names) if name in names[:n]), None)  # two observations of one light
         if twice is not None:
             raise ValueError(
@@ -127,6 +128,10 @@ def diligent_images(folder: str | Path) -> list[Path]:
         if outside is not None:  # a name read from a file stays inside its folder
             raise ValueError(f"{listing} lists {outside!r}, not a file name in that folder; expected the names of its "
                              "images (001.png ...)")
+        other = next((name for name in names if name in (MASK_FILE, "Normal_gt.png", "Normal_gt.mat")), None)
+        if other is not None:  # the mask or the ground truth taken as a photo would be a light that never was
+            raise ValueError(f"{listing} lists {other!r}, the folder's mask or ground truth, not one of its images "
+                             "(001.png ...)")
         return [folder / name for name in names]
     return digit_images(folder)
 
