@@ -3827,6 +3827,12 @@ ROWS += [
     Row("predict-diligent-listing-names-the-mask", PR, ["--method", "least-squares", "--input", "{T}/dil", "--out",
                                                         "{T}/p"], 2, ("filenames.txt", "'mask.png'", "mask"),
         setup=_diligent_edited(listing=lambda n: [*n[:-1], "mask.png"]), check=_not_written("p")),
+    Row("predict-diligent-intensity-beyond-single-precision", PR, ["--method", "least-squares", "--input", "{T}/dil",
+                                                                   "--out", "{T}/p"], 2,
+        ("light_intensities", "row 2", "single precision"),
+        setup=lambda w, t: (write_predict_diligent(t / "dil"), (t / "dil" / "light_intensities.txt").write_text(
+            "\n".join(["1 1 1", "1e300 1e300 1e300"] + ["1 1 1"] * (len(list((t / "dil").glob("0*.png"))) - 2))
+            + "\n")), check=_not_written("p")),
     Row("benchmark-out-inside-data", BM, ["--data", "{T}/data", "--out", "{T}/data/bench"], 2,
         ("--out", "lies inside --data"), setup=_dataset_copy, check=_not_written("data/bench")),
     # ---- sweep 6: torchrun's variables

@@ -154,3 +154,16 @@ def test_photos_that_differ_only_in_brightness_are_one_light_and_fatal():
     assert same is not None and same.fatal and "differ only in brightness" in same.message
     images[1] *= 0.5
     assert unusable_photos(images) is None
+
+
+def test_photos_too_small_to_search_for_motion_are_passed_quietly():
+    """8 x 8 photos leave no pixels to search a shift in: no pair is compared, and nothing is printed (sweep 9)."""
+    import warnings
+
+    from validate.diagnosis.camera_motion import camera_shifts
+
+    images = np.random.default_rng(0).random((6, 8, 8, 3)).astype(np.float32)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        pairs, shifts = camera_shifts(images)
+    assert pairs == [] and shifts.shape == (0, 2)

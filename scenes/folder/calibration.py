@@ -80,6 +80,10 @@ def read_diligent_lights(folder: str | Path, rows: int) -> tuple[np.ndarray, np.
     raw = read_text_matrix(int_path, rows, "light_intensities") if int_path.is_file() else np.ones((rows, 3))
     if np.any(raw <= 0):
         raise ValueError(f"light_intensities file {int_path}: intensities must be > 0")
+    if np.any(raw > 1e30):  # the images are divided by them in single precision
+        row = int(np.argwhere(raw > 1e30)[0][0]) + 1
+        raise ValueError(f"light_intensities file {int_path}: row {row} holds {raw[row - 1].max():.3g}; expected "
+                         "intensities below 1e30 (the images are divided by them in single precision)")
     return directions, raw
 
 

@@ -120,6 +120,8 @@ def camera_shifts(images: np.ndarray, mask: np.ndarray | None = None, sample: in
     gray = gray[:, max(rows.min() - m, 0):rows.max() + m + 1, max(cols.min() - m, 0):cols.max() + m + 1]
     if f > 1:
         gray = np.stack([cv2.resize(g, (g.shape[1] // f, g.shape[0] // f), interpolation=cv2.INTER_AREA) for g in gray])
+    if min(gray.shape[1:]) < 4 * REACH + 4:  # too few pixels to search the shifts in: no motion can be told
+        return [], np.zeros((0, 2))
     logs = np.log(np.maximum(gray, 0.0) + LOG_FLOOR * level).astype(np.float32)
     pairs = partners(light_leans(images, region), sample, parts)
     shifts = np.zeros((len(pairs), 2))
