@@ -11,6 +11,33 @@ from scenes.report.tables import markdown_table
 REPO = Path(__file__).resolve().parents[1]
 
 
+class _Record(dict):
+    """A JSON object of a benchmark's output: a missing key is named with the file it was looked for in."""
+
+    path: Path
+
+    def __missing__(self, key):
+        raise KeyError(f"{self.path.relative_to(REPO) if self.path.is_relative_to(REPO) else self.path}: a record "
+                       f"without {key!r} (expected the output of the benchmark that writes it; run it again)")
+
+
+def read_bench(path: Path) -> dict:
+    """The one reader of bench/results/*.json: finite numbers only (NaN or Infinity would print as a figure), every
+    object a `_Record`; a ValueError naming the file otherwise."""
+    def record(d: dict) -> _Record:
+        r = _Record(d)
+        r.path = path
+        return r
+
+    def constant(name: str):
+        raise ValueError(f"{path}: holds {name}; expected finite numbers (run the benchmark again)")
+
+    try:
+        return json.loads(path.read_text(), object_hook=record, parse_constant=constant)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: not valid JSON ({exc}); expected the benchmark's output (run it again)") from None
+
+
 SHARDS_BENCH = REPO / "bench" / "results" / "shards.json"
 """The output of `python bench/bench_shards.py --out bench/results/shards.json` (its last run, committed)."""
 _READS = {"files": "files (every file's bytes)", "objects": "objects (decoded by the loader)",
@@ -19,7 +46,7 @@ _READS = {"files": "files (every file's bytes)", "objects": "objects (decoded by
 
 def shards_throughput(card: dict) -> str:
     """Folders against shards of both encodings, from the benchmark's recorded output (not the model card)."""
-    d = json.loads(SHARDS_BENCH.read_text())
+    d = read_bench(SHARDS_BENCH)
     st, sz = d["settings"], d["sizes"]
     rows = [[_READS[r["read"]], r["cache"], f"{r['folders_per_s']:.0f}", f"{r['files_per_s']:.0f}",
              f"{r['decoded_per_s']:.0f}", f"{r['ratio_files']:.2f}x", f"**{r['ratio_decoded']:.2f}x**"]
@@ -44,7 +71,7 @@ _DILIGENT_CASES = {"jpeg_true": "JPEG, true mask", "jpeg_auto": "JPEG, `--mask a
 def capture_diligent(card: dict) -> str:
     """Per DiLiGenT object and capture: the final and the model's map's error, which was kept and the residuals
     behind the choice, time and memory."""
-    d = json.loads(CAPTURE_DILIGENT_BENCH.read_text())
+    d = read_bench(CAPTURE_DILIGENT_BENCH)
     rows = []
     for r in d["rows"]:
         held = (f"{r['held_before']:.4f} -> {r['held_after']:.4f}" if r.get("held_before") is not None else "-")
@@ -66,7 +93,7 @@ LIGHT_WARNINGS_BENCH = REPO / "bench" / "results" / "light_warnings.json"
 def light_warnings(card: dict) -> str:
     """How often the light warnings agree with the true lights: overall, per material, per kind of capture, per
     rendered suite; and each real capture with measured lights (the bench's rows, in order)."""
-    d = json.loads(LIGHT_WARNINGS_BENCH.read_text())
+    d = read_bench(LIGHT_WARNINGS_BENCH)
     rendered = [[r["captures"], str(r["count"]), str(r["agree"]), "-" if r["share"] is None else f"{r['share']:.1%}"]
                 for r in d["rows"] if "captures" in r]
     real = [[r["real"], f"{r['capture']} ({r['photos']})", ", ".join(r["truth"]) or "none",
@@ -83,7 +110,7 @@ DOUBTFUL_MASK_BENCH = REPO / "bench" / "results" / "doubtful_mask.json"
 def doubtful_mask(card: dict) -> str:
     """Per recorded run: how many automatic masks were refused, good, doubted or silent below the IoU of a good one,
     then the silent ones of the runs without painted cushions."""
-    d = json.loads(DOUBTFUL_MASK_BENCH.read_text())
+    d = read_bench(DOUBTFUL_MASK_BENCH)
     rows = [[", ".join(r["suites"]) + (" (painted cushions)" if r["cushions"] else ""), str(r["masks"]),
              str(r["refused"]), str(r["good"]), str(r["good_doubted"]), str(r["below_doubted"]), str(r["below_silent"])]
             for r in d["rows"]]
@@ -100,7 +127,7 @@ CAPTURE_BENCH = REPO / "bench" / "results" / "capture.json"
 
 def capture_resources(card: dict) -> str:
     """Time and peak memory of orchestrate.capture by photo count and size, measured against its own estimate."""
-    d = json.loads(CAPTURE_BENCH.read_text())
+    d = read_bench(CAPTURE_BENCH)
     def opt(r: dict, key: str) -> str:  # rows recorded before a column existed show a dash
         return f"{r[key]:.1f}" if key in r else "-"
 
@@ -127,7 +154,7 @@ VERDICT_BENCH = REPO / "bench" / "results" / "verdict_optimised.json"
 def check_resolution(card: dict) -> str:
     """Per trusted capture: the resolution, the truth's score, the lowest-scoring map at least 10 degrees off, the
     lowest-scoring refined map, and whether the truth is first (or not told apart) and the perturbed maps ordered."""
-    d = json.loads(VERDICT_BENCH.read_text())
+    d = read_bench(VERDICT_BENCH)
     rows, lines = [], []
     for run in d["sets"]:
         s = run["summary"]
@@ -170,7 +197,7 @@ VERDICT_SWEEP_BENCH = REPO / "bench" / "results" / "verdict_sweep.json"
 def verdict_sweep(card: dict) -> str:
     """Per value of each verdict constant (one changed at a time): trusted captures, false trust (the truth not
     first among the maps >= 10 deg off), of it beyond the resolution, and needless abstentions."""
-    d = json.loads(VERDICT_SWEEP_BENCH.read_text())
+    d = read_bench(VERDICT_SWEEP_BENCH)
     st, n = d["settings"], d["settings"]["captures"]
     families = ", ".join(f"{v} {k}" for k, v in st["families"].items())
     every = all(v >= 9.99 for c in d["captures"] for k, v in c["mae_deg"].items() if k != "gt")
@@ -197,7 +224,7 @@ _STAGE_COLUMNS = {"sampling": "sampling", "building": "building", "ground_truth"
 
 def render_profile(card: dict) -> str:
     """Seconds per object by stage on one core, and objects per hour of wildgen.make, per setting and tree."""
-    d = json.loads(PROFILE_BENCH.read_text())
+    d = read_bench(PROFILE_BENCH)
     same = {True: "identical", False: "changed", None: "-"}
     rows = [[f"{r['res']} px, {r['images']} images, {r['spp']} spp", f"{r['tree']} (`{r['revision']}`)",
              *[f"{r[k]:.3f}" for k in _STAGE_COLUMNS], f"**{r['total_s']:.2f}**", f"{r['first_object_s']:.2f}",
@@ -219,7 +246,7 @@ CYCLES_BENCH = REPO / "bench" / "results" / "cycles.json"
 
 def cycles_speed(card: dict) -> str:
     """Time to the same noise as our renderer at two sample counts, Blender Cycles against ours, one run."""
-    d = json.loads(CYCLES_BENCH.read_text())
+    d = read_bench(CYCLES_BENCH)
     rows = [
         [
             str(r["noise_of_spp"]),
@@ -246,7 +273,7 @@ EXPECTED_ERROR_BENCH = REPO / "bench" / "results" / "expected_error.json"
 def expected_error(card: dict) -> str:
     """Per light family of the held-out renders (and DiLiGenT as JPEG photos): the true and the stated mean error, how
     often the stated mean hits and the 80 % interval covers the true one, and the pixel ranking's sparsification."""
-    d = json.loads(EXPECTED_ERROR_BENCH.read_text())
+    d = read_bench(EXPECTED_ERROR_BENCH)
     o = d["overall"]
     rows = [[r["set"], str(r["objects"]), f"{r['true_mean']:.2f}", f"{r['stated_mean']:.2f}",
              f"**{r['hit_share']:.2f}**", f"**{r['coverage']:.2f}**",
@@ -270,7 +297,7 @@ FULL_SIZE_BENCH = REPO / "bench" / "results" / "full_size.json"
 def full_size(card: dict) -> str:
     """Per working side: the mean angular error of the map brought back to the rendered size, and the outline's wrong
     pixels guided by the photos against a plain upsampling."""
-    d = json.loads(FULL_SIZE_BENCH.read_text())
+    d = read_bench(FULL_SIZE_BENCH)
 
     def share(r: dict, key: str) -> str:
         return f"{r[key]:.2%}" if key in r else "-"
@@ -293,7 +320,7 @@ def refine_rule(card: dict) -> str:
     """Per rule of keeping the refined map, on each independently rendered held-out set: how many refined maps it
     kept, the mean true error of the kept maps, the refined maps it kept that were worse and declined that were
     better."""
-    d = json.loads(REFINE_RULE_BENCH.read_text())
+    d = read_bench(REFINE_RULE_BENCH)
     seeds = [str(x["seed"]) for x in d["sets"]]
     header = ["rule"] + [h for seed in seeds for h in (f"seed {seed}: kept", "mean error (deg)", "hurt", "missed")]
     rows = [[r["rule"]] + [c for seed in seeds for c in (str(r["by_seed"][seed]["kept_refined"]),
@@ -313,7 +340,7 @@ ERROR_EVIDENCE_BENCH = REPO / "bench" / "results" / "error_evidence.json"
 def error_evidence(card: dict) -> str:
     """Per kind of evidence: how much of the object-level error it predicts out of fold (the spread of log(true /
     predicted) and the hit share)."""
-    d = json.loads(ERROR_EVIDENCE_BENCH.read_text())
+    d = read_bench(ERROR_EVIDENCE_BENCH)
     rows = [[r["evidence"], str(r["added_features"]), f"{r['spread']:.3f}", f"{r['hit_share']:.2f}"] for r in d["rows"]]
     return (f"Measured on the {d['samples']} calibration samples ({d['objects']} objects and their faulted copies; "
             f"`{d['command']}`), {d['folds']} folds grouped by object, ridge {d['ridge']:g}; a hit share of 0.8 needs "
@@ -329,7 +356,7 @@ SURFACE_BENCH = REPO / "bench" / "results" / "surface.json"
 def surface_integration(card: dict) -> str:
     """Per case family: MADE of ours, the reference BiNI and least squares (all pixels and near true depth jumps),
     and the whole-process times side by side."""
-    d = json.loads(SURFACE_BENCH.read_text())
+    d = read_bench(SURFACE_BENCH)
     methods = [m for m in ("ours", "reference", "reference_converged", "least_squares") if m in d["rows"][0]]
     names = {"ours": "ours", "reference": "reference BiNI", "reference_converged": "BiNI converged",
              "least_squares": "least squares"}

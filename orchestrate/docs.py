@@ -421,7 +421,8 @@ def regenerate(text: str, card: dict, where: str = "") -> tuple[str, list[str]]:
         try:
             out += [render(name, card), end]
         except (UsageError, ValueError, KeyError) as exc:  # said with the file that holds the block
-            raise UsageError(f"{where}: {str(exc).strip(chr(39))}") from None
+            said = str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)  # no repr quotes
+            raise UsageError(f"{where}: {said}") from None
         names.append(name)
         i = j + 1
     return "\n".join(out), names

@@ -487,3 +487,24 @@ def test_readme_data_has_the_images_its_refine_example_needs():
     made = [MAKE.parse(argv) for module, *argv in commands if module == "wildgen.make"]
     source = next(opts for opts in made if Path(opts.out).parts[0] == data)
     assert source.gen.images >= MIN_IMAGES["refine"], (data, source.gen.images)
+
+
+def test_a_benchmark_output_that_is_not_what_its_table_reads_is_named(tmp_path):
+    """bench/results/*.json is read by one reader (`orchestrate.bench_docs.read_bench`): NaN would print as a figure,
+    a missing key or a cut file said naming the file (sweep 9)."""
+    import json
+
+    from orchestrate.bench_docs import SHARDS_BENCH, read_bench
+
+    good = json.loads(SHARDS_BENCH.read_text())
+    bad = tmp_path / "shards.json"
+    bad.write_text(SHARDS_BENCH.read_text()[:1])
+    with pytest.raises(ValueError, match=r"shards.json: not valid JSON"):
+        read_bench(bad)
+    bad.write_text(json.dumps({**good, "x": float("nan")}))
+    with pytest.raises(ValueError, match=r"shards.json: holds NaN; expected finite numbers"):
+        read_bench(bad)
+    bad.write_text(json.dumps({"rows": [{}]}))
+    with pytest.raises(KeyError, match=r"shards.json: a record without 'cache'"):
+        read_bench(bad)["rows"][0]["cache"]
+    assert read_bench(SHARDS_BENCH) == good
