@@ -3833,6 +3833,8 @@ ROWS += [
         setup=lambda w, t: (write_predict_diligent(t / "dil"), (t / "dil" / "light_intensities.txt").write_text(
             "\n".join(["1 1 1", "1e300 1e300 1e300"] + ["1 1 1"] * (len(list((t / "dil").glob("0*.png"))) - 2))
             + "\n")), check=_not_written("p")),
+    Row("make-out-a-name-beyond-the-file-system", MK, ["--out", "{T}/" + "a" * 256, *TINY], 2,
+        ("--out", "256 bytes", "at most 255")),
     Row("benchmark-out-inside-data", BM, ["--data", "{T}/data", "--out", "{T}/data/bench"], 2,
         ("--out", "lies inside --data"), setup=_dataset_copy, check=_not_written("data/bench")),
     # ---- sweep 6: torchrun's variables

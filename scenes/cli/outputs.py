@@ -57,6 +57,10 @@ def check_output_folder(path: str | os.PathLike, flag: str = "--out") -> str | o
     file, or a folder (or the nearest existing parent of a new one) this process may not write. Creates
     nothing. Returns `path`."""
     target = os.path.abspath(path)
+    long = next((part for part in target.split(os.sep) if len(os.fsencode(part)) > 255), None)
+    if long is not None:  # the system refuses such a name only when it is written, naming no flag
+        raise UsageError(f"{flag}: {str(path)[:80]!r}... holds a name of {len(os.fsencode(long))} bytes; expected "
+                         "folder names of at most 255 bytes (the file system's limit)")
     if os.path.islink(target) and not os.path.exists(target):  # dangling, or a loop of links
         raise UsageError(f"{flag}: {str(path)!r} is a link to {os.readlink(target)!r}, which leads to no folder (it "
                          "is missing, or the links loop); expected a folder")
