@@ -571,3 +571,19 @@ def test_an_image_whose_name_is_not_utf8_is_read_not_crashed_on(tmp_path):
     path = Path(os.fsdecode(os.fsencode(tmp_path) + b"/caf\xe9.png"))
     path.write_bytes(cv2.imencode(".png", a)[1].tobytes())
     np.testing.assert_array_equal(decode_image(path, cv2.IMREAD_UNCHANGED, "--input"), a)
+
+
+def test_one_grey_photo_among_colour_ones_is_named(tmp_path):
+    """OpenCV reads a grey JPEG as colour (three equal channels): among colour photos it would be a photo of another
+    camera setting, used silently (sweep 9). All grey photos are one setting and read."""
+    from PIL import Image
+
+    a = (np.random.default_rng(4).random((6, 9, 3)) * 200 + 20).astype(np.uint8)
+    for i in range(3):
+        Image.fromarray(a).save(tmp_path / f"p{i}.jpg", quality=95)
+    Image.fromarray(a[..., 0]).save(tmp_path / "p1.jpg", quality=95)
+    with pytest.raises(ValueError, match=r"^--input: p1.jpg is a grey photo and p0.jpg a colour one"):
+        read_photos(tmp_path)
+    for i in range(3):
+        Image.fromarray(a[..., i]).save(tmp_path / f"p{i}.jpg", quality=95)
+    assert read_photos(tmp_path).images.shape == (3, 6, 9, 3)

@@ -200,6 +200,7 @@ def _read_exif(path: Path) -> dict[str, Any]:
             with Image.open(path) as img:
                 exif = _exif(img)
                 declared = _declared_curve(img.info)
+                exif["grey"] = img.mode in ("1", "L", "LA", "I", "I;16", "I;16B", "F")  # read as colour by OpenCV
     except (UnidentifiedImageError, OSError):
         return {}  # no EXIF to read; the pixels are read (or refused) by OpenCV
     if caught:
@@ -404,9 +405,13 @@ def read_photos(folder: str | Path, encoding: str = "auto", max_side: int | None
     total: np.ndarray | None = None
     for path in files:
         f = _read_file(path, flag)
-        codes, depth = f.codes, f.depth
+        codes, depth, grey = f.codes, f.depth, f.exif.pop("grey", None)
         if first is None:
-            first, turned = (codes.shape, depth), _orientation(f)
+            first, turned, first_grey = (codes.shape, depth), _orientation(f), grey
+        elif None not in (grey, first_grey) and grey != first_grey:  # one camera setting: all colour or all grey
+            raise ValueError(f"{flag}: {path.name} is a {'grey' if grey else 'colour'} photo and {files[0].name} a "
+                             f"{'grey' if first_grey else 'colour'} one: every photo of a capture must come from one "
+                             "camera setting")
         elif _orientation(f) != turned:
             raise ValueError(f"{flag}: {path.name} differs in orientation from {files[0].name} (it is to be shown "
                              f"{_shown(_orientation(f))}, {files[0].name} {_shown(turned)}): every photo of a capture "
