@@ -437,14 +437,24 @@ class Command:
 
     def _join_repeated(self, argv: list[str]) -> list[str]:
         """A `Repeatable` flag given several times becomes one comma-separated value (its uses add up)."""
-        repeat = {flag_name(owner, f) for owner, f in _flat_fields(self.config)
-                  if Repeatable in _strip(_hints(owner)[f.name])[1]}
+        fields = list(_flat_fields(self.config))
+        repeat = {flag_name(owner, f) for owner, f in fields if Repeatable in _strip(_hints(owner)[f.name])[1]}
+        known = {flag_name(owner, f) for owner, f in fields}
         out: list[str] = []
         seen: dict[str, int] = {}
+        once: dict[str, str] = {}
         i = 0
         while i < len(argv):
             token = argv[i]
             name, eq, value = token.partition("=")
+            flag = "--" + name[5:] if name.startswith("--no-") and name not in known else name
+            if flag in known and flag not in repeat:  # given again, it would silently replace the first
+                shown = token if eq or i + 1 >= len(argv) or argv[i + 1].startswith("--") else f"{token} {argv[i + 1]}"
+                if flag in once:
+                    from scenes.cli.errors import UsageError
+
+                    raise UsageError(f"{flag}: given twice ({once[flag]!r} and {shown!r}); expected it once")
+                once[flag] = shown
             if name in repeat and (eq or i + 1 < len(argv)):
                 if not eq:
                     value, i = argv[i + 1], i + 1
