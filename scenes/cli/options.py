@@ -439,7 +439,9 @@ class Command:
         """A `Repeatable` flag given several times becomes one comma-separated value (its uses add up)."""
         fields = list(_flat_fields(self.config))
         repeat = {flag_name(owner, f) for owner, f in fields if Repeatable in _strip(_hints(owner)[f.name])[1]}
-        known = {flag_name(owner, f) for owner, f in fields}
+        # the flags a second use of would replace the first (not Repeatable, not tyro's append action)
+        known = {flag_name(owner, f) for owner, f in fields
+                 if tyro.conf.UseAppendAction not in _strip(_hints(owner)[f.name])[1]}
         out: list[str] = []
         seen: dict[str, int] = {}
         once: dict[str, str] = {}
@@ -448,7 +450,7 @@ class Command:
             token = argv[i]
             name, eq, value = token.partition("=")
             flag = "--" + name[5:] if name.startswith("--no-") and name not in known else name
-            if flag in known and flag not in repeat:  # given again, it would silently replace the first
+            if flag.startswith("--") and flag in known and flag not in repeat:  # again, it would replace the first
                 shown = token if eq or i + 1 >= len(argv) or argv[i + 1].startswith("--") else f"{token} {argv[i + 1]}"
                 if flag in once:
                     from scenes.cli.errors import UsageError
