@@ -3835,8 +3835,6 @@ ROWS += [
             + "\n")), check=_not_written("p")),
     Row("make-out-a-name-beyond-the-file-system", MK, ["--out", "{T}/" + "a" * 256, *TINY], 2,
         ("--out", "256 bytes", "at most 255")),
-    Row("capture-out-given-twice", CAP, [*CAPTURE, "--out", "{T}/o2"], 2, ("--out", "given twice", "o2"),
-        check=_not_written("o")),
     Row("benchmark-out-inside-data", BM, ["--data", "{T}/data", "--out", "{T}/data/bench"], 2,
         ("--out", "lies inside --data"), setup=_dataset_copy, check=_not_written("data/bench")),
     # ---- sweep 6: torchrun's variables

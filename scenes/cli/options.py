@@ -437,26 +437,14 @@ class Command:
 
     def _join_repeated(self, argv: list[str]) -> list[str]:
         """A `Repeatable` flag given several times becomes one comma-separated value (its uses add up)."""
-        fields = list(_flat_fields(self.config))
-        repeat = {flag_name(owner, f) for owner, f in fields if Repeatable in _strip(_hints(owner)[f.name])[1]}
-        # the flags a second use of would replace the first (not Repeatable, not tyro's append action)
-        known = {flag_name(owner, f) for owner, f in fields
-                 if tyro.conf.UseAppendAction not in _strip(_hints(owner)[f.name])[1]}
+        repeat = {flag_name(owner, f) for owner, f in _flat_fields(self.config)
+                  if Repeatable in _strip(_hints(owner)[f.name])[1]}
         out: list[str] = []
         seen: dict[str, int] = {}
-        once: dict[str, str] = {}
         i = 0
         while i < len(argv):
             token = argv[i]
             name, eq, value = token.partition("=")
-            flag = "--" + name[5:] if name.startswith("--no-") and name not in known else name
-            if flag.startswith("--") and flag in known and flag not in repeat:  # again, it would replace the first
-                shown = token if eq or i + 1 >= len(argv) or argv[i + 1].startswith("--") else f"{token} {argv[i + 1]}"
-                if flag in once:
-                    from scenes.cli.errors import UsageError
-
-                    raise UsageError(f"{flag}: given twice ({once[flag]!r} and {shown!r}); expected it once")
-                once[flag] = shown
             if name in repeat and (eq or i + 1 < len(argv)):
                 if not eq:
                     value, i = argv[i + 1], i + 1
