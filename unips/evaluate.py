@@ -40,9 +40,9 @@ log = logging.getLogger(__name__)
 
 ERROR_CLIP_DEG = 90.0
 METRICS_JSON, METRICS_CSV, ERROR_MAP = "metrics.json", "metrics.csv", "error_map.png"
+"""The files unips.evaluate writes: into --pred, and into each <object>/ folder of it."""
 METRICS_KEYS = ("objects", "missing", "failed", "gt")
 """Keys every metrics.json of this command holds (what marks an earlier evaluation's files)."""
-"""The files unips.evaluate writes: into --pred, and into each <object>/ folder of it."""
 CSV_FIELDS = ("object", "light_family", "n_pixels", "mae_deg", "median_deg", "pct_below_11_25", "pct_below_30")
 
 

@@ -23,7 +23,6 @@ Usage:
 """
 from __future__ import annotations
 
-import json
 import logging
 import sys
 import time
@@ -37,7 +36,7 @@ import numpy as np
 from scenes.cli.errors import UsageError, report_error
 from scenes.cli.limits import check_threads
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
-from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs, output_lock
+from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs, holds_keys, output_lock
 from scenes.cli.progress import progress_bar
 from scenes.cli.supervise import run_supervised
 from scenes.files import write_json
@@ -77,7 +76,7 @@ def claim_check_outputs(out: str | Path, names: list[str], overwrite: bool, summ
         claim_outputs([report, out / n / FIGURE, *renders_there], overwrite, owner="validate.rerender",
                       marker=report, signed={report: REPORT_KEYS})
     if summary and (out / SUMMARY).exists() and overwrite and not any(
-            _is_check_report(p) for p in out.glob(f"*/{REPORT}")):
+            holds_keys(p, REPORT_KEYS) for p in out.glob(f"*/{REPORT}")):
         raise UsageError(f"--out: {str(out / SUMMARY)!r} exists, but no object folder beside it holds a report of "
                          "validate.rerender: it is not an earlier check's and is never replaced; move it away or use "
                          "another --out")
@@ -86,14 +85,6 @@ def claim_check_outputs(out: str | Path, names: list[str], overwrite: bool, summ
 
 REPORT_KEYS = ("mode", "object", "folder", "prediction")
 """What every report.json of the check holds (known-scene and fitted): the mark of an earlier check's folder."""
-
-
-def _is_check_report(path: Path) -> bool:
-    try:
-        report = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return False
-    return isinstance(report, dict) and all(k in report for k in REPORT_KEYS)
 
 
 def check_inputs(

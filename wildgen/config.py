@@ -22,8 +22,6 @@ MAX_ENTROPY = 8.0
 """Largest entropy (bits) of the visible normals' 16 x 16 histogram: log2(256)."""
 
 
-
-
 MAX_ASPECT = 8
 """The longer side of the images at most this many times the shorter (the object is framed in the shorter)."""
 

@@ -203,7 +203,7 @@ def _check_held(path: Path, owner: str) -> None:
                                  f"a command never writes into what it reads: use another {h.flag}")
 
 
-def _holds_keys(path: Path, keys: tuple[str, ...]) -> bool:
+def holds_keys(path: Path, keys: tuple[str, ...]) -> bool:
     """Whether `path` is a JSON object holding every key of `keys`."""
     import json
 
@@ -266,7 +266,7 @@ def claim_outputs(paths: Iterable[str | os.PathLike], overwrite: bool, flag: str
                          f"{str(Path(marker).parent)!r}); it is never replaced, even with --overwrite: move it away or "
                          f"use another {flag}")
     for report, keys in (signed or {}).items():
-        if os.path.lexists(report) and not _holds_keys(Path(report), keys):
+        if os.path.lexists(report) and not holds_keys(Path(report), keys):
             raise UsageError(f"{flag}: {str(report)!r} was not written by {owner} (it lacks the keys "
                              f"{', '.join(keys)} of its reports); it is never replaced, even with --overwrite: move "
                              f"it away or use another {flag}")

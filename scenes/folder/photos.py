@@ -41,9 +41,9 @@ from scenes.folder.raw import RAW_SUFFIXES, is_raw, raw_shape, read_raw
 from scenes.images import CODE_SCALES
 
 PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".exr", *RAW_SUFFIXES)
+"""File suffixes read as photos (case-insensitive)."""
 OTHER_IMAGE_SUFFIXES = (".webp", ".heic", ".heif", ".avif", ".gif", ".bmp", ".jp2", ".jxl", ".hdr", ".pfm")
 """Pictures a capture does not read: in a photo folder they are named, never silently left out of the capture."""
-"""File suffixes read as photos (case-insensitive)."""
 ENCODINGS = ("auto", "srgb", "linear")
 """How encoded values become linear: `auto` (sRGB for 8-bit files, linear otherwise), or one for all files."""
 _EXIF_IFD = 0x8769

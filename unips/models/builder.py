@@ -189,15 +189,13 @@ def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> tu
     if isinstance(meta, Mapping) and "format" in meta and meta["format"] != WEIGHTS_FORMAT:
         raise ValueError(f"{str(side)!r}: format {meta['format']!r}; this toolkit reads {WEIGHTS_FORMAT!r} (a newer "
                          "toolkit wrote it?)")
-    from safetensors.torch import load_file
+    from safetensors import safe_open
 
     model = _build(meta, str(side))
     try:
-        state = load_file(str(path), device=str(map_location))
-        from safetensors import safe_open
-
-        with safe_open(str(path), "pt") as f:  # the weights' own record of their network (save_checkpoint)
-            written = (f.metadata() or {}).get("model_name")
+        with safe_open(str(path), "pt", device=str(map_location)) as f:  # tensors and their record, in one opening
+            state = {k: f.get_tensor(k) for k in f.keys()}
+            written = (f.metadata() or {}).get("model_name")  # the weights' own name of their network
     except Exception as exc:  # safetensors raises its own error type (and others) for corrupt files
         raise ValueError(f"{str(path)!r}: not a readable .safetensors weights file ({_first_line(exc)})") from exc
     if written is not None and written != meta["model_name"]:
