@@ -33,7 +33,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import parse  # noqa: E402
+from bench.cli_common import parse, run_main  # noqa: E402
 from scenes.cli.options import REQUIRED, Command, arg, option  # noqa: E402
 from scenes.files import write_json  # noqa: E402
 
@@ -277,4 +277,4 @@ def record(results: dict, w: Path, args) -> None:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_main(main))

@@ -32,7 +32,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from bench.cli_common import DILIGENT, clipping_scale, machine, parse, write_jpeg_photos  # noqa: E402
+from bench.cli_common import DILIGENT, clipping_scale, machine, parse, run_main, write_jpeg_photos  # noqa: E402
 from scenes.cli.options import Command, arg  # noqa: E402
 from scenes.files import write_json  # noqa: E402
 
@@ -127,4 +127,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_main(main))

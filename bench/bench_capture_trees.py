@@ -24,7 +24,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))  # this tree's toolkit, not another checkout's installed one
 
-from bench.cli_common import DILIGENT, clipping_scale, parse, write_jpeg_photos  # noqa: E402
+from bench.cli_common import DILIGENT, clipping_scale, parse, run_main, write_jpeg_photos  # noqa: E402
 from scenes.cli.options import REQUIRED, Command  # noqa: E402
 from scenes.files import write_json  # noqa: E402
 
@@ -113,4 +113,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_main(main))

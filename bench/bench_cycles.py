@@ -43,7 +43,7 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-from bench.cli_common import machine, parse  # noqa: E402
+from bench.cli_common import machine, parse, run_main  # noqa: E402
 from bench.cycles_blender import (  # noqa: E402
     BLENDER_SCRIPT,
     TO_BLENDER,
@@ -310,4 +310,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_main(main))

@@ -29,7 +29,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import parse  # noqa: E402
+from bench.cli_common import parse, run_main  # noqa: E402
 from scenes.cli.options import Command, arg, option  # noqa: E402
 
 
@@ -82,6 +82,22 @@ class Options:
     """Detail strengths in degrees (--detail-strength S-S each), comma-separated."""
     out: Annotated[Path | None, arg(metavar="FILE")] = None
     """write the JSON rows here"""
+
+    def validate(self) -> "Options":
+        import math
+
+        from scenes.cli.errors import UsageError
+        from scenes.cli.options import check_fields
+
+        check_fields(self)
+        try:
+            values = [float(s) for s in self.strengths.split(",")]
+        except ValueError:
+            values = [math.nan]
+        if not all(0 <= v <= 60 for v in values):  # nan fails too
+            raise UsageError(f"--strengths: got {self.strengths!r}, expected numbers from 0 to 60 (degrees), "
+                             "comma-separated")
+        return self
 
 
 COMMAND = Command(Options, prog="python bench/bench_detail.py", description=__doc__.split("\n\n")[0])
@@ -148,4 +164,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_main(main))

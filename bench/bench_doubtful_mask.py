@@ -45,7 +45,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))  # this tree's toolkit, not another checkout's installed one
 
-from bench.cli_common import parse  # noqa: E402
+from bench.cli_common import parse, run_main  # noqa: E402
 from scenes.cli.options import Command, UseAppendAction, arg  # noqa: E402
 
 GROWN = (0.15, 0.3, 0.5)
@@ -241,4 +241,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_main(main))

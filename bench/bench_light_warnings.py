@@ -32,7 +32,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from bench.cli_common import machine, parse  # noqa: E402
+from bench.cli_common import machine, parse, run_main  # noqa: E402
 from scenes.cli.options import Command, UseAppendAction, arg  # noqa: E402
 
 SUBSETS = ("all", "one_side", "above", "near_axis")
@@ -254,4 +254,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_main(main))

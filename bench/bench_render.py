@@ -27,7 +27,7 @@ from typing import Annotated
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import parse  # noqa: E402
+from bench.cli_common import parse, run_main  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import Command, arg, check_fields, option  # noqa: E402
 from wildgen.light_families import LIGHT_FAMILIES  # noqa: E402
@@ -112,6 +112,13 @@ class Options:
         unknown = [f for f in (self.features or "").split(",") if f and f not in FEATURES]
         if unknown:
             raise UsageError(f"--features: unknown {unknown}, expected from {', '.join(FEATURES)}")
+        if not self.families or any(f not in LIGHT_FAMILIES for f in self.families.split(",")):
+            raise UsageError(f"--families: got {self.families!r}, expected one or more of {', '.join(LIGHT_FAMILIES)}, "
+                             "comma-separated")
+        from scenes.renderer.variant import PREFERENCE
+
+        if self.variant is not None and self.variant not in ("auto", *PREFERENCE):
+            raise UsageError(f"--variant: got {self.variant!r}, expected auto or one of {', '.join(PREFERENCE)}")
         return self
 
 
@@ -176,4 +183,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_main(main))

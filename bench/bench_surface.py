@@ -29,7 +29,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bench.cli_common import ROOT, parse  # noqa: E402
+from bench.cli_common import ROOT, parse, run_main  # noqa: E402
 from scenes.cli.options import REQUIRED, Command  # noqa: E402
 
 SUITES = {
@@ -299,4 +299,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_main(main))

@@ -36,7 +36,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))  # this tree's toolkit, not another checkout's installed one
 
-from bench.cli_common import DILIGENT, parse, write_jpeg_photos  # noqa: E402
+from bench.cli_common import DILIGENT, parse, run_main, write_jpeg_photos  # noqa: E402
 from scenes.cli.options import CommaList, Command, UseAppendAction, arg, comma_list, option  # noqa: E402
 
 MARGIN = 8
@@ -277,4 +277,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_main(main))

@@ -45,6 +45,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from bench.cli_common import run_main  # noqa: E402
 from scenes.cli.errors import INPUT_ERRORS, report_error  # noqa: E402
 from scenes.cli.options import Command, Positional, arg, check_fields, option  # noqa: E402
 
@@ -318,4 +319,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_main(main))

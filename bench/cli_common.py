@@ -8,7 +8,7 @@ reads the command line with `parse(COMMAND, argv)`.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 from scenes.cli.errors import INPUT_ERRORS, report_error
 from scenes.cli.options import Command, check_fields
@@ -28,6 +28,30 @@ def parse(command: Command, argv: Sequence[str] | None = None) -> Any:
         return cfg.validate() if hasattr(cfg, "validate") else check_fields(cfg)
     except INPUT_ERRORS as exc:
         raise SystemExit(report_error(exc)) from None
+
+
+def run_main(main: Callable[[], int]) -> int:
+    """A bench script's `main()`, stopped cleanly: Ctrl-C, SIGTERM and SIGHUP end it through its own `finally`
+    blocks (its temporary folders removed) with one line and status 128 + the signal, not a traceback. A signal
+    the shell ignores (nohup, a background job) stays ignored."""
+    import signal
+    import sys
+
+    got: dict[str, int] = {}
+
+    def on_stop(signum, _frame) -> None:
+        got.setdefault("signal", signum)
+        raise KeyboardInterrupt
+
+    for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        if signal.getsignal(s) is not signal.SIG_IGN:
+            signal.signal(s, on_stop)
+    try:
+        return main()
+    except KeyboardInterrupt:
+        print("interrupted: the bench's temporary files are removed and its results not written; run it again",
+              file=sys.stderr)
+        return 128 + got.get("signal", signal.SIGINT)
 
 
 def machine() -> dict:

@@ -345,7 +345,7 @@ class BenchmarkOptions:
     """Images of the random DiLiGenT subsets."""
     diligent_subsets: int = option(5, minimum=0)
     """Random DiLiGenT subsets averaged (0: none)."""
-    seed: int = 0
+    seed: int = option(0, minimum=0)
     """Seed of the DiLiGenT subsets and the shuffled probe."""
     rerender_objects: int = option(10, minimum=0)
     """Objects re-rendered per method (0: none)."""

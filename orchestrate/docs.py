@@ -17,6 +17,7 @@ hand and left alone.
 from __future__ import annotations
 
 import importlib
+import os
 import re
 import sys
 from dataclasses import dataclass
@@ -442,6 +443,9 @@ def run(check: bool, root: Path = REPO, card_path: Path = CARD) -> list[Path]:
     for path in doc_files(root):
         if why := not_a_file(path):  # a link to a device is never read whole
             raise UsageError(f"{str(path.relative_to(root))} {why}")
+        if path.is_symlink():  # written in place: through a link it would be somebody else's file
+            raise UsageError(f"{str(path.relative_to(root))} is a link (to {os.readlink(path)!r}); the generated "
+                             "blocks are written only into the repository's own files: replace the link by the file")
         text = path.read_text()
         new, names = regenerate(text, card, str(path.relative_to(root)))
         seen.update(names)

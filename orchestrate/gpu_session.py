@@ -54,6 +54,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Literal  # noqa: E402
 
+from orchestrate import relay
 from orchestrate.relay import REPO, SITE_ARCHIVE, UPLOAD_LIMIT, pack, resolve_init, tree_bytes, unpack_carry  # noqa: F401
 from orchestrate.steps import OutOfTime, StepFailed, check_step, run_step
 from scenes.cli.budget import process_start
@@ -338,6 +339,7 @@ def _session(opts: SessionOptions, t0: float) -> dict:
     """`session` with its folders held."""
     deadline = t0 + opts.minutes * 60
     out, work = Path(opts.out), Path(opts.work)
+    relay.claim_session_outputs(out, opts.overwrite)  # before anything is unpacked or rendered
     require_gpu(opts)
     init, opts.model = resolve_init(opts.init, opts.model)  # an architecture change is refused before any work
     assets = opts.assets if opts.assets not in (None, "none") else None

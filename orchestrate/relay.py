@@ -299,6 +299,20 @@ def check_wheel_names(wheels: Path, found: list[Path]) -> None:
                          f"{', '.join(p.replace('==', '-') + '-cp312-...whl' for p in PACKED[:2])})")
 
 
+def claim_session_outputs(out: Path, overwrite: bool) -> None:
+    """A session's own files in --out (its run/ is unips.train's to claim): an earlier session's are replaced only
+    with `overwrite`; a user's never (a JSON file without a session's keys; the curve without an earlier session's
+    variant_check.json, the first file a session writes)."""
+    from scenes.cli.outputs import claim_outputs
+
+    owner = "orchestrate.gpu_session"
+    claim_outputs([out / "variant_check.json", out / "model_card.json", out / "summary.json"], overwrite, "--out",
+                  owner, signed={out / "variant_check.json": ("variant", "check_variant"),
+                                 out / "model_card.json": ("model", "recipe"),
+                                 out / "summary.json": ("variant", "check_variant", "options")})
+    claim_outputs([out / "learning_curve.png"], overwrite, "--out", owner, marker=out / "variant_check.json")
+
+
 def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None = None,
          assets: Path | None = None, overwrite: bool = False) -> int:
     """Write dest/site.tar.xz: every wheel in `wheels` unpacked as pip would (`_keep_member` filters Mitsuba to

@@ -86,7 +86,8 @@ def load_inputs(args: SurfaceOptions):
             raise type(exc)(f"--mask: {exc}") from None
         mask = check_mask(mask, shape, "--mask")
     else:
-        mask = check_mask(np.abs(normals).sum(-1) > 0, shape, "--normals (its non-zero pixels, no --mask)")
+        where = f"--normals {args.normals!r} (its non-zero pixels, no --mask)"
+        mask = check_mask(np.abs(normals).sum(-1) > 0, shape, where)
     normals = check_normals(normals, mask, "--normals")
     if args.intrinsics is not None:
         intr, camera = read_intrinsics(args.intrinsics, shape), f"perspective, --intrinsics {args.intrinsics}"

@@ -79,6 +79,21 @@ def temporary_folder_writer(name: str) -> int | None:
     return None if m is None else int(m["pid"])
 
 
+def writer_gone(pid: int | None) -> bool:
+    """True when `pid` names a writer that no longer runs, so that a temporary bearing it is a leftover a later
+    run may remove. A running pid (this process, init's 1, anybody's) never is: with the folder's lock held no other
+    run of ours writes there, so a temporary of a live pid is somebody else's file that only looks like ours."""
+    if pid is None or pid <= 1 or pid == os.getpid():
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except (OverflowError, OSError):  # alive under another user (EPERM), or not a pid at all
+        return False
+    return False
+
+
 def atomic_write(path: str | Path, write) -> None:
     """Call `write(tmp)` on a temporary name beside `path`, then rename it to `path`: a kill or a full disk
     never leaves a truncated file under the real name (the temporary one is removed on failure)."""

@@ -22,6 +22,17 @@ import numpy as np
 import pytest
 
 
+def dead_pid() -> int:
+    """The pid of a process that has ended: the name of a killed writer's temporary (`scenes.files.writer_gone`)."""
+    child = subprocess.Popen([sys.executable, "-c", "pass"])
+    child.wait()
+    return child.pid
+
+
+DEAD_PID = dead_pid()
+"""One such pid for the tables of tests (a pid is reused only after the kernel has cycled through all of them)."""
+
+
 def sphere(size: int = 32, pad: float = 2, center: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Unit normals (size, size, 3) of a sphere filling a size x size image (radius size / 2 - pad pixels, centre
     (row, column) `center`, default the image centre), zero off it, and its mask."""

@@ -24,7 +24,7 @@ from typing import Callable
 
 import numpy as np
 import pytest
-from fixtures import interruptible, use_variant, write_predict_diligent
+from fixtures import DEAD_PID, interruptible, use_variant, write_predict_diligent
 
 REPO = Path(__file__).resolve().parents[1]
 OBJ = "00000"
@@ -2185,10 +2185,11 @@ ROWS += [
         0,
         ("wrote 3 objects",),
         setup=_earlier_export(
-            "s", ("s/.000005.tmp4242.tar", "half"), ("s/.index.tmp4242.json", "half"), ("s/.notes.tmp1.txt", "mine")
+            "s", (f"s/.000005.tmp{DEAD_PID}.tar", "half"), (f"s/.index.tmp{DEAD_PID}.json", "half"),
+            ("s/.notes.tmp1.txt", "mine"), ("s/.index.tmp1.json", "mine: a live pid's"),
         ),
         replaces=("s/index.json", "s/000000.tar"),
-        removes=("s/000001.tar", "s/000002.tar", "s/.000005.tmp4242.tar", "s/.index.tmp4242.json"),
+        removes=("s/000001.tar", "s/000002.tar", f"s/.000005.tmp{DEAD_PID}.tar", f"s/.index.tmp{DEAD_PID}.json"),
     ),
     # ---- damaged state: two exports into one folder
     Row(
@@ -3520,7 +3521,7 @@ ROWS += [
     Row("rerender-floor-maps-empty", RR, ["--data", "{W}/data/00000.data", "--normals", "{W}/pred/00000", "--out",
                                           "{T}/o", "--fit", "--floor-maps", ""], 2, ("--floor-maps", "empty list")),
     Row("export-out-a-loop-of-links", EXP, ["--data", "{W}/data", "--out", "{T}/o", "--quiet"], 2,
-        ("--out", "leads to no folder"),
+        ("--out", "loop of symbolic links"),
         setup=lambda w, t: (os.symlink(t / "o2", t / "o"), os.symlink(t / "o", t / "o2"))),
     Row("sensor-overwrite-keeps-a-user-file-in-an-object", SEN, ["--data", "{W}/data", "--sensor", "phone", "--out",
                                                                  "{T}/o", "--quiet", "--overwrite"], 2,
@@ -3842,6 +3843,86 @@ ROWS += [
         2, ("WORLD_SIZE=2", "RANK", "torchrun"), env={"WORLD_SIZE": "2"}, sub=True, check=_not_written("run")),
     Row("train-world-size-not-a-number", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1"],
         2, ("WORLD_SIZE='two'",), env={"WORLD_SIZE": "two"}, sub=True, check=_not_written("run")),
+]
+
+def _tiny_dataset(*extra: tuple[str, str]) -> Callable[[Path, Path], None]:
+    """Setup: T/data, a dataset wildgen.make rendered with TINY (so that a run of the same flags resumes it), then
+    the `extra` files."""
+    def setup(w: Path, t: Path) -> None:
+        from wildgen.make import main
+
+        assert main(["--out", str(t / "data"), *TINY]) == 0
+        _put(*extra)(w, t)
+    return setup
+
+
+def _export_of_one_shard(w: Path, t: Path) -> None:
+    """Setup: T/s, an earlier export of the world's dataset in one shard (its index plans 000000.tar only)."""
+    from wildgen.export import export_dataset
+
+    export_dataset(w / "data", t / "s", shard_size=10)
+
+
+def _negative_camera_light(d: dict) -> str:
+    d["camera_lights"][0]["directional"][0]["irradiance"] = [-1.0, -1.0, -1.0]
+    return json.dumps(d)
+
+
+def _zero_normals(w: Path, t: Path) -> None:
+    """Setup: T/00000.data (the world's object) and T/zero.npy, a normal map of zeros of its size."""
+    from scenes.images import read_mask
+
+    shutil.copytree(w / "data" / f"{OBJ}.data", t / f"{OBJ}.data")
+    np.save(t / "zero.npy", np.zeros((*read_mask(t / f"{OBJ}.data" / "mask.png").shape, 3), np.float32))
+
+
+ROWS += [
+    # ---- sweep 10: a temporary is the toolkit's only by its name and a writer that has ended
+    Row("make-overwrite-keeps-a-users-file-named-like-a-temporary", MK, ["--out", "{T}/data", *TINY, "--overwrite"],
+        2, ("--overwrite", ".notes.tmp123.txt", "never deleted"),
+        setup=_tiny_dataset(("data/00000.data/.notes.tmp123.txt", "mine\n")),
+        check=_kept("data/00000.data/.notes.tmp123.txt", "mine\n")),
+    Row("make-resume-keeps-a-folder-named-like-a-live-writers-temporary", MK, ["--out", "{T}/data", *TINY], 0,
+        ("1 complete",), setup=_tiny_dataset(("data/.tmp-00005.data.1/keep.txt", "mine\n")),
+        check=_kept("data/.tmp-00005.data.1/keep.txt", "mine\n")),
+    Row("make-resume-keeps-a-users-file-in-an-object-folder", MK, ["--out", "{T}/data", *TINY], 2,
+        ("--out", "mine.txt", "never deleted"), setup=_tiny_dataset(("data/00000.data/mine.txt", "mine\n")),
+        check=_kept("data/00000.data/mine.txt", "mine\n")),
+    # ---- sweep 10: an object folder the manifest does not list is replaced only by a render that rewrites all of it
+    Row("make-overwrite-keeps-an-object-folder-the-manifest-does-not-list", MK,
+        ["--out", "{T}/data", *TINY, "--overwrite"], 0, ("1 done",),
+        setup=_tiny_dataset(("data/00003.data/keep.txt", "mine\n")), replaces=("data/manifest.json",),
+        check=_kept("data/00003.data/keep.txt", "mine\n")),
+    Row("make-overwrite-an-unlisted-object-folder-the-render-would-not-rewrite", MK,
+        ["--out", "{T}/data", "--objects", "2", *TINY[2:], "--overwrite"], 1,
+        ("1 failed", "00001.data", "is not this dataset's"),
+        setup=_tiny_dataset(("data/00001.data/keep.txt", "mine\n")), replaces=("data/manifest.json",),
+        check=_kept("data/00001.data/keep.txt", "mine\n")),
+    Row("export-overwrite-keeps-a-users-shard-beyond-the-earlier-plan", EXP,
+        ["--data", "{W}/data", "--out", "{T}/s", "--shard-size", "1", "--overwrite", "--quiet"], 2,
+        ("--out", "000001.tar", "does not plan it"),
+        setup=_both(_export_of_one_shard, _put(("s/000001.tar", "mine\n"))), check=_kept("s/000001.tar", "mine\n")),
+    Row("export-an-object-folder-linked-from-outside-the-dataset", EXP, ["--data", "{T}/d", "--out", "{T}/s"], 2,
+        ("--data", "00001.data", "outside the dataset"),
+        setup=lambda w, t: (shutil.copytree(w / "data", t / "d"), shutil.move(t / "d" / "00001.data", t / "elsewhere"),
+                            os.symlink(t / "elsewhere", t / "d" / "00001.data")), check=_not_written("s")),
+    Row("gpu-session-keeps-a-users-summary-in-out", GS, SESSION, 2, ("--out", "summary.json", "never replaced"),
+        setup=_put(("o/summary.json", '{"mine": 1}\n')), absent=("--init",),
+        check=_kept("o/summary.json", '{"mine": 1}\n')),
+    Row("gpu-session-keeps-a-users-learning-curve-in-out", GS, SESSION, 2, ("--out", "learning_curve.png"),
+        setup=_put(("o/learning_curve.png", "mine\n")), absent=("--init",),
+        check=_kept("o/learning_curve.png", "mine\n")),
+    # ---- sweep 10: a loop of links as a path option: one line, before anything resolves it
+    Row("sensor-out-a-loop-of-links", SEN, ["--data", "{W}/data", "--sensor", "phone", "--out", "{T}/s", "--quiet"], 2,
+        ("--out", "loop of symbolic links"), setup=lambda w, t: os.symlink(t / "s", t / "s"), sub=True),
+    Row("gpu-session-carry-a-loop-of-links", GS, ["--carry", "{T}/c", "--out", "{T}/o", "--cpu-rehearsal"], 2,
+        ("--carry", "loop of symbolic links"), setup=lambda w, t: os.symlink(t / "c", t / "c"), sub=True,
+        check=_not_written("o")),
+    # ---- sweep 10: inputs that would be judged as if they meant something
+    Row("rerender-scene-camera-light-of-negative-irradiance", RR, SWEEP3, 2, ("scene.json", "irradiance", "negative"),
+        setup=_scene_text(_negative_camera_light), check=_not_written("o/00000/report.json")),
+    Row("refine-a-map-of-zeros", RF, ["--data", "{T}/00000.data", "--normals", "{T}/zero.npy", "--out", "{T}/o"], 2,
+        ("--normals", "exactly 0"), setup=_zero_normals, check=_not_written("o/00000/normal.png")),
 ]
 
 

@@ -22,6 +22,7 @@ from fixtures import (
     SCALE_FLAGS,
     SCALE_N,
     assert_same_dataset,
+    dead_pid,
     interruptible,
     make_cli,
     make_command,
@@ -168,7 +169,7 @@ def test_corrupt_and_missing_objects_are_rendered_again(reference, tmp_path):
     data[-20] ^= 0xFF
     png.write_bytes(bytes(data))
     shutil.rmtree(out / "00002.data")
-    (out / ".tmp-00003.data.99999" / "aux").mkdir(parents=True)  # an interrupted object's leftovers
+    (out / f".tmp-00003.data.{dead_pid()}" / "aux").mkdir(parents=True)  # an interrupted object's leftovers
     r = make_cli(out, "--workers", "1")
     assert r.returncode == 0, r.stderr
     assert "checksum mismatch in L001.png" in r.stderr and "folder missing" in r.stderr

@@ -93,7 +93,8 @@ def resolve_shards(root: str | Path, arg: str = "--data") -> list[Shard]:
         folder = Path(text)
         paths = [folder / name for name in entries(folder)]
     if not paths:
-        raise ValueError(f"{arg}: {text!r} names no shard")
+        where = "" if text.endswith(SHARD_SUFFIX) else " (its index.json lists none)"
+        raise ValueError(f"{arg}: {text!r} names no shard{where}")
     shards = []
     for p in paths:
         if why := not_a_file(p):

@@ -257,7 +257,8 @@ def _loop(run: Run, started: float) -> tuple[int, bool]:
     return done, stopped
 
 
-STOPPED = "interrupted: --out keeps the last whole checkpoint (last.pt) and the log up to it; continue with --resume"
+STOPPED = ("interrupted: --out keeps the last whole checkpoint (last.pt, once one was written: every --ckpt-every "
+           "steps and --ckpt-minutes) and the log up to it; continue with --resume (without a last.pt, start again)")
 """The one line of a stopped training."""
 
 

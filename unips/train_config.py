@@ -58,7 +58,8 @@ class TrainConfig:
     canonical_points: int = option(1000, minimum=0)
     """At most this many masked canonical-grid points per object in the loss (0: all of them)."""
     res: int = option(128, minimum=1)
-    """Working resolution of the cached crops (the test resolution; above the canonical resolution)."""
+    """Working resolution of the cached crops (the test resolution; normally above the model's canonical
+    resolution: at or below it training warns that the canonical grid repeats the working pixels)."""
     seed: int = option(0, minimum=0, maximum=2**32 - 1)
     """Seed of every random choice (initial weights, objects, image subsets, pixels, augmentation)."""
     resume: bool = False

@@ -72,6 +72,9 @@ def unit_normals(n: np.ndarray, mask: np.ndarray, what: str = "--normals") -> np
     and the count), zero outside the mask. Exactly-zero normals inside the mask (no estimate) are allowed
     and become (0, 0, 1) with a warning."""
     out, valid = check_normals(n, mask, what, allow_missing=True)
+    if mask.any() and not valid.any():  # a map of (0, 0, 1) made up here would be judged as if predicted
+        raise ValueError(f"{what}: every normal inside the mask ({int(mask.sum())} pixels) is exactly 0, no estimate "
+                         "anywhere; expected a normal map of the object")
     missing = mask & ~valid
     if missing.any():
         log.warning("%s: %d pixels inside the mask have no normal; using (0, 0, 1) there", what, int(missing.sum()))

@@ -181,10 +181,13 @@ def verify_object(out_dir: Path, entry: dict) -> str | None:
 
 
 def clean_leftovers(out_dir: Path) -> list[Path]:
-    """Remove temporary folders of interrupted objects; returns what was removed."""
+    """Remove temporary folders of interrupted objects (a name this tool writes, of a writer that no longer runs:
+    `scenes.files.writer_gone`); returns what was removed."""
+    from scenes.files import temporary_folder_writer, writer_gone
+
     removed = []
     for p in sorted(Path(out_dir).glob(f"{TMP_PREFIX}*")):
-        if not TMP_FOLDER.match(p.name):  # not a name this tool writes: never touched
+        if not TMP_FOLDER.match(p.name) or not writer_gone(temporary_folder_writer(p.name)):  # never touched
             continue
         shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
         removed.append(p)
@@ -263,6 +266,7 @@ def plan_run(cfg: GenConfig, out_dir: Path, variant: str, overwrite: bool = Fals
                 "manifest was written with other versions of %s: resumed objects may differ in bytes",
                 ", ".join(changed),
             )
+        check_no_foreign_file(out_dir, "--out")  # a done object found changed is rendered anew: never take theirs
         plan.resumed = True
     old = {int(e["index"]): e for e in (manifest or {}).get("objects", []) if isinstance(e, dict) and "index" in e}
     for index in range(cfg.objects):
@@ -292,39 +296,52 @@ def plan_run(cfg: GenConfig, out_dir: Path, variant: str, overwrite: bool = Fals
 
 
 def _remove_dataset(out_dir: Path) -> None:
-    """--overwrite: delete the manifest and the object folders (only names this tool writes); a file the manifest
-    does not list inside one of them (a user's own) stops the run before anything is deleted."""
+    """--overwrite: delete the manifest and the object folders it lists; a file the manifest does not list inside
+    one of them (a user's own) stops the run before anything is deleted. An object folder it does not list is left
+    to `writer.publish_folder`'s rule (replaced only by a render that rewrites every file in it)."""
     manifest = out_dir / MANIFEST
     if manifest.is_symlink():  # a link make never writes: what it points to is somebody's
         raise DatasetError(f"--overwrite: {str(manifest)!r} is a link (to {os.readlink(manifest)!r}), not a manifest "
                            "wildgen.make wrote: it is never replaced; remove the link or use another --out")
-    if (foreign := unlisted_file(out_dir)) is not None:
-        raise DatasetError(f"--overwrite: {str(foreign)!r} is not a file of the dataset (manifest.json does not "
-                           "list it): it is never deleted; move it out of the object folder, then run again")
+    check_no_foreign_file(out_dir, "--overwrite")
+    listed = set(_listed(out_dir))
     if manifest.exists():
         manifest.unlink()
     for p in out_dir.iterdir():
-        if p.is_dir() and OBJECT_FOLDER.match(p.name):
+        if p.is_dir() and not p.is_symlink() and OBJECT_FOLDER.match(p.name) and p.name in listed:
             shutil.rmtree(p)
+
+
+def check_no_foreign_file(out_dir: Path, flag: str) -> None:
+    """Stop before anything is removed when an object folder the manifest lists holds a file it does not list."""
+    if (foreign := unlisted_file(out_dir)) is not None:
+        raise DatasetError(f"{flag}: {str(foreign)!r} is not a file of the dataset (manifest.json does not "
+                           "list it): it is never deleted; move it out of the object folder, then run again")
+
+
+def _listed(out: Path) -> dict[str, dict]:
+    """The object folders `out`'s manifest.json lists, by name, with their entries ({} without a readable one)."""
+    try:
+        entries = json.loads((out / MANIFEST).read_text()).get("objects", [])
+    except (OSError, ValueError, AttributeError):
+        return {}
+    return {str(e["folder"]): e for e in (entries if isinstance(entries, list) else [])
+            if isinstance(e, dict) and isinstance(e.get("folder"), str) and e["folder"]}
 
 
 def unlisted_file(out: Path) -> Path | None:
     """The first file inside an object folder of the dataset in `out` that its manifest.json does not list (a
     user's, which removing the folder would take with it; the toolkit's own temporaries aside), or None."""
-    from scenes.files import temporary_writer
+    from scenes.files import temporary_target
 
-    try:
-        entries = json.loads((out / MANIFEST).read_text()).get("objects", [])
-    except (OSError, ValueError, AttributeError):
-        return None
-    for e in entries if isinstance(entries, list) else []:
-        folder = out / str(e.get("folder", "")) if isinstance(e, dict) and e.get("folder") else None
-        files = e.get("files") if folder is not None else None
+    for name, e in _listed(out).items():
+        folder, files = out / name, e.get("files")
         if not isinstance(files, dict) or not folder.is_dir() or folder.is_symlink():
             continue
         for p in sorted(folder.rglob("*")):
-            if (p.is_file() or p.is_symlink()) and p.relative_to(folder).as_posix() not in files and \
-                    temporary_writer(p.name) is None:
+            rel = p.relative_to(folder)
+            if (p.is_file() or p.is_symlink()) and rel.as_posix() not in files and \
+                    (rel.parent / (temporary_target(p.name) or "")).as_posix() not in files:  # a listed file's temp
                 return p
     return None
 
@@ -405,13 +422,16 @@ def make_dataset(
             if progress is not None:
                 progress(entry)
 
+        # a folder there before the run is never this run's to drop (`writer.publish_folder` decides whether
+        # it may be replaced): only folders this run wrote and did not record are
+        there = {i for i in plan.todo if os.path.lexists(out_dir / f"{index_name(i)}.data")}
         try:
             if plan.todo:
                 engine.run(cfg, out_dir, variant, plan.todo, record)
         finally:
             # Also on KeyboardInterrupt / errors: the engine has stopped its workers by now.
             clean_leftovers(out_dir)
-            drop_unrecorded(out_dir, plan.todo, writer.entries)
+            drop_unrecorded(out_dir, [i for i in plan.todo if i not in there], writer.entries)
             writer.flush()
         return writer.entries
 

@@ -35,7 +35,7 @@ from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, check_fields, option
 from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import progress_bar
-from scenes.files import temporary_target
+from scenes.files import temporary_target, temporary_writer, writer_gone
 from scenes.folder.shard_format import (
     ENCODINGS,
     FORMAT,
@@ -103,6 +103,12 @@ def _source_folders(data: Path) -> list[Path]:
     if not data.is_dir():
         raise FileNotFoundError(f"--data: {str(data)!r} is not a folder (expected a dataset of object folders)")
     folders = find_object_folders(data, "--data")
+    root = os.path.realpath(data) + os.sep
+    for folder in folders:  # the dataset is untrusted: a linked folder would pack any folder of the machine
+        if folder.is_symlink() and not os.path.realpath(folder).startswith(root):
+            raise ValueError(f"--data: object folder {str(folder)!r} is a link to {os.readlink(folder)!r}, outside "
+                             "the dataset; a shard holds the dataset's own folders only (copy it in, or remove the "
+                             "link)")
     if (data / MANIFEST).is_file():
         try:
             manifest = json.loads((data / MANIFEST).read_text())
@@ -164,7 +170,8 @@ def check_target(data: str | Path, out: str | Path, overwrite: bool, flag: str =
     old = [out / n for n in names if SHARD_NAME.match(n) and (mine is None or n in mine)]
     claim_outputs([index, *old], overwrite, flag=flag, owner="wildgen.export", marker=index)
     targets = [(n, temporary_target(n)) for n in names]
-    leftovers = [out / n for n, t in targets if t is not None and (t == INDEX_FILE or SHARD_NAME.match(t))]
+    leftovers = [out / n for n, t in targets if t is not None and (t == INDEX_FILE or SHARD_NAME.match(t))
+                 and writer_gone(temporary_writer(n))]  # a live pid's 'temporary' is somebody's file
     return [*old, *(leftovers if os.path.lexists(index) else [])]
 
 
@@ -209,6 +216,11 @@ def _export_locked(data: Path, out: Path, folders: list[Path], shard_size: int, 
     """`export_dataset` under the lock of --out (checked again under it: what another export left is seen)."""
     old = check_target(data, out, overwrite, flag)
     groups = [folders[i:i + shard_size] for i in range(0, len(folders), shard_size)]
+    theirs = [p for p in (out / shard_name(i) for i in range(len(groups))) if os.path.lexists(p) and p not in old]
+    if theirs:  # beyond what the earlier export planned: somebody's file under a shard's name
+        raise UsageError(f"{flag}: {str(theirs[0])!r} is not a shard of the earlier wildgen.export (its index.json "
+                         "does not plan it); it is never replaced, even with --overwrite: move it away or use "
+                         f"another {flag}")
     index: dict[str, Any] = {"format": FORMAT, "format_version": FORMAT_VERSION, "complete": False,
                              "encoding": encoding, "objects": len(folders), "shard_size": shard_size,
                              "aux_files": bool(aux), "pattern": shard_pattern(len(groups)), "shards": [],

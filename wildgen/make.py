@@ -327,12 +327,13 @@ def main(argv: list[str] | None = None) -> int:
 
     state: dict = {}
 
-    def on_signal(signum, frame):  # Ctrl-C and SIGTERM (schedulers stop jobs with it): one clean stop
+    def on_signal(signum, frame):  # Ctrl-C, SIGTERM (schedulers), SIGHUP (a closed terminal): one clean stop
         state["signal"] = signum
         parallel.STOP_SIGNALS.append(signum)  # seen even when a native call turns the interrupt into an error
         raise KeyboardInterrupt
 
-    handled = (signal.SIGINT, signal.SIGTERM)
+    # a signal the shell ignores (nohup, a background job) stays ignored
+    handled = [s for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP) if signal.getsignal(s) is not signal.SIG_IGN]
     previous = {s: signal.signal(s, on_signal) for s in handled} if _main_thread() else {}
     try:
         return _run(argv, state)

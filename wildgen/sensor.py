@@ -242,7 +242,7 @@ def _remove_dataset(out: Path) -> None:
     (out / MANIFEST).unlink(missing_ok=True)
     clean_leftovers(out)
     for p in out.iterdir():
-        if p.is_dir() and not p.is_symlink() and (p.name.startswith(TMP_PREFIX) or p.name in listed):
+        if p.is_dir() and not p.is_symlink() and p.name in listed:  # (temporaries: clean_leftovers' rule)
             shutil.rmtree(p)
 
 

@@ -168,9 +168,21 @@ def base_normals(desc: SceneDescription, base_dir: Path) -> np.ndarray:
 
 def publish_folder(tmp: Path, final: Path) -> dict[str, str]:
     """Checksum a fully written temporary object folder and rename it to its final name (replacing an earlier
-    one of this dataset): readers never see half a folder. Returns {relative path: sha256}."""
+    one of this dataset): readers never see half a folder. Returns {relative path: sha256}.
+
+    A folder already there is replaced only when this object's files would rewrite every file in it (an earlier
+    render of the same object, finished after the manifest's last write); one holding anything else is somebody's
+    and is kept: the object fails (ValueError, not retried) and the run goes on."""
     files = {str(p.relative_to(tmp)): sha256_file(p) for p in sorted(tmp.rglob("*")) if p.is_file()}
-    if final.exists():
+    if os.path.lexists(final):
+        theirs = [] if final.is_symlink() or not final.is_dir() else \
+            [p for p in sorted(final.rglob("*")) if not p.is_dir() or p.is_symlink()]
+        extra = [p for p in theirs if p.is_symlink() or str(p.relative_to(final)) not in files]
+        if final.is_symlink() or not final.is_dir() or extra:
+            shutil.rmtree(tmp, ignore_errors=True)
+            what = repr(str(extra[0])) if extra else "it"
+            raise ValueError(f"{str(final)!r} is there already and is not this dataset's ({what} is not a file this "
+                             "object writes): it is kept; move it away, then run again to render this object")
         shutil.rmtree(final)
     os.replace(tmp, final)
     return files

@@ -230,6 +230,8 @@ def check_fields(cfg: Any) -> Any:
             raise ValueError(f"{name}: got {value!r}, expected true or false")
         elif origin is Literal:
             check_choice(value, name, typing.get_args(tp))
+        elif tp is str and isinstance(value, str):
+            _check_no_link_loop(value, name)
         elif origin in (list, tuple):
             item = typing.get_args(tp)[0] if typing.get_args(tp) else str
             if item in (int, float):
@@ -243,6 +245,20 @@ def check_fields(cfg: Any) -> Any:
             for v in (value if origin in (list, tuple) else [value]):
                 check_choice(v, name, meta["choices"])
     return cfg
+
+
+def _check_no_link_loop(value: str, name: str) -> None:
+    """A path option that is (or passes through) a loop of symbolic links: refused here, before any command
+    resolves it (pathlib's resolve() would raise RuntimeError deep inside)."""
+    import errno
+
+    try:
+        os.stat(value)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise ValueError(f"{name}: {value!r} is a loop of symbolic links; expected a file or a folder") from None
+    except ValueError:  # an embedded NUL: the option's own checks say so
+        pass
 
 
 def parse_range(text: Any, name: str, minimum: float, maximum: float, what: str, integer: bool = False) -> tuple:

@@ -120,10 +120,11 @@ def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTE
     held, told = os.pipe()  # the child tells the folders it holds; read (without waiting) once it is gone
     os.set_blocking(held, False)
     os.set_blocking(told, False)
+    scratch = _scratch(module)
     try:
         try:
             child = subprocess.Popen([sys.executable, "-m", module, *argv], start_new_session=True, pass_fds=(told,),
-                                     env={**os.environ, CHILD: str(os.getpid()), HELD_FILE: str(told)})
+                                     env={**os.environ, CHILD: str(os.getpid()), HELD_FILE: str(told), **scratch})
             os.close(told)
             told = -1
             children.append(child)
@@ -140,6 +141,8 @@ def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTE
         for fd in (held, told):
             if fd >= 0:
                 os.close(fd)
+        if scratch:  # whatever the work left in its temporary folder, stopped or not
+            shutil.rmtree(scratch["TMPDIR"], ignore_errors=True)
     advice = interrupted.removeprefix("interrupted: ")
     if stop:
         print(interrupted, file=sys.stderr)
@@ -150,6 +153,20 @@ def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTE
         print(f"{module}: the work was killed by {name}{hint}: {advice}", file=sys.stderr)
         return 128 - code
     return code
+
+
+def _scratch(module: str) -> dict[str, str]:
+    """The child's own temporary folder (TMPDIR, inside the user's), removed when the child ends however it
+    ends: a stop kills the work outright, so its `tempfile` folders would outlive it. Ray keeps the user's
+    (RAY_TMPDIR: its socket paths are limited to 107 bytes). {} where no folder can be made there (the child
+    then reports the unwritable TMPDIR itself)."""
+    import tempfile
+
+    try:
+        folder = tempfile.mkdtemp(prefix=f"{module}-")
+    except OSError:
+        return {}
+    return {"TMPDIR": folder, "RAY_TMPDIR": os.environ.get("RAY_TMPDIR", tempfile.gettempdir())}
 
 
 def _stat(pid: int | str) -> list[str]:

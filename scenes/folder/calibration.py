@@ -123,6 +123,9 @@ def camera_lights(scene: dict[str, Any], num_images: int, path: Path) -> tuple[n
             e = _vector3(light.get("irradiance"), f"{where}.directional[{j}]", "irradiance")
             if np.linalg.norm(d) < 1e-9:
                 raise ValueError(f"{where}.directional[{j}]: direction_to_light is a zero vector")
+            if (e < 0).any():  # a light adds energy: a negative one would pass every later check unseen
+                raise ValueError(f"{where}.directional[{j}]: irradiance {e.tolist()} has a negative value; expected "
+                                 "values >= 0")
             dirs.append(d / np.linalg.norm(d))
             irr.append(e)
         single = single and len(entry.get("directional", [])) == 1 and other == 0
