@@ -404,6 +404,9 @@ def resume_run(run: Run) -> None:
     from unips.checkpoint import load_state_strict, load_training_checkpoint, set_rng_states
 
     cfg = run.cfg
+    if not os.path.lexists(run.last_path):  # a run stopped before its first checkpoint: nothing to continue
+        raise ValueError(f"--resume: {str(run.last_path)!r} does not exist (the run stopped before its first "
+                         "checkpoint); start it again without --resume, with --overwrite to replace its log")
     try:
         ckpt = load_training_checkpoint(run.last_path)
     except ValueError as exc:
