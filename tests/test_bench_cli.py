@@ -1,6 +1,7 @@
 """The bench scripts read their command lines through the toolkit's tyro CLI (`scenes.cli.options.Command`): each
 script's `--help` works, a bad option is one line, and every command line quoted for a script (in docs/, README.md
-and the scripts' own docstrings) still parses, to the values its flags say. Nothing is run."""
+and the scripts' own docstrings) still parses, to the values its flags say; a bench stopped by a signal ends
+through its own clean-up in one line."""
 from __future__ import annotations
 
 import ast
@@ -19,7 +20,8 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))  # the bench scripts are imported as bench.NAME
 
-SCRIPTS = sorted(p.stem for p in (ROOT / "bench").glob("*.py") if "sys.exit(main())" in p.read_text())
+MAIN = re.compile(r"sys\.exit\((main\(\)|run_main\(main\))\)")
+SCRIPTS = sorted(p.stem for p in (ROOT / "bench").glob("*.py") if MAIN.search(p.read_text()))
 """The scripts with a main (bench/train_recipe.py runs orchestrate.train_recipe's)."""
 QUOTED = re.compile(r"python\s+bench/(\w+)\.py\b")
 PLACEHOLDER = re.compile(r"^[A-Z][A-Z_]*$")
@@ -196,3 +198,37 @@ def test_quoted_command_parses_to_what_its_flags_say(where, stem, argv):
     if rest:
         positional = next(name for name, flag in flags.items() if not flag.startswith("--"))
         assert [str(v) for v in parsed[positional]] == rest, (where, parsed[positional], rest)
+
+
+@pytest.mark.parametrize("argv", [["--families", "bogus"], ["--families", ""], ["--variant", "bogus_rgb"]])
+def test_render_bench_refuses_a_bad_family_or_variant_before_rendering(argv):
+    import subprocess
+
+    r = subprocess.run([sys.executable, "bench/bench_render.py", *argv], cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == 2 and r.stderr.startswith(f"error: {argv[0]}: got ") and "Traceback" not in r.stderr, r
+
+
+@pytest.mark.parametrize("sig", ["SIGTERM", "SIGINT"])
+def test_a_stopped_bench_removes_its_temporary_folder(sig, tmp_path):
+    """bench_render renders in a folder of TMPDIR: a stop mid-render ends through its `finally` (the folder removed)
+    with one line and 128 + the signal, not a traceback (`bench.cli_common.run_main`)."""
+    import os
+    import signal
+    import subprocess
+    import time
+
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    proc = subprocess.Popen([sys.executable, "bench/bench_render.py", "--res", "64", "--spp", "16", "--images", "4",
+                             "--objects", "5000", "--families", "directional"], cwd=ROOT, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env={**os.environ, "TMPDIR": str(tmp)})
+    deadline = time.monotonic() + 120
+    while not any(tmp.iterdir()) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.1)  # until its temporary folder exists
+    assert proc.poll() is None, proc.communicate()
+    time.sleep(1.0)
+    proc.send_signal(getattr(signal, sig))
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 128 + getattr(signal, sig), (out, err)
+    assert "Traceback" not in err and err.strip().splitlines()[-1].startswith("interrupted: "), err
+    assert not any(tmp.iterdir()), sorted(p.name for p in tmp.iterdir())

@@ -41,6 +41,8 @@ def main():
     (out / f".tmp-00000.data.{os.getpid()}").mkdir()
     (out / f".tmp-00000.data.{os.getpid()}" / "image0.png").write_bytes(b"half")
     (out / ".tmp-notes.1").mkdir()
+    import tempfile  # a scratch folder of the work's (ship's scoring has one): the stop must not leave it
+    Path(tempfile.mkdtemp(prefix="scratch-"), "half.npy").write_bytes(b"half")
     if "--held" in sys.argv:  # a folder the work holds under another flag, with the step's half-written file too
         from scenes.cli.outputs import output_lock
 
@@ -66,7 +68,8 @@ def slow_command(tmp_path):
     (mod / "slowwork.py").write_text(textwrap.dedent(WORK))
     out = tmp_path / "out"
     out.mkdir()
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(mod), str(REPO)])}
+    (tmp_path / "tmp").mkdir()
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(mod), str(REPO)]), "TMPDIR": str(tmp_path / "tmp")}
     return [sys.executable, "-m", "slowwork", "--out", str(out)], out, env
 
 
@@ -102,6 +105,7 @@ def test_a_stop_kills_the_work_whole_in_one_line(slow_command, sig, code):
     assert (out / "finished.txt").read_text() == "whole"  # what was finished stays
     assert not list(out.glob(".*.tmp*")), sorted(p.name for p in out.iterdir())  # the half-written file goes
     assert sorted(p.name for p in out.glob(".tmp-*")) == [".tmp-notes.1"]  # and the half-written object folder
+    assert not list(Path(env["TMPDIR"]).iterdir())  # and the work's own TMPDIR, its scratch folders in it
     step = int((out / "step_pid").read_text())
     t0 = time.monotonic()
     while (_alive(child) or _alive(step)) and time.monotonic() - t0 < 10:
