@@ -3922,6 +3922,11 @@ ROWS += [
     # ---- sweep 10: inputs that would be judged as if they meant something
     Row("rerender-scene-camera-light-of-negative-irradiance", RR, SWEEP3, 2, ("scene.json", "irradiance", "negative"),
         setup=_scene_text(_negative_camera_light), check=_not_written("o/00000/report.json")),
+    Row("train-overwrite-keeps-a-users-best-weights-beside-a-run-without-validation", TR,
+        [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1", "--overwrite"], 2,
+        ("best.safetensors", "no validation", "never replaced"),
+        setup=_trained("run", lambda run: (run / "best.safetensors").write_text("mine\n")),
+        check=_kept("run/best.safetensors", "mine\n")),
     Row("refine-a-map-of-zeros", RF, ["--data", "{T}/00000.data", "--normals", "{T}/zero.npy", "--out", "{T}/o"], 2,
         ("--normals", "exactly 0"), setup=_zero_normals, check=_not_written("o/00000/normal.png")),
 ]

@@ -235,6 +235,11 @@ def check_run(cfg: TrainConfig) -> None:
             raise ValueError(f"--out: {str(out / 'log.jsonl')!r} was not written by unips.train (its first line is "
                              "not a step's record); it is never replaced, even with --overwrite: move it away or use "
                              "another --out")
+        best = [out / n for n in ("best.safetensors", "best.json") if os.path.lexists(out / n)]
+        if cfg.overwrite and best and not _validated(out / "log.jsonl"):  # the earlier run never wrote one
+            raise ValueError(f"--out: {str(best[0])!r} was not written by unips.train (the earlier run's log.jsonl "
+                             "records no validation, after which it is written); it is never replaced, even with "
+                             "--overwrite: move it away or use another --out")
     objects, images = count_dataset_images(cfg.data, "--data")
     if cfg.shuffle_buffer:  # streamed: only the samples in flight are decoded (loader queues and one batch)
         in_flight = min(objects, 2 * max(cfg.loader_workers, 1) + cfg.batch)
@@ -255,6 +260,15 @@ def _is_training_log(path: Path) -> bool:
     except (OSError, ValueError):
         return False
     return isinstance(first, dict) and "step" in first
+
+
+def _validated(log: Path) -> bool:
+    """Whether a run's log.jsonl records a validation (a best.safetensors is written only after one)."""
+    try:
+        with open(log, encoding="utf-8") as f:
+            return any('"val"' in line and "val" in json.loads(line) for line in f)
+    except (OSError, ValueError):
+        return False
 
 
 def training_memory(cfg: TrainConfig, cached_images: int) -> int:
