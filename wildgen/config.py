@@ -116,8 +116,8 @@ class GenConfig:
     """Samples per pixel of the ground-truth pass."""
     texture_resolution: int = option(256, minimum=1, maximum=4096)
     """Side of procedural texture images (at most 4096: some are made at twice the side, in float64)."""
-    env_width: int = option(256, minimum=1, maximum=8192)
-    """Width of procedural environment maps (at most 8192)."""
+    env_width: int = option(256, minimum=8, maximum=8192)
+    """Width of procedural environment maps (8 to 8192; the height is half of it)."""
     variant: Annotated[str | None, auto_is_none("VARIANT"), arg(help_behavior_hint="(default: auto)")] = None
     """Mitsuba variant: 'auto' (None: cuda_ad_rgb, else llvm_ad_rgb, else scalar_rgb, the first usable one,
     chosen at run time and recorded in the manifest) or one of those three."""

@@ -100,8 +100,12 @@ def read_intrinsics(path: str | Path, shape: tuple[int, int], flag: str = "--int
         raise ValueError(f"{flag}: {str(path)!r} is a folder; expected a text file of 3 rows of 3 numbers")
     if why := not_a_file(path):
         raise FileNotFoundError(f"{flag}: {str(path)!r} {why}")
+    import warnings
+
     try:
-        k = np.loadtxt(path, dtype=np.float64, ndmin=2)
+        with warnings.catch_warnings():  # an empty file: numpy warns, then the shape check below says it
+            warnings.simplefilter("ignore", UserWarning)
+            k = np.loadtxt(path, dtype=np.float64, ndmin=2)
     except (ValueError, UnicodeDecodeError) as exc:
         raise ValueError(f"{flag}: cannot read {path} as numbers ({exc}); expected 3 rows of 3 numbers") from None
     return check_intrinsics(k, shape, flag)
