@@ -30,7 +30,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench.cli_common import ROOT, parse, run_main  # noqa: E402
-from scenes.cli.options import REQUIRED, Command  # noqa: E402
+from scenes.cli.options import REQUIRED, Command, option  # noqa: E402
 
 SUITES = {
     "single_persp": ["--camera", "perspective", "--focal", "18-35", "--cluster", "1-1"],
@@ -58,9 +58,9 @@ class SurfaceBenchOptions:
     """DiLiGenT objects with ground-truth depth (<object>/normal_map.png, mask.png, K.txt, depth_gt.npz)."""
     assets: str = str(ROOT.parent / "shared" / "assets")
     """Assets for the renders."""
-    objects: int = 8
+    objects: int = option(8, minimum=1)
     """Rendered objects per family."""
-    seed: int = 21000
+    seed: int = option(21000, minimum=0)
     """Seed of the renders."""
 
 

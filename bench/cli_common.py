@@ -46,8 +46,15 @@ def run_main(main: Callable[[], int]) -> int:
     for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         if signal.getsignal(s) is not signal.SIG_IGN:
             signal.signal(s, on_stop)
+    import subprocess
+
     try:
         return main()
+    except subprocess.CalledProcessError as exc:  # a step the bench ran failed: its own output said why
+        step = " ".join(map(str, exc.cmd[1:4])) if isinstance(exc.cmd, list) else str(exc.cmd)
+        print(f"error: step {step} ... failed with status {exc.returncode} (its output above says why)",
+              file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("interrupted: the bench's temporary files are removed and its results not written; run it again",
               file=sys.stderr)

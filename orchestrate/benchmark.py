@@ -38,7 +38,7 @@ from scenes.metrics import mean_angular_error
 from scenes.report.tables import markdown_table
 from unips.data import find_objects, load_object
 from unips.inference import DEFAULT_TTA, TTA_VIEWS, check_model_name, load_network, predict_object
-from unips.probes import PROBES
+from unips.probes import PROBES, format_table
 from wildgen.light_families import LIGHT_FAMILIES
 
 log = logging.getLogger(__name__)
@@ -261,8 +261,6 @@ def format_tables(res: dict) -> str:
 
 
 def _synthetic_tables(syn: dict, res: dict) -> list[str]:
-    from unips.probes import format_table
-
     fams = syn["families"]
     used = sorted({r.get("images", res["images"]) for r in syn["objects"]}) or [res["images"]]  # not --images
     each = f"{used[0]} images each" if len(used) == 1 else f"{used[0]} to {used[-1]} images (--images {res['images']})"
@@ -351,7 +349,7 @@ class BenchmarkOptions:
     """Objects re-rendered per method (0: none)."""
     rerender_spp: Annotated[int | None, arg(help_behavior_hint="(default: the recorded spp)")] = option(None, minimum=1)
     """Samples per pixel of the re-render."""
-    variant: str | None = None
+    variant: str | None = option(None, choices=("auto", "cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb"))
     """Mitsuba variant for the re-render check."""
     threads: int | None = option(None, minimum=1)
     """Torch / Dr.Jit threads."""
@@ -461,7 +459,9 @@ def _main(argv: list[str] | None, held) -> int:
         if args.threads:
             torch.set_num_threads(args.threads)
         net = load_network(args.checkpoint, model=args.model)
-        ablation = load_network(args.ablation_checkpoint) if args.ablation_checkpoint else None
+        ablation = None
+        if args.ablation_checkpoint:
+            ablation = load_network(args.ablation_checkpoint, flag="--ablation-checkpoint")
         if ablation and (theirs := ablation.meta.get("model_name")) != (ours := net.meta.get("model_name")):
             raise UsageError(f"--ablation-checkpoint: holds {theirs!r}, not {ours!r}, the network benchmarked; "
                              "expected the same network trained with uniform contexts")

@@ -3868,6 +3868,14 @@ def _negative_camera_light(d: dict) -> str:
     return json.dumps(d)
 
 
+def _black_jpeg(data: bytes) -> bytes:
+    """A photo's bytes -> a black JPEG of its size (a lamp that did not fire)."""
+    import cv2
+
+    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    return cv2.imencode(".jpg", np.zeros_like(img))[1].tobytes()
+
+
 def _zero_normals(w: Path, t: Path) -> None:
     """Setup: T/00000.data (the world's object) and T/zero.npy, a normal map of zeros of its size."""
     from scenes.images import read_mask
@@ -3927,6 +3935,23 @@ ROWS += [
         ("best.safetensors", "no validation", "never replaced"),
         setup=_trained("run", lambda run: (run / "best.safetensors").write_text("mine\n")),
         check=_kept("run/best.safetensors", "mine\n")),
+    # ---- sweep 11
+    Row("capture-a-black-photo-among-lit-ones", CAP, CAPTURE_ALL, 0, ("IMG_0003", "all but black"),
+        setup=_photos(damage=_black_jpeg)),
+    Row("evaluate-a-prediction-of-no-object-of-gt", EV, ["--pred", "{T}/p", "--gt", "{W}/data"], 0,
+        ("00777", "not scored"), setup=lambda w, t: (shutil.copytree(w / "pred", t / "p"),
+                                                     shutil.copytree(w / "pred" / "00000", t / "p" / "00777"))),
+    Row("predict-least-squares-of-two-images", PR, [*PREDICT_LS, "--max-images", "2"], 2,
+        ("--max-images", "least-squares"), check=_not_written("p")),
+    Row("predict-an-image-that-is-a-folder", PR, ["--method", "least-squares", "--input", "{T}/obj", "--out", "{T}/p"],
+        2, ("L001.png", "is a folder"), setup=lambda w, t: (shutil.copytree(w / "data" / f"{OBJ}.data", t / "obj"),
+                                                            (t / "obj" / "L001.png").unlink(),
+                                                            (t / "obj" / "L001.png").mkdir()),
+        check=_not_written("p")),
+    Row("benchmark-variant-unknown", BM, ["--data", "{W}/data", "--out", "{T}/b", "--variant", "bogus_rgb"], 2,
+        ("--variant", "bogus_rgb"), check=_not_written("b")),
+    Row("make-env-width-below-eight", MK, ["--out", "{T}/o", *TINY, "--env-width", "3"], 2, ("--env-width",),
+        check=_not_written("o")),
     Row("refine-a-map-of-zeros", RF, ["--data", "{T}/00000.data", "--normals", "{T}/zero.npy", "--out", "{T}/o"], 2,
         ("--normals", "exactly 0"), setup=_zero_normals, check=_not_written("o/00000/normal.png")),
 ]

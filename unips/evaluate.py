@@ -231,6 +231,12 @@ def main(argv: list[str] | None = None) -> int:
     print(f"wrote {args.pred / METRICS_JSON}, {METRICS_CSV} and {len(summary['objects'])} error map(s) "
           f"{args.pred}/<object>/{ERROR_MAP}")
     status = 0
+    known = {*summary["objects"], *summary["missing"], *summary["failed"]}
+    unscored = sorted(p.name for p in Path(args.pred).iterdir() if p.is_dir() and p.name not in known
+                      and any((p / f).is_file() for f in PREDICTION_FILES))
+    if unscored:  # a prediction of an object --gt does not have: never dropped without a word
+        print(f"warning: --pred: {len(unscored)} prediction(s) of no object of --gt, not scored: "
+              f"{', '.join(unscored[:10])}{' ...' if len(unscored) > 10 else ''}", file=sys.stderr)
     if summary["failed"]:
         for name, why in summary["failed"].items():
             print(f"failed {name}: {why}", file=sys.stderr)

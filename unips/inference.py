@@ -93,10 +93,12 @@ def check_model_name(model: str | None, flag: str = "--model") -> None:
         raise UsageError(f"{flag}: {model!r} is not registered; known models: {', '.join(list_models())}")
 
 
-def load_network(checkpoint: str | Path | None, device: str = "cpu", model: str | None = None) -> LoadedModel:
+def load_network(checkpoint: str | Path | None, device: str = "cpu", model: str | None = None,
+                 flag: str = "--checkpoint") -> LoadedModel:
     """Load a model file (or, when `checkpoint` is None, the shipped weights of `model`, default `DEFAULT_MODEL`)
     onto `device`. A folder (or `.pytmodel` file) of the authors' published weights needs `model`, the registered
-    network that reads it (e.g. "glc-unips", "sdm-unips"); with a model file, `model` must be the file's."""
+    network that reads it (e.g. "glc-unips", "sdm-unips"); with a model file, `model` must be the file's. `flag`: the
+    option that named `checkpoint`, in errors."""
     import torch
 
     from unips.models import DEFAULT_MODEL, create_model, load_model, pretrained_weights
@@ -119,7 +121,7 @@ def load_network(checkpoint: str | Path | None, device: str = "cpu", model: str 
     try:
         net, meta = load_model(path, map_location=device)
     except (FileNotFoundError, ValueError) as exc:  # said as the flag the file came from
-        flag = "--checkpoint" if checkpoint is not None else f"--model {model or DEFAULT_MODEL}"
+        flag = flag if checkpoint is not None else f"--model {model or DEFAULT_MODEL}"
         raise type(exc)(f"{flag}: {exc}") from None
     if model is not None and meta.get("model_name") != model:
         raise UsageError(f"--model {model}: {str(path)!r} holds model {meta.get('model_name')!r}")

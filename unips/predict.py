@@ -207,6 +207,9 @@ class PredictOptions:
                     f"--scalable: only used with --method model --model sdm-unips, not --method {self.method}"
                 )
         check_model_name(self.model)
+        if self.method == "least-squares" and self.max_images is not None and self.max_images < 3:
+            raise UsageError(f"--max-images: got {self.max_images}, expected at least 3 with --method least-squares "
+                             "(three non-coplanar lights at least)")
         if self.scalable:  # without --model, the network is known once its file is read: the published side till then
             from unips.models.contract import SDM_UNIPS_INPUTS
 

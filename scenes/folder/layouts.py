@@ -47,6 +47,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from scenes.files import not_a_file
 from scenes.folder.calibration import Lights, diligent_lights, no_lights, ours_lights
 from scenes.folder.format import (
     DILIGENT_LIGHTS,
@@ -87,12 +88,13 @@ def natural_key(name: str) -> list[Any]:
 
 
 def l_images(folder: str | Path, suffixes: tuple[str, ...] = ALL_IMAGE_SUFFIXES) -> list[Path]:
-    """Files ``L*`` with one of `suffixes`, in natural order."""
+    """Files ``L*`` with one of `suffixes`, in natural order; an entry of such a name that is not a readable file
+    (a folder, a dangling link, a pipe) is refused, never skipped (one image fewer would go unnoticed)."""
     folder = Path(folder)
-    return sorted(
-        (p for p in folder.iterdir() if p.is_file() and p.name.startswith("L") and p.suffix.lower() in suffixes),
-        key=lambda p: natural_key(p.name),
-    )
+    named = [p for p in folder.iterdir() if p.name.startswith("L") and p.suffix.lower() in suffixes]
+    if odd := next((p for p in named if not p.is_file()), None):
+        raise ValueError(f"image {str(odd)!r} {not_a_file(odd)}")
+    return sorted(named, key=lambda p: natural_key(p.name))
 
 
 def digit_images(folder: str | Path) -> list[Path]:

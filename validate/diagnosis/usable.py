@@ -62,11 +62,10 @@ ONE_SIDED_DEG = 10.0
 """Images lit from further off the view axis than this count for the one-sided test."""
 ONE_SIDED_GAP_DEG = 180.0, 165.0
 """One-sided light: the largest gap between the lights' azimuths is wider than a half turn (the definition, and the
-threshold for lights read from the outline), and for lights read from the shading under a map, wider than the
-second value: a misread light leans toward the empty side and narrows the gap its true neighbours leave. Chosen
-on the development suites of bench/bench_light_warnings.py alone (150 to 180 in steps of 5: 165 best, 340 of 360
-against 338 at 180), then confirmed on its held-out suites (253 -> 257 of 268) and the real captures (10 of 10
-either way)."""
+threshold for lights read from the outline), and for lights read from the shading under a map, wider than the second
+value: a misread light leans toward the empty side and narrows the gap its true neighbours leave. Chosen on the
+development suites of bench/bench_light_warnings.py alone (150 to 180 in steps of 5: 165 best, 340 of 360 against 338 at
+180), then confirmed on its held-out suites (253 -> 257 of 268) and the real captures (10 of 10 either way)."""
 SHIFT_PX = 1.5
 """A shift between photos longer than this (2 px or more), the same in a good share of the compared pairs, means
 the camera moved (`validate.diagnosis.camera_motion`)."""
@@ -402,8 +401,7 @@ def capture_warnings(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray
     out: list[CaptureWarning] = [count] if count else []
     if count and count.fatal:
         return out, facts
-    same = identical_photos_warning(images)
-    if same:
+    if same := identical_photos_warning(images):
         return [same], facts
     pairs, shifts = camera_shifts(images, mask)
     motion, support = camera_motion(pairs, shifts, SHIFT_PX)
@@ -427,11 +425,13 @@ def capture_warnings(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray
         out.append(CaptureWarning("too_dark", f"the object is dark (its bright part at {np.median(level):.3f} of the "
                                   "full scale in the median image): expose longer or bring the lamp closer, so that "
                                   "its brightest part reaches about half the scale"))
+    if len(black := np.nonzero(level < 1.0 / 255)[0]):  # one photo of nothing among lit ones: a lamp that failed
+        out.append(CaptureWarning("too_dark", f"{len(black)} image(s) show the object all but black, below one 8-bit "
+                                  f"step ({_names(names, black)}): did the lamp fire? retake or drop them"))
     if saturated is not None:
         share = saturated[:, mask].any(axis=-1).mean(axis=1)
         facts["saturated_share"] = np.round(share, 4).tolist()
-        over = np.nonzero(share > SATURATED_SHARE)[0]
-        if len(over):
+        if len(over := np.nonzero(share > SATURATED_SHARE)[0]):
             out.append(
                 CaptureWarning(
                     "saturated",
