@@ -19,6 +19,7 @@ The rendered suite is resumed when the command is run again (wildgen.make resume
 """
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import time
@@ -103,15 +104,18 @@ def fault_schedule(i: int, obj) -> list[tuple[str, object]]:
 def render_suite(work: Path, assets: str | None, objects: int, seed: int, rows=SUITE, quiet: bool = True) -> list[Path]:
     """Render (or resume) each row of `rows` into work/<name>; returns the dataset folders."""
     from orchestrate.steps import toolkit_env
+    from scenes.cli.supervise import die_with_parent
 
-    out = []
+    out, me = [], os.getpid()
     for i, (name, flags) in enumerate(rows):
         dest = work / name
         argv = [sys.executable, "-m", "wildgen.make", *flags, *COMMON, "--objects", str(objects), "--seed",
                 str(seed + 100 * i), "--out", str(dest), *(["--assets", assets] if assets else []),
                 *(["--quiet"] if quiet else [])]
         # from the user's folder, the toolkit on PYTHONPATH: a relative --work means what it says
-        done = subprocess.run(argv, capture_output=True, text=True, env=toolkit_env())
+        # the step goes when this process goes, however it goes (a kill of the work leaves no orphan render)
+        done = subprocess.run(argv, capture_output=True, text=True, env=toolkit_env(),
+                              preexec_fn=lambda: die_with_parent(me))
         if done.returncode != 0:
             said = (done.stderr.strip().splitlines() or ["no message"])[-1].removeprefix("error: ")
             raise UsageError(f"--work: wildgen.make for suite row {name!r} into {str(dest)!r} failed: {said}")
