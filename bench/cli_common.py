@@ -30,35 +30,67 @@ def parse(command: Command, argv: Sequence[str] | None = None) -> Any:
         raise SystemExit(report_error(exc)) from None
 
 
+STOPPED = "interrupted: the bench's temporary files are removed and its results not written; run it again"
+"""The one line of a stopped bench."""
+GRACE_S = 10.0
+"""Seconds a stopped bench has to end through its own `finally` blocks before it is ended outright."""
+
+
 def run_main(main: Callable[[], int]) -> int:
-    """A bench script's `main()`, stopped cleanly: Ctrl-C, SIGTERM and SIGHUP end it through its own `finally`
-    blocks (its temporary folders removed) with one line and status 128 + the signal, not a traceback. A signal
-    the shell ignores (nohup, a background job) stays ignored."""
+    """A bench script's `main()`, stopped cleanly: Ctrl-C, SIGTERM and SIGHUP end it with one line and status 128 +
+    the signal, not a traceback, and nothing left in TMPDIR: the bench runs with a TMPDIR of its own (its steps too),
+    removed however it ends. The stop reaches the bench as KeyboardInterrupt, through its `finally` blocks; an
+    interrupt a native call swallows (Dr.Jit turns one into an error the render loop records and goes on) ends it
+    outright after GRACE_S. A signal the shell ignores (nohup, a background job) stays ignored. A step that fails
+    (CalledProcessError) is one line too."""
+    import os
+    import shutil
     import signal
+    import subprocess
     import sys
+    import tempfile
+    import threading
 
     got: dict[str, int] = {}
+    try:
+        scratch = tempfile.mkdtemp(prefix="bench-")
+        os.environ["TMPDIR"] = tempfile.tempdir = scratch
+    except OSError:  # an unwritable TMPDIR: the bench's own writes say so
+        scratch = None
+
+    def end_now(signum: int) -> None:
+        print(STOPPED, file=sys.stderr, flush=True)
+        if scratch:
+            shutil.rmtree(scratch, ignore_errors=True)
+        os._exit(128 + signum)
 
     def on_stop(signum, _frame) -> None:
-        got.setdefault("signal", signum)
+        if "signal" not in got:
+            got["signal"] = signum
+            timer = threading.Timer(GRACE_S, end_now, (signum,))
+            timer.daemon = True  # a bench that ends in time is not held back by it
+            timer.start()
         raise KeyboardInterrupt
 
     for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         if signal.getsignal(s) is not signal.SIG_IGN:
             signal.signal(s, on_stop)
-    import subprocess
-
     try:
-        return main()
+        code = main()
     except subprocess.CalledProcessError as exc:  # a step the bench ran failed: its own output said why
         step = " ".join(map(str, exc.cmd[1:4])) if isinstance(exc.cmd, list) else str(exc.cmd)
         print(f"error: step {step} ... failed with status {exc.returncode} (its output above says why)",
               file=sys.stderr)
-        return 1
+        code = 1
     except KeyboardInterrupt:
-        print("interrupted: the bench's temporary files are removed and its results not written; run it again",
-              file=sys.stderr)
-        return 128 + got.get("signal", signal.SIGINT)
+        code = None
+    finally:
+        if scratch:
+            shutil.rmtree(scratch, ignore_errors=True)
+    if "signal" in got:  # stopped, even where the interrupt was swallowed and main() returned
+        print(STOPPED, file=sys.stderr)
+        return 128 + got["signal"]
+    return 130 if code is None else code
 
 
 def machine() -> dict:
