@@ -180,14 +180,17 @@ def verify_object(out_dir: Path, entry: dict) -> str | None:
     return None
 
 
-def clean_leftovers(out_dir: Path) -> list[Path]:
+def clean_leftovers(out_dir: Path, before: set[str] | None = None) -> list[Path]:
     """Remove temporary folders of interrupted objects (a name this tool writes, of a writer that no longer runs:
-    `scenes.files.writer_gone`); returns what was removed."""
+    `scenes.files.writer_gone`); returns what was removed. With `before` (the names there when this run started),
+    also every such folder that appeared since: this run's, whatever became of its writer (a worker on a Ray node
+    that was lost may linger a while)."""
     from scenes.files import temporary_folder_writer, writer_gone
 
     removed = []
     for p in sorted(Path(out_dir).glob(f"{TMP_PREFIX}*")):
-        if not TMP_FOLDER.match(p.name) or not writer_gone(temporary_folder_writer(p.name)):  # never touched
+        ours = before is not None and p.name not in before
+        if not TMP_FOLDER.match(p.name) or not (ours or writer_gone(temporary_folder_writer(p.name))):
             continue
         shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
         removed.append(p)
@@ -425,12 +428,13 @@ def make_dataset(
         # a folder there before the run is never this run's to drop (`writer.publish_folder` decides whether
         # it may be replaced): only folders this run wrote and did not record are
         there = {i for i in plan.todo if os.path.lexists(out_dir / f"{index_name(i)}.data")}
+        temporaries = {p.name for p in out_dir.glob(f"{TMP_PREFIX}*")}  # somebody's, if any: kept
         try:
             if plan.todo:
                 engine.run(cfg, out_dir, variant, plan.todo, record)
         finally:
             # Also on KeyboardInterrupt / errors: the engine has stopped its workers by now.
-            clean_leftovers(out_dir)
+            clean_leftovers(out_dir, temporaries)
             drop_unrecorded(out_dir, [i for i in plan.todo if i not in there], writer.entries)
             writer.flush()
         return writer.entries
