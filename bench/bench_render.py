@@ -30,6 +30,7 @@ sys.path.insert(0, str(ROOT))
 from bench.cli_common import parse, run_main  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import Command, arg, check_fields, option  # noqa: E402
+from scenes.renderer.variant import PREFERENCE as VARIANTS  # noqa: E402
 from wildgen.light_families import LIGHT_FAMILIES  # noqa: E402
 
 FEATURES = {
@@ -104,7 +105,7 @@ class Options:
     features: str | None = None
     """generator features, comma-separated (default, perspective, focal, detail, cluster): one row per family and
     feature"""
-    variant: str | None = None
+    variant: str | None = option(None, choices=("auto", *VARIANTS))
     """Mitsuba variant (default: cuda, llvm, scalar, the first this machine runs)."""
 
     def validate(self) -> "Options":
@@ -115,10 +116,6 @@ class Options:
         if not self.families or any(f not in LIGHT_FAMILIES for f in self.families.split(",")):
             raise UsageError(f"--families: got {self.families!r}, expected one or more of {', '.join(LIGHT_FAMILIES)}, "
                              "comma-separated")
-        from scenes.renderer.variant import PREFERENCE
-
-        if self.variant is not None and self.variant not in ("auto", *PREFERENCE):
-            raise UsageError(f"--variant: got {self.variant!r}, expected auto or one of {', '.join(PREFERENCE)}")
         return self
 
 

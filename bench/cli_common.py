@@ -51,12 +51,12 @@ def run_main(main: Callable[[], int]) -> int:
     import tempfile
     import threading
 
+    from scenes.cli.supervise import scratch_tmpdir
+
     got: dict[str, int] = {}
-    try:
-        scratch = tempfile.mkdtemp(prefix="bench-")
-        os.environ["TMPDIR"] = tempfile.tempdir = scratch
-    except OSError:  # an unwritable TMPDIR: the bench's own writes say so
-        scratch = None
+    env = scratch_tmpdir("bench")  # {} where TMPDIR is unwritable: the bench's own writes say so
+    os.environ.update(env)
+    scratch = tempfile.tempdir = env.get("TMPDIR")
 
     def end_now(signum: int) -> None:
         print(STOPPED, file=sys.stderr, flush=True)

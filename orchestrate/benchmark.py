@@ -35,6 +35,7 @@ from scenes.cli.outputs import check_not_being_written, check_output_folder, cla
 from scenes.files import atomic_write_text, write_json
 from scenes.folder.layouts import diligent_folders
 from scenes.metrics import mean_angular_error
+from scenes.renderer.variant import PREFERENCE as VARIANTS
 from scenes.report.tables import markdown_table
 from unips.data import find_objects, load_object
 from unips.inference import DEFAULT_TTA, TTA_VIEWS, check_model_name, load_network, predict_object
@@ -349,7 +350,7 @@ class BenchmarkOptions:
     """Objects re-rendered per method (0: none)."""
     rerender_spp: Annotated[int | None, arg(help_behavior_hint="(default: the recorded spp)")] = option(None, minimum=1)
     """Samples per pixel of the re-render."""
-    variant: str | None = option(None, choices=("auto", "cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb"))
+    variant: str | None = option(None, choices=("auto", *VARIANTS))
     """Mitsuba variant for the re-render check."""
     threads: int | None = option(None, minimum=1)
     """Torch / Dr.Jit threads."""
@@ -459,9 +460,8 @@ def _main(argv: list[str] | None, held) -> int:
         if args.threads:
             torch.set_num_threads(args.threads)
         net = load_network(args.checkpoint, model=args.model)
-        ablation = None
-        if args.ablation_checkpoint:
-            ablation = load_network(args.ablation_checkpoint, flag="--ablation-checkpoint")
+        uniform = args.ablation_checkpoint
+        ablation = load_network(uniform, flag="--ablation-checkpoint") if uniform else None
         if ablation and (theirs := ablation.meta.get("model_name")) != (ours := net.meta.get("model_name")):
             raise UsageError(f"--ablation-checkpoint: holds {theirs!r}, not {ours!r}, the network benchmarked; "
                              "expected the same network trained with uniform contexts")

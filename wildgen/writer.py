@@ -175,14 +175,13 @@ def publish_folder(tmp: Path, final: Path) -> dict[str, str]:
     and is kept: the object fails (ValueError, not retried) and the run goes on."""
     files = {str(p.relative_to(tmp)): sha256_file(p) for p in sorted(tmp.rglob("*")) if p.is_file()}
     if os.path.lexists(final):
-        theirs = [] if final.is_symlink() or not final.is_dir() else \
-            [p for p in sorted(final.rglob("*")) if not p.is_dir() or p.is_symlink()]
-        extra = [p for p in theirs if p.is_symlink() or str(p.relative_to(final)) not in files]
-        if final.is_symlink() or not final.is_dir() or extra:
+        foreign = final if final.is_symlink() or not final.is_dir() else next(
+            (p for p in sorted(final.rglob("*"))
+             if p.is_symlink() or (not p.is_dir() and str(p.relative_to(final)) not in files)), None)
+        if foreign is not None:
             shutil.rmtree(tmp, ignore_errors=True)
-            what = repr(str(extra[0])) if extra else "it"
-            raise ValueError(f"{str(final)!r} is there already and is not this dataset's ({what} is not a file this "
-                             "object writes): it is kept; move it away, then run again to render this object")
+            raise ValueError(f"{str(final)!r} is there already and is not this dataset's ({str(foreign)!r} is not a "
+                             "file this object writes): it is kept; move it away, then run again to render this object")
         shutil.rmtree(final)
     os.replace(tmp, final)
     return files

@@ -120,7 +120,7 @@ def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTE
     held, told = os.pipe()  # the child tells the folders it holds; read (without waiting) once it is gone
     os.set_blocking(held, False)
     os.set_blocking(told, False)
-    scratch = _scratch(module)
+    scratch = scratch_tmpdir(module)
     try:
         try:
             child = subprocess.Popen([sys.executable, "-m", module, *argv], start_new_session=True, pass_fds=(told,),
@@ -155,15 +155,16 @@ def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTE
     return code
 
 
-def _scratch(module: str) -> dict[str, str]:
-    """The child's own temporary folder (TMPDIR, inside the user's), removed when the child ends however it
-    ends: a stop kills the work outright, so its `tempfile` folders would outlive it. Ray keeps the user's
-    (RAY_TMPDIR: its socket paths are limited to 107 bytes). {} where no folder can be made there (the child
-    then reports the unwritable TMPDIR itself)."""
+def scratch_tmpdir(prefix: str) -> dict[str, str]:
+    """The environment of a work's own temporary folder (TMPDIR, made inside the user's), which its runner removes
+    when the work ends however it ends: a stop ends the work outright, so its `tempfile` folders would outlive
+    it. Ray keeps the user's (RAY_TMPDIR: its socket paths are limited to 107 bytes). {} where no folder can be
+    made there (the work then reports the unwritable TMPDIR itself). `run_supervised` and the bench scripts'
+    `bench.cli_common.run_main` use it."""
     import tempfile
 
     try:
-        folder = tempfile.mkdtemp(prefix=f"{module}-")
+        folder = tempfile.mkdtemp(prefix=f"{prefix}-")
     except OSError:
         return {}
     return {"TMPDIR": folder, "RAY_TMPDIR": os.environ.get("RAY_TMPDIR", tempfile.gettempdir())}
