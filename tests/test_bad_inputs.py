@@ -368,6 +368,23 @@ EARLIER_BENCHMARK = '{"checkpoint": "c", "images": 4, "tta": 1}\n'
 """An earlier benchmark's benchmark.json (the keys every one holds)."""
 
 
+def _preview_rest_drawn(w: Path, t: Path) -> None:
+    """The good objects' sheets and the overview written, the bad object's not, and named in preview.json."""
+    _written("p/00000.png", "p/00002.png", "p/overview.png")(w, t)
+    _not_written("p/00001.png")(w, t)
+    assert list(json.loads((t / "p" / "preview.json").read_text())["failed"]) == ["00001"]
+
+
+def _sensor_failed(name: str) -> Callable[[Path, Path], None]:
+    """Check: wildgen.sensor converted every object but `name`, which its manifest records as failed."""
+    def check(w: Path, t: Path) -> None:
+        entries = json.loads((t / "o" / "manifest.json").read_text())["objects"]
+        assert {e["name"]: e["status"] for e in entries} == {n: "failed" if n == name else "done"
+                                                              for n in ("00000", "00001", "00002")}
+        assert not (t / "o" / f"{name}.data").exists() and len(list((t / "o").glob("*.data"))) == 2
+    return check
+
+
 def _kept(rel: str, text: str) -> Callable[[Path, Path], None]:
     def check(w: Path, t: Path) -> None:
         assert (t / rel).read_text() == text, rel
@@ -725,6 +742,9 @@ ROWS: list[Row] = [
     Row("preview-no-images", PV, ["{W}/objs/noimages.data", "--out", "{T}/p"], 2, ("L*.png",)),
     Row("preview-out-is-file", PV, ["{W}/data", "--out", "{W}/afile"], 2, ("--out", "afile")),
     Row("preview-unknown-flag", PV, ["{W}/data", "--size", "3"], 2, ("--size",)),
+    Row("preview-one-corrupt-object-rest-drawn", PV, ["{W}/data_onebad", "--out", "{T}/p"], 1,
+        ("1 of 3 object(s) could not be drawn", "00001", "L001.png", "preview.json"),
+        check=_preview_rest_drawn),
     # ---- unips.predict
     Row(
         "predict-input-missing",
@@ -2553,15 +2573,15 @@ ROWS += [
         setup=_sensor_stopped_after_one,
         check=_not_written("run/final.safetensors"),
     ),
-    # ---- slow failure: every source object checked before the first is written
+    # ---- every source object checked before the first is written; a bad one recorded, the rest goes on
     Row(
         "sensor-radiance-missing-in-a-later-object",
         SEN,
         ["--data", "{T}/ds", "--sensor", "phone", "--out", "{T}/o", "--quiet"],
-        2,
-        ("--data", "00002.data", "radiance_001.exr"),
+        1,
+        ("1 of 3 object(s) could not be converted", "00002.data", "radiance_001.exr"),
         setup=_radiance_missing_in_last,
-        check=_not_written("o"),
+        check=_sensor_failed("00002"),
     ),
 ]
 
@@ -3311,10 +3331,14 @@ ROWS += [
     Row("sensor-overwrite-linked-object-folder", SEN, ["--data", "{W}/data", "--sensor", "phone", "--out", "{T}/o",
                                                        "--quiet", "--overwrite"], 2, ("--out", "00001.data", "link"),
         setup=_sensor_before(_linked_object)),
-    Row("sensor-radiance-negative", SEN, ["--data", "{T}/ds", "--sensor", "phone", "--out", "{T}/o", "--quiet"], 2,
-        ("radiance_001.exr", "negative"), setup=_radiance_edited(lambda r: r * 0 - 1)),
-    Row("sensor-radiance-other-size", SEN, ["--data", "{T}/ds", "--sensor", "phone", "--out", "{T}/o", "--quiet"], 2,
-        ("radiance_001.exr", "8 x 8"), setup=_radiance_edited(lambda r: r[:8, :8])),
+    Row("sensor-radiance-negative", SEN, ["--data", "{T}/ds", "--sensor", "phone", "--out", "{T}/o", "--quiet"], 1,
+        ("radiance_001.exr", "negative"), setup=_radiance_edited(lambda r: r * 0 - 1), check=_sensor_failed(OBJ)),
+    Row("sensor-one-object-differs-from-its-manifest", SEN, ["--data", "{T}/ds", "--sensor", "phone", "--out",
+                                                              "{T}/o", "--quiet"], 1,
+        ("1 of 3 object(s) could not be converted", "00000", "checksum mismatch in L003.png"),
+        setup=_dataset_edited(files=lambda ds: _random(ds / f"{OBJ}.data" / "L003.png")), check=_sensor_failed(OBJ)),
+    Row("sensor-radiance-other-size", SEN, ["--data", "{T}/ds", "--sensor", "phone", "--out", "{T}/o", "--quiet"], 1,
+        ("radiance_001.exr", "8 x 8"), setup=_radiance_edited(lambda r: r[:8, :8]), check=_sensor_failed(OBJ)),
     Row("train-shard-index-name-above", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps", "1"], 2,
         ("index.json", "'../other/000001.tar'"),
         setup=_index_edited(lambda i: i["shards"][1].update(name="../other/000001.tar")), check=_not_written("run")),
@@ -3594,8 +3618,8 @@ ROWS += [
                                                     "--cpu-rehearsal"], 2, ("--out", "overlaps --carry"),
         setup=lambda w, t: _mk(t / "c")),
     Row("sensor-radiance-beyond-any-sensor", SEN, ["--data", "{T}/ds", "--sensor", "phone", "--out", "{T}/o",
-                                                   "--quiet"], 2, ("radiance_001.exr", "holds radiance up to"),
-        setup=_radiance_times(1e30), check=_not_written("o/00000.data")),
+                                                   "--quiet"], 1, ("radiance_001.exr", "holds radiance up to"),
+        setup=_radiance_times(1e30), check=_sensor_failed(OBJ)),
 ]
 
 def _pt_with_numpy(w: Path, t: Path) -> None:

@@ -3,7 +3,8 @@ with `--stats`, the dataset card instead.
 
 Writes DIR/preview/<object>.png (every image, the normal map and the mask, labelled), DIR/preview/overview.png
 (per object its first image and normal map) and DIR/preview/preview.json (the sheets it wrote: a PNG carries no
-mark of its writer, so --overwrite replaces only the sheets listed there). Images are linear; they are shown with
+mark of its writer, so --overwrite replaces only the sheets listed there; and the objects that could not be read,
+`failed`, one line each: the others are drawn, and the command exits 1). Images are linear; they are shown with
 the sRGB curve (`scenes.colors.linear_to_srgb`) so that dark regions stay visible. The dataset's numbers are
 `wildgen.card`, its picture `wildgen.card_figure`.
 
@@ -119,10 +120,12 @@ def _check_sheet_names(folders: list[Path], out_dir: Path) -> None:
                          "rename the folder")
 
 
-def preview(dataset: str | Path, out: str | Path | None = None, overwrite: bool = False) -> list[Path]:
-    """Write contact sheets and the overview; returns the written paths. Every object is read and every sheet
-    drawn before anything is written; existing sheets are replaced only with `overwrite`
-    (`scenes.cli.outputs.claim_outputs`)."""
+def preview(dataset: str | Path, out: str | Path | None = None,
+            overwrite: bool = False) -> tuple[list[Path], dict[str, str]]:
+    """Write contact sheets and the overview; returns the written paths (the overview last) and the objects that
+    could not be read ({name: reason}, also in preview.json's `failed`: one bad object does not stop the others).
+    Every object is read and every sheet drawn before anything is written; existing sheets are replaced only
+    with `overwrite` (`scenes.cli.outputs.claim_outputs`)."""
     from scenes.cli.outputs import claim_outputs
     from scenes.files import write_json
     from scenes.images import write_picture
@@ -137,18 +140,29 @@ def preview(dataset: str | Path, out: str | Path | None = None, overwrite: bool 
     claim_outputs([*targets, record], overwrite, owner="wildgen.preview", signed={record: ("dataset", "sheets")})
     listed = _check_own_sheets(record, targets)
     print(f"drawing contact sheets of {len(folders)} object(s) into {out_dir}", flush=True)
-    sheets, summaries = [], []
-    for folder in folders:
-        tiles = object_tiles(folder)
-        sheets.append(to_bgr(contact_sheet(tiles, SHEET_COLUMNS)))
+    drawn, failed = [], {}
+    for folder, target in zip(folders, targets):
+        try:
+            tiles = object_tiles(folder)
+        except (OSError, ValueError) as exc:  # one bad object is recorded and the rest goes on
+            failed[folder.name[:-5]] = str(exc)
+            print(f"  {folder.name}: not drawn ({exc})", flush=True)
+            continue
         (first, name), (normal, _) = tiles[0], tiles[-2]  # the first image and the normal map
-        summaries.append((np.concatenate([first, normal], 1), f"{folder.name[:-5]}: {name} | normal"))
-    overview = to_bgr(contact_sheet(summaries, OVERVIEW_COLUMNS))
+        summary = (np.concatenate([first, normal], 1), f"{folder.name[:-5]}: {name} | normal")
+        drawn.append((target, to_bgr(contact_sheet(tiles, SHEET_COLUMNS)), summary))
+    if not drawn:  # one object (DIR itself): its own message; several: which failed first
+        raise ValueError(next(iter(failed.values())) if len(folders) == 1 else
+                         f"DIR: none of the {len(folders)} object folders of {str(dataset)!r} can be drawn (first, "
+                         f"{next(iter(failed))}: {next(iter(failed.values()))})")
+    written = [target for target, _, _ in drawn] + [targets[-1]]
     make_output_folder(out_dir)
-    for path, image in zip(targets, [*sheets, overview]):
-        write_picture(path, image)
-    write_json(record, {"dataset": str(dataset), "sheets": sorted(listed | {p.name for p in targets})})
-    return targets
+    for target, sheet, _ in drawn:
+        write_picture(target, sheet)
+    write_picture(targets[-1], to_bgr(contact_sheet([s for _, _, s in drawn], OVERVIEW_COLUMNS)))
+    write_json(record, {"dataset": str(dataset), "sheets": sorted(listed | {p.name for p in written}),
+                        "failed": failed})
+    return written, failed
 
 
 def _listed_sheets(record: Path) -> set[str]:
@@ -255,14 +269,17 @@ def _write(args) -> int:
     try:
         if args.stats:
             written = write_stats(args.dataset, args.out, args.overwrite)  # outputs checked before any read
-        else:
-            written = preview(args.dataset, args.out, args.overwrite)  # outputs checked before any sheet is drawn
+            print(f"wrote the dataset card {written[0]} and its numbers {written[1]}")
+            return 0
+        written, failed = preview(args.dataset, args.out, args.overwrite)  # outputs checked before any drawing
     except (UsageError, ValueError, OSError) as exc:
         return report_error(exc)
-    if args.stats:
-        print(f"wrote the dataset card {written[0]} and its numbers {written[1]}")
-    else:
-        print(f"wrote {len(written) - 1} contact sheets and {written[-1]}")
+    print(f"wrote {len(written) - 1} contact sheets and {written[-1]}")
+    if failed:
+        name, reason = next(iter(failed.items()))
+        print(f"error: {len(failed)} of {len(failed) + len(written) - 1} object(s) could not be drawn (first, {name}: "
+              f"{reason}); they are listed under 'failed' in {written[-1].parent / SHEETS_RECORD}", file=sys.stderr)
+        return 1
     return 0
 
 

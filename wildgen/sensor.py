@@ -9,8 +9,9 @@ image's noise seed (`scenes.camera_sensor.sensor_record`), so any image can be r
 under a temporary name and renamed when complete; --out gets a manifest.json with the sha256 checksum of every
 file (the source's manifest with the new checksums and a `sensor` entry), `complete: false` until the last object
 is written (every reader refuses a dataset of a run stopped half-way). Every source object is checked (scene.json,
-radiance files) before the first is written. The same --data, --sensor and --seed
-give byte-identical files; --seed 0 gives the images that `wildgen.make --sensor NAME` writes.
+radiance files, checksums) before the first is written; one that fails (or whose radiance the sensor cannot take)
+is recorded as failed in --out's manifest with its reason, the rest goes on, and the command exits 1. The same
+--data, --sensor and --seed give byte-identical files; --seed 0 gives the images that `wildgen.make --sensor NAME` writes.
 """
 from __future__ import annotations
 
@@ -257,20 +258,14 @@ def apply_to_dataset(data: str | Path, out: str | Path, sensor: Sensor, seed: in
     source = _read_source_manifest(data)
     if source is not None:
         entries = [e for e in source["objects"] if isinstance(e, dict)]
-        done = [e for e in entries if e.get("status") == "done"]
-        for e in done:
-            problem = verify_object(data, e)
-            if problem is not None:
-                raise ValueError(f"--data: object {e.get('name', '?')!r} of {str(data)!r}: {problem} (the source "
-                                 "differs from its manifest)")
     else:
-        folders = list_object_folders(data)
         entries = [{"index": i, "name": object_name(f), "folder": f.name, "status": "done"}
-                   for i, f in enumerate(folders)]
-        done = entries
-    for e in done:  # every input before the first object is written
-        check_source_object(data / e["folder"])
-    _prepare_out(data, out, overwrite, [str(e["folder"]) for e in done])
+                   for i, f in enumerate(list_object_folders(data))]
+    done = [e for e in entries if e.get("status") == "done"]
+    bad = _check_sources(data, done, source is not None)  # every input before the first object is written
+    if len(bad) == len(done) and done:  # nothing to write: the first reason is the error
+        raise ValueError(next(iter(bad.values())))
+    _prepare_out(data, out, overwrite, [str(e["folder"]) for e in done if e.get("name") not in bad])
 
     manifest = copy.deepcopy(source) if source is not None else {"format_version": 1}
     manifest["objects"] = []
@@ -291,14 +286,46 @@ def apply_to_dataset(data: str | Path, out: str | Path, sensor: Sensor, seed: in
         for entry in entries:
             if entry.get("status") == "done":
                 if progress is not None:
-                    progress(sum(e.get("status") == "done" for e in written), len(done), entry.get("folder", "?"))
-                folder, files = apply_to_object(data / entry["folder"], out, sensor, seed)
-                entry = {**entry, "folder": folder, "files": files}
-                entry.pop("timings", None)  # the render's timings and Ray node are not this run's
-                entry.pop("node", None)
+                    progress(sum(e.get("status") in ("done", "failed") for e in written), len(done),
+                             entry.get("folder", "?"))
+                entry = _convert(data, out, entry, sensor, seed, bad.get(entry.get("name")))
             written.append(entry)
         write_manifest(written, True)
     return manifest
+
+
+def _check_sources(data: Path, done: list[dict], listed: bool) -> dict[str, str]:
+    """The source objects that cannot be converted, {name: reason}: a file that differs from the source's
+    manifest (`listed`), an unreadable scene.json or sensor record, a missing radiance file. One bad object is
+    recorded and the rest goes on."""
+    bad = {}
+    for e in done:
+        where = f"--data: object {e.get('name', '?')!r} of {str(data)!r}"
+        problem = verify_object(data, e) if listed else None
+        if problem is not None:
+            bad[e.get("name")] = f"{where}: {problem} (the source differs from its manifest)"
+            continue
+        try:
+            check_source_object(data / e["folder"])
+        except (OSError, ValueError) as exc:
+            bad[e.get("name")] = str(exc)
+    return bad
+
+
+def _convert(data: Path, out: Path, entry: dict, sensor: Sensor, seed: int, problem: str | None) -> dict:
+    """The --out manifest entry of one source object: converted (its new folder and checksums) or failed, with
+    the reason (`problem` found before, or a radiance file the sensor cannot take)."""
+    if problem is None:
+        try:
+            folder, files = apply_to_object(data / entry["folder"], out, sensor, seed)
+        except ValueError as exc:
+            problem = str(exc)
+    if problem is not None:
+        return {"index": entry.get("index"), "name": entry.get("name"), "status": "failed", "error": problem}
+    entry = {**entry, "folder": folder, "files": files}
+    entry.pop("timings", None)  # the render's timings and Ray node are not this run's
+    entry.pop("node", None)
+    return entry
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -319,6 +346,12 @@ def main(argv: list[str] | None = None) -> int:
     n = sum(e.get("status") == "done" for e in manifest["objects"])
     print(f"wrote {n} object folders with sensor {sensor.name!r} (seed {opts.seed}) to {opts.out} in "
           f"{time.perf_counter() - t0:.1f} s")
+    failed = [e for e in manifest["objects"] if e.get("status") == "failed"]
+    if failed:
+        print(f"error: {len(failed)} of {n + len(failed)} object(s) could not be converted (first, "
+              f"{failed[0].get('name')}: {failed[0].get('error')}); they are recorded as failed in "
+              f"{str(Path(opts.out) / MANIFEST)!r}", file=sys.stderr)
+        return 1
     return 0
 
 
