@@ -11,7 +11,8 @@ file (the source's manifest with the new checksums and a `sensor` entry), `compl
 is written (every reader refuses a dataset of a run stopped half-way). Every source object is checked (scene.json,
 radiance files, checksums) before the first is written; one that fails (or whose radiance the sensor cannot take)
 is recorded as failed in --out's manifest with its reason, the rest goes on, and the command exits 1.
-The same --data, --sensor and --seed give byte-identical files; --seed 0 gives the images that `wildgen.make --sensor NAME` writes.
+The same --data, --sensor and --seed give byte-identical files; --seed 0 gives the images that
+`wildgen.make --sensor NAME` writes.
 """
 from __future__ import annotations
 
