@@ -2076,14 +2076,23 @@ def _export_running(rel: str) -> Callable[[Path, Path], None]:
     return setup
 
 
-def _trained(rel: str, then: Callable[[Path], None]) -> Callable[[Path, Path], None]:
-    """Setup: T/<rel>, a real unips.train run of one step on the world's dataset, then `then(run folder)`."""
+def _trained(rel: str, then: Callable[[Path], None], *flags: str) -> Callable[[Path, Path], None]:
+    """Setup: T/<rel>, a real unips.train run (of one step unless `flags` say) on the world's dataset, then
+    `then(run folder)`."""
     def setup(w: Path, t: Path) -> None:
         from unips.train import main
 
-        assert main([*TRAIN_ONE, "--steps", "1", "--data", str(w / "data"), "--out", str(t / rel)]) == 0
+        assert main([*TRAIN_ONE, "--steps", "1", *flags, "--data", str(w / "data"), "--out", str(t / rel)]) == 0
         then(t / rel)
     return setup
+
+
+def _killed_at_the_first_checkpoint(run: Path) -> None:
+    """A run folder as a run killed right after its first last.pt leaves it (no final weights): its log holds the
+    first step's record, written before any checkpoint whatever --log-every."""
+    assert json.loads((run / "log.jsonl").read_text().splitlines()[0])["step"] == 1
+    for name in ("final.safetensors", "final.json"):
+        (run / name).unlink()
 
 
 TRAIN_ONE = ["--model", "glc-test", "--res", "16", "--no-progress", "--threads", "1"]
@@ -3959,6 +3968,15 @@ ROWS += [
         ("best.safetensors", "no validation", "never replaced"),
         setup=_trained("run", lambda run: (run / "best.safetensors").write_text("mine\n")),
         check=_kept("run/best.safetensors", "mine\n")),
+    # ---- sweep 11: a run killed at its first last.pt (--ckpt-every 1 before --log-every 5's first record)
+    Row("train-overwrite-a-run-killed-at-its-first-checkpoint", TR,
+        [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1", "--overwrite"], 0, ("wrote",),
+        setup=_trained("run", _killed_at_the_first_checkpoint, "--steps", "3", "--log-every", "5", "--ckpt-every",
+                       "1"), replaces=("run/last.pt", "run/log.jsonl")),
+    Row("train-again-into-a-run-killed-at-its-first-checkpoint", TR,
+        [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1"], 2, ("--out", "--resume"),
+        setup=_trained("run", _killed_at_the_first_checkpoint, "--steps", "3", "--log-every", "5", "--ckpt-every",
+                       "1")),
     # ---- sweep 11
     Row("capture-a-black-photo-among-lit-ones", CAP, CAPTURE_ALL, 0, ("IMG_0003", "all but black"),
         setup=_photos(damage=_black_jpeg)),

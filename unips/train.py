@@ -18,7 +18,8 @@ Determinism: every random choice of step `s` comes from generators seeded by `(s
 order by epoch from `(seed, epoch)`), and torch's global RNG (dropout, drop path) is reseeded from
 `(seed, s)` before the step. A run resumed from `last.pt` therefore continues bit for bit.
 
-Outputs in `--out RUN`: `log.jsonl` (training and validation records), `last.pt` (full training
+Outputs in `--out RUN`: `log.jsonl` (training records at step 1, every `--log-every` steps and at the end;
+validation records), `last.pt` (full training
 checkpoint, every `--ckpt-every` steps and at the end), `final.safetensors` (+ .json) at the end,
 `best.safetensors` (+ .json) with the lowest validation mean angular error when `--val` is given.
 """
@@ -232,7 +233,9 @@ def _loop(run: Run, started: float) -> tuple[int, bool]:
             done = step + 1
             shown.update(done, postfix={"loss": f"{parts['loss']:.4f}", "k": k})
             run.summary["last_loss"] = parts["loss"]
-            if run.dist.main and (done % cfg.log_every == 0 or done == cfg.steps):
+            # The first step's record too: the log marks the folder as a run's before any last.pt is saved (a run
+            # killed then is still known as this command's by --overwrite and --resume).
+            if run.dist.main and (done % cfg.log_every == 0 or done == cfg.steps or done == 1):
                 append_log(run.log_path, {"step": done, **parts, "k": k, "lr": run.optimizer.param_groups[0]["lr"],
                                           "elapsed_s": round(run.elapsed(), 3)})
             if run.val_samples and (done % cfg.val_every == 0 or done == cfg.steps):  # rank 0 alone: no collective
