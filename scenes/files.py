@@ -44,6 +44,19 @@ def not_a_file(path: str | os.PathLike) -> str:
     return "does not exist"
 
 
+def is_within(path: str | os.PathLike, folder: str | os.PathLike) -> bool:
+    """Whether `path` is `folder` or lies inside it, links followed (the one rule of 'inside' for untrusted links
+    and output folders)."""
+    real, root = os.path.realpath(path), os.path.realpath(folder)
+    return real == root or real.startswith(root.rstrip(os.sep) + os.sep)
+
+
+def links_out_of(path: str | os.PathLike, folder: str | os.PathLike) -> bool:
+    """Whether `path` is a link that leads outside `folder` (an untrusted dataset's link to any file of the
+    machine)."""
+    return os.path.islink(path) and not is_within(path, folder)
+
+
 def _temporary(path: Path) -> Path:
     """A hidden name beside `path` with the same extension (image writers choose the format by it); the stem is
     cut where the name would pass the file system's 255 bytes (the real name itself may be that long)."""

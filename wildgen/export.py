@@ -35,7 +35,7 @@ from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, check_fields, option
 from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import progress_bar
-from scenes.files import temporary_target, temporary_writer, writer_gone
+from scenes.files import links_out_of, temporary_target, temporary_writer, writer_gone
 from scenes.folder.shard_format import (
     ENCODINGS,
     FORMAT,
@@ -103,9 +103,8 @@ def _source_folders(data: Path) -> list[Path]:
     if not data.is_dir():
         raise FileNotFoundError(f"--data: {str(data)!r} is not a folder (expected a dataset of object folders)")
     folders = find_object_folders(data, "--data")
-    root = os.path.realpath(data) + os.sep
     for folder in folders:  # the dataset is untrusted: a linked folder would pack any folder of the machine
-        if folder.is_symlink() and not os.path.realpath(folder).startswith(root):
+        if links_out_of(folder, data):
             raise ValueError(f"--data: object folder {str(folder)!r} is a link to {os.readlink(folder)!r}, outside "
                              "the dataset; a shard holds the dataset's own folders only (copy it in, or remove the "
                              "link)")

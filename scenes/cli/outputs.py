@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Iterable
 
 from scenes.cli.errors import UsageError
+from scenes.files import is_within
 
 
 def _tell_supervisor(path: str | os.PathLike) -> None:
@@ -111,10 +112,6 @@ def busy_message(folder: str | os.PathLike, flag: str = "--out") -> str:
             f"folder): wait for it to end, or use another {flag}")
 
 
-def _inside(real: str, folder: str) -> bool:
-    return real == folder or real.startswith(folder.rstrip(os.sep) + os.sep)
-
-
 def check_apart(path: str | os.PathLike, inputs: Mapping[str, str | os.PathLike | None], flag: str = "--out") -> None:
     """Refuse an output folder that is one of the folders the run reads (`inputs`: flag -> path; None skipped),
     lies inside one, or leads into one through a link: a run never writes into its own input (a rerun would read
@@ -124,7 +121,7 @@ def check_apart(path: str | os.PathLike, inputs: Mapping[str, str | os.PathLike 
         if given is None:
             continue
         folder = os.path.realpath(given)
-        if not _inside(real, folder):
+        if not is_within(real, folder):
             continue
         where = ("is a link to" if os.path.islink(path) else "is") if real == folder else (
             "is a link into" if os.path.islink(path) else "lies inside")
@@ -198,7 +195,7 @@ def _check_held(path: Path, owner: str) -> None:
                                      f"{h.flag} is never followed: move it away or use another {h.flag}")
         real = os.path.realpath(target)
         for in_flag, given, folder in h.inputs:
-            if _inside(real, folder):
+            if is_within(real, folder):
                 raise UsageError(f"{h.flag}: {str(path)!r} lies inside {in_flag} {given!r}, where {owner} would write; "
                                  f"a command never writes into what it reads: use another {h.flag}")
 

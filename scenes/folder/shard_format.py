@@ -110,7 +110,9 @@ def sample_key(folder: Path, arg: str = "--data") -> str:
 def _inside(p: Path, folder: Path, arg: str) -> Path:
     """`p` when it is a file of `folder`'s own: a link that leads out of it is refused (the dataset is untrusted:
     a link would pack any file of the machine into the shard)."""
-    if p.is_symlink() and not os.path.realpath(p).startswith(os.path.realpath(folder) + os.sep):
+    from scenes.files import links_out_of
+
+    if links_out_of(p, folder):
         raise ValueError(f"{arg}: {str(p)!r} is a link to {os.readlink(p)!r}, outside its object folder; a sample "
                          "holds the object folder's own files only (copy the file in, or remove the link)")
     return p
