@@ -233,7 +233,7 @@ def main(argv: list[str] | None = None) -> int:
     status = 0
     known = {*summary["objects"], *summary["missing"], *summary["failed"]}
     unscored = sorted(p.name for p in Path(args.pred).iterdir() if p.is_dir() and p.name not in known
-                      and any((p / f).is_file() for f in PREDICTION_FILES))
+                      and prediction_file(p) is not None)  # what would be scored, were it an object of --gt
     if unscored:  # a prediction of an object --gt does not have: never dropped without a word
         print(f"warning: --pred: {len(unscored)} prediction(s) of no object of --gt, not scored: "
               f"{', '.join(unscored[:10])}{' ...' if len(unscored) > 10 else ''}", file=sys.stderr)
