@@ -104,8 +104,11 @@ def fault_schedule(i: int, obj) -> list[tuple[str, object]]:
 def render_suite(work: Path, assets: str | None, objects: int, seed: int, rows=SUITE, quiet: bool = True) -> list[Path]:
     """Render (or resume) each row of `rows` into work/<name>; returns the dataset folders."""
     from orchestrate.steps import toolkit_env
+    from scenes.cli.outputs import check_step_folder
     from scenes.cli.supervise import die_with_parent
 
+    for name, _ in rows:  # every row's folder, before the first render
+        check_step_folder(work / name, f"wildgen.make for suite row {name!r}")
     out, me = [], os.getpid()
     for i, (name, flags) in enumerate(rows):
         dest = work / name

@@ -4,7 +4,8 @@ subprocess, its arguments checked up front and its failure reported as one line.
 - `check_step(module, argv)`: before the first step runs, every step's command line is checked in this process
   by the step's own parser and option checks (`check_args` of the module where it has one: flags, memory
   estimate, files that already exist), so that a bad value is refused at once, naming the step's flag, and not
-  after the hours of the steps before it.
+  after the hours of the steps before it; and the folders it writes, where they lie in a folder this command
+  holds, are no links (`scenes.cli.outputs.check_step_folder`).
 - `run_step(cmd)`: runs one step, its standard output and error passed through as they come, except its own
   `error: ...` line, which is held back: a failed step raises `StepFailed`, whose message is that line with the
   step named, and the command reports it as its one error line (`scenes.cli.errors.report_error`), never a traceback.
@@ -42,10 +43,19 @@ STOP_GRACE_S = 5.0
 """Seconds a step stopped at its deadline has to finish its clean-up (SIGTERM) before SIGKILL."""
 
 
+STEP_OUTPUTS = ("--out", "--shards", "--work")
+"""The flags by which a step is told where to write."""
+
+
 def check_step(module: str, argv: list[str]) -> Any:
     """Check the command line `argv` of step `module` (`python -m module argv`) without running it: the module's
     `check_args(argv)` where it has one, else its command line (`COMMAND.parse`). Raises the step's own one-line
     error (UsageError / ValueError / FileNotFoundError) prefixed with the step's name."""
+    from scenes.cli.outputs import check_step_folder
+
+    for flag, value in zip(argv, argv[1:]):  # what the step writes, inside a folder this command holds
+        if flag in STEP_OUTPUTS:
+            check_step_folder(value, f"step {module} ({flag})")
     mod = importlib.import_module(module)
     try:
         if hasattr(mod, "check_args"):

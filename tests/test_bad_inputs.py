@@ -3968,6 +3968,15 @@ ROWS += [
         ("best.safetensors", "no validation", "never replaced"),
         setup=_trained("run", lambda run: (run / "best.safetensors").write_text("mine\n")),
         check=_kept("run/best.safetensors", "mine\n")),
+    # ---- sweep 12: a folder a step writes, inside the held folder, that is a link out of it
+    Row("gpu-session-run-folder-a-link-out-of-out", GS, ["--out", "{T}/o", "--work", "{T}/w", "--cpu-rehearsal"], 2,
+        ("--out", "o/run'", "is a link", "unips.train"), setup=_link("o/run", "victim"),
+        check=_not_written("victim/last.pt", "w/data")),
+    Row("gpu-session-work-data-a-link-out-of-work", GS, ["--out", "{T}/o", "--work", "{T}/w", "--cpu-rehearsal"], 2,
+        ("--work", "w/data'", "is a link", "wildgen.make"), setup=_link("w/data", "victim"),
+        check=_not_written("victim/manifest.json")),
+    Row("calibration-suite-row-a-link-out-of-work", EC, CALIBRATE, 2, ("--work", "work/level1'", "is a link"),
+        setup=_link("work/level1", "victim"), check=_not_written("victim/manifest.json")),
     # ---- sweep 11: a run killed at its first last.pt (--ckpt-every 1 before --log-every 5's first record)
     Row("train-overwrite-a-run-killed-at-its-first-checkpoint", TR,
         [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1", "--overwrite"], 0, ("wrote",),

@@ -148,3 +148,34 @@ def test_missing_mitsuba_is_one_line_naming_what_to_carry(tmp_path, monkeypatch,
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: Mitsuba is not importable here") and "--pack" in err[0]
     assert not (tmp_path / "o").exists()
+
+
+def test_asset_pack_carries_no_file_reached_through_a_link_out_of_the_asset_folder(tmp_path):
+    """The pack leaves the machine: a mesh (or texture) of --assets that is a link to a file elsewhere is refused by
+    name, and no archive is written; the same folder without the link packs."""
+    import cv2
+    import numpy as np
+    import trimesh
+
+    from orchestrate import relay
+
+    assets = tmp_path / "A"
+    (assets / "meshes").mkdir(parents=True)
+    (assets / "hdri").mkdir()
+    rng = np.random.default_rng(0)
+    for i in range(4):
+        trimesh.creation.icosphere(subdivisions=1).export(str(assets / "meshes" / f"m{i}.ply"))
+    for i in range(5):
+        cv2.imwrite(str(assets / "hdri" / f"h{i}.hdr"), (rng.random((8, 16, 3)) + 0.2).astype(np.float32))
+    meshes = relay.asset_choice(assets)[0]
+    linked = meshes[0][0]
+    (tmp_path / "secret.txt").write_text("not an asset\n")
+    saved = linked.read_bytes()
+    linked.unlink()
+    linked.symlink_to(tmp_path / "secret.txt")
+    with pytest.raises(relay.UsageError, match=rf"--assets: '{linked}' leads outside '{assets}' through a link"):
+        relay.pack_assets(assets, tmp_path / "pack", 10**7)
+    assert not (tmp_path / "pack" / relay.ASSET_ARCHIVE).exists()
+    linked.unlink()
+    linked.write_bytes(saved)
+    assert relay.pack_assets(assets, tmp_path / "pack", 10**7)["bytes"] > 0

@@ -224,6 +224,10 @@ def check_fields(cfg: Any) -> Any:
         origin = typing.get_origin(tp)
         if tp is int:
             check_int(value, name, **bounds)
+            if f.name == "threads" or f.name.endswith("_threads"):  # one rule for every thread count: what the
+                from scenes.cli.limits import check_threads  # machine can start (a huge count crashes torch)
+
+                check_threads(value, name)
         elif tp is float:
             check_number(value, name, **bounds, above=meta.get("above"), below=meta.get("below"))
         elif tp is bool and not isinstance(value, bool):

@@ -179,6 +179,13 @@ def output_lock(path: str | os.PathLike, flag: str = "--out",
                 break
 
 
+def check_step_folder(path: str | os.PathLike, owner: str) -> None:
+    """A folder that a step of this command (another toolkit command, run as a subprocess) will write: within the
+    output folders this process holds (`output_lock`), neither it nor a folder on the way to it may be a link (the
+    step would follow it out of the held folder), nor may it lie inside what the run reads."""
+    _check_held(Path(path) / "_", owner)
+
+
 def _check_held(path: Path, owner: str) -> None:
     """Within the output folders this process holds (`output_lock`): refuse a link on the way from the folder to
     `path` (it would lead the write out of the folder), and `path` inside what the run reads."""
