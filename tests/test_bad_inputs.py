@@ -3977,6 +3977,11 @@ ROWS += [
         check=_not_written("victim/manifest.json")),
     Row("calibration-suite-row-a-link-out-of-work", EC, CALIBRATE, 2, ("--work", "work/level1'", "is a link"),
         setup=_link("work/level1", "victim"), check=_not_written("victim/manifest.json")),
+    Row("make-shards-folder-another-run-holds", MK, ["--out", "{T}/o", *TINY, "--shards", "{T}/sh"], 2,
+        ("--shards", "another run holds"), setup=_running("sh"),
+        check=_released(_not_written("o/manifest.json", "sh/index.json"))),  # held from the start, not at the export
+    Row("make-out-inside-its-assets", MK, ["--out", "{T}/A/data", "--assets", "{T}/A", *TINY], 2,
+        ("--out", "lies inside --assets"), setup=lambda w, t: _mk(t / "A" / "meshes"), check=_not_written("A/data")),
     # ---- sweep 11: a run killed at its first last.pt (--ckpt-every 1 before --log-every 5's first record)
     Row("train-overwrite-a-run-killed-at-its-first-checkpoint", TR,
         [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1", "--overwrite"], 0, ("wrote",),

@@ -194,9 +194,10 @@ def replaces_export(out: str | Path, data: str | Path) -> bool:
 
 def export_dataset(data: str | Path, out: str | Path, shard_size: int = DEFAULT_SHARD_SIZE, aux: bool = False,
                    overwrite: bool = False, progress: Callable[[int, int, str], None] | None = None,
-                   flag: str = "--out", encoding: str = "files") -> dict[str, Any]:
+                   flag: str = "--out", encoding: str = "files", held: bool = False) -> dict[str, Any]:
     """Write the object folders of `data` as shards into `out` (see the module docstring); returns the index.
-    `flag`: the option that named `out`, in errors."""
+    `flag`: the option that named `out`, in errors. `held`: the caller holds `out` already (`output_lock`, as
+    wildgen.make --shards does from its start)."""
     data, out = Path(data), Path(out)
     if isinstance(shard_size, bool) or not isinstance(shard_size, int) or shard_size < 1:
         raise ValueError(f"--shard-size: got {shard_size!r}, expected an integer >= 1")
@@ -206,6 +207,8 @@ def export_dataset(data: str | Path, out: str | Path, shard_size: int = DEFAULT_
         for folder in folders:
             sample_files(folder, aux)
     check_target(data, out, overwrite, flag)
+    if held:
+        return _export_locked(data, out, folders, shard_size, aux, overwrite, progress, flag, encoding)
     with output_lock(out, flag, inputs={"--data": data}):  # one writer per folder, whatever the command
         return _export_locked(data, out, folders, shard_size, aux, overwrite, progress, flag, encoding)
 
@@ -238,12 +241,13 @@ def _export_locked(data: Path, out: Path, folders: list[Path], shard_size: int, 
 
 
 def export_after_make(data: str | Path, out: str | Path, encoding: str = "files", overwrite: bool = False) -> int:
-    """`wildgen.make --shards OUT [--shard-encoding E]`: export the finished dataset (default shard size). An earlier
-    export in OUT is replaced when it was made from this dataset (or with --overwrite: `overwrite`); the target was
-    checked before the render (`check_target`). Returns the exit status; errors are one line."""
+    """`wildgen.make --shards OUT [--shard-encoding E]`: export the finished dataset (default shard size) into OUT,
+    which the make holds from its start. An earlier export in OUT is replaced when it was made from this dataset
+    (or with --overwrite: `overwrite`); the target was checked before the render (`check_target`). Returns the exit
+    status; errors are one line."""
     try:
         replace = overwrite or replaces_export(out, data)
-        index = export_dataset(data, out, overwrite=replace, flag="--shards", encoding=encoding)
+        index = export_dataset(data, out, overwrite=replace, flag="--shards", encoding=encoding, held=True)
     except INPUT_ERRORS as exc:
         return report_error(exc)
     except OSError as exc:

@@ -152,6 +152,9 @@ def check_flags(opts: MakeOptions, explicit: set[str]) -> None:
             f"--res: sets both sides; it cannot be combined with {given} (use --res R or --width W --height H)"
         )
     check_output_folder(opts.out)
+    from scenes.cli.outputs import check_apart
+
+    check_apart(opts.out, {"--assets": opts.gen.assets})  # a dataset inside the assets is read as assets next time
     if opts.shards:  # the whole target, before the render: not found only when the dataset is done
         from wildgen.export import check_target, replaces_export
 
@@ -364,6 +367,21 @@ def _run(argv: list[str] | None, state: dict) -> int:
     except (UsageError, ValueError, OSError) as exc:
         return report_error(exc)
 
+    from contextlib import ExitStack
+
+    from scenes.cli.outputs import output_lock
+
+    with ExitStack() as held:
+        if args.shards:  # held from the start: the export at the end is this run's (one writer per folder)
+            try:
+                held.enter_context(output_lock(args.shards, "--shards", inputs={"--out": str(out)}))
+            except (UsageError, ValueError, OSError) as exc:
+                return report_error(exc)
+        return _render(args, cfg, variant, out)
+
+
+def _render(args: MakeOptions, cfg, variant: str, out: Path) -> int:
+    """Render the dataset (then its shards, with --shards); the exit status."""
     from wildgen.dataset import make_dataset
     from wildgen.parallel import WorkersCannotStart, choose_engine
     from wildgen.ray_engine import ClusterLost
