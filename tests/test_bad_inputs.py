@@ -173,6 +173,12 @@ def _bad_weights(w: Path, weights: Path, sidecar: dict) -> None:
         (w / "ck" / f"{tag}.json").write_text(json.dumps(sidecar))
     save_file({**good, name: (good[name] * 100).round().to(torch.int64)}, str(w / "ck" / "int64.safetensors"))
     (w / "ck" / "int64.json").write_text(json.dumps(sidecar))
+    raw = weights.read_bytes()  # W/ck/dup.safetensors: its header names one tensor twice (the same bytes)
+    size = int.from_bytes(raw[:8], "little")
+    entry = json.dumps({name: json.loads(raw[8:8 + size])[name]})[1:-1]
+    header = ("{" + entry + "," + raw[8:8 + size].decode()[1:]).encode()
+    (w / "ck" / "dup.safetensors").write_bytes(len(header).to_bytes(8, "little") + header + raw[8 + size:])
+    (w / "ck" / "dup.json").write_text(json.dumps(sidecar))
     last = _training_checkpoint(_mk(w / "run_int64"))
     ckpt = torch.load(last, weights_only=True)
     key = next(k for k, v in ckpt["model"].items() if v.is_floating_point() and v.ndim >= 2)
@@ -2951,6 +2957,9 @@ ROWS += [
     # ---- capture: --checkpoint / --model loaded before the photos are read (the third photo would be refused)
     Row("capture-checkpoint-missing-before-photos", CAP, [*CAPTURE, "--checkpoint", "{W}/ck/none.safetensors"], 2,
         ("--checkpoint", "none.safetensors"), setup=_bad_png_third, absent=("IMG_0003",)),
+    Row("predict-weights-a-tensor-named-twice", PR, ["--method", "model", "--checkpoint", "{W}/ck/dup.safetensors",
+                                                     "--input", OBJDIR, "--out", "{T}/p"], 2,
+        ("dup.safetensors", "names the tensor", "twice"), check=_not_written("p")),
     Row("capture-checkpoint-nan-before-photos", CAP, [*CAPTURE, "--checkpoint", "{W}/ck/nan.safetensors"], 2,
         ("--checkpoint", "nan.safetensors", "NaN"), setup=_bad_png_third, absent=("IMG_0003",)),
     Row("capture-model-not-shipped-before-photos", CAP, [*CAPTURE, "--model", "glc-unips"], 2, ("--model", "glc-unips"),

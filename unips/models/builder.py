@@ -28,7 +28,7 @@ from scenes.files import atomic_write, not_a_file, write_json
 
 from .official import is_official_path, read_official
 from .registry import build_model, official_entry, pretrained_weights
-from .tensors import check_weights, load_torch_file
+from .tensors import check_safetensors_header, check_weights, load_torch_file
 
 WEIGHTS_FORMAT = "unips-weights/1"
 TRAINING_FORMAT = "unips-training/1"
@@ -192,6 +192,7 @@ def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> tu
     from safetensors import safe_open
 
     model = _build(meta, str(side))
+    check_safetensors_header(path)
     try:
         with safe_open(str(path), "pt", device=str(map_location)) as f:  # tensors and their record, in one opening
             state = {k: f.get_tensor(k) for k in f.keys()}

@@ -60,3 +60,33 @@ def load_torch_file(path: Any, what: str, map_location: Any = "cpu") -> Any:
         lines = str(exc).strip().splitlines()
         why = f"{type(exc).__name__}: {lines[0][:160]}" if lines else type(exc).__name__
         raise ValueError(f"{str(path)!r}: not a readable {what}, the file is corrupt or truncated ({why})") from exc
+
+
+MAX_HEADER_BYTES = 100 * 2**20
+"""The longest .safetensors header read (the format's own reader allows 100 MB)."""
+
+
+def check_safetensors_header(path: Any) -> None:
+    """The JSON header of a .safetensors file names each tensor once: a header naming one twice is ambiguous (the
+    format's reader keeps one of them without a word, so two readers may load different weights from one file); a
+    ValueError naming the file and the tensor. Other damage is left to the format's reader, which names it."""
+    import json
+    import struct
+
+    def unique(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+        seen: set[str] = set()
+        for key, _ in pairs:
+            if key in seen:
+                raise ValueError(f"{str(path)!r}: its header names the tensor {key!r} twice; expected each tensor "
+                                 "once (a damaged or crafted weights file)")
+            seen.add(key)
+        return dict(pairs)
+
+    with open(path, "rb") as f:
+        head = f.read(8)
+        size = struct.unpack("<Q", head)[0] if len(head) == 8 else 0
+        text = f.read(size) if 0 < size <= MAX_HEADER_BYTES else b""
+    try:
+        json.loads(text.decode("utf-8"), object_pairs_hook=unique)
+    except (UnicodeDecodeError, json.JSONDecodeError):  # not a header at all: the format's reader says so
+        pass
