@@ -116,3 +116,18 @@ def split_assets(assets: Path, work: Path) -> tuple[Path, Path]:
     for link, target in plan.items():
         os.symlink(target, link)
     return work / SPLIT_FOLDERS[0], work / SPLIT_FOLDERS[1]
+
+
+def check_own_files(assets: Path, files: list[Path]) -> None:
+    """Refuse a file reached through a link that leads out of the asset folder: the pack leaves the machine, so it
+    carries the folder's own files only (a link could pack any file this user may read)."""
+    import os
+
+    from scenes.cli.errors import UsageError
+    from scenes.files import is_within
+
+    out = next((p for p in files if not is_within(p, assets)), None)
+    if out is not None:
+        raise UsageError(f"--assets: {str(out)!r} leads outside {str(assets)!r} through a link (to "
+                         f"{os.path.realpath(out)!r}); the pack carries the asset folder's own files only: copy the "
+                         "file in, or remove the link")

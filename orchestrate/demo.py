@@ -17,7 +17,6 @@ has written (previews, predictions), an earlier demo's output is replaced only w
 """
 from __future__ import annotations
 
-import json
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,7 +26,7 @@ from orchestrate.steps import StepFailed, check_step, run_step
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import Command, arg, check_fields, option
 from scenes.cli.outputs import check_output_folder, claim_outputs
-from scenes.files import atomic_write_text
+from scenes.files import atomic_write_text, read_json
 from scenes.report.tables import markdown_table
 
 FAMILIES = "near_area,hdri,mixed,directional"
@@ -35,7 +34,7 @@ FAMILIES = "near_area,hdri,mixed,directional"
 
 def _reports(folder: Path) -> dict[str, dict]:
     """validate.rerender's reports by object name (the folder name minus .data, as unips.evaluate keys them)."""
-    reports = (json.loads(p.read_text()) for p in sorted(folder.glob("*/report.json")))
+    reports = (read_json(p) for p in sorted(folder.glob("*/report.json")))
     return {rep["object"]: rep for rep in reports}
 
 
@@ -49,7 +48,7 @@ def _rel_cell(report: dict) -> str:
 
 def summary_table(out: Path, methods: list[str]) -> str:
     """Per-object markdown table: MAE and re-render residual of each method, plus the GT-normals floor."""
-    metrics = {m: json.loads((out / "pred" / m / "metrics.json").read_text()) for m in methods}
+    metrics = {m: read_json(out / "pred" / m / "metrics.json") for m in methods}
     reports = {m: _reports(out / "rerender" / m) for m in methods}
     names = sorted({n for m in methods for n in metrics[m]["objects"]})
     head = (

@@ -31,6 +31,7 @@ import numpy as np
 
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
+from scenes.files import read_json
 
 REPO = Path(__file__).resolve().parents[1]
 FAMILIES = "directional,point,near_area,hdri,mixed"
@@ -333,11 +334,10 @@ def run(opts: CalibrationOptions) -> int:
 
 def record_in_card(card_path: Path, dest: Path, em) -> None:
     """The model card's `expected_error`: which file, fitted on what, by which command, its interval's ratios."""
-    import json
 
     from scenes.files import write_json
 
-    card = json.loads(card_path.read_text())
+    card = read_json(card_path)
     card["expected_error"] = {
         "file": dest.name, "weights_sha256": em.weights_sha256, "command": em.calibration.get("command"),
         "objects": em.calibration.get("objects"), "assets": em.calibration.get("assets"),

@@ -435,10 +435,7 @@ def _write_card(opts: SessionOptions, out: Path, run: Path, records: list[dict],
         f"{opts.spp} spp, {variant}, assets: {_assets_note(opts, assets)}",
         "init_from": opts.init,
         "init_weights": init and Path(init).name,
-        "steps": step,
-        "schedule_steps": opts.steps,
-        "batch": opts.batch,
-        "lr": opts.lr,
+        "steps": step, "schedule_steps": opts.steps, "batch": opts.batch, "lr": opts.lr,
         "precision": "bf16 autocast" if device == "cuda" else "fp32",
         "final_loss": records[-1]["loss"] if records else None,
         "train_minutes": round(t_train / 60, 2),
@@ -461,11 +458,12 @@ def _write_card(opts: SessionOptions, out: Path, run: Path, records: list[dict],
 def _assets_note(opts: SessionOptions, assets: str | None) -> str:
     """What the card says of the assets: the pack's manifest (its rule and counts) when they came from --carry."""
     manifest = Path(opts.carry or "-") / "manifest.json"
-    if assets and opts.carry and manifest.is_file():
-        a = json.loads(manifest.read_text()).get("assets", {})
-        return (f"packed training split, {len(a.get('meshes', []))} meshes, {len(a.get('hdri', []))} HDR maps, "
-                f"{len(a.get('texture_sets', []))} texture sets ({a.get('rule', '')})")
-    return assets or "none (procedural shapes and lights only)"
+    try:  # a manifest that is not a pack's (a list, assets not a mapping) says nothing of them
+        a = json.loads(manifest.read_text())["assets"] if assets and opts.carry else {}
+        return (f"packed training split, {len(a['meshes'])} meshes, {len(a['hdri'])} HDR maps, "
+                f"{len(a['texture_sets'])} texture sets ({a['rule']})")
+    except (OSError, ValueError, TypeError, KeyError):
+        return assets or "none (procedural shapes and lights only)"
 
 
 PACK_FLAGS = ("pack", "wheels", "assets", "overwrite")

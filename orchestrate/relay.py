@@ -169,18 +169,6 @@ def _small_hdr(src: Path) -> bytes:
     return buf.tobytes()
 
 
-def _check_own_files(assets: Path, files: list[Path]) -> None:
-    """Refuse a file reached through a link that leads out of the asset folder: the pack leaves the machine, so it
-    carries the folder's own files only (a link could pack any file this user may read)."""
-    from scenes.files import is_within
-
-    out = next((p for p in files if not is_within(p, assets)), None)
-    if out is not None:
-        raise UsageError(f"--assets: {str(out)!r} leads outside {str(assets)!r} through a link (to "
-                         f"{os.path.realpath(out)!r}); the pack carries the asset folder's own files only: copy the "
-                         "file in, or remove the link")
-
-
 def pack_assets(assets: Path, dest: Path, budget: int) -> dict:
     """Write dest/assets.tar.xz (`ASSET_RULE`, within `budget` bytes) and return its manifest entry."""
     if not assets.is_dir():
@@ -190,7 +178,9 @@ def pack_assets(assets: Path, dest: Path, budget: int) -> dict:
     if not meshes and not hdris:
         raise UsageError(f"--assets: {str(assets)!r} has too few meshes and HDR maps to split into training and "
                          "held-out assets (expected meshes/ and hdri/ as in ../shared/assets)")
-    _check_own_files(assets, [p for p, _ in meshes] + [p for p, _ in hdris] + [p for f in sets for p, _ in f])
+    from orchestrate.asset_split import check_own_files
+
+    check_own_files(assets, [p for p, _ in meshes] + [p for p, _ in hdris] + [p for f in sets for p, _ in f])
     members: list[tuple[str, bytes]] = [(a, p.read_bytes()) for p, a in meshes]
     members += [(a, _small_hdr(p)) for p, a in hdris]
     used = sum(len(lzma.compress(b, preset=6)) for _, b in members)

@@ -30,6 +30,7 @@ from typing import Annotated
 
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
+from scenes.files import read_json
 
 REPO = Path(__file__).resolve().parents[1]
 DILIGENT = REPO.parent / "shared" / "data" / "diligent"
@@ -142,7 +143,7 @@ def _read(path: Path) -> dict:
     if why := not_a_file(path):
         raise UsageError(f"--candidate: {str(path)!r} {why}")
     try:
-        record = json.loads(path.read_text())
+        record = read_json(path)
     except RecursionError:
         raise UsageError(f"--candidate: {str(path)!r} is nested too deeply to be a session's record") from None
     except (OSError, ValueError) as exc:
@@ -223,7 +224,7 @@ def decide(opts: ShipOptions) -> bool:
         print(f"fixed validation, all images: candidate {name} {new['mean']:.2f} deg, shipped "
               + (f"{old['mean']:.2f} deg" if old else "none yet")
               + (" -> shipped" if shipped else " -> not shipped (not lower)"), flush=True)
-        card = json.loads(entry.card_path.read_text()) if entry.card_path.is_file() else {}
+        card = read_json(entry.card_path) if entry.card_path.is_file() else {}
         record = lineage_entry(folder, new, old, shipped)
         card["lineage"] = [*card.get("lineage", []), record]
         if shipped:

@@ -20,6 +20,7 @@ from typing import Annotated
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, check_fields, comma_list, option
 from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
+from scenes.files import read_json
 
 BYTES_PER_PIXEL = 1300
 """Peak memory of the integrator per mask pixel (measured: about 1.0-1.2 kB from 0.1 to 1.6 million pixels,
@@ -101,12 +102,11 @@ def load_inputs(args: SurfaceOptions):
 
 def _check_meshes_were_ours(out: Path, formats: tuple[str, ...]) -> None:
     """A mesh file the earlier run's report does not list (its `meshes`) is a user's, even beside that report."""
-    import json
 
     from scenes.surface.write import SURFACE_MESH
 
     try:
-        listed = json.loads((out / "report.json").read_text()).get("meshes", [])
+        listed = read_json(out / "report.json").get("meshes", [])
     except (OSError, ValueError, AttributeError):
         return  # no earlier report: claim_outputs' rule already decided
     for fmt in formats:

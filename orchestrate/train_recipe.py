@@ -32,7 +32,6 @@ first step runs, and a failed step is reported as one line (`orchestrate.steps`)
 """
 from __future__ import annotations
 
-import json
 import os
 import platform
 import shutil
@@ -48,7 +47,7 @@ from scenes.cli.budget import END_SHARE, Budget
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, comma_list, option
 from scenes.cli.outputs import check_output_folder
-from scenes.files import atomic_write, atomic_write_text, write_json
+from scenes.files import atomic_write, atomic_write_text, read_json, write_json
 from wildgen.light_families import PS_WILD_FAMILIES
 
 REPO = Path(__file__).resolve().parents[1]
@@ -103,7 +102,7 @@ def trained_steps(run: Path) -> int | None:
     """The step a run's final.safetensors was written at (its final.json), None without one: a run stopped by
     its time limit writes it too, at the step reached."""
     try:
-        step = json.loads((run / "final.json").read_text())["extra"]["step"]
+        step = read_json(run / "final.json")["extra"]["step"]
     except (OSError, ValueError, KeyError, TypeError):
         return None
     return step if isinstance(step, int) else None

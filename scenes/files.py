@@ -57,6 +57,32 @@ def links_out_of(path: str | os.PathLike, folder: str | os.PathLike) -> bool:
     return os.path.islink(path) and not is_within(path, folder)
 
 
+def read_text_file(path: str | os.PathLike) -> str:
+    """The text of a regular file (UTF-8). A pipe, a device or a socket under the name is refused without being
+    waited on (opened non-blocking, checked before any read), an OSError saying what it is: a record read from
+    an untrusted folder never hangs a command. Missing files and decoding errors raise as `open` does."""
+    import stat
+
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise OSError(f"{str(path)!r} is not a regular file (a device, a pipe or a socket); expected a file")
+        os.set_blocking(fd, True)
+        with os.fdopen(fd, "rb", closefd=False) as f:
+            data = f.read()
+    finally:
+        os.close(fd)
+    return data.decode("utf-8")
+
+
+def read_json(path: str | os.PathLike):
+    """A JSON file read as `read_text_file` reads (never waiting on a pipe): the errors of `read_text_file` and of
+    `json.loads`."""
+    import json
+
+    return json.loads(read_text_file(path))
+
+
 def _temporary(path: Path) -> Path:
     """A hidden name beside `path` with the same extension (image writers choose the format by it); the stem is
     cut where the name would pass the file system's 255 bytes (the real name itself may be that long)."""

@@ -391,6 +391,12 @@ def _sensor_failed(name: str) -> Callable[[Path, Path], None]:
     return check
 
 
+def _pipe(path: Path) -> None:
+    """`path` replaced by a named pipe that nobody writes (a reader that opens it waits forever)."""
+    path.unlink()
+    os.mkfifo(path)
+
+
 def _kept(rel: str, text: str) -> Callable[[Path, Path], None]:
     def check(w: Path, t: Path) -> None:
         assert (t / rel).read_text() == text, rel
@@ -2610,6 +2616,7 @@ def _snapshot(root: Path) -> dict[str, str]:
         for f in filenames:
             p = Path(dirpath, f)
             out[str(p.relative_to(root))] = (f"link to {os.readlink(p)}" if p.is_symlink() and not p.is_file() else
+                                             "not a file" if not p.is_file() else  # a pipe: never opened
                                              hashlib.sha256(p.read_bytes()).hexdigest())  # (never a device read)
     return out
 
@@ -3991,6 +3998,16 @@ ROWS += [
         check=_released(_not_written("o/manifest.json", "sh/index.json"))),  # held from the start, not at the export
     Row("make-out-inside-its-assets", MK, ["--out", "{T}/A/data", "--assets", "{T}/A", *TINY], 2,
         ("--out", "lies inside --assets"), setup=lambda w, t: _mk(t / "A" / "meshes"), check=_not_written("A/data")),
+    # ---- a named pipe where a file is read: refused by name or passed over, never waited on
+    Row("evaluate-ground-truth-normals-a-pipe", EV, ["--pred", "{T}/p", "--gt", "{T}/ds"], 1,
+        ("failed 00000", "normal.tif", "not a regular file"),
+        setup=_both(_copy("pred", "p"), _dataset_edited(files=lambda ds: _pipe(ds / f"{OBJ}.data" / "normal.tif"))),
+        check=_written("p/00001/error_map.png")),
+    Row("predict-dataset-manifest-a-pipe", PR, ["--method", "least-squares", "--input", "{T}/ds", "--out", "{T}/p"], 0,
+        ("wrote 3 prediction(s)",), setup=_dataset_edited(files=lambda ds: _pipe(ds / "manifest.json"))),
+    Row("predict-scene-json-a-pipe", PR, ["--method", "least-squares", "--input", "{T}/ds", "--out", "{T}/p"], 1,
+        ("00000", "scene.json", "not a regular file"),
+        setup=_dataset_edited(files=lambda ds: _pipe(ds / f"{OBJ}.data" / "scene.json"))),
     # ---- sweep 11: a run killed at its first last.pt (--ckpt-every 1 before --log-every 5's first record)
     Row("train-overwrite-a-run-killed-at-its-first-checkpoint", TR,
         [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1", "--overwrite"], 0, ("wrote",),

@@ -179,3 +179,18 @@ def test_asset_pack_carries_no_file_reached_through_a_link_out_of_the_asset_fold
     linked.unlink()
     linked.write_bytes(saved)
     assert relay.pack_assets(assets, tmp_path / "pack", 10**7)["bytes"] > 0
+
+
+@pytest.mark.parametrize("manifest", ["[1, 2]", '{"assets": [1]}', '{"assets": {"meshes": 3}}', "{"])
+def test_a_carry_manifest_that_is_not_a_packs_says_nothing_of_the_assets(tmp_path, manifest):
+    """The model card's note on the assets reads the carry's manifest.json at the end of a session: one that is not a
+    pack's (a list, assets not a mapping, counts not lists, not JSON) gives the plain asset path, not a traceback
+    after the training."""
+    from types import SimpleNamespace
+
+    (tmp_path / "manifest.json").write_text(manifest)
+    assert gpu_session._assets_note(SimpleNamespace(carry=str(tmp_path)), "/a") == "/a"
+    (tmp_path / "manifest.json").write_text(json.dumps(
+        {"assets": {"meshes": ["m"], "hdri": ["h", "i"], "texture_sets": [], "rule": "r"}}))
+    assert gpu_session._assets_note(SimpleNamespace(carry=str(tmp_path)), "/a") == \
+        "packed training split, 1 meshes, 2 HDR maps, 0 texture sets (r)"

@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from scenes.files import not_a_file
+from scenes.files import not_a_file, read_json
 from scenes.folder.format import EXPECTED_ERROR_FILES
 from scenes.metrics import angles_deg
 
@@ -220,7 +220,7 @@ class ErrorModel:
 def _read_json(path: Path) -> Any:
     """The JSON value of an error model's file; ValueError naming it where it is not JSON."""
     try:
-        return json.loads(Path(path).read_text())
+        return read_json(Path(path))
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ValueError(f"error model {str(path)!r}: not valid JSON ({exc})") from None
     except RecursionError:  # nested deeper than the parser's stack

@@ -22,6 +22,7 @@ from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import progress_bar
 from scenes.cli.supervise import run_supervised
+from scenes.files import read_json
 from scenes.folder.format import EXPECTED_ERROR_FILES
 from validate.fitted.refinement import REFINE_OUTPUTS, RefineConfig, refine_object
 
@@ -67,13 +68,12 @@ COMMAND = Command(
 def input_error(normals: str, name: str) -> tuple[Path, dict] | None:
     """(the prediction folder, its predict.json `expected_error_deg`) when --normals is a prediction of unips.predict
     that states one, else None."""
-    import json
 
     from scenes.folder.format import PREDICTION_INFO, find_prediction
 
     try:
         folder = find_prediction(normals, name).parent
-        info = json.loads((folder / PREDICTION_INFO).read_text())
+        info = read_json(folder / PREDICTION_INFO)
     except (OSError, ValueError, AttributeError):
         return None
     stated = info.get("expected_error_deg")

@@ -13,7 +13,6 @@ Temporary folders of interrupted objects are removed.
 """
 from __future__ import annotations
 
-import json
 import logging
 import os
 import platform
@@ -26,7 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterator
 
-from scenes.files import write_json
+from scenes.files import read_json, write_json
 from wildgen.config import GenConfig
 from wildgen.parallel import Engine, InProcessEngine
 from wildgen.writer import TMP_PREFIX, index_name, sha256_file
@@ -85,7 +84,7 @@ def load_manifest(out_dir: str | Path) -> dict | None:
     if not path.is_file():
         return None
     try:
-        manifest = json.loads(path.read_text())
+        manifest = read_json(path)
         if not isinstance(manifest.get("config"), dict) or not isinstance(manifest.get("objects"), list):
             raise ValueError("no 'config' or 'objects'")
     except (ValueError, OSError) as exc:
@@ -325,7 +324,7 @@ def check_no_foreign_file(out_dir: Path, flag: str) -> None:
 def _listed(out: Path) -> dict[str, dict]:
     """The object folders `out`'s manifest.json lists, by name, with their entries ({} without a readable one)."""
     try:
-        entries = json.loads((out / MANIFEST).read_text()).get("objects", [])
+        entries = read_json(out / MANIFEST).get("objects", [])
     except (OSError, ValueError, AttributeError):
         return {}
     return {str(e["folder"]): e for e in (entries if isinstance(entries, list) else [])

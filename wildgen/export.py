@@ -22,7 +22,6 @@ replaced only with --overwrite; an index.json that wildgen.export did not write,
 """
 from __future__ import annotations
 
-import json
 import os
 import re
 import sys
@@ -35,7 +34,7 @@ from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, check_fields, option
 from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import progress_bar
-from scenes.files import links_out_of, temporary_target, temporary_writer, writer_gone
+from scenes.files import links_out_of, read_json, temporary_target, temporary_writer, writer_gone
 from scenes.folder.shard_format import (
     ENCODINGS,
     FORMAT,
@@ -110,7 +109,7 @@ def _source_folders(data: Path) -> list[Path]:
                              "link)")
     if (data / MANIFEST).is_file():
         try:
-            manifest = json.loads((data / MANIFEST).read_text())
+            manifest = read_json(data / MANIFEST)
             if not isinstance(manifest, dict) or not isinstance(manifest.get("objects"), list):
                 raise ValueError("no 'objects' list")
             entries = [e for e in manifest["objects"] if isinstance(e, dict) and e.get("status") == "done"]
@@ -140,7 +139,7 @@ def _earlier_export(index_path: Path) -> dict[str, Any] | None:
     """The index.json of an earlier wildgen.export (a JSON object of format 'webdataset' with a list of shards),
     or None when the file is something else: a user's own index.json is never taken for an export."""
     try:
-        index = json.loads(index_path.read_text())
+        index = read_json(index_path)
     except (OSError, UnicodeDecodeError, ValueError):
         return None
     ok = isinstance(index, dict) and index.get("format") == FORMAT and isinstance(index.get("shards"), list)

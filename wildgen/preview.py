@@ -26,6 +26,7 @@ import numpy as np
 from scenes.cli.errors import UsageError
 from scenes.cli.options import Command, Positional, arg
 from scenes.cli.outputs import check_output_folder, make_output_folder
+from scenes.files import read_json
 
 TILE = 128
 """Pixels of one tile of a contact sheet."""
@@ -167,10 +168,9 @@ def preview(dataset: str | Path, out: str | Path | None = None,
 
 def _listed_sheets(record: Path) -> set[str]:
     """The sheet names an earlier preview listed in `record` (none when there is no readable record)."""
-    import json
 
     try:
-        sheets = json.loads(record.read_text()).get("sheets", [])
+        sheets = read_json(record).get("sheets", [])
     except (OSError, ValueError, AttributeError):
         return set()
     return {s for s in sheets if isinstance(s, str)} if isinstance(sheets, list) else set()

@@ -17,7 +17,6 @@ The same --data, --sensor and --seed give byte-identical files; --seed 0 gives t
 from __future__ import annotations
 
 import copy
-import json
 import os
 import shutil
 import sys
@@ -43,7 +42,7 @@ from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, check_fields, option
 from scenes.cli.outputs import check_not_being_written, check_output_folder
 from scenes.cli.progress import progress_bar
-from scenes.files import write_json
+from scenes.files import read_json, write_json
 from scenes.folder.format import (
     AUX_DIR,
     SCENE_FILE,
@@ -185,7 +184,7 @@ def _read_source_manifest(data: Path) -> dict | None:
     if not path.is_file():
         return None
     try:
-        manifest = json.loads(path.read_text())
+        manifest = read_json(path)
         if not isinstance(manifest, dict) or not isinstance(manifest.get("objects"), list):
             raise ValueError("no 'objects' list")
     except (OSError, ValueError) as exc:
@@ -227,7 +226,7 @@ def _prepare_out(data: Path, out: Path, overwrite: bool, names: list[str]) -> No
 def _is_sensor_manifest(path: Path) -> bool:
     """Whether `path` is a manifest this command wrote (its objects and its sensor record)."""
     try:
-        d = json.loads(path.read_text())
+        d = read_json(path)
     except (OSError, ValueError):
         return False
     return isinstance(d, dict) and isinstance(d.get("objects"), list) and isinstance(d.get("sensor"), dict)
@@ -237,7 +236,7 @@ def _remove_dataset(out: Path) -> None:
     """--overwrite: the manifest, the object folders it lists and temporary folders of an interrupted run (a
     folder the manifest does not list is the user's, even with a scene.json in it)."""
     try:
-        listed = {e.get("folder") for e in json.loads((out / MANIFEST).read_text()).get("objects", [])
+        listed = {e.get("folder") for e in read_json(out / MANIFEST).get("objects", [])
                   if isinstance(e, dict)}
     except (OSError, ValueError, AttributeError):
         listed = set()

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Iterable
 
 from scenes.cli.errors import UsageError
-from scenes.files import is_within
+from scenes.files import is_within, read_json
 
 
 def _tell_supervisor(path: str | os.PathLike) -> None:
@@ -209,10 +209,9 @@ def _check_held(path: Path, owner: str) -> None:
 
 def holds_keys(path: Path, keys: tuple[str, ...]) -> bool:
     """Whether `path` is a JSON object holding every key of `keys`."""
-    import json
 
     try:
-        data = json.loads(path.read_text())
+        data = read_json(path)
     except (OSError, ValueError, RecursionError):  # unreadable, not JSON, nested past the parser: not a report
         return False
     return isinstance(data, dict) and all(k in data for k in keys)

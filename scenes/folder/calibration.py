@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from scenes.files import not_a_file
+from scenes.files import not_a_file, read_text_file
 from scenes.folder.format import DILIGENT_INTENSITIES, DILIGENT_LIGHTS, SCENE_FILE, read_scene_dict
 
 
@@ -36,7 +36,7 @@ def read_text_matrix(path: Path, rows: int, what: str) -> np.ndarray:
     if why := not_a_file(path):
         raise FileNotFoundError(f"{what} file {path} {why}")
     try:
-        text = path.read_text().replace(",", " ")
+        text = read_text_file(path).replace(",", " ")
         values = np.array(
             [[float(v) for v in line.split()] for line in text.splitlines() if line.strip()], dtype=np.float64
         )

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from scenes.files import atomic_write_text, json_text, write_json
+from scenes.files import atomic_write_text, json_text, read_json, write_json
 from scenes.images import write_mask, write_normal_map, write_png16
 
 OBJECT_SUFFIX = ".data"
@@ -115,7 +115,7 @@ def check_dataset_complete(dataset: str | Path, arg: str = "--data") -> None:
     stopped before its end (`complete: false`); a folder without such a record is taken as it is."""
     path = Path(dataset) / DATASET_MANIFEST
     try:
-        complete = json.loads(path.read_text()).get("complete", True)
+        complete = read_json(path).get("complete", True)
     except (OSError, ValueError, AttributeError):
         return
     if complete is False:
@@ -159,7 +159,7 @@ def read_scene_dict(folder_or_file: str | Path) -> dict[str, Any]:
     if not scene_file_present(path):
         raise FileNotFoundError(f"scene.json: {str(path)!r} does not exist (is this an object folder?)")
     try:
-        d = json.loads(path.read_text())
+        d = read_json(path)
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ValueError(f"scene file {path}: cannot be parsed as JSON ({exc})") from exc
     except RecursionError:  # nested deeper than the parser's stack: not a scene description
@@ -280,7 +280,7 @@ def prediction_label(source: str | Path) -> str:
     path = Path(source)
     info = path.parent / PREDICTION_INFO
     try:
-        d = json.loads(info.read_text())
+        d = read_json(info)
         method = str(d["method"])
         model = d.get("model_name")
         return f"{method} {model}" if method == "model" and model else method

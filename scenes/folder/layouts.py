@@ -436,7 +436,7 @@ def read_folder(path: str | Path, max_images: int | None = None, layout: str | N
         _check_informative(stack, saturated, mask, folder, arg)
     normals = normals_file = None
     for name in entry.ground_truth:
-        if (folder / name).is_file():
+        if os.path.lexists(folder / name) and not (folder / name).is_dir():  # a pipe or a device too: refused by name
             normals_file = folder / name
             normals = finish_normals(read_normals(normals_file, arg), mask, normals_file)
             break

@@ -47,7 +47,7 @@ import re
 from pathlib import Path
 from typing import Any, BinaryIO, Iterator
 
-from scenes.files import json_text, not_a_file, sha256_file, write_json
+from scenes.files import json_text, not_a_file, read_json, sha256_file, write_json
 from scenes.folder.format import AUX_DIR, OBJECT_SUFFIX, object_name
 
 INDEX_FILE = "index.json"
@@ -367,7 +367,7 @@ def read_index(folder: str | Path, arg: str = "--data") -> dict[str, Any]:
         raise FileNotFoundError(f"{arg}: {str(path)!r} {why} (shards need the index that wildgen.export writes "
                                 "beside them, with their checksums)")
     try:
-        index = json.loads(path.read_text())
+        index = read_json(path)
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ValueError(f"{arg}: {str(path)!r} cannot be read as JSON ({exc})") from None
     except RecursionError:  # nested deeper than the parser's stack: not an index

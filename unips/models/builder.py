@@ -24,7 +24,7 @@ from typing import Any, Mapping
 import torch
 from torch import nn
 
-from scenes.files import atomic_write, not_a_file, write_json
+from scenes.files import atomic_write, not_a_file, read_json, write_json
 
 from .official import is_official_path, read_official
 from .registry import build_model, official_entry, pretrained_weights
@@ -183,7 +183,7 @@ def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> tu
     if why := not_a_file(side):
         raise FileNotFoundError(f"model sidecar {str(side)!r} {why} (needed next to {str(path)!r})")
     try:
-        meta = json.loads(side.read_text())
+        meta = read_json(side)
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ValueError(f"{str(side)!r}: not valid JSON ({exc})") from exc
     if isinstance(meta, Mapping) and "format" in meta and meta["format"] != WEIGHTS_FORMAT:

@@ -10,12 +10,13 @@ the shipped weights (`pretrained=True`) or from a weights file (`checkpoint_path
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
 from torch import nn
+
+from scenes.files import read_json
 
 from .contract import UNIPS_INPUTS, InputContract
 from .official import OfficialWeights
@@ -148,7 +149,7 @@ def read_model_card(path: Path) -> dict[str, Any]:
     if not path.is_file():
         return {}
     try:
-        card = json.loads(path.read_text())
+        card = read_json(path)
     except (OSError, UnicodeDecodeError, ValueError) as exc:
         raise ValueError(f"model card {str(path)!r} is not readable JSON ({exc}; truncated?); expected the card as "
                          "written (restore it, e.g. git checkout)") from None
