@@ -255,6 +255,17 @@ def _put(*files: tuple[str, str]) -> Callable[[Path, Path], None]:
     return setup
 
 
+def _earlier_stated_prediction(w: Path, t: Path) -> None:
+    """Setup: T/p/00000 as a prediction with a stated expected error left it (its predict.json says so, and the
+    error files beside it)."""
+    _earlier_prediction(w, t)
+    info = json.loads((t / "p" / OBJ / "predict.json").read_text())
+    info["expected_error_deg"] = {"mean": 9.0}
+    (t / "p" / OBJ / "predict.json").write_text(json.dumps(info))
+    np.save(t / "p" / OBJ / "expected_error_deg.npy", np.full((32, 32), 9.0, np.float32))
+    (t / "p" / OBJ / "expected_error.png").write_bytes(b"an earlier run's picture")
+
+
 def _earlier_prediction(w: Path, t: Path) -> None:
     """Setup: T/p/00000 as unips.predict left it (predict.json beside the maps)."""
     _mk(t / "p" / OBJ).joinpath("predict.json").write_text(
@@ -3998,6 +4009,14 @@ ROWS += [
         check=_released(_not_written("o/manifest.json", "sh/index.json"))),  # held from the start, not at the export
     Row("make-out-inside-its-assets", MK, ["--out", "{T}/A/data", "--assets", "{T}/A", *TINY], 2,
         ("--out", "lies inside --assets"), setup=lambda w, t: _mk(t / "A" / "meshes"), check=_not_written("A/data")),
+    # ---- a prediction's stated error: replaced only where the earlier prediction stated one, never left stale
+    Row("predict-overwrite-keeps-a-users-error-picture-beside-a-baseline", PR, [*PREDICT_LS, "--overwrite"], 2,
+        ("expected_error.png", "states no expected error", "never replaced"),
+        setup=_both(_earlier_prediction, _put(("p/00000/expected_error.png", "mine\n"))),
+        check=_kept("p/00000/expected_error.png", "mine\n")),
+    Row("predict-overwrite-removes-an-earlier-stated-error", PR, [*PREDICT_LS, "--overwrite"], 0, ("wrote",),
+        setup=_earlier_stated_prediction, replaces=("p/00000/predict.json", "p/00000/normal.png"),
+        removes=("p/00000/expected_error_deg.npy", "p/00000/expected_error.png")),
     # ---- a named pipe where a file is read: refused by name or passed over, never waited on
     Row("evaluate-ground-truth-normals-a-pipe", EV, ["--pred", "{T}/p", "--gt", "{T}/ds"], 1,
         ("failed 00000", "normal.tif", "not a regular file"),

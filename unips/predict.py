@@ -27,6 +27,7 @@ line.
 from __future__ import annotations
 
 import logging
+import os
 import sys
 import time
 from contextlib import ExitStack
@@ -42,8 +43,8 @@ from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import Progress
 from scenes.cli.supervise import run_supervised
-from scenes.files import write_json
-from scenes.folder.format import PREDICTION_FILES, PREDICTION_INFO, object_name
+from scenes.files import read_json, write_json
+from scenes.folder.format import EXPECTED_ERROR_FILES, PREDICTION_FILES, PREDICTION_INFO, object_name
 from scenes.folder.layouts import detect_layout
 from scenes.images import write_normal_exr, write_normal_map, write_normal_visual
 from unips.data import find_objects, load_object
@@ -97,12 +98,25 @@ def check_out_folder(folder: Path, overwrite: bool = False) -> None:
     if folder.exists() and not folder.is_dir():
         raise UsageError(f"--out: {str(folder)!r} is an existing file, expected a folder for the prediction")
     others = [folder / f for f in PREDICTION_FILES if f not in PREDICTION_OUTPUTS and (folder / f).exists()]
-    claim_outputs([folder / f for f in PREDICTION_OUTPUTS] + others, overwrite, owner="unips.predict",
+    stated = [folder / f for f in EXPECTED_ERROR_FILES if os.path.lexists(folder / f)]
+    claim_outputs([folder / f for f in PREDICTION_OUTPUTS] + others + stated, overwrite, owner="unips.predict",
                   marker=folder / PREDICTION_INFO,
                   signed={folder / PREDICTION_INFO: ("object", "method", "images_used")})
+    if stated and not _stated_before(folder / PREDICTION_INFO):  # the earlier run stated none: not its files
+        raise UsageError(f"--out: {str(stated[0])!r} was not written by unips.predict (the earlier prediction's "
+                         f"{PREDICTION_INFO} states no expected error); it is never replaced, even with --overwrite: "
+                         "move it away or use another --out")
     if others:  # a prediction file of another kind beside ours: the lookup would not find what this run writes
         raise UsageError(f"--out: {str(others[0])!r} was not written by unips.predict; it is never replaced: "
                          "move it away or use another --out")
+
+
+def _stated_before(info: Path) -> bool:
+    """Whether the earlier prediction whose record is `info` stated an expected error (and so wrote its files)."""
+    try:
+        return read_json(info).get("expected_error_deg") is not None
+    except (OSError, ValueError, AttributeError):
+        return False
 
 
 def check_object(args: "PredictOptions", folder: Path) -> None:
@@ -362,6 +376,9 @@ def _predict_one(args: PredictOptions, net, folder: Path, name: str,
     write_prediction(args.out / name, normals, info)
     if stated is not None:
         write_stated(args.out / name, stated)
+    else:  # an earlier run's stated error (claimed before any work) is not this map's
+        for f in EXPECTED_ERROR_FILES:
+            (args.out / name / f).unlink(missing_ok=True)
     log.info("%s: %s in %.2f s", name, args.method, elapsed)
 
 
