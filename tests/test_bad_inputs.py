@@ -365,6 +365,10 @@ GS = "orchestrate.gpu_session"
 SHIP = "orchestrate.ship"
 PV = "wildgen.preview"
 OBJDIR = "{W}/data/00000.data"
+RR_ONE = ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{T}/o", "--no-floors", "--spp", "1", "--overwrite"]
+"""A check of object 00000 into T/o, replacing an earlier check's outputs."""
+EARLIER_CHECK = '{"mode": "known_scene", "object": "00000", "folder": "f", "prediction": "p"}\n'
+"""An earlier check's report.json (the keys of every one), without renders."""
 
 
 def _written(*rel: str) -> Callable[[Path, Path], None]:
@@ -4017,6 +4021,15 @@ ROWS += [
     Row("predict-overwrite-removes-an-earlier-stated-error", PR, [*PREDICT_LS, "--overwrite"], 0, ("wrote",),
         setup=_earlier_stated_prediction, replaces=("p/00000/predict.json", "p/00000/normal.png"),
         removes=("p/00000/expected_error_deg.npy", "p/00000/expected_error.png")),
+    # ---- a check's renders: replaced only where the earlier report lists them, removed when not saved again
+    Row("rerender-save-renders-keeps-a-users-render-beside-an-earlier-check", RR, [*RR_ONE, "--save-renders"], 2,
+        ("R003.png", "lists no such render", "never replaced"),
+        setup=_put(("o/00000/report.json", EARLIER_CHECK), ("o/00000/R003.png", "mine\n")),
+        check=_kept("o/00000/R003.png", "mine\n")),
+    Row("rerender-overwrite-removes-the-earlier-checks-renders-only", RR, RR_ONE, 0, ("reports in",),
+        setup=_put(("o/00000/report.json", EARLIER_CHECK[:-2] + ', "renders": ["R000.png", "../../mine.txt"]}\n'),
+                   ("o/00000/R000.png", "an earlier check's\n"), ("mine.txt", "mine\n")),
+        replaces=("o/00000/report.json",), removes=("o/00000/R000.png",), check=_kept("mine.txt", "mine\n")),
     # ---- a named pipe where a file is read: refused by name or passed over, never waited on
     Row("evaluate-ground-truth-normals-a-pipe", EV, ["--pred", "{T}/p", "--gt", "{T}/ds"], 1,
         ("failed 00000", "normal.tif", "not a regular file"),

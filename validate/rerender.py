@@ -39,7 +39,7 @@ from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs, holds_keys, output_lock
 from scenes.cli.progress import progress_bar
 from scenes.cli.supervise import run_supervised
-from scenes.files import write_json
+from scenes.files import read_json, write_json
 from scenes.folder.format import SCENE_FILE, find_prediction, list_object_folders, object_name
 from scenes.renderer.variant import require_jit_variant
 from validate.fitted.fit_scene import FitConfig
@@ -75,12 +75,30 @@ def claim_check_outputs(out: str | Path, names: list[str], overwrite: bool, summ
         renders_there = sorted((out / n).glob("R[0-9][0-9][0-9].png")) if renders else []
         claim_outputs([report, out / n / FIGURE, *renders_there], overwrite, owner="validate.rerender",
                       marker=report, signed={report: REPORT_KEYS})
+        foreign = next((p for p in renders_there if p.name not in earlier_renders(report)), None)
+        if foreign is not None:  # the earlier check saved no render under that name: the user's file
+            raise UsageError(f"--out: {str(foreign)!r} was not written by validate.rerender (the earlier report "
+                             f"{str(report)!r} lists no such render); it is never replaced, even with --overwrite: "
+                             "move it away or use another --out")
     if summary and (out / SUMMARY).exists() and overwrite and not any(
             holds_keys(p, REPORT_KEYS) for p in out.glob(f"*/{REPORT}")):
         raise UsageError(f"--out: {str(out / SUMMARY)!r} exists, but no object folder beside it holds a report of "
                          "validate.rerender: it is not an earlier check's and is never replaced; move it away or use "
                          "another --out")
     claim_outputs([out / SUMMARY] if summary else [], overwrite, owner="validate.rerender")
+
+
+def earlier_renders(report: Path) -> set[str]:
+    """The render files (R000.png ...) an earlier check listed in its report (`renders`); none when unreadable. A
+    name read from a file is untrusted: only plain render names (`R` and three digits) are taken."""
+    import re
+
+    try:
+        listed = read_json(report).get("renders", [])
+    except (OSError, ValueError, AttributeError):
+        return set()
+    return {r for r in listed if isinstance(r, str) and re.fullmatch(r"R\d{3}\.png", r)} \
+        if isinstance(listed, list) else set()
 
 
 REPORT_KEYS = ("mode", "object", "folder", "prediction")
@@ -160,11 +178,14 @@ def rerender_object(
         target.mkdir(parents=True, exist_ok=True)
         write_figure(target / "figure.png", report, data.images, passes, mask, res_map, gt_map, pred,
                      config.figure_rows)
+        for name in earlier_renders(target / REPORT):  # an earlier check's renders (claimed): not this one's
+            (target / name).unlink(missing_ok=True)
+        report["renders"] = [f"R{i:03d}.png" for i in range(k)] if config.save_renders else []
         if config.save_renders:
             from scenes.images import write_png16
 
             for i in range(k):
-                write_png16(target / f"R{i:03d}.png", passes.renders[i])
+                write_png16(target / report["renders"][i], passes.renders[i])
         report["timings"]["total_s"] = time.perf_counter() - t_start
         write_json(target / REPORT, report, indent=1)
     else:
