@@ -4030,6 +4030,10 @@ ROWS += [
         setup=_put(("o/00000/report.json", EARLIER_CHECK[:-2] + ', "renders": ["R000.png", "../../mine.txt"]}\n'),
                    ("o/00000/R000.png", "an earlier check's\n"), ("mine.txt", "mine\n")),
         replaces=("o/00000/report.json",), removes=("o/00000/R000.png",), check=_kept("mine.txt", "mine\n")),
+    # ---- an empty path ('' from an unset shell variable) is never the current folder
+    Row("predict-out-empty", PR, ["--method", "least-squares", "--input", OBJDIR, "--out", ""], 2,
+        ("--out", "empty value")),
+    Row("make-out-empty", MK, ["--out=", *TINY], 2, ("--out", "empty value")),
     # ---- a named pipe where a file is read: refused by name or passed over, never waited on
     Row("evaluate-ground-truth-normals-a-pipe", EV, ["--pred", "{T}/p", "--gt", "{T}/ds"], 1,
         ("failed 00000", "normal.tif", "not a regular file"),

@@ -397,9 +397,26 @@ class Command:
 
         argv = list(sys.argv[1:] if argv is None else argv)
         _check_text(argv)
+        self._check_no_empty_path(argv)
         with _errors.on_parse_error(refuse):
             return tyro.cli(self.config, args=self._join_repeated(argv), prog=self.prog,
                             description=self.description, config=MARKERS)
+
+    def _check_no_empty_path(self, argv: list[str]) -> None:
+        """A path flag given an empty value is refused: '' would become the current folder ('.') without a word
+        (`--out ''` from an unset shell variable)."""
+        from pathlib import PurePath
+
+        from scenes.cli.errors import UsageError
+
+        paths = {flag_name(owner, f) for owner, f in _flat_fields(self.config)
+                 if isinstance(_strip(_hints(owner)[f.name])[0], type)
+                 and issubclass(_strip(_hints(owner)[f.name])[0], PurePath)}
+        for i, token in enumerate(argv):
+            flag, eq, value = token.partition("=")
+            if flag in paths and ((eq and not value.strip()) or (not eq and i + 1 < len(argv)
+                                                                  and not argv[i + 1].strip())):
+                raise UsageError(f"{flag}: got an empty value, expected a path")
 
     def parser(self) -> argparse.ArgumentParser:
         """tyro's argparse form of the command line (the flags, their help and groups), for the generated docs."""

@@ -57,6 +57,8 @@ def check_output_folder(path: str | os.PathLike, flag: str = "--out") -> str | o
     """Refuse an output folder that cannot be written, before any work: an existing file, a path under a
     file, or a folder (or the nearest existing parent of a new one) this process may not write. Creates
     nothing. Returns `path`."""
+    if not str(path).strip():  # '' would be the current folder: never meant
+        raise UsageError(f"{flag}: got an empty value, expected a folder")
     target = os.path.abspath(path)
     long = next((part for part in target.split(os.sep) if len(os.fsencode(part)) > 255), None)
     if long is not None:  # the system refuses such a name only when it is written, naming no flag
