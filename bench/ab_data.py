@@ -33,8 +33,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import parse, run_main  # noqa: E402
-from scenes.cli.options import REQUIRED, Command, arg, option  # noqa: E402
+from bench.cli_common import check_work, need_path, parse, run_main  # noqa: E402
+from scenes.cli.errors import UsageError  # noqa: E402
+from scenes.cli.options import REQUIRED, CommaList, Command, arg, check_fields, option  # noqa: E402
 from scenes.files import write_json  # noqa: E402
 
 PY = sys.executable
@@ -43,6 +44,15 @@ from unips.models import DEFAULT_MODEL, pretrained_entry  # noqa: E402 (after th
 SHIPPED = pretrained_entry(DEFAULT_MODEL).weights_path
 BASE = ["--images", "10", "--res", "128", "--quiet"]
 FAMILIES = "directional,point,near_area,hdri,mixed"
+ARM_DATA = {
+    "today": "today's default data: {n} objects, seed 20000, --lights directional,point,near_area,hdri,mixed",
+    "new": "the new kinds: {n} objects, one fifth per --level 1-5 (seeds 20011-20015; level 5 --camera perspective "
+           "--focal 15-300), --curriculum",
+    "sensor": "today's {n} scenes re-derived with the machine-vision sensor (wildgen.sensor)",
+}
+"""The arms (--arms): what each trains on."""
+LEVELS = 5
+"""The `new` arm's objects are split over the complexity levels 1-5 (one fifth each)."""
 
 
 def run(argv: list[str], label: str) -> None:
@@ -91,7 +101,7 @@ class Options:
     """training objects per arm"""
     steps: int = option(1000, minimum=1)
     """Training steps of every arm."""
-    arms: str = "today,new,sensor"
+    arms: Annotated[list[str], CommaList] = option(default_factory=lambda: list(ARM_DATA), choices=tuple(ARM_DATA))
     """Arms to train and score, comma-separated (today, new, sensor)."""
     threads: int = option(2, minimum=1)
     """CPU threads of training and scoring."""
@@ -103,12 +113,34 @@ class Options:
     tag: str = ""
     """suffix of the run folders and result names (several settings in one WORK)"""
 
+    def validate(self) -> "Options":
+        import math
+
+        check_fields(self)
+        try:
+            lr = float(self.lr)
+        except ValueError:
+            lr = math.nan
+        if not (math.isfinite(lr) and lr > 0):  # nan fails too
+            raise UsageError(f"--lr: got {self.lr!r}, expected a number > 0")
+        if "new" in self.arms and self.objects < LEVELS:
+            raise UsageError(f"--objects: got {self.objects}, expected an integer >= {LEVELS} with the arm new (its "
+                             f"objects are split over the {LEVELS} levels)")
+        return self
+
 
 COMMAND = Command(Options, prog="python bench/ab_data.py", description=__doc__.split("\n\n")[0])
 
 
+def before_work(args: Options) -> None:
+    """What the command line names on disk, checked before any work (each refusal one line)."""
+    check_work(args.work)
+    need_path(args.assets, "--assets", "the asset library (meshes, HDR maps, textures)")
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse(COMMAND, argv)
+    before_work(args)
     from orchestrate.asset_split import SPLIT_FOLDERS, check_split, split_assets
 
     w = args.work
@@ -147,7 +179,7 @@ def main(argv: list[str] | None = None) -> int:
     ]
     n = args.objects
     data = {}
-    arms = args.arms.split(",")
+    arms = args.arms
     if "today" in arms or "sensor" in arms:
         data["today"] = [
             make(
@@ -164,9 +196,9 @@ def main(argv: list[str] | None = None) -> int:
         data["sensor"] = [out]
     if "new" in arms:
         data["new"] = []
-        for level in range(1, 6):
+        for level in range(1, LEVELS + 1):
             extra = ["--camera", "perspective", "--focal", "15-300"] if level == 5 else []
-            data["new"].append(make(w / f"train_new_l{level}", ["--objects", str(n // 5), "--spp", "16", "--seed",
+            data["new"].append(make(w / f"train_new_l{level}", ["--objects", str(n // LEVELS), "--spp", "16", "--seed",
                                                                  str(20010 + level), "--level", str(level),
                                                                  "--assets", train_assets, *extra],
                                     f"train: new, level {level}"))
@@ -214,14 +246,6 @@ def main(argv: list[str] | None = None) -> int:
     if args.record:
         record(results, w, args)
     return 0
-
-
-ARM_DATA = {
-    "today": "today's default data: {n} objects, seed 20000, --lights directional,point,near_area,hdri,mixed",
-    "new": "the new kinds: {n} objects, one fifth per --level 1-5 (seeds 20011-20015; level 5 --camera perspective "
-           "--focal 15-300), --curriculum",
-    "sensor": "today's {n} scenes re-derived with the machine-vision sensor (wildgen.sensor)",
-}
 
 
 def record(results: dict, w: Path, args) -> None:

@@ -32,10 +32,15 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "tests"))  # the DNG writer of the RAW tests
 
-from bench.cli_common import machine, parse, run_main  # noqa: E402
+from bench.cli_common import check_given, claim_result, machine, need_path, parse, run_main  # noqa: E402
+from orchestrate.capture import MIN_SIDE  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
-from scenes.cli.options import Command, arg, check_fields  # noqa: E402
+from scenes.cli.options import Command, arg, check_fields, comma_list, option  # noqa: E402
 from scenes.files import write_json  # noqa: E402
+from validate.judgeable import MIN_IMAGES  # noqa: E402
+
+RESULT_KEYS = ("machine", "rows")
+"""The keys of every result (--out, --reestimate): a file without them is not this bench's and is never replaced."""
 
 
 def synthetic_capture(folder: Path, k: int, side: int, seed: int = 0, fmt: str = "png") -> None:
@@ -106,9 +111,11 @@ class Options:
 
     out: Annotated[Path | None, arg(metavar="FILE")] = None
     """Write the measurements as JSON here (required unless --reestimate)."""
-    images: str = "4,16,96"
-    """Numbers of photos K, comma-separated."""
-    sides: str = "256,512,1024"
+    images: Annotated[list[int], comma_list(int, "K,K")] = option(
+        default_factory=lambda: [4, 16, 96], minimum=MIN_IMAGES["photos"])
+    """Numbers of photos K, comma-separated (at least 3: fewer do not determine a normal)."""
+    sides: Annotated[list[int], comma_list(int, "N,N")] = option(
+        default_factory=lambda: [256, 512, 1024], minimum=MIN_SIDE)
     """Long sides of the photos in pixels, comma-separated."""
     format: Literal["png", "jpeg", "dng"] = "png"
     """Photo files: png (16-bit), jpeg (8-bit sRGB, quality 95) or dng (camera RAW, developed by LibRaw)."""
@@ -122,6 +129,7 @@ class Options:
         check_fields(self)
         if self.out is None and self.reestimate is None:
             raise UsageError("--out is required (unless --reestimate)")
+        check_given(self, "images", "sides")
         return self
 
 
@@ -131,6 +139,8 @@ COMMAND = Command(Options, prog="python bench/bench_capture.py", description=__d
 def main(argv: list[str] | None = None) -> int:
     args = parse(COMMAND, argv)
     if args.reestimate:
+        need_path(args.reestimate, "--reestimate", "a recorded output of this bench (--out)", folder=False)
+        claim_result(args.reestimate, RESULT_KEYS, COMMAND, "--reestimate")
         from orchestrate.capture_estimate import estimate
 
         result = json.loads(args.reestimate.read_text())
@@ -143,10 +153,11 @@ def main(argv: list[str] | None = None) -> int:
         write_json(args.reestimate, result, indent=1, newline=True)
         print(f"rewrote the estimates of {args.reestimate}")
         return 0
+    claim_result(args.out, RESULT_KEYS, COMMAND)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        for side in [int(s) for s in args.sides.split(",")]:
-            for k in [int(s) for s in args.images.split(",")]:
+        for side in args.sides:
+            for k in args.images:
                 row = run_case(k, side, Path(tmp), args.format)
                 print(json.dumps(row), flush=True)
                 rows.append(row)

@@ -23,7 +23,7 @@ import shutil
 import subprocess
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated
 
@@ -32,13 +32,26 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from bench.cli_common import DILIGENT, clipping_scale, machine, parse, run_main, write_jpeg_photos  # noqa: E402
-from scenes.cli.options import Command, arg  # noqa: E402
+from bench.cli_common import (  # noqa: E402
+    DILIGENT,
+    check_diligent,
+    check_given,
+    check_work,
+    claim_result,
+    clipping_scale,
+    machine,
+    parse,
+    run_main,
+    write_jpeg_photos,
+)
+from scenes.cli.options import CommaList, Command, arg, check_fields  # noqa: E402
 from scenes.files import write_json  # noqa: E402
 
 CLIP_SHARE = 0.001
 """Share of the object's values (all photos) above the JPEG's largest code: a user's exposure, bright but not blown."""
 CASES = ("jpeg_true", "jpeg_auto", "png_true")
+RESULT_KEYS = ("command", "clip_share", "rows")
+"""The keys of every result (--out): a file without them is not this bench's and is never replaced."""
 
 
 def _photos(obj, folder: Path, case: str, source: Path) -> None:
@@ -101,8 +114,13 @@ class Options:
     """Write the rows as JSON here."""
     data: Annotated[Path, arg(metavar="DIR", help_behavior_hint="(default: ../shared/data/diligent)")] = DILIGENT
     """Folder holding the DiLiGenT objects."""
-    objects: str = "ballPNG,catPNG"
+    objects: Annotated[list[str], CommaList] = field(default_factory=lambda: ["ballPNG", "catPNG"])
     """DiLiGenT folders under --data, comma-separated."""
+
+    def validate(self) -> "Options":
+        check_fields(self)
+        check_given(self, "objects")
+        return self
 
 
 COMMAND = Command(Options, prog="python bench/bench_capture_diligent.py", description=__doc__.split("\n\n")[0])
@@ -112,14 +130,15 @@ def main(argv: list[str] | None = None) -> int:
     from unips.data import load_object
 
     args = parse(COMMAND, argv)
+    sources = check_diligent(args.data, args.objects)
+    check_work(args.work)
+    claim_result(args.out, RESULT_KEYS, COMMAND)
     rows = []
-    for name in args.objects.split(","):
-        source = args.data / name
+    for source in sources:
         obj = load_object(source)
         for case in CASES:
             rows.append(run_case(obj, source, case, args.work))
             print(json.dumps(rows[-1]), flush=True)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
     write_json(args.out, {"command": "python bench/bench_capture_diligent.py --work WORK", "clip_share": CLIP_SHARE,
                           "rows": rows, "machine": machine()}, indent=1, newline=True)
     print(f"wrote {args.out}")

@@ -16,16 +16,27 @@ import json
 import subprocess
 import sys
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))  # this tree's toolkit, not another checkout's installed one
 
-from bench.cli_common import DILIGENT, clipping_scale, parse, run_main, write_jpeg_photos  # noqa: E402
-from scenes.cli.options import REQUIRED, Command  # noqa: E402
+from bench.cli_common import (  # noqa: E402
+    DILIGENT,
+    check_diligent,
+    check_given,
+    check_revision,
+    claim_result,
+    clipping_scale,
+    parse,
+    run_main,
+    write_jpeg_photos,
+)
+from scenes.cli.options import REQUIRED, CommaList, Command, check_fields  # noqa: E402
 from scenes.files import write_json  # noqa: E402
 
 CLIP_FRACTION = 0.001
@@ -40,13 +51,20 @@ class Options:
     """Commit to compare with (checked out into a temporary git worktree, removed after)."""
     data: str = str(DILIGENT)
     """Folder of DiLiGenT objects (<name>PNG)."""
-    objects: str = "ball,cat"
-    """Comma-separated DiLiGenT objects."""
+    objects: Annotated[list[str], CommaList] = field(default_factory=lambda: ["ball", "cat"])
+    """Comma-separated DiLiGenT objects (folders NAMEPNG under --data)."""
     out: str = "bench/results/capture_trees.json"
     """Where the table goes (JSON)."""
 
+    def validate(self) -> "Options":
+        check_fields(self)
+        check_given(self, "objects")
+        return self
+
 
 COMMAND = Command(Options, prog="python bench/bench_capture_trees.py", description=__doc__.split("\n\n")[0])
+RESULT_KEYS = ("baseline", "rows")
+"""The keys of every result (--out): a file without them is not this bench's and is never replaced."""
 
 
 def write_photos(folder: Path, images: np.ndarray, mask: np.ndarray) -> None:
@@ -73,6 +91,9 @@ def main(argv: list[str] | None = None) -> int:
     from scenes.metrics import angular_error_deg, mean_angular_error
 
     opts = parse(COMMAND, argv)
+    check_diligent(opts.data, [f"{name}PNG" for name in opts.objects])
+    check_revision(opts.baseline)
+    claim_result(opts.out, RESULT_KEYS, COMMAND)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
@@ -80,7 +101,7 @@ def main(argv: list[str] | None = None) -> int:
         subprocess.run(["git", "-C", str(REPO), "worktree", "add", "-q", "--detach", str(base), opts.baseline],
                        check=True)
         try:
-            for name in opts.objects.split(","):
+            for name in opts.objects:
                 fd = read_folder(Path(opts.data) / f"{name}PNG", arg="--data")
                 photos, mask = tmp / name / name, tmp / name / "mask.png"
                 write_photos(photos, fd.images, fd.mask)
@@ -106,7 +127,6 @@ def main(argv: list[str] | None = None) -> int:
                 print(json.dumps(rows[-1]), flush=True)
         finally:
             subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", str(base)], check=False)
-    Path(opts.out).parent.mkdir(parents=True, exist_ok=True)
     write_json(Path(opts.out), {"baseline": opts.baseline, "rows": rows}, indent=1, newline=True)
     print(f"wrote {opts.out}")
     return 0

@@ -43,7 +43,7 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-from bench.cli_common import machine, parse, run_main  # noqa: E402
+from bench.cli_common import MIN_RES, check_work, claim_result, machine, parse, run_main  # noqa: E402
 from bench.cycles_blender import (  # noqa: E402
     BLENDER_SCRIPT,
     TO_BLENDER,
@@ -52,7 +52,8 @@ from bench.cycles_blender import (  # noqa: E402
     ensure_blender,
     read_multilayer,
 )
-from scenes.cli.options import Command, arg, option  # noqa: E402
+from scenes.cli.errors import UsageError  # noqa: E402
+from scenes.cli.options import Command, arg, check_fields, comma_list, option  # noqa: E402
 from scenes.files import write_json  # noqa: E402
 
 # --------------------------------------------------------------------------- scene choice
@@ -130,10 +131,11 @@ def rel_rmse(img: np.ndarray, ref: np.ndarray, mask: np.ndarray) -> float:
 class Options:
     """The command line of bench/bench_cycles.py."""
 
-    res: int = option(128, minimum=1)
+    res: int = option(128, minimum=MIN_RES)
     """image side"""
-    levels: str = "4,16,64,256"
-    """sample counts for the noise/time curves"""
+    levels: Annotated[list[int], comma_list(int, "SPP,SPP")] = option(default_factory=lambda: [4, 16, 64, 256],
+                                                                       minimum=1)
+    """sample counts for the noise/time curves (two or more: a line is fitted through them)"""
     ref_spp: int = option(2048, minimum=1)
     """sample count of each renderer's own reference"""
     bounces: int = option(10, minimum=0)
@@ -153,13 +155,23 @@ class Options:
     install_only: bool = False
     """only make sure Blender is installed"""
 
+    def validate(self) -> "Options":
+        check_fields(self)
+        if len(set(self.levels)) < 2:
+            raise UsageError(f"--levels: got {','.join(map(str, self.levels))!r}, expected two or more different "
+                             "sample counts, comma-separated (a line is fitted through them)")
+        return self
+
 
 COMMAND = Command(Options, prog="python bench/bench_cycles.py", description=__doc__.split("\n\n")[0])
+RESULT_KEYS = ("command", "blender", "rows")
+"""The keys of every result (--out): a file without them is not this bench's and is never replaced."""
 
 
 def main(argv: list[str] | None = None) -> int:
     args = parse(COMMAND, argv)
-
+    check_work(args.keep, "--keep")
+    claim_result(args.out, RESULT_KEYS, COMMAND)
     blender = ensure_blender()
     version = blender_version(blender)
     print(f"{version} at {blender}")
@@ -175,7 +187,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         folder, scene, image = make_scene(work / "data", args.res, args.seed, args.bounces, args.materials)
         lights = lightings(scene, image)
-        levels = [multijitter_spp(int(s)) for s in args.levels.split(",")]
+        levels = [multijitter_spp(s) for s in args.levels]
         ref = multijitter_spp(args.ref_spp)
         print(f"object {folder.name} image {image}: {scene['material']['material_class']} material, "
               f"{len(lights['area'])} area light + envmap, {args.res}x{args.res}, bounces {args.bounces}, "

@@ -29,8 +29,12 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import parse, run_main  # noqa: E402
-from scenes.cli.options import Command, arg, option  # noqa: E402
+from bench.cli_common import MIN_RES, check_given, claim_result, parse, run_main  # noqa: E402
+from scenes.cli.options import CommaList, Command, arg, check_fields, comma_list, option  # noqa: E402
+from wildgen.light_families import LIGHT_FAMILIES  # noqa: E402
+
+RESULT_KEYS = ("strengths_deg", "rows")
+"""The keys of every result (--out): a file without them is not this bench's and is never replaced."""
 
 
 def render(out: Path, args, extra: list[str]) -> float:
@@ -48,7 +52,7 @@ def render(out: Path, args, extra: list[str]) -> float:
             "--spp",
             str(args.spp),
             "--lights",
-            args.lights,
+            ",".join(args.lights),
             "--seed",
             str(args.seed),
             "--quiet",
@@ -70,33 +74,24 @@ class Options:
     """Objects rendered per strength (and without detail)."""
     images: int = option(6, minimum=1)
     """Images per object."""
-    res: int = option(64, minimum=1)
+    res: int = option(64, minimum=MIN_RES)
     """Image side in pixels."""
     spp: int = option(16, minimum=1)
     """Samples per pixel."""
-    lights: str = "directional,point"
+    lights: Annotated[list[str], CommaList] = option(default_factory=lambda: ["directional", "point"],
+                                                     choices=tuple(LIGHT_FAMILIES))
     """Light families for wildgen.make, comma-separated."""
     seed: int = 11
     """wildgen seed of the objects (the same for every strength)."""
-    strengths: str = "10,25,40"
-    """Detail strengths in degrees (--detail-strength S-S each), comma-separated."""
+    strengths: Annotated[list[float], comma_list(float, "DEG,DEG")] = option(
+        default_factory=lambda: [10.0, 25.0, 40.0], minimum=0, maximum=60)
+    """Detail strengths in degrees from 0 to 60 (--detail-strength S-S each), comma-separated."""
     out: Annotated[Path | None, arg(metavar="FILE")] = None
     """write the JSON rows here"""
 
     def validate(self) -> "Options":
-        import math
-
-        from scenes.cli.errors import UsageError
-        from scenes.cli.options import check_fields
-
         check_fields(self)
-        try:
-            values = [float(s) for s in self.strengths.split(",")]
-        except ValueError:
-            values = [math.nan]
-        if not all(0 <= v <= 60 for v in values):  # nan fails too
-            raise UsageError(f"--strengths: got {self.strengths!r}, expected numbers from 0 to 60 (degrees), "
-                             "comma-separated")
+        check_given(self, "strengths")
         return self
 
 
@@ -105,7 +100,7 @@ COMMAND = Command(Options, prog="python bench/bench_detail.py", description=__do
 
 def main(argv: list[str] | None = None) -> int:
     args = parse(COMMAND, argv)
-
+    claim_result(args.out, RESULT_KEYS, COMMAND)
     from scenes.images import read_exr, read_mask, read_normals
 
     tmp = Path(tempfile.mkdtemp(prefix="bench_detail_"))
@@ -116,7 +111,7 @@ def main(argv: list[str] | None = None) -> int:
             f"{'strength':>8s} {'flipped':>8s} {'black':>8s} {'flipped@sil':>11s} {'black@sil':>9s} {'s/obj':>6s} "
             f"{'plain s/obj':>11s}"
         )
-        for s in map(float, args.strengths.split(",")):
+        for s in args.strengths:
             sec = render(tmp / f"d{s:g}", args, ["--detail", "1", "--detail-strength", f"{s:g}-{s:g}"])
             flip = black = sil = flip_sil = black_sil = obs = obs_sil = pix = 0
             for folder in sorted((tmp / f"d{s:g}").glob("*.data")):
@@ -158,7 +153,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.out:
         from scenes.files import write_json
 
-        write_json(args.out, rows, indent=1)
+        write_json(args.out, {"strengths_deg": args.strengths, "rows": rows}, indent=1)
         print(f"wrote {args.out}")
     return 0
 

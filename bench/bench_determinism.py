@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated
 
@@ -22,24 +22,52 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import parse, run_main  # noqa: E402
-from scenes.cli.options import Command, arg, option  # noqa: E402
+from bench.cli_common import check_given, parse, run_main  # noqa: E402
+from scenes.cli.errors import UsageError  # noqa: E402
+from scenes.cli.options import Command, check_fields, comma_list, option  # noqa: E402
+from scenes.renderer.variant import PREFERENCE as VARIANTS  # noqa: E402
+
+
+def size_of(text: str) -> tuple[int, int]:
+    """(RES, SPP) of one item `RES:SPP` of --sizes, each a value `wildgen.config.GenConfig` takes for --width /
+    --height and --spp; a UsageError naming --sizes otherwise."""
+    from wildgen.config import GenConfig
+
+    parts = text.split(":")
+    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        raise UsageError(f"--sizes: got {text!r}, expected RES:SPP (two whole numbers, e.g. 64:32), comma-separated")
+    res, spp = (int(p) for p in parts)
+    try:
+        GenConfig(lights=["mixed"], objects=1, images=1, width=res, height=res, spp=spp).validate()
+    except ValueError as exc:  # the generator's own bounds (`--width: got 4, expected ...`), said for this flag
+        part = "SPP" if str(exc).startswith("--spp") else "RES"
+        raise UsageError(f"--sizes: got {text!r}, expected RES:SPP with {part} {str(exc).split('expected ', 1)[-1]}") \
+            from None
+    return res, spp
 
 
 @dataclass
 class Options:
     """The command line of bench/bench_determinism.py."""
 
-    sizes: Annotated[str, arg(metavar="RES:SPP,...")] = "128:64,32:4,64:32"
+    sizes: Annotated[list[str], comma_list(str, "RES:SPP,RES:SPP")] = field(
+        default_factory=lambda: ["128:64", "32:4", "64:32"])
     """comma-separated RES:SPP (64:32 is 35 multijitter samples: pixels straddle thread blocks)"""
     images: int = option(6, minimum=1)
     """Images of the object per size (the first, compilation, is not timed)."""
     repeats: int = option(2, minimum=1)
     """timed renders of every image per path"""
-    threads: str = "1,2"
+    threads: Annotated[list[int], comma_list(int, "T,T")] = option(default_factory=lambda: [1, 2], minimum=1)
     """Dr.Jit thread counts, comma-separated."""
-    variant: str = "llvm_ad_rgb"
+    variant: str = option("llvm_ad_rgb", choices=("auto", *VARIANTS))
     """Mitsuba variant."""
+
+    def validate(self) -> "Options":
+        check_fields(self)
+        check_given(self, "sizes", "threads")
+        for text in self.sizes:
+            size_of(text)
+        return self
 
 
 COMMAND = Command(Options, prog="python bench/bench_determinism.py", description=__doc__.split("\n\n")[0])
@@ -61,8 +89,8 @@ def main(argv: list[str] | None = None) -> int:
     from wildgen.sampling import sample_object
 
     rows = []
-    for size in args.sizes.split(","):
-        res, spp = (int(v) for v in size.split(":"))
+    for size in args.sizes:
+        res, spp = size_of(size)
         cfg = GenConfig(lights=["mixed"], objects=1, images=args.images, width=res, height=res, spp=spp)
         desc = sample_object(cfg, 0, AssetLibrary.scan(None)).desc
         built = build_scene(desc)
@@ -73,7 +101,7 @@ def main(argv: list[str] | None = None) -> int:
             "new": lambda i: render_film(built.scene, desc.render.spp, desc.images[i].seed),
         }
         outputs: dict[tuple[str, int], list[np.ndarray]] = {}
-        for threads in (int(t) for t in args.threads.split(",")):
+        for threads in args.threads:
             dr.set_thread_count(threads)
             times = {name: [] for name in paths}
             for name, fn in paths.items():  # warm-up: compile both kernels
@@ -90,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
                     outputs.setdefault((name, threads), []).append(fn(i))
             old, new = np.median(times["old"]), np.median(times["new"])
             rows.append((f"{res}x{res}", desc.render.spp, threads, old, new, new / old))
-        thread_list = [int(t) for t in args.threads.split(",")]
+        thread_list = args.threads
         for name in paths:
             same = all(
                 np.array_equal(a, b) for a, b in zip(outputs[(name, thread_list[0])], outputs[(name, thread_list[-1])])

@@ -17,7 +17,7 @@ from typing import Annotated
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import DILIGENT, parse, run_main  # noqa: E402
+from bench.cli_common import DILIGENT, check_diligent, need_path, parse, run_main  # noqa: E402
 from scenes.cli.options import Command, arg, option  # noqa: E402
 
 PUBLISHED = {"ball": 4.10, "cat": 8.41}
@@ -30,9 +30,9 @@ class Options:
     data: Annotated[Path, arg(metavar="DIR", help_behavior_hint="(default: ../shared/data/diligent)")] = DILIGENT
     """folder holding ballPNG/ and catPNG/"""
     max_images: Annotated[int | None, arg(metavar="K", help_behavior_hint="(default: all 96)")] = option(
-        None, minimum=1
+        None, minimum=4
     )
-    """first K images only"""
+    """first K images only (at least 4: sh-uncalibrated fits an ambient and three lighting components)"""
 
 
 COMMAND = Command(Options, prog="python bench/bench_diligent.py", description=__doc__.split("\n\n")[0])
@@ -44,16 +44,11 @@ def main(argv: list[str] | None = None) -> int:
     from unips.data import load_object
 
     args = parse(COMMAND, argv)
-    if not args.data.is_dir():
-        print(f"error: DiLiGenT folder {args.data} not found", file=sys.stderr)
-        return 2
+    need_path(args.data, "--data", "the DiLiGenT folder (ballPNG/, catPNG/)")
+    folders = check_diligent(args.data, [f"{name}PNG" for name in PUBLISHED])
     print(f"{'object':<8} {'K':>3} {'pixels':>7} {'load s':>7} {'LS deg':>7} {'publ.':>6} {'LS s':>6} "
           f"{'SH deg':>7} {'SH s':>6}")
-    for name in ("ball", "cat"):
-        folder = args.data / f"{name}PNG"
-        if not folder.is_dir():
-            print(f"{name:<8} missing ({folder})")
-            continue
+    for name, folder in zip(PUBLISHED, folders):
         t0 = time.perf_counter()
         obj = load_object(folder, max_images=args.max_images)
         t1 = time.perf_counter()

@@ -45,7 +45,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))  # this tree's toolkit, not another checkout's installed one
 
-from bench.cli_common import parse, run_main  # noqa: E402
+from bench.cli_common import check_suites, claim_result, need_path, parse, refusals, run_main  # noqa: E402
+from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import Command, UseAppendAction, arg  # noqa: E402
 
 GROWN = (0.15, 0.3, 0.5)
@@ -181,6 +182,10 @@ class Options:
 
 
 COMMAND = Command(Options, prog="python bench/bench_doubtful_mask.py", description=__doc__.split("\n\n")[0])
+RESULT_KEYS = ("rows",)
+"""The key of every result (--out, read back by --rows-from): a file without it is not this bench's."""
+RECORD_KEYS = ("good_iou", "rows")
+"""The keys of the record (--record): a file without them is not this bench's and is never replaced."""
 
 
 def automatic_run(rows: list[dict]) -> dict:
@@ -210,6 +215,22 @@ def record_run(path: Path, run: dict) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse(COMMAND, argv)
+    if args.rows_from is not None:
+        from scenes.cli.outputs import holds_keys
+
+        earlier = "an earlier run's --out (a JSON object with rows)"
+        need_path(args.rows_from, "--rows-from", earlier, folder=False)
+        with refusals():
+            if not holds_keys(args.rows_from, RESULT_KEYS):
+                raise UsageError(f"--rows-from: got {str(args.rows_from)!r}, expected {earlier}")
+    else:
+        with refusals():
+            if not args.suite:  # checked here, not in validate: the docs quote --record alone
+                raise UsageError("--suite: nothing to measure: expected --suite DIR (a wildgen.make dataset) or "
+                                 "--rows-from FILE")
+        check_suites(args.suite)
+    claim_result(args.out, RESULT_KEYS, COMMAND)
+    claim_result(args.record, RECORD_KEYS, COMMAND, "--record")
     rng = np.random.default_rng(args.seed)
     rows: list[dict] = json.loads(args.rows_from.read_text())["rows"] if args.rows_from else []
     for suite in [] if args.rows_from else args.suite:
@@ -232,7 +253,6 @@ def main(argv: list[str] | None = None) -> int:
     if args.out:
         from scenes.files import write_json
 
-        args.out.parent.mkdir(parents=True, exist_ok=True)
         write_json(args.out, {"rows": rows}, indent=1, newline=True)
     if args.record and rows:
         record_run(args.record, automatic_run(rows))

@@ -37,7 +37,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import machine, parse, run_main  # noqa: E402
+from bench.cli_common import check_work, claim_result, machine, parse, run_main  # noqa: E402
 from scenes.cli.options import Command, arg, option  # noqa: E402
 
 SETS = {"stated": (), "summary": ("summary",), "network": ("network",), "resimulated": ("resimulated",),
@@ -45,6 +45,8 @@ SETS = {"stated": (), "summary": ("summary",), "network": ("network",), "resimul
 """Evidence sets compared: name -> the groups of features added to the stated error's own inputs."""
 NEEDED_SPREAD = 0.19
 """The spread of log(true / stated) at which a normal error would hit on 80 % of objects."""
+RESULT_KEYS = ("command", "samples", "suite", "needed_spread", "rows")
+"""The keys of every result (--out): a file without them is not this bench's and is never replaced."""
 
 
 @dataclass
@@ -182,6 +184,8 @@ def main(argv: list[str] | None = None) -> int:
     from unips.models.registry import pretrained_entry
 
     opts = parse(COMMAND, argv)
+    check_work(opts.work)
+    claim_result(opts.out, RESULT_KEYS, COMMAND)
     torch.set_num_threads(opts.threads)
     work = Path(opts.work)
     work.mkdir(parents=True, exist_ok=True)

@@ -35,7 +35,16 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import DILIGENT, machine, parse, run_main  # noqa: E402
+from bench.cli_common import (  # noqa: E402
+    DILIGENT,
+    check_diligent,
+    check_work,
+    claim_result,
+    machine,
+    need_path,
+    parse,
+    run_main,
+)
 from scenes.cli.options import Command, arg, option  # noqa: E402
 
 HIT_FLOOR_DEG = 2.0
@@ -112,18 +121,30 @@ class BenchOptions:
     work: Annotated[str | None, arg(help_behavior_hint="(default: a temporary folder)")] = None
     """Folder of the held-out asset split and the rendered suite (resumed when run again)."""
     assets: str = str(ROOT.parent / "shared" / "assets")
-    """Asset folder; only its held-out half is rendered."""
+    """Asset folder; only its held-out half is rendered ('none': procedural shapes only)."""
     objects: int = option(5, minimum=1)
     """Objects per suite row."""
     seed: int = 9000
     """Seed of the first row (row i: seed + 100 i); the calibration uses 11000."""
     diligent: str = str(DILIGENT)
-    """DiLiGenT folder (ballPNG, catPNG); 'none' to skip."""
+    """DiLiGenT folder (ballPNG, catPNG; refused when it lacks one); 'none' to skip."""
     threads: int = option(2, minimum=1)
     """Torch threads."""
 
 
 COMMAND = Command(BenchOptions, prog="python bench/bench_expected_error.py", description=__doc__)
+RESULT_KEYS = ("command", "error_model", "suite", "overall", "rows")
+"""The keys of every result (--out): a file without them is not this bench's and is never replaced."""
+
+
+def before_work(opts: BenchOptions) -> None:
+    """What the command line names on disk, checked before any work (each refusal one line)."""
+    check_work(opts.work)
+    if opts.assets != "none":
+        need_path(opts.assets, "--assets", "the asset folder (meshes, HDR maps, textures), or none")
+    if opts.diligent != "none":
+        check_diligent(opts.diligent, ("ballPNG", "catPNG"), "--diligent")
+    claim_result(opts.out, RESULT_KEYS, COMMAND)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -136,6 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     from unips.inference import load_network
 
     opts = parse(COMMAND, argv)
+    before_work(opts)
     torch.set_num_threads(opts.threads)
     work = Path(opts.work or tempfile.mkdtemp(prefix="errbench"))
     work.mkdir(parents=True, exist_ok=True)
@@ -177,10 +199,8 @@ def main(argv: list[str] | None = None) -> int:
                          "stated_mean": round(np.mean([r["stated_mean"] for r in sub]), 2),
                          "ause_ratio_pooled": round(sp["ause_ratio"], 3), "curve": sp}
     diligent = []
-    if opts.diligent != "none" and Path(opts.diligent).is_dir():
+    if opts.diligent != "none":
         for name in ("ballPNG", "catPNG"):
-            if not (Path(opts.diligent) / name).is_dir():
-                continue
             obj = jpeg_object(load_object(Path(opts.diligent) / name))
             mean, pix, true, _ = state(net, em, obj)
             lo, hi = mean * em.ratio_quantiles[0], mean * em.ratio_quantiles[1]

@@ -33,8 +33,12 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import DILIGENT, parse, run_main  # noqa: E402
-from scenes.cli.options import Command, arg, option  # noqa: E402
+from bench.cli_common import DILIGENT, MIN_RES, check_diligent, claim_result, parse, run_main  # noqa: E402
+from scenes.cli.options import CommaList, Command, arg, check_fields, comma_list, option  # noqa: E402
+from validate.perturb import KINDS  # noqa: E402
+
+RESULT_KEYS = ("tta", "diligent", "synthetic")
+"""The keys of every result (--out): a file without them is not this bench's and is never replaced."""
 
 
 def spearman(a, b) -> float:
@@ -72,9 +76,6 @@ def diligent(args, net, out: dict) -> None:
 
     for name in ("ball", "cat"):
         folder = args.diligent / f"{name}PNG"
-        if not folder.is_dir():
-            print(f"{name}: {folder} missing, skipped")
-            continue
         cap = load_capture(folder)
         cfg = FitConfig(seed=args.seed)
         small, n_gt, f = prepare(cap, cap.normal_gt, cfg)
@@ -251,13 +252,15 @@ class Options:
     """wildgen seed of the held-out objects"""
     images: int = option(16, minimum=1)
     """images per synthetic object"""
-    res: int = option(64, minimum=1)
+    res: int = option(64, minimum=MIN_RES)
     """synthetic resolution"""
-    angles: str = "5,10,20,40"
+    angles: Annotated[list[float], comma_list(float, "DEG,DEG")] = option(
+        default_factory=lambda: [5.0, 10.0, 20.0, 40.0], minimum=0, maximum=90)
     """perturbation angles (deg), DiLiGenT"""
-    synthetic_angles: str = "5,10,20,40"
+    synthetic_angles: Annotated[list[float], comma_list(float, "DEG,DEG")] = option(
+        default_factory=lambda: [5.0, 10.0, 20.0, 40.0], minimum=0, maximum=90)
     """perturbation angles (deg), synthetic"""
-    kinds: str = "random,smooth,bias"
+    kinds: Annotated[list[str], CommaList] = option(default_factory=lambda: list(KINDS), choices=KINDS)
     """perturbation kinds"""
     light_model: Literal["directional", "point", "environment", "auto"] = "directional"
     """light model of the synthetic objects' fits and refinement; auto: chosen once per object by residual around
@@ -277,18 +280,26 @@ class Options:
     out: Annotated[Path | None, arg(metavar="FILE")] = None
     """also write the figures as JSON"""
 
+    def validate(self) -> "Options":
+        check_fields(self)
+        if self.tta is not None:
+            from unips.inference import check_tta
+
+            check_tta(self.tta, "--tta")
+        return self
+
 
 COMMAND = Command(Options, prog="python bench/bench_fit.py", description=__doc__.split("\n\n")[0])
 
 
 def main(argv: list[str] | None = None) -> int:
     args = parse(COMMAND, argv)
-    from unips.inference import DEFAULT_TTA, check_tta
+    if not args.skip_diligent and args.diligent.is_dir():  # an absent DiLiGenT folder is skipped, a partial one refused
+        check_diligent(args.diligent, ("ballPNG", "catPNG"), "--diligent")
+    claim_result(args.out, RESULT_KEYS, COMMAND)
+    from unips.inference import DEFAULT_TTA
 
-    args.tta = check_tta(DEFAULT_TTA if args.tta is None else args.tta, "--tta")
-    args.angles = [float(a) for a in args.angles.split(",")]
-    args.synthetic_angles = [float(a) for a in args.synthetic_angles.split(",")]
-    args.kinds = args.kinds.split(",")
+    args.tta = DEFAULT_TTA if args.tta is None else args.tta
     from scenes.renderer.variant import choose_variant, set_jit_threads
     from unips.inference import load_network
 

@@ -24,8 +24,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import machine, parse, run_main  # noqa: E402
-from scenes.cli.options import Command, arg, option  # noqa: E402
+from bench.cli_common import check_given, check_work, claim_result, machine, parse, run_main  # noqa: E402
+from orchestrate.capture import MIN_SIDE  # noqa: E402
+from scenes.cli.errors import UsageError  # noqa: E402
+from scenes.cli.options import Command, arg, check_fields, comma_list, option  # noqa: E402
+
+RESULT_KEYS = ("command", "side", "objects", "rows")
+"""The keys of every result (--out): a file without them is not this bench's and is never replaced."""
 
 
 @dataclass
@@ -40,10 +45,19 @@ class Options:
     """Objects rendered."""
     side: int = option(512, minimum=64)
     """The rendered (photos') side in pixels."""
-    working: str = "64,128,256,512"
-    """Working sides, comma-separated (the rendered side itself: no downscaling)."""
+    working: Annotated[list[int], comma_list(int, "N,N")] = option(
+        default_factory=lambda: [64, 128, 256, 512], minimum=MIN_SIDE)
+    """Working sides, comma-separated, at most --side (the rendered side itself: no downscaling)."""
     seed: int = option(9700)
     """Render seed (none the model was trained, validated or tested on)."""
+
+    def validate(self) -> "Options":
+        check_fields(self)
+        check_given(self, "working")
+        if max(self.working) > self.side:
+            raise UsageError(f"--working: got {max(self.working)}, expected working sides of at most --side "
+                             f"{self.side} (a working copy is the photos downscaled)")
+        return self
 
 
 COMMAND = Command(Options, prog="python bench/bench_full_size.py", description=__doc__.split("\n\n")[0])
@@ -64,6 +78,8 @@ def main(argv: list[str] | None = None) -> int:
     from unips.inference import load_network, run_model
 
     opts = parse(COMMAND, argv)
+    check_work(opts.work)
+    claim_result(opts.out, RESULT_KEYS, COMMAND)
     torch.set_num_threads(2)
     work = Path(opts.work)
     work.mkdir(parents=True, exist_ok=True)
@@ -74,7 +90,7 @@ def main(argv: list[str] | None = None) -> int:
                     "--res", str(opts.side), "--spp", "16", "--objects", str(opts.objects), "--seed", str(opts.seed),
                     "--out", str(work / "renders"), "--quiet", *held], cwd=ROOT, check=True)
     net = load_network(None)
-    sides = [int(s) for s in opts.working.split(",")]
+    sides = opts.working
     errors: dict[int, list[float]] = {s: [] for s in sides}
     outline: dict[int, list[tuple[float, float]]] = {s: [] for s in sides if s < opts.side}
     for folder in find_object_folders(work / "renders", "--work"):
@@ -101,8 +117,8 @@ def main(argv: list[str] | None = None) -> int:
                  "outline_wrong_linear": round(float(np.mean([p for _, p in outline[s]])), 4)} if s in outline else {})}
             for s in sides]
     result = {"command": f"python bench/bench_full_size.py --work WORK --objects {opts.objects} --side {opts.side} "
-                         f"--working {opts.working} --seed {opts.seed}", "side": opts.side, "objects": opts.objects,
-              "rows": rows, "seconds": round(time.time() - t0, 1),
+                         f"--working {','.join(map(str, sides))} --seed {opts.seed}",
+              "side": opts.side, "objects": opts.objects, "rows": rows, "seconds": round(time.time() - t0, 1),
               "machine": machine()}
     write_json(Path(opts.out), result, indent=1)
     for r in rows:

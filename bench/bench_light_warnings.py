@@ -32,8 +32,9 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from bench.cli_common import machine, parse, run_main  # noqa: E402
-from scenes.cli.options import Command, UseAppendAction, arg  # noqa: E402
+from bench.cli_common import check_suites, claim_result, machine, need_path, parse, run_main  # noqa: E402
+from scenes.cli.errors import UsageError  # noqa: E402
+from scenes.cli.options import Command, UseAppendAction, arg, check_fields, option  # noqa: E402
 
 SUBSETS = ("all", "one_side", "above", "near_axis")
 """Captures made of each object's photos: all; those whose light's azimuth lies within 75 deg of the first lit
@@ -200,11 +201,19 @@ class Options:
     (ballPNG, catPNG)"""
     out: Annotated[Path | None, arg(metavar="FILE")] = None
     """write the rows and the summary as JSON here"""
-    threads: int = 2
+    threads: int = option(2, minimum=1)
     """torch threads"""
+
+    def validate(self) -> "Options":
+        check_fields(self)
+        if not self.suite and not self.real:
+            raise UsageError("--suite: nothing to measure: expected --suite DIR (a wildgen.make dataset) or --real DIR")
+        return self
 
 
 COMMAND = Command(Options, prog="python bench/bench_light_warnings.py", description=__doc__.split("\n\n")[0])
+RESULT_KEYS = ("command", "summary", "rows", "captures")
+"""The keys of every result (--out): a file without them is not this bench's and is never replaced."""
 
 
 def table_rows(result: dict) -> list[dict]:
@@ -227,6 +236,10 @@ def main(argv: list[str] | None = None) -> int:
     from unips.inference import load_network
 
     args = parse(COMMAND, argv)
+    check_suites(args.suite)
+    for folder in args.real:
+        need_path(folder, "--real", "real captures with measured lights, or a DiLiGenT object folder")
+    claim_result(args.out, RESULT_KEYS, COMMAND)
     torch.set_num_threads(args.threads)
     net = load_network(None)
     rows: list[dict] = []

@@ -34,7 +34,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import parse, run_main  # noqa: E402
+from bench.cli_common import claim_result, parse, run_main  # noqa: E402
 from scenes.cli.options import Command, arg, option  # noqa: E402
 
 NOISE = 0.003
@@ -134,6 +134,7 @@ COMMAND = Command(Options, prog="python bench/bench_min_images.py", description=
 
 def main(argv: list[str] | None = None) -> int:
     args = parse(COMMAND, argv)
+    claim_result(args.out, ("images", "crescent", "size"), COMMAND)  # the keys of every result: the three sweeps
     from scenes.renderer.variant import choose_variant, set_jit_threads
     from validate.fitted.fit_scene import FitConfig
 

@@ -23,7 +23,28 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from bench.cli_common import parse, run_main  # noqa: E402
-from scenes.cli.options import Command, arg, option  # noqa: E402
+from scenes.cli.errors import UsageError  # noqa: E402
+from scenes.cli.options import Command, arg, check_fields, option  # noqa: E402
+
+CASES = {"infer": ("MODEL", "RES", "K"), "train": ("RES", "K", "BATCH", "PIXELS")}
+"""The cases a subprocess of this script times (--case): kind -> its values, each a whole number >= 1 but MODEL (one
+of `unips.models.list_models`)."""
+
+
+def check_case(case: list[str]) -> None:
+    """A UsageError naming --case unless `case` is one of `CASES` with its values."""
+    form = " or ".join(f"{kind} {' '.join(values)}" for kind, values in CASES.items())
+    values = CASES.get(case[0]) if case else None
+    if values is None or len(case) != len(values) + 1:
+        raise UsageError(f"--case: got {' '.join(case)!r}, expected {form}")
+    for name, value in zip(values, case[1:]):
+        if name == "MODEL":
+            from unips.models import list_models
+
+            if value not in list_models():
+                raise UsageError(f"--case: got model {value!r}, expected one of {', '.join(list_models())}")
+        elif not value.isdigit() or int(value) < 1:
+            raise UsageError(f"--case: got {name} {value!r}, expected a whole number >= 1 ({form})")
 
 
 def _status_mib(key: str) -> float:
@@ -121,6 +142,12 @@ class Options:
     """Images of the glc-unips and glc-tiny inference cases."""
     case: Annotated[list[str] | None, arg(metavar="CASE")] = None
     """internal: the one case a subprocess of this script times (infer MODEL RES K, or train RES K BATCH PIXELS)"""
+
+    def validate(self) -> "Options":
+        check_fields(self)
+        if self.case is not None:
+            check_case(self.case)
+        return self
 
 
 COMMAND = Command(Options, prog="python bench/bench_model.py", description=__doc__.split("\n\n")[0])

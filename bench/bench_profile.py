@@ -49,9 +49,9 @@ from typing import Annotated
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from bench.cli_common import machine, parse, run_main  # noqa: E402
-from scenes.cli.errors import UsageError  # noqa: E402
-from scenes.cli.options import Command, arg, check_fields, option  # noqa: E402
+from bench.cli_common import check_revision, claim_result, machine, parse, run_main  # noqa: E402
+from scenes.cli.options import CommaList, Command, arg, option  # noqa: E402
+from wildgen.light_families import LIGHT_FAMILIES  # noqa: E402
 
 SETTINGS = {
     "default": {"res": 128, "images": 10, "spp": 64},
@@ -252,7 +252,8 @@ class Options:
 
     baseline: Annotated[str | None, arg(metavar="REV")] = None
     """a git revision to profile side by side with this tree"""
-    settings: str = ",".join(SETTINGS)
+    settings: Annotated[list[str], CommaList] = option(default_factory=lambda: list(SETTINGS),
+                                                       choices=tuple(SETTINGS))
     """comma list of default, large"""
     objects: Annotated[int | None, arg(help_behavior_hint="(default: COUNTS)")] = option(None, minimum=1)
     """objects profiled per setting (the first is reported apart)"""
@@ -260,7 +261,8 @@ class Options:
     """objects of each wildgen.make run for objects per hour"""
     rounds: int = option(2, minimum=1)
     """wildgen.make runs per tree (alternating trees)"""
-    lights: str = "near_area"
+    lights: Annotated[list[str], CommaList] = option(default_factory=lambda: ["near_area"],
+                                                     choices=tuple(LIGHT_FAMILIES))
     """light families of the profiled dataset"""
     seed: int = 7
     """wildgen seed of the profiled objects."""
@@ -269,20 +271,17 @@ class Options:
     out: Annotated[str | None, arg(metavar="FILE")] = None
     """write the JSON here"""
 
-    def validate(self) -> "Options":
-        check_fields(self)
-        bad = [s for s in self.settings.split(",") if s not in SETTINGS]
-        if bad:
-            raise UsageError(f"--settings: {bad[0]!r} is not one of {', '.join(SETTINGS)}")
-        return self
-
-
 COMMAND = Command(Options, prog="python bench/bench_profile.py", description=__doc__.splitlines()[0])
+RESULT_KEYS = ("command", "lights", "rows")
+"""The keys of every result (--out): a file without them is not this bench's and is never replaced."""
 
 
 def main(argv: list[str] | None = None) -> int:
     args = parse(COMMAND, argv)
-    settings = args.settings.split(",")
+    if args.baseline:
+        check_revision(args.baseline)
+    claim_result(args.out, RESULT_KEYS, COMMAND)
+    settings, lights = args.settings, ",".join(args.lights)
     tmp = Path(tempfile.mkdtemp(prefix="bench_profile_trees_"))
     trees = {"this tree": REPO}
     head = subprocess.run(
@@ -302,14 +301,14 @@ def main(argv: list[str] | None = None) -> int:
             stages, rates, checks = {}, {name: [] for name in trees}, {}
             for name, tree in trees.items():
                 print(f"[{setting}] profiling {name} ({revisions[name]}) ...", flush=True)
-                profiled = run_profile(tree, setting, n_profile, args.seed, args.lights)
+                profiled = run_profile(tree, setting, n_profile, args.seed, lights)
                 stages[name] = mean_stages(profiled)
                 checks[name] = [r.get("files") for r in profiled["objects"]]
             walls = {name: [] for name in trees}
             for r in range(args.rounds if n_rate > SHORT_RUN else 0):
                 for name, tree in trees.items():
-                    short, _ = run_cli(tree, setting, SHORT_RUN, args.seed, args.lights)
-                    wall, files = run_cli(tree, setting, n_rate, args.seed, args.lights)
+                    short, _ = run_cli(tree, setting, SHORT_RUN, args.seed, lights)
+                    wall, files = run_cli(tree, setting, n_rate, args.seed, lights)
                     rates[name].append((n_rate - SHORT_RUN) * 3600.0 / max(wall - short, 1e-9))
                     walls[name].append(wall)
                     checks[name].append(files)
@@ -341,7 +340,7 @@ def main(argv: list[str] | None = None) -> int:
               + f" {r['total_s']:7.2f} {r['objects_per_hour'] or 0:7.0f}")
     result = {"machine": machine(),
               "command": "python bench/bench_profile.py " + " ".join(sys.argv[1:]),
-              "lights": args.lights, "seed": args.seed, "rows": rows}
+              "lights": lights, "seed": args.seed, "rows": rows}
     if args.out:
         from scenes.files import write_json
 

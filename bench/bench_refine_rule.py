@@ -26,8 +26,12 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import machine, parse, run_main  # noqa: E402
-from scenes.cli.options import Command, arg, option  # noqa: E402
+from bench.cli_common import check_given, check_work, claim_result, machine, parse, run_main  # noqa: E402
+from scenes.cli.errors import UsageError  # noqa: E402
+from scenes.cli.options import Command, arg, check_fields, comma_list, option  # noqa: E402
+
+RESULT_KEYS = ("command", "rows_rendered", "hurt_deg", "rows", "sets")
+"""The keys of every result (--out): a file without them is not this bench's and is never replaced."""
 
 ROWS = (
     ("diffuse", ("--lights", "directional", "--materials", "diffuse", "--images", "12")),
@@ -77,9 +81,18 @@ class Options:
     """Where the results are written (JSON)."""
     objects: int = option(10, minimum=1)
     """Objects per row."""
-    seeds: str = "9500,9600"
+    seeds: Annotated[list[int], comma_list(int, "SEED,SEED")] = option(default_factory=lambda: [9500, 9600],
+                                                                        minimum=0)
     """Seeds of independently rendered sets, comma-separated (a set's row i: seed + 100 i): a rule is chosen on the
     first and confirmed on the others; none is a seed the model was trained, validated or tested on."""
+
+    def validate(self) -> "Options":
+        check_fields(self)
+        check_given(self, "seeds")
+        if len(set(self.seeds)) < len(self.seeds):
+            raise UsageError(f"--seeds: got {','.join(map(str, self.seeds))!r}, expected different seeds (each one a "
+                             "set rendered into WORK/seed<N>)")
+        return self
 
 
 def summarise(reports: list[dict]) -> list[dict]:
@@ -142,11 +155,13 @@ def main(argv: list[str] | None = None) -> int:
     from scenes.renderer.variant import choose_variant, set_jit_threads
 
     opts = parse(COMMAND, argv)
+    check_work(opts.work)
+    claim_result(opts.out, RESULT_KEYS, COMMAND)
     torch.set_num_threads(2)
     choose_variant("llvm_ad_rgb")  # the refinement needs automatic differentiation
     set_jit_threads(None)
     t0 = time.time()
-    seeds = [int(x) for x in opts.seeds.split(",")]
+    seeds = opts.seeds
     sets = [refine_set(Path(opts.work) / f"seed{seed}", opts.objects, seed) for seed in seeds]
     rows = table(sets)
     for row in rows:
@@ -154,7 +169,8 @@ def main(argv: list[str] | None = None) -> int:
             f"seed {k}: kept {q['kept_refined']:3d} mean {q['mean_error_deg']:.2f} hurt {q['hurt']} missed "
             f"{q['missed']}" for k, q in row["by_seed"].items()))
     result = {"command": f"python bench/bench_refine_rule.py --work WORK --objects {opts.objects} "
-                         f"--seeds {opts.seeds}", "rows_rendered": [name for name, _ in ROWS], "hurt_deg": HURT_DEG,
+                         f"--seeds {','.join(map(str, seeds))}",
+              "rows_rendered": [name for name, _ in ROWS], "hurt_deg": HURT_DEG,
               "rows": rows, "sets": sets, "seconds": round(time.time() - t0, 1),
               "machine": machine()}
     write_json(Path(opts.out), result, indent=1)

@@ -20,16 +20,16 @@ import shutil
 import sys
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import parse, run_main  # noqa: E402
-from scenes.cli.errors import UsageError  # noqa: E402
-from scenes.cli.options import Command, arg, check_fields, option  # noqa: E402
+from bench.cli_common import MIN_RES, parse, run_main  # noqa: E402
+from scenes.checks import check_choice  # noqa: E402
+from scenes.cli.options import CommaList, Command, arg, check_fields, option  # noqa: E402
 from scenes.renderer.variant import PREFERENCE as VARIANTS  # noqa: E402
 from wildgen.light_families import LIGHT_FAMILIES  # noqa: E402
 
@@ -90,7 +90,7 @@ def measure(family: str, args, tmp: Path, overrides: dict | None = None) -> dict
 class Options:
     """The command line of bench/bench_render.py."""
 
-    res: int = option(256, minimum=1)
+    res: int = option(256, minimum=MIN_RES)
     """Image side in pixels."""
     spp: int = option(64, minimum=1)
     """Samples per pixel."""
@@ -98,11 +98,12 @@ class Options:
     """Images per object."""
     objects: int = option(2, minimum=1)
     """objects per family"""
-    families: Annotated[str, arg(help_behavior_hint="(default: all)")] = ",".join(LIGHT_FAMILIES)
+    families: Annotated[list[str], CommaList, arg(help_behavior_hint="(default: all)")] = option(
+        default_factory=lambda: list(LIGHT_FAMILIES), choices=tuple(LIGHT_FAMILIES))
     """light families, comma-separated"""
     rounds: int = option(1, minimum=1)
     """rounds over all families; each figure is the smallest of its rounds (robust to other load)"""
-    features: str | None = None
+    features: Annotated[list[str], CommaList] = field(default_factory=list)
     """generator features, comma-separated (default, perspective, focal, detail, cluster): one row per family and
     feature"""
     variant: str | None = option(None, choices=("auto", *VARIANTS))
@@ -110,12 +111,8 @@ class Options:
 
     def validate(self) -> "Options":
         check_fields(self)
-        unknown = [f for f in (self.features or "").split(",") if f and f not in FEATURES]
-        if unknown:
-            raise UsageError(f"--features: unknown {unknown}, expected from {', '.join(FEATURES)}")
-        if not self.families or any(f not in LIGHT_FAMILIES for f in self.families.split(",")):
-            raise UsageError(f"--families: got {self.families!r}, expected one or more of {', '.join(LIGHT_FAMILIES)}, "
-                             "comma-separated")
+        for feature in self.features:  # none given: the default only (a choice list may not be empty)
+            check_choice(feature, "--features", FEATURES)
         return self
 
 
@@ -131,10 +128,10 @@ def main(argv: list[str] | None = None) -> int:
     from wildgen.writer import make_object
 
     variant = choose_variant(args.variant)
-    features = args.features.split(",") if args.features else [None]
+    features = args.features or [None]
     setups = {
         (f if feat is None else f"{f}+{feat}"): (f, FEATURES.get(feat, {}))
-        for f in args.families.split(",")
+        for f in args.families
         for feat in features
     }
     families = list(setups)

@@ -25,8 +25,14 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import parse, run_main  # noqa: E402
-from scenes.cli.options import Command, arg, option  # noqa: E402
+from bench.cli_common import MIN_RES, claim_result, need_path, parse, run_main  # noqa: E402
+from scenes.cli.options import CommaList, Command, arg, comma_list, option  # noqa: E402
+from scenes.renderer.variant import PREFERENCE as VARIANTS  # noqa: E402
+from validate.perturb import KINDS  # noqa: E402
+from wildgen.light_families import LIGHT_FAMILIES  # noqa: E402
+
+RESULT_KEYS = ("rows", "baselines", "spearman_pooled", "monotonic")
+"""The keys of every result (--json): a file without them is not this bench's and is never replaced."""
 
 
 @dataclass
@@ -37,7 +43,7 @@ class Options:
         None
     )
     """existing dataset folder (*.data)"""
-    res: int = option(64, minimum=1)
+    res: int = option(64, minimum=MIN_RES)
     """resolution of the rendered dataset"""
     spp: int = option(64, minimum=1)
     """samples per pixel of the rendered dataset"""
@@ -45,19 +51,21 @@ class Options:
     """objects to render"""
     images: int = option(4, minimum=1)
     """images per object"""
-    lights: str = "near_area,hdri,mixed"
+    lights: Annotated[list[str], CommaList] = option(
+        default_factory=lambda: ["near_area", "hdri", "mixed"], choices=tuple(LIGHT_FAMILIES))
     """light families for wildgen.make (cycled over objects)"""
     bounces: int = option(4, minimum=0)
     """bounces of the rendered dataset"""
     seed: int = 0
     """dataset and perturbation seed"""
-    levels: str = "2,5,10,20,40"
+    levels: Annotated[list[float], comma_list(float, "DEG,DEG")] = option(
+        default_factory=lambda: [2.0, 5.0, 10.0, 20.0, 40.0], minimum=0, maximum=90)
     """perturbation angles in degrees"""
-    kinds: str = "random,smooth,bias"
+    kinds: Annotated[list[str], CommaList] = option(default_factory=lambda: list(KINDS), choices=KINDS)
     """perturbation kinds"""
     seed_mode: Literal["same", "independent"] = "same"
     """Seeds of the re-render: the recorded ones (same) or new ones (independent)."""
-    variant: str | None = None
+    variant: str | None = option(None, choices=("auto", *VARIANTS))
     """Mitsuba variant (default: cuda, llvm, scalar, the first this machine runs)."""
     json: Annotated[str | None, arg(metavar="FILE")] = None
     """write all numbers to this JSON file"""
@@ -66,8 +74,16 @@ class Options:
 COMMAND = Command(Options, prog="python bench/bench_rerender.py", description=__doc__)
 
 
+def before_work(args: Options) -> None:
+    """What the command line names on disk, checked before any work (each refusal one line)."""
+    if args.data is not None:
+        need_path(args.data, "--data", "a dataset folder of object folders (*.data)")
+    claim_result(args.json, RESULT_KEYS, COMMAND, "--json")
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse(COMMAND, argv)
+    before_work(args)
     logging.basicConfig(level=logging.WARNING)
 
     from scipy.stats import spearmanr
@@ -93,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
         rc = make_main(
             ["--out", str(data), "--objects", str(args.objects), "--images", str(args.images), "--res", str(args.res),
              "--spp", str(args.spp), "--bounces", str(args.bounces), "--seed", str(args.seed), "--quiet"]
-            + sum((["--lights", f] for f in args.lights.split(",")), [])
+            + sum((["--lights", f] for f in args.lights), [])
         )
         if rc != 0:
             print(f"error: wildgen.make failed with exit code {rc}", file=sys.stderr)
@@ -104,8 +120,7 @@ def main(argv: list[str] | None = None) -> int:
         )
     else:
         data = Path(args.data)
-    levels = [float(x) for x in args.levels.split(",")]
-    kinds = args.kinds.split(",")
+    levels, kinds = args.levels, args.kinds
 
     rows, baselines = [], []
     for folder in list_object_folders(data):

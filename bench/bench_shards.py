@@ -38,7 +38,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import parse, run_main  # noqa: E402
+from bench.cli_common import MIN_RES, claim_result, parse, run_main  # noqa: E402
 from scenes.cli.options import Command, arg, option  # noqa: E402
 
 
@@ -119,8 +119,8 @@ class Options:
     """Objects written and read."""
     images: int = option(8, minimum=1)
     """Images per object."""
-    res: int = option(64, minimum=1)
-    """Image side in pixels."""
+    res: int = option(64, minimum=MIN_RES)
+    """Image side in pixels (at least 8: an object needs pixels)."""
     shard_size: int = option(100, minimum=1)
     """Objects per shard."""
     repeats: int = option(3, minimum=1)
@@ -130,10 +130,13 @@ class Options:
 
 
 COMMAND = Command(Options, prog="python bench/bench_shards.py", description=__doc__.split("\n\n")[0])
+RESULT_KEYS = ("settings", "sizes", "rows")
+"""The keys of every result (--out): a file without them is not this bench's and is never replaced."""
 
 
 def main(argv: list[str] | None = None) -> int:
     args = parse(COMMAND, argv)
+    claim_result(args.out, RESULT_KEYS, COMMAND)
 
     import importlib
 

@@ -29,7 +29,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bench.cli_common import ROOT, parse, run_main  # noqa: E402
+from bench.cli_common import ROOT, check_work, claim_result, need_path, parse, refusals, run_main  # noqa: E402
+from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import REQUIRED, Command, option  # noqa: E402
 
 SUITES = {
@@ -41,6 +42,10 @@ SUITES = {
 REFERENCE_PACKAGES = ("numpy", "scipy", "numba", "tqdm", "pyvista")
 """What the reference imports (its requirements.txt, unpinned: the pinned 2021 versions do not build here)."""
 MIN_PIXELS = 2000
+RESULT_KEYS = ("command", "whole_process_seconds", "rows", "cases")
+"""The keys of every result (--out): a file without them is not this bench's and is never replaced."""
+REFERENCE_MODULE = "bilateral_normal_integration_cpu.py"
+"""The reference's module in --reference."""
 """Rendered objects smaller than this in the image are left out (too few pixels to integrate)."""
 
 
@@ -252,6 +257,13 @@ def main(argv: list[str] | None = None) -> int:
     import numpy as np
 
     opts = parse(COMMAND, argv)
+    check_work(opts.work)
+    with refusals():
+        if not (Path(opts.reference) / REFERENCE_MODULE).is_file():
+            raise UsageError(f"--reference: {opts.reference!r} holds no {REFERENCE_MODULE}; expected the folder of "
+                             "the reference implementation of Bilateral Normal Integration")
+    need_path(opts.surface_data, "--surface-data", "a folder of DiLiGenT objects with depth_gt.npz")
+    claim_result(opts.out, RESULT_KEYS, COMMAND)
     work = Path(opts.work)
     work.mkdir(parents=True, exist_ok=True)
     render(opts, work)

@@ -24,27 +24,29 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from bench.cli_common import parse, run_main  # noqa: E402
-from scenes.cli.options import Command, arg, option  # noqa: E402
+from bench.cli_common import MIN_RES, check_given, check_work, parse, refusals, run_main  # noqa: E402
+from scenes.cli.errors import UsageError  # noqa: E402
+from scenes.cli.options import CommaList, Command, arg, check_fields, option  # noqa: E402
 from wildgen.light_families import LIGHT_FAMILIES  # noqa: E402
 
 
 def engine_flags(name: str) -> list[str]:
+    """wildgen.make's flags of an engine (--engines); a UsageError naming --engines for anything else."""
     if name == "ray":
         return ["--ray"]
     if name == "inproc":
         return ["--workers", "0"]
-    if name.startswith("w") and "t" in name:
-        w, t = name[1:].split("t")
-        return ["--workers", w, "--threads", t]
-    raise SystemExit(f"error: --engines: unknown engine {name!r}, expected w<W>t<T>, ray or inproc")
+    w, _, t = name[1:].partition("t")
+    if name.startswith("w") and w.isdigit() and t.isdigit() and int(w) >= 1 and int(t) >= 1:
+        return ["--workers", str(int(w)), "--threads", str(int(t))]
+    raise UsageError(f"--engines: got {name!r}, expected w<W>t<T> (W workers, T threads, each >= 1), ray or inproc")
 
 
 def run_cli(out: Path, flags: list[str]) -> tuple[float, dict]:
@@ -81,7 +83,7 @@ def overhead_table(manifest: dict, label: str) -> None:
 class Options:
     """The command line of bench/bench_throughput.py."""
 
-    res: int = option(128, minimum=1)
+    res: int = option(128, minimum=MIN_RES)
     """Image side in pixels."""
     spp: int = option(64, minimum=1)
     """Samples per pixel."""
@@ -89,16 +91,24 @@ class Options:
     """Images per object."""
     objects: int = option(8, minimum=1)
     """Objects of each engine's dataset."""
-    engines: str = "w1t1,w1t2,w2t1,ray"
+    engines: Annotated[list[str], CommaList] = field(default_factory=lambda: ["w1t1", "w1t2", "w2t1", "ray"])
     """Engines, comma-separated: w<W>t<T> (W local worker processes with T Dr.Jit threads each), ray or inproc."""
     overhead_spp: int = option(256, minimum=1)
     """Samples per pixel of the overhead-share run."""
     overhead_objects: int = option(3, minimum=1)
     """Objects of the overhead-share run."""
-    lights: Annotated[str, arg(help_behavior_hint="(default: all)")] = ",".join(LIGHT_FAMILIES)
+    lights: Annotated[list[str], CommaList, arg(help_behavior_hint="(default: all)")] = option(
+        default_factory=lambda: list(LIGHT_FAMILIES), choices=tuple(LIGHT_FAMILIES))
     """light families for wildgen.make"""
     keep: Annotated[str | None, arg(metavar="DIR")] = None
     """keep the datasets in this folder"""
+
+    def validate(self) -> "Options":
+        check_fields(self)
+        check_given(self, "engines")
+        for engine in self.engines:
+            engine_flags(engine)
+        return self
 
 
 COMMAND = Command(Options, prog="python bench/bench_throughput.py", description=__doc__.split("\n\n")[0])
@@ -106,25 +116,27 @@ COMMAND = Command(Options, prog="python bench/bench_throughput.py", description=
 
 def main(argv: list[str] | None = None) -> int:
     args = parse(COMMAND, argv)
-
-    engines = args.engines.split(",")
-    for e in engines:
-        engine_flags(e)
+    check_work(args.keep, "--keep")
+    engines, lights = list(args.engines), ",".join(args.lights)
     if "ray" in engines:
         try:
             import ray  # noqa: F401
         except ImportError:
             print("ray is not installed: skipping the ray engine (pip install 'unips-toolkit[ray]')")
             engines.remove("ray")
+    with refusals():
+        if not engines:
+            raise UsageError("--engines: got 'ray', but ray is not installed (pip install 'unips-toolkit[ray]'); "
+                             "expected w<W>t<T> or inproc too")
     work = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="bench_throughput_"))
     work.mkdir(parents=True, exist_ok=True)
-    common = ["--lights", args.lights, "--res", str(args.res), "--spp", str(args.spp), "--images", str(args.images),
+    common = ["--lights", lights, "--res", str(args.res), "--spp", str(args.spp), "--images", str(args.images),
               "--objects", str(args.objects), "--seed", "0"]
     tiny = ["--lights", "directional", "--res", "8", "--spp", "1", "--images", "1", "--objects", "1", "--gt-spp", "1"]
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     print(
         f"{args.objects} objects, {args.res}x{args.res}, {args.spp} spp, {args.images} images/object, "
-        f"lights {args.lights}; "
+        f"lights {lights}; "
         f"{cores} cores, load average {os.getloadavg()[0]:.2f}"
     )
     print(f"{'engine':8s} {'wall s':>7s} {'fixed s':>8s} {'obj/hour':>9s} {'w/o fixed':>10s} {'speed-up':>9s}")
@@ -161,7 +173,7 @@ def main(argv: list[str] | None = None) -> int:
         overhead_table(manifests[label], f"{label} at {args.spp} spp")
         over = [
             "--lights",
-            args.lights,
+            lights,
             "--res",
             str(args.res),
             "--spp",

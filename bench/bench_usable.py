@@ -36,8 +36,17 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))  # this tree's toolkit, not another checkout's installed one
 
-from bench.cli_common import DILIGENT, parse, run_main, write_jpeg_photos  # noqa: E402
+from bench.cli_common import (  # noqa: E402
+    DILIGENT,
+    check_diligent,
+    check_suites,
+    claim_result,
+    parse,
+    run_main,
+    write_jpeg_photos,
+)
 from scenes.cli.options import CommaList, Command, UseAppendAction, arg, comma_list, option  # noqa: E402
+from validate.judgeable import MIN_IMAGES  # noqa: E402
 
 MARGIN = 8
 """Pixels cut from each side of DiLiGenT's frames, so that a moved window stays inside the photo."""
@@ -219,20 +228,22 @@ class Options:
     """folder holding ballPNG/ and catPNG/"""
     suite: Annotated[list[Path], UseAppendAction, arg(metavar="DIR")] = field(default_factory=list)
     """a wildgen.make dataset"""
-    suite_shifts: Annotated[list[int], comma_list(int, "N,N")] = field(default_factory=lambda: [2, 4])
+    suite_shifts: Annotated[list[int], comma_list(int, "N,N")] = option(default_factory=lambda: [2, 4], minimum=1)
     """also each rendered object with its second half moved by these px"""
     out: Annotated[Path | None, arg(metavar="FILE")] = None
     """write every row as JSON here"""
     objects: Annotated[list[str], CommaList] = field(default_factory=lambda: ["ball", "cat"])
-    """DiLiGenT objects (folders NAMEPNG/ under --data)."""
+    """DiLiGenT objects (folders NAMEPNG/ under --data, each refused when missing; '' for none)."""
     encodings: Annotated[list[str], CommaList] = option(
         default_factory=lambda: ["linear16", "jpeg"], choices=("linear16", "jpeg")
     )
     """How the photos are written before the check reads them."""
-    subsets: Annotated[list[int], comma_list(int, "N,N")] = field(default_factory=lambda: [96, 48, 16, 8])
-    """Numbers of images of the light subsets."""
-    shifts: Annotated[list[int], comma_list(int, "N,N")] = field(default_factory=lambda: [2, 3, 4, 6])
-    """Camera shifts in px, applied to half of the images."""
+    subsets: Annotated[list[int], comma_list(int, "N,N")] = option(default_factory=lambda: [96, 48, 16, 8],
+                                                                    minimum=MIN_IMAGES["photos"])
+    """Numbers of images of the light subsets (at least 3: fewer do not determine a normal)."""
+    shifts: Annotated[list[int], comma_list(int, "N,N")] = option(default_factory=lambda: [2, 3, 4, 6], minimum=1,
+                                                                   maximum=MARGIN)
+    """Camera shifts in px, applied to half of the images (at most the 8 px margin cut from each side)."""
     directions: Annotated[list[str], CommaList] = option(
         default_factory=lambda: list(DIRECTIONS), choices=tuple(DIRECTIONS)
     )
@@ -241,7 +252,8 @@ class Options:
         default_factory=lambda: ["alternate", "second"], choices=("alternate", "second")
     )
     """Which half of the images is moved: every second one (alternate) or the second half (second)."""
-    frontal: Annotated[list[float], comma_list(float, "DEG,DEG")] = field(default_factory=lambda: [15.0, 10.0])
+    frontal: Annotated[list[float], comma_list(float, "DEG,DEG")] = option(default_factory=lambda: [15.0, 10.0],
+                                                                           minimum=1, maximum=90)
     """also the lights within these degrees of the viewing direction"""
 
 
@@ -250,14 +262,13 @@ COMMAND = Command(Options, prog="python bench/bench_usable.py", description=__do
 
 def main(argv: list[str] | None = None) -> int:
     args = parse(COMMAND, argv)
+    folders = check_diligent(args.data, [f"{obj}PNG" for obj in args.objects])  # --objects '': none
+    check_suites(args.suite)
+    claim_result(args.out, ("rows",), COMMAND)  # the key of every result
     rows: list[dict] = []
     with tempfile.TemporaryDirectory() as tmp:
-        for obj in args.objects:
-            folder = args.data / f"{obj}PNG"
-            if folder.is_dir():
-                rows += diligent_rows(folder, args, Path(tmp))
-            else:
-                print(f"{obj}: {folder} not found, skipped", file=sys.stderr)
+        for folder in folders:
+            rows += diligent_rows(folder, args, Path(tmp))
     for suite in args.suite:
         rows += suite_rows(suite, args.suite_shifts)
     bad = [r for r in rows if not r["ok"]]
@@ -269,7 +280,6 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{key}: raised on {len(got)} of {len(want)} cases that should, falsely on {len(false)} of "
               f"{len(rows) - len(want)}")
     if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
         from scenes.files import write_json
 
         write_json(args.out, {"rows": rows}, indent=1, newline=True)

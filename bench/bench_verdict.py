@@ -34,7 +34,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import parse, run_main  # noqa: E402
+from bench.cli_common import claim_result, need_path, parse, run_main  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import REQUIRED, Command, Positional, arg, check_fields, option  # noqa: E402
 
@@ -226,10 +226,20 @@ class Options:
 
 
 COMMAND = Command(Options, prog="python bench/bench_verdict.py", description=__doc__.split("\n\n")[0])
+RESULT_KEYS = ("rows",)
+"""The key of every result (--out, --degenerate's too): a file without it is not this bench's and is never replaced."""
+
+
+def before_work(args: Options) -> None:
+    """What the command line names on disk, checked before any work (each refusal one line)."""
+    for capture in args.captures:
+        need_path(capture, "CAPTURE", "an object folder with ground-truth normals")
+    claim_result(args.out, RESULT_KEYS, COMMAND)
 
 
 def main(argv: list[str] | None = None) -> int:
     args = parse(COMMAND, argv)
+    before_work(args)
     if args.degenerate:
         return degenerate_sweep(args.captures, args.out)
 

@@ -45,8 +45,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import run_main  # noqa: E402
-from scenes.cli.errors import INPUT_ERRORS, report_error  # noqa: E402
+from bench.cli_common import check_work, claim_result, need_path, parse, run_main  # noqa: E402
+from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error  # noqa: E402
 from scenes.cli.options import Command, Positional, arg, check_fields, option  # noqa: E402
 
 SWEEP: dict[str, tuple[float, ...]] = {
@@ -91,8 +91,17 @@ class SweepOptions:
     threads: int = option(1, minimum=1)
     """Dr.Jit threads of the fits and the renders."""
 
+    def validate(self) -> "SweepOptions":
+        check_fields(self)
+        if not self.captures and self.objects + self.directional_objects == 0:
+            raise UsageError("--objects: got 0 (and --directional-objects 0) without a CAPTURE, expected a suite of "
+                             "one or more objects to render")
+        return self
+
 
 COMMAND = Command(SweepOptions, prog="python bench/bench_verdict_sweep.py", description=__doc__.split("\n\n")[0])
+RESULT_KEYS = ("command", "settings", "defaults", "rows", "captures")
+"""The keys of every result (--out): a file without them is not this bench's and is never replaced."""
 
 
 def render_suite(opts: SweepOptions, work: Path) -> list[Path]:
@@ -303,9 +312,14 @@ def run(opts: SweepOptions) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
+    opts = parse(COMMAND, argv)
+    for capture in opts.captures:
+        need_path(capture, "CAPTURE", "an object folder with ground-truth normals, or a folder of them")
+    if opts.assets is not None:
+        need_path(opts.assets, "--assets", "an asset folder of wildgen.make")
+    check_work(opts.work)
+    out = claim_result(opts.out, RESULT_KEYS, COMMAND)
     try:
-        opts = check_fields(COMMAND.parse(argv))
-        out = Path(opts.out)
         d = run(opts)
     except INPUT_ERRORS as exc:
         return report_error(exc)

@@ -3,20 +3,41 @@ same way, the default DiLiGenT folder and the record of the machine a result was
 
 Each script (run as `python bench/NAME.py`, with the repository root put first on sys.path) declares its options
 as a config dataclass and `COMMAND = Command(Options, prog="python bench/NAME.py", description=...)`; its `main`
-reads the command line with `parse(COMMAND, argv)`.
+reads the command line with `parse(COMMAND, argv)`. What the config alone cannot judge (files and folders on disk)
+is checked in `main` before any work, each refusal one line `error: --flag: ...` and status 2 as well: the result
+file (`claim_result`), a working folder (`check_work`), the inputs (`need_path`, `check_suites`, `check_diligent`,
+`check_revision`), each inside `refusals()`; a list option given empty is refused by `check_given`.
 """
 from __future__ import annotations
 
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
-from scenes.cli.errors import INPUT_ERRORS, report_error
+from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import Command, check_fields
 
 ROOT = Path(__file__).resolve().parents[1]
 """The repository root."""
 DILIGENT = ROOT.parent / "shared" / "data" / "diligent"
 """Where the DiLiGenT objects (ballPNG/, catPNG/, ...) lie next to the checkout."""
+MIN_RES = 8
+"""The smallest image side a bench renders or writes: the generator's (`wildgen.config.GenConfig` --width and
+--height: an object needs pixels to be kept)."""
+
+
+def check_given(cfg: Any, *names: str) -> None:
+    """A UsageError naming the flag of the first of the list options `names` given empty (`--sizes ''`): each is
+    what the bench measures, one or more values."""
+    import dataclasses
+
+    from scenes.cli.options import flag_name
+
+    for f in dataclasses.fields(cfg):
+        if f.name in names and not getattr(cfg, f.name):
+            raise UsageError(f"{flag_name(type(cfg), f)}: got '', expected one or more values, comma-separated")
 
 
 def parse(command: Command, argv: Sequence[str] | None = None) -> Any:
@@ -28,6 +49,116 @@ def parse(command: Command, argv: Sequence[str] | None = None) -> Any:
         return cfg.validate() if hasattr(cfg, "validate") else check_fields(cfg)
     except INPUT_ERRORS as exc:
         raise SystemExit(report_error(exc)) from None
+
+
+@contextmanager
+def refusals() -> Iterator[None]:
+    """A check in `main` before any work: a UsageError, ValueError or FileNotFoundError raised in the block is one
+    line `error: ...` on stderr and status 2, as `parse` reports a bad command line."""
+    try:
+        yield
+    except INPUT_ERRORS as exc:
+        raise SystemExit(report_error(exc)) from None
+
+
+def claim_result(path: str | os.PathLike | None, keys: Sequence[str], owner: Command | str,
+                 flag: str = "--out") -> Path | None:
+    """The result file `path` of a bench (None: no result file asked for), claimed before any work; its folder is
+    created. Refused in one line naming `flag` (status 2): an existing folder, a link or anything but a plain file,
+    a folder above it that is a file or not writable, and an existing file that is not an earlier result of this
+    bench, i.e. not a JSON object holding every key of `keys` (the keys each of its results writes): a bench never
+    replaces a file it did not write. An earlier result is replaced (atomically, by `scenes.files.write_json`)."""
+    if path is None:
+        return None
+    from scenes.cli.outputs import holds_keys, make_output_folder
+
+    owner = owner.prog if isinstance(owner, Command) else owner
+    text, target = str(path), Path(path)
+    with refusals():
+        if not text.strip():
+            raise UsageError(f"{flag}: got {text!r}, expected a file name")
+        if target.is_dir():
+            raise UsageError(f"{flag}: got {text!r}, expected a file: it is an existing folder (name a file in it, "
+                             f"e.g. {str(target / 'result.json')!r})")
+        if target.is_symlink() or (os.path.lexists(target) and not target.is_file()):
+            kind = "a link" if target.is_symlink() else "not a plain file"
+            raise UsageError(f"{flag}: {text!r} is {kind}; it is never replaced: move it away or use another {flag}")
+        if target.is_file() and not holds_keys(target, tuple(keys)):
+            raise UsageError(f"{flag}: {text!r} was not written by {owner} (it is not a JSON object with the keys "
+                             f"{', '.join(keys)} of its results); it is never replaced: move it away or use another "
+                             f"{flag}")
+        make_output_folder(target.parent, flag)
+    return target
+
+
+def check_work(path: str | os.PathLike | None, flag: str = "--work") -> None:
+    """A working folder (None: a temporary one), before any work: refused in one line naming `flag` when it is an
+    existing file, lies under a file or cannot be written (`scenes.cli.outputs.check_output_folder`). Creates
+    nothing."""
+    if path is None:
+        return
+    from scenes.cli.outputs import check_output_folder
+
+    with refusals():
+        check_output_folder(path, flag)
+
+
+def need_path(path: str | os.PathLike, flag: str, what: str, folder: bool = True) -> Path:
+    """An input of a bench that must exist (a folder, or a file with `folder` False), before any work: refused in
+    one line naming `flag`, the path and `what` was expected."""
+    target = Path(path)
+    with refusals():
+        if not (target.is_dir() if folder else target.is_file()):
+            state = ("is a file" if target.is_file() else "is a folder") if os.path.lexists(target) \
+                else "does not exist"
+            raise UsageError(f"{flag}: {str(path)!r} {state}; expected {what}")
+    return target
+
+
+def check_suites(suites: Sequence[str | os.PathLike], flag: str = "--suite") -> None:
+    """Rendered datasets (`wildgen.make` folders of `*.data` object folders), before any work: one that is missing or
+    holds no object folder is refused in one line naming `flag` and the path."""
+    what = "a wildgen.make dataset (a folder of *.data object folders)"
+    for suite in suites:
+        need_path(suite, flag, what)
+        if not any(p.is_dir() for p in Path(suite).glob("*.data")):
+            with refusals():
+                raise UsageError(f"{flag}: {str(suite)!r} holds no *.data object folder; expected {what}")
+
+
+def check_revision(rev: str, flag: str = "--baseline") -> None:
+    """A git revision of this repository (a bench compares this tree with it), before any work: anything that is
+    not a commit here is refused in one line naming `flag`."""
+    import subprocess
+
+    with refusals():
+        known = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--verify", "--quiet", f"{rev}^{{commit}}"],
+                               capture_output=True, text=True)
+        if known.returncode != 0:
+            raise UsageError(f"{flag}: got {rev!r}, expected a commit of this repository")
+
+
+DILIGENT_OBJECT = "a DiLiGenT object folder (001.png..., light_directions.txt, mask.png, Normal_gt.png or .mat)"
+
+
+def check_diligent(data: str | os.PathLike, names: Sequence[str], flag: str = "--data") -> list[Path]:
+    """The DiLiGenT object folders `data`/NAME of `names` (e.g. catPNG), each checked before any work: refused in
+    one line naming `flag` and the folder that is missing or is not a DiLiGenT object with its mask and ground
+    truth."""
+    from scenes.folder.layouts import detect_layout
+
+    folders = []
+    with refusals():
+        for name in names:
+            folder = Path(data) / name
+            if not folder.is_dir():
+                raise UsageError(f"{flag}: {str(folder)!r} does not exist: {str(data)!r} holds no object {name}; "
+                                 f"expected {DILIGENT_OBJECT}")
+            truth = (folder / "Normal_gt.png").is_file() or (folder / "Normal_gt.mat").is_file()
+            if detect_layout(folder) != "diligent" or not (folder / "mask.png").is_file() or not truth:
+                raise UsageError(f"{flag}: {str(folder)!r} is not {DILIGENT_OBJECT}")
+            folders.append(folder)
+    return folders
 
 
 STOPPED = "interrupted: the bench's temporary files are removed and its results not written; run it again"

@@ -27,7 +27,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from bench.cli_common import parse, run_main  # noqa: E402
-from scenes.cli.options import Command, Positional, arg  # noqa: E402
+from scenes.cli.options import Command, Positional, arg, option  # noqa: E402
+
+CARD = "a model card (a JSON object whose lineage is a list of stages, e.g. unips/weights/model_card.json)"
 
 
 def validations(run: Path) -> list[dict]:
@@ -62,6 +64,21 @@ def table(run: Path, families: bool = False) -> str:
         last = rows[-1]["val"]  # unips.train_data.probe_samples renames summarise's "mean" dict to "probes"
         lines += ["", f"per family at step {rows[-1]['step']}:", "", format_table({**last, "mean": last["probes"]})]
     return "\n".join(lines)
+
+
+def read_card(path: Path) -> dict:
+    """The model card at `path` (--card); FileNotFoundError / ValueError naming --card when it is none."""
+    if not path.is_file():
+        raise FileNotFoundError(f"--card: {str(path)!r} is not a file; expected {CARD}")
+    try:
+        card = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise ValueError(f"--card: got {str(path)!r}, expected {CARD}: it is not JSON ({exc})") from None
+    lineage = card.get("lineage") if isinstance(card, dict) else None
+    if not isinstance(lineage, list) or not all(isinstance(s, dict) and isinstance(s.get("stage"), str)
+                                                for s in lineage):
+        raise ValueError(f"--card: got {str(path)!r}, expected {CARD}")
+    return card
 
 
 def shipped_chain(card: dict) -> list[dict]:
@@ -149,7 +166,7 @@ class Options:
     """also the per-family probes of the last validation"""
     card: Annotated[Path | None, arg(metavar="CARD")] = None
     """a model card: the curve across its lineage's shipped stages"""
-    target: float = 15.0
+    target: float = option(15.0, above=0, below=180)
     """test-set error (deg) the --card trend is extrapolated to"""
 
 
@@ -162,9 +179,12 @@ def main(argv: list[str] | None = None) -> int:
         if not args.runs and args.card is None:
             raise ValueError("expected RUN folders or --card CARD")
         if args.card is not None:
-            if not args.card.is_file():
-                raise FileNotFoundError(f"--card: {str(args.card)!r} is not a file")
-            print(card_table(json.loads(args.card.read_text()), args.target), end="\n\n")
+            card = read_card(args.card)
+            try:
+                text = card_table(card, args.target)
+            except (KeyError, TypeError, AttributeError) as exc:  # a stage without the figures a card records
+                raise ValueError(f"--card: got {str(args.card)!r}, expected {CARD}: a stage lacks {exc}") from None
+            print(text, end="\n\n")
         for run in args.runs:
             print(table(run, args.families), end="\n\n")
     except (OSError, ValueError) as exc:

@@ -232,3 +232,159 @@ def test_a_stopped_bench_removes_its_temporary_folder(sig, tmp_path):
     assert proc.returncode == 128 + getattr(signal, sig), (out, err)
     assert "Traceback" not in err and err.strip().splitlines()[-1].startswith("interrupted: "), err
     assert not any(tmp.iterdir()), sorted(p.name for p in tmp.iterdir())
+
+
+# ---------------------------------------------------------------- bad values and outputs, refused before any work
+
+
+@pytest.fixture
+def places(tmp_path):
+    """Paths the table's command lines name: a folder, a plain file, a user's own JSON file, a model card that is no
+    card, an empty dataset, and a DiLiGenT folder with a (fake) ballPNG and no catPNG."""
+    (tmp_path / "folder").mkdir()
+    (tmp_path / "file.txt").write_text("a user's file\n")
+    (tmp_path / "user.json").write_text('{"mine": 1}\n')
+    (tmp_path / "junk.json").write_text("not json\n")
+    (tmp_path / "empty_suite").mkdir()
+    ball = tmp_path / "diligent" / "ballPNG"
+    ball.mkdir(parents=True)
+    for name in ("001.png", "light_directions.txt", "mask.png", "Normal_gt.png"):
+        (ball / name).write_bytes(b"")
+    return tmp_path
+
+
+TINY_SHARDS = ["--objects", "1", "--images", "1", "--res", "8", "--shard-size", "1", "--repeats", "1"]
+"""bench_shards at its cheapest (no rendering: a few seconds)."""
+BAD = [
+    ("bench_shards", ["--out", "{t}/folder", *TINY_SHARDS], ["--out: ", "existing folder"]),
+    ("bench_shards", ["--out", "{t}/file.txt/x.json", *TINY_SHARDS], ["--out: ", "file.txt", "existing file"]),
+    ("bench_shards", ["--out", "{t}/user.json", *TINY_SHARDS], ["--out: ", "user.json", "was not written by",
+                                                                "never replaced"]),
+    ("bench_shards", ["--res", "2", "--objects", "1", "--images", "1"], ["--res: got 2, expected an integer >= 8"]),
+    ("bench_min_images", ["--out", "{t}/folder", "--draws", "1"], ["--out: ", "existing folder"]),
+    ("bench_determinism", ["--sizes", "64x32"], ["--sizes: got '64x32', expected RES:SPP"]),
+    ("bench_determinism", ["--sizes", "8:0"], ["--sizes: got '8:0', expected RES:SPP with SPP an integer >= 1"]),
+    ("bench_determinism", ["--sizes", "4:1"], ["--sizes: got '4:1'", "RES an integer from 8"]),
+    ("bench_determinism", ["--threads", "0", "--sizes", "8:1", "--images", "1", "--repeats", "1"],
+     ["--threads: got 0, expected an integer >= 1"]),
+    ("bench_determinism", ["--variant", "bogus_rgb", "--sizes", "8:1"],
+     ["--variant: got 'bogus_rgb', expected one of"]),
+    ("bench_rerender", ["--levels", "a", "--data", "{t}/empty_suite"], ["--levels: ", "'a'"]),
+    ("bench_rerender", ["--levels", "95", "--data", "{t}/empty_suite"], ["--levels: got 95.0, expected a number in"]),
+    ("bench_rerender", ["--kinds", "zigzag", "--data", "{t}/empty_suite"], ["--kinds: got 'zigzag', expected one of"]),
+    ("bench_rerender", ["--json", "{t}/user.json", "--data", "{t}/empty_suite"], ["--json: ", "was not written by"]),
+    ("bench_fit", ["--angles", "x", "--skip-diligent", "--synthetic", "0"], ["--angles: ", "'x'"]),
+    ("bench_fit", ["--kinds", "zigzag", "--skip-diligent", "--synthetic", "0"], ["--kinds: got 'zigzag'"]),
+    ("bench_fit", ["--tta", "5", "--skip-diligent", "--synthetic", "0"], ["--tta: got 5"]),
+    ("bench_full_size", ["--working", "abc", "--side", "64", "--objects", "1", "--work", "{t}/w"], ["--working: ",
+                                                                                                   "'abc'"]),
+    ("bench_full_size", ["--working", "128", "--side", "64", "--objects", "1", "--work", "{t}/w", "--out",
+                         "{t}/r.json"], ["--working: got 128, expected working sides of at most --side 64"]),
+    ("bench_refine_rule", ["--seeds", "a"], ["--seeds: ", "'a'"]),
+    ("bench_model", ["--case", "x"], ["--case: got 'x', expected infer MODEL RES K or train"]),
+    ("bench_capture", ["--out", "{t}/r.json", "--sides", "big"], ["--sides: ", "'big'"]),
+    ("bench_capture", ["--out", "{t}/r.json", "--images", "0", "--sides", "32"], ["--images: got 0, expected an "
+                                                                                  "integer >= 3"]),
+    ("bench_surface", ["--work", "{t}/file.txt"], ["--work: ", "file.txt", "existing file"]),
+    ("bench_diligent", ["--data", "{t}/diligent", "--max-images", "4"], ["--data: ", "catPNG", "does not exist"]),
+    ("bench_light_warnings", ["--suite", "{t}/no_suite", "--out", "{t}/r.json"], ["--suite: ", "no_suite",
+                                                                                   "does not exist"]),
+    ("bench_light_warnings", ["--suite", "{t}/empty_suite"], ["--suite: ", "holds no *.data"]),
+    ("bench_usable", ["--subsets", "0", "--objects", ""], ["--subsets: got 0, expected an integer >= 3"]),
+    ("bench_usable", ["--shifts", "9", "--objects", ""], ["--shifts: got 9, expected an integer from 1 to 8"]),
+    ("bench_usable", ["--data", "{t}/diligent", "--encodings", "linear16"], ["--data: ", "catPNG"]),
+    ("learning_curve", ["--card", "{t}/junk.json"], ["--card: got ", "junk.json", "expected a model card"]),
+    ("learning_curve", ["--card", "{t}/user.json"], ["--card: got ", "user.json", "expected a model card"]),
+    ("ab_data", ["--work", "{t}/file.txt", "--objects", "5"], ["--work: ", "existing file"]),
+    ("ab_data", ["--work", "{t}/w", "--arms", "bogus"], ["--arms: got 'bogus', expected one of today, new, sensor"]),
+    ("bench_capture_diligent", ["--data", "{t}/diligent", "--objects", "nosuchPNG", "--work", "{t}/w", "--out",
+                                "{t}/r.json"], ["--data: ", "nosuchPNG", "does not exist"]),
+    ("bench_capture_trees", ["--baseline", "no-such-revision", "--objects", ""], ["--objects: got ''"]),
+    ("bench_detail", ["--res", "2", "--objects", "1", "--images", "1", "--spp", "1"], ["--res: got 2"]),
+    ("bench_detail", ["--lights", "zz"], ["--lights: got 'zz', expected one of"]),
+    ("bench_doubtful_mask", ["--suite", "{t}/no_suite"], ["--suite: ", "no_suite", "does not exist"]),
+    ("bench_expected_error", ["--work", "{t}/file.txt", "--assets", "none"], ["--work: ", "existing file"]),
+    ("bench_profile", ["--lights", "bogus"], ["--lights: got 'bogus', expected one of"]),
+    ("bench_render", ["--res", "2", "--objects", "1", "--images", "1", "--spp", "1", "--families", "directional"],
+     ["--res: got 2, expected an integer >= 8"]),
+    ("bench_throughput", ["--engines", "w0t1", "--objects", "1", "--res", "8", "--spp", "1", "--images", "1",
+                          "--lights", "directional", "--overhead-objects", "1", "--overhead-spp", "1"],
+     ["--engines: got 'w0t1', expected w<W>t<T>"]),
+    ("bench_verdict", ["{t}/no_capture", "--out", "{t}/r.json"], ["CAPTURE: ", "no_capture", "does not exist"]),
+    ("bench_verdict_sweep", ["--objects", "0", "--directional-objects", "0", "--out", "{t}/r.json"],
+     ["--objects: got 0"]),
+    ("bench_error_evidence", ["--work", "{t}/file.txt", "--out", "{t}/r.json"], ["--work: ", "existing file"]),
+]
+"""(script, argv with {t} for the fixture's folder, what the one line says): each refused before any work."""
+
+
+def _run(stem: str, argv: list[str], capsys) -> tuple[object, str]:
+    """(exit status, stderr) of the script's main on `argv`, run in this process."""
+    try:
+        code = _module(stem).main(argv)
+    except SystemExit as exc:
+        code = exc.code
+    return code, capsys.readouterr().err
+
+
+@pytest.mark.parametrize("stem,argv,said", BAD, ids=[f"{s}:{' '.join(a)}"[:80] for s, a, _ in BAD])
+def test_a_bad_value_is_one_line_naming_its_flag(stem, argv, said, places, capsys):
+    code, err = _run(stem, [a.replace("{t}", str(places)) for a in argv], capsys)
+    assert code == 2, (code, err)
+    assert err.startswith("error: ") and err.count("\n") == 1 and "Traceback" not in err, err
+    for text in said:
+        assert text in err, (text, err)
+    assert (places / "user.json").read_text() == '{"mine": 1}\n'  # never replaced
+    assert not (places / "w").exists() and not (places / "r.json").exists()  # nothing was made
+
+
+@pytest.mark.parametrize("stem,argv", [("bench_shards", TINY_SHARDS), ("bench_fit", ["--skip-diligent", "--synthetic",
+                                                                                    "0"]),
+                                       ("bench_usable", ["--objects", ""]), ("bench_min_images", ["--draws", "1"])])
+def test_a_users_file_at_out_is_kept(stem, argv, places, capsys):
+    """A JSON file at --out that is no result of the bench (it lacks the keys each of its results writes) is never
+    replaced: refused in one line before any work."""
+    mine = places / "user.json"
+    code, err = _run(stem, ["--out", str(mine), *argv], capsys)
+    assert code == 2 and err.count("\n") == 1 and "was not written by python bench/" in err, err
+    assert "move it away or use another --out" in err, err
+    assert mine.read_text() == '{"mine": 1}\n'
+
+
+def test_claim_result_replaces_an_earlier_result_and_refuses_the_rest(tmp_path, capsys):
+    from bench.cli_common import claim_result
+
+    earlier = tmp_path / "earlier.json"
+    earlier.write_text('{"rows": [], "sizes": {}, "settings": {}}')
+    assert claim_result(earlier, ("settings", "sizes", "rows"), "bench X") == earlier  # an earlier result: replaced
+    assert claim_result(None, ("rows",), "bench X") is None
+    new = tmp_path / "new" / "deeper" / "r.json"
+    assert claim_result(new, ("rows",), "bench X") == new and new.parent.is_dir()  # its folder is made
+    link = tmp_path / "link.json"
+    link.symlink_to(earlier)
+    for path, said in ((tmp_path, "existing folder"), (link, "is a link"), (tmp_path / "earlier.json", "lacks"),
+                       (earlier / "x.json", "existing file")):
+        with pytest.raises(SystemExit) as done:
+            claim_result(path, ("rows", "lacks"), "bench X")
+        err = capsys.readouterr().err
+        assert done.value.code == 2 and err.count("\n") == 1 and err.startswith("error: --out: "), err
+        assert said in err or "was not written by bench X" in err, (said, err)
+    assert earlier.read_text() == '{"rows": [], "sizes": {}, "settings": {}}'
+
+
+def test_an_earlier_result_of_the_bench_is_replaced(tmp_path, capsys):
+    out = tmp_path / "shards.json"
+    out.write_text('{"settings": {"res": 64}, "sizes": {}, "rows": []}')
+    code, err = _run("bench_shards", ["--out", str(out), *TINY_SHARDS], capsys)
+    assert code == 0, err
+    import json
+
+    assert json.loads(out.read_text())["settings"]["res"] == 8
+
+
+def test_the_smallest_side_is_the_generators():
+    from bench.cli_common import MIN_RES
+    from wildgen.config import GenConfig
+
+    meta = {f.name: f.metadata for f in dataclasses.fields(GenConfig)}["width"]
+    assert MIN_RES in [m.get("minimum") for m in meta.values()]
