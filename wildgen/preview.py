@@ -158,11 +158,11 @@ def preview(dataset: str | Path, out: str | Path | None = None,
                          f"{next(iter(failed))}: {next(iter(failed.values()))})")
     written = [target for target, _, _ in drawn] + [targets[-1]]
     make_output_folder(out_dir)
+    sheets = sorted(listed | {p.name for p in written})  # recorded before the first sheet: a killed run's are its own
+    write_json(record, {"dataset": str(dataset), "sheets": sheets, "failed": failed})
     for target, sheet, _ in drawn:
         write_picture(target, sheet)
     write_picture(targets[-1], to_bgr(contact_sheet([s for _, _, s in drawn], OVERVIEW_COLUMNS)))
-    write_json(record, {"dataset": str(dataset), "sheets": sorted(listed | {p.name for p in written}),
-                        "failed": failed})
     return written, failed
 
 
