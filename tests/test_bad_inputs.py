@@ -4034,6 +4034,8 @@ ROWS += [
     Row("predict-out-empty", PR, ["--method", "least-squares", "--input", OBJDIR, "--out", ""], 2,
         ("--out", "empty value")),
     Row("make-out-empty", MK, ["--out=", *TINY], 2, ("--out", "empty value")),
+    Row("benchmark-counts-empty", BM, ["--data", "{W}/data", "--out", "{T}/b", "--counts", ""], 2,
+        ("--counts", "empty list"), check=_not_written("b")),
     # ---- a named pipe where a file is read: refused by name or passed over, never waited on
     Row("evaluate-ground-truth-normals-a-pipe", EV, ["--pred", "{T}/p", "--gt", "{T}/ds"], 1,
         ("failed 00000", "normal.tif", "not a regular file"),

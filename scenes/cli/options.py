@@ -240,6 +240,8 @@ def check_fields(cfg: Any) -> Any:
             item = typing.get_args(tp)[0] if typing.get_args(tp) else str
             if item in (int, float):
                 check = check_int if item is int else check_number
+                if not value and any(v is not None for v in bounds.values()):  # bounded values: one or more meant
+                    raise ValueError(f"{name}: got an empty list, expected one or more numbers, comma-separated")
                 for v in value:
                     check(v, name, **bounds)
         if meta.get("choices") is not None:
