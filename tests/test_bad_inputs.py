@@ -4034,6 +4034,8 @@ ROWS += [
     Row("predict-out-empty", PR, ["--method", "least-squares", "--input", OBJDIR, "--out", ""], 2,
         ("--out", "empty value")),
     Row("make-out-empty", MK, ["--out=", *TINY], 2, ("--out", "empty value")),
+    Row("make-more-workers-than-objects", MK, ["--out", "{T}/o", *TINY[:-3], "--workers", "1000", "--quiet"], 0,
+        ("1 done",)),  # as many workers as objects: the memory check counts those, not the 1000 asked for
     Row("benchmark-counts-empty", BM, ["--data", "{W}/data", "--out", "{T}/b", "--counts", ""], 2,
         ("--counts", "empty list"), check=_not_written("b")),
     # ---- a named pipe where a file is read: refused by name or passed over, never waited on

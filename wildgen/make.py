@@ -261,7 +261,7 @@ def check_memory(cfg: GenConfig, workers: int | None, ray: bool, resumed: bool =
     from wildgen.parallel import default_workers
 
     per_object = cfg.memory_per_object()
-    concurrent = 1 if ray or workers == 0 else (workers or default_workers(cfg.objects))
+    concurrent = 1 if ray or workers == 0 else min(workers or default_workers(cfg.objects), max(1, cfg.objects))
     manifest = manifest_memory(cfg)
     where = " (from manifest.json)" if resumed else ""
     if manifest > per_object * concurrent:
