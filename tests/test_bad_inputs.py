@@ -4034,6 +4034,12 @@ ROWS += [
     Row("predict-out-empty", PR, ["--method", "least-squares", "--input", OBJDIR, "--out", ""], 2,
         ("--out", "empty value")),
     Row("make-out-empty", MK, ["--out=", *TINY], 2, ("--out", "empty value")),
+    Row("evaluate-overwrite-after-a-run-killed-mid-way", EV, ["--pred", "{T}/p", "--gt", "{W}/data", "--overwrite"], 0,
+        ("wrote",), setup=_both(_copy("pred", "p"), _put(  # its mark, written before the first error map, and one map
+            ("p/metrics.json", '{"objects": {}, "missing": [], "failed": {}, "gt": "g", "complete": false}'),
+            ("p/00000/error_map.png", "an earlier run's"))),
+        replaces=("p/metrics.json", "p/00000/error_map.png"),
+        check=lambda w, t: json.loads((t / "p" / "metrics.json").read_text())["complete"] or pytest.fail("complete")),
     Row("make-more-workers-than-objects", MK, ["--out", "{T}/o", *TINY[:-3], "--workers", "1000", "--quiet"], 0,
         ("1 done",)),  # as many workers as objects: the memory check counts those, not the 1000 asked for
     Row("benchmark-counts-empty", BM, ["--data", "{W}/data", "--out", "{T}/b", "--counts", ""], 2,

@@ -104,10 +104,6 @@ def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True, overwrite
     pred_dir = Path(pred_dir)
     if not pred_dir.is_dir():
         raise FileNotFoundError(f"--pred: prediction directory {pred_dir} does not exist")
-    results: dict[str, dict[str, Any]] = {}
-    missing: list[str] = []
-    no_gt: list[str] = []
-    failed: dict[str, str] = {}
     folders = find_objects(gt, arg="--gt")
     single = detect_layout(gt) is not None
     seen: set[str] = set()
@@ -122,6 +118,24 @@ def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True, overwrite
         # an earlier evaluation's files only where its metrics.json says it was one
         claim_outputs([pred_dir / METRICS_JSON, pred_dir / METRICS_CSV, *maps], overwrite, "--pred", "unips.evaluate",
                       marker=pred_dir / METRICS_JSON, signed={pred_dir / METRICS_JSON: METRICS_KEYS})
+        # the mark of this run before its first error map (a run killed mid-way leaves maps known as its own)
+        write_json(pred_dir / METRICS_JSON, {"objects": {}, "mean_mae_deg": None, "per_family": {}, "missing": [],
+                                             "failed": {}, "no_ground_truth": [], "gt": str(Path(gt).resolve()),
+                                             "complete": False}, indent=2, sort_keys=True)
+    try:
+        return _evaluate_all(folders, gt, pred_dir, write, single)
+    except BaseException:
+        if write:  # a run that ends in an error leaves no mark of a run
+            (pred_dir / METRICS_JSON).unlink(missing_ok=True)
+        raise
+
+
+def _evaluate_all(folders: list[Path], gt: str | Path, pred_dir: Path, write: bool, single: bool) -> dict[str, Any]:
+    """`evaluate` after its outputs are claimed: every object (one that fails is recorded), then the summary."""
+    results: dict[str, dict[str, Any]] = {}
+    missing: list[str] = []
+    no_gt: list[str] = []
+    failed: dict[str, str] = {}
     for folder in folders:
         name = object_name(folder)
         try:
@@ -148,6 +162,7 @@ def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True, overwrite
         "failed": failed,
         "no_ground_truth": no_gt,
         "gt": str(Path(gt).resolve()),
+        "complete": True,
     }
     if write:
         table = io.StringIO(newline="")
