@@ -4040,6 +4040,10 @@ ROWS += [
             ("p/00000/error_map.png", "an earlier run's"))),
         replaces=("p/metrics.json", "p/00000/error_map.png"),
         check=lambda w, t: json.loads((t / "p" / "metrics.json").read_text())["complete"] or pytest.fail("complete")),
+    Row("surface-overwrite-after-a-run-killed-mid-way", SF, [*SURF, "--out", "{T}/o", "--overwrite"], 0, ("wrote",),
+        setup=_put(("o/report.json", '{"camera": "c", "solver": {}, "depth": null, "meshes": ["mesh.ply"], '
+                                     '"complete": false}'), ("o/depth.npy", "an earlier run's")),
+        replaces=("o/report.json", "o/depth.npy")),
     Row("make-more-workers-than-objects", MK, ["--out", "{T}/o", *TINY[:-3], "--workers", "1000", "--quiet"], 0,
         ("1 done",)),  # as many workers as objects: the memory check counts those, not the 1000 asked for
     Row("benchmark-counts-empty", BM, ["--data", "{W}/data", "--out", "{T}/b", "--counts", ""], 2,

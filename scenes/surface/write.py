@@ -50,6 +50,12 @@ def write_surface(surface: Surface, folder: str | Path, mesh_formats: tuple[str,
     from scenes.images import write_exr, write_picture
 
     folder = Path(folder)
+    meshes = [f"{SURFACE_MESH}.{fmt}" for fmt in mesh_formats]
+    method = ("bilateral normal integration, conjugate gradients with algebraic multigrid "
+              "(scenes.surface.integrate)")
+    # the mark of this run before its first file (a run killed mid-way leaves files a later --overwrite knows)
+    write_json(folder / SURFACE_FILES[3], {**record, "depth": None, "meshes": meshes, "solver": {"method": method},
+                                           "complete": False}, indent=1)
     depth = surface.depth.astype(np.float32)
     atomic_write(folder / SURFACE_FILES[0], lambda tmp: np.save(tmp, depth))
     write_exr(folder / SURFACE_FILES[1], depth)
@@ -64,9 +70,9 @@ def write_surface(surface: Surface, folder: str | Path, mesh_formats: tuple[str,
         "depth": {"min": float(finite.min()), "median": float(np.median(finite)), "max": float(finite.max())},
         "discontinuity_pixels": int((surface.edge_cut_u | surface.edge_cut_v).sum()),
         "triangles": len(mesh.faces),
-        "meshes": [f"{SURFACE_MESH}.{fmt}" for fmt in mesh_formats],
-        "solver": {"method": "bilateral normal integration, conjugate gradients with algebraic multigrid "
-                             "(scenes.surface.integrate)", **surface.info},
+        "meshes": meshes,
+        "solver": {"method": method, **surface.info},
+        "complete": True,
     }
     write_json(folder / SURFACE_FILES[3], report, indent=1)
     return report
