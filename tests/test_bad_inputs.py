@@ -3336,6 +3336,18 @@ def _linked_object(o: Path) -> None:
     (o / "00001.data").symlink_to(o.parent / "elsewhere")
 
 
+def _made_tiny_edited(edit: Callable[[dict], None]) -> Callable[[Path, Path], None]:
+    """Setup: T/data, a `TINY` dataset rendered here whose manifest then went through `edit`."""
+    def setup(w: Path, t: Path) -> None:
+        from wildgen.make import main
+
+        assert main(["--out", str(t / "data"), *TINY]) == 0
+        m = json.loads((t / "data" / "manifest.json").read_text())
+        edit(m)
+        (t / "data" / "manifest.json").write_text(json.dumps(m))
+    return setup
+
+
 def _made_with_file_for_folder(w: Path, t: Path) -> None:
     """Setup: T/ds, the world's dataset whose 00000.data folder is now a file of the user's."""
     shutil.copytree(w / "data", t / "ds")
@@ -4044,6 +4056,11 @@ ROWS += [
         setup=_put(("o/report.json", '{"camera": "c", "solver": {}, "depth": null, "meshes": ["mesh.ply"], '
                                      '"complete": false}'), ("o/depth.npy", "an earlier run's")),
         replaces=("o/report.json", "o/depth.npy")),
+    Row("make-overwrite-a-manifest-naming-a-folder-outside", MK, ["--out", "{T}/data", *TINY, "--overwrite"], 0,
+        ("1 done",), setup=_both(_put(("victim/keep.txt", "mine\n")), _made_tiny_edited(lambda m: m[
+            "objects"].append({"index": 9, "folder": "../victim", "status": "done", "files": {}}))),
+        replaces=("data/manifest.json",),  # (the same command renders the same bytes: the object is unchanged)
+        check=_kept("victim/keep.txt", "mine\n")),  # a name read from the manifest never leads out of --out
     Row("make-more-workers-than-objects", MK, ["--out", "{T}/o", *TINY[:-3], "--workers", "1000", "--quiet"], 0,
         ("1 done",)),  # as many workers as objects: the memory check counts those, not the 1000 asked for
     Row("benchmark-counts-empty", BM, ["--data", "{W}/data", "--out", "{T}/b", "--counts", ""], 2,

@@ -327,8 +327,9 @@ def _listed(out: Path) -> dict[str, dict]:
         entries = read_json(out / MANIFEST).get("objects", [])
     except (OSError, ValueError, AttributeError):
         return {}
-    return {str(e["folder"]): e for e in (entries if isinstance(entries, list) else [])
-            if isinstance(e, dict) and isinstance(e.get("folder"), str) and e["folder"]}
+    return {str(e["folder"]): e for e in (entries if isinstance(entries, list) else [])  # plain names only: a name
+            if isinstance(e, dict) and isinstance(e.get("folder"), str)  # read from a file never leads out of `out`
+            and e["folder"] not in ("", ".", "..") and Path(e["folder"]).name == e["folder"]}
 
 
 def unlisted_file(out: Path) -> Path | None:
