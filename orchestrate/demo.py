@@ -184,10 +184,10 @@ def main(argv: list[str] | None = None) -> int:
     """A failed step is one line naming the step and its own error (`orchestrate.steps`), exit status its own."""
     try:
         args = COMMAND.parse(argv).validate()
-        check_steps(args)
         from scenes.cli.outputs import output_lock
 
         with output_lock(args.out):  # one demo per folder (its steps hold their own subfolders too)
+            check_steps(args)  # under the hold: the steps' folders lie inside it
             return demo(args)
     except StepFailed as exc:
         return report_error(exc, code=exc.code)

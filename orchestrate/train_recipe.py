@@ -243,11 +243,10 @@ def main(argv: list[str] | None = None) -> int:
         args = COMMAND.parse(argv).validate()
         if args.assets is None and (SHARED / "assets").is_dir():
             args.assets = str(SHARED / "assets")
-        split = check_steps(args)
         from scenes.cli.outputs import output_lock
 
         with output_lock(args.work, "--work"):  # one recipe per folder (its steps hold their own subfolders too)
-            return recipe(args, split)
+            return recipe(args, check_steps(args))  # the steps checked under the hold: their folders are inside
     except OutOfTime as exc:  # says how to go on itself
         return report_error(exc, code=exc.code)
     except StepFailed as exc:

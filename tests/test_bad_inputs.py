@@ -4061,6 +4061,12 @@ ROWS += [
             "objects"].append({"index": 9, "folder": "../victim", "status": "done", "files": {}}))),
         replaces=("data/manifest.json",),  # (the same command renders the same bytes: the object is unchanged)
         check=_kept("victim/keep.txt", "mine\n")),  # a name read from the manifest never leads out of --out
+    Row("predict-into-a-subfolder-of-a-folder-another-run-holds", PR, [*PREDICT_LS[:-1], "{T}/p/00001"], 2,
+        ("--out", "lies inside", "which another run holds"), setup=_running("p"),
+        check=_released(_not_written("p/00001"))),  # that run writes p/00001/ too: the two runs' files would mix
+    Row("make-into-a-subfolder-of-a-folder-another-run-holds", MK, ["--out", "{T}/o/data", *TINY], 2,
+        ("--out", "lies inside", "which another run holds"), setup=_running("o"),
+        check=_released(_not_written("o/data"))),
     Row("make-more-workers-than-objects", MK, ["--out", "{T}/o", *TINY[:-3], "--workers", "1000", "--quiet"], 0,
         ("1 done",)),  # as many workers as objects: the memory check counts those, not the 1000 asked for
     Row("benchmark-counts-empty", BM, ["--data", "{W}/data", "--out", "{T}/b", "--counts", ""], 2,

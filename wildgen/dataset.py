@@ -361,9 +361,14 @@ def dataset_lock(out_dir: Path) -> Iterator[None]:
     """
     import fcntl
 
-    from scenes.cli.outputs import busy_message
+    from scenes.cli.errors import UsageError
+    from scenes.cli.outputs import busy_message, check_no_holder_above
     from scenes.files import FolderBusy, folder_lock
 
+    try:
+        check_no_holder_above(out_dir)  # inside a folder another run writes: the two runs' files would mix
+    except UsageError as exc:
+        raise DatasetError(str(exc)) from None
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / LOCK
     fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)

@@ -152,7 +152,9 @@ def check_flags(opts: MakeOptions, explicit: set[str]) -> None:
             f"--res: sets both sides; it cannot be combined with {given} (use --res R or --width W --height H)"
         )
     check_output_folder(opts.out)
-    from scenes.cli.outputs import check_apart
+    from scenes.cli.outputs import check_apart, check_no_holder_above
+
+    check_no_holder_above(opts.out)  # before the render (the lock, taken later, checks again)
 
     check_apart(opts.out, {"--assets": opts.gen.assets})  # a dataset inside the assets is read as assets next time
     if opts.shards:  # the whole target, before the render: not found only when the dataset is done

@@ -131,6 +131,55 @@ def check_apart(path: str | os.PathLike, inputs: Mapping[str, str | os.PathLike 
                          f"{in_flag}: a command never writes into what it reads")
 
 
+HELD_ENV = "PS_TOOLKIT_HELD_FOLDERS"
+"""The folders this process and the processes that started it hold (real paths, os.pathsep-separated): a step of a
+command writes inside its parent's folder, where any other run is refused (`check_no_holder_above`)."""
+
+
+def check_no_holder_above(path: str | os.PathLike, flag: str = "--out") -> None:
+    """Refuse an output folder inside a folder another run holds (`output_lock`, `wildgen.make`'s lock): that run
+    writes there too, and the two runs' files would mix (a predict into p/00001 while another writes p). A folder
+    this process or the commands that started it hold is ours (`HELD_ENV`). Probes each existing folder above with
+    a shared lock, released at once; creates nothing."""
+    import fcntl
+
+    ours = set(_HELD) | set(filter(None, os.environ.get(HELD_ENV, "").split(os.pathsep)))
+    above = os.path.dirname(os.path.realpath(path))
+    while True:
+        if above not in ours and os.path.isdir(above):
+            try:
+                fd = os.open(above, os.O_RDONLY | os.O_DIRECTORY)
+            except OSError:  # a folder this process may not open: nobody's lock can be probed there
+                fd = None
+            if fd is not None:
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+                except BlockingIOError:
+                    raise UsageError(f"{flag}: {str(path)!r} lies inside {above!r}, which another run holds (it is "
+                                     f"writing there; one writer per output folder): wait for it to end, or use "
+                                     f"another {flag}") from None
+                finally:
+                    os.close(fd)
+        parent = os.path.dirname(above)
+        if parent == above:
+            return
+        above = parent
+
+
+@contextmanager
+def _held_in_env(real: str) -> Iterator[None]:
+    """`real` added to `HELD_ENV` for this block (the steps this process starts inherit it)."""
+    before = os.environ.get(HELD_ENV)
+    os.environ[HELD_ENV] = os.pathsep.join(filter(None, [before, real]))
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop(HELD_ENV, None)
+        else:
+            os.environ[HELD_ENV] = before
+
+
 @contextmanager
 def output_lock(path: str | os.PathLike, flag: str = "--out",
                 inputs: Mapping[str, str | os.PathLike | None] | None = None) -> Iterator[Path]:
@@ -150,6 +199,7 @@ def output_lock(path: str | os.PathLike, flag: str = "--out",
     inputs = dict(inputs or {})
     check_apart(path, inputs, flag)
     check_output_folder(path, flag)
+    check_no_holder_above(path, flag)
     created = []
     parent = os.path.abspath(path)
     while not os.path.exists(parent):
@@ -168,7 +218,8 @@ def output_lock(path: str | os.PathLike, flag: str = "--out",
         with _HELD_LOCK:
             _HELD[real] = record
         try:
-            yield Path(path)
+            with _held_in_env(real):
+                yield Path(path)
         finally:
             with _HELD_LOCK:
                 _HELD.pop(real, None)
