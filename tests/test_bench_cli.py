@@ -352,7 +352,7 @@ def test_a_users_file_at_out_is_kept(stem, argv, places, capsys):
 
 
 def test_claim_result_replaces_an_earlier_result_and_refuses_the_rest(tmp_path, capsys):
-    from bench.cli_common import claim_result
+    claim_result = _module("cli_common").claim_result
 
     earlier = tmp_path / "earlier.json"
     earlier.write_text('{"rows": [], "sizes": {}, "settings": {}}')
@@ -383,7 +383,7 @@ def test_an_earlier_result_of_the_bench_is_replaced(tmp_path, capsys):
 
 
 def test_the_smallest_side_is_the_generators():
-    from bench.cli_common import MIN_RES
+    MIN_RES = _module("cli_common").MIN_RES
     from wildgen.config import GenConfig
 
     meta = {f.name: f.metadata for f in dataclasses.fields(GenConfig)}["width"]
