@@ -34,6 +34,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from bench.cli_common import DILIGENT, MIN_RES, check_diligent, claim_result, parse, run_main  # noqa: E402
+from scenes.cli.errors import UsageError, report_error  # noqa: E402
 from scenes.cli.options import CommaList, Command, arg, check_fields, comma_list, option  # noqa: E402
 from validate.perturb import KINDS  # noqa: E402
 
@@ -297,6 +298,9 @@ def main(argv: list[str] | None = None) -> int:
     if not args.skip_diligent and args.diligent.is_dir():  # an absent DiLiGenT folder is skipped, a partial one refused
         check_diligent(args.diligent, ("ballPNG", "catPNG"), "--diligent")
     claim_result(args.out, RESULT_KEYS, COMMAND)
+    if args.synthetic == 0 and (args.skip_diligent or not args.diligent.is_dir()):  # nothing would be measured
+        raise SystemExit(report_error(UsageError("--synthetic: got 0 with --skip-diligent (or no DiLiGenT folder), "
+                                                 "expected at least one synthetic object or the DiLiGenT objects")))
     from unips.inference import DEFAULT_TTA
 
     args.tta = DEFAULT_TTA if args.tta is None else args.tta

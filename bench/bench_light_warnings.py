@@ -239,7 +239,8 @@ def main(argv: list[str] | None = None) -> int:
     check_suites(args.suite)
     for folder in args.real:
         need_path(folder, "--real", "real captures with measured lights, or a DiLiGenT object folder")
-    claim_result(args.out, RESULT_KEYS, COMMAND)
+    claim_result(args.out, RESULT_KEYS, COMMAND,
+                 inputs={f"--suite {d}": d for d in args.suite} | {f"--real {d}": d for d in args.real})
     torch.set_num_threads(args.threads)
     net = load_network(None)
     rows: list[dict] = []

@@ -62,7 +62,7 @@ def refusals() -> Iterator[None]:
 
 
 def claim_result(path: str | os.PathLike | None, keys: Sequence[str], owner: Command | str,
-                 flag: str = "--out") -> Path | None:
+                 flag: str = "--out", inputs: dict[str, str | os.PathLike | None] | None = None) -> Path | None:
     """The result file `path` of a bench (None: no result file asked for), claimed before any work; its folder is
     created. Refused in one line naming `flag` (status 2): an existing folder, a link or anything but a plain file,
     a folder above it that is a file or not writable, and an existing file that is not an earlier result of this
@@ -70,7 +70,7 @@ def claim_result(path: str | os.PathLike | None, keys: Sequence[str], owner: Com
     replaces a file it did not write. An earlier result is replaced (atomically, by `scenes.files.write_json`)."""
     if path is None:
         return None
-    from scenes.cli.outputs import holds_keys, make_output_folder
+    from scenes.cli.outputs import check_apart, check_no_holder_above, holds_keys, make_output_folder
 
     owner = owner.prog if isinstance(owner, Command) else owner
     text, target = str(path), Path(path)
@@ -87,6 +87,8 @@ def claim_result(path: str | os.PathLike | None, keys: Sequence[str], owner: Com
             raise UsageError(f"{flag}: {text!r} was not written by {owner} (it is not a JSON object with the keys "
                              f"{', '.join(keys)} of its results); it is never replaced: move it away or use another "
                              f"{flag}")
+        check_apart(target, dict(inputs or {}), flag)  # never inside what the bench reads (`inputs`: flag -> path)
+        check_no_holder_above(target, flag)  # nor inside a folder another run writes
         make_output_folder(target.parent, flag)
     return target
 
@@ -97,10 +99,11 @@ def check_work(path: str | os.PathLike | None, flag: str = "--work") -> None:
     nothing."""
     if path is None:
         return
-    from scenes.cli.outputs import check_output_folder
+    from scenes.cli.outputs import check_no_holder_above, check_output_folder
 
     with refusals():
         check_output_folder(path, flag)
+        check_no_holder_above(path, flag)  # inside a folder another run writes, the two runs' files would mix
 
 
 def need_path(path: str | os.PathLike, flag: str, what: str, folder: bool = True) -> Path:
@@ -213,6 +216,8 @@ def run_main(main: Callable[[], int]) -> int:
         print(f"error: step {step} ... failed with status {exc.returncode} (its output above says why)",
               file=sys.stderr)
         code = 1
+    except INPUT_ERRORS as exc:  # a toolkit step refused its input (a held folder, a bad file): its one line
+        code = report_error(exc)
     except KeyboardInterrupt:
         code = None
     finally:

@@ -223,7 +223,7 @@ def check_steps(args: RecipeOptions) -> bool:
         check_apart(work, {"--assets": assets}, "--work")  # the split's folders would land inside the assets
 
         AssetLibrary.scan(assets)  # names --assets when it is missing or empty
-    names = [f"train{args.train_seed[0]}", "val128"]
+    names = [*(f"train{seed}" for seed in args.train_seed), "val128", "test128"]  # every dataset step's folder
     for i, name in enumerate(names):
         check_step("wildgen.make", make_argv(args, work, name, str(assets) if assets and i == 0 else None))
     check_step("unips.train", train_argv(args, work, "main", []))

@@ -4067,6 +4067,10 @@ ROWS += [
     Row("make-into-a-subfolder-of-a-folder-another-run-holds", MK, ["--out", "{T}/o/data", *TINY], 2,
         ("--out", "lies inside", "which another run holds"), setup=_running("o"),
         check=_released(_not_written("o/data"))),
+    Row("recipe-a-later-dataset-folder-a-dangling-link", RC, ["--work", "{T}/w", "--steps", "1"], 2,
+        ("--work", "test128'", "is a link"),
+        setup=lambda w, t: (_mk(t / "w"), os.symlink(t / "gone", t / "w" / "test128")),
+        check=_not_written("w/train5000")),  # every dataset step checked before the first renders
     Row("make-more-workers-than-objects", MK, ["--out", "{T}/o", *TINY[:-3], "--workers", "1000", "--quiet"], 0,
         ("1 done",)),  # as many workers as objects: the memory check counts those, not the 1000 asked for
     Row("benchmark-counts-empty", BM, ["--data", "{W}/data", "--out", "{T}/b", "--counts", ""], 2,

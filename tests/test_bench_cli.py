@@ -388,3 +388,27 @@ def test_the_smallest_side_is_the_generators():
 
     meta = {f.name: f.metadata for f in dataclasses.fields(GenConfig)}["width"]
     assert MIN_RES in [m.get("minimum") for m in meta.values()]
+
+
+def test_a_result_is_never_written_inside_a_held_folder_or_an_input(tmp_path, capsys):
+    """claim_result refuses a result file inside a folder another run holds (its files would mix with that run's)
+    and one inside what the bench reads, each in one line naming the flag, creating nothing."""
+    import os
+
+    from scenes.files import folder_lock
+
+    claim_result = _module("cli_common").claim_result
+    held = tmp_path / "held"
+    held.mkdir()
+    fd = folder_lock(held)  # another run's hold (a lock on its own descriptor)
+    try:
+        with pytest.raises(SystemExit) as stop:
+            claim_result(held / "sub" / "r.json", ("rows",), "bench")
+    finally:
+        os.close(fd)
+    assert stop.value.code == 2 and "which another run holds" in capsys.readouterr().err
+    assert not (held / "sub").exists()
+    (tmp_path / "suite").mkdir()
+    with pytest.raises(SystemExit) as stop:
+        claim_result(tmp_path / "suite" / "r.json", ("rows",), "bench", inputs={"--suite": tmp_path / "suite"})
+    assert stop.value.code == 2 and "lies inside --suite" in capsys.readouterr().err

@@ -114,9 +114,11 @@ def save_checkpoint(path: str | Path, model: nn.Module, extra: Mapping[str, Any]
     return path
 
 
-def load_state_strict(model: nn.Module, state: Mapping[str, torch.Tensor], source: str = "checkpoint") -> None:
+def load_state_strict(model: nn.Module, state: Mapping[str, torch.Tensor], source: str = "checkpoint",
+                      config: str = "its config") -> None:
     """Load `state` into `model`; missing / unexpected keys, shape mismatches, non-finite tensors and tensors of
-    another kind than the model's (an int64 weight: `unips.models.tensors.check_weights`) raise ValueError."""
+    another kind than the model's (an int64 weight: `unips.models.tensors.check_weights`) raise ValueError.
+    `config`: where the model's config came from (a sidecar file: either file may be the wrong one)."""
     own = model.state_dict()
     missing = [k for k in own if k not in state]
     unexpected = [k for k in state if k not in own]
@@ -129,7 +131,7 @@ def load_state_strict(model: nn.Module, state: Mapping[str, torch.Tensor], sourc
     for k, v in own.items():
         if tuple(state[k].shape) != tuple(v.shape):
             raise ValueError(f"{source}: tensor {k} has shape {'x'.join(map(str, state[k].shape))} in the file but "
-                             f"{'x'.join(map(str, v.shape))} in the model built from its config")
+                             f"{'x'.join(map(str, v.shape))} in the model built from {config}")
     check_weights(state, source, own)
     model.load_state_dict(state, strict=True)
 
@@ -202,7 +204,7 @@ def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> tu
     if written is not None and written != meta["model_name"]:
         raise ValueError(f"{str(side)!r} says model {meta['model_name']!r}, but {str(path)!r} holds the weights of "
                          f"{written!r}: the sidecar belongs to other weights")
-    load_state_strict(model, state, str(path))
+    load_state_strict(model, state, str(path), config=f"the config of {str(side)!r}")
     return model.to(map_location).eval(), meta
 
 
