@@ -32,25 +32,33 @@ def _tell_supervisor(path: str | os.PathLike) -> None:
         pass
 
 
-def check_not_being_written(path: str | os.PathLike, flag: str) -> None:
-    """Refuse to read a folder another run is writing (it holds the folder's lock, `output_lock`, as wildgen.make
-    does while it renders): what it holds now is a part of what it will hold. Probes with a shared lock, released
-    at once; a path that is not a folder is left to the reader."""
+def _held_by_another(folder: str | os.PathLike) -> bool:
+    """Whether another run holds `folder` (its lock, `output_lock`, as wildgen.make's while it renders). A shared
+    probe, released at once: readers started together never refuse each other, a writer's lock refuses them. A
+    path that is not a folder, or one this process may not open, is not held as far as can be told."""
     import fcntl
 
-    if not os.path.isdir(path):
-        return
+    if not os.path.isdir(folder):
+        return False
     try:
-        fd = os.open(path, os.O_RDONLY | os.O_DIRECTORY)
-    except OSError:  # a folder this process may not open: the reader says so
-        return
-    try:  # a shared probe: readers started together never refuse each other, a writer's lock refuses them
+        fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
+    except OSError:
+        return False
+    try:
         fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
     except BlockingIOError:
-        raise UsageError(f"{flag}: {str(path)!r} is being written by another run (it holds the folder); wait until it "
-                         "has finished, then run this again") from None
+        return True
     finally:
         os.close(fd)
+    return False
+
+
+def check_not_being_written(path: str | os.PathLike, flag: str) -> None:
+    """Refuse to read a folder another run is writing (`_held_by_another`): what it holds now is a part of what it
+    will hold. A path that is not a folder is left to the reader."""
+    if _held_by_another(path):
+        raise UsageError(f"{flag}: {str(path)!r} is being written by another run (it holds the folder); wait until it "
+                         "has finished, then run this again")
 
 
 def check_output_folder(path: str | os.PathLike, flag: str = "--out") -> str | os.PathLike:
@@ -141,25 +149,12 @@ def check_no_holder_above(path: str | os.PathLike, flag: str = "--out") -> None:
     writes there too, and the two runs' files would mix (a predict into p/00001 while another writes p). A folder
     this process or the commands that started it hold is ours (`HELD_ENV`). Probes each existing folder above with
     a shared lock, released at once; creates nothing."""
-    import fcntl
-
     ours = set(_HELD) | set(filter(None, os.environ.get(HELD_ENV, "").split(os.pathsep)))
     above = os.path.dirname(os.path.realpath(path))
     while True:
-        if above not in ours and os.path.isdir(above):
-            try:
-                fd = os.open(above, os.O_RDONLY | os.O_DIRECTORY)
-            except OSError:  # a folder this process may not open: nobody's lock can be probed there
-                fd = None
-            if fd is not None:
-                try:
-                    fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
-                except BlockingIOError:
-                    raise UsageError(f"{flag}: {str(path)!r} lies inside {above!r}, which another run holds (it is "
-                                     f"writing there; one writer per output folder): wait for it to end, or use "
-                                     f"another {flag}") from None
-                finally:
-                    os.close(fd)
+        if above not in ours and _held_by_another(above):
+            raise UsageError(f"{flag}: {str(path)!r} lies inside {above!r}, which another run holds (it is writing "
+                             f"there; one writer per output folder): wait for it to end, or use another {flag}")
         parent = os.path.dirname(above)
         if parent == above:
             return
@@ -262,7 +257,6 @@ def _check_held(path: Path, owner: str) -> None:
 
 def holds_keys(path: Path, keys: tuple[str, ...]) -> bool:
     """Whether `path` is a JSON object holding every key of `keys`."""
-
     try:
         data = read_json(path)
     except (OSError, ValueError, RecursionError):  # unreadable, not JSON, nested past the parser: not a report
