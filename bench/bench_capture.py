@@ -32,11 +32,10 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "tests"))  # the DNG writer of the RAW tests
 
-from bench.cli_common import check_given, claim_result, machine, need_path, parse, run_main  # noqa: E402
+from bench.cli_common import check_given, claim_result, machine, need_path, parse, run_main, write_result  # noqa: E402
 from orchestrate.capture import MIN_SIDE  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import Command, arg, check_fields, comma_list, option  # noqa: E402
-from scenes.files import write_json  # noqa: E402
 from validate.judgeable import MIN_IMAGES  # noqa: E402
 
 RESULT_KEYS = ("machine", "rows")
@@ -150,7 +149,7 @@ def main(argv: list[str] | None = None) -> int:
                 row["estimate_mib"], row["estimate_s"] = e["peak_mib"], e["seconds"]
         command = "python bench/bench_capture.py --reestimate " + str(args.reestimate)
         result["commands"] = [c for c in result.get("commands", [result.get("command")]) if c != command] + [command]
-        write_json(args.reestimate, result, indent=1, newline=True)
+        write_result(args.reestimate, result, indent=1, newline=True)
         print(f"rewrote the estimates of {args.reestimate}")
         return 0
     claim_result(args.out, RESULT_KEYS, COMMAND)
@@ -168,7 +167,7 @@ def main(argv: list[str] | None = None) -> int:
     result = {"machine": machine(),
               "commands": commands, "rows": rows}
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    write_json(args.out, result, indent=1, newline=True)
+    write_result(args.out, result, indent=1, newline=True)
     print(f"wrote {args.out}")
     return 0
 

@@ -43,9 +43,9 @@ from bench.cli_common import (  # noqa: E402
     parse,
     run_main,
     write_jpeg_photos,
+    write_result,
 )
 from scenes.cli.options import CommaList, Command, arg, check_fields  # noqa: E402
-from scenes.files import write_json  # noqa: E402
 
 CLIP_SHARE = 0.001
 """Share of the object's values (all photos) above the JPEG's largest code: a user's exposure, bright but not blown."""
@@ -139,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
         for case in CASES:
             rows.append(run_case(obj, source, case, args.work))
             print(json.dumps(rows[-1]), flush=True)
-    write_json(args.out, {"command": "python bench/bench_capture_diligent.py --work WORK", "clip_share": CLIP_SHARE,
+    write_result(args.out, {"command": "python bench/bench_capture_diligent.py --work WORK", "clip_share": CLIP_SHARE,
                           "rows": rows, "machine": machine()}, indent=1, newline=True)
     print(f"wrote {args.out}")
     return 0

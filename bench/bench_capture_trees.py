@@ -35,9 +35,9 @@ from bench.cli_common import (  # noqa: E402
     parse,
     run_main,
     write_jpeg_photos,
+    write_result,
 )
 from scenes.cli.options import REQUIRED, CommaList, Command, check_fields  # noqa: E402
-from scenes.files import write_json  # noqa: E402
 
 CLIP_FRACTION = 0.001
 """Fraction of the object's values (all images) that clip in the JPEG files."""
@@ -127,7 +127,7 @@ def main(argv: list[str] | None = None) -> int:
                 print(json.dumps(rows[-1]), flush=True)
         finally:
             subprocess.run(["git", "-C", str(REPO), "worktree", "remove", "--force", str(base)], check=False)
-    write_json(Path(opts.out), {"baseline": opts.baseline, "rows": rows}, indent=1, newline=True)
+    write_result(Path(opts.out), {"baseline": opts.baseline, "rows": rows}, indent=1, newline=True)
     print(f"wrote {opts.out}")
     return 0
 

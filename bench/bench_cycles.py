@@ -43,7 +43,7 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-from bench.cli_common import MIN_RES, check_work, claim_result, machine, parse, run_main  # noqa: E402
+from bench.cli_common import MIN_RES, check_work, claim_result, machine, parse, run_main, write_result  # noqa: E402
 from bench.cycles_blender import (  # noqa: E402
     BLENDER_SCRIPT,
     TO_BLENDER,
@@ -308,7 +308,7 @@ def main(argv: list[str] | None = None) -> int:
                          "speedup": round(cw / mw, 2), "speedup_path_tracing": round(cp / mp, 2)})
         print(f"load average now {os.getloadavg()[0]:.2f}")
         if args.out:
-            write_json(Path(args.out), {
+            write_result(Path(args.out), {
                 "machine": machine(),
                 "command": "python bench/bench_cycles.py " + " ".join(sys.argv[1:]), "blender": version,
                 "res": args.res, "threads": args.threads, "reference_spp": ref,

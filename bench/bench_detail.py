@@ -29,7 +29,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import MIN_RES, check_given, claim_result, parse, run_main  # noqa: E402
+from bench.cli_common import MIN_RES, check_given, claim_result, parse, run_main, write_result  # noqa: E402
 from scenes.cli.options import CommaList, Command, arg, check_fields, comma_list, option  # noqa: E402
 from wildgen.light_families import LIGHT_FAMILIES  # noqa: E402
 
@@ -151,9 +151,7 @@ def main(argv: list[str] | None = None) -> int:
         shutil.rmtree(tmp, ignore_errors=True)
     print(json.dumps(rows))
     if args.out:
-        from scenes.files import write_json
-
-        write_json(args.out, {"strengths_deg": args.strengths, "rows": rows}, indent=1)
+        write_result(args.out, {"strengths_deg": args.strengths, "rows": rows}, indent=1)
         print(f"wrote {args.out}")
     return 0
 

@@ -45,7 +45,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))  # this tree's toolkit, not another checkout's installed one
 
-from bench.cli_common import check_suites, claim_result, need_path, parse, refusals, run_main  # noqa: E402
+from bench.cli_common import check_suites, claim_result, need_path, parse, refusals, run_main, write_result  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import Command, UseAppendAction, arg  # noqa: E402
 
@@ -206,11 +206,9 @@ def automatic_run(rows: list[dict]) -> dict:
 
 def record_run(path: Path, run: dict) -> None:
     """Add `run` to the results file `path`, replacing a run of the same suites and cushions."""
-    from scenes.files import write_json
-
     runs = json.loads(path.read_text())["rows"] if path.is_file() else []
     runs = [r for r in runs if (r["suites"], r["cushions"]) != (run["suites"], run["cushions"])] + [run]
-    write_json(path, {"good_iou": GOOD_IOU, "rows": runs}, indent=1, newline=True)
+    write_result(path, {"good_iou": GOOD_IOU, "rows": runs}, indent=1, newline=True)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -251,9 +249,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"fires on a good mask: {row['object']} {row['kind']}: seed agreement {row['seed_agreement_iou']}, "
                   f"weak inside {row['weak_inside_share']}, varying outside {row['varying_outside_share']}")
     if args.out:
-        from scenes.files import write_json
-
-        write_json(args.out, {"rows": rows}, indent=1, newline=True)
+        write_result(args.out, {"rows": rows}, indent=1, newline=True)
     if args.record and rows:
         record_run(args.record, automatic_run(rows))
         print(f"recorded in {args.record}")

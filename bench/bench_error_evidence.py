@@ -37,7 +37,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import check_work, claim_result, machine, parse, run_main  # noqa: E402
+from bench.cli_common import check_work, claim_result, machine, parse, run_main, write_result  # noqa: E402
 from scenes.cli.options import Command, arg, option  # noqa: E402
 
 SETS = {"stated": (), "summary": ("summary",), "network": ("network",), "resimulated": ("resimulated",),
@@ -176,7 +176,6 @@ def main(argv: list[str] | None = None) -> int:
 
     from orchestrate.asset_split import split_assets
     from orchestrate.error_calibration import SUITE, fault_schedule, objects_of, render_suite
-    from scenes.files import write_json
     from unips.data import load_object
     from unips.expected_error import ErrorModel, model_path
     from unips.inference import load_network
@@ -217,7 +216,7 @@ def main(argv: list[str] | None = None) -> int:
               "suite": [name for name, _ in SUITE], "ridge": opts.ridge, "needed_spread": NEEDED_SPREAD,
               "folds": 5, "rows": rows, "seconds": round(time.time() - t0, 1),
               "machine": machine()}
-    write_json(Path(opts.out), result, indent=1)
+    write_result(Path(opts.out), result, indent=1)
     print(f"wrote {opts.out}")
     return 0
 

@@ -44,6 +44,7 @@ from bench.cli_common import (  # noqa: E402
     need_path,
     parse,
     run_main,
+    write_result,
 )
 from scenes.cli.options import Command, arg, option  # noqa: E402
 
@@ -239,9 +240,8 @@ def main(argv: list[str] | None = None) -> int:
                     "stated_rises_share": rises},
         "rows": table, "families": families, "diligent": diligent, "objects": rows,
     }
-    from scenes.files import write_json
 
-    write_json(Path(opts.out), result, indent=1)
+    write_result(Path(opts.out), result, indent=1)
     o = result["overall"]
     print(f"{o['objects']} held-out objects: stated mean within {HIT_RULE} on {o['hit_share']:.0%}, 80 % interval "
           f"holds the true mean on {o['coverage']:.0%}; wrote {opts.out}")

@@ -33,7 +33,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import DILIGENT, MIN_RES, check_diligent, claim_result, parse, run_main  # noqa: E402
+from bench.cli_common import DILIGENT, MIN_RES, check_diligent, claim_result, parse, run_main, write_result  # noqa: E402
 from scenes.cli.errors import UsageError, report_error  # noqa: E402
 from scenes.cli.options import CommaList, Command, arg, check_fields, comma_list, option  # noqa: E402
 from validate.perturb import KINDS  # noqa: E402
@@ -320,9 +320,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.synthetic > 0:
         synthetic(args, net, out)
     if args.out is not None:
-        from scenes.files import write_json
-
-        write_json(args.out, out, indent=1)
+        write_result(args.out, out, indent=1)
     return 0
 
 

@@ -24,7 +24,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import check_given, check_work, claim_result, machine, parse, run_main  # noqa: E402
+from bench.cli_common import check_given, check_work, claim_result, machine, parse, run_main, write_result  # noqa: E402
 from orchestrate.capture import MIN_SIDE  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import Command, arg, check_fields, comma_list, option  # noqa: E402
@@ -71,7 +71,6 @@ def main(argv: list[str] | None = None) -> int:
 
     from orchestrate.asset_split import split_assets
     from orchestrate.capture_full import downscale_mask, guide_image, upsample
-    from scenes.files import write_json
     from scenes.folder.layouts import find_object_folders
     from scenes.metrics import angles_deg
     from unips.data import load_object
@@ -120,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
                          f"--working {','.join(map(str, sides))} --seed {opts.seed}",
               "side": opts.side, "objects": opts.objects, "rows": rows, "seconds": round(time.time() - t0, 1),
               "machine": machine()}
-    write_json(Path(opts.out), result, indent=1)
+    write_result(Path(opts.out), result, indent=1)
     for r in rows:
         print(r["working_side"], r["mean_error_deg"], r.get("outline_wrong_guided"), r.get("outline_wrong_linear"))
     print(f"wrote {opts.out}")

@@ -32,7 +32,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from bench.cli_common import check_suites, claim_result, machine, need_path, parse, run_main  # noqa: E402
+from bench.cli_common import check_suites, claim_result, machine, need_path, parse, run_main, write_result  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import Command, UseAppendAction, arg, check_fields, option  # noqa: E402
 
@@ -257,11 +257,10 @@ def main(argv: list[str] | None = None) -> int:
     result = {**summary([r for r in rows if r["material"] != "real"]), "real": real} if rows else {}
     print(json.dumps(result, indent=1))
     if args.out:
-        from scenes.files import write_json
 
         args.out.parent.mkdir(parents=True, exist_ok=True)
         flags = [f"--suite {s}" for s in args.suite] + [f"--real {s}" for s in args.real]
-        write_json(args.out, {"command": "python bench/bench_light_warnings.py " + " ".join(flags), "summary": result,
+        write_result(args.out, {"command": "python bench/bench_light_warnings.py " + " ".join(flags), "summary": result,
                               "rows": table_rows(result) if rows else [], "captures": rows, "machine": machine()},
                    indent=1, newline=True)
     return 0

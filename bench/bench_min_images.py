@@ -34,7 +34,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import claim_result, parse, run_main  # noqa: E402
+from bench.cli_common import claim_result, parse, run_main, write_result  # noqa: E402
 from scenes.cli.options import Command, arg, option  # noqa: E402
 
 NOISE = 0.003
@@ -174,9 +174,7 @@ def main(argv: list[str] | None = None) -> int:
         rows["size"].append(r)
         print(f"{res:>5} {r['mask_pixels']:>8} " + fmt(r), flush=True)
     if args.out:
-        from scenes.files import write_json
-
-        write_json(Path(args.out), rows, indent=1)
+        write_result(Path(args.out), rows, indent=1)
     return 0
 
 

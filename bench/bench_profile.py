@@ -49,7 +49,7 @@ from typing import Annotated
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from bench.cli_common import check_revision, claim_result, machine, parse, run_main  # noqa: E402
+from bench.cli_common import check_revision, claim_result, machine, parse, run_main, write_result  # noqa: E402
 from scenes.cli.options import CommaList, Command, arg, option  # noqa: E402
 from wildgen.light_families import LIGHT_FAMILIES  # noqa: E402
 
@@ -342,9 +342,7 @@ def main(argv: list[str] | None = None) -> int:
               "command": "python bench/bench_profile.py " + " ".join(sys.argv[1:]),
               "lights": lights, "seed": args.seed, "rows": rows}
     if args.out:
-        from scenes.files import write_json
-
-        write_json(Path(args.out), result, indent=1, newline=True)
+        write_result(Path(args.out), result, indent=1, newline=True)
         print(f"wrote {args.out}")
     return 0
 

@@ -26,7 +26,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import check_given, check_work, claim_result, machine, parse, run_main  # noqa: E402
+from bench.cli_common import check_given, check_work, claim_result, machine, parse, run_main, write_result  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import Command, arg, check_fields, comma_list, option  # noqa: E402
 
@@ -151,7 +151,6 @@ COMMAND = Command(Options, prog="python bench/bench_refine_rule.py", description
 def main(argv: list[str] | None = None) -> int:
     import torch
 
-    from scenes.files import write_json
     from scenes.renderer.variant import choose_variant, set_jit_threads
 
     opts = parse(COMMAND, argv)
@@ -173,7 +172,7 @@ def main(argv: list[str] | None = None) -> int:
               "rows_rendered": [name for name, _ in ROWS], "hurt_deg": HURT_DEG,
               "rows": rows, "sets": sets, "seconds": round(time.time() - t0, 1),
               "machine": machine()}
-    write_json(Path(opts.out), result, indent=1)
+    write_result(Path(opts.out), result, indent=1)
     print(f"wrote {opts.out}")
     return 0
 

@@ -25,7 +25,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import MIN_RES, claim_result, need_path, parse, run_main  # noqa: E402
+from bench.cli_common import MIN_RES, claim_result, need_path, parse, run_main, write_result  # noqa: E402
 from scenes.cli.options import CommaList, Command, arg, comma_list, option  # noqa: E402
 from scenes.renderer.variant import PREFERENCE as VARIANTS  # noqa: E402
 from validate.perturb import KINDS  # noqa: E402
@@ -191,9 +191,7 @@ def main(argv: list[str] | None = None) -> int:
         f"(per object {', '.join(f'{x:.3f}' for x in ratios)})"
     )
     if args.json:
-        from scenes.files import write_json
-
-        write_json(
+        write_result(
             Path(args.json),
             {
                 "rows": rows,

@@ -38,7 +38,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import MIN_RES, claim_result, parse, run_main  # noqa: E402
+from bench.cli_common import MIN_RES, claim_result, parse, run_main, write_result  # noqa: E402
 from scenes.cli.options import Command, arg, option  # noqa: E402
 
 
@@ -220,10 +220,8 @@ def main(argv: list[str] | None = None) -> int:
         )
     )
     if args.out:
-        from scenes.files import write_json
-
         settings = dataclasses.asdict(args) | {"out": str(args.out)}
-        write_json(args.out, {"settings": settings, "sizes": sizes, "rows": rows}, indent=1)
+        write_result(args.out, {"settings": settings, "sizes": sizes, "rows": rows}, indent=1)
     return 0
 
 

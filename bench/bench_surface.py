@@ -29,7 +29,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bench.cli_common import ROOT, check_work, claim_result, need_path, parse, refusals, run_main  # noqa: E402
+from bench.cli_common import ROOT, check_work, claim_result, need_path, parse, refusals, run_main, write_result  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import REQUIRED, Command, option  # noqa: E402
 
@@ -303,9 +303,8 @@ def main(argv: list[str] | None = None) -> int:
               "objects": opts.objects,
               "seed": opts.seed, "whole_process_seconds": whole,
               "rows": summary_rows(rows), "cases": rows, "machine": f"{os.cpu_count()} cores"}
-    from scenes.files import write_json
 
-    write_json(opts.out, result, indent=1)
+    write_result(opts.out, result, indent=1)
     print(f"whole processes: ours {whole['ours']:.1f} s, reference {whole['reference']:.1f} s; wrote {opts.out}")
     return 0
 

@@ -44,6 +44,7 @@ from bench.cli_common import (  # noqa: E402
     parse,
     run_main,
     write_jpeg_photos,
+    write_result,
 )
 from scenes.cli.options import CommaList, Command, UseAppendAction, arg, comma_list, option  # noqa: E402
 from validate.judgeable import MIN_IMAGES  # noqa: E402
@@ -280,9 +281,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{key}: raised on {len(got)} of {len(want)} cases that should, falsely on {len(false)} of "
               f"{len(rows) - len(want)}")
     if args.out:
-        from scenes.files import write_json
-
-        write_json(args.out, {"rows": rows}, indent=1, newline=True)
+        write_result(args.out, {"rows": rows}, indent=1, newline=True)
     return 0
 
 

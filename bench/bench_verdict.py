@@ -34,7 +34,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import claim_result, need_path, parse, run_main  # noqa: E402
+from bench.cli_common import claim_result, need_path, parse, run_main, write_result  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import REQUIRED, Command, Positional, arg, check_fields, option  # noqa: E402
 
@@ -156,9 +156,8 @@ def degenerate_sweep(captures: list[Path], out: Path) -> int:
             rows.append(row)
             print(f"{folder.name:<10} {name:<28} K={row['images']:<3} dimensions {row['dimensions']} trusted "
                   f"{trusted!s:<5} " + "  ".join(f"{k} {v:.4f}" for k, v in row["judged"].items()), flush=True)
-    from scenes.files import write_json
 
-    write_json(out, {"rows": rows}, indent=1)
+    write_result(out, {"rows": rows}, indent=1)
     print(f"wrote {out}")
     return 0
 
@@ -346,9 +345,8 @@ def main(argv: list[str] | None = None) -> int:
         summary["refine"] = {"objects": len(refined), "accepted": sum(r["accepted"] for r in refined),
                              "mean_change_deg": float(np.mean(change)), "largest_rise_deg": float(max(change))}
     print(json.dumps(summary))
-    from scenes.files import write_json
 
-    write_json(args.out, {"summary": summary, "rows": rows}, indent=1)
+    write_result(args.out, {"summary": summary, "rows": rows}, indent=1)
     print(f"wrote {args.out}")
     return 0
 

@@ -45,7 +45,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import check_work, claim_result, need_path, parse, run_main  # noqa: E402
+from bench.cli_common import check_work, claim_result, need_path, parse, run_main, write_result  # noqa: E402
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error  # noqa: E402
 from scenes.cli.options import Command, Positional, arg, check_fields, option  # noqa: E402
 
@@ -229,12 +229,11 @@ def _round(x, digits: int):
     return x
 
 
-def write_json(d: dict, out: Path) -> None:
+def sweep_text(d: dict) -> str:
     """The sweep's JSON: indented, but one line per capture (the file stays small enough to commit)."""
     top = json.dumps({**d, "captures": None}, indent=1, allow_nan=False)
     lines = ",\n".join("  " + json.dumps(c, allow_nan=False) for c in d["captures"])
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(top.replace('"captures": null', '"captures": [\n' + lines + "\n ]") + "\n")
+    return top.replace('"captures": null', '"captures": [\n' + lines + "\n ]") + "\n"
 
 
 def run(opts: SweepOptions) -> dict:
@@ -323,7 +322,7 @@ def main(argv: list[str] | None = None) -> int:
         d = run(opts)
     except INPUT_ERRORS as exc:
         return report_error(exc)
-    write_json(d, out)
+    write_result(out, text=sweep_text(d))
     for r in d["rows"]:
         print(f"{r['constant']:<20} {r['value']:<6} {'(default)' if r['default'] else '':<9} trusted {r['trusted']:<3} "
               f"false trust {r['false_trust']} ({r['false_trust_told_apart']} told apart)  needless abstention "

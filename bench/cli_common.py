@@ -90,6 +90,43 @@ def claim_result(path: str | os.PathLike | None, keys: Sequence[str], owner: Com
         check_apart(target, dict(inputs or {}), flag)  # never inside what the bench reads (`inputs`: flag -> path)
         check_no_holder_above(target, flag)  # nor inside a folder another run writes
         make_output_folder(target.parent, flag)
+    _CLAIMED[target.absolute()] = (_file_state(target), flag)
+    return target
+
+
+_CLAIMED: dict[Path, tuple[tuple[int, int, int] | None, str]] = {}
+"""Each result file claimed (`claim_result`) or written (`write_result`) by this bench: its state then and its
+flag."""
+
+
+def _file_state(path: Path) -> tuple[int, int, int] | None:
+    """What tells one version of the file `path` from another (inode, change time, size); None: no file there."""
+    try:
+        st = os.lstat(path)
+    except OSError:
+        return None
+    return st.st_ino, st.st_ctime_ns, st.st_size
+
+
+def write_result(path: str | os.PathLike, obj: Any = None, *, text: str | None = None, **json_options: Any) -> Path:
+    """Write a bench's result `obj` (`scenes.files.write_json` with `json_options`), or its `text`, to the file
+    `path` that `claim_result` claimed, atomically. A file there that changed since the claim or this bench's last
+    write (a user saved one during a run of hours) is never replaced: the result goes to a free name beside it and
+    the run ends in one line naming both (status 2)."""
+    from scenes.files import atomic_write_text, json_text
+
+    target = Path(path)
+    body = text if text is not None else json_text(obj, **json_options)
+    claimed, flag = _CLAIMED.get(target.absolute(), (_file_state(target), "--out"))
+    if _file_state(target) != claimed:
+        n = 1
+        while os.path.lexists(aside := target.with_name(f"{target.stem}.result-{n}{target.suffix}")):
+            n += 1
+        atomic_write_text(aside, body)
+        raise UsageError(f"{flag}: {str(path)!r} changed during the run (another program wrote it); it is never "
+                         f"replaced: the result was written to {str(aside)!r}")
+    atomic_write_text(target, body)
+    _CLAIMED[target.absolute()] = (_file_state(target), flag)
     return target
 
 

@@ -351,6 +351,17 @@ def _copy(src: str, dst: str) -> Callable[[Path, Path], None]:
     return setup
 
 
+def _gt_zeroed(w: Path, t: Path) -> None:
+    """Setup: T/data, the world's dataset whose object 00000 has an all-zero ground-truth normal.tif (it decodes to
+    normals facing away from the camera); T/p, the world's predictions."""
+    import cv2
+
+    shutil.copytree(w / "data", t / "data")
+    shutil.copytree(w / "pred", t / "p")
+    gt = t / "data" / f"{OBJ}.data" / "normal.tif"
+    assert cv2.imwrite(str(gt), np.zeros_like(cv2.imread(str(gt), cv2.IMREAD_UNCHANGED)))
+
+
 TINY = ["--objects", "1", "--images", "2", "--res", "16", "--spp", "1", "--gt-spp", "1", "--workers", "0", "--quiet"]
 MK = "wildgen.make"
 PR = "unips.predict"
@@ -988,6 +999,8 @@ ROWS: list[Row] = [
         setup=_copy("pred_onebad", "p"),
         check=_written("p/metrics.json"),
     ),
+    Row("evaluate-gt-normal-all-zero", EV, ["--pred", "{T}/p", "--gt", "{T}/data"], 1, ("failed 00000", "face away"),
+        setup=_gt_zeroed, check=_written("p/metrics.json", "p/00001/error_map.png")),
     Row("evaluate-dataset-nan", EV, ["--pred", "{T}/p", "--gt", "{W}/data"], 1, ("NaN",), setup=_copy("pred_nan", "p")),
     Row(
         "evaluate-missing-prediction",
@@ -3227,6 +3240,9 @@ ROWS += [
         check=_not_written("o")),
     Row("surface-earlier-output-kept", SF, [*SURF, "--out", "{T}/o"], 2, ("depth.npy", "--overwrite"),
         setup=_put(("o/depth.npy", "an earlier run's\n")), check=_not_written("o/mesh.ply")),
+    Row("surface-out-is-the-normals-folder", SF, ["--normals", "{T}/p/n.npy", "--mask", WORLD_MASK, "--out", "{T}/p"],
+        2, ("--out", "is the folder --normals", "lies in"), setup=_array("p/n.npy", lambda n: n),
+        check=_not_written("p/depth.npy")),
     Row("surface-out-held", SF, [*SURF, "--out", "{T}/o"], 2, ("--out",), setup=_running("o"),
         check=_released(_not_written("o/depth.npy"))),
     Row("surface-good-orthographic", SF, [*SURF, "--out", "{T}/o", "--mesh", "ply,obj"], 0, ("mesh.obj",),

@@ -412,3 +412,45 @@ def test_a_result_is_never_written_inside_a_held_folder_or_an_input(tmp_path, ca
     with pytest.raises(SystemExit) as stop:
         claim_result(tmp_path / "suite" / "r.json", ("rows",), "bench", inputs={"--suite": tmp_path / "suite"})
     assert stop.value.code == 2 and "lies inside --suite" in capsys.readouterr().err
+
+
+def test_a_file_saved_at_out_during_the_run_is_kept(tmp_path, monkeypatch):
+    """A result file absent at the claim that a user (or another program) saves during the run is never replaced:
+    the result goes beside it and the run ends in one refusal naming both."""
+    import scenes.report.tables as tables
+    from scenes.cli.errors import UsageError
+
+    shards = _module("bench_shards")
+    out = tmp_path / "b.json"
+    table = tables.markdown_table
+
+    def user_saves(*a, **k):  # the user's file lands after the claim, before the result is written
+        out.write_text("mine\n")
+        return table(*a, **k)
+
+    monkeypatch.setattr(tables, "markdown_table", user_saves)  # bench_shards prints its table with it
+    with pytest.raises(UsageError) as refused:
+        shards.main(["--out", str(out), *TINY_SHARDS])
+    aside = tmp_path / "b.result-1.json"
+    assert str(refused.value).startswith("--out: ") and "changed during the run" in str(refused.value)
+    assert str(aside) in str(refused.value) and out.read_text() == "mine\n"
+    import json
+
+    assert json.loads(aside.read_text())["settings"]["res"] == 8
+
+
+def test_a_bench_writes_its_result_again_and_every_result_through_write_result(tmp_path):
+    """The bench's own writes do not count as another program's (bench_cycles writes its result after every
+    resolution), and no bench script writes a claimed result but through write_result."""
+    import re
+
+    cli = _module("cli_common")
+    out = cli.claim_result(tmp_path / "r.json", ("rows",), "bench X")
+    for n in range(3):
+        cli.write_result(out, {"rows": [n]})
+    assert out.read_text().startswith('{\n "rows": [\n  2')
+    for script in (ROOT / "bench").glob("*.py"):
+        text = script.read_text()
+        if "claim_result(" in text and script.name != "cli_common.py":
+            writes = re.findall(r"write_json\((\w[^,]*),", text)
+            assert all("work" in w or "job" in w for w in writes), (script.name, writes)

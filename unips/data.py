@@ -94,8 +94,22 @@ class GroundTruth:
     layout: str  # one of LAYOUTS
 
 
+GT_AWAY_SHARE = 0.5
+"""The largest share of a ground truth's mask pixels whose normal may face away from the camera (n_z < 0). A
+perspective camera sees normals that face slightly away near the silhouette, so not zero; a map with more is in
+another frame (z into the scene) or no normal map at all (an all-zero image decodes to (-1, -1, -1) / sqrt 3)."""
+
+
 def load_ground_truth(path: str | Path, layout: str | None = None, arg: str = "path") -> GroundTruth:
-    """Mask, ground-truth normals and light family of an object folder (reads one image for its size)."""
+    """Mask, ground-truth normals and light family of an object folder (reads one image for its size). Normals
+    that mostly face away from the camera (`GT_AWAY_SHARE`) are refused: every prediction would be scored against
+    them."""
     fd = read_folder(path, layout=layout, images=False, arg=arg)
+    if fd.normals is not None and fd.mask.any():
+        away = float((fd.normals[fd.mask][:, 2] < 0).mean())
+        if away > GT_AWAY_SHARE:
+            raise ValueError(f"{arg}: the ground-truth normals of {fd.path} face away from the camera on "
+                             f"{100 * away:.0f}% of the mask (at most {100 * GT_AWAY_SHARE:.0f}% may); expected the "
+                             "camera frame x right, y up, z toward the camera")
     return GroundTruth(name=fd.name, mask=fd.mask, normals=fd.normals, light_family=fd.lights.family,
                        path=fd.path, layout=fd.layout)

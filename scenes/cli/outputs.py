@@ -125,12 +125,18 @@ def busy_message(folder: str | os.PathLike, flag: str = "--out") -> str:
 def check_apart(path: str | os.PathLike, inputs: Mapping[str, str | os.PathLike | None], flag: str = "--out") -> None:
     """Refuse an output folder that is one of the folders the run reads (`inputs`: flag -> path; None skipped),
     lies inside one, or leads into one through a link: a run never writes into its own input (a rerun would read
-    its outputs as input, and --overwrite would replace the input's own files). Creates nothing."""
+    its outputs as input, and --overwrite would replace the input's own files). An input that is a file counts
+    its folder too where the output would be that very folder (a surface written into the predict folder its normal
+    map lies in would mix with predict's files); a folder inside it is fine. Creates nothing."""
     real = os.path.realpath(path)
     for in_flag, given in inputs.items():
         if given is None:
             continue
         folder = os.path.realpath(given)
+        if os.path.isfile(folder) and real == os.path.dirname(folder):
+            raise UsageError(f"{flag}: {str(path)!r} is the folder {in_flag} {str(given)!r} lies in; expected "
+                             f"another folder (e.g. {os.path.join(str(path), 'out')!r}): a command never writes "
+                             "beside what it reads")
         if not is_within(real, folder):
             continue
         where = ("is a link to" if os.path.islink(path) else "is") if real == folder else (
