@@ -19,8 +19,7 @@ from typing import Annotated
 
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, check_fields, comma_list, option
-from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
-from scenes.files import read_json
+from scenes.cli.outputs import check_listed, check_output_folder, claim_outputs, output_lock
 
 BYTES_PER_PIXEL = 1300
 """Peak memory of the integrator per mask pixel (measured: about 1.0-1.2 kB from 0.1 to 1.6 million pixels,
@@ -100,23 +99,6 @@ def load_inputs(args: SurfaceOptions):
     return normals, mask, intr, camera
 
 
-def _check_meshes_were_ours(out: Path, formats: tuple[str, ...]) -> None:
-    """A mesh file the earlier run's report does not list (its `meshes`) is a user's, even beside that report."""
-
-    from scenes.surface.write import SURFACE_MESH
-
-    try:
-        listed = read_json(out / "report.json").get("meshes", [])
-    except (OSError, ValueError, AttributeError):
-        return  # no earlier report: claim_outputs' rule already decided
-    for fmt in formats:
-        mesh = out / f"{SURFACE_MESH}.{fmt}"
-        if mesh.exists() and mesh.name not in (listed if isinstance(listed, list) else []):
-            raise UsageError(f"--out: {str(mesh)!r} was not written by orchestrate.surface (its report.json lists "
-                             f"{listed!r}); it is never replaced, even with --overwrite: move it away or use another "
-                             "--out")
-
-
 def main(argv: list[str] | None = None) -> int:
     """The command; --out is held for the length of the run (`scenes.cli.outputs.output_lock`)."""
     with ExitStack() as held:
@@ -126,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
 def _main(argv: list[str] | None, held: ExitStack) -> int:
     from scenes.cli.limits import check_memory
     from scenes.surface.integrate import IntegrationConfig, integrate
-    from scenes.surface.write import REPORT_KEYS, surface_outputs, write_surface
+    from scenes.surface.write import REPORT_KEYS, SURFACE_MESH, surface_outputs, write_surface
 
     try:
         args = COMMAND.parse(argv).validate()
@@ -137,9 +119,12 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         pixels = int(mask.sum())
         check_memory(BYTES_PER_PIXEL * pixels + BYTES_PER_IMAGE_PIXEL * mask.size, "--normals/--mask",
                      f"integrating {pixels} pixels", "integrate a smaller map or a smaller mask")
+        earlier = Path(args.out) / "report.json"
         claim_outputs(surface_outputs(args.out, args.mesh), args.overwrite, owner="orchestrate.surface",
-                      marker=Path(args.out) / "report.json", signed={Path(args.out) / "report.json": REPORT_KEYS})
-        _check_meshes_were_ours(Path(args.out), args.mesh)
+                      marker=earlier, signed={earlier: REPORT_KEYS})
+        if earlier.exists():  # a mesh the earlier run did not write, beside its report: the user's
+            check_listed([Path(args.out) / f"{SURFACE_MESH}.{f}" for f in args.mesh], earlier, "meshes",
+                         "orchestrate.surface")
         print(f"integrating {pixels} pixels ({camera}) ...", flush=True)
         surface = integrate(normals, mask, intr, IntegrationConfig(k=args.k))
     except (*INPUT_ERRORS, OSError) as exc:

@@ -4051,7 +4051,7 @@ ROWS += [
         removes=("p/00000/expected_error_deg.npy", "p/00000/expected_error.png")),
     # ---- a check's renders: replaced only where the earlier report lists them, removed when not saved again
     Row("rerender-save-renders-keeps-a-users-render-beside-an-earlier-check", RR, [*RR_ONE, "--save-renders"], 2,
-        ("R003.png", "lists no such render", "never replaced"),
+        ("R003.png", "lists no such file", "never replaced"),
         setup=_put(("o/00000/report.json", EARLIER_CHECK), ("o/00000/R003.png", "mine\n")),
         check=_kept("o/00000/R003.png", "mine\n")),
     Row("rerender-overwrite-removes-the-earlier-checks-renders-only", RR, RR_ONE, 0, ("reports in",),

@@ -12,7 +12,7 @@ import tyro
 from scenes.checks import check_choice, check_int, check_number
 from scenes.cli.errors import UsageError
 from scenes.cli.options import Command, undocumented_fields
-from scenes.cli.outputs import check_output_folder, make_output_folder
+from scenes.cli.outputs import check_listed, check_output_folder, listed_names, make_output_folder
 
 # Each CLI module and the dataclass its command line is generated from.
 CLIS = {
@@ -182,3 +182,23 @@ def test_a_config_error_in_a_parser_is_one_usage_error():
         COMMAND.parse(["--data", "d", "--out", "o", "--colour"])
     with pytest.raises(UsageError, match="^--schedule: got 'linear', expected one of cosine, step$"):
         COMMAND.parse(["--data", "d", "--out", "o", "--schedule", "linear"])
+
+
+def test_names_read_from_an_earlier_record_are_plain_names_and_only_listed_files_are_replaced(tmp_path):
+    """An earlier run's record lists the files it wrote; a name read from it is untrusted (only a plain name in
+    the folder counts), and an existing output it does not list is the user's: refused, even with --overwrite."""
+    import json
+
+    record = tmp_path / "report.json"
+    record.write_text(json.dumps({"renders": ["R000.png", "../R001.png", "/tmp/R002.png", "a/R003.png", ".", "..",
+                                              "", 7, "a\\R004.png"]}))
+    assert listed_names(record, "renders") == {"R000.png"}
+    assert listed_names(tmp_path / "none.json", "renders") == set()
+    record.write_text('{"renders": "R000.png"}')  # not a list: nothing listed
+    assert listed_names(record, "renders") == set()
+    record.write_text('{"renders": ["R000.png"]}')
+    (tmp_path / "R000.png").write_text("earlier")
+    (tmp_path / "R001.png").write_text("the user's")
+    assert check_listed([tmp_path / "R000.png"], record, "renders", "validate.rerender") == {"R000.png"}
+    with pytest.raises(UsageError, match=r"^--out: .*R001.png' was not written by validate.rerender .*never replaced"):
+        check_listed([tmp_path / "R000.png", tmp_path / "R001.png"], record, "renders", "validate.rerender")

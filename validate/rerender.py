@@ -36,10 +36,18 @@ import numpy as np
 from scenes.cli.errors import UsageError, report_error
 from scenes.cli.limits import check_threads
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
-from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs, holds_keys, output_lock
+from scenes.cli.outputs import (
+    check_listed,
+    check_not_being_written,
+    check_output_folder,
+    claim_outputs,
+    holds_keys,
+    listed_names,
+    output_lock,
+)
 from scenes.cli.progress import progress_bar
 from scenes.cli.supervise import run_supervised
-from scenes.files import read_json, write_json
+from scenes.files import write_json
 from scenes.folder.format import SCENE_FILE, find_prediction, list_object_folders, object_name
 from scenes.renderer.variant import require_jit_variant
 from validate.fitted.fit_scene import FitConfig
@@ -75,11 +83,7 @@ def claim_check_outputs(out: str | Path, names: list[str], overwrite: bool, summ
         renders_there = sorted((out / n).glob("R[0-9][0-9][0-9].png")) if renders else []
         claim_outputs([report, out / n / FIGURE, *renders_there], overwrite, owner="validate.rerender",
                       marker=report, signed={report: REPORT_KEYS})
-        foreign = next((p for p in renders_there if p.name not in earlier_renders(report)), None)
-        if foreign is not None:  # the earlier check saved no render under that name: the user's file
-            raise UsageError(f"--out: {str(foreign)!r} was not written by validate.rerender (the earlier report "
-                             f"{str(report)!r} lists no such render); it is never replaced, even with --overwrite: "
-                             "move it away or use another --out")
+        check_listed(renders_there, report, "renders", "validate.rerender")  # a render it never saved: the user's
     if summary and (out / SUMMARY).exists() and overwrite and not any(
             holds_keys(p, REPORT_KEYS) for p in out.glob(f"*/{REPORT}")):
         raise UsageError(f"--out: {str(out / SUMMARY)!r} exists, but no object folder beside it holds a report of "
@@ -93,12 +97,7 @@ def earlier_renders(report: Path) -> set[str]:
     name read from a file is untrusted: only plain render names (`R` and three digits) are taken."""
     import re
 
-    try:
-        listed = read_json(report).get("renders", [])
-    except (OSError, ValueError, AttributeError):
-        return set()
-    return {r for r in listed if isinstance(r, str) and re.fullmatch(r"R\d{3}\.png", r)} \
-        if isinstance(listed, list) else set()
+    return {r for r in listed_names(report, "renders") if re.fullmatch(r"R\d{3}\.png", r)}
 
 
 REPORT_KEYS = ("mode", "object", "folder", "prediction")

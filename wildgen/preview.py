@@ -25,8 +25,7 @@ import numpy as np
 
 from scenes.cli.errors import UsageError
 from scenes.cli.options import Command, Positional, arg
-from scenes.cli.outputs import check_output_folder, make_output_folder
-from scenes.files import read_json
+from scenes.cli.outputs import check_listed, check_output_folder, make_output_folder
 
 TILE = 128
 """Pixels of one tile of a contact sheet."""
@@ -139,7 +138,7 @@ def preview(dataset: str | Path, out: str | Path | None = None,
     targets = [out_dir / f"{folder.name[:-5]}.png" for folder in folders] + [out_dir / "overview.png"]
     record = out_dir / SHEETS_RECORD
     claim_outputs([*targets, record], overwrite, owner="wildgen.preview", signed={record: ("dataset", "sheets")})
-    listed = _check_own_sheets(record, targets)
+    listed = check_listed(targets, record, "sheets", "wildgen.preview")  # a sheet it never drew: the user's
     print(f"drawing contact sheets of {len(folders)} object(s) into {out_dir}", flush=True)
     drawn, failed = [], {}
     for folder, target in zip(folders, targets):
@@ -164,30 +163,6 @@ def preview(dataset: str | Path, out: str | Path | None = None,
         write_picture(target, sheet)
     write_picture(targets[-1], to_bgr(contact_sheet([s for _, _, s in drawn], OVERVIEW_COLUMNS)))
     return written, failed
-
-
-def _listed_sheets(record: Path) -> set[str]:
-    """The sheet names an earlier preview listed in `record` (none when there is no readable record)."""
-
-    try:
-        sheets = read_json(record).get("sheets", [])
-    except (OSError, ValueError, AttributeError):
-        return set()
-    return {s for s in sheets if isinstance(s, str)} if isinstance(sheets, list) else set()
-
-
-def _check_own_sheets(record: Path, targets: list[Path]) -> set[str]:
-    """Refuse to replace a PNG under a sheet's name that no earlier preview listed in `record` (the user's);
-    returns the names listed there."""
-    import os
-
-    listed = _listed_sheets(record)
-    foreign = next((p for p in targets if os.path.lexists(p) and p.name not in listed), None)
-    if foreign is not None:
-        raise UsageError(f"--out: {str(foreign)!r} was not written by wildgen.preview (it is not listed in "
-                         f"{str(record)!r}); it is never replaced, even with --overwrite: move it away or use "
-                         "another --out")
-    return listed
 
 
 # ---------------------------------------------------------------------------------- the dataset card

@@ -270,6 +270,31 @@ def holds_keys(path: Path, keys: tuple[str, ...]) -> bool:
     return isinstance(data, dict) and all(k in data for k in keys)
 
 
+def listed_names(record: str | os.PathLike, key: str) -> set[str]:
+    """The file names an earlier run listed under `key` of its JSON record (preview.json's `sheets`, a check's
+    `renders`, the surface's `meshes`); none when there is no readable record. A name read from a file is untrusted:
+    only plain names (no folder part, not '.' or '..') are taken."""
+    try:
+        listed = read_json(record).get(key, [])
+    except (OSError, ValueError, AttributeError):
+        return set()
+    return {n for n in listed if isinstance(n, str) and n not in ("", ".", "..") and os.path.basename(n) == n
+            and "\\" not in n} if isinstance(listed, list) else set()
+
+
+def check_listed(targets: Iterable[str | os.PathLike], record: str | os.PathLike, key: str, owner: str,
+                 flag: str = "--out") -> set[str]:
+    """Refuse an existing output whose name the earlier run's `record` does not list under `key`: a user's file
+    under a name the command writes, beside the command's own record, is never replaced, even with --overwrite.
+    Returns the names listed (the earlier run's files, which this run replaces)."""
+    listed = listed_names(record, key)
+    foreign = next((Path(t) for t in targets if os.path.lexists(t) and Path(t).name not in listed), None)
+    if foreign is not None:
+        raise UsageError(f"{flag}: {str(foreign)!r} was not written by {owner} (its record {str(record)!r} lists no "
+                         f"such file); it is never replaced, even with --overwrite: move it away or use another {flag}")
+    return listed
+
+
 def claim_outputs(paths: Iterable[str | os.PathLike], overwrite: bool, flag: str = "--out", owner: str = "this command",
                   marker: str | os.PathLike | None = None, folders: bool = False, resume: str = "",
                   signed: dict[str | os.PathLike, tuple[str, ...]] | None = None) -> list[Path]:
