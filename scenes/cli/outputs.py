@@ -237,19 +237,21 @@ def check_step_folder(path: str | os.PathLike, owner: str) -> None:
     """A folder that a step of this command (another toolkit command, run as a subprocess) will write: within the
     output folders this process holds (`output_lock`), neither it nor a folder on the way to it may be a link (the
     step would follow it out of the held folder), nor may it lie inside what the run reads."""
-    _check_held(Path(path) / "_", owner)
+    _check_held(Path(path), owner, folder=True)
 
 
-def _check_held(path: Path, owner: str) -> None:
+def _check_held(path: Path, owner: str, folder: bool = False) -> None:
     """Within the output folders this process holds (`output_lock`): refuse a link on the way from the folder to
-    `path` (it would lead the write out of the folder), and `path` inside what the run reads."""
+    `path` (it would lead the write out of the folder; `path` itself too where it is a `folder` to be written), and
+    `path` inside what the run reads."""
     target = os.path.abspath(path)
     with _HELD_LOCK:
         held = list(_HELD.values())
     for h in held:
         if target.startswith(h.folder.rstrip(os.sep) + os.sep):
             here = h.folder
-            for part in Path(target[len(h.folder.rstrip(os.sep)) + 1:]).parts[:-1]:
+            parts = Path(target[len(h.folder.rstrip(os.sep)) + 1:]).parts
+            for part in parts if folder else parts[:-1]:
                 here = os.path.join(here, part)
                 if os.path.islink(here):
                     raise UsageError(f"{h.flag}: {here!r} is a link, where {owner} writes a folder; a link inside "
