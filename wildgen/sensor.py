@@ -321,7 +321,9 @@ def _convert(data: Path, out: Path, entry: dict, sensor: Sensor, seed: int, prob
         except ValueError as exc:
             problem = str(exc)
     if problem is not None:
-        return {"index": entry.get("index"), "name": entry.get("name"), "status": "failed", "error": problem}
+        from wildgen.writer import failed_entry
+
+        return failed_entry(entry.get("index"), problem, attempts=1, name=entry.get("name"))
     entry = {**entry, "folder": folder, "files": files}
     entry.pop("timings", None)  # the render's timings and Ray node are not this run's
     entry.pop("node", None)

@@ -291,6 +291,9 @@ def make_object(cfg: GenConfig, index: int, out_dir: Path, lib: AssetLibrary | N
     return entry
 
 
-def failed_entry(index: int, error: str, attempts: int) -> dict:
-    """Manifest entry of an object that failed `attempts` times (last error kept)."""
-    return {"index": index, "name": index_name(index), "status": "failed", "error": error, "attempts": attempts}
+def failed_entry(index: int, error: str, attempts: int, name: str | None = None) -> dict:
+    """Manifest entry of an object that failed `attempts` times (last error kept); `name` where the object has one
+    already (a source dataset's), else its index's."""
+    if name is None and isinstance(index, int):
+        name = index_name(index)
+    return {"index": index, "name": name, "status": "failed", "error": error, "attempts": attempts}
