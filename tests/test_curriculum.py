@@ -102,3 +102,24 @@ def test_level_fills_the_configuration_and_is_recorded(tmp_path):
         assert 2 <= len(scene["parts"]) <= 4  # the level's clusters
     config = json.loads((tmp_path / "l1" / "manifest.json").read_text())["config"]
     assert config["shape_kinds"] == ["superquadric"] and config["shapes"] == "procedural"
+
+
+def test_a_level_outside_the_generators_is_refused_naming_scene_json(levelled, tmp_path):
+    """scene.json's level is one of wildgen.make's (1 to 5): level 99 would become a curriculum stage of its own."""
+    import shutil
+
+    from scenes.folder.calibration import LEVEL_RANGE
+    from unips.train_data import load_samples
+    from wildgen.levels import LEVELS
+
+    assert LEVEL_RANGE == (min(LEVELS), max(LEVELS)) and sorted(LEVELS) == list(range(LEVEL_RANGE[0],
+                                                                                     LEVEL_RANGE[1] + 1))
+    for bad in (0, 99):
+        data = tmp_path / f"L{bad}"
+        shutil.copytree(levelled["L1"], data)
+        scene_file = data / "obj1.data" / "scene.json"
+        scene = json.loads(scene_file.read_text())
+        scene["level"] = bad
+        scene_file.write_text(json.dumps(scene))
+        with pytest.raises(ValueError, match=rf"obj1.data.*level must be a whole number from 1 to 5 .*got {bad}"):
+            load_samples(str(data), 32)

@@ -134,6 +134,11 @@ def camera_lights(scene: dict[str, Any], num_images: int, path: Path) -> tuple[n
     return np.asarray(dirs), np.asarray(irr)
 
 
+LEVEL_RANGE = (1, 5)
+"""The complexity levels a scene.json may record (`wildgen.levels.LEVELS`, which this layer cannot import; a test
+holds the two equal): a curriculum orders the objects by them."""
+
+
 def ours_lights(folder: Path, num_images: int, scene: dict | None) -> Lights:
     path = folder / SCENE_FILE
     scene = read_scene_dict(path) if scene is None else scene
@@ -142,8 +147,10 @@ def ours_lights(folder: Path, num_images: int, scene: dict | None) -> Lights:
         raise ValueError(f"scene file {path}: light_family must be a string, got {family!r}")
     directions, intensities = camera_lights(scene, num_images, path)
     level = scene.get("level")
-    if level is not None and (isinstance(level, bool) or not isinstance(level, int)):
-        raise ValueError(f"scene file {path}: level must be a whole number, got {level!r}")
+    if level is not None and (isinstance(level, bool) or not isinstance(level, int)
+                              or not LEVEL_RANGE[0] <= level <= LEVEL_RANGE[1]):
+        raise ValueError(f"scene file {path}: level must be a whole number from {LEVEL_RANGE[0]} to {LEVEL_RANGE[1]} "
+                         f"(wildgen.make --level), got {level!r}")
     return Lights(family=family, directions=directions, intensities=intensities, level=level)
 
 
