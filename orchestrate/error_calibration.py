@@ -189,7 +189,7 @@ class CalibrationOptions:
     def validate(self) -> "CalibrationOptions":
         """The flags, --work, --weights and the output (an earlier fit replaced only with --overwrite), before any
         work."""
-        from scenes.cli.outputs import check_output_folder, claim_outputs
+        from scenes.cli.outputs import check_no_holder_above, check_output_folder, claim_outputs
         from scenes.files import not_a_file
 
         check_fields(self)
@@ -199,6 +199,7 @@ class CalibrationOptions:
         dest, flag = self.destination()
         if self.weights is not None and dest.resolve() == Path(self.weights).resolve():
             raise UsageError(f"--out: {str(dest)!r} is the --weights file itself; expected a .json file beside it")
+        check_no_holder_above(dest, flag)  # inside a folder another run writes, the two runs' files would mix
         claim_outputs([dest], self.overwrite, flag, "orchestrate.error_calibration",
                       signed={dest: ("weights_sha256", "features")})
         return self

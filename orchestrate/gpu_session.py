@@ -84,8 +84,8 @@ class SessionOptions:
     """Seconds of the budget kept for what follows the training steps (its start-up, the last files)."""
     objects: int = option(300, minimum=1)
     """Objects to render."""
-    images: int = option(10, minimum=1)
-    """Images per object."""
+    images: int = option(10, minimum=3)
+    """Images per object (at least 3: with fewer lights no normal is determined, nothing photometric to learn)."""
     res: int = option(128, minimum=8)
     """Square resolution of the renders (and the training resolution)."""
     spp: int = option(32, minimum=1)

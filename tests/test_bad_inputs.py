@@ -773,6 +773,7 @@ ROWS: list[Row] = [
     ),
     # ---- wildgen.preview
     Row("preview-missing", PV, ["{W}/nowhere"], 2, ("nowhere",)),
+    Row("preview-dir-empty", PV, [""], 2, ("DIR", "got ''", "expected a dataset folder")),
     Row("preview-no-objects", PV, ["{W}/empty"], 2, ("DIR", "empty")),
     Row("preview-bad-mask", PV, ["{W}/objs/badmask.data", "--out", "{T}/p"], 2, ("mask.png",), sub=True),
     Row("preview-bad-normal", PV, ["{W}/objs/badnormal.data", "--out", "{T}/p"], 2, ("normal.tif",)),
@@ -970,7 +971,9 @@ ROWS: list[Row] = [
         ("--max-images", "all"),
     ),
     # ---- unips.evaluate
-    Row("evaluate-pred-missing", EV, ["--pred", "{W}/nowhere", "--gt", "{W}/data"], 2, ("nowhere",)),
+    Row("evaluate-pred-missing", EV, ["--pred", "{W}/nowhere", "--gt", "{W}/data"], 2, ("nowhere", "does not exist")),
+    Row("evaluate-pred-is-a-file", EV, ["--pred", "{T}/f", "--gt", "{W}/data"], 2, ("--pred", "is not a folder"),
+        setup=_put(("f", "mine\n"))),
     Row("evaluate-gt-missing", EV, ["--pred", "{W}/pred", "--gt", "{W}/nowhere"], 2, ("nowhere",)),
     Row("evaluate-gt-empty", EV, ["--pred", "{W}/pred", "--gt", "{W}/empty"], 2, ("empty",)),
     Row(
@@ -2266,7 +2269,16 @@ ROWS += [
         EXP,
         ["--data", "{W}/data", "--out", "{T}/s", "--overwrite", "--quiet"],
         2,
-        ("--out", "another run holds"),
+        ("--out", "being written by another run"),
+        setup=_export_running("s"),
+        check=_release,
+    ),
+    Row(  # without --overwrite: told another run writes there, not that its files are an earlier run's
+        "export-concurrent-into-one-folder-plain",
+        EXP,
+        ["--data", "{W}/data", "--out", "{T}/s", "--quiet"],
+        2,
+        ("--out", "being written by another run"),
         setup=_export_running("s"),
         check=_release,
     ),
@@ -2886,6 +2898,7 @@ def _unips_jpeg_images(folder: Path) -> None:
 
 ROWS += [
     # ---- photos are decoded strictly: a file its decoder cannot read whole is refused naming it
+    Row("capture-mask-empty", CAP, [*CAPTURE, "--mask", ""], 2, ("--mask", "got an empty value", "{FILE,auto,none}")),
     Row("capture-jpeg-truncated", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
         ("--input", "IMG_0003.jpg", "damaged", "truncated or corrupt"), setup=_photos(damage=_cut_in_scan),
         check=_not_written("o/normal.png")),
@@ -3137,7 +3150,7 @@ ROWS += [
                                                     "--threads", "100000000"], 2, ("--threads", "100000000"),
         setup=_photos(), check=_not_written("o")),
     Row("capture-mask-is-an-output", CAP, [*CAPTURE, "--mask", "{T}/o/mask.png", "--overwrite"], 2,
-        ("--out", "lies inside --mask"), setup=_both(_photos(), _mask_in_out),
+        ("--out", "is the folder --mask", "lies in"), setup=_both(_photos(), _mask_in_out),
         check=lambda w, t: _same_file(t / "o" / "mask.png", w / "data" / f"{OBJ}.data" / "mask.png")),
     Row("capture-out-inside-input", CAP, ["--input", "{T}/photos", "--out", "{T}/photos/o", "--mask", WORLD_MASK,
                                           "--no-refine", "--threads", "1"], 2, ("--out", "lies inside --input"),
@@ -3203,6 +3216,10 @@ def _nan_inside(n: np.ndarray) -> np.ndarray:
 
 
 ROWS += [
+    Row("surface-normals-empty", SF, ["--normals", "", "--out", "{T}/o"], 2, ("--normals", "got an empty value"),
+        check=_not_written("o")),
+    Row("gpu-session-one-image", GS, ["--out", "{T}/o", "--images", "1", "--cpu-rehearsal"], 2, ("--images", ">= 3"),
+        check=_not_written("o")),
     Row("surface-normals-missing", SF, ["--normals", "{T}/none.png", "--out", "{T}/o"], 2, ("--normals",),
         check=_not_written("o")),
     Row("surface-normals-not-an-image", SF, ["--normals", "{T}/n.png", "--out", "{T}/o"], 2, ("--normals", "n.png"),
@@ -3389,6 +3406,9 @@ ROWS += [
     Row("sensor-source-manifest-folder-above", SEN, ["--data", "{T}/ds", "--sensor", "phone", "--out", "{T}/o",
                                                      "--quiet"], 2, ("manifest.json", "'../victim.data'"),
         setup=_dataset_edited(lambda m: m["objects"][0].update(folder="../victim.data")), check=_not_written("o")),
+    Row("sensor-source-manifest-no-objects", SEN, ["--data", "{T}/ds", "--sensor", "phone", "--out", "{T}/o",
+                                                   "--quiet"], 2, ("--data", "lists no finished object"),
+        setup=_dataset_edited(lambda m: m.update(objects=[])), check=_not_written("o")),
     Row("sensor-source-manifest-one-folder-twice", SEN, ["--data", "{T}/ds", "--sensor", "phone", "--out", "{T}/o",
                                                          "--quiet"], 2, ("manifest.json", "two objects"),
         setup=_dataset_edited(lambda m: m["objects"][1].update(folder=m["objects"][0]["folder"])),
@@ -3520,6 +3540,9 @@ ROWS += [
         check=_not_written("o")),
     Row("train-seed-negative", TR, ["--data", "{W}/data", "--out", "{T}/r", "--model", "glc-test", "--steps", "2",
                                     "--seed", "-1", "--no-progress"], 2, ("--seed", "-1"), check=_not_written("r")),
+    Row("train-pixels-beyond-memory", TR, ["--data", "{W}/data", "--out", "{T}/r", "--model", "glc-test", "--steps",
+                                           "2", "--pixels", "1000000000", "--no-progress"], 2,
+        ("--pixels", "lower --res, --batch, --max-images or --pixels"), check=_not_written("r/log.jsonl")),
     Row("gpu-session-work-is-out", GS, ["--out", "{T}/o", "--work", "{T}/o", "--minutes", "5", "--cpu-rehearsal"], 2,
         ("--work", "overlaps --out"), check=_not_written("o")),
 ]
@@ -3621,7 +3644,7 @@ ROWS += [
         check=_kept("o/00000.data/notes.txt", "mine\n")),
     Row("ship-model-card-a-list", SHIP, ["--candidate", "{T}/cand", "--val", "{W}/data", "--diligent", "none"], 2,
         ("--candidate", "model_card.json", "JSON list"), setup=_card_a_list),
-    Row("make-ray-empty-address", MK, ["--out", "{T}/o", *TINY, "--ray", ""], 2, ("--ray", "got ''"),
+    Row("make-ray-empty-address", MK, ["--out", "{T}/o", *TINY, "--ray", ""], 2, ("--ray", "got an empty value"),
         check=_not_written("o")),
     Row("make-ray-port-missing", MK, ["--out", "{T}/o", *TINY, "--ray", "127.0.0.1:"], 2,
         ("--ray", "'127.0.0.1:'", "HOST:PORT"), check=_not_written("o")),
@@ -3790,6 +3813,10 @@ ROWS += [
     Row("ship-summary-wall-time-nan", SHIP, ["--candidate", "{T}/cand", "--val", "{W}/data", "--diligent", "none"], 2,
         ("--candidate", "summary.json", "wall_s"), setup=_put(("cand/summary.json", '{"wall_s": NaN}\n'))),
     # ---- sweep 6: orchestrate.error_calibration, held to every command's rules before it renders
+    Row("calibration-out-inside-a-held-folder", EC, [*CALIBRATE[:-2], "--out", "{T}/o/ee.json"], 2,
+        ("--out", "which another run holds"), setup=_running("o"), check=_released(_not_written("o/ee.json"))),
+    Row("calibration-weights-empty", EC, [*CALIBRATE, "--weights", ""], 2,
+        ("--weights", "got an empty value"), check=_not_written("em.json")),
     Row("calibration-out-a-users-file", EC, [*CALIBRATE[:-2], "--out", "{T}/mine.json"], 2, ("--out", "--overwrite"),
         setup=_put(("mine.json", '{"my": "notes"}\n')), check=_kept("mine.json", '{"my": "notes"}\n')),
     Row("calibration-out-a-users-file-overwrite", EC, [*CALIBRATE[:-2], "--out", "{T}/mine.json", "--overwrite"], 2,
@@ -4036,6 +4063,8 @@ ROWS += [
         check=_not_written("victim/manifest.json")),
     Row("calibration-suite-row-a-link-out-of-work", EC, CALIBRATE, 2, ("--work", "work/level1'", "is a link"),
         setup=_link("work/level1", "victim"), check=_not_written("victim/manifest.json")),
+    Row("make-shards-equals-out", MK, ["--out", "{T}/o", *TINY, "--shards", "{T}/o"], 2,
+        ("--shards", "apart from --out"), check=_not_written("o")),
     Row("make-shards-folder-another-run-holds", MK, ["--out", "{T}/o", *TINY, "--shards", "{T}/sh"], 2,
         ("--shards", "another run holds"), setup=_running("sh"),
         check=_released(_not_written("o/manifest.json", "sh/index.json"))),  # held from the start, not at the export

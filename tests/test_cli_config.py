@@ -202,3 +202,11 @@ def test_names_read_from_an_earlier_record_are_plain_names_and_only_listed_files
     assert check_listed([tmp_path / "R000.png"], record, "renders", "validate.rerender") == {"R000.png"}
     with pytest.raises(UsageError, match=r"^--out: .*R001.png' was not written by validate.rerender .*never replaced"):
         check_listed([tmp_path / "R000.png", tmp_path / "R001.png"], record, "renders", "validate.rerender")
+
+
+def test_the_file_systems_root_is_never_an_output_folder(tmp_path):
+    """`--out /` (or a link to it) would mix a command's files with the system's and hold '/' for every other run."""
+    (tmp_path / "root").symlink_to("/")
+    for path in ("/", tmp_path / "root"):
+        with pytest.raises(UsageError, match=r"^--out: .* is the file system's root; expected a folder of its own"):
+            check_output_folder(path)

@@ -19,6 +19,7 @@ import contextlib
 import csv
 import io
 import logging
+import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -103,7 +104,8 @@ def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True, overwrite
     (`scenes.cli.outputs.claim_outputs`)."""
     pred_dir = Path(pred_dir)
     if not pred_dir.is_dir():
-        raise FileNotFoundError(f"--pred: prediction directory {pred_dir} does not exist")
+        state = "is not a folder" if os.path.lexists(pred_dir) else "does not exist"
+        raise FileNotFoundError(f"--pred: {str(pred_dir)!r} {state}; expected the folder unips.predict wrote")
     folders = find_objects(gt, arg="--gt")
     single = detect_layout(gt) is not None
     seen: set[str] = set()

@@ -212,6 +212,10 @@ RUN_FILES = ("log.jsonl", "last.pt", "best.safetensors", "best.json", "final.saf
 TRAIN_BYTES_PER_IMAGE = 80 * 2**20
 """Memory of one image of a training batch that does not grow with --res (the encoder's activations and their
 gradients at the canonical resolution): twice the 36-40 MB measured for glc-small on the CPU."""
+TRAIN_BYTES_PER_PIXEL_IMAGE = 24 * 2**10
+"""Memory of one sampled pixel (--pixels) of one image of a training batch (the pixel decoder's activations and
+their gradients): twice the 11.8 KB measured for glc-small on the CPU (peak memory of 2 steps at --pixels 500 and
+20000, batch 4 x 4 images)."""
 
 
 def check_run(cfg: TrainConfig) -> None:
@@ -247,9 +251,10 @@ def check_run(cfg: TrainConfig) -> None:
     if cfg.val:
         more = count_dataset_images(cfg.val, "--val")
         objects, images = objects + more[0], images + more[1]
-    check_memory(training_memory(cfg, images), "--res/--batch/--max-images",
+    check_memory(training_memory(cfg, images), "--res/--batch/--max-images/--pixels",
                  f"training at {cfg.res} x {cfg.res} px on {objects} cached objects ({images} images) with batches of "
-                 f"{cfg.batch} x {cfg.max_images} images", "lower --res, --batch or --max-images")
+                 f"{cfg.batch} x {cfg.max_images} images, {cfg.pixels} pixels each",
+                 "lower --res, --batch, --max-images or --pixels")
 
 
 def _is_training_log(path: Path) -> bool:
@@ -273,10 +278,12 @@ def _validated(log: Path) -> bool:
 
 def training_memory(cfg: TrainConfig, cached_images: int) -> int:
     """Bytes of a run (a conservative estimate): the cached samples (float16 images, mask and normals at --res)
-    and one batch (per image TRAIN_BYTES_PER_IMAGE and 6 float32 copies of it at --res)."""
+    and one batch (per image TRAIN_BYTES_PER_IMAGE, 6 float32 copies of it at --res and TRAIN_BYTES_PER_PIXEL_IMAGE
+    per sampled pixel)."""
     pixels = cfg.res ** 2
     cache = cached_images * pixels * 6 + pixels * 16 * max(cached_images, 1)
-    return cache + cfg.batch * cfg.max_images * (TRAIN_BYTES_PER_IMAGE + pixels * 72)
+    per_image = TRAIN_BYTES_PER_IMAGE + pixels * 72 + cfg.pixels * TRAIN_BYTES_PER_PIXEL_IMAGE
+    return cache + cfg.batch * cfg.max_images * per_image
 
 
 def prepare_run_dir(cfg: TrainConfig, dist: Dist) -> Path:

@@ -32,7 +32,7 @@ from typing import Any, Callable, Literal
 
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, check_fields, option
-from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
+from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import progress_bar
 from scenes.files import links_out_of, read_json, temporary_target, temporary_writer, writer_gone
 from scenes.folder.shard_format import (
@@ -146,7 +146,8 @@ def _earlier_export(index_path: Path) -> dict[str, Any] | None:
     return index if ok else None
 
 
-def check_target(data: str | Path, out: str | Path, overwrite: bool, flag: str = "--out") -> list[Path]:
+def check_target(data: str | Path, out: str | Path, overwrite: bool, flag: str = "--out",
+                 data_flag: str = "--data") -> list[Path]:
     """Everything about the shard folder `out` that can be known before any work, writing nothing: apart from
     --data, writable, and holding nothing this command would replace without leave. An earlier export (an
     index.json that wildgen.export wrote, its shards and the temporaries a killed export left) is replaced only
@@ -156,8 +157,8 @@ def check_target(data: str | Path, out: str | Path, overwrite: bool, flag: str =
     check_output_folder(out, flag)  # first: a loop of links is refused before anything resolves it
     d, o = data.resolve(), out.resolve()
     if o == d or d in o.parents or o in d.parents:
-        raise UsageError(f"{flag}: {str(out)!r} must be a folder apart from --data {str(data)!r} (not it, inside it "
-                         "or around it)")
+        raise UsageError(f"{flag}: {str(out)!r} must be a folder apart from {data_flag} {str(data)!r} (not it, inside "
+                         "it or around it)")
     index = out / INDEX_FILE
     if index.is_file() and not index.is_symlink() and _earlier_export(index) is None:
         raise UsageError(f"{flag}: {str(index)!r} is not a shard index of wildgen.export; it is never replaced, even "
@@ -205,6 +206,8 @@ def export_dataset(data: str | Path, out: str | Path, shard_size: int = DEFAULT_
     if encoding != "decoded":  # every file name storable, before anything is replaced
         for folder in folders:
             sample_files(folder, aux)
+    if not held:  # another export writing there now: say so, not that its files are an earlier run's
+        check_not_being_written(out, flag)
     check_target(data, out, overwrite, flag)
     if held:
         return _export_locked(data, out, folders, shard_size, aux, overwrite, progress, flag, encoding)
@@ -259,8 +262,6 @@ def export_after_make(data: str | Path, out: str | Path, encoding: str = "files"
 def main(argv: list[str] | None = None) -> int:
     try:
         opts = COMMAND.parse(argv).validate()
-        from scenes.cli.outputs import check_not_being_written
-
         check_not_being_written(opts.data, "--data")
         t0 = time.perf_counter()
         if opts.quiet:

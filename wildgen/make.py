@@ -160,7 +160,8 @@ def check_flags(opts: MakeOptions, explicit: set[str]) -> None:
     if opts.shards:  # the whole target, before the render: not found only when the dataset is done
         from wildgen.export import check_target, replaces_export
 
-        check_target(opts.out, opts.shards, opts.overwrite or replaces_export(opts.shards, opts.out), "--shards")
+        check_target(opts.out, opts.shards, opts.overwrite or replaces_export(opts.shards, opts.out), "--shards",
+                     "--out")
     if opts.ray is not None:
         from wildgen.parallel import RAY_INSTALL, ray_available
 

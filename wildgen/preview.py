@@ -224,6 +224,9 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         args = COMMAND.parse(argv)
+        if not args.dataset.strip():  # '' (or no DIR at all) would be the current folder: never meant
+            raise UsageError(f"DIR: got {args.dataset!r}, expected a dataset folder (wildgen.make's --out) or one "
+                             "<object>.data folder")
         from contextlib import ExitStack
 
         from scenes.cli.outputs import check_not_being_written, output_lock

@@ -262,6 +262,10 @@ def apply_to_dataset(data: str | Path, out: str | Path, sensor: Sensor, seed: in
         entries = [{"index": i, "name": object_name(f), "folder": f.name, "status": "done"}
                    for i, f in enumerate(list_object_folders(data))]
     done = [e for e in entries if e.get("status") == "done"]
+    if not done:  # an empty dataset out of folders on disk would pass for a conversion
+        found = (f"its manifest.json lists no finished object ({len(entries)} listed, none done)" if source is not None
+                 else "it holds no object folder")
+        raise ValueError(f"--data: {str(data)!r}: {found}; expected a dataset wildgen.make wrote")
     bad = _check_sources(data, done, source is not None)  # every input before the first object is written
     if len(bad) == len(done) and done:  # nothing to write: the first reason is the error
         raise ValueError(next(iter(bad.values())))

@@ -405,20 +405,25 @@ class Command:
                             description=self.description, config=MARKERS)
 
     def _check_no_empty_path(self, argv: list[str]) -> None:
-        """A path flag given an empty value is refused: '' would become the current folder ('.') without a word
-        (`--out ''` from an unset shell variable)."""
+        """A path or text flag given an empty value is refused: '' would become the current folder ('.') without a
+        word (`--out ''` from an unset shell variable), or a name that names nothing (`--model ''`)."""
         from pathlib import PurePath
 
         from scenes.cli.errors import UsageError
 
-        paths = {flag_name(owner, f) for owner, f in _flat_fields(self.config)
-                 if isinstance(_strip(_hints(owner)[f.name])[0], type)
-                 and issubclass(_strip(_hints(owner)[f.name])[0], PurePath)}
+        wants = {}
+        for owner, f in _flat_fields(self.config):
+            kind, extras = _strip(_hints(owner)[f.name])
+            shown = next((m for m in (getattr(e, "metavar", None) for e in extras) if m), None)
+            if isinstance(kind, type) and issubclass(kind, PurePath):
+                wants[flag_name(owner, f)] = shown or "a path"
+            elif kind is str:
+                wants[flag_name(owner, f)] = shown or "a non-empty value"
         for i, token in enumerate(argv):
             flag, eq, value = token.partition("=")
-            if flag in paths and ((eq and not value.strip()) or (not eq and i + 1 < len(argv)
-                                                                  and not argv[i + 1].strip())):
-                raise UsageError(f"{flag}: got an empty value, expected a path")
+            if flag in wants and ((eq and not value.strip()) or (not eq and i + 1 < len(argv)
+                                                                 and not argv[i + 1].strip())):
+                raise UsageError(f"{flag}: got an empty value, expected {wants[flag]}")
 
     def parser(self) -> argparse.ArgumentParser:
         """tyro's argparse form of the command line (the flags, their help and groups), for the generated docs."""

@@ -67,6 +67,9 @@ def check_output_folder(path: str | os.PathLike, flag: str = "--out") -> str | o
     nothing. Returns `path`."""
     if not str(path).strip():  # '' would be the current folder: never meant
         raise UsageError(f"{flag}: got an empty value, expected a folder")
+    if os.path.dirname(os.path.realpath(path)) == os.path.realpath(path):  # its files would mix with the system's
+        raise UsageError(f"{flag}: {str(path)!r} is the file system's root; expected a folder of its own (e.g. "
+                         f"{os.path.join(str(path), 'out')!r})")
     target = os.path.abspath(path)
     long = next((part for part in target.split(os.sep) if len(os.fsencode(part)) > 255), None)
     if long is not None:  # the system refuses such a name only when it is written, naming no flag
@@ -132,6 +135,8 @@ def check_apart(path: str | os.PathLike, inputs: Mapping[str, str | os.PathLike 
     for in_flag, given in inputs.items():
         if given is None:
             continue
+        if not str(given).strip():  # '' would be the current folder: never meant
+            raise UsageError(f"{in_flag}: got an empty value, expected a path")
         folder = os.path.realpath(given)
         if os.path.isfile(folder) and real == os.path.dirname(folder):
             raise UsageError(f"{flag}: {str(path)!r} is the folder {in_flag} {str(given)!r} lies in; expected "
