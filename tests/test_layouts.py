@@ -87,6 +87,20 @@ def test_zero_camera_light_direction_is_refused_in_every_reader(tmp_path):
             reader(folder)
 
 
+def test_a_huge_camera_light_direction_keeps_its_direction(tmp_path):
+    """A direction whose squared length overflows (1e308 per axis) is still a direction: read as (1, 1, 1) / sqrt 3,
+    where it became (0, 0, 0) with a numpy overflow warning and was used as a light."""
+    import warnings
+
+    folder = tmp_path / "o.data"
+    write_ours(folder)
+    _edit_camera_lights(folder, lambda cam: cam[1]["directional"][0].__setitem__("direction_to_light", [1e308] * 3))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for name, reader in _readers().items():
+            assert np.allclose(reader(folder).light_directions[1], 1 / np.sqrt(3)), name
+
+
 def test_camera_light_count_mismatch_is_refused_in_every_reader(tmp_path):
     folder = tmp_path / "o.data"
     write_ours(folder)

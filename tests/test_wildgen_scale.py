@@ -172,7 +172,7 @@ def test_corrupt_and_missing_objects_are_rendered_again(reference, tmp_path):
     (out / f".tmp-00003.data.{dead_pid()}" / "aux").mkdir(parents=True)  # an interrupted object's leftovers
     r = make_cli(out, "--workers", "1")
     assert r.returncode == 0, r.stderr
-    assert "checksum mismatch in L001.png" in r.stderr and "folder missing" in r.stderr
+    assert "checksum mismatch in L001.png" in r.stderr and "its folder '00002.data' is missing" in r.stderr
     assert r.stdout.strip().splitlines()[-1].startswith(f"2 done, {SCALE_N - 2} skipped, 0 failed")
     assert_same_dataset(reference, out)
 

@@ -76,6 +76,8 @@ def input_error(normals: str, name: str) -> tuple[Path, dict] | None:
         info = read_json(folder / PREDICTION_INFO)
     except (OSError, ValueError, AttributeError):
         return None
+    if not isinstance(info, dict):  # not a record predict wrote: it states nothing
+        return None
     stated = info.get("expected_error_deg")
     if not stated or not all((folder / f).is_file() for f in EXPECTED_ERROR_FILES):
         return None

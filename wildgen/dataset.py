@@ -100,11 +100,13 @@ def check_manifest_names(manifest: dict, path: Path, flag: str, hint: str = "",
     """Names read from a manifest never lead out of its dataset (a resume or an --overwrite removes them, a reader
     reads them): each object's folder a plain name (matching `folder_re` when given), each of its files a relative
     path inside it. DatasetError naming `flag` otherwise."""
-    for entry in manifest["objects"]:
-        if not isinstance(entry, dict):
-            continue
+    for i, entry in enumerate(manifest["objects"]):
+        if not isinstance(entry, dict):  # a bare name or number: no record to check its folder against
+            raise DatasetError(f"{flag}: {str(path)!r} lists {entry!r:.80} as object {i}; expected a JSON object (an "
+                               f"object's record: index, name, folder, files, status){hint}")
         folder, files = entry.get("folder"), entry.get("files") or {}
-        plain = isinstance(folder, str) and Path(folder).name == folder and folder not in ("", ".", "..")
+        plain = isinstance(folder, str) and Path(folder).name == folder and folder not in ("", ".", "..") \
+            and "\0" not in folder and len(os.fsencode(folder)) <= 255  # what the file system can name
         if folder is not None and not (plain and (folder_re is None or folder_re.match(folder))):
             bad = folder
         elif not isinstance(files, dict):
@@ -166,7 +168,7 @@ def verify_object(out_dir: Path, entry: dict) -> str | None:
     """None when the folder of a 'done' entry holds exactly its files with their checksums, else the problem."""
     folder = Path(out_dir) / entry.get("folder", f"{entry.get('name', '?')}.data")
     if not folder.is_dir():
-        return "folder missing"
+        return f"its folder {folder.name!r} is missing"
     files = entry.get("files") or {}
     on_disk = {str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file()}
     if on_disk != set(files):

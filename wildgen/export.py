@@ -126,6 +126,12 @@ def _source_folders(data: Path) -> list[Path]:
             if problem is not None:
                 raise ValueError(f"--data: object {e.get('name', '?')!r} of {str(data)!r}: {problem} (the dataset "
                                  "differs from its manifest)")
+        listed = {str(e.get("folder", f"{e.get('name', '?')}.data")) for e in entries}
+        extra = next((f for f in folders if f.parent == data and f.name not in listed), None)
+        if extra is not None:  # no checksum to verify it by: not the dataset the manifest describes
+            raise ValueError(f"--data: object folder {extra.name!r} of {str(data)!r} is not listed as done in its "
+                             f"{MANIFEST} (the dataset differs from its manifest: move the folder away, or render it "
+                             "with wildgen.make)")
     keys = [sample_key(f) for f in folders]
     seen: dict[str, Path] = {}
     for key, folder in zip(keys, folders):

@@ -75,6 +75,10 @@ def check_output_folder(path: str | os.PathLike, flag: str = "--out") -> str | o
     if long is not None:  # the system refuses such a name only when it is written, naming no flag
         raise UsageError(f"{flag}: {str(path)[:80]!r}... holds a name of {len(os.fsencode(long))} bytes; expected "
                          "folder names of at most 255 bytes (the file system's limit)")
+    if len(os.fsencode(target)) >= 4096 - 256:  # room left for the files inside (PATH_MAX is 4096 bytes)
+        raise UsageError(f"{flag}: {str(path)[:80]!r}... is a path of {len(os.fsencode(target))} bytes; expected at "
+                         f"most {4096 - 257} bytes (the system's limit on a whole path, less room for the files "
+                         "inside)")
     if os.path.islink(target) and not os.path.exists(target):  # dangling, or a loop of links
         raise UsageError(f"{flag}: {str(path)!r} is a link to {os.readlink(target)!r}, which leads to no folder (it "
                          "is missing, or the links loop); expected a folder")

@@ -121,7 +121,8 @@ def camera_lights(scene: dict[str, Any], num_images: int, path: Path) -> tuple[n
                 raise ValueError(f"{where}.directional[{j}] is malformed (expected a dict, got {light!r:.80})")
             d = _vector3(light.get("direction_to_light"), f"{where}.directional[{j}]", "direction_to_light")
             e = _vector3(light.get("irradiance"), f"{where}.directional[{j}]", "irradiance")
-            if np.linalg.norm(d) < 1e-9:
+            d = d / max(float(np.abs(d).max()), 1e-300)  # scaled first: the length of [1e308]*3 overflows
+            if not np.isfinite(d).all() or np.linalg.norm(d) < 1e-9:
                 raise ValueError(f"{where}.directional[{j}]: direction_to_light is a zero vector")
             if (e < 0).any():  # a light adds energy: a negative one would pass every later check unseen
                 raise ValueError(f"{where}.directional[{j}]: irradiance {e.tolist()} has a negative value; expected "
