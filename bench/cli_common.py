@@ -208,6 +208,20 @@ GRACE_S = 10.0
 
 
 def run_main(main: Callable[[], int]) -> int:
+    """A bench script's `main()`, run as the toolkit's commands are (`scenes.cli.supervise.run_supervised`): the
+    work in a child process of its own session, which a stop (Ctrl-C, SIGTERM, SIGHUP) ends whole, with one line
+    (`STOPPED`) and status 128 + the signal, whatever a render in progress does with the interrupt (Mitsuba's
+    render installs a SIGINT handler of its own that may swallow it: the bench rendered on). Inside the child,
+    `_run_here`."""
+    import sys
+
+    from scenes.cli.supervise import run_supervised
+
+    return run_supervised(f"bench-{Path(sys.argv[0]).stem}", lambda: _run_here(main), interrupted=STOPPED,
+                          command=[sys.executable, sys.argv[0]])
+
+
+def _run_here(main: Callable[[], int]) -> int:
     """A bench script's `main()`, stopped cleanly: Ctrl-C, SIGTERM and SIGHUP end it with one line and status 128 +
     the signal, not a traceback, and nothing left in TMPDIR: the bench runs with a TMPDIR of its own (its steps too),
     removed however it ends. The stop reaches the bench as KeyboardInterrupt, through its `finally` blocks; an

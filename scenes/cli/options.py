@@ -411,14 +411,13 @@ class Command:
 
         from scenes.cli.errors import UsageError
 
-        wants = {}
+        wants = {}  # flag -> what it takes (its metavar where it has one)
         for owner, f in _flat_fields(self.config):
             kind, extras = _strip(_hints(owner)[f.name])
-            shown = next((m for m in (getattr(e, "metavar", None) for e in extras) if m), None)
-            if isinstance(kind, type) and issubclass(kind, PurePath):
-                wants[flag_name(owner, f)] = shown or "a path"
-            elif kind is str:
-                wants[flag_name(owner, f)] = shown or "a non-empty value"
+            path = isinstance(kind, type) and issubclass(kind, PurePath)
+            if path or kind is str:
+                shown = next((m for m in (getattr(e, "metavar", None) for e in extras) if m), None)
+                wants[flag_name(owner, f)] = shown or ("a path" if path else "a non-empty value")
         for i, token in enumerate(argv):
             flag, eq, value = token.partition("=")
             if flag in wants and ((eq and not value.strip()) or (not eq and i + 1 < len(argv)
@@ -445,9 +444,7 @@ class Command:
     def options(self) -> list[Flag]:
         """Every option of the command line, in `--help`'s order, as the docs list them."""
         parser = self.parser()
-        fields = {}
-        for owner, f in _flat_fields(self.config):
-            fields[f.name] = (owner, f)
+        fields = {f.name: (owner, f) for owner, f in _flat_fields(self.config)}
         groups = {f.name for f in dataclasses.fields(self.config) if _is_nested(_strip(_hints(self.config)[f.name])[0])}
         out = []
         for action in parser._actions:

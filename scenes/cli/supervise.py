@@ -94,10 +94,11 @@ def remove_temporaries(folder: str | Path | None, pids: set[int]) -> int:
 
 
 def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTERRUPTED,
-                   argv: list[str] | None = None) -> int:
-    """`python -m module` with Ctrl-C handled as the module doc says: in the child, `main()`; in the process the
-    user started, the same command as a child in its own session, waited for. `interrupted` is the line printed on
-    a stop (`--out` is read from the arguments to remove the child's temporaries)."""
+                   argv: list[str] | None = None, command: list[str] | None = None) -> int:
+    """`python -m module` (or `command`, e.g. a script's path) with Ctrl-C handled as the module doc says: in the
+    child, `main()`; in the process the user started, the same command as a child in its own session, waited for.
+    `interrupted` is the line printed on a stop (`--out` is read from the arguments to remove the child's
+    temporaries)."""
     if os.environ.get(CHILD) == str(os.getppid()):
         die_with_parent(os.getppid())
         return main()
@@ -123,7 +124,8 @@ def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTE
     scratch = scratch_tmpdir(module)
     try:
         try:
-            child = subprocess.Popen([sys.executable, "-m", module, *argv], start_new_session=True, pass_fds=(told,),
+            child = subprocess.Popen([*(command or [sys.executable, "-m", module]), *argv], start_new_session=True,
+                                     pass_fds=(told,),
                                      env={**os.environ, CHILD: str(os.getpid()), HELD_FILE: str(told), **scratch})
             os.close(told)
             told = -1
