@@ -219,9 +219,14 @@ def test_a_stopped_bench_removes_its_temporary_folder(sig, tmp_path):
 
     tmp = tmp_path / "tmp"
     tmp.mkdir()
+    def as_a_terminal_starts_it() -> None:  # a run started in the background (`cmd &`) inherits SIGINT ignored
+        for s in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(s, signal.SIG_DFL)
+
     proc = subprocess.Popen([sys.executable, "bench/bench_render.py", "--res", "64", "--spp", "16", "--images", "4",
                              "--objects", "5000", "--families", "directional"], cwd=ROOT, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env={**os.environ, "TMPDIR": str(tmp)})
+                            stderr=subprocess.PIPE, text=True, env={**os.environ, "TMPDIR": str(tmp)},
+                            preexec_fn=as_a_terminal_starts_it)
     assert proc.stdout.readline().startswith("variant "), proc.communicate()  # the header: rendering starts
     time.sleep(2.0)
     assert proc.poll() is None, proc.communicate()
