@@ -351,6 +351,27 @@ def _copy(src: str, dst: str) -> Callable[[Path, Path], None]:
     return setup
 
 
+def _gt_mask_corner(w: Path, t: Path) -> None:
+    """Setup: T/data, the world's dataset whose object 00000's mask is one background pixel (its corner, where the
+    ground truth holds no normal); T/p, the world's predictions."""
+    import cv2
+
+    shutil.copytree(w / "data", t / "data")
+    shutil.copytree(w / "pred", t / "p")
+    mask = t / "data" / f"{OBJ}.data" / "mask.png"
+    corner = np.zeros_like(cv2.imread(str(mask), cv2.IMREAD_UNCHANGED))
+    corner[0, 0] = 255
+    assert cv2.imwrite(str(mask), corner)
+
+
+def _unscored_in_metrics(name: str) -> Callable[[Path, Path], None]:
+    """Check: T/p/metrics.json lists `name` as having no ground truth and scores it nowhere."""
+    def check(w: Path, t: Path) -> None:
+        m = json.loads((t / "p" / "metrics.json").read_text())
+        assert name in m["no_ground_truth"] and name not in m["objects"], m
+    return check
+
+
 def _gt_zeroed(w: Path, t: Path) -> None:
     """Setup: T/data, the world's dataset whose object 00000 has an all-zero ground-truth normal.tif (it decodes to
     normals facing away from the camera); T/p, the world's predictions."""
@@ -1004,6 +1025,8 @@ ROWS: list[Row] = [
     ),
     Row("evaluate-gt-normal-all-zero", EV, ["--pred", "{T}/p", "--gt", "{T}/data"], 1, ("failed 00000", "face away"),
         setup=_gt_zeroed, check=_written("p/metrics.json", "p/00001/error_map.png")),
+    Row("evaluate-gt-mask-one-background-pixel", EV, ["--pred", "{T}/p", "--gt", "{T}/data"], 0, ("00001",),
+        setup=_gt_mask_corner, check=_unscored_in_metrics(OBJ)),
     Row("evaluate-dataset-nan", EV, ["--pred", "{T}/p", "--gt", "{W}/data"], 1, ("NaN",), setup=_copy("pred_nan", "p")),
     Row(
         "evaluate-missing-prediction",
@@ -3113,6 +3136,9 @@ ROWS += [
         setup=_both(_capture_copy(images=8), _copy("pred", "p"),
                     lambda w, t: (t / "p" / "00000" / "predict.json").write_text("[]\n")),
         check=_written("o/00000/normal.png")),
+    Row("refine-lights-calibrated-without-lights", RF, [*REFINE_8, "--out", "{T}/o", "--lights", "calibrated"], 2,
+        ("--lights calibrated", "no calibrated directional lights"), setup=_capture_copy(images=8),
+        check=_not_written("o/00000")),
     Row("refine-concurrent-into-one-folder", RF, [*REFINE_8, "--out", "{T}/o"], 2, ("--out", "another run holds"),
         setup=_both(_capture_copy(images=8), _running("o")), check=_released(_not_written("o/00000"))),
     Row("evaluate-concurrent-into-one-pred-folder", EV, ["--pred", "{T}/pred", "--gt", "{W}/data"], 2,

@@ -193,10 +193,15 @@ def _evaluate_one(folder: Path, pred_dir: Path, write: bool, results: dict, miss
     if pred.shape != truth.normals.shape:
         raise ValueError(f"--pred: {pred_path} has shape {'x'.join(map(str, pred.shape))}, the ground truth "
                          f"{folder} has {'x'.join(map(str, truth.normals.shape))}")
-    metrics, err_map = object_metrics(pred, truth.normals, truth.mask)
+    scored = truth.mask & np.any(truth.normals != 0, axis=-1)  # a mask pixel without a true normal scores nothing
+    if not scored.any():
+        no_gt.append(truth.name)
+        log.warning("%s has no ground-truth normal inside its mask; skipped", folder)
+        return
+    metrics, err_map = object_metrics(pred, truth.normals, scored)
     results[truth.name] = {**metrics, "light_family": truth.light_family, "prediction": str(pred_path)}
     if write:
-        write_error_map(pred_dir / truth.name / ERROR_MAP, err_map, truth.mask)
+        write_error_map(pred_dir / truth.name / ERROR_MAP, err_map, scored)
 
 
 def format_table(summary: dict[str, Any]) -> str:

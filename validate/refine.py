@@ -120,6 +120,13 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
             raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
         if not Path(args.data).is_dir():
             raise FileNotFoundError(f"--data: {args.data!r} is not a folder")
+        if config.lights == "calibrated":  # before any work: the fit would decline first and never say why
+            from scenes.folder.layouts import read_folder
+
+            if read_folder(args.data, images=False, arg="--data").lights.directions is None:
+                raise ValueError(f"--lights calibrated: {args.data!r} has no calibrated directional lights (DiLiGenT "
+                                 "light files or scene.json camera_lights with one distant light per image); expected "
+                                 "them, or --lights fitted")
         from scenes.folder.format import object_name
 
         name = object_name(args.data)
