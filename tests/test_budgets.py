@@ -70,7 +70,7 @@ def test_train_time_limit_holds(train_dataset, tmp_path):
     assert 0 < meta["extra"]["step"] < 100000
 
 
-SESSION = ["--images", "2", "--res", "24", "--spp", "2", "--variant", "llvm_ad_rgb", "--check-variant", "none",
+SESSION = ["--images", "3", "--res", "24", "--spp", "2", "--variant", "llvm_ad_rgb", "--check-variant", "none",
            "--model", "glc-test", "--batch", "2", "--log-every", "1", "--cpu-rehearsal"]
 
 
