@@ -226,9 +226,7 @@ def _run_here(main: Callable[[], int]) -> int:
     the signal, not a traceback, and nothing left in TMPDIR: the bench runs with a TMPDIR of its own (its steps too),
     removed however it ends. The stop reaches the bench as KeyboardInterrupt, through its `finally` blocks; an
     interrupt a native call swallows (Dr.Jit turns one into an error the render loop records and goes on) ends it
-    outright after GRACE_S (and the kernel ends it with SIGALRM after 3 x GRACE_S where no thread can run). A
-    stopped bench ends without the interpreter's shutdown (a native thread pool the interrupt broke may never
-    join). A signal the shell ignores (nohup, a background job) stays ignored. A step that fails
+    outright after GRACE_S. A signal the shell ignores (nohup, a background job) stays ignored. A step that fails
     (CalledProcessError) is one line too."""
     import os
     import shutil
@@ -257,8 +255,6 @@ def _run_here(main: Callable[[], int]) -> int:
             timer = threading.Timer(GRACE_S, end_now, (signum,))
             timer.daemon = True  # a bench that ends in time is not held back by it
             timer.start()
-            signal.signal(signal.SIGALRM, signal.SIG_DFL)  # the kernel's last word, where no thread gets the GIL
-            signal.alarm(int(3 * GRACE_S))
         raise KeyboardInterrupt
 
     for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
@@ -279,9 +275,8 @@ def _run_here(main: Callable[[], int]) -> int:
         if scratch:
             shutil.rmtree(scratch, ignore_errors=True)
     if "signal" in got:  # stopped, even where the interrupt was swallowed and main() returned
-        print(STOPPED, file=sys.stderr, flush=True)
-        sys.stdout.flush()
-        os._exit(128 + got["signal"])  # no interpreter shutdown: a native pool the interrupt broke may never join
+        print(STOPPED, file=sys.stderr)
+        return 128 + got["signal"]
     return 130 if code is None else code
 
 

@@ -164,9 +164,14 @@ class ManifestWriter:
         self._last_cost = self._last_end - t0
 
 
+def entry_folder(entry: dict) -> str:
+    """The object folder a manifest entry names (its `folder`, else its name's)."""
+    return str(entry.get("folder", f"{entry.get('name', '?')}.data"))
+
+
 def verify_object(out_dir: Path, entry: dict) -> str | None:
     """None when the folder of a 'done' entry holds exactly its files with their checksums, else the problem."""
-    folder = Path(out_dir) / entry.get("folder", f"{entry.get('name', '?')}.data")
+    folder = Path(out_dir) / entry_folder(entry)
     if not folder.is_dir():
         return f"its folder {folder.name!r} is missing"
     files = entry.get("files") or {}

@@ -97,7 +97,7 @@ COMMAND = Command(
 def _source_folders(data: Path) -> list[Path]:
     """The object folders of --data in reader order, checked against the dataset's manifest when it has one."""
     from scenes.folder.layouts import find_object_folders
-    from wildgen.dataset import MANIFEST, check_manifest_names, verify_object
+    from wildgen.dataset import MANIFEST, check_manifest_names, entry_folder, verify_object
 
     if not data.is_dir():
         raise FileNotFoundError(f"--data: {str(data)!r} is not a folder (expected a dataset of object folders)")
@@ -126,7 +126,7 @@ def _source_folders(data: Path) -> list[Path]:
             if problem is not None:
                 raise ValueError(f"--data: object {e.get('name', '?')!r} of {str(data)!r}: {problem} (the dataset "
                                  "differs from its manifest)")
-        listed = {str(e.get("folder", f"{e.get('name', '?')}.data")) for e in entries}
+        listed = {entry_folder(e) for e in entries}
         extra = next((f for f in folders if f.parent == data and f.name not in listed), None)
         if extra is not None:  # no checksum to verify it by: not the dataset the manifest describes
             raise ValueError(f"--data: object folder {extra.name!r} of {str(data)!r} is not listed as done in its "
