@@ -134,6 +134,14 @@ def world(tmp_path_factory) -> Path:
     shutil.copy(weights, ck / "newer.safetensors")
     (ck / "newer.json").write_text(json.dumps({**sidecar, "format": "unips-weights/99"}))
     (ck / "weights.txt").write_text("not a model\n")
+    shutil.copy(weights, ck / "renamed.pt")  # shipping weights renamed by hand, and a torch file the other way
+    (ck / "renamed.json").write_text(json.dumps(sidecar))
+    _training_checkpoint(_mk(w / "ck_swap")).rename(ck / "swapped.safetensors")
+    (ck / "swapped.json").write_text(json.dumps(sidecar))
+    ours = _mk(w / "ck_ours")  # a folder of this toolkit's weights files, named where one file belongs
+    for name in ("a", "b"):
+        shutil.copy(weights, ours / f"{name}.safetensors")
+        (ours / f"{name}.json").write_text(json.dumps(sidecar))
     shutil.copy(weights, ck / "othername.safetensors")  # a sidecar naming another network of the same shapes
     (ck / "othername.json").write_text(json.dumps({**sidecar, "model_name": "glc-test"}))
     for tag, value in (("textcfg", "wide"), ("hugecfg", 10**7)):  # a width of the wrong kind, one of 10 million
@@ -3025,6 +3033,18 @@ ROWS += [
     Row("predict-published-int64", PR, ["--method", "model", "--model", "sdm-unips-tiny", "--checkpoint",
                                         "{W}/pub_int64", "--input", OBJDIR, "--out", "{T}/p"], 2,
         ("nml.pytmodel", "int64"), check=_not_written("p")),
+    Row("predict-weights-renamed-pt", PR, ["--method", "model", "--checkpoint", "{W}/ck/renamed.pt", "--input",
+                                           OBJDIR, "--out", "{T}/p"], 2, ("renamed.pt", "a .safetensors weights file",
+                                                                          "'renamed.safetensors'"),
+        absent=("corrupt",), check=_not_written("p")),
+    Row("predict-checkpoint-renamed-safetensors", PR, ["--method", "model", "--checkpoint",
+                                                       "{W}/ck/swapped.safetensors", "--input", OBJDIR, "--out",
+                                                       "{T}/p"], 2, ("swapped.safetensors", "a .pt weights file",
+                                                                     "'swapped.pt'"), check=_not_written("p")),
+    Row("predict-checkpoint-folder-of-our-weights", PR, ["--method", "model", "--checkpoint", "{W}/ck_ours",
+                                                         "--input", OBJDIR, "--out", "{T}/p"], 2,
+        ("--checkpoint", "ck_ours", "2 of this toolkit's model files", "a.safetensors"), absent=("name the network",),
+        check=_not_written("p")),
     # ---- capture: --checkpoint / --model loaded before the photos are read (the third photo would be refused)
     Row("capture-checkpoint-missing-before-photos", CAP, [*CAPTURE, "--checkpoint", "{W}/ck/none.safetensors"], 2,
         ("--checkpoint", "none.safetensors"), setup=_bad_png_third, absent=("IMG_0003",)),

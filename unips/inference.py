@@ -102,7 +102,7 @@ def load_network(checkpoint: str | Path | None, device: str = "cpu", model: str 
     import torch
 
     from unips.models import DEFAULT_MODEL, create_model, load_model, pretrained_weights
-    from unips.models.official import is_official_path
+    from unips.models.official import is_official_path, our_model_files
 
     if device.startswith("cuda") and not torch.cuda.is_available():
         raise UsageError(f"--device {device}: CUDA is not available on this machine")
@@ -112,6 +112,11 @@ def load_network(checkpoint: str | Path | None, device: str = "cpu", model: str 
         raise UsageError(f"--model {model or DEFAULT_MODEL}: {str(exc).removeprefix('pretrained: ')}; give its weights "
                          "with --checkpoint") from None
     if is_official_path(path):
+        if ours := our_model_files(path):  # a folder of our own weights files, not the published ones
+            names = ", ".join(f.name for f in ours[:3]) + (", ..." if len(ours) > 3 else "")
+            raise UsageError(f"--checkpoint {str(path)!r} is a folder holding {len(ours)} of this toolkit's model "
+                             f"files ({names}), not published weights: give one file, e.g. --checkpoint "
+                             f"{str(ours[0])!r}")
         if model is None:
             raise UsageError(f"--checkpoint {str(path)!r} is a folder of published weights: name the network "
                              "that reads it with --model (--model glc-unips or sdm-unips)")

@@ -28,7 +28,7 @@ from scenes.files import atomic_write, not_a_file, read_json, write_json
 
 from .official import is_official_path, read_official
 from .registry import build_model, official_entry, pretrained_weights
-from .tensors import check_safetensors_header, check_weights, load_torch_file
+from .tensors import check_safetensors_header, check_stored_format, check_weights, load_torch_file
 
 WEIGHTS_FORMAT = "unips-weights/1"
 TRAINING_FORMAT = "unips-training/1"
@@ -181,6 +181,7 @@ def load_model(path: str | Path, map_location: str | torch.device = "cpu") -> tu
         return model.to(map_location).eval(), meta
     if path.suffix != ".safetensors":
         raise ValueError(f"path: got {str(path)!r}, expected a .safetensors or .pt file")
+    check_stored_format(path, "safetensors")
     side = sidecar_path(path)
     if why := not_a_file(side):
         raise FileNotFoundError(f"model sidecar {str(side)!r} {why} (needed next to {str(path)!r})")
@@ -252,6 +253,7 @@ def load_training_checkpoint(path: str | Path, map_location: str | torch.device 
         raise ValueError(f"training checkpoint {str(path)!r} is a folder; expected a .pt file")
     if why := not_a_file(path):
         raise FileNotFoundError(f"training checkpoint {str(path)!r} {why}")
+    check_stored_format(path, "torch")
     ckpt = load_torch_file(path, "training checkpoint", map_location)
     if not isinstance(ckpt, dict) or ckpt.get("format") != TRAINING_FORMAT:
         raise ValueError(f"{str(path)!r}: not a training checkpoint (expected format {TRAINING_FORMAT!r})")

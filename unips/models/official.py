@@ -83,6 +83,16 @@ def read_official(spec: OfficialWeights, path: str | Path,
     return state
 
 
+def our_model_files(path: str | Path) -> list[Path]:
+    """This toolkit's own model files (`.safetensors`, `.pt`) directly in the folder `path` when it holds no
+    published `.pytmodel` file (a user who named the folder of a training run rather than one of its files);
+    empty otherwise."""
+    path = Path(path)
+    if not path.is_dir() or any(path.glob("*" + OFFICIAL_SUFFIX)) or any(path.glob("*/*" + OFFICIAL_SUFFIX)):
+        return []
+    return sorted(f for f in path.iterdir() if f.suffix in (".safetensors", ".pt") and f.is_file())
+
+
 def is_official_path(path: str | Path) -> bool:
     """Whether `path` names published weights (a folder or a `.pytmodel` file) rather than our model files."""
     path = Path(path)

@@ -66,6 +66,36 @@ MAX_HEADER_BYTES = 100 * 2**20
 """The longest .safetensors header read (the format's own reader allows 100 MB)."""
 
 
+def stored_format(path: Any) -> str | None:
+    """Which of the two weights formats the file's first bytes say it is, whatever its name: "safetensors" (an
+    8-byte header length, then the JSON header), "torch" (torch.save's zip archive, or a bare pickle), or None."""
+    import struct
+
+    with open(path, "rb") as f:
+        head = f.read(9)
+    if head[:2] == b"PK" or head[:1] == b"\x80":
+        return "torch"
+    if len(head) == 9 and head[8:9] == b"{" and 0 < struct.unpack("<Q", head[:8])[0] <= MAX_HEADER_BYTES:
+        return "safetensors"
+    return None
+
+
+def check_stored_format(path: Any, expected: str) -> None:
+    """A ValueError of one line when the file at `path`, read by its name as `expected` ("safetensors" or
+    "torch"), holds the other format (a file renamed by hand): named with the way out, where the reader chosen by
+    the name would call it corrupt."""
+    found = stored_format(path)
+    if found is None or found == expected:
+        return
+    from pathlib import Path
+
+    path = Path(path)
+    have, named = (".safetensors", ".pt") if found == "safetensors" else (".pt", ".safetensors")
+    raise ValueError(f"{str(path)!r}: a {have} weights file named {named} (read by its name as the wrong format); "
+                     f"rename it to {path.with_suffix(have).name!r}"
+                     + (" with its .json sidecar beside it" if found == "safetensors" else ""))
+
+
 def check_safetensors_header(path: Any) -> None:
     """The JSON header of a .safetensors file names each tensor once: a header naming one twice is ambiguous (the
     format's reader keeps one of them without a word, so two readers may load different weights from one file); a
