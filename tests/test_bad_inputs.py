@@ -138,6 +138,11 @@ def world(tmp_path_factory) -> Path:
     (ck / "renamed.json").write_text(json.dumps(sidecar))
     _training_checkpoint(_mk(w / "ck_swap")).rename(ck / "swapped.safetensors")
     (ck / "swapped.json").write_text(json.dumps(sidecar))
+    import zipfile
+
+    with zipfile.ZipFile(ck / "notorch.safetensors", "w") as z:  # a zip archive, but no torch.save file
+        z.writestr("readme.txt", "not weights\n")
+    (ck / "notorch.json").write_text(json.dumps(sidecar))
     ours = _mk(w / "ck_ours")  # a folder of this toolkit's weights files, named where one file belongs
     for name in ("a", "b"):
         shutil.copy(weights, ours / f"{name}.safetensors")
@@ -3044,6 +3049,13 @@ ROWS += [
     Row("predict-checkpoint-folder-of-our-weights", PR, ["--method", "model", "--checkpoint", "{W}/ck_ours",
                                                          "--input", OBJDIR, "--out", "{T}/p"], 2,
         ("--checkpoint", "ck_ours", "2 of this toolkit's model files", "a.safetensors"), absent=("name the network",),
+        check=_not_written("p")),
+    Row("predict-weights-a-zip-not-torch", PR, ["--method", "model", "--checkpoint", "{W}/ck/notorch.safetensors",
+                                                "--input", OBJDIR, "--out", "{T}/p"], 2, ("notorch.safetensors",),
+        absent=("rename",), check=_not_written("p")),
+    Row("predict-checkpoint-empty-folder", PR, ["--method", "model", "--checkpoint", "{W}/empty", "--input", OBJDIR,
+                                                "--out", "{T}/p"], 2,
+        ("--checkpoint", "empty", "no *.pytmodel", "a model file"), absent=("name the network",),
         check=_not_written("p")),
     # ---- capture: --checkpoint / --model loaded before the photos are read (the third photo would be refused)
     Row("capture-checkpoint-missing-before-photos", CAP, [*CAPTURE, "--checkpoint", "{W}/ck/none.safetensors"], 2,

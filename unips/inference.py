@@ -102,7 +102,7 @@ def load_network(checkpoint: str | Path | None, device: str = "cpu", model: str 
     import torch
 
     from unips.models import DEFAULT_MODEL, create_model, load_model, pretrained_weights
-    from unips.models.official import is_official_path, our_model_files
+    from unips.models.official import holds_published_weights, is_official_path, our_model_files
 
     if device.startswith("cuda") and not torch.cuda.is_available():
         raise UsageError(f"--device {device}: CUDA is not available on this machine")
@@ -112,11 +112,14 @@ def load_network(checkpoint: str | Path | None, device: str = "cpu", model: str 
         raise UsageError(f"--model {model or DEFAULT_MODEL}: {str(exc).removeprefix('pretrained: ')}; give its weights "
                          "with --checkpoint") from None
     if is_official_path(path):
-        if ours := our_model_files(path):  # a folder of our own weights files, not the published ones
-            names = ", ".join(f.name for f in ours[:3]) + (", ..." if len(ours) > 3 else "")
-            raise UsageError(f"--checkpoint {str(path)!r} is a folder holding {len(ours)} of this toolkit's model "
-                             f"files ({names}), not published weights: give one file, e.g. --checkpoint "
-                             f"{str(ours[0])!r}")
+        if path.is_dir() and not holds_published_weights(path):  # a run's folder, or no weights at all
+            ours = our_model_files(path)
+            names = ", ".join(repr(str(f.relative_to(path))) for f in ours[:3]) + (", ..." if len(ours) > 3 else "")
+            hint = (f"; it holds {len(ours)} of this toolkit's model files ({names}): give one, e.g. --checkpoint "
+                    f"{str(ours[0])!r}") if ours else ""
+            raise UsageError(f"--checkpoint {str(path)!r} is a folder without published weights (no *.pytmodel file "
+                             f"in it); expected a model file (.safetensors or .pt) or the authors' checkpoint "
+                             f"folder{hint}")
         if model is None:
             raise UsageError(f"--checkpoint {str(path)!r} is a folder of published weights: name the network "
                              "that reads it with --model (--model glc-unips or sdm-unips)")

@@ -83,14 +83,19 @@ def read_official(spec: OfficialWeights, path: str | Path,
     return state
 
 
-def our_model_files(path: str | Path) -> list[Path]:
-    """This toolkit's own model files (`.safetensors`, `.pt`) directly in the folder `path` when it holds no
-    published `.pytmodel` file (a user who named the folder of a training run rather than one of its files);
-    empty otherwise."""
+def holds_published_weights(path: str | Path) -> bool:
+    """Whether the folder `path` holds a published `.pytmodel` file, at its top or one folder down (SDM-UniPS's
+    `normal/nml.pytmodel`)."""
     path = Path(path)
-    if not path.is_dir() or any(path.glob("*" + OFFICIAL_SUFFIX)) or any(path.glob("*/*" + OFFICIAL_SUFFIX)):
-        return []
-    return sorted(f for f in path.iterdir() if f.suffix in (".safetensors", ".pt") and f.is_file())
+    return any(path.glob("*" + OFFICIAL_SUFFIX)) or any(path.glob("*/*" + OFFICIAL_SUFFIX))
+
+
+def our_model_files(path: str | Path) -> list[Path]:
+    """This toolkit's own model files (`.safetensors`, `.pt`) at the top of the folder `path` or one folder down
+    (a user who named the folder of a training run, or the folder above it, rather than one of its files)."""
+    path = Path(path)
+    return [f for pattern in ("*", "*/*") for f in sorted(path.glob(pattern))
+            if f.suffix in (".safetensors", ".pt") and f.is_file()]
 
 
 def is_official_path(path: str | Path) -> bool:

@@ -67,16 +67,23 @@ MAX_HEADER_BYTES = 100 * 2**20
 
 
 def stored_format(path: Any) -> str | None:
-    """Which of the two weights formats the file's first bytes say it is, whatever its name: "safetensors" (an
-    8-byte header length, then the JSON header), "torch" (torch.save's zip archive, or a bare pickle), or None."""
+    """Which of the two weights formats the file's bytes say it is, whatever its name: "safetensors" (an 8-byte
+    header length, then the JSON header), "torch" (torch.save's zip archive: a member `<name>/data.pkl`), or None
+    (neither, or a file too damaged to tell: the reader chosen by its name says what is wrong)."""
     import struct
+    import zipfile
 
     with open(path, "rb") as f:
         head = f.read(9)
-    if head[:2] == b"PK" or head[:1] == b"\x80":
-        return "torch"
     if len(head) == 9 and head[8:9] == b"{" and 0 < struct.unpack("<Q", head[:8])[0] <= MAX_HEADER_BYTES:
         return "safetensors"
+    if head[:2] == b"PK":
+        try:
+            with zipfile.ZipFile(path) as z:
+                names = z.namelist()
+        except (zipfile.BadZipFile, OSError, ValueError):
+            return None
+        return "torch" if any(n.count("/") == 1 and n.endswith("/data.pkl") for n in names) else None
     return None
 
 
