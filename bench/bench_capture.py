@@ -36,6 +36,7 @@ from bench.cli_common import check_given, claim_result, machine, need_path, pars
 from orchestrate.capture import MIN_SIDE  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import Command, arg, check_fields, comma_list, option  # noqa: E402
+from scenes.files import read_json, reading_record  # noqa: E402
 from validate.judgeable import MIN_IMAGES  # noqa: E402
 
 RESULT_KEYS = ("machine", "rows")
@@ -135,6 +136,34 @@ class Options:
 COMMAND = Command(Options, prog="python bench/bench_capture.py", description=__doc__.split("\n\n")[0])
 
 
+def _count(value) -> int:
+    """A recorded row's photo count: a whole number of at least 1 (a ValueError otherwise, said with the file)."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ValueError(f"a row's images is {value!r}; expected a whole number of photos, at least 1")
+    return value
+
+
+def _photo_size(value) -> tuple[int, int]:
+    """A recorded row's photo size (width, height): two whole numbers of at least 1 pixel."""
+    if not isinstance(value, (list, tuple)) or len(value) != 2 or not all(
+            isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in value):
+        raise ValueError(f"a row's size is {value!r}; expected [width, height] in pixels, each at least 1")
+    return int(value[0]), int(value[1])
+
+
+def _earlier(path: Path) -> dict:
+    """The rows and commands of this bench's earlier output at `path` (--append), each row an object; a ValueError
+    naming the file otherwise."""
+    with reading_record(path, "a recorded output of this bench", flag="--out"):
+        before = read_json(path)
+        earlier = before["commands"] if "commands" in before else [before["command"]]  # a record before 'commands'
+        if not isinstance(before["rows"], list) or not all(isinstance(r, dict) for r in before["rows"]):
+            raise ValueError("its rows are not a list of objects")
+        if not isinstance(earlier, list) or not all(isinstance(c, str) for c in earlier):
+            raise ValueError("its commands are not a list of command lines")
+        return {"rows": before["rows"], "commands": earlier}
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse(COMMAND, argv)
     if args.reestimate:
@@ -142,17 +171,21 @@ def main(argv: list[str] | None = None) -> int:
         claim_result(args.reestimate, RESULT_KEYS, COMMAND, "--reestimate")
         from orchestrate.capture_estimate import estimate
 
-        result = json.loads(args.reestimate.read_text())
-        for row in result["rows"]:
-            if "error" not in row:
-                e = estimate(row["images"], *row.get("working_size", row["size"]), full=tuple(row["size"]))
-                row["estimate_mib"], row["estimate_s"] = e["peak_mib"], e["seconds"]
         command = "python bench/bench_capture.py --reestimate " + str(args.reestimate)
-        result["commands"] = [c for c in result.get("commands", [result.get("command")]) if c != command] + [command]
+        with reading_record(args.reestimate, "a recorded output of this bench (--out)", flag="--reestimate"):
+            result = read_json(args.reestimate)
+            for row in result["rows"]:
+                if "error" not in row:
+                    size = _photo_size(row["size"])
+                    e = estimate(_count(row["images"]), *_photo_size(row.get("working_size", size)), full=size)
+                    row["estimate_mib"], row["estimate_s"] = e["peak_mib"], e["seconds"]
+            earlier = result["commands"] if "commands" in result else [result.get("command")]
+            result["commands"] = [str(c) for c in earlier if c not in (None, command)] + [command]
         write_result(args.reestimate, result, indent=1, newline=True)
         print(f"rewrote the estimates of {args.reestimate}")
         return 0
     claim_result(args.out, RESULT_KEYS, COMMAND)
+    before = _earlier(args.out) if args.append and args.out.is_file() else None  # read before the measurement
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for side in args.sides:
@@ -161,9 +194,8 @@ def main(argv: list[str] | None = None) -> int:
                 print(json.dumps(row), flush=True)
                 rows.append(row)
     commands = ["python bench/bench_capture.py " + " ".join(argv or sys.argv[1:])]
-    if args.append and args.out.is_file():
-        before = json.loads(args.out.read_text())
-        rows, commands = before["rows"] + rows, before.get("commands", [before["command"]]) + commands
+    if before is not None:
+        rows, commands = before["rows"] + rows, before["commands"] + commands
     result = {"machine": machine(),
               "commands": commands, "rows": rows}
     args.out.parent.mkdir(parents=True, exist_ok=True)

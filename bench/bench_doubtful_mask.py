@@ -32,7 +32,6 @@ from the true mask (where it refuses, the rule is never asked); `cushion_auto` r
 """
 from __future__ import annotations
 
-import json
 import sys
 from collections import defaultdict
 from dataclasses import dataclass, field
@@ -48,6 +47,7 @@ sys.path.insert(0, str(REPO))  # this tree's toolkit, not another checkout's ins
 from bench.cli_common import check_suites, claim_result, need_path, parse, refusals, run_main, write_result  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import Command, UseAppendAction, arg  # noqa: E402
+from scenes.files import read_json, reading_record  # noqa: E402
 
 GROWN = (0.15, 0.3, 0.5)
 """Dilations of the true mask, as fractions of the object's equivalent radius."""
@@ -204,11 +204,45 @@ def automatic_run(rows: list[dict]) -> dict:
             "silent": [{"object": r["object"], "kind": r["kind"], "iou": r["iou_true"]} for r in silent]}
 
 
+def _recorded_runs(path: Path) -> list[dict]:
+    """The runs a --record file holds (none where there is no file yet), each an object with its suites and
+    cushions; a ValueError naming the file otherwise, before any measurement."""
+    if not path.is_file():
+        return []
+    with reading_record(path, "a record of this bench (--record)", flag="--record"):
+        runs = read_json(path)["rows"]
+        if not isinstance(runs, list) or not all(isinstance(r, dict) and "suites" in r and "cushions" in r
+                                                 for r in runs):
+            raise ValueError("its rows are not a list of runs, each with its suites and cushions")
+        return runs
+
+
 def record_run(path: Path, run: dict) -> None:
     """Add `run` to the results file `path`, replacing a run of the same suites and cushions."""
-    runs = json.loads(path.read_text())["rows"] if path.is_file() else []
-    runs = [r for r in runs if (r["suites"], r["cushions"]) != (run["suites"], run["cushions"])] + [run]
+    runs = [r for r in _recorded_runs(path) if (r["suites"], r["cushions"]) != (run["suites"], run["cushions"])]
+    runs.append(run)
     write_result(path, {"good_iou": GOOD_IOU, "rows": runs}, indent=1, newline=True)
+
+
+ROW_KEYS = ("kind", "group", "object", "iou_true", "doubtful", "seed_agreement_iou", "weak_inside_share",
+            "varying_outside_share")
+"""The keys of every row this bench measures (what the summary and the record read)."""
+
+
+def _earlier_rows(path: Path) -> list[dict]:
+    """The rows of an earlier run's --out (--rows-from), each an object with `ROW_KEYS`, IoU a number or None; a
+    ValueError naming the file otherwise (the summary would end in a traceback, or count a text as a figure)."""
+    with reading_record(path, "an earlier run's --out", flag="--rows-from"):
+        rows = read_json(path)["rows"]
+        if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
+            raise ValueError("its rows are not a list of objects")
+        for r in rows:
+            if missing := [k for k in ROW_KEYS if k not in r]:
+                raise KeyError(missing[0])
+            if r["iou_true"] is not None and not isinstance(r["iou_true"], (int, float)):
+                raise ValueError(f"a row's iou_true is {r['iou_true']!r}; expected a number or null")
+            summary([r])  # every figure the summary reads is of its kind
+        return rows
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -228,9 +262,10 @@ def main(argv: list[str] | None = None) -> int:
                                  "--rows-from FILE")
         check_suites(args.suite)
     claim_result(args.out, RESULT_KEYS, COMMAND)
-    claim_result(args.record, RECORD_KEYS, COMMAND, "--record")
+    if claim_result(args.record, RECORD_KEYS, COMMAND, "--record"):
+        _recorded_runs(args.record)  # read now, not after the measurement
     rng = np.random.default_rng(args.seed)
-    rows: list[dict] = json.loads(args.rows_from.read_text())["rows"] if args.rows_from else []
+    rows: list[dict] = _earlier_rows(args.rows_from) if args.rows_from else []
     for suite in [] if args.rows_from else args.suite:
         for folder in sorted(Path(suite).glob("*.data")):
             rows += object_rows(folder, rng, args.cushions)

@@ -32,9 +32,19 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from bench.cli_common import check_suites, claim_result, machine, need_path, parse, run_main, write_result  # noqa: E402
+from bench.cli_common import (  # noqa: E402
+    check_suites,
+    claim_result,
+    machine,
+    need_path,
+    parse,
+    refusals,
+    run_main,
+    write_result,
+)
 from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import Command, UseAppendAction, arg, check_fields, option  # noqa: E402
+from scenes.files import read_text_file  # noqa: E402
 
 SUBSETS = ("all", "one_side", "above", "near_axis")
 """Captures made of each object's photos: all; those whose light's azimuth lies within 75 deg of the first lit
@@ -151,6 +161,31 @@ def object_rows(folder: Path, net) -> list[dict]:
                         directions, net, subsets(directions))
 
 
+LIGHTS = "lights.txt: the number of lights on its first line, then one line x y z per photo"
+
+
+def read_lights(folder: Path) -> np.ndarray:
+    """The unit light directions (N, 3) of `folder`/lights.txt (a real capture of the course's kind, --real); a
+    UsageError naming --real and the file when there is none or it is not `LIGHTS`."""
+    path = folder / "lights.txt"
+    if not path.is_file():
+        raise UsageError(f"--real: {str(folder)!r} holds no lights.txt and is no DiLiGenT object folder (NAMEPNG); "
+                         f"expected real captures with measured lights ({LIGHTS})")
+    try:
+        lines = [line for line in read_text_file(path).splitlines() if line.strip()]
+        count = int(lines[0].split()[0]) if lines else 0
+        d = np.array([[float(v) for v in line.split()] for line in lines[1:]])
+    except (OSError, ValueError) as exc:
+        raise UsageError(f"--real: {str(path)!r} is not readable ({type(exc).__name__}: {exc}); expected {LIGHTS}"
+                         ) from None
+    norms = np.linalg.norm(d, axis=1, keepdims=True) if d.ndim == 2 and d.shape[1:] == (3,) else None
+    if norms is None or len(d) != count or count < 1 or not np.isfinite(d).all() or not (norms > 0).all():
+        shape = "x".join(map(str, d.shape)) if d.size else "no values"
+        raise UsageError(f"--real: {str(path)!r} says {count} lights and holds {shape} values after it; expected "
+                         f"{LIGHTS}, each finite and not zero")
+    return d / norms
+
+
 def real_rows(folder: Path, net) -> list[dict]:
     """The rows of real captures with measured lights: a folder of object folders of photos with `<object>.mask.png`
     beside them and `lights.txt` (the count, then x y z per photo; the course objects of ../shared/data/real/psm),
@@ -163,13 +198,19 @@ def real_rows(folder: Path, net) -> list[dict]:
         obj = load_object(folder)
         d = obj.light_directions / np.linalg.norm(obj.light_directions, axis=1, keepdims=True)
         k = len(d)
+        spaced = {"16 evenly spaced": np.arange(0, k, k // 16)[:16]} if k > 16 else {}  # a folder of fewer: all
         return capture_rows(f"diligent/{folder.name}", "diligent (real)", "real", obj.images, obj.mask, d, net,
-                            {"16 evenly spaced": np.arange(0, k, k // 16)[:16], "all": np.arange(k)})
-    d = np.loadtxt(folder / "lights.txt", skiprows=1)  # (the first line is the count)
-    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+                            {**spaced, "all": np.arange(k)})
+    d = read_lights(folder)
     rows = []
     for sub in sorted(p for p in folder.iterdir() if p.is_dir()):
-        photos = read_photos(sub, "auto")
+        try:
+            photos = read_photos(sub, "auto")
+        except (ValueError, FileNotFoundError) as exc:  # said as the flag that named the capture
+            raise UsageError(f"--real: {str(exc).removeprefix('--input: ')}") from None
+        if len(photos.images) != len(d):
+            raise UsageError(f"--real: {str(sub)!r} holds {len(photos.images)} photos and {str(folder)!r}/lights.txt "
+                             f"{len(d)} lights; expected one light per photo")
         mask = read_mask(folder / f"{sub.name}.mask.png")
         rows += capture_rows(f"{folder.name}/{sub.name}", f"{folder.name} (real)", "real", photos.images, mask, d,
                              net, {"all": np.arange(len(d))})
@@ -239,6 +280,9 @@ def main(argv: list[str] | None = None) -> int:
     check_suites(args.suite)
     for folder in args.real:
         need_path(folder, "--real", "real captures with measured lights, or a DiLiGenT object folder")
+        if not folder.name.endswith("PNG"):
+            with refusals():
+                read_lights(folder)  # before the network is loaded
     claim_result(args.out, RESULT_KEYS, COMMAND,
                  inputs={f"--suite {d}": d for d in args.suite} | {f"--real {d}": d for d in args.real})
     torch.set_num_threads(args.threads)

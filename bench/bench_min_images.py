@@ -125,8 +125,8 @@ class Options:
         None, minimum=1
     )
     """Dr.Jit threads"""
-    draws: int = option(4, minimum=1)
-    """light subsets per image count"""
+    draws: int = option(4, minimum=1, maximum=1000)
+    """light subsets per image count (at most 1000: the mean of more moves by nothing the table shows)"""
 
 
 COMMAND = Command(Options, prog="python bench/bench_min_images.py", description=__doc__.splitlines()[0])

@@ -89,6 +89,9 @@ class Options:
     def validate(self) -> "Options":
         check_fields(self)
         check_given(self, "seeds")
+        if len(self.seeds) < 2:  # one set chooses a rule that nothing then confirms
+            raise UsageError(f"--seeds: got {','.join(map(str, self.seeds))!r}, expected at least two seeds (a rule "
+                             "is chosen on the first set and confirmed on the others)")
         if len(set(self.seeds)) < len(self.seeds):
             raise UsageError(f"--seeds: got {','.join(map(str, self.seeds))!r}, expected different seeds (each one a "
                              "set rendered into WORK/seed<N>)")

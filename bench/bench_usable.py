@@ -46,7 +46,8 @@ from bench.cli_common import (  # noqa: E402
     write_jpeg_photos,
     write_result,
 )
-from scenes.cli.options import CommaList, Command, UseAppendAction, arg, comma_list, option  # noqa: E402
+from scenes.cli.errors import UsageError  # noqa: E402
+from scenes.cli.options import CommaList, Command, UseAppendAction, arg, check_fields, comma_list, option  # noqa: E402
 from validate.judgeable import MIN_IMAGES  # noqa: E402
 
 MARGIN = 8
@@ -256,6 +257,13 @@ class Options:
     frontal: Annotated[list[float], comma_list(float, "DEG,DEG")] = option(default_factory=lambda: [15.0, 10.0],
                                                                            minimum=1, maximum=90)
     """also the lights within these degrees of the viewing direction"""
+
+    def validate(self) -> "Options":
+        check_fields(self)
+        if not any(self.objects) and not self.suite:  # an empty table would be written as a measurement
+            raise UsageError("--objects: got '' and no --suite: nothing to measure; expected DiLiGenT objects "
+                             "(--objects ball,cat) or a rendered dataset (--suite DIR)")
+        return self
 
 
 COMMAND = Command(Options, prog="python bench/bench_usable.py", description=__doc__.split("\n\n")[0])

@@ -122,7 +122,7 @@ def degenerate_sweep(captures: list[Path], out: Path) -> int:
 
     cfg, rows = FitConfig().validate(), []
     for folder in captures:
-        full = load_capture(folder)
+        full = load_capture(folder, arg="CAPTURE")
         if full.light_directions is None or full.normal_gt is None:
             print(f"{folder}: needs calibrated lights and ground truth, skipped", file=sys.stderr)
             continue
@@ -259,7 +259,7 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     for folder in args.captures:
         t0 = time.perf_counter()
-        cap = load_capture(folder)
+        cap = load_capture(folder, arg="CAPTURE")
         gt = cap.normal_gt
         if gt is None:
             print(f"{folder}: no ground truth, skipped", file=sys.stderr)

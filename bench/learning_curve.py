@@ -28,7 +28,9 @@ sys.path.insert(0, str(ROOT))
 
 from bench.cli_common import parse, run_main  # noqa: E402
 from scenes.cli.options import Command, Positional, arg, option  # noqa: E402
+from scenes.files import read_text_file, reading_record  # noqa: E402
 
+LOG = "a unips.train log (one JSON object per line, each with its step)"
 CARD = "a model card (a JSON object whose lineage is a list of stages, e.g. unips/weights/model_card.json)"
 
 
@@ -37,8 +39,9 @@ def validations(run: Path) -> list[dict]:
     log = run / "log.jsonl"
     if not log.is_file():
         raise FileNotFoundError(f"RUN: {str(run)!r} has no log.jsonl (expected a unips.train run folder)")
-    out = [json.loads(line) for line in log.read_text().splitlines() if line.strip()]
-    return sorted((r for r in out if "val" in r), key=lambda r: r["step"])
+    with reading_record(log, LOG, flag="RUN"):
+        out = [json.loads(line) for line in read_text_file(log).splitlines() if line.strip()]
+        return sorted((r for r in out if "val" in r), key=lambda r: r["step"])
 
 
 def _cell(v: float | None) -> str:
@@ -50,19 +53,20 @@ def table(run: Path, families: bool = False) -> str:
     from unips.probes import PROBE_TITLES, format_table
 
     rows = validations(run)
-    body = [
-        [
-            r["step"],
-            f"{r['val'].get('elapsed_s', 0) / 3600:.2f}",
-            *(_cell(r["val"].get("probes", {}).get(k)) for k in PROBE_TITLES),
-            _cell(r["val"].get("gain")),
+    with reading_record(run / "log.jsonl", LOG, flag="RUN"):
+        body = [
+            [
+                r["step"],
+                f"{r['val'].get('elapsed_s', 0) / 3600:.2f}",
+                *(_cell(r["val"].get("probes", {}).get(k)) for k in PROBE_TITLES),
+                _cell(r["val"].get("gain")),
+            ]
+            for r in rows
         ]
-        for r in rows
-    ]
-    lines = [f"{run}", "", markdown_table(["step", "hours", *PROBE_TITLES.values(), "photometric gain"], body)]
-    if families and rows:
-        last = rows[-1]["val"]  # unips.train_data.probe_samples renames summarise's "mean" dict to "probes"
-        lines += ["", f"per family at step {rows[-1]['step']}:", "", format_table({**last, "mean": last["probes"]})]
+        lines = [f"{run}", "", markdown_table(["step", "hours", *PROBE_TITLES.values(), "photometric gain"], body)]
+        if families and rows:
+            last = rows[-1]["val"]  # unips.train_data.probe_samples renames summarise's "mean" dict to "probes"
+            lines += ["", f"per family at step {rows[-1]['step']}:", "", format_table({**last, "mean": last["probes"]})]
     return "\n".join(lines)
 
 
@@ -180,10 +184,8 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError("expected RUN folders or --card CARD")
         if args.card is not None:
             card = read_card(args.card)
-            try:
+            with reading_record(args.card, CARD, "give the card as unips.train's runs record it", "--card"):
                 text = card_table(card, args.target)
-            except (KeyError, TypeError, AttributeError) as exc:  # a stage without the figures a card records
-                raise ValueError(f"--card: got {str(args.card)!r}, expected {CARD}: a stage lacks {exc}") from None
             print(text, end="\n\n")
         for run in args.runs:
             print(table(run, args.families), end="\n\n")

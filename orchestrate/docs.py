@@ -27,7 +27,7 @@ from typing import Any, Callable
 from orchestrate.bench_docs import BENCH_BLOCKS, BENCH_TABLES
 from scenes.cli.errors import UsageError, report_error
 from scenes.cli.options import Command
-from scenes.files import atomic_write_text
+from scenes.files import atomic_write_text, not_a_file, reading_record
 from scenes.report.tables import markdown_table
 
 REPO = Path(__file__).resolve().parents[1]
@@ -377,7 +377,9 @@ BLOCKS: dict[str, Callable[[dict], str]] = {
 }
 
 
-def render(name: str, card: dict) -> str:
+def render(name: str, card: dict, card_path: Path | None = None) -> str:
+    """The block `name`: a flag table, or a result table from the model card (`card`, read from `card_path`) or a
+    bench's output (`BENCH_BLOCKS`); a record of another shape is a ValueError naming its file."""
     if name.startswith("flags:"):
         module = name.removeprefix("flags:")
         if module not in CLIS:
@@ -387,7 +389,10 @@ def render(name: str, card: dict) -> str:
         raise UsageError(f"generated:{name}: unknown block, expected flags:MODULE or one of {', '.join(BLOCKS)}")
     if name in BENCH_BLOCKS and not BENCH_BLOCKS[name].is_file():
         raise UsageError(f"generated:{name}: {BENCH_BLOCKS[name]} does not exist: run the benchmark that writes it")
-    return BLOCKS[name](card)
+    source, what, fix = ((BENCH_BLOCKS[name], "the output of its benchmark", "run the benchmark again")
+                         if name in BENCH_BLOCKS else (card_path or CARD, "a model card", "restore it (git checkout)"))
+    with reading_record(source, what, fix):
+        return BLOCKS[name](card)
 
 
 # ---------------------------------------------------------------- files
@@ -397,7 +402,7 @@ def doc_files(root: Path = REPO) -> list[Path]:
     return [root / "README.md", *sorted((root / "docs").glob("*.md"))]
 
 
-def regenerate(text: str, card: dict, where: str = "") -> tuple[str, list[str]]:
+def regenerate(text: str, card: dict, where: str = "", card_path: Path | None = None) -> tuple[str, list[str]]:
     """`text` with every generated block rewritten, and the names of its blocks (markers inside fenced code
     blocks are examples, not blocks)."""
     lines = text.split("\n")
@@ -420,7 +425,7 @@ def regenerate(text: str, card: dict, where: str = "") -> tuple[str, list[str]]:
         except StopIteration:
             raise UsageError(f"{where}: block generated:{name} has no closing line {end!r}") from None
         try:
-            out += [render(name, card), end]
+            out += [render(name, card, card_path), end]
         except (UsageError, ValueError, KeyError) as exc:  # said with the file that holds the block
             said = str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)  # no repr quotes
             raise UsageError(f"{where}: {said}") from None
@@ -438,8 +443,6 @@ def run(check: bool, root: Path = REPO, card_path: Path = CARD) -> list[Path]:
     if not card:
         raise FileNotFoundError(f"model card {str(card_path)!r} does not exist (the result tables come from it)")
     changed, seen = {}, set()
-    from scenes.files import not_a_file
-
     for path in doc_files(root):
         if why := not_a_file(path):  # a link to a device is never read whole
             raise UsageError(f"{str(path.relative_to(root))} {why}")
@@ -447,7 +450,7 @@ def run(check: bool, root: Path = REPO, card_path: Path = CARD) -> list[Path]:
             raise UsageError(f"{str(path.relative_to(root))} is a link (to {os.readlink(path)!r}); the generated "
                              "blocks are written only into the repository's own files: replace the link by the file")
         text = path.read_text()
-        new, names = regenerate(text, card, str(path.relative_to(root)))
+        new, names = regenerate(text, card, str(path.relative_to(root)), card_path)
         seen.update(names)
         if new != text:
             changed[path] = new

@@ -77,10 +77,45 @@ def read_text_file(path: str | os.PathLike) -> str:
 
 def read_json(path: str | os.PathLike):
     """A JSON file read as `read_text_file` reads (never waiting on a pipe): the errors of `read_text_file` and of
-    `json.loads`."""
+    `json.loads` (nesting deeper than Python's decoder goes is a `json.JSONDecodeError` too, not a RecursionError)."""
     import json
 
-    return json.loads(read_text_file(path))
+    text = read_text_file(path)
+    try:
+        return json.loads(text)
+    except RecursionError:
+        raise json.JSONDecodeError("nested deeper than this reader goes", text, 0) from None
+
+
+class RecordError(ValueError):
+    """A JSON record another run wrote (a bench's output, a training log, a model card) that is not of the shape
+    its reader expects: one line naming the file (`reading_record`)."""
+
+
+@contextmanager
+def reading_record(path: str | os.PathLike, what: str, fix: str = "restore it, or run what writes it again",
+                   flag: str = "") -> Iterator[None]:
+    """Around the code that reads a record by its keys: a record of another shape (a number where rows belong, a
+    text where a figure, a list where an object, a missing key, nesting too deep) ends in one `RecordError` naming
+    the file (after the `flag` that named it, if any), `what` it should be and the way out (`fix`), never in the
+    reading code's own TypeError or KeyError. An error that already
+    names the file passes as it is. Files are untrusted: anybody may have edited one."""
+    try:
+        yield
+    except RecordError:
+        raise
+    except (KeyError, IndexError, TypeError, AttributeError, ValueError, RecursionError) as exc:
+        if str(path) in str(exc):
+            raise
+        if isinstance(exc, KeyError) and exc.args:
+            why = f"no {exc.args[0]!r}"
+        elif isinstance(exc, RecursionError):
+            why = "nested deeper than this reader goes"
+        else:
+            lines = str(exc).strip().splitlines()
+            why = f"{type(exc).__name__}: {lines[0][:160]}" if lines else type(exc).__name__
+        said = f"{flag}: {str(path)!r}" if flag else repr(str(path))
+        raise RecordError(f"{said}: not {what} as this toolkit writes it ({why}); {fix}") from None
 
 
 def _temporary(path: Path) -> Path:

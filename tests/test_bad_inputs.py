@@ -2224,6 +2224,89 @@ def _shard_with_a_sample_dropped(w: Path, t: Path) -> None:
     (t / "s" / "index.json").write_text(json.dumps(index))
 
 
+def _decoded_member_edited(member: str, edit: Callable[[np.ndarray], np.ndarray]) -> Callable[[Path, Path], None]:
+    """Setup: T/s, a decoded export of the world's dataset in one shard whose member `member` (e.g.
+    00000.decoded.normals.npy) holds edit(its array), the index rewritten with the shard's new size and checksum (as
+    whoever ships the shards can)."""
+    def setup(w: Path, t: Path) -> None:
+        import tarfile
+
+        from scenes.files import sha256_file
+        from wildgen.export import export_dataset
+
+        export_dataset(w / "data", t / "s", shard_size=3, encoding="decoded")
+        shard = t / "s" / "000000.tar"
+        with tarfile.open(shard) as src:
+            members = [(m, src.extractfile(m).read()) for m in src.getmembers()]
+        with tarfile.open(shard, "w", format=tarfile.USTAR_FORMAT) as dst:
+            for m, data in members:
+                if m.name == member:
+                    buf = io.BytesIO()
+                    np.save(buf, edit(np.load(io.BytesIO(data))))
+                    data = buf.getvalue()
+                    m.size = len(data)
+                dst.addfile(m, io.BytesIO(data))
+        index = json.loads((t / "s" / "index.json").read_text())
+        index["shards"][0].update(bytes=shard.stat().st_size, sha256=sha256_file(shard))
+        (t / "s" / "index.json").write_text(json.dumps(index))
+    return setup
+
+
+def _one_nan(a: np.ndarray) -> np.ndarray:
+    a = a.copy()
+    ys, xs = np.nonzero(np.any(a != 0, axis=-1))
+    a[ys[0], xs[0]] = np.nan
+    return a
+
+
+def _gt_emptied(w: Path, t: Path, evaluated: bool = False) -> None:
+    """Setup: T/p (the world's predictions) and T/g (a copy of its dataset) whose object 00000's ground truth is
+    emptied (every code the zero vector's); with `evaluated`, T/p evaluated against T/g before, and 00001's earlier
+    map made recognisable."""
+    import cv2
+
+    from unips.evaluate import evaluate
+
+    shutil.copytree(w / "pred", t / "p")
+    shutil.copytree(w / "data", t / "g", ignore=shutil.ignore_patterns("manifest.json"))
+    if evaluated:
+        evaluate(t / "p", t / "g")
+        (t / "p" / "00001" / "error_map.png").write_text("an earlier run's\n")
+    gt = t / "g" / "00000.data" / "normal.tif"
+    codes = cv2.imread(str(gt), cv2.IMREAD_UNCHANGED)
+    assert cv2.imwrite(str(gt), np.full_like(codes, 32768 if codes.dtype == np.uint16 else 0))
+
+
+def _first_aux(folder: Path) -> str:
+    return "aux/" + sorted(p.name for p in (folder / "aux").iterdir())[0]
+
+
+def _linked_out(ds: Path, rel: str) -> None:
+    """The file `rel` of the dataset `ds` made a link to a copy of it outside (the same bytes: the manifest's
+    checksum holds through the link)."""
+    target = ds.parent / "outside" / Path(rel).name
+    target.parent.mkdir(exist_ok=True)
+    shutil.move(ds / rel, target)
+    os.symlink(target, ds / rel)
+
+
+def _stated_prediction_for_refine(link: bool = False, stated: object = None) -> Callable[[Path, Path], None]:
+    """Setup: T/00000.data (8 images) and T/p/00000, a prediction whose predict.json states an expected error
+    (`stated`, default a well-formed one) with its three files beside it, each a link to T/secret.bin with `link`."""
+    def setup(w: Path, t: Path) -> None:
+        _capture_copy(images=8)(w, t)
+        shutil.copytree(w / "pred" / OBJ, t / "p" / OBJ)
+        figure = {"mean": 9.0, "interval_80": [5.0, 14.0]} if stated is None else stated
+        (t / "p" / OBJ / "predict.json").write_text(json.dumps({"object": OBJ, "expected_error_deg": figure}))
+        (t / "secret.bin").write_bytes(b"not the prediction's\n")
+        for name in ("expected_error_deg.npy", "expected_error_deg.exr", "expected_error.png"):
+            if link:
+                os.symlink(t / "secret.bin", t / "p" / OBJ / name)
+            else:
+                (t / "p" / OBJ / name).write_bytes(b"the prediction's own\n")
+    return setup
+
+
 def _diligent_listing_twice(w: Path, t: Path) -> None:
     """Setup: T/dil, a DiLiGenT folder of 8 images whose filenames.txt lists 001.png twice (and 008.png never)."""
     write_predict_diligent(t / "dil")
@@ -2456,6 +2539,36 @@ ROWS += [
         setup=_shard_with_a_sample_dropped,
         check=_not_written("run/final.safetensors"),
     ),
+    Row("train-decoded-normals-nan", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps", "1"], 2,
+        ("00000", "decoded.normals.npy", "neither of unit length nor zero"),
+        setup=_decoded_member_edited("00000.decoded.normals.npy", _one_nan),
+        check=_not_written("run/final.safetensors")),
+    Row("train-decoded-normals-not-unit", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps", "1"], 2,
+        ("00000", "decoded.normals.npy"), setup=_decoded_member_edited("00000.decoded.normals.npy", lambda a: a * 3),
+        check=_not_written("run/final.safetensors")),
+    Row("evaluate-overwrite-removes-the-map-of-an-object-it-scores-no-more", EV,
+        ["--pred", "{T}/p", "--gt", "{T}/g", "--overwrite"], 0, ("wrote",),
+        setup=lambda w, t: _gt_emptied(w, t, evaluated=True),
+        replaces=("p/metrics.json", "p/metrics.csv", "p/00001/error_map.png"), removes=("p/00000/error_map.png",)),
+    Row("evaluate-an-object-without-ground-truth-is-no-stray-prediction", EV, ["--pred", "{T}/p", "--gt", "{T}/g"], 0,
+        ("wrote",), setup=_gt_emptied, absent=("of no object of --gt",)),
+    Row("refine-carries-the-stated-error-files", RF, ["--data", "{T}/00000.data", "--normals", "{T}/p/00000", "--out",
+                                                      "{T}/o", "--refine-steps", "10", "--rounds", "1", "--steps",
+                                                      "20"], 0, ("report in",), setup=_stated_prediction_for_refine(),
+        check=_written("o/00000/expected_error.png")),
+    Row("refine-never-copies-stated-error-files-that-link-out", RF, ["--data", "{T}/00000.data", "--normals",
+                                                                     "{T}/p/00000", "--out", "{T}/o", "--refine-steps",
+                                                                     "10", "--rounds", "1", "--steps", "20"], 0,
+        ("report in",), setup=_stated_prediction_for_refine(link=True),
+        check=_not_written("o/00000/expected_error.png", "o/00000/expected_error_deg.npy")),
+    Row("refine-stated-error-a-text", RF, ["--data", "{T}/00000.data", "--normals", "{T}/p/00000", "--out", "{T}/o",
+                                           "--refine-steps", "10", "--rounds", "1", "--steps", "20"], 0,
+        ("report in",), setup=_stated_prediction_for_refine(stated="about nine"),
+        check=_not_written("o/00000/expected_error.png")),
+    Row("refine-stated-error-without-interval", RF, ["--data", "{T}/00000.data", "--normals", "{T}/p/00000", "--out",
+                                                     "{T}/o", "--refine-steps", "10", "--rounds", "1", "--steps",
+                                                     "20"], 0, ("report in",),
+        setup=_stated_prediction_for_refine(stated={"mean": 9.0}), check=_not_written("o/00000/expected_error.png")),
     # ---- messages that name the user's flag, not `path:` or `obj:`
     Row(
         "evaluate-corrupt-prediction-names-pred",
@@ -3492,6 +3605,14 @@ ROWS += [
         setup=_dataset_edited(lambda m: m["objects"][0].update(folder="öbjekt.data")), check=_not_written("s")),
     Row("make-out-path-too-long", MK, ["--out", "{T}/" + "/".join(["d" * 250] * 16), *TINY], 2,
         ("--out", "bytes", "whole path")),
+    Row("sensor-source-file-a-link-out", SEN, ["--data", "{T}/ds", "--sensor", "phone", "--out", "{T}/o", "--quiet"],
+        1, ("normal.tif", "is a link"),
+        setup=_dataset_edited(files=lambda ds: _linked_out(ds, "00000.data/normal.tif")),
+        check=_not_written("o/00000.data")),
+    Row("sensor-source-aux-file-a-link-out", SEN, ["--data", "{T}/ds", "--sensor", "phone", "--out", "{T}/o",
+                                                   "--quiet"], 1, ("aux", "is a link"),
+        setup=_dataset_edited(files=lambda ds: _linked_out(ds, f"00000.data/{_first_aux(ds / '00000.data')}")),
+        check=_not_written("o/00000.data")),
     Row("sensor-source-manifest-one-folder-twice", SEN, ["--data", "{T}/ds", "--sensor", "phone", "--out", "{T}/o",
                                                          "--quiet"], 2, ("manifest.json", "two objects"),
         setup=_dataset_edited(lambda m: m["objects"][1].update(folder=m["objects"][0]["folder"])),

@@ -298,6 +298,9 @@ BAD = [
     ("bench_usable", ["--subsets", "0", "--objects", ""], ["--subsets: got 0, expected an integer >= 3"]),
     ("bench_usable", ["--shifts", "9", "--objects", ""], ["--shifts: got 9, expected an integer from 1 to 8"]),
     ("bench_usable", ["--data", "{t}/diligent", "--encodings", "linear16"], ["--data: ", "catPNG"]),
+    ("bench_usable", ["--objects", ""], ["--objects: got '' and no --suite: nothing to measure"]),
+    ("bench_refine_rule", ["--seeds", "9500"], ["--seeds: got '9500', expected at least two seeds"]),
+    ("bench_min_images", ["--draws", "100000000"], ["--draws: got 100000000, expected an integer from 1 to 1000"]),
     ("learning_curve", ["--card", "{t}/junk.json"], ["--card: got ", "junk.json", "expected a model card"]),
     ("learning_curve", ["--card", "{t}/user.json"], ["--card: got ", "user.json", "expected a model card"]),
     ("ab_data", ["--work", "{t}/file.txt", "--objects", "5"], ["--work: ", "existing file"]),
@@ -345,7 +348,7 @@ def test_a_bad_value_is_one_line_naming_its_flag(stem, argv, said, places, capsy
 
 @pytest.mark.parametrize("stem,argv", [("bench_shards", TINY_SHARDS), ("bench_fit", ["--skip-diligent", "--synthetic",
                                                                                     "0"]),
-                                       ("bench_usable", ["--objects", ""]), ("bench_min_images", ["--draws", "1"])])
+                                       ("bench_min_images", ["--draws", "1"])])
 def test_a_users_file_at_out_is_kept(stem, argv, places, capsys):
     """A JSON file at --out that is no result of the bench (it lacks the keys each of its results writes) is never
     replaced: refused in one line before any work."""
@@ -459,3 +462,73 @@ def test_a_bench_writes_its_result_again_and_every_result_through_write_result(t
         if "claim_result(" in text and script.name != "cli_common.py":
             writes = re.findall(r"write_json\((\w[^,]*),", text)
             assert all("work" in w or "job" in w for w in writes), (script.name, writes)
+
+
+VALID_ROW = {"kind": "auto", "group": "auto_good", "object": "s/00000", "iou_true": 0.97, "doubtful": False,
+             "seed_agreement_iou": 0.9, "weak_inside_share": 0.0, "varying_outside_share": 0.0}
+RECORDS = [
+    ("bench_capture", ["--reestimate", "{t}/r.json"], {"r.json": {"machine": {}, "rows": "abc"}},
+     ["--reestimate: ", "r.json", "not a recorded output of this bench"]),
+    ("bench_capture", ["--reestimate", "{t}/r.json"], {"r.json": {"machine": {}, "rows": [{"images": 4,
+                                                                                             "size": [-64, 48]}]}},
+     ["--reestimate: ", "r.json", "size is [-64, 48]"]),
+    ("bench_capture", ["--reestimate", "{t}/r.json"], {"r.json": {"machine": {}, "rows": [], "commands": 5}},
+     ["--reestimate: ", "r.json"]),
+    ("bench_capture", ["--reestimate", "{t}/r.json"],
+     {"r.json": '{"machine": {}, "rows": ' + "[" * 100000 + "]" * 100000 + "}"}, ["--reestimate: ", "r.json"]),
+    ("learning_curve", ["{t}/run"], {"run/log.jsonl": "5\n"}, ["RUN: ", "log.jsonl", "not a unips.train log"]),
+    ("learning_curve", ["{t}/run"], {"run/log.jsonl": '{"step": 1, "val": 5}\n'}, ["RUN: ", "log.jsonl"]),
+    ("learning_curve", ["{t}/run"], {"run/log.jsonl": b'\xff\xfe{"step": 1}\n'}, ["RUN: ", "log.jsonl"]),
+    ("learning_curve", ["--card", "{t}/c.json"], {"c.json": {"lineage": [{"stage": "s1", "hours": "2"}]}},
+     ["--card: ", "c.json", "not a model card"]),
+    ("bench_doubtful_mask", ["--rows-from", "{t}/r.json"], {"r.json": {"rows": 5}}, ["--rows-from: ", "r.json"]),
+    ("bench_doubtful_mask", ["--rows-from", "{t}/r.json"], {"r.json": {"rows": [{}]}},
+     ["--rows-from: ", "r.json", "no 'kind'"]),
+    ("bench_doubtful_mask", ["--rows-from", "{t}/r.json", "--record", "{t}/rec.json"],
+     {"r.json": {"rows": [VALID_ROW]}, "rec.json": {"good_iou": 0.9, "rows": 5}}, ["--record: ", "rec.json"]),
+    ("bench_light_warnings", ["--real", "{t}/real"], {"real/lights.txt": "6\n" + "0.1 0.2\n" * 6},
+     ["--real: ", "lights.txt", "6x2 values"]),
+    ("bench_light_warnings", ["--real", "{t}/real"], {"real/obj/a.txt": "no lights here\n"},
+     ["--real: ", "holds no lights.txt"]),
+    ("bench_verdict", ["{t}/pred", "--no-model", "--out", "{t}/v.json"], {"pred/normal.txt": "a prediction's\n"},
+     ["CAPTURE: ", "pred"]),
+]
+"""(script, argv, files written under {t} first (JSON or text), what the one line says): a recorded file the bench
+reads that is not of the shape its writer gives (edited, or from an older run) is refused naming its flag and file,
+never a traceback (`scenes.files.reading_record`)."""
+
+
+@pytest.mark.parametrize("stem,argv,files,said", RECORDS, ids=[f"{s}:{i}" for i, (s, *_) in enumerate(RECORDS)])
+def test_a_recorded_file_of_another_shape_is_one_line_naming_it(stem, argv, files, said, tmp_path):
+    import json
+    import subprocess
+
+    for name, content in files.items():
+        path = tmp_path / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        data = content if isinstance(content, (str, bytes)) else json.dumps(content)
+        path.write_bytes(data if isinstance(data, bytes) else data.encode())
+    before = {n: (tmp_path / n).read_bytes() for n in files}
+    proc = subprocess.run([sys.executable, str(ROOT / "bench" / f"{stem}.py"),
+                           *[a.replace("{t}", str(tmp_path)) for a in argv]], capture_output=True, text=True,
+                          timeout=300, cwd=tmp_path)
+    err = proc.stderr.strip()
+    assert proc.returncode == 2 and "Traceback" not in err and len(err.splitlines()) == 1, (proc.returncode, err)
+    for text in said:
+        assert text in err, (text, err)
+    assert {n: (tmp_path / n).read_bytes() for n in files} == before  # nothing it read was rewritten
+
+
+def test_append_to_the_benchs_own_output_adds_a_row(tmp_path):
+    """--append onto the bench's own earlier output (which records its commands) adds the new row and command."""
+    import json
+    import subprocess
+
+    out = tmp_path / "c.json"
+    run = [sys.executable, str(ROOT / "bench" / "bench_capture.py"), "--out", str(out), "--images", "3", "--sides",
+           "32", "--format", "png"]
+    for extra in ([], ["--append"]):
+        proc = subprocess.run([*run, *extra], capture_output=True, text=True, timeout=600, cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr
+    result = json.loads(out.read_text())
+    assert len(result["rows"]) == 2 and len(result["commands"]) == 2, result

@@ -508,3 +508,46 @@ def test_a_benchmark_output_that_is_not_what_its_table_reads_is_named(tmp_path):
     with pytest.raises(KeyError, match=r"shards.json: a record without 'cache'"):
         read_bench(bad)["rows"][0]["cache"]
     assert read_bench(SHARDS_BENCH) == good
+
+
+@pytest.mark.parametrize("edit", [lambda d: d.__setitem__("rows", 5), lambda d: d["rows"].__setitem__(0, [1, 2]),
+                                  lambda d: d["rows"][0].__setitem__("folders_per_s", "fast"), lambda d: [1],
+                                  "[" * 100000 + "]" * 100000, b"\xff\xfe{}"],
+                         ids=["rows-a-number", "row-a-list", "figure-a-text", "a-list", "nested-deep", "bad-utf8"])
+def test_a_benchmark_output_of_another_shape_is_one_line_naming_it(edit, tmp_path, monkeypatch):
+    """Sweep 17: a bench output whose rows are a number, a row a list, a figure a text, the file a list, nested too
+    deep or not UTF-8 ended in a TypeError / RecursionError traceback or named only the doc; now one line naming the
+    file (`scenes.files.reading_record`)."""
+    import json
+
+    from orchestrate import bench_docs, docs
+
+    data = json.loads(bench_docs.SHARDS_BENCH.read_text())
+    bad = tmp_path / "shards.json"
+    if isinstance(edit, (str, bytes)):
+        bad.write_bytes(edit if isinstance(edit, bytes) else edit.encode())
+    else:
+        result = edit(data)
+        bad.write_text(json.dumps(data if result is None else result))
+    monkeypatch.setattr(bench_docs, "SHARDS_BENCH", bad)
+    monkeypatch.setitem(docs.BENCH_BLOCKS, "model:shards-throughput", bad)
+    with pytest.raises(docs.UsageError) as err:
+        docs.run(True)
+    assert str(bad) in str(err.value) and "\n" not in str(err.value), err.value
+
+
+@pytest.mark.parametrize("edit", [lambda d: d["lineage"].append("a stage"),
+                                  lambda d: d["lineage"].__setitem__(0, {**d["lineage"][0], "hours": [2]})],
+                         ids=["lineage-item-a-text", "hours-a-list"])
+def test_a_model_card_of_another_shape_is_one_line_naming_it(edit, tmp_path):
+    import json
+
+    from orchestrate import docs
+
+    card = json.loads(docs.CARD.read_text())
+    edit(card)
+    path = tmp_path / "model_card.json"
+    path.write_text(json.dumps(card))
+    with pytest.raises(docs.UsageError) as err:
+        docs.run(True, card_path=path)
+    assert str(path) in str(err.value) and "not a model card" in str(err.value) and "\n" not in str(err.value)

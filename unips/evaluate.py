@@ -114,18 +114,24 @@ def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True, overwrite
         if name in seen:
             raise ValueError(f"--gt: two ground-truth folders are named {name!r}")
         seen.add(name)
+    earlier: list[Path] = []  # an earlier run's outputs, replaced (--overwrite)
     if write:
         check_output_folder(pred_dir, "--pred")
         maps = [pred_dir / name / ERROR_MAP for name in sorted(seen) if (pred_dir / name).is_dir()]
         # an earlier evaluation's files only where its metrics.json says it was one
-        claim_outputs([pred_dir / METRICS_JSON, pred_dir / METRICS_CSV, *maps], overwrite, "--pred", "unips.evaluate",
-                      marker=pred_dir / METRICS_JSON, signed={pred_dir / METRICS_JSON: METRICS_KEYS})
+        earlier = claim_outputs([pred_dir / METRICS_JSON, pred_dir / METRICS_CSV, *maps], overwrite, "--pred",
+                                "unips.evaluate", marker=pred_dir / METRICS_JSON,
+                                signed={pred_dir / METRICS_JSON: METRICS_KEYS})
         # the mark of this run before its first error map (a run killed mid-way leaves maps known as its own)
         write_json(pred_dir / METRICS_JSON, {"objects": {}, "mean_mae_deg": None, "per_family": {}, "missing": [],
                                              "failed": {}, "no_ground_truth": [], "gt": str(Path(gt).resolve()),
                                              "complete": False}, indent=2, sort_keys=True)
     try:
-        return _evaluate_all(folders, gt, pred_dir, write, single)
+        summary = _evaluate_all(folders, gt, pred_dir, write, single)
+        for path in earlier:  # an earlier run's map of an object this run scores no more
+            if path.name == ERROR_MAP and path.parent.name not in summary["objects"]:
+                path.unlink(missing_ok=True)
+        return summary
     except BaseException:
         if write:  # a run that ends in an error leaves no mark of a run
             (pred_dir / METRICS_JSON).unlink(missing_ok=True)
@@ -253,7 +259,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"wrote {args.pred / METRICS_JSON}, {METRICS_CSV} and {len(summary['objects'])} error map(s) "
           f"{args.pred}/<object>/{ERROR_MAP}")
     status = 0
-    known = {*summary["objects"], *summary["missing"], *summary["failed"]}
+    known = {*summary["objects"], *summary["missing"], *summary["failed"], *summary["no_ground_truth"]}
     unscored = sorted(p.name for p in Path(args.pred).iterdir() if p.is_dir() and p.name not in known
                       and prediction_file(p) is not None)  # what would be scored, were it an object of --gt
     if unscored:  # a prediction of an object --gt does not have: never dropped without a word

@@ -123,9 +123,10 @@ def load_with_normals(folder: str | Path, normals: str | Path | np.ndarray) -> t
     return cap, unit_normals(normals, cap.mask, f"--normals ({source})" if source != "array" else "--normals"), source
 
 
-def load_capture(folder: str | Path, max_images: int | None = None) -> Capture:
-    """Load an object folder of any layout (`scenes.folder.layouts.read_folder`) for the fitted check."""
-    fd = read_folder(folder, max_images=max_images, arg="--data")
+def load_capture(folder: str | Path, max_images: int | None = None, arg: str = "--data") -> Capture:
+    """Load an object folder of any layout (`scenes.folder.layouts.read_folder`) for the fitted check; `arg`: the
+    flag that named it, in errors."""
+    fd = read_folder(folder, max_images=max_images, arg=arg)
     images = fd.linear()  # the check compares light: a recorded sensor's response and black level undone
     meta: dict = {}
     dirs, irr = fd.lights.directions, fd.lights.intensities

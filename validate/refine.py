@@ -23,7 +23,7 @@ from scenes.cli.outputs import check_not_being_written, check_output_folder, cla
 from scenes.cli.progress import progress_bar
 from scenes.cli.supervise import run_supervised
 from scenes.files import read_json
-from scenes.folder.format import EXPECTED_ERROR_FILES
+from scenes.folder.format import EXPECTED_ERROR_FILES, stated_error
 from validate.fitted.refinement import REFINE_OUTPUTS, RefineConfig, refine_object
 
 
@@ -78,8 +78,9 @@ def input_error(normals: str, name: str) -> tuple[Path, dict] | None:
         return None
     if not isinstance(info, dict):  # not a record predict wrote: it states nothing
         return None
-    stated = info.get("expected_error_deg")
-    if not stated or not all((folder / f).is_file() for f in EXPECTED_ERROR_FILES):
+    stated = stated_error(info.get("expected_error_deg"))
+    # the prediction's own files only: a link (to anything of the machine) is never copied beside the refined map
+    if not stated or not all((folder / f).is_file() and not (folder / f).is_symlink() for f in EXPECTED_ERROR_FILES):
         return None
     return folder, stated
 

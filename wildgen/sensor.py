@@ -120,6 +120,14 @@ def _sensor_versions() -> dict[str, str]:
 def check_source_object(src: Path) -> tuple:
     """What `apply_to_object` reads of object folder `src`, checked (its scene.json, sensor record and every
     radiance file present): (description, scene.json extras, old sensor record, radiance paths)."""
+    from scenes.files import links_out_of
+
+    for folder, dirs, files in os.walk(src):  # the dataset is untrusted: nothing of the machine is copied in
+        out = next((Path(folder, n) for n in dirs + files if links_out_of(Path(folder, n), src)), None)
+        if out is not None:
+            raise ValueError(f"--data: {str(out)!r} is a link to {os.readlink(out)!r}, outside its object folder; "
+                             "the sensor copies the object folder's own files only (copy the file in, or remove the "
+                             "link)")
     desc, extras = read_scene(src)
     old = read_sensor_record(extras, len(desc.images), where=f"--data: {str(src / SCENE_FILE)!r}")
     radiance = [src / AUX_DIR / radiance_name(i) for i in range(len(desc.images))]

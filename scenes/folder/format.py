@@ -69,6 +69,22 @@ EXPECTED_ERROR_FILES = ("expected_error_deg.npy", "expected_error_deg.exr", "exp
 """A prediction's expected angular error (`unips.expected_error`): float32 (H, W) degrees, NaN outside the mask, as
 NumPy and EXR arrays, and a picture; PREDICTION_INFO's `expected_error_deg` holds its mean and 80 % interval."""
 
+def stated_error(record) -> dict | None:
+    """PREDICTION_INFO's `expected_error_deg` read back: {"mean": m, "interval_80": [lo, hi]} of finite numbers, 0 <=
+    lo <= hi, as `unips.expected_error.Stated.summary` writes it; None for anything else (an edited record, or one
+    of another kind, states nothing)."""
+    import math
+
+    if not isinstance(record, dict):
+        return None
+    mean, interval = record.get("mean"), record.get("interval_80")
+    numbers = [mean, *interval] if isinstance(interval, list) and len(interval) == 2 else []
+    if not numbers or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                              for v in numbers) or not 0 <= interval[0] <= interval[1]:
+        return None
+    return {**record, "mean": float(mean), "interval_80": [float(interval[0]), float(interval[1])]}
+
+
 DATASET_MANIFEST = "manifest.json"
 """A dataset folder's record of the run that wrote it (wildgen.make, wildgen.sensor). `complete: false` while a
 run writes it (true at its end): the object folders of a run stopped half-way are never read as a dataset."""

@@ -29,13 +29,11 @@ unpack into folders the official loaders read.
 Members of a sample follow in sorted suffix order, samples in the order they are written; every member has
 mtime 0, uid / gid 0, empty owner names and mode 0444, so the same folders give the same bytes.
 
-Beside the shards, `INDEX_FILE` (index.json) holds `format` ("webdataset"), `format_version`, `encoding`
-(absent in exports written before it: `files`), `objects`,
-`shard_size`, `aux_files`, `pattern` (the brace pattern of all shards), `source` (the dataset folder, absolute;
-absent in older exports) and `shards`: per shard its `name`,
-`bytes`, `sha256` and `objects` (`name`, source `folder`, `images`), in order; `complete` is false while an
-export is running. Readers refuse a shard that the index does not list, whose checksum differs, or whose
-index is incomplete.
+Beside the shards, `INDEX_FILE` (index.json) holds `format` ("webdataset"), `format_version`, `encoding` (absent in
+exports written before it: `files`), `objects`, `shard_size`, `aux_files`, `pattern` (the brace pattern of all
+shards), `source` (the dataset folder, absolute; absent in older exports) and `shards`: per shard its `name`,
+`bytes`, `sha256` and `objects` (`name`, source `folder`, `images`), in order; `complete` is false while an export is
+running. Readers refuse a shard that the index does not list, whose checksum differs, or whose index is incomplete.
 """
 from __future__ import annotations
 
@@ -201,15 +199,14 @@ def encode_decoded(folder: Path, arg: str = "--data") -> dict[str, bytes]:
     from scenes.folder.layouts import read_folder
 
     fd = read_folder(folder, arg=arg)
-    lights = fd.lights
     meta = {"name": fd.name, "layout": fd.layout, "image_names": fd.image_names, "num_files": fd.num_files,
             "shape": list(fd.shape), "has_scene": fd.has_scene,
             "mask_file": None if fd.mask_file is None else fd.mask_file.name,
             "normals_file": None if fd.normals_file is None else fd.normals_file.name,
             "sensor": None if fd.sensor is None else fd.sensor.to_dict(),
-            "lights": {"family": lights.family, "level": lights.level,
-                       "directions": None if lights.directions is None else lights.directions.tolist(),
-                       "intensities": None if lights.intensities is None else lights.intensities.tolist()}}
+            "lights": {"family": fd.lights.family, "level": fd.lights.level,
+                       "directions": None if fd.lights.directions is None else fd.lights.directions.tolist(),
+                       "intensities": None if fd.lights.intensities is None else fd.lights.intensities.tolist()}}
     arrays = {"images": _as_codes(fd.images, folder, arg)}
     arrays.update((name, getattr(fd, name)) for name in _DECODED_ARRAYS[1:] if getattr(fd, name) is not None)
     # dtype and shape again in the metadata: the reader maps each array without parsing its .npy header.
@@ -273,8 +270,13 @@ def decode_folder(files: dict[str, bytes], folder: Path):
         flag, f32 = (np.dtype(bool),), (np.dtype(np.float32),)
         d = meta["lights"]
         vectors = [None if d[key] is None else np.asarray(d[key], np.float64) for key in ("directions", "intensities")]
-        if any(v is not None and (v.ndim != 2 or v.shape[1] != 3) for v in vectors):
-            raise ValueError("lights: expected (N, 3) directions and intensities")
+        if any(v is not None and (v.ndim != 2 or v.shape[1] != 3 or not np.isfinite(v).all()) for v in vectors):
+            raise ValueError("lights: expected (N, 3) finite directions and intensities")
+        normals = array("normals", False, f32, (h, w, 3))  # as the reader leaves them: unit in the mask, else zero
+        length = None if normals is None else np.linalg.norm(normals.astype(np.float64), axis=-1)
+        if length is not None and not (np.isfinite(length).all() and (length[~mask] == 0).all()
+                                       and (np.abs(length[mask] - 1) <= 1e-3)[length[mask] != 0].all()):
+            raise _MemberError(f"{folder}: member {DECODED}.normals.npy holds vectors neither of unit length nor zero")
 
         def file(name):
             return None if name is None else folder / str(name)
@@ -283,7 +285,7 @@ def decode_folder(files: dict[str, bytes], folder: Path):
                           image_paths=[folder / str(n) for n in meta["image_names"]], num_files=int(meta["num_files"]),
                           shape=(h, w), images=images, saturated=array("saturated", False, flag, (k, h, w, 3)),
                           mask=mask, mask_file=file(meta["mask_file"]),
-                          normals=array("normals", False, f32, (h, w, 3)), normals_file=file(meta["normals_file"]),
+                          normals=normals, normals_file=file(meta["normals_file"]),
                           lights=Lights(d["family"], *vectors, d["level"]), has_scene=bool(meta["has_scene"]),
                           sensor=None if meta["sensor"] is None else Sensor.from_dict(meta["sensor"]))
     except _MemberError:
@@ -396,7 +398,7 @@ def read_index(folder: str | Path, arg: str = "--data") -> dict[str, Any]:
     return index
 
 
-def _count(value: Any) -> bool:
+def _count(value: Any) -> bool:  # a whole number, at least 0
     return isinstance(value, int) and not isinstance(value, bool) and value >= 0
 
 
@@ -416,8 +418,7 @@ def _check_counts(index: dict[str, Any], path: Path, arg: str) -> None:
 
 def verify_shard(path: str | Path, entry: dict[str, Any], arg: str = "--data") -> None:
     """Refuse a shard whose size or sha256 differs from its index entry (ValueError naming the shard)."""
-    path = Path(path)
-    size = path.stat().st_size
+    size = os.stat(path).st_size
     if "bytes" in entry and size != entry["bytes"]:
         raise ValueError(f"{arg}: shard {str(path)!r} is corrupt: {size} bytes, {INDEX_FILE} records {entry['bytes']}")
     digest = sha256_file(path)
@@ -433,7 +434,6 @@ def iter_samples(path: str | Path, arg: str = "--data") -> Iterator[tuple[str, d
 
     from webdataset.tariterators import group_by_keys, tar_file_expander
 
-    path = Path(path)
     try:
         with tarfile.open(path) as tar:  # WebDataset passes over links, devices and folders: here they are refused
             odd = next((m for m in tar if not m.isreg()), None)
