@@ -36,7 +36,7 @@ sys.path.insert(0, str(ROOT))
 from bench.cli_common import check_work, need_path, parse, run_main  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import REQUIRED, CommaList, Command, arg, check_fields, option  # noqa: E402
-from scenes.files import write_json  # noqa: E402
+from scenes.files import read_json, read_text_file, reading_record, write_json  # noqa: E402
 
 PY = sys.executable
 from unips.models import DEFAULT_MODEL, pretrained_entry  # noqa: E402 (after the path above)
@@ -220,7 +220,13 @@ def main(argv: list[str] | None = None) -> int:
     from unips.inference import load_network
 
     results_path = w / "ab.json"
-    results = json.loads(results_path.read_text()) if results_path.is_file() else {}
+    results: dict = {}
+    if results_path.is_file():  # an earlier run's scores, kept (resumed)
+        with reading_record(results_path, "this bench's scores (WORK/ab.json)", "remove it to score again",
+                            flag="--work"):
+            results = read_json(results_path)
+            if not isinstance(results, dict) or not all(isinstance(r, dict) for r in results.values()):
+                raise ValueError("expected an object of scores per arm")
     for name, weights in [("shipped", SHIPPED), *runs.items()]:
         if name in results:
             continue
@@ -254,19 +260,21 @@ def record(results: dict, w: Path, args) -> None:
     from scenes.files import write_json
 
     card_path = ROOT / "unips" / "weights" / "model_card.json"
-    card = json.loads(card_path.read_text())
-    shipped_stage = next((s["stage"] for s in reversed(card["lineage"]) if s.get("shipped") is not False
-                          and "not shipped" not in s["stage"]), "shipped")
-    stages = {s["stage"] for s in card["lineage"]}
+    with reading_record(card_path, "a model card", "restore it (git checkout)"):
+        card = read_json(card_path)
+        shipped_stage = next((s["stage"] for s in reversed(card["lineage"]) if s.get("shipped") is not False
+                              and "not shipped" not in s["stage"]), "shipped")
+        stages = {s["stage"] for s in card["lineage"]}
     for name, r in results.items():
         if name == "shipped":
             continue
         arm = name.split("_")[0]
         run_dir = w / f"run_{name}"
-        log = [json.loads(line) for line in (run_dir / "log.jsonl").read_text().splitlines()]
-        vals = [x for x in log if "val" in x]
-        steps = max(x["step"] for x in log if "step" in x)
-        train_t = {x["step"]: x["elapsed_s"] for x in log if "loss" in x and "elapsed_s" in x}
+        with reading_record(run_dir / "log.jsonl", "a unips.train log", "train the arm again", flag="--work"):
+            log = [json.loads(line) for line in read_text_file(run_dir / "log.jsonl").splitlines()]
+            vals = [x for x in log if "val" in x]
+            steps = max(x["step"] for x in log if "step" in x)
+            train_t = {x["step"]: x["elapsed_s"] for x in log if "loss" in x and "elapsed_s" in x}
         lr = name.split("_lr", 1)[1] if "_lr" in name else "1.5e-4"  # the tag this script gives a --lr run
         n = sum(
             len(list(Path(d).glob("*.data")))

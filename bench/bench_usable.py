@@ -23,7 +23,6 @@ A case is a row: what was expected, what was raised, and whether that is right.
 """
 from __future__ import annotations
 
-import json
 import sys
 import tempfile
 import time
@@ -48,6 +47,7 @@ from bench.cli_common import (  # noqa: E402
 )
 from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import CommaList, Command, UseAppendAction, arg, check_fields, comma_list, option  # noqa: E402
+from scenes.files import read_json, reading_record  # noqa: E402
 from validate.judgeable import MIN_IMAGES  # noqa: E402
 
 MARGIN = 8
@@ -201,8 +201,10 @@ def suite_rows(suite: Path, shifts: list[int]) -> list[dict]:
     rows = []
     for folder in sorted(suite.glob("*.data")):
         fd = read_folder(folder)
-        scene = json.loads((folder / "scene.json").read_text())
-        truth = true_max_polar(scene)
+        with reading_record(folder / "scene.json", "a scene.json wildgen.make writes", "render the suite again",
+                            flag="--suite"):
+            scene = read_json(folder / "scene.json")
+            truth = true_max_polar(scene)
         expect = {"frontal_light"} if truth <= FRONTAL_TRUE_DEG else set()
         t0 = time.perf_counter()
         codes, facts = _raised(fd.images, fd.mask)

@@ -31,7 +31,6 @@ import numpy as np
 
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
-from scenes.files import read_json
 
 REPO = Path(__file__).resolve().parents[1]
 FAMILIES = "directional,point,near_area,hdri,mixed"
@@ -283,7 +282,7 @@ def run(opts: CalibrationOptions) -> int:
     from orchestrate.asset_split import split_assets
     from unips.inference import load_network
     from unips.models import DEFAULT_MODEL
-    from unips.models.registry import pretrained_entry
+    from unips.models.registry import pretrained_entry, read_model_card
 
     torch.set_num_threads(opts.threads)
     work = Path(opts.work)
@@ -299,6 +298,8 @@ def run(opts: CalibrationOptions) -> int:
         net = load_network(weights)
     except (ValueError, FileNotFoundError) as exc:  # the reader names the file; the flag is ours
         raise type(exc)(f"--weights: {str(exc).removeprefix('--checkpoint: ')}") from None
+    entry = pretrained_entry(DEFAULT_MODEL)
+    read_model_card(entry.card_path)  # a card the fit would be recorded in is read before the work
     t0 = time.time()
     datasets = render_suite(work, assets, opts.objects, opts.seed)
     print(f"rendered the suite ({len(SUITE)} rows x {opts.objects} objects) in {work} in {time.time() - t0:.0f} s",
@@ -324,7 +325,6 @@ def run(opts: CalibrationOptions) -> int:
     dest = opts.destination()[0]
     dest.parent.mkdir(parents=True, exist_ok=True)
     em.save(dest)
-    entry = pretrained_entry(DEFAULT_MODEL)
     card = ""
     if dest == model_path(entry.weights_path) and weights == entry.weights_path and entry.card_path.is_file():
         record_in_card(entry.card_path, dest, em)  # the shipped model's card says which error model is its own
@@ -337,8 +337,9 @@ def record_in_card(card_path: Path, dest: Path, em) -> None:
     """The model card's `expected_error`: which file, fitted on what, by which command, its interval's ratios."""
 
     from scenes.files import write_json
+    from unips.models.registry import read_model_card
 
-    card = read_json(card_path)
+    card = read_model_card(card_path)
     card["expected_error"] = {
         "file": dest.name, "weights_sha256": em.weights_sha256, "command": em.calibration.get("command"),
         "objects": em.calibration.get("objects"), "assets": em.calibration.get("assets"),

@@ -206,6 +206,7 @@ def decide(opts: ShipOptions) -> bool:
     from orchestrate.train_recipe import MEASURED_KEYS, VALIDATION_DATA, _display, _probe_card, install_weights
     from unips.checkpoint import git_revision
     from unips.models import load_model, pretrained_entry
+    from unips.models.registry import read_model_card
     from unips.train import TrainConfig
 
     folder, val = Path(opts.candidate), Path(opts.val)
@@ -217,6 +218,10 @@ def decide(opts: ShipOptions) -> bool:
     with tempfile.TemporaryDirectory() as scratch:
         weights, name = candidate_weights(folder, Path(scratch))
         entry = pretrained_entry(name)
+        card = read_model_card(entry.card_path)  # read before the scoring: a damaged card is refused first
+        if not isinstance(card.get("lineage", []), list):
+            raise ValueError(f"model card {str(entry.card_path)!r}: its lineage is a JSON "
+                             f"{type(card['lineage']).__name__}, expected a list of stages (restore it)")
         current = entry.weights_path
         new = score(weights, val, diligent, opts.threads)
         old = score(current, val, diligent, opts.threads) if current.is_file() else None
@@ -224,7 +229,6 @@ def decide(opts: ShipOptions) -> bool:
         print(f"fixed validation, all images: candidate {name} {new['mean']:.2f} deg, shipped "
               + (f"{old['mean']:.2f} deg" if old else "none yet")
               + (" -> shipped" if shipped else " -> not shipped (not lower)"), flush=True)
-        card = read_json(entry.card_path) if entry.card_path.is_file() else {}
         record = lineage_entry(folder, new, old, shipped)
         card["lineage"] = [*card.get("lineage", []), record]
         if shipped:
