@@ -77,14 +77,10 @@ def read_text_file(path: str | os.PathLike) -> str:
 
 def read_json(path: str | os.PathLike):
     """A JSON file read as `read_text_file` reads (never waiting on a pipe): the errors of `read_text_file` and of
-    `json.loads` (nesting deeper than Python's decoder goes is a `json.JSONDecodeError` too, not a RecursionError)."""
+    `json.loads` (RecursionError for nesting deeper than its decoder goes: each reader names the file)."""
     import json
 
-    text = read_text_file(path)
-    try:
-        return json.loads(text)
-    except RecursionError:
-        raise json.JSONDecodeError("nested deeper than this reader goes", text, 0) from None
+    return json.loads(read_text_file(path))
 
 
 class RecordError(ValueError):
@@ -110,7 +106,7 @@ def reading_record(path: str | os.PathLike, what: str, fix: str = "restore it, o
         if isinstance(exc, KeyError) and exc.args:
             why = f"no {exc.args[0]!r}"
         elif isinstance(exc, RecursionError):
-            why = "nested deeper than this reader goes"
+            why = "nested too deeply"
         else:
             lines = str(exc).strip().splitlines()
             why = f"{type(exc).__name__}: {lines[0][:160]}" if lines else type(exc).__name__
