@@ -21,6 +21,7 @@ step is skipped when its output exists; results go to WORK/ab.json and a table i
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 import time
@@ -123,6 +124,9 @@ class Options:
             lr = math.nan
         if not (math.isfinite(lr) and lr > 0):  # nan fails too
             raise UsageError(f"--lr: got {self.lr!r}, expected a number > 0")
+        if not re.fullmatch(r"[A-Za-z0-9_.+-]{0,40}", self.tag) or ".." in self.tag:  # part of a folder name
+            raise UsageError(f"--tag: got {self.tag!r}, expected at most 40 letters, digits, '_', '-', '+' or '.' "
+                             "(a suffix of the run folders' names)")
         if "new" in self.arms and self.objects < LEVELS:
             raise UsageError(f"--objects: got {self.objects}, expected an integer >= {LEVELS} with the arm new (its "
                              f"objects are split over the {LEVELS} levels)")

@@ -46,9 +46,30 @@ def parse(command: Command, argv: Sequence[str] | None = None) -> Any:
     argparse did; `--help` prints the help and exits 0."""
     try:
         cfg = command.parse(argv)
-        return cfg.validate() if hasattr(cfg, "validate") else check_fields(cfg)
+        cfg = cfg.validate() if hasattr(cfg, "validate") else check_fields(cfg)
     except INPUT_ERRORS as exc:
         raise SystemExit(report_error(exc)) from None
+    return absolute_paths(cfg)
+
+
+def absolute_paths(cfg: Any) -> Any:
+    """`cfg` with every path it holds made absolute against the folder the bench was started in (a Path, a list of
+    Paths, a text option whose metavar names a DIR or FILE): a bench runs steps with the repository as their working
+    folder, where a relative --work would land inside the repository."""
+    import dataclasses
+    import typing
+
+    hints = typing.get_type_hints(type(cfg), include_extras=True)
+    for f in dataclasses.fields(cfg):
+        value = getattr(cfg, f.name)
+        metavars = [getattr(m, "metavar", None) or "" for m in getattr(hints.get(f.name), "__metadata__", ())]
+        if isinstance(value, Path):
+            setattr(cfg, f.name, value.absolute())
+        elif isinstance(value, list) and value and all(isinstance(v, Path) for v in value):
+            setattr(cfg, f.name, [v.absolute() for v in value])
+        elif isinstance(value, str) and value and any(m in ("DIR", "FILE") for m in metavars):
+            setattr(cfg, f.name, os.path.abspath(value))
+    return cfg
 
 
 @contextmanager
@@ -83,6 +104,9 @@ def claim_result(path: str | os.PathLike | None, keys: Sequence[str], owner: Com
         if target.is_symlink() or (os.path.lexists(target) and not target.is_file()):
             kind = "a link" if target.is_symlink() else "not a plain file"
             raise UsageError(f"{flag}: {text!r} is {kind}; it is never replaced: move it away or use another {flag}")
+        if target.is_file() and (other := _written_by(target)) not in (None, owner):
+            raise UsageError(f"{flag}: {text!r} was written by {other}, not {owner}; it is never replaced: move it "
+                             f"away or use another {flag}")
         if target.is_file() and not holds_keys(target, tuple(keys)):
             raise UsageError(f"{flag}: {text!r} was not written by {owner} (it is not a JSON object with the keys "
                              f"{', '.join(keys)} of its results); it is never replaced: move it away or use another "
@@ -90,11 +114,27 @@ def claim_result(path: str | os.PathLike | None, keys: Sequence[str], owner: Com
         check_apart(target, dict(inputs or {}), flag)  # never inside what the bench reads (`inputs`: flag -> path)
         check_no_holder_above(target, flag)  # nor inside a folder another run writes
         make_output_folder(target.parent, flag)
-    _CLAIMED[target.absolute()] = (_file_state(target), flag)
+    _CLAIMED[target.absolute()] = (_file_state(target), flag, owner)
     return target
 
 
-_CLAIMED: dict[Path, tuple[tuple[int, int, int] | None, str]] = {}
+def _written_by(path: Path) -> str | None:
+    """The bench a result file says wrote it (its `WRITTEN_BY` key, which `write_result` adds), None when it says
+    none (a result written before the key, or no result at all)."""
+    from scenes.files import read_json
+
+    try:
+        value = read_json(path)
+    except (OSError, ValueError, RecursionError):
+        return None
+    return str(value.get(WRITTEN_BY)) if isinstance(value, dict) and WRITTEN_BY in value else None
+
+
+WRITTEN_BY = "written_by"
+"""The key of every bench result that names the bench that wrote it (`write_result`): a result of another bench with
+the same keys (most hold `rows`) is never replaced by this one."""
+
+_CLAIMED: dict[Path, tuple[tuple[int, int, int] | None, str, str]] = {}
 """Each result file claimed (`claim_result`) or written (`write_result`) by this bench: its state then and its
 flag."""
 
@@ -112,12 +152,15 @@ def write_result(path: str | os.PathLike, obj: Any = None, *, text: str | None =
     """Write a bench's result `obj` (`scenes.files.write_json` with `json_options`), or its `text`, to the file
     `path` that `claim_result` claimed, atomically. A file there that changed since the claim or this bench's last
     write (a user saved one during a run of hours) is never replaced: the result goes to a free name beside it and
-    the run ends in one line naming both (status 2)."""
+    the run ends in one line naming both (status 2). A result object names the bench that claimed it (`WRITTEN_BY`).
+    """
     from scenes.files import atomic_write_text, json_text
 
     target = Path(path)
+    claimed, flag, owner = _CLAIMED.get(target.absolute(), (_file_state(target), "--out", ""))
+    if isinstance(obj, dict) and owner:
+        obj = {WRITTEN_BY: owner, **{k: v for k, v in obj.items() if k != WRITTEN_BY}}
     body = text if text is not None else json_text(obj, **json_options)
-    claimed, flag = _CLAIMED.get(target.absolute(), (_file_state(target), "--out"))
     if _file_state(target) != claimed:
         n = 1
         while os.path.lexists(aside := target.with_name(f"{target.stem}.result-{n}{target.suffix}")):
@@ -126,7 +169,7 @@ def write_result(path: str | os.PathLike, obj: Any = None, *, text: str | None =
         raise UsageError(f"{flag}: {str(path)!r} changed during the run (another program wrote it); it is never "
                          f"replaced: the result was written to {str(aside)!r}")
     atomic_write_text(target, body)
-    _CLAIMED[target.absolute()] = (_file_state(target), flag)
+    _CLAIMED[target.absolute()] = (_file_state(target), flag, owner)
     return target
 
 

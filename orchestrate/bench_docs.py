@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from scenes.files import read_figures
 from scenes.report.tables import markdown_table
 
 REPO = Path(__file__).resolve().parents[1]
@@ -22,18 +23,15 @@ class _Record(dict):
 
 
 def read_bench(path: Path) -> dict:
-    """The one reader of bench/results/*.json: finite numbers only (NaN or Infinity would print as a figure), every
-    object a `_Record`; a ValueError naming the file otherwise."""
+    """The one reader of bench/results/*.json: finite figures only (`scenes.files.read_figures`: NaN or Infinity would
+    print as a figure), never through a link, every object a `_Record`; a ValueError naming the file otherwise."""
     def record(d: dict) -> _Record:
         r = _Record(d)
         r.path = path
         return r
 
-    def constant(name: str):
-        raise ValueError(f"{path}: holds {name}; expected finite numbers (run the benchmark again)")
-
     try:
-        return json.loads(path.read_text(), object_hook=record, parse_constant=constant)
+        return read_figures(path, object_hook=record)
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path}: not valid JSON ({exc}); expected the benchmark's output (run it again)") from None
 

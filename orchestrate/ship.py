@@ -165,9 +165,16 @@ MAX_TEXT = 4000
 
 def check_records(folder: Path) -> None:
     """The session's records are read (or refused) before the evaluation, not after it, and the fields the lineage
-    entry copies are of their kind (`RECORD_FIELDS`): a string of minutes or a NaN never reaches the model card."""
+    entry copies are of their kind (`RECORD_FIELDS`): a string of minutes or a NaN never reaches the model card. No
+    file of the candidate is read through a link that leads out of its folder."""
     import math
 
+    from scenes.files import is_within
+
+    for rel in ("run", "run/final.safetensors", "run/final.json", "run/last.pt", *RECORD_FIELDS):
+        if os.path.lexists(folder / rel) and not is_within(folder / rel, folder):  # never read through a link out
+            raise UsageError(f"--candidate: {str(folder / rel)!r} leads outside the candidate folder (a link to "
+                             f"{os.path.realpath(folder / rel)!r}); expected the files the session brought back")
     for name, fields in RECORD_FIELDS.items():
         record = _read(folder / name)
         for key, kind in fields.items():

@@ -83,6 +83,30 @@ def read_json(path: str | os.PathLike):
     return json.loads(read_text_file(path))
 
 
+def read_figures(path: str | os.PathLike, **hooks):
+    """A JSON record of figures (a bench's output, a model card) as `read_json` reads it, stricter: NaN, Infinity, a
+    number beyond a float's range (1e999) and an integer of more than 15 digits are a ValueError naming the file (each
+    would print as a figure or overflow on the way), and the file is never read through a link. `hooks`: more
+    keyword arguments of `json.loads` (e.g. object_hook)."""
+    import json
+    import math
+
+    def refuse(text: str):
+        raise ValueError(f"{str(path)!r}: holds the number {text[:40]}; expected finite figures")
+
+    def number(text: str) -> float:
+        value = float(text)
+        return value if math.isfinite(value) else refuse(text)
+
+    def whole(text: str) -> int:
+        return int(text) if len(text.lstrip("-")) <= 15 else refuse(text)
+
+    if os.path.islink(path):
+        raise ValueError(f"{str(path)!r} is a link (to {os.readlink(path)!r}); a record is read from its own file "
+                         "only")
+    return json.loads(read_text_file(path), parse_constant=refuse, parse_float=number, parse_int=whole, **hooks)
+
+
 class RecordError(ValueError):
     """A JSON record another run wrote (a bench's output, a training log, a model card) that is not of the shape
     its reader expects: one line naming the file (`reading_record`)."""
@@ -92,15 +116,15 @@ class RecordError(ValueError):
 def reading_record(path: str | os.PathLike, what: str, fix: str = "restore it, or run what writes it again",
                    flag: str = "") -> Iterator[None]:
     """Around the code that reads a record by its keys: a record of another shape (a number where rows belong, a
-    text where a figure, a list where an object, a missing key, nesting too deep) ends in one `RecordError` naming
-    the file (after the `flag` that named it, if any), `what` it should be and the way out (`fix`), never in the
-    reading code's own TypeError or KeyError. An error that already
-    names the file passes as it is. Files are untrusted: anybody may have edited one."""
+    text where a figure, a list where an object, a missing key, a zero divisor, nesting too deep) ends in one
+    `RecordError` naming the file (after the `flag` that named it, if any), `what` it should be and the way out
+    (`fix`), never in the reading code's own TypeError or KeyError. An error that already names the file passes as
+    it is. Files are untrusted: anybody may have edited one."""
     try:
         yield
     except RecordError:
         raise
-    except (KeyError, IndexError, TypeError, AttributeError, ValueError, RecursionError) as exc:
+    except (KeyError, IndexError, TypeError, AttributeError, ValueError, ArithmeticError, RecursionError) as exc:
         if str(path) in str(exc):
             raise
         if isinstance(exc, KeyError) and exc.args:

@@ -300,6 +300,7 @@ BAD = [
     ("bench_usable", ["--data", "{t}/diligent", "--encodings", "linear16"], ["--data: ", "catPNG"]),
     ("bench_usable", ["--objects", ""], ["--objects: got '' and no --suite: nothing to measure"]),
     ("bench_refine_rule", ["--seeds", "9500"], ["--seeds: got '9500', expected at least two seeds"]),
+    ("ab_data", ["--work", "{t}/w", "--tag", "/../../out"], ["--tag: got '/../../out'", "folders' names"]),
     ("bench_min_images", ["--draws", "100000000"], ["--draws: got 100000000, expected an integer from 1 to 1000"]),
     ("learning_curve", ["--card", "{t}/junk.json"], ["--card: got ", "junk.json", "expected a model card"]),
     ("learning_curve", ["--card", "{t}/user.json"], ["--card: got ", "user.json", "expected a model card"]),
@@ -456,7 +457,7 @@ def test_a_bench_writes_its_result_again_and_every_result_through_write_result(t
     out = cli.claim_result(tmp_path / "r.json", ("rows",), "bench X")
     for n in range(3):
         cli.write_result(out, {"rows": [n]})
-    assert out.read_text().startswith('{\n "rows": [\n  2')
+    assert out.read_text().startswith('{\n "written_by": "bench X",\n "rows": [\n  2')
     for script in (ROOT / "bench").glob("*.py"):
         text = script.read_text()
         if "claim_result(" in text and script.name != "cli_common.py":
@@ -532,3 +533,30 @@ def test_append_to_the_benchs_own_output_adds_a_row(tmp_path):
         assert proc.returncode == 0, proc.stderr
     result = json.loads(out.read_text())
     assert len(result["rows"]) == 2 and len(result["commands"]) == 2, result
+
+
+def test_a_result_of_another_bench_is_never_replaced(tmp_path, capsys):
+    """Most results hold `rows`: the keys alone let one bench replace another's result (sweep 18: bench_doubtful_mask
+    --out over bench_capture's). Each result names the bench that wrote it, and no other bench replaces it."""
+    import json
+
+    cli = _module("cli_common")
+    out = cli.claim_result(tmp_path / "r.json", ("rows",), "python bench/bench_capture.py")
+    cli.write_result(out, {"rows": [1]})
+    assert json.loads(out.read_text())["written_by"] == "python bench/bench_capture.py"
+    with pytest.raises(SystemExit) as stop:
+        cli.claim_result(out, ("rows",), "python bench/bench_doubtful_mask.py")
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and "was written by python bench/bench_capture.py" in err, err
+    assert cli.claim_result(out, ("rows",), "python bench/bench_capture.py") == out  # its own: replaced
+
+
+def test_a_relative_path_is_the_folder_the_bench_was_started_in(tmp_path, monkeypatch):
+    """Bench steps run with the repository as their working folder: a relative --work or --keep is made absolute
+    against the folder the bench was started in before any step sees it (sweep 18: the suite landed in the repo)."""
+    monkeypatch.chdir(tmp_path)
+    cli = _module("cli_common")
+    sweep = cli.parse(_command("bench_verdict_sweep"), ["--work", "w", "--out", "v.json"])
+    assert sweep.work == str(tmp_path / "w") and Path(sweep.out) == tmp_path / "v.json"
+    keep = cli.parse(_command("bench_throughput"), ["--keep", "k"])
+    assert keep.keep == str(tmp_path / "k")

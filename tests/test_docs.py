@@ -502,8 +502,18 @@ def test_a_benchmark_output_that_is_not_what_its_table_reads_is_named(tmp_path):
     with pytest.raises(ValueError, match=r"shards.json: not valid JSON"):
         read_bench(bad)
     bad.write_text(json.dumps({**good, "x": float("nan")}))
-    with pytest.raises(ValueError, match=r"shards.json: holds NaN; expected finite numbers"):
+    with pytest.raises(ValueError, match=r"shards.json': holds the number NaN; expected finite figures"):
         read_bench(bad)
+    for figure in ("1e999", "1" + "0" * 400):  # inf as a figure; an integer no float holds
+        bad.write_text(json.dumps(good).replace('"rows": [', f'"x": {figure}, "rows": [', 1))
+        with pytest.raises(ValueError, match=r"shards.json': holds the number .*; expected finite figures"):
+            read_bench(bad)
+    outside = tmp_path / "outside.json"
+    outside.write_text(json.dumps(good))
+    link = tmp_path / "link.json"
+    link.symlink_to(outside)
+    with pytest.raises(ValueError, match=r"link.json' is a link"):  # never read through: it may be any file
+        read_bench(link)
     bad.write_text(json.dumps({"rows": [{}]}))
     with pytest.raises(KeyError, match=r"shards.json: a record without 'cache'"):
         read_bench(bad)["rows"][0]["cache"]

@@ -16,7 +16,7 @@ from typing import Any, Callable
 
 from torch import nn
 
-from scenes.files import read_json
+from scenes.files import read_figures
 
 from .contract import UNIPS_INPUTS, InputContract
 from .official import OfficialWeights
@@ -149,8 +149,8 @@ def read_model_card(path: Path) -> dict[str, Any]:
     if not path.is_file():
         return {}
     try:
-        card = read_json(path)
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        card = read_figures(path)
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
         raise ValueError(f"model card {str(path)!r} is not readable JSON ({exc}; truncated?); expected the card as "
                          "written (restore it, e.g. git checkout)") from None
     if not isinstance(card, dict):
