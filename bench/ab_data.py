@@ -37,7 +37,7 @@ sys.path.insert(0, str(ROOT))
 from bench.cli_common import check_work, need_path, parse, run_main  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import REQUIRED, CommaList, Command, arg, check_fields, option  # noqa: E402
-from scenes.files import read_json, read_text_file, reading_record, write_json  # noqa: E402
+from scenes.files import read_figures, read_json, read_text_file, reading_record, write_json  # noqa: E402
 
 PY = sys.executable
 from unips.models import DEFAULT_MODEL, pretrained_entry  # noqa: E402 (after the path above)
@@ -228,9 +228,11 @@ def main(argv: list[str] | None = None) -> int:
     if results_path.is_file():  # an earlier run's scores, kept (resumed)
         with reading_record(results_path, "this bench's scores (WORK/ab.json)", "remove it to score again",
                             flag="--work"):
-            results = read_json(results_path)
+            results = read_figures(results_path)
             if not isinstance(results, dict) or not all(isinstance(r, dict) for r in results.values()):
                 raise ValueError("expected an object of scores per arm")
+            for name, r in results.items():
+                _table_row(name, r)  # every figure the table and the card read, of its kind
     for name, weights in [("shipped", SHIPPED), *runs.items()]:
         if name in results:
             continue
@@ -248,14 +250,23 @@ def main(argv: list[str] | None = None) -> int:
     print(f"\n{'model':10s} {'fixed val':>9s} {'gain':>5s} {'new L4':>7s} {'new L5':>7s} {'ball96':>7s} {'ball16':>7s} "
           f"{'cat96':>6s} {'cat16':>6s}")
     for name, r in results.items():
-        d = r["diligent"]
-        print(f"{name:10s} {r['fixed_validation']['mean_deg']:9.2f} {r['fixed_validation']['gain_deg']:5.2f} "
-              f"{r['new_kinds'][0]['mean_deg']:7.2f} {r['new_kinds'][1]['mean_deg']:7.2f} {d['ball']['k96_deg']:7.2f} "
-              f"{d['ball']['k16_deg']:7.2f} {d['cat']['k96_deg']:6.2f} {d['cat']['k16_deg']:6.2f}")
+        print(_table_row(name, r))
     print(f"wrote {results_path}")
     if args.record:
         record(results, w, args)
     return 0
+
+
+def _table_row(name: str, r: dict) -> str:
+    """One arm's line of the printed table (the figures of its scores, each a number)."""
+    d = r["diligent"]
+    figures = [r["fixed_validation"]["mean_deg"], r["fixed_validation"]["gain_deg"], r["new_kinds"][0]["mean_deg"],
+               r["new_kinds"][1]["mean_deg"], d["ball"]["k96_deg"], d["ball"]["k16_deg"], d["cat"]["k96_deg"],
+               d["cat"]["k16_deg"]]
+    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in figures):
+        raise ValueError(f"arm {name!r}: a figure is not a number")
+    widths = (9, 5, 7, 7, 7, 7, 6, 6)
+    return f"{name:10s} " + " ".join(f"{v:{n}.2f}" for v, n in zip(figures, widths))
 
 
 def record(results: dict, w: Path, args) -> None:
@@ -279,6 +290,14 @@ def record(results: dict, w: Path, args) -> None:
             vals = [x for x in log if "val" in x]
             steps = max(x["step"] for x in log if "step" in x)
             train_t = {x["step"]: x["elapsed_s"] for x in log if "loss" in x and "elapsed_s" in x}
+            if not isinstance(steps, int) or not train_t or not all(
+                    isinstance(v, (int, float)) for v in train_t.values()):
+                raise ValueError("its steps are not whole numbers with their elapsed seconds")
+            curve = [{"step": x["step"], "hours": round(train_t.get(x["step"], max(train_t.values())) / 3600, 3),
+                      **{k: round(v, 2) for k, v in x["val"]["probes"].items()}, "gain": round(x["val"]["gain"], 2)}
+                     for x in vals]
+            families = {f: {"all": round(v["mean"]["all"], 2), "gain": round(v["gain"], 2), "n": v["n"]}
+                        for f, v in vals[-1]["val"]["families"].items()} if vals else {}
         lr = name.split("_lr", 1)[1] if "_lr" in name else "1.5e-4"  # the tag this script gives a --lr run
         n = sum(
             len(list(Path(d).glob("*.data")))
@@ -291,9 +310,6 @@ def record(results: dict, w: Path, args) -> None:
         stage = f"data A/B: {arm}, lr {lr} (not shipped)"
         if stage in stages:
             continue
-        curve = [{"step": x["step"], "hours": round(train_t.get(x["step"], max(train_t.values())) / 3600, 3),
-                  **{k: round(v, 2) for k, v in x["val"]["probes"].items()}, "gain": round(x["val"]["gain"], 2)}
-                 for x in vals]
         card["lineage"].append({
             "stage": stage, "init_from": f"{shipped_stage} (shipped)", "data": ARM_DATA[arm].format(n=n) +
             ", 128 px, 10 images, 16 spp, train assets (bench/ab_data.py)",
@@ -302,8 +318,7 @@ def record(results: dict, w: Path, args) -> None:
             "steps": steps, "threads": args.threads, "shipped": False, "objects": n,
             "hours": round(max(train_t.values()) / 3600, 2),
             "best_step": vals[-1]["step"] if vals else None, "curve": curve,
-            "per_family_at_best": {f: {"all": round(v["mean"]["all"], 2), "gain": round(v["gain"], 2), "n": v["n"]}
-                                   for f, v in vals[-1]["val"]["families"].items()} if vals else {},
+            "per_family_at_best": families,
         })
     card["data_ab"] = {"protocol": __doc__.split("\n\n")[1].strip(), "steps": args.steps, "objects": args.objects,
                        "results": {k: {a: v[a] for a in ("fixed_validation", "new_kinds", "diligent")}

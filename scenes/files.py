@@ -124,6 +124,9 @@ def reading_record(path: str | os.PathLike, what: str, fix: str = "restore it, o
         yield
     except RecordError:
         raise
+    except OSError as exc:  # unreadable (a pipe, a folder, no permission): said with the file
+        said = f"{flag}: {str(path)!r}" if flag else repr(str(path))
+        raise RecordError(f"{said}: cannot be read ({exc.strerror or exc}); {fix}") from None
     except (KeyError, IndexError, TypeError, AttributeError, ValueError, ArithmeticError, RecursionError) as exc:
         if str(path) in str(exc):
             raise
