@@ -138,7 +138,7 @@ COMMAND = Command(Options, prog="python bench/ab_data.py", description=__doc__.s
 
 def before_work(args: Options) -> None:
     """What the command line names on disk, checked before any work (each refusal one line)."""
-    check_work(args.work)
+    check_work(args.work, inputs={"--assets": args.assets})
     need_path(args.assets, "--assets", "the asset library (meshes, HDR maps, textures)")
 
 

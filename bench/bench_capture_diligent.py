@@ -131,7 +131,7 @@ def main(argv: list[str] | None = None) -> int:
 
     args = parse(COMMAND, argv)
     sources = check_diligent(args.data, args.objects)
-    check_work(args.work)
+    check_work(args.work, inputs={"--data": args.data})
     claim_result(args.out, RESULT_KEYS, COMMAND)
     rows = []
     for source in sources:

@@ -140,7 +140,7 @@ RESULT_KEYS = ("command", "error_model", "suite", "overall", "rows")
 
 def before_work(opts: BenchOptions) -> None:
     """What the command line names on disk, checked before any work (each refusal one line)."""
-    check_work(opts.work)
+    check_work(opts.work, inputs={"--assets": opts.assets})
     if opts.assets != "none":
         need_path(opts.assets, "--assets", "the asset folder (meshes, HDR maps, textures), or none")
     if opts.diligent != "none":

@@ -257,7 +257,8 @@ def main(argv: list[str] | None = None) -> int:
     import numpy as np
 
     opts = parse(COMMAND, argv)
-    check_work(opts.work)
+    check_work(opts.work, inputs={"--assets": opts.assets, "--surface-data": opts.surface_data,
+                                  "--reference": opts.reference})
     with refusals():
         if not (Path(opts.reference) / REFERENCE_MODULE).is_file():
             raise UsageError(f"--reference: {opts.reference!r} holds no {REFERENCE_MODULE}; expected the folder of "

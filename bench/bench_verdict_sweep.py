@@ -316,7 +316,7 @@ def main(argv: list[str] | None = None) -> int:
         need_path(capture, "CAPTURE", "an object folder with ground-truth normals, or a folder of them")
     if opts.assets is not None:
         need_path(opts.assets, "--assets", "an asset folder of wildgen.make")
-    check_work(opts.work)
+    check_work(opts.work, inputs={"--assets": opts.assets})
     out = claim_result(opts.out, RESULT_KEYS, COMMAND)
     try:
         d = run(opts)

@@ -173,17 +173,19 @@ def write_result(path: str | os.PathLike, obj: Any = None, *, text: str | None =
     return target
 
 
-def check_work(path: str | os.PathLike | None, flag: str = "--work") -> None:
+def check_work(path: str | os.PathLike | None, flag: str = "--work",
+               inputs: dict[str, str | os.PathLike | None] | None = None) -> None:
     """A working folder (None: a temporary one), before any work: refused in one line naming `flag` when it is an
-    existing file, lies under a file or cannot be written (`scenes.cli.outputs.check_output_folder`). Creates
-    nothing."""
+    existing file, lies under a file, cannot be written, or is, lies inside or leads into one of the bench's
+    `inputs` (flag -> path: a split or a render written into the asset library). Creates nothing."""
     if path is None:
         return
-    from scenes.cli.outputs import check_no_holder_above, check_output_folder
+    from scenes.cli.outputs import check_apart, check_no_holder_above, check_output_folder
 
     with refusals():
         check_output_folder(path, flag)
         check_no_holder_above(path, flag)  # inside a folder another run writes, the two runs' files would mix
+        check_apart(path, {k: v for k, v in (inputs or {}).items() if v not in (None, "none")}, flag)
 
 
 def need_path(path: str | os.PathLike, flag: str, what: str, folder: bool = True) -> Path:
@@ -234,6 +236,10 @@ def check_diligent(data: str | os.PathLike, names: Sequence[str], flag: str = "-
     with refusals():
         for name in names:
             folder = Path(data) / name
+            near = name[:-3] if name.endswith("PNGPNG") else None if name.endswith("PNG") else name + "PNG"
+            if not folder.is_dir() and near and (Path(data) / near).is_dir():  # 'ballPNG' where 'ball' is asked
+                raise UsageError(f"--objects: {str(data)!r} holds no folder {name} but one named {near}: check the "
+                                 "form --objects takes (see --help)")
             if not folder.is_dir():
                 raise UsageError(f"{flag}: {str(folder)!r} does not exist: {str(data)!r} holds no object {name}; "
                                  f"expected {DILIGENT_OBJECT}")

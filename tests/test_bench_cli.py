@@ -301,6 +301,8 @@ BAD = [
     ("bench_usable", ["--objects", ""], ["--objects: got '' and no --suite: nothing to measure"]),
     ("bench_refine_rule", ["--seeds", "9500"], ["--seeds: got '9500', expected at least two seeds"]),
     ("ab_data", ["--work", "{t}/w", "--tag", "/../../out"], ["--tag: got '/../../out'", "folders' names"]),
+    ("ab_data", ["--work", "{t}/folder", "--assets", "{t}/folder"], ["--work: ", "is --assets"]),
+    ("bench_usable", ["--data", "{t}/diligent", "--objects", "ballPNG"], ["--objects: ", "one named ballPNG"]),
     ("bench_min_images", ["--draws", "100000000"], ["--draws: got 100000000, expected an integer from 1 to 1000"]),
     ("learning_curve", ["--card", "{t}/junk.json"], ["--card: got ", "junk.json", "expected a model card"]),
     ("learning_curve", ["--card", "{t}/user.json"], ["--card: got ", "user.json", "expected a model card"]),
