@@ -53,8 +53,8 @@ class Options:
     sizes: Annotated[list[str], comma_list(str, "RES:SPP,RES:SPP")] = field(
         default_factory=lambda: ["128:64", "32:4", "64:32"])
     """comma-separated RES:SPP (64:32 is 35 multijitter samples: pixels straddle thread blocks)"""
-    images: int = option(6, minimum=1)
-    """Images of the object per size (the first, compilation, is not timed)."""
+    images: int = option(6, minimum=2)
+    """Images of the object per size, at least 2 (the first, compilation, is not timed)."""
     repeats: int = option(2, minimum=1)
     """timed renders of every image per path"""
     threads: Annotated[list[int], comma_list(int, "T,T")] = option(default_factory=lambda: [1, 2], minimum=1)

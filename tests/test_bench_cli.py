@@ -270,7 +270,7 @@ BAD = [
     ("bench_determinism", ["--sizes", "64x32"], ["--sizes: got '64x32', expected RES:SPP"]),
     ("bench_determinism", ["--sizes", "8:0"], ["--sizes: got '8:0', expected RES:SPP with SPP an integer >= 1"]),
     ("bench_determinism", ["--sizes", "4:1"], ["--sizes: got '4:1'", "RES an integer from 8"]),
-    ("bench_determinism", ["--threads", "0", "--sizes", "8:1", "--images", "1", "--repeats", "1"],
+    ("bench_determinism", ["--threads", "0", "--sizes", "8:1", "--images", "2", "--repeats", "1"],
      ["--threads: got 0, expected an integer >= 1"]),
     ("bench_determinism", ["--variant", "bogus_rgb", "--sizes", "8:1"],
      ["--variant: got 'bogus_rgb', expected one of"]),
