@@ -180,6 +180,8 @@ def main(argv: list[str] | None = None) -> int:
                     e = estimate(_count(row["images"]), *_photo_size(row.get("working_size", size)), full=size)
                     row["estimate_mib"], row["estimate_s"] = e["peak_mib"], e["seconds"]
             earlier = result["commands"] if "commands" in result else [result.get("command")]
+            if not isinstance(earlier, list):
+                raise ValueError(f"its commands are {type(earlier).__name__}, expected a list of command lines")
             result["commands"] = [str(c) for c in earlier if c not in (None, command)] + [command]
         write_result(args.reestimate, result, indent=1, newline=True)
         print(f"rewrote the estimates of {args.reestimate}")

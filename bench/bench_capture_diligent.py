@@ -132,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parse(COMMAND, argv)
     sources = check_diligent(args.data, args.objects)
     check_work(args.work, inputs={"--data": args.data})
-    claim_result(args.out, RESULT_KEYS, COMMAND)
+    claim_result(args.out, RESULT_KEYS, COMMAND, inputs={"--data": args.data})
     rows = []
     for source in sources:
         obj = load_object(source)

@@ -47,7 +47,7 @@ sys.path.insert(0, str(REPO))  # this tree's toolkit, not another checkout's ins
 from bench.cli_common import check_suites, claim_result, need_path, parse, refusals, run_main, write_result  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import Command, UseAppendAction, arg  # noqa: E402
-from scenes.files import read_json, reading_record  # noqa: E402
+from scenes.files import read_figures, read_json, reading_record  # noqa: E402
 
 GROWN = (0.15, 0.3, 0.5)
 """Dilations of the true mask, as fractions of the object's equivalent radius."""
@@ -233,12 +233,15 @@ def _earlier_rows(path: Path) -> list[dict]:
     """The rows of an earlier run's --out (--rows-from), each an object with `ROW_KEYS`, IoU a number or None; a
     ValueError naming the file otherwise (the summary would end in a traceback, or count a text as a figure)."""
     with reading_record(path, "an earlier run's --out", flag="--rows-from"):
-        rows = read_json(path)["rows"]
+        rows = read_figures(path)["rows"]
         if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
             raise ValueError("its rows are not a list of objects")
         for r in rows:
             if missing := [k for k in ROW_KEYS if k not in r]:
                 raise KeyError(missing[0])
+            if not all(isinstance(r[k], str) for k in ("kind", "group", "object")):
+                raise ValueError(f"a row's kind, group and object are {r['kind']!r}, {r['group']!r}, "
+                                 f"{r['object']!r}; expected texts")
             if r["iou_true"] is not None and not isinstance(r["iou_true"], (int, float)):
                 raise ValueError(f"a row's iou_true is {r['iou_true']!r}; expected a number or null")
             summary([r])  # every figure the summary reads is of its kind

@@ -186,6 +186,16 @@ def read_lights(folder: Path) -> np.ndarray:
     return d / norms
 
 
+def real_objects(folder: Path) -> list[Path]:
+    """The object folders of photos of a real capture folder (--real); a UsageError when there is none (nothing
+    measured would pass for a measurement)."""
+    subs = sorted(p for p in folder.iterdir() if p.is_dir())
+    if not subs:
+        raise UsageError(f"--real: {str(folder)!r} holds lights.txt but no object folder of photos; expected one "
+                         "folder of photos per object beside <object>.mask.png")
+    return subs
+
+
 def real_rows(folder: Path, net) -> list[dict]:
     """The rows of real captures with measured lights: a folder of object folders of photos with `<object>.mask.png`
     beside them and `lights.txt` (the count, then x y z per photo; the course objects of ../shared/data/real/psm),
@@ -203,7 +213,7 @@ def real_rows(folder: Path, net) -> list[dict]:
                             {**spaced, "all": np.arange(k)})
     d = read_lights(folder)
     rows = []
-    for sub in sorted(p for p in folder.iterdir() if p.is_dir()):
+    for sub in real_objects(folder):
         try:
             photos = read_photos(sub, "auto")
         except (ValueError, FileNotFoundError) as exc:  # said as the flag that named the capture
@@ -283,6 +293,7 @@ def main(argv: list[str] | None = None) -> int:
         if not folder.name.endswith("PNG"):
             with refusals():
                 read_lights(folder)  # before the network is loaded
+                real_objects(folder)
     claim_result(args.out, RESULT_KEYS, COMMAND,
                  inputs={f"--suite {d}": d for d in args.suite} | {f"--real {d}": d for d in args.real})
     torch.set_num_threads(args.threads)

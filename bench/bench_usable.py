@@ -275,7 +275,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parse(COMMAND, argv)
     folders = check_diligent(args.data, [f"{obj}PNG" for obj in args.objects])  # --objects '': none
     check_suites(args.suite)
-    claim_result(args.out, ("rows",), COMMAND)  # the key of every result
+    claim_result(args.out, ("rows",), COMMAND,  # the key of every result
+                 inputs={f"--suite {d}": d for d in args.suite} | {"--data": args.data if any(args.objects) else None})
     rows: list[dict] = []
     with tempfile.TemporaryDirectory() as tmp:
         for folder in folders:

@@ -259,7 +259,7 @@ def run(opts: SweepOptions) -> dict:
     results, captures = [], []
     fit_s = judge_s = 0.0
     for folder in folders:
-        cap = load_capture(folder)
+        cap = load_capture(folder, arg="CAPTURE")
         if cap.normal_gt is None:
             print(f"{folder}: no ground truth, skipped", file=sys.stderr)
             continue
@@ -284,6 +284,9 @@ def run(opts: SweepOptions) -> dict:
         print(f"{folder.name:<12} {family:<12} explained {default['explained']:.2f} trusted {default['trusted']!s:<5} "
               f"truth first {default['truth_first']!s:<5} fits {t1 - t0:.0f} s, sweep {t2 - t1:.0f} s  "
               + " ".join(f"{k} {v:.4f}" for k, v in default["judged"].items()), flush=True)
+    if not captures:  # a sweep of nothing would replace a measured one
+        raise UsageError("CAPTURE: no capture with ground-truth normals was measured (each was skipped, above); "
+                         "nothing is written")
     rows = []
     defaults = VerdictRules()
     for name, values in SWEEP.items():

@@ -28,7 +28,7 @@ sys.path.insert(0, str(ROOT))
 
 from bench.cli_common import parse, run_main  # noqa: E402
 from scenes.cli.options import Command, Positional, arg, option  # noqa: E402
-from scenes.files import read_text_file, reading_record  # noqa: E402
+from scenes.files import read_figures, read_text_file, reading_record  # noqa: E402
 
 LOG = "a unips.train log (one JSON object per line, each with its step)"
 CARD = "a model card (a JSON object whose lineage is a list of stages, e.g. unips/weights/model_card.json)"
@@ -75,7 +75,7 @@ def read_card(path: Path) -> dict:
     if not path.is_file():
         raise FileNotFoundError(f"--card: {str(path)!r} is not a file; expected {CARD}")
     try:
-        card = json.loads(path.read_text())
+        card = read_figures(path)  # NaN or a figure past a float's range is no figure of a card
     except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
         raise ValueError(f"--card: got {str(path)!r}, expected {CARD}: it is not JSON ({exc})") from None
     lineage = card.get("lineage") if isinstance(card, dict) else None
@@ -121,6 +121,8 @@ def card_table(card: dict, target: float) -> str:
     hours = steps = 0.0
     pts: dict[str, list[tuple[float, float]]] = {f: [] for f in fams + ["all"]}
     for s in chain:
+        if not isinstance(s.get("hours", 0.0), (int, float)) or s.get("hours", 0.0) < 0:
+            raise ValueError(f"stage {s['stage']!r}: hours {s.get('hours')!r}; expected a number >= 0")
         hours += s.get("hours", 0.0)
         steps += s.get("steps", 0)
         a, g = _stage_result(s)
@@ -140,7 +142,8 @@ def card_table(card: dict, target: float) -> str:
            f"records; hours at which it reaches {target:g} deg on the test set (the target shifted by the family's "
            "test - validation difference of the shipped model):", ""]
     for f in fams + ["all"]:
-        if len(pts[f]) < 3:
+        pts[f] = [(h, e) for h, e in pts[f] if h > 0]  # log2 of no hours is no point of the trend
+        if len({h for h, _ in pts[f]}) < 3:  # a line through fewer distinct hours is no trend
             continue
         h, e = zip(*pts[f])
         a, b = fit_log2(list(h), list(e))
