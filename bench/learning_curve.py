@@ -121,13 +121,14 @@ def card_table(card: dict, target: float) -> str:
     hours = steps = 0.0
     pts: dict[str, list[tuple[float, float]]] = {f: [] for f in fams + ["all"]}
     for s in chain:
-        if not isinstance(s.get("hours", 0.0), (int, float)) or s.get("hours", 0.0) < 0:
-            raise ValueError(f"stage {s['stage']!r}: hours {s.get('hours')!r}; expected a number >= 0")
-        hours += s.get("hours", 0.0)
-        steps += s.get("steps", 0)
+        stage_hours = s.get("hours") if s.get("hours") is not None else 0.0  # unrecorded (a relay run): none counted
+        if not isinstance(stage_hours, (int, float)) or stage_hours < 0:
+            raise ValueError(f"stage {s['stage']!r}: hours {stage_hours!r}; expected a number >= 0")
+        hours += stage_hours
+        steps += s.get("steps") or 0
         a, g = _stage_result(s)
         pf = s.get("per_family_at_best", {})
-        stages.append([s["stage"], s.get("steps", 0), int(steps), f"{hours:.2f}", _cell(a), _cell(g),
+        stages.append([s["stage"], s.get("steps") or 0, int(steps), f"{hours:.2f}", _cell(a), _cell(g),
                        *(_cell(pf.get(f, {}).get("all")) for f in fams)])
         if pf:  # the 128 px stages (the original trained at 64 px and has no per-family record)
             pts["all"].append((hours, a))

@@ -562,3 +562,19 @@ def test_a_relative_path_is_the_folder_the_bench_was_started_in(tmp_path, monkey
     assert sweep.work == str(tmp_path / "w") and Path(sweep.out) == tmp_path / "v.json"
     keep = cli.parse(_command("bench_throughput"), ["--keep", "k"])
     assert keep.keep == str(tmp_path / "k")
+
+
+def test_learning_curve_reads_the_card_ship_writes(tmp_path):
+    """A relay run's lineage entry (orchestrate.ship) records no hours or steps where the session did not: the
+    curve counts none for it, where it refused the card ship itself wrote (sweep 18)."""
+    import json
+    import subprocess
+
+    card = json.loads((ROOT / "unips" / "weights" / "model_card.json").read_text())
+    card["lineage"].append({"stage": "GPU relay run (orchestrate.gpu_session, orchestrate.ship)", "hours": None,
+                            "steps": None, "shipped": True})
+    (tmp_path / "c.json").write_text(json.dumps(card))
+    script = str(ROOT / "bench" / "learning_curve.py")
+    proc = subprocess.run([sys.executable, script, "--card", str(tmp_path / "c.json")], capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 0 and "| GPU relay run" in proc.stdout, proc.stderr
