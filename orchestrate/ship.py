@@ -226,9 +226,11 @@ def decide(opts: ShipOptions) -> bool:
         weights, name = candidate_weights(folder, Path(scratch))
         entry = pretrained_entry(name)
         card = read_model_card(entry.card_path)  # read before the scoring: a damaged card is refused first
-        if not isinstance(card.get("lineage", []), list):
-            raise ValueError(f"model card {str(entry.card_path)!r}: its lineage is a JSON "
-                             f"{type(card['lineage']).__name__}, expected a list of stages (restore it)")
+        lineage = card.get("lineage", [])
+        if not isinstance(lineage, list) or not all(
+                isinstance(s, dict) and isinstance(s.get("steps") or 0, int) for s in lineage):
+            raise ValueError(f"model card {str(entry.card_path)!r}: its lineage is not a list of stages, each with "
+                             "its steps a whole number or null (restore it)")
         current = entry.weights_path
         new = score(weights, val, diligent, opts.threads)
         old = score(current, val, diligent, opts.threads) if current.is_file() else None
