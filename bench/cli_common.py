@@ -194,8 +194,9 @@ def need_path(path: str | os.PathLike, flag: str, what: str, folder: bool = True
     target = Path(path)
     with refusals():
         if not (target.is_dir() if folder else target.is_file()):
-            state = ("is a file" if target.is_file() else "is a folder") if os.path.lexists(target) \
-                else "does not exist"
+            state = ("does not exist" if not os.path.lexists(target) else "is a file" if target.is_file() else
+                     "is a folder" if target.is_dir() else "is neither a file nor a folder (a pipe, a device, a socket "
+                     "or a broken link)")
             raise UsageError(f"{flag}: {str(path)!r} {state}; expected {what}")
     return target
 

@@ -578,3 +578,14 @@ def test_learning_curve_reads_the_card_ship_writes(tmp_path):
     proc = subprocess.run([sys.executable, script, "--card", str(tmp_path / "c.json")], capture_output=True,
                           text=True, timeout=120)
     assert proc.returncode == 0 and "| GPU relay run" in proc.stdout, proc.stderr
+
+
+def test_a_pipe_given_for_a_recorded_file_is_said_as_such(tmp_path, capsys):
+    """need_path said 'is a folder' of a named pipe (sweep 18); it names what the path is, never opening it."""
+    import os
+
+    os.mkfifo(tmp_path / "p.json")
+    with pytest.raises(SystemExit) as stop:
+        _module("cli_common").need_path(tmp_path / "p.json", "--reestimate", "a recorded output", folder=False)
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and "is neither a file nor a folder (a pipe" in err, err
