@@ -135,8 +135,8 @@ WRITTEN_BY = "written_by"
 the same keys (most hold `rows`) is never replaced by this one."""
 
 _CLAIMED: dict[Path, tuple[tuple[int, int, int] | None, str, str]] = {}
-"""Each result file claimed (`claim_result`) or written (`write_result`) by this bench: its state then and its
-flag."""
+"""Each result file claimed (`claim_result`) or written (`write_result`) by this bench: its state then, its flag
+and the bench that claimed it."""
 
 
 def _file_state(path: Path) -> tuple[int, int, int] | None:

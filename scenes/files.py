@@ -120,12 +120,12 @@ def reading_record(path: str | os.PathLike, what: str, fix: str = "restore it, o
     `RecordError` naming the file (after the `flag` that named it, if any), `what` it should be and the way out
     (`fix`), never in the reading code's own TypeError or KeyError. An error that already names the file passes as
     it is. Files are untrusted: anybody may have edited one."""
+    said = f"{flag}: {str(path)!r}" if flag else repr(str(path))
     try:
         yield
     except RecordError:
         raise
     except OSError as exc:  # unreadable (a pipe, a folder, no permission): said with the file
-        said = f"{flag}: {str(path)!r}" if flag else repr(str(path))
         raise RecordError(f"{said}: cannot be read ({exc.strerror or exc}); {fix}") from None
     except (KeyError, IndexError, TypeError, AttributeError, ValueError, ArithmeticError, RecursionError) as exc:
         if str(path) in str(exc):
@@ -137,7 +137,6 @@ def reading_record(path: str | os.PathLike, what: str, fix: str = "restore it, o
         else:
             lines = str(exc).strip().splitlines()
             why = f"{type(exc).__name__}: {lines[0][:160]}" if lines else type(exc).__name__
-        said = f"{flag}: {str(path)!r}" if flag else repr(str(path))
         raise RecordError(f"{said}: not {what} as this toolkit writes it ({why}); {fix}") from None
 
 

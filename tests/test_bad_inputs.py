@@ -2204,9 +2204,10 @@ def _log_steps(*steps: int) -> Callable[[Path, Path], None]:
     return check
 
 
-def _shard_with_a_sample_dropped(w: Path, t: Path) -> None:
-    """Setup: T/s, a decoded export of the world's dataset in one shard, from which the members of object 00001
-    were removed and whose index.json was rewritten with the shard's new size and checksum (its objects kept)."""
+def _decoded_shard_rewritten(w: Path, t: Path, rewrite: Callable[[str, bytes], bytes | None]) -> None:
+    """T/s, a decoded export of the world's dataset in one shard whose members go through rewrite(name, bytes)
+    (None drops the member), and its index.json rewritten with the shard's new size and checksum (its objects kept),
+    as whoever ships the shards can."""
     import tarfile
 
     from scenes.files import sha256_file
@@ -2215,48 +2216,40 @@ def _shard_with_a_sample_dropped(w: Path, t: Path) -> None:
     export_dataset(w / "data", t / "s", shard_size=3, encoding="decoded")
     shard = t / "s" / "000000.tar"
     with tarfile.open(shard) as src:
-        kept = [(m, src.extractfile(m).read()) for m in src.getmembers() if not m.name.startswith("00001.")]
+        members = [(m, src.extractfile(m).read()) for m in src.getmembers()]
     with tarfile.open(shard, "w", format=tarfile.USTAR_FORMAT) as dst:
-        for m, data in kept:
-            dst.addfile(m, io.BytesIO(data))
+        for m, data in members:
+            if (data := rewrite(m.name, data)) is not None:
+                m.size = len(data)
+                dst.addfile(m, io.BytesIO(data))
     index = json.loads((t / "s" / "index.json").read_text())
     index["shards"][0].update(bytes=shard.stat().st_size, sha256=sha256_file(shard))
     (t / "s" / "index.json").write_text(json.dumps(index))
 
 
+def _shard_with_a_sample_dropped(w: Path, t: Path) -> None:
+    """Setup: T/s (`_decoded_shard_rewritten`) without the members of object 00001."""
+    _decoded_shard_rewritten(w, t, lambda name, data: None if name.startswith("00001.") else data)
+
+
 def _decoded_member_edited(member: str, edit: Callable[[np.ndarray], np.ndarray]) -> Callable[[Path, Path], None]:
-    """Setup: T/s, a decoded export of the world's dataset in one shard whose member `member` (e.g.
-    00000.decoded.normals.npy) holds edit(its array), the index rewritten with the shard's new size and checksum (as
-    whoever ships the shards can)."""
-    def setup(w: Path, t: Path) -> None:
-        import tarfile
+    """Setup: T/s (`_decoded_shard_rewritten`) whose member `member` (e.g. 00000.decoded.normals.npy) holds
+    edit(its array)."""
+    def rewrite(name: str, data: bytes) -> bytes:
+        if name != member:
+            return data
+        buf = io.BytesIO()
+        np.save(buf, edit(np.load(io.BytesIO(data))))
+        return buf.getvalue()
 
-        from scenes.files import sha256_file
-        from wildgen.export import export_dataset
-
-        export_dataset(w / "data", t / "s", shard_size=3, encoding="decoded")
-        shard = t / "s" / "000000.tar"
-        with tarfile.open(shard) as src:
-            members = [(m, src.extractfile(m).read()) for m in src.getmembers()]
-        with tarfile.open(shard, "w", format=tarfile.USTAR_FORMAT) as dst:
-            for m, data in members:
-                if m.name == member:
-                    buf = io.BytesIO()
-                    np.save(buf, edit(np.load(io.BytesIO(data))))
-                    data = buf.getvalue()
-                    m.size = len(data)
-                dst.addfile(m, io.BytesIO(data))
-        index = json.loads((t / "s" / "index.json").read_text())
-        index["shards"][0].update(bytes=shard.stat().st_size, sha256=sha256_file(shard))
-        (t / "s" / "index.json").write_text(json.dumps(index))
-    return setup
+    return lambda w, t: _decoded_shard_rewritten(w, t, rewrite)
 
 
-def _one_nan(a: np.ndarray) -> np.ndarray:
-    a = a.copy()
-    ys, xs = np.nonzero(np.any(a != 0, axis=-1))
-    a[ys[0], xs[0]] = np.nan
-    return a
+def _nan_inside(n: np.ndarray) -> np.ndarray:
+    n = n.copy()
+    ys, xs = np.nonzero(np.any(n != 0, axis=-1))
+    n[ys[0], xs[0]] = np.nan
+    return n
 
 
 def _gt_emptied(w: Path, t: Path, evaluated: bool = False) -> None:
@@ -2541,7 +2534,7 @@ ROWS += [
     ),
     Row("train-decoded-normals-nan", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps", "1"], 2,
         ("00000", "decoded.normals.npy", "neither of unit length nor zero"),
-        setup=_decoded_member_edited("00000.decoded.normals.npy", _one_nan),
+        setup=_decoded_member_edited("00000.decoded.normals.npy", _nan_inside),
         check=_not_written("run/final.safetensors")),
     Row("train-decoded-normals-not-unit", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps", "1"], 2,
         ("00000", "decoded.normals.npy"), setup=_decoded_member_edited("00000.decoded.normals.npy", lambda a: a * 3),
@@ -3382,13 +3375,6 @@ def _mask_png(rel: str, make: Callable[[Path], np.ndarray]) -> Callable[[Path, P
         assert cv2.imwrite(str(_mk((t / rel).parent) / Path(rel).name), make(read_mask(w / "data" / f"{OBJ}.data" /
                                                                                       "mask.png")))
     return setup
-
-
-def _nan_inside(n: np.ndarray) -> np.ndarray:
-    n = n.copy()
-    ys, xs = np.nonzero(np.any(n != 0, axis=-1))
-    n[ys[0], xs[0]] = np.nan
-    return n
 
 
 ROWS += [

@@ -175,10 +175,11 @@ def verify_object(out_dir: Path, entry: dict) -> str | None:
     if not folder.is_dir():
         return f"its folder {folder.name!r} is missing"
     files = entry.get("files") or {}
-    link = next((p for p in folder.rglob("*") if p.is_symlink()), None)
+    found = list(folder.rglob("*"))
+    link = next((p for p in found if p.is_symlink()), None)
     if link is not None:  # never written by a run: the link may lead to any file of the machine
         return f"{str(link.relative_to(folder))!r} is a link (to {os.readlink(link)!r}), not a file the run wrote"
-    on_disk = {str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file()}
+    on_disk = {str(p.relative_to(folder)) for p in found if p.is_file()}
     if on_disk != set(files):
         first = sorted(on_disk ^ set(files))[0]
         return (f"files differ from the manifest ({len(on_disk ^ set(files))} added or missing, the first "

@@ -69,6 +69,7 @@ EXPECTED_ERROR_FILES = ("expected_error_deg.npy", "expected_error_deg.exr", "exp
 """A prediction's expected angular error (`unips.expected_error`): float32 (H, W) degrees, NaN outside the mask, as
 NumPy and EXR arrays, and a picture; PREDICTION_INFO's `expected_error_deg` holds its mean and 80 % interval."""
 
+
 def stated_error(record) -> dict | None:
     """PREDICTION_INFO's `expected_error_deg` read back: {"mean": m, "interval_80": [lo, hi]} of finite numbers, 0 <=
     lo <= hi, as `unips.expected_error.Stated.summary` writes it; None for anything else (an edited record, or one
