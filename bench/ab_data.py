@@ -34,7 +34,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench.cli_common import check_work, need_path, parse, run_main  # noqa: E402
+from bench.cli_common import check_work, need_path, parse, refusals, run_main  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
 from scenes.cli.options import REQUIRED, CommaList, Command, arg, check_fields, option  # noqa: E402
 from scenes.files import read_figures, read_json, read_text_file, reading_record, write_json  # noqa: E402
@@ -53,6 +53,9 @@ ARM_DATA = {
 }
 """The arms (--arms): what each trains on."""
 LEVELS = 5
+DILIGENT_OBJECTS = ("ball", "cat")
+"""The DiLiGenT objects every arm is scored on (the table's and the card's columns)."""
+CARD_PATH = ROOT / "unips" / "weights" / "model_card.json"
 """The `new` arm's objects are split over the complexity levels 1-5 (one fifth each)."""
 
 
@@ -66,8 +69,9 @@ def run(argv: list[str], label: str) -> None:
 
 
 def make(out: Path, flags: list[str], label: str) -> Path:
-    if not (out / "manifest.json").is_file() or any(out.glob(".tmp_*")):
-        run(["wildgen.make", "--out", str(out), *BASE, *flags], label)
+    # always run: wildgen.make resumes an interrupted set (its manifest is written first) and returns at once when
+    # every object is complete
+    run(["wildgen.make", "--out", str(out), *BASE, *flags], label)
     return out
 
 
@@ -113,6 +117,10 @@ class Options:
     entry, from which the docs' A/B table is generated"""
     tag: str = ""
     """suffix of the run folders and result names (several settings in one WORK)"""
+    diligent: Annotated[Path, arg(metavar="DIR", help_behavior_hint="(default: ../shared/data/diligent)")] = (
+        ROOT.parent / "shared" / "data" / "diligent"
+    )
+    """DiLiGenT folder holding ballPNG and catPNG with their ground truth (scored raw, K = 96 and 16)"""
 
     def validate(self) -> "Options":
         import math
@@ -138,8 +146,17 @@ COMMAND = Command(Options, prog="python bench/ab_data.py", description=__doc__.s
 
 def before_work(args: Options) -> None:
     """What the command line names on disk, checked before any work (each refusal one line)."""
-    check_work(args.work, inputs={"--assets": args.assets})
+    check_work(args.work, inputs={"--assets": args.assets, "--diligent": args.diligent})
     need_path(args.assets, "--assets", "the asset library (meshes, HDR maps, textures)")
+    need_path(args.diligent, "--diligent", "a DiLiGenT folder holding ballPNG and catPNG")
+    lacking = [f"{k}PNG" for k in DILIGENT_OBJECTS if not (args.diligent / f"{k}PNG").is_dir()]
+    if lacking:
+        with refusals():
+            raise UsageError(f"--diligent: {str(args.diligent)!r} holds no {', '.join(lacking)}; expected a DiLiGenT "
+                             "folder holding ballPNG and catPNG (the A/B scores both)")
+    if args.record:
+        with refusals():
+            check_card_ab(args)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -240,9 +257,9 @@ def main(argv: list[str] | None = None) -> int:
         net = load_network(weights)
         r = {"weights": str(weights), "fixed_validation": score_set(net, val),
              "new_kinds": [score_set(net, f) for f in newval]}
-        dil = diligent_table(ROOT.parent / "shared" / "data" / "diligent", net, None, None)
+        dil = diligent_table(args.diligent, net, None, None)
         r["diligent"] = {k: {"k96_deg": v["methods"]["model"]["mae_deg"], "k16_deg": v["model_subsets"]["mean"]}
-                         for k, v in dil.items()}
+                         for k, v in dil.items() if k in DILIGENT_OBJECTS}
         r["seconds"] = time.perf_counter() - t0
         results[name] = r
         write_json(results_path, results, indent=1)
@@ -269,12 +286,28 @@ def _table_row(name: str, r: dict) -> str:
     return f"{name:10s} " + " ".join(f"{v:{n}.2f}" for v, n in zip(figures, widths))
 
 
+def check_card_ab(args: Options) -> None:
+    """With --record, before any work: the model card is readable, and an A/B it already holds was measured with
+    this run's --steps and --objects (its arms and this run's share one table; another budget would mix two)."""
+    with reading_record(CARD_PATH, "a model card", "restore it (git checkout)", flag="--record"):
+        card = read_figures(CARD_PATH)
+        if not isinstance(card, dict) or not isinstance(card.get("lineage"), list):
+            raise ValueError("expected an object with a lineage list")
+        ab = card.get("data_ab")
+        if ab is not None and not (isinstance(ab, dict) and isinstance(ab.get("results"), dict)):
+            raise ValueError("its data_ab is not an object with results per arm")
+    if ab and (ab.get("steps"), ab.get("objects")) != (args.steps, args.objects):
+        raise UsageError(f"--record: the model card's A/B holds arms {', '.join(ab['results'])} measured with --steps "
+                         f"{ab.get('steps')} --objects {ab.get('objects')}; this run's --steps {args.steps} --objects "
+                         f"{args.objects} would mix two budgets in one table: run with those, or without --record")
+
+
 def record(results: dict, w: Path, args) -> None:
     """Append each arm's run to the model card's lineage (not shipped: none of them is compared for shipping
     here) and the A/B scores to `data_ab`."""
     from scenes.files import write_json
 
-    card_path = ROOT / "unips" / "weights" / "model_card.json"
+    card_path = CARD_PATH
     with reading_record(card_path, "a model card", "restore it (git checkout)"):
         card = read_json(card_path)
         shipped_stage = next((s["stage"] for s in reversed(card["lineage"]) if s.get("shipped") is not False
@@ -320,9 +353,11 @@ def record(results: dict, w: Path, args) -> None:
             "best_step": vals[-1]["step"] if vals else None, "curve": curve,
             "per_family_at_best": families,
         })
+    # arms an earlier WORK recorded with the same budget stay beside this run's (check_card_ab refused another budget)
+    kept = dict((card.get("data_ab") or {}).get("results") or {})
+    kept.update({k: {a: v[a] for a in ("fixed_validation", "new_kinds", "diligent")} for k, v in results.items()})
     card["data_ab"] = {"protocol": __doc__.split("\n\n")[1].strip(), "steps": args.steps, "objects": args.objects,
-                       "results": {k: {a: v[a] for a in ("fixed_validation", "new_kinds", "diligent")}
-                                   for k, v in results.items()}}
+                       "results": kept}
     write_json(card_path, card, indent=1)
     print(f"recorded {len(results) - 1} runs in {card_path}")
 

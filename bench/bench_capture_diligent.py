@@ -71,8 +71,17 @@ def run_case(obj, source: Path, case: str, work: Path) -> dict:
 
     name = f"{source.name.removesuffix('PNG')}_{case}"
     photos, out, mask_file = work / name / "photos", work / name / "out", work / name / "mask.png"
-    if not photos.is_dir():
-        _photos(obj, photos, case, source)
+    if not photos.is_dir():  # written whole under a temporary name: an interrupted run leaves no partial set
+        part = photos.with_name("photos.part")
+        if part.exists():
+            shutil.rmtree(part)  # this bench's own, left by a stopped run
+        part.mkdir(parents=True)
+        try:
+            _photos(obj, part, case, source)
+        except BaseException:  # a stop or a failure: nothing half-written stays behind
+            shutil.rmtree(part, ignore_errors=True)
+            raise
+        part.rename(photos)
     write_mask(mask_file, obj.mask)
     mask_arg = "auto" if case == "jpeg_auto" else str(mask_file)
     t0 = time.perf_counter()

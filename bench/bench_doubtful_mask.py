@@ -46,7 +46,7 @@ sys.path.insert(0, str(REPO))  # this tree's toolkit, not another checkout's ins
 
 from bench.cli_common import check_suites, claim_result, need_path, parse, refusals, run_main, write_result  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
-from scenes.cli.options import Command, UseAppendAction, arg  # noqa: E402
+from scenes.cli.options import Command, UseAppendAction, arg, option  # noqa: E402
 from scenes.files import read_figures, read_json, reading_record  # noqa: E402
 
 GROWN = (0.15, 0.3, 0.5)
@@ -169,7 +169,7 @@ class Options:
     """a wildgen.make dataset (repeatable)"""
     out: Annotated[Path | None, arg(metavar="FILE")] = None
     """write every row as JSON here"""
-    seed: int = 0
+    seed: int = option(0, minimum=0)
     """seed of the cushions' fabric texture"""
     cushions: bool = True
     """also paint lit cushions under each object (module doc); off for suites rendered with `--floor`, whose
@@ -265,7 +265,8 @@ def main(argv: list[str] | None = None) -> int:
                                  "--rows-from FILE")
         check_suites(args.suite)
     claim_result(args.out, RESULT_KEYS, COMMAND)
-    if claim_result(args.record, RECORD_KEYS, COMMAND, "--record"):
+    # the record is signed apart from --out's rows (both hold 'rows'): neither is ever taken for the other
+    if claim_result(args.record, RECORD_KEYS, f"{COMMAND.prog} --record", "--record"):
         _recorded_runs(args.record)  # read now, not after the measurement
     rng = np.random.default_rng(args.seed)
     rows: list[dict] = _earlier_rows(args.rows_from) if args.rows_from else []

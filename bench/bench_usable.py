@@ -189,7 +189,11 @@ def true_max_polar(scene: dict) -> float:
                 return 180.0
             else:
                 continue
-            worst = max(worst, float(np.degrees(np.arccos(np.clip(d[2] / np.linalg.norm(d), -1, 1)))))
+            length = float(np.linalg.norm(d))
+            if not (np.isfinite(length) and length > 0):  # read inside reading_record: one line naming the scene
+                raise ValueError(f"a {kind} light's {'direction' if kind == 'directional' else 'position'} is "
+                                 f"{d.tolist()}; expected a finite vector of non-zero length")
+            worst = max(worst, float(np.degrees(np.arccos(np.clip(d[2] / length, -1, 1)))))
     return worst
 
 

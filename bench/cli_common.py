@@ -180,10 +180,11 @@ def check_work(path: str | os.PathLike | None, flag: str = "--work",
     `inputs` (flag -> path: a split or a render written into the asset library). Creates nothing."""
     if path is None:
         return
-    from scenes.cli.outputs import check_apart, check_no_holder_above, check_output_folder
+    from scenes.cli.outputs import check_apart, check_no_holder_above, check_not_being_written, check_output_folder
 
     with refusals():
         check_output_folder(path, flag)
+        check_not_being_written(path, flag)  # a folder wildgen.make (or another bench's step) is writing now
         check_no_holder_above(path, flag)  # inside a folder another run writes, the two runs' files would mix
         check_apart(path, {k: v for k, v in (inputs or {}).items() if v not in (None, "none")}, flag)
 

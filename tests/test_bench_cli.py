@@ -255,6 +255,8 @@ def places(tmp_path):
     ball.mkdir(parents=True)
     for name in ("001.png", "light_directions.txt", "mask.png", "Normal_gt.png"):
         (ball / name).write_bytes(b"")
+    for name in ("ballPNG", "catPNG"):  # a folder that names both objects (ab_data's check before any work)
+        (tmp_path / "both" / name).mkdir(parents=True)
     return tmp_path
 
 
@@ -308,6 +310,14 @@ BAD = [
     ("learning_curve", ["--card", "{t}/user.json"], ["--card: got ", "user.json", "expected a model card"]),
     ("ab_data", ["--work", "{t}/file.txt", "--objects", "5"], ["--work: ", "existing file"]),
     ("ab_data", ["--work", "{t}/w", "--arms", "bogus"], ["--arms: got 'bogus', expected one of today, new, sensor"]),
+    ("ab_data", ["--work", "{t}/w", "--assets", "{t}/folder", "--diligent", "{t}/no_diligent"],
+     ["--diligent: ", "no_diligent", "does not exist"]),
+    ("ab_data", ["--work", "{t}/w", "--assets", "{t}/folder", "--diligent", "{t}/diligent"],
+     ["--diligent: ", "holds no catPNG"]),
+    ("ab_data", ["--work", "{t}/w", "--assets", "{t}/folder", "--diligent", "{t}/both", "--record", "--steps", "7"],
+     ["--record: the model card's A/B holds arms", "this run's --steps 7", "mix two budgets"]),
+    ("bench_doubtful_mask", ["--suite", "{t}/empty_suite", "--seed", "-1"],
+     ["--seed: got -1, expected an integer >= 0"]),
     ("bench_capture_diligent", ["--data", "{t}/diligent", "--objects", "nosuchPNG", "--work", "{t}/w", "--out",
                                 "{t}/r.json"], ["--data: ", "nosuchPNG", "does not exist"]),
     ("bench_capture_trees", ["--baseline", "no-such-revision", "--objects", ""], ["--objects: got ''"]),
@@ -423,6 +433,68 @@ def test_a_result_is_never_written_inside_a_held_folder_or_an_input(tmp_path, ca
     with pytest.raises(SystemExit) as stop:
         claim_result(tmp_path / "suite" / "r.json", ("rows",), "bench", inputs={"--suite": tmp_path / "suite"})
     assert stop.value.code == 2 and "lies inside --suite" in capsys.readouterr().err
+
+
+def test_a_work_folder_another_run_is_writing_is_refused(tmp_path, capsys):
+    """check_work refuses a --work that another run holds (wildgen.make rendering into it): the bench's split and
+    steps would write among that run's files. One line naming the flag; nothing is created."""
+    import os
+
+    from scenes.files import folder_lock
+
+    held = tmp_path / "held"
+    held.mkdir()
+    fd = folder_lock(held)
+    try:
+        with pytest.raises(SystemExit) as stop:
+            _module("cli_common").check_work(held, "--work")
+    finally:
+        os.close(fd)
+    assert stop.value.code == 2 and "--work: " in (err := capsys.readouterr().err) and "another run" in err, err
+    assert os.listdir(held) == []
+    _module("cli_common").check_work(held, "--work")  # released: accepted
+
+
+def test_the_widest_light_angle_of_a_scene_and_a_light_of_no_direction():
+    """bench_usable's truth: the largest angle between the view (+z) and a light, from the object's centre; a
+    directional light points from the light (its direction is negated). A light of zero length has no direction:
+    refused (a ValueError the reader reports naming --suite and scene.json), never a NaN truth."""
+    polar = _module("bench_usable").true_max_polar
+    scene = {"images": [{"lights": [{"type": "directional", "direction": [0.0, 0.0, -1.0]}]},
+                        {"lights": [{"type": "point", "position": [1.0, 0.0, 1.0]}]}]}
+    assert polar(scene) == pytest.approx(45.0)
+    scene["images"][1]["lights"][0]["position"] = [0.0, 0.0, 0.0]
+    with pytest.raises(ValueError, match=r"point light's position is \[0.0, 0.0, 0.0\]"):
+        polar(scene)
+
+
+def test_ab_data_record_keeps_the_arms_another_work_recorded(tmp_path, monkeypatch, capsys):
+    """--record adds this WORK's arms to the card's A/B table of the same budget: the arms recorded earlier (from
+    other WORK folders) stay, and the new arm's training is appended to the lineage once."""
+    import json
+    import shutil
+    from types import SimpleNamespace
+
+    ab = _module("ab_data")
+    card = tmp_path / "model_card.json"
+    shutil.copyfile(ab.CARD_PATH, card)
+    monkeypatch.setattr(ab, "CARD_PATH", card)
+    before = json.loads(card.read_text())
+    run = tmp_path / "w" / "run_today_lr9"
+    run.mkdir(parents=True)
+    val = {"probes": {"all": 20.0, "mask": 30.0}, "gain": 10.0,
+           "families": {"directional": {"mean": {"all": 20.0}, "gain": 10.0, "n": 2}}}
+    (run / "log.jsonl").write_text(json.dumps({"step": 1, "loss": 1.0, "elapsed_s": 36.0}) + "\n"
+                                   + json.dumps({"step": 1, "val": val}) + "\n")
+    scores = {"fixed_validation": {"mean_deg": 20.0, "gain_deg": 10.0}, "new_kinds": [{"mean_deg": 25.0}] * 2,
+              "diligent": {"ball": {"k96_deg": 5.0, "k16_deg": 6.0}, "cat": {"k96_deg": 9.0, "k16_deg": 10.0}}}
+    args = SimpleNamespace(steps=before["data_ab"]["steps"], objects=before["data_ab"]["objects"], threads=1)
+    ab.check_card_ab(args)
+    ab.record({"shipped": scores, "today_lr9": scores}, tmp_path / "w", args)
+    after = json.loads(card.read_text())
+    assert set(after["data_ab"]["results"]) == set(before["data_ab"]["results"]) | {"today_lr9"}
+    assert after["data_ab"]["results"]["today_lr9"] == scores
+    assert [s["stage"] for s in after["lineage"][len(before["lineage"]):]] == ["data A/B: today, lr 9 (not shipped)"]
 
 
 def test_a_file_saved_at_out_during_the_run_is_kept(tmp_path, monkeypatch):
@@ -551,6 +623,25 @@ def test_a_result_of_another_bench_is_never_replaced(tmp_path, capsys):
     err = capsys.readouterr().err
     assert stop.value.code == 2 and "was written by python bench/bench_capture.py" in err, err
     assert cli.claim_result(out, ("rows",), "python bench/bench_capture.py") == out  # its own: replaced
+
+
+@pytest.mark.parametrize("result", sorted(p.name for p in (ROOT / "bench" / "results").glob("*.json")))
+def test_a_committed_result_names_its_bench_and_no_other_bench_replaces_it(result, tmp_path, capsys):
+    """Every committed result says which bench wrote it, a script that exists: a copy given to another bench's
+    --out (or to bench_doubtful_mask's --out, for its --record file) is refused, never replaced."""
+    import json
+    import shutil
+
+    writer = json.loads((ROOT / "bench" / "results" / result).read_text())["written_by"]
+    script = writer.split()[1]
+    assert writer.startswith("python bench/") and (ROOT / script).is_file(), writer
+    copy = tmp_path / result
+    shutil.copyfile(ROOT / "bench" / "results" / result, copy)
+    other = ("python bench/bench_doubtful_mask.py" if script != "bench/bench_doubtful_mask.py" or "--record" in writer
+             else "python bench/bench_capture.py")
+    with pytest.raises(SystemExit) as stop:
+        _module("cli_common").claim_result(copy, ("rows",), other)
+    assert stop.value.code == 2 and f"was written by {writer}" in capsys.readouterr().err
 
 
 def test_a_relative_path_is_the_folder_the_bench_was_started_in(tmp_path, monkeypatch):

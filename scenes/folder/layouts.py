@@ -327,6 +327,22 @@ def finish_normals(n: np.ndarray, mask: np.ndarray, path: Path) -> np.ndarray:
     return out.astype(np.float32)
 
 
+def check_read_normals(normals: np.ndarray | None, mask: np.ndarray, where: str) -> None:
+    """Normals (H, W, 3) as `finish_normals` leaves them, stored elsewhere (a decoded shard; None: none stored): unit
+    inside `mask` or zero where the truth is missing, zero outside; anything else is a ValueError naming `where`.
+    Mask pixels without a normal are warned of as the folder reader does (an object without any still loads, by
+    the reader's rule too)."""
+    if normals is None:
+        return
+    length = np.linalg.norm(normals.astype(np.float64), axis=-1)
+    inside = length[mask]
+    if not (np.isfinite(length).all() and (length[~mask] == 0).all() and (abs(inside - 1) <= 1e-3)[inside != 0].all()):
+        raise ValueError(f"{where} holds vectors neither of unit length nor zero")
+    missing = int(np.sum(inside == 0))
+    if missing:
+        log.warning("%s: %d mask pixels have no ground-truth normal", where, missing)
+
+
 def _recorded_sensor(folder: Path, scene: dict | None, num_images: int):
     """The sensor an object folder of ours records in its scene.json (parsed: `scene`; None when absent or
     `ideal`)."""

@@ -229,7 +229,7 @@ def decode_folder(files: dict[str, bytes], folder: Path):
     import numpy as np
 
     from scenes.camera_sensor import Sensor
-    from scenes.folder.layouts import FolderData, Lights
+    from scenes.folder.layouts import FolderData, Lights, check_read_normals
     from scenes.images import CODE_SCALES, codes_to_linear
 
     def array(name: str, required: bool, dtypes: tuple, shape: tuple):
@@ -273,10 +273,10 @@ def decode_folder(files: dict[str, bytes], folder: Path):
         if any(v is not None and (v.ndim != 2 or v.shape[1] != 3 or not np.isfinite(v).all()) for v in vectors):
             raise ValueError("lights: expected (N, 3) finite directions and intensities")
         normals = array("normals", False, f32, (h, w, 3))  # as the reader leaves them: unit in the mask, else zero
-        length = None if normals is None else np.linalg.norm(normals.astype(np.float64), axis=-1)
-        if length is not None and not (np.isfinite(length).all() and (length[~mask] == 0).all()
-                                       and (np.abs(length[mask] - 1) <= 1e-3)[length[mask] != 0].all()):
-            raise _MemberError(f"{folder}: member {DECODED}.normals.npy holds vectors neither of unit length nor zero")
+        try:
+            check_read_normals(normals, mask, f"{folder}: member {DECODED}.normals.npy")
+        except ValueError as exc:
+            raise _MemberError(str(exc)) from None
 
         def file(name):
             return None if name is None else folder / str(name)
