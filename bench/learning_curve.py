@@ -155,6 +155,8 @@ def card_table(card: dict, target: float) -> str:
             hrs, ratio = "reached", "-"
         elif b <= 0:
             hrs, ratio = "never (no decrease)", "-"
+        elif (a - need) / b > 60:  # over 2^60 hours: a slope this flat reaches the target never in practice
+            hrs, ratio = "over 1e18", "-"
         else:
             hn = 2 ** ((a - need) / b)
             hrs, ratio = f"{hn:.0f}", f"{hn / h[-1]:.0f}"

@@ -84,6 +84,15 @@ def capture_diligent(card: dict) -> str:
                               "held-out residual", "time (s)", "peak (MiB)"], rows))
 
 
+def _names(record: dict, key: str) -> str:
+    """A record's list of names (suites, warning codes) joined for a table cell; anything else is a ValueError (a
+    text would be joined letter by letter)."""
+    names = record[key]
+    if not (isinstance(names, list) and all(isinstance(n, str) for n in names)):
+        raise ValueError(f"{key} is {names!r}; expected a list of names")
+    return ", ".join(names)
+
+
 LIGHT_WARNINGS_BENCH = REPO / "bench" / "results" / "light_warnings.json"
 """The output of `python bench/bench_light_warnings.py ... --out bench/results/light_warnings.json` (committed)."""
 
@@ -94,8 +103,8 @@ def light_warnings(card: dict) -> str:
     d = read_bench(LIGHT_WARNINGS_BENCH)
     rendered = [[r["captures"], str(r["count"]), str(r["agree"]), "-" if r["share"] is None else f"{r['share']:.1%}"]
                 for r in d["rows"] if "captures" in r]
-    real = [[r["real"], f"{r['capture']} ({r['photos']})", ", ".join(r["truth"]) or "none",
-             ", ".join(r["said"]) or "none"] for r in d["rows"] if "real" in r]
+    real = [[r["real"], f"{r['capture']} ({r['photos']})", _names(r, "truth") or "none", _names(r, "said") or "none"]
+            for r in d["rows"] if "real" in r]
     return (f"`{d['command']}`:\n\n" + markdown_table(["captures", "count", "agree", "share"], rendered)
             + "\n\nReal captures with measured lights:\n\n"
             + markdown_table(["capture", "photos", "the true lights call for", "said"], real))
@@ -109,7 +118,7 @@ def doubtful_mask(card: dict) -> str:
     """Per recorded run: how many automatic masks were refused, good, doubted or silent below the IoU of a good one,
     then the silent ones of the runs without painted cushions."""
     d = read_bench(DOUBTFUL_MASK_BENCH)
-    rows = [[", ".join(r["suites"]) + (" (painted cushions)" if r["cushions"] else ""), str(r["masks"]),
+    rows = [[_names(r, "suites") + (" (painted cushions)" if r["cushions"] else ""), str(r["masks"]),
              str(r["refused"]), str(r["good"]), str(r["good_doubted"]), str(r["below_doubted"]), str(r["below_silent"])]
             for r in d["rows"]]
     silent = [f"{s['object']} ({s['iou']:.2f})" for r in d["rows"] if not r["cushions"] for s in r["silent"]]
@@ -203,7 +212,7 @@ def verdict_sweep(card: dict) -> str:
              f"{r['trusted']}", f"**{r['false_trust']}**" if r["false_trust"] else "0",
              f"{r['false_trust_told_apart']}", f"{r['needless_abstention']}"] for r in d["rows"]]
     return (f"Measured on {n} rendered captures ({families}; `{d['command']}`, {d['seconds']['total']:.0f} s on "
-            f"{d['machine']['cpus']} busy cores), each map fitted once ({', '.join(st['maps'])}; the wrong maps "
+            f"{d['machine']['cpus']} busy cores), each map fitted once ({_names(st, 'maps')}; the wrong maps "
             f"are those at least 10 degrees off{', here all but the truth' if every else ''}), one constant changed at "
             "a time, the others at their defaults:\n\n"
             + markdown_table(["constant", "value", f"trusted (of {n})",
@@ -277,7 +286,7 @@ def expected_error(card: dict) -> str:
              f"**{r['hit_share']:.2f}**", f"**{r['coverage']:.2f}**",
              "-" if r["ause_ratio"] is None else f"{r['ause_ratio']:.3f}"] for r in d["rows"]]
     rises = ", ".join(f"{k.replace('_', ' ')} {v:.0%}" for k, v in o["stated_rises_share"].items())
-    return (f"Measured on {o['objects']} held-out renders ({', '.join(d['suite'])}; {d['objects_per_row']} objects "
+    return (f"Measured on {o['objects']} held-out renders ({_names(d, 'suite')}; {d['objects_per_row']} objects "
             f"each, {d['assets']} assets, seed {d['seed']}; `{d['command']}`), the error model fitted on "
             f"{d['error_model']['calibration']['objects']} renders of the training assets. Hit: {d['hit_rule']}. "
             "Coverage: the 80 % interval holds the true mean (target 0.70-0.90). Sparsification ratio: the area "

@@ -671,6 +671,25 @@ def test_learning_curve_reads_the_card_ship_writes(tmp_path):
     assert proc.returncode == 0 and "| GPU relay run" in proc.stdout, proc.stderr
 
 
+def test_learning_curve_says_a_flat_trend_reaches_the_target_never_in_practice(tmp_path):
+    """Three stages whose error falls by 1e-8 deg: the hours to the target overflow a float; the table says so
+    ('over 1e18'), never calling the card damaged (sweep 18's re-run: 'not a model card ... OverflowError')."""
+    import json
+    import subprocess
+
+    def stage(name, error):
+        return {"stage": name, "hours": 1, "steps": 100, "data": "d", "fixed_validation": {"all": error, "gain": 1.0},
+                "per_family_at_best": {"directional": {"all": error}}}
+
+    card = {"lineage": [stage("s1", 20.0), stage("s2", 19.99999999), stage("s3", 19.99999998)]}
+    (tmp_path / "c.json").write_text(json.dumps(card))
+    script = str(ROOT / "bench" / "learning_curve.py")
+    proc = subprocess.run([sys.executable, script, "--card", str(tmp_path / "c.json")], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0 and "| directional | 20.00 | 0.00 |" in proc.stdout, proc.stderr
+    assert "| over 1e18 |" in proc.stdout, proc.stdout
+
+
 def test_a_pipe_given_for_a_recorded_file_is_said_as_such(tmp_path, capsys):
     """need_path said 'is a folder' of a named pipe (sweep 18); it names what the path is, never opening it."""
     import os

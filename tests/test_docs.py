@@ -561,3 +561,26 @@ def test_a_model_card_of_another_shape_is_one_line_naming_it(edit, tmp_path):
     with pytest.raises(docs.UsageError) as err:
         docs.run(True, card_path=path)
     assert str(path) in str(err.value) and "not a model card" in str(err.value) and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("constant,block,edit", [
+    ("DOUBTFUL_MASK_BENCH", "capture:doubtful-mask", lambda d: d["rows"][0].__setitem__("suites", "plain")),
+    ("LIGHT_WARNINGS_BENCH", "capture:light-warnings",
+     lambda d: next(r for r in d["rows"] if "real" in r).__setitem__("truth", "frontal_light")),
+], ids=["doubtful-mask-suites-a-text", "light-warnings-truth-a-text"])
+def test_a_list_of_names_given_as_one_text_is_named_not_spelled_out(constant, block, edit, tmp_path, monkeypatch):
+    """Sweep 18: a record's suites or warning codes given as one text were joined letter by letter into the docs
+    ('p, l, a, i, n'), exit 0; now one line naming the file and the field."""
+    import json
+
+    from orchestrate import bench_docs, docs
+
+    data = json.loads(getattr(bench_docs, constant).read_text())
+    edit(data)
+    bad = tmp_path / "result.json"
+    bad.write_text(json.dumps(data))
+    monkeypatch.setattr(bench_docs, constant, bad)
+    monkeypatch.setitem(docs.BENCH_BLOCKS, block, bad)
+    with pytest.raises(docs.UsageError) as err:
+        docs.run(True)
+    assert str(bad) in str(err.value) and "expected a list of names" in str(err.value), err.value

@@ -125,6 +125,49 @@ def test_the_terminal_ctrl_c_reaches_only_the_supervisor_and_a_kill_of_it_takes_
     assert not _alive(child)
 
 
+OUTER = """
+import os, subprocess, sys, time
+from pathlib import Path
+from scenes.cli.supervise import run_supervised
+
+def main():
+    out = Path(sys.argv[sys.argv.index("--out") + 1])
+    # a step started plainly (as the benches start theirs), itself a supervised command
+    step = subprocess.Popen([sys.executable, "-m", "slowwork", "--out", str(out / "step")])
+    (out / "step_supervisor").write_text(str(step.pid))
+    (out / "pid").write_text(str(os.getpid()))
+    time.sleep(120)
+    return 0
+
+if __name__ == "__main__":
+    sys.exit(run_supervised("outer", main, "interrupted"))
+"""
+
+
+def test_a_step_of_a_work_killed_outright_is_no_orphan(slow_command):
+    """A supervised command started as a step of another one's work (a bench's wildgen.make) dies with that work
+    when the work is killed outright (kill -9 of its supervisor, the out-of-memory killer): it never goes on writing
+    as an orphan (sweep 18: a wildgen.make rendered on into --work minutes after its bench was killed)."""
+    cmd, out, env = slow_command
+    mods = Path(env["PYTHONPATH"].split(os.pathsep)[0])
+    (mods / "outer.py").write_text(textwrap.dedent(OUTER))
+    (out / "step").mkdir()
+    proc = subprocess.Popen([sys.executable, "-m", "outer", "--out", str(out)], cwd=REPO, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=interruptible)
+    t0 = time.monotonic()
+    while not (out / "step" / "started").exists():
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() - t0 < 60
+        time.sleep(0.05)
+    pids = [int((out / name).read_text()) for name in ("pid", "step_supervisor", "step/pid", "step/step_pid")]
+    proc.kill()
+    proc.communicate(timeout=30)
+    t0 = time.monotonic()
+    while any(map(_alive, pids)) and time.monotonic() - t0 < 10:
+        time.sleep(0.05)
+    assert not any(map(_alive, pids)), [p for p in pids if _alive(p)]
+
+
 def test_the_child_exit_status_passes_through(tmp_path):
     mod = tmp_path / "m"
     mod.mkdir()

@@ -102,6 +102,8 @@ def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTE
     if os.environ.get(CHILD) == str(os.getppid()):
         die_with_parent(os.getppid())
         return main()
+    if os.environ.get(CHILD):  # a step another command's work started (a bench's wildgen.make): it ends with that
+        die_with_parent(os.getppid())  # work, killed outright too (kill -9, out of memory), never an orphan writing on
     argv = sys.argv[1:] if argv is None else argv
     stop: dict[str, int] = {}
     children: list[subprocess.Popen] = []
