@@ -329,9 +329,26 @@ def _exr_channels(path: Path) -> dict[str, np.ndarray]:
         raise FileNotFoundError(f"EXR file {str(path)!r} {why}")
     try:
         with OpenEXR.File(str(path), separate_channels=True) as f:
-            return {k: np.asarray(v.pixels, np.float32) for k, v in f.channels().items()}
+            windows = [tuple(map(tuple, np.asarray(f.header()[k]).tolist())) for k in ("dataWindow", "displayWindow")]
+            channels = {k: np.asarray(v.pixels, np.float32) for k, v in f.channels().items()}
     except Exception as exc:  # OpenEXR raises several types for corrupt files
         raise ValueError(f"cannot read EXR {str(path)!r}: {exc}") from exc
+    if windows[0] != windows[1]:  # its pixels would be taken as the frame's: shifted against every other file
+        raise ValueError(f"EXR {str(path)!r}: its data window {windows[0]} is not its display window {windows[1]}; "
+                         "expected pixels that fill the image's frame (save it uncropped)")
+    return _one_layer(channels, path)
+
+
+def _one_layer(channels: dict[str, np.ndarray], path: Path) -> dict[str, np.ndarray]:
+    """An EXR's channels by plain name (R, G, B, A, Y): a file of one layer (`beauty.R`, `beauty.G`, ... as
+    multilayer renderers write) is read as that layer; a file of several layers is refused (which one is meant?)."""
+    layers = {name.rpartition(".")[0] for name in channels}
+    if layers == {""}:
+        return channels
+    if len(layers) == 1:
+        return {name.rpartition(".")[2]: data for name, data in channels.items()}
+    raise ValueError(f"EXR {str(path)!r} holds several layers ({', '.join(sorted(n or '(none)' for n in layers))}); "
+                     "expected one image (R, G, B or one channel)")
 
 
 def read_exr(path: str | Path) -> np.ndarray:
@@ -428,12 +445,16 @@ def _read_mat(path: Path, arg: str = "normal map") -> np.ndarray:
     except Exception as exc:
         raise ValueError(f"{arg}: cannot read MAT file {path}: {exc}") from exc
     arrays = {k: v for k, v in data.items() if not k.startswith("__")}
-    for key in ("Normal_gt", "normal", "normals", "Normal_est", "N"):
-        if key in arrays:
-            return np.asarray(arrays[key], dtype=np.float32)
-    if len(arrays) == 1:
-        return np.asarray(next(iter(arrays.values())), dtype=np.float32)
-    raise ValueError(f"{arg}: MAT file {path} has no 'Normal_gt' key and several arrays {', '.join(sorted(arrays))}")
+    key = next((k for k in ("Normal_gt", "normal", "normals", "Normal_est", "N") if k in arrays),
+               next(iter(arrays)) if len(arrays) == 1 else None)
+    if key is None:
+        raise ValueError(f"{arg}: MAT file {path} has no 'Normal_gt' key and several arrays "
+                         f"{', '.join(sorted(arrays))}")
+    n = np.asarray(arrays[key])
+    if n.dtype.kind not in "fiu":  # complex, logical, a cell or a struct: no real vectors to take
+        raise ValueError(f"{arg}: MAT file {path}: array {key!r} holds {n.dtype} values; expected real numbers (the "
+                         "x, y, z of each pixel)")
+    return n.astype(np.float32)
 
 
 def read_normals(path: str | Path, arg: str = "normal map") -> np.ndarray:

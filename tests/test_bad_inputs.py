@@ -167,10 +167,10 @@ def _mk(p: Path) -> Path:
 
 
 def _bad_weights(w: Path, weights: Path, sidecar: dict) -> None:
-    """W/ck/{nan,inf,int64}.safetensors: the shipped weights with one value NaN or infinite, or one weight stored as
-    int64; W/run_int64/last.pt: a training checkpoint (its checksum rewritten to match) with an int64 weight;
-    W/pub_{nan,int64}: the published SDM-UniPS layout (normal/nml.pytmodel, keys `module.*`) of the tiny network,
-    one tensor NaN or int64."""
+    """W/ck/{nan,inf,int64,float8}.safetensors: the shipped weights with one value NaN or infinite, or one weight
+    stored as int64 or float8; W/run_int64/last.pt: a training checkpoint (its checksum rewritten to match) with an
+    int64 weight; W/pub_{nan,int64}: the published SDM-UniPS layout (normal/nml.pytmodel, keys `module.*`) of the
+    tiny network, one tensor NaN or int64."""
     import torch
     from safetensors.torch import load_file, save_file
 
@@ -186,6 +186,8 @@ def _bad_weights(w: Path, weights: Path, sidecar: dict) -> None:
         (w / "ck" / f"{tag}.json").write_text(json.dumps(sidecar))
     save_file({**good, name: (good[name] * 100).round().to(torch.int64)}, str(w / "ck" / "int64.safetensors"))
     (w / "ck" / "int64.json").write_text(json.dumps(sidecar))
+    save_file({**good, name: good[name].to(torch.float8_e4m3fn)}, str(w / "ck" / "float8.safetensors"))
+    (w / "ck" / "float8.json").write_text(json.dumps(sidecar))  # (isfinite has no float8 kernel: a traceback)
     raw = weights.read_bytes()  # W/ck/dup.safetensors: its header names one tensor twice (the same bytes)
     size = int.from_bytes(raw[:8], "little")
     entry = json.dumps({name: json.loads(raw[8:8 + size])[name]})[1:-1]
@@ -3135,6 +3137,9 @@ ROWS += [
                                     "--out", "{T}/p"], 2, ("nan.safetensors", "1 NaN"), check=_not_written("p")),
     Row("predict-weights-inf", PR, ["--method", "model", "--checkpoint", "{W}/ck/inf.safetensors", "--input", OBJDIR,
                                     "--out", "{T}/p"], 2, ("inf.safetensors", "1 infinite"), check=_not_written("p")),
+    Row("predict-weights-float8", PR, ["--method", "model", "--checkpoint", "{W}/ck/float8.safetensors", "--input",
+                                       OBJDIR, "--out", "{T}/p"], 2, ("float8.safetensors", "float8_e4m3fn",
+                                                                       "expected float16, bfloat16 or float32")),
     Row("predict-weights-int64", PR, ["--method", "model", "--checkpoint", "{W}/ck/int64.safetensors", "--input",
                                       OBJDIR, "--out", "{T}/p"], 2, ("int64.safetensors", "int64", "floating-point"),
         check=_not_written("p")),

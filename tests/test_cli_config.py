@@ -210,3 +210,43 @@ def test_the_file_systems_root_is_never_an_output_folder(tmp_path):
     for path in ("/", tmp_path / "root"):
         with pytest.raises(UsageError, match=r"^--out: .* is the file system's root; expected a folder of its own"):
             check_output_folder(path)
+
+
+@pytest.fixture
+def mounted_twice(tmp_path):
+    """(the folder, the same folder bind-mounted at another path); skipped where this process may not mount."""
+    import shutil
+    import subprocess
+
+    folder, alias = tmp_path / "data", tmp_path / "alias"
+    folder.mkdir()
+    alias.mkdir()
+    (folder / "input.txt").write_text("the user's input\n")
+    if shutil.which("mount") is None or subprocess.run(["mount", "--bind", str(folder), str(alias)],
+                                                       capture_output=True).returncode != 0:
+        pytest.skip("cannot bind-mount here (needs root)")
+    try:
+        yield folder, alias
+    finally:
+        subprocess.run(["umount", str(alias)], check=False)
+
+
+def test_an_output_inside_its_input_under_another_name_is_refused(mounted_twice):
+    """A bind mount makes one folder two paths that no link tells apart (sweep 19: sensor --overwrite through the
+    mount deleted its own input; predict and surface wrote into theirs). The output is compared with each input by
+    device and inode too, for the output folder and every existing folder above it."""
+    from scenes.cli.errors import UsageError
+    from scenes.cli.outputs import check_apart, output_lock
+
+    folder, alias = mounted_twice
+    for out in (alias, alias / "p", alias / "p" / "q"):
+        with pytest.raises(UsageError, match=r"^--out: .* --data .* under another name \(the same folder, "
+                                             r"mounted twice\)"):
+            check_apart(out, {"--data": folder})
+        with pytest.raises(UsageError, match="under another name"):
+            with output_lock(out, inputs={"--data": folder}):
+                pass
+    with pytest.raises(UsageError, match="is the folder --normals .* lies in"):  # beside an input file, by its mount
+        check_apart(alias, {"--normals": folder / "input.txt"})
+    assert sorted(p.name for p in folder.iterdir()) == ["input.txt"]  # nothing created in it
+    check_apart(folder.parent / "elsewhere", {"--data": folder})  # a folder apart: accepted

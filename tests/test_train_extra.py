@@ -265,3 +265,14 @@ def test_interior_crop_enters_batches_only_when_asked(train_dataset) -> None:
     assert torch.all(every.mask == 1)
     with pytest.raises(ValueError, match="--interior-crop"):
         TrainConfig(data="d", out="o", interior_crop=1.5).validate()
+
+
+def test_a_data_folder_whose_name_holds_a_comma_is_one_entry(tmp_path):
+    """--data separates datasets with commas; an existing folder named 'set,1' is that one folder (sweep 19: it was
+    split and '.../set' reported missing), while 'a,b' of two folders is two entries."""
+    from unips.train_data import data_roots
+
+    for name in ("set,1", "a", "b"):
+        (tmp_path / name).mkdir()
+    assert data_roots(tmp_path / "set,1") == [tmp_path / "set,1"]
+    assert data_roots(f"{tmp_path / 'a'},{tmp_path / 'b'}") == [tmp_path / "a", tmp_path / "b"]

@@ -298,6 +298,39 @@ def test_normal_exr_npy_mat_round_trip(tmp_path):
     assert vis.dtype == np.uint8 and np.all(vis[~mask] == 0)
 
 
+def test_exr_layers_windows_and_mat_kinds_are_read_as_what_they_hold(tmp_path):
+    """Sweep 19: an EXR of one layer (beauty.R/G/B, as multilayer renderers write) was read by sorted channel name
+    (blue as red); a data window shifted inside its display window was taken as the frame (the map 4 px off its
+    mask); a complex .mat lost its imaginary part with a ComplexWarning. Now the layer is R, G, B; the shifted
+    window and the complex map are refused naming the file."""
+    import OpenEXR
+    import scipy.io
+
+    from scenes.images import read_exr
+
+    n, _ = sphere(16)
+    n = n.astype(np.float32)
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    layer = {f"beauty.{c}": np.ascontiguousarray(n[..., i]) for i, c in enumerate("RGB")}
+    with OpenEXR.File(header, dict(layer)) as f:
+        f.write(str(tmp_path / "layer.exr"))
+    assert np.array_equal(read_normals(tmp_path / "layer.exr"), n)
+    assert np.array_equal(read_exr(tmp_path / "layer.exr"), n)
+    two = {**layer, "diffuse.R": layer["beauty.R"]}
+    with OpenEXR.File(header, dict(two)) as f:
+        f.write(str(tmp_path / "two.exr"))
+    with pytest.raises(ValueError, match=r"two.exr' holds several layers \(beauty, diffuse\)"):
+        read_exr(tmp_path / "two.exr")
+    shifted = {**header, "dataWindow": ((4, 4), (19, 19)), "displayWindow": ((0, 0), (15, 15))}
+    with OpenEXR.File(shifted, {c: np.ascontiguousarray(n[..., i]) for i, c in enumerate("RGB")}) as f:
+        f.write(str(tmp_path / "shifted.exr"))
+    with pytest.raises(ValueError, match=r"shifted.exr.*data window \(\(4, 4\), \(19, 19\)\) is not its display"):
+        read_normals(tmp_path / "shifted.exr", "--normals")
+    scipy.io.savemat(tmp_path / "c.mat", {"Normal_gt": n.astype(np.complex128)})
+    with pytest.raises(ValueError, match=r"^--normals: MAT file .*c.mat: array 'Normal_gt' holds complex128 values"):
+        read_normals(tmp_path / "c.mat", "--normals")
+
+
 def test_normal_io_bad_input(tmp_path):
     with pytest.raises(ValueError, match="shape"):
         write_normal_map(tmp_path / "a.png", np.zeros((4, 4)))

@@ -10,6 +10,7 @@ canonical grid and on random masked pixels. `probe_samples` is one validation: t
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
@@ -49,10 +50,13 @@ def to_tensors(images: np.ndarray, mask: np.ndarray, normals: np.ndarray | None
 
 def data_roots(data: str | Path, arg: str = "--data") -> list[Path]:
     """The entries of a --data value: one dataset directory or shard source (`unips.shard_data`), or several
-    separated by commas (commas inside a shard pattern's braces, {a,b}, do not separate)."""
+    separated by commas (commas inside a shard pattern's braces, {a,b}, do not separate; an existing path whose
+    name holds one is that one entry)."""
     from unips.shard_data import source_label
 
     parts, depth, start, text = [], 0, 0, str(data)
+    if "," in text and os.path.exists(text):  # one folder whose name holds a comma ('set,1'): taken whole
+        return [Path(text)]
     for i, c in enumerate(text + ","):
         depth += (c == "{") - (c == "}")
         if c == "," and depth <= 0:

@@ -34,6 +34,9 @@ def check_weights(state: Mapping[str, Any], source: str, expected: Mapping[str, 
             raise ValueError(f"{source}: tensor {key} is {_dtype(value)}, expected {_kind(own)} values (the model "
                              f"holds {_dtype(own)}): a damaged file, or not weights of this network")
         if value.is_floating_point() or value.is_complex():
+            if value.is_floating_point() and value.element_size() == 1:  # float8: no network of ours holds it
+                raise ValueError(f"{source}: tensor {key} is {_dtype(value)}, expected float16, bfloat16 or float32 "
+                                 "weights (8-bit floats are a lossy export, not weights to run)")
             finite = torch.isfinite(value)
             if not bool(finite.all()):
                 nan = int(torch.isnan(value).sum())
