@@ -45,14 +45,14 @@ def _ifd(entries: dict[int, tuple[int, list]], at: int) -> bytes:
 
 
 def write_dng(path, mosaic: np.ndarray, orientation: int = 1, exposure_s: float | None = None,
-              iso: int | None = None, neutral=NEUTRAL) -> None:
+              iso: int | None = None, neutral=NEUTRAL, white: int = WHITE) -> None:
     """A minimal uncompressed Bayer (RGGB) DNG 1.4 of `mosaic` (H, W) uint16 sensor values."""
     h, w = mosaic.shape
     ifd0 = {254: (4, [0]), 256: (4, [w]), 257: (4, [h]), 258: (3, [16]), 259: (3, [1]), 262: (3, [32803]),
             271: (2, "Test"), 272: (2, "Test Camera"), 273: (4, [0]), 274: (3, [orientation]), 277: (3, [1]),
             278: (4, [h]), 279: (4, [mosaic.size * 2]), 284: (3, [1]), 33421: (3, [2, 2]),
             33422: (1, [0, 1, 1, 2]), 34665: (4, [0]), 50706: (1, [1, 4, 0, 0]), 50707: (1, [1, 1, 0, 0]),
-            50708: (2, "Test Camera"), 50714: (4, [BLACK]), 50717: (4, [WHITE]),
+            50708: (2, "Test Camera"), 50714: (4, [BLACK]), 50717: (4, [white]),
             50721: (10, _rationals(np.linalg.inv(SRGB_TO_XYZ).ravel())), 50778: (3, [21])}
     if neutral is not None:
         ifd0[50728] = (5, _rationals(neutral))

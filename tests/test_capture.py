@@ -96,13 +96,14 @@ def test_a_png_says_its_own_curve(tmp_path, np_rng):
 
     codes16 = np_rng.integers(0, 65536, (2, 5, 7, 3), dtype=np.uint16)
     codes8 = np_rng.integers(0, 256, (2, 5, 7, 3), dtype=np.uint8)
-    folders = {name: tmp_path / name for name in ("srgb16", "linear8", "gamma07")}
+    folders = {name: tmp_path / name for name in ("srgb16", "linear8", "gamma07", "gamma0")}
     for i in range(2):
         for f in folders.values():
             f.mkdir(exist_ok=True)
         _png_with_chunk(folders["srgb16"] / f"{i}.png", codes16[i], b"sRGB", bytes([0]))
         _png_with_chunk(folders["linear8"] / f"{i}.png", codes8[i], b"gAMA", struct.pack(">I", 100000))
         _png_with_chunk(folders["gamma07"] / f"{i}.png", codes8[i], b"gAMA", struct.pack(">I", 70000))
+        _png_with_chunk(folders["gamma0"] / f"{i}.png", codes8[i], b"gAMA", struct.pack(">I", 0))  # a damaged chunk
     photos = read_photos(folders["srgb16"])
     assert photos.encoding == ["srgb"] * 2
     np.testing.assert_allclose(photos.images[0], srgb_to_linear(codes16[0] / 65535.0), atol=1e-5)
@@ -111,6 +112,8 @@ def test_a_png_says_its_own_curve(tmp_path, np_rng):
     with pytest.raises(ValueError, match=r"--input: .*0\.png' declares gamma 0\.7 .*--input-encoding"):
         read_photos(folders["gamma07"])
     assert read_photos(folders["gamma07"], "srgb").encoding == ["srgb"] * 2
+    with pytest.raises(ValueError, match=r"--input: .*0\.png' declares gamma 0\.0 \(invalid\)"):
+        read_photos(folders["gamma0"])
     mixed = tmp_path / "mixed"  # one file says sRGB, the other nothing (16-bit: linear)
     mixed.mkdir()
     _png_with_chunk(mixed / "0.png", codes16[0], b"sRGB", bytes([0]))

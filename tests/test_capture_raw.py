@@ -130,6 +130,8 @@ def test_bad_raw_folders_are_one_line_naming_the_flag_and_the_file(tmp_path, cap
     (tmp_path / "b.dng").write_bytes(blob[: len(blob) - 600])  # the pixels cut short
     refused(tmp_path, r"^--input: cannot read '.*b.dng' as a camera RAW file \(.*Unexpected end of file")
     assert capfd.readouterr().err == ""  # LibRaw's own complaint went into the one line, not to the terminal
+    write_dng(tmp_path / "b.dng", flat(500), white=200)  # no range above the black level (256): all would be 0
+    refused(tmp_path, r"^--input: '.*b.dng' says its white level 200 is at or below its black level 256")
     write_dng(tmp_path / "b.dng", flat(500))
     refused(tmp_path, r"^--input-encoding: got 'srgb' for camera RAW files \(a.dng, ...\)", "srgb")
     assert read_photos(tmp_path, "linear").images.shape == (2, H, W, 3)

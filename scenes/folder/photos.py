@@ -214,8 +214,10 @@ def _declared_curve(info: dict[str, Any]) -> str | None:
     if "srgb" in info:
         return "srgb"
     gamma = info.get("gamma")
-    if not isinstance(gamma, (int, float)) or not np.isfinite(gamma) or gamma <= 0:
+    if gamma is None:
         return None
+    if not isinstance(gamma, (int, float)) or not np.isfinite(gamma) or gamma <= 0:  # a damaged chunk is no curve
+        return f"gamma {gamma!r} (invalid)"
     if abs(gamma - 1.0) < 0.01:
         return "linear"
     return "srgb" if abs(gamma - 1 / 2.2) < 0.01 else f"gamma {gamma:.5g}"

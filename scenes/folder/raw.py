@@ -142,6 +142,10 @@ def read_raw(path: str | Path, flag: str = "--input"
 
     path, said = Path(path), []
     with _open(path, flag, said) as raw:
+        black = max(int(v) for v in raw.black_level_per_channel)
+        if int(raw.white_level) <= black:  # no range between dark and full: every developed value would be 0
+            raise ValueError(f"{flag}: {str(path)!r} says its white level {int(raw.white_level)} is at or below its "
+                             f"black level {black}; expected a RAW file whose white level lies above the black level")
         clipped = _oriented(_sensor_clipped(raw), raw.sizes.flip)
         failure = None
         with _libraw_said() as now:
