@@ -452,8 +452,10 @@ def _read_mat(path: Path, arg: str = "normal map") -> np.ndarray:
                          f"{', '.join(sorted(arrays))}")
     n = np.asarray(arrays[key])
     if n.dtype.kind not in "fiu":  # complex, logical, a cell or a struct: no real vectors to take
-        raise ValueError(f"{arg}: MAT file {path}: array {key!r} holds {n.dtype} values; expected real numbers (the "
-                         "x, y, z of each pixel)")
+        kind = {"c": f"{n.dtype} (complex) values", "O": "a cell array", "V": "a struct", "b": "logical values"}.get(
+            n.dtype.kind, f"{n.dtype} values")
+        raise ValueError(f"{arg}: MAT file {path}: {key!r} is {kind}; expected real numbers (the x, y, z of each "
+                         "pixel)")
     return n.astype(np.float32)
 
 

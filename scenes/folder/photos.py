@@ -266,7 +266,10 @@ def _read_one(path: Path, flag: str) -> tuple[np.ndarray, int, dict[str, Any]]:
     if path.suffix.lower() == ".exr":
         from scenes.images import read_exr
 
-        data = read_exr(path)  # (H, W, C): R, G, B when present, else its channels by name
+        try:
+            data = read_exr(path)  # (H, W, C): R, G, B (of its one layer) when present, else its channels by name
+        except ValueError as exc:
+            raise ValueError(f"{flag}: {exc}") from None
         if data.shape[2] not in (1, 3):
             raise ValueError(f"{flag}: {str(path)!r} is an EXR of {data.shape[2]} channels, expected one (grey) or "
                              "R, G and B")
