@@ -61,7 +61,7 @@ from scenes.cli.budget import process_start
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import Command, check_fields, option
 from scenes.cli.outputs import check_output_folder, output_lock
-from scenes.files import write_json
+from scenes.files import is_within, write_json
 
 SHARED_ASSETS = REPO.parent / "shared" / "assets"
 RUN = "run"
@@ -157,12 +157,10 @@ class SessionOptions:
                 raise ValueError("--out: required (the folder that comes back), or --pack DIR")
             check_output_folder(self.out)
             check_output_folder(self.work, "--work")
-            out, work = Path(self.out).resolve(), Path(self.work).resolve()
-            if out == work or out in work.parents or work in out.parents:  # the session's files would mix
+            if is_within(self.out, self.work) or is_within(self.work, self.out):  # the session's files would mix
                 raise ValueError(f"--work: {self.work!r} overlaps --out {self.out!r}; expected two separate folders "
                                  "(--out comes back whole, --work stays on the machine)")
-            carry = Path(self.carry).resolve() if self.carry else None
-            if carry is not None and (out == carry or out in carry.parents or carry in out.parents):
+            if self.carry and (is_within(self.out, self.carry) or is_within(self.carry, self.out)):
                 raise ValueError(f"--out: {self.out!r} overlaps --carry {self.carry!r}; expected a folder apart from "
                                  "the pack (the session's results would mix with what was carried)")
         return self

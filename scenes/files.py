@@ -45,10 +45,31 @@ def not_a_file(path: str | os.PathLike) -> str:
 
 
 def is_within(path: str | os.PathLike, folder: str | os.PathLike) -> bool:
-    """Whether `path` is `folder` or lies inside it, links followed (the one rule of 'inside' for untrusted links
-    and output folders)."""
+    """Whether `path` is `folder` or lies inside it, links followed and a second mount of `folder` seen through
+    (the one rule of 'inside' for untrusted links and output folders)."""
     real, root = os.path.realpath(path), os.path.realpath(folder)
-    return real == root or real.startswith(root.rstrip(os.sep) + os.sep)
+    return real == root or real.startswith(root.rstrip(os.sep) + os.sep) or mount_of(real, root) is not None
+
+
+def mount_of(path: str | os.PathLike, folder: str | os.PathLike) -> str | None:
+    """The existing folder at or above `path` that is `folder` itself under another path (the same device and
+    inode: a bind mount of it), None when there is none. No path comparison can tell such a second name, and no
+    link is involved."""
+    if not os.path.isdir(folder):
+        return None
+    target = os.stat(folder)
+    here = os.path.realpath(path)
+    while True:
+        try:
+            st = os.stat(here)
+        except OSError:
+            st = None
+        if st is not None and (st.st_dev, st.st_ino) == (target.st_dev, target.st_ino):
+            return here
+        parent = os.path.dirname(here)
+        if parent == here:
+            return None
+        here = parent
 
 
 def links_out_of(path: str | os.PathLike, folder: str | os.PathLike) -> bool:

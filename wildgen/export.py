@@ -34,7 +34,7 @@ from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, check_fields, option
 from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import progress_bar
-from scenes.files import links_out_of, read_json, temporary_target, temporary_writer, writer_gone
+from scenes.files import is_within, links_out_of, read_json, temporary_target, temporary_writer, writer_gone
 from scenes.folder.shard_format import (
     ENCODINGS,
     FORMAT,
@@ -161,8 +161,7 @@ def check_target(data: str | Path, out: str | Path, overwrite: bool, flag: str =
     earlier export's files (removed before writing). One line naming `flag` otherwise."""
     data, out = Path(data), Path(out)
     check_output_folder(out, flag)  # first: a loop of links is refused before anything resolves it
-    d, o = data.resolve(), out.resolve()
-    if o == d or d in o.parents or o in d.parents:
+    if is_within(out, data) or is_within(data, out):  # either way, a second mount of it too
         raise UsageError(f"{flag}: {str(out)!r} must be a folder apart from {data_flag} {str(data)!r} (not it, inside "
                          "it or around it)")
     index = out / INDEX_FILE

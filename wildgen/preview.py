@@ -26,6 +26,7 @@ import numpy as np
 from scenes.cli.errors import UsageError
 from scenes.cli.options import Command, Positional, arg
 from scenes.cli.outputs import check_listed, check_output_folder, make_output_folder
+from scenes.files import is_within
 
 TILE = 128
 """Pixels of one tile of a contact sheet."""
@@ -100,16 +101,20 @@ def _object_folders(dataset: Path) -> list[Path]:
 
 def _output_folder(dataset: Path, out: str | Path | None) -> Path:
     """--out, or DIR/preview (beside a single object folder: its parent's preview/), checked writable."""
-    out_dir = Path(out) if out else (dataset if not dataset.name.endswith(".data") else dataset.parent) / "preview"
+    folders = dataset if not dataset.name.endswith(".data") else dataset.parent  # where the object folders lie
+    out_dir = Path(out) if out else folders / "preview"
     check_output_folder(out_dir)
+    if is_within(out_dir, folders) and is_within(folders, out_dir):  # that folder by any name (a mount too)
+        raise UsageError(f"--out: {str(out_dir)!r} is the folder of the object folders ({str(folders)!r}); the "
+                         f"sheets would lie among them: expected a folder of its own (the default is "
+                         f"{str(folders / 'preview')!r})")
     return out_dir
 
 
 def _check_sheet_names(folders: list[Path], out_dir: Path) -> None:
     """Refuse sheets that would land inside an object folder (over its own images) or share a name: an object
     named 'overview' (the overview's file) or '' (a folder named '.data')."""
-    o = out_dir.resolve()
-    inside = next((f for f in folders if f.resolve() == o or f.resolve() in o.parents), None)
+    inside = next((f for f in folders if is_within(out_dir, f)), None)
     if inside is not None:
         raise UsageError(f"--out: {str(out_dir)!r} lies in the object folder {str(inside)!r}; the sheets would mix "
                          "with its files: expected a folder outside every object folder")

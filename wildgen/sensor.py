@@ -42,7 +42,7 @@ from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, check_fields, option
 from scenes.cli.outputs import check_apart, check_not_being_written, check_output_folder
 from scenes.cli.progress import progress_bar
-from scenes.files import read_json, write_json
+from scenes.files import is_within, read_json, write_json
 from scenes.folder.format import (
     AUX_DIR,
     SCENE_FILE,
@@ -205,8 +205,7 @@ def _prepare_out(data: Path, out: Path, overwrite: bool, names: list[str]) -> No
     """Refuse --out when it is --data, inside it or around it, an existing dataset without --overwrite, or holds a
     link or a file under the name of an object folder it will write (never replaced)."""
     check_apart(out, {"--data": data})  # not it, nor inside it, by any name (a link, a second mount)
-    d, o = data.resolve(), out.resolve()
-    if o in d.parents:
+    if is_within(data, out):
         raise UsageError(f"--out: {str(out)!r} must be a folder apart from --data {str(data)!r} (not it, inside it "
                          "or around it)")
     check_output_folder(out)

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Iterable
 
 from scenes.cli.errors import UsageError
-from scenes.files import is_within, read_json
+from scenes.files import is_within, mount_of, read_json
 
 
 def _tell_supervisor(path: str | os.PathLike) -> None:
@@ -142,13 +142,13 @@ def check_apart(path: str | os.PathLike, inputs: Mapping[str, str | os.PathLike 
         if not str(given).strip():  # '' would be the current folder: never meant
             raise UsageError(f"{in_flag}: got an empty value, expected a path")
         folder = os.path.realpath(given)
-        if os.path.isfile(folder) and (real == os.path.dirname(folder) or _alias_within(real, os.path.dirname(folder))
+        if os.path.isfile(folder) and (real == os.path.dirname(folder) or mount_of(real, os.path.dirname(folder))
                                        == real):
             raise UsageError(f"{flag}: {str(path)!r} is the folder {in_flag} {str(given)!r} lies in; expected "
                              f"another folder (e.g. {os.path.join(str(path), 'out')!r}): a command never writes "
                              "beside what it reads")
         inside = is_within(real, folder)
-        alias = None if inside else _alias_within(real, folder)
+        alias = None if real == folder or real.startswith(folder.rstrip(os.sep) + os.sep) else mount_of(real, folder)
         if alias is not None:  # the same folder reached by another path (a bind mount): no link tells it
             where = "is" if alias == real else f"lies inside {alias!r}, which is"
             raise UsageError(f"{flag}: {str(path)!r} {where} {in_flag} {str(given)!r} under another name (the same "
@@ -160,26 +160,6 @@ def check_apart(path: str | os.PathLike, inputs: Mapping[str, str | os.PathLike 
             "is a link into" if os.path.islink(path) else "lies inside")
         raise UsageError(f"{flag}: {str(path)!r} {where} {in_flag} {str(given)!r}; expected a folder outside "
                          f"{in_flag}: a command never writes into what it reads")
-
-
-def _alias_within(real: str, folder: str) -> str | None:
-    """The existing folder at or above the output `real` that is the folder `folder` itself under another path (the
-    same device and inode: a bind mount of it), None when there is none. Paths alone cannot tell a mount."""
-    if not os.path.isdir(folder):
-        return None
-    target = os.stat(folder)
-    here = real
-    while True:
-        try:
-            st = os.stat(here)
-        except OSError:
-            st = None
-        if st is not None and (st.st_dev, st.st_ino) == (target.st_dev, target.st_ino):
-            return here
-        parent = os.path.dirname(here)
-        if parent == here:
-            return None
-        here = parent
 
 
 HELD_ENV = "PS_TOOLKIT_HELD_FOLDERS"
