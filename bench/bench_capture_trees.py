@@ -93,7 +93,7 @@ def main(argv: list[str] | None = None) -> int:
     opts = parse(COMMAND, argv)
     check_diligent(opts.data, [f"{name}PNG" for name in opts.objects])
     check_revision(opts.baseline)
-    claim_result(opts.out, RESULT_KEYS, COMMAND)
+    claim_result(opts.out, RESULT_KEYS, COMMAND, inputs={"--data": opts.data})
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)

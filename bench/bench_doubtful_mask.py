@@ -264,7 +264,7 @@ def main(argv: list[str] | None = None) -> int:
                 raise UsageError("--suite: nothing to measure: expected --suite DIR (a wildgen.make dataset) or "
                                  "--rows-from FILE")
         check_suites(args.suite)
-    claim_result(args.out, RESULT_KEYS, COMMAND)
+    claim_result(args.out, RESULT_KEYS, COMMAND, inputs={f"--suite {d}": d for d in args.suite})
     # the record is signed apart from --out's rows (both hold 'rows'): neither is ever taken for the other
     if claim_result(args.record, RECORD_KEYS, f"{COMMAND.prog} --record", "--record"):
         _recorded_runs(args.record)  # read now, not after the measurement

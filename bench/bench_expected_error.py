@@ -145,7 +145,7 @@ def before_work(opts: BenchOptions) -> None:
         need_path(opts.assets, "--assets", "the asset folder (meshes, HDR maps, textures), or none")
     if opts.diligent != "none":
         check_diligent(opts.diligent, ("ballPNG", "catPNG"), "--diligent")
-    claim_result(opts.out, RESULT_KEYS, COMMAND)
+    claim_result(opts.out, RESULT_KEYS, COMMAND, inputs={"--assets": opts.assets, "--diligent": opts.diligent})
 
 
 def main(argv: list[str] | None = None) -> int:

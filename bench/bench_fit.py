@@ -297,7 +297,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parse(COMMAND, argv)
     if not args.skip_diligent and args.diligent.is_dir():  # an absent DiLiGenT folder is skipped, a partial one refused
         check_diligent(args.diligent, ("ballPNG", "catPNG"), "--diligent")
-    claim_result(args.out, RESULT_KEYS, COMMAND)
+    claim_result(args.out, RESULT_KEYS, COMMAND, inputs={"--diligent": args.diligent})
     if args.synthetic == 0 and (args.skip_diligent or not args.diligent.is_dir()):  # nothing would be measured
         raise SystemExit(report_error(UsageError("--synthetic: got 0 with --skip-diligent (or no DiLiGenT folder), "
                                                  "expected at least one synthetic object or the DiLiGenT objects")))

@@ -78,7 +78,7 @@ def before_work(args: Options) -> None:
     """What the command line names on disk, checked before any work (each refusal one line)."""
     if args.data is not None:
         need_path(args.data, "--data", "a dataset folder of object folders (*.data)")
-    claim_result(args.json, RESULT_KEYS, COMMAND, "--json")
+    claim_result(args.json, RESULT_KEYS, COMMAND, "--json", inputs={"--data": args.data})
 
 
 def main(argv: list[str] | None = None) -> int:

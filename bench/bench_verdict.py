@@ -233,7 +233,7 @@ def before_work(args: Options) -> None:
     """What the command line names on disk, checked before any work (each refusal one line)."""
     for capture in args.captures:
         need_path(capture, "CAPTURE", "an object folder with ground-truth normals")
-    claim_result(args.out, RESULT_KEYS, COMMAND)
+    claim_result(args.out, RESULT_KEYS, COMMAND, inputs={f"CAPTURE {c}": c for c in args.captures})
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -257,6 +257,7 @@ def places(tmp_path):
         (ball / name).write_bytes(b"")
     for name in ("ballPNG", "catPNG"):  # a folder that names both objects (ab_data's check before any work)
         (tmp_path / "both" / name).mkdir(parents=True)
+    (tmp_path / "suite" / "00000.data").mkdir(parents=True)  # a dataset as far as the checks before any work go
     return tmp_path
 
 
@@ -316,6 +317,10 @@ BAD = [
      ["--diligent: ", "holds no catPNG"]),
     ("ab_data", ["--work", "{t}/w", "--assets", "{t}/folder", "--diligent", "{t}/both", "--record", "--steps", "7"],
      ["--record: the model card's A/B holds arms", "this run's --steps 7", "mix two budgets"]),
+    ("bench_doubtful_mask", ["--suite", "{t}/suite", "--out", "{t}/suite/d.json"], ["--out: ", "lies inside --suite"]),
+    ("bench_verdict", ["{t}/suite/00000.data", "--no-model", "--out", "{t}/suite/00000.data/v.json"],
+     ["--out: ", "lies inside CAPTURE"]),
+    ("bench_rerender", ["--data", "{t}/suite", "--json", "{t}/suite/r.json"], ["--json: ", "lies inside --data"]),
     ("bench_doubtful_mask", ["--suite", "{t}/empty_suite", "--seed", "-1"],
      ["--seed: got -1, expected an integer >= 0"]),
     ("bench_capture_diligent", ["--data", "{t}/diligent", "--objects", "nosuchPNG", "--work", "{t}/w", "--out",
