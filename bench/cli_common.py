@@ -237,6 +237,10 @@ def check_diligent(data: str | os.PathLike, names: Sequence[str], flag: str = "-
     folders = []
     with refusals():
         for name in names:
+            if not name or name in (".", "..") or "/" in name or os.sep in name or list(names).count(name) > 1:
+                raise UsageError(f"--objects: got {name!r}, expected the names of distinct object folders directly "
+                                 f"under {flag} (e.g. ballPNG), each once: the work and result rows are named after "
+                                 "them")
             folder = Path(data) / name
             near = name[:-3] if name.endswith("PNGPNG") else None if name.endswith("PNG") else name + "PNG"
             if not folder.is_dir() and near and (Path(data) / near).is_dir():  # 'ballPNG' where 'ball' is asked
