@@ -102,8 +102,8 @@ def decode_image(path: Path, flags: int, where: str):
     reports it truncated or corrupt (`JPEG_DAMAGE`), or a TIFF Pillow cannot decode whole, is a ValueError beginning
     with `where` (the flag and the file); None where OpenCV cannot read the file at all (the caller says so). What
     the decoders print about such a file is caught into the message; what they print about a file that is read is
-    shown as they printed it. Other files (PNG: libpng fails on damage, and OpenCV returns None) are read as they
-    are."""
+    shown once, as a note naming it. PNG files are read whole or not at all (libpng fails on damage, and OpenCV
+    returns None); other files are read as they are."""
     import cv2
 
     try:
@@ -113,10 +113,10 @@ def decode_image(path: Path, flags: int, where: str):
         raise ValueError(f"{where} cannot be opened: {exc.strerror or exc}") from None
     if not data.size:
         return None
-    head = data[:4].tobytes()
-    jpeg, tiff = head.startswith(_JPEG_MAGIC), head in _TIFF_MAGICS
+    head = data[:8].tobytes()
+    jpeg, tiff, png = head.startswith(_JPEG_MAGIC), head[:4] in _TIFF_MAGICS, head == b"\x89PNG\r\n\x1a\n"
     try:
-        if not (jpeg or tiff):
+        if not (jpeg or tiff or png):
             return cv2.imdecode(data, flags)
         with caught_stderr() as said:
             img = cv2.imdecode(data, flags)
@@ -136,9 +136,15 @@ def decode_image(path: Path, flags: int, where: str):
     if tiff_damage is not None:
         raise ValueError(f"{where} is damaged: the TIFF decoder says {tiff_damage!r} (a truncated or corrupt file, "
                          "readable only in part); expected a complete TIFF")
-    if said:  # not about damage: shown as the decoders printed it
-        print("\n".join(said), file=sys.stderr)
+    for line in dict.fromkeys(said):  # not about damage (libpng on an odd ICC profile): once per file, named
+        if (str(path), line) not in _SHOWN:
+            _SHOWN.add((str(path), line))
+            print(f"note: {where}: {line.strip()}", file=sys.stderr)
     return img
+
+
+_SHOWN: set[tuple[str, str]] = set()
+"""(file, line) of what a decoder printed about a file it read, already shown (a photo is decoded more than once)."""
 
 
 def _read_raw(path: Path, what: str = "image"):

@@ -89,6 +89,26 @@ def _png_with_chunk(path, codes: np.ndarray, kind: bytes, data: bytes) -> None:
     path.write_bytes(raw[:33] + chunk + raw[33:])
 
 
+def test_what_libpng_says_of_a_png_it_reads_is_one_note_naming_the_file(tmp_path, capfd):
+    """libpng's warnings (an ICC profile of the XYZ colour space in a photo) went to the terminal as bare lines, one
+    per decode, naming no file (sweep 19); now one note per file and line, naming it."""
+    import struct
+    import zlib
+
+    from scenes.images import decode_image
+
+    profile = bytearray(128)  # an ICC header whose colour space is 'XYZ ' (an RGB image needs an 'RGB ' profile)
+    profile[0:4], profile[12:16], profile[16:20], profile[36:40] = struct.pack(">I", 128), b"mntr", b"XYZ ", b"acsp"
+    _png_with_chunk(tmp_path / "a.png", np.full((4, 5, 3), 90, np.uint8), b"iCCP",
+                    b"ICC Profile\0\0" + zlib.compress(bytes(profile)))
+    for _ in range(2):  # read twice (a capture reads each photo's size first)
+        assert decode_image(tmp_path / "a.png", cv2.IMREAD_COLOR, "--input: 'a.png'").shape == (4, 5, 3)
+    err = capfd.readouterr().err
+    lines = err.strip().splitlines()
+    assert lines and all(line.startswith("note: --input: 'a.png': libpng warning: ") for line in lines), err
+    assert len(lines) == len(set(lines)), err
+
+
 def test_a_png_says_its_own_curve(tmp_path, np_rng):
     """A PNG's sRGB or gAMA chunk decides the curve in auto mode (a 16-bit sRGB PNG, an 8-bit linear one); a gamma
     that is neither is refused naming the file; --input-encoding still decides for all files."""
