@@ -142,24 +142,27 @@ def check_apart(path: str | os.PathLike, inputs: Mapping[str, str | os.PathLike 
         if not str(given).strip():  # '' would be the current folder: never meant
             raise UsageError(f"{in_flag}: got an empty value, expected a path")
         folder = os.path.realpath(given)
+        # a bench names each of several inputs by its flag and path ('--suite DIR'): the path is said once
+        named = in_flag if in_flag.endswith(f" {given}") else f"{in_flag} {str(given)!r}"
+        in_flag = in_flag.split(" ", 1)[0]
         if os.path.isfile(folder) and (real == os.path.dirname(folder) or mount_of(real, os.path.dirname(folder))
                                        == real):
-            raise UsageError(f"{flag}: {str(path)!r} is the folder {in_flag} {str(given)!r} lies in; expected "
+            raise UsageError(f"{flag}: {str(path)!r} is the folder {named} lies in; expected "
                              f"another folder (e.g. {os.path.join(str(path), 'out')!r}): a command never writes "
                              "beside what it reads")
         inside = is_within(real, folder)
         alias = None if real == folder or real.startswith(folder.rstrip(os.sep) + os.sep) else mount_of(real, folder)
         if alias is not None:  # the same folder reached by another path (a bind mount): no link tells it
             where = "is" if alias == real else f"lies inside {alias!r}, which is"
-            raise UsageError(f"{flag}: {str(path)!r} {where} {in_flag} {str(given)!r} under another name (the same "
+            raise UsageError(f"{flag}: {str(path)!r} {where} {named} under another name (the same "
                              f"folder, mounted twice); expected a folder outside {in_flag}: a command never writes "
                              "into what it reads")
         if not inside:
             continue
         where = ("is a link to" if os.path.islink(path) else "is") if real == folder else (
             "is a link into" if os.path.islink(path) else "lies inside")
-        raise UsageError(f"{flag}: {str(path)!r} {where} {in_flag} {str(given)!r}; expected a folder outside "
-                         f"{in_flag}: a command never writes into what it reads")
+        raise UsageError(f"{flag}: {str(path)!r} {where} {named}; expected a folder outside {in_flag}: a command "
+                         "never writes into what it reads")
 
 
 HELD_ENV = "PS_TOOLKIT_HELD_FOLDERS"
