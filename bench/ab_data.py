@@ -148,15 +148,25 @@ def before_work(args: Options) -> None:
     """What the command line names on disk, checked before any work (each refusal one line)."""
     check_work(args.work, inputs={"--assets": args.assets, "--diligent": args.diligent})
     need_path(args.assets, "--assets", "the asset library (meshes, HDR maps, textures)")
-    need_path(args.diligent, "--diligent", "a DiLiGenT folder holding ballPNG and catPNG")
-    lacking = [f"{k}PNG" for k in DILIGENT_OBJECTS if not (args.diligent / f"{k}PNG").is_dir()]
-    if lacking:
+    if not _scored(args) >= {"shipped", *(arm + args.tag for arm in args.arms)}:  # an arm to score: DiLiGenT read
+        need_path(args.diligent, "--diligent", "a DiLiGenT folder holding ballPNG and catPNG")
+        lacking = [f"{k}PNG" for k in DILIGENT_OBJECTS if not (args.diligent / f"{k}PNG").is_dir()]
         with refusals():
-            raise UsageError(f"--diligent: {str(args.diligent)!r} holds no {', '.join(lacking)}; expected a DiLiGenT "
-                             "folder holding ballPNG and catPNG (the A/B scores both)")
+            if lacking:
+                raise UsageError(f"--diligent: {str(args.diligent)!r} holds no {', '.join(lacking)}; expected a "
+                                 "DiLiGenT folder holding ballPNG and catPNG (the A/B scores both)")
     if args.record:
         with refusals():
             check_card_ab(args)
+
+
+def _scored(args: Options) -> set[str]:
+    """The arms WORK/ab.json already holds scores of (none where it is missing or unreadable: main says why)."""
+    try:
+        scores = read_figures(args.work / "ab.json")
+    except (OSError, ValueError, RecursionError):
+        return set()
+    return set(scores) if isinstance(scores, dict) else set()
 
 
 def main(argv: list[str] | None = None) -> int:

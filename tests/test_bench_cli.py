@@ -506,6 +506,24 @@ def test_ab_data_record_keeps_the_arms_another_work_recorded(tmp_path, monkeypat
     assert [s["stage"] for s in after["lineage"][len(before["lineage"]):]] == ["data A/B: today, lr 9 (not shipped)"]
 
 
+def test_ab_data_needs_diligent_only_for_an_arm_left_to_score(tmp_path, capsys):
+    """A WORK whose ab.json holds every arm's scores (a resumed --record) is not refused for a missing DiLiGenT
+    folder: nothing reads it; with an arm left to score it is refused before any work."""
+    import json
+
+    ab = _module("ab_data")
+    (tmp_path / "assets").mkdir()
+    (tmp_path / "w").mkdir()
+    argv = ["--work", str(tmp_path / "w"), "--assets", str(tmp_path / "assets"), "--arms", "today", "--diligent",
+            str(tmp_path / "none")]
+    (tmp_path / "w" / "ab.json").write_text(json.dumps({"shipped": {}}))
+    with pytest.raises(SystemExit) as stop:
+        ab.before_work(ab.parse(ab.COMMAND, argv))
+    assert stop.value.code == 2 and "--diligent: " in capsys.readouterr().err
+    (tmp_path / "w" / "ab.json").write_text(json.dumps({"shipped": {}, "today": {}}))
+    ab.before_work(ab.parse(ab.COMMAND, argv))  # all scored: accepted
+
+
 def test_a_file_saved_at_out_during_the_run_is_kept(tmp_path, monkeypatch):
     """A result file absent at the claim that a user (or another program) saves during the run is never replaced:
     the result goes beside it and the run ends in one refusal naming both."""
