@@ -53,10 +53,11 @@ ARM_DATA = {
 }
 """The arms (--arms): what each trains on."""
 LEVELS = 5
+"""The `new` arm's objects are split over the complexity levels 1-5 (one fifth each)."""
 DILIGENT_OBJECTS = ("ball", "cat")
 """The DiLiGenT objects every arm is scored on (the table's and the card's columns)."""
 CARD_PATH = ROOT / "unips" / "weights" / "model_card.json"
-"""The `new` arm's objects are split over the complexity levels 1-5 (one fifth each)."""
+"""The model card --record adds the arms to."""
 
 
 def run(argv: list[str], label: str) -> None:

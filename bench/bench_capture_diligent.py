@@ -72,11 +72,12 @@ def run_case(obj, source: Path, case: str, work: Path) -> dict:
 
     name = f"{source.name.removesuffix('PNG')}_{case}"
     photos, out, mask_file = work / name / "photos", work / name / "out", work / name / "mask.png"
-    if photos.is_dir() and len(list(photos.iterdir())) != len(obj.images):  # an older run's partial set: written again
+    present = list(photos.iterdir()) if photos.is_dir() else None
+    if present is not None and len(present) != len(obj.images):  # an older run's partial set: written again
         if any(not (p.is_file() and p.stem.removeprefix("IMG_").isdigit() and p.suffix in (".png", ".jpg"))
-               for p in photos.iterdir()):
-            raise UsageError(f"--work: {str(photos)!r} holds {len(list(photos.iterdir()))} files, not the "
-                             f"{len(obj.images)} photos this bench writes, and files it does not write; move it away")
+               for p in present):
+            raise UsageError(f"--work: {str(photos)!r} holds {len(present)} files, not the {len(obj.images)} "
+                             "photos this bench writes, and files it does not write; move it away")
         shutil.rmtree(photos)
     if not photos.is_dir():  # written whole under a temporary name: an interrupted run leaves no partial set
         part = photos.with_name("photos.part")

@@ -150,8 +150,8 @@ def check_apart(path: str | os.PathLike, inputs: Mapping[str, str | os.PathLike 
             raise UsageError(f"{flag}: {str(path)!r} is the folder {named} lies in; expected "
                              f"another folder (e.g. {os.path.join(str(path), 'out')!r}): a command never writes "
                              "beside what it reads")
-        inside = is_within(real, folder)
-        alias = None if real == folder or real.startswith(folder.rstrip(os.sep) + os.sep) else mount_of(real, folder)
+        inside = real == folder or real.startswith(folder.rstrip(os.sep) + os.sep)  # is_within by the path alone
+        alias = None if inside else mount_of(real, folder)  # its second half, said apart
         if alias is not None:  # the same folder reached by another path (a bind mount): no link tells it
             where = "is" if alias == real else f"lies inside {alias!r}, which is"
             raise UsageError(f"{flag}: {str(path)!r} {where} {named} under another name (the same "
