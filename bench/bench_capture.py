@@ -35,6 +35,7 @@ sys.path.insert(0, str(REPO / "tests"))  # the DNG writer of the RAW tests
 from bench.cli_common import check_given, claim_result, machine, need_path, parse, run_main, write_result  # noqa: E402
 from orchestrate.capture import MIN_SIDE  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
+from scenes.cli.needs import Needs  # noqa: E402
 from scenes.cli.options import Command, arg, check_fields, comma_list, option  # noqa: E402
 from scenes.files import read_json, reading_record  # noqa: E402
 from validate.judgeable import MIN_IMAGES  # noqa: E402
@@ -133,7 +134,10 @@ class Options:
         return self
 
 
-COMMAND = Command(Options, prog="python bench/bench_capture.py", description=__doc__.split("\n\n")[0])
+REWRITES = "without --reestimate (which rewrites its recorded FILE in place, measuring nothing)"
+COMMAND = Command(Options, prog="python bench/bench_capture.py", description=__doc__.split("\n\n")[0],
+                  needs=tuple(Needs(f, lambda c, _: c.reestimate is None, REWRITES)
+                              for f in ("out", "append", "images", "sides", "format")))
 
 
 def _count(value) -> int:

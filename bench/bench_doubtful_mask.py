@@ -46,6 +46,7 @@ sys.path.insert(0, str(REPO))  # this tree's toolkit, not another checkout's ins
 
 from bench.cli_common import check_suites, claim_result, need_path, parse, refusals, run_main, write_result  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
+from scenes.cli.needs import Needs  # noqa: E402
 from scenes.cli.options import Command, UseAppendAction, arg, option  # noqa: E402
 from scenes.files import read_figures, read_json, reading_record  # noqa: E402
 
@@ -181,7 +182,9 @@ class Options:
     """read the rows of an earlier run's --out instead of measuring (with --record: its table, unmeasured again)"""
 
 
-COMMAND = Command(Options, prog="python bench/bench_doubtful_mask.py", description=__doc__.split("\n\n")[0])
+COMMAND = Command(Options, prog="python bench/bench_doubtful_mask.py", description=__doc__.split("\n\n")[0],
+                  needs=(Needs("rows_from", lambda _, given: "suite" not in given,
+                               "without --suite (its rows are read from FILE, nothing is measured)"),))
 RESULT_KEYS = ("rows",)
 """The key of every result (--out, read back by --rows-from): a file without it is not this bench's."""
 RECORD_KEYS = ("good_iou", "rows")

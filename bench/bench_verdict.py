@@ -36,6 +36,7 @@ sys.path.insert(0, str(ROOT))
 
 from bench.cli_common import claim_result, need_path, parse, run_main, write_result  # noqa: E402
 from scenes.cli.errors import UsageError  # noqa: E402
+from scenes.cli.needs import Needs  # noqa: E402
 from scenes.cli.options import REQUIRED, Command, Positional, arg, check_fields, option  # noqa: E402
 
 
@@ -224,7 +225,8 @@ class Options:
         return self
 
 
-COMMAND = Command(Options, prog="python bench/bench_verdict.py", description=__doc__.split("\n\n")[0])
+COMMAND = Command(Options, prog="python bench/bench_verdict.py", description=__doc__.split("\n\n")[0],
+                  needs=(Needs("refine", lambda c, _: c.model, "with the model's map scored (without --no-model)"),))
 RESULT_KEYS = ("rows",)
 """The key of every result (--out, --degenerate's too): a file without it is not this bench's and is never replaced."""
 

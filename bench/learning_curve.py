@@ -27,6 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from bench.cli_common import parse, run_main  # noqa: E402
+from scenes.cli.needs import Needs  # noqa: E402
 from scenes.cli.options import Command, Positional, arg, option  # noqa: E402
 from scenes.files import read_figures, read_text_file, reading_record  # noqa: E402
 
@@ -180,7 +181,8 @@ class Options:
     """test-set error (deg) the --card trend is extrapolated to"""
 
 
-COMMAND = Command(Options, prog="python bench/learning_curve.py", description=__doc__.split("\n\n")[0])
+COMMAND = Command(Options, prog="python bench/learning_curve.py", description=__doc__.split("\n\n")[0],
+                  needs=(Needs("target", lambda c, _: c.card is not None, "with --card"),))
 
 
 def main(argv: list[str] | None = None) -> int:

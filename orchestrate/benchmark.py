@@ -38,7 +38,7 @@ from scenes.metrics import mean_angular_error
 from scenes.renderer.variant import PREFERENCE as VARIANTS
 from scenes.report.tables import markdown_table
 from unips.data import find_objects, load_object
-from unips.inference import DEFAULT_TTA, TTA_VIEWS, check_model_name, load_network, predict_object
+from unips.inference import DEFAULT_TTA, TTA_VIEWS, check_model_name, load_ablation, load_network, predict_object
 from unips.probes import PROBES, format_table
 from wildgen.light_families import LIGHT_FAMILIES
 
@@ -460,11 +460,7 @@ def _main(argv: list[str] | None, held) -> int:
         if args.threads:
             torch.set_num_threads(args.threads)
         net = load_network(args.checkpoint, model=args.model)
-        uniform = args.ablation_checkpoint
-        ablation = load_network(uniform, flag="--ablation-checkpoint") if uniform else None
-        if ablation and (theirs := ablation.meta.get("model_name")) != (ours := net.meta.get("model_name")):
-            raise UsageError(f"--ablation-checkpoint: holds {theirs!r}, not {ours!r}, the network benchmarked; "
-                             "expected the same network trained with uniform contexts")
+        ablation = load_ablation(args.ablation_checkpoint, net) if args.ablation_checkpoint else None
         res: dict[str, Any] = {"checkpoint": str(net.checkpoint), "ablation_checkpoint": args.ablation_checkpoint,
                                "images": args.images, "data": args.data, "tta": args.tta}
         if args.data and args.rerender_objects > 0:

@@ -39,6 +39,7 @@ from orchestrate.capture_full import DEFAULT_MAX_SIDE, guide_image, upsample
 from orchestrate.capture_verdict import level, verdict
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.limits import check_threads
+from scenes.cli.needs import Needs
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import heartbeat, stage
@@ -125,7 +126,9 @@ class CaptureOptions:
 
 MIN_SIDE = 32
 """The smallest --max-side other than 0."""
-COMMAND = Command(CaptureOptions, prog="python -m orchestrate.capture", description=__doc__.split("\n\n")[0])
+COMMAND = Command(CaptureOptions, prog="python -m orchestrate.capture", description=__doc__.split("\n\n")[0], needs=(
+    Needs("rotation_search", lambda c, _: c.refine, "with the refinement on (without --no-refine)"),
+    Needs("rotation_steps", lambda c, _: c.refine and c.rotation_search, "with --rotation-search")))
 
 
 def probe_input(opts: CaptureOptions) -> tuple[int, int, int, tuple[int, int]]:

@@ -44,6 +44,32 @@ def not_a_file(path: str | os.PathLike) -> str:
     return "does not exist"
 
 
+def shown_name(name: str | os.PathLike) -> str:
+    """A name as text for messages and records: bytes that are not UTF-8 (kept by Python as lone surrogates) shown
+    as U+FFFD, so that printing or a JSON record never fails on them."""
+    return os.fspath(name).encode("utf-8", "surrogateescape").decode("utf-8", "replace")
+
+
+def text_name_problem(path: str | os.PathLike) -> str | None:
+    """Why `path` cannot be used as a name here, or None: the first part of it whose bytes are not UTF-8 text
+    (a Latin-1 'é' written by an old camera or archive). The image, EXR and page writers take names as text only
+    (OpenEXR and OpenCV refuse such a name or crash on it), so the one rule is to refuse it up front; the remedy is
+    renaming, whatever the locale."""
+    for part in Path(path).parts:
+        bad = next((ch for ch in part if "\udc80" <= ch <= "\udcff"), None)
+        if bad is not None:
+            return (f"the name {shown_name(part)!r} is not UTF-8 text (byte 0x{ord(bad) - 0xDC00:02X}); expected names "
+                    "that are text: rename it (e.g. with convmv, or by hand)")
+    return None
+
+
+def check_text_name(path: str | os.PathLike, flag: str) -> None:
+    """A ValueError naming `flag` and the path when a part of it is not UTF-8 text (`text_name_problem`)."""
+    problem = text_name_problem(path)
+    if problem is not None:
+        raise ValueError(f"{flag}: {shown_name(path)!r}: {problem}")
+
+
 def is_within(path: str | os.PathLike, folder: str | os.PathLike) -> bool:
     """Whether `path` is `folder` or lies inside it, links followed and a second mount of `folder` seen through
     (the one rule of 'inside' for untrusted links and output folders)."""
@@ -220,13 +246,22 @@ def atomic_write(path: str | Path, write) -> None:
         write(tmp)
         os.replace(tmp, path)
     except OSError as exc:
-        tmp.unlink(missing_ok=True)
+        _discard(tmp)
         if str(path) in str(exc):
             raise
         raise OSError(exc.errno, f"could not write {str(path)!r}: {exc.strerror or exc}") from exc
     except BaseException:
-        tmp.unlink(missing_ok=True)
+        _discard(tmp)
         raise
+
+
+def _discard(tmp: Path) -> None:
+    """Remove a temporary that may not exist; on a read-only file system unlinking even a missing name fails
+    (EROFS), which must not replace the error that names the real file."""
+    try:
+        tmp.unlink(missing_ok=True)
+    except OSError:
+        pass
 
 
 def atomic_write_text(path: str | Path, text: str) -> None:

@@ -1046,7 +1046,8 @@ ROWS: list[Row] = [
         setup=_gt_zeroed, check=_written("p/metrics.json", "p/00001/error_map.png")),
     Row("evaluate-gt-mask-one-background-pixel", EV, ["--pred", "{T}/p", "--gt", "{T}/data"], 0, ("00001",),
         setup=_gt_mask_corner, check=_unscored_in_metrics(OBJ)),
-    Row("evaluate-dataset-nan", EV, ["--pred", "{T}/p", "--gt", "{W}/data"], 1, ("NaN",), setup=_copy("pred_nan", "p")),
+    Row("evaluate-dataset-nan", EV, ["--pred", "{T}/p", "--gt", "{W}/data"], 2, ("NaN", "none of the 3", "nothing was"),
+        setup=_copy("pred_nan", "p"), check=_not_written("p/metrics.json")),
     Row(
         "evaluate-missing-prediction",
         EV,
@@ -4370,6 +4371,94 @@ ROWS += [
     Row("refine-a-map-of-zeros", RF, ["--data", "{T}/00000.data", "--normals", "{T}/zero.npy", "--out", "{T}/o"], 2,
         ("--normals", "exactly 0"), setup=_zero_normals, check=_not_written("o/00000/normal.png")),
 ]
+
+
+NU = os.fsdecode(b"\xe9")
+"""A Latin-1 'é' in a name: a byte that is not UTF-8, which Python holds as a lone surrogate (sweep 20)."""
+
+
+def _renamed(src: str, dst: str) -> Callable[[Path, Path], None]:
+    def setup(w: Path, t: Path) -> None:
+        os.rename(t / src, t / dst)
+    return setup
+
+
+def _evaluated_then_reshaped(w: Path, t: Path) -> None:
+    """Setup: T/p evaluated against the world's dataset (metrics.json and the error maps), then each prediction
+    replaced by one of another size: a later --gt that matches none of them."""
+    from unips.evaluate import evaluate
+
+    evaluate(t / "p", w / "data")
+    for obj in sorted(p for p in (t / "p").iterdir() if p.is_dir()):
+        for f in obj.glob("normal.*"):
+            f.unlink()
+        np.save(obj / "normal.npy", np.tile(np.float32([0, 0, 1]), (5, 7, 1)))
+
+
+def _index_says(encoding: str) -> Callable[[Path, Path], None]:
+    def setup(w: Path, t: Path) -> None:
+        index = json.loads((t / "s" / "index.json").read_text())
+        (t / "s" / "index.json").write_text(json.dumps({**index, "encoding": encoding}))
+    return setup
+
+
+def _shipped_copy(w: Path, t: Path) -> None:
+    """Setup: T/copy.safetensors (+ sidecar), a copy of the shipped weights under another name."""
+    from unips.models.builder import sidecar_path
+    from unips.models.registry import pretrained_weights
+
+    src = pretrained_weights("glc-tiny")
+    shutil.copy(src, t / "copy.safetensors")
+    shutil.copy(sidecar_path(src), sidecar_path(t / "copy.safetensors"))
+
+
+ROWS += [
+    # ---- sweep 20: a name whose bytes are not UTF-8 text: one rule, refused up front naming the flag, "rename it"
+    Row("predict-out-named-in-latin-1", PR, ["--method", "least-squares", "--input", OBJDIR, "--out", "{T}/p" + NU], 2,
+        ("--out: ", "is not UTF-8 text (byte 0xE9)", "rename it")),
+    Row("preview-dir-named-in-latin-1", PV, ["{T}/d" + NU], 2, ("DIR: ", "is not UTF-8 text", "rename it")),
+    Row("capture-a-photo-named-in-latin-1", CAP, CAPTURE_ALL, 2, ("--input: ", "IMG_\ufffd_0002.jpg", "rename it"),
+        setup=_both(_photos(), _renamed("photos/IMG_0002.jpg", "photos/IMG_" + NU + "_0002.jpg")),
+        absent=("capture: ",), check=_not_written("o")),
+    Row("predict-an-object-folder-named-in-latin-1", PR, ["--method", "least-squares", "--input", "{T}/data", "--out",
+                                                          "{T}/p"], 1, ("not UTF-8 text", "rename it"),
+        setup=_both(_dataset_copy, _renamed("data/00000.data", "data/0000" + NU + ".data")),
+        check=_written("p/00001/normal.png")),
+    # ---- sweep 20: --overwrite with a --gt no prediction matches: refused, the earlier evaluation kept whole
+    Row("evaluate-overwrite-scoring-nothing-keeps-the-earlier-evaluation", EV,
+        ["--pred", "{T}/p", "--gt", "{W}/data", "--overwrite"], 2, ("--gt: none of the 3", "nothing was written"),
+        setup=_both(_copy("pred", "p"), _evaluated_then_reshaped), check=_written("p/00000/error_map.png")),
+    # ---- sweep 20: a flag that acts only with another setting is refused without it (scenes.cli.needs)
+    Row("train-decay-every-with-the-cosine-schedule", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run",
+                                                           "--decay-every", "3"], 2,
+        ("--decay-every 3: used only with --schedule step",), check=_not_written("run")),
+    Row("train-loader-workers-without-a-stream", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run",
+                                                      "--loader-workers", "4"], 2,
+        ("--loader-workers 4: used only with --shuffle-buffer",), check=_not_written("run")),
+    Row("capture-rotation-search-without-the-refinement", CAP, [*CAPTURE, "--rotation-search"], 2,
+        ("--rotation-search: used only with the refinement on",), check=_not_written("o")),
+    Row("refine-rotation-search-with-calibrated-lights", RF, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out",
+                                                             "{T}/o", "--lights", "calibrated", "--rotation-search"], 2,
+        ("--rotation-search: used only with --lights fitted",), check=_not_written("o")),
+    Row("benchmark-ablation-of-the-same-weights", BM, ["--data", "{W}/data", "--out", "{T}/b", "--counts", "1",
+                                                       "--rerender-objects", "0", "--tta", "1",
+                                                       "--ablation-checkpoint", "{T}/copy.safetensors"], 2,
+        ("--ablation-checkpoint: ", "the same weights"), setup=_shipped_copy, check=_not_written("b/benchmark.json")),
+    # ---- sweep 20: a shard index whose encoding is not its samples'
+    Row("train-shards-whose-index-says-decoded", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps",
+                                                      "1"], 2, ("index.json", "says the encoding is 'decoded'"),
+        setup=_both(_export_of_one_shard, _index_says("decoded"))),
+]
+
+
+def test_a_temporary_on_a_read_only_folder_never_takes_the_place_of_the_file_in_the_error(readonly: Path):
+    """On a read-only file system even unlinking a temporary that was never made fails (EROFS); the error must
+    still name the file being written, never the temporary (sweep 20: orchestrate.docs named '.model.tmp123.md')."""
+    from scenes.files import atomic_write_text
+
+    with pytest.raises(OSError) as caught:
+        atomic_write_text(readonly / "model.md", "text")
+    assert "model.md" in str(caught.value) and ".tmp" not in str(caught.value), caught.value
 
 
 @pytest.mark.parametrize("row", ROWS, ids=[r.id for r in ROWS])

@@ -7,6 +7,7 @@ from __future__ import annotations
 import ast
 import dataclasses
 import importlib
+import os
 import re
 import sys
 from pathlib import Path
@@ -344,6 +345,14 @@ BAD = [
     ("bench_verdict_sweep", ["--objects", "0", "--directional-objects", "0", "--out", "{t}/r.json"],
      ["--objects: got 0"]),
     ("bench_error_evidence", ["--work", "{t}/file.txt", "--out", "{t}/r.json"], ["--work: ", "existing file"]),
+    # sweep 20: a flag that would do nothing with the others given is refused, never dropped without a word
+    ("learning_curve", ["--target", "10", "{t}/folder"], ["--target 10: used only with --card"]),
+    ("bench_capture", ["--reestimate", "{t}/user.json", "--append"], ["--append: used only without --reestimate"]),
+    ("bench_capture", ["--reestimate", "{t}/user.json", "--out", "{t}/r.json"], ["--out ", "without --reestimate"]),
+    ("bench_doubtful_mask", ["--suite", "{t}/suite", "--rows-from", "{t}/user.json"],
+     ["--rows-from ", "used only without --suite"]),
+    ("bench_verdict", ["{t}/suite/00000.data", "--no-model", "--refine"], ["--refine: used only with the model's map"]),
+    ("learning_curve", [os.fsdecode(b"{t}/run\xe9")], ["RUN: ", "is not UTF-8 text", "rename it"]),
 ]
 """(script, argv with {t} for the fixture's folder, what the one line says): each refused before any work."""
 

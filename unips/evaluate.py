@@ -30,7 +30,7 @@ import numpy as np
 from scenes.cli.errors import UsageError, one_line, report_error
 from scenes.cli.options import REQUIRED, Command
 from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs, output_lock
-from scenes.files import atomic_write_text, write_json
+from scenes.files import atomic_write_text, shown_name, write_json
 from scenes.folder.format import PREDICTION_FILES, object_name, prediction_file
 from scenes.folder.layouts import detect_layout
 from scenes.images import check_unit_length, read_normals
@@ -117,41 +117,62 @@ def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True, overwrite
     earlier: list[Path] = []  # an earlier run's outputs, replaced (--overwrite)
     if write:
         check_output_folder(pred_dir, "--pred")
-        maps = [pred_dir / name / ERROR_MAP for name in sorted(seen) if (pred_dir / name).is_dir()]
+        map_paths = [pred_dir / name / ERROR_MAP for name in sorted(seen) if (pred_dir / name).is_dir()]
         # an earlier evaluation's files only where its metrics.json says it was one
-        earlier = claim_outputs([pred_dir / METRICS_JSON, pred_dir / METRICS_CSV, *maps], overwrite, "--pred",
+        earlier = claim_outputs([pred_dir / METRICS_JSON, pred_dir / METRICS_CSV, *map_paths], overwrite, "--pred",
                                 "unips.evaluate", marker=pred_dir / METRICS_JSON,
                                 signed={pred_dir / METRICS_JSON: METRICS_KEYS})
+    summary, maps = _evaluate_all(folders, gt, pred_dir, single)  # every object scored before anything is written
+    if not summary["objects"] and summary["failed"] and not summary["missing"]:  # nothing to write: no run's mark
+        first = next(iter(summary["failed"].items()))
+        raise ValueError(f"--gt: none of the {len(summary['failed'])} object(s) could be scored against --pred "
+                         f"(first, {first[0]}: {first[1]}); nothing was written")
+    if write:
         # the mark of this run before its first error map (a run killed mid-way leaves maps known as its own)
-        write_json(pred_dir / METRICS_JSON, {"objects": {}, "mean_mae_deg": None, "per_family": {}, "missing": [],
-                                             "failed": {}, "no_ground_truth": [], "gt": str(Path(gt).resolve()),
+        write_json(pred_dir / METRICS_JSON, {**summary, "objects": {}, "mean_mae_deg": None, "per_family": {},
                                              "complete": False}, indent=2, sort_keys=True)
-    try:
-        summary = _evaluate_all(folders, gt, pred_dir, write, single)
-        for path in earlier:  # an earlier run's map of an object this run scores no more
-            if path.name == ERROR_MAP and path.parent.name not in summary["objects"]:
-                path.unlink(missing_ok=True)
-        return summary
-    except BaseException:
-        if write:  # a run that ends in an error leaves no mark of a run
+        try:
+            _write_all(pred_dir, summary, maps, earlier)
+        except BaseException:  # a run that ends in an error leaves no mark of a run
             (pred_dir / METRICS_JSON).unlink(missing_ok=True)
-        raise
+            raise
+    return summary
 
 
-def _evaluate_all(folders: list[Path], gt: str | Path, pred_dir: Path, write: bool, single: bool) -> dict[str, Any]:
-    """`evaluate` after its outputs are claimed: every object (one that fails is recorded), then the summary."""
+def _write_all(pred_dir: Path, summary: dict[str, Any], maps: dict[str, tuple[np.ndarray, np.ndarray]],
+               earlier: list[Path]) -> None:
+    """The error maps, then metrics.json and metrics.csv. An earlier run's map of an object this run does not
+    score (no prediction, no ground truth) is removed; one of an object that failed is kept (the user's to judge)."""
+    for name, (err_map, scored) in maps.items():
+        write_error_map(pred_dir / name / ERROR_MAP, err_map, scored)
+    for path in earlier:
+        if path.name == ERROR_MAP and path.parent.name not in summary["objects"] | summary["failed"]:
+            path.unlink(missing_ok=True)
+    table = io.StringIO(newline="")
+    writer = csv.DictWriter(table, fieldnames=CSV_FIELDS)
+    writer.writeheader()
+    for name, m in summary["objects"].items():
+        writer.writerow({"object": name, **{k: m[k] for k in CSV_FIELDS[1:]}})
+    write_json(pred_dir / METRICS_JSON, summary, indent=2, sort_keys=True)
+    atomic_write_text(pred_dir / METRICS_CSV, table.getvalue())
+
+
+def _evaluate_all(folders: list[Path], gt: str | Path, pred_dir: Path,
+                  single: bool) -> tuple[dict[str, Any], dict[str, tuple[np.ndarray, np.ndarray]]]:
+    """Every object scored (one that fails is recorded): the summary, and {name: (error map, scored pixels)}."""
     results: dict[str, dict[str, Any]] = {}
     missing: list[str] = []
     no_gt: list[str] = []
     failed: dict[str, str] = {}
+    maps: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     for folder in folders:
         name = object_name(folder)
         try:
-            _evaluate_one(folder, pred_dir, write, results, missing, no_gt)
+            _evaluate_one(folder, pred_dir, results, missing, no_gt, maps)
         except (ValueError, OSError) as exc:  # one bad object: recorded, the others go on
             if single:
                 raise
-            failed[name] = one_line(exc)
+            failed[shown_name(name)] = one_line(exc)
             log.debug("%s failed", name, exc_info=True)
     if not results and not missing and not failed:
         raise ValueError(f"--gt: no object at {gt} has ground-truth normals (skipped: {no_gt})")
@@ -172,18 +193,10 @@ def _evaluate_all(folders: list[Path], gt: str | Path, pred_dir: Path, write: bo
         "gt": str(Path(gt).resolve()),
         "complete": True,
     }
-    if write:
-        table = io.StringIO(newline="")
-        writer = csv.DictWriter(table, fieldnames=CSV_FIELDS)
-        writer.writeheader()
-        for name, m in results.items():
-            writer.writerow({"object": name, **{k: m[k] for k in CSV_FIELDS[1:]}})
-        write_json(pred_dir / METRICS_JSON, summary, indent=2, sort_keys=True)
-        atomic_write_text(pred_dir / METRICS_CSV, table.getvalue())
-    return summary
+    return summary, maps
 
 
-def _evaluate_one(folder: Path, pred_dir: Path, write: bool, results: dict, missing: list, no_gt: list) -> None:
+def _evaluate_one(folder: Path, pred_dir: Path, results: dict, missing: list, no_gt: list, maps: dict) -> None:
     truth = load_ground_truth(folder, arg="--gt")
     if truth.normals is None:
         no_gt.append(truth.name)
@@ -206,8 +219,8 @@ def _evaluate_one(folder: Path, pred_dir: Path, write: bool, results: dict, miss
         return
     metrics, err_map = object_metrics(pred, truth.normals, scored)
     results[truth.name] = {**metrics, "light_family": truth.light_family, "prediction": str(pred_path)}
-    if write:
-        write_error_map(pred_dir / truth.name / ERROR_MAP, err_map, scored)
+    maps[truth.name] = (err_map, scored)
+
 
 
 def format_table(summary: dict[str, Any]) -> str:

@@ -136,6 +136,22 @@ def load_network(checkpoint: str | Path | None, device: str = "cpu", model: str 
     return LoadedModel(model=net.eval(), meta=dict(meta), checkpoint=path, device=device)
 
 
+def load_ablation(path: str, net: LoadedModel) -> LoadedModel:
+    """The --ablation-checkpoint network: the benchmarked network's kind, never the very same weights."""
+    from scenes.files import sha256_file
+
+    ablation = load_network(path, flag="--ablation-checkpoint")
+    if Path(net.checkpoint).is_file() and Path(ablation.checkpoint).is_file() and \
+            sha256_file(net.checkpoint) == sha256_file(ablation.checkpoint):
+        raise ValueError(f"--ablation-checkpoint: {path!r} holds the same weights as the model benchmarked "
+                         f"({str(net.checkpoint)!r}): its column would repeat the model's; expected the network "
+                         "trained with uniform contexts")
+    if (theirs := ablation.meta.get("model_name")) != (ours := net.meta.get("model_name")):
+        raise ValueError(f"--ablation-checkpoint: holds {theirs!r}, not {ours!r}, the network benchmarked; "
+                         "expected the same network trained with uniform contexts")
+    return ablation
+
+
 def check_tta(tta: int, name: str = "tta") -> int:
     """`tta` if it is an allowed number of views, else ValueError naming `name` (a CLI passes its flag)
     and the allowed ones."""

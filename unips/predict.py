@@ -43,7 +43,7 @@ from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import Progress
 from scenes.cli.supervise import run_supervised
-from scenes.files import read_json, write_json
+from scenes.files import read_json, shown_name, write_json
 from scenes.folder.format import EXPECTED_ERROR_FILES, PREDICTION_FILES, PREDICTION_INFO, object_name
 from scenes.folder.layouts import detect_layout
 from scenes.images import write_normal_exr, write_normal_map, write_normal_visual
@@ -284,7 +284,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
             except INPUT_ERRORS as exc:
                 if single or exc.__class__ is UsageError:  # a size this machine cannot hold: the flags' fault
                     raise
-                failures.append((name, one_line(exc)))
+                failures.append((shown_name(name), one_line(exc)))
         net = load_network(args.checkpoint, args.device, args.model) if args.method == "model" else None
         errors = error_model(args, net)
         written: list[str] = []
@@ -300,7 +300,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
                 except (*INPUT_ERRORS, OSError, np.linalg.LinAlgError) as exc:
                     if single:
                         raise
-                    failures.append((name, one_line(exc)))
+                    failures.append((shown_name(name), one_line(exc)))
                     log.debug("%s failed", name, exc_info=True)
                 shown.advance()
     except (*INPUT_ERRORS, OSError, np.linalg.LinAlgError) as exc:

@@ -37,6 +37,8 @@ import torch
 
 from scenes.files import not_a_file
 from scenes.folder.shard_format import (
+    DECODED,
+    ENCODINGS,
     INDEX_FILE,
     SHARD_SUFFIX,
     decode_folder,
@@ -68,6 +70,9 @@ class Shard:
 
     path: Path
     entry: dict[str, Any]
+    encoding: str = "files"
+    """What its index.json says its samples hold (`scenes.folder.shard_format.ENCODINGS`); each sample read is
+    checked against it (`decode_object`)."""
 
     @property
     def objects(self) -> list[dict[str, Any]]:
@@ -81,10 +86,16 @@ def resolve_shards(root: str | Path, arg: str = "--data") -> list[Shard]:
 
     text = str(root)
     indexes: dict[Path, dict[str, dict[str, Any]]] = {}
+    encodings: dict[Path, str] = {}
 
     def entries(folder: Path) -> dict[str, dict[str, Any]]:
         if folder not in indexes:
-            indexes[folder] = {e["name"]: e for e in read_index(folder, arg)["shards"]}
+            index = read_index(folder, arg)
+            indexes[folder] = {e["name"]: e for e in index["shards"]}
+            encodings[folder] = index.get("encoding", "files")  # absent in the first version: files
+            if encodings[folder] not in ENCODINGS:
+                raise ValueError(f"{arg}: {str(folder / INDEX_FILE)!r} has encoding {encodings[folder]!r}; expected "
+                                 f"one of {', '.join(ENCODINGS)}")
         return indexes[folder]
 
     if text.endswith(SHARD_SUFFIX):
@@ -105,7 +116,7 @@ def resolve_shards(root: str | Path, arg: str = "--data") -> list[Shard]:
                 f"{arg}: shard {str(p)!r} is not listed in {str(p.parent / INDEX_FILE)!r} (expected one of "
                 f"{', '.join(list(known)[:3])}{', ...' if len(known) > 3 else ''})"
             )
-        shards.append(Shard(p, known[p.name]))
+        shards.append(Shard(p, known[p.name], encodings[p.parent]))
     if len({s.path.resolve() for s in shards}) != len(shards):
         raise ValueError(f"{arg}: {text!r} names a shard twice")
     return shards
@@ -134,11 +145,18 @@ def scratch_dir(size: int) -> str | None:
     return SHM if st.f_bavail * st.f_frsize > 2 * size + (16 << 20) else None
 
 
-def decode_object(key: str, files: dict[str, bytes], shard: Path, arg: str = "--data") -> PSObject:
+def decode_object(key: str, files: dict[str, bytes], shard: Path, arg: str = "--data",
+                  encoding: str | None = None) -> PSObject:
     """The `PSObject` of one sample (`path` names the shard and the object). A `files` sample: its files written
     into a temporary folder (`scratch_dir`) and read by `load_object`, exactly as the object folder they came
     from. A `decoded` sample: the reader's arrays as the exporter stored them
-    (`scenes.folder.shard_format.decode_folder`)."""
+    (`scenes.folder.shard_format.decode_folder`). `encoding`: what the shard's index says its samples hold; a sample
+    of the other kind is refused (the index and the shard disagree)."""
+    if encoding is not None and is_decoded(files) != (encoding == DECODED):
+        held = DECODED if is_decoded(files) else "files"
+        raise ValueError(f"{arg}: object {key!r} of shard {str(shard)!r} holds a {held!r} sample, where "
+                         f"{str(shard.parent / INDEX_FILE)!r} says the encoding is {encoding!r} (the shard and its "
+                         "index disagree: export it again)")
     if is_decoded(files):
         try:
             return object_from_folder(decode_folder(files, shard / sample_folder_name(key)))
@@ -182,7 +200,7 @@ def iter_objects(root: str | Path, arg: str = "--data") -> Iterator[PSObject]:
             if key in seen:
                 raise ValueError(f"{arg}: object {key!r} appears twice (again in shard {str(shard.path)!r})")
             seen.add(key)
-            yield check_images(decode_object(key, files, shard.path, arg), shard, arg)
+            yield check_images(decode_object(key, files, shard.path, arg, shard.encoding), shard, arg)
 
 
 # ------------------------------------------------------------------------------------------- streaming
@@ -235,7 +253,8 @@ class ShardStream(torch.utils.data.IterableDataset):
             if next(raw, None) is None:
                 return
         for key, files, shard in raw:
-            yield self.prepare(check_images(decode_object(key, files, shard.path, self.arg), shard, self.arg))
+            obj = decode_object(key, files, shard.path, self.arg, shard.encoding)
+            yield self.prepare(check_images(obj, shard, self.arg))
 
 
 def _verified_samples(shard: Shard, arg: str) -> Iterator[tuple[str, dict[str, bytes]]]:

@@ -40,6 +40,7 @@ import torch
 
 from scenes.cli.budget import Budget, process_start
 from scenes.cli.errors import UsageError
+from scenes.cli.needs import Needs
 from scenes.cli.options import Command
 from scenes.cli.progress import Progress
 from unips.train_config import TrainConfig
@@ -49,15 +50,18 @@ from unips.train_run import Run, append_log, check_run, distributed_env, open_st
 log = logging.getLogger(__name__)
 
 
-COMMAND = Command(TrainConfig, prog="python -m unips.train", description=__doc__.split("\n\n")[0])
+COMMAND = Command(TrainConfig, prog="python -m unips.train", description=__doc__.split("\n\n")[0], needs=(
+    Needs("decay_every", lambda c, _: c.schedule == "step", "with --schedule step"),
+    Needs("decay", lambda c, _: c.schedule == "step", "with --schedule step"),
+    Needs("warmup", lambda c, _: c.schedule == "cosine", "with --schedule cosine (the default)"),
+    Needs("min_lr_ratio", lambda c, _: c.schedule == "cosine", "with --schedule cosine (the default)"),
+    Needs("loader_workers", lambda c, _: c.shuffle_buffer > 0, "with --shuffle-buffer N > 0 (streamed shards)"),
+    Needs("curriculum_fraction", lambda c, _: c.curriculum, "with --curriculum")))
 
 
 def config_from_args(argv: Sequence[str] | None) -> TrainConfig:
     """The TrainConfig of a command line (validated)."""
     cfg = COMMAND.parse(argv)
-    if "curriculum_fraction" in COMMAND.given(argv) and not cfg.curriculum:
-        raise ValueError(f"--curriculum-fraction: {cfg.curriculum_fraction:g} is the share of the steps of the "
-                         "curriculum, which is off; give --curriculum too, or leave it out")
     if "all" not in cfg.val_probes:
         cfg.val_probes = ["all", *cfg.val_probes]
     return cfg.validate()

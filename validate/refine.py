@@ -18,6 +18,7 @@ from typing import Annotated
 
 from scenes.cli.errors import INPUT_ERRORS, report_error
 from scenes.cli.limits import check_threads
+from scenes.cli.needs import Needs
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import progress_bar
@@ -62,6 +63,9 @@ COMMAND = Command(
     RefineOptions,
     prog="python -m validate.refine",
     description="Refine a normal map by fitting light, reflectance and normals to the images through Mitsuba.",
+    needs=(Needs("rotation_search", lambda c, _: c.refine.lights == "fitted" and c.refine.rounds > 1,
+                 "with --lights fitted and --rounds 2 or more (it turns the fitted lights from the second round)"),
+           Needs("rotation_steps", lambda c, _: c.refine.rotation_search, "with --rotation-search")),
 )
 
 

@@ -47,7 +47,7 @@ from scenes.cli.outputs import (
 )
 from scenes.cli.progress import progress_bar
 from scenes.cli.supervise import run_supervised
-from scenes.files import write_json
+from scenes.files import shown_name, write_json
 from scenes.folder.format import SCENE_FILE, find_prediction, list_object_folders, object_name
 from scenes.renderer.variant import require_jit_variant
 from validate.fitted.fit_scene import FitConfig
@@ -217,7 +217,7 @@ def rerender_dataset(
             if failed is None:
                 raise
             preds.pop(f, None)
-            errors[object_name(f)] = " ".join(str(exc).split())
+            errors[shown_name(object_name(f))] = shown_name(" ".join(str(exc).split()))
     reports = []
     for f in folders:
         if f not in preds:
@@ -227,7 +227,7 @@ def rerender_dataset(
         except (ValueError, FileNotFoundError, RuntimeError) as exc:  # RuntimeError: Mitsuba on this scene
             if failed is None:
                 raise
-            errors[object_name(f)] = " ".join(str(exc).split())
+            errors[shown_name(object_name(f))] = shown_name(" ".join(str(exc).split()))
     if failed is not None:
         failed.update(errors)
     if out_dir is not None:

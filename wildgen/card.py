@@ -187,6 +187,7 @@ def dataset_stats(dataset: str | Path, folders: list[Path]) -> dict:
     """The numbers of the dataset card (what stats.json holds) of the object `folders` of `dataset`. Every
     folder is read; one that cannot be read is recorded in `failed` (name: one line) and left out of the rest;
     ValueError when none can."""
+    from scenes.files import shown_name
     from scenes.folder.format import object_name
 
     objects, failed = [], {}
@@ -194,7 +195,7 @@ def dataset_stats(dataset: str | Path, folders: list[Path]) -> dict:
         try:
             objects.append(object_stats(folder))
         except READ_ERRORS as exc:
-            failed[object_name(folder)] = _why(exc)
+            failed[shown_name(object_name(folder))] = _why(exc)
     if not objects:
         name, why = next(iter(failed.items()))
         raise ValueError(f"DIR: none of the {len(folders)} object folder(s) in {str(dataset)!r} can be read "

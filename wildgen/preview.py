@@ -51,9 +51,11 @@ def _tile(img: np.ndarray) -> np.ndarray:
 def object_tiles(folder: Path) -> list[tuple[np.ndarray, str]]:
     """The tiles of one object folder's contact sheet, (TILE, TILE, 3) uint8 RGB each with its label: every
     image, then the normal map and the mask."""
+    from scenes.files import check_text_name
     from scenes.folder.format import MASK_FILE, NORMAL_FILE, image_files
     from scenes.images import normal_visual, read_image, read_mask, read_normals
 
+    check_text_name(folder, "DIR")  # its sheet is written under this name
     images = image_files(folder)
     if not images:
         raise FileNotFoundError(f"DIR: object folder {str(folder)!r} has no L*.png images")
@@ -132,7 +134,7 @@ def preview(dataset: str | Path, out: str | Path | None = None,
     Every object is read and every sheet drawn before anything is written; existing sheets are replaced only
     with `overwrite` (`scenes.cli.outputs.claim_outputs`)."""
     from scenes.cli.outputs import claim_outputs
-    from scenes.files import write_json
+    from scenes.files import shown_name, write_json
     from scenes.images import write_picture
     from scenes.report.charts import to_bgr
 
@@ -150,8 +152,8 @@ def preview(dataset: str | Path, out: str | Path | None = None,
         try:
             tiles = object_tiles(folder)
         except (OSError, ValueError) as exc:  # one bad object is recorded and the rest goes on
-            failed[folder.name[:-5]] = str(exc)
-            print(f"  {folder.name}: not drawn ({exc})", flush=True)
+            failed[shown_name(folder.name[:-5])] = shown_name(str(exc))
+            print(f"  {shown_name(folder.name)}: not drawn ({shown_name(str(exc))})", flush=True)
             continue
         (first, name), (normal, _) = tiles[0], tiles[-2]  # the first image and the normal map
         summary = (np.concatenate([first, normal], 1), f"{folder.name[:-5]}: {name} | normal")

@@ -120,8 +120,9 @@ def _sensor_versions() -> dict[str, str]:
 def check_source_object(src: Path) -> tuple:
     """What `apply_to_object` reads of object folder `src`, checked (its scene.json, sensor record and every
     radiance file present): (description, scene.json extras, old sensor record, radiance paths)."""
-    from scenes.files import links_out_of
+    from scenes.files import check_text_name, links_out_of
 
+    check_text_name(src, "--data")  # the converted folder and its files take this name
     for folder, dirs, files in os.walk(src):  # the dataset is untrusted: nothing of the machine is copied in
         out = next((Path(folder, n) for n in dirs + files if links_out_of(Path(folder, n), src)), None)
         if out is not None:

@@ -7,7 +7,9 @@ FileNotFoundError, or importing `scenes` raise `MissingDependencyError`), and it
 """
 from __future__ import annotations
 
+import os
 import sys
+from collections.abc import Sequence
 
 EXIT_USAGE = 2
 """Exit status of a usage or input error (argparse's own)."""
@@ -67,3 +69,23 @@ def report_error(exc: BaseException, code: int = EXIT_USAGE) -> int:
     """Print `error: <message>` (one line) on stderr and return the exit status `code`."""
     print(f"error: {one_line(exc)}", file=sys.stderr)
     return code
+
+
+def check_text_arguments(argv: Sequence[str], positional: str) -> None:
+    """A UsageError for an argument whose bytes are not text (Python keeps them as lone surrogates, which figures,
+    pages, OpenEXR and OpenCV cannot take), named by its flag (`positional` when it follows none). Under a UTF-8
+    file system encoding the name itself is not UTF-8 (`scenes.files.text_name_problem`: rename it); under another
+    one (LANG=C with Python's UTF-8 mode off) the locale is what cannot read it."""
+    from scenes.files import shown_name, text_name_problem
+
+    for i, arg in enumerate(argv):
+        if not any("\udc80" <= ch <= "\udcff" for ch in arg):
+            continue
+        flag, eq, value = arg.partition("=") if arg.startswith("--") else ("", "", arg)
+        if not eq:
+            flag, value = (argv[i - 1] if i and argv[i - 1].startswith("--") else positional), arg
+        if sys.getfilesystemencoding().lower().replace("-", "") == "utf8":
+            raise UsageError(f"{flag}: {shown_name(value)!r}: {text_name_problem(value)}")
+        raise UsageError(f"{flag}: {shown_name(value)!r} holds characters this locale cannot read as text (LANG="
+                         f"{os.environ.get('LANG', '')!r}, Python's UTF-8 mode off): run with PYTHONUTF8=1 or in a "
+                         "UTF-8 locale (LANG=C.UTF-8)")

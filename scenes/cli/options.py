@@ -293,20 +293,6 @@ def _flag_tokens(argv: Sequence[str] | None, known: set[str]) -> list[tuple[str,
     return [(t, t) if t in known else (t, "--" + t[5:] if t.startswith("--no-") else t) for t in tokens]
 
 
-def _check_text(argv: Sequence[str]) -> None:
-    """A UsageError for an argument whose bytes are not text here (a non-ASCII name under LANG=C with Python's
-    UTF-8 mode off: Python keeps the bytes as lone surrogates, which figures, pages and OpenCV cannot take)."""
-    from scenes.cli.errors import UsageError
-
-    for i, arg in enumerate(argv):
-        if any("\udc80" <= ch <= "\udcff" for ch in arg):
-            flag = argv[i - 1] if i and argv[i - 1].startswith("--") else arg.split("=", 1)[0]
-            shown = arg.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
-            raise UsageError(f"{flag}: {shown!r} holds characters this locale cannot read as text (LANG="
-                             f"{os.environ.get('LANG', '')!r}, Python's UTF-8 mode off): run with PYTHONUTF8=1 or in a "
-                             "UTF-8 locale (LANG=C.UTF-8)")
-
-
 def _flat_fields(cls: type) -> Iterable[tuple[type, dataclasses.Field]]:
     """(owner class, field) of every field on the command line, the fields of nested configs included."""
     hints = _hints(cls)
@@ -384,6 +370,8 @@ class Command:
     config: type
     prog: str
     description: str
+    needs: tuple = ()
+    """`scenes.cli.needs.Needs` of the flags that act only together with another setting, checked by `parse`."""
 
     def parse(self, argv: Sequence[str] | None = None) -> Any:
         """The config of `argv` (not validated: call its `validate()`); a bad command line is a UsageError of
@@ -392,17 +380,21 @@ class Command:
 
         from tyro import _errors
 
-        from scenes.cli.errors import UsageError
+        from scenes.cli.errors import UsageError, check_text_arguments
+        from scenes.cli.needs import check_needs
 
         def refuse(event: Any) -> None:
             raise UsageError(_usage_message(event))
 
         argv = list(sys.argv[1:] if argv is None else argv)
-        _check_text(argv)
+        check_text_arguments(argv, " or ".join(n for n in (flag_name(o, f) for o, f in _flat_fields(self.config))
+                                               if not n.startswith("--")) or "an argument")
         self._check_no_empty_path(argv)
         with _errors.on_parse_error(refuse):
-            return tyro.cli(self.config, args=self._join_repeated(argv), prog=self.prog,
-                            description=self.description, config=MARKERS)
+            cfg = tyro.cli(self.config, args=self._join_repeated(argv), prog=self.prog,
+                           description=self.description, config=MARKERS)
+        check_needs(self.needs, cfg, self.given(argv), self.flags())
+        return cfg
 
     def _check_no_empty_path(self, argv: list[str]) -> None:
         """A path or text flag given an empty value is refused: '' would become the current folder ('.') without a

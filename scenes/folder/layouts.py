@@ -47,7 +47,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from scenes.files import not_a_file
+from scenes.files import check_text_name, not_a_file
 from scenes.folder.calibration import Lights, diligent_lights, no_lights, ours_lights
 from scenes.folder.format import (
     DILIGENT_LIGHTS,
@@ -409,6 +409,7 @@ def read_folder(path: str | Path, max_images: int | None = None, layout: str | N
     folder = Path(path)
     if not folder.is_dir():
         raise FileNotFoundError(f"{arg}: object folder {folder} does not exist (expected {ONE_FOLDER})")
+    check_text_name(folder, arg)  # every output named after the object takes its name as text
     if layout is None:
         layout = detect_layout(folder)
         if layout is None:
@@ -424,6 +425,8 @@ def read_folder(path: str | Path, max_images: int | None = None, layout: str | N
         raise ValueError(f"{arg}: {exc}") from None
     if not all_paths:
         raise FileNotFoundError(f"{arg}: no images found in {folder} (expected {ONE_FOLDER})")
+    for p in all_paths:
+        check_text_name(p, arg)
     paths = all_paths[: int(max_images)] if max_images is not None else all_paths
     if scene is None and layout == "ours":
         scene = read_scene_dict(folder / SCENE_FILE)

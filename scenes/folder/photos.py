@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from scenes.files import shown_name, text_name_problem
 from scenes.folder.raw import RAW_SUFFIXES, is_raw, raw_shape, read_raw
 from scenes.images import CODE_SCALES
 
@@ -102,6 +103,9 @@ def photo_files(folder: str | Path, flag: str = "--input") -> list[Path]:
     if not folder.is_dir():
         raise FileNotFoundError(f"{flag}: {str(folder)!r} is not a folder")
     named = [p for p in folder.iterdir() if p.suffix.lower() in PHOTO_SUFFIXES]
+    for p in named:  # before any is read: the outputs' writers take names as text only
+        if (problem := text_name_problem(p.name)) is not None:
+            raise ValueError(f"{flag}: a photo in {shown_name(folder)!r}: {problem}")
     broken = next((p for p in named if not p.is_file()), None)
     if broken is not None:  # a photo that silently went missing would change the capture
         what = "a link to a missing file" if broken.is_symlink() and not broken.exists() else "not a file"

@@ -1,0 +1,40 @@
+"""Flags that act only together with another setting (`--decay-every` with `--schedule step`, `--rotation-search`
+with the refinement on): a command lists them as `Needs` in its `Command`, and a command line giving such a flag
+without what it needs is refused in one line, never run with the flag dropped without a word.
+"""
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from typing import Any
+
+
+@dataclass(frozen=True)
+class Needs:
+    """A flag (its field) that acts only where `acts(config, given)` holds (`given`: the fields on the command
+    line); `only` says where, after "used only" ("with --schedule step", "without --suite")."""
+
+    field: str
+    acts: Callable[[Any, set[str]], bool]
+    only: str
+
+
+def check_needs(needs: Iterable[Needs], cfg: Any, given: set[str], flags: dict[str, str]) -> None:
+    """A UsageError naming the first flag of `given` whose `Needs` does not hold (`flags`: field -> its flag)."""
+    from scenes.cli.errors import UsageError
+
+    for need in needs:
+        if need.field in given and not need.acts(cfg, given):
+            value = _value(cfg, need.field)
+            shown = "" if isinstance(value, bool) else f" {value:g}" if isinstance(value, float) else f" {value}"
+            raise UsageError(f"{flags[need.field]}{shown}: used only {need.only}, so here it would do nothing; leave "
+                             "it out, or give what it needs")
+
+
+def _value(cfg: Any, name: str) -> Any:
+    """The value of field `name` of `cfg` or of a config nested in it (None when there is none)."""
+    if hasattr(cfg, name):
+        return getattr(cfg, name)
+    nested = (v for v in vars(cfg).values() if dataclasses.is_dataclass(v))
+    return next((v for v in (_value(n, name) for n in nested) if v is not None), None)
