@@ -3705,8 +3705,8 @@ ROWS += [
         setup=_prediction_npy(lambda n: np.round((n + 1) / 2 * 255).astype(np.uint8))),
     Row("evaluate-npy-encoded-floats", EV, ["--pred", "{T}/p", "--gt", OBJDIR], 2, ("normal.npy", "unit length"),
         setup=_prediction_npy(lambda n: np.where(np.any(n != 0, axis=-1, keepdims=True), (n + 1) / 2, 0))),
-    Row("evaluate-no-prediction-names-pred", EV, ["--pred", "{T}/p", "--gt", "{W}/data"], 1, ("--pred", "'", "p'"),
-        setup=lambda w, t: _mk(t / "p" / "other")),
+    Row("evaluate-no-prediction-names-pred", EV, ["--pred", "{T}/p", "--gt", "{W}/data"], 2, ("--pred", "'", "p'"),
+        setup=lambda w, t: _mk(t / "p" / "other"), check=_not_written("p/metrics.json")),
     Row("surface-focal-px-huge", SF, [*SURF, "--focal-px", "1e30", "--out", "{T}/o"], 2, ("--focal-px", "1e+30"),
         check=_not_written("o")),
     Row("surface-focal-px-tiny", SF, [*SURF, "--focal-px", "1e-30", "--out", "{T}/o"], 2, ("--focal-px", "1e-30"),
@@ -3904,8 +3904,9 @@ ROWS += [
                                                     "1", "--model-option", "decoder_dim=nan"],
         2, ("--model-option", "decoder_dim=nan")),
     Row("evaluate-allow-missing-with-nothing-to-evaluate", EV, ["--pred", "{T}/p", "--gt", "{W}/data",
-                                                                 "--allow-missing"], 1,
-        ("--pred", "for any of the 3 object(s)"), setup=lambda w, t: _mk(t / "p")),
+                                                                 "--allow-missing"], 2,
+        ("--pred", "for any of the 3 object(s)", "nothing was written"), setup=lambda w, t: _mk(t / "p"),
+        check=_not_written("p/metrics.json")),
     Row("capture-srgb-encoding-of-exr-photos", CAP, [*CAPTURE_ALL, "--input-encoding", "srgb"], 2,
         ("--input-encoding", "EXR"), setup=_exr_photos(lambda x: x), check=_not_written("o/normal.png")),
     Row("gpu-session-out-is-the-carry-folder", GS, ["--out", "{T}/c", "--work", "{T}/w", "--carry", "{T}/c",
@@ -4383,16 +4384,21 @@ def _renamed(src: str, dst: str) -> Callable[[Path, Path], None]:
     return setup
 
 
-def _evaluated_then_reshaped(w: Path, t: Path) -> None:
-    """Setup: T/p evaluated against the world's dataset (metrics.json and the error maps), then each prediction
-    replaced by one of another size: a later --gt that matches none of them."""
-    from unips.evaluate import evaluate
+def _evaluated_then_reshaped(missing: int = 0) -> Callable[[Path, Path], None]:
+    """Setup: T/p evaluated against the world's dataset (metrics.json and the error maps), then the predictions of
+    the last `missing` objects removed and every other one replaced by one of another size: a later --gt that
+    matches none of them."""
+    def setup(w: Path, t: Path) -> None:
+        from unips.evaluate import evaluate
 
-    evaluate(t / "p", w / "data")
-    for obj in sorted(p for p in (t / "p").iterdir() if p.is_dir()):
-        for f in obj.glob("normal.*"):
-            f.unlink()
-        np.save(obj / "normal.npy", np.tile(np.float32([0, 0, 1]), (5, 7, 1)))
+        evaluate(t / "p", w / "data")
+        objects = sorted(p for p in (t / "p").iterdir() if p.is_dir())
+        for i, obj in enumerate(objects):
+            for f in obj.glob("normal.*"):
+                f.unlink()
+            if i < len(objects) - missing:
+                np.save(obj / "normal.npy", np.tile(np.float32([0, 0, 1]), (5, 7, 1)))
+    return setup
 
 
 def _index_says(encoding: str) -> Callable[[Path, Path], None]:
@@ -4427,7 +4433,10 @@ ROWS += [
     # ---- sweep 20: --overwrite with a --gt no prediction matches: refused, the earlier evaluation kept whole
     Row("evaluate-overwrite-scoring-nothing-keeps-the-earlier-evaluation", EV,
         ["--pred", "{T}/p", "--gt", "{W}/data", "--overwrite"], 2, ("--gt: none of the 3", "nothing was written"),
-        setup=_both(_copy("pred", "p"), _evaluated_then_reshaped), check=_written("p/00000/error_map.png")),
+        setup=_both(_copy("pred", "p"), _evaluated_then_reshaped()), check=_written("p/00000/error_map.png")),
+    Row("evaluate-overwrite-scoring-nothing-with-some-missing-keeps-the-earlier-evaluation", EV,
+        ["--pred", "{T}/p", "--gt", "{W}/data", "--overwrite"], 2, ("--gt: none of the 3", "nothing was written"),
+        setup=_both(_copy("pred", "p"), _evaluated_then_reshaped(missing=2)), check=_written("p/00000/error_map.png")),
     # ---- sweep 20: a flag that acts only with another setting is refused without it (scenes.cli.needs)
     Row("train-decay-every-with-the-cosine-schedule", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run",
                                                            "--decay-every", "3"], 2,

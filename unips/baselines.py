@@ -311,10 +311,11 @@ def sh_uncalibrated(obj: PSObject, config: SHUncalibratedConfig | None = None) -
 
     band_fit = in_band[fit_idx] & good
     if int(band_fit.sum()) < cfg.min_band_pixels:
-        raise ValueError(
-            f"--method sh-uncalibrated: object {obj.name}: only {int(band_fit.sum())} usable contour pixels (need "
-            f"{cfg.min_band_pixels}); the mask must show the object's silhouette inside the image"
-        )
+        why = ("the mask must show the object's silhouette inside the image" if in_band.sum() < cfg.min_band_pixels
+               else f"of its {int(in_band.sum())} contour pixels, only these are lit in at least 4 of the {K} images: "
+                    "more images, lit from more sides, are needed")
+        raise ValueError(f"--method sh-uncalibrated: object {obj.name}: only {int(band_fit.sum())} usable contour "
+                         f"pixels (need {cfg.min_band_pixels}); {why}")
     ys, xs = np.nonzero(mask)
     c = direction[ys[fit_idx][band_fit], xs[fit_idx][band_fit]]
     gxy = _contour_columns(St[band_fit], c)

@@ -123,10 +123,13 @@ def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True, overwrite
                                 "unips.evaluate", marker=pred_dir / METRICS_JSON,
                                 signed={pred_dir / METRICS_JSON: METRICS_KEYS})
     summary, maps = _evaluate_all(folders, gt, pred_dir, single)  # every object scored before anything is written
-    if not summary["objects"] and summary["failed"] and not summary["missing"]:  # nothing to write: no run's mark
-        first = next(iter(summary["failed"].items()))
-        raise ValueError(f"--gt: none of the {len(summary['failed'])} object(s) could be scored against --pred "
-                         f"(first, {first[0]}: {first[1]}); nothing was written")
+    if not summary["objects"]:  # nothing scored: nothing written (an earlier evaluation stays whole)
+        failed, missing = summary["failed"], summary["missing"]
+        if not failed:
+            raise ValueError(f"--pred: no prediction in {str(pred_dir)!r} for any of the {len(missing)} object(s) of "
+                             "--gt (is --pred the right folder?); nothing was written")
+        raise ValueError(f"--gt: none of the {len(failed) + len(missing)} object(s) could be scored against --pred "
+                         f"(first, {next(iter(failed))}: {next(iter(failed.values()))}); nothing was written")
     if write:
         # the mark of this run before its first error map (a run killed mid-way leaves maps known as its own)
         write_json(pred_dir / METRICS_JSON, {**summary, "objects": {}, "mean_mae_deg": None, "per_family": {},
@@ -284,11 +287,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {len(summary['failed'])} object(s) could not be evaluated: {', '.join(summary['failed'])} "
               "(the others are in metrics.json)", file=sys.stderr)
         status = 1
-    if summary["missing"] and args.allow_missing and not summary["objects"]:  # "some may be missing", not all
-        print(f"error: --pred: no prediction in {str(args.pred)!r} for any of the {len(summary['missing'])} object(s) "
-              "of --gt; --allow-missing accepts some missing, not all (is --pred the right folder?)", file=sys.stderr)
-        status = 1
-    elif summary["missing"] and not args.allow_missing:
+    if summary["missing"] and not args.allow_missing:
         print(f"error: --pred: no prediction in {str(args.pred)!r} for {len(summary['missing'])} object(s): "
               f"{', '.join(summary['missing'])} (expected <object>/normal.png or another of "
               f"{', '.join(PREDICTION_FILES)} for each object of --gt; use --allow-missing to accept)", file=sys.stderr)
