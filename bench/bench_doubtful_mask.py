@@ -184,7 +184,10 @@ class Options:
 
 COMMAND = Command(Options, prog="python bench/bench_doubtful_mask.py", description=__doc__.split("\n\n")[0],
                   needs=(Needs("rows_from", lambda _, given: "suite" not in given,
-                               "without --suite (its rows are read from FILE, nothing is measured)"),))
+                               "without --suite (its rows are read from FILE, nothing is measured)"),
+                         *(Needs(f, lambda _, given: "rows_from" not in given, "without --rows-from (nothing is "
+                                 "measured: the rows say whether cushions were painted)")
+                           for f in ("seed", "cushions"))))
 RESULT_KEYS = ("rows",)
 """The key of every result (--out, read back by --rows-from): a file without it is not this bench's."""
 RECORD_KEYS = ("good_iou", "rows")

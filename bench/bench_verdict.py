@@ -226,7 +226,9 @@ class Options:
 
 
 COMMAND = Command(Options, prog="python bench/bench_verdict.py", description=__doc__.split("\n\n")[0],
-                  needs=(Needs("refine", lambda c, _: c.model, "with the model's map scored (without --no-model)"),))
+                  needs=(Needs("refine", lambda c, _: c.model, "with the model's map scored (without --no-model)"),
+                         *(Needs(f, lambda c, _: not c.degenerate, "without --degenerate (a sweep of its own)")
+                           for f in ("refine", "optimised", "tile", "near"))))
 RESULT_KEYS = ("rows",)
 """The key of every result (--out, --degenerate's too): a file without it is not this bench's and is never replaced."""
 

@@ -182,7 +182,8 @@ class Options:
 
 
 COMMAND = Command(Options, prog="python bench/learning_curve.py", description=__doc__.split("\n\n")[0],
-                  needs=(Needs("target", lambda c, _: c.card is not None, "with --card"),))
+                  needs=(Needs("target", lambda c, _: c.card is not None, "with --card"),
+                         Needs("families", lambda c, _: bool(c.runs), "with RUN folders (their last validation)")))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -30,6 +30,7 @@ import numpy as np
 
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.limits import check_memory, check_threads
+from scenes.cli.needs import Needs
 from scenes.cli.options import Command, arg, check_fields, comma_list, option
 from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs, output_lock
 from scenes.files import atomic_write_text, write_json
@@ -366,9 +367,6 @@ class BenchmarkOptions:
         if self.data is None and self.diligent is None:
             raise UsageError("--data / --diligent: give at least one of them")
         check_fields(self)
-        if self.rerender_spp is not None and (self.data is None or self.rerender_objects == 0):
-            raise UsageError("--rerender-spp: only used by the re-render table, which needs --data and "
-                             "--rerender-objects >= 1")
         if self.diligent is not None and self.diligent_subsets > 0 and self.diligent_subset >= self.diligent_images:
             raise UsageError(f"--diligent-subset: got {self.diligent_subset}, expected fewer than --diligent-images "
                              f"{self.diligent_images} (a subset of all the images is no subset; or "
@@ -438,8 +436,12 @@ def check_inputs(args: BenchmarkOptions, data: bool = True) -> None:
                      f"{fd.shape[0]} px, {args.tta} view(s))", f"lower {flag} or --tta")
 
 
-COMMAND = Command(BenchmarkOptions, prog="python -m orchestrate.benchmark",
-                  description="Evaluation tables: per light family, vs image count, re-render residuals, DiLiGenT.")
+COMMAND = Command(BenchmarkOptions, prog="python -m orchestrate.benchmark", needs=(
+    *(Needs(f, lambda c, _: c.diligent is not None, "with --diligent") for f in ("diligent_images", "diligent_subset",
+                                                                                 "diligent_subsets")),
+    *(Needs(f, lambda c, _: c.data is not None and c.rerender_objects > 0, "with --data and --rerender-objects above 0")
+      for f in ("variant", "rerender_spp"))),
+    description="Evaluation tables: per light family, vs image count, re-render residuals, DiLiGenT.")
 
 
 def main(argv: list[str] | None = None) -> int:  # --out is held for the length of the run (output_lock)

@@ -59,6 +59,7 @@ from orchestrate.relay import REPO, SITE_ARCHIVE, UPLOAD_LIMIT, pack, resolve_in
 from orchestrate.steps import OutOfTime, StepFailed, check_step, run_step
 from scenes.cli.budget import process_start
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
+from scenes.cli.needs import Needs
 from scenes.cli.options import Command, check_fields, option
 from scenes.cli.outputs import check_output_folder, output_lock
 from scenes.files import is_within, write_json
@@ -466,7 +467,10 @@ def _assets_note(opts: SessionOptions, assets: str | None) -> str:
 
 PACK_FLAGS = ("pack", "wheels", "assets", "overwrite")
 """The flags --pack reads; any other given with it is refused."""
-COMMAND = Command(SessionOptions, prog="python -m orchestrate.gpu_session", description=__doc__)
+COMMAND = Command(SessionOptions, prog="python -m orchestrate.gpu_session", description=__doc__, needs=(
+    Needs("wheels", lambda c, _: c.pack is not None, "with --pack"),
+    *(Needs(f, lambda c, _: c.check_variant != "none", "with the check on (not --check-variant none)")
+      for f in ("check_objects", "noise_cv"))))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -250,3 +250,61 @@ def test_an_output_inside_its_input_under_another_name_is_refused(mounted_twice)
         check_apart(alias, {"--normals": folder / "input.txt"})
     assert sorted(p.name for p in folder.iterdir()) == ["input.txt"]  # nothing created in it
     check_apart(folder.parent / "elsewhere", {"--data": folder})  # a folder apart: accepted
+
+
+def _commands() -> list[tuple[str, Command]]:
+    """(name, COMMAND) of every CLI of the docs and every bench script."""
+    from pathlib import Path
+
+    from orchestrate.docs import CLIS
+
+    bench = sorted(f"bench.{p.stem}" for p in (Path(__file__).resolve().parents[1] / "bench").glob("*.py")
+                   if "\nCOMMAND = Command(" in p.read_text())
+    return [(m, importlib.import_module(m).COMMAND) for m in (*CLIS, *bench)]
+
+
+def test_every_needs_names_a_flag_of_its_command_and_reads_fields_it_has():
+    """A `Needs` whose field is no flag of its command would never fire (a typo makes the rule inert), and one whose
+    rule reads a field the config lacks would fail with a traceback only when its flag is given."""
+    seen = 0
+    for name, command in _commands():
+        flags = command.flags()
+        cfg = command.config()  # every field has a default (REQUIRED is a marker value)
+        for need in command.needs:
+            seen += 1
+            assert need.field in flags, (name, need.field)
+            assert isinstance(need.acts(cfg, {need.field}), bool), (name, need.field)
+    assert seen >= 30
+
+
+@pytest.mark.parametrize("module,argv,said", [
+    ("unips.train", ["--data", "d", "--out", "o", "--val-every", "5"], "--val-every 5: used only with --val"),
+    ("unips.train", ["--data", "d", "--out", "o", "--warmup", "5", "--schedule", "step"],
+     "--warmup 5: used only with --schedule cosine"),
+    ("unips.predict", ["--method", "least-squares", "--input", "i", "--out", "o", "--expected-error"],
+     "--expected-error: used only with --method model"),
+    ("wildgen.make", ["--out", "o", "--workers", "0", "--recycle-after", "3"], "--recycle-after 3: used only with "
+     "worker processes"),
+    ("wildgen.make", ["--out", "o", "--shapes", "mesh", "--shape-kinds", "blob"], "--shape-kinds blob"),
+    ("wildgen.sensor", ["--data", "d", "--out", "o", "--sensor", "ideal", "--seed", "3"],
+     "--seed 3: used only with a sensor that adds noise"),
+    ("validate.refine", ["--data", "d", "--normals", "n", "--holdout", "0", "--patience", "2"],
+     "--patience 2: used only with --holdout above 0"),
+    ("validate.refine", ["--data", "d", "--normals", "n", "--downsample", "2", "--max-pixels", "100"],
+     "--max-pixels 100: used only without --downsample"),
+    ("validate.rerender", ["--data", "d", "--normals", "n", "--min-coverage", "0.5"],
+     "--min-coverage 0.5: used only with --allow-missing"),
+    ("validate.rerender", ["--data", "d", "--normals", "n", "--fit", "--interreflection", "--ao-rays", "0"],
+     "--interreflection: used only with --ao-rays above 0"),
+    ("orchestrate.gpu_session", ["--out", "o", "--check-variant", "none", "--noise-cv", "2"],
+     "--noise-cv 2: used only with the check on"),
+    ("orchestrate.benchmark", ["--data", "d", "--diligent-subset", "4"], "--diligent-subset 4: used only with "
+     "--diligent"),
+])
+def test_a_flag_that_would_do_nothing_is_refused_in_one_line(module, argv, said):
+    """Sweeps 20 and 21: a flag given with settings under which it acts not at all was dropped without a word."""
+    command = importlib.import_module(module).COMMAND
+    with pytest.raises(UsageError) as caught:
+        command.parse(argv)
+    assert str(caught.value).startswith(said), caught.value
+    assert "leave it out" in str(caught.value)

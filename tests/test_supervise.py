@@ -208,7 +208,7 @@ def test_ctrl_c_in_training_keeps_whole_checkpoints_and_resumes(tmp_path):
     out = tmp_path / "run"
     argv = [sys.executable, "-m", "unips.train", "--data", str(tmp_path / "data"), "--out", str(out), "--model",
             "glc-test", "--res", "16", "--steps", "100000", "--no-progress", "--threads", "1", "--batch", "1",
-            "--val-every", "100000", "--ckpt-every", "1"]
+            "--ckpt-every", "1"]
     proc = subprocess.Popen(argv, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "PYTHONPATH": str(REPO)}, preexec_fn=interruptible,
                             start_new_session=True)

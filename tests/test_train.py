@@ -90,7 +90,8 @@ def test_training_reduces_the_loss(train_dataset, tmp_path) -> None:
 def test_resume_is_bit_for_bit(train_dataset, tmp_path) -> None:
     # Dropout and drop path on, so the torch RNG matters too.
     opts = ["--model-option", "dropout=0.1", "--model-option", "swin_drop_path=0.1", "--lr", "3e-3",
-            "--decay-every", "2", "--ckpt-every", "3", "--val", str(train_dataset["val"]), "--val-every", "2"]
+            "--schedule", "step", "--decay-every", "2", "--ckpt-every", "3", "--val", str(train_dataset["val"]),
+            "--val-every", "2"]
     full, part = tmp_path / "full", tmp_path / "part"
     assert train(train_dataset, full, "--steps", "6", *opts) == 0
     assert train(train_dataset, part, "--steps", "3", *opts) == 0

@@ -39,6 +39,7 @@ import numpy as np
 
 from scenes.cli.errors import INPUT_ERRORS, UsageError, one_line, report_error
 from scenes.cli.limits import check_memory, gib
+from scenes.cli.needs import Needs
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import Progress
@@ -238,7 +239,9 @@ class PredictOptions:
         return self
 
 
-COMMAND = Command(PredictOptions, prog="python -m unips.predict", description=__doc__.split("\n\n")[0])
+COMMAND = Command(PredictOptions, prog="python -m unips.predict", description=__doc__.split("\n\n")[0], needs=(
+    Needs("expected_error", lambda c, _: c.method == "model" or not c.expected_error, "with --method model"),
+    Needs("device", lambda c, _: c.method == "model", "with --method model (the baselines run on the CPU)")))
 
 
 def check_args(argv: list[str]) -> PredictOptions:

@@ -56,7 +56,9 @@ COMMAND = Command(TrainConfig, prog="python -m unips.train", description=__doc__
     Needs("warmup", lambda c, _: c.schedule == "cosine", "with --schedule cosine (the default)"),
     Needs("min_lr_ratio", lambda c, _: c.schedule == "cosine", "with --schedule cosine (the default)"),
     Needs("loader_workers", lambda c, _: c.shuffle_buffer > 0, "with --shuffle-buffer N > 0 (streamed shards)"),
-    Needs("curriculum_fraction", lambda c, _: c.curriculum, "with --curriculum")))
+    Needs("curriculum_fraction", lambda c, _: c.curriculum, "with --curriculum"),
+    *(Needs(f, lambda c, _: bool(c.val), "with --val (nothing is validated without it)")
+      for f in ("val_every", "val_pixels", "val_probes"))))
 
 
 def config_from_args(argv: Sequence[str] | None) -> TrainConfig:

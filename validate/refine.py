@@ -25,6 +25,7 @@ from scenes.cli.progress import progress_bar
 from scenes.cli.supervise import run_supervised
 from scenes.files import read_json
 from scenes.folder.format import EXPECTED_ERROR_FILES, stated_error
+from validate.fitted.fit import FIT_NEEDS
 from validate.fitted.refinement import REFINE_OUTPUTS, RefineConfig, refine_object
 
 
@@ -65,7 +66,9 @@ COMMAND = Command(
     description="Refine a normal map by fitting light, reflectance and normals to the images through Mitsuba.",
     needs=(Needs("rotation_search", lambda c, _: c.refine.lights == "fitted" and c.refine.rounds > 1,
                  "with --lights fitted and --rounds 2 or more (it turns the fitted lights from the second round)"),
-           Needs("rotation_steps", lambda c, _: c.refine.rotation_search, "with --rotation-search")),
+           Needs("rotation_steps", lambda c, _: c.refine.rotation_search, "with --rotation-search"),
+           Needs("patience", lambda c, _: c.refine.holdout_fraction > 0, "with --holdout above 0 (the held-out "
+                 "residual it waits on)"), *FIT_NEEDS),
 )
 
 

@@ -35,6 +35,7 @@ import numpy as np
 
 from scenes.cli.errors import UsageError, report_error
 from scenes.cli.limits import check_threads
+from scenes.cli.needs import Needs
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import (
     check_listed,
@@ -50,6 +51,7 @@ from scenes.cli.supervise import run_supervised
 from scenes.files import shown_name, write_json
 from scenes.folder.format import SCENE_FILE, find_prediction, list_object_folders, object_name
 from scenes.renderer.variant import require_jit_variant
+from validate.fitted.fit import FIT_NEEDS
 from validate.fitted.fit_scene import FitConfig
 from validate.io import check_normals, read_prediction
 from validate.known.rerender_passes import MIN_COVERAGE, Progress, RerenderConfig, independent_seed, render_passes
@@ -279,6 +281,8 @@ COMMAND = Command(
     prog="python -m validate.rerender",
     description="Re-render the known scenes of an object (or dataset) with predicted normals and "
     "compare with the inputs.",
+    needs=(Needs("min_coverage", lambda c, _: c.check.allow_missing, "with --allow-missing (without it every mask "
+                 "pixel needs an estimate)"), *FIT_NEEDS),
 )
 
 

@@ -16,6 +16,7 @@ from scenes.checks import check_int
 from scenes.cli.errors import UsageError, report_error
 from scenes.cli.limits import check_memory as check_memory_bytes
 from scenes.cli.limits import check_threads, gib
+from scenes.cli.needs import Needs, value_of
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option, optional_value
 from scenes.cli.outputs import check_output_folder, make_output_folder
 from scenes.cli.progress import Progress, logs_above_progress
@@ -79,7 +80,9 @@ class MakeOptions:
         return self
 
 
-COMMAND = Command(MakeOptions, prog="python -m wildgen.make",
+COMMAND = Command(MakeOptions, prog="python -m wildgen.make", needs=(
+    Needs("recycle_after", lambda c, _: c.workers != 0, "with worker processes (not --workers 0)"),
+    Needs("shape_kinds", lambda c, _: value_of(c, "shapes") != "mesh", "with procedural shapes (not --shapes mesh)")),
                   description="Render a PS-Wild-style photometric stereo dataset with Mitsuba 3 (one <object>.data "
                               "folder per object).")
 

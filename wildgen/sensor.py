@@ -39,6 +39,7 @@ from scenes.camera_sensor import (
     write_image,
 )
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
+from scenes.cli.needs import Needs
 from scenes.cli.options import REQUIRED, Command, check_fields, option
 from scenes.cli.outputs import check_apart, check_not_being_written, check_output_folder
 from scenes.cli.progress import progress_bar
@@ -92,6 +93,7 @@ class SensorOptions:
 
 COMMAND = Command(
     SensorOptions,
+    needs=(Needs("seed", lambda c, _: c.sensor != "ideal", "with a sensor that adds noise (not --sensor ideal)"),),
     prog="python -m wildgen.sensor",
     description="Re-apply a camera sensor (noise, black level, response, bit depth, vignetting, "
     "Bayer filter, white balance) to the radiance of an existing dataset, without "

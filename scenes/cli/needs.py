@@ -26,15 +26,17 @@ def check_needs(needs: Iterable[Needs], cfg: Any, given: set[str], flags: dict[s
 
     for need in needs:
         if need.field in given and not need.acts(cfg, given):
-            value = _value(cfg, need.field)
+            value = value_of(cfg, need.field)
+            if isinstance(value, (list, tuple)):  # a comma list, as typed
+                value = ",".join(map(str, value))
             shown = "" if isinstance(value, bool) else f" {value:g}" if isinstance(value, float) else f" {value}"
             raise UsageError(f"{flags[need.field]}{shown}: used only {need.only}, so here it would do nothing; leave "
                              "it out, or give what it needs")
 
 
-def _value(cfg: Any, name: str) -> Any:
+def value_of(cfg: Any, name: str) -> Any:
     """The value of field `name` of `cfg` or of a config nested in it (None when there is none)."""
     if hasattr(cfg, name):
         return getattr(cfg, name)
     nested = (v for v in vars(cfg).values() if dataclasses.is_dataclass(v))
-    return next((v for v in (_value(n, name) for n in nested) if v is not None), None)
+    return next((v for v in (value_of(n, name) for n in nested) if v is not None), None)

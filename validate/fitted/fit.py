@@ -20,9 +20,16 @@ from typing import Any, Callable
 
 import numpy as np
 
+from scenes.cli.needs import Needs, value_of
 from validate.fitted.fit_scene import FitConfig, FitScene, Progress, lambertian_start, to_jit
 from validate.fitted.light_models import LIGHT_MODELS, report_lights
 from validate.observations import Capture
+
+FIT_NEEDS = (
+    Needs("interreflection", lambda c, _: value_of(c, "ao_rays") > 0 or not value_of(c, "interreflection"),
+          "with --ao-rays above 0 (the bounce is traced with those rays)"),
+    Needs("max_pixels", lambda _, given: "downsample" not in given, "without --downsample (which sets the factor)"))
+"""The fit's flags that act only with another (`scenes.cli.needs`), for the commands that take a `FitConfig`."""
 
 log = logging.getLogger(__name__)
 

@@ -71,6 +71,7 @@ class FitConfig:
         return check_fields(self)
 
 
+
 def to_jit(tp, a: np.ndarray):
     """A Dr.Jit array of type `tp` (mi.Float, mi.UInt32, mi.Vector3f, ...) from a numpy array ((N,) or
     (N, C) for C components), copied into memory Dr.Jit owns. Arrays made straight from numpy memory keep
