@@ -198,6 +198,7 @@ class CalibrationOptions:
         dest, flag = self.destination()
         if self.weights is not None and dest.resolve() == Path(self.weights).resolve():
             raise UsageError(f"--out: {str(dest)!r} is the --weights file itself; expected a .json file beside it")
+        check_output_folder(dest.parent, flag)  # a read-only folder is refused before the suite is rendered
         check_no_holder_above(dest, flag)  # inside a folder another run writes, the two runs' files would mix
         claim_outputs([dest], self.overwrite, flag, "orchestrate.error_calibration",
                       signed={dest: ("weights_sha256", "features")})

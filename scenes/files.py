@@ -107,7 +107,8 @@ def links_out_of(path: str | os.PathLike, folder: str | os.PathLike) -> bool:
 def read_text_file(path: str | os.PathLike) -> str:
     """The text of a regular file (UTF-8). A pipe, a device or a socket under the name is refused without being
     waited on (opened non-blocking, checked before any read), an OSError saying what it is: a record read from
-    an untrusted folder never hangs a command. Missing files and decoding errors raise as `open` does."""
+    an untrusted folder never hangs a command. Missing files raise as `open` does; bytes that are not UTF-8 raise
+    `NotUTF8`, naming the file."""
     import stat
 
     fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
@@ -119,7 +120,23 @@ def read_text_file(path: str | os.PathLike) -> str:
             data = f.read()
     finally:
         os.close(fd)
-    return data.decode("utf-8")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise NotUTF8(path, exc) from None
+
+
+class NotUTF8(UnicodeDecodeError):
+    """A file read as text that is not UTF-8 (a Windows-1252 'é' in a record a user saved), said with the file and
+    the remedy; a UnicodeDecodeError still, so that readers that name their flag go on catching it."""
+
+    def __init__(self, path: str | os.PathLike, exc: UnicodeDecodeError):
+        super().__init__(exc.encoding, exc.object, exc.start, exc.end, exc.reason)
+        self.path = path
+
+    def __str__(self) -> str:
+        return (f"{shown_name(self.path)!r} is not UTF-8 text (byte 0x{self.object[self.start]:02X} at offset "
+                f"{self.start}); expected a file saved as UTF-8 (save it again in that encoding)")
 
 
 def read_json(path: str | os.PathLike):

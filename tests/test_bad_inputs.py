@@ -4461,6 +4461,26 @@ ROWS += [
 ]
 
 
+ROWS += [
+    # ---- sweep 21: a calibration whose --out cannot be written is refused before its suite is rendered
+    Row("error-calibration-out-in-a-read-only-folder", EC, [*CALIBRATE[:-1], "{RO}/new/em.json"], 2,
+        ("--out", "not writable"), absent=("rendering",)),
+]
+
+
+def test_a_listing_that_is_not_utf8_is_named_with_its_remedy(tmp_path: Path):
+    """A DiLiGenT filenames.txt saved in Windows-1252 (an 'é' as the byte 0xE9): one line naming the file and what
+    to do, never the codec's words alone (sweep 21); readers that name their flag still catch it as a
+    UnicodeDecodeError."""
+    from scenes.folder.layouts import diligent_images
+
+    (tmp_path / "filenames.txt").write_bytes(b"001.png\ncaf\xe9.png\n")
+    with pytest.raises(UnicodeDecodeError) as caught:
+        diligent_images(tmp_path)
+    said = str(caught.value)
+    assert "filenames.txt" in said and "not UTF-8 text (byte 0xE9 at offset 11)" in said and "save it" in said
+
+
 def test_a_temporary_on_a_read_only_folder_never_takes_the_place_of_the_file_in_the_error(readonly: Path):
     """On a read-only file system even unlinking a temporary that was never made fails (EROFS); the error must
     still name the file being written, never the temporary (sweep 20: orchestrate.docs named '.model.tmp123.md')."""

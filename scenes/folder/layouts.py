@@ -47,7 +47,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from scenes.files import check_text_name, not_a_file
+from scenes.files import check_text_name, not_a_file, read_text_file
 from scenes.folder.calibration import Lights, diligent_lights, no_lights, ours_lights
 from scenes.folder.format import (
     DILIGENT_LIGHTS,
@@ -120,7 +120,8 @@ def diligent_images(folder: str | Path) -> list[Path]:
     listing = folder / DILIGENT_LISTING
     if listing.is_file():
         # a Windows editor's file reads the same: its byte-order mark and CRLF line ends are not part of the names
-        names = [line.strip() for line in listing.read_text(encoding="utf-8-sig").splitlines() if line.strip()]
+        text = read_text_file(listing).removeprefix("\ufeff")
+        names = [line.strip() for line in text.splitlines() if line.strip()]
         twice = next((n for n, name in enumerate(names) if name in names[:n]), None)  # two observations of one light
         if twice is not None:
             raise ValueError(
