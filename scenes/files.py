@@ -144,7 +144,30 @@ def read_json(path: str | os.PathLike):
     `json.loads` (RecursionError for nesting deeper than its decoder goes: each reader names the file)."""
     import json
 
-    return json.loads(read_text_file(path))
+    return _text_only(json.loads(read_text_file(path)), path)
+
+
+_LONE_SURROGATE = re.compile("[\ud800-\udfff]")
+
+
+def _text_only(value, path: str | os.PathLike):
+    """`value` (parsed JSON) when every string and key in it is text; a ValueError naming the file when one holds a
+    lone surrogate (JSON's escape \\udce9 is valid syntax but half of a character: no file, page or terminal can
+    write it, so it would fail far from here)."""
+    stack = [value]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, dict):
+            stack.extend(item.keys())
+            stack.extend(item.values())
+        elif isinstance(item, list):
+            stack.extend(item)
+        elif isinstance(item, str) and _LONE_SURROGATE.search(item):
+            half = ord(_LONE_SURROGATE.search(item)[0])
+            raise ValueError(f"{shown_name(path)!r}: holds the text {shown_name(item)[:60]!r}, whose escape "
+                             f"\\u{half:04x} is half of a character, not text; expected text (write the character "
+                             "itself, or a whole escape pair)")
+    return value
 
 
 def read_figures(path: str | os.PathLike, **hooks):
@@ -168,7 +191,8 @@ def read_figures(path: str | os.PathLike, **hooks):
     if os.path.islink(path):
         raise ValueError(f"{str(path)!r} is a link (to {os.readlink(path)!r}); a record is read from its own file "
                          "only")
-    return json.loads(read_text_file(path), parse_constant=refuse, parse_float=number, parse_int=whole, **hooks)
+    return _text_only(json.loads(read_text_file(path), parse_constant=refuse, parse_float=number, parse_int=whole,
+                                 **hooks), path)
 
 
 class RecordError(ValueError):

@@ -132,3 +132,17 @@ def test_scene_json_refuses_a_non_finite_number(tmp_path):
     write_object_folder(tmp_path / "o.data", images, mask, None, scene={"b": np.float64(1.5), "a": (1, 2)})
     text = (tmp_path / "o.data" / SCENE_FILE).read_text()
     assert text == '{"b": 1.5, "a": [1, 2]}'  # the plain dict as given, as json.dumps(scene) wrote it
+
+
+def test_a_json_record_holding_half_a_character_is_refused_naming_the_file(tmp_path):
+    """JSON's escape \\udce9 is valid syntax but a lone surrogate, which no file, page, figure or terminal can write:
+    read_json refuses it naming the file (sweep 21: a scene.json light_family so escaped ended in a traceback in
+    the benchmark's tables and the preview's figures). A whole escape pair is one character and is read."""
+    from scenes.files import read_figures, read_json
+
+    (tmp_path / "half.json").write_text('{"light_family": "caf\\udce9"}')
+    for reader in (read_json, read_figures):
+        with pytest.raises(ValueError, match=r"half.json.*escape \\udce9 is half of a character"):
+            reader(tmp_path / "half.json")
+    (tmp_path / "pair.json").write_text('{"name": "\\ud83d\\ude00"}')
+    assert read_json(tmp_path / "pair.json") == {"name": "\U0001f600"}
