@@ -440,6 +440,8 @@ def safe_extract(archive: Path, target: Path, flag: str = "--carry", under: str 
     UsageError in one line naming it."""
     from pathlib import PurePosixPath
 
+    from scenes.files import text_name_problem
+
     for folder in (target, target / under) if under else (target,):  # the filter resolves links, not these
         if folder.is_symlink():
             raise UsageError(f"{flag}: {str(folder)!r}, where {str(archive)!r} is unpacked, is a link (to "
@@ -452,6 +454,8 @@ def safe_extract(archive: Path, target: Path, flag: str = "--carry", under: str 
                 if name.is_absolute() or ".." in name.parts:
                     raise UsageError(f"{flag}: {str(archive)!r} holds member {member.name[:120]!r}, whose name would "
                                      f"lead outside {str(target)!r} (expected names relative to it); refused")
+                if (problem := text_name_problem(member.name)) is not None:  # the renderer reads names as text
+                    raise UsageError(f"{flag}: {str(archive)!r} holds a member whose name is not text: {problem}")
                 if under is not None and (not name.parts or name.parts[0] != under):
                     raise UsageError(f"{flag}: {str(archive)!r} holds member {member.name[:120]!r} outside its "
                                      f"{under}/ folder (expected every member under {under}/); refused")

@@ -308,3 +308,21 @@ def test_wheels_that_install_on_the_gpu_machine_pass_the_name_check(tmp_path):
     check_wheel_names(tmp_path, [tmp_path / n for n in names])
     names[0] = "mitsuba-3.9.1.0-cp312-cp312-manylinux_2_17_x86_64.whl"  # PEP 440: the same version
     check_wheel_names(tmp_path, [tmp_path / n for n in names])
+
+
+def test_an_assets_member_whose_name_is_not_text_is_refused_naming_it(tmp_path):
+    """A member named with a Latin-1 byte (tar keeps it as a lone surrogate) is refused before anything is unpacked,
+    naming the archive and the rule (sweep 21: the message named neither)."""
+    import os
+
+    from orchestrate.relay import ASSET_ARCHIVE, SITE_ARCHIVE, unpack_carry
+    from scenes.cli.errors import UsageError
+
+    carry, work = tmp_path / "carry", tmp_path / "work"
+    carry.mkdir()
+    _archive(carry / SITE_ARCHIVE, [_file("pkg/__init__.py", b"")])
+    _archive(carry / ASSET_ARCHIVE, [_file("assets/meshes/a.ply", b"ply"),
+                                     _file(os.fsdecode(b"assets/meshes/caf\xe9.ply"), b"ply")])
+    with pytest.raises(UsageError, match=r"assets.tar.xz.*not UTF-8 text \(byte 0xE9\).*rename it"):
+        unpack_carry(carry, work)
+    assert not (work / "assets" / "meshes" / "a.ply").exists()
