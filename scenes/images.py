@@ -13,6 +13,7 @@ the file has one that is not fully opaque, else from the colour channels (their 
 """
 from __future__ import annotations
 
+import re
 import sys
 from pathlib import Path
 
@@ -137,6 +138,10 @@ def decode_image(path: Path, flags: int, where: str):
     if tiff_damage is not None:
         raise ValueError(f"{where} is damaged: the TIFF decoder says {tiff_damage!r} (a truncated or corrupt file, "
                          "readable only in part); expected a complete TIFF")
+    if img is None and said:  # not decoded, and the decoder said why (libpng: "PNG input buffer is incomplete")
+        why = re.sub(r"^\[[^]]*\]\s*", "", said[0].strip())
+        raise ValueError(f"{where} cannot be decoded (the decoder says {why[:160]!r}: a truncated or corrupt file?); "
+                         "expected a complete image file")
     for line in dict.fromkeys(said):  # not about damage (libpng on an odd ICC profile): once per file, named
         if (str(path), line) not in _SHOWN:
             _SHOWN.add((str(path), line))

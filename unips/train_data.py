@@ -73,11 +73,12 @@ def data_roots(data: str | Path, arg: str = "--data") -> list[Path]:
 
 def prepare_sample(obj: Any, res: int, require_normals: bool = True, name: str | None = None,
                    where: str = "--data") -> Sample:
-    """The training sample of a loaded object (`unips.data.PSObject`): cropped, normalised, resized to `res`."""
+    """The training sample of a loaded object (`unips.data.PSObject`): cropped, normalised, resized to `res`.
+    `where`: the flag and source it came from, named in its error."""
     from unips.preprocess import prepare, resize_prepared
 
     if require_normals and obj.normals is None:
-        raise ValueError(f"object {obj.name!r} in {where!r} has no ground-truth normals (normal.tif)")
+        raise ValueError(f"{where}: object {obj.name!r} has no ground-truth normals (normal.tif); training needs them")
     prep = resize_prepared(prepare(obj, margin=4), res)
     imgs, m, n = to_tensors(prep.images, prep.mask, prep.normals)
     return Sample(name or obj.name, imgs.to(torch.float16), m, n, obj.light_family, obj.level)
@@ -101,7 +102,7 @@ def load_samples(root: str | Path, res: int, require_normals: bool = True, arg: 
             objects = (load_object(p, arg=arg) for p in find_objects(r, arg))
         for obj in objects:
             name = obj.name if len(roots) == 1 else f"{source_label(r)}/{obj.name}"
-            samples.append(prepare_sample(obj, res, require_normals, name, str(r)))
+            samples.append(prepare_sample(obj, res, require_normals, name, f"{arg}: {str(r)!r}"))
     return samples
 
 

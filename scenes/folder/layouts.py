@@ -404,10 +404,20 @@ def read_folder(path: str | Path, max_images: int | None = None, layout: str | N
 
     max_images: keep the first K images in loader order (deterministic). layout: force one (else detected).
     images: False reads only the first image (for its size): mask, ground truth and lights for evaluation.
-    arg: the argument the folder came from, named in errors about the folder itself. scene: its scene.json as
-    `read_scene_dict` returned it, when the caller already read it (every reader parses it once).
+    arg: the argument the folder came from, named first in every error about the folder or a file in it (which
+    --val, --data or --input holds the bad file). scene: its scene.json as `read_scene_dict` returned it, when the
+    caller already read it (every reader parses it once).
     """
-    folder = Path(path)
+    try:
+        return _read_folder(Path(path), max_images, layout, images, arg, scene)
+    except (ValueError, FileNotFoundError) as exc:
+        if arg == "path" or str(exc).startswith(f"{arg}:"):
+            raise
+        raise (FileNotFoundError if isinstance(exc, FileNotFoundError) else ValueError)(f"{arg}: {exc}") from None
+
+
+def _read_folder(folder: Path, max_images: int | None, layout: str | None, images: bool, arg: str,
+                 scene: dict | None) -> FolderData:
     if not folder.is_dir():
         raise FileNotFoundError(f"{arg}: object folder {folder} does not exist (expected {ONE_FOLDER})")
     check_text_name(folder, arg)  # every output named after the object takes its name as text

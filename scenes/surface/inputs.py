@@ -108,7 +108,7 @@ def read_intrinsics(path: str | Path, shape: tuple[int, int], flag: str = "--int
             k = np.loadtxt(path, dtype=np.float64, ndmin=2)
     except (ValueError, UnicodeDecodeError) as exc:
         raise ValueError(f"{flag}: cannot read {path} as numbers ({exc}); expected 3 rows of 3 numbers") from None
-    return check_intrinsics(k, shape, flag)
+    return check_intrinsics(k, shape, f"{flag}: {str(path)!r}")
 
 
 def focal_intrinsics(focal_px: float, shape: tuple[int, int], flag: str = "--focal-px") -> Intrinsics:
