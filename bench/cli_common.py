@@ -108,14 +108,25 @@ def claim_result(path: str | os.PathLike | None, keys: Sequence[str], owner: Com
             raise UsageError(f"{flag}: {text!r} was written by {other}, not {owner}; it is never replaced: move it "
                              f"away or use another {flag}")
         if target.is_file() and not holds_keys(target, tuple(keys)):
-            raise UsageError(f"{flag}: {text!r} was not written by {owner} (it is not a JSON object with the keys "
-                             f"{', '.join(keys)} of its results); it is never replaced: move it away or use another "
-                             f"{flag}")
+            why = _unreadable(target) or f"it is not a JSON object with the keys {', '.join(keys)} of its results"
+            raise UsageError(f"{flag}: {text!r} was not written by {owner} ({why}); it is never replaced: move it "
+                             f"away or use another {flag}")
         check_apart(target, dict(inputs or {}), flag)  # never inside what the bench reads (`inputs`: flag -> path)
         check_no_holder_above(target, flag)  # nor inside a folder another run writes
         make_output_folder(target.parent, flag)
     _CLAIMED[target.absolute()] = (_file_state(target), flag, owner)
     return target
+
+
+def _unreadable(path: Path) -> str | None:
+    """Why the JSON file `path` cannot be read (not UTF-8 text, not JSON), None when it can."""
+    from scenes.files import read_json
+
+    try:
+        read_json(path)
+    except (OSError, ValueError, RecursionError) as exc:
+        return f"it cannot be read as JSON: {str(exc)[:200]}"
+    return None
 
 
 def _written_by(path: Path) -> str | None:
