@@ -216,8 +216,10 @@ def reading_record(path: str | os.PathLike, what: str, fix: str = "restore it, o
     except OSError as exc:  # unreadable (a pipe, a folder, no permission): said with the file
         raise RecordError(f"{said}: cannot be read ({exc.strerror or exc}); {fix}") from None
     except (KeyError, IndexError, TypeError, AttributeError, ValueError, ArithmeticError, RecursionError) as exc:
-        if str(path) in str(exc):
-            raise
+        if str(path) in str(exc):  # already said with the file: the flag that named it goes first
+            if not flag or str(exc).startswith(f"{flag}:"):
+                raise
+            raise RecordError(f"{flag}: {exc}") from None
         if isinstance(exc, KeyError) and exc.args:
             why = f"no {exc.args[0]!r}"
         elif isinstance(exc, RecursionError):
