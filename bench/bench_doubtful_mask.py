@@ -257,13 +257,16 @@ def _earlier_rows(path: Path) -> list[dict]:
 def main(argv: list[str] | None = None) -> int:
     args = parse(COMMAND, argv)
     if args.rows_from is not None:
+        from bench.cli_common import unreadable
         from scenes.cli.outputs import holds_keys
 
         earlier = "an earlier run's --out (a JSON object with rows)"
         need_path(args.rows_from, "--rows-from", earlier, folder=False)
         with refusals():
             if not holds_keys(args.rows_from, RESULT_KEYS):
-                raise UsageError(f"--rows-from: got {str(args.rows_from)!r}, expected {earlier}")
+                why = unreadable(args.rows_from)
+                raise UsageError(f"--rows-from: got {str(args.rows_from)!r}, expected {earlier}"
+                                 + (f" ({why})" if why else ""))
     else:
         with refusals():
             if not args.suite:  # checked here, not in validate: the docs quote --record alone

@@ -108,7 +108,7 @@ def claim_result(path: str | os.PathLike | None, keys: Sequence[str], owner: Com
             raise UsageError(f"{flag}: {text!r} was written by {other}, not {owner}; it is never replaced: move it "
                              f"away or use another {flag}")
         if target.is_file() and not holds_keys(target, tuple(keys)):
-            why = _unreadable(target) or f"it is not a JSON object with the keys {', '.join(keys)} of its results"
+            why = unreadable(target) or f"it is not a JSON object with the keys {', '.join(keys)} of its results"
             raise UsageError(f"{flag}: {text!r} was not written by {owner} ({why}); it is never replaced: move it "
                              f"away or use another {flag}")
         check_apart(target, dict(inputs or {}), flag)  # never inside what the bench reads (`inputs`: flag -> path)
@@ -118,7 +118,7 @@ def claim_result(path: str | os.PathLike | None, keys: Sequence[str], owner: Com
     return target
 
 
-def _unreadable(path: Path) -> str | None:
+def unreadable(path: Path) -> str | None:
     """Why the JSON file `path` cannot be read (not UTF-8 text, not JSON), None when it can."""
     from scenes.files import read_json
 

@@ -188,11 +188,12 @@ class CalibrationOptions:
     def validate(self) -> "CalibrationOptions":
         """The flags, --work, --weights and the output (an earlier fit replaced only with --overwrite), before any
         work."""
-        from scenes.cli.outputs import check_no_holder_above, check_output_folder, claim_outputs
+        from scenes.cli.outputs import check_apart, check_no_holder_above, check_output_folder, claim_outputs
         from scenes.files import not_a_file
 
         check_fields(self)
         check_output_folder(self.work, "--work")
+        check_apart(self.work, {"--weights": self.weights}, "--work")  # the suite is never rendered among them
         if self.weights is not None and (why := not_a_file(Path(self.weights))):
             raise UsageError(f"--weights: {self.weights!r} {why}")
         dest, flag = self.destination()

@@ -137,12 +137,13 @@ def load_network(checkpoint: str | Path | None, device: str = "cpu", model: str 
 
 
 def load_ablation(path: str, net: LoadedModel) -> LoadedModel:
-    """The --ablation-checkpoint network: the benchmarked network's kind, never the very same weights."""
-    from scenes.files import sha256_file
+    """The --ablation-checkpoint network: the benchmarked network's kind, never the very same weights (compared
+    tensor by tensor: the same tensors saved again, or as a .pt, are the same network)."""
+    import torch
 
     ablation = load_network(path, flag="--ablation-checkpoint")
-    if Path(net.checkpoint).is_file() and Path(ablation.checkpoint).is_file() and \
-            sha256_file(net.checkpoint) == sha256_file(ablation.checkpoint):
+    ours, theirs = net.model.state_dict(), ablation.model.state_dict()
+    if ours.keys() == theirs.keys() and all(torch.equal(ours[k], theirs[k].to(ours[k].device)) for k in ours):
         raise ValueError(f"--ablation-checkpoint: {path!r} holds the same weights as the model benchmarked "
                          f"({str(net.checkpoint)!r}): its column would repeat the model's; expected the network "
                          "trained with uniform contexts")

@@ -128,6 +128,10 @@ def check_inputs(
     return data, pred, valid, source
 
 
+_SAID_SPP: set = set()
+"""(object folder, spp) already warned about (`rerender_object`)."""
+
+
 def rerender_object(
     folder: str | Path,
     normals: np.ndarray | str | Path,
@@ -155,6 +159,11 @@ def rerender_object(
     recorded = [int(im.seed) for im in desc.images]
     fresh = [independent_seed(s) for s in recorded]
     seeds = recorded if config.seed_mode == "same" else fresh
+    if config.seed_mode == "same" and spp != desc.render.spp and (folder, spp) not in _SAID_SPP:
+        _SAID_SPP.add((folder, spp))  # the recorded seeds cancel the noise only at the recorded spp: never silently
+        print(f"warning: --spp {spp}: {Path(folder).name} was rendered at {desc.render.spp} spp; with another count "
+              "the recorded seeds no longer cancel the Monte Carlo noise (report.json: common_random_numbers false); "
+              "leave --spp out for that, or say --seed-mode independent", file=sys.stderr)
     reproduce = config.floors and spp == desc.render.spp
     total = k * (1 + (data.normal_gt is not None) + config.floors + reproduce)
     done = 0

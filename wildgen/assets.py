@@ -6,6 +6,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from scenes.files import check_text_name
 from scenes.meshes import MESH_SUFFIXES
 
 _MAP_TAG = re.compile(
@@ -74,6 +75,10 @@ class AssetLibrary:
             lib.meshes = sorted(p for p in _files(root / "meshes") if p.suffix.lower() in MESH_SUFFIXES)
         if (root / "textures").is_dir():
             lib.textures = _texture_sets(root / "textures")
+        named = [*lib.hdris, *lib.meshes, *(f for t in lib.textures for f in (t.base_color, t.roughness, t.metallic,
+                                                                             t.normal) if f is not None)]
+        for path in named:  # the renderer, the mesh reader and scene.json take a name as text only
+            check_text_name(path, "--assets")
         if not (lib.hdris or lib.meshes or lib.textures):
             raise ValueError(
                 f"--assets: folder {str(root)!r} has no hdri/*.hdr|exr, meshes/*.obj|ply|stl or textures/ sets"

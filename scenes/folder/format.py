@@ -141,6 +141,40 @@ def check_dataset_complete(dataset: str | Path, arg: str = "--data") -> None:
                          "again to finish the dataset, or pass a complete one")
 
 
+def check_listed_done(folder: Path, arg: str) -> None:
+    """ValueError naming `arg` when the manifest of the dataset holding object folder `folder` lists it with another
+    status than 'done' (a render that failed or was skipped writes no folder: one there under its name is not the
+    render's, and would be read as if it were). A folder the manifest does not list, or no manifest, passes."""
+    status = _statuses(folder.parent).get(folder.name)
+    if status not in (None, "done"):
+        raise ValueError(f"{arg}: {str(folder)!r} is listed as {status!r} in {DATASET_MANIFEST} of its dataset (a "
+                         "render that failed writes no folder; this one is not the render's): move it away, or render "
+                         "the object again with wildgen.make")
+
+
+def _statuses(dataset: Path) -> dict[str, str]:
+    """{object folder name: status} of a dataset's manifest ({} without one), read once per version of the file."""
+    path = dataset / DATASET_MANIFEST
+    try:
+        st = os.stat(path)
+    except OSError:
+        return {}
+    key = (str(path), st.st_mtime_ns, st.st_size)
+    if key not in _STATUSES:
+        try:
+            entries = read_json(path).get("objects", [])
+            found = {str(e.get("folder", f"{e.get('name', '?')}.data")): str(e.get("status")) for e in entries
+                     if isinstance(e, dict)}
+        except (OSError, ValueError, AttributeError, TypeError):  # no manifest to go by: its readers say why
+            found = {}
+        _STATUSES.clear()  # one dataset at a time: a long run over many never holds them all
+        _STATUSES[key] = found
+    return _STATUSES[key]
+
+
+_STATUSES: dict[tuple[str, int, int], dict[str, str]] = {}
+
+
 def list_object_folders(dataset: str | Path) -> list[Path]:
     """Object folders (`*.data` with a scene.json) of a complete dataset folder, sorted by name."""
     dataset = Path(dataset)

@@ -47,7 +47,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from scenes.files import check_text_name, not_a_file, read_text_file
+from scenes.files import check_text_name, is_within, not_a_file, read_text_file
 from scenes.folder.calibration import Lights, diligent_lights, no_lights, ours_lights
 from scenes.folder.format import (
     DILIGENT_LIGHTS,
@@ -55,6 +55,7 @@ from scenes.folder.format import (
     NORMAL_FILE,
     SCENE_FILE,
     check_dataset_complete,
+    check_listed_done,
     image_files,
     object_name,
     read_scene_dict,
@@ -398,6 +399,19 @@ def _check_informative(
                          "code); expected an exposure that leaves the object below white")
 
 
+def _check_own_files(folder: Path, arg: str) -> None:
+    """ValueError naming `arg` when a file of `folder` is a link into another object folder: two objects would
+    share an image or a ground truth without a word (a link to a photo kept elsewhere is the user's own)."""
+    for p in folder.iterdir():
+        if not p.is_symlink() or is_within(p, folder):
+            continue
+        real = Path(os.path.realpath(p))
+        other = next((d for d in list(real.parents)[:3] if detect_layout(d) is not None), None)
+        if other is not None:
+            raise ValueError(f"{arg}: {str(p)!r} is a link to {str(real)!r}, a file of the object folder "
+                             f"{str(other)!r}; each object's files are its own: copy the file in, or remove the link")
+
+
 def read_folder(path: str | Path, max_images: int | None = None, layout: str | None = None, images: bool = True,
                 arg: str = "path", scene: dict | None = None) -> FolderData:
     """Read one object folder of any layout in `LAYOUT_TABLE`.
@@ -428,6 +442,8 @@ def _read_folder(folder: Path, max_images: int | None, layout: str | None, image
             raise FileNotFoundError(f"{arg}: {folder} is not an object folder (expected {ONE_FOLDER})"
                                     + (f"; it holds object folders: pass one of them, e.g. {inside}" if inside else ""))
     entry = layout_named(layout)
+    if layout == "ours":
+        check_listed_done(folder, arg)
     if max_images is not None and (isinstance(max_images, bool) or int(max_images) != max_images or max_images < 1):
         raise ValueError(f"max_images: must be an integer >= 1, got {max_images!r}")
     try:
@@ -438,6 +454,7 @@ def _read_folder(folder: Path, max_images: int | None, layout: str | None, image
         raise FileNotFoundError(f"{arg}: no images found in {folder} (expected {ONE_FOLDER})")
     for p in all_paths:
         check_text_name(p, arg)
+    _check_own_files(folder, arg)
     paths = all_paths[: int(max_images)] if max_images is not None else all_paths
     if scene is None and layout == "ours":
         scene = read_scene_dict(folder / SCENE_FILE)
