@@ -4468,6 +4468,41 @@ ROWS += [
 ]
 
 
+def _marked_failed(m: dict) -> None:
+    m["objects"][1].update(status="failed", reason="render error")
+
+
+def _image_linked_to_another_object(ds: Path) -> None:
+    (ds / "00001.data" / "L001.png").unlink()
+    os.symlink(ds / "00000.data" / "L001.png", ds / "00001.data" / "L001.png")
+
+
+def _mesh_named_in_latin_1(w: Path, t: Path) -> None:
+    mesh = _mk(t / "assets" / "meshes") / os.fsdecode(b"caf\xe9.obj")
+    mesh.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+
+
+ROWS += [
+    # ---- sweep 21: what a dataset's manifest and links say of an object folder
+    Row("predict-an-object-folder-the-manifest-lists-as-failed", PR, ["--method", "least-squares", "--input",
+                                                                      "{T}/ds", "--out", "{T}/p"], 1,
+        ("00001.data", "listed as 'failed' in manifest.json"), setup=_dataset_edited(edit=_marked_failed),
+        check=_both(_written("p/00000/normal.png"), _not_written("p/00001"))),
+    Row("predict-an-image-linked-from-another-object-folder", PR, ["--method", "least-squares", "--input", "{T}/ds",
+                                                                   "--out", "{T}/p"], 1,
+        ("00001.data/L001.png", "a file of the object folder", "00000.data"),
+        setup=_dataset_edited(files=_image_linked_to_another_object), check=_not_written("p/00001")),
+    Row("make-an-asset-mesh-named-in-latin-1", MK, ["--out", "{T}/o", *TINY, "--assets", "{T}/assets"], 2,
+        ("--assets: ", "is not UTF-8 text (byte 0xE9)", "rename it"), setup=_mesh_named_in_latin_1,
+        check=_not_written("o")),
+    Row("error-calibration-work-is-the-weights-folder", EC, ["--work", "{T}/w", "--assets", "none", "--objects", "1",
+                                                             "--weights", "{T}/w/copy.safetensors", "--out",
+                                                             "{T}/em.json"], 2,
+        ("--work: ", "--weights"), setup=lambda w, t: (_mk(t / "w"), _shipped_copy(w, t / "w")),
+        check=_not_written("em.json")),
+]
+
+
 def test_a_listing_that_is_not_utf8_is_named_with_its_remedy(tmp_path: Path):
     """A DiLiGenT filenames.txt saved in Windows-1252 (an 'é' as the byte 0xE9): one line naming the file and what
     to do, never the codec's words alone (sweep 21); readers that name their flag still catch it as a
