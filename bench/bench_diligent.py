@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{'SH deg':>7} {'SH s':>6}")
     for name, folder in zip(PUBLISHED, folders):
         t0 = time.perf_counter()
-        obj = load_object(folder, max_images=args.max_images)
+        obj = load_object(folder, max_images=args.max_images, arg="--data")
         t1 = time.perf_counter()
         ls_err = mean_angular_error(least_squares(obj), obj.normals, obj.mask)
         t2 = time.perf_counter()

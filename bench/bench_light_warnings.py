@@ -155,7 +155,7 @@ def object_rows(folder: Path, net) -> list[dict]:
     directions = true_directions(folder)
     if directions is None:
         return []
-    obj = load_object(folder)
+    obj = load_object(folder, arg="--suite")
     material = read_scene_dict(folder)["material"]["material_class"]
     return capture_rows(f"{folder.parent.name}/{folder.name}", obj.light_family, material, obj.images, obj.mask,
                         directions, net, subsets(directions))
@@ -205,7 +205,7 @@ def real_rows(folder: Path, net) -> list[dict]:
     from unips.data import load_object
 
     if folder.name.endswith("PNG"):
-        obj = load_object(folder)
+        obj = load_object(folder, arg="--real")
         d = obj.light_directions / np.linalg.norm(obj.light_directions, axis=1, keepdims=True)
         k = len(d)
         spaced = {"16 evenly spaced": np.arange(0, k, k // 16)[:16]} if k > 16 else {}  # a folder of fewer: all

@@ -328,3 +328,14 @@ def test_sixty_four_images_per_object(tmp_path, variant_llvm_ad_rgb):
         data = read_folder(folder)
         assert data.images.shape[0] == 64 and len(data.image_paths) == 64
         assert len(scene_of(folder)["images"]) == 64
+
+
+def test_the_families_lit_by_the_environment_map_are_those_named(np_rng):
+    """`ENVIRONMENT_FAMILIES` is what wildgen.make's --env-width rule reads (a flag that shapes a map no image uses
+    is refused): over many draws a family lights some image with the environment map exactly when it is named."""
+    from wildgen.light_families import ENVIRONMENT_FAMILIES
+
+    placement = Placement(np.zeros(3), 1.0, ORTHO, env_scale=0.3)
+    for name, family in LIGHT_FAMILIES.items():
+        used = any(light.environment_map for i in range(60) for light in family.sample(np_rng, placement, i, 60))
+        assert used == (name in ENVIRONMENT_FAMILIES), name

@@ -170,8 +170,8 @@ def decode_object(key: str, files: dict[str, bytes], shard: Path, arg: str = "--
                 obj = load_object(folder, arg=arg)
             except (ValueError, FileNotFoundError) as exc:
                 where = f"{shard}[{key}]"
-                raise ValueError(f"{arg}: object {key!r} of shard {str(shard)!r}: "
-                                 f"{str(exc).replace(str(folder), where)}") from None
+                said = str(exc).replace(str(folder), where).removeprefix(f"{arg}: ")  # the flag is said once
+                raise ValueError(f"{arg}: object {key!r} of shard {str(shard)!r}: {said}") from None
     except OSError as exc:  # a full scratch folder: errno 28 names no file, this names the folder and the fix
         if exc.errno not in (errno.ENOSPC, errno.EDQUOT):
             raise

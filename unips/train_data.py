@@ -298,5 +298,8 @@ def count_dataset_images(data: str, flag: str) -> tuple[int, int]:
         for folder in find_object_folders(root, flag):
             layout = detect_layout(folder)
             objects += 1
-            images += len(layout_named(layout).images(folder)) if layout else 0
+            try:
+                images += len(layout_named(layout).images(folder)) if layout else 0
+            except ValueError as exc:  # a listing of the folder that cannot be read (filenames.txt)
+                raise ValueError(f"{flag}: {exc}") from None
     return objects, images

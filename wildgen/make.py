@@ -23,6 +23,7 @@ from scenes.cli.progress import Progress, logs_above_progress
 from scenes.folder.shard_format import ENCODINGS
 from wildgen.config import GenConfig
 from wildgen.levels import LEVELS, apply_level, check_level_and_preset
+from wildgen.light_families import ENVIRONMENT_FAMILIES
 from wildgen.presets import apply_preset, preset_named
 
 
@@ -82,7 +83,9 @@ class MakeOptions:
 
 COMMAND = Command(MakeOptions, prog="python -m wildgen.make", needs=(
     Needs("recycle_after", lambda c, _: c.workers != 0, "with worker processes (not --workers 0)"),
-    Needs("shape_kinds", lambda c, _: value_of(c, "shapes") != "mesh", "with procedural shapes (not --shapes mesh)")),
+    Needs("shape_kinds", lambda c, _: value_of(c, "shapes") != "mesh", "with procedural shapes (not --shapes mesh)"),
+    Needs("env_width", lambda c, _: bool(set(value_of(c, "lights")) & set(ENVIRONMENT_FAMILIES)),
+          f"with a light family lit by the environment map ({', '.join(ENVIRONMENT_FAMILIES)})")),
                   description="Render a PS-Wild-style photometric stereo dataset with Mitsuba 3 (one <object>.data "
                               "folder per object).")
 
