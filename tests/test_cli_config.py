@@ -308,3 +308,31 @@ def test_a_flag_that_would_do_nothing_is_refused_in_one_line(module, argv, said)
         command.parse(argv)
     assert str(caught.value).startswith(said), caught.value
     assert "leave it out" in str(caught.value)
+
+
+def test_a_flag_given_at_its_default_passes_and_a_refusal_names_the_flag_as_typed():
+    """Sweep 22's drafts: `--no-rotation-search --no-refine` asks for nothing the capture would not do and passes;
+    a switch turned on that cannot act is refused, named as the user typed it (`--no-cushions`, not `--cushions`)."""
+    from orchestrate.capture import COMMAND as CAPTURE
+
+    assert not CAPTURE.parse(["--input", "i", "--out", "o", "--no-refine", "--no-rotation-search"]).rotation_search
+    command = importlib.import_module("bench.bench_doubtful_mask").COMMAND
+    with pytest.raises(UsageError, match=r"^--no-cushions: used only without --rows-from"):
+        command.parse(["--rows-from", "r.json", "--no-cushions"])
+
+
+def test_a_path_that_leads_to_a_name_that_is_not_text_is_refused(tmp_path, monkeypatch):
+    """A link whose own name is text, to a folder named with a Latin-1 byte: refused naming the flag and where it
+    leads (sweep 22's drafts: a capture through such a link died in matplotlib); and a TMPDIR so named."""
+    import os
+
+    from orchestrate.capture import COMMAND as CAPTURE
+
+    real = os.fsdecode(os.fsencode(tmp_path) + b"/ph\xe9")
+    os.mkdir(real)
+    os.symlink(real, tmp_path / "plnk")
+    with pytest.raises(UsageError, match=r"^--input: .*plnk' leads to .*is not UTF-8 text \(byte 0xE9\)"):
+        CAPTURE.parse(["--input", str(tmp_path / "plnk"), "--out", "o"])
+    monkeypatch.setenv("TMPDIR", real)
+    with pytest.raises(UsageError, match=r"^TMPDIR \(environment\): .*rename it"):
+        CAPTURE.parse(["--input", "i", "--out", "o"])

@@ -79,13 +79,19 @@ def check_text_arguments(argv: Sequence[str], positional: str) -> None:
     from scenes.files import shown_name, text_name_problem
 
     for i, arg in enumerate(argv):
-        if not any("\udc80" <= ch <= "\udcff" for ch in arg):
-            continue
         flag, eq, value = arg.partition("=") if arg.startswith("--") else ("", "", arg)
         if not eq:
             flag, value = (argv[i - 1] if i and argv[i - 1].startswith("--") else positional), arg
+        if not any("\udc80" <= ch <= "\udcff" for ch in arg):
+            real = os.path.realpath(value) if value and not value.startswith("-") and os.path.lexists(value) else ""
+            if (problem := text_name_problem(real)) is not None:  # a link to a folder named in another encoding
+                raise UsageError(f"{flag}: {value!r} leads to {shown_name(real)!r}: {problem}")
+            continue
         if sys.getfilesystemencoding().lower().replace("-", "") == "utf8":
             raise UsageError(f"{flag}: {shown_name(value)!r}: {text_name_problem(value)}")
         raise UsageError(f"{flag}: {shown_name(value)!r} holds characters this locale cannot read as text (LANG="
                          f"{os.environ.get('LANG', '')!r}, Python's UTF-8 mode off): run with PYTHONUTF8=1 or in a "
                          "UTF-8 locale (LANG=C.UTF-8)")
+    tmp = os.environ.get("TMPDIR", "")
+    if (problem := text_name_problem(tmp)) is not None:  # scratch folders are made under it
+        raise UsageError(f"TMPDIR (environment): {shown_name(tmp)!r}: {problem}, or set TMPDIR to another folder")

@@ -21,12 +21,18 @@ class Needs:
 
 
 def check_needs(needs: Iterable[Needs], cfg: Any, given: set[str], flags: dict[str, str]) -> None:
-    """A UsageError naming the first flag of `given` whose `Needs` does not hold (`flags`: field -> its flag)."""
+    """A UsageError naming the first flag of `given` whose `Needs` does not hold (`flags`: field -> the flag as
+    typed). A flag given at its default asks for nothing the command would not do anyway and passes
+    (`--no-rotation-search` with `--no-refine`), except a switch turned on (`--interreflection` with `--ao-rays 0`
+    asks for what cannot happen)."""
     from scenes.cli.errors import UsageError
 
+    defaults = _defaults(cfg)
     for need in needs:
         if need.field in given and not need.acts(cfg, given):
             value = value_of(cfg, need.field)
+            if need.field in defaults and value == defaults[need.field] and value is not True:
+                continue
             if isinstance(value, (list, tuple)):  # a comma list, as typed
                 value = ",".join(map(str, value))
             shown = "" if isinstance(value, bool) else f" {value:g}" if isinstance(value, float) else f" {value}"
@@ -40,3 +46,17 @@ def value_of(cfg: Any, name: str) -> Any:
         return getattr(cfg, name)
     nested = (v for v in vars(cfg).values() if dataclasses.is_dataclass(v))
     return next((v for v in (value_of(n, name) for n in nested) if v is not None), None)
+
+
+def _defaults(cfg: Any) -> dict[str, Any]:
+    """Field name -> default of every field of the config `cfg` and of the configs nested in it."""
+    out: dict[str, Any] = {}
+    for f in dataclasses.fields(cfg):
+        value = getattr(cfg, f.name)
+        if dataclasses.is_dataclass(value):
+            out.update(_defaults(value))
+        elif f.default is not dataclasses.MISSING:
+            out.setdefault(f.name, f.default)
+        elif f.default_factory is not dataclasses.MISSING:
+            out.setdefault(f.name, f.default_factory())
+    return out

@@ -393,7 +393,10 @@ class Command:
         with _errors.on_parse_error(refuse):
             cfg = tyro.cli(self.config, args=self._join_repeated(argv), prog=self.prog,
                            description=self.description, config=MARKERS)
-        check_needs(self.needs, cfg, self.given(argv), self.flags())
+        if self.needs:
+            by_flag = {flag: name for name, flag in self.flags().items() if flag.startswith("-")}
+            typed = {by_flag[flag]: token for token, flag in _flag_tokens(argv, set(by_flag)) if flag in by_flag}
+            check_needs(self.needs, cfg, set(typed), {**self.flags(), **typed})
         return cfg
 
     def _check_no_empty_path(self, argv: list[str]) -> None:

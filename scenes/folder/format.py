@@ -163,8 +163,8 @@ def _statuses(dataset: Path) -> dict[str, str]:
     if key not in _STATUSES:
         try:
             entries = read_json(path).get("objects", [])
-            found = {str(e.get("folder", f"{e.get('name', '?')}.data")): str(e.get("status")) for e in entries
-                     if isinstance(e, dict)}
+            found = {str(e.get("folder", f"{e.get('name', '?')}.data")): str(e["status"]) for e in entries
+                     if isinstance(e, dict) and e.get("status") is not None}
         except (OSError, ValueError, AttributeError, TypeError):  # no manifest to go by: its readers say why
             found = {}
         _STATUSES.clear()  # one dataset at a time: a long run over many never holds them all

@@ -442,8 +442,7 @@ def _read_folder(folder: Path, max_images: int | None, layout: str | None, image
             raise FileNotFoundError(f"{arg}: {folder} is not an object folder (expected {ONE_FOLDER})"
                                     + (f"; it holds object folders: pass one of them, e.g. {inside}" if inside else ""))
     entry = layout_named(layout)
-    if layout == "ours":
-        check_listed_done(folder, arg)
+    check_listed_done(folder, arg)  # whatever the layout: a folder without its scene.json too
     if max_images is not None and (isinstance(max_images, bool) or int(max_images) != max_images or max_images < 1):
         raise ValueError(f"max_images: must be an integer >= 1, got {max_images!r}")
     try:
