@@ -82,7 +82,7 @@ def check_text_arguments(argv: Sequence[str], positional: str) -> None:
         flag, eq, value = arg.partition("=") if arg.startswith("--") else ("", "", arg)
         if not eq:
             flag, value = (argv[i - 1] if i and argv[i - 1].startswith("--") else positional), arg
-        if not any("\udc80" <= ch <= "\udcff" for ch in arg):
+        if (problem := text_name_problem(arg)) is None:
             real = os.path.realpath(value) if value and not value.startswith("-") and os.path.lexists(value) else ""
             if (problem := text_name_problem(real)) is not None:  # a link to a folder named in another encoding
                 raise UsageError(f"{flag}: {value!r} leads to {shown_name(real)!r}: {problem}")

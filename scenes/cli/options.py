@@ -394,8 +394,7 @@ class Command:
             cfg = tyro.cli(self.config, args=self._join_repeated(argv), prog=self.prog,
                            description=self.description, config=MARKERS)
         if self.needs:
-            by_flag = {flag: name for name, flag in self.flags().items() if flag.startswith("-")}
-            typed = {by_flag[flag]: token for token, flag in _flag_tokens(argv, set(by_flag)) if flag in by_flag}
+            typed = self.typed_flags(argv)
             check_needs(self.needs, cfg, set(typed), {**self.flags(), **typed})
         return cfg
 
@@ -462,8 +461,12 @@ class Command:
 
     def given(self, argv: Sequence[str] | None) -> set[str]:
         """Names of the fields whose flags are on the command line `argv` (not left at their defaults)."""
+        return set(self.typed_flags(argv))
+
+    def typed_flags(self, argv: Sequence[str] | None) -> dict[str, str]:
+        """Field name -> its flag as typed on `argv` (`--no-x` for a switch turned off), for the flags given."""
         by_flag = {flag: name for name, flag in self.flags().items() if flag.startswith("-")}
-        return {by_flag[flag] for _, flag in _flag_tokens(argv, set(by_flag)) if flag in by_flag}
+        return {by_flag[flag]: typed for typed, flag in _flag_tokens(argv, set(by_flag)) if flag in by_flag}
 
     def given_flags(self, argv: Sequence[str] | None, within: type) -> list[str]:
         """The flags on `argv` of the fields of the nested config `within` (its own nested configs included)."""
