@@ -105,3 +105,17 @@ def check_matrix4(value: Any, name: str) -> None:
     if abs(float(np.linalg.det(np.asarray(value, np.float64)[:3, :3]))) < 1e-12:  # a placement must be invertible
         raise ValueError(f"{name}: a singular matrix (its 3x3 part has determinant 0); expected an invertible "
                          "placement (scale, rotation, translation)")
+
+
+def parse_range(text: Any, name: str, minimum: float, maximum: float, what: str, integer: bool = False) -> tuple:
+    """'A-B' (or one value 'A') -> (A, B) with minimum <= A <= B <= maximum; ValueError naming the flag."""
+    parts = str(text).split("-")
+    try:
+        vals = [int(p) if integer else float(p) for p in parts]
+    except ValueError:
+        vals = []
+    if len(vals) == 1:
+        vals = vals * 2
+    if len(vals) != 2 or not all(math.isfinite(v) for v in vals) or not minimum <= vals[0] <= vals[1] <= maximum:
+        raise ValueError(f"{name}: {text!r} is not a range A-B with {minimum:g} <= A <= B <= {maximum:g} ({what})")
+    return tuple(vals)

@@ -4178,6 +4178,13 @@ ROWS += [
         2, ("WORLD_SIZE='two'",), env={"WORLD_SIZE": "two"}, sub=True, check=_not_written("run")),
 ]
 
+def _make_quiet(argv: list[str]) -> None:
+    """Setup: a dataset rendered by wildgen.make from `argv`."""
+    from wildgen.make import main
+
+    assert main(argv) == 0
+
+
 def _tiny_dataset(*extra: tuple[str, str]) -> Callable[[Path, Path], None]:
     """Setup: T/data, a dataset wildgen.make rendered with TINY (so that a run of the same flags resumes it), then
     the `extra` files."""
@@ -4370,6 +4377,18 @@ ROWS += [
         ("--variant", "bogus_rgb"), check=_not_written("b")),
     Row("make-env-width-below-eight", MK, ["--out", "{T}/o", *TINY, "--env-width", "3"], 2, ("--env-width",),
         check=_not_written("o")),
+    # The rule reads the configuration that renders: a preset's or level's lights, or the resumed manifest's.
+    Row("make-env-width-with-a-preset-of-distant-leds", MK, ["--out", "{T}/o", *TINY, "--preset", "diligent",
+                                                              "--env-width", "64"], 2,
+        ("--env-width", "--preset diligent"), check=_not_written("o")),
+    Row("make-env-width-with-a-level-of-directional-light", MK, ["--out", "{T}/o", *TINY, "--level", "1",
+                                                                 "--env-width", "64"], 2,
+        ("--env-width", "--level 1"), check=_not_written("o")),
+    Row("make-env-width-resuming-a-dataset-of-directional-light", MK,
+        ["--out", "{T}/d", "--resume", "--objects", "2", "--workers", "0", "--quiet", "--env-width", "64"], 2,
+        ("--env-width", "resumed"),
+        setup=lambda w, t: _make_quiet(["--out", str(t / "d"), *TINY, "--lights", "directional"]),
+        check=_not_written("d/00001.data")),
     Row("refine-a-map-of-zeros", RF, ["--data", "{T}/00000.data", "--normals", "{T}/zero.npy", "--out", "{T}/o"], 2,
         ("--normals", "exactly 0"), setup=_zero_normals, check=_not_written("o/00000/normal.png")),
 ]

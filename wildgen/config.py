@@ -157,19 +157,19 @@ class GenConfig:
 
     def focal_range(self) -> tuple[float, float]:
         """(A, B) of `focal`, checked: 1 <= A <= B <= 5000 mm."""
-        from scenes.cli.options import parse_range
+        from scenes.checks import parse_range
 
         return parse_range(self.focal, "--focal", 1.0, 5000.0, "focal lengths in mm, e.g. 15-300")
 
     def cluster_range(self) -> tuple[int, int]:
         """(A, B) of `cluster`, checked: 1 <= A <= B <= 8 objects."""
-        from scenes.cli.options import parse_range
+        from scenes.checks import parse_range
 
         return parse_range(self.cluster, "--cluster", 1, 8, "whole numbers of objects, e.g. 2-4", integer=True)
 
     def detail_strength_range(self) -> tuple[float, float]:
         """(A, B) of `detail_strength`, checked: 0 <= A <= B <= 60 degrees."""
-        from scenes.cli.options import parse_range
+        from scenes.checks import parse_range
 
         return parse_range(self.detail_strength, "--detail-strength", 0.0, 60.0, "tilts in degrees, e.g. 5-25")
 

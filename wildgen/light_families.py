@@ -307,11 +307,11 @@ LIGHT_FAMILIES: dict[str, LightFamily] = {
 }
 """The light families by name, in the order of --help and the benchmark columns."""
 PS_WILD_FAMILIES = ("directional", "point", "near_area", "hdri", "mixed")
+"""The families of the PS-Wild recipe (UniPS 2022), which the shipped model was trained and measured on: the
+training recipe's default cycle, so that adding a family to the table does not change its data."""
 ENVIRONMENT_FAMILIES = ("near_area", "hdri", "mixed", "verse", "flash")
 """The families whose images may be lit by the object's environment map (the others never draw it: a flag that
 shapes the map, --env-width, does nothing without one of these)."""
-"""The families of the PS-Wild recipe (UniPS 2022), which the shipped model was trained and measured on: the
-training recipe's default cycle, so that adding a family to the table does not change its data."""
 
 
 def light_family(name: str) -> LightFamily:

@@ -8,7 +8,7 @@ import logging
 import os
 import sys
 import time
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -86,6 +86,7 @@ COMMAND = Command(MakeOptions, prog="python -m wildgen.make", needs=(
     Needs("shape_kinds", lambda c, _: value_of(c, "shapes") != "mesh", "with procedural shapes (not --shapes mesh)"),
     Needs("env_width", lambda c, _: bool(set(value_of(c, "lights")) & set(ENVIRONMENT_FAMILIES)),
           f"with a light family lit by the environment map ({', '.join(ENVIRONMENT_FAMILIES)})")),
+                  needs_late=True,  # checked on the configuration that renders: after --preset, --level, --resume
                   description="Render a PS-Wild-style photometric stereo dataset with Mitsuba 3 (one <object>.data "
                               "folder per object).")
 
@@ -178,10 +179,12 @@ def check_flags(opts: MakeOptions, explicit: set[str]) -> None:
         probe_ray(opts.ray)  # an address that does not answer, refused after a bounded wait
 
 
-def resolve_run(args: MakeOptions, explicit: set[str], out: Path) -> tuple[GenConfig, str]:
+def resolve_run(args: MakeOptions, argv: list[str] | None, out: Path) -> tuple[GenConfig, str]:
     """The configuration to render (the manifest's one merged with the given flags when resuming) and the
     Mitsuba variant (set here; an existing dataset keeps its own unless one is asked for)."""
     from wildgen.dataset import load_manifest
+
+    explicit = _explicit_flags(argv)
 
     manifest = None if args.overwrite else load_manifest(out)
     if args.resume:
@@ -192,7 +195,7 @@ def resolve_run(args: MakeOptions, explicit: set[str], out: Path) -> tuple[GenCo
         cfg = _resume_config(args, explicit, manifest)
     else:
         cfg = args.gen.validate()
-    check_given(cfg, explicit)
+    check_given(args, cfg, argv)
     check_config(args, cfg, resumed=args.resume and "objects" not in explicit)
     check_out(out)
     from scenes.renderer.variant import choose_variant
@@ -209,8 +212,17 @@ def resolve_run(args: MakeOptions, explicit: set[str], out: Path) -> tuple[GenCo
     return cfg, variant
 
 
-def check_given(cfg: GenConfig, explicit: set[str]) -> None:
-    """A flag given on the command line that the configuration to render never reads is refused (not ignored)."""
+def check_given(args: MakeOptions, cfg: GenConfig, argv: list[str] | None) -> None:
+    """A flag given on the command line `argv` that the configuration to render (`cfg`, after the preset, the
+    level or the resumed manifest) never reads is refused (not ignored)."""
+    explicit = _explicit_flags(argv)
+    try:
+        COMMAND.check_needs(replace(args, gen=cfg), argv)
+    except UsageError as exc:  # say where the setting it needs came from when the user did not type it
+        source = [f"--{k} {getattr(cfg, k)}" for k in ("preset", "level") if k in explicit] + \
+            ["the manifest of the run resumed"] * args.resume
+        raise UsageError(f"{exc} (the flags not given here are those of {' and '.join(source)})" if source
+                         else str(exc)) from None
     if "detail_strength" in explicit and not cfg.detail:
         off = "not given" if cfg.detail is None else f"--detail {cfg.detail:g}"
         raise ValueError(f"--detail-strength: {cfg.detail_strength} is the tilt of the procedural detail, which is off "
@@ -247,7 +259,7 @@ def check_args(argv: list[str]) -> MakeOptions:
     args = options_from_args(argv, explicit)
     check_flags(args, explicit)
     if not args.resume:  # a resumed configuration is the manifest's, read when the step runs
-        check_given(args.gen.validate(), explicit)
+        check_given(args, args.gen.validate(), argv)
         check_config(args, args.gen)
     return args
 
@@ -372,7 +384,7 @@ def _run(argv: list[str] | None, state: dict) -> int:
         args = options_from_args(argv, explicit)
         out = Path(args.out)
         check_flags(args, explicit)
-        cfg, variant = resolve_run(args, explicit, out)
+        cfg, variant = resolve_run(args, argv, out)
     except (UsageError, ValueError, OSError) as exc:
         return report_error(exc)
 

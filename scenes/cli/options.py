@@ -20,7 +20,6 @@ import argparse
 import ast
 import dataclasses
 import inspect
-import math
 import os
 import re
 import textwrap
@@ -267,20 +266,6 @@ def _check_no_link_loop(value: str, name: str) -> None:
         pass
 
 
-def parse_range(text: Any, name: str, minimum: float, maximum: float, what: str, integer: bool = False) -> tuple:
-    """'A-B' (or one value 'A') -> (A, B) with minimum <= A <= B <= maximum; ValueError naming the flag."""
-    parts = str(text).split("-")
-    try:
-        vals = [int(p) if integer else float(p) for p in parts]
-    except ValueError:
-        vals = []
-    if len(vals) == 1:
-        vals = vals * 2
-    if len(vals) != 2 or not all(math.isfinite(v) for v in vals) or not minimum <= vals[0] <= vals[1] <= maximum:
-        raise ValueError(f"{name}: {text!r} is not a range A-B with {minimum:g} <= A <= B <= {maximum:g} ({what})")
-    return tuple(vals)
-
-
 # ---------------------------------------------------------------- the command line
 
 
@@ -371,7 +356,10 @@ class Command:
     prog: str
     description: str
     needs: tuple = ()
-    """`scenes.cli.needs.Needs` of the flags that act only together with another setting, checked by `parse`."""
+    """`scenes.cli.needs.Needs` of the flags that act only together with another setting, checked by `parse`
+    unless `needs_late`: then the command calls `check_needs` on the configuration it resolves (presets, a
+    resumed manifest), since the parsed one is not yet what runs."""
+    needs_late: bool = False
 
     def parse(self, argv: Sequence[str] | None = None) -> Any:
         """The config of `argv` (not validated: call its `validate()`); a bad command line is a UsageError of
@@ -381,7 +369,6 @@ class Command:
         from tyro import _errors
 
         from scenes.cli.errors import UsageError, check_text_arguments
-        from scenes.cli.needs import check_needs
 
         def refuse(event: Any) -> None:
             raise UsageError(_usage_message(event))
@@ -393,10 +380,16 @@ class Command:
         with _errors.on_parse_error(refuse):
             cfg = tyro.cli(self.config, args=self._join_repeated(argv), prog=self.prog,
                            description=self.description, config=MARKERS)
-        if self.needs:
-            typed = self.typed_flags(argv)
-            check_needs(self.needs, cfg, set(typed), {**self.flags(), **typed})
+        if not self.needs_late:
+            self.check_needs(cfg, argv)
         return cfg
+
+    def check_needs(self, cfg: Any, argv: Sequence[str] | None) -> None:
+        """A UsageError naming the first flag on `argv` that `cfg` (this command's config) would not use."""
+        from scenes.cli.needs import check_needs
+
+        typed = self.typed_flags(argv) if self.needs else {}
+        check_needs(self.needs, cfg, set(typed), {**self.flags(), **typed})
 
     def _check_no_empty_path(self, argv: list[str]) -> None:
         """A path or text flag given an empty value is refused: '' would become the current folder ('.') without a
