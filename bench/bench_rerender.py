@@ -26,6 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from bench.cli_common import MIN_RES, claim_result, need_path, parse, run_main, write_result  # noqa: E402
+from scenes.cli.needs import Needs  # noqa: E402
 from scenes.cli.options import CommaList, Command, arg, comma_list, option  # noqa: E402
 from scenes.renderer.variant import PREFERENCE as VARIANTS  # noqa: E402
 from validate.perturb import KINDS  # noqa: E402
@@ -71,7 +72,9 @@ class Options:
     """write all numbers to this JSON file"""
 
 
-COMMAND = Command(Options, prog="python bench/bench_rerender.py", description=__doc__)
+COMMAND = Command(Options, prog="python bench/bench_rerender.py", description=__doc__, needs=tuple(
+    Needs(f, lambda c, _: c.data is None, "without --data (they shape the dataset it renders)")
+    for f in ("res", "spp", "objects", "images", "lights", "bounces")))
 
 
 def before_work(args: Options) -> None:

@@ -441,7 +441,8 @@ COMMAND = Command(BenchmarkOptions, prog="python -m orchestrate.benchmark", need
     Needs("diligent_subsets", lambda c, _: c.diligent is not None or c.diligent_subsets == 0, "with --diligent (0, "
           "none, is fine without)"),
     *(Needs(f, lambda c, _: c.data is not None and c.rerender_objects > 0, "with --data and --rerender-objects above 0")
-      for f in ("variant", "rerender_spp"))),
+      for f in ("variant", "rerender_spp")),
+    *(Needs(f, lambda c, _: c.data is not None, "with --data") for f in ("images", "counts", "rerender_objects"))),
     description="Evaluation tables: per light family, vs image count, re-render residuals, DiLiGenT.")
 
 

@@ -126,9 +126,24 @@ class CaptureOptions:
 
 MIN_SIDE = 32
 """The smallest --max-side other than 0."""
+
+
+def of_photos(opts: CaptureOptions) -> bool:
+    """Whether --input is a folder of photos, not an object folder (read at its own size and encoding)."""
+    from scenes.folder.layouts import detect_layout
+
+    try:
+        return detect_layout(Path(opts.input)) is None
+    except (OSError, ValueError, TypeError):  # its reader says what is wrong with it (TypeError: none given)
+        return True
+
+
+PHOTOS_ONLY = "with --input a folder of photos (an object folder is read at its own size, linear)"
 COMMAND = Command(CaptureOptions, prog="python -m orchestrate.capture", description=__doc__.split("\n\n")[0], needs=(
     Needs("rotation_search", lambda c, _: c.refine, "with the refinement on (without --no-refine)"),
-    Needs("rotation_steps", lambda c, _: c.refine and c.rotation_search, "with --rotation-search")))
+    Needs("rotation_steps", lambda c, _: c.refine and c.rotation_search, "with --rotation-search"),
+    Needs("input_encoding", lambda c, _: of_photos(c), PHOTOS_ONLY),
+    Needs("max_side", lambda c, _: of_photos(c), PHOTOS_ONLY)))
 
 
 def probe_input(opts: CaptureOptions) -> tuple[int, int, int, tuple[int, int]]:

@@ -45,6 +45,7 @@ from orchestrate.asset_split import SPLIT_FOLDERS, check_split, split_assets
 from orchestrate.steps import STOP_GRACE_S, OutOfTime, StepFailed, check_step, run_step
 from scenes.cli.budget import END_SHARE, Budget
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
+from scenes.cli.needs import Needs
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, comma_list, option
 from scenes.cli.outputs import check_output_folder
 from scenes.files import atomic_write, atomic_write_text, read_json, write_json
@@ -234,7 +235,8 @@ def check_steps(args: RecipeOptions) -> bool:
     return check_split(assets, work, args.overwrite)
 
 
-COMMAND = Command(RecipeOptions, prog="python -m orchestrate.train_recipe", description=__doc__)
+COMMAND = Command(RecipeOptions, prog="python -m orchestrate.train_recipe", description=__doc__, needs=(
+    Needs("model", lambda c, _: c.init_from is None, "without --init-from (the weights name their own model)"),))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -4378,6 +4378,10 @@ ROWS += [
     Row("make-env-width-below-eight", MK, ["--out", "{T}/o", *TINY, "--env-width", "3"], 2, ("--env-width",),
         check=_not_written("o")),
     # The rule reads the configuration that renders: a preset's or level's lights, or the resumed manifest's.
+    # An object folder is read at its own size and linear: the photos' flags would do nothing (sweep 22).
+    *(Row(f"capture-an-object-folder-with-{flag[2:]}", CAP, ["--input", f"{{W}}/data/{OBJ}.data", "--out", "{T}/o",
+                                                             flag, value], 2, (f"{flag} {value}", "folder of photos"),
+          check=_not_written("o")) for flag, value in (("--max-side", "32"), ("--input-encoding", "srgb"))),
     Row("make-env-width-with-a-preset-of-distant-leds", MK, ["--out", "{T}/o", *TINY, "--preset", "diligent",
                                                               "--env-width", "64"], 2,
         ("--env-width", "--preset diligent"), check=_not_written("o")),
@@ -4507,6 +4511,20 @@ ROWS += [
                                                                       "{T}/ds", "--out", "{T}/p"], 1,
         ("00001.data", "listed as 'failed' in manifest.json"), setup=_dataset_edited(edit=_marked_failed),
         check=_both(_written("p/00000/normal.png"), _not_written("p/00001"))),
+    # sweep 22: a manifest the status reader could not read was taken for none; './00001.data' is 00001.data
+    Row("predict-a-failed-object-whose-manifest-holds-half-a-character", PR, ["--method", "least-squares", "--input",
+                                                                              "{T}/ds", "--out", "{T}/p"], 1,
+        ("manifest.json", "half of a character"), setup=_dataset_edited(
+            edit=lambda m: (_marked_failed(m), m.update(host=os.fsdecode(b"lab-caf\xe9")))),
+        check=_not_written("p/00001")),
+    Row("predict-a-failed-object-listed-as-dot-slash", PR, ["--method", "least-squares", "--input", "{T}/ds", "--out",
+                                                            "{T}/p"], 1,
+        ("00001.data", "listed as 'failed' in manifest.json"), setup=_dataset_edited(
+            edit=lambda m: (_marked_failed(m), m["objects"][1].update(folder="./00001.data"))),
+        check=_both(_written("p/00000/normal.png"), _not_written("p/00001"))),
+    Row("preview-an-object-folder-the-manifest-lists-as-failed", PV, ["{T}/ds", "--out", "{T}/pv"], 1,
+        ("00001", "listed as 'failed' in manifest.json"), setup=_dataset_edited(edit=_marked_failed),
+        check=_both(_written("pv/00000.png"), _not_written("pv/00001.png"))),
     Row("predict-an-image-linked-from-another-object-folder", PR, ["--method", "least-squares", "--input", "{T}/ds",
                                                                    "--out", "{T}/p"], 1,
         ("00001.data/L001.png", "a file of the object folder", "00000.data"),
@@ -4730,3 +4748,30 @@ def test_ray_address_of_something_else_than_a_ray_head_is_refused_at_once(tmp_pa
     assert rc_auto == 2 and errors[1].startswith("error: --ray auto: RAY_ADDRESS cannot reach"), err
     assert not (tmp_path / "o").exists()
 
+
+
+def test_an_evaluation_replaced_where_one_error_map_cannot_be_written_keeps_the_earlier_one(world: Path,
+                                                                                           tmp_path: Path):
+    """Sweep 22: --overwrite over an earlier evaluation whose p/00001 is a read-only mount. The failed write of its
+    error map used to remove the earlier metrics.json; now the folder is found not writable before anything is
+    written (`claim_outputs`), and the earlier evaluation stays whole."""
+    from unips.evaluate import main as evaluate
+
+    pred = tmp_path / "p"
+    shutil.copytree(world / "pred", pred)
+    assert evaluate(["--pred", str(pred), "--gt", str(world / "data")]) == 0
+    before = {p: p.read_bytes() for p in sorted(pred.rglob("*")) if p.is_file()}
+    ro = pred / "00001"
+    if os.geteuid() != 0:
+        ro.chmod(0o555)
+    else:
+        r = subprocess.run(["mount", "--bind", str(ro), str(ro)], capture_output=True, text=True)
+        if r.returncode != 0 or subprocess.run(["mount", "-o", "remount,bind,ro", str(ro)]).returncode != 0:
+            subprocess.run(["umount", str(ro)], check=False)
+            pytest.skip(f"cannot mount a read-only folder here: {r.stderr.strip()}")
+    try:
+        rc = evaluate(["--pred", str(pred), "--gt", str(world / "data"), "--overwrite"])
+    finally:
+        ro.chmod(0o755) if os.geteuid() != 0 else subprocess.run(["umount", str(ro)], check=False)
+    assert rc == 2
+    assert {p: p.read_bytes() for p in sorted(pred.rglob("*")) if p.is_file()} == before

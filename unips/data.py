@@ -110,6 +110,7 @@ def load_ground_truth(path: str | Path, layout: str | None = None, arg: str = "p
         if away > GT_AWAY_SHARE:
             raise ValueError(f"{arg}: the ground-truth normals of {fd.path} face away from the camera on "
                              f"{100 * away:.0f}% of the mask (at most {100 * GT_AWAY_SHARE:.0f}% may); expected the "
-                             "camera frame x right, y up, z toward the camera")
+                             "camera frame x right, y up, z toward the camera (a black normal image, no normal map "
+                             "at all, reads so too)")
     return GroundTruth(name=fd.name, mask=fd.mask, normals=fd.normals, light_family=fd.lights.family,
                        path=fd.path, layout=fd.layout)

@@ -348,6 +348,9 @@ def claim_outputs(paths: Iterable[str | os.PathLike], overwrite: bool, flag: str
             raise UsageError(f"{flag}: {str(above)!r} is {'a link' if above.is_symlink() else 'a file'}, where "
                              f"{owner} writes a folder (for {p.name}); it is never replaced: move it away or use "
                              f"another {flag}")
+        if above is not None and not os.access(above, os.W_OK | os.X_OK):  # read-only (a mount) or not the user's
+            raise UsageError(f"{flag}: the folder {str(above)!r}, where {owner} writes {p.name}, is not writable; "
+                             "nothing was written")
     existing = [p for p in paths if os.path.lexists(p)]
     want = "a folder" if folders else "a file"
     for p in existing:

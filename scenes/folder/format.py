@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from scenes.files import atomic_write_text, json_text, read_json, write_json
+from scenes.files import atomic_write_text, json_text, read_json, reading_record, write_json
 from scenes.images import write_mask, write_normal_map, write_png16
 
 OBJECT_SUFFIX = ".data"
@@ -144,8 +144,14 @@ def check_dataset_complete(dataset: str | Path, arg: str = "--data") -> None:
 def check_listed_done(folder: Path, arg: str) -> None:
     """ValueError naming `arg` when the manifest of the dataset holding object folder `folder` lists it with another
     status than 'done' (a render that failed or was skipped writes no folder: one there under its name is not the
-    render's, and would be read as if it were). A folder the manifest does not list, or no manifest, passes."""
-    status = _statuses(folder.parent).get(folder.name)
+    render's, and would be read as if it were). A folder the manifest does not list, or no manifest, passes; a
+    manifest that cannot be read is refused beside folders named as ours (<name>.data), passed beside others."""
+    try:
+        status = _statuses(folder.parent).get(folder.name)
+    except ValueError:
+        if folder.name.endswith(OBJECT_SUFFIX):
+            raise
+        status = None  # another program's manifest.json beside the user's own folder
     if status not in (None, "done"):
         raise ValueError(f"{arg}: {str(folder)!r} is listed as {status!r} in {DATASET_MANIFEST} of its dataset (a "
                          "render that failed writes no folder; this one is not the render's): move it away, or render "
@@ -161,12 +167,14 @@ def _statuses(dataset: Path) -> dict[str, str]:
         return {}
     key = (str(path), st.st_mtime_ns, st.st_size)
     if key not in _STATUSES:
-        try:
-            entries = read_json(path).get("objects", [])
-            found = {str(e.get("folder", f"{e.get('name', '?')}.data")): str(e["status"]) for e in entries
-                     if isinstance(e, dict) and e.get("status") is not None}
-        except (OSError, ValueError, AttributeError, TypeError):  # no manifest to go by: its readers say why
-            found = {}
+        # a manifest that cannot be read is said, never taken for none (its failed objects would pass as good)
+        with reading_record(path, "a dataset's manifest", "restore it, or move it away to read the objects without "
+                            "it"):
+            record = read_json(path)
+        entries = record.get("objects") if isinstance(record, dict) else None  # another shape: not a manifest of ours
+        found = {os.path.normpath(str(e.get("folder", f"{e.get('name', '?')}.data"))): str(e["status"])
+                 for e in (entries if isinstance(entries, list) else []) if isinstance(e, dict)
+                 and e.get("status") is not None}  # './00001.data' is the folder 00001.data
         _STATUSES.clear()  # one dataset at a time: a long run over many never holds them all
         _STATUSES[key] = found
     return _STATUSES[key]
