@@ -438,11 +438,11 @@ def check_inputs(args: BenchmarkOptions, data: bool = True) -> None:
 
 COMMAND = Command(BenchmarkOptions, prog="python -m orchestrate.benchmark", needs=(
     *(Needs(f, lambda c, _: c.diligent is not None, "with --diligent") for f in ("diligent_images", "diligent_subset")),
-    Needs("diligent_subsets", lambda c, _: c.diligent is not None or c.diligent_subsets == 0, "with --diligent (0, "
-          "none, is fine without)"),
+    Needs("diligent_subsets", lambda c, _: c.diligent is not None, "with --diligent (0, none, is fine without)", (0,)),
     *(Needs(f, lambda c, _: c.data is not None and c.rerender_objects > 0, "with --data and --rerender-objects above 0")
       for f in ("variant", "rerender_spp")),
-    *(Needs(f, lambda c, _: c.data is not None, "with --data") for f in ("images", "counts", "rerender_objects"))),
+    *(Needs(f, lambda c, _: c.data is not None, "with --data", (0,)) for f in ("images", "counts", "rerender_objects")
+      )),
     description="Evaluation tables: per light family, vs image count, re-render residuals, DiLiGenT.")
 
 

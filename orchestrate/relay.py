@@ -42,8 +42,7 @@ ASSET_RULE = (f"the training split of orchestrate.asset_split.split_plan (the la
 PACKED = ("mitsuba==3.9.1", "drjit==1.5.0", "OpenEXR", "trimesh", "colour-science", "colour-demosaicing", "webdataset",
           "braceexpand", "tyro==1.0.17", "docstring-parser", "typeguard")
 """The wheels docs/model.md downloads for the pack: what the GPU image lacks, or lacks in this version (matplotlib
-and its dependencies are in the image, `GPU_IMAGE`: packing them too made site.tar.xz 52 MiB, over the upload limit
-with the assets, on 2026-11-28)."""
+and its dependencies are in the image, `GPU_IMAGE`: packing them too made site.tar.xz 52 MiB, over the limit)."""
 GPU_IMAGE = tuple(
     """absl-py accelerate certifi charset-normalizer click cloudpickle contourpy cycler filelock fonttools fsspec
 h5py huggingface-hub idna imageio jinja2 joblib kiwisolver lazy-loader markupsafe matplotlib mpmath networkx numpy
@@ -65,8 +64,7 @@ SITE_MEASURED = int(41.5 * 2**20)
 def resolve_init(init: str | None, model: str | None) -> tuple[str | None, str]:
     """(weights path or None, model name) of a session's `--init` and `--model`. `shipped`: the registry's
     shipped weights (of --model, or of the one model that has them); PATH: a .safetensors/.pt weights file
-    whose model name and configuration equal the shipped weights' of that model (when it has shipped weights).
-    UsageError (one line) otherwise."""
+    whose model name and configuration equal the shipped weights' of that model (when it has any); else UsageError."""
     from unips.models import DEFAULT_TRAIN_MODEL, list_models, list_pretrained, load_model
     from unips.models.registry import pretrained_entry
 
@@ -417,8 +415,7 @@ def boot_site(argv: list[str]) -> None:
     """Before gpu_session imports its command-line machinery: where tyro is missing (a bare GPU machine: it travels
     in the pack), unpack the pack's site.tar.xz into --work/site and put it on the path, since the arguments cannot
     be parsed without it. Where tyro is installed nothing is unpacked here: `unpack_carry` does it after the
-    arguments are checked (and `--help` touches no file). Bad values and archives are left to the command's own
-    checks, which report them in one line."""
+    arguments are checked (and `--help` touches no file). Bad values and archives: the command's own checks."""
     import importlib.util
 
     if importlib.util.find_spec("tyro") is not None:
@@ -494,6 +491,10 @@ def unpack_carry(carry: Path, work: Path) -> Path | None:
         if os.path.lexists(archive) and (why := not_a_file(archive)):
             raise UsageError(f"--carry: {str(archive)!r} {why}")
     _site(carry, work)
-    if (carry / ASSET_ARCHIVE).is_file():
-        safe_extract(carry / ASSET_ARCHIVE, work, under="assets")
-    return work / "assets" if (work / "assets").is_dir() else None
+    if not (carry / ASSET_ARCHIVE).is_file():
+        return None
+    safe_extract(carry / ASSET_ARCHIVE, work, under="assets")
+    if not (work / "assets").is_dir() or not any((work / "assets").iterdir()):  # packed, yet nothing to render with
+        raise UsageError(f"--carry: {str(carry / ASSET_ARCHIVE)!r} holds no asset folder (expected assets/ with the "
+                         "packed meshes, maps and textures); pack again with --pack, or remove it to render without")
+    return work / "assets"

@@ -141,10 +141,28 @@ class NotUTF8(UnicodeDecodeError):
 
 def read_json(path: str | os.PathLike):
     """A JSON file read as `read_text_file` reads (never waiting on a pipe): the errors of `read_text_file` and of
-    `json.loads` (RecursionError for nesting deeper than its decoder goes: each reader names the file)."""
-    import json
+    `json.loads`; nesting deeper than the decoder goes, or an integer of more digits than Python converts, is a
+    ValueError naming the file."""
+    return _loads(path, read_text_file(path))
 
-    return _text_only(json.loads(read_text_file(path)), path)
+
+def _loads(path: str | os.PathLike, text: str, **hooks):
+    """`text` (of file `path`) parsed as JSON, each string of it text (`_text_only`)."""
+    import json
+    import sys
+
+    try:
+        value = json.loads(text, **hooks)
+    except RecursionError:  # an untrusted file must not end in a traceback
+        raise ValueError(f"{str(path)!r}: JSON nested deeper than {sys.getrecursionlimit()} levels; expected a "
+                         "record as this toolkit writes it") from None
+    except json.JSONDecodeError:
+        raise
+    except ValueError as exc:  # e.g. an integer of 5000 digits (Python's limit on converting one)
+        if str(path) in str(exc):
+            raise
+        raise ValueError(f"{str(path)!r}: {exc}") from None
+    return _text_only(value, path)
 
 
 _LONE_SURROGATE = re.compile("[\ud800-\udfff]")
@@ -175,7 +193,6 @@ def read_figures(path: str | os.PathLike, **hooks):
     number beyond a float's range (1e999) and an integer of more than 15 digits are a ValueError naming the file (each
     would print as a figure or overflow on the way), and the file is never read through a link. `hooks`: more
     keyword arguments of `json.loads` (e.g. object_hook)."""
-    import json
     import math
 
     def refuse(text: str):
@@ -191,8 +208,7 @@ def read_figures(path: str | os.PathLike, **hooks):
     if os.path.islink(path):
         raise ValueError(f"{str(path)!r} is a link (to {os.readlink(path)!r}); a record is read from its own file "
                          "only")
-    return _text_only(json.loads(read_text_file(path), parse_constant=refuse, parse_float=number, parse_int=whole,
-                                 **hooks), path)
+    return _loads(path, read_text_file(path), parse_constant=refuse, parse_float=number, parse_int=whole, **hooks)
 
 
 class RecordError(ValueError):

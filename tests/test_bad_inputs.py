@@ -188,6 +188,10 @@ def _bad_weights(w: Path, weights: Path, sidecar: dict) -> None:
     (w / "ck" / "int64.json").write_text(json.dumps(sidecar))
     save_file({**good, name: good[name].to(torch.float8_e4m3fn)}, str(w / "ck" / "float8.safetensors"))
     (w / "ck" / "float8.json").write_text(json.dumps(sidecar))  # (isfinite has no float8 kernel: a traceback)
+    huge = good[name].to(torch.float64)  # W/ck/f64huge: finite as float64, infinite once held as the model's float32
+    huge.view(-1)[1] = 1e300
+    save_file({**good, name: huge}, str(w / "ck" / "f64huge.safetensors"))
+    (w / "ck" / "f64huge.json").write_text(json.dumps(sidecar))
     raw = weights.read_bytes()  # W/ck/dup.safetensors: its header names one tensor twice (the same bytes)
     size = int.from_bytes(raw[:8], "little")
     entry = json.dumps({name: json.loads(raw[8:8 + size])[name]})[1:-1]
@@ -3138,6 +3142,10 @@ ROWS += [
     Row("predict-weights-of-a-newer-format", PR, ["--method", "model", "--checkpoint", "{W}/ck/newer.safetensors",
                                                   "--input", OBJDIR, "--out", "{T}/p"], 2,
         ("--checkpoint", "newer.json", "unips-weights/99"), check=_not_written("p")),
+    Row("predict-weights-float64-beyond-float32", PR, ["--method", "model", "--checkpoint",
+                                                       "{W}/ck/f64huge.safetensors", "--input", OBJDIR, "--out",
+                                                       "{T}/p"], 2,
+        ("f64huge.safetensors", "1 infinite values once held as float32"), check=_not_written("p")),
     Row("predict-weights-nan", PR, ["--method", "model", "--checkpoint", "{W}/ck/nan.safetensors", "--input", OBJDIR,
                                     "--out", "{T}/p"], 2, ("nan.safetensors", "1 NaN"), check=_not_written("p")),
     Row("predict-weights-inf", PR, ["--method", "model", "--checkpoint", "{W}/ck/inf.safetensors", "--input", OBJDIR,
@@ -4346,8 +4354,10 @@ ROWS += [
         ("failed 00000", "normal.tif", "not a regular file"),
         setup=_both(_copy("pred", "p"), _dataset_edited(files=lambda ds: _pipe(ds / f"{OBJ}.data" / "normal.tif"))),
         check=_written("p/00001/error_map.png")),
-    Row("predict-dataset-manifest-a-pipe", PR, ["--method", "least-squares", "--input", "{T}/ds", "--out", "{T}/p"], 0,
-        ("wrote 3 prediction(s)",), setup=_dataset_edited(files=lambda ds: _pipe(ds / "manifest.json"))),
+    # (sweep 22: a manifest that cannot be read says nothing of the objects it lists as failed: refused per object)
+    Row("predict-dataset-manifest-a-pipe", PR, ["--method", "least-squares", "--input", "{T}/ds", "--out", "{T}/p"], 1,
+        ("manifest.json", "not a regular file", "move it away"),
+        setup=_dataset_edited(files=lambda ds: _pipe(ds / "manifest.json")), check=_not_written("p")),
     Row("predict-scene-json-a-pipe", PR, ["--method", "least-squares", "--input", "{T}/ds", "--out", "{T}/p"], 1,
         ("00000", "scene.json", "not a regular file"),
         setup=_dataset_edited(files=lambda ds: _pipe(ds / f"{OBJ}.data" / "scene.json"))),
@@ -4500,6 +4510,23 @@ def _image_linked_to_another_object(ds: Path) -> None:
     os.symlink(ds / "00000.data" / "L001.png", ds / "00001.data" / "L001.png")
 
 
+def _manifest_nested_deeply(ds: Path) -> None:
+    text = (ds / "manifest.json").read_text().rstrip()
+    (ds / "manifest.json").write_text(text[:-1] + ', "x": ' + "[" * 100_000 + "]" * 100_000 + "}")
+
+
+def _folder_linked_to_another(ds: Path) -> None:
+    shutil.rmtree(ds / "00001.data")
+    os.symlink("00000.data", ds / "00001.data")
+
+
+def _second_dataset_linking_the_first(w: Path, t: Path) -> None:
+    """Setup: T/ds, the world's dataset, and T/b, a dataset whose one object folder is a link to T/ds/00000.data."""
+    shutil.copytree(w / "data", t / "ds")
+    _mk(t / "b")
+    os.symlink(t / "ds" / "00000.data", t / "b" / "00000.data")
+
+
 def _mesh_named_in_latin_1(w: Path, t: Path) -> None:
     mesh = _mk(t / "assets" / "meshes") / os.fsdecode(b"caf\xe9.obj")
     mesh.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
@@ -4511,6 +4538,10 @@ ROWS += [
                                                                       "{T}/ds", "--out", "{T}/p"], 1,
         ("00001.data", "listed as 'failed' in manifest.json"), setup=_dataset_edited(edit=_marked_failed),
         check=_both(_written("p/00000/normal.png"), _not_written("p/00001"))),
+    Row("predict-a-dataset-whose-manifest-is-nested-too-deeply", PR, ["--method", "least-squares", "--input",
+                                                                      "{T}/ds", "--out", "{T}/p"], 1,
+        ("manifest.json", "nested deeper than"), setup=_dataset_edited(files=_manifest_nested_deeply),
+        check=_not_written("p")),
     # sweep 22: a manifest the status reader could not read was taken for none; './00001.data' is 00001.data
     Row("predict-a-failed-object-whose-manifest-holds-half-a-character", PR, ["--method", "least-squares", "--input",
                                                                               "{T}/ds", "--out", "{T}/p"], 1,
@@ -4525,6 +4556,22 @@ ROWS += [
     Row("preview-an-object-folder-the-manifest-lists-as-failed", PV, ["{T}/ds", "--out", "{T}/pv"], 1,
         ("00001", "listed as 'failed' in manifest.json"), setup=_dataset_edited(edit=_marked_failed),
         check=_both(_written("pv/00000.png"), _not_written("pv/00001.png"))),
+    # sweep 22: one object read under two names, through a link to a whole folder or to another object's map
+    Row("predict-an-object-folder-that-is-a-link-to-another", PR, ["--method", "least-squares", "--input", "{T}/ds",
+                                                                   "--out", "{T}/p"], 1,
+        ("00001.data", "another object folder beside it"), setup=_dataset_edited(files=_folder_linked_to_another),
+        check=_both(_written("p/00000/normal.png"), _not_written("p/00001"))),
+    Row("export-an-object-folder-that-is-a-link-to-another", EXP, ["--data", "{T}/ds", "--out", "{T}/sh"], 2,
+        ("'00001.data' is a link",), setup=_dataset_edited(files=_folder_linked_to_another), check=_not_written("sh")),
+    Row("train-two-datasets-sharing-an-object-through-a-link", TR, [*TRAIN_ONE, "--data", "{T}/ds,{T}/b", "--out",
+                                                                    "{T}/run", "--steps", "1"], 2,
+        ("--data", "are one object folder"), setup=_second_dataset_linking_the_first, check=_not_written("run")),
+    Row("evaluate-a-prediction-that-links-to-another-objects-map", EV, ["--pred", "{T}/p", "--gt", "{W}/data"], 1,
+        ("--pred", "the map of another object beside it"),
+        setup=lambda w, t: (shutil.copytree(w / "pred", t / "p"), (t / "p" / "00001" / "normal.png").unlink(),
+                            os.symlink("../00000/normal.png", t / "p" / "00001" / "normal.png"))),
+    Row("make-resume-with-another-spp", MK, ["--out", "{T}/data", *TINY, "--spp", "2", "--resume"], 2,
+        ("--spp: --resume continues", "--overwrite"), setup=_tiny_dataset()),
     Row("predict-an-image-linked-from-another-object-folder", PR, ["--method", "least-squares", "--input", "{T}/ds",
                                                                    "--out", "{T}/p"], 1,
         ("00001.data/L001.png", "a file of the object folder", "00000.data"),
@@ -4775,3 +4822,38 @@ def test_an_evaluation_replaced_where_one_error_map_cannot_be_written_keeps_the_
         ro.chmod(0o755) if os.geteuid() != 0 else subprocess.run(["umount", str(ro)], check=False)
     assert rc == 2
     assert {p: p.read_bytes() for p in sorted(pred.rglob("*")) if p.is_file()} == before
+
+
+def test_a_listener_that_writes_one_settings_frame_and_then_nothing_is_no_ray_head():
+    """Sweep 23's drafts: a port that answers every connection with an HTTP/2 SETTINGS frame (as a gRPC server does
+    first) and then never acknowledges the client's SETTINGS passed the probe, and ray.init() then waited on it
+    without end. The probe now waits for the acknowledgement, which every gRPC server sends."""
+    import socket
+    import threading
+
+    pytest.importorskip("ray")
+    from wildgen.ray_engine import probe_address
+
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(8)
+    held = []
+
+    def serve() -> None:
+        while True:
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                return
+            conn.sendall(bytes([0, 0, 0, 4, 0, 0, 0, 0, 0]))  # SETTINGS, no ACK ever
+            held.append(conn)
+
+    threading.Thread(target=serve, daemon=True).start()
+    address = f"127.0.0.1:{server.getsockname()[1]}"
+    try:
+        with pytest.raises(ConnectionError, match="not as the gRPC server of a Ray head does"):
+            probe_address(address, timeout=1.0)
+    finally:
+        server.close()
+        for conn in held:
+            conn.close()

@@ -211,6 +211,26 @@ def test_exposures_that_differ_where_one_photo_gives_none_are_said(tmp_path, cap
     assert "p2.jpg" in read_photos(tmp_path).exposure_note
 
 
+def test_apertures_that_differ_where_one_photo_gives_none_are_said(tmp_path, capsys):
+    """f/2 and f/8 (16 times less light) and a third photo without an f-number: the apertures are left out of every
+    photo's scale, and the command says so naming that photo (sweep 23's drafts: silent, scale 1 for the f/8 one)."""
+    from PIL import Image
+
+    a = (np.random.default_rng(2).random((6, 9, 3)) * 200 + 20).astype(np.uint8)
+    for i, n in enumerate((2.0, 8.0, None)):
+        img = Image.fromarray(a)
+        exif = img.getexif()
+        ifd = exif.get_ifd(0x8769)
+        ifd[0x829A], ifd[0x8827] = 0.01, 100
+        if n is not None:
+            ifd[0x829D] = n
+        img.save(tmp_path / f"p{i}.jpg", exif=exif, quality=100)
+    photos = read_photos(tmp_path)
+    assert [e["scale"] for e in photos.exposure] == [1.0, 1.0, 1.0]
+    assert "f-numbers of the photos differ (2 to 8), but p2.jpg" in photos.exposure_note
+    assert "p2.jpg" in capsys.readouterr().err
+
+
 def test_exif_exposures_must_be_finite_positive_and_at_most_ten_stops_apart(tmp_path):
     """The longest exposure over the shortest (time x ISO) may be MAX_EXPOSURE_RATIO (1024, 10 stops), not more; a
     value that is not a positive number is refused naming the file and the value as written (issue 50)."""

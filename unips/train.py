@@ -55,7 +55,7 @@ COMMAND = Command(TrainConfig, prog="python -m unips.train", description=__doc__
     Needs("decay", lambda c, _: c.schedule == "step", "with --schedule step"),
     Needs("warmup", lambda c, _: c.schedule == "cosine", "with --schedule cosine (the default)"),
     Needs("min_lr_ratio", lambda c, _: c.schedule == "cosine", "with --schedule cosine (the default)"),
-    Needs("loader_workers", lambda c, _: c.shuffle_buffer > 0, "with --shuffle-buffer N > 0 (streamed shards)"),
+    Needs("loader_workers", lambda c, _: c.shuffle_buffer > 0, "with --shuffle-buffer N > 0 (streamed shards)", (0,)),
     Needs("curriculum_fraction", lambda c, _: c.curriculum, "with --curriculum"),
     *(Needs(f, lambda c, _: bool(c.val), "with --val (nothing is validated without it)")
       for f in ("val_every", "val_pixels", "val_probes"))))

@@ -93,13 +93,18 @@ def load_samples(root: str | Path, res: int, require_normals: bool = True, arg: 
     from unips.shard_data import is_shard_source, iter_objects, source_label
 
     roots = data_roots(root, arg)
-    samples = []
+    samples, seen = [], {}
     for r in roots:
         if is_shard_source(r):
             objects = iter_objects(r, arg)
         else:
-            # FileNotFoundError naming the path when there is none
-            objects = (load_object(p, arg=arg) for p in find_objects(r, arg))
+            folders = find_objects(r, arg)  # FileNotFoundError naming the path when there is none
+            for p in folders:  # one object through two names (a link) would be trained on twice
+                first = seen.setdefault(os.path.realpath(p), p)
+                if first is not p:
+                    raise ValueError(f"{arg}: {str(p)!r} and {str(first)!r} are one object folder (one is a link to "
+                                     "the other): it would be trained on twice; remove the link or that entry")
+            objects = (load_object(p, arg=arg) for p in folders)
         for obj in objects:
             name = obj.name if len(roots) == 1 else f"{source_label(r)}/{obj.name}"
             samples.append(prepare_sample(obj, res, require_normals, name, f"{arg}: {str(r)!r}"))

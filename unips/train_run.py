@@ -34,6 +34,8 @@ def model_options(items: Sequence[str]) -> dict[str, Any]:
             out[key] = json.loads(value)
         except json.JSONDecodeError:
             out[key] = value
+        except (RecursionError, ValueError):  # nested too deeply, or an integer of thousands of digits
+            raise ValueError(f"--model-option: the value of {key!r} is not a value a model option takes") from None
     return out
 
 
@@ -57,7 +59,7 @@ def truncate_log(path: Path, step: int) -> None:
     for n, line in enumerate(lines, 1):
         try:
             record = json.loads(line)
-        except ValueError:
+        except (ValueError, RecursionError):
             if n == len(lines):  # the last record, torn by a kill while it was appended: written again
                 break
             raise ValueError(f"--resume: line {n} of {str(path)!r} is not a JSON record (the run's log is damaged); "
@@ -262,7 +264,7 @@ def _is_training_log(path: Path) -> bool:
     try:
         with open(path, encoding="utf-8") as f:
             first = json.loads(f.readline(1 << 16))
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):
         return False
     return isinstance(first, dict) and "step" in first
 
@@ -272,7 +274,7 @@ def _validated(log: Path) -> bool:
     try:
         with open(log, encoding="utf-8") as f:
             return any('"val"' in line and "val" in json.loads(line) for line in f)
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):
         return False
 
 

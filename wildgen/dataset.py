@@ -174,6 +174,8 @@ def verify_object(out_dir: Path, entry: dict) -> str | None:
     folder = Path(out_dir) / entry_folder(entry)
     if not folder.is_dir():
         return f"its folder {folder.name!r} is missing"
+    if folder.is_symlink():  # e.g. to another object's folder: one object's files under two names
+        return f"its folder {folder.name!r} is a link (to {os.readlink(folder)!r}), not the folder the run wrote"
     files = entry.get("files") or {}
     found = list(folder.rglob("*"))
     link = next((p for p in found if p.is_symlink()), None)

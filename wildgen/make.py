@@ -193,6 +193,7 @@ def resolve_run(args: MakeOptions, argv: list[str] | None, out: Path) -> tuple[G
                 f"--resume: no manifest.json in {str(out)!r} to resume; run without --resume to start"
             )
         cfg = _resume_config(args, explicit, manifest)
+        _check_resumable(manifest, cfg, explicit)
     else:
         cfg = args.gen.validate()
     check_given(args, cfg, argv)
@@ -210,6 +211,20 @@ def resolve_run(args: MakeOptions, argv: list[str] | None, out: Path) -> tuple[G
         except RuntimeError as exc:  # what the limits above did not foresee
             raise UsageError(f"--threads: cannot start {args.threads} Dr.Jit threads ({exc})") from None
     return cfg, variant
+
+
+def _check_resumable(manifest: dict, cfg: GenConfig, explicit: set[str]) -> None:
+    """A flag of --resume that changes what the manifest records is refused naming it (the dataset is continued as
+    it was made, and "--resume" is no way out of a refusal that was given --resume)."""
+    from wildgen.dataset import config_differences
+
+    diff = config_differences(manifest, cfg)
+    if diff:
+        key = diff[0]
+        flag = "--res" if key in ("width", "height") and "res" in explicit else f"--{key.replace('_', '-')}"
+        raise UsageError(f"{flag}: --resume continues the dataset in --out as its manifest records it ({key} "
+                         f"{manifest['config'].get(key)!r}, here {getattr(cfg, key)!r}); leave the flag out to resume, "
+                         "or start afresh with --overwrite")
 
 
 def check_given(args: MakeOptions, cfg: GenConfig, argv: list[str] | None) -> None:

@@ -53,10 +53,12 @@ def object_tiles(folder: Path) -> list[tuple[np.ndarray, str]]:
     image, then the normal map and the mask."""
     from scenes.files import check_text_name
     from scenes.folder.format import MASK_FILE, NORMAL_FILE, check_listed_done, image_files
+    from scenes.folder.layouts import check_own_files
     from scenes.images import normal_visual, read_image, read_mask, read_normals
 
     check_text_name(folder, "DIR")  # its sheet is written under this name
     check_listed_done(folder, "DIR")  # a folder where a failed render's would be is not the render's
+    check_own_files(folder, "DIR")  # not another object's files (a link)
     images = image_files(folder)
     if not images:
         raise FileNotFoundError(f"DIR: object folder {str(folder)!r} has no L*.png images")

@@ -12,6 +12,7 @@ import socket
 import sys
 import tempfile
 import threading
+import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -101,20 +102,30 @@ HTTP2_PREFACE = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes([0, 0, 0, 4, 0, 0, 0
 
 
 def _speaks_grpc(host: str, port: int, timeout: float) -> bool:
-    """Whether host:port answers an HTTP/2 connection preface with a SETTINGS frame, as every gRPC server (a Ray
-    head's GCS among them) does first; a web server, a database or a silent port do not."""
+    """Whether host:port answers an HTTP/2 connection preface as every gRPC server (a Ray head's GCS among them)
+    does, within `timeout` seconds: a SETTINGS frame first, then the acknowledgement of the client's SETTINGS. A web
+    server, a database, a silent port, or a listener that writes a SETTINGS frame and then nothing, do not."""
+    deadline = time.monotonic() + timeout
+    data, pos, first = b"", 0, True
     try:
         with socket.create_connection((host, port), timeout=timeout) as conn:
             conn.sendall(HTTP2_PREFACE)
-            head = b""
-            while len(head) < 9:
-                chunk = conn.recv(9 - len(head))
+            while (left := deadline - time.monotonic()) > 0:
+                conn.settimeout(left)
+                chunk = conn.recv(4096)
                 if not chunk:
                     return False
-                head += chunk
+                data += chunk
+                while len(data) - pos >= 9:  # whole frame headers: length (3 bytes), type, flags, stream (4)
+                    length, kind, flags = int.from_bytes(data[pos:pos + 3], "big"), data[pos + 3], data[pos + 4]
+                    if first and (kind != 4 or data[pos + 5:pos + 9] != bytes(4)):  # SETTINGS on stream 0 first
+                        return False
+                    if not first and kind == 4 and flags & 1:  # SETTINGS with ACK: it read the client's
+                        return True
+                    first, pos = False, pos + 9 + length
     except OSError:
         return False
-    return head[3] == 4 and head[5:9] == bytes(4)  # frame type SETTINGS on stream 0
+    return False
 
 
 def probe_address(address: str, timeout: float | None = None) -> None:
@@ -160,7 +171,7 @@ def probe_address(address: str, timeout: float | None = None) -> None:
         return
     exc = outcome.get("error")
     if outcome.get("not_grpc"):
-        why = "it answers, but not as a Ray head does (no gRPC)"
+        why = "it answers, but not as the gRPC server of a Ray head does"
     elif exc is None or isinstance(exc, (TimeoutError, socket.timeout)):
         why = f"no answer within {timeout:g} s"
     elif isinstance(exc, socket.gaierror):

@@ -18,6 +18,9 @@ class Needs:
     field: str
     acts: Callable[[Any, set[str]], bool]
     only: str
+    anyway: tuple = ()
+    """Values that ask for what happens anyway where the rule does not hold (`--loader-workers 0`: no worker
+    process, as in-memory data has): given, they pass."""
 
 
 def check_needs(needs: Iterable[Needs], cfg: Any, given: set[str], flags: dict[str, str]) -> None:
@@ -31,6 +34,8 @@ def check_needs(needs: Iterable[Needs], cfg: Any, given: set[str], flags: dict[s
     for need in needs:
         if need.field in given and not need.acts(cfg, given):
             value = value_of(cfg, need.field)
+            if value in need.anyway:
+                continue
             if need.field in defaults and value == defaults[need.field] and value is not True:
                 continue
             if isinstance(value, (list, tuple)):  # a comma list, as typed

@@ -104,8 +104,10 @@ def radiance_name(index: int) -> str:
 
 
 def object_name(path: str | Path) -> str:
-    """Name of an object folder: its name minus a trailing `.data` (`foo.data` -> `foo`, `ballPNG` stays)."""
-    name = Path(path).resolve().name
+    """Name of an object folder: its name minus a trailing `.data` (`foo.data` -> `foo`, `ballPNG` stays). The name
+    it is given, not that of a folder a link leads to (`00002.data`, a link to another dataset's `00001.data`, is
+    00002); `.` and `..` are the folders they stand for."""
+    name = Path(os.path.abspath(path)).name
     stem = name[: -len(OBJECT_SUFFIX)] if name.endswith(OBJECT_SUFFIX) and len(name) > len(OBJECT_SUFFIX) else name
     return name if stem in (".", "..") else stem  # '...data' would name '..', a folder above the outputs
 
@@ -309,12 +311,19 @@ def write_scene(folder: str | Path, desc, extras: dict[str, Any] | None = None) 
     return path
 
 
-def prediction_file(folder: str | Path) -> Path | None:
-    """The first of `PREDICTION_FILES` present in `folder`, or None."""
+def prediction_file(folder: str | Path, flag: str = "--pred") -> Path | None:
+    """The first of `PREDICTION_FILES` present in `folder`, or None; a ValueError when it is a link to the map of
+    another object beside it (one map scored as two objects')."""
     folder = Path(folder)
     for fname in PREDICTION_FILES:
-        if os.path.lexists(folder / fname) and not (folder / fname).is_dir():  # a device too: refused by name
-            return folder / fname
+        path = folder / fname
+        if os.path.lexists(path) and not path.is_dir():  # a device too: refused by name
+            real = Path(os.path.realpath(path))
+            if path.is_symlink() and real.parent.parent == Path(os.path.realpath(folder)).parent \
+                    and real.parent != Path(os.path.realpath(folder)):
+                raise ValueError(f"{flag}: {str(path)!r} is a link to {str(real)!r}, the map of another object "
+                                 "beside it: each object is scored on its own map; copy it in, or remove the link")
+            return path
     return None
 
 
@@ -326,7 +335,7 @@ def find_prediction(pred: str | Path, name: str | None = None) -> Path:
         return pred
     folders = [pred / name, pred] if name else [pred]
     for folder in folders:
-        found = prediction_file(folder)
+        found = prediction_file(folder, "--normals")
         if found is not None:
             return found
     where = " or ".join(str(f) for f in folders)

@@ -399,9 +399,15 @@ def _check_informative(
                          "code); expected an exposure that leaves the object below white")
 
 
-def _check_own_files(folder: Path, arg: str) -> None:
+def check_own_files(folder: Path, arg: str) -> None:
     """ValueError naming `arg` when a file of `folder` is a link into another object folder: two objects would
-    share an image or a ground truth without a word (a link to a photo kept elsewhere is the user's own)."""
+    share an image or a ground truth without a word (a link to a photo kept elsewhere is the user's own); or when
+    `folder` itself is a link to another object folder beside it (one object read twice, under two names)."""
+    real = Path(os.path.realpath(folder))
+    if folder.is_symlink() and real.parent == Path(os.path.realpath(folder.parent)) and real.name != folder.name \
+            and detect_layout(real) is not None:
+        raise ValueError(f"{arg}: {str(folder)!r} is a link to {str(real)!r}, another object folder beside it (one "
+                         "object would be read twice, under two names): copy the folder, or remove the link")
     for p in folder.iterdir():
         if not p.is_symlink() or is_within(p, folder):
             continue
@@ -453,7 +459,7 @@ def _read_folder(folder: Path, max_images: int | None, layout: str | None, image
         raise FileNotFoundError(f"{arg}: no images found in {folder} (expected {ONE_FOLDER})")
     for p in all_paths:
         check_text_name(p, arg)
-    _check_own_files(folder, arg)
+    check_own_files(folder, arg)
     paths = all_paths[: int(max_images)] if max_images is not None else all_paths
     if scene is None and layout == "ours":
         scene = read_scene_dict(folder / SCENE_FILE)

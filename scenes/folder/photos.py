@@ -322,8 +322,15 @@ def _linear(
 
 def exposure_gap(exifs: list[dict[str, Any]], names: list[str]) -> str | None:
     """Why photos whose EXIF exposures differ (a time or an ISO that not every photo shares) cannot be normalised to
-    one exposure: a photo that gives no time or ISO; None when they can, or nothing differs."""
+    one exposure: a photo that gives no time or ISO (or no f-number, where the others' differ); None when they can,
+    or nothing differs."""
     if all("exposure_time_s" in e and "iso" in e for e in exifs):
+        stops = {e["f_number"] for e in exifs if "f_number" in e}
+        bare = next((n for n, e in zip(names, exifs) if "f_number" not in e), None)
+        if len(stops) > 1 and bare is not None:  # the apertures are then left out of every photo's exposure
+            return (f"the EXIF f-numbers of the photos differ ({min(stops):.3g} to {max(stops):.3g}), but {bare} "
+                    "(and maybe others) gives none: the photos are normalised by time and ISO only, not by aperture "
+                    "(give every photo its f-number, or take them at one aperture)")
         return None
     differ = any(len({e[k] for e in exifs if k in e}) > 1 for k in ("exposure_time_s", "iso"))
     lacking = next((n for n, e in zip(names, exifs) if "exposure_time_s" not in e or "iso" not in e), None)

@@ -290,7 +290,7 @@ def decode_folder(files: dict[str, bytes], folder: Path):
                           sensor=None if meta["sensor"] is None else Sensor.from_dict(meta["sensor"]))
     except _MemberError:
         raise
-    except (KeyError, TypeError, AttributeError, ValueError, UnicodeDecodeError) as exc:  # JSONDecodeError too
+    except (KeyError, TypeError, AttributeError, ValueError, UnicodeDecodeError, RecursionError) as exc:
         first = (str(exc).splitlines() or [""])[0]
         raise ValueError(f"{folder}: member {DECODED_META} is malformed ({type(exc).__name__}: {first:.160})") from None
 

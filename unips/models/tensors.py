@@ -37,11 +37,15 @@ def check_weights(state: Mapping[str, Any], source: str, expected: Mapping[str, 
             if value.is_floating_point() and value.element_size() == 1:  # float8: no network of ours holds it
                 raise ValueError(f"{source}: tensor {key} is {_dtype(value)}, expected float16, bfloat16 or float32 "
                                  "weights (8-bit floats are a lossy export, not weights to run)")
-            finite = torch.isfinite(value)
+            # as the model will hold them: 1e300 in float64 is finite, and infinite once loaded as float32
+            held = value.to(own.dtype) if own is not None and own.is_floating_point() and value.is_floating_point() \
+                else value
+            finite = torch.isfinite(held)
             if not bool(finite.all()):
-                nan = int(torch.isnan(value).sum())
-                inf = value.numel() - int(finite.sum()) - nan
-                raise ValueError(f"{source}: tensor {key} holds {nan} NaN and {inf} infinite values (of "
+                nan = int(torch.isnan(held).sum())
+                inf = held.numel() - int(finite.sum()) - nan
+                cast = f" once held as {_dtype(own)}" if held is not value else ""
+                raise ValueError(f"{source}: tensor {key} holds {nan} NaN and {inf} infinite values{cast} (of "
                                  f"{value.numel()}); expected finite weights (a training run that diverged, or a "
                                  "damaged file)")
 
@@ -128,5 +132,5 @@ def check_safetensors_header(path: Any) -> None:
         text = f.read(size) if 0 < size <= MAX_HEADER_BYTES else b""
     try:
         json.loads(text.decode("utf-8"), object_pairs_hook=unique)
-    except (UnicodeDecodeError, json.JSONDecodeError):  # not a header at all: the format's reader says so
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError):  # not a header: the format's reader says so
         pass
