@@ -154,8 +154,8 @@ def _loads(path: str | os.PathLike, text: str, **hooks):
     try:
         value = json.loads(text, **hooks)
     except RecursionError:  # an untrusted file must not end in a traceback
-        raise ValueError(f"{str(path)!r}: JSON nested deeper than {sys.getrecursionlimit()} levels; expected a "
-                         "record as this toolkit writes it") from None
+        raise ValueError(f"{str(path)!r}: JSON nested too deeply (over {sys.getrecursionlimit()} levels); expected "
+                         "a record as this toolkit writes it") from None
     except json.JSONDecodeError:
         raise
     except ValueError as exc:  # e.g. an integer of 5000 digits (Python's limit on converting one)

@@ -4540,7 +4540,7 @@ ROWS += [
         check=_both(_written("p/00000/normal.png"), _not_written("p/00001"))),
     Row("predict-a-dataset-whose-manifest-is-nested-too-deeply", PR, ["--method", "least-squares", "--input",
                                                                       "{T}/ds", "--out", "{T}/p"], 1,
-        ("manifest.json", "nested deeper than"), setup=_dataset_edited(files=_manifest_nested_deeply),
+        ("manifest.json", "nested too deeply"), setup=_dataset_edited(files=_manifest_nested_deeply),
         check=_not_written("p")),
     # sweep 22: a manifest the status reader could not read was taken for none; './00001.data' is 00001.data
     Row("predict-a-failed-object-whose-manifest-holds-half-a-character", PR, ["--method", "least-squares", "--input",
@@ -4755,7 +4755,8 @@ def test_ray_address_that_does_not_answer_is_refused_after_the_bounded_wait(tmp_
 def test_ray_address_of_something_else_than_a_ray_head_is_refused_at_once(tmp_path: Path, capsys, monkeypatch):
     """`--ray HOST:PORT` where a web server answers: ray.init() would retry it for minutes (measured: still waiting
     after 5 min, a log line every 5 s); the probe asks for gRPC's HTTP/2 greeting first and refuses in one line. A
-    server that greets as gRPC does (a SETTINGS frame) passes the same probe."""
+    server that greets as gRPC does (a SETTINGS frame, then the acknowledgement of the client's) passes the same
+    probe."""
     pytest.importorskip("ray")
     import http.server
     import socket
@@ -4774,6 +4775,7 @@ def test_ray_address_of_something_else_than_a_ray_head_is_refused_at_once(tmp_pa
         conn, _ = grpc_like.accept()
         conn.recv(64)
         conn.sendall(bytes([0, 0, 0, 4, 0, 0, 0, 0, 0]))  # an empty SETTINGS frame on stream 0
+        conn.sendall(bytes([0, 0, 0, 4, 1, 0, 0, 0, 0]))  # and the ACK of the client's
         conn.close()
 
     threading.Thread(target=greet, daemon=True).start()
@@ -4791,10 +4793,10 @@ def test_ray_address_of_something_else_than_a_ray_head_is_refused_at_once(tmp_pa
     err = capsys.readouterr().err
     errors = [line for line in err.splitlines() if line.startswith("error:")]
     assert rc == 2 and elapsed < 30 and "Traceback" not in err, (rc, elapsed, err)
-    assert len(errors) == 2 and all(f"'{address}'" in e and "not as a Ray head does" in e for e in errors), err
+    assert len(errors) == 2 and all(f"'{address}'" in e and "not as the gRPC server of a Ray head" in e
+                                for e in errors), err
     assert rc_auto == 2 and errors[1].startswith("error: --ray auto: RAY_ADDRESS cannot reach"), err
     assert not (tmp_path / "o").exists()
-
 
 
 def test_an_evaluation_replaced_where_one_error_map_cannot_be_written_keeps_the_earlier_one(world: Path,

@@ -193,10 +193,11 @@ def resolve_run(args: MakeOptions, argv: list[str] | None, out: Path) -> tuple[G
                 f"--resume: no manifest.json in {str(out)!r} to resume; run without --resume to start"
             )
         cfg = _resume_config(args, explicit, manifest)
-        _check_resumable(manifest, cfg, explicit)
     else:
         cfg = args.gen.validate()
     check_given(args, cfg, argv)
+    if args.resume:  # (after check_given: a flag that would do nothing is said as such first)
+        _check_resumable(manifest, cfg, explicit)
     check_config(args, cfg, resumed=args.resume and "objects" not in explicit)
     check_out(out)
     from scenes.renderer.variant import choose_variant
