@@ -326,3 +326,28 @@ def test_an_assets_member_whose_name_is_not_text_is_refused_naming_it(tmp_path):
     with pytest.raises(UsageError, match=r"assets.tar.xz.*not UTF-8 text \(byte 0xE9\).*rename it"):
         unpack_carry(carry, work)
     assert not (work / "assets" / "meshes" / "a.ply").exists()
+
+
+@pytest.mark.parametrize("second", ["file", "folder"])
+def test_an_assets_member_named_twice_is_refused_before_anything_is_unpacked(tmp_path, second):
+    """Sweep 23: assets.tar.xz naming assets/meshes/m0.ply twice (a file, then a file or a folder of that name): the
+    later member would replace the earlier, and the session rendered with what was left (a mesh reader's
+    IndexError); refused naming the archive and the member, nothing unpacked. An assets archive without an asset
+    folder is refused too (it rendered procedural shapes without a word)."""
+    from orchestrate.relay import ASSET_ARCHIVE, SITE_ARCHIVE, unpack_carry
+    from scenes.cli.errors import UsageError
+
+    carry, work = tmp_path / "carry", tmp_path / "work"
+    carry.mkdir()
+    _archive(carry / SITE_ARCHIVE, [_file("pkg/__init__.py", b"")])
+    again = _file("assets/meshes/m0.ply", b"ply2") if second == "file" else (tarfile.TarInfo("assets/meshes/m0.ply"),
+                                                                             None)
+    if second == "folder":
+        again[0].type = tarfile.DIRTYPE
+    _archive(carry / ASSET_ARCHIVE, [_file("assets/meshes/m0.ply", b"ply"), again])
+    with pytest.raises(UsageError, match=r"assets.tar.xz.*'assets/meshes/m0.ply' twice"):
+        unpack_carry(carry, work)
+    assert not (work / "assets").exists()
+    _archive(carry / ASSET_ARCHIVE, [_file("assets", b"not a folder")])
+    with pytest.raises(UsageError, match=r"assets.tar.xz.*holds no asset folder"):
+        unpack_carry(carry, tmp_path / "work2")
