@@ -48,6 +48,7 @@ sys.path.insert(0, str(ROOT))
 from bench.cli_common import check_work, claim_result, need_path, parse, run_main, write_result  # noqa: E402
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error  # noqa: E402
 from scenes.cli.options import Command, Positional, arg, check_fields, option  # noqa: E402
+from scenes.files import read_json  # noqa: E402
 
 SWEEP: dict[str, tuple[float, ...]] = {
     "shadow_fraction": (0.02, 0.05, 0.1, 0.2, 0.3),
@@ -264,7 +265,7 @@ def run(opts: SweepOptions) -> dict:
             print(f"{folder}: no ground truth, skipped", file=sys.stderr)
             continue
         scene = folder / "scene.json"
-        family = json.loads(scene.read_text()).get("light_family", "-") if scene.is_file() else "-"
+        family = read_json(scene).get("light_family", "-") if scene.is_file() else "-"
         t0 = time.perf_counter()
         renders, errors, seconds = fitted_renders(cap, config)
         t1 = time.perf_counter()
