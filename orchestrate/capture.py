@@ -126,6 +126,8 @@ class CaptureOptions:
 
 MIN_SIDE = 32
 """The smallest --max-side other than 0."""
+MIN_PHOTO_SIDE = 4
+"""The smallest side of a photo the capture works on."""
 
 
 def of_photos(opts: CaptureOptions) -> bool:
@@ -158,6 +160,9 @@ def probe_input(opts: CaptureOptions) -> tuple[int, int, int, tuple[int, int]]:
         return fd.num_files, *fd.shape, fd.shape
     files = photo_files(folder)
     k, (h, w) = len(files), photo_shape(files[0])
+    if min(h, w) < MIN_PHOTO_SIDE:  # no 2 x 2 block of pixels to build the check's surface from
+        raise ValueError(f"--input: the photos are {w}x{h} px ({files[0].name}); expected at least {MIN_PHOTO_SIDE} px "
+                         "on each side")
     f = min(1.0, opts.max_side / max(h, w)) if opts.max_side else 1.0
     return k, max(1, round(h * f)), max(1, round(w * f)), (h, w)
 

@@ -78,6 +78,11 @@ damaged compressed data. OpenCV decodes such a file anyway, the missing part gre
 marker' is about the colour profile, which is not read: not damage.)"""
 _JPEG_MAGIC = b"\xff\xd8\xff"
 _TIFF_MAGICS = (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+")
+_NAMED_KINDS = {".jpg": "a JPEG", ".jpeg": "a JPEG", ".png": "a PNG", ".tif": "a TIFF", ".tiff": "a TIFF"}
+"""What a file of each suffix must be: a picture of another kind under such a name is refused, not decoded."""
+
+
+_PAGES = "holds "
 
 
 def _tiff_damage(path: Path) -> str | None:
@@ -90,6 +95,14 @@ def _tiff_damage(path: Path) -> str | None:
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError):
         return None
     with img:
+        if getattr(img, "n_frames", 1) > 1:  # OpenCV reads the first page only: another picture would go unsaid
+            size, pages = img.size, 0
+            for i in range(img.n_frames):  # (a camera's smaller preview page is no other picture)
+                img.seek(i)
+                pages += img.size == size
+            img.seek(0)
+            if pages > 1:
+                return f"{_PAGES}{pages} pages of {size[0]}x{size[1]} px; expected one picture per file"
         try:
             img.load()
         except OSError as exc:
@@ -117,6 +130,11 @@ def decode_image(path: Path, flags: int, where: str):
         return None
     head = data[:8].tobytes()
     jpeg, tiff, png = head.startswith(_JPEG_MAGIC), head[:4] in _TIFF_MAGICS, head == b"\x89PNG\r\n\x1a\n"
+    if not (jpeg or tiff or png) and path.suffix.lower() in _NAMED_KINDS:  # e.g. WebP bytes in IMG_3.jpg
+        raise ValueError(f"{where} is named as {_NAMED_KINDS[path.suffix.lower()]} but is not one (its bytes begin "
+                         f"{head[:4]!r}); expected what its name says: convert it, or name it as what it is")
+    if png and b"acTL" in data[:data.tobytes().find(b"IDAT")].tobytes():  # animated: OpenCV reads frame 1 only
+        raise ValueError(f"{where} is an animated PNG (several pictures); expected one picture per file")
     try:
         if not (jpeg or tiff or png):
             return cv2.imdecode(data, flags)
@@ -135,6 +153,8 @@ def decode_image(path: Path, flags: int, where: str):
         raise ValueError(f"{where} is damaged: the JPEG decoder says {'; '.join(dict.fromkeys(jpeg_damage))!r} (a "
                          "truncated or corrupt file, decoded only in part); expected a complete JPEG (copy it again "
                          "from the camera)")
+    if tiff_damage is not None and tiff_damage.startswith(_PAGES):
+        raise ValueError(f"{where} {tiff_damage}")
     if tiff_damage is not None:
         raise ValueError(f"{where} is damaged: the TIFF decoder says {tiff_damage!r} (a truncated or corrupt file, "
                          "readable only in part); expected a complete TIFF")

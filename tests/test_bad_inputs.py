@@ -3032,6 +3032,29 @@ def _bad_png_third(w: Path, t: Path) -> None:
     _photos(".png", damage=lambda b: b[: len(b) // 2])(w, t)
 
 
+def _photo_replaced(kind: str) -> Callable[[Path, Path], None]:
+    """Setup: T/photos (`_photos`, PNG or TIFF) whose third photo is rewritten by Pillow as `kind`: 'webp' (WebP
+    bytes under its .png name), 'apng' (an animated PNG, a black second frame), 'tiff2' (a second page, black, of
+    the same size) or 'tiny' (every photo cut to its first row)."""
+    def setup(w: Path, t: Path) -> None:
+        from PIL import Image
+
+        _photos(".tif" if kind == "tiff2" else ".png")(w, t)
+        files = sorted((t / "photos").iterdir())
+        img = Image.open(files[2]).convert("RGB")
+        black = Image.new("RGB", img.size)
+        if kind == "webp":
+            img.save(files[2], format="WEBP")
+        elif kind == "apng":
+            img.save(files[2], format="PNG", save_all=True, append_images=[black])
+        elif kind == "tiff2":
+            img.save(files[2], format="TIFF", save_all=True, append_images=[black])
+        else:
+            for f in files:
+                Image.open(f).crop((0, 0, img.size[0], 1)).save(f)
+    return setup
+
+
 def _rational(numerator: int, denominator: int):
     from PIL.TiffImagePlugin import IFDRational
 
@@ -3055,6 +3078,16 @@ def _unips_jpeg_images(folder: Path) -> None:
 ROWS += [
     # ---- photos are decoded strictly: a file its decoder cannot read whole is refused naming it
     Row("capture-mask-empty", CAP, [*CAPTURE, "--mask", ""], 2, ("--mask", "got an empty value", "{FILE,auto,none}")),
+    # sweep 23: a file of another kind under a photo's name, several pictures in one file, photos one pixel tall
+    Row("capture-a-webp-named-png", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "IMG_0003.png", "is named as a PNG but is not one"), setup=_photo_replaced("webp"),
+        check=_not_written("o")),
+    Row("capture-an-animated-png", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "IMG_0003.png", "animated PNG"), setup=_photo_replaced("apng"), check=_not_written("o")),
+    Row("capture-a-tiff-of-two-pages", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "IMG_0003.tif", "holds 2 pages"), setup=_photo_replaced("tiff2"), check=_not_written("o")),
+    Row("capture-photos-one-pixel-tall", CAP, [*CAPTURE, "--mask", "none"], 2,
+        ("--input", "x1 px", "at least 4 px"), setup=_photo_replaced("tiny"), check=_not_written("o")),
     Row("capture-jpeg-truncated", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
         ("--input", "IMG_0003.jpg", "damaged", "truncated or corrupt"), setup=_photos(damage=_cut_in_scan),
         check=_not_written("o/normal.png")),

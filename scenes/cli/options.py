@@ -374,8 +374,9 @@ class Command:
             raise UsageError(_usage_message(event))
 
         argv = list(sys.argv[1:] if argv is None else argv)
-        check_text_arguments(argv, " or ".join(n for n in (flag_name(o, f) for o, f in _flat_fields(self.config))
-                                               if not n.startswith("--")) or "an argument")
+        if not {"-h", "--help"} & set(argv):  # --help reads no path (and TMPDIR's name is none of its business)
+            check_text_arguments(argv, " or ".join(n for n in (flag_name(o, f) for o, f in _flat_fields(self.config))
+                                                   if not n.startswith("--")) or "an argument")
         self._check_no_empty_path(argv)
         with _errors.on_parse_error(refuse):
             cfg = tyro.cli(self.config, args=self._join_repeated(argv), prog=self.prog,
