@@ -151,8 +151,18 @@ def _loads(path: str | os.PathLike, text: str, **hooks):
     import json
     import sys
 
+    made = hooks.pop("object_hook", dict)
+
+    def once(pairs: list) -> object:  # a key given twice: Python keeps the last, other readers the first
+        keys = [k for k, _ in pairs]
+        if len(set(keys)) < len(keys):
+            twice = next(k for k in keys if keys.count(k) > 1)
+            raise ValueError(f"{str(path)!r}: holds the key {shown_name(twice)[:60]!r} twice in one object; expected "
+                             "each key once (an edit merged by hand?)")
+        return made(dict(pairs))
+
     try:
-        value = json.loads(text, **hooks)
+        value = json.loads(text, object_pairs_hook=once, **hooks)
     except RecursionError:  # an untrusted file must not end in a traceback
         raise ValueError(f"{str(path)!r}: JSON nested too deeply (over {sys.getrecursionlimit()} levels); expected "
                          "a record as this toolkit writes it") from None

@@ -301,6 +301,13 @@ def read_mask(path: str | Path, shape: tuple[int, int] | None = None) -> np.ndar
         return f"{v:.6g}" if np.issubdtype(found.dtype, np.floating) else str(int(v))
 
     has_zero = bool(np.any(found == 0))
+    if len(found) == 1 and img.ndim == 3 and img.shape[2] >= 3:  # one largest channel, yet colours that differ
+        colours = img[..., :3].reshape(-1, 3)
+        other = colours[(colours != colours[0]).any(axis=1)]
+        if len(other):  # red on blue: read by the rule, the whole frame; the label image's meaning lost
+            raise ValueError(f"{where}: holds colours {tuple(map(int, colours[0][::-1]))} and "
+                             f"{tuple(map(int, other[0][::-1]))} (RGB), whose largest channel is the same; expected "
+                             "the object white (or one colour) on black")
     if len(found) == 2 and has_zero and found[-1] > 0:
         return values > 0
     if len(found) == 1 and has_zero:

@@ -38,9 +38,12 @@ def check_normals(normals: np.ndarray, mask: np.ndarray, flag: str = "--normals"
     length = np.linalg.norm(inside, axis=1)
     unit = np.abs(length - 1.0) <= UNIT_TOLERANCE
     if unit.mean() < UNIT_SHARE:
+        rest = np.abs(np.linalg.norm(n[~mask], axis=1) - 1.0) <= UNIT_TOLERANCE
+        inverted = "; the map's unit normals lie outside the mask: is --mask inverted (the object black on white)?" \
+            if rest.size and rest.mean() >= UNIT_SHARE else ""
         raise ValueError(f"{flag}: {100 * (1 - unit.mean()):.1f}% of the normals inside the mask are not unit "
                          f"length (median length {np.median(length):.3f}); expected unit vectors (a 16-bit map "
-                         "stores (n + 1) / 2)")
+                         f"stores (n + 1) / 2){inverted}")
     out = np.zeros_like(n)
     out[mask] = inside / np.maximum(length, 1e-12)[:, None]
     return out
