@@ -3154,6 +3154,10 @@ ROWS += [
     Row("capture-mask-background-3", CAP, [*CAPTURE, "--mask", "{T}/m.png"], 2,
         ("--mask", "m.png", "3 and 255", "no 0"), setup=_mask_file("m.png", lambda m: np.where(m, 255, 3).astype(
             np.uint8)), check=_not_written("o/normal.png")),
+    Row("capture-mask-red-on-blue", CAP, [*CAPTURE, "--mask", "{T}/m.png"], 2,
+        ("--mask", "m.png", "(255, 0, 0)", "(0, 0, 255)", "whose largest channel is the same"),
+        setup=_mask_file("m.png", lambda m: np.where(m[..., None], np.uint8([0, 0, 255]), np.uint8([255, 0, 0]))),
+        check=_not_written("o/normal.png")),
     Row("capture-mask-one-grey-value", CAP, [*CAPTURE, "--mask", "{T}/m.png"], 2, ("--mask", "m.png", "128 everywhere"),
         setup=_mask_file("m.png", lambda m: np.full(m.shape, 128, np.uint8)), check=_not_written("o/normal.png")),
     Row("capture-mask-gradient", CAP, [*CAPTURE, "--mask", "{T}/m.png"], 2,

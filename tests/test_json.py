@@ -146,3 +146,18 @@ def test_a_json_record_holding_half_a_character_is_refused_naming_the_file(tmp_p
             reader(tmp_path / "half.json")
     (tmp_path / "pair.json").write_text('{"name": "\\ud83d\\ude00"}')
     assert read_json(tmp_path / "pair.json") == {"name": "\U0001f600"}
+
+
+def test_a_json_record_holding_a_key_twice_is_refused_naming_the_file_and_the_key(tmp_path):
+    """Sweep 23's drafts: a manifest entry with "status": "failed", then "status": "done" (an edit merged by hand):
+    Python keeps the last value, other readers the first. The one reader refuses it, naming the file and the key;
+    figures' readers too (their object_hook still applies to records that pass)."""
+    from scenes.files import read_figures, read_json
+
+    (tmp_path / "twice.json").write_text('{"objects": [{"status": "failed", "error": "e", "status": "done"}]}')
+    for reader in (read_json, read_figures):
+        with pytest.raises(ValueError, match=r"twice.json.*holds the key 'status' twice"):
+            reader(tmp_path / "twice.json")
+    (tmp_path / "once.json").write_text('{"a": {"b": 1}}')
+    assert read_figures(tmp_path / "once.json", object_hook=lambda d: {**d, "seen": True}) == \
+        {"a": {"b": 1, "seen": True}, "seen": True}
