@@ -78,8 +78,10 @@ damaged compressed data. OpenCV decodes such a file anyway, the missing part gre
 marker' is about the colour profile, which is not read: not damage.)"""
 _JPEG_MAGIC = b"\xff\xd8\xff"
 _TIFF_MAGICS = (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+")
-_NAMED_KINDS = {".jpg": "a JPEG", ".jpeg": "a JPEG", ".png": "a PNG", ".tif": "a TIFF", ".tiff": "a TIFF"}
-"""What a file of each suffix must be: a picture of another kind under such a name is refused, not decoded."""
+_NAMED_KINDS = {".jpg": ("a JPEG", b"\xff\xd8"), ".jpeg": ("a JPEG", b"\xff\xd8"), ".png": ("a PNG", b"\x89PNG"),
+                ".tif": ("a TIFF", b"II", b"MM"), ".tiff": ("a TIFF", b"II", b"MM")}
+"""What a file of each suffix must be, and how such a file begins: a file that begins otherwise (a WebP under a
+.jpg name) is refused, not decoded; one that begins so but is damaged is the decoder's to refuse."""
 
 
 _PAGES = "holds "
@@ -130,9 +132,10 @@ def decode_image(path: Path, flags: int, where: str):
         return None
     head = data[:8].tobytes()
     jpeg, tiff, png = head.startswith(_JPEG_MAGIC), head[:4] in _TIFF_MAGICS, head == b"\x89PNG\r\n\x1a\n"
-    if not (jpeg or tiff or png) and path.suffix.lower() in _NAMED_KINDS:  # e.g. WebP bytes in IMG_3.jpg
-        raise ValueError(f"{where} is named as {_NAMED_KINDS[path.suffix.lower()]} but is not one (its bytes begin "
-                         f"{head[:4]!r}); expected what its name says: convert it, or name it as what it is")
+    kind, *starts = _NAMED_KINDS.get(path.suffix.lower(), ("", b""))
+    if not (jpeg or tiff or png) and not head.startswith(tuple(starts)):  # e.g. WebP bytes in IMG_3.jpg
+        raise ValueError(f"{where} is named as {kind} but is not one (its bytes begin {head[:4]!r}); expected what "
+                         "its name says: convert it, or name it as what it is")
     if png and b"acTL" in data[:data.tobytes().find(b"IDAT")].tobytes():  # animated: OpenCV reads frame 1 only
         raise ValueError(f"{where} is an animated PNG (several pictures); expected one picture per file")
     try:
