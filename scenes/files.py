@@ -7,6 +7,7 @@ decoder's complaint can be told from its silence.
 """
 from __future__ import annotations
 
+import errno
 import os
 import re
 import sys
@@ -316,9 +317,10 @@ def atomic_write(path: str | Path, write) -> None:
         os.replace(tmp, path)
     except OSError as exc:
         _discard(tmp)
-        if str(path) in str(exc):
+        if str(path) in str(exc) and str(tmp) not in str(exc):
             raise
-        raise OSError(exc.errno, f"could not write {str(path)!r}: {exc.strerror or exc}") from exc
+        why = f"{exc.strerror or exc}{' (a mount point?)' if exc.errno == errno.EBUSY else ''}"
+        raise OSError(exc.errno, f"could not write {str(path)!r}: {why}") from exc
     except BaseException:
         _discard(tmp)
         raise

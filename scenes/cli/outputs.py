@@ -366,9 +366,9 @@ def claim_outputs(paths: Iterable[str | os.PathLike], overwrite: bool, flag: str
             )
             raise UsageError(f"{flag}: {str(p)!r} is {kind}, where {owner} writes {want}; it is never replaced: "
                              f"move it away or use another {flag}")
-        if os.path.ismount(p):  # a file or folder mounted there: a rename onto it fails (EBUSY) mid-write
-            raise UsageError(f"{flag}: {str(p)!r} is a mount point, where {owner} writes {want}; it cannot be "
-                             f"replaced: unmount it or use another {flag}")
+        if os.path.ismount(p) or (not folders and not os.access(p, os.W_OK)):  # found before the first write
+            raise UsageError(f"{flag}: {str(p)!r} is read-only (or a mount point), where {owner} writes {want}; it "
+                             f"is never replaced: make it writable, or use another {flag}")
     if existing and marker is not None and not os.path.lexists(marker):
         more = f" (and {len(existing) - 1} more)" if len(existing) > 1 else ""
         raise UsageError(f"{flag}: {str(existing[0])!r}{more} was not written by {owner} (no {Path(marker).name} in "
