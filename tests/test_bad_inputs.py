@@ -204,6 +204,10 @@ def _bad_weights(w: Path, weights: Path, sidecar: dict) -> None:
     ckpt["model"][key] = (ckpt["model"][key] * 100).round().to(torch.int64)
     ckpt[CHECKSUM_KEY] = content_digest(ckpt)
     torch.save(ckpt, last)
+    shutil.copytree(w / "run_int64", w / "run_list")  # W/run_list/last.pt: one entry a plain list, not a tensor
+    ckpt["model"][key] = ckpt["model"][key].tolist()
+    ckpt[CHECKSUM_KEY] = content_digest(ckpt)
+    torch.save(ckpt, w / "run_list" / "last.pt")
     torch.manual_seed(0)
     state = create_model("sdm-unips-tiny").state_dict()
     key = next(k for k, v in state.items() if v.is_floating_point() and v.ndim >= 2)
@@ -3193,6 +3197,9 @@ ROWS += [
     Row("predict-weights-int64", PR, ["--method", "model", "--checkpoint", "{W}/ck/int64.safetensors", "--input",
                                       OBJDIR, "--out", "{T}/p"], 2, ("int64.safetensors", "int64", "floating-point"),
         check=_not_written("p")),
+    Row("predict-training-checkpoint-holding-a-list", PR, ["--method", "model", "--checkpoint", "{W}/run_list/last.pt",
+                                                           "--input", OBJDIR, "--out", "{T}/p"], 2,
+        ("--checkpoint", "last.pt", "is a list, expected a tensor"), check=_not_written("p")),
     Row("predict-training-checkpoint-int64", PR, ["--method", "model", "--checkpoint", "{W}/run_int64/last.pt",
                                                   "--input", OBJDIR, "--out", "{T}/p"], 2,
         ("last.pt", "int64", "floating-point"), check=_not_written("p")),

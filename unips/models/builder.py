@@ -128,11 +128,11 @@ def load_state_strict(model: nn.Module, state: Mapping[str, torch.Tensor], sourc
 
         raise ValueError(f"{source}: state does not match the model: missing tensors {names(missing)}; unexpected "
                          f"tensors {names(unexpected)}")
+    check_weights(state, source, own)  # first: an entry that is no tensor has no shape to compare
     for k, v in own.items():
         if tuple(state[k].shape) != tuple(v.shape):
             raise ValueError(f"{source}: tensor {k} has shape {'x'.join(map(str, state[k].shape))} in the file but "
                              f"{'x'.join(map(str, v.shape))} in the model built from {config}")
-    check_weights(state, source, own)
     model.load_state_dict(state, strict=True)
 
 
