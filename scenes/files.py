@@ -99,6 +99,24 @@ def mount_of(path: str | os.PathLike, folder: str | os.PathLike) -> str | None:
         here = parent
 
 
+def mount_points() -> list[str]:
+    """This process's mount points (/proc/self/mountinfo; [] where it cannot be read)."""
+    try:
+        with open("/proc/self/mountinfo", encoding="utf-8", errors="replace") as f:
+            points = [line.split()[4] for line in f if len(line.split()) > 4]
+    except OSError:
+        return []
+    return [re.sub(r"\\([0-7]{3})", lambda m: chr(int(m[1], 8)), p) for p in points]  # '\040' is a space
+
+
+def mounts_within(path: str | os.PathLike, points: list[str] | None = None) -> list[str]:
+    """The mount points (of `points`, default `mount_points()`) at or under `path`: a file or folder that is one,
+    or a folder holding one, cannot be replaced or removed (EBUSY), whatever its permissions say."""
+    root = os.path.realpath(path)
+    return [p for p in (mount_points() if points is None else points)
+            if p == root or p.startswith(root.rstrip(os.sep) + os.sep)]
+
+
 def links_out_of(path: str | os.PathLike, folder: str | os.PathLike) -> bool:
     """Whether `path` is a link that leads outside `folder` (an untrusted dataset's link to any file of the
     machine)."""

@@ -4903,3 +4903,24 @@ def test_a_listener_that_writes_one_settings_frame_and_then_nothing_is_no_ray_he
         server.close()
         for conn in held:
             conn.close()
+
+
+def test_a_dataset_holding_a_mount_point_is_not_resumed_or_replaced(tmp_path: Path, capsys):
+    """Sweep 23: a dataset whose manifest.json (or a file of an object folder) is a read-only mount: make --resume
+    ended in EBUSY naming a temporary file, and sensor --overwrite removed the manifest before failing on the
+    mounted file. Now both refuse before the first write, naming the mount point (`check_replaceable`)."""
+    from wildgen.make import main as make
+
+    data = tmp_path / "data"
+    assert make(["--out", str(data), *TINY]) == 0
+    before = {p: p.read_bytes() for p in sorted(data.rglob("*")) if p.is_file()}
+    target = data / "manifest.json"
+    if os.geteuid() != 0 or subprocess.run(["mount", "--bind", str(target), str(target)]).returncode != 0:
+        pytest.skip("cannot bind-mount a file here (needs root)")
+    try:
+        subprocess.run(["mount", "-o", "remount,bind,ro", str(target)], check=False)
+        rc = make(["--out", str(data), "--objects", "2", "--workers", "0", "--quiet", "--resume"])
+    finally:
+        subprocess.run(["umount", str(target)], check=False)
+    assert rc == 2 and "holds the mount point" in capsys.readouterr().err
+    assert {p: p.read_bytes() for p in sorted(data.rglob("*")) if p.is_file()} == before

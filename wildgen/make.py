@@ -18,7 +18,7 @@ from scenes.cli.limits import check_memory as check_memory_bytes
 from scenes.cli.limits import check_threads, gib
 from scenes.cli.needs import Needs, value_of
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option, optional_value
-from scenes.cli.outputs import check_output_folder, make_output_folder
+from scenes.cli.outputs import check_output_folder, check_replaceable, make_output_folder
 from scenes.cli.progress import Progress, logs_above_progress
 from scenes.folder.shard_format import ENCODINGS
 from wildgen.config import GenConfig
@@ -315,6 +315,7 @@ def check_out(out: Path) -> None:
     """--out must be a folder this process can create and write (checked, and created, before anything is
     written)."""
     make_output_folder(out)
+    check_replaceable(out, "--out", "wildgen.make")  # a resumed or replaced dataset: nothing mounted inside
 
 
 class _Progress:

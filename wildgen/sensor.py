@@ -41,7 +41,7 @@ from scenes.camera_sensor import (
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.needs import Needs
 from scenes.cli.options import REQUIRED, Command, check_fields, option
-from scenes.cli.outputs import check_apart, check_not_being_written, check_output_folder
+from scenes.cli.outputs import check_apart, check_not_being_written, check_output_folder, check_replaceable
 from scenes.cli.progress import progress_bar
 from scenes.files import is_within, read_json, write_json
 from scenes.folder.format import (
@@ -214,6 +214,7 @@ def _prepare_out(data: Path, out: Path, overwrite: bool, names: list[str]) -> No
     check_output_folder(out)
     check_not_being_written(out, "--out")  # another run's folder is said as such, before what it holds
     if out.is_dir() and any(out.iterdir()):
+        check_replaceable(out, "--out", "wildgen.sensor")
         if not overwrite:
             raise UsageError(f"--out: {str(out)!r} already exists and is not empty; pass --overwrite to replace the "
                              "dataset there, or choose another folder")

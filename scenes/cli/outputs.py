@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Iterable
 
 from scenes.cli.errors import UsageError
-from scenes.files import is_within, mount_of, read_json
+from scenes.files import is_within, mount_of, mount_points, mounts_within, read_json
 
 
 def _tell_supervisor(path: str | os.PathLike) -> None:
@@ -168,6 +168,16 @@ def check_apart(path: str | os.PathLike, inputs: Mapping[str, str | os.PathLike 
 HELD_ENV = "PS_TOOLKIT_HELD_FOLDERS"
 """The folders this process and the processes that started it hold (real paths, os.pathsep-separated): a step of a
 command writes inside its parent's folder, where any other run is refused (`check_no_holder_above`)."""
+
+
+def check_replaceable(folder: str | os.PathLike, flag: str = "--out", owner: str = "this command") -> None:
+    """A folder whose earlier contents a command replaces or adds to (a dataset's --overwrite or --resume) must hold
+    no mount point (a file or folder mounted inside it: removing or renaming it fails mid-way, EBUSY, with part of
+    the earlier contents gone). UsageError naming it, before the first write."""
+    inside = [p for p in mounts_within(folder) if p != os.path.realpath(folder)]
+    if inside:
+        raise UsageError(f"{flag}: {str(folder)!r} holds the mount point {inside[0]!r}, where {owner} writes; it is "
+                         f"never replaced: unmount it, or use another {flag}")
 
 
 def check_no_holder_above(path: str | os.PathLike, flag: str = "--out") -> None:
@@ -353,6 +363,7 @@ def claim_outputs(paths: Iterable[str | os.PathLike], overwrite: bool, flag: str
                              "nothing was written")
     existing = [p for p in paths if os.path.lexists(p)]
     want = "a folder" if folders else "a file"
+    points = mount_points() if existing else []
     for p in existing:
         if p.is_symlink() or not (p.is_dir() if folders else p.is_file()):
             kind = (
@@ -366,9 +377,11 @@ def claim_outputs(paths: Iterable[str | os.PathLike], overwrite: bool, flag: str
             )
             raise UsageError(f"{flag}: {str(p)!r} is {kind}, where {owner} writes {want}; it is never replaced: "
                              f"move it away or use another {flag}")
-        if os.path.ismount(p) or (not folders and not os.access(p, os.W_OK)):  # found before the first write
-            raise UsageError(f"{flag}: {str(p)!r} is read-only (or a mount point), where {owner} writes {want}; it "
-                             f"is never replaced: make it writable, or use another {flag}")
+        if (held := mounts_within(p, points)) or (not folders and not os.access(p, os.W_OK)):  # before the first write
+            what = f"holds the mount point {held[0]!r}" if held and held[0] != os.path.realpath(p) else \
+                "is a mount point" if held else "is read-only"
+            raise UsageError(f"{flag}: {str(p)!r} {what}, where {owner} writes {want}; it is never replaced: "
+                             f"{'unmount it' if held else 'make it writable'}, or use another {flag}")
     if existing and marker is not None and not os.path.lexists(marker):
         more = f" (and {len(existing) - 1} more)" if len(existing) > 1 else ""
         raise UsageError(f"{flag}: {str(existing[0])!r}{more} was not written by {owner} (no {Path(marker).name} in "
