@@ -145,7 +145,7 @@ COMMAND = Command(CaptureOptions, prog="python -m orchestrate.capture", descript
     Needs("rotation_search", lambda c, _: c.refine, "with the refinement on (without --no-refine)"),
     Needs("rotation_steps", lambda c, _: c.refine and c.rotation_search, "with --rotation-search"),
     Needs("input_encoding", lambda c, _: of_photos(c), PHOTOS_ONLY),
-    Needs("max_side", lambda c, _: of_photos(c), PHOTOS_ONLY)))
+    Needs("max_side", lambda c, _: of_photos(c), PHOTOS_ONLY, (0,))))  # 0, the own size: an object folder's
 
 
 def probe_input(opts: CaptureOptions) -> tuple[int, int, int, tuple[int, int]]:

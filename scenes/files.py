@@ -162,11 +162,12 @@ def read_json(path: str | os.PathLike):
     """A JSON file read as `read_text_file` reads (never waiting on a pipe): the errors of `read_text_file` and of
     `json.loads`; nesting deeper than the decoder goes, or an integer of more digits than Python converts, is a
     ValueError naming the file."""
-    return _loads(path, read_text_file(path))
+    return parse_json(path, read_text_file(path))
 
 
-def _loads(path: str | os.PathLike, text: str, **hooks):
-    """`text` (of file `path`) parsed as JSON, each string of it text (`_text_only`)."""
+def parse_json(path: str | os.PathLike, text: str, **hooks):
+    """`text` (of file `path`, or whatever names it in errors) parsed as `read_json` parses a file: each key once,
+    each string text, nesting and integers within what Python reads, every refusal a ValueError naming `path`."""
     import json
     import sys
 
@@ -237,7 +238,7 @@ def read_figures(path: str | os.PathLike, **hooks):
     if os.path.islink(path):
         raise ValueError(f"{str(path)!r} is a link (to {os.readlink(path)!r}); a record is read from its own file "
                          "only")
-    return _loads(path, read_text_file(path), parse_constant=refuse, parse_float=number, parse_int=whole, **hooks)
+    return parse_json(path, read_text_file(path), parse_constant=refuse, parse_float=number, parse_int=whole, **hooks)
 
 
 class RecordError(ValueError):

@@ -97,14 +97,13 @@ def _tiff_damage(path: Path) -> str | None:
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError):
         return None
     with img:
-        if getattr(img, "n_frames", 1) > 1:  # OpenCV reads the first page only: another picture would go unsaid
-            size, pages = img.size, 0
-            for i in range(img.n_frames):  # (a camera's smaller preview page is no other picture)
-                img.seek(i)
-                pages += img.size == size
+        if getattr(img, "n_frames", 1) > 1:  # OpenCV reads page 1 only (a camera's smaller preview page is no picture)
+            sizes = [img.seek(i) or img.size for i in range(img.n_frames)]
             img.seek(0)
-            if pages > 1:
-                return f"{_PAGES}{pages} pages of {size[0]}x{size[1]} px; expected one picture per file"
+            big = max(sizes, key=lambda size: size[0] * size[1])
+            if sizes.count(sizes[0]) > 1 or big != sizes[0]:
+                return (f"{_PAGES}{len(sizes)} pages, the first {sizes[0][0]}x{sizes[0][1]} px and the largest "
+                        f"{big[0]}x{big[1]} px; expected one picture per file (a smaller preview page after it)")
         try:
             img.load()
         except OSError as exc:
@@ -136,7 +135,8 @@ def decode_image(path: Path, flags: int, where: str):
     if not (jpeg or tiff or png) and not head.startswith(tuple(starts)):  # e.g. WebP bytes in IMG_3.jpg
         raise ValueError(f"{where} is named as {kind} but is not one (its bytes begin {head[:4]!r}); expected what "
                          "its name says: convert it, or name it as what it is")
-    if png and b"acTL" in data[:data.tobytes().find(b"IDAT")].tobytes():  # animated: OpenCV reads frame 1 only
+    actl = data[:data.tobytes().find(b"IDAT")].tobytes().find(b"acTL") if png else -1
+    if actl >= 0 and int.from_bytes(data[actl + 4:actl + 8].tobytes(), "big") > 1:  # OpenCV reads frame 1 only
         raise ValueError(f"{where} is an animated PNG (several pictures); expected one picture per file")
     try:
         if not (jpeg or tiff or png):

@@ -208,6 +208,9 @@ def _bad_weights(w: Path, weights: Path, sidecar: dict) -> None:
     ckpt["model"][key] = ckpt["model"][key].tolist()
     ckpt[CHECKSUM_KEY] = content_digest(ckpt)
     torch.save(ckpt, w / "run_list" / "last.pt")
+    shutil.copytree(w / "run_int64", w / "run_meta")  # W/run_meta/last.pt: one weight a meta tensor (no data)
+    ckpt["model"][key] = torch.empty(len(ckpt["model"][key]), device="meta")
+    torch.save(ckpt, w / "run_meta" / "last.pt")
     torch.manual_seed(0)
     state = create_model("sdm-unips-tiny").state_dict()
     key = next(k for k, v in state.items() if v.is_floating_point() and v.ndim >= 2)
@@ -3043,7 +3046,7 @@ def _photo_replaced(kind: str) -> Callable[[Path, Path], None]:
     def setup(w: Path, t: Path) -> None:
         from PIL import Image
 
-        _photos(".tif" if kind == "tiff2" else ".png")(w, t)
+        _photos(".tif" if kind in ("tiff2", "preview") else ".png")(w, t)
         files = sorted((t / "photos").iterdir())
         img = Image.open(files[2]).convert("RGB")
         black = Image.new("RGB", img.size)
@@ -3053,6 +3056,8 @@ def _photo_replaced(kind: str) -> Callable[[Path, Path], None]:
             img.save(files[2], format="PNG", save_all=True, append_images=[black])
         elif kind == "tiff2":
             img.save(files[2], format="TIFF", save_all=True, append_images=[black])
+        elif kind == "preview":  # a small preview page first, the picture second: OpenCV read the preview
+            img.resize((8, 8)).save(files[2], format="TIFF", save_all=True, append_images=[img])
         else:
             for f in files:
                 Image.open(f).crop((0, 0, img.size[0], 1)).save(f)
@@ -3090,6 +3095,12 @@ ROWS += [
         ("--input", "IMG_0003.png", "animated PNG"), setup=_photo_replaced("apng"), check=_not_written("o")),
     Row("capture-a-tiff-of-two-pages", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
         ("--input", "IMG_0003.tif", "holds 2 pages"), setup=_photo_replaced("tiff2"), check=_not_written("o")),
+    Row("capture-a-tiff-whose-first-page-is-a-preview", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "IMG_0003.tif", "the first 8x8 px and the largest"), setup=_photo_replaced("preview"),
+        check=_not_written("o")),
+    Row("capture-an-object-folder-at-its-own-size", CAP, ["--input", f"{{W}}/data/{OBJ}.data", "--out", "{T}/o",
+                                                          "--no-refine", "--threads", "1", "--max-side", "0"], 0,
+        ("wrote",), check=_written("o/normal.png")),
     Row("capture-photos-one-pixel-tall", CAP, [*CAPTURE, "--mask", "none"], 2,
         ("--input", "x1 px", "at least 4 px"), setup=_photo_replaced("tiny"), check=_not_written("o")),
     Row("capture-jpeg-truncated", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
@@ -3197,6 +3208,10 @@ ROWS += [
     Row("predict-weights-int64", PR, ["--method", "model", "--checkpoint", "{W}/ck/int64.safetensors", "--input",
                                       OBJDIR, "--out", "{T}/p"], 2, ("int64.safetensors", "int64", "floating-point"),
         check=_not_written("p")),
+    Row("predict-training-checkpoint-holding-a-meta-tensor", PR, ["--method", "model", "--checkpoint",
+                                                                  "{W}/run_meta/last.pt", "--input", OBJDIR, "--out",
+                                                                  "{T}/p"], 2,
+        ("--checkpoint", "last.pt", "holds a tensor whose bytes cannot be read"), check=_not_written("p")),
     Row("predict-training-checkpoint-holding-a-list", PR, ["--method", "model", "--checkpoint", "{W}/run_list/last.pt",
                                                            "--input", OBJDIR, "--out", "{T}/p"], 2,
         ("--checkpoint", "last.pt", "is a list, expected a tensor"), check=_not_written("p")),

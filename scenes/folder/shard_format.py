@@ -45,7 +45,7 @@ import re
 from pathlib import Path
 from typing import Any, BinaryIO, Iterator
 
-from scenes.files import json_text, not_a_file, read_json, sha256_file, write_json
+from scenes.files import json_text, not_a_file, parse_json, read_json, sha256_file, write_json
 from scenes.folder.format import AUX_DIR, OBJECT_SUFFIX, object_name
 
 INDEX_FILE = "index.json"
@@ -255,7 +255,7 @@ def decode_folder(files: dict[str, bytes], folder: Path):
         return np.frombuffer(data, dtype, offset=start).reshape(shape).copy()
 
     try:
-        meta = json.loads(files[DECODED_META])
+        meta = parse_json(f"member {DECODED_META}", files[DECODED_META].decode("utf-8"))
         h, w = (int(v) for v in meta["shape"])
         k = len(meta["image_names"])
         if min(h, w, k) < 1:

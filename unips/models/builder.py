@@ -261,7 +261,12 @@ def load_training_checkpoint(path: str | Path, map_location: str | torch.device 
                if k not in ckpt]
     if missing:
         raise ValueError(f"{str(path)!r}: training checkpoint lacks {', '.join(missing)}")
-    if CHECKSUM_KEY in ckpt and content_digest(ckpt) != ckpt[CHECKSUM_KEY]:
+    try:
+        digest = content_digest(ckpt) if CHECKSUM_KEY in ckpt else None
+    except (NotImplementedError, RuntimeError) as exc:  # a meta tensor (no data), a sparse layout: no weights
+        raise ValueError(f"{str(path)!r}: holds a tensor whose bytes cannot be read ({str(exc).splitlines()[0][:80]}); "
+                         "expected a training checkpoint as unips.train writes it") from None
+    if digest is not None and digest != ckpt[CHECKSUM_KEY]:
         raise ValueError(f"{str(path)!r}: the training checkpoint is damaged: its contents differ from the checksum "
                          "written with them (a changed byte); resume from a good copy or start afresh with --overwrite")
     bad = next((k for k, v in ckpt["model"].items() if torch.is_tensor(v) and v.is_floating_point()
