@@ -351,3 +351,15 @@ def test_an_assets_member_named_twice_is_refused_before_anything_is_unpacked(tmp
     _archive(carry / ASSET_ARCHIVE, [_file("assets", b"not a folder")])
     with pytest.raises(UsageError, match=r"assets.tar.xz.*holds no asset folder"):
         unpack_carry(carry, tmp_path / "work2")
+
+
+@pytest.mark.parametrize("suffix", [".", "aux..", ""])
+def test_a_shard_member_naming_no_file_inside_its_sample_folder_is_refused(tmp_path, suffix):
+    """Sweep 24's drafts: a member '00000..' has the suffix '.', the sample's folder itself: unips.train ended in
+    'Is a directory' naming its scratch folder, after creating the sample folder. Refused before anything is
+    written, naming the member."""
+    from scenes.folder.shard_format import extract_sample
+
+    with pytest.raises(ValueError, match="names no file inside its folder"):
+        extract_sample({"L000.png": b"x", suffix: b"y"}, tmp_path / "00000.data")
+    assert not (tmp_path / "00000.data").exists()

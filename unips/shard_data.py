@@ -165,7 +165,10 @@ def decode_object(key: str, files: dict[str, bytes], shard: Path, arg: str = "--
     size = sum(len(v) for v in files.values())
     try:
         with tempfile.TemporaryDirectory(prefix="unips-shard-", dir=scratch_dir(size)) as tmp:
-            folder = extract_sample(files, Path(tmp) / sample_folder_name(key))
+            try:
+                folder = extract_sample(files, Path(tmp) / sample_folder_name(key))
+            except ValueError as exc:  # a member naming no file inside the sample's folder
+                raise ValueError(f"{arg}: shard {str(shard)!r}: {exc}") from None
             try:
                 obj = load_object(folder, arg=arg)
             except (ValueError, FileNotFoundError) as exc:

@@ -6,7 +6,6 @@ A shard is a plain POSIX tar file (`SHARD_SUFFIX`) holding one *sample* per obje
 folder. The files are stored exactly as they are on disk (PNG, TIFF, JSON bytes), so reading a sample back
 means writing its files into a folder and handing it to the one reader of folders (`scenes.folder.layouts`): there
 is no second decoder. Suffixes:
-
 - a top-level file keeps its name (``00017.L000.png``, ``00017.mask.png``, ``00017.normal.tif``,
   ``00017.scene.json``): the images, mask, ground-truth normals and scene.json with its lights;
 - with `aux`, a file of the folder's aux directory becomes ``aux.<name>`` (``00017.aux.normal.exr``); the
@@ -481,15 +480,15 @@ def extract_sample(files: dict[str, bytes], folder: str | Path) -> Path:
     member whose path would leave the folder is refused before anything is written."""
     folder = Path(folder)
     inside = folder.resolve()
-    for suffix in files:
-        if not (folder / suffix_path(suffix)).resolve().is_relative_to(inside) or suffix_path(suffix).is_absolute():
-            raise ValueError(f"member {suffix[:80]!r} of sample {folder.name!r} would be written outside its folder; "
-                             "nothing of it is unpacked")
+    for suffix in files:  # a file strictly inside: not the folder itself ('00000..' names '.'), not above it
+        name, real = suffix.removeprefix(_AUX_PREFIX), (folder / suffix_path(suffix)).resolve()  # a flat file name
+        if name in ("", ".", "..") or "/" in name or "\\" in name or real == inside or not real.is_relative_to(inside):
+            raise ValueError(f"member {suffix[:80]!r} of sample {folder.name!r} names no file inside its folder (it "
+                             "would be written outside its folder, or as a folder); nothing of it is unpacked")
     folder.mkdir(parents=True)
     for suffix, data in files.items():
         target = folder / suffix_path(suffix)
-        if target.parent != folder:
-            target.parent.mkdir(parents=True, exist_ok=True)
+        target.parent.mkdir(parents=True, exist_ok=True)
         target.write_bytes(data)
     return folder
 
