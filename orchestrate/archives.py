@@ -1,6 +1,7 @@
 """The one rule for every archive the toolkit unpacks (`safe_extract`): the relay's packs (site.tar.xz and
 assets.tar.xz of `orchestrate.gpu_session --carry`). Archives are untrusted: whoever ships one chooses its member
-names, links and modes.
+names, links and modes. `unpack_once` unpacks into a folder of the command's own (a user's files there are never
+replaced member by member).
 """
 from __future__ import annotations
 
@@ -12,13 +13,50 @@ from pathlib import Path
 from scenes.cli.errors import UsageError
 
 
+def _digest(archive: Path) -> str:
+    import hashlib
+
+    with open(archive, "rb") as f:
+        return hashlib.file_digest(f, "sha256").hexdigest()
+
+
+def unpack_once(archive: Path, target: Path, under: str | None = None, replace: bool = False) -> None:
+    """`safe_extract` into a folder of the command's own: `target` (or its `under` folder), where it already holds
+    files, is left as it is when this very archive was unpacked there before (a resumed session: its marker, a
+    hidden file beside the folder, holds the archive's SHA-256), refused when anything else put them there (a
+    user's files would be replaced member by member), and emptied first with `replace` (--overwrite)."""
+    import shutil
+
+    dest = target / under if under else target
+    marker = dest.parent / f".{dest.name}.unpacked"
+    try:
+        digest = _digest(archive)
+        held = dest.is_dir() and not dest.is_symlink() and any(dest.iterdir())
+        ours = held and marker.is_file() and marker.read_text(errors="replace").strip() == digest
+    except OSError as exc:
+        raise UsageError(f"--carry: {str(archive)!r} or {str(dest)!r} cannot be read ({exc.strerror or exc}); "
+                         "expected a readable pack and --work") from None
+    if ours:
+        return
+    if held and not replace:
+        raise UsageError(f"--work: {str(dest)!r} already holds files that {str(archive)!r} did not put there "
+                         "(expected a new or empty --work, or the one an earlier session with this pack used); "
+                         "pass --overwrite to replace them, or use another --work")
+    if held:
+        shutil.rmtree(dest)
+    marker.unlink(missing_ok=True)
+    safe_extract(archive, target, under=under)
+    marker.write_text(digest + "\n")
+
+
 def safe_extract(archive: Path, target: Path, flag: str = "--carry", under: str | None = None) -> None:
     """The one rule for every archive the toolkit unpacks (the relay's packs): every member name relative and
-    without '..' (checked before anything is written), then tarfile's `data` filter, so that no member lands
-    outside `target` after resolution (links out and devices are refused) and no setuid or group/other write bit
-    is kept; with `under`, every member lies in that folder of `target` (the assets' archive writes work/assets
-    only, never the session's other files or code on its path); a damaged, empty or foreign archive is a
-    UsageError in one line naming it."""
+    without '..' and every member a plain file or folder (--pack writes no links: a link, even one inside the
+    target, would let a later member write through it), checked before anything is written; then tarfile's `data`
+    filter, so that no member lands outside `target` after resolution and no setuid or group/other write bit is
+    kept; with `under`, every member lies in that folder of `target` (the assets' archive writes work/assets only,
+    never the session's other files or code on its path); a damaged, empty or foreign archive is a UsageError in
+    one line naming it."""
     from pathlib import PurePosixPath
 
     from scenes.files import text_name_problem
@@ -46,9 +84,10 @@ def safe_extract(archive: Path, target: Path, flag: str = "--carry", under: str 
                 if under is not None and (not name.parts or name.parts[0] != under):
                     raise UsageError(f"{flag}: {str(archive)!r} holds member {member.name[:120]!r} outside its "
                                      f"{under}/ folder (expected every member under {under}/); refused")
-                if under is not None and not (member.isfile() or member.isdir()):  # a link would lead writes out
+                if not (member.isfile() or member.isdir()):  # a link aliases a path inside or leads writes out
                     raise UsageError(f"{flag}: {str(archive)!r} holds member {member.name[:120]!r}, a link or "
-                                     "special file (expected plain files and folders only); refused")
+                                     "special file (expected plain files and folders only, as --pack writes); "
+                                     "refused")
             tar.extractall(target, filter="data")
     except tarfile.FilterError as exc:
         raise UsageError(f"{flag}: {str(archive)!r} holds a member that would be unpacked outside {str(target)!r} "

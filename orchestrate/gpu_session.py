@@ -343,7 +343,7 @@ def _session(opts: SessionOptions, t0: float) -> dict:
     init, opts.model = resolve_init(opts.init, opts.model)  # an architecture change is refused before any work
     assets = opts.assets if opts.assets not in (None, "none") else None
     if opts.carry is not None:
-        packed = unpack_carry(Path(opts.carry), work)
+        packed = unpack_carry(Path(opts.carry), work, opts.overwrite)
         assets = assets or (str(packed) if packed else None)
     why = missing_mitsuba()
     if why:

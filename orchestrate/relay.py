@@ -22,7 +22,7 @@ import tarfile
 import zipfile
 from pathlib import Path
 
-from orchestrate.archives import safe_extract
+from orchestrate.archives import unpack_once
 from scenes.cli.errors import UsageError
 
 REPO = Path(__file__).resolve().parents[1]
@@ -424,24 +424,26 @@ def boot_site(argv: list[str]) -> None:
     carry, work = _flag(argv, "--carry", None), _flag(argv, "--work", "/tmp/gpu_session")
     if carry and _flag(argv, "--pack", None) is None and (Path(carry) / SITE_ARCHIVE).is_file():
         try:
-            _site(Path(carry), Path(work))
+            _site(Path(carry), Path(work), "--overwrite" in argv)
         except UsageError:
             pass  # reported by unpack_carry, once the command's error handling is in place
 
 
-def _site(carry: Path, work: Path) -> Path:
+def _site(carry: Path, work: Path, replace: bool = False) -> Path:
     site = work / "site"
     if str(site) not in sys.path:
         site.mkdir(parents=True, exist_ok=True)
-        safe_extract(carry / SITE_ARCHIVE, site)
+        unpack_once(carry / SITE_ARCHIVE, site, replace=replace)
         sys.path.insert(0, str(site))
         os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (str(site), os.environ.get("PYTHONPATH")) if p)
     return site
 
 
-def unpack_carry(carry: Path, work: Path) -> Path | None:
+def unpack_carry(carry: Path, work: Path, replace: bool = False) -> Path | None:
     """Unpack carry/site.tar.xz into work/site (put first on sys.path and on the steps' PYTHONPATH) and
-    carry/assets.tar.xz into work/ (work/assets); returns the asset folder, or None when none was packed."""
+    carry/assets.tar.xz into work/ (work/assets); returns the asset folder, or None when none was packed. Either
+    folder holding files this pack did not put there is refused, or with `replace` (--overwrite) emptied first
+    (`orchestrate.archives.unpack_once`)."""
     from scenes.files import not_a_file
 
     if not carry.is_dir() or not os.path.lexists(carry / SITE_ARCHIVE):
@@ -450,10 +452,10 @@ def unpack_carry(carry: Path, work: Path) -> Path | None:
     for archive in (carry / SITE_ARCHIVE, carry / ASSET_ARCHIVE):
         if os.path.lexists(archive) and (why := not_a_file(archive)):
             raise UsageError(f"--carry: {str(archive)!r} {why}")
-    _site(carry, work)
+    _site(carry, work, replace)
     if not (carry / ASSET_ARCHIVE).is_file():
         return None
-    safe_extract(carry / ASSET_ARCHIVE, work, under="assets")
+    unpack_once(carry / ASSET_ARCHIVE, work, under="assets", replace=replace)
     if not (work / "assets").is_dir() or not any((work / "assets").iterdir()):  # packed, yet nothing to render with
         raise UsageError(f"--carry: {str(carry / ASSET_ARCHIVE)!r} holds no asset folder (expected assets/ with the "
                          "packed meshes, maps and textures); pack again with --pack, or remove it to render without")

@@ -167,7 +167,8 @@ def read_json(path: str | os.PathLike):
 
 def parse_json(path: str | os.PathLike, text: str, **hooks):
     """`text` (of file `path`, or whatever names it in errors) parsed as `read_json` parses a file: each key once,
-    each string text, nesting and integers within what Python reads, every refusal a ValueError naming `path`."""
+    each string text, nesting within what Python reads, integers within 64 bits, every refusal a ValueError naming
+    `path`."""
     import json
     import sys
 
@@ -181,6 +182,15 @@ def parse_json(path: str | os.PathLike, text: str, **hooks):
                              "each key once (an edit merged by hand?)")
         return made(dict(pairs))
 
+    def whole(digits: str) -> int:  # no record of ours holds an integer beyond 64 bits; a bigger one overflows
+        number = int(digits)  # numpy, torch or a float far from here, in a traceback that names no file
+        if not -(2**63) <= number < 2**63:
+            raise ValueError(f"{str(path)!r}: holds the integer {digits[:24]}{'...' if len(digits) > 24 else ''} "
+                             f"({len(digits.lstrip('-'))} digits), beyond 64 bits; expected a record as this toolkit "
+                             "writes it")
+        return number
+
+    hooks.setdefault("parse_int", whole)
     try:
         value = json.loads(text, object_pairs_hook=once, **hooks)
     except RecursionError:  # an untrusted file must not end in a traceback

@@ -4939,3 +4939,106 @@ def test_a_dataset_holding_a_mount_point_is_not_resumed_or_replaced(tmp_path: Pa
         subprocess.run(["umount", str(target)], check=False)
     assert rc == 2 and "holds the mount point" in capsys.readouterr().err
     assert {p: p.read_bytes() for p in sorted(data.rglob("*")) if p.is_file()} == before
+
+
+def test_nothing_is_written_into_a_mount_point_inside_the_output_folder(world: Path, tmp_path: Path, capsys):
+    """Sweep 24: --overwrite over an earlier run whose p/00001 is a writable bind mount (another file system inside
+    --pred): its files were replaced there while a failure elsewhere left the rest, part old, part new. Every
+    command's claim (`claim_outputs`, under `output_lock`) now refuses a mount point on the way to an output,
+    naming it, before the first write."""
+    from unips.evaluate import main as evaluate
+
+    pred = tmp_path / "p"
+    shutil.copytree(world / "pred", pred)
+    assert evaluate(["--pred", str(pred), "--gt", str(world / "data")]) == 0
+    capsys.readouterr()
+    before = {p: p.read_bytes() for p in sorted(pred.rglob("*")) if p.is_file()}
+    mounted = pred / "00001"
+    if os.geteuid() != 0 or subprocess.run(["mount", "--bind", str(mounted), str(mounted)]).returncode != 0:
+        pytest.skip("cannot bind-mount a folder here (needs root)")
+    try:
+        rc = evaluate(["--pred", str(pred), "--gt", str(world / "data"), "--overwrite"])
+    finally:
+        subprocess.run(["umount", str(mounted)], check=False)
+    err = capsys.readouterr().err
+    assert rc == 2 and f"'{mounted}' is a mount point inside --pred" in err and "Traceback" not in err, err
+    assert {p: p.read_bytes() for p in sorted(pred.rglob("*")) if p.is_file()} == before
+
+
+def test_a_resumed_dataset_whose_finished_object_is_a_mount_point_is_resumed(tmp_path: Path, capsys):
+    """Sweep 24: a finished object folder of a dataset that is a (read-only) mount point: --resume leaves it as it
+    is, so it was wrongly refused (`check_replaceable` spares what a resumed run keeps); the new object is
+    rendered and the mounted one is untouched. --overwrite, which would remove it, is still refused."""
+    from wildgen.make import main as make
+
+    data = tmp_path / "data"
+    assert make(["--out", str(data), *TINY]) == 0
+    kept = next(p for p in data.iterdir() if p.is_dir() and p.name.endswith(".data"))
+    before = {p: p.read_bytes() for p in sorted(kept.rglob("*")) if p.is_file()}
+    if os.geteuid() != 0 or subprocess.run(["mount", "--bind", str(kept), str(kept)]).returncode != 0:
+        pytest.skip("cannot bind-mount a folder here (needs root)")
+    try:
+        subprocess.run(["mount", "-o", "remount,bind,ro", str(kept)], check=False)
+        rc = make(["--out", str(data), "--objects", "2", "--workers", "0", "--quiet", "--resume"])
+        rc_over = make(["--out", str(data), *TINY, "--overwrite"])
+    finally:
+        subprocess.run(["umount", str(kept)], check=False)
+    err = capsys.readouterr().err
+    assert rc == 0, err
+    assert rc_over == 2 and "holds the mount point" in err
+    assert len([p for p in data.iterdir() if p.name.endswith(".data")]) == 2
+    assert {p: p.read_bytes() for p in sorted(kept.rglob("*")) if p.is_file()} == before
+
+
+def test_a_training_run_holding_a_mount_point_is_not_resumed(world: Path, tmp_path: Path, capsys):
+    """Sweep 24: `unips.train --resume` with the run's last.pt a (read-only) mount point: the run appended its
+    steps to log.jsonl, then failed replacing last.pt (EBUSY), a log ahead of its checkpoint. Refused now before
+    the first write, naming the mount point, and the run folder is unchanged."""
+    from unips.train import main as train
+
+    run = tmp_path / "run"
+    shutil.copytree(world / "run_old", run)
+    before = {p: p.read_bytes() for p in sorted(run.rglob("*")) if p.is_file()}
+    last = run / "last.pt"
+    if os.geteuid() != 0 or subprocess.run(["mount", "--bind", str(last), str(last)]).returncode != 0:
+        pytest.skip("cannot bind-mount a file here (needs root)")
+    try:
+        subprocess.run(["mount", "-o", "remount,bind,ro", str(last)], check=False)
+        rc = train(["--data", str(world / "data"), "--out", str(run), "--model", "glc-test", "--steps", "3",
+                    "--resume", "--no-progress"])
+    finally:
+        subprocess.run(["umount", str(last)], check=False)
+    err = capsys.readouterr().err
+    assert rc == 2 and f"holds the mount point '{last}'" in err, err
+    assert {p: p.read_bytes() for p in sorted(run.rglob("*")) if p.is_file()} == before
+
+
+@pytest.mark.parametrize("where", ["manifest", "scene"])
+def test_an_integer_beyond_64_bits_in_a_record_is_refused_naming_the_file(tmp_path: Path, capsys, where):
+    """Sweep 24: a 401-digit integer in a manifest entry (make --resume rewrote the manifest around it) or in a
+    scene.json (an OverflowError traceback far from the file). Every JSON record is read by `parse_json`, which
+    refuses an integer beyond 64 bits naming the file; nothing is written."""
+    from wildgen.make import main as make
+
+    data = tmp_path / "data"
+    assert make(["--out", str(data), *TINY]) == 0
+    capsys.readouterr()
+    obj = next(p for p in data.iterdir() if p.name.endswith(".data"))
+    path = data / "manifest.json" if where == "manifest" else obj / "scene.json"
+    record = json.loads(path.read_text())
+    if where == "manifest":
+        record["objects"][0]["seed"] = 10**400
+    else:
+        record["seed"] = 10**400
+    path.write_text(json.dumps(record))
+    before = {p: p.read_bytes() for p in sorted(data.rglob("*")) if p.is_file()}
+    if where == "manifest":
+        rc = make(["--out", str(data), "--objects", "2", "--workers", "0", "--quiet", "--resume"])
+        err = capsys.readouterr().err
+    else:
+        r = subprocess.run([sys.executable, "-m", "wildgen.preview", str(data), "--stats", "--out",
+                            str(tmp_path / "s")], capture_output=True, text=True, cwd=REPO)
+        rc, err = r.returncode, r.stderr
+    assert rc == 2 and f"'{path}': holds the integer 1000" in err and "beyond 64 bits" in err, err
+    assert "Traceback" not in err
+    assert {p: p.read_bytes() for p in sorted(data.rglob("*")) if p.is_file()} == before

@@ -118,10 +118,27 @@ def test_a_relay_pack_member_outside_its_folder_is_refused(tmp_path, member):
     bad = {"dotdot": _file("../../outside.txt"), "absolute": _file(str(tmp_path / "abs.txt")),
            "link_out": _link("pkg/evil", "/etc/passwd")}[member]
     _archive(carry / SITE_ARCHIVE, [_file("pkg/__init__.py", b""), bad])
-    with pytest.raises(UsageError, match="outside"):
+    with pytest.raises(UsageError, match="outside|a link or special file"):
         unpack_carry(carry, work)
     assert not (tmp_path / "outside.txt").exists() and not (tmp_path.parent / "outside.txt").exists()
     assert not (tmp_path / "abs.txt").exists() and not (work / "site" / "pkg" / "evil").exists()
+
+
+@pytest.mark.parametrize("linkname", ["pkg", "."])
+def test_a_link_inside_a_relay_pack_is_refused_before_anything_is_written(tmp_path, linkname):
+    """A link member that stays inside the target (lib -> pkg, here -> .) passes the data filter, but a later member
+    written through it lands on another member's path (one file written twice, the first silently replaced, sweep
+    24). --pack writes no links: every link member is refused, and nothing is unpacked."""
+    from orchestrate.relay import SITE_ARCHIVE, unpack_carry
+    from scenes.cli.errors import UsageError
+
+    carry, work = tmp_path / "carry", tmp_path / "work"
+    carry.mkdir()
+    _archive(carry / SITE_ARCHIVE, [_file("pkg/mod.py", b"good = 1\n"), _link("alias", linkname),
+                                    _file("alias/mod.py" if linkname == "pkg" else "alias/pkg/mod.py", b"bad = 1\n")])
+    with pytest.raises(UsageError, match="'alias', a link or special file"):
+        unpack_carry(carry, work)
+    assert not (work / "site" / "pkg" / "mod.py").exists()
 
 
 @pytest.mark.parametrize("content", [b"", b"not an archive at all", None])
@@ -363,3 +380,27 @@ def test_a_shard_member_naming_no_file_inside_its_sample_folder_is_refused(tmp_p
     with pytest.raises(ValueError, match="names no file inside its folder"):
         extract_sample({"L000.png": b"x", suffix: b"y"}, tmp_path / "00000.data")
     assert not (tmp_path / "00000.data").exists()
+
+
+@pytest.mark.parametrize("where", ["site", "assets"])
+def test_a_users_files_in_the_work_folder_are_never_replaced_by_a_pack(tmp_path, where):
+    """Sweep 24: --work/assets (or --work/site) already holding a user's files of the pack's names: the pack was
+    unpacked over them, member by member. Refused naming the folder and --overwrite, the user's file unchanged;
+    the same pack unpacked again (a resumed session) passes without a write; --overwrite replaces the folder."""
+    from orchestrate.relay import ASSET_ARCHIVE, SITE_ARCHIVE, unpack_carry
+    from scenes.cli.errors import UsageError
+
+    carry, work = tmp_path / "carry", tmp_path / "work"
+    carry.mkdir()
+    _archive(carry / SITE_ARCHIVE, [_file("pkg/__init__.py", b"packed = 1\n")])
+    _archive(carry / ASSET_ARCHIVE, [_file("assets/meshes/m0.ply", b"packed ply")])
+    mine = work / where / ("pkg/__init__.py" if where == "site" else "meshes/m0.ply")
+    mine.parent.mkdir(parents=True)
+    mine.write_bytes(b"the user's own\n")
+    with pytest.raises(UsageError, match=rf"--work: '{work / where}' already holds files.*--overwrite"):
+        unpack_carry(carry, work)
+    assert mine.read_bytes() == b"the user's own\n"
+    assert unpack_carry(carry, work, replace=True) == work / "assets"
+    assert mine.read_bytes() in (b"packed = 1\n", b"packed ply")
+    stamp = mine.stat().st_mtime_ns
+    assert unpack_carry(carry, work) == work / "assets" and mine.stat().st_mtime_ns == stamp  # resumed: untouched

@@ -225,10 +225,12 @@ def check_run(cfg: TrainConfig) -> None:
     run's files replaced only with --overwrite (or continued with --resume; `scenes.cli.outputs.claim_outputs`), and
     the memory of the cached samples and of one batch (`training_memory`) against what this machine has."""
     from scenes.cli.limits import check_memory, check_threads
-    from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs
+    from scenes.cli.outputs import check_not_being_written, check_output_folder, check_replaceable, claim_outputs
 
     out = Path(cfg.out)
     check_output_folder(out)
+    if cfg.resume:  # a resumed run replaces last.pt and the rest in place: a mounted one fails after the log grew
+        check_replaceable(out, "--out", "unips.train --resume")
     for flag, value in (("--data", cfg.data), ("--val", cfg.val)):
         for root in data_roots(value, flag) if value else []:
             check_not_being_written(root, flag)  # a dataset wildgen.make is still rendering

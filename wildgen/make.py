@@ -199,7 +199,7 @@ def resolve_run(args: MakeOptions, argv: list[str] | None, out: Path) -> tuple[G
     if args.resume:  # (after check_given: a flag that would do nothing is said as such first)
         _check_resumable(manifest, cfg, explicit)
     check_config(args, cfg, resumed=args.resume and "objects" not in explicit)
-    check_out(out)
+    check_out(out, manifest if args.resume else None)
     from scenes.renderer.variant import choose_variant
 
     requested = cfg.variant or (manifest.get("variant") if manifest and "variant" not in explicit else None)
@@ -311,11 +311,17 @@ def check_memory(cfg: GenConfig, workers: int | None, ray: bool, resumed: bool =
                        "lower --res, --images, --spp, --gt-spp or --workers")
 
 
-def check_out(out: Path) -> None:
+def check_out(out: Path, manifest: dict | None = None) -> None:
     """--out must be a folder this process can create and write (checked, and created, before anything is
-    written)."""
+    written); with the `manifest` of a resumed run, its finished objects are kept as they are (a mount point
+    there is no hindrance)."""
     make_output_folder(out)
-    check_replaceable(out, "--out", "wildgen.make")  # a resumed or replaced dataset: nothing mounted inside
+    from wildgen.dataset import entry_folder
+
+    entries = manifest.get("objects") if isinstance(manifest, dict) else None
+    kept = [out / entry_folder(e) for e in entries if isinstance(e, dict) and e.get("status") == "done"] \
+        if isinstance(entries, list) else []
+    check_replaceable(out, "--out", "wildgen.make", kept)  # a resumed or replaced dataset: nothing mounted inside
 
 
 class _Progress:

@@ -170,11 +170,15 @@ HELD_ENV = "PS_TOOLKIT_HELD_FOLDERS"
 command writes inside its parent's folder, where any other run is refused (`check_no_holder_above`)."""
 
 
-def check_replaceable(folder: str | os.PathLike, flag: str = "--out", owner: str = "this command") -> None:
+def check_replaceable(folder: str | os.PathLike, flag: str = "--out", owner: str = "this command",
+                      kept: Iterable[str | os.PathLike] = ()) -> None:
     """A folder whose earlier contents a command replaces or adds to (a dataset's --overwrite or --resume) must hold
     no mount point (a file or folder mounted inside it: removing or renaming it fails mid-way, EBUSY, with part of
-    the earlier contents gone). UsageError naming it, before the first write."""
-    inside = [p for p in mounts_within(folder) if p != os.path.realpath(folder)]
+    the earlier contents gone), but within `kept` (what the run leaves as it is: a resumed dataset's finished
+    objects). UsageError naming it, before the first write."""
+    spared = [os.path.realpath(k) for k in kept]
+    inside = [p for p in mounts_within(folder) if p != os.path.realpath(folder)
+              and not any(p == k or p.startswith(k.rstrip(os.sep) + os.sep) for k in spared)]
     if inside:
         raise UsageError(f"{flag}: {str(folder)!r} holds the mount point {inside[0]!r}, where {owner} writes; it is "
                          f"never replaced: unmount it, or use another {flag}")
@@ -270,10 +274,11 @@ def check_step_folder(path: str | os.PathLike, owner: str) -> None:
     _check_held(Path(path), owner, folder=True)
 
 
-def _check_held(path: Path, owner: str, folder: bool = False) -> None:
-    """Within the output folders this process holds (`output_lock`): refuse a link on the way from the folder to
-    `path` (it would lead the write out of the folder; `path` itself too where it is a `folder` to be written), and
-    `path` inside what the run reads."""
+def _check_held(path: Path, owner: str, folder: bool = False, points: list[str] | None = None) -> None:
+    """Within the output folders this process holds (`output_lock`): refuse a link or a mount point on the way from
+    the folder to `path` (a link would lead the write out of the folder; a mounted folder is another file system,
+    whose files a run replaces only part-way where it fails; `path` itself too), and `path` inside what the run
+    reads. `points`: the mount table, when the caller read it already."""
     target = os.path.abspath(path)
     with _HELD_LOCK:
         held = list(_HELD.values())
@@ -281,11 +286,15 @@ def _check_held(path: Path, owner: str, folder: bool = False) -> None:
         if target.startswith(h.folder.rstrip(os.sep) + os.sep):
             here = h.folder
             parts = Path(target[len(h.folder.rstrip(os.sep)) + 1:]).parts
-            for part in parts if folder else parts[:-1]:
+            inside = mounts_within(h.folder, points)
+            for i, part in enumerate(parts):
                 here = os.path.join(here, part)
-                if os.path.islink(here):
+                if (folder or i < len(parts) - 1) and os.path.islink(here):
                     raise UsageError(f"{h.flag}: {here!r} is a link, where {owner} writes a folder; a link inside "
                                      f"{h.flag} is never followed: move it away or use another {h.flag}")
+                if os.path.realpath(here) in inside:
+                    raise UsageError(f"{h.flag}: {here!r} is a mount point inside {h.flag}, where {owner} writes; "
+                                     f"nothing is written into it: unmount it, or use another {h.flag}")
         real = os.path.realpath(target)
         for in_flag, given, folder in h.inputs:
             if is_within(real, folder):
@@ -351,8 +360,9 @@ def claim_outputs(paths: Iterable[str | os.PathLike], overwrite: bool, flag: str
     run's inputs, is refused too.
     """
     paths = [Path(p) for p in paths]
+    table = mount_points() if paths else []
     for p in paths:
-        _check_held(p, owner)
+        _check_held(p, owner, points=table)
         above = next((a for a in p.parents if os.path.lexists(a)), None)  # the nearest thing on the way that exists
         if above is not None and not above.is_dir():
             raise UsageError(f"{flag}: {str(above)!r} is {'a link' if above.is_symlink() else 'a file'}, where "
@@ -363,7 +373,6 @@ def claim_outputs(paths: Iterable[str | os.PathLike], overwrite: bool, flag: str
                              "nothing was written")
     existing = [p for p in paths if os.path.lexists(p)]
     want = "a folder" if folders else "a file"
-    points = mount_points() if existing else []
     for p in existing:
         if p.is_symlink() or not (p.is_dir() if folders else p.is_file()):
             kind = (
@@ -377,7 +386,7 @@ def claim_outputs(paths: Iterable[str | os.PathLike], overwrite: bool, flag: str
             )
             raise UsageError(f"{flag}: {str(p)!r} is {kind}, where {owner} writes {want}; it is never replaced: "
                              f"move it away or use another {flag}")
-        if (held := mounts_within(p, points)) or (not folders and not os.access(p, os.W_OK)):  # before the first write
+        if (held := mounts_within(p, table)) or (not folders and not os.access(p, os.W_OK)):  # before the first write
             what = f"holds the mount point {held[0]!r}" if held and held[0] != os.path.realpath(p) else \
                 "is a mount point" if held else "is read-only"
             raise UsageError(f"{flag}: {str(p)!r} {what}, where {owner} writes {want}; it is never replaced: "
