@@ -5042,3 +5042,55 @@ def test_an_integer_beyond_64_bits_in_a_record_is_refused_naming_the_file(tmp_pa
     assert rc == 2 and f"'{path}': holds the integer 1000" in err and "beyond 64 bits" in err, err
     assert "Traceback" not in err
     assert {p: p.read_bytes() for p in sorted(data.rglob("*")) if p.is_file()} == before
+
+
+@pytest.mark.parametrize("then", ["silent", "goaway"])
+def test_a_server_that_passes_the_probe_but_admits_no_driver_is_refused_after_a_bounded_wait(tmp_path: Path, then):
+    """Sweep 24: a port that answers the gRPC handshake (SETTINGS, then the ACK, so `probe_address` passes) and then
+    says nothing, or sends GOAWAY: ray.init() retried it without end (killed after 180 s). The join is bounded now
+    (`JOIN_TIMEOUT_S`, 3 s here): one line naming --ray and the address, exit 2."""
+    import socket
+    import threading
+
+    pytest.importorskip("ray")
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(16)
+    held = []
+
+    def answer(conn: socket.socket) -> None:
+        try:
+            conn.sendall(bytes([0, 0, 0, 4, 0, 0, 0, 0, 0]))  # SETTINGS
+            conn.settimeout(5)
+            conn.recv(65536)
+            conn.sendall(bytes([0, 0, 0, 4, 1, 0, 0, 0, 0]))  # its ACK
+            if then == "goaway":
+                conn.sendall(bytes([0, 0, 8, 7, 0, 0, 0, 0, 0]) + bytes(8))
+        except OSError:
+            pass
+        held.append(conn)
+
+    def serve() -> None:
+        while True:
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                return
+            threading.Thread(target=answer, args=(conn,), daemon=True).start()
+
+    threading.Thread(target=serve, daemon=True).start()
+    address = f"127.0.0.1:{server.getsockname()[1]}"
+    code = ("import sys, wildgen.ray_engine as r; r.JOIN_TIMEOUT_S = 3.0; from wildgen.make import main; "
+            "sys.exit(main(sys.argv[1:]))")
+    t0 = time.time()
+    try:
+        r = subprocess.run([sys.executable, "-c", code, "--out", str(tmp_path / "o"), "--ray", address, *TINY_RAY],
+                           capture_output=True, text=True, cwd=REPO, timeout=120)
+    finally:
+        server.close()
+        for conn in held:
+            conn.close()
+    lines = [x for x in r.stderr.splitlines() if x.startswith("error:")]
+    assert r.returncode == 2 and len(lines) == 1, r.stderr[-2000:]
+    assert f"--ray: '{address}' answered as a gRPC server, but no Ray driver could join it within 3 s" in lines[0]
+    assert "Traceback" not in r.stderr and time.time() - t0 < 90

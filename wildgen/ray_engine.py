@@ -53,6 +53,38 @@ CONNECT_TIMEOUT_S = 20.0
 TCP connection to it (`probe_address`), before the run is refused naming --ray and the address: Ray's own
 ray.init() has no time-out and keeps retrying a head that does not answer for many minutes."""
 RAY_HEAD_HINT = "expected the address of a running Ray head (`ray start --head` prints it)"
+JOIN_TIMEOUT_S = 60.0
+"""How long ray.init() may take to join a head that passed `probe_address` (it speaks gRPC) before the run is
+refused: a server that answers the handshake and then nothing, or turns the driver away, keeps ray.init() retrying
+without end."""
+
+
+class JoinTimeout(ConnectionError):
+    """ray.init() did not return within JOIN_TIMEOUT_S; its message is the whole line."""
+
+
+def _bounded_init(ray, address: str, timeout: float | None = None, **kwargs) -> None:
+    """ray.init(address=...) within `timeout` seconds; a ConnectionError naming --ray and the address otherwise (the
+    joining thread is left behind as a daemon: Ray gives no way to stop it, and the command ends anyway)."""
+    timeout = JOIN_TIMEOUT_S if timeout is None else timeout
+    outcome: dict = {}
+
+    def join() -> None:
+        try:
+            ray.init(address=address, **kwargs)
+            outcome["ok"] = True
+        except BaseException as exc:  # handed to the caller's thread as it is
+            outcome["exc"] = exc
+
+    thread = threading.Thread(target=join, name="ray-join", daemon=True)
+    thread.start()
+    thread.join(timeout)
+    if "exc" in outcome:
+        raise outcome["exc"]
+    if "ok" not in outcome:
+        raise JoinTimeout(f"--ray: {address!r} answered as a gRPC server, but no Ray driver could join it within "
+                          f"{timeout:g} s (a server that is not a Ray head, or one that turns drivers away); "
+                          f"{RAY_HEAD_HINT}")
 
 
 def _host_port(address: str) -> tuple[str, int] | None:
@@ -287,7 +319,9 @@ class RayEngine:
             probe_address(self.address)  # ray.init() would wait for a silent address for many minutes
             with _held_stderr() as held:  # Ray's C++ core warns once a second while it retries to reach the head
                 try:
-                    ray.init(address=self.address, **quiet)
+                    _bounded_init(ray, self.address, **quiet)
+                except JoinTimeout:
+                    raise
                 except (ConnectionError, RuntimeError, ray.exceptions.RayError) as exc:
                     why = " ".join(str(exc).split())[:300]
                     if "InvalidAuthToken" in held() + why:
