@@ -84,33 +84,33 @@ _NAMED_KINDS = {".jpg": ("a JPEG", b"\xff\xd8"), ".jpeg": ("a JPEG", b"\xff\xd8"
 .jpg name) is refused, not decoded; one that begins so but is damaged is the decoder's to refuse."""
 
 
-_PAGES = "holds "
-
-
-def _tiff_damage(path: Path) -> str | None:
-    """Why Pillow cannot decode the TIFF `path` whole (OpenCV returns the rows it could read), or None (decoded,
-    or of a kind Pillow does not read: OpenCV's reading stands)."""
+def _check_tiff(path: Path, where: str) -> None:
+    """A ValueError beginning with `where` when Pillow cannot decode the TIFF `path` whole (OpenCV returns the rows
+    it could read) or finds several pictures in it; nothing where it decodes, or is of a kind Pillow does not read
+    (OpenCV's reading stands)."""
     from PIL import Image, UnidentifiedImageError
 
     try:
         img = Image.open(path)
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError):
-        return None
+        return
     with img:
         if getattr(img, "n_frames", 1) > 1:  # OpenCV reads page 1 only (a camera's smaller preview page is no picture)
             sizes = [img.seek(i) or img.size for i in range(img.n_frames)]
             img.seek(0)
             big = max(sizes, key=lambda size: size[0] * size[1])
             if sizes.count(sizes[0]) > 1 or big != sizes[0]:
-                return (f"{_PAGES}{len(sizes)} pages, the first {sizes[0][0]}x{sizes[0][1]} px and the largest "
-                        f"{big[0]}x{big[1]} px; expected one picture per file (a smaller preview page after it)")
+                raise ValueError(f"{where} holds {len(sizes)} pages, the first {sizes[0][0]}x{sizes[0][1]} px and the "
+                                 f"largest {big[0]}x{big[1]} px; expected one picture per file (a smaller preview page "
+                                 "after it)")
         try:
             img.load()
         except OSError as exc:
-            return None if "not available" in str(exc) else str(exc) or type(exc).__name__
+            if "not available" not in str(exc):
+                raise ValueError(f"{where} is damaged: the TIFF decoder says {str(exc) or type(exc).__name__!r} (a "
+                                 "truncated or corrupt file, readable only in part); expected a complete TIFF") from None
         except (SyntaxError, ValueError):  # a layout Pillow does not support
-            return None
-    return None
+            return
 
 
 def decode_image(path: Path, flags: int, where: str):
@@ -132,6 +132,10 @@ def decode_image(path: Path, flags: int, where: str):
     head = data[:8].tobytes()
     jpeg, tiff, png = head.startswith(_JPEG_MAGIC), head[:4] in _TIFF_MAGICS, head == b"\x89PNG\r\n\x1a\n"
     kind, *starts = _NAMED_KINDS.get(path.suffix.lower(), ("", b""))
+    found = "a JPEG" if jpeg else "a TIFF" if tiff else "a PNG" if png else ""
+    if kind and found and found != kind:  # what a name says is acted on (a TIFF read as linear, a JPEG's EXIF)
+        raise ValueError(f"{where} is named as {kind} but is {found}; expected what its name says: name it as what it "
+                         "is")
     if not (jpeg or tiff or png) and not head.startswith(tuple(starts)):  # e.g. WebP bytes in IMG_3.jpg
         raise ValueError(f"{where} is named as {kind} but is not one (its bytes begin {head[:4]!r}); expected what "
                          "its name says: convert it, or name it as what it is")
@@ -143,7 +147,8 @@ def decode_image(path: Path, flags: int, where: str):
             return cv2.imdecode(data, flags)
         with caught_stderr() as said:
             img = cv2.imdecode(data, flags)
-            tiff_damage = _tiff_damage(path) if tiff and img is not None else None
+            if tiff and img is not None:
+                _check_tiff(path, where)
     except cv2.error as exc:  # OpenCV's own refusals (a header declaring more pixels than it decodes)
         why = next((line.split("error: ", 1)[-1] for line in str(exc).splitlines() if "error:" in line), str(exc))
         limit = f"; expected an image of at most {2**30} pixels" if "MAX_IMAGE_PIXELS" in why else ""
@@ -156,11 +161,6 @@ def decode_image(path: Path, flags: int, where: str):
         raise ValueError(f"{where} is damaged: the JPEG decoder says {'; '.join(dict.fromkeys(jpeg_damage))!r} (a "
                          "truncated or corrupt file, decoded only in part); expected a complete JPEG (copy it again "
                          "from the camera)")
-    if tiff_damage is not None and tiff_damage.startswith(_PAGES):
-        raise ValueError(f"{where} {tiff_damage}")
-    if tiff_damage is not None:
-        raise ValueError(f"{where} is damaged: the TIFF decoder says {tiff_damage!r} (a truncated or corrupt file, "
-                         "readable only in part); expected a complete TIFF")
     if img is None and said:  # not decoded, and the decoder said why (libpng: "PNG input buffer is incomplete")
         why = re.sub(r"^\[[^]]*\]\s*", "", said[0].strip())
         raise ValueError(f"{where} cannot be decoded (the decoder says {why[:160]!r}: a truncated or corrupt file?); "

@@ -3052,6 +3052,8 @@ def _photo_replaced(kind: str) -> Callable[[Path, Path], None]:
         black = Image.new("RGB", img.size)
         if kind == "webp":
             img.save(files[2], format="WEBP")
+        elif kind == "jpeg-as-png":  # another known kind under the name: its name is acted on (EXIF, encoding)
+            img.save(files[2], format="JPEG", quality=95)
         elif kind == "apng":
             img.save(files[2], format="PNG", save_all=True, append_images=[black])
         elif kind == "tiff2":
@@ -3090,6 +3092,10 @@ ROWS += [
     # sweep 23: a file of another kind under a photo's name, several pictures in one file, photos one pixel tall
     Row("capture-a-webp-named-png", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
         ("--input", "IMG_0003.png", "is named as a PNG but is not one"), setup=_photo_replaced("webp"),
+        check=_not_written("o")),
+    # sweep 24: another known kind under a photo's name was decoded by its content, its name's rules applied
+    Row("capture-a-jpeg-named-png", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "IMG_0003.png", "is named as a PNG but is a JPEG"), setup=_photo_replaced("jpeg-as-png"),
         check=_not_written("o")),
     Row("capture-an-animated-png", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
         ("--input", "IMG_0003.png", "animated PNG"), setup=_photo_replaced("apng"), check=_not_written("o")),
