@@ -304,13 +304,13 @@ def read_mask(path: str | Path, shape: tuple[int, int] | None = None) -> np.ndar
         return f"{v:.6g}" if np.issubdtype(found.dtype, np.floating) else str(int(v))
 
     has_zero = bool(np.any(found == 0))
-    if len(found) == 1 and img.ndim == 3 and img.shape[2] >= 3:  # one largest channel, yet colours that differ
-        colours = img[..., :3].reshape(-1, 3)
-        other = colours[(colours != colours[0]).any(axis=1)]
-        if len(other):  # red on blue: read by the rule, the whole frame; the label image's meaning lost
+    if len(found) <= 2 and "colour" in channel and img.shape[2] >= 3:  # binary by the rule, yet colours that differ
+        colours = img[..., :3].reshape(-1, 3)[values.ravel() > 0]
+        other = colours[(colours != colours[0]).any(axis=1)] if len(colours) else colours
+        if len(other):  # red on blue, or red and green on black: a label image, its meaning lost by the rule
             raise ValueError(f"{where}: holds colours {tuple(map(int, colours[0][::-1]))} and "
                              f"{tuple(map(int, other[0][::-1]))} (RGB), whose largest channel is the same; expected "
-                             "the object white (or one colour) on black")
+                             "the object white (or one colour) on black, not a label image of several parts")
     if len(found) == 2 and has_zero and found[-1] > 0:
         return values > 0
     if len(found) == 1 and has_zero:

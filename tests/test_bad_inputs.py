@@ -2980,6 +2980,15 @@ def _lzw_broken(data: bytes) -> bytes:
     return data[:k] + b"\xff" * 4 + data[k + 4:]
 
 
+def _two_labels(m: np.ndarray) -> np.ndarray:
+    """The object's left half red, its right half green (BGR), on black."""
+    out = np.zeros((*m.shape, 3), np.uint8)
+    left = np.arange(m.shape[1])[None, :] < m.shape[1] // 2
+    out[m & left] = (0, 0, 255)
+    out[m & ~left] = (0, 255, 0)
+    return out
+
+
 def _mask_file(name: str, make: Callable[[np.ndarray], np.ndarray], how: str = "cv2") -> Callable[[Path, Path], None]:
     """Setup: T/photos (`_photos()`) and T/<name>, `make(world mask as bool)` written by OpenCV (BGR / BGRA order) or,
     `how="jpeg"`, by Pillow as a JPEG of quality 75."""
@@ -3179,6 +3188,10 @@ ROWS += [
         ("--mask", "m.png", "(255, 0, 0)", "(0, 0, 255)", "whose largest channel is the same"),
         setup=_mask_file("m.png", lambda m: np.where(m[..., None], np.uint8([0, 0, 255]), np.uint8([255, 0, 0]))),
         check=_not_written("o/normal.png")),
+    # sweep 24: two labels, red and green, on black: both read as the object by the largest channel
+    Row("capture-mask-two-labels-on-black", CAP, [*CAPTURE, "--mask", "{T}/m.png"], 2,
+        ("--mask", "m.png", "(255, 0, 0)", "(0, 255, 0)", "label image"),
+        setup=_mask_file("m.png", _two_labels), check=_not_written("o/normal.png")),
     Row("capture-mask-one-grey-value", CAP, [*CAPTURE, "--mask", "{T}/m.png"], 2, ("--mask", "m.png", "128 everywhere"),
         setup=_mask_file("m.png", lambda m: np.full(m.shape, 128, np.uint8)), check=_not_written("o/normal.png")),
     Row("capture-mask-gradient", CAP, [*CAPTURE, "--mask", "{T}/m.png"], 2,
