@@ -174,6 +174,30 @@ def test_exif_orientation_and_exposure_are_applied(tmp_path):
     assert [e["scale"] for e in turned.exposure] == [1.0, 1.0]
 
 
+@pytest.mark.parametrize("written", ["ifd0", "apex"])
+def test_an_exposure_written_in_ifd0_or_as_apex_values_is_read(tmp_path, written):
+    """Sweep 24: ExposureTime and FNumber in IFD0 (TIFF/EP writers put them there), or only as APEX values
+    (ShutterSpeedValue Tv: 2^-Tv s; ApertureValue Av: f/2^(Av/2)): they were ignored and photos of different
+    exposures went unnormalised. Read now: 0.01 s at f/2 and 0.02 s at f/4 (half the light) give the scale 2."""
+    from PIL import Image
+
+    a = (np.random.default_rng(2).random((6, 9, 3)) * 200 + 20).astype(np.uint8)
+    for i, (t, n) in enumerate([(0.01, 2.0), (0.02, 4.0)]):
+        img = Image.fromarray(a)
+        exif = img.getexif()
+        if written == "ifd0":
+            exif[0x829A], exif[0x829D], exif[0x8827] = t, n, 100
+        else:
+            ifd = exif.get_ifd(0x8769)
+            ifd[0x9201], ifd[0x9202], ifd[0x8827] = -np.log2(t), 2 * np.log2(n), 100
+        img.save(tmp_path / f"p{i}.jpg", exif=exif, quality=100)
+    photos = read_photos(tmp_path)
+    assert photos.exposure[1]["exposure_time_s"] == pytest.approx(0.02, rel=1e-3)
+    assert photos.exposure[1]["f_number"] == pytest.approx(4.0, rel=1e-3)
+    assert photos.exposure[1]["scale"] == pytest.approx(2.0, rel=1e-3)
+    np.testing.assert_allclose(photos.images[1], photos.images[0] * photos.exposure[1]["scale"], rtol=1e-3)
+
+
 def test_the_f_number_counts_in_the_exposure_when_every_photo_gives_one(tmp_path):
     """Light gathered ~ time x ISO / N^2: 0.01 s at f/2 and 0.04 s at f/4 gather the same light (scale 1), 0.01 s at
     f/4 a quarter of it (scale 4); without an f-number in every photo, time and ISO alone."""

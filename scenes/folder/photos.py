@@ -49,6 +49,8 @@ ENCODINGS = ("auto", "srgb", "linear")
 """How encoded values become linear: `auto` (sRGB for 8-bit files, linear otherwise), or one for all files."""
 _EXIF_IFD = 0x8769
 _EXPOSURE_TIME, _ISO, _COLOR_SPACE, _F_NUMBER = 0x829A, 0x8827, 0xA001, 0x829D
+_SHUTTER_APEX, _APERTURE_APEX = 0x9201, 0x9202
+_EXPOSURE_TAGS = (_EXPOSURE_TIME, _ISO, _F_NUMBER, _SHUTTER_APEX, _APERTURE_APEX)
 _SRGB_COLOR_SPACE = 1
 _ORIENTATION = 0x0112
 _FOCAL_35MM = 0xA405  # FocalLengthIn35mmFilm: the lens as a 35 mm-equivalent focal length, whole mm
@@ -169,15 +171,29 @@ def _exif_number(value: Any, key: str) -> float:
     return number
 
 
+def _apex(value: Any, key: str) -> float:
+    """An APEX value (ShutterSpeedValue Tv or ApertureValue Av) as seconds (2^-Tv) or an f-number (2^(Av/2)),
+    checked as the field it stands for."""
+    try:
+        v = float(value[0] if isinstance(value, (tuple, list)) and value else value)
+    except (TypeError, ValueError, ZeroDivisionError):
+        v = float("nan")
+    number = 2.0 ** (-v if key == "exposure_time_s" else v / 2) if np.isfinite(v) and abs(v) < 64 else float("nan")
+    return _exif_number(number, key) if key in _EXIF_NAMES else number
+
+
 def _exif(img: Any) -> dict[str, Any]:
     exif = img.getexif()
-    ifd = exif.get_ifd(_EXIF_IFD)
+    # the Exif sub-IFD first, then IFD0 (TIFF/EP and some writers put the exposure there)
+    ifd = {**{k: v for k, v in exif.items() if k in _EXPOSURE_TAGS}, **exif.get_ifd(_EXIF_IFD)}
     out: dict[str, Any] = {}
     if _EXPOSURE_TIME in ifd:
         out["exposure_time_s"] = _exif_number(ifd[_EXPOSURE_TIME], "exposure_time_s")
+    elif _SHUTTER_APEX in ifd:  # only the APEX shutter speed: the same exposure, written another way
+        out["exposure_time_s"] = _apex(ifd[_SHUTTER_APEX], "exposure_time_s")
     if _ISO in ifd:
         out["iso"] = _exif_number(ifd[_ISO], "iso")
-    aperture = ifd.get(_F_NUMBER)
+    aperture = ifd.get(_F_NUMBER, _apex(ifd[_APERTURE_APEX], "f_number") if _APERTURE_APEX in ifd else None)
     try:
         if aperture is not None and np.isfinite(float(aperture)) and float(aperture) > 0:  # 0: unknown in EXIF
             out["f_number"] = float(aperture)
