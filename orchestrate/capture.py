@@ -144,7 +144,7 @@ PHOTOS_ONLY = "with --input a folder of photos (an object folder is read at its 
 COMMAND = Command(CaptureOptions, prog="python -m orchestrate.capture", description=__doc__.split("\n\n")[0], needs=(
     Needs("rotation_search", lambda c, _: c.refine, "with the refinement on (without --no-refine)"),
     Needs("rotation_steps", lambda c, _: c.refine and c.rotation_search, "with --rotation-search"),
-    Needs("input_encoding", lambda c, _: of_photos(c), PHOTOS_ONLY),
+    Needs("input_encoding", lambda c, _: of_photos(c), PHOTOS_ONLY, ("linear",)),  # linear: an object folder's
     Needs("max_side", lambda c, _: of_photos(c), PHOTOS_ONLY, (0,))))  # 0, the own size: an object folder's
 
 

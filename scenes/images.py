@@ -107,8 +107,9 @@ def _check_tiff(path: Path, where: str) -> None:
             img.load()
         except OSError as exc:
             if "not available" not in str(exc):
-                raise ValueError(f"{where} is damaged: the TIFF decoder says {str(exc) or type(exc).__name__!r} (a "
-                                 "truncated or corrupt file, readable only in part); expected a complete TIFF") from None
+                said = str(exc) or type(exc).__name__
+                raise ValueError(f"{where} is damaged: the TIFF decoder says {said!r} (a truncated or corrupt file, "
+                                 "readable only in part); expected a complete TIFF") from None
         except (SyntaxError, ValueError):  # a layout Pillow does not support
             return
 

@@ -3114,7 +3114,8 @@ ROWS += [
         ("--input", "IMG_0003.tif", "the first 8x8 px and the largest"), setup=_photo_replaced("preview"),
         check=_not_written("o")),
     Row("capture-an-object-folder-at-its-own-size", CAP, ["--input", f"{{W}}/data/{OBJ}.data", "--out", "{T}/o",
-                                                          "--no-refine", "--threads", "1", "--max-side", "0"], 0,
+                                                          "--no-refine", "--threads", "1", "--max-side", "0",
+                                                          "--input-encoding", "linear"], 0,
         ("wrote",), check=_written("o/normal.png")),
     Row("capture-photos-one-pixel-tall", CAP, [*CAPTURE, "--mask", "none"], 2,
         ("--input", "x1 px", "at least 4 px"), setup=_photo_replaced("tiny"), check=_not_written("o")),
@@ -4463,6 +4464,10 @@ ROWS += [
         check=_not_written("p")),
     Row("benchmark-variant-unknown", BM, ["--data", "{W}/data", "--out", "{T}/b", "--variant", "bogus_rgb"], 2,
         ("--variant", "bogus_rgb"), check=_not_written("b")),
+    Row("make-focal-with-an-orthographic-camera", MK, ["--out", "{T}/o", *TINY, "--focal", "30-60"], 2,
+        ("--focal 30-60", "with --camera perspective"), check=_not_written("o")),
+    Row("make-detail-strength-at-its-default-without-detail", MK, ["--out", "{T}/o", *TINY, "--detail-strength",
+                                                                     "5-25"], 0, (), check=_written("o/manifest.json")),
     Row("make-env-width-below-eight", MK, ["--out", "{T}/o", *TINY, "--env-width", "3"], 2, ("--env-width",),
         check=_not_written("o")),
     # The rule reads the configuration that renders: a preset's or level's lights, or the resumed manifest's.
@@ -5113,3 +5118,41 @@ def test_a_server_that_passes_the_probe_but_admits_no_driver_is_refused_after_a_
     assert r.returncode == 2 and len(lines) == 1, r.stderr[-2000:]
     assert f"--ray: '{address}' answered as a gRPC server, but no Ray driver could join it within 3 s" in lines[0]
     assert "Traceback" not in r.stderr and time.time() - t0 < 90
+
+
+def test_a_file_inside_a_folder_another_run_writes_is_not_read(world: Path, tmp_path: Path):
+    """Sweep 24: --checkpoint / --init-from naming a run's weights while unips.train still writes that run, and
+    --normals naming a map inside a predict's --out while it runs: read as they stood, exit 0 (a model of step 100
+    of 1000, a map of the first objects). Refused now, naming the flag and the folder the other run holds; a
+    folder this process holds itself is ours and read."""
+    from scenes.cli.errors import UsageError
+    from scenes.cli.outputs import output_lock
+    from unips.inference import load_network
+    from unips.models import DEFAULT_MODEL, pretrained_weights
+    from unips.train import main as train
+
+    run = tmp_path / "run"
+    run.mkdir()
+    shutil.copy(pretrained_weights(DEFAULT_MODEL), run / "final.safetensors")
+    shutil.copy(pretrained_weights(DEFAULT_MODEL).with_suffix(".json"), run / "final.json")
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from scenes.files import folder_lock; "
+                               f"folder_lock({str(run)!r}); print('held', flush=True); time.sleep(60)"],
+                              cwd=REPO, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with pytest.raises(UsageError, match=rf"--checkpoint: '{run / 'final.safetensors'}' is being written by "
+                                             rf"another run \(it lies in '{run}'"):
+            load_network(run / "final.safetensors")
+        with pytest.raises(UsageError, match=r"--normals: .* is being written by another run"):
+            with output_lock(tmp_path / "out", inputs={"--normals": run / "final.json"}):
+                pass
+        assert train(["--data", str(world / "data"), "--out", str(tmp_path / "t"), "--init-from",
+                      str(run / "final.safetensors"), "--steps", "1", "--no-progress"]) == 2
+    finally:
+        holder.kill()
+        holder.wait()
+    assert not (tmp_path / "out").exists() and not (tmp_path / "t" / "log.jsonl").exists()
+    with output_lock(tmp_path / "mine") as mine:  # held by this process: ours, read
+        shutil.copy(run / "final.safetensors", mine / "w.safetensors")
+        shutil.copy(run / "final.json", mine / "w.json")
+        assert load_network(mine / "w.safetensors") is not None

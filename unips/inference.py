@@ -111,6 +111,10 @@ def load_network(checkpoint: str | Path | None, device: str = "cpu", model: str 
     except (KeyError, ValueError, FileNotFoundError) as exc:  # no shipped weights: said as the flag, with the way out
         raise UsageError(f"--model {model or DEFAULT_MODEL}: {str(exc).removeprefix('pretrained: ')}; give its weights "
                          "with --checkpoint") from None
+    if checkpoint is not None:  # a run's checkpoint while it trains: one step of many, not the run's model
+        from scenes.cli.outputs import check_not_being_written
+
+        check_not_being_written(path, flag)
     if is_official_path(path):
         if path.is_dir() and not holds_published_weights(path):  # a run's folder, or no weights at all
             ours = our_model_files(path)

@@ -194,8 +194,10 @@ def load_init_weights(cfg: TrainConfig, device: torch.device) -> torch.nn.Module
 def read_init_weights(cfg: TrainConfig) -> torch.nn.Module:
     """The model of `cfg.init_from` (weights only, on the CPU); its name must agree with an explicit --model, and
     no --model-option may reshape it. Every refusal names the flag."""
+    from scenes.cli.outputs import check_not_being_written
     from unips.checkpoint import load_model
 
+    check_not_being_written(cfg.init_from, "--init-from")  # a run still training: one step of many
     try:
         model, meta = load_model(cfg.init_from)
     except (ValueError, FileNotFoundError) as exc:  # the reader's message, with the flag that named the file

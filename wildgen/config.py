@@ -144,10 +144,8 @@ class GenConfig:
         self.detail_strength_range()
         if self.cluster is not None:
             self.cluster_range()
-        if self.focal is not None:
+        if self.focal is not None:  # (it acts only with a perspective camera: wildgen.make's Needs says so)
             self.focal_range()
-            if self.camera != "perspective":
-                raise ValueError(f"--focal: {self.focal!r} needs --camera perspective (got --camera {self.camera})")
         if self.variant is not None and self.variant not in VARIANTS:
             raise ValueError(
                 f"--variant: {self.variant!r} is not supported, expected auto or one of {', '.join(VARIANTS)} "

@@ -85,7 +85,10 @@ COMMAND = Command(MakeOptions, prog="python -m wildgen.make", needs=(
     Needs("recycle_after", lambda c, _: c.workers != 0, "with worker processes (not --workers 0)"),
     Needs("shape_kinds", lambda c, _: value_of(c, "shapes") != "mesh", "with procedural shapes (not --shapes mesh)"),
     Needs("env_width", lambda c, _: bool(set(value_of(c, "lights")) & set(ENVIRONMENT_FAMILIES)),
-          f"with a light family lit by the environment map ({', '.join(ENVIRONMENT_FAMILIES)})")),
+          f"with a light family lit by the environment map ({', '.join(ENVIRONMENT_FAMILIES)})"),
+    Needs("detail_strength", lambda c, _: bool(value_of(c, "detail")),
+          "with procedural detail (--detail P above 0, or a --level that sets it)"),
+    Needs("focal", lambda c, _: value_of(c, "camera") == "perspective", "with --camera perspective")),
                   needs_late=True,  # checked on the configuration that renders: after --preset, --level, --resume
                   description="Render a PS-Wild-style photometric stereo dataset with Mitsuba 3 (one <object>.data "
                               "folder per object).")
@@ -239,10 +242,6 @@ def check_given(args: MakeOptions, cfg: GenConfig, argv: list[str] | None) -> No
             ["the manifest of the run resumed"] * args.resume
         raise UsageError(f"{exc} (the flags not given here are those of {' and '.join(source)})" if source
                          else str(exc)) from None
-    if "detail_strength" in explicit and not cfg.detail:
-        off = "not given" if cfg.detail is None else f"--detail {cfg.detail:g}"
-        raise ValueError(f"--detail-strength: {cfg.detail_strength} is the tilt of the procedural detail, which is off "
-                         f"({off}); give --detail P (a fraction above 0) or a --level that sets it")
 
 
 def _check_threads(args: MakeOptions, cfg: GenConfig) -> None:

@@ -54,11 +54,23 @@ def _held_by_another(folder: str | os.PathLike) -> bool:
 
 
 def check_not_being_written(path: str | os.PathLike, flag: str) -> None:
-    """Refuse to read a folder another run is writing (`_held_by_another`): what it holds now is a part of what it
-    will hold. A path that is not a folder is left to the reader."""
-    if _held_by_another(path):
-        raise UsageError(f"{flag}: {str(path)!r} is being written by another run (it holds the folder); wait until it "
-                         "has finished, then run this again")
+    """Refuse to read a folder or file another run is writing (`_held_by_another`: it holds the folder, or a folder
+    above it, as a run holds its --out): what it holds now is a part of what it will hold (a training run's
+    checkpoint of step 100 of 1000, a predict's first maps). Folders this process or the commands that started it
+    hold are ours (`HELD_ENV`: a session's steps read what its earlier steps wrote)."""
+    if not path or not os.path.lexists(path):
+        return
+    ours = set(_HELD) | set(filter(None, os.environ.get(HELD_ENV, "").split(os.pathsep)))
+    here = os.path.realpath(path)
+    while True:
+        if here not in ours and _held_by_another(here):
+            within = "" if here == os.path.realpath(path) else f" (it lies in {here!r}, which that run holds)"
+            raise UsageError(f"{flag}: {str(path)!r} is being written by another run{within}; wait until it has "
+                             "finished, then run this again")
+        parent = os.path.dirname(here)
+        if parent == here:
+            return
+        here = parent
 
 
 def check_output_folder(path: str | os.PathLike, flag: str = "--out") -> str | os.PathLike:
@@ -232,6 +244,9 @@ def output_lock(path: str | os.PathLike, flag: str = "--out",
     from scenes.files import FolderBusy, folder_lock
 
     inputs = dict(inputs or {})
+    for in_flag, given in inputs.items():  # an input another run is writing is read only once it is whole
+        if given is not None:
+            check_not_being_written(given, in_flag)
     check_apart(path, inputs, flag)
     check_output_folder(path, flag)
     check_no_holder_above(path, flag)
