@@ -16,6 +16,7 @@ import io
 import json
 import lzma
 import os
+import shutil
 import subprocess
 import sys
 import tarfile
@@ -432,8 +433,14 @@ def boot_site(argv: list[str]) -> None:
 def _site(carry: Path, work: Path, replace: bool = False) -> Path:
     site = work / "site"
     if str(site) not in sys.path:
+        made = [p for p in (site, *site.parents) if not os.path.lexists(p)]
         site.mkdir(parents=True, exist_ok=True)
-        unpack_once(carry / SITE_ARCHIVE, site, replace=replace)
+        try:
+            unpack_once(carry / SITE_ARCHIVE, site, replace=replace)
+        except UsageError:  # a refused pack leaves nothing behind: the folders made for it go (what it wrote too)
+            if made:
+                shutil.rmtree(made[-1], ignore_errors=True)
+            raise
         sys.path.insert(0, str(site))
         os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (str(site), os.environ.get("PYTHONPATH")) if p)
     return site

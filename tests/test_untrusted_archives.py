@@ -85,7 +85,31 @@ def test_a_shard_member_that_is_not_a_plain_file_is_named(synthetic_object, tmp_
         odd = tarfile.TarInfo("ball.extra.png")
         odd.type, odd.linkname = kind, "/etc/hostname" if kind == tarfile.SYMTYPE else ""
         tar.addfile(odd)
-    with pytest.raises(ValueError, match=r"holds member 'ball.extra.png', a link, folder or special file"):
+    with pytest.raises(ValueError, match=r"holds member 'ball.extra.png', a link, folder, sparse or special file"):
+        list(iter_samples(path))
+
+
+def test_a_shard_member_that_says_it_holds_more_than_the_shard_is_refused_before_it_is_read(synthetic_object,
+                                                                                             tmp_path):
+    """Sweep 25: a member whose header claims 8 or 16 GiB (a GNU sparse file, or a size field rewritten; the index's
+    checksum rewritten to match): WebDataset reads a member whole into memory, and unips.train was killed for
+    memory after 73 s. Refused from the header, naming the member, before any member is read."""
+    from scenes.folder.shard_format import iter_samples
+
+    shards = _export(synthetic_object, tmp_path / "shards")
+    path = shards / "000000.tar"
+    with tarfile.open(path, "a") as tar:
+        big = tarfile.TarInfo("ball.extra.png")
+        big.size = 4096
+        tar.addfile(big, io.BytesIO(bytes(4096)))
+    data = bytearray(path.read_bytes())
+    at = data.rfind(b"ball.extra.png")  # its header: the size field (12 octal bytes) at offset 124
+    data[at + 124:at + 136] = b"%011o\0" % (8 * 2**30 - 1)  # the most an octal size field says
+    data[at + 148:at + 156] = b" " * 8
+    data[at + 148:at + 155] = b"%06o\0" % sum(data[at:at + 512])
+    path.write_bytes(bytes(data))
+    with pytest.raises(ValueError, match=r"holds member 'ball.extra.png', which says it holds 8589934591 bytes, more "
+                                         r"than the shard's"):
         list(iter_samples(path))
 
 
@@ -404,3 +428,17 @@ def test_a_users_files_in_the_work_folder_are_never_replaced_by_a_pack(tmp_path,
     assert mine.read_bytes() in (b"packed = 1\n", b"packed ply")
     stamp = mine.stat().st_mtime_ns
     assert unpack_carry(carry, work) == work / "assets" and mine.stat().st_mtime_ns == stamp  # resumed: untouched
+
+
+def test_a_refused_pack_leaves_no_folder_behind(tmp_path):
+    """Sweep 25: a site.tar.xz refused for a member leading outside (pkg/../../evil.py) left empty --work and
+    --work/site folders behind: a refused run leaves nothing."""
+    from orchestrate.relay import SITE_ARCHIVE, unpack_carry
+    from scenes.cli.errors import UsageError
+
+    carry = tmp_path / "carry"
+    carry.mkdir()
+    _archive(carry / SITE_ARCHIVE, [_file("pkg/__init__.py", b""), _file("pkg/../../evil.py", b"x = 1\n")])
+    with pytest.raises(UsageError, match="outside"):
+        unpack_carry(carry, tmp_path / "work")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["carry"]

@@ -12,18 +12,15 @@ is no second decoder. Suffixes:
   aux directory must be flat.
 
 That is the `files` encoding, the default. The `decoded` encoding (`ENCODINGS`) stores instead what the one
-reader returned for the folder, so that reading it back decodes no PNG and repeats no check (`encode_decoded`,
-`decode_folder`):
-
+reader returned for the folder, so that reading it back decodes no PNG and repeats no check (`encode_decoded`):
 - ``<key>.decoded.json``: the reader's metadata (layout, image names, lights, sensor, which files it read);
 - ``<key>.decoded.images.npy``: the images as their integer file codes (uint16 or uint8, converted on reading by
   `scenes.images.codes_to_linear`, the conversion of `read_image`) or as float32 when they came from EXRs;
 - ``<key>.decoded.mask.npy``, and ``decoded.normals.npy`` / ``decoded.saturated.npy`` when the reader gave them;
 - ``<key>.scene.json``, the folder's scene file as it was (the scene stays re-renderable from the shard).
 
-A decoded sample gives the reader's arrays bit for bit (`tests/test_shards.py`); the exporter checks each
-conversion before writing. It is for training throughput; a `files` shard is the archival form, whose samples
-unpack into folders the official loaders read.
+A decoded sample gives the reader's arrays bit for bit (the exporter checks each conversion), for training speed;
+a `files` shard is the archival form, whose samples unpack into folders the official loaders read.
 
 Members of a sample follow in sorted suffix order, samples in the order they are written; every member has
 mtime 0, uid / gid 0, empty owner names and mode 0444, so the same folders give the same bytes.
@@ -434,11 +431,14 @@ def iter_samples(path: str | Path, arg: str = "--data") -> Iterator[tuple[str, d
     from webdataset.tariterators import group_by_keys, tar_file_expander
 
     try:
+        size = os.stat(path).st_size  # WebDataset reads a member whole into memory: its size is bounded first
         with tarfile.open(path) as tar:  # WebDataset passes over links, devices and folders: here they are refused
-            odd = next((m for m in tar if not m.isreg()), None)
+            odd = next((m for m in tar if not m.isreg() or m.issparse() or m.offset_data + m.size > size), None)
+        what = "a link, folder, sparse or special file" if odd is None or not odd.isreg() or odd.issparse() else \
+            f"which says it holds {odd.size} bytes, more than the shard's {size}"
         if odd is not None:
-            raise ShardKeyError(f"{arg}: shard {str(path)!r} holds member {odd.name[:80]!r}, a link, folder or special "
-                                "file (expected the plain files wildgen.export writes); nothing of it is unpacked")
+            raise ShardKeyError(f"{arg}: shard {str(path)!r} holds member {odd.name[:80]!r}, {what} (expected the "
+                                "plain files wildgen.export writes); nothing of it is unpacked")
         with open(path, "rb") as f:
             members = tar_file_expander([{"url": str(path), "stream": f}])
             for sample in group_by_keys(members, lcase=False):
