@@ -89,6 +89,23 @@ def test_a_shard_member_that_is_not_a_plain_file_is_named(synthetic_object, tmp_
         list(iter_samples(path))
 
 
+def test_a_shard_member_named_twice_is_refused_naming_it(synthetic_object, tmp_path):
+    """Sweep 25: one member name twice in a shard (the second another content): refused as such, not as a sample
+    the index does not list."""
+    from scenes.folder.shard_format import iter_samples
+
+    shards = _export(synthetic_object, tmp_path / "shards")
+    path = shards / "000000.tar"
+    with tarfile.open(path) as tar:
+        first = next(m for m in tar if m.isreg())
+    with tarfile.open(path, "a") as tar:
+        again = tarfile.TarInfo(first.name)
+        again.size = 3
+        tar.addfile(again, io.BytesIO(b"bad"))
+    with pytest.raises(ValueError, match=rf"holds member '{first.name}' twice"):
+        list(iter_samples(path))
+
+
 def test_a_shard_member_that_says_it_holds_more_than_the_shard_is_refused_before_it_is_read(synthetic_object,
                                                                                              tmp_path):
     """Sweep 25: a member whose header claims 8 or 16 GiB (a GNU sparse file, or a size field rewritten; the index's

@@ -22,8 +22,8 @@ reader returned for the folder, so that reading it back decodes no PNG and repea
 A decoded sample gives the reader's arrays bit for bit (the exporter checks each conversion), for training speed;
 a `files` shard is the archival form, whose samples unpack into folders the official loaders read.
 
-Members of a sample follow in sorted suffix order, samples in the order they are written; every member has
-mtime 0, uid / gid 0, empty owner names and mode 0444, so the same folders give the same bytes.
+Members follow in sorted suffix order, samples as written; mtime 0, uid/gid 0, no owner names, mode 0444: the same
+folders give the same bytes.
 
 Beside the shards, `INDEX_FILE` (index.json) holds `format` ("webdataset"), `format_version`, `encoding` (absent in
 exports written before it: `files`), `objects`, `shard_size`, `aux_files`, `pattern` (the brace pattern of all
@@ -431,14 +431,16 @@ def iter_samples(path: str | Path, arg: str = "--data") -> Iterator[tuple[str, d
     from webdataset.tariterators import group_by_keys, tar_file_expander
 
     try:
-        size = os.stat(path).st_size  # WebDataset reads a member whole into memory: its size is bounded first
+        size, seen = os.stat(path).st_size, set()  # WebDataset reads a member whole into memory: bounded first
         with tarfile.open(path) as tar:  # WebDataset passes over links, devices and folders: here they are refused
-            odd = next((m for m in tar if not m.isreg() or m.issparse() or m.offset_data + m.size > size), None)
-        what = "a link, folder, sparse or special file" if odd is None or not odd.isreg() or odd.issparse() else \
-            f"which says it holds {odd.size} bytes, more than the shard's {size}"
+            odd = next((m for m in tar if not m.isreg() or m.issparse() or m.offset_data + m.size > size
+                        or m.name in seen or seen.add(m.name)), None)
         if odd is not None:
-            raise ShardKeyError(f"{arg}: shard {str(path)!r} holds member {odd.name[:80]!r}, {what} (expected the "
-                                "plain files wildgen.export writes); nothing of it is unpacked")
+            what = ", a link, folder, sparse or special file" if not odd.isreg() or odd.issparse() else \
+                " twice (one file of an object, given two contents)" if odd.name in seen else \
+                f", which says it holds {odd.size} bytes, more than the shard's {size}"
+            raise ShardKeyError(f"{arg}: shard {str(path)!r} holds member {odd.name[:80]!r}{what} (expected the plain "
+                                "files wildgen.export writes); nothing of it is unpacked")
         with open(path, "rb") as f:
             members = tar_file_expander([{"url": str(path), "stream": f}])
             for sample in group_by_keys(members, lcase=False):
@@ -455,9 +457,7 @@ def iter_samples(path: str | Path, arg: str = "--data") -> Iterator[tuple[str, d
         raise ValueError(f"{arg}: shard {str(path)!r} cannot be read ({first:.200})") from None
 
 
-def listed_samples(
-    path: str | Path, entry: dict[str, Any], arg: str = "--data"
-) -> Iterator[tuple[str, dict[str, bytes]]]:
+def listed_samples(path: str | Path, entry: dict[str, Any], arg="--data") -> Iterator[tuple[str, dict[str, bytes]]]:
     """`iter_samples` of a shard checked against its index entry: the checksum first (`verify_shard`), then each
     sample's key against the objects the entry lists, in order, and their number (ValueError naming the shard and
     the object): samples that were damaged, dropped or renamed and an index rewritten to match are refused."""
