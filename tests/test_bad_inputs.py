@@ -5156,3 +5156,22 @@ def test_a_file_inside_a_folder_another_run_writes_is_not_read(world: Path, tmp_
         shutil.copy(run / "final.safetensors", mine / "w.safetensors")
         shutil.copy(run / "final.json", mine / "w.json")
         assert load_network(mine / "w.safetensors") is not None
+
+
+@pytest.mark.parametrize("step", ['"one"', "null", "true"])
+def test_a_training_log_whose_step_is_not_a_number_is_named_on_resume(world: Path, tmp_path: Path, capsys, step):
+    """Sweep 24: a log.jsonl line whose step is text or null: `unips.train --resume` ended in a TypeError traceback
+    (comparing it with the checkpoint's step). One line naming the file and the line, the run unchanged."""
+    from unips.train import main as train
+
+    run = tmp_path / "run"
+    argv = ["--data", str(world / "data"), "--out", str(run), "--model", "glc-test", "--res", "32", "--pixels", "64",
+            "--batch", "2", "--max-images", "4", "--threads", "1", "--no-progress"]
+    assert train([*argv, "--steps", "1"]) == 0
+    capsys.readouterr()
+    (run / "log.jsonl").write_text(f'{{"step": {step}}}\n' + (run / "log.jsonl").read_text())
+    before = {p: p.read_bytes() for p in sorted(run.rglob("*")) if p.is_file()}
+    rc = train([*argv, "--steps", "2", "--resume"])
+    err = capsys.readouterr().err
+    assert rc == 2 and f"line 1 of '{run / 'log.jsonl'}' is not a step's record" in err and "Traceback" not in err
+    assert {p: p.read_bytes() for p in sorted(run.rglob("*")) if p.is_file()} == before

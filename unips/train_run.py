@@ -64,9 +64,12 @@ def truncate_log(path: Path, step: int) -> None:
                 break
             raise ValueError(f"--resume: line {n} of {str(path)!r} is not a JSON record (the run's log is damaged); "
                              "move it away to resume without it") from None
-        if not isinstance(record, dict):
-            raise ValueError(f"--resume: line {n} of {str(path)!r} is not a JSON object (the run's log is damaged)")
-        if record.get("step", 0) <= step:
+        at = record.get("step", 0) if isinstance(record, dict) else None
+        if not isinstance(at, int) or isinstance(at, bool):
+            what = "a JSON object" if not isinstance(record, dict) else f"a step's record (its step is {at!r:.40})"
+            raise ValueError(f"--resume: line {n} of {str(path)!r} is not {what}; the run's log is damaged: move it "
+                             "away to resume without it")
+        if at <= step:
             keep.append(line)
     atomic_write_text(path, "".join(line + "\n" for line in keep))
 
