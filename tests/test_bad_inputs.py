@@ -5175,3 +5175,30 @@ def test_a_training_log_whose_step_is_not_a_number_is_named_on_resume(world: Pat
     err = capsys.readouterr().err
     assert rc == 2 and f"line 1 of '{run / 'log.jsonl'}' is not a step's record" in err and "Traceback" not in err
     assert {p: p.read_bytes() for p in sorted(run.rglob("*")) if p.is_file()} == before
+
+
+def test_a_checkpoint_whose_optimiser_moments_hold_nan_is_named_on_resume(world: Path, tmp_path: Path, capsys):
+    """Sweep 24: last.pt whose Adam moments hold NaN (its checksum rewritten to match): `unips.train --resume` made
+    every weight NaN at its first step and ended in a FloatingPointError traceback. The optimiser state is checked
+    on loading: one line naming the file and the parameter, nothing written."""
+    import torch
+
+    from unips.models.builder import CHECKSUM_KEY, content_digest
+    from unips.train import main as train
+
+    run = tmp_path / "run"
+    argv = ["--data", str(world / "data"), "--out", str(run), "--model", "glc-test", "--res", "32", "--pixels", "64",
+            "--batch", "2", "--max-images", "4", "--threads", "1", "--no-progress"]
+    assert train([*argv, "--steps", "1"]) == 0
+    capsys.readouterr()
+    ckpt = torch.load(run / "last.pt", weights_only=True)
+    moments = next(s for s in ckpt["optimizer"]["state"].values() if "exp_avg" in s)
+    moments["exp_avg"].view(-1)[0] = float("nan")
+    ckpt[CHECKSUM_KEY] = content_digest(ckpt)
+    torch.save(ckpt, run / "last.pt")
+    before = {p: p.read_bytes() for p in sorted(run.rglob("*")) if p.is_file()}
+    rc = train([*argv, "--steps", "2", "--resume"])
+    err = capsys.readouterr().err
+    assert rc == 2 and f"the optimiser state in '{run / 'last.pt'}' holds NaN or infinite values" in err, err
+    assert "Traceback" not in err
+    assert {p: p.read_bytes() for p in sorted(run.rglob("*")) if p.is_file()} == before

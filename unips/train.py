@@ -112,7 +112,9 @@ def _train_step(run: Run, step: int, autocast: Any) -> tuple[dict[str, float], i
         pred = run.step_model(batch.images, batch.mask, batch.coords)  # (B, N, 3)
     loss, parts = normal_loss(pred.float(), batch)
     if not torch.isfinite(loss):
-        raise FloatingPointError(f"non-finite loss at step {step}")
+        raise ValueError(f"the loss at step {step} is not finite: the training diverged (a --lr too high for "
+                         "--warmup, or weights or optimiser state that hold NaN); lower --lr, or start from a "
+                         "checkpoint that is whole")
     run.optimizer.zero_grad(set_to_none=True)
     loss.backward()
     if cfg.clip_grad > 0:

@@ -453,7 +453,7 @@ def resume_run(run: Run) -> None:
     if ckpt["data"].get("objects") != run.data_desc["objects"]:
         raise ValueError(f"--resume: the objects in --data {cfg.data!r} differ from the checkpoint's")
     load_state_strict(run.model, ckpt["model"], str(run.last_path))
-    run.optimizer.load_state_dict(ckpt["optimizer"])
+    _load_optimizer(run, ckpt)
     run.scheduler.load_state_dict(ckpt["scheduler"])
     set_rng_states(ckpt["rng"])
     run.start, run.best = int(ckpt["step"]), float(ckpt["extra"].get("best_val", math.inf))
@@ -461,6 +461,24 @@ def resume_run(run: Run) -> None:
     if run.dist.main:
         truncate_log(run.log_path, run.start)
     log.info("resumed from %s at step %d", run.last_path, run.start)
+
+
+def _load_optimizer(run: Run, ckpt: dict) -> None:
+    """The optimiser's state of last.pt, whose moments must be finite (NaN there makes every weight NaN at the first
+    step) and fit the model (a ValueError naming the file otherwise)."""
+    state = ckpt["optimizer"].get("state", {}) if isinstance(ckpt["optimizer"], dict) else None
+    tensors = [(i, k, v) for i, s in (state or {}).items() if isinstance(s, dict) for k, v in s.items()
+               if isinstance(v, torch.Tensor) and v.is_floating_point()]
+    bad = next(((i, k) for i, k, v in tensors if not bool(torch.isfinite(v).all())), None)
+    if state is None or bad is not None:
+        what = f"holds NaN or infinite values (parameter {bad[0]}, {bad[1]})" if bad else "is not an optimiser's state"
+        raise ValueError(f"--resume: the optimiser state in {str(run.last_path)!r} {what}; the checkpoint is damaged: "
+                         "restore it, or start the run again with --overwrite")
+    try:
+        run.optimizer.load_state_dict(ckpt["optimizer"])
+    except (ValueError, KeyError, TypeError, RuntimeError, IndexError) as exc:
+        raise ValueError(f"--resume: the optimiser state in {str(run.last_path)!r} does not fit the model "
+                         f"({' '.join(str(exc).split())[:160]}); the checkpoint is damaged") from None
 
 
 def save_last(run: Run, step: int) -> None:
