@@ -8,6 +8,7 @@ decoder's complaint can be told from its silence.
 from __future__ import annotations
 
 import errno
+import math
 import os
 import re
 import sys
@@ -167,8 +168,8 @@ def read_json(path: str | os.PathLike):
 
 def parse_json(path: str | os.PathLike, text: str, **hooks):
     """`text` (of file `path`, or whatever names it in errors) parsed as `read_json` parses a file: each key once,
-    each string text, nesting within what Python reads, integers within 64 bits, every refusal a ValueError naming
-    `path`."""
+    each string text, nesting within what Python reads, integers within 64 bits, every number finite (NaN,
+    Infinity and 1e400 refused), every refusal a ValueError naming `path`."""
     import json
     import sys
 
@@ -209,17 +210,21 @@ _LONE_SURROGATE = re.compile("[\ud800-\udfff]")
 
 
 def _text_only(value, path: str | os.PathLike):
-    """`value` (parsed JSON) when every string and key in it is text; a ValueError naming the file when one holds a
+    """`value` (parsed JSON) when every number in it is finite (none of our writers writes NaN or Infinity) and every
+    string and key text; a ValueError naming the file and the key when a number is not finite, or a string holds a
     lone surrogate (JSON's escape \\udce9 is valid syntax but half of a character: no file, page or terminal can
     write it, so it would fail far from here)."""
-    stack = [value]
+    stack = [(value, "")]
     while stack:
-        item = stack.pop()
+        item, key = stack.pop()
         if isinstance(item, dict):
-            stack.extend(item.keys())
-            stack.extend(item.values())
+            stack.extend((k, key) for k in item.keys())
+            stack.extend((v, f"{key}.{k}" if key else str(k)) for k, v in item.items())
         elif isinstance(item, list):
-            stack.extend(item)
+            stack.extend((v, f"{key}[{i}]") for i, v in enumerate(item))
+        elif isinstance(item, float) and not math.isfinite(item):  # NaN, Infinity, 1e400: our writers refuse them
+            raise ValueError(f"{shown_name(path)!r}: holds {shown_name(key)[:60] or 'the number'} = {item}, not a "
+                             "finite number; expected a record as this toolkit writes it")
         elif isinstance(item, str) and _LONE_SURROGATE.search(item):
             half = ord(_LONE_SURROGATE.search(item)[0])
             raise ValueError(f"{shown_name(path)!r}: holds the text {shown_name(item)[:60]!r}, whose escape "

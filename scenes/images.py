@@ -129,7 +129,7 @@ def decode_image(path: Path, flags: int, where: str):
     except OSError as exc:  # a folder, a file without read permission
         raise ValueError(f"{where} cannot be opened: {exc.strerror or exc}") from None
     if not data.size:
-        return None
+        raise ValueError(f"{where} is empty (0 bytes); expected an image (copy it again)")
     head = data[:8].tobytes()
     jpeg, tiff, png = head.startswith(_JPEG_MAGIC), head[:4] in _TIFF_MAGICS, head == b"\x89PNG\r\n\x1a\n"
     kind, *starts = _NAMED_KINDS.get(path.suffix.lower(), ("", b""))
