@@ -459,10 +459,17 @@ def unpack_carry(carry: Path, work: Path, replace: bool = False) -> Path | None:
     for archive in (carry / SITE_ARCHIVE, carry / ASSET_ARCHIVE):
         if os.path.lexists(archive) and (why := not_a_file(archive)):
             raise UsageError(f"--carry: {str(archive)!r} {why}")
+    fresh = not os.path.lexists(work / "site")
     _site(carry, work, replace)
     if not (carry / ASSET_ARCHIVE).is_file():
         return None
-    unpack_once(carry / ASSET_ARCHIVE, work, under="assets", replace=replace)
+    try:
+        unpack_once(carry / ASSET_ARCHIVE, work, under="assets", replace=replace)
+    except UsageError:  # a refused pack leaves nothing behind: the site unpacked from it a moment ago goes too
+        if fresh:
+            shutil.rmtree(work / "site", ignore_errors=True)
+            (work / ".site.unpacked").unlink(missing_ok=True)
+        raise
     if not (work / "assets").is_dir() or not any((work / "assets").iterdir()):  # packed, yet nothing to render with
         raise UsageError(f"--carry: {str(carry / ASSET_ARCHIVE)!r} holds no asset folder (expected assets/ with the "
                          "packed meshes, maps and textures); pack again with --pack, or remove it to render without")

@@ -448,3 +448,18 @@ def test_a_folder_file_named_like_a_decoded_member_is_refused(data, tmp_path):
     (ds / "00000.data" / "decoded.json").write_text("{}")
     with pytest.raises(ValueError, match=r"reserved for decoded samples"):
         export_dataset(ds, tmp_path / "sh")
+
+
+def test_a_shard_pattern_naming_a_billion_shards_is_refused_without_expanding_it(tmp_path):
+    """Sweep 25: --data 'DIR/{000000..999999999}.tar' was expanded whole into memory (killed after 120 s). The
+    pattern's names are counted first (`pattern_count`) and a count beyond MAX_SHARDS refused in one line."""
+    import time
+
+    from unips.shard_data import MAX_SHARDS, pattern_count, resolve_shards
+
+    assert pattern_count("d/{000..099}.tar") == 100 and pattern_count("{a,b}/{0..3}.tar") == 8
+    assert pattern_count("d/{0..10..5}.tar") == 3 and pattern_count("d/000000.tar") == 1
+    t0 = time.time()
+    with pytest.raises(ValueError, match=rf"--data: .* names 1e\+09 shards; expected at most {MAX_SHARDS}"):
+        resolve_shards(str(tmp_path / "{000000..999999999}.tar"))
+    assert time.time() - t0 < 5

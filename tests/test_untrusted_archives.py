@@ -449,8 +449,9 @@ def test_a_users_files_in_the_work_folder_are_never_replaced_by_a_pack(tmp_path,
 
 def test_a_refused_pack_leaves_no_folder_behind(tmp_path):
     """Sweep 25: a site.tar.xz refused for a member leading outside (pkg/../../evil.py) left empty --work and
-    --work/site folders behind: a refused run leaves nothing."""
-    from orchestrate.relay import SITE_ARCHIVE, unpack_carry
+    --work/site folders behind, and a refused assets.tar.xz the site unpacked before it: a refused run leaves
+    nothing."""
+    from orchestrate.relay import ASSET_ARCHIVE, SITE_ARCHIVE, unpack_carry
     from scenes.cli.errors import UsageError
 
     carry = tmp_path / "carry"
@@ -459,3 +460,9 @@ def test_a_refused_pack_leaves_no_folder_behind(tmp_path):
     with pytest.raises(UsageError, match="outside"):
         unpack_carry(carry, tmp_path / "work")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["carry"]
+    (tmp_path / "work").mkdir()  # a good site, then an assets archive refused: the site unpacked for it goes too
+    _archive(carry / SITE_ARCHIVE, [_file("pkg/__init__.py", b"")])
+    _archive(carry / ASSET_ARCHIVE, [_file("assets/a.ply", b"ply"), _file("assets/../evil.py", b"x = 1\n")])
+    with pytest.raises(UsageError, match="outside"):
+        unpack_carry(carry, tmp_path / "work")
+    assert list((tmp_path / "work").iterdir()) == []

@@ -79,6 +79,25 @@ class Shard:
         return self.entry["objects"]
 
 
+MAX_SHARDS = 1_000_000
+"""The most shards a --data pattern may name (a million shards of one object each: far beyond a training set)."""
+
+
+def pattern_count(text: str) -> int:
+    """How many names the brace pattern `text` expands to ({000..099}: 100, {a,b}: 2, their product), counted
+    without expanding it."""
+    import re
+
+    count = 1
+    for group in re.findall(r"\{([^{}]*)\}", text):
+        if m := re.fullmatch(r"\s*(-?\d+)\.\.(-?\d+)(?:\.\.(-?\d+))?\s*", group):
+            step = abs(int(m[3])) if m[3] and int(m[3]) else 1
+            count *= abs(int(m[2]) - int(m[1])) // step + 1
+        else:
+            count *= group.count(",") + 1
+    return count
+
+
 def resolve_shards(root: str | Path, arg: str = "--data") -> list[Shard]:
     """The shards a --data entry names, in order, each checked against the index.json of its folder (listed,
     export complete); a missing shard is a FileNotFoundError naming it."""
@@ -99,6 +118,9 @@ def resolve_shards(root: str | Path, arg: str = "--data") -> list[Shard]:
         return indexes[folder]
 
     if text.endswith(SHARD_SUFFIX):
+        if (count := pattern_count(text)) > MAX_SHARDS:  # expanded whole into memory: bounded before
+            raise ValueError(f"{arg}: {text[:120]!r} names {count:.3g} shards; expected at most {MAX_SHARDS} (the "
+                             "pattern wildgen.export's index.json records names as many as were written)")
         paths = [Path(p) for p in expand_urls(text)]
     else:
         folder = Path(text)
