@@ -5202,3 +5202,22 @@ def test_a_checkpoint_whose_optimiser_moments_hold_nan_is_named_on_resume(world:
     assert rc == 2 and f"the optimiser state in '{run / 'last.pt'}' holds NaN or infinite values" in err, err
     assert "Traceback" not in err
     assert {p: p.read_bytes() for p in sorted(run.rglob("*")) if p.is_file()} == before
+
+
+@pytest.mark.parametrize("command", ["export", "resume"])
+def test_a_manifest_that_is_a_folder_is_not_taken_for_none(tmp_path: Path, capsys, command):
+    """Sweep 24: a dataset whose manifest.json is a folder: wildgen.export exported every folder without the
+    manifest's statuses, exit 0 (as if there were none). Refused now by export and by make --resume, naming it."""
+    from wildgen.export import main as export
+    from wildgen.make import main as make
+
+    data = tmp_path / "data"
+    assert make(["--out", str(data), *TINY]) == 0
+    (data / "manifest.json").unlink()
+    (data / "manifest.json").mkdir()
+    capsys.readouterr()
+    rc = export(["--data", str(data), "--out", str(tmp_path / "s")]) if command == "export" else \
+        make(["--out", str(data), "--objects", "2", "--workers", "0", "--quiet", "--resume"])
+    err = capsys.readouterr().err
+    assert rc == 2 and f"'{data / 'manifest.json'}' is a folder" in err, err
+    assert not (tmp_path / "s").exists() and len(list(data.glob("*.data"))) == 1

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterator
 
-from scenes.files import read_json, write_json
+from scenes.files import not_a_file, read_json, write_json
 from wildgen.config import GenConfig
 from wildgen.parallel import Engine, InProcessEngine
 from wildgen.writer import TMP_PREFIX, index_name, sha256_file
@@ -81,8 +81,11 @@ def write_manifest(
 def load_manifest(out_dir: str | Path) -> dict | None:
     """The manifest of `out_dir`, or None when there is none. An unreadable one is a DatasetError."""
     path = Path(out_dir) / MANIFEST
-    if not path.is_file():
+    if not os.path.lexists(path):
         return None
+    if why := not_a_file(path):  # a folder or a dangling link under the name is no manifest, nor the lack of one
+        raise DatasetError(f"--out: {str(path)!r} {why} (where the dataset's manifest belongs); move it away, or use "
+                           "another --out")
     try:
         manifest = read_json(path)
         if not isinstance(manifest.get("config"), dict) or not isinstance(manifest.get("objects"), list):

@@ -34,7 +34,7 @@ from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.options import REQUIRED, Command, check_fields, option
 from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import progress_bar
-from scenes.files import is_within, links_out_of, read_json, temporary_target, temporary_writer, writer_gone
+from scenes.files import is_within, links_out_of, not_a_file, read_json, temporary_target, temporary_writer, writer_gone
 from scenes.folder.shard_format import (
     ENCODINGS,
     FORMAT,
@@ -107,6 +107,9 @@ def _source_folders(data: Path) -> list[Path]:
             raise ValueError(f"--data: object folder {str(folder)!r} is a link to {os.readlink(folder)!r}, outside "
                              "the dataset; a shard holds the dataset's own folders only (copy it in, or remove the "
                              "link)")
+    if os.path.lexists(data / MANIFEST) and (why := not_a_file(data / MANIFEST)):  # never taken for none
+        raise ValueError(f"--data: {str(data / MANIFEST)!r} {why} (the dataset's manifest, whose statuses say which "
+                         "objects are whole); restore it, or move it away to export the folders without it")
     if (data / MANIFEST).is_file():
         try:
             manifest = read_json(data / MANIFEST)
