@@ -214,7 +214,8 @@ def _bad_weights(w: Path, weights: Path, sidecar: dict) -> None:
     torch.manual_seed(0)
     state = create_model("sdm-unips-tiny").state_dict()
     key = next(k for k, v in state.items() if v.is_floating_point() and v.ndim >= 2)
-    for tag, value in (("nan", state[key].clone().fill_(float("nan"))), ("int64", state[key].round().to(torch.int64))):
+    for tag, value in (("nan", state[key].clone().fill_(float("nan"))), ("int64", state[key].round().to(torch.int64)),
+                       ("sparse", state[key].to_sparse()), ("meta", torch.empty(state[key].shape, device="meta"))):
         _mk(w / f"pub_{tag}" / "normal")
         torch.save({f"module.{k}": (value if k == key else v) for k, v in state.items()},
                    w / f"pub_{tag}" / "normal" / "nml.pytmodel")
@@ -3241,6 +3242,11 @@ ROWS += [
     Row("predict-published-nan", PR, ["--method", "model", "--model", "sdm-unips-tiny", "--checkpoint", "{W}/pub_nan",
                                       "--input", OBJDIR, "--out", "{T}/p"], 2, ("nml.pytmodel", "NaN"),
         check=_not_written("p")),
+    # sweep 24: a sparse or a meta tensor in published weights ended in tracebacks
+    *(Row(f"predict-published-{tag}", PR, ["--method", "model", "--model", "sdm-unips-tiny", "--checkpoint",
+                                          f"{{W}}/pub_{tag}", "--input", OBJDIR, "--out", "{T}/p"], 2,
+          ("nml.pytmodel", said, "expected dense weights"), check=_not_written("p"))
+      for tag, said in (("sparse", "sparse_coo tensor"), ("meta", "meta tensor"))),
     Row("predict-published-int64", PR, ["--method", "model", "--model", "sdm-unips-tiny", "--checkpoint",
                                         "{W}/pub_int64", "--input", OBJDIR, "--out", "{T}/p"], 2,
         ("nml.pytmodel", "int64"), check=_not_written("p")),
@@ -5221,3 +5227,18 @@ def test_a_manifest_that_is_a_folder_is_not_taken_for_none(tmp_path: Path, capsy
     err = capsys.readouterr().err
     assert rc == 2 and f"'{data / 'manifest.json'}' is a folder" in err, err
     assert not (tmp_path / "s").exists() and len(list(data.glob("*.data"))) == 1
+
+
+def test_two_links_to_one_folder_elsewhere_are_refused(world: Path, tmp_path: Path, capsys):
+    """Sweep 24: a dataset whose a.data and b.data are both links to one object folder outside it: predicted and
+    scored twice under two names, exit 0. The one reader of datasets refuses it, naming both."""
+    from unips.predict import main as predict
+
+    ds = tmp_path / "ds"
+    ds.mkdir()
+    for name in ("a.data", "b.data"):
+        os.symlink(world / "data" / f"{OBJ}.data", ds / name)
+    rc = predict(["--method", "least-squares", "--input", str(ds), "--out", str(tmp_path / "p")])
+    err = capsys.readouterr().err
+    assert rc == 2 and f"'{ds / 'a.data'}' and '{ds / 'b.data'}' are one object folder" in err, err
+    assert not (tmp_path / "p").exists()

@@ -1,11 +1,10 @@
 """Every photometric-stereo folder layout in one table, and the one reader of all of them.
 
-`LAYOUT_TABLE` describes each layout a user may hand us: how it is recognised, how its images are listed
-(and in which order), which files hold its calibration and its ground-truth normals, and whether a mask
-file is required. `read_folder` reads any of them into one plain structure, `FolderData`; the model's
-loader (`unips.data`), the fitted re-render check (`validate.observations`) and the known-scene check
-(`validate.io`) are thin views of it, so a folder means the same thing to all of them. Adding a layout is
-one `Layout` entry (plus its tests).
+`LAYOUT_TABLE` describes each layout a user may hand us: how it is recognised, how its images are listed (and in
+which order), which files hold its calibration and its ground-truth normals, and whether a mask file is required.
+`read_folder` reads any of them into one plain structure, `FolderData`; the model's loader (`unips.data`), the
+fitted re-render check (`validate.observations`) and the known-scene check (`validate.io`) are thin views of it,
+so a folder means the same thing to all of them. Adding a layout is one `Layout` entry (plus its tests).
 
 Layouts, detected in table order:
 
@@ -25,16 +24,15 @@ Rules shared by every layout (the divergences this module exists to prevent):
   non-negative; a folder may not mix float EXR and integer images (their scales differ);
 - a channel at an integer file's largest code is *saturated*: its true value is only known to be at least
   the stored one (`FolderData.saturated`);
-- mask: binary, 0 outside and one other value on the object (`scenes.images.read_mask`: read from the alpha where
-  it is not fully opaque, else the largest colour channel; the official UniPS loaders' "any channel > 0" agrees on
-  every binary mask without a transparent alpha, and a mask that is not binary is refused rather than read as they
-  would);
-- ground-truth normals: renormalised inside the mask; a vector shorter than `MIN_NORMAL_LENGTH` is "no
-  normal" and becomes 0 (an encoded zero vector decodes to length < 0.5), counted and logged;
+- mask: binary, 0 outside and one other value on the object (`scenes.images.read_mask`: the alpha where it is not
+  fully opaque, else the largest colour channel; the official loaders' "any channel > 0" agrees on every binary
+  mask without a transparent alpha; one that is not binary is refused rather than read as they would);
+- ground-truth normals: renormalised inside the mask; a vector shorter than `MIN_NORMAL_LENGTH` is "no normal" and
+  becomes 0 (an encoded zero vector decodes to length < 0.5), counted and logged;
 - calibration: light directions are unit vectors toward the light, a zero or non-finite vector is refused.
 
-Errors are FileNotFoundError / ValueError with one line that names the argument the folder came from
-(``arg``: the CLI's flag) or the file at fault.
+Errors are FileNotFoundError / ValueError with one line naming the argument the folder came from (``arg``) or the
+file at fault.
 """
 from __future__ import annotations
 
@@ -220,12 +218,7 @@ def layout_named(name: str) -> Layout:
 def detect_layout(path: str | Path) -> str | None:
     """Layout name of an object folder (the first entry of `LAYOUT_TABLE` that matches), or None."""
     folder = Path(path)
-    if not folder.is_dir():
-        return None
-    for layout in LAYOUT_TABLE:
-        if layout.detect(folder):
-            return layout.name
-    return None
+    return next((layout.name for layout in LAYOUT_TABLE if layout.detect(folder)), None) if folder.is_dir() else None
 
 
 def has_scene(folder: str | Path) -> bool:
@@ -247,6 +240,12 @@ def find_object_folders(path: str | Path, arg: str = "path") -> list[Path]:
         if (gone := next((p for p in entries if p.is_symlink() and not p.exists()), None)) is not None:  # never skipped
             raise FileNotFoundError(f"{arg}: {gone} is a link to {os.readlink(gone)}, which does not exist")
         if found := [p for p in entries if detect_layout(p) is not None]:
+            real: dict[str, Path] = {}
+            for p in found:  # two links to one folder elsewhere: read twice under two names (a link to a sibling is
+                # that object's own fault, `check_own_files`: the rest goes on)
+                if p.is_symlink() and (first := real.setdefault(os.path.realpath(p), p)) is not p:
+                    raise ValueError(f"{arg}: {str(first)!r} and {str(p)!r} are one object folder (links to "
+                                     f"{os.path.realpath(p)!r}): it would be read twice under two names; remove one")
             return found
     raise FileNotFoundError(f"{arg}: no object folder found at {root} (expected {EXPECTED})")
 

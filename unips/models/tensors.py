@@ -29,6 +29,10 @@ def check_weights(state: Mapping[str, Any], source: str, expected: Mapping[str, 
     for key, value in state.items():
         if not isinstance(value, torch.Tensor):
             raise ValueError(f"{source}: entry {key} is a {type(value).__name__}, expected a tensor")
+        if value.layout != torch.strided or value.is_meta or value.is_quantized:  # no values to run, or none here
+            what = "a meta tensor (no values)" if value.is_meta else "quantized" if value.is_quantized else \
+                f"a {str(value.layout).removeprefix('torch.')} tensor"
+            raise ValueError(f"{source}: tensor {key} is {what}; expected dense weights, as a training run saves them")
         own = expected.get(key) if expected is not None else None
         if own is not None and _kind(own) != _kind(value):
             raise ValueError(f"{source}: tensor {key} is {_dtype(value)}, expected {_kind(own)} values (the model "
