@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Callable, Iterator
 
 from scenes.files import not_a_file, read_json, write_json
+from scenes.folder.format import entry_folder
 from wildgen.config import GenConfig
 from wildgen.parallel import Engine, InProcessEngine
 from wildgen.writer import TMP_PREFIX, index_name, sha256_file
@@ -165,11 +166,6 @@ class ManifestWriter:
         write_manifest(self.out_dir, self.cfg, self.variant, self.entries, self.extra)
         self._last_end = time.perf_counter()
         self._last_cost = self._last_end - t0
-
-
-def entry_folder(entry: dict) -> str:
-    """The object folder a manifest entry names (its `folder`, else its name's)."""
-    return str(entry.get("folder", f"{entry.get('name', '?')}.data"))
 
 
 def verify_object(out_dir: Path, entry: dict) -> str | None:

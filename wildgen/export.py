@@ -96,8 +96,9 @@ COMMAND = Command(
 
 def _source_folders(data: Path) -> list[Path]:
     """The object folders of --data in reader order, checked against the dataset's manifest when it has one."""
+    from scenes.folder.format import entry_folder
     from scenes.folder.layouts import find_object_folders
-    from wildgen.dataset import MANIFEST, check_manifest_names, entry_folder, verify_object
+    from wildgen.dataset import MANIFEST, check_manifest_names, verify_object
 
     if not data.is_dir():
         raise FileNotFoundError(f"--data: {str(data)!r} is not a folder (expected a dataset of object folders)")

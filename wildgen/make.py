@@ -315,7 +315,7 @@ def check_out(out: Path, manifest: dict | None = None) -> None:
     written); with the `manifest` of a resumed run, its finished objects are kept as they are (a mount point
     there is no hindrance)."""
     make_output_folder(out)
-    from wildgen.dataset import entry_folder
+    from scenes.folder.format import entry_folder
 
     entries = manifest.get("objects") if isinstance(manifest, dict) else None
     kept = [out / entry_folder(e) for e in entries if isinstance(e, dict) and e.get("status") == "done"] \

@@ -160,6 +160,11 @@ def check_listed_done(folder: Path, arg: str) -> None:
                          "the object again with wildgen.make")
 
 
+def entry_folder(entry: dict) -> str:
+    """The object folder a manifest entry names (its `folder`, else its name's)."""
+    return str(entry.get("folder", f"{entry.get('name', '?')}.data"))
+
+
 def _statuses(dataset: Path) -> dict[str, str]:
     """{object folder name: status} of a dataset's manifest ({} without one), read once per version of the file."""
     path = dataset / DATASET_MANIFEST
@@ -174,7 +179,7 @@ def _statuses(dataset: Path) -> dict[str, str]:
                             "it"):
             record = read_json(path)
         entries = record.get("objects") if isinstance(record, dict) else None  # another shape: not a manifest of ours
-        found = {os.path.normpath(str(e.get("folder", f"{e.get('name', '?')}.data"))): str(e["status"])
+        found = {os.path.normpath(entry_folder(e)): str(e["status"])
                  for e in (entries if isinstance(entries, list) else []) if isinstance(e, dict)
                  and e.get("status") is not None}  # './00001.data' is the folder 00001.data
         _STATUSES.clear()  # one dataset at a time: a long run over many never holds them all
