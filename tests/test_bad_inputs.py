@@ -13,6 +13,7 @@ import importlib
 import io
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -5242,3 +5243,37 @@ def test_two_links_to_one_folder_elsewhere_are_refused(world: Path, tmp_path: Pa
     err = capsys.readouterr().err
     assert rc == 2 and f"'{ds / 'a.data'}' and '{ds / 'b.data'}' are one object folder" in err, err
     assert not (tmp_path / "p").exists()
+
+
+@pytest.mark.parametrize("edit", ["newer", "objects-a-dict", "width-negative"])
+def test_a_manifest_this_toolkit_did_not_write_is_not_acted_on(tmp_path: Path, capsys, edit):
+    """Sweep 25: a manifest.json of format_version 99 was resumed (re-rendered and rewritten as version 1), one
+    whose objects are a dict read as no statuses (predict exit 0), and a recorded width of -32 refused as if typed
+    (`--width: got -32`). Each is refused naming the manifest; nothing is written."""
+    from unips.predict import main as predict
+    from wildgen.make import main as make
+
+    data = tmp_path / "data"
+    assert make(["--out", str(data), *TINY]) == 0
+    path = data / "manifest.json"
+    record = json.loads(path.read_text())
+    if edit == "newer":
+        record["format_version"] = 99
+    elif edit == "objects-a-dict":
+        record["objects"] = {"a": 1}
+    else:
+        record["config"]["width"] = -32
+    path.write_text(json.dumps(record))
+    capsys.readouterr()
+    before = {p: p.read_bytes() for p in sorted(data.rglob("*")) if p.is_file()}
+    if edit == "objects-a-dict":
+        rc = predict(["--method", "least-squares", "--input", str(data), "--out", str(tmp_path / "p")])
+        said = "its objects are dict, expected a list"
+    else:
+        rc = make(["--out", str(data), "--objects", "2", "--workers", "0", "--quiet", "--resume"])
+        said = "format_version is 99, expected 1" if edit == "newer" else \
+            "the configuration recorded in .* is refused \\(--width: got -32"
+    err = capsys.readouterr().err
+    assert rc in (1, 2) and re.search(f"'{re.escape(str(path))}'.*{said}" if edit != "width-negative" else said, err), err
+    assert not (tmp_path / "p" / "00000").exists()
+    assert {p: p.read_bytes() for p in sorted(data.rglob("*")) if p.is_file()} == before

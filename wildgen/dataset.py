@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Callable, Iterator
 
 from scenes.files import not_a_file, read_json, write_json
-from scenes.folder.format import entry_folder
+from scenes.folder.format import MANIFEST_VERSION, entry_folder, manifest_problem
 from wildgen.config import GenConfig
 from wildgen.parallel import Engine, InProcessEngine
 from wildgen.writer import TMP_PREFIX, index_name, sha256_file
@@ -65,7 +65,7 @@ def write_manifest(
 ) -> None:
     """Write DIR/manifest.json atomically: resolved config, seed, versions, variant, objects."""
     manifest = {
-        "format_version": 1,
+        "format_version": MANIFEST_VERSION,
         "config": cfg.to_dict(),
         "seed": cfg.seed,
         "variant": variant,
@@ -91,6 +91,8 @@ def load_manifest(out_dir: str | Path) -> dict | None:
         manifest = read_json(path)
         if not isinstance(manifest.get("config"), dict) or not isinstance(manifest.get("objects"), list):
             raise ValueError("no 'config' or 'objects'")
+        if (problem := manifest_problem(manifest)) is not None:
+            raise ValueError(problem)
     except (ValueError, OSError) as exc:
         raise DatasetError(
             f"--out: {str(path)!r} is not a readable manifest ({exc}); pass --overwrite to start afresh"

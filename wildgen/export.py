@@ -96,7 +96,7 @@ COMMAND = Command(
 
 def _source_folders(data: Path) -> list[Path]:
     """The object folders of --data in reader order, checked against the dataset's manifest when it has one."""
-    from scenes.folder.format import entry_folder
+    from scenes.folder.format import entry_folder, manifest_problem
     from scenes.folder.layouts import find_object_folders
     from wildgen.dataset import MANIFEST, check_manifest_names, verify_object
 
@@ -116,6 +116,8 @@ def _source_folders(data: Path) -> list[Path]:
             manifest = read_json(data / MANIFEST)
             if not isinstance(manifest, dict) or not isinstance(manifest.get("objects"), list):
                 raise ValueError("no 'objects' list")
+            if (problem := manifest_problem(manifest)) is not None:
+                raise ValueError(problem)
             entries = [e for e in manifest["objects"] if isinstance(e, dict) and e.get("status") == "done"]
             odd = next((e.get("status") for e in manifest["objects"] if isinstance(e, dict)
                         and e.get("status") not in ("done", "skipped", "failed")), None)

@@ -20,6 +20,7 @@ from scenes.cli.needs import Needs, value_of
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option, optional_value
 from scenes.cli.outputs import check_output_folder, check_replaceable, make_output_folder
 from scenes.cli.progress import Progress, logs_above_progress
+from scenes.folder.format import entry_folder
 from scenes.folder.shard_format import ENCODINGS
 from wildgen.config import GenConfig
 from wildgen.levels import LEVELS, apply_level, check_level_and_preset
@@ -129,7 +130,15 @@ def _resume_config(opts: MakeOptions, explicit: set[str], manifest: dict) -> Gen
         targets = ("width", "height") if name == "res" else (name,)
         for t in targets:
             setattr(cfg, t, given[t])
-    return cfg.validate()
+    try:
+        return cfg.validate()
+    except (ValueError, TypeError) as exc:  # a value the manifest recorded, not one typed: said as the manifest's
+        field = str(exc).split(":", 1)[0].removeprefix("--").replace("-", "_")
+        if field in names:
+            raise
+        raise ValueError(f"--resume: the configuration recorded in {str(Path(opts.out) / 'manifest.json')!r} is "
+                         f"refused ({exc}); expected the manifest wildgen.make wrote: restore it, or start again with "
+                         "--overwrite") from None
 
 
 def _summary(
@@ -315,11 +324,8 @@ def check_out(out: Path, manifest: dict | None = None) -> None:
     written); with the `manifest` of a resumed run, its finished objects are kept as they are (a mount point
     there is no hindrance)."""
     make_output_folder(out)
-    from scenes.folder.format import entry_folder
-
-    entries = manifest.get("objects") if isinstance(manifest, dict) else None
-    kept = [out / entry_folder(e) for e in entries if isinstance(e, dict) and e.get("status") == "done"] \
-        if isinstance(entries, list) else []
+    kept = [out / entry_folder(e) for e in (manifest or {}).get("objects", [])  # (load_manifest: a list)
+            if isinstance(e, dict) and e.get("status") == "done"]
     check_replaceable(out, "--out", "wildgen.make", kept)  # a resumed or replaced dataset: nothing mounted inside
 
 

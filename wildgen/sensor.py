@@ -46,6 +46,7 @@ from scenes.cli.progress import progress_bar
 from scenes.files import is_within, read_json, write_json
 from scenes.folder.format import (
     AUX_DIR,
+    MANIFEST_VERSION,
     SCENE_FILE,
     check_dataset_complete,
     image_files,
@@ -283,7 +284,7 @@ def apply_to_dataset(data: str | Path, out: str | Path, sensor: Sensor, seed: in
         raise ValueError(next(iter(bad.values())))
     _prepare_out(data, out, overwrite, [str(e["folder"]) for e in done if e.get("name") not in bad])
 
-    manifest = copy.deepcopy(source) if source is not None else {"format_version": 1}
+    manifest = copy.deepcopy(source) if source is not None else {"format_version": MANIFEST_VERSION}
     manifest["objects"] = []
     if isinstance(manifest.get("config"), dict):
         manifest["config"]["sensor"] = sensor.name  # what wildgen.make records as --sensor

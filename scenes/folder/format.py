@@ -87,6 +87,23 @@ def stated_error(record) -> dict | None:
 
 
 DATASET_MANIFEST = "manifest.json"
+MANIFEST_VERSION = 1
+"""`format_version` of the manifest.json wildgen.make and wildgen.sensor write."""
+
+
+def manifest_problem(record: object) -> str | None:
+    """Why a dataset's manifest.json as read is not one this toolkit can act on (None when it is, or when it is no
+    manifest of ours at all: a JSON object without `objects`): its objects not a list, or a format_version that is
+    not ours (a newer toolkit's, whose records this one would rewrite in its own)."""
+    if not isinstance(record, dict) or "objects" not in record:
+        return None
+    if not isinstance(record["objects"], list):
+        return f"its objects are {type(record['objects']).__name__}, expected a list of the objects' records"
+    version = record.get("format_version", MANIFEST_VERSION)
+    if version != MANIFEST_VERSION or isinstance(version, bool):
+        return (f"its format_version is {version!r:.40}, expected {MANIFEST_VERSION} (written by another version of "
+                "the toolkit: use that one)")
+    return None
 """A dataset folder's record of the run that wrote it (wildgen.make, wildgen.sensor). `complete: false` while a
 run writes it (true at its end): the object folders of a run stopped half-way are never read as a dataset."""
 
@@ -178,7 +195,9 @@ def _statuses(dataset: Path) -> dict[str, str]:
         with reading_record(path, "a dataset's manifest", "restore it, or move it away to read the objects without "
                             "it"):
             record = read_json(path)
-        entries = record.get("objects") if isinstance(record, dict) else None  # another shape: not a manifest of ours
+        if (problem := manifest_problem(record)) is not None:  # (another shape: not a manifest of ours, passed)
+            raise ValueError(f"{str(path)!r} is not a manifest this toolkit can read: {problem}")
+        entries = record.get("objects") if isinstance(record, dict) else None
         found = {os.path.normpath(entry_folder(e)): str(e["status"])
                  for e in (entries if isinstance(entries, list) else []) if isinstance(e, dict)
                  and e.get("status") is not None}  # './00001.data' is the folder 00001.data
