@@ -5184,10 +5184,13 @@ def test_a_training_log_whose_step_is_not_a_number_is_named_on_resume(world: Pat
     assert {p: p.read_bytes() for p in sorted(run.rglob("*")) if p.is_file()} == before
 
 
-def test_a_checkpoint_whose_optimiser_moments_hold_nan_is_named_on_resume(world: Path, tmp_path: Path, capsys):
+@pytest.mark.parametrize("damage", ["moments", "lr", "step"])
+def test_a_checkpoint_whose_optimiser_moments_hold_nan_is_named_on_resume(world: Path, tmp_path: Path, capsys,
+                                                                           damage):
     """Sweep 24: last.pt whose Adam moments hold NaN (its checksum rewritten to match): `unips.train --resume` made
-    every weight NaN at its first step and ended in a FloatingPointError traceback. The optimiser state is checked
-    on loading: one line naming the file and the parameter, nothing written."""
+    every weight NaN at its first step and ended in a FloatingPointError traceback. Sweep 25: its learning rate NaN
+    (trained NaN weights, exit 0), or its step -5 (the log cut to nothing before a refusal that named nothing). The
+    checkpoint is checked on loading: one line naming the file and what is wrong, nothing written."""
     import torch
 
     from unips.models.builder import CHECKSUM_KEY, content_digest
@@ -5199,14 +5202,19 @@ def test_a_checkpoint_whose_optimiser_moments_hold_nan_is_named_on_resume(world:
     assert train([*argv, "--steps", "1"]) == 0
     capsys.readouterr()
     ckpt = torch.load(run / "last.pt", weights_only=True)
-    moments = next(s for s in ckpt["optimizer"]["state"].values() if "exp_avg" in s)
-    moments["exp_avg"].view(-1)[0] = float("nan")
+    if damage == "moments":
+        next(s for s in ckpt["optimizer"]["state"].values() if "exp_avg" in s)["exp_avg"].view(-1)[0] = float("nan")
+    elif damage == "lr":
+        ckpt["optimizer"]["param_groups"][0]["lr"] = float("nan")
+    else:
+        ckpt["step"] = -5
     ckpt[CHECKSUM_KEY] = content_digest(ckpt)
     torch.save(ckpt, run / "last.pt")
     before = {p: p.read_bytes() for p in sorted(run.rglob("*")) if p.is_file()}
     rc = train([*argv, "--steps", "2", "--resume"])
     err = capsys.readouterr().err
-    assert rc == 2 and f"the optimiser state in '{run / 'last.pt'}' holds NaN or infinite values" in err, err
+    said = "records step -5" if damage == "step" else "holds NaN or infinite values"
+    assert rc == 2 and f"'{run / 'last.pt'}'" in err and said in err, err
     assert "Traceback" not in err
     assert {p: p.read_bytes() for p in sorted(run.rglob("*")) if p.is_file()} == before
 
@@ -5278,3 +5286,14 @@ def test_a_manifest_this_toolkit_did_not_write_is_not_acted_on(tmp_path: Path, c
     assert rc in (1, 2) and re.search(where + said, err), err
     assert not (tmp_path / "p" / "00000").exists()
     assert {p: p.read_bytes() for p in sorted(data.rglob("*")) if p.is_file()} == before
+
+
+def test_a_reader_of_the_output_that_goes_away_ends_the_command_without_a_traceback(world: Path, tmp_path: Path):
+    """Sweep 25: `unips.predict ... | head -c 1`: the closing line's print met a closed pipe, a BrokenPipeError
+    traceback. The command ends as SIGPIPE would (exit 141), quietly, what it wrote kept."""
+    r = subprocess.run(f"set -o pipefail; {sys.executable} -m unips.predict --method least-squares --input "
+                       f"{world / 'data'} --out {tmp_path / 'p'} | head -c 1 >/dev/null",
+                       shell=True, executable="/bin/bash", capture_output=True, text=True, cwd=REPO)
+    assert "Traceback" not in r.stderr and "BrokenPipe" not in r.stderr, r.stderr
+    assert r.returncode in (0, 141)  # 0: the line fit in the pipe before head left
+    assert (tmp_path / "p" / OBJ / "normal.png").is_file()

@@ -95,12 +95,16 @@ def save_training_checkpoint(path: str | Path, *, model: nn.Module, optimizer: t
         try:
             torch.save(ckpt, tmp)
         except RuntimeError as exc:  # torch's zip writer reports a full disk as RuntimeError ("file write failed")
+            import resource
             import shutil
 
             free = shutil.disk_usage(tmp.parent).free / 2**20
             first = (str(exc).splitlines() or [type(exc).__name__])[0]
-            raise OSError(f"could not write {str(path)!r}: {free:.1f} MiB free on its disk, not enough for the "
-                          f"checkpoint ({first:.120})") from None
+            limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]  # `ulimit -f`: a file may not grow past it
+            why = (f"this process may write files of at most {limit / 2**20:.1f} MiB (ulimit -f)" if limit not in
+                   (resource.RLIM_INFINITY, -1) and free > 1 else f"{free:.1f} MiB free on its disk")
+            raise OSError(f"could not write {str(path)!r}: {why}, not enough for the checkpoint ({first:.120})") \
+                from None
 
     atomic_write(path, write)  # a kill or a full disk never leaves half a last.pt
     return path

@@ -452,6 +452,10 @@ def resume_run(run: Run) -> None:
             raise ValueError(f"--resume: {key}={value!r} differs from the checkpoint's {saved!r}")
     if ckpt["data"].get("objects") != run.data_desc["objects"]:
         raise ValueError(f"--resume: the objects in --data {cfg.data!r} differ from the checkpoint's")
+    step = ckpt["step"]
+    if not isinstance(step, int) or isinstance(step, bool) or not 0 <= step < 2**62:  # checked before the log is cut
+        raise ValueError(f"--resume: {str(run.last_path)!r} records step {step!r:.40}, expected a whole number of "
+                         "steps; the checkpoint is damaged: restore it, or start again with --overwrite")
     load_state_strict(run.model, ckpt["model"], str(run.last_path))
     _load_optimizer(run, ckpt)
     run.scheduler.load_state_dict(ckpt["scheduler"])
@@ -467,11 +471,15 @@ def _load_optimizer(run: Run, ckpt: dict) -> None:
     """The optimiser's state of last.pt, whose moments must be finite (NaN there makes every weight NaN at the first
     step) and fit the model (a ValueError naming the file otherwise)."""
     state = ckpt["optimizer"].get("state", {}) if isinstance(ckpt["optimizer"], dict) else None
-    tensors = [(i, k, v) for i, s in (state or {}).items() if isinstance(s, dict) for k, v in s.items()
+    tensors = [(f"parameter {i}", k, v) for i, s in (state or {}).items() if isinstance(s, dict) for k, v in s.items()
                if isinstance(v, torch.Tensor) and v.is_floating_point()]
-    bad = next(((i, k) for i, k, v in tensors if not bool(torch.isfinite(v).all())), None)
+    groups = ckpt["optimizer"].get("param_groups", []) if state is not None else []
+    numbers = [(f"group {i}", k, torch.tensor(x, dtype=torch.float64)) for i, g in enumerate(groups)
+               if isinstance(g, dict) for k, v in g.items() for x in (v if isinstance(v, (list, tuple)) else [v])
+               if isinstance(x, float)]  # lr, betas, eps, weight decay: a NaN lr trains NaN weights silently
+    bad = next(((i, k) for i, k, v in tensors + numbers if not bool(torch.isfinite(v).all())), None)
     if state is None or bad is not None:
-        what = f"holds NaN or infinite values (parameter {bad[0]}, {bad[1]})" if bad else "is not an optimiser's state"
+        what = f"holds NaN or infinite values ({bad[0]}, {bad[1]})" if bad else "is not an optimiser's state"
         raise ValueError(f"--resume: the optimiser state in {str(run.last_path)!r} {what}; the checkpoint is damaged: "
                          "restore it, or start the run again with --overwrite")
     try:

@@ -93,6 +93,16 @@ def remove_temporaries(folder: str | Path | None, pids: set[int]) -> int:
     return removed
 
 
+def _reader_gone_quietly(main: Callable[[], int]) -> int:
+    """`main()`, where the reader of its output going away (`| head -1`) ends the command as SIGPIPE would, without
+    a traceback: what it wrote stays; exit 141 (128 + SIGPIPE), the shell's status for such an end."""
+    try:
+        return main()
+    except BrokenPipeError:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # the flush at exit has nowhere to fail
+        return 128 + signal.SIGPIPE
+
+
 def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTERRUPTED,
                    argv: list[str] | None = None, command: list[str] | None = None) -> int:
     """`python -m module` (or `command`, e.g. a script's path) with Ctrl-C handled as the module doc says: in the
@@ -101,7 +111,7 @@ def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTE
     temporaries)."""
     if os.environ.get(CHILD) == str(os.getppid()):
         die_with_parent(os.getppid())
-        return main()
+        return _reader_gone_quietly(main)
     if os.environ.get(CHILD):  # a step another command's work started (a bench's wildgen.make): it ends with that
         die_with_parent(os.getppid())  # work, killed outright too (kill -9, out of memory), never an orphan writing on
     argv = sys.argv[1:] if argv is None else argv
