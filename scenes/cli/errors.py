@@ -65,8 +65,28 @@ def one_line(exc: BaseException) -> str:
     return text.replace("\n", " ")
 
 
+def stdout_gone() -> bool:
+    """Whether standard output is a pipe nobody reads any more (poll says POLLERR on its writing end), so that a
+    BrokenPipeError of another pipe (a step's) is still reported."""
+    import select
+
+    try:
+        poller = select.poll()
+        poller.register(sys.stdout.fileno(), select.POLLOUT)
+        return any(event & select.POLLERR for _, event in poller.poll(0))
+    except (OSError, ValueError, AttributeError):  # no fd (a test's capture) or no poll here
+        return False
+
+
 def report_error(exc: BaseException, code: int = EXIT_USAGE) -> int:
-    """Print `error: <message>` (one line) on stderr and return the exit status `code`."""
+    """Print `error: <message>` (one line) on stderr and return the exit status `code`; a closed standard output
+    (`| head -1` went away) ends the command quietly with 141, as SIGPIPE would."""
+    if isinstance(exc, BrokenPipeError) and stdout_gone():
+        import os
+        import signal
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # the flush at exit has nowhere to fail
+        return 128 + signal.SIGPIPE
     print(f"error: {one_line(exc)}", file=sys.stderr)
     return code
 

@@ -98,7 +98,11 @@ def _reader_gone_quietly(main: Callable[[], int]) -> int:
     a traceback: what it wrote stays; exit 141 (128 + SIGPIPE), the shell's status for such an end."""
     try:
         return main()
-    except BrokenPipeError:
+    except BrokenPipeError as exc:
+        from scenes.cli.errors import stdout_gone
+
+        if not stdout_gone():  # another pipe's: a fault to see
+            raise exc from None
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # the flush at exit has nowhere to fail
         return 128 + signal.SIGPIPE
 
