@@ -5290,10 +5290,11 @@ def test_a_manifest_this_toolkit_did_not_write_is_not_acted_on(tmp_path: Path, c
 
 def test_a_reader_of_the_output_that_goes_away_ends_the_command_without_a_traceback(world: Path, tmp_path: Path):
     """Sweep 25: `unips.predict ... | head -c 1`: the closing line's print met a closed pipe, a BrokenPipeError
-    traceback. The command ends as SIGPIPE would (exit 141), quietly, what it wrote kept."""
+    traceback. The command ends as SIGPIPE would (exit 141), quietly, where the pipe closed."""
     r = subprocess.run(f"set -o pipefail; {sys.executable} -m unips.predict --method least-squares --input "
                        f"{world / 'data'} --out {tmp_path / 'p'} | head -c 1 >/dev/null",
                        shell=True, executable="/bin/bash", capture_output=True, text=True, cwd=REPO)
     assert "Traceback" not in r.stderr and "BrokenPipe" not in r.stderr, r.stderr
-    assert r.returncode in (0, 141)  # 0: the line fit in the pipe before head left
-    assert (tmp_path / "p" / OBJ / "normal.png").is_file()
+    assert r.returncode in (0, 141), r.stderr  # 0: every line fit in the pipe before head left
+    # a line met the closed pipe before or after the maps were written: those written are whole
+    assert all(p.stat().st_size > 0 for p in (tmp_path / "p").rglob("normal.png"))
