@@ -5298,3 +5298,20 @@ def test_a_reader_of_the_output_that_goes_away_ends_the_command_without_a_traceb
     assert r.returncode in (0, 141), r.stderr  # 0: every line fit in the pipe before head left
     # a line met the closed pipe before or after the maps were written: those written are whole
     assert all(p.stat().st_size > 0 for p in (tmp_path / "p").rglob("normal.png"))
+
+
+def test_init_weights_of_another_network_are_refused_even_with_the_default_model_typed(world: Path, tmp_path: Path,
+                                                                                        capsys):
+    """Sweep 25: `--init-from` weights of glc-test with `--model glc-small` typed: glc-small is the default, so the
+    check took it for not given and trained glc-test, exit 0. A typed --model is compared whatever its value."""
+    from unips.train import main as train
+
+    argv = ["--data", str(world / "data"), "--res", "32", "--pixels", "64", "--batch", "2", "--max-images", "4",
+            "--threads", "1", "--no-progress", "--steps", "1"]
+    assert train([*argv, "--out", str(tmp_path / "a"), "--model", "glc-test"]) == 0
+    capsys.readouterr()
+    rc = train([*argv, "--out", str(tmp_path / "b"), "--model", "glc-small", "--init-from",
+                str(tmp_path / "a" / "final.safetensors")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "--model='glc-small'" in err and "holds a 'glc-test' model" in err, err
+    assert not (tmp_path / "b" / "log.jsonl").exists()

@@ -66,7 +66,12 @@ def config_from_args(argv: Sequence[str] | None) -> TrainConfig:
     cfg = COMMAND.parse(argv)
     if "all" not in cfg.val_probes:
         cfg.val_probes = ["all", *cfg.val_probes]
-    return cfg.validate()
+    cfg = cfg.validate()
+    if cfg.init_from and cfg.model == TrainConfig.model and "model" in COMMAND.given(argv):
+        from unips.train_run import read_init_weights
+
+        read_init_weights(cfg, explicit=True)  # --model typed at its default must name the weights' model too
+    return cfg
 
 
 def check_args(argv: Sequence[str]) -> TrainConfig:

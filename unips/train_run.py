@@ -194,9 +194,9 @@ def load_init_weights(cfg: TrainConfig, device: torch.device) -> torch.nn.Module
     return read_init_weights(cfg).to(device).train()
 
 
-def read_init_weights(cfg: TrainConfig) -> torch.nn.Module:
-    """The model of `cfg.init_from` (weights only, on the CPU); its name must agree with an explicit --model, and
-    no --model-option may reshape it. Every refusal names the flag."""
+def read_init_weights(cfg: TrainConfig, explicit: bool = False) -> torch.nn.Module:
+    """The model of `cfg.init_from` (weights only, on the CPU); its name must agree with a typed --model (`explicit`,
+    or not the default), and no --model-option may reshape it. Every refusal names the flag."""
     from scenes.cli.outputs import check_not_being_written
     from unips.checkpoint import load_model
 
@@ -206,7 +206,7 @@ def read_init_weights(cfg: TrainConfig) -> torch.nn.Module:
     except (ValueError, FileNotFoundError) as exc:  # the reader's message, with the flag that named the file
         raise type(exc)(f"--init-from: {exc}") from None
     name = meta.get("model_name")
-    if cfg.model != TrainConfig.model and cfg.model != name:
+    if (explicit or cfg.model != TrainConfig.model) and cfg.model != name:
         raise ValueError(f"--model={cfg.model!r}: --init-from {cfg.init_from!r} holds a {name!r} model")
     if cfg.model_option:
         raise ValueError("--model-option: not allowed with --init-from (the weights fix the configuration)")
