@@ -5315,3 +5315,18 @@ def test_init_weights_of_another_network_are_refused_even_with_the_default_model
     err = capsys.readouterr().err
     assert rc == 2 and "--model='glc-small'" in err and "holds a 'glc-test' model" in err, err
     assert not (tmp_path / "b" / "log.jsonl").exists()
+
+
+def test_an_empty_file_in_an_object_folder_is_not_exported(world: Path, tmp_path: Path, capsys):
+    """Sweep 25: a dataset without a manifest whose L002.png is empty (a copy cut short): exported into a shard,
+    exit 0, to fail only when trained. Refused naming the file; no shard written."""
+    from wildgen.export import main as export
+
+    data = tmp_path / "data"
+    shutil.copytree(world / "data", data)
+    (data / "manifest.json").unlink()
+    (data / "00001.data" / "L002.png").write_bytes(b"")
+    rc = export(["--data", str(data), "--out", str(tmp_path / "s"), "--quiet"])
+    err = capsys.readouterr().err
+    assert rc == 2 and f"'{data / '00001.data' / 'L002.png'}' is empty (0 bytes)" in err, err
+    assert not (tmp_path / "s").exists()

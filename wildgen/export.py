@@ -138,6 +138,10 @@ def _source_folders(data: Path) -> list[Path]:
             raise ValueError(f"--data: object folder {extra.name!r} of {str(data)!r} is not listed as done in its "
                              f"{MANIFEST} (the dataset differs from its manifest: move the folder away, or render it "
                              "with wildgen.make)")
+    empty = next((p for f in folders for p in sorted(f.rglob("*")) if p.is_file() and not p.stat().st_size), None)
+    if empty is not None:  # no file of an object folder is empty (a copy cut short): it would fail only when trained
+        raise ValueError(f"--data: {str(empty)!r} is empty (0 bytes); expected the object's files whole (copy them "
+                         "again, or render the object again)")
     keys = [sample_key(f) for f in folders]
     seen: dict[str, Path] = {}
     for key, folder in zip(keys, folders):
