@@ -107,7 +107,8 @@ def camera_lights(scene: dict[str, Any], num_images: int, path: Path) -> tuple[n
         return None, None
     if not isinstance(cam, list) or len(cam) != num_images:
         got = f"{len(cam)} entries" if isinstance(cam, list) else f"a {type(cam).__name__}"
-        raise ValueError(f"scene file {path}: camera_lights has {got}, expected a list of {num_images} (one per image)")
+        raise ValueError(f"scene file {path}: camera_lights has {got}, expected a list of {num_images} (one per image "
+                         f"file of the folder; an image added to it, or one removed, does not belong to this scene)")
     dirs, irr, single = [], [], True
     for i, entry in enumerate(cam):
         where = f"scene file {path}: camera_lights[{i}]"
