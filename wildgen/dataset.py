@@ -434,6 +434,8 @@ def make_dataset(
     engine = engine if engine is not None else InProcessEngine()
     with dataset_lock(out_dir):
         plan = plan_run(cfg, out_dir, variant, overwrite=overwrite)
+        if plan.todo and hasattr(engine, "prepare"):  # a cluster that cannot be joined: refused before any write
+            engine.prepare()
         if on_plan is not None:
             on_plan(plan)
         writer = ManifestWriter(out_dir, cfg, variant, dict(plan.kept), extra=extra)

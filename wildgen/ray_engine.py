@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import logging
 import os
+import signal
 import socket
 import sys
 import tempfile
@@ -76,11 +77,21 @@ def _bounded_init(ray, address: str, timeout: float | None = None, **kwargs) -> 
         except BaseException as exc:  # handed to the caller's thread as it is
             outcome["exc"] = exc
 
+    def not_about_the_thread(record: logging.LogRecord) -> bool:  # Ray's note on joining off the main thread
+        return "current thread is not the main thread" not in record.getMessage()
+
+    said = logging.getLogger("ray._private.worker")
+    said.addFilter(not_about_the_thread)
     thread = threading.Thread(target=join, name="ray-join", daemon=True)
-    thread.start()
-    thread.join(timeout)
+    try:
+        thread.start()
+        thread.join(timeout)
+    finally:
+        said.removeFilter(not_about_the_thread)
     if "exc" in outcome:
         raise outcome["exc"]
+    if "ok" in outcome:  # what ray.init() does on the main thread, done here: SIGTERM ends the driver cleanly
+        signal.signal(signal.SIGTERM, lambda signum, _frame: sys.exit(signum))
     if "ok" not in outcome:
         raise JoinTimeout(f"--ray: {address!r} answered as a gRPC server, but no Ray driver could join it within "
                           f"{timeout:g} s (a server that is not a Ray head, or one that turns drivers away); "
@@ -309,6 +320,13 @@ class RayEngine:
     """CPUs of a local Ray started here (None: all cores)."""
     used: dict = field(default_factory=dict)
     """Filled by run(): how Ray was reached, its CPUs, and the nodes that rendered objects (`nodes`)."""
+    joined: bool | None = field(default=None, repr=False)
+    """Set by prepare(): whether this engine started or joined Ray (and so ends it after run())."""
+
+    def prepare(self) -> None:
+        """Join (or start) Ray before the dataset's manifest is written: an address that admits no driver is refused
+        with nothing written."""
+        self.joined = self._connect(import_ray())
 
     def _connect(self, ray) -> bool:
         """Join or start Ray; True when this call started a local instance (shut down at the end)."""
@@ -349,7 +367,8 @@ class RayEngine:
 
         if self.recycle_after is not None and self.recycle_after < 1:
             raise ValueError(f"--recycle-after: expected a positive integer, got {self.recycle_after!r}")
-        connected = self._connect(ray)
+        connected = self._connect(ray) if self.joined is None else self.joined
+        self.joined = None
         threads = self.threads or 1
         attempts = Attempts(indices, self.max_retries, on_entry)
         pending: dict = {}
