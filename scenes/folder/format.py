@@ -342,9 +342,8 @@ def prediction_file(folder: str | Path, flag: str = "--pred") -> Path | None:
     for fname in PREDICTION_FILES:
         path = folder / fname
         if os.path.lexists(path) and not path.is_dir():  # a device too: refused by name
-            real = Path(os.path.realpath(path))
-            if path.is_symlink() and real.parent.parent == Path(os.path.realpath(folder)).parent \
-                    and real.parent != Path(os.path.realpath(folder)):
+            real, here = Path(os.path.realpath(path)), Path(os.path.realpath(folder))
+            if path.is_symlink() and real.parent.parent == here.parent and real.parent != here:
                 raise ValueError(f"{flag}: {str(path)!r} is a link to {str(real)!r}, the map of another object "
                                  "beside it: each object is scored on its own map; copy it in, or remove the link")
             return path
