@@ -7,6 +7,7 @@ from __future__ import annotations
 import logging
 import os
 import sys
+import threading
 import time
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
@@ -141,20 +142,14 @@ def _resume_config(opts: MakeOptions, explicit: set[str], manifest: dict) -> Gen
                          "--overwrite") from None
 
 
-def _summary(
-    entries: dict[int, dict], rendered: dict[str, int], plan, seconds: float, variant: str, how: str
-) -> tuple[str, int]:
+def _summary(entries: dict[int, dict], rendered: dict[str, int], plan, seconds: float, variant: str,
+             how: str) -> tuple[str, int]:
     failed = sum(e.get("status") == "failed" for e in entries.values())
-    done = rendered.get("done", 0)
-    skipped = plan.complete + plan.rejected + rendered.get("skipped", 0)
-    detail = []
-    if plan.complete:
-        detail.append(f"{plan.complete} already complete")
-    if plan.rejected + rendered.get("skipped", 0):
-        detail.append(
-            f"{plan.rejected + rendered.get('skipped', 0)} rejected by the entropy rule or the ground-truth check"
-        )
-    line = f"{done} done, {skipped} skipped, {failed} failed" + (f" ({', '.join(detail)})" if detail else "")
+    rejected = plan.rejected + rendered.get("skipped", 0)
+    detail = [f"{plan.complete} already complete"] * bool(plan.complete) + \
+        [f"{rejected} rejected by the entropy rule or the ground-truth check"] * bool(rejected)
+    line = (f"{rendered.get('done', 0)} done, {plan.complete + rejected} skipped, {failed} failed"
+            + (f" ({', '.join(detail)})" if detail else ""))
     return f"{line} in {seconds:.1f} s [{variant}, {how}]", failed
 
 
@@ -167,9 +162,8 @@ def check_flags(opts: MakeOptions, explicit: set[str]) -> None:
         raise ValueError("--resume: cannot be combined with --overwrite")
     if opts.res is not None and explicit & {"width", "height"}:
         given = " and ".join(f"--{f}" for f in ("width", "height") if f in explicit)
-        raise ValueError(
-            f"--res: sets both sides; it cannot be combined with {given} (use --res R or --width W --height H)"
-        )
+        raise ValueError(f"--res: sets both sides; it cannot be combined with {given} (use --res R or --width W "
+                         "--height H)")
     check_output_folder(opts.out)
     from scenes.cli.outputs import check_apart, check_no_holder_above
 
@@ -384,9 +378,10 @@ def main(argv: list[str] | None = None) -> int:
         parallel.STOP_SIGNALS.append(signum)  # seen even when a native call turns the interrupt into an error
         raise KeyboardInterrupt
 
-    # a signal the shell ignores (nohup, a background job) stays ignored
-    handled = [s for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP) if signal.getsignal(s) is not signal.SIG_IGN]
-    previous = {s: signal.signal(s, on_signal) for s in handled} if _main_thread() else {}
+    handled = [s for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)  # one the shell ignores (nohup) stays so
+               if signal.getsignal(s) is not signal.SIG_IGN]
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = {s: signal.signal(s, on_signal) for s in handled} if main_thread else {}
     try:
         return _run(argv, state)
     except Exception:
@@ -411,10 +406,11 @@ def _run(argv: list[str] | None, state: dict) -> int:
         explicit = _explicit_flags(argv)
         args = options_from_args(argv, explicit)
         out = Path(args.out)
+        state["made"] = None if os.path.lexists(out) else out  # made by this run: a refusal leaves no empty folder
         check_flags(args, explicit)
         cfg, variant = resolve_run(args, argv, out)
     except (UsageError, ValueError, OSError) as exc:
-        return report_error(exc)
+        return _refused(exc, state)
 
     from contextlib import ExitStack
 
@@ -426,10 +422,17 @@ def _run(argv: list[str] | None, state: dict) -> int:
                 held.enter_context(output_lock(args.shards, "--shards", inputs={"--out": str(out)}))
             except (UsageError, ValueError, OSError) as exc:
                 return report_error(exc)
-        return _render(args, cfg, variant, out)
+        return _render(args, cfg, variant, out, state)
 
 
-def _render(args: MakeOptions, cfg, variant: str, out: Path) -> int:
+def _refused(exc: BaseException, state: dict) -> int:
+    """The one-line refusal, with --out removed where this run made it and left it empty."""
+    if (made := state.get("made")) is not None and os.path.isdir(made) and not any(os.scandir(made)):
+        os.rmdir(made)
+    return report_error(exc)
+
+
+def _render(args: MakeOptions, cfg, variant: str, out: Path, state: dict) -> int:
     """Render the dataset (then its shards, with --shards); the exit status."""
     from wildgen.dataset import make_dataset
     from wildgen.parallel import WorkersCannotStart, choose_engine
@@ -448,7 +451,7 @@ def _render(args: MakeOptions, cfg, variant: str, out: Path) -> int:
         return report_error(exc, 1)
     except (ValueError, OSError, ImportError, WorkersCannotStart) as exc:
         bar.close()
-        return report_error(exc)
+        return _refused(exc, state)
     except KeyboardInterrupt:
         bar.close()
         raise
@@ -481,11 +484,6 @@ def _render(args: MakeOptions, cfg, variant: str, out: Path) -> int:
         return export_after_make(out, args.shards, args.shard_encoding, overwrite=args.overwrite)
     return 0
 
-
-def _main_thread() -> bool:
-    import threading
-
-    return threading.current_thread() is threading.main_thread()
 
 
 if __name__ == "__main__":
