@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import io
 import json
+import re
 import tarfile
 from pathlib import Path
 
@@ -466,3 +467,15 @@ def test_a_refused_pack_leaves_no_folder_behind(tmp_path):
     with pytest.raises(UsageError, match="outside"):
         unpack_carry(carry, tmp_path / "work")
     assert list((tmp_path / "work").iterdir()) == []
+
+
+def test_an_index_holding_a_number_that_is_not_finite_is_refused_naming_the_flag(synthetic_object, tmp_path):
+    """Sweep 25: index.json's shard_size edited to 1e400 (inf): the shards were read and trained on, exit 0. The
+    one JSON rule refuses it, and the index's reader names --data, the file and the key."""
+    from scenes.folder.shard_format import read_index
+
+    shards = _export(synthetic_object, tmp_path / "shards")
+    index = shards / "index.json"
+    index.write_text(re.sub(r'"shard_size": \d+', '"shard_size": 1e400', index.read_text()))
+    with pytest.raises(ValueError, match=rf"^--data: '{index}': holds shard_size = inf, not a finite number"):
+        read_index(shards, "--data")

@@ -368,8 +368,8 @@ def read_index(folder: str | Path, arg: str = "--data") -> dict[str, Any]:
         index = read_json(path)
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ValueError(f"{arg}: {str(path)!r} cannot be read as JSON ({exc})") from None
-    except RecursionError:  # nested deeper than the parser's stack: not an index
-        raise ValueError(f"{arg}: {str(path)!r} is nested too deeply to be a shard index") from None
+    except ValueError as exc:  # the one JSON rules' refusals (a NaN, a key twice, too deep), naming the file
+        raise ValueError(f"{arg}: {exc}") from None
     if not isinstance(index, dict) or index.get("format") != FORMAT or not isinstance(index.get("shards"), list):
         raise ValueError(f"{arg}: {str(path)!r} is not a shard index of wildgen.export (expected format "
                          f"{FORMAT!r} and a list of shards)")
