@@ -43,7 +43,7 @@ from typing import Annotated
 
 from orchestrate.asset_split import SPLIT_FOLDERS, check_split, split_assets
 from orchestrate.steps import STOP_GRACE_S, OutOfTime, StepFailed, check_step, run_step
-from scenes.cli.budget import END_SHARE, Budget
+from scenes.cli.budget import Budget, end_reserve
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.needs import Needs
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, comma_list, option
@@ -121,7 +121,7 @@ class Clock:
         """When a running step is stopped (None: no budget)."""
         if not self.minutes:
             return None
-        return self.budget.deadline - END_SHARE * self.minutes * 60 - STOP_GRACE_S
+        return self.budget.deadline - end_reserve(self.minutes * 60) - STOP_GRACE_S
 
     def over(self, what: str) -> OutOfTime:
         return OutOfTime(f"--minutes: {self.minutes:g} min ran out {what} (after {self.budget.spent():.0f} s; expected "

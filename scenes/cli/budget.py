@@ -12,6 +12,14 @@ from dataclasses import dataclass, field
 _IMPORTED = time.time()
 END_SHARE = 0.05
 """Share of a budget kept after its last piece of work: the last files and the process's exit."""
+END_MIN_S = 2.0
+"""Seconds kept after the last piece of work at the least: the process's exit has a cost of its own (torch's and
+the supervisor's teardown, about 1.5 s on two busy cores), which a share of a short budget does not cover."""
+
+
+def end_reserve(seconds: float) -> float:
+    """The seconds of a budget of `seconds` kept for what follows its last piece of work."""
+    return min(max(END_SHARE * seconds, END_MIN_S), seconds / 4)
 
 
 def process_start() -> float:
@@ -36,7 +44,7 @@ def process_start() -> float:
 class Budget:
     """`seconds` of wall time from `start` (None: no limit). `fits(kind)` says whether one more piece of work of
     that kind (a step, a validation, a save) still fits, from the longest one of that kind timed so far
-    (`timed`); a kind never timed is estimated by `first_guess`. `END_SHARE` of the budget is kept for what
+    (`timed`); a kind never timed is estimated by `first_guess`. `end_reserve` of the budget is kept for what
     follows the last piece (the last files, the process's exit)."""
 
     seconds: float | None
@@ -59,4 +67,4 @@ class Budget:
     def fits(self, *kinds: str, first_guess: float = 0.0) -> bool:
         """Whether work of these kinds, one after the other, ends before the deadline."""
         need = sum(self.longest.get(k, first_guess) for k in kinds)
-        return time.time() + need < self.deadline - END_SHARE * (self.seconds or 0.0)
+        return time.time() + need < self.deadline - end_reserve(self.seconds or 0.0)
