@@ -19,9 +19,10 @@ import signal
 import subprocess
 import sys
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Iterator
 
 import numpy as np
 import pytest
@@ -4951,6 +4952,18 @@ def test_a_listener_that_writes_one_settings_frame_and_then_nothing_is_no_ray_he
             conn.close()
 
 
+@contextmanager
+def _read_only_mount(path: Path, what: str = "a file") -> Iterator[None]:
+    """`path` bind-mounted onto itself read-only for the block (root only; skipped where mounting is not allowed)."""
+    if os.geteuid() != 0 or subprocess.run(["mount", "--bind", str(path), str(path)]).returncode != 0:
+        pytest.skip(f"cannot bind-mount {what} here (needs root)")
+    try:
+        subprocess.run(["mount", "-o", "remount,bind,ro", str(path)], check=False)
+        yield
+    finally:
+        subprocess.run(["umount", str(path)], check=False)
+
+
 def test_a_dataset_holding_a_mount_point_is_not_resumed_or_replaced(tmp_path: Path, capsys):
     """Sweep 23: a dataset whose manifest.json (or a file of an object folder) is a read-only mount: make --resume
     ended in EBUSY naming a temporary file, and sensor --overwrite removed the manifest before failing on the
@@ -4960,14 +4973,8 @@ def test_a_dataset_holding_a_mount_point_is_not_resumed_or_replaced(tmp_path: Pa
     data = tmp_path / "data"
     assert make(["--out", str(data), *TINY]) == 0
     before = {p: p.read_bytes() for p in sorted(data.rglob("*")) if p.is_file()}
-    target = data / "manifest.json"
-    if os.geteuid() != 0 or subprocess.run(["mount", "--bind", str(target), str(target)]).returncode != 0:
-        pytest.skip("cannot bind-mount a file here (needs root)")
-    try:
-        subprocess.run(["mount", "-o", "remount,bind,ro", str(target)], check=False)
+    with _read_only_mount(data / "manifest.json"):
         rc = make(["--out", str(data), "--objects", "2", "--workers", "0", "--quiet", "--resume"])
-    finally:
-        subprocess.run(["umount", str(target)], check=False)
     assert rc == 2 and "holds the mount point" in capsys.readouterr().err
     assert {p: p.read_bytes() for p in sorted(data.rglob("*")) if p.is_file()} == before
 
@@ -5006,14 +5013,9 @@ def test_a_resumed_dataset_whose_finished_object_is_a_mount_point_is_resumed(tmp
     assert make(["--out", str(data), *TINY]) == 0
     kept = next(p for p in data.iterdir() if p.is_dir() and p.name.endswith(".data"))
     before = {p: p.read_bytes() for p in sorted(kept.rglob("*")) if p.is_file()}
-    if os.geteuid() != 0 or subprocess.run(["mount", "--bind", str(kept), str(kept)]).returncode != 0:
-        pytest.skip("cannot bind-mount a folder here (needs root)")
-    try:
-        subprocess.run(["mount", "-o", "remount,bind,ro", str(kept)], check=False)
+    with _read_only_mount(kept, "a folder"):
         rc = make(["--out", str(data), "--objects", "2", "--workers", "0", "--quiet", "--resume"])
         rc_over = make(["--out", str(data), *TINY, "--overwrite"])
-    finally:
-        subprocess.run(["umount", str(kept)], check=False)
     err = capsys.readouterr().err
     assert rc == 0, err
     assert rc_over == 2 and "holds the mount point" in err
@@ -5031,14 +5033,9 @@ def test_a_training_run_holding_a_mount_point_is_not_resumed(world: Path, tmp_pa
     shutil.copytree(world / "run_old", run)
     before = {p: p.read_bytes() for p in sorted(run.rglob("*")) if p.is_file()}
     last = run / "last.pt"
-    if os.geteuid() != 0 or subprocess.run(["mount", "--bind", str(last), str(last)]).returncode != 0:
-        pytest.skip("cannot bind-mount a file here (needs root)")
-    try:
-        subprocess.run(["mount", "-o", "remount,bind,ro", str(last)], check=False)
+    with _read_only_mount(last):
         rc = train(["--data", str(world / "data"), "--out", str(run), "--model", "glc-test", "--steps", "3",
                     "--resume", "--no-progress"])
-    finally:
-        subprocess.run(["umount", str(last)], check=False)
     err = capsys.readouterr().err
     assert rc == 2 and f"holds the mount point '{last}'" in err, err
     assert {p: p.read_bytes() for p in sorted(run.rglob("*")) if p.is_file()} == before
