@@ -60,17 +60,24 @@ def check_not_being_written(path: str | os.PathLike, flag: str) -> None:
     hold are ours (`HELD_ENV`: a session's steps read what its earlier steps wrote)."""
     if not path or not os.path.lexists(path):
         return
+    real = os.path.realpath(path)
+    if (here := _holder_from(real)) is not None:
+        within = "" if here == real else f" (it lies in {here!r}, which that run holds)"
+        raise UsageError(f"{flag}: {str(path)!r} is being written by another run{within}; wait until it has "
+                         "finished, then run this again")
+
+
+def _holder_from(folder: str) -> str | None:
+    """The first of `folder` and the folders above it that another run holds (`_held_by_another`), None when none
+    does; folders this process or the commands that started it hold are ours (`HELD_ENV`)."""
     ours = set(_HELD) | set(filter(None, os.environ.get(HELD_ENV, "").split(os.pathsep)))
-    here = os.path.realpath(path)
     while True:
-        if here not in ours and _held_by_another(here):
-            within = "" if here == os.path.realpath(path) else f" (it lies in {here!r}, which that run holds)"
-            raise UsageError(f"{flag}: {str(path)!r} is being written by another run{within}; wait until it has "
-                             "finished, then run this again")
-        parent = os.path.dirname(here)
-        if parent == here:
-            return
-        here = parent
+        if folder not in ours and _held_by_another(folder):
+            return folder
+        parent = os.path.dirname(folder)
+        if parent == folder:
+            return None
+        folder = parent
 
 
 def check_output_folder(path: str | os.PathLike, flag: str = "--out") -> str | os.PathLike:
@@ -201,16 +208,9 @@ def check_no_holder_above(path: str | os.PathLike, flag: str = "--out") -> None:
     writes there too, and the two runs' files would mix (a predict into p/00001 while another writes p). A folder
     this process or the commands that started it hold is ours (`HELD_ENV`). Probes each existing folder above with
     a shared lock, released at once; creates nothing."""
-    ours = set(_HELD) | set(filter(None, os.environ.get(HELD_ENV, "").split(os.pathsep)))
-    above = os.path.dirname(os.path.realpath(path))
-    while True:
-        if above not in ours and _held_by_another(above):
-            raise UsageError(f"{flag}: {str(path)!r} lies inside {above!r}, which another run holds (it is writing "
-                             f"there; one writer per output folder): wait for it to end, or use another {flag}")
-        parent = os.path.dirname(above)
-        if parent == above:
-            return
-        above = parent
+    if (above := _holder_from(os.path.dirname(os.path.realpath(path)))) is not None:
+        raise UsageError(f"{flag}: {str(path)!r} lies inside {above!r}, which another run holds (it is writing "
+                         f"there; one writer per output folder): wait for it to end, or use another {flag}")
 
 
 @contextmanager
