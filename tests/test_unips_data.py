@@ -48,6 +48,20 @@ def test_load_ours_layout(tmp_path):
     assert obj.image_names == [f"L{i:03d}.png" for i in range(6)]
 
 
+def test_ours_with_upper_case_suffixes_reads_the_same(tmp_path):
+    """A copy from a case-blind disk names the images L000.PNG: the same object; two files for one image refused."""
+    n, mask, L, irr, imgs = write_ours(tmp_path / "ball.data")
+    for p in sorted((tmp_path / "ball.data").glob("L*.png")):
+        p.rename(p.with_suffix(".PNG"))
+    obj = load_object(tmp_path / "ball.data")
+    assert obj.layout == "ours" and obj.images.shape == (6, 32, 32, 3)
+    assert np.abs(obj.images - imgs).max() <= 0.5 / 65535 + 1e-7
+    assert np.allclose(obj.light_directions, L, atol=1e-6)
+    (tmp_path / "ball.data" / "L2.png").write_bytes((tmp_path / "ball.data" / "L002.PNG").read_bytes())
+    with pytest.raises(ValueError, match="two files for image 2"):
+        load_object(tmp_path / "ball.data")
+
+
 def test_ours_with_other_lights_has_no_directions(tmp_path):
     write_ours(tmp_path / "o.data", other=1)
     obj = load_object(tmp_path / "o.data")

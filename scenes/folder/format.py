@@ -107,7 +107,7 @@ def manifest_problem(record: object) -> str | None:
 """A dataset folder's record of the run that wrote it (wildgen.make, wildgen.sensor). `complete: false` while a
 run writes it (true at its end): the object folders of a run stopped half-way are never read as a dataset."""
 
-_IMAGE_RE = re.compile(r"^L(\d+)\.png$")
+_IMAGE_RE = re.compile(r"^L(\d+)\.png$", re.IGNORECASE)  # a copy from a case-blind disk may say L000.PNG
 
 
 def image_name(index: int) -> str:
@@ -135,8 +135,9 @@ def image_files(folder: str | Path) -> list[Path]:
     found = {}
     for p in folder.iterdir():
         m = _IMAGE_RE.match(p.name)
-        if m:
-            found[int(m.group(1))] = p
+        if m and (twin := found.setdefault(int(m.group(1)), p)) is not p:  # L000.png and L000.PNG, or L0 and L000
+            raise ValueError(f"images: {str(folder)!r} has two files for image {int(m.group(1))}: {twin.name!r} and "
+                             f"{p.name!r}; keep one")
     indices = sorted(found)
     if indices != list(range(len(indices))):
         missing = sorted(set(range(max(indices, default=-1) + 1)) - set(indices))
