@@ -195,9 +195,8 @@ def check_replaceable(folder: str | os.PathLike, flag: str = "--out", owner: str
     no mount point (a file or folder mounted inside it: removing or renaming it fails mid-way, EBUSY, with part of
     the earlier contents gone), but within `kept` (what the run leaves as it is: a resumed dataset's finished
     objects). UsageError naming it, before the first write."""
-    spared = [os.path.realpath(k) for k in kept]
     inside = [p for p in mounts_within(folder) if p != os.path.realpath(folder)
-              and not any(p == k or p.startswith(k.rstrip(os.sep) + os.sep) for k in spared)]
+              and not any(mounts_within(k, [p]) for k in kept)]
     if inside:
         raise UsageError(f"{flag}: {str(folder)!r} holds the mount point {inside[0]!r}, where {owner} writes; it is "
                          f"never replaced: unmount it, or use another {flag}")
