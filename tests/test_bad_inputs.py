@@ -5251,11 +5251,22 @@ def test_two_links_to_one_folder_elsewhere_are_refused(world: Path, tmp_path: Pa
     assert not (tmp_path / "p").exists()
 
 
-@pytest.mark.parametrize("edit", ["newer", "objects-a-dict", "width-negative"])
+MANIFEST_EDITS = {  # sweep 26: an object's index null (int(None) traceback), 'zero', beyond the config's count
+    # (its record dropped without a word), twice; the config's object count 'abc' (a bare int() message)
+    "index-null": ("d['objects'][0]['index'] = None", "has index None, expected a whole number below its config's 1"),
+    "index-text": ("d['objects'][0]['index'] = 'zero'", "has index 'zero', expected a whole number"),
+    "index-beyond": ("d['objects'].append(dict(d['objects'][0], index=5, folder='00005.data'))", "has index 5, "),
+    "index-twice": ("d['objects'].append(dict(d['objects'][0]))", "it has two records for object 0"),
+    "count-text": ("d['config']['objects'] = 'abc'", "its config records objects 'abc', expected a whole number"),
+}
+
+
+@pytest.mark.parametrize("edit", ["newer", "objects-a-dict", "width-negative", *MANIFEST_EDITS])
 def test_a_manifest_this_toolkit_did_not_write_is_not_acted_on(tmp_path: Path, capsys, edit):
     """Sweep 25: a manifest.json of format_version 99 was resumed (re-rendered and rewritten as version 1), one
     whose objects are a dict read as no statuses (predict exit 0), and a recorded width of -32 refused as if typed
-    (`--width: got -32`). Each is refused naming the manifest; nothing is written."""
+    (`--width: got -32`). Sweep 26: `MANIFEST_EDITS`, the same command again. Each is refused naming the manifest;
+    nothing is written."""
     from unips.predict import main as predict
     from wildgen.make import main as make
 
@@ -5267,12 +5278,17 @@ def test_a_manifest_this_toolkit_did_not_write_is_not_acted_on(tmp_path: Path, c
         record["format_version"] = 99
     elif edit == "objects-a-dict":
         record["objects"] = {"a": 1}
-    else:
+    elif edit == "width-negative":
         record["config"]["width"] = -32
+    else:
+        exec(MANIFEST_EDITS[edit][0], {"d": record})
     path.write_text(json.dumps(record))
     capsys.readouterr()
     before = {p: p.read_bytes() for p in sorted(data.rglob("*")) if p.is_file()}
-    if edit == "objects-a-dict":
+    if edit in MANIFEST_EDITS:
+        rc = make(["--out", str(data), *TINY])
+        said = re.escape(MANIFEST_EDITS[edit][1])
+    elif edit == "objects-a-dict":
         rc = predict(["--method", "least-squares", "--input", str(data), "--out", str(tmp_path / "p")])
         said = "its objects are dict, expected a list"
     else:

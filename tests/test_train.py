@@ -118,6 +118,37 @@ def test_resume_is_bit_for_bit(train_dataset, tmp_path) -> None:
     assert train(train_dataset, part, "--steps", "8", "--resume", *opts, "--seed", "9") == 2
 
 
+def test_resume_refuses_data_changed_under_the_same_names(train_dataset, tmp_path, capsys) -> None:
+    """Sweep 26: two objects swapped under their names, or an image fewer in every object, was resumed without a
+    word (only the names were compared): a run trained half on one dataset and half on another. Both refused now;
+    the same data copied elsewhere still resumes (the digest is of the decoded contents, not of paths)."""
+    import shutil
+
+    data = tmp_path / "train"
+    shutil.copytree(train_dataset["train"], data)
+    here = {"train": data}
+    run = tmp_path / "run"
+    assert train(here, run, "--steps", "1") == 0
+    moved = shutil.move(data, tmp_path / "moved")
+    assert train({"train": Path(moved)}, run, "--steps", "2", "--resume") == 0  # same contents at another path
+    shutil.move(moved, data)
+    (data / "obj0.data").rename(tmp_path / "t")
+    (data / "obj1.data").rename(data / "obj0.data")
+    (tmp_path / "t").rename(data / "obj1.data")
+    capsys.readouterr()
+    assert train(here, run, "--steps", "3", "--resume") == 2
+    assert "differ from the checkpoint's (the same names hold other images" in capsys.readouterr().err
+    for obj in data.iterdir():  # back in place, then one image fewer in each (its light too)
+        (obj / "L005.png").unlink()
+        scene = json.loads((obj / "scene.json").read_text())
+        (obj / "scene.json").write_text(json.dumps({**scene, "camera_lights": scene["camera_lights"][:5]}))
+    (data / "obj0.data").rename(tmp_path / "t")
+    (data / "obj1.data").rename(data / "obj0.data")
+    (tmp_path / "t").rename(data / "obj1.data")
+    assert train(here, run, "--steps", "3", "--resume") == 2
+    assert "'obj0' has 5 images, 6 in the checkpoint" in capsys.readouterr().err
+
+
 def test_cli_errors_are_one_line(train_dataset, tmp_path, capsys) -> None:
     assert main(["--data", str(tmp_path / "nope"), "--out", str(tmp_path / "o"), "--no-progress"]) == 2
     err = capsys.readouterr().err.strip().splitlines()

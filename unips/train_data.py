@@ -10,6 +10,7 @@ canonical grid and on random masked pixels. `probe_samples` is one validation: t
 
 from __future__ import annotations
 
+import hashlib
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,6 +31,7 @@ class Sample:
     normals: torch.Tensor | None  # (3, R, R) float32 unit vectors inside the mask, 0 outside
     light_family: str | None  # lighting family from scene.json, if known
     level: int | None = None  # complexity level from scene.json (`wildgen.make --level`), if known
+    digest: str = ""  # sha256 of the object as decoded (`content_digest`): a resumed run's data is the same data
 
     @property
     def num_images(self) -> int:
@@ -81,7 +83,17 @@ def prepare_sample(obj: Any, res: int, require_normals: bool = True, name: str |
         raise ValueError(f"{where}: object {obj.name!r} has no ground-truth normals (normal.tif); training needs them")
     prep = resize_prepared(prepare(obj, margin=4), res)
     imgs, m, n = to_tensors(prep.images, prep.mask, prep.normals)
-    return Sample(name or obj.name, imgs.to(torch.float16), m, n, obj.light_family, obj.level)
+    return Sample(name or obj.name, imgs.to(torch.float16), m, n, obj.light_family, obj.level, content_digest(obj))
+
+
+def content_digest(obj: Any) -> str:
+    """sha256 of a loaded object's mask, ground-truth normals and every 7th pixel of its images, as decoded from
+    its files: exact on every machine (integer files decode exactly), so two objects swapped under their names,
+    or images rendered anew, are told from the data a checkpoint was trained on (`data_change`)."""
+    h = hashlib.sha256()
+    for a in (obj.mask, obj.normals, None if obj.images is None else obj.images[:, ::7, ::7]):
+        h.update(b"-" if a is None else np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()
 
 
 def load_samples(root: str | Path, res: int, require_normals: bool = True, arg: str = "--data") -> list[Sample]:
@@ -111,11 +123,27 @@ def load_samples(root: str | Path, res: int, require_normals: bool = True, arg: 
     return samples
 
 
-def describe_data(samples: Sequence[Sample], root: str | Path, res: int) -> dict[str, Any]:
-    """Data description stored in checkpoints (and compared on resume)."""
+def describe_data(samples: Sequence[Any], root: str | Path, res: int, parts: Sequence[str] | None = None
+                  ) -> dict[str, Any]:
+    """Data description stored in checkpoints (and compared on resume, `data_change`); its digest is of `parts`
+    (streamed shards: their checksums), by default of the samples' own digests."""
     roots = [str(r.resolve()) for r in data_roots(root)]
+    digest = hashlib.sha256("\n".join([s.digest for s in samples] if parts is None else parts).encode()).hexdigest()
     return {"root": roots[0] if len(roots) == 1 else roots, "res": res, "objects": [s.name for s in samples],
-            "images": [s.num_images for s in samples]}
+            "images": [s.num_images for s in samples], "digest": digest}
+
+
+def data_change(saved: dict[str, Any], now: dict[str, Any]) -> str | None:
+    """How the data described by `now` differs from the data a checkpoint was trained on (`saved`, both
+    `describe_data`), or None when it is the same (a record an older checkpoint lacks is not compared)."""
+    if saved.get("objects") != now["objects"]:
+        return "other object names"
+    if "images" in saved and saved["images"] != now["images"]:
+        i = next(i for i, (a, b) in enumerate(zip(saved["images"], now["images"])) if a != b)
+        return f"object {now['objects'][i]!r} has {now['images'][i]} images, {saved['images'][i]} in the checkpoint"
+    if "digest" in saved and saved["digest"] != now["digest"]:
+        return "the same names hold other images, masks or ground-truth normals"
+    return None
 
 
 # -- batches ----------------------------------------------------------------------------------

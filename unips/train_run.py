@@ -402,8 +402,7 @@ def setup_run(cfg: TrainConfig) -> Run:
 
 
 def stream_description(cfg: TrainConfig, dist: Dist) -> dict[str, Any]:
-    """`describe_data` of streamed shards, from their index; refuses fewer shards than processes x loader
-    workers (each reads its own)."""
+    """`describe_data` of streamed shards, from their index; fewer shards than processes x loader workers refused."""
     from types import SimpleNamespace
 
     from unips.shard_data import check_split, resolve_shards
@@ -411,7 +410,7 @@ def stream_description(cfg: TrainConfig, dist: Dist) -> dict[str, Any]:
     shards = [s for r in data_roots(cfg.data) for s in resolve_shards(r)]
     check_split(shards, dist.world, cfg.loader_workers)
     objects = [SimpleNamespace(name=o["name"], num_images=int(o.get("images", 0))) for s in shards for o in s.objects]
-    return describe_data(objects, cfg.data, cfg.res)
+    return describe_data(objects, cfg.data, cfg.res, [str(s.entry.get("sha256")) for s in shards])
 
 
 def open_stream(run: Run) -> Any:
@@ -432,6 +431,7 @@ def resume_run(run: Run) -> None:
     """Continue from RUN/last.pt: the same trajectory settings and objects, then weights, optimiser, schedule,
     random states, step, best validation and elapsed time."""
     from unips.checkpoint import load_state_strict, load_training_checkpoint, set_rng_states
+    from unips.train_data import data_change
 
     cfg = run.cfg
     if not os.path.lexists(run.last_path):  # a run stopped before its first checkpoint: nothing to continue
@@ -443,15 +443,14 @@ def resume_run(run: Run) -> None:
         raise ValueError(f"--resume: {exc}") from None
     old = ckpt["extra"].get("train_args", {})
     defaults = dataclasses.asdict(TrainConfig())
-    # A resumed run keeps its weights (last.pt), so --resume takes no --init-from: the run's lineage is the
-    # checkpoint's.
+    # A resumed run keeps its weights (last.pt), so --resume takes no --init-from: its lineage is the checkpoint's.
     run.train_args["init_from"] = old.get("init_from")
     for key, value in run.train_args.items():
         saved = old.get(key, defaults.get(key))  # a key newer than the checkpoint had its default there
         if saved != value:
             raise ValueError(f"--resume: {key}={value!r} differs from the checkpoint's {saved!r}")
-    if ckpt["data"].get("objects") != run.data_desc["objects"]:
-        raise ValueError(f"--resume: the objects in --data {cfg.data!r} differ from the checkpoint's")
+    if (change := data_change(ckpt["data"], run.data_desc)) is not None:
+        raise ValueError(f"--resume: the objects in --data {cfg.data!r} differ from the checkpoint's ({change})")
     step = ckpt["step"]
     if not isinstance(step, int) or isinstance(step, bool) or not 0 <= step < 2**62:  # checked before the log is cut
         raise ValueError(f"--resume: {str(run.last_path)!r} records step {step!r:.40}, expected a whole number of "

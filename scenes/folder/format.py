@@ -103,7 +103,27 @@ def manifest_problem(record: object) -> str | None:
     if version != MANIFEST_VERSION or isinstance(version, bool):
         return (f"its format_version is {version!r:.40}, expected {MANIFEST_VERSION} (written by another version of "
                 "the toolkit: use that one)")
+    config = record.get("config")
+    count = config.get("objects") if isinstance(config, dict) else None
+    if count is not None and not _whole(count):
+        return f"its config records objects {count!r:.40}, expected a whole number"
+    seen: set[int] = set()
+    for e in record["objects"]:  # (a record that is no JSON object is said by the reader, with its place)
+        if not isinstance(e, dict) or "index" not in e:
+            continue
+        index = e["index"]
+        if not _whole(index) or (count is not None and index >= count):
+            below = f" below its config's {count} objects" if count is not None else ""
+            return f"an object's record has index {index!r:.40}, expected a whole number{below}"
+        if index in seen:
+            return f"it has two records for object {index}"
+        seen.add(index)
     return None
+
+
+def _whole(value: object) -> bool:
+    """A count or an index as a manifest records it: an int from 0 up (not a bool, nor 1.0)."""
+    return isinstance(value, int) and not isinstance(value, bool) and 0 <= value < 2**62
 """A dataset folder's record of the run that wrote it (wildgen.make, wildgen.sensor). `complete: false` while a
 run writes it (true at its end): the object folders of a run stopped half-way are never read as a dataset."""
 
