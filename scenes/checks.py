@@ -3,8 +3,12 @@ field of the plain scene data (`scenes.description`, `scenes.lights`) is checked
 ValueError `NAME: got VALUE, expected WHAT` naming the flag or the field (`owner.field`) and the value."""
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
 import numbers
+import types
+import typing
 from typing import Any, Iterable
 
 
@@ -105,6 +109,8 @@ def check_matrix4(value: Any, name: str) -> None:
     if abs(float(np.linalg.det(np.asarray(value, np.float64)[:3, :3]))) < 1e-12:  # a placement must be invertible
         raise ValueError(f"{name}: a singular matrix (its 3x3 part has determinant 0); expected an invertible "
                          "placement (scale, rotation, translation)")
+    if list(map(float, value[3])) != [0.0, 0.0, 0.0, 1.0]:  # a projective matrix places nothing
+        raise ValueError(f"{name}: its last row is {value[3]!r}, expected [0, 0, 0, 1] (an affine placement)")
 
 
 def parse_range(text: Any, name: str, minimum: float, maximum: float, what: str, integer: bool = False) -> tuple:
@@ -119,3 +125,57 @@ def parse_range(text: Any, name: str, minimum: float, maximum: float, what: str,
     if len(vals) != 2 or not all(math.isfinite(v) for v in vals) or not minimum <= vals[0] <= vals[1] <= maximum:
         raise ValueError(f"{name}: {text!r} is not a range A-B with {minimum:g} <= A <= B <= {maximum:g} ({what})")
     return tuple(vals)
+
+
+SEED_END = 2**32
+"""Seeds are below this: Mitsuba's sampler seed is a 32-bit unsigned integer (numpy's generators take any)."""
+
+
+def check_seed(value: Any, name: str) -> int:
+    """A seed as a scene records it: an integer from 0 to 2^32 - 1."""
+    return check_int(value, name, 0, SEED_END - 1)
+
+
+def check_json_types(obj: Any, owner: str, given: Iterable[str]) -> None:
+    """Each field of dataclass `obj` named in `given` (read from a file) holds a value of its annotated kind: an
+    integer where an int is declared (not 1.5, '1' or true), true or false for a bool, a list of numbers for
+    list[float]... (a field holding a dataclass is read, and checked, by its own reader). ValueError naming
+    `owner.field`, the value and the kind expected."""
+    hints = _hints(type(obj))
+    for name in given:
+        if not _fits(value := getattr(obj, name), hints[name]):
+            raise ValueError(f"{owner + '.' if owner else ''}{name}: got {value!r:.80}, expected {_kind(hints[name])}")
+
+
+@functools.lru_cache(maxsize=None)
+def _hints(cls: type) -> dict[str, Any]:
+    return typing.get_type_hints(cls)
+
+
+def _fits(value: Any, hint: Any) -> bool:
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin in (types.UnionType, typing.Union):
+        return any(_fits(value, a) for a in args)
+    if origin is list:
+        return isinstance(value, list) and all(_fits(v, args[0]) for v in value)
+    if origin is dict:
+        return isinstance(value, dict) and all(_fits(k, args[0]) and _fits(v, args[1]) for k, v in value.items())
+    if hint is bool or hint is str or hint is type(None):
+        return isinstance(value, hint)
+    if hint is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    if hint is float:
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    return not (isinstance(hint, type) and dataclasses.is_dataclass(hint)) or isinstance(value, hint)
+
+
+def _kind(hint: Any) -> str:
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin in (types.UnionType, typing.Union):
+        return " or ".join(_kind(a) for a in args)
+    if origin is list:
+        return f"a list of ({_kind(args[0])})"
+    if origin is dict:
+        return f"an object of ({_kind(args[1])})"
+    return {bool: "true or false", int: "an integer", float: "a number", str: "a string",
+            type(None): "null"}.get(hint, getattr(hint, "__name__", str(hint)))

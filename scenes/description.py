@@ -14,10 +14,24 @@ import math
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
-from scenes.checks import check_choice, check_direction, check_finite, check_matrix4, check_number, check_vector
+from scenes.checks import (
+    check_choice,
+    check_direction,
+    check_finite,
+    check_int,
+    check_json_types,
+    check_matrix4,
+    check_number,
+    check_seed,
+    check_vector,
+)
 from scenes.files import json_text
 from scenes.lights import IDENTITY4, LIGHT_TYPES, LightDesc, light_from_dict
 
+MAX_TEXELS = 8192
+"""The widest texture or detail map a scene may ask for (the generator makes at most 8192: 2 x its 4096 texture)."""
+MAX_RINGS = 2048
+"""The finest tessellation of a procedural shape (2048 rings x 4096 segments: 8 M vertices; the generator uses 64)."""
 MAX_BOUNCES = 2**31 - 3
 """The most bounces Mitsuba takes: its max_depth (bounces + 2) is a signed 32-bit integer."""
 
@@ -68,10 +82,11 @@ class ShapeDesc:
         check_choice(self.kind, "shape.kind", SHAPE_KINDS)
         if self.kind == "mesh" and not self.file:
             raise ValueError("shape.file: kind 'mesh' needs a mesh file path, got None")
-        if not isinstance(self.resolution, int) or self.resolution < 4:
-            raise ValueError(f"shape.resolution: expected an integer >= 4, got {self.resolution!r}")
-        for k, v in self.params.items():
-            check_finite(v, f"shape.params.{k}")
+        check_int(self.resolution, "shape.resolution", 4, MAX_RINGS)
+        check_seed(self.seed, "shape.seed")
+        from scenes.procedural import check_params
+
+        check_params(self.kind, self.params)
         check_matrix4(self.to_world, "shape.to_world")
 
 
@@ -108,8 +123,10 @@ class TextureDesc:
                 raise ValueError(f"{owner}.value2: expected {len(self.value)} numbers, got {self.value2!r}")
             check_finite(self.value2, f"{owner}.value2")
         check_number(self.scale, f"{owner}.scale", above=0)
-        if not isinstance(self.resolution, int) or self.resolution < 1:
-            raise ValueError(f"{owner}.resolution: expected a positive integer, got {self.resolution!r}")
+        check_int(self.resolution, f"{owner}.resolution", 1, MAX_TEXELS)
+        check_seed(self.seed, f"{owner}.seed")
+        if self.channel is not None:
+            check_int(self.channel, f"{owner}.channel", 0, 3)  # R, G, B or A of the file
         if self.kind == "file" and not self.file:
             raise ValueError(f"{owner}.file: kind 'file' needs an image path, got None")
 
@@ -136,8 +153,8 @@ class DetailDesc:
         if not (isinstance(self.strength_deg, (int, float)) and 0 <= self.strength_deg < 90):
             raise ValueError(f"material.detail.strength_deg: expected degrees in [0, 90), got {self.strength_deg!r}")
         check_number(self.scale, "material.detail.scale", above=0)
-        if isinstance(self.resolution, bool) or not isinstance(self.resolution, int) or self.resolution < 4:
-            raise ValueError(f"material.detail.resolution: expected an integer >= 4, got {self.resolution!r}")
+        check_int(self.resolution, "material.detail.resolution", 4, MAX_TEXELS)
+        check_seed(self.seed, "material.detail.seed")
 
 
 @dataclass
@@ -329,8 +346,7 @@ class ImageDesc:
                 raise ValueError(f"images[{index}].lights: a {name!r} light cannot share an image with "
                                  f"{' or '.join(map(repr, clash))} lights ({name}: {LIGHT_TYPES[name].summary})")
         check_number(self.exposure, f"images[{index}].exposure", above=0)
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise ValueError(f"images[{index}].seed: expected a non-negative integer, got {self.seed!r}")
+        check_seed(self.seed, f"images[{index}].seed")
 
 
 @dataclass
@@ -454,4 +470,6 @@ def _from_dict(cls: type, d: Any, owner: str) -> Any:
             kwargs[key] = _from_dict(_NESTED[key], value, f"{owner}.{key}" if owner != "scene" else key)
         else:
             kwargs[key] = value
-    return cls(**kwargs)
+    obj = cls(**kwargs)
+    check_json_types(obj, "" if owner == "scene" else owner, d)
+    return obj

@@ -22,7 +22,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from scenes.checks import check_direction, check_matrix4, check_number, check_vector
+from scenes.checks import check_direction, check_json_types, check_matrix4, check_number, check_vector
 
 IDENTITY4 = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
 
@@ -246,7 +246,9 @@ def light_from_dict(d: Any, owner: str = "light") -> LightDesc:
         if d[key] != FLAT_FORM_DEFAULTS[key]:
             raise ValueError(f"{owner}.{key}: a {cls.type!r} light has no {key} (the old flat form may hold it "
                              f"only at its default {FLAT_FORM_DEFAULTS[key]!r}), got {d[key]!r}")
-    return cls(**{k: v for k, v in d.items() if k in names})
+    light = cls(**{k: v for k, v in d.items() if k in names})
+    check_json_types(light, owner, [k for k in d if k in names])
+    return light
 
 
 def camera_frame(lights: list, R: np.ndarray, target: Any, exposure: float) -> list[dict]:

@@ -168,6 +168,30 @@ GENERATORS = {
 }
 
 
+PARAMETERS: dict[str, dict[str, tuple[float, float]]] = {
+    "blob": {"lumps": (1, 64), "amplitude": (0, 2)},
+    "bumpy_sphere": {"amplitude": (0, 1), "frequency": (0, 100), "waves": (1, 64)},
+    "superquadric": {"e1": (0.05, 10), "e2": (0.05, 10), "a0": (0.01, 10), "a1": (0.01, 10), "a2": (0.01, 10)},
+    "torus": {"major": (0.01, 10), "minor": (0.01, 10), "bumps": (0, 1)},
+    "plane": {},
+}
+"""The parameters each generator reads, with the values a scene may give them (wider than the seeded draws; the
+counts bound the work). A shape that is not procedural (mesh, sphere) reads none."""
+
+
+def check_params(kind: str, params: dict) -> None:
+    """ValueError naming `shape.params.NAME` for a parameter the shape's generator does not read (a typo would
+    silently be a seeded random value) or a value outside its range."""
+    from scenes.checks import check_number
+
+    known = PARAMETERS.get(kind, {})
+    for name, value in params.items():
+        if name not in known:
+            expected = f"one of {', '.join(known)}" if known else "none: it reads no parameters"
+            raise ValueError(f"shape.params.{name}: kind {kind!r} has no parameter {name!r}, expected {expected}")
+        check_number(value, f"shape.params.{name}", *known[name])
+
+
 def generate(kind: str, seed: int, resolution: int, params: dict | None = None) -> MeshData:
     """Procedural mesh of `kind` (one of GENERATORS), deterministic in (seed, resolution, params)."""
     if kind not in GENERATORS:

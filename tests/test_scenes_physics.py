@@ -285,6 +285,38 @@ def test_unknown_json_field_is_named():
         SceneDescription.from_dict(d)
 
 
+JSON_EDITS = [  # sweep 26: each was a traceback (TypeError, a Mitsuba RuntimeError, a 29 TiB MemoryError) or was
+    # rendered and scored without a word (a projective placement, srgb 'yes' taken as true, a typo of a parameter)
+    (lambda d: d["images"][0].update(seed=2**32), "images[0].seed: got 4294967296, expected an integer from 0"),
+    (lambda d: d["material"]["roughness"].update(kind="file", file="r.exr", channel="1"),
+     "material.roughness.channel: got '1', expected an integer or null"),
+    (lambda d: d["material"]["roughness"].update(kind="file", file="r.exr", channel=-1),
+     "material.roughness.channel: got -1, expected an integer from 0 to 3"),
+    (lambda d: d["material"]["roughness"].update(seed=1.5), "material.roughness.seed: got 1.5, expected an integer"),
+    (lambda d: d["material"]["roughness"].update(kind="noise", resolution=2_000_000),
+     "material.roughness.resolution: got 2000000, expected an integer from 1 to 8192"),
+    (lambda d: d["material"]["base_color"].update(srgb="yes"), "material.base_color.srgb: got 'yes', expected true"),
+    (lambda d: d["shape"].update(kind="blob", params={"zzz": 1.0}), "shape.params.zzz: kind 'blob' has no parameter"),
+    (lambda d: d["shape"].update(kind="blob", params={"lumps": 1e9}), "shape.params.lumps: got 1000000000.0"),
+    (lambda d: d["shape"].update(kind="sphere", params={"lumps": 3}),
+     "shape.params.lumps: kind 'sphere' has no parameter"),
+    (lambda d: d["shape"].update(kind="blob", resolution=300_000), "shape.resolution: got 300000, expected an integ"),
+    (lambda d: d["shape"]["to_world"].__setitem__(3, [0, 0, 0, 0]), "shape.to_world: its last row is [0, 0, 0, 0]"),
+    (lambda d: d["images"][0]["lights"][0].update(irradiance="2"), "images[0].lights[0].irradiance: got '2', expe"),
+    (lambda d: d["camera"].update(width=32.5), "camera.width: got 32.5, expected an integer"),
+    (lambda d: d.update(name=7), "name: got 7, expected a string"),
+]
+
+
+@pytest.mark.parametrize("edit, said", JSON_EDITS)
+def test_a_scene_file_value_of_the_wrong_kind_or_beyond_its_range_is_named(edit, said):
+    d = sphere_scene([[DirectionalLight()]]).to_dict()
+    edit(d)
+    with pytest.raises(ValueError) as exc:
+        SceneDescription.from_dict(d).validate()
+    assert str(exc.value).startswith(said), str(exc.value)
+
+
 def test_variant_choice_prefers_llvm_and_rejects_unknown():
     from scenes.renderer.variant import PREFERENCE, choose_variant
 
