@@ -3334,6 +3334,11 @@ def _empty_wheel(w: Path, t: Path) -> None:
         z.writestr("drjit/__init__.py", "")
 
 
+def _unscened(w: Path, t: Path) -> None:
+    """T/d.data: the world's object 00000 without its scene file (read as an official UniPS folder: fitted check)."""
+    shutil.copytree(w / "data" / "00000.data", t / "d.data", ignore=shutil.ignore_patterns("scene.json"))
+
+
 def _both(*setups: Callable[[Path, Path], None]) -> Callable[[Path, Path], None]:
     def setup(w: Path, t: Path) -> None:
         for s in setups:
@@ -4188,6 +4193,12 @@ ROWS += [
                                                        "{T}/o", "--overwrite", "--save-renders"], 2,
         ("R000.png", "report.json"), setup=_put(("o/00000/R000.png", "mine\n")),
         check=_kept("o/00000/R000.png", "mine\n")),
+    # sweep 26: the fitted check (no scene file) claimed its outputs without the report that marks them: a user's
+    # explained.png beside no report was replaced with --overwrite
+    Row("rerender-fitted-overwrite-keeps-a-users-file", RR, ["--data", "{T}/d.data", "--normals", "{W}/pred/00000",
+                                                           "--out", "{T}/o", "--overwrite", "--steps", "5"], 2,
+        ("explained.png", "no report.json"), setup=_both(_unscened, _put(("o/d/explained.png", "mine\n"))),
+        check=_kept("o/d/explained.png", "mine\n")),
     Row("evaluate-pred-is-the-ground-truth", EV, ["--pred", "{T}/data", "--gt", "{T}/data"], 2,
         ("--pred", "is --gt"), setup=_dataset_copy, check=_not_written("data/metrics.json")),
     Row("rerender-scene-names-a-mesh-with-a-nul", RR, SWEEP3, 2, ("shape.file", "NUL"),

@@ -15,6 +15,17 @@ import pytest
 from scenes.files import sha256_file
 
 
+@pytest.fixture(autouse=True)
+def _own_import_path(monkeypatch):
+    """A pack unpacked here puts its site first on sys.path and PYTHONPATH (as a session does): its stand-in
+    mitsuba and drjit packages must not be what later tests of this process import."""
+    import os
+    import sys
+
+    monkeypatch.setattr(sys, "path", list(sys.path))
+    monkeypatch.setenv("PYTHONPATH", os.environ.get("PYTHONPATH", ""))
+
+
 def _export(folder: Path, out: Path) -> Path:
     """The one object folder, exported as shards into `out` (a dataset folder apart from it)."""
     import shutil
@@ -144,6 +155,11 @@ def _file(name: str, data: bytes = b"x") -> tuple[tarfile.TarInfo, bytes]:
     return info, data
 
 
+def _site() -> list[tuple[tarfile.TarInfo, bytes]]:
+    """The least site.tar.xz a session takes: the packed Mitsuba and Dr.Jit (here, empty packages)."""
+    return [_file("mitsuba/__init__.py", b""), _file("drjit/__init__.py", b"")]
+
+
 def _link(name: str, target: str) -> tuple[tarfile.TarInfo, None]:
     info = tarfile.TarInfo(name)
     info.type, info.linkname = tarfile.SYMTYPE, target
@@ -201,6 +217,24 @@ def test_a_damaged_relay_pack_is_one_line(tmp_path, capsys, content):
     assert code == 2 and len(err) == 1 and err[0].startswith("error: --carry:") and SITE_ARCHIVE in err[0], err
 
 
+@pytest.mark.parametrize("members", ["none", "folders-only"])
+def test_a_relay_pack_holding_no_file_is_refused(tmp_path, members):
+    """Sweep 26: a site.tar.xz holding no member was unpacked (nothing) and the CPU rehearsal ran on this machine's
+    own Mitsuba, exit 0; on the GPU machine, which has none, it would fail late. An archive with no file is
+    refused in one line (as its docstring said), and nothing is left behind."""
+    from orchestrate.relay import SITE_ARCHIVE, unpack_carry
+    from scenes.cli.errors import UsageError
+
+    carry = tmp_path / "carry"
+    carry.mkdir()
+    folder = tarfile.TarInfo("pkg")
+    folder.type = tarfile.DIRTYPE
+    _archive(carry / SITE_ARCHIVE, {"none": [], "folders-only": [(folder, None)]}[members])
+    with pytest.raises(UsageError, match=f"^--carry: .*{SITE_ARCHIVE}' holds no file"):
+        unpack_carry(carry, tmp_path / "work")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["carry"]
+
+
 def test_help_unpacks_nothing_where_the_packages_are_installed(tmp_path):
     """boot_site (run before gpu_session's imports) leaves the pack alone where tyro is installed: the arguments
     are checked first, and --help touches no file."""
@@ -208,7 +242,7 @@ def test_help_unpacks_nothing_where_the_packages_are_installed(tmp_path):
 
     carry, work = tmp_path / "carry", tmp_path / "work"
     carry.mkdir()
-    _archive(carry / SITE_ARCHIVE, [_file("pkg/__init__.py", b"")])
+    _archive(carry / SITE_ARCHIVE, _site())
     boot_site(["--carry", str(carry), "--work", str(work), "--help"])
     assert not work.exists()
 
@@ -224,7 +258,7 @@ def test_the_assets_archive_writes_only_under_work_assets(tmp_path, member):
     carry.mkdir()
     work.mkdir()
     (work / "victim.txt").write_text("mine\n")
-    _archive(carry / SITE_ARCHIVE, [_file("pkg/__init__.py", b"")])
+    _archive(carry / SITE_ARCHIVE, _site())
     _archive(carry / ASSET_ARCHIVE, [_file("assets/meshes/a.ply", b"ply"), _file(member, b"import os\n")])
     with pytest.raises(UsageError, match=f"{member}.*outside its assets/ folder"):
         unpack_carry(carry, work)
@@ -279,7 +313,7 @@ def test_a_link_in_the_assets_archive_is_refused_before_a_write_through_it(tmp_p
     link = tarfile.TarInfo("assets/v")
     link.type, link.linkname = ((tarfile.SYMTYPE, "../victim.txt") if kind == "symlink" else
                                 (tarfile.LNKTYPE, "victim.txt"))
-    _archive(carry / SITE_ARCHIVE, [_file("pkg/__init__.py", b"")])
+    _archive(carry / SITE_ARCHIVE, _site())
     _archive(carry / ASSET_ARCHIVE, [(link, None), _file("assets/v", b"overwritten\n")])
     with pytest.raises(UsageError, match="assets/v.*a link or special file"):
         unpack_carry(carry, work)
@@ -300,7 +334,7 @@ def test_a_work_folder_that_is_a_link_into_a_users_folder_is_never_unpacked_into
         folder.mkdir()
     (mine / "keep.txt").write_text("mine\n")
     os.symlink(mine, work / where)
-    _archive(carry / SITE_ARCHIVE, [_file("keep.txt", b"replaced\n")])
+    _archive(carry / SITE_ARCHIVE, [*_site(), _file("keep.txt", b"replaced\n")])
     _archive(carry / ASSET_ARCHIVE, [_file("assets/keep.txt", b"replaced\n")])
     with pytest.raises(UsageError, match=f"{where}'.* is a link"):
         unpack_carry(carry, work)
@@ -379,7 +413,7 @@ def test_an_assets_member_whose_name_is_not_text_is_refused_naming_it(tmp_path):
 
     carry, work = tmp_path / "carry", tmp_path / "work"
     carry.mkdir()
-    _archive(carry / SITE_ARCHIVE, [_file("pkg/__init__.py", b"")])
+    _archive(carry / SITE_ARCHIVE, _site())
     _archive(carry / ASSET_ARCHIVE, [_file("assets/meshes/a.ply", b"ply"),
                                      _file(os.fsdecode(b"assets/meshes/caf\xe9.ply"), b"ply")])
     with pytest.raises(UsageError, match=r"assets.tar.xz.*not UTF-8 text \(byte 0xE9\).*rename it"):
@@ -398,7 +432,7 @@ def test_an_assets_member_named_twice_is_refused_before_anything_is_unpacked(tmp
 
     carry, work = tmp_path / "carry", tmp_path / "work"
     carry.mkdir()
-    _archive(carry / SITE_ARCHIVE, [_file("pkg/__init__.py", b"")])
+    _archive(carry / SITE_ARCHIVE, _site())
     again = _file("assets/meshes/m0.ply", b"ply2") if second == "file" else (tarfile.TarInfo("assets/meshes/m0.ply"),
                                                                              None)
     if second == "folder":
@@ -434,7 +468,7 @@ def test_a_users_files_in_the_work_folder_are_never_replaced_by_a_pack(tmp_path,
 
     carry, work = tmp_path / "carry", tmp_path / "work"
     carry.mkdir()
-    _archive(carry / SITE_ARCHIVE, [_file("pkg/__init__.py", b"packed = 1\n")])
+    _archive(carry / SITE_ARCHIVE, [*_site(), _file("pkg/__init__.py", b"packed = 1\n")])
     _archive(carry / ASSET_ARCHIVE, [_file("assets/meshes/m0.ply", b"packed ply")])
     mine = work / where / ("pkg/__init__.py" if where == "site" else "meshes/m0.ply")
     mine.parent.mkdir(parents=True)
@@ -462,7 +496,7 @@ def test_a_refused_pack_leaves_no_folder_behind(tmp_path):
         unpack_carry(carry, tmp_path / "work")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["carry"]
     (tmp_path / "work").mkdir()  # a good site, then an assets archive refused: the site unpacked for it goes too
-    _archive(carry / SITE_ARCHIVE, [_file("pkg/__init__.py", b"")])
+    _archive(carry / SITE_ARCHIVE, _site())
     _archive(carry / ASSET_ARCHIVE, [_file("assets/a.ply", b"ply"), _file("assets/../evil.py", b"x = 1\n")])
     with pytest.raises(UsageError, match="outside"):
         unpack_carry(carry, tmp_path / "work")

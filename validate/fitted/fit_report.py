@@ -152,13 +152,17 @@ def judge_capture(data: str | JudgedCapture, normals: str | np.ndarray | None, c
 
 def claim_target(out_dir: str | Path | None, name: str, outputs: tuple[str, ...], owner: str,
                  overwrite: bool) -> Path | None:
-    """`out_dir/<name>` with its `outputs` claimed for `owner` (the one --overwrite rule), or None without out_dir."""
+    """`out_dir/<name>` with its `outputs` claimed for `owner` (the one --overwrite rule), or None without out_dir.
+    Its JSON report marks the folder's files as an earlier check's: without one there, or with a file of that name
+    that is no report of `validate` (no mode and object), nothing is replaced, even with --overwrite."""
     if out_dir is None:
         return None
     from scenes.cli.outputs import claim_outputs
 
     target = Path(out_dir) / name
-    claim_outputs([target / n for n in outputs], overwrite, owner=owner)
+    record = next(target / n for n in outputs if n.endswith(".json"))
+    claim_outputs([target / n for n in outputs], overwrite, owner=owner, marker=record,
+                  signed={record: ("mode", "object")})
     return target
 
 
