@@ -27,7 +27,7 @@ from typing import Any, Callable
 from orchestrate.bench_docs import BENCH_BLOCKS, BENCH_TABLES
 from scenes.cli.errors import UsageError, report_error
 from scenes.cli.options import Command
-from scenes.files import atomic_write_text, not_a_file, reading_record
+from scenes.files import atomic_write_text, not_a_file, read_text_file, reading_record
 from scenes.report.tables import markdown_table
 
 REPO = Path(__file__).resolve().parents[1]
@@ -449,7 +449,7 @@ def run(check: bool, root: Path = REPO, card_path: Path = CARD) -> list[Path]:
         if path.is_symlink():  # written in place: through a link it would be somebody else's file
             raise UsageError(f"{str(path.relative_to(root))} is a link (to {os.readlink(path)!r}); the generated "
                              "blocks are written only into the repository's own files: replace the link by the file")
-        text = path.read_text()
+        text = read_text_file(path)  # (bytes that are not UTF-8 said naming the file)
         new, names = regenerate(text, card, str(path.relative_to(root)), card_path)
         seen.update(names)
         if new != text:

@@ -128,6 +128,18 @@ def test_unknown_block_is_refused_and_nothing_is_written(tmp_path):
     assert all(p.read_text() == t for p, t in before.items() if p != stale)
 
 
+def test_a_page_that_is_not_utf8_is_named_and_nothing_is_written(tmp_path):
+    """Sweep 26: README.md holding a Latin-1 byte was `'utf-8' codec can't decode byte ...`, naming no file."""
+    shutil.copy(REPO / "README.md", tmp_path / "README.md")
+    shutil.copytree(REPO / "docs", tmp_path / "docs")
+    (tmp_path / "README.md").write_bytes((REPO / "README.md").read_bytes() + b"\xe9t\xe9\n")
+    stale = tmp_path / "docs" / "results.md"
+    _make_stale(stale)
+    with pytest.raises(ValueError, match=r"README.md' is not UTF-8 text \(byte 0xE9 at offset"):
+        docs.run(check=False, root=tmp_path)
+    assert STALE.search(stale.read_text())
+
+
 # ---------------------------------------------------------------- result tables equal the model card
 
 
