@@ -199,6 +199,20 @@ def _evaluate_all(folders: list[Path], gt: str | Path, pred_dir: Path,
     return summary, maps
 
 
+def holds_floats(path: Path) -> bool:
+    """Whether a normal-map file holds float vectors (EXR, NPY, MAT, a float TIFF), which must be of unit length; an
+    8 or 16-bit image holds encoded unit vectors, (n + 1) / 2, decoded by its reader."""
+    if path.suffix.lower() not in (".tif", ".tiff"):
+        return path.suffix.lower() in (".exr", ".npy", ".mat")
+    import tifffile
+
+    try:  # the header only: the pixels were read (and checked) by read_normals
+        with tifffile.TiffFile(path) as tif:
+            return tif.pages[0].dtype is None or tif.pages[0].dtype.kind == "f"
+    except (tifffile.TiffFileError, OSError, ValueError, IndexError):
+        return True  # not known: the check costs an encoded map nothing (its vectors decode to unit length)
+
+
 def _evaluate_one(folder: Path, pred_dir: Path, results: dict, missing: list, no_gt: list, maps: dict) -> None:
     truth = load_ground_truth(folder, arg="--gt")
     if truth.normals is None:
@@ -210,12 +224,13 @@ def _evaluate_one(folder: Path, pred_dir: Path, results: dict, missing: list, no
         missing.append(truth.name)
         return
     pred = read_normals(pred_path, "--pred")
-    if pred_path.suffix.lower() in (".exr", ".npy", ".mat"):  # (an image file holds encoded unit vectors)
-        check_unit_length(pred, f"--pred: normal map {pred_path}")
     if pred.shape != truth.normals.shape:
         raise ValueError(f"--pred: {pred_path} has shape {'x'.join(map(str, pred.shape))}, the ground truth "
                          f"{folder} has {'x'.join(map(str, truth.normals.shape))}")
     scored = truth.mask & np.any(truth.normals != 0, axis=-1)  # a mask pixel without a true normal scores nothing
+    if holds_floats(pred_path):  # float vectors must be directions: over the whole map, and where scored
+        check_unit_length(pred, f"--pred: normal map {pred_path}")
+        check_unit_length(pred[scored], f"--pred: normal map {pred_path} (inside the ground truth's mask)")
     if not scored.any():
         no_gt.append(truth.name)
         log.warning("%s has no ground-truth normal inside its mask; skipped", folder)

@@ -31,34 +31,64 @@ class Lights:
 
 
 def read_text_matrix(path: Path, rows: int, what: str) -> np.ndarray:
-    """(rows, 3) float64 matrix from a whitespace / comma separated text file (DiLiGenT's light files),
-    checked: one line, naming `what`, for a missing file, non-numbers, a wrong shape or non-finite values."""
+    """(rows, 3) float64 matrix from a text file of numbers separated by whitespace or commas (DiLiGenT's light
+    files; a spreadsheet's UTF-8 BOM and CRLF line ends are read too), checked: one line, naming `what` and the row,
+    for a missing file, non-numbers, a wrong shape or non-finite values."""
     if why := not_a_file(path):
         raise FileNotFoundError(f"{what} file {path} {why}")
     try:
-        text = read_text_file(path).replace(",", " ")
-        values = np.array(
-            [[float(v) for v in line.split()] for line in text.splitlines() if line.strip()], dtype=np.float64
-        )
-    except (ValueError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{what} file {path}: cannot parse numbers ({exc})") from exc
-    if values.ndim != 2 or values.shape[1] != 3:
-        raise ValueError(f"{what} file {path}: expected 3 numbers per row, got shape {values.shape}")
-    if values.shape[0] != rows:
-        raise ValueError(f"{what} file {path}: has {values.shape[0]} rows, expected {rows} (one per image)")
-    if not np.all(np.isfinite(values)):
-        raise ValueError(f"{what} file {path}: contains NaN or infinite values")
-    return values
+        text = read_text_file(path).removeprefix("\ufeff")  # a BOM: what Windows programs write first
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{what} file {path}: {exc}") from None
+    lines = [(i, line) for i, line in enumerate(text.splitlines(), 1) if line.strip()]
+    values = []
+    for i, line in lines:
+        try:
+            values.append([float(v) for v in line.replace(",", " ").split()])
+        except ValueError:
+            raise ValueError(f"{what} file {path}: line {i} is {line.strip()[:60]!r}; expected 3 numbers separated "
+                             "by spaces or commas") from None
+        if len(values[-1]) != 3:
+            raise ValueError(f"{what} file {path}: line {i} holds {len(values[-1])} numbers, expected 3")
+        if not np.all(np.isfinite(values[-1])):
+            raise ValueError(f"{what} file {path}: line {i} holds NaN or infinite values ({line.strip()[:60]!r})")
+    if len(values) != rows:
+        raise ValueError(f"{what} file {path}: has {len(values)} rows, expected {rows} (one per image)")
+    return np.array(values, dtype=np.float64).reshape(rows, 3)
 
 
 def _unit_directions(d: np.ndarray, where: str) -> np.ndarray:
-    """Rows of `d` normalised; a zero row is refused (it has no direction)."""
-    norms = np.linalg.norm(d, axis=1)
-    if np.any(norms < 1e-9):
-        raise ValueError(
-            f"{where}: row {int(np.argmin(norms)) + 1} is a zero vector (expected a direction toward the light)"
-        )
-    return d / norms[:, None]
+    """Rows of `d` normalised; a row without a direction (zero, or so small or large that its length does not
+    come out finite and positive) is refused, naming it."""
+    with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+        norms = np.linalg.norm(d, axis=1)
+        unit = d / norms[:, None]
+    bad = ~(np.isfinite(norms) & (norms >= 1e-9) & np.isfinite(unit).all(axis=1))
+    if bad.any():
+        row = int(np.argmax(bad))
+        values = " ".join(f"{v:.6g}" for v in d[row])
+        what = f"a zero vector ({values})" if norms[row] < 1e-9 else f"{values}, whose length is {norms[row]:.6g}"
+        raise ValueError(f"{where}: row {row + 1} is {what}; expected a direction toward the light, of a finite "
+                         "length from 1e-9 to about 1e154")
+    return unit
+
+
+INTENSITY_RANGE = (float(np.finfo(np.float32).tiny), 1e30)
+"""Light intensities a calibrated method may divide the images by, in single precision: below the smallest normal
+float32 (about 1.2e-38) the quotient overflows, above 1e30 it vanishes."""
+
+
+def check_intensities(raw: np.ndarray, where: str, zero: bool = False) -> None:
+    """Refuse (N, 3) intensities outside `INTENSITY_RANGE` (0 also, unless `zero`: a light switched off), naming
+    `where` and the row."""
+    lo, hi = INTENSITY_RANGE
+    bad = ~(((raw >= lo) & (raw <= hi)) | ((raw == 0) if zero else False))
+    if bad.any():
+        row = int(np.argwhere(bad)[0][0])
+        at = f": row {row + 1} holds" if len(raw) > 1 else " is"
+        raise ValueError(f"{where}{at} {' '.join(f'{v:.6g}' for v in raw[row])}; expected "
+                         f"intensities {'0 or ' if zero else ''}from {lo:.3g} to {hi:g} (the images are divided by "
+                         "them in single precision)")
 
 
 BEHIND_Z = 0.05
@@ -78,12 +108,7 @@ def read_diligent_lights(folder: str | Path, rows: int) -> tuple[np.ndarray, np.
                          "the light in the camera frame, x right, y up, z toward the camera")
     int_path = folder / DILIGENT_INTENSITIES
     raw = read_text_matrix(int_path, rows, "light_intensities") if int_path.is_file() else np.ones((rows, 3))
-    if np.any(raw <= 0):
-        raise ValueError(f"light_intensities file {int_path}: intensities must be > 0")
-    if np.any(raw > 1e30):  # the images are divided by them in single precision
-        row = int(np.argwhere(raw > 1e30)[0][0]) + 1
-        raise ValueError(f"light_intensities file {int_path}: row {row} holds {raw[row - 1].max():.3g}; expected "
-                         "intensities below 1e30 (the images are divided by them in single precision)")
+    check_intensities(raw, f"light_intensities file {int_path}")
     return directions, raw
 
 
@@ -128,6 +153,7 @@ def camera_lights(scene: dict[str, Any], num_images: int, path: Path) -> tuple[n
             if (e < 0).any():  # a light adds energy: a negative one would pass every later check unseen
                 raise ValueError(f"{where}.directional[{j}]: irradiance {e.tolist()} has a negative value; expected "
                                  "values >= 0")
+            check_intensities(e[None], f"{where}.directional[{j}]: irradiance", zero=True)
             dirs.append(d / np.linalg.norm(d))
             irr.append(e)
         single = single and len(entry.get("directional", [])) == 1 and other == 0

@@ -13,7 +13,8 @@ Layouts, detected in table order:
   ``camera_lights`` when every image has exactly one directional light and nothing else).
 - ``"diligent"``: DiLiGenT ``*PNG`` folders: ``001.png ...`` (order from ``filenames.txt`` when present),
   ``light_directions.txt``, ``light_intensities.txt`` (ones when absent), ``mask.png``, ``Normal_gt.mat`` or
-  ``Normal_gt.png``. Both light files use the camera frame (x right, y up, z toward the camera).
+  ``Normal_gt.png``. Both light files use the camera frame (x right, y up, z toward the camera): 3 numbers a row,
+  one row per image, separated by spaces or commas (a spreadsheet's UTF-8 BOM and CRLF line ends are read too).
 - ``"unips"``: official UniPS / SDM-UniPS folders: ``L*`` images (png, jpg, tif, bmp, 8 or 16 bit, or float
   EXR; natural order), optional ``mask.png`` (whole image when absent), optional ``normal.tif``,
   ``Normal_gt.png`` or ``Normal_gt.mat``. Our own folder with its scene file removed reads as this layout.
@@ -29,7 +30,8 @@ Rules shared by every layout (the divergences this module exists to prevent):
   mask without a transparent alpha; one that is not binary is refused rather than read as they would);
 - ground-truth normals: renormalised inside the mask; a vector shorter than `MIN_NORMAL_LENGTH` is "no normal" and
   becomes 0 (an encoded zero vector decodes to length < 0.5), counted and logged;
-- calibration: light directions are unit vectors toward the light, a zero or non-finite vector is refused.
+- calibration: light directions are unit vectors toward the light, a zero vector or one of no finite length is
+  refused; intensities must lie in float32's normal range, 1.2e-38 to 1e30 (the images are divided by them).
 
 Errors are FileNotFoundError / ValueError with one line naming the argument the folder came from (``arg``) or the
 file at fault.

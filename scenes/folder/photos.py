@@ -10,9 +10,12 @@ files.
   same orientation (EXIF tag 0x0112, 1 where absent; LibRaw's flip for RAW files), square or not;
 - encoded values are linearised with colour-science's sRGB decoding where the file is sRGB: `encoding="auto"`
   takes 8-bit files as sRGB (as cameras and phones write JPEG and PNG; an EXIF colour space other than sRGB
-  is refused in auto mode, since the curve would be unknown) and 16-bit and EXR files as linear, except where a
-  PNG's own sRGB or gAMA chunk says otherwise (gAMA 1: linear; 1/2.2 or sRGB: sRGB; another gamma is refused);
-  `srgb` or `linear` force one for all files;
+  is refused in auto mode, since the curve would be unknown) and 16-bit and EXR files as linear, except where the
+  file says otherwise (`scenes.folder.photo_tags`): an embedded ICC profile decides before any EXIF colour space
+  where its curve is sRGB's (sRGB, a phone's Display P3: linear values in the profile's own primaries, which
+  photometric stereo takes as they are) or linear, and is refused in auto mode otherwise (Adobe RGB's gamma 2.2,
+  an unreadable profile); else a PNG's own sRGB or gAMA chunk (gAMA 1: linear; 1/2.2 or sRGB: sRGB; another gamma
+  is refused); `srgb` or `linear` force one for all files;
 - camera RAW files (DNG, CR2, CR3, NEF, ARW, ORF, RW2, RAF) are developed linear by LibRaw (`scenes.folder.raw`:
   linear demosaic, camera white balance, no tone curve, linear sRGB), recorded per image; they are linear, so
   `srgb` is refused for them, and a folder mixing RAW and other files is refused (their scales differ);
@@ -38,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from scenes.files import shown_name, text_name_problem
+from scenes.folder.photo_tags import read_exif as _read_exif
 from scenes.folder.raw import RAW_SUFFIXES, is_raw, raw_shape, read_raw
 from scenes.images import CODE_SCALES
 
@@ -47,18 +51,11 @@ OTHER_IMAGE_SUFFIXES = (".webp", ".heic", ".heif", ".avif", ".gif", ".bmp", ".jp
 """Pictures a capture does not read: in a photo folder they are named, never silently left out of the capture."""
 ENCODINGS = ("auto", "srgb", "linear")
 """How encoded values become linear: `auto` (sRGB for 8-bit files, linear otherwise), or one for all files."""
-_EXIF_IFD = 0x8769
-_EXPOSURE_TIME, _ISO, _COLOR_SPACE, _F_NUMBER = 0x829A, 0x8827, 0xA001, 0x829D
-_SHUTTER_APEX, _APERTURE_APEX = 0x9201, 0x9202
-_EXPOSURE_TAGS = (_EXPOSURE_TIME, _ISO, _F_NUMBER, _SHUTTER_APEX, _APERTURE_APEX)
 _SRGB_COLOR_SPACE = 1
-_ORIENTATION = 0x0112
-_FOCAL_35MM = 0xA405  # FocalLengthIn35mmFilm: the lens as a 35 mm-equivalent focal length, whole mm
 MAX_EXPOSURE_RATIO = 1024.0
 """The most the EXIF exposures (time x ISO) of one capture may differ, longest over shortest: 10 stops. Between
 8-bit photos further apart the darker one holds nothing the brighter does not; such values are a wrong EXIF
 field or photos of different captures, and normalising by them would scale a photo out of range."""
-_EXIF_NAMES = {"exposure_time_s": ("ExposureTime", "exposure time in seconds"), "iso": ("ISOSpeedRatings", "ISO")}
 _SHOWN = {1: "upright", 2: "mirrored", 3: "turned 180 deg", 4: "mirrored upside down", 5: "transposed",
           6: "turned 90 deg clockwise", 7: "transversed", 8: "turned 90 deg counter-clockwise"}
 
@@ -152,97 +149,6 @@ def photo_shape(path: str | Path, flag: str = "--input") -> tuple[int, int]:
     return first.shape[:2]
 
 
-def _exif_number(value: Any, key: str) -> float:
-    """One EXIF exposure field as a float: a finite number > 0, else ValueError naming the field and the value as
-    written (a rational 1/0 as '1/0')."""
-    if isinstance(value, (tuple, list)) and value:
-        value = value[0]
-    num, den = getattr(value, "numerator", None), getattr(value, "denominator", None)
-    rational = isinstance(num, int) and isinstance(den, int) and den != 1
-    text = f"{num}/{den}" if rational else repr(value)
-    try:
-        number = float("nan") if rational and den == 0 else float(value)
-    except (TypeError, ValueError, ZeroDivisionError):
-        number = float("nan")
-    if not (np.isfinite(number) and number > 0):
-        tag, what = _EXIF_NAMES[key]
-        raise ValueError(f"EXIF {tag} is {text}; expected a finite {what} > 0 (correct it, or remove the tag from "
-                         "every photo to read them without exposure normalisation)")
-    return number
-
-
-def _apex(value: Any, key: str) -> float:
-    """An APEX value (ShutterSpeedValue Tv or ApertureValue Av) as seconds (2^-Tv) or an f-number (2^(Av/2)),
-    checked as the field it stands for."""
-    try:
-        v = float(value[0] if isinstance(value, (tuple, list)) and value else value)
-    except (TypeError, ValueError, ZeroDivisionError):
-        v = float("nan")
-    number = 2.0 ** (-v if key == "exposure_time_s" else v / 2) if np.isfinite(v) and abs(v) < 64 else float("nan")
-    return _exif_number(number, key) if key in _EXIF_NAMES else number
-
-
-def _exif(img: Any) -> dict[str, Any]:
-    exif = img.getexif()
-    # the Exif sub-IFD first, then IFD0 (TIFF/EP and some writers put the exposure there)
-    ifd = {**{k: v for k, v in exif.items() if k in _EXPOSURE_TAGS}, **exif.get_ifd(_EXIF_IFD)}
-    out: dict[str, Any] = {}
-    if _EXPOSURE_TIME in ifd:
-        out["exposure_time_s"] = _exif_number(ifd[_EXPOSURE_TIME], "exposure_time_s")
-    elif _SHUTTER_APEX in ifd:  # only the APEX shutter speed: the same exposure, written another way
-        out["exposure_time_s"] = _apex(ifd[_SHUTTER_APEX], "exposure_time_s")
-    if _ISO in ifd:
-        out["iso"] = _exif_number(ifd[_ISO], "iso")
-    aperture = ifd.get(_F_NUMBER, _apex(ifd[_APERTURE_APEX], "f_number") if _APERTURE_APEX in ifd else None)
-    try:
-        if aperture is not None and np.isfinite(float(aperture)) and float(aperture) > 0:  # 0: unknown in EXIF
-            out["f_number"] = float(aperture)
-    except (TypeError, ValueError, ZeroDivisionError):  # an unreadable aperture is as good as none
-        pass
-    if _COLOR_SPACE in ifd:
-        out["color_space"] = int(ifd[_COLOR_SPACE])
-    if _ORIENTATION in exif:
-        out["orientation"] = exif[_ORIENTATION]
-    focal = ifd.get(_FOCAL_35MM)
-    if isinstance(focal, (int, float)) and np.isfinite(focal) and focal > 0:  # 0 means unknown in EXIF
-        out["focal_35mm_mm"] = float(focal)
-    return out
-
-
-def _read_exif(path: Path) -> dict[str, Any]:
-    import warnings
-
-    from PIL import Image, UnidentifiedImageError
-
-    try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")  # PIL warns of a damaged EXIF block without naming the file
-            with Image.open(path) as img:
-                exif = _exif(img)
-                declared = _declared_curve(img.info)
-                exif["grey"] = img.mode in ("1", "L", "LA", "I", "I;16", "I;16B", "F")  # read as colour by OpenCV
-    except (UnidentifiedImageError, OSError):
-        return {}  # no EXIF to read; the pixels are read (or refused) by OpenCV
-    if caught:
-        exif["exif_damaged"] = str(caught[0].message).splitlines()[0]
-    return {**exif, **({"declared_curve": declared} if declared else {})}
-
-
-def _declared_curve(info: dict[str, Any]) -> str | None:
-    """The encoding a PNG's own chunks declare: "srgb" (an sRGB chunk, or gAMA 1/2.2), "linear" (gAMA 1), "gamma G"
-    (another gAMA), None (neither)."""
-    if "srgb" in info:
-        return "srgb"
-    gamma = info.get("gamma")
-    if gamma is None:
-        return None
-    if not isinstance(gamma, (int, float)) or not np.isfinite(gamma) or gamma <= 0:  # a damaged chunk is no curve
-        return f"gamma {gamma!r} (invalid)"
-    if abs(gamma - 1.0) < 0.01:
-        return "linear"
-    return "srgb" if abs(gamma - 1 / 2.2) < 0.01 else f"gamma {gamma:.5g}"
-
-
 @dataclass
 class _File:
     """One photo as read: its codes, what it said about itself and, for RAW files, how it was developed."""
@@ -319,10 +225,11 @@ def _linear(
 
     declared = exif.get("declared_curve")  # a PNG's sRGB or gAMA chunk says how its codes are encoded
     if encoding == "auto" and declared not in (None, "srgb", "linear"):
-        raise ValueError(f"{flag}: {str(path)!r} declares {declared} (a gAMA chunk, neither sRGB nor linear); give "
+        raise ValueError(f"{flag}: {str(path)!r} declares {declared}, not known to be sRGB or linear; give "
                          "--input-encoding srgb or linear to say how its values are encoded")
     kind = encoding if encoding != "auto" else declared or ("srgb" if depth == 8 else "linear")
-    if encoding == "auto" and depth == 8 and exif.get("color_space", _SRGB_COLOR_SPACE) != _SRGB_COLOR_SPACE:
+    if (encoding == "auto" and depth == 8 and "icc" not in exif
+            and exif.get("color_space", _SRGB_COLOR_SPACE) != _SRGB_COLOR_SPACE):
         raise ValueError(f"{flag}: {str(path)!r} declares EXIF colour space {exif['color_space']} (not sRGB); give "
                          f"--input-encoding srgb or linear to say how its values are encoded")
     if codes.dtype.kind == "f":  # EXR and RAW: linear values already
@@ -397,23 +304,24 @@ def _downscale(image: np.ndarray, max_side: int | None) -> np.ndarray:
 
 def _check_curves(kinds: list[str], exifs: list[dict[str, Any]], names: list[str], depth: int, encoding: str,
                   flag: str) -> None:
-    """One curve for every photo of a capture (PNG chunks may differ from file to file: refused), and a note where
-    the files' own chunks, not their bit depth, decided it."""
+    """One curve for every photo of a capture (PNG chunks or ICC profiles may differ from file to file: refused), and
+    a note where the files' own chunks or profiles, not their bit depth, decided it."""
     odd = next((i for i, k in enumerate(kinds) if k != kinds[0]), None)
     if odd is not None:
-        raise ValueError(f"{flag}: {names[odd]} is read as {kinds[odd]} and {names[0]} as {kinds[0]} (their PNG sRGB "
-                         "or gAMA chunks differ): every photo of a capture must be encoded one way; give "
+        raise ValueError(f"{flag}: {names[odd]} is read as {kinds[odd]} and {names[0]} as {kinds[0]} (their PNG "
+                         "chunks or ICC profiles differ): every photo of a capture must be encoded one way; give "
                          "--input-encoding srgb or linear to say which")
     default = "srgb" if depth == 8 else "linear"
     if encoding == "auto" and depth != 32 and kinds and kinds[0] != default:
-        print(f"note: {flag}: the files declare their curve ({exifs[0].get('declared_curve')}, a PNG chunk): read as "
+        source = "an ICC profile" if exifs[0].get("icc") else "a PNG chunk"
+        print(f"note: {flag}: the files declare their curve ({exifs[0].get('declared_curve')}, {source}): read as "
               f"{kinds[0]}, not as {depth}-bit files are by default; --input-encoding says otherwise", file=sys.stderr)
 
 
 def _exposure_record(exif: dict[str, Any], scale: float) -> dict[str, Any]:
     """What report.json records of one image's exposure: the EXIF fields read, those the file did not give, the
     scale applied."""
-    out = {k: v for k, v in exif.items() if k not in ("color_space", "orientation", "declared_curve")}
+    out = {k: v for k, v in exif.items() if k not in ("color_space", "orientation", "declared_curve", "icc")}
     missing = [k for k in ("exposure_time_s", "iso") if k not in exif]
     return {**out, **({"not_in_file": missing} if missing else {}), "scale": scale}
 
