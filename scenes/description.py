@@ -29,7 +29,8 @@ from scenes.files import json_text
 from scenes.lights import IDENTITY4, LIGHT_TYPES, LightDesc, light_from_dict
 
 MAX_TEXELS = 8192
-"""The widest texture or detail map a scene may ask for (the generator makes at most 8192: 2 x its 4096 texture)."""
+"""The widest texture or detail map a scene may ask for (the generator makes at most 8192: 2 x its 4096 texture);
+twice that for a camera side or a procedural environment map's width (the generator's images are at most 8192)."""
 MAX_RINGS = 2048
 """The finest tessellation of a procedural shape (2048 rings x 4096 segments: 8 M vertices; the generator uses 64)."""
 MAX_BOUNCES = 2**31 - 3
@@ -206,8 +207,8 @@ class EnvironmentDesc:
         check_choice(self.source, "environment.source", ENVIRONMENT_SOURCES)
         if self.source == "file" and not self.file:
             raise ValueError("environment.file: source 'file' needs a .hdr/.exr path, got None")
-        if not isinstance(self.width, int) or self.width < 8:
-            raise ValueError(f"environment.width: expected an integer >= 8, got {self.width!r}")
+        check_int(self.width, "environment.width", 8, MAX_TEXELS * 2)  # (height: width / 2)
+        check_seed(self.seed, "environment.seed")
 
 
 @dataclass
@@ -282,9 +283,7 @@ class CameraDesc:
                 raise ValueError(f"camera.fov: {self.fov!r} does not match focal_mm {self.focal_mm!r} "
                                  f"(expected {fov_from_focal(self.focal_mm)!r})")
         for name in ("width", "height"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
-                raise ValueError(f"camera.{name}: expected a positive integer, got {v!r}")
+            check_int(getattr(self, name), f"camera.{name}", 1, MAX_TEXELS * 2)
 
 
 @dataclass

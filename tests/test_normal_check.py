@@ -54,3 +54,19 @@ def test_normal_map_rule_is_one_for_both_modes():
     out, valid = check_normals(zero, mask, allow_missing=True)
     assert valid.tolist() == [[True, True, False, False]] and np.all(out[0, 2] == 0)
     np.testing.assert_array_equal(unit_normals(zero, mask)[0, 2], [0, 0, 1])
+
+
+def test_a_map_facing_away_from_the_camera_is_refused_by_every_check():
+    """Sweep 26: a start map whose normals all point away from the camera (z flipped: another convention) was
+    refined, and judged, without a word; a poor map's few normals tilted past the silhouette are still judged."""
+    mask = np.ones((1, 4), bool)
+    d = np.array([3.0, 4.0, 12.0]) / 13.0
+    n = np.tile(d, (1, 4, 1))
+    flipped = n * [1, 1, -1]
+    for check in (lambda m: check_normals(m, mask)[0], lambda m: unit_normals(m, mask)):
+        with pytest.raises(ValueError, match=r"^--normals: 100% of the normals inside the mask face away from the "
+                                             r"camera \(n_z < 0\)"):
+            check(flipped)
+        some = n.copy()
+        some[0, :2] = flipped[0, :2]  # half of them: a very poor map, judged as one
+        np.testing.assert_allclose(check(some)[0, 0], flipped[0, 0], atol=1e-6)

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
@@ -305,6 +306,9 @@ JSON_EDITS = [  # sweep 26: each was a traceback (TypeError, a Mitsuba RuntimeEr
     (lambda d: d["images"][0]["lights"][0].update(irradiance="2"), "images[0].lights[0].irradiance: got '2', expe"),
     (lambda d: d["camera"].update(width=32.5), "camera.width: got 32.5, expected an integer"),
     (lambda d: d.update(name=7), "name: got 7, expected a string"),
+    (lambda d: d.update(environment={"source": "indoor", "width": 4_000_000}),
+     "environment.width: got 4000000, expected an integer from 8 to 16384"),
+    (lambda d: d["camera"].update(width=1_000_000), "camera.width: got 1000000, expected an integer from 1 to 16384"),
 ]
 
 
@@ -324,6 +328,23 @@ def test_variant_choice_prefers_llvm_and_rejects_unknown():
         choose_variant("no_such_variant")
     chosen = choose_variant()
     assert chosen in PREFERENCE
+
+
+def test_a_libllvm_path_that_loads_nothing_is_named_by_the_check(tmp_path):
+    """Sweep 26: DRJIT_LIBLLVM_PATH naming no library: the re-render check warned of a fall back to scalar_rgb, then
+    refused it, both saying to install libllvm19 (the variable, the cause, unnamed). One line now, naming it."""
+    import subprocess
+    import sys
+
+    code = ("from scenes.renderer.variant import choose_variant\n"
+            "try:\n    choose_variant(None, jit=True)\nexcept ValueError as e:\n    print('refused:', e)")
+    env = {**__import__("os").environ, "DRJIT_LIBLLVM_PATH": str(tmp_path / "none.so"), "CUDA_VISIBLE_DEVICES": ""}
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                       cwd=Path(__file__).resolve().parents[1])
+    assert r.stdout.startswith("refused: variant: only scalar_rgb runs on this machine; this command needs "
+                               f"llvm_ad_rgb or cuda_ad_rgb (DRJIT_LIBLLVM_PATH='{tmp_path / 'none.so'}' names no "
+                               "libLLVM"), r.stdout + r.stderr
+    assert "RuntimeWarning" not in r.stderr and "Traceback" not in r.stderr
 
 
 def test_normal_mapped_ground_truth_matches_photometric_stereo(tmp_path, variant_llvm_ad_rgb):

@@ -102,9 +102,9 @@ def save_training_checkpoint(path: str | Path, *, model: nn.Module, optimizer: t
             first = (str(exc).splitlines() or [type(exc).__name__])[0]
             limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]  # `ulimit -f`: a file may not grow past it
             why = (f"this process may write files of at most {limit / 2**20:.1f} MiB (ulimit -f)" if limit not in
-                   (resource.RLIM_INFINITY, -1) and free > 1 else f"{free:.1f} MiB free on its disk")
-            raise OSError(f"could not write {str(path)!r}: {why}, not enough for the checkpoint ({first:.120})") \
-                from None
+                   (resource.RLIM_INFINITY, -1) and free > 1 else f"no space left: {free:.1f} MiB free on its disk")
+            detail = f" ({first:.120})" if free > 1 else ""  # torch's own words add nothing to a full disk
+            raise OSError(f"could not write {str(path)!r}: {why}, not enough for the checkpoint{detail}") from None
 
     atomic_write(path, write)  # a kill or a full disk never leaves half a last.pt
     return path

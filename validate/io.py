@@ -19,6 +19,9 @@ log = logging.getLogger(__name__)
 
 UNIT_TOLERANCE = 0.02
 """Largest accepted | |n| - 1 | inside the mask (16-bit PNG rounding is below 1e-4)."""
+AWAY_SHARE = 0.5
+"""Largest share of a judged map's normals inside the mask that may face away from the camera (n_z < 0): a poor
+estimate tilts some past the silhouette, a map in another convention (z away from the camera) tilts most."""
 MAX_NORMAL_VALUE = 1e6
 """Largest accepted |component| of a normal map to judge, inside the mask. Maps are unit vectors; a larger value
 means a wrongly scaled or corrupt map, and squaring it in float32 overflows (a 1e30-scaled map became all
@@ -90,6 +93,11 @@ def check_normals(
             f"{source}: {int(off.sum())} normal(s) inside the mask are not unit length "
             f"(|n| from {norm.min():.3f} to {norm.max():.3f}, tolerance {UNIT_TOLERANCE}){hint}"
         )
+    away = float(np.mean(inside[:, 2] < 0)) if len(inside) else 0.0
+    if away > AWAY_SHARE:  # a convention error, not a poor estimate: it would be judged as a very wrong map
+        raise ValueError(f"{source}: {100 * away:.0f}% of the normals inside the mask face away from the camera (n_z < "
+                         "0), which no surface the camera sees does; expected the camera frame x right, y up, z toward "
+                         "the camera (a map whose z points away: flip it)")
     out = np.zeros(mask.shape + (3,), np.float32)
     out[valid] = (inside / norm[:, None]).astype(np.float32)
     return out, valid

@@ -144,7 +144,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         print(f"refining the normals of {name} (lights, reflectance and normals fitted to the images) ...", flush=True)
         from scenes.renderer.variant import choose_variant, set_jit_threads
 
-        choose_variant(args.variant)  # refine_object refuses a variant without automatic differentiation
+        choose_variant(args.variant, jit=True)  # refine_object refuses a variant without automatic differentiation
         set_jit_threads(args.threads)
         stated = input_error(args.normals, name)
         if stated:

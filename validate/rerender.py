@@ -306,7 +306,7 @@ def _main_fitted(args: RerenderOptions) -> int:
     claim_check_outputs(args.out, [object_name(args.data)], args.overwrite, summary=False)
     print(f"checking {object_name(args.data)} in the fitted mode (light and reflectance fitted to the images) ...",
           flush=True)
-    choose_variant(args.variant)  # the fit itself refuses a variant without automatic differentiation
+    choose_variant(args.variant, jit=True)  # the fit itself refuses a variant without automatic differentiation
     set_jit_threads(args.threads)
     with progress_bar("step") as progress:
         r = rerender_fitted(args.data, args.normals, config, args.out, progress, overwrite=args.overwrite)
@@ -390,7 +390,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
 
         from scenes.renderer.variant import choose_variant
 
-        choose_variant(args.variant)
+        choose_variant(args.variant, jit=True)
         mi = require_jit_variant()
         mi.set_log_level(mi.LogLevel.Error)  # e.g. multijitter's per-render "sample count rounded up"
 

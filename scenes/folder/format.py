@@ -175,6 +175,9 @@ def check_dataset_complete(dataset: str | Path, arg: str = "--data") -> None:
         complete = read_json(path).get("complete", True)
     except (OSError, ValueError, AttributeError):
         return
+    if not isinstance(complete, bool):  # 'false' (text) is no answer: never read as a complete dataset
+        raise ValueError(f"{arg}: {str(path)!r} records complete {complete!r:.40}, expected true or false (the "
+                         "manifest wildgen.make writes); restore it, or run the command that wrote the dataset again")
     if complete is False:
         raise ValueError(f"{arg}: {str(dataset)!r} is an incomplete dataset ({DATASET_MANIFEST} says complete: "
                          "false: the command that writes it is still running or was stopped before its end); run it "

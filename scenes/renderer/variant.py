@@ -7,6 +7,7 @@ that one is set (`scenes.renderer.build`, `scenes.renderer.render`, `validate.kn
 from __future__ import annotations
 
 import logging
+import os
 import warnings
 from typing import Any
 
@@ -16,31 +17,45 @@ PREFERENCE = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
 LLVM_FIX = "install Debian's libllvm19 (apt-get install -y libllvm19) for the ~3x faster llvm_ad_rgb variant"
 
 
+def llvm_fix() -> str:
+    """How to get the llvm variants: Debian's libllvm19, or, where DRJIT_LIBLLVM_PATH names a library Dr.Jit could
+    not load, that variable (it is tried instead of the system's)."""
+    path = os.environ.get("DRJIT_LIBLLVM_PATH")
+    if path:
+        return (f"DRJIT_LIBLLVM_PATH={path!r} names no libLLVM Dr.Jit can load: unset it, or point it at one "
+                "(Debian's libllvm19), for the ~3x faster llvm_ad_rgb variant")
+    return LLVM_FIX
+
+
 def _usable(variant: str) -> bool:
     import mitsuba as mi
 
     if variant not in mi.variants():
         return False
+    from scenes.files import caught_stderr
+
     try:
-        mi.set_variant(variant)
-        if variant.startswith("cuda"):
-            import drjit as dr
+        with caught_stderr() as said:  # Dr.Jit's own lines on a missing library or driver: said once, by llvm_fix
+            mi.set_variant(variant)
+            if variant.startswith("cuda"):
+                import drjit as dr
 
-            dr.zeros(dr.cuda.Float, 1)  # raises without a usable GPU/driver
-        elif variant.startswith("llvm"):
-            import drjit as dr
+                dr.zeros(dr.cuda.Float, 1)  # raises without a usable GPU/driver
+            elif variant.startswith("llvm"):
+                import drjit as dr
 
-            dr.eval(dr.llvm.Float([1.0]) + 1)  # raises without a usable libLLVM
+                dr.eval(dr.llvm.Float([1.0]) + 1)  # raises without a usable libLLVM
         return True
     except Exception as exc:  # the backends report missing drivers/libraries in various ways
-        log.debug("variant %s is not usable: %s", variant, exc)
+        log.debug("variant %s is not usable: %s (%s)", variant, exc, " / ".join(said))
         return False
 
 
-def choose_variant(requested: str | None = None) -> str:
+def choose_variant(requested: str | None = None, jit: bool = False) -> str:
     """Set and return a Mitsuba variant: `requested` if given, else cuda, llvm, scalar in that order.
 
-    `requested` None or "auto" chooses; falling back to scalar warns with the fix. A variant outside
+    `requested` None or "auto" chooses; falling back to scalar warns with the fix, or, for a command that needs a
+    JIT variant (`jit`: the re-render check), is a ValueError with it. A variant outside
     `PREFERENCE` (the RGB variants the scenes are built for: a mono or spectral variant would fail inside
     Dr.Jit), or one this machine cannot run, is a ValueError naming --variant.
     """
@@ -62,14 +77,17 @@ def choose_variant(requested: str | None = None) -> str:
                 f"--variant: {requested!r} is not built into this Mitsuba, expected one of {', '.join(mi.variants())}"
             )
         if not _usable(requested):
-            hint = f"; {LLVM_FIX}" if requested.startswith("llvm") else ""
+            hint = f"; {llvm_fix()}" if requested.startswith("llvm") else ""
             raise ValueError(f"--variant: {requested!r} cannot run on this machine{hint}")
         return requested
     for variant in PREFERENCE:
         if _usable(variant):
+            if variant.startswith("scalar") and jit:
+                raise ValueError(f"variant: only scalar_rgb runs on this machine; this command needs llvm_ad_rgb or "
+                                 f"cuda_ad_rgb ({llvm_fix()})")
             if variant.startswith("scalar"):
                 warnings.warn(
-                    f"Mitsuba falls back to the slow scalar_rgb variant: {LLVM_FIX}", RuntimeWarning, stacklevel=2
+                    f"Mitsuba falls back to the slow scalar_rgb variant: {llvm_fix()}", RuntimeWarning, stacklevel=2
                 )
             return variant
     raise RuntimeError("no usable Mitsuba variant among " + ", ".join(PREFERENCE))
@@ -112,10 +130,8 @@ def require_jit_variant() -> Any:
     mi = require_variant()
     variant = mi.variant()
     if not (variant.startswith("llvm") or variant.startswith("cuda")):
-        raise ValueError(
-            f"variant: {variant!r} is a scalar variant; the re-render check needs llvm_ad_rgb or cuda_ad_rgb "
-            "(install Debian's libllvm19 for llvm)"
-        )
+        raise ValueError(f"variant: {variant!r} is a scalar variant; the re-render check needs llvm_ad_rgb or "
+                         f"cuda_ad_rgb ({llvm_fix()})")
     return mi
 
 
