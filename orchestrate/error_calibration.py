@@ -290,18 +290,17 @@ def run(opts: CalibrationOptions) -> int:
     work = Path(opts.work)
     assets = None
     opts.assets = opts.assets or str(REPO.parent / "shared" / "assets")
-    if opts.assets != "none":
-        if not Path(opts.assets).is_dir():
-            raise UsageError(f"--assets: {opts.assets!r} is not a folder (expected hdri/, meshes/, textures/, "
-                             "or 'none')")
-        assets = str(split_assets(Path(opts.assets), work)[0])
+    if opts.assets != "none" and not Path(opts.assets).is_dir():
+        raise UsageError(f"--assets: {opts.assets!r} is not a folder (expected hdri/, meshes/, textures/, or 'none')")
     weights = Path(opts.weights) if opts.weights else pretrained_entry(DEFAULT_MODEL).weights_path
-    try:
+    try:  # before anything is written into --work (the asset split): refused weights leave it as it was
         net = load_network(weights)
     except (ValueError, FileNotFoundError) as exc:  # the reader names the file; the flag is ours
         raise type(exc)(f"--weights: {str(exc).removeprefix('--checkpoint: ')}") from None
     entry = pretrained_entry(DEFAULT_MODEL)
     read_model_card(entry.card_path)  # a card the fit would be recorded in is read before the work
+    if opts.assets != "none":
+        assets = str(split_assets(Path(opts.assets), work)[0])
     t0 = time.time()
     datasets = render_suite(work, assets, opts.objects, opts.seed)
     print(f"rendered the suite ({len(SUITE)} rows x {opts.objects} objects) in {work} in {time.time() - t0:.0f} s",

@@ -21,6 +21,7 @@ import numpy as np
 
 from scenes.exr import exr_channels, read_exr, write_exr
 from scenes.files import atomic_write, caught_stderr, not_a_file
+from scenes.tiff import check_tiff, read_planar_tiff
 
 BACKGROUND_16 = 32768
 """Encoded value of n = 0 in a 16-bit normal map."""
@@ -84,36 +85,6 @@ _NAMED_KINDS = {".jpg": ("a JPEG", b"\xff\xd8"), ".jpeg": ("a JPEG", b"\xff\xd8"
 .jpg name) is refused, not decoded; one that begins so but is damaged is the decoder's to refuse."""
 
 
-def _check_tiff(path: Path, where: str) -> None:
-    """A ValueError beginning with `where` when Pillow cannot decode the TIFF `path` whole (OpenCV returns the rows
-    it could read) or finds several pictures in it; nothing where it decodes, or is of a kind Pillow does not read
-    (OpenCV's reading stands)."""
-    from PIL import Image, UnidentifiedImageError
-
-    try:
-        img = Image.open(path)
-    except (UnidentifiedImageError, OSError, SyntaxError, ValueError):
-        return
-    with img:
-        if getattr(img, "n_frames", 1) > 1:  # OpenCV reads page 1 only (a camera's smaller preview page is no picture)
-            sizes = [img.seek(i) or img.size for i in range(img.n_frames)]
-            img.seek(0)
-            big = max(sizes, key=lambda size: size[0] * size[1])
-            if sizes.count(sizes[0]) > 1 or big != sizes[0]:
-                raise ValueError(f"{where} holds {len(sizes)} pages, the first {sizes[0][0]}x{sizes[0][1]} px and the "
-                                 f"largest {big[0]}x{big[1]} px; expected one picture per file (a smaller preview page "
-                                 "after it)")
-        try:
-            img.load()
-        except OSError as exc:
-            if "not available" not in str(exc):
-                said = str(exc) or type(exc).__name__
-                raise ValueError(f"{where} is damaged: the TIFF decoder says {said!r} (a truncated or corrupt file, "
-                                 "readable only in part); expected a complete TIFF") from None
-        except (SyntaxError, ValueError):  # a layout Pillow does not support
-            return
-
-
 def decode_image(path: Path, flags: int, where: str):
     """`cv2.imread(path, flags)` (the file's bytes decoded by `cv2.imdecode`), strictly: a JPEG whose decoder
     reports it truncated or corrupt (`JPEG_DAMAGE`), or a TIFF Pillow cannot decode whole, is a ValueError beginning
@@ -147,9 +118,10 @@ def decode_image(path: Path, flags: int, where: str):
         if not (jpeg or tiff or png):
             return cv2.imdecode(data, flags)
         with caught_stderr() as said:
-            img = cv2.imdecode(data, flags)
+            img = read_planar_tiff(path, flags) if tiff else None  # (OpenCV scrambles 16-bit and float ones)
+            img = cv2.imdecode(data, flags) if img is None else img
             if tiff and img is not None:
-                _check_tiff(path, where)
+                check_tiff(path, where)
     except cv2.error as exc:  # OpenCV's own refusals (a header declaring more pixels than it decodes)
         why = next((line.split("error: ", 1)[-1] for line in str(exc).splitlines() if "error:" in line), str(exc))
         limit = f"; expected an image of at most {2**30} pixels" if "MAX_IMAGE_PIXELS" in why else ""

@@ -145,6 +145,13 @@ class AreaLight(LightDesc):
         super().validate(owner)
         for name in ("position", "target", "up"):
             check_vector(getattr(self, name), f"{owner}.{name}")
+        facing = np.subtract(self.target, self.position, dtype=np.float64)
+        if not np.linalg.norm(facing) > 0:  # it faces no way: Mitsuba's look-at makes a frame of NaNs
+            raise ValueError(f"{owner}.target: got {self.target!r}, the light's own position; expected a point it "
+                             "faces")
+        if np.linalg.norm(np.cross(facing, self.up)) <= 1e-9 * np.linalg.norm(facing) * np.linalg.norm(self.up):
+            raise ValueError(f"{owner}.up: got {self.up!r}, along the way the light faces (or zero); expected a "
+                             "direction across it")
         check_number(self.width, f"{owner}.width", above=0)
         check_number(self.height, f"{owner}.height", above=0)
         check_number(self.radiance, f"{owner}.radiance", minimum=0)

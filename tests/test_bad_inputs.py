@@ -4156,6 +4156,10 @@ ROWS += [
         setup=_error_model(lambda d: None)),
     Row("calibration-earlier-fit-beside-the-weights", EC, [*CALIBRATE[:-2], "--weights", "{T}/w/m.safetensors"], 2,
         ("--weights", "m.expected_error.json", "--overwrite"), setup=_error_model(lambda d: None)),
+    Row("calibration-damaged-weights-write-no-asset-split", EC,  # sweep 27: the split was written, then refused
+        ["--work", "{T}/work", "--assets", "{W}/assets_two", "--objects", "1", "--out", "{T}/em.json", "--weights",
+         "{T}/bad.safetensors"], 2, ("--weights", "bad.safetensors"), setup=_put(("bad.safetensors", "not weights\n")),
+        check=_not_written("work")),
     Row("calibration-weights-missing", EC, [*CALIBRATE, "--weights", "{T}/none.safetensors"], 2,
         ("--weights", "none.safetensors", "does not exist")),
     Row("calibration-work-a-file", EC, ["--work", "{W}/afile", "--assets", "none", "--out", "{T}/em.json"], 2,

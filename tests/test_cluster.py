@@ -85,6 +85,22 @@ def test_parts_must_follow_each_other():
         d.validate()
 
 
+def test_parts_must_share_out_the_mesh_they_name(clusters, variant_llvm_ad_rgb):
+    """Sweep 27: a scene.json whose parts claim 10^9 triangles of a small mesh was re-rendered and scored, exit 0.
+    The parts' triangles must be the mesh's: refused when the scene is built, naming the mesh and both counts."""
+    import dataclasses
+
+    from scenes.folder.format import read_scene
+    from scenes.renderer.build import build_scene
+
+    desc, _ = read_scene(clusters[0])
+    build_scene(desc, clusters[0])  # as written: whole
+    last = desc.parts[-1]
+    desc.parts[-1] = dataclasses.replace(last, faces=last.faces + 10**9)
+    with pytest.raises(ValueError, match=r"^parts: \d+ triangles in all, the mesh .* has \d+; expected the parts"):
+        build_scene(desc, clusters[0])
+
+
 def test_dataset_card_counts_objects_per_scene(clusters, tmp_path):
     from collections import Counter
 

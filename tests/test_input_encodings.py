@@ -214,3 +214,51 @@ def test_a_float_tiff_prediction_must_hold_unit_vectors(tmp_path, capsys):
     assert_one_line_refusal(rc, err, "normal.tif", "not of unit length")
     assert sorted(p.name for p in (tmp_path / "encoded").rglob("*")) == ["ballPNG", "normal.tif"]
 
+
+
+@pytest.mark.parametrize("dtype", [np.uint16, np.float32])
+def test_a_tiff_of_separate_planes_reads_as_the_same_picture(tmp_path, dtype):
+    """Sweep 26: OpenCV scrambles a 16-bit or float TIFF whose channels are stored as separate planes (planar
+    configuration 2, what some scanners and raw converters write): a capture of such photos found no object, and a
+    float normal.tif of that layout would be judged as another map. Every reader (decode_image) reads it as the
+    same picture as the interleaved file."""
+    import tifffile
+
+    from scenes.images import decode_image, read_normals
+
+    rng = np.random.default_rng(0)
+    rgba = (rng.random((20, 30, 4)) * 60000).astype(dtype)
+    for planar, name in (("separate", "p.tif"), ("contig", "c.tif")):
+        tifffile.imwrite(tmp_path / name, rgba[..., :3] if planar == "contig" else
+                         np.ascontiguousarray(rgba[..., :3].transpose(2, 0, 1)), photometric="rgb",
+                         planarconfig=planar)
+    for flags in (cv2.IMREAD_UNCHANGED, cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR):
+        got = decode_image(tmp_path / "p.tif", flags, "t")
+        assert got.dtype == dtype and np.array_equal(got, decode_image(tmp_path / "c.tif", flags, "t"))
+        assert np.array_equal(got[..., ::-1], rgba[..., :3])
+    if dtype == np.float32:  # a normal map of unit vectors, both layouts
+        n = rng.normal(size=(20, 30, 3)).astype(np.float32)
+        n /= np.linalg.norm(n, axis=-1, keepdims=True)
+        tifffile.imwrite(tmp_path / "normal.tif", np.ascontiguousarray(n.transpose(2, 0, 1)), photometric="rgb",
+                         planarconfig="separate")
+        assert np.allclose(read_normals(tmp_path / "normal.tif"), n, atol=1e-6)
+
+
+@pytest.mark.parametrize("suffix", [".tif", ".jpg"])
+def test_cmyk_photos_are_refused_naming_the_file(tmp_path, capsys, suffix):
+    """Sweep 26: 8-bit CMYK TIFFs (a print export) were turned into RGB by OpenCV without a word, and the capture
+    ended on "auto cannot separate the object". Ink amounts are not light: refused naming the file."""
+    from PIL import Image
+
+    from orchestrate.capture import main as capture
+
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    rng = np.random.default_rng(1)
+    for i in range(4):
+        Image.fromarray((rng.random((24, 24, 3)) * 255).astype(np.uint8)).convert("CMYK").save(
+            photos / f"IMG_{i}{suffix}")
+    assert capture(["--input", str(photos), "--out", str(tmp_path / "o"), "--no-refine", "--threads", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("error: --input: IMG_0") and "holds CMYK values (a print separation)" in err[-1], err
+    assert not (tmp_path / "o").exists()

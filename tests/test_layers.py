@@ -162,6 +162,7 @@ SCENES_LAYER = {
     # 0: files and pixels, the command-line machinery, what is shown to people, plain inputs without a description
     "scenes.files": 0, "scenes.exr": 0, "scenes.images": 0, "scenes.metrics": 0, "scenes.cli": 0, "scenes.report": 0,
     "scenes.dependencies": 0, "scenes.checks": 0, "scenes.colors": 0, "scenes.detail": 0, "scenes.procedural": 0,
+    "scenes.tiff": 0,
     # 1: the scene description and what it is made of
     "scenes.description": 1, "scenes.lights": 1, "scenes.camera_sensor": 1, "scenes.geometry": 1, "scenes.meshes": 1,
     "scenes.envmaps": 1, "scenes.textures": 1, "scenes.surface": 1,

@@ -309,6 +309,11 @@ JSON_EDITS = [  # sweep 26: each was a traceback (TypeError, a Mitsuba RuntimeEr
     (lambda d: d.update(environment={"source": "indoor", "width": 4_000_000}),
      "environment.width: got 4000000, expected an integer from 8 to 16384"),
     (lambda d: d["camera"].update(width=1_000_000), "camera.width: got 1000000, expected an integer from 1 to 16384"),
+    # sweep 27: an area light facing no way (target at its position, or up along its axis) was rendered and scored
+    (lambda d: d["images"][0].update(lights=[{"type": "area", "position": [0, 0, 3], "target": [0, 0, 3]}]),
+     "images[0].lights[0].target: got [0, 0, 3], the light's own position"),
+    (lambda d: d["images"][0].update(lights=[{"type": "area", "position": [0, 0, 3], "up": [0, 0, 2]}]),
+     "images[0].lights[0].up: got [0, 0, 2], along the way the light faces"),
 ]
 
 

@@ -155,6 +155,7 @@ class ManifestWriter:
                  budget: float = 10.0):
         self.out_dir, self.cfg, self.variant, self.entries, self.extra = out_dir, cfg, variant, entries, extra
         self.budget = budget
+        self.complete = False  # until the run's end: a stopped run's folders are never read as a dataset
         self._last_end = 0.0
         self._last_cost = 0.0
 
@@ -165,7 +166,8 @@ class ManifestWriter:
 
     def flush(self) -> None:
         t0 = time.perf_counter()
-        write_manifest(self.out_dir, self.cfg, self.variant, self.entries, self.extra)
+        extra = {**(self.extra or {}), "complete": self.complete}
+        write_manifest(self.out_dir, self.cfg, self.variant, self.entries, extra)
         self._last_end = time.perf_counter()
         self._last_cost = self._last_end - t0
 
@@ -453,6 +455,7 @@ def make_dataset(
         try:
             if plan.todo:
                 engine.run(cfg, out_dir, variant, plan.todo, record)
+            writer.complete = True  # every object rendered, rejected or recorded as failed
         finally:
             # Also on KeyboardInterrupt / errors: the engine has stopped its workers by now.
             clean_leftovers(out_dir, temporaries)

@@ -97,7 +97,8 @@ def _exif(img: Any) -> dict[str, Any]:
 def read_exif(path: Path) -> dict[str, Any]:
     """What Pillow reads of a photo: the EXIF fields (`exposure_time_s`, `iso`, `f_number`, `color_space`,
     `orientation`, `focal_35mm_mm`) it has, `declared_curve` (`declared_curve`) and `icc` where it embeds an ICC
-    profile, `grey`, `exif_damaged` (Pillow's warning); {} where Pillow cannot open it."""
+    profile, `grey`, `exif_damaged` (Pillow's warning); {} where Pillow cannot open it. A CMYK file is a
+    ValueError."""
     import warnings
 
     from PIL import Image, UnidentifiedImageError
@@ -111,6 +112,9 @@ def read_exif(path: Path) -> dict[str, Any]:
                 if img.info.get("icc_profile"):  # it, not the EXIF colour space, tells the curve
                     exif["icc"] = True
                 exif["grey"] = img.mode in ("1", "L", "LA", "I", "I;16", "I;16B", "F")  # read as colour by OpenCV
+                if img.mode == "CMYK":  # ink amounts, which OpenCV turns into RGB without a word
+                    raise ValueError("it holds CMYK values (a print separation), not the light the camera saw; "
+                                     "expected an RGB or grey photo (export it again from the camera's file)")
     except (UnidentifiedImageError, OSError):
         return {}  # no EXIF to read; the pixels are read (or refused) by OpenCV
     if caught:

@@ -175,6 +175,9 @@ def build_scene(desc: SceneDescription, base_dir: str | Path | None = None, bsdf
         "sensor": sensor_dict(desc, desc.render.spp),
     }
     data = mesh_data_for(desc, base)
+    if desc.parts and data is not None and sum(p.faces for p in desc.parts) != len(data.faces):
+        raise ValueError(f"parts: {sum(p.faces for p in desc.parts)} triangles in all, the mesh "
+                         f"{desc.shape.file!r} has {len(data.faces)}; expected the parts to share out its triangles")
 
     def the_object() -> Any:
         if data is None:
