@@ -241,3 +241,28 @@ def test_camera_lights_refuse_an_unknown_light_type():
         ValueError, match="unknown light type 'spot', expected one of directional, point, area, environment"
     ):
         camera_lights(desc)
+
+
+def test_a_stopped_make_is_no_dataset_until_it_is_finished(tmp_path):
+    """Sweep 26: a make stopped (SIGTERM) after 8 of 40 objects was predicted as an 8-object dataset, exit 0: its
+    manifest said nothing of being unfinished. It says complete: false until the run's end, and every reader
+    refuses it; the same command finishes it, and then it reads."""
+    from scenes.folder.layouts import find_object_folders
+    from wildgen.config import GenConfig
+    from wildgen.dataset import make_dataset
+
+    use_variant("llvm_ad_rgb")
+    cfg = GenConfig(lights=["directional"], objects=2, images=2, width=16, height=16, spp=1, gt_spp=1)
+
+    def stop(entry: dict) -> None:  # Ctrl-C once the first object is recorded
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        make_dataset(cfg, tmp_path / "ds", "llvm_ad_rgb", stop)
+    manifest = json.loads((tmp_path / "ds" / "manifest.json").read_text())
+    assert manifest["complete"] is False and [e["status"] for e in manifest["objects"]] == ["done"]
+    with pytest.raises(ValueError, match="is an incomplete dataset"):
+        find_object_folders(tmp_path / "ds", "--data")
+    make_dataset(cfg, tmp_path / "ds", "llvm_ad_rgb")
+    assert json.loads((tmp_path / "ds" / "manifest.json").read_text())["complete"] is True
+    assert len(find_object_folders(tmp_path / "ds", "--data")) == 2
