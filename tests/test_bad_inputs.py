@@ -986,7 +986,7 @@ ROWS: list[Row] = [
         PR,
         ["--method", "sh-uncalibrated", "--input", OBJDIR, "--out", "{T}/p", "--max-images", "2"],
         2,
-        ("sh-uncalibrated", "4"),
+        ("--max-images: got 2, expected at least 4 with --method sh-uncalibrated",),  # sweep 27: named the object
     ),
     Row(
         "predict-dataset-one-bad-image",

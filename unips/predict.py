@@ -167,6 +167,10 @@ def write_prediction(out_dir: Path, normals: np.ndarray, info: dict[str, Any]) -
     write_normal_visual(out_dir / "normal_vis.png", normals)
 
 
+FEWEST_IMAGES = {"least-squares": (3, "three non-coplanar lights at least"),
+                 "sh-uncalibrated": (4, "ambient + 3 lighting components")}
+"""The fewest images each classical method solves from, checked against --max-images before any work."""
+
 
 @dataclass
 class PredictOptions:
@@ -222,9 +226,10 @@ class PredictOptions:
                     f"--scalable: only used with --method model --model sdm-unips, not --method {self.method}"
                 )
         check_model_name(self.model)
-        if self.method == "least-squares" and self.max_images is not None and self.max_images < 3:
-            raise UsageError(f"--max-images: got {self.max_images}, expected at least 3 with --method least-squares "
-                             "(three non-coplanar lights at least)")
+        least = FEWEST_IMAGES.get(self.method)
+        if least is not None and self.max_images is not None and self.max_images < least[0]:
+            raise UsageError(f"--max-images: got {self.max_images}, expected at least {least[0]} with --method "
+                             f"{self.method} ({least[1]})")
         if self.scalable:  # without --model, the network is known once its file is read: the published side till then
             from unips.models.contract import SDM_UNIPS_INPUTS
 
