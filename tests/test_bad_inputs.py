@@ -997,11 +997,21 @@ ROWS: list[Row] = [
         check=_written("p/00000/normal.png", "p/00002/normal.png"),
     ),
     Row(
-        "predict-dataset-all-fail",
+        "predict-dataset-all-fail",  # (every object's second image damaged: each fails, each is named)
         PR,
-        ["--method", "sh-uncalibrated", "--input", "{W}/data", "--out", "{T}/p", "--max-images", "3"],
+        ["--method", "least-squares", "--input", "{T}/d", "--out", "{T}/p"],
         1,
         ("failed 00000", "failed 00002", "3 of 3"),
+        setup=lambda w, t: [shutil.copytree(w / "data", t / "d", ignore=shutil.ignore_patterns("manifest.json")),
+                            *(_random(t / "d" / f"0000{i}.data" / "L001.png") for i in range(3))],
+    ),
+    Row(
+        "predict-sh-max-images-below-four",  # sweep 27: refused per object, naming each, after reading it
+        PR,
+        ["--method", "sh-uncalibrated", "--input", "{W}/data", "--out", "{T}/p", "--max-images", "3"],
+        2,
+        ("--max-images: got 3, expected at least 4 with --method sh-uncalibrated",),
+        check=_not_written("p"),
     ),
     Row(
         "predict-bad-scene",
