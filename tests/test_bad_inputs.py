@@ -2810,6 +2810,16 @@ ROWS += [
         setup=_sensor_stopped_after_one,
         check=_not_written("run/final.safetensors"),
     ),
+    Row(  # sweep 27: an object without its mask was packed whole; it would fail only when trained
+        "export-object-without-its-mask",
+        EXP,
+        ["--data", "{T}/d", "--out", "{T}/s", "--quiet"],
+        2,
+        ("--data", "00001.data/mask.png does not exist"),
+        setup=lambda w, t: (shutil.copytree(w / "data", t / "d", ignore=shutil.ignore_patterns("manifest.json")),
+                            (t / "d" / "00001.data" / "mask.png").unlink()),
+        check=_not_written("s"),
+    ),
     Row(  # sweep 26: complete "false" (text) was read as a complete dataset (only the value false was refused)
         "predict-manifest-complete-as-text",
         PR,

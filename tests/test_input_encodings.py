@@ -215,6 +215,19 @@ def test_a_float_tiff_prediction_must_hold_unit_vectors(tmp_path, capsys):
     assert sorted(p.name for p in (tmp_path / "encoded").rglob("*")) == ["ballPNG", "normal.tif"]
 
 
+def test_a_blank_prediction_is_not_scored_as_ninety_degrees(tmp_path, capsys):
+    """Sweep 27 (a27-eval3-08): a predicted normal.exr of zeros everywhere was scored 90 deg on every pixel, exit 0,
+    pulling the mean up with no word. No normal where the truth is known is no estimate: that object fails."""
+    from scenes.images import write_normal_exr
+    from unips.evaluate import main
+
+    n, mask = write_predict_diligent(tmp_path / "gt" / "ballPNG")
+    write_normal_exr(tmp_path / "p" / "ballPNG" / "normal.exr", np.zeros_like(n, np.float32))
+    assert main(["--pred", str(tmp_path / "p"), "--gt", str(tmp_path / "gt")]) == 2  # (its one object: none scored)
+    err = capsys.readouterr().err
+    assert "normal.exr holds no normal where the ground truth is known" in err, err
+    assert not (tmp_path / "p" / "metrics.json").exists()
+
 
 @pytest.mark.parametrize("dtype", [np.uint16, np.float32])
 def test_a_tiff_of_separate_planes_reads_as_the_same_picture(tmp_path, dtype):

@@ -235,6 +235,9 @@ def _evaluate_one(folder: Path, pred_dir: Path, results: dict, missing: list, no
         no_gt.append(truth.name)
         log.warning("%s has no ground-truth normal inside its mask; skipped", folder)
         return
+    if not np.any(pred[scored] != 0):  # a blank map is no estimate, not one 90 deg off everywhere
+        raise ValueError(f"--pred: normal map {pred_path} holds no normal where the ground truth is known (every "
+                         "vector there is 0); expected the object's predicted normals")
     metrics, err_map = object_metrics(pred, truth.normals, scored)
     results[truth.name] = {**metrics, "light_family": truth.light_family, "prediction": str(pred_path)}
     maps[truth.name] = (err_map, scored)

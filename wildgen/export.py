@@ -218,9 +218,12 @@ def export_dataset(data: str | Path, out: str | Path, shard_size: int = DEFAULT_
         raise ValueError(f"--shard-size: got {shard_size!r}, expected an integer >= 1")
     check_encoding(encoding, aux)  # before --out is claimed
     folders = _source_folders(data)
-    if encoding != "decoded":  # every file name storable, before anything is replaced
+    if encoding != "decoded":  # every file name storable and every folder readable, before anything is replaced
+        from scenes.folder.layouts import read_folder
+
         for folder in folders:
             sample_files(folder, aux)
+            read_folder(folder, images=False, arg="--data")  # (a missing mask.png would fail only when trained)
     if not held:  # another export writing there now: say so, not that its files are an earlier run's
         check_not_being_written(out, flag)
     check_target(data, out, overwrite, flag)

@@ -482,7 +482,8 @@ def _read_folder(folder: Path, max_images: int | None, layout: str | None, image
     if os.path.lexists(mask_path):  # read (or refused by name) whatever it is
         mask, mask_file = read_mask(mask_path, shape), mask_path
     elif entry.mask_required:
-        raise FileNotFoundError(f"mask file {mask_path} does not exist (a {layout} folder needs one)")
+        raise FileNotFoundError(f"mask file {mask_path} does not exist (the {layout!r} layout needs one: white "
+                                "object on black)")
     else:
         mask, mask_file = np.ones(shape, dtype=bool), None
     if stack is not None:
