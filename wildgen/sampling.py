@@ -385,7 +385,7 @@ def sample_object(cfg: GenConfig, index: int, lib: AssetLibrary, name: str | Non
             if entropy >= cfg.entropy_threshold:
                 break
         else:
-            tried.append(f"{source} (best entropy {best:.2f})")
+            tried.append(f"{source!r} (best entropy {best:.2f})")  # (quoted: a file name may hold a line break)
             continue
         break
     else:
