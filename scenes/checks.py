@@ -33,6 +33,9 @@ def check_int(value: Any, name: str, minimum: float | None = None, maximum: floa
 
 FLOAT32_MAX = 3.4028234663852886e38
 """The largest finite float32: a scene's numbers are rendered in single precision."""
+FLOAT32_TINY = 1.1754943508222875e-38
+"""The smallest normal float32: a number nearer 0 (but not 0) loses its precision there, and what divides by it
+overflows."""
 
 
 def check_number(value: Any, name: str, minimum: float | None = None, maximum: float | None = None,
@@ -42,9 +45,10 @@ def check_number(value: Any, name: str, minimum: float | None = None, maximum: f
     real = isinstance(value, numbers.Real) and not isinstance(value, bool)
     try:
         big = real and math.isfinite(value) and abs(float(value)) > FLOAT32_MAX  # 1e308 is infinite in float32
+        tiny = real and 0 < abs(float(value)) < FLOAT32_TINY  # 1e-39 is a subnormal: 0 to what divides by it
     except OverflowError:  # an integer of hundreds of digits
-        big = True
-    ok = real and not big and math.isfinite(value)
+        big, tiny = True, False
+    ok = real and not big and not tiny and math.isfinite(value)
     if ok:
         ok = ((minimum is None or value >= minimum) and (maximum is None or value <= maximum)
               and (above is None or value > above) and (below is None or value < below))
@@ -61,6 +65,8 @@ def check_number(value: Any, name: str, minimum: float | None = None, maximum: f
             what = "a finite number"
         if big:
             what += f" (at most {FLOAT32_MAX:.3g}: rendered in single precision)"
+        if tiny:
+            what += f" (none nearer 0 than {FLOAT32_TINY:.3g}: rendered in single precision)"
         shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:40] + "..."
         raise ValueError(f"{name}: got {shown}, expected {what}")
     return float(value)

@@ -2810,6 +2810,15 @@ ROWS += [
         setup=_sensor_stopped_after_one,
         check=_not_written("run/final.safetensors"),
     ),
+    Row(  # sweep 27: make --overwrite took a wildgen.sensor output (its manifest) for its own and replaced it
+        "make-overwrite-keeps-a-sensor-output",
+        MK,
+        ["--out", "{T}/ph", *TINY, "--overwrite"],
+        2,
+        ("--overwrite", "ph/manifest.json' was written by wildgen.sensor"),
+        setup=lambda w, t: __import__("wildgen.sensor", fromlist=["main"]).main(
+            ["--data", str(w / "data"), "--sensor", "phone", "--out", str(t / "ph"), "--quiet"]),
+    ),  # (every file there before the run is compared after it: none changed)
     Row(  # sweep 27: an object without its mask was packed whole; it would fail only when trained
         "export-object-without-its-mask",
         EXP,

@@ -242,6 +242,10 @@ def plan_run(cfg: GenConfig, out_dir: Path, variant: str, overwrite: bool = Fals
     out_dir = Path(out_dir)
     plan = Plan()
     manifest = None if overwrite else load_manifest(out_dir)
+    if overwrite and _written_by_sensor(out_dir / MANIFEST):  # before anything there is removed
+        raise DatasetError(f"--overwrite: {str(out_dir / MANIFEST)!r} was written by wildgen.sensor (its sensor "
+                           "record): wildgen.make replaces only a dataset it rendered; move it away or use another "
+                           "--out")
     if manifest is None:
         # Object folders without a manifest are not this tool's: never replaced, even with --overwrite
         # (scenes.cli.outputs.claim_outputs, the rule of every command); with a manifest, --overwrite replaces them.
@@ -328,6 +332,16 @@ def _remove_dataset(out_dir: Path) -> None:
     for p in out_dir.iterdir():
         if p.is_dir() and not p.is_symlink() and OBJECT_FOLDER.match(p.name) and p.name in listed:
             shutil.rmtree(p)
+
+
+def _written_by_sensor(path: Path) -> bool:
+    """Whether `path` is a manifest wildgen.sensor wrote (a top-level sensor record; make --sensor records the sensor
+    in its config only)."""
+    try:
+        record = read_json(path) if path.is_file() and not path.is_symlink() else None
+    except (OSError, ValueError):
+        return False
+    return isinstance(record, dict) and isinstance(record.get("sensor"), dict)
 
 
 def check_no_foreign_file(out_dir: Path, flag: str) -> None:
