@@ -2810,6 +2810,14 @@ ROWS += [
         setup=_sensor_stopped_after_one,
         check=_not_written("run/final.safetensors"),
     ),
+    Row(  # sweep 27: a working size the object vanishes at was said as "size: 2 is too small", naming no flag
+        "train-res-the-object-vanishes-at",
+        TR,
+        [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1", "--res", "2"],
+        2,
+        ("--res: 2 px is too small",),
+        check=_not_written("run"),
+    ),
     Row(  # sweep 27: make --overwrite took a wildgen.sensor output (its manifest) for its own and replaced it
         "make-overwrite-keeps-a-sensor-output",
         MK,

@@ -486,3 +486,17 @@ def test_a_map_too_large_for_the_memory_is_refused_before_the_solve(tmp_path, ca
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("error: --normals/--mask: integrating") and "memory" in err
     assert not (tmp_path / "o").exists()
+
+
+def test_a_mask_reaching_past_the_maps_object_is_said_as_such():
+    """Sweep 27: a --mask covering pixels where the map holds no normal (0) was refused as "not unit length (median
+    length 1.000)", which reads as a damaged map; the refusal says how many are 0 and asks about the mask."""
+    from scenes.surface.inputs import check_normals
+
+    n = np.zeros((8, 8, 3))
+    n[2:6, 2:6] = [0.0, 0.0, 1.0]
+    mask = np.zeros((8, 8), bool)
+    mask[1:7, 1:7] = True  # 36 pixels, 16 of them with a normal
+    with pytest.raises(ValueError, match=r"55\.6% of the normals inside the mask are not unit length .*55\.6% of "
+                                         r"them are 0 \(no normal\): does --mask cover more than the map's object\?"):
+        check_normals(n, mask)

@@ -233,7 +233,7 @@ def run_model(net: LoadedModel, obj: PSObject, res: int | None = None, margin: i
         return run_published(net, obj, res=res, tta=tta, patch=patch, views=views)
 
     prepared = prepare(obj, margin=contract.margin if margin is None else margin)
-    work = resize_prepared(prepared, res) if res is not None else prepared
+    work = resize_prepared(prepared, res, "--res") if res is not None else prepared
     images = torch.from_numpy(np.ascontiguousarray(work.images.transpose(0, 3, 1, 2)))  # (K, 3, R, R)
     mask = torch.from_numpy(work.mask.astype(np.float32))[None]  # (1, R, R)
     each: list = []

@@ -125,19 +125,21 @@ def resize_normals(normals: np.ndarray, size: int, mask: np.ndarray | None = Non
     return n
 
 
-def resize_prepared(p: Prepared, size: int) -> Prepared:
-    """The same object at a working resolution ``size`` (images INTER_AREA, mask area + threshold)."""
+def resize_prepared(p: Prepared, size: int, flag: str = "size") -> Prepared:
+    """The same object at a working resolution ``size`` (images INTER_AREA, mask area + threshold); `flag`: the
+    option that gave it, named in its errors."""
     import cv2
 
     if int(size) < 1:
-        raise ValueError(f"size: must be >= 1, got {size}")
+        raise ValueError(f"{flag}: must be >= 1, got {size}")
     size = int(size)
     if size == p.resolution:
         return p
     images = np.stack([cv2.resize(im, (size, size), interpolation=cv2.INTER_AREA) for im in p.images])
     mask = resize_mask(p.mask, size)
     if not mask.any():
-        raise ValueError(f"size: {size} is too small, the object's mask vanishes when resized")
+        raise ValueError(f"{flag}: {size} px is too small, the object's mask vanishes when resized to it; expected a "
+                         "working resolution the object shows at")
     normals = resize_normals(p.normals, size, mask) if p.normals is not None else None
     return replace(p, images=images.astype(np.float32), mask=mask, normals=normals)
 

@@ -81,7 +81,7 @@ def prepare_sample(obj: Any, res: int, require_normals: bool = True, name: str |
 
     if require_normals and obj.normals is None:
         raise ValueError(f"{where}: object {obj.name!r} has no ground-truth normals (normal.tif); training needs them")
-    prep = resize_prepared(prepare(obj, margin=4), res)
+    prep = resize_prepared(prepare(obj, margin=4), res, "--res")
     imgs, m, n = to_tensors(prep.images, prep.mask, prep.normals)
     return Sample(name or obj.name, imgs.to(torch.float16), m, n, obj.light_family, obj.level, content_digest(obj))
 

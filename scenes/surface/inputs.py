@@ -41,6 +41,8 @@ def check_normals(normals: np.ndarray, mask: np.ndarray, flag: str = "--normals"
         rest = np.abs(np.linalg.norm(n[~mask], axis=1) - 1.0) <= UNIT_TOLERANCE
         inverted = "; the map's unit normals lie outside the mask: is --mask inverted (the object black on white)?" \
             if rest.size and rest.mean() >= UNIT_SHARE else ""
+        if not inverted and (zero := float(np.mean(length == 0))) > 0:  # no normal there: the mask reaches past it
+            inverted = f"; {100 * zero:.1f}% of them are 0 (no normal): does --mask cover more than the map's object?"
         raise ValueError(f"{flag}: {100 * (1 - unit.mean()):.1f}% of the normals inside the mask are not unit "
                          f"length (median length {np.median(length):.3f}); expected unit vectors (a 16-bit map "
                          f"stores (n + 1) / 2){inverted}")
