@@ -2810,6 +2810,15 @@ ROWS += [
         setup=_sensor_stopped_after_one,
         check=_not_written("run/final.safetensors"),
     ),
+    Row(  # sweep 27: the changed setting was named as its key (model_option=[...]), not as the flag to leave out
+        "train-resume-with-another-model-option",
+        TR,
+        [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "2", "--resume", "--model-option",
+         "uniform_context=true"],
+        2,
+        ("--resume: --model-option ['uniform_context=true'] differs from the checkpoint's []",),
+        setup=_trained("run", lambda run: None),
+    ),
     Row(  # sweep 27: a working size the object vanishes at was said as "size: 2 is too small", naming no flag
         "train-res-the-object-vanishes-at",
         TR,

@@ -448,7 +448,7 @@ def resume_run(run: Run) -> None:
     for key, value in run.train_args.items():
         saved = old.get(key, defaults.get(key))  # a key newer than the checkpoint had its default there
         if saved != value:
-            raise ValueError(f"--resume: {key}={value!r} differs from the checkpoint's {saved!r}")
+            raise ValueError(f"--resume: --{key.replace('_', '-')} {value!r} differs from the checkpoint's {saved!r}")
     if (change := data_change(ckpt["data"], run.data_desc)) is not None:
         raise ValueError(f"--resume: the objects in --data {cfg.data!r} differ from the checkpoint's ({change})")
     step = ckpt["step"]
