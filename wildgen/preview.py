@@ -27,6 +27,7 @@ from scenes.cli.errors import UsageError
 from scenes.cli.options import Command, Positional, arg
 from scenes.cli.outputs import check_listed, check_output_folder, make_output_folder
 from scenes.files import is_within
+from scenes.folder.format import check_dataset_complete
 
 TILE = 128
 """Pixels of one tile of a contact sheet."""
@@ -99,6 +100,8 @@ def _object_folders(dataset: Path) -> list[Path]:
     folders = sorted(p for p in dataset.glob("*.data") if p.is_dir()) if dataset.is_dir() else []
     if dataset.name.endswith(".data") and dataset.is_dir():
         folders = [dataset]
+    elif folders:  # a run still writing it, or stopped: not drawn (nor counted) as a dataset
+        check_dataset_complete(dataset, "DIR")
     if not folders:
         raise FileNotFoundError(f"DIR: no <object>.data folders in {str(dataset)!r}")
     return folders

@@ -239,6 +239,9 @@ def list_object_folders(dataset: str | Path) -> list[Path]:
     check_dataset_complete(dataset)
     folders = sorted(p for p in dataset.iterdir()
                      if p.is_dir() and p.name.endswith(OBJECT_SUFFIX) and not p.name.startswith("."))
+    if not folders and (dataset / SCENE_FILE).is_file():  # one object folder given for the dataset around it
+        raise FileNotFoundError(f"--data: {str(dataset)!r} is one object folder; expected the dataset folder that "
+                                f"holds such folders (here {str(dataset.parent)!r})")
     if not folders:
         raise FileNotFoundError(f"--data: {str(dataset)!r} has no scene.json and no *.data object folders")
     for f in folders:
