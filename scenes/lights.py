@@ -69,6 +69,8 @@ class LightDesc:
         check_vector(self.color, f"{owner}.color")
         if min(self.color) < 0:
             raise ValueError(f"{owner}.color: expected non-negative values, got {self.color!r}")
+        if self.temperature_k is not None:  # informational, yet a record: a negative kelvin is no temperature
+            check_number(self.temperature_k, f"{owner}.temperature_k", above=0)
 
     def report(self, R: np.ndarray, target: np.ndarray, exposure: float) -> dict:
         """The light in the camera frame: R world-to-camera rotation, the camera target, the image's exposure."""

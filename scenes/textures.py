@@ -84,8 +84,9 @@ def read_image_file(path: Path) -> np.ndarray:
     return img
 
 
-def realize_texture(tex: TextureDesc, base_dir: Path | None = None) -> np.ndarray:
-    """The texture as an array (H, W, C), C = len(tex.value); constants give a 1x1 array."""
+def realize_texture(tex: TextureDesc, base_dir: Path | None = None, owner: str = "texture") -> np.ndarray:
+    """The texture as an array (H, W, C), C = len(tex.value); constants give a 1x1 array. `owner`: the scene field
+    it is (material.roughness), named in its errors."""
     channels = len(tex.value)
     if tex.kind == "constant":
         return np.asarray(tex.value, np.float32).reshape(1, 1, channels)
@@ -93,13 +94,16 @@ def realize_texture(tex: TextureDesc, base_dir: Path | None = None) -> np.ndarra
         path = Path(tex.file)
         if not path.is_absolute() and base_dir is not None:
             path = base_dir / path
-        img = read_image_file(path)
+        try:
+            img = read_image_file(path)
+        except (FileNotFoundError, ValueError) as exc:  # the file is named; the field that named it, here
+            raise type(exc)(f"{owner}.file: {exc}") from None
         if tex.srgb:
             img = srgb_to_linear(img[:, :, :3])
         if channels == 1:
             ch = tex.channel if tex.channel is not None else 0
             if ch >= img.shape[2]:
-                raise ValueError(f"texture.channel: {ch} out of range for {str(path)!r} with {img.shape[2]} channels")
+                raise ValueError(f"{owner}.channel: {ch} out of range for {str(path)!r} with {img.shape[2]} channels")
             img = img[:, :, ch : ch + 1]
         else:
             img = img[:, :, :3] if img.shape[2] >= 3 else np.repeat(img[:, :, :1], 3, 2)

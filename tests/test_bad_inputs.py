@@ -3841,6 +3841,13 @@ ROWS += [
         check=_not_written("o")),
     Row("rerender-scene-json-newer-format", RR, SWEEP3, 2, ("scene.json", "format_version 99"),
         setup=_scene_text(lambda d: json.dumps({**d, "format_version": 99})), check=_not_written("o")),
+    Row("rerender-scene-normal-map-missing", RR, SWEEP3, 2,  # sweep 28: the file was named, not the field
+        ("material.normal_map.file: texture file", "nope.exr' does not exist"),
+        setup=_scene_text(lambda d: json.dumps({**d, "material": {**d["material"], "normal_map": "aux/nope.exr"}})),
+        check=_not_written("o")),
+    Row("rerender-scene-json-unknown-top-level-key", RR, SWEEP3, 2,  # sweep 28: a typo ('lightz') was ignored
+        ("scene.json", "unknown field(s) lightz, expected the description's and camera_lights"),
+        setup=_scene_text(lambda d: json.dumps({**d, "lightz": []})), check=_not_written("o")),
     Row("rerender-scene-json-nested-deep", RR, SWEEP3, 2, ("scene.json", "nested too deeply"),
         setup=_scene_text(_deep), check=_not_written("o")),
     Row("rerender-scene-names-a-mesh-by-absolute-path", RR, SWEEP3, 2, ("shape.file", "outside the object folder"),

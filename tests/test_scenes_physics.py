@@ -311,6 +311,8 @@ JSON_EDITS = [  # sweep 26: each was a traceback (TypeError, a Mitsuba RuntimeEr
     (lambda d: d["camera"].update(width=1_000_000), "camera.width: got 1000000, expected an integer from 1 to 16384"),
     (lambda d: d["camera"].update(half_size=1e-39),  # sweep 27: a float32 subnormal, rendered and scored
      "camera.half_size: got 1e-39, expected a number > 0 (none nearer 0 than 1.18e-38"),
+    (lambda d: d["images"][0]["lights"][0].update(temperature_k=-100.0),  # sweep 28: rendered and scored
+     "images[0].lights[0].temperature_k: got -100.0, expected a number > 0"),
     # sweep 27: an area light facing no way (target at its position, or up along its axis) was rendered and scored
     (lambda d: d["images"][0].update(lights=[{"type": "area", "position": [0, 0, 3], "target": [0, 0, 3]}]),
      "images[0].lights[0].target: got [0, 0, 3], the light's own position"),

@@ -314,6 +314,11 @@ def check_scene_files(scene: Any, path: Path, where: str = "") -> None:
             check_scene_files(value, path, here)
 
 
+SCENE_EXTRAS = ("camera_lights", "format_version", "sensor")
+"""What a scene.json holds beside the description: the lights in the camera frame, its format version, and the
+camera sensor applied (`scenes.camera_sensor.SCENE_KEY`)."""
+
+
 def split_scene_extras(d: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
     """(SceneDescription fields, everything else) of a scene.json dict."""
     from dataclasses import fields
@@ -330,6 +335,9 @@ def scene_from_dict(scene: dict[str, Any], path: str | Path | None = None):
     from scenes.description import SceneDescription
 
     try:
+        if unknown := sorted(set(split_scene_extras(scene)[1]) - set(SCENE_EXTRAS)):  # a typo is never ignored
+            raise ValueError(f"scene: unknown field(s) {', '.join(map(str, unknown))[:200]}, expected the "
+                             f"description's and {', '.join(SCENE_EXTRAS)}")
         return SceneDescription.from_dict(split_scene_extras(scene)[0]).validate()
     except (ValueError, TypeError, KeyError) as exc:
         said = str(exc) if not isinstance(exc, KeyError) else f"{exc.args[0]}: missing"

@@ -38,8 +38,8 @@ def _bitmap_texture(arr: np.ndarray, **options: Any):
     return mi.load_dict({"type": "bitmap", "data": mi.TensorXf(arr), "raw": True, "filter_type": "bilinear", **options})
 
 
-def _texture_dict(tex: TextureDesc, base_dir: Path | None) -> tuple[Any, np.ndarray]:
-    arr = realize_texture(tex, base_dir)
+def _texture_dict(tex: TextureDesc, base_dir: Path | None, owner: str) -> tuple[Any, np.ndarray]:
+    arr = realize_texture(tex, base_dir, owner)
     if tex.kind == "constant":
         if arr.shape[2] == 1:
             return float(arr[0, 0, 0]), arr
@@ -50,7 +50,7 @@ def _texture_dict(tex: TextureDesc, base_dir: Path | None) -> tuple[Any, np.ndar
 def bsdf_dict(desc: SceneDescription, base_dir: Path | None) -> tuple[dict, dict[str, np.ndarray]]:
     """Mitsuba BSDF dict of the object's material, and the realised texture arrays (for ground truth)."""
     mat = desc.material
-    base, base_arr = _texture_dict(mat.base_color, base_dir)
+    base, base_arr = _texture_dict(mat.base_color, base_dir, "material.base_color")
     arrays = {"base_color": base_arr}
     d: dict[str, Any]
     if mat.kind == "lambertian":
@@ -58,8 +58,8 @@ def bsdf_dict(desc: SceneDescription, base_dir: Path | None) -> tuple[dict, dict
         arrays["metallic"] = np.zeros((1, 1, 1), np.float32)
         d = {"type": "diffuse", "reflectance": base}
     else:
-        rough, arrays["roughness"] = _texture_dict(mat.roughness, base_dir)
-        metal, arrays["metallic"] = _texture_dict(mat.metallic, base_dir)
+        rough, arrays["roughness"] = _texture_dict(mat.roughness, base_dir, "material.roughness")
+        metal, arrays["metallic"] = _texture_dict(mat.metallic, base_dir, "material.metallic")
         d = {
             "type": "principled",
             "base_color": base,
@@ -69,7 +69,8 @@ def bsdf_dict(desc: SceneDescription, base_dir: Path | None) -> tuple[dict, dict
         }
     if mat.normal_map or mat.detail is not None:
         if mat.normal_map:
-            nm_arr = realize_texture(TextureDesc(kind="file", value=[0.5, 0.5, 1.0], file=mat.normal_map), base_dir)
+            nm_arr = realize_texture(TextureDesc(kind="file", value=[0.5, 0.5, 1.0], file=mat.normal_map), base_dir,
+                                     "material.normal_map")
         else:
             from scenes.detail import realize_detail
 
@@ -225,8 +226,8 @@ def floor_dict(floor: FloorDesc, base_dir: Path | None) -> dict:
     m = np.eye(4)
     m[:3, 0], m[:3, 1], m[:3, 2] = u * floor.size / 2, v * floor.size / 2, n  # the rectangle's +z is its normal
     m[:3, 3] = floor.point
-    base, _ = _texture_dict(floor.base_color, base_dir)
-    rough, _ = _texture_dict(floor.roughness, base_dir)
+    base, _ = _texture_dict(floor.base_color, base_dir, "floor.base_color")
+    rough, _ = _texture_dict(floor.roughness, base_dir, "floor.roughness")
     return {"type": "rectangle", "to_world": mi.ScalarTransform4f(m),
             "bsdf": {"type": "principled", "base_color": base, "roughness": rough, "metallic": 0.0}}
 
