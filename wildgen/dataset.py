@@ -242,10 +242,8 @@ def plan_run(cfg: GenConfig, out_dir: Path, variant: str, overwrite: bool = Fals
     out_dir = Path(out_dir)
     plan = Plan()
     manifest = None if overwrite else load_manifest(out_dir)
-    if overwrite and _written_by_sensor(out_dir / MANIFEST):  # before anything there is removed
-        raise DatasetError(f"--overwrite: {str(out_dir / MANIFEST)!r} was written by wildgen.sensor (its sensor "
-                           "record): wildgen.make replaces only a dataset it rendered; move it away or use another "
-                           "--out")
+    if overwrite:  # before anything there is removed
+        _refuse_a_sensor_output(out_dir / MANIFEST)
     if manifest is None:
         # Object folders without a manifest are not this tool's: never replaced, even with --overwrite
         # (scenes.cli.outputs.claim_outputs, the rule of every command); with a manifest, --overwrite replaces them.
@@ -284,10 +282,8 @@ def plan_run(cfg: GenConfig, out_dir: Path, variant: str, overwrite: bool = Fals
         old_versions = manifest.get("versions", {})
         changed = [k for k in ("mitsuba", "drjit", "numpy") if old_versions.get(k) != now.get(k)]
         if changed:
-            log.warning(
-                "manifest was written with other versions of %s: resumed objects may differ in bytes",
-                ", ".join(changed),
-            )
+            log.warning("manifest was written with other versions of %s: resumed objects may differ in bytes",
+                        ", ".join(changed))
         check_no_foreign_file(out_dir, "--out")  # a done object found changed is rendered anew: never take theirs
         plan.resumed = True
     old = {int(e["index"]): e for e in (manifest or {}).get("objects", []) if isinstance(e, dict) and "index" in e}
@@ -334,14 +330,16 @@ def _remove_dataset(out_dir: Path) -> None:
             shutil.rmtree(p)
 
 
-def _written_by_sensor(path: Path) -> bool:
-    """Whether `path` is a manifest wildgen.sensor wrote (a top-level sensor record; make --sensor records the sensor
-    in its config only)."""
+def _refuse_a_sensor_output(path: Path) -> None:
+    """DatasetError when `path` is a manifest wildgen.sensor wrote (a top-level sensor record; make --sensor records
+    the sensor in its config only): make --overwrite replaces only a dataset it rendered."""
     try:
         record = read_json(path) if path.is_file() and not path.is_symlink() else None
     except (OSError, ValueError):
-        return False
-    return isinstance(record, dict) and isinstance(record.get("sensor"), dict)
+        return
+    if isinstance(record, dict) and isinstance(record.get("sensor"), dict):
+        raise DatasetError(f"--overwrite: {str(path)!r} was written by wildgen.sensor (its sensor record): "
+                           "wildgen.make replaces only a dataset it rendered; move it away or use another --out")
 
 
 def check_no_foreign_file(out_dir: Path, flag: str) -> None:
