@@ -187,6 +187,11 @@ class MaterialDesc:
         self.base_color.validate("material.base_color")
         self.roughness.validate("material.roughness")
         self.metallic.validate("material.metallic")
+        for name in ("base_color", "roughness", "metallic"):  # reflectances and BSDF weights: 0 to 1
+            tex = getattr(self, name)
+            for key in ("value", "value2"):
+                for v in getattr(tex, key) or []:
+                    check_number(v, f"material.{name}.{key}", minimum=0, maximum=1)
         check_number(self.specular, "material.specular", minimum=0)
 
 

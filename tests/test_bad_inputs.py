@@ -3807,6 +3807,9 @@ ROWS += [
     Row("train-shard-index-name-above", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps", "1"], 2,
         ("index.json", "'../other/000001.tar'"),
         setup=_index_edited(lambda i: i["shards"][1].update(name="../other/000001.tar")), check=_not_written("run")),
+    Row("train-shard-index-complete-as-text", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps", "1"],
+        2, ("index.json", "did not finish (complete is 'yes')"),  # sweep 28: 'yes' was taken for finished
+        setup=_index_edited(lambda i: i.update(complete="yes")), check=_not_written("run")),
     Row("train-shard-index-name-twice", TR, [*TRAIN_ONE, "--data", "{T}/s", "--out", "{T}/run", "--steps", "1"], 2,
         ("index.json", "'000000.tar' twice"),
         setup=_index_edited(lambda i: i["shards"][1].update(name="000000.tar")), check=_not_written("run")),

@@ -313,6 +313,8 @@ JSON_EDITS = [  # sweep 26: each was a traceback (TypeError, a Mitsuba RuntimeEr
      "camera.half_size: got 1e-39, expected a number > 0 (none nearer 0 than 1.18e-38"),
     (lambda d: d["images"][0]["lights"][0].update(temperature_k=-100.0),  # sweep 28: rendered and scored
      "images[0].lights[0].temperature_k: got -100.0, expected a number > 0"),
+    (lambda d: d["material"]["roughness"].update(value=[5.0]),  # sweep 28: rendered and scored
+     "material.roughness.value: got 5.0, expected a number in [0, 1]"),
     # sweep 27: an area light facing no way (target at its position, or up along its axis) was rendered and scored
     (lambda d: d["images"][0].update(lights=[{"type": "area", "position": [0, 0, 3], "target": [0, 0, 3]}]),
      "images[0].lights[0].target: got [0, 0, 3], the light's own position"),

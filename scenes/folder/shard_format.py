@@ -377,8 +377,9 @@ def read_index(folder: str | Path, arg: str = "--data") -> dict[str, Any]:
     if not _count(version) or not 1 <= version <= FORMAT_VERSION:
         raise ValueError(f"{arg}: {str(path)!r} has format_version {version!r}; this toolkit reads versions 1 to "
                          f"{FORMAT_VERSION} (a newer wildgen.export wrote it?)")
-    if not index.get("complete"):
-        raise ValueError(f"{arg}: {str(path)!r} belongs to an export that did not finish; run wildgen.export again")
+    if index.get("complete") is not True:  # ('yes' is no answer: only the export's own true says it finished)
+        raise ValueError(f"{arg}: {str(path)!r} belongs to an export that did not finish (complete is "
+                         f"{index.get('complete')!r:.20}); run wildgen.export again")
     for entry in index["shards"]:
         if not (isinstance(entry, dict) and isinstance(entry.get("name"), str) and isinstance(entry.get("sha256"), str)
                 and isinstance(entry.get("objects"), list) and ("bytes" not in entry or _count(entry["bytes"]))):
