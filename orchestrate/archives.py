@@ -88,7 +88,7 @@ def safe_extract(archive: Path, target: Path, flag: str = "--carry", under: str 
                     raise UsageError(f"{flag}: {str(archive)!r} holds member {member.name[:120]!r}, a link or "
                                      "special file (expected plain files and folders only, as --pack writes); "
                                      "refused")
-            if not any(not folder for folder in seen.values()):  # nothing to unpack: not a pack's archive
+            if all(seen.values()):  # folders only, or no member: nothing to unpack, not a pack's archive
                 raise UsageError(f"{flag}: {str(archive)!r} holds no file (expected the archive `python -m "
                                  "orchestrate.gpu_session --pack` writes); refused")
             tar.extractall(target, filter="data")

@@ -114,7 +114,8 @@ class TextureDesc:
     srgb: bool = False
     """For kind 'file': decode sRGB to linear (colour photographs); False for data maps."""
 
-    def validate(self, owner: str) -> None:
+    def validate(self, owner: str, unit: bool = False) -> None:
+        """`unit`: its values are reflectances or BSDF weights, from 0 to 1 (an object's material)."""
         check_choice(self.kind, f"{owner}.kind", TEXTURE_KINDS)
         if not isinstance(self.value, list) or len(self.value) not in (1, 3):
             raise ValueError(f"{owner}.value: expected a list of 1 or 3 numbers, got {self.value!r}")
@@ -123,6 +124,9 @@ class TextureDesc:
             if len(self.value2) != len(self.value):
                 raise ValueError(f"{owner}.value2: expected {len(self.value)} numbers, got {self.value2!r}")
             check_finite(self.value2, f"{owner}.value2")
+        for key in ("value", "value2") if unit else ():
+            for v in getattr(self, key) or []:
+                check_number(v, f"{owner}.{key}", minimum=0, maximum=1)
         check_number(self.scale, f"{owner}.scale", above=0)
         check_int(self.resolution, f"{owner}.resolution", 1, MAX_TEXELS)
         check_seed(self.seed, f"{owner}.seed")
@@ -184,14 +188,9 @@ class MaterialDesc:
         check_choice(self.kind, "material.kind", MATERIAL_KINDS)
         if self.detail is not None:
             self.detail.validate()
-        self.base_color.validate("material.base_color")
-        self.roughness.validate("material.roughness")
-        self.metallic.validate("material.metallic")
-        for name in ("base_color", "roughness", "metallic"):  # reflectances and BSDF weights: 0 to 1
-            tex = getattr(self, name)
-            for key in ("value", "value2"):
-                for v in getattr(tex, key) or []:
-                    check_number(v, f"material.{name}.{key}", minimum=0, maximum=1)
+        self.base_color.validate("material.base_color", unit=True)
+        self.roughness.validate("material.roughness", unit=True)
+        self.metallic.validate("material.metallic", unit=True)
         check_number(self.specular, "material.specular", minimum=0)
 
 

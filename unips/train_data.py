@@ -31,7 +31,7 @@ class Sample:
     normals: torch.Tensor | None  # (3, R, R) float32 unit vectors inside the mask, 0 outside
     light_family: str | None  # lighting family from scene.json, if known
     level: int | None = None  # complexity level from scene.json (`wildgen.make --level`), if known
-    digest: str = ""  # sha256 of the object as decoded (`content_digest`): a resumed run's data is the same data
+    digest: str = ""  # sha256 of the object as decoded (`content_digest`), set for cached samples: compared on resume
 
     @property
     def num_images(self) -> int:
@@ -83,7 +83,7 @@ def prepare_sample(obj: Any, res: int, require_normals: bool = True, name: str |
         raise ValueError(f"{where}: object {obj.name!r} has no ground-truth normals (normal.tif); training needs them")
     prep = resize_prepared(prepare(obj, margin=4), res, "--res")
     imgs, m, n = to_tensors(prep.images, prep.mask, prep.normals)
-    return Sample(name or obj.name, imgs.to(torch.float16), m, n, obj.light_family, obj.level, content_digest(obj))
+    return Sample(name or obj.name, imgs.to(torch.float16), m, n, obj.light_family, obj.level)
 
 
 def content_digest(obj: Any) -> str:
@@ -119,7 +119,9 @@ def load_samples(root: str | Path, res: int, require_normals: bool = True, arg: 
             objects = (load_object(p, arg=arg) for p in folders)
         for obj in objects:
             name = obj.name if len(roots) == 1 else f"{source_label(r)}/{obj.name}"
-            samples.append(prepare_sample(obj, res, require_normals, name, f"{arg}: {str(r)!r}"))
+            sample = prepare_sample(obj, res, require_normals, name, f"{arg}: {str(r)!r}")
+            sample.digest = content_digest(obj)  # once, for the cache (streamed samples: their shards' checksums)
+            samples.append(sample)
     return samples
 
 

@@ -335,10 +335,11 @@ def scene_from_dict(scene: dict[str, Any], path: str | Path | None = None):
     from scenes.description import SceneDescription
 
     try:
-        if unknown := sorted(set(split_scene_extras(scene)[1]) - set(SCENE_EXTRAS)):  # a typo is never ignored
+        fields_, extras = split_scene_extras(scene)
+        if unknown := sorted(set(extras) - set(SCENE_EXTRAS)):  # a typo is never ignored
             raise ValueError(f"scene: unknown field(s) {', '.join(map(str, unknown))[:200]}, expected the "
                              f"description's and {', '.join(SCENE_EXTRAS)}")
-        return SceneDescription.from_dict(split_scene_extras(scene)[0]).validate()
+        return SceneDescription.from_dict(fields_).validate()
     except (ValueError, TypeError, KeyError) as exc:
         said = str(exc) if not isinstance(exc, KeyError) else f"{exc.args[0]}: missing"
         if path is None or str(path) in said:
