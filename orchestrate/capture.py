@@ -74,7 +74,7 @@ class CaptureOptions:
     input: Annotated[str, arg(metavar="DIR")] = REQUIRED
     """Folder of photos (JPEG, PNG, TIFF, EXR, or camera RAW: DNG, CR2, CR3, NEF, ARW, ORF, RW2, RAF; any names)
     of one object under different lights, the camera still (other pictures there, WebP or HEIC, are refused by
-    name); or an object folder in one of the toolkit's layouts."""
+    name; hidden files are skipped); or an object folder in one of the toolkit's layouts."""
     out: Annotated[str, arg(metavar="DIR")] = REQUIRED
     """Output folder: normal.png, normal.exr, normal_model.png, mask.png, mask_overlay.png, light_variation.png,
     expected_error_deg.npy / .exr, expected_error.png, report.json, report.html and surface/ (docs/capture.md,
@@ -124,18 +124,16 @@ class CaptureOptions:
         return self
 
 
-MIN_SIDE = 32
-"""The smallest --max-side other than 0."""
-MIN_PHOTO_SIDE = 4
-"""The smallest side of a photo the capture works on."""
+MIN_SIDE = 32  # the smallest --max-side other than 0
+MIN_PHOTO_SIDE = 4  # the smallest side of a photo the capture works on
 
 
 def of_photos(opts: CaptureOptions) -> bool:
     """Whether --input is a folder of photos, not an object folder (read at its own size and encoding)."""
-    from scenes.folder.layouts import detect_layout
+    from scenes.folder.photos import object_layout
 
     try:
-        return detect_layout(Path(opts.input)) is None
+        return object_layout(opts.input) is None
     except (OSError, ValueError, TypeError):  # its reader says what is wrong with it (TypeError: none given)
         return True
 
@@ -151,11 +149,11 @@ COMMAND = Command(CaptureOptions, prog="python -m orchestrate.capture", descript
 def probe_input(opts: CaptureOptions) -> tuple[int, int, int, tuple[int, int]]:
     """(photos, height, width after --max-side, the photos' own (height, width)) of --input, from the file list and
     one image: what the estimate needs before anything large is read. An object folder is worked on at its size."""
-    from scenes.folder.layouts import detect_layout, read_folder
-    from scenes.folder.photos import photo_files, photo_shape
+    from scenes.folder.layouts import read_folder
+    from scenes.folder.photos import object_layout, photo_files, photo_shape
 
     folder = Path(opts.input)
-    if detect_layout(folder) is not None:
+    if object_layout(folder) is not None:
         fd = read_folder(folder, images=False, arg="--input")
         return fd.num_files, *fd.shape, fd.shape
     files = photo_files(folder)
@@ -171,14 +169,15 @@ def read_input(opts: CaptureOptions) -> Capture:
     """The capture of --input, linear: its photos (mask None until `find_mask`) or an object folder (with its
     mask); `meta["input"]` says what the files said about themselves (report.json `input`)."""
     from scenes.folder.format import object_name  # resolved: a folder reached through '..' is named as itself
-    from scenes.folder.layouts import detect_layout, read_folder
-    from scenes.folder.photos import read_photos
+    from scenes.folder.layouts import read_folder
+    from scenes.folder.photos import object_layout, read_photos
     from validate.observations import capture_from_arrays
 
     folder = Path(opts.input)
-    if detect_layout(folder) is not None:
+    if object_layout(folder) is not None:  # its mask.png, where it has one (else found as for photos)
         fd = read_folder(folder, arg="--input")
-        return capture_from_arrays(fd.name, fd.images, fd.mask, [p.name for p in fd.image_paths], fd.saturated,
+        mask = fd.mask if fd.mask_file is not None else None
+        return capture_from_arrays(fd.name, fd.images, mask, [p.name for p in fd.image_paths], fd.saturated,
                                    folder, {"input": {"kind": f"object folder ({fd.layout})"}})
     photos = read_photos(folder, opts.input_encoding, opts.max_side or None, guide=True)
     source = {"kind": "photos", "encoding": photos.encoding, "bit_depth": photos.bit_depth,
@@ -259,7 +258,7 @@ def check_and_refine(opts: CaptureOptions, cap: Capture, out: Path,
     from dataclasses import replace
 
     from scenes.renderer.variant import choose_variant, set_jit_threads
-    from validate.fitted.fit_report import judge, rerender_fitted
+    from validate.fitted.fit_report import check_judged, judge, write_fitted
     from validate.fitted.fit_scene import FitConfig
     from validate.fitted.refinement import RefineConfig, refine_judged, write_refined
     from validate.judgeable import check_judgeable
@@ -267,9 +266,10 @@ def check_and_refine(opts: CaptureOptions, cap: Capture, out: Path,
 
     choose_variant(None)
     set_jit_threads(opts.threads)
-    config = FitConfig()
+    config = FitConfig().validate()
     jc = judge(cap, unit_normals(normals, cap.mask), config, "check", args=("--input", "--mask"))
-    check = rerender_fitted(jc, config=config, out_dir=str(out / "check"), overwrite=True)  # claimed by run()
+    check, fit = check_judged(jc, config)
+    write_fitted(jc, out / "check" / cap.name, fit, check)  # claimed by run(), under report.json
     if not (opts.refine and check["trusted"]):
         return normals, check, None
     try:
@@ -311,8 +311,7 @@ def load_network_first(opts: CaptureOptions) -> tuple[object, float]:
 
 
 REPORT_KEYS = ("input", "verdict", "timings")
-"""Keys every capture report.json holds: an existing report.json without them is not the capture's (never replaced,
-`scenes.cli.outputs.claim_outputs`)."""
+"""Keys every capture report.json holds (the provisional one too): one without them is never replaced."""
 
 
 def run(opts: CaptureOptions) -> dict:
@@ -322,8 +321,7 @@ def run(opts: CaptureOptions) -> dict:
     from scenes.surface.write import SURFACE_DIR
     from validate.diagnosis.usable import as_dicts, capture_warnings, light_warnings, mask_doubts, unusable_photos
 
-    t0, times = time.perf_counter(), {}
-    out = Path(opts.out)
+    t0, times, out = time.perf_counter(), {}, Path(opts.out)
     check_output_folder(out)
     claim_outputs([out / n for n in OUTPUTS], opts.overwrite, owner="orchestrate.capture", marker=out / "report.json",
                   signed={out / "report.json": REPORT_KEYS})  # an earlier capture's files: beside its report
@@ -357,6 +355,7 @@ def run(opts: CaptureOptions) -> dict:
     # model expects; the clipped channels stay those the files said (read.saturated), not re-derived from values.
     scale = 1.0 / max(float(read.images[:, mask].max()), 1e-12)
     cap = replace(read, images=np.clip(read.images * scale, 0, 1).astype(np.float32))
+    write_json(out / "report.json", {"complete": False, "input": {}, "verdict": None, "timings": {}})  # ours if stopped
     work = write_object_folder(out / "work" / f"{cap.name}.data", cap.images, mask, None) if opts.keep_work else None
     t1 = time.perf_counter()
     with stage("capture", "the model's map and its expected error"):
@@ -378,7 +377,8 @@ def run(opts: CaptureOptions) -> dict:
         surface = write_capture_surface(out / SURFACE_DIR, final, mask, read.meta["input"])
     times["surface_s"] = time.perf_counter() - t1
     times["total_s"] = time.perf_counter() - t0
-    report = {"input": {"folder": str(opts.input), "images": len(read.image_names), "names": read.image_names,
+    report = {"complete": True,
+              "input": {"folder": str(opts.input), "images": len(read.image_names), "names": read.image_names,
                         "size": list(full), "working_size": list(read.images.shape[1:3]), **read.meta["input"]},
               "mask": {**mask_info, "pixels": int(mask.sum())},
               "warnings": as_dicts(warnings), "measurements": facts, "surface": surface,

@@ -41,7 +41,7 @@ def load_mesh(path: str | Path, normalize: bool = True) -> MeshData:
     own = _read_own_ply(path)
     if own is not None:
         if normalize:
-            return normalize_mesh(*own)
+            return normalize_mesh(*own, name=path)
         pos, faces, nrm, uv = own
         return MeshData(pos.astype(np.float32), faces.astype(np.int32), nrm.astype(np.float32), uv.astype(np.float32))
     try:
@@ -72,18 +72,20 @@ def load_mesh(path: str | Path, normalize: bool = True) -> MeshData:
     visual = getattr(loaded, "visual", None)
     if visual is not None and getattr(visual, "uv", None) is not None and len(visual.uv) == len(positions):
         uvs = np.asarray(visual.uv, dtype=np.float64)[:, :2]
-    return normalize_mesh(positions, faces, normals, uvs)
+    return normalize_mesh(positions, faces, normals, uvs, name=path)
 
 
 def normalize_mesh(
-    positions: np.ndarray, faces: np.ndarray, normals: np.ndarray, uvs: np.ndarray | None
+    positions: np.ndarray, faces: np.ndarray, normals: np.ndarray, uvs: np.ndarray | None, name: Path | None = None
 ) -> MeshData:
-    """Centre on the bounding-box centre and scale into the unit sphere; spherical UVs if none."""
+    """Centre on the bounding-box centre and scale into the unit sphere; spherical UVs if none. `name`: the file,
+    for the error."""
     centre = 0.5 * (positions.min(0) + positions.max(0))
     p = positions - centre
     radius = float(np.linalg.norm(p, axis=1).max())
     if radius <= 0:
-        raise ValueError("shape.file: mesh is degenerate (all vertices coincide)")
+        raise ValueError(f"shape.file: mesh{'' if name is None else f' {str(name)!r}'} is degenerate (all vertices "
+                         "coincide)")
     p = p / radius
     n = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
     if uvs is None:

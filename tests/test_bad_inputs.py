@@ -4782,6 +4782,107 @@ ROWS += [
 ]
 
 
+def _all_black_photos(w: Path, t: Path) -> None:
+    """Setup: T/photos, as many black JPEGs as the world's object has images (a lens cap left on)."""
+    from PIL import Image
+
+    for i, codes in enumerate(_srgb_codes(w)):
+        Image.fromarray(np.zeros_like(codes)).save(_mk(t / "photos") / f"IMG_{i + 1:04d}.jpg", quality=95)
+
+
+def _photo_renamed(old: str, new: str, keep: bool = False) -> Callable[[Path, Path], None]:
+    """Setup: T/photos (`_photos`), its `old` photo renamed (or, with `keep`, copied) to `new`."""
+    def setup(w: Path, t: Path) -> None:
+        _photos()(w, t)
+        (shutil.copy if keep else os.rename)(t / "photos" / old, t / "photos" / new)
+    return setup
+
+
+def _photos_read(names: list[str]) -> Callable[[Path, Path], None]:
+    """Check: the capture in T/o read exactly the photos `names`."""
+    def check(w: Path, t: Path) -> None:
+        assert json.loads((t / "o" / "report.json").read_text())["input"]["names"] == names
+    return check
+
+
+def _leica_names(w: Path, t: Path) -> None:
+    """Setup: T/photos (`_photos`) named as a Leica camera names its files: L1000001.JPG ..."""
+    _photos()(w, t)
+    for p in sorted((t / "photos").iterdir()):
+        p.rename(p.with_name(f"L100000{int(p.stem[4:])}.JPG"))
+
+
+def _read_as_photos(w: Path, t: Path) -> None:
+    """Check: the capture in T/o read its input as sRGB photos, not as an object folder."""
+    r = json.loads((t / "o" / "report.json").read_text())
+    assert r["input"]["kind"] == "photos" and set(r["input"]["encoding"]) == {"srgb"} and r["complete"], r["input"]
+
+
+def _dangling_intensities(w: Path, t: Path) -> None:
+    """Setup: T/dil (`_diligent`) whose light_intensities.txt is a link to a file that is gone."""
+    write_predict_diligent(t / "dil")
+    (t / "dil" / "light_intensities.txt").unlink(missing_ok=True)
+    os.symlink(t / "gone.txt", t / "dil" / "light_intensities.txt")
+
+
+def _copies_of_two_lights(w: Path, t: Path) -> None:
+    """Setup: T/photos (`_photos`) whose photos 3 and 4 are copies of photo 1: two lights in four photos."""
+    _photos()(w, t)
+    for i in (3, 4):
+        shutil.copy(t / "photos" / "IMG_0001.jpg", t / "photos" / f"IMG_{i:04d}.jpg")
+
+
+def _mask_among_photos(w: Path, t: Path) -> None:
+    """Setup: T/photos (`_photos`) with the object's mask saved beside them as mask.png."""
+    _photos()(w, t)
+    shutil.copy(w / "data" / f"{OBJ}.data" / "mask.png", t / "photos" / "mask.png")
+
+
+def _one_flat_mesh(w: Path, t: Path) -> None:
+    """Setup: T/assets/meshes with a good tetrahedron and flat.obj, whose vertices all lie at one point."""
+    meshes = _mk(t / "assets" / "meshes")
+    (meshes / "tetra.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n")
+    (meshes / "flat.obj").write_text("v 1 1 1\nv 1 1 1\nv 1 1 1\nf 1 2 3\n")
+
+
+ROWS += [
+    # ---- sweep 29: a flag that would do nothing, one map for a dataset, which file, what is wrong
+    Row("refine-update-lights-with-calibrated-lights", RF, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out",
+                                                            "{T}/o", "--lights", "calibrated", "--update-lights"], 2,
+        ("--update-lights", "with --lights fitted"), check=_not_written("o")),
+    Row("refine-rotation-search-with-an-environment-light", RF, ["--data", OBJDIR, "--normals", "{W}/pred/00000",
+                                                                 "--out", "{T}/o", "--rotation-search", "--rounds", "2",
+                                                                 "--light-model", "environment"], 2,
+        ("--rotation-search", "--light-model directional, point or auto"), check=_not_written("o")),
+    Row("rerender-a-dataset-with-one-objects-map", RR, ["--data", "{W}/data", "--normals", "{W}/pred/00000/normal.png",
+                                                        "--out", "{T}/o", "--no-floors", "--spp", "1"], 2,
+        ("--normals", "is a file, but --data holds 3 object(s)"), check=_not_written("o")),
+    Row("make-an-asset-mesh-whose-vertices-coincide", MK, ["--out", "{T}/o", *TINY, "--assets", "{T}/assets",
+                                                           "--shapes", "mesh"], 2,
+        ("--assets", "flat.obj", "is degenerate"), setup=_one_flat_mesh, check=_not_written("o")),
+    Row("capture-a-jpeg-named-jfif", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "IMG_0003.jfif", "a picture of a kind the capture does not read"),
+        setup=_photo_renamed("IMG_0003.jpg", "IMG_0003.jfif"), check=_not_written("o")),
+    Row("capture-a-hidden-copy-of-a-photo-is-no-photo", CAP, [*CAPTURE, "--mask", WORLD_MASK], 0, ("wrote",),
+        setup=_photo_renamed("IMG_0001.jpg", ".IMG_0001.jpg", keep=True),
+        check=_photos_read(["IMG_0001.jpg", "IMG_0002.jpg", "IMG_0003.jpg", "IMG_0004.jpg"])),
+    Row("capture-a-cameras-photos-named-l-star", CAP, [*CAPTURE, "--mask", WORLD_MASK], 0, ("wrote",),
+        setup=_leica_names, check=_read_as_photos),
+    Row("predict-diligent-intensities-a-dangling-link", PR, ["--method", "least-squares", "--input", "{T}/dil",
+                                                              "--out", "{T}/p"], 2,
+        ("--input", "light_intensities file", "is a link to", "which does not exist"), setup=_dangling_intensities,
+        check=_not_written("p")),
+    Row("predict-diligent-listing-empty", PR, ["--method", "least-squares", "--input", "{T}/dil", "--out", "{T}/p"], 2,
+        ("--input", "filenames.txt lists no image"), setup=_diligent_edited(listing=lambda names: []),
+        check=_not_written("p")),
+    Row("capture-four-photos-of-two-lights", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "show only 2 lights", "at least 3 places"), setup=_copies_of_two_lights, check=_not_written("o")),
+    Row("capture-a-mask-among-the-photos", CAP, CAPTURE, 2, ("--input", "mask.png", "is named as a mask"),
+        setup=_mask_among_photos, check=_not_written("o")),
+    Row("capture-photos-all-black", CAP, CAPTURE, 2, ("--input", "every image is all but black", "expose longer"),
+        setup=_all_black_photos, check=_not_written("o")),
+]
+
 def test_a_listing_that_is_not_utf8_is_named_with_its_remedy(tmp_path: Path):
     """A DiLiGenT filenames.txt saved in Windows-1252 (an 'é' as the byte 0xE9): one line naming the file and what
     to do, never the codec's words alone (sweep 21); readers that name their flag still catch it as a
@@ -4896,6 +4997,34 @@ def test_ctrl_c_early_in_process_run_stops(world: Path, tmp_path: Path, how: str
     assert proc.returncode == 130, (proc.returncode, stdout, stderr)
     assert "Traceback" not in stderr and "interrupted" in stderr
     assert not list(out.glob(".tmp-*")) if out.exists() else True
+
+
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
+def test_a_capture_stopped_midway_is_redone_with_overwrite(world: Path, tmp_path: Path, sig: int):
+    """A capture killed (or stopped) once it has begun writing leaves report.json `complete: false`, which marks its
+    outputs as the capture's own: the same command again is refused naming --overwrite, and with --overwrite it
+    replaces them (the stop line says to; sweep 29: refused as 'not written by orchestrate.capture')."""
+    _photos()(world, tmp_path)
+    argv = [sys.executable, "-m", CAP, *[a.replace("{T}", str(tmp_path)).replace("{W}", str(world))
+                                         for a in (*CAPTURE, "--mask", WORLD_MASK)]]
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    proc = subprocess.Popen(argv, cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 240
+        while not (tmp_path / "o" / "check").exists() and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert proc.poll() is None, "the capture ended before it was stopped"
+        proc.send_signal(sig)
+        proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert json.loads((tmp_path / "o" / "report.json").read_text())["complete"] is False
+    again = subprocess.run(argv, cwd=REPO, env=env, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 2 and "--overwrite" in again.stderr.strip().splitlines()[-1], again.stderr
+    done = subprocess.run([*argv, "--overwrite"], cwd=REPO, env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert json.loads((tmp_path / "o" / "report.json").read_text())["complete"] is True
 
 
 def test_ray_address_that_does_not_answer_is_refused_after_the_bounded_wait(tmp_path: Path, capsys, monkeypatch):

@@ -66,6 +66,10 @@ COMMAND = Command(
     description="Refine a normal map by fitting light, reflectance and normals to the images through Mitsuba.",
     needs=(Needs("rotation_search", lambda c, _: c.refine.lights == "fitted" and c.refine.rounds > 1,
                  "with --lights fitted and --rounds 2 or more (it turns the fitted lights from the second round)"),
+           Needs("rotation_search", lambda c, _: c.refine.fit.light_model != "environment",
+                 "with --light-model directional, point or auto (an environment light has no tilt it could search)"),
+           Needs("update_lights", lambda c, _: c.refine.lights == "fitted",
+                 "with --lights fitted (calibrated lights are held fixed)"),
            Needs("rotation_steps", lambda c, _: c.refine.rotation_search, "with --rotation-search"),
            Needs("patience", lambda c, _: c.refine.holdout_fraction > 0, "with --holdout above 0 (the held-out "
                  "residual it waits on)"), *FIT_NEEDS),

@@ -386,6 +386,9 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         folders = [data] if single else list_object_folders(data)  # fails early with a clear message
         if not Path(args.normals).exists():
             raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
+        if not single and not Path(args.normals).is_dir():  # one map cannot be every object's
+            raise UsageError(f"--normals: {args.normals!r} is a file, but --data holds {len(folders)} object(s); "
+                             "expected a folder with <object>/normal.* (or --data one object folder)")
         claim_check_outputs(args.out, [object_name(f) for f in folders], args.overwrite, renders=config.save_renders)
 
         from scenes.renderer.variant import choose_variant

@@ -4,6 +4,7 @@ readers per layout."""
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -107,7 +108,8 @@ def read_diligent_lights(folder: str | Path, rows: int) -> tuple[np.ndarray, np.
                          f"{directions[behind[0], 2]:.2f}; {len(behind)} of {rows} rows); expected directions toward "
                          "the light in the camera frame, x right, y up, z toward the camera")
     int_path = folder / DILIGENT_INTENSITIES
-    raw = read_text_matrix(int_path, rows, "light_intensities") if int_path.is_file() else np.ones((rows, 3))
+    present = os.path.lexists(int_path)  # a dangling link or a folder is named, never read as no file (ones)
+    raw = read_text_matrix(int_path, rows, "light_intensities") if present else np.ones((rows, 3))
     check_intensities(raw, f"light_intensities file {int_path}")
     return directions, raw
 

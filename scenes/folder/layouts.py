@@ -120,14 +120,14 @@ def diligent_images(folder: str | Path) -> list[Path]:
     folder = Path(folder)
     listing = folder / DILIGENT_LISTING
     if listing.is_file():
-        # a Windows editor's file reads the same: its byte-order mark and CRLF line ends are not part of the names
-        text = read_text_file(listing).removeprefix("\ufeff")
+        text = read_text_file(listing).removeprefix("\ufeff")  # a Windows editor's BOM and CRLF: not in the names
         names = [line.strip() for line in text.splitlines() if line.strip()]
+        if not names:  # no order of the images, and no image
+            raise ValueError(f"{listing} lists no image; expected the names of its images (001.png ...), one a line")
         twice = next((n for n, name in enumerate(names) if name in names[:n]), None)  # two observations of one light
         if twice is not None:
-            raise ValueError(
-                f"{listing} lists {names[twice]} twice, entries {names.index(names[twice]) + 1} and {twice + 1}"
-            )
+            raise ValueError(f"{listing} lists {names[twice]} twice, entries {names.index(names[twice]) + 1} and "
+                             f"{twice + 1}")
         outside = next((name for name in names if Path(name).name != name or name in (".", "..")), None)
         if outside is not None:  # a name read from a file stays inside its folder
             raise ValueError(f"{listing} lists {outside!r}, not a file name in that folder; expected the names of its "

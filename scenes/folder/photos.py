@@ -3,7 +3,8 @@ files.
 
 `read_photos` returns the images linear, in one float32 array, with what each file said about itself:
 
-- files are taken in natural order (`IMG_2.jpg` before `IMG_10.jpg`, `natsort`), by suffix (`PHOTO_SUFFIXES`);
+- files are taken in natural order (`IMG_2.jpg` before `IMG_10.jpg`, `natsort`), by suffix (`PHOTO_SUFFIXES`;
+  other pictures, `OTHER_IMAGE_SUFFIXES`, are refused by name; hidden files are skipped);
 - files are decoded strictly (`scenes.images.decode_image`): a JPEG its decoder reports truncated or corrupt, a
   TIFF that does not decode whole, is refused naming it (OpenCV would return it grey-filled or in part);
 - EXIF orientation is applied (OpenCV's decoder), so a photo shows as the camera was held; every photo must say the
@@ -33,6 +34,7 @@ argument (`--input`) and the file.
 """
 from __future__ import annotations
 
+import os
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -47,8 +49,15 @@ from scenes.images import CODE_SCALES
 
 PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".exr", *RAW_SUFFIXES)
 """File suffixes read as photos (case-insensitive)."""
-OTHER_IMAGE_SUFFIXES = (".webp", ".heic", ".heif", ".avif", ".gif", ".bmp", ".jp2", ".jxl", ".hdr", ".pfm")
-"""Pictures a capture does not read: in a photo folder they are named, never silently left out of the capture."""
+OTHER_IMAGE_SUFFIXES = (
+    ".webp", ".heic", ".heif", ".hif", ".avif", ".gif", ".bmp", ".jp2", ".jxl", ".hdr", ".pfm",
+    ".jfif", ".jpe", ".jif", ".tga", ".ppm", ".pgm", ".pbm", ".pnm", ".psd", ".jxr", ".wdp", ".ico", ".qoi", ".dds",
+    # camera RAW files LibRaw reads but no test here has: refused rather than developed unchecked
+    ".pef", ".srw", ".nrw", ".rwl", ".3fr", ".iiq", ".erf", ".mos", ".x3f", ".kdc", ".mrw", ".sr2", ".srf", ".crw",
+)
+"""Pictures a capture does not read (a JPEG under the name .jfif too: the suffix says the kind): in a photo folder
+they are named, never silently left out of the capture. Hidden files (a name starting with a dot: macOS's ._ copies,
+editors' and sync tools' files) are never photos."""
 ENCODINGS = ("auto", "srgb", "linear")
 """How encoded values become linear: `auto` (sRGB for 8-bit files, linear otherwise), or one for all files."""
 _SRGB_COLOR_SPACE = 1
@@ -94,6 +103,20 @@ MAX_LINEAR = 1e9
 """Values above this are refused: squares of them overflow float32 arithmetic (about 1.8e19) in later steps."""
 
 
+def object_layout(folder: str | Path) -> str | None:
+    """The layout (`scenes.folder.layouts.detect_layout`) --input of a capture is read as, or None for a folder of
+    photos: the official UniPS layout only in a folder named *.data (as its loaders find them) or holding its
+    mask.png, since cameras name photos L* too (Leica: L1000001.JPG), and those are sRGB photos, not linear images."""
+    from scenes.folder.format import MASK_FILE
+    from scenes.folder.layouts import detect_layout
+
+    folder = Path(folder)
+    layout = detect_layout(folder)
+    if layout == "unips" and not folder.name.endswith(".data") and not os.path.lexists(folder / MASK_FILE):
+        return None
+    return layout
+
+
 def photo_files(folder: str | Path, flag: str = "--input") -> list[Path]:
     """The photo files of `folder` in natural order; FileNotFoundError / ValueError naming `flag`."""
     from natsort import natsorted, ns
@@ -101,16 +124,20 @@ def photo_files(folder: str | Path, flag: str = "--input") -> list[Path]:
     folder = Path(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"{flag}: {str(folder)!r} is not a folder")
-    named = [p for p in folder.iterdir() if p.suffix.lower() in PHOTO_SUFFIXES]
+    shown = [p for p in folder.iterdir() if not p.name.startswith(".")]
+    named = [p for p in shown if p.suffix.lower() in PHOTO_SUFFIXES]
     for p in named:  # before any is read: the outputs' writers take names as text only
         if (problem := text_name_problem(p.name)) is not None:
             raise ValueError(f"{flag}: a photo in {shown_name(folder)!r}: {problem}")
+    if (mask := next((p for p in named if p.stem.lower() == "mask"), None)) is not None:  # never a photo of a light
+        raise ValueError(f"{flag}: {mask.name} in {str(folder)!r} is named as a mask, not a photo; give it as --mask "
+                         "(moved out of the folder), or rename it if it is a photo")
     broken = next((p for p in named if not p.is_file()), None)
     if broken is not None:  # a photo that silently went missing would change the capture
         what = "a link to a missing file" if broken.is_symlink() and not broken.exists() else "not a file"
         raise ValueError(f"{flag}: {broken.name} in {str(folder)!r} is {what}; expected every photo-named entry to be "
                          "a photo (remove it or restore the file)")
-    other = sorted(p.name for p in folder.iterdir() if p.suffix.lower() in OTHER_IMAGE_SUFFIXES)
+    other = sorted(p.name for p in shown if p.suffix.lower() in OTHER_IMAGE_SUFFIXES)
     if other:
         more = f", and {len(other) - 1} more" if len(other) > 1 else ""
         raise ValueError(f"{flag}: {other[0]} in {str(folder)!r} is a picture of a kind the capture does not read "

@@ -20,6 +20,16 @@ def gray(images: np.ndarray) -> np.ndarray:
     return images.mean(axis=-1)  # (K, H, W)
 
 
+def all_black(images: np.ndarray) -> str | None:
+    """Why no mask can be found where every image is all but black over the whole frame (its 99th percentile
+    below one 8-bit step: a lens cap, a lamp that never fired), else None."""
+    level = float(np.percentile(gray(images), 99, axis=(1, 2)).max())
+    if level >= 1.0 / 255:
+        return None
+    return (f"every image is all but black (its bright part at most {level:.4f} of the full scale, below one 8-bit "
+            "step): light the object, or expose longer (16-bit files holding an 8-bit range: write them at full scale)")
+
+
 def variation_map(images: np.ndarray) -> np.ndarray:
     """(H, W) float32: standard deviation over the images of each pixel's gray value, over the capture's bright
     level (99.5th percentile of the mean image), so about 0 for what the light does not change."""

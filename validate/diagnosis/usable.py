@@ -8,9 +8,9 @@ object mask when none is given, and the warnings a person can act on.
   brightest image, the largest connected part kept and its holes filled, except holes the background shows
   through (they vary like it: `mask_seed.HOLE_LEVEL`). Its confidence is Otsu's
   separability (between-class over total variance of the variation map, 1 = two perfectly apart classes).
-  It refuses (ValueError asking for `--mask FILE`) where it cannot tell object from background: a backdrop
-  that changes with the light about as much as the object (the border of the frame varies like the object),
-  a separability below `MIN_SEPARABILITY`, or a mask that fills almost nothing or almost the whole frame.
+  It refuses (ValueError asking for `--mask FILE`) where it cannot tell object from background: a backdrop that
+  changes with the light about as much as the object (the border of the frame varies like the object), a separability
+  below `MIN_SEPARABILITY`, or a mask that fills almost nothing or almost the whole frame; all-black images: named.
 - `mask_doubts`: whether an automatic mask may be wrong though it was found (`doubtful_mask`, never fatal): the
   light variation is the only evidence of where the object is, and a mask it does not support (one that leaves out
   much of what changes with the light, is made largely of what hardly changes, or largely of one flat surface lit
@@ -19,18 +19,17 @@ object mask when none is given, and the warnings a person can act on.
 - `capture_warnings`: `too_few_images`, `too_dark`, `saturated`, `frontal_light`, `one_sided_light`,
   `camera_moved`, each a `CaptureWarning` with a message saying what to change; the fatal ones stop.
 
-Light directions are estimated from the images alone on the object's outline, where the surface normal lies
-in the image plane along the outline's normal (the occluding contour): the brightness along the outline,
-summed as a vector of its outward normals, points to the light's azimuth, and its length over the object's
-bright level grows with the light's angle from the viewing direction; that length is turned into an angle
-with the curve of an analytic Lambertian sphere (`_outline_curves`); light from all around (an environment) leaves
-the vector short but the outline bright, so the mean brightness of the outline gives a second angle and the
-larger is taken. Elongated shapes, albedo patterns and highlights on the outline bias it (real objects read
-low), so frontal light also asks the light spread (`light_spread_deg`): how much each pixel's brightness varies
-across the images over its mean (the albedo cancels), as the ring of lights that gives a sphere the same. The two
-light warnings are hints, never fatal. Once a normal map exists (the capture's model map), the light warnings read
-the lights from the shading of the whole object under it instead (`validate.diagnosis.light_reading`). Camera
-motion: `validate.diagnosis.camera_motion`.
+Light directions are estimated from the images alone on the object's outline, where the normal lies in the image
+plane along the outline's normal (the occluding contour): the brightness along the outline, summed as a vector of
+its outward normals, points to the light's azimuth, and its length over the object's bright level grows with the
+light's angle from the view (turned into an angle by an analytic Lambertian sphere's curve, `_outline_curves`);
+light from all around (an environment) leaves the vector short but the outline bright, so the outline's mean
+brightness gives a second angle and the larger is taken. Elongated shapes, albedo patterns and highlights on the
+outline bias it (real objects read low), so frontal light also asks the light spread (`light_spread_deg`: each
+pixel's brightness variation over its mean across the images, the albedo cancels, as the ring of lights giving a
+sphere the same). Both light warnings are hints, never fatal; once a map exists (the capture's model map) they read
+the lights from the shading under it (`validate.diagnosis.light_reading`). Camera motion:
+`validate.diagnosis.camera_motion`.
 """
 from __future__ import annotations
 
@@ -42,15 +41,14 @@ import numpy as np
 from validate.diagnosis.camera_motion import camera_motion, camera_shifts
 from validate.diagnosis.flat_region import flat_outside_share, flat_share
 from validate.diagnosis.light_reading import shading_light_angles
-from validate.diagnosis.mask_seed import border_ring, gray, grown_object, log_seed, variation_seed
+from validate.diagnosis.mask_seed import all_black, border_ring, gray, grown_object, log_seed, variation_seed
 from validate.judgeable import MIN_IMAGES as COUNTS
 
 MIN_IMAGES, FEW_IMAGES = COUNTS["photos"], COUNTS["advised"]
 """Fewer images than MIN_IMAGES are fatal, fewer than FEW_IMAGES a warning (`validate.judgeable.MIN_IMAGES`)."""
 DARK_LEVEL = 0.03
 """Linear level below which the object's bright part (99th percentile in the mask) counts as too dark."""
-SATURATED_SHARE = 0.02
-"""Share of the object's pixels clipped in one image above which it is reported."""
+SATURATED_SHARE = 0.02  # share of the object's pixels clipped in one image above which it is reported
 FRONTAL_DEG = 30.0
 """Frontal light (no normal information off the view axis) needs both: the light spread (`light_spread_deg`)
 below this, and no image lit from further than this off the viewing direction by the strength of the light on its
@@ -58,8 +56,7 @@ outline (`light_angles`; this keeps light from one side, which varies little, fr
 within 15 to 20 deg of the axis spread like a ring of 26 to 29 deg on DiLiGenT's real objects (wider than on a
 sphere), all 96 lights (up to 43 deg) like 41 to 43 deg; rendered captures lit further off the axis read 32 deg
 and more (bench/bench_usable.py)."""
-ONE_SIDED_DEG = 10.0
-"""Images lit from further off the view axis than this count for the one-sided test."""
+ONE_SIDED_DEG = 10.0  # images lit from further off the view axis than this count for the one-sided test
 ONE_SIDED_GAP_DEG = 180.0, 165.0
 """One-sided light: the largest gap between the lights' azimuths is wider than a half turn (the definition, and the
 threshold for lights read from the outline), and for lights read from the shading under a map, wider than the second
@@ -123,8 +120,6 @@ FLAT_SHARE_MAX = 0.4
 doubted: the surface under the object taken with it (or for it). Of 282 rendered objects' true masks one reads more
 (0.50, a bright metal object), real objects' 0.14 at most; automatic masks that took a rendered floor 0.40 and
 more. Flat objects (a blade seen from its side) read high too: the warning asks a look at mask_overlay.png."""
-
-
 FLAT_OUTSIDE_MAX = 0.1
 """An automatic mask is doubted where more than this share of it is flat and lies outside the convex hull of the rest
 (`validate.diagnosis.flat_region.flat_outside_share`): a cushion or table beside and under the object."""
@@ -140,20 +135,19 @@ lifts a backdrop, a floor or the sensor's noise along with the object."""
 class CaptureWarning:
     """One thing about the capture a person can change."""
 
-    code: str
-    """One of too_few_images, too_dark, saturated, one_sided_light, frontal_light, camera_moved, doubtful_mask."""
-    message: str
-    """What was found and what to change in the capture."""
-    fatal: bool = False
-    """The command stops (no normal map would mean anything)."""
+    code: str  # too_few_images, too_dark, saturated, one_sided_light, frontal_light, camera_moved, doubtful_mask
+    message: str  # what was found and what to change in the capture
+    fatal: bool = False  # the command stops (no normal map would mean anything)
 
     def to_dict(self) -> dict:
         return {"code": self.code, "message": self.message}
 
 
-def auto_mask(images: np.ndarray, flag: str = "--mask") -> tuple[np.ndarray, dict]:
+def auto_mask(images: np.ndarray, flag: str = "--mask", source: str = "--input") -> tuple[np.ndarray, dict]:
     """(H, W) bool object mask from the images alone, and how sure it is (see the module doc); ValueError
-    naming `flag` where the images cannot separate object and background."""
+    naming `flag` where the images cannot separate object and background, `source` where they are all black."""
+    if dark := all_black(images):  # the mask is not what is wrong
+        raise ValueError(f"{source}: {dark}")
     scaled, threshold, separability = variation_seed(images)
     seed = scaled > threshold
     ring = border_ring(seed.shape)
@@ -372,21 +366,27 @@ def _scaled_copy(a: np.ndarray, b: np.ndarray) -> bool:
 
 
 def identical_photos_warning(images: np.ndarray) -> CaptureWarning | None:
-    """Fatal when every photo is the same up to brightness (copied, or under other EXIF exposures): nothing for the
-    light to tell, whatever the mask. Black photos are left to the darkness rule (`too_dark`), which says more."""
-    if len(images) > 1 and float(images.max()) >= 1.0 / 255 and all(_scaled_copy(images[0], im) for im in images[1:]):
-        return CaptureWarning("too_few_images", f"the {len(images)} photos are identical, or differ only in brightness "
-                              "(one photo copied, a light that never moved): photometric stereo needs the lamp in "
-                              "another place for each photo", fatal=True)
-    return None
+    """Fatal when the photos show fewer than MIN_IMAGES lights, each the same up to brightness (copied, or under other
+    EXIF exposures): too little for the light to tell, whatever the mask. Black photos: the darkness rule's."""
+    if len(images) < 2 or float(images.max()) < 1.0 / 255:
+        return None
+    lights: list[int] = []  # the first photo of each light
+    for i, im in enumerate(images):
+        if len(lights) < MIN_IMAGES and not any(_scaled_copy(images[j], im) for j in lights):
+            lights.append(i)
+    if len(lights) >= MIN_IMAGES:
+        return None
+    what = f"the {len(images)} photos are identical" if len(lights) == 1 else \
+        f"the {len(images)} photos show only {len(lights)} lights: the others are identical to one of them"
+    return CaptureWarning("too_few_images", f"{what}, or differ only in brightness (a photo copied, a light that never "
+                          f"moved): photometric stereo needs the lamp in another place for each photo, at least "
+                          f"{MIN_IMAGES} places", fatal=True)
 
 
 def unusable_photos(images: np.ndarray) -> CaptureWarning | None:
-    """The fatal warning photos get before any mask is looked for: too few of them, or all the same."""
-    for warning in (image_count_warning(len(images)), identical_photos_warning(images)):
-        if warning and warning.fatal:
-            return warning
-    return None
+    """The fatal warning photos get before any mask is looked for: too few of them, or of too few lights."""
+    return next((w for w in (image_count_warning(len(images)), identical_photos_warning(images)) if w and w.fatal),
+                None)
 
 
 def capture_warnings(images: np.ndarray, mask: np.ndarray, saturated: np.ndarray | None = None,

@@ -191,7 +191,7 @@ def rerender_fitted(
     jc, target = judge_capture(data, normals, config, "check", out_dir, CHECK_OUTPUTS, "validate.rerender", overwrite)
     report, res = check_judged(jc, config, progress)
     if target is not None:
-        _write_fitted(jc, target, res, report)
+        write_fitted(jc, target, res, report)
     return report
 
 
@@ -272,7 +272,7 @@ def check_judged(jc: JudgedCapture, config: FitConfig, progress: Progress | None
     return report, res
 
 
-def _write_fitted(jc: JudgedCapture, target: Path, res: FitResult, report: dict) -> None:
+def write_fitted(jc: JudgedCapture, target: Path, res: FitResult, report: dict) -> None:
     """report.json, figure.png and explained.png of the fitted check into `jc.target`."""
 
     from scenes.files import write_json
