@@ -190,8 +190,7 @@ def read_input(opts: CaptureOptions) -> Capture:
 WHOLE_FRAME = ("every pixel gets a normal, the background's too; the model was trained on single objects on a dark "
                "background, so expect larger errors on a scene; the check fits one light and reflectance model to the "
                "whole frame and judges it where that explains the photos: the edges between things at different "
-               "depths (cast shadows, occlusions) are not modelled")
-"""What report.json says of --mask none."""
+               "depths (cast shadows, occlusions) are not modelled")  # what report.json says of --mask none
 
 
 def find_mask(opts: CaptureOptions, cap: Capture, full: tuple[int, int]) -> tuple[np.ndarray, dict]:
@@ -267,7 +266,8 @@ def check_and_refine(opts: CaptureOptions, cap: Capture, out: Path,
     choose_variant(None)
     set_jit_threads(opts.threads)
     config = FitConfig().validate()
-    jc = judge(cap, unit_normals(normals, cap.mask), config, "check", args=("--input", "--mask"))
+    jc = judge(cap, unit_normals(normals, cap.mask, f"{'--checkpoint' if opts.checkpoint else '--model'}: the model's "
+                                 "map"), config, "check", args=("--input", "--mask"))  # a bad map: the weights'
     check, fit = check_judged(jc, config)
     write_fitted(jc, out / "check" / cap.name, fit, check)  # claimed by run(), under report.json
     if not (opts.refine and check["trusted"]):
@@ -329,11 +329,11 @@ def run(opts: CaptureOptions) -> dict:
     need = check_resources(k, h, w, full)
     net, times["load_model_s"] = load_network_first(opts)
     into = f" into {w} x {h} px" if full != (h, w) else ""
+    claim_stages(opts, out)  # before the photos are read: a refusal comes at once
     with stage("capture", f"reading {k} photos of {full[1]} x {full[0]} px{into} (the whole run: about "
                f"{need['seconds']:.0f} s, {need['peak_mib']} MiB at most)"):
         read = read_input(opts)
     guide = read.meta.pop("guide", None)  # the photos' mean at their own size, when worked on smaller copies
-    claim_stages(opts, out, read.name)
     times["read_s"] = time.perf_counter() - t0 - times["load_model_s"]
     if fatal := unusable_photos(read.images):  # before the mask: two photos (or one photo twice) say nothing
         raise UsageError(f"--input: {fatal.message}")
@@ -387,19 +387,18 @@ def run(opts: CaptureOptions) -> dict:
               "timings": times, "estimate": need,
               "peak_memory_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
     report["normals"]["size"] = size  # normal.png's and mask.png's
-    write_json(out / "report.json", report, indent=1, newline=True)
     from orchestrate.capture_page import pictures, write_page
 
     refined_used = report["normals"]["source"] == "refined"
     write_page(out / "report.html", to_plain(report), pictures(out, cap.name, read.images, read.image_names, mask,
                                                              final, model_map, refined_used))
+    write_json(out / "report.json", report, indent=1, newline=True)  # last: complete only once all is written
     return report
 
 
-def say(warnings: list) -> None:
-    """Each warning as one line on stderr."""
-    for warning in warnings:
-        print(f"warning: {warning.code}: {warning.message}", file=sys.stderr)
+def say(warnings: list) -> None:  # each warning as one line on stderr
+    for w in warnings:
+        print(f"warning: {w.code}: {w.message}", file=sys.stderr)
 
 
 def stage_reports(name: str, refined: dict | None, work: Path | None) -> dict:
@@ -409,10 +408,13 @@ def stage_reports(name: str, refined: dict | None, work: Path | None) -> dict:
             "work_folder": str(work) if work else None}
 
 
-def claim_stages(opts: CaptureOptions, out: Path, name: str) -> None:
+def claim_stages(opts: CaptureOptions, out: Path) -> None:
     """Claim every file the stages write below --out (surface/, check/<name>/, refine/<name>/, --keep-work's folder)
-    before the first write (`scenes.cli.outputs.claim_outputs`)."""
+    before the first write (`scenes.cli.outputs.claim_outputs`); <name> as `read_input` names the capture."""
     from orchestrate.capture_surface import SHADED_PICTURE
+    from scenes.folder.format import object_name
+
+    name = object_name(Path(opts.input)) or "capture"
     from scenes.surface.write import REPORT_KEYS as SURFACE_REPORT_KEYS
     from scenes.surface.write import SURFACE_DIR, surface_outputs
     from validate.fitted.fit_report import CHECK_OUTPUTS

@@ -70,6 +70,10 @@ def sky(seed: int, width: int) -> np.ndarray:
     return env.astype(np.float32)
 
 
+MAX_RADIANCE = 1e9
+"""The largest value of an environment map: a sun's pixel is about 1e5; sums of values beyond overflow float32."""
+
+
 def load_environment(path: Path) -> np.ndarray:
     """Equirectangular .hdr/.exr file -> float32 (H, W, 3) RGB."""
     import cv2
@@ -91,6 +95,10 @@ def load_environment(path: Path) -> np.ndarray:
     img = np.ascontiguousarray(img, dtype=np.float32)
     if img.ndim != 3 or img.shape[2] != 3 or not np.all(np.isfinite(img)) or img.min() < 0:
         raise ValueError(f"environment.file: {str(path)!r} is not a finite non-negative RGB map")
+    if not 0 < (peak := float(img.max())) <= MAX_RADIANCE:  # black lights nothing; beyond, float32 sums overflow
+        raise ValueError(f"environment.file: {str(path)!r} " + ("is black (it lights nothing)" if peak <= 0 else
+                         f"has values up to {peak:.3g}, above {MAX_RADIANCE:g}") + "; expected a light probe's "
+                         "radiance (a sun a few 1e5 at most)")
     return img
 
 

@@ -50,6 +50,11 @@ def exr_channels(path: Path) -> dict[str, np.ndarray]:
     if windows[0] != windows[1]:  # its pixels would be taken as the frame's: shifted against every other file
         raise ValueError(f"EXR {str(path)!r}: its data window {windows[0]} is not its display window {windows[1]}; "
                          "expected pixels that fill the image's frame (save it uncropped)")
+    shapes = {k: v.shape for k, v in channels.items()}
+    if len(set(shapes.values())) > 1:  # subsampled channels (luminance/chroma: RY, BY at half size)
+        sizes = ", ".join(f"{k} {v[1]}x{v[0]}" for k, v in sorted(shapes.items()))
+        raise ValueError(f"EXR {str(path)!r}: its channels differ in size ({sizes}); expected full-size channels "
+                         "(R, G, B or one), not luminance/chroma (save it as RGB)")
     return _one_layer(channels, path)
 
 

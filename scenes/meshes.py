@@ -33,11 +33,15 @@ def load_mesh(path: str | Path, normalize: bool = True) -> MeshData:
         )
     if path.suffix.lower() == ".obj":  # a text format: refuse binary garbage here, not deep inside trimesh
         try:
-            path.read_bytes().decode("utf-8")
+            text = path.read_bytes().decode("utf-8")
         except UnicodeDecodeError as exc:
             raise ValueError(
                 f"shape.file: {str(path)!r} is not a text OBJ file (byte {exc.start} is not UTF-8 text)"
             ) from None
+        zero = next((n for n, line in enumerate(text.splitlines(), 1) if line.startswith("f ")
+                     and any(v.split("/")[0] in ("0", "+0", "-0") for v in line.split()[1:])), None)
+        if zero is not None:  # trimesh would read index 0 as -1, the last vertex: a silently wrong mesh
+            raise ValueError(f"shape.file: {str(path)!r} line {zero}: a face index 0; OBJ counts vertices from 1")
     own = _read_own_ply(path)
     if own is not None:
         if normalize:
@@ -72,6 +76,8 @@ def load_mesh(path: str | Path, normalize: bool = True) -> MeshData:
     visual = getattr(loaded, "visual", None)
     if visual is not None and getattr(visual, "uv", None) is not None and len(visual.uv) == len(positions):
         uvs = np.asarray(visual.uv, dtype=np.float64)[:, :2]
+        if not np.all(np.isfinite(uvs)):  # a texture lookup at NaN renders NaN
+            raise ValueError(f"shape.file: mesh {str(path)!r} has non-finite texture coordinates (vt)")
     return normalize_mesh(positions, faces, normals, uvs, name=path)
 
 

@@ -84,9 +84,11 @@ def read_image_file(path: Path) -> np.ndarray:
     return img
 
 
-def realize_texture(tex: TextureDesc, base_dir: Path | None = None, owner: str = "texture") -> np.ndarray:
+def realize_texture(tex: TextureDesc, base_dir: Path | None = None, owner: str = "texture",
+                    rgb: bool = False) -> np.ndarray:
     """The texture as an array (H, W, C), C = len(tex.value); constants give a 1x1 array. `owner`: the scene field
-    it is (material.roughness), named in its errors."""
+    it is (material.roughness), named in its errors. A file's values must lie in [0, 1] (reflectances and encoded
+    normals, never radiance); with `rgb` it must hold three channels (a normal map: a grey file is a height map)."""
     channels = len(tex.value)
     if tex.kind == "constant":
         return np.asarray(tex.value, np.float32).reshape(1, 1, channels)
@@ -100,6 +102,9 @@ def realize_texture(tex: TextureDesc, base_dir: Path | None = None, owner: str =
             raise type(exc)(f"{owner}.file: {exc}") from None
         if tex.srgb:
             img = srgb_to_linear(img[:, :, :3])
+        if rgb and img.shape[2] < 3:
+            raise ValueError(f"{owner}.file: {str(path)!r} has {img.shape[2]} channel(s), expected 3 (a tangent-space "
+                             "normal map, (n + 1) / 2)")
         if channels == 1:
             ch = tex.channel if tex.channel is not None else 0
             if ch >= img.shape[2]:
@@ -107,6 +112,9 @@ def realize_texture(tex: TextureDesc, base_dir: Path | None = None, owner: str =
             img = img[:, :, ch : ch + 1]
         else:
             img = img[:, :, :3] if img.shape[2] >= 3 else np.repeat(img[:, :, :1], 3, 2)
+        if img.size and not (float(img.min()) >= 0 and float(img.max()) <= 1 + 1e-6):
+            raise ValueError(f"{owner}.file: {str(path)!r} holds values from {float(img.min()):.4g} to "
+                             f"{float(img.max()):.4g}; expected 0 to 1 (a map of reflectance, roughness or metal)")
         # Image files have row 0 at the top (v = 1); Mitsuba's row 0 is v = 0.
         return np.ascontiguousarray(img[::-1]).astype(np.float32)
     t = _pattern(tex.kind, tex.resolution, tex.scale, tex.seed)[:, :, None]

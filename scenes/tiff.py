@@ -10,22 +10,27 @@ import numpy as np
 
 
 def read_planar_tiff(path: Path, flags: int) -> np.ndarray | None:
-    """The picture of a TIFF whose several channels are stored as separate planes, laid out as `cv2.imdecode` gives
-    a picture (H, W, C in BGR(A) order, the file's type; the alpha dropped unless `flags` is IMREAD_UNCHANGED);
-    None for any other TIFF (OpenCV reads those right) or one tifffile cannot read (OpenCV's reading stands)."""
+    """The picture of a TIFF whose several channels are stored as separate planes, or of grey and alpha (OpenCV
+    drops that alpha and makes 16 bits 8), laid out as `cv2.imdecode` gives a picture (H, W, C in BGR(A) order, grey
+    repeated, the file's type; the alpha dropped unless `flags` is IMREAD_UNCHANGED); None for any other TIFF
+    (OpenCV reads those right) or one tifffile cannot read (OpenCV's reading stands)."""
     import tifffile
 
     try:
         with tifffile.TiffFile(path) as tif:
             page = tif.pages[0]
-            if page.planarconfig != tifffile.PLANARCONFIG.SEPARATE or page.samplesperpixel < 3:
+            grey_alpha = page.samplesperpixel == 2
+            if not grey_alpha and (page.planarconfig != tifffile.PLANARCONFIG.SEPARATE or page.samplesperpixel < 3):
                 return None
-            planes = page.asarray()  # (C, H, W)
+            pixels = page.asarray()  # (C, H, W) planar, (H, W, C) contiguous
+            separate = page.planarconfig == tifffile.PLANARCONFIG.SEPARATE
     except (tifffile.TiffFileError, OSError, ValueError, IndexError, RuntimeError):
         return None
-    if planes.ndim != 3:
+    if pixels.ndim != 3:
         return None
-    img = np.moveaxis(planes, 0, -1)  # (H, W, C) RGB(A)
+    img = np.moveaxis(pixels, 0, -1) if separate else pixels  # (H, W, C) RGB(A), or grey and alpha
+    if grey_alpha:
+        img = img[..., [0, 0, 0, 1]]
     img = img[..., [2, 1, 0, *range(3, img.shape[-1])]]  # OpenCV's BGR(A)
     return np.ascontiguousarray(img if flags < 0 else img[..., :3])
 

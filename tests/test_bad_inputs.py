@@ -4838,6 +4838,106 @@ def _mask_among_photos(w: Path, t: Path) -> None:
     shutil.copy(w / "data" / f"{OBJ}.data" / "mask.png", t / "photos" / "mask.png")
 
 
+def _asset(kind: str) -> Callable[[Path, Path], None]:
+    """Setup: T/assets with one bad file of `kind`: a black or an overflowing HDR map, a one-channel ARM map beside
+    its colour map, a mesh with NaN texture coordinates."""
+    def setup(w: Path, t: Path) -> None:
+        import cv2
+
+        if kind in ("black", "blinding"):  # Radiance RGBE at 0, and at its largest value (about 1.7e38)
+            rgbe = np.zeros((8, 16, 4), np.uint8) if kind == "black" else np.full((8, 16, 4), 255, np.uint8)
+            head = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 8 +X 16\n"
+            _mk(t / "assets" / "hdri").joinpath(f"{kind}.hdr").write_bytes(head + rgbe.tobytes())
+        elif kind == "arm":
+            tex = _mk(t / "assets" / "textures")
+            assert cv2.imwrite(str(tex / "wood_col.png"), np.full((8, 8, 3), 128, np.uint8))
+            assert cv2.imwrite(str(tex / "wood_arm.png"), np.full((8, 8), 128, np.uint8))
+        elif kind == "zero_based":
+            (_mk(t / "assets" / "meshes") / "zero.obj").write_text(
+                "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 0 2 1\nf 0 1 3\nf 0 3 2\nf 1 2 3\n")
+        elif kind == "rough200":
+            tex = _mk(t / "assets" / "textures")
+            assert cv2.imwrite(str(tex / "wood_col.png"), np.full((8, 8, 3), 128, np.uint8))
+            from scenes.images import write_exr
+
+            write_exr(tex / "wood_rgh.exr", np.full((8, 8, 3), 200.0, np.float32))
+        else:
+            (_mk(t / "assets" / "meshes") / "nan_uv.obj").write_text(
+                "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nvt nan nan\nvt nan nan\nvt nan nan\nvt nan nan\n"
+                "f 1/1 3/3 2/2\nf 1/1 2/2 4/4\nf 1/1 4/4 3/3\nf 2/2 3/3 4/4\n")
+    return setup
+
+
+def _material_file(field: str, name: str, values: np.ndarray) -> Callable[[Path, Path], None]:
+    """Setup: T/00000.data, the world's object 00000 whose scene.json material `field` reads aux/`name` (`values`)."""
+    def setup(w: Path, t: Path) -> None:
+        import cv2
+
+        from scenes.images import write_exr
+
+        obj = t / f"{OBJ}.data"
+        shutil.copytree(w / "data" / f"{OBJ}.data", obj)
+        (write_exr if name.endswith(".exr") else cv2.imwrite)(obj / "aux" / name, values)
+        scene = json.loads((obj / "scene.json").read_text())
+        scene["material"][field] = f"aux/{name}" if field == "normal_map" else {
+            **scene["material"][field], "kind": "file", "file": f"aux/{name}"}
+        (obj / "scene.json").write_text(json.dumps(scene))
+    return setup
+
+
+def _assert_mask_pixels(w: Path, t: Path) -> None:
+    """Check: the capture in T/o took the world object's mask (its pixel count), not the whole frame."""
+    import cv2
+
+    on = cv2.imread(str(w / "data" / f"{OBJ}.data" / "mask.png"), cv2.IMREAD_GRAYSCALE) > 0
+    assert json.loads((t / "o" / "report.json").read_text())["mask"]["pixels"] == int(on.sum())
+
+
+def _grey_alpha_tiff_mask(w: Path, t: Path) -> None:
+    """Setup: T/photos (`_photos`) and T/m.tif, the world object's mask as a 16-bit grey + alpha TIFF cut-out: grey
+    white everywhere, the alpha 65535 on the object and 0 off it (OpenCV alone reads it as all white)."""
+    import cv2
+    import tifffile
+
+    _photos()(w, t)
+    on = cv2.imread(str(w / "data" / f"{OBJ}.data" / "mask.png"), cv2.IMREAD_GRAYSCALE) > 0
+    tifffile.imwrite(t / "m.tif", np.stack([np.full(on.shape, 65535, np.uint16), on * np.uint16(65535)], -1),
+                     photometric="minisblack", extrasamples=["unassalpha"])
+
+
+def _luma_chroma_exr(w: Path, t: Path) -> None:
+    """Setup: T/photos (`_photos`, as EXR) whose first photo holds Y at full size and RY, BY at half size."""
+    import OpenEXR
+
+    _exr_photos(lambda lin: lin)(w, t)
+    first = t / "photos" / "IMG_0001.exr"
+    y = np.ones((32, 32), np.float32)  # written full size: OpenEXR keeps every second pixel of a 2 x 2 channel
+    with OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage},
+                      {"Y": OpenEXR.Channel(y), "RY": OpenEXR.Channel(y.copy(), 2, 2),
+                       "BY": OpenEXR.Channel(y.copy(), 2, 2)}) as f:
+        f.write(str(first))
+
+
+def _refined_with_a_stated_error(w: Path, t: Path) -> None:
+    """Setup: `_stated_prediction_for_refine` refined into T/o (the stated error's files carried beside the map)."""
+    from validate.refine import main as refine
+
+    _stated_prediction_for_refine()(w, t)
+    assert refine(["--data", str(t / f"{OBJ}.data"), "--normals", str(t / "p" / OBJ), "--out", str(t / "o"),
+                   "--refine-steps", "10", "--rounds", "1", "--steps", "20", "--threads", "1"]) == 0
+    assert (t / "o" / OBJ / "expected_error_deg.npy").is_file()
+
+
+def _sidecar_without(key: str) -> Callable[[Path, Path], None]:
+    """Setup: T/copy.safetensors (`_shipped_copy`) whose sidecar's config lacks `key`."""
+    def setup(w: Path, t: Path) -> None:
+        _shipped_copy(w, t)
+        meta = json.loads((t / "copy.json").read_text())
+        del meta["config"][key]
+        (t / "copy.json").write_text(json.dumps(meta))
+    return setup
+
+
 def _one_flat_mesh(w: Path, t: Path) -> None:
     """Setup: T/assets/meshes with a good tetrahedron and flat.obj, whose vertices all lie at one point."""
     meshes = _mk(t / "assets" / "meshes")
@@ -4879,6 +4979,68 @@ ROWS += [
         ("--input", "show only 2 lights", "at least 3 places"), setup=_copies_of_two_lights, check=_not_written("o")),
     Row("capture-a-mask-among-the-photos", CAP, CAPTURE, 2, ("--input", "mask.png", "is named as a mask"),
         setup=_mask_among_photos, check=_not_written("o")),
+    # sweep 30: a dataset copy that lost an object, a ground truth that is a folder: never a smaller mean, exit 0
+    Row("evaluate-a-dataset-that-lost-an-object-its-manifest-lists", EV, ["--pred", "{W}/pred", "--gt", "{T}/ds"], 2,
+        ("--gt", "lacks 00001.data", "lists as rendered"),
+        setup=_dataset_edited(files=lambda ds: shutil.rmtree(ds / "00001.data"))),
+    Row("evaluate-a-ground-truth-that-is-a-folder", EV, ["--pred", "{T}/p", "--gt", "{T}/ds"], 1,
+        ("00001", "normal.tif is a folder"), setup=lambda w, t: (
+            shutil.copytree(w / "pred", t / "p"), _dataset_edited(files=lambda ds: (
+                (ds / "00001.data" / "normal.tif").unlink(), _mk(ds / "00001.data" / "normal.tif")))(w, t))),
+    Row("make-grows-a-dataset-beside-a-users-folder-under-an-objects-name", MK,
+        ["--out", "{T}/data", *TINY[:1], "2", *TINY[2:]], 1, ("00001.data", "it lacks files", "it is kept"),
+        setup=_tiny_dataset(("data/00001.data/L000.png", "mine\n")), check=_kept("data/00001.data/L000.png", "mine\n"),
+        replaces=("data/manifest.json",)),
+    Row("make-an-hdr-map-that-is-black", MK, ["--out", "{T}/o", *TINY, "--lights", "hdri", "--assets", "{T}/assets"],
+        2, ("--assets", "black.hdr", "lights nothing"), setup=_asset("black"), check=_not_written("o")),
+    Row("make-an-hdr-map-at-the-largest-rgbe-value", MK, ["--out", "{T}/o", *TINY, "--lights", "hdri", "--assets",
+                                                          "{T}/assets"], 2,
+        ("--assets", "blinding.hdr", "above 1e+09"), setup=_asset("blinding"), check=_not_written("o")),
+    Row("make-an-arm-map-of-one-channel", MK, ["--out", "{T}/o", *TINY, "--assets", "{T}/assets"], 2,
+        ("--assets", "wood_arm.png", "has 1 channel(s)"), setup=_asset("arm"), check=_not_written("o")),
+    Row("make-a-mesh-with-nan-texture-coordinates", MK, ["--out", "{T}/o", *TINY, "--assets", "{T}/assets",
+                                                         "--shapes", "mesh"], 2,
+        ("--assets", "nan_uv.obj", "non-finite texture coordinates"), setup=_asset("nan_uv"), check=_not_written("o")),
+    Row("make-an-obj-mesh-counting-from-zero", MK, ["--out", "{T}/o", *TINY, "--assets", "{T}/assets", "--shapes",
+                                                    "mesh"], 2, ("--assets", "zero.obj", "a face index 0"),
+        setup=_asset("zero_based"), check=_not_written("o")),
+    Row("make-a-roughness-map-of-200", MK, ["--out", "{T}/o", *TINY, "--assets", "{T}/assets"], 2,
+        ("--assets", "wood_rgh.exr", "expected 0 to 1"), setup=_asset("rough200"), check=_not_written("o")),
+    Row("make-assets-that-nothing-can-draw", MK, ["--out", "{T}/o", *TINY, "--assets", "{T}/assets", "--shapes",
+                                                  "procedural"], 2,
+        ("--assets", "nothing in", "would do nothing"), setup=_one_flat_mesh, check=_not_written("o")),
+    Row("make-resume-a-manifest-with-a-config-key-of-no-flag", MK, ["--out", "{T}/data", *TINY], 2,
+        ("--out", "records config key 'future_option'", "does not know"),
+        setup=lambda w, t: (_tiny_dataset()(w, t), (t / "data" / "manifest.json").write_text(json.dumps(
+            (m := json.loads((t / "data" / "manifest.json").read_text())) | {"config": m["config"] | {
+                "future_option": 3}})))),
+    Row("rerender-a-roughness-map-of-5", RR, ["--data", "{T}/00000.data", "--normals", "{W}/pred/00000", "--out",
+                                              "{T}/o", "--no-floors", "--spp", "1"], 2,
+        ("material.roughness", "rough5.exr", "expected 0 to 1"),
+        setup=_material_file("roughness", "rough5.exr", np.full((8, 8, 3), 5.0, np.float32)), check=_not_written("o")),
+    Row("rerender-a-grey-normal-map", RR, ["--data", "{T}/00000.data", "--normals", "{W}/pred/00000", "--out", "{T}/o",
+                                           "--no-floors", "--spp", "1"], 2,
+        ("material.normal_map", "gray.png", "expected 3"),
+        setup=_material_file("normal_map", "gray.png", np.full((8, 8), 128, np.uint8)), check=_not_written("o")),
+    Row("capture-a-grey-and-alpha-tiff-mask-is-read-by-its-alpha", CAP, [*CAPTURE, "--mask", "{T}/m.tif"], 0,
+        ("wrote",), setup=_grey_alpha_tiff_mask, check=lambda w, t: _assert_mask_pixels(w, t)),
+    Row("capture-an-exr-of-luminance-and-chroma", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "IMG_0001.exr", "its channels differ in size"), setup=_luma_chroma_exr, check=_not_written("o")),
+    Row("refine-again-from-a-plain-map-removes-the-earlier-stated-error", RF,
+        ["--data", "{T}/00000.data", "--normals", "{W}/pred/00000/normal.png", "--out", "{T}/o", "--refine-steps", "10",
+         "--rounds", "1", "--steps", "20", "--threads", "1", "--overwrite"], 0, ("report in",),
+        setup=_refined_with_a_stated_error, replaces=("o/00000/refine_report.json",),  # the same map: the same bytes
+        removes=("o/00000/expected_error_deg.npy", "o/00000/expected_error_deg.exr", "o/00000/expected_error.png")),
+    Row("predict-weights-whose-sidecar-lacks-a-config-field", PR, ["--method", "model", "--checkpoint",
+                                                                   "{T}/copy.safetensors", "--input", OBJDIR, "--out",
+                                                                   "{T}/p"], 2,
+        ("--checkpoint", "copy.json", "lacks 'canonical_resolution'"), setup=_sidecar_without("canonical_resolution"),
+        check=_not_written("p")),
+    Row("capture-a-mask-inside-the-work-folder-it-would-rewrite", CAP,
+        [*CAPTURE, "--keep-work", "--overwrite", "--mask", "{T}/o/work/photos.data/mask.png"], 2,
+        ("--mask", "lies in", "which orchestrate.capture writes"), setup=lambda w, t: (
+            _photos()(w, t), shutil.copy(w / "data" / f"{OBJ}.data" / "mask.png",
+                                         _mk(t / "o" / "work" / "photos.data") / "mask.png"))),
     Row("capture-photos-all-black", CAP, CAPTURE, 2, ("--input", "every image is all but black", "expose longer"),
         setup=_all_black_photos, check=_not_written("o")),
 ]

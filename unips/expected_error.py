@@ -299,9 +299,10 @@ def sha256(path: Path) -> str:
 
 
 def model_path(weights: Path) -> Path:
-    """Where the fitted error model of `weights` lies (`SUFFIX` beside them)."""
+    """Where the fitted error model of `weights` lies (`SUFFIX` beside them, after the whole stem: glc.v2.safetensors
+    has glc.v2.expected_error.json)."""
     weights = Path(weights)
-    return weights.with_name(weights.name.split(".")[0] + SUFFIX)
+    return weights.with_name(weights.stem + SUFFIX)
 
 
 def for_weights(weights: Path | None) -> tuple[ErrorModel | None, str | None]:

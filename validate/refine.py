@@ -151,13 +151,14 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         choose_variant(args.variant, jit=True)  # refine_object refuses a variant without automatic differentiation
         set_jit_threads(args.threads)
         stated = input_error(args.normals, name)
-        if stated:
-            claim_outputs([Path(args.out) / name / f for f in EXPECTED_ERROR_FILES], args.overwrite,
-                          owner="validate.refine", marker=report)
+        earlier = claim_outputs([Path(args.out) / name / f for f in EXPECTED_ERROR_FILES], args.overwrite,
+                                owner="validate.refine", marker=report)  # an earlier run's stated error, if any
         with progress_bar("step") as progress:
             r = refine_object(args.data, args.normals, config, args.out, progress, overwrite=args.overwrite)
         if stated:
             r = carry_error(stated, Path(args.out) / name, r)
+        for path in [] if stated else earlier:  # not this map's input's error: never left beside it
+            path.unlink()
     except (*INPUT_ERRORS, OSError) as exc:
         return report_error(exc)
     b, a = r["before"], r["after"]

@@ -86,6 +86,20 @@ class AssetLibrary:
         return lib
 
 
+    def check_drawn(self, folder: str | None, shapes: str, lights: list[str]) -> None:
+        """ValueError naming --shapes or --assets where the run asks for meshes the folder lacks, or where nothing of
+        it can be drawn: textures serve every material, meshes every shape but `procedural`, maps the light families
+        lit by an environment."""
+        from wildgen.light_families import ENVIRONMENT_FAMILIES
+
+        if shapes == "mesh" and not self.meshes:
+            raise ValueError(f"--shapes: 'mesh' needs an --assets folder with meshes/, {folder!r} has none")
+        if folder and not (self.textures or (self.meshes and shapes != "procedural")
+                           or (self.hdris and set(lights) & set(ENVIRONMENT_FAMILIES))):
+            raise ValueError(f"--assets: nothing in {folder!r} can be drawn with --shapes {shapes} and --lights "
+                             f"{','.join(lights)} (its meshes need mesh or any shapes, its maps a family lit by the "
+                             f"environment: {', '.join(ENVIRONMENT_FAMILIES)}), so it would do nothing; leave it out")
+
     def check(self) -> None:
         """Decode every file once, up front (the driver does it before any render): a file that cannot be read
         would fail every object that draws it, so the run is refused with a ValueError naming it."""
@@ -98,12 +112,26 @@ class AssetLibrary:
             jobs += [
                 (p, read_image_file) for p in (ts.base_color, ts.roughness, ts.metallic, ts.normal) if p is not None
             ]
+        need: dict = {}  # the channels each map must hold: an ARM map's G and B where read, a normal map's 3
+        for ts in self.textures:
+            for p, c in ((ts.roughness, ts.roughness_channel + 1), (ts.metallic, ts.metallic_channel + 1),
+                         (ts.normal, 3)):
+                need[p] = max(c, need.get(p, 1))
         bad = []
         for path, read in dict(jobs).items():
             try:
-                read(Path(path))
+                data = read(Path(path))
             except (ValueError, OSError) as exc:
                 bad.append(f"{exc}")
+                continue
+            if read is not read_image_file:
+                continue
+            if data.size and not (data.min() >= 0 and data.max() <= 1 + 1e-6):
+                bad.append(f"{str(path)!r} holds values from {float(data.min()):.4g} to {float(data.max()):.4g}; "
+                           "expected 0 to 1 (a map of reflectance, roughness, metal or an encoded normal)")
+            elif need.get(path, 1) > (have := data.shape[2] if data.ndim == 3 else 1):
+                bad.append(f"{str(path)!r} has {have} channel(s), {need[path]} are read (ARM: occlusion, roughness, "
+                           "metallic; a normal map: x, y, z)")
         if bad:
             more = f" (and {len(bad) - 1} more unreadable file(s))" if len(bad) > 1 else ""
             raise ValueError(f"--assets: {bad[0]}{more}; fix or remove the file")

@@ -135,9 +135,14 @@ def _inside(rel: object) -> bool:
 
 
 def config_differences(manifest: dict, cfg: GenConfig) -> list[str]:
-    """Fields (other than the object count and the requested variant) where `cfg` differs from the manifest's."""
+    """Fields (other than the object count and the requested variant) where `cfg` differs from the manifest's;
+    DatasetError for a key this toolkit does not know (no flag of a run could match it)."""
     # A key an older manifest lacks was added later with its default value.
     old, new = {**GenConfig().to_dict(), **manifest["config"]}, cfg.to_dict()
+    if unknown := sorted(set(old) - set(new)):
+        raise DatasetError(f"--out: its {MANIFEST} records config key {unknown[0]!r}, which this toolkit does not know "
+                           "(a newer toolkit, or an edit, wrote it): use the toolkit that made the dataset, another "
+                           "folder, or --overwrite")
     keys = sorted((set(old) | set(new)) - set(NOT_IDENTITY))
     return [k for k in keys if old.get(k) != new.get(k)]
 

@@ -262,8 +262,7 @@ def check_config(args: MakeOptions, cfg: GenConfig, resumed: bool = False) -> No
     from wildgen.assets import AssetLibrary
 
     lib = AssetLibrary.scan(cfg.assets)  # fail early on a bad asset folder
-    if cfg.shapes == "mesh" and not lib.meshes:
-        raise ValueError(f"--shapes: 'mesh' needs an --assets folder with meshes/, {cfg.assets!r} has none")
+    lib.check_drawn(cfg.assets, cfg.shapes, cfg.lights)
     check_memory(cfg, args.workers, args.ray is not None, resumed=resumed)
     _check_threads(args, cfg)
     lib.check()

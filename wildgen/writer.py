@@ -170,18 +170,22 @@ def publish_folder(tmp: Path, final: Path) -> dict[str, str]:
     """Checksum a fully written temporary object folder and rename it to its final name (replacing an earlier
     one of this dataset): readers never see half a folder. Returns {relative path: sha256}.
 
-    A folder already there is replaced only when this object's files would rewrite every file in it (an earlier
-    render of the same object, finished after the manifest's last write); one holding anything else is somebody's
-    and is kept: the object fails (ValueError, not retried) and the run goes on."""
+    A folder already there is replaced only when it holds exactly the files this object writes, by name (an earlier
+    render of the same object, finished after the manifest's last write); one holding anything else, or less (a
+    user's folder with an L000.png of their own), is somebody's and is kept: the object fails (ValueError, not
+    retried) and the run goes on."""
     files = {str(p.relative_to(tmp)): sha256_file(p) for p in sorted(tmp.rglob("*")) if p.is_file()}
     if os.path.lexists(final):
+        there = [] if final.is_symlink() or not final.is_dir() else sorted(final.rglob("*"))
         foreign = final if final.is_symlink() or not final.is_dir() else next(
-            (p for p in sorted(final.rglob("*"))
-             if p.is_symlink() or (not p.is_dir() and str(p.relative_to(final)) not in files)), None)
-        if foreign is not None:
+            (p for p in there if p.is_symlink() or (not p.is_dir() and str(p.relative_to(final)) not in files)), None)
+        why = None if foreign is None else f"{str(foreign)!r} is not a file this object writes"
+        if why is None and {str(p.relative_to(final)) for p in there if not p.is_dir()} != set(files):
+            why = "it lacks files an earlier render of this object would hold"  # a user's folder under its name
+        if why is not None:
             shutil.rmtree(tmp, ignore_errors=True)
-            raise ValueError(f"{str(final)!r} is there already and is not this dataset's ({str(foreign)!r} is not a "
-                             "file this object writes): it is kept; move it away, then run again to render this object")
+            raise ValueError(f"{str(final)!r} is there already and is not this dataset's ({why}): it is kept; move it "
+                             "away, then run again to render this object")
         shutil.rmtree(final)
     os.replace(tmp, final)
     return files

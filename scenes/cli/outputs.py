@@ -314,6 +314,10 @@ def _check_held(path: Path, owner: str, folder: bool = False, points: list[str] 
             if is_within(real, folder):
                 raise UsageError(f"{h.flag}: {str(path)!r} lies inside {in_flag} {given!r}, where {owner} would write; "
                                  f"a command never writes into what it reads: use another {h.flag}")
+            if is_within(folder, real):  # an output replaced whole (a folder, or the very file) holding an input
+                raise UsageError(f"{in_flag}: {given!r} lies in {str(path)!r}, which {owner} writes (replacing what "
+                                 f"is there); a command never writes over what it reads: move it, or use another "
+                                 f"{h.flag}")
 
 
 def holds_keys(path: Path, keys: tuple[str, ...]) -> bool:

@@ -182,6 +182,15 @@ def check_dataset_complete(dataset: str | Path, arg: str = "--data") -> None:
         raise ValueError(f"{arg}: {str(dataset)!r} is an incomplete dataset ({DATASET_MANIFEST} says complete: "
                          "false: the command that writes it is still running or was stopped before its end); run it "
                          "again to finish the dataset, or pass a complete one")
+    try:
+        gone = sorted(n for n, status in _statuses(Path(dataset)).items()
+                      if status == "done" and not os.path.lexists(Path(dataset) / n))
+    except ValueError:  # an unreadable manifest: said where the objects' statuses are read
+        return
+    if gone:  # a copy that lost objects would be read, and scored, as a smaller dataset
+        more = f" (and {len(gone) - 1} more)" if len(gone) > 1 else ""
+        raise ValueError(f"{arg}: {str(dataset)!r} lacks {gone[0]}{more}, which its {DATASET_MANIFEST} lists as "
+                         "rendered ('done'); restore it (copy the dataset again), or pass a complete one")
 
 
 def check_listed_done(folder: Path, arg: str) -> None:

@@ -490,7 +490,7 @@ def _read_folder(folder: Path, max_images: int | None, layout: str | None, image
         _check_informative(stack, saturated, mask, folder, arg)
     normals = normals_file = None
     for name in entry.ground_truth:
-        if os.path.lexists(folder / name) and not (folder / name).is_dir():  # a pipe or a device too: refused by name
+        if os.path.lexists(folder / name):  # a pipe, a device or a folder too: refused by name, never "no truth"
             normals_file = folder / name
             normals = finish_normals(read_normals(normals_file, arg), mask, normals_file)
             break

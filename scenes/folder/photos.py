@@ -165,7 +165,10 @@ def photo_shape(path: str | Path, flag: str = "--input") -> tuple[int, int]:
     if Path(path).suffix.lower() == ".exr":
         from scenes.images import read_exr
 
-        return read_exr(path).shape[:2]
+        try:
+            return read_exr(path).shape[:2]
+        except ValueError as exc:  # the file is named; the flag that gave it, here
+            raise ValueError(f"{flag}: {exc}") from None
     import cv2
 
     from scenes.images import decode_image

@@ -70,7 +70,7 @@ def bsdf_dict(desc: SceneDescription, base_dir: Path | None) -> tuple[dict, dict
     if mat.normal_map or mat.detail is not None:
         if mat.normal_map:
             nm_arr = realize_texture(TextureDesc(kind="file", value=[0.5, 0.5, 1.0], file=mat.normal_map), base_dir,
-                                     "material.normal_map")
+                                     "material.normal_map", rgb=True)
         else:
             from scenes.detail import realize_detail
 

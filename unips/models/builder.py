@@ -145,12 +145,19 @@ def _build(meta: Mapping[str, Any], source: str) -> nn.Module:
     if not isinstance(meta["config"], Mapping):
         raise ValueError(f"{source}: 'config' must be a JSON object, got {type(meta['config']).__name__}")
     try:
-        return build_model(meta["model_name"], **meta["config"])
+        model = build_model(meta["model_name"], **meta["config"])
     except (TypeError, KeyError, ValueError) as exc:  # unknown model name, config keys or values
         raise ValueError(f"{source}: cannot build model {meta['model_name']!r} from its config ({exc})") from None
     except (MemoryError, RuntimeError) as exc:  # a config asking for more memory than the machine has
         raise ValueError(f"{source}: the network its config describes cannot be built here ({_first_line(exc)}); "
                          "expected the config the weights were trained with") from None
+    import dataclasses
+
+    if missing := [f.name for f in dataclasses.fields(model.config) if f.name not in meta["config"]]:
+        raise ValueError(f"{source}: its config lacks {missing[0]!r}" + (f" (and {len(missing) - 1} more)" if
+                         len(missing) > 1 else "") + "; expected every field the weights were trained with (a "
+                         "default need not be theirs), as this toolkit writes them")
+    return model
 
 
 def _first_line(exc: BaseException) -> str:
