@@ -204,6 +204,11 @@ class RecipeOptions:
         if not self.train_seed or len(set(self.train_seed)) != len(self.train_seed):
             raise ValueError(f"--train-seed: got {','.join(map(str, self.train_seed))!r}, expected distinct integers "
                              "separated by commas")
+        held = {int(VAL_FLAGS[-1]): "validation", int(TEST_FLAGS[-1]): "test"}  # their objects' draws, again
+        if clash := next((s for s in self.train_seed if s in held), None):
+            raise ValueError(f"--train-seed: {clash} is the seed of the fixed {held[clash]} set; expected another (the "
+                             "same seed draws the same shapes, materials and lights: the model would be scored on "
+                             "what it was trained on)")
         check_output_folder(self.work, "--work")
         if self.ship:
             shipped_name(self)  # the registry must know where the trained model's weights go

@@ -1691,6 +1691,8 @@ ROWS: list[Row] = [
         ("--train-seed", "5,5"),
         check=_not_written("w"),
     ),
+    Row("recipe-train-seed-of-the-validation-set", RC, ["--work", "{T}/w", "--train-seed", "5000,4000"], 2,
+        ("--train-seed", "4000 is the seed of the fixed validation set"), check=_not_written("w")),
     Row("recipe-steps-0", RC, ["--work", "{T}/w", "--steps", "0"], 2, ("--steps", "0"), check=_not_written("w")),
     Row("recipe-unknown-flag", RC, ["--work", "{T}/w", "--fast"], 2, ("--fast",)),
     # ---- orchestrate.gpu_session (issue 40: a budget not above its reserve, refused before rendering)

@@ -158,6 +158,27 @@ def test_bad_flags_one_line_error(tmp_path, capsys, args, needle):
     assert not list((tmp_path / "o").glob("*.data")) if (tmp_path / "o").exists() else True
 
 
+def test_texture_sets_named_as_poly_haven_and_ambientcg_name_them(tmp_path):
+    """Map names as the two CC0 libraries write them: colour, roughness and OpenGL normal maps found; a DirectX normal
+    map (green axis flipped) is never taken for an OpenGL one (the set keeps none)."""
+    import cv2
+
+    from wildgen.assets import AssetLibrary
+
+    tex = tmp_path / "textures"
+    tex.mkdir()
+    names = ["wood_diff_1k", "wood_rough_1k", "wood_nor_gl_1k", "wood_nor_dx_1k", "Bricks076_1K-PNG_Color",
+             "Bricks076_1K-PNG_Roughness", "Bricks076_1K-PNG_NormalDX", "Bricks076_1K-PNG_Displacement"]
+    for n in names:
+        assert cv2.imwrite(str(tex / f"{n}.png"), np.full((4, 4, 3), 128, np.uint8))
+    sets = {ts.name: ts for ts in AssetLibrary.scan(tmp_path).textures}
+    wood, bricks = sets["textures/wood"], sets["textures/bricks076_1k-png"]
+    assert (wood.base_color.name, wood.roughness.name, wood.normal.name) == (
+        "wood_diff_1k.png", "wood_rough_1k.png", "wood_nor_gl_1k.png")
+    assert (bricks.base_color.name, bricks.roughness.name, bricks.normal) == (
+        "Bricks076_1K-PNG_Color.png", "Bricks076_1K-PNG_Roughness.png", None)
+
+
 def test_bad_asset_folder_leaves_no_partial_object(tmp_path, capsys, variant_llvm_ad_rgb):
     assets = tmp_path / "assets"
     (assets / "meshes").mkdir(parents=True)

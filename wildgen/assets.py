@@ -10,9 +10,13 @@ from scenes.files import check_text_name
 from scenes.meshes import MESH_SUFFIXES
 
 _MAP_TAG = re.compile(
-    r"^(?P<stem>.+?)[_\-](?P<tag>col(?:_\d+)?|diff|basecolor|albedo|rgh|roughness|arm|met|metal(?:ness)?|nor_gl|nrm|normal)(?:[_\-].*)?$",
+    r"^(?P<stem>.+?)[_\-](?P<tag>nor_dx|normal_?dx|col(?:_\d+)?|colou?r|diff(?:use)?|basecolor|albedo|rgh|rough(?:ness)?|"
+    r"arm|met|metal(?:ness|lic)?|nor_gl|normal_?gl|nrm|normal)(?:[_\-].*)?$",
     re.IGNORECASE,
 )
+"""A texture map's name: <set>_<tag>[_<anything>], as Poly Haven (wood_diff_1k, wood_nor_gl_1k) and ambientCG
+(Bricks076_1K-PNG_Color, _NormalGL) name them. A DirectX normal map (nor_dx, NormalDX: its green axis flipped) is
+recognised to be left out, never read as an OpenGL one."""
 _IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".exr", ".tif", ".tiff")
 
 
@@ -148,9 +152,10 @@ def _texture_sets(folder: Path) -> list[TextureSet]:
         tag = m.group("tag").lower()
         kind = (
             "base" if tag.startswith(("col", "diff", "basecolor", "albedo"))
-            else "rough" if tag in ("rgh", "roughness")
+            else "rough" if tag.startswith(("rgh", "rough"))
             else "arm" if tag == "arm"
             else "metal" if tag.startswith("met")
+            else "dx" if "dx" in tag  # the set keeps no normal map rather than a wrong one
             else "normal"
         )
         groups.setdefault((p.parent, m.group("stem").lower()), {}).setdefault(kind, p)
