@@ -476,3 +476,17 @@ def rederive_image(radiance: np.ndarray, exposure: float, sensor: Sensor, noise_
     images[i].exposure, the sensor and the image's recorded noise seed -> (H, W, 3) uint8 / uint16."""
     rng = np.random.default_rng(noise_seed_) if sensor.noisy else None
     return apply_sensor(radiance * exposure, sensor, rng)
+
+
+def check_file_bits(sensor: Sensor, files: list, where: str) -> Sensor:
+    """`sensor`, once the first of its `files` holds the pixel type its bits are written as (`BIT_DEPTHS`): a record
+    edited, or copied beside other files, would undo the sensor at the wrong scale. ValueError naming `where`."""
+    import cv2
+
+    img = cv2.imread(str(files[0]), cv2.IMREAD_UNCHANGED) if files else None
+    want = BIT_DEPTHS[sensor.bits][0]
+    if img is not None and img.dtype != want:
+        raise ValueError(f"{where}: its sensor records {sensor.bits} bits, written as {np.dtype(want).itemsize * 8}"
+                         f"-bit files, but {files[0].name} is {img.dtype.itemsize * 8}-bit; expected the files the "
+                         "sensor wrote (restore the record or the images)")
+    return sensor

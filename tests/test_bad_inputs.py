@@ -4940,6 +4940,19 @@ def _sidecar_without(key: str) -> Callable[[Path, Path], None]:
     return setup
 
 
+def _phone_record_says_16_bits(w: Path, t: Path) -> None:
+    """Setup: T/ph, the world's dataset through the phone sensor (8-bit PNGs), object 00000's sensor record edited to
+    16 bits."""
+    from scenes.camera_sensor import sensor_named
+    from wildgen.sensor import apply_to_dataset
+
+    apply_to_dataset(w / "data", t / "ph", sensor_named("phone"))
+    scene = t / "ph" / f"{OBJ}.data" / "scene.json"
+    d = json.loads(scene.read_text())
+    d["sensor"]["model"]["bits"] = 16
+    scene.write_text(json.dumps(d))
+
+
 def _one_flat_mesh(w: Path, t: Path) -> None:
     """Setup: T/assets/meshes with a good tetrahedron and flat.obj, whose vertices all lie at one point."""
     meshes = _mk(t / "assets" / "meshes")
@@ -5043,6 +5056,13 @@ ROWS += [
         ("--mask", "lies in", "which orchestrate.capture writes"), setup=lambda w, t: (
             _photos()(w, t), shutil.copy(w / "data" / f"{OBJ}.data" / "mask.png",
                                          _mk(t / "o" / "work" / "photos.data") / "mask.png"))),
+    Row("rerender-a-sensor-record-of-other-bits-than-its-files", RR, ["--data", f"{{T}}/ph/{OBJ}.data", "--normals",
+                                                                      "{W}/pred/00000", "--out", "{T}/o", "--no-floors",
+                                                                      "--spp", "1"], 2,
+        ("--data", "its sensor records 16 bits", "L000.png is 8-bit"), setup=_phone_record_says_16_bits,
+        check=_not_written("o")),
+    Row("rerender-an-explicit-scalar-variant", RR, [*RR_ONE, "--variant", "scalar_rgb"], 2,
+        ("--variant", "'scalar_rgb' is a scalar variant")),
     Row("capture-photos-all-black", CAP, CAPTURE, 2, ("--input", "every image is all but black", "expose longer"),
         setup=_all_black_photos, check=_not_written("o")),
 ]

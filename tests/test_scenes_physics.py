@@ -352,7 +352,7 @@ def test_a_libllvm_path_that_loads_nothing_is_named_by_the_check(tmp_path):
     env = {**__import__("os").environ, "DRJIT_LIBLLVM_PATH": str(tmp_path / "none.so"), "CUDA_VISIBLE_DEVICES": ""}
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
                        cwd=Path(__file__).resolve().parents[1])
-    assert r.stdout.startswith("refused: variant: only scalar_rgb runs on this machine; this command needs "
+    assert r.stdout.startswith("refused: --variant: only scalar_rgb runs on this machine; this command needs "
                                f"llvm_ad_rgb or cuda_ad_rgb (DRJIT_LIBLLVM_PATH='{tmp_path / 'none.so'}' names no "
                                "libLLVM"), r.stdout + r.stderr
     assert "RuntimeWarning" not in r.stderr and "Traceback" not in r.stderr

@@ -348,17 +348,17 @@ def check_read_normals(normals: np.ndarray | None, mask: np.ndarray, where: str)
 
 def _recorded_sensor(folder: Path, scene: dict | None, num_images: int):
     """The sensor an object folder of ours records in its scene.json (parsed: `scene`; None when absent or
-    `ideal`)."""
+    `ideal`), checked against its first image's pixel type (`scenes.camera_sensor.check_file_bits`)."""
     if scene is None:
         return None
-    from scenes.camera_sensor import SCENE_KEY, SENSORS, read_sensor_record
+    from scenes.camera_sensor import SCENE_KEY, SENSORS, check_file_bits, read_sensor_record
     from scenes.folder.format import split_scene_extras
 
     _, extras = split_scene_extras(scene)
     if SCENE_KEY not in extras:
         return None
-    sensor = read_sensor_record(extras, num_images, f"scene file {folder / SCENE_FILE}").sensor
-    return None if sensor == SENSORS["ideal"] else sensor
+    sensor = read_sensor_record(extras, num_images, where := f"scene file {folder / SCENE_FILE}").sensor
+    return None if sensor == SENSORS["ideal"] else check_file_bits(sensor, image_files(folder)[:1], where)
 
 
 def _read_stack(paths: list[Path], white: float = 1.0) -> tuple[np.ndarray, np.ndarray | None]:

@@ -79,11 +79,14 @@ def choose_variant(requested: str | None = None, jit: bool = False) -> str:
         if not _usable(requested):
             hint = f"; {llvm_fix()}" if requested.startswith("llvm") else ""
             raise ValueError(f"--variant: {requested!r} cannot run on this machine{hint}")
+        if jit and requested.startswith("scalar"):  # the flag asked for it: named, not left to require_jit_variant
+            raise ValueError(f"--variant: {requested!r} is a scalar variant; this command needs llvm_ad_rgb or "
+                             "cuda_ad_rgb")
         return requested
     for variant in PREFERENCE:
         if _usable(variant):
             if variant.startswith("scalar") and jit:
-                raise ValueError(f"variant: only scalar_rgb runs on this machine; this command needs llvm_ad_rgb or "
+                raise ValueError(f"--variant: only scalar_rgb runs on this machine; this command needs llvm_ad_rgb or "
                                  f"cuda_ad_rgb ({llvm_fix()})")
             if variant.startswith("scalar"):
                 warnings.warn(
