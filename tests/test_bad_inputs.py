@@ -2320,6 +2320,8 @@ def _stated_prediction_for_refine(link: bool = False, stated: object = None) -> 
     """Setup: T/00000.data (8 images) and T/p/00000, a prediction whose predict.json states an expected error
     (`stated`, default a well-formed one) with its three files beside it, each a link to T/secret.bin with `link`."""
     def setup(w: Path, t: Path) -> None:
+        import cv2
+
         _capture_copy(images=8)(w, t)
         shutil.copytree(w / "pred" / OBJ, t / "p" / OBJ)
         figure = {"mean": 9.0, "interval_80": [5.0, 14.0]} if stated is None else stated
@@ -2328,6 +2330,8 @@ def _stated_prediction_for_refine(link: bool = False, stated: object = None) -> 
         for name in ("expected_error_deg.npy", "expected_error_deg.exr", "expected_error.png"):
             if link:
                 os.symlink(t / "secret.bin", t / "p" / OBJ / name)
+            elif name.endswith(".npy"):  # one value per pixel of the map beside it (another size is not its error)
+                np.save(t / "p" / OBJ / name, np.full(cv2.imread(str(t / "p" / OBJ / "normal.png")).shape[:2], 9.0))
             else:
                 (t / "p" / OBJ / name).write_bytes(b"the prediction's own\n")
     return setup
@@ -4953,6 +4957,35 @@ def _phone_record_says_16_bits(w: Path, t: Path) -> None:
     scene.write_text(json.dumps(d))
 
 
+def _stated_error_edited(npy_side: int | None = None, mean: float | None = None) -> Callable[[Path, Path], None]:
+    """Setup: `_stated_prediction_for_refine` whose expected_error_deg.npy is `npy_side` px square (another map's),
+    or whose predict.json states a mean of `mean` degrees."""
+    def setup(w: Path, t: Path) -> None:
+        _stated_prediction_for_refine()(w, t)
+        if npy_side is not None:
+            np.save(t / "p" / OBJ / "expected_error_deg.npy", np.full((npy_side, npy_side), 9.0))
+        if mean is not None:
+            (t / "p" / OBJ / "predict.json").write_text(json.dumps(
+                {"object": OBJ, "expected_error_deg": {"mean": mean, "interval_80": [0.0, mean]}}))
+    return setup
+
+
+def _users_file_beside_a_refinement(w: Path, t: Path) -> None:
+    """Setup: `_stated_prediction_for_refine`, refined once from the plain map (no stated error: normal.png and
+    refine_report.json), then a user's own expected_error_deg.npy put beside them."""
+    from validate.refine import main as refine
+
+    _stated_prediction_for_refine()(w, t)
+    assert refine(["--data", str(t / f"{OBJ}.data"), "--normals", str(w / "pred" / OBJ / "normal.png"), "--out",
+                   str(t / "o"), "--refine-steps", "10", "--rounds", "1", "--steps", "20", "--threads", "1"]) == 0
+    (t / "o" / OBJ / "expected_error_deg.npy").write_bytes(b"mine\n")
+
+
+REFINE_STATED = ["--data", "{T}/00000.data", "--normals", "{T}/p/00000", "--out", "{T}/o", "--refine-steps", "10",
+                 "--rounds", "1", "--steps", "20", "--threads", "1"]
+"""validate.refine of `_stated_prediction_for_refine`'s prediction into T/o."""
+
+
 def _one_flat_mesh(w: Path, t: Path) -> None:
     """Setup: T/assets/meshes with a good tetrahedron and flat.obj, whose vertices all lie at one point."""
     meshes = _mk(t / "assets" / "meshes")
@@ -5063,6 +5096,17 @@ ROWS += [
         check=_not_written("o")),
     Row("rerender-an-explicit-scalar-variant", RR, [*RR_ONE, "--variant", "scalar_rgb"], 2,
         ("--variant", "'scalar_rgb' is a scalar variant")),
+    Row("refine-never-carries-another-maps-stated-error", RF, REFINE_STATED, 0, ("report in",),
+        setup=_stated_error_edited(npy_side=7), check=_not_written("o/00000/expected_error_deg.npy")),
+    Row("refine-never-carries-a-stated-error-beyond-180-degrees", RF, REFINE_STATED, 0, ("report in",),
+        setup=_stated_error_edited(mean=1e308), check=_not_written("o/00000/expected_error_deg.npy")),
+    Row("refine-never-replaces-a-users-file-beside-its-outputs", RF, [*REFINE_STATED, "--overwrite"], 2,
+        ("--out", "expected_error_deg.npy", "was not written by validate.refine"),
+        setup=_users_file_beside_a_refinement, check=_kept("o/00000/expected_error_deg.npy", "mine\n")),
+    Row("predict-scalable-with-weights-that-cannot-take-it", PR, ["--method", "model", "--scalable", "--checkpoint",
+                                                                  "{T}/copy.safetensors", "--input", "{W}/data",
+                                                                  "--out", "{T}/p"], 2,
+        ("--scalable", "only for the SDM-UniPS networks"), setup=_shipped_copy, check=_not_written("p")),
     Row("capture-photos-all-black", CAP, CAPTURE, 2, ("--input", "every image is all but black", "expose longer"),
         setup=_all_black_photos, check=_not_written("o")),
 ]

@@ -294,6 +294,8 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
                     raise
                 failures.append((shown_name(name), one_line(exc)))
         net = load_network(args.checkpoint, args.device, args.model) if args.method == "model" else None
+        if net is not None and args.scalable:
+            scalable_patch(net)  # a file's network that cannot take --scalable: once, before any object
         errors = error_model(args, net)
         written: list[str] = []
         where = args.out / todo[0][1] if single and todo else args.out

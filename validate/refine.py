@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
 
-from scenes.cli.errors import INPUT_ERRORS, report_error
+from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.limits import check_threads
 from scenes.cli.needs import Needs
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
@@ -93,6 +93,16 @@ def input_error(normals: str, name: str) -> tuple[Path, dict] | None:
     # the prediction's own files only: a link (to anything of the machine) is never copied beside the refined map
     if not stated or not all((folder / f).is_file() and not (folder / f).is_symlink() for f in EXPECTED_ERROR_FILES):
         return None
+    import numpy as np
+
+    from scenes.images import read_normals
+
+    try:  # another map's error (another size) is not this map's: stated nowhere, rather than beside it
+        if np.load(folder / EXPECTED_ERROR_FILES[0], allow_pickle=False).shape[:2] != read_normals(
+                find_prediction(normals, name)).shape[:2]:
+            return None
+    except (OSError, ValueError):
+        return None
     return folder, stated
 
 
@@ -153,6 +163,11 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         stated = input_error(args.normals, name)
         earlier = claim_outputs([Path(args.out) / name / f for f in EXPECTED_ERROR_FILES], args.overwrite,
                                 owner="validate.refine", marker=report)  # an earlier run's stated error, if any
+        stated_before = read_json(report).get("expected_error_deg") if earlier else None  # (a report: claimed)
+        listed = stated_before.get("files", []) if isinstance(stated_before, dict) else []
+        if foreign := [p for p in earlier if p.name not in listed]:  # beside refine's files, yet not its own
+            raise UsageError(f"--out: {str(foreign[0])!r} was not written by validate.refine (its refine_report.json "
+                             "lists no such file); it is never replaced: move it away or use another --out")
         with progress_bar("step") as progress:
             r = refine_object(args.data, args.normals, config, args.out, progress, overwrite=args.overwrite)
         if stated:

@@ -72,8 +72,8 @@ NumPy and EXR arrays, and a picture; PREDICTION_INFO's `expected_error_deg` hold
 
 def stated_error(record) -> dict | None:
     """PREDICTION_INFO's `expected_error_deg` read back: {"mean": m, "interval_80": [lo, hi]} of finite numbers, 0 <=
-    lo <= hi, as `unips.expected_error.Stated.summary` writes it; None for anything else (an edited record, or one
-    of another kind, states nothing)."""
+    lo <= hi <= 180 and m within [0, 180] (angles), as `unips.expected_error.Stated.summary` writes it; None for
+    anything else (an edited record, or one of another kind, states nothing)."""
     import math
 
     if not isinstance(record, dict):
@@ -81,7 +81,7 @@ def stated_error(record) -> dict | None:
     mean, interval = record.get("mean"), record.get("interval_80")
     numbers = [mean, *interval] if isinstance(interval, list) and len(interval) == 2 else []
     if not numbers or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-                              for v in numbers) or not 0 <= interval[0] <= interval[1]:
+                              for v in numbers) or not 0 <= interval[0] <= interval[1] <= 180 or not 0 <= mean <= 180:
         return None
     return {**record, "mean": float(mean), "interval_80": [float(interval[0]), float(interval[1])]}
 
