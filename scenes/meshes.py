@@ -48,8 +48,14 @@ def load_mesh(path: str | Path, normalize: bool = True) -> MeshData:
             return normalize_mesh(*own, name=path)
         pos, faces, nrm, uv = own
         return MeshData(pos.astype(np.float32), faces.astype(np.int32), nrm.astype(np.float32), uv.astype(np.float32))
+    relative = _absolute_obj_indices(text) if path.suffix.lower() == ".obj" else None
     try:
-        loaded = trimesh.load(str(path), process=False, force="mesh")
+        if relative is not None:  # trimesh resolves a negative index against the end of the file, not the line
+            import io
+
+            loaded = trimesh.load(io.BytesIO(relative.encode()), file_type="obj", process=False, force="mesh")
+        else:
+            loaded = trimesh.load(str(path), process=False, force="mesh")
     except ImportError as exc:  # an optional decoder trimesh wants for this file: the file is the problem
         raise ValueError(
             f"shape.file: cannot read mesh {str(path)!r}: not a mesh trimesh can decode ({exc.name or exc})"
@@ -79,6 +85,31 @@ def load_mesh(path: str | Path, normalize: bool = True) -> MeshData:
         if not np.all(np.isfinite(uvs)):  # a texture lookup at NaN renders NaN
             raise ValueError(f"shape.file: mesh {str(path)!r} has non-finite texture coordinates (vt)")
     return normalize_mesh(positions, faces, normals, uvs, name=path)
+
+
+def _absolute_obj_indices(text: str) -> str | None:
+    """The OBJ `text` with its faces' relative indices (-1: the last vertex, texture coordinate or normal defined
+    before the face, as streaming exporters write) made absolute; None when it has none (or they cannot be read:
+    trimesh says what is wrong)."""
+    import re
+
+    if not re.search(r"^f .*(?:^|\s|/)-\d", text, re.MULTILINE):
+        return None
+    counts = {"v": 0, "vt": 0, "vn": 0}
+    lines = []
+    try:
+        for line in text.splitlines():
+            words = line.split()
+            if words and words[0] in counts:
+                counts[words[0]] += 1
+            elif words and words[0] == "f":
+                line = "f " + " ".join("/".join(
+                    str(counts[key] + 1 + int(i)) if i.startswith("-") else i
+                    for key, i in zip(("v", "vt", "vn"), word.split("/"))) for word in words[1:])
+            lines.append(line)
+    except ValueError:
+        return None
+    return "\n".join(lines) + "\n"
 
 
 def normalize_mesh(

@@ -179,6 +179,19 @@ def test_texture_sets_named_as_poly_haven_and_ambientcg_name_them(tmp_path):
         "Bricks076_1K-PNG_Color.png", "Bricks076_1K-PNG_Roughness.png", None)
 
 
+def test_an_obj_of_relative_indices_reads_as_the_same_mesh_written_absolute(tmp_path):
+    """Faces that count back from the vertices defined before them (`f -3 -1 -2`, as streaming exporters write) are
+    the faces of the absolute file (trimesh alone resolves them against the end of the file)."""
+    from scenes.meshes import load_mesh
+
+    rel = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -1 -2\nv 0 0 1\nf -4 -3 -1\nf -4 -1 -2\nf -3 -2 -1\n"
+    ab = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 3 2\nv 0 0 1\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+    (tmp_path / "rel.obj").write_text(rel)
+    (tmp_path / "abs.obj").write_text(ab)
+    a, b = load_mesh(tmp_path / "rel.obj"), load_mesh(tmp_path / "abs.obj")
+    assert np.array_equal(a.faces, b.faces) and np.array_equal(a.positions, b.positions) and len(a.faces) == 4
+
+
 def test_bad_asset_folder_leaves_no_partial_object(tmp_path, capsys, variant_llvm_ad_rgb):
     assets = tmp_path / "assets"
     (assets / "meshes").mkdir(parents=True)

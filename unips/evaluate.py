@@ -127,7 +127,8 @@ def evaluate(pred_dir: str | Path, gt: str | Path, write: bool = True, overwrite
         failed, missing = summary["failed"], summary["missing"]
         if not failed:
             raise ValueError(f"--pred: no prediction in {str(pred_dir)!r} for any of the {len(missing)} object(s) of "
-                             "--gt (is --pred the right folder?); nothing was written")
+                             f"--gt (first, {ascii(missing[0])}: is --pred the right folder, are the names the same "
+                             "characters?); nothing was written")
         raise ValueError(f"--gt: none of the {len(failed) + len(missing)} object(s) could be scored against --pred "
                          f"(first, {next(iter(failed))}: {next(iter(failed.values()))}); nothing was written")
     if write:
