@@ -3835,7 +3835,8 @@ ROWS += [
     Row("preview-out-in-an-object-folder", PV, ["{T}/ds", "--out", "{T}/ds/00000.data", "--overwrite"], 2,
         ("--out", "object folder"), setup=_dataset_edited()),
     Row("preview-object-named-overview", PV, ["{T}/ds", "--out", "{T}/p"], 2, ("overview.data", "overview.png"),
-        setup=_dataset_edited(files=lambda d: (d / "00001.data").rename(d / "overview.data")),
+        setup=_dataset_edited(files=lambda d: ((d / "00001.data").rename(d / "overview.data"),
+                                               (d / "manifest.json").unlink())),  # (else: 00001.data lost, refused)
         check=_not_written("p")),
     Row("preview-overview-png-of-the-user", PV, ["{W}/data", "--out", "{T}/p", "--overwrite"], 2,
         ("overview.png", "was not written by wildgen.preview"), setup=_put(("p/overview.png", "mine\n")),
