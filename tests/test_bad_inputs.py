@@ -4664,7 +4664,8 @@ ROWS += [
         absent=("capture: ",), check=_not_written("o")),
     Row("predict-an-object-folder-named-in-latin-1", PR, ["--method", "least-squares", "--input", "{T}/data", "--out",
                                                           "{T}/p"], 1, ("not UTF-8 text", "rename it"),
-        setup=_both(_dataset_copy, _renamed("data/00000.data", "data/0000" + NU + ".data")),
+        setup=_both(_dataset_copy, _renamed("data/00000.data", "data/0000" + NU + ".data"),
+                    lambda w, t: (t / "data" / "manifest.json").unlink()),  # (else: 00000.data lost, refused)
         check=_written("p/00001/normal.png")),
     # ---- sweep 20: --overwrite with a --gt no prediction matches: refused, the earlier evaluation kept whole
     Row("evaluate-overwrite-scoring-nothing-keeps-the-earlier-evaluation", EV,
