@@ -413,13 +413,12 @@ def claim_stages(opts: CaptureOptions, out: Path) -> None:
     before the first write (`scenes.cli.outputs.claim_outputs`); <name> as `read_input` names the capture."""
     from orchestrate.capture_surface import SHADED_PICTURE
     from scenes.folder.format import object_name
-
-    name = object_name(Path(opts.input)) or "capture"
     from scenes.surface.write import REPORT_KEYS as SURFACE_REPORT_KEYS
     from scenes.surface.write import SURFACE_DIR, surface_outputs
     from validate.fitted.fit_report import CHECK_OUTPUTS
     from validate.fitted.refinement import REFINE_OUTPUTS
 
+    name = object_name(Path(opts.input)) or "capture"
     stages = {"surface": surface_outputs(out / SURFACE_DIR, ("ply",)) + [out / SURFACE_DIR / SHADED_PICTURE],
               "check": [out / "check" / name / n for n in CHECK_OUTPUTS],
               "refine": [out / "refine" / name / n for n in REFINE_OUTPUTS]}

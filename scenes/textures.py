@@ -84,6 +84,15 @@ def read_image_file(path: Path) -> np.ndarray:
     return img
 
 
+def outside_unit_range(img: np.ndarray, path: Path) -> str | None:
+    """What is wrong with the values of map `img` (of file `path`) where they leave [0, 1] (a map of reflectance,
+    roughness or metal, or an encoded normal; never radiance), else None."""
+    if img.size and not (float(img.min()) >= 0 and float(img.max()) <= 1 + 1e-6):
+        return (f"{str(path)!r} holds values from {float(img.min()):.4g} to {float(img.max()):.4g}; expected 0 to 1 "
+                "(a map of reflectance, roughness, metal or an encoded normal)")
+    return None
+
+
 def realize_texture(tex: TextureDesc, base_dir: Path | None = None, owner: str = "texture",
                     rgb: bool = False) -> np.ndarray:
     """The texture as an array (H, W, C), C = len(tex.value); constants give a 1x1 array. `owner`: the scene field
@@ -112,9 +121,8 @@ def realize_texture(tex: TextureDesc, base_dir: Path | None = None, owner: str =
             img = img[:, :, ch : ch + 1]
         else:
             img = img[:, :, :3] if img.shape[2] >= 3 else np.repeat(img[:, :, :1], 3, 2)
-        if img.size and not (float(img.min()) >= 0 and float(img.max()) <= 1 + 1e-6):
-            raise ValueError(f"{owner}.file: {str(path)!r} holds values from {float(img.min()):.4g} to "
-                             f"{float(img.max()):.4g}; expected 0 to 1 (a map of reflectance, roughness or metal)")
+        if why := outside_unit_range(img, path):
+            raise ValueError(f"{owner}.file: {why}")
         # Image files have row 0 at the top (v = 1); Mitsuba's row 0 is v = 0.
         return np.ascontiguousarray(img[::-1]).astype(np.float32)
     t = _pattern(tex.kind, tex.resolution, tex.scale, tex.seed)[:, :, None]

@@ -109,7 +109,7 @@ class AssetLibrary:
         would fail every object that draws it, so the run is refused with a ValueError naming it."""
         from scenes.envmaps import load_environment
         from scenes.meshes import load_mesh
-        from scenes.textures import read_image_file
+        from scenes.textures import outside_unit_range, read_image_file
 
         jobs = [(p, load_mesh) for p in self.meshes] + [(p, load_environment) for p in self.hdris]
         for ts in self.textures:
@@ -130,9 +130,8 @@ class AssetLibrary:
                 continue
             if read is not read_image_file:
                 continue
-            if data.size and not (data.min() >= 0 and data.max() <= 1 + 1e-6):
-                bad.append(f"{str(path)!r} holds values from {float(data.min()):.4g} to {float(data.max()):.4g}; "
-                           "expected 0 to 1 (a map of reflectance, roughness, metal or an encoded normal)")
+            if why := outside_unit_range(data, path):  # the renderer's rule, named here by the asset's own file
+                bad.append(why)
             elif need.get(path, 1) > (have := data.shape[2] if data.ndim == 3 else 1):
                 bad.append(f"{str(path)!r} has {have} channel(s), {need[path]} are read (ARM: occlusion, roughness, "
                            "metallic; a normal map: x, y, z)")

@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Callable, Iterator
 
 from scenes.files import not_a_file, read_json, write_json
-from scenes.folder.format import MANIFEST_VERSION, entry_folder, manifest_problem
+from scenes.folder.format import MANIFEST_VERSION, OBJECT_FOLDER, entry_folder, manifest_problem
 from wildgen.config import GenConfig
 from wildgen.parallel import Engine, InProcessEngine
 from wildgen.writer import TMP_PREFIX, index_name, sha256_file
@@ -35,7 +35,6 @@ log = logging.getLogger(__name__)
 
 MANIFEST = "manifest.json"
 LOCK = ".wildgen.lock"
-OBJECT_FOLDER = re.compile(r"^\d{5,}\.data$")
 TMP_FOLDER = re.compile(r"^" + re.escape(TMP_PREFIX) + r"\d{5,}\.data\.\d+$")  # `writer.write_object`'s temporary names
 # Config fields that may differ between runs into the same folder: the object count only extends it.
 NOT_IDENTITY = ("objects", "variant")

@@ -87,6 +87,8 @@ def stated_error(record) -> dict | None:
 
 
 DATASET_MANIFEST = "manifest.json"
+OBJECT_FOLDER = re.compile(r"^\d{5,}\.data$")
+"""The names of the object folders wildgen writes (`wildgen.writer.index_name` + .data)."""
 MANIFEST_VERSION = 1
 """`format_version` of the manifest.json wildgen.make and wildgen.sensor write."""
 
@@ -184,7 +186,7 @@ def check_dataset_complete(dataset: str | Path, arg: str = "--data") -> None:
                          "again to finish the dataset, or pass a complete one")
     try:
         gone = sorted(n for n, status in _statuses(Path(dataset)).items() if status == "done"
-                      and re.fullmatch(r"\d{5,9}\.data", n)  # the names wildgen writes; odd ones: their own check
+                      and OBJECT_FOLDER.match(n)  # the names wildgen writes; odd ones: their own check
                       and not os.path.lexists(Path(dataset) / n))
     except ValueError:  # an unreadable manifest: said where the objects' statuses are read
         return
