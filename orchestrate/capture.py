@@ -36,7 +36,7 @@ import numpy as np
 
 from orchestrate.capture_estimate import check_resources
 from orchestrate.capture_full import DEFAULT_MAX_SIDE, guide_image, upsample
-from orchestrate.capture_verdict import level, verdict
+from orchestrate.capture_verdict import level, mask_first, verdict
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.limits import check_threads
 from scenes.cli.needs import Needs
@@ -89,9 +89,8 @@ class CaptureOptions:
     convention: Literal["opengl", "opencv"] = "opengl"
     """Frame of the written normals: opengl (x right, y up, z toward the camera) or opencv (y down, z away)."""
     max_side: int = option(DEFAULT_MAX_SIDE, minimum=0)
-    """Work on copies of the photos whose longer side is at most this many pixels (0: the photos' own size; else
-    at least 32);
-    normal.png, normal.exr and mask.png are written at the photos' size (docs/capture.md, "Big photos")."""
+    """Work on copies of the photos whose longer side is at most this many pixels (0: the photos' own size; else at
+    least 32); normal.png, normal.exr and mask.png are written at the photos' size (docs/capture.md, "Big photos")."""
     checkpoint: Annotated[str | None, arg(metavar="FILE", help_behavior_hint="(default: the shipped model)")] = None
     """Model weights to predict with: a model file, or a folder of the authors' published weights with --model."""
     model: str | None = None
@@ -217,9 +216,7 @@ def find_mask(opts: CaptureOptions, cap: Capture, full: tuple[int, int]) -> tupl
         if not (work[:-1, :-1] & work[1:, :-1] & work[:-1, 1:] & work[1:, 1:]).any():  # the check builds a surface
             raise ValueError(f"--mask: {opts.mask!r} holds no 2x2 block of object pixels at the working size "
                              f"{shape[1]}x{shape[0]} (a line or dots); expected the object's area, white on black")
-        if mask.shape != shape:
-            return work, {"method": "file", "file": opts.mask, "full_mask": mask}
-        return mask, {"method": "file", "file": opts.mask}
+        return work, {"method": "file", "file": opts.mask, **({"full_mask": mask} if mask.shape != shape else {})}
     if cap.mask is not None:  # an object folder brings its own
         return cap.mask, {"method": "the object folder's mask.png"}
     return auto_mask(cap.images)
@@ -344,11 +341,11 @@ def run(opts: CaptureOptions) -> dict:
         read = replace(read, mask=mask)
         # the light warnings wait for the model's map: the lights are read from the shading under it
         warnings, facts = capture_warnings(read.images, mask, read.saturated, read.image_names, lights=False)
-        if warnings and warnings[0].fatal:
-            raise UsageError(f"--input: {warnings[0].message}")
-        if automatic:
+        if automatic:  # measured before a fatal warning: a doubted mask is named first (mask_first)
             doubt, facts["mask_doubts"] = mask_doubts(read.images, mask)
             warnings += [doubt] if doubt else []
+        if warnings and warnings[0].fatal:
+            raise mask_first(UsageError(f"--input: {warnings[0].message}"), warnings)
     say(warnings)
     times["mask_and_checks_s"] = time.perf_counter() - t0 - times["read_s"] - times["load_model_s"]
     # One scale for every photo (their relative exposures are kept): the brightest mask value becomes 1, as the
@@ -368,7 +365,10 @@ def run(opts: CaptureOptions) -> dict:
     t1 = time.perf_counter()
     with stage("capture", "the physical check" + (" and the refinement" if opts.refine else ""),
                need["check_s"]):
-        final, check, refined = check_and_refine(opts, cap, out, model_map)
+        try:
+            final, check, refined = check_and_refine(opts, cap, out, model_map)
+        except ValueError as exc:  # the images cannot judge the map on this mask
+            raise mask_first(exc, warnings) from None
     times["check_and_refine_s"] = time.perf_counter() - t1
     final = np.where(mask[..., None], final, 0.0)
     size = write_maps(opts, out, read.images, mask, final, model_map, stated, guide, full_mask)

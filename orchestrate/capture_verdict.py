@@ -29,8 +29,10 @@ def level(check: dict, stated, why_unstated: str | None, warnings: list) -> tupl
     lo, hi = stated.interval_80
     figure = (f"expected error about {stated.mean:.0f} deg (80 %: {lo:.0f}-{hi:.0f} deg), within {PIXEL_USABLE_DEG:.0f}"
               f" deg over {share:.0%} of the object")
-    if not check["trusted"]:
-        return "not checked", f"not checked: {check.get('why')}; the model's {figure}"
+    if not check["trusted"]:  # on a doubted automatic mask, the mask is named first (as in mask_first)
+        on = (" on an automatic mask that may not be the object (doubtful_mask: give --mask FILE)"
+              if any(w.code == "doubtful_mask" for w in warnings) else "")
+        return "not checked", f"not checked{on}: {check.get('why')}; the model's {figure}"
     demoted = [DEMOTING_WARNINGS[w.code] for w in warnings if w.code in DEMOTING_WARNINGS]
     if stated.mean > USABLE_DEG:
         demoted.insert(0, f"above the {USABLE_DEG:.0f} deg of a usable map")
@@ -68,3 +70,17 @@ def verdict(check: dict, refined: dict | None) -> dict:
                            "; it was refined, but the change is within what the images resolve: the refined map fits "
                            "the physics better, which does not show it is closer to the surface.")
     return out
+
+
+def mask_first(exc: Exception, warnings: list) -> Exception:
+    """A refusal on an automatic mask that the light variation doubts (`doubtful_mask`) names the mask first: a
+    chrome ball, a lamp or the table taken for the object makes the images look black, constant or clipped, and
+    then the exposure or the light the refusal names is not what to change. Any other refusal (one not naming
+    --input) is returned as is."""
+    said = str(exc)
+    if not (said.startswith("--input: ") and any(w.code == "doubtful_mask" for w in warnings)):
+        return exc
+    said = said.removeprefix("--input: ")
+    return ValueError(f"--mask: the automatic mask may not be the object (the doubtful_mask warning above), and on it "
+                      f"the check says: {said}; draw the object's mask and give it (--mask FILE: white object on "
+                      "black, the size of the photos)")

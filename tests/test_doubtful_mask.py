@@ -234,3 +234,57 @@ def test_a_flat_surface_reaching_out_beside_the_object_is_measured():
     _, union = mask_doubts(images, ball | cushion)
     _, alone = mask_doubts(images, ball)
     assert union["flat_outside_share"] > 0.1 and alone["flat_outside_share"] == 0.0, (union, alone)
+
+
+def sphere_beside_a_chrome_ball(albedo: float, ball_value: float) -> np.ndarray:
+    """Images (8, H, W, 3) of a dim sphere (`albedo`, radius 22 px, low right) and a chrome ball at the top left: a
+    10 px disc of `ball_value` whose 4 x 4 px highlight, at white, moves around it with the lamp. The highlight
+    changes more with the light than the dim sphere does, so the automatic mask takes the ball."""
+    n, ball = sphere(SIZE, pad=26, center=(58, 58))
+    shade = shading(n, _lights()) * albedo * ball
+    rows, cols = np.mgrid[0:SIZE, 0:SIZE]
+    chrome = (rows - 16) ** 2 + (cols - 16) ** 2 <= 100
+    images = []
+    for k, im in enumerate(shade):
+        im = np.where(chrome, ball_value, im)
+        y, x = int(16 + 6 * np.sin(np.pi * k / 4)), int(16 + 6 * np.cos(np.pi * k / 4))
+        im[y - 2:y + 2, x - 2:x + 2] = 1.0
+        images.append(im)
+    return _photos(np.stack(images))
+
+
+def _shoot(folder, images: np.ndarray) -> None:
+    folder.mkdir()
+    for i, img in enumerate(images):  # 16-bit linear PNG: white is the file's largest code, read as clipped
+        cv2.imwrite(str(folder / f"IMG_{i + 1:04d}.png"), np.round(np.clip(img, 0, 1) * 65535).astype(np.uint16))
+
+
+def test_a_refusal_on_a_doubted_automatic_mask_names_the_mask_not_the_exposure(tmp_path, variant_llvm_ad_rgb, capsys):
+    """Sweep 32: a chrome ball beside the object, the automatic mask on the ball: the only lit pixels in it are the
+    clipped highlight, and the refusal said to expose shorter, though the mask is what is wrong."""
+    from orchestrate.capture import main
+
+    _shoot(tmp_path / "shoot", sphere_beside_a_chrome_ball(albedo=0.05, ball_value=0.0))
+    out = tmp_path / "out"
+    assert main(["--input", str(tmp_path / "shoot"), "--out", str(out), "--no-refine", "--threads", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-2].startswith("warning: doubtful_mask: ")
+    assert err[-1].startswith("error: --mask: the automatic mask may not be the object")
+    assert "every lit mask pixel is saturated" in err[-1] and "give it (--mask FILE" in err[-1]
+    assert not (out / "normal.png").exists()
+
+
+def test_a_capture_not_checked_on_a_doubted_automatic_mask_says_so_first(tmp_path, variant_llvm_ad_rgb, capsys):
+    """The same ball, dark grey (lit, not clipped): the check runs on the ball and cannot judge (its pixels hardly
+    vary); the headline names the doubted mask before the check's reason (the lights)."""
+    from orchestrate.capture import main
+
+    _shoot(tmp_path / "shoot", sphere_beside_a_chrome_ball(albedo=0.02, ball_value=0.05))
+    out = tmp_path / "out"
+    assert main(["--input", str(tmp_path / "shoot"), "--out", str(out), "--no-refine", "--threads", "1"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert "doubtful_mask" in [w["code"] for w in report["warnings"]] and report["mask"]["pixels"] < 200
+    assert report["verdict"]["level"] == "not checked"
+    assert report["verdict"]["headline"].startswith("not checked on an automatic mask that may not be the object "
+                                                    "(doubtful_mask: give --mask FILE): ")
+    assert capsys.readouterr().out.startswith("not checked on an automatic mask")
