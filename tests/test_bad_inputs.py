@@ -3414,6 +3414,23 @@ def _empty_wheel(w: Path, t: Path) -> None:
         z.writestr("drjit/__init__.py", "")
 
 
+def _locked_wheel(w: Path, t: Path) -> None:
+    """Setup: T/wheels/ holding a mitsuba wheel whose member is flagged encrypted (general-purpose bit 0, set in
+    its local and central headers): zipfile asks for a password (RuntimeError) instead of reading it."""
+    import zipfile
+
+    path = _mk(t / "wheels") / "mitsuba-3.9.1-cp312-cp312-manylinux_2_28_x86_64.whl"
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("mitsuba/__init__.py", "")
+    data = bytearray(path.read_bytes())
+    for signature, flags_at in ((b"PK\x03\x04", 6), (b"PK\x01\x02", 8)):
+        at = data.index(signature) + flags_at
+        data[at] |= 1
+    path.write_bytes(bytes(data))
+    with zipfile.ZipFile(t / "wheels" / "drjit-1.5.0-cp312-cp312-manylinux_2_28_x86_64.whl", "w") as z:
+        z.writestr("drjit/__init__.py", "")
+
+
 def _unscened(w: Path, t: Path) -> None:
     """T/d.data: the world's object 00000 without its scene file (read as an official UniPS folder: fitted check)."""
     shutil.copytree(w / "data" / "00000.data", t / "d.data", ignore=shutil.ignore_patterns("scene.json"))
@@ -3488,6 +3505,8 @@ ROWS += [
         setup=_running("o"), check=_released(_not_written("o/manifest.json", "o/00000.data"))),
     Row("gpu-session-pack-an-empty-wheel", GS, ["--pack", "{T}/pack", "--wheels", "{T}/wheels"], 2,
         ("--wheels", "mitsuba-3.9.1", "not a readable wheel"), setup=_empty_wheel, check=_not_written("pack")),
+    Row("gpu-session-pack-an-encrypted-wheel", GS, ["--pack", "{T}/pack", "--wheels", "{T}/wheels"], 2,
+        ("--wheels", "mitsuba-3.9.1", "not a readable wheel"), setup=_locked_wheel, check=_not_written("pack")),
     Row("gpu-session-concurrent-out", GS, SESSION, 2, ("--out", "another run holds"), setup=_running("o"),
         absent=("--init",), check=_released(_not_written("w"))),
     Row("gpu-session-concurrent-work", GS, SESSION, 2, ("--work", "another run holds"), setup=_running("w"),
