@@ -425,6 +425,29 @@ def test_a_damaged_decoded_member_is_named(data, tmp_path):
         decode_folder(dict(files, **{"decoded.json": b"{}"}), where)
 
 
+def test_a_decoded_member_in_fortran_or_big_endian_order_is_read_as_numpy_reads_it(data, tmp_path):
+    """Sweep 33 (b33-shd-09): an images.npy / normals.npy saved in Fortran order (a valid .npy, its header says so)
+    was read as C order, and the shuffled normals refused as "neither of unit length nor zero"."""
+    import io
+
+    from scenes.folder.shard_format import decode_folder
+
+    export_dataset(data["ds"], tmp_path / "dec", shard_size=OBJECTS, encoding="decoded")
+    files = dict(iter_samples(tmp_path / "dec" / "000000.tar"))["00002"]
+    where = tmp_path / "dec" / "000000.tar" / "00002.data"
+    want = decode_folder(files, where)
+
+    def saved(name: str, change) -> bytes:
+        buf = io.BytesIO()
+        np.lib.format.write_array(buf, change(np.load(io.BytesIO(files[name]))))
+        return buf.getvalue()
+
+    for change in (np.asfortranarray, lambda a: a.astype(a.dtype.newbyteorder(">"))):
+        edited = {k: saved(k, change) if k.endswith(".npy") else v for k, v in files.items()}
+        assert edited != files
+        _same_folder_data(decode_folder(edited, where), want)
+
+
 def test_a_decoded_member_of_the_wrong_type_or_shape_is_named(data, tmp_path):
     from scenes.folder.shard_format import decode_folder
 

@@ -240,15 +240,15 @@ def decode_folder(files: dict[str, bytes], folder: Path):
         if dtype not in dtypes or got != shape:
             raise _MemberError(f"{folder}: member {suffix} is {dtype} {got}, expected one of "
                                f"{', '.join(str(d) for d in dtypes)} {shape}")
-        data = files[suffix]
-        # .npy version 1 / 2: magic, version, header length (2 / 4 bytes little-endian), header, data.
-        version = data[6:7]
-        start = (10 + int.from_bytes(data[8:10], "little") if version == b"\x01" else
-                 12 + int.from_bytes(data[8:12], "little") if version in (b"\x02", b"\x03") else -1)
-        if data[:6] != b"\x93NUMPY" or start < 0 or len(data) - start != dtype.itemsize * int(np.prod(shape)):
+        try:  # numpy's own reader: its header's byte order and Fortran order are the array's, no pickles
+            got = np.lib.format.read_array(io.BytesIO(files[suffix]), allow_pickle=False)
+        except (ValueError, EOFError, OSError) as exc:
             raise _MemberError(f"{folder}: member {suffix} is not the .npy array of {spec} that {DECODED_META} "
-                               "describes")
-        return np.frombuffer(data, dtype, offset=start).reshape(shape).copy()
+                               f"describes ({exc})") from None
+        if got.dtype.newbyteorder("=") != dtype or got.shape != shape:
+            raise _MemberError(f"{folder}: member {suffix} is {got.dtype} {got.shape}, not the .npy array of {spec} "
+                               f"that {DECODED_META} describes")
+        return np.ascontiguousarray(got, dtype)
 
     try:
         meta = parse_json(f"member {DECODED_META}", files[DECODED_META].decode("utf-8"))
