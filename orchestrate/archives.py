@@ -81,9 +81,9 @@ def safe_extract(archive: Path, target: Path, flag: str = "--carry", under: str 
                                      f"lead outside {str(target)!r} (expected names relative to it); refused")
                 if (problem := text_name_problem(member.name)) is not None:  # the renderer reads names as text
                     raise UsageError(f"{flag}: {str(archive)!r} holds a member whose name is not text: {problem}")
-                if under is not None and (not name.parts or name.parts[0] != under):
+                if under is not None and not (name.parts[:1] == (under,) and (len(name.parts) > 1 or member.isdir())):
                     raise UsageError(f"{flag}: {str(archive)!r} holds member {member.name[:120]!r} outside its "
-                                     f"{under}/ folder (expected every member under {under}/); refused")
+                                     f"{under}/ folder (expected every member inside {under}/, a folder); refused")
                 if not (member.isfile() or member.isdir()):  # a link aliases a path inside or leads writes out
                     raise UsageError(f"{flag}: {str(archive)!r} holds member {member.name[:120]!r}, a link or "
                                      "special file (expected plain files and folders only, as --pack writes); "

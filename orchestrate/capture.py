@@ -246,11 +246,12 @@ def predict(opts: CaptureOptions, cap: Capture, net=None) -> tuple[np.ndarray, o
     return normals, em.state(evidence), None
 
 
-def check_and_refine(opts: CaptureOptions, cap: Capture, out: Path,
-                     normals: np.ndarray) -> tuple[np.ndarray, dict, dict | None]:
+def check_and_refine(opts: CaptureOptions, cap: Capture, out: Path, normals: np.ndarray,
+                     warnings: list) -> tuple[np.ndarray, dict, dict | None]:
     """The fitted check of the model's map, and the refinement where the check trusts the capture, on one judged
     capture held in memory (read, reduced and explained once; the model map's fit made once for both): (final map,
-    float, check report, refine report or None). Their reports and figures go to OUT/check/ and OUT/refine/."""
+    float, check report, refine report or None). Their reports and figures go to OUT/check/ and OUT/refine/. A
+    refusal of the images names a doubted automatic mask first (`mask_first`, from the capture's `warnings`)."""
     from dataclasses import replace
 
     from scenes.renderer.variant import choose_variant, set_jit_threads
@@ -263,8 +264,11 @@ def check_and_refine(opts: CaptureOptions, cap: Capture, out: Path,
     choose_variant(None)
     set_jit_threads(opts.threads)
     config = FitConfig().validate()
-    jc = judge(cap, unit_normals(normals, cap.mask, f"{'--checkpoint' if opts.checkpoint else '--model'}: the model's "
-                                 "map"), config, "check", args=("--input", "--mask"))  # a bad map: the weights'
+    model_map = unit_normals(normals, cap.mask, f"{'--checkpoint' if opts.checkpoint else '--model'}: the model's map")
+    try:  # a bad map is the weights' fault (above); the images that cannot judge it may be the mask's
+        jc = judge(cap, model_map, config, "check", args=("--input", "--mask"))
+    except ValueError as exc:
+        raise mask_first(exc, warnings) from None
     check, fit = check_judged(jc, config)
     write_fitted(jc, out / "check" / cap.name, fit, check)  # claimed by run(), under report.json
     if not (opts.refine and check["trusted"]):
@@ -365,10 +369,7 @@ def run(opts: CaptureOptions) -> dict:
     t1 = time.perf_counter()
     with stage("capture", "the physical check" + (" and the refinement" if opts.refine else ""),
                need["check_s"]):
-        try:
-            final, check, refined = check_and_refine(opts, cap, out, model_map)
-        except ValueError as exc:  # the images cannot judge the map on this mask
-            raise mask_first(exc, warnings) from None
+        final, check, refined = check_and_refine(opts, cap, out, model_map, warnings)
     times["check_and_refine_s"] = time.perf_counter() - t1
     final = np.where(mask[..., None], final, 0.0)
     size = write_maps(opts, out, read.images, mask, final, model_map, stated, guide, full_mask)

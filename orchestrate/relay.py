@@ -335,6 +335,7 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
     check_wheel_names(wheels, found)
     from scenes.files import atomic_write, not_a_file
 
+    owner: dict[str, Path] = {}  # each packed file -> its wheel: the files of all wheels unpack side by side
     for wheel in found:  # every wheel readable before anything is written or the long compression starts
         if why := not_a_file(wheel):
             raise UsageError(f"--wheels: {str(wheel)!r} {why}")
@@ -343,6 +344,7 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
                 bad = z.testzip()
                 # a member packed as named would leave --carry's folder on unpacking
                 odd = next((n for n in z.namelist() if n.startswith("/") or ".." in n.split("/")), None)
+                kept = [i.filename for i in z.infolist() if not i.is_dir() and _keep_member(i.filename)]
         except (zipfile.BadZipFile, OSError, zlib.error, EOFError, RuntimeError, NotImplementedError) as exc:
             # RuntimeError: an encrypted member; NotImplementedError: a compression zipfile cannot read (PPMd)
             raise UsageError(f"--wheels: {str(wheel)!r} is not a readable wheel ({exc}); expected the .whl files "
@@ -352,6 +354,15 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
         if odd is not None:
             raise UsageError(f"--wheels: {str(wheel)!r} holds member {odd[:120]!r}, whose name leads outside the "
                              "folder it is unpacked into (expected names relative to it); not a wheel pip writes")
+        for name in kept:
+            if name in owner:  # the unpacker refuses a name twice: the pack would be useless on the GPU machine
+                raise UsageError(f"--wheels: {wheel.name!r} and {owner[name].name!r} both hold {name[:120]!r} "
+                                 "(expected wheels that install side by side); refused")
+            owner[name] = wheel
+    folders = {n.rsplit("/", i)[0] for n in owner for i in range(1, n.count("/") + 1)}
+    if clash := sorted(folders & owner.keys()):  # a file where another wheel's member needs a folder
+        raise UsageError(f"--wheels: {owner[clash[0]].name!r} holds the file {clash[0][:120]!r}, which another "
+                         "member needs as a folder (expected wheels that install side by side); refused")
     dest.mkdir(parents=True, exist_ok=True)
     archive = dest / SITE_ARCHIVE
 
@@ -461,18 +472,24 @@ def unpack_carry(carry: Path, work: Path, replace: bool = False) -> Path | None:
     for archive in (carry / SITE_ARCHIVE, carry / ASSET_ARCHIVE):
         if os.path.lexists(archive) and (why := not_a_file(archive)):
             raise UsageError(f"--carry: {str(archive)!r} {why}")
-    fresh = not os.path.lexists(work / "site")
+    fresh = [n for n in ("site", ".site.unpacked", "assets", ".assets.unpacked") if not os.path.lexists(work / n)]
+    made = [p for p in (work, *work.parents) if not os.path.lexists(p)]
     _site(carry, work, replace)
     if not (carry / ASSET_ARCHIVE).is_file():
         return None
     try:
         unpack_once(carry / ASSET_ARCHIVE, work, under="assets", replace=replace)
-    except UsageError:  # a refused pack leaves nothing behind: the site unpacked from it a moment ago goes too
-        if fresh:
-            shutil.rmtree(work / "site", ignore_errors=True)
-            (work / ".site.unpacked").unlink(missing_ok=True)
+        if not (work / "assets").is_dir() or not any((work / "assets").iterdir()):  # packed, yet nothing to render
+            raise UsageError(f"--carry: {str(carry / ASSET_ARCHIVE)!r} holds no asset folder (expected assets/ with "
+                             "the packed meshes, maps and textures); pack again with --pack, or remove it to render "
+                             "without")
+    except UsageError:  # a refused pack leaves nothing behind: what was unpacked from it a moment ago goes too
+        for name in fresh:
+            if (work / name).is_dir() and not (work / name).is_symlink():
+                shutil.rmtree(work / name, ignore_errors=True)
+            else:
+                (work / name).unlink(missing_ok=True)
+        if made:  # the folders made for it, empty again
+            shutil.rmtree(made[-1], ignore_errors=True)
         raise
-    if not (work / "assets").is_dir() or not any((work / "assets").iterdir()):  # packed, yet nothing to render with
-        raise UsageError(f"--carry: {str(carry / ASSET_ARCHIVE)!r} holds no asset folder (expected assets/ with the "
-                         "packed meshes, maps and textures); pack again with --pack, or remove it to render without")
     return work / "assets"

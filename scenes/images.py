@@ -457,16 +457,19 @@ def read_normals(path: str | Path, arg: str = "normal map") -> np.ndarray:
     return check_normal_array(n, f"{arg}: normal map {path}" if arg != "normal map" else f"normal map {path}")
 
 
-UNIT_LENGTH_TOLERANCE = 0.1
-"""A predicted normal map whose nonzero vectors have a median length further than this from 1 is refused
-(`check_unit_length`): (n + 1) / 2 values saved as floats, or an unnormalised output, would be scored as if they
-were directions. (Ground-truth files of any scale are normalised by their readers.)"""
+UNIT_TOLERANCE = 0.02
+"""The one bound on | |n| - 1 | for the vectors of a normal map given as floats, wherever one is read (scored:
+`check_unit_length`; judged: `validate.io.check_normals`; integrated: `scenes.surface.inputs.check_normals`).
+16-bit PNG rounding stays below 1e-4 and 8-bit below 0.01; a map scaled by mistake (by 5 %: sweep 33), (n + 1) / 2
+saved as floats or an unnormalised output lies beyond it, and would be scored, judged or integrated as if its
+vectors were directions. (Ground-truth files of any scale are normalised by their readers.)"""
 
 
 def check_unit_length(n: np.ndarray, what: str) -> None:
-    """Refuse a float normal map (H, W, 3) whose nonzero vectors are not of unit length (median)."""
+    """Refuse a float normal map (H, W, 3) to score whose nonzero vectors are not of unit length (their median
+    further than `UNIT_TOLERANCE` from 1)."""
     lengths = np.linalg.norm(n.astype(np.float64), axis=-1)
     lengths = lengths[lengths > 0]
-    if lengths.size and abs(float(np.median(lengths)) - 1.0) > UNIT_LENGTH_TOLERANCE:
+    if lengths.size and abs(float(np.median(lengths)) - 1.0) > UNIT_TOLERANCE:
         raise ValueError(f"{what}: its vectors are not of unit length (median {float(np.median(lengths)):.3g}); "
                          "expected unit normals x, y, z in [-1, 1] (an encoded map (n + 1) / 2 belongs in a PNG)")

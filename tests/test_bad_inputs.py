@@ -3431,6 +3431,18 @@ def _locked_wheel(w: Path, t: Path) -> None:
         z.writestr("drjit/__init__.py", "")
 
 
+def _clashing_wheels(w: Path, t: Path) -> None:
+    """Setup: T/wheels/ whose mitsuba wheel holds the file mitsuba/core and whose drjit wheel a member inside a
+    folder of that name: the two cannot be unpacked side by side."""
+    import zipfile
+
+    for name, members in (("mitsuba-3.9.1", ["mitsuba/__init__.py", "mitsuba/core"]),
+                          ("drjit-1.5.0", ["drjit/__init__.py", "mitsuba/core/x.py"])):
+        with zipfile.ZipFile(_mk(t / "wheels") / f"{name}-cp312-cp312-manylinux_2_28_x86_64.whl", "w") as z:
+            for member in members:
+                z.writestr(member, "")
+
+
 def _unscened(w: Path, t: Path) -> None:
     """T/d.data: the world's object 00000 without its scene file (read as an official UniPS folder: fitted check)."""
     shutil.copytree(w / "data" / "00000.data", t / "d.data", ignore=shutil.ignore_patterns("scene.json"))
@@ -3503,10 +3515,15 @@ ROWS += [
         setup=_running("p"), check=_released(_not_written("p/overview.png"))),
     Row("make-into-a-folder-another-command-holds", MK, ["--out", "{T}/o", *TINY], 2, ("--out", "another run holds"),
         setup=_running("o"), check=_released(_not_written("o/manifest.json", "o/00000.data"))),
+    Row("make-shards-into-a-folder-another-command-holds", MK, ["--out", "{T}/o", "--shards", "{T}/sh", *TINY], 2,
+        ("--shards", "another run holds"), setup=_running("sh"), check=_released(_not_written("o"))),
     Row("gpu-session-pack-an-empty-wheel", GS, ["--pack", "{T}/pack", "--wheels", "{T}/wheels"], 2,
         ("--wheels", "mitsuba-3.9.1", "not a readable wheel"), setup=_empty_wheel, check=_not_written("pack")),
     Row("gpu-session-pack-an-encrypted-wheel", GS, ["--pack", "{T}/pack", "--wheels", "{T}/wheels"], 2,
         ("--wheels", "mitsuba-3.9.1", "not a readable wheel"), setup=_locked_wheel, check=_not_written("pack")),
+    Row("gpu-session-pack-wheels-that-clash", GS, ["--pack", "{T}/pack", "--wheels", "{T}/wheels"], 2,
+        ("--wheels", "mitsuba-3.9.1", "'mitsuba/core'", "as a folder"), setup=_clashing_wheels,
+        check=_not_written("pack")),
     Row("gpu-session-concurrent-out", GS, SESSION, 2, ("--out", "another run holds"), setup=_running("o"),
         absent=("--init",), check=_released(_not_written("w"))),
     Row("gpu-session-concurrent-work", GS, SESSION, 2, ("--work", "another run holds"), setup=_running("w"),
@@ -3602,6 +3619,8 @@ ROWS += [
         ("--normals", "NaN"), setup=_array("n.npy", _nan_inside), check=_not_written("o")),
     Row("surface-normals-half-length", SF, ["--normals", "{T}/n.npy", "--mask", WORLD_MASK, "--out", "{T}/o"], 2,
         ("--normals", "unit"), setup=_array("n.npy", lambda n: n * 0.5), check=_not_written("o")),
+    Row("surface-normals-five-percent-long", SF, ["--normals", "{T}/n.npy", "--mask", WORLD_MASK, "--out", "{T}/o"],
+        2, ("--normals", "unit"), setup=_array("n.npy", lambda n: n * 1.05), check=_not_written("o")),
     Row("surface-normals-facing-away", SF, ["--normals", "{T}/n.npy", "--mask", WORLD_MASK, "--out", "{T}/o"], 2,
         ("--normals", "face away"), setup=_array("n.npy", lambda n: n * [1, 1, -1]), check=_not_written("o")),
     Row("surface-mask-other-size", SF, [*SURF[:2], "--mask", "{T}/m.png", "--out", "{T}/o"], 2, ("--mask", "32"),
@@ -3915,6 +3934,8 @@ ROWS += [
         setup=_prediction_npy(lambda n: np.round((n + 1) / 2 * 255).astype(np.uint8))),
     Row("evaluate-npy-encoded-floats", EV, ["--pred", "{T}/p", "--gt", OBJDIR], 2, ("normal.npy", "unit length"),
         setup=_prediction_npy(lambda n: np.where(np.any(n != 0, axis=-1, keepdims=True), (n + 1) / 2, 0))),
+    Row("evaluate-npy-five-percent-long", EV, ["--pred", "{T}/p", "--gt", OBJDIR], 2, ("normal.npy", "unit length"),
+        setup=_prediction_npy(lambda n: n * 1.05)),
     Row("evaluate-no-prediction-names-pred", EV, ["--pred", "{T}/p", "--gt", "{W}/data"], 2, ("--pred", "'", "p'"),
         setup=lambda w, t: _mk(t / "p" / "other"), check=_not_written("p/metrics.json")),
     Row("surface-focal-px-huge", SF, [*SURF, "--focal-px", "1e30", "--out", "{T}/o"], 2, ("--focal-px", "1e+30"),

@@ -247,10 +247,11 @@ def test_help_unpacks_nothing_where_the_packages_are_installed(tmp_path):
     assert not work.exists()
 
 
-@pytest.mark.parametrize("member", ["site/sitecustomize.py", "victim.txt", "data/manifest.json"])
+@pytest.mark.parametrize("member", ["site/sitecustomize.py", "victim.txt", "data/manifest.json", "assets"])
 def test_the_assets_archive_writes_only_under_work_assets(tmp_path, member):
     """A carried assets.tar.xz unpacks into work/assets and nowhere else in --work: not onto the steps' path
-    (code that would run), not over the user's files or a step's dataset."""
+    (code that would run), not over the user's files or a step's dataset; work/assets itself a file is refused too
+    (sweep 33: it was unpacked, then refused, the site unpacked for it left behind)."""
     from orchestrate.relay import ASSET_ARCHIVE, SITE_ARCHIVE, unpack_carry
     from scenes.cli.errors import UsageError
 
@@ -263,7 +264,7 @@ def test_the_assets_archive_writes_only_under_work_assets(tmp_path, member):
     with pytest.raises(UsageError, match=f"{member}.*outside its assets/ folder"):
         unpack_carry(carry, work)
     assert (work / "victim.txt").read_text() == "mine\n"
-    assert not (work / "site" / "sitecustomize.py").exists() and not (work / "data").exists()
+    assert sorted(p.name for p in work.iterdir()) == ["victim.txt"]  # the site unpacked for it is gone too
 
 
 def _wheel(path: Path, names: list[str]) -> Path:
@@ -442,8 +443,9 @@ def test_an_assets_member_named_twice_is_refused_before_anything_is_unpacked(tmp
         unpack_carry(carry, work)
     assert not (work / "assets").exists()
     _archive(carry / ASSET_ARCHIVE, [_file("assets", b"not a folder")])
-    with pytest.raises(UsageError, match=r"assets.tar.xz.*holds no asset folder"):
+    with pytest.raises(UsageError, match=r"assets.tar.xz.*'assets' outside its assets/ folder"):
         unpack_carry(carry, tmp_path / "work2")
+    assert not (tmp_path / "work2").exists()
 
 
 @pytest.mark.parametrize("suffix", [".", "aux..", ""])

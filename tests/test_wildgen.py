@@ -158,6 +158,29 @@ def test_bad_flags_one_line_error(tmp_path, capsys, args, needle):
     assert not list((tmp_path / "o").glob("*.data")) if (tmp_path / "o").exists() else True
 
 
+def test_a_relative_assets_folder_is_found_again_by_a_resume_from_another_folder(tmp_path, monkeypatch, capsys):
+    """Sweep 33 (b33-mk-01): `--out o --assets assets` typed in one folder, then `--resume --objects 2` from another:
+    the manifest had recorded 'assets' as typed, and the resume was refused ("folder 'assets' does not exist")."""
+    from wildgen.make import main
+
+    import trimesh
+
+    (tmp_path / "assets" / "meshes").mkdir(parents=True)
+    trimesh.creation.icosphere(subdivisions=2).export(tmp_path / "assets" / "meshes" / "ball.ply")
+    tiny = ["--images", "3", "--res", "16", "--spp", "1", "--gt-spp", "1", "--workers", "0", "--quiet",
+            "--lights", "directional"]
+    monkeypatch.chdir(tmp_path)
+    assert main(["--out", "o", "--assets", "assets", "--shapes", "mesh", "--objects", "1", *tiny]) == 0
+    manifest = json.loads((tmp_path / "o" / "manifest.json").read_text())
+    assert manifest["config"]["assets"] == str(tmp_path / "assets")
+    (tmp_path / "elsewhere").mkdir()
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    assert main(["--out", str(tmp_path / "o"), "--objects", "2", "--resume", *tiny]) == 0, capsys.readouterr().err
+    assert sorted(p.name for p in (tmp_path / "o").glob("*.data")) == ["00000.data", "00001.data"]
+    scene = json.loads((tmp_path / "o" / "00001.data" / "scene.json").read_text())
+    assert scene["shape"]["kind"] == "mesh", scene["shape"]
+
+
 def test_texture_sets_named_as_poly_haven_and_ambientcg_name_them(tmp_path):
     """Map names as the two CC0 libraries write them: colour, roughness and OpenGL normal maps found; a DirectX normal
     map (green axis flipped) is never taken for an OpenGL one (the set keeps none)."""

@@ -13,12 +13,10 @@ import numpy as np
 
 from scenes.files import not_a_file
 from scenes.folder.format import find_prediction
-from scenes.images import read_normals
+from scenes.images import UNIT_TOLERANCE, read_normals
 
 log = logging.getLogger(__name__)
 
-UNIT_TOLERANCE = 0.02
-"""Largest accepted | |n| - 1 | inside the mask (16-bit PNG rounding is below 1e-4)."""
 AWAY_SHARE = 0.5
 """Largest share of a judged map's normals inside the mask that may face away from the camera (n_z < 0): a poor
 estimate tilts some past the silhouette, a map in another convention (z away from the camera) tilts most."""

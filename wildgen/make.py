@@ -105,6 +105,8 @@ def options_from_args(argv: list[str] | None, given: set[str] = frozenset()) -> 
     apply_level(opts.gen, given)
     if opts.res is not None:
         opts.gen.width = opts.gen.height = opts.res
+    if opts.gen.assets:  # recorded in the manifest: a --resume from another folder finds them (sweep 33)
+        opts.gen.assets = os.path.abspath(opts.gen.assets)
     return opts
 
 
@@ -420,7 +422,7 @@ def _run(argv: list[str] | None, state: dict) -> int:
             try:
                 held.enter_context(output_lock(args.shards, "--shards", inputs={"--out": str(out)}))
             except (UsageError, ValueError, OSError) as exc:
-                return report_error(exc)
+                return _refused(exc, state)  # --out too, where this run made it
         return _render(args, cfg, variant, out, state)
 
 

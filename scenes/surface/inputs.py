@@ -9,13 +9,12 @@ from pathlib import Path
 import numpy as np
 
 from scenes.files import not_a_file
+from scenes.images import UNIT_TOLERANCE
 from scenes.surface.integrate import Intrinsics, facing_away
 
-UNIT_TOLERANCE = 0.1
-"""A normal counts as unit length when | |n| - 1 | is at most this (16-bit PNG quantisation and resampling stay
-far below it)."""
 UNIT_SHARE = 0.99
-"""The share of the mask's normals that must be unit length; the rest are renormalised."""
+"""The share of the mask's normals that must be unit length (within `scenes.images.UNIT_TOLERANCE`); the rest (a
+resampled outline) are renormalised."""
 FACING_AWAY_LIMIT = 0.2
 """The largest share of mask pixels whose normal may face away from the camera (the integrator leaves their
 equations out); above it a user's map is refused: it is not in the camera frame x right, y up, z toward the camera
