@@ -88,14 +88,14 @@ def load_inputs(args: SurfaceOptions):
     else:
         where = f"--normals {args.normals!r} (its non-zero pixels, no --mask)"
         mask = check_mask(np.abs(normals).sum(-1) > 0, shape, where)
-    normals = check_normals(normals, mask, "--normals")
+    normals = check_normals(normals, mask, f"--normals {args.normals!r}")  # the file, not only the flag
     if args.intrinsics is not None:
         intr, camera = read_intrinsics(args.intrinsics, shape), f"perspective, --intrinsics {args.intrinsics}"
     elif args.focal_px is not None:
         intr, camera = focal_intrinsics(args.focal_px, shape), f"perspective, --focal-px {args.focal_px:g}"
     else:
         intr, camera = None, "orthographic (no --intrinsics or --focal-px)"
-    check_facing(normals, mask, intr, "--normals")
+    check_facing(normals, mask, intr, f"--normals {args.normals!r}")
     return normals, mask, intr, camera
 
 

@@ -3620,7 +3620,7 @@ ROWS += [
     Row("surface-normals-half-length", SF, ["--normals", "{T}/n.npy", "--mask", WORLD_MASK, "--out", "{T}/o"], 2,
         ("--normals", "unit"), setup=_array("n.npy", lambda n: n * 0.5), check=_not_written("o")),
     Row("surface-normals-five-percent-long", SF, ["--normals", "{T}/n.npy", "--mask", WORLD_MASK, "--out", "{T}/o"],
-        2, ("--normals", "unit"), setup=_array("n.npy", lambda n: n * 1.05), check=_not_written("o")),
+        2, ("--normals", "n.npy", "unit"), setup=_array("n.npy", lambda n: n * 1.05), check=_not_written("o")),
     Row("surface-normals-facing-away", SF, ["--normals", "{T}/n.npy", "--mask", WORLD_MASK, "--out", "{T}/o"], 2,
         ("--normals", "face away"), setup=_array("n.npy", lambda n: n * [1, 1, -1]), check=_not_written("o")),
     Row("surface-mask-other-size", SF, [*SURF[:2], "--mask", "{T}/m.png", "--out", "{T}/o"], 2, ("--mask", "32"),

@@ -161,9 +161,9 @@ def test_bad_flags_one_line_error(tmp_path, capsys, args, needle):
 def test_a_relative_assets_folder_is_found_again_by_a_resume_from_another_folder(tmp_path, monkeypatch, capsys):
     """Sweep 33 (b33-mk-01): `--out o --assets assets` typed in one folder, then `--resume --objects 2` from another:
     the manifest had recorded 'assets' as typed, and the resume was refused ("folder 'assets' does not exist")."""
-    from wildgen.make import main
-
     import trimesh
+
+    from wildgen.make import main
 
     (tmp_path / "assets" / "meshes").mkdir(parents=True)
     trimesh.creation.icosphere(subdivisions=2).export(tmp_path / "assets" / "meshes" / "ball.ply")
