@@ -2909,6 +2909,14 @@ def _snapshot(root: Path) -> dict[str, str]:
 
 # --------------------------------------------------------------------------- issue 50: inputs are what they say
 
+def _photos_named(name: str) -> Callable[[Path, Path], None]:
+    """Setup: the photos of `_photos` in T/<name> instead of T/photos."""
+    def setup(w: Path, t: Path) -> None:
+        _photos()(w, t)
+        (t / "photos").rename(t / name)
+    return setup
+
+
 CAP = "orchestrate.capture"
 CAPTURE = ["--input", "{T}/photos", "--out", "{T}/o", "--no-refine", "--threads", "1"]
 """A capture of T/photos (`_photos`) into T/o, without the refinement (its rows are about what is read)."""
@@ -3180,6 +3188,10 @@ def _unips_jpeg_images(folder: Path) -> None:
 
 ROWS += [
     # ---- photos are decoded strictly: a file its decoder cannot read whole is refused naming it
+    Row("capture-keep-work-name-too-long", CAP, ["--input", "{T}/" + "p" * 252, "--out", "{T}/o", "--no-refine",
+                                                 "--threads", "1", "--keep-work"], 2,
+        ("--out", "257 bytes", "255"), setup=_photos_named("p" * 252),
+        check=_not_written("o")),
     Row("capture-mask-empty", CAP, [*CAPTURE, "--mask", ""], 2, ("--mask", "got an empty value", "{FILE,auto,none}")),
     # sweep 23: a file of another kind under a photo's name, several pictures in one file, photos one pixel tall
     Row("capture-a-webp-named-png", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,

@@ -354,6 +354,21 @@ def check_listed(targets: Iterable[str | os.PathLike], record: str | os.PathLike
     return listed
 
 
+def _check_name_lengths(path: Path, above: Path | None, flag: str, owner: str) -> None:
+    """Refuse an output whose file or folder names (those not made yet) are longer than the file system allows (a
+    name derived from a long input name, e.g. capture's work/<name>.data): said before any work, not as an
+    ENAMETOOLONG once the work is done."""
+    try:
+        limit = os.pathconf(above if above is not None else ".", "PC_NAME_MAX")
+    except (OSError, ValueError):
+        return
+    new = path.relative_to(above).parts if above is not None and path.is_relative_to(above) else path.parts
+    if long := next((n for n in new if len(os.fsencode(n)) > limit), None):
+        raise UsageError(f"{flag}: {owner} would write {long[:60]!r}{'...' if len(long) > 60 else ''} (in "
+                         f"{str(path.parent)[:80]!r}), a name of {len(os.fsencode(long))} bytes, longer than the "
+                         f"{limit} a name may have on that file system; nothing was written: use shorter names")
+
+
 def claim_outputs(paths: Iterable[str | os.PathLike], overwrite: bool, flag: str = "--out", owner: str = "this command",
                   marker: str | os.PathLike | None = None, folders: bool = False, resume: str = "",
                   signed: dict[str | os.PathLike, tuple[str, ...]] | None = None) -> list[Path]:
@@ -389,6 +404,7 @@ def claim_outputs(paths: Iterable[str | os.PathLike], overwrite: bool, flag: str
         if above is not None and not os.access(above, os.W_OK | os.X_OK):  # read-only (a mount) or not the user's
             raise UsageError(f"{flag}: the folder {str(above)!r}, where {owner} writes {p.name}, is not writable; "
                              "nothing was written")
+        _check_name_lengths(p, above, flag, owner)
     existing = [p for p in paths if os.path.lexists(p)]
     want = "a folder" if folders else "a file"
     for p in existing:
