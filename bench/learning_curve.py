@@ -54,6 +54,9 @@ def table(run: Path, families: bool = False) -> str:
     from unips.probes import PROBE_TITLES, format_table
 
     rows = validations(run)
+    if not rows:  # an empty table would read as a curve of nothing
+        raise ValueError(f"RUN: {str(run / 'log.jsonl')!r} holds no validation record (the run stopped before its "
+                         "first validation, or ran without --val); expected a run that validated at least once")
     with reading_record(run / "log.jsonl", LOG, flag="RUN"):
         body = [
             [

@@ -420,7 +420,8 @@ def _run(argv: list[str] | None, state: dict) -> int:
     with ExitStack() as held:
         if args.shards:  # held from the start: the export at the end is this run's (one writer per folder)
             try:
-                held.enter_context(output_lock(args.shards, "--shards", inputs={"--out": str(out)}))
+                held.enter_context(output_lock(args.shards, "--shards", inputs={"--out": str(out),
+                                                                              "--assets": cfg.assets}))
             except (UsageError, ValueError, OSError) as exc:
                 return _refused(exc, state)  # --out too, where this run made it
         return _render(args, cfg, variant, out, state)
