@@ -30,8 +30,8 @@ def level(check: dict, stated, why_unstated: str | None, warnings: list) -> tupl
     figure = (f"expected error about {stated.mean:.0f} deg (80 %: {lo:.0f}-{hi:.0f} deg), within {PIXEL_USABLE_DEG:.0f}"
               f" deg over {share:.0%} of the object")
     if not check["trusted"]:  # on a doubted automatic mask, the mask is named first (as in mask_first)
-        on = (" on an automatic mask that may not be the object (doubtful_mask: give --mask FILE)"
-              if any(w.code == "doubtful_mask" for w in warnings) else "")
+        on = " on an automatic mask that may not be the object (doubtful_mask: give --mask FILE)" \
+            if mask_doubted(warnings) else ""
         return "not checked", f"not checked{on}: {check.get('why')}; the model's {figure}"
     demoted = [DEMOTING_WARNINGS[w.code] for w in warnings if w.code in DEMOTING_WARNINGS]
     if stated.mean > USABLE_DEG:
@@ -72,13 +72,18 @@ def verdict(check: dict, refined: dict | None) -> dict:
     return out
 
 
+def mask_doubted(warnings: list) -> bool:
+    """Whether the capture's warnings doubt its automatic mask (`doubtful_mask`): then the mask is named first."""
+    return any(w.code == "doubtful_mask" for w in warnings)
+
+
 def mask_first(exc: Exception, warnings: list) -> Exception:
     """A refusal on an automatic mask that the light variation doubts (`doubtful_mask`) names the mask first: a
     chrome ball, a lamp or the table taken for the object makes the images look black, constant or clipped, and
     then the exposure or the light the refusal names is not what to change. Any other refusal (one not naming
     --input) is returned as is."""
     said = str(exc)
-    if not (said.startswith("--input: ") and any(w.code == "doubtful_mask" for w in warnings)):
+    if not (said.startswith("--input: ") and mask_doubted(warnings)):
         return exc
     said = said.removeprefix("--input: ")
     return ValueError(f"--mask: the automatic mask may not be the object (the doubtful_mask warning above), and on it "
