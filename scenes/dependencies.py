@@ -10,9 +10,10 @@ traceback.
 from __future__ import annotations
 
 import importlib.util
+import os
 import sys
 
-from scenes.cli.errors import MissingDependencyError, report_error
+from scenes.cli.errors import MissingDependencyError, WorkingFolderGoneError, report_error
 
 REQUIRED = ("numpy", "scipy", "cv2")
 """Modules every command needs (import names), checked by presence only (nothing is imported here); Mitsuba and
@@ -28,15 +29,28 @@ def missing_modules() -> list[str]:
 
 def require_environment() -> None:
     """Raise `MissingDependencyError` (one line: the missing modules and the fix) when this Python lacks the
-    toolkit's packages, after making `report_uncaught` the interpreter's `sys.excepthook`."""
+    toolkit's packages, or `WorkingFolderGoneError` when the current folder no longer exists, after making
+    `report_uncaught` the interpreter's `sys.excepthook`."""
     global _previous_excepthook
     missing = missing_modules()
+    gone = not _working_folder_exists()
+    if (missing or gone) and sys.excepthook is not report_uncaught:
+        _previous_excepthook, sys.excepthook = sys.excepthook, report_uncaught
+    if gone:  # before torch is imported: its MKL dies in such a folder with a misleading "Cannot load libtorch_cpu"
+        raise WorkingFolderGoneError("the current folder no longer exists (it was deleted or moved while this "
+                                     "shell was in it): cd into a folder that exists and run the command again")
     if missing:
-        if sys.excepthook is not report_uncaught:
-            _previous_excepthook, sys.excepthook = sys.excepthook, report_uncaught
         raise MissingDependencyError(
             f"this Python ({sys.executable}) lacks {', '.join(missing)}: run the toolkit in its environment: "
             "`make setup`, then `source .venv/bin/activate` (or call .venv/bin/python)", name=missing[0])
+
+
+def _working_folder_exists() -> bool:
+    try:
+        os.getcwd()
+    except FileNotFoundError:
+        return False
+    return True
 
 
 def report_uncaught(kind: type[BaseException], exc: BaseException, tb) -> None:
@@ -44,6 +58,7 @@ def report_uncaught(kind: type[BaseException], exc: BaseException, tb) -> None:
     or `python -m` run is reported as the one line `error: ...` and the process exits with status 2 (a SystemExit
     raised by the hook ends the interpreter as `sys.exit` does); anything else, and everything in an interactive
     session, goes to the hook it replaced."""
-    if isinstance(exc, MissingDependencyError) and not (sys.flags.interactive or hasattr(sys, "ps1")):
+    ours = isinstance(exc, (MissingDependencyError, WorkingFolderGoneError))
+    if ours and not (sys.flags.interactive or hasattr(sys, "ps1")):
         raise SystemExit(report_error(exc))
     _previous_excepthook(kind, exc, tb)

@@ -4,6 +4,7 @@ one line `error: ...` and exit status 2 (tests/test_user_output.py runs `python 
 A Python started without site-packages (-S) stands in for the system Python."""
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -50,3 +51,19 @@ def test_the_cli_error_handlers_report_it_as_an_input_error(capsys):
     assert issubclass(MissingDependencyError, ModuleNotFoundError) and MissingDependencyError in INPUT_ERRORS
     assert report_error(MissingDependencyError("this Python lacks numpy: run `make setup`")) == EXIT_USAGE
     assert capsys.readouterr().err == "error: this Python lacks numpy: run `make setup`\n"
+
+
+def test_a_command_run_from_a_deleted_folder_says_so_in_one_line(tmp_path):
+    """A shell left in a folder that was deleted (sweep 35 a35-env-04): torch's MKL would die with "Cannot load
+    libtorch_cpu.so", which sends the user to reinstall; importing `scenes` names the real cause first."""
+    gone = tmp_path / "gone"
+    gone.mkdir()
+    child = subprocess.Popen([sys.executable, "-m", "unips.predict", "--method", "least-squares", "--input",
+                              str(tmp_path / "nowhere"), "--out", str(tmp_path / "p")], cwd=gone,
+                             env={**os.environ, "PYTHONPATH": str(ROOT)},
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             preexec_fn=lambda: gone.rmdir())
+    out, err = child.communicate(timeout=120)
+    assert child.returncode == 2, err
+    assert err.startswith("error: the current folder no longer exists") and len(err.strip().splitlines()) == 1, err
+    assert "MKL" not in err and not (tmp_path / "p").exists()

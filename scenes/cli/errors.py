@@ -24,6 +24,11 @@ class MissingDependencyError(ModuleNotFoundError):
     message is one line naming them and the fix."""
 
 
+class WorkingFolderGoneError(FileNotFoundError):
+    """The process's current folder was deleted or moved away (raised by importing `scenes`): torch's MKL cannot
+    even load there, so the one line says so before anything else does."""
+
+
 INPUT_ERRORS: tuple[type[BaseException], ...] = (UsageError, ValueError, FileNotFoundError, MissingDependencyError)
 """Exceptions every CLI reports as one line with `report_error`."""
 
