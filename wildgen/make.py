@@ -367,12 +367,13 @@ def _engine_description(used: dict, plan) -> str:
             else "nothing to render" if not plan.todo else "in process")
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, state: dict | None = None) -> int:
+    """The exit status; `state` gets what the run learned ("lost": its Ray cluster went away)."""
     import signal
 
     from wildgen import parallel
 
-    state: dict = {}
+    state = {} if state is None else state
 
     def on_signal(signum, frame):  # Ctrl-C, SIGTERM (schedulers), SIGHUP (a closed terminal): one clean stop
         state["signal"] = signum
@@ -450,6 +451,7 @@ def _render(args: MakeOptions, cfg, variant: str, out: Path, state: dict) -> int
                                    on_plan=bar.on_plan, extra={"run": engine.used})
     except ClusterLost as exc:  # a runtime loss, not a bad input: status 1 (the finished objects are recorded)
         bar.close()
+        state["lost"] = True
         return report_error(exc, 1)
     except (ValueError, OSError, ImportError, WorkersCannotStart) as exc:
         bar.close()
@@ -474,11 +476,8 @@ def _render(args: MakeOptions, cfg, variant: str, out: Path, state: dict) -> int
         return 1
     if entries and not any(e.get("status") == "done" for e in entries.values()):
         first = next(e for e in entries.values() if e.get("status") == "skipped")
-        print(
-            f"error: none of the {len(entries)} object(s) was written, all were rejected "
-            f"(first: {first.get('reason')})",
-            file=sys.stderr,
-        )
+        print(f"error: none of the {len(entries)} object(s) was written, all were rejected "
+              f"(first: {first.get('reason')})", file=sys.stderr)
         return 1
     if args.shards:
         from wildgen.export import export_after_make
@@ -489,11 +488,12 @@ def _render(args: MakeOptions, cfg, variant: str, out: Path, state: dict) -> int
 
 
 if __name__ == "__main__":
-    code = main()
-    if code in (130, 143):
-        # Interrupted: everything is cleaned up and reported. An interrupt that arrived inside a native import
-        # leaves CPython's "unhandled KeyboardInterrupt" flag set, which would turn this exit into a kill by
-        # SIGINT; leave with the documented status instead.
+    ended: dict = {}
+    code = main(state=ended)
+    if code in (130, 143) or ended.get("lost"):
+        # Everything is cleaned up and reported. An interrupt that arrived inside a native import leaves CPython's
+        # "unhandled KeyboardInterrupt" flag set, which would turn this exit into a kill by SIGINT; after a lost
+        # cluster, Ray's shutdown at exit waits for the head and may log a line of its own under ours.
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(code)
