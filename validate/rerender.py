@@ -354,6 +354,20 @@ def _refuse_other_mode(argv: list[str] | None, fitted: bool, data: str) -> None:
                      "(its scene.json): drop it, or add --fit to fit one object folder without its scene")
 
 
+def _refuse_no_prediction(normals: str, folders: list[Path]) -> None:
+    """One line, before any work, when --normals holds a normal map for none of the dataset's objects (a dataset
+    given as --normals, say): not one "failed" line per object."""
+    for f in folders:
+        try:
+            find_prediction(normals, object_name(f))
+            return
+        except FileNotFoundError:
+            pass
+    dataset = " (it is a dataset: <object>.data folders, not predictions)" if list(Path(normals).glob("*.data")) else ""
+    raise UsageError(f"--normals: {normals!r} holds no normal map of any of the {len(folders)} object(s) of --data"
+                     f"{dataset}; expected <object>/normal.* as unips.predict writes it")
+
+
 def main(argv: list[str] | None = None) -> int:
     """One object: a failure is one line `error: ...`, exit 2. A dataset: a failed object is recorded (summary.csv
     row with its error), the others go on, the failures are listed at the end and the exit status is 1.
@@ -389,6 +403,8 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         if not single and not Path(args.normals).is_dir():  # one map cannot be every object's
             raise UsageError(f"--normals: {args.normals!r} is a file, but --data holds {len(folders)} object(s); "
                              "expected a folder with <object>/normal.* (or --data one object folder)")
+        if not single:
+            _refuse_no_prediction(args.normals, folders)
         claim_check_outputs(args.out, [object_name(f) for f in folders], args.overwrite, renders=config.save_renders)
 
         from scenes.renderer.variant import choose_variant
