@@ -3259,6 +3259,10 @@ ROWS += [
     Row("capture-exif-exposure-one-over-zero", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
         ("--input", "IMG_0002.jpg", "ExposureTime", "1/0"),
         setup=_photos(tags=_exposures(0.01, _rational(1, 0), 0.01, 0.01)), check=_not_written("o/normal.png")),
+    Row("capture-exif-apex-shutter-zero-over-zero", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
+        ("--input", "IMG_0003.jpg", "ShutterSpeedValue is 0/0"),  # (not "ExposureTime is nan": no such tag there)
+        setup=_photos(tags={i: {0x9201: _rational(0, 0) if i == 2 else 6.64, 0x8827: 100} for i in range(4)}),
+        check=_not_written("o/normal.png")),
     Row("capture-exif-block-damaged", CAP, [*CAPTURE, "--mask", WORLD_MASK], 0, ("EXIF block", "IMG_0003.jpg"),
         setup=_photos(damage=_damaged_exif), absent=("UserWarning", "warnings.warn")),
     Row("capture-exif-exposure-zero", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,

@@ -40,13 +40,18 @@ def _positive(value: Any) -> float | None:
     return number if np.isfinite(number) and number > 0 else None
 
 
+def _written(value: Any) -> tuple[str, bool, int | None]:
+    """An EXIF value as written (a rational 1/0 as '1/0'), whether it is a rational, and its denominator."""
+    num, den = getattr(value, "numerator", None), getattr(value, "denominator", None)
+    rational = isinstance(num, int) and isinstance(den, int) and den != 1
+    return (f"{num}/{den}" if rational else repr(value)), rational, den
+
+
 def _exif_number(value: Any, key: str) -> float:
     """One EXIF exposure field as a float: a finite number > 0, else ValueError naming the field and the value as
     written (a rational 1/0 as '1/0')."""
     value = value[0] if key == "iso" and isinstance(value, (tuple, list)) and value else _single(value)
-    num, den = getattr(value, "numerator", None), getattr(value, "denominator", None)
-    rational = isinstance(num, int) and isinstance(den, int) and den != 1
-    text = f"{num}/{den}" if rational else repr(value)
+    text, rational, den = _written(value)
     try:
         number = float("nan") if rational and den == 0 else float(value)
     except (TypeError, ValueError, ArithmeticError):  # several values, text, a rational over 0, beyond a float
@@ -65,6 +70,10 @@ def _apex(value: Any, key: str) -> float:
         v = float(_single(value))
     except (TypeError, ValueError, ArithmeticError):
         v = float("nan")
+    if key == "exposure_time_s" and not (np.isfinite(v) and abs(v) < 64):  # named as written, not as what it stood for
+        raise ValueError(f"EXIF ShutterSpeedValue is {_written(_single(value))[0]}; expected a finite APEX shutter "
+                         "speed (-log2 of the exposure time in seconds; correct it, or remove the exposure tags from "
+                         "every photo to read them without exposure normalisation)")
     number = 2.0 ** (-v if key == "exposure_time_s" else v / 2) if np.isfinite(v) and abs(v) < 64 else float("nan")
     return _exif_number(number, key) if key in _EXIF_NAMES else number
 
