@@ -12,8 +12,7 @@ once (one line, exit 2) unless `--cpu-rehearsal` asks for a small run of the who
 `--minutes` of wall time, counted from the command's start (`scenes.cli.budget`), it:
 
 1. renders `--objects` objects with `wildgen.make` (seed `--seed`, the pack's training assets) into `--work`,
-   with the first usable variant
-   of cuda_ad_rgb, llvm_ad_rgb (`--variant auto`; the log and summary.json say which);
+   with the first usable variant of cuda_ad_rgb, llvm_ad_rgb (`--variant auto`; the log and summary.json say which);
 2. renders the first `--check-objects` of them again with `--check-variant` (auto: llvm_ad_rgb when it runs
    here, else scalar_rgb) on one CPU core and compares them: variant_check.json (`compare_datasets`), with the
    seconds per object and objects per hour of both renders (`render_speed`);
@@ -62,7 +61,7 @@ from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.needs import Needs
 from scenes.cli.options import Command, check_fields, option
 from scenes.cli.outputs import check_output_folder, output_lock
-from scenes.files import is_within, write_json
+from scenes.files import is_within, read_json, write_json
 
 SHARED_ASSETS = REPO.parent / "shared" / "assets"
 RUN = "run"
@@ -161,9 +160,10 @@ class SessionOptions:
             if is_within(self.out, self.work) or is_within(self.work, self.out):  # the session's files would mix
                 raise ValueError(f"--work: {self.work!r} overlaps --out {self.out!r}; expected two separate folders "
                                  "(--out comes back whole, --work stays on the machine)")
-            if self.carry and (is_within(self.out, self.carry) or is_within(self.carry, self.out)):
-                raise ValueError(f"--out: {self.out!r} overlaps --carry {self.carry!r}; expected a folder apart from "
-                                 "the pack (the session's results would mix with what was carried)")
+            for flag, folder in (("--out", self.out), ("--work", self.work)):  # the session writes into both
+                if self.carry and (is_within(folder, self.carry) or is_within(self.carry, folder)):
+                    raise ValueError(f"{flag}: {folder!r} overlaps --carry {self.carry!r}; expected a folder apart "
+                                     "from the pack (the session's files would mix with what was carried)")
         return self
 
 
@@ -245,20 +245,22 @@ def missing_mitsuba() -> str | None:
     return None
 
 
-def _choose(requested: str, avoid: str | None = None) -> str:
+def _choose(requested: str, avoid: str | None = None, flag: str = "--variant") -> str:
     from scenes.renderer.variant import choose_variant
 
     if requested != "auto":
-        return choose_variant(requested)
-    for v in (CHECK_VARIANTS if avoid else ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")):
-        if v == avoid:
-            continue
+        try:
+            return choose_variant(requested)
+        except ValueError as exc:  # named by the flag given
+            raise UsageError(str(exc).replace("--variant:", f"{flag}:", 1)) from None
+    why = []
+    for v in (v for v in (CHECK_VARIANTS if avoid else ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")) if v != avoid):
         try:
             return choose_variant(v)
-        except (ValueError, RuntimeError):
-            continue
-    raise UsageError("--check-variant: no variant other than the render's runs here" if avoid
-                     else "--variant: no Mitsuba variant runs here")
+        except (ValueError, RuntimeError) as exc:
+            why.append(str(exc).removeprefix("--variant: "))
+    raise UsageError(("--check-variant: no variant other than the render's runs here" if avoid
+                      else "--variant: no Mitsuba variant runs here") + (f" ({why[0]})" if why else ""))
 
 
 def _make_argv(opts: SessionOptions, out: Path, variant: str, objects: int, shards: Path | None,
@@ -342,16 +344,15 @@ def _session(opts: SessionOptions, t0: float) -> dict:
     require_gpu(opts)
     init, opts.model = resolve_init(opts.init, opts.model)  # an architecture change is refused before any work
     assets = opts.assets if opts.assets not in (None, "none") else None
+    device = "cpu" if opts.cpu_rehearsal and opts.device == "auto" else _device(opts.device)  # before any unpack
     if opts.carry is not None:
         packed = unpack_carry(Path(opts.carry), work, opts.overwrite)
         assets = assets or (str(packed) if packed else None)
-    why = missing_mitsuba()
-    if why:
+    if why := missing_mitsuba():
         raise UsageError(why)
-    device = "cpu" if opts.cpu_rehearsal and opts.device == "auto" else _device(opts.device)
     variant = _choose(opts.variant)
     check = None if opts.check_variant == "none" else _choose(opts.check_variant, avoid=variant) \
-        if opts.check_variant == "auto" else _choose(opts.check_variant)
+        if opts.check_variant == "auto" else _choose(opts.check_variant, flag="--check-variant")
     if check is not None and check == variant:  # the same variant renders the same bytes: that checks nothing
         raise UsageError(f"--check-variant: {check} is the variant the data is rendered with (--variant "
                          f"{opts.variant}), expected another variant (or none): comparing a variant with itself checks "
@@ -458,15 +459,14 @@ def _assets_note(opts: SessionOptions, assets: str | None) -> str:
     """What the card says of the assets: the pack's manifest (its rule and counts) when they came from --carry."""
     manifest = Path(opts.carry or "-") / "manifest.json"
     try:  # a manifest that is not a pack's (a list, assets not a mapping) says nothing of them
-        a = json.loads(manifest.read_text())["assets"] if assets and opts.carry else {}
+        a = read_json(manifest)["assets"] if assets and opts.carry else {}  # (a pipe there: refused, not waited on)
         return (f"packed training split, {len(a['meshes'])} meshes, {len(a['hdri'])} HDR maps, "
                 f"{len(a['texture_sets'])} texture sets ({a['rule']})")
     except (OSError, ValueError, TypeError, KeyError):
         return assets or "none (procedural shapes and lights only)"
 
 
-PACK_FLAGS = ("pack", "wheels", "assets", "overwrite")
-"""The flags --pack reads; any other given with it is refused."""
+PACK_FLAGS = ("pack", "wheels", "assets", "overwrite")  # the flags --pack reads; any other given with it is refused
 COMMAND = Command(SessionOptions, prog="python -m orchestrate.gpu_session", description=__doc__, needs=(
     Needs("wheels", lambda c, _: c.pack is not None, "with --pack"),
     *(Needs(f, lambda c, _: c.check_variant != "none", "with the check on (not --check-variant none)")

@@ -324,8 +324,9 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
     dest/manifest.json records both. Returns the bytes that travel (the archives plus the working tree `tree`);
     UsageError with the measured size when they exceed `limit`. An earlier pack's files are replaced only with
     `overwrite` (and a manifest.json that is not a pack's never)."""
-    from scenes.cli.outputs import claim_outputs
+    from scenes.cli.outputs import check_apart, claim_outputs
 
+    check_apart(dest, {"--wheels": wheels}, "--pack")  # the pack's files beside the wheels would be read as input
     claim_outputs([dest / SITE_ARCHIVE, dest / MANIFEST, dest / ASSET_ARCHIVE], overwrite, "--pack",
                   "orchestrate.gpu_session --pack", signed={dest / MANIFEST: ("site", "tree_bytes")})
     found = sorted(wheels.glob("*.whl")) if wheels.is_dir() else []
@@ -472,6 +473,9 @@ def unpack_carry(carry: Path, work: Path, replace: bool = False) -> Path | None:
     for archive in (carry / SITE_ARCHIVE, carry / ASSET_ARCHIVE):
         if os.path.lexists(archive) and (why := not_a_file(archive)):
             raise UsageError(f"--carry: {str(archive)!r} {why}")
+    if bad := next((work / n for n in ("site", "assets") if os.path.lexists(work / n) and not (work / n).is_dir()), 0):
+        raise UsageError(f"--work: {str(bad)!r} is not a folder, where the session unpacks --carry's pack; expected "
+                         "a --work without it (move it away)")
     fresh = [n for n in ("site", ".site.unpacked", "assets", ".assets.unpacked") if not os.path.lexists(work / n)]
     made = [p for p in (work, *work.parents) if not os.path.lexists(p)]
     _site(carry, work, replace)

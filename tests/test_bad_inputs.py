@@ -3421,6 +3421,21 @@ def _same_file(a: Path, b: Path) -> None:
     assert a.read_bytes() == b.read_bytes(), a
 
 
+def _carry_of(*members: str, site_file: bool = False) -> Callable[[Path, Path], None]:
+    """Setup: T/c/site.tar.xz holding `members` (each an empty Python file); with `site_file`, T/w/site a user's
+    file where the session would unpack it."""
+    def setup(w: Path, t: Path) -> None:
+        import io
+        import tarfile
+
+        with tarfile.open(_mk(t / "c") / "site.tar.xz", "w:xz") as tar:
+            for name in members:
+                tar.addfile(tarfile.TarInfo(name), io.BytesIO(b""))
+        if site_file:
+            _mk(t / "w").joinpath("site").write_text("mine\n")
+    return setup
+
+
 def _empty_wheel(w: Path, t: Path) -> None:
     """Setup: T/wheels/ holding a 0-byte mitsuba wheel (a download cut short)."""
     (_mk(t / "wheels") / "mitsuba-3.9.1-cp312-cp312-manylinux_2_28_x86_64.whl").write_bytes(b"")
@@ -3540,6 +3555,20 @@ ROWS += [
     Row("gpu-session-pack-wheels-that-clash", GS, ["--pack", "{T}/pack", "--wheels", "{T}/wheels"], 2,
         ("--wheels", "mitsuba-3.9.1", "'mitsuba/core'", "as a folder"), setup=_clashing_wheels,
         check=_not_written("pack")),
+    Row("gpu-session-pack-into-the-wheels-folder", GS, ["--pack", "{T}/wheels", "--wheels", "{T}/wheels"], 2,
+        ("--pack", "is --wheels"), setup=_empty_wheel, check=_not_written("wheels/site.tar.xz")),
+    Row("gpu-session-work-is-the-carry-folder", GS, ["--out", "{T}/o", "--work", "{T}/c", "--carry", "{T}/c",
+                                                     "--cpu-rehearsal"], 2, ("--work", "overlaps --carry"),
+        setup=_carry_of("pkg/__init__.py"), check=_not_written("c/site", "o")),
+    Row("gpu-session-work-site-a-users-file", GS, ["--out", "{T}/o", "--work", "{T}/w", "--carry", "{T}/c",
+                                                   "--cpu-rehearsal"], 2, ("--work", "w/site'", "is not a folder"),
+        setup=_carry_of("pkg/__init__.py", site_file=True), check=_not_written("o")),
+    Row("gpu-session-device-refused-before-the-pack-is-unpacked", GS, ["--out", "{T}/o", "--work", "{T}/w", "--carry",
+                                                                       "{T}/c", "--cpu-rehearsal", "--device", "cuda"],
+        2, ("--device", "'cuda'", "no GPU"), setup=_carry_of("pkg/__init__.py"), check=_not_written("w", "o")),
+    Row("gpu-session-check-variant-named-as-given", GS, ["--out", "{T}/o", "--work", "{T}/w", "--cpu-rehearsal",
+                                                         "--check-variant", "cuda_ad_rgb"], 2,
+        ("--check-variant: 'cuda_ad_rgb'", "cannot run"), check=_not_written("o/variant_check.json")),
     Row("gpu-session-concurrent-out", GS, SESSION, 2, ("--out", "another run holds"), setup=_running("o"),
         absent=("--init",), check=_released(_not_written("w"))),
     Row("gpu-session-concurrent-work", GS, SESSION, 2, ("--work", "another run holds"), setup=_running("w"),

@@ -194,3 +194,22 @@ def test_a_carry_manifest_that_is_not_a_packs_says_nothing_of_the_assets(tmp_pat
         {"assets": {"meshes": ["m"], "hdri": ["h", "i"], "texture_sets": [], "rule": "r"}}))
     assert gpu_session._assets_note(SimpleNamespace(carry=str(tmp_path)), "/a") == \
         "packed training split, 1 meshes, 2 HDR maps, 0 texture sets (r)"
+
+
+def test_a_carry_manifest_that_is_a_pipe_is_not_waited_on(tmp_path):
+    """Sweep 36 c36-carry-17: a manifest.json in --carry that is a FIFO hung the session at its very end (the card
+    read it); it says nothing of the assets instead, at once."""
+    import os
+    import threading
+    from types import SimpleNamespace
+
+    os.mkfifo(tmp_path / "manifest.json")
+    result = []
+    reader = threading.Thread(target=lambda: result.append(
+        gpu_session._assets_note(SimpleNamespace(carry=str(tmp_path)), "/a")), daemon=True)
+    reader.start()
+    reader.join(timeout=10)
+    if reader.is_alive():  # release the blocked reader before failing
+        with open(tmp_path / "manifest.json", "w"):
+            pass
+    assert result == ["/a"]
