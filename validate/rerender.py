@@ -363,7 +363,7 @@ def _refuse_no_prediction(normals: str, folders: list[Path]) -> None:
             return
         except FileNotFoundError:
             pass
-    dataset = " (it is a dataset: <object>.data folders, not predictions)" if list(Path(normals).glob("*.data")) else ""
+    dataset = " (it is a dataset: <object>.data folders, not predictions)" if any(Path(normals).glob("*.data")) else ""
     raise UsageError(f"--normals: {normals!r} holds no normal map of any of the {len(folders)} object(s) of --data"
                      f"{dataset}; expected <object>/normal.* as unips.predict writes it")
 

@@ -70,11 +70,12 @@ def _apex(value: Any, key: str) -> float:
         v = float(_single(value))
     except (TypeError, ValueError, ArithmeticError):
         v = float("nan")
-    if key == "exposure_time_s" and not (np.isfinite(v) and abs(v) < 64):  # named as written, not as what it stood for
+    usable = bool(np.isfinite(v) and abs(v) < 64)
+    if key == "exposure_time_s" and not usable:  # named as written, not as the ExposureTime it stands for
         raise ValueError(f"EXIF ShutterSpeedValue is {_written(_single(value))[0]}; expected a finite APEX shutter "
                          "speed (-log2 of the exposure time in seconds; correct it, or remove the exposure tags from "
                          "every photo to read them without exposure normalisation)")
-    number = 2.0 ** (-v if key == "exposure_time_s" else v / 2) if np.isfinite(v) and abs(v) < 64 else float("nan")
+    number = 2.0 ** (-v if key == "exposure_time_s" else v / 2) if usable else float("nan")
     return _exif_number(number, key) if key in _EXIF_NAMES else number
 
 
