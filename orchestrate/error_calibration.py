@@ -193,7 +193,13 @@ class CalibrationOptions:
 
         check_fields(self)
         check_output_folder(self.work, "--work")
-        check_apart(self.work, {"--weights": self.weights}, "--work")  # the suite is never rendered among them
+        self.assets = self.assets or str(REPO.parent / "shared" / "assets")
+        if self.assets != "none" and not Path(self.assets).is_dir():
+            raise UsageError(f"--assets: {self.assets!r} is not a folder (expected hdri/, meshes/, textures/, "
+                             "or 'none')")
+        assets = None if self.assets == "none" else self.assets
+        # the suite is never rendered among the weights, nor into the asset library (read as assets next time)
+        check_apart(self.work, {"--weights": self.weights, "--assets": assets}, "--work")
         if self.weights is not None and (why := not_a_file(Path(self.weights))):
             raise UsageError(f"--weights: {self.weights!r} {why}")
         dest, flag = self.destination()
@@ -289,9 +295,6 @@ def run(opts: CalibrationOptions) -> int:
     torch.set_num_threads(opts.threads)
     work = Path(opts.work)
     assets = None
-    opts.assets = opts.assets or str(REPO.parent / "shared" / "assets")
-    if opts.assets != "none" and not Path(opts.assets).is_dir():
-        raise UsageError(f"--assets: {opts.assets!r} is not a folder (expected hdri/, meshes/, textures/, or 'none')")
     weights = Path(opts.weights) if opts.weights else pretrained_entry(DEFAULT_MODEL).weights_path
     try:  # before anything is written into --work (the asset split): refused weights leave it as it was
         net = load_network(weights)

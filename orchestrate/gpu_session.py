@@ -54,6 +54,7 @@ from pathlib import Path
 from typing import Literal  # noqa: E402
 
 from orchestrate import relay
+from orchestrate.curve import curve_records, plot_curve
 from orchestrate.relay import REPO, SITE_ARCHIVE, UPLOAD_LIMIT, pack, resolve_init, tree_bytes, unpack_carry  # noqa: F401
 from orchestrate.steps import OutOfTime, StepFailed, check_step, run_step
 from scenes.cli.budget import process_start
@@ -282,31 +283,6 @@ def _train_argv(opts: SessionOptions, shards: Path, run: Path, device: str, minu
             *(["--overwrite"] if opts.overwrite else [])]
 
 
-def curve_records(log: Path) -> list[dict]:
-    """The training records (step, loss) of a run's log.jsonl, in step order."""
-    rows = [json.loads(line) for line in log.read_text().splitlines() if line.strip()] if log.is_file() else []
-    return sorted((r for r in rows if "loss" in r and "val" not in r), key=lambda r: r["step"])
-
-
-def curve_figure(records: list[dict], title: str):
-    """Training loss against step, a matplotlib Figure (640 x 400 pixels; `scenes.report.charts`)."""
-    from scenes.report.charts import new_figure
-
-    fig = new_figure(640, 400, layout="constrained")
-    ax = fig.subplots()
-    ax.set_title(title, loc="left", fontsize=9)
-    ax.plot([r["step"] for r in records], [r["loss"] for r in records], color="#1f77b4")
-    ax.set(xlabel="step", ylabel="training loss")
-    return fig
-
-
-def plot_curve(records: list[dict], path: Path, title: str) -> None:
-    """Write `curve_figure` as a PNG."""
-    from scenes.report.charts import write_figure
-
-    write_figure(path, curve_figure(records, title))
-
-
 def _device(requested: str) -> str:
     import torch
 
@@ -326,6 +302,26 @@ def require_gpu(opts: SessionOptions) -> None:
                          "renders and trains for --minutes; pass --cpu-rehearsal for a small rehearsal on the CPU)")
 
 
+def _checked(opts: SessionOptions, packed: Path | None, paths: tuple[Path, Path, Path], device: str,
+             init: str | None) -> tuple[str | None, str, str | None]:
+    """The flags that need the carried packages (Mitsuba's variants, the steps' own checks): a refusal here
+    leaves nothing of --carry unpacked. Returns the assets, the variant and the check variant."""
+    data, shards, run = paths
+    assets = None if opts.assets == "none" else opts.assets or (str(packed) if packed else None)  # 'none': none
+    if why := missing_mitsuba():
+        raise UsageError(why)
+    variant = _choose(opts.variant)
+    check = None if opts.check_variant == "none" else _choose(opts.check_variant, avoid=variant) \
+        if opts.check_variant == "auto" else _choose(opts.check_variant, flag="--check-variant")
+    if check is not None and check == variant:  # the same variant renders the same bytes: that checks nothing
+        raise UsageError(f"--check-variant: {check} is the variant the data is rendered with (--variant "
+                         f"{opts.variant}), expected another variant (or none): comparing a variant with itself "
+                         "checks nothing")
+    check_step("wildgen.make", _make_argv(opts, data, variant, opts.objects, shards, assets))
+    check_step("unips.train", _train_argv(opts, shards, run, device, 1.0, init))
+    return assets, variant, check
+
+
 def session(opts: SessionOptions, t0: float | None = None) -> dict:
     """The whole session (module doc, steps 1-5); returns summary.json's content. `t0`: when the budget started
     (default: this process's start). --out and --work are held for the whole session
@@ -343,23 +339,14 @@ def _session(opts: SessionOptions, t0: float) -> dict:
     relay.claim_session_outputs(out, opts.overwrite)  # before anything is unpacked or rendered
     require_gpu(opts)
     init, opts.model = resolve_init(opts.init, opts.model)  # an architecture change is refused before any work
-    assets = opts.assets if opts.assets not in (None, "none") else None
     device = "cpu" if opts.cpu_rehearsal and opts.device == "auto" else _device(opts.device)  # before any unpack
-    if opts.carry is not None:
-        packed = unpack_carry(Path(opts.carry), work, opts.overwrite)
-        assets = assets or (str(packed) if packed else None)
-    if why := missing_mitsuba():
-        raise UsageError(why)
-    variant = _choose(opts.variant)
-    check = None if opts.check_variant == "none" else _choose(opts.check_variant, avoid=variant) \
-        if opts.check_variant == "auto" else _choose(opts.check_variant, flag="--check-variant")
-    if check is not None and check == variant:  # the same variant renders the same bytes: that checks nothing
-        raise UsageError(f"--check-variant: {check} is the variant the data is rendered with (--variant "
-                         f"{opts.variant}), expected another variant (or none): comparing a variant with itself checks "
-                         "nothing")
     data, again, shards, run = work / "data", work / "check", work / "shards", out / RUN
-    check_step("wildgen.make", _make_argv(opts, data, variant, opts.objects, shards, assets))
-    check_step("unips.train", _train_argv(opts, shards, run, device, 1.0, init))
+
+    def checked(packed: Path | None) -> tuple[str | None, str, str | None]:  # after the pack, if any, is unpacked
+        return _checked(opts, packed, (data, shards, run), device, init)
+
+    assets, variant, check = checked(None) if opts.carry is None else \
+        unpack_carry(Path(opts.carry), work, opts.overwrite, then=checked)
     print(f"gpu session: rendering {opts.objects} objects with {variant}; check with {check or 'none'}; training "
           f"{opts.model} on {device}{' (bf16 autocast)' if device == 'cuda' else ''}; budget {opts.minutes:g} min",
           flush=True)

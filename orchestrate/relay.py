@@ -22,6 +22,7 @@ import sys
 import tarfile
 import zipfile
 import zlib
+from collections.abc import Callable
 from pathlib import Path
 
 from orchestrate.archives import unpack_once
@@ -460,11 +461,12 @@ def _site(carry: Path, work: Path, replace: bool = False) -> Path:
     return site
 
 
-def unpack_carry(carry: Path, work: Path, replace: bool = False) -> Path | None:
+def unpack_carry(carry: Path, work: Path, replace: bool = False, then: Callable[[Path | None], object] | None = None):
     """Unpack carry/site.tar.xz into work/site (put first on sys.path and on the steps' PYTHONPATH) and
-    carry/assets.tar.xz into work/ (work/assets); returns the asset folder, or None when none was packed. Either
-    folder holding files this pack did not put there is refused, or with `replace` (--overwrite) emptied first
-    (`orchestrate.archives.unpack_once`)."""
+    carry/assets.tar.xz into work/ (work/assets); returns the asset folder, or None when none was packed (with
+    `then`: what then(asset folder) returns, the checks that need the carried packages). Either folder holding files
+    this pack did not put there is refused, or with `replace` (--overwrite) emptied first
+    (`orchestrate.archives.unpack_once`). A refusal, also by `then`, leaves nothing unpacked behind."""
     from scenes.files import not_a_file
 
     if not carry.is_dir() or not os.path.lexists(carry / SITE_ARCHIVE):
@@ -479,21 +481,19 @@ def unpack_carry(carry: Path, work: Path, replace: bool = False) -> Path | None:
     fresh = [n for n in ("site", ".site.unpacked", "assets", ".assets.unpacked") if not os.path.lexists(work / n)]
     made = [p for p in (work, *work.parents) if not os.path.lexists(p)]
     _site(carry, work, replace)
-    if not (carry / ASSET_ARCHIVE).is_file():
-        return None
     try:
-        unpack_once(carry / ASSET_ARCHIVE, work, under="assets", replace=replace)
-        if not (work / "assets").is_dir() or not any((work / "assets").iterdir()):  # packed, yet nothing to render
-            raise UsageError(f"--carry: {str(carry / ASSET_ARCHIVE)!r} holds no asset folder (expected assets/ with "
-                             "the packed meshes, maps and textures); pack again with --pack, or remove it to render "
-                             "without")
-    except UsageError:  # a refused pack leaves nothing behind: what was unpacked from it a moment ago goes too
-        for name in fresh:
-            if (work / name).is_dir() and not (work / name).is_symlink():
-                shutil.rmtree(work / name, ignore_errors=True)
-            else:
-                (work / name).unlink(missing_ok=True)
+        packed = None
+        if (carry / ASSET_ARCHIVE).is_file():
+            unpack_once(carry / ASSET_ARCHIVE, work, under="assets", replace=replace)
+            if not (work / "assets").is_dir() or not any((work / "assets").iterdir()):  # packed, yet nothing there
+                raise UsageError(f"--carry: {str(carry / ASSET_ARCHIVE)!r} holds no asset folder (expected assets/ "
+                                 "with the packed meshes, maps and textures); pack again with --pack, or remove it to "
+                                 "render without")
+            packed = work / "assets"
+        return then(packed) if then is not None else packed
+    except UsageError:  # a refused pack or flag leaves nothing behind: what was unpacked a moment ago goes too
+        for p in (work / name for name in fresh):
+            shutil.rmtree(p, ignore_errors=True) if p.is_dir() and not p.is_symlink() else p.unlink(missing_ok=True)
         if made:  # the folders made for it, empty again
             shutil.rmtree(made[-1], ignore_errors=True)
         raise
-    return work / "assets"

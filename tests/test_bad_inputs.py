@@ -4334,6 +4334,10 @@ ROWS += [
     Row("calibration-work-a-file", EC, ["--work", "{W}/afile", "--assets", "none", "--out", "{T}/em.json"], 2,
         ("--work", "afile")),
     Row("calibration-seed-negative", EC, [*CALIBRATE, "--seed", "-5"], 2, ("--seed", "-5")),
+    Row("calibration-work-inside-the-assets", EC,  # sweep 36: the suite was rendered into the asset library
+        ["--work", "{T}/assets/work", "--assets", "{T}/assets", "--objects", "1", "--out", "{T}/em.json"], 2,
+        ("--work", "--assets", "assets/work"), setup=lambda w, t: shutil.copytree(w / "assets_two", t / "assets"),
+        check=_not_written("assets/work")),
     Row("make-ray-address-variable-malformed", MK, ["--out", "{T}/o", *TINY, "--ray"], 2,
         ("--ray auto: RAY_ADDRESS", "http//x::"), env={"RAY_ADDRESS": "http//x::"}, sub=True,
         check=_not_written("o")),

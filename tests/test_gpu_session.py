@@ -15,7 +15,7 @@ import zipfile
 
 import pytest
 
-from orchestrate import gpu_session
+from orchestrate import curve, gpu_session
 
 
 def test_whole_session_in_miniature(tmp_path, variant_llvm_ad_rgb):
@@ -40,10 +40,10 @@ def test_whole_session_in_miniature(tmp_path, variant_llvm_ad_rgb):
     with torch.no_grad():
         assert all(torch.isfinite(p).all() for p in model.parameters())
 
-    records = gpu_session.curve_records(out / "run" / "log.jsonl")
+    records = curve.curve_records(out / "run" / "log.jsonl")
     assert [r["step"] for r in records] == [1, 2, 3, 4]
     logged = [json.loads(line) for line in (out / "run" / "log.jsonl").read_text().splitlines()]
-    (line,) = gpu_session.curve_figure(records, "t").axes[0].get_lines()  # the curve plots the logged losses
+    (line,) = curve.curve_figure(records, "t").axes[0].get_lines()  # the curve plots the logged losses
     assert list(line.get_xdata()) == [1, 2, 3, 4]
     assert list(line.get_ydata()) == [r["loss"] for r in logged if "loss" in r and "val" not in r]
     summary = json.loads((out / "summary.json").read_text())
@@ -96,14 +96,14 @@ def test_learning_curve_plots_loss_against_step(tmp_path):
     rows = [{"step": 20, "loss": 0.5}, {"step": 10, "loss": 0.9}, {"step": 20, "val": 1, "loss": 0.7},
             {"step": 30, "loss": 0.25}, {"step": 25, "lr": 1e-3}]
     log.write_text("\n".join(json.dumps(r) for r in rows) + "\n")
-    records = gpu_session.curve_records(log)  # training records only, in step order
-    fig = gpu_session.curve_figure(records, "glc-test, 3 objects, cpu")
+    records = curve.curve_records(log)  # training records only, in step order
+    fig = curve.curve_figure(records, "glc-test, 3 objects, cpu")
     (ax,) = fig.axes
     (line,) = ax.get_lines()
     assert list(line.get_xdata()) == [10, 20, 30] and list(line.get_ydata()) == [0.9, 0.5, 0.25]
     assert (ax.get_xlabel(), ax.get_ylabel(), ax.get_title(loc="left")) == ("step", "training loss",
                                                                             "glc-test, 3 objects, cpu")
-    gpu_session.plot_curve(records, tmp_path / "curve.png", "t")
+    curve.plot_curve(records, tmp_path / "curve.png", "t")
     picture = cv2.imread(str(tmp_path / "curve.png"))
     assert picture is not None and picture.shape == (400, 640, 3)
 

@@ -515,3 +515,39 @@ def test_an_index_holding_a_number_that_is_not_finite_is_refused_naming_the_flag
     index.write_text(re.sub(r'"shard_size": \d+', '"shard_size": 1e400', index.read_text()))
     with pytest.raises(ValueError, match=rf"^--data: '{index}': holds shard_size = inf, not a finite number"):
         read_index(shards, "--data")
+
+
+def test_a_flag_refused_after_the_pack_is_unpacked_leaves_nothing_unpacked(tmp_path, capsys):
+    """Sweep 36 (c36-order-02/04/05): the variant and the flags only the steps' own checks refuse (a missing --assets
+    folder, --res) are checked once the pack is unpacked (those checks need the carried packages); the refusal left
+    --work/site and --work/assets behind. Now it takes back what was unpacked a moment ago."""
+    import mitsuba  # noqa: F401  (the real one first: the pack's stand-in never becomes this process's mitsuba)
+
+    from orchestrate.gpu_session import main
+    from orchestrate.relay import ASSET_ARCHIVE, SITE_ARCHIVE
+
+    carry, work = tmp_path / "carry", tmp_path / "work"
+    carry.mkdir()
+    _archive(carry / SITE_ARCHIVE, _site())
+    _archive(carry / ASSET_ARCHIVE, [_file("assets/meshes/m0.ply", b"ply")])
+    code = main(["--carry", str(carry), "--work", str(work), "--out", str(tmp_path / "out"), "--cpu-rehearsal",
+                 "--assets", str(tmp_path / "no-such-assets"), "--objects", "1", "--res", "16", "--spp", "1"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "--assets" in err[0] and "no-such-assets" in err[0], err
+    assert not (work / "site").exists() and not (work / "assets").exists(), sorted(work.rglob("*"))
+
+
+def test_assets_none_is_kept_when_the_pack_carries_assets(tmp_path):
+    """Sweep 36 (c36-gs-04): `--assets none` with a --carry whose pack holds assets rendered with the packed assets
+    all the same; 'none' said is none (the render's arguments carry no --assets), and without the flag the packed
+    ones are used."""
+    from orchestrate import gpu_session
+
+    packed = tmp_path / "work" / "assets"
+    paths = (tmp_path / "work" / "data", tmp_path / "work" / "shards", tmp_path / "out" / "run")
+    common = ["--out", str(tmp_path / "out"), "--work", str(tmp_path / "work"), "--cpu-rehearsal", "--objects", "1",
+              "--res", "16", "--spp", "1", "--variant", "scalar_rgb", "--check-variant", "none"]
+    for argv, given, expected in (([*common, "--assets", "none"], packed, None), (common, None, None)):
+        opts = gpu_session.COMMAND.parse(argv)
+        init, opts.model = gpu_session.resolve_init(opts.init, opts.model)  # as the session does first
+        assert gpu_session._checked(opts, given, paths, "cpu", init)[0] is expected  # nothing said, none packed
