@@ -169,7 +169,7 @@ class RecipeOptions:
     work: str = REQUIRED
     """Working folder (datasets, runs, benchmark output)."""
     assets: Annotated[str | None, arg(help_behavior_hint="(default: ../shared/assets when it exists)")] = None
-    """Asset folder, split into train / held-out assets."""
+    """Asset folder, split into train / held-out assets ('none': procedural shapes and lights only)."""
     model: Annotated[str | None, arg(help_behavior_hint="(default: unips.models.DEFAULT_TRAIN_MODEL)")] = None
     """Registered model trained from scratch (`unips.models.list_models()`)."""
     init_from: str | None = None
@@ -250,6 +250,7 @@ def main(argv: list[str] | None = None) -> int:
         args = COMMAND.parse(argv).validate()
         if args.assets is None and (SHARED / "assets").is_dir():
             args.assets = str(SHARED / "assets")
+        args.assets = None if args.assets == "none" else args.assets  # as every command that takes --assets
         from scenes.cli.outputs import output_lock
 
         with output_lock(args.work, "--work"):  # one recipe per folder (its steps hold their own subfolders too)

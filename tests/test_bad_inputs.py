@@ -4204,8 +4204,23 @@ def _pt_with_numpy(w: Path, t: Path) -> None:
     torch.save({"model": {"w": np.zeros(3, np.float32)}}, t / "m.pt")
 
 
+def _pt_that_runs_code(w: Path, t: Path) -> None:
+    """Setup: T/evil.pt, a protocol-4 pickle whose loading by the full unpickler would create T/pwned."""
+    import pickle
+
+    class Runs:
+        def __reduce__(self):
+            return (os.system, (f"touch {t / 'pwned'}",))
+
+    (t / "evil.pt").write_bytes(pickle.dumps(Runs(), protocol=4))
+
+
 ROWS += [
     # ---- sweep 5's judgement calls, mended: nothing asked for is silently ignored, the message says what it is
+    Row("train-init-from-a-pickle-that-runs-code", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run",
+                                                        "--init-from", "{T}/evil.pt"], 2,  # sweep 36 c36-recipe-01
+        ("--init-from", "evil.pt", "tensors-only reader refuses", "could run code"), setup=_pt_that_runs_code,
+        check=_not_written("pwned", "run")),
     Row("rerender-fitted-option-with-a-scene", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{T}/o",
                                                     "--light-model", "point"], 2, ("--light-model", "add --fit"),
         check=_not_written("o")),

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Shared fixtures of a bad-input sweep (scripts/sweep/run_sweep.py), about 3 minutes on 2 cores:
 #   data/  data8/   3 objects x 4 and 8 images, 32 px (wildgen.make)
-#   pred/  pred8/   least-squares predictions of them (unips.predict --method least-squares)
+#   pred/  pred8/   predictions of them by the shipped model (unips.predict --method model)
 #   run/            a 2-step glc-test training run (unips.train)
 #   shards/         data8 as WebDataset shards (wildgen.export)
 #   photos/         8 JPEG photos made from data8/00000.data; mask.png, a binary mask of them
@@ -19,8 +19,8 @@ F=$(cd "$F" && pwd)
 cd "$REPO"
 [ -d "$F/data" ] || $PY -m wildgen.make --objects 3 --images 4 --res 32 --spp 8 --seed 1 --out "$F/data"
 [ -d "$F/data8" ] || $PY -m wildgen.make --objects 3 --images 8 --res 32 --spp 8 --seed 8 --out "$F/data8"
-[ -d "$F/pred" ] || $PY -m unips.predict --method least-squares --input "$F/data" --out "$F/pred"
-[ -d "$F/pred8" ] || $PY -m unips.predict --method least-squares --input "$F/data8" --out "$F/pred8"
+[ -d "$F/pred" ] || $PY -m unips.predict --method model --input "$F/data" --out "$F/pred"
+[ -d "$F/pred8" ] || $PY -m unips.predict --method model --input "$F/data8" --out "$F/pred8"
 [ -d "$F/run" ] || $PY -m unips.train --data "$F/data8" --out "$F/run" --model glc-test --steps 2
 [ -d "$F/shards" ] || $PY -m wildgen.export --format webdataset --data "$F/data8" --out "$F/shards"
 if [ ! -d "$F/photos" ]; then

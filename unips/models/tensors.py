@@ -68,6 +68,12 @@ def load_torch_file(path: Any, what: str, map_location: Any = "cpu") -> Any:
         if "Unsupported global" in str(exc):  # a whole pickle naming a class to build (a NumPy array, a module)
             raise ValueError(f"{str(path)!r}: the {what} holds Python objects other than tensors and plain values (a "
                              "NumPy array, a class): not read, as building them could run code from the file") from None
+        if "Weights only load failed" in str(exc):  # torch's advice to load it fully is never followed: say what
+            detail = next((ln.strip() for ln in str(exc).split("WeightsUnpickler error:", 1)[-1].splitlines()
+                           if ln.strip()), "")
+            raise ValueError(f"{str(path)!r}: not a {what}: a pickle the tensors-only reader refuses ({detail[:120]}), "
+                             "not written by torch.save; not read further, as loading it fully could run code from "
+                             "the file") from None
         lines = str(exc).strip().splitlines()
         why = f"{type(exc).__name__}: {lines[0][:160]}" if lines else type(exc).__name__
         raise ValueError(f"{str(path)!r}: not a readable {what}, the file is corrupt or truncated ({why})") from exc
