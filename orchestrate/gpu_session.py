@@ -66,6 +66,8 @@ from scenes.files import is_within, read_json, write_json
 
 SHARED_ASSETS = REPO.parent / "shared" / "assets"
 RUN = "run"
+WORK_FOLDERS = ("site", "assets", "data", "check", "shards")
+"""What the session writes in --work: the pack's site and assets, the dataset, the check's renders, the shards."""
 CHECK_VARIANTS = ("llvm_ad_rgb", "scalar_rgb")
 """The check's variants in auto's order (the first that runs here and differs from the render's)."""
 
@@ -165,6 +167,11 @@ class SessionOptions:
                 if self.carry and (is_within(folder, self.carry) or is_within(self.carry, folder)):
                     raise ValueError(f"{flag}: {folder!r} overlaps --carry {self.carry!r}; expected a folder apart "
                                      "from the pack (the session's files would mix with what was carried)")
+            for flag, given in (("--init", self.init), ("--assets", self.assets)):  # read, in what is replaced
+                if given not in (None, "none", "shipped") and (inside := next((n for n in WORK_FOLDERS if is_within(
+                        given, Path(self.work) / n)), None)):
+                    raise ValueError(f"{flag}: {given!r} lies inside --work's {inside}/, which the session writes "
+                                     "(--overwrite empties it); expected a path outside it")
         return self
 
 

@@ -399,8 +399,8 @@ def _finish_pack(dest: Path, archive: Path, found: list[Path], limit: int, tree:
     site = archive.stat().st_size
     manifest = {"site": {"archive": SITE_ARCHIVE, "bytes": site, "wheels": [w.name for w in found]}, "tree_bytes": tree,
                 "upload_limit_bytes": limit}
+    (dest / ASSET_ARCHIVE).unlink(missing_ok=True)  # an earlier pack's (claimed above) never outlives its manifest
     if assets is not None:
-        (dest / ASSET_ARCHIVE).unlink(missing_ok=True)
         manifest["assets"] = pack_assets(assets, dest, limit - site - tree - MARGIN)
     asset_bytes = manifest.get("assets", {}).get("bytes", 0)
     total = site + asset_bytes + tree

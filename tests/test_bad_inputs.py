@@ -3421,16 +3421,38 @@ def _same_file(a: Path, b: Path) -> None:
     assert a.read_bytes() == b.read_bytes(), a
 
 
-def _carry_of(*members: str, site_file: bool = False) -> Callable[[Path, Path], None]:
+def _shipped_as(stem: str) -> Callable[[Path, Path], None]:
+    """Setup: T/<stem>.safetensors and .json, a copy of the shipped weights of the default model."""
+    def setup(w: Path, t: Path) -> None:
+        from unips.models import DEFAULT_MODEL, pretrained_weights
+
+        shipped = pretrained_weights(DEFAULT_MODEL)
+        _mk((t / stem).parent)
+        for suffix in (".safetensors", ".json"):
+            shutil.copy(shipped.with_suffix(suffix), t / f"{stem}{suffix}")
+    return setup
+
+
+def _same_as_shipped(stem: str) -> Callable[[Path, Path], None]:
+    def check(w: Path, t: Path) -> None:
+        from unips.models import DEFAULT_MODEL, pretrained_weights
+
+        _same_file(t / f"{stem}.safetensors", pretrained_weights(DEFAULT_MODEL))
+    return check
+
+
+def _carry_of(*members: str, site_file: bool = False, assets: bool = False) -> Callable[[Path, Path], None]:
     """Setup: T/c/site.tar.xz holding `members` (each an empty Python file); with `site_file`, T/w/site a user's
-    file where the session would unpack it."""
+    file where the session would unpack it; with `assets`, T/c/assets.tar.xz holding one (empty) mesh."""
     def setup(w: Path, t: Path) -> None:
         import io
         import tarfile
 
-        with tarfile.open(_mk(t / "c") / "site.tar.xz", "w:xz") as tar:
-            for name in members:
-                tar.addfile(tarfile.TarInfo(name), io.BytesIO(b""))
+        for archive, names in (("site.tar.xz", members), ("assets.tar.xz", ["assets/meshes/m0.ply"] if assets else [])):
+            if names:
+                with tarfile.open(_mk(t / "c") / archive, "w:xz") as tar:
+                    for name in names:
+                        tar.addfile(tarfile.TarInfo(name), io.BytesIO(b""))
         if site_file:
             _mk(t / "w").joinpath("site").write_text("mine\n")
     return setup
@@ -3566,6 +3588,15 @@ ROWS += [
     Row("gpu-session-device-refused-before-the-pack-is-unpacked", GS, ["--out", "{T}/o", "--work", "{T}/w", "--carry",
                                                                        "{T}/c", "--cpu-rehearsal", "--device", "cuda"],
         2, ("--device", "'cuda'", "no GPU"), setup=_carry_of("pkg/__init__.py"), check=_not_written("w", "o")),
+    Row("gpu-session-init-inside-work-site", GS, ["--out", "{T}/o", "--work", "{T}/w", "--carry", "{T}/c",
+                                                  "--cpu-rehearsal", "--init", "{T}/w/site/mine.safetensors",
+                                                  "--overwrite"], 2,  # sweep 37: --overwrite emptied site/ first
+        ("--init", "mine.safetensors", "site/"), setup=_both(_carry_of("pkg/__init__.py"), _shipped_as("w/site/mine")),
+        check=_same_as_shipped("w/site/mine")),
+    Row("gpu-session-assets-inside-work-assets", GS, ["--out", "{T}/o", "--work", "{T}/w", "--carry", "{T}/c",
+                                                     "--cpu-rehearsal", "--assets", "{T}/w/assets", "--overwrite"], 2,
+        ("--assets", "w/assets", "assets/"), setup=_both(_carry_of("pkg/__init__.py", assets=True), _put(
+            ("w/assets/meshes/mine.ply", "ply\n"))), check=_kept("w/assets/meshes/mine.ply", "ply\n")),
     Row("gpu-session-check-variant-named-as-given", GS, ["--out", "{T}/o", "--work", "{T}/w", "--cpu-rehearsal",
                                                          "--check-variant", "cuda_ad_rgb"], 2,
         ("--check-variant: 'cuda_ad_rgb'", "cannot run"), check=_not_written("o/variant_check.json")),

@@ -196,6 +196,26 @@ def test_packed_assets_are_the_training_split_within_the_budget(tmp_path):
         relay.pack_assets(assets, tmp_path / "c2", budget=100)
 
 
+def test_a_pack_again_without_assets_leaves_no_earlier_assets_archive(tmp_path):
+    """Sweep 37 (c37-pack-overwrite-assets-none-leaves-stale-assets): packing again with --overwrite and no assets
+    left the earlier pack's assets.tar.xz beside a manifest that records none: the session unpacked and rendered
+    with it, and the upload total left it out."""
+    import zipfile
+
+    wheels = tmp_path / "whl"
+    wheels.mkdir()
+    for name in ("mitsuba-3.9.1", "drjit-1.5.0"):
+        with zipfile.ZipFile(wheels / f"{name}-cp312-cp312-manylinux_2_17_x86_64.whl", "w") as z:
+            z.writestr(f"{name.split('-')[0]}/__init__.py", "")
+    carry = tmp_path / "carry"
+    relay.pack(carry, wheels, tree=1000, assets=_fake_assets(tmp_path / "assets"))
+    assert (carry / relay.ASSET_ARCHIVE).is_file()
+    total = relay.pack(carry, wheels, tree=1000, assets=None, overwrite=True)
+    manifest = json.loads((carry / relay.MANIFEST).read_text())
+    assert not (carry / relay.ASSET_ARCHIVE).exists() and "assets" not in manifest
+    assert total == manifest["total_bytes"] == (carry / relay.SITE_ARCHIVE).stat().st_size + 1000
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(not SHARED_ASSETS.is_dir(), reason="../shared/assets is not here")
 def test_the_real_assets_fit_the_upload_next_to_mitsuba(tmp_path):
