@@ -65,6 +65,28 @@ def check_not_being_written(path: str | os.PathLike, flag: str) -> None:
         within = "" if here == real else f" (it lies in {here!r}, which that run holds)"
         raise UsageError(f"{flag}: {str(path)!r} is being written by another run{within}; wait until it has "
                          "finished, then run this again")
+    if (below := _holder_below(real)) is not None:  # a part of it (one object of a dataset) is still being written
+        raise UsageError(f"{flag}: {below!r}, inside {str(path)!r}, is being written by another run; wait until it "
+                         "has finished, then run this again")
+
+
+def _holder_below(folder: str, limit: int = 20000) -> str | None:
+    """The first folder strictly inside `folder` (links not followed) that another run holds, None when none does
+    (or `folder` is not a folder); folders ours (`HELD_ENV`) are not counted. At most `limit` folders are probed:
+    a run's folders are object folders, a few levels down, never more."""
+    if not os.path.isdir(folder):
+        return None
+    ours = set(_HELD) | set(filter(None, os.environ.get(HELD_ENV, "").split(os.pathsep)))
+    seen = 0
+    for top, dirs, _ in os.walk(folder, followlinks=False):
+        for name in dirs:
+            sub = os.path.join(top, name)
+            seen += 1
+            if seen > limit:
+                return None
+            if sub not in ours and not os.path.islink(sub) and _held_by_another(sub):
+                return sub
+    return None
 
 
 def _holder_from(folder: str) -> str | None:
@@ -249,6 +271,9 @@ def output_lock(path: str | os.PathLike, flag: str = "--out",
     check_apart(path, inputs, flag)
     check_output_folder(path, flag)
     check_no_holder_above(path, flag)
+    if (below := _holder_below(os.path.realpath(path))) is not None:  # its files would mix with the other run's
+        raise UsageError(f"{flag}: {below!r}, inside {str(path)!r}, is held by another run (it is writing there; "
+                         f"one writer per output folder): wait for it to end, or use another {flag}")
     created = []
     parent = os.path.abspath(path)
     while not os.path.exists(parent):
