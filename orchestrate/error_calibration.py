@@ -189,7 +189,7 @@ class CalibrationOptions:
         """The flags, --work, --weights and the output (an earlier fit replaced only with --overwrite), before any
         work."""
         from scenes.cli.outputs import check_apart, check_no_holder_above, check_output_folder, claim_outputs
-        from scenes.files import not_a_file
+        from scenes.files import is_within, not_a_file
 
         check_fields(self)
         check_output_folder(self.work, "--work")
@@ -200,6 +200,9 @@ class CalibrationOptions:
         assets = None if self.assets == "none" else self.assets
         # the suite is never rendered among the weights, nor into the asset library (read as assets next time)
         check_apart(self.work, {"--weights": self.weights, "--assets": assets}, "--work")
+        if assets is not None and is_within(assets, self.work):  # the split and the suite's rows land among them
+            raise UsageError(f"--assets: {assets!r} lies inside --work {self.work!r}, where the asset split and the "
+                             "suite are written; expected an asset folder outside it")
         if self.weights is not None and (why := not_a_file(Path(self.weights))):
             raise UsageError(f"--weights: {self.weights!r} {why}")
         dest, flag = self.destination()

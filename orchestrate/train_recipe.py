@@ -224,9 +224,13 @@ def check_steps(args: RecipeOptions) -> bool:
     assets = Path(args.assets) if args.assets else None
     if assets is not None:
         from scenes.cli.outputs import check_apart
+        from scenes.files import is_within
         from wildgen.assets import AssetLibrary
 
         check_apart(work, {"--assets": assets}, "--work")  # the split's folders would land inside the assets
+        if is_within(assets, work):  # and the other way round: the datasets and the split among the assets
+            raise UsageError(f"--assets: {str(assets)!r} lies inside --work {str(work)!r}, where the asset split and "
+                             "the datasets are written; expected an asset folder outside it")
 
         AssetLibrary.scan(assets)  # names --assets when it is missing or empty
     names = [*(f"train{seed}" for seed in args.train_seed), "val128", "test128"]  # every dataset step's folder

@@ -4380,6 +4380,14 @@ ROWS += [
     Row("calibration-work-a-file", EC, ["--work", "{W}/afile", "--assets", "none", "--out", "{T}/em.json"], 2,
         ("--work", "afile")),
     Row("calibration-seed-negative", EC, [*CALIBRATE, "--seed", "-5"], 2, ("--seed", "-5")),
+    Row("calibration-assets-inside-the-work", EC,  # sweep 37: the split and the suite's row level1 among the assets
+        ["--work", "{T}/work", "--assets", "{T}/work/level1", "--objects", "1", "--out", "{T}/em.json"], 2,
+        ("--assets", "level1", "inside --work"),
+        setup=lambda w, t: shutil.copytree(w / "assets_two", t / "work" / "level1"),
+        check=_not_written("work/level1/manifest.json", "work/train_assets")),
+    Row("recipe-assets-inside-the-work", RC, ["--work", "{T}/w", "--assets", "{T}/w/a", "--train-objects", "1",
+                                              "--steps", "1"], 2, ("--assets", "inside --work"),
+        setup=lambda w, t: shutil.copytree(w / "assets_two", t / "w" / "a"), check=_not_written("w/train5000")),
     Row("calibration-work-inside-the-assets", EC,  # sweep 36: the suite was rendered into the asset library
         ["--work", "{T}/assets/work", "--assets", "{T}/assets", "--objects", "1", "--out", "{T}/em.json"], 2,
         ("--work", "--assets", "assets/work"), setup=lambda w, t: shutil.copytree(w / "assets_two", t / "assets"),
@@ -5800,13 +5808,21 @@ def test_a_training_log_whose_step_is_not_a_number_is_named_on_resume(world: Pat
     assert {p: p.read_bytes() for p in sorted(run.rglob("*")) if p.is_file()} == before
 
 
-@pytest.mark.parametrize("damage", ["moments", "lr", "step"])
+DAMAGED_STATE = {  # sweep 37: the schedule's base rate NaN trained NaN weights (exit 0); a rate written as text or
+    # beta2 of 2 failed deep in AdamW (a traceback); a short random state said only 'state vector is the wrong size'
+    "moments": "holds NaN or infinite values", "lr": "holds lr = nan", "step": "records step -5",
+    "base_lrs": "schedule holds base_lrs = [nan]", "lr_text": "holds lr = '0.001'", "beta2": "holds betas = (0.9, 2.0)",
+    "rng_short": "random states do not fit", "extra_list": "'extra' is a list"}
+
+
+@pytest.mark.parametrize("damage", list(DAMAGED_STATE))
 def test_a_checkpoint_whose_optimiser_moments_hold_nan_is_named_on_resume(world: Path, tmp_path: Path, capsys,
                                                                            damage):
     """Sweep 24: last.pt whose Adam moments hold NaN (its checksum rewritten to match): `unips.train --resume` made
     every weight NaN at its first step and ended in a FloatingPointError traceback. Sweep 25: its learning rate NaN
-    (trained NaN weights, exit 0), or its step -5 (the log cut to nothing before a refusal that named nothing). The
-    checkpoint is checked on loading: one line naming the file and what is wrong, nothing written."""
+    (trained NaN weights, exit 0), or its step -5 (the log cut to nothing before a refusal that named nothing).
+    Sweep 37: the rest of the optimiser's and the schedule's state (`DAMAGED_STATE`). The checkpoint is checked on
+    loading: one line naming the file and what is wrong, nothing written."""
     import torch
 
     from unips.models.builder import CHECKSUM_KEY, content_digest
@@ -5820,8 +5836,16 @@ def test_a_checkpoint_whose_optimiser_moments_hold_nan_is_named_on_resume(world:
     ckpt = torch.load(run / "last.pt", weights_only=True)
     if damage == "moments":
         next(s for s in ckpt["optimizer"]["state"].values() if "exp_avg" in s)["exp_avg"].view(-1)[0] = float("nan")
-    elif damage == "lr":
-        ckpt["optimizer"]["param_groups"][0]["lr"] = float("nan")
+    elif damage in ("lr", "lr_text"):
+        ckpt["optimizer"]["param_groups"][0]["lr"] = float("nan") if damage == "lr" else "0.001"
+    elif damage == "base_lrs":
+        ckpt["scheduler"]["base_lrs"] = [float("nan")]
+    elif damage == "beta2":
+        ckpt["optimizer"]["param_groups"][0]["betas"] = (0.9, 2.0)
+    elif damage == "rng_short":
+        ckpt["rng"]["python"]["state"] = ckpt["rng"]["python"]["state"][:10]
+    elif damage == "extra_list":
+        ckpt["extra"] = list(ckpt["extra"])
     else:
         ckpt["step"] = -5
     ckpt[CHECKSUM_KEY] = content_digest(ckpt)
@@ -5829,8 +5853,7 @@ def test_a_checkpoint_whose_optimiser_moments_hold_nan_is_named_on_resume(world:
     before = {p: p.read_bytes() for p in sorted(run.rglob("*")) if p.is_file()}
     rc = train([*argv, "--steps", "2", "--resume"])
     err = capsys.readouterr().err
-    said = "records step -5" if damage == "step" else "holds NaN or infinite values"
-    assert rc == 2 and f"'{run / 'last.pt'}'" in err and said in err, err
+    assert rc == 2 and f"'{run / 'last.pt'}'" in err and DAMAGED_STATE[damage] in err, err
     assert "Traceback" not in err
     assert {p: p.read_bytes() for p in sorted(run.rglob("*")) if p.is_file()} == before
 

@@ -430,7 +430,7 @@ def open_stream(run: Run) -> Any:
 def resume_run(run: Run) -> None:
     """Continue from RUN/last.pt: the same trajectory settings and objects, then weights, optimiser, schedule,
     random states, step, best validation and elapsed time."""
-    from unips.checkpoint import load_state_strict, load_training_checkpoint, set_rng_states
+    from unips.checkpoint import load_state_strict, load_training_checkpoint, restore_training_state
     from unips.train_data import data_change
 
     cfg = run.cfg
@@ -456,36 +456,17 @@ def resume_run(run: Run) -> None:
         raise ValueError(f"--resume: {str(run.last_path)!r} records step {step!r:.40}, expected a whole number of "
                          "steps; the checkpoint is damaged: restore it, or start again with --overwrite")
     load_state_strict(run.model, ckpt["model"], str(run.last_path))
-    _load_optimizer(run, ckpt)
-    run.scheduler.load_state_dict(ckpt["scheduler"])
-    set_rng_states(ckpt["rng"])
-    run.start, run.best = int(ckpt["step"]), float(ckpt["extra"].get("best_val", math.inf))
-    run.elapsed_before = float(ckpt["extra"].get("elapsed_s", 0.0))
+    restore_training_state(run.last_path, ckpt, run.optimizer, run.scheduler)
+    best, elapsed = ckpt["extra"].get("best_val", math.inf), ckpt["extra"].get("elapsed_s", 0.0)
+    if not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in (best, elapsed)) or math.isnan(
+            best) or not math.isfinite(elapsed) or elapsed < 0:
+        raise ValueError(f"--resume: {str(run.last_path)!r} records best_val {best!r:.40} and elapsed_s "
+                         f"{elapsed!r:.40}, expected numbers; the checkpoint is damaged: restore it, or start again "
+                         "with --overwrite")
+    run.start, run.best, run.elapsed_before = int(ckpt["step"]), float(best), float(elapsed)
     if run.dist.main:
         truncate_log(run.log_path, run.start)
     log.info("resumed from %s at step %d", run.last_path, run.start)
-
-
-def _load_optimizer(run: Run, ckpt: dict) -> None:
-    """The optimiser's state of last.pt, whose moments must be finite (NaN there makes every weight NaN at the first
-    step) and fit the model (a ValueError naming the file otherwise)."""
-    state = ckpt["optimizer"].get("state", {}) if isinstance(ckpt["optimizer"], dict) else None
-    tensors = [(f"parameter {i}", k, v) for i, s in (state or {}).items() if isinstance(s, dict) for k, v in s.items()
-               if isinstance(v, torch.Tensor) and v.is_floating_point()]
-    groups = ckpt["optimizer"].get("param_groups", []) if state is not None else []
-    numbers = [(f"group {i}", k, torch.tensor(x, dtype=torch.float64)) for i, g in enumerate(groups)
-               if isinstance(g, dict) for k, v in g.items() for x in (v if isinstance(v, (list, tuple)) else [v])
-               if isinstance(x, float)]  # lr, betas, eps, weight decay: a NaN lr trains NaN weights silently
-    bad = next(((i, k) for i, k, v in tensors + numbers if not bool(torch.isfinite(v).all())), None)
-    if state is None or bad is not None:
-        what = f"holds NaN or infinite values ({bad[0]}, {bad[1]})" if bad else "is not an optimiser's state"
-        raise ValueError(f"--resume: the optimiser state in {str(run.last_path)!r} {what}; the checkpoint is damaged: "
-                         "restore it, or start the run again with --overwrite")
-    try:
-        run.optimizer.load_state_dict(ckpt["optimizer"])
-    except (ValueError, KeyError, TypeError, RuntimeError, IndexError) as exc:
-        raise ValueError(f"--resume: the optimiser state in {str(run.last_path)!r} does not fit the model "
-                         f"({' '.join(str(exc).split())[:160]}); the checkpoint is damaged") from None
 
 
 def save_last(run: Run, step: int) -> None:

@@ -29,6 +29,7 @@ import fnmatch
 import hashlib
 import json
 import os
+import re
 import runpy
 import shutil
 import signal
@@ -38,6 +39,8 @@ import time
 from pathlib import Path
 
 EVIL = ("pwn", "evil", "escape")
+CASE_ID = re.compile(r"^[a-z]\d\d-")
+"""The folder of a case (of this or another sweep run at the same time): its own files are not escapes."""
 PROGRESS = ("wrote ", "writing", "rendering", "[", "%", "progress", "note:", "warning:", "reading", "loading",
             "done", "->", "saved", "predict", "render", "epoch", "step")
 
@@ -74,7 +77,8 @@ def _evil_outside(roots: list[Path], own: tuple[Path, ...], case_ids: set[str], 
         for dirpath, dirnames, filenames in os.walk(root, followlinks=False):
             d = Path(dirpath)
             dirnames[:] = [n for n in dirnames
-                           if (d / n) not in own and n not in case_ids and not n.startswith(".")
+                           if (d / n) not in own and n not in case_ids and not CASE_ID.match(n)
+                           and not n.startswith(".")
                            and not n.startswith("bash_jobs")]
             for name in dirnames + filenames:
                 if any(e in name.lower() for e in EVIL):

@@ -268,6 +268,9 @@ def load_training_checkpoint(path: str | Path, map_location: str | torch.device 
                if k not in ckpt]
     if missing:
         raise ValueError(f"{str(path)!r}: training checkpoint lacks {', '.join(missing)}")
+    if odd := next((k for k in ("model", "data", "extra") if not isinstance(ckpt[k], dict)), None):
+        raise ValueError(f"{str(path)!r}: the training checkpoint's {odd!r} is a {type(ckpt[odd]).__name__}, expected "
+                         "a mapping as unips.train writes it; the checkpoint is damaged")
     try:
         digest = content_digest(ckpt) if CHECKSUM_KEY in ckpt else None
     except (NotImplementedError, RuntimeError) as exc:  # a meta tensor (no data), a sparse layout: no weights
