@@ -35,7 +35,7 @@ def card(dataset: Path, *extra: str, capsys) -> tuple[int, dict | None, str, str
     rc = main([str(dataset), "--stats", *extra])
     printed, err = capsys.readouterr()
     out = Path(extra[extra.index("--out") + 1]) if "--out" in extra else dataset / "preview"
-    summary = json.loads((out / "stats.json").read_text()) if rc == 0 else None
+    summary = json.loads((out / "stats.json").read_text()) if rc in (0, 1) else None  # 1: objects failed
     return rc, summary, printed, err
 
 
@@ -231,7 +231,10 @@ def test_unreadable_objects_are_recorded_and_the_rest_summarised(dataset, tmp_pa
     (data / f"{names[3]}.data" / "scene.json").write_text(json.dumps(scene))
 
     rc, stats, printed, err = card(data, capsys=capsys)  # no --out: DIR/preview/
-    assert rc == 0, err
+    # sweep 37: the card was written and the command said nothing of the 3 objects left out (exit 0); as the
+    # contact sheets, it exits 1 naming the first and where the rest are listed
+    assert rc == 1 and err.count("\n") == 1 and err.startswith("error: 3 object(s) could not be read"), err
+    assert f"first, {names[1]}" in err and str(data / "preview" / "stats.json") in err
     assert (data / "preview" / "stats.png").is_file() and str(data / "preview" / "stats.json") in printed
     failed = stats["failed"]
     assert sorted(failed) == names[1:]

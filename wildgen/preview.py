@@ -12,7 +12,8 @@ The dataset card (`--stats`) is what to look at before training on a dataset: DI
 distributions of the visible normals, the light directions, distances and strengths, the exposures, the
 materials, light families, camera and sensor of all objects; DIR/preview/stats.json holds the numbers behind
 every panel (counts, histograms with their bin edges, min / median / max) and the objects that could not be
-read (`failed`, one line each), which are left out of everything else.
+read (`failed`, one line each), which are left out of everything else (the card is written, and the command
+exits 1 naming the first).
 """
 from __future__ import annotations
 
@@ -261,6 +262,13 @@ def _write(args) -> int:
         if args.stats:
             written = write_stats(args.dataset, args.out, args.overwrite)  # outputs checked before any read
             print(f"wrote the dataset card {written[0]} and its numbers {written[1]}")
+            from scenes.files import read_json
+
+            if failed := read_json(written[1]).get("failed"):  # counted on the card, said here too (as the sheets)
+                name, reason = next(iter(failed.items()))
+                print(f"error: {len(failed)} object(s) could not be read for the card (first, {name}: {reason}); "
+                      f"they are listed under 'failed' in {written[1]}", file=sys.stderr)
+                return 1
             return 0
         written, failed = preview(args.dataset, args.out, args.overwrite)  # outputs checked before any drawing
     except (UsageError, ValueError, OSError) as exc:

@@ -6,7 +6,7 @@
 #   shards/         data8 as WebDataset shards (wildgen.export)
 #   photos/         8 JPEG photos made from data8/00000.data; mask.png, a binary mask of them
 #   ballPNG/        DiLiGenT ball (only when ../shared holds it)
-#   assets/         a small asset library (one mesh, one HDR map) when ../shared holds one
+#   assets/         a small asset library (3 meshes, 2 HDR maps) when ../shared holds one
 #   afile, empty/   a plain file and an empty folder
 # Usage: bash scripts/sweep/fixtures.sh /tmp/sweep/fx   (the repo's .venv is used)
 set -euo pipefail
@@ -55,8 +55,10 @@ if [ -d "$SHARED/data/diligent" ] && [ ! -e "$F/ballPNG" ]; then
 fi
 if [ -d "$SHARED/assets" ] && [ ! -d "$F/assets" ]; then
   mkdir -p "$F/assets/meshes" "$F/assets/hdri"
-  m=$(find "$SHARED/assets" -name '*.ply' | head -1); [ -n "$m" ] && cp "$m" "$F/assets/meshes/"
-  h=$(find "$SHARED/assets" -name '*.hdr' -o -name '*.exr' | head -1); [ -n "$h" ] && cp "$h" "$F/assets/hdri/"
+  for m in sphere torus goathead; do  # the smallest meshes, a folder each as in ../shared
+    [ -d "$SHARED/assets/meshes/$m" ] && cp -r "$SHARED/assets/meshes/$m" "$F/assets/meshes/"
+  done
+  find "$SHARED/assets/hdri" -name '*.hdr' | sort | head -2 | xargs -r -I{} cp {} "$F/assets/hdri/"
 fi
 echo "a plain file" > "$F/afile"
 mkdir -p "$F/empty"
