@@ -3345,6 +3345,11 @@ ROWS += [
                                           f"{{W}}/pub_{tag}", "--input", OBJDIR, "--out", "{T}/p"], 2,
           ("nml.pytmodel", said, "expected dense weights"), check=_not_written("p"))
       for tag, said in (("sparse", "sparse_coo tensor"), ("meta", "meta tensor"))),
+    Row("predict-published-a-file-not-the-folder", PR, ["--method", "model", "--model", "glc-unips-tiny",
+                                                        "--checkpoint", "{W}/pub_int64/normal/nml.pytmodel",
+                                                        "--input", OBJDIR, "--out", "{T}/p"], 2,
+        ("--checkpoint:", "nml.pytmodel", "not a folder of the published weights"),  # sweep 37: named 'checkpoint'
+        check=_not_written("p")),
     Row("predict-published-int64", PR, ["--method", "model", "--model", "sdm-unips-tiny", "--checkpoint",
                                         "{W}/pub_int64", "--input", OBJDIR, "--out", "{T}/p"], 2,
         ("nml.pytmodel", "int64"), check=_not_written("p")),

@@ -57,14 +57,14 @@ def official_files(spec: OfficialWeights, path: str | Path) -> list[tuple[Path, 
     if path.is_file() and path.suffix == OFFICIAL_SUFFIX and len(spec.files) == 1:
         return [(path, spec.files[0][1])]
     if not path.is_dir():
-        raise FileNotFoundError(f"checkpoint: {str(path)!r} is not a folder of the published weights "
+        raise FileNotFoundError(f"--checkpoint: {str(path)!r} is not a folder of the published weights "
                                 f"(expected {', '.join(p for p, _ in spec.files)} inside; from {spec.source})")
     found = []
     for pattern, prefix in spec.files:
         matches = sorted(path.glob(pattern))
         if len(matches) != 1:
             what = "no file" if not matches else f"{len(matches)} files ({', '.join(m.name for m in matches)})"
-            raise FileNotFoundError(f"checkpoint: {what} matching {pattern!r} in {str(path)!r}, expected one "
+            raise FileNotFoundError(f"--checkpoint: {what} matching {pattern!r} in {str(path)!r}, expected one "
                                     f"(the published weights from {spec.source})")
         found.append((matches[0], prefix))
     return found

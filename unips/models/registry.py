@@ -116,7 +116,7 @@ def official_entry(name: str) -> OfficialWeights:
     _check_name(name)
     if name not in _OFFICIAL:
         with_entry = ", ".join(sorted(_OFFICIAL)) or "none"
-        raise ValueError(f"checkpoint: model {name!r} has no published checkpoint format to read (models with "
+        raise ValueError(f"--checkpoint: model {name!r} has no published checkpoint format to read (models with "
                          f"one: {with_entry}); pass a .safetensors or .pt model file")
     return _OFFICIAL[name]
 

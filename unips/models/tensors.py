@@ -71,9 +71,9 @@ def load_torch_file(path: Any, what: str, map_location: Any = "cpu") -> Any:
         if "Weights only load failed" in str(exc):  # torch's advice to load it fully is never followed: say what
             detail = next((ln.strip() for ln in str(exc).split("WeightsUnpickler error:", 1)[-1].splitlines()
                            if ln.strip()), "")
-            raise ValueError(f"{str(path)!r}: not a {what}: a pickle the tensors-only reader refuses ({detail[:120]}), "
-                             "not written by torch.save; not read further, as loading it fully could run code from "
-                             "the file") from None
+            raise ValueError(f"{str(path)!r}: not a readable {what}: the tensors-only reader refuses it "
+                             f"({detail[:120]}): the file is corrupt, or a pickle torch.save did not write (not read "
+                             "further: loading it fully could run code from the file)") from None
         lines = str(exc).strip().splitlines()
         why = f"{type(exc).__name__}: {lines[0][:160]}" if lines else type(exc).__name__
         raise ValueError(f"{str(path)!r}: not a readable {what}, the file is corrupt or truncated ({why})") from exc
