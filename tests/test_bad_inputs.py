@@ -3350,6 +3350,10 @@ ROWS += [
                                                         "--input", OBJDIR, "--out", "{T}/p"], 2,
         ("--checkpoint:", "nml.pytmodel", "not a folder of the published weights"),  # sweep 37: named 'checkpoint'
         check=_not_written("p")),
+    Row("predict-published-a-pipe", PR, ["--method", "model", "--model", "sdm-unips-tiny", "--checkpoint", "{T}/pub",
+                                         "--input", OBJDIR, "--out", "{T}/p"], 2,  # sweep 37: read forever
+        ("--checkpoint:", "nml.pytmodel", "not a regular file"),
+        setup=lambda w, t: os.mkfifo(_mk(t / "pub" / "normal") / "nml.pytmodel"), check=_not_written("p")),
     Row("predict-published-int64", PR, ["--method", "model", "--model", "sdm-unips-tiny", "--checkpoint",
                                         "{W}/pub_int64", "--input", OBJDIR, "--out", "{T}/p"], 2,
         ("nml.pytmodel", "int64"), check=_not_written("p")),
@@ -4241,21 +4245,21 @@ def _pt_with_numpy(w: Path, t: Path) -> None:
 
 
 def _pt_that_runs_code(w: Path, t: Path) -> None:
-    """Setup: T/evil.pt, a protocol-4 pickle whose loading by the full unpickler would create T/pwned."""
+    """Setup: T/code.pt, a protocol-4 pickle whose loading by the full unpickler would create T/pwned."""
     import pickle
 
     class Runs:
         def __reduce__(self):
             return (os.system, (f"touch {t / 'pwned'}",))
 
-    (t / "evil.pt").write_bytes(pickle.dumps(Runs(), protocol=4))
+    (t / "code.pt").write_bytes(pickle.dumps(Runs(), protocol=4))
 
 
 ROWS += [
     # ---- sweep 5's judgement calls, mended: nothing asked for is silently ignored, the message says what it is
     Row("train-init-from-a-pickle-that-runs-code", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run",
-                                                        "--init-from", "{T}/evil.pt"], 2,  # sweep 36 c36-recipe-01
-        ("--init-from", "evil.pt", "tensors-only reader refuses", "could run code"), setup=_pt_that_runs_code,
+                                                        "--init-from", "{T}/code.pt"], 2,  # sweep 36 c36-recipe-01
+        ("--init-from", "code.pt", "tensors-only reader refuses", "could run code"), setup=_pt_that_runs_code,
         check=_not_written("pwned", "run")),
     Row("rerender-fitted-option-with-a-scene", RR, ["--data", OBJDIR, "--normals", "{W}/pred/00000", "--out", "{T}/o",
                                                     "--light-model", "point"], 2, ("--light-model", "add --fit"),

@@ -23,7 +23,8 @@ class TrainConfig:
     out: str = REQUIRED
     """Run directory: log.jsonl, last.pt, best.safetensors and final.safetensors (+ .json sidecars)."""
     val: str | None = None
-    """Validation dataset directory (object folders with normal.tif); held-out assets, test-like settings."""
+    """Validation dataset directory (object folders with normal.tif), or its shards as --data takes them; held-out
+    assets, test-like settings."""
     model: str = DEFAULT_TRAIN_MODEL
     """Registered model name (`unips.models.list_models()`); with `init_from`, the weights' model."""
     init_from: str | None = None

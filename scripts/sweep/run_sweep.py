@@ -78,7 +78,7 @@ def _evil_outside(roots: list[Path], own: tuple[Path, ...], case_ids: set[str], 
             d = Path(dirpath)
             dirnames[:] = [n for n in dirnames
                            if (d / n) not in own and n not in case_ids and not CASE_ID.match(n)
-                           and not n.startswith(".")
+                           and not n.startswith((".", "pytest-of-"))
                            and not n.startswith("bash_jobs")]
             for name in dirnames + filenames:
                 if any(e in name.lower() for e in EVIL):

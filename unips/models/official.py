@@ -18,6 +18,8 @@ from typing import Mapping
 
 import torch
 
+from scenes.files import not_a_file
+
 from .contract import InputContract
 from .tensors import check_weights, load_torch_file
 
@@ -66,6 +68,8 @@ def official_files(spec: OfficialWeights, path: str | Path) -> list[tuple[Path, 
             what = "no file" if not matches else f"{len(matches)} files ({', '.join(m.name for m in matches)})"
             raise FileNotFoundError(f"--checkpoint: {what} matching {pattern!r} in {str(path)!r}, expected one "
                                     f"(the published weights from {spec.source})")
+        if why := not_a_file(matches[0]):  # a pipe or a device would be read forever
+            raise FileNotFoundError(f"--checkpoint: {str(matches[0])!r} {why}")
         found.append((matches[0], prefix))
     return found
 

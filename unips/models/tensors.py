@@ -69,8 +69,10 @@ def load_torch_file(path: Any, what: str, map_location: Any = "cpu") -> Any:
             raise ValueError(f"{str(path)!r}: the {what} holds Python objects other than tensors and plain values (a "
                              "NumPy array, a class): not read, as building them could run code from the file") from None
         if "Weights only load failed" in str(exc):  # torch's advice to load it fully is never followed: say what
-            detail = next((ln.strip() for ln in str(exc).split("WeightsUnpickler error:", 1)[-1].splitlines()
-                           if ln.strip()), "")
+            advice = ("Weights only load failed", "Please file an issue", "Check the documentation")
+            detail = next((ln.strip().removeprefix("WeightsUnpickler error:").strip() for ln in str(exc).splitlines()
+                           if ln.strip() and not ln.strip().startswith(advice)
+                           and ln.strip() != "WeightsUnpickler error:"), "")
             raise ValueError(f"{str(path)!r}: not a readable {what}: the tensors-only reader refuses it "
                              f"({detail[:120]}): the file is corrupt, or a pickle torch.save did not write (not read "
                              "further: loading it fully could run code from the file)") from None
