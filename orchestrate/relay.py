@@ -327,7 +327,7 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
     `overwrite` (and a manifest.json that is not a pack's never)."""
     from scenes.cli.outputs import check_apart, claim_outputs
 
-    check_apart(dest, {"--wheels": wheels}, "--pack")  # the pack's files beside the wheels would be read as input
+    check_apart(dest, {"--wheels": wheels, "--assets": assets}, "--pack")  # else read as input by the next pack
     claim_outputs([dest / SITE_ARCHIVE, dest / MANIFEST, dest / ASSET_ARCHIVE], overwrite, "--pack",
                   "orchestrate.gpu_session --pack", signed={dest / MANIFEST: ("site", "tree_bytes")})
     found = sorted(wheels.glob("*.whl")) if wheels.is_dir() else []

@@ -3588,6 +3588,10 @@ ROWS += [
         check=_not_written("pack")),
     Row("gpu-session-pack-into-the-wheels-folder", GS, ["--pack", "{T}/wheels", "--wheels", "{T}/wheels"], 2,
         ("--pack", "is --wheels"), setup=_empty_wheel, check=_not_written("wheels/site.tar.xz")),
+    Row("gpu-session-pack-inside-the-assets", GS, ["--pack", "{T}/a/meshes", "--wheels", "{T}/wheels", "--assets",
+                                                   "{T}/a"], 2, ("--pack", "--assets"),  # sweep 37: packed there
+        setup=_both(_empty_wheel, lambda w, t: shutil.copytree(w / "assets_two", t / "a")),
+        check=_not_written("a/meshes/site.tar.xz", "a/meshes/assets.tar.xz")),
     Row("gpu-session-work-is-the-carry-folder", GS, ["--out", "{T}/o", "--work", "{T}/c", "--carry", "{T}/c",
                                                      "--cpu-rehearsal"], 2, ("--work", "overlaps --carry"),
         setup=_carry_of("pkg/__init__.py"), check=_not_written("c/site", "o")),

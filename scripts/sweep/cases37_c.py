@@ -37,7 +37,7 @@ EOF
 """
 """Setup: whl/, two tiny wheels that pass the pack's name and version checks."""
 LIB = r"""mkdir -p assets/meshes assets/hdri
-m=$(ls "$F"/assets/meshes/* | head -1); h=$(ls "$F"/assets/hdri/* | head -1)
+m=$(ls -d "$F"/assets/meshes/*/*.obj | head -1); h=$(ls "$F"/assets/hdri/* | head -1)
 for i in 1 2 3 4; do cp -r "$m" "assets/meshes/m$i.${m##*.}"; cp "$h" "assets/hdri/h$i.${h##*.}"; done
 """
 """Setup: assets/, a library of 4 meshes and 4 HDR maps (copies of the fixture's), enough to split."""
@@ -184,7 +184,7 @@ case("c37-make-assets-truncated-exr", "input",
 case("c37-make-assets-mesh-newline-name", "engine",
      f'{MK} --out "$C/out" --assets "$C/assets" --shapes mesh {TINY}', expect="either", may_change=OUT,
      setup=r"""mkdir -p assets/meshes assets/hdri; cp "$F"/assets/hdri/* assets/hdri/
-m=$(ls "$F"/assets/meshes/* | head -1); cp -r "$m" "assets/meshes/a
+m=$(ls -d "$F"/assets/meshes/*/*.obj | head -1); cp -r "$m" "assets/meshes/a
 b.${m##*.}"
 """, timeout=110,
      why="A mesh whose name holds a newline: rendered (scene.json keeps the name) or refused in one line naming it.")
