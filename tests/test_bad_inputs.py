@@ -3240,6 +3240,10 @@ ROWS += [
         check=_not_written("o/normal.png")),
     Row("make-resume-manifest-folder-above", MK, ["--out", "{T}/ds", "--resume", "--workers", "0", "--quiet"], 2,
         ("manifest.json", "'../victim.data'", "--overwrite"), setup=_manifest_naming("../victim.data")),
+    Row("make-resume-manifest-status-unknown", MK, ["--out", "{T}/ds", "--resume", "--workers", "0", "--quiet"], 2,
+        ("manifest.json", "'finished-ish'", "--overwrite"),  # sweep 38: rendered again without a word
+        setup=lambda w, t: (shutil.copytree(w / "data", t / "ds"), (t / "ds" / "manifest.json").write_text(
+            (t / "ds" / "manifest.json").read_text().replace('"status": "done"', '"status": "finished-ish"', 1)))),
     Row("make-resume-manifest-folder-absolute", MK, ["--out", "{T}/ds", "--resume", "--workers", "0", "--quiet"],
         2, ("manifest.json", "victim.data'", "--overwrite"), setup=_manifest_naming("{T}/victim.data")),
     Row("predict-object-named-dotdot", PR, ["--method", "least-squares", "--input", "{T}/in/...data", "--out",

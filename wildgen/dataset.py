@@ -294,6 +294,9 @@ def plan_run(cfg: GenConfig, out_dir: Path, variant: str, overwrite: bool = Fals
     for index in range(cfg.objects):
         entry = old.get(index)
         status = entry.get("status") if entry else None
+        if entry and status not in ("done", "skipped", "failed"):  # a status make never writes: an edited manifest
+            raise DatasetError(f"--out: {str(out_dir / MANIFEST)!r} records object {index_name(index)} as "
+                               f"{str(status)[:40]!r}, not done, skipped or failed; restore it, or use --overwrite")
         target = out_dir / (entry or {}).get("folder", f"{index_name(index)}.data")
         if target.is_symlink() or target.exists() and not target.is_dir():  # the user's, never replaced
             raise DatasetError(f"--out: {str(target)!r} is {'a link' if target.is_symlink() else 'a file'} where "
