@@ -3010,6 +3010,16 @@ def _manifest_naming(folder: str) -> Callable[[Path, Path], None]:
     return setup
 
 
+def _one_grey_mask_pixel(w: Path, t: Path) -> None:
+    """Setup: T/obj, a copy of the world's object whose mask holds one pixel of 77 (not binary)."""
+    import cv2
+
+    shutil.copytree(w / "data" / f"{OBJ}.data", t / "obj")
+    mask = cv2.imread(str(t / "obj" / "mask.png"), cv2.IMREAD_UNCHANGED)
+    mask.flat[0] = 77
+    cv2.imwrite(str(t / "obj" / "mask.png"), mask)
+
+
 def _diligent_edited(listing=None, lights=None) -> Callable[[Path, Path], None]:
     """Setup: T/dil, a DiLiGenT folder whose filenames.txt lines go through `listing` and light directions through
     `lights`; T/x/001.png, a file outside it."""
@@ -4021,6 +4031,17 @@ ROWS += [
     Row("predict-diligent-lights-behind", PR, ["--method", "least-squares", "--input", "{T}/dil", "--out", "{T}/p"],
         2, ("light_directions", "points away from the camera"),
         setup=_diligent_edited(lights=lambda d: d * [1, 1, -1]), check=_not_written("p")),
+    Row("predict-least-squares-lights-in-one-plane", PR, ["--method", "least-squares", "--input", "{T}/dil", "--out",
+                                                          "{T}/p"], 2,  # sweep 38: named 'obj.light_directions'
+        ("--method least-squares", "span only 2", "not in one plane"),
+        setup=_diligent_edited(lights=lambda d: d * [1, 0, 1]), check=_not_written("p")),
+    Row("predict-weights-checked-before-a-bad-mask", PR, ["--method", "model", "--model", "sdm-unips-tiny",
+                                                          "--checkpoint", "{W}/pub_nan", "--input", "{T}/obj", "--out",
+                                                          "{T}/p"], 2,  # sweep 38: the mask was named, not weights
+        ("nml.pytmodel", "NaN"), setup=_one_grey_mask_pixel, check=_not_written("p")),
+    Row("train-world-size-not-ascii-digits", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps",
+                                                  "1"], 2, ("WORLD_SIZE='²'", "expected an integer"),
+        env={"WORLD_SIZE": "²", "RANK": "0", "LOCAL_RANK": "0"}, sub=True, check=_not_written("run")),
     Row("make-shards-into-the-assets", MK, ["--out", "{T}/o", "--assets", "{T}/assets", "--shapes", "mesh",
                                             "--shards", "{T}/assets", *TINY], 2, ("--shards", "--assets"),
         setup=lambda w, t: shutil.copytree(w / "assets_good", t / "assets"), check=_not_written("o")),

@@ -98,10 +98,11 @@ def least_squares(obj: PSObject, chunk: int = 65536) -> np.ndarray:
     L = np.asarray(obj.light_directions, np.float64)  # (K, 3)
     K = obj.images.shape[0]
     if L.shape != (K, 3):
-        raise ValueError(f"obj.light_directions: expected shape ({K}, 3), got {L.shape}")
-    if K < 3 or np.linalg.matrix_rank(L) < 3:
-        raise ValueError(f"obj.light_directions: need at least 3 non-coplanar lights, got {K} of rank "
-                         f"{np.linalg.matrix_rank(L)}")
+        raise ValueError(f"--method least-squares: object {obj.name}'s light directions have shape {L.shape}, "
+                         f"expected ({K}, 3): one direction per image")
+    if K < 3 or np.linalg.matrix_rank(L) < 3:  # a plane of lights leaves the normal's third component unknown
+        raise ValueError(f"--method least-squares: object {obj.name}'s {K} light directions span only "
+                         f"{np.linalg.matrix_rank(L)} dimension(s); expected at least 3 lights not in one plane")
     pinv = np.linalg.pinv(L)  # (3, K)
     gray = gray_matrix(obj, chunk=chunk)  # (P, K)
     seen = (gray > 0).any(axis=1)

@@ -274,6 +274,11 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         args = COMMAND.parse(argv).validate()
         held.enter_context(output_lock(args.out, inputs={"--input": args.input}))
         check_not_being_written(args.input, "--input")
+        # the weights first (the published ones are checked finite and of the network's kind): before any input
+        net = load_network(args.checkpoint, args.device, args.model) if args.method == "model" else None
+        if net is not None and args.scalable:
+            scalable_patch(net)  # a file's network that cannot take --scalable: once, before any object
+        errors = error_model(args, net)
         folders = find_objects(args.input, "--input")
         single = detect_layout(args.input) is not None
         names = [object_name(f) for f in folders]
@@ -293,10 +298,6 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
                 if single or exc.__class__ is UsageError:  # a size this machine cannot hold: the flags' fault
                     raise
                 failures.append((shown_name(name), one_line(exc)))
-        net = load_network(args.checkpoint, args.device, args.model) if args.method == "model" else None
-        if net is not None and args.scalable:
-            scalable_patch(net)  # a file's network that cannot take --scalable: once, before any object
-        errors = error_model(args, net)
         written: list[str] = []
         where = args.out / todo[0][1] if single and todo else args.out
         print(f"predicting {len(todo)} object(s) with --method {args.method} into {where} ...", flush=True)

@@ -120,7 +120,7 @@ def distributed_env() -> Dist:
 
     def number(name: str, default: str, low: int) -> int:
         text = env.get(name, default)
-        if not text.strip().isdigit():  # int() would take '1_0' or ' +1'; torchrun writes plain digits
+        if not (text.strip().isascii() and text.strip().isdigit()):  # int() would take '1_0', ' +1'; not '²'
             raise ValueError(f"environment variable {name}={text!r}: expected an integer (torchrun sets it)")
         value = int(text)
         if value < low:

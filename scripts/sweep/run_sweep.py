@@ -42,7 +42,7 @@ EVIL = ("pwn", "evil", "escape")
 CASE_ID = re.compile(r"^[a-z]\d\d-")
 """The folder of a case (of this or another sweep run at the same time): its own files are not escapes."""
 PROGRESS = ("wrote ", "writing", "rendering", "[", "%", "progress", "note:", "warning:", "reading", "loading",
-            "done", "->", "saved", "predict", "render", "epoch", "step")
+            "done", "->", "saved", "predict", "render", "epoch", "step", "so far", "since the last line")
 
 
 def _snapshot(root: Path, skip: tuple[Path, ...] = ()) -> dict[str, str]:
