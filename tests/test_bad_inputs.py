@@ -4033,12 +4033,21 @@ ROWS += [
         setup=_diligent_edited(lights=lambda d: d * [1, 1, -1]), check=_not_written("p")),
     Row("predict-least-squares-lights-in-one-plane", PR, ["--method", "least-squares", "--input", "{T}/dil", "--out",
                                                           "{T}/p"], 2,  # sweep 38: named 'obj.light_directions'
-        ("--method least-squares", "span only 2", "not in one plane"),
+        ("--method least-squares", "light_directions.txt", "span only 2", "not in one plane"),
         setup=_diligent_edited(lights=lambda d: d * [1, 0, 1]), check=_not_written("p")),
     Row("predict-weights-checked-before-a-bad-mask", PR, ["--method", "model", "--model", "sdm-unips-tiny",
                                                           "--checkpoint", "{W}/pub_nan", "--input", "{T}/obj", "--out",
                                                           "{T}/p"], 2,  # sweep 38: the mask was named, not weights
         ("nml.pytmodel", "NaN"), setup=_one_grey_mask_pixel, check=_not_written("p")),
+    Row("train-local-rank-beyond-the-world", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps",
+                                                   "1"], 2, ("LOCAL_RANK=5", "below WORLD_SIZE=2"),  # sweep 38
+        env={"WORLD_SIZE": "2", "RANK": "0", "LOCAL_RANK": "5", "MASTER_ADDR": "127.0.0.1", "MASTER_PORT": "29519"},
+        sub=True, check=_not_written("run")),
+    Row("train-master-addr-empty", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1"], 2,
+        ("MASTER_ADDR=''",), sub=True, check=_not_written("run"),  # sweep 38: torch's C++ trace, then a timeout
+        env={"WORLD_SIZE": "2", "RANK": "0", "LOCAL_RANK": "0", "MASTER_ADDR": "", "MASTER_PORT": "29519"}),
+    Row("train-data-trailing-comma", TR, [*TRAIN_ONE, "--data", "{W}/data,", "--out", "{T}/run", "--steps", "1"], 2,
+        ("--data", "empty entry"), check=_not_written("run")),  # sweep 38: the stray comma was dropped silently
     Row("train-world-size-not-ascii-digits", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps",
                                                   "1"], 2, ("WORLD_SIZE='²'", "expected an integer"),
         env={"WORLD_SIZE": "²", "RANK": "0", "LOCAL_RANK": "0"}, sub=True, check=_not_written("run")),

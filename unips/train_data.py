@@ -64,6 +64,9 @@ def data_roots(data: str | Path, arg: str = "--data") -> list[Path]:
         if c == "," and depth <= 0:
             parts.append(text[start:i])
             start = i + 1
+    if len(parts) > 1 and not all(p.strip() for p in parts):  # a stray comma: a path left out, or a typo
+        raise ValueError(f"{arg}: {str(data)!r} holds an empty entry (a comma at an end, or two in a row); expected "
+                         "paths separated by single commas")
     roots = [Path(p.strip()) for p in parts if p.strip()]
     if not roots:
         raise ValueError(f"{arg}: {str(data)!r} names no directory")

@@ -132,8 +132,11 @@ def distributed_env() -> Dist:
     if world > 1 and (missing := [v for v in TORCHRUN_VARIABLES if v not in env]):
         raise ValueError(f"environment variable WORLD_SIZE={world} without {', '.join(missing)}: start a "
                          "multi-process run with torchrun, which sets them all")
-    if rank >= world:
-        raise ValueError(f"environment variable RANK={rank}: expected below WORLD_SIZE={world}")
+    for name, value in (("RANK", rank), ("LOCAL_RANK", local)):  # a process's place lies inside the run
+        if value >= world:
+            raise ValueError(f"environment variable {name}={value}: expected below WORLD_SIZE={world}")
+    if world > 1 and not env["MASTER_ADDR"].strip():  # torch's store would print a C++ trace, then time out
+        raise ValueError("environment variable MASTER_ADDR='': expected the host of rank 0 (torchrun sets it)")
     if world > 1 and not 1 <= number("MASTER_PORT", "0", 0) <= 65535:
         raise ValueError(f"environment variable MASTER_PORT={env['MASTER_PORT']!r}: expected a port, 1 to 65535")
     return Dist(rank, world, local) if world > 1 else Dist()
