@@ -3250,6 +3250,9 @@ ROWS += [
         check=_not_written("o/normal.png")),
     Row("make-resume-manifest-folder-above", MK, ["--out", "{T}/ds", "--resume", "--workers", "0", "--quiet"], 2,
         ("manifest.json", "'../victim.data'", "--overwrite"), setup=_manifest_naming("../victim.data")),
+    Row("make-resume-with-a-preset", MK, ["--out", "{T}/ds", "--resume", "--preset", "phone-flash", "--workers", "0",
+                                          "--quiet"], 2, ("--preset:", "camera 'orthographic'", "--overwrite"),
+        setup=lambda w, t: shutil.copytree(w / "data", t / "ds")),  # sweep 38: named --camera, a flag not given
     Row("make-resume-manifest-status-unknown", MK, ["--out", "{T}/ds", "--resume", "--workers", "0", "--quiet"], 2,
         ("manifest.json", "'finished-ish'", "--overwrite"),  # sweep 38: rendered again without a word
         setup=lambda w, t: (shutil.copytree(w / "data", t / "ds"), (t / "ds" / "manifest.json").write_text(

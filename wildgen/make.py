@@ -223,14 +223,14 @@ def resolve_run(args: MakeOptions, argv: list[str] | None, out: Path) -> tuple[G
 
 
 def _check_resumable(manifest: dict, cfg: GenConfig, explicit: set[str]) -> None:
-    """A flag of --resume that changes what the manifest records is refused naming it (the dataset is continued as
-    it was made, and "--resume" is no way out of a refusal that was given --resume)."""
+    """A flag of --resume that changes what the manifest records is refused naming it (or the --preset that set it)."""
     from wildgen.dataset import config_differences
 
     diff = config_differences(manifest, cfg)
     if diff:
         key = diff[0]
-        flag = "--res" if key in ("width", "height") and "res" in explicit else f"--{key.replace('_', '-')}"
+        name = "res" if key in ("width", "height") else key
+        flag = f"--{name.replace('_', '-')}" if name in explicit or "preset" not in explicit else "--preset"
         raise UsageError(f"{flag}: --resume continues the dataset in --out as its manifest records it ({key} "
                          f"{manifest['config'].get(key)!r}, here {getattr(cfg, key)!r}); leave the flag out to resume, "
                          "or start afresh with --overwrite")
