@@ -51,7 +51,7 @@ def setup_py(code: str, photos: bool = True) -> str:
 
 
 def K(text: str) -> str:
-    return f"printf '{text}' > K.txt\n"
+    return f"printf -- '{text}' > K.txt\n"
 
 
 SURF_K = f'{SURF} --normals {N0} --mask {M0} --intrinsics K.txt --out o'

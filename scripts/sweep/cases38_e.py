@@ -255,7 +255,7 @@ case("train-data-dataset-and-own-object", "input", "", f"{TRAIN} --data $F/data,
 case("train-data-trailing-comma", "input", "", f"{TRAIN} --data $F/data, --out $C/run", names=["--data"],
      may=("$C/run", "$C/run/*"), why="an empty element is not the current folder: refused naming --data")
 case("train-data-brace-beyond-shards", "input", "",
-     f"{TRAIN} --data '$F/shards/{{000000..000003}}.tar' --out $C/run", names=["000001.tar"],
+     f"{TRAIN} --data \"$F/shards/{{000000..000003}}.tar\" --out $C/run", names=["000001.tar"],
      may=("$C/run", "$C/run/*"), why="a brace range naming shards that do not exist: refused naming the first")
 case("train-data-shards-and-their-source", "input", "", f"{TRAIN} --data $F/shards,$F/data8 --out $C/run",
      expect="either", may=("$C/run", "$C/run/*"),
@@ -392,7 +392,7 @@ case("ec-threads-negative", "input", "", f"$PY -m orchestrate.error_calibration 
      why="a negative thread count is refused naming --threads")
 case("ec-work-a-file", "input", "echo hi > w\n", f"{EC} --out $C/ec.json --work $C/w", names=["--work"],
      timeout=60, why="--work a plain file is refused naming it, the file kept")
-case("ec-out-a-fifo", "input", "mkfifo ec.json\n", f"{EC} {ECO} --objects 0", names=["--out"],
+case("ec-out-a-fifo", "input", "mkfifo ec.json\n", f"{EC} {ECO} --objects 0", names=["--objects"],
      may=("$C/w", "$C/w/*"), timeout=60, why="--out a fifo is refused (no hang), or --objects first; no traceback")
 case("ec-out-inside-work", "writer", "", f"{EC} --work $C/w --out $C/w/fit.json --objects 0",
      names=["--objects"], may=("$C/w", "$C/w/*"), timeout=60,
