@@ -71,9 +71,13 @@ def estimate(k: int, h: int, w: int, full: tuple[int, int] | None = None) -> dic
 
 def check_resources(k: int, h: int, w: int, full: tuple[int, int] | None = None) -> dict:
     """The estimate, refused in one line above the memory this machine has available."""
-    from scenes.cli.limits import check_memory
+    from scenes.cli.limits import available_memory, check_memory
 
     need = estimate(k, h, w, full)
+    if PEAK_SPREAD * (BASE_MIB + MIB_PER_IMAGE * k) * 2**20 > (available_memory() or float("inf")):
+        # the photos' count alone is too much, whatever their size: a smaller --max-side would not help
+        check_memory(need["peak_mib"] * 2**20, "--input", f"{k} photos of {w} x {h} px",
+                     f"use fewer photos (each takes about {PEAK_SPREAD * MIB_PER_IMAGE:.0f} MiB whatever its size)")
     check_memory(need["peak_mib"] * 2**20, "--max-side", f"{k} photos of {w} x {h} px",
                  "give a smaller --max-side (e.g. --max-side 1024) to downscale them, or use fewer photos")
     return need

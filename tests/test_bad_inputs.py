@@ -2507,6 +2507,14 @@ ROWS += [
         sub=True,  # torch's "[enforce fail at inline_container.cc:672]" after it said nothing more)
     ),
     Row(
+        "train-resume-log-a-folder",  # sweep 39: '[Errno 21] Is a directory', exit 1, no flag named
+        TR,
+        [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "2", "--resume"],
+        2,
+        ("--resume", "log.jsonl", "is a folder"),
+        setup=_trained("run", lambda run: ((run / "log.jsonl").unlink(), (run / "log.jsonl").mkdir())),
+    ),
+    Row(
         "train-resume-torn-last-log-line",
         TR,
         [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "2", "--resume"],

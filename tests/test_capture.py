@@ -654,3 +654,19 @@ def test_one_grey_photo_among_colour_ones_is_named(tmp_path):
     for i in range(3):
         Image.fromarray(a[..., i]).save(tmp_path / f"p{i}.jpg", quality=95)
     assert read_photos(tmp_path).images.shape == (3, 6, 9, 3)
+
+
+def test_too_many_photos_are_refused_naming_the_count_not_the_size(monkeypatch):
+    """Sweep 39: 4000 photos of 32 x 32 px were refused with the advice to give a smaller --max-side (e.g. 1024),
+    which cannot help: each photo's fixed cost is what fills the memory. That case names --input and fewer photos;
+    large photos still get the --max-side advice."""
+    from orchestrate import capture_estimate
+    from scenes.cli import limits
+    from scenes.cli.errors import UsageError
+
+    monkeypatch.setattr(limits, "available_memory", lambda: 8 * 2**30)
+    with pytest.raises(UsageError, match=r"^--input: 4000 photos of 32 x 32 px needs about .*use fewer photos") as exc:
+        capture_estimate.check_resources(4000, 32, 32)
+    assert "--max-side" not in str(exc.value)
+    with pytest.raises(UsageError, match=r"^--max-side: 20 photos of 20000 x 20000 px .*smaller --max-side"):
+        capture_estimate.check_resources(20, 20000, 20000)

@@ -433,6 +433,7 @@ def open_stream(run: Run) -> Any:
 def resume_run(run: Run) -> None:
     """Continue from RUN/last.pt: the same trajectory settings and objects, then weights, optimiser, schedule,
     random states, step, best validation and elapsed time."""
+    from scenes.files import not_a_file
     from unips.checkpoint import load_state_strict, load_training_checkpoint, restore_training_state
     from unips.train_data import data_change
 
@@ -440,6 +441,9 @@ def resume_run(run: Run) -> None:
     if not os.path.lexists(run.last_path):  # a run stopped before its first checkpoint: nothing to continue
         raise ValueError(f"--resume: {str(run.last_path)!r} does not exist (the run stopped before its first "
                          "checkpoint); start it again without --resume, with --overwrite to replace its log")
+    if os.path.lexists(run.log_path) and (why := not_a_file(run.log_path)):  # the log is continued from last.pt
+        raise ValueError(f"--resume: the run's log {str(run.log_path)!r} {why} (the log.jsonl unips.train writes); "
+                         "restore it, or start the run again with --overwrite")
     try:
         ckpt = load_training_checkpoint(run.last_path)
     except ValueError as exc:
