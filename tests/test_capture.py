@@ -485,7 +485,9 @@ def test_three_photos_give_the_models_map_and_say_the_images_cannot_judge_it(pho
 
 
 def test_a_capture_too_large_for_the_memory_is_refused_before_any_work(photos, tmp_path, capsys, monkeypatch):
-    """The estimate is checked against the memory this machine has (here made small), in one line naming --max-side."""
+    """The estimate is checked against the memory this machine has (here made small), in one line. Sweep 39: where
+    even the smallest --max-side would not fit (96 px photos cost little more than 32 px ones), it names --input and
+    fewer photos, not a smaller --max-side."""
     from orchestrate.capture import main
     from orchestrate.capture_estimate import estimate
 
@@ -493,7 +495,7 @@ def test_a_capture_too_large_for_the_memory_is_refused_before_any_work(photos, t
     monkeypatch.setattr("scenes.cli.limits.available_memory", lambda: int(need * 2**20 * 0.5))
     assert main(["--input", str(photos), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("error: --max-side: 8 photos of 96 x 96 px needs about") and "--max-side 1024" in err
+    assert err.startswith("error: --input: 8 photos of 96 x 96 px needs about") and "fewer photos" in err, err
     assert not (tmp_path / "o" / "normal.png").exists()
     assert estimate(96, 512, 612)["peak_mib"] > estimate(16, 512, 612)["peak_mib"] > estimate(16, 256, 306)["peak_mib"]
 
@@ -665,8 +667,8 @@ def test_too_many_photos_are_refused_naming_the_count_not_the_size(monkeypatch):
     from scenes.cli.errors import UsageError
 
     monkeypatch.setattr(limits, "available_memory", lambda: 8 * 2**30)
-    with pytest.raises(UsageError, match=r"^--input: 4000 photos of 32 x 32 px needs about .*use fewer photos") as exc:
+    with pytest.raises(UsageError, match=r"^--input: 4000 photos of 32 x 32 px needs about .*fewer photos") as exc:
         capture_estimate.check_resources(4000, 32, 32)
-    assert "--max-side" not in str(exc.value)
+    assert "smaller --max-side" not in str(exc.value) and "even at --max-side 32" in str(exc.value)
     with pytest.raises(UsageError, match=r"^--max-side: 20 photos of 20000 x 20000 px .*smaller --max-side"):
         capture_estimate.check_resources(20, 20000, 20000)
