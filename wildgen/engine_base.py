@@ -40,6 +40,16 @@ def transient(exc: BaseException) -> bool:
     return isinstance(exc, (OSError, MemoryError)) or "out of memory" in str(exc).lower()
 
 
+def importing(frame) -> bool:
+    """Whether `frame` runs inside an import: Python called back by a native module while it initialises (nanobind's
+    enums), where an exception cannot cross the C++ frames and aborts the process (exit -6)."""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith("<frozen importlib"):
+            return True
+        frame = frame.f_back
+    return False
+
+
 def check_stop(exc: BaseException | None = None) -> None:
     """Raise KeyboardInterrupt (from `exc`) when a stop signal arrived: an interrupt in disguise stops the run."""
     if STOP_SIGNALS:

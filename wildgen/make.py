@@ -372,12 +372,16 @@ def main(argv: list[str] | None = None, state: dict | None = None) -> int:
     import signal
 
     from wildgen import parallel
+    from wildgen.engine_base import importing
 
     state = {} if state is None else state
 
     def on_signal(signum, frame):  # Ctrl-C, SIGTERM (schedulers), SIGHUP (a closed terminal): one clean stop
         state["signal"] = signum
         parallel.STOP_SIGNALS.append(signum)  # seen even when a native call turns the interrupt into an error
+        if importing(frame):  # raised there it would abort the process: again in 50 ms, once the import is done
+            signal.signal(signal.SIGALRM, lambda _s, f: on_signal(signum, f))
+            return signal.setitimer(signal.ITIMER_REAL, 0.05)
         raise KeyboardInterrupt
 
     handled = [s for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)  # one the shell ignores (nohup) stays so
@@ -386,17 +390,13 @@ def main(argv: list[str] | None = None, state: dict | None = None) -> int:
     previous = {s: signal.signal(s, on_signal) for s in handled} if main_thread else {}
     try:
         return _run(argv, state)
-    except Exception:
-        if "signal" not in state:
-            raise
-        # The interrupt reached a library mid-import or mid-call and came out as another error (drjit's import
-        # turns it into a NameError): still the user's Ctrl-C, not a fault.
-        print("interrupted: finished objects are kept; re-run the same command to continue", file=sys.stderr)
-        return 128 + state["signal"]
-    except KeyboardInterrupt:
+    except (Exception, KeyboardInterrupt) as exc:  # an interrupt may reach a library mid-import or mid-call and come
+        if not isinstance(exc, KeyboardInterrupt) and "signal" not in state:  # out as another error (drjit's import
+            raise  # turns it into a NameError): still the user's Ctrl-C, not a fault
         print("interrupted: finished objects are kept; re-run the same command to continue", file=sys.stderr)
         return 128 + state.get("signal", signal.SIGINT)
     finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)  # a stop deferred past an import (on_signal) is not re-sent later
         for s, handler in previous.items():
             signal.signal(s, handler)
         parallel.STOP_SIGNALS.clear()
