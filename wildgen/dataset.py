@@ -282,10 +282,8 @@ def plan_run(cfg: GenConfig, out_dir: Path, variant: str, overwrite: bool = Fals
                 f"--objects: {str(out_dir)!r} already has {old_objects} objects, {cfg.objects} is fewer; "
                 "pass at least that many or --overwrite"
             )
-        now = versions()
-        old_versions = manifest.get("versions", {})
-        changed = [k for k in ("mitsuba", "drjit", "numpy") if old_versions.get(k) != now.get(k)]
-        if changed:
+        now, old_versions = versions(), manifest.get("versions", {})
+        if changed := [k for k in ("mitsuba", "drjit", "numpy") if old_versions.get(k) != now.get(k)]:
             log.warning("manifest was written with other versions of %s: resumed objects may differ in bytes",
                         ", ".join(changed))
         check_no_foreign_file(out_dir, "--out")  # a done object found changed is rendered anew: never take theirs
