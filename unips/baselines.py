@@ -101,7 +101,9 @@ def least_squares(obj: PSObject, chunk: int = 65536) -> np.ndarray:
         raise ValueError(f"--method least-squares: object {obj.name}'s light directions have shape {L.shape}, "
                          f"expected ({K}, 3): one direction per image")
     if K < 3 or np.linalg.matrix_rank(L) < 3:  # a plane of lights leaves the normal's third component unknown
-        src = next((str(obj.path / n) for n in ("light_directions.txt", "scene.json") if (obj.path / n).is_file()),
+        from scenes.folder.format import DILIGENT_LIGHTS, SCENE_FILE
+
+        src = next((str(obj.path / n) for n in (DILIGENT_LIGHTS, SCENE_FILE) if (obj.path / n).is_file()),
                    str(obj.path))
         raise ValueError(f"--method least-squares: object {obj.name}'s {K} light directions ({src!r}) span only "
                          f"{np.linalg.matrix_rank(L)} dimension(s); expected at least 3 lights not in one plane")
