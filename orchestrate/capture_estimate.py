@@ -17,12 +17,12 @@ MIB_PER_MVALUE = 13.4
 """Memory per 2^20 photo values at the working size (K x h x w x 3): the float32 stack, the model's and the check's
 working copies."""
 PEAK_SPREAD = 1.1
-SMALLEST_SIDE = 32
-"""The smallest working size a capture takes (`orchestrate.capture.MIN_SIDE`, the least --max-side but 0)."""
 """The fitted memory times this: one capture's peak varies from run to run (glibc's arenas and the threads'
 timing), which single runs of the bench do not show. Measured on DiLiGenT ball, 96 JPEG photos, the same command
 four times: 3603, 3608, 3629 and 4067 MiB (the last while another heavy job ran); the fitted terms, 5 % above the
 bench's single runs, gave 3861; with this factor 4247."""
+SMALLEST_SIDE = 32
+"""The smallest working size a capture takes (`orchestrate.capture.MIN_SIDE`, the least --max-side but 0)."""
 SECONDS_START = 6.4
 """Start-up: Python, torch, Mitsuba / Dr.Jit and the model loaded."""
 SECONDS_BASE = 1.84
@@ -75,11 +75,11 @@ def check_resources(k: int, h: int, w: int, full: tuple[int, int] | None = None)
     """The estimate, refused in one line above the memory this machine has available."""
     from scenes.cli.limits import available_memory, check_memory
 
-    need, what = estimate(k, h, w, full), f"{k} photos of {w} x {h} px"
+    need, what, available = estimate(k, h, w, full), f"{k} photos of {w} x {h} px", available_memory()
     least = estimate(k, min(h, SMALLEST_SIDE), min(w, SMALLEST_SIDE))["peak_mib"]  # at the smallest --max-side
-    if least * 2**20 > (available_memory() or float("inf")):  # then a smaller --max-side would not help
+    if available is not None and least * 2**20 > available:  # then a smaller --max-side would not help
         check_memory(need["peak_mib"] * 2**20, "--input", what, f"even at --max-side {SMALLEST_SIDE} they would "
-                     f"need about {least / 1024:.1f} GiB: use fewer photos, or a machine with more memory")
+                     f"need about {least / 1024:.1f} GiB: use fewer photos, or a machine with more memory", available)
     check_memory(need["peak_mib"] * 2**20, "--max-side", what,
-                 "give a smaller --max-side (e.g. --max-side 1024) to downscale them, or use fewer photos")
+                 "give a smaller --max-side (e.g. --max-side 1024) to downscale them, or use fewer photos", available)
     return need

@@ -41,7 +41,7 @@ from scenes.cli.errors import INPUT_ERRORS, UsageError, one_line, report_error
 from scenes.cli.limits import check_memory, gib
 from scenes.cli.needs import Needs
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
-from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs, output_lock
+from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import Progress
 from scenes.cli.supervise import run_supervised
 from scenes.files import read_json, shown_name, write_json
@@ -273,8 +273,8 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
     try:
         args = COMMAND.parse(argv).validate()
         held.enter_context(output_lock(args.out, inputs={"--input": args.input}))
-        check_not_being_written(args.input, "--input")
-        # the weights first (the published ones are checked finite and of the network's kind): before any input
+        # (an --input another run is still writing: refused by output_lock.) The weights first (the published ones are
+        # checked finite and of the network's kind): before any input
         net = load_network(args.checkpoint, args.device, args.model) if args.method == "model" else None
         if net is not None and args.scalable:
             scalable_patch(net)  # a file's network that cannot take --scalable: once, before any object

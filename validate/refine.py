@@ -20,7 +20,7 @@ from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.limits import check_threads
 from scenes.cli.needs import Needs
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
-from scenes.cli.outputs import check_not_being_written, check_output_folder, claim_outputs, output_lock
+from scenes.cli.outputs import check_output_folder, claim_outputs, output_lock
 from scenes.cli.progress import progress_bar
 from scenes.cli.supervise import run_supervised
 from scenes.files import read_json
@@ -137,7 +137,6 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
                             format="%(levelname)s %(name)s: %(message)s")
         config = args.validate().refine
         held.enter_context(output_lock(args.out, inputs={"--data": args.data, "--normals": args.normals}))
-        check_not_being_written(args.data, "--data")  # an object another run is still writing
         if not Path(args.normals).exists():
             raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
         if not Path(args.data).is_dir():

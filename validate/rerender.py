@@ -39,7 +39,6 @@ from scenes.cli.needs import Needs
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option
 from scenes.cli.outputs import (
     check_listed,
-    check_not_being_written,
     check_output_folder,
     claim_outputs,
     holds_keys,
@@ -382,7 +381,6 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
     try:
         args = COMMAND.parse(argv).validate()
         held.enter_context(output_lock(args.out, inputs={"--data": args.data, "--normals": args.normals}))
-        check_not_being_written(args.data, "--data")  # a dataset wildgen.make is still rendering
         logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
                             format="%(levelname)s %(name)s: %(message)s")
         from scenes.folder.layouts import detect_layout, has_scene

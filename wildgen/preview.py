@@ -181,9 +181,11 @@ def preview(dataset: str | Path, out: str | Path | None = None,
 
 # ---------------------------------------------------------------------------------- the dataset card
 
-def write_stats(dataset: str | Path, out: str | Path | None = None, overwrite: bool = False) -> list[Path]:
-    """Write the dataset card (stats.png) and its numbers (stats.json); returns their paths. Outputs are
-    checked before any folder is read; existing ones are replaced only with `overwrite`."""
+def write_stats(dataset: str | Path, out: str | Path | None = None,
+                overwrite: bool = False) -> tuple[list[Path], dict[str, str]]:
+    """Write the dataset card (stats.png) and its numbers (stats.json); returns their paths and the objects that
+    could not be read ({name: reason}). Outputs are checked before any folder is read; existing ones are replaced
+    only with `overwrite`."""
     from scenes.cli.outputs import claim_outputs
     from scenes.files import atomic_write_text
     from scenes.images import write_picture
@@ -203,7 +205,7 @@ def write_stats(dataset: str | Path, out: str | Path | None = None, overwrite: b
     make_output_folder(out_dir)
     write_picture(targets[0], picture)
     atomic_write_text(targets[1], json_text(stats))
-    return targets
+    return targets, stats["failed"]
 
 
 @dataclass
@@ -260,11 +262,9 @@ def _write(args) -> int:
 
     try:
         if args.stats:
-            written = write_stats(args.dataset, args.out, args.overwrite)  # outputs checked before any read
+            written, failed = write_stats(args.dataset, args.out, args.overwrite)  # outputs checked before any read
             print(f"wrote the dataset card {written[0]} and its numbers {written[1]}")
-            from scenes.files import read_json
-
-            if failed := read_json(written[1]).get("failed"):  # counted on the card, said here too (as the sheets)
+            if failed:  # counted on the card, said here too (as the sheets)
                 name, reason = next(iter(failed.items()))
                 print(f"error: {len(failed)} object(s) could not be read for the card (first, {name}: {reason}); "
                       f"they are listed under 'failed' in {written[1]}", file=sys.stderr)

@@ -70,13 +70,18 @@ def check_not_being_written(path: str | os.PathLike, flag: str) -> None:
                          "has finished, then run this again")
 
 
+def _ours() -> set[str]:
+    """The folders this process or the commands that started it hold (`HELD_ENV`): never another run's."""
+    return set(_HELD) | set(filter(None, os.environ.get(HELD_ENV, "").split(os.pathsep)))
+
+
 def _holder_below(folder: str, limit: int = 20000) -> str | None:
     """The first folder strictly inside `folder` (links not followed) that another run holds, None when none does
     (or `folder` is not a folder); folders ours (`HELD_ENV`) are not counted. At most `limit` folders are probed:
     a run's folders are object folders, a few levels down, never more."""
     if not os.path.isdir(folder):
         return None
-    ours = set(_HELD) | set(filter(None, os.environ.get(HELD_ENV, "").split(os.pathsep)))
+    ours = _ours()
     seen = 0
     for top, dirs, _ in os.walk(folder, followlinks=False):
         for name in dirs:
@@ -92,7 +97,7 @@ def _holder_below(folder: str, limit: int = 20000) -> str | None:
 def _holder_from(folder: str) -> str | None:
     """The first of `folder` and the folders above it that another run holds (`_held_by_another`), None when none
     does; folders this process or the commands that started it hold are ours (`HELD_ENV`)."""
-    ours = set(_HELD) | set(filter(None, os.environ.get(HELD_ENV, "").split(os.pathsep)))
+    ours = _ours()
     while True:
         if folder not in ours and _held_by_another(folder):
             return folder
