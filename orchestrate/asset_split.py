@@ -118,16 +118,25 @@ def split_assets(assets: Path, work: Path) -> tuple[Path, Path]:
     return work / SPLIT_FOLDERS[0], work / SPLIT_FOLDERS[1]
 
 
-def check_own_files(assets: Path, files: list[Path]) -> None:
-    """Refuse a file reached through a link that leads out of the asset folder: the pack leaves the machine, so it
-    carries the folder's own files only (a link could pack any file this user may read)."""
+def check_packable(assets: Path, files: list[Path]) -> None:
+    """Refuse a file reached through a link that leads out of the asset folder (the pack leaves the machine, so it
+    carries the folder's own files only: a link could pack any file this user may read), and a mesh the renderer
+    cannot use (no faces, corrupt: wildgen.make's own up-front check would refuse it on the GPU machine, after the
+    start-up that device time pays for)."""
     import os
 
     from scenes.cli.errors import UsageError
     from scenes.files import is_within
+    from scenes.meshes import MESH_SUFFIXES, load_mesh
 
     out = next((p for p in files if not is_within(p, assets)), None)
     if out is not None:
         raise UsageError(f"--assets: {str(out)!r} leads outside {str(assets)!r} through a link (to "
                          f"{os.path.realpath(out)!r}); the pack carries the asset folder's own files only: copy the "
                          "file in, or remove the link")
+    for p in files:
+        if p.suffix.lower() in MESH_SUFFIXES:
+            try:
+                load_mesh(p)
+            except (ValueError, OSError) as exc:
+                raise UsageError(f"--assets: {exc}; fix or remove the file (it is in the training split)") from None

@@ -3,18 +3,13 @@
 - `resolve_init`: `--init shipped|PATH`, the weights a session continues from, checked against the shipped
   architecture before any work (a session never restarts from fresh weights by accident, and never trains a
   model that could not replace the shipped one).
-- `pack_assets`: the training assets that travel in the pack, chosen by `ASSET_RULE` (recorded in the pack's
-  manifest.json): the recipe's training split only (`orchestrate.asset_split.split_plan`, never a held-out
-  mesh or HDR map), every training mesh, every training HDR map reduced to `HDR_WIDTH` px, then whole texture
-  sets in name order while the upload limit allows.
+- `pack`: the wheels' site.tar.xz and, with `orchestrate.asset_pack`, the training assets' archive.
 - `unpack_carry`: on the GPU machine, the pack's archives unpacked into --work (Mitsuba's site folder put on
   the path of this process and of its steps).
 """
 from __future__ import annotations
 
-import io
 import json
-import lzma
 import os
 import shutil
 import subprocess
@@ -26,6 +21,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from orchestrate.archives import unpack_once
+from orchestrate.asset_pack import ASSET_ARCHIVE, check_assets, pack_assets
 from scenes.cli.errors import UsageError
 
 REPO = Path(__file__).resolve().parents[1]
@@ -34,15 +30,7 @@ UPLOAD_LIMIT = 64 * 2**20
 KEEP_VARIANTS = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
 """The Mitsuba variants the packed Mitsuba keeps (render, check, and the check's fallback)."""
 SITE_ARCHIVE = "site.tar.xz"
-ASSET_ARCHIVE = "assets.tar.xz"
 MANIFEST = "manifest.json"
-HDR_WIDTH = 256
-"""Width of the packed HDR maps (equirectangular, 256 x 128; area-averaged, so each light keeps its energy):
-renders are 128 px, and a 1k map alone is 1.5 MiB, 28 of them more than the upload limit leaves."""
-ASSET_RULE = (f"the training split of orchestrate.asset_split.split_plan (the last quarter of the meshes and the "
-              f"last fifth of the HDR maps by name are held out and never packed); every training mesh folder; "
-              f"every training HDR map area-resampled to {HDR_WIDTH} px wide; then whole texture sets in name order "
-              f"while the upload limit allows")
 PACKED = ("mitsuba==3.9.1", "drjit==1.5.0", "OpenEXR", "trimesh", "colour-science", "colour-demosaicing", "webdataset",
           "braceexpand", "tyro==1.0.17", "docstring-parser", "typeguard")
 """The wheels docs/model.md downloads for the pack: what the GPU image lacks, or lacks in this version (matplotlib
@@ -120,103 +108,6 @@ def check_architecture(path: Path, name: str | None, config: dict | None, flag: 
         raise UsageError(f"{flag}: {str(path)!r} is a {name!r} whose configuration differs from the shipped "
                          f"weights' in {', '.join(diff[:4])} (expected the shipped architecture: an architecture "
                          "change is a new model, trained by orchestrate.train_recipe, not a relay run)")
-
-
-# ---------------------------------------------------------------- the assets (here)
-
-
-def asset_choice(
-    assets: Path,
-) -> tuple[list[tuple[Path, str]], list[tuple[Path, str]], list[list[tuple[Path, str]]], list[str]]:
-    """(meshes, HDR maps, texture sets, held-out names) of the training split: (file, name in the archive) pairs."""
-    from orchestrate.asset_split import SPLIT_FOLDERS, split_plan
-
-    plan = split_plan(assets, Path("/split"))
-    train = Path("/split") / SPLIT_FOLDERS[0]
-    meshes, hdris, held = [], [], []
-    for link, src in sorted(plan.items()):
-        if link.parent.name in SPLIT_FOLDERS:  # the shared texture folder: chosen below
-            continue
-        if train not in link.parents:
-            held.append(f"{link.parent.name}/{src.name}")
-        elif link.parent.name == "meshes":
-            files = sorted(p for p in src.rglob("*") if p.is_file()) if src.is_dir() else [src]
-            meshes += [(p, f"meshes/{p.relative_to(src.parent)}") for p in files]
-        else:
-            hdris.append((src, f"hdri/{src.stem}.hdr"))
-    tex = assets / "textures"
-    sets = []
-    if tex.is_dir():
-        for d in sorted(
-            {
-                p.parent
-                for p in tex.rglob("*")
-                if p.is_file() and p.suffix.lower() in (".jpg", ".jpeg", ".png", ".exr", ".tif", ".tiff")
-            }
-        ):
-            sets.append([(p, f"textures/{p.relative_to(tex)}") for p in sorted(d.iterdir()) if p.is_file()])
-    return meshes, hdris, sets, held
-
-
-def _small_hdr(src: Path) -> bytes:
-    import cv2
-
-    from scenes.images import decode_image
-
-    img = decode_image(src, cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH, f"--assets: {str(src)!r}")
-    if img is None:
-        raise UsageError(f"--assets: {str(src)!r} is not an HDR map OpenCV reads")
-    img = cv2.resize(img, (HDR_WIDTH, HDR_WIDTH // 2), interpolation=cv2.INTER_AREA)
-    ok, buf = cv2.imencode(".hdr", img)
-    return buf.tobytes()
-
-
-def pack_assets(assets: Path, dest: Path, budget: int) -> dict:
-    """Write dest/assets.tar.xz (`ASSET_RULE`, within `budget` bytes) and return its manifest entry."""
-    if not assets.is_dir():
-        raise UsageError(f"--assets: {str(assets)!r} is not a folder (expected an asset folder with meshes/ and hdri/, "
-                         "or 'none')")
-    meshes, hdris, sets, held = asset_choice(assets)
-    if not meshes and not hdris:
-        raise UsageError(f"--assets: {str(assets)!r} has too few meshes and HDR maps to split into training and "
-                         "held-out assets (expected meshes/ and hdri/ as in ../shared/assets)")
-    from orchestrate.asset_split import check_own_files
-
-    check_own_files(assets, [p for p, _ in meshes] + [p for p, _ in hdris] + [p for f in sets for p, _ in f])
-    members: list[tuple[str, bytes]] = [(a, p.read_bytes()) for p, a in meshes]
-    members += [(a, _small_hdr(p)) for p, a in hdris]
-    used = sum(len(lzma.compress(b, preset=6)) for _, b in members)
-    if used > budget:
-        raise UsageError(f"--assets: the training meshes and maps of {str(assets)!r} need {used} bytes compressed, "
-                         f"over the {budget} bytes the upload limit leaves (expected a smaller asset folder)")
-    packed_sets, skipped = [], []
-    for files in sets:
-        data = [(a, p.read_bytes()) for p, a in files]
-        size = sum(len(lzma.compress(b, preset=6)) for _, b in data)
-        name = str(Path(files[0][1]).parent)
-        if used + size <= budget:
-            members += data
-            used += size
-            packed_sets.append(name)
-        else:
-            skipped.append(name)
-    dest.mkdir(parents=True, exist_ok=True)
-    from scenes.files import atomic_write
-
-    def write(tmp: Path) -> None:
-        with tarfile.open(tmp, "w:xz", preset=6) as tar:
-            for arc, data in members:
-                ti = tarfile.TarInfo(f"assets/{arc}")
-                ti.size, ti.mode = len(data), 0o644
-                tar.addfile(ti, io.BytesIO(data))
-
-    atomic_write(dest / ASSET_ARCHIVE, write)
-    size = (dest / ASSET_ARCHIVE).stat().st_size
-    if size > budget:
-        raise UsageError(f"--assets: {ASSET_ARCHIVE} is {size} bytes, over the {budget} bytes the upload limit leaves")
-    return {"source": str(assets), "rule": ASSET_RULE, "bytes": size, "budget_bytes": budget,
-            "meshes": sorted({a.split("/")[1] for _, a in meshes}), "hdri": [a for _, a in hdris],
-            "texture_sets": packed_sets, "texture_sets_left_out": skipped, "held_out_never_packed": held}
 
 
 def write_manifest(dest: Path, entries: dict) -> None:
@@ -365,6 +256,7 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
     if clash := sorted(folders & owner.keys()):  # a file where another wheel's member needs a folder
         raise UsageError(f"--wheels: {owner[clash[0]].name!r} holds the file {clash[0][:120]!r}, which another "
                          "member needs as a folder (expected wheels that install side by side); refused")
+    chosen = check_assets(assets) if assets is not None else None  # a bad asset named before the long compression
     dest.mkdir(parents=True, exist_ok=True)
     archive = dest / SITE_ARCHIVE
 
@@ -382,7 +274,7 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
 
     atomic_write(archive, write)  # a full disk leaves no half archive, and says which file it was
     try:
-        total, mib = _finish_pack(dest, archive, found, limit, tree, assets)
+        total, mib = _finish_pack(dest, archive, found, limit, tree, assets, chosen)
     except UsageError:  # a pack over the limit is no pack: nothing of it stays to be carried by mistake
         for name in (SITE_ARCHIVE, ASSET_ARCHIVE, MANIFEST):
             (dest / name).unlink(missing_ok=True)
@@ -392,7 +284,7 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
 
 
 def _finish_pack(dest: Path, archive: Path, found: list[Path], limit: int, tree: int | None,
-                 assets: Path | None) -> tuple[int, str]:
+                 assets: Path | None, chosen: tuple | None = None) -> tuple[int, str]:
     """The assets archive and the manifest beside a written site archive; UsageError when the whole is over
     `limit` (the manifest is written only for a pack within it)."""
     tree = tree_bytes() if tree is None else tree
@@ -401,7 +293,7 @@ def _finish_pack(dest: Path, archive: Path, found: list[Path], limit: int, tree:
                 "upload_limit_bytes": limit}
     (dest / ASSET_ARCHIVE).unlink(missing_ok=True)  # an earlier pack's (claimed above) never outlives its manifest
     if assets is not None:
-        manifest["assets"] = pack_assets(assets, dest, limit - site - tree - MARGIN)
+        manifest["assets"] = pack_assets(assets, dest, limit - site - tree - MARGIN, chosen)
     asset_bytes = manifest.get("assets", {}).get("bytes", 0)
     total = site + asset_bytes + tree
     manifest["total_bytes"] = total

@@ -17,7 +17,7 @@ def check_int(value: Any, name: str, minimum: float | None = None, maximum: floa
     ok = isinstance(value, numbers.Integral) and not isinstance(value, bool)
     if not ok or (minimum is not None and value < minimum) or (maximum is not None and value > maximum):
         def n(bound: float) -> str:  # integers in full (2147483645, not 2.14748e+09)
-            return str(int(bound)) if float(bound).is_integer() else f"{bound:g}"
+            return str(int(bound)) if isinstance(bound, int) or float(bound).is_integer() else f"{bound:g}"
 
         if minimum is not None and maximum is not None:
             what = f"an integer from {n(minimum)} to {n(maximum)}"
@@ -27,7 +27,8 @@ def check_int(value: Any, name: str, minimum: float | None = None, maximum: floa
             what = f"an integer <= {n(maximum)}"
         else:
             what = "an integer"
-        raise ValueError(f"{name}: got {value!r}, expected {what}")
+        shown = repr(value)
+        raise ValueError(f"{name}: got {shown if len(shown) <= 40 else shown[:24] + '...'}, expected {what}")
     return int(value)
 
 

@@ -720,6 +720,8 @@ ROWS: list[Row] = [
     Row("make-res-float", MK, ["--out", "{T}/o", "--res", "12.5"], 2, ("--res", "12.5")),
     Row("make-bounces-negative", MK, ["--out", "{T}/o", "--bounces", "-1"], 2, ("--bounces",)),
     Row("make-seed-negative", MK, ["--out", "{T}/o", "--seed", "-1"], 2, ("--seed",)),
+    # beyond 64 bits: the manifest would record a seed its own reader refuses
+    Row("make-seed-65-bits", MK, ["--out", "{T}/o", "--seed", str(2**64)], 2, ("--seed", "9223372036854775807")),
     Row("make-focal-orthographic", MK, ["--out", "{T}/o", "--focal", "15-300"], 2, ("--focal", "--camera perspective")),
     Row(
         "make-focal-reversed",
@@ -1753,6 +1755,7 @@ ROWS: list[Row] = [
         ("--val", "nope"),
     ),
     # ---- orchestrate.demo (fast-failing cases: the full demo is `make demo`)
+    Row("demo-seed-65-bits", DEMO, ["--out", "{T}/d", "--seed", str(2**64)], 2, ("--seed",), check=_not_written("d")),
     Row("demo-objects-0", DEMO, ["--out", "{T}/d", "--objects", "0"], 2, ("--objects",), check=_not_written("d")),
     Row("demo-res-small", DEMO, ["--out", "{T}/d", "--res", "8"], 2, ("--res",), check=_not_written("d")),
     Row("demo-baseline-unknown", DEMO, ["--out", "{T}/d", "--baseline", "magic"], 2, ("--baseline", "magic")),
@@ -3530,6 +3533,18 @@ def _clashing_wheels(w: Path, t: Path) -> None:
                 z.writestr(member, "")
 
 
+def _faceless_training_mesh(w: Path, t: Path) -> None:
+    """Setup: T/wheels/ of two tiny readable wheels, and T/a: the world's two-mesh asset folder plus a.obj (first by
+    name, so in the training split) of three vertices and no face."""
+    import zipfile
+
+    for name in ("mitsuba-3.9.1", "drjit-1.5.0"):
+        with zipfile.ZipFile(_mk(t / "wheels") / f"{name}-cp312-cp312-manylinux_2_28_x86_64.whl", "w") as z:
+            z.writestr(f"{name.split('-')[0]}/__init__.py", "")
+    shutil.copytree(w / "assets_two", t / "a")
+    (t / "a" / "meshes" / "a.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
+
+
 def _unscened(w: Path, t: Path) -> None:
     """T/d.data: the world's object 00000 without its scene file (read as an official UniPS folder: fitted check)."""
     shutil.copytree(w / "data" / "00000.data", t / "d.data", ignore=shutil.ignore_patterns("scene.json"))
@@ -3617,6 +3632,10 @@ ROWS += [
                                                    "{T}/a"], 2, ("--pack", "--assets"),  # sweep 37: packed there
         setup=_both(_empty_wheel, lambda w, t: shutil.copytree(w / "assets_two", t / "a")),
         check=_not_written("a/meshes/site.tar.xz", "a/meshes/assets.tar.xz")),
+    Row("gpu-session-pack-a-training-mesh-without-faces", GS, ["--pack", "{T}/pack", "--wheels", "{T}/wheels",
+                                                                "--assets", "{T}/a"], 2,  # sweep 39: packed, exit 0
+        ("--assets", "a.obj", "no triangles", "training split"), setup=_faceless_training_mesh,
+        check=_not_written("pack")),
     Row("gpu-session-work-is-the-carry-folder", GS, ["--out", "{T}/o", "--work", "{T}/c", "--carry", "{T}/c",
                                                      "--cpu-rehearsal"], 2, ("--work", "overlaps --carry"),
         setup=_carry_of("pkg/__init__.py"), check=_not_written("c/site", "o")),

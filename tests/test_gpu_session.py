@@ -157,7 +157,7 @@ def test_asset_pack_carries_no_file_reached_through_a_link_out_of_the_asset_fold
     import numpy as np
     import trimesh
 
-    from orchestrate import relay
+    from orchestrate import asset_pack, relay
 
     assets = tmp_path / "A"
     (assets / "meshes").mkdir(parents=True)
@@ -167,7 +167,7 @@ def test_asset_pack_carries_no_file_reached_through_a_link_out_of_the_asset_fold
         trimesh.creation.icosphere(subdivisions=1).export(str(assets / "meshes" / f"m{i}.ply"))
     for i in range(5):
         cv2.imwrite(str(assets / "hdri" / f"h{i}.hdr"), (rng.random((8, 16, 3)) + 0.2).astype(np.float32))
-    meshes = relay.asset_choice(assets)[0]
+    meshes = asset_pack.asset_choice(assets)[0]
     linked = meshes[0][0]
     (tmp_path / "secret.txt").write_text("not an asset\n")
     saved = linked.read_bytes()

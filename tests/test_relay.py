@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 from fixtures import render_dataset
 
-from orchestrate import relay, ship
+from orchestrate import asset_pack, relay, ship
 from orchestrate.asset_split import split_plan
 from scenes.cli.errors import UsageError
 
@@ -191,7 +191,7 @@ def test_packed_assets_are_the_training_split_within_the_budget(tmp_path):
     import numpy as np
 
     img = cv2.imdecode(np.frombuffer(hdr, np.uint8), cv2.IMREAD_UNCHANGED)
-    assert img.shape == (relay.HDR_WIDTH // 2, relay.HDR_WIDTH, 3) and abs(float(img.mean()) - 0.5) < 0.01
+    assert img.shape == (asset_pack.HDR_WIDTH // 2, asset_pack.HDR_WIDTH, 3) and abs(float(img.mean()) - 0.5) < 0.01
     with pytest.raises(UsageError, match=r"^--assets: .* need \d+ bytes compressed, over the 100 bytes"):
         relay.pack_assets(assets, tmp_path / "c2", budget=100)
 

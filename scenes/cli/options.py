@@ -208,6 +208,10 @@ def undocumented_fields(cls: type) -> list[str]:
     return missing
 
 
+INT64 = (-(2**63), 2**63 - 1)
+"""The widest integer option: JSON records (scenes.files.read_json) and numpy refuse integers beyond 64 bits."""
+
+
 def check_fields(cfg: Any) -> Any:
     """Check every field of a config against its type and `option` bounds and choices (None passes where the
     type allows it); nested configs are checked by their own `validate`. Returns `cfg`."""
@@ -220,6 +224,9 @@ def check_fields(cfg: Any) -> Any:
         if (value is None and _allows_none(hints[f.name])) or _is_nested(tp):
             continue
         bounds = {k: meta.get(k) for k in ("minimum", "maximum")}
+        if tp is int or typing.get_args(tp)[:1] == (int,):  # no record of ours holds an integer beyond 64 bits
+            bounds = {"minimum": INT64[0] if bounds["minimum"] is None else bounds["minimum"],
+                      "maximum": INT64[1] if bounds["maximum"] is None else bounds["maximum"]}
         origin = typing.get_origin(tp)
         if tp is int:
             check_int(value, name, **bounds)
