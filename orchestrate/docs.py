@@ -36,28 +36,16 @@ CARD = REPO / "unips" / "weights" / "model_card.json"
 # Every command-line entry point of the packages, in the order a reader meets them. Each module has a
 # `COMMAND` (`scenes.cli.options.Command`); each needs a `flags:MODULE` block somewhere in the docs (checked).
 CLIS = (
-    "wildgen.make",
-    "wildgen.preview",
-    "wildgen.sensor",
-    "wildgen.export",
-    "unips.train",
-    "unips.predict",
-    "unips.evaluate",
-    "validate.rerender",
-    "validate.refine",
-    "orchestrate.demo",
-    "orchestrate.benchmark",
-    "orchestrate.train_recipe",
-    "orchestrate.gpu_session",
-    "orchestrate.ship",
-    "orchestrate.error_calibration",
-    "orchestrate.capture",
-    "orchestrate.surface",
+    "wildgen.make", "wildgen.preview", "wildgen.sensor", "wildgen.export",
+    "unips.train", "unips.predict", "unips.evaluate", "validate.rerender", "validate.refine",
+    "orchestrate.demo", "orchestrate.benchmark", "orchestrate.train_recipe", "orchestrate.gpu_session",
+    "orchestrate.ship", "orchestrate.error_calibration", "orchestrate.capture", "orchestrate.surface",
     "orchestrate.docs",
 )
 
 BEGIN = re.compile(r"^<!-- BEGIN generated:(?P<name>[\w.:-]+) -->$")
 END = "<!-- END generated:{name} -->"
+STRAY_END = re.compile(r"^<!-- END generated:")
 
 # ---------------------------------------------------------------- flag tables
 
@@ -417,6 +405,9 @@ def regenerate(text: str, card: dict, where: str = "", card_path: Path | None = 
         m = None if fenced else BEGIN.match(lines[i].strip())
         i += 1
         if not m:
+            if not fenced and STRAY_END.match(lines[i - 1].strip()):  # its BEGIN lost in an edit: a block unkept
+                raise UsageError(f"{where}: line {i} {lines[i - 1].strip()!r} closes no block (expected a BEGIN "
+                                 "line above it, or no END line)")
             continue
         name = m["name"]
         end = END.format(name=name)

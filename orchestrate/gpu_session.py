@@ -100,7 +100,7 @@ class SessionOptions:
     check_variant: Literal["auto", "none", "cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb"] = "auto"
     """Variant of the check's second render; auto: llvm_ad_rgb when it runs here, else scalar_rgb; none: no check."""
     check_objects: int = option(3, minimum=1)
-    """Objects rendered again for the check."""
+    """Objects rendered again for the check (all of them where --objects is fewer)."""
     noise_cv: float = option(4.0, above=0)
     """Assumed coefficient of variation of one path-traced sample: images agree when the relative RMS difference
     of two renders is at most noise_cv * sqrt(2 / spp)."""

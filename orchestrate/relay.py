@@ -377,10 +377,14 @@ def unpack_carry(carry: Path, work: Path, replace: bool = False, then: Callable[
         packed = None
         if (carry / ASSET_ARCHIVE).is_file():
             unpack_once(carry / ASSET_ARCHIVE, work, under="assets", replace=replace)
-            if not (work / "assets").is_dir() or not any((work / "assets").iterdir()):  # packed, yet nothing there
+            from wildgen.assets import AssetLibrary
+
+            try:  # packed, yet nothing to draw there: the archive is at fault, not the folder it was unpacked into
+                AssetLibrary.scan(work / "assets")
+            except (ValueError, OSError):
                 raise UsageError(f"--carry: {str(carry / ASSET_ARCHIVE)!r} holds no asset folder (expected assets/ "
                                  "with the packed meshes, maps and textures); pack again with --pack, or remove it to "
-                                 "render without")
+                                 "render without") from None
             packed = work / "assets"
         return then(packed) if then is not None else packed
     except UsageError:  # a refused pack or flag leaves nothing behind: what was unpacked a moment ago goes too

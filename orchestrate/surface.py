@@ -51,7 +51,8 @@ class SurfaceOptions:
     k: float = option(2.0, minimum=0.0)
     """Sharpness of the discontinuity weights (0: one smooth surface, no discontinuities)."""
     overwrite: bool = False
-    """Replace this command's files of an earlier run in --out (nothing else is touched)."""
+    """Replace this command's files of an earlier run in --out (its meshes of formats not written now are removed;
+    nothing else is touched)."""
 
     def validate(self) -> "SurfaceOptions":
         from scenes.surface.mesh import MESH_FORMATS
@@ -108,6 +109,7 @@ def main(argv: list[str] | None = None) -> int:
 def _main(argv: list[str] | None, held: ExitStack) -> int:
     from scenes.cli.limits import check_memory
     from scenes.surface.integrate import IntegrationConfig, integrate
+    from scenes.surface.mesh import MESH_FORMATS
     from scenes.surface.write import REPORT_KEYS, SURFACE_MESH, surface_outputs, write_surface
 
     try:
@@ -122,9 +124,14 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         earlier = Path(args.out) / "report.json"
         claim_outputs(surface_outputs(args.out, args.mesh), args.overwrite, owner="orchestrate.surface",
                       marker=earlier, signed={earlier: REPORT_KEYS})
+        stale: list[Path] = []
         if earlier.exists():  # a mesh the earlier run did not write, beside its report: the user's
-            check_listed([Path(args.out) / f"{SURFACE_MESH}.{f}" for f in args.mesh], earlier, "meshes",
-                         "orchestrate.surface")
+            listed = check_listed([Path(args.out) / f"{SURFACE_MESH}.{f}" for f in args.mesh], earlier, "meshes",
+                                  "orchestrate.surface")
+            # its meshes of formats this run does not write: removed once this run's are written (a stale mesh
+            # beside a report that no longer lists it); only names of ours, never a name read from the file as is
+            stale = [Path(args.out) / f"{SURFACE_MESH}.{f}" for f in MESH_FORMATS
+                     if f not in args.mesh and f"{SURFACE_MESH}.{f}" in listed]
         print(f"integrating {pixels} pixels ({camera}) ...", flush=True)
         surface = integrate(normals, mask, intr, IntegrationConfig(k=args.k))
     except (*INPUT_ERRORS, OSError) as exc:
@@ -139,6 +146,8 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
     record["peak_memory_mib"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)  # the process's
     try:
         report = write_surface(surface, args.out, args.mesh, record)
+        for path in stale:
+            path.unlink(missing_ok=True)
     except OSError as exc:
         return report_error(exc)
     s = report["solver"]

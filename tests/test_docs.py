@@ -128,6 +128,25 @@ def test_unknown_block_is_refused_and_nothing_is_written(tmp_path):
     assert all(p.read_text() == t for p, t in before.items() if p != stale)
 
 
+@pytest.mark.parametrize("check", [True, False])
+def test_an_end_line_that_closes_no_block_is_named(tmp_path, check):
+    """Sweep 39: a BEGIN line lost in an edit left its END line behind, and --check said the docs were up to
+    date (the block it closed is no longer kept)."""
+    shutil.copy(REPO / "README.md", tmp_path / "README.md")
+    shutil.copytree(REPO / "docs", tmp_path / "docs")
+    page = tmp_path / "docs" / "surface.md"
+    text = page.read_text() + "\nmore words\n<!-- END generated:flags:orchestrate.surface -->\n"
+    page.write_text(text)
+    n = text.count("\n")
+    with pytest.raises(docs.UsageError, match=rf"docs/surface.md: line {n} '<!-- END generated:flags:orchestrate"
+                                              r"\.surface -->' closes no block"):
+        docs.run(check=check, root=tmp_path)
+    assert page.read_text() == text
+    head, _, tail = text.rpartition("<!-- END")
+    page.write_text(head + "```\n<!-- END" + tail + "```\n")  # inside fenced code: an example, no block
+    assert docs.run(check=True, root=tmp_path) == []
+
+
 def test_a_page_that_is_not_utf8_is_named_and_nothing_is_written(tmp_path):
     """Sweep 26: README.md holding a Latin-1 byte was `'utf-8' codec can't decode byte ...`, naming no file."""
     shutil.copy(REPO / "README.md", tmp_path / "README.md")

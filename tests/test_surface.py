@@ -433,6 +433,11 @@ def test_cli_writes_depth_mesh_and_report_and_needs_overwrite_to_replace_them(tm
     assert {p.name for p in out.iterdir()} == names
     # The same depth again, to rounding (docs/surface.md: runs agree to 1e-12, not byte for byte).
     np.testing.assert_allclose(np.load(out / "depth.npy"), d, rtol=1e-12)
+    # sweep 39: a rerun writing fewer formats left the earlier mesh.obj beside a report that no longer lists it
+    (out / "mesh.stl").write_text("the user's\n")
+    assert main(args[:-1] + ["ply", "--overwrite"]) == 0
+    assert {p.name for p in out.iterdir()} == names - {"mesh.obj"} | {"mesh.stl"}
+    assert json.loads((out / "report.json").read_text())["meshes"] == ["mesh.ply"]
 
 
 # ---------------------------------------------------------------- the capture's camera and the shaded picture

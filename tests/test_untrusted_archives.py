@@ -446,6 +446,11 @@ def test_an_assets_member_named_twice_is_refused_before_anything_is_unpacked(tmp
     with pytest.raises(UsageError, match=r"assets.tar.xz.*'assets' outside its assets/ folder"):
         unpack_carry(carry, tmp_path / "work2")
     assert not (tmp_path / "work2").exists()
+    # sweep 39: an asset folder of nothing to draw was named as --work's assets folder, not as --carry's archive
+    _archive(carry / ASSET_ARCHIVE, [_file("assets/README.md", b"# nothing")])
+    with pytest.raises(UsageError, match=r"--carry: '.*carry/assets.tar.xz' holds no asset folder"):
+        unpack_carry(carry, tmp_path / "work3")
+    assert not (tmp_path / "work3").exists()
 
 
 @pytest.mark.parametrize("suffix", [".", "aux..", ""])
