@@ -12,6 +12,11 @@ from pathlib import Path
 
 from scenes.cli.errors import UsageError
 
+UNPACKED_LIMIT = 2**30
+"""Bytes an archive may unpack to: a pack travels within the 64 MiB upload limit and xz packs the wheels' binaries
+about 4:1 (site.tar.xz: 41.5 MiB), so 1 GiB, 16 times the whole upload, is only reached by a decompression bomb
+(a few hundred KiB of xz that unpack to gigabytes of zeros and fill the GPU machine's disk)."""
+
 
 def _digest(archive: Path) -> str:
     import hashlib
@@ -91,11 +96,29 @@ def safe_extract(archive: Path, target: Path, flag: str = "--carry", under: str 
             if all(seen.values()):  # folders only, or no member: nothing to unpack, not a pack's archive
                 raise UsageError(f"{flag}: {str(archive)!r} holds no file (expected the archive `python -m "
                                  "orchestrate.gpu_session --pack` writes); refused")
+            _check_unpacked_size(archive, target, sum(m.size for m in tar.getmembers() if m.isfile()), flag)
             tar.extractall(target, filter="data")
     except tarfile.FilterError as exc:
         raise UsageError(f"{flag}: {str(archive)!r} holds a member that would be unpacked outside {str(target)!r} "
                          f"({exc}); refused") from None
-    except (tarfile.TarError, EOFError, lzma.LZMAError, OSError) as exc:
+    except (tarfile.TarError, EOFError, lzma.LZMAError, OSError, OverflowError, ValueError) as exc:
+        # OverflowError / ValueError: a member's time or mode out of range for this platform (a forged header)
         first = (str(exc).splitlines() or [type(exc).__name__])[0]
         raise UsageError(f"{flag}: {str(archive)!r} cannot be unpacked ({first:.200}); expected the archive "
                          "`python -m orchestrate.gpu_session --pack` writes") from None
+
+
+def _check_unpacked_size(archive: Path, target: Path, total: int, flag: str) -> None:
+    """UsageError when the members of `archive` would unpack to more than `UNPACKED_LIMIT` bytes, or to more than
+    the free space where `target` lies: said before the first byte is written, not as a full disk."""
+    import shutil
+
+    if total > UNPACKED_LIMIT:
+        raise UsageError(f"{flag}: {str(archive)!r} would unpack to {total} bytes ({total / 2**30:.1f} GiB) from "
+                         f"{archive.stat().st_size} bytes, over the {UNPACKED_LIMIT // 2**20} MiB a pack unpacks to "
+                         "(expected the archive `python -m orchestrate.gpu_session --pack` writes); refused")
+    existing = next(p for p in (target, *target.parents) if p.exists())
+    free = shutil.disk_usage(existing).free
+    if total > free:
+        raise UsageError(f"{flag}: {str(archive)!r} would unpack to {total} bytes, more than the {free} bytes free "
+                         f"where {str(target)!r} lies; free some space or use another --work")

@@ -556,3 +556,42 @@ def test_assets_none_is_kept_when_the_pack_carries_assets(tmp_path):
         opts = gpu_session.COMMAND.parse(argv)
         init, opts.model = gpu_session.resolve_init(opts.init, opts.model)  # as the session does first
         assert gpu_session._checked(opts, given, paths, "cpu", init)[0] is expected  # nothing said, none packed
+
+
+@pytest.mark.parametrize("mtime", [10**20, -(10**19)])
+def test_a_member_time_beyond_the_platforms_is_one_line_and_nothing_stays(tmp_path, mtime):
+    """Sweep 40: a forged PAX mtime of 1e20 s (or -1e19) ended in OverflowError from tarfile's extraction, a
+    traceback, and --work/site stayed behind."""
+    from orchestrate.relay import SITE_ARCHIVE, unpack_carry
+    from scenes.cli.errors import UsageError
+
+    carry, work = tmp_path / "carry", tmp_path / "work"
+    carry.mkdir()
+    stamped = _file("pkg/__init__.py", b"")
+    stamped[0].mtime = mtime
+    with tarfile.open(carry / SITE_ARCHIVE, "w:xz", format=tarfile.PAX_FORMAT) as tar:
+        for info, data in [*_site(), stamped]:
+            tar.addfile(info, io.BytesIO(data))
+    with pytest.raises(UsageError, match=r"--carry: '.*site.tar.xz' cannot be unpacked"):
+        unpack_carry(carry, work)
+    assert not work.exists()
+
+
+def test_an_archive_that_would_unpack_beyond_the_limit_is_refused_before_a_byte_is_written(tmp_path, monkeypatch):
+    """Sweep 40: a decompression bomb (a few hundred KiB of xz declaring a 2 GiB member) was unpacked whole into
+    --work/site. The sizes the members declare are summed before anything is written (the limit made small here;
+    the sweep case unpacks the real 2 GiB)."""
+    from orchestrate import archives
+    from orchestrate.relay import SITE_ARCHIVE, unpack_carry
+    from scenes.cli.errors import UsageError
+
+    monkeypatch.setattr(archives, "UNPACKED_LIMIT", 1000)
+    carry, work = tmp_path / "carry", tmp_path / "work"
+    carry.mkdir()
+    _archive(carry / SITE_ARCHIVE, [*_site(), _file("pkg/zeros.bin", b"\0" * 1001)])
+    with pytest.raises(UsageError, match=r"--carry: '.*site.tar.xz' would unpack to 1001 bytes .* over the 0 MiB"):
+        unpack_carry(carry, work)
+    assert not work.exists()
+    _archive(carry / SITE_ARCHIVE, [*_site(), _file("pkg/zeros.bin", b"\0" * 1000)])
+    unpack_carry(carry, work)
+    assert (work / "site" / "pkg" / "zeros.bin").stat().st_size == 1000
