@@ -465,11 +465,13 @@ saved as floats or an unnormalised output lies beyond it, and would be scored, j
 vectors were directions. (Ground-truth files of any scale are normalised by their readers.)"""
 
 
-def check_unit_length(n: np.ndarray, what: str) -> None:
-    """Refuse a float normal map (H, W, 3) to score whose nonzero vectors are not of unit length (their median
-    further than `UNIT_TOLERANCE` from 1)."""
+def check_unit_length(n: np.ndarray, what: str, encoded: bool = False) -> None:
+    """Refuse a normal map (H, W, 3) to score whose nonzero vectors are not of unit length (their median
+    further than `UNIT_TOLERANCE` from 1); `encoded`: decoded from an 8 or 16-bit image (n + 1) / 2."""
     lengths = np.linalg.norm(n.astype(np.float64), axis=-1)
     lengths = lengths[lengths > 0]
     if lengths.size and abs(float(np.median(lengths)) - 1.0) > UNIT_TOLERANCE:
+        hint = ("codes (n + 1) / 2 over the file's whole range: 8-bit codes in a 16-bit file decode near (-1, -1, -1)"
+                if encoded else "unit normals x, y, z in [-1, 1] (an encoded map (n + 1) / 2 belongs in a PNG)")
         raise ValueError(f"{what}: its vectors are not of unit length (median {float(np.median(lengths)):.3g}); "
-                         "expected unit normals x, y, z in [-1, 1] (an encoded map (n + 1) / 2 belongs in a PNG)")
+                         f"expected {hint}")

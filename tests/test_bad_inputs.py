@@ -380,6 +380,18 @@ def _copy(src: str, dst: str) -> Callable[[Path, Path], None]:
     return setup
 
 
+def _pred_8bit_codes_in_16bit(w: Path, t: Path) -> None:
+    """Setup: T/p, the world's predictions with only their normal.png, whose 16-bit codes are the 8-bit ones (a
+    converter that kept the values and widened the type: every code at most 255)."""
+    import cv2
+
+    shutil.copytree(w / "pred", t / "p")
+    for png in (t / "p").glob("*/normal.png"):
+        for other in ("normal.exr", "normal.npy"):
+            (png.parent / other).unlink(missing_ok=True)
+        cv2.imwrite(str(png), cv2.imread(str(png), cv2.IMREAD_UNCHANGED) // 257)
+
+
 def _gt_mask_corner(w: Path, t: Path) -> None:
     """Setup: T/data, the world's dataset whose object 00000's mask is one background pixel (its corner, where the
     ground truth holds no normal); T/p, the world's predictions."""
@@ -1068,6 +1080,10 @@ ROWS: list[Row] = [
         setup=_copy("pred_onebad", "p"),
         check=_written("p/metrics.json"),
     ),
+    # sweep 40: scored as a 116-degree error, exit 0
+    Row("evaluate-pred-8-bit-codes-in-a-16-bit-png", EV, ["--pred", "{T}/p", "--gt", "{W}/data"], 2,
+        ("normal.png", "not of unit length", "8-bit codes in a 16-bit file"), setup=_pred_8bit_codes_in_16bit,
+        check=_not_written("p/metrics.json")),
     Row("evaluate-gt-normal-all-zero", EV, ["--pred", "{T}/p", "--gt", "{T}/data"], 1, ("failed 00000", "face away"),
         setup=_gt_zeroed, check=_written("p/metrics.json", "p/00001/error_map.png")),
     Row("evaluate-gt-mask-one-background-pixel", EV, ["--pred", "{T}/p", "--gt", "{T}/data"], 0, ("00001",),

@@ -229,9 +229,10 @@ def _evaluate_one(folder: Path, pred_dir: Path, results: dict, missing: list, no
         raise ValueError(f"--pred: {pred_path} has shape {'x'.join(map(str, pred.shape))}, the ground truth "
                          f"{folder} has {'x'.join(map(str, truth.normals.shape))}")
     scored = truth.mask & np.any(truth.normals != 0, axis=-1)  # a mask pixel without a true normal scores nothing
-    if holds_floats(pred_path):  # float vectors must be directions: over the whole map, and where scored
+    floats = holds_floats(pred_path)
+    if floats:  # float vectors must be directions: over the whole map (an encoded map's background may be black)
         check_unit_length(pred, f"--pred: normal map {pred_path}")
-        check_unit_length(pred[scored], f"--pred: normal map {pred_path} (inside the ground truth's mask)")
+    check_unit_length(pred[scored], f"--pred: normal map {pred_path} (inside the ground truth's mask)", not floats)
     if not scored.any():
         no_gt.append(truth.name)
         log.warning("%s has no ground-truth normal inside its mask; skipped", folder)
