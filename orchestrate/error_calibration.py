@@ -203,6 +203,7 @@ class CalibrationOptions:
         if assets is not None and is_within(assets, self.work):  # the split and the suite's rows land among them
             raise UsageError(f"--assets: {assets!r} lies inside --work {self.work!r}, where the asset split and the "
                              "suite are written; expected an asset folder outside it")
+        _check_own_work(Path(self.work))
         if self.weights is not None and (why := not_a_file(Path(self.weights))):
             raise UsageError(f"--weights: {self.weights!r} {why}")
         dest, flag = self.destination()
@@ -224,6 +225,22 @@ class CalibrationOptions:
             return Path(self.out), "--out"
         weights = Path(self.weights) if self.weights else pretrained_entry(DEFAULT_MODEL).weights_path
         return model_path(weights), "--weights" if self.weights else "--out"
+
+
+def _check_own_work(work: Path) -> None:
+    """Refuse a --work holding what this command does not write there (a dataset, a user's files): the suite's
+    rows and the asset split would be rendered in among them. Hidden names (.DS_Store, an editor's) are no work."""
+    from orchestrate.asset_split import SPLIT_FOLDERS
+
+    ours = {name for name, _ in SUITE} | set(SPLIT_FOLDERS)
+    other = sorted(p.name for p in work.iterdir() if p.name not in ours and not p.name.startswith(".")) if (
+        work.is_dir()) else []
+    if other:
+        more = f" and {len(other) - 1} more" if len(other) > 1 else ""
+        raise UsageError(f"--work: {str(work)!r} holds {other[0][:80]!r}{more}, which orchestrate.error_calibration "
+                         f"does not write (its work folder holds the asset split and the suite's rows "
+                         f"{', '.join(n for n, _ in SUITE)}); expected a new or empty folder, or an earlier run's "
+                         "--work")
 
 
 COMMAND = Command(CalibrationOptions, prog="python -m orchestrate.error_calibration", description=__doc__)

@@ -5040,6 +5040,12 @@ ROWS += [
                                                              "{T}/em.json"], 2,
         ("--work: ", "--weights"), setup=lambda w, t: (_mk(t / "w"), _shipped_copy(w, t / "w")),
         check=_not_written("em.json")),
+    # sweep 40: the suite's rows were rendered in among the dataset's objects
+    Row("error-calibration-work-a-link-to-a-dataset", EC, ["--work", "{T}/w", "--assets", "none", "--objects", "1",
+                                                           "--out", "{T}/em.json"], 2,
+        ("--work: ", "holds '00000.data' and 3 more", "does not write"),
+        setup=lambda w, t: (shutil.copytree(w / "data", t / "d"), (t / "w").symlink_to(t / "d")),
+        check=_not_written("em.json", "d/level1")),
 ]
 
 
