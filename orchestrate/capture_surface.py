@@ -8,6 +8,9 @@ import numpy as np
 
 from scenes.images import write_picture
 
+FOCAL_35MM_RANGE = (8.0, 2000.0)
+"""35 mm-equivalent focal lengths (mm) a pinhole camera is made from: a fisheye's 8 mm already sees 140 deg across
+the diagonal; a tag of 1 mm (a 2-px focal length) put the surface's points at depths from 0.5 to 750000 (sweep 40)."""
 SHADED_PICTURE = "shaded.png"
 """The surface rendered under one light (`scenes.renderer.shaded`), beside the surface's files."""
 
@@ -20,6 +23,9 @@ def capture_camera(meta: dict, shape: tuple[int, int]):
     focals = {e.get("focal_35mm_mm") for e in meta.get("exposure", [])} or {None}
     if len(focals) == 1 and None not in focals:
         f = focals.pop()
+        if not FOCAL_35MM_RANGE[0] <= f <= FOCAL_35MM_RANGE[1]:
+            return None, (f"orthographic: the EXIF 35 mm-equivalent focal length {f:g} mm is outside the "
+                          f"{FOCAL_35MM_RANGE[0]:g}-{FOCAL_35MM_RANGE[1]:g} mm of rectilinear lenses (a wrong tag)")
         intr = intrinsics_from_35mm(f, shape)
         return intr, f"perspective: EXIF 35 mm-equivalent focal length {f:g} mm, {intr.fx:.0f} px"
     why = "the photos disagree on it" if len(focals) > 1 else "the photos do not give one"

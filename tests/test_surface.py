@@ -460,6 +460,9 @@ def test_exif_35mm_focal_length_is_read_and_gives_the_capture_a_pinhole_camera(t
     assert intr.fx == pytest.approx(28.0 * 500.0 / np.hypot(36.0, 24.0)) and intr.cx == pytest.approx(199.5)
     assert capture_camera({"exposure": [{"focal_35mm_mm": 28.0}, {"focal_35mm_mm": 50.0}]}, (30, 40))[0] is None
     assert capture_camera({"exposure": [{}, {}]}, (30, 40))[0] is None
+    for wrong in (1.0, 65535.0):  # sweep 40: a tag of 1 mm made a 2-px pinhole, depths from 0.5 to 750000
+        intr, said = capture_camera({"exposure": [{"focal_35mm_mm": wrong}] * 3}, (30, 40))
+        assert intr is None and f"focal length {wrong:g} mm is outside the 8-2000 mm" in said
 
 
 def test_the_shaded_surface_of_a_plane_is_lambertian_under_the_sun_and_the_sky(variant_llvm_ad_rgb):
