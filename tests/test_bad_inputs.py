@@ -4564,6 +4564,10 @@ ROWS += [
         setup=_both(_dataset_copy, lambda w, t: ((t / "data" / "manifest.json").unlink(),
                                                  os.symlink(w / "afile", t / "data" / f"{OBJ}.data" / "notes.txt"))),
         check=_not_written("s/000000.tar")),
+    Row("capture-a-photo-whose-name-ends-in-a-space", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,  # sweep 40: left out
+        ("--input", "'IMG_0002.jpg '", "named like a photo"),
+        setup=_both(_photos(), lambda w, t: (t / "photos" / "IMG_0002.jpg").rename(t / "photos" / "IMG_0002.jpg ")),
+        check=_not_written("o/normal.png")),
     Row("capture-a-webp-among-the-jpegs", CAP, [*CAPTURE, "--mask", WORLD_MASK], 2,
         ("--input", "IMG_0009.webp", "does not read"),
         setup=_both(_photos(), _put(("photos/IMG_0009.webp", "RIFF....WEBP"))), check=_not_written("o/normal.png")),
