@@ -4538,6 +4538,21 @@ ROWS += [
         2, ("WORLD_SIZE=2", "RANK=0", "did not meet", "UNIPS_JOIN_TIMEOUT_S"),
         env={"WORLD_SIZE": "2", "RANK": "0", "LOCAL_RANK": "0", "MASTER_ADDR": "127.0.0.1", "MASTER_PORT": "29517",
              "UNIPS_JOIN_TIMEOUT_S": "3"}, sub=True),
+    # ---- sweep 40: torchrun's variables given by hand
+    Row("train-local-rank-above-rank", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1"], 2,
+        ("LOCAL_RANK=1", "at most RANK=0"), env={"WORLD_SIZE": "2", "RANK": "0", "LOCAL_RANK": "1",
+                                                 "MASTER_ADDR": "127.0.0.1", "MASTER_PORT": "29517"}, sub=True,
+        check=_not_written("run")),
+    Row("train-torchelastic-run-id-copied-into-a-lone-process", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out",
+                                                                     "{T}/run", "--steps", "1"],
+        2, ("WORLD_SIZE=2", "RANK=0", "did not meet", "UNIPS_JOIN_TIMEOUT_S"),  # it waited torch's 30 minutes
+        env={"TORCHELASTIC_RUN_ID": "copied", "WORLD_SIZE": "2", "RANK": "0", "LOCAL_RANK": "0",
+             "MASTER_ADDR": "127.0.0.1", "MASTER_PORT": "29518", "UNIPS_JOIN_TIMEOUT_S": "3"}, sub=True),
+    Row("train-master-addr-that-does-not-resolve", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run",
+                                                        "--steps", "1"],
+        2, ("RANK=1", "did not meet", "MASTER_ADDR=no-such-host.invalid"), absent=("frame #", "[c10d]"),
+        env={"WORLD_SIZE": "2", "RANK": "1", "LOCAL_RANK": "1", "MASTER_ADDR": "no-such-host.invalid",
+             "MASTER_PORT": "29519", "UNIPS_JOIN_TIMEOUT_S": "3"}, sub=True),
     # ---- sweep 8
     Row("rerender-overwrite-keeps-a-users-summary", RR, ["--data", "{W}/data", "--normals", "{W}/pred", "--out",
                                                         "{T}/o", "--overwrite"], 2, ("summary.csv", "never replaced"),

@@ -43,9 +43,10 @@ from scenes.cli.errors import UsageError
 from scenes.cli.needs import Needs
 from scenes.cli.options import Command
 from scenes.cli.progress import Progress
+from unips.distributed import distributed_env
 from unips.train_config import TrainConfig
 from unips.train_data import Batch, curriculum_pool, make_batch, normal_loss, probe_samples, step_rng
-from unips.train_run import Run, append_log, check_run, distributed_env, open_stream, resume_run, save_last, setup_run
+from unips.train_run import Run, append_log, check_run, open_stream, resume_run, save_last, setup_run
 
 log = logging.getLogger(__name__)
 
@@ -311,4 +312,6 @@ if __name__ == "__main__":  # Ctrl-C stops the work whole, in one line (scenes.c
 
     # Under torchrun each process is one of its workers: torchrun stops them itself, and one line per rank would say
     # "interrupted" where another rank had failed.
-    sys.exit(main() if "TORCHELASTIC_RUN_ID" in os.environ else run_supervised("unips.train", main, STOPPED))
+    from unips.distributed import under_torchrun
+
+    sys.exit(main() if under_torchrun() else run_supervised("unips.train", main, STOPPED))

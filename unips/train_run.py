@@ -1,8 +1,8 @@
-"""One training run's bookkeeping (the loop itself is `unips.train`): this process's place in a torchrun job
-(`Dist`), the run folder (`RUN_FILES`; `check_run`: the checks before any work; `log.jsonl` records), the run's
-model, data, optimiser and schedule (`setup_run` -> `Run`; `lr_factor`: warm-up + cosine or step decay), and its
-checkpoint `last.pt`: resumed from (`resume_run`: the same trajectory settings and objects, then every state) and
-saved (`save_last`)."""
+"""One training run's bookkeeping (the loop itself is `unips.train`; the process's place in a torchrun job:
+`unips.distributed`): the run folder (`RUN_FILES`; `check_run`: the checks before any work; `log.jsonl`
+records), the run's model, data, optimiser and schedule (`setup_run` -> `Run`; `lr_factor`: warm-up + cosine or
+step decay), and its checkpoint `last.pt`: resumed from (`resume_run`: the same trajectory settings and objects,
+then every state) and saved (`save_last`)."""
 
 from __future__ import annotations
 
@@ -18,6 +18,7 @@ from typing import Any, Sequence
 
 import torch
 
+from unips.distributed import Dist, init_distributed
 from unips.train_config import TRAJECTORY_KEYS, TrainConfig
 from unips.train_data import Sample, count_dataset_images, curriculum_pool, data_roots, describe_data, load_samples
 
@@ -94,102 +95,6 @@ class TrainForward(torch.nn.Module):
     def forward(self, images: torch.Tensor, mask: torch.Tensor, coords: torch.Tensor) -> torch.Tensor:
         contexts = self.model.encode(images, mask)  # (B, k, C, s/4, s/4)
         return self.model.decode_pixels(contexts, images, mask, coords)  # (B, N, 3)
-
-
-@dataclass
-class Dist:
-    """This process's place in a torchrun job (rank 0 of 1 without one)."""
-
-    rank: int = 0
-    world: int = 1
-    local_rank: int = 0
-
-    @property
-    def main(self) -> bool:
-        return self.rank == 0
-
-
-TORCHRUN_VARIABLES = ("WORLD_SIZE", "RANK", "LOCAL_RANK", "MASTER_ADDR", "MASTER_PORT")
-"""What torchrun sets for each process of a multi-process run (`distributed_env` checks them)."""
-
-
-def distributed_env() -> Dist:
-    """This process's place in a torchrun run, from the variables torchrun sets (a single process without them);
-    one ValueError naming the variable where they are not integers in range or one is missing."""
-    env = os.environ
-
-    def number(name: str, default: str, low: int) -> int:
-        text = env.get(name, default)
-        if not (text.strip().isascii() and text.strip().isdigit()):  # int() would take '1_0', ' +1'; not '²'
-            raise ValueError(f"environment variable {name}={text!r}: expected an integer (torchrun sets it)")
-        value = int(text)
-        if value < low:
-            raise ValueError(f"environment variable {name}={text!r}: expected {low} or more")
-        return value
-
-    world = number("WORLD_SIZE", "1", 1)
-    rank, local = number("RANK", "0", 0), number("LOCAL_RANK", "0", 0)
-    if world > 1 and (missing := [v for v in TORCHRUN_VARIABLES if v not in env]):
-        raise ValueError(f"environment variable WORLD_SIZE={world} without {', '.join(missing)}: start a "
-                         "multi-process run with torchrun, which sets them all")
-    for name, value in (("RANK", rank), ("LOCAL_RANK", local)):  # a process's place lies inside the run
-        if value >= world:
-            raise ValueError(f"environment variable {name}={value}: expected below WORLD_SIZE={world}")
-    if world > 1 and not env["MASTER_ADDR"].strip():  # torch's store would print a C++ trace, then time out
-        raise ValueError("environment variable MASTER_ADDR='': expected the host of rank 0 (torchrun sets it)")
-    if world > 1 and not 1 <= number("MASTER_PORT", "0", 0) <= 65535:
-        raise ValueError(f"environment variable MASTER_PORT={env['MASTER_PORT']!r}: expected a port, 1 to 65535")
-    return Dist(rank, world, local) if world > 1 else Dist()
-
-
-def init_distributed(cfg: TrainConfig) -> Dist:
-    d = distributed_env()
-    if d.world <= 1:
-        return d
-    import torch.distributed as dist
-
-    rank, world, local = d.rank, d.world, d.local_rank
-    if cfg.batch % world:
-        raise ValueError(f"--batch={cfg.batch}: expected a multiple of the {world} torchrun processes")
-    if not dist.is_initialized():
-        backend = "nccl" if cfg.device.startswith("cuda") else "gloo"
-        if os.environ.get("TORCHELASTIC_RUN_ID"):  # torchrun's rendezvous gathered the processes already
-            dist.init_process_group(backend=backend)
-        else:
-            dist.init_process_group(backend=backend, store=_joined_store(rank, world), rank=rank, world_size=world)
-    return Dist(rank, world, local)
-
-
-JOIN_TIMEOUT_S = 300.0
-"""How long processes started by hand (the torchrun variables set without torchrun) wait for one another before
-the run is refused; `UNIPS_JOIN_TIMEOUT_S` sets it. Under torchrun its own rendezvous waits instead."""
-
-
-def _joined_store(rank: int, world: int):
-    """The process group's store once all `world` processes reached MASTER_ADDR:MASTER_PORT; a ValueError naming
-    the variables after the bounded wait (torch's default is to wait 30 minutes, silently)."""
-    from datetime import timedelta
-
-    import torch.distributed as dist
-
-    env = os.environ
-    text = env.get("UNIPS_JOIN_TIMEOUT_S", str(JOIN_TIMEOUT_S))
-    try:
-        wait = float(text)
-        if not 0 < wait < 1e6:
-            raise ValueError
-    except ValueError:
-        raise ValueError(f"environment variable UNIPS_JOIN_TIMEOUT_S={text!r}: expected seconds, above 0") from None
-    where = f"MASTER_ADDR={env['MASTER_ADDR']} MASTER_PORT={env['MASTER_PORT']}"
-    try:
-        store = dist.TCPStore(env["MASTER_ADDR"], int(env["MASTER_PORT"]), world, is_master=rank == 0,
-                              timeout=timedelta(seconds=wait), wait_for_workers=True)
-    except (RuntimeError, OSError) as exc:  # DistStoreError / DistNetworkError are RuntimeErrors
-        raise ValueError(f"environment variable WORLD_SIZE={world}: process RANK={rank} did not meet the other "
-                         f"{world - 1} at {where} within {wait:g} s ({str(exc).splitlines()[0][:120]}); start every "
-                         "rank, or start the run with torchrun (UNIPS_JOIN_TIMEOUT_S sets the wait)") from None
-    store.set_timeout(timedelta(minutes=30))  # the joined run's collectives wait as long as torch's default
-    return store
 
 
 def load_init_weights(cfg: TrainConfig, device: torch.device) -> torch.nn.Module:
