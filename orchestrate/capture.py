@@ -36,6 +36,7 @@ import numpy as np
 
 from orchestrate.capture_estimate import check_resources
 from orchestrate.capture_full import DEFAULT_MAX_SIDE, guide_image, upsample
+from orchestrate.capture_outputs import claim_stages, remove_stale, stage_reports
 from orchestrate.capture_verdict import level, mask_first, verdict
 from scenes.cli.errors import INPUT_ERRORS, UsageError, report_error
 from scenes.cli.limits import check_threads
@@ -109,7 +110,8 @@ class CaptureOptions:
     """Also write the scaled photos and the mask as an object folder, OUT/work/<name>.data (16-bit PNG), for other
     commands to read; the command itself works on them in memory."""
     overwrite: bool = False
-    """Replace the outputs of an earlier run in --out."""
+    """Replace the outputs of an earlier capture in --out (its check/, refine/ and work/ folders of another name go
+    too, once this capture is written; files it did not write, never)."""
 
     def validate(self) -> "CaptureOptions":
         from unips.inference import check_model_name
@@ -330,7 +332,7 @@ def run(opts: CaptureOptions) -> dict:
     need = check_resources(k, h, w, full)
     net, times["load_model_s"] = load_network_first(opts)
     into = f" into {w} x {h} px" if full != (h, w) else ""
-    claim_stages(opts, out)  # before the photos are read: a refusal comes at once
+    stale = claim_stages(opts, out)  # before the photos are read: a refusal comes at once
     with stage("capture", f"reading {k} photos of {full[1]} x {full[0]} px{into} (the whole run: about "
                f"{need['seconds']:.0f} s, {need['peak_mib']} MiB at most)"):
         read = read_input(opts)
@@ -376,8 +378,7 @@ def run(opts: CaptureOptions) -> dict:
     t1 = time.perf_counter()
     with stage("capture", "the surface from the final map"):
         surface = write_capture_surface(out / SURFACE_DIR, final, mask, read.meta["input"])
-    times["surface_s"] = time.perf_counter() - t1
-    times["total_s"] = time.perf_counter() - t0
+    times.update(surface_s=time.perf_counter() - t1, total_s=time.perf_counter() - t0)
     report = {"complete": True,
               "input": {"folder": str(opts.input), "images": len(read.image_names), "names": read.image_names,
                         "size": list(full), "working_size": list(read.images.shape[1:3]), **read.meta["input"]},
@@ -394,39 +395,13 @@ def run(opts: CaptureOptions) -> dict:
     write_page(out / "report.html", to_plain(report), pictures(out, cap.name, read.images, read.image_names, mask,
                                                              final, model_map, refined_used))
     write_json(out / "report.json", report, indent=1, newline=True)  # last: complete only once all is written
+    remove_stale(stale)
     return report
 
 
 def say(warnings: list) -> None:  # each warning as one line on stderr
     for w in warnings:
         print(f"warning: {w.code}: {w.message}", file=sys.stderr)
-
-
-def stage_reports(name: str, refined: dict | None, work: Path | None) -> dict:
-    """report.json `stages`: where the check's and the refinement's own reports and --keep-work's folder lie."""
-    return {"check": f"check/{name}/report.json",
-            "refine": f"refine/{name}/refine_report.json" if refined and "mode" in refined else None,
-            "work_folder": str(work) if work else None}
-
-
-def claim_stages(opts: CaptureOptions, out: Path) -> None:
-    """Claim every file the stages write below --out (surface/, check/<name>/, refine/<name>/, --keep-work's folder)
-    before the first write (`scenes.cli.outputs.claim_outputs`); <name> as `read_input` names the capture."""
-    from orchestrate.capture_surface import SHADED_PICTURE
-    from scenes.folder.format import object_name
-    from scenes.surface.write import REPORT_KEYS as SURFACE_REPORT_KEYS
-    from scenes.surface.write import SURFACE_DIR, surface_outputs
-    from validate.fitted.fit_report import CHECK_OUTPUTS
-    from validate.fitted.refinement import REFINE_OUTPUTS
-
-    name = object_name(Path(opts.input)) or "capture"
-    stages = {"surface": surface_outputs(out / SURFACE_DIR, ("ply",)) + [out / SURFACE_DIR / SHADED_PICTURE],
-              "check": [out / "check" / name / n for n in CHECK_OUTPUTS],
-              "refine": [out / "refine" / name / n for n in REFINE_OUTPUTS]}
-    claim_outputs([p for paths in stages.values() for p in paths], opts.overwrite, owner="orchestrate.capture",
-                  marker=out / "report.json", signed={out / SURFACE_DIR / "report.json": SURFACE_REPORT_KEYS})
-    claim_outputs([out / "work" / f"{name}.data"] if opts.keep_work else [], opts.overwrite,
-                  owner="orchestrate.capture", folders=True)  # --keep-work's folder too (no link on the way)
 
 
 def write_maps(opts: CaptureOptions, out: Path, images: np.ndarray, mask: np.ndarray, final: np.ndarray,

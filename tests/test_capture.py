@@ -672,3 +672,25 @@ def test_too_many_photos_are_refused_naming_the_count_not_the_size(monkeypatch):
     assert "smaller --max-side" not in str(exc.value) and "even at --max-side 32" in str(exc.value)
     with pytest.raises(UsageError, match=r"^--max-side: 20 photos of 20000 x 20000 px .*smaller --max-side"):
         capture_estimate.check_resources(20, 20000, 20000)
+
+
+def test_an_overwrite_by_a_capture_of_another_name_removes_the_earlier_ones_stage_folders(photos, tmp_path,
+                                                                                           variant_llvm_ad_rgb):
+    """Sweep 40: with --overwrite, a capture of folder q into the --out of a capture of p left check/p/ and
+    work/p.data/ beside a report that describes q only. They go once q's capture is written; a user's file in
+    check/p/ stays, and keeps its folder."""
+    import shutil
+
+    from orchestrate.capture import main
+
+    out, p, q = tmp_path / "o", tmp_path / "p", tmp_path / "q"
+    shutil.copytree(photos, p)
+    args = ["--out", str(out), "--no-refine", "--threads", "1", "--max-side", "48", "--keep-work"]
+    assert main(["--input", str(p), *args]) == 0
+    assert (out / "check" / "p" / "report.json").is_file() and (out / "work" / "p.data" / "mask.png").is_file()
+    (out / "check" / "p" / "notes.txt").write_text("mine\n")
+    p.rename(q)
+    assert main(["--input", str(q), *args, "--overwrite"]) == 0
+    assert sorted(f.name for f in (out / "check" / "p").iterdir()) == ["notes.txt"]
+    assert not (out / "work" / "p.data").exists() and (out / "work" / "q.data" / "mask.png").is_file()
+    assert (out / "check" / "q" / "report.json").is_file()
