@@ -158,6 +158,10 @@ def _read_raw(path: Path, what: str = "image"):
         raise FileNotFoundError(f"{what} file {path} {why}")
     img = decode_image(path, cv2.IMREAD_UNCHANGED, f"{what} file {path}")
     if img is None:
+        suffix = path.suffix.lower()
+        if suffix in (".npy", ".npz", ".mat", ".exr", ".txt", ".json", ".csv"):  # not damaged: another kind of file
+            raise ValueError(f"{what} file {path}: a {suffix} file, which is not read as an image here; expected "
+                             "an image file (a PNG or TIFF)")
         raise ValueError(f"{what} file {path}: cannot be read (corrupt or unsupported format)")
     return img
 

@@ -225,8 +225,7 @@ def check_fields(cfg: Any) -> Any:
             continue
         bounds = {k: meta.get(k) for k in ("minimum", "maximum")}
         if tp is int or typing.get_args(tp)[:1] == (int,):  # no record of ours holds an integer beyond 64 bits
-            bounds = {"minimum": INT64[0] if bounds["minimum"] is None else bounds["minimum"],
-                      "maximum": INT64[1] if bounds["maximum"] is None else bounds["maximum"]}
+            bounds = {k: INT64[i] if bounds[k] is None else bounds[k] for i, k in enumerate(bounds)}
         origin = typing.get_origin(tp)
         if tp is int:
             check_int(value, name, **bounds)
@@ -319,9 +318,11 @@ def _usage_message(event: Any) -> str:
         return f"{flag(event.argument)}: {what}"
     if isinstance(event, _errors.InstantiationFailure):
         message = " ".join(str(event.message).split())
-        union = re.match(r"no type matching (\S+) could be instantiated from \[(.*?)\]", message)
-        if union:  # a value of none of an optional field's types: say which value and what was expected
-            message = f"got {union.group(2)}, expected {union.group(1)}"
+        kinds = {"INT": "an integer", "int": "an integer", "FLOAT": "a number", "float": "a number", "{None}": "None"}
+        # a value of none of an optional field's types, or one int() / float() cannot read (Python's own words)
+        if said := (re.match(r"no type matching (\S+) could be instantiated from \[(.*?)\]", message) or
+                    re.match(r"invalid literal for (int|float)\(\)(?: with base 10)?: (.*)$", message)):
+            message = f"got {said.group(2)}, expected {' or '.join(kinds.get(k, k) for k in said.group(1).split('|'))}"
         return f"{flag(event.argument)}: {message}" if event.argument is not None else message
     return f"bad command line ({type(event).__name__})"
 

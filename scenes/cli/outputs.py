@@ -130,7 +130,12 @@ def check_output_folder(path: str | os.PathLike, flag: str = "--out") -> str | o
                          "is missing, or the links loop); expected a folder")
     if os.path.exists(target):
         if not os.path.isdir(target):
-            raise UsageError(f"{flag}: {str(path)!r} is an existing file, expected a folder")
+            import stat
+
+            mode = os.stat(target).st_mode
+            kind = ("an existing file" if stat.S_ISREG(mode) else "a pipe (FIFO)" if stat.S_ISFIFO(mode) else
+                    "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "a socket or other special file")
+            raise UsageError(f"{flag}: {str(path)!r} is {kind}, expected a folder")
         if not os.access(target, os.W_OK | os.X_OK):
             raise UsageError(f"{flag}: the folder {str(path)!r} is not writable")
         return path

@@ -117,6 +117,16 @@ def object_layout(folder: str | Path) -> str | None:
     return layout
 
 
+def _loops(path: Path) -> bool:
+    import errno
+
+    try:
+        os.stat(path)
+    except OSError as exc:
+        return exc.errno == errno.ELOOP
+    return False
+
+
 def photo_files(folder: str | Path, flag: str = "--input") -> list[Path]:
     """The photo files of `folder` in natural order; FileNotFoundError / ValueError naming `flag`."""
     from natsort import natsorted, ns
@@ -134,7 +144,8 @@ def photo_files(folder: str | Path, flag: str = "--input") -> list[Path]:
                          "(moved out of the folder), or rename it if it is a photo")
     broken = next((p for p in named if not p.is_file()), None)
     if broken is not None:  # a photo that silently went missing would change the capture
-        what = "a link to a missing file" if broken.is_symlink() and not broken.exists() else "not a file"
+        what = ("not a file" if not broken.is_symlink() or broken.exists() else "a link in a loop of links"
+                if _loops(broken) else "a link to a missing file")
         raise ValueError(f"{flag}: {broken.name} in {str(folder)!r} is {what}; expected every photo-named entry to be "
                          "a photo (remove it or restore the file)")
     near = next((p for p in shown if p.suffix.lower() not in PHOTO_SUFFIXES and
