@@ -229,6 +229,7 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
     from scenes.files import atomic_write, not_a_file
 
     owner: dict[str, Path] = {}  # each packed file -> its wheel: the files of all wheels unpack side by side
+    sizes: dict[str, int] = {}  # each packed file -> the bytes it unpacks to
     for wheel in found:  # every wheel readable before anything is written or the long compression starts
         if why := not_a_file(wheel):
             raise UsageError(f"--wheels: {str(wheel)!r} {why}")
@@ -237,7 +238,9 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
                 bad = z.testzip()
                 # a member packed as named would leave --carry's folder on unpacking
                 odd = next((n for n in z.namelist() if n.startswith("/") or ".." in n.split("/")), None)
-                kept = [i.filename for i in z.infolist() if not i.is_dir() and _keep_member(i.filename)]
+                infos = [i for i in z.infolist() if not i.is_dir() and _keep_member(i.filename)]
+                kept = [i.filename for i in infos]
+                sizes.update({i.filename: i.file_size for i in infos})
         except (zipfile.BadZipFile, OSError, zlib.error, EOFError, RuntimeError, NotImplementedError) as exc:
             # RuntimeError: an encrypted member; NotImplementedError: a compression zipfile cannot read (PPMd)
             raise UsageError(f"--wheels: {str(wheel)!r} is not a readable wheel ({exc}); expected the .whl files "
@@ -252,6 +255,7 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
                 raise UsageError(f"--wheels: {wheel.name!r} and {owner[name].name!r} both hold {name[:120]!r} "
                                  "(expected wheels that install side by side); refused")
             owner[name] = wheel
+    _check_unpacked_size(sizes, owner)
     folders = {n.rsplit("/", i)[0] for n in owner for i in range(1, n.count("/") + 1)}
     if clash := sorted(folders & owner.keys()):  # a file where another wheel's member needs a folder
         raise UsageError(f"--wheels: {owner[clash[0]].name!r} holds the file {clash[0][:120]!r}, which another "
@@ -281,6 +285,18 @@ def pack(dest: Path, wheels: Path, limit: int = UPLOAD_LIMIT, tree: int | None =
         raise
     print(f"packed {archive}: {mib}, within {limit / 2**20:.0f} MiB")
     return total
+
+
+def _check_unpacked_size(sizes: dict[str, int], owner: dict[str, Path]) -> None:
+    """UsageError when the wheels' kept members (name -> bytes, name -> wheel) unpack to more than the GPU machine's
+    unpacking accepts (`orchestrate.archives.UNPACKED_LIMIT`): said when packing, not after the upload."""
+    from orchestrate.archives import UNPACKED_LIMIT
+
+    if (size := sum(sizes.values())) > UNPACKED_LIMIT:
+        big = max(sizes, key=sizes.__getitem__)
+        raise UsageError(f"--wheels: the wheels' kept members unpack to {size} bytes, over the "
+                         f"{UNPACKED_LIMIT // 2**20} MiB an archive may unpack to (orchestrate.archives; the "
+                         f"largest: {big!r} in {owner[big].name!r})")
 
 
 def _finish_pack(dest: Path, archive: Path, found: list[Path], limit: int, tree: int | None,
@@ -370,6 +386,10 @@ def unpack_carry(carry: Path, work: Path, replace: bool = False, then: Callable[
     if bad := next((work / n for n in ("site", "assets") if os.path.lexists(work / n) and not (work / n).is_dir()), 0):
         raise UsageError(f"--work: {str(bad)!r} is not a folder, where the session unpacks --carry's pack; expected "
                          "a --work without it (move it away)")
+    marks = (work / f".{n}.unpacked" for n in ("site", "assets"))  # a record of ours, rewritten: a plain file only
+    if bad := next((m for m in marks if os.path.lexists(m) and (m.is_symlink() or not m.is_file())), 0):
+        raise UsageError(f"--work: {str(bad)!r} is not a plain file (a folder or a link), where the session records "
+                         "which pack it unpacked; expected a --work without it (move it away)")
     fresh = [n for n in ("site", ".site.unpacked", "assets", ".assets.unpacked") if not os.path.lexists(work / n)]
     made = [p for p in (work, *work.parents) if not os.path.lexists(p)]
     _site(carry, work, replace)

@@ -253,3 +253,26 @@ def test_an_asset_split_of_a_relative_folder_links_to_real_files(tmp_path, monke
     links = [p for d in (train, held) for sub in ("meshes", "hdri") for p in (d / sub).iterdir()]
     assert len(links) == 9 and all(p.is_symlink() and os.path.isabs(os.readlink(p)) and p.exists() for p in links)
     assert sorted(p.name for p in (held / "meshes").iterdir()) == ["m3.obj"]
+
+
+def test_wheels_that_unpack_beyond_what_the_gpu_machine_unpacks_are_refused_when_packed(tmp_path, monkeypatch):
+    """Sweep 41: a wheel member inflating to 1.1 GiB of zeros packed into a 0.2 MiB site.tar.xz "within 64 MiB",
+    exit 0, which the GPU machine's unpacking (`orchestrate.archives.UNPACKED_LIMIT`) then refuses: the sizes the
+    kept members unpack to are summed when packing (the limit made small here)."""
+    import zipfile
+
+    from orchestrate import archives
+
+    monkeypatch.setattr(archives, "UNPACKED_LIMIT", 5000)
+    wheels = tmp_path / "whl"
+    wheels.mkdir()
+    for name in ("mitsuba-3.9.1", "drjit-1.5.0"):
+        with zipfile.ZipFile(wheels / f"{name}-cp312-cp312-manylinux_2_17_x86_64.whl", "w",
+                             zipfile.ZIP_DEFLATED) as z:
+            z.writestr(f"{name.split('-')[0]}/__init__.py", "")
+            if name.startswith("mitsuba"):
+                z.writestr("mitsuba/zeros.bin", b"\0" * 6000)
+    with pytest.raises(relay.UsageError, match=r"^--wheels: the wheels' kept members unpack to 6000 bytes, over the 0 "
+                                               r"MiB .*'mitsuba/zeros.bin' in 'mitsuba-3.9.1"):
+        relay.pack(tmp_path / "carry", wheels, tree=1000)
+    assert not (tmp_path / "carry").exists()

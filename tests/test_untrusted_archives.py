@@ -595,3 +595,27 @@ def test_an_archive_that_would_unpack_beyond_the_limit_is_refused_before_a_byte_
     _archive(carry / SITE_ARCHIVE, [*_site(), _file("pkg/zeros.bin", b"\0" * 1000)])
     unpack_carry(carry, work)
     assert (work / "site" / "pkg" / "zeros.bin").stat().st_size == 1000
+
+
+@pytest.mark.parametrize("name", [".site.unpacked", ".assets.unpacked"])
+@pytest.mark.parametrize("kind", ["folder", "link"])
+def test_an_unpack_record_that_is_not_a_plain_file_is_refused_before_anything_is_unpacked(tmp_path, name, kind):
+    """Sweep 41: --work/.site.unpacked planted as a folder holding a user's file: '[Errno 21] Is a directory', no
+    flag named, and --work/site left unpacked. As a link to a user's file it would be written through."""
+    from orchestrate.relay import ASSET_ARCHIVE, SITE_ARCHIVE, unpack_carry
+    from scenes.cli.errors import UsageError
+
+    carry, work = tmp_path / "carry", tmp_path / "work"
+    carry.mkdir()
+    _archive(carry / SITE_ARCHIVE, _site())
+    _archive(carry / ASSET_ARCHIVE, [_file("assets/meshes/m0.ply", b"ply")])
+    (tmp_path / "mine.txt").write_text("mine\n")
+    if kind == "folder":
+        (work / name).mkdir(parents=True)
+        (work / name / "mine.txt").write_text("mine\n")
+    else:
+        work.mkdir()
+        (work / name).symlink_to(tmp_path / "mine.txt")
+    with pytest.raises(UsageError, match=rf"--work: '.*{name}' is not a plain file"):
+        unpack_carry(carry, work)
+    assert sorted(p.name for p in work.iterdir()) == [name] and (tmp_path / "mine.txt").read_text() == "mine\n"
