@@ -4081,6 +4081,10 @@ ROWS += [
                                                           "{T}/p"], 2,  # sweep 38: named 'obj.light_directions'
         ("--method least-squares", "light_directions.txt", "span only 2", "not in one plane"),
         setup=_diligent_edited(lights=lambda d: d * [1, 0, 1]), check=_not_written("p")),
+    Row("predict-least-squares-lights-nearly-in-one-plane", PR, ["--method", "least-squares", "--input", "{T}/dil",
+                                                                 "--out", "{T}/p"], 2,  # sweep 41: an 87-deg map
+        ("light_directions.txt", "lie nearly in one plane", "third singular value"),
+        setup=_diligent_edited(lights=lambda d: d * [1, 1e-4, 1]), check=_not_written("p")),
     Row("predict-weights-checked-before-a-bad-mask", PR, ["--method", "model", "--model", "sdm-unips-tiny",
                                                           "--checkpoint", "{W}/pub_nan", "--input", "{T}/obj", "--out",
                                                           "{T}/p"], 2,  # sweep 38: the mask was named, not weights

@@ -88,6 +88,13 @@ def _unit_rows(v: np.ndarray) -> np.ndarray:
 # ----------------------------------------------------------------------------------- least squares
 
 
+LIGHT_SPREAD = 0.01
+"""The least the third singular value of the light directions may be, relative to the first: below it the lights
+lie nearly in one plane and least squares amplifies the images' noise across it a hundredfold and more (DiLiGenT
+ball's first 4 lights, all at x = -0.06: 3e-5, an 87-degree map; sweep 41). A cone of lights 10 deg around the
+view gives about 0.1."""
+
+
 def least_squares(obj: PSObject, chunk: int = 65536) -> np.ndarray:
     """Calibrated Lambertian least-squares photometric stereo (all images, no shadow handling). A pixel
     black in every image gets no estimate (0); images leaving more than half the mask so are refused
@@ -100,13 +107,18 @@ def least_squares(obj: PSObject, chunk: int = 65536) -> np.ndarray:
     if L.shape != (K, 3):
         raise ValueError(f"--method least-squares: object {obj.name}'s light directions have shape {L.shape}, "
                          f"expected ({K}, 3): one direction per image")
-    if K < 3 or np.linalg.matrix_rank(L) < 3:  # a plane of lights leaves the normal's third component unknown
+    spread = np.linalg.svd(L, compute_uv=False) if K >= 3 else np.zeros(1)
+    if K < 3 or spread[2] < LIGHT_SPREAD * spread[0]:  # a plane of lights leaves the normal across it unknown
         from scenes.folder.format import DILIGENT_LIGHTS, SCENE_FILE
 
         src = next((str(obj.path / n) for n in (DILIGENT_LIGHTS, SCENE_FILE) if (obj.path / n).is_file()),
                    str(obj.path))
-        raise ValueError(f"--method least-squares: object {obj.name}'s {K} light directions ({src!r}) span only "
-                         f"{np.linalg.matrix_rank(L)} dimension(s); expected at least 3 lights not in one plane")
+        rank = np.linalg.matrix_rank(L)
+        what = (f"span only {rank} dimension(s)" if rank < 3 else "lie nearly in one plane (their third singular "
+                f"value is {spread[2] / spread[0]:.2g} of the first, under {LIGHT_SPREAD:g}: the normal across that "
+                "plane would be noise)")
+        raise ValueError(f"--method least-squares: object {obj.name}'s {K} light directions ({src!r}) {what}; "
+                         "expected at least 3 lights not in one plane")
     pinv = np.linalg.pinv(L)  # (3, K)
     gray = gray_matrix(obj, chunk=chunk)  # (P, K)
     seen = (gray > 0).any(axis=1)
