@@ -4542,6 +4542,12 @@ ROWS += [
         2, ("WORLD_SIZE=2", "RANK=0", "did not meet", "UNIPS_JOIN_TIMEOUT_S"),
         env={"WORLD_SIZE": "2", "RANK": "0", "LOCAL_RANK": "0", "MASTER_ADDR": "127.0.0.1", "MASTER_PORT": "29517",
              "UNIPS_JOIN_TIMEOUT_S": "3"}, sub=True),
+    Row("train-resume-with-final-json-a-folder", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps",
+                                                      "2", "--resume"], 2,  # sweep 41: found after the last step
+        ("--out", "final.json", "is a folder"), absent=("step 2",),
+        setup=_trained("run", lambda run: ((run / "final.json").unlink(), (run / "final.json").mkdir(),
+                                           (run / "final.json" / "notes.txt").write_text("mine\n"))),
+        check=_log_steps(1)),
     # ---- sweep 40: torchrun's variables given by hand
     Row("train-local-rank-above-rank", TR, [*TRAIN_ONE, "--data", "{W}/data", "--out", "{T}/run", "--steps", "1"], 2,
         ("LOCAL_RANK=1", "at most RANK=0"), env={"WORLD_SIZE": "2", "RANK": "0", "LOCAL_RANK": "1",

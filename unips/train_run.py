@@ -144,6 +144,8 @@ def check_run(cfg: TrainConfig) -> None:
     check_output_folder(out)
     if cfg.resume:  # a resumed run replaces last.pt and the rest in place: a mounted one fails after the log grew
         check_replaceable(out, "--out", "unips.train --resume")
+        # and each of them a plain file: a folder or link there was found only after the last step (sweep 41)
+        claim_outputs([out / n for n in RUN_FILES if os.path.lexists(out / n)], True, owner="unips.train --resume")
     for flag, value in (("--data", cfg.data), ("--val", cfg.val)):
         for root in data_roots(value, flag) if value else []:
             check_not_being_written(root, flag)  # a dataset wildgen.make is still rendering
