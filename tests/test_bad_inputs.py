@@ -1525,7 +1525,7 @@ ROWS: list[Row] = [
             "--no-progress",
         ],
         2,
-        ("last.pt",),
+        ("last.pt", "holds no run of unips.train to continue"),  # sweep 41: said the run 'stopped before' it
     ),
     Row(
         "train-old-run-folder",

@@ -345,6 +345,9 @@ def resume_run(run: Run) -> None:
     from unips.train_data import data_change
 
     cfg = run.cfg
+    if not os.path.lexists(run.last_path) and not os.path.lexists(run.log_path):  # no run there at all
+        raise ValueError(f"--resume: {str(Path(cfg.out))!r} holds no run of unips.train to continue (no log.jsonl, "
+                         "no last.pt); start one there without --resume")
     if not os.path.lexists(run.last_path):  # a run stopped before its first checkpoint: nothing to continue
         raise ValueError(f"--resume: {str(run.last_path)!r} does not exist (the run stopped before its first "
                          "checkpoint); start it again without --resume, with --overwrite to replace its log")
