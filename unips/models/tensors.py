@@ -5,6 +5,7 @@ parameter given as int64 would be cast without a word, and a NaN weight is found
 
 from __future__ import annotations
 
+import re
 from typing import Any, Mapping
 
 import torch
@@ -77,7 +78,8 @@ def load_torch_file(path: Any, what: str, map_location: Any = "cpu") -> Any:
                              f"({detail[:120]}): the file is corrupt, or a pickle torch.save did not write (not read "
                              "further: loading it fully could run code from the file)") from None
         lines = str(exc).strip().splitlines()
-        why = f"{type(exc).__name__}: {lines[0][:160]}" if lines else type(exc).__name__
+        first = re.sub(r"\. This is an internal miniz error.*", "", lines[0]) if lines else ""  # torch's own advice
+        why = f"{type(exc).__name__}: {first[:160]}" if first else type(exc).__name__
         raise ValueError(f"{str(path)!r}: not a readable {what}, the file is corrupt or truncated ({why})") from exc
 
 
