@@ -32,6 +32,20 @@ def check_int(value: Any, name: str, minimum: float | None = None, maximum: floa
     return int(value)
 
 
+INT64 = (-(2**63), 2**63 - 1)
+"""The widest integer an option takes: JSON records (scenes.files.read_json) and numpy refuse integers beyond 64
+bits, so a seed of 2**64 would be recorded in a manifest its own reader refuses (sweep 39)."""
+
+
+def check_int64(value: Any, name: str, minimum: float | None = None, maximum: float | None = None) -> int:
+    """`check_int`, and within `INT64`."""
+    value = check_int(value, name, minimum, maximum)
+    if not INT64[0] <= value <= INT64[1]:
+        shown = str(value) if len(str(value)) <= 24 else str(value)[:20] + "..."
+        raise ValueError(f"{name}: got {shown}, beyond 64 bits; expected an integer from -2^63 to 2^63 - 1")
+    return value
+
+
 FLOAT32_MAX = 3.4028234663852886e38
 """The largest finite float32: a scene's numbers are rendered in single precision."""
 FLOAT32_TINY = 1.1754943508222875e-38

@@ -31,7 +31,7 @@ from typing import Any, Iterable, Literal, Sequence
 import tyro
 from tyro.constructors import PrimitiveConstructorSpec
 
-from scenes.checks import check_choice, check_int, check_number
+from scenes.checks import check_choice, check_int64, check_number
 
 _KEY = "scenes.cli.options"  # the dataclass-field metadata key of `option`
 
@@ -208,10 +208,6 @@ def undocumented_fields(cls: type) -> list[str]:
     return missing
 
 
-INT64 = (-(2**63), 2**63 - 1)
-"""The widest integer option: JSON records (scenes.files.read_json) and numpy refuse integers beyond 64 bits."""
-
-
 def check_fields(cfg: Any) -> Any:
     """Check every field of a config against its type and `option` bounds and choices (None passes where the
     type allows it); nested configs are checked by their own `validate`. Returns `cfg`."""
@@ -224,11 +220,9 @@ def check_fields(cfg: Any) -> Any:
         if (value is None and _allows_none(hints[f.name])) or _is_nested(tp):
             continue
         bounds = {k: meta.get(k) for k in ("minimum", "maximum")}
-        if tp is int or typing.get_args(tp)[:1] == (int,):  # no record of ours holds an integer beyond 64 bits
-            bounds = {k: INT64[i] if bounds[k] is None else bounds[k] for i, k in enumerate(bounds)}
         origin = typing.get_origin(tp)
         if tp is int:
-            check_int(value, name, **bounds)
+            check_int64(value, name, **bounds)
             if f.name == "threads" or f.name.endswith("_threads"):  # one rule for every thread count: what the
                 from scenes.cli.limits import check_threads  # machine can start (a huge count crashes torch)
 
@@ -244,7 +238,7 @@ def check_fields(cfg: Any) -> Any:
         elif origin in (list, tuple):
             item = typing.get_args(tp)[0] if typing.get_args(tp) else str
             if item in (int, float):
-                check = check_int if item is int else check_number
+                check = check_int64 if item is int else check_number
                 if not value and any(v is not None for v in bounds.values()):  # bounded values: one or more meant
                     raise ValueError(f"{name}: got an empty list, expected one or more numbers, comma-separated")
                 for v in value:
