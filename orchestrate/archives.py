@@ -84,6 +84,10 @@ def safe_extract(archive: Path, target: Path, flag: str = "--carry", under: str 
                 if name.is_absolute() or ".." in name.parts:
                     raise UsageError(f"{flag}: {str(archive)!r} holds member {member.name[:120]!r}, whose name would "
                                      f"lead outside {str(target)!r} (expected names relative to it); refused")
+                if any(ord(c) < 32 or ord(c) == 127 for c in member.name):  # a newline splits a name in any list
+                    raise UsageError(f"{flag}: {str(archive)!r} holds member {member.name[:120]!r}, whose name holds a "
+                                     "control character (a newline, a tab); expected names as --pack writes them; "
+                                     "refused")
                 if (problem := text_name_problem(member.name)) is not None:  # the renderer reads names as text
                     raise UsageError(f"{flag}: {str(archive)!r} holds a member whose name is not text: {problem}")
                 if under is not None and not (name.parts[:1] == (under,) and (len(name.parts) > 1 or member.isdir())):

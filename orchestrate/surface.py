@@ -85,7 +85,7 @@ def load_inputs(args: SurfaceOptions):
             mask = read_mask(args.mask)
         except (ValueError, FileNotFoundError) as exc:  # the reader's messages name the file, not the flag
             raise type(exc)(f"--mask: {exc}") from None
-        mask = check_mask(mask, shape, "--mask")
+        mask = check_mask(mask, shape, f"--mask {args.mask!r}")  # the file, not only the flag
     else:
         where = f"--normals {args.normals!r} (its non-zero pixels, no --mask)"
         mask = check_mask(np.abs(normals).sum(-1) > 0, shape, where)

@@ -619,3 +619,17 @@ def test_an_unpack_record_that_is_not_a_plain_file_is_refused_before_anything_is
     with pytest.raises(UsageError, match=rf"--work: '.*{name}' is not a plain file"):
         unpack_carry(carry, work)
     assert sorted(p.name for p in work.iterdir()) == [name] and (tmp_path / "mine.txt").read_text() == "mine\n"
+
+
+def test_a_member_name_holding_a_newline_is_refused_before_anything_is_unpacked(tmp_path):
+    """Sweep 41: 'pkg/a\\nb.py' in site.tar.xz was unpacked (a name no wheel holds, which splits in any list of
+    names); refused naming the archive and the member."""
+    from orchestrate.relay import SITE_ARCHIVE, unpack_carry
+    from scenes.cli.errors import UsageError
+
+    carry, work = tmp_path / "carry", tmp_path / "work"
+    carry.mkdir()
+    _archive(carry / SITE_ARCHIVE, [*_site(), _file("pkg/a\nb.py", b"")])
+    with pytest.raises(UsageError, match=r"site.tar.xz' holds member 'pkg/a\\nb.py', whose name holds a control"):
+        unpack_carry(carry, work)
+    assert not work.exists()
