@@ -148,11 +148,11 @@ def photo_files(folder: str | Path, flag: str = "--input") -> list[Path]:
                 if _loops(broken) else "a link to a missing file")
         raise ValueError(f"{flag}: {broken.name} in {str(folder)!r} is {what}; expected every photo-named entry to be "
                          "a photo (remove it or restore the file)")
-    near = next((p for p in shown if p.suffix.lower() not in PHOTO_SUFFIXES and
-                 p.suffix.lower().rstrip(" \t.") in PHOTO_SUFFIXES + OTHER_IMAGE_SUFFIXES), None)
+    near = next((p for p in shown if (core := p.name.rstrip(" \t.")) != p.name
+                 and Path(core).suffix.lower() in PHOTO_SUFFIXES + OTHER_IMAGE_SUFFIXES), None)
     if near is not None:  # 'IMG_7.jpg ' was left out of the capture without a word (sweep 40)
         raise ValueError(f"{flag}: {near.name!r} in {str(folder)!r} is named like a photo but ends in "
-                         f"{near.suffix[len(near.suffix.rstrip(' ' + chr(9) + '.')):]!r} after its suffix; rename it "
+                         f"{near.name[len(near.name.rstrip(' ' + chr(9) + '.')):]!r} after its suffix; rename it "
                          "(or move it out of the folder)")
     other = sorted(p.name for p in shown if p.suffix.lower() in OTHER_IMAGE_SUFFIXES)
     if other:
