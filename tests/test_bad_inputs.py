@@ -5418,6 +5418,11 @@ ROWS += [
         ("--scalable", "only for the SDM-UniPS networks"), setup=_shipped_copy, check=_not_written("p")),
     Row("capture-photos-all-black", CAP, CAPTURE, 2, ("--input", "every image is all but black", "expose longer"),
         setup=_all_black_photos, check=_not_written("o")),
+    # session 55: the fitted mode said "checking d in the fitted mode ..." before it refused --variant
+    Row("rerender-fitted-refuses-the-variant-before-it-starts", RR, ["--data", "{T}/d.data", "--normals",
+                                                                    "{W}/pred/00000", "--out", "{T}/o", "--variant",
+                                                                    "llvm_ad_mono"], 2,
+        ("--variant", "llvm_ad_mono"), setup=_unscened, absent=("checking",), check=_not_written("o")),
 ]
 
 def test_a_listing_that_is_not_utf8_is_named_with_its_remedy(tmp_path: Path):

@@ -302,10 +302,10 @@ def _main_fitted(args: RerenderOptions) -> int:
     config = args.fitted
     if not Path(args.normals).exists():
         raise FileNotFoundError(f"--normals: {args.normals!r} does not exist")
+    choose_variant(args.variant, jit=True)  # before anything is claimed or said: a wrong --variant is refused first
     claim_check_outputs(args.out, [object_name(args.data)], args.overwrite, summary=False)
     print(f"checking {object_name(args.data)} in the fitted mode (light and reflectance fitted to the images) ...",
           flush=True)
-    choose_variant(args.variant, jit=True)  # the fit itself refuses a variant without automatic differentiation
     set_jit_threads(args.threads)
     with progress_bar("step") as progress:
         r = rerender_fitted(args.data, args.normals, config, args.out, progress, overwrite=args.overwrite)
@@ -403,11 +403,10 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
                              "expected a folder with <object>/normal.* (or --data one object folder)")
         if not single:
             _refuse_no_prediction(args.normals, folders)
-        claim_check_outputs(args.out, [object_name(f) for f in folders], args.overwrite, renders=config.save_renders)
-
         from scenes.renderer.variant import choose_variant
 
-        choose_variant(args.variant, jit=True)
+        choose_variant(args.variant, jit=True)  # before anything is claimed: a wrong --variant is refused first
+        claim_check_outputs(args.out, [object_name(f) for f in folders], args.overwrite, renders=config.save_renders)
         mi = require_jit_variant()
         mi.set_log_level(mi.LogLevel.Error)  # e.g. multijitter's per-render "sample count rounded up"
 
