@@ -14,6 +14,7 @@ import io
 import json
 import os
 import re
+import shlex
 import shutil
 import signal
 import subprocess
@@ -5423,6 +5424,12 @@ ROWS += [
                                                                     "{W}/pred/00000", "--out", "{T}/o", "--variant",
                                                                     "llvm_ad_mono"], 2,
         ("--variant", "llvm_ad_mono"), setup=_unscened, absent=("checking",), check=_not_written("o")),
+    # sweep 42: an object named in letters the output's encoding lacks ended the command after its work, exit 1
+    Row("evaluate-a-unicode-object-on-an-ascii-stdout", EV,
+        ["--pred", "{T}/p", "--gt", "{T}/g/k\u00e4tze \u2713.data"], 0, ("k\\xe4tze \\u2713", "wrote"),
+        env={"PYTHONIOENCODING": "ascii"}, sub=True,
+        setup=_both(_copy("data/00000.data", "g/k\u00e4tze \u2713.data"), _copy("pred/00000", "p/k\u00e4tze \u2713")),
+        check=_written("p/metrics.json")),
 ]
 
 def test_a_listing_that_is_not_utf8_is_named_with_its_remedy(tmp_path: Path):
@@ -6134,3 +6141,16 @@ def test_an_empty_file_in_an_object_folder_is_not_exported(world: Path, tmp_path
     err = capsys.readouterr().err
     assert rc == 2 and f"'{data / '00001.data' / 'L002.png'}' is empty (0 bytes)" in err, err
     assert not (tmp_path / "s").exists()
+
+
+def test_a_command_with_its_standard_streams_closed_still_writes_its_outputs(world: Path, tmp_path: Path):
+    """Sweep 42: `orchestrate.surface ... 2>&-` exited 1 with nothing written: the supervisor's pipe took the
+    closed descriptor 2, and the work's first message went into it. Closed descriptors are /dev/null now."""
+    out = tmp_path / "o"
+    argv = [sys.executable, "-m", SF, *[a.format(W=world) for a in SURF], "--out", str(out)]
+    for closed in ("2>&-", "<&- >&- 2>&-"):
+        shutil.rmtree(out, ignore_errors=True)
+        proc = subprocess.run(["bash", "-c", " ".join(shlex.quote(a) for a in argv) + " " + closed], cwd=tmp_path,
+                              env={**os.environ, "PYTHONPATH": str(REPO)}, timeout=300)
+        assert proc.returncode == 0, closed
+        assert (out / "depth.npy").is_file() and json.loads((out / "report.json").read_text()), closed

@@ -83,6 +83,31 @@ def stdout_gone() -> bool:
         return False
 
 
+def hold_standard_streams() -> None:
+    """Standard input, output and error open, and never failing on a character; called first by every entry point
+    (`scenes.cli.supervise.run_supervised`, `Command.parse`). A descriptor 0-2 the caller closed (`2>&-`) is opened
+    on /dev/null: else the first file or pipe the command opens takes its number, and a warning or a progress bar
+    is written into it. A character the output's encoding lacks (PYTHONIOENCODING=ascii) is written escaped
+    (`\\xe4`) rather than ending the command once its work is done."""
+    for fd in (0, 1, 2):  # in order: os.open takes the lowest free number, the closed one
+        try:
+            os.fstat(fd)
+        except OSError:
+            null = os.open(os.devnull, os.O_RDWR)
+            if null != fd:
+                os.dup2(null, fd)
+                os.close(null)
+    for name, fd, mode in (("stdin", 0, "r"), ("stdout", 1, "w"), ("stderr", 2, "w")):
+        if getattr(sys, name) is None:  # Python found the descriptor closed at its start
+            setattr(sys, name, open(fd, mode, closefd=False, errors="backslashreplace"))
+    for stream in (sys.stdout, sys.stderr):
+        if getattr(stream, "errors", None) == "strict" and callable(getattr(stream, "reconfigure", None)):
+            try:
+                stream.reconfigure(errors="backslashreplace")
+            except (ValueError, OSError):  # a stream that cannot change its mind (already detached)
+                pass
+
+
 def report_error(exc: BaseException, code: int = EXIT_USAGE) -> int:
     """Print `error: <message>` (one line) on stderr and return the exit status `code`; a closed standard output
     (`| head -1` went away) ends the command quietly with 141, as SIGPIPE would."""

@@ -370,7 +370,9 @@ class Command:
 
         from tyro import _errors
 
-        from scenes.cli.errors import UsageError, check_text_arguments
+        from scenes.cli.errors import UsageError, check_text_arguments, hold_standard_streams
+
+        hold_standard_streams()
 
         def refuse(event: Any) -> None:
             raise UsageError(_usage_message(event))

@@ -113,6 +113,9 @@ def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTE
     child, `main()`; in the process the user started, the same command as a child in its own session, waited for.
     `interrupted` is the line printed on a stop (`--out` is read from the arguments to remove the child's
     temporaries)."""
+    from scenes.cli.errors import hold_standard_streams
+
+    hold_standard_streams()  # before the pipe below: it would take a closed descriptor's number
     if os.environ.get(CHILD) == str(os.getppid()):
         die_with_parent(os.getppid())
         return _reader_gone_quietly(main)
