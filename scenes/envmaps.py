@@ -84,16 +84,25 @@ def load_environment(path: Path) -> np.ndarray:
         raise FileNotFoundError(f"environment.file: {str(path)!r} {why}")
     suffix = path.suffix.lower()
     if suffix == ".exr":
-        img = read_exr(path)[:, :, :3]
+        img = read_exr(path)
+        img = img[:, :, :3] if img.ndim == 3 else img
     elif suffix == ".hdr":
+        with open(path, "rb") as f:  # OpenCV decodes by content: a PNG named .hdr would be read as a low-range map
+            magic = f.read(10)
+        if not magic.startswith(b"#?"):  # every Radiance file's first line: #?RADIANCE, #?RGBE or a program's name
+            raise ValueError(f"environment.file: {str(path)!r} is not a Radiance HDR file (it begins with "
+                             f"{magic[:6]!r}, not #?); expected an .hdr light probe")
         img = decode_image(path, cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH, f"environment.file: {str(path)!r}")
         if img is None:
             raise ValueError(f"environment.file: cannot decode {str(path)!r} as a Radiance HDR image")
-        img = img[:, :, ::-1]
+        img = img[:, :, ::-1] if img.ndim == 3 else img
     else:
         raise ValueError(f"environment.file: {str(path)!r} has suffix {suffix!r}, expected .hdr or .exr")
     img = np.ascontiguousarray(img, dtype=np.float32)
-    if img.ndim != 3 or img.shape[2] != 3 or not np.all(np.isfinite(img)) or img.min() < 0:
+    if img.ndim != 3 or img.shape[2] != 3:
+        raise ValueError(f"environment.file: {str(path)!r} holds {img.shape[2] if img.ndim == 3 else 1} channel(s); "
+                         "expected an RGB map")
+    if not np.all(np.isfinite(img)) or img.min() < 0:
         raise ValueError(f"environment.file: {str(path)!r} is not a finite non-negative RGB map")
     if not 0 < (peak := float(img.max())) <= MAX_RADIANCE:  # black lights nothing; beyond, float32 sums overflow
         raise ValueError(f"environment.file: {str(path)!r} " + ("is black (it lights nothing)" if peak <= 0 else

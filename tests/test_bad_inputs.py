@@ -5161,6 +5161,9 @@ def _asset(kind: str) -> Callable[[Path, Path], None]:
             rgbe = np.zeros((8, 16, 4), np.uint8) if kind == "black" else np.full((8, 16, 4), 255, np.uint8)
             head = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 8 +X 16\n"
             _mk(t / "assets" / "hdri").joinpath(f"{kind}.hdr").write_bytes(head + rgbe.tobytes())
+        elif kind == "png":  # a photo saved under the name of a light probe: OpenCV decoded it by content
+            _mk(t / "assets" / "hdri").joinpath("photo.hdr").write_bytes(
+                cv2.imencode(".png", np.full((8, 16), 128, np.uint8))[1].tobytes())
         elif kind == "arm":
             tex = _mk(t / "assets" / "textures")
             assert cv2.imwrite(str(tex / "wood_col.png"), np.full((8, 8, 3), 128, np.uint8))
@@ -5354,6 +5357,8 @@ ROWS += [
     Row("make-an-hdr-map-at-the-largest-rgbe-value", MK, ["--out", "{T}/o", *TINY, "--lights", "hdri", "--assets",
                                                           "{T}/assets"], 2,
         ("--assets", "blinding.hdr", "above 1e+09"), setup=_asset("blinding"), check=_not_written("o")),
+    Row("make-an-hdr-map-that-is-a-png", MK, ["--out", "{T}/o", *TINY, "--lights", "hdri", "--assets", "{T}/assets"],
+        2, ("--assets", "photo.hdr", "not a Radiance HDR file"), setup=_asset("png"), check=_not_written("o")),
     Row("make-an-arm-map-of-one-channel", MK, ["--out", "{T}/o", *TINY, "--assets", "{T}/assets"], 2,
         ("--assets", "wood_arm.png", "has 1 channel(s)"), setup=_asset("arm"), check=_not_written("o")),
     Row("make-a-mesh-with-nan-texture-coordinates", MK, ["--out", "{T}/o", *TINY, "--assets", "{T}/assets",
