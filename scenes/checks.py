@@ -1,12 +1,14 @@
 """The one set of value checks: every option of a command line (`scenes.cli.options.check_fields`) and every
 field of the plain scene data (`scenes.description`, `scenes.lights`) is checked here, and each refusal is one
-ValueError `NAME: got VALUE, expected WHAT` naming the flag or the field (`owner.field`) and the value."""
+ValueError `NAME: got VALUE, expected WHAT` naming the flag or the field (`owner.field`) and the value; and the
+size of a file read whole (`check_read_whole`)."""
 from __future__ import annotations
 
 import dataclasses
 import functools
 import math
 import numbers
+import os
 import types
 import typing
 from typing import Any, Iterable
@@ -200,3 +202,18 @@ def _kind(hint: Any) -> str:
         return f"an object of ({_kind(args[1])})"
     return {bool: "true or false", int: "an integer", float: "a number", str: "a string",
             type(None): "null"}.get(hint, getattr(hint, "__name__", str(hint)))
+
+
+READ_WHOLE_LIMIT = 2**30
+"""The largest file read whole into memory: a record (JSON, a light list), an image, a mesh, a NumPy map. A bigger
+one (a sparse file, a disk image under a photo's name) is refused by its size before minutes of reading; a real
+one beyond it (a 15-million-face mesh, a 170-megapixel 16-bit photo) is more than any of these commands uses."""
+
+
+def check_read_whole(path: str | os.PathLike[str], where: str, size: int | None = None) -> None:
+    """A ValueError beginning with `where` (the flag or field, and the file) for a file over READ_WHOLE_LIMIT;
+    `size` when the caller already has it (an open descriptor's)."""
+    size = os.stat(path).st_size if size is None else size
+    if size > READ_WHOLE_LIMIT:
+        raise ValueError(f"{where} is {size / 2**30:.1f} GiB, over the {READ_WHOLE_LIMIT // 2**30} GiB a file read "
+                         "whole may be; expected the file its name says (a copy padded, or another file?)")

@@ -133,8 +133,11 @@ def read_text_file(path: str | os.PathLike) -> str:
 
     fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
     try:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
+        if not stat.S_ISREG((st := os.fstat(fd)).st_mode):
             raise OSError(f"{str(path)!r} is not a regular file (a device, a pipe or a socket); expected a file")
+        from scenes.checks import check_read_whole
+
+        check_read_whole(path, repr(str(path)), st.st_size)
         os.set_blocking(fd, True)
         with os.fdopen(fd, "rb", closefd=False) as f:
             data = f.read()

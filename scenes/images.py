@@ -13,6 +13,7 @@ the file has one that is not fully opaque, else from the colour channels (their 
 """
 from __future__ import annotations
 
+import os
 import re
 import sys
 from pathlib import Path
@@ -94,8 +95,11 @@ def decode_image(path: Path, flags: int, where: str):
     returns None); other files are read as they are."""
     import cv2
 
+    from scenes.checks import check_read_whole
+
     try:
         with open(path, "rb") as f:  # read here: OpenCV's own file reading crashes on a name that is not UTF-8
+            check_read_whole(path, where, os.fstat(f.fileno()).st_size)
             data = np.frombuffer(f.read(), np.uint8)
     except OSError as exc:  # a folder, a file without read permission
         raise ValueError(f"{where} cannot be opened: {exc.strerror or exc}") from None
@@ -446,6 +450,9 @@ def read_normals(path: str | Path, arg: str = "normal map") -> np.ndarray:
             )
         n = np.stack([ch["R"], ch["G"], ch["B"]], axis=-1).astype(np.float32)
     elif suffix == ".npy":
+        from scenes.checks import check_read_whole
+
+        check_read_whole(path, f"{arg}: NPY file {path}")
         try:
             n = np.load(path, allow_pickle=False)
         except Exception as exc:

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from scenes.checks import check_read_whole
 from scenes.files import not_a_file
 from scenes.procedural import MeshData, smooth_normals
 
@@ -31,6 +32,7 @@ def load_mesh(path: str | Path, normalize: bool = True) -> MeshData:
         raise ValueError(
             f"shape.file: {str(path)!r} has suffix {path.suffix!r}, expected one of {', '.join(MESH_SUFFIXES)}"
         )
+    check_read_whole(path, f"shape.file: mesh file {str(path)!r}")
     if path.suffix.lower() == ".obj":  # a text format: refuse binary garbage here, not deep inside trimesh
         try:
             text = path.read_bytes().decode("utf-8")

@@ -2932,8 +2932,17 @@ def _snapshot(root: Path) -> dict[str, str]:
             p = Path(dirpath, f)
             out[str(p.relative_to(root))] = (f"link to {os.readlink(p)}" if p.is_symlink() and not p.is_file() else
                                              "not a file" if not p.is_file() else  # a pipe: never opened
-                                             hashlib.sha256(p.read_bytes()).hexdigest())  # (never a device read)
+                                             _digest(p))  # (never a device read)
     return out
+
+
+def _digest(p: Path) -> str:
+    """sha256 of a file; of a padded one (over 256 MiB: a sparse file of a row) its size, time and first MiB."""
+    st = p.stat()
+    if st.st_size <= 2**28:
+        return hashlib.sha256(p.read_bytes()).hexdigest()
+    with open(p, "rb") as f:
+        return f"{st.st_size} bytes at {st.st_mtime_ns}: {hashlib.sha256(f.read(2**20)).hexdigest()}"
 
 
 # --------------------------------------------------------------------------- issue 50: inputs are what they say
@@ -3060,6 +3069,18 @@ def _diligent_edited(listing=None, lights=None) -> Callable[[Path, Path], None]:
             (t / "dil" / "filenames.txt").write_text("\n".join(listing(names)) + "\n")
         if lights is not None:
             np.savetxt(t / "dil" / "light_directions.txt", lights(np.loadtxt(t / "dil" / "light_directions.txt")))
+    return setup
+
+
+def _padded(rel: str, gib: int, *before: Callable[[Path, Path], None]) -> Callable[[Path, Path], None]:
+    """Setup: the `before` setups, then T/<rel> (a file, made empty if missing) padded to `gib` GiB with a hole (a
+    sparse file: no disk is used)."""
+    def setup(w: Path, t: Path) -> None:
+        for b in before:
+            b(w, t)
+        _mk((t / rel).parent)
+        with open(t / rel, "ab") as f:
+            f.truncate(gib * 2**30)
     return setup
 
 
@@ -5429,6 +5450,20 @@ ROWS += [
                                                                     "{W}/pred/00000", "--out", "{T}/o", "--variant",
                                                                     "llvm_ad_mono"], 2,
         ("--variant", "llvm_ad_mono"), setup=_unscened, absent=("checking",), check=_not_written("o")),
+    # sweep 42: files read whole were read however big: a light list padded to 20 GiB was killed out of memory, a
+    # mesh padded to 8 GiB read for minutes
+    Row("predict-diligent-light-list-padded-to-20-gib", PR, ["--method", "least-squares", "--input", "{T}/dil",
+                                                             "--out", "{T}/p"], 2,
+        ("--input", "light_directions.txt", "20.0 GiB, over the 1 GiB"),
+        setup=_padded("dil/light_directions.txt", 20, _diligent_edited()), check=_not_written("p")),
+    Row("make-a-mesh-padded-to-8-gib", MK, ["--out", "{T}/o", *TINY, "--shapes", "mesh", "--assets", "{T}/assets"], 2,
+        ("--assets", "tetra.obj", "8.0 GiB, over the 1 GiB"), check=_not_written("o"),
+        setup=_padded("assets/meshes/tetra.obj", 8, _put(("assets/meshes/tetra.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
+                                                                                      "v 0 0 1\nf 1 3 2\nf 1 2 4\n"
+                                                                                      "f 1 4 3\nf 2 3 4\n")))),
+    Row("evaluate-a-npy-map-padded-to-4-gib", EV, ["--pred", "{T}/p", "--gt", OBJDIR], 2,
+        ("normal.npy", "4.0 GiB, over the 1 GiB"),
+        setup=_padded("p/00000/normal.npy", 4, _prediction_npy(lambda n: n))),
     # sweep 42: an object named in letters the output's encoding lacks ended the command after its work, exit 1
     Row("evaluate-a-unicode-object-on-an-ascii-stdout", EV,
         ["--pred", "{T}/p", "--gt", "{T}/g/k\u00e4tze \u2713.data"], 0, ("k\\xe4tze \\u2713", "wrote"),
