@@ -6194,3 +6194,20 @@ def test_a_command_with_its_standard_streams_closed_still_writes_its_outputs(wor
                               env={**os.environ, "PYTHONPATH": str(REPO)}, timeout=300)
         assert proc.returncode == 0, closed
         assert (out / "depth.npy").is_file() and json.loads((out / "report.json").read_text()), closed
+
+
+def test_a_standard_output_that_fails_ends_the_command_in_one_line(world: Path, tmp_path: Path):
+    """Sweep 42: `unips.evaluate ... > /dev/full` ended in an OSError traceback, and `wildgen.make ... | head -1` in a
+    BrokenPipeError one (it is not supervised). Now: one line naming standard output (exit 2), and the reader gone
+    ends the command as SIGPIPE would (141), quietly."""
+    shutil.copytree(world / "pred", tmp_path / "p")
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    py = shlex.quote(sys.executable)
+    full = subprocess.run(["bash", "-c", f"{py} -m {EV} --pred p --gt {shlex.quote(str(world / 'data'))} > /dev/full"],
+                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert full.returncode == 2 and "Traceback" not in full.stderr, full.stderr
+    assert full.stderr.strip().splitlines()[-1].startswith("error: standard output: "), full.stderr
+    gone = subprocess.run(["bash", "-c", f"{py} -m {MK} --out o {' '.join(TINY[:-1])} | head -c 1 >/dev/null; "
+                                         "echo ${PIPESTATUS[0]} >&2"],
+                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert "Traceback" not in gone.stderr and gone.stderr.split()[-1] == "141", gone.stderr

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Annotated, Literal
 
 from scenes.checks import check_int
-from scenes.cli.errors import UsageError, report_error
+from scenes.cli.errors import UsageError, keep_stdout_failures_short, report_error
 from scenes.cli.limits import check_memory as check_memory_bytes
 from scenes.cli.limits import check_threads, gib
 from scenes.cli.needs import Needs, value_of
@@ -489,7 +489,7 @@ def _render(args: MakeOptions, cfg, variant: str, out: Path, state: dict) -> int
 
 if __name__ == "__main__":
     ended: dict = {}
-    code = main(state=ended)
+    code = keep_stdout_failures_short(lambda: main(state=ended))
     if code in (130, 143) or ended.get("lost"):
         # Everything is cleaned up and reported. An interrupt that arrived inside a native import leaves CPython's
         # "unhandled KeyboardInterrupt" flag set, which would turn this exit into a kill by SIGINT; after a lost

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 EXIT_USAGE = 2
 """Exit status of a usage or input error (argparse's own)."""
@@ -108,15 +108,45 @@ def hold_standard_streams() -> None:
                 pass
 
 
-def report_error(exc: BaseException, code: int = EXIT_USAGE) -> int:
-    """Print `error: <message>` (one line) on stderr and return the exit status `code`; a closed standard output
-    (`| head -1` went away) ends the command quietly with 141, as SIGPIPE would."""
-    if isinstance(exc, BrokenPipeError) and stdout_gone():
-        import os
-        import signal
+def stdout_failed(exc: BaseException) -> int | None:
+    """The exit status of a command whose standard output failed under it (`exc`, raised by a print), or None
+    where `exc` is another's. Its reader gone (`| head -1`): 141 quietly, as SIGPIPE would end it; anything else
+    (`> /dev/full`, a disk that filled): one line saying so, exit 2. Either way the output's descriptor is then
+    /dev/null, so that the flush at exit has nowhere to fail."""
+    import signal
 
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # the flush at exit has nowhere to fail
-        return 128 + signal.SIGPIPE
+    if not isinstance(exc, OSError) or getattr(exc, "filename", None) is not None:
+        return None
+    if isinstance(exc, BrokenPipeError):
+        code = 128 + signal.SIGPIPE if stdout_gone() else None
+    else:
+        try:  # a line written past the buffers fails again only where standard output is the fault (a stray
+            os.write(1, b"\n")  # newline otherwise, on the way to the other error's report)
+            code = None
+        except OSError as again:
+            print(f"error: standard output: {one_line(again)}; the command's messages could not be written (what it "
+                  "wrote in its folders is whole)", file=sys.stderr)
+            code = EXIT_USAGE
+    if code is not None:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), 1)
+    return code
+
+
+def keep_stdout_failures_short(main: Callable[[], int]) -> int:
+    """`main()`, where standard output failing under it (`stdout_failed`) ends the command without a traceback."""
+    try:
+        return main()
+    except OSError as exc:
+        if (code := stdout_failed(exc)) is None:
+            raise
+        return code
+
+
+def report_error(exc: BaseException, code: int = EXIT_USAGE) -> int:
+    """Print `error: <message>` (one line) on stderr and return the exit status `code`; standard output failing
+    (`| head -1` went away) is said as `stdout_failed` says it."""
+    if (failed := stdout_failed(exc)) is not None:
+        return failed
     print(f"error: {one_line(exc)}", file=sys.stderr)
     return code
 

@@ -93,32 +93,18 @@ def remove_temporaries(folder: str | Path | None, pids: set[int]) -> int:
     return removed
 
 
-def _reader_gone_quietly(main: Callable[[], int]) -> int:
-    """`main()`, where the reader of its output going away (`| head -1`) ends the command as SIGPIPE would, without
-    a traceback: what it wrote stays; exit 141 (128 + SIGPIPE), the shell's status for such an end."""
-    try:
-        return main()
-    except BrokenPipeError as exc:
-        from scenes.cli.errors import stdout_gone
-
-        if not stdout_gone():  # another pipe's: a fault to see
-            raise exc from None
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # the flush at exit has nowhere to fail
-        return 128 + signal.SIGPIPE
-
-
 def run_supervised(module: str, main: Callable[[], int], interrupted: str = INTERRUPTED,
                    argv: list[str] | None = None, command: list[str] | None = None) -> int:
     """`python -m module` (or `command`, e.g. a script's path) with Ctrl-C handled as the module doc says: in the
     child, `main()`; in the process the user started, the same command as a child in its own session, waited for.
     `interrupted` is the line printed on a stop (`--out` is read from the arguments to remove the child's
     temporaries)."""
-    from scenes.cli.errors import hold_standard_streams
+    from scenes.cli.errors import hold_standard_streams, keep_stdout_failures_short
 
     hold_standard_streams()  # before the pipe below: it would take a closed descriptor's number
     if os.environ.get(CHILD) == str(os.getppid()):
         die_with_parent(os.getppid())
-        return _reader_gone_quietly(main)
+        return keep_stdout_failures_short(main)
     if os.environ.get(CHILD):  # a step another command's work started (a bench's wildgen.make): it ends with that
         die_with_parent(os.getppid())  # work, killed outright too (kill -9, out of memory), never an orphan writing on
     argv = sys.argv[1:] if argv is None else argv
