@@ -31,7 +31,8 @@ def write_exr(path: str | Path, data: np.ndarray) -> None:
             with OpenEXR.File(header, dict(channels)) as f:
                 f.write(str(tmp))
         except RuntimeError as exc:  # OpenEXR reports a full disk or an unwritable folder this way
-            raise OSError(f"could not write {str(path)!r}: {exc}") from exc
+            said = str(exc).replace(str(tmp), str(path))  # the file the user knows, not its temporary name
+            raise OSError(f"could not write {str(path)!r}: {said}") from exc
 
     atomic_write(path, write)
 

@@ -6211,3 +6211,32 @@ def test_a_standard_output_that_fails_ends_the_command_in_one_line(world: Path, 
                                          "echo ${PIPESTATUS[0]} >&2"],
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
     assert "Traceback" not in gone.stderr and gone.stderr.split()[-1] == "141", gone.stderr
+
+
+def test_a_prediction_that_cannot_be_written_whole_takes_its_files_back(world: Path, tmp_path: Path):
+    """Sweep 42: under `ulimit -f 4` predict failed on normal.png and left p/00000/predict.json, the mark of a
+    finished prediction, so that a rerun asked for --overwrite; a failed EXR said '[Errno None]' and named its
+    temporary file. Now the object's files are taken back, the line names the real file, and a rerun works."""
+    import resource
+
+    def limited(kib: int) -> Callable[[], None]:
+        return lambda: resource.setrlimit(resource.RLIMIT_FSIZE, (kib * 1024, kib * 1024))
+
+    argv = [sys.executable, "-m", PR, "--method", "model", "--input", str(world / "data" / f"{OBJ}.data"), "--out",
+            str(tmp_path / "p")]
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    failed = 0
+    for kib in (4, 8):
+        r = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=300, preexec_fn=limited(kib))
+        if r.returncode == 0:
+            shutil.rmtree(tmp_path / "p")
+            continue
+        failed += 1
+        assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+        line = r.stderr.strip().splitlines()[-1]
+        assert line.startswith("error: could not write") and "File too large" in line, line
+        assert "Errno None" not in line and ".tmp" not in line, line
+        assert not (tmp_path / "p" / OBJ).exists(), sorted(os.listdir(tmp_path / "p"))
+    assert failed, "no limit made the prediction fail"
+    assert subprocess.run(argv, env=env, capture_output=True, timeout=300).returncode == 0
+    assert (tmp_path / "p" / OBJ / "normal.png").is_file()

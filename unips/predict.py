@@ -30,7 +30,8 @@ import logging
 import os
 import sys
 import time
-from contextlib import ExitStack
+from collections.abc import Iterator
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -165,6 +166,22 @@ def write_prediction(out_dir: Path, normals: np.ndarray, info: dict[str, Any]) -
     write_normal_map(out_dir / "normal.png", normals)
     write_normal_exr(out_dir / "normal.exr", normals)
     write_normal_visual(out_dir / "normal_vis.png", normals)
+
+
+@contextmanager
+def taken_back_on_failure(out_dir: Path) -> Iterator[None]:
+    """Writes of one object's outputs into `out_dir` that, failing (a full disk, `ulimit -f`), take back the files
+    they made (and the folder), so that the object is as before and a rerun needs no --overwrite."""
+    made_dir = not out_dir.exists()
+    new = [out_dir / f for f in (*PREDICTION_OUTPUTS, *EXPECTED_ERROR_FILES) if not os.path.lexists(out_dir / f)]
+    try:
+        yield
+    except OSError:
+        for f in new:
+            f.unlink(missing_ok=True)
+        if made_dir and out_dir.is_dir() and not any(out_dir.iterdir()):
+            out_dir.rmdir()
+        raise
 
 
 FEWEST_IMAGES = {"least-squares": (3, "three non-coplanar lights at least"),
@@ -384,12 +401,13 @@ def _predict_one(args: PredictOptions, net, folder: Path, name: str,
         "expected_error_model": model_path(net.checkpoint).name if stated else None,
         **({"expected_error_note": why} if stated is None else {}),
     }
-    write_prediction(args.out / name, normals, info)
-    if stated is not None:
-        write_stated(args.out / name, stated)
-    else:  # an earlier run's stated error (claimed before any work) is not this map's
-        for f in EXPECTED_ERROR_FILES:
-            (args.out / name / f).unlink(missing_ok=True)
+    with taken_back_on_failure(args.out / name):
+        write_prediction(args.out / name, normals, info)
+        if stated is not None:
+            write_stated(args.out / name, stated)
+        else:  # an earlier run's stated error (claimed before any work) is not this map's
+            for f in EXPECTED_ERROR_FILES:
+                (args.out / name / f).unlink(missing_ok=True)
     log.info("%s: %s in %.2f s", name, args.method, elapsed)
 
 
