@@ -5461,6 +5461,12 @@ ROWS += [
         setup=_padded("assets/meshes/tetra.obj", 8, _put(("assets/meshes/tetra.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
                                                                                       "v 0 0 1\nf 1 3 2\nf 1 2 4\n"
                                                                                       "f 1 4 3\nf 2 3 4\n")))),
+    # sweep 42: a dataset rendered into another dataset's object folder (spelled with ..), exit 0
+    Row("make-out-an-object-folder-spelled-with-dotdot", MK, ["--out", "{T}/data/00001.data/../00000.data", *TINY], 2,
+        ("--out", "is an object folder", "scene.json"), setup=_dataset_copy,
+        check=_not_written("data/00000.data/manifest.json", "data/00000.data/00000.data")),
+    Row("make-out-inside-an-object-folder", MK, ["--out", "{T}/data/00000.data/x/y", *TINY], 2,
+        ("--out", "lies inside", "an object folder"), setup=_dataset_copy, check=_not_written("data/00000.data/x")),
     Row("evaluate-a-npy-map-padded-to-4-gib", EV, ["--pred", "{T}/p", "--gt", OBJDIR], 2,
         ("normal.npy", "4.0 GiB, over the 1 GiB"),
         setup=_padded("p/00000/normal.npy", 4, _prediction_npy(lambda n: n))),

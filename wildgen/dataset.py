@@ -397,9 +397,11 @@ def dataset_lock(out_dir: Path) -> Iterator[None]:
     from scenes.cli.errors import UsageError
     from scenes.cli.outputs import busy_message, check_no_holder_above
     from scenes.files import FolderBusy, folder_lock
+    from scenes.folder.format import check_not_in_object_folder
 
     try:
         check_no_holder_above(out_dir)  # inside a folder another run writes: the two runs' files would mix
+        check_not_in_object_folder(out_dir)
     except UsageError as exc:
         raise DatasetError(str(exc)) from None
     out_dir.mkdir(parents=True, exist_ok=True)

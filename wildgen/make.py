@@ -21,7 +21,7 @@ from scenes.cli.needs import Needs, value_of
 from scenes.cli.options import REQUIRED, Command, arg, check_fields, option, optional_value
 from scenes.cli.outputs import check_output_folder, check_replaceable, make_output_folder
 from scenes.cli.progress import Progress, logs_above_progress
-from scenes.folder.format import entry_folder
+from scenes.folder.format import check_not_in_object_folder, entry_folder
 from scenes.folder.shard_format import ENCODINGS
 from wildgen.config import GenConfig
 from wildgen.levels import LEVELS, apply_level, check_level_and_preset
@@ -168,8 +168,8 @@ def check_flags(opts: MakeOptions, explicit: set[str]) -> None:
                          "--height H)")
     check_output_folder(opts.out)
     from scenes.cli.outputs import check_apart, check_no_holder_above
-
     check_no_holder_above(opts.out)  # before the render (the lock, taken later, checks again)
+    check_not_in_object_folder(opts.out)  # (so is this one)
 
     check_apart(opts.out, {"--assets": opts.gen.assets})  # a dataset inside the assets is read as assets next time
     if opts.shards:  # the whole target, before the render: not found only when the dataset is done

@@ -262,6 +262,20 @@ def list_object_folders(dataset: str | Path) -> list[Path]:
     return folders
 
 
+def check_not_in_object_folder(path: str | os.PathLike, flag: str = "--out") -> None:
+    """Refuse a dataset's output folder that is, or lies inside, an object folder (one holding scene.json, however
+    the path is spelled: `d/00001.data/../00000.data`): the objects written there would mix with that object's
+    files, and its dataset's readers would take them for one object's."""
+    from scenes.cli.errors import UsageError
+
+    real = Path(os.path.realpath(path))
+    held = next((p for p in (real, *real.parents) if os.path.lexists(p / SCENE_FILE)), None)
+    if held is not None:
+        where = "is" if held == real else f"lies inside {str(held)!r},"
+        raise UsageError(f"{flag}: {str(path)!r} {where} an object folder (it holds {SCENE_FILE}); expected a "
+                         "folder of its own for a dataset")
+
+
 def scene_file_present(path: Path) -> bool:
     """Whether the scene file `path` is there: True for a file, False when nothing is under its name; anything else
     under that name (a folder, a device, a link to nothing) is a ValueError, never read as "no scene" (which would
