@@ -86,6 +86,12 @@ def check_assets(assets: Path) -> Chosen:
                          "held-out assets (expected meshes/ and hdri/ as in ../shared/assets)")
     from orchestrate.asset_split import check_packable
 
+    from orchestrate.archives import UNPACKED_LIMIT
+
+    if (total := sum(p.stat().st_size for p, _ in meshes)) > UNPACKED_LIMIT:  # before minutes of reading
+        raise UsageError(f"--assets: the training meshes of {str(assets)!r} are {total} bytes, over the "
+                         f"{UNPACKED_LIMIT // 2**20} MiB a pack unpacks to (orchestrate.archives); expected a smaller "
+                         "asset folder")
     check_packable(assets, [p for p, _ in meshes] + [p for p, _ in hdris] + [p for f in sets for p, _ in f])
     return [(a, p.read_bytes()) for p, a in meshes] + [(a, _small_hdr(p)) for p, a in hdris], sets, held
 

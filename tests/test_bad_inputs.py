@@ -3584,6 +3584,17 @@ def _faceless_training_mesh(w: Path, t: Path) -> None:
     (t / "a" / "meshes" / "a.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
 
 
+def _padded_training_meshes(w: Path, t: Path) -> None:
+    """Setup: `_faceless_training_mesh`'s wheels and assets, with a.obj a triangle and a0.obj .. a7.obj beside it,
+    each the triangle padded to 200 MiB with a hole: over 1 GiB of training meshes (a sparse file uses no disk)."""
+    _faceless_training_mesh(w, t)
+    (t / "a" / "meshes" / "a.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    for i in range(8):  # 6 or more of them in the training split (the last quarter by name is held out)
+        with open(t / "a" / "meshes" / f"a{i}.obj", "wb") as f:
+            f.write(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+            f.truncate(200 * 2**20)
+
+
 def _unscened(w: Path, t: Path) -> None:
     """T/d.data: the world's object 00000 without its scene file (read as an official UniPS folder: fitted check)."""
     shutil.copytree(w / "data" / "00000.data", t / "d.data", ignore=shutil.ignore_patterns("scene.json"))
@@ -5467,6 +5478,10 @@ ROWS += [
         check=_not_written("data/00000.data/manifest.json", "data/00000.data/00000.data")),
     Row("make-out-inside-an-object-folder", MK, ["--out", "{T}/data/00000.data/x/y", *TINY], 2,
         ("--out", "lies inside", "an object folder"), setup=_dataset_copy, check=_not_written("data/00000.data/x")),
+    Row("gpu-session-pack-training-meshes-beyond-what-unpacks", GS, ["--pack", "{T}/pack", "--wheels", "{T}/wheels",
+                                                                      "--assets", "{T}/a"], 2,
+        ("--assets", "training meshes", "over the 1024 MiB a pack unpacks to"), setup=_padded_training_meshes,
+        check=_not_written("pack")),
     Row("evaluate-a-npy-map-padded-to-4-gib", EV, ["--pred", "{T}/p", "--gt", OBJDIR], 2,
         ("normal.npy", "4.0 GiB, over the 1 GiB"),
         setup=_padded("p/00000/normal.npy", 4, _prediction_npy(lambda n: n))),
