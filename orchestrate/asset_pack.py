@@ -20,7 +20,7 @@ renders are 128 px, and a 1k map alone is 1.5 MiB, 28 of them more than the uplo
 ASSET_RULE = (f"the training split of orchestrate.asset_split.split_plan (the last quarter of the meshes and the "
               f"last fifth of the HDR maps by name are held out and never packed); every training mesh folder; "
               f"every training HDR map area-resampled to {HDR_WIDTH} px wide; then whole texture sets in name order "
-              f"while the upload limit allows")
+              f"while the upload limit (and the 1 GiB a pack unpacks to) allows")
 
 
 def asset_choice(
@@ -84,9 +84,8 @@ def check_assets(assets: Path) -> Chosen:
     if not meshes and not hdris:
         raise UsageError(f"--assets: {str(assets)!r} has too few meshes and HDR maps to split into training and "
                          "held-out assets (expected meshes/ and hdri/ as in ../shared/assets)")
-    from orchestrate.asset_split import check_packable
-
     from orchestrate.archives import UNPACKED_LIMIT
+    from orchestrate.asset_split import check_packable
 
     if (total := sum(p.stat().st_size for p, _ in meshes)) > UNPACKED_LIMIT:  # before minutes of reading
         raise UsageError(f"--assets: the training meshes of {str(assets)!r} are {total} bytes, over the "
@@ -105,14 +104,16 @@ def pack_assets(assets: Path, dest: Path, budget: int, chosen: Chosen | None = N
     if used > budget:
         raise UsageError(f"--assets: the training meshes and maps of {str(assets)!r} need {used} bytes compressed, "
                          f"over the {budget} bytes the upload limit leaves (expected a smaller asset folder)")
-    packed_sets, skipped = [], []
+    from orchestrate.archives import UNPACKED_LIMIT
+
+    packed_sets, skipped, unpacked = [], [], sum(len(b) for _, b in members)
     for files in sets:
         data = [(a, p.read_bytes()) for p, a in files]
         size = sum(len(lzma.compress(b, preset=6)) for _, b in data)
         name = str(Path(files[0][1]).parent)
-        if used + size <= budget:
+        if used + size <= budget and unpacked + sum(len(b) for _, b in data) <= UNPACKED_LIMIT:
             members = members + data  # not the caller's list
-            used += size
+            used, unpacked = used + size, unpacked + sum(len(b) for _, b in data)
             packed_sets.append(name)
         else:
             skipped.append(name)
