@@ -88,9 +88,10 @@ def check_assets(assets: Path) -> Chosen:
     from orchestrate.asset_split import check_packable
 
     if (total := sum(p.stat().st_size for p, _ in meshes)) > UNPACKED_LIMIT:  # before minutes of reading
+        big = max((p for p, _ in meshes), key=lambda p: p.stat().st_size)
         raise UsageError(f"--assets: the training meshes of {str(assets)!r} are {total} bytes, over the "
-                         f"{UNPACKED_LIMIT // 2**20} MiB a pack unpacks to (orchestrate.archives); expected a smaller "
-                         "asset folder")
+                         f"{UNPACKED_LIMIT // 2**20} MiB a pack unpacks to (orchestrate.archives; the largest: "
+                         f"{str(big)!r}, {big.stat().st_size} bytes); expected a smaller asset folder")
     check_packable(assets, [p for p, _ in meshes] + [p for p, _ in hdris] + [p for f in sets for p, _ in f])
     return [(a, p.read_bytes()) for p, a in meshes] + [(a, _small_hdr(p)) for p, a in hdris], sets, held
 

@@ -163,6 +163,10 @@ def check_text_arguments(argv: Sequence[str], positional: str) -> None:
         if not eq:
             flag, value = (argv[i - 1] if i and argv[i - 1].startswith("--") else positional), arg
         if (problem := text_name_problem(arg)) is None:
+            long = max(value.split(os.sep), key=lambda part: len(os.fsencode(part)))
+            if len(os.fsencode(long)) > 255 and not value.startswith("-"):  # no file can have it (no free text here)
+                raise UsageError(f"{flag}: {value[:60]!r}... holds a name of {len(os.fsencode(long))} bytes; expected "
+                                 "names of at most 255 bytes (the file system's limit)")
             real = os.path.realpath(value) if value and not value.startswith("-") and os.path.lexists(value) else ""
             if (problem := text_name_problem(real)) is not None:  # a link to a folder named in another encoding
                 raise UsageError(f"{flag}: {value!r} leads to {shown_name(real)!r}: {problem}")
