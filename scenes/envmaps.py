@@ -87,8 +87,11 @@ def load_environment(path: Path) -> np.ndarray:
         img = read_exr(path)
         img = img[:, :, :3] if img.ndim == 3 else img
     elif suffix == ".hdr":
-        with open(path, "rb") as f:  # OpenCV decodes by content: a PNG named .hdr would be read as a low-range map
-            magic = f.read(10)
+        try:
+            with open(path, "rb") as f:  # OpenCV decodes by content: a PNG named .hdr would be read as low-range
+                magic = f.read(10)
+        except OSError as exc:
+            raise ValueError(f"environment.file: {str(path)!r} cannot be opened: {exc.strerror or exc}") from None
         if not magic.startswith(b"#?"):  # every Radiance file's first line: #?RADIANCE, #?RGBE or a program's name
             raise ValueError(f"environment.file: {str(path)!r} is not a Radiance HDR file (it begins with "
                              f"{magic[:6]!r}, not #?); expected an .hdr light probe")

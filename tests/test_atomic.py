@@ -123,6 +123,5 @@ def test_full_disk_leaves_no_truncated_file_and_the_summary_says_none_was_writte
     assert "Traceback" not in r.stderr
     assert "none was written" in r.stderr and "No space left" in r.stderr and "normal.png" in r.stderr
     files = [p for p in (tiny_disk / "pred").rglob("*") if p.is_file()]
-    assert files and all(p.name == "predict.json" for p in files)  # no map, no temporary left behind
-    assert all(p.stat().st_size > 0 for p in files)
+    assert not files, files  # no map, no temporary, no predict.json of an unwritten map (taken back: sweep 42)
     assert main(["--method", "least-squares", "--input", str(synthetic_object), "--out", str(tiny_disk / "p2")]) == 2

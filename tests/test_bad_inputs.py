@@ -5484,6 +5484,9 @@ ROWS += [
         setup=_padded_training_meshes, check=_not_written("pack")),
     Row("evaluate-pred-with-a-name-over-255-bytes", EV, ["--pred", "{T}/" + "n" * 300, "--gt", "{W}/data"], 2,
         ("--pred", "holds a name of 300 bytes")),
+    Row("make-out-below-another-tools-scene-file", MK, ["--out", "{T}/project/o", *TINY], 0, ("1 done",),
+        setup=_put(("project/scene.json", '{"from": "another 3D tool"}\n')),
+        check=_written("project/o/manifest.json")),
     Row("evaluate-a-npy-map-padded-to-4-gib", EV, ["--pred", "{T}/p", "--gt", OBJDIR], 2,
         ("normal.npy", "4.0 GiB, over the 1 GiB"),
         setup=_padded("p/00000/normal.npy", 4, _prediction_npy(lambda n: n))),
@@ -6263,3 +6266,13 @@ def test_a_prediction_that_cannot_be_written_whole_takes_its_files_back(world: P
     assert failed, "no limit made the prediction fail"
     assert subprocess.run(argv, env=env, capture_output=True, timeout=300).returncode == 0
     assert (tmp_path / "p" / OBJ / "normal.png").is_file()
+
+
+def test_an_input_error_writes_nothing_to_standard_output(world: Path, tmp_path: Path, capfd):
+    """Review of sweep 42's fixes: the first rule for a failing standard output probed it with a newline on every
+    error without a file name (a stray blank line on stdout, or, on a full output, the real error hidden)."""
+    from unips.evaluate import main as evaluate
+
+    assert evaluate(["--pred", str(tmp_path / "nowhere"), "--gt", str(world / "data")]) == 2
+    out, err = capfd.readouterr()
+    assert out == "" and "--pred" in err and "does not exist" in err, (out, err)

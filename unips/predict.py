@@ -171,7 +171,8 @@ def write_prediction(out_dir: Path, normals: np.ndarray, info: dict[str, Any]) -
 @contextmanager
 def taken_back_on_failure(out_dir: Path) -> Iterator[None]:
     """Writes of one object's outputs into `out_dir` that, failing (a full disk, `ulimit -f`), take back the files
-    they made (and the folder), so that the object is as before and a rerun needs no --overwrite."""
+    they made (and the folder), so that a first run leaves nothing and its rerun needs no --overwrite (an earlier
+    run's files it replaced stay replaced: with --overwrite, a rerun is asked for anyway)."""
     made_dir = not out_dir.exists()
     new = [out_dir / f for f in (*PREDICTION_OUTPUTS, *EXPECTED_ERROR_FILES) if not os.path.lexists(out_dir / f)]
     try:

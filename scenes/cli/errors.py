@@ -119,17 +119,26 @@ def stdout_failed(exc: BaseException) -> int | None:
         return None
     if isinstance(exc, BrokenPipeError):
         code = 128 + signal.SIGPIPE if stdout_gone() else None
+    elif _raised_writing_stdout(exc):
+        print(f"error: standard output: {one_line(exc)}; the command's messages could not be written (what it "
+              "wrote in its folders is whole)", file=sys.stderr)
+        code = EXIT_USAGE
     else:
-        try:  # a line written past the buffers fails again only where standard output is the fault (a stray
-            os.write(1, b"\n")  # newline otherwise, on the way to the other error's report)
-            code = None
-        except OSError as again:
-            print(f"error: standard output: {one_line(again)}; the command's messages could not be written (what it "
-                  "wrote in its folders is whole)", file=sys.stderr)
-            code = EXIT_USAGE
+        code = None
     if code is not None:
         os.dup2(os.open(os.devnull, os.O_WRONLY), 1)
     return code
+
+
+def _raised_writing_stdout(exc: BaseException) -> bool:
+    """Whether `exc` came out of a write to standard output: the statement it was raised in (the innermost one of
+    its traceback) prints without `file=`, or writes or flushes `sys.stdout`. Read, not probed: a probe written
+    to a working output would add a line to it, and one to a failing output would blame it for another's error."""
+    import traceback
+
+    frames = traceback.extract_tb(exc.__traceback__) if exc.__traceback__ is not None else []
+    line = (frames[-1].line or "") if frames else ""
+    return (line.startswith("print(") and "file=" not in line) or line.startswith(("sys.stdout.", "print()"))
 
 
 def keep_stdout_failures_short(main: Callable[[], int]) -> int:
@@ -164,7 +173,7 @@ def check_text_arguments(argv: Sequence[str], positional: str) -> None:
             flag, value = (argv[i - 1] if i and argv[i - 1].startswith("--") else positional), arg
         if (problem := text_name_problem(arg)) is None:
             long = max(value.split(os.sep), key=lambda part: len(os.fsencode(part)))
-            if len(os.fsencode(long)) > 255 and not value.startswith("-"):  # no file can have it (no free text here)
+            if len(os.fsencode(long)) > 255 and not value.startswith("-") and "," not in value:  # no file has it
                 raise UsageError(f"{flag}: {value[:60]!r}... holds a name of {len(os.fsencode(long))} bytes; expected "
                                  "names of at most 255 bytes (the file system's limit)")
             real = os.path.realpath(value) if value and not value.startswith("-") and os.path.lexists(value) else ""

@@ -269,7 +269,8 @@ def check_not_in_object_folder(path: str | os.PathLike, flag: str = "--out") -> 
     from scenes.cli.errors import UsageError
 
     real = Path(os.path.realpath(path))
-    held = next((p for p in (real, *real.parents) if os.path.lexists(p / SCENE_FILE)), None)
+    held = next((p for p in (real, *real.parents)  # an object folder's: a scene file beside a mask (another tool's
+                 if (p / SCENE_FILE).is_file() and (p / MASK_FILE).is_file()), None)  # scene.json alone is not one)
     if held is not None:
         where = "is" if held == real else f"lies inside {str(held)!r},"
         raise UsageError(f"{flag}: {str(path)!r} {where} an object folder (it holds {SCENE_FILE}); expected a "
