@@ -11,6 +11,7 @@ import lzma
 import tarfile
 from pathlib import Path
 
+from orchestrate.archives import UNPACKED_LIMIT
 from scenes.cli.errors import UsageError
 
 ASSET_ARCHIVE = "assets.tar.xz"
@@ -84,7 +85,6 @@ def check_assets(assets: Path) -> Chosen:
     if not meshes and not hdris:
         raise UsageError(f"--assets: {str(assets)!r} has too few meshes and HDR maps to split into training and "
                          "held-out assets (expected meshes/ and hdri/ as in ../shared/assets)")
-    from orchestrate.archives import UNPACKED_LIMIT
     from orchestrate.asset_split import check_packable
 
     if (total := sum(p.stat().st_size for p, _ in meshes)) > UNPACKED_LIMIT:  # before minutes of reading
@@ -105,16 +105,14 @@ def pack_assets(assets: Path, dest: Path, budget: int, chosen: Chosen | None = N
     if used > budget:
         raise UsageError(f"--assets: the training meshes and maps of {str(assets)!r} need {used} bytes compressed, "
                          f"over the {budget} bytes the upload limit leaves (expected a smaller asset folder)")
-    from orchestrate.archives import UNPACKED_LIMIT
-
     packed_sets, skipped, unpacked = [], [], sum(len(b) for _, b in members)
     for files in sets:
         data = [(a, p.read_bytes()) for p, a in files]
-        size = sum(len(lzma.compress(b, preset=6)) for _, b in data)
+        size, raw = sum(len(lzma.compress(b, preset=6)) for _, b in data), sum(len(b) for _, b in data)
         name = str(Path(files[0][1]).parent)
-        if used + size <= budget and unpacked + sum(len(b) for _, b in data) <= UNPACKED_LIMIT:
+        if used + size <= budget and unpacked + raw <= UNPACKED_LIMIT:
             members = members + data  # not the caller's list
-            used, unpacked = used + size, unpacked + sum(len(b) for _, b in data)
+            used, unpacked = used + size, unpacked + raw
             packed_sets.append(name)
         else:
             skipped.append(name)
